@@ -1,0 +1,530 @@
+"""Typed, validated configuration: frozen dataclasses loaded from TOML.
+
+Every controller setting defaults to the paper's value (Section 4), so
+``ControllerConfig()`` is the paper's controller. An experiment file
+(``configs/*.toml``) has the sections ``[robot]``, ``[controller]``,
+``[controller.observer]``, ``[plant]``, ``[reference]``, ``[disturbance]``
+(with optional ``[disturbance.friction]`` and ``[disturbance.pulse]``) and
+``[simulation]``; see ``configs/paper_combined.toml`` for every key.
+
+Validation happens here, at the boundary: unknown keys, wrong types, non-finite
+numbers, vectors of the wrong length and out-of-range values raise one
+:class:`~hmpc_pin.exceptions.ConfigError` naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from .exceptions import ConfigError
+
+__all__ = [
+    "ControllerConfig",
+    "DisturbanceConfig",
+    "ExperimentConfig",
+    "FrictionConfig",
+    "ObserverConfig",
+    "PlantConfig",
+    "PulseConfig",
+    "ReferenceConfig",
+    "RobotConfig",
+    "SimulationConfig",
+    "load_config",
+]
+
+
+# ----------------------------------------------------------------- converters
+def _float(key: str, value, *, positive: bool = False, nonneg: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ConfigError(key, f"expected a number, got {type(value).__name__} {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ConfigError(key, f"expected a finite number, got {x!r}")
+    if positive and x <= 0:
+        raise ConfigError(key, f"expected a number > 0, got {x!r}")
+    if nonneg and x < 0:
+        raise ConfigError(key, f"expected a number >= 0, got {x!r}")
+    return x
+
+
+def _int(key: str, value, *, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ConfigError(key, f"expected an integer, got {type(value).__name__} {value!r}")
+    if minimum is not None and value < minimum:
+        raise ConfigError(key, f"expected an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _bool(key: str, value) -> bool:
+    if not isinstance(value, bool):
+        raise ConfigError(key, f"expected true or false, got {type(value).__name__} {value!r}")
+    return value
+
+
+def _choice(key: str, value, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise ConfigError(key, f"expected one of {choices}, got {value!r}")
+    return value
+
+
+def _array(key: str, value, *, nonneg: bool = False, positive: bool = False) -> np.ndarray:
+    """A finite float scalar or 1-D vector (length checked later against the robot)."""
+    if isinstance(value, np.ndarray):
+        items = value.tolist()
+    else:
+        items = value
+    if isinstance(items, (list, tuple)):
+        if len(items) == 0:
+            raise ConfigError(key, "expected a number or a non-empty list of numbers, got []")
+        arr = np.array([_float(f"{key}[{i}]", v) for i, v in enumerate(items)], dtype=float)
+    else:
+        arr = np.array(_float(key, items), dtype=float)
+    if positive and np.any(arr <= 0):
+        raise ConfigError(key, f"expected values > 0, got {arr.tolist()}")
+    if nonneg and np.any(arr < 0):
+        raise ConfigError(key, f"expected values >= 0, got {arr.tolist()}")
+    return arr
+
+
+def _weight(key: str, value) -> np.ndarray:
+    """A 2×2 PSD weight given as a diagonal [a, b] or a full [[..],[..]] matrix."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(key, f"expected [a, b] or a 2x2 matrix, got {value!r}") from exc
+    if arr.shape == (2,):
+        arr = np.diag(arr)
+    if arr.shape != (2, 2):
+        raise ConfigError(key, f"expected a diagonal [a, b] or a 2x2 matrix, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(key, f"expected finite numbers, got {arr.tolist()}")
+    if not np.allclose(arr, arr.T):
+        raise ConfigError(key, f"expected a symmetric matrix, got {arr.tolist()}")
+    eig = np.linalg.eigvalsh(arr)
+    if eig.min() < 0 or eig.max() <= 0:
+        raise ConfigError(
+            key,
+            f"expected a positive semi-definite, non-zero weight, got eigenvalues {eig.tolist()}",
+        )
+    return arr
+
+
+def _set(obj, name: str, value) -> None:
+    object.__setattr__(obj, name, value)
+
+
+# -------------------------------------------------------------------- sections
+@dataclass(frozen=True, eq=False)
+class ObserverConfig:
+    """Disturbance observer settings (Section 3.2, Eq 28–30).
+
+    Attributes:
+        enabled: Use the observer; ``False`` gives the baseline without NDO (d̂ = 0).
+        kind: ``"chen"`` (Y lower-triangular ones, the paper's Eq 28, planar arms)
+            or ``"diagonal"`` (Y = I, p = c·q̇, valid for any arm).
+        gain: Observer gain c (the paper does not give it; 100 is this project's choice, README).
+        discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``.
+    """
+
+    enabled: bool = True
+    kind: str = "chen"
+    gain: float = 100.0
+    discretization: str = "implicit"
+
+    def __post_init__(self):
+        _set(self, "enabled", _bool("enabled", self.enabled))
+        _set(self, "kind", _choice("kind", self.kind, ("chen", "diagonal")))
+        _set(self, "gain", _float("gain", self.gain, positive=True))
+        _set(
+            self,
+            "discretization",
+            _choice("discretization", self.discretization, ("implicit", "explicit")),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class ControllerConfig:
+    """Hierarchical MPC settings; every default is the paper's value (Section 4).
+
+    Attributes:
+        Ts: Control period [s] (paper: 0.01).
+        N: Prediction horizon [steps] (paper: 10).
+        Nc: Control horizon [steps], 1 <= Nc <= N (paper: 1).
+        Q: State weight on [q − r, q̇ − ṙ], diagonal or 2×2 (paper: diag(50, 0)).
+        R: Input weight, > 0 (paper: 1e-6).
+        P: Terminal weight (paper: 2Q = diag(100, 0)).
+        v_min, v_max: Bounds of the commanded acceleration v [rad/s²], scalar or per joint
+            (paper: −100, 100).
+        observer: :class:`ObserverConfig`.
+        eps_abs: ProxSuite absolute tolerance.
+        max_iter: ProxSuite iteration cap per solve.
+    """
+
+    Ts: float = 0.01
+    N: int = 10
+    Nc: int = 1
+    Q: np.ndarray = field(default_factory=lambda: np.diag([50.0, 0.0]))
+    R: float = 1e-6
+    P: np.ndarray = field(default_factory=lambda: np.diag([100.0, 0.0]))
+    v_min: np.ndarray = -100.0
+    v_max: np.ndarray = 100.0
+    observer: ObserverConfig = field(default_factory=ObserverConfig)
+    eps_abs: float = 1e-9
+    max_iter: int = 1000
+
+    def __post_init__(self):
+        _set(self, "Ts", _float("Ts", self.Ts, positive=True))
+        _set(self, "N", _int("N", self.N, minimum=1))
+        _set(self, "Nc", _int("Nc", self.Nc, minimum=1))
+        if self.Nc > self.N:
+            raise ConfigError("Nc", f"{self.Nc=} but {self.N=}; expected 1 <= Nc <= N")
+        _set(self, "Q", _weight("Q", self.Q))
+        _set(self, "P", _weight("P", self.P))
+        _set(self, "R", _float("R", self.R, positive=True))
+        _set(self, "v_min", _array("v_min", self.v_min))
+        _set(self, "v_max", _array("v_max", self.v_max))
+        if self.v_min.shape != self.v_max.shape and self.v_min.ndim and self.v_max.ndim:
+            raise ConfigError(
+                "v_max", f"{self.v_min.shape=} but {self.v_max.shape=}; give both per joint"
+            )
+        if np.any(self.v_min >= self.v_max):
+            raise ConfigError(
+                "v_min",
+                f"v_min={self.v_min.tolist()} must be < v_max={self.v_max.tolist()} on every joint",
+            )
+        if isinstance(self.observer, dict):
+            _set(self, "observer", _section(ObserverConfig, self.observer, "observer"))
+        elif not isinstance(self.observer, ObserverConfig):
+            raise ConfigError("observer", f"expected a table, got {self.observer!r}")
+        _set(self, "eps_abs", _float("eps_abs", self.eps_abs, positive=True))
+        _set(self, "max_iter", _int("max_iter", self.max_iter, minimum=1))
+
+    def bounds(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(v_min, v_max)`` broadcast to ``n`` joints; raises if a vector has the wrong length."""
+        out = []
+        for name in ("v_min", "v_max"):
+            arr = getattr(self, name)
+            if arr.ndim == 1 and arr.shape != (n,):
+                raise ConfigError(
+                    f"controller.{name}",
+                    f"has {arr.shape[0]} entries but the robot has {n} joints",
+                )
+            out.append(np.broadcast_to(arr, (n,)).astype(float))
+        return out[0], out[1]
+
+
+@dataclass(frozen=True, eq=False)
+class RobotConfig:
+    """The controller's robot model.
+
+    Attributes:
+        urdf: URDF path (relative paths are relative to the config file).
+        gravity: Gravity magnitude [m/s²] along −z (paper: 9.8).
+    """
+
+    urdf: Path = Path("robots/planar3.urdf")
+    gravity: float = 9.8
+
+    def __post_init__(self):
+        if not isinstance(self.urdf, (str, Path)):
+            raise ConfigError("urdf", f"expected a path string, got {self.urdf!r}")
+        _set(self, "urdf", Path(self.urdf))
+        _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
+
+
+@dataclass(frozen=True, eq=False)
+class PlantConfig:
+    """The simulated plant.
+
+    Attributes:
+        urdf: URDF of the plant; ``None`` uses the controller's model (no mismatch).
+        gravity: Plant gravity [m/s²]; ``None`` uses the robot's.
+        dt: Integration step [s], must divide the control period (default 1 ms).
+        integrator: ``"rk4"`` (default) or ``"euler"`` (semi-implicit).
+    """
+
+    urdf: Path | None = None
+    gravity: float | None = None
+    dt: float = 0.001
+    integrator: str = "rk4"
+
+    def __post_init__(self):
+        if self.urdf is not None:
+            if not isinstance(self.urdf, (str, Path)):
+                raise ConfigError("urdf", f"expected a path string, got {self.urdf!r}")
+            _set(self, "urdf", Path(self.urdf))
+        if self.gravity is not None:
+            _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
+        _set(self, "dt", _float("dt", self.dt, positive=True))
+        _set(self, "integrator", _choice("integrator", self.integrator, ("rk4", "euler")))
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceConfig:
+    """Joint reference :math:`r_i = o_i + a_i \\sin(2\\pi f_i t + \\phi_i)` (Eq 31).
+
+    Attributes:
+        kind: ``"sine"``.
+        amplitude: a [rad] (paper: 1), scalar or per joint.
+        frequency: f [Hz] (paper: 0.1, i.e. 0.2π rad/s).
+        offset: o [rad] (paper: 0).
+        phase: φ [rad] (paper: 0).
+    """
+
+    kind: str = "sine"
+    amplitude: np.ndarray = 1.0
+    frequency: np.ndarray = 0.1
+    offset: np.ndarray = 0.0
+    phase: np.ndarray = 0.0
+
+    def __post_init__(self):
+        _set(self, "kind", _choice("kind", self.kind, ("sine",)))
+        _set(self, "amplitude", _array("amplitude", self.amplitude))
+        _set(self, "frequency", _array("frequency", self.frequency, nonneg=True))
+        _set(self, "offset", _array("offset", self.offset))
+        _set(self, "phase", _array("phase", self.phase))
+
+
+@dataclass(frozen=True, eq=False)
+class FrictionConfig:
+    """Coulomb–viscous friction, Eq (32), opposing motion (SPEC §3).
+
+    Attributes:
+        viscous: a [N·m·s/rad] (paper: 10, 8, 5).
+        coulomb: b [N·m] (paper: 3.0, 2.4, 1.8).
+    """
+
+    viscous: np.ndarray = field(default_factory=lambda: np.array([10.0, 8.0, 5.0]))
+    coulomb: np.ndarray = field(default_factory=lambda: np.array([3.0, 2.4, 1.8]))
+
+    def __post_init__(self):
+        _set(self, "viscous", _array("viscous", self.viscous, nonneg=True))
+        _set(self, "coulomb", _array("coulomb", self.coulomb, nonneg=True))
+
+
+@dataclass(frozen=True, eq=False)
+class PulseConfig:
+    """Gaussian-shaped external torque pulse, Eq (33).
+
+    Attributes:
+        amplitude: a [N·m] (paper: 10, 8, 0.3).
+        center: b [s] (paper: 1, 2, 3).
+        sigma: σ [s] (paper: 0.3).
+    """
+
+    amplitude: np.ndarray = field(default_factory=lambda: np.array([10.0, 8.0, 0.3]))
+    center: np.ndarray = field(default_factory=lambda: np.array([1.0, 2.0, 3.0]))
+    sigma: np.ndarray = 0.3
+
+    def __post_init__(self):
+        _set(self, "amplitude", _array("amplitude", self.amplitude))
+        _set(self, "center", _array("center", self.center))
+        _set(self, "sigma", _array("sigma", self.sigma, positive=True))
+
+
+@dataclass(frozen=True, eq=False)
+class DisturbanceConfig:
+    """The plant's disturbance: friction, pulse, both (Eq 34) or none.
+
+    Attributes:
+        friction: :class:`FrictionConfig` or ``None``.
+        pulse: :class:`PulseConfig` or ``None``.
+    """
+
+    friction: FrictionConfig | None = None
+    pulse: PulseConfig | None = None
+
+    def __post_init__(self):
+        for name, cls in (("friction", FrictionConfig), ("pulse", PulseConfig)):
+            value = getattr(self, name)
+            if isinstance(value, dict):
+                _set(self, name, _section(cls, value, name))
+            elif value is not None and not isinstance(value, cls):
+                raise ConfigError(name, f"expected a table, got {value!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationConfig:
+    """Closed-loop run settings.
+
+    Attributes:
+        duration: Simulated time [s] (paper: 10).
+        q0: Initial joint angles [rad] (paper: 1, 1, 1).
+        dq0: Initial joint velocities [rad/s] (paper: 0).
+    """
+
+    duration: float = 10.0
+    q0: np.ndarray = field(default_factory=lambda: np.array([1.0, 1.0, 1.0]))
+    dq0: np.ndarray = 0.0
+
+    def __post_init__(self):
+        _set(self, "duration", _float("duration", self.duration, positive=True))
+        _set(self, "q0", _array("q0", self.q0))
+        _set(self, "dq0", _array("dq0", self.dq0))
+
+
+@dataclass(frozen=True, eq=False)
+class ExperimentConfig:
+    """A whole experiment: robot, controller, plant, reference, disturbance, run.
+
+    Attributes:
+        name: Short name (defaults to the file stem).
+        description: Free text, e.g. the paper section reproduced.
+        source: The TOML file it was loaded from, if any.
+    """
+
+    name: str = "experiment"
+    description: str = ""
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    plant: PlantConfig = field(default_factory=PlantConfig)
+    reference: ReferenceConfig = field(default_factory=ReferenceConfig)
+    disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
+    simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    source: Path | None = None
+
+    def __post_init__(self):
+        for name in ("name", "description"):
+            if not isinstance(getattr(self, name), str):
+                raise ConfigError(name, f"expected a string, got {getattr(self, name)!r}")
+
+    def vector(self, key: str, n: int) -> np.ndarray:
+        """The dotted ``key`` (e.g. ``"simulation.q0"``) broadcast to ``n`` joints."""
+        section, name = key.split(".")
+        value = getattr(getattr(self, section), name)
+        if value.ndim == 1 and value.shape != (n,):
+            raise ConfigError(
+                key,
+                f"has {value.shape[0]} entries but the robot has {n} joints; "
+                f"give {n} values or one value for all joints",
+                source=str(self.source) if self.source else None,
+            )
+        return np.broadcast_to(value, (n,)).astype(float)
+
+    def check_dimensions(self, n: int) -> None:
+        """Raise :class:`ConfigError` if any per-joint vector does not have ``n`` entries."""
+        keys = [
+            "simulation.q0",
+            "simulation.dq0",
+            "reference.amplitude",
+            "reference.frequency",
+            "reference.offset",
+            "reference.phase",
+        ]
+        if self.disturbance.friction is not None:
+            keys += ["disturbance.friction.viscous", "disturbance.friction.coulomb"]
+        if self.disturbance.pulse is not None:
+            keys += [
+                "disturbance.pulse.amplitude",
+                "disturbance.pulse.center",
+                "disturbance.pulse.sigma",
+            ]
+        for key in keys:
+            parts = key.split(".")
+            obj = self
+            for p in parts:
+                obj = getattr(obj, p)
+            if obj.ndim == 1 and obj.shape != (n,):
+                raise ConfigError(
+                    key,
+                    f"has {obj.shape[0]} entries but the robot has {n} joints; "
+                    f"give {n} values or one value for all joints",
+                    source=str(self.source) if self.source else None,
+                )
+        try:
+            self.controller.bounds(n)
+        except ConfigError as exc:
+            raise ConfigError(
+                exc.key, exc.message, source=str(self.source) if self.source else None
+            ) from None
+
+
+# ---------------------------------------------------------------------- loader
+def _section(cls, data, prefix: str):
+    """Build dataclass ``cls`` from a TOML table, naming keys with ``prefix``."""
+    if not isinstance(data, dict):
+        raise ConfigError(prefix, f"expected a table, got {type(data).__name__} {data!r}")
+    allowed = {f.name for f in fields(cls)} - {"source"}
+    unknown = sorted(set(data) - allowed)
+    if unknown:
+        raise ConfigError(
+            f"{prefix}.{unknown[0]}",
+            f"unknown key; allowed keys in [{prefix}] are {sorted(allowed)}",
+        )
+    try:
+        return cls(**data)
+    except ConfigError as exc:
+        key = exc.key if exc.key.startswith(prefix + ".") else f"{prefix}.{exc.key}"
+        msg = exc.message
+        raise ConfigError(key, msg) from None
+
+
+def load_config(path: str | Path) -> ExperimentConfig:
+    """Load and validate an experiment TOML file.
+
+    Relative URDF paths are resolved against the config file's directory. The
+    controller's robot is loaded once to check every per-joint vector's length.
+
+    Raises:
+        ConfigError: Missing or unreadable file, invalid TOML, unknown key, wrong
+            type or value; the message names the file and the key.
+        URDFError: The robot's URDF is invalid.
+    """
+    path = Path(path)
+    src = str(path)
+    if not path.is_file():
+        raise ConfigError("<file>", "config file not found; pass a .toml file path", source=src)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError("<file>", f"cannot be read ({exc})", source=src) from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("<file>", f"not valid TOML: {exc}", source=src) from exc
+
+    sections = {
+        "robot": RobotConfig,
+        "controller": ControllerConfig,
+        "plant": PlantConfig,
+        "reference": ReferenceConfig,
+        "disturbance": DisturbanceConfig,
+        "simulation": SimulationConfig,
+    }
+    top_allowed = set(sections) | {"name", "description"}
+    unknown = sorted(set(raw) - top_allowed)
+    if unknown:
+        raise ConfigError(
+            unknown[0], f"unknown key; allowed top-level keys are {sorted(top_allowed)}", source=src
+        )
+    kwargs: dict = {"name": raw.get("name", path.stem), "description": raw.get("description", "")}
+    try:
+        for name, cls in sections.items():
+            if name in raw:
+                kwargs[name] = _section(cls, raw[name], name)
+        base = path.parent
+        robot = kwargs.get("robot", RobotConfig())
+        if not robot.urdf.is_absolute():
+            robot = RobotConfig(urdf=(base / robot.urdf).resolve(), gravity=robot.gravity)
+        kwargs["robot"] = robot
+        plant = kwargs.get("plant", PlantConfig())
+        if plant.urdf is not None and not plant.urdf.is_absolute():
+            plant = PlantConfig(
+                urdf=(base / plant.urdf).resolve(),
+                gravity=plant.gravity,
+                dt=plant.dt,
+                integrator=plant.integrator,
+            )
+        kwargs["plant"] = plant
+        config = ExperimentConfig(**kwargs, source=path)
+    except ConfigError as exc:
+        raise ConfigError(exc.key, exc.message, source=src) from None
+
+    from .robot import load_robot  # late import: config is usable without pinocchio
+
+    n = load_robot(config.robot.urdf, gravity=config.robot.gravity).nq
+    config.check_dimensions(n)
+    return config

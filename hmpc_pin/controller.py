@@ -1,0 +1,160 @@
+"""The hierarchical multiloop MPC (paper Figure 1): inverse dynamics + NDO + per-joint MPC.
+
+At every control instant :math:`t_k`:
+
+1. Pinocchio gives :math:`M(q_k)` and :math:`C\\dot q_k + G` at the measured state.
+2. The NDO (Eq 13) is advanced over the period that just ended with the torque
+   that was held over it, giving :math:`\\hat d_k`.
+3. Each joint's MPC (Eq 25–26) chooses its acceleration :math:`v_i` from the
+   reference sampled at :math:`t_k + jT_s,\\ j = 1..N`.
+4. Inverse dynamics (Eq 4): :math:`\\tau = M(q)v + C(q,\\dot q)\\dot q + G(q) - \\hat d`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .config import ControllerConfig
+from .exceptions import NonFiniteError
+from .joint_mpc import CondensedMPC, JointQPs
+from .observers import DisturbanceObserver
+from .references import sample_horizon
+from .robot import Robot
+
+__all__ = ["HierarchicalMPC"]
+
+
+class HierarchicalMPC:
+    """Inverse dynamics + nonlinear disturbance observer + one ProxSuite MPC per joint.
+
+    Args:
+        robot: The controller's model of the arm (its :class:`~hmpc_pin.robot.Robot`).
+        config: Settings; the default is the paper's controller (Section 4).
+
+    Attributes:
+        disturbance_estimate: :math:`\\hat d` [N·m], shape (n,), updated by :meth:`step`
+            (zeros when the observer is disabled).
+        v: The last commanded accelerations [rad/s²], shape (n,).
+        tau: The last torque [N·m], shape (n,).
+
+    Example:
+        >>> robot = hmpc_pin.load_robot("robots/planar3.urdf")
+        >>> ctrl = hmpc_pin.HierarchicalMPC(robot)
+        >>> ctrl.reset(q0, dq0)
+        >>> tau = ctrl.step(t, q, dq, hmpc_pin.SineReference(robot.nq))
+    """
+
+    def __init__(self, robot: Robot, config: ControllerConfig | None = None):
+        self.robot = robot
+        self.config = config = config if config is not None else ControllerConfig()
+        n = robot.nq
+        self.n = n
+        v_min, v_max = config.bounds(n)
+        self.mpc = CondensedMPC(config.Ts, config.N, config.Nc, config.Q, config.R, config.P)
+        self.qps = JointQPs(
+            self.mpc,
+            v_min,
+            v_max,
+            robot.joint_names,
+            eps_abs=config.eps_abs,
+            max_iter=config.max_iter,
+        )
+        obs = config.observer
+        self.observer = (
+            DisturbanceObserver(n, config.Ts, obs.gain, obs.kind, obs.discretization)
+            if obs.enabled
+            else None
+        )
+        self._offsets = config.Ts * np.arange(1, config.N + 1)
+        self._stack = np.empty((2 * config.N + 2, n))
+        self.disturbance_estimate = np.zeros(n)
+        self.v = np.zeros(n)
+        self.tau = np.zeros(n)
+        self._started = False
+
+    @property
+    def Ts(self) -> float:
+        """Control period [s]."""
+        return self.config.Ts
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
+        """Start a new run from the state ``(q0, dq0)``; the estimate restarts at zero."""
+        self.robot.check_vector("q0", q0)
+        dq0 = self.robot.check_vector("dq0", dq0)
+        if self.observer is not None:
+            self.observer.reset(dq0)
+        self.disturbance_estimate = np.zeros(self.n)
+        self.v = np.zeros(self.n)
+        self.tau = np.zeros(self.n)
+        self._started = False
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """Compute the torque for the measured state at time ``t``.
+
+        Call once per control period :math:`T_s`, after :meth:`reset`. The
+        observer assumes the torque returned by the previous call was held since.
+
+        Args:
+            t: Time [s].
+            q: Measured joint positions [rad], shape (n,).
+            dq: Measured joint velocities [rad/s], shape (n,).
+            reference: Object with ``sample(t) -> (q_ref, dq_ref)``.
+
+        Returns:
+            Joint torques :math:`\\tau` [N·m], shape (n,), Eq (4).
+
+        Raises:
+            NonFiniteError: ``t``, ``q``, ``dq`` or the reference is not finite.
+            DimensionError: ``q``, ``dq`` or the reference has the wrong shape.
+            SolverError: A joint QP did not report solved.
+        """
+        if not math.isfinite(t):
+            raise NonFiniteError("t", t)
+        q = np.asarray(q, dtype=float)
+        dq = np.asarray(dq, dtype=float)
+        n = self.n
+        if q.shape != (n,) or dq.shape != (n,):
+            self.robot.check_vector("q", q)
+            self.robot.check_vector("dq", dq)
+        if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+            self.robot.check_vector("q", q)
+            self.robot.check_vector("dq", dq)
+
+        robot = self.robot
+        M = robot.mass_matrix(q)
+        nle = robot.nonlinear_effects(q, dq)
+
+        if self.observer is not None:
+            if self._started:
+                self.disturbance_estimate = self.observer.update(M, nle, dq, self.tau)
+            else:
+                self.disturbance_estimate = self.observer.estimate.copy()
+
+        q_ref, dq_ref = sample_horizon(reference, t + self._offsets)
+        if q_ref.shape != (self.config.N, n) or dq_ref.shape != (self.config.N, n):
+            from .exceptions import DimensionError
+
+            raise DimensionError(
+                f"reference.sample returned q_ref of shape {q_ref.shape[1:]} and dq_ref of "
+                f"shape {dq_ref.shape[1:]} but the robot has {n} joints; return two "
+                f"arrays of shape ({n},)"
+            )
+        if not (np.isfinite(q_ref).all() and np.isfinite(dq_ref).all()):
+            bad = int(np.argwhere(~np.isfinite(q_ref + dq_ref).all(axis=1))[0, 0])
+            raise NonFiniteError(
+                "reference", (q_ref[bad], dq_ref[bad]), f"at t={t + self._offsets[bad]:.6g}"
+            )
+
+        S = self._stack
+        S[0] = q
+        S[1] = dq
+        S[2::2] = q_ref
+        S[3::2] = dq_ref
+        G = S.T @ self.mpc.FT  # (n, Nc), one row per joint
+        self.v = v = self.qps.solve(G)
+
+        self.tau = M @ v + nle - self.disturbance_estimate
+        self._started = True
+        return self.tau.copy()

@@ -1,0 +1,96 @@
+"""Exceptions raised by hmpc_pin.
+
+Every error the package raises derives from :class:`HmpcError`, so a caller can
+catch the package's errors without catching programming errors. Errors about
+bad input also derive from :class:`ValueError`; solver failures derive from
+:class:`RuntimeError`. Messages name the offending value, what was expected and
+what to do next.
+"""
+
+from __future__ import annotations
+
+
+class HmpcError(Exception):
+    """Base class of every error raised by hmpc_pin."""
+
+
+class ConfigError(HmpcError, ValueError):
+    """A configuration value (TOML file, dataclass field) is invalid.
+
+    Attributes:
+        key: Dotted name of the offending key, e.g. ``"controller.N"``.
+    """
+
+    def __init__(self, key: str, message: str, source: str | None = None):
+        self.key = key
+        self.message = message
+        self.source = source
+        where = f"{source}: " if source else ""
+        super().__init__(f"{where}{key}: {message}")
+
+
+class URDFError(HmpcError, ValueError):
+    """A URDF file is missing, malformed, or describes an unsupported robot.
+
+    Attributes:
+        path: The URDF file (or robot name) that was rejected.
+    """
+
+    def __init__(self, path: str, message: str):
+        self.path = str(path)
+        super().__init__(f"{path}: {message}")
+
+
+class NonFiniteError(HmpcError, ValueError):
+    """A state, time, reference or torque contains NaN or infinity.
+
+    Attributes:
+        name: What was non-finite (``"q"``, ``"dq"``, ``"t"``, ``"q_ref"``, ...).
+        value: The offending value.
+    """
+
+    def __init__(self, name: str, value, context: str = ""):
+        self.name = name
+        self.value = value
+        ctx = f" {context}" if context else ""
+        super().__init__(
+            f"{name} is not finite{ctx}: {name}={value!r}; "
+            "the controller only accepts finite numbers (check the sensor "
+            "values or the simulation for divergence)"
+        )
+
+
+class DimensionError(HmpcError, ValueError):
+    """An array has the wrong shape for the robot it is used with."""
+
+
+class SolverError(HmpcError, RuntimeError):
+    """A joint QP did not report ``PROXQP_SOLVED``.
+
+    Attributes:
+        joint: Index of the joint whose QP failed.
+        status: ProxSuite's status as a string.
+    """
+
+    def __init__(self, joint: int, joint_name: str, status: str, iterations: int):
+        self.joint = joint
+        self.status = status
+        super().__init__(
+            f"joint {joint} ({joint_name!r}) MPC QP was not solved: "
+            f"status={status} after {iterations} iterations; no torque was "
+            "returned. Check the MPC weights and bounds (controller.Q, R, P, "
+            "v_min, v_max) or raise controller.max_iter"
+        )
+
+
+class SimulationError(HmpcError, RuntimeError):
+    """A closed-loop run stopped early (non-finite state, divergence, solver failure).
+
+    Attributes:
+        result: The partial :class:`~hmpc_pin.simulate.Result` up to the failing step,
+            marked ``complete=False``.
+    """
+
+    def __init__(self, message: str, result=None):
+        self.result = result
+        super().__init__(message)

@@ -1,0 +1,64 @@
+"""Tracking and observer metrics of a :class:`~hmpc_pin.simulate.Result`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Metrics", "compute_metrics", "settling_time"]
+
+
+def settling_time(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
+    """Per joint, the first time after which |error| stays below ``tol`` for good.
+
+    Returns ``t[0]`` if it never leaves the band and ``nan`` if it is outside at
+    the last sample. ``error`` has shape (K+1, n).
+    """
+    outside = np.abs(error) >= tol
+    out = np.full(error.shape[1], np.nan)
+    for i in range(error.shape[1]):
+        idx = np.flatnonzero(outside[:, i])
+        if idx.size == 0:
+            out[i] = t[0]
+        elif idx[-1] < len(t) - 1:
+            out[i] = t[idx[-1] + 1]
+    return out
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Per-joint metrics (arrays of shape (n,)).
+
+    Attributes:
+        rms_error, max_error: RMS and max |q − r| after ``after`` seconds [rad].
+        settling_time: Time to stay within ``tol`` for good [s] (nan: never).
+        observer_rms, observer_peak: RMS and max |d − d̂| after ``after`` seconds [N·m].
+        tau_peak: max |τ| over the whole run [N·m].
+    """
+
+    rms_error: np.ndarray
+    max_error: np.ndarray
+    settling_time: np.ndarray
+    observer_rms: np.ndarray
+    observer_peak: np.ndarray
+    tau_peak: np.ndarray
+    after: float
+    tol: float
+
+
+def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
+    """Metrics of ``result`` with errors taken over ``t >= after`` [s] and band ``tol`` [rad]."""
+    mask = result.t >= after - 1e-12
+    e = result.error[mask]
+    w = result.observer_error[mask]
+    return Metrics(
+        rms_error=np.sqrt(np.mean(e**2, axis=0)),
+        max_error=np.abs(e).max(axis=0),
+        settling_time=settling_time(result.t, result.error, tol),
+        observer_rms=np.sqrt(np.mean(w**2, axis=0)),
+        observer_peak=np.abs(w).max(axis=0),
+        tau_peak=np.abs(result.tau).max(axis=0),
+        after=after,
+        tol=tol,
+    )

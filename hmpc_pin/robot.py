@@ -1,0 +1,219 @@
+"""Robot model: a URDF loaded into Pinocchio, with the dynamics terms of Eq (1).
+
+.. math::  M(q)\\,\\ddot q + C(q,\\dot q)\\,\\dot q + G(q) = \\tau + d   \\qquad (1)
+
+Every dynamics quantity comes from Pinocchio: ``crba`` for :math:`M`,
+``nonLinearEffects`` for :math:`C\\dot q + G`, ``computeGeneralizedGravity`` for
+:math:`G`, ``aba`` for the forward dynamics and ``rnea`` for the inverse dynamics.
+No dynamics is written by hand.
+
+Before Pinocchio sees a file, the file is checked with the standard library's XML
+parser (well-formedness, with line and column) and with yourdfpy (URDF
+completeness), so that a bad file gets a message naming the file and the
+problem instead of urdfdom's terse output.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .exceptions import DimensionError, URDFError
+
+__all__ = ["Robot", "load_robot"]
+
+#: URDF joint types the controller supports (one coordinate, nq == nv).
+SUPPORTED_JOINT_TYPES = ("revolute", "prismatic")
+
+
+def _check_urdf_file(path: Path) -> None:
+    """Reject a missing, unreadable, malformed or incomplete URDF with a clear message."""
+    if not path.exists():
+        raise URDFError(path, "file not found; pass the path of a .urdf file")
+    if not path.is_file():
+        raise URDFError(path, "is not a file; pass the path of a .urdf file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise URDFError(path, f"cannot be read ({exc})") from exc
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        line, col = exc.position
+        raise URDFError(path, f"malformed XML at line {line}, column {col}: {exc.msg}") from exc
+    if root.tag != "robot":
+        raise URDFError(path, f"root element is <{root.tag}>, expected <robot>")
+
+    import yourdfpy  # local import: only needed on load
+
+    urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
+    if not urdf.validate():
+        problems = "; ".join(str(e) for e in urdf.errors) or "invalid URDF"
+        raise URDFError(path, f"incomplete or invalid URDF: {problems}")
+
+    unsupported = [
+        f"{j.name!r} ({j.type})"
+        for j in urdf.robot.joints
+        if j.type not in SUPPORTED_JOINT_TYPES + ("fixed",)
+    ]
+    if unsupported:
+        raise URDFError(
+            path,
+            "unsupported joint type(s): "
+            + ", ".join(unsupported)
+            + f"; hmpc_pin controls {' and '.join(SUPPORTED_JOINT_TYPES)} joints of a "
+            "fixed-base arm (one coordinate per joint). Replace continuous joints by "
+            "revolute joints with limits and remove floating/planar joints",
+        )
+    if not any(j.type in SUPPORTED_JOINT_TYPES for j in urdf.robot.joints):
+        raise URDFError(
+            path, "has no actuated joint (revolute or prismatic); there is nothing to control"
+        )
+
+
+class Robot:
+    """A fixed-base serial arm as a Pinocchio model with its own data.
+
+    Attributes:
+        model: The ``pin.Model`` (gravity set from the ``gravity`` argument).
+        data: The ``pin.Data`` this object owns; do not share it across threads.
+        name: Robot name (URDF ``<robot name>``).
+        source: Path of the URDF it was loaded from.
+        joint_names: Names of the controlled joints, in coordinate order.
+        lower, upper: Joint position limits [rad or m], shape (n,).
+        velocity_limit: Joint velocity limits [rad/s or m/s], shape (n,).
+        effort_limit: Joint effort limits [N·m or N], shape (n,).
+    """
+
+    def __init__(self, model: pin.Model, source: str | Path = "<model>"):
+        if model.nq != model.nv:
+            raise URDFError(
+                source,
+                f"{model.nq=} but {model.nv=}; only joints with one coordinate "
+                "(revolute, prismatic) are supported",
+            )
+        if model.nq == 0:
+            raise URDFError(source, "has no actuated joint; there is nothing to control")
+        self.model = model
+        self.data = model.createData()
+        self.source = str(source)
+        self.name = model.name
+        self.joint_names: tuple[str, ...] = tuple(model.names[1:])
+        self.lower = np.array(model.lowerPositionLimit, dtype=float)
+        self.upper = np.array(model.upperPositionLimit, dtype=float)
+        self.velocity_limit = np.array(model.velocityLimit, dtype=float)
+        self.effort_limit = np.array(model.effortLimit, dtype=float)
+        # Pinocchio's C++ CRBA fills only the upper triangle; some bindings
+        # symmetrise. Detect once, at a generic configuration (where M has
+        # non-zero off-diagonal terms), so the hot path does no needless work.
+        q = np.clip(
+            0.3 + 0.1 * np.arange(model.nq), model.lowerPositionLimit, model.upperPositionLimit
+        )
+        m = pin.crba(model, self.data, q)
+        self._symmetrize = not np.allclose(m, m.T)
+
+    @property
+    def nq(self) -> int:
+        """Number of joint coordinates n."""
+        return self.model.nq
+
+    @property
+    def gravity(self) -> float:
+        """Magnitude of gravity [m/s²] (acting along −z)."""
+        return float(-self.model.gravity.linear[2])
+
+    def copy(self) -> Robot:
+        """Return a robot with a copy of the model and its own fresh data."""
+        return Robot(self.model.copy(), self.source)
+
+    # ------------------------------------------------------------------ checks
+    def check_vector(self, name: str, value, *, finite: bool = True) -> np.ndarray:
+        """Convert ``value`` to a float array of shape (n,), or raise a clear error."""
+        arr = np.asarray(value, dtype=float)
+        if arr.shape != (self.nq,):
+            raise DimensionError(
+                f"{name} has shape {arr.shape} but the robot {self.name!r} has "
+                f"{self.nq} joints {self.joint_names}; pass a vector of shape ({self.nq},)"
+            )
+        if finite and not np.all(np.isfinite(arr)):
+            from .exceptions import NonFiniteError
+
+            raise NonFiniteError(name, arr)
+        return arr
+
+    # ---------------------------------------------------------------- dynamics
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Joint-space inertia matrix :math:`M(q)` (n×n, symmetric), Eq (1)."""
+        m = pin.crba(self.model, self.data, q)
+        if self._symmetrize:
+            m = np.triu(m) + np.triu(m, 1).T
+        return m.copy()
+
+    def nonlinear_effects(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """Coriolis, centrifugal and gravity torques :math:`C(q,\\dot q)\\dot q + G(q)` [N·m]."""
+        return pin.nonLinearEffects(self.model, self.data, q, dq).copy()
+
+    def gravity_torque(self, q: np.ndarray) -> np.ndarray:
+        """Gravity torques :math:`G(q)` [N·m]."""
+        return pin.computeGeneralizedGravity(self.model, self.data, q).copy()
+
+    def forward_dynamics(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Joint accelerations :math:`\\ddot q = M^{-1}(\\tau - C\\dot q - G)` by ABA [rad/s²]."""
+        return pin.aba(self.model, self.data, q, dq, tau).copy()
+
+    def inverse_dynamics(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+        """Torques :math:`M\\ddot q + C\\dot q + G` by RNEA [N·m]."""
+        return pin.rnea(self.model, self.data, q, dq, ddq).copy()
+
+    # -------------------------------------------------------------- kinematics
+    @property
+    def tool_frame(self) -> str:
+        """Name of the last frame of the kinematic tree (the tool point)."""
+        return self.model.frames[len(self.model.frames) - 1].name
+
+    def frame_placement(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
+        """World placement of ``frame`` (default: :attr:`tool_frame`) at ``q``."""
+        name = frame or self.tool_frame
+        if not self.model.existFrame(name):
+            raise DimensionError(
+                f"frame {name!r} is not in robot {self.name!r}; known frames: "
+                f"{[f.name for f in self.model.frames]}"
+            )
+        fid = self.model.getFrameId(name)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return pin.SE3(self.data.oMf[fid])
+
+    def __repr__(self) -> str:
+        return (
+            f"Robot({self.name!r}, n={self.nq}, joints={self.joint_names}, source={self.source!r})"
+        )
+
+
+def load_robot(path: str | Path, gravity: float = 9.8) -> Robot:
+    """Load a fixed-base arm from a URDF file into Pinocchio.
+
+    The file is validated first (existence, XML, URDF completeness, joint types)
+    so that a bad file raises :class:`~hmpc_pin.exceptions.URDFError` naming the
+    file and the problem.
+
+    Args:
+        path: Path of the ``.urdf`` file.
+        gravity: Magnitude of gravity [m/s²], acting along the world −z axis.
+            The paper uses 9.8 (Table 1), not Pinocchio's default 9.81.
+
+    Returns:
+        The :class:`Robot`.
+    """
+    path = Path(path)
+    if not np.isfinite(gravity) or gravity < 0:
+        raise URDFError(path, f"gravity={gravity!r}; expected a finite value >= 0")
+    _check_urdf_file(path)
+    try:
+        model = pin.buildModelFromUrdf(str(path))
+    except (ValueError, RuntimeError) as exc:
+        raise URDFError(path, f"Pinocchio could not build a model: {exc}") from exc
+    model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
+    return Robot(model, path)

@@ -1,0 +1,222 @@
+"""Closed-loop simulation: controller at period Ts, plant integrated with Pinocchio ABA.
+
+The torque returned by the controller at :math:`t_k` is held over
+:math:`[t_k, t_k + T_s)` (zero-order hold). The plant, which owns its own
+``pin.Model``/``pin.Data`` (possibly a different URDF: model mismatch), is
+integrated with a fixed step ``dt`` that divides :math:`T_s` (default 1 ms),
+
+.. math::  \\ddot q = \\mathrm{ABA}(q, \\dot q, \\tau + d(t, q, \\dot q)),
+
+with the disturbance evaluated at every plant step (and every RK4 stage).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .disturbances import ZeroDisturbance
+from .exceptions import HmpcError, NonFiniteError, SimulationError
+from .robot import Robot
+
+__all__ = ["Result", "simulate"]
+
+#: Arrays stored in a :class:`Result`, each of shape (K+1, n) except ``t`` (K+1,).
+RESULT_ARRAYS = ("t", "q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref")
+
+
+@dataclass
+class Result:
+    """Trajectories of a closed-loop run, sampled at the control instants.
+
+    Attributes:
+        t: Time [s], shape (K+1,).
+        q, dq: Joint positions [rad] and velocities [rad/s], shape (K+1, n).
+        tau: Torque computed at each instant and held over the next period [N·m].
+        d: True disturbance :math:`d(t_k, q_k, \\dot q_k)` [N·m].
+        d_hat: Observer estimate :math:`\\hat d_k` [N·m] (zeros without observer).
+        q_ref, dq_ref: Reference at :math:`t_k` [rad, rad/s].
+        joint_names: Names of the joints.
+        complete: ``False`` when the run stopped early; ``message`` says why.
+        meta: Free-form metadata (config name, settings), saved as JSON.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    d: np.ndarray
+    d_hat: np.ndarray
+    q_ref: np.ndarray
+    dq_ref: np.ndarray
+    joint_names: tuple[str, ...] = ()
+    complete: bool = True
+    message: str = ""
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def error(self) -> np.ndarray:
+        """Tracking error :math:`q - r` [rad], shape (K+1, n)."""
+        return self.q - self.q_ref
+
+    @property
+    def observer_error(self) -> np.ndarray:
+        """Observer error :math:`w = d - \\hat d` (Eq 14) [N·m]."""
+        return self.d - self.d_hat
+
+    def save(self, path: str | Path) -> Path:
+        """Write the arrays, joint names, completeness flag and metadata to ``.npz``."""
+        path = Path(path)
+        np.savez(
+            path,
+            **{name: getattr(self, name) for name in RESULT_ARRAYS},
+            joint_names=np.array(self.joint_names, dtype=str),
+            complete=np.array(self.complete),
+            message=np.array(self.message),
+            meta=np.array(json.dumps(self.meta)),
+        )
+        return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+    @classmethod
+    def load(cls, path: str | Path) -> Result:
+        """Read a result written by :meth:`save`."""
+        with np.load(path, allow_pickle=False) as f:
+            return cls(
+                **{name: f[name] for name in RESULT_ARRAYS},
+                joint_names=tuple(str(s) for s in f["joint_names"]),
+                complete=bool(f["complete"]),
+                message=str(f["message"]),
+                meta=json.loads(str(f["meta"])),
+            )
+
+
+def simulate(
+    robot: Robot,
+    controller,
+    reference,
+    disturbance=None,
+    *,
+    duration: float,
+    q0,
+    dq0=None,
+    plant: Robot | None = None,
+    dt: float = 0.001,
+    integrator: str = "rk4",
+    state_bound: float = 1e3,
+    meta: dict | None = None,
+) -> Result:
+    """Run the closed loop and return the sampled trajectories.
+
+    Args:
+        robot: The controller's model (used only for dimensions here).
+        controller: Object with ``Ts``, ``reset(q0, dq0)``, ``step(t, q, dq, reference)``
+            and ``disturbance_estimate`` (e.g. :class:`~hmpc_pin.HierarchicalMPC`).
+        reference: Object with ``sample(t) -> (q_ref, dq_ref)``.
+        disturbance: Callable ``d(t, q, dq) -> (n,)`` [N·m]; ``None`` for no disturbance.
+        duration: Simulated time [s].
+        q0, dq0: Initial state [rad, rad/s] (``dq0`` defaults to zero).
+        plant: The plant's model; ``None`` uses a copy of ``robot`` (no mismatch).
+        dt: Plant integration step [s]; must divide the control period.
+        integrator: ``"rk4"`` (classical Runge–Kutta) or ``"euler"`` (semi-implicit).
+        state_bound: The run stops as diverged if any |q| or |q̇| exceeds it.
+        meta: Metadata stored in the result.
+
+    Returns:
+        :class:`Result` with K+1 samples, K = round(duration / Ts).
+
+    Raises:
+        SimulationError: The state became non-finite or exceeded ``state_bound``, or
+            the controller failed; ``exc.result`` holds the run up to that step
+            (``complete=False``).
+    """
+    n = robot.nq
+    q = robot.check_vector("q0", q0).copy()
+    dq = robot.check_vector("dq0", np.zeros(n) if dq0 is None else dq0).copy()
+    plant = plant if plant is not None else robot.copy()
+    if plant.nq != n:
+        raise ValueError(f"{plant.nq=} but {robot.nq=}; the plant must have the same joints")
+    Ts = float(controller.Ts)
+    substeps = int(round(Ts / dt))
+    if substeps < 1 or abs(substeps * dt - Ts) > 1e-9 * Ts:
+        raise ValueError(f"plant dt={dt} does not divide the control period Ts={Ts}")
+    if integrator not in ("rk4", "euler"):
+        raise ValueError(f"integrator={integrator!r}; expected 'rk4' or 'euler'")
+    h = Ts / substeps
+    K = int(round(duration / Ts))
+    dist = disturbance if disturbance is not None else ZeroDisturbance(n)
+
+    t_arr = Ts * np.arange(K + 1)
+    rec = {name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"}
+    model, data = plant.model, plant.data
+    import pinocchio as pin
+
+    aba = pin.aba
+
+    def acc(t, q, dq, tau):
+        return aba(model, data, q, dq, tau + dist(t, q, dq))
+
+    controller.reset(q, dq)
+    last = -1
+    message = ""
+    try:
+        for k in range(K + 1):
+            t = t_arr[k]
+            tau = controller.step(t, q, dq, reference)
+            q_ref, dq_ref = reference.sample(t)
+            rec["q"][k] = q
+            rec["dq"][k] = dq
+            rec["tau"][k] = tau
+            rec["d"][k] = dist(t, q, dq)
+            rec["d_hat"][k] = controller.disturbance_estimate
+            rec["q_ref"][k] = q_ref
+            rec["dq_ref"][k] = dq_ref
+            last = k
+            if k == K:
+                break
+            if not np.isfinite(tau).all():
+                raise NonFiniteError("tau", tau, f"at t={t:.6g}")
+            for s in range(substeps):
+                ts = t + s * h
+                if integrator == "rk4":
+                    a1 = acc(ts, q, dq, tau)
+                    q2, dq2 = q + 0.5 * h * dq, dq + 0.5 * h * a1
+                    a2 = acc(ts + 0.5 * h, q2, dq2, tau)
+                    q3, dq3 = q + 0.5 * h * dq2, dq + 0.5 * h * a2
+                    a3 = acc(ts + 0.5 * h, q3, dq3, tau)
+                    q4, dq4 = q + h * dq3, dq + h * a3
+                    a4 = acc(ts + h, q4, dq4, tau)
+                    q = q + (h / 6.0) * (dq + 2.0 * dq2 + 2.0 * dq3 + dq4)
+                    dq = dq + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+                else:
+                    dq = dq + h * acc(ts, q, dq, tau)
+                    q = q + h * dq
+            if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+                raise NonFiniteError("plant state", (q, dq), f"at t={t + Ts:.6g}")
+            if np.abs(q).max() > state_bound or np.abs(dq).max() > state_bound:
+                raise SimulationError(
+                    f"run diverged at t={t + Ts:.6g}: max |q|={np.abs(q).max():.3g}, "
+                    f"max |dq|={np.abs(dq).max():.3g} exceed state_bound={state_bound}"
+                )
+    except HmpcError as exc:
+        message = str(exc)
+        cause = exc
+    else:
+        cause = None
+
+    m = last + 1
+    result = Result(
+        t=t_arr[:m],
+        **{name: arr[:m] for name, arr in rec.items()},
+        joint_names=tuple(robot.joint_names),
+        complete=cause is None,
+        message=message,
+        meta=dict(meta or {}),
+    )
+    if cause is not None:
+        raise SimulationError(
+            f"simulation stopped after {m} of {K + 1} steps: {message}", result
+        ) from cause
+    return result

@@ -28,7 +28,7 @@ from .exceptions import (
 )
 from .experiment import Experiment, run_experiment
 from .joint_mpc import CondensedMPC, JointQPs
-from .metrics import Metrics, compute_metrics
+from .metrics import Metrics, compute_metrics, format_metrics
 from .observers import DisturbanceObserver
 from .references import Reference, SineReference
 from .robot import Robot, load_robot
@@ -64,6 +64,7 @@ __all__ = [
     "ZeroDisturbance",
     "__version__",
     "compute_metrics",
+    "format_metrics",
     "load_config",
     "load_robot",
     "run_experiment",

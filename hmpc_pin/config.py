@@ -74,10 +74,7 @@ def _choice(key: str, value, choices: tuple[str, ...]) -> str:
 
 def _array(key: str, value, *, nonneg: bool = False, positive: bool = False) -> np.ndarray:
     """A finite float scalar or 1-D vector (length checked later against the robot)."""
-    if isinstance(value, np.ndarray):
-        items = value.tolist()
-    else:
-        items = value
+    items = value.tolist() if isinstance(value, np.ndarray) else value
     if isinstance(items, (list, tuple)):
         if len(items) == 0:
             raise ConfigError(key, "expected a number or a non-empty list of numbers, got []")

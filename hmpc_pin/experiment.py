@@ -1,4 +1,4 @@
-"""Build every part of an experiment from an :class:`~hmpc_pin.config.ExperimentConfig` and run it."""
+"""Build every part of an experiment from its :class:`~hmpc_pin.config.ExperimentConfig`; run it."""
 
 from __future__ import annotations
 
@@ -62,7 +62,6 @@ class Experiment:
                 "plant.urdf",
                 f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
             )
-        rc = config.reference
         reference = SineReference(
             n,
             amplitude=config.vector("reference.amplitude", n),
@@ -70,7 +69,6 @@ class Experiment:
             offset=config.vector("reference.offset", n),
             phase=config.vector("reference.phase", n),
         )
-        del rc
         dc = config.disturbance
         disturbance: Disturbance = ZeroDisturbance(n)
         if dc.friction is not None:

@@ -62,3 +62,24 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
         after=after,
         tol=tol,
     )
+
+
+def format_metrics(metrics: Metrics, joint_names=None) -> str:
+    """A plain-text table of ``metrics``, one row per joint."""
+    n = len(metrics.rms_error)
+    names = list(joint_names) if joint_names else [f"joint{i + 1}" for i in range(n)]
+    a = f"{metrics.after:g}"
+    head = (
+        f"{'joint':<10} {'RMS e (t>=' + a + 's) [rad]':>24} {'max |e| [rad]':>14} "
+        f"{'within ' + format(metrics.tol, 'g') + ' rad from [s]':>24} "
+        f"{'RMS d-d^ [N·m]':>15} {'peak |tau| [N·m]':>17}"
+    )
+    lines = [head, "-" * len(head)]
+    for i in range(n):
+        st = metrics.settling_time[i]
+        st_s = "never" if st != st else f"{st:.2f}"
+        lines.append(
+            f"{names[i]:<10} {metrics.rms_error[i]:>24.3e} {metrics.max_error[i]:>14.3e} "
+            f"{st_s:>24} {metrics.observer_rms[i]:>15.3e} {metrics.tau_peak[i]:>17.1f}"
+        )
+    return "\n".join(lines)

@@ -57,7 +57,7 @@ def _check_urdf_file(path: Path) -> None:
     unsupported = [
         f"{j.name!r} ({j.type})"
         for j in urdf.robot.joints
-        if j.type not in SUPPORTED_JOINT_TYPES + ("fixed",)
+        if j.type not in (*SUPPORTED_JOINT_TYPES, "fixed")
     ]
     if unsupported:
         raise URDFError(

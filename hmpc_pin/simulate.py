@@ -139,13 +139,13 @@ def simulate(
     if plant.nq != n:
         raise ValueError(f"{plant.nq=} but {robot.nq=}; the plant must have the same joints")
     Ts = float(controller.Ts)
-    substeps = int(round(Ts / dt))
+    substeps = round(Ts / dt)
     if substeps < 1 or abs(substeps * dt - Ts) > 1e-9 * Ts:
         raise ValueError(f"plant dt={dt} does not divide the control period Ts={Ts}")
     if integrator not in ("rk4", "euler"):
         raise ValueError(f"integrator={integrator!r}; expected 'rk4' or 'euler'")
     h = Ts / substeps
-    K = int(round(duration / Ts))
+    K = round(duration / Ts)
     dist = disturbance if disturbance is not None else ZeroDisturbance(n)
 
     t_arr = Ts * np.arange(K + 1)

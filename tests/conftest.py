@@ -1,0 +1,31 @@
+"""Shared fixtures: paths of the repository's robot and configs, and small factories."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PLANAR3 = ROOT / "robots" / "planar3.urdf"
+CONFIGS = ROOT / "configs"
+
+
+@pytest.fixture(scope="session")
+def planar3():
+    """The paper's 3-link arm (a fresh model per test session)."""
+    import hmpc_pin
+
+    return hmpc_pin.load_robot(PLANAR3)
+
+
+@pytest.fixture
+def write_config(tmp_path):
+    """Factory: write a TOML text (with the robot path filled in) and return its path."""
+
+    def _write(text: str, name: str = "cfg.toml") -> Path:
+        path = tmp_path / name
+        path.write_text(text.replace("@URDF@", PLANAR3.as_posix()), encoding="utf-8")
+        return path
+
+    return _write

@@ -1,0 +1,161 @@
+"""HierarchicalMPC: decoupling of Eq (3)-(5), observer in the loop, bad input, solver errors."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import hmpc_pin
+from hmpc_pin.config import ControllerConfig, ObserverConfig
+
+
+def _controller(robot, **kw):
+    obs = kw.pop("observer", ObserverConfig(enabled=False))
+    return hmpc_pin.HierarchicalMPC(robot, ControllerConfig(observer=obs, **kw))
+
+
+def _rk4_hold(robot, q, dq, tau, d, Ts, steps=100):
+    """Integrate the plant over one control period with tau + d held (independent of hmpc_pin)."""
+    model, data = robot.model, robot.data
+    h = Ts / steps
+    for _ in range(steps):
+
+        def f(q, dq):
+            return dq, pin.aba(model, data, q, dq, tau + d)
+
+        k1 = f(q, dq)
+        k2 = f(q + 0.5 * h * k1[0], dq + 0.5 * h * k1[1])
+        k3 = f(q + 0.5 * h * k2[0], dq + 0.5 * h * k2[1])
+        k4 = f(q + h * k3[0], dq + h * k3[1])
+        q = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        dq = dq + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    return q, dq
+
+
+def test_default_controller_is_the_papers(planar3):
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    assert ctrl.config.N == 10 and ctrl.config.Nc == 1 and ctrl.Ts == 0.01
+    assert ctrl.observer is not None and ctrl.observer.kind == "chen"
+
+
+def test_inverse_dynamics_decouples_into_double_integrators(planar3):
+    """Eq (3) and (5): the torque of Eq (4) makes q̈ = v + M⁻¹(d − d̂) in the plant."""
+    rng = np.random.default_rng(1)
+    ctrl = _controller(planar3, observer=ObserverConfig(gain=50.0))
+    ref = hmpc_pin.SineReference(3)
+    model = planar3.model
+    data = model.createData()
+    for _ in range(10):
+        q = rng.uniform(-1, 1, 3)
+        dq = rng.normal(0, 1, 3)
+        ctrl.reset(q, dq)
+        ctrl.step(0.0, q, dq, ref)
+        tau = ctrl.step(0.01, q + 0.01 * dq, dq, ref)  # second step: d̂ != 0
+        q1 = q + 0.01 * dq
+        d_hat = ctrl.disturbance_estimate
+        assert np.abs(d_hat).max() > 1e-6
+        d = rng.normal(0, 3, 3)
+        ddq = pin.aba(model, data, q1, dq, tau + d)
+        M = pin.crba(model, data, q1)
+        np.testing.assert_allclose(ddq, ctrl.v + np.linalg.solve(M, d - d_hat), atol=1e-9)
+        ddq0 = pin.aba(model, data, q1, dq, tau + d_hat)  # d = d̂: exactly v (Eq 3)
+        np.testing.assert_allclose(ddq0, ctrl.v, atol=1e-9)
+
+
+def _observer_residual(robot, Ts, T=1.5):
+    d = np.array([4.0, -3.0, 1.5])
+    ctrl = _controller(robot, Ts=Ts, observer=ObserverConfig(gain=100.0))
+    ref = hmpc_pin.SineReference(3, amplitude=0.3)
+    plant = robot.copy()
+    q, dq = np.array([0.2, -0.1, 0.3]), np.zeros(3)
+    ctrl.reset(q, dq)
+    K = round(T / Ts)
+    for k in range(K):
+        tau = ctrl.step(k * Ts, q, dq, ref)
+        q, dq = _rk4_hold(plant, q, dq, tau, d, Ts, steps=1)
+    q_ref, _ = ref.sample(K * Ts)
+    return ctrl.disturbance_estimate - d, q - q_ref
+
+
+def test_observer_in_the_loop_cancels_a_constant_disturbance(planar3):
+    """Eq (5): with the NDO in the loop, d̂ -> d and the arm tracks.
+
+    On a moving arm the backward-Euler observer keeps a bias of order
+    Ts/2 · d(τ − C q̇ − G)/dt; it must be small and shrink linearly with Ts.
+    """
+    w1, e1 = _observer_residual(planar3, 0.001)
+    w2, _ = _observer_residual(planar3, 0.002)
+    assert np.abs(w1).max() < 3e-3
+    assert np.abs(e1).max() < 1e-3
+    ratio = np.abs(w2).max() / np.abs(w1).max()
+    assert 1.6 < ratio < 2.4, ratio
+
+
+def test_state_is_not_shared_between_controllers(planar3):
+    a, b = _controller(planar3), _controller(planar3)
+    ref = hmpc_pin.SineReference(3)
+    q, dq = np.full(3, 0.5), np.zeros(3)
+    a.reset(q, dq)
+    b.reset(q, dq)
+    np.testing.assert_array_equal(a.step(0.0, q, dq, ref), b.step(0.0, q, dq, ref))
+
+
+class _Ref:
+    def __init__(self, q, dq):
+        self.q, self.dq = q, dq
+
+    def sample(self, t):
+        return self.q, self.dq
+
+
+NAN3 = np.array([0.1, np.nan, 0.0])
+INF3 = np.array([np.inf, 0.0, 0.0])
+
+
+@pytest.mark.parametrize(
+    ("t", "q", "dq", "ref", "name"),
+    [
+        (np.nan, np.zeros(3), np.zeros(3), _Ref(np.zeros(3), np.zeros(3)), "t"),
+        (np.inf, np.zeros(3), np.zeros(3), _Ref(np.zeros(3), np.zeros(3)), "t"),
+        (0.0, NAN3, np.zeros(3), _Ref(np.zeros(3), np.zeros(3)), "q"),
+        (0.0, np.zeros(3), INF3, _Ref(np.zeros(3), np.zeros(3)), "dq"),
+        (0.0, np.zeros(3), np.zeros(3), _Ref(NAN3, np.zeros(3)), "reference"),
+        (0.0, np.zeros(3), np.zeros(3), _Ref(np.zeros(3), INF3), "reference"),
+    ],
+)
+def test_non_finite_input_fails_at_once(planar3, t, q, dq, ref, name):
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    ctrl.reset(np.zeros(3), np.zeros(3))
+    start = time.perf_counter()
+    with pytest.raises(hmpc_pin.NonFiniteError) as info:
+        ctrl.step(t, q, dq, ref)
+    assert time.perf_counter() - start < 5.0  # ProxSuite on NaN would spin for tens of seconds
+    assert info.value.name == name
+    assert isinstance(info.value, ValueError)
+    assert "not finite" in str(info.value)
+
+
+def test_wrong_dimension_is_a_clear_error(planar3):
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    ctrl.reset(np.zeros(3), np.zeros(3))
+    with pytest.raises(hmpc_pin.DimensionError, match=r"q has shape \(2,\).*3 joints"):
+        ctrl.step(0.0, np.zeros(2), np.zeros(3), hmpc_pin.SineReference(3))
+    with pytest.raises(hmpc_pin.DimensionError, match=r"reference\.sample returned"):
+        ctrl.step(0.0, np.zeros(3), np.zeros(3), _Ref(np.zeros(2), np.zeros(2)))
+    with pytest.raises(hmpc_pin.DimensionError, match="dq0"):
+        ctrl.reset(np.zeros(3), np.zeros(4))
+
+
+def test_unsolved_qp_raises_naming_joint_and_status(planar3):
+    """A QP stopped by its iteration cap must raise, never return a torque."""
+    ctrl = _controller(planar3, N=10, Nc=5, max_iter=1, eps_abs=1e-12, v_min=-1.0, v_max=1.0)
+    ctrl.reset(np.zeros(3), np.zeros(3))
+    far = _Ref(np.array([2.0, -2.0, 2.0]), np.array([5.0, -5.0, 5.0]))
+    with pytest.raises(hmpc_pin.SolverError) as info:
+        ctrl.step(0.0, np.zeros(3), np.zeros(3), far)
+    err = info.value
+    assert err.joint == 0 and "joint1" in str(err)
+    assert "MAX_ITER" in err.status and "not solved" in str(err)

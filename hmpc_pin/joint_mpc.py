@@ -165,9 +165,7 @@ class JointQPs:
 
     def solve(self, G: np.ndarray) -> np.ndarray:
         """Solve every joint's QP for the gradients ``G`` (n×Nc); return the first inputs (n,).
-
-        Row ``G[i]`` must be C-contiguous: ProxSuite 0.8.0 crashes (segfault,
-        measured here) on a strided view such as a column of a C-ordered array.
+        Each row ``G[i]`` is passed to ProxSuite as is (C-contiguous, no copy).
 
         The full optimal input sequences are kept in :attr:`solution` (Nc×n).
 

@@ -24,6 +24,7 @@ import numpy as np
 from .exceptions import ConfigError
 
 __all__ = [
+    "CartesianConfig",
     "ControllerConfig",
     "DisturbanceConfig",
     "ExperimentConfig",
@@ -262,29 +263,90 @@ class PlantConfig:
 
 
 @dataclass(frozen=True, eq=False)
-class ReferenceConfig:
-    """Joint reference :math:`r_i = o_i + a_i \\sin(2\\pi f_i t + \\phi_i)` (Eq 31).
+class CartesianConfig:
+    """Point-to-point tool motion of Section 5.4, in the arm's x–z plane.
+
+    Both poses are solved by inverse kinematics on the branch inside the joint
+    limits (the goal's branch closest to the start), and joined by a joint-space
+    quintic with zero velocity and acceleration at both ends.
 
     Attributes:
-        kind: ``"sine"``.
+        start_position: Tool (x, z) at the start [m] (paper: 1.2, 0.5).
+        start_angle: Angle of link 3 to the x axis at the start [deg] (paper: −90).
+        goal_position: Tool (x, z) at the goal [m] (paper: 2.423, 2.234).
+        goal_angle: Angle of link 3 at the goal [deg] (paper: 0, parallel to x).
+        t_start: Time the motion starts [s] (not in the paper; 0).
+        move_time: Duration of the motion [s] (not in the paper; 5).
+    """
+
+    start_position: np.ndarray = field(default_factory=lambda: np.array([1.2, 0.5]))
+    start_angle: float = -90.0
+    goal_position: np.ndarray = field(default_factory=lambda: np.array([2.423, 2.234]))
+    goal_angle: float = 0.0
+    t_start: float = 0.0
+    move_time: float = 5.0
+
+    def __post_init__(self):
+        for name in ("start_position", "goal_position"):
+            arr = _array(name, getattr(self, name))
+            if arr.shape != (2,):
+                raise ConfigError(name, f"expected [x, z], got {arr.tolist()}")
+            _set(self, name, arr)
+        _set(self, "start_angle", _float("start_angle", self.start_angle))
+        _set(self, "goal_angle", _float("goal_angle", self.goal_angle))
+        _set(self, "t_start", _float("t_start", self.t_start, nonneg=True))
+        _set(self, "move_time", _float("move_time", self.move_time, positive=True))
+
+
+SINE_KEYS = ("amplitude", "frequency", "offset", "phase")
+SINE_DEFAULTS = {"amplitude": 1.0, "frequency": 0.1, "offset": 0.0, "phase": 0.0}
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceConfig:
+    """Joint reference: the sine of Eq (31) or the Cartesian motion of Section 5.4.
+
+    ``kind = "sine"``: :math:`r_i = o_i + a_i \\sin(2\\pi f_i t + \\phi_i)`.
+
+    Attributes:
+        kind: ``"sine"`` or ``"cartesian"`` (then the ``cartesian`` table is required
+            and the sine keys must not be given).
         amplitude: a [rad] (paper: 1), scalar or per joint.
         frequency: f [Hz] (paper: 0.1, i.e. 0.2π rad/s).
         offset: o [rad] (paper: 0).
         phase: φ [rad] (paper: 0).
+        cartesian: :class:`CartesianConfig` for ``kind = "cartesian"``.
     """
 
     kind: str = "sine"
-    amplitude: np.ndarray = 1.0
-    frequency: np.ndarray = 0.1
-    offset: np.ndarray = 0.0
-    phase: np.ndarray = 0.0
+    amplitude: np.ndarray | None = None
+    frequency: np.ndarray | None = None
+    offset: np.ndarray | None = None
+    phase: np.ndarray | None = None
+    cartesian: CartesianConfig | None = None
 
     def __post_init__(self):
-        _set(self, "kind", _choice("kind", self.kind, ("sine",)))
-        _set(self, "amplitude", _array("amplitude", self.amplitude))
-        _set(self, "frequency", _array("frequency", self.frequency, nonneg=True))
-        _set(self, "offset", _array("offset", self.offset))
-        _set(self, "phase", _array("phase", self.phase))
+        _set(self, "kind", _choice("kind", self.kind, ("sine", "cartesian")))
+        if self.kind == "cartesian":
+            given = [k for k in SINE_KEYS if getattr(self, k) is not None]
+            if given:
+                raise ConfigError(
+                    given[0], "applies only to kind = 'sine'; remove it for kind = 'cartesian'"
+                )
+            if isinstance(self.cartesian, dict):
+                _set(self, "cartesian", _section(CartesianConfig, self.cartesian, "cartesian"))
+            elif self.cartesian is None:
+                raise ConfigError(
+                    "cartesian", "kind = 'cartesian' needs a [reference.cartesian] table"
+                )
+            return
+        if self.cartesian is not None:
+            raise ConfigError("cartesian", "applies only to kind = 'cartesian'")
+        for key in SINE_KEYS:
+            value = getattr(self, key)
+            _set(self, key, _array(key, SINE_DEFAULTS[key] if value is None else value))
+        if np.any(self.frequency < 0):
+            raise ConfigError("frequency", f"expected values >= 0, got {self.frequency.tolist()}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -351,17 +413,19 @@ class SimulationConfig:
 
     Attributes:
         duration: Simulated time [s] (paper: 10).
-        q0: Initial joint angles [rad] (paper: 1, 1, 1).
+        q0: Initial joint angles [rad] (paper: 1, 1, 1); ``None`` starts on the
+            reference, r(0) (for a Cartesian motion: the start pose's IK solution).
         dq0: Initial joint velocities [rad/s] (paper: 0).
     """
 
     duration: float = 10.0
-    q0: np.ndarray = field(default_factory=lambda: np.array([1.0, 1.0, 1.0]))
+    q0: np.ndarray | None = None
     dq0: np.ndarray = 0.0
 
     def __post_init__(self):
         _set(self, "duration", _float("duration", self.duration, positive=True))
-        _set(self, "q0", _array("q0", self.q0))
+        if self.q0 is not None:
+            _set(self, "q0", _array("q0", self.q0))
         _set(self, "dq0", _array("dq0", self.dq0))
 
 
@@ -405,14 +469,11 @@ class ExperimentConfig:
 
     def check_dimensions(self, n: int) -> None:
         """Raise :class:`ConfigError` if any per-joint vector does not have ``n`` entries."""
-        keys = [
-            "simulation.q0",
-            "simulation.dq0",
-            "reference.amplitude",
-            "reference.frequency",
-            "reference.offset",
-            "reference.phase",
-        ]
+        keys = ["simulation.dq0"]
+        if self.simulation.q0 is not None:
+            keys.append("simulation.q0")
+        if self.reference.kind == "sine":
+            keys += [f"reference.{k}" for k in SINE_KEYS]
         if self.disturbance.friction is not None:
             keys += ["disturbance.friction.viscous", "disturbance.friction.coulomb"]
         if self.disturbance.pulse is not None:

@@ -94,3 +94,18 @@ class SimulationError(HmpcError, RuntimeError):
     def __init__(self, message: str, result=None):
         self.result = result
         super().__init__(message)
+
+
+class OutputError(HmpcError, ValueError):
+    """An output location (directory, file) cannot be written.
+
+    Attributes:
+        path: The location that was rejected.
+    """
+
+    def __init__(self, path, reason: str):
+        self.path = str(path)
+        super().__init__(
+            f"output directory {self.path!r} is not writable ({reason}); "
+            "pass --out with a directory you can write to"
+        )

@@ -13,7 +13,34 @@ from .references import SineReference
 from .robot import Robot, load_robot
 from .simulate import Result, simulate
 
-__all__ = ["Experiment", "run_experiment"]
+__all__ = ["Experiment", "build_reference", "run_experiment"]
+
+
+def build_reference(config: ExperimentConfig, robot: Robot):
+    """The joint reference of ``config``: the sine of Eq 31 or the Section 5.4 motion.
+
+    For ``kind = "cartesian"`` both tool poses are solved by inverse kinematics
+    inside the joint limits (the goal on the branch closest to the start) and
+    joined by a quintic. Raises :class:`~hmpc_pin.kinematics.KinematicsError`
+    naming the pose when one is unreachable.
+    """
+    n = robot.nq
+    rc = config.reference
+    if rc.kind == "cartesian":
+        from .kinematics import solve_pose
+        from .references import QuinticReference
+
+        cc = rc.cartesian
+        q_start = solve_pose(robot, cc.start_position, np.deg2rad(cc.start_angle))
+        q_goal = solve_pose(robot, cc.goal_position, np.deg2rad(cc.goal_angle), near=q_start)
+        return QuinticReference(q_start, q_goal, cc.t_start, cc.move_time)
+    return SineReference(
+        n,
+        amplitude=config.vector("reference.amplitude", n),
+        frequency=config.vector("reference.frequency", n),
+        offset=config.vector("reference.offset", n),
+        phase=config.vector("reference.phase", n),
+    )
 
 
 @dataclass
@@ -34,7 +61,7 @@ class Experiment:
     robot: Robot
     plant: Robot
     controller: HierarchicalMPC
-    reference: SineReference
+    reference: object
     disturbance: Disturbance
     q0: np.ndarray
     dq0: np.ndarray
@@ -62,13 +89,7 @@ class Experiment:
                 "plant.urdf",
                 f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
             )
-        reference = SineReference(
-            n,
-            amplitude=config.vector("reference.amplitude", n),
-            frequency=config.vector("reference.frequency", n),
-            offset=config.vector("reference.offset", n),
-            phase=config.vector("reference.phase", n),
-        )
+        reference = build_reference(config, robot)
         dc = config.disturbance
         disturbance: Disturbance = ZeroDisturbance(n)
         if dc.friction is not None:
@@ -90,7 +111,11 @@ class Experiment:
             controller=controller,
             reference=reference,
             disturbance=disturbance,
-            q0=config.vector("simulation.q0", n),
+            q0=(
+                reference.sample(0.0)[0]
+                if config.simulation.q0 is None
+                else config.vector("simulation.q0", n)
+            ),
             dq0=config.vector("simulation.dq0", n),
         )
 

@@ -1,23 +1,23 @@
 """Figures in the paper's layout: one row per joint, time on the x axis.
 
-Uses matplotlib's non-interactive Agg backend; every function writes a PNG and
-returns its path.
+Figures are built with ``matplotlib.figure.Figure`` (no pyplot, no global
+backend switch), so plotting works headless and never touches the user's
+matplotlib state. Every function writes a PNG and returns its path.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-
-__all__ = ["plot_disturbance", "plot_overview", "plot_tracking"]
+__all__ = ["plot_disturbance", "plot_error", "plot_overview", "plot_tracking"]
 
 
 def _rows(n: int, cols: int = 1):
-    fig, axes = plt.subplots(n, cols, figsize=(6 * cols, 2.2 * n + 0.8), sharex=True, squeeze=False)
+    fig = Figure(figsize=(6 * cols, 2.2 * n + 0.8))
+    axes = fig.subplots(n, cols, sharex=True, squeeze=False)
     return fig, axes
 
 
@@ -29,7 +29,6 @@ def _finish(fig, axes, path, title):
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -74,4 +73,27 @@ def plot_overview(result, path, title: str = "") -> Path:
     for i in range(n):
         _tracking(axes[i, 0], result, i)
         _disturbance(axes[i, 1], result, i)
+    return _finish(fig, axes, path, title)
+
+
+def plot_error(results: dict, path, title: str = "") -> Path:
+    """Tracking error |q − r| on a log scale, one row per joint, several runs overlaid.
+
+    Args:
+        results: Label → :class:`~hmpc_pin.simulate.Result`, e.g.
+            ``{"with NDO": r1, "without NDO": r2}``.
+    """
+    first = next(iter(results.values()))
+    n = first.q.shape[1]
+    fig, axes = _rows(n)
+    for i in range(n):
+        ax = axes[i, 0]
+        for k, (label, r) in enumerate(results.items()):
+            e = np.abs(r.error[:, i])
+            ax.semilogy(r.t, np.maximum(e, 1e-9), f"C{k}", lw=1.0, label=label)
+        ax.axhline(0.01, color="k", ls=":", lw=0.8, label="0.01 rad")
+        ax.set_ylabel(f"|e{i + 1}| [rad]")
+        ax.set_ylim(1e-7, None)
+        ax.legend(loc="upper right", fontsize=8)
+        ax.grid(alpha=0.3, which="both")
     return _finish(fig, axes, path, title)

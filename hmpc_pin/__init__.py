@@ -31,7 +31,8 @@ from .experiment import Experiment, run_experiment
 from .joint_mpc import CondensedMPC, JointQPs
 from .metrics import Metrics, compute_metrics, format_metrics
 from .observers import DisturbanceObserver
-from .references import Reference, SineReference
+from .kinematics import KinematicsError, planar_ik, solve_pose, tool_pose
+from .references import QuinticReference, Reference, SineReference
 from .robot import Robot, load_robot
 from .simulate import Result, simulate
 
@@ -51,9 +52,11 @@ __all__ = [
     "HierarchicalMPC",
     "HmpcError",
     "JointQPs",
+    "KinematicsError",
     "Metrics",
     "NonFiniteError",
     "ObserverConfig",
+    "QuinticReference",
     "OutputError",
     "Reference",
     "Result",
@@ -69,6 +72,9 @@ __all__ = [
     "format_metrics",
     "load_config",
     "load_robot",
+    "planar_ik",
     "run_experiment",
     "simulate",
+    "solve_pose",
+    "tool_pose",
 ]

@@ -12,7 +12,16 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-__all__ = ["plot_disturbance", "plot_error", "plot_overview", "plot_tracking"]
+__all__ = [
+    "arm_points",
+    "plot_cartesian",
+    "plot_disturbance",
+    "plot_error",
+    "plot_overview",
+    "plot_tracking",
+    "plot_workspace",
+    "tool_path",
+]
 
 
 def _rows(n: int, cols: int = 1):
@@ -97,3 +106,86 @@ def plot_error(results: dict, path, title: str = "") -> Path:
         ax.legend(loc="upper right", fontsize=8)
         ax.grid(alpha=0.3, which="both")
     return _finish(fig, axes, path, title)
+
+
+def arm_points(robot, q) -> np.ndarray:
+    """x–z positions of base, joints and tool at ``q`` by Pinocchio FK, shape (n+2, 2)."""
+    import pinocchio as pin
+
+    model, data = robot.model, robot.data
+    pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
+    pts = [data.oMi[j].translation for j in range(1, model.njoints)]
+    pts.insert(0, np.zeros(3))
+    pts.append(data.oMf[model.getFrameId(robot.tool_frame)].translation)
+    return np.array([[p[0], p[2]] for p in pts])
+
+
+def tool_path(robot, q_traj: np.ndarray) -> np.ndarray:
+    """Tool x–z position along a joint trajectory (K, n) → (K, 2)."""
+    return np.array([arm_points(robot, q)[-1] for q in q_traj])
+
+
+def _draw_arm(ax, robot, q, style, label=None):
+    pts = arm_points(robot, q)
+    ax.plot(pts[:, 0], pts[:, 1], style, lw=2.5, marker="o", ms=4, label=label)
+
+
+def plot_workspace(robot, path, poses: dict, points: np.ndarray, title: str = "") -> Path:
+    """Figure 3(b): tool positions reachable within the joint limits, arm drawn at ``poses``.
+
+    Args:
+        robot: The arm.
+        poses: Label → joint configuration to draw, e.g. ``{"q = 0": np.zeros(3)}``.
+        points: Reachable tool positions (m, 2) in the x–z plane.
+    """
+    fig = Figure(figsize=(6.5, 6))
+    ax = fig.subplots()
+    ax.scatter(points[:, 0], points[:, 1], s=1, c="0.75", label="reachable tool positions")
+    for k, (label, q) in enumerate(poses.items()):
+        _draw_arm(ax, robot, q, f"C{k}-", label)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m] (paper's y)")
+    ax.set_aspect("equal")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left", fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return Path(path)
+
+
+def plot_cartesian(
+    robot, result, path, start, goal, title: str = "", arms: int = 6, window=None
+) -> Path:
+    """Figure 10: the tool path in the x–z plane with start, goal and a few arm poses.
+
+    Args:
+        result: A :class:`~hmpc_pin.simulate.Result` of the Cartesian experiment.
+        start, goal: Tool (x, z) of the start and goal poses.
+        arms: Number of arm poses drawn, evenly spaced in time over ``window``.
+        window: (t0, t1) [s] of the motion; default the whole run.
+    """
+    fig = Figure(figsize=(6.5, 6))
+    ax = fig.subplots()
+    ref = tool_path(robot, result.q_ref)
+    act = tool_path(robot, result.q)
+    t0, t1 = window if window is not None else (result.t[0], result.t[-1])
+    for tk in np.linspace(t0, min(t1, result.t[-1]), arms):
+        k = int(np.argmin(np.abs(result.t - tk)))
+        _draw_arm(ax, robot, result.q[k], "-", None)
+        ax.annotate(f"t={result.t[k]:.1f}s", arm_points(robot, result.q[k])[-1], fontsize=7)
+    ax.plot(ref[:, 0], ref[:, 1], "k--", lw=1.2, label="reference tool path")
+    ax.plot(act[:, 0], act[:, 1], "C3", lw=1.5, label="tool path")
+    ax.plot(*start, "gs", ms=9, label=f"start ({start[0]:g}, {start[1]:g})")
+    ax.plot(*goal, "r*", ms=13, label=f"goal ({goal[0]:g}, {goal[1]:g})")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m] (paper's y)")
+    ax.set_aspect("equal")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return Path(path)

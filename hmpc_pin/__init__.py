@@ -29,9 +29,9 @@ from .exceptions import (
 )
 from .experiment import Experiment, run_experiment
 from .joint_mpc import CondensedMPC, JointQPs
+from .kinematics import KinematicsError, planar_ik, solve_pose, tool_pose
 from .metrics import Metrics, compute_metrics, format_metrics
 from .observers import DisturbanceObserver
-from .kinematics import KinematicsError, planar_ik, solve_pose, tool_pose
 from .references import QuinticReference, Reference, SineReference
 from .robot import Robot, load_robot
 from .simulate import Result, simulate
@@ -56,8 +56,8 @@ __all__ = [
     "Metrics",
     "NonFiniteError",
     "ObserverConfig",
-    "QuinticReference",
     "OutputError",
+    "QuinticReference",
     "Reference",
     "Result",
     "Robot",

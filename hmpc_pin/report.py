@@ -271,9 +271,15 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
         workspace_points(robot),
         "Workspace within the joint limits of Eq 27",
     )
-    figures.insert(0, (ws, "Paper Figure 3(b): the arm's workspace (tool positions reachable "
-                       "within the joint limits of Eq 27), the arm drawn at q = 0 and at the "
-                       "start pose of Sections 5.1–5.3."))
+    figures.insert(
+        0,
+        (
+            ws,
+            "Paper Figure 3(b): the arm's workspace (tool positions reachable "
+            "within the joint limits of Eq 27), the arm drawn at q = 0 and at the "
+            "start pose of Sections 5.1–5.3.",
+        ),
+    )
 
     cart = None
     if "paper_cartesian" in runs and len(runs["paper_cartesian"].t) > 1:
@@ -294,8 +300,13 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
             "Section 5.4: tool motion in Cartesian space",
             window=(cc.t_start, cc.t_start + cc.move_time),
         )
-        figures.append((fig10, "Paper Figure 10 — Section 5.4: tool path in the x–z plane "
-                        "(the paper's x–y), start, goal and arm poses."))
+        figures.append(
+            (
+                fig10,
+                "Paper Figure 10 — Section 5.4: tool path in the x–z plane "
+                "(the paper's x–y), start, goal and arm poses.",
+            )
+        )
 
     claims = _claims(runs, metrics, cart)
     elapsed = time.perf_counter() - start

@@ -1,0 +1,494 @@
+"""Tests of :mod:`hmpc_pin.joint_mpc` against an independent condensation of Eq (24)–(26).
+
+Nothing here reuses the package's ``Phi``, ``Gamma`` or ``H``. The reference is built
+from first principles:
+
+* the double integrator ``x_{j+1} = A x_j + B v_j`` with ``A = [[1, Ts], [0, 1]]`` and
+  ``B = [Ts²/2, Ts]`` is simulated step by step, with inputs ``v_j = U[min(j, Nc - 1)]``
+  (the last free input is held to the end of the horizon);
+* the paper's cost, Eq (25), ``Σ_{j<N} e_jᵀQe_j + v_jᵀRv_j + e_NᵀPe_N``, is summed along
+  that simulation (``e_0`` uses a reference ``r_0`` that the MPC never sees, so it only
+  adds a constant);
+* since this cost is exactly quadratic in ``U``, its Hessian ``H`` and gradient ``g`` at
+  ``U = 0`` are recovered exactly (up to rounding) by central and mixed differences of the
+  simulated cost;
+* the box-constrained minimiser of ``½UᵀHU + gᵀU`` is then obtained by clipping
+  (``Nc = 1``), checked through the KKT conditions, and found by enumerating all ``3^Nc``
+  active sets (each variable free, at its lower or at its upper bound).
+
+ProxSuite solves a scaled copy of the QP to an absolute tolerance ``eps_abs`` on the dual
+residual, so a solution can differ from the exact minimiser by at most
+``√Nc · eps_abs / λ_min(H_scaled)``; the tolerances below are derived from that bound.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from hmpc_pin.joint_mpc import CondensedMPC, JointQPs
+
+TS = 0.01
+Q_PAPER = np.diag([50.0, 0.0])
+R_PAPER = 1e-6
+P_PAPER = 2.0 * Q_PAPER
+V_LIMIT = 100.0
+EPS_ABS = 1e-9
+#: A weighting with a velocity term as well, so that the tests do not rely on Q[1,1] = 0.
+Q_VEL = np.array([[40.0, 2.0], [2.0, 0.5]])
+R_VEL = 1e-4
+P_VEL = np.array([[120.0, 5.0], [5.0, 3.0]])
+WEIGHTS = {"paper": (Q_PAPER, R_PAPER, P_PAPER), "velocity": (Q_VEL, R_VEL, P_VEL)}
+
+
+# ------------------------------------------------------------ independent reference
+def simulate(U: np.ndarray, x0: np.ndarray, N: int, Ts: float = TS):
+    """Simulate the double integrator over N steps; return states x_0..x_N and inputs v_j."""
+    A = np.array([[1.0, Ts], [0.0, 1.0]])
+    B = np.array([Ts * Ts / 2.0, Ts])
+    Nc = len(U)
+    xs = [np.asarray(x0, dtype=float)]
+    vs = []
+    for j in range(N):
+        v = U[min(j, Nc - 1)]
+        vs.append(v)
+        xs.append(A @ xs[-1] + B * v)
+    return np.array(xs), np.array(vs)
+
+
+def simulated_cost(U, x0, r0, ref, N, Q, R, P) -> float:
+    """The paper's cost Eq (25) summed along the simulated trajectory.
+
+    ``ref`` has rows r_1, ṙ_1, ..., r_N, ṙ_N (the MPC's layout); ``r0`` is [r_0, ṙ_0].
+    """
+    xs, vs = simulate(U, x0, N)
+    refs = np.vstack([r0, ref.reshape(N, 2)])
+    e = xs - refs
+    stage = sum(e[j] @ Q @ e[j] + R * vs[j] ** 2 for j in range(N))
+    return float(stage + e[N] @ P @ e[N])
+
+
+def own_condensation(x0, r0, ref, N, Nc, Q, R, P, step: float = 100.0):
+    """Exact H, g, c of the simulated cost J(U) = ½UᵀHU + gᵀU + c by finite differences.
+
+    The simulated cost is a quadratic polynomial in U, so central and mixed differences
+    are exact up to rounding whatever the step; a large step keeps rounding small.
+    """
+
+    def J(U):
+        return simulated_cost(U, x0, r0, ref, N, Q, R, P)
+
+    eye = np.eye(Nc) * step
+    c = J(np.zeros(Nc))
+    plus = np.array([J(eye[i]) for i in range(Nc)])
+    minus = np.array([J(-eye[i]) for i in range(Nc)])
+    g = (plus - minus) / (2.0 * step)
+    H = np.zeros((Nc, Nc))
+    for i in range(Nc):
+        H[i, i] = (plus[i] + minus[i] - 2.0 * c) / step**2
+        for k in range(i + 1, Nc):
+            H[i, k] = H[k, i] = (J(eye[i] + eye[k]) - plus[i] - plus[k] + c) / step**2
+    return H, g, c
+
+
+def brute_force_box_qp(H, g, lo, hi):
+    """Minimise ½xᵀHx + gᵀx on lo <= x <= hi by enumerating all 3^n active sets."""
+    n = len(g)
+    best_x, best_f = None, np.inf
+    for pattern in itertools.product((-1, 0, 1), repeat=n):
+        pattern = np.array(pattern)
+        x = np.where(pattern < 0, lo, hi).astype(float)
+        free = pattern == 0
+        if free.any():
+            fixed = ~free
+            rhs = -(g[free] + H[np.ix_(free, fixed)] @ x[fixed])
+            x[free] = np.linalg.solve(H[np.ix_(free, free)], rhs)
+            span = np.maximum(1.0, np.abs(hi - lo))
+            if np.any(x < lo - 1e-12 * span) or np.any(x > hi + 1e-12 * span):
+                continue
+        f = 0.5 * x @ H @ x + g @ x
+        if f < best_f:
+            best_x, best_f = x, f
+    return best_x
+
+
+def solution_tolerance(H: np.ndarray) -> float:
+    """Bound on |x_proxsuite - x*| from the dual-residual tolerance on the scaled QP."""
+    Hs = H / np.mean(np.diag(H))
+    return 10.0 * np.sqrt(len(H)) * EPS_ABS / np.linalg.eigvalsh(Hs)[0]
+
+
+# --------------------------------------------------------------------- fixtures
+@pytest.fixture
+def make_rng():
+    """Factory of seeded generators, so each test draws a reproducible sequence."""
+
+    def _make(seed: int = 0) -> np.random.Generator:
+        return np.random.default_rng(seed)
+
+    return _make
+
+
+@pytest.fixture
+def make_problem(make_rng):
+    """Factory of random (x0, r0, ref) for one joint; ``offset`` shifts the reference.
+
+    A reference offset of a few tenths of a radian or more drives the unconstrained
+    optimum beyond ±100 rad/s², so the bounds become active.
+    """
+
+    def _make(N: int, seed: int = 0, scale: float = 0.05, offset: float = 0.0):
+        rng = make_rng(seed)
+        x0 = rng.normal(0.0, scale, size=2)
+        r0 = rng.normal(0.0, scale, size=2)
+        ref = rng.normal(0.0, scale, size=2 * N)
+        ref[0::2] += offset
+        return x0, r0, ref
+
+    return _make
+
+
+@pytest.fixture
+def make_qps():
+    """Factory of (CondensedMPC, JointQPs) for n joints with scalar or per-joint bounds."""
+
+    def _make(N, Nc, weights="paper", n=1, v_min=-V_LIMIT, v_max=V_LIMIT):
+        Q, R, P = WEIGHTS[weights]
+        mpc = CondensedMPC(TS, N, Nc, Q, R, P)
+        v_min = np.broadcast_to(np.asarray(v_min, dtype=float), (n,)).copy()
+        v_max = np.broadcast_to(np.asarray(v_max, dtype=float), (n,)).copy()
+        names = tuple(f"j{i}" for i in range(n))
+        return mpc, JointQPs(mpc, v_min, v_max, names, eps_abs=EPS_ABS, max_iter=1000)
+
+    return _make
+
+
+def single_gradient(mpc: CondensedMPC, x0: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """The (1, Nc) gradient of one joint, as the controller would compute it."""
+    return mpc.gradient(x0[:, None], ref[:, None])
+
+
+# ------------------------------------------------------------------- reference sanity
+def test_own_condensation_reproduces_simulated_cost(make_rng, make_problem):
+    """The finite-difference quadratic equals the simulated cost at unrelated points."""
+    rng = make_rng(1)
+    N, Nc = 8, 3
+    x0, r0, ref = make_problem(N, seed=1, scale=0.5)
+    H, g, c = own_condensation(x0, r0, ref, N, Nc, *WEIGHTS["velocity"])
+    for _ in range(5):
+        U = rng.normal(0.0, 50.0, size=Nc)
+        expected = simulated_cost(U, x0, r0, ref, N, *WEIGHTS["velocity"])
+        assert 0.5 * U @ H @ U + g @ U + c == pytest.approx(expected, rel=1e-11)
+
+
+def test_brute_force_solver_satisfies_kkt(make_rng):
+    """The enumeration solver finds the KKT point of a random strictly convex box QP."""
+    rng = make_rng(2)
+    A = rng.normal(size=(4, 4))
+    H = A @ A.T + 0.1 * np.eye(4)
+    g = rng.normal(0.0, 5.0, size=4)
+    lo, hi = -np.ones(4), np.ones(4)
+    x = brute_force_box_qp(H, g, lo, hi)
+    z = -(H @ x + g)
+    assert np.any(np.isclose(x, lo) | np.isclose(x, hi))
+    for i in range(4):
+        if np.isclose(x[i], hi[i]):
+            assert z[i] >= -1e-12
+        elif np.isclose(x[i], lo[i]):
+            assert z[i] <= 1e-12
+        else:
+            assert abs(z[i]) < 1e-10
+
+
+# ------------------------------------------------------------------ condensed data
+@pytest.mark.parametrize(("N", "Nc"), [(1, 1), (5, 1), (10, 1), (10, 3), (6, 6), (10, 10)])
+@pytest.mark.parametrize("weights", ["paper", "velocity"])
+def test_hessian_and_gradient_match_simulation(make_problem, N, Nc, weights):
+    """Unscaled H and g of the package equal those of the simulated cost."""
+    Q, R, P = WEIGHTS[weights]
+    mpc = CondensedMPC(TS, N, Nc, Q, R, P)
+    for seed in range(3):
+        x0, r0, ref = make_problem(N, seed=seed, scale=0.3)
+        H, g, _ = own_condensation(x0, r0, ref, N, Nc, Q, R, P)
+        np.testing.assert_allclose(mpc.H / mpc.scale, H, rtol=1e-9, atol=1e-12 * np.abs(H).max())
+        g_pkg = single_gradient(mpc, x0, ref)[0] / mpc.scale
+        np.testing.assert_allclose(g_pkg, g, rtol=1e-8, atol=1e-10 * np.abs(g).max())
+
+
+@pytest.mark.parametrize(("N", "Nc"), [(1, 1), (10, 1), (10, 3), (7, 4), (10, 10)])
+@pytest.mark.parametrize("weights", ["paper", "velocity"])
+def test_cost_differences_match_simulated_cost(make_rng, make_problem, N, Nc, weights):
+    """``mpc.cost`` has the U-dependence of Eq (25): J(U) - J(U') agrees with simulation."""
+    Q, R, P = WEIGHTS[weights]
+    mpc = CondensedMPC(TS, N, Nc, Q, R, P)
+    rng = make_rng(3)
+    for seed in range(3):
+        x0, r0, ref = make_problem(N, seed=seed, scale=0.3)
+        U0 = np.zeros(Nc)
+        base_pkg = mpc.cost(U0, x0, ref)
+        base_sim = simulated_cost(U0, x0, r0, ref, N, Q, R, P)
+        for _ in range(3):
+            U = rng.normal(0.0, 30.0, size=Nc)
+            diff_pkg = mpc.cost(U, x0, ref) - base_pkg
+            diff_sim = simulated_cost(U, x0, r0, ref, N, Q, R, P) - base_sim
+            assert diff_pkg == pytest.approx(diff_sim, rel=1e-8, abs=1e-10 * abs(base_sim))
+
+
+@pytest.mark.parametrize(("N", "Nc"), [(10, 1), (10, 3), (10, 10)])
+def test_cost_equals_simulated_cost_minus_initial_error(make_rng, make_problem, N, Nc):
+    """``mpc.cost(U, x0, ref)`` = simulated Eq (25) cost − e_0ᵀQe_0, as documented."""
+    Q, R, P = WEIGHTS["paper"]
+    mpc = CondensedMPC(TS, N, Nc, Q, R, P)
+    rng = make_rng(4)
+    x0, r0, ref = make_problem(N, seed=4, scale=0.3)
+    e0 = x0 - r0
+    U = rng.normal(0.0, 30.0, size=Nc)
+    expected = simulated_cost(U, x0, r0, ref, N, Q, R, P) - e0 @ Q @ e0
+    assert mpc.cost(U, x0, ref) == pytest.approx(expected, rel=1e-9)
+
+
+# ------------------------------------------------------------------------- Nc = 1
+@pytest.mark.parametrize(
+    ("scale", "offset", "expect"),
+    [
+        (0.01, 0.0, "free"),
+        (0.02, 0.0, "free"),
+        (0.05, 0.0, "free"),
+        (0.05, 3.0, "upper"),
+        (0.05, -3.0, "lower"),
+        (1.0, 5.0, "upper"),
+    ],
+)
+@pytest.mark.parametrize("weights", ["paper", "velocity"])
+def test_nc1_equals_clipped_closed_form(make_problem, make_qps, scale, offset, expect, weights):
+    """With one free input the QP optimum is clip(-g/H, v_min, v_max).
+
+    Each problem gets a freshly built JointQPs (see the warm-start tests for sequences).
+    """
+    N = 10
+    Q, R, P = WEIGHTS[weights]
+    for seed in range(4):
+        mpc, qps = make_qps(N, 1, weights)
+        x0, r0, ref = make_problem(N, seed=seed, scale=scale, offset=offset)
+        H, g, _ = own_condensation(x0, r0, ref, N, 1, Q, R, P)
+        u_free = -g[0] / H[0, 0]
+        u_star = float(np.clip(u_free, -V_LIMIT, V_LIMIT))
+        if expect == "free":
+            assert abs(u_free) < V_LIMIT
+        elif expect == "upper":
+            assert u_free > V_LIMIT
+        else:
+            assert u_free < -V_LIMIT
+        v0 = qps.solve(single_gradient(mpc, x0, ref))
+        assert v0.shape == (1,)
+        assert v0[0] == pytest.approx(u_star, abs=1e-7)
+        assert qps.solution[0, 0] == v0[0]
+
+
+# ------------------------------------------------------------------------- Nc > 1
+def kkt_violations(H, g, x, lo, hi, tol_z, tol_x=1e-8, active_tol=1e-7):
+    """List of violated KKT conditions of min ½xᵀHx + gᵀx s.t. lo <= x <= hi."""
+    problems = []
+    z = -(H @ x + g)  # stationarity: H x + g + z = 0
+    for i in range(len(x)):
+        if x[i] < lo[i] - tol_x or x[i] > hi[i] + tol_x:
+            problems.append(f"x[{i}]={x[i]} outside [{lo[i]}, {hi[i]}]")
+        at_hi = x[i] >= hi[i] - active_tol
+        at_lo = x[i] <= lo[i] + active_tol
+        if z[i] > tol_z and not at_hi:
+            problems.append(f"z[{i}]={z[i]} > 0 but x[{i}]={x[i]} not at upper bound")
+        if z[i] < -tol_z and not at_lo:
+            problems.append(f"z[{i}]={z[i]} < 0 but x[{i}]={x[i]} not at lower bound")
+    return problems
+
+
+BOX_CASES = [
+    # (Nc, weights, seed, scale, offset, must_be_active)
+    (3, "paper", 0, 0.01, 0.0, False),
+    (3, "paper", 1, 0.05, 0.5, True),
+    (3, "paper", 2, 0.5, -3.0, True),
+    (3, "velocity", 3, 0.02, 0.0, False),
+    (3, "velocity", 4, 0.3, 1.0, True),
+    (5, "paper", 5, 0.01, 0.0, False),
+    (5, "paper", 6, 0.05, 0.3, True),
+    (5, "paper", 7, 1.0, 0.0, True),
+    (5, "velocity", 8, 0.2, -1.0, True),
+    (5, "velocity", 9, 0.02, 0.0, False),
+]
+
+
+@pytest.mark.parametrize(("Nc", "weights", "seed", "scale", "offset", "active"), BOX_CASES)
+def test_box_qp_satisfies_kkt(make_problem, make_qps, Nc, weights, seed, scale, offset, active):
+    """The full input sequence satisfies the KKT conditions of the unscaled box QP."""
+    N = 10
+    Q, R, P = WEIGHTS[weights]
+    mpc, qps = make_qps(N, Nc, weights)
+    x0, r0, ref = make_problem(N, seed=seed, scale=scale, offset=offset)
+    H, g, _ = own_condensation(x0, r0, ref, N, Nc, Q, R, P)
+    lo, hi = np.full(Nc, -V_LIMIT), np.full(Nc, V_LIMIT)
+    v0 = qps.solve(single_gradient(mpc, x0, ref))
+    x = qps.solution[:, 0].copy()
+    assert v0[0] == x[0]
+    # the solver's scaled dual residual is <= eps_abs; unscaled that is eps_abs·mean diag H
+    tol_z = 10.0 * EPS_ABS * np.mean(np.diag(H))
+    assert kkt_violations(H, g, x, lo, hi, tol_z) == []
+    n_active = int(np.sum((x <= lo + 1e-7) | (x >= hi - 1e-7)))
+    if active:
+        assert n_active >= 1
+    else:
+        assert n_active == 0
+
+
+@pytest.mark.parametrize(("Nc", "weights", "seed", "scale", "offset", "active"), BOX_CASES)
+def test_box_qp_matches_active_set_enumeration(
+    make_problem, make_qps, Nc, weights, seed, scale, offset, active
+):
+    """The solution equals the minimiser found by enumerating all 3^Nc active sets."""
+    N = 10
+    Q, R, P = WEIGHTS[weights]
+    mpc, qps = make_qps(N, Nc, weights)
+    x0, r0, ref = make_problem(N, seed=seed, scale=scale, offset=offset)
+    H, g, _ = own_condensation(x0, r0, ref, N, Nc, Q, R, P)
+    x_bf = brute_force_box_qp(H, g, np.full(Nc, -V_LIMIT), np.full(Nc, V_LIMIT))
+    assert (np.sum(np.abs(np.abs(x_bf) - V_LIMIT) < 1e-9) >= 1) == active
+    qps.solve(single_gradient(mpc, x0, ref))
+    np.testing.assert_allclose(qps.solution[:, 0], x_bf, rtol=0, atol=solution_tolerance(H))
+
+
+def test_nc_equals_n_matches_active_set_enumeration(make_problem, make_qps):
+    """Nc = N (every input free, no hold) against enumeration, with active bounds."""
+    N = Nc = 6
+    Q, R, P = WEIGHTS["paper"]
+    mpc, qps = make_qps(N, Nc)
+    x0, r0, ref = make_problem(N, seed=11, scale=0.05, offset=0.4)
+    H, g, _ = own_condensation(x0, r0, ref, N, Nc, Q, R, P)
+    x_bf = brute_force_box_qp(H, g, np.full(Nc, -V_LIMIT), np.full(Nc, V_LIMIT))
+    assert np.any(np.abs(np.abs(x_bf) - V_LIMIT) < 1e-9)
+    qps.solve(single_gradient(mpc, x0, ref))
+    np.testing.assert_allclose(qps.solution[:, 0], x_bf, rtol=0, atol=solution_tolerance(H))
+
+
+# ------------------------------------------------------------------ warm starting
+#: Reference offsets of a sequence of problems. Offsets beyond about ±0.3 rad make a bound
+#: active, so the sequence mixes interior problems with runs of consecutive problems that
+#: have the same bound active, where a warm start matters most (without ProxSuite's
+#: duality-gap test such solves stopped early with errors up to 1e-2, see joint_mpc.py).
+SEQUENCE_OFFSETS = tuple(np.random.default_rng(1).uniform(-1.5, 1.5, size=30))
+
+
+def solve_sequence(make_problem, make_qps, Nc: int, n: int = 3):
+    """Solve SEQUENCE_OFFSETS with one warm-started object and with fresh objects.
+
+    Returns a list of (warm solution, fresh solution, enumerated optimum, tolerance),
+    each (Nc, n) except the tolerance, which is (n,).
+    """
+    N = 10
+    Q, R, P = WEIGHTS["paper"]
+    mpc, warm = make_qps(N, Nc, n=n)
+    out = []
+    for step, offset in enumerate(SEQUENCE_OFFSETS):
+        problems = [make_problem(N, seed=100 * Nc + n * step + i, offset=offset) for i in range(n)]
+        x0 = np.column_stack([p[0] for p in problems])
+        ref = np.column_stack([p[2] for p in problems])
+        G = mpc.gradient(x0, ref)
+        assert G.shape == (n, Nc)
+        assert G.flags.c_contiguous
+        v_warm = warm.solve(G)
+        sol_warm = warm.solution.copy()
+        np.testing.assert_array_equal(v_warm, sol_warm[0])
+        _, fresh = make_qps(N, Nc, n=n)
+        fresh.solve(G)
+        exact = np.zeros((Nc, n))
+        tol = np.zeros(n)
+        for i, (x0_i, r0_i, ref_i) in enumerate(problems):
+            H, g, _ = own_condensation(x0_i, r0_i, ref_i, N, Nc, Q, R, P)
+            exact[:, i] = brute_force_box_qp(H, g, np.full(Nc, -V_LIMIT), np.full(Nc, V_LIMIT))
+            tol[i] = solution_tolerance(H)
+        out.append((sol_warm, fresh.solution.copy(), exact, tol))
+    return out
+
+
+@pytest.mark.parametrize("Nc", [1, 3, 5])
+def test_fresh_solves_of_sequence_are_exact(make_problem, make_qps, Nc):
+    """Sanity of the sequence: it visits both bounds, and fresh objects solve it exactly."""
+    results = solve_sequence(make_problem, make_qps, Nc)
+    exact = np.stack([r[2] for r in results])
+    assert np.any(np.isclose(exact, V_LIMIT, rtol=0, atol=1e-9))
+    assert np.any(np.isclose(exact, -V_LIMIT, rtol=0, atol=1e-9))
+    assert np.any(np.all(np.abs(exact) < V_LIMIT - 1e-6, axis=1))
+    for _, fresh, exact_k, tol in results:
+        assert np.all(np.abs(fresh - exact_k) <= tol)
+
+
+@pytest.mark.parametrize("Nc", [1, 3, 5])
+def test_warm_started_sequence_equals_fresh_solves(make_problem, make_qps, Nc):
+    """Warm-started answers equal fresh ones and the exact optimum to the solver tolerance."""
+    for warm, fresh, exact, tol in solve_sequence(make_problem, make_qps, Nc):
+        assert np.all(np.abs(warm - exact) <= tol)
+        assert np.all(np.abs(warm - fresh) <= 2.0 * tol)
+
+
+# ------------------------------------------------------------------ per-joint bounds
+PER_JOINT_V_MIN = np.array([-100.0, -5.0, -50.0, 25.0, -1.0])
+PER_JOINT_V_MAX = np.array([100.0, 2.0, 10.0, 60.0, 15.0])
+
+
+def solve_per_joint_bounds(make_problem, make_qps, Nc: int):
+    """Five joints share one gradient but have different boxes (one excludes v = 0).
+
+    Returns (solution (Nc, n), first inputs (n,), enumerated optima (Nc, n), tolerance).
+    """
+    N = 10
+    Q, R, P = WEIGHTS["paper"]
+    n = len(PER_JOINT_V_MIN)
+    x0, r0, ref = make_problem(N, seed=30, scale=0.02, offset=0.1)
+    H, g, _ = own_condensation(x0, r0, ref, N, Nc, Q, R, P)
+    mpc, qps = make_qps(N, Nc, n=n, v_min=PER_JOINT_V_MIN, v_max=PER_JOINT_V_MAX)
+    G = np.ascontiguousarray(np.tile(single_gradient(mpc, x0, ref), (n, 1)))
+    v0 = qps.solve(G)
+    exact = np.column_stack(
+        [
+            brute_force_box_qp(H, g, np.full(Nc, lo), np.full(Nc, hi))
+            for lo, hi in zip(PER_JOINT_V_MIN, PER_JOINT_V_MAX, strict=True)
+        ]
+    )
+    return qps.solution.copy(), v0, exact, solution_tolerance(H)
+
+
+@pytest.mark.parametrize("Nc", [1, 3])
+def test_per_joint_bounds_are_honoured(make_problem, make_qps, Nc):
+    """Each joint's solution lies in its own box and is that box's optimum.
+
+    One joint's box excludes v = 0, so the constructor's solve with g = 0 leaves it
+    warm-started at a bound: the first real solve must still reach the optimum.
+    """
+    sol, v0, exact, tol = solve_per_joint_bounds(make_problem, make_qps, Nc)
+    n = sol.shape[1]
+    # the boxes matter: every joint has a different optimum
+    gaps = np.abs(exact[:, :, None] - exact[:, None, :]).max(axis=0)
+    assert np.all(gaps[~np.eye(n, dtype=bool)] > 1.0)
+    assert np.all(sol >= PER_JOINT_V_MIN - 1e-8)
+    assert np.all(sol <= PER_JOINT_V_MAX + 1e-8)
+    assert np.all(np.abs(sol - exact) <= tol)
+    np.testing.assert_array_equal(v0, sol[0])
+
+
+# ------------------------------------------------------------------ paper settings
+def test_paper_settings_give_positive_hessian(make_problem):
+    """Ts = 0.01, N = 10, Nc = 1, Q = diag(50, 0), R = 1e-6, P = 2Q: H is finite and > 0."""
+    mpc = CondensedMPC(0.01, 10, 1, Q_PAPER, R_PAPER, P_PAPER)
+    assert mpc.H.shape == (1, 1)
+    assert np.isfinite(mpc.H).all()
+    assert np.isfinite(mpc.scale)
+    assert mpc.scale > 0
+    H_unscaled = mpc.H[0, 0] / mpc.scale
+    assert H_unscaled > 0
+    x0, r0, ref = make_problem(10, seed=40)
+    H, _, _ = own_condensation(x0, r0, ref, 10, 1, Q_PAPER, R_PAPER, P_PAPER)
+    assert H_unscaled == pytest.approx(H[0, 0], rel=1e-9)
+    # closed form: Σ_{j=1..9} 2·50·(j²Ts²/2)² + 2·100·(100·Ts²/2)² + 2·R·10
+    positions = np.array([(j * 0.01) ** 2 / 2.0 for j in range(1, 11)])
+    closed = 2.0 * (50.0 * np.sum(positions[:-1] ** 2) + 100.0 * positions[-1] ** 2 + 10e-6)
+    assert H_unscaled == pytest.approx(closed, rel=1e-12)

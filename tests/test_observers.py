@@ -1,0 +1,338 @@
+"""Tests of :mod:`hmpc_pin.observers` on the planar three-link arm (``robots/planar3.urdf``).
+
+The observer is checked against its error dynamics, computed here independently:
+
+* Eq (29): ``L M = c Y`` with ``Y`` the lower-triangular matrix of ones (Chen) or ``I``.
+* Eq (18): for a constant disturbance the error ``w = d - d̂`` obeys ``ẇ = -L(q) w``.
+  With the arm held at rest (``τ = G(q) - d`` so that ``M q̈ = 0``) ``L`` is constant, the
+  backward-Euler observer must give exactly ``w_k = (I + Ts L)^{-k} w_0`` and the explicit
+  one ``w_k = (I - Ts L)^k w_0`` (matrix powers computed with numpy), and as ``Ts → 0``
+  both approach ``exp(-L t) w_0`` (``scipy.linalg.expm``) at first order in ``Ts``.
+* On a moving arm, the plant is integrated here with RK4 at 0.1 ms under a PD law (the
+  observer is never used for control) and ``ẇ = -L(q(t)) w`` is integrated along the same
+  trajectory with the same RK4; the sampled observer must follow it, again at first order
+  in its sampling period.
+
+``L`` is formed here as ``c Y inv(M)`` with ``numpy.linalg.inv``; the observer's own
+``gain_matrix`` is only used in the test of Eq (29) itself.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from hmpc_pin.observers import DisturbanceObserver
+from hmpc_pin.robot import Robot, load_robot
+
+URDF = Path(__file__).resolve().parents[1] / "robots" / "planar3.urdf"
+N_JOINTS = 3
+#: Eq (28), written out.
+Y_CHEN = np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
+Y_OF = {"chen": Y_CHEN, "diagonal": np.eye(N_JOINTS)}
+KINDS = tuple(Y_OF)
+Q_LIMIT = np.array([np.pi / 2, np.pi / 2, 3 * np.pi / 4])
+
+
+# --------------------------------------------------------------------- helpers
+def own_gain(c: float, Y: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """L = c Y M^{-1} (Eq 30), independently of the package."""
+    return c * Y @ np.linalg.inv(M)
+
+
+def observe_at_rest(robot: Robot, obs: DisturbanceObserver, q, d, steps: int) -> np.ndarray:
+    """Hold the arm at ``q`` with τ = G(q) - d, feed the observer; return w_0 .. w_steps.
+
+    With that torque the plant's acceleration (ABA with the true disturbance) is zero, so
+    q and q̇ = 0 stay constant; this is checked rather than integrated, because the upright
+    equilibria of the arm are unstable and rounding would grow over many seconds.
+    """
+    q = np.array(q, dtype=float)
+    dq = np.zeros(N_JOINTS)
+    tau = robot.gravity_torque(q) - d
+    assert np.abs(robot.forward_dynamics(q, dq, tau + d)).max() < 1e-9
+    M, nle = robot.mass_matrix(q), robot.nonlinear_effects(q, dq)
+    obs.reset(dq)
+    errors = [d - obs.estimate]
+    for _ in range(steps):
+        errors.append(d - obs.update(M, nle, dq, tau))
+    return np.array(errors)
+
+
+def rk4_step(f, y: np.ndarray, h: float, *args) -> np.ndarray:
+    """One classical Runge-Kutta step of y' = f(y, *args)."""
+    k1 = f(y, *args)
+    k2 = f(y + 0.5 * h * k1, *args)
+    k3 = f(y + 0.5 * h * k2, *args)
+    k4 = f(y + h * k3, *args)
+    return y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+# --------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def robot() -> Robot:
+    """The planar 3-link arm, loaded once per module (read-only use)."""
+    return load_robot(URDF, gravity=9.8)
+
+
+@pytest.fixture
+def make_rng():
+    """Factory of seeded generators, so each test draws a reproducible sequence."""
+
+    def _make(seed: int = 0) -> np.random.Generator:
+        return np.random.default_rng(seed)
+
+    return _make
+
+
+@pytest.fixture
+def make_poses(make_rng):
+    """Factory of ``count`` random poses inside the joint ranges of Eq (27)."""
+
+    def _make(count: int, seed: int = 0) -> list[np.ndarray]:
+        rng = make_rng(seed)
+        return [rng.uniform(-Q_LIMIT, Q_LIMIT) for _ in range(count)]
+
+    return _make
+
+
+@pytest.fixture
+def make_observer():
+    """Factory of a 3-joint observer."""
+
+    def _make(Ts=1e-3, gain=5.0, kind="chen", discretization="implicit"):
+        return DisturbanceObserver(N_JOINTS, Ts, gain, kind=kind, discretization=discretization)
+
+    return _make
+
+
+# ----------------------------------------------------------------------- Eq 28-30
+def test_planar3_mass_matrix_is_not_diagonal(robot, make_poses):
+    """Precondition of the Eq (29) test: M has off-diagonal terms, so Y matters."""
+    for q in make_poses(5, seed=1):
+        M = robot.mass_matrix(q)
+        assert np.abs(M - np.diag(np.diag(M))).max() > 0.1
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_gain_matrix_times_mass_matrix_is_c_y(robot, make_rng, make_poses, make_observer, kind):
+    """Eq (29): L(q) M(q) = c Y for every pose."""
+    rng = make_rng(2)
+    for q in make_poses(10, seed=2):
+        gain = rng.uniform(0.5, 50.0)
+        obs = make_observer(gain=gain, kind=kind)
+        M = robot.mass_matrix(q)
+        L = obs.gain_matrix(M)
+        np.testing.assert_allclose(L @ M, gain * Y_OF[kind], rtol=0, atol=1e-11 * gain)
+        np.testing.assert_allclose(L, own_gain(gain, Y_OF[kind], M), rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_p_is_c_y_dq(make_rng, make_observer, kind):
+    """Eq (28): p(q̇) = c Y q̇, e.g. Chen's p = c (q̇1, q̇1 + q̇2, q̇1 + q̇2 + q̇3)."""
+    rng = make_rng(3)
+    obs = make_observer(gain=7.0, kind=kind)
+    for _ in range(5):
+        dq = rng.normal(size=N_JOINTS)
+        expected = 7.0 * (np.cumsum(dq) if kind == "chen" else dq)
+        np.testing.assert_allclose(obs.p(dq), expected, rtol=1e-14, atol=1e-14)
+
+
+# ----------------------------------------------------------------- arm at rest
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("discretization", ["implicit", "explicit"])
+def test_error_at_rest_follows_discrete_recursion(
+    robot, make_rng, make_poses, make_observer, kind, discretization
+):
+    """w_k = (I + Ts L)^{-k} w_0 (backward Euler) or (I - Ts L)^k w_0 (forward Euler)."""
+    rng = make_rng(4)
+    Ts, gain, steps = 2e-3, 10.0, 150
+    for q in make_poses(4, seed=4):
+        d = rng.uniform(-5.0, 5.0, size=N_JOINTS)
+        obs = make_observer(Ts=Ts, gain=gain, kind=kind, discretization=discretization)
+        w = observe_at_rest(robot, obs, q, d, steps)
+        np.testing.assert_array_equal(w[0], d)  # d̂ = 0 after reset
+        L = own_gain(gain, Y_OF[kind], robot.mass_matrix(q))
+        if discretization == "implicit":
+            step = np.linalg.inv(np.eye(N_JOINTS) + Ts * L)
+        else:
+            step = np.eye(N_JOINTS) - Ts * L
+        for k in (1, 2, 10, 50, steps):
+            expected = np.linalg.matrix_power(step, k) @ d
+            np.testing.assert_allclose(w[k], expected, rtol=0, atol=1e-10 * np.abs(d).max())
+        assert np.linalg.norm(w[steps]) < 0.9 * np.linalg.norm(d)  # it does converge
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_error_at_rest_approaches_continuous_solution(
+    robot, make_rng, make_poses, make_observer, kind
+):
+    """As Ts → 0 the implicit observer error tends to exp(-L t) w_0, at first order.
+
+    Bound: with L = V Λ V⁻¹, each mode's backward-Euler error |(1 + Ts λ)^{-k} - e^{-λ t_k}|
+    is at most Ts |λ| / (2e) (1 + O(Ts λ)) < Ts ρ(L) / 2, so the vector error is below
+    κ(V) · Ts ρ(L) / 2 · |w_0|. First order is checked directly: halving Ts halves the error.
+    """
+    rng = make_rng(5)
+    gain, T = 5.0, 2.0
+    for q in make_poses(3, seed=5):
+        d = rng.uniform(-5.0, 5.0, size=N_JOINTS)
+        L = own_gain(gain, Y_OF[kind], robot.mass_matrix(q))
+        lam, V = np.linalg.eig(L)
+        assert np.all(lam.real > 0)
+        worst = {}
+        for Ts in (1e-3, 5e-4):
+            steps = round(T / Ts)
+            w = observe_at_rest(robot, make_observer(Ts=Ts, gain=gain, kind=kind), q, d, steps)
+            t = Ts * np.arange(steps + 1)
+            exact = np.array([expm(-L * tk) @ d for tk in t[::10]])
+            worst[Ts] = np.linalg.norm(w[::10] - exact, axis=1).max()
+            bound = np.linalg.cond(V) * Ts * np.abs(lam).max() / 2.0 * np.linalg.norm(d)
+            assert worst[Ts] < bound
+        assert 1.8 < worst[1e-3] / worst[5e-4] < 2.2
+
+
+# ------------------------------------------------------------------ moving arm
+def test_error_on_moving_arm_follows_eq18(robot, make_rng, make_observer):
+    """A PD-controlled arm under a constant disturbance: the observer follows ẇ = -L(q(t)) w.
+
+    Plant and ``ẇ = -5 Y M(q)^{-1} w`` are integrated together by RK4 at 0.1 ms, with the
+    PD torque (plus gravity compensation, no observer) held over each 1 ms control period.
+    The observer samples the state every 1 ms (the paper's structure) and, for the order
+    check, every 0.5 ms on the same trajectory (the torque is constant over both periods).
+
+    Tolerance: the sampled observer is a first-order (backward Euler) discretisation of
+    Eq (13), so its error differs from w(t) by O(Ts); the bound Ts · max ρ(L) / 2 · |w_0|
+    is the one of the at-rest test, with ρ(L) the largest eigenvalue modulus of L met along
+    the trajectory, and halving Ts must halve the difference.
+    """
+    rng = make_rng(6)
+    gain, h, T = 5.0, 1e-4, 6.0
+    Y = Y_CHEN
+    d = rng.uniform(-3.0, 3.0, size=N_JOINTS)
+    centre = np.array([0.3, 1.35, 1.1])  # folded arm: the slowest mode of L is fastest here
+    amp, omega = 0.3, 2.0 * np.pi * 0.5
+    kp, kd = np.array([400.0, 300.0, 200.0]), np.array([40.0, 30.0, 20.0])
+
+    def f(y, tau):
+        q, dq, w = y[:3], y[3:6], y[6:]
+        ddq = robot.forward_dynamics(q, dq, tau + d)
+        wdot = -gain * Y @ np.linalg.solve(robot.mass_matrix(q), w)
+        return np.concatenate([dq, ddq, wdot])
+
+    y = np.concatenate([centre, np.zeros(3), d])  # w(0) = d since d̂(0) = 0
+    periods = {1e-3: 10, 5e-4: 5}  # observer period -> plant steps per period
+    observers = {Ts: make_observer(Ts=Ts, gain=gain) for Ts in periods}
+    for obs in observers.values():
+        obs.reset(y[3:6])
+    gap = dict.fromkeys(periods, 0.0)
+    rho, speed, masses = 0.0, 0.0, []
+    tau = np.zeros(3)
+    n_steps = round(T / h)
+    for s in range(n_steps + 1):
+        q, dq, w = y[:3], y[3:6], y[6:]
+        if s > 0:
+            for Ts, every in periods.items():
+                if s % every == 0:
+                    M = robot.mass_matrix(q)
+                    est = observers[Ts].update(M, robot.nonlinear_effects(q, dq), dq, tau)
+                    gap[Ts] = max(gap[Ts], np.linalg.norm((d - est) - w))
+        if s % 10 == 0:  # new torque every 1 ms, from the sampled state
+            M = robot.mass_matrix(q)
+            masses.append(M)
+            rho = max(rho, np.abs(np.linalg.eigvals(own_gain(gain, Y, M))).max())
+            speed = max(speed, np.abs(dq).max())
+            t = s * h
+            q_ref = centre + amp * np.sin(omega * t)
+            dq_ref = amp * omega * np.cos(omega * t)
+            tau = robot.gravity_torque(q) + kp * (q_ref - q) + kd * (dq_ref - dq)
+        if s < n_steps:
+            y = rk4_step(f, y, h, tau)
+    w_end = y[6:]
+    w_obs_end = d - observers[1e-3].estimate
+    norm0 = np.linalg.norm(d)
+    # the arm really moved and its inertia really changed
+    assert speed > 0.5
+    assert np.abs(np.array(masses) - masses[0]).max() > 0.1 * np.abs(masses[0]).max()
+    # the observer follows Eq (18) along the trajectory, at first order in Ts
+    for Ts in periods:
+        assert gap[Ts] < Ts * rho / 2.0 * norm0
+    assert 1.8 < gap[1e-3] / gap[5e-4] < 2.2
+    # and the error has decayed by more than a factor 100, as Eq (18) predicts
+    assert np.linalg.norm(w_end) < norm0 / 100.0
+    assert np.linalg.norm(w_obs_end) < norm0 / 100.0
+
+
+# ---------------------------------------------------------- implicit vs explicit
+def test_implicit_is_stable_where_explicit_diverges(robot, make_rng, make_observer):
+    """Ts = 0.01, c = 20 at the pose maximising λ_max(Y M⁻¹): explicit grows, implicit decays.
+
+    Forward Euler multiplies each mode by 1 - Ts c λ, so it diverges once Ts c λ_max > 2;
+    backward Euler multiplies it by 1 / (1 + Ts c λ) < 1. The slowest mode has
+    λ_min(Y M⁻¹) ≈ 0.08 at that pose (and below 0.36 everywhere in the workspace), so
+    backward Euler needs (1 + 0.2 λ_min)^{-k} < 1e-3, i.e. about 420 steps, not 100, to
+    reduce the error 1000-fold; 600 are taken. M does not depend on q1, so the search
+    is over (q2, q3) only.
+    """
+    Ts, gain = 0.01, 20.0
+    grid = [
+        np.array([0.4, q2, q3])
+        for q2 in np.linspace(-Q_LIMIT[1], Q_LIMIT[1], 13)
+        for q3 in np.linspace(-Q_LIMIT[2], Q_LIMIT[2], 13)
+    ]
+    lam_max = [
+        np.linalg.eigvals(Y_CHEN @ np.linalg.inv(robot.mass_matrix(q))).real.max() for q in grid
+    ]
+    q = grid[int(np.argmax(lam_max))]
+    lam = np.linalg.eigvals(own_gain(gain, Y_CHEN, robot.mass_matrix(q)))
+    assert np.all(np.abs(lam.imag) < 1e-9)
+    assert Ts * lam.real.max() > 2.0 + 0.1  # forward Euler is unstable at this pose
+    assert np.abs(1.0 - Ts * lam.real).max() ** 100 > 1e4
+    d = make_rng(7).uniform(-5.0, 5.0, size=N_JOINTS)
+    norm0 = np.linalg.norm(d)
+
+    w_explicit = observe_at_rest(
+        robot, make_observer(Ts=Ts, gain=gain, discretization="explicit"), q, d, 100
+    )
+    assert np.linalg.norm(w_explicit[-1]) > 1e3 * norm0
+
+    w_implicit = observe_at_rest(robot, make_observer(Ts=Ts, gain=gain), q, d, 600)
+    norms = np.linalg.norm(w_implicit, axis=1)
+    assert norms[100] < norm0
+    assert norms[-1] < 1e-3 * norm0
+    assert np.all(norms < 1.5 * norm0)  # no transient blow-up on the way
+
+
+# ---------------------------------------------------------------------- reset
+@pytest.mark.parametrize("kind", KINDS)
+def test_reset_starts_from_zero_estimate(robot, make_rng, make_observer, kind):
+    """reset(q̇0) gives d̂ = 0 with q̇0 ≠ 0, and the next sample stays consistent with d = 0.
+
+    Without disturbance the first estimate after one 1 ms plant step must be O(Ts) small;
+    a reset that left z = 0 instead of -p(q̇0) would give d̂ ≈ c Y q̇0 (tens of N·m here).
+    """
+    rng = make_rng(8)
+    Ts, gain = 1e-3, 20.0
+    obs = make_observer(Ts=Ts, gain=gain, kind=kind)
+    # dirty the observer first, so reset has something to undo
+    obs.update(np.eye(3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=3))
+    q0 = rng.uniform(-Q_LIMIT, Q_LIMIT)
+    dq0 = rng.uniform(1.0, 2.0, size=3) * rng.choice([-1.0, 1.0], size=3)
+    obs.reset(dq0)
+    np.testing.assert_array_equal(obs.estimate, np.zeros(3))
+    np.testing.assert_allclose(obs.z + gain * Y_OF[kind] @ dq0, 0.0, atol=1e-12)
+    # one held-torque plant step without disturbance, RK4 at 0.1 ms
+    tau = robot.gravity_torque(q0) + rng.normal(0.0, 2.0, size=3)
+
+    def f(y):
+        return np.concatenate([y[3:], robot.forward_dynamics(y[:3], y[3:], tau)])
+
+    y = np.concatenate([q0, dq0])
+    for _ in range(10):
+        y = rk4_step(f, y, 1e-4)
+    q1, dq1 = y[:3], y[3:]
+    est = obs.update(robot.mass_matrix(q1), robot.nonlinear_effects(q1, dq1), dq1, tau)
+    assert np.linalg.norm(est) < 1e-2 * np.linalg.norm(gain * Y_OF[kind] @ dq0)

@@ -1,0 +1,159 @@
+"""The ``hmpc-pin`` command line: run, reproduce, exit codes, files written."""
+
+from __future__ import annotations
+
+import csv
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.cli import main
+
+from .conftest import CONFIGS
+
+ALL_CONFIGS = sorted(p.stem for p in CONFIGS.glob("paper_*.toml"))
+
+
+def test_every_paper_config_exists():
+    expected = {
+        f"paper_{c}{s}" for c in ("friction", "external", "combined") for s in ("", "_no_ndo")
+    }
+    assert expected | {"paper_cartesian"} <= set(ALL_CONFIGS)
+
+
+@pytest.mark.parametrize("name", ALL_CONFIGS)
+def test_run_writes_npz_csv_and_figures(tmp_path, capsys, name):
+    assert (
+        main(["run", str(CONFIGS / f"{name}.toml"), "--out", str(tmp_path), "--duration", "1.5"])
+        == 0
+    )
+    printed = capsys.readouterr().out
+    assert "RMS e" in printed and "joint3" in printed
+    result = hmpc_pin.Result.load(tmp_path / f"{name}.npz")
+    assert result.complete and result.t[-1] == pytest.approx(1.5)
+    with open(tmp_path / f"{name}.csv", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    joints = ("joint1", "joint2", "joint3")
+    arrays = ("q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref")
+    assert rows[0] == ["t"] + [f"{a}_{j}" for a in arrays for j in joints]
+    assert len(rows) == len(result.t) + 1
+    np.testing.assert_allclose(np.array(rows[1:], dtype=float)[:, 1:4], result.q, rtol=1e-15)
+    for suffix in ("tracking", "disturbance", "error"):
+        png = tmp_path / f"{name}_{suffix}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_no_ndo_flag_disables_the_observer(tmp_path):
+    cfg = str(CONFIGS / "paper_friction.toml")
+    assert main(["run", cfg, "--out", str(tmp_path), "--duration", "1", "--no-ndo"]) == 0
+    r = hmpc_pin.Result.load(tmp_path / "paper_friction_no_ndo.npz")
+    assert np.all(r.d_hat == 0) and r.meta["observer"] is False
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["reproduce", "--help"]])
+def test_help(argv, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 0
+    assert "usage: hmpc-pin" in capsys.readouterr().out
+
+
+def test_python_dash_m_entry_point():
+    out = subprocess.run(
+        [sys.executable, "-m", "hmpc_pin", "--help"], capture_output=True, text=True, check=True
+    )
+    assert "reproduce" in out.stdout
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+def _unreachable(tmp_path):
+    text = (CONFIGS / "paper_cartesian.toml").read_text()
+    text = text.replace("goal_position = [2.423, 2.234]", "goal_position = [4.0, 0.0]")
+    text = text.replace('urdf = "../robots/', f'urdf = "{CONFIGS.parent.as_posix()}/robots/')
+    path = tmp_path / "far.toml"
+    path.write_text(text)
+    return path
+
+
+BAD_INPUTS = {
+    "missing config": (lambda tmp: ["run", str(tmp / "none.toml")], "not found"),
+    "not TOML": (lambda tmp: ["run", str(_write(tmp / "x.toml", "[[["))], "not valid TOML"),
+    "negative duration": (
+        lambda tmp: ["run", str(CONFIGS / "paper_combined.toml"), "--duration", "-1"],
+        "--duration",
+    ),
+    "unreachable goal": (
+        lambda tmp: ["run", str(_unreachable(tmp)), "--out", str(tmp / "o")],
+        "cannot reach tool (4, 0)",
+    ),
+    "output not writable": (
+        lambda tmp: [
+            "run",
+            str(CONFIGS / "paper_combined.toml"),
+            "--out",
+            str(_write(tmp / "file", "") / "sub"),
+        ],
+        "not writable",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, case):
+    make, words = BAD_INPUTS[case]
+    assert main(make(tmp_path)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and words in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_failed_run_exits_1_and_keeps_partial_results(tmp_path, capsys):
+    """The explicit-Euler observer at c = 200 diverges (see README): exit 1, data kept."""
+    text = (CONFIGS / "paper_combined.toml").read_text()
+    text = text.replace('discretization = "implicit"', 'discretization = "explicit"')
+    text = re.sub(r"^gain = .*$", "gain = 200.0", text, flags=re.M)
+    text = text.replace('urdf = "../robots/', f'urdf = "{CONFIGS.parent.as_posix()}/robots/')
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text(text)
+    assert main(["run", str(cfg), "--out", str(tmp_path)]) == 1
+    assert "run failed" in capsys.readouterr().err
+    r = hmpc_pin.Result.load(tmp_path / "paper_combined.npz")
+    assert not r.complete and 0 < r.t[-1] < 10 and "not finite" in r.message
+    assert (tmp_path / "paper_combined.csv").stat().st_size > 0
+
+
+@pytest.fixture(scope="module")
+def reproduced(tmp_path_factory):
+    out = tmp_path_factory.mktemp("reproduce")
+    assert main(["reproduce", "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_reproduce_writes_report_with_every_figure(reproduced):
+    report = (reproduced / "report.md").read_text()
+    figures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report)
+    for fig in ("Figure 3(b)", *(f"Figure {k}" for k in range(4, 11))):
+        assert fig in report
+    assert len(figures) >= 13
+    for name in figures:
+        png = reproduced / name
+        assert png.read_bytes()[:4] == b"\x89PNG" and png.stat().st_size > 10_000
+    for name in ("paper_friction", "paper_external", "paper_combined", "paper_cartesian"):
+        assert (reproduced / f"{name}.npz").is_file() and (reproduced / f"{name}.csv").is_file()
+
+
+def test_reproduce_paper_claims_hold(reproduced):
+    """Every claim of Section 5 checked in the report agrees with the full-length runs."""
+    report = (reproduced / "report.md").read_text()
+    rows = [line for line in report.splitlines() if re.match(r"^\| 5\.\d \|", line)]
+    assert len(rows) >= 8
+    for row in rows:
+        assert row.rstrip().endswith("| yes |"), row

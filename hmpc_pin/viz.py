@@ -1,0 +1,200 @@
+"""Meshcat views of a run: a self-contained HTML replay, and a live view.
+
+The arm is drawn from the URDF's visual geometry through Pinocchio's
+``MeshcatVisualizer``; the reference is drawn as a translucent ghost arm and the
+tool path as a line.
+
+Scale gotcha (SPEC §5): Meshcat animation frames keep only position and
+rotation, while Pinocchio bakes a mesh's scale into the transform it sends.
+Each geometry is therefore loaded one node deeper (``.../<name>/geom``) with its
+scale as a static transform, and only the parent node ``.../<name>`` is
+animated with the unscaled placement ``oMg``.
+
+Requires the ``viz`` extra (``pip install -e ".[viz]"``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .exceptions import HmpcError
+
+__all__ = ["VizError", "export_replay", "visual_model"]
+
+ARM = "arm"
+GHOST = "reference"
+
+
+class VizError(HmpcError, RuntimeError):
+    """Meshcat is missing or its server cannot be started."""
+
+
+def _meshcat():
+    try:
+        import meshcat
+        import meshcat.animation
+        import meshcat.geometry
+    except ImportError as exc:
+        raise VizError(
+            "meshcat is not installed; install the viz extra: pip install -e '.[viz]'"
+        ) from exc
+    return meshcat
+
+
+def visual_model(robot) -> pin.GeometryModel:
+    """The visual geometry of ``robot``'s URDF (mesh paths resolved next to the URDF)."""
+    source = Path(robot.source)
+    dirs = [str(source.parent), str(source.parent.parent)]
+    return pin.buildGeomFromUrdf(
+        robot.model, str(source), pin.GeometryType.VISUAL, package_dirs=dirs
+    )
+
+
+def _visualizer_class():
+    from pinocchio.visualize import MeshcatVisualizer
+
+    class _NestedVisualizer(MeshcatVisualizer):
+        """Loads each geometry at ``<group>/<name>/geom`` so its parent can be animated."""
+
+        def getViewerNodeName(self, geometry_object, geometry_type):
+            return super().getViewerNodeName(geometry_object, geometry_type) + "/geom"
+
+    return _NestedVisualizer
+
+
+def _reach(robot) -> float:
+    """Sum of the joint offsets and the tool offset [m]: a bound on the arm's extent."""
+    model = robot.model
+    tool = model.frames[model.getFrameId(robot.tool_frame)].placement.translation
+    return float(
+        sum(np.linalg.norm(model.jointPlacements[j].translation) for j in range(1, model.njoints))
+        + np.linalg.norm(tool)
+    )
+
+
+def _front_camera(vis, robot) -> None:
+    """Look at the arm's x–z plane from −y, far enough to see the whole reach.
+
+    Meshcat's camera lives in a y-up frame: local (x, y, z) is world (x, −z, y).
+    """
+    reach = max(_reach(robot), 0.2)
+    center = np.eye(4)
+    center[:3, 3] = [0.3 * reach, 0.0, 0.0]
+    vis["/Cameras/default"].set_transform(center)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.0, 1.7 * reach])
+
+
+def _frames(t: np.ndarray, fps: float) -> np.ndarray:
+    """Indices of samples kept so that frames are at most ``fps`` per second."""
+    if len(t) < 2:
+        return np.arange(len(t))
+    step = max(1, int(np.ceil((1.0 / fps) / (t[1] - t[0]) - 1e-9)))
+    idx = np.arange(0, len(t), step)
+    if idx[-1] != len(t) - 1:
+        idx = np.append(idx, len(t) - 1)
+    return idx
+
+
+def _tool_points(robot, qs) -> np.ndarray:
+    model, data = robot.model, robot.model.createData()
+    fid = model.getFrameId(robot.tool_frame)
+    pts = []
+    for q in qs:
+        pin.framesForwardKinematics(model, data, q)
+        pts.append(data.oMf[fid].translation.copy())
+    return np.array(pts)
+
+
+def export_replay(
+    robot,
+    result,
+    path: str | Path,
+    *,
+    fps: float = 50.0,
+    ghost: bool = True,
+    tool_path: bool = True,
+    play: bool = True,
+    start_time: float = 0.0,
+) -> Path:
+    """Write one self-contained HTML file that replays ``result`` as a Meshcat animation.
+
+    The page needs no server and no network: Meshcat's ``static_html`` inlines the
+    viewer's JavaScript and the scene, animation included (play/pause/scrub in
+    the page's Animations panel).
+
+    Args:
+        robot: The arm (its URDF's visual geometry is drawn).
+        result: A :class:`~hmpc_pin.simulate.Result`.
+        path: Output ``.html`` file.
+        fps: Maximum animation frame rate [1/s]; samples are decimated to it.
+        ghost: Draw the reference as a translucent arm.
+        tool_path: Draw the tool's path (and the reference tool path) as lines.
+        play: Start playing the animation when the page opens.
+        start_time: Time [s] of the pose shown before (or without) playing.
+
+    Returns:
+        The path written.
+    """
+    meshcat = _meshcat()
+    geom = meshcat.geometry
+    gmodel = visual_model(robot)
+    gdata = gmodel.createData()
+    model = robot.model
+    data = model.createData()
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            vis = meshcat.Visualizer()
+    except Exception as exc:  # zmq/tornado failures surface as assorted types
+        raise VizError(f"cannot start a Meshcat server: {exc}") from exc
+    try:
+        vis.delete()
+        viz = _visualizer_class()(model, gmodel, gmodel)
+        with contextlib.redirect_stdout(io.StringIO()):
+            viz.initViewer(viewer=vis, loadModel=False)
+        roots = [(ARM, None, result.q)]
+        if ghost:
+            roots.append((GHOST, [0.6, 0.6, 0.6, 0.35], result.q_ref))
+        for root, color, _ in roots:
+            viz.loadViewerModel(rootNodeName=root, visual_color=color)
+            group = f"{root}/visuals"
+            for g in gmodel.geometryObjects:
+                scale = np.diag([*np.asarray(g.meshScale, float), 1.0])
+                vis[f"{group}/{g.name}/geom"].set_transform(scale)
+        if tool_path:
+            lines = (("tool_path", result.q, 0xD62728), ("tool_ref", result.q_ref, 0x333333))
+            for name, qs, color in lines:
+                pts = _tool_points(robot, qs).T.astype(np.float32)
+                vis[name].set_object(
+                    geom.Line(geom.PointsGeometry(pts), geom.LineBasicMaterial(color=color))
+                )
+
+        idx = _frames(result.t, fps)
+        anim = meshcat.animation.Animation(default_framerate=fps)
+        for frame_no, k in enumerate(idx):
+            with anim.at_frame(vis, frame_no) as frame:
+                for root, _, qs in roots:
+                    pin.updateGeometryPlacements(model, data, gmodel, gdata, qs[k])
+                    for i, g in enumerate(gmodel.geometryObjects):
+                        frame[f"{root}/visuals/{g.name}"].set_transform(gdata.oMg[i].homogeneous)
+        # the static scene shows the pose at start_time
+        k0 = int(np.argmin(np.abs(result.t - start_time)))
+        for root, _, qs in roots:
+            pin.updateGeometryPlacements(model, data, gmodel, gdata, qs[k0])
+            for i, g in enumerate(gmodel.geometryObjects):
+                vis[f"{root}/visuals/{g.name}"].set_transform(gdata.oMg[i].homogeneous)
+        _front_camera(vis, robot)
+        vis.set_animation(anim, play=play, repetitions=1)
+        html = vis.static_html()
+    finally:
+        proc = getattr(vis.window, "server_proc", None)
+        if proc is not None:
+            proc.terminate()
+            proc.wait(timeout=10)
+    path = Path(path)
+    path.write_text(html, encoding="utf-8")
+    return path

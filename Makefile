@@ -1,6 +1,6 @@
 # Two entry points on a fresh machine (see README):
 #   make demo   - create .venv, install hmpc_pin, run examples/track_sine.py
-#   make test   - create .venv, install hmpc_pin with the dev extra, run the tests
+#   make test   - create .venv, install hmpc_pin with the dev and viz extras, run the tests
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
@@ -10,7 +10,7 @@ PY := $(VENV)/bin/python
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip
-	$(PY) -m pip install -e ".[dev]"
+	$(PY) -m pip install -e ".[dev,viz]"
 	touch $@
 
 demo: $(VENV)/.installed

@@ -95,7 +95,7 @@ def cmd_run(args) -> int:
     config = _with_overrides(load_config(args.config), args.no_ndo, args.duration)
     out = _out_dir(args.out)
     stem = config.name + ("_no_ndo" if args.no_ndo and not config.name.endswith("_no_ndo") else "")
-    _, result, files, failure = run_one(config, out, stem)
+    experiment, result, files, failure = run_one(config, out, stem)
     if len(result.t) > 1:
         from .plots import plot_error
 
@@ -105,11 +105,40 @@ def cmd_run(args) -> int:
     print(f"{config.name}: {config.description} (observer {observer})")
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names))
+    if args.replay is not None and len(result.t) > 1:
+        files.append(_replay(experiment.robot, result, args.replay))
     for f in files:
         print(f"wrote {f}")
     if failure:
         print(f"error: run failed: {failure}", file=sys.stderr)
         return EXIT_FAILED
+    return EXIT_OK
+
+
+def _replay(robot, result, path: Path) -> Path:
+    from .viz import export_replay
+
+    _out_dir(path.parent)
+    return export_replay(robot, result, path)
+
+
+def cmd_replay(args) -> int:
+    from .robot import load_robot
+
+    if not args.result.is_file():
+        raise ConfigError("RESULT", f"{str(args.result)!r} not found; pass a .npz written by run")
+    try:
+        result = Result.load(args.result)
+    except (OSError, ValueError, KeyError) as exc:
+        raise ConfigError(
+            "RESULT", f"{str(args.result)!r} is not a hmpc_pin result: {exc}"
+        ) from exc
+    urdf = args.urdf or result.meta.get("urdf")
+    if not urdf:
+        raise ConfigError("--urdf", "the result does not name its URDF; pass --urdf PATH")
+    robot = load_robot(urdf, gravity=result.meta.get("gravity", 9.8))
+    path = _replay(robot, result, args.out)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
     return EXIT_OK
 
 
@@ -140,7 +169,21 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     run.add_argument("--no-ndo", action="store_true", help="disable the observer (baseline)")
     run.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
+    run.add_argument(
+        "--replay", type=Path, metavar="HTML", help="also write a self-contained Meshcat replay"
+    )
     run.set_defaults(func=cmd_run)
+
+    rpl = sub.add_parser(
+        "replay",
+        help="write a self-contained Meshcat HTML replay of a saved run",
+        description="Turn a result .npz written by `run` into one HTML file that plays the "
+        "run as a Meshcat animation (play/pause/scrub), with no server and no network.",
+    )
+    rpl.add_argument("result", type=Path, help="result .npz")
+    rpl.add_argument("--out", type=Path, default=Path("replay.html"), help="HTML file to write")
+    rpl.add_argument("--urdf", help="URDF of the arm (default: the one named in the result)")
+    rpl.set_defaults(func=cmd_replay)
 
     rep = sub.add_parser(
         "reproduce",

@@ -136,6 +136,8 @@ class Experiment:
             meta={
                 "experiment": cfg.name,
                 "config": str(cfg.source) if cfg.source else None,
+                "urdf": str(cfg.robot.urdf),
+                "gravity": cfg.robot.gravity,
                 "observer": cfg.controller.observer.enabled,
                 "Ts": cfg.controller.Ts,
                 "N": cfg.controller.N,

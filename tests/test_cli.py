@@ -157,3 +157,19 @@ def test_reproduce_paper_claims_hold(reproduced):
     assert len(rows) >= 8
     for row in rows:
         assert row.rstrip().endswith("| yes |"), row
+
+
+def test_run_replay_and_replay_command(tmp_path, capsys):
+    """`run --replay` and `replay RESULT.npz` write the same self-contained page."""
+    pytest.importorskip("meshcat")
+    cfg = str(CONFIGS / "paper_external.toml")
+    html = tmp_path / "run.html"
+    argv = ["run", cfg, "--out", str(tmp_path), "--duration", "2", "--replay", str(html)]
+    assert main(argv) == 0
+    again = tmp_path / "again.html"
+    assert main(["replay", str(tmp_path / "paper_external.npz"), "--out", str(again)]) == 0
+    for page in (html, again):
+        text = page.read_text()
+        assert "MeshCat.Viewer" in text and "data:application/octet-binary;base64," in text
+    assert main(["replay", str(tmp_path / "missing.npz")]) == 2
+    assert "not found" in capsys.readouterr().err

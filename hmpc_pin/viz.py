@@ -47,9 +47,13 @@ def _meshcat():
 
 
 def visual_model(robot) -> pin.GeometryModel:
-    """The visual geometry of ``robot``'s URDF (mesh paths resolved next to the URDF)."""
-    source = Path(robot.source)
-    dirs = [str(source.parent), str(source.parent.parent)]
+    """The visual geometry of ``robot``'s URDF.
+
+    ``package://`` mesh URIs are resolved against every ancestor directory of the
+    URDF (e.g. ``share/`` for example-robot-data's ``package://example-robot-data/...``).
+    """
+    source = Path(robot.source).resolve()
+    dirs = [str(p) for p in source.parents]
     return pin.buildGeomFromUrdf(
         robot.model, str(source), pin.GeometryType.VISUAL, package_dirs=dirs
     )

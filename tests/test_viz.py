@@ -14,7 +14,7 @@ import hmpc_pin
 from .conftest import PLANAR3
 
 pytest.importorskip("meshcat", reason="meshcat is not installed (pip install -e '.[viz]')")
-from hmpc_pin.viz import export_replay  # noqa: E402
+from hmpc_pin.viz import export_replay
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
@@ -117,3 +117,24 @@ def test_replay_renders_the_arm_in_a_real_browser(short_run, tmp_path):
     assert _differs(early_px, empty_px) > 0.005
     # between t = 0 (q = 1, 1, 1) and t = 5 s (q ≈ 0) the arm has moved on screen
     assert _differs(early_px, late_px) > 0.002
+
+
+def test_replay_of_a_mesh_arm_from_example_robot_data(tmp_path):
+    """UR5 (meshes via package:// URIs): every visual is loaded and animated."""
+    loaders = pytest.importorskip("example_robot_data.robots_loader")
+    robot = hmpc_pin.load_robot(loaders.UR5Loader().df_path)
+    q0 = np.array([0.0, -1.2, 1.4, -1.0, -1.57, 0.0])
+    ctrl = hmpc_pin.HierarchicalMPC(
+        robot, hmpc_pin.ControllerConfig(observer=hmpc_pin.ObserverConfig(kind="diagonal"))
+    )
+    ref = hmpc_pin.SineReference(6, amplitude=0.3, offset=q0)
+    result = hmpc_pin.simulate(robot, ctrl, ref, duration=1.0, q0=q0)
+    html = export_replay(robot, result, tmp_path / "ur5.html", ghost=False).read_text()
+    commands = _commands(html)
+    meshes = [c for c in commands if c["type"] == "set_object" and "/arm/visuals/" in c["path"]]
+    assert len(meshes) == 7  # base, shoulder, upper arm, forearm, 3 wrists
+    # the mesh files are inlined in the page (no file or network access when viewed)
+    assert all(len(m["object"]["object"].get("data", "")) > 1000 for m in meshes)
+    (anim,) = [c for c in commands if c["type"] == "set_animation"]
+    animated = {a["path"] for a in anim["animations"]}
+    assert {m["path"].removesuffix("/geom") for m in meshes} == animated

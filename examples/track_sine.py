@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import hmpc_pin
+from hmpc_pin.cli import live_view
 from hmpc_pin.plots import plot_overview
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -32,6 +33,9 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory")
     parser.add_argument("--no-ndo", action="store_true", help="run without the observer")
+    parser.add_argument("--viz", action="store_true", help="animate the arm live in Meshcat")
+    parser.add_argument("--speed", type=float, default=1.0, help="live view speed [1 = real time]")
+    parser.add_argument("--replay", type=Path, help="also write a self-contained HTML replay")
     args = parser.parse_args(argv)
 
     try:
@@ -41,8 +45,14 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 
+    experiment = hmpc_pin.Experiment.from_config(config, observer=False if args.no_ndo else None)
+    view = live_view(experiment.robot, args.speed) if args.viz else None
     start = time.perf_counter()
-    result = hmpc_pin.run_experiment(config, observer=False if args.no_ndo else None)
+    try:
+        result = experiment.run(on_step=view)
+    finally:
+        if view is not None:
+            view.close()
     elapsed = time.perf_counter() - start
 
     metrics = hmpc_pin.compute_metrics(result, after=1.0, tol=0.01)
@@ -51,6 +61,10 @@ def main(argv=None) -> int:
     npz = result.save(args.out / "track_sine.npz")
     png = plot_overview(result, args.out / "track_sine.png", title=config.description)
     print(f"simulated {result.t[-1]:.1f} s in {elapsed:.2f} s; wrote {npz} and {png}")
+    if args.replay:
+        from hmpc_pin.viz import export_replay
+
+        print(f"wrote {export_replay(experiment.robot, result, args.replay)}")
     return 0
 
 

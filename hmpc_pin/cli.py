@@ -66,7 +66,20 @@ def _with_overrides(
     return config
 
 
-def run_one(config: ExperimentConfig, out: Path, stem: str | None = None):
+def live_view(robot, speed: float):
+    """A :class:`~hmpc_pin.viz.LiveView`, or ``None`` with a warning if Meshcat cannot run."""
+    from .viz import LiveView, VizError
+
+    try:
+        view = LiveView(robot, speed=speed)
+    except VizError as exc:
+        print(f"warning: no live view: {exc}; the run goes on and is saved", file=sys.stderr)
+        return None
+    print(f"Meshcat live view: open {view.url} (speed {speed:g}x)")
+    return view
+
+
+def run_one(config: ExperimentConfig, out: Path, stem: str | None = None, viz: float | None = None):
     """Run ``config``; write ``<stem>.npz``, ``<stem>.csv`` and figures to ``out``.
 
     Returns:
@@ -76,13 +89,17 @@ def run_one(config: ExperimentConfig, out: Path, stem: str | None = None):
 
     stem = stem or config.name
     experiment = Experiment.from_config(config)
+    view = live_view(experiment.robot, viz) if viz is not None else None
     failure = None
     try:
-        result = experiment.run()
+        result = experiment.run(on_step=view)
     except SimulationError as exc:
         if exc.result is None:
             raise
         result, failure = exc.result, str(exc)
+    finally:
+        if view is not None:
+            view.close()
     files = [result.save(out / f"{stem}.npz"), write_csv(result, out / f"{stem}.csv")]
     if len(result.t) > 1:
         title = config.description or config.name
@@ -95,7 +112,10 @@ def cmd_run(args) -> int:
     config = _with_overrides(load_config(args.config), args.no_ndo, args.duration)
     out = _out_dir(args.out)
     stem = config.name + ("_no_ndo" if args.no_ndo and not config.name.endswith("_no_ndo") else "")
-    experiment, result, files, failure = run_one(config, out, stem)
+    if not args.speed > 0:
+        raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
+    viz = args.speed if args.viz else None
+    experiment, result, files, failure = run_one(config, out, stem, viz=viz)
     if len(result.t) > 1:
         from .plots import plot_error
 
@@ -171,6 +191,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     run.add_argument(
         "--replay", type=Path, metavar="HTML", help="also write a self-contained Meshcat replay"
+    )
+    run.add_argument(
+        "--viz", action="store_true", help="animate the arm live in Meshcat (prints the URL)"
+    )
+    run.add_argument(
+        "--speed", type=float, default=1.0, help="live view: simulated s per real s [1]"
     )
     run.set_defaults(func=cmd_run)
 

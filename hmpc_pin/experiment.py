@@ -119,8 +119,11 @@ class Experiment:
             dq0=config.vector("simulation.dq0", n),
         )
 
-    def run(self, duration: float | None = None) -> Result:
-        """Simulate the closed loop for ``duration`` [s] (default: the config's)."""
+    def run(self, duration: float | None = None, on_step=None) -> Result:
+        """Simulate the closed loop for ``duration`` [s] (default: the config's).
+
+        ``on_step(t, q, q_ref)`` is called at every control instant (live view).
+        """
         cfg = self.config
         return simulate(
             self.robot,
@@ -133,6 +136,7 @@ class Experiment:
             plant=self.plant,
             dt=cfg.plant.dt,
             integrator=cfg.plant.integrator,
+            on_step=on_step,
             meta={
                 "experiment": cfg.name,
                 "config": str(cfg.source) if cfg.source else None,

@@ -107,6 +107,7 @@ def simulate(
     integrator: str = "rk4",
     state_bound: float = 1e3,
     meta: dict | None = None,
+    on_step=None,
 ) -> Result:
     """Run the closed loop and return the sampled trajectories.
 
@@ -123,6 +124,8 @@ def simulate(
         integrator: ``"rk4"`` (classical Runge–Kutta) or ``"euler"`` (semi-implicit).
         state_bound: The run stops as diverged if any |q| or |q̇| exceeds it.
         meta: Metadata stored in the result.
+        on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
+            instant (e.g. :class:`~hmpc_pin.viz.LiveView`).
 
     Returns:
         :class:`Result` with K+1 samples, K = round(duration / Ts).
@@ -174,6 +177,8 @@ def simulate(
             rec["q_ref"][k] = q_ref
             rec["dq_ref"][k] = dq_ref
             last = k
+            if on_step is not None:
+                on_step(t, q, q_ref)
             if k == K:
                 break
             if not np.isfinite(tau).all():

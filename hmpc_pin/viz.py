@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from .exceptions import HmpcError
 
-__all__ = ["VizError", "export_replay", "visual_model"]
+__all__ = ["LiveView", "VizError", "export_replay", "visual_model"]
 
 ARM = "arm"
 GHOST = "reference"
@@ -91,6 +91,85 @@ def _front_camera(vis, robot) -> None:
     center[:3, 3] = [0.3 * reach, 0.0, 0.0]
     vis["/Cameras/default"].set_transform(center)
     vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.0, 1.7 * reach])
+
+
+class LiveView:
+    """Animate a running simulation in a Meshcat server on localhost.
+
+    Pass it as ``simulate(..., on_step=view)``: every control instant it moves
+    the arm (and the translucent reference arm) at most ``fps`` times per second,
+    and sleeps so that simulated time runs at ``speed`` × real time.
+
+    Args:
+        robot: The arm.
+        speed: Simulated seconds per real second (1 = real time; ``inf`` = as fast as possible).
+        fps: Maximum display rate [1/s].
+        ghost: Draw the reference as a translucent arm.
+
+    Attributes:
+        url: The browser URL of the Meshcat server.
+    """
+
+    def __init__(self, robot, speed: float = 1.0, fps: float = 50.0, ghost: bool = True):
+        import time
+
+        meshcat = _meshcat()
+        if not speed > 0:
+            raise VizError(f"speed={speed!r}; expected a number > 0")
+        self._time = time
+        self.robot, self.speed, self.period = robot, float(speed), 1.0 / fps
+        self.gmodel = visual_model(robot)
+        self.gdata = self.gmodel.createData()
+        self.data = robot.model.createData()
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                self.vis = meshcat.Visualizer()
+        except Exception as exc:  # zmq/tornado failures surface as assorted types
+            raise VizError(f"cannot start a Meshcat server: {exc}") from exc
+        self.url = self.vis.url()
+        self.vis.delete()
+        viz = _visualizer_class()(robot.model, self.gmodel, self.gmodel)
+        with contextlib.redirect_stdout(io.StringIO()):
+            viz.initViewer(viewer=self.vis, loadModel=False)
+        self.roots = [ARM] + ([GHOST] if ghost else [])
+        for root in self.roots:
+            viz.loadViewerModel(
+                rootNodeName=root, visual_color=None if root == ARM else [0.6, 0.6, 0.6, 0.35]
+            )
+            for g in self.gmodel.geometryObjects:
+                scale = np.diag([*np.asarray(g.meshScale, float), 1.0])
+                self.vis[f"{root}/visuals/{g.name}/geom"].set_transform(scale)
+        _front_camera(self.vis, robot)
+        self._interval = self.period * self.speed if np.isfinite(self.speed) else self.period
+        self._start = None
+        self._last = -np.inf
+
+    def show(self, root: str, q) -> None:
+        """Place the arm ``root`` (``"arm"`` or ``"reference"``) at ``q``."""
+        pin.updateGeometryPlacements(self.robot.model, self.data, self.gmodel, self.gdata, q)
+        for i, g in enumerate(self.gmodel.geometryObjects):
+            self.vis[f"{root}/visuals/{g.name}"].set_transform(self.gdata.oMg[i].homogeneous)
+
+    def __call__(self, t: float, q, q_ref) -> None:
+        now = self._time.perf_counter()
+        if self._start is None:
+            self._start = now - t / self.speed
+        if t - self._last < self._interval and t > 0:
+            return
+        self._last = t
+        self.show(ARM, q)
+        if GHOST in self.roots:
+            self.show(GHOST, q_ref)
+        delay = self._start + t / self.speed - self._time.perf_counter()
+        if delay > 0 and np.isfinite(delay):
+            self._time.sleep(delay)
+
+    def close(self) -> None:
+        """Stop the Meshcat server."""
+        proc = getattr(self.vis.window, "server_proc", None)
+        if proc is not None:
+            proc.terminate()
+            proc.wait(timeout=10)
 
 
 def _frames(t: np.ndarray, fps: float) -> np.ndarray:

@@ -68,7 +68,7 @@ def test_replay_is_self_contained_and_holds_the_animation(short_run, tmp_path):
     assert urls <= {"http://www.w3.org/1999/xhtml", "http://www.w3.org/2000/svg"}, urls
 
 
-def _screenshot(html_path, png_path, profile):
+def _screenshot(uri: str, png_path, profile):
     cmd = [
         CHROMIUM,
         "--headless=new",
@@ -84,7 +84,7 @@ def _screenshot(html_path, png_path, profile):
         "--window-size=800,600",
         "--virtual-time-budget=15000",
         f"--screenshot={png_path}",
-        html_path.resolve().as_uri(),
+        uri,
     ]
     subprocess.run(cmd, capture_output=True, timeout=180, check=True)
     from PIL import Image
@@ -110,9 +110,11 @@ def test_replay_renders_the_arm_in_a_real_browser(short_run, tmp_path):
         vis.window.server_proc.terminate()
     early = export_replay(robot, result, tmp_path / "t0.html", play=False, start_time=0.0)
     late = export_replay(robot, result, tmp_path / "t5.html", play=False, start_time=5.0)
-    empty_px = _screenshot(tmp_path / "empty.html", tmp_path / "empty.png", tmp_path / "p0")
-    early_px = _screenshot(early, tmp_path / "t0.png", tmp_path / "p1")
-    late_px = _screenshot(late, tmp_path / "t5.png", tmp_path / "p2")
+    empty_px = _screenshot(
+        (tmp_path / "empty.html").as_uri(), tmp_path / "empty.png", tmp_path / "p0"
+    )
+    early_px = _screenshot(early.resolve().as_uri(), tmp_path / "t0.png", tmp_path / "p1")
+    late_px = _screenshot(late.resolve().as_uri(), tmp_path / "t5.png", tmp_path / "p2")
     # an empty scene and the arm scene differ (arm, ghost, tool path, camera)
     assert _differs(early_px, empty_px) > 0.005
     # between t = 0 (q = 1, 1, 1) and t = 5 s (q ≈ 0) the arm has moved on screen
@@ -138,3 +140,44 @@ def test_replay_of_a_mesh_arm_from_example_robot_data(tmp_path):
     (anim,) = [c for c in commands if c["type"] == "set_animation"]
     animated = {a["path"] for a in anim["animations"]}
     assert {m["path"].removesuffix("/geom") for m in meshes} == animated
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium)")
+def test_live_view_is_served_and_moves_the_arm(tmp_path):
+    """A real Meshcat server: the page at LiveView.url shows the arm where it was put."""
+    from hmpc_pin.viz import LiveView
+
+    robot = hmpc_pin.load_robot(PLANAR3)
+    view = LiveView(robot, ghost=False)
+    try:
+        assert view.url.startswith("http://127.0.0.1:")
+        shots = []
+        for k, q in enumerate((np.ones(3), np.array([0.0, -1.0, 0.5]))):
+            view(0.0, q, q)
+            shots.append(_screenshot(view.url, tmp_path / f"live{k}.png", tmp_path / f"p{k}"))
+    finally:
+        view.close()
+    assert _differs(shots[0], shots[1]) > 0.002
+
+
+def test_cli_live_view_runs_and_saves(tmp_path, capsys):
+    from hmpc_pin.cli import main
+
+    cfg = str(PLANAR3.parent.parent / "configs" / "paper_combined.toml")
+    argv = ["run", cfg, "--out", str(tmp_path), "--duration", "1", "--viz", "--speed", "100"]
+    assert main(argv) == 0
+    assert "Meshcat live view: open http://127.0.0.1:" in capsys.readouterr().out
+    assert (tmp_path / "paper_combined.npz").is_file()
+
+
+def test_missing_meshcat_is_a_clear_message(monkeypatch, tmp_path, capsys):
+    """Without meshcat the run still completes and is saved; the view is refused clearly."""
+    import sys
+
+    from hmpc_pin.cli import main
+
+    monkeypatch.setitem(sys.modules, "meshcat", None)  # import meshcat -> ImportError
+    cfg = str(PLANAR3.parent.parent / "configs" / "paper_combined.toml")
+    assert main(["run", cfg, "--out", str(tmp_path), "--duration", "0.5", "--viz"]) == 0
+    assert "meshcat is not installed" in capsys.readouterr().err
+    assert (tmp_path / "paper_combined.npz").is_file()

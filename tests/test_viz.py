@@ -181,3 +181,19 @@ def test_missing_meshcat_is_a_clear_message(monkeypatch, tmp_path, capsys):
     assert main(["run", cfg, "--out", str(tmp_path), "--duration", "0.5", "--viz"]) == 0
     assert "meshcat is not installed" in capsys.readouterr().err
     assert (tmp_path / "paper_combined.npz").is_file()
+
+
+def test_busy_port_moves_to_the_next_free_one():
+    """A second live view while the first holds its port gets its own server and URL."""
+    from hmpc_pin.viz import LiveView
+
+    robot = hmpc_pin.load_robot(PLANAR3)
+    first = LiveView(robot)
+    try:
+        second = LiveView(robot)
+        try:
+            assert second.url != first.url
+        finally:
+            second.close()
+    finally:
+        first.close()

@@ -28,6 +28,7 @@ __all__ = ["LiveView", "VizError", "export_replay", "visual_model"]
 
 ARM = "arm"
 GHOST = "reference"
+GHOST_RGBA = [0.6, 0.6, 0.6, 0.35]
 
 
 class VizError(HmpcError, RuntimeError):
@@ -69,6 +70,47 @@ def _visualizer_class():
             return super().getViewerNodeName(geometry_object, geometry_type) + "/geom"
 
     return _NestedVisualizer
+
+
+def _load_scene(vis, robot, gmodel, ghost: bool) -> list[str]:
+    """Load the arm (and the ghost reference arm) into ``vis``; return the root names.
+
+    Each geometry sits at ``<root>/visuals/<name>/geom`` with its mesh scale as a static
+    transform, so that ``<root>/visuals/<name>`` can carry the unscaled placement.
+    """
+    viz = _visualizer_class()(robot.model, gmodel, gmodel)
+    with contextlib.redirect_stdout(io.StringIO()):
+        viz.initViewer(viewer=vis, loadModel=False)
+    roots = [ARM, GHOST] if ghost else [ARM]
+    for root in roots:
+        viz.loadViewerModel(rootNodeName=root, visual_color=None if root == ARM else GHOST_RGBA)
+        for g in gmodel.geometryObjects:
+            scale = np.diag([*np.asarray(g.meshScale, float), 1.0])
+            vis[f"{root}/visuals/{g.name}/geom"].set_transform(scale)
+    _front_camera(vis, robot)
+    return roots
+
+
+def _place(node, root, robot, data, gmodel, gdata, q) -> None:
+    """Set the unscaled placement of every geometry of arm ``root`` at ``q`` on ``node``."""
+    pin.updateGeometryPlacements(robot.model, data, gmodel, gdata, q)
+    for i, g in enumerate(gmodel.geometryObjects):
+        node[f"{root}/visuals/{g.name}"].set_transform(gdata.oMg[i].homogeneous)
+
+
+def _start_server(meshcat):
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            return meshcat.Visualizer()
+    except Exception as exc:  # zmq/tornado failures surface as assorted types
+        raise VizError(f"cannot start a Meshcat server: {exc}") from exc
+
+
+def _stop_server(vis) -> None:
+    proc = getattr(vis.window, "server_proc", None)
+    if proc is not None:
+        proc.terminate()
+        proc.wait(timeout=10)
 
 
 def _reach(robot) -> float:
@@ -121,34 +163,17 @@ class LiveView:
         self.gmodel = visual_model(robot)
         self.gdata = self.gmodel.createData()
         self.data = robot.model.createData()
-        try:
-            with contextlib.redirect_stdout(io.StringIO()):
-                self.vis = meshcat.Visualizer()
-        except Exception as exc:  # zmq/tornado failures surface as assorted types
-            raise VizError(f"cannot start a Meshcat server: {exc}") from exc
+        self.vis = _start_server(meshcat)
         self.url = self.vis.url()
         self.vis.delete()
-        viz = _visualizer_class()(robot.model, self.gmodel, self.gmodel)
-        with contextlib.redirect_stdout(io.StringIO()):
-            viz.initViewer(viewer=self.vis, loadModel=False)
-        self.roots = [ARM] + ([GHOST] if ghost else [])
-        for root in self.roots:
-            viz.loadViewerModel(
-                rootNodeName=root, visual_color=None if root == ARM else [0.6, 0.6, 0.6, 0.35]
-            )
-            for g in self.gmodel.geometryObjects:
-                scale = np.diag([*np.asarray(g.meshScale, float), 1.0])
-                self.vis[f"{root}/visuals/{g.name}/geom"].set_transform(scale)
-        _front_camera(self.vis, robot)
+        self.roots = _load_scene(self.vis, robot, self.gmodel, ghost)
         self._interval = self.period * self.speed if np.isfinite(self.speed) else self.period
         self._start = None
         self._last = -np.inf
 
     def show(self, root: str, q) -> None:
         """Place the arm ``root`` (``"arm"`` or ``"reference"``) at ``q``."""
-        pin.updateGeometryPlacements(self.robot.model, self.data, self.gmodel, self.gdata, q)
-        for i, g in enumerate(self.gmodel.geometryObjects):
-            self.vis[f"{root}/visuals/{g.name}"].set_transform(self.gdata.oMg[i].homogeneous)
+        _place(self.vis, root, self.robot, self.data, self.gmodel, self.gdata, q)
 
     def __call__(self, t: float, q, q_ref) -> None:
         now = self._time.perf_counter()
@@ -166,10 +191,7 @@ class LiveView:
 
     def close(self) -> None:
         """Stop the Meshcat server."""
-        proc = getattr(self.vis.window, "server_proc", None)
-        if proc is not None:
-            proc.terminate()
-            proc.wait(timeout=10)
+        _stop_server(self.vis)
 
 
 def _frames(t: np.ndarray, fps: float) -> np.ndarray:
@@ -227,27 +249,12 @@ def export_replay(
     geom = meshcat.geometry
     gmodel = visual_model(robot)
     gdata = gmodel.createData()
-    model = robot.model
-    data = model.createData()
-    try:
-        with contextlib.redirect_stdout(io.StringIO()):
-            vis = meshcat.Visualizer()
-    except Exception as exc:  # zmq/tornado failures surface as assorted types
-        raise VizError(f"cannot start a Meshcat server: {exc}") from exc
+    data = robot.model.createData()
+    vis = _start_server(meshcat)
     try:
         vis.delete()
-        viz = _visualizer_class()(model, gmodel, gmodel)
-        with contextlib.redirect_stdout(io.StringIO()):
-            viz.initViewer(viewer=vis, loadModel=False)
-        roots = [(ARM, None, result.q)]
-        if ghost:
-            roots.append((GHOST, [0.6, 0.6, 0.6, 0.35], result.q_ref))
-        for root, color, _ in roots:
-            viz.loadViewerModel(rootNodeName=root, visual_color=color)
-            group = f"{root}/visuals"
-            for g in gmodel.geometryObjects:
-                scale = np.diag([*np.asarray(g.meshScale, float), 1.0])
-                vis[f"{group}/{g.name}/geom"].set_transform(scale)
+        names = _load_scene(vis, robot, gmodel, ghost)
+        roots = [(name, result.q if name == ARM else result.q_ref) for name in names]
         if tool_path:
             lines = (("tool_path", result.q, 0xD62728), ("tool_ref", result.q_ref, 0x333333))
             for name, qs, color in lines:
@@ -260,24 +267,16 @@ def export_replay(
         anim = meshcat.animation.Animation(default_framerate=fps)
         for frame_no, k in enumerate(idx):
             with anim.at_frame(vis, frame_no) as frame:
-                for root, _, qs in roots:
-                    pin.updateGeometryPlacements(model, data, gmodel, gdata, qs[k])
-                    for i, g in enumerate(gmodel.geometryObjects):
-                        frame[f"{root}/visuals/{g.name}"].set_transform(gdata.oMg[i].homogeneous)
+                for root, qs in roots:
+                    _place(frame, root, robot, data, gmodel, gdata, qs[k])
         # the static scene shows the pose at start_time
         k0 = int(np.argmin(np.abs(result.t - start_time)))
-        for root, _, qs in roots:
-            pin.updateGeometryPlacements(model, data, gmodel, gdata, qs[k0])
-            for i, g in enumerate(gmodel.geometryObjects):
-                vis[f"{root}/visuals/{g.name}"].set_transform(gdata.oMg[i].homogeneous)
-        _front_camera(vis, robot)
+        for root, qs in roots:
+            _place(vis, root, robot, data, gmodel, gdata, qs[k0])
         vis.set_animation(anim, play=play, repetitions=1)
         html = vis.static_html()
     finally:
-        proc = getattr(vis.window, "server_proc", None)
-        if proc is not None:
-            proc.terminate()
-            proc.wait(timeout=10)
+        _stop_server(vis)
     path = Path(path)
     path.write_text(html, encoding="utf-8")
     return path

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,3 +30,13 @@ def write_config(tmp_path):
         return path
 
     return _write
+
+
+@pytest.fixture
+def make_rng():
+    """Factory of seeded generators, so each test draws a reproducible sequence."""
+
+    def _make(seed: int = 0) -> np.random.Generator:
+        return np.random.default_rng(seed)
+
+    return _make

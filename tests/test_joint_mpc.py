@@ -122,16 +122,6 @@ def solution_tolerance(H: np.ndarray) -> float:
 
 # --------------------------------------------------------------------- fixtures
 @pytest.fixture
-def make_rng():
-    """Factory of seeded generators, so each test draws a reproducible sequence."""
-
-    def _make(seed: int = 0) -> np.random.Generator:
-        return np.random.default_rng(seed)
-
-    return _make
-
-
-@pytest.fixture
 def make_problem(make_rng):
     """Factory of random (x0, r0, ref) for one joint; ``offset`` shifts the reference.
 

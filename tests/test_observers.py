@@ -79,16 +79,6 @@ def robot() -> Robot:
 
 
 @pytest.fixture
-def make_rng():
-    """Factory of seeded generators, so each test draws a reproducible sequence."""
-
-    def _make(seed: int = 0) -> np.random.Generator:
-        return np.random.default_rng(seed)
-
-    return _make
-
-
-@pytest.fixture
 def make_poses(make_rng):
     """Factory of ``count`` random poses inside the joint ranges of Eq (27)."""
 

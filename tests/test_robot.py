@@ -48,16 +48,6 @@ def robot() -> Robot:
 
 
 @pytest.fixture
-def make_rng():
-    """Factory of seeded generators, so each test draws a reproducible sequence."""
-
-    def _make(seed: int = 0) -> np.random.Generator:
-        return np.random.default_rng(seed)
-
-    return _make
-
-
-@pytest.fixture
 def make_state(make_rng):
     """Factory of ``count`` random states ``(q, dq)`` with q inside the joint limits."""
 

@@ -455,9 +455,14 @@ class ExperimentConfig:
                 raise ConfigError(name, f"expected a string, got {getattr(self, name)!r}")
 
     def vector(self, key: str, n: int) -> np.ndarray:
-        """The dotted ``key`` (e.g. ``"simulation.q0"``) broadcast to ``n`` joints."""
-        section, name = key.split(".")
-        value = getattr(getattr(self, section), name)
+        """The dotted ``key`` (e.g. ``"simulation.q0"``) broadcast to ``n`` joints.
+
+        Raises:
+            ConfigError: The value is a vector whose length is not ``n``.
+        """
+        value = self
+        for part in key.split("."):
+            value = getattr(value, part)
         if value.ndim == 1 and value.shape != (n,):
             raise ConfigError(
                 key,
@@ -483,17 +488,7 @@ class ExperimentConfig:
                 "disturbance.pulse.sigma",
             ]
         for key in keys:
-            parts = key.split(".")
-            obj = self
-            for p in parts:
-                obj = getattr(obj, p)
-            if obj.ndim == 1 and obj.shape != (n,):
-                raise ConfigError(
-                    key,
-                    f"has {obj.shape[0]} entries but the robot has {n} joints; "
-                    f"give {n} values or one value for all joints",
-                    source=str(self.source) if self.source else None,
-                )
+            self.vector(key, n)
         try:
             self.controller.bounds(n)
         except ConfigError as exc:

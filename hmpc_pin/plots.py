@@ -57,32 +57,29 @@ def _disturbance(ax, result, i):
     ax.grid(alpha=0.3)
 
 
+def _per_joint(result, path, title, *drawers) -> Path:
+    """One row per joint, one column per drawer ``drawer(ax, result, joint)``."""
+    n = result.q.shape[1]
+    fig, axes = _rows(n, len(drawers))
+    for i in range(n):
+        for col, draw in enumerate(drawers):
+            draw(axes[i, col], result, i)
+    return _finish(fig, axes, path, title)
+
+
 def plot_tracking(result, path, title: str = "") -> Path:
     """Reference vs joint angle, one row per joint (paper Figures 5, 7, 9)."""
-    n = result.q.shape[1]
-    fig, axes = _rows(n)
-    for i in range(n):
-        _tracking(axes[i, 0], result, i)
-    return _finish(fig, axes, path, title)
+    return _per_joint(result, path, title, _tracking)
 
 
 def plot_disturbance(result, path, title: str = "") -> Path:
     """True vs NDO-estimated disturbance, one row per joint (paper Figures 4, 6, 8)."""
-    n = result.q.shape[1]
-    fig, axes = _rows(n)
-    for i in range(n):
-        _disturbance(axes[i, 0], result, i)
-    return _finish(fig, axes, path, title)
+    return _per_joint(result, path, title, _disturbance)
 
 
 def plot_overview(result, path, title: str = "") -> Path:
     """Both side by side: tracking (left) and disturbance estimate (right), one row per joint."""
-    n = result.q.shape[1]
-    fig, axes = _rows(n, 2)
-    for i in range(n):
-        _tracking(axes[i, 0], result, i)
-        _disturbance(axes[i, 1], result, i)
-    return _finish(fig, axes, path, title)
+    return _per_joint(result, path, title, _tracking, _disturbance)
 
 
 def plot_error(results: dict, path, title: str = "") -> Path:
@@ -130,6 +127,19 @@ def _draw_arm(ax, robot, q, style, label=None):
     ax.plot(pts[:, 0], pts[:, 1], style, lw=2.5, marker="o", ms=4, label=label)
 
 
+def _finish_plane(fig, ax, path, title, legend_loc) -> Path:
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m] (paper's y)")
+    ax.set_aspect("equal")
+    ax.grid(alpha=0.3)
+    ax.legend(loc=legend_loc, fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return Path(path)
+
+
 def plot_workspace(robot, path, poses: dict, points: np.ndarray, title: str = "") -> Path:
     """Figure 3(b): tool positions reachable within the joint limits, arm drawn at ``poses``.
 
@@ -143,16 +153,7 @@ def plot_workspace(robot, path, poses: dict, points: np.ndarray, title: str = ""
     ax.scatter(points[:, 0], points[:, 1], s=1, c="0.75", label="reachable tool positions")
     for k, (label, q) in enumerate(poses.items()):
         _draw_arm(ax, robot, q, f"C{k}-", label)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("z [m] (paper's y)")
-    ax.set_aspect("equal")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower left", fontsize=8)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return Path(path)
+    return _finish_plane(fig, ax, path, title, "lower left")
 
 
 def plot_cartesian(
@@ -179,13 +180,4 @@ def plot_cartesian(
     ax.plot(act[:, 0], act[:, 1], "C3", lw=1.5, label="tool path")
     ax.plot(*start, "gs", ms=9, label=f"start ({start[0]:g}, {start[1]:g})")
     ax.plot(*goal, "r*", ms=13, label=f"goal ({goal[0]:g}, {goal[1]:g})")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("z [m] (paper's y)")
-    ax.set_aspect("equal")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return Path(path)
+    return _finish_plane(fig, ax, path, title, "lower right")

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from .config import ControllerConfig
-from .exceptions import NonFiniteError
+from .exceptions import DimensionError, NonFiniteError
 from .joint_mpc import CondensedMPC, JointQPs
 from .observers import DisturbanceObserver
 from .references import sample_horizon
@@ -115,10 +115,11 @@ class HierarchicalMPC:
         q = np.asarray(q, dtype=float)
         dq = np.asarray(dq, dtype=float)
         n = self.n
-        if q.shape != (n,) or dq.shape != (n,):
-            self.robot.check_vector("q", q)
-            self.robot.check_vector("dq", dq)
-        if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+        if (
+            q.shape != (n,)
+            or dq.shape != (n,)
+            or not (np.isfinite(q).all() and np.isfinite(dq).all())
+        ):  # slow path only on bad input: check_vector raises the precise error
             self.robot.check_vector("q", q)
             self.robot.check_vector("dq", dq)
 
@@ -134,8 +135,6 @@ class HierarchicalMPC:
 
         q_ref, dq_ref = sample_horizon(reference, t + self._offsets)
         if q_ref.shape != (self.config.N, n) or dq_ref.shape != (self.config.N, n):
-            from .exceptions import DimensionError
-
             raise DimensionError(
                 f"reference.sample returned q_ref of shape {q_ref.shape[1:]} and dq_ref of "
                 f"shape {dq_ref.shape[1:]} but the robot has {n} joints; return two "

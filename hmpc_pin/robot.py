@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import DimensionError, URDFError
+from .exceptions import DimensionError, NonFiniteError, URDFError
 
 __all__ = ["Robot", "load_robot"]
 
@@ -139,8 +139,6 @@ class Robot:
                 f"{self.nq} joints {self.joint_names}; pass a vector of shape ({self.nq},)"
             )
         if finite and not np.all(np.isfinite(arr)):
-            from .exceptions import NonFiniteError
-
             raise NonFiniteError(name, arr)
         return arr
 

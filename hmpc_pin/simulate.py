@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
 from .disturbances import ZeroDisturbance
 from .exceptions import HmpcError, NonFiniteError, SimulationError
@@ -154,8 +155,6 @@ def simulate(
     t_arr = Ts * np.arange(K + 1)
     rec = {name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"}
     model, data = plant.model, plant.data
-    import pinocchio as pin
-
     aba = pin.aba
 
     def acc(t, q, dq, tau):

@@ -156,7 +156,11 @@ def cmd_replay(args) -> int:
     urdf = args.urdf or result.meta.get("urdf")
     if not urdf:
         raise ConfigError("--urdf", "the result does not name its URDF; pass --urdf PATH")
-    robot = load_robot(urdf, gravity=result.meta.get("gravity", 9.8))
+    robot = load_robot(
+        urdf,
+        gravity=result.meta.get("gravity", 9.8),
+        locked_joints=result.meta.get("locked_joints") if not args.urdf else None,
+    )
     path = _replay(robot, result, args.out)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
     return EXIT_OK

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,7 @@ from .exceptions import ConfigError
 
 __all__ = [
     "CartesianConfig",
+    "ConstraintConfig",
     "ControllerConfig",
     "DisturbanceConfig",
     "ExperimentConfig",
@@ -146,6 +147,89 @@ class ObserverConfig:
 
 
 @dataclass(frozen=True, eq=False)
+class ConstraintConfig:
+    """Joint limits as soft state constraints of every joint's MPC (``joint_mpc`` docstring).
+
+    By default the limits come from the URDF (``<limit lower upper velocity>``);
+    each can be overridden here per joint (or one value for all joints). A URDF
+    velocity limit of 0 means "not given" and is not enforced.
+
+    Attributes:
+        enabled: Impose the limits on the predicted states (default ``True``).
+        position: Impose the position limits.
+        velocity: Impose the velocity limits.
+        lower, upper: Position limits [rad or m] overriding the URDF's; ``None`` keeps the URDF's.
+        velocity_limit: Velocity limit [rad/s] overriding the URDF's; ``None`` keeps it.
+        slack_weight: Quadratic weight ρ₂ on the slack [1/rad²] (compare with Q = 50).
+        slack_linear_weight: Linear (exact-penalty) weight ρ₁ on the slack [1/rad].
+    """
+
+    enabled: bool = True
+    position: bool = True
+    velocity: bool = True
+    lower: np.ndarray | None = None
+    upper: np.ndarray | None = None
+    velocity_limit: np.ndarray | None = None
+    slack_weight: float = 1e5
+    slack_linear_weight: float = 1e3
+
+    def __post_init__(self):
+        for name in ("enabled", "position", "velocity"):
+            _set(self, name, _bool(name, getattr(self, name)))
+        for name in ("lower", "upper"):
+            if getattr(self, name) is not None:
+                _set(self, name, _array(name, getattr(self, name)))
+        if self.velocity_limit is not None:
+            _set(self, "velocity_limit", _array("velocity_limit", self.velocity_limit,
+                                                positive=True))  # fmt: skip
+        _set(self, "slack_weight", _float("slack_weight", self.slack_weight, positive=True))
+        _set(
+            self,
+            "slack_linear_weight",
+            _float("slack_linear_weight", self.slack_linear_weight, nonneg=True),
+        )
+
+    def limits(self, robot) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """``(lower, upper, velocity)`` for ``robot``, overrides applied; ``None`` if disabled.
+
+        Disabled parts are ±inf. Raises :class:`ConfigError` if an override has the
+        wrong length or ``lower >= upper`` on a joint.
+        """
+        if not self.enabled:
+            return None
+        n = robot.nq
+        inf = np.full(n, np.inf)
+
+        def pick(name, default):
+            value = getattr(self, name)
+            if value is None:
+                return np.array(default, dtype=float)
+            if value.ndim == 1 and value.shape != (n,):
+                raise ConfigError(
+                    f"controller.constraints.{name}",
+                    f"has {value.shape[0]} entries but the robot has {n} joints "
+                    f"{robot.joint_names}",
+                )
+            return np.broadcast_to(value, (n,)).astype(float)
+
+        lower, upper = pick("lower", robot.lower), pick("upper", robot.upper)
+        vel = pick("velocity_limit", np.where(robot.velocity_limit > 0, robot.velocity_limit, inf))
+        bad = np.flatnonzero(lower >= upper)
+        if bad.size:
+            i = int(bad[0])
+            raise ConfigError(
+                "controller.constraints.lower",
+                f"joint {robot.joint_names[i]!r}: lower={lower[i]:g} >= upper={upper[i]:g}; "
+                "expected lower < upper",
+            )
+        if not self.position:
+            lower, upper = -inf, inf.copy()
+        if not self.velocity:
+            vel = inf.copy()
+        return lower, upper, vel
+
+
+@dataclass(frozen=True, eq=False)
 class ControllerConfig:
     """Hierarchical MPC settings; every default is the paper's value (Section 4).
 
@@ -159,6 +243,7 @@ class ControllerConfig:
         v_min, v_max: Bounds of the commanded acceleration v [rad/s²], scalar or per joint
             (paper: −100, 100).
         observer: :class:`ObserverConfig`.
+        constraints: :class:`ConstraintConfig` (joint limits as soft state constraints).
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap per solve.
     """
@@ -172,6 +257,7 @@ class ControllerConfig:
     v_min: np.ndarray = -100.0
     v_max: np.ndarray = 100.0
     observer: ObserverConfig = field(default_factory=ObserverConfig)
+    constraints: ConstraintConfig = field(default_factory=ConstraintConfig)
     eps_abs: float = 1e-9
     max_iter: int = 1000
 
@@ -199,6 +285,10 @@ class ControllerConfig:
             _set(self, "observer", _section(ObserverConfig, self.observer, "observer"))
         elif not isinstance(self.observer, ObserverConfig):
             raise ConfigError("observer", f"expected a table, got {self.observer!r}")
+        if isinstance(self.constraints, dict):
+            _set(self, "constraints", _section(ConstraintConfig, self.constraints, "constraints"))
+        elif not isinstance(self.constraints, ConstraintConfig):
+            raise ConfigError("constraints", f"expected a table, got {self.constraints!r}")
         _set(self, "eps_abs", _float("eps_abs", self.eps_abs, positive=True))
         _set(self, "max_iter", _int("max_iter", self.max_iter, minimum=1))
 
@@ -222,17 +312,51 @@ class RobotConfig:
 
     Attributes:
         urdf: URDF path (relative paths are relative to the config file).
+        model: Instead of ``urdf``, an ``example-robot-data`` name (``"ur5"``, ``"panda"``,
+            ``"z1"``, ...); give exactly one of the two.
         gravity: Gravity magnitude [m/s²] along −z (paper: 9.8).
+        locked_joints: Joints not controlled, by URDF name → locked position [rad or m]
+            (e.g. Panda's fingers); removed with ``pin.buildReducedModel``.
     """
 
-    urdf: Path = Path("robots/planar3.urdf")
+    urdf: Path | None = None
+    model: str | None = None
     gravity: float = 9.8
+    locked_joints: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if not isinstance(self.urdf, (str, Path)):
-            raise ConfigError("urdf", f"expected a path string, got {self.urdf!r}")
-        _set(self, "urdf", Path(self.urdf))
+        if self.urdf is None and self.model is None:
+            _set(self, "urdf", Path("robots/planar3.urdf"))
+        if self.urdf is not None and self.model is not None:
+            raise ConfigError("model", "give either robot.urdf or robot.model, not both")
+        if self.urdf is not None:
+            if not isinstance(self.urdf, (str, Path)):
+                raise ConfigError("urdf", f"expected a path string, got {self.urdf!r}")
+            _set(self, "urdf", Path(self.urdf))
+        if self.model is not None and not isinstance(self.model, str):
+            raise ConfigError("model", f"expected a robot name string, got {self.model!r}")
         _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
+        if not isinstance(self.locked_joints, dict):
+            raise ConfigError(
+                "locked_joints", f"expected a table name = position, got {self.locked_joints!r}"
+            )
+        _set(
+            self,
+            "locked_joints",
+            {str(k): _float(f"locked_joints.{k}", v) for k, v in self.locked_joints.items()},
+        )
+
+    @property
+    def source(self) -> Path | str:
+        """The URDF path or the example-robot-data name, as :func:`load_robot` takes it."""
+        return self.urdf if self.urdf is not None else self.model
+
+    def load(self, gravity: float | None = None):
+        """Load the robot (:func:`~hmpc_pin.robot.load_robot`), optionally with another gravity."""
+        from .robot import load_robot
+
+        g = self.gravity if gravity is None else gravity
+        return load_robot(self.source, gravity=g, locked_joints=self.locked_joints)
 
 
 @dataclass(frozen=True, eq=False)
@@ -244,12 +368,17 @@ class PlantConfig:
         gravity: Plant gravity [m/s²]; ``None`` uses the robot's.
         dt: Integration step [s], must divide the control period (default 1 ms).
         integrator: ``"rk4"`` (default) or ``"euler"`` (semi-implicit).
+        saturate: Clip the applied torque to the effort limits (default ``True``).
+        effort_limit: Effort limits [N·m] overriding the URDF's (per joint or one value);
+            ``None`` keeps the URDF's (a URDF value <= 0 means no limit).
     """
 
     urdf: Path | None = None
     gravity: float | None = None
     dt: float = 0.001
     integrator: str = "rk4"
+    saturate: bool = True
+    effort_limit: np.ndarray | None = None
 
     def __post_init__(self):
         if self.urdf is not None:
@@ -260,6 +389,9 @@ class PlantConfig:
             _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
         _set(self, "dt", _float("dt", self.dt, positive=True))
         _set(self, "integrator", _choice("integrator", self.integrator, ("rk4", "euler")))
+        _set(self, "saturate", _bool("saturate", self.saturate))
+        if self.effort_limit is not None:
+            _set(self, "effort_limit", _array("effort_limit", self.effort_limit, positive=True))
 
 
 @dataclass(frozen=True, eq=False)
@@ -393,12 +525,18 @@ class DisturbanceConfig:
     Attributes:
         friction: :class:`FrictionConfig` or ``None``.
         pulse: :class:`PulseConfig` or ``None``.
+        scale: ``"absolute"`` (coefficients in N·m, the paper's) or ``"inertia"``: every
+            coefficient of joint i is multiplied by :math:`M_{ii}(q_0)` [kg·m²], so that
+            one set of numbers means the same acceleration-level disturbance on any arm
+            (SPEC §4: a 5 N·m torque on a Panda wrist of inertia 0.0065 is 770 rad/s²).
     """
 
     friction: FrictionConfig | None = None
     pulse: PulseConfig | None = None
+    scale: str = "absolute"
 
     def __post_init__(self):
+        _set(self, "scale", _choice("scale", self.scale, ("absolute", "inertia")))
         for name, cls in (("friction", FrictionConfig), ("pulse", PulseConfig)):
             value = getattr(self, name)
             if isinstance(value, dict):
@@ -560,24 +698,23 @@ def load_config(path: str | Path) -> ExperimentConfig:
                 kwargs[name] = _section(cls, raw[name], name)
         base = path.parent
         robot = kwargs.get("robot", RobotConfig())
-        if not robot.urdf.is_absolute():
-            robot = RobotConfig(urdf=(base / robot.urdf).resolve(), gravity=robot.gravity)
+        if robot.urdf is not None and not robot.urdf.is_absolute():
+            robot = replace(robot, urdf=(base / robot.urdf).resolve())
         kwargs["robot"] = robot
         plant = kwargs.get("plant", PlantConfig())
         if plant.urdf is not None and not plant.urdf.is_absolute():
-            plant = PlantConfig(
-                urdf=(base / plant.urdf).resolve(),
-                gravity=plant.gravity,
-                dt=plant.dt,
-                integrator=plant.integrator,
-            )
+            plant = replace(plant, urdf=(base / plant.urdf).resolve())
         kwargs["plant"] = plant
         config = ExperimentConfig(**kwargs, source=path)
     except ConfigError as exc:
         raise ConfigError(exc.key, exc.message, source=src) from None
 
-    from .robot import load_robot  # late import: config is usable without pinocchio
-
-    n = load_robot(config.robot.urdf, gravity=config.robot.gravity).nq
-    config.check_dimensions(n)
+    try:
+        robot = config.robot.load()
+        config.check_dimensions(robot.nq)
+        config.controller.constraints.limits(robot)
+        if config.plant.effort_limit is not None:
+            config.vector("plant.effort_limit", robot.nq)
+    except ConfigError as exc:
+        raise ConfigError(exc.key, exc.message, source=src) from None
     return config

@@ -18,7 +18,7 @@ import numpy as np
 
 from .config import ControllerConfig
 from .exceptions import DimensionError, NonFiniteError
-from .joint_mpc import CondensedMPC, JointQPs
+from .joint_mpc import CondensedMPC, JointQPs, StateLimits
 from .observers import DisturbanceObserver
 from .references import sample_horizon
 from .robot import Robot
@@ -38,6 +38,8 @@ class HierarchicalMPC:
             (zeros when the observer is disabled).
         v: The last commanded accelerations [rad/s²], shape (n,).
         tau: The last torque [N·m], shape (n,).
+        limits: The joint limits imposed on each MPC's prediction as soft state
+            constraints (:class:`~hmpc_pin.joint_mpc.StateLimits`), ``None`` if disabled.
 
     Example:
         >>> robot = hmpc_pin.load_robot("robots/planar3.urdf")
@@ -53,6 +55,16 @@ class HierarchicalMPC:
         self.n = n
         v_min, v_max = config.bounds(n)
         self.mpc = CondensedMPC(config.Ts, config.N, config.Nc, config.Q, config.R, config.P)
+        limits = config.constraints.limits(robot)
+        self.limits = (
+            None
+            if limits is None
+            else StateLimits(
+                *limits,
+                slack_weight=config.constraints.slack_weight,
+                slack_linear_weight=config.constraints.slack_linear_weight,
+            )
+        )
         self.qps = JointQPs(
             self.mpc,
             v_min,
@@ -60,6 +72,7 @@ class HierarchicalMPC:
             robot.joint_names,
             eps_abs=config.eps_abs,
             max_iter=config.max_iter,
+            limits=self.limits,
         )
         obs = config.observer
         self.observer = (
@@ -152,7 +165,7 @@ class HierarchicalMPC:
         S[2::2] = q_ref
         S[3::2] = dq_ref
         G = S.T @ self.mpc.FT  # (n, Nc), one row per joint
-        self.v = v = self.qps.solve(G)
+        self.v = v = self.qps.solve(G, S[:2])
 
         self.tau = M @ v + nle - self.disturbance_estimate
         self._started = True

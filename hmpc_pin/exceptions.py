@@ -64,6 +64,24 @@ class DimensionError(HmpcError, ValueError):
     """An array has the wrong shape for the robot it is used with."""
 
 
+class LimitError(HmpcError, ValueError):
+    """A reference or initial state leaves the joint limits.
+
+    Attributes:
+        joint: Name of the joint. time: Time [s] (``None`` for an initial state).
+        value: The offending value. lower, upper: The limits.
+    """
+
+    def __init__(self, what: str, joint: str, time, value: float, lower: float, upper: float):
+        self.joint, self.time, self.value, self.lower, self.upper = joint, time, value, lower, upper
+        when = f" at t={time:.6g} s" if time is not None else ""
+        super().__init__(
+            f"{what} of joint {joint!r} is {value:.6g}{when}, outside its limits "
+            f"[{lower:.6g}, {upper:.6g}]; change the reference (amplitude, offset) or the "
+            "limits (controller.constraints.lower/upper)"
+        )
+
+
 class SolverError(HmpcError, RuntimeError):
     """A joint QP did not report ``PROXQP_SOLVED``.
 

@@ -9,11 +9,12 @@ import numpy as np
 from .config import ExperimentConfig
 from .controller import HierarchicalMPC
 from .disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
-from .references import SineReference
+from .exceptions import ConfigError, LimitError
+from .references import SineReference, check_limits
 from .robot import Robot, load_robot
 from .simulate import Result, simulate
 
-__all__ = ["Experiment", "build_reference", "run_experiment"]
+__all__ = ["Experiment", "build_disturbance", "build_reference", "run_experiment"]
 
 
 def build_reference(config: ExperimentConfig, robot: Robot):
@@ -43,6 +44,27 @@ def build_reference(config: ExperimentConfig, robot: Robot):
     )
 
 
+def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) -> Disturbance:
+    """The plant disturbance of ``config`` (Eq 32–34); with ``scale = "inertia"`` each
+    joint's coefficients are multiplied by :math:`M_{ii}(q_0)` of the controller's model."""
+    n = robot.nq
+    dc = config.disturbance
+    k = np.diag(robot.mass_matrix(q0)).copy() if dc.scale == "inertia" else np.ones(n)
+    disturbance: Disturbance = ZeroDisturbance(n)
+    if dc.friction is not None:
+        disturbance = disturbance + CoulombViscousFriction(
+            k * np.broadcast_to(dc.friction.viscous, (n,)),
+            k * np.broadcast_to(dc.friction.coulomb, (n,)),
+        )
+    if dc.pulse is not None:
+        disturbance = disturbance + GaussianPulse(
+            k * np.broadcast_to(dc.pulse.amplitude, (n,)),
+            np.broadcast_to(dc.pulse.center, (n,)),
+            np.broadcast_to(dc.pulse.sigma, (n,)),
+        )
+    return disturbance
+
+
 @dataclass
 class Experiment:
     """The objects of one experiment, built from its config.
@@ -68,56 +90,70 @@ class Experiment:
 
     @classmethod
     def from_config(cls, config: ExperimentConfig, *, observer: bool | None = None) -> Experiment:
-        """Build the experiment; ``observer`` overrides ``controller.observer.enabled``."""
+        """Build the experiment; ``observer`` overrides ``controller.observer.enabled``.
+
+        Raises:
+            LimitError: The initial state or the reference (sampled at every control
+                instant of the run and its last horizon) leaves the joint limits.
+        """
         if observer is not None:
             obs = replace(config.controller.observer, enabled=observer)
             config = replace(config, controller=replace(config.controller, observer=obs))
-        robot = load_robot(config.robot.urdf, gravity=config.robot.gravity)
+        rc = config.robot
+        robot = rc.load()
         n = robot.nq
         config.check_dimensions(n)
         pc = config.plant
-        plant_gravity = pc.gravity if pc.gravity is not None else config.robot.gravity
+        plant_gravity = pc.gravity if pc.gravity is not None else rc.gravity
         plant = (
-            load_robot(pc.urdf, gravity=plant_gravity)
+            load_robot(pc.urdf, gravity=plant_gravity, locked_joints=rc.locked_joints)
             if pc.urdf is not None
-            else load_robot(config.robot.urdf, gravity=plant_gravity)
+            else rc.load(gravity=plant_gravity)
         )
         if plant.nq != n:
-            from .exceptions import ConfigError
-
             raise ConfigError(
                 "plant.urdf",
                 f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
             )
         reference = build_reference(config, robot)
-        dc = config.disturbance
-        disturbance: Disturbance = ZeroDisturbance(n)
-        if dc.friction is not None:
-            disturbance = disturbance + CoulombViscousFriction(
-                np.broadcast_to(dc.friction.viscous, (n,)),
-                np.broadcast_to(dc.friction.coulomb, (n,)),
-            )
-        if dc.pulse is not None:
-            disturbance = disturbance + GaussianPulse(
-                np.broadcast_to(dc.pulse.amplitude, (n,)),
-                np.broadcast_to(dc.pulse.center, (n,)),
-                np.broadcast_to(dc.pulse.sigma, (n,)),
-            )
+        q0 = (
+            reference.sample(0.0)[0]
+            if config.simulation.q0 is None
+            else config.vector("simulation.q0", n)
+        )
         controller = HierarchicalMPC(robot, config.controller)
+        if controller.limits is not None:
+            lim = controller.limits
+            for i in np.flatnonzero((q0 < lim.lower - 1e-9) | (q0 > lim.upper + 1e-9)):
+                raise LimitError(
+                    "initial position", robot.joint_names[i], None, q0[i], lim.lower[i],
+                    lim.upper[i],
+                )  # fmt: skip
+            cc = config.controller
+            times = cc.Ts * np.arange(round(config.simulation.duration / cc.Ts) + cc.N + 1)
+            check_limits(reference, lim.lower, lim.upper, times, robot.joint_names)
         return cls(
             config=config,
             robot=robot,
             plant=plant,
             controller=controller,
             reference=reference,
-            disturbance=disturbance,
-            q0=(
-                reference.sample(0.0)[0]
-                if config.simulation.q0 is None
-                else config.vector("simulation.q0", n)
-            ),
+            disturbance=build_disturbance(config, robot, q0),
+            q0=q0,
             dq0=config.vector("simulation.dq0", n),
         )
+
+    @property
+    def effort_limit(self) -> np.ndarray | None:
+        """The plant's effort limits [N·m] (config override, else the plant URDF's; a
+        URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
+        pc = self.config.plant
+        if not pc.saturate:
+            return None
+        if pc.effort_limit is not None:
+            return self.config.vector("plant.effort_limit", self.robot.nq)
+        eff = self.plant.effort_limit
+        return np.where(eff > 0, eff, np.inf)
 
     def run(self, duration: float | None = None, on_step=None) -> Result:
         """Simulate the closed loop for ``duration`` [s] (default: the config's).
@@ -136,11 +172,13 @@ class Experiment:
             plant=self.plant,
             dt=cfg.plant.dt,
             integrator=cfg.plant.integrator,
+            effort_limit=self.effort_limit,
             on_step=on_step,
             meta={
                 "experiment": cfg.name,
                 "config": str(cfg.source) if cfg.source else None,
-                "urdf": str(cfg.robot.urdf),
+                "urdf": self.robot.source,
+                "locked_joints": self.robot.locked_joints,
                 "gravity": cfg.robot.gravity,
                 "observer": cfg.controller.observer.enabled,
                 "Ts": cfg.controller.Ts,

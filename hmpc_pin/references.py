@@ -12,7 +12,15 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["QuinticReference", "Reference", "SineReference", "sample_horizon"]
+from .exceptions import LimitError
+
+__all__ = [
+    "QuinticReference",
+    "Reference",
+    "SineReference",
+    "check_limits",
+    "sample_horizon",
+]
 
 
 @runtime_checkable
@@ -159,4 +167,27 @@ class QuinticReference:
         return (
             f"QuinticReference(q_start={self.q_start.tolist()}, q_goal={self.q_goal.tolist()}, "
             f"t_start={self.t_start}, duration={self.duration})"
+        )
+
+
+def check_limits(
+    reference,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    times: np.ndarray,
+    joint_names: tuple[str, ...],
+    *,
+    tol: float = 1e-9,
+) -> None:
+    """Check that ``reference`` stays within ``[lower − tol, upper + tol]`` at ``times``.
+
+    Raises:
+        LimitError: Naming the first joint and time where the reference leaves its limits.
+    """
+    q_ref, _ = sample_horizon(reference, np.asarray(times, dtype=float))
+    out = (q_ref < lower - tol) | (q_ref > upper + tol)
+    if out.any():
+        k, i = np.argwhere(out)[0]
+        raise LimitError(
+            "reference", joint_names[i], float(times[k]), float(q_ref[k, i]), lower[i], upper[i]
         )

@@ -212,7 +212,6 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
     from .cli import run_one
     from .kinematics import tool_pose, workspace_points
     from .metrics import settling_time
-    from .robot import load_robot
 
     configs_dir = Path(configs_dir) if configs_dir else REPO_CONFIGS
     start = time.perf_counter()
@@ -263,7 +262,7 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
                 figures.append((path, f"Paper {fig} — Section {exp.section}: {what}."))
 
     robot_cfg = configs["paper_combined"].robot
-    robot = load_robot(robot_cfg.urdf, gravity=robot_cfg.gravity)
+    robot = robot_cfg.load()
     q0 = configs["paper_combined"].vector("simulation.q0", robot.nq)
     ws = plots.plot_workspace(
         robot,

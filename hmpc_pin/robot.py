@@ -15,7 +15,9 @@ problem instead of urdfdom's terse output.
 
 from __future__ import annotations
 
+import difflib
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +31,58 @@ __all__ = ["Robot", "load_robot"]
 SUPPORTED_JOINT_TYPES = ("revolute", "prismatic")
 
 
-def _check_urdf_file(path: Path) -> None:
-    """Reject a missing, unreadable, malformed or incomplete URDF with a clear message."""
+def example_robot_names() -> tuple[str, ...]:
+    """Names accepted by :func:`load_robot` from ``example-robot-data`` (fixed-base URDF arms
+    and all other fixed-base URDF models the loader package lists)."""
+    from example_robot_data import robots_loader
+
+    return tuple(
+        sorted(
+            name
+            for name, loader in robots_loader.ROBOTS.items()
+            if loader.urdf_filename and not loader.free_flyer
+        )
+    )
+
+
+def example_robot_urdf(name: str) -> Path:
+    """Path of the URDF of the ``example-robot-data`` model ``name`` (e.g. ``"panda"``).
+
+    Raises:
+        URDFError: Unknown name (the message lists the closest known names), a
+            floating-base model, or a model shipped only as SDF.
+    """
+    from os.path import join
+
+    from example_robot_data import robots_loader
+
+    loader = robots_loader.ROBOTS.get(name)
+    if loader is None:
+        close = difflib.get_close_matches(name, list(robots_loader.ROBOTS), n=5, cutoff=0.5)
+        hint = f"did you mean {', '.join(map(repr, close))}? " if close else ""
+        raise URDFError(
+            name,
+            "is neither a URDF file nor an example-robot-data model name; "
+            f"{hint}known arms include 'ur5', 'ur10', 'panda', 'z1' "
+            "(hmpc_pin.robot.example_robot_names() lists all)",
+        )
+    if loader.free_flyer:
+        raise URDFError(
+            name,
+            "is a floating-base robot (free flyer); hmpc_pin controls fixed-base arms only",
+        )
+    if not loader.urdf_filename:
+        raise URDFError(name, "is shipped as SDF only; hmpc_pin loads URDF models")
+    rel = join(loader.path, loader.urdf_subpath, loader.urdf_filename)
+    model_path = loader.model_path or robots_loader.getModelPath(rel)
+    return Path(model_path, rel).resolve()
+
+
+def _check_urdf_file(path: Path, locked: tuple[str, ...] = ()) -> None:
+    """Reject a missing, unreadable, malformed or incomplete URDF with a clear message.
+
+    Joints named in ``locked`` are exempt from the joint-type check (they are
+    removed from the model before control)."""
     if not path.exists():
         raise URDFError(path, "file not found; pass the path of a .urdf file")
     if not path.is_file():
@@ -54,10 +106,17 @@ def _check_urdf_file(path: Path) -> None:
         problems = "; ".join(str(e) for e in urdf.errors) or "invalid URDF"
         raise URDFError(path, f"incomplete or invalid URDF: {problems}")
 
+    names = [j.name for j in urdf.robot.joints if j.type != "fixed"]
+    unknown = [name for name in locked if name not in names]
+    if unknown:
+        raise URDFError(
+            path,
+            f"locked joint(s) {unknown} not found; the movable joints are {names}",
+        )
     unsupported = [
         f"{j.name!r} ({j.type})"
         for j in urdf.robot.joints
-        if j.type not in (*SUPPORTED_JOINT_TYPES, "fixed")
+        if j.type not in (*SUPPORTED_JOINT_TYPES, "fixed") and j.name not in locked
     ]
     if unsupported:
         raise URDFError(
@@ -66,9 +125,10 @@ def _check_urdf_file(path: Path) -> None:
             + ", ".join(unsupported)
             + f"; hmpc_pin controls {' and '.join(SUPPORTED_JOINT_TYPES)} joints of a "
             "fixed-base arm (one coordinate per joint). Replace continuous joints by "
-            "revolute joints with limits and remove floating/planar joints",
+            "revolute joints with limits, remove floating/planar joints, or lock them "
+            "([robot] locked_joints)",
         )
-    if not any(j.type in SUPPORTED_JOINT_TYPES for j in urdf.robot.joints):
+    if not any(j.type in SUPPORTED_JOINT_TYPES and j.name not in locked for j in urdf.robot.joints):
         raise URDFError(
             path, "has no actuated joint (revolute or prismatic); there is nothing to control"
         )
@@ -82,13 +142,20 @@ class Robot:
         data: The ``pin.Data`` this object owns; do not share it across threads.
         name: Robot name (URDF ``<robot name>``).
         source: Path of the URDF it was loaded from.
+        locked_joints: Joints of the URDF removed from the model, with the
+            positions they are locked at [rad or m].
         joint_names: Names of the controlled joints, in coordinate order.
         lower, upper: Joint position limits [rad or m], shape (n,).
         velocity_limit: Joint velocity limits [rad/s or m/s], shape (n,).
         effort_limit: Joint effort limits [N·m or N], shape (n,).
     """
 
-    def __init__(self, model: pin.Model, source: str | Path = "<model>"):
+    def __init__(
+        self,
+        model: pin.Model,
+        source: str | Path = "<model>",
+        locked_joints: Mapping[str, float] | None = None,
+    ):
         if model.nq != model.nv:
             raise URDFError(
                 source,
@@ -100,6 +167,7 @@ class Robot:
         self.model = model
         self.data = model.createData()
         self.source = str(source)
+        self.locked_joints: dict[str, float] = dict(locked_joints or {})
         self.name = model.name
         self.joint_names: tuple[str, ...] = tuple(model.names[1:])
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
@@ -127,7 +195,7 @@ class Robot:
 
     def copy(self) -> Robot:
         """Return a robot with a copy of the model and its own fresh data."""
-        return Robot(self.model.copy(), self.source)
+        return Robot(self.model.copy(), self.source, self.locked_joints)
 
     # ------------------------------------------------------------------ checks
     def check_vector(self, name: str, value, *, finite: bool = True) -> np.ndarray:
@@ -190,28 +258,66 @@ class Robot:
         )
 
 
-def load_robot(path: str | Path, gravity: float = 9.8) -> Robot:
-    """Load a fixed-base arm from a URDF file into Pinocchio.
+def load_robot(
+    source: str | Path,
+    gravity: float = 9.8,
+    locked_joints: Mapping[str, float] | None = None,
+) -> Robot:
+    """Load a fixed-base arm from a URDF file or an ``example-robot-data`` name.
 
     The file is validated first (existence, XML, URDF completeness, joint types)
     so that a bad file raises :class:`~hmpc_pin.exceptions.URDFError` naming the
     file and the problem.
 
     Args:
-        path: Path of the ``.urdf`` file.
+        source: Path of a ``.urdf`` file, or the name of an ``example-robot-data``
+            model (``"ur5"``, ``"ur10"``, ``"panda"``, ``"z1"``, ...). A string is
+            taken as a name when no file of that name exists and it has no suffix.
         gravity: Magnitude of gravity [m/s²], acting along the world −z axis.
             The paper uses 9.8 (Table 1), not Pinocchio's default 9.81.
+        locked_joints: Joints not to control, by URDF name, with the position
+            [rad or m] each is locked at (e.g. Panda's fingers). They are removed with
+            ``pin.buildReducedModel``; their mass still loads the arm.
 
     Returns:
         The :class:`Robot`.
     """
-    path = Path(path)
+    path = Path(source)
+    if not path.exists() and not path.suffix and len(path.parts) == 1:
+        path = example_robot_urdf(str(source))
     if not np.isfinite(gravity) or gravity < 0:
         raise URDFError(path, f"gravity={gravity!r}; expected a finite value >= 0")
-    _check_urdf_file(path)
+    locked = {str(k): float(v) for k, v in (locked_joints or {}).items()}
+    _check_urdf_file(path, tuple(locked))
     try:
         model = pin.buildModelFromUrdf(str(path))
     except (ValueError, RuntimeError) as exc:
         raise URDFError(path, f"Pinocchio could not build a model: {exc}") from exc
+    if locked:
+        model = _reduce(model, path, locked)
     model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
-    return Robot(model, path)
+    return Robot(model, path, locked)
+
+
+def _reduce(model: pin.Model, path: Path, locked: dict[str, float]) -> pin.Model:
+    """Remove the ``locked`` joints at their given positions (``pin.buildReducedModel``)."""
+    q_ref = pin.neutral(model)
+    ids = []
+    for name, value in locked.items():
+        jid = model.getJointId(name)
+        joint = model.joints[jid]
+        if not np.isfinite(value):
+            raise URDFError(path, f"locked joint {name!r} at {value!r}; expected a finite value")
+        if joint.nq == 2:  # continuous joint: (cos, sin) of the locked angle
+            q_ref[joint.idx_q : joint.idx_q + 2] = (np.cos(value), np.sin(value))
+        else:
+            lo = model.lowerPositionLimit[joint.idx_q]
+            hi = model.upperPositionLimit[joint.idx_q]
+            if not lo <= value <= hi:
+                raise URDFError(
+                    path,
+                    f"locked joint {name!r} at {value!r} is outside its limits [{lo:g}, {hi:g}]",
+                )
+            q_ref[joint.idx_q] = value
+        ids.append(jid)
+    return pin.buildReducedModel(model, ids, q_ref)

@@ -107,6 +107,7 @@ def simulate(
     dt: float = 0.001,
     integrator: str = "rk4",
     state_bound: float = 1e3,
+    effort_limit=None,
     meta: dict | None = None,
     on_step=None,
 ) -> Result:
@@ -124,6 +125,10 @@ def simulate(
         dt: Plant integration step [s]; must divide the control period.
         integrator: ``"rk4"`` (classical Runge–Kutta) or ``"euler"`` (semi-implicit).
         state_bound: The run stops as diverged if any |q| or |q̇| exceeds it.
+        effort_limit: Actuator limits [N·m], shape (n,) (inf: none). The plant applies
+            :math:`\\mathrm{clip}(\\tau, -\\tau_{\\max}, \\tau_{\\max})`; ``None`` applies τ as is.
+            The result's ``meta["saturation"]`` reports, per joint, the number of
+            control periods saturated and the largest excess :math:`|\\tau| - \\tau_{\\max}`.
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.viz.LiveView`).
@@ -160,6 +165,11 @@ def simulate(
     def acc(t, q, dq, tau):
         return aba(model, data, q, dq, tau + dist(t, q, dq))
 
+    limit = None if effort_limit is None else robot.check_vector("effort_limit", effort_limit,
+                                                                  finite=False)  # fmt: skip
+    sat_steps = np.zeros(n, dtype=int)
+    sat_excess = np.zeros(n)
+
     controller.reset(q, dq)
     last = -1
     message = ""
@@ -182,6 +192,12 @@ def simulate(
                 break
             if not np.isfinite(tau).all():
                 raise NonFiniteError("tau", tau, f"at t={t:.6g}")
+            if limit is not None:
+                excess = np.abs(tau) - limit
+                if (excess > 0).any():
+                    sat_steps += excess > 0
+                    np.maximum(sat_excess, excess, out=sat_excess)
+                    tau = np.clip(tau, -limit, limit)
             for s in range(substeps):
                 ts = t + s * h
                 if integrator == "rk4":
@@ -219,6 +235,12 @@ def simulate(
         message=message,
         meta=dict(meta or {}),
     )
+    if limit is not None:
+        result.meta["saturation"] = {
+            "effort_limit": [float(x) for x in limit],
+            "steps": sat_steps.tolist(),
+            "max_excess": sat_excess.tolist(),
+        }
     if cause is not None:
         raise SimulationError(
             f"simulation stopped after {m} of {K + 1} steps: {message}", result

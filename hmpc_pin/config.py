@@ -124,10 +124,13 @@ class ObserverConfig:
 
     Attributes:
         enabled: Use the observer; ``False`` gives the baseline without NDO (d̂ = 0).
-        kind: ``"chen"`` (Y lower-triangular ones, the paper's Eq 28, planar arms)
-            or ``"diagonal"`` (Y = I, p = c·q̇, valid for any arm).
+        kind: ``"chen"`` (Y lower-triangular ones, the paper's Eq 28, planar arms),
+            ``"general"`` (Y = I, p = c·q̇, any arm for c above
+            :func:`~hmpc_pin.observers.general_gain_bound`) or ``"momentum"``
+            (generalized-momentum observer, gain K_O [1/s], any arm, any gain > 0).
         gain: Observer gain c (the paper does not give it; 100 is this project's choice, README).
-        discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``.
+        discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``
+            (not for ``"momentum"``, which is always semi-implicit).
     """
 
     enabled: bool = True
@@ -137,13 +140,19 @@ class ObserverConfig:
 
     def __post_init__(self):
         _set(self, "enabled", _bool("enabled", self.enabled))
-        _set(self, "kind", _choice("kind", self.kind, ("chen", "diagonal")))
+        _set(self, "kind", _choice("kind", self.kind, ("chen", "general", "momentum")))
         _set(self, "gain", _float("gain", self.gain, positive=True))
         _set(
             self,
             "discretization",
             _choice("discretization", self.discretization, ("implicit", "explicit")),
         )
+        if self.kind == "momentum" and self.discretization != "implicit":
+            raise ConfigError(
+                "discretization",
+                "the momentum observer has only the semi-implicit form; remove the key or "
+                "set it to 'implicit'",
+            )
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ import numpy as np
 from .config import ControllerConfig
 from .exceptions import DimensionError, NonFiniteError
 from .joint_mpc import CondensedMPC, JointQPs, StateLimits
-from .observers import DisturbanceObserver
+from .observers import make_observer
 from .references import sample_horizon
 from .robot import Robot
 
@@ -76,7 +76,7 @@ class HierarchicalMPC:
         )
         obs = config.observer
         self.observer = (
-            DisturbanceObserver(n, config.Ts, obs.gain, obs.kind, obs.discretization)
+            make_observer(robot, config.Ts, obs.kind, obs.gain, obs.discretization)
             if obs.enabled
             else None
         )
@@ -97,7 +97,10 @@ class HierarchicalMPC:
         self.robot.check_vector("q0", q0)
         dq0 = self.robot.check_vector("dq0", dq0)
         if self.observer is not None:
-            self.observer.reset(dq0)
+            if hasattr(self.observer, "p0"):  # momentum observer: needs M(q0) q̇0
+                self.observer.reset(dq0, q0)
+            else:
+                self.observer.reset(dq0)
         self.disturbance_estimate = np.zeros(self.n)
         self.v = np.zeros(self.n)
         self.tau = np.zeros(self.n)
@@ -142,7 +145,7 @@ class HierarchicalMPC:
 
         if self.observer is not None:
             if self._started:
-                self.disturbance_estimate = self.observer.update(M, nle, dq, self.tau)
+                self.disturbance_estimate = self.observer.update(M, nle, dq, self.tau, q)
             else:
                 self.disturbance_estimate = self.observer.estimate.copy()
 

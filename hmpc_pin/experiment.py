@@ -179,6 +179,10 @@ class Experiment:
                 "config": str(cfg.source) if cfg.source else None,
                 "urdf": self.robot.source,
                 "locked_joints": self.robot.locked_joints,
+                "limits": {
+                    "lower": self.robot.lower.tolist(),
+                    "upper": self.robot.upper.tolist(),
+                },
                 "gravity": cfg.robot.gravity,
                 "observer": cfg.controller.observer.enabled,
                 "Ts": cfg.controller.Ts,

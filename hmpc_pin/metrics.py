@@ -35,6 +35,10 @@ class Metrics:
         settling_time: Time to stay within ``tol`` for good [s] (nan: never).
         observer_rms, observer_peak: RMS and max |d − d̂| after ``after`` seconds [N·m].
         tau_peak: max |τ| over the whole run [N·m].
+        limit_violation: max distance of q outside the position limits recorded in
+            ``result.meta["limits"]`` over the whole run [rad] (0 inside; nan if none recorded).
+        saturated_steps: Control periods in which the plant clipped τ to the effort
+            limit (from ``result.meta["saturation"]``; 0 if none recorded).
     """
 
     rms_error: np.ndarray
@@ -45,6 +49,8 @@ class Metrics:
     tau_peak: np.ndarray
     after: float
     tol: float
+    limit_violation: np.ndarray | None = None
+    saturated_steps: np.ndarray | None = None
 
 
 def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
@@ -52,6 +58,15 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
     mask = result.t >= after - 1e-12
     e = result.error[mask]
     w = result.observer_error[mask]
+    n = result.q.shape[1]
+    limits = result.meta.get("limits")
+    if limits:
+        lo, hi = np.asarray(limits["lower"], float), np.asarray(limits["upper"], float)
+        viol = np.maximum(np.maximum(lo - result.q, result.q - hi), 0.0).max(axis=0)
+    else:
+        viol = np.full(n, np.nan)
+    sat = result.meta.get("saturation")
+    steps = np.asarray(sat["steps"], dtype=int) if sat else np.zeros(n, dtype=int)
     return Metrics(
         rms_error=np.sqrt(np.mean(e**2, axis=0)),
         max_error=np.abs(e).max(axis=0),
@@ -61,6 +76,8 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
         tau_peak=np.abs(result.tau).max(axis=0),
         after=after,
         tol=tol,
+        limit_violation=viol,
+        saturated_steps=steps,
     )
 
 
@@ -68,18 +85,24 @@ def format_metrics(metrics: Metrics, joint_names=None) -> str:
     """A plain-text table of ``metrics``, one row per joint."""
     n = len(metrics.rms_error)
     names = list(joint_names) if joint_names else [f"joint{i + 1}" for i in range(n)]
+    w = max(10, *(len(x) for x in names))
     a = f"{metrics.after:g}"
     head = (
-        f"{'joint':<10} {'RMS e (t>=' + a + 's) [rad]':>24} {'max |e| [rad]':>14} "
-        f"{'within ' + format(metrics.tol, 'g') + ' rad from [s]':>24} "
-        f"{'RMS d-d^ [N·m]':>15} {'peak |tau| [N·m]':>17}"
+        f"{'joint':<{w}} {'RMS e (t>=' + a + 's) [rad]':>22} {'max |e| [rad]':>14} "
+        f"{'within ' + format(metrics.tol, 'g') + ' rad from [s]':>23} "
+        f"{'RMS d-d^ [N·m]':>15} {'peak |tau| [N·m]':>17} {'limit viol. [rad]':>18} "
+        f"{'saturated':>10}"
     )
     lines = [head, "-" * len(head)]
+    viol = metrics.limit_violation if metrics.limit_violation is not None else [np.nan] * n
+    sat = metrics.saturated_steps if metrics.saturated_steps is not None else [0] * n
     for i in range(n):
         st = metrics.settling_time[i]
         st_s = "never" if st != st else f"{st:.2f}"
+        v_s = "n/a" if viol[i] != viol[i] else f"{viol[i]:.1e}"
         lines.append(
-            f"{names[i]:<10} {metrics.rms_error[i]:>24.3e} {metrics.max_error[i]:>14.3e} "
-            f"{st_s:>24} {metrics.observer_rms[i]:>15.3e} {metrics.tau_peak[i]:>17.1f}"
+            f"{names[i]:<{w}} {metrics.rms_error[i]:>22.3e} {metrics.max_error[i]:>14.3e} "
+            f"{st_s:>23} {metrics.observer_rms[i]:>15.3e} {metrics.tau_peak[i]:>17.1f} "
+            f"{v_s:>18} {int(sat[i]):>10}"
         )
     return "\n".join(lines)

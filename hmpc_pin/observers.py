@@ -14,9 +14,25 @@ Two choices of :math:`Y` are offered:
 
 * ``"chen"``: :math:`Y` is the lower-triangular matrix of ones (Eq 28–30), the
   paper's design, proven for planar serial arms.
-* ``"diagonal"``: :math:`Y = I` (:math:`p = c\\dot q`, :math:`L = cM^{-1}`), the
-  general design; :math:`L` is then similar to the positive-definite
-  :math:`M^{-1/2}\\,c\\,M^{-1/2}`, so the frozen-time error dynamics are stable on any arm.
+* ``"general"``: :math:`Y = I` (:math:`p = c\\dot q`, :math:`L = cM^{-1}`), the
+  general design of Mohammadi et al. (2013) with :math:`X = I/c`. Their Lyapunov
+  condition :math:`X + X^T - X\\dot M X^T > 0` becomes
+  :math:`c > \\tfrac12\\,\\sup\\|\\dot M(q,\\dot q)\\|_2` over the joint and velocity ranges,
+  which :func:`general_gain_bound` evaluates with Pinocchio
+  (:math:`\\dot M = C + C^T`); above that bound the error converges on any arm,
+  planar or spatial. Planar arms keep the paper's ``"chen"`` by default.
+
+A third estimator, :class:`MomentumObserver` (``kind = "momentum"``), is De Luca's
+generalized-momentum observer (SPEC §2): no :math:`M^{-1}` and no acceleration,
+
+.. math::
+
+    r = K_O\\Big[M\\dot q - M_0\\dot q_0
+        - \\int_0^t (\\tau + C^T\\dot q - G + r)\\,ds\\Big],
+    \\qquad \\dot r = K_O (d - r),
+
+i.e. one first-order filter per joint at rate :math:`K_O` [1/s], stable for any
+:math:`K_O > 0` on any arm.
 
 Discretisation (SPEC §2). At the control period :math:`T_s` the observer is
 integrated with backward Euler, which is unconditionally stable for any gain:
@@ -34,9 +50,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DisturbanceObserver", "observer_matrix"]
+__all__ = [
+    "DisturbanceObserver",
+    "MomentumObserver",
+    "general_gain_bound",
+    "make_observer",
+    "observer_matrix",
+]
 
-OBSERVER_KINDS = ("chen", "diagonal")
+OBSERVER_KINDS = ("chen", "general", "momentum")
 DISCRETIZATIONS = ("implicit", "explicit")
 
 
@@ -44,14 +66,14 @@ def observer_matrix(kind: str, n: int) -> np.ndarray:
     """Return the constant matrix :math:`Y` of the observer design ``kind``.
 
     Args:
-        kind: ``"chen"`` (lower-triangular ones, Eq 28) or ``"diagonal"`` (identity).
+        kind: ``"chen"`` (lower-triangular ones, Eq 28) or ``"general"`` (identity).
         n: Number of joints.
     """
     if kind == "chen":
         return np.tril(np.ones((n, n)))
-    if kind == "diagonal":
+    if kind == "general":
         return np.eye(n)
-    raise ValueError(f"observer kind {kind!r} is not one of {OBSERVER_KINDS}")
+    raise ValueError(f"observer kind {kind!r} is not one of ('chen', 'general')")
 
 
 class DisturbanceObserver:
@@ -61,7 +83,7 @@ class DisturbanceObserver:
         n: Number of joints.
         Ts: Sampling period [s].
         gain: Observer gain :math:`c` [1/s·(kg·m²)]; larger is faster.
-        kind: ``"chen"`` or ``"diagonal"`` (see module docstring).
+        kind: ``"chen"`` or ``"general"`` (see module docstring).
         discretization: ``"implicit"`` (backward Euler, default) or ``"explicit"``.
 
     Attributes:
@@ -103,7 +125,12 @@ class DisturbanceObserver:
         self.estimate = np.zeros(self.n)
 
     def update(
-        self, M: np.ndarray, nle: np.ndarray, dq: np.ndarray, tau_prev: np.ndarray
+        self,
+        M: np.ndarray,
+        nle: np.ndarray,
+        dq: np.ndarray,
+        tau_prev: np.ndarray,
+        q: np.ndarray | None = None,
     ) -> np.ndarray:
         """Advance one sampling period and return the new estimate :math:`\\hat d_k`.
 
@@ -112,6 +139,7 @@ class DisturbanceObserver:
             nle: :math:`C\\dot q + G` at the measured state [N·m].
             dq: Measured joint velocity [rad/s].
             tau_prev: Torque applied over the period that just ended [N·m].
+            q: Measured joint position [rad] (unused here; the momentum observer needs it).
         """
         p = self.cY @ dq
         TL = self.Ts * self.gain_matrix(M)
@@ -122,3 +150,101 @@ class DisturbanceObserver:
             self.z = self.z - TL @ self.z + rhs
         self.estimate = self.z + p
         return self.estimate
+
+
+class MomentumObserver:
+    """De Luca's generalized-momentum observer, discretised at the control period.
+
+    With :math:`p = M\\dot q` and :math:`\\beta = \\tau + C^T\\dot q - G`, the integral
+    :math:`I` and residual :math:`r` are advanced semi-implicitly (backward Euler on the
+    :math:`r` term, unconditionally stable for any gain):
+
+    .. math::
+
+        (I + T_s K_O)\\, r_k = K_O\\,(p_k - p_0 - I_{k-1} - T_s \\beta_k), \\qquad
+        I_k = I_{k-1} + T_s(\\beta_k + r_k),
+
+    which gives :math:`r_k = (I + T_sK_O)^{-1}(r_{k-1} + K_O\\,\\Delta p_k - T_sK_O\\beta_k)`,
+    so for a constant disturbance the error decays by :math:`1/(1 + T_s K_O)` per step.
+    :math:`C^T\\dot q` comes from ``pin.computeCoriolisMatrix``, :math:`G = n - C\\dot q`.
+
+    Args:
+        robot: The controller's :class:`~hmpc_pin.robot.Robot` (for :math:`C`).
+        Ts: Sampling period [s].
+        gain: :math:`K_O` [1/s], scalar or per joint (n,), > 0.
+
+    Attributes:
+        estimate: The current disturbance estimate :math:`r_k` [N·m], shape (n,).
+    """
+
+    def __init__(self, robot, Ts: float, gain):
+        self.robot = robot
+        self.n = n = robot.nq
+        self.Ts = float(Ts)
+        self.K = np.broadcast_to(np.asarray(gain, dtype=float), (n,)).copy()
+        self.gain = self.K
+        self._den = 1.0 + self.Ts * self.K
+        self.p0 = np.zeros(n)
+        self.integral = np.zeros(n)
+        self.estimate = np.zeros(n)
+
+    def reset(self, dq0: np.ndarray, q0: np.ndarray | None = None) -> None:
+        """Start at :math:`r = 0`; :math:`p_0 = M(q_0)\\dot q_0` (zero for a start at rest)."""
+        dq0 = np.asarray(dq0, dtype=float)
+        self.p0 = np.zeros(self.n) if q0 is None else self.robot.mass_matrix(np.asarray(q0)) @ dq0
+        self.integral = np.zeros(self.n)
+        self.estimate = np.zeros(self.n)
+
+    def update(
+        self,
+        M: np.ndarray,
+        nle: np.ndarray,
+        dq: np.ndarray,
+        tau_prev: np.ndarray,
+        q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Advance one period with the measured ``q`` (required), ``dq`` and ``τ_{k-1}``."""
+        C = self.robot.coriolis_matrix(q, dq)
+        Cdq = C @ dq
+        beta = tau_prev + C.T @ dq - (nle - Cdq)
+        p = M @ dq
+        r = self.K * (p - self.p0 - self.integral - self.Ts * beta) / self._den
+        self.integral += self.Ts * (beta + r)
+        self.estimate = r
+        return r
+
+
+def make_observer(robot, Ts: float, kind: str, gain: float, discretization: str = "implicit"):
+    """The observer of ``kind`` (``"chen"``, ``"general"`` or ``"momentum"``) for ``robot``."""
+    if kind == "momentum":
+        return MomentumObserver(robot, Ts, gain)
+    return DisturbanceObserver(robot.nq, Ts, gain, kind, discretization)
+
+
+def general_gain_bound(robot, samples: int = 200, seed: int = 0, velocity=None) -> float:
+    """Lower bound on the gain :math:`c` of the ``"general"`` NDO (Mohammadi et al. 2013).
+
+    Returns :math:`\\tfrac12 \\max \\|\\dot M(q, \\dot q)\\|_2` over ``samples`` random
+    configurations inside the joint limits (infinite limits clipped to ±π) and, at
+    each, the velocity-limit vertices :math:`\\dot q_j = \\pm\\bar{\\dot q}_j` of a random sign
+    pattern and its opposite, with :math:`\\dot M = C + C^T` from Pinocchio.
+    The observer error converges for :math:`c` above it.
+
+    Args:
+        robot: The :class:`~hmpc_pin.robot.Robot`.
+        samples: Number of random configurations.
+        seed: Random seed.
+        velocity: Velocity bounds [rad/s] (n,); default the robot's velocity limits.
+    """
+    rng = np.random.default_rng(seed)
+    lo = np.clip(robot.lower, -np.pi, np.pi)
+    hi = np.clip(robot.upper, -np.pi, np.pi)
+    vmax = np.asarray(robot.velocity_limit if velocity is None else velocity, dtype=float)
+    worst = 0.0
+    for _ in range(samples):
+        q = rng.uniform(lo, hi)
+        sign = rng.choice([-1.0, 1.0], size=robot.nq)
+        for dq in (sign * vmax, -sign * vmax):
+            C = robot.coriolis_matrix(q, dq)
+            worst = max(worst, 0.5 * float(np.linalg.norm(C + C.T, 2)))
+    return worst

@@ -222,6 +222,10 @@ class Robot:
         """Coriolis, centrifugal and gravity torques :math:`C(q,\\dot q)\\dot q + G(q)` [N·m]."""
         return pin.nonLinearEffects(self.model, self.data, q, dq).copy()
 
+    def coriolis_matrix(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """Coriolis matrix :math:`C(q,\\dot q)` (n×n) with :math:`\\dot M = C + C^T`."""
+        return pin.computeCoriolisMatrix(self.model, self.data, q, dq).copy()
+
     def gravity_torque(self, q: np.ndarray) -> np.ndarray:
         """Gravity torques :math:`G(q)` [N·m]."""
         return pin.computeGeneralizedGravity(self.model, self.data, q).copy()

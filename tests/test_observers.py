@@ -32,7 +32,7 @@ URDF = Path(__file__).resolve().parents[1] / "robots" / "planar3.urdf"
 N_JOINTS = 3
 #: Eq (28), written out.
 Y_CHEN = np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
-Y_OF = {"chen": Y_CHEN, "diagonal": np.eye(N_JOINTS)}
+Y_OF = {"chen": Y_CHEN, "general": np.eye(N_JOINTS)}
 KINDS = tuple(Y_OF)
 Q_LIMIT = np.array([np.pi / 2, np.pi / 2, 3 * np.pi / 4])
 

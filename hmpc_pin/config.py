@@ -180,7 +180,7 @@ class ConstraintConfig:
     upper: np.ndarray | None = None
     velocity_limit: np.ndarray | None = None
     slack_weight: float = 1e5
-    slack_linear_weight: float = 1e3
+    slack_linear_weight: float = 1e4
 
     def __post_init__(self):
         for name in ("enabled", "position", "velocity"):

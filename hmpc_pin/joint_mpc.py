@@ -159,7 +159,7 @@ class StateLimits:
     upper: np.ndarray
     velocity: np.ndarray
     slack_weight: float = 1e5
-    slack_linear_weight: float = 1e3
+    slack_linear_weight: float = 1e4
 
 
 def _new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = True):
@@ -210,6 +210,9 @@ class JointQPs:
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap (the solver never runs unbounded).
         limits: Position and velocity limits as soft state constraints; ``None`` for none.
+        always_constrained: Solve the soft QP for every joint at every step instead of
+            only where the box-only prediction leaves the limits (the reference path
+            that the fast path is tested against).
 
     Attributes:
         solution: The optimal input sequences of the last :meth:`solve` (Nc×n) [rad/s²].
@@ -227,8 +230,10 @@ class JointQPs:
         eps_abs: float = 1e-9,
         max_iter: int = 1000,
         limits: StateLimits | None = None,
+        always_constrained: bool = False,
     ):
         self.mpc = mpc
+        self.always_constrained = always_constrained
         self.joint_names = joint_names
         self.n = n = len(joint_names)
         self.limits = limits
@@ -346,6 +351,8 @@ class JointQPs:
             | (np.abs(v) > self._vel).any(axis=0)
         )
         self.slack[:] = 0.0
+        if self.always_constrained:
+            bad[:] = True
         if not bad.any():
             return
         for i in np.flatnonzero(bad):

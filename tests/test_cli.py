@@ -177,3 +177,21 @@ def test_run_replay_and_replay_command(tmp_path, capsys):
         assert "MeshCat.Viewer" in text and "data:application/octet-binary;base64," in text
     assert main(["replay", str(tmp_path / "missing.npz")]) == 2
     assert "not found" in capsys.readouterr().err
+
+
+def test_run_and_replay_a_panda_with_locked_fingers(tmp_path, capsys):
+    """An example-robot-data arm runs from its config, and `replay` rebuilds the reduced
+    model from the result's metadata (URDF + locked joints)."""
+    cfg = CONFIGS / "panda_sine.toml"
+    assert main(["run", str(cfg), "--out", str(tmp_path), "--duration", "1.2"]) == 0
+    out = capsys.readouterr().out
+    assert "panda_joint7" in out and "limit viol." in out
+    npz = tmp_path / "panda_sine.npz"
+    html = tmp_path / "panda.html"
+    assert main(["replay", str(npz), "--out", str(html)]) == 0
+    from .test_viz import _commands
+
+    objects = {c["path"] for c in _commands(html.read_text()) if c["type"] == "set_object"}
+    # the fingers are locked, not dropped: their meshes are in the scene
+    assert any("panda_leftfinger" in p for p in objects), objects
+    assert any("panda_link7" in p for p in objects)

@@ -90,6 +90,18 @@ BAD = [
     ("[disturbance.pulse]\nsigma = 0.0", "disturbance.pulse.sigma", "> 0"),
     ('[plant]\nintegrator = "leapfrog"', "plant.integrator", "one of"),
     ("[oops]\nx = 1", "oops", "unknown key"),
+    ("[controller.constraints]\nlower = [-1.0, -1.0]", "controller.constraints.lower", "3 joints"),
+    ("[controller.constraints]\nupper = -5.0", "controller.constraints.lower", "lower < upper"),
+    ("[controller.constraints]\nslack_weight = 0", "controller.constraints.slack_weight", "> 0"),
+    ("[controller.constraints]\nsoft = 1", "controller.constraints.soft", "unknown key"),
+    (
+        '[controller.observer]\nkind = "momentum"\ndiscretization = "explicit"',
+        "controller.observer.discretization",
+        "semi-implicit",
+    ),
+    ('[disturbance]\nscale = "mass"', "disturbance.scale", "one of"),
+    ("[plant]\neffort_limit = [1.0, -1.0, 1.0]", "plant.effort_limit", "> 0"),
+    ("[plant]\neffort_limit = [1.0, 1.0]", "plant.effort_limit", "3 joints"),
 ]
 
 
@@ -140,3 +152,33 @@ def test_config_is_frozen():
     c = ControllerConfig()
     with pytest.raises(AttributeError):
         c.N = 3
+
+
+@pytest.mark.parametrize(
+    ("robot", "key", "words"),
+    [
+        ('urdf = "@URDF@"\nmodel = "ur5"', "robot.model", "not both"),
+        ("model = 5", "robot.model", "robot name string"),
+        ('model = "panda"\nlocked_joints = 3', "robot.locked_joints", "table"),
+        ('model = "panda"\n[robot.locked_joints]\npanda_finger_joint1 = "open"',
+         "robot.locked_joints.panda_finger_joint1", "number"),
+    ],
+)  # fmt: skip
+def test_bad_robot_section_names_its_key(write_config, robot, key, words):
+    path = write_config(f"[robot]\n{robot}\n")
+    with pytest.raises(hmpc_pin.ConfigError) as info:
+        hmpc_pin.load_config(path)
+    assert info.value.key == key and words in str(info.value), str(info.value)
+
+
+def test_unknown_robot_name_in_config_lists_close_names(write_config):
+    path = write_config('[robot]\nmodel = "pandas"\n')
+    with pytest.raises(hmpc_pin.URDFError, match="did you mean 'panda'"):
+        hmpc_pin.load_config(path)
+
+
+@pytest.mark.parametrize("name", ["ur5_sine", "panda_sine", "z1_sine"])
+def test_arm_configs_load(name):
+    cfg = hmpc_pin.load_config(CONFIGS / f"{name}.toml")
+    assert cfg.robot.model and cfg.disturbance.scale == "inertia"
+    assert cfg.controller.observer.kind == "general"

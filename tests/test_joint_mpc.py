@@ -28,7 +28,7 @@ import itertools
 import numpy as np
 import pytest
 
-from hmpc_pin.joint_mpc import CondensedMPC, JointQPs
+from hmpc_pin.joint_mpc import CondensedMPC, JointQPs, StateLimits
 
 TS = 0.01
 Q_PAPER = np.diag([50.0, 0.0])
@@ -482,3 +482,119 @@ def test_paper_settings_give_positive_hessian(make_problem):
     positions = np.array([(j * 0.01) ** 2 / 2.0 for j in range(1, 11)])
     closed = 2.0 * (50.0 * np.sum(positions[:-1] ** 2) + 100.0 * positions[-1] ** 2 + 10e-6)
     assert H_unscaled == pytest.approx(closed, rel=1e-12)
+
+
+# ------------------------------------------------------- soft state constraints
+SOFT = {"rho2": 1e5, "rho1": 1e4}  # the defaults of StateLimits
+
+
+def own_soft_solution(x0, ref, N, lo, hi, vel, v_lim=V_LIMIT, grid=4001):
+    """Nc = 1 soft-constrained optimum by 1-D minimisation, independent of the package.
+
+    For a held input u the predicted states come from :func:`simulate`; the smallest
+    slack that satisfies every constraint is s(u) = max(0, max violation), and the soft
+    cost J(u) + ρ₂s² + ρ₁s is convex in u. A dense grid on [−v, v] followed by golden
+    section search on the bracketing cell finds the minimiser.
+    """
+
+    def cost(u):
+        X = simulate(np.array([u]), x0, N)[0][1:]
+        q, v = X[:, 0], X[:, 1]
+        s = max(0.0, (q - hi).max(), (lo - q).max(), (np.abs(v) - vel).max())
+        E = X - ref
+        J = sum(E[j] @ Q_PAPER @ E[j] for j in range(N - 1)) + E[-1] @ P_PAPER @ E[-1]
+        J += N * R_PAPER * u * u
+        return J + SOFT["rho2"] * s * s + SOFT["rho1"] * s, s
+
+    us = np.linspace(-v_lim, v_lim, grid)
+    k = int(np.argmin([cost(u)[0] for u in us]))
+    a, b = us[max(k - 1, 0)], us[min(k + 1, grid - 1)]
+    g = (np.sqrt(5.0) - 1.0) / 2.0
+    for _ in range(200):
+        c, d = b - g * (b - a), a + g * (b - a)
+        if cost(c)[0] < cost(d)[0]:
+            b = d
+        else:
+            a = c
+    u = 0.5 * (a + b)
+    return u, cost(u)[1]
+
+
+def soft_qps(N, Nc, lo, hi, vel, always=False):
+    mpc = CondensedMPC(TS, N, Nc, Q_PAPER, R_PAPER, P_PAPER)
+    limits = StateLimits(
+        np.array([lo]), np.array([hi]), np.array([vel]), SOFT["rho2"], SOFT["rho1"]
+    )
+    qps = JointQPs(
+        mpc,
+        np.array([-V_LIMIT]),
+        np.array([V_LIMIT]),
+        ("j",),
+        eps_abs=EPS_ABS,
+        limits=limits,
+        always_constrained=always,
+    )
+    return mpc, qps
+
+
+def near_limit_states(rng, count, hi=1.5, vel=3.0):
+    """States close to (or past) the upper position limit, moving at up to 1.5 x vel."""
+    return [
+        np.array([hi + rng.normal(0.0, 0.05), rng.uniform(-1.5, 1.5) * vel]) for _ in range(count)
+    ]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_soft_constrained_nc1_matches_own_minimisation(make_rng, seed):
+    """Joints pushed towards their limit: u and slack equal an independent 1-D minimisation."""
+    rng = make_rng(seed)
+    N, lo, hi, vel = 10, -1.5, 1.5, 3.0
+    mpc, qps = soft_qps(N, 1, lo, hi, vel)
+    checked = 0
+    for x0 in near_limit_states(rng, 15, hi, vel):
+        ref = np.zeros((N, 2))
+        ref[:, 0] = hi + rng.uniform(0.0, 0.5)  # the reference pulls beyond the limit
+        flat = ref.reshape(-1, 1)
+        u = qps.solve(mpc.gradient(x0.reshape(2, 1), flat), x0.reshape(2, 1))[0]
+        u_own, s_own = own_soft_solution(x0, ref, N, lo, hi, vel)
+        assert u == pytest.approx(u_own, abs=2e-3), (x0, u, u_own)
+        assert qps.slack[0] == pytest.approx(s_own, abs=1e-5)
+        checked += qps.constrained
+    assert checked > 0  # the constrained QP was exercised
+
+
+def test_soft_constraints_keep_prediction_inside_when_feasible(make_rng):
+    """Where a feasible input exists, the exact penalty makes the slack zero: hard limits."""
+    rng = make_rng(5)
+    N, lo, hi, vel = 10, -1.5, 1.5, 3.0
+    mpc, qps = soft_qps(N, 3, lo, hi, vel)
+    for _ in range(40):
+        # Feasible: full braking (v = -100) stops the joint v²/200 short of the limit.
+        dq = rng.uniform(0.0, 2.0)
+        x0 = np.array([[hi - dq * dq / (2 * V_LIMIT) - rng.uniform(0.002, 0.2)], [dq]])
+        ref = np.zeros((2 * N, 1))
+        ref[0::2] = hi + 1.0
+        qps.solve(mpc.gradient(x0, ref), x0)
+        X = qps.predict(x0, qps.solution)
+        assert qps.slack[0] < 1e-7
+        assert X[0::2].max() <= hi + 1e-7 and np.abs(X[1::2]).max() <= vel + 1e-7
+
+
+@pytest.mark.parametrize("Nc", [1, 3, 5])
+def test_fast_path_equals_always_constrained(make_rng, Nc):
+    """Solving the soft QP only where the box solution leaves the limits changes nothing."""
+    rng = make_rng(Nc)
+    N, lo, hi, vel = 10, -1.5, 1.5, 3.0
+    mpc, fast = soft_qps(N, Nc, lo, hi, vel)
+    _, full = soft_qps(N, Nc, lo, hi, vel, always=True)
+    used = 0
+    for _ in range(60):
+        x0 = np.array([[rng.uniform(0.5, 1.6)], [rng.uniform(-3.0, 3.0)]])
+        ref = np.zeros((2 * N, 1))
+        ref[0::2] = rng.uniform(0.0, 2.0)
+        G = mpc.gradient(x0, ref)
+        v_fast = fast.solve(G, x0)
+        used += fast.constrained
+        v_full = full.solve(G, x0)
+        assert v_fast == pytest.approx(v_full, abs=1e-4)
+    assert 0 < used < 60  # both branches of the fast path were taken

@@ -463,3 +463,130 @@ def test_bad_gravity(gravity):
     with pytest.raises(URDFError, match="gravity") as info:
         load_robot(URDF, gravity=gravity)
     assert str(URDF) in str(info.value)
+
+
+# ------------------------------------------------------ other arms (issue: any URDF)
+PANDA_FINGERS = {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.02}
+ARMS = {
+    "planar3": (str(Path(__file__).resolve().parent.parent / "robots" / "planar3.urdf"), None),
+    "ur5": ("ur5", None),
+    "panda": ("panda", PANDA_FINGERS),
+    "z1": ("z1", {"jointGripper": 0.0}),
+}
+
+
+@pytest.fixture(scope="module", params=sorted(ARMS))
+def arm(request):
+    source, locked = ARMS[request.param]
+    return load_robot(source, gravity=9.81, locked_joints=locked)
+
+
+def random_state(robot, rng):
+    lo, hi = np.clip(robot.lower, -np.pi, np.pi), np.clip(robot.upper, -np.pi, np.pi)
+    return rng.uniform(lo, hi), rng.normal(0.0, 1.0, robot.nq)
+
+
+def test_arm_dynamics_agree_with_rnea(arm, make_rng):
+    """M·ABA(τ) + nle = τ and RNEA(ABA(τ)) = τ at random states (Pinocchio's RNEA is the
+    independent algorithm; ABA and CRBA are the controller's and the plant's)."""
+    rng = make_rng(1)
+    for _ in range(20):
+        q, dq = random_state(arm, rng)
+        tau = rng.normal(0.0, 5.0, arm.nq)
+        ddq = arm.forward_dynamics(q, dq, tau)
+        M, nle = arm.mass_matrix(q), arm.nonlinear_effects(q, dq)
+        np.testing.assert_allclose(M @ ddq + nle, tau, atol=1e-8 * (1 + np.abs(tau).max()))
+        np.testing.assert_allclose(arm.inverse_dynamics(q, dq, ddq), tau, atol=1e-8 * 10)
+        np.testing.assert_allclose(M, M.T, atol=1e-12)
+        assert np.linalg.eigvalsh(M).min() > 0
+
+
+def test_arm_coriolis_matrix_gives_mass_matrix_derivative(arm, make_rng):
+    """Ṁ = C + Cᵀ (checked by a central difference of M along q̇) and C·q̇ = nle − G."""
+    rng = make_rng(2)
+    q, dq = random_state(arm, rng)
+    C = arm.coriolis_matrix(q, dq)
+    h = 1e-6
+    Mdot = (arm.mass_matrix(q + h * dq) - arm.mass_matrix(q - h * dq)) / (2 * h)
+    np.testing.assert_allclose(C + C.T, Mdot, atol=1e-6 * (1 + np.abs(Mdot).max()))
+    np.testing.assert_allclose(
+        C @ dq, arm.nonlinear_effects(q, dq) - arm.gravity_torque(q), atol=1e-9
+    )
+
+
+def test_example_robot_names_resolve_to_urdf_files():
+    from hmpc_pin.robot import example_robot_names, example_robot_urdf
+
+    names = example_robot_names()
+    assert {"ur5", "ur10", "panda", "z1"} <= set(names)
+    assert "solo12" not in names  # floating base
+    for name in ("ur5", "panda", "z1"):
+        assert example_robot_urdf(name).is_file()
+
+
+def test_locked_fingers_still_load_the_arm(make_rng):
+    """The reduced Panda's gravity equals the full model's with the fingers at their
+    locked positions (their mass is kept, not dropped)."""
+    import pinocchio as pin
+
+    reduced = load_robot("panda", gravity=9.81, locked_joints=PANDA_FINGERS)
+    full = pin.buildModelFromUrdf(str(reduced.source))
+    full.gravity.linear = np.array([0.0, 0.0, -9.81])
+    data = full.createData()
+    rng = make_rng(3)
+    assert reduced.nq == 7 and full.nq == 9
+    for _ in range(5):
+        q, _ = random_state(reduced, rng)
+        q_full = np.concatenate([q, [0.02, 0.02]])
+        g_full = pin.computeGeneralizedGravity(full, data, q_full)[:7]
+        np.testing.assert_allclose(reduced.gravity_torque(q), g_full, atol=1e-10)
+
+
+@pytest.mark.parametrize(
+    ("source", "locked", "words"),
+    [
+        ("ur5x", None, "did you mean 'ur5'"),
+        ("solo12", None, "floating-base"),
+        ("kinova", None, "'j2s6s200_joint_1' (continuous)"),
+        ("panda", {"finger": 0.0}, "locked joint(s) ['finger'] not found"),
+        ("panda", {"panda_finger_joint1": 0.5}, "outside its limits"),
+        ("panda", {"panda_finger_joint1": float("nan")}, "expected a finite value"),
+    ],
+)
+def test_bad_arm_requests_name_the_problem(source, locked, words):
+    with pytest.raises(URDFError) as exc:
+        load_robot(source, locked_joints=locked)
+    assert words in str(exc.value)
+
+
+def test_continuous_joints_can_be_locked():
+    """Kinova's continuous joints are refused for control but may be locked."""
+    locked = {"j2s6s200_joint_1": 0.0, "j2s6s200_joint_4": 0.5, "j2s6s200_joint_6": 0.0}
+    robot = load_robot("kinova", locked_joints=locked)
+    assert robot.nq == 3 and "j2s6s200_joint_4" not in robot.joint_names
+
+
+def test_prismatic_joint_is_controlled(write_urdf):
+    """A prismatic joint is one coordinate like a revolute one: loaded, limits in metres."""
+    path = write_urdf(PRISMATIC_URDF)
+    robot = load_robot(path)
+    assert robot.nq == 2 and robot.upper[1] == pytest.approx(0.3)
+    q, dq = np.array([0.2, 0.1]), np.array([0.3, -0.2])
+    tau = np.array([1.0, 2.0])
+    ddq = robot.forward_dynamics(q, dq, tau)
+    np.testing.assert_allclose(robot.inverse_dynamics(q, dq, ddq), tau, atol=1e-10)
+
+
+PRISMATIC_URDF = """<robot name="rp">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0 0 0"/><mass value="0.5"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <axis xyz="0 -1 0"/><limit lower="-1.5" upper="1.5" effort="100" velocity="5"/></joint>
+  <joint name="j2" type="prismatic"><parent link="l1"/><child link="l2"/>
+    <origin xyz="1 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.3" effort="100" velocity="1"/></joint>
+</robot>
+"""

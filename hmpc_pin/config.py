@@ -255,6 +255,9 @@ class ControllerConfig:
         constraints: :class:`ConstraintConfig` (joint limits as soft state constraints).
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap per solve.
+        qp_layout: ``"block"`` (the n joint QPs as one block-diagonal ProxSuite QP, one
+            solve per step; default, fastest) or ``"joint"`` (one QP per joint). Same
+            solution to solver tolerance (tested); ``BENCHMARKS.md`` has the timings.
     """
 
     Ts: float = 0.01
@@ -269,6 +272,7 @@ class ControllerConfig:
     constraints: ConstraintConfig = field(default_factory=ConstraintConfig)
     eps_abs: float = 1e-9
     max_iter: int = 1000
+    qp_layout: str = "block"
 
     def __post_init__(self):
         _set(self, "Ts", _float("Ts", self.Ts, positive=True))
@@ -300,6 +304,7 @@ class ControllerConfig:
             raise ConfigError("constraints", f"expected a table, got {self.constraints!r}")
         _set(self, "eps_abs", _float("eps_abs", self.eps_abs, positive=True))
         _set(self, "max_iter", _int("max_iter", self.max_iter, minimum=1))
+        _set(self, "qp_layout", _choice("qp_layout", self.qp_layout, ("block", "joint")))
 
     def bounds(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """``(v_min, v_max)`` broadcast to ``n`` joints; raises if a vector has the wrong length."""

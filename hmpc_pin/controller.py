@@ -73,6 +73,7 @@ class HierarchicalMPC:
             eps_abs=config.eps_abs,
             max_iter=config.max_iter,
             limits=self.limits,
+            layout=config.qp_layout,
         )
         obs = config.observer
         self.observer = (
@@ -82,10 +83,20 @@ class HierarchicalMPC:
         )
         self._offsets = config.Ts * np.arange(1, config.N + 1)
         self._stack = np.empty((2 * config.N + 2, n))
+        self._ref_shape = (config.N, n)
         self.disturbance_estimate = np.zeros(n)
         self.v = np.zeros(n)
         self.tau = np.zeros(n)
         self._started = False
+
+    def _raise_non_finite(self, t, q, dq, q_ref, dq_ref) -> None:
+        """Name the first non-finite input (slow path, only on bad input)."""
+        self.robot.check_vector("q", q)
+        self.robot.check_vector("dq", dq)
+        bad = int(np.argwhere(~np.isfinite(q_ref + dq_ref).all(axis=1))[0, 0])
+        raise NonFiniteError(
+            "reference", (q_ref[bad], dq_ref[bad]), f"at t={t + self._offsets[bad]:.6g}"
+        )
 
     @property
     def Ts(self) -> float:
@@ -131,45 +142,38 @@ class HierarchicalMPC:
         q = np.asarray(q, dtype=float)
         dq = np.asarray(dq, dtype=float)
         n = self.n
-        if (
-            q.shape != (n,)
-            or dq.shape != (n,)
-            or not (np.isfinite(q).all() and np.isfinite(dq).all())
-        ):  # slow path only on bad input: check_vector raises the precise error
-            self.robot.check_vector("q", q)
+        if q.shape != (n,) or dq.shape != (n,):
+            self.robot.check_vector("q", q)  # raises the precise error
             self.robot.check_vector("dq", dq)
+
+        q_ref, dq_ref = sample_horizon(reference, t + self._offsets)
+        if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
+            raise DimensionError(
+                f"reference.sample returned q_ref of shape {q_ref.shape[1:]} and dq_ref of "
+                f"shape {dq_ref.shape[1:]} but the robot has {n} joints; return two "
+                f"arrays of shape ({n},)"
+            )
+        S = self._stack
+        S[0] = q
+        S[1] = dq
+        S[2::2] = q_ref
+        S[3::2] = dq_ref
+        # One finiteness test covers q, q̇ and the whole reference horizon, before
+        # anything is updated: a bad input changes no state.
+        if not np.isfinite(S).all():
+            self._raise_non_finite(t, q, dq, q_ref, dq_ref)
+        G = S.T @ self.mpc.FT  # (n, Nc), one row per joint
 
         robot = self.robot
         M = robot.mass_matrix(q)
         nle = robot.nonlinear_effects(q, dq)
-
         if self.observer is not None:
             if self._started:
                 self.disturbance_estimate = self.observer.update(M, nle, dq, self.tau, q)
             else:
                 self.disturbance_estimate = self.observer.estimate.copy()
 
-        q_ref, dq_ref = sample_horizon(reference, t + self._offsets)
-        if q_ref.shape != (self.config.N, n) or dq_ref.shape != (self.config.N, n):
-            raise DimensionError(
-                f"reference.sample returned q_ref of shape {q_ref.shape[1:]} and dq_ref of "
-                f"shape {dq_ref.shape[1:]} but the robot has {n} joints; return two "
-                f"arrays of shape ({n},)"
-            )
-        if not (np.isfinite(q_ref).all() and np.isfinite(dq_ref).all()):
-            bad = int(np.argwhere(~np.isfinite(q_ref + dq_ref).all(axis=1))[0, 0])
-            raise NonFiniteError(
-                "reference", (q_ref[bad], dq_ref[bad]), f"at t={t + self._offsets[bad]:.6g}"
-            )
-
-        S = self._stack
-        S[0] = q
-        S[1] = dq
-        S[2::2] = q_ref
-        S[3::2] = dq_ref
-        G = S.T @ self.mpc.FT  # (n, Nc), one row per joint
         self.v = v = self.qps.solve(G, S[:2])
-
         self.tau = M @ v + nle - self.disturbance_estimate
         self._started = True
         return self.tau.copy()

@@ -86,15 +86,17 @@ class SolverError(HmpcError, RuntimeError):
     """A joint QP did not report ``PROXQP_SOLVED``.
 
     Attributes:
-        joint: Index of the joint whose QP failed.
+        joint: Index of the joint whose QP failed (``None`` for the block QP of all
+            joints; ``controller.qp_layout = "joint"`` names the joint).
         status: ProxSuite's status as a string.
     """
 
-    def __init__(self, joint: int, joint_name: str, status: str, iterations: int):
+    def __init__(self, joint: int | None, joint_name: str, status: str, iterations: int):
         self.joint = joint
         self.status = status
+        who = f"joint {joint} ({joint_name!r})" if joint is not None else f"the {joint_name}"
         super().__init__(
-            f"joint {joint} ({joint_name!r}) MPC QP was not solved: "
+            f"{who} MPC QP was not solved: "
             f"status={status} after {iterations} iterations; no torque was "
             "returned. Check the MPC weights and bounds (controller.Q, R, P, "
             "v_min, v_max) or raise controller.max_iter"

@@ -210,6 +210,10 @@ class JointQPs:
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap (the solver never runs unbounded).
         limits: Position and velocity limits as soft state constraints; ``None`` for none.
+        layout: ``"block"`` (default): the n joint QPs as one block-diagonal ProxSuite QP
+            of n·Nc variables, one ``update`` + ``solve`` per step; ``"joint"``: one QP
+            per joint (n calls). Both have the same minimiser (the blocks are
+            independent); ``BENCHMARKS.md`` compares their speed.
         always_constrained: Solve the soft QP for every joint at every step instead of
             only where the box-only prediction leaves the limits (the reference path
             that the fast path is tested against).
@@ -231,22 +235,33 @@ class JointQPs:
         max_iter: int = 1000,
         limits: StateLimits | None = None,
         always_constrained: bool = False,
+        layout: str = "block",
     ):
+        if layout not in ("block", "joint"):
+            raise ValueError(f"layout={layout!r}; expected 'block' or 'joint'")
         self.mpc = mpc
+        self.layout = layout
         self.always_constrained = always_constrained
         self.joint_names = joint_names
         self.n = n = len(joint_names)
         self.limits = limits
         Nc, N = mpc.Nc, mpc.N
         self.qps = []
-        for i in range(n):
-            qp = _new_qp(Nc, 0, eps_abs, max_iter)
-            qp.init(mpc.H, np.zeros(Nc), None, None, None, None, None,
-                    np.full(Nc, v_min[i]), np.full(Nc, v_max[i]))  # fmt: skip
-            # One solve right after init(): update() before any solve() crashes
-            # proxsuite 0.8.0 with warm start (segfault, measured here).
-            qp.solve()
+        if layout == "block":
+            qp = _new_qp(n * Nc, 0, eps_abs, max_iter)
+            qp.init(np.kron(np.eye(n), mpc.H), np.zeros(n * Nc), None, None, None, None, None,
+                    np.repeat(v_min, Nc), np.repeat(v_max, Nc))  # fmt: skip
+            qp.solve()  # update() before any solve() segfaults (proxsuite 0.8.0)
             self.qps.append(qp)
+        else:
+            for i in range(n):
+                qp = _new_qp(Nc, 0, eps_abs, max_iter)
+                qp.init(mpc.H, np.zeros(Nc), None, None, None, None, None,
+                        np.full(Nc, v_min[i]), np.full(Nc, v_max[i]))  # fmt: skip
+                # One solve right after init(): update() before any solve() crashes
+                # proxsuite 0.8.0 with warm start (segfault, measured here).
+                qp.solve()
+                self.qps.append(qp)
         self._solved = proxqp.QPSolverOutput.PROXQP_SOLVED
         self.solution = np.zeros((Nc, n))
         self.slack = np.zeros(n)
@@ -263,6 +278,15 @@ class JointQPs:
             vec(limits.upper),
             vec(limits.velocity),
         )
+        # The box-only prediction is inside the limits iff |X − mid| <= half on every row
+        # (rows q_1, q̇_1, …, q_N, q̇_N); [Φ Γ] maps [x0; U] to X in one product.
+        self._mid = np.zeros((2 * N, n))
+        self._half = np.zeros((2 * N, n))
+        self._mid[0::2] = 0.5 * (self._lower + self._upper)
+        self._half[0::2] = 0.5 * (self._upper - self._lower)
+        self._half[1::2] = self._vel
+        self._PG = np.hstack([mpc.Phi, mpc.Gamma])
+        self._xu = np.empty((2 + Nc, n))
         Gq, Gv = mpc.Gamma[0::2], mpc.Gamma[1::2]
         # The slack enters the solver scaled, s = k·ŝ, so that its Hessian entry is 1
         # like the inputs' (unscaled, 2ρ₂·scale ~ 1e7 stalls ProxSuite's duality-gap test).
@@ -327,13 +351,23 @@ class JointQPs:
             SolverError: A QP did not report ``PROXQP_SOLVED`` (names joint and status).
         """
         sol = self.solution
-        for i, qp in enumerate(self.qps):
-            qp.update(g=G[i])
+        if self.layout == "block":
+            qp = self.qps[0]
+            qp.update(g=G.ravel())  # row-major (n, Nc): joint by joint, as the blocks
             qp.solve()
             res = qp.results
             if res.info.status != self._solved:
-                raise SolverError(i, self.joint_names[i], str(res.info.status), res.info.iter)
-            sol[:, i] = res.x
+                raise SolverError(None, "all joints, block QP", str(res.info.status),
+                                  res.info.iter)  # fmt: skip
+            sol[:] = res.x.reshape(self.n, -1).T
+        else:
+            for i, qp in enumerate(self.qps):
+                qp.update(g=G[i])
+                qp.solve()
+                res = qp.results
+                if res.info.status != self._solved:
+                    raise SolverError(i, self.joint_names[i], str(res.info.status), res.info.iter)
+                sol[:, i] = res.x
         self.constrained = 0
         if self.soft_qps:
             self._enforce_limits(G, x0)
@@ -342,19 +376,16 @@ class JointQPs:
     def _enforce_limits(self, G: np.ndarray, x0: np.ndarray) -> None:
         """Re-solve, with the soft state constraints, the joints whose prediction leaves them."""
         sol, Nc = self.solution, self.mpc.Nc
-        free = self.mpc.Phi @ x0
-        X = free + self.mpc.Gamma @ sol
-        q, v = X[0::2], X[1::2]
-        bad = (
-            (q > self._upper).any(axis=0)
-            | (q < self._lower).any(axis=0)
-            | (np.abs(v) > self._vel).any(axis=0)
-        )
+        xu = self._xu
+        xu[:2] = x0
+        xu[2:] = sol
+        bad = (np.abs(self._PG @ xu - self._mid) > self._half).any(axis=0)
         self.slack[:] = 0.0
         if self.always_constrained:
             bad[:] = True
         if not bad.any():
             return
+        free = self.mpc.Phi @ x0
         for i in np.flatnonzero(bad):
             qp = self.soft_qps[i]
             g = self._g_soft[i]

@@ -106,7 +106,7 @@ class DisturbanceObserver:
         self.kind = kind
         self.discretization = discretization
         self.cY = self.gain * observer_matrix(kind, n)
-        self._eye = np.eye(n)
+        self._TcY = self.Ts * self.cY
         self.z = np.zeros(n)
         self.estimate = np.zeros(n)
 
@@ -141,13 +141,13 @@ class DisturbanceObserver:
             tau_prev: Torque applied over the period that just ended [N·m].
             q: Measured joint position [rad] (unused here; the momentum observer needs it).
         """
+        # With L = cY M⁻¹ and b = n_k − τ_{k−1} − p_k, both updates need one linear solve:
+        #   implicit: (I + Ts L) z⁺ = z + Ts L b  ⇔  (M + Ts cY) u = b − z,  z⁺ = z + Ts cY u
+        #   explicit: z⁺ = z + Ts L (b − z)      ⇔  M u = b − z,            z⁺ = z + Ts cY u
         p = self.cY @ dq
-        TL = self.Ts * self.gain_matrix(M)
-        rhs = TL @ (nle - tau_prev - p)
-        if self.discretization == "implicit":
-            self.z = np.linalg.solve(self._eye + TL, self.z + rhs)
-        else:
-            self.z = self.z - TL @ self.z + rhs
+        rhs = nle - tau_prev - p - self.z
+        A = M + self._TcY if self.discretization == "implicit" else M
+        self.z = self.z + self._TcY @ np.linalg.solve(A, rhs)
         self.estimate = self.z + p
         return self.estimate
 

@@ -30,8 +30,11 @@ class Disturbance:
     def __call__(self, t: float, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
-    def __add__(self, other) -> SumDisturbance:
-        return SumDisturbance(self, as_disturbance(other))
+    def __add__(self, other) -> Disturbance:
+        other = as_disturbance(other)
+        if isinstance(other, ZeroDisturbance):
+            return self
+        return SumDisturbance(self, other)
 
 
 class ZeroDisturbance(Disturbance):
@@ -42,6 +45,9 @@ class ZeroDisturbance(Disturbance):
 
     def __call__(self, t, q, dq):
         return np.zeros(self.n)
+
+    def __add__(self, other) -> Disturbance:
+        return as_disturbance(other)  # 0 + d = d: no zeros evaluated in the plant loop
 
 
 class CoulombViscousFriction(Disturbance):
@@ -81,21 +87,27 @@ class GaussianPulse(Disturbance):
         self.amplitude = np.asarray(amplitude, dtype=float)
         self.center = np.asarray(center, dtype=float)
         self.sigma = np.asarray(sigma, dtype=float)
+        self._k = -0.5 / self.sigma**2
 
     def __call__(self, t, q, dq):
-        return self.amplitude * np.exp(-((t - self.center) ** 2) / (2.0 * self.sigma**2))
+        x = t - self.center
+        return self.amplitude * np.exp(self._k * x * x)
 
 
 class SumDisturbance(Disturbance):
     """Sum of disturbances, e.g. Eq (34): :math:`d = F_r(\\dot q) + \\tau_d(t)`."""
 
     def __init__(self, *terms: DisturbanceFn):
-        self.terms = tuple(terms)
+        flat = []
+        for term in terms:  # (a + b) + c is stored flat as (a, b, c)
+            flat.extend(term.terms if isinstance(term, SumDisturbance) else (term,))
+        self.terms = tuple(flat)
 
     def __call__(self, t, q, dq):
-        total = self.terms[0](t, q, dq)
-        for term in self.terms[1:]:
-            total = total + term(t, q, dq)
+        terms = self.terms
+        total = np.array(terms[0](t, q, dq), dtype=float)  # own copy: terms may return theirs
+        for term in terms[1:]:
+            total += term(t, q, dq)
         return total
 
 

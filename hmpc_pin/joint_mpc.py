@@ -266,6 +266,7 @@ class JointQPs:
         self.solution = np.zeros((Nc, n))
         self.slack = np.zeros(n)
         self.constrained = 0
+        self.constrained_last = False
         self.soft_qps = []
         if limits is None:
             return
@@ -379,12 +380,17 @@ class JointQPs:
         xu = self._xu
         xu[:2] = x0
         xu[2:] = sol
-        bad = (np.abs(self._PG @ xu - self._mid) > self._half).any(axis=0)
-        self.slack[:] = 0.0
-        if self.always_constrained:
-            bad[:] = True
-        if not bad.any():
+        X = self._PG @ xu
+        X -= self._mid
+        np.abs(X, out=X)
+        inside = X <= self._half
+        if self.constrained_last:
+            self.slack[:] = 0.0
+            self.constrained_last = False
+        if inside.all() and not self.always_constrained:
             return
+        bad = ~inside.all(axis=0) | self.always_constrained
+        self.constrained_last = True
         free = self.mpc.Phi @ x0
         for i in np.flatnonzero(bad):
             qp = self.soft_qps[i]

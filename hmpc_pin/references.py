@@ -51,6 +51,7 @@ class SineReference:
         self.omega = 2.0 * np.pi * np.broadcast_to(np.asarray(frequency, float), shape)
         self.offset = np.broadcast_to(np.asarray(offset, float), shape).copy()
         self.phase = np.broadcast_to(np.asarray(phase, float), shape).copy()
+        self._amp_omega = self.amplitude * self.omega
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference angle [rad] and velocity [rad/s] at time ``t`` [s]."""
@@ -59,8 +60,14 @@ class SineReference:
 
     def sample_many(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`sample`: arrays of shape (len(times), n)."""
-        arg = np.multiply.outer(times, self.omega) + self.phase
-        return self.offset + self.amplitude * np.sin(arg), self.amplitude * self.omega * np.cos(arg)
+        arg = np.multiply.outer(times, self.omega)
+        arg += self.phase
+        q = np.sin(arg)
+        q *= self.amplitude
+        q += self.offset
+        np.cos(arg, out=arg)
+        arg *= self._amp_omega
+        return q, arg
 
     def acceleration(self, t: float) -> np.ndarray:
         """Reference acceleration [rad/s²] at ``t``."""

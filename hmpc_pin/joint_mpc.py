@@ -383,7 +383,7 @@ class JointQPs:
         X = self._PG @ xu
         X -= self._mid
         np.abs(X, out=X)
-        inside = X <= self._half
+        inside = self._half >= X
         if self.constrained_last:
             self.slack[:] = 0.0
             self.constrained_last = False

@@ -51,6 +51,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "OBSERVER_KINDS",
     "DisturbanceObserver",
     "MomentumObserver",
     "general_gain_bound",

@@ -1,0 +1,1035 @@
+"""Benchmarks of hmpc_pin (issue 6); writes a Markdown report (default ``BENCHMARKS.md``).
+
+Run from the repository root, in the project's environment:
+
+    python benchmarks/run.py            # full run, about a minute; writes BENCHMARKS.md
+    python benchmarks/run.py --quick --out /tmp/bench.md     # smoke run, < 60 s
+
+Measured:
+
+1. ``HierarchicalMPC.step`` (dynamics, observer, every joint QP) on planar3, UR5 and
+   Panda at Nc = 1 and Nc = 5: median and 99th percentile over a recorded closed-loop
+   trajectory (0.3 rad, 0.1 Hz sines around a home pose, joint limits as soft state
+   constraints, the default), after a warm-up along the same trajectory.
+2. The paper's 10 s combined scenario (``configs/paper_combined.toml``, 1 ms RK4 plant):
+   wall time of ``Experiment.run()`` and real-time factor.
+3. Step time against the number of joints: planar chains of 2, 3, 6, 7 and 12 uniform
+   rods generated with yourdfpy (``benchmarks/chains.py``), and the real UR5 and Panda.
+4. Memory, each in a fresh process (``benchmarks/memory.py``): peak RSS of the 10 s run,
+   and RSS sampled every simulated minute over a 10-minute simulated run.
+5. Comparisons on the same arm, reference, disturbance, horizon and plant (issue 6,
+   item 3): the hierarchical MPC with and without its observer, a centralized linear MPC
+   (``benchmarks/centralized.py``) and a Crocoddyl nonlinear MPC
+   (``benchmarks/crocoddyl_mpc.py``, skipped with a message if crocoddyl is missing):
+   step time, tracking RMS after 1 s, torque limits, and ratios to the hierarchical MPC.
+
+``--quick`` shortens every run (fewer steps, shorter simulations, a 30 s soak) to check
+that the suite works; its numbers are not meant to be quoted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import hmpc_pin  # noqa: E402
+from benchmarks import crocoddyl_mpc  # noqa: E402
+from benchmarks.centralized import CentralizedMPC  # noqa: E402
+from benchmarks.chains import write_planar_chain  # noqa: E402
+from benchmarks.harness import (  # noqa: E402
+    TimedController,
+    Timing,
+    machine_info,
+    package_versions,
+    time_calls,
+)
+from hmpc_pin.config import load_config  # noqa: E402
+from hmpc_pin.experiment import Experiment  # noqa: E402
+from hmpc_pin.observers import OBSERVER_KINDS  # noqa: E402
+
+__all__ = ["Settings", "main"]
+
+#: The paper's Section 5.3 scenario (friction + pulses, 10 s, planar3).
+PAPER_CONFIG = ROOT / "configs" / "paper_combined.toml"
+PANDA_LOCKED = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+#: Home poses [rad], each ± the sine amplitude inside the joint limits (checked at run time).
+HOMES = {
+    "planar3": (0.0, 0.0, 0.0),
+    "ur5": (0.0, -1.2, 1.4, -1.0, -1.57, 0.0),
+    "panda": (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785),
+}
+AMPLITUDE = 0.3  # [rad]
+FREQUENCY = 0.1  # [Hz]
+GRAVITY = 9.8  # [m/s²]
+CHAIN_SIZES = (2, 3, 6, 7, 12)
+MiB = 2**20
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Sizes of the runs (full or ``--quick``).
+
+    Attributes:
+        warmup: Untimed controller steps before the timed ones.
+        steps: Timed controller steps per case.
+        sim_repeats: Repetitions of the 10 s simulation (wall-time median over them).
+        soak_duration: Simulated time of the memory soak [s].
+        soak_every: RSS sampling period of the soak, simulated [s].
+        compare_duration: Simulated time of each comparison run on planar3 [s].
+        compare_panda_duration: The same on Panda [s] (0 skips Panda).
+        crocoddyl_iterations: Crocoddyl's (Box-)FDDP iteration budget per step.
+    """
+
+    warmup: int = 200
+    steps: int = 2000
+    sim_repeats: int = 5
+    soak_duration: float = 600.0
+    soak_every: float = 60.0
+    compare_duration: float = 10.0
+    compare_panda_duration: float = 10.0
+    crocoddyl_iterations: int = 3
+
+
+QUICK = Settings(
+    warmup=20,
+    steps=200,
+    sim_repeats=1,
+    soak_duration=30.0,
+    soak_every=10.0,
+    compare_duration=2.0,
+    compare_panda_duration=2.0,
+)
+
+
+# --------------------------------------------------------------------------- helpers
+def log(message: str) -> None:
+    """Progress line on stderr (the report goes to the file)."""
+    print(message, file=sys.stderr, flush=True)
+
+
+def git_state() -> str:
+    """The repository's commit and whether ``hmpc_pin/`` differs from it (read-only git)."""
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+        )
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--", "hmpc_pin"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        )
+    except OSError:
+        return "unknown (git not available)"
+    if head.returncode != 0:
+        return "unknown (not a git checkout)"
+    changed = [line[3:] for line in dirty.stdout.splitlines() if line.strip()]
+    if not changed:
+        return f"{head.stdout.strip()}, hmpc_pin/ unmodified"
+    return f"{head.stdout.strip()} with uncommitted changes in {', '.join(changed)}"
+
+
+def observer_kinds() -> tuple[str, ...]:
+    """The observer kinds this ``hmpc_pin`` offers."""
+    return OBSERVER_KINDS
+
+
+def spatial_observer_kind() -> str:
+    """The NDO design for spatial arms: Y = I (``"general"``)."""
+    return "general"
+
+
+@dataclass
+class Arm:
+    """A robot with its benchmark reference.
+
+    Attributes:
+        name: Label in the report. robot: The loaded robot.
+        home: Sine offset [rad], shape (n,). observer: NDO kind.
+    """
+
+    name: str
+    robot: hmpc_pin.Robot
+    home: np.ndarray
+    observer: str
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return self.robot.nq
+
+    def reference(self) -> hmpc_pin.SineReference:
+        """The benchmark reference: ``AMPLITUDE`` at ``FREQUENCY`` around ``home``."""
+        return hmpc_pin.SineReference(
+            self.n, amplitude=AMPLITUDE, frequency=FREQUENCY, offset=self.home
+        )
+
+    def config(self, Nc: int) -> hmpc_pin.ControllerConfig:
+        """The paper's controller with control horizon ``Nc`` and this arm's observer."""
+        observer = hmpc_pin.ObserverConfig(kind=self.observer)
+        return hmpc_pin.ControllerConfig(Nc=Nc, observer=observer)
+
+
+def load_arm(
+    name: str,
+    source: str | Path,
+    home: tuple[float, ...] | np.ndarray,
+    observer: str,
+    locked: dict[str, float] | None = None,
+) -> Arm:
+    """Load an arm and check that ``home`` ± ``AMPLITUDE`` is inside its joint limits.
+
+    Args:
+        name: Label in the report.
+        source: URDF path or example-robot-data name (:func:`hmpc_pin.load_robot`).
+        home: Sine offset [rad], shape (n,).
+        observer: NDO kind for :class:`hmpc_pin.ObserverConfig`.
+        locked: Joints removed from the model, with their positions [rad or m].
+    """
+    robot = hmpc_pin.load_robot(source, gravity=GRAVITY, locked_joints=locked)
+    home = np.asarray(home, dtype=float)
+    if home.shape != (robot.nq,):
+        raise ValueError(f"{name}: home pose has {home.size} entries, robot has {robot.nq}")
+    bad = (home - AMPLITUDE <= robot.lower) | (home + AMPLITUDE >= robot.upper)
+    if bad.any():
+        raise ValueError(f"{name}: home ± {AMPLITUDE} rad leaves the limits on joints {bad}")
+    return Arm(name, robot, home, observer)
+
+
+@dataclass
+class Trajectory:
+    """States at the control instants [s, rad, rad/s] to replay through ``step``.
+
+    Attributes:
+        source: ``"closed loop"`` or ``"reference"`` (if the closed-loop run failed).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    source: str
+
+
+def record_trajectory(arm: Arm, steps: int) -> Trajectory:
+    """States along a closed-loop run of the hierarchical MPC (Nc = 1) on ``arm``.
+
+    The run starts on the reference at rest, without disturbance, 1 ms RK4 plant. If
+    it fails, the reference itself is returned (and labelled so).
+    """
+    ref = arm.reference()
+    ctrl = hmpc_pin.HierarchicalMPC(arm.robot, arm.config(1))
+    q0 = ref.sample(0.0)[0]
+    try:
+        res = hmpc_pin.simulate(
+            arm.robot, ctrl, ref, None, duration=(steps - 1) * ctrl.Ts, q0=q0, dq0=np.zeros(arm.n)
+        )
+        return Trajectory(res.t, res.q, res.dq, "closed loop")
+    except hmpc_pin.SimulationError as exc:
+        log(f"  {arm.name}: closed-loop recording failed ({exc}); replaying the reference")
+    t = ctrl.Ts * np.arange(steps)
+    q, dq = ref.sample_many(t)
+    return Trajectory(t, q, dq, "reference")
+
+
+@dataclass
+class StepResult:
+    """Step timing of one (arm, Nc) case."""
+
+    arm: str
+    n: int
+    Nc: int
+    observer: str
+    timing: Timing
+    source: str
+
+
+def time_step(arm: Arm, Nc: int, trajectory: Trajectory, settings: Settings) -> StepResult:
+    """Time ``HierarchicalMPC.step`` along ``trajectory`` (warm-up, then timed steps)."""
+    ref = arm.reference()
+    ctrl = hmpc_pin.HierarchicalMPC(arm.robot, arm.config(Nc))
+    tr = trajectory
+    ctrl.reset(tr.q[0], tr.dq[0])
+    count = settings.warmup + settings.steps
+    calls = [(float(tr.t[i]), tr.q[i].copy(), tr.dq[i].copy(), ref) for i in range(count)]
+    timing = time_calls(ctrl.step, calls, settings.warmup)
+    return StepResult(arm.name, arm.n, Nc, arm.observer, timing, tr.source)
+
+
+# ------------------------------------------------------------------------ benchmarks
+def bench_steps(settings: Settings, arms: list[Arm]) -> list[StepResult]:
+    """Step time at Nc = 1 and 5 for every arm in ``arms``."""
+    out = []
+    for arm in arms:
+        traj = record_trajectory(arm, settings.warmup + settings.steps)
+        for Nc in (1, 5):
+            r = time_step(arm, Nc, traj, settings)
+            log(
+                f"  step {arm.name:<10} n={arm.n:<2} Nc={Nc}: median {r.timing.median_us:7.1f} µs,"
+                f" p99 {r.timing.p99_us:7.1f} µs"
+            )
+            out.append(r)
+    return out
+
+
+class GravityCompensation:
+    """A near-free controller, :math:`\\tau = G(q)` [N·m], to time the plant and the
+    simulation loop without the MPC (same interface as :class:`hmpc_pin.HierarchicalMPC`).
+
+    Args:
+        robot: The controller's model. Ts: Control period [s].
+    """
+
+    def __init__(self, robot: hmpc_pin.Robot, Ts: float):
+        self.robot = robot
+        self.Ts = Ts
+        self.disturbance_estimate = np.zeros(robot.nq)
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
+        """Nothing to reset."""
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """Gravity torque at ``q`` [N·m]."""
+        return self.robot.gravity_torque(q)
+
+
+@dataclass
+class SimResult:
+    """Wall times of the paper's 10 s scenario [s].
+
+    Attributes:
+        build: ``Experiment.from_config`` wall times [s].
+        run: ``Experiment.run()`` wall times [s].
+        plant_only: The same simulation with :class:`GravityCompensation` instead of
+            the MPC [s] (plant integration, disturbance and loop overhead).
+        duration: Simulated time [s]. complete: Whether every run finished.
+    """
+
+    build: list[float]
+    run: list[float]
+    plant_only: list[float]
+    duration: float
+    complete: bool
+
+    @property
+    def median(self) -> float:
+        """Median wall time of ``run()`` [s]."""
+        return float(np.median(self.run))
+
+    @property
+    def rtf(self) -> float:
+        """Real-time factor: simulated time / median wall time."""
+        return self.duration / self.median
+
+
+def bench_simulation(settings: Settings) -> SimResult:
+    """Wall time of ``Experiment.from_config(cfg)`` and of ``.run()`` on the paper scenario."""
+    cfg = load_config(PAPER_CONFIG)
+    build, run, plant_only = [], [], []
+    complete = True
+    for _ in range(settings.sim_repeats):
+        t0 = time.perf_counter()
+        exp = Experiment.from_config(cfg)
+        t1 = time.perf_counter()
+        result = exp.run()
+        t2 = time.perf_counter()
+        build.append(t1 - t0)
+        run.append(t2 - t1)
+        complete &= bool(result.complete)
+        t0 = time.perf_counter()
+        hmpc_pin.simulate(
+            exp.robot,
+            GravityCompensation(exp.robot, exp.controller.Ts),
+            exp.reference,
+            exp.disturbance,
+            duration=cfg.simulation.duration,
+            q0=exp.q0,
+            dq0=exp.dq0,
+            plant=exp.plant,
+            dt=cfg.plant.dt,
+            integrator=cfg.plant.integrator,
+            effort_limit=exp.effort_limit,
+        )
+        plant_only.append(time.perf_counter() - t0)
+    out = SimResult(build, run, plant_only, cfg.simulation.duration, complete)
+    log(
+        f"  10 s simulation: median {out.median:.3f} s, real-time factor {out.rtf:.1f}; "
+        f"with tau = G(q) instead of the MPC {np.median(plant_only):.3f} s"
+    )
+    return out
+
+
+def run_memory_child(duration: float, every: float) -> dict:
+    """Run ``benchmarks/memory.py`` in a fresh interpreter and return its JSON result."""
+    cmd = [sys.executable, "-m", "benchmarks.memory", "--duration", str(duration)]
+    cmd += ["--every", str(every)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@dataclass
+class MemoryResult:
+    """RSS figures [bytes] of the 10 s run and of the soak."""
+
+    peak: dict
+    soak: dict
+
+    @property
+    def soak_rss(self) -> np.ndarray:
+        """Sampled RSS of the soak [bytes]."""
+        return np.array([s[1] for s in self.soak["samples"]], dtype=float)
+
+    @property
+    def growth_start(self) -> float:
+        """Simulated time of the sample the growth is measured from [s]: the second one
+        (after the first interval, once every buffer of the run exists)."""
+        samples = self.soak["samples"]
+        return float(samples[min(1, len(samples) - 1)][0])
+
+    @property
+    def soak_growth(self) -> float:
+        """RSS growth from the sample at :attr:`growth_start` to the last [bytes]."""
+        rss = self.soak_rss
+        return float(rss[-1] - rss[min(1, rss.size - 1)])
+
+
+def bench_memory(settings: Settings) -> MemoryResult:
+    """Peak RSS of the 10 s scenario and RSS over the soak, each in a fresh process."""
+    peak = run_memory_child(10.0, 0.0)
+    log(f"  peak RSS of the 10 s run: {peak['peak_rss'] / MiB:.1f} MiB")
+    soak = run_memory_child(settings.soak_duration, settings.soak_every)
+    out = MemoryResult(peak, soak)
+    rss = out.soak_rss / MiB
+    log(
+        f"  soak {settings.soak_duration:g} s: RSS first {rss[0]:.1f}, last {rss[-1]:.1f}, "
+        f"max {rss.max():.1f} MiB"
+    )
+    return out
+
+
+# ----------------------------------------------------------------------- comparisons
+@dataclass
+class Scenario:
+    """One arm's closed-loop comparison setting."""
+
+    name: str
+    robot: hmpc_pin.Robot
+    plant: hmpc_pin.Robot
+    config: hmpc_pin.ControllerConfig
+    reference: object
+    disturbance: hmpc_pin.Disturbance
+    q0: np.ndarray
+    dq0: np.ndarray
+    effort_limit: np.ndarray | None
+    dt: float
+    integrator: str
+    description: str
+
+
+def planar3_scenario() -> Scenario:
+    """The paper's Section 5.3 scenario from ``configs/paper_combined.toml``."""
+    cfg = load_config(PAPER_CONFIG)
+    exp = Experiment.from_config(cfg)
+    return Scenario(
+        name="planar3",
+        robot=exp.robot,
+        plant=exp.plant,
+        config=cfg.controller,
+        reference=exp.reference,
+        disturbance=exp.disturbance,
+        q0=exp.q0,
+        dq0=exp.dq0,
+        effort_limit=exp.effort_limit,
+        dt=cfg.plant.dt,
+        integrator=cfg.plant.integrator,
+        description="configs/paper_combined.toml: sine 1 rad, 0.1 Hz, q0 = (1, 1, 1), "
+        "friction + Gaussian pulses (Eq 34), N = 10, Nc = 1, Ts = 10 ms",
+    )
+
+
+def panda_scenario(arm: Arm) -> Scenario:
+    """Panda: 0.3 rad, 0.1 Hz sines around the home pose, from rest on r(0), with
+    friction (viscous 2, Coulomb 0.5) and pulses (1, centred at 1..7 s, σ = 0.3 s), each
+    times :math:`M_{ii}(q_0)` (configs/panda_sine.toml's numbers)."""
+    robot = arm.robot
+    ref = arm.reference()
+    q0 = ref.sample(0.0)[0]
+    k = np.diag(robot.mass_matrix(q0)).copy()
+    n = robot.nq
+    disturbance = hmpc_pin.CoulombViscousFriction(2.0 * k, 0.5 * k) + hmpc_pin.GaussianPulse(
+        1.0 * k, np.arange(1.0, n + 1.0), np.full(n, 0.3)
+    )
+    eff = robot.effort_limit
+    return Scenario(
+        name="panda",
+        robot=robot,
+        plant=robot.copy(),
+        config=arm.config(1),
+        reference=ref,
+        disturbance=disturbance,
+        q0=q0,
+        dq0=np.zeros(n),
+        effort_limit=np.where(eff > 0, eff, np.inf),
+        dt=0.001,
+        integrator="rk4",
+        description="sine 0.3 rad, 0.1 Hz around the home pose, from rest on r(0), friction "
+        "(2, 0.5) + pulses (1 at t = 1..7 s) × M_ii(q0), N = 10, Nc = 1, Ts = 10 ms, "
+        f"observer '{arm.observer}'",
+    )
+
+
+@dataclass
+class CompareRow:
+    """One controller's closed-loop run."""
+
+    controller: str
+    timing: Timing | None
+    rms: np.ndarray | None
+    peak_ratio: float | None
+    saturated_steps: int | None
+    complete: bool
+    message: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+def run_compare(
+    scenario: Scenario, name: str, make: Callable[[], object], duration: float
+) -> CompareRow:
+    """Run ``make()`` in closed loop on ``scenario`` for ``duration`` [s] and measure it."""
+    try:
+        ctrl = make()
+    except Exception as exc:  # a comparison that cannot be built is reported, not fatal
+        return CompareRow(name, None, None, None, None, False, f"not built: {exc}")
+    timed = TimedController(ctrl)
+    message = ""
+    try:
+        result = hmpc_pin.simulate(
+            scenario.robot,
+            timed,
+            scenario.reference,
+            scenario.disturbance,
+            duration=duration,
+            q0=scenario.q0,
+            dq0=scenario.dq0,
+            plant=scenario.plant,
+            dt=scenario.dt,
+            integrator=scenario.integrator,
+            effort_limit=scenario.effort_limit,
+        )
+    except hmpc_pin.SimulationError as exc:
+        result = exc.result
+        message = str(exc)
+    skip = min(10, max(0, len(timed.samples_ns) - 1))
+    timing = timed.timing(skip) if timed.samples_ns else None
+    rms = None
+    if result is not None and result.t.size and result.t[-1] >= 1.0:
+        rms = hmpc_pin.compute_metrics(result, after=1.0).rms_error
+    elif result is not None and result.t.size:
+        rms = np.sqrt(np.mean(result.error**2, axis=0))
+        message = message or "run shorter than 1 s: RMS over the whole run"
+    peak_ratio = sat = None
+    if result is not None and scenario.effort_limit is not None and result.t.size:
+        lim = np.asarray(scenario.effort_limit, dtype=float)
+        peak_ratio = float(np.max(np.abs(result.tau) / lim))
+        sat = int(np.sum(result.meta.get("saturation", {}).get("steps", [0])))
+    extra = {}
+    if isinstance(ctrl, crocoddyl_mpc.CrocoddylMPC):
+        extra["iterations"] = ctrl.budget
+    row = CompareRow(name, timing, rms, peak_ratio, sat, message == "", message, extra)
+    med = f"{timing.median_us:.0f} µs" if timing else "n/a"
+    worst = f"{rms.max():.2e} rad" if rms is not None else "n/a"
+    log(
+        f"  {scenario.name}/{name}: step median {med}, worst RMS {worst}"
+        + (f" ({message})" if message else "")
+    )
+    return row
+
+
+def bench_compare(scenario: Scenario, duration: float, settings: Settings) -> list[CompareRow]:
+    """hmpc (NDO on/off), centralized and Crocoddyl on ``scenario`` for ``duration`` [s]."""
+    cfg = scenario.config
+    robot = scenario.robot
+    no_ndo = replace(cfg, observer=replace(cfg.observer, enabled=False))
+    # Crocoddyl optimises all N inputs (no move blocking): the hierarchical MPC with Nc = N
+    # (no observer) separates that from the nonlinear model in the tracking comparison.
+    no_ndo_full = replace(no_ndo, Nc=cfg.N)
+    rows = [
+        run_compare(scenario, "hmpc", lambda: hmpc_pin.HierarchicalMPC(robot, cfg), duration),
+        run_compare(
+            scenario, "hmpc, no NDO", lambda: hmpc_pin.HierarchicalMPC(robot, no_ndo), duration
+        ),
+        run_compare(
+            scenario,
+            f"hmpc, no NDO, Nc = N = {cfg.N}",
+            lambda: hmpc_pin.HierarchicalMPC(robot, no_ndo_full),
+            duration,
+        ),
+        run_compare(scenario, "centralized", lambda: CentralizedMPC(robot, cfg), duration),
+    ]
+    if crocoddyl_mpc.AVAILABLE:
+        rows.append(
+            run_compare(
+                scenario,
+                "crocoddyl",
+                lambda: crocoddyl_mpc.CrocoddylMPC(robot, cfg, settings.crocoddyl_iterations),
+                duration,
+            )
+        )
+    else:
+        log("  crocoddyl is not installed (pip install crocoddyl): its comparison is skipped")
+    return rows
+
+
+# --------------------------------------------------------------------------- report
+def table(headers: list[str], rows: list[list[str]]) -> str:
+    """A Markdown table."""
+    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def fmt_us(x: float) -> str:
+    """Microseconds with a sensible number of digits."""
+    return f"{x:.1f}" if x < 100 else f"{x:.0f}"
+
+
+def verdict(ok: bool) -> str:
+    """PASS or FAIL in bold."""
+    return "**PASS**" if ok else "**FAIL**"
+
+
+def find_step(results: list[StepResult], arm: str, Nc: int) -> StepResult | None:
+    """The step result of ``(arm, Nc)``, if measured."""
+    return next((r for r in results if r.arm == arm and r.Nc == Nc), None)
+
+
+def targets_section(steps: list[StepResult], sim: SimResult, mem: MemoryResult) -> str:
+    """The issue-6 targets with the measured values and a verdict each."""
+    rows = []
+    for arm, base in (("planar3", 25.0), ("panda", 50.0)):
+        for Nc, limit in ((1, base), (5, 2 * base)):
+            r = find_step(steps, arm, Nc)
+            if r is None:
+                continue
+            rows.append(
+                [
+                    f"`HierarchicalMPC.step`, {arm}, Nc = {Nc}, median",
+                    f"≤ {limit:g} µs",
+                    f"{fmt_us(r.timing.median_us)} µs",
+                    verdict(r.timing.median_us <= limit),
+                ]
+            )
+    rows.append(
+        [
+            "paper 10 s combined simulation (1 ms RK4 plant), `run()` wall time, median",
+            "≤ 0.2 s (real-time factor ≥ 50)",
+            f"{sim.median:.3f} s (real-time factor {sim.rtf:.1f})",
+            verdict(sim.median <= 0.2 and sim.complete),
+        ]
+    )
+    soak_min = mem.soak["duration"] / 60.0
+    rows.append(
+        [
+            f"no memory growth over a {soak_min:g}-minute simulated run "
+            f"(RSS from t = {mem.growth_start:g} s to the end)",
+            "≤ 1 MiB growth",
+            f"{mem.soak_growth / MiB:+.2f} MiB",
+            verdict(mem.soak_growth <= MiB and mem.soak["complete"]),
+        ]
+    )
+    return table(["target (issue 6)", "target", "measured", "verdict"], rows)
+
+
+def step_table(steps: list[StepResult]) -> str:
+    """Table of the step timings."""
+    rows = [
+        [
+            r.arm,
+            str(r.n),
+            str(r.Nc),
+            f"`{r.observer}`",
+            fmt_us(r.timing.median_us),
+            fmt_us(r.timing.p99_us),
+            fmt_us(r.timing.mean_us),
+            fmt_us(r.timing.min_us),
+            str(r.timing.count),
+            r.source,
+        ]
+        for r in steps
+    ]
+    headers = [
+        "arm",
+        "n",
+        "Nc",
+        "observer",
+        "median [µs]",
+        "p99 [µs]",
+        "mean [µs]",
+        "min [µs]",
+        "timed steps",
+        "states",
+    ]
+    return table(headers, rows)
+
+
+def scaling_table(chains: list[StepResult], arms: list[StepResult]) -> str:
+    """Step time against n (planar chains, UR5, Panda)."""
+    entries = {}
+    for r in [*chains, *arms]:
+        entries.setdefault((r.n, r.arm), {})[r.Nc] = r
+    rows = []
+    for (n, arm), by_nc in sorted(entries.items()):
+        one, five = by_nc.get(1), by_nc.get(5)
+        rows.append(
+            [
+                str(n),
+                arm,
+                fmt_us(one.timing.median_us) if one else "",
+                fmt_us(one.timing.p99_us) if one else "",
+                fmt_us(one.timing.median_us / n) if one else "",
+                fmt_us(five.timing.median_us) if five else "",
+                fmt_us(five.timing.p99_us) if five else "",
+            ]
+        )
+    headers = [
+        "n",
+        "arm",
+        "Nc = 1 median [µs]",
+        "Nc = 1 p99 [µs]",
+        "Nc = 1 median / n [µs]",
+        "Nc = 5 median [µs]",
+        "Nc = 5 p99 [µs]",
+    ]
+    return table(headers, rows)
+
+
+def compare_table(rows: list[CompareRow], effort: bool) -> str:
+    """Table of one scenario's comparison, with ratios to the hierarchical MPC."""
+    base = next((r for r in rows if r.controller == "hmpc"), None)
+    base_off = next((r for r in rows if r.controller == "hmpc, no NDO"), None)
+
+    def ratio(a: float | None, b: float | None) -> str:
+        return f"{a / b:.2f}" if a is not None and b else "n/a"
+
+    out = []
+    for r in rows:
+        med = r.timing.median_us if r.timing else None
+        p99 = r.timing.p99_us if r.timing else None
+        worst = float(r.rms.max()) if r.rms is not None else None
+        worst_base = float(base.rms.max()) if base and base.rms is not None else None
+        worst_off = float(base_off.rms.max()) if base_off and base_off.rms is not None else None
+        name = r.controller
+        if r.extra.get("iterations"):
+            name += f" ({r.extra['iterations']} it.)"
+        limits = "n/a"
+        if effort and r.peak_ratio is not None:
+            limits = ("yes" if r.peak_ratio <= 1.0 else "**no**") + f" ({r.peak_ratio:.2f})"
+        out.append(
+            [
+                name,
+                fmt_us(med) if med is not None else "n/a",
+                fmt_us(p99) if p99 is not None else "n/a",
+                ratio(med, base.timing.median_us if base and base.timing else None),
+                ratio(p99, base.timing.p99_us if base and base.timing else None),
+                ", ".join(f"{x:.1e}" for x in r.rms) if r.rms is not None else "n/a",
+                ratio(worst, worst_base),
+                ratio(worst, worst_off),
+                limits,
+                str(r.saturated_steps) if r.saturated_steps is not None else "n/a",
+                "yes" if r.complete else f"**no**: {r.message}",
+            ]
+        )
+    headers = [
+        "controller",
+        "step median [µs]",
+        "step p99 [µs]",
+        "median ratio",
+        "p99 ratio",
+        "RMS e after 1 s per joint [rad]",
+        "worst-RMS ratio",
+        "worst-RMS ratio vs no NDO",
+        "commanded \\|τ\\| ≤ τ_max (peak \\|τ\\|/τ_max)",
+        "saturated periods",
+        "completed",
+    ]
+    return table(headers, out)
+
+
+def report(
+    settings: Settings,
+    quick: bool,
+    command: str,
+    info: dict,
+    versions: dict,
+    steps: list[StepResult],
+    chains: list[StepResult],
+    sim: SimResult,
+    mem: MemoryResult,
+    compares: list[tuple[Scenario, float, list[CompareRow]]],
+    spatial_kind: str,
+    total: float,
+) -> str:
+    """The Markdown report."""
+    rss_first = mem.soak_rss[0] / MiB
+    soak = mem.soak
+    soak_rows = [[f"{t:g}", f"{rss / MiB:.2f}"] for t, rss in soak["samples"]]
+    lines = [
+        "# Benchmarks",
+        "",
+        "Generated by `benchmarks/run.py` (issue 6). "
+        + ("**Quick run (`--quick`): short runs, numbers not to be quoted.** " if quick else "")
+        + f"Total benchmark time {total:.0f} s.",
+        "",
+        "Rerun, from the repository root in the project's environment:",
+        "",
+        "```bash",
+        "pip install crocoddyl        # optional: the Crocoddyl comparison is skipped without it",
+        command,
+        "```",
+        "",
+        "## Machine and versions",
+        "",
+        table(["", ""], [[k, v] for k, v in info.items()] + [[k, v] for k, v in versions.items()]),
+        "",
+        "Timings are wall-clock (`time.perf_counter_ns` around each call, garbage collector "
+        "enabled), on a shared 2-core machine: other processes (tests, builds) add noise, "
+        "mostly to the 99th percentiles.",
+        "",
+        "## Targets",
+        "",
+        targets_section(steps, sim, mem),
+        "",
+        "## Controller step (`HierarchicalMPC.step`)",
+        "",
+        f"Dynamics (M, C q̇ + G), observer, every joint QP, for each arm tracking "
+        f"{AMPLITUDE:g} rad, {FREQUENCY:g} Hz sines around a home pose inside its limits "
+        f"(planar3 {HOMES['planar3']}, UR5 {HOMES['ur5']}, Panda {HOMES['panda']}; Panda's "
+        f"fingers locked at 0). The paper's controller otherwise: Ts = 10 ms, N = 10, "
+        f"Q = diag(50, 0), R = 1e-6, P = 2Q, |v| ≤ 100, joint limits as soft state "
+        f"constraints (the default). Observer: `chen` on planar arms, `{spatial_kind}` "
+        f"(Y = I) on UR5 and Panda. The states replayed through `step` were recorded from "
+        f"a closed-loop run of the same controller (Nc = 1, 1 ms RK4 plant, no "
+        f"disturbance, from rest on r(0)), so the warm starts see what they see in a run; "
+        f"{settings.warmup} warm-up steps along the same trajectory, then "
+        f"{settings.steps} timed steps, one sample each.",
+        "",
+        step_table(steps),
+        "",
+        "## Step time against the number of joints",
+        "",
+        "Planar chains of n uniform rods (1 kg/m, 3.7 m total reach like planar3, axes "
+        "(0, −1, 0), limits ±π/2, effort 1e4, velocity 100), generated and written with "
+        "yourdfpy (`benchmarks/chains.py`), `chen` observer; same reference, settings and "
+        "method as above; UR5 and Panda from the table above.",
+        "",
+        scaling_table(chains, steps),
+        "",
+        "## Closed-loop simulation of the paper's combined scenario",
+        "",
+        "`hmpc_pin.experiment.Experiment.from_config(load_config("
+        '"configs/paper_combined.toml")).run()`: 10 s simulated, controller every 10 ms, '
+        f"plant RK4 at 1 ms (40 ABA calls and 10 disturbance evaluations per period). "
+        f"{settings.sim_repeats} repetition(s).",
+        "",
+        table(
+            ["", "median [s]", "min [s]", "max [s]"],
+            [
+                [
+                    "`run()` wall time",
+                    f"{sim.median:.3f}",
+                    f"{min(sim.run):.3f}",
+                    f"{max(sim.run):.3f}",
+                ],
+                [
+                    "the same simulation with τ = G(q) instead of the MPC (plant, "
+                    "disturbance, loop)",
+                    f"{np.median(sim.plant_only):.3f}",
+                    f"{min(sim.plant_only):.3f}",
+                    f"{max(sim.plant_only):.3f}",
+                ],
+                [
+                    "`Experiment.from_config` (robot load, limit checks)",
+                    f"{np.median(sim.build):.3f}",
+                    f"{min(sim.build):.3f}",
+                    f"{max(sim.build):.3f}",
+                ],
+            ],
+        ),
+        "",
+        f"Real-time factor (10 s / median `run()` wall time): **{sim.rtf:.1f}**; "
+        f"run completed: {'yes' if sim.complete else 'no'}.",
+        "",
+        "## Memory",
+        "",
+        "Each figure from a fresh Python process (`python -m benchmarks.memory`) that loads "
+        "the paper config, builds the experiment and runs it.",
+        "",
+        table(
+            ["10 s paper run", "RSS [MiB]"],
+            [
+                ["after `import hmpc_pin`", f"{mem.peak['rss_imports'] / MiB:.1f}"],
+                [
+                    "after `load_config` + `Experiment.from_config`",
+                    f"{mem.peak['rss_setup'] / MiB:.1f}",
+                ],
+                ["**peak** (`VmHWM`, whole process)", f"**{mem.peak['peak_rss'] / MiB:.1f}**"],
+            ],
+        ),
+        "",
+        f"Soak: `Experiment.run(duration={soak['duration']:g}, on_step=...)`, RSS read from "
+        f"`/proc/self/statm` in the `on_step` callback at t = 0 and every "
+        f"{settings.soak_every:g} simulated seconds (wall time {soak['wall']:.1f} s, "
+        f"completed: {'yes' if soak['complete'] else 'no'}). The `Result` arrays are "
+        "allocated once at the start of the run.",
+        "",
+        table(["simulated time [s]", "RSS [MiB]"], soak_rows),
+        "",
+        f"First {rss_first:.2f} MiB, last {mem.soak_rss[-1] / MiB:.2f} MiB, max "
+        f"{mem.soak_rss.max() / MiB:.2f} MiB; growth after the first interval "
+        f"{mem.soak_growth / MiB:+.2f} MiB; peak RSS of that process "
+        f"{soak['peak_rss'] / MiB:.1f} MiB.",
+        "",
+        "## Comparison with a centralized linear MPC and a Crocoddyl nonlinear MPC",
+        "",
+        "Same arm, reference, disturbance, horizon (N = 10, Ts = 10 ms) and plant (1 ms RK4, "
+        "plant clips τ to the URDF effort limits); each controller in one closed-loop run "
+        "through `hmpc_pin.simulate`, its `step` timed in the loop (first 10 steps left "
+        "out). Ratios are to the hierarchical MPC with its observer (`hmpc`); the last "
+        "RMS ratio is to `hmpc, no NDO`, since neither comparison controller has a "
+        "disturbance observer.",
+        "",
+        "- `hmpc`: `HierarchicalMPC` with the scenario's config; `hmpc, no NDO`: the same "
+        "with `observer.enabled = false`; `hmpc, no NDO, Nc = N`: also with every input of "
+        "the horizon free, as Crocoddyl's (FDDP has no move blocking).",
+        "- `centralized` (`benchmarks/centralized.py`): one ProxSuite dense QP over the 2n "
+        "states and n·Nc torques per step; dynamics linearised at the measured state and "
+        "the previous torque (Pinocchio `computeABADerivatives`), exact zero-order-hold "
+        "discretisation (matrix exponential), frozen over the horizon, condensed; the same "
+        "Q, P (per joint, stacked) and R (on v = M⁻¹(τ − C q̇ − G)); the acceleration "
+        "bounds |v| ≤ 100 as n·Nc general constraints on τ through τ = M v + C q̇ + G at "
+        "the current state, and the URDF effort limits as a box on τ; warm-started, H, g "
+        "and constraints updated every step; no state (joint-limit) constraints, no "
+        "observer.",
+        "- `crocoddyl` (`benchmarks/crocoddyl_mpc.py`): `SolverBoxFDDP` on the full "
+        "nonlinear model (`DifferentialActionModelFreeFwdDynamics`, Euler at Ts), "
+        f"at most {settings.crocoddyl_iterations} iterations per step, warm-started from the "
+        "shifted previous solution; diagonal Q, P as the state weights, R as a "
+        "regularisation of τ − G(r_j); all N inputs free; URDF effort limits as control "
+        "bounds; one thread; "
+        "no acceleration bounds, no observer.",
+        "",
+    ]
+    if not crocoddyl_mpc.AVAILABLE:
+        lines += ["Crocoddyl is not installed: its comparison was skipped.", ""]
+    for scenario, duration, rows in compares:
+        lines += [
+            f"### {scenario.name} ({duration:g} s)",
+            "",
+            scenario.description + ".",
+            "",
+            compare_table(rows, scenario.effort_limit is not None),
+            "",
+        ]
+    lines += [
+        "## Method",
+        "",
+        "- Step: `benchmarks/harness.py` `time_calls`: `perf_counter_ns` before and after "
+        "each call (its arguments built beforehand), median and 99th percentile (numpy "
+        "`percentile`, linear) of the timed calls; warm-up calls untimed.",
+        "- Controllers are built once per case; nothing in `hmpc_pin` is changed or tuned "
+        "by the benchmark.",
+        f"- Observer kinds accepted by this `hmpc_pin`: {', '.join(observer_kinds())}.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- main
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmarks and write the report; returns the exit code (0)."""
+    parser = argparse.ArgumentParser(
+        prog="python benchmarks/run.py",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--quick", action="store_true", help="short runs (< 60 s), smoke test")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=ROOT / "BENCHMARKS.md",
+        help="Markdown report to write (default: BENCHMARKS.md at the repository root)",
+    )
+    args = parser.parse_args(argv)
+    settings = QUICK if args.quick else Settings()
+    command = "python benchmarks/run.py" + (" --quick" if args.quick else "")
+    if args.out.resolve() != (ROOT / "BENCHMARKS.md").resolve():
+        command += f" --out {args.out}"
+    start = time.perf_counter()
+    info = machine_info()
+    info["hmpc_pin source (git)"] = git_state()
+    versions = package_versions(("pin", "proxsuite", "numpy", "crocoddyl", "hmpc_pin"))
+    if not crocoddyl_mpc.AVAILABLE:
+        versions["crocoddyl"] = "not importable: comparison skipped"
+
+    spatial = spatial_observer_kind()
+    log("loading arms")
+    arms = [
+        load_arm("planar3", ROOT / "robots" / "planar3.urdf", HOMES["planar3"], "chen"),
+        load_arm("ur5", "ur5", HOMES["ur5"], spatial),
+        load_arm("panda", "panda", HOMES["panda"], spatial, PANDA_LOCKED),
+    ]
+    log("controller step")
+    steps = bench_steps(settings, arms)
+    log("step time against n (generated planar chains)")
+    with tempfile.TemporaryDirectory(prefix="hmpc_chains_") as tmp:
+        chain_arms = [
+            load_arm(f"planar chain {n}", write_planar_chain(n, tmp), np.zeros(n), "chen")
+            for n in CHAIN_SIZES
+        ]
+        chains = bench_steps(settings, chain_arms)
+    log("closed-loop simulation")
+    sim = bench_simulation(settings)
+    log("memory")
+    mem = bench_memory(settings)
+    log("comparisons")
+    planned = [(planar3_scenario(), settings.compare_duration)]
+    if settings.compare_panda_duration > 0:
+        planned.append((panda_scenario(arms[2]), settings.compare_panda_duration))
+    compares = [(sc, d, bench_compare(sc, d, settings)) for sc, d in planned]
+    total = time.perf_counter() - start
+    text = report(
+        settings,
+        args.quick,
+        command,
+        info,
+        versions,
+        steps,
+        chains,
+        sim,
+        mem,
+        compares,
+        spatial,
+        total,
+    )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(text, encoding="utf-8")
+    log(f"wrote {args.out} ({total:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -349,19 +349,7 @@ def bench_simulation(settings: Settings) -> SimResult:
         run.append(t2 - t1)
         complete &= bool(result.complete)
         t0 = time.perf_counter()
-        hmpc_pin.simulate(
-            exp.robot,
-            GravityCompensation(exp.robot, exp.controller.Ts),
-            exp.reference,
-            exp.disturbance,
-            duration=cfg.simulation.duration,
-            q0=exp.q0,
-            dq0=exp.dq0,
-            plant=exp.plant,
-            dt=cfg.plant.dt,
-            integrator=cfg.plant.integrator,
-            effort_limit=exp.effort_limit,
-        )
+        replace(exp, controller=GravityCompensation(exp.robot, exp.controller.Ts)).run()
         plant_only.append(time.perf_counter() - t0)
     out = SimResult(build, run, plant_only, cfg.simulation.duration, complete)
     log(

@@ -108,10 +108,7 @@ class HierarchicalMPC:
         self.robot.check_vector("q0", q0)
         dq0 = self.robot.check_vector("dq0", dq0)
         if self.observer is not None:
-            if hasattr(self.observer, "p0"):  # momentum observer: needs M(q0) q̇0
-                self.observer.reset(dq0, q0)
-            else:
-                self.observer.reset(dq0)
+            self.observer.reset(dq0, q0)
         self.disturbance_estimate = np.zeros(self.n)
         self.v = np.zeros(self.n)
         self.tau = np.zeros(self.n)

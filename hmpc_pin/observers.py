@@ -120,8 +120,8 @@ class DisturbanceObserver:
         # L M = cY  <=>  M^T L^T = (cY)^T
         return np.linalg.solve(M.T, self.cY.T).T
 
-    def reset(self, dq0: np.ndarray) -> None:
-        """Start with :math:`z_0 = -p(\\dot q_0)`, so that :math:`\\hat d(0) = 0`."""
+    def reset(self, dq0: np.ndarray, q0: np.ndarray | None = None) -> None:
+        """Start at :math:`z_0 = -p(\\dot q_0)`, i.e. :math:`\\hat d(0) = 0` (``q0`` unused)."""
         self.z = -self.p(dq0)
         self.estimate = np.zeros(self.n)
 

@@ -428,12 +428,13 @@ class Scenario:
     description: str
 
 
-def planar3_scenario() -> Scenario:
-    """The paper's Section 5.3 scenario from ``configs/paper_combined.toml``."""
-    cfg = load_config(PAPER_CONFIG)
+def config_scenario(name: str, path: Path, description: str) -> Scenario:
+    """The comparison setting of an experiment config, built by ``Experiment.from_config``
+    (robot, plant, reference, disturbance, effort limits exactly as ``hmpc-pin run``)."""
+    cfg = load_config(path)
     exp = Experiment.from_config(cfg)
     return Scenario(
-        name="planar3",
+        name=name,
         robot=exp.robot,
         plant=exp.plant,
         config=cfg.controller,
@@ -444,39 +445,29 @@ def planar3_scenario() -> Scenario:
         effort_limit=exp.effort_limit,
         dt=cfg.plant.dt,
         integrator=cfg.plant.integrator,
-        description="configs/paper_combined.toml: sine 1 rad, 0.1 Hz, q0 = (1, 1, 1), "
+        description=description,
+    )
+
+
+def planar3_scenario() -> Scenario:
+    """The paper's Section 5.3 scenario from ``configs/paper_combined.toml``."""
+    return config_scenario(
+        "planar3",
+        PAPER_CONFIG,
+        "configs/paper_combined.toml: sine 1 rad, 0.1 Hz, q0 = (1, 1, 1), "
         "friction + Gaussian pulses (Eq 34), N = 10, Nc = 1, Ts = 10 ms",
     )
 
 
-def panda_scenario(arm: Arm) -> Scenario:
-    """Panda: 0.3 rad, 0.1 Hz sines around the home pose, from rest on r(0), with
-    friction (viscous 2, Coulomb 0.5) and pulses (1, centred at 1..7 s, σ = 0.3 s), each
-    times :math:`M_{ii}(q_0)` (configs/panda_sine.toml's numbers)."""
-    robot = arm.robot
-    ref = arm.reference()
-    q0 = ref.sample(0.0)[0]
-    k = np.diag(robot.mass_matrix(q0)).copy()
-    n = robot.nq
-    disturbance = hmpc_pin.CoulombViscousFriction(2.0 * k, 0.5 * k) + hmpc_pin.GaussianPulse(
-        1.0 * k, np.arange(1.0, n + 1.0), np.full(n, 0.3)
-    )
-    eff = robot.effort_limit
-    return Scenario(
-        name="panda",
-        robot=robot,
-        plant=robot.copy(),
-        config=arm.config(1),
-        reference=ref,
-        disturbance=disturbance,
-        q0=q0,
-        dq0=np.zeros(n),
-        effort_limit=np.where(eff > 0, eff, np.inf),
-        dt=0.001,
-        integrator="rk4",
-        description="sine 0.3 rad, 0.1 Hz around the home pose, from rest on r(0), friction "
-        "(2, 0.5) + pulses (1 at t = 1..7 s) × M_ii(q0), N = 10, Nc = 1, Ts = 10 ms, "
-        f"observer '{arm.observer}'",
+def panda_scenario() -> Scenario:
+    """Panda from ``configs/panda_sine.toml``: 0.3 rad, 0.1 Hz sines around the home pose,
+    friction (2, 0.5) and pulses (1 at 1..7 s, σ = 0.3 s), each × :math:`M_{ii}(q_0)`."""
+    return config_scenario(
+        "panda",
+        ROOT / "configs" / "panda_sine.toml",
+        "configs/panda_sine.toml: sine 0.3 rad, 0.1 Hz around the home pose, from rest on "
+        "r(0), friction (2, 0.5) + pulses (1 at t = 1..7 s) × M_ii(q0), fingers locked at "
+        "0.02, N = 10, Nc = 1, Ts = 10 ms, observer 'general'",
     )
 
 
@@ -996,7 +987,7 @@ def main(argv: list[str] | None = None) -> int:
     log("comparisons")
     planned = [(planar3_scenario(), settings.compare_duration)]
     if settings.compare_panda_duration > 0:
-        planned.append((panda_scenario(arms[2]), settings.compare_panda_duration))
+        planned.append((panda_scenario(), settings.compare_panda_duration))
     compares = [(sc, d, bench_compare(sc, d, settings)) for sc, d in planned]
     total = time.perf_counter() - start
     text = report(

@@ -24,12 +24,15 @@ import numpy as np
 from .exceptions import ConfigError
 
 __all__ = [
+    "CONTROLLER_KINDS",
     "CartesianConfig",
+    "ComputedTorqueConfig",
     "ConstraintConfig",
     "ControllerConfig",
     "DisturbanceConfig",
     "ExperimentConfig",
     "FrictionConfig",
+    "ISMConfig",
     "ObserverConfig",
     "PlantConfig",
     "PulseConfig",
@@ -115,6 +118,18 @@ def _weight(key: str, value) -> np.ndarray:
 
 def _set(obj, name: str, value) -> None:
     object.__setattr__(obj, name, value)
+
+
+#: Controller names accepted by ``[controller] kind`` (README, "Controllers").
+CONTROLLER_KINDS = (
+    "hmpc",
+    "hmpc-none",
+    "hmpc-momentum",
+    "hmpc-ism",
+    "hmpc-ism-bl",
+    "computed-torque",
+    "computed-torque-pid",
+)
 
 
 # -------------------------------------------------------------------- sections
@@ -239,10 +254,67 @@ class ConstraintConfig:
 
 
 @dataclass(frozen=True, eq=False)
+class ISMConfig:
+    """Integral sliding mode loop of ``hmpc-ism`` / ``hmpc-ism-bl`` (:mod:`hmpc_pin.ism`).
+
+    Attributes:
+        gain: Switching gain K [rad/s²], above the bound of the matched disturbance
+            :math:`|M^{-1}d|` (SPEC §4: 200 for the paper's arm and disturbances).
+        boundary_layer: Width φ [rad/s] of the saturation that replaces sgn(σ) in
+            ``hmpc-ism-bl`` (default ``None``: :math:`\\varphi = K T_s`, the amplitude of
+            the discrete-time chattering of σ).
+    """
+
+    gain: float = 200.0
+    boundary_layer: float | None = None
+
+    def __post_init__(self):
+        _set(self, "gain", _float("gain", self.gain, positive=True))
+        if self.boundary_layer is not None:
+            _set(self, "boundary_layer",
+                 _float("boundary_layer", self.boundary_layer, positive=True))  # fmt: skip
+
+    def width(self, Ts: float) -> float:
+        """The boundary-layer width φ [rad/s] for the control period ``Ts`` [s]."""
+        return self.boundary_layer if self.boundary_layer is not None else self.gain * Ts
+
+
+@dataclass(frozen=True, eq=False)
+class ComputedTorqueConfig:
+    """Outer loop of ``computed-torque`` and ``computed-torque-pid`` (``computed_torque`` module).
+
+    By default the PD gains are the MPC's own unconstrained state-feedback gain (so both
+    loops have the same closed-loop poles, i.e. the same bandwidth) and the integral gain
+    puts a third pole ten times slower than the PD's dominant one
+    (:mod:`hmpc_pin.computed_torque`).
+
+    Attributes:
+        kp: Proportional gain [1/s²]; ``None`` for the MPC-equivalent gain.
+        kd: Derivative gain [1/s]; ``None`` for the MPC-equivalent gain.
+        ki: Integral gain [1/s³] of ``computed-torque-pid``; ``None`` for the default.
+    """
+
+    kp: float | None = None
+    kd: float | None = None
+    ki: float | None = None
+
+    def __post_init__(self):
+        for name in ("kp", "kd", "ki"):
+            if getattr(self, name) is not None:
+                _set(self, name, _float(name, getattr(self, name), positive=True))
+
+
+@dataclass(frozen=True, eq=False)
 class ControllerConfig:
     """Hierarchical MPC settings; every default is the paper's value (Section 4).
 
     Attributes:
+        kind: The controller, one of :data:`CONTROLLER_KINDS` (default ``"hmpc"``, the
+            paper's scheme; README "Controllers"). ``"hmpc-none"`` ignores ``observer``,
+            ``"hmpc-momentum"`` uses ``observer.gain`` as the momentum observer's K_O,
+            the ``hmpc-ism*`` kinds use ``ism`` and no observer, the
+            ``computed-torque*`` kinds use ``computed_torque``, the MPC's weights (for
+            their default gains) and ``v_min``/``v_max``, and no observer.
         Ts: Control period [s] (paper: 0.01).
         N: Prediction horizon [steps] (paper: 10).
         Nc: Control horizon [steps], 1 <= Nc <= N (paper: 1).
@@ -255,11 +327,14 @@ class ControllerConfig:
         constraints: :class:`ConstraintConfig` (joint limits as soft state constraints).
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap per solve.
+        ism: :class:`ISMConfig`.
+        computed_torque: :class:`ComputedTorqueConfig`.
         qp_layout: ``"block"`` (the n joint QPs as one block-diagonal ProxSuite QP, one
             solve per step; default, fastest) or ``"joint"`` (one QP per joint). Same
             solution to solver tolerance (tested); ``BENCHMARKS.md`` has the timings.
     """
 
+    kind: str = "hmpc"
     Ts: float = 0.01
     N: int = 10
     Nc: int = 1
@@ -273,8 +348,11 @@ class ControllerConfig:
     eps_abs: float = 1e-9
     max_iter: int = 1000
     qp_layout: str = "block"
+    ism: ISMConfig = field(default_factory=ISMConfig)
+    computed_torque: ComputedTorqueConfig = field(default_factory=ComputedTorqueConfig)
 
     def __post_init__(self):
+        _set(self, "kind", _choice("kind", self.kind, CONTROLLER_KINDS))
         _set(self, "Ts", _float("Ts", self.Ts, positive=True))
         _set(self, "N", _int("N", self.N, minimum=1))
         _set(self, "Nc", _int("Nc", self.Nc, minimum=1))
@@ -298,10 +376,16 @@ class ControllerConfig:
             _set(self, "observer", _section(ObserverConfig, self.observer, "observer"))
         elif not isinstance(self.observer, ObserverConfig):
             raise ConfigError("observer", f"expected a table, got {self.observer!r}")
-        if isinstance(self.constraints, dict):
-            _set(self, "constraints", _section(ConstraintConfig, self.constraints, "constraints"))
-        elif not isinstance(self.constraints, ConstraintConfig):
-            raise ConfigError("constraints", f"expected a table, got {self.constraints!r}")
+        for name, cls in (
+            ("constraints", ConstraintConfig),
+            ("ism", ISMConfig),
+            ("computed_torque", ComputedTorqueConfig),
+        ):
+            value = getattr(self, name)
+            if isinstance(value, dict):
+                _set(self, name, _section(cls, value, name))
+            elif not isinstance(value, cls):
+                raise ConfigError(name, f"expected a table, got {value!r}")
         _set(self, "eps_abs", _float("eps_abs", self.eps_abs, positive=True))
         _set(self, "max_iter", _int("max_iter", self.max_iter, minimum=1))
         _set(self, "qp_layout", _choice("qp_layout", self.qp_layout, ("block", "joint")))

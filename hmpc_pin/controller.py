@@ -17,13 +17,33 @@ import math
 import numpy as np
 
 from .config import ControllerConfig
-from .exceptions import DimensionError, NonFiniteError
+from .exceptions import ConfigError, DimensionError, NonFiniteError
+from .ism import IntegralSlidingMode
 from .joint_mpc import CondensedMPC, JointQPs, StateLimits
 from .observers import make_observer
 from .references import sample_horizon
 from .robot import Robot
 
-__all__ = ["HierarchicalMPC"]
+__all__ = ["HMPC_KINDS", "HierarchicalMPC", "make_controller"]
+
+#: The ``[controller] kind`` values built by :class:`HierarchicalMPC`.
+HMPC_KINDS = ("hmpc", "hmpc-none", "hmpc-momentum", "hmpc-ism", "hmpc-ism-bl")
+
+
+def make_controller(robot: Robot, config: ControllerConfig | None = None):
+    """The controller named by ``config.kind`` (README, "Controllers").
+
+    ``hmpc*`` kinds give a :class:`HierarchicalMPC`, ``computed-torque*`` a
+    :class:`~hmpc_pin.computed_torque.ComputedTorque`. All share the duck-typed
+    interface :func:`~hmpc_pin.simulate.simulate` drives: ``Ts``, ``reset(q0, dq0)``,
+    ``step(t, q, dq, reference)``, ``disturbance_estimate``.
+    """
+    config = config if config is not None else ControllerConfig()
+    if config.kind in HMPC_KINDS:
+        return HierarchicalMPC(robot, config)
+    from .computed_torque import ComputedTorque
+
+    return ComputedTorque(robot, config)
 
 
 class HierarchicalMPC:
@@ -51,6 +71,12 @@ class HierarchicalMPC:
     def __init__(self, robot: Robot, config: ControllerConfig | None = None):
         self.robot = robot
         self.config = config = config if config is not None else ControllerConfig()
+        if config.kind not in HMPC_KINDS:
+            raise ConfigError(
+                "controller.kind",
+                f"{config.kind!r} is not a hierarchical MPC (one of {HMPC_KINDS}); "
+                "build it with hmpc_pin.make_controller",
+            )
         n = robot.nq
         self.n = n
         v_min, v_max = config.bounds(n)
@@ -76,11 +102,15 @@ class HierarchicalMPC:
             layout=config.qp_layout,
         )
         obs = config.observer
-        self.observer = (
-            make_observer(robot, config.Ts, obs.kind, obs.gain, obs.discretization)
-            if obs.enabled
-            else None
-        )
+        self.observer = self.ism = None
+        if config.kind == "hmpc" and obs.enabled:
+            self.observer = make_observer(robot, config.Ts, obs.kind, obs.gain, obs.discretization)
+        elif config.kind == "hmpc-momentum":
+            self.observer = make_observer(robot, config.Ts, "momentum", obs.gain)
+        elif config.kind in ("hmpc-ism", "hmpc-ism-bl"):
+            ism = config.ism
+            width = ism.width(config.Ts) if config.kind == "hmpc-ism-bl" else None
+            self.ism = IntegralSlidingMode(n, config.Ts, ism.gain, width)
         self._offsets = config.Ts * np.arange(1, config.N + 1)
         self._stack = np.empty((2 * config.N + 2, n))
         self._ref_shape = (config.N, n)
@@ -109,6 +139,8 @@ class HierarchicalMPC:
         dq0 = self.robot.check_vector("dq0", dq0)
         if self.observer is not None:
             self.observer.reset(dq0, q0)
+        if self.ism is not None:
+            self.ism.reset(dq0, q0)
         self.disturbance_estimate = np.zeros(self.n)
         self.v = np.zeros(self.n)
         self.tau = np.zeros(self.n)
@@ -169,6 +201,8 @@ class HierarchicalMPC:
                 self.disturbance_estimate = self.observer.update(M, nle, dq, self.tau, q)
             else:
                 self.disturbance_estimate = self.observer.estimate.copy()
+        elif self.ism is not None and self._started:
+            self.disturbance_estimate = self.ism.update(M, dq, self.v)
 
         self.v = v = self.qps.solve(G, S[:2])
         self.tau = M @ v + nle - self.disturbance_estimate

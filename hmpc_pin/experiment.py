@@ -7,14 +7,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .config import ExperimentConfig
-from .controller import HierarchicalMPC
+from .controller import make_controller
 from .disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
 from .exceptions import ConfigError, LimitError
 from .references import SineReference, check_limits
 from .robot import Robot, load_robot
 from .simulate import Result, simulate
 
-__all__ = ["Experiment", "build_disturbance", "build_reference", "run_experiment"]
+__all__ = [
+    "Experiment",
+    "build_disturbance",
+    "build_reference",
+    "run_experiment",
+    "uses_observer",
+    "with_controller",
+]
 
 
 def build_reference(config: ExperimentConfig, robot: Robot):
@@ -65,6 +72,34 @@ def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) ->
     return disturbance
 
 
+def uses_observer(controller) -> bool:
+    """Whether the controller of this :class:`~hmpc_pin.config.ControllerConfig` has an observer."""
+    return controller.kind == "hmpc-momentum" or (
+        controller.kind == "hmpc" and controller.observer.enabled
+    )
+
+
+def with_controller(
+    config: ExperimentConfig, kind: str | None = None, observer: bool | None = None
+) -> ExperimentConfig:
+    """``config`` with ``controller.kind`` and/or ``controller.observer.enabled`` replaced.
+
+    ``observer=False`` turns ``hmpc-momentum`` into ``hmpc-none`` (the momentum
+    observer has no off switch of its own); ``observer=True`` turns ``hmpc-none``
+    into ``hmpc``.
+    """
+    cc = config.controller
+    if kind is not None:
+        cc = replace(cc, kind=kind)
+    if observer is not None:
+        cc = replace(cc, observer=replace(cc.observer, enabled=observer))
+        if not observer and cc.kind == "hmpc-momentum":
+            cc = replace(cc, kind="hmpc-none")
+        elif observer and cc.kind == "hmpc-none":
+            cc = replace(cc, kind="hmpc")
+    return config if cc is config.controller else replace(config, controller=cc)
+
+
 @dataclass
 class Experiment:
     """The objects of one experiment, built from its config.
@@ -73,7 +108,8 @@ class Experiment:
         config: The validated config.
         robot: The controller's model.
         plant: The plant's model (a separate ``pin.Model``; another URDF if configured).
-        controller: The :class:`HierarchicalMPC`.
+        controller: The controller named by ``config.controller.kind``
+            (:func:`~hmpc_pin.controller.make_controller`).
         reference: The joint reference.
         disturbance: The plant disturbance ``d(t, q, dq)``.
         q0, dq0: Initial state.
@@ -82,23 +118,34 @@ class Experiment:
     config: ExperimentConfig
     robot: Robot
     plant: Robot
-    controller: HierarchicalMPC
+    controller: object
     reference: object
     disturbance: Disturbance
     q0: np.ndarray
     dq0: np.ndarray
 
     @classmethod
-    def from_config(cls, config: ExperimentConfig, *, observer: bool | None = None) -> Experiment:
-        """Build the experiment; ``observer`` overrides ``controller.observer.enabled``.
+    def from_config(
+        cls,
+        config: ExperimentConfig,
+        *,
+        observer: bool | None = None,
+        controller: str | None = None,
+    ) -> Experiment:
+        """Build the experiment.
+
+        Args:
+            config: The validated config.
+            observer: Overrides ``controller.observer.enabled`` (``False`` on an
+                ``hmpc-momentum`` config gives ``hmpc-none``).
+            controller: Overrides ``controller.kind`` (one of
+                :data:`~hmpc_pin.config.CONTROLLER_KINDS`); applied before ``observer``.
 
         Raises:
             LimitError: The initial state or the reference (sampled at every control
                 instant of the run and its last horizon) leaves the joint limits.
         """
-        if observer is not None:
-            obs = replace(config.controller.observer, enabled=observer)
-            config = replace(config, controller=replace(config.controller, observer=obs))
+        config = with_controller(config, controller, observer)
         rc = config.robot
         robot = rc.load()
         n = robot.nq
@@ -121,17 +168,17 @@ class Experiment:
             if config.simulation.q0 is None
             else config.vector("simulation.q0", n)
         )
-        controller = HierarchicalMPC(robot, config.controller)
-        if controller.limits is not None:
-            lim = controller.limits
-            for i in np.flatnonzero((q0 < lim.lower - 1e-9) | (q0 > lim.upper + 1e-9)):
+        controller = make_controller(robot, config.controller)
+        limits = config.controller.constraints.limits(robot)
+        if limits is not None:
+            lower, upper, _ = limits
+            for i in np.flatnonzero((q0 < lower - 1e-9) | (q0 > upper + 1e-9)):
                 raise LimitError(
-                    "initial position", robot.joint_names[i], None, q0[i], lim.lower[i],
-                    lim.upper[i],
-                )  # fmt: skip
+                    "initial position", robot.joint_names[i], None, q0[i], lower[i], upper[i]
+                )
             cc = config.controller
             times = cc.Ts * np.arange(round(config.simulation.duration / cc.Ts) + cc.N + 1)
-            check_limits(reference, lim.lower, lim.upper, times, robot.joint_names)
+            check_limits(reference, lower, upper, times, robot.joint_names)
         return cls(
             config=config,
             robot=robot,
@@ -184,7 +231,8 @@ class Experiment:
                     "upper": self.robot.upper.tolist(),
                 },
                 "gravity": cfg.robot.gravity,
-                "observer": cfg.controller.observer.enabled,
+                "controller": cfg.controller.kind,
+                "observer": uses_observer(cfg.controller),
                 "Ts": cfg.controller.Ts,
                 "N": cfg.controller.N,
                 "Nc": cfg.controller.Nc,

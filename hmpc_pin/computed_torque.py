@@ -1,0 +1,147 @@
+"""Computed-torque control, the classical reference (``computed-torque``, ``computed-torque-pid``).
+
+Inverse dynamics with a PD (or PID) outer loop and no MPC, no observer:
+
+.. math::
+
+    v = \\mathrm{clip}\\big(\\ddot r + k_p e + k_d \\dot e + k_i {\\textstyle\\int} e\\,dt,\\;
+        v_{\\min}, v_{\\max}\\big), \\qquad \\tau = M(q)\\,v + C\\dot q + G,
+    \\qquad e = r - q,
+
+run at the control period :math:`T_s` with the torque held over it, like the MPC.
+
+Fair tuning (same bandwidth). By default :math:`k_p, k_d` are the MPC's own
+unconstrained state-feedback gain: the first row of :math:`H^{-1}F` restricted to
+:math:`x_0` (:mod:`hmpc_pin.joint_mpc`), so the PD loop has exactly the closed-loop poles
+of the unconstrained MPC, :math:`\\mathrm{eig}(A_d - B_d[k_p\\;k_d])`. For the paper's
+settings (Nc = 1) that is :math:`k_p = 273.9\\,\\mathrm{s^{-2}}`,
+:math:`k_d = 22.73\\,\\mathrm{s^{-1}}` (poles 0.879 ± 0.113j, ω_n ≈ 16.5 rad/s,
+ζ ≈ 0.69). The PID adds :math:`k_i = a k_p` with :math:`a = k_d / 20` [1/s], an
+integral pole ten times slower than the PD's decay rate :math:`k_d/2`; its discrete
+closed loop is checked to be stable. The same acceleration bounds as the MPC
+(``v_min``, ``v_max``) apply, and the integral only accumulates while the joint is
+not saturated (conditional-integration anti-windup).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .config import ControllerConfig
+from .exceptions import ConfigError, NonFiniteError
+from .joint_mpc import CondensedMPC
+from .robot import Robot
+
+__all__ = ["CT_KINDS", "ComputedTorque", "mpc_feedback_gain"]
+
+#: The ``[controller] kind`` values built by :class:`ComputedTorque`.
+CT_KINDS = ("computed-torque", "computed-torque-pid")
+
+
+def mpc_feedback_gain(mpc: CondensedMPC) -> tuple[float, float]:
+    """The unconstrained MPC's feedback gain :math:`(k_p, k_d)` on the current state.
+
+    The unconstrained minimiser is :math:`U^\\star = -H^{-1}F[x_0; \\bar r]`, so the applied
+    input is :math:`v_0 = -k_p q_0 - k_d \\dot q_0 + (\\text{reference terms})`.
+    """
+    K = np.linalg.solve(mpc.H, mpc.F)[0, :2]
+    return float(K[0]), float(K[1])
+
+
+def closed_loop_poles(Ts: float, kp: float, kd: float, ki: float = 0.0) -> np.ndarray:
+    """Poles of the discrete closed loop of one joint under the PD/PID law at period ``Ts``.
+
+    State :math:`[e, \\dot e, I]` with ZOH double-integrator error dynamics and
+    :math:`I_{k+1} = I_k + T_s e_k`; the integral state is dropped when ``ki == 0``.
+    """
+    A = np.array([[1.0, Ts, 0.0], [0.0, 1.0, 0.0], [Ts, 0.0, 1.0]])
+    B = np.array([Ts * Ts / 2.0, Ts, 0.0])
+    K = np.array([kp, kd, ki])
+    Acl = A - np.outer(B, K)
+    return np.linalg.eigvals(Acl if ki else Acl[:2, :2])
+
+
+class ComputedTorque:
+    """Inverse dynamics + PD/PID outer loop (``computed-torque`` / ``computed-torque-pid``).
+
+    Args:
+        robot: The controller's model.
+        config: ``kind`` must be one of :data:`CT_KINDS`; uses ``Ts``, ``v_min``/``v_max``,
+            ``computed_torque`` gains, and the MPC weights only for the default gains.
+
+    Attributes:
+        kp, kd, ki: The gains in use [1/s², 1/s, 1/s³] (``ki = 0`` for the PD).
+        disturbance_estimate: Always zeros (no disturbance compensation).
+        v, tau: Last commanded acceleration [rad/s²] and torque [N·m].
+
+    Raises:
+        ConfigError: The gains give an unstable discrete closed loop.
+    """
+
+    def __init__(self, robot: Robot, config: ControllerConfig | None = None):
+        config = config if config is not None else ControllerConfig(kind="computed-torque")
+        if config.kind not in CT_KINDS:
+            raise ConfigError(
+                "controller.kind", f"{config.kind!r} is not one of {CT_KINDS}; use make_controller"
+            )
+        self.robot, self.config, self.n = robot, config, robot.nq
+        self.v_min, self.v_max = config.bounds(robot.nq)
+        c, ct = config, config.computed_torque
+        kp, kd = mpc_feedback_gain(CondensedMPC(c.Ts, c.N, c.Nc, c.Q, c.R, c.P))
+        self.kp = ct.kp if ct.kp is not None else kp
+        self.kd = ct.kd if ct.kd is not None else kd
+        pid = config.kind == "computed-torque-pid"
+        self.ki = (ct.ki if ct.ki is not None else self.kd / 20.0 * self.kp) if pid else 0.0
+        poles = closed_loop_poles(config.Ts, self.kp, self.kd, self.ki)
+        if np.abs(poles).max() >= 1.0:
+            raise ConfigError(
+                "controller.computed_torque",
+                f"gains kp={self.kp:g}, kd={self.kd:g}, ki={self.ki:g} give discrete poles "
+                f"{np.round(poles, 4).tolist()} at Ts={config.Ts:g}; expected all inside the "
+                "unit circle: lower the gains",
+            )
+        self.disturbance_estimate = np.zeros(self.n)
+        self.integral = np.zeros(self.n)
+        self.v = np.zeros(self.n)
+        self.tau = np.zeros(self.n)
+
+    @property
+    def Ts(self) -> float:
+        """Control period [s]."""
+        return self.config.Ts
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
+        """Start a new run (the integral restarts at zero)."""
+        self.robot.check_vector("q0", q0)
+        self.robot.check_vector("dq0", dq0)
+        self.integral = np.zeros(self.n)
+        self.v = np.zeros(self.n)
+        self.tau = np.zeros(self.n)
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """The torque for the measured state at ``t`` (reference needs ``acceleration(t)``).
+
+        Args:
+            t: Time [s].
+            q, dq: Measured joint positions [rad] and velocities [rad/s], shape (n,).
+            reference: Object with ``sample(t) -> (r, ṙ)`` and ``acceleration(t) -> r̈``.
+
+        Returns:
+            τ [N·m], shape (n,).
+        """
+        if not math.isfinite(t):
+            raise NonFiniteError("t", t)
+        q = self.robot.check_vector("q", q)
+        dq = self.robot.check_vector("dq", dq)
+        r, dr = reference.sample(t)
+        ddr = reference.acceleration(t)
+        e = r - q
+        v_free = ddr + self.kp * e + self.kd * (dr - dq) + self.ki * self.integral
+        self.v = v = np.clip(v_free, self.v_min, self.v_max)
+        if self.ki:
+            self.integral += np.where(v == v_free, self.config.Ts * e, 0.0)
+        robot = self.robot
+        self.tau = robot.mass_matrix(q) @ v + robot.nonlinear_effects(q, dq)
+        return self.tau.copy()

@@ -1,4 +1,4 @@
-"""Command-line interface: ``hmpc-pin run``, ``hmpc-pin reproduce`` (also ``python -m hmpc_pin``).
+"""Command-line interface: ``hmpc-pin run | compare | reproduce | replay`` (``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback), 1 when a run fails (e.g. diverges) — what was computed up to the
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import ExperimentConfig, load_config
+from .config import CONTROLLER_KINDS, ExperimentConfig, load_config
 from .exceptions import ConfigError, HmpcError, OutputError, SimulationError
 from .experiment import Experiment
 from .metrics import compute_metrics, format_metrics
@@ -166,6 +166,25 @@ def cmd_replay(args) -> int:
     return EXIT_OK
 
 
+def cmd_compare(args) -> int:
+    from .compare import compare, markdown_table, parse_controllers
+
+    controllers = parse_controllers(args.controllers)
+    config = _with_overrides(load_config(args.config), False, args.duration)
+    out = _out_dir(args.out)
+    comp, files = compare(config, out, controllers, progress=not args.quiet)
+
+    print(f"{config.name}: {config.description}")
+    print(markdown_table(comp))
+    for f in files:
+        print(f"wrote {f}")
+    failed = [k for k, r in comp.runs.items() if r.failure]
+    if failed:
+        print(f"error: runs failed: {', '.join(failed)} (partial results kept)", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
 def cmd_reproduce(args) -> int:
     from .report import reproduce
 
@@ -214,6 +233,24 @@ def build_parser() -> argparse.ArgumentParser:
     rpl.add_argument("--out", type=Path, default=Path("replay.html"), help="HTML file to write")
     rpl.add_argument("--urdf", help="URDF of the arm (default: the one named in the result)")
     rpl.set_defaults(func=cmd_replay)
+
+    cmp_ = sub.add_parser(
+        "compare",
+        help="run several controllers on one experiment and compare them",
+        description="Run the controllers (README, 'Controllers') on the same robot, plant, "
+        "reference, disturbances and MPC settings; print and write a Markdown + CSV table "
+        "(tracking error, settling, observer error, effort, chattering, constraint "
+        "violations, step time) and figures.",
+    )
+    cmp_.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    cmp_.add_argument(
+        "--controllers",
+        help="comma-separated controller names [all: " + ",".join(CONTROLLER_KINDS) + "]",
+    )
+    cmp_.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    cmp_.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
+    cmp_.add_argument("--quiet", action="store_true", help="no progress bar")
+    cmp_.set_defaults(func=cmd_compare)
 
     rep = sub.add_parser(
         "reproduce",

@@ -285,8 +285,7 @@ class ComputedTorqueConfig:
 
     By default the PD gains are the MPC's own unconstrained state-feedback gain (so both
     loops have the same closed-loop poles, i.e. the same bandwidth) and the integral gain
-    puts a third pole ten times slower than the PD's dominant one
-    (:mod:`hmpc_pin.computed_torque`).
+    gives the PID loop its fastest decay (:mod:`hmpc_pin.computed_torque`).
 
     Attributes:
         kp: Proportional gain [1/s²]; ``None`` for the MPC-equivalent gain.

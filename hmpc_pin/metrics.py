@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Metrics", "compute_metrics", "settling_time"]
+__all__ = ["Metrics", "chattering", "compute_metrics", "settling_time"]
 
 
 def settling_time(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
@@ -26,6 +26,35 @@ def settling_time(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
     return out
 
 
+def chattering(
+    t: np.ndarray, tau: np.ndarray, cutoff: float = 10.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two chattering measures of a torque record, per joint.
+
+    Args:
+        t: Uniform sample times [s], shape (K,).
+        tau: Torques [N·m], shape (K, n).
+        cutoff: Frequency above which energy counts as chattering [Hz].
+
+    Returns:
+        ``(tv, share)``: the total variation per second
+        :math:`\\frac{1}{t_{K-1} - t_0}\\sum_k |\\tau_{k+1} - \\tau_k|` [N·m/s], and the share of
+        the energy of :math:`\\tau - \\bar\\tau` (its mean removed) above ``cutoff``, from the
+        discrete Fourier transform (Parseval), in [0, 1].
+    """
+    span = t[-1] - t[0]
+    tv = np.abs(np.diff(tau, axis=0)).sum(axis=0) / span
+    K = len(t)
+    power = np.abs(np.fft.rfft(tau - tau.mean(axis=0), axis=0)) ** 2
+    power[1 : (K + 1) // 2] *= 2.0  # one-sided spectrum: each bin but DC (and Nyquist) twice
+    freq = np.fft.rfftfreq(K, span / (K - 1))
+    total = power.sum(axis=0)  # = K * sum((tau - mean)**2) by Parseval
+    share = np.divide(
+        power[freq > cutoff].sum(axis=0), total, out=np.zeros_like(total), where=total > 0
+    )
+    return tv, share
+
+
 @dataclass(frozen=True)
 class Metrics:
     """Per-joint metrics (arrays of shape (n,)).
@@ -39,6 +68,11 @@ class Metrics:
             ``result.meta["limits"]`` over the whole run [rad] (0 inside; nan if none recorded).
         saturated_steps: Control periods in which the plant clipped τ to the effort
             limit (from ``result.meta["saturation"]``; 0 if none recorded).
+        tau_rms: RMS of τ after ``after`` seconds (control effort) [N·m].
+        tau_tv: Total variation of τ per second after ``after`` seconds [N·m/s]
+            (:func:`chattering`).
+        tau_hf_share: Share of τ's energy above 10 Hz after ``after`` seconds
+            (:func:`chattering`).
     """
 
     rms_error: np.ndarray
@@ -51,6 +85,9 @@ class Metrics:
     tol: float
     limit_violation: np.ndarray | None = None
     saturated_steps: np.ndarray | None = None
+    tau_rms: np.ndarray | None = None
+    tau_tv: np.ndarray | None = None
+    tau_hf_share: np.ndarray | None = None
 
 
 def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
@@ -67,6 +104,8 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
         viol = np.full(n, np.nan)
     sat = result.meta.get("saturation")
     steps = np.asarray(sat["steps"], dtype=int) if sat else np.zeros(n, dtype=int)
+    tau = result.tau[mask]
+    tv, share = chattering(result.t[mask], tau) if len(tau) > 1 else (np.full(n, np.nan),) * 2
     return Metrics(
         rms_error=np.sqrt(np.mean(e**2, axis=0)),
         max_error=np.abs(e).max(axis=0),
@@ -78,6 +117,9 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
         tol=tol,
         limit_violation=viol,
         saturated_steps=steps,
+        tau_rms=np.sqrt(np.mean(tau**2, axis=0)),
+        tau_tv=tv,
+        tau_hf_share=share,
     )
 
 

@@ -18,6 +18,7 @@ __all__ = [
     "plot_disturbance",
     "plot_error",
     "plot_overview",
+    "plot_torques",
     "plot_tracking",
     "plot_workspace",
     "tool_path",
@@ -181,3 +182,24 @@ def plot_cartesian(
     ax.plot(*start, "gs", ms=9, label=f"start ({start[0]:g}, {start[1]:g})")
     ax.plot(*goal, "r*", ms=13, label=f"goal ({goal[0]:g}, {goal[1]:g})")
     return _finish_plane(fig, ax, path, title, "lower right")
+
+
+def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
+    """Torque τ per joint for several runs overlaid, optionally over a time ``window`` [s].
+
+    Args:
+        results: Label → :class:`~hmpc_pin.simulate.Result`.
+        window: ``(t0, t1)`` to zoom on (chattering is invisible over 10 s); ``None``: all.
+    """
+    first = next(iter(results.values()))
+    n = first.q.shape[1]
+    fig, axes = _rows(n)
+    for i in range(n):
+        ax = axes[i, 0]
+        for k, (label, r) in enumerate(results.items()):
+            sel = slice(None) if window is None else (r.t >= window[0]) & (r.t <= window[1])
+            ax.step(r.t[sel], r.tau[sel, i], f"C{k}", where="post", lw=1.0, label=label)
+        ax.set_ylabel(f"τ{i + 1} [N·m]")
+        ax.legend(loc="upper right", fontsize=7)
+        ax.grid(alpha=0.3)
+    return _finish(fig, axes, path, title)

@@ -1,0 +1,287 @@
+"""``hmpc-pin compare``: every controller on the same experiment, side by side.
+
+Each controller of :data:`~hmpc_pin.config.CONTROLLER_KINDS` (README,
+"Controllers") runs on the same robot model, plant, reference, disturbance,
+initial state and MPC settings — only ``controller.kind`` changes. Per controller
+and joint the table holds RMS and max tracking error after 1 s, the time to stay
+within 0.01 rad, the RMS observer error (where there is an observer), the control
+effort (RMS τ), two chattering measures (:func:`~hmpc_pin.metrics.chattering`: total
+variation of τ per second and the share of τ's energy above 10 Hz, both after 1 s),
+constraint violations (position-limit excursion, saturated periods) and the median
+controller step time, measured around ``step`` during the run.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .config import CONTROLLER_KINDS, ExperimentConfig
+from .exceptions import ConfigError, SimulationError
+from .experiment import Experiment, uses_observer, with_controller
+from .metrics import Metrics, compute_metrics
+from .simulate import Result
+
+__all__ = [
+    "Comparison",
+    "ControllerRun",
+    "TimedController",
+    "boundary_layer_sweep",
+    "compare",
+    "parse_controllers",
+    "run_comparison",
+]
+
+
+class TimedController:
+    """Wraps a controller and records the wall time of every ``step`` [ns]."""
+
+    def __init__(self, controller):
+        self.controller = controller
+        self.times_ns: list[int] = []
+
+    @property
+    def Ts(self) -> float:
+        return self.controller.Ts
+
+    @property
+    def disturbance_estimate(self) -> np.ndarray:
+        return self.controller.disturbance_estimate
+
+    def reset(self, q0, dq0) -> None:
+        self.times_ns = []
+        self.controller.reset(q0, dq0)
+
+    def step(self, t, q, dq, reference):
+        start = time.perf_counter_ns()
+        tau = self.controller.step(t, q, dq, reference)
+        self.times_ns.append(time.perf_counter_ns() - start)
+        return tau
+
+
+@dataclass
+class ControllerRun:
+    """One controller's run: result, metrics, median step time, failure message."""
+
+    kind: str
+    result: Result
+    metrics: Metrics | None
+    step_us: float
+    observer: bool
+    failure: str | None = None
+
+
+@dataclass
+class Comparison:
+    """Runs of several controllers on one experiment, in the order requested."""
+
+    config: ExperimentConfig
+    runs: dict[str, ControllerRun] = field(default_factory=dict)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return next(iter(self.runs.values())).result.joint_names
+
+
+def parse_controllers(text: str | None) -> tuple[str, ...]:
+    """``"hmpc,hmpc-ism"`` → ``("hmpc", "hmpc-ism")``; ``None`` → every controller."""
+    if text is None:
+        return CONTROLLER_KINDS
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    for k in kinds:
+        if k not in CONTROLLER_KINDS:
+            raise ConfigError("--controllers", f"unknown controller {k!r}; expected names from "
+                              f"{CONTROLLER_KINDS}, comma-separated")  # fmt: skip
+    if not kinds:
+        raise ConfigError("--controllers", f"no controller given; choose from {CONTROLLER_KINDS}")
+    return kinds
+
+
+def run_one_controller(config: ExperimentConfig, kind: str) -> ControllerRun:
+    """Run ``config`` with ``controller.kind = kind``; a failed run keeps its partial result."""
+    config = with_controller(config, kind)
+    exp = Experiment.from_config(config)
+    timed = TimedController(exp.controller)
+    exp.controller = timed
+    failure = None
+    try:
+        result = exp.run()
+    except SimulationError as exc:
+        if exc.result is None:
+            raise
+        result, failure = exc.result, str(exc)
+    metrics = compute_metrics(result) if result.t[-1] >= 1.0 else None
+    step_us = float(np.median(timed.times_ns)) / 1e3 if timed.times_ns else float("nan")
+    return ControllerRun(kind, result, metrics, step_us, uses_observer(config.controller), failure)
+
+
+def run_comparison(
+    config: ExperimentConfig, controllers=CONTROLLER_KINDS, progress: bool = False
+) -> Comparison:
+    """Run every controller in ``controllers`` on ``config``."""
+    from tqdm import tqdm
+
+    comp = Comparison(config)
+    bar = tqdm(controllers, desc="compare", unit="run", disable=not progress)
+    for kind in bar:
+        bar.set_postfix_str(kind)
+        comp.runs[kind] = run_one_controller(config, kind)
+    return comp
+
+
+def boundary_layer_sweep(
+    config: ExperimentConfig, factors=(0.25, 0.45, 0.55, 1.0, 2.0)
+) -> list[tuple[float, Metrics]]:
+    """``hmpc-ism-bl`` with φ = factor·K·Ts for each factor: the chattering/accuracy trade-off.
+
+    Below factor 0.5 the linear loop inside the layer, of gain :math:`T_s K/\\varphi > 2`,
+    is unstable in discrete time and the switching returns.
+    """
+    cc = config.controller
+    out = []
+    for f in factors:
+        ism = replace(cc.ism, boundary_layer=f * cc.ism.gain * cc.Ts)
+        cfg = replace(config, controller=replace(cc, kind="hmpc-ism-bl", ism=ism))
+        out.append((f, run_one_controller(cfg, "hmpc-ism-bl").metrics))
+    return out
+
+
+COLUMNS = (
+    ("RMS e after 1 s [rad]", "rms_error", ".2e"),
+    ("max |e| after 1 s [rad]", "max_error", ".2e"),
+    ("within 0.01 rad from [s]", "settling_time", ".2f"),
+    ("RMS d−d̂ [N·m]", "observer_rms", ".2e"),
+    ("RMS τ [N·m]", "tau_rms", ".3g"),
+    ("TV(τ) [N·m/s]", "tau_tv", ".3g"),
+    ("τ energy > 10 Hz", "tau_hf_share", ".1e"),
+    ("limit excursion [rad]", "limit_violation", ".1e"),
+    ("saturated periods", "saturated_steps", "d"),
+)
+
+
+def _cells(run: ControllerRun, i: int) -> list[str]:
+    m = run.metrics
+    cells = []
+    for _, attr, spec in COLUMNS:
+        if m is None:
+            cells.append("n/a")
+            continue
+        v = getattr(m, attr)[i]
+        if attr == "observer_rms" and not run.observer:
+            cells.append("—")
+        elif attr == "settling_time" and v != v:
+            cells.append("never")
+        elif v != v:
+            cells.append("n/a")
+        else:
+            cells.append(format(int(v) if spec == "d" else v, spec))
+    return cells
+
+
+def markdown_table(comp: Comparison) -> str:
+    """The comparison as a Markdown table, one row per controller and joint."""
+    head = ["controller", "joint"] + [c[0] for c in COLUMNS] + ["step median [µs]"]
+    lines = ["| " + " | ".join(h.replace("|", "\\|") for h in head) + " |",
+             "|" + "---|" * len(head)]  # fmt: skip
+    for kind, run in comp.runs.items():
+        for i, joint in enumerate(comp.joint_names):
+            step = f"{run.step_us:.1f}" if i == 0 else ""
+            name = kind + (" (failed)" if run.failure else "")
+            lines.append("| " + " | ".join([name, joint, *_cells(run, i), step]) + " |")
+    return "\n".join(lines)
+
+
+def write_csv(comp: Comparison, path: Path) -> Path:
+    """One row per controller and joint, full precision; empty cells where not defined."""
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["controller", "joint", *(a for _, a, _ in COLUMNS), "step_median_us",
+                    "observer", "complete"])  # fmt: skip
+        for kind, run in comp.runs.items():
+            for i, joint in enumerate(comp.joint_names):
+                m = run.metrics
+                values = [
+                    "" if m is None or (a == "observer_rms" and not run.observer)
+                    else repr(float(getattr(m, a)[i]))
+                    for _, a, _ in COLUMNS
+                ]  # fmt: skip
+                w.writerow([kind, joint, *values, f"{run.step_us:.3f}", run.observer,
+                            run.failure is None])  # fmt: skip
+    return path
+
+
+def compare(
+    config: ExperimentConfig,
+    out: Path,
+    controllers=CONTROLLER_KINDS,
+    progress: bool = False,
+    sweep_boundary_layer: bool = True,
+) -> tuple[Comparison, list[Path]]:
+    """Run the comparison and write ``<name>_compare.md``, ``.csv`` and two figures to ``out``.
+
+    Returns:
+        The :class:`Comparison` and the files written.
+    """
+    from . import plots
+
+    comp = run_comparison(config, controllers, progress)
+    stem = f"{config.name}_compare"
+    title = config.description or config.name
+    results = {k: r.result for k, r in comp.runs.items() if len(r.result.t) > 1}
+    files = [write_csv(comp, out / f"{stem}.csv")]
+    figures = []
+    if results:
+        figures.append(plots.plot_error(results, out / f"{stem}_error.png", title))
+        t_end = float(min(r.t[-1] for r in results.values()))
+        window = (min(2.0, 0.5 * t_end), min(2.5, t_end))
+        figures.append(plots.plot_torques(results, out / f"{stem}_tau.png", title, window))
+    lines = [
+        f"# Controller comparison: {config.name}",
+        "",
+        f"{config.description}. Every controller runs on the same robot model, plant, "
+        "reference, disturbances, initial state and MPC settings (config "
+        f"`{config.source or config.name}`); only `controller.kind` changes. Rerun with "
+        f"`hmpc-pin compare {config.source or 'CONFIG'} --controllers {','.join(controllers)}`.",
+        "",
+        markdown_table(comp),
+        "",
+        "Errors, observer error, effort and chattering are taken over t ≥ 1 s; chattering is "
+        "the total variation of τ per second and the share of the energy of τ − mean(τ) above "
+        "10 Hz. Step time: median wall time of the controller's `step` in this run.",
+    ]
+    failed = {k: r.failure for k, r in comp.runs.items() if r.failure}
+    if failed:
+        lines += ["", "Failed runs (metrics from the part before the failure):", ""]
+        lines += [f"- `{k}`: {v}" for k, v in failed.items()]
+    if sweep_boundary_layer and "hmpc-ism-bl" in controllers:
+        lines += ["", boundary_layer_table(config, comp.joint_names)]
+    for path in figures:
+        lines += ["", f"![{path.stem}]({path.name})"]
+    md = out / f"{stem}.md"
+    md.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    files = [md, *files, *figures]
+    return comp, files
+
+
+def boundary_layer_table(config: ExperimentConfig, joint_names) -> str:
+    """Markdown: the :func:`boundary_layer_sweep` of ``hmpc-ism-bl`` on ``config``."""
+    cc = config.controller
+    rows = boundary_layer_sweep(config)
+    lines = [
+        f"## Boundary layer of hmpc-ism-bl (K = {cc.ism.gain:g} rad/s², Ts = {cc.Ts:g} s)",
+        "",
+        "φ = factor·K·Ts; below factor 0.5 the loop inside the layer (gain Ts·K/φ > 2) is "
+        "unstable in discrete time and the switching comes back.",
+        "",
+        "| φ/(K·Ts) | φ [rad/s] | RMS e after 1 s [rad] per joint | TV(τ) [N·m/s] per joint |",
+        "|---|---|---|---|",
+    ]
+    for f, m in rows:
+        rms = ", ".join(f"{x:.2e}" for x in m.rms_error) if m else "n/a"
+        tv = ", ".join(f"{x:.3g}" for x in m.tau_tv) if m else "n/a"
+        lines.append(f"| {f:g} | {f * cc.ism.gain * cc.Ts:.3g} | {rms} | {tv} |")
+    return "\n".join(lines)

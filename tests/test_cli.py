@@ -163,6 +163,19 @@ def test_reproduce_paper_claims_hold(reproduced):
         assert row.rstrip().endswith("| yes |"), row
 
 
+def test_reproduce_report_compares_the_controllers(reproduced):
+    """Issue 8: the report holds the controller comparison and a verdict per claim."""
+    report = (reproduced / "report.md").read_text()
+    assert "## Controller comparison on the Section 5.3 scenario" in report
+    for kind in ("hmpc", "hmpc-none", "hmpc-momentum", "hmpc-ism", "hmpc-ism-bl"):
+        assert f"| {kind} | joint1 |" in report
+    rows = [line for line in report.splitlines() if line.startswith("| 1 |")]
+    assert len(rows) == 6
+    chattering = next(r for r in rows if "suffers from chattering" in r)
+    assert chattering.rstrip().endswith("| yes |")
+    assert all(r.rstrip().endswith(("| yes |", "| **no** |")) for r in rows)
+
+
 def test_run_replay_and_replay_command(tmp_path, capsys):
     """`run --replay` and `replay RESULT.npz` write the same self-contained page."""
     pytest.importorskip("meshcat")

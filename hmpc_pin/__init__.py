@@ -8,8 +8,16 @@ nonlinear disturbance observer (Eq 13) estimates and cancels friction and
 external torques.
 """
 
-from .config import ControllerConfig, ExperimentConfig, ObserverConfig, load_config
-from .controller import HierarchicalMPC
+from .compare import Comparison, run_comparison
+from .computed_torque import ComputedTorque
+from .config import (
+    CONTROLLER_KINDS,
+    ControllerConfig,
+    ExperimentConfig,
+    ObserverConfig,
+    load_config,
+)
+from .controller import HierarchicalMPC, make_controller
 from .disturbances import (
     CoulombViscousFriction,
     Disturbance,
@@ -28,10 +36,11 @@ from .exceptions import (
     URDFError,
 )
 from .experiment import Experiment, run_experiment
+from .ism import IntegralSlidingMode
 from .joint_mpc import CondensedMPC, JointQPs
 from .kinematics import KinematicsError, planar_ik, solve_pose, tool_pose
 from .metrics import Metrics, compute_metrics, format_metrics
-from .observers import DisturbanceObserver
+from .observers import DisturbanceObserver, MomentumObserver
 from .references import QuinticReference, Reference, SineReference
 from .robot import Robot, load_robot
 from .simulate import Result, simulate
@@ -39,6 +48,9 @@ from .simulate import Result, simulate
 __version__ = "0.1.0"
 
 __all__ = [
+    "CONTROLLER_KINDS",
+    "Comparison",
+    "ComputedTorque",
     "CondensedMPC",
     "ConfigError",
     "ControllerConfig",
@@ -51,9 +63,11 @@ __all__ = [
     "GaussianPulse",
     "HierarchicalMPC",
     "HmpcError",
+    "IntegralSlidingMode",
     "JointQPs",
     "KinematicsError",
     "Metrics",
+    "MomentumObserver",
     "NonFiniteError",
     "ObserverConfig",
     "OutputError",
@@ -72,7 +86,9 @@ __all__ = [
     "format_metrics",
     "load_config",
     "load_robot",
+    "make_controller",
     "planar_ik",
+    "run_comparison",
     "run_experiment",
     "simulate",
     "solve_pose",

@@ -17,7 +17,7 @@ import numpy as np
 
 from .config import CONTROLLER_KINDS, ExperimentConfig, load_config
 from .exceptions import ConfigError, HmpcError, OutputError, SimulationError
-from .experiment import Experiment
+from .experiment import Experiment, uses_observer, with_controller
 from .metrics import compute_metrics, format_metrics
 from .simulate import RESULT_ARRAYS, Result
 
@@ -57,8 +57,7 @@ def _with_overrides(
     config: ExperimentConfig, no_ndo: bool, duration: float | None
 ) -> ExperimentConfig:
     if no_ndo:
-        obs = replace(config.controller.observer, enabled=False)
-        config = replace(config, controller=replace(config.controller, observer=obs))
+        config = with_controller(config, observer=False)
     if duration is not None:
         if not np.isfinite(duration) or duration <= 0:
             raise ConfigError("--duration", f"expected a number of seconds > 0, got {duration!r}")
@@ -116,13 +115,14 @@ def cmd_run(args) -> int:
         raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
     viz = args.speed if args.viz else None
     experiment, result, files, failure = run_one(config, out, stem, viz=viz)
+    observer = uses_observer(config.controller)
     if len(result.t) > 1:
         from .plots import plot_error
 
-        label = "with NDO" if config.controller.observer.enabled else "without NDO"
+        label = "with NDO" if observer else "without NDO"
         files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
-    observer = "on" if config.controller.observer.enabled else "off"
-    print(f"{config.name}: {config.description} (observer {observer})")
+    kind = config.controller.kind
+    print(f"{config.name}: {config.description} ({kind}, observer {'on' if observer else 'off'})")
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names))
     if args.replay is not None and len(result.t) > 1:

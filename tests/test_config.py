@@ -100,6 +100,10 @@ BAD = [
         "semi-implicit",
     ),
     ('[disturbance]\nscale = "mass"', "disturbance.scale", "one of"),
+    ('[controller]\nkind = "lqr"', "controller.kind", "computed-torque-pid"),
+    ("[controller.ism]\ngain = 0.0", "controller.ism.gain", "> 0"),
+    ("[controller.ism]\nwidth = 1.0", "controller.ism.width", "unknown key"),
+    ("[controller.computed_torque]\nkp = -5.0", "controller.computed_torque.kp", "> 0"),
     ("[plant]\neffort_limit = [1.0, -1.0, 1.0]", "plant.effort_limit", "> 0"),
     ("[plant]\neffort_limit = [1.0, 1.0]", "plant.effort_limit", "3 joints"),
 ]

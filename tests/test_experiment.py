@@ -144,3 +144,32 @@ def test_replace_keeps_validation():
     cfg = load_config(CONFIGS / "ur5_sine.toml")
     with pytest.raises(hmpc_pin.ConfigError):
         replace(cfg.controller, N=0)
+
+
+@pytest.mark.parametrize(
+    ("kind", "observer", "expected"),
+    [
+        ("hmpc", False, "hmpc"),
+        ("hmpc-momentum", False, "hmpc-none"),
+        ("hmpc-none", True, "hmpc"),
+        ("hmpc-ism", False, "hmpc-ism"),
+    ],
+)
+def test_observer_override_maps_controller_kinds(kind, observer, expected):
+    from hmpc_pin.experiment import uses_observer, with_controller
+
+    cfg = with_controller(hmpc_pin.ExperimentConfig(), kind, observer)
+    assert cfg.controller.kind == expected
+    assert uses_observer(cfg.controller) == (observer and expected == "hmpc")
+
+
+def test_kind_from_a_config_file_builds_that_controller(write_config):
+    from hmpc_pin.computed_torque import ComputedTorque
+
+    path = write_config(
+        '[robot]\nurdf = "@URDF@"\n[controller]\nkind = "computed-torque-pid"\n'
+        "[controller.computed_torque]\nki = 500.0\n[simulation]\nduration = 0.5\n"
+    )
+    exp = Experiment.from_config(hmpc_pin.load_config(path))
+    assert isinstance(exp.controller, ComputedTorque) and exp.controller.ki == 500.0
+    assert exp.run().meta["controller"] == "computed-torque-pid"

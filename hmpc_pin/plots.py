@@ -83,6 +83,19 @@ def plot_overview(result, path, title: str = "") -> Path:
     return _per_joint(result, path, title, _tracking, _disturbance)
 
 
+def _overlay(results: dict, path, title, draw, decorate) -> Path:
+    """One row per joint; ``draw(ax, label, result, joint, color)`` for every run, then
+    ``decorate(ax, joint)`` once per row."""
+    n = next(iter(results.values())).q.shape[1]
+    fig, axes = _rows(n)
+    for i in range(n):
+        ax = axes[i, 0]
+        for k, (label, r) in enumerate(results.items()):
+            draw(ax, label, r, i, f"C{k}")
+        decorate(ax, i)
+    return _finish(fig, axes, path, title)
+
+
 def plot_error(results: dict, path, title: str = "") -> Path:
     """Tracking error |q − r| on a log scale, one row per joint, several runs overlaid.
 
@@ -90,20 +103,18 @@ def plot_error(results: dict, path, title: str = "") -> Path:
         results: Label → :class:`~hmpc_pin.simulate.Result`, e.g.
             ``{"with NDO": r1, "without NDO": r2}``.
     """
-    first = next(iter(results.values()))
-    n = first.q.shape[1]
-    fig, axes = _rows(n)
-    for i in range(n):
-        ax = axes[i, 0]
-        for k, (label, r) in enumerate(results.items()):
-            e = np.abs(r.error[:, i])
-            ax.semilogy(r.t, np.maximum(e, 1e-9), f"C{k}", lw=1.0, label=label)
+
+    def draw(ax, label, r, i, color):
+        ax.semilogy(r.t, np.maximum(np.abs(r.error[:, i]), 1e-9), color, lw=1.0, label=label)
+
+    def decorate(ax, i):
         ax.axhline(0.01, color="k", ls=":", lw=0.8, label="0.01 rad")
         ax.set_ylabel(f"|e{i + 1}| [rad]")
         ax.set_ylim(1e-7, None)
         ax.legend(loc="upper right", fontsize=8)
         ax.grid(alpha=0.3, which="both")
-    return _finish(fig, axes, path, title)
+
+    return _overlay(results, path, title, draw, decorate)
 
 
 def arm_points(robot, q) -> np.ndarray:
@@ -191,15 +202,14 @@ def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
         results: Label → :class:`~hmpc_pin.simulate.Result`.
         window: ``(t0, t1)`` to zoom on (chattering is invisible over 10 s); ``None``: all.
     """
-    first = next(iter(results.values()))
-    n = first.q.shape[1]
-    fig, axes = _rows(n)
-    for i in range(n):
-        ax = axes[i, 0]
-        for k, (label, r) in enumerate(results.items()):
-            sel = slice(None) if window is None else (r.t >= window[0]) & (r.t <= window[1])
-            ax.step(r.t[sel], r.tau[sel, i], f"C{k}", where="post", lw=1.0, label=label)
+
+    def draw(ax, label, r, i, color):
+        sel = slice(None) if window is None else (r.t >= window[0]) & (r.t <= window[1])
+        ax.step(r.t[sel], r.tau[sel, i], color, where="post", lw=1.0, label=label)
+
+    def decorate(ax, i):
         ax.set_ylabel(f"τ{i + 1} [N·m]")
         ax.legend(loc="upper right", fontsize=7)
         ax.grid(alpha=0.3)
-    return _finish(fig, axes, path, title)
+
+    return _overlay(results, path, title, draw, decorate)

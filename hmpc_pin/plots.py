@@ -201,6 +201,9 @@ def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
     Args:
         results: Label → :class:`~hmpc_pin.simulate.Result`.
         window: ``(t0, t1)`` to zoom on (chattering is invisible over 10 s); ``None``: all.
+
+    The y axis is symmetric-log (linear within ±1 N·m), so a chattering run of thousands
+    of N·m and a smooth one of tens stay readable in one panel.
     """
 
     def draw(ax, label, r, i, color):
@@ -208,7 +211,8 @@ def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
         ax.step(r.t[sel], r.tau[sel, i], color, where="post", lw=1.0, label=label)
 
     def decorate(ax, i):
-        ax.set_ylabel(f"τ{i + 1} [N·m]")
+        ax.set_ylabel(f"τ{i + 1} [N·m] (symlog)")
+        ax.set_yscale("symlog", linthresh=1.0)
         ax.legend(loc="upper right", fontsize=7)
         ax.grid(alpha=0.3)
 

@@ -126,8 +126,8 @@ class Experiment:
             lim = controller.limits
             for i in np.flatnonzero((q0 < lim.lower - 1e-9) | (q0 > lim.upper + 1e-9)):
                 raise LimitError(
-                    "initial position", robot.joint_names[i], None, q0[i], lim.lower[i],
-                    lim.upper[i],
+                    "initial position (simulation.q0)", robot.joint_names[i], None, q0[i],
+                    lim.lower[i], lim.upper[i],
                 )  # fmt: skip
             cc = config.controller
             times = cc.Ts * np.arange(round(config.simulation.duration / cc.Ts) + cc.N + 1)
@@ -173,6 +173,7 @@ class Experiment:
             dt=cfg.plant.dt,
             integrator=cfg.plant.integrator,
             effort_limit=self.effort_limit,
+            state_bound=cfg.simulation.state_bound,
             on_step=on_step,
             meta={
                 "experiment": cfg.name,
@@ -188,6 +189,7 @@ class Experiment:
                 "Ts": cfg.controller.Ts,
                 "N": cfg.controller.N,
                 "Nc": cfg.controller.Nc,
+                "state_bound": cfg.simulation.state_bound,
             },
         )
 

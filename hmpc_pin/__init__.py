@@ -14,6 +14,7 @@ from .disturbances import (
     CoulombViscousFriction,
     Disturbance,
     GaussianPulse,
+    Periodic,
     SumDisturbance,
     ZeroDisturbance,
 )
@@ -21,6 +22,7 @@ from .exceptions import (
     ConfigError,
     DimensionError,
     HmpcError,
+    LimitError,
     NonFiniteError,
     OutputError,
     SimulationError,
@@ -30,6 +32,7 @@ from .exceptions import (
 from .experiment import Experiment, run_experiment
 from .joint_mpc import CondensedMPC, JointQPs
 from .kinematics import KinematicsError, planar_ik, solve_pose, tool_pose
+from .measurement import MeasuredController
 from .metrics import Metrics, compute_metrics, format_metrics
 from .observers import DisturbanceObserver
 from .references import QuinticReference, Reference, SineReference
@@ -53,10 +56,13 @@ __all__ = [
     "HmpcError",
     "JointQPs",
     "KinematicsError",
+    "LimitError",
+    "MeasuredController",
     "Metrics",
     "NonFiniteError",
     "ObserverConfig",
     "OutputError",
+    "Periodic",
     "QuinticReference",
     "Reference",
     "Result",

@@ -4,8 +4,8 @@ Every controller setting defaults to the paper's value (Section 4), so
 ``ControllerConfig()`` is the paper's controller. An experiment file
 (``configs/*.toml``) has the sections ``[robot]``, ``[controller]``,
 ``[controller.observer]``, ``[plant]``, ``[reference]``, ``[disturbance]``
-(with optional ``[disturbance.friction]`` and ``[disturbance.pulse]``) and
-``[simulation]``; see ``configs/paper_combined.toml`` for every key.
+(with optional ``[disturbance.friction]`` and ``[disturbance.pulse]``),
+``[simulation]`` and ``[sweep]``; see ``configs/paper_combined.toml`` for every key.
 
 Validation happens here, at the boundary: unknown keys, wrong types, non-finite
 numbers, vectors of the wrong length and out-of-range values raise one

@@ -203,12 +203,12 @@ CASES = {
         ["plant.dt", "does not divide"],
     ),
     "state bound not positive": (
-        lambda tmp: _sub("dq0 = [0.0, 0.0, 0.0]", "dq0 = 0.0\nstate_bound = 0.0"),
+        lambda tmp: _sub("state_bound = 1000.0", "state_bound = 0.0"),
         ConfigError,
         ["simulation.state_bound", "> 0"],
     ),
     "sweep range reversed": (
-        lambda tmp: BASE + "\n[sweep]\nmass = [1.2, 0.8]\n",
+        lambda tmp: _sub("mass = [0.8, 1.2]", "mass = [1.2, 0.8]"),
         ConfigError,
         ["sweep.mass", "low <= high"],
     ),
@@ -233,7 +233,8 @@ ALL = {**CASES, **NAN_CASES}
 def test_nan_cases_cover_every_number_of_the_config():
     keys = {name.removeprefix("nan in ") for name in NAN_CASES}
     assert {"gravity", "Ts", "R", "Q", "P", "v_min", "gain", "dt", "amplitude", "viscous",
-            "coulomb", "center", "sigma", "duration", "q0", "dq0", "frequency"} <= keys  # fmt: skip
+            "coulomb", "center", "sigma", "duration", "q0", "dq0", "frequency", "state_bound",
+            "mass", "q_noise", "dq_noise", "delay", "rms_target"} <= keys  # fmt: skip
 
 
 def _config_file(tmp_path, make):
@@ -329,7 +330,7 @@ def test_sweep_bad_arguments(tmp_path, capsys, argv, words):
 
 
 def test_sweep_unknown_variant_names_the_key(tmp_path, capsys):
-    cfg = _config_file(tmp_path, lambda tmp: BASE + '\n[sweep]\nvariants = ["ndo", "magic"]\n')
+    cfg = _config_file(tmp_path, lambda tmp: _sub('"no-ndo"]', '"magic"]'))
     assert main(["sweep", str(cfg), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "sweep.variants" in err and "'magic'" in err and str(cfg) in err

@@ -22,6 +22,7 @@ from .disturbances import (
     CoulombViscousFriction,
     Disturbance,
     GaussianPulse,
+    Periodic,
     SumDisturbance,
     ZeroDisturbance,
 )
@@ -29,6 +30,7 @@ from .exceptions import (
     ConfigError,
     DimensionError,
     HmpcError,
+    LimitError,
     NonFiniteError,
     OutputError,
     SimulationError,
@@ -39,6 +41,7 @@ from .experiment import Experiment, run_experiment
 from .ism import IntegralSlidingMode
 from .joint_mpc import CondensedMPC, JointQPs
 from .kinematics import KinematicsError, planar_ik, solve_pose, tool_pose
+from .measurement import MeasuredController
 from .metrics import Metrics, compute_metrics, format_metrics
 from .observers import DisturbanceObserver, MomentumObserver
 from .references import QuinticReference, Reference, SineReference
@@ -66,11 +69,14 @@ __all__ = [
     "IntegralSlidingMode",
     "JointQPs",
     "KinematicsError",
+    "LimitError",
+    "MeasuredController",
     "Metrics",
     "MomentumObserver",
     "NonFiniteError",
     "ObserverConfig",
     "OutputError",
+    "Periodic",
     "QuinticReference",
     "Reference",
     "Result",

@@ -1,4 +1,5 @@
-"""Command-line interface: ``hmpc-pin run | compare | reproduce | replay`` (``python -m hmpc_pin``).
+"""Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay``
+(also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback), 1 when a run fails (e.g. diverges) — what was computed up to the
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -193,6 +195,33 @@ def cmd_reproduce(args) -> int:
     return EXIT_OK if ok else EXIT_FAILED
 
 
+def cmd_sweep(args) -> int:
+    from .sweep import run_sweep
+
+    config = _with_overrides(load_config(args.config), False, args.duration)
+    if args.controllers is not None:
+        from .compare import parse_controllers
+
+        kinds = parse_controllers(args.controllers)
+        config = replace(config, sweep=replace(config.sweep, variants=kinds))
+    out = _out_dir(args.out)
+    jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+    result = run_sweep(
+        config,
+        args.samples,
+        args.seed,
+        jobs=jobs,
+        executor=args.executor,
+        scheduler=args.scheduler,
+        progress=not args.quiet,
+    )
+    files = result.write(out)
+    print(result.summary_markdown(), end="")
+    for f in files:
+        print(f"wrote {f}")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hmpc-pin",
@@ -268,6 +297,39 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=cmd_reproduce)
+
+    swp = sub.add_parser(
+        "sweep",
+        help="Monte Carlo robustness sweep of an experiment (with and without NDO)",
+        description="Draw K plant perturbations from the config's [sweep] table (link "
+        "mass/inertia, friction and disturbance amplitudes, measurement noise and delay), "
+        "run each with every controller variant, write DIR/<name>_sweep.csv (one row per "
+        "sample and variant) and DIR/<name>_sweep.md (summary), and print the summary.",
+    )
+    swp.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    swp.add_argument("--samples", type=int, default=100, help="number of samples K [100]")
+    swp.add_argument("--seed", type=int, default=0, help="root seed [0]")
+    swp.add_argument("--jobs", type=int, default=None, help="worker processes [all cores]")
+    swp.add_argument(
+        "--executor",
+        choices=("local", "dask"),
+        default="local",
+        help="local processes or a Dask cluster (extra hmpc_pin[cluster]) [local]",
+    )
+    swp.add_argument(
+        "--scheduler",
+        help="with --executor dask: address of a running scheduler "
+        "(default: a local cluster of --jobs processes)",
+    )
+    swp.add_argument(
+        "--controllers",
+        help="comma-separated controller names to sweep instead of sweep.variants "
+        "(e.g. " + ",".join(CONTROLLER_KINDS[:4]) + ")",
+    )
+    swp.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
+    swp.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    swp.add_argument("--quiet", action="store_true", help="no progress bar")
+    swp.set_defaults(func=cmd_sweep)
     return parser
 
 

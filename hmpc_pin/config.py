@@ -4,8 +4,8 @@ Every controller setting defaults to the paper's value (Section 4), so
 ``ControllerConfig()`` is the paper's controller. An experiment file
 (``configs/*.toml``) has the sections ``[robot]``, ``[controller]``,
 ``[controller.observer]``, ``[plant]``, ``[reference]``, ``[disturbance]``
-(with optional ``[disturbance.friction]`` and ``[disturbance.pulse]``) and
-``[simulation]``; see ``configs/paper_combined.toml`` for every key.
+(with optional ``[disturbance.friction]`` and ``[disturbance.pulse]``),
+``[simulation]`` and ``[sweep]``; see ``configs/paper_combined.toml`` for every key.
 
 Validation happens here, at the boundary: unknown keys, wrong types, non-finite
 numbers, vectors of the wrong length and out-of-range values raise one
@@ -39,6 +39,7 @@ __all__ = [
     "ReferenceConfig",
     "RobotConfig",
     "SimulationConfig",
+    "SweepConfig",
     "load_config",
 ]
 
@@ -651,17 +652,94 @@ class SimulationConfig:
         q0: Initial joint angles [rad] (paper: 1, 1, 1); ``None`` starts on the
             reference, r(0) (for a Cartesian motion: the start pose's IK solution).
         dq0: Initial joint velocities [rad/s] (paper: 0).
+        state_bound: The run stops as diverged (``complete = False``, CLI exit 1) at the
+            first control period after which any |q| [rad] or |q̇| [rad/s] of the plant
+            exceeds it (default 1e3).
     """
 
     duration: float = 10.0
     q0: np.ndarray | None = None
     dq0: np.ndarray = 0.0
+    state_bound: float = 1e3
 
     def __post_init__(self):
         _set(self, "duration", _float("duration", self.duration, positive=True))
         if self.q0 is not None:
             _set(self, "q0", _array("q0", self.q0))
         _set(self, "dq0", _array("dq0", self.dq0))
+        _set(self, "state_bound", _float("state_bound", self.state_bound, positive=True))
+
+
+def _range(key: str, value) -> np.ndarray:
+    """A factor range ``[low, high]`` with 0 < low <= high (``[1, 1]`` switches it off)."""
+    arr = _array(key, value, positive=True)
+    if arr.shape != (2,) or arr[0] > arr[1]:
+        raise ConfigError(key, f"expected [low, high] with 0 < low <= high, got {arr.tolist()}")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class SweepConfig:
+    """Monte Carlo robustness sweep (``hmpc-pin sweep``): what is drawn per sample.
+
+    Every factor is drawn independently from a uniform distribution ``U(low, high)``;
+    ``[1.0, 1.0]`` switches a perturbation off. Only the *plant* is perturbed: the
+    controller keeps the nominal model (it does not know the mismatch).
+
+    Attributes:
+        mass: Factor range on each plant link's mass and rotational inertia (one factor
+            per link, centre of mass unchanged: a uniformly denser or lighter link).
+        friction: Factor range per joint on the viscous and Coulomb coefficients
+            (one factor per joint for both).
+        disturbance: Factor range per joint on the Gaussian pulse amplitude.
+        q_noise: Standard deviation of the white noise added to each measured joint
+            angle [rad] (issue 7: 1e-3).
+        dq_noise: Standard deviation of the noise on each measured joint velocity [rad/s]
+            (SPEC §4's prototype: 1e-2; 0 for none).
+        delay: Measurement delay in control periods (the controller at t_k sees the
+            state measured at t_{k-delay}; 0 for none).
+        after: Metrics (RMS, max error) are taken over t >= after [s].
+        error_bound: A run counts as *bounded* when it completes (no divergence, no
+            non-finite value, no solver failure) and its max |q − r| after ``after``
+            stays <= error_bound [rad].
+        rms_target: The pass mark on the worst joint's RMS error after ``after`` [rad]
+            reported in the summary (issue 7: 1e-2).
+        variants: Controller variants run on every sample: ``"ndo"``, ``"no-ndo"`` (the
+            config's controller with its observer on/off) or any controller name of
+            :data:`CONTROLLER_KINDS` (see :data:`hmpc_pin.sweep.VARIANTS`).
+    """
+
+    mass: np.ndarray = field(default_factory=lambda: np.array([0.8, 1.2]))
+    friction: np.ndarray = field(default_factory=lambda: np.array([0.5, 2.0]))
+    disturbance: np.ndarray = field(default_factory=lambda: np.array([0.5, 2.0]))
+    q_noise: float = 1e-3
+    dq_noise: float = 1e-2
+    delay: int = 1
+    after: float = 1.0
+    error_bound: float = 1.0
+    rms_target: float = 1e-2
+    variants: tuple[str, ...] = ("ndo", "no-ndo")
+
+    def __post_init__(self):
+        for name in ("mass", "friction", "disturbance"):
+            _set(self, name, _range(name, getattr(self, name)))
+        _set(self, "q_noise", _float("q_noise", self.q_noise, nonneg=True))
+        _set(self, "dq_noise", _float("dq_noise", self.dq_noise, nonneg=True))
+        _set(self, "delay", _int("delay", self.delay, minimum=0))
+        _set(self, "after", _float("after", self.after, nonneg=True))
+        _set(self, "error_bound", _float("error_bound", self.error_bound, positive=True))
+        _set(self, "rms_target", _float("rms_target", self.rms_target, positive=True))
+        variants = self.variants
+        if (
+            not isinstance(variants, (list, tuple))
+            or not variants
+            or not all(isinstance(v, str) for v in variants)
+            or len(set(variants)) != len(variants)
+        ):
+            raise ConfigError(
+                "variants", f"expected a non-empty list of distinct names, got {variants!r}"
+            )
+        _set(self, "variants", tuple(variants))
 
 
 @dataclass(frozen=True, eq=False)
@@ -682,12 +760,21 @@ class ExperimentConfig:
     reference: ReferenceConfig = field(default_factory=ReferenceConfig)
     disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    sweep: SweepConfig = field(default_factory=SweepConfig)
     source: Path | None = None
 
     def __post_init__(self):
         for name in ("name", "description"):
             if not isinstance(getattr(self, name), str):
                 raise ConfigError(name, f"expected a string, got {getattr(self, name)!r}")
+        Ts, dt = self.controller.Ts, self.plant.dt
+        substeps = round(Ts / dt)
+        if substeps < 1 or abs(substeps * dt - Ts) > 1e-9 * Ts:
+            raise ConfigError(
+                "plant.dt",
+                f"dt={dt:g} does not divide the control period controller.Ts={Ts:g}; "
+                "expected Ts / dt to be a whole number >= 1",
+            )
 
     def vector(self, key: str, n: int) -> np.ndarray:
         """The dotted ``key`` (e.g. ``"simulation.q0"``) broadcast to ``n`` joints.
@@ -781,6 +868,7 @@ def load_config(path: str | Path) -> ExperimentConfig:
         "reference": ReferenceConfig,
         "disturbance": DisturbanceConfig,
         "simulation": SimulationConfig,
+        "sweep": SweepConfig,
     }
     top_allowed = set(sections) | {"name", "description"}
     unknown = sorted(set(raw) - top_allowed)

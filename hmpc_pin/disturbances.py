@@ -16,6 +16,7 @@ __all__ = [
     "CoulombViscousFriction",
     "Disturbance",
     "GaussianPulse",
+    "Periodic",
     "SumDisturbance",
     "ZeroDisturbance",
     "as_disturbance",
@@ -109,6 +110,24 @@ class SumDisturbance(Disturbance):
         for term in terms[1:]:
             total += term(t, q, dq)
         return total
+
+
+class Periodic(Disturbance):
+    """A disturbance repeated every ``period`` seconds: :math:`d(t \\bmod T, q, \\dot q)`.
+
+    Used by long runs (``benchmarks/long_run.py``) so that the paper's pulses, which
+    happen once in the first seconds, come back every minute. State-dependent terms
+    (friction) are unchanged by the wrapping.
+    """
+
+    def __init__(self, disturbance: DisturbanceFn, period: float):
+        if not (np.isfinite(period) and period > 0):
+            raise ValueError(f"period must be a finite number > 0, got {period!r}")
+        self.disturbance = disturbance
+        self.period = float(period)
+
+    def __call__(self, t, q, dq):
+        return self.disturbance(t % self.period, q, dq)
 
 
 class _Callable(Disturbance):

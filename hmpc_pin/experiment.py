@@ -174,8 +174,9 @@ class Experiment:
             lower, upper, _ = limits
             for i in np.flatnonzero((q0 < lower - 1e-9) | (q0 > upper + 1e-9)):
                 raise LimitError(
-                    "initial position", robot.joint_names[i], None, q0[i], lower[i], upper[i]
-                )
+                    "initial position (simulation.q0)", robot.joint_names[i], None, q0[i],
+                    lower[i], upper[i],
+                )  # fmt: skip
             cc = config.controller
             times = cc.Ts * np.arange(round(config.simulation.duration / cc.Ts) + cc.N + 1)
             check_limits(reference, lower, upper, times, robot.joint_names)
@@ -220,6 +221,7 @@ class Experiment:
             dt=cfg.plant.dt,
             integrator=cfg.plant.integrator,
             effort_limit=self.effort_limit,
+            state_bound=cfg.simulation.state_bound,
             on_step=on_step,
             meta={
                 "experiment": cfg.name,
@@ -236,6 +238,7 @@ class Experiment:
                 "Ts": cfg.controller.Ts,
                 "N": cfg.controller.N,
                 "Nc": cfg.controller.Nc,
+                "state_bound": cfg.simulation.state_bound,
             },
         )
 

@@ -197,6 +197,24 @@ class Robot:
         """Return a robot with a copy of the model and its own fresh data."""
         return Robot(self.model.copy(), self.source, self.locked_joints)
 
+    def with_scaled_inertias(self, factors) -> Robot:
+        """A copy whose link ``i`` has its mass and rotational inertia multiplied by
+        ``factors[i]`` (centre of mass unchanged), for plant/model mismatch.
+
+        ``factors`` has one entry per joint's body, in coordinate order (``model.inertias[1:]``,
+        each the body moved by that joint with any fixed or locked links merged into it).
+        """
+        model = self.model.copy()
+        k = np.asarray(factors, dtype=float)
+        if k.shape != (model.njoints - 1,) or not np.all(np.isfinite(k)) or np.any(k <= 0):
+            raise DimensionError(
+                f"inertia factors must be {model.njoints - 1} finite numbers > 0, got {k!r}"
+            )
+        for i, ki in enumerate(k, start=1):
+            old = model.inertias[i]
+            model.inertias[i] = pin.Inertia(ki * old.mass, old.lever.copy(), ki * old.inertia)
+        return Robot(model, self.source, self.locked_joints)
+
     # ------------------------------------------------------------------ checks
     def check_vector(self, name: str, value, *, finite: bool = True) -> np.ndarray:
         """Convert ``value`` to a float array of shape (n,), or raise a clear error."""

@@ -13,6 +13,8 @@ with the disturbance evaluated at every plant step (and every RK4 stage).
 from __future__ import annotations
 
 import json
+import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,7 +22,14 @@ import numpy as np
 import pinocchio as pin
 
 from .disturbances import ZeroDisturbance
-from .exceptions import HmpcError, NonFiniteError, SimulationError
+from .exceptions import (
+    ConfigError,
+    DimensionError,
+    HmpcError,
+    NonFiniteError,
+    OutputError,
+    SimulationError,
+)
 from .robot import Robot
 
 __all__ = ["Result", "simulate"]
@@ -69,17 +78,38 @@ class Result:
         return self.d - self.d_hat
 
     def save(self, path: str | Path) -> Path:
-        """Write the arrays, joint names, completeness flag and metadata to ``.npz``."""
+        """Write the arrays, joint names, completeness flag and metadata to ``.npz``.
+
+        The file is byte-for-byte reproducible (fixed zip timestamps, sorted JSON), so
+        the same run saves the same bytes, and it is written to ``<path>.part`` first
+        and renamed: no half-written file is ever left under the final name.
+        """
         path = Path(path)
-        np.savez(
-            path,
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        arrays = {
             **{name: getattr(self, name) for name in RESULT_ARRAYS},
-            joint_names=np.array(self.joint_names, dtype=str),
-            complete=np.array(self.complete),
-            message=np.array(self.message),
-            meta=np.array(json.dumps(self.meta)),
-        )
-        return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+            "joint_names": np.array(self.joint_names, dtype=str),
+            "complete": np.array(self.complete),
+            "message": np.array(self.message),
+            "meta": np.array(json.dumps(self.meta, sort_keys=True)),
+        }
+        part = path.with_name(path.name + ".part")
+        try:
+            if not path.parent.is_dir():
+                raise OutputError(path.parent, "no such directory")
+            with zipfile.ZipFile(part, "w", compression=zipfile.ZIP_STORED) as zf:
+                for name, arr in arrays.items():
+                    info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                    with zf.open(info, "w", force_zip64=True) as f:
+                        np.lib.format.write_array(f, np.asanyarray(arr), allow_pickle=False)
+            os.replace(part, path)
+        except OSError as exc:
+            raise OutputError(path.parent, exc.strerror or str(exc)) from exc
+        finally:
+            if part.exists():
+                part.unlink()
+        return path
 
     @classmethod
     def load(cls, path: str | Path) -> Result:
@@ -146,13 +176,17 @@ def simulate(
     dq = robot.check_vector("dq0", np.zeros(n) if dq0 is None else dq0).copy()
     plant = plant if plant is not None else robot.copy()
     if plant.nq != n:
-        raise ValueError(f"{plant.nq=} but {robot.nq=}; the plant must have the same joints")
+        raise DimensionError(f"{plant.nq=} but {robot.nq=}; the plant must have the same joints")
     Ts = float(controller.Ts)
     substeps = round(Ts / dt)
     if substeps < 1 or abs(substeps * dt - Ts) > 1e-9 * Ts:
-        raise ValueError(f"plant dt={dt} does not divide the control period Ts={Ts}")
+        raise ConfigError("dt", f"plant dt={dt} does not divide the control period Ts={Ts}")
     if integrator not in ("rk4", "euler"):
-        raise ValueError(f"integrator={integrator!r}; expected 'rk4' or 'euler'")
+        raise ConfigError("integrator", f"integrator={integrator!r}; expected 'rk4' or 'euler'")
+    # Boundary check of the reference (once, before the loop): wrong shape or non-finite
+    # at t = 0 is bad input, not a failure of the run.
+    for name, value in zip(("q_ref", "dq_ref"), reference.sample(0.0), strict=True):
+        robot.check_vector(f"reference.sample(0) {name}", value)
     h = Ts / substeps
     K = round(duration / Ts)
     dist = disturbance if disturbance is not None else ZeroDisturbance(n)
@@ -242,7 +276,13 @@ def simulate(
             "max_excess": sat_excess.tolist(),
         }
     if cause is not None:
+        # k is the control step during which the fault was detected (in the controller,
+        # in the torque check or in the plant integration over [t_k, t_k + Ts)).
+        result.meta["failed_step"] = int(k)
+        result.meta["failed_at"] = float(t_arr[k])
         raise SimulationError(
-            f"simulation stopped after {m} of {K + 1} steps: {message}", result
+            f"simulation stopped in step {k} (t={t_arr[k]:.6g} s), {m} of {K + 1} samples "
+            f"kept: {message}",
+            result,
         ) from cause
     return result

@@ -17,3 +17,18 @@ def test_quick_benchmark_writes_its_report(tmp_path, monkeypatch):
     text = out.read_text()
     for heading in ("## Machine and versions", "## Targets", "## Controller step"):
         assert heading in text
+
+
+@pytest.mark.slow
+def test_long_run_is_stationary_over_three_minutes():
+    """The shortened long run (benchmarks/long_run.py): each minute's RMS error within
+    10 % of the first minute's (issue 7), disturbance repeated every minute."""
+    import numpy as np
+
+    from benchmarks.long_run import deviation, format_table, long_run
+
+    run = long_run(minutes=3)
+    assert run["complete"], run["message"]
+    assert run["rms"].shape == (3, 3) and np.all(run["rms"] > 0)
+    assert np.all(deviation(run["rms"]) <= 0.10), format_table(run)
+    assert "PASS" in format_table(run)

@@ -75,7 +75,9 @@ def planar3_upper():
 
 def test_initial_state_outside_limits_is_refused(write_config):
     path = write_config('[robot]\nurdf = "@URDF@"\n[simulation]\nq0 = [0.0, 1.7, 0.0]\n')
-    with pytest.raises(LimitError, match=r"initial position of joint 'joint2' is 1\.7"):
+    with pytest.raises(
+        LimitError, match=r"initial position \(simulation\.q0\) of joint 'joint2' is 1\.7"
+    ):
         Experiment.from_config(load_config(path))
 
 

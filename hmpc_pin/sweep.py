@@ -1,0 +1,380 @@
+"""Monte Carlo robustness sweep: many perturbed runs of one experiment, summarised.
+
+For each of K samples, plant perturbations are drawn from the ``[sweep]`` table of the
+config (:class:`~hmpc_pin.config.SweepConfig`): link mass and inertia factors (plant
+model only), friction and disturbance amplitude factors, a noise seed. Each sample is
+run once per controller *variant* (today ``"ndo"`` and ``"no-ndo"``; see
+:data:`VARIANTS`), with the same draws and the same noise sequence for every variant
+(common random numbers), and summarised as: fraction of runs bounded, median and
+95th-percentile RMS tracking error, worst case.
+
+Reproducibility: sample ``i`` draws from ``np.random.SeedSequence(seed).spawn(K)[i]``,
+and every run is a pure function of ``(config, params, variant)``
+(:func:`run_sample`), so the table is bit-identical whatever the number of jobs, the
+executor or the order in which runs finish.
+
+Executors: ``"local"`` (:class:`concurrent.futures.ProcessPoolExecutor`, ``jobs``
+processes; ``jobs = 1`` runs in this process) and ``"dask"``
+(``dask.distributed``: an existing scheduler address, or a local cluster of ``jobs``
+worker processes; optional extra ``hmpc_pin[cluster]``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import multiprocessing
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from .config import CONTROLLER_KINDS, ExperimentConfig
+from .exceptions import ConfigError, SimulationError
+from .experiment import Experiment
+from .measurement import MeasuredController
+
+__all__ = [
+    "VARIANTS",
+    "SampleParams",
+    "SweepResult",
+    "draw_samples",
+    "run_sample",
+    "run_sweep",
+]
+
+
+def _ndo(config: ExperimentConfig) -> Experiment:
+    return Experiment.from_config(config, observer=True)
+
+
+def _no_ndo(config: ExperimentConfig) -> Experiment:
+    return Experiment.from_config(config, observer=False)
+
+
+def _controller_kind(config: ExperimentConfig, kind: str) -> Experiment:
+    return Experiment.from_config(config, controller=kind)
+
+
+#: Controller variants a sweep can run: name → builder of the (unperturbed) experiment
+#: from a config. Add an entry to sweep another controller (it must return an
+#: :class:`~hmpc_pin.Experiment` whose ``controller`` has the duck-typed interface of
+#: :func:`~hmpc_pin.simulate.simulate`).
+#: Besides ``ndo``/``no-ndo`` (the config's controller with the observer on/off), every
+#: controller name of :data:`~hmpc_pin.config.CONTROLLER_KINDS` is a variant.
+VARIANTS: dict[str, Callable[[ExperimentConfig], Experiment]] = {
+    "ndo": _ndo,
+    "no-ndo": _no_ndo,
+    **{kind: partial(_controller_kind, kind=kind) for kind in CONTROLLER_KINDS},
+}
+
+EXECUTORS = ("local", "dask")
+
+
+@dataclass(frozen=True)
+class SampleParams:
+    """The draws of one sample (factors are multipliers of the config's nominal values).
+
+    Attributes:
+        index: Sample number, 0..K-1.
+        mass: Per plant link, factor on its mass and rotational inertia.
+        friction: Per joint, factor on the viscous and Coulomb friction coefficients.
+        disturbance: Per joint, factor on the Gaussian pulse amplitude.
+        noise_seed: Seed of the measurement-noise generator of this sample.
+    """
+
+    index: int
+    mass: tuple[float, ...]
+    friction: tuple[float, ...]
+    disturbance: tuple[float, ...]
+    noise_seed: int
+
+
+def draw_samples(config: ExperimentConfig, samples: int, seed: int) -> list[SampleParams]:
+    """Draw ``samples`` parameter sets; sample ``i`` uses ``SeedSequence(seed).spawn(samples)[i]``.
+
+    Every sample draws the same number of values in the same order (a range ``[1, 1]``
+    draws exactly 1.0), so sample ``i`` does not depend on ``samples``.
+    """
+    n = config.robot.load().nq
+    sc = config.sweep
+    out = []
+    for i, child in enumerate(np.random.SeedSequence(seed).spawn(samples)):
+        rng = np.random.default_rng(child)
+        mass = rng.uniform(sc.mass[0], sc.mass[1], n)
+        friction = rng.uniform(sc.friction[0], sc.friction[1], n)
+        disturbance = rng.uniform(sc.disturbance[0], sc.disturbance[1], n)
+        noise_seed = int(rng.integers(0, 2**63 - 1))
+        out.append(
+            SampleParams(
+                i,
+                tuple(map(float, mass)),
+                tuple(map(float, friction)),
+                tuple(map(float, disturbance)),
+                noise_seed,
+            )
+        )
+    return out
+
+
+def perturbed_config(config: ExperimentConfig, params: SampleParams) -> ExperimentConfig:
+    """``config`` with the friction and pulse amplitudes of ``params`` applied."""
+    dc = config.disturbance
+    friction, pulse = dc.friction, dc.pulse
+    if friction is not None:
+        k = np.array(params.friction)
+        friction = replace(friction, viscous=k * friction.viscous, coulomb=k * friction.coulomb)
+    if pulse is not None:
+        pulse = replace(pulse, amplitude=np.array(params.disturbance) * pulse.amplitude)
+    return replace(config, disturbance=replace(dc, friction=friction, pulse=pulse))
+
+
+def _check_variant(config: ExperimentConfig, variant: str) -> None:
+    if variant not in VARIANTS:
+        raise ConfigError(
+            "sweep.variants",
+            f"unknown variant {variant!r}; known variants are {sorted(VARIANTS)}",
+            source=str(config.source) if config.source else None,
+        )
+
+
+def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> dict:
+    """Run one perturbed sample with one controller variant; return its table row.
+
+    The plant's links are scaled by ``params.mass`` (the controller keeps the nominal
+    model), friction and pulse amplitudes by ``params.friction`` / ``params.disturbance``,
+    and the controller sees the state through :class:`~hmpc_pin.measurement.MeasuredController`
+    (noise and delay of ``config.sweep``, noise seeded by ``params.noise_seed``).
+
+    Returns:
+        A dict (one CSV row): the draws, ``complete``, ``bounded``, ``t_end``, RMS error
+        after ``sweep.after`` per joint and its max over joints (``rms_max``), ``max_error``
+        and the failure ``message`` ("" if the run completed). A run that stops early
+        (divergence, non-finite state, solver failure) is a row with ``complete=False``,
+        not an exception.
+    """
+    _check_variant(config, variant)
+    sc = config.sweep
+    experiment = VARIANTS[variant](perturbed_config(config, params))
+    experiment.plant = experiment.plant.with_scaled_inertias(params.mass)
+    experiment.controller = MeasuredController(
+        experiment.controller,
+        q_noise=sc.q_noise,
+        dq_noise=sc.dq_noise,
+        delay=sc.delay,
+        rng=np.random.default_rng(params.noise_seed),
+    )
+    try:
+        result = experiment.run()
+    except SimulationError as exc:
+        if exc.result is None:
+            raise
+        result = exc.result
+    names = experiment.robot.joint_names
+    e = result.error[result.t >= sc.after - 1e-12]
+    if len(e):
+        rms = np.sqrt(np.mean(e * e, axis=0))
+        max_error = float(np.abs(e).max())
+    else:
+        rms, max_error = np.full(len(names), np.nan), math.nan
+    bounded = bool(result.complete and max_error <= sc.error_bound)
+    row = {"sample": params.index, "variant": variant, "noise_seed": params.noise_seed}
+    row.update({f"mass_{i + 1}": v for i, v in enumerate(params.mass)})
+    row.update({f"friction_{j}": v for j, v in zip(names, params.friction, strict=True)})
+    row.update({f"disturbance_{j}": v for j, v in zip(names, params.disturbance, strict=True)})
+    row.update(complete=bool(result.complete), bounded=bounded, t_end=float(result.t[-1]))
+    row.update({f"rms_{j}": float(v) for j, v in zip(names, rms, strict=True)})
+    row.update(rms_max=float(np.max(rms)), max_error=max_error, message=result.message)
+    return row
+
+
+@dataclass
+class SweepResult:
+    """Rows of a sweep (sorted by sample, then variant in config order) and its settings."""
+
+    config: ExperimentConfig
+    samples: int
+    seed: int
+    rows: list[dict]
+    wall_time: float = math.nan
+    jobs: int = 1
+    executor: str = "local"
+
+    def variant_rows(self, variant: str) -> list[dict]:
+        """The rows of one variant."""
+        return [r for r in self.rows if r["variant"] == variant]
+
+    def summary(self) -> dict[str, dict]:
+        """Per variant: runs, fraction bounded, fraction bounded with RMS <= target,
+        median / 95th-percentile / worst RMS (worst joint, runs not bounded count as inf;
+        empirical quantiles, no interpolation), and the worst sample."""
+        target = self.config.sweep.rms_target
+        out = {}
+        for variant in self.config.sweep.variants:
+            rows = self.variant_rows(variant)
+            if not rows:
+                continue
+            rms = np.array([r["rms_max"] if r["bounded"] else math.inf for r in rows])
+            worst = int(np.argmax(rms))
+            q50, q95 = np.quantile(rms, [0.5, 0.95], method="inverted_cdf")
+            out[variant] = {
+                "runs": len(rows),
+                "bounded": float(np.mean([r["bounded"] for r in rows])),
+                "pass": float(np.mean(rms <= target)),
+                "median_rms": float(q50),
+                "p95_rms": float(q95),
+                "worst_rms": float(rms[worst]),
+                "worst_sample": rows[worst]["sample"],
+                "worst_max_error": rows[worst]["max_error"],
+                "worst_message": rows[worst]["message"],
+            }
+        return out
+
+    def csv_text(self) -> str:
+        """The table as CSV text (floats written with ``repr``: exact round trip)."""
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=list(self.rows[0]), lineterminator="\n")
+        writer.writeheader()
+        for row in self.rows:
+            writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in row.items()})
+        return buf.getvalue()
+
+    def summary_markdown(self) -> str:
+        """The summary as a Markdown section (settings, one table row per variant)."""
+        cfg, sc = self.config, self.config.sweep
+        lines = [
+            f"# Sweep of {cfg.name}: {self.samples} samples, seed {self.seed}",
+            "",
+            f"Config `{cfg.source}`; plant link mass and inertia ×U({sc.mass[0]:g}, "
+            f"{sc.mass[1]:g}), friction ×U({sc.friction[0]:g}, {sc.friction[1]:g}), pulse "
+            f"amplitude ×U({sc.disturbance[0]:g}, {sc.disturbance[1]:g}) per joint; noise "
+            f"σ_q = {sc.q_noise:g} rad, σ_q̇ = {sc.dq_noise:g} rad/s; delay {sc.delay} "
+            f"period(s); {cfg.simulation.duration:g} s per run. RMS and max error over "
+            f"t ≥ {sc.after:g} s, worst joint. Bounded: completed and max |e| ≤ "
+            f"{sc.error_bound:g} rad.",
+            "",
+            f"| variant | runs | bounded | bounded and RMS ≤ {sc.rms_target:g} | median RMS "
+            "[rad] | p95 RMS [rad] | worst RMS [rad] (sample) | worst max \\|e\\| [rad] |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for variant, s in self.summary().items():
+            lines.append(
+                f"| {variant} | {s['runs']} | {100 * s['bounded']:.1f} % | "
+                f"{100 * s['pass']:.1f} % | {s['median_rms']:.3e} | {s['p95_rms']:.3e} | "
+                f"{s['worst_rms']:.3e} ({s['worst_sample']}) | {s['worst_max_error']:.3e} |"
+            )
+        lines += [
+            "",
+            f"Wall time {self.wall_time:.1f} s ({self.executor} executor, {self.jobs} jobs).",
+        ]
+        return "\n".join(lines) + "\n"
+
+    def write(self, out: Path) -> tuple[Path, Path]:
+        """Write ``<name>_sweep.csv`` and ``<name>_sweep.md`` to ``out`` (each written to a
+        ``.part`` file first and renamed, so no partial table is left behind)."""
+        paths = []
+        for suffix, text in (("csv", self.csv_text()), ("md", self.summary_markdown())):
+            path = Path(out) / f"{self.config.name}_sweep.{suffix}"
+            part = path.with_name(path.name + ".part")
+            part.write_text(text, encoding="utf-8")
+            os.replace(part, path)
+            paths.append(path)
+        return paths[0], paths[1]
+
+
+def _dask_client(jobs: int, scheduler: str | None):
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise ConfigError(
+            "--executor",
+            "dask needs the optional dependency dask.distributed; install it with "
+            "`pip install 'hmpc_pin[cluster]'` or use --executor local",
+        ) from exc
+    if scheduler:
+        return Client(scheduler), None
+    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
+    return Client(cluster), cluster
+
+
+def run_sweep(
+    config: ExperimentConfig,
+    samples: int,
+    seed: int = 0,
+    *,
+    jobs: int = 1,
+    executor: str = "local",
+    scheduler: str | None = None,
+    progress: bool = True,
+) -> SweepResult:
+    """Run ``samples`` perturbed samples × ``config.sweep.variants``; return the table.
+
+    Args:
+        config: The experiment (its ``[sweep]`` table gives the distributions).
+        samples: Number of samples K >= 1.
+        seed: Root seed (an integer >= 0).
+        jobs: Worker processes (``"local"``; 1 runs in this process) or local Dask workers.
+        executor: ``"local"`` or ``"dask"``.
+        scheduler: With ``"dask"``, the address of a running scheduler
+            (``"tcp://host:8786"``); ``None`` starts a local cluster of ``jobs`` processes.
+        progress: Show a tqdm progress bar (on stderr).
+
+    Raises:
+        ConfigError: Bad ``samples``/``seed``/``jobs``/``executor``, an unknown variant, or
+            ``"dask"`` without dask installed.
+    """
+    for key, value, low in (("--samples", samples, 1), ("--seed", seed, 0), ("--jobs", jobs, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ConfigError(key, f"expected an integer >= {low}, got {value!r}")
+    if executor not in EXECUTORS:
+        raise ConfigError("--executor", f"expected one of {EXECUTORS}, got {executor!r}")
+    for variant in config.sweep.variants:
+        _check_variant(config, variant)
+    Experiment.from_config(config)  # bad input fails here, once, not in every worker
+    params = draw_samples(config, samples, seed)
+    tasks = [(p, v) for p in params for v in config.sweep.variants]
+
+    from tqdm import tqdm
+
+    start = time.perf_counter()
+    rows: dict[tuple[int, str], dict] = {}
+    bar = tqdm(total=len(tasks), desc=f"sweep {config.name}", unit="run", disable=not progress)
+    try:
+        if executor == "local" and jobs == 1:
+            for p, v in tasks:
+                rows[p.index, v] = run_sample(config, p, v)
+                bar.update()
+        elif executor == "local":
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            ctx = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+                futures = {pool.submit(run_sample, config, p, v): (p.index, v) for p, v in tasks}
+                for future in as_completed(futures):
+                    rows[futures[future]] = future.result()
+                    bar.update()
+        else:
+            client, cluster = _dask_client(jobs, scheduler)
+            try:
+                from dask.distributed import as_completed
+
+                futures = {
+                    client.submit(run_sample, config, p, v, pure=False): (p.index, v)
+                    for p, v in tasks
+                }
+                for future in as_completed(list(futures)):
+                    rows[futures[future]] = future.result()
+                    bar.update()
+            finally:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+    finally:
+        bar.close()
+    ordered = [rows[p.index, v] for p, v in tasks]
+    return SweepResult(config, samples, seed, ordered, time.perf_counter() - start, jobs, executor)

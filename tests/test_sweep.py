@@ -1,0 +1,206 @@
+"""Determinism (issue 7, item 3) and the Monte Carlo sweep (item 4)."""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.cli import main
+from hmpc_pin.measurement import MeasuredController
+from hmpc_pin.sweep import draw_samples, run_sample, run_sweep
+
+from .conftest import CONFIGS
+
+COMBINED = CONFIGS / "paper_combined.toml"
+
+
+@pytest.fixture(scope="module")
+def short_config():
+    """The default sweep of the paper's combined scenario, 1.5 s per run."""
+    cfg = hmpc_pin.load_config(COMBINED)
+    return replace(cfg, simulation=replace(cfg.simulation, duration=1.5))
+
+
+# ------------------------------------------------------------------- determinism
+def test_same_config_saves_bit_identical_files(tmp_path):
+    files = []
+    for run in ("a", "b"):
+        out = tmp_path / run
+        assert main(["run", str(COMBINED), "--out", str(out), "--duration", "1.2"]) == 0
+        files.append({p.name: p.read_bytes() for p in out.glob("paper_combined.*")})
+    assert set(files[0]) == {"paper_combined.npz", "paper_combined.csv"}
+    assert files[0] == files[1]
+
+
+@pytest.fixture(scope="module")
+def local_serial(short_config):
+    return run_sweep(short_config, 3, seed=7, jobs=1, progress=False)
+
+
+def test_sweep_is_identical_with_one_or_two_jobs(short_config, local_serial):
+    parallel = run_sweep(short_config, 3, seed=7, jobs=2, progress=False)
+    assert parallel.csv_text() == local_serial.csv_text()
+
+
+def test_dask_executor_on_a_local_cluster_matches_local(short_config, local_serial):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        result = run_sweep(
+            short_config, 3, seed=7, executor="dask", scheduler=cluster.scheduler_address,
+            progress=False,
+        )  # fmt: skip
+    assert result.csv_text() == local_serial.csv_text()
+
+
+def test_sample_draws_do_not_depend_on_the_sample_count(short_config):
+    assert draw_samples(short_config, 5, seed=3)[:2] == draw_samples(short_config, 2, seed=3)
+    assert draw_samples(short_config, 2, seed=3) != draw_samples(short_config, 2, seed=4)
+
+
+# ------------------------------------------------------------------------- sweep
+def test_sweep_rows_and_summary(local_serial, short_config):
+    rows = local_serial.rows
+    assert [(r["sample"], r["variant"]) for r in rows] == [
+        (i, v) for i in range(3) for v in ("ndo", "no-ndo")
+    ]
+    sc = short_config.sweep
+    for r in rows:
+        for key in ("mass_1", "mass_2", "mass_3"):
+            assert sc.mass[0] <= r[key] <= sc.mass[1]
+        for j in ("joint1", "joint2", "joint3"):
+            assert sc.friction[0] <= r[f"friction_{j}"] <= sc.friction[1]
+            assert sc.disturbance[0] <= r[f"disturbance_{j}"] <= sc.disturbance[1]
+        assert r["complete"] and r["bounded"] and r["t_end"] == pytest.approx(1.5)
+        assert r["rms_max"] == max(r[f"rms_joint{i}"] for i in (1, 2, 3))
+    # the same draws for both variants of a sample (common random numbers)
+    for ndo, no in zip(rows[0::2], rows[1::2], strict=True):
+        assert {
+            k: v for k, v in ndo.items() if k.startswith(("mass", "fric", "dist", "noise"))
+        } == {k: v for k, v in no.items() if k.startswith(("mass", "fric", "dist", "noise"))}
+    s = local_serial.summary()
+    assert s["ndo"]["bounded"] == 1.0 and s["ndo"]["median_rms"] < 1e-2
+    assert s["no-ndo"]["median_rms"] > 3 * s["ndo"]["median_rms"]  # the NDO matters
+    md = local_serial.summary_markdown()
+    assert "| ndo | 3 | 100.0 % |" in md and "| no-ndo | 3 |" in md
+
+
+def test_run_sample_perturbs_the_plant_only(short_config):
+    """A sample with every factor 1 and no noise or delay is the nominal run."""
+    cfg = replace(
+        short_config, sweep=replace(short_config.sweep, q_noise=0.0, dq_noise=0.0, delay=0)
+    )
+    params = draw_samples(cfg, 1, seed=0)[0]
+    ones = replace(params, mass=(1.0,) * 3, friction=(1.0,) * 3, disturbance=(1.0,) * 3)
+    nominal = hmpc_pin.compute_metrics(hmpc_pin.run_experiment(cfg, observer=True))
+    row = run_sample(cfg, ones, "ndo")
+    np.testing.assert_array_equal([row[f"rms_joint{i}"] for i in (1, 2, 3)], nominal.rms_error)
+    heavier = run_sample(cfg, replace(ones, mass=(1.2,) * 3), "ndo")
+    assert heavier["rms_max"] != row["rms_max"]
+
+
+def test_cli_sweep_writes_csv_and_summary(tmp_path, capsys):
+    out = tmp_path / "sw"
+    argv = ["sweep", str(COMBINED), "--samples", "2", "--seed", "1", "--jobs", "1"]
+    assert main([*argv, "--duration", "1.2", "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "| ndo | 2 |" in printed and "paper_combined_sweep.csv" in printed
+    with open(out / "paper_combined_sweep.csv", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 4 and rows[0]["variant"] == "ndo" and rows[1]["variant"] == "no-ndo"
+    assert (out / "paper_combined_sweep.md").read_text().startswith("# Sweep of paper_combined")
+    assert not list(out.glob("*.part"))
+
+
+def test_csv_floats_round_trip_exactly(local_serial):
+    rows = list(csv.DictReader(io.StringIO(local_serial.csv_text())))
+    assert [float(r["rms_max"]) for r in rows] == [r["rms_max"] for r in local_serial.rows]
+
+
+# ---------------------------------------------------------------- measurement model
+class Recorder:
+    """A stand-in controller recording what it is given (duck-typed interface)."""
+
+    Ts = 0.01
+    disturbance_estimate = np.zeros(2)
+
+    def reset(self, q0, dq0):
+        self.seen = [("reset", q0.copy(), dq0.copy())]
+
+    def step(self, t, q, dq, reference):
+        self.seen.append((t, q.copy(), dq.copy()))
+        return np.zeros(2)
+
+
+def test_one_step_delay_and_noise():
+    rec = Recorder()
+    ctrl = MeasuredController(rec, q_noise=1e-3, dq_noise=0.0, delay=1,
+                              rng=np.random.default_rng(0))  # fmt: skip
+    states = [np.array([k, -k], float) for k in range(4)]
+    ctrl.reset(states[0], np.zeros(2))
+    for k, q in enumerate(states):
+        ctrl.step(0.01 * k, q, np.zeros(2), None)
+    seen_q = [s[1] for s in rec.seen[1:]]
+    # step 0 and 1 see the state of step 0; step k sees step k-1
+    for k, q in enumerate(seen_q):
+        np.testing.assert_allclose(q, states[max(k - 1, 0)], atol=5e-3)
+        assert not np.array_equal(q, states[max(k - 1, 0)])  # noisy
+    np.testing.assert_array_equal(seen_q[0], seen_q[1])  # the same measurement, not redrawn
+    assert all(np.array_equal(s[2], np.zeros(2)) for s in rec.seen)  # σ_q̇ = 0
+    assert ctrl.Ts == 0.01 and ctrl.disturbance_estimate is rec.disturbance_estimate
+
+
+def test_noise_level_matches_sigma():
+    rec = Recorder()
+    ctrl = MeasuredController(rec, q_noise=1e-3, dq_noise=1e-2, rng=np.random.default_rng(5))
+    ctrl.reset(np.zeros(2), np.zeros(2))
+    for k in range(4000):
+        ctrl.step(0.01 * k, np.zeros(2), np.zeros(2), None)
+    q = np.array([s[1] for s in rec.seen[1:]])
+    dq = np.array([s[2] for s in rec.seen[1:]])
+    assert q.std() == pytest.approx(1e-3, rel=0.05) and dq.std() == pytest.approx(1e-2, rel=0.05)
+
+
+def test_scaled_inertias_scale_the_dynamics(planar3, make_rng):
+    q = make_rng(2).uniform(-1, 1, 3)
+    k = np.array([0.8, 1.0, 1.2])
+    scaled = planar3.with_scaled_inertias(k)
+    # link 3 alone: its mass scales the last diagonal term of M by its factor
+    single = planar3.with_scaled_inertias([1.0, 1.0, 1.2])
+    assert single.mass_matrix(q)[2, 2] == pytest.approx(1.2 * planar3.mass_matrix(q)[2, 2])
+    uniform = planar3.with_scaled_inertias([1.1] * 3)
+    np.testing.assert_allclose(uniform.mass_matrix(q), 1.1 * planar3.mass_matrix(q), rtol=1e-12)
+    np.testing.assert_allclose(uniform.gravity_torque(q), 1.1 * planar3.gravity_torque(q))
+    assert scaled.model is not planar3.model  # a copy: the original is untouched
+    assert planar3.model.inertias[1].mass == 1.5
+    with pytest.raises(hmpc_pin.DimensionError):
+        planar3.with_scaled_inertias([1.0, 1.0])
+
+
+def test_sweep_per_controller_shares_draws_and_matches_the_named_variants(tmp_path, capsys):
+    """Issue 8, item 4: `--controllers` sweeps controller kinds on the same perturbed
+    plants; `hmpc`/`hmpc-none` on the paper config are the `ndo`/`no-ndo` variants."""
+    out = tmp_path / "swc"
+    argv = ["sweep", str(COMBINED), "--samples", "2", "--seed", "3", "--jobs", "1", "--quiet",
+            "--duration", "1.5", "--out", str(out),
+            "--controllers", "hmpc,hmpc-none,hmpc-ism-bl,computed-torque"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    for kind in ("hmpc", "hmpc-none", "hmpc-ism-bl", "computed-torque"):
+        assert f"| {kind} | 2 |" in printed
+    with open(out / "paper_combined_sweep.csv", encoding="utf-8") as f:
+        rows = {(r["sample"], r["variant"]): r for r in csv.DictReader(f)}
+    cfg = hmpc_pin.load_config(COMBINED)
+    cfg = replace(cfg, simulation=replace(cfg.simulation, duration=1.5))
+    params = draw_samples(cfg, 2, seed=3)
+    for p in params:
+        for kind, named in (("hmpc", "ndo"), ("hmpc-none", "no-ndo")):
+            row = run_sample(cfg, p, named)
+            assert float(rows[(str(p.index), kind)]["rms_max"]) == row["rms_max"]
+    assert main([*argv[:-1], "hmpc,lqr"]) == 2

@@ -21,6 +21,7 @@ import pinocchio as pin
 
 from .disturbances import ZeroDisturbance
 from .exceptions import HmpcError, NonFiniteError, SimulationError
+from .plant import RK4Plant
 from .robot import Robot
 
 __all__ = ["Result", "simulate"]
@@ -165,6 +166,9 @@ def simulate(
     def acc(t, q, dq, tau):
         return aba(model, data, q, dq, tau + dist(t, q, dq))
 
+    # Classical RK4 over each control period, the disturbance at every stage (plant.py).
+    rk4 = RK4Plant(plant, dist, Ts, substeps) if integrator == "rk4" else None
+
     limit = None if effort_limit is None else robot.check_vector("effort_limit", effort_limit,
                                                                   finite=False)  # fmt: skip
     sat_steps = np.zeros(n, dtype=int)
@@ -198,20 +202,11 @@ def simulate(
                     sat_steps += excess > 0
                     np.maximum(sat_excess, excess, out=sat_excess)
                     tau = np.clip(tau, -limit, limit)
-            for s in range(substeps):
-                ts = t + s * h
-                if integrator == "rk4":
-                    a1 = acc(ts, q, dq, tau)
-                    q2, dq2 = q + 0.5 * h * dq, dq + 0.5 * h * a1
-                    a2 = acc(ts + 0.5 * h, q2, dq2, tau)
-                    q3, dq3 = q + 0.5 * h * dq2, dq + 0.5 * h * a2
-                    a3 = acc(ts + 0.5 * h, q3, dq3, tau)
-                    q4, dq4 = q + h * dq3, dq + h * a3
-                    a4 = acc(ts + h, q4, dq4, tau)
-                    q = q + (h / 6.0) * (dq + 2.0 * dq2 + 2.0 * dq3 + dq4)
-                    dq = dq + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-                else:
-                    dq = dq + h * acc(ts, q, dq, tau)
+            if rk4 is not None:
+                q, dq = rk4.advance(t, q, dq, tau)
+            else:
+                for s in range(substeps):
+                    dq = dq + h * acc(t + s * h, q, dq, tau)
                     q = q + h * dq
             if not (np.isfinite(q).all() and np.isfinite(dq).all()):
                 raise NonFiniteError("plant state", (q, dq), f"at t={t + Ts:.6g}")

@@ -93,12 +93,6 @@ class GaussianPulse(Disturbance):
         x = t - self.center
         return self.amplitude * np.exp(self._k * x * x)
 
-    def sample_many(self, times: np.ndarray) -> np.ndarray:
-        """The pulse at each of ``times`` [s], shape (len(times), n): row k equals
-        ``self(times[k], q, dq)`` for any q, q̇ (it depends on time only)."""
-        x = np.asarray(times, dtype=float)[:, None] - self.center
-        return self.amplitude * np.exp(self._k * x * x)
-
 
 class SumDisturbance(Disturbance):
     """Sum of disturbances, e.g. Eq (34): :math:`d = F_r(\\dot q) + \\tau_d(t)`."""

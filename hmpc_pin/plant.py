@@ -15,15 +15,22 @@ Runge–Kutta (RK4) steps of ``dt``, the disturbance evaluated at every stage:
 This is the simulation's hot loop (40 ABA calls per 10 ms control period at 1 ms),
 written for few Python-level numpy calls, not for a different result:
 
-* One buffer row per stage, ``[q_j | q̇_j | q̈_j]``, so that the stage state
+* One buffer row per stage, ``[q_j | q̇_j | q̈_j | 1]``, so that the stage state
   :math:`[q_j; \\dot q_j]` and the stage derivative :math:`k_j = [\\dot q_j; \\ddot q_j]`
-  are contiguous views and each stage update is one multiply and one add.
+  are contiguous views: each stage update is one multiply and one add, and the final
+  combination one product with the weights ``h/6·(1, 2, 2, 1)``.
 * The paper's disturbances are recognised and evaluated fused: the time-only terms
-  (:class:`~hmpc_pin.disturbances.GaussianPulse`) for every stage time of the period
-  in one vectorised call, added to the held torque once per period; the
+  (:class:`~hmpc_pin.disturbances.GaussianPulse`) at all 3·substeps stage times of
+  the period in a few flat numpy calls, added to the held torque once per period; the
   state-dependent friction (:class:`~hmpc_pin.disturbances.CoulombViscousFriction`)
-  at every stage with four in-place numpy calls. Any other disturbance (a user
-  callable, a subclass) is called as ``d(t, q, dq)`` at every stage, as before.
+  inside one product per stage: with :math:`\\mathrm{sgn}(\\dot q_j)` written where
+  :math:`\\ddot q_j` goes next, the row ends in
+  :math:`e_j = [\\dot q_j; \\mathrm{sgn}(\\dot q_j); 1]` and the ABA torque is
+  :math:`e_j^T W_j`, :math:`W_j = [-\\mathrm{diag}(a); -\\mathrm{diag}(b);
+  (\\tau + d_\\mathrm{pulse}(t_j))^T]`. Any other disturbance (a user callable, a
+  subclass, two friction terms) is called as ``d(t, q, dq)`` at every stage, as before.
+* numpy outputs passed positionally (cheaper than ``out=``), loops over precomputed
+  views: six numpy calls and one ``pin.aba`` per stage.
 
 The results equal the plain loop (``q2 = q + h/2·dq`` …, ``aba(q, dq, tau + d(t, q, dq))``
 per stage) up to floating-point rounding (tested to 1e-12 on the paper scenario).
@@ -90,46 +97,58 @@ class RK4Plant:
         self.h = h = Ts / substeps
         self.substeps = substeps
         self._split = split_disturbance(disturbance, n)
-        # Stage rows [q_j | dq_j | ddq_j]; row 0 holds the current state.
-        self._B = B = np.zeros((4, 3 * n))
+        # Stage rows [q_j | dq_j | ddq_j | 1]; row 0 holds the current state.
+        self._B = B = np.zeros((4, 3 * n + 1))
+        B[:, 3 * n] = 1.0
         self._x = B[0, : 2 * n]
-        self._K = B[:, n:]  # k_j = [dq_j | ddq_j], shape (4, 2n)
-        self._rows = [(B[j, :n], B[j, n : 2 * n], B[j, 2 * n :], B[j, n:]) for j in range(4)]
+        self._K = B[:, n : 3 * n]  # k_j = [dq_j | ddq_j], shape (4, 2n)
+        self._rows = [
+            (B[j, :n], B[j, n : 2 * n], B[j, 2 * n : 3 * n], B[j, n : 3 * n], B[j, n:])
+            for j in range(4)
+        ]
         self._next = [B[j, : 2 * n] for j in range(1, 4)]
         self._c = [np.full(2 * n, c) for c in (0.5 * h, 0.5 * h, h)]
         self._w = (h / 6.0) * np.array([1.0, 2.0, 2.0, 1.0])
         self._tmp = np.empty(2 * n)
         self._dx = np.empty(2 * n)
         self._u = np.empty(n)
-        # Stage times of one period relative to its start: t_s, t_s + h/2, t_s + h per step.
-        s_h = np.arange(substeps) * h
-        self._s_h = s_h
+        # The stage times of a period, t_s = t + s·h, t_s + h/2 and t_s + h for each step s,
+        # as three blocks of one flat array (what the plain loop computes, the same way).
+        S = substeps
+        self._s_h = np.arange(S) * h
         self._half = 0.5 * h
-        self._times = np.empty((substeps, 3))
-        # Held torque plus the time-only terms at the stage times, rows as _times.
-        self._T = np.empty((substeps * 3, n))
-        self._T_rows = list(self._T)
+        self._times = np.empty(3 * S)
+        self._t0, self._tm, self._t1 = self._times[:S], self._times[S : 2 * S], self._times[2 * S :]
+        # Per stage time (rows ordered as _times) the matrix W with [dq | sgn(dq) | 1] @ W =
+        # tau + pulses(t) - (a·dq + b·sgn(dq)): rows -diag(a), -diag(b), and T = tau +
+        # pulses(t), the held torque plus the time-only terms at that stage time.
+        self._W = W = np.zeros((3 * S, 2 * n + 1, n))
+        self._T = W[:, 2 * n, :]
+        self._W_triples = [(W[s], W[S + s], W[2 * S + s]) for s in range(S)]
+        self._T_triples = [(self._T[s], self._T[S + s], self._T[2 * S + s]) for s in range(S)]
         if self._split is not None:
             pulses, friction = self._split
-            self._pulses = pulses
             self._friction = friction
-            if friction is not None:
-                # a·dq + b·sgn(dq) = [dq | sgn(dq)] @ [diag(a); diag(b)]
-                self._Wt = np.vstack(
-                    [
-                        np.diag(np.broadcast_to(friction.viscous, (n,))),
-                        np.diag(np.broadcast_to(friction.coulomb, (n,))),
-                    ]
+            # Each pulse's coefficients tiled over the 3·S stage times: the pulses of a
+            # whole period in a few flat numpy calls.
+            self._pulses = [
+                tuple(
+                    np.tile(np.broadcast_to(c, (n,)), 3 * S)
+                    for c in (p.center, -0.5 / p.sigma**2, p.amplitude)  # as GaussianPulse
                 )
+                for p in pulses
+            ]
+            if friction is not None:
+                W[:, :n, :] = -np.diag(np.broadcast_to(friction.viscous, (n,)))
+                W[:, n : 2 * n, :] = -np.diag(np.broadcast_to(friction.coulomb, (n,)))
 
     def _stage_times(self, t: float) -> np.ndarray:
-        """Stage times of the period starting at ``t``: rows (t_s, t_s + h/2, t_s + h)."""
-        T = self._times
-        ts = T[:, 0]
-        np.add(t, self._s_h, out=ts)
-        np.add(ts, self._half, out=T[:, 1])
-        np.add(ts, self.h, out=T[:, 2])
-        return T
+        """Stage times of the period starting at ``t``: blocks t_s, t_s + h/2, t_s + h."""
+        t0 = self._t0
+        np.add(t, self._s_h, t0)
+        np.add(t0, self._half, self._tm)
+        np.add(t0, self.h, self._t1)
+        return self._times
 
     def advance(
         self, t: float, q: np.ndarray, dq: np.ndarray, tau: np.ndarray
@@ -152,56 +171,66 @@ class RK4Plant:
 
     def _advance_fused(self, times: np.ndarray, tau: np.ndarray) -> None:
         """RK4 with the time-only terms tabulated and the friction fused (module doc)."""
-        T = self._T
-        T[:] = tau
         if self._pulses:
-            tt = times.reshape(-1)
-            for p in self._pulses:
-                T += p.sample_many(tt)
-        rows = self._T_rows
+            # GaussianPulse: amplitude·exp(k·x·x), x = t − center (its own operations)
+            tt = times.repeat(self.n)
+            total = None
+            for center, k, amplitude in self._pulses:
+                x = tt - center
+                y = k * x
+                y *= x
+                np.exp(y, y)
+                y *= amplitude
+                if total is None:
+                    total = y
+                else:
+                    total += y
+            np.add(tau, total.reshape(-1, self.n), self._T)
+        else:
+            self._T[:] = tau
         model, data, aba = self.model, self.data, pin.aba
-        (q0, v0, a0, k0), (q1, v1, a1, k1), (q2, v2, a2, k2), (q3, v3, a3, k3) = self._rows
+        rows = self._rows
+        (q0, v0, a0, k0, e0), (q1, v1, a1, k1, e1) = rows[0], rows[1]
+        (q2, v2, a2, k2, e2), (q3, v3, a3, _, e3) = rows[2], rows[3]
         x1, x2, x3 = self._next
         c1, c2, c3 = self._c
-        x, K, w, tmp, dx, u = self._x, self._K, self._w, self._tmp, self._dx, self._u
-        add, mul, sub, sign, dot = np.add, np.multiply, np.subtract, np.sign, np.dot
+        x, K, w, tmp, dx = self._x, self._K, self._w, self._tmp, self._dx
+        add, mul, sign, dot = np.add, np.multiply, np.sign, np.dot
+        # (outputs passed positionally: a little cheaper than out=, 40 times per period)
         if self._friction is None:
-            for s in range(self.substeps):
-                r0, r1, r2 = rows[3 * s], rows[3 * s + 1], rows[3 * s + 2]
+            for r0, r1, r2 in self._T_triples:
                 a0[:] = aba(model, data, q0, v0, r0)
-                mul(k0, c1, out=tmp)
-                add(x, tmp, out=x1)
+                mul(k0, c1, tmp)
+                add(x, tmp, x1)
                 a1[:] = aba(model, data, q1, v1, r1)
-                mul(k1, c2, out=tmp)
-                add(x, tmp, out=x2)
+                mul(k1, c2, tmp)
+                add(x, tmp, x2)
                 a2[:] = aba(model, data, q2, v2, r1)
-                mul(k2, c3, out=tmp)
-                add(x, tmp, out=x3)
+                mul(k2, c3, tmp)
+                add(x, tmp, x3)
                 a3[:] = aba(model, data, q3, v3, r2)
-                dot(w, K, out=dx)
-                add(x, dx, out=x)
+                dot(w, K, dx)
+                add(x, dx, x)
             return
-        Wt = self._Wt
-        for s in range(self.substeps):
-            r0, r1, r2 = rows[3 * s], rows[3 * s + 1], rows[3 * s + 2]
-            # u = tau + pulses(t) - (a·dq + b·sgn(dq)): sgn(dq_j) is written where ddq_j
-            # goes next, and [dq_j | sgn(dq_j)]·[diag a; diag b] is one product.
-            sign(v0, out=a0)
-            a0[:] = aba(model, data, q0, v0, sub(r0, k0.dot(Wt), out=u))
-            mul(k0, c1, out=tmp)
-            add(x, tmp, out=x1)
-            sign(v1, out=a1)
-            a1[:] = aba(model, data, q1, v1, sub(r1, k1.dot(Wt), out=u))
-            mul(k1, c2, out=tmp)
-            add(x, tmp, out=x2)
-            sign(v2, out=a2)
-            a2[:] = aba(model, data, q2, v2, sub(r1, k2.dot(Wt), out=u))
-            mul(k2, c3, out=tmp)
-            add(x, tmp, out=x3)
-            sign(v3, out=a3)
-            a3[:] = aba(model, data, q3, v3, sub(r2, k3.dot(Wt), out=u))
-            dot(w, K, out=dx)
-            add(x, dx, out=x)
+        for W0, W1, W2 in self._W_triples:
+            # sgn(dq_j) is written where ddq_j goes next, so that the stage row ends in
+            # e_j = [dq_j | sgn(dq_j) | 1] and the torque is one product e_j @ W.
+            sign(v0, a0)
+            a0[:] = aba(model, data, q0, v0, e0.dot(W0))
+            mul(k0, c1, tmp)
+            add(x, tmp, x1)
+            sign(v1, a1)
+            a1[:] = aba(model, data, q1, v1, e1.dot(W1))
+            mul(k1, c2, tmp)
+            add(x, tmp, x2)
+            sign(v2, a2)
+            a2[:] = aba(model, data, q2, v2, e2.dot(W1))
+            mul(k2, c3, tmp)
+            add(x, tmp, x3)
+            sign(v3, a3)
+            a3[:] = aba(model, data, q3, v3, e3.dot(W2))
+            dot(w, K, dx)
+            add(x, dx, x)
 
     def _advance_generic(self, times: np.ndarray, tau: np.ndarray) -> None:
         """RK4 calling ``d(t, q, dq)`` at every stage (with copies of the stage state)."""
@@ -211,9 +240,10 @@ class RK4Plant:
         nxt = self._next
         c = self._c
         x, K, w, tmp, dx, u = self._x, self._K, self._w, self._tmp, self._dx, self._u
-        for t0, tm, t1 in times.tolist():
+        stage_times = zip(self._t0.tolist(), self._tm.tolist(), self._t1.tolist(), strict=True)
+        for t0, tm, t1 in stage_times:
             for j, ts in enumerate((t0, tm, tm, t1)):
-                qj, vj, aj, kj = rows[j]
+                qj, vj, aj, kj, _ = rows[j]
                 np.add(tau, dist(ts, qj.copy(), vj.copy()), out=u)
                 aj[:] = aba(model, data, qj, vj, u)
                 if j < 3:

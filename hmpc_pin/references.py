@@ -57,7 +57,7 @@ class SineReference:
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference angle [rad] and velocity [rad/s] at time ``t`` [s]."""
         arg = self.omega * t + self.phase
-        return self.offset + self.amplitude * np.sin(arg), self.amplitude * self.omega * np.cos(arg)
+        return self.offset + self.amplitude * np.sin(arg), self._amp_omega * np.cos(arg)
 
     def sample_many(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`sample`: arrays of shape (len(times), n)."""

@@ -213,7 +213,11 @@ class JointQPs:
         layout: ``"block"`` (default): the n joint QPs as one block-diagonal ProxSuite QP
             of n·Nc variables, one ``update`` + ``solve`` per step; ``"joint"``: one QP
             per joint (n calls). Both have the same minimiser (the blocks are
-            independent); ``BENCHMARKS.md`` compares their speed.
+            independent); ``BENCHMARKS.md`` compares their speed. ProxSuite's batch
+            API (``proxqp.dense.BatchQP``, one QP per joint, n ``update`` calls and one
+            ``solve_in_parallel``) was measured too (``benchmarks/qp_layouts.py``) and is
+            not offered: slower than the block QP here, e.g. Nc = 1, 3 joints 10.4 µs vs
+            5.7 µs; 7 joints 22.8 µs on 1 thread, 16.9 µs on 2, vs 6.9 µs.
         always_constrained: Solve the soft QP for every joint at every step instead of
             only where the box-only prediction leaves the limits (the reference path
             that the fast path is tested against).

@@ -14,7 +14,9 @@ Measured:
 2. The paper's 10 s combined scenario (``configs/paper_combined.toml``, 1 ms RK4 plant):
    wall time of ``Experiment.run()`` and real-time factor.
 3. Step time against the number of joints: planar chains of 2, 3, 6, 7 and 12 uniform
-   rods generated with yourdfpy (``benchmarks/chains.py``), and the real UR5 and Panda.
+   rods generated with yourdfpy (``benchmarks/chains.py``), and the real UR5 and Panda;
+   and the joint QPs alone as one block-diagonal QP, n QPs, or ProxSuite's ``BatchQP``
+   (``benchmarks/qp_layouts.py``) on planar3 and Panda.
 4. Memory, each in a fresh process (``benchmarks/memory.py``): peak RSS of the 10 s run,
    and RSS sampled every simulated minute over a 10-minute simulated run.
 5. Comparisons on the same arm, reference, disturbance, horizon and plant (issue 6,
@@ -56,6 +58,7 @@ from benchmarks.harness import (  # noqa: E402
     package_versions,
     time_calls,
 )
+from benchmarks.qp_layouts import LayoutTiming, record_gradients, time_layouts  # noqa: E402
 from hmpc_pin.config import load_config  # noqa: E402
 from hmpc_pin.experiment import Experiment  # noqa: E402
 from hmpc_pin.observers import OBSERVER_KINDS  # noqa: E402
@@ -280,6 +283,22 @@ def bench_steps(settings: Settings, arms: list[Arm]) -> list[StepResult]:
                 f"  step {arm.name:<10} n={arm.n:<2} Nc={Nc}: median {r.timing.median_us:7.1f} µs,"
                 f" p99 {r.timing.p99_us:7.1f} µs"
             )
+            out.append(r)
+    return out
+
+
+def bench_qp_layouts(settings: Settings, arms: list[Arm]) -> list[LayoutTiming]:
+    """The joint QPs as one block QP, n QPs, and ProxSuite's BatchQP (``qp_layouts.py``),
+    on the gradients of the step benchmark's closed-loop states, Nc = 1 and 5."""
+    out = []
+    for arm in arms:
+        traj = record_trajectory(arm, settings.warmup + settings.steps)
+        for Nc in (1, 5):
+            ctrl = hmpc_pin.HierarchicalMPC(arm.robot, arm.config(Nc))
+            grads = record_gradients(ctrl, traj.t, traj.q, traj.dq, arm.reference())
+            r = time_layouts(arm.name, ctrl, grads, settings.warmup)
+            log(f"  QPs {arm.name:<10} Nc={Nc}: " + ", ".join(
+                f"{k} {v:.1f} µs" for k, v in r.median_us.items()))  # fmt: skip
             out.append(r)
     return out
 
@@ -748,6 +767,23 @@ def compare_table(rows: list[CompareRow], effort: bool) -> str:
     return table(headers, out)
 
 
+def layout_table(layouts: list[LayoutTiming]) -> str:
+    """Table of the joint-QP layout timings."""
+    names = list(layouts[0].median_us) if layouts else []
+    headers = ["arm", "n", "Nc", *(f"{k} [µs]" for k in names), "largest |Δv| vs block"]
+    rows = [
+        [
+            r.arm,
+            str(r.n),
+            str(r.Nc),
+            *(fmt_us(r.median_us[k]) for k in names),
+            f"{max(r.max_diff.values()):.1e}",
+        ]
+        for r in layouts
+    ]
+    return table(headers, rows)
+
+
 def report(
     settings: Settings,
     quick: bool,
@@ -756,6 +792,7 @@ def report(
     versions: dict,
     steps: list[StepResult],
     chains: list[StepResult],
+    layouts: list[LayoutTiming],
     sim: SimResult,
     mem: MemoryResult,
     compares: list[tuple[Scenario, float, list[CompareRow]]],
@@ -816,6 +853,24 @@ def report(
         "method as above; UR5 and Panda from the table above.",
         "",
         scaling_table(chains, steps),
+        "",
+        "## Joint QPs: one block-diagonal QP, n QPs, ProxSuite BatchQP",
+        "",
+        "The n box-constrained joint QPs of one step (no state limits), solved on the "
+        "gradient sequence of the step benchmark's states (`benchmarks/qp_layouts.py`): "
+        "`block`, one block-diagonal ProxSuite dense QP of n·Nc variables, one `update` + "
+        '`solve` (the default, `controller.qp_layout = "block"`); `joint`, one QP per '
+        'joint (`"joint"`); `BatchQP`, `proxqp.dense.BatchQP` with one QP per joint '
+        "(bounds as Nc inequality rows: `init_qp_in_place` has no box option), n `update` "
+        "calls and one `solve_in_parallel` with 1 or 2 OpenMP threads. Same solver settings, "
+        "warm-started; median per step of the solver calls alone; the last column is the "
+        "largest difference of the solutions from the block QP's over the last 50 steps "
+        "(solver tolerance). Two OpenMP threads on this shared 2-core machine: about "
+        "10–17 µs per solve while the second core is free, but ≈ 8 ms whenever the worker "
+        "thread must be woken while another process holds that core (the median is one or "
+        "the other depending on the load during the run).",
+        "",
+        layout_table(layouts),
         "",
         "## Closed-loop simulation of the paper's combined scenario",
         "",
@@ -980,6 +1035,8 @@ def main(argv: list[str] | None = None) -> int:
             for n in CHAIN_SIZES
         ]
         chains = bench_steps(settings, chain_arms)
+    log("joint QP layouts")
+    layouts = bench_qp_layouts(settings, [arms[0], arms[2]])
     log("closed-loop simulation")
     sim = bench_simulation(settings)
     log("memory")
@@ -998,6 +1055,7 @@ def main(argv: list[str] | None = None) -> int:
         versions,
         steps,
         chains,
+        layouts,
         sim,
         mem,
         compares,

@@ -15,13 +15,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pinocchio as pin
 
 from .config import ControllerConfig
 from .exceptions import ConfigError, DimensionError, NonFiniteError
 from .ism import IntegralSlidingMode
 from .joint_mpc import CondensedMPC, JointQPs, StateLimits
 from .observers import make_observer
-from .references import sample_horizon
+from .references import SineReference, sample_horizon
 from .robot import Robot
 
 __all__ = ["HMPC_KINDS", "HierarchicalMPC", "make_controller"]
@@ -111,8 +112,22 @@ class HierarchicalMPC:
             ism = config.ism
             width = ism.width(config.Ts) if config.kind == "hmpc-ism-bl" else None
             self.ism = IntegralSlidingMode(n, config.Ts, ism.gain, width)
-        self._offsets = config.Ts * np.arange(1, config.N + 1)
-        self._stack = np.empty((2 * config.N + 2, n))
+        N = config.N
+        self._offsets = config.Ts * np.arange(1, N + 1)
+        self._offsets_rep = self._offsets.repeat(n)
+        # The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] (rows), each block contiguous, and the
+        # gradient map with its rows in that order (CondensedMPC.F interleaves r_j, ṙ_j).
+        self._stack = np.empty((2 * N + 2, n))
+        self._stack_flat = self._stack.reshape(-1)
+        self._stack_finite = np.empty(self._stack_flat.size, dtype=bool)
+        self._stack_q_ref = self._stack[2 : N + 2]
+        self._stack_dq_ref = self._stack[N + 2 :]
+        self._stack_flat_q_ref = self._stack_flat[2 * n : (N + 2) * n]
+        self._stack_flat_dq_ref = self._stack_flat[(N + 2) * n :]
+        order = np.concatenate([[0, 1], np.arange(2, 2 * N + 2, 2), np.arange(3, 2 * N + 2, 2)])
+        self._FT = np.ascontiguousarray(self.mpc.FT[order])
+        self._model, self._data = robot.model, robot.data
+        self._symmetrize = getattr(robot, "_symmetrize", True)
         self._ref_shape = (config.N, n)
         self.disturbance_estimate = np.zeros(n)
         self.v = np.zeros(n)
@@ -120,10 +135,15 @@ class HierarchicalMPC:
         self._started = False
 
     def _raise_non_finite(self, t, q, dq, q_ref, dq_ref) -> None:
-        """Name the first non-finite input (slow path, only on bad input)."""
+        """Name the first non-finite input (slow path); return if every input is finite."""
         self.robot.check_vector("q", q)
         self.robot.check_vector("dq", dq)
-        bad = int(np.argwhere(~np.isfinite(q_ref + dq_ref).all(axis=1))[0, 0])
+        bad_rows = np.flatnonzero(
+            ~(np.isfinite(q_ref).all(axis=1) & np.isfinite(dq_ref).all(axis=1))
+        )
+        if bad_rows.size == 0:
+            return
+        bad = int(bad_rows[0])
         raise NonFiniteError(
             "reference", (q_ref[bad], dq_ref[bad]), f"at t={t + self._offsets[bad]:.6g}"
         )
@@ -175,27 +195,35 @@ class HierarchicalMPC:
             self.robot.check_vector("q", q)  # raises the precise error
             self.robot.check_vector("dq", dq)
 
-        q_ref, dq_ref = sample_horizon(reference, t + self._offsets)
-        if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
-            raise DimensionError(
-                f"reference.sample returned q_ref of shape {q_ref.shape[1:]} and dq_ref of "
-                f"shape {dq_ref.shape[1:]} but the robot has {n} joints; return two "
-                f"arrays of shape ({n},)"
-            )
         S = self._stack
         S[0] = q
         S[1] = dq
-        S[2::2] = q_ref
-        S[3::2] = dq_ref
+        if type(reference) is SineReference and reference.n == n:
+            # Sampled straight into the stack (the values of sample_many(t + offsets)).
+            reference._sample_into(
+                t, self._offsets_rep, self._stack_flat_q_ref, self._stack_flat_dq_ref
+            )
+            q_ref, dq_ref = self._stack_q_ref, self._stack_dq_ref
+        else:
+            q_ref, dq_ref = sample_horizon(reference, t + self._offsets)
+            if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
+                raise DimensionError(
+                    f"reference.sample returned q_ref of shape {q_ref.shape[1:]} and dq_ref "
+                    f"of shape {dq_ref.shape[1:]} but the robot has {n} joints; return two "
+                    f"arrays of shape ({n},)"
+                )
+            self._stack_q_ref[:] = q_ref
+            self._stack_dq_ref[:] = dq_ref
         # One finiteness test covers q, q̇ and the whole reference horizon, before
         # anything is updated: a bad input changes no state.
-        if not np.isfinite(S).all():
+        finite = np.isfinite(self._stack_flat, out=self._stack_finite)
+        if np.count_nonzero(finite) != finite.size:
             self._raise_non_finite(t, q, dq, q_ref, dq_ref)
-        G = S.T @ self.mpc.FT  # (n, Nc), one row per joint
+        G = S.T.dot(self._FT)  # (n, Nc), one row per joint
 
-        robot = self.robot
-        M = robot.mass_matrix(q)
-        nle = robot.nonlinear_effects(q, dq)
+        # pin.crba and pin.nonLinearEffects return new arrays (no copy needed)
+        M = self.robot.mass_matrix(q) if self._symmetrize else pin.crba(self._model, self._data, q)
+        nle = pin.nonLinearEffects(self._model, self._data, q, dq)
         if self.observer is not None:
             if self._started:
                 self.disturbance_estimate = self.observer.update(M, nle, dq, self.tau, q)
@@ -205,6 +233,9 @@ class HierarchicalMPC:
             self.disturbance_estimate = self.ism.update(M, dq, self.v)
 
         self.v = v = self.qps.solve(G, S[:2])
-        self.tau = M @ v + nle - self.disturbance_estimate
+        tau = M.dot(v)
+        tau += nle
+        tau -= self.disturbance_estimate
+        self.tau = tau
         self._started = True
-        return self.tau.copy()
+        return tau.copy()

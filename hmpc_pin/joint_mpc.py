@@ -213,7 +213,11 @@ class JointQPs:
         layout: ``"block"`` (default): the n joint QPs as one block-diagonal ProxSuite QP
             of n·Nc variables, one ``update`` + ``solve`` per step; ``"joint"``: one QP
             per joint (n calls). Both have the same minimiser (the blocks are
-            independent); ``BENCHMARKS.md`` compares their speed.
+            independent); ``BENCHMARKS.md`` compares their speed. ProxSuite's batch
+            API (``proxqp.dense.BatchQP``, one QP per joint, n ``update`` calls and one
+            ``solve_in_parallel``) was measured too (``benchmarks/qp_layouts.py``) and is
+            not offered: slower than the block QP here, e.g. Nc = 1, 3 joints 10.4 µs vs
+            5.7 µs; 7 joints 22.8 µs on 1 thread, 16.9 µs on 2, vs 6.9 µs.
         always_constrained: Solve the soft QP for every joint at every step instead of
             only where the box-only prediction leaves the limits (the reference path
             that the fast path is tested against).
@@ -264,6 +268,8 @@ class JointQPs:
                 self.qps.append(qp)
         self._solved = proxqp.QPSolverOutput.PROXQP_SOLVED
         self.solution = np.zeros((Nc, n))
+        self._sol_T_shape = (n, Nc)
+        self._Nc1 = Nc == 1
         self.slack = np.zeros(n)
         self.constrained = 0
         self.constrained_last = False
@@ -280,14 +286,20 @@ class JointQPs:
             vec(limits.velocity),
         )
         # The box-only prediction is inside the limits iff |X − mid| <= half on every row
-        # (rows q_1, q̇_1, …, q_N, q̇_N); [Φ Γ] maps [x0; U] to X in one product.
-        self._mid = np.zeros((2 * N, n))
+        # (rows q_1, q̇_1, …, q_N, q̇_N), mid = the joints' mid positions c on the position
+        # rows and 0 on the velocity rows. mid = m·cᵀ with m = 1 on the position rows, so
+        # [Φ Γ m]·[x0; U; −cᵀ] = X − mid in one product.
         self._half = np.zeros((2 * N, n))
-        self._mid[0::2] = 0.5 * (self._lower + self._upper)
         self._half[0::2] = 0.5 * (self._upper - self._lower)
         self._half[1::2] = self._vel
-        self._PG = np.hstack([mpc.Phi, mpc.Gamma])
-        self._xu = np.empty((2 + Nc, n))
+        q_rows = np.zeros((2 * N, 1))
+        q_rows[0::2] = 1.0
+        self._PG = np.hstack([mpc.Phi, mpc.Gamma, q_rows])
+        self._xu = np.empty((3 + Nc, n))
+        self._xu[2 + Nc] = -0.5 * (self._lower + self._upper)
+        self._xu[2 : 2 + Nc] = self.solution
+        self.solution = self._xu[2 : 2 + Nc]  # solved into place: U is a block of [x0; U; −c]
+        self._outside = np.empty((2 * N, n), dtype=bool)
         Gq, Gv = mpc.Gamma[0::2], mpc.Gamma[1::2]
         # The slack enters the solver scaled, s = k·ŝ, so that its Hessian entry is 1
         # like the inputs' (unscaled, 2ρ₂·scale ~ 1e7 stalls ProxSuite's duality-gap test).
@@ -360,7 +372,10 @@ class JointQPs:
             if res.info.status != self._solved:
                 raise SolverError(None, "all joints, block QP", str(res.info.status),
                                   res.info.iter)  # fmt: skip
-            sol[:] = res.x.reshape(self.n, -1).T
+            if self._Nc1:
+                sol[0] = res.x
+            else:
+                sol[:] = res.x.reshape(self._sol_T_shape).T
         else:
             for i, qp in enumerate(self.qps):
                 qp.update(g=G[i])
@@ -378,18 +393,16 @@ class JointQPs:
         """Re-solve, with the soft state constraints, the joints whose prediction leaves them."""
         sol, Nc = self.solution, self.mpc.Nc
         xu = self._xu
-        xu[:2] = x0
-        xu[2:] = sol
-        X = self._PG @ xu
-        X -= self._mid
+        xu[:2] = x0  # (U is already in xu: self.solution is a view of it)
+        X = self._PG.dot(xu)  # X − mid
         np.abs(X, out=X)
-        inside = self._half >= X
+        outside = np.greater(X, self._half, out=self._outside)
         if self.constrained_last:
             self.slack[:] = 0.0
             self.constrained_last = False
-        if inside.all() and not self.always_constrained:
+        if not np.count_nonzero(outside) and not self.always_constrained:
             return
-        bad = ~inside.all(axis=0) | self.always_constrained
+        bad = outside.any(axis=0) | self.always_constrained
         self.constrained_last = True
         free = self.mpc.Phi @ x0
         for i in np.flatnonzero(bad):

@@ -52,14 +52,65 @@ class SineReference:
         self.offset = np.broadcast_to(np.asarray(offset, float), shape).copy()
         self.phase = np.broadcast_to(np.asarray(phase, float), shape).copy()
         self._amp_omega = self.amplitude * self.omega
+        self._tiles: dict[int, tuple[np.ndarray, ...]] = {}
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference angle [rad] and velocity [rad/s] at time ``t`` [s]."""
         arg = self.omega * t + self.phase
-        return self.offset + self.amplitude * np.sin(arg), self.amplitude * self.omega * np.cos(arg)
+        return self.offset + self.amplitude * np.sin(arg), self._amp_omega * np.cos(arg)
 
     def sample_many(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`sample`: arrays of shape (len(times), n)."""
+        times = np.asarray(times, dtype=float)
+        m = times.size
+        if times.ndim != 1:
+            m = -1
+        # Flat (m·n,) operations on the coefficients tiled once per length (the MPC
+        # samples its horizon, always of one length, every step): element for element
+        # the same arithmetic as sample(), with fewer and cheaper numpy calls than
+        # broadcasting (m, 1) against (n,).
+        if m < 0:
+            return self._sample_many_broadcast(times)
+        omega, phase, amplitude, offset, amp_omega = self._tiles_for(m)
+        arg = times.repeat(self.n)
+        arg *= omega
+        arg += phase
+        q = np.sin(arg)
+        q *= amplitude
+        q += offset
+        np.cos(arg, out=arg)
+        arg *= amp_omega
+        shape = (m, self.n)
+        return q.reshape(shape), arg.reshape(shape)
+
+    def _sample_into(
+        self, t: float, offsets: np.ndarray, q_out: np.ndarray, dq_out: np.ndarray
+    ) -> None:
+        """``sample_many(t + o)`` for horizon offsets ``o`` given repeated per joint
+        (``o.repeat(n)``), written into two C-contiguous (len(o)·n,) buffers row after
+        row (the controller's horizon stack): the same arithmetic, one allocation."""
+        omega, phase, amplitude, offset, amp_omega = self._tiles_for(offsets.size // self.n)
+        arg = offsets + t
+        arg *= omega
+        arg += phase
+        np.sin(arg, out=q_out)
+        q_out *= amplitude
+        q_out += offset
+        np.cos(arg, out=dq_out)
+        dq_out *= amp_omega
+
+    def _tiles_for(self, m: int) -> tuple[np.ndarray, ...]:
+        tiles = self._tiles.get(m)
+        if tiles is None:
+            tiles = tuple(
+                np.tile(c, m)
+                for c in (self.omega, self.phase, self.amplitude, self.offset, self._amp_omega)
+            )
+            if len(self._tiles) < 8:
+                self._tiles[m] = tiles
+        return tiles
+
+    def _sample_many_broadcast(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         arg = np.multiply.outer(times, self.omega)
         arg += self.phase
         q = np.sin(arg)

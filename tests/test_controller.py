@@ -184,3 +184,66 @@ def test_block_qp_run_equals_per_joint_qps(planar3):
         )
     np.testing.assert_allclose(runs["block"].q, runs["joint"].q, atol=1e-8)
     np.testing.assert_allclose(runs["block"].tau, runs["joint"].tau, atol=1e-4, rtol=1e-7)
+
+
+class _SampleOnly:
+    """A reference with only ``sample(t)``: the controller's generic sampling path."""
+
+    def __init__(self, ref):
+        self.ref = ref
+
+    def sample(self, t):
+        return self.ref.sample(t)
+
+
+@pytest.mark.parametrize("Nc", [1, 5])
+def test_sine_sampled_in_place_equals_generic_reference_path(planar3, Nc):
+    """The SineReference fast path (sampled straight into the horizon stack) gives the
+    torques of the generic path (``sample(t)`` per horizon instant), closed loop."""
+    from hmpc_pin.simulate import simulate
+
+    ref = hmpc_pin.SineReference(3, amplitude=[1.0, 0.5, 0.8], frequency=[0.1, 0.3, 0.2],
+                                 offset=[0.1, 0.0, -0.2], phase=[0.0, 0.5, 1.0])  # fmt: skip
+    d = hmpc_pin.CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8])
+    q0 = np.array([0.2, 0.1, -0.1])
+    runs = []
+    for r in (ref, _SampleOnly(ref)):
+        ctrl = hmpc_pin.HierarchicalMPC(planar3, ControllerConfig(Nc=Nc))
+        runs.append(simulate(planar3, ctrl, r, d, duration=1.0, q0=q0))
+    np.testing.assert_allclose(runs[0].tau, runs[1].tau, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(runs[0].q, runs[1].q, rtol=0, atol=1e-12)
+
+
+def test_step_equals_its_equations(planar3):
+    """One step against Eq 4 and the MPC written out: M v + C q̇ + G − d̂ with v the clipped
+    closed-form minimiser of each joint's 1-input QP (Nc = 1), d̂ from the observer."""
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    ref = hmpc_pin.SineReference(3)
+    model, data = planar3.model, planar3.model.createData()
+    rng = np.random.default_rng(3)
+    q, dq = rng.uniform(-0.5, 0.5, 3), rng.normal(0, 0.5, 3)
+    ctrl.reset(q, dq)
+    ctrl.step(0.0, q, dq, ref)
+    for k in range(1, 4):
+        q, dq = q + 0.01 * dq, dq + rng.normal(0, 0.1, 3)
+        tau_prev = ctrl.tau.copy()
+        z_prev = ctrl.observer.z.copy()
+        t = 0.01 * k
+        tau = ctrl.step(t, q, dq, ref)
+        mpc = ctrl.mpc
+        times = t + 0.01 * np.arange(1, 11)
+        r = np.empty((20, 3))
+        for j, tj in enumerate(times):
+            r[2 * j], r[2 * j + 1] = ref.sample(tj)
+        H = mpc.H[0, 0]
+        g = np.array([mpc.F[0] @ np.concatenate([[q[i], dq[i]], r[:, i]]) for i in range(3)])
+        v = np.clip(-g / H, -100.0, 100.0)
+        M = pin.crba(model, data, q)
+        nle = pin.nonLinearEffects(model, data, q, dq)
+        cY = 100.0 * np.tril(np.ones((3, 3)))  # the default observer: chen, c = 100
+        p = cY @ dq
+        L = cY @ np.linalg.inv(M)  # Eq 30
+        z = np.linalg.solve(np.eye(3) + 0.01 * L, z_prev + 0.01 * L @ (nle - tau_prev - p))
+        np.testing.assert_allclose(ctrl.v, v, rtol=0, atol=1e-7)
+        np.testing.assert_allclose(ctrl.disturbance_estimate, z + p, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(tau, M @ ctrl.v + nle - (z + p), rtol=1e-12, atol=1e-10)

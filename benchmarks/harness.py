@@ -17,6 +17,8 @@ from importlib import metadata
 
 import numpy as np
 
+import hmpc_pin.compare
+
 __all__ = [
     "TimedController",
     "Timing",
@@ -99,44 +101,8 @@ def time_calls(fn: Callable[..., object], calls: Sequence[tuple], warmup: int) -
     return Timing(samples)
 
 
-class TimedController:
-    """Wrap a controller and time each :meth:`step` with ``perf_counter_ns``.
-
-    It has the interface :func:`hmpc_pin.simulate.simulate` expects (``Ts``, ``reset``,
-    ``step``, ``disturbance_estimate``), so a closed-loop run measures the step too.
-
-    Args:
-        controller: Any object with that interface.
-
-    Attributes:
-        samples_ns: Duration of every step since the last reset [ns].
-    """
-
-    def __init__(self, controller):
-        self.controller = controller
-        self.samples_ns: list[int] = []
-
-    @property
-    def Ts(self) -> float:
-        """Control period [s]."""
-        return self.controller.Ts
-
-    @property
-    def disturbance_estimate(self) -> np.ndarray:
-        """The wrapped controller's disturbance estimate [N·m]."""
-        return self.controller.disturbance_estimate
-
-    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
-        """Reset the wrapped controller and forget the recorded durations."""
-        self.samples_ns = []
-        self.controller.reset(q0, dq0)
-
-    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
-        """The wrapped controller's step [N·m], timed."""
-        t0 = time.perf_counter_ns()
-        tau = self.controller.step(t, q, dq, reference)
-        self.samples_ns.append(time.perf_counter_ns() - t0)
-        return tau
+class TimedController(hmpc_pin.compare.TimedController):
+    """:class:`hmpc_pin.compare.TimedController` with :class:`Timing` statistics."""
 
     def timing(self, skip: int = 0) -> Timing:
         """Statistics of the recorded steps, the first ``skip`` (warm-up) left out."""

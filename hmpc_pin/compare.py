@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import CONTROLLER_KINDS, ExperimentConfig
+from .controller import ControllerWrapper
 from .exceptions import ConfigError, SimulationError
 from .experiment import Experiment, uses_observer, with_controller
 from .metrics import Metrics, compute_metrics
@@ -37,7 +38,7 @@ __all__ = [
 ]
 
 
-class TimedController:
+class TimedController(ControllerWrapper):
     """Wrap a controller and time each ``step`` with ``perf_counter_ns``.
 
     It has the interface :func:`hmpc_pin.simulate.simulate` expects (``Ts``, ``reset``,
@@ -48,18 +49,8 @@ class TimedController:
     """
 
     def __init__(self, controller):
-        self.controller = controller
+        super().__init__(controller)
         self.samples_ns: list[int] = []
-
-    @property
-    def Ts(self) -> float:
-        """Control period [s]."""
-        return self.controller.Ts
-
-    @property
-    def disturbance_estimate(self) -> np.ndarray:
-        """The wrapped controller's disturbance estimate [N·m]."""
-        return self.controller.disturbance_estimate
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         """Reset the wrapped controller and forget the recorded durations."""

@@ -25,10 +25,39 @@ from .observers import make_observer
 from .references import SineReference, sample_horizon
 from .robot import Robot
 
-__all__ = ["HMPC_KINDS", "HierarchicalMPC", "make_controller"]
+__all__ = ["HMPC_KINDS", "ControllerWrapper", "HierarchicalMPC", "make_controller"]
 
 #: The ``[controller] kind`` values built by :class:`HierarchicalMPC`.
 HMPC_KINDS = ("hmpc", "hmpc-none", "hmpc-momentum", "hmpc-ism", "hmpc-ism-bl")
+
+
+class ControllerWrapper:
+    """Base of wrappers that keep a controller's interface (``Ts``, ``reset``, ``step``,
+    ``disturbance_estimate``) and change one thing, e.g. timing or measurement.
+
+    Subclasses override :meth:`reset` and/or :meth:`step`; the rest is delegated.
+    """
+
+    def __init__(self, controller):
+        self.controller = controller
+
+    @property
+    def Ts(self) -> float:
+        """Control period [s] of the wrapped controller."""
+        return self.controller.Ts
+
+    @property
+    def disturbance_estimate(self) -> np.ndarray:
+        """The wrapped controller's disturbance estimate [N·m]."""
+        return self.controller.disturbance_estimate
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
+        """Reset the wrapped controller."""
+        self.controller.reset(q0, dq0)
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """The wrapped controller's step [N·m]."""
+        return self.controller.step(t, q, dq, reference)
 
 
 def make_controller(robot: Robot, config: ControllerConfig | None = None):

@@ -13,10 +13,12 @@ from collections import deque
 
 import numpy as np
 
+from .controller import ControllerWrapper
+
 __all__ = ["MeasuredController"]
 
 
-class MeasuredController:
+class MeasuredController(ControllerWrapper):
     """A controller that sees noisy, delayed measurements of the plant state.
 
     At each control instant the true state is measured with noise
@@ -50,23 +52,13 @@ class MeasuredController:
             raise ValueError(f"noise levels must be finite and >= 0, got {q_noise=}, {dq_noise=}")
         if int(delay) != delay or delay < 0:
             raise ValueError(f"delay must be a whole number of periods >= 0, got {delay!r}")
-        self.controller = controller
+        super().__init__(controller)
         self.q_noise = float(q_noise)
         self.dq_noise = float(dq_noise)
         self.delay = int(delay)
         self.rng = rng if rng is not None else np.random.default_rng()
         self._buffer: deque = deque(maxlen=self.delay + 1)
         self._started = False
-
-    @property
-    def Ts(self) -> float:
-        """Control period [s] of the wrapped controller."""
-        return self.controller.Ts
-
-    @property
-    def disturbance_estimate(self) -> np.ndarray:
-        """The wrapped controller's disturbance estimate [N·m]."""
-        return self.controller.disturbance_estimate
 
     def _measure(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = len(q)

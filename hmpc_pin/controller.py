@@ -77,7 +77,7 @@ def make_controller(robot: Robot, config: ControllerConfig | None = None):
 
 
 class HierarchicalMPC:
-    """Inverse dynamics + nonlinear disturbance observer + one ProxSuite MPC per joint.
+    """Inverse dynamics + disturbance compensation + one ProxSuite MPC per joint (``hmpc*`` kinds).
 
     Args:
         robot: The controller's model of the arm (its :class:`~hmpc_pin.robot.Robot`).
@@ -85,7 +85,8 @@ class HierarchicalMPC:
 
     Attributes:
         disturbance_estimate: :math:`\\hat d` [N·m], shape (n,), updated by :meth:`step`
-            (zeros when the observer is disabled).
+            (the observer's estimate; for ``hmpc-ism*`` the ISM torque :math:`-M u_{ism}`;
+            zeros without compensation).
         v: The last commanded accelerations [rad/s²], shape (n,).
         tau: The last torque [N·m], shape (n,).
         limits: The joint limits imposed on each MPC's prediction as soft state

@@ -25,7 +25,7 @@ torque :math:`\\tau` (n) as input:
    exponential of the augmented matrix :math:`[[A_c, B_c, c_c], [0, 0, 0]]\\,T_s`.
    The model is frozen over the horizon (linear time-invariant prediction).
 3. **Condensing** over :math:`N` steps with :math:`N_c` free inputs (the last one held
-   to the end of the horizon, as in :mod:`hmpc_pin.joint_mpc`):
+   to the end of the horizon, as in :mod:`hmpc_pin.mpc.condensed`):
    :math:`X = \\Phi x_0 + \\Gamma U + c`.
 4. **Cost**: the hierarchical MPC's weights stacked over the joints: :math:`Q`, :math:`P`
    (2×2 per joint on :math:`[q_i - r_i, \\dot q_i - \\dot r_i]`) over
@@ -53,7 +53,7 @@ import pinocchio as pin
 from proxsuite import proxqp
 
 from hmpc_pin import ControllerConfig, HmpcError, Robot
-from hmpc_pin.references import sample_horizon
+from hmpc_pin.tasks.references import sample_horizon
 
 __all__ = ["CentralizedMPC", "CentralizedSolverError", "expm", "zoh"]
 
@@ -63,7 +63,7 @@ BIG = 1e10
 
 class CentralizedSolverError(HmpcError, RuntimeError):
     """The centralized QP did not report solved (an :class:`hmpc_pin.HmpcError`, so that
-    :func:`hmpc_pin.simulate` stops the run and keeps what was computed)."""
+    :func:`hmpc_pin.sim.simulate` stops the run and keeps what was computed)."""
 
 
 def expm(A: np.ndarray) -> np.ndarray:
@@ -117,7 +117,7 @@ class CentralizedMPC:
     """Linear MPC over the coupled 2n-state model, one ProxSuite QP per step (module doc).
 
     Same interface as :class:`hmpc_pin.HierarchicalMPC` (``Ts``, ``reset``, ``step``,
-    ``disturbance_estimate``), so it runs through :func:`hmpc_pin.simulate`.
+    ``disturbance_estimate``), so it runs through :func:`hmpc_pin.sim.simulate`.
 
     Args:
         robot: The controller's (nominal) model; this object keeps its own ``pin.Data``.
@@ -157,7 +157,7 @@ class CentralizedMPC:
         nv = n * Nc
         qp = proxqp.dense.QP(nv, 0, nv, True)
         # Every setting before init(): changing initial_guess after init() segfaults
-        # ProxSuite 0.8.0 (see hmpc_pin.joint_mpc).
+        # ProxSuite 0.8.0 (see hmpc_pin.mpc.condensed).
         qp.settings.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
         qp.settings.eps_abs = config.eps_abs
         qp.settings.eps_rel = 0.0

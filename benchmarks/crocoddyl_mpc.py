@@ -17,7 +17,7 @@ weighted-quadratic activation is diagonal; the paper's weights are diagonal) and
 compensation along the reference, :math:`r_j = r(t_k + jT_s)` [1/(N·m)²]
 (``ResidualModelControl`` with its reference set every step; Crocoddyl 3.2.1's
 ``ResidualModelControlGrav`` raises ``MemoryError`` on construction with Pinocchio 4.1 from
-PyPI). The :math:`e_0` term is constant, as in :mod:`hmpc_pin.joint_mpc`.
+PyPI). The :math:`e_0` term is constant, as in :mod:`hmpc_pin.mpc.condensed`.
 
 - Integration: Crocoddyl's ``IntegratedActionModelEuler`` at :math:`T_s` (semi-implicit
   Euler, :math:`\\dot q^+ = \\dot q + T_s\\ddot q,\\ q^+ = q + T_s\\dot q^+`). Running costs
@@ -44,7 +44,7 @@ import numpy as np
 import pinocchio as pin
 
 from hmpc_pin import ControllerConfig, Robot
-from hmpc_pin.references import sample_horizon
+from hmpc_pin.tasks.references import sample_horizon
 
 try:
     import crocoddyl
@@ -66,7 +66,7 @@ class CrocoddylMPC:
     """Receding-horizon (Box-)FDDP controller (module docstring).
 
     Same interface as :class:`hmpc_pin.HierarchicalMPC` (``Ts``, ``reset``, ``step``,
-    ``disturbance_estimate``), so it runs through :func:`hmpc_pin.simulate`.
+    ``disturbance_estimate``), so it runs through :func:`hmpc_pin.sim.simulate`.
 
     Args:
         robot: The controller's (nominal) model; Crocoddyl gets a copy of its ``pin.Model``.

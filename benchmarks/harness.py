@@ -17,7 +17,7 @@ from importlib import metadata
 
 import numpy as np
 
-import hmpc_pin.compare
+import hmpc_pin.apps.compare
 
 __all__ = [
     "TimedController",
@@ -101,8 +101,8 @@ def time_calls(fn: Callable[..., object], calls: Sequence[tuple], warmup: int) -
     return Timing(samples)
 
 
-class TimedController(hmpc_pin.compare.TimedController):
-    """:class:`hmpc_pin.compare.TimedController` with :class:`Timing` statistics."""
+class TimedController(hmpc_pin.apps.compare.TimedController):
+    """:class:`hmpc_pin.apps.compare.TimedController` with :class:`Timing` statistics."""
 
     def timing(self, skip: int = 0) -> Timing:
         """Statistics of the recorded steps, the first ``skip`` (warm-up) left out."""

@@ -10,13 +10,13 @@ Decisions:
 
 - *Disturbance repeated every minute.* The sine reference (0.1 Hz) repeats by itself
   (6 periods a minute); the paper's pulses (t = 1, 2, 3 s) happen once. They are
-  repeated every ``--repeat`` seconds (:class:`hmpc_pin.disturbances.Periodic`), so every
+  repeated every ``--repeat`` seconds (:class:`hmpc_pin.sim.disturbances.Periodic`), so every
   minute has the same reference and disturbance, and a per-minute RMS that drifts would
   be the controller's doing. ``--repeat 0`` keeps the pulses only at the start.
 - *The first second is left out* of minute 1 (the start-up transient from q = 1, as in
   every "RMS after 1 s" of this project).
 - *Streaming metric, one run.* The per-minute sums are accumulated in the ``on_step``
-  callback; the run itself is one :func:`hmpc_pin.simulate` call, whose result arrays
+  callback; the run itself is one :func:`hmpc_pin.sim.simulate` call, whose result arrays
   are allocated (and touched) once at the start: 360 001 samples × 7 arrays × n joints,
   ≈ 60 MB for an hour of planar3. Memory that grows from minute to minute is therefore
   a leak in the loop (controller, observer, ProxSuite, Pinocchio), which is what the
@@ -40,10 +40,10 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks.harness import rss_bytes  # noqa: E402
-from hmpc_pin.config import load_config  # noqa: E402
-from hmpc_pin.disturbances import Periodic  # noqa: E402
+from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.sim.disturbances import Periodic  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
-from hmpc_pin.experiment import Experiment  # noqa: E402
+from hmpc_pin.experiment.build import Experiment  # noqa: E402
 
 CONFIG = ROOT / "configs" / "paper_combined.toml"
 MINUTE = 60.0

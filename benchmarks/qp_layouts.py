@@ -27,7 +27,7 @@ import numpy as np
 from proxsuite import proxqp
 
 import hmpc_pin
-from hmpc_pin.joint_mpc import JointQPs, _new_qp
+from hmpc_pin.mpc.condensed import JointQPs, _new_qp
 
 __all__ = ["LayoutTiming", "record_gradients", "time_layouts"]
 

@@ -59,9 +59,9 @@ from benchmarks.harness import (  # noqa: E402
     time_calls,
 )
 from benchmarks.qp_layouts import LayoutTiming, record_gradients, time_layouts  # noqa: E402
-from hmpc_pin.config import load_config  # noqa: E402
-from hmpc_pin.experiment import Experiment  # noqa: E402
-from hmpc_pin.observers import OBSERVER_KINDS  # noqa: E402
+from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.build import Experiment  # noqa: E402
+from hmpc_pin.compensation.observers import OBSERVER_KINDS  # noqa: E402
 
 __all__ = ["Settings", "main"]
 
@@ -874,7 +874,7 @@ def report(
         "",
         "## Closed-loop simulation of the paper's combined scenario",
         "",
-        "`hmpc_pin.experiment.Experiment.from_config(load_config("
+        "`hmpc_pin.experiment.build.Experiment.from_config(load_config("
         '"configs/paper_combined.toml")).run()`: 10 s simulated, controller every 10 ms, '
         f"plant RK4 at 1 ms (40 ABA calls and 10 disturbance evaluations per period). "
         f"{settings.sim_repeats} repetition(s).",
@@ -941,7 +941,7 @@ def report(
         "",
         "Same arm, reference, disturbance, horizon (N = 10, Ts = 10 ms) and plant (1 ms RK4, "
         "plant clips τ to the URDF effort limits); each controller in one closed-loop run "
-        "through `hmpc_pin.simulate`, its `step` timed in the loop (first 10 steps left "
+        "through `hmpc_pin.sim.simulate`, its `step` timed in the loop (first 10 steps left "
         "out). Ratios are to the hierarchical MPC with its observer (`hmpc`); the last "
         "RMS ratio is to `hmpc, no NDO`, since neither comparison controller has a "
         "disturbance observer.",

@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 
 import hmpc_pin
-from hmpc_pin.cli import live_view
-from hmpc_pin.plots import plot_overview
+from hmpc_pin.apps.cli import live_view
+from hmpc_pin.apps.plots import plot_overview
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     png = plot_overview(result, args.out / "track_sine.png", title=config.description)
     print(f"simulated {result.t[-1]:.1f} s in {elapsed:.2f} s; wrote {npz} and {png}")
     if args.replay:
-        from hmpc_pin.viz import export_replay
+        from hmpc_pin.apps.viz import export_replay
 
         print(f"wrote {export_replay(experiment.robot, result, args.replay)}")
     return 0

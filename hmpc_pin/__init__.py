@@ -6,78 +6,130 @@ n-link arm into n double integrators (Eq 4), a box-constrained MPC per joint
 chooses each joint's acceleration (Eq 25–26, solved by ProxSuite), and a
 nonlinear disturbance observer (Eq 13) estimates and cancels friction and
 external torques.
+
+The package is layered; each layer imports only the layers below it (tested)::
+
+    apps/          cli, run, compare, sweep, report, metrics, plots, viz
+      │
+    experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
+      │
+    sim/           disturbances · plants (Plant protocol: RK4, Euler) · simulate · Result
+      │
+    controllers/   Controller protocol · HierarchicalMPC · ComputedTorque · wrappers
+      │      ╲
+    tasks/    mpc/          Reference protocol: sine, quintic │ per-joint condensed QP (ProxSuite)
+      │
+    compensation/  Compensation protocol: NDO (Chen, general), momentum observer, ISM, none
+      │
+    model/         Robot (URDF → Pinocchio: M, C·q̇ + G, ABA), planar 3R IK
+      │
+    data/, exceptions.py
+
+Data flows one way: a reference and the measured state enter a controller, which holds
+one compensation and calls its MPC; the torque goes to a plant; ``simulate`` closes the
+loop; ``experiment.build`` assembles all of it from a config.
 """
 
-from .compare import Comparison, run_comparison
-from .computed_torque import ComputedTorque
-from .config import (
-    CONTROLLER_KINDS,
-    ControllerConfig,
-    ExperimentConfig,
-    ObserverConfig,
-    load_config,
+from .apps.compare import Comparison, run_comparison
+from .apps.metrics import Metrics, compute_metrics, format_metrics
+from .compensation import (
+    Compensation,
+    DisturbanceObserver,
+    IntegralSlidingMode,
+    MomentumObserver,
+    NoCompensation,
 )
-from .controller import HierarchicalMPC, make_controller
-from .disturbances import (
-    CoulombViscousFriction,
-    Disturbance,
-    GaussianPulse,
-    Periodic,
-    SumDisturbance,
-    ZeroDisturbance,
+from .controllers import (
+    ComputedTorque,
+    Controller,
+    CTSettings,
+    HierarchicalMPC,
+    MeasuredController,
+    MPCSettings,
 )
 from .exceptions import (
     ConfigError,
     DimensionError,
     HmpcError,
+    InterfaceError,
+    KinematicsError,
     LimitError,
     NonFiniteError,
     OutputError,
     SimulationError,
     SolverError,
     URDFError,
+    VizError,
 )
-from .experiment import Experiment, run_experiment
-from .ism import IntegralSlidingMode
-from .joint_mpc import CondensedMPC, JointQPs
-from .kinematics import KinematicsError, planar_ik, solve_pose, tool_pose
-from .measurement import MeasuredController
-from .metrics import Metrics, compute_metrics, format_metrics
-from .observers import DisturbanceObserver, MomentumObserver
-from .references import QuinticReference, Reference, SineReference
-from .robot import Robot, load_robot
-from .simulate import Result, simulate
+from .experiment.build import Experiment, make_controller, run_experiment, with_controller
+from .experiment.schema import (
+    COMPENSATIONS,
+    CONTROLLER_KINDS,
+    CONTROLLERS,
+    ControllerConfig,
+    ExperimentConfig,
+    ObserverConfig,
+    load_config,
+)
+from .model.planar import planar_ik, solve_pose, tool_pose
+from .model.robot import Robot, load_robot
+from .mpc import CondensedMPC, JointQPs
+from .sim import (
+    CoulombViscousFriction,
+    Disturbance,
+    EulerPlant,
+    GaussianPulse,
+    Periodic,
+    Plant,
+    Result,
+    RK4Plant,
+    SumDisturbance,
+    ZeroDisturbance,
+    simulate,
+)
+from .tasks import QuinticReference, Reference, SineReference, as_reference
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
+    "COMPENSATIONS",
+    "CONTROLLERS",
     "CONTROLLER_KINDS",
+    "CTSettings",
     "Comparison",
+    "Compensation",
     "ComputedTorque",
     "CondensedMPC",
     "ConfigError",
+    "Controller",
     "ControllerConfig",
     "CoulombViscousFriction",
     "DimensionError",
     "Disturbance",
     "DisturbanceObserver",
+    "EulerPlant",
     "Experiment",
     "ExperimentConfig",
     "GaussianPulse",
     "HierarchicalMPC",
     "HmpcError",
     "IntegralSlidingMode",
+    "InterfaceError",
     "JointQPs",
     "KinematicsError",
     "LimitError",
+    "MPCSettings",
     "MeasuredController",
     "Metrics",
     "MomentumObserver",
+    "NoCompensation",
     "NonFiniteError",
     "ObserverConfig",
     "OutputError",
     "Periodic",
+    "Plant",
     "QuinticReference",
+    "RK4Plant",
     "Reference",
     "Result",
     "Robot",
@@ -86,8 +138,10 @@ __all__ = [
     "SolverError",
     "SumDisturbance",
     "URDFError",
+    "VizError",
     "ZeroDisturbance",
     "__version__",
+    "as_reference",
     "compute_metrics",
     "format_metrics",
     "load_config",
@@ -99,4 +153,5 @@ __all__ = [
     "simulate",
     "solve_pose",
     "tool_pose",
+    "with_controller",
 ]

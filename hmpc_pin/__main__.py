@@ -1,5 +1,5 @@
 """``python -m hmpc_pin``: the ``hmpc-pin`` command line."""
 
-from .cli import main
+from .apps.cli import main
 
 raise SystemExit(main())

@@ -129,3 +129,39 @@ class OutputError(HmpcError, ValueError):
             f"output directory {self.path!r} is not writable ({reason}); "
             "pass --out with a directory you can write to"
         )
+
+
+class KinematicsError(HmpcError, ValueError):
+    """A pose cannot be solved, or the arm is not a planar 3R arm.
+
+    Attributes:
+        value: The offending value (a pose ``(x, z, φ)``, a joint vector, an axis, ...).
+        expected: What was expected instead, in words.
+    """
+
+    def __init__(self, message: str, *, value=None, expected: str | None = None):
+        self.value = value
+        self.expected = expected
+        super().__init__(message)
+
+
+class VizError(HmpcError, RuntimeError):
+    """Meshcat is missing or its server cannot be started."""
+
+
+class InterfaceError(HmpcError, TypeError):
+    """An object passed where a protocol is expected lacks what the protocol needs.
+
+    Raised once, at the boundary (e.g. a reference without ``sample_many``/``sample``
+    that is not callable either), naming the object, the protocol and what is missing.
+
+    Attributes:
+        value: The offending object.
+        expected: The protocol and the members it needs, in words.
+    """
+
+    def __init__(self, value, expected: str, hint: str = ""):
+        self.value = value
+        self.expected = expected
+        text = f"{type(value).__name__} object {value!r:.80} is not {expected}"
+        super().__init__(text + (f"; {hint}" if hint else ""))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.cli import main
+from hmpc_pin.apps.cli import main
 
 from .conftest import CONFIGS
 

@@ -8,11 +8,11 @@ import re
 import numpy as np
 import pytest
 
-from hmpc_pin.cli import main
-from hmpc_pin.compare import parse_controllers, run_comparison
-from hmpc_pin.config import CONTROLLER_KINDS, load_config
+from hmpc_pin.apps.cli import main
+from hmpc_pin.apps.compare import parse_controllers, run_comparison
+from hmpc_pin.experiment.schema import CONTROLLER_KINDS, load_config
 from hmpc_pin.exceptions import ConfigError
-from hmpc_pin.experiment import run_experiment
+from hmpc_pin.experiment.build import run_experiment
 
 from .conftest import CONFIGS, ROOT
 
@@ -61,7 +61,7 @@ def test_boundary_layer_below_half_k_ts_chatters_again():
     """Inside the layer the loop σ⁺ = (1 − Ts K/φ)σ is unstable for φ < K Ts / 2."""
     from dataclasses import replace
 
-    from hmpc_pin.compare import run_one_controller
+    from hmpc_pin.apps.compare import run_one_controller
 
     cfg = load_config(CONFIGS / "paper_combined.toml")
     cc = cfg.controller

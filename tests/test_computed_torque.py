@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.computed_torque import (
+from hmpc_pin.controllers.computed_torque import (
     ComputedTorque,
     closed_loop_poles,
     fastest_integral_gain,
     mpc_feedback_gain,
 )
-from hmpc_pin.config import ComputedTorqueConfig, ControllerConfig
+from hmpc_pin.experiment.schema import ComputedTorqueConfig, ControllerConfig
 from hmpc_pin.exceptions import ConfigError
-from hmpc_pin.joint_mpc import CondensedMPC
+from hmpc_pin.mpc.condensed import CondensedMPC
 
 from .conftest import PLANAR3
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.config import ControllerConfig, ObserverConfig
+from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig
 
 from .conftest import CONFIGS
 

@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 import hmpc_pin
-from hmpc_pin.config import ControllerConfig, ObserverConfig
+from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig
 
 
 def _controller(robot, **kw):
@@ -171,7 +171,7 @@ def test_block_qp_run_equals_per_joint_qps(planar3):
     """The fast path (all joints in one block-diagonal QP) gives the same closed loop as
     the straightforward one QP per joint, to solver tolerance, on the paper's combined
     scenario (friction + pulses, NDO on)."""
-    from hmpc_pin.simulate import simulate
+    from hmpc_pin.sim.simulate import simulate
 
     d = hmpc_pin.CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8]) + hmpc_pin.GaussianPulse(
         [10.0, 8.0, 0.3], [1.0, 2.0, 3.0], 0.3
@@ -200,7 +200,7 @@ class _SampleOnly:
 def test_sine_sampled_in_place_equals_generic_reference_path(planar3, Nc):
     """The SineReference fast path (sampled straight into the horizon stack) gives the
     torques of the generic path (``sample(t)`` per horizon instant), closed loop."""
-    from hmpc_pin.simulate import simulate
+    from hmpc_pin.sim.simulate import simulate
 
     ref = hmpc_pin.SineReference(3, amplitude=[1.0, 0.5, 0.8], frequency=[0.1, 0.3, 0.2],
                                  offset=[0.1, 0.0, -0.2], phase=[0.0, 0.5, 1.0])  # fmt: skip

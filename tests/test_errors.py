@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.cli import main
+from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import (
     ConfigError,
     DimensionError,
@@ -23,8 +23,8 @@ from hmpc_pin.exceptions import (
     OutputError,
     URDFError,
 )
-from hmpc_pin.experiment import Experiment
-from hmpc_pin.kinematics import KinematicsError
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.model.planar import KinematicsError
 
 from .conftest import CONFIGS, PLANAR3
 

@@ -1,4 +1,4 @@
-"""Tests of :mod:`hmpc_pin.experiment` and of the limit handling it wires together:
+"""Tests of :mod:`hmpc_pin.experiment.build` and of the limit handling it wires together:
 arms from example-robot-data in closed loop, joint limits as MPC state constraints,
 reference and initial-state checks, effort saturation, inertia-scaled disturbances."""
 
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.config import ConstraintConfig, ControllerConfig, load_config
+from hmpc_pin.experiment.schema import ConstraintConfig, ControllerConfig, load_config
 from hmpc_pin.exceptions import LimitError
-from hmpc_pin.experiment import Experiment
-from hmpc_pin.metrics import compute_metrics
-from hmpc_pin.simulate import simulate
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.apps.metrics import compute_metrics
+from hmpc_pin.sim.simulate import simulate
 
 from .conftest import CONFIGS
 
@@ -158,7 +158,7 @@ def test_replace_keeps_validation():
     ],
 )
 def test_observer_override_maps_controller_kinds(kind, observer, expected):
-    from hmpc_pin.experiment import uses_observer, with_controller
+    from hmpc_pin.experiment.build import uses_observer, with_controller
 
     cfg = with_controller(hmpc_pin.ExperimentConfig(), kind, observer)
     assert cfg.controller.kind == expected
@@ -166,7 +166,7 @@ def test_observer_override_maps_controller_kinds(kind, observer, expected):
 
 
 def test_kind_from_a_config_file_builds_that_controller(write_config):
-    from hmpc_pin.computed_torque import ComputedTorque
+    from hmpc_pin.controllers.computed_torque import ComputedTorque
 
     path = write_config(
         '[robot]\nurdf = "@URDF@"\n[controller]\nkind = "computed-torque-pid"\n'

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.config import ControllerConfig
-from hmpc_pin.controller import make_controller
-from hmpc_pin.ism import IntegralSlidingMode
+from hmpc_pin.experiment.schema import ControllerConfig
+from hmpc_pin.controllers.hierarchical import make_controller
+from hmpc_pin.compensation.ism import IntegralSlidingMode
 
 
 def test_sigma_is_velocity_minus_nominal_integral(make_rng):

@@ -1,4 +1,4 @@
-"""Tests of :mod:`hmpc_pin.joint_mpc` against an independent condensation of Eq (24)–(26).
+"""Tests of :mod:`hmpc_pin.mpc.condensed` against an independent condensation of Eq (24)–(26).
 
 Nothing here reuses the package's ``Phi``, ``Gamma`` or ``H``. The reference is built
 from first principles:
@@ -28,7 +28,7 @@ import itertools
 import numpy as np
 import pytest
 
-from hmpc_pin.joint_mpc import CondensedMPC, JointQPs, StateLimits
+from hmpc_pin.mpc.condensed import CondensedMPC, JointQPs, StateLimits
 
 TS = 0.01
 Q_PAPER = np.diag([50.0, 0.0])

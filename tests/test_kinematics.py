@@ -1,4 +1,4 @@
-"""Tests of :mod:`hmpc_pin.kinematics` and :class:`hmpc_pin.references.QuinticReference`.
+"""Tests of :mod:`hmpc_pin.model.planar` and :class:`hmpc_pin.tasks.references.QuinticReference`.
 
 The inverse-kinematics answers are checked with Pinocchio's forward kinematics called
 directly here (``pin.framesForwardKinematics`` on a fresh ``pin.Data``), not through
@@ -17,7 +17,7 @@ import pinocchio as pin
 import pytest
 
 from hmpc_pin.exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError
-from hmpc_pin.kinematics import (
+from hmpc_pin.model.planar import (
     KinematicsError,
     planar_chain,
     planar_ik,
@@ -25,8 +25,8 @@ from hmpc_pin.kinematics import (
     tool_pose,
     workspace_points,
 )
-from hmpc_pin.references import QuinticReference, sample_horizon
-from hmpc_pin.robot import load_robot
+from hmpc_pin.tasks.references import QuinticReference, sample_horizon
+from hmpc_pin.model.robot import load_robot
 
 URDF = Path(__file__).resolve().parents[1] / "robots" / "planar3.urdf"
 LENGTHS = np.array([1.5, 1.2, 1.0])
@@ -37,7 +37,7 @@ POSE_TOL = 1e-6
 
 
 def fk_pose(robot, q) -> tuple[float, float, float]:
-    """Tool (x, z, φ) by Pinocchio FK, independent of hmpc_pin.kinematics."""
+    """Tool (x, z, φ) by Pinocchio FK, independent of hmpc_pin.model.planar."""
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
     m = data.oMf[robot.model.getFrameId("tool")]

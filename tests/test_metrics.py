@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hmpc_pin.metrics import chattering
+from hmpc_pin.apps.metrics import chattering
 
 
 def test_total_variation_and_energy_share_of_known_signals():

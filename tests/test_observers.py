@@ -1,4 +1,4 @@
-"""Tests of :mod:`hmpc_pin.observers` on the planar three-link arm (``robots/planar3.urdf``).
+"""Tests of :mod:`hmpc_pin.compensation.observers` on the planar three-link arm (``robots/planar3.urdf``).
 
 The observer is checked against its error dynamics, computed here independently:
 
@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from hmpc_pin.observers import DisturbanceObserver
-from hmpc_pin.robot import Robot, load_robot
+from hmpc_pin.compensation.observers import DisturbanceObserver
+from hmpc_pin.model.robot import Robot, load_robot
 
 URDF = Path(__file__).resolve().parents[1] / "robots" / "planar3.urdf"
 N_JOINTS = 3
@@ -345,7 +345,7 @@ def panda_pose(panda, rng):
 def test_general_ndo_converges_at_rest_on_panda(panda, make_rng, seed):
     """Held still with τ = G − d, the implicit general NDO's error is exactly
     w_k = (I + Ts·c·M⁻¹)⁻ᵏ w_0 (computed here independently) and falls below 1e-8·|d|."""
-    from hmpc_pin.observers import DisturbanceObserver
+    from hmpc_pin.compensation.observers import DisturbanceObserver
 
     rng = make_rng(seed)
     q, dq = panda_pose(panda, rng), np.zeros(7)
@@ -367,7 +367,7 @@ def test_general_ndo_converges_at_rest_on_panda(panda, make_rng, seed):
 @pytest.mark.parametrize("seed", range(3))
 def test_momentum_observer_rate_per_joint_on_panda(panda, make_rng, seed):
     """At rest, each joint's momentum residual error decays by exactly 1/(1 + Ts·K_i)."""
-    from hmpc_pin.observers import MomentumObserver
+    from hmpc_pin.compensation.observers import MomentumObserver
 
     rng = make_rng(10 + seed)
     q, dq = panda_pose(panda, rng), np.zeros(7)
@@ -390,7 +390,7 @@ def test_spatial_observers_converge_on_moving_panda(panda, make_rng, kind):
     estimates d to 5 % after 2 s at random start poses. The residual error is the
     observers' O(Ts) discretisation of the moving arm's dynamics (they see the mean
     acceleration of the period, evaluated with M and C at its end), not a lag on d."""
-    from hmpc_pin.observers import make_observer
+    from hmpc_pin.compensation.observers import make_observer
 
     rng = make_rng(20)
     Ts, h = 0.01, 0.001
@@ -426,7 +426,7 @@ def rk4_step_state(robot, q, dq, tau, h):
 def test_general_gain_bound_matches_finite_difference_mdot(panda, make_rng):
     """½‖Ṁ‖₂ of :func:`general_gain_bound` equals the bound recomputed from finite
     differences of M along the same sampled velocities."""
-    from hmpc_pin.observers import general_gain_bound
+    from hmpc_pin.compensation.observers import general_gain_bound
 
     bound = general_gain_bound(panda, samples=30, seed=4)
     rng = np.random.default_rng(4)

@@ -1,4 +1,4 @@
-"""Tests of :mod:`hmpc_pin.robot` against an independent closed-form model.
+"""Tests of :mod:`hmpc_pin.model.robot` against an independent closed-form model.
 
 The reference dynamics of the vertical three-link planar arm (``robots/planar3.urdf``)
 are derived here by hand from the Lagrangian, without Pinocchio:
@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from hmpc_pin.exceptions import URDFError
-from hmpc_pin.robot import Robot, load_robot
+from hmpc_pin.model.robot import Robot, load_robot
 
 URDF = Path(__file__).resolve().parents[1] / "robots" / "planar3.urdf"
 
@@ -515,7 +515,7 @@ def test_arm_coriolis_matrix_gives_mass_matrix_derivative(arm, make_rng):
 
 
 def test_example_robot_names_resolve_to_urdf_files():
-    from hmpc_pin.robot import example_robot_names, example_robot_urdf
+    from hmpc_pin.model.robot import example_robot_names, example_robot_urdf
 
     names = example_robot_names()
     assert {"ur5", "ur10", "panda", "z1"} <= set(names)

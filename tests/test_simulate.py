@@ -135,7 +135,7 @@ A_PULSE, B_PULSE, SIGMA = np.array([10.0, 8.0, 0.3]), np.array([1.0, 2.0, 3.0]),
 
 
 def _eq34(t, q, dq):
-    """Eq 34 written out (independent of hmpc_pin.disturbances)."""
+    """Eq 34 written out (independent of hmpc_pin.sim.disturbances)."""
     friction = -(A_VISC * dq + B_COUL * np.sign(dq))
     return friction + A_PULSE * np.exp(-((t - B_PULSE) ** 2) / (2 * SIGMA**2))
 
@@ -173,7 +173,7 @@ def _plain_closed_loop(plant, controller, reference, d, q0, dq0, duration, dt=0.
 
 
 def test_simulate_equals_plain_rk4_loop_on_paper_combined():
-    """simulate's RK4 plant (hmpc_pin.plant, fused disturbance evaluation) gives the closed
+    """simulate's RK4 plant (hmpc_pin.sim.plants, fused disturbance evaluation) gives the closed
     loop of the textbook RK4 loop to rounding, on the paper's combined scenario for 1 s."""
     cfg = hmpc_pin.load_config(CONFIGS / "paper_combined.toml")
     exp = hmpc_pin.Experiment.from_config(cfg)

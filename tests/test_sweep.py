@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.cli import main
-from hmpc_pin.measurement import MeasuredController
-from hmpc_pin.sweep import draw_samples, run_sample, run_sweep
+from hmpc_pin.apps.cli import main
+from hmpc_pin.controllers.wrappers import MeasuredController
+from hmpc_pin.apps.sweep import draw_samples, run_sample, run_sweep
 
 from .conftest import CONFIGS
 

@@ -14,7 +14,7 @@ import hmpc_pin
 from .conftest import PLANAR3
 
 pytest.importorskip("meshcat", reason="meshcat is not installed (pip install -e '.[viz]')")
-from hmpc_pin.viz import export_replay
+from hmpc_pin.apps.viz import export_replay
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
@@ -145,7 +145,7 @@ def test_replay_of_a_mesh_arm_from_example_robot_data(tmp_path):
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium)")
 def test_live_view_is_served_and_moves_the_arm(tmp_path):
     """A real Meshcat server: the page at LiveView.url shows the arm where it was put."""
-    from hmpc_pin.viz import LiveView
+    from hmpc_pin.apps.viz import LiveView
 
     robot = hmpc_pin.load_robot(PLANAR3)
     view = LiveView(robot, ghost=False)
@@ -161,7 +161,7 @@ def test_live_view_is_served_and_moves_the_arm(tmp_path):
 
 
 def test_cli_live_view_runs_and_saves(tmp_path, capsys):
-    from hmpc_pin.cli import main
+    from hmpc_pin.apps.cli import main
 
     cfg = str(PLANAR3.parent.parent / "configs" / "paper_combined.toml")
     argv = ["run", cfg, "--out", str(tmp_path), "--duration", "1", "--viz", "--speed", "100"]
@@ -174,7 +174,7 @@ def test_missing_meshcat_is_a_clear_message(monkeypatch, tmp_path, capsys):
     """Without meshcat the run still completes and is saved; the view is refused clearly."""
     import sys
 
-    from hmpc_pin.cli import main
+    from hmpc_pin.apps.cli import main
 
     monkeypatch.setitem(sys.modules, "meshcat", None)  # import meshcat -> ImportError
     cfg = str(PLANAR3.parent.parent / "configs" / "paper_combined.toml")
@@ -185,7 +185,7 @@ def test_missing_meshcat_is_a_clear_message(monkeypatch, tmp_path, capsys):
 
 def test_busy_port_moves_to_the_next_free_one():
     """A second live view while the first holds its port gets its own server and URL."""
-    from hmpc_pin.viz import LiveView
+    from hmpc_pin.apps.viz import LiveView
 
     robot = hmpc_pin.load_robot(PLANAR3)
     first = LiveView(robot)

@@ -1,21 +1,22 @@
-"""Imperfect measurement: sensor noise and delay between the plant and a controller.
+"""Controller wrappers: measurement (noise and delay) and timing.
 
-:class:`MeasuredController` wraps any controller with the duck-typed interface the
-closed loop uses (``Ts``, ``reset(q0, dq0)``, ``step(t, q, dq, reference)``,
-``disturbance_estimate``) and hands it, at :math:`t_k`, the state measured at
-:math:`t_{k-\\mathrm{delay}}` plus white Gaussian noise. The plant loop
-(:func:`~hmpc_pin.simulate.simulate`) is unchanged: it sees an ordinary controller.
+:class:`MeasuredController` wraps any :class:`~hmpc_pin.controllers.base.Controller`
+and hands it, at :math:`t_k`, the state measured at :math:`t_{k-\\mathrm{delay}}` plus
+white Gaussian noise. The plant loop (:func:`~hmpc_pin.sim.simulate.simulate`) is
+unchanged: it sees an ordinary controller. :class:`TimedController` times each step.
 """
 
 from __future__ import annotations
 
+import time
 from collections import deque
 
 import numpy as np
 
-from .controller import ControllerWrapper
+from ..exceptions import ConfigError
+from .base import ControllerWrapper
 
-__all__ = ["MeasuredController"]
+__all__ = ["MeasuredController", "TimedController"]
 
 
 class MeasuredController(ControllerWrapper):
@@ -49,9 +50,12 @@ class MeasuredController(ControllerWrapper):
         rng: np.random.Generator | None = None,
     ):
         if not (np.isfinite(q_noise) and q_noise >= 0 and np.isfinite(dq_noise) and dq_noise >= 0):
-            raise ValueError(f"noise levels must be finite and >= 0, got {q_noise=}, {dq_noise=}")
+            raise ConfigError(
+                "q_noise/dq_noise",
+                f"got {q_noise=}, {dq_noise=}; expected finite noise levels >= 0",
+            )
         if int(delay) != delay or delay < 0:
-            raise ValueError(f"delay must be a whole number of periods >= 0, got {delay!r}")
+            raise ConfigError("delay", f"got {delay!r}; expected a whole number of periods >= 0")
         super().__init__(controller)
         self.q_noise = float(q_noise)
         self.dq_noise = float(dq_noise)
@@ -84,3 +88,30 @@ class MeasuredController(ControllerWrapper):
         if name == "controller":
             raise AttributeError(name)
         return getattr(self.controller, name)
+
+
+class TimedController(ControllerWrapper):
+    """Wrap a controller and time each ``step`` with ``perf_counter_ns``.
+
+    It has the interface :func:`hmpc_pin.simulate.simulate` expects (``Ts``, ``reset``,
+    ``step``, ``disturbance_estimate``), so a closed-loop run measures the step too.
+
+    Attributes:
+        samples_ns: Duration of every step since the last reset [ns].
+    """
+
+    def __init__(self, controller):
+        super().__init__(controller)
+        self.samples_ns: list[int] = []
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
+        """Reset the wrapped controller and forget the recorded durations."""
+        self.samples_ns = []
+        self.controller.reset(q0, dq0)
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """The wrapped controller's step [N·m], timed."""
+        start = time.perf_counter_ns()
+        tau = self.controller.step(t, q, dq, reference)
+        self.samples_ns.append(time.perf_counter_ns() - start)
+        return tau

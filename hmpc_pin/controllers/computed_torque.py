@@ -27,24 +27,24 @@ not saturated (conditional-integration anti-windup).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from .config import ControllerConfig
-from .exceptions import ConfigError, NonFiniteError
-from .joint_mpc import CondensedMPC
-from .robot import Robot
+from ..compensation.base import Compensation, NoCompensation
+from ..exceptions import ConfigError, NonFiniteError
+from ..model.robot import Robot
+from ..mpc.condensed import CondensedMPC
+from ..tasks.base import as_reference
+from .hierarchical import MPCSettings
 
 __all__ = [
-    "CT_KINDS",
+    "CTSettings",
     "ComputedTorque",
     "closed_loop_poles",
     "fastest_integral_gain",
     "mpc_feedback_gain",
 ]
-
-#: The ``[controller] kind`` values built by :class:`ComputedTorque`.
-CT_KINDS = ("computed-torque", "computed-torque-pid")
 
 
 def mpc_feedback_gain(mpc: CondensedMPC) -> tuple[float, float]:
@@ -93,62 +93,108 @@ def fastest_integral_gain(Ts: float, kp: float, kd: float) -> float:
     return math.exp(0.5 * (a + b))
 
 
+@dataclass(frozen=True)
+class CTSettings:
+    """Settings of :class:`ComputedTorque`.
+
+    Attributes:
+        Ts: Control period [s].
+        kp: Proportional gain [1/s²].
+        kd: Derivative gain [1/s].
+        ki: Integral gain [1/s³] (0 for the PD).
+        v_min, v_max: Acceleration bounds [rad/s²], scalar or (n,).
+    """
+
+    Ts: float
+    kp: float
+    kd: float
+    ki: float = 0.0
+    v_min: np.ndarray | float = -100.0
+    v_max: np.ndarray | float = 100.0
+
+    @classmethod
+    def matching(
+        cls,
+        mpc: MPCSettings,
+        *,
+        pid: bool = False,
+        kp: float | None = None,
+        kd: float | None = None,
+        ki: float | None = None,
+    ) -> CTSettings:
+        """Gains of the same bandwidth as the MPC ``mpc`` (module docstring): ``kp``, ``kd``
+        default to the MPC's unconstrained feedback gain; for ``pid``, ``ki`` defaults to
+        :func:`fastest_integral_gain`; the PD has ``ki = 0``."""
+        kp0, kd0 = mpc_feedback_gain(CondensedMPC(mpc.Ts, mpc.N, mpc.Nc, mpc.Q, mpc.R, mpc.P))
+        kp = kp if kp is not None else kp0
+        kd = kd if kd is not None else kd0
+        if not pid:
+            ki = 0.0
+        elif ki is None:
+            ki = fastest_integral_gain(mpc.Ts, kp, kd)
+        return cls(mpc.Ts, kp, kd, ki, mpc.v_min, mpc.v_max)
+
+
 class ComputedTorque:
-    """Inverse dynamics + PD/PID outer loop (``computed-torque`` / ``computed-torque-pid``).
+    """Inverse dynamics + PD/PID outer loop, :math:`\\tau = M v + C\\dot q + G - \\hat d`.
 
     Args:
         robot: The controller's model.
-        config: ``kind`` must be one of :data:`CT_KINDS`; uses ``Ts``, ``v_min``/``v_max``,
-            ``computed_torque`` gains, and the MPC weights only for the default gains.
+        settings: :class:`CTSettings` (default: the PD matching the paper's MPC).
+        compensation: The disturbance estimate cancelled in τ (default none).
 
     Attributes:
         kp, kd, ki: The gains in use [1/s², 1/s, 1/s³] (``ki = 0`` for the PD).
-        disturbance_estimate: Always zeros (no disturbance compensation).
+        disturbance_estimate: :math:`\\hat d_k` of the compensation [N·m] (zeros without).
         v, tau: Last commanded acceleration [rad/s²] and torque [N·m].
 
     Raises:
         ConfigError: The gains give an unstable discrete closed loop.
     """
 
-    def __init__(self, robot: Robot, config: ControllerConfig | None = None):
-        config = config if config is not None else ControllerConfig(kind="computed-torque")
-        if config.kind not in CT_KINDS:
-            raise ConfigError(
-                "controller.kind", f"{config.kind!r} is not one of {CT_KINDS}; use make_controller"
-            )
-        self.robot, self.config, self.n = robot, config, robot.nq
-        self.v_min, self.v_max = config.bounds(robot.nq)
-        c, ct = config, config.computed_torque
-        kp, kd = mpc_feedback_gain(CondensedMPC(c.Ts, c.N, c.Nc, c.Q, c.R, c.P))
-        self.kp = ct.kp if ct.kp is not None else kp
-        self.kd = ct.kd if ct.kd is not None else kd
-        pid = config.kind == "computed-torque-pid"
-        if not pid:
-            self.ki = 0.0
-        else:
-            self.ki = ct.ki if ct.ki is not None else fastest_integral_gain(c.Ts, self.kp, self.kd)
-        poles = closed_loop_poles(config.Ts, self.kp, self.kd, self.ki)
+    def __init__(
+        self,
+        robot: Robot,
+        settings: CTSettings | None = None,
+        compensation: Compensation | None = None,
+    ):
+        settings = settings if settings is not None else CTSettings.matching(MPCSettings())
+        self.robot, self.settings, self.n = robot, settings, robot.nq
+        n = robot.nq
+        self.v_min = np.broadcast_to(np.asarray(settings.v_min, dtype=float), (n,)).astype(float)
+        self.v_max = np.broadcast_to(np.asarray(settings.v_max, dtype=float), (n,)).astype(float)
+        self.kp, self.kd, self.ki = float(settings.kp), float(settings.kd), float(settings.ki)
+        poles = closed_loop_poles(settings.Ts, self.kp, self.kd, self.ki)
         if np.abs(poles).max() >= 1.0:
             raise ConfigError(
                 "controller.computed_torque",
                 f"gains kp={self.kp:g}, kd={self.kd:g}, ki={self.ki:g} give discrete poles "
-                f"{np.round(poles, 4).tolist()} at Ts={config.Ts:g}; expected all inside the "
+                f"{np.round(poles, 4).tolist()} at Ts={settings.Ts:g}; expected all inside the "
                 "unit circle: lower the gains",
             )
-        self.disturbance_estimate = np.zeros(self.n)
-        self.integral = np.zeros(self.n)
-        self.v = np.zeros(self.n)
-        self.tau = np.zeros(self.n)
+        self.compensation: Compensation = (
+            compensation if compensation is not None else NoCompensation(n)
+        )
+        self.disturbance_estimate = np.zeros(n)
+        self.integral = np.zeros(n)
+        self.v = np.zeros(n)
+        self.tau = np.zeros(n)
+        self._started = False
+        self._reference: object = None
+        self._ref: object = None
 
     @property
     def Ts(self) -> float:
         """Control period [s]."""
-        return self.config.Ts
+        return self.settings.Ts
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         """Start a new run (the integral restarts at zero)."""
-        self.robot.check_vector("q0", q0)
-        self.robot.check_vector("dq0", dq0)
+        q0 = self.robot.check_vector("q0", q0)
+        dq0 = self.robot.check_vector("dq0", dq0)
+        self.compensation.reset(q0, dq0)
+        self.disturbance_estimate = np.zeros(self.n)
+        self._started = False
         self.integral = np.zeros(self.n)
         self.v = np.zeros(self.n)
         self.tau = np.zeros(self.n)
@@ -168,13 +214,25 @@ class ComputedTorque:
             raise NonFiniteError("t", t)
         q = self.robot.check_vector("q", q)
         dq = self.robot.check_vector("dq", dq)
-        r, dr = reference.sample(t)
-        ddr = reference.acceleration(t)
+        if reference is not self._reference:
+            self._ref = as_reference(reference)
+            self._reference = reference
+        r, dr = self._ref.sample(t)  # type: ignore[attr-defined]
+        ddr = self._ref.acceleration(t)  # type: ignore[attr-defined]
         e = r - q
         v_free = ddr + self.kp * e + self.kd * (dr - dq) + self.ki * self.integral
+        robot = self.robot
+        M = robot.mass_matrix(q)
+        nle = robot.nonlinear_effects(q, dq)
+        if self._started:
+            self.disturbance_estimate = self.compensation.update(M, nle, q, dq, self.tau, self.v)
+        else:
+            self.disturbance_estimate = self.compensation.estimate.copy()
+        self._started = True
         self.v = v = np.clip(v_free, self.v_min, self.v_max)
         if self.ki:
-            self.integral += np.where(v == v_free, self.config.Ts * e, 0.0)
-        robot = self.robot
-        self.tau = robot.mass_matrix(q) @ v + robot.nonlinear_effects(q, dq)
-        return self.tau.copy()
+            self.integral += np.where(v == v_free, self.settings.Ts * e, 0.0)
+        tau = M @ v + nle
+        tau -= self.disturbance_estimate
+        self.tau = tau
+        return tau.copy()

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..exceptions import ConfigError
+
 __all__ = ["IntegralSlidingMode"]
 
 
@@ -54,7 +56,9 @@ class IntegralSlidingMode:
 
     def __init__(self, n: int, Ts: float, gain, boundary_layer: float | None = None):
         if boundary_layer is not None and not boundary_layer > 0:
-            raise ValueError(f"{boundary_layer=}; expected a width > 0 [rad/s] or None")
+            raise ConfigError(
+                "boundary_layer", f"got {boundary_layer!r}; expected a width > 0 [rad/s] or None"
+            )
         self.n = n
         self.Ts = float(Ts)
         self.K = np.broadcast_to(np.asarray(gain, dtype=float), (n,)).copy()
@@ -65,7 +69,7 @@ class IntegralSlidingMode:
         self.u = np.zeros(n)
         self.estimate = np.zeros(n)
 
-    def reset(self, dq0: np.ndarray, q0: np.ndarray | None = None) -> None:
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         """Start with σ = 0 at the initial velocity ``dq0`` (``q0`` unused)."""
         self.dq0 = np.array(dq0, dtype=float)
         self.nominal = np.zeros(self.n)
@@ -79,12 +83,25 @@ class IntegralSlidingMode:
             return np.sign(sigma)
         return np.clip(sigma / self.boundary_layer, -1.0, 1.0)
 
-    def update(self, M: np.ndarray, dq: np.ndarray, v_prev: np.ndarray) -> np.ndarray:
-        """Advance one period and return :math:`\\hat d_k = -M u_k` [N·m].
+    def update(
+        self,
+        M: np.ndarray,
+        nle: np.ndarray,
+        q: np.ndarray,
+        dq: np.ndarray,
+        tau_prev: np.ndarray,
+        v_prev: np.ndarray,
+    ) -> np.ndarray:
+        """Advance one period and return :math:`\\hat d_k = -M u_k` [N·m] (the
+        :class:`~hmpc_pin.compensation.base.Compensation` protocol; ``nle``, ``q`` and
+        ``tau_prev`` unused).
 
         Args:
             M: Inertia matrix at the measured state [kg·m²].
+            nle: :math:`C\\dot q + G` [N·m] (unused).
+            q: Measured joint position [rad] (unused).
             dq: Measured joint velocity [rad/s].
+            tau_prev: Torque of the period that just ended [N·m] (unused).
             v_prev: The MPC acceleration held over the period that just ended [rad/s²]
                 (its nominal part only, without the ISM term).
         """

@@ -22,17 +22,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import HmpcError
+from ..exceptions import VizError
 
 __all__ = ["LiveView", "VizError", "export_replay", "visual_model"]
 
 ARM = "arm"
 GHOST = "reference"
 GHOST_RGBA = [0.6, 0.6, 0.6, 0.35]
-
-
-class VizError(HmpcError, RuntimeError):
-    """Meshcat is missing or its server cannot be started."""
 
 
 def _meshcat():

@@ -9,7 +9,6 @@ failure is still written, with ``complete = False`` in the ``.npz``.
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import sys
 from dataclasses import replace
@@ -17,30 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import CONTROLLER_KINDS, ExperimentConfig, load_config
-from .exceptions import ConfigError, HmpcError, OutputError, SimulationError
-from .experiment import Experiment, uses_observer, with_controller
+from ..exceptions import ConfigError, HmpcError, OutputError, SimulationError
+from ..experiment.build import uses_observer, with_controller
+from ..experiment.schema import COMPENSATIONS, CONTROLLER_KINDS, ExperimentConfig, load_config
+from ..sim.result import Result
 from .metrics import compute_metrics, format_metrics
-from .simulate import RESULT_ARRAYS, Result
+from .run import live_view, run_one, write_csv  # noqa: F401 (re-exported)
 
 __all__ = ["main", "write_csv"]
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
-
-
-def write_csv(result: Result, path: Path) -> Path:
-    """Write the trajectories as CSV: ``t`` then ``<array>_<joint>`` for every array and joint.
-
-    Arrays (in order): q, dq, tau, d, d_hat, q_ref, dq_ref.
-    """
-    names = result.joint_names or tuple(f"joint{i + 1}" for i in range(result.q.shape[1]))
-    header = ["t"] + [f"{a}_{j}" for a in RESULT_ARRAYS[1:] for j in names]
-    table = np.column_stack([result.t] + [getattr(result, a) for a in RESULT_ARRAYS[1:]])
-    with open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(table.tolist())
-    return path
 
 
 def _out_dir(path: Path) -> Path:
@@ -56,9 +41,23 @@ def _out_dir(path: Path) -> Path:
 
 
 def _with_overrides(
-    config: ExperimentConfig, no_ndo: bool, duration: float | None
+    config: ExperimentConfig,
+    no_ndo: bool,
+    duration: float | None,
+    compensation: str | None = None,
 ) -> ExperimentConfig:
+    if compensation is not None:
+        if compensation not in COMPENSATIONS:
+            raise ConfigError("--compensation", f"expected one of {COMPENSATIONS}, got "
+                              f"{compensation!r}")  # fmt: skip
+        config = with_controller(config, compensation=compensation)
     if no_ndo:
+        if config.controller.compensation == "none":
+            raise ConfigError(
+                "--no-ndo",
+                f"{config.name} already runs {config.controller.label} (no compensation); "
+                "drop --no-ndo",
+            )
         config = with_controller(config, observer=False)
     if duration is not None:
         if not np.isfinite(duration) or duration <= 0:
@@ -67,52 +66,15 @@ def _with_overrides(
     return config
 
 
-def live_view(robot, speed: float):
-    """A :class:`~hmpc_pin.viz.LiveView`, or ``None`` with a warning if Meshcat cannot run."""
-    from .viz import LiveView, VizError
-
-    try:
-        view = LiveView(robot, speed=speed)
-    except VizError as exc:
-        print(f"warning: no live view: {exc}; the run goes on and is saved", file=sys.stderr)
-        return None
-    print(f"Meshcat live view: open {view.url} (speed {speed:g}x)")
-    return view
-
-
-def run_one(config: ExperimentConfig, out: Path, stem: str | None = None, viz: float | None = None):
-    """Run ``config``; write ``<stem>.npz``, ``<stem>.csv`` and figures to ``out``.
-
-    Returns:
-        (result, files, failure message or None).
-    """
-    from . import plots
-
-    stem = stem or config.name
-    experiment = Experiment.from_config(config)
-    view = live_view(experiment.robot, viz) if viz is not None else None
-    failure = None
-    try:
-        result = experiment.run(on_step=view)
-    except SimulationError as exc:
-        if exc.result is None:
-            raise
-        result, failure = exc.result, str(exc)
-    finally:
-        if view is not None:
-            view.close()
-    files = [result.save(out / f"{stem}.npz"), write_csv(result, out / f"{stem}.csv")]
-    if len(result.t) > 1:
-        title = config.description or config.name
-        files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
-        files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
-    return experiment, result, files, failure
-
-
 def cmd_run(args) -> int:
-    config = _with_overrides(load_config(args.config), args.no_ndo, args.duration)
+    config = _with_overrides(load_config(args.config), args.no_ndo, args.duration,
+                             args.compensation)  # fmt: skip
     out = _out_dir(args.out)
-    stem = config.name + ("_no_ndo" if args.no_ndo and not config.name.endswith("_no_ndo") else "")
+    stem = config.name
+    if args.compensation is not None:
+        stem += f"_{args.compensation}"
+    if args.no_ndo and not config.name.endswith("_no_ndo"):
+        stem += "_no_ndo"
     if not args.speed > 0:
         raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
     viz = args.speed if args.viz else None
@@ -123,8 +85,8 @@ def cmd_run(args) -> int:
 
         label = "with NDO" if observer else "without NDO"
         files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
-    kind = config.controller.kind
-    print(f"{config.name}: {config.description} ({kind}, observer {'on' if observer else 'off'})")
+    label = config.controller.label
+    print(f"{config.name}: {config.description} ({label}, observer {'on' if observer else 'off'})")
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names))
     if args.replay is not None and len(result.t) > 1:
@@ -145,7 +107,7 @@ def _replay(robot, result, path: Path) -> Path:
 
 
 def cmd_replay(args) -> int:
-    from .robot import load_robot
+    from ..model.robot import load_robot
 
     if not args.result.is_file():
         raise ConfigError("RESULT", f"{str(args.result)!r} not found; pass a .npz written by run")
@@ -171,8 +133,8 @@ def cmd_replay(args) -> int:
 def cmd_compare(args) -> int:
     from .compare import compare, markdown_table, parse_controllers
 
-    controllers = parse_controllers(args.controllers)
     config = _with_overrides(load_config(args.config), False, args.duration)
+    controllers = parse_controllers(args.controllers, config)
     out = _out_dir(args.out)
     comp, files = compare(config, out, controllers, progress=not args.quiet)
 
@@ -202,7 +164,7 @@ def cmd_sweep(args) -> int:
     if args.controllers is not None:
         from .compare import parse_controllers
 
-        kinds = parse_controllers(args.controllers)
+        kinds = parse_controllers(args.controllers, config)
         config = replace(config, sweep=replace(config.sweep, variants=kinds))
     out = _out_dir(args.out)
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
@@ -239,7 +201,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
-    run.add_argument("--no-ndo", action="store_true", help="disable the observer (baseline)")
+    run.add_argument(
+        "--no-ndo", action="store_true",
+        help="run without disturbance compensation (the baseline; files named *_no_ndo)",
+    )  # fmt: skip
+    run.add_argument(
+        "--compensation", default=None, metavar="NAME",
+        help="replace the config's compensation: " + ", ".join(COMPENSATIONS)
+        + " (files named *_<NAME>)",
+    )  # fmt: skip
     run.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     run.add_argument(
         "--replay", type=Path, metavar="HTML", help="also write a self-contained Meshcat replay"
@@ -274,7 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     cmp_.add_argument(
         "--controllers",
-        help="comma-separated controller names [all: " + ",".join(CONTROLLER_KINDS) + "]",
+        help="comma-separated controllers, each controller+compensation (e.g. hmpc+momentum) "
+        "or a 0.1 name [all: " + ",".join(CONTROLLER_KINDS) + "]",
     )
     cmp_.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     cmp_.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")

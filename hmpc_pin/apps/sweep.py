@@ -27,51 +27,80 @@ import math
 import multiprocessing
 import os
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from .config import CONTROLLER_KINDS, ExperimentConfig
-from .exceptions import ConfigError, SimulationError
-from .experiment import Experiment
-from .measurement import MeasuredController
+from ..controllers.wrappers import MeasuredController
+from ..exceptions import ConfigError, SimulationError
+from ..experiment.build import Experiment, with_controller
+from ..experiment.schema import OBSERVERS, ExperimentConfig
 
 __all__ = [
-    "VARIANTS",
     "SampleParams",
     "SweepResult",
     "draw_samples",
+    "resolve_variants",
     "run_sample",
     "run_sweep",
+    "variant_config",
 ]
 
 
-def _ndo(config: ExperimentConfig) -> Experiment:
-    return Experiment.from_config(config, observer=True)
+def variant_config(config: ExperimentConfig, variant: str) -> ExperimentConfig:
+    """The config of one sweep variant (:class:`~hmpc_pin.experiment.schema.SweepConfig`):
+    ``"ndo"`` the config's pair (its compensation must be an observer), ``"no-ndo"`` the
+    config's controller without compensation, any other name a controller × compensation
+    (:func:`~hmpc_pin.experiment.build.with_controller`).
+
+    Raises:
+        ConfigError: ``"ndo"`` on a config whose compensation is no observer, or an
+            unknown name.
+    """
+    source = str(config.source) if config.source else None
+    if variant == "ndo":
+        if config.controller.compensation not in OBSERVERS:
+            raise ConfigError(
+                "sweep.variants",
+                f"'ndo' is the config's controller with its observer, but {config.name} runs "
+                f"{config.controller.label}; name the pair instead (e.g. "
+                f"'{config.controller.kind}+chen')",
+                source=source,
+            )
+        return config
+    if variant == "no-ndo":
+        return with_controller(config, observer=False)
+    try:
+        return with_controller(config, variant)
+    except ConfigError as exc:
+        raise ConfigError("sweep.variants", exc.message, source=source) from None
 
 
-def _no_ndo(config: ExperimentConfig) -> Experiment:
-    return Experiment.from_config(config, observer=False)
+def resolve_variants(config: ExperimentConfig) -> tuple[str, ...]:
+    """The variants of ``config.sweep`` (default: the config's pair and, when it has a
+    compensation, the same controller without), each a different controller.
 
+    Raises:
+        ConfigError: Two variants are the same controller × compensation.
+    """
+    variants = config.sweep.variants
+    if variants is None:
+        cc = config.controller
+        variants = (cc.label,) if cc.compensation == "none" else (cc.label, f"{cc.kind}+none")
+    seen: dict[str, str] = {}
+    for variant in variants:
+        label = variant_config(config, variant).controller.label
+        if label in seen:
+            raise ConfigError(
+                "sweep.variants",
+                f"{variant!r} and {seen[label]!r} are the same controller ({label}) on "
+                f"{config.name}; give each once",
+                source=str(config.source) if config.source else None,
+            )
+        seen[label] = variant
+    return tuple(variants)
 
-def _controller_kind(config: ExperimentConfig, kind: str) -> Experiment:
-    return Experiment.from_config(config, controller=kind)
-
-
-#: Controller variants a sweep can run: name → builder of the (unperturbed) experiment
-#: from a config. Add an entry to sweep another controller (it must return an
-#: :class:`~hmpc_pin.Experiment` whose ``controller`` has the duck-typed interface of
-#: :func:`~hmpc_pin.simulate.simulate`).
-#: Besides ``ndo``/``no-ndo`` (the config's controller with the observer on/off), every
-#: controller name of :data:`~hmpc_pin.config.CONTROLLER_KINDS` is a variant.
-VARIANTS: dict[str, Callable[[ExperimentConfig], Experiment]] = {
-    "ndo": _ndo,
-    "no-ndo": _no_ndo,
-    **{kind: partial(_controller_kind, kind=kind) for kind in CONTROLLER_KINDS},
-}
 
 EXECUTORS = ("local", "dask")
 
@@ -134,15 +163,6 @@ def perturbed_config(config: ExperimentConfig, params: SampleParams) -> Experime
     return replace(config, disturbance=replace(dc, friction=friction, pulse=pulse))
 
 
-def _check_variant(config: ExperimentConfig, variant: str) -> None:
-    if variant not in VARIANTS:
-        raise ConfigError(
-            "sweep.variants",
-            f"unknown variant {variant!r}; known variants are {sorted(VARIANTS)}",
-            source=str(config.source) if config.source else None,
-        )
-
-
 def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> dict:
     """Run one perturbed sample with one controller variant; return its table row.
 
@@ -158,9 +178,8 @@ def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> 
         (divergence, non-finite state, solver failure) is a row with ``complete=False``,
         not an exception.
     """
-    _check_variant(config, variant)
     sc = config.sweep
-    experiment = VARIANTS[variant](perturbed_config(config, params))
+    experiment = Experiment.from_config(variant_config(perturbed_config(config, params), variant))
     experiment.plant = experiment.plant.with_scaled_inertias(params.mass)
     experiment.controller = MeasuredController(
         experiment.controller,
@@ -333,8 +352,7 @@ def run_sweep(
             raise ConfigError(key, f"expected an integer >= {low}, got {value!r}")
     if executor not in EXECUTORS:
         raise ConfigError("--executor", f"expected one of {EXECUTORS}, got {executor!r}")
-    for variant in config.sweep.variants:
-        _check_variant(config, variant)
+    config = replace(config, sweep=replace(config.sweep, variants=resolve_variants(config)))
     Experiment.from_config(config)  # bad input fails here, once, not in every worker
     params = draw_samples(config, samples, seed)
     tasks = [(p, v) for p in params for v in config.sweep.variants]

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import DimensionError, NonFiniteError, URDFError
+from ..data import robot_path
+from ..exceptions import DimensionError, NonFiniteError, URDFError
 
 __all__ = ["Robot", "load_robot"]
 
@@ -234,11 +235,11 @@ class Robot:
         m = pin.crba(self.model, self.data, q)
         if self._symmetrize:
             m = np.triu(m) + np.triu(m, 1).T
-        return m.copy()
+        return m  # pin.crba returns a new array (not a view of data.M)
 
     def nonlinear_effects(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Coriolis, centrifugal and gravity torques :math:`C(q,\\dot q)\\dot q + G(q)` [N·m]."""
-        return pin.nonLinearEffects(self.model, self.data, q, dq).copy()
+        return pin.nonLinearEffects(self.model, self.data, q, dq)  # a new array
 
     def coriolis_matrix(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """Coriolis matrix :math:`C(q,\\dot q)` (n×n) with :math:`\\dot M = C + C^T`."""
@@ -292,8 +293,9 @@ def load_robot(
     file and the problem.
 
     Args:
-        source: Path of a ``.urdf`` file, or the name of an ``example-robot-data``
-            model (``"ur5"``, ``"ur10"``, ``"panda"``, ``"z1"``, ...). A string is
+        source: Path of a ``.urdf`` file, or a robot name: ``"planar3"`` (the paper's
+            arm, shipped in the package) or an ``example-robot-data`` model (``"ur5"``,
+            ``"ur10"``, ``"panda"``, ``"z1"``, ...). A string is
             taken as a name when no file of that name exists and it has no suffix.
         gravity: Magnitude of gravity [m/s²], acting along the world −z axis.
             The paper uses 9.8 (Table 1), not Pinocchio's default 9.81.
@@ -306,7 +308,8 @@ def load_robot(
     """
     path = Path(source)
     if not path.exists() and not path.suffix and len(path.parts) == 1:
-        path = example_robot_urdf(str(source))
+        packaged = robot_path(str(source))
+        path = packaged if packaged is not None else example_robot_urdf(str(source))
     if not np.isfinite(gravity) or gravity < 0:
         raise URDFError(path, f"gravity={gravity!r}; expected a finite value >= 0")
     locked = {str(k): float(v) for k, v in (locked_joints or {}).items()}

@@ -65,7 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 from proxsuite import proxqp
 
-from .exceptions import SolverError
+from ..exceptions import ConfigError, SolverError
 
 __all__ = ["CondensedMPC", "JointQPs", "StateLimits"]
 
@@ -242,7 +242,7 @@ class JointQPs:
         layout: str = "block",
     ):
         if layout not in ("block", "joint"):
-            raise ValueError(f"layout={layout!r}; expected 'block' or 'joint'")
+            raise ConfigError("qp_layout", f"got {layout!r}; expected 'block' or 'joint'")
         self.mpc = mpc
         self.layout = layout
         self.always_constrained = always_constrained

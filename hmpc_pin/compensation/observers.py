@@ -50,6 +50,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..exceptions import ConfigError
+
 try:  # eigenpy comes with Pinocchio; PartialPivLU is bound in eigenpy >= 3.
     from eigenpy import PartialPivLU as _PartialPivLU
 except ImportError:  # pragma: no cover - older eigenpy: np.linalg.solve
@@ -60,7 +62,6 @@ __all__ = [
     "DisturbanceObserver",
     "MomentumObserver",
     "general_gain_bound",
-    "make_observer",
     "observer_matrix",
 ]
 
@@ -79,7 +80,7 @@ def observer_matrix(kind: str, n: int) -> np.ndarray:
         return np.tril(np.ones((n, n)))
     if kind == "general":
         return np.eye(n)
-    raise ValueError(f"observer kind {kind!r} is not one of ('chen', 'general')")
+    raise ConfigError("observer.kind", f"got {kind!r}; expected 'chen' or 'general'")
 
 
 class DisturbanceObserver:
@@ -105,7 +106,9 @@ class DisturbanceObserver:
         discretization: str = "implicit",
     ):
         if discretization not in DISCRETIZATIONS:
-            raise ValueError(f"discretization {discretization!r} is not one of {DISCRETIZATIONS}")
+            raise ConfigError(
+                "discretization", f"got {discretization!r}; expected one of {DISCRETIZATIONS}"
+            )
         self.n = n
         self.Ts = float(Ts)
         self.gain = float(gain)
@@ -127,7 +130,7 @@ class DisturbanceObserver:
         # L M = cY  <=>  M^T L^T = (cY)^T
         return np.linalg.solve(M.T, self.cY.T).T
 
-    def reset(self, dq0: np.ndarray, q0: np.ndarray | None = None) -> None:
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         """Start at :math:`z_0 = -p(\\dot q_0)`, i.e. :math:`\\hat d(0) = 0` (``q0`` unused)."""
         self.z = -self.p(dq0)
         self.estimate = np.zeros(self.n)
@@ -136,18 +139,21 @@ class DisturbanceObserver:
         self,
         M: np.ndarray,
         nle: np.ndarray,
+        q: np.ndarray,
         dq: np.ndarray,
         tau_prev: np.ndarray,
-        q: np.ndarray | None = None,
+        v: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Advance one sampling period and return the new estimate :math:`\\hat d_k`.
+        """Advance one sampling period and return the new estimate :math:`\\hat d_k`
+        (the :class:`~hmpc_pin.compensation.base.Compensation` protocol).
 
         Args:
             M: Inertia matrix at the measured state [kg·m²].
             nle: :math:`C\\dot q + G` at the measured state [N·m].
+            q: Measured joint position [rad] (unused here; the momentum observer needs it).
             dq: Measured joint velocity [rad/s].
             tau_prev: Torque applied over the period that just ended [N·m].
-            q: Measured joint position [rad] (unused here; the momentum observer needs it).
+            v: Outer-loop acceleration of that period [rad/s²] (unused by the NDO).
         """
         # With L = cY M⁻¹ and b = n_k − τ_{k−1} − p_k, both updates need one linear solve:
         #   implicit: (I + Ts L) z⁺ = z + Ts L b  ⇔  (M + Ts cY) u = b − z,  z⁺ = z + Ts cY u
@@ -207,10 +213,10 @@ class MomentumObserver:
         self.integral = np.zeros(n)
         self.estimate = np.zeros(n)
 
-    def reset(self, dq0: np.ndarray, q0: np.ndarray | None = None) -> None:
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         """Start at :math:`r = 0`; :math:`p_0 = M(q_0)\\dot q_0` (zero for a start at rest)."""
         dq0 = np.asarray(dq0, dtype=float)
-        self.p0 = np.zeros(self.n) if q0 is None else self.robot.mass_matrix(np.asarray(q0)) @ dq0
+        self.p0 = self.robot.mass_matrix(np.asarray(q0, dtype=float)) @ dq0
         self.integral = np.zeros(self.n)
         self.estimate = np.zeros(self.n)
 
@@ -218,11 +224,13 @@ class MomentumObserver:
         self,
         M: np.ndarray,
         nle: np.ndarray,
+        q: np.ndarray,
         dq: np.ndarray,
         tau_prev: np.ndarray,
-        q: np.ndarray | None = None,
+        v: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Advance one period with the measured ``q`` (required), ``dq`` and ``τ_{k-1}``."""
+        """Advance one period with the measured ``q``, ``dq`` and ``τ_{k-1}`` (``v`` unused;
+        the :class:`~hmpc_pin.compensation.base.Compensation` protocol)."""
         C = self.robot.coriolis_matrix(q, dq)
         Cdq = C @ dq
         beta = tau_prev + C.T @ dq - (nle - Cdq)
@@ -231,13 +239,6 @@ class MomentumObserver:
         self.integral += self.Ts * (beta + r)
         self.estimate = r
         return r
-
-
-def make_observer(robot, Ts: float, kind: str, gain: float, discretization: str = "implicit"):
-    """The observer of ``kind`` (``"chen"``, ``"general"`` or ``"momentum"``) for ``robot``."""
-    if kind == "momentum":
-        return MomentumObserver(robot, Ts, gain)
-    return DisturbanceObserver(robot.nq, Ts, gain, kind, discretization)
 
 
 def general_gain_bound(robot, samples: int = 200, seed: int = 0, velocity=None) -> float:

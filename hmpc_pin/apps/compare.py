@@ -1,8 +1,9 @@
 """``hmpc-pin compare``: every controller on the same experiment, side by side.
 
-Each controller of :data:`~hmpc_pin.config.CONTROLLER_KINDS` (README,
-"Controllers") runs on the same robot model, plant, reference, disturbance,
-initial state and MPC settings — only ``controller.kind`` changes. Per controller
+Each controller × compensation (README, "Controllers"; by default the seven of
+:data:`~hmpc_pin.experiment.schema.CONTROLLER_KINDS`) runs on the same robot model,
+plant, reference, disturbance, initial state and MPC settings — only the controller
+and its compensation change. Per controller
 and joint the table holds RMS and max tracking error after 1 s, the time to stay
 within 0.01 rad, the RMS observer error (where there is an observer), the control
 effort (RMS τ), two chattering measures (:func:`~hmpc_pin.metrics.chattering`: total
@@ -14,18 +15,17 @@ controller step time, measured around ``step`` during the run.
 from __future__ import annotations
 
 import csv
-import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .config import CONTROLLER_KINDS, ExperimentConfig
-from .controller import ControllerWrapper
-from .exceptions import ConfigError, SimulationError
-from .experiment import Experiment, uses_observer, with_controller
+from ..controllers.wrappers import TimedController
+from ..exceptions import ConfigError, SimulationError
+from ..experiment.build import Experiment, uses_observer, with_controller
+from ..experiment.schema import CONTROLLER_KINDS, ExperimentConfig, parse_combination
+from ..sim.result import Result
 from .metrics import Metrics, compute_metrics
-from .simulate import Result
 
 __all__ = [
     "Comparison",
@@ -36,33 +36,6 @@ __all__ = [
     "parse_controllers",
     "run_comparison",
 ]
-
-
-class TimedController(ControllerWrapper):
-    """Wrap a controller and time each ``step`` with ``perf_counter_ns``.
-
-    It has the interface :func:`hmpc_pin.simulate.simulate` expects (``Ts``, ``reset``,
-    ``step``, ``disturbance_estimate``), so a closed-loop run measures the step too.
-
-    Attributes:
-        samples_ns: Duration of every step since the last reset [ns].
-    """
-
-    def __init__(self, controller):
-        super().__init__(controller)
-        self.samples_ns: list[int] = []
-
-    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
-        """Reset the wrapped controller and forget the recorded durations."""
-        self.samples_ns = []
-        self.controller.reset(q0, dq0)
-
-    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
-        """The wrapped controller's step [N·m], timed."""
-        start = time.perf_counter_ns()
-        tau = self.controller.step(t, q, dq, reference)
-        self.samples_ns.append(time.perf_counter_ns() - start)
-        return tau
 
 
 @dataclass
@@ -89,22 +62,45 @@ class Comparison:
         return next(iter(self.runs.values())).result.joint_names
 
 
-def parse_controllers(text: str | None) -> tuple[str, ...]:
-    """``"hmpc,hmpc-ism"`` → ``("hmpc", "hmpc-ism")``; ``None`` → every controller."""
-    if text is None:
-        return CONTROLLER_KINDS
-    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
-    for k in kinds:
-        if k not in CONTROLLER_KINDS:
-            raise ConfigError("--controllers", f"unknown controller {k!r}; expected names from "
-                              f"{CONTROLLER_KINDS}, comma-separated")  # fmt: skip
-    if not kinds:
+def parse_controllers(text: str | None, config: ExperimentConfig | None = None) -> tuple[str, ...]:
+    """``"hmpc,hmpc-ism"`` → ``("hmpc", "hmpc-ism")``; ``None`` → the seven of
+    :data:`CONTROLLER_KINDS` (those that are the same pair for ``config`` once).
+
+    Each name is a controller × compensation (:func:`parse_combination`).
+
+    Raises:
+        ConfigError: An unknown name, none, or two names that are the same controller.
+    """
+    names = (
+        CONTROLLER_KINDS if text is None else tuple(k.strip() for k in text.split(",") if k.strip())
+    )
+    if not names:
         raise ConfigError("--controllers", f"no controller given; choose from {CONTROLLER_KINDS}")
-    return kinds
+    seen: dict[tuple[str, str], str] = {}
+    kept = []
+    for name in names:
+        parse_combination(name, "--controllers")
+        if config is None:
+            kept.append(name)
+            continue
+        cc = with_controller(config, name).controller
+        pair = (cc.kind, cc.compensation)
+        if pair in seen:
+            if text is None:
+                continue
+            raise ConfigError(
+                "--controllers",
+                f"{name!r} and {seen[pair]!r} are the same controller ({cc.label}) on "
+                f"{config.name}; give each once",
+            )
+        seen[pair] = name
+        kept.append(name)
+    return tuple(kept)
 
 
 def run_one_controller(config: ExperimentConfig, kind: str) -> ControllerRun:
-    """Run ``config`` with ``controller.kind = kind``; a failed run keeps its partial result."""
+    """Run ``config`` with the controller ``kind`` (:func:`with_controller`); a failed run
+    keeps its partial result."""
     config = with_controller(config, kind)
     exp = Experiment.from_config(config)
     timed = TimedController(exp.controller)
@@ -122,10 +118,14 @@ def run_one_controller(config: ExperimentConfig, kind: str) -> ControllerRun:
 
 
 def run_comparison(
-    config: ExperimentConfig, controllers=CONTROLLER_KINDS, progress: bool = False
+    config: ExperimentConfig, controllers=None, progress: bool = False
 ) -> Comparison:
-    """Run every controller in ``controllers`` on ``config``."""
+    """Run every controller in ``controllers`` (default: :func:`parse_controllers`) on
+    ``config``."""
     from tqdm import tqdm
+
+    if controllers is None:
+        controllers = parse_controllers(None, config)
 
     comp = Comparison(config)
     bar = tqdm(controllers, desc="compare", unit="run", disable=not progress)
@@ -146,8 +146,9 @@ def boundary_layer_sweep(
     cc = config.controller
     out = []
     for f in factors:
-        ism = replace(cc.ism, boundary_layer=f * cc.ism.gain * cc.Ts)
-        cfg = replace(config, controller=replace(cc, kind="hmpc-ism-bl", ism=ism))
+        base = with_controller(config, "hmpc-ism-bl")
+        ism = replace(base.controller.ism, boundary_layer=f * base.controller.ism.gain * cc.Ts)
+        cfg = replace(base, controller=replace(base.controller, ism=ism))
         out.append((f, run_one_controller(cfg, "hmpc-ism-bl").metrics))
     return out
 
@@ -219,7 +220,7 @@ def write_csv(comp: Comparison, path: Path) -> Path:
 def compare(
     config: ExperimentConfig,
     out: Path,
-    controllers=CONTROLLER_KINDS,
+    controllers=None,
     progress: bool = False,
     sweep_boundary_layer: bool = True,
 ) -> tuple[Comparison, list[Path]]:
@@ -230,6 +231,8 @@ def compare(
     """
     from . import plots
 
+    if controllers is None:
+        controllers = parse_controllers(None, config)
     comp = run_comparison(config, controllers, progress)
     stem = f"{config.name}_compare"
     title = config.description or config.name
@@ -246,7 +249,8 @@ def compare(
         "",
         f"{config.description}. Every controller runs on the same robot model, plant, "
         "reference, disturbances, initial state and MPC settings (config "
-        f"`{config.source or config.name}`); only `controller.kind` changes. Rerun with "
+        f"`{config.source or config.name}`); only the controller × compensation changes. "
+        "Rerun with "
         f"`hmpc-pin compare {config.source or 'CONFIG'} --controllers {','.join(controllers)}`.",
         "",
         markdown_table(comp),
@@ -271,7 +275,7 @@ def compare(
 
 def boundary_layer_table(config: ExperimentConfig, joint_names) -> str:
     """Markdown: the :func:`boundary_layer_sweep` of ``hmpc-ism-bl`` on ``config``."""
-    cc = config.controller
+    cc = with_controller(config, "hmpc-ism-bl").controller
     rows = boundary_layer_sweep(config)
     lines = [
         f"## Boundary layer of hmpc-ism-bl (K = {cc.ism.gain:g} rad/s², Ts = {cc.Ts:g} s)",

@@ -21,7 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .exceptions import ConfigError
+from ..data import config_names, config_path
+from ..exceptions import ConfigError
+from ..sim.plants import PLANTS
 
 __all__ = [
     "CONTROLLER_KINDS",
@@ -121,7 +123,20 @@ def _set(obj, name: str, value) -> None:
     object.__setattr__(obj, name, value)
 
 
-#: Controller names accepted by ``[controller] kind`` (README, "Controllers").
+#: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
+CONTROLLERS = ("hmpc", "computed-torque", "computed-torque-pid")
+#: Compensations (``[controller] compensation``): the disturbance estimate cancelled.
+COMPENSATIONS = ("chen", "general", "momentum", "ism", "ism-bl", "none")
+#: Compensations that are observers (they use ``[controller.observer]``).
+OBSERVERS = ("chen", "general", "momentum")
+#: Controller names of version 0.1, each one controller × one compensation.
+KIND_ALIASES = {
+    "hmpc-none": ("hmpc", "none"),
+    "hmpc-momentum": ("hmpc", "momentum"),
+    "hmpc-ism": ("hmpc", "ism"),
+    "hmpc-ism-bl": ("hmpc", "ism-bl"),
+}
+#: Every name accepted by ``[controller] kind`` in version 0.1 (still accepted).
 CONTROLLER_KINDS = (
     "hmpc",
     "hmpc-none",
@@ -131,44 +146,76 @@ CONTROLLER_KINDS = (
     "computed-torque",
     "computed-torque-pid",
 )
+#: The compensation a controller has when ``compensation`` is not given.
+DEFAULT_COMPENSATION = {"hmpc": "chen", "computed-torque": "none", "computed-torque-pid": "none"}
+
+
+def parse_combination(name: str, key: str = "controller") -> tuple[str, str | None]:
+    """``"controller+compensation"``, a 0.1 alias or a bare controller → the pair.
+
+    A bare controller gives ``(controller, None)``: its compensation is decided by the
+    caller (the config's, or :data:`DEFAULT_COMPENSATION`).
+
+    Raises:
+        ConfigError: Unknown controller or compensation, naming ``key``.
+    """
+    if not isinstance(name, str):
+        raise ConfigError(key, f"expected a controller name string, got {name!r}")
+    if name in KIND_ALIASES:
+        return KIND_ALIASES[name]
+    controller, plus, compensation = name.partition("+")
+    if controller not in CONTROLLERS:
+        raise ConfigError(
+            key,
+            f"unknown controller {controller!r}; expected one of {CONTROLLERS} (optionally "
+            f"'+' one of {COMPENSATIONS}, e.g. 'hmpc+momentum') or one of "
+            f"{tuple(KIND_ALIASES)}",
+        )
+    if not plus:
+        return controller, None
+    if compensation not in COMPENSATIONS:
+        raise ConfigError(
+            key, f"unknown compensation {compensation!r} in {name!r}; expected one of "
+            f"{COMPENSATIONS}",
+        )  # fmt: skip
+    return controller, compensation
 
 
 # -------------------------------------------------------------------- sections
 @dataclass(frozen=True, eq=False)
 class ObserverConfig:
-    """Disturbance observer settings (Section 3.2, Eq 28–30).
+    """Disturbance observer settings (Section 3.2, Eq 28–30), for the compensations
+    ``"chen"``, ``"general"`` and ``"momentum"``.
 
     Attributes:
-        enabled: Use the observer; ``False`` gives the baseline without NDO (d̂ = 0).
-        kind: ``"chen"`` (Y lower-triangular ones, the paper's Eq 28, planar arms),
-            ``"general"`` (Y = I, p = c·q̇, any arm for c above
-            :func:`~hmpc_pin.observers.general_gain_bound`) or ``"momentum"``
-            (generalized-momentum observer, gain K_O [1/s], any arm, any gain > 0).
-        gain: Observer gain c (the paper does not give it; 100 is this project's choice, README).
+        gain: Observer gain c (the paper does not give it; 100 is this project's choice,
+            README); for ``"momentum"`` the gain K_O [1/s].
         discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``
             (not for ``"momentum"``, which is always semi-implicit).
+        enabled: Version 0.1 key, with ``kind = "hmpc"`` only: ``false`` means
+            compensation ``"none"`` (the whole table is then switched off). Superseded
+            by ``[controller] compensation``.
+        kind: Version 0.1 key, with ``kind = "hmpc"`` only: the observer
+            (``"chen"``, ``"general"``, ``"momentum"``). Superseded by
+            ``[controller] compensation``.
     """
 
-    enabled: bool = True
-    kind: str = "chen"
     gain: float = 100.0
     discretization: str = "implicit"
+    enabled: bool | None = None
+    kind: str | None = None
 
     def __post_init__(self):
-        _set(self, "enabled", _bool("enabled", self.enabled))
-        _set(self, "kind", _choice("kind", self.kind, ("chen", "general", "momentum")))
+        if self.enabled is not None:
+            _set(self, "enabled", _bool("enabled", self.enabled))
+        if self.kind is not None:
+            _set(self, "kind", _choice("kind", self.kind, OBSERVERS))
         _set(self, "gain", _float("gain", self.gain, positive=True))
         _set(
             self,
             "discretization",
             _choice("discretization", self.discretization, ("implicit", "explicit")),
         )
-        if self.kind == "momentum" and self.discretization != "implicit":
-            raise ConfigError(
-                "discretization",
-                "the momentum observer has only the semi-implicit form; remove the key or "
-                "set it to 'implicit'",
-            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -214,44 +261,23 @@ class ConstraintConfig:
             _float("slack_linear_weight", self.slack_linear_weight, nonneg=True),
         )
 
-    def limits(self, robot) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """``(lower, upper, velocity)`` for ``robot``, overrides applied; ``None`` if disabled.
+    def overrides(self, n: int) -> dict[str, np.ndarray | None]:
+        """The per-joint overrides ``lower``, ``upper``, ``velocity_limit`` broadcast to
+        ``n`` joints (``None`` where the URDF's value is kept).
 
-        Disabled parts are ±inf. Raises :class:`ConfigError` if an override has the
-        wrong length or ``lower >= upper`` on a joint.
+        Raises:
+            ConfigError: An override has a length other than ``n``.
         """
-        if not self.enabled:
-            return None
-        n = robot.nq
-        inf = np.full(n, np.inf)
-
-        def pick(name, default):
+        out: dict[str, np.ndarray | None] = {}
+        for name in ("lower", "upper", "velocity_limit"):
             value = getattr(self, name)
-            if value is None:
-                return np.array(default, dtype=float)
-            if value.ndim == 1 and value.shape != (n,):
+            if value is not None and value.ndim == 1 and value.shape != (n,):
                 raise ConfigError(
                     f"controller.constraints.{name}",
-                    f"has {value.shape[0]} entries but the robot has {n} joints "
-                    f"{robot.joint_names}",
+                    f"has {value.shape[0]} entries but the robot has {n} joints",
                 )
-            return np.broadcast_to(value, (n,)).astype(float)
-
-        lower, upper = pick("lower", robot.lower), pick("upper", robot.upper)
-        vel = pick("velocity_limit", np.where(robot.velocity_limit > 0, robot.velocity_limit, inf))
-        bad = np.flatnonzero(lower >= upper)
-        if bad.size:
-            i = int(bad[0])
-            raise ConfigError(
-                "controller.constraints.lower",
-                f"joint {robot.joint_names[i]!r}: lower={lower[i]:g} >= upper={upper[i]:g}; "
-                "expected lower < upper",
-            )
-        if not self.position:
-            lower, upper = -inf, inf.copy()
-        if not self.velocity:
-            vel = inf.copy()
-        return lower, upper, vel
+            out[name] = None if value is None else np.broadcast_to(value, (n,)).astype(float)
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -306,15 +332,21 @@ class ComputedTorqueConfig:
 
 @dataclass(frozen=True, eq=False)
 class ControllerConfig:
-    """Hierarchical MPC settings; every default is the paper's value (Section 4).
+    """The controller: an outer loop × a disturbance compensation (README "Controllers").
+
+    Every default is the paper's value (Section 4): ``ControllerConfig()`` is the
+    paper's scheme, ``hmpc`` × ``chen``. A table that does not apply to the chosen
+    pair (``observer`` without an observer, ``ism`` without ISM, ``computed_torque``
+    or ``constraints`` with the other controller) is a :class:`ConfigError` naming it.
+    After validation ``kind`` and ``compensation`` hold the resolved pair and exactly
+    the applicable tables are set (the others are ``None``).
 
     Attributes:
-        kind: The controller, one of :data:`CONTROLLER_KINDS` (default ``"hmpc"``, the
-            paper's scheme; README "Controllers"). ``"hmpc-none"`` ignores ``observer``,
-            ``"hmpc-momentum"`` uses ``observer.gain`` as the momentum observer's K_O,
-            the ``hmpc-ism*`` kinds use ``ism`` and no observer, the
-            ``computed-torque*`` kinds use ``computed_torque``, the MPC's weights (for
-            their default gains) and ``v_min``/``v_max``, and no observer.
+        kind: The controller, one of :data:`CONTROLLERS` (default ``"hmpc"``), or a
+            version-0.1 name of :data:`KIND_ALIASES` (``"hmpc-ism"`` = ``hmpc`` × ``ism``).
+        compensation: One of :data:`COMPENSATIONS`; default :data:`DEFAULT_COMPENSATION`
+            of the controller (for ``hmpc`` written the 0.1 way, the
+            ``observer.enabled``/``observer.kind`` keys decide).
         Ts: Control period [s] (paper: 0.01).
         N: Prediction horizon [steps] (paper: 10).
         Nc: Control horizon [steps], 1 <= Nc <= N (paper: 1).
@@ -323,18 +355,18 @@ class ControllerConfig:
         P: Terminal weight (paper: 2Q = diag(100, 0)).
         v_min, v_max: Bounds of the commanded acceleration v [rad/s²], scalar or per joint
             (paper: −100, 100).
-        observer: :class:`ObserverConfig`.
-        constraints: :class:`ConstraintConfig` (joint limits as soft state constraints).
-        eps_abs: ProxSuite absolute tolerance.
-        max_iter: ProxSuite iteration cap per solve.
-        ism: :class:`ISMConfig`.
-        computed_torque: :class:`ComputedTorqueConfig`.
+        observer: :class:`ObserverConfig` (compensations ``chen``, ``general``, ``momentum``).
+        constraints: :class:`ConstraintConfig` (``hmpc``: joint limits as soft constraints).
+        eps_abs: ProxSuite absolute tolerance (``hmpc``).
+        max_iter: ProxSuite iteration cap per solve (``hmpc``).
         qp_layout: ``"block"`` (the n joint QPs as one block-diagonal ProxSuite QP, one
-            solve per step; default, fastest) or ``"joint"`` (one QP per joint). Same
-            solution to solver tolerance (tested); ``BENCHMARKS.md`` has the timings.
+            solve per step; default, fastest) or ``"joint"`` (one QP per joint) (``hmpc``).
+        ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
+        computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
     """
 
     kind: str = "hmpc"
+    compensation: str | None = None
     Ts: float = 0.01
     N: int = 10
     Nc: int = 1
@@ -343,16 +375,15 @@ class ControllerConfig:
     P: np.ndarray = field(default_factory=lambda: np.diag([100.0, 0.0]))
     v_min: np.ndarray = -100.0
     v_max: np.ndarray = 100.0
-    observer: ObserverConfig = field(default_factory=ObserverConfig)
-    constraints: ConstraintConfig = field(default_factory=ConstraintConfig)
-    eps_abs: float = 1e-9
-    max_iter: int = 1000
-    qp_layout: str = "block"
-    ism: ISMConfig = field(default_factory=ISMConfig)
-    computed_torque: ComputedTorqueConfig = field(default_factory=ComputedTorqueConfig)
+    observer: ObserverConfig | None = None
+    constraints: ConstraintConfig | None = None
+    eps_abs: float | None = None
+    max_iter: int | None = None
+    qp_layout: str | None = None
+    ism: ISMConfig | None = None
+    computed_torque: ComputedTorqueConfig | None = None
 
     def __post_init__(self):
-        _set(self, "kind", _choice("kind", self.kind, CONTROLLER_KINDS))
         _set(self, "Ts", _float("Ts", self.Ts, positive=True))
         _set(self, "N", _int("N", self.N, minimum=1))
         _set(self, "Nc", _int("Nc", self.Nc, minimum=1))
@@ -372,11 +403,8 @@ class ControllerConfig:
                 "v_min",
                 f"v_min={self.v_min.tolist()} must be < v_max={self.v_max.tolist()} on every joint",
             )
-        if isinstance(self.observer, dict):
-            _set(self, "observer", _section(ObserverConfig, self.observer, "observer"))
-        elif not isinstance(self.observer, ObserverConfig):
-            raise ConfigError("observer", f"expected a table, got {self.observer!r}")
         for name, cls in (
+            ("observer", ObserverConfig),
             ("constraints", ConstraintConfig),
             ("ism", ISMConfig),
             ("computed_torque", ComputedTorqueConfig),
@@ -384,11 +412,129 @@ class ControllerConfig:
             value = getattr(self, name)
             if isinstance(value, dict):
                 _set(self, name, _section(cls, value, name))
-            elif not isinstance(value, cls):
+            elif value is not None and not isinstance(value, cls):
                 raise ConfigError(name, f"expected a table, got {value!r}")
-        _set(self, "eps_abs", _float("eps_abs", self.eps_abs, positive=True))
-        _set(self, "max_iter", _int("max_iter", self.max_iter, minimum=1))
-        _set(self, "qp_layout", _choice("qp_layout", self.qp_layout, ("block", "joint")))
+        self._resolve()
+
+    def _resolve(self) -> None:
+        """Resolve ``kind``/``compensation`` to one pair; reject tables that do not apply."""
+        if self.compensation is not None:
+            _choice("compensation", self.compensation, COMPENSATIONS)
+        controller, alias_comp = parse_combination(self.kind, "kind")
+        if "+" in self.kind:
+            raise ConfigError(
+                "kind", f"{self.kind!r}: give the controller in kind and the compensation in "
+                "compensation (e.g. kind = 'hmpc', compensation = 'momentum')",
+            )  # fmt: skip
+        obs = self.observer
+        legacy_keys = [
+            k for k in ("enabled", "kind") if obs is not None and getattr(obs, k) is not None
+        ]
+        if alias_comp is not None:  # a 0.1 name: the compensation is in the name
+            if self.compensation is not None and self.compensation != alias_comp:
+                raise ConfigError(
+                    "compensation",
+                    f"{self.compensation!r} contradicts kind = {self.kind!r} (which is "
+                    f"hmpc × {alias_comp}); write kind = 'hmpc' with the compensation",
+                )
+            comp = alias_comp
+            if obs is not None and comp == "momentum":
+                if obs.enabled is False:
+                    raise ConfigError(
+                        "observer.enabled",
+                        "false, but kind = 'hmpc-momentum' is hmpc × momentum observer; for "
+                        "no compensation write compensation = 'none'",
+                    )
+                if obs.kind not in (None, "momentum"):
+                    raise ConfigError(
+                        "observer.kind",
+                        f"{obs.kind!r}, but kind = 'hmpc-momentum' uses the momentum "
+                        "observer; write kind = 'hmpc', compensation = "
+                        f"{obs.kind!r} instead",
+                    )
+        elif self.compensation is not None:
+            if legacy_keys:
+                raise ConfigError(
+                    f"observer.{legacy_keys[0]}",
+                    "superseded by [controller] compensation; remove it (compensation = "
+                    f"{self.compensation!r} already chooses)",
+                )
+            comp = self.compensation
+        elif controller == "hmpc":  # 0.1 spelling: the observer table decides
+            enabled = True if obs is None or obs.enabled is None else obs.enabled
+            comp = ((obs.kind if obs is not None else None) or "chen") if enabled else "none"
+            if not enabled:
+                obs = None  # a table switched off by its own enabled = false
+        else:
+            comp = DEFAULT_COMPENSATION[controller]
+            if legacy_keys:
+                raise ConfigError(
+                    f"observer.{legacy_keys[0]}",
+                    f"does not apply to kind = {controller!r}; choose the compensation "
+                    "with [controller] compensation",
+                )
+        # The tables of the pair; any other given table is an error.
+        if comp in OBSERVERS:
+            obs = obs if obs is not None else ObserverConfig()
+            if (obs.enabled, obs.kind) != (None, None):  # 0.1 keys, now resolved
+                obs = replace(obs, enabled=None, kind=None)
+            if comp == "momentum" and obs.discretization != "implicit":
+                raise ConfigError(
+                    "observer.discretization",
+                    "the momentum observer has only the semi-implicit form; remove the key "
+                    "or set it to 'implicit'",
+                )
+        elif obs is not None:
+            self._not_applicable("observer", controller, comp)
+        ism = self.ism
+        if comp in ("ism", "ism-bl"):
+            ism = ism if ism is not None else ISMConfig()
+            if comp == "ism" and ism.boundary_layer is not None:
+                raise ConfigError(
+                    "ism.boundary_layer",
+                    "applies only to compensation 'ism-bl' (the pure sign law has none)",
+                )
+        elif ism is not None:
+            self._not_applicable("ism", controller, comp)
+        ct = self.computed_torque
+        if controller.startswith("computed-torque"):
+            ct = ct if ct is not None else ComputedTorqueConfig()
+            if controller == "computed-torque" and ct.ki is not None:
+                raise ConfigError(
+                    "computed_torque.ki", "applies only to kind = 'computed-torque-pid'"
+                )
+            for name in ("constraints", "eps_abs", "max_iter", "qp_layout"):
+                if getattr(self, name) is not None:
+                    self._not_applicable(name, controller, comp)
+        else:
+            if ct is not None:
+                self._not_applicable("computed_torque", controller, comp)
+            if self.constraints is None:
+                _set(self, "constraints", ConstraintConfig())
+            eps = 1e-9 if self.eps_abs is None else self.eps_abs
+            _set(self, "eps_abs", _float("eps_abs", eps, positive=True))
+            cap = 1000 if self.max_iter is None else self.max_iter
+            _set(self, "max_iter", _int("max_iter", cap, minimum=1))
+            layout = "block" if self.qp_layout is None else self.qp_layout
+            _set(self, "qp_layout", _choice("qp_layout", layout, ("block", "joint")))
+        _set(self, "kind", controller)
+        _set(self, "compensation", comp)
+        _set(self, "observer", obs)
+        _set(self, "ism", ism)
+        _set(self, "computed_torque", ct)
+
+    @staticmethod
+    def _not_applicable(name: str, controller: str, comp: str) -> None:
+        raise ConfigError(
+            name,
+            f"does not apply to {controller} × {comp}; remove it, or choose a controller "
+            "and compensation it applies to (README, Controllers)",
+        )
+
+    @property
+    def label(self) -> str:
+        """``"controller+compensation"``, e.g. ``"hmpc+chen"``: the name of the pair."""
+        return f"{self.kind}+{self.compensation}"
 
     def bounds(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """``(v_min, v_max)`` broadcast to ``n`` joints; raises if a vector has the wrong length."""
@@ -410,8 +556,9 @@ class RobotConfig:
 
     Attributes:
         urdf: URDF path (relative paths are relative to the config file).
-        model: Instead of ``urdf``, an ``example-robot-data`` name (``"ur5"``, ``"panda"``,
-            ``"z1"``, ...); give exactly one of the two.
+        model: Instead of ``urdf``, a robot name: ``"planar3"`` (shipped in the package)
+            or an ``example-robot-data`` name (``"ur5"``, ``"panda"``, ``"z1"``, ...);
+            give at most one of the two (neither: ``"planar3"``).
         gravity: Gravity magnitude [m/s²] along −z (paper: 9.8).
         locked_joints: Joints not controlled, by URDF name → locked position [rad or m]
             (e.g. Panda's fingers); removed with ``pin.buildReducedModel``.
@@ -423,8 +570,6 @@ class RobotConfig:
     locked_joints: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if self.urdf is None and self.model is None:
-            _set(self, "urdf", Path("robots/planar3.urdf"))
         if self.urdf is not None and self.model is not None:
             raise ConfigError("model", "give either robot.urdf or robot.model, not both")
         if self.urdf is not None:
@@ -446,15 +591,11 @@ class RobotConfig:
 
     @property
     def source(self) -> Path | str:
-        """The URDF path or the example-robot-data name, as :func:`load_robot` takes it."""
-        return self.urdf if self.urdf is not None else self.model
-
-    def load(self, gravity: float | None = None):
-        """Load the robot (:func:`~hmpc_pin.robot.load_robot`), optionally with another gravity."""
-        from .robot import load_robot
-
-        g = self.gravity if gravity is None else gravity
-        return load_robot(self.source, gravity=g, locked_joints=self.locked_joints)
+        """The URDF path or the robot name, as :func:`~hmpc_pin.model.robot.load_robot`
+        takes it (neither given: ``"planar3"``, the paper's arm shipped in the package)."""
+        if self.urdf is not None:
+            return self.urdf
+        return self.model if self.model is not None else "planar3"
 
 
 @dataclass(frozen=True, eq=False)
@@ -486,7 +627,7 @@ class PlantConfig:
         if self.gravity is not None:
             _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
         _set(self, "dt", _float("dt", self.dt, positive=True))
-        _set(self, "integrator", _choice("integrator", self.integrator, ("rk4", "euler")))
+        _set(self, "integrator", _choice("integrator", self.integrator, tuple(PLANTS)))
         _set(self, "saturate", _bool("saturate", self.saturate))
         if self.effort_limit is not None:
             _set(self, "effort_limit", _array("effort_limit", self.effort_limit, positive=True))
@@ -704,9 +845,13 @@ class SweepConfig:
             stays <= error_bound [rad].
         rms_target: The pass mark on the worst joint's RMS error after ``after`` [rad]
             reported in the summary (issue 7: 1e-2).
-        variants: Controller variants run on every sample: ``"ndo"``, ``"no-ndo"`` (the
-            config's controller with its observer on/off) or any controller name of
-            :data:`CONTROLLER_KINDS` (see :data:`hmpc_pin.sweep.VARIANTS`).
+        variants: Controllers run on every sample, each a controller × compensation
+            pair (:func:`parse_combination`: ``"hmpc+momentum"``, a 0.1 name such as
+            ``"hmpc-ism"``, a bare controller for its default compensation), or
+            ``"ndo"`` (the config's pair; its compensation must be an observer) and
+            ``"no-ndo"`` (the config's controller without compensation). Two variants
+            that are the same pair are an error. Default: the config's pair and, when it
+            has a compensation, the same controller without.
     """
 
     mass: np.ndarray = field(default_factory=lambda: np.array([0.8, 1.2]))
@@ -718,7 +863,7 @@ class SweepConfig:
     after: float = 1.0
     error_bound: float = 1.0
     rms_target: float = 1e-2
-    variants: tuple[str, ...] = ("ndo", "no-ndo")
+    variants: tuple[str, ...] | None = None
 
     def __post_init__(self):
         for name in ("mass", "friction", "disturbance"):
@@ -730,6 +875,8 @@ class SweepConfig:
         _set(self, "error_bound", _float("error_bound", self.error_bound, positive=True))
         _set(self, "rms_target", _float("rms_target", self.rms_target, positive=True))
         variants = self.variants
+        if variants is None:
+            return
         if (
             not isinstance(variants, (list, tuple))
             or not variants
@@ -767,14 +914,6 @@ class ExperimentConfig:
         for name in ("name", "description"):
             if not isinstance(getattr(self, name), str):
                 raise ConfigError(name, f"expected a string, got {getattr(self, name)!r}")
-        Ts, dt = self.controller.Ts, self.plant.dt
-        substeps = round(Ts / dt)
-        if substeps < 1 or abs(substeps * dt - Ts) > 1e-9 * Ts:
-            raise ConfigError(
-                "plant.dt",
-                f"dt={dt:g} does not divide the control period controller.Ts={Ts:g}; "
-                "expected Ts / dt to be a whole number >= 1",
-            )
 
     def vector(self, key: str, n: int) -> np.ndarray:
         """The dotted ``key`` (e.g. ``"simulation.q0"``) broadcast to ``n`` joints.
@@ -842,18 +981,25 @@ def _section(cls, data, prefix: str):
 def load_config(path: str | Path) -> ExperimentConfig:
     """Load and validate an experiment TOML file.
 
-    Relative URDF paths are resolved against the config file's directory. The
-    controller's robot is loaded once to check every per-joint vector's length.
+    Relative URDF paths are resolved against the config file's directory. Only the TOML
+    file is read: the robot, and every check that needs it (vector lengths, limits),
+    come with :meth:`~hmpc_pin.experiment.build.Experiment.from_config`.
 
     Raises:
         ConfigError: Missing or unreadable file, invalid TOML, unknown key, wrong
             type or value; the message names the file and the key.
-        URDFError: The robot's URDF is invalid.
     """
     path = Path(path)
+    if not path.is_file() and config_path(str(path)) is not None:
+        path = config_path(str(path))  # a packaged config by name, e.g. "paper_combined"
     src = str(path)
     if not path.is_file():
-        raise ConfigError("<file>", "config file not found; pass a .toml file path", source=src)
+        raise ConfigError(
+            "<file>",
+            "config file not found; pass a .toml file path or the name of a packaged config "
+            f"{config_names()}",
+            source=src,
+        )
     try:
         raw = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError) as exc:
@@ -894,12 +1040,4 @@ def load_config(path: str | Path) -> ExperimentConfig:
     except ConfigError as exc:
         raise ConfigError(exc.key, exc.message, source=src) from None
 
-    try:
-        robot = config.robot.load()
-        config.check_dimensions(robot.nq)
-        config.controller.constraints.limits(robot)
-        if config.plant.effort_limit is not None:
-            config.vector("plant.effort_limit", robot.nq)
-    except ConfigError as exc:
-        raise ConfigError(exc.key, exc.message, source=src) from None
     return config

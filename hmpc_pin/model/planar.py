@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
-from .exceptions import HmpcError
+from ..exceptions import KinematicsError
 from .robot import Robot
 
 __all__ = [
@@ -74,20 +74,6 @@ _BRANCHES: tuple[Branch, Branch] = ("elbow_up", "elbow_down")
 _GEOM_TOL = 1e-9
 #: Forward-kinematics tolerance of a returned IK solution, per unit of reach.
 _FK_TOL = 1e-9
-
-
-class KinematicsError(HmpcError, ValueError):
-    """A pose cannot be solved, or the arm is not a planar 3R arm.
-
-    Attributes:
-        value: The offending value (a pose ``(x, z, φ)``, a joint vector, an axis, ...).
-        expected: What was expected instead, in words.
-    """
-
-    def __init__(self, message: str, *, value=None, expected: str | None = None):
-        self.value = value
-        self.expected = expected
-        super().__init__(message)
 
 
 # --------------------------------------------------------------------------- chain

@@ -12,6 +12,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..exceptions import ConfigError, InterfaceError
+
 __all__ = [
     "CoulombViscousFriction",
     "Disturbance",
@@ -26,7 +28,16 @@ DisturbanceFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 
 
 class Disturbance:
-    """Base class: callable ``d(t, q, dq)`` with ``+`` for sums."""
+    """Base class: callable ``d(t, q, dq)`` with ``+`` for sums.
+
+    Attributes:
+        terms: The terms of the sum this disturbance is (itself for a single term).
+    """
+
+    @property
+    def terms(self) -> tuple:
+        """The summed terms (``(self,)`` for a single term, ``()`` for zero)."""
+        return (self,)
 
     def __call__(self, t: float, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -46,6 +57,11 @@ class ZeroDisturbance(Disturbance):
 
     def __call__(self, t, q, dq):
         return np.zeros(self.n)
+
+    @property
+    def terms(self) -> tuple:
+        """No terms."""
+        return ()
 
     def __add__(self, other) -> Disturbance:
         return as_disturbance(other)  # 0 + d = d: no zeros evaluated in the plant loop
@@ -72,6 +88,11 @@ class CoulombViscousFriction(Disturbance):
     def __call__(self, t, q, dq):
         return -(self.viscous * dq + self.coulomb * np.sign(dq))
 
+    def friction_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(a, b)`` with :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`: lets a plant
+        fuse the term into its integration (:class:`~hmpc_pin.sim.plants.RK4Plant`)."""
+        return self.viscous, self.coulomb
+
 
 class GaussianPulse(Disturbance):
     """Gaussian-shaped external torque, Eq (33).
@@ -91,7 +112,15 @@ class GaussianPulse(Disturbance):
         self._k = -0.5 / self.sigma**2
 
     def __call__(self, t, q, dq):
-        x = t - self.center
+        return self._value(t - self.center)
+
+    def sample_times(self, times: np.ndarray) -> np.ndarray:
+        """The pulse at each of ``times`` (m,) [s]: (m, n) [N·m], vectorised (a time-only
+        term: a plant evaluates it for all stage times of a period at once)."""
+        return self._value(np.asarray(times, dtype=float)[:, None] - self.center)
+
+    def _value(self, x):
+        """:math:`a\\exp(k x^2)`, :math:`k = -1/(2\\sigma^2)`, :math:`x = t - b` (Eq 33)."""
         return self.amplitude * np.exp(self._k * x * x)
 
 
@@ -102,7 +131,12 @@ class SumDisturbance(Disturbance):
         flat = []
         for term in terms:  # (a + b) + c is stored flat as (a, b, c)
             flat.extend(term.terms if isinstance(term, SumDisturbance) else (term,))
-        self.terms = tuple(flat)
+        self._terms = tuple(flat)
+
+    @property
+    def terms(self) -> tuple:
+        """The summed terms, flat."""
+        return self._terms
 
     def __call__(self, t, q, dq):
         terms = self.terms
@@ -122,7 +156,7 @@ class Periodic(Disturbance):
 
     def __init__(self, disturbance: DisturbanceFn, period: float):
         if not (np.isfinite(period) and period > 0):
-            raise ValueError(f"period must be a finite number > 0, got {period!r}")
+            raise ConfigError("period", f"got {period!r}; expected a finite number > 0 [s]")
         self.disturbance = disturbance
         self.period = float(period)
 
@@ -143,5 +177,5 @@ def as_disturbance(d) -> Disturbance:
     if isinstance(d, Disturbance):
         return d
     if not callable(d):
-        raise TypeError(f"a disturbance must be callable as d(t, q, dq), got {d!r}")
+        raise InterfaceError(d, "a disturbance: callable as d(t, q, dq) -> (n,) [N·m]")
     return _Callable(d)

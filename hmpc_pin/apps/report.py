@@ -14,12 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import load_config
+from ..data import DATA
+from ..experiment.schema import load_config
 from .metrics import Metrics, compute_metrics
 
 __all__ = ["PAPER_EXPERIMENTS", "comparison_claims", "reproduce"]
 
-REPO_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+REPO_CONFIGS = DATA / "configs"  # the packaged configs (also the repository's configs/)
 
 
 @dataclass(frozen=True)
@@ -288,11 +289,12 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
     import proxsuite
     from tqdm import tqdm
 
-    from . import __version__, plots
-    from .cli import run_one
+    from .. import __version__
+    from ..model.planar import tool_pose, workspace_points
+    from . import plots
     from .compare import compare, markdown_table
-    from .kinematics import tool_pose, workspace_points
     from .metrics import settling_time
+    from .run import run_one
 
     configs_dir = Path(configs_dir) if configs_dir else REPO_CONFIGS
     start = time.perf_counter()

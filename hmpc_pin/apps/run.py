@@ -1,0 +1,74 @@
+"""Run one experiment and write its files: the ``run`` command's work, shared by
+``report`` (so that ``report`` does not import the command line)."""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import SimulationError
+from ..experiment.build import Experiment
+from ..experiment.schema import ExperimentConfig
+from ..sim.result import RESULT_ARRAYS, Result
+
+__all__ = ["live_view", "run_one", "write_csv"]
+
+
+def write_csv(result: Result, path: Path) -> Path:
+    """Write the trajectories as CSV: ``t`` then ``<array>_<joint>`` for every array and joint.
+
+    Arrays (in order): q, dq, tau, d, d_hat, q_ref, dq_ref.
+    """
+    names = result.joint_names or tuple(f"joint{i + 1}" for i in range(result.q.shape[1]))
+    header = ["t"] + [f"{a}_{j}" for a in RESULT_ARRAYS[1:] for j in names]
+    table = np.column_stack([result.t] + [getattr(result, a) for a in RESULT_ARRAYS[1:]])
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(table.tolist())
+    return path
+
+
+def live_view(robot, speed: float):
+    """A :class:`~hmpc_pin.viz.LiveView`, or ``None`` with a warning if Meshcat cannot run."""
+    from .viz import LiveView, VizError
+
+    try:
+        view = LiveView(robot, speed=speed)
+    except VizError as exc:
+        print(f"warning: no live view: {exc}; the run goes on and is saved", file=sys.stderr)
+        return None
+    print(f"Meshcat live view: open {view.url} (speed {speed:g}x)")
+    return view
+
+
+def run_one(config: ExperimentConfig, out: Path, stem: str | None = None, viz: float | None = None):
+    """Run ``config``; write ``<stem>.npz``, ``<stem>.csv`` and figures to ``out``.
+
+    Returns:
+        (result, files, failure message or None).
+    """
+    from . import plots
+
+    stem = stem or config.name
+    experiment = Experiment.from_config(config)
+    view = live_view(experiment.robot, viz) if viz is not None else None
+    failure = None
+    try:
+        result = experiment.run(on_step=view)
+    except SimulationError as exc:
+        if exc.result is None:
+            raise
+        result, failure = exc.result, str(exc)
+    finally:
+        if view is not None:
+            view.close()
+    files = [result.save(out / f"{stem}.npz"), write_csv(result, out / f"{stem}.csv")]
+    if len(result.t) > 1:
+        title = config.description or config.name
+        files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
+        files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
+    return experiment, result, files, failure

@@ -1,0 +1,88 @@
+"""The compensation protocol: the disturbance estimate :math:`\\hat d` a controller cancels.
+
+The inverse-dynamics law of every controller of the package is (Eq 4)
+
+.. math::  \\tau_k = M(q_k)\\,v_k + C(q_k,\\dot q_k)\\dot q_k + G(q_k) - \\hat d_k,
+
+and a *compensation* supplies :math:`\\hat d_k` [N·m]. The controller holds exactly one
+(:class:`NoCompensation` for none) and, at every control instant after the first,
+calls :meth:`Compensation.update` with the measured state, the dynamics terms it has
+already computed and what it held over the period that just ended. Implementations:
+the NDO of Eq 13 (:class:`~hmpc_pin.compensation.observers.DisturbanceObserver`, Chen's
+:math:`Y` or :math:`Y = I`), the generalized-momentum observer
+(:class:`~hmpc_pin.compensation.observers.MomentumObserver`) and integral sliding mode
+(:class:`~hmpc_pin.compensation.ism.IntegralSlidingMode`, ± boundary layer).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["Compensation", "NoCompensation"]
+
+FloatArray = NDArray[np.float64]
+
+
+@runtime_checkable
+class Compensation(Protocol):
+    """A disturbance estimate advanced once per control period.
+
+    Attributes:
+        estimate: The current estimate :math:`\\hat d_k` [N·m], shape (n,); zeros after
+            :meth:`reset`.
+    """
+
+    estimate: FloatArray
+
+    def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
+        """Start a run at the state ``q0`` [rad], ``dq0`` [rad/s], each (n,); estimate 0."""
+        ...
+
+    def update(
+        self,
+        M: FloatArray,
+        nle: FloatArray,
+        q: FloatArray,
+        dq: FloatArray,
+        tau: FloatArray,
+        v: FloatArray,
+    ) -> FloatArray:
+        """Advance one control period; return the new estimate :math:`\\hat d_k` [N·m].
+
+        Args:
+            M: :math:`M(q_k)` [kg·m²], (n, n), at the measured state.
+            nle: :math:`C(q_k,\\dot q_k)\\dot q_k + G(q_k)` [N·m], (n,).
+            q: Measured joint positions :math:`q_k` [rad], (n,).
+            dq: Measured joint velocities :math:`\\dot q_k` [rad/s], (n,).
+            tau: Torque held over the period that just ended, :math:`\\tau_{k-1}` [N·m].
+            v: Outer-loop acceleration held over it, :math:`v_{k-1}` [rad/s²] (without
+                the compensation's own part).
+        """
+        ...
+
+
+class NoCompensation:
+    """:math:`\\hat d = 0`: inverse dynamics and the outer loop only (the "no NDO" baseline)."""
+
+    def __init__(self, n: int):
+        self.n = int(n)
+        self.estimate: FloatArray = np.zeros(self.n)
+
+    def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
+        """Nothing to reset; the estimate stays zero."""
+        self.estimate = np.zeros(self.n)
+
+    def update(
+        self,
+        M: FloatArray,
+        nle: FloatArray,
+        q: FloatArray,
+        dq: FloatArray,
+        tau: FloatArray,
+        v: FloatArray,
+    ) -> FloatArray:
+        """Return zeros [N·m]."""
+        return self.estimate

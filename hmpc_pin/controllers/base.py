@@ -1,0 +1,74 @@
+"""The controller protocol, and a base for wrappers that change one thing about a controller.
+
+A controller runs at the control period :math:`T_s`: :meth:`Controller.step` reads the
+measured state at :math:`t_k` and returns the torque held over :math:`[t_k, t_k + T_s)`.
+:func:`~hmpc_pin.sim.simulate.simulate` (and any loop that drives an arm) needs only
+this protocol.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["Controller", "ControllerWrapper"]
+
+FloatArray = NDArray[np.float64]
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """A joint-torque controller at a fixed period.
+
+    Attributes:
+        Ts: Control period [s].
+        disturbance_estimate: :math:`\\hat d_k` [N·m], shape (n,), of the last step
+            (zeros without compensation).
+    """
+
+    @property
+    def Ts(self) -> float: ...
+
+    @property
+    def disturbance_estimate(self) -> FloatArray: ...
+
+    def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
+        """Start a run at ``q0`` [rad], ``dq0`` [rad/s], each (n,)."""
+        ...
+
+    def step(self, t: float, q: FloatArray, dq: FloatArray, reference: object) -> FloatArray:
+        """Torque :math:`\\tau_k` [N·m], (n,), for the state measured at ``t`` [s];
+        ``reference`` is a :class:`~hmpc_pin.tasks.base.Reference` (or anything
+        :func:`~hmpc_pin.tasks.base.as_reference` adapts)."""
+        ...
+
+
+class ControllerWrapper:
+    """Base of wrappers that keep a controller's interface (``Ts``, ``reset``, ``step``,
+    ``disturbance_estimate``) and change one thing, e.g. timing or measurement.
+
+    Subclasses override :meth:`reset` and/or :meth:`step`; the rest is delegated.
+    """
+
+    def __init__(self, controller: Controller):
+        self.controller = controller
+
+    @property
+    def Ts(self) -> float:
+        """Control period [s] of the wrapped controller."""
+        return self.controller.Ts
+
+    @property
+    def disturbance_estimate(self) -> FloatArray:
+        """The wrapped controller's disturbance estimate [N·m]."""
+        return self.controller.disturbance_estimate
+
+    def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
+        """Reset the wrapped controller."""
+        self.controller.reset(q0, dq0)
+
+    def step(self, t: float, q: FloatArray, dq: FloatArray, reference: object) -> FloatArray:
+        """The wrapped controller's step [N·m]."""
+        return self.controller.step(t, q, dq, reference)

@@ -1,0 +1,287 @@
+"""The hierarchical multiloop MPC (paper Figure 1): inverse dynamics + NDO + per-joint MPC.
+
+At every control instant :math:`t_k`:
+
+1. Pinocchio gives :math:`M(q_k)` and :math:`C\\dot q_k + G` at the measured state.
+2. The NDO (Eq 13) is advanced over the period that just ended with the torque
+   that was held over it, giving :math:`\\hat d_k`.
+3. Each joint's MPC (Eq 25–26) chooses its acceleration :math:`v_i` from the
+   reference sampled at :math:`t_k + jT_s,\\ j = 1..N`.
+4. Inverse dynamics (Eq 4): :math:`\\tau = M(q)v + C(q,\\dot q)\\dot q + G(q) - \\hat d`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from ..compensation.base import Compensation
+from ..compensation.observers import DisturbanceObserver
+from ..exceptions import DimensionError, NonFiniteError
+from ..model.robot import Robot
+from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
+from ..tasks.base import Reference, as_reference
+
+__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class MPCSettings:
+    """Settings of the per-joint MPC (Section 4; every default is the paper's value).
+
+    Built from the ``[controller]`` table by :mod:`hmpc_pin.experiment.build`; the
+    controller never sees the TOML schema.
+
+    Attributes:
+        Ts: Control period [s] (paper: 0.01).
+        N: Prediction horizon [steps] (paper: 10).
+        Nc: Control horizon [steps], 1 <= Nc <= N (paper: 1).
+        Q: State weight on :math:`[q - r, \\dot q - \\dot r]`, 2×2 (paper: diag(50, 0)).
+        R: Input weight, > 0 (paper: 1e-6).
+        P: Terminal weight, 2×2 (paper: diag(100, 0)).
+        v_min, v_max: Bounds of the commanded acceleration [rad/s²], scalar or (n,)
+            (paper: ∓100).
+        eps_abs: ProxSuite absolute tolerance.
+        max_iter: ProxSuite iteration cap per solve.
+        qp_layout: ``"block"`` (one block-diagonal QP) or ``"joint"`` (one QP per joint).
+    """
+
+    Ts: float = 0.01
+    N: int = 10
+    Nc: int = 1
+    Q: FloatArray = field(default_factory=lambda: np.diag([50.0, 0.0]))
+    R: float = 1e-6
+    P: FloatArray = field(default_factory=lambda: np.diag([100.0, 0.0]))
+    v_min: FloatArray | float = -100.0
+    v_max: FloatArray | float = 100.0
+    eps_abs: float = 1e-9
+    max_iter: int = 1000
+    qp_layout: str = "block"
+
+    def bounds(self, n: int) -> tuple[FloatArray, FloatArray]:
+        """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints."""
+        lo = np.broadcast_to(np.asarray(self.v_min, dtype=float), (n,)).astype(float)
+        hi = np.broadcast_to(np.asarray(self.v_max, dtype=float), (n,)).astype(float)
+        return lo, hi
+
+
+def state_limits(
+    robot: Robot,
+    *,
+    lower: FloatArray | None = None,
+    upper: FloatArray | None = None,
+    velocity: FloatArray | None = None,
+    position_on: bool = True,
+    velocity_on: bool = True,
+    slack_weight: float = 1e5,
+    slack_linear_weight: float = 1e4,
+) -> StateLimits:
+    """The joint limits imposed on each MPC's prediction as soft state constraints.
+
+    Each of ``lower``, ``upper`` [rad or m] and ``velocity`` [rad/s] overrides the
+    URDF's (shape (n,)); a URDF velocity limit <= 0 means none. A part switched off is
+    ±inf. The caller (the experiment builder) has checked shapes and lower < upper.
+    """
+    n = robot.nq
+    inf = np.full(n, np.inf)
+    lo = np.array(robot.lower if lower is None else lower, dtype=float)
+    hi = np.array(robot.upper if upper is None else upper, dtype=float)
+    vel = (
+        np.where(robot.velocity_limit > 0, robot.velocity_limit, inf)
+        if velocity is None
+        else np.array(velocity, dtype=float)
+    )
+    if not position_on:
+        lo, hi = -inf, inf.copy()
+    if not velocity_on:
+        vel = inf.copy()
+    return StateLimits(lo, hi, vel, slack_weight=slack_weight,
+                       slack_linear_weight=slack_linear_weight)  # fmt: skip
+
+
+class HierarchicalMPC:
+    """Inverse dynamics + disturbance compensation + one ProxSuite MPC per joint (``hmpc*`` kinds).
+
+    Args:
+        robot: The controller's model of the arm (its :class:`~hmpc_pin.robot.Robot`).
+        config: Settings; the default is the paper's controller (Section 4).
+
+    Attributes:
+        disturbance_estimate: :math:`\\hat d` [N·m], shape (n,), updated by :meth:`step`
+            (the observer's estimate; for ``hmpc-ism*`` the ISM torque :math:`-M u_{ism}`;
+            zeros without compensation).
+        v: The last commanded accelerations [rad/s²], shape (n,).
+        tau: The last torque [N·m], shape (n,).
+        limits: The joint limits imposed on each MPC's prediction as soft state
+            constraints (:class:`~hmpc_pin.joint_mpc.StateLimits`), ``None`` if disabled.
+
+    Example:
+        >>> robot = hmpc_pin.load_robot("robots/planar3.urdf")
+        >>> ctrl = hmpc_pin.HierarchicalMPC(robot)
+        >>> ctrl.reset(q0, dq0)
+        >>> tau = ctrl.step(t, q, dq, hmpc_pin.SineReference(robot.nq))
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        settings: MPCSettings | None = None,
+        compensation: Compensation | None = None,
+        limits: StateLimits | str | None = "urdf",
+    ):
+        self.robot = robot
+        self.settings = settings = settings if settings is not None else MPCSettings()
+        if not isinstance(settings, MPCSettings):
+            from ..exceptions import InterfaceError
+
+            raise InterfaceError(
+                settings,
+                "MPCSettings",
+                "build a controller from a ControllerConfig with hmpc_pin.make_controller",
+            )
+        n = robot.nq
+        self.n = n
+        self.compensation: Compensation = (
+            compensation
+            if compensation is not None
+            else DisturbanceObserver(n, settings.Ts, 100.0, "chen", "implicit")
+        )
+        v_min, v_max = settings.bounds(n)
+        self.mpc = CondensedMPC(settings.Ts, settings.N, settings.Nc, settings.Q, settings.R,
+                                settings.P)  # fmt: skip
+        self.limits = state_limits(robot) if isinstance(limits, str) else limits
+        self.qps = JointQPs(
+            self.mpc,
+            v_min,
+            v_max,
+            robot.joint_names,
+            eps_abs=settings.eps_abs,
+            max_iter=settings.max_iter,
+            limits=self.limits,
+            layout=settings.qp_layout,
+        )
+        N = settings.N
+        self._offsets = settings.Ts * np.arange(1, N + 1)
+        self._times = np.empty(N)
+        # The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] (rows), each block contiguous, and the
+        # gradient map with its rows in that order (CondensedMPC.F interleaves r_j, ṙ_j).
+        self._stack = np.empty((2 * N + 2, n))
+        self._stack_flat = self._stack.reshape(-1)
+        self._stack_finite = np.empty(self._stack_flat.size, dtype=bool)
+        self._stack_q_ref = self._stack[2 : N + 2]
+        self._stack_dq_ref = self._stack[N + 2 :]
+        self._ref_out = (self._stack_q_ref, self._stack_dq_ref)
+        order = np.concatenate([[0, 1], np.arange(2, 2 * N + 2, 2), np.arange(3, 2 * N + 2, 2)])
+        self._FT = np.ascontiguousarray(self.mpc.FT[order])
+        self._model, self._data = robot.model, robot.data
+        self._ref_shape = (N, n)
+        self._reference: object = None
+        self._ref: Reference | None = None
+        self.disturbance_estimate = np.zeros(n)
+        self.v = np.zeros(n)
+        self.tau = np.zeros(n)
+        self._started = False
+
+    def _raise_non_finite(self, t, q, dq, q_ref, dq_ref) -> None:
+        """Name the first non-finite input (slow path); return if every input is finite."""
+        self.robot.check_vector("q", q)
+        self.robot.check_vector("dq", dq)
+        bad_rows = np.flatnonzero(
+            ~(np.isfinite(q_ref).all(axis=1) & np.isfinite(dq_ref).all(axis=1))
+        )
+        if bad_rows.size == 0:
+            return
+        bad = int(bad_rows[0])
+        raise NonFiniteError(
+            "reference", (q_ref[bad], dq_ref[bad]), f"at t={t + self._offsets[bad]:.6g}"
+        )
+
+    @property
+    def Ts(self) -> float:
+        """Control period [s]."""
+        return self.settings.Ts
+
+    def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
+        """Start a new run from the state ``(q0, dq0)``; the estimate restarts at zero."""
+        q0 = self.robot.check_vector("q0", q0)
+        dq0 = self.robot.check_vector("dq0", dq0)
+        self.compensation.reset(q0, dq0)
+        self.disturbance_estimate = np.zeros(self.n)
+        self.v = np.zeros(self.n)
+        self.tau = np.zeros(self.n)
+        self._started = False
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """Compute the torque for the measured state at time ``t``.
+
+        Call once per control period :math:`T_s`, after :meth:`reset`. The
+        observer assumes the torque returned by the previous call was held since.
+
+        Args:
+            t: Time [s].
+            q: Measured joint positions [rad], shape (n,).
+            dq: Measured joint velocities [rad/s], shape (n,).
+            reference: A :class:`~hmpc_pin.tasks.base.Reference` (anything else
+                :func:`~hmpc_pin.tasks.base.as_reference` adapts, once per object).
+
+        Returns:
+            Joint torques :math:`\\tau` [N·m], shape (n,), Eq (4).
+
+        Raises:
+            NonFiniteError: ``t``, ``q``, ``dq`` or the reference is not finite.
+            DimensionError: ``q``, ``dq`` or the reference has the wrong shape.
+            SolverError: A joint QP did not report solved.
+        """
+        if not math.isfinite(t):
+            raise NonFiniteError("t", t)
+        q = np.asarray(q, dtype=float)
+        dq = np.asarray(dq, dtype=float)
+        n = self.n
+        if q.shape != (n,) or dq.shape != (n,):
+            self.robot.check_vector("q", q)  # raises the precise error
+            self.robot.check_vector("dq", dq)
+
+        S = self._stack
+        S[0] = q
+        S[1] = dq
+        if reference is not self._reference:  # adapted once per reference object
+            self._ref = as_reference(reference)
+            self._reference = reference
+        times = np.add(self._offsets, t, out=self._times)
+        q_ref, dq_ref = self._ref.sample_many(times, self._ref_out)  # type: ignore[union-attr]
+        if q_ref is not self._stack_q_ref:
+            if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
+                raise DimensionError(
+                    f"reference.sample_many returned q_ref of shape {q_ref.shape} and dq_ref "
+                    f"of shape {dq_ref.shape} but the horizon needs {self._ref_shape} "
+                    f"({n} joints); return two arrays of shape (len(times), {n})"
+                )
+            self._stack_q_ref[:] = q_ref
+            self._stack_dq_ref[:] = dq_ref
+        # One finiteness test covers q, q̇ and the whole reference horizon, before
+        # anything is updated: a bad input changes no state.
+        finite = np.isfinite(self._stack_flat, out=self._stack_finite)
+        if np.count_nonzero(finite) != finite.size:
+            self._raise_non_finite(t, q, dq, q_ref, dq_ref)
+        G = S.T.dot(self._FT)  # (n, Nc), one row per joint
+
+        M = self.robot.mass_matrix(q)
+        nle = pin.nonLinearEffects(self._model, self._data, q, dq)
+        if self._started:
+            self.disturbance_estimate = self.compensation.update(M, nle, q, dq, self.tau, self.v)
+        else:
+            self.disturbance_estimate = self.compensation.estimate.copy()
+
+        self.v = v = self.qps.solve(G, S[:2])
+        tau = M.dot(v)
+        tau += nle
+        tau -= self.disturbance_estimate
+        self.tau = tau
+        self._started = True
+        return tau.copy()

@@ -1,0 +1,392 @@
+"""The one place where a config becomes objects: robot, controller × compensation,
+reference, disturbance, plant (``ARCHITECTURE``: names in a config → objects here only).
+
+The algorithms below (controllers, compensations, plants, references) take their own
+small settings or plain arguments and never see the TOML schema; every check that needs
+the robot (vector lengths, limits, the initial state) is made here, before a run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..compensation.base import Compensation, NoCompensation
+from ..compensation.ism import IntegralSlidingMode
+from ..compensation.observers import DisturbanceObserver, MomentumObserver
+from ..controllers.base import Controller
+from ..controllers.computed_torque import ComputedTorque, CTSettings
+from ..controllers.hierarchical import HierarchicalMPC, MPCSettings, state_limits
+from ..exceptions import ConfigError, LimitError
+from ..model.robot import Robot, load_robot
+from ..mpc.condensed import StateLimits
+from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
+from ..sim.plants import PLANTS, Plant
+from ..sim.result import Result
+from ..sim.simulate import simulate
+from ..tasks.base import Reference, check_limits
+from ..tasks.quintic import QuinticReference
+from ..tasks.sine import SineReference
+from .schema import (
+    DEFAULT_COMPENSATION,
+    OBSERVERS,
+    ControllerConfig,
+    ExperimentConfig,
+    RobotConfig,
+    parse_combination,
+)
+
+__all__ = [
+    "Experiment",
+    "build_disturbance",
+    "build_reference",
+    "load_robot_config",
+    "make_compensation",
+    "make_controller",
+    "mpc_settings",
+    "run_experiment",
+    "uses_observer",
+    "with_controller",
+]
+
+
+def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
+    """The robot of ``[robot]`` (optionally with another gravity [m/s²])."""
+    g = rc.gravity if gravity is None else gravity
+    return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+
+
+def mpc_settings(cc: ControllerConfig, n: int) -> MPCSettings:
+    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``."""
+    v_min, v_max = cc.bounds(n)
+    return MPCSettings(
+        Ts=cc.Ts, N=cc.N, Nc=cc.Nc, Q=cc.Q, R=cc.R, P=cc.P, v_min=v_min, v_max=v_max,
+        eps_abs=cc.eps_abs if cc.eps_abs is not None else 1e-9,
+        max_iter=cc.max_iter if cc.max_iter is not None else 1000,
+        qp_layout=cc.qp_layout if cc.qp_layout is not None else "block",
+    )  # fmt: skip
+
+
+def _limits(cc: ControllerConfig, robot: Robot) -> StateLimits | None:
+    """The soft state limits of ``[controller.constraints]`` for ``robot`` (``None`` if off)."""
+    con = cc.constraints
+    if con is None or not con.enabled:
+        return None
+    over = con.overrides(robot.nq)
+    lower = over["lower"] if over["lower"] is not None else robot.lower
+    upper = over["upper"] if over["upper"] is not None else robot.upper
+    bad = np.flatnonzero(np.asarray(lower) >= np.asarray(upper))
+    if bad.size and con.position:
+        i = int(bad[0])
+        key = "lower" if over["lower"] is not None or over["upper"] is not None else None
+        raise ConfigError(
+            f"controller.constraints.{key}" if key else "robot.urdf",
+            f"joint {robot.joint_names[i]!r}: lower={lower[i]:g} >= upper={upper[i]:g}; "
+            "expected lower < upper"
+            + ("" if key else " (the URDF's <limit>; override it in [controller.constraints] "
+               "or set controller.constraints.position = false)"),
+        )  # fmt: skip
+    return state_limits(
+        robot,
+        lower=over["lower"],
+        upper=over["upper"],
+        velocity=over["velocity_limit"],
+        position_on=con.position,
+        velocity_on=con.velocity,
+        slack_weight=con.slack_weight,
+        slack_linear_weight=con.slack_linear_weight,
+    )
+
+
+def make_compensation(robot: Robot, cc: ControllerConfig) -> Compensation:
+    """The compensation ``cc.compensation`` names, with its table's settings."""
+    n, Ts = robot.nq, cc.Ts
+    comp = cc.compensation
+    if comp in ("chen", "general"):
+        return DisturbanceObserver(n, Ts, cc.observer.gain, comp, cc.observer.discretization)
+    if comp == "momentum":
+        return MomentumObserver(robot, Ts, cc.observer.gain)
+    if comp in ("ism", "ism-bl"):
+        width = cc.ism.width(Ts) if comp == "ism-bl" else None
+        return IntegralSlidingMode(n, Ts, cc.ism.gain, width)
+    return NoCompensation(n)
+
+
+def make_controller(robot: Robot, config: ControllerConfig | None = None) -> Controller:
+    """The controller × compensation of ``config`` (README, "Controllers").
+
+    ``hmpc`` gives a :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC`,
+    ``computed-torque*`` a :class:`~hmpc_pin.controllers.computed_torque.ComputedTorque`;
+    each holds the compensation of :func:`make_compensation`.
+    """
+    cc = config if config is not None else ControllerConfig()
+    n = robot.nq
+    compensation = make_compensation(robot, cc)
+    settings = mpc_settings(cc, n)
+    if cc.kind == "hmpc":
+        return HierarchicalMPC(robot, settings, compensation, limits=_limits(cc, robot))
+    ct = cc.computed_torque
+    gains = CTSettings.matching(
+        settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
+    )
+    return ComputedTorque(robot, gains, compensation)
+
+
+def uses_observer(cc: ControllerConfig) -> bool:
+    """Whether the compensation of ``cc`` is an observer (chen, general, momentum)."""
+    return cc.compensation in OBSERVERS
+
+
+def with_controller(
+    config: ExperimentConfig,
+    kind: str | None = None,
+    observer: bool | None = None,
+    *,
+    compensation: str | None = None,
+) -> ExperimentConfig:
+    """``config`` with another controller and/or compensation; tables that no longer
+    apply are dropped, the others kept.
+
+    Args:
+        config: The experiment.
+        kind: ``"controller+compensation"``, a 0.1 name (``"hmpc-ism"``) or a bare
+            controller (which keeps the config's compensation if it has the same
+            controller, else takes the controller's default).
+        observer: ``False``: no compensation (``compensation = "none"``, the "no NDO"
+            baseline); ``True``: the config's observer, or Chen's NDO.
+        compensation: A compensation name; overrides the one ``kind`` implies.
+    """
+    cc = config.controller
+    controller, comp = (cc.kind, None) if kind is None else parse_combination(kind)
+    if comp is None:
+        comp = cc.compensation if controller == cc.kind else DEFAULT_COMPENSATION[controller]
+    if compensation is not None:
+        comp = compensation
+    if observer is False:
+        comp = "none"
+    elif observer is True and comp not in OBSERVERS:
+        comp = cc.compensation if cc.compensation in OBSERVERS else "chen"
+    keep = {
+        "observer": cc.observer if comp in OBSERVERS else None,
+        "ism": cc.ism if comp in ("ism", "ism-bl") else None,
+        "computed_torque": cc.computed_torque if controller.startswith("computed") else None,
+    }
+    if keep["ism"] is not None and comp == "ism":
+        keep["ism"] = replace(keep["ism"], boundary_layer=None)
+    if keep["computed_torque"] is not None and controller == "computed-torque":
+        keep["computed_torque"] = replace(keep["computed_torque"], ki=None)
+    hmpc_only = {
+        name: (getattr(cc, name) if controller == "hmpc" else None)
+        for name in ("constraints", "eps_abs", "max_iter", "qp_layout")
+    }
+    new = replace(cc, kind=controller, compensation=comp, **keep, **hmpc_only)
+    return (
+        config
+        if (new.kind, new.compensation) == (cc.kind, cc.compensation)
+        and all(getattr(new, k) is getattr(cc, k) for k in keep)
+        else replace(config, controller=new)
+    )
+
+
+def build_reference(config: ExperimentConfig, robot: Robot) -> Reference:
+    """The joint reference of ``config``: the sine of Eq 31 or the Section 5.4 motion.
+
+    For ``kind = "cartesian"`` both tool poses are solved by inverse kinematics
+    inside the joint limits (the goal on the branch closest to the start) and
+    joined by a quintic. Raises :class:`~hmpc_pin.kinematics.KinematicsError`
+    naming the pose when one is unreachable.
+    """
+    n = robot.nq
+    rc = config.reference
+    if rc.kind == "cartesian":
+        from ..model.planar import solve_pose
+
+        cc = rc.cartesian
+        q_start = solve_pose(robot, cc.start_position, np.deg2rad(cc.start_angle))
+        q_goal = solve_pose(robot, cc.goal_position, np.deg2rad(cc.goal_angle), near=q_start)
+        return QuinticReference(q_start, q_goal, cc.t_start, cc.move_time)
+    return SineReference(
+        n,
+        amplitude=config.vector("reference.amplitude", n),
+        frequency=config.vector("reference.frequency", n),
+        offset=config.vector("reference.offset", n),
+        phase=config.vector("reference.phase", n),
+    )
+
+
+def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) -> Disturbance:
+    """The plant disturbance of ``config`` (Eq 32–34); with ``scale = "inertia"`` each
+    joint's coefficients are multiplied by :math:`M_{ii}(q_0)` of the controller's model."""
+    n = robot.nq
+    dc = config.disturbance
+    k = np.diag(robot.mass_matrix(q0)).copy() if dc.scale == "inertia" else np.ones(n)
+    disturbance: Disturbance = ZeroDisturbance(n)
+    if dc.friction is not None:
+        disturbance = disturbance + CoulombViscousFriction(
+            k * np.broadcast_to(dc.friction.viscous, (n,)),
+            k * np.broadcast_to(dc.friction.coulomb, (n,)),
+        )
+    if dc.pulse is not None:
+        disturbance = disturbance + GaussianPulse(
+            k * np.broadcast_to(dc.pulse.amplitude, (n,)),
+            np.broadcast_to(dc.pulse.center, (n,)),
+            np.broadcast_to(dc.pulse.sigma, (n,)),
+        )
+    return disturbance
+
+
+@dataclass
+class Experiment:
+    """The objects of one experiment, built from its config.
+
+    Attributes:
+        config: The validated config.
+        robot: The controller's model.
+        plant: The plant's model (a separate ``pin.Model``; another URDF if configured).
+        controller: The controller × compensation of ``config.controller``
+            (:func:`make_controller`).
+        reference: The joint reference.
+        disturbance: The plant disturbance ``d(t, q, dq)``.
+        q0, dq0: Initial state.
+    """
+
+    config: ExperimentConfig
+    robot: Robot
+    plant: Robot
+    controller: Controller
+    reference: Reference
+    disturbance: Disturbance
+    q0: np.ndarray
+    dq0: np.ndarray
+
+    @classmethod
+    def from_config(
+        cls,
+        config: ExperimentConfig,
+        *,
+        observer: bool | None = None,
+        controller: str | None = None,
+    ) -> Experiment:
+        """Build the experiment.
+
+        Args:
+            config: The validated config.
+            observer: ``False`` runs without compensation, ``True`` with an observer
+                (:func:`with_controller`).
+            controller: Another controller × compensation (:func:`with_controller`);
+                applied before ``observer``.
+
+        Raises:
+            LimitError: The initial state or the reference (sampled at every control
+                instant of the run and its last horizon) leaves the joint limits.
+        """
+        config = with_controller(config, controller, observer)
+        rc = config.robot
+        robot = load_robot_config(rc)
+        n = robot.nq
+        config.check_dimensions(n)
+        if config.plant.effort_limit is not None:
+            config.vector("plant.effort_limit", n)
+        pc = config.plant
+        plant_gravity = pc.gravity if pc.gravity is not None else rc.gravity
+        plant = (
+            load_robot(pc.urdf, gravity=plant_gravity, locked_joints=rc.locked_joints)
+            if pc.urdf is not None
+            else load_robot_config(rc, gravity=plant_gravity)
+        )
+        if plant.nq != n:
+            raise ConfigError(
+                "plant.urdf",
+                f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
+            )
+        PLANTS[pc.integrator](plant, None, config.controller.Ts, pc.dt)  # checks dt | Ts
+        reference = build_reference(config, robot)
+        q0 = (
+            reference.sample(0.0)[0]
+            if config.simulation.q0 is None
+            else config.vector("simulation.q0", n)
+        )
+        controller = make_controller(robot, config.controller)
+        limits = _limits(config.controller, robot) if config.controller.kind == "hmpc" else None
+        if limits is not None:
+            lower, upper = limits.lower, limits.upper
+            for i in np.flatnonzero((q0 < lower - 1e-9) | (q0 > upper + 1e-9)):
+                raise LimitError(
+                    "initial position (simulation.q0)", robot.joint_names[i], None, q0[i],
+                    lower[i], upper[i],
+                )  # fmt: skip
+            cc = config.controller
+            times = cc.Ts * np.arange(round(config.simulation.duration / cc.Ts) + cc.N + 1)
+            check_limits(reference, lower, upper, times, robot.joint_names)
+        return cls(
+            config=config,
+            robot=robot,
+            plant=plant,
+            controller=controller,
+            reference=reference,
+            disturbance=build_disturbance(config, robot, q0),
+            q0=q0,
+            dq0=config.vector("simulation.dq0", n),
+        )
+
+    @property
+    def effort_limit(self) -> np.ndarray | None:
+        """The plant's effort limits [N·m] (config override, else the plant URDF's; a
+        URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
+        pc = self.config.plant
+        if not pc.saturate:
+            return None
+        if pc.effort_limit is not None:
+            return self.config.vector("plant.effort_limit", self.robot.nq)
+        eff = self.plant.effort_limit
+        return np.where(eff > 0, eff, np.inf)
+
+    def run(self, duration: float | None = None, on_step=None) -> Result:
+        """Simulate the closed loop for ``duration`` [s] (default: the config's).
+
+        ``on_step(t, q, q_ref)`` is called at every control instant (live view).
+        """
+        cfg = self.config
+        return simulate(
+            self.robot,
+            self.controller,
+            self.reference,
+            duration=cfg.simulation.duration if duration is None else duration,
+            q0=self.q0,
+            dq0=self.dq0,
+            plant=self.make_plant(),
+            effort_limit=self.effort_limit,
+            state_bound=cfg.simulation.state_bound,
+            on_step=on_step,
+            meta={
+                "experiment": cfg.name,
+                "config": str(cfg.source) if cfg.source else None,
+                "urdf": str(self.robot.source),
+                "locked_joints": self.robot.locked_joints,
+                "limits": {
+                    "lower": self.robot.lower.tolist(),
+                    "upper": self.robot.upper.tolist(),
+                },
+                "gravity": cfg.robot.gravity,
+                "controller": cfg.controller.label,
+                "observer": uses_observer(cfg.controller),
+                "Ts": cfg.controller.Ts,
+                "N": cfg.controller.N,
+                "Nc": cfg.controller.Nc,
+                "state_bound": cfg.simulation.state_bound,
+            },
+        )
+
+    def make_plant(self) -> Plant:
+        """A new plant of ``[plant]`` (its integrator, step and this experiment's
+        disturbance) on the plant model."""
+        pc = self.config.plant
+        return PLANTS[pc.integrator](self.plant, self.disturbance, self.controller.Ts, pc.dt)
+
+
+def run_experiment(
+    config: ExperimentConfig, *, observer: bool | None = None, duration: float | None = None
+) -> Result:
+    """Build and run ``config``; ``observer=False`` runs the baseline without NDO."""
+    return Experiment.from_config(config, observer=observer).run(duration)

@@ -1,0 +1,31 @@
+"""Simulation: disturbances, plants (one protocol, :mod:`.plants`), the closed loop, results."""
+
+from .disturbances import (
+    CoulombViscousFriction,
+    Disturbance,
+    GaussianPulse,
+    Periodic,
+    SumDisturbance,
+    ZeroDisturbance,
+    as_disturbance,
+)
+from .plants import PLANTS, EulerPlant, Plant, RK4Plant
+from .result import RESULT_ARRAYS, Result
+from .simulate import simulate
+
+__all__ = [
+    "PLANTS",
+    "RESULT_ARRAYS",
+    "CoulombViscousFriction",
+    "Disturbance",
+    "EulerPlant",
+    "GaussianPulse",
+    "Periodic",
+    "Plant",
+    "RK4Plant",
+    "Result",
+    "SumDisturbance",
+    "ZeroDisturbance",
+    "as_disturbance",
+    "simulate",
+]

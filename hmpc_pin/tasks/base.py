@@ -1,0 +1,173 @@
+"""The reference protocol: what the controllers sample over their horizon.
+
+A reference gives the joint angles and velocities the arm should follow. The
+hierarchical MPC samples it at the :math:`N` future instants of its horizon,
+:math:`t_k + jT_s,\\ j = 1..N`, every control period, so the protocol's main method is
+vectorised over time:
+
+``sample_many(times, out=None) -> (q_ref, dq_ref)``
+    ``times`` of shape (m,) [s]; returns two arrays of shape (m, n) [rad, rad/s].
+    With ``out = (q_buf, dq_buf)``, two C-contiguous float arrays of shape (m, n), the
+    values are written into them (and they are returned): the controller's step then
+    allocates nothing for the reference.
+
+``sample(t) -> (q_ref, dq_ref)``
+    one instant, two arrays of shape (n,).
+
+Every reference of the package implements both, vectorised. Anything else a user has
+is adapted once, at the boundary, by :func:`as_reference`: an object with only
+``sample(t)``, one whose ``sample_many`` takes no ``out``, or a plain callable
+``f(t) -> (q, dq)``. Anything else raises :class:`~hmpc_pin.exceptions.InterfaceError`
+naming what is missing.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..exceptions import InterfaceError, LimitError
+
+__all__ = ["Reference", "as_reference", "check_limits", "sample_horizon"]
+
+FloatArray = NDArray[np.float64]
+Pair = tuple[FloatArray, FloatArray]
+
+
+@runtime_checkable
+class Reference(Protocol):
+    """A joint-space reference :math:`r(t)`, :math:`\\dot r(t)` (module docstring)."""
+
+    def sample(self, t: float) -> Pair:
+        """Reference angle [rad] and velocity [rad/s] at ``t`` [s], each of shape (n,)."""
+        ...
+
+    def sample_many(self, times: FloatArray, out: Pair | None = None) -> Pair:
+        """Vectorised :meth:`sample` at ``times`` (m,) [s]: two arrays of shape (m, n);
+        written into ``out`` when given."""
+        ...
+
+
+def _write(values: Pair, out: Pair | None) -> Pair:
+    q, dq = np.asarray(values[0], dtype=float), np.asarray(values[1], dtype=float)
+    if out is None:
+        return q, dq
+    out[0][...] = q
+    out[1][...] = dq
+    return out
+
+
+class _ManyWithoutOut:
+    """A reference whose ``sample_many(times)`` takes no ``out``: the values are copied."""
+
+    def __init__(self, inner: object):
+        self.inner = inner
+        self._many = inner.sample_many  # type: ignore[attr-defined]
+        self._one = getattr(inner, "sample", None)
+
+    def sample(self, t: float) -> Pair:
+        if self._one is not None:
+            q, dq = self._one(t)
+            return np.asarray(q, dtype=float), np.asarray(dq, dtype=float)
+        q, dq = self._many(np.array([t], dtype=float))
+        return np.asarray(q, dtype=float)[0], np.asarray(dq, dtype=float)[0]
+
+    def sample_many(self, times: FloatArray, out: Pair | None = None) -> Pair:
+        return _write(self._many(times), out)
+
+    def __getattr__(self, name: str) -> object:  # acceleration(t), n, ... of the inner one
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+
+class _SampleOnly:
+    """A reference with only ``sample(t)``: the horizon is sampled point by point."""
+
+    def __init__(self, sample: Callable[[float], tuple[object, object]], inner: object):
+        self._sample = sample
+        self.inner = inner
+
+    def sample(self, t: float) -> Pair:
+        q, dq = self._sample(t)
+        return np.asarray(q, dtype=float), np.asarray(dq, dtype=float)
+
+    def sample_many(self, times: FloatArray, out: Pair | None = None) -> Pair:
+        pairs = [self._sample(float(t)) for t in np.asarray(times, dtype=float).reshape(-1)]
+        q = np.array([p[0] for p in pairs], dtype=float)
+        dq = np.array([p[1] for p in pairs], dtype=float)
+        return _write((q, dq), out)
+
+    def __getattr__(self, name: str) -> object:
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+
+def _takes_out(method: Callable[..., object]) -> bool:
+    try:
+        params = inspect.signature(method).parameters
+    except (TypeError, ValueError):  # builtins without a signature: call without out
+        return False
+    return "out" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
+
+
+def as_reference(obj: object) -> Reference:
+    """``obj`` as a :class:`Reference`, adapted once (module docstring).
+
+    Returns ``obj`` itself when its ``sample_many`` takes ``out`` and it has ``sample``;
+    an adapter otherwise (``acceleration`` and other members pass through).
+
+    Raises:
+        InterfaceError: ``obj`` has neither ``sample_many`` nor ``sample`` and is not
+            callable.
+    """
+    many = getattr(obj, "sample_many", None)
+    if callable(many):
+        if callable(getattr(obj, "sample", None)) and _takes_out(many):
+            return obj  # type: ignore[return-value]
+        return _ManyWithoutOut(obj)
+    one = getattr(obj, "sample", None)
+    if callable(one):
+        return _SampleOnly(one, obj)
+    if callable(obj):
+        return _SampleOnly(obj, obj)
+    raise InterfaceError(
+        obj,
+        "a reference: it needs sample_many(times) -> (q, dq) of shape (len(times), n), "
+        "or sample(t) -> (q, dq) of shape (n,), or to be a callable f(t) -> (q, dq)",
+        "see hmpc_pin.tasks.base",
+    )
+
+
+def sample_horizon(reference: object, times: FloatArray) -> Pair:
+    """Sample any reference (adapted by :func:`as_reference`) at ``times``: two (m, n) arrays."""
+    q, dq = as_reference(reference).sample_many(np.asarray(times, dtype=float))
+    return np.asarray(q, dtype=float), np.asarray(dq, dtype=float)
+
+
+def check_limits(
+    reference: object,
+    lower: FloatArray,
+    upper: FloatArray,
+    times: FloatArray,
+    joint_names: tuple[str, ...],
+    *,
+    tol: float = 1e-9,
+) -> None:
+    """Check that ``reference`` stays within ``[lower − tol, upper + tol]`` at ``times``.
+
+    Raises:
+        LimitError: Naming the first joint and time where the reference leaves its limits.
+    """
+    q_ref, _ = sample_horizon(reference, np.asarray(times, dtype=float))
+    out = (q_ref < lower - tol) | (q_ref > upper + tol)
+    if out.any():
+        k, i = np.argwhere(out)[0]
+        raise LimitError(
+            "reference", joint_names[i], float(times[k]), float(q_ref[k, i]), lower[i], upper[i]
+        )

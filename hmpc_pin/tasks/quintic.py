@@ -1,0 +1,100 @@
+"""A quintic (minimum-jerk) joint move, used for the Cartesian motion of Section 5.4."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..exceptions import ConfigError, DimensionError, NonFiniteError
+from .base import FloatArray, Pair, _write
+
+__all__ = ["QuinticReference"]
+
+
+class QuinticReference:
+    """Joint-space quintic (minimum-jerk) move from ``q_start`` to ``q_goal``, §5.4.
+
+    With :math:`s = \\operatorname{clip}((t - t_0)/T, 0, 1)` and
+    :math:`\\Delta = q_{goal} - q_{start}`,
+
+    .. math::
+
+        r(t) = q_{start} + \\Delta\\,(10 s^3 - 15 s^4 + 6 s^5), \\qquad
+        \\dot r(t) = \\frac{\\Delta}{T}\\,30 s^2 (1 - s)^2, \\qquad
+        \\ddot r(t) = \\frac{\\Delta}{T^2}\\,60 s (1 - s)(1 - 2 s),
+
+    so velocity and acceleration are zero at both ends, and the reference is
+    constant (:math:`q_{start}` before :math:`t_0`, :math:`q_{goal}` after
+    :math:`t_0 + T`) outside the move. Used to join the two inverse-kinematics
+    poses of the paper's Cartesian motion (Section 5.4).
+
+    Args:
+        q_start: Start angles [rad], shape (n,).
+        q_goal: Goal angles [rad], shape (n,).
+        t_start: Start time :math:`t_0` of the move [s].
+        duration: Duration :math:`T > 0` of the move [s].
+
+    Raises:
+        DimensionError: If ``q_start`` and ``q_goal`` are not two vectors of one shape (n,).
+        NonFiniteError: If an argument is NaN or infinite.
+        ConfigError: If ``duration`` is not > 0.
+    """
+
+    def __init__(self, q_start, q_goal, t_start: float, duration: float):
+
+        q0 = np.asarray(q_start, dtype=float)
+        q1 = np.asarray(q_goal, dtype=float)
+        if q0.ndim != 1 or q0.size == 0 or q1.shape != q0.shape:
+            raise DimensionError(
+                f"q_start has shape {q0.shape} and q_goal has shape {q1.shape}; "
+                "pass two joint vectors of the same shape (n,)"
+            )
+        for name, value in (("q_start", q0), ("q_goal", q1)):
+            if not np.all(np.isfinite(value)):
+                raise NonFiniteError(name, value, "in QuinticReference")
+        for name, value in (("t_start", t_start), ("duration", duration)):
+            if not np.isfinite(value):
+                raise NonFiniteError(name, value, "in QuinticReference")
+        if not duration > 0:
+            raise ConfigError(
+                "QuinticReference.duration", f"{duration!r}; expected a duration > 0 [s]"
+            )
+        self.n = q0.size
+        self.q_start = q0.copy()
+        self.q_goal = q1.copy()
+        self.t_start = float(t_start)
+        self.duration = float(duration)
+        self._delta = q1 - q0
+
+    @property
+    def t_end(self) -> float:
+        """End time :math:`t_0 + T` of the move [s]."""
+        return self.t_start + self.duration
+
+    def _phase(self, t):
+        return np.clip((np.asarray(t, dtype=float) - self.t_start) / self.duration, 0.0, 1.0)
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Reference angle [rad] and velocity [rad/s] at time ``t`` [s], each of shape (n,)."""
+        s = float(self._phase(t))
+        shape = s**3 * (10.0 + s * (-15.0 + 6.0 * s))
+        rate = 30.0 * s**2 * (1.0 - s) ** 2 / self.duration
+        return self.q_start + self._delta * shape, self._delta * rate
+
+    def sample_many(self, times: FloatArray, out: Pair | None = None) -> Pair:
+        """Vectorised :meth:`sample`: arrays of shape (len(times), n), written into
+        ``out`` when given (the :class:`~hmpc_pin.tasks.base.Reference` protocol)."""
+        s = self._phase(np.atleast_1d(times))[:, None]
+        shape = s**3 * (10.0 + s * (-15.0 + 6.0 * s))
+        rate = 30.0 * s**2 * (1.0 - s) ** 2 / self.duration
+        return _write((self.q_start + self._delta * shape, self._delta * rate), out)
+
+    def acceleration(self, t: float) -> np.ndarray:
+        """Reference acceleration [rad/s²] at ``t`` [s], shape (n,)."""
+        s = float(self._phase(t))
+        return self._delta * (60.0 * s * (1.0 - s) * (1.0 - 2.0 * s) / self.duration**2)
+
+    def __repr__(self) -> str:
+        return (
+            f"QuinticReference(q_start={self.q_start.tolist()}, q_goal={self.q_goal.tolist()}, "
+            f"t_start={self.t_start}, duration={self.duration})"
+        )

@@ -7,7 +7,7 @@ import pytest
 
 import hmpc_pin
 from hmpc_pin.experiment.schema import ControllerConfig
-from hmpc_pin.controllers.hierarchical import make_controller
+from hmpc_pin.experiment.build import make_controller
 from hmpc_pin.compensation.ism import IntegralSlidingMode
 
 

@@ -25,7 +25,7 @@ from hmpc_pin.model.planar import (
     tool_pose,
     workspace_points,
 )
-from hmpc_pin.tasks.references import QuinticReference, sample_horizon
+from hmpc_pin.tasks import QuinticReference, sample_horizon
 from hmpc_pin.model.robot import load_robot
 
 URDF = Path(__file__).resolve().parents[1] / "robots" / "planar3.urdf"

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data import DATA
+from ..experiment.build import load_robot_config
 from ..experiment.schema import load_config
 from .metrics import Metrics, compute_metrics
 
@@ -345,7 +346,7 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
                 figures.append((path, f"Paper {fig} — Section {exp.section}: {what}."))
 
     robot_cfg = configs["paper_combined"].robot
-    robot = robot_cfg.load()
+    robot = load_robot_config(robot_cfg)
     q0 = configs["paper_combined"].vector("simulation.q0", robot.nq)
     ws = plots.plot_workspace(
         robot,

@@ -130,7 +130,7 @@ def draw_samples(config: ExperimentConfig, samples: int, seed: int) -> list[Samp
     Every sample draws the same number of values in the same order (a range ``[1, 1]``
     draws exactly 1.0), so sample ``i`` does not depend on ``samples``.
     """
-    n = config.robot.load().nq
+    n = load_robot_config(config.robot).nq
     sc = config.sweep
     out = []
     for i, child in enumerate(np.random.SeedSequence(seed).spawn(samples)):

@@ -36,7 +36,7 @@ from ..exceptions import ConfigError, NonFiniteError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC
 from ..tasks.base import as_reference
-from .hierarchical import MPCSettings
+from .hierarchical import MPCSettings, _from_legacy
 
 __all__ = [
     "CTSettings",
@@ -158,6 +158,8 @@ class ComputedTorque:
         settings: CTSettings | None = None,
         compensation: Compensation | None = None,
     ):
+        if settings is not None and not isinstance(settings, CTSettings):
+            settings, compensation = _from_legacy(settings, robot, "ComputedTorque")
         settings = settings if settings is not None else CTSettings.matching(MPCSettings())
         self.robot, self.settings, self.n = robot, settings, robot.nq
         n = robot.nq

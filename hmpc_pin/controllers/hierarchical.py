@@ -71,6 +71,28 @@ class MPCSettings:
         return lo, hi
 
 
+def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
+    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts of the
+    config (its ``controller_parts``), with a :class:`DeprecationWarning`."""
+    parts = getattr(config, "controller_parts", None)
+    if parts is None:
+        from ..exceptions import InterfaceError
+
+        raise InterfaceError(
+            config, "MPCSettings", "or build a controller from a ControllerConfig with "
+            "hmpc_pin.make_controller(robot, config)",
+        )  # fmt: skip
+    import warnings
+
+    warnings.warn(
+        f"{who}(robot, ControllerConfig) is deprecated since 0.2; use "
+        "hmpc_pin.make_controller(robot, config)",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+    return parts(robot)
+
+
 def state_limits(
     robot: Robot,
     *,
@@ -136,15 +158,9 @@ class HierarchicalMPC:
         limits: StateLimits | str | None = "urdf",
     ):
         self.robot = robot
+        if settings is not None and not isinstance(settings, MPCSettings):
+            settings, compensation, limits = _from_legacy(settings, robot, "HierarchicalMPC")
         self.settings = settings = settings if settings is not None else MPCSettings()
-        if not isinstance(settings, MPCSettings):
-            from ..exceptions import InterfaceError
-
-            raise InterfaceError(
-                settings,
-                "MPCSettings",
-                "build a controller from a ControllerConfig with hmpc_pin.make_controller",
-            )
         n = robot.nq
         self.n = n
         self.compensation: Compensation = (

@@ -113,6 +113,21 @@ def make_compensation(robot: Robot, cc: ControllerConfig) -> Compensation:
     return NoCompensation(n)
 
 
+def controller_parts(robot: Robot, cc: ControllerConfig) -> tuple:
+    """The arguments after ``robot`` of the controller class of ``cc``: for ``hmpc``
+    ``(MPCSettings, compensation, limits)``, for ``computed-torque*``
+    ``(CTSettings, compensation)``."""
+    compensation = make_compensation(robot, cc)
+    settings = mpc_settings(cc, robot.nq)
+    if cc.kind == "hmpc":
+        return settings, compensation, _limits(cc, robot)
+    ct = cc.computed_torque
+    gains = CTSettings.matching(
+        settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
+    )
+    return gains, compensation
+
+
 def make_controller(robot: Robot, config: ControllerConfig | None = None) -> Controller:
     """The controller × compensation of ``config`` (README, "Controllers").
 
@@ -121,15 +136,10 @@ def make_controller(robot: Robot, config: ControllerConfig | None = None) -> Con
     each holds the compensation of :func:`make_compensation`.
     """
     cc = config if config is not None else ControllerConfig()
-    n = robot.nq
-    compensation = make_compensation(robot, cc)
-    settings = mpc_settings(cc, n)
     if cc.kind == "hmpc":
-        return HierarchicalMPC(robot, settings, compensation, limits=_limits(cc, robot))
-    ct = cc.computed_torque
-    gains = CTSettings.matching(
-        settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
-    )
+        settings, compensation, limits = controller_parts(robot, cc)
+        return HierarchicalMPC(robot, settings, compensation, limits=limits)
+    gains, compensation = controller_parts(robot, cc)
     return ComputedTorque(robot, gains, compensation)
 
 

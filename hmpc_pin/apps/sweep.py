@@ -34,7 +34,7 @@ import numpy as np
 
 from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError, SimulationError
-from ..experiment.build import Experiment, with_controller
+from ..experiment.build import Experiment, load_robot_config, with_controller
 from ..experiment.schema import OBSERVERS, ExperimentConfig
 
 __all__ = [

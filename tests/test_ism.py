@@ -16,12 +16,13 @@ def test_sigma_is_velocity_minus_nominal_integral(make_rng):
     Ts, n = 0.01, 3
     ism = IntegralSlidingMode(n, Ts, gain=200.0)
     dq0 = rng.normal(size=n)
-    ism.reset(dq0)
+    ism.reset(np.zeros(n), dq0)  # q0 is not used by the ISM
     vs = rng.normal(size=(20, n)) * 10
     M = np.diag([2.0, 1.0, 0.5])
+    unused = np.zeros(n)  # nle, q and tau_prev: not used by the ISM
     for k in range(20):
         dq = rng.normal(size=n)
-        est = ism.update(M, dq, vs[k])
+        est = ism.update(M, unused, unused, dq, unused, vs[k])
         sigma = dq - dq0 - Ts * vs[: k + 1].sum(axis=0)
         np.testing.assert_allclose(ism.sigma, sigma, atol=1e-12)
         np.testing.assert_allclose(est, M @ (200.0 * np.sign(sigma)))
@@ -48,7 +49,7 @@ def test_discrete_sign_law_keeps_sigma_in_its_band(planar3):
     K·Ts, plus the disturbance's share Ts·|M⁻¹d| (the discrete sliding band)."""
     d = np.array([3.0, -2.0, 1.0])
     ctrl, _ = _setpoint_run(planar3, "hmpc-ism", d)
-    assert np.abs(ctrl.ism.sigma).max() <= ctrl.Ts * 200.0 * 1.2
+    assert np.abs(ctrl.compensation.sigma).max() <= ctrl.Ts * 200.0 * 1.2
     # the compensation chatters: it switches sign from period to period
     assert np.abs(ctrl.disturbance_estimate).max() > 10 * np.abs(d).max()
 
@@ -74,6 +75,6 @@ def test_sign_law_without_disturbance_chatters_from_discretisation(planar3):
     on the nonlinear arm leaves σ ≠ 0 after one period, and from then on τ switches by
     2·M·K every period (the reason for the boundary layer)."""
     ctrl, r = _setpoint_run(planar3, "hmpc-ism")
-    assert np.all(np.abs(ctrl.ism.sigma) > 0)
+    assert np.all(np.abs(ctrl.compensation.sigma) > 0)
     slope = np.sign(np.diff(r.tau[-100:], axis=0))
     assert np.mean(slope[1:] != slope[:-1]) > 0.5  # τ reverses direction most periods

@@ -35,6 +35,9 @@ Y_CHEN = np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
 Y_OF = {"chen": Y_CHEN, "general": np.eye(N_JOINTS)}
 KINDS = tuple(Y_OF)
 Q_LIMIT = np.array([np.pi / 2, np.pi / 2, 3 * np.pi / 4])
+#: The outer-loop acceleration held over the last period, the last argument of
+#: ``Compensation.update``; the observers do not use it, and no outer loop runs here.
+NO_V = np.zeros(N_JOINTS)
 
 
 # --------------------------------------------------------------------- helpers
@@ -55,10 +58,10 @@ def observe_at_rest(robot: Robot, obs: DisturbanceObserver, q, d, steps: int) ->
     tau = robot.gravity_torque(q) - d
     assert np.abs(robot.forward_dynamics(q, dq, tau + d)).max() < 1e-9
     M, nle = robot.mass_matrix(q), robot.nonlinear_effects(q, dq)
-    obs.reset(dq)
+    obs.reset(q, dq)
     errors = [d - obs.estimate]
     for _ in range(steps):
-        errors.append(d - obs.update(M, nle, dq, tau))
+        errors.append(d - obs.update(M, nle, q, dq, tau, NO_V))
     return np.array(errors)
 
 
@@ -217,7 +220,7 @@ def test_error_on_moving_arm_follows_eq18(robot, make_rng, make_observer):
     periods = {1e-3: 10, 5e-4: 5}  # observer period -> plant steps per period
     observers = {Ts: make_observer(Ts=Ts, gain=gain) for Ts in periods}
     for obs in observers.values():
-        obs.reset(y[3:6])
+        obs.reset(y[:3], y[3:6])
     gap = dict.fromkeys(periods, 0.0)
     rho, speed, masses = 0.0, 0.0, []
     tau = np.zeros(3)
@@ -228,7 +231,8 @@ def test_error_on_moving_arm_follows_eq18(robot, make_rng, make_observer):
             for Ts, every in periods.items():
                 if s % every == 0:
                     M = robot.mass_matrix(q)
-                    est = observers[Ts].update(M, robot.nonlinear_effects(q, dq), dq, tau)
+                    nle = robot.nonlinear_effects(q, dq)
+                    est = observers[Ts].update(M, nle, q, dq, tau, NO_V)
                     gap[Ts] = max(gap[Ts], np.linalg.norm((d - est) - w))
         if s % 10 == 0:  # new torque every 1 ms, from the sampled state
             M = robot.mass_matrix(q)
@@ -299,7 +303,7 @@ def test_implicit_is_stable_where_explicit_diverges(robot, make_rng, make_observ
 # ---------------------------------------------------------------------- reset
 @pytest.mark.parametrize("kind", KINDS)
 def test_reset_starts_from_zero_estimate(robot, make_rng, make_observer, kind):
-    """reset(q̇0) gives d̂ = 0 with q̇0 ≠ 0, and the next sample stays consistent with d = 0.
+    """reset(q0, q̇0) gives d̂ = 0 with q̇0 ≠ 0, and the next sample stays consistent with d = 0.
 
     Without disturbance the first estimate after one 1 ms plant step must be O(Ts) small;
     a reset that left z = 0 instead of -p(q̇0) would give d̂ ≈ c Y q̇0 (tens of N·m here).
@@ -307,11 +311,14 @@ def test_reset_starts_from_zero_estimate(robot, make_rng, make_observer, kind):
     rng = make_rng(8)
     Ts, gain = 1e-3, 20.0
     obs = make_observer(Ts=Ts, gain=gain, kind=kind)
-    # dirty the observer first, so reset has something to undo
-    obs.update(np.eye(3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=3))
+    # dirty the observer first, so reset has something to undo (nle, dq, tau drawn in
+    # that order; q is not used by the NDO)
+    nle_dirty, dq_dirty, tau_dirty = (rng.normal(size=3) for _ in range(3))
+    obs.update(np.eye(3), nle_dirty, np.zeros(3), dq_dirty, tau_dirty, NO_V)
+    assert np.abs(obs.estimate).max() > 0
     q0 = rng.uniform(-Q_LIMIT, Q_LIMIT)
     dq0 = rng.uniform(1.0, 2.0, size=3) * rng.choice([-1.0, 1.0], size=3)
-    obs.reset(dq0)
+    obs.reset(q0, dq0)
     np.testing.assert_array_equal(obs.estimate, np.zeros(3))
     np.testing.assert_allclose(obs.z + gain * Y_OF[kind] @ dq0, 0.0, atol=1e-12)
     # one held-torque plant step without disturbance, RK4 at 0.1 ms
@@ -324,7 +331,7 @@ def test_reset_starts_from_zero_estimate(robot, make_rng, make_observer, kind):
     for _ in range(10):
         y = rk4_step(f, y, 1e-4)
     q1, dq1 = y[:3], y[3:]
-    est = obs.update(robot.mass_matrix(q1), robot.nonlinear_effects(q1, dq1), dq1, tau)
+    est = obs.update(robot.mass_matrix(q1), robot.nonlinear_effects(q1, dq1), q1, dq1, tau, NO_V)
     assert np.linalg.norm(est) < 1e-2 * np.linalg.norm(gain * Y_OF[kind] @ dq0)
 
 
@@ -354,12 +361,12 @@ def test_general_ndo_converges_at_rest_on_panda(panda, make_rng, seed):
     M, nle = panda.mass_matrix(q), panda.nonlinear_effects(q, dq)
     Ts, c = 0.01, 100.0
     obs = DisturbanceObserver(7, Ts, c, "general")
-    obs.reset(dq)
+    obs.reset(q, dq)
     step = np.linalg.inv(np.eye(7) + Ts * c * np.linalg.inv(M))
     w_own = d.copy()
     for _ in range(300):
         w_own = step @ w_own
-        w = d - obs.update(M, nle, dq, tau, q)
+        w = d - obs.update(M, nle, q, dq, tau, np.zeros(7))
         np.testing.assert_allclose(w, w_own, atol=1e-9 * np.abs(d).max())
     assert np.abs(w).max() < 1e-8 * np.abs(d).max()
 
@@ -377,9 +384,9 @@ def test_momentum_observer_rate_per_joint_on_panda(panda, make_rng, seed):
     Ts = 0.01
     K = np.array([5.0, 10.0, 20.0, 40.0, 60.0, 80.0, 100.0])  # one gain per joint
     obs = MomentumObserver(panda, Ts, K)
-    obs.reset(dq, q)
+    obs.reset(q, dq)
     for k in range(1, 60):
-        w = d - obs.update(M, nle, dq, tau, q)
+        w = d - obs.update(M, nle, q, dq, tau, np.zeros(7))
         np.testing.assert_allclose(w, d / (1.0 + Ts * K) ** k, atol=1e-10)
 
 
@@ -390,7 +397,7 @@ def test_spatial_observers_converge_on_moving_panda(panda, make_rng, kind):
     estimates d to 5 % after 2 s at random start poses. The residual error is the
     observers' O(Ts) discretisation of the moving arm's dynamics (they see the mean
     acceleration of the period, evaluated with M and C at its end), not a lag on d."""
-    from hmpc_pin.compensation.observers import make_observer
+    from hmpc_pin.compensation.observers import DisturbanceObserver, MomentumObserver
 
     rng = make_rng(20)
     Ts, h = 0.01, 0.001
@@ -398,19 +405,23 @@ def test_spatial_observers_converge_on_moving_panda(panda, make_rng, kind):
         q = panda_pose(panda, rng) * 0.8
         q_home, dq = q.copy(), np.zeros(7)
         d = rng.normal(0.0, 1.0, 7) * np.diag(panda.mass_matrix(q))
-        obs = make_observer(panda, Ts, kind, 50.0)
-        obs.reset(dq, q) if kind == "momentum" else obs.reset(dq)
-        tau_prev = None
+        if kind == "momentum":
+            obs = MomentumObserver(panda, Ts, 50.0)
+        else:
+            obs = DisturbanceObserver(7, Ts, 50.0, kind, "implicit")
+        obs.reset(q, dq)
+        tau_prev = v_prev = None
         for k in range(200):
             t = k * Ts
             M, nle = panda.mass_matrix(q), panda.nonlinear_effects(q, dq)
             if tau_prev is not None:
-                est = obs.update(M, nle, dq, tau_prev, q)
+                est = obs.update(M, nle, q, dq, tau_prev, v_prev)
             target = q_home + 0.2 * np.sin(2 * np.pi * 0.2 * t)
-            tau = nle + M @ (100.0 * (target - q) - 20.0 * dq)
+            v = 100.0 * (target - q) - 20.0 * dq
+            tau = nle + M @ v
             for _ in range(round(Ts / h)):
                 q, dq = rk4_step_state(panda, q, dq, tau + d, h)
-            tau_prev = tau
+            tau_prev, v_prev = tau, v
         assert np.abs(dq).max() > 0.05  # it really moved
         np.testing.assert_allclose(est, d, atol=5e-2 * np.abs(d).max())
 

@@ -71,11 +71,16 @@ class MPCSettings:
         return lo, hi
 
 
+#: Set by :mod:`hmpc_pin.experiment.build` (which imports this module, not the other way
+#: round): ``f(robot, ControllerConfig) -> constructor arguments after robot``.
+LEGACY_CONFIG_PARTS = None
+
+
 def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
-    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts of the
-    config (its ``controller_parts``), with a :class:`DeprecationWarning`."""
-    parts = getattr(config, "controller_parts", None)
-    if parts is None:
+    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts the builder
+    makes of the config, with a :class:`DeprecationWarning`."""
+    parts = LEGACY_CONFIG_PARTS
+    if parts is None or not hasattr(config, "compensation"):
         from ..exceptions import InterfaceError
 
         raise InterfaceError(
@@ -90,7 +95,7 @@ def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
         DeprecationWarning,
         stacklevel=3,
     )
-    return parts(robot)
+    return parts(robot, config)
 
 
 def state_limits(

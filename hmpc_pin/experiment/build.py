@@ -17,6 +17,7 @@ from ..compensation.ism import IntegralSlidingMode
 from ..compensation.observers import DisturbanceObserver, MomentumObserver
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque, CTSettings
+from ..controllers import hierarchical as _hierarchical
 from ..controllers.hierarchical import HierarchicalMPC, MPCSettings, state_limits
 from ..exceptions import ConfigError, LimitError
 from ..model.robot import Robot, load_robot
@@ -126,6 +127,10 @@ def controller_parts(robot: Robot, cc: ControllerConfig) -> tuple:
         settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
     )
     return gains, compensation
+
+
+# The deprecated 0.1 call HierarchicalMPC(robot, ControllerConfig) goes through here.
+_hierarchical.LEGACY_CONFIG_PARTS = controller_parts
 
 
 def make_controller(robot: Robot, config: ControllerConfig | None = None) -> Controller:

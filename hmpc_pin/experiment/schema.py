@@ -531,14 +531,6 @@ class ControllerConfig:
             "and compensation it applies to (README, Controllers)",
         )
 
-    def controller_parts(self, robot) -> tuple:
-        """The constructor arguments after ``robot`` of this config's controller class
-        (the deprecated 0.1 call ``HierarchicalMPC(robot, config)``); built by
-        :mod:`hmpc_pin.experiment.build`, the one place names become objects."""
-        from .build import controller_parts
-
-        return controller_parts(robot, self)
-
     @property
     def label(self) -> str:
         """``"controller+compensation"``, e.g. ``"hmpc+chen"``: the name of the pair."""

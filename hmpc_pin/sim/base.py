@@ -1,0 +1,39 @@
+"""The plant protocol: what a closed loop (simulated or real-time) needs from the arm."""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["Plant"]
+
+FloatArray = NDArray[np.float64]
+
+
+@runtime_checkable
+class Plant(Protocol):
+    """An arm advanced one control period at a time with the torque held.
+
+    Attributes:
+        nq: Number of joints n.
+        Ts: Control period [s]: :meth:`advance` integrates over it.
+        t: Current time [s].
+    """
+
+    nq: int
+    Ts: float
+    t: float
+
+    def reset(self, q0: FloatArray, dq0: FloatArray, t0: float = 0.0) -> None:
+        """Start at ``q0`` [rad], ``dq0`` [rad/s] (each (n,)) at time ``t0`` [s]."""
+        ...
+
+    def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Hold ``tau`` [N·m] over one period; return new ``(q, dq)`` at ``t + Ts``."""
+        ...
+
+    def disturbance_now(self) -> FloatArray:
+        """The disturbance :math:`d(t, q, \\dot q)` [N·m] at the current time and state."""
+        ...

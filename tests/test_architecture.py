@@ -1,0 +1,199 @@
+"""The package's layers (``hmpc_pin/__init__.py`` draws them): each module imports only
+its own subpackage and the layers below; no import cycle; the data ships in the wheel."""
+
+from __future__ import annotations
+
+import ast
+import os
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parent.parent / "hmpc_pin"
+
+#: Rank of each layer; a module may import its own subpackage and lower ranks only.
+RANK = {
+    "data": 0,
+    "exceptions": 0,
+    "model": 1,
+    "compensation": 2,
+    "mpc": 2,
+    "tasks": 2,
+    "controllers": 3,
+    "sim": 4,
+    "experiment": 5,
+    "apps": 6,
+    "__init__": 7,
+    "__main__": 8,
+}
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in PKG.rglob("*.py"):
+        rel = path.relative_to(PKG.parent).with_suffix("")
+        parts = list(rel.parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+def _imports(name: str, path: Path, top_only: bool = False) -> set[str]:
+    """Every ``hmpc_pin`` module ``name`` imports (function-level imports included unless
+    ``top_only``)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    if top_only:
+        tree = ast.Module(
+            body=[n for n in tree.body if not isinstance(n, (ast.FunctionDef, ast.ClassDef))],
+            type_ignores=[],
+        )
+    is_pkg = path.name == "__init__.py"
+    base = name.split(".") if is_pkg else name.split(".")[:-1]
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                anchor = base[: len(base) - node.level + 1]
+                target = ".".join([*anchor, *(node.module.split(".") if node.module else [])])
+            else:
+                target = node.module or ""
+            if target.startswith("hmpc_pin"):
+                found.add(target)
+                for alias in node.names:  # "from . import plots" imports a module
+                    found.add(f"{target}.{alias.name}")
+        elif isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith("hmpc_pin"))
+    mods = _modules()
+    return {t for t in found if t in mods and t != name}
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return "__init__" if len(parts) == 1 else parts[1]
+
+
+GRAPH = {name: _imports(name, path) for name, path in _modules().items()}
+
+
+def test_every_subpackage_has_a_rank():
+    assert {_layer(m) for m in GRAPH} <= set(RANK)
+
+
+@pytest.mark.parametrize("module", sorted(GRAPH))
+def test_module_imports_only_its_layer_and_below(module):
+    own = _layer(module)
+    for target in GRAPH[module]:
+        other = _layer(target)
+        if other == own or target == "hmpc_pin":
+            # the package root only through its own __init__ (e.g. __version__ in apps)
+            if target == "hmpc_pin":
+                assert RANK[own] >= RANK["apps"], f"{module} imports the package root"
+            continue
+        assert RANK[other] < RANK[own], f"{module} ({own}) imports {target} ({other}): upward"
+
+
+def test_no_import_cycle_between_modules():
+    # Every import, function-level ones included: a function-level import does not fail
+    # at import time, but it is still a dependency cycle.
+    top = GRAPH
+    state: dict[str, int] = {}
+
+    def visit(node, stack):
+        state[node] = 1
+        for nxt in top[node]:
+            if nxt.startswith(node + "."):
+                continue  # a package's __init__ imports its own modules
+            if state.get(nxt) == 1:
+                pytest.fail("import cycle: " + " -> ".join([*stack, node, nxt]))
+            if state.get(nxt) is None:
+                visit(nxt, [*stack, node])
+        state[node] = 2
+
+    for name in sorted(top):
+        if name not in state:
+            visit(name, [])
+
+
+def test_report_does_not_import_the_command_line():
+    assert "hmpc_pin.apps.cli" not in GRAPH["hmpc_pin.apps.report"]
+
+
+def test_every_exception_is_defined_in_exceptions_py():
+    for name, path in _modules().items():
+        if name == "hmpc_pin.exceptions":
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ClassDef):
+                bases = {getattr(b, "id", getattr(b, "attr", "")) for b in node.bases}
+                assert not bases & {"Exception", "HmpcError", "ValueError", "RuntimeError"}, (
+                    f"{name} defines exception {node.name}"
+                )
+            if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call):
+                fn = getattr(node.exc.func, "id", "")
+                assert fn not in ("ValueError", "TypeError"), f"{name}: bare {fn}"
+
+
+@pytest.mark.slow
+def test_wheel_installs_and_runs_packaged_config_and_reproduce_from_anywhere(tmp_path):
+    """``pip wheel .``, installed (without dependencies) into a fresh virtual environment
+    that sees this environment's dependencies through a .pth file, then ``hmpc-pin run
+    paper_combined`` and ``hmpc-pin reproduce`` from an empty temporary folder."""
+    root = PKG.parent
+    dist = tmp_path / "dist"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(root)],
+        check=True,
+        timeout=600,
+    )
+    (wheel,) = dist.glob("hmpc_pin-*.whl")
+    import zipfile
+
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "hmpc_pin/data/robots/planar3.urdf" in names
+    assert "hmpc_pin/data/configs/paper_combined.toml" in names
+    assert "hmpc_pin/py.typed" in names
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
+    py = venv / "bin" / "python"
+    site = subprocess.run(
+        [py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+    # this environment's dependencies (not its hmpc_pin: an editable install is a finder
+    # hook in a .pth file, and .pth files of an added folder are not processed)
+    Path(site, "deps.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    subprocess.run(
+        [sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q",
+         str(wheel)],
+        check=True,
+        timeout=600,
+    )  # fmt: skip
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env.pop("PYTHONPATH", None)
+    where = subprocess.run(
+        [py, "-c", "import hmpc_pin; print(hmpc_pin.__file__)"],
+        cwd=work, check=True, capture_output=True, text=True, env=env,
+    ).stdout  # fmt: skip
+    assert str(venv) in where, where
+    hmpc = venv / "bin" / "hmpc-pin"
+    run = subprocess.run(
+        [hmpc, "run", "paper_combined", "--duration", "1", "--out", "out"],
+        cwd=work, capture_output=True, text=True, env=env, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert (work / "out" / "paper_combined.npz").is_file()
+    rep = subprocess.run(
+        [hmpc, "reproduce", "--out", "rep", "--quiet"],
+        cwd=work, capture_output=True, text=True, env=env, timeout=900,
+    )  # fmt: skip
+    assert rep.returncode == 0, rep.stderr
+    assert "paper_combined" in (work / "rep" / "report.md").read_text(encoding="utf-8")

@@ -166,9 +166,13 @@ def test_wheel_installs_and_runs_packaged_config_and_reproduce_from_anywhere(tmp
         capture_output=True,
         text=True,
     ).stdout.strip()
-    # this environment's dependencies (not its hmpc_pin: an editable install is a finder
-    # hook in a .pth file, and .pth files of an added folder are not processed)
-    Path(site, "deps.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    # this environment's dependencies: its site-packages first ("00" sorts first), then
+    # its .pth hooks (Pinocchio's cmeel prefix), except the editable install of hmpc_pin
+    ours = Path(sysconfig.get_paths()["purelib"])
+    Path(site, "00deps.pth").write_text(f"{ours}\n")
+    for pth in ours.glob("*.pth"):
+        if "hmpc_pin" not in pth.name and "__editable__" not in pth.name:
+            Path(site, pth.name).write_text(pth.read_text())
     subprocess.run(
         [sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q",
          str(wheel)],

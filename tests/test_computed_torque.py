@@ -12,15 +12,18 @@ from hmpc_pin.controllers.computed_torque import (
     fastest_integral_gain,
     mpc_feedback_gain,
 )
-from hmpc_pin.experiment.schema import ComputedTorqueConfig, ControllerConfig
 from hmpc_pin.exceptions import ConfigError
+from hmpc_pin.experiment.schema import ComputedTorqueConfig, ControllerConfig
 from hmpc_pin.mpc.condensed import CondensedMPC
 
 from .conftest import PLANAR3
 
 
 def _ct(robot, kind="computed-torque", **gains):
-    return ComputedTorque(robot, ControllerConfig(kind=kind, computed_torque=gains or {}))
+    """The controller of ``[controller] kind`` with the ``computed_torque`` table ``gains``."""
+    ctrl = hmpc_pin.make_controller(robot, ControllerConfig(kind=kind, computed_torque=gains or {}))
+    assert isinstance(ctrl, ComputedTorque)
+    return ctrl
 
 
 def _unconstrained_v0(mpc: CondensedMPC, x0) -> float:

@@ -9,12 +9,18 @@ import pinocchio as pin
 import pytest
 
 import hmpc_pin
+from hmpc_pin.compensation.observers import DisturbanceObserver
+from hmpc_pin.controllers.hierarchical import MPCSettings
 from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig
 
 
-def _controller(robot, **kw):
-    obs = kw.pop("observer", ObserverConfig(enabled=False))
-    return hmpc_pin.HierarchicalMPC(robot, ControllerConfig(observer=obs, **kw))
+def _controller(robot, observer=None, **kw):
+    """hmpc with Chen's NDO of the ``observer`` table, or without compensation."""
+    if observer is None:
+        cc = ControllerConfig(compensation="none", **kw)
+    else:
+        cc = ControllerConfig(observer=observer, **kw)
+    return hmpc_pin.make_controller(robot, cc)
 
 
 def _rk4_hold(robot, q, dq, tau, d, Ts, steps=100):
@@ -37,8 +43,9 @@ def _rk4_hold(robot, q, dq, tau, d, Ts, steps=100):
 
 def test_default_controller_is_the_papers(planar3):
     ctrl = hmpc_pin.HierarchicalMPC(planar3)
-    assert ctrl.config.N == 10 and ctrl.config.Nc == 1 and ctrl.Ts == 0.01
-    assert ctrl.observer is not None and ctrl.observer.kind == "chen"
+    assert ctrl.settings.N == 10 and ctrl.settings.Nc == 1 and ctrl.Ts == 0.01
+    assert isinstance(ctrl.compensation, DisturbanceObserver)
+    assert ctrl.compensation.kind == "chen"
 
 
 def test_inverse_dynamics_decouples_into_double_integrators(planar3):
@@ -143,7 +150,7 @@ def test_wrong_dimension_is_a_clear_error(planar3):
     ctrl.reset(np.zeros(3), np.zeros(3))
     with pytest.raises(hmpc_pin.DimensionError, match=r"q has shape \(2,\).*3 joints"):
         ctrl.step(0.0, np.zeros(2), np.zeros(3), hmpc_pin.SineReference(3))
-    with pytest.raises(hmpc_pin.DimensionError, match=r"reference\.sample returned"):
+    with pytest.raises(hmpc_pin.DimensionError, match=r"reference\.sample(_many)? returned"):
         ctrl.step(0.0, np.zeros(3), np.zeros(3), _Ref(np.zeros(2), np.zeros(2)))
     with pytest.raises(hmpc_pin.DimensionError, match="dq0"):
         ctrl.reset(np.zeros(3), np.zeros(4))
@@ -178,7 +185,7 @@ def test_block_qp_run_equals_per_joint_qps(planar3):
     )
     runs = {}
     for layout in ("block", "joint"):
-        ctrl = hmpc_pin.HierarchicalMPC(planar3, ControllerConfig(qp_layout=layout))
+        ctrl = hmpc_pin.HierarchicalMPC(planar3, MPCSettings(qp_layout=layout))
         runs[layout] = simulate(
             planar3, ctrl, hmpc_pin.SineReference(3), d, duration=3.0, q0=np.ones(3)
         )
@@ -198,8 +205,9 @@ class _SampleOnly:
 
 @pytest.mark.parametrize("Nc", [1, 5])
 def test_sine_sampled_in_place_equals_generic_reference_path(planar3, Nc):
-    """The SineReference fast path (sampled straight into the horizon stack) gives the
-    torques of the generic path (``sample(t)`` per horizon instant), closed loop."""
+    """The SineReference fast path (``sample_many(times, out)`` writing straight into the
+    horizon stack) gives the torques of the generic path (``sample(t)`` per horizon
+    instant, through :func:`~hmpc_pin.tasks.base.as_reference`), closed loop."""
     from hmpc_pin.sim.simulate import simulate
 
     ref = hmpc_pin.SineReference(3, amplitude=[1.0, 0.5, 0.8], frequency=[0.1, 0.3, 0.2],
@@ -208,7 +216,7 @@ def test_sine_sampled_in_place_equals_generic_reference_path(planar3, Nc):
     q0 = np.array([0.2, 0.1, -0.1])
     runs = []
     for r in (ref, _SampleOnly(ref)):
-        ctrl = hmpc_pin.HierarchicalMPC(planar3, ControllerConfig(Nc=Nc))
+        ctrl = hmpc_pin.HierarchicalMPC(planar3, MPCSettings(Nc=Nc))
         runs.append(simulate(planar3, ctrl, r, d, duration=1.0, q0=q0))
     np.testing.assert_allclose(runs[0].tau, runs[1].tau, rtol=0, atol=1e-9)
     np.testing.assert_allclose(runs[0].q, runs[1].q, rtol=0, atol=1e-12)
@@ -227,7 +235,7 @@ def test_step_equals_its_equations(planar3):
     for k in range(1, 4):
         q, dq = q + 0.01 * dq, dq + rng.normal(0, 0.1, 3)
         tau_prev = ctrl.tau.copy()
-        z_prev = ctrl.observer.z.copy()
+        z_prev = ctrl.compensation.z.copy()
         t = 0.01 * k
         tau = ctrl.step(t, q, dq, ref)
         mpc = ctrl.mpc

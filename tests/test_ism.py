@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.experiment.schema import ControllerConfig
-from hmpc_pin.experiment.build import make_controller
 from hmpc_pin.compensation.ism import IntegralSlidingMode
+from hmpc_pin.experiment.build import make_controller
+from hmpc_pin.experiment.schema import ControllerConfig
 
 
 def test_sigma_is_velocity_minus_nominal_integral(make_rng):
@@ -49,6 +49,7 @@ def test_discrete_sign_law_keeps_sigma_in_its_band(planar3):
     K·Ts, plus the disturbance's share Ts·|M⁻¹d| (the discrete sliding band)."""
     d = np.array([3.0, -2.0, 1.0])
     ctrl, _ = _setpoint_run(planar3, "hmpc-ism", d)
+    assert isinstance(ctrl.compensation, IntegralSlidingMode)
     assert np.abs(ctrl.compensation.sigma).max() <= ctrl.Ts * 200.0 * 1.2
     # the compensation chatters: it switches sign from period to period
     assert np.abs(ctrl.disturbance_estimate).max() > 10 * np.abs(d).max()
@@ -75,6 +76,7 @@ def test_sign_law_without_disturbance_chatters_from_discretisation(planar3):
     on the nonlinear arm leaves σ ≠ 0 after one period, and from then on τ switches by
     2·M·K every period (the reason for the boundary layer)."""
     ctrl, r = _setpoint_run(planar3, "hmpc-ism")
+    assert isinstance(ctrl.compensation, IntegralSlidingMode)
     assert np.all(np.abs(ctrl.compensation.sigma) > 0)
     slope = np.sign(np.diff(r.tau[-100:], axis=0))
     assert np.mean(slope[1:] != slope[:-1]) > 0.5  # τ reverses direction most periods

@@ -1,4 +1,5 @@
-"""Tests of :mod:`hmpc_pin.compensation.observers` on the planar three-link arm (``robots/planar3.urdf``).
+"""Tests of :mod:`hmpc_pin.compensation.observers` on the planar three-link arm
+(``robots/planar3.urdf``).
 
 The observer is checked against its error dynamics, computed here independently:
 

@@ -190,7 +190,7 @@ CONTROLLERS = {
     "hmpc+chen": lambda r: hmpc_pin.make_controller(r),
     "hmpc+none": lambda r: hmpc_pin.make_controller(
         r, hmpc_pin.ControllerConfig(compensation="none")
-    ),  # fmt: skip
+    ),
     "computed-torque+momentum": lambda r: hmpc_pin.make_controller(
         r, hmpc_pin.ControllerConfig(kind="computed-torque", compensation="momentum")
     ),

@@ -15,9 +15,9 @@ import numpy as np
 from ..compensation.base import Compensation, NoCompensation
 from ..compensation.ism import IntegralSlidingMode
 from ..compensation.observers import DisturbanceObserver, MomentumObserver
+from ..controllers import hierarchical as _hierarchical
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque, CTSettings
-from ..controllers import hierarchical as _hierarchical
 from ..controllers.hierarchical import HierarchicalMPC, MPCSettings, state_limits
 from ..exceptions import ConfigError, LimitError
 from ..model.robot import Robot, load_robot

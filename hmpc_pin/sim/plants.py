@@ -50,8 +50,6 @@ per stage) up to floating-point rounding (tested to 1e-12 on the paper scenario)
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
-
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray

@@ -30,7 +30,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from ..exceptions import InterfaceError, LimitError
+from ..exceptions import DimensionError, InterfaceError, LimitError
 
 __all__ = ["Reference", "as_reference", "check_limits", "sample_horizon"]
 
@@ -56,6 +56,12 @@ def _write(values: Pair, out: Pair | None) -> Pair:
     q, dq = np.asarray(values[0], dtype=float), np.asarray(values[1], dtype=float)
     if out is None:
         return q, dq
+    if q.shape != out[0].shape or dq.shape != out[1].shape:
+        raise DimensionError(
+            f"reference.sample_many returned q_ref of shape {q.shape} and dq_ref of shape "
+            f"{dq.shape} but {out[0].shape} (len(times), n joints) is needed; return two "
+            f"arrays of shape ({out[0].shape[-1]},) from sample(t)"
+        )
     out[0][...] = q
     out[1][...] = dq
     return out

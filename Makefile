@@ -17,6 +17,8 @@ demo: $(VENV)/.installed
 	$(PY) examples/track_sine.py --out out
 
 test: $(VENV)/.installed
+	$(VENV)/bin/ruff check hmpc_pin
+	$(VENV)/bin/mypy
 	$(PY) -m pytest
 
 lint: $(VENV)/.installed

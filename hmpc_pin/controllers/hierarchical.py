@@ -201,6 +201,7 @@ class HierarchicalMPC:
         order = np.concatenate([[0, 1], np.arange(2, 2 * N + 2, 2), np.arange(3, 2 * N + 2, 2)])
         self._FT = np.ascontiguousarray(self.mpc.FT[order])
         self._model, self._data = robot.model, robot.data
+        self._crba_direct = bool(getattr(robot, "crba_is_symmetric", False))
         self._ref_shape = (N, n)
         self._reference: object = None
         self._ref: Reference | None = None
@@ -292,8 +293,9 @@ class HierarchicalMPC:
             self._raise_non_finite(t, q, dq, q_ref, dq_ref)
         G = S.T.dot(self._FT)  # (n, Nc), one row per joint
 
-        M = self.robot.mass_matrix(q)
-        nle = pin.nonLinearEffects(self._model, self._data, q, dq)
+        model, data = self._model, self._data
+        M = pin.crba(model, data, q) if self._crba_direct else self.robot.mass_matrix(q)
+        nle = pin.nonLinearEffects(model, data, q, dq)
         if self._started:
             self.disturbance_estimate = self.compensation.update(M, nle, q, dq, self.tau, self.v)
         else:

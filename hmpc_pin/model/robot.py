@@ -183,6 +183,9 @@ class Robot:
         )
         m = pin.crba(model, self.data, q)
         self._symmetrize = not np.allclose(m, m.T)
+        #: Whether ``pin.crba`` already returns the full symmetric M (then
+        #: :meth:`mass_matrix` is ``pin.crba`` itself, and a hot loop may call it directly).
+        self.crba_is_symmetric = not self._symmetrize
 
     @property
     def nq(self) -> int:

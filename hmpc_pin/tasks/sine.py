@@ -37,6 +37,8 @@ class SineReference:
         self.phase = np.broadcast_to(np.asarray(phase, float), shape).copy()
         self._amp_omega = self.amplitude * self.omega
         self._tiles: dict[int, tuple[np.ndarray, ...]] = {}
+        self._out: Pair | None = None
+        self._out_flat: Pair = (np.empty(0), np.empty(0))
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference angle [rad] and velocity [rad/s] at time ``t`` [s]."""
@@ -67,8 +69,12 @@ class SineReference:
         arg *= omega
         arg += phase
         shape = (m, self.n)
-        if out is not None and _flat_views_ok(out, shape):
-            q_flat, dq_flat = out[0].reshape(-1), out[1].reshape(-1)
+        if out is not None and (
+            (out is self._out and self._out_flat[0].size == arg.size) or _flat_views_ok(out, shape)
+        ):
+            if out is not self._out:  # the controller passes the same buffers every step
+                self._out, self._out_flat = out, (out[0].reshape(-1), out[1].reshape(-1))
+            q_flat, dq_flat = self._out_flat
             np.sin(arg, out=q_flat)
             q_flat *= amplitude
             q_flat += offset

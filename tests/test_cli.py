@@ -35,6 +35,8 @@ def test_run_writes_npz_csv_and_figures(tmp_path, capsys, name):
     assert "RMS e" in printed and "joint3" in printed
     result = hmpc_pin.Result.load(tmp_path / f"{name}.npz")
     assert result.complete and result.t[-1] == pytest.approx(1.5)
+    label = "hmpc+none" if name.endswith("_no_ndo") else "hmpc+chen"
+    assert result.meta["controller"] == label and f"({label}, observer" in printed
     with open(tmp_path / f"{name}.csv", encoding="utf-8") as f:
         rows = list(csv.reader(f))
     joints = ("joint1", "joint2", "joint3")
@@ -52,6 +54,54 @@ def test_no_ndo_flag_disables_the_observer(tmp_path):
     assert main(["run", cfg, "--out", str(tmp_path), "--duration", "1", "--no-ndo"]) == 0
     r = hmpc_pin.Result.load(tmp_path / "paper_friction_no_ndo.npz")
     assert np.all(r.d_hat == 0) and r.meta["observer"] is False
+    assert r.meta["controller"] == "hmpc+none"
+    # the same run as the baseline config file
+    base = tmp_path / "base"
+    no_ndo = str(CONFIGS / "paper_friction_no_ndo.toml")
+    assert main(["run", no_ndo, "--out", str(base), "--duration", "1"]) == 0
+    np.testing.assert_array_equal(hmpc_pin.Result.load(base / "paper_friction_no_ndo.npz").q, r.q)
+
+
+def test_no_ndo_flag_on_a_config_without_compensation_is_bad_input(tmp_path, capsys):
+    cfg = str(CONFIGS / "paper_friction_no_ndo.toml")
+    out = tmp_path / "o"
+    assert main(["run", cfg, "--out", str(out), "--duration", "1", "--no-ndo"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --no-ndo") and "hmpc+none" in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_compensation_flag_replaces_the_compensation(tmp_path, capsys):
+    from hmpc_pin.experiment.build import run_experiment, with_controller
+
+    cfg = CONFIGS / "paper_friction.toml"
+    argv = ["run", str(cfg), "--out", str(tmp_path), "--duration", "1"]
+    assert main([*argv, "--compensation", "momentum"]) == 0
+    assert "(hmpc+momentum, observer on)" in capsys.readouterr().out
+    r = hmpc_pin.Result.load(tmp_path / "paper_friction_momentum.npz")
+    assert r.meta["controller"] == "hmpc+momentum" and r.meta["observer"] is True
+    assert np.any(r.d_hat != 0)
+    config = with_controller(hmpc_pin.load_config(cfg), compensation="momentum")
+    np.testing.assert_array_equal(run_experiment(config, duration=1.0).q, r.q)
+    assert (tmp_path / "paper_friction_momentum.csv").is_file()
+    # on the baseline config too: --compensation adds what the file switched off
+    assert main(["run", str(CONFIGS / "paper_friction_no_ndo.toml"), "--out", str(tmp_path),
+                 "--duration", "1", "--compensation", "chen"]) == 0  # fmt: skip
+    r = hmpc_pin.Result.load(tmp_path / "paper_friction_no_ndo_chen.npz")
+    assert r.meta["controller"] == "hmpc+chen" and np.any(r.d_hat != 0)
+    capsys.readouterr()
+    assert main([*argv, "--compensation", "magic"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --compensation") and "'magic'" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_run_a_packaged_config_by_name(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no file of that name here: the package's
+    assert main(["run", "paper_external", "--out", str(tmp_path), "--duration", "1"]) == 0
+    r = hmpc_pin.Result.load(tmp_path / "paper_external.npz")
+    assert r.complete and r.meta["config"].endswith("paper_external.toml")
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["reproduce", "--help"]])

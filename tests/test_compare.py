@@ -26,13 +26,28 @@ def _m(comp, kind):
     return comp.runs[kind].metrics
 
 
+# What each of the seven 0.1 names is on the paper's config (hmpc × Chen's NDO).
+PAIRS = {
+    "hmpc": "hmpc+chen",
+    "hmpc-none": "hmpc+none",
+    "hmpc-momentum": "hmpc+momentum",
+    "hmpc-ism": "hmpc+ism",
+    "hmpc-ism-bl": "hmpc+ism-bl",
+    "computed-torque": "computed-torque+none",
+    "computed-torque-pid": "computed-torque-pid+none",
+}
+
+
 def test_every_run_completes_on_the_same_reference(combined):
+    assert tuple(combined.runs) == CONTROLLER_KINDS and set(PAIRS) == set(CONTROLLER_KINDS)
     first = combined.runs["hmpc"].result
     for kind, run in combined.runs.items():
         assert run.failure is None, kind
         np.testing.assert_array_equal(run.result.q_ref, first.q_ref)
         np.testing.assert_array_equal(run.result.q[0], first.q[0])
-        assert run.result.meta["controller"] == kind
+        assert run.result.meta["controller"] == PAIRS[kind]
+        observer = PAIRS[kind].endswith(("+chen", "+momentum"))
+        assert run.observer is observer and run.result.meta["observer"] is observer
 
 
 def test_hmpc_run_equals_the_plain_run(combined):
@@ -62,9 +77,12 @@ def test_boundary_layer_below_half_k_ts_chatters_again():
     from dataclasses import replace
 
     from hmpc_pin.apps.compare import run_one_controller
+    from hmpc_pin.experiment.build import with_controller
 
-    cfg = load_config(CONFIGS / "paper_combined.toml")
+    # the paper's config has no [controller.ism] (hmpc × chen): take hmpc-ism-bl's
+    cfg = with_controller(load_config(CONFIGS / "paper_combined.toml"), "hmpc-ism-bl")
     cc = cfg.controller
+    assert cc.label == "hmpc+ism-bl" and cc.ism.boundary_layer is None
 
     def tv(factor):
         ism = replace(cc.ism, boundary_layer=factor * cc.ism.gain * cc.Ts)
@@ -104,6 +122,46 @@ def test_unknown_controller_is_bad_input(tmp_path, capsys):
     assert "mpc-foo" in err and "hmpc-ism" in err and err.count("\n") == 1
     with pytest.raises(ConfigError):
         parse_controllers(" , ")
+
+
+def test_controller_names_are_pairs_and_duplicates_are_refused():
+    combined = load_config(CONFIGS / "paper_combined.toml")  # hmpc × chen
+    names = "hmpc+momentum,computed-torque+chen,hmpc-ism-bl"
+    assert parse_controllers(names) == parse_controllers(names, combined)
+    assert parse_controllers(names) == ("hmpc+momentum", "computed-torque+chen", "hmpc-ism-bl")
+    for bad in ("hmpc+magic", "lqr+chen", "hmpc,mpc-foo"):
+        with pytest.raises(ConfigError, match="--controllers"):
+            parse_controllers(bad)
+    # the same pair under two names, on this config
+    for same in ("hmpc,hmpc+chen", "hmpc-momentum,hmpc+momentum", "computed-torque,"
+                 "computed-torque+none"):  # fmt: skip
+        with pytest.raises(ConfigError, match="same controller"):
+            parse_controllers(same, combined)
+        assert parse_controllers(same) == tuple(same.split(","))  # no config: not checked
+    assert parse_controllers(None, combined) == CONTROLLER_KINDS
+    # without compensation in the config, "hmpc" is "hmpc-none": the default keeps it once
+    no_ndo = load_config(CONFIGS / "paper_combined_no_ndo.toml")
+    assert no_ndo.controller.label == "hmpc+none"
+    assert parse_controllers(None, no_ndo) == tuple(k for k in CONTROLLER_KINDS if k != "hmpc-none")
+    with pytest.raises(ConfigError, match="same controller"):
+        parse_controllers("hmpc,hmpc-none", no_ndo)
+
+
+def test_default_comparison_runs_each_pair_once(monkeypatch):
+    from hmpc_pin.apps import compare
+
+    ran = []
+    monkeypatch.setattr(compare, "run_one_controller", lambda config, kind: ran.append(kind))
+    no_ndo = load_config(CONFIGS / "paper_combined_no_ndo.toml")
+    comp = run_comparison(no_ndo)
+    assert ran == [k for k in CONTROLLER_KINDS if k != "hmpc-none"] == list(comp.runs)
+
+
+def test_timed_controller_is_still_importable_from_compare():
+    from hmpc_pin.apps.compare import TimedController
+    from hmpc_pin.controllers.wrappers import TimedController as Moved
+
+    assert TimedController is Moved
 
 
 def test_every_controller_is_documented_in_the_readme():

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,7 @@ import hmpc_pin
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig, RobotConfig
 
-from .conftest import CONFIGS
+from .conftest import CONFIGS, PLANAR3
 
 BASE = """
 [robot]
@@ -104,6 +106,47 @@ BAD = [
     ("[controller.ism]\nwidth = 1.0", "controller.ism.width", "unknown key"),
     ("[controller.computed_torque]\nkp = -5.0", "controller.computed_torque.kp", "> 0"),
     ("[plant]\neffort_limit = [1.0, -1.0, 1.0]", "plant.effort_limit", "> 0"),
+    # controller × compensation: contradictions and tables that do not apply to the pair
+    ('[controller]\ncompensation = "magic"', "controller.compensation", "one of"),
+    ('[controller]\nkind = "hmpc+momentum"', "controller.kind", "compensation"),
+    ('[controller]\nkind = "hmpc-ism"\ncompensation = "chen"', "controller.compensation",
+     "contradicts"),
+    ('[controller]\nkind = "hmpc-momentum"\n[controller.observer]\nenabled = false',
+     "controller.observer.enabled", "hmpc-momentum"),
+    ('[controller]\nkind = "hmpc-momentum"\n[controller.observer]\nkind = "chen"',
+     "controller.observer.kind", "hmpc-momentum"),
+    ('[controller]\ncompensation = "chen"\n[controller.observer]\nenabled = true',
+     "controller.observer.enabled", "superseded"),
+    ('[controller]\nkind = "hmpc-ism"\n[controller.observer]\ngain = 50.0',
+     "controller.observer", "does not apply"),
+    ('[controller]\ncompensation = "none"\n[controller.observer]\ngain = 50.0',
+     "controller.observer", "does not apply"),
+    ('[controller]\nkind = "computed-torque"\n[controller.observer]\nkind = "chen"',
+     "controller.observer.kind", "does not apply"),
+    ("[controller.ism]\ngain = 100.0", "controller.ism", "does not apply"),
+    ("[controller.computed_torque]\nkp = 5.0", "controller.computed_torque", "does not apply"),
+    ('[controller]\nkind = "computed-torque"\n[controller.constraints]\nenabled = false',
+     "controller.constraints", "does not apply"),
+    ('[controller]\nkind = "computed-torque"\neps_abs = 1e-8', "controller.eps_abs",
+     "does not apply"),
+    ('[controller]\nkind = "computed-torque-pid"\nmax_iter = 10', "controller.max_iter",
+     "does not apply"),
+    ('[controller]\nkind = "computed-torque"\nqp_layout = "joint"', "controller.qp_layout",
+     "does not apply"),
+    ('[controller]\nkind = "hmpc-ism"\n[controller.ism]\nboundary_layer = 1.0',
+     "controller.ism.boundary_layer", "ism-bl"),
+    ('[controller]\nkind = "computed-torque"\n[controller.computed_torque]\nki = 5.0',
+     "controller.computed_torque.ki", "computed-torque-pid"),
+]  # fmt: skip
+
+# Checks that need the robot: the file loads, building the experiment raises.
+BAD_BUILD = [
+    ("[controller]\nv_min = [-1.0, -1.0]", "controller.v_min", "3 joints"),
+    ("[reference]\namplitude = [1.0, 2.0]", "reference.amplitude", "3 joints"),
+    ("[disturbance.friction]\nviscous = [1.0, 2.0]", "disturbance.friction.viscous", "3 joints"),
+    ("[controller.constraints]\nlower = [-1.0, -1.0]", "controller.constraints.lower", "3 joints"),
+    ("[controller.constraints]\nupper = -5.0", "controller.constraints.lower", "lower < upper"),
+    ("[plant]\neffort_limit = [1.0, 1.0]", "plant.effort_limit", "3 joints"),
 ]
 
 
@@ -120,10 +163,22 @@ def test_bad_value_names_its_key(write_config, extra, key, words):
     assert str(path) in msg and key in msg and words in msg, msg
 
 
+@pytest.mark.parametrize(("extra", "key", "words"), BAD_BUILD, ids=[b[1] for b in BAD_BUILD])
+def test_bad_value_for_the_robot_names_its_key_when_built(write_config, extra, key, words):
+    path = write_config(BASE + "\n" + extra + "\n")
+    config = hmpc_pin.load_config(path)  # the TOML alone is valid
+    with pytest.raises(hmpc_pin.ConfigError) as info:
+        Experiment.from_config(config)
+    msg = str(info.value)
+    assert info.value.key == key, msg
+    assert str(path) in msg and key in msg and words in msg, msg
+
+
 def test_wrong_length_q0_names_key(write_config):
     path = write_config('[robot]\nurdf = "@URDF@"\n[simulation]\nq0 = [1.0, 1.0]\n')
+    config = hmpc_pin.load_config(path)
     with pytest.raises(hmpc_pin.ConfigError, match=r"simulation\.q0.*2 entries.*3 joints"):
-        hmpc_pin.load_config(path)
+        Experiment.from_config(config)
 
 
 def test_missing_file_and_bad_toml(tmp_path):
@@ -137,8 +192,9 @@ def test_missing_file_and_bad_toml(tmp_path):
 
 def test_bad_urdf_in_config_is_a_urdf_error(write_config, tmp_path):
     path = write_config(f'[robot]\nurdf = "{(tmp_path / "missing.urdf").as_posix()}"\n')
+    config = hmpc_pin.load_config(path)  # only the TOML is read here
     with pytest.raises(hmpc_pin.URDFError, match=r"missing\.urdf: file not found"):
-        hmpc_pin.load_config(path)
+        Experiment.from_config(config)
 
 
 def test_dataclasses_validate_when_built_directly():
@@ -175,12 +231,113 @@ def test_bad_robot_section_names_its_key(write_config, robot, key, words):
 
 def test_unknown_robot_name_in_config_lists_close_names(write_config):
     path = write_config('[robot]\nmodel = "pandas"\n')
+    config = hmpc_pin.load_config(path)
     with pytest.raises(hmpc_pin.URDFError, match="did you mean 'panda'"):
-        hmpc_pin.load_config(path)
+        Experiment.from_config(config)
 
 
 @pytest.mark.parametrize("name", ["ur5_sine", "panda_sine", "z1_sine"])
 def test_arm_configs_load(name):
     cfg = hmpc_pin.load_config(CONFIGS / f"{name}.toml")
     assert cfg.robot.model and cfg.disturbance.scale == "inertia"
-    assert cfg.controller.observer.kind == "general"
+    assert cfg.controller.compensation == "general" and cfg.controller.label == "hmpc+general"
+    assert cfg.controller.observer.gain == 100.0
+
+
+# ------------------------------------------------------- controller × compensation
+@pytest.mark.parametrize(
+    ("kwargs", "kind", "compensation", "tables"),
+    [
+        ({}, "hmpc", "chen", {"observer", "constraints"}),
+        ({"kind": "hmpc-none"}, "hmpc", "none", {"constraints"}),
+        ({"kind": "hmpc-momentum"}, "hmpc", "momentum", {"observer", "constraints"}),
+        ({"kind": "hmpc-ism"}, "hmpc", "ism", {"ism", "constraints"}),
+        ({"kind": "hmpc-ism-bl"}, "hmpc", "ism-bl", {"ism", "constraints"}),
+        ({"kind": "hmpc", "compensation": "general"}, "hmpc", "general",
+         {"observer", "constraints"}),
+        ({"kind": "computed-torque"}, "computed-torque", "none", {"computed_torque"}),
+        ({"kind": "computed-torque-pid", "compensation": "momentum"}, "computed-torque-pid",
+         "momentum", {"observer", "computed_torque"}),
+        # the 0.1 spelling: the observer table decides the compensation of "hmpc"
+        ({"observer": {"enabled": False}}, "hmpc", "none", {"constraints"}),
+        ({"observer": {"kind": "momentum"}}, "hmpc", "momentum", {"observer", "constraints"}),
+        ({"kind": "hmpc-momentum", "observer": {"kind": "momentum", "enabled": True}}, "hmpc",
+         "momentum", {"observer", "constraints"}),
+    ],
+)  # fmt: skip
+def test_controller_names_resolve_to_one_pair_with_its_tables(kwargs, kind, compensation, tables):
+    c = ControllerConfig(**kwargs)
+    assert (c.kind, c.compensation) == (kind, compensation)
+    assert c.label == f"{kind}+{compensation}"
+    present = {
+        name
+        for name in ("observer", "constraints", "ism", "computed_torque")
+        if getattr(c, name) is not None
+    }
+    assert present == tables
+    if c.observer is not None:  # the 0.1 keys are resolved, not kept
+        assert (c.observer.enabled, c.observer.kind) == (None, None)
+    hmpc_only = (c.eps_abs, c.max_iter, c.qp_layout)
+    assert hmpc_only == ((1e-9, 1000, "block") if kind == "hmpc" else (None, None, None))
+
+
+def test_observer_gain_of_the_01_spelling_is_kept():
+    c = ControllerConfig(observer={"kind": "momentum", "gain": 50.0})
+    assert c.label == "hmpc+momentum" and c.observer.gain == 50.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "key"),
+    [
+        ({"kind": "hmpc-momentum", "observer": {"enabled": False}}, "observer.enabled"),
+        ({"kind": "hmpc-momentum", "observer": {"kind": "chen"}}, "observer.kind"),
+        ({"kind": "hmpc-ism", "observer": {}}, "observer"),
+        ({"kind": "hmpc", "compensation": "none", "observer": {}}, "observer"),
+        ({"ism": {}}, "ism"),
+        ({"kind": "hmpc-ism-bl", "computed_torque": {}}, "computed_torque"),
+        ({"kind": "computed-torque", "constraints": {}}, "constraints"),
+        ({"kind": "computed-torque", "eps_abs": 1e-8}, "eps_abs"),
+        ({"kind": "computed-torque", "max_iter": 10}, "max_iter"),
+        ({"kind": "computed-torque-pid", "qp_layout": "joint"}, "qp_layout"),
+        ({"kind": "hmpc-ism", "ism": {"boundary_layer": 1.0}}, "ism.boundary_layer"),
+        ({"kind": "computed-torque", "computed_torque": {"ki": 1.0}}, "computed_torque.ki"),
+        ({"kind": "hmpc-ism", "compensation": "chen"}, "compensation"),
+    ],
+)
+def test_contradictions_and_tables_that_do_not_apply_are_errors(kwargs, key):
+    with pytest.raises(hmpc_pin.ConfigError) as info:
+        ControllerConfig(**kwargs)
+    assert info.value.key == key and key in str(info.value), str(info.value)
+
+
+def test_default_robot_is_the_packaged_planar3(write_config, planar3):
+    assert RobotConfig().source == "planar3"
+    packaged = hmpc_pin.load_robot("planar3")
+    assert packaged.nq == 3 and packaged.joint_names == planar3.joint_names
+    q = np.array([0.3, -0.7, 1.1])
+    np.testing.assert_array_equal(packaged.mass_matrix(q), planar3.mass_matrix(q))
+    path = write_config("[simulation]\nq0 = [1.0, 1.0, 1.0]\n")  # no [robot] table
+    config = hmpc_pin.load_config(path)
+    assert config.robot.urdf is None and config.robot.model is None
+    exp = Experiment.from_config(config)
+    assert exp.robot.source == packaged.source
+    assert Path(exp.robot.source).samefile(PLANAR3)
+
+
+def test_load_robot_config_loads_the_robot_table(planar3):
+    from hmpc_pin.experiment.build import load_robot_config
+
+    robot = load_robot_config(RobotConfig(urdf=PLANAR3, gravity=3.0))
+    q = np.array([0.3, -0.7, 1.1])
+    np.testing.assert_allclose(robot.gravity_torque(q), 3.0 / 9.8 * planar3.gravity_torque(q),
+                               rtol=1e-12)  # fmt: skip
+    np.testing.assert_array_equal(robot.mass_matrix(q), planar3.mass_matrix(q))
+
+
+def test_packaged_config_loads_by_name():
+    by_name = hmpc_pin.load_config("paper_combined")
+    by_path = hmpc_pin.load_config(CONFIGS / "paper_combined.toml")
+    assert by_name.name == by_path.name == "paper_combined"
+    assert by_name.source.samefile(by_path.source)
+    assert by_name.robot.urdf.samefile(by_path.robot.urdf)
+    assert by_name.controller.label == by_path.controller.label == "hmpc+chen"

@@ -36,7 +36,7 @@ def test_arm_closed_loop_meets_bounds(name):
 def pushed_run(planar3, enabled: bool):
     """Joint 1 told to follow a sine of amplitude 2 rad against its ±π/2 limit."""
     config = ControllerConfig(constraints=ConstraintConfig(enabled=enabled))
-    ctrl = hmpc_pin.HierarchicalMPC(planar3, config)
+    ctrl = hmpc_pin.make_controller(planar3, config)
     ref = hmpc_pin.SineReference(3, amplitude=np.array([2.0, 0.3, 0.3]), frequency=0.25)
     return simulate(planar3, ctrl, ref, duration=3.0, q0=np.zeros(3)), ctrl
 
@@ -151,18 +151,51 @@ def test_replace_keeps_validation():
 @pytest.mark.parametrize(
     ("kind", "observer", "expected"),
     [
-        ("hmpc", False, "hmpc"),
-        ("hmpc-momentum", False, "hmpc-none"),
-        ("hmpc-none", True, "hmpc"),
-        ("hmpc-ism", False, "hmpc-ism"),
+        ("hmpc", False, "hmpc+none"),
+        ("hmpc", None, "hmpc+chen"),
+        ("hmpc-momentum", False, "hmpc+none"),
+        ("hmpc-momentum", None, "hmpc+momentum"),
+        ("hmpc-momentum", True, "hmpc+momentum"),
+        ("hmpc-none", True, "hmpc+chen"),
+        ("hmpc-none", None, "hmpc+none"),
+        ("hmpc-ism", False, "hmpc+none"),  # observer=False: no compensation at all
+        ("hmpc-ism", None, "hmpc+ism"),
+        ("hmpc-ism-bl", True, "hmpc+chen"),
+        ("computed-torque", False, "computed-torque+none"),
+        ("computed-torque", None, "computed-torque+none"),
+        ("computed-torque-pid", True, "computed-torque-pid+chen"),
+        ("hmpc+general", None, "hmpc+general"),
+        ("hmpc+general", False, "hmpc+none"),
     ],
 )
 def test_observer_override_maps_controller_kinds(kind, observer, expected):
     from hmpc_pin.experiment.build import uses_observer, with_controller
 
     cfg = with_controller(hmpc_pin.ExperimentConfig(), kind, observer)
-    assert cfg.controller.kind == expected
-    assert uses_observer(cfg.controller) == (observer and expected == "hmpc")
+    cc = cfg.controller
+    controller, compensation = expected.split("+")
+    assert (cc.kind, cc.compensation, cc.label) == (controller, compensation, expected)
+    observing = compensation in ("chen", "general", "momentum")
+    assert uses_observer(cc) == observing
+    # exactly the tables of the new pair remain
+    assert (cc.observer is not None) == observing
+    assert (cc.ism is not None) == compensation.startswith("ism")
+    assert (cc.computed_torque is not None) == controller.startswith("computed-torque")
+    assert (cc.constraints is not None) == (controller == "hmpc")
+
+
+def test_observer_override_keeps_the_configs_observer():
+    from hmpc_pin.experiment.build import uses_observer, with_controller
+
+    cfg = load_config(CONFIGS / "ur5_sine.toml")  # hmpc × general NDO
+    assert cfg.controller.label == "hmpc+general"
+    on = with_controller(cfg, "hmpc-ism", True)
+    assert on.controller.label == "hmpc+general" and uses_observer(on.controller)
+    assert on.controller.observer is cfg.controller.observer
+    assert with_controller(cfg, compensation="momentum").controller.label == "hmpc+momentum"
+    assert with_controller(cfg, "computed-torque").controller.label == "computed-torque+none"
+    assert with_controller(cfg, observer=False).controller.label == "hmpc+none"
+    assert with_controller(cfg) is cfg  # nothing to change
 
 
 def test_kind_from_a_config_file_builds_that_controller(write_config):
@@ -174,4 +207,5 @@ def test_kind_from_a_config_file_builds_that_controller(write_config):
     )
     exp = Experiment.from_config(hmpc_pin.load_config(path))
     assert isinstance(exp.controller, ComputedTorque) and exp.controller.ki == 500.0
-    assert exp.run().meta["controller"] == "computed-torque-pid"
+    meta = exp.run().meta
+    assert meta["controller"] == "computed-torque-pid+none" and meta["observer"] is False

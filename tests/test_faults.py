@@ -109,7 +109,7 @@ def test_non_finite_plant_state_from_a_disturbance(planar3, clean, tmp_path):
 
 @pytest.mark.parametrize("layout", ["block", "joint"])
 def test_qp_iteration_cap_is_a_solver_error_at_that_step(planar3, clean, tmp_path, layout):
-    base = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.ControllerConfig(qp_layout=layout))
+    base = hmpc_pin.make_controller(planar3, hmpc_pin.ControllerConfig(qp_layout=layout))
     ctrl = Faulty(base, K0, "iteration cap")
     with pytest.raises(hmpc_pin.SimulationError, match=r"step 37 \(t=0\.37 s\)") as info:
         _run(planar3, ctrl)

@@ -12,7 +12,13 @@ import pytest
 import hmpc_pin
 from hmpc_pin.apps.cli import main
 from hmpc_pin.controllers.wrappers import MeasuredController
-from hmpc_pin.apps.sweep import draw_samples, run_sample, run_sweep
+from hmpc_pin.apps.sweep import (
+    draw_samples,
+    resolve_variants,
+    run_sample,
+    run_sweep,
+    variant_config,
+)
 
 from .conftest import CONFIGS
 
@@ -204,3 +210,78 @@ def test_sweep_per_controller_shares_draws_and_matches_the_named_variants(tmp_pa
             row = run_sample(cfg, p, named)
             assert float(rows[(str(p.index), kind)]["rms_max"]) == row["rms_max"]
     assert main([*argv[:-1], "hmpc,lqr"]) == 2
+    assert main([*argv[:-1], "hmpc,hmpc+chen"]) == 2  # the same pair twice on this config
+    assert "same controller (hmpc+chen)" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------- variants
+def _variants(config, variants):
+    return replace(config, sweep=replace(config.sweep, variants=variants))
+
+
+NO_NDO = CONFIGS / "paper_combined_no_ndo.toml"
+
+
+def test_variants_default_to_the_configs_pair_and_the_same_controller_without():
+    combined = hmpc_pin.load_config(COMBINED)
+    assert combined.sweep.variants == ("ndo", "no-ndo")  # written in the file
+    assert resolve_variants(_variants(combined, None)) == ("hmpc+chen", "hmpc+none")
+    no_ndo = hmpc_pin.load_config(NO_NDO)
+    assert no_ndo.sweep.variants is None and no_ndo.controller.compensation == "none"
+    assert resolve_variants(no_ndo) == ("hmpc+none",)  # no compensation: nothing to drop
+    ism = hmpc_pin.with_controller(combined, "hmpc-ism")
+    assert resolve_variants(_variants(ism, None)) == ("hmpc+ism", "hmpc+none")
+
+
+def test_variant_names_give_controller_and_compensation():
+    combined = hmpc_pin.load_config(COMBINED)
+    assert variant_config(combined, "ndo") is combined
+    for variant, label in (
+        ("no-ndo", "hmpc+none"),
+        ("hmpc+momentum", "hmpc+momentum"),
+        ("hmpc-ism-bl", "hmpc+ism-bl"),
+        ("computed-torque", "computed-torque+none"),
+        ("computed-torque-pid+chen", "computed-torque-pid+chen"),
+    ):
+        assert variant_config(combined, variant).controller.label == label, variant
+    mixed = ("hmpc+momentum", "computed-torque", "no-ndo")
+    assert resolve_variants(_variants(combined, mixed)) == mixed
+
+
+@pytest.mark.parametrize(
+    ("config", "variants", "words"),
+    [
+        (NO_NDO, ("ndo",), "'ndo' is the config's controller with its observer"),
+        (NO_NDO, ("hmpc-none", "no-ndo"), "same controller (hmpc+none)"),
+        (COMBINED, ("ndo", "hmpc"), "same controller (hmpc+chen)"),
+        (COMBINED, ("no-ndo", "hmpc-none"), "same controller (hmpc+none)"),
+        (COMBINED, ("hmpc+momentum", "hmpc-momentum"), "same controller (hmpc+momentum)"),
+        (COMBINED, ("ndo", "magic"), "unknown controller 'magic'"),
+    ],
+)
+def test_bad_variants_are_config_errors(config, variants, words):
+    cfg = _variants(hmpc_pin.load_config(config), variants)
+    for call in (lambda: resolve_variants(cfg), lambda: run_sweep(cfg, 1, progress=False)):
+        with pytest.raises(hmpc_pin.ConfigError) as info:
+            call()
+        assert info.value.key == "sweep.variants", str(info.value)
+        assert words in str(info.value) and str(config) in str(info.value), str(info.value)
+
+
+def test_ndo_on_an_ism_config_is_an_error():
+    ism = hmpc_pin.with_controller(hmpc_pin.load_config(COMBINED), "hmpc-ism")
+    with pytest.raises(hmpc_pin.ConfigError, match="'ndo' is the config's controller"):
+        variant_config(ism, "ndo")
+    assert variant_config(ism, "no-ndo").controller.label == "hmpc+none"
+
+
+def test_default_variants_run_under_their_labels(short_config):
+    cfg = _variants(short_config, None)
+    result = run_sweep(cfg, 1, seed=7, jobs=1, progress=False)
+    assert result.config.sweep.variants == ("hmpc+chen", "hmpc+none")
+    assert [r["variant"] for r in result.rows] == ["hmpc+chen", "hmpc+none"]
+    # the same pairs as the named variants ndo / no-ndo, bit for bit
+    params = draw_samples(short_config, 1, seed=7)[0]
+    for label, named in (("hmpc+chen", "ndo"), ("hmpc+none", "no-ndo")):
+        row = run_sample(short_config, params, named)
+        assert result.variant_rows(label)[0]["rms_max"] == row["rms_max"]

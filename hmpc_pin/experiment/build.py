@@ -296,6 +296,17 @@ class Experiment:
             LimitError: The initial state or the reference (sampled at every control
                 instant of the run and its last horizon) leaves the joint limits.
         """
+        try:
+            return cls._build(config, observer=observer, controller=controller)
+        except ConfigError as exc:  # name the file the bad value came from
+            if exc.source is None and config.source is not None:
+                raise ConfigError(exc.key, exc.message, source=str(config.source)) from None
+            raise
+
+    @classmethod
+    def _build(
+        cls, config: ExperimentConfig, *, observer: bool | None, controller: str | None
+    ) -> Experiment:
         config = with_controller(config, controller, observer)
         rc = config.robot
         robot = load_robot_config(rc)

@@ -79,11 +79,17 @@ CASES = {
         ["stick.urdf", "no actuated joint"],
     ),
     "urdf limits lower >= upper": (
-        lambda tmp: _sub(URDF, _urdf(tmp, "crossed.urdf", PLANAR3.read_text().replace(
-            'lower="-1.5707963267948966"', 'lower="1.6"', 1))),
+        lambda tmp: _sub(
+            URDF,
+            _urdf(
+                tmp,
+                "crossed.urdf",
+                PLANAR3.read_text().replace('lower="-1.5707963267948966"', 'lower="1.6"', 1),
+            ),
+        ),
         ConfigError,
         ["robot.urdf", "'joint1'", "lower=1.6 >= upper=1.5708", "expected lower < upper"],
-    ),  # fmt: skip
+    ),
     "unknown example-robot-data name": (
         lambda tmp: _sub(f'urdf = "{URDF}"', 'model = "ur55"'),
         URDFError,

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.experiment.schema import ConstraintConfig, ControllerConfig, load_config
+from hmpc_pin.apps.metrics import compute_metrics
 from hmpc_pin.exceptions import LimitError
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.apps.metrics import compute_metrics
+from hmpc_pin.experiment.schema import ConstraintConfig, ControllerConfig, load_config
 from hmpc_pin.sim.simulate import simulate
 
 from .conftest import CONFIGS

@@ -11,7 +11,6 @@ import pytest
 
 import hmpc_pin
 from hmpc_pin.apps.cli import main
-from hmpc_pin.controllers.wrappers import MeasuredController
 from hmpc_pin.apps.sweep import (
     draw_samples,
     resolve_variants,
@@ -19,6 +18,7 @@ from hmpc_pin.apps.sweep import (
     run_sweep,
     variant_config,
 )
+from hmpc_pin.controllers.wrappers import MeasuredController
 
 from .conftest import CONFIGS
 

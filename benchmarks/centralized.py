@@ -53,7 +53,7 @@ import pinocchio as pin
 from proxsuite import proxqp
 
 from hmpc_pin import ControllerConfig, HmpcError, Robot
-from hmpc_pin.tasks.references import sample_horizon
+from hmpc_pin.tasks import sample_horizon
 
 __all__ = ["CentralizedMPC", "CentralizedSolverError", "expm", "zoh"]
 

@@ -44,7 +44,7 @@ import numpy as np
 import pinocchio as pin
 
 from hmpc_pin import ControllerConfig, Robot
-from hmpc_pin.tasks.references import sample_horizon
+from hmpc_pin.tasks import sample_horizon
 
 try:
     import crocoddyl

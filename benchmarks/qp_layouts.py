@@ -98,7 +98,7 @@ def time_layouts(
     arm: str, ctrl: hmpc_pin.HierarchicalMPC, grads: np.ndarray, warmup: int
 ) -> LayoutTiming:
     """Time the three ways on ``grads`` (steps, n, Nc); the first ``warmup`` untimed."""
-    cfg = ctrl.config
+    cfg = ctrl.settings
     n, Nc = ctrl.n, ctrl.mpc.Nc
     v_min, v_max = cfg.bounds(n)
     names = tuple(ctrl.robot.joint_names)

@@ -233,7 +233,7 @@ def record_trajectory(arm: Arm, steps: int) -> Trajectory:
     it fails, the reference itself is returned (and labelled so).
     """
     ref = arm.reference()
-    ctrl = hmpc_pin.HierarchicalMPC(arm.robot, arm.config(1))
+    ctrl = hmpc_pin.make_controller(arm.robot, arm.config(1))
     q0 = ref.sample(0.0)[0]
     try:
         res = hmpc_pin.simulate(
@@ -262,7 +262,7 @@ class StepResult:
 def time_step(arm: Arm, Nc: int, trajectory: Trajectory, settings: Settings) -> StepResult:
     """Time ``HierarchicalMPC.step`` along ``trajectory`` (warm-up, then timed steps)."""
     ref = arm.reference()
-    ctrl = hmpc_pin.HierarchicalMPC(arm.robot, arm.config(Nc))
+    ctrl = hmpc_pin.make_controller(arm.robot, arm.config(Nc))
     tr = trajectory
     ctrl.reset(tr.q[0], tr.dq[0])
     count = settings.warmup + settings.steps
@@ -294,7 +294,7 @@ def bench_qp_layouts(settings: Settings, arms: list[Arm]) -> list[LayoutTiming]:
     for arm in arms:
         traj = record_trajectory(arm, settings.warmup + settings.steps)
         for Nc in (1, 5):
-            ctrl = hmpc_pin.HierarchicalMPC(arm.robot, arm.config(Nc))
+            ctrl = hmpc_pin.make_controller(arm.robot, arm.config(Nc))
             grads = record_gradients(ctrl, traj.t, traj.q, traj.dq, arm.reference())
             r = time_layouts(arm.name, ctrl, grads, settings.warmup)
             log(f"  QPs {arm.name:<10} Nc={Nc}: " + ", ".join(
@@ -561,19 +561,19 @@ def bench_compare(scenario: Scenario, duration: float, settings: Settings) -> li
     """hmpc (NDO on/off), centralized and Crocoddyl on ``scenario`` for ``duration`` [s]."""
     cfg = scenario.config
     robot = scenario.robot
-    no_ndo = replace(cfg, observer=replace(cfg.observer, enabled=False))
+    no_ndo = replace(cfg, compensation="none", observer=None)  # hmpc x none
     # Crocoddyl optimises all N inputs (no move blocking): the hierarchical MPC with Nc = N
     # (no observer) separates that from the nonlinear model in the tracking comparison.
     no_ndo_full = replace(no_ndo, Nc=cfg.N)
     rows = [
-        run_compare(scenario, "hmpc", lambda: hmpc_pin.HierarchicalMPC(robot, cfg), duration),
+        run_compare(scenario, "hmpc", lambda: hmpc_pin.make_controller(robot, cfg), duration),
         run_compare(
-            scenario, "hmpc, no NDO", lambda: hmpc_pin.HierarchicalMPC(robot, no_ndo), duration
+            scenario, "hmpc, no NDO", lambda: hmpc_pin.make_controller(robot, no_ndo), duration
         ),
         run_compare(
             scenario,
             f"hmpc, no NDO, Nc = N = {cfg.N}",
-            lambda: hmpc_pin.HierarchicalMPC(robot, no_ndo_full),
+            lambda: hmpc_pin.make_controller(robot, no_ndo_full),
             duration,
         ),
         run_compare(scenario, "centralized", lambda: CentralizedMPC(robot, cfg), duration),

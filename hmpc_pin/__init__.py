@@ -59,6 +59,7 @@ from .exceptions import (
     SimulationError,
     SolverError,
     URDFError,
+    ValidityWarning,
     VizError,
 )
 from .experiment.build import Experiment, make_controller, run_experiment, with_controller
@@ -138,6 +139,7 @@ __all__ = [
     "SolverError",
     "SumDisturbance",
     "URDFError",
+    "ValidityWarning",
     "VizError",
     "ZeroDisturbance",
     "__version__",

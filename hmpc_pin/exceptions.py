@@ -165,3 +165,8 @@ class InterfaceError(HmpcError, TypeError):
         self.expected = expected
         text = f"{type(value).__name__} object {value!r:.80} is not {expected}"
         super().__init__(text + (f"; {hint}" if hint else ""))
+
+
+class ValidityWarning(UserWarning):
+    """A design is used outside the conditions it is proven for (e.g. Chen's observer on a
+    spatial arm); the run goes on. The message names the valid alternative."""

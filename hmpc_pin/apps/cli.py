@@ -304,11 +304,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _print_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line ``warning: ...`` on stderr (no source line)."""
+    print(f"warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     """Entry point of ``hmpc-pin``; returns the exit code."""
+    import warnings
+
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _print_warning
+            return args.func(args)
     except HmpcError as exc:
         if isinstance(exc, SimulationError):  # a run failure, not bad input
             print(f"error: {exc}", file=sys.stderr)

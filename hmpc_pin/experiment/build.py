@@ -8,6 +8,7 @@ the robot (vector lengths, limits, the initial state) is made here, before a run
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -19,7 +20,7 @@ from ..controllers import hierarchical as _hierarchical
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque, CTSettings
 from ..controllers.hierarchical import HierarchicalMPC, MPCSettings, state_limits
-from ..exceptions import ConfigError, LimitError
+from ..exceptions import ConfigError, LimitError, URDFError, ValidityWarning
 from ..model.robot import Robot, load_robot
 from ..mpc.condensed import StateLimits
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
@@ -48,6 +49,7 @@ __all__ = [
     "mpc_settings",
     "run_experiment",
     "uses_observer",
+    "warn_validity",
     "with_controller",
 ]
 
@@ -80,14 +82,21 @@ def _limits(cc: ControllerConfig, robot: Robot) -> StateLimits | None:
     bad = np.flatnonzero(np.asarray(lower) >= np.asarray(upper))
     if bad.size and con.position:
         i = int(bad[0])
-        key = "lower" if over["lower"] is not None or over["upper"] is not None else None
-        raise ConfigError(
-            f"controller.constraints.{key}" if key else "robot.urdf",
-            f"joint {robot.joint_names[i]!r}: lower={lower[i]:g} >= upper={upper[i]:g}; "
-            "expected lower < upper"
-            + ("" if key else " (the URDF's <limit>; override it in [controller.constraints] "
-               "or set controller.constraints.position = false)"),
-        )  # fmt: skip
+        if over["lower"] is not None or over["upper"] is not None:
+            key = "lower" if over["lower"] is not None else "upper"
+            raise ConfigError(
+                f"controller.constraints.{key}",
+                f"joint {robot.joint_names[i]!r}: lower={lower[i]:g} >= upper={upper[i]:g}; "
+                "expected lower < upper",
+            )
+        what = "a zero" if lower[i] == upper[i] else "an inverted"
+        raise URDFError(
+            robot.source,
+            f"joint {robot.joint_names[i]!r} has {what} position range <limit lower="
+            f'"{lower[i]:g}" upper="{upper[i]:g}">; expected lower < upper. Fix the URDF, '
+            "override the range in [controller.constraints] lower/upper, or set "
+            "controller.constraints.position = false (no position limits)",
+        )
     return state_limits(
         robot,
         lower=over["lower"],
@@ -146,6 +155,20 @@ def make_controller(robot: Robot, config: ControllerConfig | None = None) -> Con
         return HierarchicalMPC(robot, settings, compensation, limits=limits)
     gains, compensation = controller_parts(robot, cc)
     return ComputedTorque(robot, gains, compensation)
+
+
+def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
+    """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) when the compensation of ``cc``
+    is used outside the arms it is proven for: Chen's :math:`Y` (Eq 28–30) on an arm that
+    is not a planar serial chain (:meth:`~hmpc_pin.model.robot.Robot.is_planar_chain`)."""
+    if cc.compensation == "chen" and not robot.is_planar_chain():
+        warnings.warn(
+            f"compensation 'chen' (Chen's observer, Eq 28-30) is proven for planar serial "
+            f"arms only, and robot {robot.name!r} is not one; use compensation = 'general' "
+            "(Y = I, valid on any arm for gain c above general_gain_bound) or 'momentum'",
+            ValidityWarning,
+            stacklevel=3,
+        )
 
 
 def uses_observer(cc: ControllerConfig) -> bool:
@@ -333,6 +356,8 @@ class Experiment:
             if config.simulation.q0 is None
             else config.vector("simulation.q0", n)
         )
+        robot.check_mass_matrix(q0)
+        warn_validity(robot, config.controller)
         controller = make_controller(robot, config.controller)
         limits = _limits(config.controller, robot) if config.controller.kind == "hmpc" else None
         if limits is not None:

@@ -11,6 +11,20 @@ Before Pinocchio sees a file, the file is checked with the standard library's XM
 parser (well-formedness, with line and column) and with yourdfpy (URDF
 completeness), so that a bad file gets a message naming the file and the
 problem instead of urdfdom's terse output.
+
+Joint types (README, "Any arm"):
+
+* ``revolute`` and ``prismatic`` joints are one coordinate each [rad or m];
+* a ``continuous`` joint is loaded as a revolute joint without position limits (limits
+  ±inf): Pinocchio's own continuous joint has the two coordinates (cos θ, sin θ), whereas
+  the controller needs one angle per joint (nq = nv); the angle does not wrap;
+* a ``mimic`` joint (``<mimic joint= multiplier= offset=>``) follows its leader,
+  :math:`q_f = m\\,q_l + o`, through Pinocchio's mimic joint: it has no coordinate of its
+  own, so it is never controlled on its own; its mass and inertia load the leader. Pinocchio
+  has no ABA for mimic joints, so :meth:`Robot.forward_dynamics` (and the plants, through
+  :attr:`Robot.aba`) solve :math:`M\\ddot q = \\tau - h` with CRBA instead;
+* the base is fixed unless the URDF itself has a ``floating`` (or ``planar``) joint, which
+  is refused: the URDF decides, not the flag of the package that ships it.
 """
 
 from __future__ import annotations
@@ -28,8 +42,9 @@ from ..exceptions import DimensionError, NonFiniteError, URDFError
 
 __all__ = ["Robot", "load_robot"]
 
-#: URDF joint types the controller supports (one coordinate, nq == nv).
-SUPPORTED_JOINT_TYPES = ("revolute", "prismatic")
+#: URDF joint types the controller supports (one coordinate each, nq == nv; a continuous
+#: joint becomes a revolute joint without position limits).
+SUPPORTED_JOINT_TYPES = ("revolute", "prismatic", "continuous")
 
 
 def example_robot_names() -> tuple[str, ...]:
@@ -67,11 +82,9 @@ def example_robot_urdf(name: str) -> Path:
             f"{hint}known arms include 'ur5', 'ur10', 'panda', 'z1' "
             "(hmpc_pin.robot.example_robot_names() lists all)",
         )
-    if loader.free_flyer:
-        raise URDFError(
-            name,
-            "is a floating-base robot (free flyer); hmpc_pin controls fixed-base arms only",
-        )
+    # The loader's free_flyer flag is not read: it says how example-robot-data mounts the
+    # model, not what the URDF is (so100/so101 are flagged but are fixed-base arms). A
+    # floating joint in the URDF itself is refused by load_robot.
     if not loader.urdf_filename:
         raise URDFError(name, "is shipped as SDF only; hmpc_pin loads URDF models")
     rel = join(loader.path, loader.urdf_subpath, loader.urdf_filename)
@@ -79,8 +92,26 @@ def example_robot_urdf(name: str) -> Path:
     return Path(model_path, rel).resolve()
 
 
-def _check_urdf_file(path: Path, locked: tuple[str, ...] = ()) -> None:
-    """Reject a missing, unreadable, malformed or incomplete URDF with a clear message.
+def example_robot_srdf(name: str) -> tuple[Path | None, str | None]:
+    """The SRDF of the ``example-robot-data`` model ``name`` and the name of its reference
+    posture (``"default"``, ``"half_sitting"``, ``"ready"``, ...), or ``None`` for what the
+    package does not ship."""
+    from os.path import join
+
+    from example_robot_data import robots_loader
+
+    loader = robots_loader.ROBOTS.get(name)
+    if loader is None or not loader.srdf_filename:
+        return None, None
+    rel = join(loader.path, loader.srdf_subpath, loader.srdf_filename)
+    model_path = loader.model_path or robots_loader.getModelPath(rel)
+    path = Path(model_path, rel).resolve()
+    return (path if path.is_file() else None), (loader.ref_posture or None)
+
+
+def _check_urdf_file(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
+    """Reject a missing, unreadable, malformed or incomplete URDF with a clear message;
+    return its parsed ``<robot>`` element.
 
     Joints named in ``locked`` are exempt from the joint-type check (they are
     removed from the model before control)."""
@@ -114,6 +145,18 @@ def _check_urdf_file(path: Path, locked: tuple[str, ...] = ()) -> None:
             path,
             f"locked joint(s) {unknown} not found; the movable joints are {names}",
         )
+    floating = [
+        f"{j.name!r} ({j.type})"
+        for j in urdf.robot.joints
+        if j.type in ("floating", "planar") and j.name not in locked
+    ]
+    if floating:
+        raise URDFError(
+            path,
+            "has a floating base: joint(s) " + ", ".join(floating) + " give the base "
+            "more than one coordinate per joint; hmpc_pin controls fixed-base arms. Remove "
+            "the joint (the base is then fixed to the world) or lock it ([robot] locked_joints)",
+        )
     unsupported = [
         f"{j.name!r} ({j.type})"
         for j in urdf.robot.joints
@@ -124,15 +167,75 @@ def _check_urdf_file(path: Path, locked: tuple[str, ...] = ()) -> None:
             path,
             "unsupported joint type(s): "
             + ", ".join(unsupported)
-            + f"; hmpc_pin controls {' and '.join(SUPPORTED_JOINT_TYPES)} joints of a "
-            "fixed-base arm (one coordinate per joint). Replace continuous joints by "
-            "revolute joints with limits, remove floating/planar joints, or lock them "
-            "([robot] locked_joints)",
+            + f"; hmpc_pin controls {', '.join(SUPPORTED_JOINT_TYPES)} joints of a "
+            "fixed-base arm (one coordinate per joint); lock them ([robot] locked_joints)",
         )
-    if not any(j.type in SUPPORTED_JOINT_TYPES and j.name not in locked for j in urdf.robot.joints):
+    joints = {j.name: j for j in urdf.robot.joints}
+    for j in urdf.robot.joints:
+        if j.mimic is not None and j.mimic.joint not in joints:
+            raise URDFError(
+                path,
+                f"joint {j.name!r} mimics {j.mimic.joint!r}, which is not a joint of the URDF",
+            )
+    actuated = [
+        j.name
+        for j in urdf.robot.joints
+        if j.type in SUPPORTED_JOINT_TYPES and j.name not in locked and j.mimic is None
+    ]
+    if not actuated:
         raise URDFError(
-            path, "has no actuated joint (revolute or prismatic); there is nothing to control"
+            path,
+            "has no actuated joint (revolute, prismatic or continuous, not locked, not a "
+            "mimic); there is nothing to control",
         )
+    return root
+
+
+def _mimics(root: ET.Element) -> dict[str, tuple[str, float, float]]:
+    """URDF mimic joints: follower name -> (leader name, multiplier, offset)."""
+    out = {}
+    for joint in root.findall("joint"):
+        mimic = joint.find("mimic")
+        if mimic is not None and joint.get("type") != "fixed":
+            out[joint.get("name", "")] = (
+                mimic.get("joint", ""),
+                float(mimic.get("multiplier", 1.0)),
+                float(mimic.get("offset", 0.0)),
+            )
+    return out
+
+
+def _without_continuous(root: ET.Element) -> tuple[str, tuple[str, ...]]:
+    """The URDF text with every ``continuous`` joint made ``revolute`` (its ``<limit>``
+    effort and velocity kept, a placeholder position range the loader then replaces by
+    ±inf) and without mimic tags; and the names of the changed joints."""
+    changed = []
+    for joint in root.findall("joint"):
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            joint.remove(mimic)  # mimic joints are made by _apply_mimics after locking
+        if joint.get("type") != "continuous":
+            continue
+        joint.set("type", "revolute")
+        limit = joint.find("limit")
+        if limit is None:
+            limit = ET.SubElement(joint, "limit", {"effort": "0", "velocity": "0"})
+        limit.set("lower", "-1")
+        limit.set("upper", "1")
+        changed.append(joint.get("name", ""))
+    return ET.tostring(root, encoding="unicode"), tuple(changed)
+
+
+def _link_inertials(root: ET.Element) -> dict[str, float | None]:
+    """URDF link name -> its ``<inertial><mass value>`` (``None``: no ``<inertial>``)."""
+    out: dict[str, float | None] = {}
+    for link in root.findall("link"):
+        inertial = link.find("inertial")
+        mass = inertial.find("mass") if inertial is not None else None
+        out[link.get("name", "")] = (
+            float(mass.get("value", 0.0)) if mass is not None else None
+        ) if inertial is not None else None
+    return out
 
 
 class Robot:
@@ -156,12 +259,14 @@ class Robot:
         model: pin.Model,
         source: str | Path = "<model>",
         locked_joints: Mapping[str, float] | None = None,
+        mimic_joints: Mapping[str, tuple[str, float, float]] | None = None,
+        continuous_joints: tuple[str, ...] = (),
     ):
         if model.nq != model.nv:
             raise URDFError(
                 source,
                 f"{model.nq=} but {model.nv=}; only joints with one coordinate "
-                "(revolute, prismatic) are supported",
+                "(revolute, prismatic, continuous loaded as revolute) are supported",
             )
         if model.nq == 0:
             raise URDFError(source, "has no actuated joint; there is nothing to control")
@@ -169,12 +274,31 @@ class Robot:
         self.data = model.createData()
         self.source = str(source)
         self.locked_joints: dict[str, float] = dict(locked_joints or {})
+        #: Mimic joints: follower -> (leader, multiplier, offset); not coordinates.
+        self.mimic_joints: dict[str, tuple[str, float, float]] = dict(mimic_joints or {})
+        #: Joints that are ``continuous`` in the URDF (here revolute, limits ±inf).
+        self.continuous_joints: tuple[str, ...] = tuple(continuous_joints)
         self.name = model.name
-        self.joint_names: tuple[str, ...] = tuple(model.names[1:])
+        coordinates = sorted(
+            (model.joints[i].idx_v, model.names[i])
+            for i in range(1, model.njoints)
+            if model.joints[i].nv > 0
+        )
+        self.joint_names: tuple[str, ...] = tuple(name for _, name in coordinates)
+        #: Per coordinate: ``"prismatic"`` [m, m/s, N] or ``"revolute"`` [rad, rad/s, N·m].
+        self.joint_kinds: tuple[str, ...] = tuple(
+            "prismatic" if model.joints[model.getJointId(name)].shortname()[10:].startswith("P")
+            else "revolute"
+            for name in self.joint_names
+        )  # fmt: skip
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self.velocity_limit = np.array(model.velocityLimit, dtype=float)
         self.effort_limit = np.array(model.effortLimit, dtype=float)
+        #: Forward dynamics ``aba(model, data, q, dq, tau) -> ddq`` with Pinocchio's
+        #: signature: ``pin.aba``, or for a model with mimic joints (which Pinocchio's ABA
+        #: does not support) the solve of :math:`M\ddot q = \tau - h` by CRBA.
+        self.aba = _crba_forward_dynamics if self.mimic_joints else pin.aba
         # Pinocchio's C++ CRBA fills only the upper triangle; some bindings
         # symmetrise. Detect once, at a generic configuration (where M has
         # non-zero off-diagonal terms), so the hot path does no needless work.
@@ -186,6 +310,58 @@ class Robot:
         #: Whether ``pin.crba`` already returns the full symmetric M (then
         #: :meth:`mass_matrix` is ``pin.crba`` itself, and a hot loop may call it directly).
         self.crba_is_symmetric = not self._symmetrize
+        self.check_mass_matrix(q)
+
+    def check_mass_matrix(self, q: np.ndarray) -> None:
+        """Raise :class:`~hmpc_pin.exceptions.URDFError` naming the joint and its links
+        when :math:`M(q)` is not positive definite (a joint that moves no mass or inertia
+        about its axis: a zero ``<mass>`` or no ``<inertial>`` at the end of the chain).
+
+        The test is the pivot :math:`d_j` of the :math:`LDL^T` factorisation of
+        :math:`M(q)` (in joint order): joint j fails when
+        :math:`d_j \\le 10^{-14} \\max_i M_{ii}` (a 10 g fingertip has
+        :math:`d_j/M_{11} \approx 10^{-8}` on a 50 kg arm, far above it).
+        """
+        m = self.mass_matrix(np.asarray(q, dtype=float))
+        scale = max(float(np.max(np.diag(m))), 0.0)
+        tol = 1e-14 * scale if scale > 0 else 0.0
+        work = m.copy()
+        n = len(work)
+        for j in range(n):
+            pivot = work[j, j]
+            if not np.isfinite(pivot) or pivot <= tol:
+                self._raise_singular(j, q, float(pivot))
+            col = work[j + 1 :, j] / pivot
+            work[j + 1 :, j + 1 :] -= np.outer(col, work[j, j + 1 :])
+
+    def _raise_singular(self, j: int, q, pivot: float) -> None:
+        model = self.model
+        name = self.joint_names[j]
+        jid = model.getJointId(name)
+        subtree = set(model.subtrees[jid])
+        links = [
+            f.name
+            for f in model.frames
+            if f.type == pin.FrameType.BODY and f.parentJoint in subtree
+        ]
+        inertials = _link_inertials(ET.parse(self.source).getroot()) if Path(
+            self.source
+        ).is_file() else {}
+        why = []
+        for link in links:
+            if link in inertials:
+                mass = inertials[link]
+                why.append(f"{link!r} (" + ("no <inertial>" if mass is None else
+                                            f"mass {mass:g} kg") + ")")
+            else:
+                why.append(repr(link))
+        raise URDFError(
+            self.source,
+            f"M(q) is not positive definite at q={np.round(np.asarray(q), 4).tolist()}: "
+            f"joint {name!r} moves no mass or inertia about its axis (pivot {pivot:.3g}); "
+            f"the link(s) it moves: {', '.join(why)}. Give the link at the end of the chain "
+            "a mass and an inertia (<inertial>), or lock the joint ([robot] locked_joints)",
+        )
 
     @property
     def nq(self) -> int:
@@ -199,7 +375,10 @@ class Robot:
 
     def copy(self) -> Robot:
         """Return a robot with a copy of the model and its own fresh data."""
-        return Robot(self.model.copy(), self.source, self.locked_joints)
+        return Robot(
+            self.model.copy(), self.source, self.locked_joints, self.mimic_joints,
+            self.continuous_joints,
+        )  # fmt: skip
 
     def with_scaled_inertias(self, factors) -> Robot:
         """A copy whose link ``i`` has its mass and rotational inertia multiplied by
@@ -217,7 +396,34 @@ class Robot:
         for i, ki in enumerate(k, start=1):
             old = model.inertias[i]
             model.inertias[i] = pin.Inertia(ki * old.mass, old.lever.copy(), ki * old.inertia)
-        return Robot(model, self.source, self.locked_joints)
+        return Robot(
+            model, self.source, self.locked_joints, self.mimic_joints, self.continuous_joints
+        )
+
+    def is_planar_chain(self, tol: float = 1e-9) -> bool:
+        """Whether the arm is a planar serial chain: each joint hangs from the previous one,
+        every revolute axis is parallel to the first and every prismatic axis
+        perpendicular to it (world axes at the neutral configuration). Chen's observer
+        (``compensation = "chen"``) is proven for such arms only."""
+        model, data = self.model, self.model.createData()
+        if self.mimic_joints or any(
+            model.parents[i] != i - 1 for i in range(1, model.njoints)
+        ):
+            return False
+        pin.computeJointJacobians(model, data, pin.neutral(model))
+        J = pin.getJointJacobian(model, data, model.njoints - 1, pin.ReferenceFrame.WORLD)
+        axes = [(kind, J[3:, j] if kind == "revolute" else J[:3, j])
+                for j, kind in enumerate(self.joint_kinds)]  # fmt: skip
+        normal = next((a for k, a in axes if k == "revolute"), None)
+        if normal is None:
+            return True
+        normal = normal / np.linalg.norm(normal)
+        for kind, axis in axes:
+            if kind == "revolute" and np.linalg.norm(np.cross(axis, normal)) > tol:
+                return False
+            if kind == "prismatic" and abs(float(axis @ normal)) > tol:
+                return False
+        return True
 
     # ------------------------------------------------------------------ checks
     def check_vector(self, name: str, value, *, finite: bool = True) -> np.ndarray:
@@ -254,7 +460,7 @@ class Robot:
 
     def forward_dynamics(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Joint accelerations :math:`\\ddot q = M^{-1}(\\tau - C\\dot q - G)` by ABA [rad/s²]."""
-        return pin.aba(self.model, self.data, q, dq, tau).copy()
+        return np.array(self.aba(self.model, self.data, q, dq, tau), dtype=float)
 
     def inverse_dynamics(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
         """Torques :math:`M\\ddot q + C\\dot q + G` by RNEA [N·m]."""
@@ -316,15 +522,52 @@ def load_robot(
     if not np.isfinite(gravity) or gravity < 0:
         raise URDFError(path, f"gravity={gravity!r}; expected a finite value >= 0")
     locked = {str(k): float(v) for k, v in (locked_joints or {}).items()}
-    _check_urdf_file(path, tuple(locked))
+    root = _check_urdf_file(path, tuple(locked))
+    mimics = _mimics(root)
+    for follower, (leader, _, _) in mimics.items():
+        if follower in locked and leader not in locked:
+            raise URDFError(
+                path,
+                f"locked joint {follower!r} mimics {leader!r}, which is not locked; lock "
+                f"{leader!r} (the follower is then locked with it) or neither",
+            )
+    changed = True
+    while changed:  # followers of locked leaders (and their followers) are locked too
+        changed = False
+        for follower, (leader, mult, offset) in mimics.items():
+            if leader in locked and follower not in locked:
+                locked[follower] = mult * locked[leader] + offset
+                changed = True
+    xml, continuous = _without_continuous(root)
     try:
-        model = pin.buildModelFromUrdf(str(path))
+        model = pin.buildModelFromXML(xml)
     except (ValueError, RuntimeError) as exc:
         raise URDFError(path, f"Pinocchio could not build a model: {exc}") from exc
+    model.name = root.get("name", model.name)
+    for name in continuous:  # revolute without position limits
+        idx = model.joints[model.getJointId(name)].idx_q
+        model.lowerPositionLimit[idx] = -np.inf
+        model.upperPositionLimit[idx] = np.inf
     if locked:
         model = _reduce(model, path, locked)
+    active = {f: v for f, v in mimics.items() if f not in locked}
+    for follower, (leader, mult, offset) in active.items():
+        model = pin.transformJointIntoMimic(
+            model, model.getJointId(leader), model.getJointId(follower), mult, offset
+        )
     model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
-    return Robot(model, path, locked)
+    return Robot(
+        model, path, locked, active, tuple(c for c in continuous if c not in locked)
+    )
+
+
+def _crba_forward_dynamics(model: pin.Model, data: pin.Data, q, dq, tau) -> np.ndarray:
+    """:math:`\\ddot q = M(q)^{-1}(\\tau - h(q, \\dot q))` by CRBA and a Cholesky solve:
+    the forward dynamics of a model with mimic joints, which ``pin.aba`` refuses."""
+    m = pin.crba(model, data, q)
+    m = np.triu(m) + np.triu(m, 1).T
+    h = pin.nonLinearEffects(model, data, q, dq)
+    return np.linalg.solve(m, tau - h)
 
 
 def _reduce(model: pin.Model, path: Path, locked: dict[str, float]) -> pin.Model:

@@ -51,7 +51,6 @@ per stage) up to floating-point rounding (tested to 1e-12 on the paper scenario)
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 from numpy.typing import NDArray
 
 from ..exceptions import ConfigError, DimensionError
@@ -236,7 +235,7 @@ class RK4Plant:
             np.add(tau, total, self._T)
         else:
             self._T[:] = tau
-        model, data, aba = self.model, self.data, pin.aba
+        model, data, aba = self.model, self.data, self.robot.aba
         rows = self._rows
         (q0, v0, a0, k0, e0), (q1, v1, a1, k1, e1) = rows[0], rows[1]
         (q2, v2, a2, k2, e2), (q3, v3, a3, _, e3) = rows[2], rows[3]
@@ -283,7 +282,7 @@ class RK4Plant:
     def _advance_generic(self, times: np.ndarray, tau: np.ndarray) -> None:
         """RK4 calling ``d(t, q, dq)`` at every stage (with copies of the stage state)."""
         dist = self.disturbance
-        model, data, aba = self.model, self.data, pin.aba
+        model, data, aba = self.model, self.data, self.robot.aba
         rows = self._rows
         nxt = self._next
         c = self._c
@@ -333,7 +332,7 @@ class EulerPlant:
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
         q, dq, t, h = self.q, self.dq, self.t, self.h
-        model, data, aba, dist = self.model, self.data, pin.aba, self.disturbance
+        model, data, aba, dist = self.model, self.data, self.robot.aba, self.disturbance
         for s in range(self.substeps):
             dq = dq + h * aba(model, data, q, dq, tau + dist(t + s * h, q, dq))
             q = q + h * dq

@@ -40,3 +40,15 @@ def make_rng():
         return np.random.default_rng(seed)
 
     return _make
+
+
+@pytest.fixture
+def write_urdf(tmp_path):
+    """Factory writing ``text`` to ``tmp_path / name`` and returning the path."""
+
+    def _write(text: str, name: str = "robot.urdf") -> Path:
+        path = tmp_path / name
+        path.write_text(text, encoding="utf-8")
+        return path
+
+    return _write

@@ -63,18 +63,6 @@ def make_state(make_rng):
     return _make
 
 
-@pytest.fixture
-def write_urdf(tmp_path):
-    """Factory writing ``text`` to ``tmp_path / name`` and returning the path."""
-
-    def _write(text: str, name: str = "robot.urdf") -> Path:
-        path = tmp_path / name
-        path.write_text(text, encoding="utf-8")
-        return path
-
-    return _write
-
-
 # ------------------------------------------------------- closed-form reference
 def _lever_arms() -> np.ndarray:
     """``a[i, j]``: length of link ``j`` on the way to the centre of mass of link ``i``."""
@@ -407,13 +395,13 @@ BAD_URDFS = {
     "wrong_root": ('<?xml version="1.0"?>\n<model name="bad"/>\n', "expected <robot>"),
     "revolute_without_limit": (_urdf(*_TWO_LINKS, _joint("revolute", limit="")), "limit"),
     "links_only": (_urdf(*_TWO_LINKS), "no actuated joint"),
-    "continuous_joint": (
-        _urdf(*_TWO_LINKS, _joint("continuous", limit="")),
-        "unsupported joint type",
-    ),
     "floating_joint": (
         _urdf(*_TWO_LINKS, _joint("floating", limit="")),
-        "unsupported joint type",
+        "has a floating base",
+    ),
+    "planar_joint": (
+        _urdf(*_TWO_LINKS, _joint("planar", limit="")),
+        "has a floating base",
     ),
 }
 
@@ -546,8 +534,6 @@ def test_locked_fingers_still_load_the_arm(make_rng):
     ("source", "locked", "words"),
     [
         ("ur5x", None, "did you mean 'ur5'"),
-        ("solo12", None, "floating-base"),
-        ("kinova", None, "'j2s6s200_joint_1' (continuous)"),
         ("panda", {"finger": 0.0}, "locked joint(s) ['finger'] not found"),
         ("panda", {"panda_finger_joint1": 0.5}, "outside its limits"),
         ("panda", {"panda_finger_joint1": float("nan")}, "expected a finite value"),
@@ -560,7 +546,7 @@ def test_bad_arm_requests_name_the_problem(source, locked, words):
 
 
 def test_continuous_joints_can_be_locked():
-    """Kinova's continuous joints are refused for control but may be locked."""
+    """Kinova's continuous joints may be locked (or controlled, tests/test_urdf_joints.py)."""
     locked = {"j2s6s200_joint_1": 0.0, "j2s6s200_joint_4": 0.5, "j2s6s200_joint_6": 0.0}
     robot = load_robot("kinova", locked_joints=locked)
     assert robot.nq == 3 and "j2s6s200_joint_4" not in robot.joint_names

@@ -1,4 +1,4 @@
-"""Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay``
+"""Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init``
 (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
@@ -184,6 +184,33 @@ def cmd_sweep(args) -> int:
     return EXIT_OK
 
 
+def cmd_init(args) -> int:
+    """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
+    from ..experiment.init import write_config
+
+    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
+    path = write_config(args.robot, args.out, 10.0 if args.duration is None else args.duration)
+    print(f"wrote {path}; run it with: hmpc-pin run {path}")
+    return EXIT_OK
+
+
+def add_init_parser(sub) -> None:
+    """The ``init`` subcommand (README, "Any arm")."""
+    ini = sub.add_parser(
+        "init",
+        help="write a commented config for any arm (URDF path or example-robot-data name)",
+        description="Write a TOML experiment that runs as written: a sine per joint around "
+        "the reference posture (SRDF, else mid-range) inside the position and velocity "
+        "limits, inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
+        "joints locked. Exit 2 with one line when the URDF cannot be controlled.",
+    )
+    ini.add_argument("robot", help="URDF path or robot name (planar3, ur5, panda, kinova, ...)")
+    ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
+    ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
+    ini.set_defaults(func=cmd_init)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hmpc-pin",
@@ -301,6 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)
+    add_init_parser(sub)
     return parser
 
 

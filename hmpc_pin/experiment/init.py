@@ -1,0 +1,320 @@
+"""A starting config for any arm: ``hmpc-pin init ROBOT`` (README, "Any arm").
+
+:func:`init_config` looks at the URDF (and its SRDF where ``example-robot-data`` ships one)
+and writes a commented TOML experiment that runs as written:
+
+* **Joints.** Gripper, finger, hand and wheel joints (by name: :data:`LOCK_PATTERN`) are
+  *locked* at the reference posture: the experiment is about the arm, and a finger link of
+  a few grams has :math:`M_{ii}` five to eight orders below the shoulder's. Mimic followers
+  go with their leader. When locking would leave no joint (a hand), every joint is
+  controlled. Continuous joints are controlled as revolute joints without position limits.
+* **Reference.** A sine per joint, :math:`r_i = o_i + a_i\\sin(2\\pi f t)`, around the
+  reference posture: the SRDF's (``pin.loadReferenceConfigurations``; the loader's posture
+  name, else the first), else the middle of the limits (0 without limits). The amplitude is
+  0.3 rad (0.05 m on a prismatic joint), at most a quarter of the range; the offset is
+  moved inside so that :math:`o \\pm a` keeps 5 % of the range from each limit; the
+  frequency 0.1 Hz, lowered until the peak speed :math:`2\\pi f a` is at most half of every
+  URDF velocity limit.
+* **Limits.** A zero or inverted URDF range (``double_pendulum``: 0/0) means the URDF gives
+  none: ``[controller.constraints] position = false``, and the joint is unbounded.
+* **Observer.** Chen's NDO (the paper's, Eq 28–30) on a planar serial chain; elsewhere the
+  general NDO (Y = I) with gain :math:`c = \\max(100, 1.2\\,c_{min})`, :math:`c_{min}` of
+  :func:`~hmpc_pin.compensation.observers.general_gain_bound` (the Lyapunov bound over the
+  joint ranges and URDF velocity limits).
+* **Disturbances.** As the arm configs (``ur5_sine``, ``panda_sine``): friction 2.0·|q̇| +
+  0.5·sgn(q̇) and Gaussian pulses of amplitude 1.0, each times :math:`M_{ii}(q_0)`
+  (``scale = "inertia"``: the same acceleration-level disturbance on any arm), pulse j at
+  :math:`t = 1 + (j \\bmod 9)` s.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..compensation.observers import general_gain_bound
+from ..data import robot_path
+from ..exceptions import OutputError
+from ..model.robot import (
+    Robot,
+    _check_urdf_file,
+    _mimics,
+    example_robot_srdf,
+    example_robot_urdf,
+    load_robot,
+)
+
+__all__ = ["LOCK_PATTERN", "InitPlan", "init_config", "plan", "write_config"]
+
+#: Joints locked by ``init`` (case-insensitive search in the joint name).
+LOCK_PATTERN = re.compile(
+    r"finger|gripper|hand|thumb|index|middle|ring|little|pinky|palm|jaw|claw|knuckle|wheel|caster",
+    re.IGNORECASE,
+)
+#: Reference postures looked for in an SRDF, in order, after the loader's own.
+POSTURES = ("default", "half_sitting", "ready", "home", "standing", "arm_up", "neutral")
+AMPLITUDE = {"revolute": 0.3, "prismatic": 0.05}  # [rad], [m]
+FREQUENCY = 0.1  # [Hz]
+
+
+def _resolve(source: str | Path) -> tuple[Path, tuple[str, str], str | None]:
+    """The URDF path of ``source``, its ``[robot]`` key and value, and its
+    example-robot-data name (``None`` for a path or a packaged robot)."""
+    path = Path(source)
+    if not path.exists() and not path.suffix and len(path.parts) == 1:
+        packaged = robot_path(str(source))
+        if packaged is not None:
+            return packaged, ("model", str(source)), None
+        return example_robot_urdf(str(source)), ("model", str(source)), str(source)
+    return path, ("urdf", str(path.resolve())), None
+
+
+def _posture(path: Path, name: str | None) -> tuple[dict[str, float], str]:
+    """Joint name -> angle [rad or m] of the SRDF reference posture, and where it came from
+    (empty when there is no SRDF)."""
+    srdf, wanted = example_robot_srdf(name) if name else (None, None)
+    if srdf is None:
+        beside = (path.with_suffix(".srdf"), path.parent.parent / "srdf" / f"{path.stem}.srdf")
+        for candidate in beside:
+            if candidate.is_file():
+                srdf = candidate
+                break
+    if srdf is None:
+        return {}, ""
+    model = pin.buildModelFromUrdf(str(path))
+    try:
+        pin.loadReferenceConfigurations(model, str(srdf), False)
+    except (RuntimeError, ValueError):
+        return {}, ""
+    names = [e.key() for e in model.referenceConfigurations]
+    order = [wanted, *POSTURES, *names]
+    key = next((k for k in order if k in names), None)
+    if key is None:
+        return {}, ""
+    q = np.asarray(model.referenceConfigurations[key])
+    out = {}
+    for jid in range(1, model.njoints):
+        joint = model.joints[jid]
+        if joint.nq == 1:
+            out[model.names[jid]] = float(q[joint.idx_q])
+        elif joint.nq == 2:  # Pinocchio's continuous joint: (cos θ, sin θ)
+            out[model.names[jid]] = math.atan2(q[joint.idx_q + 1], q[joint.idx_q])
+    return out, f"SRDF {srdf.name}, posture {key!r}"
+
+
+def _inside(value: float, lo: float, hi: float) -> float:
+    """``value`` if inside [lo, hi], else the middle of a finite range (0 otherwise)."""
+    if lo <= value <= hi:
+        return value
+    if np.isfinite(lo) and np.isfinite(hi):
+        return 0.5 * (lo + hi)
+    return float(np.clip(0.0, lo, hi))
+
+
+class InitPlan:
+    """What :func:`init_config` decided for one robot (also what the benchmark reports).
+
+    Attributes:
+        source: The ``[robot]`` key and value (``("model", "ur5")`` or ``("urdf", path)``).
+        robot: The controlled robot (locked joints removed).
+        locked: Locked joint -> position [rad or m].
+        posture_source: Where the posture came from (SRDF and posture, or mid-range).
+        amplitude, offset: Per controlled joint [rad or m]; frequency [Hz].
+        position_limits: Whether the URDF's position ranges are usable (``False``: a
+            zero or inverted range, ``position = false``).
+        bad_ranges: Joints whose URDF range is zero or inverted.
+        compensation, gain, gain_bound: The observer and its gain (bound for ``general``).
+    """
+
+    def __init__(self, source: str | Path):
+        path, self.source, name = _resolve(source)
+        root = _check_urdf_file(path)
+        mimics = _mimics(root)
+        movable = [
+            j.get("name", "")
+            for j in root.findall("joint")
+            if j.get("type") in ("revolute", "prismatic", "continuous")
+            and j.get("name") not in mimics
+        ]
+        posture, self.posture_source = _posture(path, name)
+        full = pin.buildModelFromUrdf(str(path))  # every joint's URDF limits, by name
+        limits = {
+            full.names[j]: (
+                (full.lowerPositionLimit[full.idx_qs[j]], full.upperPositionLimit[full.idx_qs[j]])
+                if full.nqs[j] == 1 else (-np.inf, np.inf)
+            )
+            for j in range(1, full.njoints)
+        }  # fmt: skip
+        lock = [n for n in movable if LOCK_PATTERN.search(n)]
+        if len(lock) == len(movable):  # a hand: control every joint
+            lock = []
+        self.locked = {n: _inside(posture.get(n, 0.0), *limits[n]) for n in lock if n in limits}
+        self.robot: Robot = load_robot(path, gravity=9.81, locked_joints=self.locked)
+        robot = self.robot
+        lo, hi = robot.lower, robot.upper
+        names = robot.joint_names
+        self.bad_ranges = tuple(n for n, a, b in zip(names, lo, hi, strict=True) if a >= b)
+        self.position_limits = not self.bad_ranges
+        if not self.position_limits:
+            lo, hi = np.full_like(lo, -np.inf), np.full_like(hi, np.inf)
+        center = np.array([
+            posture[n] if n in posture
+            else (0.5 * (a + b) if np.isfinite(a) and np.isfinite(b) else 0.0)
+            for n, a, b in zip(robot.joint_names, lo, hi, strict=True)
+        ])  # fmt: skip
+        if not self.posture_source:
+            self.posture_source = "middle of the URDF limits (no SRDF)"
+        span = hi - lo
+        amp = np.array([AMPLITUDE[k] for k in robot.joint_kinds])
+        amp = np.where(np.isfinite(span), np.minimum(amp, 0.25 * span), amp)
+        margin = np.where(np.isfinite(span), 0.05 * span, 0.0)
+        self.offset = np.clip(center, lo + amp + margin, hi - amp - margin)
+        self.amplitude = amp
+        vmax = robot.velocity_limit
+        speed_cap = np.where(vmax > 0, 0.5 * vmax / (2 * np.pi * amp), np.inf)
+        self.frequency = float(min(FREQUENCY, speed_cap.min()))
+        if robot.is_planar_chain():
+            self.compensation, self.gain, self.gain_bound = "chen", 100.0, None
+        else:
+            bound = general_gain_bound(robot, samples=50)
+            self.compensation, self.gain_bound = "general", bound
+            self.gain = float(max(100.0, math.ceil(1.2 * bound)))
+        self.name = name or (self.source[1] if self.source[0] == "model" else robot.name)
+
+
+def _vec(values, digits: int = 4) -> str:
+    return "[" + ", ".join(f"{round(float(v), digits):g}" for v in values) + "]"
+
+
+def init_config(source: str | Path, duration: float = 10.0) -> str:
+    """The text of a commented TOML experiment for ``source`` (URDF path or robot name)
+    that runs as written (module docstring: what is decided and why).
+
+    Raises:
+        URDFError: The URDF cannot be controlled (the message names the joint or link).
+    """
+    p = InitPlan(source)
+    robot = p.robot
+    n = robot.nq
+    key, value = p.source
+    stem = re.sub(r"[^A-Za-z0-9_]+", "_", p.name)
+    kinds = sorted(set(robot.joint_kinds))
+    unit = " / ".join({"revolute": "rad", "prismatic": "m"}[k] for k in kinds)
+    lines = [
+        f"# {p.name}: written by `hmpc-pin init` (hmpc_pin.experiment.init). Every joint",
+        f"# tracks a sine around the reference posture ({p.posture_source})",
+        "# under inertia-scaled friction and torque pulses; the URDF limits are soft state",
+        "# constraints of every joint's MPC, the URDF effort limits saturate the plant.",
+    ]
+    lines += textwrap.wrap(
+        f"Controlled ({n}): {', '.join(robot.joint_names)}",
+        88, initial_indent="# ", subsequent_indent="#   ",
+    )  # fmt: skip
+    if robot.continuous_joints:
+        lines += textwrap.wrap(
+            "Continuous joints (revolute, no position limit, the angle does not wrap): "
+            + ", ".join(robot.continuous_joints),
+            88, initial_indent="# ", subsequent_indent="#   ",
+        )  # fmt: skip
+    if robot.mimic_joints:
+        lines += textwrap.wrap(
+            "Mimic joints (follow their leader, not controlled on their own): "
+            + ", ".join(f"{f} = {m:g}*{j} + {o:g}" for f, (j, m, o) in robot.mimic_joints.items()),
+            88, initial_indent="# ", subsequent_indent="#   ",
+        )  # fmt: skip
+    lines += [
+        f'name = "{stem}_init"',
+        f'description = "{p.name}, {n} joints: sine around the reference posture (hmpc-pin init)"',
+        "",
+        "[robot]",
+        f'{key} = "{value}"',
+        "gravity = 9.81",
+    ]
+    if p.locked:
+        lines += [
+            "",
+            "# Gripper, finger, hand and wheel joints are locked at the reference posture",
+            "# (not controlled; their mass still loads the arm). Delete a line to control",
+            "# that joint (a mimic follower goes with its leader).",
+            "[robot.locked_joints]",
+            *(f'"{j}" = {round(v, 6):g}' for j, v in p.locked.items()),
+        ]
+    lines += ["", "[controller]", "Ts = 0.01", "N = 10", "Nc = 1"]
+    if p.compensation == "chen":
+        lines += [
+            'compensation = "chen"              # planar serial chain: the paper\'s NDO',
+            "",
+            "[controller.observer]",
+            "gain = 100.0",
+        ]
+    else:
+        lines += [
+            'compensation = "general"           # Y = I: valid on any arm (Chen\'s Y only on',
+            "                                   # planar chains)",
+            "",
+            "[controller.observer]",
+            f"gain = {p.gain:g}                      # >= 1.2 x general_gain_bound = "
+            f"{p.gain_bound:.3g} (and >= 100)",
+        ]
+    if not p.position_limits:
+        lines += [
+            "",
+            "[controller.constraints]",
+            f"# The URDF gives {', '.join(p.bad_ranges)} a zero or inverted position range,",
+            "# i.e. no usable limits: none are imposed.",
+            "position = false",
+        ]
+    lines += [
+        "",
+        "[reference]",
+        'kind = "sine"',
+        f"amplitude = {_vec(p.amplitude)}     # [{unit}]",
+        f"frequency = {p.frequency:.4g}                  # [Hz], peak speed <= half the URDF "
+        "velocity limits",
+        f"offset = {_vec(p.offset)}",
+        "",
+        "[disturbance]",
+        'scale = "inertia"                  # coefficients x M_ii(q0)',
+        "",
+        "[disturbance.friction]",
+        "viscous = 2.0",
+        "coulomb = 0.5",
+        "",
+        "[disturbance.pulse]",
+        "amplitude = 1.0",
+        f"center = {_vec([1.0 + (j % 9) for j in range(n)])}",
+        "sigma = 0.3",
+        "",
+        "[simulation]",
+        f"duration = {duration:g}",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_config(source: str | Path, out: str | Path | None = None, duration: float = 10.0) -> Path:
+    """Write :func:`init_config` of ``source`` to ``out`` (default ``<name>.toml`` in the
+    current directory) and return the path.
+
+    Raises:
+        OutputError: ``out`` cannot be written.
+    """
+    text = init_config(source, duration)
+    name = re.search(r'^name = "(.*)_init"$', text, re.MULTILINE)
+    path = Path(out) if out is not None else Path(f"{name.group(1) if name else 'robot'}.toml")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(path, exc.strerror or str(exc)) from exc
+    return path
+
+
+def plan(source: str | Path) -> InitPlan:
+    """The decisions :func:`init_config` writes, as an object."""
+    return InitPlan(source)

@@ -150,7 +150,9 @@ class InitPlan:
             )
             for j in range(1, full.njoints)
         }  # fmt: skip
-        lock = [n for n in movable if LOCK_PATTERN.search(n)]
+        links = {link.get("name") for link in root.findall("link")}
+        # Pinocchio cannot lock a joint that shares its name with a link (so100's gripper).
+        lock = [n for n in movable if LOCK_PATTERN.search(n) and n not in links]
         if len(lock) == len(movable):  # a hand: control every joint
             lock = []
         self.locked = {n: _inside(posture.get(n, 0.0), *limits[n]) for n in lock if n in limits}

@@ -591,4 +591,11 @@ def _reduce(model: pin.Model, path: Path, locked: dict[str, float]) -> pin.Model
                 )
             q_ref[joint.idx_q] = value
         ids.append(jid)
-    return pin.buildReducedModel(model, ids, q_ref)
+    try:
+        return pin.buildReducedModel(model, ids, q_ref)
+    except (ValueError, RuntimeError) as exc:  # e.g. a joint and a link of the same name
+        raise URDFError(
+            path,
+            f"Pinocchio cannot lock {sorted(locked)}: {exc}; a joint that shares its name "
+            "with a link cannot be locked (rename one of them in the URDF)",
+        ) from exc

@@ -341,3 +341,26 @@ def test_chen_on_a_planar_chain_does_not_warn(make_config, recwarn):
     config = with_controller(load_config(make_config(three_links())), compensation="chen")
     Experiment.from_config(config)
     assert not [w for w in recwarn if issubclass(w.category, ValidityWarning)]
+
+
+def test_prismatic_joint_reported_in_metres_and_newtons(make_config, tmp_path, capsys):
+    """`run` prints, writes (CSV) and compares a prismatic joint in m, m/s and N."""
+    import csv
+
+    from hmpc_pin.apps.compare import markdown_table, run_comparison
+
+    text = three_links(
+        kinds=("prismatic", "revolute", "revolute"),
+        j1={"axis": "0 0 1", "limit": '<limit lower="-0.3" upper="0.3" effort="100" '
+            'velocity="0.5"/>'},
+    )  # fmt: skip
+    path = make_config(text, offset="[0.0, 0.3, 0.3]", duration=1.2)
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "j1 (m, N)" in printed and "[rad|m]" in printed and "[N·m|N]" in printed
+    with open(out / "arm.csv", encoding="utf-8") as f:
+        header = next(csv.reader(f))
+    assert {"q_j1 [m]", "dq_j1 [m/s]", "tau_j1 [N]", "d_hat_j1 [N]", "q_j2"} <= set(header)
+    table = markdown_table(run_comparison(load_config(path), ("hmpc",)))
+    assert "j1 (m, N)" in table and "RMS e after 1 s [rad\\|m]" in table

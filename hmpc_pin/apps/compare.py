@@ -187,14 +187,23 @@ def _cells(run: ControllerRun, i: int) -> list[str]:
 
 def markdown_table(comp: Comparison) -> str:
     """The comparison as a Markdown table, one row per controller and joint."""
-    head = ["controller", "joint"] + [c[0] for c in COLUMNS] + ["step median [µs]"]
+    from .metrics import joint_label, joint_units, unit_labels
+
+    first = next(iter(comp.runs.values())).result
+    labels = unit_labels(first)
+    head = ["controller", "joint"] + [
+        c[0].replace("[rad]", f"[{labels['rad']}]").replace("[N·m]", f"[{labels['N·m']}]")
+        for c in COLUMNS
+    ] + ["step median [µs]"]  # fmt: skip
+    units = joint_units(first)
     lines = ["| " + " | ".join(h.replace("|", "\\|") for h in head) + " |",
              "|" + "---|" * len(head)]  # fmt: skip
     for kind, run in comp.runs.items():
         for i, joint in enumerate(comp.joint_names):
             step = f"{run.step_us:.1f}" if i == 0 else ""
             name = kind + (" (failed)" if run.failure else "")
-            lines.append("| " + " | ".join([name, joint, *_cells(run, i), step]) + " |")
+            row = [name, joint_label(joint, units[i]), *_cells(run, i), step]
+            lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
 
 

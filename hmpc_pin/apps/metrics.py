@@ -6,7 +6,43 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Metrics", "chattering", "compute_metrics", "settling_time"]
+__all__ = [
+    "UNITS",
+    "Metrics",
+    "chattering",
+    "compute_metrics",
+    "joint_units",
+    "settling_time",
+    "unit_labels",
+]
+
+#: Units of a joint's (position, velocity, effort) by kind.
+UNITS = {"revolute": ("rad", "rad/s", "N·m"), "prismatic": ("m", "m/s", "N")}
+
+
+def joint_units(result) -> list[tuple[str, str, str]]:
+    """Per joint of ``result``, its (position, velocity, effort) units: metres, m/s and
+    newtons for a prismatic joint (``result.meta["joint_kinds"]``), else rad, rad/s, N·m."""
+    n = result.q.shape[1]
+    kinds = result.meta.get("joint_kinds") or ["revolute"] * n
+    return [UNITS.get(k, UNITS["revolute"]) for k in kinds]
+
+
+def unit_labels(result) -> dict[str, str]:
+    """Column-header units for a table of ``result``'s joints: ``{"rad": "rad", "N·m":
+    "N·m", "rad/s": "rad/s"}`` for revolute joints only, ``"rad|m"`` etc. when some joint
+    is prismatic (its row then says which)."""
+    units = joint_units(result)
+    out = {}
+    for k, base in enumerate(UNITS["revolute"]):
+        found = sorted({u[k] for u in units}, key=lambda x: x != base)
+        out[base] = "|".join(found)
+    return out
+
+
+def joint_label(name: str, units: tuple[str, str, str]) -> str:
+    """``name``, with its units appended when they are not the revolute ones."""
+    return name if units == UNITS["revolute"] else f"{name} ({units[0]}, {units[2]})"
 
 
 def settling_time(t: np.ndarray, error: np.ndarray, tol: float) -> np.ndarray:
@@ -123,17 +159,23 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
     )
 
 
-def format_metrics(metrics: Metrics, joint_names=None) -> str:
-    """A plain-text table of ``metrics``, one row per joint."""
+def format_metrics(metrics: Metrics, joint_names=None, result=None) -> str:
+    """A plain-text table of ``metrics``, one row per joint (units of a prismatic joint,
+    m and N, from ``result``'s ``joint_kinds``, on its row)."""
     n = len(metrics.rms_error)
     names = list(joint_names) if joint_names else [f"joint{i + 1}" for i in range(n)]
+    labels = {"rad": "rad", "N·m": "N·m"}
+    if result is not None:
+        labels = unit_labels(result)
+        names = [joint_label(x, u) for x, u in zip(names, joint_units(result), strict=True)]
     w = max(10, *(len(x) for x in names))
     a = f"{metrics.after:g}"
+    r, e = labels["rad"], labels["N·m"]
     head = (
-        f"{'joint':<{w}} {'RMS e (t>=' + a + 's) [rad]':>22} {'max |e| [rad]':>14} "
-        f"{'within ' + format(metrics.tol, 'g') + ' rad from [s]':>23} "
-        f"{'RMS d-d^ [N·m]':>15} {'peak |tau| [N·m]':>17} {'limit viol. [rad]':>18} "
-        f"{'saturated':>10}"
+        f"{'joint':<{w}} {'RMS e (t>=' + a + 's) [' + r + ']':>22} {'max |e| [' + r + ']':>14} "
+        f"{'within ' + format(metrics.tol, 'g') + ' ' + r + ' from [s]':>23} "
+        f"{'RMS d-d^ [' + e + ']':>15} {'peak |tau| [' + e + ']':>17} "
+        f"{'limit viol. [' + r + ']':>18} {'saturated':>10}"
     )
     lines = [head, "-" * len(head)]
     viol = metrics.limit_violation if metrics.limit_violation is not None else [np.nan] * n

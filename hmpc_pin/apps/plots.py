@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from .metrics import joint_units
+
 __all__ = [
     "arm_points",
     "plot_cartesian",
@@ -45,7 +47,7 @@ def _finish(fig, axes, path, title):
 def _tracking(ax, result, i):
     ax.plot(result.t, result.q_ref[:, i], "k--", lw=1.2, label=f"reference $r_{i + 1}$")
     ax.plot(result.t, result.q[:, i], "C0", lw=1.2, label=f"angle $q_{i + 1}$")
-    ax.set_ylabel(f"joint {i + 1} [rad]")
+    ax.set_ylabel(f"joint {i + 1} [{joint_units(result)[i][0]}]")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
 
@@ -53,7 +55,7 @@ def _tracking(ax, result, i):
 def _disturbance(ax, result, i):
     ax.plot(result.t, result.d[:, i], "k", lw=1.2, label=f"true $d_{i + 1}$")
     ax.plot(result.t, result.d_hat[:, i], "C3--", lw=1.2, label=rf"NDO $\hat d_{i + 1}$")
-    ax.set_ylabel(f"joint {i + 1} [N·m]")
+    ax.set_ylabel(f"joint {i + 1} [{joint_units(result)[i][2]}]")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
 
@@ -107,9 +109,11 @@ def plot_error(results: dict, path, title: str = "") -> Path:
     def draw(ax, label, r, i, color):
         ax.semilogy(r.t, np.maximum(np.abs(r.error[:, i]), 1e-9), color, lw=1.0, label=label)
 
+    unit = joint_units(next(iter(results.values())))
+
     def decorate(ax, i):
-        ax.axhline(0.01, color="k", ls=":", lw=0.8, label="0.01 rad")
-        ax.set_ylabel(f"|e{i + 1}| [rad]")
+        ax.axhline(0.01, color="k", ls=":", lw=0.8, label=f"0.01 {unit[i][0]}")
+        ax.set_ylabel(f"|e{i + 1}| [{unit[i][0]}]")
         ax.set_ylim(1e-7, None)
         ax.legend(loc="upper right", fontsize=8)
         ax.grid(alpha=0.3, which="both")
@@ -210,8 +214,10 @@ def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
         sel = slice(None) if window is None else (r.t >= window[0]) & (r.t <= window[1])
         ax.step(r.t[sel], r.tau[sel, i], color, where="post", lw=1.0, label=label)
 
+    unit = joint_units(next(iter(results.values())))
+
     def decorate(ax, i):
-        ax.set_ylabel(f"τ{i + 1} [N·m] (symlog)")
+        ax.set_ylabel(f"τ{i + 1} [{unit[i][2]}] (symlog)")
         ax.set_yscale("symlog", linthresh=1.0)
         ax.legend(loc="upper right", fontsize=7)
         ax.grid(alpha=0.3)

@@ -415,6 +415,7 @@ class Experiment:
                 "config": str(cfg.source) if cfg.source else None,
                 "urdf": str(self.robot.source),
                 "locked_joints": self.robot.locked_joints,
+                "joint_kinds": list(self.robot.joint_kinds),
                 "limits": {
                     "lower": self.robot.lower.tolist(),
                     "upper": self.robot.upper.tolist(),

@@ -233,8 +233,10 @@ def _link_inertials(root: ET.Element) -> dict[str, float | None]:
         inertial = link.find("inertial")
         mass = inertial.find("mass") if inertial is not None else None
         out[link.get("name", "")] = (
-            float(mass.get("value", 0.0)) if mass is not None else None
-        ) if inertial is not None else None
+            (float(mass.get("value", 0.0)) if mass is not None else None)
+            if inertial is not None
+            else None
+        )
     return out
 
 
@@ -344,15 +346,16 @@ class Robot:
             for f in model.frames
             if f.type == pin.FrameType.BODY and f.parentJoint in subtree
         ]
-        inertials = _link_inertials(ET.parse(self.source).getroot()) if Path(
-            self.source
-        ).is_file() else {}
+        inertials = (
+            _link_inertials(ET.parse(self.source).getroot()) if Path(self.source).is_file() else {}
+        )
         why = []
         for link in links:
             if link in inertials:
                 mass = inertials[link]
-                why.append(f"{link!r} (" + ("no <inertial>" if mass is None else
-                                            f"mass {mass:g} kg") + ")")
+                why.append(
+                    f"{link!r} (" + ("no <inertial>" if mass is None else f"mass {mass:g} kg") + ")"
+                )
             else:
                 why.append(repr(link))
         raise URDFError(
@@ -406,9 +409,7 @@ class Robot:
         perpendicular to it (world axes at the neutral configuration). Chen's observer
         (``compensation = "chen"``) is proven for such arms only."""
         model, data = self.model, self.model.createData()
-        if self.mimic_joints or any(
-            model.parents[i] != i - 1 for i in range(1, model.njoints)
-        ):
+        if self.mimic_joints or any(model.parents[i] != i - 1 for i in range(1, model.njoints)):
             return False
         pin.computeJointJacobians(model, data, pin.neutral(model))
         J = pin.getJointJacobian(model, data, model.njoints - 1, pin.ReferenceFrame.WORLD)
@@ -556,9 +557,7 @@ def load_robot(
             model, model.getJointId(leader), model.getJointId(follower), mult, offset
         )
     model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
-    return Robot(
-        model, path, locked, active, tuple(c for c in continuous if c not in locked)
-    )
+    return Robot(model, path, locked, active, tuple(c for c in continuous if c not in locked))
 
 
 def _crba_forward_dynamics(model: pin.Model, data: pin.Data, q, dq, tau) -> np.ndarray:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import re
 import sys
 import time
 from pathlib import Path
@@ -67,7 +68,8 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         code = main(["init", name, "--out", str(path)])
     if code != 0:
-        return {**row, "status": f"exit {code}", "why": err.getvalue().strip()}
+        why = re.sub(r"/\S+/(\S+\.urdf)", r"\1", err.getvalue().strip().removeprefix("error: "))
+        return {**row, "status": f"exit {code}", "why": why}
     try:
         config = load_config(path)
         if duration is not None:
@@ -86,6 +88,7 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
         n=robot.nq,
         locked=len(robot.locked_joints),
         observer=config.controller.compensation,
+        Ts=config.controller.Ts,
         gain=config.controller.observer.gain,
         prismatic=sum(k == "prismatic" for k in robot.joint_kinds),
         continuous=len(robot.continuous_joints),
@@ -119,14 +122,14 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
 def markdown(rows: list[dict]) -> str:
     """The README table."""
     head = (
-        "| model | joints controlled (locked) | observer (gain) | worst RMS after 1 s | "
-        "limit excess | step median [µs] | step / floor | status |\n"
-        "|---|---|---|---|---|---|---|---|"
+        "| model | joints controlled (locked) | observer (gain) | Ts [ms] | worst RMS after 1 s "
+        "| limit excess | step median [µs] | step / floor | status |\n"
+        "|---|---|---|---|---|---|---|---|---|"
     )
     lines = [head]
     for r in rows:
         if "worst_rms" not in r:
-            lines.append(f"| {r['model']} | | | | | | | {r['status']}: {r['why']} |")
+            lines.append(f"| {r['model']} | | | | | | | | {r['status']}: {r['why']} |")
             continue
         extra = []
         if r["continuous"]:
@@ -135,7 +138,7 @@ def markdown(rows: list[dict]) -> str:
             extra.append(f"{r['prismatic']} prismatic")
         joints = f"{r['n']} ({r['locked']})" + (f", {', '.join(extra)}" if extra else "")
         lines.append(
-            f"| {r['model']} | {joints} | {r['observer']} ({r['gain']:g}) | "
+            f"| {r['model']} | {joints} | {r['observer']} ({r['gain']:g}) | {1e3 * r['Ts']:g} | "
             f"{r['worst_rms']:.2e} ({r['worst_joint']}) | {r['limit_violation']:.1e} | "
             f"{r['step_us']:.0f} | {r['step_us'] / r['floor_us']:.1f} | {r['status']} |"
         )

@@ -145,7 +145,7 @@ BAD_BUILD = [
     ("[reference]\namplitude = [1.0, 2.0]", "reference.amplitude", "3 joints"),
     ("[disturbance.friction]\nviscous = [1.0, 2.0]", "disturbance.friction.viscous", "3 joints"),
     ("[controller.constraints]\nlower = [-1.0, -1.0]", "controller.constraints.lower", "3 joints"),
-    ("[controller.constraints]\nupper = -5.0", "controller.constraints.lower", "lower < upper"),
+    ("[controller.constraints]\nupper = -5.0", "controller.constraints.upper", "lower < upper"),
     ("[plant]\neffort_limit = [1.0, 1.0]", "plant.effort_limit", "3 joints"),
 ]
 

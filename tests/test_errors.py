@@ -87,8 +87,9 @@ CASES = {
                 PLANAR3.read_text().replace('lower="-1.5707963267948966"', 'lower="1.6"', 1),
             ),
         ),
-        ConfigError,
-        ["robot.urdf", "'joint1'", "lower=1.6 >= upper=1.5708", "expected lower < upper"],
+        URDFError,
+        ["crossed.urdf", "joint 'joint1' has an inverted position range",
+         '<limit lower="1.6" upper="1.5708">', "controller.constraints.position = false"],
     ),
     "unknown example-robot-data name": (
         lambda tmp: _sub(f'urdf = "{URDF}"', 'model = "ur55"'),

@@ -364,3 +364,19 @@ def test_prismatic_joint_reported_in_metres_and_newtons(make_config, tmp_path, c
     assert {"q_j1 [m]", "dq_j1 [m/s]", "tau_j1 [N]", "d_hat_j1 [N]", "q_j2"} <= set(header)
     table = markdown_table(run_comparison(load_config(path), ("hmpc",)))
     assert "j1 (m, N)" in table and "RMS e after 1 s [rad\\|m]" in table
+
+
+def test_robots_with_mimic_and_continuous_joints_pickle(write_urdf, make_rng):
+    """A Robot crosses process boundaries (sweeps): the round trip keeps its dynamics."""
+    import pickle
+
+    text = three_links(kinds=("revolute", "continuous", "revolute"), j3={"extra": MIMIC})
+    robot = load_robot(write_urdf(text), gravity=9.81)
+    copy = pickle.loads(pickle.dumps(robot))
+    rng = make_rng(4)
+    q, dq, tau = rng.normal(size=2), rng.normal(size=2), rng.normal(size=2)
+    np.testing.assert_array_equal(
+        copy.forward_dynamics(q, dq, tau), robot.forward_dynamics(q, dq, tau)
+    )
+    assert copy.mimic_joints == robot.mimic_joints
+    assert copy.continuous_joints == ("j2",)

@@ -297,10 +297,6 @@ class Robot:
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self.velocity_limit = np.array(model.velocityLimit, dtype=float)
         self.effort_limit = np.array(model.effortLimit, dtype=float)
-        #: Forward dynamics ``aba(model, data, q, dq, tau) -> ddq`` with Pinocchio's
-        #: signature: ``pin.aba``, or for a model with mimic joints (which Pinocchio's ABA
-        #: does not support) the solve of :math:`M\ddot q = \tau - h` by CRBA.
-        self.aba = _crba_forward_dynamics if self.mimic_joints else pin.aba
         # Pinocchio's C++ CRBA fills only the upper triangle; some bindings
         # symmetrise. Detect once, at a generic configuration (where M has
         # non-zero off-diagonal terms), so the hot path does no needless work.
@@ -365,6 +361,14 @@ class Robot:
             f"the link(s) it moves: {', '.join(why)}. Give the link at the end of the chain "
             "a mass and an inertia (<inertial>), or lock the joint ([robot] locked_joints)",
         )
+
+    @property
+    def aba(self):
+        """Forward dynamics ``aba(model, data, q, dq, tau) -> ddq`` with Pinocchio's
+        signature: ``pin.aba``, or for a model with mimic joints (which Pinocchio's ABA does
+        not support) the solve of :math:`M\\ddot q = \\tau - h` by CRBA. (A property, so
+        that a :class:`Robot` stays picklable.)"""
+        return _crba_forward_dynamics if self.mimic_joints else pin.aba
 
     @property
     def nq(self) -> int:

@@ -380,3 +380,7 @@ def test_robots_with_mimic_and_continuous_joints_pickle(write_urdf, make_rng):
     )
     assert copy.mimic_joints == robot.mimic_joints
     assert copy.continuous_joints == ("j2",)
+    # A perturbed copy (sweeps scale link inertias) survives the round trip too: scaling
+    # every link by 1.5 scales M by 1.5 exactly.
+    scaled = pickle.loads(pickle.dumps(robot.with_scaled_inertias([1.5, 1.5, 1.5])))
+    np.testing.assert_allclose(scaled.mass_matrix(q), 1.5 * robot.mass_matrix(q), rtol=1e-12)

@@ -263,6 +263,7 @@ class Robot:
         locked_joints: Mapping[str, float] | None = None,
         mimic_joints: Mapping[str, tuple[str, float, float]] | None = None,
         continuous_joints: tuple[str, ...] = (),
+        base_model: pin.Model | None = None,
     ):
         if model.nq != model.nv:
             raise URDFError(
@@ -280,6 +281,10 @@ class Robot:
         self.mimic_joints: dict[str, tuple[str, float, float]] = dict(mimic_joints or {})
         #: Joints that are ``continuous`` in the URDF (here revolute, limits ±inf).
         self.continuous_joints: tuple[str, ...] = tuple(continuous_joints)
+        # With mimic joints: the model before they were made mimic joints. Pinocchio 4.1
+        # pickles a mimic joint badly (CRBA on the copy crashes), so a Robot is pickled
+        # through this model and rebuilt (__getstate__ / __setstate__).
+        self._base_model = base_model if self.mimic_joints else None
         self.name = model.name
         coordinates = sorted(
             (model.joints[i].idx_v, model.names[i])
@@ -362,6 +367,18 @@ class Robot:
             "a mass and an inertia (<inertial>), or lock the joint ([robot] locked_joints)",
         )
 
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        if self._base_model is not None:
+            state["model"] = state["data"] = None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if self.model is None:
+            self.model = _apply_mimics(self._base_model, self.mimic_joints)
+            self.data = self.model.createData()
+
     @property
     def aba(self):
         """Forward dynamics ``aba(model, data, q, dq, tau) -> ddq`` with Pinocchio's
@@ -382,9 +399,10 @@ class Robot:
 
     def copy(self) -> Robot:
         """Return a robot with a copy of the model and its own fresh data."""
+        base = self._base_model.copy() if self._base_model is not None else None
         return Robot(
             self.model.copy(), self.source, self.locked_joints, self.mimic_joints,
-            self.continuous_joints,
+            self.continuous_joints, base_model=base,
         )  # fmt: skip
 
     def with_scaled_inertias(self, factors) -> Robot:
@@ -400,12 +418,15 @@ class Robot:
             raise DimensionError(
                 f"inertia factors must be {model.njoints - 1} finite numbers > 0, got {k!r}"
             )
-        for i, ki in enumerate(k, start=1):
-            old = model.inertias[i]
-            model.inertias[i] = pin.Inertia(ki * old.mass, old.lever.copy(), ki * old.inertia)
+        base = self._base_model.copy() if self._base_model is not None else None
+        for m in (model, base) if base is not None else (model,):
+            for i, ki in enumerate(k, start=1):  # the same joint (body) indices in both
+                old = m.inertias[i]
+                m.inertias[i] = pin.Inertia(ki * old.mass, old.lever.copy(), ki * old.inertia)
         return Robot(
-            model, self.source, self.locked_joints, self.mimic_joints, self.continuous_joints
-        )
+            model, self.source, self.locked_joints, self.mimic_joints, self.continuous_joints,
+            base_model=base,
+        )  # fmt: skip
 
     def is_planar_chain(self, tol: float = 1e-9) -> bool:
         """Whether the arm is a planar serial chain: each joint hangs from the previous one,
@@ -556,12 +577,27 @@ def load_robot(
     if locked:
         model = _reduce(model, path, locked)
     active = {f: v for f, v in mimics.items() if f not in locked}
-    for follower, (leader, mult, offset) in active.items():
+    model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
+    base = model if active else None
+    model = _apply_mimics(model, active)
+    return Robot(
+        model,
+        path,
+        locked,
+        active,
+        tuple(c for c in continuous if c not in locked),
+        base_model=base,
+    )
+
+
+def _apply_mimics(model: pin.Model, mimics: Mapping[str, tuple[str, float, float]]) -> pin.Model:
+    """``model`` with each follower of ``mimics`` made Pinocchio's mimic joint of its leader
+    (a new model; ``model`` itself is unchanged)."""
+    for follower, (leader, mult, offset) in mimics.items():
         model = pin.transformJointIntoMimic(
             model, model.getJointId(leader), model.getJointId(follower), mult, offset
         )
-    model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
-    return Robot(model, path, locked, active, tuple(c for c in continuous if c not in locked))
+    return model
 
 
 def _crba_forward_dynamics(model: pin.Model, data: pin.Data, q, dq, tau) -> np.ndarray:

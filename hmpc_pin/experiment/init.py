@@ -44,11 +44,11 @@ from ..data import robot_path
 from ..exceptions import OutputError, SimulationError, URDFError
 from ..model.robot import (
     Robot,
-    _check_urdf_file,
-    _mimics,
+    check_urdf,
     example_robot_srdf,
     example_robot_urdf,
     load_robot,
+    urdf_mimics,
 )
 
 __all__ = ["LOCK_PATTERN", "InitPlan", "init_config", "plan", "write_config"]
@@ -145,8 +145,8 @@ class InitPlan:
 
     def __init__(self, source: str | Path):
         path, self.source, name = _resolve(source)
-        root = _check_urdf_file(path)
-        mimics = _mimics(root)
+        root = check_urdf(path)
+        mimics = urdf_mimics(root)
         movable = [
             j.get("name", "")
             for j in root.findall("joint")

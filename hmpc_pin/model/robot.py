@@ -40,7 +40,15 @@ import pinocchio as pin
 from ..data import robot_path
 from ..exceptions import DimensionError, NonFiniteError, URDFError
 
-__all__ = ["Robot", "load_robot"]
+__all__ = [
+    "Robot",
+    "check_urdf",
+    "example_robot_names",
+    "example_robot_srdf",
+    "example_robot_urdf",
+    "load_robot",
+    "urdf_mimics",
+]
 
 #: URDF joint types the controller supports (one coordinate each, nq == nv; a continuous
 #: joint becomes a revolute joint without position limits).
@@ -109,7 +117,7 @@ def example_robot_srdf(name: str) -> tuple[Path | None, str | None]:
     return (path if path.is_file() else None), (loader.ref_posture or None)
 
 
-def _check_urdf_file(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
+def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
     """Reject a missing, unreadable, malformed or incomplete URDF with a clear message;
     return its parsed ``<robot>`` element.
 
@@ -191,7 +199,7 @@ def _check_urdf_file(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
     return root
 
 
-def _mimics(root: ET.Element) -> dict[str, tuple[str, float, float]]:
+def urdf_mimics(root: ET.Element) -> dict[str, tuple[str, float, float]]:
     """URDF mimic joints: follower name -> (leader name, multiplier, offset)."""
     out = {}
     for joint in root.findall("joint"):
@@ -548,8 +556,8 @@ def load_robot(
     if not np.isfinite(gravity) or gravity < 0:
         raise URDFError(path, f"gravity={gravity!r}; expected a finite value >= 0")
     locked = {str(k): float(v) for k, v in (locked_joints or {}).items()}
-    root = _check_urdf_file(path, tuple(locked))
-    mimics = _mimics(root)
+    root = check_urdf(path, tuple(locked))
+    mimics = urdf_mimics(root)
     for follower, (leader, _, _) in mimics.items():
         if follower in locked and leader not in locked:
             raise URDFError(

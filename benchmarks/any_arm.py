@@ -66,7 +66,7 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     row: dict = {"model": name}
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        code = main(["init", name, "--out", str(path)])
+        code = main(["init", name, "--out", str(path), "--force"])
     if code != 0:
         why = re.sub(r"/\S+/(\S+\.urdf)", r"\1", err.getvalue().strip().removeprefix("error: "))
         return {**row, "status": f"exit {code}", "why": why}

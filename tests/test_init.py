@@ -158,6 +158,17 @@ def test_init_bad_input_exits_2(tmp_path, capsys):
     assert main(["init", "ur5", "--duration", "-1", "--out", str(tmp_path / "x.toml")]) == 2
 
 
+def test_init_never_overwrites_without_force(tmp_path, capsys):
+    """An existing file is kept (no data lost) unless --force."""
+    path = tmp_path / "mine.toml"
+    path.write_text("# my edits\n", encoding="utf-8")
+    assert main(["init", "planar3", "--out", str(path)]) == 2
+    assert "exists; pass --force" in capsys.readouterr().err
+    assert path.read_text(encoding="utf-8") == "# my edits\n"
+    assert main(["init", "planar3", "--out", str(path), "--force"]) == 0
+    assert load_config(path).robot.model == "planar3"
+
+
 @pytest.mark.slow
 def test_every_example_robot_arm_tracks_or_is_refused(tmp_path):
     """Issue 15's acceptance, short runs (3 s): at least 30 of the 33 models track, the

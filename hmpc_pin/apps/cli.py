@@ -190,7 +190,8 @@ def cmd_init(args) -> int:
 
     if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
         raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
-    path = write_config(args.robot, args.out, 10.0 if args.duration is None else args.duration)
+    duration = 10.0 if args.duration is None else args.duration
+    path = write_config(args.robot, args.out, duration, overwrite=args.force)
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
     return EXIT_OK
 
@@ -208,6 +209,7 @@ def add_init_parser(sub) -> None:
     ini.add_argument("robot", help="URDF path or robot name (planar3, ur5, panda, kinova, ...)")
     ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
     ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
+    ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
     ini.set_defaults(func=cmd_init)
 
 

@@ -41,7 +41,7 @@ import pinocchio as pin
 
 from ..compensation.observers import general_gain_bound
 from ..data import robot_path
-from ..exceptions import OutputError, SimulationError, URDFError
+from ..exceptions import ConfigError, OutputError, SimulationError, URDFError
 from ..model.robot import (
     Robot,
     check_urdf,
@@ -422,16 +422,28 @@ def _render(p: InitPlan, duration: float) -> str:
     return "\n".join(lines)
 
 
-def write_config(source: str | Path, out: str | Path | None = None, duration: float = 10.0) -> Path:
+def write_config(
+    source: str | Path,
+    out: str | Path | None = None,
+    duration: float = 10.0,
+    *,
+    overwrite: bool = False,
+) -> Path:
     """Write :func:`init_config` of ``source`` to ``out`` (default ``<name>.toml`` in the
     current directory) and return the path.
 
     Raises:
+        ConfigError: ``out`` exists and ``overwrite`` is false (nothing is written).
         OutputError: ``out`` cannot be written.
     """
     text = init_config(source, duration)
     name = re.search(r'^name = "(.*)_init"$', text, re.MULTILINE)
     path = Path(out) if out is not None else Path(f"{name.group(1) if name else 'robot'}.toml")
+    if path.exists() and not overwrite:
+        raise ConfigError(
+            "--out", f"{str(path)!r} exists; pass --force (overwrite=True) to replace it, or "
+            "another path",
+        )  # fmt: skip
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text, encoding="utf-8")

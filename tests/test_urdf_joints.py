@@ -191,6 +191,13 @@ def test_bad_limit_range_names_the_urdf_and_honours_position_false(make_config, 
     )  # fmt: skip
     result = Experiment.from_config(load_config(path)).run()
     assert result.complete
+    # The bad range is no range: the metrics measure no excursion against it.
+    from hmpc_pin.apps.metrics import compute_metrics
+
+    assert result.meta["limits"]["lower"][1] == -np.inf
+    assert result.meta["limits"]["upper"][1] == np.inf
+    assert result.meta["limits"]["lower"][0] == -2.0
+    assert compute_metrics(result, after=0.0).limit_violation[1] == 0.0
 
 
 def test_bad_limit_range_exits_2(make_config, capsys, tmp_path):

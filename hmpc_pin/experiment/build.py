@@ -416,10 +416,7 @@ class Experiment:
                 "urdf": str(self.robot.source),
                 "locked_joints": self.robot.locked_joints,
                 "joint_kinds": list(self.robot.joint_kinds),
-                "limits": {
-                    "lower": self.robot.lower.tolist(),
-                    "upper": self.robot.upper.tolist(),
-                },
+                "limits": self._recorded_limits(),
                 "gravity": cfg.robot.gravity,
                 "controller": cfg.controller.label,
                 "observer": uses_observer(cfg.controller),
@@ -429,6 +426,16 @@ class Experiment:
                 "state_bound": cfg.simulation.state_bound,
             },
         )
+
+    def _recorded_limits(self) -> dict[str, list[float]]:
+        """The URDF position limits the metrics measure excursions against; a zero or
+        inverted range (double_pendulum's 0/0: no range given) is recorded as ±inf."""
+        lo, hi = self.robot.lower, self.robot.upper
+        ok = lo < hi
+        return {
+            "lower": np.where(ok, lo, -np.inf).tolist(),
+            "upper": np.where(ok, hi, np.inf).tolist(),
+        }
 
     def make_plant(self) -> Plant:
         """A new plant of ``[plant]`` (its integrator, step and this experiment's

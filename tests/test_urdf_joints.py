@@ -119,6 +119,14 @@ def test_massless_end_link_is_refused_naming_it(write_urdf, masses, link, why):
     assert "not positive definite" in message
 
 
+def test_a_light_but_massive_end_link_loads(write_urdf):
+    """No false alarm: a 1 mg end link (M_33 ≈ 8e-8 against M_11 ≈ 5) is a valid arm; M
+    is positive definite (eigenvalues computed here) and the check passes."""
+    robot = load_robot(write_urdf(three_links(masses=(1.0, 1.0, 1e-6))))
+    M = robot.mass_matrix(np.full(3, 0.3))
+    assert 0 < np.linalg.eigvalsh(M).min() < 1e-6
+
+
 def test_massless_end_link_exits_2_with_one_line(make_config, capsys, tmp_path):
     code = main(["run", str(make_config(three_links(masses=(1.0, 1.0, 0.0)))), "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip().splitlines()

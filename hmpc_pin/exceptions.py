@@ -170,3 +170,20 @@ class InterfaceError(HmpcError, TypeError):
 class ValidityWarning(UserWarning):
     """A design is used outside the conditions it is proven for (e.g. Chen's observer on a
     spatial arm); the run goes on. The message names the valid alternative."""
+
+
+class ExtraError(HmpcError, ImportError):
+    """An optional dependency of the package is not installed.
+
+    Attributes:
+        extra: The ``hmpc_pin`` extra that installs it (``pip install "hmpc_pin[extra]"``).
+        needed_for: What needs it, in words.
+    """
+
+    def __init__(self, extra: str, needed_for: str):
+        self.extra = extra
+        self.needed_for = needed_for
+        super().__init__(
+            f"{needed_for} needs the optional package of the extra {extra!r}, which is not "
+            f"installed; install it with: pip install \"hmpc_pin[{extra}]\""
+        )

@@ -13,10 +13,11 @@ from collections import deque
 
 import numpy as np
 
+from ..compensation.gate import FeedbackGate
 from ..exceptions import ConfigError
 from .base import ControllerWrapper
 
-__all__ = ["MeasuredController", "TimedController"]
+__all__ = ["CollisionReaction", "MeasuredController", "TimedController"]
 
 
 class MeasuredController(ControllerWrapper):
@@ -114,4 +115,100 @@ class TimedController(ControllerWrapper):
         start = time.perf_counter_ns()
         tau = self.controller.step(t, q, dq, reference)
         self.samples_ns.append(time.perf_counter_ns() - start)
+        return tau
+
+
+class _Hold:
+    """The constant reference :math:`r = q_\\mathrm{hold}`, :math:`\\dot r = 0`."""
+
+    def __init__(self, q: np.ndarray):
+        self.q = np.array(q, dtype=float)
+        self._zero = np.zeros_like(self.q)
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.q.copy(), self._zero.copy()
+
+    def sample_many(self, times, out=None):
+        m = len(times)
+        q_ref = np.broadcast_to(self.q, (m, len(self.q)))
+        dq_ref = np.zeros((m, len(self.q)))
+        if out is not None:
+            out[0][:] = q_ref
+            out[1][:] = dq_ref
+            return out
+        return q_ref.copy(), dq_ref
+
+
+class CollisionReaction(ControllerWrapper):
+    """Flag a collision when the disturbance estimate exceeds a threshold, and react.
+
+    The wrapped controller's compensation is put behind a
+    :class:`~hmpc_pin.compensation.gate.FeedbackGate`. A collision is flagged at the first
+    control instant :math:`t_c` at which :math:`|\\hat d_i| > \\bar d_i` on some joint i
+    (the observer as a contact-torque estimator). Reactions:
+
+    * ``"ignore"``: nothing changes (the paper's behaviour: the compensation cancels the
+      contact torque, so the arm keeps pushing into the obstacle);
+    * ``"stop"``: from the next instant on, the reference is the position measured at
+      :math:`t_c` held still (:math:`r = q(t_c)`, :math:`\\dot r = 0`) and the estimate
+      is no longer fed back (it is still computed and recorded).
+
+    Args:
+        controller: A controller with a ``compensation`` attribute
+            (:class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC`,
+            :class:`~hmpc_pin.controllers.computed_torque.ComputedTorque`).
+        threshold: :math:`\\bar d` [N·m], one value or one per joint (> 0).
+        reaction: ``"ignore"`` or ``"stop"``.
+
+    Attributes:
+        detected_at: :math:`t_c` [s], or ``None`` while no collision was flagged.
+        joint: Index of the joint whose estimate crossed first (largest ratio), or ``None``.
+        gate: The compensation gate.
+    """
+
+    REACTIONS = ("ignore", "stop")
+
+    def __init__(self, controller, threshold, reaction: str = "ignore"):
+        if reaction not in self.REACTIONS:
+            raise ConfigError("collision.reaction", f"expected one of {self.REACTIONS}, got "
+                              f"{reaction!r}")  # fmt: skip
+        comp = getattr(controller, "compensation", None)
+        if comp is None:
+            raise ConfigError(
+                "collision", f"{type(controller).__name__} has no compensation to watch; use "
+                "a controller with a disturbance observer",
+            )  # fmt: skip
+        thr = np.asarray(threshold, dtype=float)
+        if not (np.all(np.isfinite(thr)) and np.all(thr > 0)):
+            raise ConfigError("collision.threshold", f"expected values > 0, got {thr!r}")
+        super().__init__(controller)
+        self.gate = comp if isinstance(comp, FeedbackGate) else FeedbackGate(comp)
+        controller.compensation = self.gate
+        self.threshold = thr
+        self.reaction = reaction
+        self.detected_at: float | None = None
+        self.joint: int | None = None
+        self._hold: _Hold | None = None
+
+    @property
+    def disturbance_estimate(self) -> np.ndarray:
+        """The observer's estimate [N·m], fed back or not."""
+        return np.array(self.gate.observed, dtype=float)
+
+    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
+        """Reset the controller; no collision flagged, feedback on."""
+        self.controller.reset(q0, dq0)
+        self.gate.feed_back = True
+        self.detected_at, self.joint, self._hold = None, None, None
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """The wrapped step (with the held reference after a ``stop``); then the check."""
+        tau = self.controller.step(t, q, dq, reference if self._hold is None else self._hold)
+        if self.detected_at is None:
+            ratio = np.abs(self.gate.observed) / self.threshold
+            if ratio.max() > 1.0:
+                self.detected_at, self.joint = float(t), int(np.argmax(ratio))
+                if self.reaction == "stop":
+                    self.gate.feed_back = False
+                    self._hold = _Hold(q)
         return tau

@@ -20,10 +20,12 @@ from ..controllers import hierarchical as _hierarchical
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque, CTSettings
 from ..controllers.hierarchical import HierarchicalMPC, MPCSettings, state_limits
-from ..exceptions import ConfigError, LimitError, URDFError, ValidityWarning
+from ..controllers.wrappers import CollisionReaction
+from ..exceptions import ConfigError, LimitError, SimulationError, URDFError, ValidityWarning
 from ..model.robot import Robot, load_robot
 from ..mpc.condensed import StateLimits
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
+from ..sim.mujoco import MuJoCoPlant, MuJoCoSettings, Obstacle
 from ..sim.plants import PLANTS, Plant
 from ..sim.result import Result
 from ..sim.simulate import simulate
@@ -35,6 +37,7 @@ from .schema import (
     OBSERVERS,
     ControllerConfig,
     ExperimentConfig,
+    PlantConfig,
     RobotConfig,
     parse_combination,
 )
@@ -46,6 +49,7 @@ __all__ = [
     "load_robot_config",
     "make_compensation",
     "make_controller",
+    "mujoco_settings",
     "mpc_settings",
     "run_experiment",
     "uses_observer",
@@ -169,6 +173,32 @@ def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
             ValidityWarning,
             stacklevel=3,
         )
+
+
+def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
+    """:class:`~hmpc_pin.sim.mujoco.MuJoCoSettings` of ``[plant.mujoco]`` for ``n`` joints."""
+    mc = pc.mujoco
+    if mc is None:
+        raise ConfigError("plant.mujoco", "only with plant.engine = 'mujoco'")
+    ob = mc.obstacle
+    per_joint = {}
+    for name in ("frictionloss", "damping", "armature"):
+        value = getattr(mc, name)
+        if value.ndim == 1 and value.shape != (n,):
+            raise ConfigError(
+                f"plant.mujoco.{name}", f"has {value.shape[0]} entries but the robot has {n} "
+                f"joints; give {n} values or one value for all joints",
+            )  # fmt: skip
+        per_joint[name] = tuple(np.broadcast_to(value, (n,)).tolist())
+    return MuJoCoSettings(
+        integrator=mc.integrator,
+        import_urdf_dynamics=mc.import_urdf_dynamics,
+        geometry=mc.geometry,
+        obstacle=None if ob is None else Obstacle(
+            tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction
+        ),
+        **per_joint,
+    )  # fmt: skip
 
 
 def uses_observer(cc: ControllerConfig) -> bool:
@@ -349,7 +379,11 @@ class Experiment:
                 "plant.urdf",
                 f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
             )
-        PLANTS[pc.integrator](plant, None, config.controller.Ts, pc.dt)  # checks dt | Ts
+        if pc.engine == "mujoco":  # compiles the URDF (and checks timestep | Ts) before a run
+            MuJoCoPlant(plant, None, config.controller.Ts, pc.mujoco.timestep,
+                        mujoco_settings(pc, n))  # fmt: skip
+        else:
+            PLANTS[pc.integrator](plant, None, config.controller.Ts, pc.dt)  # checks dt | Ts
         reference = build_reference(config, robot)
         q0 = (
             reference.sample(0.0)[0]
@@ -359,6 +393,10 @@ class Experiment:
         robot.check_mass_matrix(q0)
         warn_validity(robot, config.controller)
         controller = make_controller(robot, config.controller)
+        if config.collision is not None and uses_observer(config.controller):
+            controller = CollisionReaction(
+                controller, config.vector("collision.threshold", n), config.collision.reaction
+            )
         limits = _limits(config.controller, robot) if config.controller.kind == "hmpc" else None
         if limits is not None:
             lower, upper = limits.lower, limits.upper
@@ -399,6 +437,43 @@ class Experiment:
         ``on_step(t, q, q_ref)`` is called at every control instant (live view).
         """
         cfg = self.config
+        plant = self.make_plant()
+        try:
+            result = self._simulate(plant, duration, on_step)
+        except SimulationError as exc:
+            if exc.result is not None:
+                self._record_plant(plant, exc.result)
+            raise
+        return self._record_plant(plant, result)
+
+    def _record_plant(self, plant: Plant, result: Result) -> Result:
+        """Add the engine, the MuJoCo contact force and the collision flag to ``result``."""
+        pc = self.config.plant
+        result.meta["engine"] = pc.engine
+        if isinstance(plant, MuJoCoPlant):
+            result.meta["engine_version"] = plant.version
+            contact = np.array(plant.history[: len(result.t)])
+            result.extra["contact_force"] = contact
+            touching = np.flatnonzero(np.abs(contact).max(axis=1) > 0)
+            result.meta["first_contact"] = (
+                float(result.t[touching[0]]) if touching.size else None
+            )
+        else:
+            import pinocchio
+
+            result.meta["engine_version"] = pinocchio.__version__
+        if isinstance(self.controller, CollisionReaction):
+            c = self.controller
+            result.meta["collision"] = {
+                "detected_at": c.detected_at,
+                "joint": None if c.joint is None else self.robot.joint_names[c.joint],
+                "reaction": c.reaction,
+                "threshold": c.threshold.tolist(),
+            }
+        return result
+
+    def _simulate(self, plant: Plant, duration: float | None, on_step) -> Result:
+        cfg = self.config
         return simulate(
             self.robot,
             self.controller,
@@ -406,7 +481,7 @@ class Experiment:
             duration=cfg.simulation.duration if duration is None else duration,
             q0=self.q0,
             dq0=self.dq0,
-            plant=self.make_plant(),
+            plant=plant,
             effort_limit=self.effort_limit,
             state_bound=cfg.simulation.state_bound,
             on_step=on_step,
@@ -441,6 +516,11 @@ class Experiment:
         """A new plant of ``[plant]`` (its integrator, step and this experiment's
         disturbance) on the plant model."""
         pc = self.config.plant
+        if pc.engine == "mujoco":
+            return MuJoCoPlant(
+                self.plant, self.disturbance, self.controller.Ts, pc.mujoco.timestep,
+                mujoco_settings(pc, self.robot.nq),
+            )  # fmt: skip
         return PLANTS[pc.integrator](self.plant, self.disturbance, self.controller.Ts, pc.dt)
 
 

@@ -23,11 +23,13 @@ import numpy as np
 
 from ..data import config_names, config_path
 from ..exceptions import ConfigError
+from ..sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
 from ..sim.plants import PLANTS
 
 __all__ = [
     "CONTROLLER_KINDS",
     "CartesianConfig",
+    "CollisionConfig",
     "ComputedTorqueConfig",
     "ConstraintConfig",
     "ControllerConfig",
@@ -35,6 +37,8 @@ __all__ = [
     "ExperimentConfig",
     "FrictionConfig",
     "ISMConfig",
+    "MuJoCoConfig",
+    "ObstacleConfig",
     "ObserverConfig",
     "PlantConfig",
     "PulseConfig",
@@ -598,11 +602,94 @@ class RobotConfig:
         return self.model if self.model is not None else "planar3"
 
 
+#: Physics engines of the plant (``[plant] engine``).
+ENGINES = ("pinocchio", "mujoco")
+#: Integrators of the Pinocchio plant (``[plant] integrator``): the plants of
+#: :data:`~hmpc_pin.sim.plants.PLANTS` that integrate Pinocchio's ABA.
+PINOCCHIO_INTEGRATORS = tuple(
+    name for name, cls in PLANTS.items() if getattr(cls, "engine", "pinocchio") == "pinocchio"
+)
+
+
+@dataclass(frozen=True, eq=False)
+class ObstacleConfig:
+    """A box fixed in the world that the MuJoCo arm can touch (a wall, a table).
+
+    Attributes:
+        position: Centre [x, y, z] in the world frame [m].
+        size: Half-lengths [x, y, z] [m] (MuJoCo's box ``size``).
+        friction: Sliding friction coefficient of the contact [-] (default 0.5).
+    """
+
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    size: np.ndarray = field(default_factory=lambda: np.full(3, 0.1))
+    friction: float = 0.5
+
+    def __post_init__(self):
+        for name in ("position", "size"):
+            arr = _array(name, getattr(self, name), positive=name == "size")
+            if arr.shape != (3,):
+                raise ConfigError(name, f"expected [x, y, z], got {arr.tolist()}")
+            _set(self, name, arr)
+        _set(self, "friction", _float("friction", self.friction, nonneg=True))
+
+
+@dataclass(frozen=True, eq=False)
+class MuJoCoConfig:
+    """The MuJoCo plant (``[plant] engine = "mujoco"``): the simulated arm's own joint
+    friction, damping and armature, MuJoCo's integrator and the scene.
+
+    Attributes:
+        integrator: ``"implicitfast"`` (default), ``"euler"``, ``"rk4"`` or ``"implicit"``.
+        timestep: MuJoCo's step [s]; must divide the control period (default 1 ms).
+        frictionloss: Dry joint friction [N·m] (MuJoCo ``frictionloss``), per joint or one
+            value (default 0).
+        damping: Viscous joint damping [N·m·s/rad], per joint or one value (default 0).
+        armature: Rotor inertia added to each joint [kg·m²] (default 0).
+        import_urdf_dynamics: Also apply the URDF's ``<dynamics damping friction>``
+            (added to the values above; default ``false``: the controller's Pinocchio
+            model ignores them too).
+        geometry: Collision geometry of the arm: ``"collision"`` (the URDF's, default),
+            ``"visual"`` (its visual shapes, for an arm without collision tags) or
+            ``"none"`` (dynamics only).
+        obstacle: :class:`ObstacleConfig`, or ``None`` (no contacts).
+    """
+
+    integrator: str = "implicitfast"
+    timestep: float = 0.001
+    frictionloss: np.ndarray = 0.0
+    damping: np.ndarray = 0.0
+    armature: np.ndarray = 0.0
+    import_urdf_dynamics: bool = False
+    geometry: str = "collision"
+    obstacle: ObstacleConfig | None = None
+
+    def __post_init__(self):
+        _set(self, "integrator", _choice("integrator", self.integrator, tuple(MUJOCO_INTEGRATORS)))
+        _set(self, "timestep", _float("timestep", self.timestep, positive=True))
+        for name in ("frictionloss", "damping", "armature"):
+            _set(self, name, _array(name, getattr(self, name), nonneg=True))
+        _set(self, "import_urdf_dynamics", _bool("import_urdf_dynamics", self.import_urdf_dynamics))
+        _set(self, "geometry", _choice("geometry", self.geometry, GEOMETRY_SOURCES))
+        if isinstance(self.obstacle, dict):
+            _set(self, "obstacle", _section(ObstacleConfig, self.obstacle, "obstacle"))
+        elif self.obstacle is not None and not isinstance(self.obstacle, ObstacleConfig):
+            raise ConfigError("obstacle", f"expected a table, got {self.obstacle!r}")
+        if self.obstacle is not None and self.geometry == "none":
+            raise ConfigError(
+                "geometry", "'none' leaves the arm without geometry to touch the obstacle; "
+                "use 'collision' or 'visual'",
+            )  # fmt: skip
+
+
 @dataclass(frozen=True, eq=False)
 class PlantConfig:
     """The simulated plant.
 
     Attributes:
+        engine: ``"pinocchio"`` (default: Pinocchio's ABA on the plant model, integrated
+            by ``integrator``) or ``"mujoco"`` (MuJoCo on the same URDF; then
+            ``[plant.mujoco]`` holds its settings and ``dt``/``integrator`` do not apply).
         urdf: URDF of the plant; ``None`` uses the controller's model (no mismatch).
         gravity: Plant gravity [m/s²]; ``None`` uses the robot's.
         dt: Integration step [s], must divide the control period (default 1 ms).
@@ -610,6 +697,7 @@ class PlantConfig:
         saturate: Clip the applied torque to the effort limits (default ``True``).
         effort_limit: Effort limits [N·m] overriding the URDF's (per joint or one value);
             ``None`` keeps the URDF's (a URDF value <= 0 means no limit).
+        mujoco: :class:`MuJoCoConfig` (``engine = "mujoco"`` only).
     """
 
     urdf: Path | None = None
@@ -618,6 +706,8 @@ class PlantConfig:
     integrator: str = "rk4"
     saturate: bool = True
     effort_limit: np.ndarray | None = None
+    engine: str = "pinocchio"
+    mujoco: MuJoCoConfig | None = None
 
     def __post_init__(self):
         if self.urdf is not None:
@@ -627,10 +717,51 @@ class PlantConfig:
         if self.gravity is not None:
             _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
         _set(self, "dt", _float("dt", self.dt, positive=True))
-        _set(self, "integrator", _choice("integrator", self.integrator, tuple(PLANTS)))
+        _set(self, "integrator", _choice("integrator", self.integrator, PINOCCHIO_INTEGRATORS))
         _set(self, "saturate", _bool("saturate", self.saturate))
         if self.effort_limit is not None:
             _set(self, "effort_limit", _array("effort_limit", self.effort_limit, positive=True))
+        _set(self, "engine", _choice("engine", self.engine, ENGINES))
+        if isinstance(self.mujoco, dict):
+            _set(self, "mujoco", _section(MuJoCoConfig, self.mujoco, "mujoco"))
+        elif self.mujoco is not None and not isinstance(self.mujoco, MuJoCoConfig):
+            raise ConfigError("mujoco", f"expected a table, got {self.mujoco!r}")
+        if self.engine == "pinocchio" and self.mujoco is not None:
+            raise ConfigError("mujoco", "applies only to engine = 'mujoco'; remove the table "
+                              "or set plant.engine = 'mujoco'")  # fmt: skip
+        if self.engine == "mujoco":
+            if self.mujoco is None:
+                _set(self, "mujoco", MuJoCoConfig())
+            for key, default, instead in (("dt", 0.001, "timestep"), ("integrator", "rk4",
+                                                                      "integrator")):
+                if getattr(self, key) != default:
+                    raise ConfigError(
+                        key, f"does not apply to engine = 'mujoco'; set "
+                        f"plant.mujoco.{instead} instead",
+                    )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class CollisionConfig:
+    """Collision detection on the disturbance estimate, and the reaction to it.
+
+    A collision is flagged at the first control instant at which
+    :math:`|\\hat d_i| > \\text{threshold}_i` for some joint i (the observer as a
+    contact-torque estimator).
+
+    Attributes:
+        threshold: Estimate magnitude [N·m] that flags a collision, per joint or one value.
+        reaction: ``"ignore"`` (keep compensating, the paper's behaviour: the arm keeps
+            pushing) or ``"stop"`` (hold the position reached, the estimate no longer
+            fed back).
+    """
+
+    threshold: np.ndarray = 1.0
+    reaction: str = "ignore"
+
+    def __post_init__(self):
+        _set(self, "threshold", _array("threshold", self.threshold, positive=True))
+        _set(self, "reaction", _choice("reaction", self.reaction, ("ignore", "stop")))
 
 
 @dataclass(frozen=True, eq=False)
@@ -909,6 +1040,7 @@ class ExperimentConfig:
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
     source: Path | None = None
+    collision: CollisionConfig | None = None
 
     def __post_init__(self):
         for name in ("name", "description"):
@@ -942,6 +1074,10 @@ class ExperimentConfig:
             keys += [f"reference.{k}" for k in SINE_KEYS]
         if self.disturbance.friction is not None:
             keys += ["disturbance.friction.viscous", "disturbance.friction.coulomb"]
+        if self.plant.mujoco is not None:
+            keys += [f"plant.mujoco.{k}" for k in ("frictionloss", "damping", "armature")]
+        if self.collision is not None:
+            keys.append("collision.threshold")
         if self.disturbance.pulse is not None:
             keys += [
                 "disturbance.pulse.amplitude",
@@ -1015,6 +1151,7 @@ def load_config(path: str | Path) -> ExperimentConfig:
         "disturbance": DisturbanceConfig,
         "simulation": SimulationConfig,
         "sweep": SweepConfig,
+        "collision": CollisionConfig,
     }
     top_allowed = set(sections) | {"name", "description"}
     unknown = sorted(set(raw) - top_allowed)
@@ -1033,9 +1170,21 @@ def load_config(path: str | Path) -> ExperimentConfig:
             robot = replace(robot, urdf=(base / robot.urdf).resolve())
         kwargs["robot"] = robot
         plant = kwargs.get("plant", PlantConfig())
+        given = [k for k in ("dt", "integrator") if k in raw.get("plant", {})]
+        if plant.engine == "mujoco" and given:
+            raise ConfigError(
+                f"plant.{given[0]}", "does not apply to engine = 'mujoco'; set "
+                f"plant.mujoco.{'timestep' if given[0] == 'dt' else 'integrator'} instead",
+            )  # fmt: skip
         if plant.urdf is not None and not plant.urdf.is_absolute():
             plant = replace(plant, urdf=(base / plant.urdf).resolve())
         kwargs["plant"] = plant
+        if "collision" in kwargs and kwargs.get("controller", ControllerConfig()).compensation \
+                not in OBSERVERS:
+            raise ConfigError(
+                "collision", "needs a disturbance observer (controller.compensation one of "
+                f"{OBSERVERS}): the collision is flagged on its estimate",
+            )  # fmt: skip
         config = ExperimentConfig(**kwargs, source=path)
     except ConfigError as exc:
         raise ConfigError(exc.key, exc.message, source=src) from None

@@ -32,6 +32,8 @@ class Result:
         joint_names: Names of the joints.
         complete: ``False`` when the run stopped early; ``message`` says why.
         meta: Free-form metadata (config name, settings), saved as JSON.
+        extra: Further arrays by name, each (K+1, n) (e.g. ``contact_force``, MuJoCo's
+            generalized contact force [N·m]), saved as ``extra_<name>``.
     """
 
     t: np.ndarray
@@ -46,6 +48,7 @@ class Result:
     complete: bool = True
     message: str = ""
     meta: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
 
     @property
     def error(self) -> np.ndarray:
@@ -73,6 +76,7 @@ class Result:
             "complete": np.array(self.complete),
             "message": np.array(self.message),
             "meta": np.array(json.dumps(self.meta, sort_keys=True)),
+            **{f"extra_{name}": np.asarray(arr) for name, arr in sorted(self.extra.items())},
         }
         part = path.with_name(path.name + ".part")
         try:
@@ -101,4 +105,5 @@ class Result:
                 complete=bool(f["complete"]),
                 message=str(f["message"]),
                 meta=json.loads(str(f["meta"])),
+                extra={k[len("extra_") :]: f[k] for k in f.files if k.startswith("extra_")},
             )

@@ -195,7 +195,8 @@ def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
         import_urdf_dynamics=mc.import_urdf_dynamics,
         geometry=mc.geometry,
         obstacle=None if ob is None else Obstacle(
-            tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction
+            tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction,
+            tuple(ob.solref.tolist()),
         ),
         **per_joint,
     )  # fmt: skip

@@ -619,11 +619,14 @@ class ObstacleConfig:
         position: Centre [x, y, z] in the world frame [m].
         size: Half-lengths [x, y, z] [m] (MuJoCo's box ``size``).
         friction: Sliding friction coefficient of the contact [-] (default 0.5).
+        solref: Softness of the surface, MuJoCo's contact ``solref`` [time constant [s],
+            damping ratio] (default MuJoCo's [0.02, 1]; larger time constant: softer).
     """
 
     position: np.ndarray = field(default_factory=lambda: np.zeros(3))
     size: np.ndarray = field(default_factory=lambda: np.full(3, 0.1))
     friction: float = 0.5
+    solref: np.ndarray = field(default_factory=lambda: np.array([0.02, 1.0]))
 
     def __post_init__(self):
         for name in ("position", "size"):
@@ -632,6 +635,10 @@ class ObstacleConfig:
                 raise ConfigError(name, f"expected [x, y, z], got {arr.tolist()}")
             _set(self, name, arr)
         _set(self, "friction", _float("friction", self.friction, nonneg=True))
+        solref = _array("solref", self.solref, positive=True)
+        if solref.shape != (2,):
+            raise ConfigError("solref", f"expected [time constant, damping ratio], got {solref!r}")
+        _set(self, "solref", solref)
 
 
 @dataclass(frozen=True, eq=False)

@@ -108,11 +108,15 @@ class Obstacle:
         size: Half-lengths of the box along the world x, y, z axes [m], (3,) (MuJoCo's
             box ``size``).
         friction: Sliding friction coefficient of the contact [-].
+        solref: MuJoCo's contact ``solref`` (time constant [s], damping ratio [-]): the
+            softness of the surface (MuJoCo's default 0.02, 1; larger is softer, e.g. a
+            padded surface). The obstacle's values are the contact's (geom priority).
     """
 
     position: tuple[float, float, float]
     size: tuple[float, float, float]
     friction: float = 0.5
+    solref: tuple[float, float] = (0.02, 1.0)
 
     def __post_init__(self):
         for name in ("position", "size"):
@@ -124,6 +128,10 @@ class Obstacle:
             object.__setattr__(self, name, tuple(float(x) for x in value))
         if not (math.isfinite(self.friction) and self.friction >= 0):
             raise ConfigError("friction", f"expected a number >= 0, got {self.friction!r}")
+        sr = np.asarray(self.solref, dtype=float)
+        if sr.shape != (2,) or not np.all(np.isfinite(sr)) or np.any(sr <= 0):
+            raise ConfigError("solref", f"expected [time constant > 0, damping ratio > 0], got {sr!r}")
+        object.__setattr__(self, "solref", (float(sr[0]), float(sr[1])))
 
 
 @dataclass(frozen=True)
@@ -337,7 +345,10 @@ def urdf_for_mujoco(
                 )  # fmt: skip
             mesh.set("filename", str(file))
     mj = ET.Element("mujoco")
-    ET.SubElement(mj, "compiler", {"strippath": "false", "discardvisual": "true"})
+    # Inertias from the URDF only (as Pinocchio): a link without <inertial> is massless.
+    ET.SubElement(
+        mj, "compiler", {"strippath": "false", "discardvisual": "true", "inertiafromgeom": "false"}
+    )
     root.insert(0, mj)
     return ET.tostring(root, encoding="unicode")
 
@@ -359,6 +370,8 @@ def _compile(xml: str, source: str, obstacle: Obstacle | None):
                 contype=OBSTACLE_CONTYPE,
                 conaffinity=OBSTACLE_CONAFFINITY,
                 friction=[obstacle.friction, 0.005, 0.0001],
+                solref=list(obstacle.solref),
+                priority=1,
                 rgba=[0.6, 0.6, 0.6, 0.5],
             )
         return spec.compile()

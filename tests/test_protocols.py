@@ -20,12 +20,15 @@ import hmpc_pin
 from hmpc_pin.compensation import (
     Compensation,
     DisturbanceObserver,
+    FeedbackGate,
     IntegralSlidingMode,
     MomentumObserver,
     NoCompensation,
 )
 from hmpc_pin.controllers import Controller, MeasuredController, TimedController
+from hmpc_pin.controllers.wrappers import CollisionReaction
 from hmpc_pin.sim import EulerPlant, Plant, RK4Plant
+from hmpc_pin.sim.mujoco import MuJoCoPlant
 from hmpc_pin.tasks import QuinticReference, Reference, SineReference, as_reference
 
 N_JOINTS = 3
@@ -126,6 +129,7 @@ COMPENSATIONS = {
     "ism": lambda r: IntegralSlidingMode(r.nq, 0.01, 200.0),
     "ism-bl": lambda r: IntegralSlidingMode(r.nq, 0.01, 200.0, 2.0),
     "none": lambda r: NoCompensation(r.nq),
+    "gate(chen)": lambda r: FeedbackGate(DisturbanceObserver(r.nq, 0.01, 100.0, "chen")),
 }
 
 
@@ -152,7 +156,7 @@ def test_compensation_conformance(robot, name):
         assert np.all(np.isfinite(comp.estimate))
 
 
-PLANTS = {"rk4": RK4Plant, "euler": EulerPlant}
+PLANTS = {"rk4": RK4Plant, "euler": EulerPlant, "mujoco": MuJoCoPlant}
 
 
 @pytest.mark.parametrize("name", sorted(PLANTS))
@@ -196,6 +200,7 @@ CONTROLLERS = {
     ),
     "measured": lambda r: MeasuredController(hmpc_pin.make_controller(r)),
     "timed": lambda r: TimedController(hmpc_pin.make_controller(r)),
+    "collision": lambda r: CollisionReaction(hmpc_pin.make_controller(r), 1e3, "stop"),
 }
 
 

@@ -152,7 +152,8 @@ def draw_samples(config: ExperimentConfig, samples: int, seed: int) -> list[Samp
 
 
 def perturbed_config(config: ExperimentConfig, params: SampleParams) -> ExperimentConfig:
-    """``config`` with the friction and pulse amplitudes of ``params`` applied."""
+    """``config`` with the friction and pulse amplitudes of ``params`` applied (the friction
+    factor also to the MuJoCo plant's joint ``frictionloss`` and ``damping``)."""
     dc = config.disturbance
     friction, pulse = dc.friction, dc.pulse
     if friction is not None:
@@ -160,7 +161,13 @@ def perturbed_config(config: ExperimentConfig, params: SampleParams) -> Experime
         friction = replace(friction, viscous=k * friction.viscous, coulomb=k * friction.coulomb)
     if pulse is not None:
         pulse = replace(pulse, amplitude=np.array(params.disturbance) * pulse.amplitude)
-    return replace(config, disturbance=replace(dc, friction=friction, pulse=pulse))
+    config = replace(config, disturbance=replace(dc, friction=friction, pulse=pulse))
+    mc = config.plant.mujoco
+    if mc is not None:  # the MuJoCo arm's own friction: the same factor per joint
+        k = np.array(params.friction)
+        mc = replace(mc, frictionloss=k * mc.frictionloss, damping=k * mc.damping)
+        config = replace(config, plant=replace(config.plant, mujoco=mc))
+    return config
 
 
 def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> dict:

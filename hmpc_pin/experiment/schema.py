@@ -968,7 +968,8 @@ class SweepConfig:
     Attributes:
         mass: Factor range on each plant link's mass and rotational inertia (one factor
             per link, centre of mass unchanged: a uniformly denser or lighter link).
-        friction: Factor range per joint on the viscous and Coulomb coefficients
+        friction: Factor range per joint on the viscous and Coulomb coefficients (and on
+            the MuJoCo plant's joint frictionloss and damping)
             (one factor per joint for both).
         disturbance: Factor range per joint on the Gaussian pulse amplitude.
         q_noise: Standard deviation of the white noise added to each measured joint

@@ -13,7 +13,7 @@ The package is layered; each layer imports only the layers below it (tested)::
       │
     experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
       │
-    sim/           disturbances · plants (Plant protocol: RK4, Euler) · simulate · Result
+    sim/           disturbances · plants (Plant protocol: RK4, Euler, MuJoCo) · simulate · Result
       │
     controllers/   Controller protocol · HierarchicalMPC · ComputedTorque · wrappers
       │      ╲
@@ -80,6 +80,7 @@ from .sim import (
     Disturbance,
     EulerPlant,
     GaussianPulse,
+    MuJoCoPlant,
     Periodic,
     Plant,
     Result,
@@ -123,6 +124,7 @@ __all__ = [
     "MeasuredController",
     "Metrics",
     "MomentumObserver",
+    "MuJoCoPlant",
     "NoCompensation",
     "NonFiniteError",
     "ObserverConfig",

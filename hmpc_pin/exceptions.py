@@ -185,5 +185,5 @@ class ExtraError(HmpcError, ImportError):
         self.needed_for = needed_for
         super().__init__(
             f"{needed_for} needs the optional package of the extra {extra!r}, which is not "
-            f"installed; install it with: pip install \"hmpc_pin[{extra}]\""
+            f'installed; install it with: pip install "hmpc_pin[{extra}]"'
         )

@@ -161,7 +161,7 @@ def test_relative_and_missing_mesh_paths(tmp_path):
     model = mujoco_model(load_robot(path, 9.8))
     assert model.nmesh == 1
     mesh.unlink()
-    with pytest.raises(URDFError, match="tip.obj"):
+    with pytest.raises(URDFError, match=r"tip\.obj"):
         mujoco_model(load_robot(path, 9.8))
     # without geometry the missing mesh does not matter (dynamics only)
     assert mujoco_model(load_robot(path, 9.8), MuJoCoSettings(geometry="none")).ngeom == 0
@@ -299,8 +299,8 @@ def test_disturbance_is_applied_as_generalized_force(planar3):
         p.reset(q0, np.zeros(3))
     tau = planar3.gravity_torque(q0)
     for _ in range(20):
-        qa, dqa = a.advance(tau)
-        qb, dqb = b.advance(tau + d)
+        qa, _ = a.advance(tau)
+        qb, _ = b.advance(tau + d)
     np.testing.assert_allclose(qa, qb, atol=1e-12)
     np.testing.assert_allclose(a.disturbance_now(), d, atol=1e-12)  # no engine forces here
 
@@ -331,7 +331,7 @@ def test_dry_friction_holds_the_arm_below_its_breakaway_torque(planar3):
         p = MuJoCoPlant(planar3, None, 0.01, 0.001, s)
         p.reset(q0, np.zeros(3))
         for _ in range(50):
-            q, dq = p.advance(G + extra)
+            q, _ = p.advance(G + extra)
         assert (np.abs(q - q0).max() > 0.05) == moves
 
 
@@ -492,7 +492,7 @@ def test_bad_plant_tables(write_config, plant, match):
 
 def test_bad_lengths_and_timestep_fail_at_build(write_config):
     base = '[robot]\nurdf = "@URDF@"\n[plant]\nengine = "mujoco"\n[plant.mujoco]\n'
-    with pytest.raises(ConfigError, match="plant.mujoco.damping.*3 joints"):
+    with pytest.raises(ConfigError, match=r"plant.mujoco.damping.*3 joints"):
         Experiment.from_config(load_config(write_config(base + "damping = [1.0, 2.0]\n")))
     with pytest.raises(ConfigError, match="does not divide"):
         Experiment.from_config(load_config(write_config(base + "timestep = 0.003\n")))
@@ -501,7 +501,7 @@ def test_bad_lengths_and_timestep_fail_at_build(write_config):
 def test_collision_needs_an_observer(write_config):
     text = ('[robot]\nurdf = "@URDF@"\n[controller]\ncompensation = "none"\n'
             '[collision]\nthreshold = 1.0\n')  # fmt: skip
-    with pytest.raises(ConfigError, match="collision.*observer"):
+    with pytest.raises(ConfigError, match=r"collision.*observer"):
         load_config(write_config(text))
     ok = load_config(write_config(text.replace('"none"', '"chen"')))
     assert Experiment.from_config(ok, observer=False).config.controller.compensation == "none"

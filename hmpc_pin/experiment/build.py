@@ -49,8 +49,8 @@ __all__ = [
     "load_robot_config",
     "make_compensation",
     "make_controller",
-    "mujoco_settings",
     "mpc_settings",
+    "mujoco_settings",
     "run_experiment",
     "uses_observer",
     "warn_validity",
@@ -435,9 +435,11 @@ class Experiment:
     def run(self, duration: float | None = None, on_step=None) -> Result:
         """Simulate the closed loop for ``duration`` [s] (default: the config's).
 
-        ``on_step(t, q, q_ref)`` is called at every control instant (live view).
+        ``on_step(t, q, q_ref)`` is called at every control instant (live view). The
+        result's ``meta`` records the plant's engine and version (and, with a collision
+        watch, the flag); on MuJoCo ``extra["contact_force"]`` holds the generalized
+        contact force [N·m] at each instant (mean over the period before it).
         """
-        cfg = self.config
         plant = self.make_plant()
         try:
             result = self._simulate(plant, duration, on_step)
@@ -456,9 +458,7 @@ class Experiment:
             contact = np.array(plant.history[: len(result.t)])
             result.extra["contact_force"] = contact
             touching = np.flatnonzero(np.abs(contact).max(axis=1) > 0)
-            result.meta["first_contact"] = (
-                float(result.t[touching[0]]) if touching.size else None
-            )
+            result.meta["first_contact"] = float(result.t[touching[0]]) if touching.size else None
         else:
             import pinocchio
 

@@ -38,8 +38,8 @@ __all__ = [
     "FrictionConfig",
     "ISMConfig",
     "MuJoCoConfig",
-    "ObstacleConfig",
     "ObserverConfig",
+    "ObstacleConfig",
     "PlantConfig",
     "PulseConfig",
     "ReferenceConfig",
@@ -739,8 +739,10 @@ class PlantConfig:
         if self.engine == "mujoco":
             if self.mujoco is None:
                 _set(self, "mujoco", MuJoCoConfig())
-            for key, default, instead in (("dt", 0.001, "timestep"), ("integrator", "rk4",
-                                                                      "integrator")):
+            for key, default, instead in (
+                ("dt", 0.001, "timestep"),
+                ("integrator", "rk4", "integrator"),
+            ):
                 if getattr(self, key) != default:
                     raise ConfigError(
                         key, f"does not apply to engine = 'mujoco'; set "
@@ -1187,8 +1189,10 @@ def load_config(path: str | Path) -> ExperimentConfig:
         if plant.urdf is not None and not plant.urdf.is_absolute():
             plant = replace(plant, urdf=(base / plant.urdf).resolve())
         kwargs["plant"] = plant
-        if "collision" in kwargs and kwargs.get("controller", ControllerConfig()).compensation \
-                not in OBSERVERS:
+        if (
+            "collision" in kwargs
+            and kwargs.get("controller", ControllerConfig()).compensation not in OBSERVERS
+        ):
             raise ConfigError(
                 "collision", "needs a disturbance observer (controller.compensation one of "
                 f"{OBSERVERS}): the collision is flagged on its estimate",

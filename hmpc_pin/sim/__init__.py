@@ -9,6 +9,7 @@ from .disturbances import (
     ZeroDisturbance,
     as_disturbance,
 )
+from .mujoco import MuJoCoPlant, MuJoCoSettings, Obstacle
 from .plants import PLANTS, EulerPlant, Plant, RK4Plant
 from .result import RESULT_ARRAYS, Result
 from .simulate import simulate
@@ -20,6 +21,9 @@ __all__ = [
     "Disturbance",
     "EulerPlant",
     "GaussianPulse",
+    "MuJoCoPlant",
+    "MuJoCoSettings",
+    "Obstacle",
     "Periodic",
     "Plant",
     "RK4Plant",

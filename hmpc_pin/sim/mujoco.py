@@ -55,6 +55,7 @@ from numpy.typing import NDArray
 from ..exceptions import ConfigError, DimensionError, ExtraError, URDFError
 from ..model.robot import Robot
 from .disturbances import ZeroDisturbance
+from .plants import PLANTS, _substeps, split_disturbance
 
 __all__ = [
     "MUJOCO_INTEGRATORS",
@@ -130,7 +131,9 @@ class Obstacle:
             raise ConfigError("friction", f"expected a number >= 0, got {self.friction!r}")
         sr = np.asarray(self.solref, dtype=float)
         if sr.shape != (2,) or not np.all(np.isfinite(sr)) or np.any(sr <= 0):
-            raise ConfigError("solref", f"expected [time constant > 0, damping ratio > 0], got {sr!r}")
+            raise ConfigError(
+                "solref", f"expected [time constant > 0, damping ratio > 0], got {sr!r}"
+            )
         object.__setattr__(self, "solref", (float(sr[0]), float(sr[1])))
 
 
@@ -165,10 +168,13 @@ class MuJoCoSettings:
     def __post_init__(self):
         if self.integrator not in MUJOCO_INTEGRATORS:
             raise ConfigError(
-                "integrator", f"expected one of {tuple(MUJOCO_INTEGRATORS)}, got {self.integrator!r}"
+                "integrator",
+                f"expected one of {tuple(MUJOCO_INTEGRATORS)}, got {self.integrator!r}",
             )
         if self.geometry not in GEOMETRY_SOURCES:
-            raise ConfigError("geometry", f"expected one of {GEOMETRY_SOURCES}, got {self.geometry!r}")
+            raise ConfigError(
+                "geometry", f"expected one of {GEOMETRY_SOURCES}, got {self.geometry!r}"
+            )
         if self.obstacle is not None and self.geometry == "none":
             raise ConfigError(
                 "geometry",
@@ -178,7 +184,9 @@ class MuJoCoSettings:
         for name in ("frictionloss", "damping", "armature"):
             value = np.asarray(getattr(self, name), dtype=float)
             if value.ndim > 1 or not np.all(np.isfinite(value)) or np.any(value < 0):
-                raise ConfigError(name, f"expected numbers >= 0 (one or one per joint), got {value!r}")
+                raise ConfigError(
+                    name, f"expected numbers >= 0 (one or one per joint), got {value!r}"
+                )
 
     def per_joint(self, name: str, n: int) -> np.ndarray:
         """``frictionloss``, ``damping`` or ``armature`` broadcast to ``n`` joints."""
@@ -244,8 +252,10 @@ def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
 
 def _rpy_matrix(rpy) -> np.ndarray:
     r, p, y = rpy
-    return _rotation(np.array([0, 0, 1.0]), y) @ _rotation(np.array([0, 1.0, 0]), p) @ _rotation(
-        np.array([1.0, 0, 0]), r
+    return (
+        _rotation(np.array([0, 0, 1.0]), y)
+        @ _rotation(np.array([0, 1.0, 0]), p)
+        @ _rotation(np.array([1.0, 0, 0]), r)
     )
 
 
@@ -265,7 +275,9 @@ def _lock(joint: ET.Element, value: float) -> None:
     xyz = np.array([float(x) for x in origin.get("xyz", "0 0 0").split()])
     R = _rpy_matrix([float(x) for x in origin.get("rpy", "0 0 0").split()])
     ax = joint.find("axis")
-    axis = np.array([float(x) for x in (ax.get("xyz", "1 0 0") if ax is not None else "1 0 0").split()])
+    axis = np.array(
+        [float(x) for x in (ax.get("xyz", "1 0 0") if ax is not None else "1 0 0").split()]
+    )
     if joint.get("type") == "prismatic":
         xyz = xyz + R @ (value * axis / np.linalg.norm(axis))
     else:  # revolute, continuous
@@ -489,8 +501,6 @@ class MuJoCoPlant:
         dt: float = 0.001,
         settings: MuJoCoSettings | None = None,
     ):
-        from .plants import _substeps, split_disturbance
-
         mujoco = import_mujoco()
         self._mj = mujoco
         self.settings = settings if settings is not None else MuJoCoSettings()
@@ -613,3 +623,6 @@ class MuJoCoPlant:
         self.contact_force = contact / S
         self.history.append(self.contact_force)
         return self.q, self.dq
+
+
+PLANTS[MuJoCoPlant.name] = MuJoCoPlant

@@ -342,10 +342,6 @@ class EulerPlant:
         return q, dq
 
 
-#: Plant classes by ``[plant] integrator`` name (``"mujoco"``: the MuJoCo plant of
-#: :mod:`.mujoco`, chosen by ``[plant] engine``; it needs the ``mujoco`` extra).
+#: Plant classes by ``[plant] integrator`` name (and ``"mujoco"``: the MuJoCo plant,
+#: registered by :mod:`.mujoco`, chosen by ``[plant] engine``; it needs the ``mujoco`` extra).
 PLANTS: dict[str, type] = {cls.name: cls for cls in (RK4Plant, EulerPlant)}
-
-from .mujoco import MuJoCoPlant  # noqa: E402  (imports mujoco only when built)
-
-PLANTS[MuJoCoPlant.name] = MuJoCoPlant

@@ -438,7 +438,7 @@ class Experiment:
         ``on_step(t, q, q_ref)`` is called at every control instant (live view). The
         result's ``meta`` records the plant's engine and version (and, with a collision
         watch, the flag); on MuJoCo ``extra["contact_force"]`` holds the generalized
-        contact force [N·m] at each instant (mean over the period before it).
+        contact force [N·m] at each instant (of the last MuJoCo step before it).
         """
         plant = self.make_plant()
         try:

@@ -483,9 +483,9 @@ class MuJoCoPlant:
     Attributes:
         model, data: MuJoCo's ``MjModel``/``MjData``.
         contact_force: Generalized contact force :math:`J_c^T f_c` [N·m] on each joint,
-            mean over the MuJoCo steps of the last period (zeros after :meth:`reset`).
+            of MuJoCo's last step of the last period (zeros after :meth:`reset`).
         engine_force: Everything MuJoCo adds beyond :math:`\\tau + d` (damping, dry
-            friction, limits, contacts) [N·m], mean over the last period.
+            friction, limits, contacts) [N·m], of the last step of the last period.
         history: Per control instant since :meth:`reset`, ``contact_force`` (list of
             arrays), as recorded by :meth:`advance`.
     """
@@ -526,7 +526,8 @@ class MuJoCoPlant:
         )  # fmt: skip
         self.disturbance = disturbance if disturbance is not None else ZeroDisturbance(n)
         split = split_disturbance(self.disturbance, n)
-        # Time-only terms tabulated per period; anything else called at every step.
+        # Time-only terms tabulated per period (none: the torque alone); ``None``: the
+        # disturbance is called at every step.
         self._pulses = split[0] if split is not None and split[1] is None else None
         self._offsets = self.h * np.arange(self.substeps)
         self._contact_rows = tuple(
@@ -537,8 +538,8 @@ class MuJoCoPlant:
                 "mjCNSTR_CONTACT_ELLIPTIC",
             )
         )
-        self._efc = np.zeros(0)
         self._qfrc = np.zeros(model.nv)
+        self._zero = np.zeros(n)
         self.t0, self.k, self.t = 0.0, 0, 0.0
         self.q, self.dq = np.zeros(n), np.zeros(n)
         self.contact_force = np.zeros(n)
@@ -573,7 +574,8 @@ class MuJoCoPlant:
     def disturbance_now(self) -> FloatArray:
         """What the controller's model does not know [N·m]: the config's
         :math:`d(t, q, \\dot q)` now plus MuJoCo's damping, dry friction, limit and contact
-        forces (their mean over the last period: they depend on the torque held)."""
+        forces (of the last step of the period that ended now: they depend on the torque
+        held)."""
         return np.asarray(self.disturbance(self.t, self.q, self.dq)) + self.engine_force
 
     def generalized_contact_force(self) -> FloatArray:
@@ -588,39 +590,47 @@ class MuJoCoPlant:
         return self._qfrc[self.vadr].copy()
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Step MuJoCo over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
+        """Step MuJoCo over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``.
+
+        The applied generalized force of step s is :math:`\\tau + d(t_s, q_s, \\dot q_s)`.
+        Time-only terms (the pulses) are tabulated for the whole period in one call each
+        and the steps run in a tight loop (one ``mj_step`` per step); without any
+        disturbance the period is one ``mj_step(model, data, nstep)`` call; any other
+        disturbance is called at every step with the state MuJoCo has reached.
+        """
         m, d, step = self.model, self.data, self._mj.mj_step
         S, v = self.substeps, self.vadr
-        times = self.t + self._offsets
-        engine = np.zeros(self.n)
-        contact = np.zeros(self.n)
-        if self._pulses is not None:
-            applied = np.broadcast_to(np.asarray(tau, dtype=float), (S, self.n)).copy()
-            for term in self._pulses:
-                applied += term.sample_times(times)
-        else:
-            applied = None
-        dist = self.disturbance
         qfrc = d.qfrc_applied
-        for s in range(S):
-            if applied is not None:
-                u = applied[s]
-            else:
-                u = tau + dist(float(times[s]), d.qpos[self.qadr], d.qvel[v])
+        pulses = self._pulses
+        if pulses is not None and not pulses:  # torque only: one call for the period
             if self._ident:
-                qfrc[:] = u
+                qfrc[:] = tau
             else:
-                qfrc[v] = u
-            step(m, d)
-            engine += d.qfrc_constraint[v]
-            engine += d.qfrc_passive[v]
-            if d.ncon:
-                contact += self.generalized_contact_force()
+                qfrc[v] = tau
+            step(m, d, S)
+        elif pulses is not None:
+            times = self.t + self._offsets
+            applied = np.add(tau, pulses[0].sample_times(times))
+            for term in pulses[1:]:
+                applied += term.sample_times(times)
+            if self._ident:
+                for row in applied:
+                    qfrc[:] = row
+                    step(m, d)
+            else:
+                for row in applied:
+                    qfrc[v] = row
+                    step(m, d)
+        else:
+            dist, qadr, h, t = self.disturbance, self.qadr, self.h, self.t
+            for s in range(S):
+                qfrc[v] = tau + dist(t + s * h, d.qpos[qadr], d.qvel[v])
+                step(m, d)
         self.k += 1
         self.t = self.t0 + self.Ts * self.k
-        self.q, self.dq = d.qpos[self.qadr].copy(), d.qvel[v].copy()
-        self.engine_force = engine / S
-        self.contact_force = contact / S
+        self.q, self.dq = d.qpos[self.qadr], d.qvel[v]  # fancy indexing: new arrays
+        self.engine_force = d.qfrc_constraint[v] + d.qfrc_passive[v]
+        self.contact_force = self.generalized_contact_force() if d.ncon else self._zero
         self.history.append(self.contact_force)
         return self.q, self.dq
 

@@ -512,3 +512,29 @@ def test_pinocchio_result_records_its_engine():
                                          plant=PlantConfig())).run(duration=0.05)  # fmt: skip
     assert res.meta["engine"] == "pinocchio" and res.meta["engine_version"] == pin.__version__
     assert "contact_force" not in res.extra
+
+
+# ------------------------------------------------------------------- views
+def test_cli_live_view_and_replay_show_the_obstacle(tmp_path, capsys):
+    pytest.importorskip("meshcat")
+    from .test_viz import _commands
+
+    cfg = str(CONFIGS / "planar3_contact_mujoco.toml")
+    html = tmp_path / "run.html"
+    argv = ["run", cfg, "--out", str(tmp_path), "--duration", "2", "--viz", "--speed", "100",
+            "--replay", str(html)]  # fmt: skip
+    assert main(argv) == 0
+    assert "Meshcat live view: open http://127.0.0.1:" in capsys.readouterr().out
+    saved = tmp_path / "planar3_contact_mujoco.npz"
+    again = tmp_path / "again.html"
+    assert main(["replay", str(saved), "--out", str(again)]) == 0
+    for page in (html, again):
+        commands = _commands(page.read_text())
+        (box,) = [
+            c for c in commands if c["type"] == "set_object" and c["path"].endswith("obstacle")
+        ]
+        geometry = box["object"]["geometries"][0]
+        assert (geometry["width"], geometry["height"], geometry["depth"]) == (0.6, 1.0, 0.7)
+        (place,) = [c for c in commands if c["type"] == "set_transform"
+                    and c["path"].endswith("obstacle")]  # fmt: skip
+        np.testing.assert_allclose(np.reshape(place["matrix"], (4, 4)).T[:3, 3], [1.5, 0, 0.35])

@@ -41,12 +41,13 @@ def write_csv(result: Result, path: Path) -> Path:
     return path
 
 
-def live_view(robot, speed: float):
-    """A :class:`~hmpc_pin.viz.LiveView`, or ``None`` with a warning if Meshcat cannot run."""
+def live_view(robot, speed: float, obstacle: dict | None = None):
+    """A :class:`~hmpc_pin.viz.LiveView` (with the MuJoCo scene's ``obstacle``, if any), or
+    ``None`` with a warning if Meshcat cannot run."""
     from .viz import LiveView, VizError
 
     try:
-        view = LiveView(robot, speed=speed)
+        view = LiveView(robot, speed=speed, obstacle=obstacle)
     except VizError as exc:
         print(f"warning: no live view: {exc}; the run goes on and is saved", file=sys.stderr)
         return None
@@ -64,7 +65,7 @@ def run_one(config: ExperimentConfig, out: Path, stem: str | None = None, viz: f
 
     stem = stem or config.name
     experiment = Experiment.from_config(config)
-    view = live_view(experiment.robot, viz) if viz is not None else None
+    view = live_view(experiment.robot, viz, experiment.obstacle) if viz is not None else None
     failure = None
     try:
         result = experiment.run(on_step=view)

@@ -29,6 +29,21 @@ __all__ = ["LiveView", "VizError", "export_replay", "visual_model"]
 ARM = "arm"
 GHOST = "reference"
 GHOST_RGBA = [0.6, 0.6, 0.6, 0.35]
+OBSTACLE = "obstacle"
+
+
+def draw_obstacle(vis, obstacle: dict | None) -> None:
+    """Draw the MuJoCo scene's box (``{"position": [x, y, z], "size": [half-lengths]}``
+    [m], as recorded in a result's ``meta["obstacle"]``); nothing for ``None``."""
+    if not obstacle:
+        return
+    geom = _meshcat().geometry
+    size = [2.0 * float(h) for h in obstacle["size"]]
+    material = geom.MeshLambertMaterial(color=0x8C8C8C, opacity=0.6, transparent=True)
+    vis[OBSTACLE].set_object(geom.Box(size), material)
+    placement = np.eye(4)
+    placement[:3, 3] = np.asarray(obstacle["position"], dtype=float)
+    vis[OBSTACLE].set_transform(placement)
 
 
 def _meshcat():
@@ -143,12 +158,20 @@ class LiveView:
         speed: Simulated seconds per real second (1 = real time; ``inf`` = as fast as possible).
         fps: Maximum display rate [1/s].
         ghost: Draw the reference as a translucent arm.
+        obstacle: The MuJoCo scene's box to draw (:func:`draw_obstacle`), or ``None``.
 
     Attributes:
         url: The browser URL of the Meshcat server.
     """
 
-    def __init__(self, robot, speed: float = 1.0, fps: float = 50.0, ghost: bool = True):
+    def __init__(
+        self,
+        robot,
+        speed: float = 1.0,
+        fps: float = 50.0,
+        ghost: bool = True,
+        obstacle: dict | None = None,
+    ):
         import time
 
         meshcat = _meshcat()
@@ -163,6 +186,7 @@ class LiveView:
         self.url = self.vis.url()
         self.vis.delete()
         self.roots = _load_scene(self.vis, robot, self.gmodel, ghost)
+        draw_obstacle(self.vis, obstacle)
         self._interval = self.period * self.speed if np.isfinite(self.speed) else self.period
         self._start = None
         self._last = -np.inf
@@ -226,7 +250,8 @@ def export_replay(
 
     The page needs no server and no network: Meshcat's ``static_html`` inlines the
     viewer's JavaScript and the scene, animation included (play/pause/scrub in
-    the page's Animations panel).
+    the page's Animations panel). A run on MuJoCo with an obstacle draws it too
+    (``result.meta["obstacle"]``).
 
     Args:
         robot: The arm (its URDF's visual geometry is drawn).
@@ -250,6 +275,7 @@ def export_replay(
     try:
         vis.delete()
         names = _load_scene(vis, robot, gmodel, ghost)
+        draw_obstacle(vis, result.meta.get("obstacle"))
         roots = [(name, result.q if name == ARM else result.q_ref) for name in names]
         if tool_path:
             lines = (("tool_path", result.q, 0xD62728), ("tool_ref", result.q_ref, 0x333333))

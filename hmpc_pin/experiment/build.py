@@ -455,6 +455,9 @@ class Experiment:
         result.meta["engine"] = pc.engine
         if isinstance(plant, MuJoCoPlant):
             result.meta["engine_version"] = plant.version
+            ob = plant.settings.obstacle
+            if ob is not None:
+                result.meta["obstacle"] = {"position": list(ob.position), "size": list(ob.size)}
             contact = np.array(plant.history[: len(result.t)])
             result.extra["contact_force"] = contact
             touching = np.flatnonzero(np.abs(contact).max(axis=1) > 0)
@@ -512,6 +515,14 @@ class Experiment:
             "lower": np.where(ok, lo, -np.inf).tolist(),
             "upper": np.where(ok, hi, np.inf).tolist(),
         }
+
+    @property
+    def obstacle(self) -> dict | None:
+        """The MuJoCo scene's box as ``{"position", "size"}`` [m] (for a view), or ``None``."""
+        mc = self.config.plant.mujoco
+        if mc is None or mc.obstacle is None:
+            return None
+        return {"position": mc.obstacle.position.tolist(), "size": mc.obstacle.size.tolist()}
 
     def make_plant(self) -> Plant:
         """A new plant of ``[plant]`` (its integrator, step and this experiment's

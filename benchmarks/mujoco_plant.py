@@ -89,24 +89,32 @@ def measure(blocks: int) -> dict:
     return rows
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--blocks", type=int, default=7, help="alternating blocks [7]")
-    args = parser.parse_args()
-    rows = measure(args.blocks)
-    print(f"{args.blocks} alternating blocks, medians; ratios: median over blocks of the "
-          "ratio to rk4 in the same block")  # fmt: skip
-    print(
-        "| plant | run() [s] | run / rk4 | plant advance [s] | plant / rk4 | worst RMS (t≥1 s) [rad] |"
-    )
-    print("|---|---|---|---|---|---|")
+def table(rows: dict, blocks: int) -> str:
+    """The Markdown table of :func:`measure`'s rows."""
+    lines = [
+        f"{blocks} alternating blocks, medians; ratios: median over blocks of the ratio to "
+        "rk4 in the same block",
+        "",
+        "| plant | run() [s] | run / rk4 | plant advance [s] | plant / rk4 "
+        "| worst RMS (t≥1 s) [rad] |",
+        "|---|---|---|---|---|---|",
+    ]
     for name, r in rows.items():
-        print(
+        lines.append(
             f"| {name} | {np.median(r['run']):.3f} | {np.median(r['run_ratio']):.2f} | "
             f"{np.median(r['plant']):.3f} | {np.median(r['plant_ratio']):.2f} | "
             f"{np.median(r['rms']):.2e} |"
         )
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--blocks", type=int, default=7, help="alternating blocks [7]")
+    args = parser.parse_args(argv)
+    print(table(measure(args.blocks), args.blocks))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -32,3 +32,18 @@ def test_long_run_is_stationary_over_three_minutes():
     assert run["rms"].shape == (3, 3) and np.all(run["rms"] > 0)
     assert np.all(deviation(run["rms"]) <= 0.10), format_table(run)
     assert "PASS" in format_table(run)
+
+
+@pytest.mark.slow
+def test_mujoco_plant_benchmark_runs_and_both_engines_track():
+    """benchmarks/mujoco_plant.py: one block; the three settings reach the paper's accuracy."""
+    import numpy as np
+
+    from benchmarks.mujoco_plant import measure, table
+
+    rows = measure(1)
+    assert set(rows) == {"rk4", "mujoco", "mujoco-formula"}
+    for r in rows.values():
+        assert 0 < r["plant"][0] < r["run"][0] and r["rms"][0] < 2e-3
+    assert rows["rk4"]["run_ratio"] == [1.0]
+    assert "| mujoco |" in table(rows, 1) and np.isfinite(rows["mujoco"]["plant_ratio"][0])

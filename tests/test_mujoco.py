@@ -538,3 +538,24 @@ def test_cli_live_view_and_replay_show_the_obstacle(tmp_path, capsys):
         (place,) = [c for c in commands if c["type"] == "set_transform"
                     and c["path"].endswith("obstacle")]  # fmt: skip
         np.testing.assert_allclose(np.reshape(place["matrix"], (4, 4)).T[:3, 3], [1.5, 0, 0.35])
+
+
+def test_plant_pickles_mid_run_and_continues_identically(planar3):
+    # (a real-time loop may run the plant in another process)
+    import pickle
+
+    from hmpc_pin.sim.disturbances import GaussianPulse
+
+    pulse = GaussianPulse([10.0, 8.0, 0.3], [0.05, 0.1, 0.15], 0.03)
+    plant = MuJoCoPlant(planar3, pulse, 0.01, 0.001, MuJoCoSettings(frictionloss=1.0))
+    plant.reset(np.array([0.3, -0.2, 0.1]), np.zeros(3))
+    tau = np.array([5.0, 2.0, 0.5])
+    for _ in range(5):
+        plant.advance(tau)
+    copy = pickle.loads(pickle.dumps(plant))
+    for _ in range(10):
+        q1, dq1 = plant.advance(tau)
+        q2, dq2 = copy.advance(tau)
+    np.testing.assert_array_equal(q1, q2)
+    np.testing.assert_array_equal(dq1, dq2)
+    assert copy.t == plant.t

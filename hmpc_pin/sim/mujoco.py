@@ -551,6 +551,16 @@ class MuJoCoPlant:
         """MuJoCo's version."""
         return str(self._mj.__version__)
 
+    def __getstate__(self) -> dict:
+        """Picklable (e.g. to run the plant in another process): all but the module."""
+        state = self.__dict__.copy()
+        del state["_mj"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._mj = import_mujoco()
+
     def reset(self, q0: FloatArray, dq0: FloatArray, t0: float = 0.0) -> None:
         """Start at ``(q0, dq0)`` [rad, rad/s] at time ``t0`` [s]."""
         q = np.array(q0, dtype=float)

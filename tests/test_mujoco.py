@@ -559,3 +559,22 @@ def test_plant_pickles_mid_run_and_continues_identically(planar3):
     np.testing.assert_array_equal(q1, q2)
     np.testing.assert_array_equal(dq1, dq2)
     assert copy.t == plant.t
+
+
+def test_obstacle_the_arm_cannot_touch_is_an_error(planar3):
+    # planar3.urdf has no <collision> tags: with geometry = "collision" nothing could touch
+    box = Obstacle((1.0, 0.0, 0.0), (0.1, 0.1, 0.1))
+    with pytest.raises(URDFError, match=r"no collision geometry.*geometry = 'visual'"):
+        mujoco_model(planar3, MuJoCoSettings(obstacle=box))
+    assert mujoco_model(planar3, MuJoCoSettings(geometry="visual", obstacle=box)).ngeom > 1
+
+
+def test_cli_compare_and_sweep_run_on_mujoco(tmp_path, capsys):
+    cfg = str(CONFIGS / "paper_combined_mujoco.toml")
+    assert main(["compare", cfg, "--out", str(tmp_path), "--duration", "0.3"]) == 0
+    argv = ["sweep", cfg, "--out", str(tmp_path), "--samples", "1", "--duration", "0.3",
+            "--jobs", "1", "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    rows = (tmp_path / "paper_combined_mujoco_sweep.csv").read_text().strip().splitlines()
+    assert len(rows) == 3  # header + the NDO and no-NDO runs of the one sample
+    assert all(",True," in row for row in rows[1:])

@@ -411,6 +411,11 @@ def mujoco_model(robot: Robot, settings: MuJoCoSettings | None = None):
             source, f"MuJoCo's model has the joints {names} but the controller's "
             f"{list(robot.joint_names)}; they must be the same joints",
         )  # fmt: skip
+    if s.obstacle is not None and model.ngeom < 2:  # the obstacle is the only geom
+        raise URDFError(
+            source, f"the arm has no {s.geometry} geometry, so it can never touch the obstacle; "
+            "use [plant.mujoco] geometry = 'visual' (its visual shapes) or add <collision> tags",
+        )  # fmt: skip
     dofs = np.array([model.joint(name).dofadr[0] for name in robot.joint_names])
     n = robot.nq
     for name in ("frictionloss", "damping", "armature"):

@@ -578,3 +578,15 @@ def test_cli_compare_and_sweep_run_on_mujoco(tmp_path, capsys):
     rows = (tmp_path / "paper_combined_mujoco_sweep.csv").read_text().strip().splitlines()
     assert len(rows) == 3  # header + the NDO and no-NDO runs of the one sample
     assert all(",True," in row for row in rows[1:])
+
+
+def test_csv_holds_the_contact_force(contact_runs, tmp_path):
+    import csv
+
+    from hmpc_pin.apps.run import write_csv
+
+    _, _, res = contact_runs["stop"]
+    with open(write_csv(res, tmp_path / "r.csv"), encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    col = rows[0].index("contact_force_joint1")
+    np.testing.assert_allclose([float(r[col]) for r in rows[1:]], res.extra["contact_force"][:, 0])

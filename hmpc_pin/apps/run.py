@@ -21,19 +21,26 @@ def write_csv(result: Result, path: Path) -> Path:
     """Write the trajectories as CSV: ``t`` then ``<array>_<joint>`` for every array and joint.
 
     Arrays (in order): q, dq, tau, d, d_hat, q_ref, dq_ref, in rad, rad/s and N·m; the
-    columns of a prismatic joint are in m, m/s and N and say so: ``q_<joint> [m]``.
+    columns of a prismatic joint are in m, m/s and N and say so: ``q_<joint> [m]``. Then the
+    result's ``extra`` arrays by name (generalized forces, e.g. ``contact_force`` of a MuJoCo
+    run with an obstacle).
     """
     from .metrics import UNITS, joint_units
 
     names = result.joint_names or tuple(f"joint{i + 1}" for i in range(result.q.shape[1]))
     which = {"q": 0, "q_ref": 0, "dq": 1, "dq_ref": 1, "tau": 2, "d": 2, "d_hat": 2}
     units = joint_units(result)
+    extra = sorted(result.extra)
     header = ["t"] + [
-        f"{a}_{j}" + ("" if u == UNITS["revolute"] else f" [{u[which[a]]}]")
-        for a in RESULT_ARRAYS[1:]
+        f"{a}_{j}" + ("" if u == UNITS["revolute"] else f" [{u[which.get(a, 2)]}]")
+        for a in (*RESULT_ARRAYS[1:], *extra)
         for j, u in zip(names, units, strict=True)
     ]
-    table = np.column_stack([result.t] + [getattr(result, a) for a in RESULT_ARRAYS[1:]])
+    table = np.column_stack(
+        [result.t]
+        + [getattr(result, a) for a in RESULT_ARRAYS[1:]]
+        + [result.extra[a] for a in extra]
+    )
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(header)

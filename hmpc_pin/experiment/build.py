@@ -437,8 +437,9 @@ class Experiment:
 
         ``on_step(t, q, q_ref)`` is called at every control instant (live view). The
         result's ``meta`` records the plant's engine and version (and, with a collision
-        watch, the flag); on MuJoCo ``extra["contact_force"]`` holds the generalized
-        contact force [N·m] at each instant (of the last MuJoCo step before it).
+        watch, the flag); on MuJoCo with an obstacle ``extra["contact_force"]`` holds the
+        generalized contact force [N·m] at each instant (of the last MuJoCo step before
+        it) and ``meta["first_contact"]`` the first instant it is not zero.
         """
         plant = self.make_plant()
         try:
@@ -456,12 +457,14 @@ class Experiment:
         if isinstance(plant, MuJoCoPlant):
             result.meta["engine_version"] = plant.version
             ob = plant.settings.obstacle
-            if ob is not None:
+            if ob is not None:  # (without an obstacle MuJoCo's contacts are off)
                 result.meta["obstacle"] = {"position": list(ob.position), "size": list(ob.size)}
-            contact = np.array(plant.history[: len(result.t)])
-            result.extra["contact_force"] = contact
-            touching = np.flatnonzero(np.abs(contact).max(axis=1) > 0)
-            result.meta["first_contact"] = float(result.t[touching[0]]) if touching.size else None
+                contact = np.array(plant.history[: len(result.t)])
+                result.extra["contact_force"] = contact
+                touching = np.flatnonzero(np.abs(contact).max(axis=1) > 0)
+                result.meta["first_contact"] = (
+                    float(result.t[touching[0]]) if touching.size else None
+                )
         else:
             import pinocchio
 

@@ -491,8 +491,8 @@ class MuJoCoPlant:
             of MuJoCo's last step of the last period (zeros after :meth:`reset`).
         engine_force: Everything MuJoCo adds beyond :math:`\\tau + d` (damping, dry
             friction, limits, contacts) [N·m], of the last step of the last period.
-        history: Per control instant since :meth:`reset`, ``contact_force`` (list of
-            arrays), as recorded by :meth:`advance`.
+        history: With an obstacle, ``contact_force`` at every control instant since
+            :meth:`reset` (a list of arrays); empty without (contacts are off).
     """
 
     name = "mujoco"
@@ -545,6 +545,7 @@ class MuJoCoPlant:
         )
         self._qfrc = np.zeros(model.nv)
         self._zero = np.zeros(n)
+        self._contacts = self.settings.obstacle is not None
         self.t0, self.k, self.t = 0.0, 0, 0.0
         self.q, self.dq = np.zeros(n), np.zeros(n)
         self.contact_force = np.zeros(n)
@@ -584,7 +585,7 @@ class MuJoCoPlant:
         self.t0, self.k, self.t = float(t0), 0, float(t0)
         self.contact_force = np.zeros(self.n)
         self.engine_force = np.zeros(self.n)
-        self.history = [self.contact_force]
+        self.history = [self.contact_force] if self._contacts else []
 
     def disturbance_now(self) -> FloatArray:
         """What the controller's model does not know [N·m]: the config's
@@ -646,7 +647,8 @@ class MuJoCoPlant:
         self.q, self.dq = d.qpos[self.qadr], d.qvel[v]  # fancy indexing: new arrays
         self.engine_force = d.qfrc_constraint[v] + d.qfrc_passive[v]
         self.contact_force = self.generalized_contact_force() if d.ncon else self._zero
-        self.history.append(self.contact_force)
+        if self._contacts:
+            self.history.append(self.contact_force)
         return self.q, self.dq
 
 

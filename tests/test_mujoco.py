@@ -590,3 +590,13 @@ def test_csv_holds_the_contact_force(contact_runs, tmp_path):
         rows = list(csv.reader(f))
     col = rows[0].index("contact_force_joint1")
     np.testing.assert_allclose([float(r[col]) for r in rows[1:]], res.extra["contact_force"][:, 0])
+
+
+def test_contact_example_prints_and_plots(tmp_path, capsys):
+    import runpy
+
+    example = runpy.run_path(str(ROOT / "examples" / "mujoco_contact.py"))
+    assert example["main"](["--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "ignore: first contact 1.50 s, flagged 1.51 s" in out and "stop:" in out
+    assert (tmp_path / "mujoco_contact.png").stat().st_size > 10_000

@@ -288,6 +288,19 @@ def test_missing_extra_names_it(monkeypatch, tmp_path, capsys):
     assert 'pip install "hmpc_pin[mujoco]"' in capsys.readouterr().err
 
 
+def test_package_and_configs_load_without_mujoco():
+    # mujoco is imported only when a MuJoCo plant is built
+    import subprocess
+
+    code = (
+        "import sys; sys.modules['mujoco'] = None; import hmpc_pin; "
+        "from hmpc_pin.experiment.schema import load_config; "
+        f"print(load_config({str(CONFIGS / 'paper_combined_mujoco.toml')!r}).plant.engine)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "mujoco"
+
+
 # ----------------------------------------------------------------- the plant
 def test_disturbance_is_applied_as_generalized_force(planar3):
     # A constant d: MuJoCo with d applied equals MuJoCo with τ + d (and the record says d).

@@ -248,8 +248,10 @@ def test_armature_is_rotor_inertia_on_the_diagonal(planar3, make_rng):
         np.testing.assert_allclose(_qacc(model, planar3, q, dq, tau), expected, atol=1e-8)
 
 
-@pytest.mark.parametrize("arm,joint,value", [("ur5", "wrist_2_joint", 0.7),
-                                             ("planar3", "joint2", -0.4)])  # fmt: skip
+@pytest.mark.parametrize(
+    "arm,joint,value",
+    [("ur5", "wrist_2_joint", 0.7), ("panda", "panda_joint4", -2.0), ("planar3", "joint2", -0.4)],
+)
 def test_locked_joint_is_fixed_at_its_position(arm, joint, value, make_rng):
     robot = load_robot(arm, 9.81, {joint: value})  # pin.buildReducedModel
     model = mujoco_model(robot)

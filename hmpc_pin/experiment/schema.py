@@ -3,9 +3,11 @@
 Every controller setting defaults to the paper's value (Section 4), so
 ``ControllerConfig()`` is the paper's controller. An experiment file
 (``configs/*.toml``) has the sections ``[robot]``, ``[controller]``,
-``[controller.observer]``, ``[plant]``, ``[reference]``, ``[disturbance]``
+``[controller.observer]``, ``[plant]`` (with ``[plant.mujoco]`` and
+``[plant.mujoco.obstacle]`` for ``engine = "mujoco"``), ``[reference]``, ``[disturbance]``
 (with optional ``[disturbance.friction]`` and ``[disturbance.pulse]``),
-``[simulation]`` and ``[sweep]``; see ``configs/paper_combined.toml`` for every key.
+``[simulation]``, ``[sweep]`` and ``[collision]``; see ``configs/paper_combined.toml`` for
+every key (``configs/planar3_contact_mujoco.toml`` for the MuJoCo and collision tables).
 
 Validation happens here, at the boundary: unknown keys, wrong types, non-finite
 numbers, vectors of the wrong length and out-of-range values raise one

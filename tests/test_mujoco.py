@@ -49,7 +49,6 @@ ARMS = {
     "planar3": ("planar3", None),
     "ur5": ("ur5", None),
     "panda": ("panda", PANDA_FINGERS),
-    "panda-fingers-free": ("panda", None),
     "z1": ("z1", None),
 }
 
@@ -177,8 +176,12 @@ def test_mesh_format_mujoco_cannot_read(tmp_path):
         mujoco_model(load_robot(path, 9.8))
 
 
-def test_mimic_is_dropped_as_pinocchio_ignores_it(tmp_path, make_rng):
-    mimic = '<mimic joint="joint2" multiplier="1.0" offset="0.0"/></joint>'
+def test_mimic_joint_is_a_stiff_equality_as_in_pinocchio(tmp_path, make_rng):
+    # joint3 mimics joint2 (q3 = 0.5 q2 + 0.1): Pinocchio's mimic joint (no coordinate of
+    # its own), MuJoCo's joint equality made stiff: MuJoCo's soft constraint leaves a
+    # relative (1 - d)/d = 1e-4 of the constraint's acceleration (3e-4 of the largest
+    # acceleration allows for a constraint part up to three times it).
+    mimic = '<mimic joint="joint2" multiplier="0.5" offset="0.1"/></joint>'
 
     def add_mimic(text):
         i = text.index('<joint name="joint3"')
@@ -187,27 +190,55 @@ def test_mimic_is_dropped_as_pinocchio_ignores_it(tmp_path, make_rng):
 
     path = _planar3_variant(tmp_path, add_mimic)
     robot = load_robot(path, 9.8)
-    assert robot.nq == 3  # Pinocchio: three independent joints
-    model = mujoco_model(robot)
-    assert model.neq == 0
-    # MuJoCo's own import of the file couples the joints: other accelerations
-    raw = mujoco.MjModel.from_xml_path(str(path))
-    raw.opt.gravity[:] = model.opt.gravity
-    assert raw.neq == 1
-    q, dq, tau = next(_random_states(robot, make_rng(6), 1))
-    expected = pin.aba(robot.model, robot.data, q, dq, tau)
-    np.testing.assert_allclose(_qacc(model, robot, q, dq, tau), expected, atol=1e-8)
-    assert np.abs(_qacc(raw, robot, q, dq, tau) - expected).max() > 1e-2
-    # a mimic joint the controller neither controls nor locks cannot be matched
+    assert robot.nq == 2 and robot.mimic_joints == {"joint3": ("joint2", 0.5, 0.1)}
+    plant = MuJoCoPlant(robot, None, 0.01, 0.001)
+    assert plant.model.neq == 1
+    worst_default = 0.0
+    raw = mujoco.MjModel.from_xml_path(str(path))  # MuJoCo's own import: default softness
+    raw.opt.gravity[:] = plant.model.opt.gravity
+    for q, dq, tau in _random_states(robot, make_rng(6), 5):
+        plant.reset(q, dq)  # puts the follower on its constraint
+        d = plant.data
+        d.qfrc_applied[:] = 0.0
+        d.qfrc_applied[plant.vadr] = tau
+        mujoco.mj_forward(plant.model, d)
+        expected = robot.forward_dynamics(q, dq, tau)
+        scale = np.abs(expected).max()
+        np.testing.assert_allclose(d.qacc[plant.vadr], expected, atol=3e-4 * scale)
+        # the constraint's residual acceleration: (1 - d)/d of the unconstrained one
+        follower = plant.model.joint("joint3").dofadr[0]
+        residual = d.qacc[follower] - 0.5 * d.qacc[plant.vadr[1]]
+        plant.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_EQUALITY)
+        mujoco.mj_forward(plant.model, d)
+        free = d.qacc[follower] - 0.5 * d.qacc[plant.vadr[1]]
+        plant.model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_EQUALITY)
+        assert abs(residual) <= 2e-4 * abs(free)
+        rd = mujoco.MjData(raw)
+        rd.qpos[:], rd.qvel[:] = plant.data.qpos, plant.data.qvel
+        rd.qfrc_applied[:] = d.qfrc_applied
+        mujoco.mj_forward(raw, rd)
+        worst_default = max(worst_default, np.abs(rd.qacc[plant.vadr] - expected).max() / scale)
+    assert worst_default > 1e-2  # MuJoCo's default equality is far softer
+    # a follower the controller controls as its own coordinate loses the tag; one that is
+    # neither controlled, nor a mimic joint of the model, nor locked cannot be matched
+    assert "<mimic" not in urdf_for_mujoco(path, ("joint1", "joint2", "joint3"))
     with pytest.raises(URDFError, match="mimics"):
         urdf_for_mujoco(path, ("joint1", "joint2"))
 
 
-def test_panda_mimic_fingers_free_and_locked():
-    # Panda's finger 2 mimics finger 1: with both controlled no equality, locked none left.
-    free = mujoco_model(load_robot("panda"))
+def test_panda_mimic_fingers_free_and_locked(make_rng):
+    # Panda's finger 2 mimics finger 1: free, one equality and 8 coordinates; locked, none.
+    free = load_robot("panda")
+    plant = MuJoCoPlant(free)
     locked = mujoco_model(load_robot("panda", 9.81, PANDA_FINGERS))
-    assert (free.neq, free.nq, locked.neq, locked.nq) == (0, 9, 0, 7)
+    assert (plant.model.neq, plant.model.nq, free.nq, locked.neq, locked.nq) == (1, 9, 8, 0, 7)
+    for q, dq, tau in _random_states(free, make_rng(10), 5):
+        plant.reset(q, dq)
+        plant.data.qfrc_applied[plant.vadr] = tau
+        mujoco.mj_forward(plant.model, plant.data)
+        expected = free.forward_dynamics(q, dq, tau)
+        scale = np.abs(expected).max()
+        np.testing.assert_allclose(plant.data.qacc[plant.vadr], expected, atol=3e-4 * scale)
 
 
 def test_urdf_damping_dropped_by_default_and_imported_on_request(tmp_path, make_rng):
@@ -253,7 +284,8 @@ def test_armature_is_rotor_inertia_on_the_diagonal(planar3, make_rng):
     [("ur5", "wrist_2_joint", 0.7), ("panda", "panda_joint4", -2.0), ("planar3", "joint2", -0.4)],
 )
 def test_locked_joint_is_fixed_at_its_position(arm, joint, value, make_rng):
-    robot = load_robot(arm, 9.81, {joint: value})  # pin.buildReducedModel
+    locked = {joint: value, **(PANDA_FINGERS if arm == "panda" else {})}
+    robot = load_robot(arm, 9.81, locked)  # pin.buildReducedModel
     model = mujoco_model(robot)
     assert model.nq == robot.nq and joint not in [model.joint(i).name for i in range(model.njnt)]
     for q, dq, tau in _random_states(robot, make_rng(9), 5):
@@ -262,18 +294,19 @@ def test_locked_joint_is_fixed_at_its_position(arm, joint, value, make_rng):
 
 
 def test_urdf_mujoco_cannot_compile_names_file_and_reason(tmp_path, capsys):
-    # A moving link without mass: Pinocchio takes it, MuJoCo's compiler does not.
+    # The tip link as a point mass (zero rotational inertia about its centre of mass):
+    # Pinocchio takes it (M(q) stays positive definite), MuJoCo's compiler does not.
     def massless_tip(text):
         i = text.index('<link name="link3">')
-        j = text.index("</inertial>", i) + len("</inertial>")
-        k = text.index("<inertial>", i)
-        return text[:k] + text[j:]
+        j = text.index("/>", text.index("<inertia ", i)) + 2
+        k = text.index("<inertia ", i)
+        return text[:k] + '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>' + text[j:]
 
     path = _planar3_variant(tmp_path, massless_tip, "massless.urdf")
     robot = load_robot(path, 9.8)
     with pytest.raises(URDFError, match="MuJoCo cannot compile") as info:
         mujoco_model(robot)
-    assert str(path) in str(info.value) and "mass" in str(info.value)
+    assert str(path) in str(info.value) and "inertia of moving bodies" in str(info.value)
     cfg = tmp_path / "cfg.toml"
     cfg.write_text(f'[robot]\nurdf = "{path.as_posix()}"\n[plant]\nengine = "mujoco"\n')
     assert main(["run", str(cfg), "--out", str(tmp_path), "--duration", "0.1"]) == 2
@@ -615,3 +648,19 @@ def test_contact_example_prints_and_plots(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "ignore: first contact 1.50 s, flagged 1.51 s" in out and "stop:" in out
     assert (tmp_path / "mujoco_contact.png").stat().st_size > 10_000
+
+
+def test_continuous_joint_is_an_unlimited_hinge(tmp_path, make_rng):
+    # Pinocchio's model: a revolute joint without limits (one angle); MuJoCo's: a hinge.
+    def continuous(text):
+        i = text.index('<joint name="joint1" type="revolute">')
+        return text[:i] + text[i:].replace('type="revolute"', 'type="continuous"', 1)
+
+    robot = load_robot(_planar3_variant(tmp_path, continuous), 9.8)
+    assert robot.continuous_joints == ("joint1",)
+    model = mujoco_model(robot)
+    assert not model.jnt_limited[model.joint("joint1").id]
+    for q, dq, tau in _random_states(robot, make_rng(11), 5):
+        q[0] = 7.0  # beyond 2π: the angle does not wrap in either model
+        expected = pin.aba(robot.model, robot.data, q, dq, tau)
+        np.testing.assert_allclose(_qacc(model, robot, q, dq, tau), expected, atol=1e-8)

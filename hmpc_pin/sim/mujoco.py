@@ -28,9 +28,11 @@ The URDF is made consistent with the controller's model before MuJoCo sees it:
   does not know ROS packages), or meshes left out (``geometry = "none"``);
 * locked joints (``[robot] locked_joints``) become fixed joints at their locked
   position, as ``pin.buildReducedModel`` does;
-* ``<mimic>``: Pinocchio's URDF reader treats a mimic joint as an independent joint,
-  MuJoCo's adds an equality constraint; the tag is dropped for joints the controller
-  controls or locks (any other mimic joint is an error);
+* ``<mimic>``: a follower the controller's model makes Pinocchio's mimic joint of its
+  leader (:attr:`~hmpc_pin.model.robot.Robot.mimic_joints`) keeps the tag, which MuJoCo
+  turns into a joint equality constraint :math:`q_f = m q_l + o`, made stiff (see
+  :func:`mujoco_model`); a follower the controller controls as an independent coordinate
+  loses it; a locked follower is fixed with its leader;
 * ``<dynamics damping friction>``: imported only with ``import_urdf_dynamics = True``
   (Pinocchio's model ignores them, so by default MuJoCo does too);
 * the joints are matched to the controller's by name, not by order.
@@ -81,6 +83,11 @@ MUJOCO_INTEGRATORS = {
 GEOMETRY_SOURCES = ("collision", "visual", "none")
 #: Mesh formats MuJoCo reads.
 MESH_SUFFIXES = (".stl", ".obj", ".msh")
+#: MuJoCo's ``solref``/``solimp`` of a mimic equality: the stiffest MuJoCo's soft
+#: constraints allow (time constant 2 ms, impedance 0.9999: the constrained acceleration
+#: is met to a relative 1e-4), closest to Pinocchio's exact mimic joint.
+MIMIC_TIMECONST = 0.002
+MIMIC_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 #: Collision bits: arm geoms collide with the obstacle only, never with each other.
 ARM_CONTYPE, ARM_CONAFFINITY = 1, 0
 OBSTACLE_CONTYPE, OBSTACLE_CONAFFINITY = 0, 1
@@ -295,6 +302,7 @@ def urdf_for_mujoco(
     controlled: tuple[str, ...],
     locked: dict[str, float] | None = None,
     settings: MuJoCoSettings | None = None,
+    mimics: dict | None = None,
 ) -> str:
     """The URDF text MuJoCo compiles: consistent with the controller's Pinocchio model.
 
@@ -303,6 +311,8 @@ def urdf_for_mujoco(
         controlled: Names of the joints the controller controls (its coordinates).
         locked: Locked joints and their positions [rad or m] (made fixed).
         settings: What to keep (geometry, URDF dynamics).
+        mimics: Followers that are mimic joints of the controller's model (their
+            ``<mimic>`` is kept: an equality constraint in MuJoCo).
 
     Raises:
         URDFError: A mesh file that does not exist, or a mimic joint that the controller
@@ -321,12 +331,14 @@ def urdf_for_mujoco(
             _lock(joint, locked[name])
             continue
         for mimic in joint.findall("mimic"):
+            if name in (mimics or {}):
+                continue  # a mimic joint in the controller's model too: MuJoCo's equality
             if name not in controlled:
                 raise URDFError(
                     path, f"joint {name!r} mimics {mimic.get('joint')!r} but is neither "
-                    "controlled nor locked; lock it ([robot] locked_joints)",
+                    "controlled, nor a mimic joint of the controller's model, nor locked",
                 )  # fmt: skip
-            joint.remove(mimic)  # Pinocchio's model: an independent joint
+            joint.remove(mimic)  # an independent coordinate of the controller's model
         if not s.import_urdf_dynamics:
             for dyn in joint.findall("dynamics"):
                 joint.remove(dyn)
@@ -403,14 +415,18 @@ def mujoco_model(robot: Robot, settings: MuJoCoSettings | None = None):
     mujoco = import_mujoco()
     s = settings if settings is not None else MuJoCoSettings()
     source = Path(robot.source)
-    xml = urdf_for_mujoco(source, robot.joint_names, robot.locked_joints, s)
+    mimics = dict(getattr(robot, "mimic_joints", {}) or {})
+    xml = urdf_for_mujoco(source, robot.joint_names, robot.locked_joints, s, mimics)
     model = copy.deepcopy(_compile(xml, str(source), s.obstacle))
     names = [model.joint(i).name for i in range(model.njnt)]
-    if sorted(names) != sorted(robot.joint_names):
+    if sorted(names) != sorted([*robot.joint_names, *mimics]):
         raise URDFError(
             source, f"MuJoCo's model has the joints {names} but the controller's "
-            f"{list(robot.joint_names)}; they must be the same joints",
+            f"{list(robot.joint_names)} (mimic joints {list(mimics)}); they must be the same",
         )  # fmt: skip
+    if model.neq:  # the mimic equalities: as stiff as MuJoCo's soft constraints allow
+        model.eq_solref[:] = (MIMIC_TIMECONST, 1.0)
+        model.eq_solimp[:] = MIMIC_SOLIMP
     if s.obstacle is not None and model.ngeom < 2:  # the obstacle is the only geom
         raise URDFError(
             source, f"the arm has no {s.geometry} geometry, so it can never touch the obstacle; "
@@ -518,13 +534,25 @@ class MuJoCoPlant:
         self.model = model = mujoco_model(robot, self.settings)
         model.opt.timestep = self.h
         factors = _inertia_factors(robot)
-        if factors is not None:
-            for k, bodies in zip(factors, _joint_bodies(model, robot.joint_names), strict=True):
+        if factors is not None:  # one factor per joint of the Pinocchio model (mimic too)
+            names = list(robot.model.names)[1:]
+            for k, bodies in zip(factors, _joint_bodies(model, names), strict=True):
                 model.body_mass[bodies] *= k
                 model.body_inertia[bodies] *= k
         self.data = mujoco.MjData(model)
         self.qadr = np.array([model.joint(j).qposadr[0] for j in robot.joint_names])
         self.vadr = np.array([model.joint(j).dofadr[0] for j in robot.joint_names])
+        # MuJoCo's velocities from the controller's, q̇_mj = E q̇ (mimic followers:
+        # m·q̇_leader); generalized forces back to the controller's coordinates by Eᵀ.
+        index = {name: i for i, name in enumerate(robot.joint_names)}
+        self._mimics = []
+        E = np.zeros((model.nv, n))
+        E[self.vadr, np.arange(n)] = 1.0
+        for follower, (leader, mult, offset) in dict(getattr(robot, "mimic_joints", {})).items():
+            j = model.joint(follower)
+            self._mimics.append((j.qposadr[0], j.dofadr[0], index[leader], mult, offset))
+            E[j.dofadr[0], index[leader]] = mult
+        self._E = E
         self._ident = bool(
             np.array_equal(self.qadr, np.arange(n)) and np.array_equal(self.vadr, np.arange(n))
             and model.nq == n and model.nv == n
@@ -579,6 +607,9 @@ class MuJoCoPlant:
         self._mj.mj_resetData(m, d)
         d.qpos[self.qadr] = q
         d.qvel[self.vadr] = dq
+        for qa, va, leader, mult, offset in self._mimics:  # on their constraint
+            d.qpos[qa] = mult * q[leader] + offset
+            d.qvel[va] = mult * dq[leader]
         d.time = float(t0)
         self._mj.mj_forward(m, d)
         self.q, self.dq = q, dq
@@ -596,14 +627,15 @@ class MuJoCoPlant:
 
     def generalized_contact_force(self) -> FloatArray:
         """:math:`J_c^T f_c` [N·m] of the contacts of MuJoCo's last step, per controlled joint:
-        the constraint forces of the contact rows mapped by the constraint Jacobian."""
+        the constraint forces of the contact rows mapped by the constraint Jacobian (and
+        a mimic follower's share onto its leader)."""
         m, d = self.model, self.data
         if d.ncon == 0:
             return np.zeros(self.n)
         rows = np.isin(d.efc_type, self._contact_rows)
         force = np.where(rows, d.efc_force, 0.0)
         self._mj.mj_mulJacTVec(m, d, self._qfrc, force)
-        return self._qfrc[self.vadr].copy()
+        return self._qfrc[self.vadr].copy() if self._ident else self._E.T @ self._qfrc
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Step MuJoCo over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``.
@@ -645,7 +677,10 @@ class MuJoCoPlant:
         self.k += 1
         self.t = self.t0 + self.Ts * self.k
         self.q, self.dq = d.qpos[self.qadr], d.qvel[v]  # fancy indexing: new arrays
-        self.engine_force = d.qfrc_constraint[v] + d.qfrc_passive[v]
+        if self._ident:
+            self.engine_force = d.qfrc_constraint + d.qfrc_passive
+        else:  # (a mimic equality's forces cancel in Eᵀ)
+            self.engine_force = self._E.T @ (d.qfrc_constraint + d.qfrc_passive)
         self.contact_force = self.generalized_contact_force() if d.ncon else self._zero
         if self._contacts:
             self.history.append(self.contact_force)

@@ -49,7 +49,9 @@ class MPCSettings:
             (paper: ∓100).
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap per solve.
-        qp_layout: ``"block"`` (one block-diagonal QP) or ``"joint"`` (one QP per joint).
+        qp_layout: ``"auto"`` (``"block"`` up to n·Nc = 140 variables, ``"joint"`` above),
+            ``"block"`` (one block-diagonal QP) or ``"joint"`` (one QP per joint);
+            :func:`~hmpc_pin.mpc.condensed.resolve_layout`.
     """
 
     Ts: float = 0.01
@@ -62,7 +64,7 @@ class MPCSettings:
     v_max: FloatArray | float = 100.0
     eps_abs: float = 1e-9
     max_iter: int = 1000
-    qp_layout: str = "block"
+    qp_layout: str = "auto"
 
     def bounds(self, n: int) -> tuple[FloatArray, FloatArray]:
         """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints."""
@@ -186,13 +188,17 @@ class HierarchicalMPC:
             max_iter=settings.max_iter,
             limits=self.limits,
             layout=settings.qp_layout,
+            stack_rows=2 * settings.N,
         )
         N = settings.N
         self._offsets = settings.Ts * np.arange(1, N + 1)
         self._times = np.empty(N)
         # The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] (rows), each block contiguous, and the
         # gradient map with its rows in that order (CondensedMPC.F interleaves r_j, ṙ_j).
-        self._stack = np.empty((2 * N + 2, n))
+        # It lives in the QPs' buffer right after [U; −c; h_q; v̄] (JointQPs.stack), so
+        # that the state rows are shared with the limit test (JointQPs.x0), no copy.
+        self._stack = self.qps.stack[self.mpc.Nc + 3 :]
+        self._x0 = self.qps.x0
         self._stack_flat = self._stack.reshape(-1)
         self._stack_finite = np.empty(self._stack_flat.size, dtype=bool)
         self._stack_q_ref = self._stack[2 : N + 2]
@@ -203,6 +209,7 @@ class HierarchicalMPC:
         self._model, self._data = robot.model, robot.data
         self._crba_direct = bool(getattr(robot, "crba_is_symmetric", False))
         self._ref_shape = (N, n)
+        self._shape = (n,)
         self._reference: object = None
         self._ref: Reference | None = None
         self.disturbance_estimate = np.zeros(n)
@@ -264,8 +271,7 @@ class HierarchicalMPC:
             raise NonFiniteError("t", t)
         q = np.asarray(q, dtype=float)
         dq = np.asarray(dq, dtype=float)
-        n = self.n
-        if q.shape != (n,) or dq.shape != (n,):
+        if q.shape != self._shape or dq.shape != self._shape:
             self.robot.check_vector("q", q)  # raises the precise error
             self.robot.check_vector("dq", dq)
 
@@ -282,7 +288,7 @@ class HierarchicalMPC:
                 raise DimensionError(
                     f"reference.sample_many returned q_ref of shape {q_ref.shape} and dq_ref "
                     f"of shape {dq_ref.shape} but the horizon needs {self._ref_shape} "
-                    f"({n} joints); return two arrays of shape (len(times), {n})"
+                    f"({self.n} joints); return two arrays of shape (len(times), {self.n})"
                 )
             self._stack_q_ref[:] = q_ref
             self._stack_dq_ref[:] = dq_ref
@@ -297,14 +303,15 @@ class HierarchicalMPC:
         M = pin.crba(model, data, q) if self._crba_direct else self.robot.mass_matrix(q)
         nle = pin.nonLinearEffects(model, data, q, dq)
         if self._started:
-            self.disturbance_estimate = self.compensation.update(M, nle, q, dq, self.tau, self.v)
+            d_hat = self.compensation.update(M, nle, q, dq, self.tau, self.v)
         else:
-            self.disturbance_estimate = self.compensation.estimate.copy()
+            d_hat = self.compensation.estimate.copy()
+        self.disturbance_estimate = d_hat
 
-        self.v = v = self.qps.solve(G, S[:2])
+        self.v = v = self.qps.solve(G, self._x0)
         tau = M.dot(v)
         tau += nle
-        tau -= self.disturbance_estimate
+        tau -= d_hat
         self.tau = tau
         self._started = True
         return tau.copy()

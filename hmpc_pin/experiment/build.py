@@ -71,7 +71,7 @@ def mpc_settings(cc: ControllerConfig, n: int) -> MPCSettings:
         Ts=cc.Ts, N=cc.N, Nc=cc.Nc, Q=cc.Q, R=cc.R, P=cc.P, v_min=v_min, v_max=v_max,
         eps_abs=cc.eps_abs if cc.eps_abs is not None else 1e-9,
         max_iter=cc.max_iter if cc.max_iter is not None else 1000,
-        qp_layout=cc.qp_layout if cc.qp_layout is not None else "block",
+        qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
     )  # fmt: skip
 
 

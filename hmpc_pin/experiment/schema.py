@@ -365,8 +365,10 @@ class ControllerConfig:
         constraints: :class:`ConstraintConfig` (``hmpc``: joint limits as soft constraints).
         eps_abs: ProxSuite absolute tolerance (``hmpc``).
         max_iter: ProxSuite iteration cap per solve (``hmpc``).
-        qp_layout: ``"block"`` (the n joint QPs as one block-diagonal ProxSuite QP, one
-            solve per step; default, fastest) or ``"joint"`` (one QP per joint) (``hmpc``).
+        qp_layout: ``"auto"`` (default: ``"block"`` up to n·Nc = 140 QP variables,
+            ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
+            QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per
+            joint; fastest for long ones) (``hmpc``; :func:`hmpc_pin.mpc.condensed.resolve_layout`).
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
     """
@@ -521,8 +523,8 @@ class ControllerConfig:
             _set(self, "eps_abs", _float("eps_abs", eps, positive=True))
             cap = 1000 if self.max_iter is None else self.max_iter
             _set(self, "max_iter", _int("max_iter", cap, minimum=1))
-            layout = "block" if self.qp_layout is None else self.qp_layout
-            _set(self, "qp_layout", _choice("qp_layout", layout, ("block", "joint")))
+            layout = "auto" if self.qp_layout is None else self.qp_layout
+            _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)

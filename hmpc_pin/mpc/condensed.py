@@ -67,11 +67,32 @@ from proxsuite import proxqp
 
 from ..exceptions import ConfigError, SolverError
 
-__all__ = ["CondensedMPC", "JointQPs", "StateLimits"]
+__all__ = ["AUTO_BLOCK_MAX", "LAYOUTS", "CondensedMPC", "JointQPs", "StateLimits", "resolve_layout"]
 
 #: Stand-in for an infinite row or box bound (finite, so that no inf reaches ProxSuite's
 #: residual and infeasibility arithmetic).
 BIG = 1e10
+
+#: The QP layouts of :class:`JointQPs` (``controller.qp_layout``).
+LAYOUTS = ("auto", "block", "joint")
+#: ``"auto"`` solves the joints as one block QP up to this many variables (n·Nc) and as
+#: one QP per joint above: the crossover measured on Panda (``benchmarks/qp_layouts.py``,
+#: Nc = 10 .. 100, ``BENCHMARKS.md``) lies between n·Nc = 70 and 210.
+AUTO_BLOCK_MAX = 140
+
+
+def resolve_layout(layout: str, n: int, Nc: int) -> str:
+    """The layout used for ``n`` joints of control horizon ``Nc``: ``layout`` itself, or
+    for ``"auto"`` ``"block"`` if n·Nc <= :data:`AUTO_BLOCK_MAX`, else ``"joint"``.
+
+    Raises:
+        ConfigError: ``layout`` is not one of :data:`LAYOUTS`.
+    """
+    if layout not in LAYOUTS:
+        raise ConfigError("qp_layout", f"got {layout!r}; expected one of {LAYOUTS}")
+    if layout == "auto":
+        return "block" if n * Nc <= AUTO_BLOCK_MAX else "joint"
+    return layout
 
 
 class CondensedMPC:
@@ -210,14 +231,22 @@ class JointQPs:
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap (the solver never runs unbounded).
         limits: Position and velocity limits as soft state constraints; ``None`` for none.
-        layout: ``"block"`` (default): the n joint QPs as one block-diagonal ProxSuite QP
-            of n·Nc variables, one ``update`` + ``solve`` per step; ``"joint"``: one QP
-            per joint (n calls). Both have the same minimiser (the blocks are
-            independent); ``BENCHMARKS.md`` compares their speed. ProxSuite's batch
-            API (``proxqp.dense.BatchQP``, one QP per joint, n ``update`` calls and one
-            ``solve_in_parallel``) was measured too (``benchmarks/qp_layouts.py``) and is
-            not offered: slower than the block QP here, e.g. Nc = 1, 3 joints 10.4 µs vs
-            5.7 µs; 7 joints 22.8 µs on 1 thread, 16.9 µs on 2, vs 6.9 µs.
+        layout: ``"auto"`` (default): ``"block"`` up to :data:`AUTO_BLOCK_MAX` variables
+            (n·Nc), ``"joint"`` above (:func:`resolve_layout`); ``"block"``: the n joint
+            QPs as one block-diagonal ProxSuite QP of n·Nc variables, one ``update`` +
+            ``solve`` per step; ``"joint"``: one QP per joint (n calls). All have the same
+            minimiser (the blocks are independent). The block QP's cost grows with
+            (n·Nc)³, the joint QPs' with n·Nc³: the block QP wins for short horizons (one
+            solver call), the joint QPs for long ones (``BENCHMARKS.md``: Panda at Nc = 100,
+            block ≈ 3× the joint QPs). ProxSuite's batch API (``proxqp.dense.BatchQP``, one
+            QP per joint, n ``update`` calls and one ``solve_in_parallel``) was measured too
+            (``benchmarks/qp_layouts.py``) and is not offered: slower than the block QP for
+            short horizons, e.g. Nc = 1, 3 joints 10.4 µs vs 5.7 µs; 7 joints 22.8 µs on 1
+            thread, 16.9 µs on 2, vs 6.9 µs, and ≈ 8 ms whenever its second OpenMP thread
+            waits for a busy core.
+        stack_rows: Extra rows of the caller's after ``x0`` in :attr:`stack` (the
+            controller keeps its reference horizon there, so that one buffer feeds both
+            its gradient product and the limit test).
         always_constrained: Solve the soft QP for every joint at every step instead of
             only where the box-only prediction leaves the limits (the reference path
             that the fast path is tested against).
@@ -227,6 +256,13 @@ class JointQPs:
         slack: The slack of each joint at the last solve (n,) [rad]; 0 where the
             state constraints were inactive.
         constrained: Number of joints whose constrained QP was solved at the last step.
+        layout: The layout in use (``"block"`` or ``"joint"``; ``"auto"`` resolved).
+        stack: One buffer, rows ``[U (Nc); −c; h_q; v̄; q; q̇; caller's stack_rows]`` (each
+            row one value per joint): the free inputs (:attr:`solution` is this view),
+            minus the mid positions, the half ranges and velocity limits (clipped to
+            ``BIG``), the current state (:attr:`x0`) and the caller's rows.
+        x0: The view of :attr:`stack` that holds the state (2, n); :meth:`solve` copies
+            its ``x0`` argument there unless it is this very object.
     """
 
     def __init__(
@@ -239,12 +275,11 @@ class JointQPs:
         max_iter: int = 1000,
         limits: StateLimits | None = None,
         always_constrained: bool = False,
-        layout: str = "block",
+        layout: str = "auto",
+        stack_rows: int = 0,
     ):
-        if layout not in ("block", "joint"):
-            raise ConfigError("qp_layout", f"got {layout!r}; expected 'block' or 'joint'")
         self.mpc = mpc
-        self.layout = layout
+        self.layout = layout = resolve_layout(layout, len(joint_names), mpc.Nc)
         self.always_constrained = always_constrained
         self.joint_names = joint_names
         self.n = n = len(joint_names)
@@ -267,7 +302,12 @@ class JointQPs:
                 qp.solve()
                 self.qps.append(qp)
         self._solved = proxqp.QPSolverOutput.PROXQP_SOLVED
-        self.solution = np.zeros((Nc, n))
+        # [U (Nc); −c; h_q; v̄; q; q̇; caller's rows]: one product of the limit matrix with
+        # its first Nc + 5 rows gives ±(X − mid) − half for every joint (_enforce_limits).
+        self.stack = np.zeros((Nc + 5 + stack_rows, n))
+        self.solution = self.stack[:Nc]  # solved into place
+        self.x0 = self.stack[Nc + 3 : Nc + 5]
+        self._limit_rows = self.stack[: Nc + 5]
         self._sol_T_shape = (n, Nc)
         self._Nc1 = Nc == 1
         self.slack = np.zeros(n)
@@ -285,21 +325,25 @@ class JointQPs:
             vec(limits.upper),
             vec(limits.velocity),
         )
-        # The box-only prediction is inside the limits iff |X − mid| <= half on every row
-        # (rows q_1, q̇_1, …, q_N, q̇_N), mid = the joints' mid positions c on the position
-        # rows and 0 on the velocity rows. mid = m·cᵀ with m = 1 on the position rows, so
-        # [Φ Γ m]·[x0; U; −cᵀ] = X − mid in one product.
-        self._half = np.zeros((2 * N, n))
-        self._half[0::2] = 0.5 * (self._upper - self._lower)
-        self._half[1::2] = self._vel
-        q_rows = np.zeros((2 * N, 1))
-        q_rows[0::2] = 1.0
-        self._PG = np.hstack([mpc.Phi, mpc.Gamma, q_rows])
-        self._xu = np.empty((3 + Nc, n))
-        self._xu[2 + Nc] = -0.5 * (self._lower + self._upper)
-        self._xu[2 : 2 + Nc] = self.solution
-        self.solution = self._xu[2 : 2 + Nc]  # solved into place: U is a block of [x0; U; −c]
-        self._outside = np.empty((2 * N, n), dtype=bool)
+        # The box-only prediction X = Φ x0 + Γ U is inside the limits iff |X − mid| <= half
+        # on every row (rows q_1, q̇_1, …, q_N, q̇_N; mid = the mid position c on the
+        # position rows, 0 on the velocity rows; half = h_q = (upper − lower)/2 on the
+        # position rows, v̄ on the velocity rows), i.e. iff every entry of
+        #   [Γ  m_q −m_q −m_v  Φ; −Γ −m_q −m_q −m_v −Φ] · [U; −c; h_q; v̄; x0]
+        # is <= 0 (m_q, m_v: ones on the position, velocity rows): one product, one max.
+        stack = self.stack
+        stack[Nc] = -0.5 * (self._lower + self._upper)
+        stack[Nc + 1] = 0.5 * (self._upper - self._lower)
+        stack[Nc + 2] = self._vel
+        m_q = np.zeros((2 * N, 1))
+        m_q[0::2] = 1.0
+        m_v = 1.0 - m_q
+        upper_rows = np.hstack([mpc.Gamma, m_q, -m_q, -m_v, mpc.Phi])
+        lower_rows = np.hstack([-mpc.Gamma, -m_q, -m_q, -m_v, -mpc.Phi])
+        self._L = np.ascontiguousarray(np.vstack([upper_rows, lower_rows]))
+        self._excess = np.empty((4 * N, n))
+        self._zeros = np.zeros((4 * N, n))
+        self._outside = np.empty((4 * N, n), dtype=bool)
         Gq, Gv = mpc.Gamma[0::2], mpc.Gamma[1::2]
         # The slack enters the solver scaled, s = k·ŝ, so that its Hessian entry is 1
         # like the inputs' (unscaled, 2ρ₂·scale ~ 1e7 stalls ProxSuite's duality-gap test).
@@ -364,6 +408,8 @@ class JointQPs:
             SolverError: A QP did not report ``PROXQP_SOLVED`` (names joint and status).
         """
         sol = self.solution
+        if x0 is not None and x0 is not self.x0:
+            self.x0[:] = x0
         if self.layout == "block":
             qp = self.qps[0]
             qp.update(g=G.ravel())  # row-major (n, Nc): joint by joint, as the blocks
@@ -386,17 +432,14 @@ class JointQPs:
                 sol[:, i] = res.x
         self.constrained = 0
         if self.soft_qps:
-            self._enforce_limits(G, x0)
+            self._enforce_limits(G)
         return sol[0].copy()
 
-    def _enforce_limits(self, G: np.ndarray, x0: np.ndarray) -> None:
+    def _enforce_limits(self, G: np.ndarray) -> None:
         """Re-solve, with the soft state constraints, the joints whose prediction leaves them."""
         sol, Nc = self.solution, self.mpc.Nc
-        xu = self._xu
-        xu[:2] = x0  # (U is already in xu: self.solution is a view of it)
-        X = self._PG.dot(xu)  # X − mid
-        np.abs(X, out=X)
-        outside = np.greater(X, self._half, out=self._outside)
+        excess = np.dot(self._L, self._limit_rows, self._excess)  # ±(X − mid) − half
+        outside = np.greater(excess, self._zeros, self._outside)
         if self.constrained_last:
             self.slack[:] = 0.0
             self.constrained_last = False
@@ -404,6 +447,7 @@ class JointQPs:
             return
         bad = outside.any(axis=0) | self.always_constrained
         self.constrained_last = True
+        x0 = self.x0
         free = self.mpc.Phi @ x0
         for i in np.flatnonzero(bad):
             qp = self.soft_qps[i]

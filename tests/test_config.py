@@ -278,7 +278,7 @@ def test_controller_names_resolve_to_one_pair_with_its_tables(kwargs, kind, comp
     if c.observer is not None:  # the 0.1 keys are resolved, not kept
         assert (c.observer.enabled, c.observer.kind) == (None, None)
     hmpc_only = (c.eps_abs, c.max_iter, c.qp_layout)
-    assert hmpc_only == ((1e-9, 1000, "block") if kind == "hmpc" else (None, None, None))
+    assert hmpc_only == ((1e-9, 1000, "auto") if kind == "hmpc" else (None, None, None))
 
 
 def test_observer_gain_of_the_01_spelling_is_kept():

@@ -598,3 +598,65 @@ def test_fast_path_equals_always_constrained(make_rng, Nc):
         v_full = full.solve(G, x0)
         assert v_fast == pytest.approx(v_full, abs=1e-4)
     assert 0 < used < 60  # both branches of the fast path were taken
+
+
+# --------------------------------------------------------------- QP layout by size
+def test_auto_layout_resolves_by_problem_size():
+    from hmpc_pin.exceptions import ConfigError
+    from hmpc_pin.mpc.condensed import AUTO_BLOCK_MAX, resolve_layout
+
+    assert resolve_layout("auto", 7, AUTO_BLOCK_MAX // 7) == "block"
+    assert resolve_layout("auto", 7, AUTO_BLOCK_MAX // 7 + 1) == "joint"
+    assert resolve_layout("auto", 3, 1) == "block"
+    assert resolve_layout("block", 7, 100) == "block"
+    assert resolve_layout("joint", 3, 1) == "joint"
+    with pytest.raises(ConfigError, match="qp_layout"):
+        resolve_layout("banded", 3, 1)
+
+
+def recorded_qp_inputs(planar3, N, Nc, steps):
+    """(G, x0) of every step of a closed-loop planar3 run whose reference leaves the joint
+    limits (amplitude 1.9 rad on ±1.57 rad joints), so the soft state constraints act."""
+    import hmpc_pin
+    from hmpc_pin.controllers.hierarchical import MPCSettings
+
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, MPCSettings(N=N, Nc=Nc, qp_layout="block"))
+    ref = hmpc_pin.SineReference(3, amplitude=1.9, frequency=0.5)
+    inputs, solve = [], ctrl.qps.solve
+
+    def spy(G, x0=None):
+        inputs.append((np.array(G), np.array(x0)))
+        return solve(G, x0)
+
+    ctrl.qps.solve = spy
+    hmpc_pin.simulate(planar3, ctrl, ref, None, duration=(steps - 1) * ctrl.Ts,
+                      q0=np.zeros(3))  # fmt: skip
+    return ctrl, inputs
+
+
+@pytest.mark.parametrize("N, Nc", [(10, 1), (10, 5), (50, 50)])
+def test_layouts_give_the_block_solution_on_recorded_gradients(planar3, N, Nc):
+    """Block, per-joint and auto layouts: the same inputs (solver tolerance) on the
+    gradients and states of a closed-loop run that drives the joints into their soft
+    limits, for a short and a long control horizon (auto = joint at n·Nc = 150)."""
+    from hmpc_pin.mpc.condensed import resolve_layout
+
+    ctrl, inputs = recorded_qp_inputs(planar3, N, Nc, 150)
+    v_min, v_max = ctrl.settings.bounds(3)
+    layouts = {
+        name: JointQPs(ctrl.mpc, v_min, v_max, planar3.joint_names, limits=ctrl.limits,
+                       layout=name)  # fmt: skip
+        for name in ("block", "joint", "auto")
+    }
+    assert layouts["auto"].layout == resolve_layout("auto", 3, Nc)
+    tol = solution_tolerance(ctrl.mpc.H * ctrl.mpc.scale)
+    constrained = 0
+    for G, x0 in inputs:
+        sols = {}
+        for name, qps in layouts.items():
+            qps.solve(G, x0)
+            sols[name] = qps.solution.copy()
+        constrained += layouts["joint"].constrained
+        for name in ("joint", "auto"):
+            np.testing.assert_allclose(sols[name], sols["block"], rtol=0, atol=tol)
+    assert constrained > 0  # the soft state constraints were exercised

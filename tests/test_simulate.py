@@ -217,3 +217,42 @@ def test_each_plant_disturbance_path_equals_plain_rk4_loop(planar3, kind):
     )
     np.testing.assert_allclose(r.q, q, rtol=0, atol=1e-12)
     np.testing.assert_allclose(r.dq, dq, rtol=0, atol=1e-11)
+
+
+class _SlowController:
+    """A controller whose step sleeps ``pause`` seconds (a lower bound on its duration)
+    before returning gravity compensation."""
+
+    def __init__(self, robot, Ts, pause):
+        self.robot, self.Ts, self.pause = robot, Ts, pause
+        self.disturbance_estimate = np.zeros(robot.nq)
+
+    def reset(self, q0, dq0):
+        pass
+
+    def step(self, t, q, dq, reference):
+        import time
+
+        time.sleep(self.pause)
+        return self.robot.gravity_torque(q)
+
+
+def test_a_run_whose_median_step_exceeds_half_ts_says_so(planar3):
+    """time.sleep(Ts) inside the step guarantees a median step > Ts/2 on any machine."""
+    ref = hmpc_pin.SineReference(3, amplitude=0.1)
+    slow = _SlowController(planar3, 0.002, 0.002)
+    r = hmpc_pin.simulate(planar3, slow, ref, duration=0.02, q0=np.zeros(3), dt=0.001)
+    st = r.meta["step_time"]
+    assert st["median_us"] >= 2000 and st["Ts_us"] == pytest.approx(2000)
+    assert st["p99_us"] >= st["median_us"] and st["max_us"] >= st["p99_us"]
+    (warning,) = r.meta["warnings"]
+    assert "exceeds Ts/2" in warning and "real time" in warning
+
+
+def test_a_fast_enough_run_has_no_warning(planar3):
+    """A 1 s control period: no step of the MPC takes half a second."""
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(Ts=1.0, N=3))
+    r = hmpc_pin.simulate(planar3, ctrl, hmpc_pin.SineReference(3, amplitude=0.1), duration=3.0,
+                          q0=np.zeros(3), dt=0.01)  # fmt: skip
+    assert r.meta["step_time"]["median_us"] < 5e5
+    assert "warnings" not in r.meta

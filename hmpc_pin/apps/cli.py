@@ -89,6 +89,8 @@ def cmd_run(args) -> int:
     print(f"{config.name}: {config.description} ({label}, observer {'on' if observer else 'off'})")
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
+    for warning in result.meta.get("warnings", ()):
+        print(f"warning: {warning}")
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))
     for f in files:

@@ -256,6 +256,8 @@ class JointQPs:
         slack: The slack of each joint at the last solve (n,) [rad]; 0 where the
             state constraints were inactive.
         constrained: Number of joints whose constrained QP was solved at the last step.
+        cold_solves: Number of box QPs solved again from scratch because the warm-started
+            solve did not converge (:meth:`_solve_cold`), since construction.
         layout: The layout in use (``"block"`` or ``"joint"``; ``"auto"`` resolved).
         stack: One buffer, rows ``[U (Nc); −c; h_q; v̄; q; q̇; caller's stack_rows]`` (each
             row one value per joint): the free inputs (:attr:`solution` is this view),
@@ -286,17 +288,26 @@ class JointQPs:
         self.limits = limits
         Nc, N = mpc.Nc, mpc.N
         self.qps = []
+        self._eps_abs, self._max_iter = eps_abs, max_iter
+        if layout == "block":
+            self._box_data = [(np.kron(np.eye(n), mpc.H), np.repeat(v_min, Nc),
+                               np.repeat(v_max, Nc))]  # fmt: skip
+        else:
+            self._box_data = [(mpc.H, np.full(Nc, v_min[i]), np.full(Nc, v_max[i]))
+                              for i in range(n)]  # fmt: skip
+        self._cold: dict[int, object] = {}
+        self.cold_solves = 0
         if layout == "block":
             qp = _new_qp(n * Nc, 0, eps_abs, max_iter)
-            qp.init(np.kron(np.eye(n), mpc.H), np.zeros(n * Nc), None, None, None, None, None,
-                    np.repeat(v_min, Nc), np.repeat(v_max, Nc))  # fmt: skip
+            H, lo, hi = self._box_data[0]
+            qp.init(H, np.zeros(n * Nc), None, None, None, None, None, lo, hi)
             qp.solve()  # update() before any solve() segfaults (proxsuite 0.8.0)
             self.qps.append(qp)
         else:
             for i in range(n):
                 qp = _new_qp(Nc, 0, eps_abs, max_iter)
-                qp.init(mpc.H, np.zeros(Nc), None, None, None, None, None,
-                        np.full(Nc, v_min[i]), np.full(Nc, v_max[i]))  # fmt: skip
+                H, lo, hi = self._box_data[i]
+                qp.init(H, np.zeros(Nc), None, None, None, None, None, lo, hi)
                 # One solve right after init(): update() before any solve() crashes
                 # proxsuite 0.8.0 with warm start (segfault, measured here).
                 qp.solve()
@@ -412,12 +423,12 @@ class JointQPs:
             self.x0[:] = x0
         if self.layout == "block":
             qp = self.qps[0]
-            qp.update(g=G.ravel())  # row-major (n, Nc): joint by joint, as the blocks
+            g = G.ravel()  # row-major (n, Nc): joint by joint, as the blocks
+            qp.update(g=g)
             qp.solve()
             res = qp.results
             if res.info.status != self._solved:
-                raise SolverError(None, "all joints, block QP", str(res.info.status),
-                                  res.info.iter)  # fmt: skip
+                res = self._solve_cold(0, g, None, "all joints, block QP")
             if self._Nc1:
                 sol[0] = res.x
             else:
@@ -428,12 +439,45 @@ class JointQPs:
                 qp.solve()
                 res = qp.results
                 if res.info.status != self._solved:
-                    raise SolverError(i, self.joint_names[i], str(res.info.status), res.info.iter)
+                    res = self._solve_cold(i, G[i], i, self.joint_names[i])
                 sol[:, i] = res.x
         self.constrained = 0
         if self.soft_qps:
             self._enforce_limits(G)
         return sol[0].copy()
+
+    def _solve_cold(self, k: int, g: np.ndarray, joint: int | None, name: str):
+        """Solve box QP ``k`` again from scratch (its cold twin, made on first use), after
+        the warm-started solve did not report solved; return the twin's results.
+
+        A warm start from a far-away previous solution can stall ProxSuite 0.8.0 (measured
+        here: one QP per joint, Nc = 5, a joint driven through its limits, MAX_ITER after
+        1045 iterations where a cold solve needs a few dozen).
+
+        Raises:
+            SolverError: The cold solve did not report solved either.
+        """
+        twin = self._cold.get(k)
+        if twin is None:
+            H, lo, hi = self._box_data[k]
+            twin = _new_qp(H.shape[0], 0, self._eps_abs, self._max_iter, warm=False)
+            twin.settings.eps_rel = 0.0
+            twin.init(H, g, None, None, None, None, None, lo, hi)
+            self._cold[k] = twin
+        else:
+            twin.update(g=g)
+        warm = self.qps[k]
+        twin.settings.max_iter = warm.settings.max_iter  # the same iteration cap
+        twin.solve()
+        res = twin.results
+        if res.info.status != self._solved:
+            raise SolverError(joint, name, str(res.info.status), res.info.iter)
+        self.cold_solves += 1
+        # Restart the warm QP from this solution, so that the next steps warm-start from it.
+        warm.solve(res.x, res.y, None)  # (box multipliers cannot be passed in 0.8.0)
+        if warm.results.info.status == self._solved:
+            return warm.results
+        return res
 
     def _enforce_limits(self, G: np.ndarray) -> None:
         """Re-solve, with the soft state constraints, the joints whose prediction leaves them."""

@@ -1,0 +1,151 @@
+"""The floor of a controller step, and step / floor ratios measured in alternating blocks.
+
+The step of :class:`~hmpc_pin.HierarchicalMPC` cannot cost less than what it must call:
+Pinocchio's ``crba`` and ``nonLinearEffects`` at the measured state and one warm-started
+ProxSuite box QP ``update`` + ``solve`` of the same size (n·Nc variables, the package's
+solver settings, the gradients the step computes along the same states). That sum is the
+*floor*. A shared machine has slow and fast phases of several seconds, so step and floor
+are timed in alternating blocks (``blocks`` × (one block of steps, one block of floor
+calls), each over the same states), and the figure that travels between machines is the
+median over blocks of (median step in the block) / (median floor in the block).
+
+Run alone: ``python -m benchmarks.floor`` prints the ratios of planar3 and Panda (Nc = 1).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+import hmpc_pin
+from hmpc_pin.mpc.condensed import _new_qp
+
+__all__ = ["FloorRatio", "Floor", "step_floor_ratio"]
+
+
+class Floor:
+    """``crba`` + ``nonLinearEffects`` + one warm-started box QP update + solve.
+
+    Args:
+        ctrl: The controller whose step is compared (its robot, QP size and settings).
+        grads: The QP gradients the step computes along the states, (steps, n, Nc).
+    """
+
+    def __init__(self, ctrl: hmpc_pin.HierarchicalMPC, grads: np.ndarray):
+        s, mpc = ctrl.settings, ctrl.mpc
+        n, Nc = ctrl.n, mpc.Nc
+        v_min, v_max = s.bounds(n)
+        self.model, self.data = ctrl.robot.model, ctrl.robot.data
+        self.qp = qp = _new_qp(n * Nc, 0, s.eps_abs, s.max_iter)
+        qp.init(np.kron(np.eye(n), mpc.H), np.zeros(n * Nc), None, None, None, None, None,
+                np.repeat(v_min, Nc), np.repeat(v_max, Nc))  # fmt: skip
+        qp.solve()
+        self.grads = np.ascontiguousarray(grads.reshape(len(grads), n * Nc))
+
+    def __call__(self, k: int, q: np.ndarray, dq: np.ndarray) -> None:
+        """The floor's calls at state ``k`` (``q``, ``dq``)."""
+        model, data, qp = self.model, self.data, self.qp
+        pin.crba(model, data, q)
+        pin.nonLinearEffects(model, data, q, dq)
+        qp.update(g=self.grads[k])
+        qp.solve()
+
+
+@dataclass(frozen=True)
+class FloorRatio:
+    """Step and floor medians over alternating blocks, and their ratio.
+
+    Attributes:
+        ratios: Per block, median step / median floor.
+        step_us, floor_us: Per block, the medians [µs].
+    """
+
+    ratios: np.ndarray
+    step_us: np.ndarray
+    floor_us: np.ndarray
+
+    @property
+    def ratio(self) -> float:
+        """Median over blocks of the step / floor ratio."""
+        return float(np.median(self.ratios))
+
+    @property
+    def step_median_us(self) -> float:
+        """Median over blocks of the blocks' median step [µs]."""
+        return float(np.median(self.step_us))
+
+    @property
+    def floor_median_us(self) -> float:
+        """Median over blocks of the blocks' median floor [µs]."""
+        return float(np.median(self.floor_us))
+
+
+def step_floor_ratio(
+    ctrl: hmpc_pin.HierarchicalMPC,
+    reference,
+    t: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray,
+    *,
+    warmup: int = 200,
+    blocks: int = 10,
+) -> FloorRatio:
+    """Time ``ctrl.step`` and its :class:`Floor` in ``blocks`` alternating blocks.
+
+    Each block replays the states after the first ``warmup`` through the step (the
+    controller restarted and warmed up along the first ``warmup`` states before each
+    step block, untimed), then the same states through the floor.
+    """
+    from benchmarks.qp_layouts import record_gradients
+
+    grads = record_gradients(ctrl, t, q, dq, reference)
+    floor = Floor(ctrl, grads)
+    count = len(t)
+    args = [(float(t[i]), q[i].copy(), dq[i].copy()) for i in range(count)]
+    clock = time.perf_counter_ns
+    step_med, floor_med = [], []
+    for _ in range(blocks):
+        ctrl.reset(q[0], dq[0])
+        for ti, qi, dqi in args[:warmup]:
+            ctrl.step(ti, qi, dqi, reference)
+        step = ctrl.step
+        samples = np.empty(count - warmup, dtype=np.int64)
+        for j, (ti, qi, dqi) in enumerate(args[warmup:]):
+            t0 = clock()
+            step(ti, qi, dqi, reference)
+            samples[j] = clock() - t0
+        step_med.append(np.median(samples) / 1e3)
+        for k in range(warmup):
+            floor(k, args[k][1], args[k][2])
+        for j, k in enumerate(range(warmup, count)):
+            qi, dqi = args[k][1], args[k][2]
+            t0 = clock()
+            floor(k, qi, dqi)
+            samples[j] = clock() - t0
+        floor_med.append(np.median(samples) / 1e3)
+    step_us, floor_us = np.array(step_med), np.array(floor_med)
+    return FloorRatio(step_us / floor_us, step_us, floor_us)
+
+
+def main() -> int:
+    """Print step / floor for planar3 and Panda (Nc = 1, the step benchmark's trajectory)."""
+    from benchmarks.run import HOMES, PANDA_LOCKED, ROOT, load_arm, record_trajectory
+
+    arms = [
+        load_arm("planar3", ROOT / "robots" / "planar3.urdf", HOMES["planar3"], "chen"),
+        load_arm("panda", "panda", HOMES["panda"], "general", PANDA_LOCKED),
+    ]
+    for arm in arms:
+        traj = record_trajectory(arm, 1200)
+        ctrl = hmpc_pin.make_controller(arm.robot, arm.config(1))
+        r = step_floor_ratio(ctrl, arm.reference(), traj.t, traj.q, traj.dq)
+        print(f"{arm.name:<8} step {r.step_median_us:6.1f} µs  floor {r.floor_median_us:6.1f} µs"
+              f"  step/floor {r.ratio:.2f} (blocks {np.round(r.ratios, 2)})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -10,8 +10,8 @@ tolerance. Record the outputs of the code as it was, change the code, then compa
 and a short sweep (4 samples of ``paper_combined``, both variants, noise and delay), and
 writes each run's result arrays to ``<dir>/<config>.npz`` and the sweep rows to
 ``<dir>/sweep.json``. ``compare`` reruns them and prints, per config and array, the largest
-absolute difference; exit 1 if any exceeds ``--tol`` (default 1e-9 rad, N·m: the solver's
-``eps_abs``) or a run's completion changed. This is the one place saved outputs are used:
+difference divided by max(1, the array's largest magnitude); exit 1 if any exceeds ``--tol``
+(default 1e-9: the solver's ``eps_abs``) or a run's completion changed. This is the one place saved outputs are used:
 tests compare against independent computations instead.
 """
 
@@ -77,14 +77,16 @@ def compare(folder: Path, tol: float) -> int:
             if a.shape != b.shape:
                 diffs[name] = np.inf
             else:
-                diffs[name] = float(np.max(np.abs(a - b), initial=0.0))
+                # relative to the array's magnitude (torques reach 100 N·m)
+                scale = max(1.0, float(np.max(np.abs(a), initial=0.0)))
+                diffs[name] = float(np.max(np.abs(a - b), initial=0.0)) / scale
         worst = max(diffs.values())
         same_end = bool(old["complete"]) == bool(new["complete"])
         bad = worst > tol or not same_end
         failed |= bad
         worst_all = max(worst_all, worst)
         detail = ", ".join(f"{k} {v:.1e}" for k, v in diffs.items() if k != "t")
-        print(f"{'FAIL' if bad else 'ok  '} {path.stem:<24} max |Δ| {worst:.2e} ({detail})")
+        print(f"{'FAIL' if bad else 'ok  '} {path.stem:<24} max |Δ|/scale {worst:.2e} ({detail})")
     old_rows = json.loads((folder / "sweep.json").read_text())
     new_rows = json.loads(json.dumps(run_sweep_rows()))
     worst = 0.0

@@ -45,20 +45,25 @@ class Alternated:
 
 def alternate_steps(variants: dict, states, warmup: int, blocks: int) -> dict[str, np.ndarray]:
     """Time ``ctrl.step`` of every ``(ctrl, reference)`` in ``variants`` on ``states``
-    (t, q, dq arrays), ``blocks`` times in turn; each block restarts the controller and
-    warms it up on the first ``warmup`` states (untimed). Returns per-block medians [µs]."""
-    t, q, dq = states
-    args = [(float(t[i]), q[i].copy(), dq[i].copy()) for i in range(len(t))]
+    (t, q, dq arrays; or a dict of them by variant name), ``blocks`` times in turn; each
+    block restarts the controller and warms it up on the first ``warmup`` states
+    (untimed). Returns per-block medians [µs]."""
+    by_name = states if isinstance(states, dict) else {name: states for name in variants}
+    args = {
+        name: [(float(t[i]), q[i].copy(), dq[i].copy()) for i in range(len(t))]
+        for name, (t, q, dq) in by_name.items()
+    }
     clock = time.perf_counter_ns
     out: dict[str, list[float]] = {name: [] for name in variants}
     for _ in range(blocks):
         for name, (ctrl, ref) in variants.items():
-            ctrl.reset(q[0], dq[0])
+            calls = args[name]
+            ctrl.reset(calls[0][1], calls[0][2])
             step = ctrl.step
-            for ti, qi, dqi in args[:warmup]:
+            for ti, qi, dqi in calls[:warmup]:
                 step(ti, qi, dqi, ref)
-            samples = np.empty(len(args) - warmup, dtype=np.int64)
-            for j, (ti, qi, dqi) in enumerate(args[warmup:]):
+            samples = np.empty(len(calls) - warmup, dtype=np.int64)
+            for j, (ti, qi, dqi) in enumerate(calls[warmup:]):
                 t0 = clock()
                 step(ti, qi, dqi, ref)
                 samples[j] = clock() - t0
@@ -115,9 +120,20 @@ class SampleOnly:
         return self.sine.sample(t)
 
 
-def references(arm, trajectory, steps: int, blocks: int, warmup: int = 100) -> Alternated:
-    """The step (Nc = 1) with the sine, a vectorised quintic, the sine behind an object
-    with only ``sample(t)``, and the sine as a plain callable ``f(t)``; base: the sine."""
+def _closed_loop(arm, reference, count: int):
+    """States (t, q, dq) of a closed-loop run (Nc = 1, no disturbance) on ``reference``."""
+    ctrl = hmpc_pin.make_controller(arm.robot, arm.config(1))
+    q0 = reference.sample(0.0)[0] if hasattr(reference, "sample") else reference(0.0)[0]
+    res = hmpc_pin.simulate(arm.robot, ctrl, reference, None, duration=(count - 1) * ctrl.Ts,
+                            q0=q0, dq0=np.zeros(arm.n))  # fmt: skip
+    return res.t, res.q, res.dq
+
+
+def references(arm, steps: int, blocks: int, warmup: int = 100) -> Alternated:
+    """The step (Nc = 1) with the sine, a vectorised quintic (home − 0.3 rad to home +
+    0.3 rad over 30 s), the sine behind an object with only ``sample(t)``, and the sine as
+    a plain callable ``f(t)``, each on the states of its own closed-loop run; base: the
+    sine."""
     sine = arm.reference()
     quintic = hmpc_pin.QuinticReference(arm.home - 0.3, arm.home + 0.3, 0.0, 30.0)
     refs = {
@@ -130,10 +146,11 @@ def references(arm, trajectory, steps: int, blocks: int, warmup: int = 100) -> A
         name: (hmpc_pin.make_controller(arm.robot, arm.config(1)), ref)
         for name, ref in refs.items()
     }
-    tr = trajectory
     count = warmup + steps
-    blocks_us = alternate_steps(variants, (tr.t[:count], tr.q[:count], tr.dq[:count]),
-                                warmup, blocks)  # fmt: skip
+    sine_states = _closed_loop(arm, sine, count)
+    states = {name: sine_states for name in refs}
+    states["QuinticReference (vectorised)"] = _closed_loop(arm, quintic, count)
+    blocks_us = alternate_steps(variants, states, warmup, blocks)
     return Alternated(blocks_us, "SineReference", steps)
 
 

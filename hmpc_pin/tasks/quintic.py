@@ -66,14 +66,16 @@ class QuinticReference:
         self._delta = q1 - q0
         # sample_many: [s^0..s^5] @ coefficients = [1, shape, rate] with shape(s) =
         # 10 s³ − 15 s⁴ + 6 s⁵ and rate(s) = 30 s²(1 − s)²/T = (30 s² − 60 s³ + 30 s⁴)/T.
-        self._exponents = np.arange(6.0)
+        self._powers: dict[int, np.ndarray] = {}
         c = np.zeros((6, 3))
         c[0, 0] = 1.0
         c[3:, 1] = (10.0, -15.0, 6.0)
         c[2:5, 2] = np.array([30.0, -60.0, 30.0]) / self.duration
         self._coefficients = c
-        self._start_delta = np.vstack([q0, self._delta])
-        self._delta_row = self._delta[None, :].copy()
+        # [1, shape, rate] @ [q_start; Δ; 0] = q_start + Δ·shape, @ [0; 0; Δ] = Δ·rate
+        self._to_q = np.vstack([q0, self._delta, np.zeros_like(q0)])
+        self._to_dq = np.vstack([np.zeros_like(q0), np.zeros_like(q0), self._delta])
+        self._out: Pair | None = None
 
     @property
     def t_end(self) -> float:
@@ -95,34 +97,44 @@ class QuinticReference:
         ``out`` when given (the :class:`~hmpc_pin.tasks.base.Reference` protocol).
 
         Evaluated as products, few numpy calls (the MPC samples its horizon every step):
-        the powers :math:`[s^0 \dots s^5]` of every phase times a (6, 3) coefficient
-        matrix give :math:`[1, \text{shape}, \text{rate}]`, and
-        :math:`[1, \text{shape}] \cdot [q_{start}; \Delta]`,
-        :math:`\text{rate} \cdot \Delta` the two outputs (equal to :meth:`sample` up
-        to rounding).
+        the powers :math:`[s^0 \\dots s^5]` of every phase (a cumulative product) times a
+        (6, 3) coefficient matrix give :math:`[1, \\text{shape}, \\text{rate}]`, and that
+        times :math:`[q_{start}; \\Delta; 0]` and :math:`[0; 0; \\Delta]` the two outputs
+        (equal to :meth:`sample` up to rounding, tested).
         """
-        t = np.atleast_1d(np.asarray(times, dtype=float))
+        t = np.asarray(times, dtype=float)
         if t.ndim != 1:
-            s = self._phase(t)[..., None]
+            s = self._phase(np.atleast_1d(t))[..., None]
             shape = s**3 * (10.0 + s * (-15.0 + 6.0 * s))
             rate = 30.0 * s**2 * (1.0 - s) ** 2 / self.duration
             return _write((self.q_start + self._delta * shape, self._delta * rate), out)
         s = np.subtract(t, self.t_start)
-        np.divide(s, self.duration, s)
-        np.maximum(s, 0.0, s)
-        np.minimum(s, 1.0, s)
-        powers = np.power(s[:, None], self._exponents)
+        np.divide(s, self.duration, out=s)
+        np.maximum(s, 0.0, out=s)
+        np.minimum(s, 1.0, out=s)
+        powers = self._powers.get(t.size)
+        if powers is None:  # one buffer per length (the MPC's horizon: always one)
+            powers = np.ones((t.size, 6))
+            if len(self._powers) < 8:
+                self._powers[t.size] = powers
+        rest = powers[:, 1:]
+        rest[...] = s[:, None]
+        np.multiply.accumulate(rest, axis=1, out=rest)  # (m, 6): s^0 .. s^5
         one_shape_rate = powers.dot(self._coefficients)  # (m, 3): 1, shape, rate
-        m, n = t.size, self.n
-        if out is not None and all(
-            a.shape == (m, n) and a.dtype == np.float64 and a.flags.c_contiguous for a in out
-        ):
-            np.dot(one_shape_rate[:, :2], self._start_delta, out[0])
-            np.dot(one_shape_rate[:, 2:], self._delta_row, out[1])
+        if out is not None and (out is self._out or self._fits(out, t.size)):
+            self._out = out  # the controller passes the same buffers every step
+            np.dot(one_shape_rate, self._to_q, out=out[0])
+            np.dot(one_shape_rate, self._to_dq, out=out[1])
             return out
-        q = one_shape_rate[:, :2].dot(self._start_delta)
-        dq = one_shape_rate[:, 2:].dot(self._delta_row)
+        q = one_shape_rate.dot(self._to_q)
+        dq = one_shape_rate.dot(self._to_dq)
         return _write((q, dq), out)
+
+    def _fits(self, out: Pair, m: int) -> bool:
+        """Whether ``out`` holds two C-contiguous float arrays of shape (m, n)."""
+        shape = (m, self.n)
+        return all(a.shape == shape and a.dtype == np.float64 and a.flags.c_contiguous
+                   for a in out)  # fmt: skip
 
     def acceleration(self, t: float) -> np.ndarray:
         """Reference acceleration [rad/s²] at ``t`` [s], shape (n,)."""

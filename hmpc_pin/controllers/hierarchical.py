@@ -206,6 +206,11 @@ class HierarchicalMPC:
         self._ref_out = (self._stack_q_ref, self._stack_dq_ref)
         order = np.concatenate([[0, 1], np.arange(2, 2 * N + 2, 2), np.arange(3, 2 * N + 2, 2)])
         self._FT = np.ascontiguousarray(self.mpc.FT[order])
+        # Long horizons: without a velocity weight (the paper's Q = diag(50, 0), P = 2Q) the
+        # ṙ rows of the map are zero; the product skips them (half the work at N = 100).
+        self._S_grad, self._FT_grad = self._stack, self._FT
+        if settings.N * settings.Nc > 200 and not self._FT[N + 2 :].any():
+            self._S_grad, self._FT_grad = self._stack[: N + 2], self._FT[: N + 2]
         self._model, self._data = robot.model, robot.data
         self._crba_direct = bool(getattr(robot, "crba_is_symmetric", False))
         self._ref_shape = (N, n)
@@ -297,7 +302,7 @@ class HierarchicalMPC:
         finite = np.isfinite(self._stack_flat, out=self._stack_finite)
         if np.count_nonzero(finite) != finite.size:
             self._raise_non_finite(t, q, dq, q_ref, dq_ref)
-        G = S.T.dot(self._FT)  # (n, Nc), one row per joint
+        G = self._S_grad.T.dot(self._FT_grad)  # (n, Nc), one row per joint
 
         model, data = self._model, self._data
         M = pin.crba(model, data, q) if self._crba_direct else self.robot.mass_matrix(q)

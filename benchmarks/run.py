@@ -58,7 +58,9 @@ from benchmarks.harness import (  # noqa: E402
     package_versions,
     time_calls,
 )
+from benchmarks.floor import FloorRatio, step_floor_ratio  # noqa: E402
 from benchmarks.qp_layouts import LayoutTiming, record_gradients, time_layouts  # noqa: E402
+from benchmarks.ratios import Alternated, aba_floor, long_horizon, references  # noqa: E402
 from hmpc_pin.experiment.schema import load_config  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
 from hmpc_pin.compensation.observers import OBSERVER_KINDS  # noqa: E402
@@ -104,6 +106,11 @@ class Settings:
     compare_duration: float = 10.0
     compare_panda_duration: float = 10.0
     crocoddyl_iterations: int = 3
+    floor_blocks: int = 8
+    floor_steps: int = 800
+    ratio_blocks: int = 6
+    ratio_steps: int = 600
+    long_steps: int = 300
 
 
 QUICK = Settings(
@@ -114,6 +121,11 @@ QUICK = Settings(
     soak_every=10.0,
     compare_duration=2.0,
     compare_panda_duration=2.0,
+    floor_blocks=2,
+    floor_steps=100,
+    ratio_blocks=2,
+    ratio_steps=100,
+    long_steps=40,
 )
 
 
@@ -257,10 +269,14 @@ class StepResult:
     observer: str
     timing: Timing
     source: str
+    floor: FloorRatio | None = None
 
 
-def time_step(arm: Arm, Nc: int, trajectory: Trajectory, settings: Settings) -> StepResult:
-    """Time ``HierarchicalMPC.step`` along ``trajectory`` (warm-up, then timed steps)."""
+def time_step(
+    arm: Arm, Nc: int, trajectory: Trajectory, settings: Settings, floor: bool = False
+) -> StepResult:
+    """Time ``HierarchicalMPC.step`` along ``trajectory`` (warm-up, then timed steps); with
+    ``floor``, also step and floor in alternating blocks (:mod:`benchmarks.floor`)."""
     ref = arm.reference()
     ctrl = hmpc_pin.make_controller(arm.robot, arm.config(Nc))
     tr = trajectory
@@ -268,20 +284,30 @@ def time_step(arm: Arm, Nc: int, trajectory: Trajectory, settings: Settings) -> 
     count = settings.warmup + settings.steps
     calls = [(float(tr.t[i]), tr.q[i].copy(), tr.dq[i].copy(), ref) for i in range(count)]
     timing = time_calls(ctrl.step, calls, settings.warmup)
-    return StepResult(arm.name, arm.n, Nc, arm.observer, timing, tr.source)
+    ratio = None
+    if floor:
+        k = settings.warmup + min(settings.steps, settings.floor_steps)
+        ratio = step_floor_ratio(ctrl, ref, tr.t[:k], tr.q[:k], tr.dq[:k],
+                                 warmup=settings.warmup, blocks=settings.floor_blocks)  # fmt: skip
+    return StepResult(arm.name, arm.n, Nc, arm.observer, timing, tr.source, ratio)
 
 
 # ------------------------------------------------------------------------ benchmarks
-def bench_steps(settings: Settings, arms: list[Arm]) -> list[StepResult]:
-    """Step time at Nc = 1 and 5 for every arm in ``arms``."""
+def bench_steps(settings: Settings, arms: list[Arm], floor: bool = False) -> list[StepResult]:
+    """Step time at Nc = 1 and 5 for every arm in ``arms`` (with ``floor``: and its ratio
+    to the floor, alternating blocks)."""
     out = []
     for arm in arms:
         traj = record_trajectory(arm, settings.warmup + settings.steps)
         for Nc in (1, 5):
-            r = time_step(arm, Nc, traj, settings)
+            r = time_step(arm, Nc, traj, settings, floor)
+            extra = ""
+            if r.floor is not None:
+                extra = (f", floor {r.floor.floor_median_us:.1f} µs, step/floor "
+                         f"{r.floor.ratio:.2f}")  # fmt: skip
             log(
                 f"  step {arm.name:<10} n={arm.n:<2} Nc={Nc}: median {r.timing.median_us:7.1f} µs,"
-                f" p99 {r.timing.p99_us:7.1f} µs"
+                f" p99 {r.timing.p99_us:7.1f} µs{extra}"
             )
             out.append(r)
     return out
@@ -341,6 +367,7 @@ class SimResult:
     plant_only: list[float]
     duration: float
     complete: bool
+    aba_only: list[float] = field(default_factory=list)
 
     @property
     def median(self) -> float:
@@ -356,7 +383,7 @@ class SimResult:
 def bench_simulation(settings: Settings) -> SimResult:
     """Wall time of ``Experiment.from_config(cfg)`` and of ``.run()`` on the paper scenario."""
     cfg = load_config(PAPER_CONFIG)
-    build, run, plant_only = [], [], []
+    build, run, plant_only, aba_only = [], [], [], []
     complete = True
     for _ in range(settings.sim_repeats):
         t0 = time.perf_counter()
@@ -370,7 +397,10 @@ def bench_simulation(settings: Settings) -> SimResult:
         t0 = time.perf_counter()
         replace(exp, controller=GravityCompensation(exp.robot, exp.controller.Ts)).run()
         plant_only.append(time.perf_counter() - t0)
-    out = SimResult(build, run, plant_only, cfg.simulation.duration, complete)
+        plant = exp.make_plant()
+        calls = 4 * round(cfg.simulation.duration / cfg.plant.dt)
+        aba_only.append(aba_floor(plant, calls))
+    out = SimResult(build, run, plant_only, cfg.simulation.duration, complete, aba_only)
     log(
         f"  10 s simulation: median {out.median:.3f} s, real-time factor {out.rtf:.1f}; "
         f"with tau = G(q) instead of the MPC {np.median(plant_only):.3f} s"
@@ -652,8 +682,8 @@ def targets_section(steps: list[StepResult], sim: SimResult, mem: MemoryResult) 
     return table(["target (issue 6)", "target", "measured", "verdict"], rows)
 
 
-def step_table(steps: list[StepResult]) -> str:
-    """Table of the step timings."""
+def step_table(steps: list[StepResult], unit: float) -> str:
+    """Table of the step timings (and the median in floor units, and step / own floor)."""
     rows = [
         [
             r.arm,
@@ -664,6 +694,8 @@ def step_table(steps: list[StepResult]) -> str:
             fmt_us(r.timing.p99_us),
             fmt_us(r.timing.mean_us),
             fmt_us(r.timing.min_us),
+            per_unit(r.timing.median_us, unit),
+            f"{r.floor.ratio:.2f}" if r.floor is not None else "",
             str(r.timing.count),
             r.source,
         ]
@@ -678,13 +710,15 @@ def step_table(steps: list[StepResult]) -> str:
         "p99 [µs]",
         "mean [µs]",
         "min [µs]",
+        "median in floor units",
+        "step / own floor",
         "timed steps",
         "states",
     ]
     return table(headers, rows)
 
 
-def scaling_table(chains: list[StepResult], arms: list[StepResult]) -> str:
+def scaling_table(chains: list[StepResult], arms: list[StepResult], unit: float) -> str:
     """Step time against n (planar chains, UR5, Panda)."""
     entries = {}
     for r in [*chains, *arms]:
@@ -699,8 +733,10 @@ def scaling_table(chains: list[StepResult], arms: list[StepResult]) -> str:
                 fmt_us(one.timing.median_us) if one else "",
                 fmt_us(one.timing.p99_us) if one else "",
                 fmt_us(one.timing.median_us / n) if one else "",
+                per_unit(one.timing.median_us, unit) if one else "",
                 fmt_us(five.timing.median_us) if five else "",
                 fmt_us(five.timing.p99_us) if five else "",
+                per_unit(five.timing.median_us, unit) if five else "",
             ]
         )
     headers = [
@@ -709,13 +745,15 @@ def scaling_table(chains: list[StepResult], arms: list[StepResult]) -> str:
         "Nc = 1 median [µs]",
         "Nc = 1 p99 [µs]",
         "Nc = 1 median / n [µs]",
+        "Nc = 1 median in floor units",
         "Nc = 5 median [µs]",
         "Nc = 5 p99 [µs]",
+        "Nc = 5 median in floor units",
     ]
     return table(headers, rows)
 
 
-def compare_table(rows: list[CompareRow], effort: bool) -> str:
+def compare_table(rows: list[CompareRow], effort: bool, unit: float) -> str:
     """Table of one scenario's comparison, with ratios to the hierarchical MPC."""
     base = next((r for r in rows if r.controller == "hmpc"), None)
     base_off = next((r for r in rows if r.controller == "hmpc, no NDO"), None)
@@ -741,6 +779,7 @@ def compare_table(rows: list[CompareRow], effort: bool) -> str:
                 name,
                 fmt_us(med) if med is not None else "n/a",
                 fmt_us(p99) if p99 is not None else "n/a",
+                per_unit(med, unit) if med is not None else "n/a",
                 ratio(med, base.timing.median_us if base and base.timing else None),
                 ratio(p99, base.timing.p99_us if base and base.timing else None),
                 ", ".join(f"{x:.1e}" for x in r.rms) if r.rms is not None else "n/a",
@@ -755,6 +794,7 @@ def compare_table(rows: list[CompareRow], effort: bool) -> str:
         "controller",
         "step median [µs]",
         "step p99 [µs]",
+        "step median in floor units",
         "median ratio",
         "p99 ratio",
         "RMS e after 1 s per joint [rad]",
@@ -767,21 +807,92 @@ def compare_table(rows: list[CompareRow], effort: bool) -> str:
     return table(headers, out)
 
 
-def layout_table(layouts: list[LayoutTiming]) -> str:
-    """Table of the joint-QP layout timings."""
+def layout_table(layouts: list[LayoutTiming], unit: float) -> str:
+    """Table of the joint-QP layout timings [µs] (floor units in brackets)."""
     names = list(layouts[0].median_us) if layouts else []
-    headers = ["arm", "n", "Nc", *(f"{k} [µs]" for k in names), "largest |Δv| vs block"]
+    headers = ["arm", "n", "Nc", *(f"{k} [µs] (floor units)" for k in names),
+               "largest |Δv| vs block"]  # fmt: skip
     rows = [
         [
             r.arm,
             str(r.n),
             str(r.Nc),
-            *(fmt_us(r.median_us[k]) for k in names),
+            *(f"{fmt_us(r.median_us[k])} ({per_unit(r.median_us[k], unit)})" for k in names),
             f"{max(r.max_diff.values()):.1e}",
         ]
         for r in layouts
     ]
     return table(headers, rows)
+
+
+@dataclass
+class Round2:
+    """The issue-18 measurements: the floor unit [µs], long horizons, references."""
+
+    unit: float
+    long: Alternated
+    long_diff: float
+    refs: dict[str, Alternated]
+
+
+def per_unit(us: float, unit: float) -> str:
+    """A duration [µs] in floor units."""
+    x = us / unit
+    return f"{x:.2f}" if x < 10 else f"{x:.0f}" if x < 1e4 else f"{x:.3g}"
+
+
+def floor_table(steps: list[StepResult]) -> str:
+    """Step and floor per case, alternating blocks, median of the ratios."""
+    rows = [
+        [
+            r.arm,
+            str(r.Nc),
+            fmt_us(r.floor.step_median_us),
+            fmt_us(r.floor.floor_median_us),
+            f"**{r.floor.ratio:.2f}**",
+            f"{r.floor.ratios.min():.2f}–{r.floor.ratios.max():.2f}",
+            str(len(r.floor.ratios)),
+        ]
+        for r in steps
+        if r.floor is not None
+    ]
+    headers = ["arm", "Nc", "step [µs]", "floor [µs]", "step / floor (median of blocks)",
+               "range over blocks", "blocks"]  # fmt: skip
+    return table(headers, rows)
+
+
+def alternated_table(a: Alternated, unit: float) -> str:
+    """Median per variant, ratio to the base variant and to the floor unit."""
+    rows = [
+        [name, fmt_us(a.median_us(name)), f"{a.ratio(name):.2f}", per_unit(a.median_us(name), unit)]
+        for name in a.blocks_us
+    ]
+    headers = ["variant", "median step [µs]", f"ratio to {a.base}", "in floor units"]
+    return table(headers, rows)
+
+
+def round2_targets(steps: list[StepResult], sim: SimResult, r2: Round2) -> str:
+    """The issue-18 targets with the measured ratios and a verdict each."""
+    rows = []
+    for arm in ("planar3", "panda"):
+        r = find_step(steps, arm, 1)
+        if r is not None and r.floor is not None:
+            rows.append([f"`step`, {arm}, Nc = 1: step / floor", "≤ 1.5",
+                         f"{r.floor.ratio:.2f}", verdict(r.floor.ratio <= 1.5)])  # fmt: skip
+    long = r2.long.ratio("N = Nc = 100, auto")
+    rows.append(["Panda, Ts = 1 ms, N = Nc = 100 (auto layout) / N = 100, Nc = 1", "≤ 6",
+                 f"{long:.2f}", verdict(long <= 6.0)])  # fmt: skip
+    bench = r2.long.blocks_us["N = Nc = 100, auto"] / r2.long.blocks_us[
+        "benchmark step (Ts = 10 ms, N = 10, Nc = 1)"]
+    rows.append(["the same / the benchmark's Panda step (Ts = 10 ms, N = 10, Nc = 1)", "≤ 6",
+                 f"{np.median(bench):.2f}", verdict(np.median(bench) <= 6.0)])  # fmt: skip
+    for arm, a in r2.refs.items():
+        q = a.ratio("QuinticReference (vectorised)")
+        rows.append([f"{arm}: step with the vectorised quintic / with the sine", "≤ 1.15",
+                     f"{q:.2f}", verdict(q <= 1.15)])  # fmt: skip
+    rows.append(["paper 10 s run, real-time factor", "≥ 100", f"{sim.rtf:.0f}",
+                 verdict(sim.rtf >= 100)])  # fmt: skip
+    return table(["target (issue 18)", "target", "measured", "verdict"], rows)
 
 
 def report(
@@ -798,8 +909,10 @@ def report(
     compares: list[tuple[Scenario, float, list[CompareRow]]],
     spatial_kind: str,
     total: float,
+    r2: Round2,
 ) -> str:
     """The Markdown report."""
+    unit = r2.unit
     rss_first = mem.soak_rss[0] / MiB
     soak = mem.soak
     soak_rows = [[f"{t:g}", f"{rss / MiB:.2f}"] for t, rss in soak["samples"]]
@@ -825,9 +938,42 @@ def report(
         "enabled), on a shared 2-core machine: other processes (tests, builds) add noise, "
         "mostly to the 99th percentiles.",
         "",
+        "**Figures that travel between machines.** Absolute times depend on the machine and "
+        "on its load; ratios measured in one process do not, much. The *floor* of a step is "
+        "what it cannot avoid calling: Pinocchio's `crba` and `nonLinearEffects` at the "
+        "measured state plus one warm-started ProxSuite box QP `update` + `solve` of the same "
+        "size (n·Nc variables, the package's settings, the gradients the step computes along "
+        "the same states), back to back in one function (`benchmarks/floor.py`). Step and "
+        "floor are timed in alternating blocks over the same states, and the ratio is the "
+        "median over blocks of (median step / median floor). The *floor unit* of this report "
+        f"is the floor of planar3 at Nc = 1: **{unit:.2f} µs** in this run; every other "
+        "timing is also given in floor units (time / floor unit).",
+        "",
         "## Targets",
         "",
+        "### Issue 18 (ratios)",
+        "",
+        round2_targets(steps, sim, r2),
+        "",
+        "### Issue 6 (absolute, on this machine)",
+        "",
         targets_section(steps, sim, mem),
+        "",
+        "## Step against its floor",
+        "",
+        "Each arm's step (the table below) and its floor in alternating blocks "
+        f"({settings.floor_blocks} blocks of up to {settings.floor_steps} states after "
+        f"{settings.warmup} untimed warm-up steps).",
+        "",
+        floor_table(steps),
+        "",
+        "The floor measures the three calls back to back, with their code and data hot in "
+        "the caches; inside a step the same calls run between the reference, the observer "
+        "and the limit test, and take longer (measured here with markers inside the step: "
+        "the QP update + solve ≈ 1.6× its floor time). The rest of the step is Python "
+        "around numpy: about 30 calls (reference samples, one finiteness test, the gradient "
+        "product, the observer's linear solve, the QP's results, the limit test, the torque), "
+        "each 0.3–1 µs.",
         "",
         "## Controller step (`HierarchicalMPC.step`)",
         "",
@@ -843,8 +989,40 @@ def report(
         f"{settings.warmup} warm-up steps along the same trajectory, then "
         f"{settings.steps} timed steps, one sample each.",
         "",
-        step_table(steps),
+        step_table(steps, unit),
         "",
+        "## Long horizons (Panda, Ts = 1 ms, N = Nc = 100)",
+        "",
+        "The QP layout is chosen by size (`controller.qp_layout = \"auto\"`, the default: "
+        "one block-diagonal QP up to n·Nc = 140 variables, one QP per joint above; "
+        "`hmpc_pin.mpc.condensed.resolve_layout`). Panda at Ts = 1 ms with N = Nc = 100 "
+        f"({r2.long.note}), with the block QP forced, against N = 100 with Nc = 1 and against "
+        "the step benchmark's Panda controller (Ts = 10 ms, N = 10, Nc = 1); states: the "
+        "0.3 rad sine around home sampled every 1 ms (the reference itself), "
+        f"{r2.long.steps} timed steps per block, {len(next(iter(r2.long.blocks_us.values())))} "
+        "alternating blocks. Largest difference of the commanded accelerations v between "
+        f"the auto and the block layout along the same states: {r2.long_diff:.1e} rad/s² "
+        "(solver tolerance).",
+        "",
+        alternated_table(r2.long, unit),
+        "",
+        "A run whose median step exceeds Ts/2 says so: `simulate` records the step times in "
+        "`result.meta[\"step_time\"]` and a warning in `result.meta[\"warnings\"]`, which "
+        "`hmpc-pin run` prints.",
+        "",
+        "## References",
+        "",
+        "The step (Nc = 1, the paper's controller) with the `SineReference`, a vectorised "
+        "`QuinticReference` (home − 0.3 rad to home + 0.3 rad over 30 s), the sine behind an "
+        "object with only `sample(t)` (adapted point by point: N = 10 calls per step), and "
+        "the sine's `sample` as a plain callable; each on the states of its own closed-loop "
+        f"run; {settings.ratio_steps} timed steps per block, {settings.ratio_blocks} "
+        "alternating blocks.",
+        "",
+    ]
+    for name, a in r2.refs.items():
+        lines += [f"### {name}", "", alternated_table(a, unit), ""]
+    lines += [
         "## Step time against the number of joints",
         "",
         "Planar chains of n uniform rods (1 kg/m, 3.7 m total reach like planar3, axes "
@@ -852,7 +1030,7 @@ def report(
         "yourdfpy (`benchmarks/chains.py`), `chen` observer; same reference, settings and "
         "method as above; UR5 and Panda from the table above.",
         "",
-        scaling_table(chains, steps),
+        scaling_table(chains, steps, unit),
         "",
         "## Joint QPs: one block-diagonal QP, n QPs, ProxSuite BatchQP",
         "",
@@ -870,7 +1048,7 @@ def report(
         "thread must be woken while another process holds that core (the median is one or "
         "the other depending on the load during the run).",
         "",
-        layout_table(layouts),
+        layout_table(layouts, unit),
         "",
         "## Closed-loop simulation of the paper's combined scenario",
         "",
@@ -880,13 +1058,14 @@ def report(
         f"{settings.sim_repeats} repetition(s).",
         "",
         table(
-            ["", "median [s]", "min [s]", "max [s]"],
+            ["", "median [s]", "min [s]", "max [s]", "median in floor units"],
             [
                 [
                     "`run()` wall time",
                     f"{sim.median:.3f}",
                     f"{min(sim.run):.3f}",
                     f"{max(sim.run):.3f}",
+                    per_unit(sim.median * 1e6, unit),
                 ],
                 [
                     "the same simulation with τ = G(q) instead of the MPC (plant, "
@@ -894,18 +1073,31 @@ def report(
                     f"{np.median(sim.plant_only):.3f}",
                     f"{min(sim.plant_only):.3f}",
                     f"{max(sim.plant_only):.3f}",
+                    per_unit(float(np.median(sim.plant_only)) * 1e6, unit),
+                ],
+                [
+                    "the plant's 40 000 `pin.aba` calls alone (bare loop, fixed state)",
+                    f"{np.median(sim.aba_only):.3f}",
+                    f"{min(sim.aba_only):.3f}",
+                    f"{max(sim.aba_only):.3f}",
+                    per_unit(float(np.median(sim.aba_only)) * 1e6, unit),
                 ],
                 [
                     "`Experiment.from_config` (robot load, limit checks)",
                     f"{np.median(sim.build):.3f}",
                     f"{min(sim.build):.3f}",
                     f"{max(sim.build):.3f}",
+                    per_unit(float(np.median(sim.build)) * 1e6, unit),
                 ],
             ],
         ),
         "",
         f"Real-time factor (10 s / median `run()` wall time): **{sim.rtf:.1f}**; "
-        f"run completed: {'yes' if sim.complete else 'no'}.",
+        f"run completed: {'yes' if sim.complete else 'no'}. The bare `pin.aba` calls of the "
+        f"RK4 plant (4 per 1 ms step) take {np.median(sim.aba_only) / sim.median:.0%} of the "
+        "run: as long as the plant calls Pinocchio from Python once per RK4 stage, the "
+        f"real-time factor stays below 10 s / that time ≈ "
+        f"{sim.duration / np.median(sim.aba_only):.0f} whatever else is made faster.",
         "",
         "## Memory",
         "",
@@ -975,7 +1167,7 @@ def report(
             "",
             scenario.description + ".",
             "",
-            compare_table(rows, scenario.effort_limit is not None),
+            compare_table(rows, scenario.effort_limit is not None, unit),
             "",
         ]
     lines += [
@@ -1026,8 +1218,19 @@ def main(argv: list[str] | None = None) -> int:
         load_arm("ur5", "ur5", HOMES["ur5"], spatial),
         load_arm("panda", "panda", HOMES["panda"], spatial, PANDA_LOCKED),
     ]
-    log("controller step")
-    steps = bench_steps(settings, arms)
+    log("controller step (and its floor, alternating blocks)")
+    steps = bench_steps(settings, arms, floor=True)
+    unit = find_step(steps, "planar3", 1).floor.floor_median_us  # type: ignore[union-attr]
+    log(f"  floor unit (planar3, Nc = 1): {unit:.2f} µs")
+    log("long horizons (Panda, Ts = 1 ms, N = Nc = 100)")
+    long, long_diff = long_horizon(arms[2], settings.long_steps, settings.ratio_blocks)
+    log("  " + ", ".join(f"{k}: {long.median_us(k):.0f} µs ({long.ratio(k):.2f})"
+                         for k in long.blocks_us))  # fmt: skip
+    log("references")
+    refs = {arm.name: references(arm, settings.ratio_steps, settings.ratio_blocks)
+            for arm in (arms[0], arms[2])}  # fmt: skip
+    for name, r in refs.items():
+        log(f"  {name}: " + ", ".join(f"{k} {r.ratio(k):.2f}" for k in r.blocks_us))
     log("step time against n (generated planar chains)")
     with tempfile.TemporaryDirectory(prefix="hmpc_chains_") as tmp:
         chain_arms = [
@@ -1061,6 +1264,7 @@ def main(argv: list[str] | None = None) -> int:
         compares,
         spatial,
         total,
+        Round2(unit, long, long_diff, refs),
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text, encoding="utf-8")

@@ -108,11 +108,12 @@ def ab_step(old_pkg, new_pkg, rounds: int) -> dict:
         ref = arm.reference()
         args = [(float(tr.t[i]), tr.q[i].copy(), tr.dq[i].copy()) for i in range(len(tr.t))]
 
-        def block(ctrl):
+        def block(ctrl, tr=tr, args=args, ref=ref):
             def run():
                 ctrl.reset(tr.q[0], tr.dq[0])
                 for t, q, dq in args:
                     ctrl.step(t, q, dq, ref)
+
             return run
 
         t_old, t_new = _alternate(block(ctrls[0]), block(ctrls[1]), rounds)

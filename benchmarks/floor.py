@@ -23,7 +23,7 @@ import pinocchio as pin
 import hmpc_pin
 from hmpc_pin.mpc.condensed import _new_qp
 
-__all__ = ["FloorRatio", "Floor", "step_floor_ratio"]
+__all__ = ["Floor", "FloorRatio", "step_floor_ratio"]
 
 
 class Floor:

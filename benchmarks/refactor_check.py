@@ -6,13 +6,14 @@ tolerance. Record the outputs of the code as it was, change the code, then compa
     python benchmarks/refactor_check.py record /tmp/before      # on the old code
     python benchmarks/refactor_check.py compare /tmp/before     # on the new code
 
-``record`` runs every ``hmpc_pin/data/configs/*.toml`` (``Experiment.from_config(...).run()``)
-and a short sweep (4 samples of ``paper_combined``, both variants, noise and delay), and
-writes each run's result arrays to ``<dir>/<config>.npz`` and the sweep rows to
-``<dir>/sweep.json``. ``compare`` reruns them and prints, per config and array, the largest
-difference divided by max(1, the array's largest magnitude); exit 1 if any exceeds ``--tol``
-(default 1e-9: the solver's ``eps_abs``) or a run's completion changed. This is the one place saved outputs are used:
-tests compare against independent computations instead.
+``record`` runs every ``hmpc_pin/data/configs/*.toml``
+(``Experiment.from_config(...).run()``) and a short sweep (4 samples of
+``paper_combined``, both variants, noise and delay), and writes each run's result arrays
+to ``<dir>/<config>.npz`` and the sweep rows to ``<dir>/sweep.json``. ``compare`` reruns
+them and prints, per config and array, the largest difference divided by max(1, the
+array's largest magnitude); exit 1 if any exceeds ``--tol`` (default 1e-9: the solver's
+``eps_abs``) or a run's completion changed. This is the one place saved outputs are
+used: tests compare against independent computations instead.
 """
 
 from __future__ import annotations

@@ -833,6 +833,38 @@ class Round2:
     long: Alternated
     long_diff: float
     refs: dict[str, Alternated]
+    ab: list[str] = field(default_factory=list)
+
+
+def bench_ab(old: Path, settings: Settings, sweep_samples: int, quick: bool) -> list[str]:
+    """Old vs new in one process, alternating (``benchmarks/ab.py``): the report lines."""
+    from benchmarks import ab
+
+    old_pkg, new_pkg = ab._packages(old)
+    version = getattr(old_pkg, "__version__", "?")
+    rows = []
+    run = ab.ab_run(old_pkg, new_pkg, 3 if quick else 9)
+    rows.append(["paper 10 s run, `Experiment.run()` [s]", f"{run['old']:.3f}",
+                 f"{run['new']:.3f}", f"**{run['speedup']:.2f}**"])  # fmt: skip
+    rows.append(["real-time factor", f"{run['rtf_old']:.0f}", f"{run['rtf_new']:.0f}", ""])
+    for arm, r in ab.ab_step(old_pkg, new_pkg, 3 if quick else 10).items():
+        rows.append([f"{arm} step, Nc = 1 [µs]", fmt_us(r["old"]), fmt_us(r["new"]),
+                     f"**{r['speedup']:.2f}**"])  # fmt: skip
+    if sweep_samples:
+        sw = ab.ab_sweep(old_pkg, new_pkg, 1, sweep_samples, 2)
+        label = f"sweep of paper_combined, {sweep_samples} samples, 2 jobs [s]"
+        rows.append([label, f"{sw['old']:.1f}", f"{sw['new']:.1f}", f"**{sw['speedup']:.2f}**"])
+    return [
+        "## Against the previous version (old / new in one process)",
+        "",
+        f"The old package (version {version}, from `--old {old}`) and this one, alternating "
+        "in one process (`benchmarks/ab.py`): the 10 s run 9 rounds each, the steps 10 "
+        "blocks each along the step benchmark's states, the sweep once each (old first). "
+        "Speed-up = median over rounds of old / new.",
+        "",
+        table(["", "old", "new", "speed-up (old / new)"], rows),
+        "",
+    ]
 
 
 def per_unit(us: float, unit: float) -> str:
@@ -1022,6 +1054,7 @@ def report(
     ]
     for name, a in r2.refs.items():
         lines += [f"### {name}", "", alternated_table(a, unit), ""]
+    lines += r2.ab
     lines += [
         "## Step time against the number of joints",
         "",
@@ -1199,6 +1232,19 @@ def main(argv: list[str] | None = None) -> int:
         default=ROOT / "BENCHMARKS.md",
         help="Markdown report to write (default: BENCHMARKS.md at the repository root)",
     )
+    parser.add_argument(
+        "--old",
+        type=Path,
+        default=None,
+        help="folder holding an older version of the package as hmpc_pin_old: adds old vs "
+        "new timings in one process (benchmarks/ab.py)",
+    )
+    parser.add_argument(
+        "--ab-sweep-samples",
+        type=int,
+        default=0,
+        help="with --old: also time the README's sweep (this many samples, 2 jobs), old and new",
+    )
     args = parser.parse_args(argv)
     settings = QUICK if args.quick else Settings()
     command = "python benchmarks/run.py" + (" --quick" if args.quick else "")
@@ -1249,6 +1295,12 @@ def main(argv: list[str] | None = None) -> int:
     if settings.compare_panda_duration > 0:
         planned.append((panda_scenario(), settings.compare_panda_duration))
     compares = [(sc, d, bench_compare(sc, d, settings)) for sc, d in planned]
+    ab_lines: list[str] = []
+    if args.old is not None:
+        log("old vs new (benchmarks/ab.py)")
+        ab_lines = bench_ab(args.old, settings, args.ab_sweep_samples, args.quick)
+        command += f" --old {args.old}" + (
+            f" --ab-sweep-samples {args.ab_sweep_samples}" if args.ab_sweep_samples else "")
     total = time.perf_counter() - start
     text = report(
         settings,
@@ -1264,7 +1316,7 @@ def main(argv: list[str] | None = None) -> int:
         compares,
         spatial,
         total,
-        Round2(unit, long, long_diff, refs),
+        Round2(unit, long, long_diff, refs, ab_lines),
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text, encoding="utf-8")

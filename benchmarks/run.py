@@ -851,15 +851,16 @@ def bench_ab(old: Path, settings: Settings, sweep_samples: int, quick: bool) -> 
         rows.append([f"{arm} step, Nc = 1 [µs]", fmt_us(r["old"]), fmt_us(r["new"]),
                      f"**{r['speedup']:.2f}**"])  # fmt: skip
     if sweep_samples:
-        sw = ab.ab_sweep(old_pkg, new_pkg, 1, sweep_samples, 2)
-        label = f"sweep of paper_combined, {sweep_samples} samples, 2 jobs [s]"
+        sw = ab.ab_sweep(old_pkg, new_pkg, 3, sweep_samples, 1)
+        label = f"sweep of paper_combined, {sweep_samples} samples × 2 variants, 1 job [s]"
         rows.append([label, f"{sw['old']:.1f}", f"{sw['new']:.1f}", f"**{sw['speedup']:.2f}**"])
     return [
         "## Against the previous version (old / new in one process)",
         "",
         f"The old package (version {version}, from `--old {old}`) and this one, alternating "
         "in one process (`benchmarks/ab.py`): the 10 s run 9 rounds each, the steps 10 "
-        "blocks each along the step benchmark's states, the sweep once each (old first). "
+        "blocks each along the step benchmark's states, the sweep (`run_sweep`, jobs = 1, "
+        "so that both run in this process) 3 rounds each. "
         "Speed-up = median over rounds of old / new.",
         "",
         table(["", "old", "new", "speed-up (old / new)"], rows),
@@ -1243,7 +1244,8 @@ def main(argv: list[str] | None = None) -> int:
         "--ab-sweep-samples",
         type=int,
         default=0,
-        help="with --old: also time the README's sweep (this many samples, 2 jobs), old and new",
+        help="with --old: also time the README's sweep (this many samples, in this process, "
+        "3 rounds), old and new",
     )
     args = parser.parse_args(argv)
     settings = QUICK if args.quick else Settings()

@@ -857,7 +857,9 @@ def bench_ab(old: Path, settings: Settings, sweep_samples: int, quick: bool) -> 
     return [
         "## Against the previous version (old / new in one process)",
         "",
-        f"The old package (version {version}, from `--old {old}`) and this one, alternating "
+        f"The old package (version {version}, from `--old {old}`: a `git archive` of the older "
+        "commit with its `hmpc_pin` folder renamed `hmpc_pin_old`, see `benchmarks/ab.py`) "
+        "and this one, alternating "
         "in one process (`benchmarks/ab.py`): the 10 s run 9 rounds each, the steps 10 "
         "blocks each along the step benchmark's states, the sweep (`run_sweep`, jobs = 1, "
         "so that both run in this process) 3 rounds each. "

@@ -1041,9 +1041,9 @@ def report(
         "",
         alternated_table(r2.long, unit),
         "",
-        "A run whose median step exceeds Ts/2 says so: `simulate` records the step times in "
-        "`result.meta[\"step_time\"]` and a warning in `result.meta[\"warnings\"]`, which "
-        "`hmpc-pin run` prints.",
+        "A run whose median step exceeds Ts/2 says so: `simulate` attaches the step times to "
+        "the result (`result.step_time`, not saved: a run's files stay bit-identical) and a "
+        "warning to `result.meta[\"warnings\"]`, which `hmpc-pin run` prints.",
         "",
         "## References",
         "",

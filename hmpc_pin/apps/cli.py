@@ -90,7 +90,9 @@ def cmd_run(args) -> int:
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
     for warning in result.meta.get("warnings", ()):
-        print(f"warning: {warning}")
+        timing = getattr(result, "step_time", None)
+        median = f" (median {timing['median_us']:.0f} µs)" if timing else ""
+        print(f"warning: {warning}{median}")
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))
     for f in files:

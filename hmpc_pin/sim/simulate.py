@@ -34,14 +34,15 @@ __all__ = ["Result", "simulate"]
 
 
 def _step_time(result: Result, step_ns: np.ndarray, Ts: float) -> None:
-    """Record the controller's step times in ``result.meta["step_time"]`` [µs] (median, 99th
-    percentile, max, Ts) and, when the median exceeds Ts/2, a warning in
+    """Attach the controller's step times to ``result`` as ``result.step_time`` [µs]
+    (median, 99th percentile, max, Ts; not saved with the result, so that a run's files
+    stay bit-identical) and, when the median exceeds Ts/2, a warning in
     ``result.meta["warnings"]``: such a controller cannot run in real time at this Ts."""
     if step_ns.size == 0:
         return
     us = step_ns / 1e3
     median = float(np.median(us))
-    result.meta["step_time"] = {
+    result.step_time = {  # type: ignore[attr-defined]
         "median_us": median,
         "p99_us": float(np.percentile(us, 99)),
         "max_us": float(us.max()),
@@ -49,8 +50,8 @@ def _step_time(result: Result, step_ns: np.ndarray, Ts: float) -> None:
     }
     if median > 0.5 * Ts * 1e6:
         result.meta.setdefault("warnings", []).append(
-            f"median controller step {median:.0f} µs exceeds Ts/2 = {0.5 * Ts * 1e6:.0f} µs: "
-            "too slow for real time at this Ts (shorten the horizon N or Nc, or raise Ts)"
+            f"the median controller step exceeds Ts/2 = {0.5 * Ts * 1e6:.0f} µs: too slow "
+            "for real time at this Ts (shorten the horizon N or Nc, or raise Ts)"
         )
 
 

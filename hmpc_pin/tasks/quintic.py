@@ -66,7 +66,7 @@ class QuinticReference:
         self._delta = q1 - q0
         # sample_many: [s^0..s^5] @ coefficients = [1, shape, rate] with shape(s) =
         # 10 s³ − 15 s⁴ + 6 s⁵ and rate(s) = 30 s²(1 − s)²/T = (30 s² − 60 s³ + 30 s⁴)/T.
-        self._powers: dict[int, np.ndarray] = {}
+        self._work: dict[int, tuple[np.ndarray, ...]] = {}
         c = np.zeros((6, 3))
         c[0, 0] = 1.0
         c[3:, 1] = (10.0, -15.0, 6.0)
@@ -108,20 +108,23 @@ class QuinticReference:
             shape = s**3 * (10.0 + s * (-15.0 + 6.0 * s))
             rate = 30.0 * s**2 * (1.0 - s) ** 2 / self.duration
             return _write((self.q_start + self._delta * shape, self._delta * rate), out)
-        s = np.subtract(t, self.t_start)
+        m = t.size
+        work = self._work.get(m)
+        if work is None:  # buffers per length (the MPC's horizon: always one length)
+            powers = np.ones((m, 6))
+            s_col = np.empty((m, 1))
+            work = (powers, powers[:, 1:], s_col, s_col[:, 0])
+            if len(self._work) < 8:
+                self._work[m] = work
+        powers, rest, s_col, s = work
+        np.subtract(t, self.t_start, out=s)
         np.divide(s, self.duration, out=s)
         np.maximum(s, 0.0, out=s)
         np.minimum(s, 1.0, out=s)
-        powers = self._powers.get(t.size)
-        if powers is None:  # one buffer per length (the MPC's horizon: always one)
-            powers = np.ones((t.size, 6))
-            if len(self._powers) < 8:
-                self._powers[t.size] = powers
-        rest = powers[:, 1:]
-        rest[...] = s[:, None]
+        rest[...] = s_col
         np.multiply.accumulate(rest, axis=1, out=rest)  # (m, 6): s^0 .. s^5
         one_shape_rate = powers.dot(self._coefficients)  # (m, 3): 1, shape, rate
-        if out is not None and (out is self._out or self._fits(out, t.size)):
+        if out is not None and (out is self._out or self._fits(out, m)):
             self._out = out  # the controller passes the same buffers every step
             np.dot(one_shape_rate, self._to_q, out=out[0])
             np.dot(one_shape_rate, self._to_dq, out=out[1])

@@ -520,8 +520,8 @@ def own_soft_solution(x0, ref, N, lo, hi, vel, v_lim=V_LIMIT, grid=4001):
     return u, cost(u)[1]
 
 
-def soft_qps(N, Nc, lo, hi, vel, always=False):
-    mpc = CondensedMPC(TS, N, Nc, Q_PAPER, R_PAPER, P_PAPER)
+def soft_qps(N, Nc, lo, hi, vel, always=False, Ts=TS):
+    mpc = CondensedMPC(Ts, N, Nc, Q_PAPER, R_PAPER, P_PAPER)
     limits = StateLimits(
         np.array([lo]), np.array([hi]), np.array([vel]), SOFT["rho2"], SOFT["rho1"]
     )
@@ -598,6 +598,31 @@ def test_fast_path_equals_always_constrained(make_rng, Nc):
         v_full = full.solve(G, x0)
         assert v_fast == pytest.approx(v_full, abs=1e-4)
     assert 0 < used < 60  # both branches of the fast path were taken
+
+
+@pytest.mark.parametrize("N, Nc", [(100, 3), (60, 60)])
+def test_fast_path_equals_always_constrained_for_long_horizons(make_rng, N, Nc):
+    """The one-sided limit test of long horizons (N·Nc > 200) decides as the soft QP does."""
+    rng = make_rng(N + Nc)
+    lo, hi, vel, Ts = -1.5, 1.5, 3.0, 0.002
+    mpc, fast = soft_qps(N, Nc, lo, hi, vel, Ts=Ts)
+    _, full = soft_qps(N, Nc, lo, hi, vel, always=True, Ts=Ts)
+    assert not fast._two_sided
+    used = 0
+    for _ in range(40):
+        x0 = np.array([[rng.uniform(0.8, 1.6)], [rng.uniform(-3.0, 3.0)]])
+        ref = np.zeros((2 * N, 1))
+        ref[0::2] = rng.uniform(0.0, 2.0)
+        G = mpc.gradient(x0, ref)
+        v_fast = fast.solve(G, x0)
+        used += fast.constrained
+        v_full = full.solve(G, x0)
+        assert v_fast == pytest.approx(v_full, abs=1e-4)
+        if not fast.constrained:  # the box solution's prediction is inside the limits
+            X = fast.predict(x0, fast.solution)
+            assert X[0::2].max() <= hi + 1e-9 and X[0::2].min() >= lo - 1e-9
+            assert np.abs(X[1::2]).max() <= vel + 1e-9
+    assert 0 < used < 40  # both branches of the fast path were taken
 
 
 # --------------------------------------------------------------- QP layout by size

@@ -686,3 +686,11 @@ def test_layouts_give_the_block_solution_on_recorded_gradients(planar3, N, Nc):
         for name in ("joint", "auto"):
             np.testing.assert_allclose(sols[name], sols["block"], rtol=0, atol=tol)
     assert constrained > 0  # the soft state constraints were exercised
+
+
+def test_solve_without_states_is_refused_when_limits_are_set():
+    from hmpc_pin.exceptions import InterfaceError
+
+    mpc, qps = soft_qps(10, 1, -1.5, 1.5, 3.0)
+    with pytest.raises(InterfaceError, match="x0"):
+        qps.solve(np.zeros((1, 1)))

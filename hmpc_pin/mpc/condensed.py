@@ -65,7 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 from proxsuite import proxqp
 
-from ..exceptions import ConfigError, SolverError
+from ..exceptions import ConfigError, InterfaceError, SolverError
 
 __all__ = ["AUTO_BLOCK_MAX", "LAYOUTS", "CondensedMPC", "JointQPs", "StateLimits", "resolve_layout"]
 
@@ -429,7 +429,11 @@ class JointQPs:
             SolverError: A QP did not report ``PROXQP_SOLVED`` (names joint and status).
         """
         sol = self.solution
-        if x0 is not None and x0 is not self.x0:
+        if x0 is None:
+            if self.soft_qps:
+                raise InterfaceError(x0, "the current states x0, shape (2, n)",
+                                     "JointQPs.solve needs them when limits are set")  # fmt: skip
+        elif x0 is not self.x0:
             self.x0[:] = x0
         if self.layout == "block":
             qp = self.qps[0]

@@ -1,0 +1,28 @@
+"""Real time: a controller at a fixed rate against an arm, deadlines measured, safe stops.
+
+:class:`RobotInterface` is the arm (read the state with its stamp, write a torque,
+close): :class:`PlantArm` in this process, :class:`ProcessArm` in a separate process in
+wall-clock time, a pylibfranka-style template in :mod:`.driver_template` (not run on
+hardware). :class:`RealtimeLoop` runs any :class:`~hmpc_pin.controllers.base.Controller`
+against it at absolute deadlines, records latency and misses, and stops safely
+(:mod:`.safety`).
+"""
+
+from .interface import PlantArm, RobotInterface
+from .loop import LoopSettings, RealtimeLoop, RealtimeRun, latency_stats, sleep_until
+from .process_arm import ProcessArm
+from .safety import STOP_CAUSES, SafeTorque, SafetySettings
+
+__all__ = [
+    "STOP_CAUSES",
+    "LoopSettings",
+    "PlantArm",
+    "ProcessArm",
+    "RealtimeLoop",
+    "RealtimeRun",
+    "RobotInterface",
+    "SafeTorque",
+    "SafetySettings",
+    "latency_stats",
+    "sleep_until",
+]

@@ -1,0 +1,139 @@
+"""The robot-interface protocol: what a real-time loop needs from an arm, simulated or real.
+
+A torque-controlled arm (libfranka for the Panda, UR's direct torque mode) runs its own
+clock: every interface period it publishes the measured state with its time stamp and
+applies the last torque it received. :class:`RobotInterface` is that contract, seen from
+the controller's side: :meth:`~RobotInterface.read` the newest measurement,
+:meth:`~RobotInterface.write` a torque, :meth:`~RobotInterface.close`. A stamp that does
+not advance between two reads means no new state arrived (the loop's watchdog counts it).
+
+Implementations: :class:`PlantArm` (a :class:`~hmpc_pin.sim.base.Plant` in this process,
+stepped to a clock you give it: deterministic tests), :class:`~hmpc_pin.realtime.
+process_arm.ProcessArm` (a plant in a separate process stepping in wall-clock time, state
+and torque exchanged through shared memory, as a driver would), and the template in
+:mod:`~hmpc_pin.realtime.driver_template` (not run on hardware).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..exceptions import DimensionError
+from ..sim.base import Plant
+
+__all__ = ["PlantArm", "RobotInterface"]
+
+FloatArray = NDArray[np.float64]
+
+
+@runtime_checkable
+class RobotInterface(Protocol):
+    """A torque-controlled arm as a real-time loop sees it.
+
+    Attributes:
+        nq: Number of joints n.
+        period: The arm's own period [s] (1 ms for libfranka): how often it publishes a
+            state and samples the torque.
+    """
+
+    nq: int
+    period: float
+
+    def read(self) -> tuple[float, FloatArray, FloatArray]:
+        """The newest measurement ``(stamp [s], q [rad], dq [rad/s])``, each (n,).
+
+        ``stamp`` is the arm's time of the measurement; it does not advance while no new
+        state arrives. The arrays may be reused by the next call: copy them to keep them.
+        """
+        ...
+
+    def write(self, tau: FloatArray) -> None:
+        """Command the torque ``tau`` [N·m], (n,), held by the arm until the next write."""
+        ...
+
+    def close(self) -> None:
+        """Release the arm (stop the process, disconnect); idempotent."""
+        ...
+
+
+class PlantArm:
+    """A :class:`~hmpc_pin.sim.base.Plant` in this process, stepped to a clock.
+
+    Every :meth:`read` first advances the plant, with the last torque written held, by
+    every whole period :math:`T_a` that has elapsed on ``clock`` since the first write
+    (before it the arm holds still, as an arm on its brakes): the plant's time follows
+    the clock as a driver's follows the wall, and with an injected clock the run is
+    deterministic.
+
+    Args:
+        plant: The arm's dynamics; its ``Ts`` is the interface period :math:`T_a` [s].
+        q0, dq0: Initial state [rad, rad/s].
+        clock: Seconds, monotonic (default :func:`time.perf_counter`).
+        effort_limit: Per-joint torque limit [N·m] applied to the written torque
+            (``None``: as written).
+
+    Attributes:
+        tau: The torque the arm currently holds [N·m] (after the effort limit).
+        writes: Number of :meth:`write` calls.
+    """
+
+    def __init__(
+        self,
+        plant: Plant,
+        q0,
+        dq0=None,
+        *,
+        clock: Callable[[], float] = time.perf_counter,
+        effort_limit=None,
+    ):
+        self.plant = plant
+        self.nq = n = plant.nq
+        self.period = float(plant.Ts)
+        q0 = np.array(q0, dtype=float)
+        dq0 = np.zeros(n) if dq0 is None else np.array(dq0, dtype=float)
+        if q0.shape != (n,) or dq0.shape != (n,):
+            raise DimensionError(
+                f"initial state of shapes {q0.shape}, {dq0.shape}; expected ({n},) each"
+            )
+        self._clock = clock
+        self._limit = None if effort_limit is None else np.broadcast_to(
+            np.asarray(effort_limit, dtype=float), (n,)
+        ).copy()  # fmt: skip
+        plant.reset(q0, dq0, 0.0)
+        self.q, self.dq = q0.copy(), dq0.copy()
+        self.tau = np.zeros(n)
+        self.writes = 0
+        self._start: float | None = None
+        self._steps = 0
+        self.closed = False
+
+    def read(self) -> tuple[float, FloatArray, FloatArray]:
+        """Advance to the clock and return ``(plant time, q, dq)``."""
+        if self._start is not None:
+            due = int((self._clock() - self._start) / self.period + 1e-9)
+            while self._steps < due:
+                self.q, self.dq = self.plant.advance(self.tau)
+                self._steps += 1
+        return self._steps * self.period, self.q, self.dq
+
+    def write(self, tau: FloatArray) -> None:
+        """Hold ``tau`` [N·m] from now on (the first write releases the brakes)."""
+        tau = np.asarray(tau, dtype=float)
+        if tau.shape != (self.nq,):
+            raise DimensionError(f"torque of shape {tau.shape}; expected ({self.nq},)")
+        if self._limit is not None:
+            np.clip(tau, -self._limit, self._limit, out=self.tau)
+        else:
+            self.tau[:] = tau
+        if self._start is None:
+            self._start = self._clock()
+        self.writes += 1
+
+    def close(self) -> None:
+        """Nothing to release; marks the arm closed."""
+        self.closed = True

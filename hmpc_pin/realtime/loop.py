@@ -1,0 +1,486 @@
+"""The fixed-rate loop: read the arm, step the controller, write the torque, every period.
+
+Timing (interface period :math:`P = 1/f`, start :math:`t_0`):
+
+* cycle :math:`k` has the absolute deadline :math:`D_k = t_0 + kP` (no drift: a late
+  cycle does not move the later ones); the loop sleeps until :math:`D_k`, reads the
+  newest state, and writes a torque;
+* its **latency** is :math:`e_k - D_k`, from the deadline to the torque written, and its
+  wake-up **jitter** :math:`w_k - D_k`; the cycle **misses** when :math:`e_k > D_k + P`
+  (the arm's next period began without the new torque). A deadline that has already
+  passed when the previous cycle ends is skipped and counted as missed (the arm holds
+  the last torque through it);
+* the controller runs every :math:`m = T_s / P` cycles (e.g. MPC at 100 Hz under a 1 kHz
+  interface) at loop time :math:`kP`; the torque is held in between.
+
+Garbage collection (``gc_handling``): after start-up everything alive is moved out of
+the collector's reach (:func:`gc.freeze`) and automatic collection is switched off; the
+generation CPython would collect next (its counts against its thresholds) is collected
+only in a cycle's slack, when at least ``gc_slack`` remains before the next deadline,
+and deferred otherwise. Collector state is restored at the end.
+
+Safe stop (:mod:`.safety`): on Ctrl-C (SIGINT sets a flag read at every cycle; a second
+one raises :class:`KeyboardInterrupt`), a fault (non-finite state or torque, a
+controller error such as a QP not solved, a measured state beyond the bounds),
+``max_misses`` consecutive misses, or a stamp that stops advancing for ``watchdog``
+seconds, the loop writes the safe torque in the same cycle, holds it for ``hold``
+seconds, and returns the run up to that point with ``complete = False`` and one line
+saying why. A complete run also ends on the safe torque.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..controllers.base import Controller
+from ..exceptions import ConfigError, HmpcError
+from ..sim.result import Result
+from ..tasks.base import as_reference
+from .interface import RobotInterface
+from .safety import SafetySettings
+
+__all__ = [
+    "LoopSettings",
+    "RealtimeLoop",
+    "RealtimeRun",
+    "latency_stats",
+    "sleep_until",
+]
+
+
+def sleep_until(deadline: float, clock: Callable[[], float] = time.perf_counter) -> None:
+    """Sleep until ``clock()`` reaches ``deadline`` [s] (returns at once if it has)."""
+    delay = deadline - clock()
+    if delay > 0:
+        time.sleep(delay)
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """Rate and handling of the real-time loop.
+
+    Attributes:
+        rate: Interface rate f [Hz] (1000 for libfranka); ``1/rate`` must divide the
+            controller's period.
+        duration: Run length [s]; the loop runs cycles 0..round(duration·rate).
+        gc_handling: Freeze the heap after start-up and collect only in the slack
+            (module doc); ``False`` leaves Python's collector as it is.
+        gc_slack: A collection runs only if at least this much [s] remains before the
+            next deadline.
+    """
+
+    rate: float = 1000.0
+    duration: float = 10.0
+    gc_handling: bool = True
+    gc_slack: float = 3e-4
+
+    def __post_init__(self):
+        for name in ("rate", "duration", "gc_slack"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"realtime.{name}", f"expected a number > 0, got {value!r}")
+
+    @property
+    def period(self) -> float:
+        """Interface period P = 1 / rate [s]."""
+        return 1.0 / self.rate
+
+    def decimation(self, Ts: float) -> int:
+        """Cycles per controller step, m = Ts · rate (a whole number >= 1)."""
+        m = round(Ts * self.rate)
+        if m < 1 or abs(m / self.rate - Ts) > 1e-9 * Ts:
+            raise ConfigError(
+                "realtime.rate",
+                f"rate={self.rate:g} Hz does not divide the controller period Ts={Ts:g} s; "
+                "expected Ts·rate to be a whole number >= 1 (e.g. 1000 Hz for Ts = 0.01 s)",
+            )
+        return m
+
+
+def latency_stats(latency: np.ndarray, period: float) -> dict:
+    """Median, p99, p99.9, max [µs] of the finite entries of ``latency`` [s]."""
+    x = latency[np.isfinite(latency)] * 1e6
+    if x.size == 0:
+        return {"median_us": math.nan, "p99_us": math.nan, "p999_us": math.nan,
+                "max_us": math.nan}  # fmt: skip
+    p50, p99, p999 = np.percentile(x, [50.0, 99.0, 99.9])
+    return {"median_us": float(p50), "p99_us": float(p99), "p999_us": float(p999),
+            "max_us": float(x.max())}  # fmt: skip
+
+
+@dataclass
+class RealtimeRun:
+    """A real-time run: the trajectories and every cycle's timing.
+
+    Attributes:
+        result: Trajectories at the controller steps (``t`` is the loop time
+            :math:`kP`; ``d`` is NaN: an arm does not report its disturbance), with
+            ``meta["realtime"]`` holding :attr:`stats` and ``meta["stop"]`` the stop.
+        timing: Per interface cycle (K+1 entries, NaN where skipped): ``wake`` and
+            ``latency`` [s] after the deadline, ``compute`` [s] from wake to write,
+            ``stamp`` [s] of the state read, ``missed`` (bool), ``mpc`` (bool), ``gc``
+            [s] spent collecting.
+        stats: The summary (:meth:`summary` prints it).
+        stop: ``None`` for a complete run, else the stop record: ``cause`` (one of
+            :data:`~hmpc_pin.realtime.safety.STOP_CAUSES`), ``reason`` (one line),
+            ``cycle``, ``t`` [s], ``safe_tau`` [N·m], ``q``, ``dq`` used, and
+            ``safe_after_deadline`` [s], the time from the detecting cycle's deadline
+            to the safe torque written.
+    """
+
+    result: Result
+    timing: dict[str, np.ndarray]
+    stats: dict
+    stop: dict | None = None
+
+    @property
+    def complete(self) -> bool:
+        """Whether the run went to the end."""
+        return self.stop is None
+
+    def summary(self) -> str:
+        """The latency statistics in a few lines."""
+        s = self.stats
+        lat, wake = s["latency"], s["wake"]
+        lines = [
+            f"real-time loop: {s['rate']:g} Hz interface, controller every {s['decimation']} "
+            f"cycles ({1.0 / s['controller_Ts']:g} Hz), {s['cycles_run']} of "
+            f"{s['cycles']} cycles run, GC handling {'on' if s['gc_handling'] else 'off'}",
+            f"  latency deadline->torque [us]: median {lat['median_us']:.0f}, p99 "
+            f"{lat['p99_us']:.0f}, p99.9 {lat['p999_us']:.0f}, max {lat['max_us']:.0f}",
+            f"  wake-up jitter [us]:           median {wake['median_us']:.0f}, p99 "
+            f"{wake['p99_us']:.0f}, p99.9 {wake['p999_us']:.0f}, max {wake['max_us']:.0f}",
+            f"  missed deadlines: {s['misses']} ({100 * s['miss_fraction']:.3f} %; "
+            f"{s['skipped']} skipped), longest run of misses {s['max_consecutive_misses']}",
+        ]
+        if s["gc_handling"]:
+            lines.append(
+                f"  GC in the slack: {s['gc_collections']} collections (max "
+                f"{1e6 * s['gc_max_s']:.0f} us), {s['gc_deferred']} deferred"
+            )
+        return "\n".join(lines)
+
+    def save_timing(self, path: str | Path) -> Path:
+        """Write :attr:`timing` to ``path`` (``.npz``)."""
+        path = Path(path)
+        np.savez(path, **self.timing)
+        return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+
+class RealtimeLoop:
+    """Run a controller against a :class:`~hmpc_pin.realtime.interface.RobotInterface`
+    at a fixed rate (module doc).
+
+    Args:
+        interface: The arm.
+        controller: Any :class:`~hmpc_pin.controllers.base.Controller`; its ``Ts`` is a
+            whole number of interface periods.
+        reference: A :class:`~hmpc_pin.tasks.base.Reference` (or what
+            :func:`~hmpc_pin.tasks.base.as_reference` adapts).
+        safe_torque: :class:`~hmpc_pin.realtime.safety.SafeTorque` (or any
+            ``f(q, dq) -> tau``).
+        settings: Rate, duration, garbage-collection handling.
+        safety: Bounds, k, watchdog, hold.
+        clock: Monotonic seconds (default :func:`time.perf_counter`).
+        sleep: ``sleep(deadline)``: return when ``clock()`` has reached ``deadline``
+            (default: :func:`sleep_until` on ``clock``).
+        joint_names: Stored in the result.
+        meta: Stored in the result's ``meta``.
+    """
+
+    def __init__(
+        self,
+        interface: RobotInterface,
+        controller: Controller,
+        reference,
+        safe_torque: Callable,
+        settings: LoopSettings,
+        safety: SafetySettings,
+        *,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] | None = None,
+        joint_names: tuple[str, ...] = (),
+        meta: dict | None = None,
+    ):
+        self.interface, self.controller = interface, controller
+        self.reference = as_reference(reference)
+        self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
+        self.clock = clock
+        self.sleep = sleep if sleep is not None else (lambda d: sleep_until(d, clock))
+        self.joint_names = tuple(joint_names)
+        self.meta = dict(meta or {})
+        self.decimation = settings.decimation(controller.Ts)
+        self._interrupt = 0
+        self._last_state: tuple[np.ndarray, np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ stopping
+    def request_stop(self) -> None:
+        """Ask the loop to stop safely at its next cycle (what SIGINT does)."""
+        self._interrupt += 1
+
+    def _on_sigint(self, signum, frame) -> None:
+        self._interrupt += 1
+        if self._interrupt > 1:
+            raise KeyboardInterrupt
+
+    # ---------------------------------------------------------------------- run
+    def run(self, q0=None, dq0=None) -> RealtimeRun:
+        """Run until the end or a safe stop.
+
+        Args:
+            q0, dq0: The state to reset the controller to (default: the first reading).
+        """
+        main = threading.current_thread() is threading.main_thread()
+        old_handler = signal.signal(signal.SIGINT, self._on_sigint) if main else None
+        gc_was_enabled = gc.isenabled()
+        try:
+            return self._run(q0, dq0)
+        except BaseException:
+            # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the safe torque
+            # at the last state read before the error propagates.
+            if self._last_state is not None:
+                self._safe_write(*self._last_state)
+            raise
+        finally:
+            if self.settings.gc_handling:
+                gc.unfreeze()
+                if gc_was_enabled:
+                    gc.enable()
+            if main:
+                signal.signal(signal.SIGINT, old_handler)
+
+    def _run(self, q0, dq0) -> RealtimeRun:
+        st, sf = self.settings, self.safety
+        iface, ctrl, ref = self.interface, self.controller, self.reference
+        clock, sleep = self.clock, self.sleep
+        P, m = st.period, self.decimation
+        K = round(st.duration * st.rate)
+        n = iface.nq
+        stamp, q, dq = iface.read()
+        q_last, dq_last = np.array(q, dtype=float), np.array(dq, dtype=float)
+        self._last_state = (q_last, dq_last)
+        ctrl.reset(q_last if q0 is None else q0, dq_last if dq0 is None else dq0)
+
+        # Preallocated records: trajectories at controller steps, timing per cycle.
+        J = K // m + 2
+        rec = {name: np.full((J, n), np.nan) for name in ("q", "dq", "tau", "d", "d_hat",
+                                                          "q_ref", "dq_ref")}  # fmt: skip
+        rec_t = np.full(J, np.nan)
+        wake_a, done_a, stamp_a, gc_a = (np.full(K + 1, np.nan) for _ in range(4))
+        missed_a = np.zeros(K + 1, dtype=bool)
+        mpc_a = np.zeros(K + 1, dtype=bool)
+        lower, upper, vmax = sf.lower, sf.upper, sf.velocity
+        watchdog, max_misses = sf.watchdog, sf.max_misses
+        tau = np.zeros(n)
+        j = 0
+        misses = consecutive = worst_run = skipped = 0
+        gc_runs = gc_deferred = 0
+        gc_max = 0.0
+        handle_gc = st.gc_handling
+        if handle_gc:
+            gc.collect()
+            gc.freeze()
+            gc.disable()
+            th0, th1, th2 = gc.get_threshold()
+            gc_slack = st.gc_slack
+        stop: tuple[str, str] | None = None
+        next_mpc = 0
+        t0 = clock() + P
+        last_stamp, fresh_at = stamp, t0
+        k = 0
+        deadline = t0
+        while k <= K:
+            deadline = t0 + k * P
+            sleep(deadline)
+            wake = clock()
+            if self._interrupt:
+                stop = ("interrupted", "interrupted (Ctrl-C)")
+                break
+            stamp, q, dq = iface.read()
+            if stamp != last_stamp:
+                last_stamp, fresh_at = stamp, wake
+            elif wake - fresh_at > watchdog:
+                silent = 1e3 * (wake - fresh_at)
+                stop = ("watchdog", f"no new state from the arm for {silent:.1f} ms (watchdog "
+                        f"{1e3 * watchdog:g} ms), last stamp {stamp:.6g} s")  # fmt: skip
+                break
+            # One comparison each in the common case; NaN fails every one of them.
+            if not ((q >= lower).all() and (q <= upper).all() and (np.abs(dq) <= vmax).all()):
+                stop = ("fault", self._state_fault(q, dq))
+                break
+            q_last[:] = q
+            dq_last[:] = dq
+            is_mpc = k >= next_mpc
+            if is_mpc:
+                try:
+                    tau = ctrl.step(k * P, q, dq, ref)
+                except HmpcError as exc:
+                    stop = ("fault", f"controller: {exc}")
+                    break
+                if not np.isfinite(tau).all():
+                    stop = ("fault", f"non-finite torque from the controller: {tau.tolist()}")
+                    break
+                next_mpc += m
+                while next_mpc <= k:
+                    next_mpc += m
+            iface.write(tau)
+            done = clock()
+            # ---- bookkeeping, in the slack
+            wake_a[k] = wake - deadline
+            done_a[k] = done - deadline
+            stamp_a[k] = stamp
+            mpc_a[k] = is_mpc
+            if is_mpc:
+                rec_t[j] = k * P
+                rec["q"][j] = q
+                rec["dq"][j] = dq
+                rec["tau"][j] = tau
+                rec["d_hat"][j] = ctrl.disturbance_estimate
+                q_ref, dq_ref = ref.sample(k * P)
+                rec["q_ref"][j] = q_ref
+                rec["dq_ref"][j] = dq_ref
+                j += 1
+            if done > deadline + P:
+                missed_a[k] = True
+                misses += 1
+                consecutive += 1
+                worst_run = max(worst_run, consecutive)
+                if consecutive >= max_misses:
+                    stop = ("misses", f"{consecutive} consecutive missed deadlines "
+                            f"(limit {max_misses}); last latency {1e6 * (done - deadline):.0f} us "
+                            f"for a {1e6 * P:.0f} us period")  # fmt: skip
+                    k += 1
+                    break
+            else:
+                consecutive = 0
+            if handle_gc:
+                c0, c1, c2 = gc.get_count()
+                if c0 >= th0:
+                    gen = 2 if (c2 + 1 >= th2 and c1 + 1 >= th1) else (1 if c1 + 1 >= th1 else 0)
+                    if deadline + P - clock() >= gc_slack:
+                        g0 = clock()
+                        gc.collect(gen)
+                        spent = clock() - g0
+                        gc_a[k] = spent
+                        gc_runs += 1
+                        gc_max = max(gc_max, spent)
+                    else:
+                        gc_deferred += 1
+            k += 1
+            # Deadlines already passed are skipped (the arm holds the torque through them).
+            behind = int((clock() - t0) / P) - k
+            if behind > 0 and k <= K:
+                skip = min(behind, K + 1 - k)
+                missed_a[k : k + skip] = True
+                misses += skip
+                skipped += skip
+                consecutive += skip
+                worst_run = max(worst_run, consecutive)
+                k += skip
+                if consecutive >= max_misses:
+                    why = f"{skip} periods skipped behind the clock"
+                    stop = ("misses", f"{consecutive} consecutive missed deadlines "
+                            f"(limit {max_misses}), {why}")  # fmt: skip
+                    break
+        # ---- stop: the safe torque now, from the last finite state
+        stop_record = None
+        if stop is not None:
+            cause, reason = stop
+            detect_deadline = deadline
+            tau_safe = self._safe_write(q_last, dq_last)
+            written = clock()
+            cycle = min(k, K)
+            stop_record = {
+                "cause": cause,
+                "reason": f"safe stop at t={cycle * P:.4f} s (cycle {cycle}): {reason}; "
+                + self._safe_words(),
+                "cycle": int(cycle),
+                "t": cycle * P,
+                "safe_tau": tau_safe.tolist(),
+                "q": q_last.tolist(),
+                "dq": dq_last.tolist(),
+                "safe_after_deadline": written - detect_deadline,
+            }
+        else:
+            self._safe_write(q_last, dq_last)
+        self._hold(P)
+        cycles_run = int(np.count_nonzero(np.isfinite(done_a)))
+        stats = {
+            "rate": st.rate,
+            "controller_Ts": float(ctrl.Ts),
+            "decimation": m,
+            "cycles": K + 1,
+            "cycles_run": cycles_run,
+            "misses": misses,
+            "skipped": skipped,
+            "miss_fraction": misses / max(1, cycles_run + skipped),
+            "max_consecutive_misses": worst_run,
+            "latency": latency_stats(done_a, P),
+            "wake": latency_stats(wake_a, P),
+            "compute": latency_stats(done_a - wake_a, P),
+            "latency_mpc": latency_stats(np.where(mpc_a, done_a, np.nan), P),
+            "gc_handling": handle_gc,
+            "gc_collections": gc_runs,
+            "gc_deferred": gc_deferred,
+            "gc_max_s": gc_max,
+            "period_us": 1e6 * P,
+        }
+        meta = {**self.meta, "realtime": stats, "stop": stop_record}
+        result = Result(
+            t=rec_t[:j].copy(),
+            **{name: arr[:j].copy() for name, arr in rec.items()},
+            joint_names=self.joint_names,
+            complete=stop is None,
+            message="" if stop_record is None else stop_record["reason"],
+            meta=meta,
+        )
+        timing = {"wake": wake_a, "latency": done_a, "compute": done_a - wake_a,
+                  "stamp": stamp_a, "missed": missed_a, "mpc": mpc_a, "gc": gc_a}  # fmt: skip
+        return RealtimeRun(result, timing, stats, stop_record)
+
+    def _safe_write(self, q, dq) -> np.ndarray:
+        tau = np.asarray(self.safe_torque(q, dq), dtype=float)
+        self.interface.write(tau)
+        return tau
+
+    def _safe_words(self) -> str:
+        describe = getattr(self.safe_torque, "describe", None)
+        return "safe torque " + (describe() if callable(describe) else "commanded") + " commanded"
+
+    def _hold(self, P: float) -> None:
+        """Refresh the safe torque at the loop rate for ``safety.hold`` seconds."""
+        end = self.clock() + self.safety.hold
+        q_keep = dq_keep = None
+        while True:
+            now = self.clock()
+            if now >= end:
+                return
+            self.sleep(min(now + P, end))
+            _, q, dq = self.interface.read()
+            if np.isfinite(q).all() and np.isfinite(dq).all():
+                q_keep, dq_keep = q, dq
+            if q_keep is not None:
+                self._safe_write(q_keep, dq_keep)
+
+    def _state_fault(self, q, dq) -> str:
+        sf = self.safety
+        names = self.joint_names or tuple(f"joint{i + 1}" for i in range(len(q)))
+        if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+            return f"non-finite state from the arm: q={q.tolist()}, dq={dq.tolist()}"
+        for i in range(len(q)):
+            if not sf.lower[i] <= q[i] <= sf.upper[i]:
+                return (f"joint {names[i]!r} at q={q[i]:.4g} rad, beyond its bounds "
+                        f"[{sf.lower[i]:.4g}, {sf.upper[i]:.4g}]")  # fmt: skip
+            if abs(dq[i]) > sf.velocity[i]:
+                return (f"joint {names[i]!r} at |dq|={abs(dq[i]):.4g} rad/s, beyond its bound "
+                        f"{sf.velocity[i]:.4g}")  # fmt: skip
+        return "state beyond limits"

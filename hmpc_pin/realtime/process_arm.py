@@ -1,0 +1,256 @@
+"""An arm simulated in a separate process, stepping in wall-clock time, as a driver would.
+
+The child process builds a :class:`~hmpc_pin.sim.base.Plant` (any: the RK4 or Euler
+Pinocchio plant, or another engine's) from a picklable factory and advances it by its
+period :math:`T_a` at absolute wall-clock deadlines, catching up by several steps when
+it wakes late, so that the arm's time follows the wall. Every period it samples the
+newest torque and publishes ``(stamp, q, dq)``. Until the first torque arrives the arm
+holds still (on its brakes) while its stamp advances.
+
+State and torque are exchanged through one :class:`multiprocessing.shared_memory.
+SharedMemory` block, each direction guarded by a sequence counter (a seqlock: the
+writer makes the counter odd, writes, makes it even; a reader retries when the counter
+was odd or changed during its copy). Counters are 8-byte aligned int64 stores, atomic on
+x86-64 and, under its total store order, seen in program order by the other process;
+a port to a weaker memory model would need explicit fences.
+
+Ctrl-C in the terminal reaches the whole process group: the arm ignores SIGINT, so that
+the controller's safe stop still has an arm to command.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing as mp
+import signal
+import time
+import traceback
+from collections.abc import Callable
+from multiprocessing import resource_tracker
+from multiprocessing.shared_memory import SharedMemory
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..exceptions import DimensionError, SimulationError
+
+__all__ = ["ProcessArm"]
+
+FloatArray = NDArray[np.float64]
+
+# int64 control slots
+_STATE_SEQ, _CMD_SEQ, _STOP, _READY, _STALL, _MISSED_CMDS, _STEPS, _LATE = range(8)
+_NCTL = 8
+
+
+def _views(buf, n: int):
+    """``(ctl int64[8], period float64[1], state [stamp, q, dq] float64[1+2n], tau float64[n])``."""
+    ctl = np.ndarray((_NCTL,), dtype=np.int64, buffer=buf)
+    floats = np.ndarray((2 + 3 * n,), dtype=np.float64, buffer=buf, offset=8 * _NCTL)
+    return ctl, floats[:1], floats[1 : 2 + 2 * n], floats[2 + 2 * n :]
+
+
+def _size(n: int) -> int:
+    return 8 * (_NCTL + 2 + 3 * n)
+
+
+def _arm_main(name, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragma: no cover
+    """The child process: attach the shared block, run :func:`_arm_loop`, report a failure.
+
+    (Covered by the tests through :class:`ProcessArm`, in another process.)
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    shm = SharedMemory(name=name)
+    # The parent owns (and unlinks) the block; do not let this process's tracker do it too.
+    resource_tracker.unregister(shm._name, "shared_memory")  # type: ignore[attr-defined]
+    try:
+        _arm_loop(shm.buf, n, make_plant, q0, dq0, effort_limit, conn)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            conn.send(traceback.format_exc())
+    finally:
+        shm.close()
+
+
+def _arm_loop(buf, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragma: no cover
+    """Build the plant, then step it in wall-clock time until the stop flag is set."""
+    ctl, period_buf, state, tau_buf = _views(buf, n)
+    plant = make_plant()
+    if plant.nq != n:
+        raise DimensionError(f"the arm's plant has {plant.nq} joints; expected {n}")
+    plant.reset(q0, dq0, 0.0)
+    P = float(plant.Ts)
+    period_buf[0] = P
+    q, dq = np.array(q0, dtype=float), np.array(dq0, dtype=float)
+    tau, cmd = np.zeros(n), np.zeros(n)
+    limit = None if effort_limit is None else np.asarray(effort_limit, dtype=float)
+
+    def publish(stamp, q, dq):
+        ctl[_STATE_SEQ] += 1
+        state[0] = stamp
+        state[1 : 1 + n] = q
+        state[1 + n :] = dq
+        ctl[_STATE_SEQ] += 1
+
+    publish(0.0, q, dq)
+    ctl[_READY] = 1
+    conn.send(None)
+    clock, sleep = time.perf_counter, time.sleep
+    last_cmd, started, steps, k = 0, False, 0, 0
+    t0 = clock()
+    while not ctl[_STOP]:
+        k += 1
+        delay = t0 + k * P - clock()
+        if delay > 0:
+            sleep(delay)
+        s1 = ctl[_CMD_SEQ]
+        if s1 != last_cmd and not s1 & 1:
+            cmd[:] = tau_buf
+            if ctl[_CMD_SEQ] == s1:
+                last_cmd, started = s1, True
+                if limit is not None:
+                    np.clip(cmd, -limit, limit, out=tau)
+                else:
+                    tau[:] = cmd
+        elif started:
+            ctl[_MISSED_CMDS] += 1
+        due = int((clock() - t0) / P)
+        if due > k:
+            ctl[_LATE] += due - k
+            k = due
+        if started:
+            while steps < k:
+                q, dq = plant.advance(tau)
+                steps += 1
+        else:
+            steps = k
+        ctl[_STEPS] = steps
+        if not ctl[_STALL]:
+            publish(steps * P, q, dq)
+
+
+class ProcessArm:
+    """An arm in a separate process, a :class:`~hmpc_pin.realtime.interface.RobotInterface`.
+
+    Args:
+        make_plant: A picklable callable (a module-level function or a
+            :func:`functools.partial` of one) returning the arm's
+            :class:`~hmpc_pin.sim.base.Plant`; it is called in the child process, and the
+            plant's ``Ts`` is the arm's period.
+        q0, dq0: Initial state [rad, rad/s].
+        effort_limit: Per-joint torque limit [N·m] the arm applies (``None``: none).
+        start_timeout: Seconds to wait for the child to build its plant.
+
+    Attributes:
+        period: The arm's period [s] (its plant's ``Ts``).
+
+    Raises:
+        SimulationError: The child failed to start (its traceback in the message).
+    """
+
+    def __init__(
+        self,
+        make_plant: Callable,
+        q0,
+        dq0=None,
+        *,
+        effort_limit=None,
+        start_timeout: float = 120.0,
+    ):
+        q0 = np.array(q0, dtype=float)
+        n = q0.size
+        dq0 = np.zeros(n) if dq0 is None else np.array(dq0, dtype=float)
+        if q0.shape != (n,) or dq0.shape != (n,):
+            raise DimensionError(
+                f"initial state of shapes {q0.shape}, {dq0.shape}; expected ({n},) each"
+            )
+        self.nq = n
+        self._shm = SharedMemory(create=True, size=_size(n))
+        self._ctl, self._period, self._state, self._tau = _views(self._shm.buf, n)
+        self._ctl[:] = 0
+        self._closed = False
+        ctx = mp.get_context("spawn")
+        self._conn, child = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(
+            target=_arm_main,
+            args=(self._shm.name, n, make_plant, q0, dq0, effort_limit, child),
+            name="hmpc-pin-arm",
+            daemon=True,
+        )
+        self._proc.start()
+        child.close()
+        end = time.monotonic() + start_timeout
+        while not self._ctl[_READY]:
+            if self._conn.poll(0.01):
+                message = self._conn.recv()
+                if message is not None:
+                    self.close()
+                    raise SimulationError(f"the arm process failed to start:\n{message}")
+            if not self._proc.is_alive() or time.monotonic() > end:
+                code = self._proc.exitcode
+                self.close()
+                raise SimulationError(
+                    f"the arm process did not start within {start_timeout:g} s "
+                    f"(exit code {code}); check the plant factory"
+                )
+        self.period = float(self._period[0])
+        self._buf = np.empty(1 + 2 * n)
+        self._q, self._dq = self._buf[1 : 1 + n], self._buf[1 + n :]
+
+    def read(self) -> tuple[float, FloatArray, FloatArray]:
+        """The newest published ``(stamp, q, dq)`` (arrays reused by the next call)."""
+        ctl, state, buf = self._ctl, self._state, self._buf
+        for _ in range(100_000):
+            s1 = ctl[_STATE_SEQ]
+            if s1 & 1:
+                continue
+            buf[:] = state
+            if ctl[_STATE_SEQ] == s1:
+                break
+        # (after 1e5 torn reads the child is gone: the stale stamp trips the watchdog)
+        return float(buf[0]), self._q, self._dq
+
+    def write(self, tau: FloatArray) -> None:
+        """Publish ``tau`` [N·m]; the arm applies it from its next period."""
+        ctl = self._ctl
+        ctl[_CMD_SEQ] += 1
+        self._tau[:] = tau
+        ctl[_CMD_SEQ] += 1
+
+    def stall(self, on: bool = True) -> None:
+        """Fault injection: the arm keeps moving but stops publishing its state."""
+        self._ctl[_STALL] = int(on)
+
+    @property
+    def counters(self) -> dict:
+        """Arm-side counts: ``steps`` integrated, ``missed_commands`` (periods without a
+        new torque once started), ``late`` (periods the arm's own loop woke too late for)."""
+        c = self._ctl
+        return {"steps": int(c[_STEPS]), "missed_commands": int(c[_MISSED_CMDS]),
+                "late": int(c[_LATE])}  # fmt: skip
+
+    @property
+    def alive(self) -> bool:
+        """Whether the arm process runs."""
+        return self._proc.is_alive()
+
+    def close(self) -> None:
+        """Stop the arm process and free the shared memory (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._ctl[_STOP] = 1
+        self._proc.join(timeout=5.0)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(timeout=5.0)
+        self._conn.close()
+        del self._ctl, self._period, self._state, self._tau
+        self._shm.close()
+        self._shm.unlink()
+
+    def __enter__(self) -> ProcessArm:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

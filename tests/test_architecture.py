@@ -24,10 +24,11 @@ RANK = {
     "tasks": 2,
     "controllers": 3,
     "sim": 4,
-    "experiment": 5,
-    "apps": 6,
-    "__init__": 7,
-    "__main__": 8,
+    "realtime": 5,
+    "experiment": 6,
+    "apps": 7,
+    "__init__": 8,
+    "__main__": 9,
 }
 
 

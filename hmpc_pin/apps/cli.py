@@ -1,5 +1,5 @@
-"""Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init``
-(also ``python -m hmpc_pin``).
+"""Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
+realtime`` (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback), 1 when a run fails (e.g. diverges) — what was computed up to the
@@ -26,6 +26,7 @@ from .run import live_view, run_one, write_csv  # noqa: F401 (re-exported)
 __all__ = ["main", "write_csv"]
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 
 def _out_dir(path: Path) -> Path:
@@ -217,12 +218,38 @@ def add_init_parser(sub) -> None:
     ini.set_defaults(func=cmd_init)
 
 
+def cmd_realtime(args) -> int:
+    from .realtime import ArmView, format_tracking, run_realtime, with_realtime
+
+    config = _with_overrides(load_config(args.config), False, args.duration)
+    config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None)
+    out = _out_dir(args.out)
+    print(f"{config.name}: {config.description} ({config.controller.label}) in real time at "
+          f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
+          "process")  # fmt: skip
+    run, files = run_realtime(config, out, viz=ArmView if args.viz else None)
+    print(run.summary())
+    print(format_tracking(run))
+    for f in files:
+        print(f"wrote {f}")
+    if run.stop is None:
+        return EXIT_OK
+    if run.stop["cause"] == "interrupted":
+        t = run.stop["t"]
+        print(f"interrupted at t={t:.3f} s of {config.simulation.duration:g} s; safe torque "
+              "commanded, partial run saved (complete = false)", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
+    return EXIT_FAILED
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hmpc-pin",
         description="Hierarchical multiloop MPC with a nonlinear disturbance observer "
         "(Li et al. 2022) on Pinocchio + ProxSuite.",
-        epilog="Exit codes: 0 success, 1 a run failed (partial results kept), 2 bad input.",
+        epilog="Exit codes: 0 success, 1 a run failed (partial results kept), 2 bad input, "
+        "130 interrupted (realtime: safe stop, partial run kept).",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -335,6 +362,26 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)
     add_init_parser(sub)
+
+    rt = sub.add_parser(
+        "realtime",
+        help="run the controller in real time against an arm in a separate process",
+        description="Run the experiment's controller at a fixed rate (absolute deadlines, "
+        "garbage collection in the slack) against its plant stepping in wall-clock time in "
+        "a separate process, as a driver would; print and save the latency statistics "
+        "(median, p99, p99.9, max, misses) with the tracking metrics. Safe stop (gravity "
+        "compensation + damping) on Ctrl-C (exit 130), a fault, k consecutive missed "
+        "deadlines or a watchdog timeout (exit 1), the run saved with complete = false.",
+    )
+    rt.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    rt.add_argument("--rate", type=float, help="interface rate [Hz] (overrides realtime.rate)")
+    rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
+    rt.add_argument("--no-gc", action="store_true",
+                    help="leave Python's garbage collector as it is (for comparison)")  # fmt: skip
+    rt.add_argument("--viz", action="store_true",
+                    help="live Meshcat view of the arm, drawn by a separate process")  # fmt: skip
+    rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    rt.set_defaults(func=cmd_realtime)
     return parser
 
 

@@ -24,6 +24,8 @@ from ..controllers.wrappers import CollisionReaction
 from ..exceptions import ConfigError, LimitError, SimulationError, URDFError, ValidityWarning
 from ..model.robot import Robot, load_robot
 from ..mpc.condensed import StateLimits
+from ..realtime.loop import LoopSettings
+from ..realtime.safety import SafeTorque, SafetySettings
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
 from ..sim.mujoco import MuJoCoPlant, MuJoCoSettings, Obstacle
 from ..sim.plants import PLANTS, Plant
@@ -47,10 +49,12 @@ __all__ = [
     "build_disturbance",
     "build_reference",
     "load_robot_config",
+    "make_arm_plant",
     "make_compensation",
     "make_controller",
     "mpc_settings",
     "mujoco_settings",
+    "realtime_parts",
     "run_experiment",
     "uses_observer",
     "warn_validity",
@@ -492,22 +496,27 @@ class Experiment:
             effort_limit=self.effort_limit,
             state_bound=cfg.simulation.state_bound,
             on_step=on_step,
-            meta={
-                "experiment": cfg.name,
-                "config": str(cfg.source) if cfg.source else None,
-                "urdf": str(self.robot.source),
-                "locked_joints": self.robot.locked_joints,
-                "joint_kinds": list(self.robot.joint_kinds),
-                "limits": self._recorded_limits(),
-                "gravity": cfg.robot.gravity,
-                "controller": cfg.controller.label,
-                "observer": uses_observer(cfg.controller),
-                "Ts": cfg.controller.Ts,
-                "N": cfg.controller.N,
-                "Nc": cfg.controller.Nc,
-                "state_bound": cfg.simulation.state_bound,
-            },
+            meta=self.meta(),
         )
+
+    def meta(self) -> dict:
+        """The metadata stored with a run of this experiment (replay needs the URDF)."""
+        cfg = self.config
+        return {
+            "experiment": cfg.name,
+            "config": str(cfg.source) if cfg.source else None,
+            "urdf": str(self.robot.source),
+            "locked_joints": self.robot.locked_joints,
+            "joint_kinds": list(self.robot.joint_kinds),
+            "limits": self._recorded_limits(),
+            "gravity": cfg.robot.gravity,
+            "controller": cfg.controller.label,
+            "observer": uses_observer(cfg.controller),
+            "Ts": cfg.controller.Ts,
+            "N": cfg.controller.N,
+            "Nc": cfg.controller.Nc,
+            "state_bound": cfg.simulation.state_bound,
+        }
 
     def _recorded_limits(self) -> dict[str, list[float]]:
         """The URDF position limits the metrics measure excursions against; a zero or
@@ -527,16 +536,53 @@ class Experiment:
             return None
         return {"position": mc.obstacle.position.tolist(), "size": mc.obstacle.size.tolist()}
 
-    def make_plant(self) -> Plant:
+    def make_plant(self, Ts: float | None = None) -> Plant:
         """A new plant of ``[plant]`` (its integrator, step and this experiment's
-        disturbance) on the plant model."""
+        disturbance) on the plant model, advanced by ``Ts`` [s] per call (default: the
+        controller's period; a real-time arm's is the interface period)."""
         pc = self.config.plant
+        Ts = self.controller.Ts if Ts is None else Ts
         if pc.engine == "mujoco":
             return MuJoCoPlant(
-                self.plant, self.disturbance, self.controller.Ts, pc.mujoco.timestep,
+                self.plant, self.disturbance, Ts, pc.mujoco.timestep,
                 mujoco_settings(pc, self.robot.nq),
             )  # fmt: skip
-        return PLANTS[pc.integrator](self.plant, self.disturbance, self.controller.Ts, pc.dt)
+        return PLANTS[pc.integrator](self.plant, self.disturbance, Ts, pc.dt)
+
+
+def make_arm_plant(config: ExperimentConfig) -> Plant:
+    """The plant of ``config`` advanced one interface period ``1/realtime.rate`` per call:
+    the arm of ``hmpc-pin realtime``, built in the arm's own process (so a module-level
+    function of the config alone, picklable)."""
+    return Experiment.from_config(config).make_plant(1.0 / config.realtime.rate)
+
+
+def realtime_parts(experiment: Experiment) -> tuple[LoopSettings, SafetySettings, SafeTorque]:
+    """The loop settings, safety settings and safe torque of ``[realtime]``.
+
+    Raises:
+        ConfigError: The rate does not divide the controller period, or ``plant.dt``
+            does not divide the interface period.
+    """
+    cfg = experiment.config
+    rc, robot = cfg.realtime, experiment.robot
+    n = robot.nq
+    loop = LoopSettings(rate=rc.rate, duration=cfg.simulation.duration, gc_handling=rc.gc,
+                        gc_slack=rc.gc_slack)  # fmt: skip
+    loop.decimation(cfg.controller.Ts)
+    experiment.make_plant(loop.period)  # checks that the plant's step divides the period
+    if rc.limits:
+        vel = np.where(robot.velocity_limit > 0, robot.velocity_limit * rc.scale, np.inf)
+        lim = experiment._recorded_limits()  # a URDF without a range: no position bound
+        lower, upper = np.asarray(lim["lower"]), np.asarray(lim["upper"])
+        safety = SafetySettings(lower - rc.margin, upper + rc.margin, vel,
+                                max_misses=rc.max_misses, watchdog=rc.watchdog,
+                                hold=rc.hold)  # fmt: skip
+    else:
+        safety = SafetySettings.unlimited(n, max_misses=rc.max_misses, watchdog=rc.watchdog,
+                                          hold=rc.hold)  # fmt: skip
+    safe = SafeTorque(robot, cfg.vector("realtime.damping", n), gravity=rc.gravity)
+    return loop, safety, safe
 
 
 def run_experiment(

@@ -6,8 +6,9 @@ Every controller setting defaults to the paper's value (Section 4), so
 ``[controller.observer]``, ``[plant]`` (with ``[plant.mujoco]`` and
 ``[plant.mujoco.obstacle]`` for ``engine = "mujoco"``), ``[reference]``, ``[disturbance]``
 (with optional ``[disturbance.friction]`` and ``[disturbance.pulse]``),
-``[simulation]``, ``[sweep]`` and ``[collision]``; see ``configs/paper_combined.toml`` for
-every key (``configs/planar3_contact_mujoco.toml`` for the MuJoCo and collision tables).
+``[simulation]``, ``[sweep]``, ``[collision]`` and ``[realtime]``; see
+``configs/paper_combined.toml`` for every key (``configs/planar3_contact_mujoco.toml`` for the
+MuJoCo and collision tables).
 
 Validation happens here, at the boundary: unknown keys, wrong types, non-finite
 numbers, vectors of the wrong length and out-of-range values raise one
@@ -44,6 +45,7 @@ __all__ = [
     "ObstacleConfig",
     "PlantConfig",
     "PulseConfig",
+    "RealtimeConfig",
     "ReferenceConfig",
     "RobotConfig",
     "SimulationConfig",
@@ -1035,6 +1037,69 @@ class SweepConfig:
 
 
 @dataclass(frozen=True, eq=False)
+class RealtimeConfig:
+    """The real-time loop of ``hmpc-pin realtime`` (:mod:`hmpc_pin.realtime`).
+
+    Attributes:
+        rate: Interface rate [Hz]; ``1/rate`` must divide ``controller.Ts`` and be a whole
+            number of ``plant.dt`` (the arm process integrates its plant at that period).
+        gc: Garbage-collection handling (freeze after start-up, collect in the slack).
+        gc_slack: Minimum slack [s] before the next deadline for a collection.
+        damping: Joint damping of the safe torque [N·m·s/rad], one value or per joint.
+        gravity: Gravity compensation in the safe torque.
+        max_misses: Consecutive missed deadlines that stop the loop (k).
+        watchdog: A state stamp that does not advance for this long [s] stops the loop.
+        hold: How long the safe torque is refreshed after a stop [s].
+        limits: Stop when the measured state leaves the URDF limits widened by
+            ``position_margin`` and ``velocity_scale``.
+        position_margin: Margin [rad] outside the URDF position limits (with ``limits``).
+        velocity_scale: Factor on the URDF velocity limits (with ``limits``).
+    """
+
+    rate: float = 1000.0
+    gc: bool = True
+    gc_slack: float = 3e-4
+    damping: np.ndarray = 2.0
+    gravity: bool = True
+    max_misses: int = 10
+    watchdog: float = 0.02
+    hold: float = 0.1
+    limits: bool = True
+    position_margin: float | None = None
+    velocity_scale: float | None = None
+
+    def __post_init__(self):
+        _set(self, "rate", _float("rate", self.rate, positive=True))
+        _set(self, "gc", _bool("gc", self.gc))
+        _set(self, "gc_slack", _float("gc_slack", self.gc_slack, positive=True))
+        _set(self, "damping", _array("damping", self.damping, nonneg=True))
+        _set(self, "gravity", _bool("gravity", self.gravity))
+        _set(self, "max_misses", _int("max_misses", self.max_misses, minimum=1))
+        _set(self, "watchdog", _float("watchdog", self.watchdog, positive=True))
+        _set(self, "hold", _float("hold", self.hold, nonneg=True))
+        _set(self, "limits", _bool("limits", self.limits))
+        for name in ("position_margin", "velocity_scale"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if not self.limits:
+                raise ConfigError(name, "does not apply with limits = false; drop it or set "
+                                  "limits = true")  # fmt: skip
+            _set(self, name, _float(name, value, nonneg=name == "position_margin",
+                                    positive=name == "velocity_scale"))  # fmt: skip
+
+    @property
+    def margin(self) -> float:
+        """``position_margin`` [rad] (default 0.05)."""
+        return 0.05 if self.position_margin is None else self.position_margin
+
+    @property
+    def scale(self) -> float:
+        """``velocity_scale`` (default 1.5)."""
+        return 1.5 if self.velocity_scale is None else self.velocity_scale
+
+
+@dataclass(frozen=True, eq=False)
 class ExperimentConfig:
     """A whole experiment: robot, controller, plant, reference, disturbance, run.
 
@@ -1053,6 +1118,7 @@ class ExperimentConfig:
     disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
+    realtime: RealtimeConfig = field(default_factory=RealtimeConfig)
     source: Path | None = None
     collision: CollisionConfig | None = None
 
@@ -1081,7 +1147,7 @@ class ExperimentConfig:
 
     def check_dimensions(self, n: int) -> None:
         """Raise :class:`ConfigError` if any per-joint vector does not have ``n`` entries."""
-        keys = ["simulation.dq0"]
+        keys = ["simulation.dq0", "realtime.damping"]
         if self.simulation.q0 is not None:
             keys.append("simulation.q0")
         if self.reference.kind == "sine":
@@ -1166,6 +1232,7 @@ def load_config(path: str | Path) -> ExperimentConfig:
         "simulation": SimulationConfig,
         "sweep": SweepConfig,
         "collision": CollisionConfig,
+        "realtime": RealtimeConfig,
     }
     top_allowed = set(sections) | {"name", "description"}
     unknown = sorted(set(raw) - top_allowed)

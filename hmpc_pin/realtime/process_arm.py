@@ -26,7 +26,6 @@ import signal
 import time
 import traceback
 from collections.abc import Callable
-from multiprocessing import resource_tracker
 from multiprocessing.shared_memory import SharedMemory
 
 import numpy as np
@@ -34,7 +33,7 @@ from numpy.typing import NDArray
 
 from ..exceptions import DimensionError, SimulationError
 
-__all__ = ["ProcessArm"]
+__all__ = ["ProcessArm", "StateReader"]
 
 FloatArray = NDArray[np.float64]
 
@@ -60,9 +59,9 @@ def _arm_main(name, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # prag
     (Covered by the tests through :class:`ProcessArm`, in another process.)
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # (spawned children share the parent's resource tracker: the parent's unlink
+    # unregisters the block once for both)
     shm = SharedMemory(name=name)
-    # The parent owns (and unlinks) the block; do not let this process's tracker do it too.
-    resource_tracker.unregister(shm._name, "shared_memory")  # type: ignore[attr-defined]
     try:
         _arm_loop(shm.buf, n, make_plant, q0, dq0, effort_limit, conn)
     except BaseException:
@@ -127,6 +126,44 @@ def _arm_loop(buf, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragm
         ctl[_STEPS] = steps
         if not ctl[_STALL]:
             publish(steps * P, q, dq)
+
+
+def _read_state(ctl, state, buf) -> None:
+    """Copy the published ``[stamp, q, dq]`` into ``buf`` under the seqlock."""
+    for _ in range(100_000):
+        s1 = ctl[_STATE_SEQ]
+        if s1 & 1:
+            continue
+        buf[:] = state
+        if ctl[_STATE_SEQ] == s1:
+            return
+    # (after 1e5 torn reads the writer is gone: the stale stamp trips the watchdog)
+
+
+class StateReader:
+    """Read-only access to an arm process's published state from another process (a
+    viewer, a logger): attaches to the block by name, never writes.
+
+    Args:
+        name: :attr:`ProcessArm.shm_name`.
+        n: Number of joints.
+    """
+
+    def __init__(self, name: str, n: int):
+        self._shm = SharedMemory(name=name)
+        self._ctl, _, self._state, _ = _views(self._shm.buf, n)
+        self._buf = np.empty(1 + 2 * n)
+
+    def read(self) -> tuple[float, FloatArray, FloatArray]:
+        """``(stamp, q, dq)``, copies."""
+        _read_state(self._ctl, self._state, self._buf)
+        n = (self._buf.size - 1) // 2
+        return float(self._buf[0]), self._buf[1 : 1 + n].copy(), self._buf[1 + n :].copy()
+
+    def close(self) -> None:
+        """Detach (the arm process's owner frees the block)."""
+        del self._ctl, self._state
+        self._shm.close()
 
 
 class ProcessArm:
@@ -197,18 +234,15 @@ class ProcessArm:
         self._buf = np.empty(1 + 2 * n)
         self._q, self._dq = self._buf[1 : 1 + n], self._buf[1 + n :]
 
+    @property
+    def shm_name(self) -> str:
+        """Name of the shared-memory block (for a :class:`StateReader`)."""
+        return self._shm.name
+
     def read(self) -> tuple[float, FloatArray, FloatArray]:
         """The newest published ``(stamp, q, dq)`` (arrays reused by the next call)."""
-        ctl, state, buf = self._ctl, self._state, self._buf
-        for _ in range(100_000):
-            s1 = ctl[_STATE_SEQ]
-            if s1 & 1:
-                continue
-            buf[:] = state
-            if ctl[_STATE_SEQ] == s1:
-                break
-        # (after 1e5 torn reads the child is gone: the stale stamp trips the watchdog)
-        return float(buf[0]), self._q, self._dq
+        _read_state(self._ctl, self._state, self._buf)
+        return float(self._buf[0]), self._q, self._dq
 
     def write(self, tau: FloatArray) -> None:
         """Publish ``tau`` [N·m]; the arm applies it from its next period."""

@@ -1,0 +1,186 @@
+"""``hmpc-pin realtime``: the experiment's controller at a fixed rate against its plant
+running in a separate process in wall-clock time (:mod:`hmpc_pin.realtime`).
+
+Writes ``<stem>_realtime.npz`` (the trajectories at the controller steps, latency
+statistics and the stop record in ``meta``; ``complete = False`` after a safe stop),
+``<stem>_realtime_timing.npz`` (every cycle's wake-up, latency, compute time, misses)
+and ``<stem>_realtime.json`` (the statistics and tracking metrics).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+from ..experiment.build import Experiment, make_arm_plant, realtime_parts
+from ..experiment.schema import ExperimentConfig
+from ..realtime.loop import RealtimeLoop, RealtimeRun
+from ..realtime.process_arm import ProcessArm
+from .metrics import compute_metrics
+
+__all__ = ["ArmView", "run_realtime", "with_realtime"]
+
+
+def with_realtime(config: ExperimentConfig, rate=None, gc=None) -> ExperimentConfig:
+    """``config`` with ``[realtime] rate`` and/or ``gc`` replaced (command-line flags)."""
+    rc = config.realtime
+    changes = {k: v for k, v in (("rate", rate), ("gc", gc)) if v is not None}
+    return replace(config, realtime=replace(rc, **changes)) if changes else config
+
+
+def _finite(x):
+    """JSON-safe: NaN → None."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def tracking_summary(result, after: float = 1.0) -> dict:
+    """RMS and max |q − r| per joint after ``after`` [s] (the metrics of ``run``)."""
+    if len(result.t) < 2 or result.t[-1] < after:
+        return {}
+    m = compute_metrics(result, after=after)
+    return {"after": after, "rms_error": m.rms_error.tolist(), "max_error": m.max_error.tolist()}
+
+
+def run_realtime(config: ExperimentConfig, out: Path, stem: str | None = None, viz=None):
+    """Run ``config`` in real time against an arm process; write the files to ``out``.
+
+    Args:
+        config: The experiment (``[realtime]`` for rate and safety).
+        out: Output directory (exists, writable).
+        stem: File stem (default: the config's name).
+        viz: ``None``, or a callable ``viz(arm, experiment)`` started beside the loop and
+            returning an object with ``close()``.
+
+    Returns:
+        ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
+    """
+    stem = (stem or config.name) + "_realtime"
+    experiment = Experiment.from_config(config)
+    loop_settings, safety, safe = realtime_parts(experiment)
+    arm = ProcessArm(
+        functools.partial(make_arm_plant, experiment.config),
+        experiment.q0,
+        experiment.dq0,
+        effort_limit=experiment.effort_limit,
+    )
+    view = None
+    try:
+        if viz is not None:
+            view = viz(arm, experiment)
+        loop = RealtimeLoop(
+            arm, experiment.controller, experiment.reference, safe, loop_settings, safety,
+            joint_names=tuple(experiment.robot.joint_names), meta=experiment.meta(),
+        )  # fmt: skip
+        run = loop.run(experiment.q0, experiment.dq0)
+        run.result.meta["arm"] = arm.counters
+    finally:
+        if view is not None:
+            view.close()
+        arm.close()
+    files = [run.result.save(out / f"{stem}.npz"), run.save_timing(out / f"{stem}_timing.npz")]
+    summary = {"realtime": run.stats, "stop": run.stop, "arm": run.result.meta["arm"],
+               "tracking": tracking_summary(run.result)}  # fmt: skip
+    path = out / f"{stem}.json"
+    path.write_text(json.dumps(_finite(summary), indent=2, sort_keys=True) + "\n")
+    files.append(path)
+    return run, files
+
+
+def format_tracking(run: RealtimeRun) -> str:
+    """RMS and max tracking error per joint, one line each."""
+    tr = tracking_summary(run.result)
+    if not tr:
+        return "tracking: run shorter than 1 s, no metrics"
+    names = run.result.joint_names or [f"joint{i + 1}" for i in range(len(tr["rms_error"]))]
+    w = max(10, *(len(x) for x in names))
+    lines = [f"{'joint':<{w}} {'RMS e (t>=1s) [rad]':>20} {'max |e| [rad]':>14}"]
+    for name, rms, mx in zip(names, tr["rms_error"], tr["max_error"], strict=True):
+        lines.append(f"{name:<{w}} {rms:>20.3e} {mx:>14.3e}")
+    return "\n".join(lines)
+
+
+def _view_main(shm_name, n, robot_config, reference, fps, conn, stop) -> None:  # pragma: no cover
+    """The viewer process: show the arm's published state (and the reference) in Meshcat."""
+    import signal
+    import time
+
+    from ..experiment.build import load_robot_config
+    from ..realtime.process_arm import StateReader
+    from .viz import ARM, GHOST, LiveView, VizError
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        view = LiveView(load_robot_config(robot_config), speed=math.inf)
+    except VizError as exc:
+        conn.send(("error", str(exc)))
+        return
+    conn.send(("url", view.url))
+    reader = StateReader(shm_name, n)
+    try:
+        while not stop.is_set():
+            stamp, q, _ = reader.read()
+            view.show(ARM, q)
+            if GHOST in view.roots:
+                view.show(GHOST, reference.sample(stamp)[0])
+            time.sleep(1.0 / fps)
+    finally:
+        reader.close()
+        view.close()
+
+
+class ArmView:
+    """A live Meshcat view of an arm process, drawn by a third process that reads the
+    arm's shared memory: the control loop does no drawing.
+
+    Args:
+        arm: The :class:`~hmpc_pin.realtime.process_arm.ProcessArm`.
+        experiment: Its experiment (robot config for the meshes, reference for the ghost).
+        fps: Display rate [1/s].
+
+    Attributes:
+        url: The Meshcat URL (``None`` when Meshcat could not start: a warning is printed
+            and the run goes on).
+    """
+
+    def __init__(self, arm: ProcessArm, experiment: Experiment, fps: float = 30.0):
+        import multiprocessing as mp
+        import sys
+
+        ctx = mp.get_context("spawn")
+        self._stop = ctx.Event()
+        recv, send = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(
+            target=_view_main,
+            args=(arm.shm_name, arm.nq, experiment.config.robot, experiment.reference, fps,
+                  send, self._stop),
+            name="hmpc-pin-view", daemon=True,
+        )  # fmt: skip
+        self._proc.start()
+        send.close()
+        self.url = None
+        if recv.poll(120.0):
+            kind, text = recv.recv()
+            if kind == "url":
+                self.url = text
+                print(f"Meshcat live view: open {text}")
+            else:
+                print(f"warning: no live view: {text}; the run goes on and is saved",
+                      file=sys.stderr)  # fmt: skip
+        recv.close()
+
+    def close(self) -> None:
+        """Stop the viewer process (and its Meshcat server)."""
+        self._stop.set()
+        self._proc.join(timeout=10.0)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(timeout=5.0)

@@ -133,8 +133,9 @@ class RealtimeRun:
         stop: ``None`` for a complete run, else the stop record: ``cause`` (one of
             :data:`~hmpc_pin.realtime.safety.STOP_CAUSES`), ``reason`` (one line),
             ``cycle``, ``t`` [s], ``safe_tau`` [N·m], ``q``, ``dq`` used, and
-            ``safe_after_deadline`` [s], the time from the detecting cycle's deadline
-            to the safe torque written.
+            ``safe_after_deadline`` and ``safe_after_detection`` [s], the time from
+            the detecting cycle's deadline, and from the detection, to the safe torque
+            written.
     """
 
     result: Result
@@ -395,7 +396,7 @@ class RealtimeLoop:
         stop_record = None
         if stop is not None:
             cause, reason = stop
-            detect_deadline = deadline
+            detected = clock()
             tau_safe = self._safe_write(q_last, dq_last)
             written = clock()
             cycle = min(k, K)
@@ -408,7 +409,8 @@ class RealtimeLoop:
                 "safe_tau": tau_safe.tolist(),
                 "q": q_last.tolist(),
                 "dq": dq_last.tolist(),
-                "safe_after_deadline": written - detect_deadline,
+                "safe_after_deadline": written - deadline,
+                "safe_after_detection": written - detected,
             }
         else:
             self._safe_write(q_last, dq_last)

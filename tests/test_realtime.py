@@ -1,0 +1,430 @@
+"""The real-time loop (hmpc_pin.realtime) against the in-process plant with an injected
+clock (deadlines, misses, watchdog, every safe-stop cause), and short wall-clock runs
+against the arm in a separate process (completion and the recorded statistics; no
+assertion on wall-clock figures)."""
+
+from __future__ import annotations
+
+import functools
+import gc
+import os
+import signal
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import hmpc_pin
+from hmpc_pin.controllers.base import ControllerWrapper
+from hmpc_pin.controllers.hierarchical import MPCSettings
+from hmpc_pin.realtime import (
+    LoopSettings,
+    PlantArm,
+    ProcessArm,
+    RealtimeLoop,
+    SafetySettings,
+    SafeTorque,
+)
+from hmpc_pin.sim import RK4Plant, Result
+from hmpc_pin.tasks import SineReference
+
+P = 0.001  # interface period [s]
+Ts = 0.01  # controller period [s]
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return hmpc_pin.load_robot("planar3")
+
+
+class FakeClock:
+    """Seconds that move only when the loop sleeps or a test spends time."""
+
+    def __init__(self, start: float = 100.0):
+        self.now = start
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, deadline: float) -> None:
+        self.now = max(self.now, deadline)
+
+
+class Spend(ControllerWrapper):
+    """The wrapped controller, taking ``cost(t)`` seconds of the fake clock per step."""
+
+    def __init__(self, controller, clock, cost, hook=None):
+        super().__init__(controller)
+        self.clock, self.cost, self.hook = clock, cost, hook
+
+    def step(self, t, q, dq, reference):
+        if self.hook is not None:
+            self.hook(t)
+        tau = self.controller.step(t, q, dq, reference)
+        self.clock.now += self.cost(t)
+        return tau
+
+
+class Frozen:
+    """An interface whose state stops arriving (stamp and state frozen) after ``t_stop``,
+    or turns non-finite after ``t_nan``."""
+
+    def __init__(self, arm, t_stop=np.inf, t_nan=np.inf):
+        self.arm, self.t_stop, self.t_nan = arm, t_stop, t_nan
+        self.nq, self.period = arm.nq, arm.period
+        self._last = None
+
+    def read(self):
+        stamp, q, dq = self.arm.read()
+        if stamp >= self.t_nan:
+            return stamp, np.full(self.nq, np.nan), dq
+        if stamp >= self.t_stop and self._last is not None:
+            return self._last
+        self._last = (stamp, q.copy(), dq.copy())
+        return stamp, q, dq
+
+    def write(self, tau):
+        self.arm.write(tau)
+
+    def close(self):
+        self.arm.close()
+
+
+def _sine():
+    return SineReference(3, amplitude=[0.5, 0.3, 0.2], frequency=[0.5, 0.4, 0.3],
+                         offset=[0.3, -0.4, 0.2])  # fmt: skip
+
+
+def _setup(robot, duration=1.0, *, cost=lambda t: 0.0, hook=None, settings=None,
+           safety=None, wrap=None, controller=None, gc_handling=True, reference=None):  # fmt: skip
+    clock = FakeClock()
+    ref = reference if reference is not None else _sine()
+    q0 = _sine().sample(0.0)[0]
+    arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
+    iface = wrap(arm) if wrap is not None else arm
+    ctrl = Spend(controller or hmpc_pin.make_controller(robot), clock, cost, hook)
+    loop = RealtimeLoop(
+        iface, ctrl, ref, SafeTorque(robot, damping=3.0),
+        settings or LoopSettings(1.0 / P, duration, gc_handling=gc_handling),
+        safety or SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
+        clock=clock, sleep=clock.sleep, joint_names=tuple(robot.joint_names),
+    )  # fmt: skip
+    return loop, arm, clock, q0
+
+
+def _safe(robot, q, dq, damping=3.0):
+    """G(q) − D q̇ from Pinocchio's RNEA at zero velocity and acceleration."""
+    model = robot.model
+    data = model.createData()
+    return pin.rnea(model, data, np.asarray(q), np.zeros(3), np.zeros(3)) - damping * dq
+
+
+def test_without_latency_the_loop_is_the_simulation(robot):
+    """Zero compute time: the same torques and states as ``simulate`` (a second loop)."""
+    loop, _, _, q0 = _setup(robot, 1.0)
+    run = loop.run()
+    sim = hmpc_pin.simulate(robot, hmpc_pin.make_controller(robot), _sine(), duration=1.0, q0=q0)
+    assert run.complete and run.result.complete
+    np.testing.assert_allclose(run.result.t, sim.t, atol=1e-12)
+    np.testing.assert_allclose(run.result.q, sim.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(run.result.tau, sim.tau, rtol=0, atol=1e-9)
+    assert run.stats["cycles"] == run.stats["cycles_run"] == 1001
+    assert run.stats["misses"] == 0
+    assert np.isnan(run.result.d).all()  # an arm does not report its disturbance
+
+
+def test_deadlines_are_absolute_so_compute_time_does_not_drift_them(robot):
+    """0.4 P of compute per MPC step: every wake-up is exactly on its deadline (a relative
+    sleep of P after each cycle would drift by 0.4 P every controller step)."""
+    loop, _, _, _ = _setup(robot, 0.5, cost=lambda t: 0.4 * P)
+    run = loop.run()
+    tm = run.timing
+    np.testing.assert_allclose(tm["wake"], 0.0, atol=1e-9)
+    mpc = tm["mpc"]
+    assert mpc.sum() == 51 and mpc[::10].all()
+    np.testing.assert_allclose(tm["latency"][mpc], 0.4 * P, atol=1e-9)
+    np.testing.assert_allclose(tm["latency"][~mpc], 0.0, atol=1e-9)
+    assert run.stats["misses"] == 0
+    # the arm's stamps follow the grid: cycle k reads the state of k periods after start
+    np.testing.assert_allclose(np.diff(tm["stamp"][1:]), P, atol=1e-9)
+
+
+def test_a_late_cycle_is_a_miss_and_the_next_ones_recover(robot):
+    """1.5 P at every MPC step: each MPC cycle misses its period; the next cycle runs
+    late but within its own period; no deadline is skipped; k is never reached."""
+    loop, _, _, _ = _setup(robot, 0.5, cost=lambda t: 1.5 * P)
+    run = loop.run()
+    tm = run.timing
+    assert run.complete
+    assert run.stats["misses"] == 51 == tm["missed"].sum() == tm["mpc"].sum()
+    assert (tm["missed"] == tm["mpc"]).all()
+    after = np.flatnonzero(tm["mpc"])[:-1] + 1
+    np.testing.assert_allclose(tm["wake"][after], 0.5 * P, atol=1e-9)
+    assert run.stats["skipped"] == 0 and run.stats["max_consecutive_misses"] == 1
+    assert run.stats["miss_fraction"] == pytest.approx(51 / 501)
+
+
+def test_skipped_deadlines_count_as_misses(robot):
+    """3.5 P once at t = 0.2 s: the two deadlines passed meanwhile are skipped."""
+    loop, _, _, _ = _setup(robot, 0.5, cost=lambda t: 3.5 * P if abs(t - 0.2) < 1e-9 else 0.0)
+    run = loop.run()
+    assert run.complete
+    assert run.stats["skipped"] == 2 and run.stats["misses"] == 3
+    assert run.stats["max_consecutive_misses"] == 3
+    k = 200
+    assert run.timing["missed"][k : k + 3].all() and not run.timing["missed"][k + 3]
+    assert np.isnan(run.timing["latency"][k + 1 : k + 3]).all()
+
+
+def _check_stop(robot, run, arm, cause, t_expected, tol, held=None):
+    stop = run.stop
+    assert not run.complete and not run.result.complete
+    assert stop["cause"] == cause
+    assert stop["t"] == pytest.approx(t_expected, abs=tol)
+    assert run.result.message == stop["reason"] and "safe stop at" in stop["reason"]
+    assert "\n" not in stop["reason"]
+    assert "gravity compensation + damping 3 N·m·s/rad" in stop["reason"]
+    # the safe torque, written in the detecting cycle, is G(q) − D q̇ at the last state
+    assert stop["safe_after_detection"] <= P
+    np.testing.assert_allclose(stop["safe_tau"], _safe(robot, stop["q"], np.array(stop["dq"])),
+                               atol=1e-10)  # fmt: skip
+    # the arm holds the safe torque of the last state read when the loop returns (hold)
+    q, dq = held if held is not None else (arm.q, arm.dq)
+    np.testing.assert_allclose(arm.tau, _safe(robot, q, np.asarray(dq)), atol=1e-10)
+    # the run up to the stop: samples on the controller grid, all before the stop
+    assert run.result.t[-1] <= stop["t"] + 1e-12
+    np.testing.assert_allclose(np.diff(run.result.t), Ts, atol=1e-12)
+
+
+class Slow(Frozen):
+    """An interface whose read takes 1.2 P of the fake clock from ``t_slow`` on."""
+
+    def __init__(self, arm, clock, t_slow):
+        super().__init__(arm)
+        self.clock, self.t_slow = clock, t_slow
+
+    def read(self):
+        stamp, q, dq = self.arm.read()
+        if stamp >= self.t_slow:
+            self.clock.now += 1.2 * P
+        return stamp, q, dq
+
+
+def test_k_consecutive_misses_stop_the_loop(robot):
+    """Every cycle takes 1.2 P from t = 0.3 s: misses 1, 2, … until k = 5 stops the loop
+    (a deadline skipped when the lag passes a period counts too)."""
+    slow = []
+    loop, arm, clock, _ = _setup(
+        robot, 1.0, wrap=lambda a: slow.append(Slow(a, clock_of(a), 0.3)) or slow[0]
+    )
+    run = loop.run()
+    stop = run.stop
+    _check_stop(robot, run, arm, "misses", 0.3035, 0.0036)
+    assert "5 consecutive missed deadlines (limit 5)" in stop["reason"]
+    assert run.stats["max_consecutive_misses"] == 5
+    missed = np.flatnonzero(run.timing["missed"])
+    assert missed[0] == 300 and (np.diff(missed) == 1).all()
+
+
+def clock_of(arm):
+    return arm._clock
+
+
+def test_watchdog_stops_when_the_state_stops_arriving(robot):
+    frozen = []
+    loop, arm, _, _ = _setup(robot, 1.0, wrap=lambda a: frozen.append(Frozen(a, 0.4)) or frozen[0])
+    run = loop.run()
+    # last fresh stamp at 0.4 s, watchdog 5 ms: stop in the first cycle after 0.405 s
+    _check_stop(robot, run, arm, "watchdog", 0.4055, 0.001, held=frozen[0]._last[1:])
+    assert "no new state from the arm" in run.stop["reason"]
+
+
+def test_non_finite_state_is_a_fault_and_the_safe_torque_uses_the_last_finite_state(robot):
+    loop, arm, _, _ = _setup(robot, 1.0, wrap=lambda a: Frozen(a, t_nan=0.25))
+    run = loop.run()
+    _check_stop(robot, run, arm, "fault", 0.25, 1e-9, held=(run.stop["q"], run.stop["dq"]))
+    assert "non-finite state" in run.stop["reason"]
+    assert np.isfinite(run.stop["q"]).all()
+
+
+def test_qp_not_solved_is_a_fault(robot):
+    """A real ProxSuite failure: one iteration allowed."""
+    ctrl = hmpc_pin.HierarchicalMPC(robot, MPCSettings(max_iter=1))
+    loop, arm, _, _ = _setup(robot, 1.0, controller=ctrl)
+    run = loop.run()
+    assert run.stop["cause"] == "fault" and "QP was not solved" in run.stop["reason"]
+    assert run.stop["cycle"] == 0 and len(run.result.t) == 0
+    np.testing.assert_allclose(run.stop["safe_tau"],
+                               _safe(robot, run.stop["q"], np.array(run.stop["dq"])),
+                               atol=1e-10)  # fmt: skip
+
+
+def test_non_finite_reference_mid_run_is_a_fault(robot):
+    class Broken:
+        def sample(self, t):
+            q, dq = _sine().sample(t)
+            return (q * np.nan, dq) if t > 0.3 else (q, dq)
+
+    loop, arm, _, _ = _setup(robot, 1.0, reference=Broken())
+    run = loop.run()
+    # the horizon t + j Ts, j = 1..N, reaches past 0.3 s N steps early: the step at
+    # 0.2 s (0.2 + 0.1 rounds above 0.3) or at 0.21 s fails
+    _check_stop(robot, run, arm, "fault", 0.205, 0.0051)
+    assert "reference is not finite" in run.stop["reason"]
+
+
+def test_state_beyond_its_bounds_is_a_fault(robot):
+    q0 = _sine().sample(0.0)[0]
+    upper = np.array([q0[0] + 0.2, np.inf, np.inf])  # joint 1 rises 0.5 rad: crosses it
+    safety = SafetySettings(np.full(3, -np.inf), upper, np.full(3, np.inf), max_misses=5,
+                            watchdog=0.005, hold=0.01)  # fmt: skip
+    loop, arm, _, _ = _setup(robot, 1.0, safety=safety)
+    run = loop.run()
+    t_cross = np.arcsin(0.2 / 0.5) / (2 * np.pi * 0.5)  # where the reference crosses
+    _check_stop(robot, run, arm, "fault", t_cross, 0.02)
+    assert f"joint {robot.joint_names[0]!r}" in run.stop["reason"]
+    assert run.stop["q"][0] <= upper[0] < run.timing["stamp"].size  # last state kept was inside
+
+
+def test_ctrl_c_stops_safely_and_restores_the_handler(robot):
+    """A real SIGINT, delivered during the step at t = 0.35 s."""
+    before = signal.getsignal(signal.SIGINT)
+
+    def hook(t):
+        if abs(t - 0.35) < 1e-9:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    loop, arm, _, _ = _setup(robot, 1.0, hook=hook)
+    run = loop.run()
+    _check_stop(robot, run, arm, "interrupted", 0.351, 1e-9)
+    assert "interrupted (Ctrl-C)" in run.stop["reason"]
+    assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_partial_run_is_saved_with_complete_false(robot, tmp_path):
+    loop, _, _, _ = _setup(robot, 1.0, wrap=lambda a: Frozen(a, t_stop=0.2))
+    run = loop.run()
+    path = run.result.save(tmp_path / "rt.npz")
+    back = Result.load(path)
+    assert not back.complete and back.message == run.stop["reason"]
+    assert back.meta["stop"]["cause"] == "watchdog"
+    assert back.meta["realtime"]["misses"] == run.stats["misses"]
+    np.testing.assert_array_equal(back.q, run.result.q)
+    timing = np.load(run.save_timing(tmp_path / "rt_timing.npz"))
+    np.testing.assert_array_equal(timing["latency"], run.timing["latency"])
+
+
+def test_a_complete_run_ends_on_the_safe_torque(robot):
+    loop, arm, _, _ = _setup(robot, 0.3)
+    run = loop.run()
+    assert run.complete and run.stop is None
+    np.testing.assert_allclose(arm.tau, _safe(robot, arm.q, arm.dq), atol=1e-10)
+
+
+def test_garbage_is_collected_only_in_the_slack_and_gc_state_is_restored(robot):
+    """Reference cycles made at every step: with GC handling they are collected by the
+    loop (automatic collection off), deferred when the slack is too short."""
+
+    def litter(t):
+        for _ in range(300):
+            a = []
+            a.append(a)  # a cycle: only the collector frees it
+
+    assert gc.isenabled()
+    loop, _, _, _ = _setup(robot, 0.5, hook=litter)
+    run = loop.run()
+    assert run.stats["gc_collections"] > 0 and run.stats["gc_deferred"] == 0
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    # 0.9 P of compute in the MPC cycles, gc_slack 0.3 P: the collection the litter calls
+    # for there is deferred to a later cycle with slack
+    settings = LoopSettings(1.0 / P, 0.5, gc_slack=0.3 * P)
+    loop, _, _, _ = _setup(robot, 0.5, hook=litter, cost=lambda t: 0.9 * P, settings=settings)
+    run = loop.run()
+    assert run.stats["gc_collections"] > 0 and run.stats["gc_deferred"] > 0
+    collected = np.isfinite(run.timing["gc"])
+    assert not (collected & run.timing["mpc"]).any()
+    assert (run.timing["latency"][collected] <= 0.7 * P + 1e-12).all()
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    # without handling, the loop leaves the collector alone
+    loop, _, _, _ = _setup(robot, 0.2, hook=litter, gc_handling=False)
+    run = loop.run()
+    assert run.stats["gc_collections"] == 0 and not run.stats["gc_handling"]
+
+
+def test_rate_must_divide_the_controller_period(robot):
+    with pytest.raises(hmpc_pin.ConfigError, match="realtime.rate"):
+        _setup(robot, settings=LoopSettings(750.0, 1.0))
+    with pytest.raises(hmpc_pin.ConfigError, match="realtime.duration"):
+        LoopSettings(1000.0, -1.0)
+
+
+def test_safe_torque_rejects_negative_damping(robot):
+    with pytest.raises(hmpc_pin.ConfigError, match="damping"):
+        SafeTorque(robot, damping=[-1.0, 0.0, 0.0])
+    no_g = SafeTorque(robot, damping=1.0, gravity=False)
+    np.testing.assert_allclose(no_g(np.ones(3), np.array([1.0, -2.0, 0.5])), [-1.0, 2.0, -0.5])
+
+
+# ------------------------------------------------------------ the arm in another process
+def _planar_plant(period):
+    return RK4Plant(hmpc_pin.load_robot("planar3"), None, period, period)
+
+
+def _broken_plant():
+    raise RuntimeError("no plant here")
+
+
+def test_wall_clock_run_against_the_arm_process_completes_with_statistics(robot):
+    """1 s at 1 kHz on the shared machine: completion and the records, not the figures."""
+    ref = _sine()
+    q0 = ref.sample(0.0)[0]
+    safety = SafetySettings.unlimited(3, max_misses=10**6, watchdog=1.0, hold=0.05)
+    with ProcessArm(functools.partial(_planar_plant, P), q0) as arm:
+        assert arm.period == P
+        loop = RealtimeLoop(arm, hmpc_pin.make_controller(robot), ref, SafeTorque(robot),
+                            LoopSettings(1.0 / P, 1.0), safety)  # fmt: skip
+        run = loop.run()
+        counters = arm.counters
+    assert not arm.alive
+    assert run.complete, run.stop
+    s = run.stats
+    assert s["cycles"] == 1001 and s["cycles_run"] + s["skipped"] == 1001
+    assert s["misses"] == int(run.timing["missed"].sum())
+    for key in ("median_us", "p99_us", "p999_us", "max_us"):
+        assert np.isfinite(s["latency"][key]) and s["latency"][key] >= 0
+    lat = s["latency"]
+    assert lat["median_us"] <= lat["p99_us"] <= lat["p999_us"] <= lat["max_us"]
+    assert counters["steps"] > 900  # the arm integrated in wall-clock time
+    # the arm's time advanced with the wall: stamps increase, in whole periods
+    stamps = run.timing["stamp"][np.isfinite(run.timing["stamp"])]
+    assert (np.diff(stamps) >= 0).all() and stamps[-1] > 0.9
+    np.testing.assert_allclose(stamps / P, np.round(stamps / P), atol=1e-6)
+    # and the arm tracked (loose: a wall-clock run on a loaded machine)
+    assert np.abs(run.result.error[-1]).max() < 0.05
+    assert run.result.t[-1] == pytest.approx(1.0)
+
+
+def test_the_arm_process_stall_trips_the_watchdog(robot):
+    ref = _sine()
+    q0 = ref.sample(0.0)[0]
+    safety = SafetySettings.unlimited(3, max_misses=10**6, watchdog=0.05, hold=0.02)
+    with ProcessArm(functools.partial(_planar_plant, P), q0) as arm:
+        ctrl = ControllerWrapper(hmpc_pin.make_controller(robot))
+        loop = RealtimeLoop(arm, ctrl, ref, SafeTorque(robot), LoopSettings(1.0 / P, 5.0),
+                            safety)  # fmt: skip
+        original = ctrl.step
+
+        def step(t, q, dq, reference):
+            if t >= 0.2:
+                arm.stall()
+            return original(t, q, dq, reference)
+
+        ctrl.step = step
+        run = loop.run()
+    assert run.stop["cause"] == "watchdog"
+    assert 0.2 < run.stop["t"] < 4.0
+
+
+def test_a_failing_arm_process_reports_its_traceback():
+    with pytest.raises(hmpc_pin.SimulationError, match="no plant here"):
+        ProcessArm(_broken_plant, np.zeros(3))

@@ -9,6 +9,8 @@
 - Plant: ``advance`` moves time by Ts; under gravity compensation τ = G(q) and no
   disturbance an arm at rest stays at rest; ``disturbance_now`` is d at the state.
 - Controller: ``Ts``, ``reset``, ``step`` → finite (n,) torque; a closed loop tracks.
+- Robot interface: ``read`` → (stamp, q, dq); still until the first torque; at rest under
+  gravity compensation while the stamp advances in whole periods.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from hmpc_pin.compensation import (
 )
 from hmpc_pin.controllers import Controller, MeasuredController, TimedController
 from hmpc_pin.controllers.wrappers import CollisionReaction
+from hmpc_pin.realtime import PlantArm, ProcessArm, RobotInterface
 from hmpc_pin.sim import EulerPlant, Plant, RK4Plant
 from hmpc_pin.sim.mujoco import MuJoCoPlant
 from hmpc_pin.tasks import QuinticReference, Reference, SineReference, as_reference
@@ -215,3 +218,63 @@ def test_controller_conformance(robot, name):
     assert res.tau.shape == (201, 3) and np.all(np.isfinite(res.tau))
     # no disturbance: the loop tracks the 0.1 Hz sine (MPC bandwidth ≈ 16 rad/s)
     assert np.abs(res.error[100:]).max() < 0.01
+
+
+def _interface_plant(period=0.001):
+    return RK4Plant(hmpc_pin.load_robot("planar3"), None, period, period)
+
+
+class _Clock:
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self):
+        return self.now
+
+    def wait(self, seconds):
+        self.now += seconds
+
+
+def _wall_wait(seconds):
+    import time
+
+    time.sleep(seconds)
+
+
+INTERFACES = {
+    "in-process plant": lambda q0: (lambda c: (PlantArm(_interface_plant(), q0, clock=c), c.wait))(
+        _Clock()
+    ),
+    "arm process": lambda q0: (ProcessArm(_interface_plant, q0), _wall_wait),
+}
+
+
+@pytest.mark.parametrize("name", sorted(INTERFACES))
+def test_robot_interface_conformance(robot, name):
+    """read → (stamp, q, dq); the arm holds still until the first torque; under gravity
+    compensation τ = G(q0) it stays at rest (ABA(q0, 0, G(q0)) = 0) while its stamp
+    advances in whole periods; close is idempotent."""
+    q0 = np.array([0.3, -0.4, 0.2])
+    arm, wait = INTERFACES[name](q0)
+    try:
+        assert isinstance(arm, RobotInterface)
+        assert arm.nq == 3 and arm.period == 0.001
+        stamp0, q, dq = arm.read()
+        assert isinstance(stamp0, float) and q.shape == dq.shape == (3,)
+        np.testing.assert_array_equal(q, q0)
+        wait(0.05)
+        np.testing.assert_array_equal(arm.read()[1], q0)  # on its brakes
+        arm.write(robot.gravity_torque(q0))
+        wait(0.1)
+        stamp, q, dq = arm.read()
+        assert stamp >= stamp0 + 0.05
+        assert stamp / 0.001 == pytest.approx(round(stamp / 0.001), abs=1e-6)
+        np.testing.assert_allclose(q, q0, atol=1e-9)
+        np.testing.assert_allclose(dq, 0.0, atol=1e-9)
+        # a torque moves it: zero torque, the arm falls (ABA(q0, 0, 0) = -M⁻¹G ≠ 0)
+        arm.write(np.zeros(3))
+        wait(0.05)
+        assert np.abs(arm.read()[1] - q0).max() > 1e-4
+    finally:
+        arm.close()
+        arm.close()

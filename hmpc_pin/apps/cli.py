@@ -222,12 +222,19 @@ def cmd_realtime(args) -> int:
     from .realtime import ArmView, format_tracking, run_realtime, with_realtime
 
     config = _with_overrides(load_config(args.config), False, args.duration)
+    if args.rate is not None and not (np.isfinite(args.rate) and args.rate > 0):
+        raise ConfigError("--rate", f"expected a rate [Hz] > 0, got {args.rate!r}")
     config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None)
     out = _out_dir(args.out)
     print(f"{config.name}: {config.description} ({config.controller.label}) in real time at "
           f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
           "process")  # fmt: skip
-    run, files = run_realtime(config, out, viz=ArmView if args.viz else None)
+    try:
+        run, files = run_realtime(config, out, viz=ArmView if args.viz else None)
+    except KeyboardInterrupt:  # before the loop took over SIGINT: nothing ran yet
+        print("interrupted at start-up, before the first cycle; nothing was run or written",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
     print(run.summary())
     print(format_tracking(run))
     for f in files:

@@ -22,10 +22,10 @@ from hmpc_pin.realtime import (
     PlantArm,
     ProcessArm,
     RealtimeLoop,
-    SafetySettings,
     SafeTorque,
+    SafetySettings,
 )
-from hmpc_pin.sim import RK4Plant, Result
+from hmpc_pin.sim import Result, RK4Plant
 from hmpc_pin.tasks import SineReference
 
 P = 0.001  # interface period [s]
@@ -214,7 +214,7 @@ def test_k_consecutive_misses_stop_the_loop(robot):
     """Every cycle takes 1.2 P from t = 0.3 s: misses 1, 2, … until k = 5 stops the loop
     (a deadline skipped when the lag passes a period counts too)."""
     slow = []
-    loop, arm, clock, _ = _setup(
+    loop, arm, _clock, _ = _setup(
         robot, 1.0, wrap=lambda a: slow.append(Slow(a, clock_of(a), 0.3)) or slow[0]
     )
     run = loop.run()
@@ -250,7 +250,7 @@ def test_non_finite_state_is_a_fault_and_the_safe_torque_uses_the_last_finite_st
 def test_qp_not_solved_is_a_fault(robot):
     """A real ProxSuite failure: one iteration allowed."""
     ctrl = hmpc_pin.HierarchicalMPC(robot, MPCSettings(max_iter=1))
-    loop, arm, _, _ = _setup(robot, 1.0, controller=ctrl)
+    loop, _arm, _, _ = _setup(robot, 1.0, controller=ctrl)
     run = loop.run()
     assert run.stop["cause"] == "fault" and "QP was not solved" in run.stop["reason"]
     assert run.stop["cycle"] == 0 and len(run.result.t) == 0
@@ -352,9 +352,9 @@ def test_garbage_is_collected_only_in_the_slack_and_gc_state_is_restored(robot):
 
 
 def test_rate_must_divide_the_controller_period(robot):
-    with pytest.raises(hmpc_pin.ConfigError, match="realtime.rate"):
+    with pytest.raises(hmpc_pin.ConfigError, match=r"realtime\.rate"):
         _setup(robot, settings=LoopSettings(750.0, 1.0))
-    with pytest.raises(hmpc_pin.ConfigError, match="realtime.duration"):
+    with pytest.raises(hmpc_pin.ConfigError, match=r"realtime\.duration"):
         LoopSettings(1000.0, -1.0)
 
 

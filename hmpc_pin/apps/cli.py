@@ -224,7 +224,10 @@ def cmd_realtime(args) -> int:
     config = _with_overrides(load_config(args.config), False, args.duration)
     if args.rate is not None and not (np.isfinite(args.rate) and args.rate > 0):
         raise ConfigError("--rate", f"expected a rate [Hz] > 0, got {args.rate!r}")
-    config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None)
+    if args.priority is not None and not 0 <= args.priority <= 99:
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
+    config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None,
+                           priority=args.priority)  # fmt: skip
     out = _out_dir(args.out)
     print(f"{config.name}: {config.description} ({config.controller.label}) in real time at "
           f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
@@ -385,6 +388,9 @@ def build_parser() -> argparse.ArgumentParser:
     rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     rt.add_argument("--no-gc", action="store_true",
                     help="leave Python's garbage collector as it is (for comparison)")  # fmt: skip
+    rt.add_argument("--priority", type=int, metavar="N",
+                    help="SCHED_FIFO priority 1-99 of the loop and the arm process "
+                    "(needs root or an rtprio limit; overrides realtime.priority)")  # fmt: skip
     rt.add_argument("--viz", action="store_true",
                     help="live Meshcat view of the arm, drawn by a separate process")  # fmt: skip
     rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")

@@ -17,17 +17,18 @@ from pathlib import Path
 
 from ..experiment.build import Experiment, make_arm_plant, realtime_parts
 from ..experiment.schema import ExperimentConfig
-from ..realtime.loop import RealtimeLoop, RealtimeRun
+from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..realtime.process_arm import ProcessArm
 from .metrics import compute_metrics
 
 __all__ = ["ArmView", "run_realtime", "with_realtime"]
 
 
-def with_realtime(config: ExperimentConfig, rate=None, gc=None) -> ExperimentConfig:
-    """``config`` with ``[realtime] rate`` and/or ``gc`` replaced (command-line flags)."""
+def with_realtime(config: ExperimentConfig, rate=None, gc=None, priority=None) -> ExperimentConfig:
+    """``config`` with ``[realtime]`` ``rate``, ``gc``, ``priority`` replaced (flags)."""
     rc = config.realtime
-    changes = {k: v for k, v in (("rate", rate), ("gc", gc)) if v is not None}
+    pairs = (("rate", rate), ("gc", gc), ("priority", priority))
+    changes = {k: v for k, v in pairs if v is not None}
     return replace(config, realtime=replace(rc, **changes)) if changes else config
 
 
@@ -66,11 +67,15 @@ def run_realtime(config: ExperimentConfig, out: Path, stem: str | None = None, v
     stem = (stem or config.name) + "_realtime"
     experiment = Experiment.from_config(config)
     loop_settings, safety, safe = realtime_parts(experiment)
+    priority = config.realtime.priority
+    with fifo_priority(priority):  # checked here, before the arm starts
+        pass
     arm = ProcessArm(
         functools.partial(make_arm_plant, experiment.config),
         experiment.q0,
         experiment.dq0,
         effort_limit=experiment.effort_limit,
+        priority=priority,
     )
     view = None
     try:
@@ -80,7 +85,8 @@ def run_realtime(config: ExperimentConfig, out: Path, stem: str | None = None, v
             arm, experiment.controller, experiment.reference, safe, loop_settings, safety,
             joint_names=tuple(experiment.robot.joint_names), meta=experiment.meta(),
         )  # fmt: skip
-        run = loop.run(experiment.q0, experiment.dq0)
+        with fifo_priority(priority):
+            run = loop.run(experiment.q0, experiment.dq0)
         run.result.meta["arm"] = arm.counters
     finally:
         if view is not None:

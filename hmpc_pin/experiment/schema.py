@@ -1054,6 +1054,8 @@ class RealtimeConfig:
             ``position_margin`` and ``velocity_scale``.
         position_margin: Margin [rad] outside the URDF position limits (with ``limits``).
         velocity_scale: Factor on the URDF velocity limits (with ``limits``).
+        priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process; 0
+            (default) keeps normal scheduling.
     """
 
     rate: float = 1000.0
@@ -1067,9 +1069,13 @@ class RealtimeConfig:
     limits: bool = True
     position_margin: float | None = None
     velocity_scale: float | None = None
+    priority: int = 0
 
     def __post_init__(self):
         _set(self, "rate", _float("rate", self.rate, positive=True))
+        _set(self, "priority", _int("priority", self.priority, minimum=0))
+        if self.priority > 99:
+            raise ConfigError("priority", f"expected 0 (off) or 1..99, got {self.priority}")
         _set(self, "gc", _bool("gc", self.gc))
         _set(self, "gc_slack", _float("gc_slack", self.gc_slack, positive=True))
         _set(self, "damping", _array("damping", self.damping, nonneg=True))

@@ -9,7 +9,14 @@ against it at absolute deadlines, records latency and misses, and stops safely
 """
 
 from .interface import PlantArm, RobotInterface
-from .loop import LoopSettings, RealtimeLoop, RealtimeRun, latency_stats, sleep_until
+from .loop import (
+    LoopSettings,
+    RealtimeLoop,
+    RealtimeRun,
+    fifo_priority,
+    latency_stats,
+    sleep_until,
+)
 from .process_arm import ProcessArm
 from .safety import STOP_CAUSES, SafeTorque, SafetySettings
 
@@ -23,6 +30,7 @@ __all__ = [
     "RobotInterface",
     "SafeTorque",
     "SafetySettings",
+    "fifo_priority",
     "latency_stats",
     "sleep_until",
 ]

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
+import os
 import signal
 import time
 import traceback
@@ -53,7 +54,9 @@ def _size(n: int) -> int:
     return 8 * (_NCTL + 2 + 3 * n)
 
 
-def _arm_main(name, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragma: no cover
+def _arm_main(
+    name, n, make_plant, q0, dq0, effort_limit, conn, priority=0
+) -> None:  # pragma: no cover
     """The child process: attach the shared block, run :func:`_arm_loop`, report a failure.
 
     (Covered by the tests through :class:`ProcessArm`, in another process.)
@@ -63,6 +66,8 @@ def _arm_main(name, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # prag
     # unregisters the block once for both)
     shm = SharedMemory(name=name)
     try:
+        if priority:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
         _arm_loop(shm.buf, n, make_plant, q0, dq0, effort_limit, conn)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -177,6 +182,8 @@ class ProcessArm:
         q0, dq0: Initial state [rad, rad/s].
         effort_limit: Per-joint torque limit [N·m] the arm applies (``None``: none).
         start_timeout: Seconds to wait for the child to build its plant.
+        priority: ``SCHED_FIFO`` priority of the arm process (0: normal scheduling), as
+            a robot's own controller runs (see :func:`~hmpc_pin.realtime.loop.fifo_priority`).
 
     Attributes:
         period: The arm's period [s] (its plant's ``Ts``).
@@ -193,6 +200,7 @@ class ProcessArm:
         *,
         effort_limit=None,
         start_timeout: float = 120.0,
+        priority: int = 0,
     ):
         q0 = np.array(q0, dtype=float)
         n = q0.size
@@ -210,7 +218,7 @@ class ProcessArm:
         self._conn, child = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(
             target=_arm_main,
-            args=(self._shm.name, n, make_plant, q0, dq0, effort_limit, child),
+            args=(self._shm.name, n, make_plant, q0, dq0, effort_limit, child, priority),
             name="hmpc-pin-arm",
             daemon=True,
         )

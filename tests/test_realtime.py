@@ -386,7 +386,8 @@ def test_wall_clock_run_against_the_arm_process_completes_with_statistics(robot)
         run = loop.run()
         counters = arm.counters
     assert not arm.alive
-    assert run.complete, run.stop
+    why = f"{run.summary()}\narm: {counters}\nstop: {run.stop}"
+    assert run.complete, why
     s = run.stats
     assert s["cycles"] == 1001 and s["cycles_run"] + s["skipped"] == 1001
     assert s["misses"] == int(run.timing["missed"].sum())
@@ -394,14 +395,14 @@ def test_wall_clock_run_against_the_arm_process_completes_with_statistics(robot)
         assert np.isfinite(s["latency"][key]) and s["latency"][key] >= 0
     lat = s["latency"]
     assert lat["median_us"] <= lat["p99_us"] <= lat["p999_us"] <= lat["max_us"]
-    assert counters["steps"] > 900  # the arm integrated in wall-clock time
+    assert counters["steps"] > 900, why  # the arm integrated in wall-clock time
     # the arm's time advanced with the wall: stamps increase, in whole periods
     stamps = run.timing["stamp"][np.isfinite(run.timing["stamp"])]
-    assert (np.diff(stamps) >= 0).all() and stamps[-1] > 0.9
+    assert (np.diff(stamps) >= 0).all() and stamps[-1] > 0.9, why
     np.testing.assert_allclose(stamps / P, np.round(stamps / P), atol=1e-6)
     # and the arm tracked (loose: a wall-clock run on a loaded machine)
-    assert np.abs(run.result.error[-1]).max() < 0.05
-    assert run.result.t[-1] == pytest.approx(1.0)
+    assert np.abs(run.result.error[-1]).max() < 0.05, why
+    assert run.result.t[-1] == pytest.approx(1.0), why
 
 
 def test_the_arm_process_stall_trips_the_watchdog(robot):

@@ -97,3 +97,42 @@ def test_ctrl_c_stops_safely_exits_130_and_keeps_the_partial_run(tmp_path):
     assert result.message == stop["reason"] and "interrupted (Ctrl-C)" in stop["reason"]
     assert result.meta["arm"]["steps"] > 0
     assert "latency deadline->torque" in out
+
+
+def _planar_plant(period=0.001):
+    return hmpc_pin.RK4Plant(hmpc_pin.load_robot("planar3"), None, period, period)
+
+
+def test_live_view_beside_the_loop_draws_the_arm_process(tmp_path):
+    """A real Meshcat server fed by the viewer process from the arm's shared memory, seen
+    in headless Chromium: released (zero torque), the arm falls and the picture changes."""
+    pytest.importorskip("meshcat", reason="meshcat is not installed (pip install -e '.[viz]')")
+    from hmpc_pin.apps.realtime import ArmView
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.realtime import ProcessArm
+
+    from .test_viz import CHROMIUM, _differs, _screenshot
+
+    if CHROMIUM is None:
+        pytest.skip("chromium is not installed (apt-get install chromium)")
+    exp = Experiment.from_config(hmpc_pin.load_config(_config(tmp_path)))
+    with ProcessArm(_planar_plant, exp.q0) as arm:
+        view = ArmView(arm, exp, fps=30.0)
+        try:
+            assert view.url is not None and view.url.startswith("http://127.0.0.1:")
+            time.sleep(0.5)
+            before = _screenshot(view.url, tmp_path / "before.png", tmp_path / "p0")
+            arm.write(np.zeros(3))
+            time.sleep(1.5)
+            after = _screenshot(view.url, tmp_path / "after.png", tmp_path / "p1")
+        finally:
+            view.close()
+    assert _differs(before, after) > 0.002
+
+
+def test_realtime_with_viz_runs_and_saves(tmp_path, capsys):
+    pytest.importorskip("meshcat", reason="meshcat is not installed (pip install -e '.[viz]')")
+    cfg = _config(tmp_path)
+    assert main(["realtime", str(cfg), "--duration", "1", "--viz", "--out", str(tmp_path)]) == 0
+    assert "Meshcat live view: open http://127.0.0.1:" in capsys.readouterr().out
+    assert hmpc_pin.Result.load(tmp_path / "rt_realtime.npz").complete

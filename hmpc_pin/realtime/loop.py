@@ -139,7 +139,7 @@ class LoopSettings:
         return m
 
 
-def latency_stats(latency: np.ndarray, period: float) -> dict:
+def latency_stats(latency: np.ndarray) -> dict:
     """Median, p99, p99.9, max [µs] of the finite entries of ``latency`` [s]."""
     x = latency[np.isfinite(latency)] * 1e6
     if x.size == 0:
@@ -356,7 +356,8 @@ class RealtimeLoop:
             is_mpc = k >= next_mpc
             if is_mpc:
                 try:
-                    tau = ctrl.step(k * P, q, dq, ref)
+                    # copies: the interface may reuse its arrays, a controller may keep them
+                    tau = ctrl.step(k * P, q.copy(), dq.copy(), ref)
                 except HmpcError as exc:
                     stop = ("fault", f"controller: {exc}")
                     break
@@ -459,10 +460,10 @@ class RealtimeLoop:
             "skipped": skipped,
             "miss_fraction": misses / max(1, cycles_run + skipped),
             "max_consecutive_misses": worst_run,
-            "latency": latency_stats(done_a, P),
-            "wake": latency_stats(wake_a, P),
-            "compute": latency_stats(done_a - wake_a, P),
-            "latency_mpc": latency_stats(np.where(mpc_a, done_a, np.nan), P),
+            "latency": latency_stats(done_a),
+            "wake": latency_stats(wake_a),
+            "compute": latency_stats(done_a - wake_a),
+            "latency_mpc": latency_stats(np.where(mpc_a, done_a, np.nan)),
             "gc_handling": handle_gc,
             "gc_collections": gc_runs,
             "gc_deferred": gc_deferred,

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..exceptions import DimensionError
 from ..sim.base import Plant
@@ -85,12 +85,12 @@ class PlantArm:
     def __init__(
         self,
         plant: Plant,
-        q0,
-        dq0=None,
+        q0: ArrayLike,
+        dq0: ArrayLike | None = None,
         *,
         clock: Callable[[], float] = time.perf_counter,
-        effort_limit=None,
-    ):
+        effort_limit: ArrayLike | None = None,
+    ) -> None:
         self.plant = plant
         self.nq = n = plant.nq
         self.period = float(plant.Ts)
@@ -101,9 +101,9 @@ class PlantArm:
                 f"initial state of shapes {q0.shape}, {dq0.shape}; expected ({n},) each"
             )
         self._clock = clock
-        self._limit = None if effort_limit is None else np.broadcast_to(
-            np.asarray(effort_limit, dtype=float), (n,)
-        ).copy()  # fmt: skip
+        self._limit: FloatArray | None = None
+        if effort_limit is not None:
+            self._limit = np.broadcast_to(np.asarray(effort_limit, dtype=float), (n,)).copy()
         plant.reset(q0, dq0, 0.0)
         self.q, self.dq = q0.copy(), dq0.copy()
         self.tau = np.zeros(n)

@@ -147,6 +147,9 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
     lines.append(_row(f"controller, GC handling ({args.duration:g} s)", with_gc, floor_median))
     lines.append(_row(f"controller, no GC handling ({args.duration:g} s)", without_gc,
                       floor_median))  # fmt: skip
+    for name, r in (("floor", floor), ("GC handling", with_gc), ("no GC handling", without_gc)):
+        if r["stop"] is not None:
+            lines += ["", f"The {name} run stopped early: {r['stop']['reason']}."]
     ratio = with_gc["rms"] / sim_rms
     lines += [
         "",
@@ -167,6 +170,8 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
          f"{100 * s['miss_fraction']:.3f} %", s["miss_fraction"] <= MISS_TARGET),
         ("tracking RMS / simulate, worst joint", f"≤ {TRACKING_TARGET:g}",
          f"{ratio.max():.2f}", bool(ratio.max() <= TRACKING_TARGET)),
+        ("the GC-handling run went to the end", "complete",
+         "complete" if with_gc["stop"] is None else "stopped", with_gc["stop"] is None),
     ]  # fmt: skip
     lines += ["", "| target | target | measured | verdict |", "|---|---|---|---|"]
     for what, target, got, ok in checks:

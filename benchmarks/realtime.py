@@ -111,7 +111,7 @@ def _row(name: str, r: dict, floor_median: float) -> str:
         f"{lat['p999_us']:.0f} | {lat['max_us']:.0f} | {mpc['median_us']:.0f} / "
         f"{mpc['p999_us']:.0f} | {wake['p999_us']:.0f} | {s['misses']} "
         f"({100 * s['miss_fraction']:.3f} %) | {s['max_consecutive_misses']} | {gc_text} | "
-        f"{lat['median_us'] / floor_median:.2f} |"
+        f"{r['arm']['late']} | {lat['median_us'] / floor_median:.2f} |"
     )
 
 
@@ -136,11 +136,12 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
         "",
         "Latency: from each cycle's absolute deadline to the torque written [µs]; MPC: the "
         "same over the cycles that ran the controller (median / p99.9); wake: wake-up after "
-        "the deadline; ratio: median latency / the floor's median (same process).",
+        "the deadline; arm late: periods the arm process itself woke too late for (it then "
+        "integrates them at once); ratio: median latency / the floor's median (same process).",
         "",
         "| run | cycles | median | p99 | p99.9 | max | MPC cycles | wake p99.9 | misses | "
-        "longest run | GC collected / deferred | ratio |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "longest run | GC collected / deferred | arm late | ratio |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     floor_median = floor["stats"]["latency"]["median_us"]
     lines.append(_row(f"floor (τ = G(q), {args.floor:g} s)", floor, floor_median))

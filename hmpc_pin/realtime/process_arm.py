@@ -123,14 +123,19 @@ def _arm_loop(buf, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragm
             ctl[_LATE] += due - k
             k = due
         if started:
+            # (when catching up, each step is published: a simulator that lags the wall
+            # still delivers a state every step, as an arm would)
             while steps < k:
                 q, dq = plant.advance(tau)
                 steps += 1
+                ctl[_STEPS] = steps
+                if not ctl[_STALL]:
+                    publish(steps * P, q, dq)
         else:
             steps = k
-        ctl[_STEPS] = steps
-        if not ctl[_STALL]:
-            publish(steps * P, q, dq)
+            ctl[_STEPS] = steps
+            if not ctl[_STALL]:
+                publish(steps * P, q, dq)
 
 
 def _read_state(ctl, state, buf) -> None:

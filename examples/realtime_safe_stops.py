@@ -24,7 +24,14 @@ import numpy as np
 import hmpc_pin
 from hmpc_pin.controllers.base import ControllerWrapper
 from hmpc_pin.controllers.hierarchical import MPCSettings
-from hmpc_pin.realtime import LoopSettings, ProcessArm, RealtimeLoop, SafeTorque, SafetySettings
+from hmpc_pin.realtime import (
+    LoopSettings,
+    ProcessArm,
+    RealtimeLoop,
+    SafeTorque,
+    SafetySettings,
+    fifo_priority,
+)
 from hmpc_pin.sim import RK4Plant
 from hmpc_pin.tasks import SineReference
 
@@ -67,20 +74,20 @@ class SlowRead:
         self.arm.close()
 
 
-def run_cause(name, robot, out: Path):
+def run_cause(name, robot, out: Path, priority: int = 0):
     ref = SineReference(3, amplitude=[0.5, 0.3, 0.2], frequency=[0.5, 0.4, 0.3],
                         offset=[0.3, -0.4, 0.2])  # fmt: skip
     q0 = ref.sample(0.0)[0]
-    ctrl = hmpc_pin.make_controller(robot)
+    ctrl = inner = hmpc_pin.make_controller(robot)
     inf = np.full(3, np.inf)
     safety = SafetySettings(-inf, inf.copy(), inf.copy(), max_misses=5, watchdog=0.02, hold=0.1)
-    with ProcessArm(functools.partial(planar_plant, 0.001), q0) as arm:
+    with ProcessArm(functools.partial(planar_plant, 0.001), q0, priority=priority) as arm:
         iface = arm
         if name == "ctrl-c":
 
             def act(t, q, dq, r):
                 os.kill(os.getpid(), signal.SIGINT)
-                return ctrl.step(t, q, dq, r)
+                return inner.step(t, q, dq, r)
 
             ctrl = After(ctrl, act)
         elif name == "non-finite torque":
@@ -99,13 +106,14 @@ def run_cause(name, robot, out: Path):
 
             def act(t, q, dq, r):
                 arm.stall()
-                return ctrl.controller.step(t, q, dq, r)
+                return inner.step(t, q, dq, r)
 
             ctrl = After(ctrl, act)
         loop = RealtimeLoop(iface, ctrl, ref, SafeTorque(robot, damping=2.0),
                             LoopSettings(1000.0, 2.0), safety,
                             joint_names=tuple(robot.joint_names))  # fmt: skip
-        run = loop.run()
+        with fifo_priority(priority):
+            run = loop.run()
         _, _, dq = arm.read()  # after the hold
     stop = run.stop
     path = run.result.save(out / f"safe_stop_{name.replace(' ', '_')}.npz")
@@ -129,11 +137,13 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory")
     parser.add_argument("--cause", choices=CAUSES, action="append",
                         help="only this cause (repeatable; default: all)")  # fmt: skip
+    parser.add_argument("--priority", type=int, default=0,
+                        help="SCHED_FIFO priority of loop and arm (0: normal) [0]")  # fmt: skip
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     robot = hmpc_pin.load_robot("planar3")
     for name in args.cause or CAUSES:
-        run_cause(name, robot, args.out)
+        run_cause(name, robot, args.out, args.priority)
     return 0
 
 

@@ -334,6 +334,8 @@ def test_garbage_is_collected_only_in_the_slack_and_gc_state_is_restored(robot):
     loop, _, _, _ = _setup(robot, 0.5, hook=litter)
     run = loop.run()
     assert run.stats["gc_collections"] > 0 and run.stats["gc_deferred"] == 0
+    # every collection during the run was the loop's own (automatic collection off)
+    assert run.stats["gc_all_collections"] == run.stats["gc_collections"]
     assert gc.isenabled() and gc.get_freeze_count() == 0
     # 0.9 P of compute in the MPC cycles, gc_slack 0.3 P: the collection the litter calls
     # for there is deferred to a later cycle with slack
@@ -349,6 +351,9 @@ def test_garbage_is_collected_only_in_the_slack_and_gc_state_is_restored(robot):
     loop, _, _, _ = _setup(robot, 0.2, hook=litter, gc_handling=False)
     run = loop.run()
     assert run.stats["gc_collections"] == 0 and not run.stats["gc_handling"]
+    # …whose automatic collections (inside the controller's step) are counted
+    assert run.stats["gc_all_collections"] > 0
+    assert gc.callbacks == [] or all(type(c).__name__ != "_GCWatch" for c in gc.callbacks)
 
 
 def test_rate_must_divide_the_controller_period(robot):

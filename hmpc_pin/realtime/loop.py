@@ -150,6 +150,21 @@ def latency_stats(latency: np.ndarray) -> dict:
             "max_us": float(x.max())}  # fmt: skip
 
 
+class _GCWatch:
+    """A :data:`gc.callbacks` entry: counts the collections that run and their longest
+    duration [s] (the loop's own and, without GC handling, the automatic ones)."""
+
+    def __init__(self, clock: Callable[[], float]):
+        self.clock, self.count, self.longest, self._start = clock, 0, 0.0, 0.0
+
+    def __call__(self, phase: str, info: dict) -> None:
+        if phase == "start":
+            self._start = self.clock()
+        else:
+            self.count += 1
+            self.longest = max(self.longest, self.clock() - self._start)
+
+
 @dataclass
 class RealtimeRun:
     """A real-time run: the trajectories and every cycle's timing.
@@ -200,6 +215,11 @@ class RealtimeRun:
             lines.append(
                 f"  GC in the slack: {s['gc_collections']} collections (max "
                 f"{1e6 * s['gc_max_s']:.0f} us), {s['gc_deferred']} deferred"
+            )
+        else:
+            lines.append(
+                f"  automatic GC during the run: {s['gc_all_collections']} collections "
+                f"(max {1e6 * s['gc_all_max_s']:.0f} us)"
             )
         return "\n".join(lines)
 
@@ -276,6 +296,8 @@ class RealtimeLoop:
         main = threading.current_thread() is threading.main_thread()
         old_handler = signal.signal(signal.SIGINT, self._on_sigint) if main else None
         gc_was_enabled = gc.isenabled()
+        self._gc_watch = _GCWatch(self.clock)
+        gc.callbacks.append(self._gc_watch)
         try:
             return self._run(q0, dq0)
         except BaseException:
@@ -285,6 +307,7 @@ class RealtimeLoop:
                 self._safe_write(*self._last_state)
             raise
         finally:
+            gc.callbacks.remove(self._gc_watch)
             if self.settings.gc_handling:
                 gc.unfreeze()
                 if gc_was_enabled:
@@ -326,6 +349,8 @@ class RealtimeLoop:
             gc.disable()
             th0, th1, th2 = gc.get_threshold()
             gc_slack = st.gc_slack
+        watch = self._gc_watch
+        watch.count, watch.longest = 0, 0.0  # from the first cycle on
         stop: tuple[str, str] | None = None
         next_mpc = 0
         t0 = clock() + P
@@ -468,6 +493,8 @@ class RealtimeLoop:
             "gc_collections": gc_runs,
             "gc_deferred": gc_deferred,
             "gc_max_s": gc_max,
+            "gc_all_collections": watch.count,
+            "gc_all_max_s": watch.longest,
             "period_us": 1e6 * P,
         }
         meta = {**self.meta, "realtime": stats, "stop": stop_record}

@@ -9,7 +9,9 @@
 2. the config's controller in real time for ``--duration`` s **with** the garbage-
    collection handling (``gc.freeze()`` after start-up, collections only in the slack);
 3. the same **without** it (Python's collector left as it is);
-4. ``simulate`` of the same config for the same duration (the tracking reference).
+4. ``simulate`` of the same config for the same duration (the tracking reference);
+5. the controller step alone, called back to back and after a sleep of ``Ts`` (alternating
+   blocks): how much of an MPC cycle's latency is the step starting on cold caches.
 
 Each real-time run has the stop on k consecutive misses switched off (k = 10⁹; the
 watchdog at 0.5 s) so that it runs to the end and its misses are counted: the safe
@@ -102,6 +104,32 @@ def simulate_rms(config, duration: float) -> tuple[np.ndarray, float]:
     return compute_metrics(res).rms_error, time.perf_counter() - t0
 
 
+def step_warm_vs_cold(config, blocks: int = 3, seconds: float = 5.0) -> dict:
+    """``controller.step`` over the states of a ``simulate`` run, called back to back
+    (warm caches) and with a sleep of ``Ts`` before each call (as in the loop, where other
+    processes run meanwhile), in alternating blocks; medians [µs] and their ratio."""
+    config = replace(config, simulation=replace(config.simulation, duration=seconds))
+    exp = Experiment.from_config(config)
+    res = exp.run()
+    ctrl, ref, Ts = exp.controller, exp.reference, config.controller.Ts
+    out = {"warm": [], "after sleep": []}
+    for _ in range(blocks):
+        for kind, pause in (("warm", 0.0), ("after sleep", Ts)):
+            ctrl.reset(res.q[0], res.dq[0])
+            times = []
+            for k in range(len(res.t)):
+                if pause:
+                    time.sleep(pause)
+                t0 = time.perf_counter_ns()
+                ctrl.step(res.t[k], res.q[k], res.dq[k], ref)
+                times.append(time.perf_counter_ns() - t0)
+            out[kind].append(np.median(times[10:]) / 1e3)
+    warm, cold = np.array(out["warm"]), np.array(out["after sleep"])
+    return {"warm": float(np.median(warm)), "cold": float(np.median(cold)),
+            "ratio": float(np.median(cold / warm)), "blocks": blocks,
+            "steps": len(res.t) - 10}  # fmt: skip
+
+
 def _row(name: str, r: dict, floor_median: float) -> str:
     s = r["stats"]
     lat, wake, mpc = s["latency"], s["wake"], s["latency_mpc"]
@@ -116,7 +144,8 @@ def _row(name: str, r: dict, floor_median: float) -> str:
     )
 
 
-def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, commit) -> tuple:
+def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, commit,
+           steps) -> tuple:  # fmt: skip
     lines = [
         "## Real-time loop (issue 19)",
         "",
@@ -149,6 +178,15 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
     lines.append(_row(f"controller, GC handling ({args.duration:g} s)", with_gc, floor_median))
     lines.append(_row(f"controller, no GC handling ({args.duration:g} s)", without_gc,
                       floor_median))  # fmt: skip
+    lines += [
+        "",
+        f"Controller step alone (`step` over {steps['steps']} states of a `simulate` run, "
+        f"{steps['blocks']} alternating blocks): median {steps['warm']:.0f} µs called back "
+        f"to back, {steps['cold']:.0f} µs with a sleep of Ts before each call as in the loop "
+        f"(ratio {steps['ratio']:.2f}, median of the blocks' ratios): a step after a sleep "
+        "starts on caches other processes have used, or on a core waking from idle (not "
+        "separated here).",
+    ]
     for name, r in (("floor", floor), ("GC handling", with_gc), ("no GC handling", without_gc)):
         if r["stop"] is not None:
             lines += ["", f"The {name} run stopped early: {r['stop']['reason']}."]
@@ -206,9 +244,10 @@ def main(argv: list[str] | None = None) -> int:
     with_gc = realtime_run(config, args.duration, gc=True)
     without_gc = realtime_run(config, args.duration, gc=False)
     sim_rms, sim_wall = simulate_rms(config, args.duration)
+    steps = step_warm_vs_cold(config)
     names = Experiment.from_config(config).robot.joint_names
     text, ok = report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine,
-                      commit)  # fmt: skip
+                      commit, steps)  # fmt: skip
     print(text)
     if args.out is not None:
         args.out.write_text(text, encoding="utf-8")

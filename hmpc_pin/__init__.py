@@ -13,6 +13,8 @@ The package is layered; each layer imports only the layers below it (tested)::
       │
     experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
       │
+    realtime/      RobotInterface protocol · arm in another process · fixed-rate loop, safe stops
+      │
     sim/           disturbances · plants (Plant protocol: RK4, Euler, MuJoCo) · simulate · Result
       │
     controllers/   Controller protocol · HierarchicalMPC · ComputedTorque · wrappers

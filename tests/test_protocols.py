@@ -15,6 +15,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -220,8 +222,8 @@ def test_controller_conformance(robot, name):
     assert np.abs(res.error[100:]).max() < 0.01
 
 
-def _interface_plant(period=0.001):
-    return RK4Plant(hmpc_pin.load_robot("planar3"), None, period, period)
+def _interface_plant(kind="rk4", period=0.001):
+    return PLANTS[kind](hmpc_pin.load_robot("planar3"), None, period, period)
 
 
 class _Clock:
@@ -246,6 +248,10 @@ INTERFACES = {
         _Clock()
     ),
     "arm process": lambda q0: (ProcessArm(_interface_plant, q0), _wall_wait),
+    # any Plant can be the arm: MuJoCo's, built in the arm's process
+    "arm process (mujoco)": lambda q0: (
+        ProcessArm(functools.partial(_interface_plant, "mujoco"), q0), _wall_wait
+    ),
 }
 
 
@@ -254,6 +260,8 @@ def test_robot_interface_conformance(robot, name):
     """read → (stamp, q, dq); the arm holds still until the first torque; under gravity
     compensation τ = G(q0) it stays at rest (ABA(q0, 0, G(q0)) = 0) while its stamp
     advances in whole periods; close is idempotent."""
+    if "mujoco" in name:
+        pytest.importorskip("mujoco", reason="mujoco is not installed (pip install -e '.[mujoco]')")
     q0 = np.array([0.3, -0.4, 0.2])
     arm, wait = INTERFACES[name](q0)
     try:

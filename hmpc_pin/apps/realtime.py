@@ -88,6 +88,7 @@ def run_realtime(config: ExperimentConfig, out: Path, stem: str | None = None, v
         with fifo_priority(priority):
             run = loop.run(experiment.q0, experiment.dq0)
         run.result.meta["arm"] = arm.counters
+        run.result.meta["engine"] = config.plant.engine
     finally:
         if view is not None:
             view.close()

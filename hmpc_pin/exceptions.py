@@ -121,14 +121,41 @@ class OutputError(HmpcError, ValueError):
 
     Attributes:
         path: The location that was rejected.
+        option: The command-line option that named it (``"--out"``, ``"--replay"``, ...),
+            or ``None`` for a path given to a function.
+        what: ``"output directory"`` or ``"output file"``.
     """
 
-    def __init__(self, path, reason: str):
+    def __init__(
+        self, path, reason: str, option: str | None = "--out", what: str = "output directory"
+    ):
         self.path = str(path)
-        super().__init__(
-            f"output directory {self.path!r} is not writable ({reason}); "
-            "pass --out with a directory you can write to"
-        )
+        self.option = option
+        self.what = what
+        place = "a directory" if what == "output directory" else "a file in a directory"
+        fix = f"pass {option} with {place}" if option else f"give {place}"
+        where = f"{option}: " if option else ""
+        super().__init__(f"{where}{what} {self.path!r} {reason}; {fix} you can write to")
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """The user interrupted a run (Ctrl-C, SIGINT) and what it computed was kept.
+
+    A :class:`KeyboardInterrupt` (not an :class:`HmpcError`), so that code catching the
+    package's errors still stops on Ctrl-C.
+
+    Attributes:
+        where: Where the run stopped, in words (``"t=1.234 s of 60 s (step 1234)"``).
+        result: The partial :class:`~hmpc_pin.sim.result.Result` (``complete=False``,
+            the reason in ``message``), or ``None``.
+        files: Files written with what was kept (filled in by the application).
+    """
+
+    def __init__(self, where: str, result=None, files=()):
+        self.where = where
+        self.result = result
+        self.files = list(files)
+        super().__init__(where)
 
 
 class KinematicsError(HmpcError, ValueError):

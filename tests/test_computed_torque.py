@@ -133,3 +133,35 @@ def test_acceleration_is_clipped_to_the_mpc_bounds(planar3):
     ctrl.reset(np.zeros(3), np.zeros(3))
     ctrl.step(0.0, np.zeros(3), np.zeros(3), ref)  # 274 rad/s² requested, 100 allowed
     np.testing.assert_array_equal(ctrl.v, np.full(3, 100.0))
+
+
+def test_sine_reference_acceleration_is_the_derivative_of_its_velocity():
+    """r̈ against a central finite difference of ṙ (independent of the closed form)."""
+    ref = hmpc_pin.SineReference(3, amplitude=[1.0, 0.4, 2.0], frequency=[0.1, 0.7, 1.3],
+                                 offset=[0.0, 0.3, -0.2], phase=[0.0, 0.5, -1.0])  # fmt: skip
+    h = 1e-5
+    for t in (0.0, 0.37, 1.9, 4.2):
+        fd = (ref.sample(t + h)[1] - ref.sample(t - h)[1]) / (2 * h)
+        np.testing.assert_allclose(ref.acceleration(t), fd, rtol=1e-6, atol=1e-8)
+
+
+def test_pid_integral_does_not_wind_up_while_saturated(planar3):
+    """Conditional integration, by hand: the arm held 2 rad from a constant reference
+    saturates v at v_max for 50 periods (the integral must not grow), then sits 1e-3 rad
+    away for 10 periods (unsaturated: I = 10·Ts·1e-3), and v = kp·e − kd·q̇ + ki·I exactly."""
+    ctrl = _ct(planar3, "computed-torque-pid")
+    assert ctrl.ki > 0
+    r0 = np.array([0.5, -0.3, 0.2])
+    ref = hmpc_pin.SineReference(3, amplitude=0.0, offset=r0)
+    ctrl.reset(np.zeros(3), np.zeros(3))
+    far = r0 - 2.0
+    for k in range(50):
+        ctrl.step(k * ctrl.Ts, far, np.zeros(3), ref)
+    np.testing.assert_array_equal(ctrl.v, np.full(3, 100.0))  # saturated at v_max
+    np.testing.assert_array_equal(ctrl.integral, np.zeros(3))
+    near = r0 - 1e-3
+    for k in range(50, 60):
+        ctrl.step(k * ctrl.Ts, near, np.zeros(3), ref)
+    integral = 9 * ctrl.Ts * 1e-3  # the integral used in step 60 holds 9 unsaturated periods
+    np.testing.assert_allclose(ctrl.v, ctrl.kp * 1e-3 + ctrl.ki * integral, rtol=1e-12)
+    np.testing.assert_allclose(ctrl.integral, 10 * ctrl.Ts * 1e-3, rtol=1e-12)

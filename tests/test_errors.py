@@ -299,7 +299,7 @@ def test_output_directory_not_writable(tmp_path, capsys, planar3):
     argv = ["run", str(CONFIGS / "paper_combined.toml"), "--out", str(blocker / "sub")]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: output directory") and "not writable" in err
+    assert err.startswith("error: --out: output directory") and "not writable" in err
     assert len(err.strip().splitlines()) == 1
     result = hmpc_pin.simulate(
         planar3, hmpc_pin.HierarchicalMPC(planar3), hmpc_pin.SineReference(3),

@@ -209,3 +209,27 @@ def test_kind_from_a_config_file_builds_that_controller(write_config):
     assert isinstance(exp.controller, ComputedTorque) and exp.controller.ki == 500.0
     meta = exp.run().meta
     assert meta["controller"] == "computed-torque-pid+none" and meta["observer"] is False
+
+
+def test_make_controller_takes_a_whole_experiment_config(planar3):
+    """``make_controller(robot, cfg)`` with the ExperimentConfig of a file builds the same
+    controller as with its ``controller`` table: same torques on the same states."""
+    cfg = load_config(CONFIGS / "paper_combined.toml")
+    whole = hmpc_pin.make_controller(planar3, cfg)
+    table = hmpc_pin.make_controller(planar3, cfg.controller)
+    assert type(whole) is type(table) and whole.Ts == cfg.controller.Ts
+    ref = hmpc_pin.SineReference(3)
+    rng = np.random.default_rng(3)
+    q0 = np.zeros(3)
+    whole.reset(q0, q0)
+    table.reset(q0, q0)
+    for k in range(5):
+        q, dq = rng.normal(0, 0.3, 3), rng.normal(0, 0.3, 3)
+        np.testing.assert_array_equal(whole.step(k * whole.Ts, q, dq, ref),
+                                      table.step(k * table.Ts, q, dq, ref))  # fmt: skip
+
+
+@pytest.mark.parametrize("bad", [{"kind": "hmpc"}, "configs/paper_combined.toml"])
+def test_make_controller_rejects_other_objects_with_the_fix(planar3, bad):
+    with pytest.raises(hmpc_pin.exceptions.InterfaceError, match="load_config"):
+        hmpc_pin.make_controller(planar3, bad)

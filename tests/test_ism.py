@@ -80,3 +80,19 @@ def test_sign_law_without_disturbance_chatters_from_discretisation(planar3):
     assert np.all(np.abs(ctrl.compensation.sigma) > 0)
     slope = np.sign(np.diff(r.tau[-100:], axis=0))
     assert np.mean(slope[1:] != slope[:-1]) > 0.5  # τ reverses direction most periods
+
+
+def test_sign_of_zero_is_zero():
+    """On the sliding surface (σ = 0 exactly) the pure ISM applies no correction: with
+    dq = dq0 and v = 0 on joint 1, σ₁ = 0 and the estimate is M·K·(0, 1, −1)."""
+    Ts, n = 0.01, 3
+    ism = IntegralSlidingMode(n, Ts, gain=200.0)
+    dq0 = np.array([0.3, -0.2, 0.1])
+    ism.reset(np.zeros(n), dq0)
+    M = np.array([[2.0, 0.3, 0.1], [0.3, 1.0, 0.2], [0.1, 0.2, 0.5]])
+    unused = np.zeros(n)
+    dq = dq0 + np.array([0.0, 0.5, -0.5])
+    est = ism.update(M, unused, unused, dq, unused, np.zeros(n))
+    np.testing.assert_array_equal(ism.sigma, [0.0, 0.5, -0.5])
+    np.testing.assert_allclose(est, M @ np.array([0.0, 200.0, -200.0]), rtol=1e-15)
+    np.testing.assert_array_equal(ism.switching(np.zeros(n)), np.zeros(n))

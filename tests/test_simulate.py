@@ -40,13 +40,42 @@ def test_without_observer_friction_is_not_rejected(paper_runs):
     assert np.all(paper_runs["friction", False].d_hat == 0.0)
 
 
-def test_observer_tracks_the_true_disturbance(paper_runs):
-    """Figures 4, 6, 8: after the start-up transient, d̂ follows d."""
-    for name in ("combined", "friction", "external"):
-        r = paper_runs[name, True]
-        m = hmpc_pin.compute_metrics(r, after=1.0)
-        scale = np.abs(r.d[r.t >= 1.0]).max(axis=0)
-        assert np.all(m.observer_rms <= 0.2 * np.maximum(scale, 1.0)), (name, m.observer_rms)
+def _observer_tracking_failures(t, d, d_hat) -> list[str]:
+    """Why ``d_hat`` does not follow ``d`` after the start-up (empty: it does).
+
+    Over 1 s <= t <= t_end - 0.2 s, per joint: (a) RMS(d − d̂) <= 0.25·RMS(d) where the
+    joint carries a disturbance of the paper's size (RMS(d) >= 1 N·m), <= 0.5·RMS(d) on a
+    joint with a small one (external scenario, joint 3: 0.3 N·m pulse; its error floor is
+    0.03 N·m); (b) d̂ is not late: the shift k ∈ [−20, 20] samples minimising
+    RMS(d_t − d̂_{t+k}) is at most 10 samples (0.1 s = 10/c, ten nominal observer time
+    constants at c = 100; measured on the paper runs: 8, 4, 0 combined; 10, 4, 1 friction;
+    5, 2, 1 external — the observer lags most on the heavy joint 1).
+    """
+    idx = np.flatnonzero((t >= 1.0) & (t <= t[-1] - 0.2))
+    rms = lambda x: np.sqrt(np.mean(x**2, axis=0))  # noqa: E731
+    scale = rms(d[idx])
+    rel = rms(d[idx] - d_hat[idx]) / scale
+    bound = np.where(scale >= 1.0, 0.25, 0.5)
+    out = [f"joint {i}: RMS(d − d̂)/RMS(d) = {rel[i]:.3f} > {bound[i]}"
+           for i in np.flatnonzero(~(rel <= bound))]  # fmt: skip
+    shifts = np.arange(-20, 21)
+    err = np.array([rms(d[idx] - d_hat[idx + k]) for k in shifts])
+    best = shifts[np.argmin(err, axis=0)]
+    out += [f"joint {i}: d̂ best matches d {best[i]} samples later"
+            for i in np.flatnonzero((best < 0) | (best > 10)) if scale[i] >= 1.0]  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("name", ["combined", "friction", "external"])
+def test_observer_tracks_the_true_disturbance(paper_runs, name):
+    """Figures 4, 6, 8: after the start-up transient, d̂ follows d; the same check rejects
+    d̂ ≡ 0 and d̂ delayed by 6 control periods (so it can fail)."""
+    r = paper_runs[name, True]
+    assert _observer_tracking_failures(r.t, r.d, r.d_hat) == []
+    assert _observer_tracking_failures(r.t, r.d, np.zeros_like(r.d_hat))
+    late = np.vstack([np.zeros((6, r.d.shape[1])), r.d_hat[:-6]])
+    failures = _observer_tracking_failures(r.t, r.d, late)
+    assert any("samples later" in f for f in failures), failures
 
 
 def test_recorded_disturbance_is_eq34(paper_runs):

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import gzip
+import json
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +17,7 @@ import hmpc_pin
 from .conftest import PLANAR3
 
 pytest.importorskip("meshcat", reason="meshcat is not installed (pip install -e '.[viz]')")
-from hmpc_pin.apps.viz import export_replay
+from hmpc_pin.apps.viz import export_replay, visual_model
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
@@ -29,13 +32,25 @@ def short_run():
 
 
 def _commands(html: str) -> list[dict]:
-    """The Meshcat commands embedded in the page (base64 msgpack data: URIs)."""
+    """The Meshcat commands embedded in the page: base64 msgpack data: URIs, and the
+    JSON commands of ``hmpcMesh(...)`` whose mesh files are in the shared store."""
     import base64
 
     import umsgpack
 
     blobs = re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", html)
-    return [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+    inline = [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+    return inline + [json.loads(c) for c in re.findall(r"hmpcMesh\((\{.*?\})\);", html)]
+
+
+def _mesh_store(html: str) -> dict[str, bytes]:
+    """The page's shared mesh files, unpacked (gzip, base64)."""
+    import base64
+
+    m = re.search(r"const hmpcMeshStore = (\{.*?\});", html)
+    if m is None:
+        return {}
+    return {k: gzip.decompress(base64.b64decode(v)) for k, (_, v) in json.loads(m.group(1)).items()}
 
 
 def test_replay_is_self_contained_and_holds_the_animation(short_run, tmp_path):
@@ -126,7 +141,7 @@ def test_replay_of_a_mesh_arm_from_example_robot_data(tmp_path):
     loaders = pytest.importorskip("example_robot_data.robots_loader")
     robot = hmpc_pin.load_robot(loaders.UR5Loader().df_path)
     q0 = np.array([0.0, -1.2, 1.4, -1.0, -1.57, 0.0])
-    ctrl = hmpc_pin.HierarchicalMPC(
+    ctrl = hmpc_pin.make_controller(
         robot, hmpc_pin.ControllerConfig(observer=hmpc_pin.ObserverConfig(kind="general"))
     )
     ref = hmpc_pin.SineReference(6, amplitude=0.3, offset=q0)
@@ -135,8 +150,13 @@ def test_replay_of_a_mesh_arm_from_example_robot_data(tmp_path):
     commands = _commands(html)
     meshes = [c for c in commands if c["type"] == "set_object" and "/arm/visuals/" in c["path"]]
     assert len(meshes) == 7  # base, shoulder, upper arm, forearm, 3 wrists
-    # the mesh files are inlined in the page (no file or network access when viewed)
-    assert all(len(m["object"]["object"].get("data", "")) > 1000 for m in meshes)
+    # the mesh files are in the page (no file or network access when viewed), each the
+    # URDF's file byte for byte
+    store = _mesh_store(html)
+    files = {g.name: Path(g.meshPath).read_bytes() for g in visual_model(robot).geometryObjects}
+    for m in meshes:
+        name = m["path"].split("/")[-2]
+        assert store[m["object"]["object"]["data"]["hmpc_mesh"]] == files[name]
     (anim,) = [c for c in commands if c["type"] == "set_animation"]
     animated = {a["path"] for a in anim["animations"]}
     assert {m["path"].removesuffix("/geom") for m in meshes} == animated
@@ -197,3 +217,175 @@ def test_busy_port_moves_to_the_next_free_one():
             second.close()
     finally:
         first.close()
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium)")
+def test_panda_replay_stores_each_mesh_once_and_draws_the_same_picture(tmp_path, monkeypatch):
+    """A 2 s Panda replay (arm + ghost) is at most 10 MB: every mesh file is stored once,
+    compressed, shared by the arm and the ghost. Headless Chromium draws it pixel for
+    pixel like the page with every mesh inlined per node (Meshcat's own format)."""
+    from hmpc_pin.apps import viz
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.schema import load_config
+
+    from .conftest import CONFIGS
+
+    exp = Experiment.from_config(load_config(CONFIGS / "panda_sine.toml"))
+    result = exp.run(2.0)
+    shared = export_replay(exp.robot, result, tmp_path / "shared.html", play=False,
+                           start_time=1.0)  # fmt: skip
+    html = shared.read_text()
+    assert shared.stat().st_size <= 10e6
+    store = _mesh_store(html)
+    files = {Path(g.meshPath).read_bytes() for g in visual_model(exp.robot).geometryObjects}
+    assert set(store.values()) == files  # each distinct file once
+    commands = [c for c in _commands(html) if c["type"] == "set_object"]
+    keys = {
+        root: sorted(c["object"]["object"]["data"]["hmpc_mesh"] for c in commands
+                     if c["path"].startswith(f"/meshcat/{root}/visuals/"))
+        for root in ("arm", "reference")
+    }  # fmt: skip
+    assert keys["arm"] == keys["reference"] and len(keys["arm"]) == len(
+        visual_model(exp.robot).geometryObjects
+    )
+    monkeypatch.setattr(viz, "_share_meshes", lambda page: page)
+    inline = export_replay(exp.robot, result, tmp_path / "inline.html", play=False,
+                           start_time=1.0)  # fmt: skip
+    assert inline.stat().st_size > 2 * shared.stat().st_size
+    a = _screenshot(shared.resolve().as_uri(), tmp_path / "a.png", tmp_path / "pa")
+    b = _screenshot(inline.resolve().as_uri(), tmp_path / "b.png", tmp_path / "pb")
+    assert _differs(a, b) == 0.0
+    # and the arm is there: the page differs from an empty scene
+    import meshcat
+
+    vis = meshcat.Visualizer()
+    try:
+        vis.delete()
+        (tmp_path / "empty.html").write_text(vis.static_html())
+    finally:
+        vis.window.server_proc.terminate()
+    empty = _screenshot((tmp_path / "empty.html").as_uri(), tmp_path / "e.png", tmp_path / "pe")
+    assert _differs(a, empty) > 0.005
+
+
+# ------------------------------------------------------------------ missing meshes
+@pytest.fixture
+def mesh_missing_config(tmp_path):
+    """The paper's arm with link 1 drawn by a mesh file that does not exist."""
+    urdf = PLANAR3.read_text(encoding="utf-8").replace(
+        '<geometry><cylinder radius="0.05" length="1.5"/></geometry>',
+        '<geometry><mesh filename="meshes/missing_link1.stl"/></geometry>',
+        1,
+    )
+    (tmp_path / "arm.urdf").write_text(urdf, encoding="utf-8")
+    cfg = (PLANAR3.parent.parent / "configs" / "paper_combined.toml").read_text(encoding="utf-8")
+    cfg = cfg.replace('urdf = "../robots/planar3.urdf"', 'urdf = "arm.urdf"')
+    path = tmp_path / "cfg.toml"
+    path.write_text(cfg, encoding="utf-8")
+    return path
+
+
+def test_missing_mesh_with_replay_is_bad_input_before_the_run(mesh_missing_config, tmp_path,
+                                                              capsys):  # fmt: skip
+    from hmpc_pin.apps.cli import main
+
+    out = tmp_path / "o"
+    argv = ["run", str(mesh_missing_config), "--duration", "0.5", "--out", str(out),
+            "--replay", str(out / "r.html")]  # fmt: skip
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("error: --replay: "), err
+    assert "'meshes/missing_link1.stl'" in err and "could not be found" in err
+    assert captured.out == "" and not list(out.glob("*"))  # nothing ran, nothing written
+
+
+def test_missing_mesh_replay_command_is_bad_input(mesh_missing_config, tmp_path, capsys):
+    from hmpc_pin.apps.cli import main
+
+    cfg = PLANAR3.parent.parent / "configs" / "paper_combined.toml"
+    assert main(["run", str(cfg), "--duration", "0.2", "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    argv = [
+        "replay",
+        str(tmp_path / "paper_combined.npz"),
+        "--urdf",
+        str(mesh_missing_config.parent / "arm.urdf"),
+        "--out",
+        str(tmp_path / "r.html"),
+    ]
+    assert main(argv) == 2  # fmt: skip
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "'meshes/missing_link1.stl'" in err, err
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_missing_mesh_with_live_view_runs_without_it(mesh_missing_config, tmp_path, capsys):
+    from hmpc_pin.apps.cli import main
+
+    argv = ["run", str(mesh_missing_config), "--duration", "0.5", "--out", str(tmp_path), "--viz"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "warning: no live view:" in err and "'meshes/missing_link1.stl'" in err
+    assert "the run goes on and is saved" in err
+    assert hmpc_pin.Result.load(tmp_path / "paper_combined.npz").complete
+
+
+# ------------------------------------------------------------------ --wait, --keep-open
+@pytest.mark.parametrize("flag", ["--wait", "--keep-open"])
+def test_live_view_flags_need_viz(tmp_path, capsys, flag):
+    from hmpc_pin.apps.cli import main
+
+    cfg = str(PLANAR3.parent.parent / "configs" / "paper_combined.toml")
+    assert main(["run", cfg, "--out", str(tmp_path), "--duration", "0.2", flag]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {flag}: applies to the live view only; add --viz"), err
+    assert not list(tmp_path.glob("*.npz"))
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium)")
+def test_live_view_waits_for_a_browser_and_stays_open(tmp_path):
+    """``run --viz --wait --keep-open`` in a real subprocess: nothing runs until headless
+    Chromium opens the page; after the run the files are written and the page is still
+    served; Ctrl-C then closes it with exit 0 and stops the Meshcat server."""
+    import os
+    import signal
+    import sys
+    import time
+    import urllib.request
+
+    cfg = str(PLANAR3.parent.parent / "configs" / "paper_combined.toml")
+    out = tmp_path / "o"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hmpc_pin", "run", cfg, "--duration", "1", "--out", str(out),
+         "--viz", "--wait", "--keep-open", "--speed", "10"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    import threading
+
+    watchdog = threading.Timer(180, lambda: os.killpg(proc.pid, signal.SIGKILL))
+    watchdog.start()  # a blocking readline cannot hang the suite
+    try:
+        assert proc.stdout.readline().startswith("Meshcat live view: open http://127.0.0.1:")
+        line = proc.stdout.readline()
+        assert line.startswith("waiting for a browser at "), line
+        url = re.search(r"http://\S+", line).group(0)
+        time.sleep(3.0)
+        assert proc.poll() is None and not out.joinpath("paper_combined.npz").exists()
+        _screenshot(url, tmp_path / "live.png", tmp_path / "profile")
+        lines = []
+        while not (line := proc.stdout.readline()).startswith("live view kept open"):
+            assert line, f"the command ended: {proc.wait()} {proc.stderr.read()}"
+            lines.append(line)
+        assert f"wrote {out / 'paper_combined.npz'}\n" in lines
+        assert hmpc_pin.Result.load(out / "paper_combined.npz").complete
+        with urllib.request.urlopen(url, timeout=10) as page:
+            assert page.status == 200
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(timeout=20) == 0
+    finally:
+        watchdog.cancel()
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    with pytest.raises(OSError):
+        urllib.request.urlopen(url, timeout=5)

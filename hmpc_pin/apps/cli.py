@@ -2,8 +2,10 @@
 realtime`` (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
-traceback), 1 when a run fails (e.g. diverges) — what was computed up to the
-failure is still written, with ``complete = False`` in the ``.npz``.
+traceback, checked before any run: no output file), 1 when a run fails (e.g.
+diverges) — what was computed up to the failure is still written, with
+``complete = False`` in the ``.npz`` — and 130 on Ctrl-C (SIGINT): one line
+``interrupted at …`` on stderr, what was computed so far written as for a failure.
 """
 
 from __future__ import annotations
@@ -16,12 +18,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ConfigError, HmpcError, OutputError, SimulationError
+from ..exceptions import (
+    ConfigError,
+    HmpcError,
+    OutputError,
+    RunInterrupted,
+    SimulationError,
+    VizError,
+)
 from ..experiment.build import uses_observer, with_controller
 from ..experiment.schema import COMPENSATIONS, CONTROLLER_KINDS, ExperimentConfig, load_config
 from ..sim.result import Result
-from .metrics import compute_metrics, format_metrics
-from .run import live_view, run_one, write_csv  # noqa: F401 (re-exported)
+from .metrics import DEFAULT_ERROR_THRESHOLD, compute_metrics, format_metrics, run_warnings
+from .run import live_view, run_one, write_csv
 
 __all__ = ["main", "write_csv"]
 
@@ -29,16 +38,38 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 
-def _out_dir(path: Path) -> Path:
-    """Create ``path`` and check it is writable, or raise :class:`OutputError`."""
+def _out_dir(path: Path, option: str = "--out") -> Path:
+    """Create ``path`` and check it is a writable directory, or raise :class:`OutputError`
+    naming ``option``."""
+    if path.exists() and not path.is_dir():
+        raise OutputError(path, "is a file", option)
     try:
         path.mkdir(parents=True, exist_ok=True)
         probe = path / ".hmpc_pin_write_test"
         probe.write_text("")
         probe.unlink()
     except OSError as exc:
-        raise OutputError(path, exc.strerror or str(exc)) from exc
+        raise OutputError(path, f"is not writable ({exc.strerror or exc})", option) from exc
     return path
+
+
+def _out_file(path: Path, option: str) -> Path:
+    """Check, before any run, that the file ``path`` can be written: its folder is created
+    and writable and ``path`` is not a directory; raise :class:`OutputError` naming
+    ``option`` otherwise."""
+    if path.is_dir():
+        raise OutputError(path, "is a directory", option, what="output file")
+    _out_dir(path.parent if str(path.parent) else Path("."), option)
+    return path
+
+
+def _interrupted(exc: KeyboardInterrupt) -> int:
+    """Print the one line of a Ctrl-C (where it stopped, the files kept) and return 130."""
+    where = getattr(exc, "where", "") or "set-up, before any run (nothing written)"
+    files = getattr(exc, "files", ())
+    kept = f"; wrote {', '.join(str(f) for f in files)}" if files else ""
+    print(f"interrupted at {where}{kept}", file=sys.stderr)
+    return EXIT_INTERRUPTED
 
 
 def _with_overrides(
@@ -78,8 +109,38 @@ def cmd_run(args) -> int:
         stem += "_no_ndo"
     if not args.speed > 0:
         raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
-    viz = args.speed if args.viz else None
-    experiment, result, files, failure = run_one(config, out, stem, viz=viz)
+    if args.replay is not None:
+        _out_file(args.replay, "--replay")
+        _check_meshes(config, "--replay")
+    warn = _warn_thresholds(args)
+    for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):
+        if value and not args.viz:
+            raise ConfigError(flag, "applies to the live view only; add --viz or drop " + flag)
+    views: list = []  # the live view, opened by run_one once the experiment is built
+    try:
+        return _run_and_report(args, config, out, stem, warn, views)
+    finally:
+        for view in views:
+            view.close()
+
+
+def _open_view(experiment, args, views: list):
+    """The live view of ``--viz`` (``None`` when it cannot start: the run goes on), waiting
+    for a browser with ``--wait``; kept in ``views`` for the caller to close."""
+    view = live_view(experiment.robot, args.speed, experiment.obstacle)
+    if view is None:
+        return None
+    views.append(view)
+    if args.wait:
+        print(f"waiting for a browser at {view.url} (Ctrl-C to stop)", flush=True)
+        view.wait_for_browser()
+    return view
+
+
+def _run_and_report(args, config, out, stem, warn, views: list) -> int:
+    open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
+    experiment, result, files, failure = run_one(config, out, stem, open_view=open_view)
+    view = views[0] if views else None
     observer = uses_observer(config.controller)
     if len(result.t) > 1:
         from .plots import plot_error
@@ -90,25 +151,49 @@ def cmd_run(args) -> int:
     print(f"{config.name}: {config.description} ({label}, observer {'on' if observer else 'off'})")
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
-    for warning in result.meta.get("warnings", ()):
-        timing = getattr(result, "step_time", None)
-        median = f" (median {timing['median_us']:.0f} µs)" if timing else ""
-        print(f"warning: {warning}{median}")
+    timing = getattr(result, "step_time", None)
+    median = f" (median {timing['median_us']:.0f} µs)" if timing else ""
+    slow = [f"{w}{median}" for w in result.meta.get("warnings", ())]
+    for line in slow + run_warnings(result, **warn):
+        print(f"warning: {line}", file=sys.stderr)
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))
     for f in files:
         print(f"wrote {f}")
+    if view is not None and args.keep_open:
+        print(f"live view kept open at {view.url}; Ctrl-C to close", flush=True)
+        view.hold()
     if failure:
         print(f"error: run failed: {failure}", file=sys.stderr)
         return EXIT_FAILED
     return EXIT_OK
 
 
-def _replay(robot, result, path: Path) -> Path:
+def _replay(robot, result, path: Path, option: str = "--replay") -> Path:
     from .viz import export_replay
 
-    _out_dir(path.parent)
+    _out_file(path, option)
     return export_replay(robot, result, path)
+
+
+def _check_meshes(config: ExperimentConfig, option: str) -> None:
+    """Load the visual geometry of the config's arm before the run, so that a missing
+    mesh is bad input naming the mesh and ``option`` (no run, no file)."""
+    from ..experiment.build import load_robot_config
+    from .viz import visual_model
+
+    try:
+        visual_model(load_robot_config(config.robot))
+    except VizError as exc:
+        raise VizError(f"{option}: {exc}; or run without {option}") from None
+
+
+def _warn_thresholds(args) -> dict:
+    """The ``--warn-error`` threshold [rad] checked (a number > 0) before the run."""
+    value = args.warn_error
+    if not (np.isfinite(value) and value > 0):
+        raise ConfigError("--warn-error", f"expected a tracking error in rad > 0, got {value!r}")
+    return {"error_threshold": float(value)}
 
 
 def cmd_replay(args) -> int:
@@ -130,7 +215,7 @@ def cmd_replay(args) -> int:
         gravity=result.meta.get("gravity", 9.8),
         locked_joints=result.meta.get("locked_joints") if not args.urdf else None,
     )
-    path = _replay(robot, result, args.out)
+    path = _replay(robot, result, args.out, "--out")
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
     return EXIT_OK
 
@@ -141,10 +226,14 @@ def cmd_compare(args) -> int:
     config = _with_overrides(load_config(args.config), False, args.duration)
     controllers = parse_controllers(args.controllers, config)
     out = _out_dir(args.out)
-    comp, files = compare(config, out, controllers, progress=not args.quiet)
+    warn = _warn_thresholds(args)
+    comp, files = compare(config, out, controllers, progress=not args.quiet, **warn)
 
     print(f"{config.name}: {config.description}")
     print(markdown_table(comp))
+    for kind, run in comp.runs.items():
+        for line in run_warnings(run.result, **warn):
+            print(f"warning: {kind}: {line}", file=sys.stderr)
     for f in files:
         print(f"wrote {f}")
     failed = [k for k, r in comp.runs.items() if r.failure]
@@ -182,10 +271,16 @@ def cmd_sweep(args) -> int:
         scheduler=args.scheduler,
         progress=not args.quiet,
     )
-    files = result.write(out)
+    files = result.write(out) if result.rows else ()
     print(result.summary_markdown(), end="")
     for f in files:
         print(f"wrote {f}")
+    if result.interrupted:
+        raise RunInterrupted(
+            f"{result.finished_samples} of {result.samples} samples "
+            f"({len(result.rows)} of {result.planned_runs} runs) of the sweep",
+            files=files,
+        )
     return EXIT_OK
 
 
@@ -253,13 +348,21 @@ def cmd_realtime(args) -> int:
     return EXIT_FAILED
 
 
+def _add_warn_option(parser) -> None:
+    parser.add_argument(
+        "--warn-error", type=float, default=DEFAULT_ERROR_THRESHOLD, metavar="RAD",
+        help="warn when max |e| after 1 s exceeds RAD (a warning is also printed when the "
+        f"plant clips the torque) [{DEFAULT_ERROR_THRESHOLD:g}]",
+    )  # fmt: skip
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="hmpc-pin",
         description="Hierarchical multiloop MPC with a nonlinear disturbance observer "
         "(Li et al. 2022) on Pinocchio + ProxSuite.",
         epilog="Exit codes: 0 success, 1 a run failed (partial results kept), 2 bad input, "
-        "130 interrupted (realtime: safe stop, partial run kept).",
+        "130 interrupted by Ctrl-C (partial results kept; realtime: safe torque first).",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -290,6 +393,15 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--speed", type=float, default=1.0, help="live view: simulated s per real s [1]"
     )
+    run.add_argument(
+        "--wait", action="store_true",
+        help="live view: start the run only once a browser has opened the URL",
+    )  # fmt: skip
+    run.add_argument(
+        "--keep-open", action="store_true",
+        help="live view: keep serving it after the run (files written) until Ctrl-C",
+    )  # fmt: skip
+    _add_warn_option(run)
     run.set_defaults(func=cmd_run)
 
     rpl = sub.add_parser(
@@ -320,6 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     cmp_.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     cmp_.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_warn_option(cmp_)
     cmp_.set_defaults(func=cmd_compare)
 
     rep = sub.add_parser(
@@ -407,11 +520,13 @@ def main(argv=None) -> int:
     """Entry point of ``hmpc-pin``; returns the exit code."""
     import warnings
 
-    args = build_parser().parse_args(argv)
     try:
+        args = build_parser().parse_args(argv)
         with warnings.catch_warnings():
             warnings.showwarning = _print_warning
             return args.func(args)
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc)
     except HmpcError as exc:
         if isinstance(exc, SimulationError):  # a run failure, not bad input
             print(f"error: {exc}", file=sys.stderr)

@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from ..controllers.wrappers import TimedController
-from ..exceptions import ConfigError, SimulationError
+from ..exceptions import ConfigError, RunInterrupted, SimulationError
 from ..experiment.build import Experiment, uses_observer, with_controller
 from ..experiment.schema import CONTROLLER_KINDS, ExperimentConfig, parse_combination
 from ..sim.result import Result
-from .metrics import Metrics, compute_metrics
+from .metrics import DEFAULT_ERROR_THRESHOLD, Metrics, compute_metrics, run_warnings
 
 __all__ = [
     "Comparison",
@@ -56,6 +56,7 @@ class Comparison:
 
     config: ExperimentConfig
     runs: dict[str, ControllerRun] = field(default_factory=dict)
+    interrupted: str = ""  # where Ctrl-C stopped it ("" if it ran to the end)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -129,9 +130,22 @@ def run_comparison(
 
     comp = Comparison(config)
     bar = tqdm(controllers, desc="compare", unit="run", disable=not progress)
-    for kind in bar:
-        bar.set_postfix_str(kind)
-        comp.runs[kind] = run_one_controller(config, kind)
+    try:
+        for kind in bar:
+            bar.set_postfix_str(kind)
+            comp.runs[kind] = run_one_controller(config, kind)
+    except KeyboardInterrupt as exc:  # Ctrl-C: keep the finished runs and the partial one
+        where = exc.where if isinstance(exc, RunInterrupted) else "set-up"
+        done = f"{len(comp.runs)} of {len(controllers)} controllers finished"
+        comp.interrupted = f"{where} in {kind} ({done})"
+        partial = getattr(exc, "result", None)
+        if partial is not None and len(partial.t):
+            metrics = compute_metrics(partial) if partial.t[-1] >= 1.0 else None
+            observer = bool(partial.meta.get("observer"))
+            comp.runs[kind] = ControllerRun(kind, partial, metrics, float("nan"), observer,
+                                            partial.message)  # fmt: skip
+    finally:
+        bar.close()
     return comp
 
 
@@ -159,6 +173,8 @@ COLUMNS = (
     ("within 0.01 rad from [s]", "settling_time", ".2f"),
     ("RMS d−d̂ [N·m]", "observer_rms", ".2e"),
     ("RMS τ [N·m]", "tau_rms", ".3g"),
+    ("peak |τ| commanded [N·m]", "tau_peak", ".4g"),
+    ("peak |τ| applied [N·m]", "tau_applied_peak", ".4g"),
     ("TV(τ) [N·m/s]", "tau_tv", ".3g"),
     ("τ energy > 10 Hz", "tau_hf_share", ".1e"),
     ("limit excursion [rad]", "limit_violation", ".1e"),
@@ -232,11 +248,19 @@ def compare(
     controllers=None,
     progress: bool = False,
     sweep_boundary_layer: bool = True,
+    error_threshold: float = DEFAULT_ERROR_THRESHOLD,
 ) -> tuple[Comparison, list[Path]]:
     """Run the comparison and write ``<name>_compare.md``, ``.csv`` and two figures to ``out``.
 
+    The Markdown lists the :func:`~hmpc_pin.apps.metrics.run_warnings` of every run
+    (saturated torque, tracking error above ``error_threshold`` [rad]).
+
     Returns:
         The :class:`Comparison` and the files written.
+
+    Raises:
+        RunInterrupted: Ctrl-C; the table of the runs done so far (the interrupted one
+            marked) is written first, ``exc.files`` names it.
     """
     from . import plots
 
@@ -246,9 +270,9 @@ def compare(
     stem = f"{config.name}_compare"
     title = config.description or config.name
     results = {k: r.result for k, r in comp.runs.items() if len(r.result.t) > 1}
-    files = [write_csv(comp, out / f"{stem}.csv")]
+    files = [write_csv(comp, out / f"{stem}.csv")] if comp.runs else []
     figures = []
-    if results:
+    if results and not comp.interrupted:
         figures.append(plots.plot_error(results, out / f"{stem}_error.png", title))
         t_end = float(min(r.t[-1] for r in results.values()))
         window = (min(2.0, 0.5 * t_end), min(2.5, t_end))
@@ -272,13 +296,22 @@ def compare(
     if failed:
         lines += ["", "Failed runs (metrics from the part before the failure):", ""]
         lines += [f"- `{k}`: {v}" for k, v in failed.items()]
-    if sweep_boundary_layer and "hmpc-ism-bl" in controllers:
+    warned = [(k, line) for k, r in comp.runs.items()
+              for line in run_warnings(r.result, error_threshold)]  # fmt: skip
+    if warned:
+        lines += ["", "Warnings (runs that completed but were not controlled as designed):", ""]
+        lines += [f"- `{k}`: {line}" for k, line in warned]
+    if comp.interrupted:
+        lines += ["", f"**Interrupted** (Ctrl-C) at {comp.interrupted}."]
+    if sweep_boundary_layer and "hmpc-ism-bl" in controllers and not comp.interrupted:
         lines += ["", boundary_layer_table(config, comp.joint_names)]
     for path in figures:
         lines += ["", f"![{path.stem}]({path.name})"]
     md = out / f"{stem}.md"
     md.write_text("\n".join(lines) + "\n", encoding="utf-8")
     files = [md, *files, *figures]
+    if comp.interrupted:
+        raise RunInterrupted(comp.interrupted, files=files)
     return comp, files
 
 

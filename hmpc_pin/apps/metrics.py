@@ -7,14 +7,19 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "DEFAULT_ERROR_THRESHOLD",
     "UNITS",
     "Metrics",
     "chattering",
     "compute_metrics",
     "joint_units",
+    "run_warnings",
     "settling_time",
     "unit_labels",
 ]
+
+#: Default threshold of the tracking-error warning [rad] (``--warn-error``).
+DEFAULT_ERROR_THRESHOLD = 0.05
 
 #: Units of a joint's (position, velocity, effort) by kind.
 UNITS = {"revolute": ("rad", "rad/s", "N·m"), "prismatic": ("m", "m/s", "N")}
@@ -99,7 +104,9 @@ class Metrics:
         rms_error, max_error: RMS and max |q − r| after ``after`` seconds [rad].
         settling_time: Time to stay within ``tol`` for good [s] (nan: never).
         observer_rms, observer_peak: RMS and max |d − d̂| after ``after`` seconds [N·m].
-        tau_peak: max |τ| over the whole run [N·m].
+        tau_peak: max |τ| over the whole run, τ as commanded by the controller [N·m].
+        tau_applied_peak: max |τ| the plant applied (τ clipped to the effort limit) over
+            the whole run [N·m].
         limit_violation: max distance of q outside the position limits recorded in
             ``result.meta["limits"]`` over the whole run [rad] (0 inside; nan if none recorded).
         saturated_steps: Control periods in which the plant clipped τ to the effort
@@ -124,6 +131,7 @@ class Metrics:
     tau_rms: np.ndarray | None = None
     tau_tv: np.ndarray | None = None
     tau_hf_share: np.ndarray | None = None
+    tau_applied_peak: np.ndarray | None = None
 
 
 def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
@@ -156,7 +164,56 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
         tau_rms=np.sqrt(np.mean(tau**2, axis=0)),
         tau_tv=tv,
         tau_hf_share=share,
+        tau_applied_peak=_nanmax_abs(result.tau_applied),
     )
+
+
+def _nanmax_abs(a: np.ndarray) -> np.ndarray:
+    a = np.abs(a)
+    return np.where(np.isnan(a).all(axis=0), np.nan, np.nanmax(np.where(np.isnan(a), -1, a), 0))
+
+
+def run_warnings(
+    result, error_threshold: float = DEFAULT_ERROR_THRESHOLD, after: float = 1.0
+) -> list[str]:
+    """Lines warning that a run which completed was not controlled as designed.
+
+    Two checks: (1) the plant clipped the torque (``result.meta["saturation"]``): per
+    joint the saturated periods, the commanded peak |τ| and the limit; (2) the tracking
+    error :math:`\\max_{t \\ge t_a} |q - r|` exceeds ``error_threshold`` [rad]
+    (:math:`t_a` = ``after`` [s]; not checked on a run shorter than that).
+
+    Returns:
+        One line per failed check (empty when the run is clean).
+    """
+    names = result.joint_names or tuple(f"joint{i + 1}" for i in range(result.q.shape[1]))
+    lines = []
+    sat = result.meta.get("saturation") or {}
+    steps = np.asarray(sat.get("steps", np.zeros(len(names))), dtype=int)
+    if steps.any():
+        limit = np.asarray(sat["effort_limit"], float)
+        peak = np.abs(result.tau).max(axis=0)
+        periods = max(len(result.t) - 1, 1)
+        parts = [
+            f"{names[i]} {steps[i]} of {periods} periods (commanded peak {peak[i]:.4g} N·m, "
+            f"limit {limit[i]:.4g} N·m)"
+            for i in np.flatnonzero(steps)
+        ]
+        lines.append(
+            "torque saturated: " + "; ".join(parts) + " — the plant applied the clipped "
+            "torque (tau_applied), not the controller's"
+        )
+    mask = result.t >= after - 1e-12
+    if mask.any():  # a run shorter than ``after`` is all start-up transient: not checked
+        e = np.abs(result.error[mask]).max(axis=0)
+        bad = np.flatnonzero(~(e <= error_threshold))
+        if bad.size:
+            parts = ", ".join(f"{names[i]} {e[i]:.3g} rad" for i in bad)
+            lines.append(
+                f"tracking error exceeds {error_threshold:g} rad after {after:g} s: max |e| "
+                f"{parts} (threshold: --warn-error)"
+            )
+    return lines
 
 
 def format_metrics(metrics: Metrics, joint_names=None, result=None) -> str:
@@ -175,11 +232,13 @@ def format_metrics(metrics: Metrics, joint_names=None, result=None) -> str:
         f"{'joint':<{w}} {'RMS e (t>=' + a + 's) [' + r + ']':>22} {'max |e| [' + r + ']':>14} "
         f"{'within ' + format(metrics.tol, 'g') + ' ' + r + ' from [s]':>23} "
         f"{'RMS d-d^ [' + e + ']':>15} {'peak |tau| [' + e + ']':>17} "
+        f"{'applied [' + e + ']':>14} "
         f"{'limit viol. [' + r + ']':>18} {'saturated':>10}"
     )
     lines = [head, "-" * len(head)]
     viol = metrics.limit_violation if metrics.limit_violation is not None else [np.nan] * n
     sat = metrics.saturated_steps if metrics.saturated_steps is not None else [0] * n
+    applied = metrics.tau_applied_peak if metrics.tau_applied_peak is not None else [np.nan] * n
     for i in range(n):
         st = metrics.settling_time[i]
         st_s = "never" if st != st else f"{st:.2f}"
@@ -187,6 +246,6 @@ def format_metrics(metrics: Metrics, joint_names=None, result=None) -> str:
         lines.append(
             f"{names[i]:<{w}} {metrics.rms_error[i]:>22.3e} {metrics.max_error[i]:>14.3e} "
             f"{st_s:>23} {metrics.observer_rms[i]:>15.3e} {metrics.tau_peak[i]:>17.1f} "
-            f"{v_s:>18} {int(sat[i]):>10}"
+            f"{applied[i]:>14.1f} {v_s:>18} {int(sat[i]):>10}"
         )
     return "\n".join(lines)

@@ -33,11 +33,19 @@ def _rows(n: int, cols: int = 1):
     return fig, axes
 
 
+def _wrap(title: str, fig) -> str:
+    """``title`` broken into lines that fit the figure's width (about 11 characters per
+    inch at the default title size), so that no title is cut at the figure's edges."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(title, width=max(20, int(9.5 * fig.get_figwidth()))))
+
+
 def _finish(fig, axes, path, title):
     for ax in axes[-1]:
         ax.set_xlabel("time t [s]")
     if title:
-        fig.suptitle(title)
+        fig.suptitle(_wrap(title, fig))
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)
@@ -150,7 +158,7 @@ def _finish_plane(fig, ax, path, title, legend_loc) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(loc=legend_loc, fontsize=8)
     if title:
-        ax.set_title(title)
+        ax.set_title(_wrap(title, fig))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     return Path(path)

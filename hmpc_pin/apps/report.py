@@ -17,7 +17,7 @@ import numpy as np
 from ..data import DATA
 from ..experiment.build import load_robot_config
 from ..experiment.schema import load_config
-from .metrics import Metrics, compute_metrics
+from .metrics import DEFAULT_ERROR_THRESHOLD, Metrics, compute_metrics, run_warnings
 
 __all__ = ["PAPER_EXPERIMENTS", "comparison_claims", "reproduce"]
 
@@ -39,8 +39,25 @@ PAPER_EXPERIMENTS = (
     PaperExperiment("paper_friction", "5.1", "Figure 4", "Figure 5", "paper_friction_no_ndo"),
     PaperExperiment("paper_external", "5.2", "Figure 6", "Figure 7", "paper_external_no_ndo"),
     PaperExperiment("paper_combined", "5.3", "Figure 8", "Figure 9", "paper_combined_no_ndo"),
-    PaperExperiment("paper_cartesian", "5.4", "(not drawn in the paper)", "(Figure 10)", None),
+    PaperExperiment(
+        "paper_cartesian",
+        "5.4",
+        "(not drawn in the paper)",
+        "(Figure 10)",
+        "paper_cartesian_no_ndo",
+    ),
+    PaperExperiment(
+        "paper_friction_literal",
+        "5.1, Eq 32 read literally",
+        "(Figure 4's scenario with d = +F, not in the paper)",
+        "(Figure 5's scenario with d = +F, not in the paper)",
+        "paper_friction_literal_no_ndo",
+    ),
 )
+
+#: Runs whose failure is the measured answer (Eq 32 read literally, no observer: friction
+#: feeding energy in), reported but not a failure of ``reproduce``.
+EXPECTED_FAILURES = frozenset({"paper_friction_literal_no_ndo"})
 
 
 @dataclass
@@ -85,19 +102,50 @@ def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
         ),
         ("paper_friction",),
     )
+    cannot = "The system cannot converge without the compensation of the NDO."
     add(
         "5.1",
-        "The system cannot converge without the compensation of the NDO.",
-        "without NDO, some joint never stays within 0.01 rad of the reference",
+        cannot,
+        "physical sign (d = −F), 'converge' read as 'reach and stay within 0.01 rad': without "
+        "NDO some joint never stays within 0.01 rad",
         lambda: (
             bool(np.any(np.isnan(metrics["paper_friction_no_ndo"].settling_time))),
             "without NDO: within 0.01 rad from "
             f"[{_fmt(metrics['paper_friction_no_ndo'].settling_time, '.2f')}] s, RMS error after "
-            f"1 s [{_fmt(metrics['paper_friction_no_ndo'].rms_error)}] rad "
-            "(bounded, but offset from the reference)",
+            f"1 s [{_fmt(metrics['paper_friction_no_ndo'].rms_error)}] rad",
         ),
         ("paper_friction_no_ndo",),
     )
+    add(
+        "5.1",
+        cannot,
+        "physical sign (d = −F), 'converge' read as 'stay bounded': without NDO the run "
+        "fails or max |e| after 1 s exceeds 1 rad",
+        lambda: (
+            bool(
+                not runs["paper_friction_no_ndo"].complete
+                or np.any(metrics["paper_friction_no_ndo"].max_error > 1.0)
+            ),
+            "without NDO the run completes, bounded: max |e| after 1 s "
+            f"[{_fmt(metrics['paper_friction_no_ndo'].max_error)}] rad (an offset, not "
+            "divergence)",
+        ),
+        ("paper_friction_no_ndo",),
+    )
+    if "paper_friction_literal_no_ndo" in runs:
+        lit = runs["paper_friction_literal_no_ndo"]
+        out.append(
+            Claim(
+                "5.1",
+                cannot,
+                "Eq 32 read literally (d = +F), 'converge' read as 'stay bounded': the run "
+                "without NDO fails (divergence or an infeasible MPC QP) before its end",
+                f"without NDO: {'completed' if lit.complete else 'stopped'} at t = "
+                f"{lit.t[-1]:.2f} s of {runs['paper_friction_literal'].t[-1]:.0f} s"
+                + (f" ({lit.message.split(':')[0]})" if lit.message else ""),
+                not lit.complete,
+            )
+        )
     add(
         "5.1",
         "Each joint can track the reference trajectory from an initial position in less than "
@@ -110,6 +158,19 @@ def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
             f"within 0.01 rad from [{_fmt(metrics['paper_friction'].settling_time, '.2f')}] s",
         ),
         ("paper_friction",),
+    )
+    add(
+        "5.1",
+        "Each joint can track the reference trajectory from an initial position in less than "
+        "half a second.",
+        "Eq 32 read literally (d = +F), observer gain c = 300 (c = 100 tracks badly, c = 20 "
+        "diverges): |e| stays below 0.02 rad from before 0.5 s on every joint",
+        lambda: (
+            bool(np.all(metrics["paper_friction_literal_band"] < 0.5)),
+            f"within 0.02 rad from [{_fmt(metrics['paper_friction_literal_band'], '.2f')}] s; "
+            f"RMS error after 1 s [{_fmt(metrics['paper_friction_literal'].rms_error)}] rad",
+        ),
+        ("paper_friction_literal",),
     )
     add(
         "5.2",
@@ -174,10 +235,26 @@ def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
                 "well even under unknown frictions and external disturbances.",
                 "final tool position error below 1e-3 and link-3 angle error below 1e-3 rad",
                 f"final tool position error {cart['pos_err']:.2e}, angle error "
-                f"{cart['ang_err']:.2e} rad (t = {cart['t']:.1f} s)",
+                f"{cart['ang_err']:.2e} rad (t = {cart['t']:.1f} s)"
+                + (f"; without NDO the final error is {cart['base_pos_err']:.2e} m: this "
+                   "check passes without the observer too" if "base_pos_err" in cart else ""),
                 bool(cart["pos_err"] < 1e-3 and cart["ang_err"] < 1e-3),
             )
-        )
+        )  # fmt: skip
+        if "base_path_dev" in cart:
+            t0, t1 = cart["move"]
+            out.append(
+                Claim(
+                    "5.4",
+                    "... even under unknown frictions and external disturbances (the "
+                    "observer's part in it).",
+                    f"max tool position error during the move ({t0:g}–{t1:g} s) with NDO at "
+                    "least 5× below the run without NDO",
+                    f"max |p(q) − p(r)| during the move: {cart['path_dev']:.2e} m with NDO, "
+                    f"{cart['base_path_dev']:.2e} m without",
+                    bool(5 * cart["path_dev"] <= cart["base_path_dev"]),
+                )
+            )
     return out
 
 
@@ -213,8 +290,9 @@ def comparison_claims(comp) -> list[Claim]:
     )
     add(
         "1",
-        "The NDO-based scheme tracks better than the ISM-based one.",
-        "RMS error after 1 s of hmpc below hmpc-ism on every joint",
+        'Abstract: "the proposed controller provides comparative accuracy and robustness" '
+        "(compared with the ISM-based scheme of Incremona et al., Section 1).",
+        "read as 'at least as accurate': RMS error after 1 s of hmpc below hmpc-ism on every joint",
         ("hmpc", "hmpc-ism"),
         lambda: (
             np.all(m["hmpc"].rms_error < m["hmpc-ism"].rms_error),
@@ -261,23 +339,45 @@ def comparison_claims(comp) -> list[Claim]:
     return out
 
 
-def _metrics_table(metrics: dict[str, Metrics], joint_names) -> str:
+def _metrics_table(metrics: dict[str, Metrics], runs: dict, joint_names) -> str:
+    """Per experiment and joint; the observer error both after 1 s (the paper's figures
+    after the start-up) and from t = 0 (with the start-up transient, and when its peak is)."""
     lines = [
         "| experiment | joint | RMS e after 1 s [rad] | max \\|e\\| after 1 s [rad] "
-        "| within 0.01 rad from [s] | RMS d−d̂ [N·m] | peak \\|d−d̂\\| [N·m] | peak \\|τ\\| [N·m] |",
-        "|---|---|---|---|---|---|---|---|",
+        "| within 0.01 rad from [s] | RMS d−d̂ after 1 s [N·m] | peak \\|d−d̂\\| after 1 s [N·m] "
+        "| RMS d−d̂ from 0 s [N·m] | peak \\|d−d̂\\| from 0 s [N·m] (at t [s]) "
+        "| peak \\|τ\\| [N·m] | peak \\|τ\\| applied [N·m] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, m in metrics.items():
-        if not isinstance(m, Metrics):
+        if not isinstance(m, Metrics) or name.endswith("_t0"):
             continue
+        m0 = metrics[name + "_t0"]
+        w = np.abs(runs[name].observer_error)
         for i, j in enumerate(joint_names):
             st = m.settling_time[i]
+            t_peak = runs[name].t[int(np.argmax(w[:, i]))]
             lines.append(
                 f"| {name} | {j} | {m.rms_error[i]:.2e} | {m.max_error[i]:.2e} | "
                 f"{'never' if st != st else f'{st:.2f}'} | {m.observer_rms[i]:.2e} | "
-                f"{m.observer_peak[i]:.2e} | {m.tau_peak[i]:.0f} |"
+                f"{m.observer_peak[i]:.2e} | {m0.observer_rms[i]:.2e} | "
+                f"{m0.observer_peak[i]:.2e} ({t_peak:.2f}) | {m.tau_peak[i]:.0f} | "
+                f"{m.tau_applied_peak[i]:.0f} |"
             )
     return "\n".join(lines)
+
+
+def _tool_deviation(robot, result, t0: float, t1: float) -> float:
+    """max over t0 <= t <= t1 of the tool's distance from where the reference puts it,
+    :math:`\\|p(q(t)) - p(r(t))\\|` [m] (forward kinematics of both)."""
+    from ..model.planar import tool_pose
+
+    mask = (result.t >= t0 - 1e-12) & (result.t <= t1 + 1e-12)
+    dev = [
+        np.hypot(*(np.array(tool_pose(robot, q)[:2]) - np.array(tool_pose(robot, r)[:2])))
+        for q, r in zip(result.q[mask], result.q_ref[mask], strict=True)
+    ]
+    return float(max(dev)) if dev else float("nan")
 
 
 def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True) -> bool:
@@ -317,6 +417,7 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
         if result.t[-1] >= 1.0:
             metrics[name] = compute_metrics(result)
             metrics[name + "_band"] = settling_time(result.t, result.error, 0.02)
+            metrics[name + "_t0"] = compute_metrics(result, after=0.0)
 
     # Figures in the paper's numbering
     for exp in PAPER_EXPERIMENTS:
@@ -374,7 +475,23 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
             "pos_err": float(np.hypot(x - cc.goal_position[0], z - cc.goal_position[1])),
             "ang_err": float(abs(np.angle(np.exp(1j * (phi - np.deg2rad(cc.goal_angle)))))),
             "t": float(r.t[-1]),
+            "move": (cc.t_start, cc.t_start + cc.move_time),
+            "path_dev": _tool_deviation(robot, r, cc.t_start, cc.t_start + cc.move_time),
         }
+        t_end_move = cc.t_start + cc.move_time
+        for key, window in (("obs_move", (r.t >= 1.0) & (r.t < t_end_move)),
+                            ("obs_rest", r.t >= t_end_move)):  # fmt: skip
+            w = r.observer_error[window]
+            cart[key] = np.sqrt(np.mean(w**2, axis=0)) if len(w) else np.full(r.q.shape[1], np.nan)
+        base = runs.get("paper_cartesian_no_ndo")
+        if base is not None and len(base.t) > 1:
+            xb, zb, _ = tool_pose(robot, base.q[-1])
+            cart["base_pos_err"] = float(
+                np.hypot(xb - cc.goal_position[0], zb - cc.goal_position[1])
+            )
+            cart["base_path_dev"] = _tool_deviation(
+                robot, base, cc.t_start, cc.t_start + cc.move_time
+            )
         fig10 = plots.plot_cartesian(
             robot,
             r,
@@ -424,11 +541,37 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
     ]
     for c in claims:
         verdict = {True: "yes", False: "**no**", None: "n/a"}[c.agrees]
-        lines.append(f"| {c.section} | {c.text} | {c.check} | {c.evidence} | {verdict} |")
+        cells = (cell.replace("|", "\\|") for cell in (c.text, c.check, c.evidence))
+        lines.append(f"| {c.section} | {' | '.join(cells)} | {verdict} |")
     if failures:
         lines += ["", "## Failed runs", ""]
-        lines += [f"- `{k}`: {v}" for k, v in failures.items()]
-    lines += ["", "## Metrics per experiment and joint", "", _metrics_table(metrics, joint_names)]
+        lines += [
+            f"- `{k}`: {v}" + (" (expected: the measured answer of a claim above)"
+                               if k in EXPECTED_FAILURES else "")
+            for k, v in failures.items()
+        ]  # fmt: skip
+    warned = [(k, w) for k, r in runs.items() for w in run_warnings(r)]
+    warned += [(f"compare {k}", w) for k, r in comp.runs.items() for w in run_warnings(r.result)]
+    if warned:
+        lines += ["", "## Warnings", "",
+                  "Runs that completed but were not controlled as designed (torque clipped "
+                  "by the plant, or max |e| after 1 s above "
+                  f"{DEFAULT_ERROR_THRESHOLD:g} rad):", ""]  # fmt: skip
+        lines += [f"- `{k}`: {w}" for k, w in warned]
+    table = _metrics_table(metrics, runs, joint_names)
+    lines += ["", "## Metrics per experiment and joint", "", table]
+    if "paper_cartesian" in metrics and cart is not None:
+        lines += [
+            "",
+            "The observer error of `paper_cartesian` after 1 s "
+            f"([{_fmt(metrics['paper_cartesian'].observer_rms)}] N·m) comes from the arm "
+            "holding still at the goal after its move: there the velocity hovers around zero "
+            "and changes sign from period to period, so the plant's Coulomb term b·sgn(q̇) "
+            "jumps by 2b, which the observer cannot follow within one period "
+            f"(RMS d − d̂ over 1–{cart['move'][1]:g} s, during the move: "
+            f"[{_fmt(cart['obs_move'])}] N·m; after it: [{_fmt(cart['obs_rest'])}] N·m). "
+            "It is not a tracking failure.",
+        ]
     lines += [
         "",
         "## Controller comparison on the Section 5.3 scenario",
@@ -451,4 +594,4 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
     (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
     if progress:
         print(f"wrote {out / 'report.md'} ({len(figures)} figures) in {elapsed:.1f} s")
-    return not failures
+    return not set(failures) - EXPECTED_FAILURES

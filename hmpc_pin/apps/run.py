@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import SimulationError
+from ..exceptions import RunInterrupted, SimulationError
 from ..experiment.build import Experiment
 from ..experiment.schema import ExperimentConfig
 from ..sim.result import RESULT_ARRAYS, Result
@@ -20,7 +20,8 @@ __all__ = ["live_view", "run_one", "write_csv"]
 def write_csv(result: Result, path: Path) -> Path:
     """Write the trajectories as CSV: ``t`` then ``<array>_<joint>`` for every array and joint.
 
-    Arrays (in order): q, dq, tau, d, d_hat, q_ref, dq_ref, in rad, rad/s and N·m; the
+    Arrays (in order): q, dq, tau (commanded), d, d_hat, q_ref, dq_ref, tau_applied (what
+    the plant applied: tau clipped to the effort limit), in rad, rad/s and N·m; the
     columns of a prismatic joint are in m, m/s and N and say so: ``q_<joint> [m]``. Then the
     result's ``extra`` arrays by name (generalized forces, e.g. ``contact_force`` of a MuJoCo
     run with an obstacle).
@@ -62,17 +63,42 @@ def live_view(robot, speed: float, obstacle: dict | None = None):
     return view
 
 
-def run_one(config: ExperimentConfig, out: Path, stem: str | None = None, viz: float | None = None):
+def _save_data(result: Result, out: Path, stem: str) -> list[Path]:
+    """Write ``<stem>.npz`` and ``<stem>.csv``; a second Ctrl-C while writing leaves no
+    half-written ``.npz`` (it is written to a ``.part`` file and renamed)."""
+    return [result.save(out / f"{stem}.npz"), write_csv(result, out / f"{stem}.csv")]
+
+
+def run_one(
+    config: ExperimentConfig,
+    out: Path,
+    stem: str | None = None,
+    viz: float | None = None,
+    open_view=None,
+):
     """Run ``config``; write ``<stem>.npz``, ``<stem>.csv`` and figures to ``out``.
 
+    Args:
+        viz: Open a live view at this speed for the run (closed at its end).
+        open_view: ``open_view(experiment)`` returns a live view (or ``None``) that the
+            caller owns: it is animated and left open.
+
     Returns:
-        (result, files, failure message or None).
+        (experiment, result, files, failure message or None).
+
+    Raises:
+        RunInterrupted: Ctrl-C; the data up to that step are written first
+            (``exc.files``), no figure.
     """
     from . import plots
 
     stem = stem or config.name
     experiment = Experiment.from_config(config)
-    view = live_view(experiment.robot, viz, experiment.obstacle) if viz is not None else None
+    own_view = open_view is None and viz is not None
+    if own_view:
+        view = live_view(experiment.robot, viz, experiment.obstacle)
+    else:
+        view = open_view(experiment) if open_view is not None else None
     failure = None
     try:
         result = experiment.run(on_step=view)
@@ -80,10 +106,14 @@ def run_one(config: ExperimentConfig, out: Path, stem: str | None = None, viz: f
         if exc.result is None:
             raise
         result, failure = exc.result, str(exc)
+    except RunInterrupted as exc:  # Ctrl-C: keep the data, skip the figures
+        exc.where = f"{exc.where} in {config.name}"
+        exc.files = _save_data(exc.result, out, stem)
+        raise
     finally:
-        if view is not None:
+        if own_view and view is not None:
             view.close()
-    files = [result.save(out / f"{stem}.npz"), write_csv(result, out / f"{stem}.csv")]
+    files = _save_data(result, out, stem)
     if len(result.t) > 1:
         title = config.description or config.name
         files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))

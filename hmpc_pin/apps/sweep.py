@@ -26,6 +26,7 @@ import io
 import math
 import multiprocessing
 import os
+import signal
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -230,6 +231,20 @@ class SweepResult:
     wall_time: float = math.nan
     jobs: int = 1
     executor: str = "local"
+    interrupted: bool = False  # Ctrl-C stopped it: ``rows`` holds the runs that finished
+
+    @property
+    def planned_runs(self) -> int:
+        """Runs the sweep was asked for: samples × variants."""
+        return self.samples * len(self.config.sweep.variants)
+
+    @property
+    def finished_samples(self) -> int:
+        """Samples every variant of which finished."""
+        per_sample: dict[int, int] = {}
+        for r in self.rows:
+            per_sample[r["sample"]] = per_sample.get(r["sample"], 0) + 1
+        return sum(v == len(self.config.sweep.variants) for v in per_sample.values())
 
     def variant_rows(self, variant: str) -> list[dict]:
         """The rows of one variant."""
@@ -270,12 +285,23 @@ class SweepResult:
             writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in row.items()})
         return buf.getvalue()
 
+    def _interrupted_lines(self) -> list[str]:
+        if not self.interrupted:
+            return []
+        return [
+            f"**Interrupted** (Ctrl-C): {self.finished_samples} of {self.samples} samples "
+            f"finished ({len(self.rows)} of {self.planned_runs} runs); the table holds the "
+            "runs that finished.",
+            "",
+        ]
+
     def summary_markdown(self) -> str:
         """The summary as a Markdown section (settings, one table row per variant)."""
         cfg, sc = self.config, self.config.sweep
         lines = [
             f"# Sweep of {cfg.name}: {self.samples} samples, seed {self.seed}",
             "",
+            *self._interrupted_lines(),
             f"Config `{cfg.source}`; plant link mass and inertia ×U({sc.mass[0]:g}, "
             f"{sc.mass[1]:g}), friction ×U({sc.friction[0]:g}, {sc.friction[1]:g}), pulse "
             f"amplitude ×U({sc.disturbance[0]:g}, {sc.disturbance[1]:g}) per joint; noise "
@@ -350,6 +376,10 @@ def run_sweep(
             (``"tcp://host:8786"``); ``None`` starts a local cluster of ``jobs`` processes.
         progress: Show a tqdm progress bar (on stderr).
 
+    Returns:
+        The :class:`SweepResult`; after Ctrl-C (SIGINT) it holds the runs that finished and
+        ``interrupted=True`` (the workers are terminated first; nothing is left running).
+
     Raises:
         ConfigError: Bad ``samples``/``seed``/``jobs``/``executor``, an unknown variant, or
             ``"dask"`` without dask installed.
@@ -368,6 +398,7 @@ def run_sweep(
 
     start = time.perf_counter()
     rows: dict[tuple[int, str], dict] = {}
+    interrupted = False
     bar = tqdm(total=len(tasks), desc=f"sweep {config.name}", unit="run", disable=not progress)
     try:
         if executor == "local" and jobs == 1:
@@ -375,14 +406,7 @@ def run_sweep(
                 rows[p.index, v] = run_sample(config, p, v)
                 bar.update()
         elif executor == "local":
-            from concurrent.futures import ProcessPoolExecutor, as_completed
-
-            ctx = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
-                futures = {pool.submit(run_sample, config, p, v): (p.index, v) for p, v in tasks}
-                for future in as_completed(futures):
-                    rows[futures[future]] = future.result()
-                    bar.update()
+            _run_pool(config, tasks, jobs, rows, bar)
         else:
             client, cluster = _dask_client(jobs, scheduler)
             try:
@@ -392,14 +416,72 @@ def run_sweep(
                     client.submit(run_sample, config, p, v, pure=False): (p.index, v)
                     for p, v in tasks
                 }
-                for future in as_completed(list(futures)):
-                    rows[futures[future]] = future.result()
-                    bar.update()
+                try:
+                    for future in as_completed(list(futures)):
+                        rows[futures[future]] = future.result()
+                        bar.update()
+                except KeyboardInterrupt:
+                    client.cancel(list(futures))
+                    raise
             finally:
                 client.close()
                 if cluster is not None:
                     cluster.close()
+    except KeyboardInterrupt:  # Ctrl-C: keep every run that finished
+        interrupted = True
     finally:
         bar.close()
-    ordered = [rows[p.index, v] for p, v in tasks]
-    return SweepResult(config, samples, seed, ordered, time.perf_counter() - start, jobs, executor)
+    ordered = [rows[p.index, v] for p, v in tasks if (p.index, v) in rows]
+    return SweepResult(config, samples, seed, ordered, time.perf_counter() - start, jobs,
+                       executor, interrupted)  # fmt: skip
+
+
+def _ignore_sigint() -> None:
+    """Worker initializer: Ctrl-C reaches the whole process group; only the parent acts on
+    it (it terminates the workers), so no worker prints a traceback."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run_pool(config, tasks, jobs: int, rows: dict, bar) -> None:
+    """Run ``tasks`` on ``jobs`` spawned worker processes, filling ``rows`` as they finish.
+
+    On Ctrl-C (``KeyboardInterrupt`` in this process) the pending runs are cancelled and
+    the workers terminated and joined before the interrupt goes on, so no worker is left.
+    """
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = multiprocessing.get_context("spawn")
+    pool = None
+    # The resource tracker (started with the pool) and the workers (started by submit)
+    # are spawned with SIGINT blocked here: they inherit the block (exec keeps the signal
+    # mask), so a Ctrl-C during their start-up prints no traceback from each of them; one
+    # arriving meanwhile is delivered to this process at the unblock.
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        try:
+            pool = ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_ignore_sigint)
+            futures = {pool.submit(run_sample, config, p, v): (p.index, v) for p, v in tasks}
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        for future in as_completed(futures):
+            rows[futures[future]] = future.result()
+            bar.update()
+    except BaseException:
+        if pool is not None:
+            _stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _stop_pool(pool) -> None:
+    """Cancel the pending runs of ``pool`` and terminate and join its workers now
+    (``shutdown`` alone would wait for the runs in progress)."""
+    workers = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in workers:
+        proc.terminate()
+    for proc in workers:
+        proc.join(timeout=2.0)
+        if proc.is_alive():
+            proc.kill()
+            proc.join()

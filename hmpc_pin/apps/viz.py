@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -66,9 +67,19 @@ def visual_model(robot) -> pin.GeometryModel:
     """
     source = Path(robot.source).resolve()
     dirs = [str(p) for p in source.parents]
-    return pin.buildGeomFromUrdf(
-        robot.model, str(source), pin.GeometryType.VISUAL, package_dirs=dirs
-    )
+    try:
+        return pin.buildGeomFromUrdf(
+            robot.model, str(source), pin.GeometryType.VISUAL, package_dirs=dirs
+        )
+    except ValueError as exc:  # Pinocchio: "Mesh <file> could not be found."
+        m = re.search(r"Mesh (.*) could not be found", str(exc))
+        mesh = m.group(1) if m else str(exc)
+        raise VizError(
+            f"the URDF {str(source)!r} names the mesh {mesh!r}, which could not be found "
+            f"(relative to the URDF's folder, package:// against its parent folders); "
+            "install the meshes next to the URDF or draw without a view (the run itself "
+            "needs no mesh)"
+        ) from exc
 
 
 def _visualizer_class():
@@ -89,7 +100,8 @@ def _load_scene(vis, robot, gmodel, ghost: bool) -> list[str]:
     Each geometry sits at ``<root>/visuals/<name>/geom`` with its mesh scale as a static
     transform, so that ``<root>/visuals/<name>`` can carry the unscaled placement.
     """
-    viz = _visualizer_class()(robot.model, gmodel, gmodel)
+    # No collision model: it would be loaded (hidden) as a second copy of every mesh.
+    viz = _visualizer_class()(robot.model, None, gmodel)
     with contextlib.redirect_stdout(io.StringIO()):
         viz.initViewer(viewer=vis, loadModel=False)
     roots = [ARM, GHOST] if ghost else [ARM]
@@ -209,6 +221,38 @@ class LiveView:
         if delay > 0 and np.isfinite(delay):
             self._time.sleep(delay)
 
+    def wait_for_browser(self, poll: float = 0.1) -> None:
+        """Block until a browser has opened :attr:`url` (Ctrl-C stops waiting).
+
+        Polls the server's answer every ``poll`` seconds [s], so a ``KeyboardInterrupt``
+        is raised at once.
+        """
+        # The server logs "opened: <handler>" on its stderr (a pipe to this process) when a
+        # page connects. (Meshcat's own ``Visualizer.wait`` leaves the command socket stuck:
+        # the next command never gets its reply.)
+        import os
+        import select
+
+        proc = getattr(self.vis.window, "server_proc", None)
+        if proc is None or proc.stderr is None:
+            raise VizError("this view does not own its Meshcat server; cannot wait for a browser")
+        fd, seen = proc.stderr.fileno(), b""
+        while b"opened:" not in seen:
+            if select.select([fd], [], [], poll)[0]:
+                chunk = os.read(fd, 65536)
+                if not chunk:
+                    raise VizError("the Meshcat server stopped while waiting for a browser")
+                seen = seen[-64:] + chunk
+
+    def hold(self) -> None:
+        """Keep serving the view, the arm at its last pose, until Ctrl-C (which ends the
+        hold normally: returns instead of raising)."""
+        try:
+            while True:
+                self._time.sleep(0.2)
+        except KeyboardInterrupt:
+            return
+
     def close(self) -> None:
         """Stop the Meshcat server."""
         _stop_server(self.vis)
@@ -296,9 +340,99 @@ def export_replay(
         for root, qs in roots:
             _place(vis, root, robot, data, gmodel, gdata, qs[k0])
         vis.set_animation(anim, play=play, repetitions=1)
-        html = vis.static_html()
+        html = _share_meshes(vis.static_html())
     finally:
         _stop_server(vis)
     path = Path(path)
     path.write_text(html, encoding="utf-8")
     return path
+
+
+_COMMAND = re.compile(
+    r'fetch\("data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"\)\s*'
+    r"\.then\(res => res\.arrayBuffer\(\)\)\s*"
+    r"\.then\(buffer => viewer\.handle_command_bytearray\(new Uint8Array\(buffer\)\)\);"
+)
+_VIEWER = 'var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));'
+_MESH_MIN = 1024  # [bytes] mesh files shorter than this stay inline
+
+# Unpacks the shared meshes (gzip, base64) in the page and hands each command to the viewer.
+_MESH_JS = """
+const hmpcMeshStore = %s;
+const hmpcMeshCache = {};
+function hmpcUnpack(key) {
+  if (!(key in hmpcMeshCache)) {
+    const [kind, b64] = hmpcMeshStore[key];
+    const bin = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+    const gunzip = new DecompressionStream("gzip");
+    const body = new Response(new Blob([bin]).stream().pipeThrough(gunzip));
+    hmpcMeshCache[key] = kind === "text" ? body.text()
+      : body.arrayBuffer().then((b) => new Uint8Array(b));
+  }
+  return hmpcMeshCache[key];
+}
+async function hmpcFill(x) {
+  if (Array.isArray(x)) {
+    for (let i = 0; i < x.length; i++) x[i] = await hmpcFill(x[i]);
+  } else if (x !== null && typeof x === "object") {
+    if (Object.keys(x).length === 1 && "hmpc_mesh" in x) return await hmpcUnpack(x.hmpc_mesh);
+    for (const k of Object.keys(x)) x[k] = await hmpcFill(x[k]);
+  }
+  return x;
+}
+function hmpcMesh(cmd) { hmpcFill(cmd).then((c) => viewer.handle_command(c)); }
+"""
+
+
+def _share_meshes(html: str) -> str:
+    """Store every mesh file of a Meshcat static page once, compressed, shared by all the
+    nodes that draw it (the arm and its ghost).
+
+    Meshcat inlines a mesh file in each ``set_object`` command (as base64 msgpack), so a
+    mesh drawn twice is stored twice. Here each such command becomes JSON whose mesh data
+    is a key into one table of gzip-compressed files; the page unpacks each file once
+    (``DecompressionStream``) and hands the command to the viewer unchanged otherwise.
+    """
+    import base64
+    import gzip
+    import hashlib
+    import json
+
+    import umsgpack
+
+    store: dict[str, list[str]] = {}
+
+    def pull(x):
+        if isinstance(x, dict):
+            data = x.get("data")
+            if "format" in x and isinstance(data, (str, bytes)) and len(data) >= _MESH_MIN:
+                raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+                key = hashlib.sha256(raw).hexdigest()[:16]
+                if key not in store:
+                    packed = gzip.compress(raw, compresslevel=9, mtime=0)
+                    kind = "text" if isinstance(data, str) else "bytes"
+                    store[key] = [kind, base64.b64encode(packed).decode("ascii")]
+                x = {**x, "data": {"hmpc_mesh": key}}
+            return {k: pull(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [pull(v) for v in x]
+        return x
+
+    def replace(match: re.Match) -> str:
+        command = umsgpack.unpackb(base64.b64decode(match.group(1)))
+        if command.get("type") != "set_object":
+            return match.group(0)
+        shared = pull(command)
+        if shared == command:
+            return match.group(0)
+        try:
+            text = json.dumps(shared, separators=(",", ":"), allow_nan=False)
+        except (TypeError, ValueError):  # not JSON (typed arrays): leave it inline
+            return match.group(0)
+        return f"hmpcMesh({text});"
+
+    html = _COMMAND.sub(replace, html)
+    if not store:
+        return html
+    table = json.dumps(store, separators=(",", ":"), sort_keys=True)
+    return html.replace(_VIEWER, _VIEWER + (_MESH_JS % table), 1)

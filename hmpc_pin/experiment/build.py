@@ -21,7 +21,14 @@ from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque, CTSettings
 from ..controllers.hierarchical import HierarchicalMPC, MPCSettings, state_limits
 from ..controllers.wrappers import CollisionReaction
-from ..exceptions import ConfigError, LimitError, SimulationError, URDFError, ValidityWarning
+from ..exceptions import (
+    ConfigError,
+    InterfaceError,
+    LimitError,
+    SimulationError,
+    URDFError,
+    ValidityWarning,
+)
 from ..model.robot import Robot, load_robot
 from ..mpc.condensed import StateLimits
 from ..realtime.loop import LoopSettings
@@ -150,13 +157,29 @@ def controller_parts(robot: Robot, cc: ControllerConfig) -> tuple:
 _hierarchical.LEGACY_CONFIG_PARTS = controller_parts
 
 
-def make_controller(robot: Robot, config: ControllerConfig | None = None) -> Controller:
+def make_controller(
+    robot: Robot, config: ControllerConfig | ExperimentConfig | None = None
+) -> Controller:
     """The controller × compensation of ``config`` (README, "Controllers").
 
-    ``hmpc`` gives a :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC`,
-    ``computed-torque*`` a :class:`~hmpc_pin.controllers.computed_torque.ComputedTorque`;
-    each holds the compensation of :func:`make_compensation`.
+    ``config`` is a :class:`~hmpc_pin.experiment.schema.ControllerConfig`, a whole
+    :class:`~hmpc_pin.experiment.schema.ExperimentConfig` (its ``controller`` table is
+    used) or ``None`` (the defaults). ``hmpc`` gives a
+    :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC`, ``computed-torque*`` a
+    :class:`~hmpc_pin.controllers.computed_torque.ComputedTorque`; each holds the
+    compensation of :func:`make_compensation`.
+
+    Raises:
+        InterfaceError: ``config`` is neither (e.g. a dict or a file path).
     """
+    if isinstance(config, ExperimentConfig):
+        config = config.controller
+    if config is not None and not isinstance(config, ControllerConfig):
+        raise InterfaceError(
+            config,
+            "a ControllerConfig or an ExperimentConfig",
+            "load a TOML file with load_config(path) and pass the result (or its .controller)",
+        )
     cc = config if config is not None else ControllerConfig()
     if cc.kind == "hmpc":
         settings, compensation, limits = controller_parts(robot, cc)
@@ -296,9 +319,10 @@ def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) ->
     k = np.diag(robot.mass_matrix(q0)).copy() if dc.scale == "inertia" else np.ones(n)
     disturbance: Disturbance = ZeroDisturbance(n)
     if dc.friction is not None:
+        sign = -1.0 if dc.friction.sign == "literal" else 1.0  # literal: d = +(a q̇ + b sgn q̇)
         disturbance = disturbance + CoulombViscousFriction(
-            k * np.broadcast_to(dc.friction.viscous, (n,)),
-            k * np.broadcast_to(dc.friction.coulomb, (n,)),
+            sign * k * np.broadcast_to(dc.friction.viscous, (n,)),
+            sign * k * np.broadcast_to(dc.friction.coulomb, (n,)),
         )
     if dc.pulse is not None:
         disturbance = disturbance + GaussianPulse(

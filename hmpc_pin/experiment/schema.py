@@ -868,19 +868,29 @@ class ReferenceConfig:
 
 @dataclass(frozen=True, eq=False)
 class FrictionConfig:
-    """Coulomb–viscous friction, Eq (32), opposing motion (SPEC §3).
+    """Coulomb–viscous friction, Eq (32) (SPEC §3).
 
     Attributes:
         viscous: a [N·m·s/rad] (paper: 10, 8, 5).
         coulomb: b [N·m] (paper: 3.0, 2.4, 1.8).
+        sign: ``"opposing"`` (default, physical): :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,
+            \\dot q)`; ``"literal"``: the paper's Eq 32 as printed, :math:`d = +F`, friction
+            feeding energy in (the second reading of the paper, README "Friction sign").
     """
 
     viscous: np.ndarray = field(default_factory=lambda: np.array([10.0, 8.0, 5.0]))
     coulomb: np.ndarray = field(default_factory=lambda: np.array([3.0, 2.4, 1.8]))
+    sign: str = "opposing"
 
     def __post_init__(self):
         _set(self, "viscous", _array("viscous", self.viscous, nonneg=True))
         _set(self, "coulomb", _array("coulomb", self.coulomb, nonneg=True))
+        if self.sign not in FRICTION_SIGNS:
+            raise ConfigError("sign", f"expected one of {FRICTION_SIGNS}, got {self.sign!r}")
+
+
+#: Readings of Eq 32's sign: friction opposing motion, or the paper's d = +F as printed.
+FRICTION_SIGNS = ("opposing", "literal")
 
 
 @dataclass(frozen=True, eq=False)

@@ -15,7 +15,7 @@ from ..exceptions import OutputError
 __all__ = ["RESULT_ARRAYS", "Result"]
 
 #: Arrays stored in a :class:`Result`, each of shape (K+1, n) except ``t`` (K+1,).
-RESULT_ARRAYS = ("t", "q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref")
+RESULT_ARRAYS = ("t", "q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref", "tau_applied")
 
 
 @dataclass
@@ -25,7 +25,12 @@ class Result:
     Attributes:
         t: Time [s], shape (K+1,).
         q, dq: Joint positions [rad] and velocities [rad/s], shape (K+1, n).
-        tau: Torque computed at each instant and held over the next period [N·m].
+        tau: Torque commanded by the controller at each instant [N·m].
+        tau_applied: Torque the plant applied over the next period: ``tau`` clipped to
+            the effort limit, :math:`\\mathrm{clip}(\\tau, -\\tau_{\\max}, \\tau_{\\max})`
+            [N·m] (equal to ``tau`` without limits; NaN where nothing was applied). Files
+            written before 0.3 have no record of it: it is ``tau`` when no period
+            saturated and NaN otherwise.
         d: True disturbance :math:`d(t_k, q_k, \\dot q_k)` [N·m].
         d_hat: Observer estimate :math:`\\hat d_k` [N·m] (zeros without observer).
         q_ref, dq_ref: Reference at :math:`t_k` [rad, rad/s].
@@ -49,6 +54,11 @@ class Result:
     message: str = ""
     meta: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
+    tau_applied: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.tau_applied is None:
+            self.tau_applied = np.array(self.tau, dtype=float, copy=True)
 
     @property
     def error(self) -> np.ndarray:
@@ -81,7 +91,7 @@ class Result:
         part = path.with_name(path.name + ".part")
         try:
             if not path.parent.is_dir():
-                raise OutputError(path.parent, "no such directory")
+                raise OutputError(path.parent, "is not writable (no such directory)", None)
             with zipfile.ZipFile(part, "w", compression=zipfile.ZIP_STORED) as zf:
                 for name, arr in arrays.items():
                     info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
@@ -89,7 +99,9 @@ class Result:
                         np.lib.format.write_array(f, np.asanyarray(arr), allow_pickle=False)
             os.replace(part, path)
         except OSError as exc:
-            raise OutputError(path.parent, exc.strerror or str(exc)) from exc
+            raise OutputError(
+                path.parent, f"is not writable ({exc.strerror or exc})", None
+            ) from exc
         finally:
             if part.exists():
                 part.unlink()
@@ -99,11 +111,18 @@ class Result:
     def load(cls, path: str | Path) -> Result:
         """Read a result written by :meth:`save`."""
         with np.load(path, allow_pickle=False) as f:
+            meta = json.loads(str(f["meta"]))
+            arrays = {name: f[name] for name in RESULT_ARRAYS if name in f.files}
+        if "tau_applied" not in arrays:  # written before 0.3: known only without saturation
+            saturated = any((meta.get("saturation") or {}).get("steps", ()))
+            tau = arrays["tau"]
+            arrays["tau_applied"] = np.full_like(tau, np.nan) if saturated else tau.copy()
+        with np.load(path, allow_pickle=False) as f:
             return cls(
-                **{name: f[name] for name in RESULT_ARRAYS},
+                **arrays,
                 joint_names=tuple(str(s) for s in f["joint_names"]),
                 complete=bool(f["complete"]),
                 message=str(f["message"]),
-                meta=json.loads(str(f["meta"])),
+                meta=meta,
                 extra={k[len("extra_") :]: f[k] for k in f.files if k.startswith("extra_")},
             )

@@ -22,6 +22,7 @@ from ..exceptions import (
     DimensionError,
     HmpcError,
     NonFiniteError,
+    RunInterrupted,
     SimulationError,
 )
 from ..model.robot import Robot
@@ -94,7 +95,8 @@ def simulate(
             :data:`~hmpc_pin.sim.plants.PLANTS` (not with a ``Plant`` object).
         state_bound: The run stops as diverged if any |q| or |q̇| exceeds it.
         effort_limit: Actuator limits [N·m], shape (n,) (inf: none). The plant applies
-            :math:`\\mathrm{clip}(\\tau, -\\tau_{\\max}, \\tau_{\\max})`; ``None`` applies τ as is.
+            :math:`\\mathrm{clip}(\\tau, -\\tau_{\\max}, \\tau_{\\max})`, recorded as the
+            result's ``tau_applied`` beside the commanded ``tau``; ``None`` applies τ as is.
             The result's ``meta["saturation"]`` reports, per joint, the number of
             control periods saturated and the largest excess :math:`|\\tau| - \\tau_{\\max}`.
         meta: Metadata stored in the result.
@@ -108,6 +110,9 @@ def simulate(
         SimulationError: The state became non-finite or exceeded ``state_bound``, or
             the controller failed; ``exc.result`` holds the run up to that step
             (``complete=False``).
+        RunInterrupted: Ctrl-C (SIGINT) during the run; ``exc.result`` holds the run up
+            to the last whole control step (``complete=False``, ``message`` "interrupted
+            at t=… s"). It is a ``KeyboardInterrupt``, so a loop of runs still stops.
     """
     n = robot.nq
     q = robot.check_vector("q0", q0).copy()
@@ -159,8 +164,8 @@ def simulate(
     sat_steps = np.zeros(n, dtype=int)
     sat_excess = np.zeros(n)
 
-    rec_q, rec_dq, rec_tau, rec_d, rec_d_hat, rec_q_ref, rec_dq_ref = (
-        rec[name] for name in RESULT_ARRAYS[1:]
+    rec_q, rec_dq, rec_tau, rec_d, rec_d_hat, rec_q_ref, rec_dq_ref, rec_applied = (
+        rec[name] for name in ("q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref", "tau_applied")
     )
     bound = min(state_bound, sys.float_info.max)
     # Fast pre-test of the state: |q|² + |q̇|² <= bound² implies every |entry| <= bound
@@ -199,6 +204,7 @@ def simulate(
                     sat_steps += excess > 0
                     np.maximum(sat_excess, excess, out=sat_excess)
                     tau = np.clip(tau, -limit, limit)
+            rec_applied[k] = tau
             q, dq = sim_plant.advance(tau)
             if q.dot(q) + dq.dot(dq) <= bound2:
                 continue
@@ -217,10 +223,17 @@ def simulate(
     except HmpcError as exc:
         message = str(exc)
         cause = exc
+    except KeyboardInterrupt as exc:  # Ctrl-C: keep the run up to the last whole step
+        message = f"interrupted at t={t_arr[max(last, 0)]:.6g} s of {duration:g} s"
+        cause = exc
     else:
         cause = None
 
     m = last + 1
+    if m and np.isnan(rec_applied[last]).all() and np.isfinite(rec_tau[last]).all():
+        # The last torque was not applied (end of run, interrupt): record what would be.
+        last_tau = rec_tau[last]
+        rec_applied[last] = last_tau if limit is None else np.clip(last_tau, -limit, limit)
     result = Result(
         t=t_arr[:m],
         **{name: arr[:m] for name, arr in rec.items()},
@@ -236,6 +249,12 @@ def simulate(
             "steps": sat_steps.tolist(),
             "max_excess": sat_excess.tolist(),
         }
+    if isinstance(cause, KeyboardInterrupt):
+        result.meta["interrupted_at"] = float(result.t[-1]) if m else 0.0
+        raise RunInterrupted(
+            f"t={result.t[-1] if m else 0.0:.6g} s of {duration:g} s ({m} of {K + 1} samples kept)",
+            result,
+        ) from None
     if cause is not None:
         # k is the control step during which the fault was detected (in the controller,
         # in the torque check or in the plant integration over [t_k, t_k + Ts)).

@@ -1,0 +1,164 @@
+"""Every output path is checked before the run, naming its option; saturation and
+tracking-error warnings; the applied (clipped) torque beside the commanded one."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.apps.cli import main
+from hmpc_pin.apps.metrics import compute_metrics, run_warnings
+
+from .conftest import CONFIGS
+
+PAPER = str(CONFIGS / "paper_combined.toml")
+
+
+def _blocker(tmp_path):
+    f = tmp_path / "file"
+    f.write_text("")
+    return f
+
+
+# ------------------------------------------------------------------ output paths
+@pytest.mark.parametrize(
+    "case",
+    ["replay under a file", "replay is a directory", "out is a file", "out under a file"],
+)
+def test_output_paths_checked_before_the_run(tmp_path, capsys, case):
+    blocker = _blocker(tmp_path)
+    out = tmp_path / "out"
+    argv = ["run", PAPER, "--duration", "0.2", "--out", str(out)]
+    option, expected = {
+        "replay under a file": ("--replay", "output directory"),
+        "replay is a directory": ("--replay", "is a directory"),
+        "out is a file": ("--out", "is a file"),
+        "out under a file": ("--out", "is not writable"),
+    }[case]
+    if case == "replay under a file":
+        argv += ["--replay", str(blocker / "r.html")]
+    elif case == "replay is a directory":
+        argv += ["--replay", str(tmp_path)]
+    elif case == "out is a file":
+        argv[argv.index("--out") + 1] = str(blocker)
+    else:
+        argv[argv.index("--out") + 1] = str(blocker / "sub")
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith(f"error: {option}: "), err
+    assert expected in err and f"pass {option}" in err, err
+    assert captured.out == ""  # nothing ran
+    assert not list(tmp_path.glob("**/*.npz"))  # no output file written
+
+
+def test_replay_out_that_is_a_directory(tmp_path, capsys):
+    assert main(["run", PAPER, "--duration", "0.05", "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    argv = ["replay", str(tmp_path / "paper_combined.npz"), "--out", str(tmp_path)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out: output file") and "is a directory" in err, err
+
+
+# ------------------------------------------------------------------ applied torque
+def _saturating_config(write_config, limit: str) -> str:
+    text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
+    text = text.replace('urdf = "../robots/planar3.urdf"', 'urdf = "@URDF@"')
+    text = text.replace('integrator = "rk4"', f'integrator = "rk4"\neffort_limit = {limit}')
+    return str(write_config(text))
+
+
+def test_applied_torque_is_the_clipped_command_and_drives_the_plant(planar3):
+    """``tau_applied`` = clip(τ, ±τmax) entrywise (closed form), and integrating the plant
+    open loop with ``tau_applied`` reproduces the recorded states exactly (what the plant
+    really got), while the commanded ``tau`` does not."""
+    limit = np.array([150.0, 60.0, 20.0])
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    r = hmpc_pin.simulate(planar3, ctrl, hmpc_pin.SineReference(3), duration=1.2,
+                          q0=np.zeros(3), effort_limit=limit)  # fmt: skip
+    np.testing.assert_array_equal(r.tau_applied, np.minimum(np.maximum(r.tau, -limit), limit))
+    assert (np.abs(r.tau) > limit).any(), "the test needs saturated periods"
+    steps = (np.abs(r.tau[:-1]) > limit).sum(axis=0)
+    assert r.meta["saturation"]["steps"] == steps.tolist()
+    m = compute_metrics(r)
+    np.testing.assert_array_equal(m.tau_applied_peak, np.abs(r.tau_applied).max(axis=0))
+    assert (m.tau_applied_peak <= limit).all() and (m.tau_peak > limit).any()
+
+    def replay(torques):
+        plant = hmpc_pin.sim.plants.RK4Plant(planar3.copy(), None, ctrl.Ts, 0.001)
+        plant.reset(np.zeros(3), np.zeros(3), 0.0)
+        return np.array([np.zeros(3)] + [plant.advance(u)[0].copy() for u in torques[:-1]])
+
+    np.testing.assert_array_equal(replay(r.tau_applied), r.q)
+    assert np.abs(replay(r.tau) - r.q).max() > 1e-3
+
+
+def test_result_file_keeps_the_applied_torque(tmp_path, planar3):
+    limit = np.array([150.0, 60.0, 20.0])
+    r = hmpc_pin.simulate(planar3, hmpc_pin.HierarchicalMPC(planar3), hmpc_pin.SineReference(3),
+                          duration=0.2, q0=np.zeros(3), effort_limit=limit)  # fmt: skip
+    loaded = hmpc_pin.Result.load(r.save(tmp_path / "r.npz"))
+    np.testing.assert_array_equal(loaded.tau_applied, r.tau_applied)
+    # A file written before 0.3 (no tau_applied): tau where nothing saturated, else NaN.
+    import zipfile
+
+    old = tmp_path / "old.npz"
+    with zipfile.ZipFile(tmp_path / "r.npz") as src, zipfile.ZipFile(old, "w") as dst:
+        for item in src.infolist():
+            if item.filename != "tau_applied.npy":
+                dst.writestr(item, src.read(item))
+    assert np.isnan(hmpc_pin.Result.load(old).tau_applied).all()
+
+
+# ------------------------------------------------------------------ warnings
+def test_saturation_and_error_warnings_through_the_cli(tmp_path, capsys, write_config):
+    cfg = _saturating_config(write_config, "[150.0, 60.0, 20.0]")
+    argv = ["run", cfg, "--duration", "1.5", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    r = hmpc_pin.Result.load(tmp_path / "o" / "paper_combined.npz")
+    steps = r.meta["saturation"]["steps"]
+    lines = [x for x in captured.err.splitlines() if x.startswith("warning: ")]
+    sat = [x for x in lines if "torque saturated" in x]
+    assert len(sat) == 1
+    for name, k, limit in zip(r.joint_names, steps, (150, 60, 20), strict=True):
+        if k:
+            peak = np.abs(r.tau[:, r.joint_names.index(name)]).max()
+            assert f"{name} {k} of {len(r.t) - 1} periods (commanded peak {peak:.4g} N·m, " \
+                   f"limit {limit:.4g} N·m)" in sat[0]  # fmt: skip
+    with open(tmp_path / "o" / "paper_combined.csv", encoding="utf-8") as f:
+        header = next(csv.reader(f))
+    assert header[-3:] == [f"tau_applied_{j}" for j in r.joint_names]
+    # The error warning follows --warn-error: below the measured max |e| after 1 s it
+    # warns, above it it does not.
+    e = np.abs(r.error[r.t >= 1.0 - 1e-12]).max()
+    for threshold, warned in ((0.5 * e, True), (2.0 * e, False)):
+        assert main([*argv, "--warn-error", repr(float(threshold))]) == 0
+        err = capsys.readouterr().err
+        assert ("tracking error exceeds" in err) is warned, err
+
+
+def test_clean_run_has_no_warning(tmp_path, capsys):
+    assert main(["run", PAPER, "--duration", "1.5", "--out", str(tmp_path)]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_run_warnings_from_a_hand_built_result():
+    """Known answers: joint b saturates 2 of 4 periods, joint a's error after 1 s is 0.3."""
+    t = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
+    q = np.zeros((5, 2))
+    q[3, 0] = 0.3  # after 1 s on joint a
+    q[1, 1] = 0.9  # before 1 s on joint b: not counted
+    tau = np.array([[0, 0], [0, 5], [0, -7], [0, 1], [0, 0]], float)
+    r = hmpc_pin.Result(t, q, q, tau, q, q, np.zeros_like(q), q, joint_names=("a", "b"),
+                        meta={"saturation": {"effort_limit": [10.0, 4.0], "steps": [0, 2],
+                                             "max_excess": [0.0, 3.0]}})  # fmt: skip
+    lines = run_warnings(r, error_threshold=0.25)
+    assert lines[0].startswith("torque saturated: b 2 of 4 periods (commanded peak 7 N·m, limit 4")
+    assert lines[1].startswith("tracking error exceeds 0.25 rad after 1 s: max |e| a 0.3 rad")
+    assert len(lines) == 2
+    assert run_warnings(r, error_threshold=0.3) == lines[:1]  # 0.3 is not above 0.3

@@ -1,0 +1,206 @@
+"""Ctrl-C (SIGINT): the run keeps its data, one line ``interrupted at …``, exit 130, no
+traceback, no process left behind.
+
+The command-line cases send SIGINT to a real ``python -m hmpc_pin`` subprocess started
+in its own session, the way a terminal does on Ctrl-C (to the whole process group) and
+to the parent alone; the processes it started are read from ``/proc`` while it runs.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.exceptions import RunInterrupted
+
+from .conftest import CONFIGS
+
+EXIT_INTERRUPTED = 130
+
+
+# ------------------------------------------------------------------ helpers
+def _stat(pid: int) -> list[str] | None:
+    """Fields of /proc/<pid>/stat after the command name (state first), or None."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return text.rsplit(")", 1)[1].split()
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every live process whose parent chain leads to ``pid`` (from /proc)."""
+    parents: dict[int, int] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit() and (st := _stat(int(entry))) is not None:
+            parents[int(entry)] = int(st[1])
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {p for p, pp in parents.items() if pp in frontier} - found
+        found |= frontier
+    return found
+
+
+def _alive(pid: int) -> bool:
+    st = _stat(pid)
+    return st is not None and st[0] != "Z"
+
+
+def _cpu_seconds(pid: int) -> float:
+    st = _stat(pid)
+    return 0.0 if st is None else (int(st[11]) + int(st[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _start(args, tmp_path):
+    err = open(tmp_path / "stderr.txt", "w+", encoding="utf-8")  # noqa: SIM115
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hmpc_pin", *args],
+        stdout=subprocess.PIPE,
+        stderr=err,
+        text=True,
+        start_new_session=True,  # its own process group, as a shell job
+        cwd=tmp_path,
+    )
+    return proc, err
+
+
+def _wait_for(predicate, proc, timeout: float, what: str):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if proc.poll() is not None:
+            pytest.fail(f"the command ended (exit {proc.returncode}) before {what}")
+        if predicate():
+            return
+        time.sleep(0.1)
+    proc.kill()
+    pytest.fail(f"timed out waiting for {what}")
+
+
+def _interrupt(proc, err, group: bool, children: set[int]):
+    """Send SIGINT; return (exit code, seconds to exit, stdout, stderr)."""
+    start = time.monotonic()
+    if group:
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        os.kill(proc.pid, signal.SIGINT)
+    try:
+        out, _ = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail("no exit within 30 s of SIGINT")
+    elapsed = time.monotonic() - start
+    err.seek(0)
+    text = err.read()
+    err.close()
+    deadline = time.monotonic() + 2.0
+    while any(_alive(c) for c in children) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    left = [c for c in children if _alive(c)]
+    for c in left:
+        os.kill(c, signal.SIGKILL)
+    assert not left, f"processes left behind after exit: {left}"
+    return proc.returncode, elapsed, out, text
+
+
+def _last_line(stderr: str) -> str:
+    # tqdm redraws with \r; the message is the last line.
+    return re.split(r"[\r\n]+", stderr.strip())[-1]
+
+
+# ------------------------------------------------------------------ library
+def test_simulate_interrupted_raises_with_the_partial_result(planar3):
+    """A KeyboardInterrupt in the loop (here from the step callback at step 40, as Ctrl-C
+    would arrive) ends the run with the samples recorded up to that step."""
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    stop = 40 * ctrl.Ts
+
+    def on_step(t, q, q_ref):
+        if t >= stop - 1e-12:
+            raise KeyboardInterrupt
+
+    with pytest.raises(RunInterrupted) as info:
+        hmpc_pin.simulate(planar3, ctrl, hmpc_pin.SineReference(3), duration=1.0,
+                          q0=np.zeros(3), on_step=on_step)  # fmt: skip
+    exc = info.value
+    assert isinstance(exc, KeyboardInterrupt)  # a loop of runs still stops
+    r = exc.result
+    assert not r.complete and r.message == f"interrupted at t={stop:g} s of 1 s"
+    assert len(r.t) == 41 and r.t[-1] == pytest.approx(stop)  # samples 0..40 recorded
+    assert np.isfinite(r.q).all() and np.isfinite(r.tau).all() and np.isfinite(r.tau_applied).all()
+    assert f"41 of {round(1.0 / ctrl.Ts) + 1} samples kept" in exc.where
+
+
+# ------------------------------------------------------------------ command line
+@pytest.mark.slow
+def test_ctrl_c_during_run_keeps_the_data(tmp_path):
+    args = ["run", str(CONFIGS / "paper_combined.toml"), "--duration", "3600", "--out", "o"]
+    proc, err = _start(args, tmp_path)
+    # Import and build take ~2 s of CPU; at 5 s the 3600 s run is well inside its loop.
+    _wait_for(lambda: _cpu_seconds(proc.pid) > 5.0, proc, 120, "5 s of CPU")
+    children = _descendants(proc.pid)
+    code, elapsed, _, stderr = _interrupt(proc, err, group=True, children=children)
+    assert code == EXIT_INTERRUPTED, stderr
+    assert elapsed < 5.0
+    assert "Traceback" not in stderr and len(stderr.strip().splitlines()) == 1, stderr
+    assert re.match(r"interrupted at t=[\d.]+ s of 3600 s \(\d+ of 360001 samples kept\) in "
+                    r"paper_combined; wrote o/paper_combined.npz, o/paper_combined.csv$",
+                    stderr.strip()), stderr  # fmt: skip
+    r = hmpc_pin.Result.load(tmp_path / "o" / "paper_combined.npz")
+    assert not r.complete and r.message.startswith("interrupted at t=")
+    kept = int(re.search(r"\((\d+) of", stderr).group(1))
+    assert len(r.t) == kept > 100
+    assert np.isfinite(r.q).all() and np.isfinite(r.d_hat).all()
+    with open(tmp_path / "o" / "paper_combined.csv", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    assert len(rows) == kept + 1
+    np.testing.assert_array_equal(np.array(rows[1:], float)[:, 0], r.t)
+    assert not list((tmp_path / "o").glob("*.part")) and not list((tmp_path / "o").glob("*.png"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("group", [True, False], ids=["process-group", "parent-only"])
+def test_ctrl_c_during_sweep_writes_the_finished_rows(tmp_path, group):
+    args = ["sweep", str(CONFIGS / "paper_combined.toml"), "--samples", "50", "--jobs", "2",
+            "--out", "o"]  # fmt: skip
+    proc, err = _start(args, tmp_path)
+    children: set[int] = set()
+
+    def two_runs_done() -> bool:
+        children.update(_descendants(proc.pid))  # workers and the resource tracker
+        err.seek(0)
+        done = re.findall(r"\| *(\d+)/100 ", err.read())
+        return bool(done) and int(done[-1]) >= 2
+
+    _wait_for(two_runs_done, proc, 300, "two finished runs")
+    children.update(_descendants(proc.pid))
+    assert len(children) >= 2  # the two workers at least
+    code, elapsed, out, stderr = _interrupt(proc, err, group=group, children=children)
+    assert code == EXIT_INTERRUPTED, stderr
+    assert elapsed < 5.0
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    line = _last_line(stderr)
+    m = re.match(r"interrupted at (\d+) of 50 samples \((\d+) of 100 runs\) of the sweep; "
+                 r"wrote o/paper_combined_sweep.csv, o/paper_combined_sweep.md$", line)  # fmt: skip
+    assert m, line
+    samples, runs = int(m.group(1)), int(m.group(2))
+    assert runs >= 2 and samples <= runs // 2 + 1
+    with open(tmp_path / "o" / "paper_combined_sweep.csv", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == runs
+    per_sample: dict[str, int] = {}
+    for row in rows:
+        per_sample[row["sample"]] = per_sample.get(row["sample"], 0) + 1
+    assert sum(v == 2 for v in per_sample.values()) == samples
+    md = (tmp_path / "o" / "paper_combined_sweep.md").read_text(encoding="utf-8")
+    assert f"{samples} of 50 samples finished ({runs} of 100 runs)" in md
+    assert "**Interrupted**" in md and f"{samples} of 50 samples" in out

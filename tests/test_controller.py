@@ -170,7 +170,7 @@ def test_unsolved_qp_raises_naming_joint_and_status(planar3, layout):
     if layout == "joint":
         assert err.joint == 0 and "joint1" in str(err)
     else:
-        assert err.joint is None and "all joints, block QP" in str(err)
+        assert err.joint is None and "block QP of all joints" in str(err)
     assert "MAX_ITER" in err.status and "not solved" in str(err)
 
 

@@ -142,7 +142,7 @@ def test_replay_of_a_mesh_arm_from_example_robot_data(tmp_path):
     robot = hmpc_pin.load_robot(loaders.UR5Loader().df_path)
     q0 = np.array([0.0, -1.2, 1.4, -1.0, -1.57, 0.0])
     ctrl = hmpc_pin.make_controller(
-        robot, hmpc_pin.ControllerConfig(observer=hmpc_pin.ObserverConfig(kind="general"))
+        robot, hmpc_pin.ControllerConfig(compensation="general")
     )
     ref = hmpc_pin.SineReference(6, amplitude=0.3, offset=q0)
     result = hmpc_pin.simulate(robot, ctrl, ref, duration=1.0, q0=q0)

@@ -68,7 +68,8 @@ def _substeps(Ts: float, dt: float) -> int:
     if substeps < 1 or abs(substeps * dt - Ts) > 1e-9 * Ts:
         raise ConfigError(
             "plant.dt",
-            f"dt={dt:g} does not divide the control period Ts={Ts:g}; "
+            f"dt={dt:g} does not divide the period Ts={Ts:g} the plant advances by (the "
+            "control period; for `realtime`, the interface period 1/rate); "
             "expected Ts / dt to be a whole number >= 1",
         )
     return substeps

@@ -25,8 +25,8 @@ from hmpc_pin.model.planar import (
     tool_pose,
     workspace_points,
 )
-from hmpc_pin.tasks import QuinticReference, sample_horizon
 from hmpc_pin.model.robot import load_robot
+from hmpc_pin.tasks import QuinticReference, sample_horizon
 
 URDF = Path(__file__).resolve().parents[1] / "robots" / "planar3.urdf"
 LENGTHS = np.array([1.5, 1.2, 1.0])

@@ -94,12 +94,9 @@ class SolverError(HmpcError, RuntimeError):
     def __init__(self, joint: int | None, joint_name: str, status: str, iterations: int):
         self.joint = joint
         self.status = status
-        if joint is None:
-            who = f"the MPC's {joint_name}"
-        else:
-            who = f"joint {joint} ({joint_name!r}) MPC QP"
+        who = f"joint {joint} ({joint_name!r})" if joint is not None else f"the {joint_name}"
         super().__init__(
-            f"{who} was not solved: "
+            f"{who} MPC QP was not solved: "
             f"status={status} after {iterations} iterations; no torque was "
             "returned. Check the MPC weights and bounds (controller.Q, R, P, "
             "v_min, v_max) or raise controller.max_iter"

@@ -13,7 +13,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Controller", "ControllerWrapper"]
+__all__ = ["AppliedTorque", "Controller", "ControllerWrapper"]
 
 FloatArray = NDArray[np.float64]
 
@@ -72,3 +72,30 @@ class ControllerWrapper:
     def step(self, t: float, q: FloatArray, dq: FloatArray, reference: object) -> FloatArray:
         """The wrapped controller's step [N·m]."""
         return self.controller.step(t, q, dq, reference)
+
+
+class AppliedTorque:
+    r"""Mixin of the controllers whose compensation needs the torque the arm applied.
+
+    An arm applies :math:`\mathrm{clip}(\tau, -\tau_{\max}, \tau_{\max})`, not the
+    commanded :math:`\tau`, while its drives saturate. A disturbance observer fed the
+    commanded torque attributes the clipped part to the disturbance and winds up (measured:
+    :math:`\hat d` of about -430 N·m against a true :math:`|d| < 1` N·m on a saturating
+    arm). With :attr:`effort_limit` set (the experiment builder sets it to the plant's
+    limits), the compensation gets the clipped torque of the last period.
+
+    Attributes:
+        effort_limit: :math:`\tau_{\max}` [N·m], shape (n,) (inf: none), or ``None``:
+            the compensation gets the commanded torque.
+        tau: The commanded torque of the last step [N·m].
+    """
+
+    effort_limit: FloatArray | None = None
+    tau: FloatArray
+
+    def _applied(self) -> FloatArray:
+        r""":math:`\mathrm{clip}(\tau_{k-1}, -\tau_{\max}, \tau_{\max})` [N·m]."""
+        limit = self.effort_limit
+        if limit is None:
+            return self.tau
+        return np.clip(self.tau, -limit, limit)

@@ -36,6 +36,7 @@ from ..exceptions import ConfigError, NonFiniteError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC
 from ..tasks.base import as_reference
+from .base import AppliedTorque
 from .hierarchical import MPCSettings, _from_legacy
 
 __all__ = [
@@ -135,7 +136,7 @@ class CTSettings:
         return cls(mpc.Ts, kp, kd, ki, mpc.v_min, mpc.v_max)
 
 
-class ComputedTorque:
+class ComputedTorque(AppliedTorque):
     """Inverse dynamics + PD/PID outer loop, :math:`\\tau = M v + C\\dot q + G - \\hat d`.
 
     Args:
@@ -227,7 +228,9 @@ class ComputedTorque:
         M = robot.mass_matrix(q)
         nle = robot.nonlinear_effects(q, dq)
         if self._started:
-            self.disturbance_estimate = self.compensation.update(M, nle, q, dq, self.tau, self.v)
+            self.disturbance_estimate = self.compensation.update(
+                M, nle, q, dq, self._applied(), self.v
+            )
         else:
             self.disturbance_estimate = self.compensation.estimate.copy()
         self._started = True

@@ -25,6 +25,7 @@ from ..exceptions import DimensionError, NonFiniteError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..tasks.base import Reference, as_reference
+from .base import AppliedTorque
 
 __all__ = ["HierarchicalMPC", "MPCSettings", "state_limits"]
 
@@ -134,7 +135,7 @@ def state_limits(
                        slack_linear_weight=slack_linear_weight)  # fmt: skip
 
 
-class HierarchicalMPC:
+class HierarchicalMPC(AppliedTorque):
     """Inverse dynamics + disturbance compensation + one ProxSuite MPC per joint (``hmpc*`` kinds).
 
     Args:
@@ -308,7 +309,7 @@ class HierarchicalMPC:
         M = pin.crba(model, data, q) if self._crba_direct else self.robot.mass_matrix(q)
         nle = pin.nonLinearEffects(model, data, q, dq)
         if self._started:
-            d_hat = self.compensation.update(M, nle, q, dq, self.tau, self.v)
+            d_hat = self.compensation.update(M, nle, q, dq, self._applied(), self.v)
         else:
             d_hat = self.compensation.estimate.copy()
         self.disturbance_estimate = d_hat

@@ -157,6 +157,18 @@ def controller_parts(robot: Robot, cc: ControllerConfig) -> tuple:
 _hierarchical.LEGACY_CONFIG_PARTS = controller_parts
 
 
+def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
+    """The plant's effort limits [N·m]: ``plant.effort_limit``, else the plant URDF's (a
+    value <= 0 means none); ``None`` when ``plant.saturate`` is false."""
+    pc = config.plant
+    if not pc.saturate:
+        return None
+    if pc.effort_limit is not None:
+        return config.vector("plant.effort_limit", plant.nq)
+    eff = plant.effort_limit
+    return np.where(eff > 0, eff, np.inf)
+
+
 def make_controller(
     robot: Robot, config: ControllerConfig | ExperimentConfig | None = None
 ) -> Controller:
@@ -422,6 +434,8 @@ class Experiment:
         robot.check_mass_matrix(q0)
         warn_validity(robot, config.controller)
         controller = make_controller(robot, config.controller)
+        # The compensation is fed the torque the plant applies (clipped), not the commanded one.
+        controller.effort_limit = _effort_limit(config, plant)
         if config.collision is not None and uses_observer(config.controller):
             controller = CollisionReaction(
                 controller, config.vector("collision.threshold", n), config.collision.reaction
@@ -452,13 +466,7 @@ class Experiment:
     def effort_limit(self) -> np.ndarray | None:
         """The plant's effort limits [N·m] (config override, else the plant URDF's; a
         URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
-        pc = self.config.plant
-        if not pc.saturate:
-            return None
-        if pc.effort_limit is not None:
-            return self.config.vector("plant.effort_limit", self.robot.nq)
-        eff = self.plant.effort_limit
-        return np.where(eff > 0, eff, np.inf)
+        return _effort_limit(self.config, self.plant)
 
     def run(self, duration: float | None = None, on_step=None) -> Result:
         """Simulate the closed loop for ``duration`` [s] (default: the config's).

@@ -442,7 +442,7 @@ class JointQPs:
             qp.solve()
             res = qp.results
             if res.info.status != self._solved:
-                res = self._solve_cold(0, g, None, "block QP of all joints")
+                res = self._solve_cold(0, g, None, "all-joint block")
             if self._Nc1:
                 sol[0] = res.x
             else:

@@ -150,7 +150,8 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
         "## Real-time loop (issue 19)",
         "",
         f"`python benchmarks/realtime.py --duration {args.duration:g} --config {args.config} "
-        f"--rate {args.rate:g} --priority {args.priority}`; source {commit}; scheduling "
+        f"--rate {args.rate:g} --priority {args.priority} --spin {args.spin:g}`; source "
+        f"{commit}; scheduling "
         + ("normal" if not args.priority else f"SCHED_FIFO {args.priority} (loop and arm)")
         + f". The config's controller at "
         f"{args.rate:g} Hz against its plant in a separate process (RK4, one step per "
@@ -226,12 +227,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rate", type=float, default=1000.0, help="interface rate [Hz] [1000]")
     parser.add_argument("--priority", type=int, default=0,
                         help="SCHED_FIFO priority of loop and arm (0: normal) [0]")  # fmt: skip
+    parser.add_argument("--spin", type=float, default=0.0,
+                        help="busy-wait before each deadline [s] (0: sleep) [0]")  # fmt: skip
     parser.add_argument("--out", type=Path, help="also write the Markdown here")
     args = parser.parse_args(argv)
     args.floor = min(60.0, args.duration / 5)
     config = load_config(args.config)
     config = replace(config, realtime=replace(config.realtime, rate=args.rate,
-                                              priority=args.priority))  # fmt: skip
+                                              priority=args.priority, spin=args.spin))  # fmt: skip
     machine = {**machine_info(), **package_versions(("pin", "proxsuite", "numpy"))}
     try:
         commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],

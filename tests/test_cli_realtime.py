@@ -59,6 +59,8 @@ def test_realtime_writes_run_timing_and_statistics(tmp_path, capsys):
         ("\n[realtime]\ndamping = [1.0, 2.0]\n", [], "realtime.damping: has 2 entries"),
         ("\n[realtime]\nmax_misses = 0\n", [], "realtime.max_misses"),
         (TOLERANT, ["--rate", "2000"], "plant.dt"),
+        (TOLERANT, ["--spin", "0.002"], "--spin: expected a time [s] below the period"),
+        ("\n[realtime]\nspin = -1e-4\n", [], "realtime.spin: expected a number >= 0"),
     ],
 )
 def test_bad_realtime_input_exits_2_with_one_line(tmp_path, capsys, extra, args, match):

@@ -9,6 +9,7 @@ import functools
 import gc
 import os
 import signal
+import time
 
 import numpy as np
 import pinocchio as pin
@@ -361,6 +362,31 @@ def test_rate_must_divide_the_controller_period(robot):
         _setup(robot, settings=LoopSettings(750.0, 1.0))
     with pytest.raises(hmpc_pin.ConfigError, match=r"realtime\.duration"):
         LoopSettings(1000.0, -1.0)
+
+
+def test_spin_busy_waits_the_end_of_the_wait_and_never_returns_early():
+    """``sleep_until`` with ``spin``: no ``time.sleep`` for a wait shorter than the spin
+    (the clock is polled until the deadline), and on the real clock it never returns
+    before the deadline, with or without spin."""
+    from hmpc_pin.realtime.loop import sleep_until
+
+    now = [0.0]
+
+    def clock():  # 1 µs per poll
+        now[0] += 1e-6
+        return now[0]
+
+    sleep_until(1e-4, clock, spin=2e-4)
+    assert 1e-4 <= now[0] < 1e-4 + 2e-6 and now[0] > 90e-6  # ~100 polls, no sleep
+    now[0] = 0.0
+    sleep_until(1e-4, clock)  # no spin: one look at the clock, the sleep is time.sleep's
+    assert now[0] == pytest.approx(1e-6)
+    for spin in (0.0, 3e-4):
+        deadline = time.perf_counter() + 1e-3
+        sleep_until(deadline, spin=spin)
+        assert time.perf_counter() >= deadline
+    with pytest.raises(hmpc_pin.ConfigError, match=r"realtime\.spin"):
+        LoopSettings(1000.0, 1.0, spin=1e-3)  # a whole period of spinning
 
 
 def test_safe_torque_rejects_negative_damping(robot):

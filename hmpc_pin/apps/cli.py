@@ -321,8 +321,11 @@ def cmd_realtime(args) -> int:
         raise ConfigError("--rate", f"expected a rate [Hz] > 0, got {args.rate!r}")
     if args.priority is not None and not 0 <= args.priority <= 99:
         raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
-    config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None,
-                           priority=args.priority)  # fmt: skip
+    try:
+        config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None,
+                               priority=args.priority, spin=args.spin)  # fmt: skip
+    except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
+        raise ConfigError(f"--{exc.key}", exc.message) from None
     out = _out_dir(args.out)
     print(f"{config.name}: {config.description} ({config.controller.label}) in real time at "
           f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
@@ -499,6 +502,9 @@ def build_parser() -> argparse.ArgumentParser:
     rt.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     rt.add_argument("--rate", type=float, help="interface rate [Hz] (overrides realtime.rate)")
     rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
+    rt.add_argument("--spin", type=float, metavar="S",
+                    help="busy-wait S seconds before each deadline instead of sleeping, "
+                    "e.g. 2e-4 (overrides realtime.spin)")  # fmt: skip
     rt.add_argument("--no-gc", action="store_true",
                     help="leave Python's garbage collector as it is (for comparison)")  # fmt: skip
     rt.add_argument("--priority", type=int, metavar="N",

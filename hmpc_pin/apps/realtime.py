@@ -24,10 +24,13 @@ from .metrics import compute_metrics
 __all__ = ["ArmView", "run_realtime", "with_realtime"]
 
 
-def with_realtime(config: ExperimentConfig, rate=None, gc=None, priority=None) -> ExperimentConfig:
-    """``config`` with ``[realtime]`` ``rate``, ``gc``, ``priority`` replaced (flags)."""
+def with_realtime(
+    config: ExperimentConfig, rate=None, gc=None, priority=None, spin=None
+) -> ExperimentConfig:
+    """``config`` with ``[realtime]`` ``rate``, ``gc``, ``priority``, ``spin`` replaced
+    (flags)."""
     rc = config.realtime
-    pairs = (("rate", rate), ("gc", gc), ("priority", priority))
+    pairs = (("rate", rate), ("gc", gc), ("priority", priority), ("spin", spin))
     changes = {k: v for k, v in pairs if v is not None}
     return replace(config, realtime=replace(rc, **changes)) if changes else config
 

@@ -1066,6 +1066,9 @@ class RealtimeConfig:
         velocity_scale: Factor on the URDF velocity limits (with ``limits``).
         priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process; 0
             (default) keeps normal scheduling.
+        spin: Busy-wait this long [s] before each deadline instead of sleeping (the loop
+            is awake at the deadline: no wake-up latency), below ``1/rate``; 0 (default)
+            sleeps.
     """
 
     rate: float = 1000.0
@@ -1080,9 +1083,16 @@ class RealtimeConfig:
     position_margin: float | None = None
     velocity_scale: float | None = None
     priority: int = 0
+    spin: float = 0.0
 
     def __post_init__(self):
         _set(self, "rate", _float("rate", self.rate, positive=True))
+        _set(self, "spin", _float("spin", self.spin, nonneg=True))
+        if self.spin >= 1.0 / self.rate:
+            raise ConfigError(
+                "spin", f"expected a time [s] below the period 1/rate = {1.0 / self.rate:g} s, "
+                f"got {self.spin:g}"
+            )
         _set(self, "priority", _int("priority", self.priority, minimum=0))
         if self.priority > 99:
             raise ConfigError("priority", f"expected 0 (off) or 1..99, got {self.priority}")

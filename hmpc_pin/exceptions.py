@@ -214,3 +214,19 @@ class ExtraError(HmpcError, ImportError):
             f"{needed_for} needs the optional package of the extra {extra!r}, which is not "
             f'installed; install it with: pip install "hmpc_pin[{extra}]"'
         )
+
+
+class TrajectoryError(HmpcError, ValueError):
+    """A trajectory (file or samples) or a task for one is unusable: file missing,
+    a joint column missing, time not increasing, a non-finite value, a waypoint list
+    too short...
+
+    Attributes:
+        source: The file (or ``"trajectory"``, a config key) it came from.
+        value: What was found, in words.
+        expected: What was expected instead.
+    """
+
+    def __init__(self, source: str, value: str, expected: str):
+        self.source, self.value, self.expected = str(source), value, expected
+        super().__init__(f"{source}: {value}; expected {expected}")

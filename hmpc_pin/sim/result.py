@@ -12,10 +12,14 @@ import numpy as np
 
 from ..exceptions import OutputError
 
-__all__ = ["RESULT_ARRAYS", "Result"]
+__all__ = ["RESULT_ARRAYS", "TASK_ARRAYS", "Result"]
 
 #: Arrays stored in a :class:`Result`, each of shape (K+1, n) except ``t`` (K+1,).
 RESULT_ARRAYS = ("t", "q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref", "tau_applied")
+#: Task-space arrays of an end-effector task (``None`` for a joint-space reference): the
+#: frame's position [m] (K+1, 3) and unit quaternion (K+1, 4), order (x, y, z, w), scalar
+#: last, measured (forward kinematics of q) and reference (the target path).
+TASK_ARRAYS = ("ee_pos", "ee_pos_ref", "ee_quat", "ee_quat_ref")
 
 
 @dataclass
@@ -39,6 +43,10 @@ class Result:
         meta: Free-form metadata (config name, settings), saved as JSON.
         extra: Further arrays by name, each (K+1, n) (e.g. ``contact_force``, MuJoCo's
             generalized contact force [N·m]), saved as ``extra_<name>``.
+        ee_pos, ee_pos_ref: Pose tasks only: the frame's position and its target [m],
+            (K+1, 3); ``meta["task"]`` names the frame.
+        ee_quat, ee_quat_ref: Pose tasks only: the frame's orientation and its target,
+            unit quaternions (x, y, z, w) (scalar last), (K+1, 4).
     """
 
     t: np.ndarray
@@ -55,6 +63,10 @@ class Result:
     meta: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
     tau_applied: np.ndarray | None = None
+    ee_pos: np.ndarray | None = None
+    ee_pos_ref: np.ndarray | None = None
+    ee_quat: np.ndarray | None = None
+    ee_quat_ref: np.ndarray | None = None
 
     def __post_init__(self):
         if self.tau_applied is None:
@@ -87,6 +99,7 @@ class Result:
             "message": np.array(self.message),
             "meta": np.array(json.dumps(self.meta, sort_keys=True)),
             **{f"extra_{name}": np.asarray(arr) for name, arr in sorted(self.extra.items())},
+            **{name: getattr(self, name) for name in TASK_ARRAYS if getattr(self, name) is not None},
         }
         part = path.with_name(path.name + ".part")
         try:
@@ -125,4 +138,5 @@ class Result:
                 message=str(f["message"]),
                 meta=meta,
                 extra={k[len("extra_") :]: f[k] for k in f.files if k.startswith("extra_")},
+                **{name: f[name] for name in TASK_ARRAYS if name in f.files},
             )

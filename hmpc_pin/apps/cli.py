@@ -27,7 +27,14 @@ from ..exceptions import (
     VizError,
 )
 from ..experiment.build import uses_observer, with_controller
-from ..experiment.schema import COMPENSATIONS, CONTROLLER_KINDS, ExperimentConfig, load_config
+from ..experiment.schema import (
+    COMPENSATIONS,
+    CONTROLLER_KINDS,
+    ExperimentConfig,
+    ReferenceConfig,
+    TrajectoryConfig,
+    load_config,
+)
 from ..sim.result import Result
 from .metrics import DEFAULT_ERROR_THRESHOLD, compute_metrics, format_metrics, run_warnings
 from .run import live_view, run_one, write_csv
@@ -72,12 +79,27 @@ def _interrupted(exc: KeyboardInterrupt) -> int:
     return EXIT_INTERRUPTED
 
 
+def _with_reference(config: ExperimentConfig, file: Path | None) -> ExperimentConfig:
+    """``config`` with its reference replaced by the trajectory file ``file`` (``--reference``)."""
+    if file is None:
+        return config
+    if file.suffix.lower() not in (".csv", ".npz"):
+        raise ConfigError("--reference", f"{str(file)!r}: expected a .csv or .npz trajectory "
+                          "file (README, Tasks)")  # fmt: skip
+    if not file.is_file():
+        raise ConfigError("--reference", f"{str(file)!r} not found; pass a .csv or .npz file")
+    ref = ReferenceConfig(kind="trajectory", trajectory=TrajectoryConfig(file=file.resolve()))
+    return replace(config, reference=ref)
+
+
 def _with_overrides(
     config: ExperimentConfig,
     no_ndo: bool,
     duration: float | None,
     compensation: str | None = None,
+    reference: Path | None = None,
 ) -> ExperimentConfig:
+    config = _with_reference(config, reference)
     if compensation is not None:
         if compensation not in COMPENSATIONS:
             raise ConfigError("--compensation", f"expected one of {COMPENSATIONS}, got "
@@ -100,7 +122,7 @@ def _with_overrides(
 
 def cmd_run(args) -> int:
     config = _with_overrides(load_config(args.config), args.no_ndo, args.duration,
-                             args.compensation)  # fmt: skip
+                             args.compensation, args.reference)  # fmt: skip
     out = _out_dir(args.out)
     stem = config.name
     if args.compensation is not None:
@@ -149,6 +171,10 @@ def _run_and_report(args, config, out, stem, warn, views: list) -> int:
         files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
     label = config.controller.label
     print(f"{config.name}: {config.description} ({label}, observer {'on' if observer else 'off'})")
+    if config.reference.kind == "waypoints":
+        ref = experiment.reference
+        print(f"waypoints retimed by TOPP-RA: motion of {ref.duration:.3f} s "
+              f"(t = {ref.t_start:g} to {ref.t_end:.3f} s)")  # fmt: skip
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
     timing = getattr(result, "step_time", None)
@@ -223,7 +249,8 @@ def cmd_replay(args) -> int:
 def cmd_compare(args) -> int:
     from .compare import compare, markdown_table, parse_controllers
 
-    config = _with_overrides(load_config(args.config), False, args.duration)
+    config = _with_overrides(load_config(args.config), False, args.duration,
+                             reference=args.reference)  # fmt: skip
     controllers = parse_controllers(args.controllers, config)
     out = _out_dir(args.out)
     warn = _warn_thresholds(args)
@@ -254,7 +281,8 @@ def cmd_reproduce(args) -> int:
 def cmd_sweep(args) -> int:
     from .sweep import run_sweep
 
-    config = _with_overrides(load_config(args.config), False, args.duration)
+    config = _with_overrides(load_config(args.config), False, args.duration,
+                             reference=args.reference)  # fmt: skip
     if args.controllers is not None:
         from .compare import parse_controllers
 
@@ -388,6 +416,11 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     run.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     run.add_argument(
+        "--reference", type=Path, metavar="FILE",
+        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
+        "or .npz) instead of the config's reference",
+    )  # fmt: skip
+    run.add_argument(
         "--replay", type=Path, metavar="HTML", help="also write a self-contained Meshcat replay"
     )
     run.add_argument(
@@ -434,6 +467,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cmp_.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     cmp_.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
+    cmp_.add_argument(
+        "--reference", type=Path, metavar="FILE",
+        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
+        "or .npz) instead of the config's reference",
+    )  # fmt: skip
     cmp_.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_warn_option(cmp_)
     cmp_.set_defaults(func=cmd_compare)
@@ -484,6 +522,11 @@ def build_parser() -> argparse.ArgumentParser:
         "(e.g. " + ",".join(CONTROLLER_KINDS[:4]) + ")",
     )
     swp.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
+    swp.add_argument(
+        "--reference", type=Path, metavar="FILE",
+        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
+        "or .npz) instead of the config's reference",
+    )  # fmt: skip
     swp.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)

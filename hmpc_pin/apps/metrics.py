@@ -10,11 +10,13 @@ __all__ = [
     "DEFAULT_ERROR_THRESHOLD",
     "UNITS",
     "Metrics",
+    "TaskMetrics",
     "chattering",
     "compute_metrics",
     "joint_units",
     "run_warnings",
     "settling_time",
+    "task_metrics",
     "unit_labels",
 ]
 
@@ -97,6 +99,53 @@ def chattering(
 
 
 @dataclass(frozen=True)
+class TaskMetrics:
+    """Task-space metrics of an end-effector task after ``after`` seconds.
+
+    Attributes:
+        position_rms: :math:`\\sqrt{\\mathrm{mean}_k \\|p_k - p^*_k\\|^2}` [m].
+        position_max: :math:`\\max_k \\|p_k - p^*_k\\|` [m].
+        orientation_rms: RMS of the angle :math:`\\|\\log R^{*T}_k R_k\\|` [rad].
+        orientation_max: Its maximum [rad].
+        frame: The frame.
+    """
+
+    position_rms: float
+    position_max: float
+    orientation_rms: float
+    orientation_max: float
+    frame: str
+
+
+def _quat_angle(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Angle [rad] between unit quaternions (rows, any order of components as long as
+    both use the same): :math:`2\\arccos|\\langle q^*, q\\rangle|`."""
+    dot = np.abs(np.sum(q_ref * q, axis=1)) / (
+        np.linalg.norm(q_ref, axis=1) * np.linalg.norm(q, axis=1)
+    )
+    return 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
+
+
+def task_metrics(result, after: float = 1.0) -> TaskMetrics | None:
+    """:class:`TaskMetrics` of ``result`` over ``t >= after`` [s]; ``None`` without
+    task-space arrays (a joint-space reference)."""
+    if getattr(result, "ee_pos", None) is None:
+        return None
+    mask = result.t >= after - 1e-12
+    e = np.linalg.norm(result.ee_pos[mask] - result.ee_pos_ref[mask], axis=1)
+    a = _quat_angle(result.ee_quat_ref[mask], result.ee_quat[mask])
+    if e.size == 0:
+        return None
+    return TaskMetrics(
+        position_rms=float(np.sqrt(np.mean(e**2))),
+        position_max=float(e.max()),
+        orientation_rms=float(np.sqrt(np.mean(a**2))),
+        orientation_max=float(a.max()),
+        frame=str(result.meta.get("task", {}).get("frame", "")),
+    )
+
+
+@dataclass(frozen=True)
 class Metrics:
     """Per-joint metrics (arrays of shape (n,)).
 
@@ -116,6 +165,7 @@ class Metrics:
             (:func:`chattering`).
         tau_hf_share: Share of τ's energy above 10 Hz after ``after`` seconds
             (:func:`chattering`).
+        task: :class:`TaskMetrics` of an end-effector task (``None`` otherwise).
     """
 
     rms_error: np.ndarray
@@ -132,6 +182,7 @@ class Metrics:
     tau_tv: np.ndarray | None = None
     tau_hf_share: np.ndarray | None = None
     tau_applied_peak: np.ndarray | None = None
+    task: TaskMetrics | None = None
 
 
 def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
@@ -165,6 +216,7 @@ def compute_metrics(result, after: float = 1.0, tol: float = 0.01) -> Metrics:
         tau_tv=tv,
         tau_hf_share=share,
         tau_applied_peak=_nanmax_abs(result.tau_applied),
+        task=task_metrics(result, after),
     )
 
 
@@ -247,5 +299,12 @@ def format_metrics(metrics: Metrics, joint_names=None, result=None) -> str:
             f"{names[i]:<{w}} {metrics.rms_error[i]:>22.3e} {metrics.max_error[i]:>14.3e} "
             f"{st_s:>23} {metrics.observer_rms[i]:>15.3e} {metrics.tau_peak[i]:>17.1f} "
             f"{applied[i]:>14.1f} {v_s:>18} {int(sat[i]):>10}"
+        )
+    tm = metrics.task
+    if tm is not None:
+        lines.append(
+            f"task space ({tm.frame}, t>={a}s): position RMS {tm.position_rms:.3e} m "
+            f"(max {tm.position_max:.3e} m), orientation RMS {tm.orientation_rms:.3e} rad "
+            f"(max {tm.orientation_max:.3e} rad)"
         )
     return "\n".join(lines)

@@ -20,6 +20,7 @@ __all__ = [
     "plot_disturbance",
     "plot_error",
     "plot_overview",
+    "plot_task_space",
     "plot_torques",
     "plot_tracking",
     "plot_workspace",
@@ -231,3 +232,38 @@ def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
         ax.grid(alpha=0.3)
 
     return _overlay(results, path, title, draw, decorate)
+
+
+def plot_task_space(result, path, title: str = "", after: float = 1.0) -> Path:
+    """Task-space figure of an end-effector task: the tool path and its target in 3-D,
+    the position error :math:`\\|p - p^*\\|` [mm] and the orientation error
+    :math:`2\\arccos|\\langle q^*, q\\rangle|` [mrad] over time (``after`` marked)."""
+    from .metrics import _quat_angle
+
+    fig = Figure(figsize=(11, 4.6))
+    ax3 = fig.add_subplot(1, 2, 1, projection="3d")
+    ref, pos = result.ee_pos_ref, result.ee_pos
+    ax3.plot(ref[:, 0], ref[:, 1], ref[:, 2], "k--", lw=1.2, label="target path")
+    ax3.plot(pos[:, 0], pos[:, 1], pos[:, 2], "C0", lw=1.0, label="tool path")
+    ax3.set_xlabel("x [m]")
+    ax3.set_ylabel("y [m]")
+    ax3.set_zlabel("z [m]")
+    ax3.legend(loc="upper left", fontsize=8)
+    ax_p = fig.add_subplot(2, 2, 2)
+    ax_r = fig.add_subplot(2, 2, 4, sharex=ax_p)
+    e = np.linalg.norm(pos - ref, axis=1)
+    a = _quat_angle(result.ee_quat_ref, result.ee_quat)
+    ax_p.semilogy(result.t, np.maximum(e * 1e3, 1e-6), "C0", lw=1.0)
+    ax_p.set_ylabel("position error [mm]")
+    ax_r.semilogy(result.t, np.maximum(a * 1e3, 1e-6), "C3", lw=1.0)
+    ax_r.set_ylabel("orientation error [mrad]")
+    ax_r.set_xlabel("time t [s]")
+    for ax in (ax_p, ax_r):
+        ax.axvline(after, color="0.5", lw=0.8, ls=":")
+        ax.grid(alpha=0.3, which="both")
+    frame = result.meta.get("task", {}).get("frame", "tool")
+    fig.suptitle(f"{title} — frame {frame}" if title else f"frame {frame}")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    return path

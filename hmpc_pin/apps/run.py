@@ -12,7 +12,7 @@ import numpy as np
 from ..exceptions import RunInterrupted, SimulationError
 from ..experiment.build import Experiment
 from ..experiment.schema import ExperimentConfig
-from ..sim.result import RESULT_ARRAYS, Result
+from ..sim.result import RESULT_ARRAYS, TASK_ARRAYS, Result
 
 __all__ = ["live_view", "run_one", "write_csv"]
 
@@ -24,7 +24,8 @@ def write_csv(result: Result, path: Path) -> Path:
     the plant applied: tau clipped to the effort limit), in rad, rad/s and N·m; the
     columns of a prismatic joint are in m, m/s and N and say so: ``q_<joint> [m]``. Then the
     result's ``extra`` arrays by name (generalized forces, e.g. ``contact_force`` of a MuJoCo
-    run with an obstacle).
+    run with an obstacle); for a pose task then ``ee_pos_{x,y,z}``, ``ee_pos_ref_{x,y,z}``,
+    ``ee_quat_{x,y,z,w}``, ``ee_quat_ref_{x,y,z,w}``.
     """
     from .metrics import UNITS, joint_units
 
@@ -42,6 +43,10 @@ def write_csv(result: Result, path: Path) -> Path:
         + [getattr(result, a) for a in RESULT_ARRAYS[1:]]
         + [result.extra[a] for a in extra]
     )
+    if result.ee_pos is not None:  # pose task: the frame's position [m] and quaternion
+        header += [f"{a}_{c}" for a, comps in (("ee_pos", "xyz"), ("ee_pos_ref", "xyz"),
+                   ("ee_quat", "xyzw"), ("ee_quat_ref", "xyzw")) for c in comps]  # fmt: skip
+        table = np.column_stack([table, *(getattr(result, a) for a in TASK_ARRAYS)])
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(header)
@@ -118,4 +123,6 @@ def run_one(
         title = config.description or config.name
         files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
         files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
+        if result.ee_pos is not None:
+            files.append(plots.plot_task_space(result, out / f"{stem}_task_space.png", title))
     return experiment, result, files, failure

@@ -303,7 +303,9 @@ def export_replay(
         path: Output ``.html`` file.
         fps: Maximum animation frame rate [1/s]; samples are decimated to it.
         ghost: Draw the reference as a translucent arm.
-        tool_path: Draw the tool's path (and the reference tool path) as lines.
+        tool_path: Draw the tool's path (and the reference tool path) as lines; for a pose
+            task (``result.ee_pos`` set) the task frame's path (red) beside its target path
+            (green, ``result.ee_pos_ref``).
         play: Start playing the animation when the page opens.
         start_time: Time [s] of the pose shown before (or without) playing.
 
@@ -322,11 +324,21 @@ def export_replay(
         draw_obstacle(vis, result.meta.get("obstacle"))
         roots = [(name, result.q if name == ARM else result.q_ref) for name in names]
         if tool_path:
-            lines = (("tool_path", result.q, 0xD62728), ("tool_ref", result.q_ref, 0x333333))
-            for name, qs, color in lines:
-                pts = _tool_points(robot, qs).T.astype(np.float32)
+            lines = [
+                ("tool_path", _tool_points(robot, result.q), 0xD62728),
+                ("tool_ref", _tool_points(robot, result.q_ref), 0x333333),
+            ]
+            if getattr(result, "ee_pos", None) is not None:  # pose task: its frame's paths
+                lines = [
+                    ("tool_path", result.ee_pos, 0xD62728),
+                    ("target_path", result.ee_pos_ref, 0x2CA02C),
+                ]
+            for name, pts, color in lines:
                 vis[name].set_object(
-                    geom.Line(geom.PointsGeometry(pts), geom.LineBasicMaterial(color=color))
+                    geom.Line(
+                        geom.PointsGeometry(np.asarray(pts).T.astype(np.float32)),
+                        geom.LineBasicMaterial(color=color),
+                    )
                 )
 
         idx = _frames(result.t, fps)

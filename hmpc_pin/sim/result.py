@@ -99,7 +99,7 @@ class Result:
             "message": np.array(self.message),
             "meta": np.array(json.dumps(self.meta, sort_keys=True)),
             **{f"extra_{name}": np.asarray(arr) for name, arr in sorted(self.extra.items())},
-            **{name: getattr(self, name) for name in TASK_ARRAYS if getattr(self, name) is not None},
+            **{n: getattr(self, n) for n in TASK_ARRAYS if getattr(self, n) is not None},
         }
         part = path.with_name(path.name + ".part")
         try:

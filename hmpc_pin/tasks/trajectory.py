@@ -93,9 +93,7 @@ def _quintic_coefficients(
     if ddq is not None:
         pass
     elif t.size >= 3:
-        ddq = CubicSpline(t, dq, axis=0, bc_type="not-a-knot" if t.size >= 4 else "natural")(
-            t, 1
-        )
+        ddq = CubicSpline(t, dq, axis=0, bc_type="not-a-knot" if t.size >= 4 else "natural")(t, 1)
     else:
         ddq = np.repeat((dq[1:] - dq[:1]) / (t[1] - t[0]), 2, axis=0)
     h = np.diff(t)[:, None]

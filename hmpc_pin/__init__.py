@@ -61,6 +61,7 @@ from .exceptions import (
     RunInterrupted,
     SimulationError,
     SolverError,
+    TrajectoryError,
     URDFError,
     ValidityWarning,
     VizError,
@@ -92,7 +93,16 @@ from .sim import (
     ZeroDisturbance,
     simulate,
 )
-from .tasks import QuinticReference, Reference, SineReference, as_reference
+from .tasks import (
+    JointTrajectory,
+    PoseReference,
+    QuinticReference,
+    Reference,
+    SineReference,
+    as_reference,
+    load_trajectory,
+    retime_waypoints,
+)
 
 __version__ = "0.2.0"
 
@@ -121,6 +131,7 @@ __all__ = [
     "IntegralSlidingMode",
     "InterfaceError",
     "JointQPs",
+    "JointTrajectory",
     "KinematicsError",
     "LimitError",
     "MPCSettings",
@@ -134,6 +145,7 @@ __all__ = [
     "OutputError",
     "Periodic",
     "Plant",
+    "PoseReference",
     "QuinticReference",
     "RK4Plant",
     "Reference",
@@ -144,6 +156,7 @@ __all__ = [
     "SineReference",
     "SolverError",
     "SumDisturbance",
+    "TrajectoryError",
     "URDFError",
     "ValidityWarning",
     "VizError",
@@ -154,8 +167,10 @@ __all__ = [
     "format_metrics",
     "load_config",
     "load_robot",
+    "load_trajectory",
     "make_controller",
     "planar_ik",
+    "retime_waypoints",
     "run_comparison",
     "run_experiment",
     "simulate",

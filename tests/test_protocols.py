@@ -109,6 +109,54 @@ def test_quintic_conformance_against_finite_differences():
     np.testing.assert_allclose(q[-1], [1.0, -1.0], atol=1e-15)
 
 
+def _pose_reference():
+    from hmpc_pin.tasks.pose import CirclePath, PoseReference, frame_pose, plane_axes
+
+    robot = hmpc_pin.load_robot("planar3")
+    q0 = np.array([0.3, 0.6, -0.9])
+    p0, R0 = frame_pose(robot, robot.tool_frame, q0)
+    u, v = plane_axes("xz")  # the planar arm's plane; orientation held
+    return PoseReference.solve(robot, robot.tool_frame,
+                               CirclePath(p0[0] - 0.05 * u, 0.05, 0.2, u, v, R0[0]), 3.5, q0)
+
+
+TASK_REFERENCES = {
+    "trajectory (cubic spline)": lambda: hmpc_pin.JointTrajectory(
+        np.linspace(0.0, 3.0, 13), _closed_form(np.linspace(0.0, 3.0, 13))[0]),
+    "trajectory (quintic Hermite)": lambda: hmpc_pin.JointTrajectory(
+        np.linspace(0.0, 3.0, 13), *_closed_form(np.linspace(0.0, 3.0, 13))),
+    "waypoints (TOPP-RA)": lambda: hmpc_pin.retime_waypoints(
+        np.array([[0.0, 0.0, 0.0], [0.5, -0.3, 0.2], [0.1, 0.4, -0.2]]), 1.0, 2.0),
+    "pose (pink IK)": _pose_reference,
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(TASK_REFERENCES))
+def test_task_reference_conformance(name):
+    """The references of the tasks layer: sample_many (with and without out) equals
+    sample point by point, and the velocity is the derivative of the position (central
+    finite differences, an independent computation)."""
+    ref = TASK_REFERENCES[name]()
+    assert isinstance(ref, Reference) and as_reference(ref) is ref
+    times = np.linspace(-0.5, 4.0, 46)
+    q, dq = ref.sample_many(times)
+    n = q.shape[1]
+    for k, t in enumerate(times):
+        q1, dq1 = ref.sample(float(t))
+        np.testing.assert_allclose(q1, q[k], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(dq1, dq[k], rtol=0, atol=1e-14)
+    out = (np.full((46, n), np.nan), np.full((46, n), np.nan))
+    got = ref.sample_many(times, out)
+    assert got is out
+    np.testing.assert_array_equal(out[0], q)
+    np.testing.assert_array_equal(out[1], dq)
+    h = 1e-6
+    inner = times[(times > 0.05) & (times < 2.9)]
+    fd = (ref.sample_many(inner + h)[0] - ref.sample_many(inner - h)[0]) / (2 * h)
+    np.testing.assert_allclose(ref.sample_many(inner)[1], fd, atol=1e-6)
+    assert ref.acceleration(1.0).shape == (n,)
+
+
 def test_anything_else_is_an_interface_error_naming_what_is_missing():
     with pytest.raises(hmpc_pin.InterfaceError, match="sample_many"):
         as_reference(42)

@@ -395,3 +395,26 @@ def test_live_view_waits_for_a_browser_and_stays_open(tmp_path):
     while any(_alive(p) for p in server) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not any(_alive(p) for p in server)  # the server stopped with the command
+
+
+def test_replay_of_a_pose_task_draws_the_target_path_beside_the_tool_path(tmp_path):
+    """Pose task: the lines are the frame's measured and target positions (the result's
+    ee_pos and ee_pos_ref), not the forward kinematics of the last frame."""
+    from dataclasses import replace
+
+    from .conftest import CONFIGS
+
+    config = hmpc_pin.load_config(CONFIGS / "ur5_circle.toml")
+    config = replace(config, simulation=replace(config.simulation, duration=0.5))
+    experiment = hmpc_pin.Experiment.from_config(config)
+    result = experiment.run()
+    html = export_replay(experiment.robot, result, tmp_path / "c.html", ghost=False).read_text()
+    lines = {
+        c["path"]: c["object"]
+        for c in _commands(html)
+        if c["type"] == "set_object" and c["path"] in ("/meshcat/tool_path", "/meshcat/target_path")
+    }
+    assert set(lines) == {"/meshcat/tool_path", "/meshcat/target_path"}
+    target = lines["/meshcat/target_path"]["geometries"][0]["data"]["attributes"]["position"]
+    pts = np.frombuffer(target["array"].data, dtype=np.float32).reshape(-1, 3)
+    np.testing.assert_allclose(pts, result.ee_pos_ref, atol=1e-6)

@@ -157,7 +157,7 @@ class JointTrajectory:
         self.degree = deg
         self.t_start, self.t_end = float(t[0]), float(t[-1])
         # Segments: [hold q_0 | the K-1 polynomials | hold q_{K-1}], knots t_0 - 1, t_0..t_{K-1};
-        # a time is clipped to [t_0 - 1, t_{K-1} + 1] and found by one searchsorted in t.
+        # a time's segment is one searchsorted in t.
         n = self.n
         c = np.zeros((t.size + 1, deg + 1, n))
         c[1:-1] = self._c
@@ -169,7 +169,7 @@ class JointTrajectory:
         self._qd = np.concatenate([c, np.pad(d, ((0, 0), (0, 1), (0, 0)))], axis=2)  # [q | q̇]
         self._pow = np.arange(deg + 1, dtype=float)
         self._knots = np.concatenate([[t[0] - 1.0], t])
-        self._lo, self._hi = self.t_start - 1.0, self.t_end + 1.0
+        self._buffers: dict[int, np.ndarray] = {}  # product buffers by horizon length
 
     @property
     def duration(self) -> float:
@@ -177,11 +177,14 @@ class JointTrajectory:
         return self.t_end - self.t_start
 
     def _locate(self, times: FloatArray) -> tuple[FloatArray, np.ndarray]:
-        """Segment index and local time :math:`s = t - t_k` of each of ``times``."""
-        tt = np.minimum(np.maximum(times, self._lo), self._hi)
-        idx = np.searchsorted(self.times, tt, side="right")  # 0: before, K: after the samples
-        tt -= self._knots.take(idx)
-        return tt, idx
+        """Segment index and local time :math:`s = t - t_k` of each of ``times``.
+
+        Index 0 is the hold before :math:`t_0`, K the hold after :math:`t_{K-1}`: constant
+        segments, whose powers of s multiply zero coefficients (finite for any
+        :math:`|s| < 10^{60}` s), so no clipping is needed.
+        """
+        idx = np.searchsorted(self.times, times, side="right")
+        return times - self._knots.take(idx), idx
 
     def sample_many(self, times: FloatArray, out: Pair | None = None) -> Pair:
         """Positions [rad] and velocities [rad/s] at ``times`` (m,) [s]: two (m, n) arrays,
@@ -192,14 +195,21 @@ class JointTrajectory:
         One gather of the segments' coefficients of :math:`[q, \\dot q]`, stacked as
         (segments, d+1, 2n), and one batched product with the powers :math:`s^j`.
         """
-        times = np.asarray(times, dtype=float).reshape(-1)
+        if type(times) is not np.ndarray or times.ndim != 1 or times.dtype != np.float64:
+            times = np.asarray(times, dtype=float).reshape(-1)
         s, idx = self._locate(times)
-        both = np.matmul((s[:, None] ** self._pow)[:, None, :], self._qd.take(idx, axis=0))
-        n = self.n
-        if out is not None and out[0].shape == (times.size, n) and out[1].shape == out[0].shape:
-            out[0][...] = both[:, 0, :n]
-            out[1][...] = both[:, 0, n:]
+        coeffs = self._qd.take(idx, axis=0)
+        powers = (s[:, None] ** self._pow)[:, None, :]
+        m, n = times.size, self.n
+        if out is not None and out[0].shape == (m, n) and out[1].shape == (m, n):
+            buf = self._buffers.get(m)
+            if buf is None:
+                buf = self._buffers[m] = np.empty((m, 1, 2 * n))
+            np.matmul(powers, coeffs, out=buf)
+            out[0][...] = buf[:, 0, :n]
+            out[1][...] = buf[:, 0, n:]
             return out
+        both = np.matmul(powers, coeffs)
         return _write((both[:, 0, :n], both[:, 0, n:]), out)
 
     def sample(self, t: float) -> Pair:

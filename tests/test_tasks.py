@@ -384,3 +384,18 @@ def test_limit_errors_name_joint_and_time(panda):
     traj = JointTrajectory(np.array([0.0, 0.01]), q, joint_names=panda.joint_names)
     with pytest.raises(LimitError, match=r"velocity of joint 'panda_joint7' .* at t="):
         check_trajectory_limits(traj, panda, panda.lower, panda.upper)
+
+
+@pytest.mark.parametrize(("module", "body"), [
+    ("toppra", f'kind = "waypoints"\n[reference.waypoints]\npoints = '
+               f"{[PANDA_READY.tolist(), (PANDA_READY + 0.1).tolist()]}\n"),
+    ("pink", '[reference]\nkind = "pose"\n[reference.pose]\npath = "circle"\nradius = 0.1\n'
+             f"frequency = 0.2\nq_init = {PANDA_READY.tolist()}\n"),
+])  # fmt: skip
+def test_a_missing_extra_is_one_line_naming_it(tmp_path, capsys, monkeypatch, module, body):
+    monkeypatch.setitem(__import__("sys").modules, module, None)  # import fails as if absent
+    if module == "toppra":
+        body = "[reference]\n" + body
+    config = _config(tmp_path, body)
+    code, _, err = _cli(["run", str(config), "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and "hmpc_pin[tasks]" in err and err.count("\n") == 1, err

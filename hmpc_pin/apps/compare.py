@@ -220,6 +220,16 @@ def markdown_table(comp: Comparison) -> str:
             name = kind + (" (failed)" if run.failure else "")
             row = [name, joint_label(joint, units[i]), *_cells(run, i), step]
             lines.append("| " + " | ".join(row) + " |")
+    tasks = {k: r.metrics.task for k, r in comp.runs.items()
+             if r.metrics is not None and r.metrics.task is not None}  # fmt: skip
+    if tasks:  # an end-effector task: its task-space errors, one row per controller
+        frame = next(iter(tasks.values())).frame
+        lines += ["", f"| controller | position RMS after 1 s [m] ({frame}) | max position "
+                  "error [m] | orientation RMS after 1 s [rad] | max orientation error [rad] |",
+                  "|---|---|---|---|---|"]  # fmt: skip
+        lines += [f"| {k} | {t.position_rms:.3e} | {t.position_max:.3e} | "
+                  f"{t.orientation_rms:.3e} | {t.orientation_max:.3e} |"
+                  for k, t in tasks.items()]  # fmt: skip
     return "\n".join(lines)
 
 

@@ -399,3 +399,10 @@ def test_a_missing_extra_is_one_line_naming_it(tmp_path, capsys, monkeypatch, mo
     config = _config(tmp_path, body)
     code, _, err = _cli(["run", str(config), "--out", str(tmp_path / "o")], capsys)
     assert code == 2 and "hmpc_pin[tasks]" in err and err.count("\n") == 1, err
+
+
+def test_velocity_columns_in_another_unit_are_rejected():
+    t = np.linspace(0.0, 2.0, 11)
+    q, dq = _bump(t)
+    with pytest.raises(TrajectoryError, match="'b'|b between t"):
+        JointTrajectory(t, q, dq * [1.0, 57.3, 1.0], ("a", "b", "c"))

@@ -38,7 +38,9 @@ from .base import FloatArray, Pair, _write
 __all__ = ["JointTrajectory", "load_trajectory"]
 
 
-def _check_samples(times, q, dq, where: str) -> tuple[FloatArray, FloatArray, FloatArray | None]:
+def _check_samples(
+    times, q, dq, where: str, names: Sequence[str] = ()
+) -> tuple[FloatArray, FloatArray, FloatArray | None]:
     t = np.asarray(times, dtype=float)
     q = np.asarray(q, dtype=float)
     if t.ndim != 1 or t.size < 2:
@@ -68,7 +70,34 @@ def _check_samples(times, q, dq, where: str) -> tuple[FloatArray, FloatArray, Fl
             where, f"time {t[k]:g} s at sample {k} after {t[k - 1]:g} s",
             "time strictly increasing",
         )  # fmt: skip
+    if dq is not None:
+        names = tuple(names) or tuple(f"joint {i + 1}" for i in range(q.shape[1]))
+        _check_velocities(t, q, dq, where, names)
     return t, q, dq
+
+
+def _check_velocities(
+    t: FloatArray, q: FloatArray, dq: FloatArray, where: str, names: Sequence[str]
+) -> None:
+    """Velocity columns must be the derivative of the positions (not another unit, not
+    shifted): each segment's trapezoidal integral :math:`h(\\dot q_k + \\dot q_{k+1})/2` must
+    match :math:`q_{k+1} - q_k` within 25 % of the joint's largest step plus 1e-6 rad (the
+    trapezoid's own error is :math:`h^3 \\dddot q/12`, far below that for a smooth motion
+    sampled finely enough to be tracked)."""
+    h = np.diff(t)[:, None]
+    step = np.diff(q, axis=0)
+    integral = h * (dq[1:] + dq[:-1]) / 2.0
+    gap = np.abs(step - integral)
+    tol = 0.25 * np.abs(step).max(axis=0) + 1e-6
+    bad = gap > tol
+    if bad.any():
+        k, i = np.argwhere(bad)[0]
+        raise TrajectoryError(
+            where, f"the velocities of {names[i]} between t = {t[k]:g} and {t[k + 1]:g} s "
+            f"integrate to {float(integral[k, i]):.6g} rad but "
+            f"the positions move {float(step[k, i]):.6g} rad",
+            "velocity columns that are the derivative of the positions [rad/s], or none",
+        )  # fmt: skip
 
 
 def _cubic_coefficients(t: FloatArray, q: FloatArray, bc: str) -> FloatArray:
@@ -127,7 +156,7 @@ class JointTrajectory:
 
     Raises:
         TrajectoryError: Fewer than 2 samples, a non-finite value, time not strictly
-            increasing.
+            increasing, velocities that are not the derivative of the positions.
         DimensionError: ``q``/``dq`` shapes do not match ``times``.
     """
 
@@ -142,7 +171,7 @@ class JointTrajectory:
         source: str = "trajectory",
         ddq=None,
     ):
-        t, q, dq = _check_samples(times, q, dq, source)
+        t, q, dq = _check_samples(times, q, dq, source, joint_names)
         self.source = source
         self.times, self.q_samples = t, q
         self.dq_samples = dq

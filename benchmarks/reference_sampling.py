@@ -1,7 +1,8 @@
 """Cost of sampling a 7-joint reference over the MPC horizon, per control step (issue 16).
 
 The controller calls ``reference.sample_many(times, out)`` once per step with the N = 10
-horizon instants t_k + jTs into its own (10, 7) buffers. Timed here for the references of
+horizon instants t_k + jTs into its own buffers, rows 2..N+1 (r) and N+2..2N+1 (ṙ) of one
+(2N + 2, 7) array (HierarchicalMPC's stack, reproduced here). Timed here for the references of
 the tasks layer on Panda (7 joints), each against the floor of the same process, the
 paper's ``SineReference`` (7 joints): blocks of calls alternate between the reference and
 the floor, and the ratio of their medians is taken per block; the report gives the median
@@ -76,7 +77,8 @@ def main() -> None:
     rng = np.random.default_rng(0)
     starts = rng.uniform(0.0, 9.0, args.calls)
     times_list = [t + Ts * np.arange(1, N + 1) for t in starts]
-    out = (np.empty((N, 7)), np.empty((N, 7)))
+    stack = np.empty((2 * N + 2, 7))  # HierarchicalMPC's layout: q, q̇, then r and ṙ rows
+    out = (stack[2 : N + 2], stack[N + 2 :])
     print("| reference (Panda, 7 joints, N = 10) | median [µs] | floor: sine, median [µs] "
           "| ratio to the floor (median of block ratios) |")  # fmt: skip
     print("|---|---|---|---|")
@@ -93,6 +95,31 @@ def main() -> None:
             ratios.append(a / b)
         print(f"| {name} | {np.median(mine):.2f} | {np.median(base):.2f} | "
               f"{np.median(ratios):.2f} |")  # fmt: skip
+    print()
+    # The whole controller step with each reference, the states on that reference.
+    controller = circle_exp.controller
+
+    def step_block(ref) -> float:
+        steps = [(float(t), *ref.sample(float(t))) for t in np.arange(0.0, 8.0, Ts)]
+        controller.reset(steps[0][1], steps[0][2])
+        samples = np.empty(len(steps))
+        for i, (t, q, dq) in enumerate(steps):
+            t0 = time.perf_counter_ns()
+            controller.step(t, q, dq, ref)
+            samples[i] = time.perf_counter_ns() - t0
+        return float(np.median(samples)) / 1e3
+
+    print("| `HierarchicalMPC.step` (Panda, hmpc+general, states on the reference) with | "
+          "median [µs] | with the sine, median [µs] | ratio (median of block ratios) |")  # fmt: skip
+    print("|---|---|---|---|")
+    mine, base, ratios = [], [], []
+    for _ in range(max(3, args.blocks // 3)):
+        a, b = step_block(cubic), step_block(floor)
+        mine.append(a)
+        base.append(b)
+        ratios.append(a / b)
+    print(f"| JointTrajectory (cubic spline) | {np.median(mine):.2f} | {np.median(base):.2f} | "
+          f"{np.median(ratios):.2f} |")  # fmt: skip
     print()
     print("| once, before a run | wall time [s] |")
     print("|---|---|")

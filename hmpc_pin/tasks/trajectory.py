@@ -200,6 +200,7 @@ class JointTrajectory:
         self._knots = np.concatenate([[t[0] - 1.0], t])
         self._out: Pair | None = None  # the last out buffers, and the product buffer
         self._buf = np.empty((0, 1, 2 * n))
+        self._m = -1
 
     @property
     def duration(self) -> float:
@@ -225,24 +226,25 @@ class JointTrajectory:
         One gather of the segments' coefficients of :math:`[q, \\dot q]`, stacked as
         (segments, d+1, 2n), and one batched product with the powers :math:`s^j`.
         """
-        if type(times) is not np.ndarray or times.ndim != 1 or times.dtype != np.float64:
+        if type(times) is not np.ndarray or times.ndim != 1:
             times = np.asarray(times, dtype=float).reshape(-1)
-        idx = np.searchsorted(self.times, times, side="right")
+        idx = self.times.searchsorted(times, side="right")  # the method: no Python wrapper
         s = times - self._knots.take(idx)
-        coeffs = self._qd.take(idx, axis=0)
-        powers = (s[:, None] ** self._pow)[:, None, :]
-        if out is not None:
-            if out is not self._out or times.size != self._buf.shape[0]:
-                m, n = times.size, self.n
-                if out[0].shape != (m, n) or out[1].shape != (m, n):
-                    both = np.matmul(powers, coeffs)
-                    return _write((both[:, 0, :n], both[:, 0, n:]), out)  # raises
-                # the controller passes the same buffers every step: checked once
-                self._out, self._buf = out, np.empty((m, 1, 2 * n))
-            buf = np.matmul(powers, coeffs, out=self._buf)
-            out[0][...] = buf[:, 0, : self.n]
-            out[1][...] = buf[:, 0, self.n :]
+        if out is not None and out is self._out and times.size == self._m:
+            buf = np.matmul((s[:, None] ** self._pow)[:, None, :], self._qd.take(idx, axis=0),
+                            out=self._buf)  # fmt: skip
+            n = self.n
+            out[0][...] = buf[:, 0, :n]
+            out[1][...] = buf[:, 0, n:]
             return out
+        powers = (s[:, None] ** self._pow)[:, None, :]
+        coeffs = self._qd.take(idx, axis=0)
+        if out is not None:
+            m, n = times.size, self.n
+            if out[0].shape == (m, n) and out[1].shape == (m, n):
+                # the controller passes the same buffers every step: checked once
+                self._out, self._m, self._buf = out, m, np.empty((m, 1, 2 * n))
+                return self.sample_many(times, out)
         n = self.n
         both = np.matmul(powers, coeffs)
         return _write((both[:, 0, :n], both[:, 0, n:]), out)

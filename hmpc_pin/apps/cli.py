@@ -26,7 +26,7 @@ from ..exceptions import (
     SimulationError,
     VizError,
 )
-from ..experiment.build import uses_observer, with_controller
+from ..experiment.build import Experiment, uses_observer, with_controller
 from ..experiment.schema import (
     COMPENSATIONS,
     CONTROLLER_KINDS,
@@ -123,14 +123,15 @@ def _with_overrides(
 def cmd_run(args) -> int:
     config = _with_overrides(load_config(args.config), args.no_ndo, args.duration,
                              args.compensation, args.reference)  # fmt: skip
+    if not args.speed > 0:
+        raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
+    experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     out = _out_dir(args.out)
     stem = config.name
     if args.compensation is not None:
         stem += f"_{args.compensation}"
     if args.no_ndo and not config.name.endswith("_no_ndo"):
         stem += "_no_ndo"
-    if not args.speed > 0:
-        raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
     if args.replay is not None:
         _out_file(args.replay, "--replay")
         _check_meshes(config, "--replay")
@@ -140,7 +141,7 @@ def cmd_run(args) -> int:
             raise ConfigError(flag, "applies to the live view only; add --viz or drop " + flag)
     views: list = []  # the live view, opened by run_one once the experiment is built
     try:
-        return _run_and_report(args, config, out, stem, warn, views)
+        return _run_and_report(args, config, out, stem, warn, views, experiment)
     finally:
         for view in views:
             view.close()
@@ -159,9 +160,10 @@ def _open_view(experiment, args, views: list):
     return view
 
 
-def _run_and_report(args, config, out, stem, warn, views: list) -> int:
+def _run_and_report(args, config, out, stem, warn, views: list, experiment=None) -> int:
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
-    experiment, result, files, failure = run_one(config, out, stem, open_view=open_view)
+    experiment, result, files, failure = run_one(config, out, stem, open_view=open_view,
+                                                 experiment=experiment)  # fmt: skip
     view = views[0] if views else None
     observer = uses_observer(config.controller)
     if len(result.t) > 1:

@@ -80,6 +80,7 @@ def run_one(
     stem: str | None = None,
     viz: float | None = None,
     open_view=None,
+    experiment: Experiment | None = None,
 ):
     """Run ``config``; write ``<stem>.npz``, ``<stem>.csv`` and figures to ``out``.
 
@@ -87,6 +88,8 @@ def run_one(
         viz: Open a live view at this speed for the run (closed at its end).
         open_view: ``open_view(experiment)`` returns a live view (or ``None``) that the
             caller owns: it is animated and left open.
+        experiment: The experiment of ``config`` if already built (so that bad input is
+            found before the output directory is created).
 
     Returns:
         (experiment, result, files, failure message or None).
@@ -98,7 +101,8 @@ def run_one(
     from . import plots
 
     stem = stem or config.name
-    experiment = Experiment.from_config(config)
+    if experiment is None:
+        experiment = Experiment.from_config(config)
     own_view = open_view is None and viz is not None
     if own_view:
         view = live_view(experiment.robot, viz, experiment.obstacle)

@@ -112,8 +112,10 @@ def main() -> None:
             samples[i] = time.perf_counter_ns() - t0
         return float(np.median(samples)) / 1e3
 
-    print("| `HierarchicalMPC.step` (Panda, hmpc+general, 800 steps on the sine's states) with "
-          "| median [µs] | with the sine itself, median [µs] | ratio (median of block ratios) |")  # fmt: skip
+    print(
+        "| `HierarchicalMPC.step` (Panda, hmpc+general, 800 steps on the sine's states) with "
+        "| median [µs] | with the sine itself, median [µs] | ratio (median of block ratios) |"
+    )
     print("|---|---|---|---|")
     mine, base, ratios = [], [], []
     for _ in range(max(3, args.blocks // 3)):

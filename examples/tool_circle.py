@@ -38,8 +38,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     locked = {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.02}
-    robot = hmpc_pin.load_robot(args.robot, gravity=9.81,
-                                locked_joints=locked if args.robot == "panda" else None)  # fmt: skip
+    robot = hmpc_pin.load_robot(
+        args.robot, gravity=9.81, locked_joints=locked if args.robot == "panda" else None
+    )
     q_init = np.array(HOMES[args.robot])
     frame = robot.tool_frame
     p0, R0 = frame_pose(robot, frame, q_init)

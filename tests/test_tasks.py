@@ -410,3 +410,51 @@ def test_velocity_columns_in_another_unit_are_rejected():
     q, dq = _bump(t)
     with pytest.raises(TrajectoryError, match="velocities of b between t"):
         JointTrajectory(t, q, dq * [1.0, 57.3, 1.0], ("a", "b", "c"))
+
+
+@pytest.mark.parametrize(
+    ("table", "match"),
+    [
+        ('[reference.pose]\npath = "circle"\nradius = 0.1\nfrequency = 0.2\nend = [0, 0, 1]\n',
+         "reference.pose.end: does not apply to path = 'circle'"),
+        ('[reference.pose]\npath = "circle"\nradius = 0.1\n', "needs radius and frequency"),
+        ('[reference.pose]\npath = "spiral"\n', "reference.pose.path: expected one of"),
+        ('[reference.pose]\npath = "line"\nend = [0, 0, 1]\nduration = 1.0\n'
+         "orientation = [0, 0, 0, 0]\n", "reference.pose.orientation: expected a quaternion"),
+        ('[reference.pose]\npath = "waypoints"\ntimes = [0.0, 1.0]\npositions = [[0, 0, 1]]\n',
+         "expected 2 points"),
+        ('[reference.pose]\npath = "circle"\nradius = 0.1\nfrequency = 0.2\nplane = "xx"\n',
+         "reference.pose.plane"),
+        ('[reference.trajectory]\nfile = "x.csv"\n', "reference.trajectory: applies only to "
+         "kind = 'trajectory'"),
+        ('[reference.pose]\npath = "circle"\nradius = 0.1\nfrequency = 0.2\nspeed = 1\n',
+         "reference.pose.speed: unknown key"),
+    ],
+)  # fmt: skip
+def test_pose_table_errors_name_the_key(tmp_path, table, match):
+    config = _config(tmp_path, '[reference]\nkind = "pose"\n' + table)
+    with pytest.raises(hmpc_pin.ConfigError, match=match):
+        hmpc_pin.load_config(config)
+
+
+def test_waypoints_of_the_wrong_length_and_outside_the_limits(tmp_path):
+    short = _config(tmp_path, '[reference]\nkind = "waypoints"\n[reference.waypoints]\n'
+                    "points = [[0.0, 0.1], [0.2, 0.3]]\n")  # fmt: skip
+    with pytest.raises(hmpc_pin.ConfigError, match="entries but the robot has 7 joints"):
+        hmpc_pin.Experiment.from_config(hmpc_pin.load_config(short))
+    out = (PANDA_READY + np.eye(7)[0] * 5.0).tolist()
+    far = _config(tmp_path, '[reference]\nkind = "waypoints"\n[reference.waypoints]\n'
+                  f"points = [{PANDA_READY.tolist()}, {out}]\n", "far.toml")  # fmt: skip
+    with pytest.raises(LimitError, match="waypoint 1 of joint 'panda_joint1'"):
+        hmpc_pin.Experiment.from_config(hmpc_pin.load_config(far))
+
+
+def test_a_circle_in_a_plane_given_by_its_normal(ur5):
+    normal = np.array([1.0, 1.0, 1.0]) / np.sqrt(3)
+    u, v = plane_axes(normal.tolist())
+    np.testing.assert_allclose([u @ normal, v @ normal, u @ v], 0.0, atol=1e-15)
+    p0, R0 = _fk(ur5, "tool0", [UR5_HOME])
+    path = CirclePath(p0[0] - 0.05 * u, 0.05, 0.5, u, v, R0[0])
+    ref = PoseReference.solve(ur5, "tool0", path, 2.0, UR5_HOME)
+    pos, _ = _fk(ur5, "tool0", ref.sample_many(np.linspace(0.0, 2.0, 201))[0])
+    np.testing.assert_allclose((pos - (p0[0] - 0.05 * u)) @ normal, 0.0, atol=2e-5)

@@ -245,6 +245,13 @@ def plot_task_space(result, path, title: str = "", after: float = 1.0) -> Path:
     ref, pos = result.ee_pos_ref, result.ee_pos
     ax3.plot(ref[:, 0], ref[:, 1], ref[:, 2], "k--", lw=1.2, label="target path")
     ax3.plot(pos[:, 0], pos[:, 1], pos[:, 2], "C0", lw=1.0, label="tool path")
+    both = np.vstack([ref, pos])  # equal scales on the three axes: the true shape
+    mid = (both.max(axis=0) + both.min(axis=0)) / 2
+    half = max(float((both.max(axis=0) - both.min(axis=0)).max()) / 2 * 1.1, 1e-3)
+    ax3.set_xlim(mid[0] - half, mid[0] + half)
+    ax3.set_ylim(mid[1] - half, mid[1] + half)
+    ax3.set_zlim(mid[2] - half, mid[2] + half)
+    ax3.set_box_aspect((1, 1, 1))
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")

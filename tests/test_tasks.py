@@ -458,3 +458,17 @@ def test_a_circle_in_a_plane_given_by_its_normal(ur5):
     ref = PoseReference.solve(ur5, "tool0", path, 2.0, UR5_HOME)
     pos, _ = _fk(ur5, "tool0", ref.sample_many(np.linspace(0.0, 2.0, 201))[0])
     np.testing.assert_allclose((pos - (p0[0] - 0.05 * u)) @ normal, 0.0, atol=2e-5)
+
+
+def test_a_circle_ramp_starts_at_rest_and_reaches_full_speed_smoothly():
+    u, v = plane_axes("xy")
+    path = CirclePath(np.zeros(3), 0.1, 0.2, u, v, np.eye(3), ramp=1.0)
+    h = 1e-5
+    t = np.array([0.0, 0.5, 1.0, 2.0])
+    speed = (path.angle(t + h) - path.angle(np.maximum(t - h, 0.0))) / (
+        (t + h) - np.maximum(t - h, 0.0)
+    )
+    w = 2 * np.pi * 0.2
+    np.testing.assert_allclose(speed, [0.0, w / 2, w, w], atol=1e-6)  # smoothstep: half at mid
+    # continuous angle at the end of the ramp, then the full-speed circle delayed by T_r / 2
+    np.testing.assert_allclose(path.angle(np.array([1.0, 3.0])), [w * 0.5, w * 2.5], atol=1e-12)

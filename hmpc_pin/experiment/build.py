@@ -386,7 +386,7 @@ def _pose_path(pc, robot: Robot, q_init: np.ndarray):
     if pc.path == "circle":
         u, v = plane_axes(pc.plane)
         center = pc.center if pc.center is not None else p0 - pc.radius * u
-        return CirclePath(center, pc.radius, pc.frequency, u, v, R_held)
+        return CirclePath(center, pc.radius, pc.frequency, u, v, R_held, ramp=pc.ramp)
     if pc.path == "line":
         start = pc.start if pc.start is not None else p0
         return LinePath(start, pc.end, pc.t_start, pc.duration, R_held)

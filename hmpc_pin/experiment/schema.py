@@ -874,7 +874,7 @@ class WaypointsConfig:
 
 #: End-effector paths (``[reference.pose] path``) and the keys each one takes.
 POSE_PATHS = {
-    "circle": ("center", "radius", "frequency", "plane"),
+    "circle": ("center", "radius", "frequency", "plane", "ramp"),
     "line": ("start", "end", "t_start", "duration"),
     "waypoints": ("times", "positions", "orientations"),
 }
@@ -912,7 +912,9 @@ class PoseConfig:
             ``q_init``).
         center: Circle centre [m] (default: so that the circle starts at the frame's
             position at ``q_init``). radius: [m]. frequency: [Hz]. plane: ``"xy"``,
-            ``"xz"``, ``"yz"`` or a normal ``[nx, ny, nz]`` (default ``"yz"``).
+            ``"xz"``, ``"yz"`` or a normal ``[nx, ny, nz]`` (default ``"yz"``). ramp: time
+            [s] over which the circle's angular speed rises from rest (minimum-jerk
+            profile; default 0: the circle starts at full speed).
         start: Line start [m] (default: the frame's position at ``q_init``). end: [m].
         t_start: Line start time [s]. duration: Line duration [s] (minimum-jerk timing).
         times: Waypoint times [s], strictly increasing. positions: Waypoint positions [m].
@@ -929,6 +931,7 @@ class PoseConfig:
     radius: float | None = None
     frequency: float | None = None
     plane: object = None
+    ramp: float | None = None
     start: np.ndarray | None = None
     end: np.ndarray | None = None
     t_start: float | None = None
@@ -970,6 +973,8 @@ class PoseConfig:
                 raise ConfigError("plane", f"expected 'xy', 'xz', 'yz' or a normal [nx, ny, "
                                   f"nz], got {plane!r}")  # fmt: skip
             _set(self, "plane", plane)
+            _set(self, "ramp", _float("ramp", 0.0 if self.ramp is None else self.ramp,
+                                      nonneg=True))  # fmt: skip
         elif self.path == "line":
             if self.end is None or self.duration is None:
                 raise ConfigError("end", "path = 'line' needs end and duration")

@@ -205,12 +205,21 @@ def plane_axes(plane) -> tuple[FloatArray, FloatArray]:
 
 @dataclass(frozen=True)
 class CirclePath:
-    """:math:`p^*(t) = c + r(\\cos\\theta\\,u + \\sin\\theta\\,v)`,
-    :math:`\\theta = 2\\pi f (t - t_0)`, orientation ``rotation`` held; u, v span the plane.
+    """:math:`p^*(t) = c + r(\\cos\\theta\\,u + \\sin\\theta\\,v)`, orientation ``rotation``
+    held; u, v span the plane. The angle starts at rest when ``ramp`` :math:`T_r > 0`:
+
+    .. math::
+
+        \\theta(t) = 2\\pi f\\,T_r\\,(2.5x^4 - 3x^5 + x^6),\\ x = \\tfrac{t - t_0}{T_r} \\le 1;
+        \\qquad \\theta(t) = 2\\pi f\\,(t - t_0 - T_r/2) \\text{ after,}
+
+    the angular speed rising from 0 to :math:`2\\pi f` along the minimum-jerk profile
+    :math:`10x^3 - 15x^4 + 6x^5` (C²); with :math:`T_r = 0`, :math:`\\theta = 2\\pi f(t - t_0)`.
 
     Attributes:
         center: c [m]. radius: r [m]. frequency: f [Hz]. u, v: in-plane unit axes.
         rotation: (3, 3). t_start: t₀ [s] (before it the start point is held).
+        ramp: :math:`T_r` [s], 0 for none.
     """
 
     center: FloatArray
@@ -220,15 +229,25 @@ class CirclePath:
     v: FloatArray
     rotation: FloatArray
     t_start: float = 0.0
+    ramp: float = 0.0
+
+    def angle(self, times) -> FloatArray:
+        """:math:`\\theta(t)` [rad] at ``times`` (m,) [s]."""
+        tau = np.maximum(np.asarray(times, dtype=float).reshape(-1) - self.t_start, 0.0)
+        w = 2.0 * np.pi * self.frequency
+        if self.ramp <= 0:
+            return w * tau
+        x = np.minimum(tau / self.ramp, 1.0)
+        rising = w * self.ramp * x**4 * (2.5 + x * (-3.0 + x))
+        return np.where(tau < self.ramp, rising, w * (tau - self.ramp / 2.0))
 
     def poses(self, times) -> tuple[FloatArray, FloatArray]:
         """Positions (m, 3) [m] and rotations (m, 3, 3) at ``times`` (m,) [s]."""
-        t = np.asarray(times, dtype=float).reshape(-1)
-        theta = 2.0 * np.pi * self.frequency * np.maximum(t - self.t_start, 0.0)
+        theta = self.angle(times)
         pos = self.center + self.radius * (
             np.cos(theta)[:, None] * self.u + np.sin(theta)[:, None] * self.v
         )
-        return pos, np.broadcast_to(self.rotation, (t.size, 3, 3)).copy()
+        return pos, np.broadcast_to(self.rotation, (theta.size, 3, 3)).copy()
 
 
 def _pink():

@@ -472,3 +472,15 @@ def test_a_circle_ramp_starts_at_rest_and_reaches_full_speed_smoothly():
     np.testing.assert_allclose(speed, [0.0, w / 2, w, w], atol=1e-6)  # smoothstep: half at mid
     # continuous angle at the end of the ramp, then the full-speed circle delayed by T_r / 2
     np.testing.assert_allclose(path.angle(np.array([1.0, 3.0])), [w * 0.5, w * 2.5], atol=1e-12)
+
+
+def test_a_sweep_of_a_pose_task_records_its_task_space_errors(tmp_path):
+    from dataclasses import replace
+
+    from hmpc_pin.apps.sweep import draw_samples, run_sample
+
+    config = hmpc_pin.load_config(CONFIGS / "ur5_circle.toml")
+    config = replace(config, simulation=replace(config.simulation, duration=1.5))
+    params = draw_samples(config, 1, 0)[0]
+    row = run_sample(config, params, "hmpc+general")
+    assert row["complete"] and 0 < row["position_rms"] < 0.01 and 0 < row["orientation_rms"] < 0.1

@@ -37,6 +37,7 @@ from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError, SimulationError
 from ..experiment.build import Experiment, load_robot_config, with_controller
 from ..experiment.schema import OBSERVERS, ExperimentConfig
+from .metrics import task_metrics
 
 __all__ = [
     "SampleParams",
@@ -182,9 +183,10 @@ def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> 
     Returns:
         A dict (one CSV row): the draws, ``complete``, ``bounded``, ``t_end``, RMS error
         after ``sweep.after`` per joint and its max over joints (``rms_max``), ``max_error``
-        and the failure ``message`` ("" if the run completed). A run that stops early
-        (divergence, non-finite state, solver failure) is a row with ``complete=False``,
-        not an exception.
+        and the failure ``message`` ("" if the run completed); for a pose task also
+        ``position_rms`` [m] and ``orientation_rms`` [rad] after ``sweep.after``. A run
+        that stops early (divergence, non-finite state, solver failure) is a row with
+        ``complete=False``, not an exception.
     """
     sc = config.sweep
     experiment = Experiment.from_config(variant_config(perturbed_config(config, params), variant))
@@ -217,6 +219,9 @@ def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> 
     row.update(complete=bool(result.complete), bounded=bounded, t_end=float(result.t[-1]))
     row.update({f"rms_{j}": float(v) for j, v in zip(names, rms, strict=True)})
     row.update(rms_max=float(np.max(rms)), max_error=max_error, message=result.message)
+    task = task_metrics(result, sc.after)  # a pose task: its task-space errors too
+    if task is not None:
+        row.update(position_rms=task.position_rms, orientation_rms=task.orientation_rms)
     return row
 
 

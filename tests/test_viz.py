@@ -180,6 +180,30 @@ def test_live_view_is_served_and_moves_the_arm(tmp_path):
     assert _differs(shots[0], shots[1]) > 0.002
 
 
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium)")
+def test_live_view_draws_a_target_path(tmp_path):
+    """A pose task's target path drawn in the live view changes the picture (real server,
+    real browser)."""
+    from hmpc_pin.apps.viz import LiveView
+
+    robot = hmpc_pin.load_robot(PLANAR3)
+    view = LiveView(robot, ghost=False)
+    try:
+        view(0.0, np.ones(3), np.ones(3))
+        before = _screenshot(view.url, tmp_path / "before.png", tmp_path / "p0")
+        theta = np.linspace(0.0, 2 * np.pi, 200)
+        view.draw_path("target_path", np.column_stack(
+            [1.5 + 0.8 * np.cos(theta), np.zeros_like(theta), 1.5 + 0.8 * np.sin(theta)]))
+        after = _screenshot(view.url, tmp_path / "after.png", tmp_path / "p1")
+    finally:
+        view.close()
+    changed = np.abs(after - before).max(axis=2) > 40
+    # a thin circle of ≈ 50 px radius in an 800 × 600 picture: ≈ 0.1 % of the pixels, green
+    assert 0.0004 < changed.mean() < 0.01
+    r, g, b = after[changed].mean(axis=0)
+    assert g > r and g > 0.9 * b, (r, g, b)
+
+
 def test_cli_live_view_runs_and_saves(tmp_path, capsys):
     from hmpc_pin.apps.cli import main
 

@@ -108,6 +108,10 @@ def run_one(
         view = live_view(experiment.robot, viz, experiment.obstacle)
     else:
         view = open_view(experiment) if open_view is not None else None
+    target = getattr(experiment.reference, "path", None)  # a pose task: draw its target path
+    if view is not None and target is not None:
+        times = np.linspace(0.0, config.simulation.duration, 3001)
+        view.draw_path("target_path", target.poses(times)[0])
     failure = None
     try:
         result = experiment.run(on_step=view)

@@ -253,6 +253,15 @@ class LiveView:
         except KeyboardInterrupt:
             return
 
+    def draw_path(self, name: str, points, color: int = 0x2CA02C) -> None:
+        """Draw the polyline ``points`` (m, 3) [m] as the node ``name`` (e.g. a pose
+        task's target path, green)."""
+        geom = _meshcat().geometry
+        pts = np.asarray(points, dtype=np.float32).T
+        self.vis[name].set_object(
+            geom.Line(geom.PointsGeometry(pts), geom.LineBasicMaterial(color=color))
+        )
+
     def close(self) -> None:
         """Stop the Meshcat server."""
         _stop_server(self.vis)

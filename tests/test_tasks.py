@@ -484,3 +484,19 @@ def test_a_sweep_of_a_pose_task_records_its_task_space_errors(tmp_path):
     params = draw_samples(config, 1, 0)[0]
     row = run_sample(config, params, "hmpc+general")
     assert row["complete"] and 0 < row["position_rms"] < 0.01 and 0 < row["orientation_rms"] < 0.1
+
+
+def test_compare_of_a_pose_task_tables_its_task_space_errors():
+    from dataclasses import replace
+
+    from hmpc_pin.apps.compare import markdown_table, run_comparison
+
+    config = hmpc_pin.load_config(CONFIGS / "ur5_circle.toml")
+    config = replace(config, simulation=replace(config.simulation, duration=1.5))
+    comp = run_comparison(config, ("hmpc", "computed-torque"))
+    table = markdown_table(comp)
+    assert "position RMS after 1 s [m] (tool0)" in table
+    rows = {line.split(" | ")[0][2:]: line for line in table.splitlines()[-2:]}
+    assert set(rows) == {"hmpc", "computed-torque"}
+    for kind, run in comp.runs.items():  # the table's numbers are the runs' task metrics
+        assert f"{run.metrics.task.position_rms:.3e}" in rows[kind]

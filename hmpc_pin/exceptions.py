@@ -70,15 +70,22 @@ class LimitError(HmpcError, ValueError):
     Attributes:
         joint: Name of the joint. time: Time [s] (``None`` for an initial state).
         value: The offending value. lower, upper: The limits.
+        hint: What to do (default: change the reference or the limits).
     """
 
-    def __init__(self, what: str, joint: str, time, value: float, lower: float, upper: float):
+    def __init__(
+        self, what: str, joint: str, time, value: float, lower: float, upper: float,
+        hint: str | None = None,
+    ):  # fmt: skip
         self.joint, self.time, self.value, self.lower, self.upper = joint, time, value, lower, upper
         when = f" at t={time:.6g} s" if time is not None else ""
+        todo = hint or (
+            "change the reference (amplitude, offset) or the limits "
+            "(controller.constraints.lower/upper)"
+        )
         super().__init__(
             f"{what} of joint {joint!r} is {value:.6g}{when}, outside its limits "
-            f"[{lower:.6g}, {upper:.6g}]; change the reference (amplitude, offset) or the "
-            "limits (controller.constraints.lower/upper)"
+            f"[{lower:.6g}, {upper:.6g}]; {todo}"
         )
 
 

@@ -353,7 +353,7 @@ def _task_limits(config: ExperimentConfig, robot: Robot) -> tuple[np.ndarray, np
 
 def check_trajectory_limits(
     trajectory: JointTrajectory, robot: Robot, lower: np.ndarray, upper: np.ndarray,
-    what: str = "reference",
+    what: str = "reference", hint: str | None = None,
 ) -> None:  # fmt: skip
     """Check a joint trajectory against position and (URDF) velocity limits at its samples
     and 10 points per segment between them.
@@ -368,13 +368,14 @@ def check_trajectory_limits(
     bad = (q < lower - 1e-9) | (q > upper + 1e-9)
     if bad.any():
         k, i = np.argwhere(bad)[0]
-        raise LimitError(what, names[i], float(fine[k]), float(q[k, i]), lower[i], upper[i])
+        raise LimitError(what, names[i], float(fine[k]), float(q[k, i]), lower[i], upper[i],
+                         hint)  # fmt: skip
     vmax = np.where(robot.velocity_limit > 0, robot.velocity_limit, np.inf)
     bad = np.abs(dq) > vmax * (1 + 1e-9)
     if bad.any():
         k, i = np.argwhere(bad)[0]
         raise LimitError(f"{what} velocity", names[i], float(fine[k]), float(dq[k, i]),
-                         -vmax[i], vmax[i])  # fmt: skip
+                         -vmax[i], vmax[i], hint)  # fmt: skip
 
 
 def _pose_path(pc, robot: Robot, q_init: np.ndarray):
@@ -411,15 +412,20 @@ def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
     names = robot.joint_names
     if rc.kind == "trajectory":
         trajectory = load_trajectory(rc.trajectory.file, names)
-        check_trajectory_limits(trajectory, robot, lower, upper,
-                                f"reference ({rc.trajectory.file.name})")  # fmt: skip
+        check_trajectory_limits(
+            trajectory, robot, lower, upper, f"reference ({rc.trajectory.file.name})",
+            "change the file: slower (velocity limits: the URDF's) or inside the position "
+            "limits (the URDF's or controller.constraints.lower/upper)",
+        )  # fmt: skip
         return trajectory
     if rc.kind == "waypoints":
         wc = rc.waypoints
         n = robot.nq
         for p, point in enumerate(wc.points):
             for i in np.flatnonzero((point < lower) | (point > upper)):
-                raise LimitError(f"waypoint {p}", names[i], None, point[i], lower[i], upper[i])
+                raise LimitError(f"waypoint {p}", names[i], None, point[i], lower[i], upper[i],
+                                 "move the waypoint (reference.waypoints.points) inside the "
+                                 "limits")  # fmt: skip
         vmax = (
             config.vector("reference.waypoints.velocity_limit", n)
             if wc.velocity_limit is not None
@@ -429,7 +435,11 @@ def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
             wc.points, vmax, config.vector("reference.waypoints.acceleration_limit", n),
             t_start=wc.t_start, dt=config.controller.Ts, joint_names=names,
         )  # fmt: skip
-        check_trajectory_limits(trajectory, robot, lower, upper, "waypoint path")
+        check_trajectory_limits(
+            trajectory, robot, lower, upper, "waypoint path",
+            "the spline through the waypoints overshoots: add a waypoint or move them away "
+            "from the limit",
+        )  # fmt: skip
         return trajectory
     pc = rc.pose
     n = robot.nq
@@ -442,14 +452,19 @@ def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
     frame = pc.frame or robot.tool_frame
     check_frame(robot, frame)
     for i in np.flatnonzero((q_init < lower) | (q_init > upper)):
-        raise LimitError("reference.pose.q_init", names[i], None, q_init[i], lower[i], upper[i])
+        raise LimitError("reference.pose.q_init", names[i], None, q_init[i], lower[i], upper[i],
+                         "give reference.pose.q_init inside the limits")  # fmt: skip
     cc = config.controller
     t_end = config.simulation.duration + (cc.N + 2) * cc.Ts
     reference = PoseReference.solve(
         robot, frame, _pose_path(pc, robot, q_init), t_end, q_init, dt=pc.dt,
         posture_cost=pc.posture_cost,
     )  # fmt: skip
-    check_trajectory_limits(reference.trajectory, robot, lower, upper, f"pose task ({frame})")
+    check_trajectory_limits(
+        reference.trajectory, robot, lower, upper, f"pose task ({frame})",
+        "the spline through the IK samples leaves a limit: lower reference.pose.dt or move "
+        "the path away from the limits",
+    )  # fmt: skip
     return reference
 
 

@@ -316,8 +316,10 @@ def solve_path_ik(
     dt = float(times[1] - times[0])
     q = robot.check_vector("q_init", q_init).copy()
     for i in np.flatnonzero((q < robot.lower) | (q > robot.upper)):
-        raise LimitError("pose task q_init", robot.joint_names[i], None, q[i],
-                         robot.lower[i], robot.upper[i])  # fmt: skip
+        raise LimitError(
+            "pose task q_init", robot.joint_names[i], None, q[i], robot.lower[i],
+            robot.upper[i], "give q_init inside the limits",
+        )  # fmt: skip
     model = robot.model
     targets_p, targets_R = path.poses(times)
     config = pink.Configuration(model, model.createData(), q)

@@ -320,7 +320,7 @@ def solve_path_ik(
             "pose task q_init", robot.joint_names[i], None, q[i], robot.lower[i],
             robot.upper[i], "give q_init inside the limits",
         )  # fmt: skip
-    model = robot.model
+    model = robot.model.copy()  # pink attaches its limit objects to the model it is given
     targets_p, targets_R = path.poses(times)
     config = pink.Configuration(model, model.createData(), q)
     task = FrameTask(frame, position_cost=1.0, orientation_cost=1.0)

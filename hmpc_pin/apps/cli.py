@@ -173,6 +173,8 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
         files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
     label = config.controller.label
     print(f"{config.name}: {config.description} ({label}, observer {'on' if observer else 'off'})")
+    if args.reference is not None:
+        print(f"reference: the trajectory of {args.reference} (--reference), not the config's")
     if config.reference.kind == "waypoints":
         ref = experiment.reference
         print(f"waypoints retimed by TOPP-RA: motion of {ref.duration:.3f} s "

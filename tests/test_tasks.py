@@ -500,3 +500,21 @@ def test_compare_of_a_pose_task_tables_its_task_space_errors():
     assert set(rows) == {"hmpc", "computed-torque"}
     for kind, run in comp.runs.items():  # the table's numbers are the runs' task metrics
         assert f"{run.metrics.task.position_rms:.3e}" in rows[kind]
+
+
+def test_a_joint_without_a_range_is_not_checked_for_position(tmp_path):
+    """double_pendulum's URDF limits are 0/0 (no range, no velocity limit): a trajectory file
+    loads with controller.constraints.position = false, the run tracks it."""
+    csv = _write_csv(tmp_path / "dp.csv", ["t", "joint1", "joint2"],
+                     [[0.0, 0.0, 0.0], [1.0, 1.0, -0.5], [2.0, 1.5, 0.5]])  # fmt: skip
+    path = tmp_path / "dp.toml"
+    path.write_text(
+        '[robot]\nmodel = "double_pendulum"\n[controller.constraints]\nposition = false\n'
+        f'[reference]\nkind = "trajectory"\n[reference.trajectory]\nfile = "{csv.name}"\n'
+        "[simulation]\nduration = 2.5\n",
+        encoding="utf-8",
+    )
+    exp = hmpc_pin.Experiment.from_config(hmpc_pin.load_config(path))
+    result = exp.run()
+    np.testing.assert_allclose(result.q_ref[-1], [1.5, 0.5], atol=1e-12)
+    assert hmpc_pin.compute_metrics(result).rms_error.max() < 1e-2

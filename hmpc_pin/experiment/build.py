@@ -343,12 +343,18 @@ def build_reference(config: ExperimentConfig, robot: Robot) -> Reference:
 
 
 def _task_limits(config: ExperimentConfig, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
-    """Position limits a task must keep: ``[controller.constraints]`` overrides, else the URDF's."""
+    """Position limits a task must keep: ``[controller.constraints]`` overrides, else the
+    URDF's; none (±inf) for a joint without a range (lower >= upper, a 0/0 URDF limit) and for
+    every joint when ``controller.constraints.position = false``."""
     con = config.controller.constraints
     over = con.overrides(robot.nq) if con is not None else {"lower": None, "upper": None}
-    lower = over["lower"] if over["lower"] is not None else robot.lower
-    upper = over["upper"] if over["upper"] is not None else robot.upper
-    return np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    lower = np.array(over["lower"] if over["lower"] is not None else robot.lower, dtype=float)
+    upper = np.array(over["upper"] if over["upper"] is not None else robot.upper, dtype=float)
+    none = lower >= upper
+    if con is not None and not con.position:
+        none[:] = True
+    lower[none], upper[none] = -np.inf, np.inf
+    return lower, upper
 
 
 def check_trajectory_limits(

@@ -315,7 +315,8 @@ def solve_path_ik(
     times = np.asarray(times, dtype=float)
     dt = float(times[1] - times[0])
     q = robot.check_vector("q_init", q_init).copy()
-    for i in np.flatnonzero((q < robot.lower) | (q > robot.upper)):
+    ranged = robot.lower < robot.upper  # a 0/0 URDF range means no limit (pink skips it too)
+    for i in np.flatnonzero(ranged & ((q < robot.lower) | (q > robot.upper))):
         raise LimitError(
             "pose task q_init", robot.joint_names[i], None, q[i], robot.lower[i],
             robot.upper[i], "give q_init inside the limits",

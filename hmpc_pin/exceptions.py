@@ -237,3 +237,27 @@ class TrajectoryError(HmpcError, ValueError):
     def __init__(self, source: str, value: str, expected: str):
         self.source, self.value, self.expected = str(source), value, expected
         super().__init__(f"{source}: {value}; expected {expected}")
+
+
+class NativeError(HmpcError, RuntimeError):
+    """The native kernels (``hmpc_pin.native``) cannot be built or loaded here.
+
+    Raised where ``backend = "native"`` was asked for; ``backend = "auto"`` falls back to
+    the Python path with one :class:`PerformanceWarning` instead.
+
+    Attributes:
+        reason: What failed (a missing compiler or header, the compiler's last lines).
+    """
+
+    def __init__(self, reason: str):
+        self.reason = reason
+        super().__init__(
+            f"the native kernels are not available: {reason}. Install a C++17 compiler "
+            "(g++ or clang++) and the package's dependencies (pybind11, cmeel-eigen), run "
+            "`hmpc-pin native --build` to see the full compiler output, or set "
+            'backend = "python"'
+        )
+
+
+class PerformanceWarning(UserWarning):
+    """A run takes a slower path than it could (e.g. the native kernels are unavailable)."""

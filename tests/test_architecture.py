@@ -19,6 +19,7 @@ RANK = {
     "data": 0,
     "exceptions": 0,
     "model": 1,
+    "native": 1,
     "compensation": 2,
     "mpc": 2,
     "tasks": 2,

@@ -557,7 +557,35 @@ def build_parser() -> argparse.ArgumentParser:
                     help="live Meshcat view of the arm, drawn by a separate process")  # fmt: skip
     rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     rt.set_defaults(func=cmd_realtime)
+
+    nat = sub.add_parser(
+        "native",
+        help="build (or locate) the native C++ kernels ahead of the first run",
+        description="Compile hmpc_pin's C++ kernels (the RK4 plant's period and the MPC "
+        "step) against the installed Pinocchio and ProxSuite, if not cached yet, and print "
+        "where the module is. Runs do this on first use; `make` calls it up front. Exit 1 "
+        "if it cannot be built (the compiler's output is printed); runs then take the "
+        "Python path (backend = \"auto\").",
+    )
+    nat.add_argument("--build", action="store_true",
+                     help="build now if needed, printing the compiler's command and output")  # fmt: skip
+    nat.set_defaults(func=cmd_native)
     return parser
+
+
+def cmd_native(args) -> int:
+    """``hmpc-pin native``: build the kernels if needed, print the module's path."""
+    from .. import native
+    from ..exceptions import NativeError
+
+    try:
+        path = native.build(verbose=args.build)
+        native.load()
+    except NativeError as exc:
+        print(f"native kernels: not available: {exc.reason}", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"native kernels: {path}")
+    return 0
 
 
 def _print_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -19,11 +19,12 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ..compensation.base import Compensation
+from .. import native
+from ..compensation.base import Compensation, NoCompensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import DimensionError, NonFiniteError
+from ..exceptions import DimensionError, NonFiniteError, SolverError
 from ..model.robot import Robot
-from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
+from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits, solver_settings
 from ..tasks.base import Reference, as_reference
 from .base import AppliedTorque
 
@@ -53,6 +54,9 @@ class MPCSettings:
         qp_layout: ``"auto"`` (``"block"`` up to n·Nc = 140 variables, ``"joint"`` above),
             ``"block"`` (one block-diagonal QP) or ``"joint"`` (one QP per joint);
             :func:`~hmpc_pin.mpc.condensed.resolve_layout`.
+        backend: ``"auto"`` (the native step, :mod:`hmpc_pin.native`, when it loads and
+            supports the controller: the NDO of Eq 13 or no compensation, no mimic joint),
+            ``"native"`` (an error otherwise) or ``"python"``.
     """
 
     Ts: float = 0.01
@@ -66,6 +70,7 @@ class MPCSettings:
     eps_abs: float = 1e-9
     max_iter: int = 1000
     qp_layout: str = "auto"
+    backend: str = "auto"
 
     def bounds(self, n: int) -> tuple[FloatArray, FloatArray]:
         """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints."""
@@ -222,6 +227,61 @@ class HierarchicalMPC(AppliedTorque):
         self.v = np.zeros(n)
         self.tau = np.zeros(n)
         self._started = False
+        self._core = None
+        if native.resolve_backend(settings.backend, "controller.backend",
+                                  self._native_unsupported()):  # fmt: skip
+            self._make_core(v_min, v_max)
+
+    @property
+    def native(self) -> bool:
+        """Whether :meth:`step` runs natively (:mod:`hmpc_pin.native`)."""
+        return self._core is not None
+
+    def _native_unsupported(self) -> str | None:
+        """Why this controller has no native step (``None``: it has one)."""
+        comp = self.compensation
+        if type(comp) not in (DisturbanceObserver, NoCompensation):
+            return f"the compensation {type(comp).__name__} (only the NDO of Eq 13 or none)"
+        if self.robot.mimic_joints:
+            return "mimic joints"
+        if self.qps.always_constrained:
+            return "always_constrained QPs"
+        return None
+
+    def _make_core(self, v_min: FloatArray, v_max: FloatArray) -> None:
+        """The native step, writing into buffers that this object exposes (``v``, ``tau``,
+        ``disturbance_estimate``, the observer's ``z``/``estimate``, the QPs' solution)."""
+        n, s, qps = self.n, self.settings, self.qps
+        comp = self.compensation
+        if isinstance(comp, DisturbanceObserver):
+            mode, cY = (1 if comp.discretization == "implicit" else 2), comp.cY
+        else:
+            mode, cY = 0, np.zeros((n, n))
+        self._buf = {name: np.zeros(n) for name in ("v", "tau", "d_hat", "z")}
+        cold = solver_settings(s.eps_abs, s.max_iter, warm=False)
+        cold["eps_rel"] = 0.0  # as JointQPs._solve_cold
+        for array in (qps.solution, qps.slack, self._stack):
+            if not (array.flags.c_contiguous and array.dtype == np.float64):
+                raise RuntimeError("native buffers must be C-contiguous float64")  # internal
+        core = native.load().HMPCCore(
+            self.robot.model.saveToString(), self._FT, s.N, s.Nc, qps.layout == "block",
+            self.mpc.H, v_min, v_max, solver_settings(s.eps_abs, s.max_iter), cold, mode,
+            cY, s.Ts, qps.solution, qps.slack, *self._buf.values(),
+        )  # fmt: skip
+        if qps.soft_qps:
+            core.set_limits(
+                self.mpc.Phi, self.mpc.Gamma, qps._lower, qps._upper, qps._vel, qps._Hs,
+                qps._C, qps._row_scale, float(qps._g_soft[0, s.Nc]), float(qps._k),
+                solver_settings(s.eps_abs, s.max_iter, warm=False),
+            )  # fmt: skip
+        self._core = core
+        self.effort_limit = self.effort_limit
+
+    @AppliedTorque.effort_limit.setter  # type: ignore[attr-defined]
+    def effort_limit(self, limit: FloatArray | None) -> None:
+        AppliedTorque.effort_limit.fset(self, limit)  # type: ignore[attr-defined]
+        if self._core is not None:
+            self._core.set_effort(np.full(self.n, np.inf) if limit is None else self._effort[1])
 
     def _raise_non_finite(self, t, q, dq, q_ref, dq_ref) -> None:
         """Name the first non-finite input (slow path); return if every input is finite."""
@@ -251,6 +311,14 @@ class HierarchicalMPC(AppliedTorque):
         self.v = np.zeros(self.n)
         self.tau = np.zeros(self.n)
         self._started = False
+        if self._core is not None:
+            comp, buf = self.compensation, self._buf
+            z0 = comp.z if isinstance(comp, DisturbanceObserver) else np.zeros(self.n)
+            self._core.reset(z0, comp.estimate)
+            # Updated in place by every native step from now on.
+            self.v, self.tau, self.disturbance_estimate = buf["v"], buf["tau"], buf["d_hat"]
+            if isinstance(comp, DisturbanceObserver):
+                comp.z, comp.estimate = buf["z"], buf["d_hat"]
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
         """Compute the torque for the measured state at time ``t``.
@@ -298,6 +366,12 @@ class HierarchicalMPC(AppliedTorque):
                 )
             self._stack_q_ref[:] = q_ref
             self._stack_dq_ref[:] = dq_ref
+        core = self._core
+        if core is not None:
+            code = core.step(self._stack)
+            if code:
+                self._native_failure(code, t, q, dq, q_ref, dq_ref)
+            return self.tau.copy()
         # One finiteness test covers q, q̇ and the whole reference horizon, before
         # anything is updated: a bad input changes no state.
         finite = np.isfinite(self._stack_flat, out=self._stack_finite)
@@ -321,3 +395,13 @@ class HierarchicalMPC(AppliedTorque):
         self.tau = tau
         self._started = True
         return tau.copy()
+
+    def _native_failure(self, code: int, t, q, dq, q_ref, dq_ref) -> None:
+        """Raise what the Python path raises for a native step's failure ``code``."""
+        core = self._core
+        if code == 1:  # an input is not finite; nothing was changed
+            self._raise_non_finite(t, q, dq, q_ref, dq_ref)
+        joint = core.fail_joint  # type: ignore[union-attr]
+        name = "all-joint block" if joint < 0 else self.robot.joint_names[joint]
+        raise SolverError(None if joint < 0 else joint, name,
+                          core.fail_status, core.fail_iter)  # type: ignore[union-attr]  # fmt: skip

@@ -35,7 +35,7 @@ from ..realtime.loop import LoopSettings
 from ..realtime.safety import SafeTorque, SafetySettings
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
 from ..sim.mujoco import MuJoCoPlant, MuJoCoSettings, Obstacle
-from ..sim.plants import PLANTS, Plant
+from ..sim.plants import PLANTS, Plant, RK4Plant
 from ..sim.result import Result
 from ..sim.simulate import simulate
 from ..tasks.base import Reference, check_limits
@@ -100,6 +100,7 @@ def mpc_settings(cc: ControllerConfig, n: int) -> MPCSettings:
         eps_abs=cc.eps_abs if cc.eps_abs is not None else 1e-9,
         max_iter=cc.max_iter if cc.max_iter is not None else 1000,
         qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
+        backend=cc.backend if cc.backend is not None else "auto",
     )  # fmt: skip
 
 
@@ -303,7 +304,7 @@ def with_controller(
         keep["computed_torque"] = replace(keep["computed_torque"], ki=None)
     hmpc_only = {
         name: (getattr(cc, name) if controller == "hmpc" else None)
-        for name in ("constraints", "eps_abs", "max_iter", "qp_layout")
+        for name in ("constraints", "eps_abs", "max_iter", "qp_layout", "backend")
     }
     new = replace(cc, kind=controller, compensation=comp, **keep, **hmpc_only)
     return (
@@ -591,7 +592,7 @@ class Experiment:
             MuJoCoPlant(plant, None, config.controller.Ts, pc.mujoco.timestep,
                         mujoco_settings(pc, n))  # fmt: skip
         else:
-            PLANTS[pc.integrator](plant, None, config.controller.Ts, pc.dt)  # checks dt | Ts
+            pinocchio_plant(pc, plant, None, config.controller.Ts)  # checks dt | Ts
         reference = build_reference(config, robot)
         q0 = (
             reference.sample(0.0)[0]
@@ -747,7 +748,14 @@ class Experiment:
                 self.plant, self.disturbance, Ts, pc.mujoco.timestep,
                 mujoco_settings(pc, self.robot.nq),
             )  # fmt: skip
-        return PLANTS[pc.integrator](self.plant, self.disturbance, Ts, pc.dt)
+        return pinocchio_plant(pc, self.plant, self.disturbance, Ts)
+
+
+def pinocchio_plant(pc: PlantConfig, robot: Robot, disturbance, Ts: float) -> Plant:
+    """The Pinocchio plant of ``[plant]`` (its integrator, step and backend) on ``robot``."""
+    if pc.integrator == "rk4":
+        return RK4Plant(robot, disturbance, Ts, pc.dt, backend=pc.backend)
+    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt)
 
 
 def make_arm_plant(config: ExperimentConfig) -> Plant:

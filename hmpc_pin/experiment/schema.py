@@ -26,6 +26,7 @@ import numpy as np
 
 from ..data import config_names, config_path
 from ..exceptions import ConfigError
+from ..native import BACKENDS
 from ..sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
 from ..sim.plants import PLANTS
 
@@ -138,6 +139,8 @@ def _set(obj, name: str, value) -> None:
 CONTROLLERS = ("hmpc", "computed-torque", "computed-torque-pid")
 #: Compensations (``[controller] compensation``): the disturbance estimate cancelled.
 COMPENSATIONS = ("chen", "general", "momentum", "ism", "ism-bl", "none")
+#: Compensations of the native step (``[controller] backend``, :mod:`hmpc_pin.native`).
+NATIVE_COMPENSATIONS = ("chen", "general", "none")
 #: Compensations that are observers (they use ``[controller.observer]``).
 OBSERVERS = ("chen", "general", "momentum")
 #: Controller names of version 0.1, each one controller × one compensation.
@@ -374,6 +377,9 @@ class ControllerConfig:
             ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
             QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per
             joint; fastest for long ones) (``hmpc``; :func:`hmpc_pin.mpc.condensed.resolve_layout`).
+        backend: ``"auto"`` (default: the native step when it builds here and supports the
+            compensation -- ``chen``, ``general`` or ``none`` -- else Python), ``"native"``
+            (an error otherwise) or ``"python"`` (``hmpc``; :mod:`hmpc_pin.native`).
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
     """
@@ -393,6 +399,7 @@ class ControllerConfig:
     eps_abs: float | None = None
     max_iter: int | None = None
     qp_layout: str | None = None
+    backend: str | None = None
     ism: ISMConfig | None = None
     computed_torque: ComputedTorqueConfig | None = None
 
@@ -516,7 +523,7 @@ class ControllerConfig:
                 raise ConfigError(
                     "computed_torque.ki", "applies only to kind = 'computed-torque-pid'"
                 )
-            for name in ("constraints", "eps_abs", "max_iter", "qp_layout"):
+            for name in ("constraints", "eps_abs", "max_iter", "qp_layout", "backend"):
                 if getattr(self, name) is not None:
                     self._not_applicable(name, controller, comp)
         else:
@@ -530,6 +537,13 @@ class ControllerConfig:
             _set(self, "max_iter", _int("max_iter", cap, minimum=1))
             layout = "auto" if self.qp_layout is None else self.qp_layout
             _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
+            backend = "auto" if self.backend is None else self.backend
+            _set(self, "backend", _choice("backend", backend, BACKENDS))
+            if self.backend == "native" and comp not in NATIVE_COMPENSATIONS:
+                raise ConfigError(
+                    "backend", f"'native' does not support compensation {comp!r} (only "
+                    f"{NATIVE_COMPENSATIONS}); use 'auto' or 'python'",
+                )  # fmt: skip
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)
@@ -714,6 +728,9 @@ class PlantConfig:
         effort_limit: Effort limits [N·m] overriding the URDF's (per joint or one value);
             ``None`` keeps the URDF's (a URDF value <= 0 means no limit).
         mujoco: :class:`MuJoCoConfig` (``engine = "mujoco"`` only).
+        backend: ``"auto"`` (default: the native RK4 period when it builds here and the
+            disturbance is made of the shipped terms, else Python), ``"native"`` or
+            ``"python"`` (``integrator = "rk4"`` only; :mod:`hmpc_pin.native`).
     """
 
     urdf: Path | None = None
@@ -724,6 +741,7 @@ class PlantConfig:
     effort_limit: np.ndarray | None = None
     engine: str = "pinocchio"
     mujoco: MuJoCoConfig | None = None
+    backend: str = "auto"
 
     def __post_init__(self):
         if self.urdf is not None:
@@ -742,6 +760,13 @@ class PlantConfig:
             _set(self, "mujoco", _section(MuJoCoConfig, self.mujoco, "mujoco"))
         elif self.mujoco is not None and not isinstance(self.mujoco, MuJoCoConfig):
             raise ConfigError("mujoco", f"expected a table, got {self.mujoco!r}")
+        _set(self, "backend", _choice("backend", self.backend, BACKENDS))
+        if self.backend != "auto" and (self.engine != "pinocchio" or self.integrator != "rk4"):
+            raise ConfigError(
+                "backend", f"does not apply to engine = {self.engine!r}, integrator = "
+                f"{self.integrator!r} (only the Pinocchio RK4 plant has a native path); "
+                "remove it",
+            )  # fmt: skip
         if self.engine == "pinocchio" and self.mujoco is not None:
             raise ConfigError("mujoco", "applies only to engine = 'mujoco'; remove the table "
                               "or set plant.engine = 'mujoco'")  # fmt: skip

@@ -67,7 +67,16 @@ from proxsuite import proxqp
 
 from ..exceptions import ConfigError, InterfaceError, SolverError
 
-__all__ = ["AUTO_BLOCK_MAX", "LAYOUTS", "CondensedMPC", "JointQPs", "StateLimits", "resolve_layout"]
+__all__ = [
+    "AUTO_BLOCK_MAX",
+    "LAYOUTS",
+    "CondensedMPC",
+    "JointQPs",
+    "StateLimits",
+    "qp_settings",
+    "resolve_layout",
+    "solver_settings",
+]
 
 #: Stand-in for an infinite row or box bound (finite, so that no inf reaches ProxSuite's
 #: residual and infeasibility arithmetic).
@@ -183,37 +192,50 @@ class StateLimits:
     slack_linear_weight: float = 1e4
 
 
-def _new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = True):
-    """A dense ProxSuite QP with this package's settings (set before ``init``).
+def qp_settings(warm: bool = True) -> dict:
+    """This package's ProxSuite settings, by attribute name (set before ``init``); the
+    native kernels (:mod:`hmpc_pin.native`) apply the same dict.
 
     ``warm=False`` (the soft state-constrained QPs) solves from scratch each time,
     without the duality-gap test.
     """
+    return {
+        # Settings must be set before init(): changing initial_guess after
+        # init() crashes proxsuite 0.8.0 (segfault, measured here).
+        "initial_guess": (
+            "WARM_START_WITH_PREVIOUS_RESULT" if warm else "NO_INITIAL_GUESS"
+        ),
+        # Soft QPs far outside the limits have slacks of 1e6 and more, where an absolute
+        # 1e-9 residual is below double precision: add a relative tolerance there.
+        "eps_rel": 0.0 if warm else 1e-12,
+        "verbose": False,
+        # Without the duality-gap test a warm-started solve can stop after 1-3
+        # iterations, reporting SOLVED at a feasible point that keeps a stale bound
+        # multiplier (measured here: v off by up to 1e-3 for Nc = 1, 1e-2 for Nc = 3).
+        "check_duality_gap": warm,
+        "eps_duality_gap_rel": 0.0,
+        # Every QP here is feasible by construction (box, or soft constraints with a free
+        # slack). ProxSuite's default infeasibility tolerance (1e-4) nevertheless declared
+        # soft-constrained QPs PRIMAL_INFEASIBLE after 2-3 iterations (measured here).
+        "eps_primal_inf": 1e-12,
+        "eps_dual_inf": 1e-12,
+    }
+
+
+def solver_settings(eps_abs: float, max_iter: int, warm: bool = True) -> dict:
+    """:func:`qp_settings` with the tolerance and the iteration cap of the controller."""
+    settings = qp_settings(warm)
+    settings.update(eps_abs=eps_abs, max_iter=max_iter, eps_duality_gap_abs=eps_abs)
+    return settings
+
+
+def _new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = True):
+    """A dense ProxSuite QP with :func:`solver_settings` (set before ``init``)."""
     qp = proxqp.dense.QP(nvar, 0, n_in, True)
-    # Settings must be set before init(): changing initial_guess after
-    # init() crashes proxsuite 0.8.0 (segfault, measured here).
-    qp.settings.initial_guess = (
-        proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-        if warm
-        else proxqp.InitialGuess.NO_INITIAL_GUESS
-    )
-    qp.settings.eps_abs = eps_abs
-    # Soft QPs far outside the limits have slacks of 1e6 and more, where an absolute
-    # 1e-9 residual is below double precision: add a relative tolerance there.
-    qp.settings.eps_rel = 0.0 if warm else 1e-12
-    qp.settings.max_iter = max_iter
-    qp.settings.verbose = False
-    # Without the duality-gap test a warm-started solve can stop after 1-3
-    # iterations, reporting SOLVED at a feasible point that keeps a stale bound
-    # multiplier (measured here: v off by up to 1e-3 for Nc = 1, 1e-2 for Nc = 3).
-    qp.settings.check_duality_gap = warm
-    qp.settings.eps_duality_gap_abs = eps_abs
-    qp.settings.eps_duality_gap_rel = 0.0
-    # Every QP here is feasible by construction (box, or soft constraints with a free
-    # slack). ProxSuite's default infeasibility tolerance (1e-4) nevertheless declared
-    # soft-constrained QPs PRIMAL_INFEASIBLE after 2-3 iterations (measured here).
-    qp.settings.eps_primal_inf = 1e-12
-    qp.settings.eps_dual_inf = 1e-12
+    for key, value in solver_settings(eps_abs, max_iter, warm).items():
+        if key == "initial_guess":
+            value = getattr(proxqp.InitialGuess, value)
+        setattr(qp.settings, key, value)
     return qp
 
 
@@ -381,6 +403,7 @@ class JointQPs:
         Hs = np.zeros((Nc + 1, Nc + 1))
         Hs[:Nc, :Nc] = mpc.H
         Hs[Nc, Nc] = 1.0
+        self._Hs, self._C = Hs, C  # (the native kernels build their soft QPs from them)
         self._g_soft = np.zeros((n, Nc + 1))
         self._g_soft[:, Nc] = limits.slack_linear_weight * mpc.scale * k
         inf = np.full(N, BIG)

@@ -46,6 +46,12 @@ written for few Python-level numpy calls, not for a different result:
 
 The results equal the plain loop (``q2 = q + h/2·dq`` …, ``aba(q, dq, tau + d(t, q, dq))``
 per stage) up to floating-point rounding (tested to 1e-12 on the paper scenario).
+
+Native backend (``backend``, :mod:`hmpc_pin.native`): with fused terms only and no mimic
+joint, the whole period -- the same stages, the same stage torques (time-only terms
+tabulated here, friction :math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)` per stage) and
+Pinocchio's ABA -- runs in one C++ call; it equals the Python loop up to rounding
+(``tests/native``).
 """
 
 from __future__ import annotations
@@ -53,6 +59,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import native
 from ..exceptions import ConfigError, DimensionError
 from ..model.robot import Robot
 from .base import Plant
@@ -131,11 +138,24 @@ class RK4Plant:
         disturbance: Callable ``d(t, q, dq) -> (n,)`` [N·m]; ``None`` for none.
         Ts: Control period [s] (the torque is held over it).
         dt: Integration step [s]; must divide ``Ts`` (default 1 ms).
+        backend: ``"auto"`` (the native period when it loads and the disturbance is made
+            of fused terms only, with no mimic joint), ``"native"`` (an error otherwise)
+            or ``"python"`` (:func:`hmpc_pin.native.resolve_backend`).
+
+    Attributes:
+        native: Whether the period runs natively.
     """
 
     name = "rk4"
 
-    def __init__(self, robot: Robot, disturbance=None, Ts: float = 0.01, dt: float = 0.001):
+    def __init__(
+        self,
+        robot: Robot,
+        disturbance=None,
+        Ts: float = 0.01,
+        dt: float = 0.001,
+        backend: str = "auto",
+    ):
         n = robot.nq
         substeps = _substeps(Ts, dt)
         self.nq = self.n = n
@@ -187,6 +207,20 @@ class RK4Plant:
             if friction is not None:
                 W[:, :n, :] = -np.diag(np.broadcast_to(friction[0], (n,)))
                 W[:, n : 2 * n, :] = -np.diag(np.broadcast_to(friction[1], (n,)))
+        unsupported = None
+        if self._split is None:
+            unsupported = ("a disturbance with terms other than time-only ones and one "
+                           "Coulomb-viscous friction (it is called in Python at every stage)")
+        elif robot.mimic_joints:
+            unsupported = "mimic joints (Pinocchio has no ABA for them)"
+        self.native = native.resolve_backend(backend, "plant.backend", unsupported)
+        if self.native:
+            self._kernel = native.load().RK4(robot.model.saveToString())
+            self._Tn = np.empty((3 * S, n))  # stage torques, C-contiguous
+            zero = np.zeros(n)
+            a, b = self._friction if self._friction is not None else (zero, zero)
+            self._ab = (np.broadcast_to(a, (n,)).astype(float),
+                        np.broadcast_to(b, (n,)).astype(float))  # fmt: skip
 
     def _stage_times(self, t: float) -> np.ndarray:
         """Stage times of the period starting at ``t``: blocks t_s, t_s + h/2, t_s + h."""
@@ -217,7 +251,9 @@ class RK4Plant:
         x[:n] = self.q
         x[n:] = self.dq
         times = self._stage_times(self.t)
-        if self._split is None:
+        if self.native:
+            self._advance_native(times, tau)
+        elif self._split is None:
             self._advance_generic(times, tau)
         else:
             self._advance_fused(times, tau)
@@ -225,6 +261,20 @@ class RK4Plant:
         self.t = self.t0 + self.Ts * self.k
         self.q, self.dq = x[:n].copy(), x[n:].copy()
         return self.q, self.dq
+
+    def _advance_native(self, times: np.ndarray, tau: np.ndarray) -> None:
+        """The period in one native call (:mod:`hmpc_pin.native`), the same stages."""
+        T = self._Tn
+        if self._pulses:
+            total = self._pulses[0].sample_times(times)
+            for term in self._pulses[1:]:
+                total = total + term.sample_times(times)
+            np.add(tau, total, T)
+        else:
+            T[:] = tau
+        n, x = self.n, self._x
+        a, b = self._ab
+        self._kernel.period(x[:n], x[n:], T, a, b, self._friction is not None, self.h)
 
     def _advance_fused(self, times: np.ndarray, tau: np.ndarray) -> None:
         """RK4 with the time-only terms tabulated and the friction fused (module doc)."""

@@ -60,7 +60,18 @@ class LayoutTiming:
 
 
 def record_gradients(ctrl: hmpc_pin.HierarchicalMPC, t, q, dq, reference) -> np.ndarray:
-    """The QP gradients (steps, n, Nc) that ``ctrl.step`` computes along the states."""
+    """The QP gradients (steps, n, Nc) that ``ctrl.step`` computes along the states (for a
+    native controller, those of its Python twin: the same gradients up to rounding)."""
+    if getattr(ctrl, "native", False):
+        from dataclasses import replace
+
+        comp = ctrl.compensation
+        if isinstance(comp, hmpc_pin.DisturbanceObserver):
+            comp = hmpc_pin.DisturbanceObserver(comp.n, comp.Ts, comp.gain, comp.kind,
+                                                comp.discretization)  # fmt: skip
+        twin = hmpc_pin.HierarchicalMPC(ctrl.robot, replace(ctrl.settings, backend="python"),
+                                        comp, ctrl.limits)  # fmt: skip
+        return record_gradients(twin, t, q, dq, reference)
     grads = []
     solve = ctrl.qps.solve
 

@@ -14,6 +14,11 @@ them and prints, per config and array, the largest difference divided by max(1, 
 array's largest magnitude); exit 1 if any exceeds ``--tol`` (default 1e-9: the solver's
 ``eps_abs``) or a run's completion changed. This is the one place saved outputs are
 used: tests compare against independent computations instead.
+
+``--backend python|native`` (``compare``, code with ``hmpc_pin.native``) runs every config
+with that ``backend`` in ``[controller]`` and ``[plant]`` where it applies: the Python path
+must stay bit-identical to code from before the native kernels, the native one within
+``--tol``.
 """
 
 from __future__ import annotations
@@ -39,9 +44,26 @@ CONFIGS = sorted((ROOT / "hmpc_pin" / "data" / "configs").glob("*.toml"))
 SWEEP_SAMPLES = 4
 
 
+BACKEND: str | None = None
+
+
+def with_backend(config):
+    """``config`` with :data:`BACKEND` where it applies (hmpc controller, RK4 plant)."""
+    if BACKEND is None:
+        return config
+    from dataclasses import replace
+
+    cc, pc = config.controller, config.plant
+    if cc.kind == "hmpc":
+        cc = replace(cc, backend=BACKEND)
+    if pc.engine == "pinocchio" and pc.integrator == "rk4":
+        pc = replace(pc, backend=BACKEND)
+    return replace(config, controller=cc, plant=pc)
+
+
 def run_config(path: Path) -> dict[str, np.ndarray]:
     """The result arrays of one config's run (a run that stops keeps its partial result)."""
-    experiment = Experiment.from_config(load_config(path))
+    experiment = Experiment.from_config(with_backend(load_config(path)))
     try:
         result = experiment.run()
     except SimulationError as exc:
@@ -53,7 +75,7 @@ def run_config(path: Path) -> dict[str, np.ndarray]:
 
 def run_sweep_rows() -> list[dict]:
     """Rows of a short sweep of the paper's combined scenario (both variants)."""
-    config = load_config(ROOT / "configs" / "paper_combined.toml")
+    config = with_backend(load_config(ROOT / "configs" / "paper_combined.toml"))
     return run_sweep(config, SWEEP_SAMPLES, 0, jobs=1, progress=False).rows
 
 
@@ -110,7 +132,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("action", choices=("record", "compare"))
     parser.add_argument("folder", type=Path)
     parser.add_argument("--tol", type=float, default=1e-9)
+    parser.add_argument("--backend", choices=("python", "native", "auto"))
     args = parser.parse_args(argv)
+    global BACKEND
+    BACKEND = args.backend
     if args.action == "record":
         return record(args.folder)
     return compare(args.folder, args.tol)

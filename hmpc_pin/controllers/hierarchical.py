@@ -176,7 +176,7 @@ class HierarchicalMPC(AppliedTorque):
         self.settings = settings = settings if settings is not None else MPCSettings()
         n = robot.nq
         self.n = n
-        self.compensation: Compensation = (
+        self.compensation = (
             compensation
             if compensation is not None
             else DisturbanceObserver(n, settings.Ts, 100.0, "chen", "implicit")
@@ -228,9 +228,26 @@ class HierarchicalMPC(AppliedTorque):
         self.tau = np.zeros(n)
         self._started = False
         self._core = None
-        if native.resolve_backend(settings.backend, "controller.backend",
+        self._choose_path()
+
+    @property
+    def compensation(self) -> Compensation:
+        """The disturbance compensation; setting it (e.g. behind a
+        :class:`~hmpc_pin.compensation.gate.FeedbackGate`) chooses the step's path again."""
+        return self._compensation
+
+    @compensation.setter
+    def compensation(self, comp: Compensation) -> None:
+        self._compensation = comp
+        if hasattr(self, "_core"):
+            self._choose_path()
+
+    def _choose_path(self) -> None:
+        """The native step if ``settings.backend`` and the compensation allow it."""
+        self._core = None
+        if native.resolve_backend(self.settings.backend, "controller.backend",
                                   self._native_unsupported()):  # fmt: skip
-            self._make_core(v_min, v_max)
+            self._make_core(*self.settings.bounds(self.n))
 
     @property
     def native(self) -> bool:
@@ -264,7 +281,7 @@ class HierarchicalMPC(AppliedTorque):
             if not (array.flags.c_contiguous and array.dtype == np.float64):
                 raise RuntimeError("native buffers must be C-contiguous float64")  # internal
         core = native.load().HMPCCore(
-            self.robot.model.saveToString(), self._FT, s.N, s.Nc, qps.layout == "block",
+            native.model_string(self.robot), self._FT, s.N, s.Nc, qps.layout == "block",
             self.mpc.H, v_min, v_max, solver_settings(s.eps_abs, s.max_iter), cold, mode,
             cY, s.Ts, qps.solution, qps.slack, *self._buf.values(),
         )  # fmt: skip

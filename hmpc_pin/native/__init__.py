@@ -39,7 +39,15 @@ from types import ModuleType
 
 from ..exceptions import ConfigError, NativeError, PerformanceWarning
 
-__all__ = ["BACKENDS", "available", "build", "cache_dir", "load", "resolve_backend"]
+__all__ = [
+    "BACKENDS",
+    "available",
+    "build",
+    "cache_dir",
+    "load",
+    "model_string",
+    "resolve_backend",
+]
 
 #: The values of ``backend`` (``[controller]``, ``[plant]``).
 BACKENDS = ("auto", "native", "python")
@@ -196,6 +204,19 @@ def load() -> ModuleType:
         raise _error from exc
     _module = module
     return module
+
+
+def model_string(robot) -> str:
+    """The serialized Pinocchio model of ``robot`` that the kernels load.
+
+    Raises:
+        ConfigError: The model has mimic joints (Pinocchio 4.1 restores them badly from a
+            serialized model, and has no ABA for them): such a robot runs in Python.
+    """
+    if getattr(robot, "mimic_joints", None):
+        raise ConfigError("backend", f"the native kernels do not support mimic joints "
+                          f"({', '.join(robot.mimic_joints)}); use backend = \"python\"")  # fmt: skip
+    return robot.model.saveToString()
 
 
 def available() -> bool:

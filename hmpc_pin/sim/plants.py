@@ -69,6 +69,9 @@ __all__ = ["PLANTS", "EulerPlant", "Plant", "RK4Plant", "split_disturbance"]
 
 FloatArray = NDArray[np.float64]
 
+#: Periods whose time-only terms :class:`RK4Plant` tabulates in one call per term.
+PULSE_CHUNK = 64
+
 
 def _substeps(Ts: float, dt: float) -> int:
     substeps = round(Ts / dt)
@@ -168,6 +171,7 @@ class RK4Plant:
         self.substeps = substeps
         self.t0, self.k, self.t = 0.0, 0, 0.0
         self.q, self.dq = np.zeros(n), np.zeros(n)
+        self._chunk_k, self._chunk = 0, np.empty((0, 3 * substeps, n))
         self._split = split_disturbance(disturbance, n)
         # Stage rows [q_j | dq_j | ddq_j | 1]; row 0 holds the current state.
         self._B = B = np.zeros((4, 3 * n + 1))
@@ -215,7 +219,7 @@ class RK4Plant:
             unsupported = "mimic joints (Pinocchio has no ABA for them)"
         self.native = native.resolve_backend(backend, "plant.backend", unsupported)
         if self.native:
-            self._kernel = native.load().RK4(robot.model.saveToString())
+            self._kernel = native.load().RK4(native.model_string(robot))
             self._Tn = np.empty((3 * S, n))  # stage torques, C-contiguous
             zero = np.zeros(n)
             a, b = self._friction if self._friction is not None else (zero, zero)
@@ -239,10 +243,37 @@ class RK4Plant:
                 f"plant state of shapes {self.q.shape}, {self.dq.shape}; expected ({self.n},)"
             )
         self.t0, self.k, self.t = float(t0), 0, float(t0)
+        self._chunk_k, self._chunk = 0, np.empty((0, 3 * self.substeps, self.n))
 
     def disturbance_now(self) -> FloatArray:
         """:math:`d(t, q, \\dot q)` [N·m] at the current time and state."""
-        return self.disturbance(self.t, self.q, self.dq)
+        if not self.native:
+            return self.disturbance(self.t, self.q, self.dq)
+        # The fused terms: the time-only ones from the table (stage 0 of the period is t
+        # itself), the friction here (the same terms as d(t, q, dq), summed in another order).
+        dq = self.dq
+        d = self._pulses_at(self.k)[0].copy() if self._pulses else np.zeros(self.n)
+        if self._friction is not None:
+            a, b = self._ab
+            d -= a * dq + b * np.sign(dq)
+        return d
+
+    def _pulses_at(self, k: int) -> np.ndarray:
+        """The time-only terms at the stage times of period ``k`` (rows as ``_times``),
+        tabulated :data:`PULSE_CHUNK` periods per call of each term: the same stage times,
+        computed the same way as :meth:`_stage_times` (``t = t0 + Ts·k``), so the same values."""
+        j = k - self._chunk_k
+        chunk = self._chunk
+        if 0 <= j < chunk.shape[0]:
+            return chunk[j]
+        t = self.t0 + self.Ts * np.arange(k, k + PULSE_CHUNK)
+        t_s = np.add.outer(t, self._s_h)
+        times = np.concatenate([t_s, t_s + self._half, t_s + self.h], axis=1).ravel()
+        total = self._pulses[0].sample_times(times)
+        for term in self._pulses[1:]:
+            total = total + term.sample_times(times)
+        self._chunk_k, self._chunk = k, total.reshape(PULSE_CHUNK, 3 * self.substeps, self.n)
+        return self._chunk[0]
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
@@ -250,40 +281,33 @@ class RK4Plant:
         x = self._x
         x[:n] = self.q
         x[n:] = self.dq
-        times = self._stage_times(self.t)
         if self.native:
-            self._advance_native(times, tau)
+            self._advance_native(tau)
         elif self._split is None:
-            self._advance_generic(times, tau)
+            self._advance_generic(self._stage_times(self.t), tau)
         else:
-            self._advance_fused(times, tau)
+            self._advance_fused(tau)
         self.k += 1
         self.t = self.t0 + self.Ts * self.k
         self.q, self.dq = x[:n].copy(), x[n:].copy()
         return self.q, self.dq
 
-    def _advance_native(self, times: np.ndarray, tau: np.ndarray) -> None:
+    def _advance_native(self, tau: np.ndarray) -> None:
         """The period in one native call (:mod:`hmpc_pin.native`), the same stages."""
         T = self._Tn
         if self._pulses:
-            total = self._pulses[0].sample_times(times)
-            for term in self._pulses[1:]:
-                total = total + term.sample_times(times)
-            np.add(tau, total, T)
+            np.add(tau, self._pulses_at(self.k), T)
         else:
             T[:] = tau
         n, x = self.n, self._x
         a, b = self._ab
         self._kernel.period(x[:n], x[n:], T, a, b, self._friction is not None, self.h)
 
-    def _advance_fused(self, times: np.ndarray, tau: np.ndarray) -> None:
+    def _advance_fused(self, tau: np.ndarray) -> None:
         """RK4 with the time-only terms tabulated and the friction fused (module doc)."""
         if self._pulses:
-            # Time-only terms at all stage times of the period, one call each.
-            total = self._pulses[0].sample_times(times)
-            for term in self._pulses[1:]:
-                total = total + term.sample_times(times)
-            np.add(tau, total, self._T)
+            # Time-only terms at all stage times of the period (tabulated per chunk).
+            np.add(tau, self._pulses_at(self.k), self._T)
         else:
             self._T[:] = tau
         model, data, aba = self.model, self.data, self.robot.aba
@@ -365,6 +389,7 @@ class EulerPlant:
     """
 
     name = "euler"
+    native = False
 
     def __init__(self, robot: Robot, disturbance=None, Ts: float = 0.01, dt: float = 0.001):
         self.nq = self.n = robot.nq

@@ -1,0 +1,270 @@
+"""The native kernels (hmpc_pin.native) against the Python path and Pinocchio's Python API.
+
+Every comparison is with an independent evaluation: Pinocchio's own Python bindings for the
+dynamics, the Python RK4 loop for the plant, the Python controller (numpy + ProxSuite's
+Python QP) for the step. Tolerances: rounding (1e-12 relative) where both sides run the same
+arithmetic; the solver's tolerance where a QP is solved (ProxSuite eps_abs = 1e-9 on the
+scaled QP, whose Hessian is ~1: |Δv| ≲ 1e-9 rad/s², a torque difference ≲ |M|·1e-9 ≈ 1e-8 N·m,
+5e-8 allowed).
+
+Without a compiler these tests are skipped, unless ``HMPC_PIN_REQUIRE_NATIVE=1`` (``make
+test`` sets it) makes a missing native module a failure.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import hmpc_pin
+from hmpc_pin import native
+from hmpc_pin.sim.plants import RK4Plant
+
+from .conftest import CONFIGS, PLANAR3, ROOT
+
+if not native.available():  # pragma: no cover - depends on the machine
+    if os.environ.get("HMPC_PIN_REQUIRE_NATIVE") == "1":
+        raise RuntimeError(f"HMPC_PIN_REQUIRE_NATIVE=1 but: {native._error}")
+    pytest.skip(f"native kernels unavailable: {native._error}", allow_module_level=True)
+
+TAU_TOL = 5e-8  # [N·m], the QP tolerance through M (module docstring)
+
+
+def _arm(name):
+    if name == "planar3":
+        return hmpc_pin.load_robot(PLANAR3)
+    if name == "panda":  # the fingers locked: a mimic joint has no native path
+        return hmpc_pin.load_robot(name, locked_joints={"panda_finger_joint1": 0.0,
+                                                         "panda_finger_joint2": 0.0})  # fmt: skip
+    return hmpc_pin.load_robot(name)
+
+
+@pytest.mark.parametrize("name", ["planar3", "ur5", "panda"])
+def test_dynamics_equal_pinocchio_python(name, make_rng):
+    """CRBA (both triangles), RNEA's C·q̇ + G and ABA equal Pinocchio's Python API."""
+    robot = _arm(name)
+    kernel = native.load().RK4(native.model_string(robot))
+    model, data = robot.model, robot.model.createData()
+    rng = make_rng(1)
+    for _ in range(5):
+        q = rng.uniform(-2, 2, robot.nq)
+        v, tau = rng.normal(size=robot.nq), rng.normal(size=robot.nq) * 10
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        np.testing.assert_allclose(kernel.mass_matrix(q), M, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(kernel.nle(q, v), pin.nonLinearEffects(model, data, q, v),
+                                   rtol=1e-12, atol=1e-12)  # fmt: skip
+        np.testing.assert_allclose(kernel.aba(q, v, tau), pin.aba(model, data, q, v, tau),
+                                   rtol=1e-10, atol=1e-10)  # fmt: skip
+
+
+def _paper_disturbance():
+    return hmpc_pin.CoulombViscousFriction([10, 8, 5], [3, 2.4, 1.8]) + hmpc_pin.GaussianPulse(
+        [10, 8, 0.3], [0.05, 0.1, 0.15], 0.03
+    )
+
+
+@pytest.mark.parametrize("disturbance", ["none", "friction+pulse", "pulse"])
+def test_rk4_period_equals_the_python_loop(planar3, disturbance):
+    """The same stages and stage torques: equal to rounding over 300 periods (3 s),
+    through the pulses (centred in the run) and across velocity sign changes (friction)."""
+    d = {
+        "none": None,
+        "friction+pulse": _paper_disturbance(),
+        "pulse": hmpc_pin.GaussianPulse([10, 8, 0.3], [0.05, 0.1, 0.15], 0.03),
+    }[disturbance]
+    plants = [RK4Plant(planar3.copy(), d, 0.01, 0.001, backend=b) for b in ("python", "native")]
+    assert [p.native for p in plants] == [False, True]
+    q0, dq0 = np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1])
+    for p in plants:
+        p.reset(q0, dq0)
+    signs = set()
+    for k in range(300):
+        tau = np.array([5.0, 2.0, 1.0]) * np.sin(0.07 * k)
+        a, b = (p.advance(tau) for p in plants)
+        signs.add(tuple(np.sign(a[1])))
+        np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(b[1], a[1], rtol=0, atol=1e-11)
+        np.testing.assert_allclose(plants[1].disturbance_now(), plants[0].disturbance_now(),
+                                   rtol=0, atol=1e-12)  # fmt: skip
+    assert len(signs) > 2  # the friction's sign switched along the way
+
+
+def _experiment(path, backend, **changes):
+    config = hmpc_pin.load_config(path)
+    cc = replace(config.controller, backend=backend, **changes)
+    pc = replace(config.plant, backend=backend)
+    return hmpc_pin.Experiment.from_config(replace(config, controller=cc, plant=pc))
+
+
+@pytest.mark.parametrize(
+    "config, changes",
+    [
+        ("paper_combined", {}),
+        ("paper_combined", {"compensation": "none", "observer": None}),
+        ("paper_combined", {"compensation": "general"}),
+        ("paper_combined", {"Nc": 4, "qp_layout": "joint"}),
+        ("paper_combined", {"Nc": 4, "qp_layout": "block"}),
+        ("panda_sine", {}),
+    ],
+)
+def test_closed_loop_equals_the_python_path(config, changes):
+    """Whole runs (2 s; the paper's friction + pulses) with both backends: the same
+    trajectories to the solver's tolerance."""
+    runs = {}
+    for backend in ("python", "native"):
+        ex = _experiment(CONFIGS / f"{config}.toml", backend, **changes)
+        assert ex.controller.native is (backend == "native")
+        ex.config = replace(ex.config, simulation=replace(ex.config.simulation, duration=2.0))
+        runs[backend] = ex.run()
+    a, b = runs["python"], runs["native"]
+    assert a.complete and b.complete
+    np.testing.assert_allclose(b.tau, a.tau, rtol=0, atol=TAU_TOL)
+    np.testing.assert_allclose(b.q, a.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.d_hat, a.d_hat, rtol=0, atol=TAU_TOL)
+    np.testing.assert_allclose(b.d, a.d, rtol=0, atol=1e-9)
+
+
+def _limit_case(planar3, backend, layout="block", Nc=1):
+    """A reference that drives joint 1 through its upper limit (soft limits active)."""
+    settings = hmpc_pin.MPCSettings(Nc=Nc, qp_layout=layout, backend=backend)
+    return hmpc_pin.HierarchicalMPC(planar3, settings)
+
+
+@pytest.mark.parametrize("layout, Nc", [("block", 1), ("joint", 3)])
+def test_soft_joint_limits_equal_the_python_path(planar3, layout, Nc):
+    """Steps whose box-only prediction leaves the position limits: the soft QPs are solved
+    (constrained joints and slacks as the Python path) and the torques agree."""
+    ctrls = {b: _limit_case(planar3, b, layout, Nc) for b in ("python", "native")}
+    upper = planar3.upper[0]
+    ref = hmpc_pin.SineReference(3, amplitude=[upper + 0.5, 0.2, 0.2], frequency=0.5)
+    q, dq = np.array([upper - 0.05, 0.0, 0.0]), np.array([2.0, 0.0, 0.0])
+    for c in ctrls.values():
+        c.reset(q, dq)
+    active = 0
+    for k in range(40):
+        t = 0.01 * k
+        qk, dqk = q + dq * t * (0.98**k), dq * (0.98**k)
+        ta = ctrls["python"].step(t, qk, dqk, ref)
+        tb = ctrls["native"].step(t, qk, dqk, ref)
+        np.testing.assert_allclose(tb, ta, rtol=0, atol=TAU_TOL)
+        np.testing.assert_allclose(ctrls["native"].qps.slack, ctrls["python"].qps.slack,
+                                   atol=1e-7)  # fmt: skip
+        active += ctrls["python"].qps.constrained
+    assert active > 5  # the soft QPs were really exercised
+
+
+def test_step_failures_raise_what_the_python_path_raises(planar3):
+    """A non-finite input (no state changed) and an unsolved QP (max_iter = 1)."""
+    ref = hmpc_pin.SineReference(3)
+    q0, dq0 = ref.sample(0.0)
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend="native"))
+    ctrl.reset(q0, dq0)
+    tau0 = ctrl.step(0.0, q0, dq0, ref)
+    with pytest.raises(hmpc_pin.NonFiniteError, match="dq"):
+        ctrl.step(0.01, q0, np.array([0.0, np.nan, 0.0]), ref)
+    np.testing.assert_allclose(ctrl.tau, tau0)  # unchanged
+    errors = {}
+    for backend in ("python", "native"):
+        c = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend=backend, max_iter=1))
+        c.reset(q0, dq0)
+        with pytest.raises(hmpc_pin.SolverError) as info:
+            for k in range(50):
+                c.step(0.01 * k, q0 + 0.3, dq0 - 1.0, ref)
+        errors[backend] = (info.value.joint, info.value.status)
+    assert errors["native"] == errors["python"]
+
+
+def test_a_model_with_mimic_joints_has_no_native_path():
+    robot = hmpc_pin.load_robot("panda")  # finger joint 2 mimics joint 1
+    assert robot.mimic_joints
+    with pytest.raises(hmpc_pin.ConfigError, match="mimic"):
+        native.model_string(robot)
+    with pytest.raises(hmpc_pin.ConfigError, match="mimic"):
+        RK4Plant(robot, None, 0.01, 0.001, backend="native")
+    assert not RK4Plant(robot, None, 0.01, 0.001).native
+    assert not hmpc_pin.HierarchicalMPC(robot).native
+
+
+def test_native_buffers_are_the_objects_the_controller_exposes(planar3):
+    """disturbance_estimate, the observer's estimate and the QPs' solution are updated in
+    place by the native step (the Python attributes stay true)."""
+    ref = hmpc_pin.SineReference(3)
+    q0, dq0 = ref.sample(0.0)
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend="native"))
+    ctrl.reset(q0, dq0)
+    for k in range(30):
+        tau = ctrl.step(0.01 * k, q0, dq0 + 0.1, ref)
+    comp = ctrl.compensation
+    assert comp.estimate is ctrl.disturbance_estimate
+    np.testing.assert_array_equal(comp.estimate, comp.z + comp.p(dq0 + 0.1))
+    M = planar3.mass_matrix(q0)
+    nle = planar3.nonlinear_effects(q0, dq0 + 0.1)
+    np.testing.assert_allclose(tau, M @ ctrl.v + nle - ctrl.disturbance_estimate, atol=1e-10)
+    np.testing.assert_array_equal(ctrl.v, ctrl.qps.solution[0])
+
+
+def test_backend_options_are_validated(write_config):
+    base = (
+        '[robot]\nurdf = "@URDF@"\n[reference]\namplitude = 1.0\n[controller]\n{c}\n'
+        "[plant]\n{p}\n"
+    )
+    with pytest.raises(hmpc_pin.ConfigError, match="backend"):
+        hmpc_pin.load_config(write_config(base.format(c='backend = "fast"', p="")))
+    with pytest.raises(hmpc_pin.ConfigError, match="backend.*does not apply"):
+        hmpc_pin.load_config(write_config(base.format(c="", p='integrator = "euler"\n'
+                                                            'backend = "native"')))  # fmt: skip
+    with pytest.raises(hmpc_pin.ConfigError, match="momentum"):
+        hmpc_pin.load_config(write_config(base.format(
+            c='compensation = "momentum"\nbackend = "native"', p="")))  # fmt: skip
+    with pytest.raises(hmpc_pin.ConfigError, match="backend"):
+        hmpc_pin.load_config(write_config(base.format(
+            c='kind = "computed-torque"\nbackend = "python"', p="")))  # fmt: skip
+    # auto with an unsupported compensation: the Python path, no error, no warning
+    cfg = hmpc_pin.load_config(write_config(base.format(c='compensation = "momentum"', p="")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ex = hmpc_pin.Experiment.from_config(cfg)
+    assert not ex.controller.native
+
+
+def test_without_a_compiler_auto_warns_once_and_native_is_an_error(tmp_path):
+    """A fresh cache and no compiler: ``auto`` runs the Python path with one
+    PerformanceWarning naming the reason; ``native`` is a NativeError saying what to do."""
+    code = """
+import warnings, numpy as np, hmpc_pin
+robot = hmpc_pin.load_robot(%r)
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    a = hmpc_pin.HierarchicalMPC(robot)
+    b = hmpc_pin.HierarchicalMPC(robot)
+perf = [w for w in caught if issubclass(w.category, hmpc_pin.PerformanceWarning)]
+print("native", a.native, b.native, "warnings", len(perf))
+print(perf[0].message)
+try:
+    hmpc_pin.HierarchicalMPC(robot, hmpc_pin.MPCSettings(backend="native"))
+except hmpc_pin.NativeError as exc:
+    print("error:", exc)
+""" % str(PLANAR3)
+    env = dict(os.environ, HMPC_PIN_CACHE=str(tmp_path), CXX="/nonexistent/c++", PATH="/nonexistent")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         cwd=ROOT, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == "native False False warnings 1"
+    assert "no C++ compiler" in lines[1]
+    assert lines[2].startswith("error:") and 'backend = "python"' in lines[2]
+
+
+def test_cli_native_prints_the_module(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "hmpc_pin", "native"], capture_output=True,
+                         text=True, cwd=ROOT, timeout=600)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("native kernels: ") and out.stdout.strip().endswith(".so")

@@ -213,12 +213,11 @@ def test_native_buffers_are_the_objects_the_controller_exposes(planar3):
 
 def test_backend_options_are_validated(write_config):
     base = (
-        '[robot]\nurdf = "@URDF@"\n[reference]\namplitude = 1.0\n[controller]\n{c}\n'
-        "[plant]\n{p}\n"
+        '[robot]\nurdf = "@URDF@"\n[reference]\namplitude = 1.0\n[controller]\n{c}\n[plant]\n{p}\n'
     )
     with pytest.raises(hmpc_pin.ConfigError, match="backend"):
         hmpc_pin.load_config(write_config(base.format(c='backend = "fast"', p="")))
-    with pytest.raises(hmpc_pin.ConfigError, match="backend.*does not apply"):
+    with pytest.raises(hmpc_pin.ConfigError, match=r"backend.*does not apply"):
         hmpc_pin.load_config(write_config(base.format(c="", p='integrator = "euler"\n'
                                                             'backend = "native"')))  # fmt: skip
     with pytest.raises(hmpc_pin.ConfigError, match="momentum"):
@@ -240,7 +239,7 @@ def test_without_a_compiler_auto_warns_once_and_native_is_an_error(tmp_path):
     PerformanceWarning naming the reason; ``native`` is a NativeError saying what to do."""
     code = """
 import warnings, numpy as np, hmpc_pin
-robot = hmpc_pin.load_robot(%r)
+robot = hmpc_pin.load_robot(PATH)
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     a = hmpc_pin.HierarchicalMPC(robot)
@@ -252,8 +251,10 @@ try:
     hmpc_pin.HierarchicalMPC(robot, hmpc_pin.MPCSettings(backend="native"))
 except hmpc_pin.NativeError as exc:
     print("error:", exc)
-""" % str(PLANAR3)
-    env = dict(os.environ, HMPC_PIN_CACHE=str(tmp_path), CXX="/nonexistent/c++", PATH="/nonexistent")
+""".replace("PATH", repr(str(PLANAR3)))
+    env = dict(
+        os.environ, HMPC_PIN_CACHE=str(tmp_path), CXX="/nonexistent/c++", PATH="/nonexistent"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                          cwd=ROOT, timeout=120)  # fmt: skip
     assert out.returncode == 0, out.stderr

@@ -567,8 +567,10 @@ def build_parser() -> argparse.ArgumentParser:
         "if it cannot be built (the compiler's output is printed); runs then take the "
         "Python path (backend = \"auto\").",
     )
-    nat.add_argument("--build", action="store_true",
-                     help="build now if needed, printing the compiler's command and output")  # fmt: skip
+    nat.add_argument(
+        "--build", action="store_true",
+        help="build now if needed, printing the compiler's command and output",
+    )  # fmt: skip
     nat.set_defaults(func=cmd_native)
     return parser
 

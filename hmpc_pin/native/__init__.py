@@ -214,8 +214,11 @@ def model_string(robot) -> str:
             serialized model, and has no ABA for them): such a robot runs in Python.
     """
     if getattr(robot, "mimic_joints", None):
-        raise ConfigError("backend", f"the native kernels do not support mimic joints "
-                          f"({', '.join(robot.mimic_joints)}); use backend = \"python\"")  # fmt: skip
+        names = ", ".join(robot.mimic_joints)
+        raise ConfigError(
+            "backend",
+            f'the native kernels do not support mimic joints ({names}); use backend = "python"',
+        )
     return robot.model.saveToString()
 
 
@@ -259,7 +262,9 @@ def resolve_backend(backend: str, key: str, unsupported: str | None = None) -> b
     except NativeError as exc:
         if not _warned:
             _warned = True
-            warnings.warn(f"{exc.reason}; running the slower Python path (set backend = "
-                          '"python" to silence this)', PerformanceWarning, stacklevel=3)  # fmt: skip
+            warnings.warn(
+                f'{exc.reason}; running the slower Python path (set backend = "python" '
+                "to silence this)", PerformanceWarning, stacklevel=3,
+            )  # fmt: skip
         return False
     return True

@@ -210,13 +210,23 @@ def test_compensation_conformance(robot, name):
 
 
 PLANTS = {"rk4": RK4Plant, "euler": EulerPlant, "mujoco": MuJoCoPlant}
+#: Variants run by the conformance test: each plant, and the RK4 plant on each backend.
+PLANT_VARIANTS = {
+    "rk4-python": lambda *a: RK4Plant(*a, backend="python"),
+    "rk4-native": lambda *a: RK4Plant(*a, backend="native"),
+    "euler": EulerPlant,
+    "mujoco": MuJoCoPlant,
+}
 
 
-@pytest.mark.parametrize("name", sorted(PLANTS))
+@pytest.mark.parametrize("name", sorted(PLANT_VARIANTS))
 def test_plant_conformance(robot, name):
-    plant = PLANTS[name](robot.copy(), None, 0.01, 0.001)
+    if name == "rk4-native" and not hmpc_pin.native.available():
+        pytest.skip("native kernels unavailable here (tests/test_native.py says why)")
+    kind = name.split("-")[0]
+    plant = PLANT_VARIANTS[name](robot.copy(), None, 0.01, 0.001)
     assert isinstance(plant, Plant)
-    assert hmpc_pin.sim.PLANTS[name] is PLANTS[name]
+    assert hmpc_pin.sim.PLANTS[kind] is PLANTS[kind]
     q0 = np.array([0.3, -0.4, 0.2])
     plant.reset(q0, np.zeros(3), t0=1.0)
     G = robot.gravity_torque(q0)
@@ -227,7 +237,7 @@ def test_plant_conformance(robot, name):
     np.testing.assert_allclose(q, q0, atol=1e-9)
     np.testing.assert_allclose(dq, 0.0, atol=1e-9)
     d = hmpc_pin.CoulombViscousFriction([1.0, 1.0, 1.0], [0.1, 0.1, 0.1])
-    plant = PLANTS[name](robot.copy(), d, 0.01, 0.001)
+    plant = PLANT_VARIANTS[name](robot.copy(), d, 0.01, 0.001)
     plant.reset(q0, np.array([0.5, -0.5, 1.0]))
     np.testing.assert_allclose(plant.disturbance_now(), d(0.0, q0, np.array([0.5, -0.5, 1.0])))
 
@@ -245,6 +255,12 @@ def test_simulate_drives_a_plant_object_and_rejects_options_it_does_not_take(rob
 
 CONTROLLERS = {
     "hmpc+chen": lambda r: hmpc_pin.make_controller(r),
+    "hmpc+chen-python": lambda r: hmpc_pin.make_controller(
+        r, hmpc_pin.ControllerConfig(backend="python")
+    ),
+    "hmpc+chen-native": lambda r: hmpc_pin.make_controller(
+        r, hmpc_pin.ControllerConfig(backend="native")
+    ),
     "hmpc+none": lambda r: hmpc_pin.make_controller(
         r, hmpc_pin.ControllerConfig(compensation="none")
     ),
@@ -259,6 +275,8 @@ CONTROLLERS = {
 
 @pytest.mark.parametrize("name", sorted(CONTROLLERS))
 def test_controller_conformance(robot, name):
+    if name.endswith("-native") and not hmpc_pin.native.available():
+        pytest.skip("native kernels unavailable here (tests/test_native.py says why)")
     ctrl = CONTROLLERS[name](robot)
     assert isinstance(ctrl, Controller)
     assert ctrl.Ts == 0.01

@@ -19,12 +19,13 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from .. import native
 from ..compensation.base import Compensation, NoCompensation
 from ..compensation.observers import DisturbanceObserver
 from ..exceptions import DimensionError, NonFiniteError, SolverError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits, solver_settings
+from ..native import load as load_native
+from ..native import model_string, resolve_backend
 from ..tasks.base import Reference, as_reference
 from .base import AppliedTorque
 
@@ -245,7 +246,7 @@ class HierarchicalMPC(AppliedTorque):
     def _choose_path(self) -> None:
         """The native step if ``settings.backend`` and the compensation allow it."""
         self._core = None
-        if native.resolve_backend(self.settings.backend, "controller.backend",
+        if resolve_backend(self.settings.backend, "controller.backend",
                                   self._native_unsupported()):  # fmt: skip
             self._make_core(*self.settings.bounds(self.n))
 
@@ -280,8 +281,8 @@ class HierarchicalMPC(AppliedTorque):
         for array in (qps.solution, qps.slack, self._stack):
             if not (array.flags.c_contiguous and array.dtype == np.float64):
                 raise RuntimeError("native buffers must be C-contiguous float64")  # internal
-        core = native.load().HMPCCore(
-            native.model_string(self.robot), self._FT, s.N, s.Nc, qps.layout == "block",
+        core = load_native().HMPCCore(
+            model_string(self.robot), self._FT, s.N, s.Nc, qps.layout == "block",
             self.mpc.H, v_min, v_max, solver_settings(s.eps_abs, s.max_iter), cold, mode,
             cY, s.Ts, qps.solution, qps.slack, *self._buf.values(),
         )  # fmt: skip

@@ -59,9 +59,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import native
 from ..exceptions import ConfigError, DimensionError
 from ..model.robot import Robot
+from ..native import load as load_native
+from ..native import model_string, resolve_backend
 from .base import Plant
 from .disturbances import ZeroDisturbance
 
@@ -217,9 +218,9 @@ class RK4Plant:
                            "Coulomb-viscous friction (it is called in Python at every stage)")
         elif robot.mimic_joints:
             unsupported = "mimic joints (Pinocchio has no ABA for them)"
-        self.native = native.resolve_backend(backend, "plant.backend", unsupported)
+        self.native = resolve_backend(backend, "plant.backend", unsupported)
         if self.native:
-            self._kernel = native.load().RK4(native.model_string(robot))
+            self._kernel = load_native().RK4(model_string(robot))
             self._Tn = np.empty((3 * S, n))  # stage torques, C-contiguous
             zero = np.zeros(n)
             a, b = self._friction if self._friction is not None else (zero, zero)

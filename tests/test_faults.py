@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import hmpc_pin
+from hmpc_pin.sim.plants import RK4Plant
 from hmpc_pin.apps.cli import main
 
 from .conftest import CONFIGS, PLANAR3
@@ -51,8 +52,11 @@ def _run(planar3, controller=None, disturbance=None, **kw):
     dist = hmpc_pin.CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8])
     if disturbance is not None:
         dist = dist + disturbance
+    # The Python plant in every run: a user callable has no native path, and the runs are
+    # compared bit for bit with the clean one.
+    plant = RK4Plant(planar3.copy(), dist, 0.01, 0.001, backend="python")
     return hmpc_pin.simulate(
-        planar3, controller, hmpc_pin.SineReference(3), dist,
+        planar3, controller, hmpc_pin.SineReference(3), plant=plant,
         duration=kw.pop("duration", 0.6), q0=np.ones(3), **kw,
     )  # fmt: skip
 
@@ -109,7 +113,9 @@ def test_non_finite_plant_state_from_a_disturbance(planar3, clean, tmp_path):
 
 @pytest.mark.parametrize("layout", ["block", "joint"])
 def test_qp_iteration_cap_is_a_solver_error_at_that_step(planar3, clean, tmp_path, layout):
-    base = hmpc_pin.make_controller(planar3, hmpc_pin.ControllerConfig(qp_layout=layout))
+    # the Python QP objects are capped below (the native step: tests/test_native.py)
+    config = hmpc_pin.ControllerConfig(qp_layout=layout, backend="python")
+    base = hmpc_pin.make_controller(planar3, config)
     ctrl = Faulty(base, K0, "iteration cap")
     with pytest.raises(hmpc_pin.SimulationError, match=r"step 37 \(t=0\.37 s\)") as info:
         _run(planar3, ctrl)

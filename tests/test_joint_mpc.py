@@ -645,7 +645,8 @@ def recorded_qp_inputs(planar3, N, Nc, steps):
     import hmpc_pin
     from hmpc_pin.controllers.hierarchical import MPCSettings
 
-    ctrl = hmpc_pin.HierarchicalMPC(planar3, MPCSettings(N=N, Nc=Nc, qp_layout="block"))
+    settings = MPCSettings(N=N, Nc=Nc, qp_layout="block", backend="python")  # spied below
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, settings)
     ref = hmpc_pin.SineReference(3, amplitude=1.9, frequency=0.5)
     inputs, solve = [], ctrl.qps.solve
 

@@ -163,6 +163,11 @@ def build(verbose: bool = False) -> Path:
         full = [part.replace("{out}", str(tmp)) for part in cmd]
         if verbose:
             print(" ".join(full), flush=True)
+        else:  # a first run says why it pauses
+            print(
+                "hmpc_pin: compiling the native kernels once for this environment (a few "
+                f"minutes; cached in {target.parent})...", file=sys.stderr, flush=True,
+            )  # fmt: skip
         proc = subprocess.run(full, capture_output=True, text=True)
         (target.parent / "build.log").write_text(" ".join(full) + "\n" + proc.stdout + proc.stderr)
         if verbose:

@@ -183,16 +183,16 @@ def simulate(
             start = clock()
             tau = controller.step(t, q, dq, reference)
             step_ns[k] = clock() - start
-            q_ref, dq_ref = reference.sample(t)
             rec_q[k] = q
             rec_dq[k] = dq
             rec_tau[k] = tau
             rec_d[k] = sim_plant.disturbance_now()
             rec_d_hat[k] = controller.disturbance_estimate
-            rec_q_ref[k] = q_ref
-            rec_dq_ref[k] = dq_ref
             last = k
             if on_step is not None:
+                q_ref, dq_ref = reference.sample(t)
+                rec_q_ref[k] = q_ref
+                rec_dq_ref[k] = dq_ref
                 on_step(t, q, q_ref)
             if k == K:
                 break
@@ -230,6 +230,10 @@ def simulate(
         cause = None
 
     m = last + 1
+    if m and on_step is None:
+        # The recorded reference in one vectorised call (the controller has sampled every
+        # one of these instants already, so this cannot fail where the run did not).
+        rec_q_ref[:m], rec_dq_ref[:m] = reference.sample_many(t_arr[:m])
     if m and np.isnan(rec_applied[last]).all() and np.isfinite(rec_tau[last]).all():
         # The last torque was not applied (end of run, interrupt): record what would be.
         last_tau = rec_tau[last]

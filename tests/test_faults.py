@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.sim.plants import RK4Plant
 from hmpc_pin.apps.cli import main
+from hmpc_pin.sim.plants import RK4Plant
 
 from .conftest import CONFIGS, PLANAR3
 

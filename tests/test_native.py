@@ -113,6 +113,8 @@ def _experiment(path, backend, **changes):
         ("paper_combined", {"Nc": 4, "qp_layout": "joint"}),
         ("paper_combined", {"Nc": 4, "qp_layout": "block"}),
         ("panda_sine", {}),
+        ("paper_cartesian", {}),  # a quintic move
+        ("panda_trajectory", {}),  # a trajectory file (cubic spline)
     ],
 )
 def test_closed_loop_equals_the_python_path(config, changes):
@@ -136,6 +138,53 @@ def _limit_case(planar3, backend, layout="block", Nc=1):
     """A reference that drives joint 1 through its upper limit (soft limits active)."""
     settings = hmpc_pin.MPCSettings(Nc=Nc, qp_layout=layout, backend=backend)
     return hmpc_pin.HierarchicalMPC(planar3, settings)
+
+
+def _references(n):
+    rng = np.random.default_rng(3)
+    times = np.linspace(0.0, 0.8, 9)
+    w, p = rng.uniform(1, 3, n), rng.normal(size=n)
+    q, dq = np.sin(np.outer(times, w) + p), w * np.cos(np.outer(times, w) + p)
+    return {
+        "sine": hmpc_pin.SineReference(n, amplitude=rng.uniform(0.1, 1, n), frequency=0.7,
+                                       offset=rng.normal(size=n), phase=rng.normal(size=n)),
+        "quintic": hmpc_pin.QuinticReference(rng.normal(size=n), rng.normal(size=n), 0.2, 0.5),
+        "cubic spline": hmpc_pin.JointTrajectory(times, q),
+        "quintic Hermite": hmpc_pin.JointTrajectory(times, q, dq),
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize("name", ["sine", "quintic", "cubic spline", "quintic Hermite"])
+def test_native_reference_sampling_equals_sample_many(planar3, name):
+    """The horizon the native step samples (before, across and after the segments) is
+    what the reference's own sample_many gives, to rounding."""
+    ref = _references(3)[name]
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(N=30, backend="native"))
+    q0 = np.zeros(3)
+    ctrl.reset(q0, q0)
+    for t in (-0.5, 0.0, 0.15, 0.19, 0.37, 0.55, 0.7, 0.81, 2.0):
+        ctrl.step(t, q0, q0, ref)
+        assert ctrl._native_ref
+        q_ref, dq_ref = ref.sample_many(t + ctrl._offsets)
+        np.testing.assert_allclose(ctrl._stack_q_ref, q_ref, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ctrl._stack_dq_ref, dq_ref, rtol=0, atol=1e-11)
+
+
+def test_a_reference_subclass_that_samples_otherwise_is_sampled_in_python(planar3):
+    class Shifted(hmpc_pin.SineReference):
+        def sample_many(self, times, out=None):
+            return super().sample_many(np.asarray(times) + 0.25, out)
+
+        def sample(self, t):
+            return super().sample(t + 0.25)
+
+    ref, plain = Shifted(3), hmpc_pin.SineReference(3)
+    assert ref.native_form() is None and plain.native_form() is not None
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend="native"))
+    ctrl.reset(np.zeros(3), np.zeros(3))
+    ctrl.step(0.0, np.zeros(3), np.zeros(3), ref)
+    assert not ctrl._native_ref
+    np.testing.assert_allclose(ctrl._stack_q_ref, plain.sample_many(0.25 + ctrl._offsets)[0])
 
 
 @pytest.mark.parametrize("layout, Nc", [("block", 1), ("joint", 3)])
@@ -170,6 +219,12 @@ def test_step_failures_raise_what_the_python_path_raises(planar3):
     tau0 = ctrl.step(0.0, q0, dq0, ref)
     with pytest.raises(hmpc_pin.NonFiniteError, match="dq"):
         ctrl.step(0.01, q0, np.array([0.0, np.nan, 0.0]), ref)
+    with pytest.raises(hmpc_pin.NonFiniteError, match="t"):
+        ctrl.step(np.inf, q0, dq0, ref)
+    with pytest.raises(hmpc_pin.DimensionError, match="q"):
+        ctrl.step(0.01, q0[:2], dq0, ref)
+    with pytest.raises(hmpc_pin.DimensionError):
+        ctrl.step(0.01, np.zeros((3, 3)), dq0, ref)
     np.testing.assert_allclose(ctrl.tau, tau0)  # unchanged
     errors = {}
     for backend in ("python", "native"):

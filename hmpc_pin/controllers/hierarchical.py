@@ -246,6 +246,7 @@ class HierarchicalMPC(AppliedTorque):
     def _choose_path(self) -> None:
         """The native step if ``settings.backend`` and the compensation allow it."""
         self._core = None
+        self._native_ref = False
         if resolve_backend(self.settings.backend, "controller.backend",
                                   self._native_unsupported()):  # fmt: skip
             self._make_core(*self.settings.bounds(self.n))
@@ -292,7 +293,9 @@ class HierarchicalMPC(AppliedTorque):
                 qps._C, qps._row_scale, float(qps._g_soft[0, s.Nc]), float(qps._k),
                 solver_settings(s.eps_abs, s.max_iter, warm=False),
             )  # fmt: skip
+        core.set_stack(self._stack, self._offsets)
         self._core = core
+        self._reference = None  # the reference's native form is set on the next step
         self.effort_limit = self.effort_limit
 
     @AppliedTorque.effort_limit.setter  # type: ignore[attr-defined]
@@ -359,6 +362,16 @@ class HierarchicalMPC(AppliedTorque):
             DimensionError: ``q``, ``dq`` or the reference has the wrong shape.
             SolverError: A joint QP did not report solved.
         """
+        if reference is not self._reference:  # adapted once per reference object
+            self._set_reference(reference)
+        if self._native_ref:  # the whole step in C++, the reference sampled there too
+            try:
+                code = self._core.step_t(t, q, dq)  # type: ignore[union-attr]
+            except TypeError:  # not convertible to a float vector
+                code = 3
+            if code:
+                self._native_failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
+            return self.tau.copy()
         if not math.isfinite(t):
             raise NonFiniteError("t", t)
         q = np.asarray(q, dtype=float)
@@ -370,10 +383,7 @@ class HierarchicalMPC(AppliedTorque):
         S = self._stack
         S[0] = q
         S[1] = dq
-        if reference is not self._reference:  # adapted once per reference object
-            self._ref = as_reference(reference)
-            self._reference = reference
-        times = np.add(self._offsets, t, out=self._times)
+        times = np.add(self._offsets, t, self._times)
         q_ref, dq_ref = self._ref.sample_many(times, self._ref_out)  # type: ignore[union-attr]
         if q_ref is not self._stack_q_ref:
             if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
@@ -414,9 +424,35 @@ class HierarchicalMPC(AppliedTorque):
         self._started = True
         return tau.copy()
 
+    def _set_reference(self, reference) -> None:
+        """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
+        native form, if it has one, to the native step."""
+        self._ref = as_reference(reference)
+        self._reference = reference
+        self._native_ref = False
+        core = self._core
+        if core is None:
+            return
+        form_of = getattr(self._ref, "native_form", None)
+        form = form_of() if callable(form_of) else None
+        if form is not None and form[0] == "sine":
+            core.set_sine(*form[1:])
+            self._native_ref = True
+        elif form is not None and form[0] == "ppoly":
+            core.set_ppoly(*form[1:])
+            self._native_ref = True
+        else:
+            core.clear_reference()
+
     def _native_failure(self, code: int, t, q, dq, q_ref, dq_ref) -> None:
         """Raise what the Python path raises for a native step's failure ``code``."""
         core = self._core
+        if code == 4:
+            raise NonFiniteError("t", t)
+        if code == 3:  # q or q̇ not a vector of n floats
+            self.robot.check_vector("q", q)
+            self.robot.check_vector("dq", dq)
+            raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")
         if code == 1:  # an input is not finite; nothing was changed
             self._raise_non_finite(t, q, dq, q_ref, dq_ref)
         joint = core.fail_joint  # type: ignore[union-attr]

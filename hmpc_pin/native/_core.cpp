@@ -19,6 +19,7 @@
 #include <pinocchio/serialization.hpp>
 #include <proxsuite/proxqp/dense/dense.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -234,6 +235,16 @@ struct HMPCCore {
   Buffer<MapRow> dhat;    // (1, n) disturbance estimate
   Buffer<MapRow> z;       // (1, n) observer state
   Vec applied;
+  // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), Python-owned (step_t fills it).
+  std::optional<Buffer<MapRow>> stack;
+  // The reference in native form (step_t): 0 none, 1 sine, 2 piecewise polynomial.
+  int ref_kind = 0;
+  Vec offsets;                           // horizon offsets j·Ts, j = 1..N [s]
+  Vec s_omega, s_phase, s_amp, s_offset, s_amp_omega;
+  Vec p_times, p_knots;                  // breakpoints t_0..t_{K-1}; segment origins
+  RowMat p_coef;                         // (segments·(deg + 1))×2n: [q | q̇] per power
+  int p_deg = 0;
+  Eigen::RowVectorXd acc;                // one segment's [q | q̇] at s
   // Failure report.
   int fail_joint = -2;
   std::string fail_status;
@@ -350,6 +361,79 @@ struct HMPCCore {
       l_soft[3 * N + j] = (-vel[i] - v_free[j]) * row_scale[3 * N + j];
       u_soft[3 * N + j] = BIG;
     }
+  }
+
+  void set_stack(py::array_t<double, py::array::c_style> S, const CRefVec& offsets_) {
+    stack.emplace(S, 2 + 2 * N, n);
+    if (offsets_.size() != N) throw std::invalid_argument("offsets of wrong size");
+    offsets = offsets_;
+  }
+
+  // q_ref = offset + amplitude·sin(ω t + φ), q̇_ref = (amplitude·ω)·cos(ω t + φ)
+  // (hmpc_pin.tasks.sine.SineReference).
+  void set_sine(const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
+                const CRefVec& offset, const CRefVec& amp_omega) {
+    for (const CRefVec* x : {&omega, &phase, &amp, &offset, &amp_omega})
+      if (x->size() != n) throw std::invalid_argument("sine coefficients of wrong size");
+    s_omega = omega; s_phase = phase; s_amp = amp; s_offset = offset; s_amp_omega = amp_omega;
+    ref_kind = 1;
+  }
+
+  // Piecewise polynomial in s = t − knot of its segment (hmpc_pin.tasks.trajectory):
+  // segment index = the number of breakpoints <= t (0: before the first, K: after the last).
+  void set_ppoly(const CRefVec& times, const CRefVec& knots, const CRefRow& coef, int deg) {
+    const Eigen::Index K = times.size();
+    if (knots.size() != K + 1 || coef.rows() != (K + 1) * (deg + 1) || coef.cols() != 2 * n)
+      throw std::invalid_argument("piecewise polynomial of wrong shape");
+    p_times = times; p_knots = knots; p_coef = coef; p_deg = deg;
+    acc.setZero(2 * n);
+    ref_kind = 2;
+  }
+
+  void clear_reference() { ref_kind = 0; }
+
+  // The horizon rows of the stack for time t.
+  void sample_horizon(double t) {
+    auto& S = stack->map;
+    if (ref_kind == 1) {
+      for (int j = 0; j < N; ++j) {
+        const double tj = t + offsets[j];
+        for (int i = 0; i < n; ++i) {
+          const double arg = tj * s_omega[i] + s_phase[i];
+          S(2 + j, i) = std::sin(arg) * s_amp[i] + s_offset[i];
+          S(2 + N + j, i) = std::cos(arg) * s_amp_omega[i];
+        }
+      }
+      return;
+    }
+    const double* begin = p_times.data();
+    const double* end = begin + p_times.size();
+    for (int j = 0; j < N; ++j) {
+      const double tj = t + offsets[j];
+      const Eigen::Index seg = std::upper_bound(begin, end, tj) - begin;
+      const double s = tj - p_knots[seg];
+      const auto block = p_coef.middleRows(seg * (p_deg + 1), p_deg + 1);
+      double power = 1.0;
+      acc = block.row(0);
+      for (int k = 1; k <= p_deg; ++k) {
+        power *= s;
+        acc += power * block.row(k);
+      }
+      S.row(2 + j) = acc.head(n);
+      S.row(2 + N + j) = acc.tail(n);
+    }
+  }
+
+  // A step at time t with the native reference: fills the stack, then step(). Returns
+  // step()'s codes, 3 (q or q̇ of wrong size) or 4 (t not finite), nothing changed then.
+  int step_t(double t, const CRefVec& q, const CRefVec& dq) {
+    if (!std::isfinite(t)) return 4;
+    if (q.size() != n || dq.size() != n) return 3;
+    auto& S = stack->map;
+    S.row(0) = q.transpose();
+    S.row(1) = dq.transpose();
+    sample_horizon(t);
+    return step(S);
   }
 
   void set_effort(const CRefVec& limit) {
@@ -535,6 +619,11 @@ PYBIND11_MODULE(_core, m) {
       .def("set_effort", &HMPCCore::set_effort)
       .def("reset", &HMPCCore::reset)
       .def("step", &HMPCCore::step)
+      .def("step_t", &HMPCCore::step_t)
+      .def("set_stack", &HMPCCore::set_stack)
+      .def("set_sine", &HMPCCore::set_sine)
+      .def("set_ppoly", &HMPCCore::set_ppoly)
+      .def("clear_reference", &HMPCCore::clear_reference)
       .def_readonly("constrained", &HMPCCore::constrained)
       .def_readonly("constrained_last", &HMPCCore::constrained_last)
       .def_readonly("cold_solves", &HMPCCore::cold_solves)

@@ -14,6 +14,15 @@ vectorised over time:
 ``sample(t) -> (q_ref, dq_ref)``
     one instant, two arrays of shape (n,).
 
+Optional: ``native_form() -> tuple | None``, the reference in a form the native step
+(:mod:`hmpc_pin.native`) samples in C++: ``("sine", ω, φ, amplitude, offset, amplitude·ω)``
+(:math:`q = \\mathrm{offset} + \\mathrm{amplitude}\\,\\sin(\\omega t + \\phi)`) or
+``("ppoly", breakpoints (K,), origins (K+1,), coefficients ((K+1)(d+1), 2n), d)`` (segment
+:math:`i` = the number of breakpoints <= t, :math:`[q\\ \\dot q] = \\sum_k c_{i,k}\\,s^k` with
+:math:`s = t - \\mathrm{origin}_i`). It must give what ``sample_many`` gives (up to rounding;
+tested for the package's references); ``None`` (e.g. a subclass that samples otherwise)
+keeps the Python sampling.
+
 Every reference of the package implements both, vectorised. Anything else a user has
 is adapted once, at the boundary, by :func:`as_reference`: an object with only
 ``sample(t)``, one whose ``sample_many`` takes no ``out``, or a plain callable

@@ -396,6 +396,12 @@ class PoseReference:
         """Joint position [rad] and velocity [rad/s] at ``t`` [s]."""
         return self.trajectory.sample(t)
 
+    def native_form(self) -> tuple | None:
+        """The joint trajectory's native form (:mod:`hmpc_pin.tasks.base`)."""
+        if type(self) is not PoseReference:
+            return None
+        return self.trajectory.native_form()
+
     def target(self, times) -> tuple[FloatArray, FloatArray]:
         """Target positions (m, 3) [m] and quaternions (m, 4) ``(x, y, z, w)`` at ``times``."""
         pos, rot = self.path.poses(times)

@@ -133,6 +133,27 @@ class QuinticReference:
         dq = one_shape_rate.dot(self._to_dq)
         return _write((q, dq), out)
 
+    def native_form(self) -> tuple | None:
+        """The move as a piecewise polynomial in :math:`s = t - t_0` for the native step
+        (:mod:`hmpc_pin.tasks.base`): hold :math:`q_{start}`, then
+        :math:`q = q_{start} + \\Delta(10\\sigma^3 - 15\\sigma^4 + 6\\sigma^5)`,
+        :math:`\\sigma = s/T` expanded in powers of :math:`s`, then hold
+        :math:`q_{start} + \\Delta`; ``None`` for a subclass that samples otherwise."""
+        cls = type(self)
+        if cls.sample_many is not QuinticReference.sample_many or (
+            cls.sample is not QuinticReference.sample
+        ):
+            return None
+        n, T, d = self.n, self.duration, self._delta
+        c = np.zeros((3, 6, 2 * n))
+        c[0, 0, :n] = self.q_start
+        c[1, 0, :n] = self.q_start
+        c[1, 3, :n], c[1, 4, :n], c[1, 5, :n] = 10.0 * d / T**3, -15.0 * d / T**4, 6.0 * d / T**5
+        c[1, 2, n:], c[1, 3, n:], c[1, 4, n:] = 30.0 * d / T**3, -60.0 * d / T**4, 30.0 * d / T**5
+        c[2, 0, :n] = self.q_start + d
+        t0, t1 = self.t_start, self.t_start + T
+        return ("ppoly", np.array([t0, t1]), np.array([t0 - 1.0, t0, t1]), c.reshape(-1, 2 * n), 5)
+
     def _fits(self, out: Pair, m: int) -> bool:
         """Whether ``out`` holds two C-contiguous float arrays of shape (m, n)."""
         shape = (m, self.n)

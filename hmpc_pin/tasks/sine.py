@@ -88,6 +88,14 @@ class SineReference:
         arg *= amp_omega
         return _write((q.reshape(shape), arg.reshape(shape)), out)
 
+    def native_form(self) -> tuple | None:
+        """``("sine", ω, φ, amplitude, offset, amplitude·ω)`` for the native step
+        (:mod:`hmpc_pin.tasks.base`); ``None`` for a subclass that samples otherwise."""
+        cls = type(self)
+        if cls.sample_many is not SineReference.sample_many or cls.sample is not SineReference.sample:
+            return None
+        return ("sine", self.omega, self.phase, self.amplitude, self.offset, self._amp_omega)
+
     def _tiles_for(self, m: int) -> tuple[FloatArray, ...]:
         tiles = self._tiles.get(m)
         if tiles is None:

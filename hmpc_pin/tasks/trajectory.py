@@ -249,6 +249,18 @@ class JointTrajectory:
         both = np.matmul(powers, coeffs)
         return _write((both[:, 0, :n], both[:, 0, n:]), out)
 
+    def native_form(self) -> tuple | None:
+        """The segments as ``("ppoly", t_k, origins, [q | q̇] coefficients, degree)`` for
+        the native step (:mod:`hmpc_pin.tasks.base`); ``None`` for a subclass that samples
+        otherwise."""
+        cls = type(self)
+        if cls.sample_many is not JointTrajectory.sample_many or (
+            cls.sample is not JointTrajectory.sample
+        ):
+            return None
+        coef = np.ascontiguousarray(self._qd.reshape(-1, 2 * self.n))
+        return ("ppoly", self.times, self._knots, coef, self.degree)
+
     def sample(self, t: float) -> Pair:
         """Position [rad] and velocity [rad/s] at ``t`` [s], each of shape (n,)."""
         q, dq = self.sample_many(np.array([t], dtype=float))

@@ -92,7 +92,9 @@ class SineReference:
         """``("sine", ω, φ, amplitude, offset, amplitude·ω)`` for the native step
         (:mod:`hmpc_pin.tasks.base`); ``None`` for a subclass that samples otherwise."""
         cls = type(self)
-        if cls.sample_many is not SineReference.sample_many or cls.sample is not SineReference.sample:
+        if cls.sample_many is not SineReference.sample_many or (
+            cls.sample is not SineReference.sample
+        ):
             return None
         return ("sine", self.omega, self.phase, self.amplitude, self.offset, self._amp_omega)
 

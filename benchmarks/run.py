@@ -380,6 +380,21 @@ class SimResult:
         return self.duration / self.median
 
 
+def plant_floor(plant, periods: int) -> float:
+    """Wall time [s] of the plant alone over ``periods`` control periods, τ = 0 held from
+    rest at zero: the native plant's ``advance`` calls (kernel, disturbance table), or for
+    the Python plant its ``4 · substeps · periods`` bare ``pin.aba`` calls."""
+    if not getattr(plant, "native", False):
+        return aba_floor(plant, 4 * plant.substeps * periods)
+    n = plant.nq
+    plant.reset(np.zeros(n), np.zeros(n))
+    tau = np.zeros(n)
+    start = time.perf_counter()
+    for _ in range(periods):
+        plant.advance(tau)
+    return time.perf_counter() - start
+
+
 def bench_simulation(settings: Settings) -> SimResult:
     """Wall time of ``Experiment.from_config(cfg)`` and of ``.run()`` on the paper scenario."""
     cfg = load_config(PAPER_CONFIG)
@@ -398,8 +413,8 @@ def bench_simulation(settings: Settings) -> SimResult:
         replace(exp, controller=GravityCompensation(exp.robot, exp.controller.Ts)).run()
         plant_only.append(time.perf_counter() - t0)
         plant = exp.make_plant()
-        calls = 4 * round(cfg.simulation.duration / cfg.plant.dt)
-        aba_only.append(aba_floor(plant, calls))
+        periods = round(cfg.simulation.duration / exp.controller.Ts)
+        aba_only.append(plant_floor(plant, periods))
     out = SimResult(build, run, plant_only, cfg.simulation.duration, complete, aba_only)
     log(
         f"  10 s simulation: median {out.median:.3f} s, real-time factor {out.rtf:.1f}; "
@@ -1002,13 +1017,13 @@ def report(
         "",
         floor_table(steps),
         "",
-        "The floor measures the three calls back to back, with their code and data hot in "
-        "the caches; inside a step the same calls run between the reference, the observer "
-        "and the limit test, and take longer (measured here with markers inside the step: "
-        "the QP update + solve ≈ 1.6× its floor time). The rest of the step is Python "
-        "around numpy: about 30 calls (reference samples, one finiteness test, the gradient "
-        "product, the observer's linear solve, the QP's results, the limit test, the torque), "
-        "each 0.3–1 µs.",
+        "The floor calls Pinocchio and ProxSuite from Python (four calls through their "
+        "bindings). The step (native backend, the default where it builds: "
+        "`hmpc_pin/native`) is one call into C++ that samples the reference, computes "
+        "the gradients, M, C q̇ + G, the observer, the QPs and the joint-limit test there: "
+        "it can cost less than the floor. With `backend = \"python\"` the same step is about "
+        "30 numpy calls around the floor's calls, 4.5–5.2 floors (BENCHMARKS.md of "
+        "`c3d49fe`).",
         "",
         "## Controller step (`HierarchicalMPC.step`)",
         "",
@@ -1112,7 +1127,8 @@ def report(
                     per_unit(float(np.median(sim.plant_only)) * 1e6, unit),
                 ],
                 [
-                    "the plant's 40 000 `pin.aba` calls alone (bare loop, fixed state)",
+                    "the plant alone over the 1000 periods (native kernel; for the Python plant "
+                    "its 40 000 bare `pin.aba` calls)",
                     f"{np.median(sim.aba_only):.3f}",
                     f"{min(sim.aba_only):.3f}",
                     f"{max(sim.aba_only):.3f}",
@@ -1129,11 +1145,11 @@ def report(
         ),
         "",
         f"Real-time factor (10 s / median `run()` wall time): **{sim.rtf:.1f}**; "
-        f"run completed: {'yes' if sim.complete else 'no'}. The bare `pin.aba` calls of the "
-        f"RK4 plant (4 per 1 ms step) take {np.median(sim.aba_only) / sim.median:.0%} of the "
-        "run: as long as the plant calls Pinocchio from Python once per RK4 stage, the "
-        f"real-time factor stays below 10 s / that time ≈ "
-        f"{sim.duration / np.median(sim.aba_only):.0f} whatever else is made faster.",
+        f"run completed: {'yes' if sim.complete else 'no'}. The plant alone takes "
+        f"{np.median(sim.aba_only) / sim.median:.0%} of the run (its 40 ABA evaluations per "
+        "period are Pinocchio's C++ ABA, ≈ 1.1 µs each here): the real-time factor stays "
+        f"below 10 s / that time ≈ {sim.duration / np.median(sim.aba_only):.0f} whatever "
+        "else is made faster.",
         "",
         "## Memory",
         "",

@@ -71,6 +71,17 @@ def _paper_disturbance():
     )
 
 
+def test_a_native_plant_survives_pickling(planar3):
+    import pickle
+
+    plant = RK4Plant(planar3.copy(), _paper_disturbance(), 0.01, 0.001, backend="native")
+    plant.reset(np.array([0.3, -0.4, 0.2]), np.zeros(3))
+    plant.advance(np.ones(3))
+    twin = pickle.loads(pickle.dumps(plant))
+    assert twin.native
+    np.testing.assert_array_equal(twin.advance(np.ones(3))[0], plant.advance(np.ones(3))[0])
+
+
 @pytest.mark.parametrize("disturbance", ["none", "friction+pulse", "pulse"])
 def test_rk4_period_equals_the_python_loop(planar3, disturbance):
     """The same stages and stage torques: equal to rounding over 300 periods (3 s),

@@ -70,7 +70,14 @@ def cache_dir() -> Path:
     env = os.environ.get("HMPC_PIN_CACHE")
     if env:
         return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    base = os.environ.get("XDG_CACHE_HOME")
+    if not base:
+        try:
+            base = str(Path.home() / ".cache")
+        except RuntimeError:  # no home directory (e.g. a service account)
+            import tempfile
+
+            base = tempfile.gettempdir()
     return Path(base) / "hmpc_pin"
 
 

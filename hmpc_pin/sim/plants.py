@@ -227,6 +227,17 @@ class RK4Plant:
             self._ab = (np.broadcast_to(a, (n,)).astype(float),
                         np.broadcast_to(b, (n,)).astype(float))  # fmt: skip
 
+    def __getstate__(self) -> dict:
+        """Picklable: the native kernel is rebuilt from the robot on unpickling."""
+        state = self.__dict__.copy()
+        state.pop("_kernel", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if self.native:
+            self._kernel = load_native().RK4(model_string(self.robot))
+
     def _stage_times(self, t: float) -> np.ndarray:
         """Stage times of the period starting at ``t``: blocks t_s, t_s + h/2, t_s + h."""
         t0 = self._t0

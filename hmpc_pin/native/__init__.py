@@ -52,9 +52,13 @@ __all__ = [
 #: The values of ``backend`` (``[controller]``, ``[plant]``).
 BACKENDS = ("auto", "native", "python")
 
-SOURCE = Path(__file__).with_name("_core.cpp")
+HERE = Path(__file__).parent
+#: The translation units, compiled in parallel (Pinocchio's part, ProxSuite's and the
+#: binding), then linked into one module; and the header they share.
+SOURCES = (HERE / "_dynamics.cpp", HERE / "_core.cpp")
+HEADERS = (HERE / "_dynamics.hpp",)
 FLAGS = [
-    "-O3", "-DNDEBUG", "-std=c++17", "-shared", "-fPIC", "-fvisibility=hidden",
+    "-O3", "-DNDEBUG", "-std=c++17", "-fPIC", "-fvisibility=hidden",
     # Pinocchio's joint variant needs larger MPL lists (its CMake target sets these).
     "-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30",
     "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
@@ -132,33 +136,46 @@ def _paths() -> tuple[list[str], list[str], dict[str, str]]:
     return includes, links, versions
 
 
-def _target() -> tuple[list[str], Path]:
-    """The compiler command and the module file it makes (not yet built, maybe)."""
+def _target() -> tuple[list[list[str]], list[str], Path]:
+    """The compile commands (one per translation unit, writing ``{obj<i>}``), the link
+    command (writing ``{out}``) and the module file they make (not yet built, maybe)."""
     cxx = _compiler()
     includes, links, versions = _paths()
     cxx_version = subprocess.run([cxx, "--version"], capture_output=True, text=True).stdout
     key = hashlib.sha256()
-    for part in (SOURCE.read_bytes(), cxx.encode(), cxx_version.encode(), " ".join(FLAGS).encode(),
-                 " ".join(includes + links).encode(), repr(sorted(versions.items())).encode(),
-                 sys.version.encode(), platform.machine().encode()):  # fmt: skip
+    parts = [path.read_bytes() for path in (*SOURCES, *HEADERS)]
+    parts += [cxx.encode(), cxx_version.encode(), " ".join(FLAGS).encode(),
+              " ".join(includes + links).encode(), repr(sorted(versions.items())).encode(),
+              sys.version.encode(), platform.machine().encode()]  # fmt: skip
+    for part in parts:
         key.update(part)
         key.update(b"\0")
     suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
     target = cache_dir() / f"native-{key.hexdigest()[:16]}" / f"_core{suffix}"
-    cmd = [cxx, *FLAGS, *includes, str(SOURCE), "-o", "{out}", *links]
-    return cmd, target
+    compiles = [[cxx, *FLAGS, *includes, "-c", str(src), "-o", f"{{obj{i}}}"]
+                for i, src in enumerate(SOURCES)]  # fmt: skip
+    link = [cxx, "-shared", *(f"{{obj{i}}}" for i in range(len(SOURCES))), "-o", "{out}", *links]
+    return compiles, link, target
+
+
+def _fill(cmd: list[str], names: dict[str, str]) -> list[str]:
+    for key, value in names.items():
+        cmd = [part.replace("{" + key + "}", value) for part in cmd]
+    return cmd
 
 
 def build(verbose: bool = False) -> Path:
     """Build the module if it is not cached; return its path.
 
+    The translation units compile in parallel (about 2 minutes on 2 cores here), then link.
+
     Args:
-        verbose: Print the compiler command and output.
+        verbose: Print the compiler commands and output.
 
     Raises:
         NativeError: No compiler or headers, or the compiler failed (its last lines).
     """
-    cmd, target = _target()
+    compiles, link, target = _target()
     if target.exists():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -166,25 +183,42 @@ def build(verbose: bool = False) -> Path:
         fcntl.flock(lock, fcntl.LOCK_EX)  # one build; the others wait and reuse it
         if target.exists():
             return target
-        tmp = target.with_name(f"{target.name}.{os.getpid()}.tmp")
-        full = [part.replace("{out}", str(tmp)) for part in cmd]
-        if verbose:
-            print(" ".join(full), flush=True)
-        else:  # a first run says why it pauses
+        pid = os.getpid()
+        names = {f"obj{i}": str(target.parent / f"{src.stem}.{pid}.o")
+                 for i, src in enumerate(SOURCES)}  # fmt: skip
+        names["out"] = str(target.with_name(f"{target.name}.{pid}.tmp"))
+        if not verbose:  # a first run says why it pauses
             print(
                 "hmpc_pin: compiling the native kernels once for this environment (a few "
                 f"minutes; cached in {target.parent})...", file=sys.stderr, flush=True,
             )  # fmt: skip
-        proc = subprocess.run(full, capture_output=True, text=True)
-        (target.parent / "build.log").write_text(" ".join(full) + "\n" + proc.stdout + proc.stderr)
-        if verbose:
-            print(proc.stdout + proc.stderr, flush=True)
-        if proc.returncode != 0:
-            with contextlib.suppress(FileNotFoundError):
-                tmp.unlink()
-            tail = "\n".join((proc.stderr or proc.stdout).strip().splitlines()[-6:])
-            raise NativeError(f"the compiler failed (exit {proc.returncode}):\n{tail}")
-        os.replace(tmp, target)
+        log = []
+        try:
+            jobs = [_fill(cmd, names) for cmd in compiles]
+            procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                      text=True) for cmd in jobs]  # fmt: skip
+            results = [(cmd, *proc.communicate(), proc.returncode)
+                       for cmd, proc in zip(jobs, procs, strict=True)]  # fmt: skip
+            if all(code == 0 for *_, code in results):
+                cmd = _fill(link, names)
+                proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                      text=True)  # fmt: skip
+                results.append((cmd, proc.stdout, None, proc.returncode))
+            for cmd, out, _, code in results:
+                log.append(" ".join(cmd) + f"\n{out or ''}(exit {code})\n")
+                if verbose:
+                    print(log[-1], flush=True)
+            (target.parent / "build.log").write_text("\n".join(log))
+            failed = [(out, code) for _, out, _, code in results if code != 0]
+            if failed:
+                out, code = failed[0]
+                tail = "\n".join((out or "").strip().splitlines()[-6:])
+                raise NativeError(f"the compiler failed (exit {code}):\n{tail}")
+            os.replace(names["out"], target)
+        finally:
+            for name in names.values():
+                with contextlib.suppress(FileNotFoundError):
+                    Path(name).unlink()
     return target
 
 

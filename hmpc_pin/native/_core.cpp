@@ -1,7 +1,8 @@
 // hmpc_pin native kernels: the simulation's RK4 period and the hierarchical MPC's step.
 //
 // Built on first use by hmpc_pin/native/__init__.py (g++, the Pinocchio, ProxSuite and
-// Eigen headers of the running environment, pybind11), cached per source and versions.
+// Eigen headers of the running environment, pybind11), cached per source and versions;
+// the Pinocchio part is _dynamics.cpp, compiled beside this file.
 // The Python side builds every matrix (the condensed QP data, the soft-limit rows, the
 // solver settings): this file only evaluates them, with the same algorithms as the
 // Python path (Pinocchio's CRBA, RNEA and ABA in the LOCAL convention, ProxSuite's dense
@@ -12,12 +13,9 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <pinocchio/algorithm/aba.hpp>
-#include <pinocchio/algorithm/crba.hpp>
-#include <pinocchio/algorithm/rnea.hpp>
-#include <pinocchio/multibody.hpp>
-#include <pinocchio/serialization.hpp>
 #include <proxsuite/proxqp/dense/dense.hpp>
+
+#include "_dynamics.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -44,36 +42,7 @@ using DenseQP = pqp::dense::QP<double>;
 
 static constexpr double BIG = 1e10;  // as hmpc_pin.mpc.condensed.BIG
 
-// -------------------------------------------------------------------------------------
-// The model and its data (a Pinocchio model passed as its serialized string).
-
-struct Dynamics {
-  pinocchio::Model model;
-  pinocchio::Data data;
-  int n;
-
-  explicit Dynamics(const std::string& serialized) {
-    model.loadFromString(serialized);
-    if (model.nq != model.nv)
-      throw std::invalid_argument("native kernels need nq == nv (no free-flyer, no "
-                                  "quaternion joints); use backend = \"python\"");
-    data = pinocchio::Data(model);
-    n = model.nv;
-  }
-
-  // M(q), both triangles filled.
-  const Mat& mass_matrix(const CRefVec& q) {
-    pinocchio::crba(model, data, q, pinocchio::Convention::LOCAL);
-    data.M.triangularView<Eigen::StrictlyLower>() = data.M.transpose().triangularView<Eigen::StrictlyLower>();
-    return data.M;
-  }
-  const Vec& nle(const CRefVec& q, const CRefVec& v) {
-    return pinocchio::nonLinearEffects(model, data, q, v);
-  }
-  const Vec& aba(const CRefVec& q, const CRefVec& v, const CRefVec& tau) {
-    return pinocchio::aba(model, data, q, v, tau, pinocchio::Convention::LOCAL);
-  }
-};
+using hmpc_native::Dynamics;
 
 // -------------------------------------------------------------------------------------
 // The RK4 plant's period: see hmpc_pin.sim.plants.RK4Plant (same stages, same torques).
@@ -594,7 +563,6 @@ struct HMPCCore {
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "hmpc_pin native kernels (RK4 period, hierarchical MPC step)";
-  m.attr("PINOCCHIO_VERSION") = PINOCCHIO_VERSION;
 
   py::class_<RK4>(m, "RK4")
       .def(py::init<const std::string&>(), py::arg("model"))

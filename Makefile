@@ -13,7 +13,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -e ".[dev,viz]"
 	touch $@
 
-# The native kernels (hmpc_pin/native), compiled once per machine and cached (~3 min);
+# The native kernels (hmpc_pin/native), compiled once per machine and cached (~2 min);
 # without a C++ compiler runs take the Python path, and `make test` fails on purpose.
 native: $(VENV)/.installed
 	$(VENV)/bin/hmpc-pin native --build

@@ -695,3 +695,35 @@ def test_solve_without_states_is_refused_when_limits_are_set():
     mpc, qps = soft_qps(10, 1, -1.5, 1.5, 3.0)
     with pytest.raises(InterfaceError, match="x0"):
         qps.solve(np.zeros((1, 1)))
+
+
+@pytest.mark.parametrize("N, Nc", [(10, 5), (100, 100)])
+def test_joint_layout_shortcut_is_the_box_qp_solution(make_rng, N, Nc):
+    """The per-joint layout takes -H⁻¹g without ProxSuite where it lies in the box: on
+    gradients with the box inactive for some joints and active for others, the solutions
+    equal the block QP's (ProxSuite for all) to solver tolerance, the shortcut's satisfy
+    the stationarity H U + g = 0, and both paths were taken."""
+    rng = make_rng(5)
+    mpc = CondensedMPC(0.001 if N == 100 else 0.01, N, Nc, np.diag([50.0, 0.0]), 1e-6,
+                       np.diag([100.0, 0.0]))  # fmt: skip
+    n = 4
+    v_min, v_max = np.full(n, -100.0), np.full(n, 100.0)
+    names = tuple(f"j{i}" for i in range(n))
+    joint = JointQPs(mpc, v_min, v_max, names, layout="joint")
+    block = JointQPs(mpc, v_min, v_max, names, layout="block")
+    free = -np.linalg.solve(mpc.H, np.eye(Nc))  # −H⁻¹, independently
+    tol = solution_tolerance(mpc.H)
+    for _ in range(40):
+        # gradients whose unconstrained minimiser is ~ 0.3–3 × the bound
+        G = rng.normal(size=(n, Nc))
+        G *= rng.uniform(0.3, 3.0, size=(n, 1)) * 100.0 / np.abs(G @ free).max(axis=1)[:, None]
+        before = joint.unconstrained_solves
+        joint.solve(G)
+        block.solve(G)
+        np.testing.assert_allclose(joint.solution, block.solution, rtol=0, atol=tol)
+        took = joint.unconstrained_solves - before
+        inside = (np.abs(G @ free) <= 100.0).all(axis=1)
+        assert took == inside.sum()
+        for i in np.flatnonzero(inside):
+            np.testing.assert_allclose(mpc.H @ joint.solution[:, i] + G[i], 0.0, atol=1e-9)
+    assert 0 < joint.unconstrained_solves < 40 * n

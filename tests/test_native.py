@@ -335,3 +335,30 @@ def test_cli_native_prints_the_module(tmp_path):
                          text=True, cwd=ROOT, timeout=600)  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("native kernels: ") and out.stdout.strip().endswith(".so")
+
+
+def test_long_horizon_per_joint_qps_equal_the_python_path():
+    """Panda at Ts = 1 ms, N = Nc = 100 (auto: one QP per joint, the unconstrained
+    shortcut where the box is inactive): torques of both backends along a start-up (box
+    active) and a steady sine (inactive) agree, and both took the shortcut as often."""
+    robot = _arm("panda")
+    home = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])  # inside the limits
+    ref = hmpc_pin.SineReference(robot.nq, amplitude=0.3, frequency=0.1, offset=home)
+    ctrls = {}
+    for backend in ("python", "native"):
+        s = hmpc_pin.MPCSettings(Ts=0.001, N=100, Nc=100, backend=backend)
+        ctrls[backend] = hmpc_pin.HierarchicalMPC(robot, s)
+    assert ctrls["python"].qps.layout == "joint"
+    q0, dq0 = ref.sample(0.0)
+    for c in ctrls.values():
+        c.reset(q0 + 0.2, dq0)
+    for k in range(60):
+        t = 0.001 * k
+        q, dq = ref.sample(t)
+        q = q + 0.2 * np.exp(-0.05 * k)
+        ta = ctrls["python"].step(t, q, dq, ref)
+        tb = ctrls["native"].step(t, q, dq, ref)
+        np.testing.assert_allclose(tb, ta, rtol=0, atol=1e-6 * max(1.0, np.abs(ta).max()))
+    took = ctrls["python"].qps.unconstrained_solves
+    assert took == ctrls["native"]._core.unconstrained_solves
+    assert 0 < took < 60 * robot.nq

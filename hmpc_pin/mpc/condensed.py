@@ -256,8 +256,10 @@ class JointQPs:
         layout: ``"auto"`` (default): ``"block"`` up to :data:`AUTO_BLOCK_MAX` variables
             (n·Nc), ``"joint"`` above (:func:`resolve_layout`); ``"block"``: the n joint
             QPs as one block-diagonal ProxSuite QP of n·Nc variables, one ``update`` +
-            ``solve`` per step; ``"joint"``: one QP per joint (n calls). All have the same
-            minimiser (the blocks are independent). The block QP's cost grows with
+            ``solve`` per step; ``"joint"``: one QP per joint (n calls; a joint whose
+            unconstrained minimiser :math:`-H^{-1}g` lies inside its box takes it without a
+            solver call — the solution of a convex QP whose constraints are inactive). All
+            have the same minimiser (the blocks are independent). The block QP's cost grows with
             (n·Nc)³, the joint QPs' with n·Nc³: the block QP wins for short horizons (one
             solver call), the joint QPs for long ones (``BENCHMARKS.md``: Panda at Nc = 100,
             block ≈ 3× the joint QPs). ProxSuite's batch API (``proxqp.dense.BatchQP``, one
@@ -280,6 +282,9 @@ class JointQPs:
         constrained: Number of joints whose constrained QP was solved at the last step.
         cold_solves: Number of box QPs solved again from scratch because the warm-started
             solve did not converge (:meth:`_solve_cold`), since construction.
+        unconstrained_solves: ``"joint"`` layout: joint QPs not sent to ProxSuite because
+            the unconstrained minimiser :math:`-H^{-1}g` lay inside the box (then it is the
+            box QP's solution, exactly), since construction.
         layout: The layout in use (``"block"`` or ``"joint"``; ``"auto"`` resolved).
         stack: One buffer, rows ``[U (Nc); −c; h_q; v̄; q; q̇; caller's stack_rows]`` (each
             row one value per joint): the free inputs (:attr:`solution` is this view),
@@ -319,6 +324,12 @@ class JointQPs:
                               for i in range(n)]  # fmt: skip
         self._cold: dict[int, object] = {}
         self.cold_solves = 0
+        self.unconstrained_solves = 0
+        if layout == "joint":
+            Hinv = np.linalg.inv(mpc.H)
+            self._neg_Hinv = -0.5 * (Hinv + Hinv.T)
+            self._lo_col = np.asarray(v_min, dtype=float).reshape(-1, 1)
+            self._hi_col = np.asarray(v_max, dtype=float).reshape(-1, 1)
         if layout == "block":
             qp = _new_qp(n * Nc, 0, eps_abs, max_iter)
             H, lo, hi = self._box_data[0]
@@ -471,7 +482,15 @@ class JointQPs:
             else:
                 sol[:] = res.x.reshape(self._sol_T_shape).T
         else:
+            # Exact shortcut: a joint whose unconstrained minimiser -H⁻¹g lies inside its
+            # box has it as the box QP's solution (a convex QP); ProxSuite solves the rest.
+            free = G.dot(self._neg_Hinv)
+            inside = ((free >= self._lo_col) & (free <= self._hi_col)).all(axis=1)
             for i, qp in enumerate(self.qps):
+                if inside[i]:
+                    sol[:, i] = free[i]
+                    self.unconstrained_solves += 1
+                    continue
                 qp.update(g=G[i])
                 qp.solve()
                 res = qp.results

@@ -13,6 +13,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <Eigen/LU>
 #include <proxsuite/proxqp/dense/dense.hpp>
 
 #include "_dynamics.hpp"
@@ -176,6 +177,8 @@ struct HMPCCore {
   py::dict warm_settings, cold_settings, soft_settings;
   std::vector<std::unique_ptr<DenseQP>> qps, cold;
   long cold_solves = 0;
+  long unconstrained_solves = 0;
+  Mat neg_Hinv;    // −H⁻¹ (per-joint layout's shortcut)
   Vec g_block;
   // Soft state limits.
   bool limits = false;
@@ -256,6 +259,8 @@ struct HMPCCore {
       g_block.setZero(n * Nc);
       qps.emplace_back(new_box_qp(H_block, g_block, lo, hi, warm_settings));
     } else {
+      const Mat Hinv = H.inverse();
+      neg_Hinv = -0.5 * (Hinv + Hinv.transpose());
       for (int i = 0; i < n; ++i) {
         Vec g = Vec::Zero(Nc);
         qps.emplace_back(new_box_qp(H, g, Vec::Constant(Nc, v_min[i]),
@@ -505,9 +510,17 @@ struct HMPCCore {
       if (!res) return 2;
       for (int i = 0; i < n; ++i) U.map.col(i) = res->x.segment(i * Nc, Nc);
     } else {
-      Vec g(Nc);
+      Vec g(Nc), u(Nc);
       for (int i = 0; i < n; ++i) {
         g = Gt.col(i);
+        // Exact shortcut (as JointQPs.solve): the unconstrained minimiser inside the box
+        // is the box QP's solution.
+        u.noalias() = neg_Hinv * g;
+        if ((u.array() >= v_min[i]).all() && (u.array() <= v_max[i]).all()) {
+          U.map.col(i) = u;
+          ++unconstrained_solves;
+          continue;
+        }
         const auto* res = solve_box(i, g, i);
         if (!res) return 2;
         U.map.col(i) = res->x;
@@ -595,6 +608,7 @@ PYBIND11_MODULE(_core, m) {
       .def_readonly("constrained", &HMPCCore::constrained)
       .def_readonly("constrained_last", &HMPCCore::constrained_last)
       .def_readonly("cold_solves", &HMPCCore::cold_solves)
+      .def_readonly("unconstrained_solves", &HMPCCore::unconstrained_solves)
       .def_readonly("fail_joint", &HMPCCore::fail_joint)
       .def_readonly("fail_status", &HMPCCore::fail_status)
       .def_readonly("fail_iter", &HMPCCore::fail_iter);

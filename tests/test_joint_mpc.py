@@ -692,7 +692,7 @@ def test_layouts_give_the_block_solution_on_recorded_gradients(planar3, N, Nc):
 def test_solve_without_states_is_refused_when_limits_are_set():
     from hmpc_pin.exceptions import InterfaceError
 
-    mpc, qps = soft_qps(10, 1, -1.5, 1.5, 3.0)
+    _mpc, qps = soft_qps(10, 1, -1.5, 1.5, 3.0)
     with pytest.raises(InterfaceError, match="x0"):
         qps.solve(np.zeros((1, 1)))
 

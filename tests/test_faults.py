@@ -39,8 +39,11 @@ class Faulty:
         if k >= self.k0 and self.fault == "iteration cap":
             # the real ProxSuite QP objects, capped at one iteration: the solver stops
             # with PROXQP_MAX_ITER_REACHED and the status check must catch it
-            for qp in self.controller.qps.qps:
+            qps = self.controller.qps
+            for qp in qps.qps:
                 qp.settings.max_iter = 1
+            if qps.layout == "joint":  # no unconstrained shortcut: every QP to ProxSuite
+                qps._lo_col = np.full_like(qps._lo_col, np.inf)
         tau = self.controller.step(t, q, dq, reference)
         if k >= self.k0 and self.fault == "nan torque":
             tau[1] = np.nan

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -328,6 +329,24 @@ except hmpc_pin.NativeError as exc:
     assert lines[0] == "native False False warnings 1"
     assert "no C++ compiler" in lines[1]
     assert lines[2].startswith("error:") and 'backend = "python"' in lines[2]
+
+
+def test_a_failing_compiler_is_one_line_naming_the_log(tmp_path):
+    """``hmpc-pin native`` with a compiler that fails: exit 1, one line on stderr naming the
+    build log (which holds the commands), no traceback, nothing cached."""
+    fake = tmp_path / "cxx"
+    fake.write_text("#!/bin/sh\necho 'fake.cpp:1:1: error: no compiler here' >&2\nexit 3\n")
+    fake.chmod(0o755)
+    env = dict(os.environ, HMPC_PIN_CACHE=str(tmp_path / "cache"), CXX=str(fake))
+    out = subprocess.run([sys.executable, "-m", "hmpc_pin", "native"], capture_output=True,
+                         text=True, cwd=ROOT, env=env, timeout=120)  # fmt: skip
+    assert out.returncode == 1
+    lines = [ln for ln in out.stderr.splitlines() if not ln.startswith("hmpc_pin: compiling")]
+    assert len(lines) == 1 and "Traceback" not in out.stderr
+    assert "the compiler failed (exit 3" in lines[0] and "error: no compiler here" in lines[0]
+    log = lines[0].split("its output is in ")[1].split("):")[0]
+    assert str(fake) in Path(log).read_text()
+    assert not list((tmp_path / "cache").glob("*/_core*.so"))
 
 
 def test_cli_native_prints_the_module(tmp_path):

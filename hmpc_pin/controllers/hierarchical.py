@@ -23,7 +23,13 @@ from ..compensation.base import Compensation, NoCompensation
 from ..compensation.observers import DisturbanceObserver
 from ..exceptions import DimensionError, NonFiniteError, SolverError
 from ..model.robot import Robot
-from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits, solver_settings
+from ..mpc.condensed import (
+    CondensedMPC,
+    JointQPs,
+    StateLimits,
+    cold_twin_settings,
+    solver_settings,
+)
 from ..native import load as load_native
 from ..native import model_string, resolve_backend
 from ..tasks.base import Reference, as_reference
@@ -277,14 +283,13 @@ class HierarchicalMPC(AppliedTorque):
         else:
             mode, cY = 0, np.zeros((n, n))
         self._buf = {name: np.zeros(n) for name in ("v", "tau", "d_hat", "z")}
-        cold = solver_settings(s.eps_abs, s.max_iter, warm=False)
-        cold["eps_rel"] = 0.0  # as JointQPs._solve_cold
         for array in (qps.solution, qps.slack, self._stack):
             if not (array.flags.c_contiguous and array.dtype == np.float64):
                 raise RuntimeError("native buffers must be C-contiguous float64")  # internal
         core = load_native().HMPCCore(
             model_string(self.robot), self._FT, s.N, s.Nc, qps.layout == "block",
-            self.mpc.H, v_min, v_max, solver_settings(s.eps_abs, s.max_iter), cold, mode,
+            self.mpc.H, v_min, v_max, solver_settings(s.eps_abs, s.max_iter),
+            cold_twin_settings(s.eps_abs, s.max_iter), mode,
             cY, s.Ts, qps.solution, qps.slack, *self._buf.values(),
         )  # fmt: skip
         if qps.soft_qps:
@@ -455,6 +460,7 @@ class HierarchicalMPC(AppliedTorque):
             raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")
         if code == 1:  # an input is not finite; nothing was changed
             self._raise_non_finite(t, q, dq, q_ref, dq_ref)
+            raise NonFiniteError("q, dq or the reference horizon", (q, dq), f"at t={t:.6g}")
         joint = core.fail_joint  # type: ignore[union-attr]
         name = "all-joint block" if joint < 0 else self.robot.joint_names[joint]
         raise SolverError(None if joint < 0 else joint, name,

@@ -73,6 +73,7 @@ __all__ = [
     "CondensedMPC",
     "JointQPs",
     "StateLimits",
+    "cold_twin_settings",
     "qp_settings",
     "resolve_layout",
     "solver_settings",
@@ -229,10 +230,22 @@ def solver_settings(eps_abs: float, max_iter: int, warm: bool = True) -> dict:
     return settings
 
 
-def _new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = True):
-    """A dense ProxSuite QP with :func:`solver_settings` (set before ``init``)."""
+def cold_twin_settings(eps_abs: float, max_iter: int) -> dict:
+    """The settings of a box QP's cold twin (:meth:`JointQPs._solve_cold`): solved from
+    scratch without the duality-gap test, like the soft QPs, but with no relative tolerance."""
+    settings = solver_settings(eps_abs, max_iter, warm=False)
+    settings["eps_rel"] = 0.0
+    return settings
+
+
+def _new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = True,
+            settings: dict | None = None):  # fmt: skip
+    """A dense ProxSuite QP with :func:`solver_settings` (or ``settings``), set before
+    ``init``."""
     qp = proxqp.dense.QP(nvar, 0, n_in, True)
-    for key, value in solver_settings(eps_abs, max_iter, warm).items():
+    if settings is None:
+        settings = solver_settings(eps_abs, max_iter, warm)
+    for key, value in settings.items():
         if key == "initial_guess":
             value = getattr(proxqp.InitialGuess, value)
         setattr(qp.settings, key, value)
@@ -516,8 +529,8 @@ class JointQPs:
         twin = self._cold.get(k)
         if twin is None:
             H, lo, hi = self._box_data[k]
-            twin = _new_qp(H.shape[0], 0, self._eps_abs, self._max_iter, warm=False)
-            twin.settings.eps_rel = 0.0
+            twin = _new_qp(H.shape[0], 0, self._eps_abs, self._max_iter,
+                           settings=cold_twin_settings(self._eps_abs, self._max_iter))  # fmt: skip
             twin.init(H, g, None, None, None, None, None, lo, hi)
             self._cold[k] = twin
         else:

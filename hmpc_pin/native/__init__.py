@@ -173,7 +173,8 @@ def build(verbose: bool = False) -> Path:
         verbose: Print the compiler commands and output.
 
     Raises:
-        NativeError: No compiler or headers, or the compiler failed (its last lines).
+        NativeError: No compiler or headers, or the compiler failed (its first error line;
+            the whole output in ``build.log`` beside the module).
     """
     compiles, link, target = _target()
     if target.exists():
@@ -212,8 +213,10 @@ def build(verbose: bool = False) -> Path:
             failed = [(out, code) for _, out, _, code in results if code != 0]
             if failed:
                 out, code = failed[0]
-                tail = "\n".join((out or "").strip().splitlines()[-6:])
-                raise NativeError(f"the compiler failed (exit {code}):\n{tail}")
+                errors = [ln for ln in (out or "").splitlines() if "error" in ln]
+                last = (errors or (out or "").strip().splitlines() or ["no output"])[0]
+                raise NativeError(f"the compiler failed (exit {code}; its output is in "
+                                  f"{target.parent / 'build.log'}): {last.strip()}")  # fmt: skip
             os.replace(names["out"], target)
         finally:
             for name in names.values():

@@ -1,0 +1,96 @@
+"""The platform wheel: built by ``pip wheel .``, installed into a fresh environment where no
+compiler is reachable, and run from an empty folder.
+
+This is what a user of the wheel gets: the compiled core inside it, loaded with no compiler,
+no build cache and no source tree. The fresh environment installs the wheel with its
+dependencies from the package index (so the exact Pinocchio and ProxSuite pins resolve), its
+``PATH`` holds only its own ``bin/``, ``CC``/``CXX`` point nowhere, and the test first proves
+that no C or C++ compiler can be found from there. The runs are the paper's combined
+experiment with ``backend = "native"`` on both the controller and the plant (an error, not a
+fallback, if the compiled module did not load), ``hmpc-pin run paper_combined`` as a user
+types it, and ``hmpc-pin reproduce``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import venv
+import zipfile
+
+import numpy as np
+import pytest
+
+from .conftest import ROOT
+
+COMPILERS = ("cc", "gcc", "c++", "g++", "clang", "clang++")
+
+SMOKE = """
+import shutil, warnings
+from dataclasses import replace
+found = [c for c in {compilers!r} if shutil.which(c)]
+assert not found, f"a compiler is reachable: {{found}}"
+import hmpc_pin
+from hmpc_pin import native
+info = native.build_info()
+config = hmpc_pin.load_config("paper_combined")
+config = replace(config, controller=replace(config.controller, backend="native"),
+                 plant=replace(config.plant, backend="native"))
+with warnings.catch_warnings():
+    warnings.simplefilter("error", hmpc_pin.PerformanceWarning)
+    ex = hmpc_pin.Experiment.from_config(config)
+    result = ex.run()
+assert ex.controller.native and ex.plant.native and result.complete
+print("package", hmpc_pin.__file__)
+print("core", info["path"])
+"""
+
+
+def _run(cmd, **kw):
+    out = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    assert out.returncode == 0, f"{cmd}\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
+    return out
+
+
+@pytest.mark.slow
+def test_the_wheel_runs_from_an_empty_folder_with_no_compiler(tmp_path):
+    dist = tmp_path / "dist"
+    _run([sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "-q", "-w", str(dist)],
+         timeout=1800)  # fmt: skip
+    (wheel,) = dist.glob("hmpc_pin-*.whl")
+    assert "-none-any" not in wheel.name  # a platform wheel
+    names = zipfile.ZipFile(wheel).namelist()
+    for name in ("hmpc_pin/data/robots/planar3.urdf", "hmpc_pin/data/configs/paper_combined.toml",
+                 "hmpc_pin/py.typed"):  # fmt: skip
+        assert name in names
+    assert any(n.startswith("hmpc_pin/native/_core") and n.endswith((".so", ".pyd"))
+               for n in names)  # fmt: skip
+    assert not any(n.endswith((".cpp", ".hpp")) for n in names)
+
+    env_dir = tmp_path / "env"
+    venv.create(env_dir, with_pip=True)
+    bindir = env_dir / "bin"
+    _run([str(bindir / "python"), "-m", "pip", "install", "-q", str(wheel)], timeout=1800)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    clean = {"PATH": str(bindir), "HOME": str(tmp_path), "CC": "/nonexistent/cc",
+             "CXX": "/nonexistent/c++", "MPLBACKEND": "Agg"}  # fmt: skip
+    for key in ("TMPDIR", "LANG"):
+        if key in os.environ:
+            clean[key] = os.environ[key]
+    out = _run([str(bindir / "python"), "-c", SMOKE.format(compilers=COMPILERS)], cwd=empty,
+               env=clean, timeout=600)  # fmt: skip
+    lines = dict(line.split(" ", 1) for line in out.stdout.splitlines())
+    assert lines["package"].startswith(str(env_dir)), lines
+    assert lines["core"].startswith(str(env_dir)), lines
+
+    # The commands a user types, from the empty folder.
+    out = _run([str(bindir / "hmpc-pin"), "run", "paper_combined", "--out", "out"], cwd=empty,
+               env=clean, timeout=600)  # fmt: skip
+    assert "slower Python path" not in out.stderr
+    with np.load(empty / "out" / "paper_combined.npz") as data:
+        assert bool(data["complete"])
+    _run([str(bindir / "hmpc-pin"), "reproduce", "--out", "rep", "--quiet"], cwd=empty,
+         env=clean, timeout=900)  # fmt: skip
+    assert "paper_combined" in (empty / "rep" / "report.md").read_text(encoding="utf-8")

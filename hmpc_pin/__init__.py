@@ -24,7 +24,7 @@ The package is layered; each layer imports only the layers below it (tested)::
     compensation/  Compensation protocol: NDO (Chen, general), momentum observer, ISM, none
       │
     model/         Robot (URDF → Pinocchio: M, C·q̇ + G, ABA), planar 3R IK
-    native/        C++ kernels built on first use: RK4 period, the MPC step (optional path)
+    native/        the compiled core, built at install: RK4 period, the MPC step
       │
     data/, exceptions.py
 

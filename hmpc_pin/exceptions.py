@@ -240,22 +240,21 @@ class TrajectoryError(HmpcError, ValueError):
 
 
 class NativeError(HmpcError, RuntimeError):
-    """The native kernels (``hmpc_pin.native``) cannot be built or loaded here.
+    """The compiled core (``hmpc_pin.native._core``) cannot be loaded here.
 
     Raised where ``backend = "native"`` was asked for; ``backend = "auto"`` falls back to
     the Python path with one :class:`PerformanceWarning` instead.
 
     Attributes:
-        reason: What failed (a missing compiler or header, the compiler's last lines).
+        reason: What failed (the module is not installed, or was built against other
+            Pinocchio/ProxSuite versions).
     """
 
     def __init__(self, reason: str):
         self.reason = reason
         super().__init__(
-            f"the native kernels are not available: {reason}. Install a C++17 compiler "
-            "(g++ or clang++) and the package's dependencies (pybind11, cmeel-eigen), run "
-            "`hmpc-pin native --build` to see the full compiler output, or set "
-            'backend = "python"'
+            f"the native kernels are not available: {reason}. `hmpc-pin native` reports "
+            'what is installed; set backend = "python" to run the Python path'
         )
 
 

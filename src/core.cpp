@@ -17,6 +17,7 @@
 #include <proxsuite/proxqp/dense/dense.hpp>
 
 #include "dynamics.hpp"
+#include "observer.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -44,6 +45,31 @@ using DenseQP = pqp::dense::QP<double>;
 static constexpr double BIG = 1e10;  // as hmpc_pin.mpc.condensed.BIG
 
 using hmpc_native::Dynamics;
+
+// -------------------------------------------------------------------------------------
+// The disturbance observer (observer.hpp), bound on its own: its state lives in two numpy
+// arrays that the Python object owns (DisturbanceObserver.z, .estimate).
+
+struct PyNDO {
+  py::array_t<double, py::array::c_style> z_array, estimate_array;
+  hmpc_native::NDO ndo;
+  static py::array_t<double, py::array::c_style> checked(py::array_t<double, py::array::c_style> a,
+                                                          Eigen::Index n) {
+    if (a.ndim() != 1 || a.size() != n || !a.writeable())
+      throw std::invalid_argument("NDO: z and estimate must be writable float64 arrays of n");
+    return a;
+  }
+  PyNDO(const CRefMat& cY, double Ts, bool implicit, py::array_t<double, py::array::c_style> z,
+        py::array_t<double, py::array::c_style> estimate)
+      : z_array(checked(z, cY.rows())), estimate_array(checked(estimate, cY.rows())),
+        ndo(cY, Ts, implicit, z_array.mutable_data(), estimate_array.mutable_data()) {}
+  void update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq, const CRefVec& tau) {
+    if (M.rows() != ndo.n || M.cols() != ndo.n || nle.size() != ndo.n || dq.size() != ndo.n ||
+        tau.size() != ndo.n)
+      throw std::invalid_argument("NDO.update: M must be (n, n) and nle, dq, tau (n,)");
+    ndo.update(M, nle, dq, tau);
+  }
+};
 
 // -------------------------------------------------------------------------------------
 // The RK4 plant's period: see hmpc_pin.sim.plants.RK4Plant (same stages, same torques).
@@ -191,11 +217,8 @@ struct HMPCCore {
   Vec g_soft, l_soft, u_soft, X;
   bool constrained_last = false;
   long constrained = 0;
-  // Observer: mode 0 none, 1 implicit, 2 explicit.
-  int mode;
-  Mat cY, TcY;
-  Eigen::PartialPivLU<Mat> lu;
-  Vec p, rhs, w;
+  // The observer (observer.hpp), shared with the Python DisturbanceObserver; none: null.
+  std::shared_ptr<PyNDO> ndo;
   // Effort limit (inf: none).
   Vec effort;
   bool started = false;
@@ -205,7 +228,6 @@ struct HMPCCore {
   Buffer<MapRow> v;       // (1, n) commanded acceleration
   Buffer<MapRow> tau;     // (1, n) commanded torque
   Buffer<MapRow> dhat;    // (1, n) disturbance estimate
-  Buffer<MapRow> z;       // (1, n) observer state
   Vec applied;
   // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), Python-owned (step_t fills it).
   std::optional<Buffer<MapRow>> stack;
@@ -224,28 +246,22 @@ struct HMPCCore {
 
   HMPCCore(const std::string& serialized, const CRefRow& FT_, int N_, int Nc_, bool block_,
            const CRefMat& H_, const CRefVec& v_min_, const CRefVec& v_max_,
-           py::dict warm_settings_, py::dict cold_settings_, int mode_, const CRefMat& cY_,
-           double Ts, py::array_t<double, py::array::c_style> U_,
+           py::dict warm_settings_, py::dict cold_settings_, std::shared_ptr<PyNDO> ndo_,
+           py::array_t<double, py::array::c_style> U_,
            py::array_t<double, py::array::c_style> slack_,
            py::array_t<double, py::array::c_style> v_,
            py::array_t<double, py::array::c_style> tau_,
-           py::array_t<double, py::array::c_style> dhat_,
-           py::array_t<double, py::array::c_style> z_)
+           py::array_t<double, py::array::c_style> dhat_)
       : dyn(serialized), n(dyn.n), N(N_), Nc(Nc_), FT(FT_), block(block_), H(H_),
         v_min(v_min_), v_max(v_max_), warm_settings(warm_settings_),
-        cold_settings(cold_settings_), mode(mode_), cY(cY_),
+        cold_settings(cold_settings_), ndo(std::move(ndo_)),
         U(U_, Nc_, dyn.n), slack(slack_, 1, dyn.n), v(v_, 1, dyn.n), tau(tau_, 1, dyn.n),
-        dhat(dhat_, 1, dyn.n), z(z_, 1, dyn.n) {
+        dhat(dhat_, 1, dyn.n) {
     if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || H.rows() != Nc || H.cols() != Nc ||
-        v_min.size() != n || v_max.size() != n || cY.rows() != n || cY.cols() != n)
+        v_min.size() != n || v_max.size() != n || (ndo && ndo->ndo.n != n))
       throw std::invalid_argument("HMPCCore: shapes do not match the model and horizon");
     // Without a velocity weight the ṙ rows of the map are zero: skip them.
     grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
-    TcY = Ts * cY;
-    lu = Eigen::PartialPivLU<Mat>(n);
-    p.setZero(n);
-    rhs.setZero(n);
-    w.setZero(n);
     applied.setZero(n);
     effort = Vec::Constant(n, std::numeric_limits<double>::infinity());
     if (block) {
@@ -415,9 +431,8 @@ struct HMPCCore {
     effort = limit;
   }
 
-  // Start a run: the observer state and estimate (from the Python observer's reset).
-  void reset(const CRefVec& z0, const CRefVec& dhat0) {
-    z.map.row(0) = z0.transpose();
+  // Start a run: the estimate (the observer's, after its own reset).
+  void reset(const CRefVec& dhat0) {
     dhat.map.row(0) = dhat0.transpose();
     v.map.setZero();
     tau.map.setZero();
@@ -489,19 +504,11 @@ struct HMPCCore {
     const Mat& M = dyn.mass_matrix(q);
     const Vec& nle = dyn.nle(q, dq);
     auto d = dhat.map.row(0).transpose();
-    auto zz = z.map.row(0).transpose();
-    if (started && mode != 0) {
-      // Eq (13), backward (mode 1) or forward (mode 2) Euler: see DisturbanceObserver.update.
+    if (started && ndo) {
+      // Eq (13) over the period that just ended, with the torque applied over it.
       applied = tau.map.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
-      p.noalias() = cY * dq;
-      rhs = nle - applied;
-      rhs -= p;
-      rhs -= zz;
-      if (mode == 1) lu.compute(M + TcY);
-      else lu.compute(M);
-      w = lu.solve(rhs);
-      zz += TcY * w;
-      d = zz + p;
+      ndo->ndo.update(M, nle, dq, applied);
+      d = ndo->ndo.estimate;
     }
     // Box QPs.
     if (block) {
@@ -594,10 +601,19 @@ PYBIND11_MODULE(_core, m) {
       .def("mass_matrix", [](RK4& r, const CRefVec& q) { return Mat(r.dyn.mass_matrix(q)); })
       .def("nle", [](RK4& r, const CRefVec& q, const CRefVec& v) { return Vec(r.dyn.nle(q, v)); });
 
+  py::class_<PyNDO, std::shared_ptr<PyNDO>>(m, "NDO")
+      .def(py::init<const CRefMat&, double, bool, py::array_t<double, py::array::c_style>,
+                    py::array_t<double, py::array::c_style>>(),
+           py::arg("cY"), py::arg("Ts"), py::arg("implicit"), py::arg("z"), py::arg("estimate"))
+      .def("reset", [](PyNDO& o, const CRefVec& dq0) { o.ndo.reset(dq0); }, py::arg("dq0"))
+      .def("update", &PyNDO::update, py::arg("M"), py::arg("nle"), py::arg("dq"),
+           py::arg("tau_prev"))
+      .def_property_readonly("n", [](const PyNDO& o) { return o.ndo.n; })
+      .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; });
+
   py::class_<HMPCCore>(m, "HMPCCore")
       .def(py::init<const std::string&, const CRefRow&, int, int, bool, const CRefMat&,
-                    const CRefVec&, const CRefVec&, py::dict, py::dict, int, const CRefMat&,
-                    double, py::array_t<double, py::array::c_style>,
+                    const CRefVec&, const CRefVec&, py::dict, py::dict, std::shared_ptr<PyNDO>,
                     py::array_t<double, py::array::c_style>,
                     py::array_t<double, py::array::c_style>,
                     py::array_t<double, py::array::c_style>,

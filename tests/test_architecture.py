@@ -4,10 +4,6 @@ its own subpackage and the layers below; no import cycle; the data ships in the 
 from __future__ import annotations
 
 import ast
-import os
-import subprocess
-import sys
-import sysconfig
 from pathlib import Path
 
 import pytest
@@ -138,68 +134,3 @@ def test_every_exception_is_defined_in_exceptions_py():
             if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call):
                 fn = getattr(node.exc.func, "id", "")
                 assert fn not in ("ValueError", "TypeError"), f"{name}: bare {fn}"
-
-
-@pytest.mark.slow
-def test_wheel_installs_and_runs_packaged_config_and_reproduce_from_anywhere(tmp_path):
-    """``pip wheel .``, installed (without dependencies) into a fresh virtual environment
-    that sees this environment's dependencies through a .pth file, then ``hmpc-pin run
-    paper_combined`` and ``hmpc-pin reproduce`` from an empty temporary folder."""
-    root = PKG.parent
-    dist = tmp_path / "dist"
-    subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(root)],
-        check=True,
-        timeout=600,
-    )
-    (wheel,) = dist.glob("hmpc_pin-*.whl")
-    import zipfile
-
-    names = zipfile.ZipFile(wheel).namelist()
-    assert "hmpc_pin/data/robots/planar3.urdf" in names
-    assert "hmpc_pin/data/configs/paper_combined.toml" in names
-    assert "hmpc_pin/py.typed" in names
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
-    py = venv / "bin" / "python"
-    site = subprocess.run(
-        [py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout.strip()
-    # this environment's dependencies: its site-packages first ("00" sorts first), then
-    # its .pth hooks (Pinocchio's cmeel prefix), except the editable install of hmpc_pin
-    ours = Path(sysconfig.get_paths()["purelib"])
-    Path(site, "00deps.pth").write_text(f"{ours}\n")
-    for pth in ours.glob("*.pth"):
-        if "hmpc_pin" not in pth.name and "__editable__" not in pth.name:
-            Path(site, pth.name).write_text(pth.read_text())
-    subprocess.run(
-        [sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q",
-         str(wheel)],
-        check=True,
-        timeout=600,
-    )  # fmt: skip
-    work = tmp_path / "elsewhere"
-    work.mkdir()
-    env = {**os.environ, "MPLBACKEND": "Agg"}
-    env.pop("PYTHONPATH", None)
-    where = subprocess.run(
-        [py, "-c", "import hmpc_pin; print(hmpc_pin.__file__)"],
-        cwd=work, check=True, capture_output=True, text=True, env=env,
-    ).stdout  # fmt: skip
-    assert str(venv) in where, where
-    hmpc = venv / "bin" / "hmpc-pin"
-    run = subprocess.run(
-        [hmpc, "run", "paper_combined", "--duration", "1", "--out", "out"],
-        cwd=work, capture_output=True, text=True, env=env, timeout=600,
-    )  # fmt: skip
-    assert run.returncode == 0, run.stderr
-    assert (work / "out" / "paper_combined.npz").is_file()
-    rep = subprocess.run(
-        [hmpc, "reproduce", "--out", "rep", "--quiet"],
-        cwd=work, capture_output=True, text=True, env=env, timeout=900,
-    )  # fmt: skip
-    assert rep.returncode == 0, rep.stderr
-    assert "paper_combined" in (work / "rep" / "report.md").read_text(encoding="utf-8")

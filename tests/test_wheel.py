@@ -40,8 +40,9 @@ config = replace(config, controller=replace(config.controller, backend="native")
 with warnings.catch_warnings():
     warnings.simplefilter("error", hmpc_pin.PerformanceWarning)
     ex = hmpc_pin.Experiment.from_config(config)
+    plant = ex.make_plant()
     result = ex.run()
-assert ex.controller.native and ex.plant.native and result.complete
+assert ex.controller.native and plant.native and result.complete
 print("package", hmpc_pin.__file__)
 print("core", info["path"])
 """

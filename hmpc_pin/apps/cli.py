@@ -560,33 +560,36 @@ def build_parser() -> argparse.ArgumentParser:
 
     nat = sub.add_parser(
         "native",
-        help="build (or locate) the native C++ kernels ahead of the first run",
-        description="Compile hmpc_pin's C++ kernels (the RK4 plant's period and the MPC "
-        "step) against the installed Pinocchio and ProxSuite, if not cached yet, and print "
-        "where the module is. Runs do this on first use; `make` calls it up front. Exit 1 "
-        "if it cannot be built (the compiler's output is printed); runs then take the "
-        "Python path (backend = \"auto\").",
+        help="report the compiled core (built when the package was installed)",
+        description="Print where hmpc_pin's compiled core (the RK4 plant's period and the "
+        "MPC step) is installed and what it was built against. It is built when the "
+        "package is built (pip install); exit 1 if it cannot be loaded here, and runs then "
+        "take the Python path (backend = \"auto\").",
     )
     nat.add_argument(
         "--build", action="store_true",
-        help="build now if needed, printing the compiler's command and output",
+        help="deprecated since 0.3 (the core is built at install time): same as without it",
     )  # fmt: skip
     nat.set_defaults(func=cmd_native)
     return parser
 
 
 def cmd_native(args) -> int:
-    """``hmpc-pin native``: build the kernels if needed, print the module's path."""
+    """``hmpc-pin native``: where the compiled core is and what it was built against."""
     from .. import native
     from ..exceptions import NativeError
 
+    if args.build:
+        print("warning: `hmpc-pin native --build` is deprecated since 0.3: the compiled "
+              "core is built when the package is installed", file=sys.stderr)  # fmt: skip
     try:
-        path = native.build(verbose=args.build)
-        native.load()
+        info = native.build_info()
     except NativeError as exc:
         print(f"native kernels: not available: {exc.reason}", file=sys.stderr)
         return EXIT_FAILED
-    print(f"native kernels: {path}")
+    print(f"native kernels: {info['path']}")
+    print(f"  built against pinocchio {info['pinocchio']}, proxsuite {info['proxsuite']} "
+          f"({info['compiler']}, {info['build_type']})")  # fmt: skip
     return 0
 
 

@@ -44,6 +44,10 @@ integrated with backward Euler, which is unconditionally stable for any gain:
 with :math:`n_k = C\\dot q + G` at the measured state and :math:`\\tau_{k-1}` the
 torque held over the last period. Explicit (forward) Euler is available for
 comparison only: it diverges once :math:`T_s c\\,\\lambda_{\\max}(Y M^{-1}) > 2`.
+
+The NDO's update is the compiled core's (``src/observer.cpp``, :mod:`hmpc_pin.native`), the
+same object the fused control step advances; its numpy version is the test oracle
+(``tests/reference/observers.py``).
 """
 
 from __future__ import annotations
@@ -51,11 +55,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import ConfigError
-
-try:  # eigenpy comes with Pinocchio; PartialPivLU is bound in eigenpy >= 3.
-    from eigenpy import PartialPivLU as _PartialPivLU
-except ImportError:  # pragma: no cover - older eigenpy: np.linalg.solve
-    _PartialPivLU = None
+from ..native import load as load_native
 
 __all__ = [
     "OBSERVER_KINDS",
@@ -115,11 +115,34 @@ class DisturbanceObserver:
         self.kind = kind
         self.discretization = discretization
         self.cY = self.gain * observer_matrix(kind, n)
-        self._TcY = self.Ts * self.cY
-        self._implicit = discretization == "implicit"
-        self._lu = _PartialPivLU(n) if _PartialPivLU is not None else None
-        self.z = np.zeros(n)
-        self.estimate = np.zeros(n)
+        self._z = np.zeros(n)
+        self._estimate = np.zeros(n)
+        self._core = load_native().NDO(
+            self.cY, self.Ts, discretization == "implicit", self._z, self._estimate
+        )
+
+    @property
+    def z(self) -> np.ndarray:
+        """The observer state :math:`z = \\hat d - p` [N·m], shape (n,) (read-only view,
+        updated in place)."""
+        return self._z
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The current estimate :math:`\\hat d` [N·m], shape (n,) (read-only view, updated
+        in place by :meth:`update` and by the fused control step)."""
+        return self._estimate
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        del state["_core"]  # the compiled object is rebuilt on unpickling
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._core = load_native().NDO(
+            self.cY, self.Ts, self.discretization == "implicit", self._z, self._estimate
+        )
 
     def p(self, dq: np.ndarray) -> np.ndarray:
         """Auxiliary function :math:`p(\\dot q) = c Y \\dot q` (Eq 28)."""
@@ -132,8 +155,7 @@ class DisturbanceObserver:
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         """Start at :math:`z_0 = -p(\\dot q_0)`, i.e. :math:`\\hat d(0) = 0` (``q0`` unused)."""
-        self.z = -self.p(dq0)
-        self.estimate = np.zeros(self.n)
+        self._core.reset(np.asarray(dq0, dtype=float))
 
     def update(
         self,
@@ -147,34 +169,24 @@ class DisturbanceObserver:
         """Advance one sampling period and return the new estimate :math:`\\hat d_k`
         (the :class:`~hmpc_pin.compensation.base.Compensation` protocol).
 
+        Backward (implicit) or forward (explicit) Euler on Eq (13), each one linear solve
+        with Eigen's partial-pivoting LU (module docstring; ``src/observer.hpp``):
+        :math:`(M + T_s cY)\\,w = n_k - \\tau_{k-1} - p_k - z` (explicit: :math:`M w = \\dots`),
+        :math:`z \\leftarrow z + T_s cY w`, :math:`\\hat d_k = z + p_k`.
+
         Args:
-            M: Inertia matrix at the measured state [kg·m²].
-            nle: :math:`C\\dot q + G` at the measured state [N·m].
+            M: Inertia matrix at the measured state [kg·m²], (n, n).
+            nle: :math:`C\\dot q + G` at the measured state [N·m], (n,).
             q: Measured joint position [rad] (unused here; the momentum observer needs it).
-            dq: Measured joint velocity [rad/s].
-            tau_prev: Torque applied over the period that just ended [N·m].
+            dq: Measured joint velocity [rad/s], (n,).
+            tau_prev: Torque applied over the period that just ended [N·m], (n,).
             v: Outer-loop acceleration of that period [rad/s²] (unused by the NDO).
+
+        Returns:
+            A copy of :attr:`estimate` [N·m], (n,).
         """
-        # With L = cY M⁻¹ and b = n_k − τ_{k−1} − p_k, both updates need one linear solve:
-        #   implicit: (I + Ts L) z⁺ = z + Ts L b  ⇔  (M + Ts cY) u = b − z,  z⁺ = z + Ts cY u
-        #   explicit: z⁺ = z + Ts L (b − z)      ⇔  M u = b − z,            z⁺ = z + Ts cY u
-        p = self.cY.dot(dq)
-        rhs = nle - tau_prev
-        rhs -= p
-        rhs -= self.z
-        A = M + self._TcY if self._implicit else M
-        if self._lu is not None:
-            # Eigen's partial-pivoting LU, the factorisation object reused: the same
-            # algorithm as np.linalg.solve (LAPACK getrf/getrs) at a fifth of its call cost.
-            self._lu.compute(A)
-            u = self._lu.solve(rhs)
-        else:
-            u = np.linalg.solve(A, rhs)
-        z = self._TcY.dot(u)
-        z += self.z
-        self.z = z
-        self.estimate = z + p
-        return self.estimate
+        self._core.update(M, nle, dq, tau_prev)
+        return self._estimate.copy()
 
 
 class MomentumObserver:

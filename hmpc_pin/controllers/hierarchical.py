@@ -275,22 +275,21 @@ class HierarchicalMPC(AppliedTorque):
 
     def _make_core(self, v_min: FloatArray, v_max: FloatArray) -> None:
         """The native step, writing into buffers that this object exposes (``v``, ``tau``,
-        ``disturbance_estimate``, the observer's ``z``/``estimate``, the QPs' solution)."""
+        ``disturbance_estimate``, the QPs' solution); the observer object advances its
+        own state."""
         n, s, qps = self.n, self.settings, self.qps
         comp = self.compensation
-        if isinstance(comp, DisturbanceObserver):
-            mode, cY = (1 if comp.discretization == "implicit" else 2), comp.cY
-        else:
-            mode, cY = 0, np.zeros((n, n))
-        self._buf = {name: np.zeros(n) for name in ("v", "tau", "d_hat", "z")}
+        # The observer object itself: the fused step advances its state (one implementation).
+        ndo = comp._core if isinstance(comp, DisturbanceObserver) else None
+        self._buf = {name: np.zeros(n) for name in ("v", "tau", "d_hat")}
         for array in (qps.solution, qps.slack, self._stack):
             if not (array.flags.c_contiguous and array.dtype == np.float64):
                 raise RuntimeError("native buffers must be C-contiguous float64")  # internal
         core = load_native().HMPCCore(
             model_string(self.robot), self._FT, s.N, s.Nc, qps.layout == "block",
             self.mpc.H, v_min, v_max, solver_settings(s.eps_abs, s.max_iter),
-            cold_twin_settings(s.eps_abs, s.max_iter), mode,
-            cY, s.Ts, qps.solution, qps.slack, *self._buf.values(),
+            cold_twin_settings(s.eps_abs, s.max_iter), ndo,
+            qps.solution, qps.slack, *self._buf.values(),
         )  # fmt: skip
         if qps.soft_qps:
             core.set_limits(
@@ -338,13 +337,11 @@ class HierarchicalMPC(AppliedTorque):
         self.tau = np.zeros(self.n)
         self._started = False
         if self._core is not None:
-            comp, buf = self.compensation, self._buf
-            z0 = comp.z if isinstance(comp, DisturbanceObserver) else np.zeros(self.n)
-            self._core.reset(z0, comp.estimate)
-            # Updated in place by every native step from now on.
+            buf = self._buf
+            self._core.reset(self.compensation.estimate)
+            # Updated in place by every native step from now on (the observer's own state
+            # by the observer object, which the step shares).
             self.v, self.tau, self.disturbance_estimate = buf["v"], buf["tau"], buf["d_hat"]
-            if isinstance(comp, DisturbanceObserver):
-                comp.z, comp.estimate = buf["z"], buf["d_hat"]
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
         """Compute the torque for the measured state at time ``t``.

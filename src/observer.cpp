@@ -1,0 +1,36 @@
+// The NDO of Eq (13): see observer.hpp.
+#include "observer.hpp"
+
+#include <stdexcept>
+
+namespace hmpc_native {
+
+NDO::NDO(const CRefMat& cY_, double Ts, bool implicit_, double* z_, double* estimate_)
+    : n(static_cast<int>(cY_.rows())), implicit(implicit_), cY(cY_), TcY(Ts * cY_),
+      z(z_, cY_.rows()), estimate(estimate_, cY_.rows()), lu_(cY_.rows()) {
+  if (cY.rows() != cY.cols()) throw std::invalid_argument("NDO: cY must be square");
+  p_.setZero(n);
+  rhs_.setZero(n);
+  w_.setZero(n);
+}
+
+void NDO::reset(const CRefVec& dq0) {
+  if (dq0.size() != n) throw std::invalid_argument("NDO.reset: dq0 of wrong size");
+  z.noalias() = -(cY * dq0);
+  estimate.setZero();
+}
+
+void NDO::update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq,
+                 const CRefVec& tau_prev) {
+  p_.noalias() = cY * dq;
+  rhs_ = nle - tau_prev;
+  rhs_ -= p_;
+  rhs_ -= z;
+  if (implicit) lu_.compute(M + TcY);
+  else lu_.compute(M);
+  w_ = lu_.solve(rhs_);
+  z.noalias() += TcY * w_;
+  estimate = z + p_;
+}
+
+}  // namespace hmpc_native

@@ -1,0 +1,45 @@
+// The nonlinear disturbance observer of Eq (13), discretised at the control period: the one
+// implementation, used on its own (hmpc_pin.compensation.observers.DisturbanceObserver) and
+// inside the fused step (core.cpp, HMPCCore). The numpy oracle it is tested against is
+// tests/reference/observers.py.
+//
+// With p = cY q̇, L = cY M⁻¹ and b = n_k − τ_{k−1} − p_k, each update is one linear solve:
+//   implicit (backward Euler): (M + Ts cY) w = b − z,  z⁺ = z + Ts cY w
+//   explicit (forward Euler):   M w = b − z,           z⁺ = z + Ts cY w
+// and d̂ = z⁺ + p_k (Eq 13 with z = d̂ − p).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+
+namespace hmpc_native {
+
+class NDO {
+ public:
+  using Vec = Eigen::VectorXd;
+  using Mat = Eigen::MatrixXd;
+  using CRefVec = Eigen::Ref<const Vec>;
+  using CRefMat = Eigen::Ref<const Mat>;
+  using MapVec = Eigen::Map<Vec>;
+
+  // cY: c·Y (n×n) [1/s·kg·m² per rad/s]; Ts [s]; z, estimate: n doubles each, owned by the
+  // caller (the Python object's arrays), updated in place.
+  NDO(const CRefMat& cY, double Ts, bool implicit, double* z, double* estimate);
+
+  // z = −cY q̇₀ (so that d̂ = 0 at the start), d̂ = 0.
+  void reset(const CRefVec& dq0);
+  // One period: M, n = C q̇ + G and q̇ at the measured state, τ the torque held over the
+  // period that just ended. Writes z and the estimate d̂.
+  void update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq, const CRefVec& tau_prev);
+
+  int n;
+  bool implicit;
+  Mat cY, TcY;
+  MapVec z, estimate;
+
+ private:
+  Eigen::PartialPivLU<Mat> lu_;
+  Vec p_, rhs_, w_;
+};
+
+}  // namespace hmpc_native

@@ -240,7 +240,7 @@ class TrajectoryError(HmpcError, ValueError):
 
 
 class NativeError(HmpcError, RuntimeError):
-    """The compiled core (``hmpc_pin.native._core``) cannot be loaded here.
+    """The compiled core (``hmpc_pin._core``) cannot be loaded here.
 
     Raised where ``backend = "native"`` was asked for; ``backend = "auto"`` falls back to
     the Python path with one :class:`PerformanceWarning` instead.

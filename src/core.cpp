@@ -583,6 +583,9 @@ struct HMPCCore {
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "hmpc_pin native kernels (RK4 period, hierarchical MPC step)";
+  // Every class is module-local: another build of this module (an older version loaded
+  // side by side for an A/B benchmark) or another pybind11 extension with classes of the
+  // same names cannot take over these bindings.
   // What this module was built against (CMakeLists.txt); hmpc_pin.native checks it.
   py::dict info;
   info["pinocchio"] = HMPC_PINOCCHIO_VERSION;
@@ -591,7 +594,7 @@ PYBIND11_MODULE(_core, m) {
   info["build_type"] = HMPC_BUILD_TYPE;
   m.attr("build_info") = info;
 
-  py::class_<RK4>(m, "RK4")
+  py::class_<RK4>(m, "RK4", py::module_local())
       .def(py::init<const std::string&>(), py::arg("model"))
       .def_property_readonly("nq", [](const RK4& r) { return r.dyn.n; })
       .def("period", &RK4::period, py::arg("q"), py::arg("v"), py::arg("T"), py::arg("a"),
@@ -601,7 +604,7 @@ PYBIND11_MODULE(_core, m) {
       .def("mass_matrix", [](RK4& r, const CRefVec& q) { return Mat(r.dyn.mass_matrix(q)); })
       .def("nle", [](RK4& r, const CRefVec& q, const CRefVec& v) { return Vec(r.dyn.nle(q, v)); });
 
-  py::class_<PyNDO, std::shared_ptr<PyNDO>>(m, "NDO")
+  py::class_<PyNDO, std::shared_ptr<PyNDO>>(m, "NDO", py::module_local())
       .def(py::init<const CRefMat&, double, bool, py::array_t<double, py::array::c_style>,
                     py::array_t<double, py::array::c_style>>(),
            py::arg("cY"), py::arg("Ts"), py::arg("implicit"), py::arg("z"), py::arg("estimate"))
@@ -611,7 +614,7 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("n", [](const PyNDO& o) { return o.ndo.n; })
       .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; });
 
-  py::class_<HMPCCore>(m, "HMPCCore")
+  py::class_<HMPCCore>(m, "HMPCCore", py::module_local())
       .def(py::init<const std::string&, const CRefRow&, int, int, bool, const CRefMat&,
                     const CRefVec&, const CRefVec&, py::dict, py::dict, std::shared_ptr<PyNDO>,
                     py::array_t<double, py::array::c_style>,

@@ -302,35 +302,36 @@ def test_backend_options_are_validated(write_config):
     assert not ex.controller.native
 
 
-_BLOCK_CORE = "import sys; sys.modules['hmpc_pin.native._core'] = None\n"
+_BLOCK_CORE = "import sys; sys.modules['hmpc_pin._core'] = None\n"
 
 
-def test_without_the_compiled_module_auto_warns_once_and_native_is_an_error():
-    """The compiled module missing (a source tree used without ``pip install``): ``auto``
-    runs the Python path with one PerformanceWarning naming the reason; ``native`` is a
-    NativeError saying how to install it."""
+def test_without_the_compiled_module_the_package_imports_and_says_how_to_install():
+    """The compiled module missing (a source tree used without ``pip install``): ``import
+    hmpc_pin`` works; a component that is only compiled (the NDO) is one NativeError saying
+    how to install; a step loop with no compiled component left (no compensation) runs the
+    Python path after one PerformanceWarning under ``auto``."""
     code = _BLOCK_CORE + """
 import warnings, numpy as np, hmpc_pin
 robot = hmpc_pin.load_robot(PATH)
-with warnings.catch_warnings(record=True) as caught:
-    warnings.simplefilter("always")
-    a = hmpc_pin.HierarchicalMPC(robot)
-    b = hmpc_pin.HierarchicalMPC(robot)
-perf = [w for w in caught if issubclass(w.category, hmpc_pin.PerformanceWarning)]
-print("native", a.native, b.native, "warnings", len(perf))
-print(perf[0].message)
 try:
-    hmpc_pin.HierarchicalMPC(robot, hmpc_pin.MPCSettings(backend="native"))
+    hmpc_pin.HierarchicalMPC(robot)
 except hmpc_pin.NativeError as exc:
     print("error:", exc)
+none = hmpc_pin.NoCompensation(robot.nq)
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    a = hmpc_pin.HierarchicalMPC(robot, compensation=none)
+    b = hmpc_pin.HierarchicalMPC(robot, compensation=none)
+perf = [w for w in caught if issubclass(w.category, hmpc_pin.PerformanceWarning)]
+print("native", a.native, b.native, "warnings", len(perf))
 """.replace("PATH", repr(str(PLANAR3)))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=ROOT, timeout=120)  # fmt: skip
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
-    assert lines[0] == "native False False warnings 1"
-    assert "hmpc_pin.native._core is not installed" in lines[1] and "pip install" in lines[1]
-    assert lines[2].startswith("error:") and 'backend = "python"' in lines[2]
+    assert lines[0].startswith("error:") and "hmpc_pin._core is not installed" in lines[0]
+    assert "pip install" in lines[0]
+    assert lines[1] == "native False False warnings 1"
 
 
 def test_a_version_mismatch_is_one_message_naming_both_versions():

@@ -65,7 +65,7 @@ def test_the_wheel_runs_from_an_empty_folder_with_no_compiler(tmp_path):
     for name in ("hmpc_pin/data/robots/planar3.urdf", "hmpc_pin/data/configs/paper_combined.toml",
                  "hmpc_pin/py.typed"):  # fmt: skip
         assert name in names
-    assert any(n.startswith("hmpc_pin/native/_core") and n.endswith((".so", ".pyd"))
+    assert any(n.startswith("hmpc_pin/_core") and n.endswith((".so", ".pyd"))
                for n in names)  # fmt: skip
     assert not any(n.endswith((".cpp", ".hpp")) for n in names)
 

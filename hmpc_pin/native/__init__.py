@@ -1,6 +1,6 @@
 """The compiled core: the RK4 plant's period and the hierarchical MPC's step in C++.
 
-The extension module ``hmpc_pin.native._core`` (sources in ``src/``, built by
+The extension module ``hmpc_pin._core`` (sources in ``src/``, built by
 ``CMakeLists.txt``) is compiled **when the package is built** -- ``pip install .``,
 ``pip install -e .`` or ``pip wheel .`` run CMake through scikit-build-core against the
 Pinocchio and ProxSuite CMake packages of the build environment -- and ships in the platform
@@ -43,7 +43,7 @@ _warned = False
 
 
 def load() -> ModuleType:
-    """The compiled module ``hmpc_pin.native._core``.
+    """The compiled module ``hmpc_pin._core``.
 
     Raises:
         NativeError: It is not installed (a source tree used without ``pip install``), or it
@@ -58,10 +58,10 @@ def load() -> ModuleType:
         import pinocchio  # its shared libraries (libpinocchio_default, Boost) first
         import proxsuite
 
-        module = importlib.import_module("hmpc_pin.native._core")
+        module = importlib.import_module("hmpc_pin._core")
     except ImportError as exc:
         _error = NativeError(
-            f"the compiled module hmpc_pin.native._core is not installed ({exc}); it is "
+            f"the compiled module hmpc_pin._core is not installed ({exc}); it is "
             "built with the package: run `pip install .` (or `pip install -e .`) in the "
             "source tree, or install the wheel"
         )

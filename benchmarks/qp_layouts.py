@@ -60,32 +60,13 @@ class LayoutTiming:
 
 
 def record_gradients(ctrl: hmpc_pin.HierarchicalMPC, t, q, dq, reference) -> np.ndarray:
-    """The QP gradients (steps, n, Nc) that ``ctrl.step`` computes along the states (for a
-    native controller, those of its Python twin: the same gradients up to rounding)."""
-    if getattr(ctrl, "native", False):
-        from dataclasses import replace
-
-        comp = ctrl.compensation
-        if isinstance(comp, hmpc_pin.DisturbanceObserver):
-            comp = hmpc_pin.DisturbanceObserver(comp.n, comp.Ts, comp.gain, comp.kind,
-                                                comp.discretization)  # fmt: skip
-        twin = hmpc_pin.HierarchicalMPC(ctrl.robot, replace(ctrl.settings, backend="python"),
-                                        comp, ctrl.limits)  # fmt: skip
-        return record_gradients(twin, t, q, dq, reference)
+    """The QP gradients (steps, n, Nc) that ``ctrl.step`` computes along the states: after
+    each step, the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] times its gradient map."""
     grads = []
-    solve = ctrl.qps.solve
-
-    def spy(G, x0=None):
-        grads.append(np.array(G))
-        return solve(G, x0)
-
-    ctrl.qps.solve = spy
-    try:
-        ctrl.reset(q[0], dq[0])
-        for i in range(len(t)):
-            ctrl.step(float(t[i]), q[i], dq[i], reference)
-    finally:
-        del ctrl.qps.solve
+    ctrl.reset(q[0], dq[0])
+    for i in range(len(t)):
+        ctrl.step(float(t[i]), q[i], dq[i], reference)
+        grads.append(np.ascontiguousarray(ctrl._stack.T @ ctrl._FT))
     return np.array(grads)
 
 

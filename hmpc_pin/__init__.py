@@ -24,8 +24,8 @@ The package is layered; each layer imports only the layers below it (tested)::
     compensation/  Compensation protocol: NDO (Chen, general), momentum observer, ISM, none
       │
     model/         Robot (URDF → Pinocchio: M, C·q̇ + G, ABA), planar 3R IK
-    native/        the compiled core, built at install: RK4 period, the MPC step
-      │
+    native/        loads the compiled core _core (src/, built with the package): dynamics,
+      │            NDO, RK4 period, the fused MPC step
     data/, exceptions.py
 
 Data flows one way: a reference and the measured state enter a controller, which holds

@@ -14,9 +14,9 @@
 #include <pybind11/stl.h>
 
 #include <Eigen/LU>
-#include <proxsuite/proxqp/dense/dense.hpp>
 
 #include "dynamics.hpp"
+#include "joint_qps.hpp"
 #include "observer.hpp"
 
 #include <algorithm>
@@ -29,7 +29,7 @@
 #include <vector>
 
 namespace py = pybind11;
-namespace pqp = proxsuite::proxqp;
+namespace pqp = proxsuite::proxqp;  // (joint_qps.hpp brings ProxSuite)
 
 using Vec = Eigen::VectorXd;
 using Mat = Eigen::MatrixXd;
@@ -40,9 +40,7 @@ using CRefMat = Eigen::Ref<const Mat>;
 using CRefRow = Eigen::Ref<const RowMat>;
 using MapVec = Eigen::Map<Vec>;
 using MapRow = Eigen::Map<RowMat>;
-using DenseQP = pqp::dense::QP<double>;
 
-static constexpr double BIG = 1e10;  // as hmpc_pin.mpc.condensed.BIG
 
 using hmpc_native::Dynamics;
 
@@ -128,45 +126,34 @@ struct RK4 {
 };
 
 // -------------------------------------------------------------------------------------
-// ProxSuite settings from a dict (keys: the Settings attributes set by the Python side).
+// ProxSuite settings from a dict (keys: the Settings attributes chosen on the Python side,
+// hmpc_pin.mpc.condensed.solver_settings), parsed once.
 
-static void apply_settings(DenseQP& qp, const py::dict& settings) {
+static hmpc_native::QPOptions qp_options(const py::dict& settings) {
+  hmpc_native::QPOptions o;
   for (auto item : settings) {
     const std::string key = py::str(item.first);
     py::handle value = item.second;
-    auto& s = qp.settings;
     if (key == "initial_guess") {
       const std::string name = py::str(value);
       if (name == "WARM_START_WITH_PREVIOUS_RESULT")
-        s.initial_guess = pqp::InitialGuessStatus::WARM_START_WITH_PREVIOUS_RESULT;
+        o.initial_guess = pqp::InitialGuessStatus::WARM_START_WITH_PREVIOUS_RESULT;
       else if (name == "NO_INITIAL_GUESS")
-        s.initial_guess = pqp::InitialGuessStatus::NO_INITIAL_GUESS;
+        o.initial_guess = pqp::InitialGuessStatus::NO_INITIAL_GUESS;
       else
         throw std::invalid_argument("unknown initial_guess " + name);
-    } else if (key == "eps_abs") s.eps_abs = value.cast<double>();
-    else if (key == "eps_rel") s.eps_rel = value.cast<double>();
-    else if (key == "max_iter") s.max_iter = value.cast<long>();
-    else if (key == "verbose") s.verbose = value.cast<bool>();
-    else if (key == "check_duality_gap") s.check_duality_gap = value.cast<bool>();
-    else if (key == "eps_duality_gap_abs") s.eps_duality_gap_abs = value.cast<double>();
-    else if (key == "eps_duality_gap_rel") s.eps_duality_gap_rel = value.cast<double>();
-    else if (key == "eps_primal_inf") s.eps_primal_inf = value.cast<double>();
-    else if (key == "eps_dual_inf") s.eps_dual_inf = value.cast<double>();
-    else throw std::invalid_argument("native kernels do not know the ProxSuite setting " + key);
+    } else if (key == "eps_abs") o.eps_abs = value.cast<double>();
+    else if (key == "eps_rel") o.eps_rel = value.cast<double>();
+    else if (key == "max_iter") o.max_iter = value.cast<long>();
+    else if (key == "verbose") o.verbose = value.cast<bool>();
+    else if (key == "check_duality_gap") o.check_duality_gap = value.cast<bool>();
+    else if (key == "eps_duality_gap_abs") o.eps_duality_gap_abs = value.cast<double>();
+    else if (key == "eps_duality_gap_rel") o.eps_duality_gap_rel = value.cast<double>();
+    else if (key == "eps_primal_inf") o.eps_primal_inf = value.cast<double>();
+    else if (key == "eps_dual_inf") o.eps_dual_inf = value.cast<double>();
+    else throw std::invalid_argument("the compiled core does not know the ProxSuite setting " + key);
   }
-}
-
-static std::string status_name(pqp::QPSolverOutput status) {
-  switch (status) {
-    case pqp::QPSolverOutput::PROXQP_SOLVED: return "QPSolverOutput.PROXQP_SOLVED";
-    case pqp::QPSolverOutput::PROXQP_MAX_ITER_REACHED: return "QPSolverOutput.PROXQP_MAX_ITER_REACHED";
-    case pqp::QPSolverOutput::PROXQP_PRIMAL_INFEASIBLE: return "QPSolverOutput.PROXQP_PRIMAL_INFEASIBLE";
-    case pqp::QPSolverOutput::PROXQP_DUAL_INFEASIBLE: return "QPSolverOutput.PROXQP_DUAL_INFEASIBLE";
-    case pqp::QPSolverOutput::PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE:
-      return "QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE";
-    case pqp::QPSolverOutput::PROXQP_NOT_RUN: return "QPSolverOutput.PROXQP_NOT_RUN";
-  }
-  return "QPSolverOutput.UNKNOWN";
+  return o;
 }
 
 // A float64 C-contiguous numpy buffer owned by Python, written in place by the kernels.
@@ -185,53 +172,52 @@ struct Buffer {
 };
 
 // -------------------------------------------------------------------------------------
-// The hierarchical MPC's step: hmpc_pin.controllers.hierarchical.HierarchicalMPC.step with
-// the NDO of hmpc_pin.compensation.observers.DisturbanceObserver (or none) and the QPs
-// of hmpc_pin.mpc.condensed.JointQPs (block or per joint, soft limits).
+// The joint QPs (joint_qps.hpp), bound on their own: the solution and slack live in numpy
+// arrays that the Python object owns (hmpc_pin.mpc.condensed.JointQPs.solution, .slack).
+
+struct PyJointQPs {
+  Buffer<MapRow> U_buf, slack_buf;
+  hmpc_native::JointQPs qps;
+  PyJointQPs(int n, int N, int Nc, bool block, const CRefMat& H, const CRefVec& v_min,
+             const CRefVec& v_max, const py::dict& warm, const py::dict& cold,
+             py::array_t<double, py::array::c_style> U, py::array_t<double, py::array::c_style> slack)
+      : U_buf(U, Nc, n), slack_buf(slack, 1, n),
+        qps(n, N, Nc, block, H, v_min, v_max, qp_options(warm), qp_options(cold),
+            U_buf.map.data(), slack_buf.map.data()) {}
+};
+
+// -------------------------------------------------------------------------------------
+// The hierarchical MPC's step (hmpc_pin.controllers.hierarchical.HierarchicalMPC.step),
+// composed of the components: the reference sampler (below), the gradient map, the
+// dynamics (dynamics.hpp), the observer (observer.hpp) or an estimate from Python, the
+// joint QPs (joint_qps.hpp), and the inverse dynamics τ = M v + C q̇ + G − d̂ (Eq 4).
+//
+// Two ways to run it: step(S) (everything here, for the NDO of Eq 13 or no compensation)
+// or prepare(S) → the caller's estimate into dhat → finish() (any compensation written in
+// Python; with dynamics = false the caller also wrote M and C q̇ + G, for models the
+// compiled dynamics cannot load).
 
 struct HMPCCore {
-  Dynamics dyn;
+  std::unique_ptr<Dynamics> dyn;  // null: M and nle come from the caller
   int n, N, Nc;
   // Gradient map, rows in stack order [q; q̇; r_1..r_N; ṙ_1..ṙ_N]; rows used.
   RowMat FT;
   Eigen::Index grad_rows;
-  // Box QPs.
-  bool block;
-  Mat H;           // one joint's scaled Hessian (Nc×Nc)
-  Mat H_block;     // kron(I_n, H) for the block layout
-  Vec v_min, v_max;
-  py::dict warm_settings, cold_settings, soft_settings;
-  std::vector<std::unique_ptr<DenseQP>> qps, cold;
-  long cold_solves = 0;
-  long unconstrained_solves = 0;
-  Mat neg_Hinv;    // −H⁻¹ (per-joint layout's shortcut)
-  Vec g_block;
-  // Soft state limits.
-  bool limits = false;
-  Mat Phi, Gamma;  // 2N×2, 2N×Nc
-  Vec lower, upper, vel, row_scale;
-  Vec mid, half;
-  double g_slack = 0.0, k_slack = 0.0;
-  Mat Hs, C;
-  std::vector<std::unique_ptr<DenseQP>> soft;
-  Vec g_soft, l_soft, u_soft, X;
-  bool constrained_last = false;
-  long constrained = 0;
-  // The observer (observer.hpp), shared with the Python DisturbanceObserver; none: null.
-  std::shared_ptr<PyNDO> ndo;
-  // Effort limit (inf: none).
+  Mat Gt;  // Nc×n: one column per joint (the memory of G, n×Nc row-major)
+  std::shared_ptr<PyJointQPs> qp;
+  std::shared_ptr<PyNDO> ndo;  // the observer advanced by step(); null: none here
   Vec effort;
   bool started = false;
-  // Python-owned outputs, updated in place.
-  Buffer<MapRow> U;       // (Nc, n) solution
-  Buffer<MapRow> slack;   // (1, n)
+  // Python-owned outputs and inputs, updated in place.
   Buffer<MapRow> v;       // (1, n) commanded acceleration
   Buffer<MapRow> tau;     // (1, n) commanded torque
   Buffer<MapRow> dhat;    // (1, n) disturbance estimate
-  Vec applied;
-  // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), Python-owned (step_t fills it).
+  Buffer<MapRow> M_out;   // (n, n) M(q) of the last prepare
+  Buffer<MapRow> nle_out; // (1, n) C q̇ + G of the last prepare
+  Vec applied, qv, dqv;
+  // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), Python-owned (fill() writes it).
   std::optional<Buffer<MapRow>> stack;
-  // The reference in native form (step_t): 0 none, 1 sine, 2 piecewise polynomial.
+  // The reference in native form: 0 none, 1 sine, 2 piecewise polynomial.
   int ref_kind = 0;
   Vec offsets;                           // horizon offsets j·Ts, j = 1..N [s]
   Vec s_omega, s_phase, s_amp, s_offset, s_amp_omega;
@@ -239,118 +225,26 @@ struct HMPCCore {
   RowMat p_coef;                         // (segments·(deg + 1))×2n: [q | q̇] per power
   int p_deg = 0;
   Eigen::RowVectorXd acc;                // one segment's [q | q̇] at s
-  // Failure report.
-  int fail_joint = -2;
-  std::string fail_status;
-  long fail_iter = 0;
 
-  HMPCCore(const std::string& serialized, const CRefRow& FT_, int N_, int Nc_, bool block_,
-           const CRefMat& H_, const CRefVec& v_min_, const CRefVec& v_max_,
-           py::dict warm_settings_, py::dict cold_settings_, std::shared_ptr<PyNDO> ndo_,
-           py::array_t<double, py::array::c_style> U_,
-           py::array_t<double, py::array::c_style> slack_,
-           py::array_t<double, py::array::c_style> v_,
+  HMPCCore(py::object model, const CRefRow& FT_, int N_, std::shared_ptr<PyJointQPs> qp_,
+           std::shared_ptr<PyNDO> ndo_, py::array_t<double, py::array::c_style> v_,
            py::array_t<double, py::array::c_style> tau_,
-           py::array_t<double, py::array::c_style> dhat_)
-      : dyn(serialized), n(dyn.n), N(N_), Nc(Nc_), FT(FT_), block(block_), H(H_),
-        v_min(v_min_), v_max(v_max_), warm_settings(warm_settings_),
-        cold_settings(cold_settings_), ndo(std::move(ndo_)),
-        U(U_, Nc_, dyn.n), slack(slack_, 1, dyn.n), v(v_, 1, dyn.n), tau(tau_, 1, dyn.n),
-        dhat(dhat_, 1, dyn.n) {
-    if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || H.rows() != Nc || H.cols() != Nc ||
-        v_min.size() != n || v_max.size() != n || (ndo && ndo->ndo.n != n))
+           py::array_t<double, py::array::c_style> dhat_,
+           py::array_t<double, py::array::c_style> M_,
+           py::array_t<double, py::array::c_style> nle_)
+      : n(qp_->qps.n), N(N_), Nc(qp_->qps.Nc), FT(FT_), qp(std::move(qp_)), ndo(std::move(ndo_)),
+        v(v_, 1, n), tau(tau_, 1, n), dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n) {
+    if (!model.is_none()) {
+      dyn = std::make_unique<Dynamics>(model.cast<std::string>());
+      if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
+    }
+    if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || qp->qps.N != N || (ndo && ndo->ndo.n != n))
       throw std::invalid_argument("HMPCCore: shapes do not match the model and horizon");
     // Without a velocity weight the ṙ rows of the map are zero: skip them.
     grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
     applied.setZero(n);
+    Gt.setZero(Nc, n);
     effort = Vec::Constant(n, std::numeric_limits<double>::infinity());
-    if (block) {
-      H_block = Mat::Zero(n * Nc, n * Nc);
-      Vec lo(n * Nc), hi(n * Nc);
-      for (int i = 0; i < n; ++i) {
-        H_block.block(i * Nc, i * Nc, Nc, Nc) = H;
-        lo.segment(i * Nc, Nc).setConstant(v_min[i]);
-        hi.segment(i * Nc, Nc).setConstant(v_max[i]);
-      }
-      g_block.setZero(n * Nc);
-      qps.emplace_back(new_box_qp(H_block, g_block, lo, hi, warm_settings));
-    } else {
-      const Mat Hinv = H.inverse();
-      neg_Hinv = -0.5 * (Hinv + Hinv.transpose());
-      for (int i = 0; i < n; ++i) {
-        Vec g = Vec::Zero(Nc);
-        qps.emplace_back(new_box_qp(H, g, Vec::Constant(Nc, v_min[i]),
-                                    Vec::Constant(Nc, v_max[i]), warm_settings));
-      }
-    }
-    cold.resize(qps.size());
-  }
-
-  std::unique_ptr<DenseQP> new_box_qp(const Mat& Hq, const Vec& g, const Vec& lo, const Vec& hi,
-                                      const py::dict& settings) {
-    auto qp = std::make_unique<DenseQP>(Hq.rows(), 0, 0, true);
-    apply_settings(*qp, settings);
-    qp->init(Hq, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt, lo, hi);
-    qp->solve();
-    return qp;
-  }
-
-  void set_limits(const CRefMat& Phi_, const CRefMat& Gamma_, const CRefVec& lower_,
-                  const CRefVec& upper_, const CRefVec& vel_, const CRefMat& Hs_,
-                  const CRefMat& C_, const CRefVec& row_scale_, double g_slack_, double k_slack_,
-                  py::dict soft_settings_) {
-    Phi = Phi_;
-    Gamma = Gamma_;
-    lower = lower_;
-    upper = upper_;
-    vel = vel_;
-    Hs = Hs_;
-    C = C_;
-    row_scale = row_scale_;
-    g_slack = g_slack_;
-    k_slack = k_slack_;
-    soft_settings = soft_settings_;
-    if (Phi.rows() != 2 * N || Phi.cols() != 2 || Gamma.rows() != 2 * N || Gamma.cols() != Nc ||
-        lower.size() != n || upper.size() != n || vel.size() != n || Hs.rows() != Nc + 1 ||
-        C.rows() != 4 * N || C.cols() != Nc + 1 || row_scale.size() != 4 * N)
-      throw std::invalid_argument("HMPCCore.set_limits: shapes do not match");
-    mid = 0.5 * (lower + upper);
-    half = 0.5 * (upper - lower);
-    g_soft.setZero(Nc + 1);
-    l_soft.setZero(4 * N);
-    u_soft.setZero(4 * N);
-    X.setZero(2 * N);
-    soft.clear();
-    for (int i = 0; i < n; ++i) {
-      auto qp = std::make_unique<DenseQP>(Nc + 1, 0, 4 * N, true);
-      apply_settings(*qp, soft_settings);
-      g_soft.head(Nc).setZero();
-      g_soft[Nc] = g_slack;
-      soft_bounds(i, Vec::Zero(N), Vec::Zero(N));
-      Vec lo(Nc + 1), hi(Nc + 1);
-      lo.head(Nc).setConstant(v_min[i]);
-      hi.head(Nc).setConstant(v_max[i]);
-      lo[Nc] = 0.0;
-      hi[Nc] = BIG;
-      qp->init(Hs, g_soft, std::nullopt, std::nullopt, C, l_soft, u_soft, lo, hi);
-      qp->solve();
-      soft.push_back(std::move(qp));
-    }
-    limits = true;
-  }
-
-  // Row bounds of joint i's soft QP for the free responses of q and q̇ (JointQPs._soft_bounds).
-  void soft_bounds(int i, const Vec& q_free, const Vec& v_free) {
-    for (int j = 0; j < N; ++j) {
-      l_soft[j] = -BIG;
-      u_soft[j] = (upper[i] - q_free[j]) * row_scale[j];
-      l_soft[N + j] = (lower[i] - q_free[j]) * row_scale[N + j];
-      u_soft[N + j] = BIG;
-      l_soft[2 * N + j] = -BIG;
-      u_soft[2 * N + j] = (vel[i] - v_free[j]) * row_scale[2 * N + j];
-      l_soft[3 * N + j] = (-vel[i] - v_free[j]) * row_scale[3 * N + j];
-      u_soft[3 * N + j] = BIG;
-    }
   }
 
   void set_stack(py::array_t<double, py::array::c_style> S, const CRefVec& offsets_) {
@@ -414,16 +308,22 @@ struct HMPCCore {
     }
   }
 
-  // A step at time t with the native reference: fills the stack, then step(). Returns
-  // step()'s codes, 3 (q or q̇ of wrong size) or 4 (t not finite), nothing changed then.
-  int step_t(double t, const CRefVec& q, const CRefVec& dq) {
+  // The stack's state and horizon rows for time t (the native reference). Returns 0, 3 (q or
+  // q̇ of wrong size) or 4 (t not finite); nothing changed then.
+  int fill(double t, const CRefVec& q, const CRefVec& dq) {
     if (!std::isfinite(t)) return 4;
     if (q.size() != n || dq.size() != n) return 3;
     auto& S = stack->map;
     S.row(0) = q.transpose();
     S.row(1) = dq.transpose();
     sample_horizon(t);
-    return step(S);
+    return 0;
+  }
+
+  // A whole step at time t with the native reference: fill(), then step().
+  int step_t(double t, const CRefVec& q, const CRefVec& dq) {
+    const int code = fill(t, q, dq);
+    return code ? code : step(stack->map);
   }
 
   void set_effort(const CRefVec& limit) {
@@ -431,153 +331,67 @@ struct HMPCCore {
     effort = limit;
   }
 
-  // Start a run: the estimate (the observer's, after its own reset).
+  // Start a run: the estimate (the compensation's, after its own reset).
   void reset(const CRefVec& dhat0) {
     dhat.map.row(0) = dhat0.transpose();
     v.map.setZero();
     tau.map.setZero();
-    slack.map.setZero();
-    constrained_last = false;
-    constrained = 0;
+    qp->qps.slack.setZero();
+    qp->qps.constrained_last = false;
+    qp->qps.constrained = 0;
     started = false;
   }
 
-  bool fail(int joint, const pqp::Results<double>& res) {
-    fail_joint = joint;
-    fail_status = status_name(res.info.status);
-    fail_iter = res.info.iter;
-    return false;
-  }
-
-  // Box QP k with gradient g; on a failed warm solve, its cold twin (JointQPs._solve_cold).
-  const pqp::Results<double>* solve_box(int k, const Vec& g, int joint) {
-    DenseQP& qp = *qps[k];
-    qp.update(std::nullopt, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt,
-              std::nullopt, std::nullopt, std::nullopt);
-    qp.solve();
-    if (qp.results.info.status == pqp::QPSolverOutput::PROXQP_SOLVED) return &qp.results;
-    if (!cold[k]) {
-      const Mat& Hq = block ? H_block : H;
-      Vec lo(Hq.rows()), hi(Hq.rows());
-      if (block) {
-        for (int i = 0; i < n; ++i) {
-          lo.segment(i * Nc, Nc).setConstant(v_min[i]);
-          hi.segment(i * Nc, Nc).setConstant(v_max[i]);
-        }
-      } else {
-        lo.setConstant(v_min[k]);
-        hi.setConstant(v_max[k]);
-      }
-      auto twin = std::make_unique<DenseQP>(Hq.rows(), 0, 0, true);
-      apply_settings(*twin, cold_settings);
-      twin->init(Hq, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt, lo, hi);
-      twin->solve();
-      cold[k] = std::move(twin);
-    } else {
-      cold[k]->update(std::nullopt, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt,
-                      std::nullopt, std::nullopt, std::nullopt);
-      cold[k]->solve();
-    }
-    const auto& res = cold[k]->results;
-    if (res.info.status != pqp::QPSolverOutput::PROXQP_SOLVED) {
-      fail(joint, res);
-      return nullptr;
-    }
-    ++cold_solves;
-    Vec x = res.x, y = res.y;
-    qp.solve(x, y, std::nullopt);
-    if (qp.results.info.status == pqp::QPSolverOutput::PROXQP_SOLVED) return &qp.results;
-    return &res;
-  }
-
-  // One control step from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n).
-  // Returns 0 (done: tau, v, dhat, U written), 1 (an input is not finite: nothing changed)
-  // or 2 (a QP did not report solved: fail_joint, fail_status, fail_iter).
-  int step(const CRefRow& S) {
+  // The first half of a step from the stack S: the gradients, and M, C q̇ + G (computed
+  // here when `dynamics`, else already written by the caller into M_out, nle_out).
+  // Returns 0, or 1 (an input is not finite: nothing changed).
+  int prepare(const CRefRow& S, bool dynamics = true) {
     if (S.rows() != 2 + 2 * N || S.cols() != n)
-      throw std::invalid_argument("HMPCCore.step: stack of wrong shape");
+      throw std::invalid_argument("HMPCCore: stack of wrong shape");
     if (!S.allFinite()) return 1;
-    const auto q = S.row(0).transpose();
-    const auto dq = S.row(1).transpose();
+    qv = S.row(0).transpose();
+    dqv = S.row(1).transpose();
     // Gradients, one column per joint: G^T = FT^T S (Nc×n).
-    Mat Gt = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
-    const Mat& M = dyn.mass_matrix(q);
-    const Vec& nle = dyn.nle(q, dq);
-    auto d = dhat.map.row(0).transpose();
-    if (started && ndo) {
-      // Eq (13) over the period that just ended, with the torque applied over it.
-      applied = tau.map.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
-      ndo->ndo.update(M, nle, dq, applied);
-      d = ndo->ndo.estimate;
+    Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+    if (dynamics) {
+      if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
+      M_out.map = dyn->mass_matrix(qv);
+      nle_out.map.row(0) = dyn->nle(qv, dqv).transpose();
     }
-    // Box QPs.
-    if (block) {
-      for (int i = 0; i < n; ++i) g_block.segment(i * Nc, Nc) = Gt.col(i);
-      const auto* res = solve_box(0, g_block, -1);
-      if (!res) return 2;
-      for (int i = 0; i < n; ++i) U.map.col(i) = res->x.segment(i * Nc, Nc);
-    } else {
-      Vec g(Nc), u(Nc);
-      for (int i = 0; i < n; ++i) {
-        g = Gt.col(i);
-        // Exact shortcut (as JointQPs.solve): the unconstrained minimiser inside the box
-        // is the box QP's solution.
-        u.noalias() = neg_Hinv * g;
-        if ((u.array() >= v_min[i]).all() && (u.array() <= v_max[i]).all()) {
-          U.map.col(i) = u;
-          ++unconstrained_solves;
-          continue;
-        }
-        const auto* res = solve_box(i, g, i);
-        if (!res) return 2;
-        U.map.col(i) = res->x;
-      }
-    }
-    constrained = 0;
-    if (limits && !enforce_limits(Gt, q, dq)) return 2;
-    v.map = U.map.row(0);
+    return 0;
+  }
+
+  // The torque held over the period that just ended, as the plant applied it.
+  const Vec& applied_torque() {
+    applied = tau.map.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
+    return applied;
+  }
+
+  // The second half: the joint QPs for the gradients, then τ = M v + C q̇ + G − d̂ (Eq 4)
+  // with d̂ in dhat. Returns 0, or 2 (a QP did not report solved: fail_*).
+  int finish() {
+    const Eigen::Map<const RowMat> G(Gt.data(), n, Nc);
+    if (!qp->qps.solve(G, qv, dqv)) return 2;
+    v.map = qp->qps.U.row(0);
     auto t = tau.map.row(0).transpose();
-    t.noalias() = M * v.map.row(0).transpose();
-    t += nle;
-    t -= d;
+    t.noalias() = M_out.map * v.map.row(0).transpose();
+    t += nle_out.map.row(0).transpose();
+    t -= dhat.map.row(0).transpose();
     started = true;
     return 0;
   }
 
-  // JointQPs._enforce_limits: re-solve with the soft state constraints the joints whose
-  // box-only prediction leaves the limits.
-  bool enforce_limits(const Mat& Gt, const Eigen::Ref<const Vec>& q, const Eigen::Ref<const Vec>& dq) {
-    if (constrained_last) {
-      slack.map.setZero();
-      constrained_last = false;
+  // One control step from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), with the
+  // observer (or none) advanced here. Returns prepare()'s or finish()'s code.
+  int step(const CRefRow& S) {
+    int code = prepare(S);
+    if (code) return code;
+    if (started && ndo) {
+      // Eq (13) over the period that just ended, with the torque applied over it.
+      ndo->ndo.update(M_out.map, nle_out.map.row(0).transpose(), dqv, applied_torque());
+      dhat.map.row(0) = ndo->ndo.estimate.transpose();
     }
-    Vec q_free(N), v_free(N);
-    for (int i = 0; i < n; ++i) {
-      X.noalias() = Phi.col(0) * q[i] + Phi.col(1) * dq[i];
-      X.noalias() += Gamma * U.map.col(i);
-      bool outside = false;
-      const double m = mid[i];
-      for (int j = 0; j < N && !outside; ++j)
-        outside = std::abs(X[2 * j] - m) > half[i] || std::abs(X[2 * j + 1]) > vel[i];
-      if (!outside) continue;
-      constrained_last = true;
-      for (int j = 0; j < N; ++j) {
-        q_free[j] = Phi(2 * j, 0) * q[i] + Phi(2 * j, 1) * dq[i];
-        v_free[j] = Phi(2 * j + 1, 0) * q[i] + Phi(2 * j + 1, 1) * dq[i];
-      }
-      g_soft.head(Nc) = Gt.col(i);
-      g_soft[Nc] = g_slack;
-      soft_bounds(i, q_free, v_free);
-      DenseQP& qp = *soft[i];
-      qp.update(std::nullopt, g_soft, std::nullopt, std::nullopt, std::nullopt, l_soft, u_soft,
-                std::nullopt, std::nullopt);
-      qp.solve();
-      if (qp.results.info.status != pqp::QPSolverOutput::PROXQP_SOLVED) return fail(i, qp.results);
-      U.map.col(i) = qp.results.x.head(Nc);
-      slack.map(0, i) = std::max(qp.results.x[Nc], 0.0) * k_slack;
-      ++constrained;
-    }
-    return true;
+    return finish();
   }
 };
 
@@ -614,28 +428,56 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("n", [](const PyNDO& o) { return o.ndo.n; })
       .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; });
 
+  using JQ = hmpc_native::JointQPs;
+  py::class_<PyJointQPs, std::shared_ptr<PyJointQPs>>(m, "JointQPs", py::module_local())
+      .def(py::init<int, int, int, bool, const CRefMat&, const CRefVec&, const CRefVec&,
+                    const py::dict&, const py::dict&, py::array_t<double, py::array::c_style>,
+                    py::array_t<double, py::array::c_style>>(),
+           py::arg("n"), py::arg("N"), py::arg("Nc"), py::arg("block"), py::arg("H"),
+           py::arg("v_min"), py::arg("v_max"), py::arg("warm"), py::arg("cold"),
+           py::arg("U"), py::arg("slack"))
+      .def("set_limits",
+           [](PyJointQPs& o, const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
+              const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
+              const CRefVec& row_scale, double g_slack, double k_slack, const py::dict& soft,
+              bool always) {
+             o.qps.set_limits(Phi, Gamma, lower, upper, vel, Hs, C, row_scale, g_slack, k_slack,
+                              qp_options(soft), always);
+           })
+      .def("solve", [](PyJointQPs& o, const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
+             return o.qps.solve(G, q, dq); }, py::arg("G"), py::arg("q"), py::arg("dq"))
+      .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
+      .def_property("shortcut", [](const PyJointQPs& o) { return o.qps.shortcut; },
+                    [](PyJointQPs& o, bool on) { o.qps.shortcut = on; })
+      .def_property_readonly("cold_solves", [](const PyJointQPs& o) { return o.qps.cold_solves; })
+      .def_property_readonly("unconstrained_solves",
+                             [](const PyJointQPs& o) { return o.qps.unconstrained_solves; })
+      .def_property_readonly("constrained", [](const PyJointQPs& o) { return o.qps.constrained; })
+      .def_property_readonly("constrained_last",
+                             [](const PyJointQPs& o) { return o.qps.constrained_last; })
+      .def_property_readonly("fail_joint", [](const PyJointQPs& o) { return o.qps.fail_joint; })
+      .def_property_readonly("fail_status", [](const PyJointQPs& o) { return o.qps.fail_status; })
+      .def_property_readonly("fail_iter", [](const PyJointQPs& o) { return o.qps.fail_iter; });
+
   py::class_<HMPCCore>(m, "HMPCCore", py::module_local())
-      .def(py::init<const std::string&, const CRefRow&, int, int, bool, const CRefMat&,
-                    const CRefVec&, const CRefVec&, py::dict, py::dict, std::shared_ptr<PyNDO>,
+      .def(py::init<py::object, const CRefRow&, int, std::shared_ptr<PyJointQPs>,
+                    std::shared_ptr<PyNDO>, py::array_t<double, py::array::c_style>,
                     py::array_t<double, py::array::c_style>,
                     py::array_t<double, py::array::c_style>,
                     py::array_t<double, py::array::c_style>,
-                    py::array_t<double, py::array::c_style>,
-                    py::array_t<double, py::array::c_style>>())
-      .def("set_limits", &HMPCCore::set_limits)
+                    py::array_t<double, py::array::c_style>>(),
+           py::arg("model"), py::arg("FT"), py::arg("N"), py::arg("qps"), py::arg("ndo"),
+           py::arg("v"), py::arg("tau"), py::arg("d_hat"), py::arg("M"), py::arg("nle"))
       .def("set_effort", &HMPCCore::set_effort)
       .def("reset", &HMPCCore::reset)
       .def("step", &HMPCCore::step)
       .def("step_t", &HMPCCore::step_t)
+      .def("fill", &HMPCCore::fill)
+      .def("prepare", &HMPCCore::prepare, py::arg("S"), py::arg("dynamics") = true)
+      .def("finish", &HMPCCore::finish)
       .def("set_stack", &HMPCCore::set_stack)
       .def("set_sine", &HMPCCore::set_sine)
       .def("set_ppoly", &HMPCCore::set_ppoly)
       .def("clear_reference", &HMPCCore::clear_reference)
-      .def_readonly("constrained", &HMPCCore::constrained)
-      .def_readonly("constrained_last", &HMPCCore::constrained_last)
-      .def_readonly("cold_solves", &HMPCCore::cold_solves)
-      .def_readonly("unconstrained_solves", &HMPCCore::unconstrained_solves)
-      .def_readonly("fail_joint", &HMPCCore::fail_joint)
-      .def_readonly("fail_status", &HMPCCore::fail_status)
-      .def_readonly("fail_iter", &HMPCCore::fail_iter);
+      .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); });
 }

@@ -37,13 +37,11 @@ class Faulty:
     def step(self, t, q, dq, reference):
         k = round(t / self.Ts)
         if k >= self.k0 and self.fault == "iteration cap":
-            # the real ProxSuite QP objects, capped at one iteration: the solver stops
-            # with PROXQP_MAX_ITER_REACHED and the status check must catch it
+            # the real ProxSuite QPs, capped at one iteration: the solver stops with
+            # PROXQP_MAX_ITER_REACHED and the status check must catch it
             qps = self.controller.qps
-            for qp in qps.qps:
-                qp.settings.max_iter = 1
-            if qps.layout == "joint":  # no unconstrained shortcut: every QP to ProxSuite
-                qps._lo_col = np.full_like(qps._lo_col, np.inf)
+            qps.max_iter = 1
+            qps.shortcut = False  # no unconstrained shortcut: every QP to ProxSuite
         tau = self.controller.step(t, q, dq, reference)
         if k >= self.k0 and self.fault == "nan torque":
             tau[1] = np.nan

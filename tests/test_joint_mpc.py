@@ -607,7 +607,6 @@ def test_fast_path_equals_always_constrained_for_long_horizons(make_rng, N, Nc):
     lo, hi, vel, Ts = -1.5, 1.5, 3.0, 0.002
     mpc, fast = soft_qps(N, Nc, lo, hi, vel, Ts=Ts)
     _, full = soft_qps(N, Nc, lo, hi, vel, always=True, Ts=Ts)
-    assert not fast._two_sided
     used = 0
     for _ in range(40):
         x0 = np.array([[rng.uniform(0.8, 1.6)], [rng.uniform(-3.0, 3.0)]])
@@ -645,16 +644,19 @@ def recorded_qp_inputs(planar3, N, Nc, steps):
     import hmpc_pin
     from hmpc_pin.controllers.hierarchical import MPCSettings
 
-    settings = MPCSettings(N=N, Nc=Nc, qp_layout="block", backend="python")  # spied below
+    settings = MPCSettings(N=N, Nc=Nc, qp_layout="block")
     ctrl = hmpc_pin.HierarchicalMPC(planar3, settings)
     ref = hmpc_pin.SineReference(3, amplitude=1.9, frequency=0.5)
-    inputs, solve = [], ctrl.qps.solve
+    inputs, step = [], ctrl.step
 
-    def spy(G, x0=None):
-        inputs.append((np.array(G), np.array(x0)))
-        return solve(G, x0)
+    def spy(t, q, dq, reference):
+        tau = step(t, q, dq, reference)
+        # the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] and the gradient map give G = (FT^T S)^T
+        S = ctrl._stack
+        inputs.append((np.ascontiguousarray((S.T @ ctrl._FT)), S[:2].copy()))
+        return tau
 
-    ctrl.qps.solve = spy
+    ctrl.step = spy
     hmpc_pin.simulate(planar3, ctrl, ref, None, duration=(steps - 1) * ctrl.Ts,
                       q0=np.zeros(3))  # fmt: skip
     return ctrl, inputs
@@ -727,3 +729,61 @@ def test_joint_layout_shortcut_is_the_box_qp_solution(make_rng, N, Nc):
         for i in np.flatnonzero(inside):
             np.testing.assert_allclose(mpc.H @ joint.solution[:, i] + G[i], 0.0, atol=1e-9)
     assert 0 < joint.unconstrained_solves < 40 * n
+
+
+# ------------------------------------------------ the compiled QPs against their oracle
+SOFT_TOL = 1e-4  # [rad/s²]: two soft solves agree to this (test_fast_path_equals_...)
+
+
+def _compare_with_oracle(qps, oracle, G, x0, tol):
+    qps.solve(G, x0)
+    U, slack, soft = oracle.solve(G, x0)
+    for i in range(G.shape[0]):
+        np.testing.assert_allclose(qps.solution[:, i], U[:, i], rtol=0,
+                                   atol=SOFT_TOL if soft[i] else tol)  # fmt: skip
+    np.testing.assert_allclose(qps.slack, slack, rtol=0, atol=1e-5)
+    assert qps.constrained == int(soft.sum())
+    return int(soft.sum())
+
+
+@pytest.mark.parametrize("layout", ["block", "joint"])
+@pytest.mark.parametrize("Nc", [1, 3])
+def test_compiled_qps_equal_the_oracle_on_random_states(make_rng, layout, Nc):
+    """Random gradients and states near the limits of 3 joints: the compiled QPs (layout,
+    shortcut, warm starts, soft limits) give the oracle's solution (tests/reference:
+    every QP solved from scratch by ProxSuite's Python API), slack and soft joints."""
+    from .reference.joint_qps import NumpyJointQPs
+
+    rng = make_rng(Nc + (layout == "joint"))
+    N, n = 10, 3
+    mpc = CondensedMPC(TS, N, Nc, Q_PAPER, R_PAPER, P_PAPER)
+    lo, hi, vel = np.full(n, -1.5), np.full(n, 1.5), np.full(n, 3.0)
+    limits = StateLimits(lo, hi, vel, SOFT["rho2"], SOFT["rho1"])
+    bound = np.full(n, V_LIMIT)
+    qps = JointQPs(mpc, -bound, bound, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits,
+                   layout=layout)  # fmt: skip
+    oracle = NumpyJointQPs(mpc, -bound, bound, limits, eps_abs=EPS_ABS)
+    tol = solution_tolerance(mpc.H)
+    soft = 0
+    for _ in range(40):
+        x0 = np.vstack([rng.uniform(0.5, 1.6, n), rng.uniform(-3.0, 3.0, n)])
+        ref = np.zeros((2 * N, n))
+        ref[0::2] = rng.uniform(0.0, 2.0, n)
+        G = mpc.gradient(x0, ref)
+        soft += _compare_with_oracle(qps, oracle, G, x0, tol)
+    assert soft > 0  # the soft QPs were exercised
+
+
+@pytest.mark.parametrize("N, Nc", [(10, 1), (10, 5)])
+def test_compiled_qps_equal_the_oracle_along_a_closed_loop(planar3, N, Nc):
+    """The gradients and states of a closed-loop run into the soft limits, replayed into
+    fresh compiled QPs (warm-started along the run, as in the controller) and the oracle."""
+    from .reference.joint_qps import NumpyJointQPs
+
+    ctrl, inputs = recorded_qp_inputs(planar3, N, Nc, 150)
+    v_min, v_max = ctrl.settings.bounds(3)
+    qps = JointQPs(ctrl.mpc, v_min, v_max, planar3.joint_names, limits=ctrl.limits)
+    oracle = NumpyJointQPs(ctrl.mpc, v_min, v_max, ctrl.limits)
+    tol = solution_tolerance(ctrl.mpc.H)
+    soft = sum(_compare_with_oracle(qps, oracle, G, x0, tol) for G, x0 in inputs)
+    assert soft > 0

@@ -12,6 +12,13 @@ the NDO of Eq 13 (:class:`~hmpc_pin.compensation.observers.DisturbanceObserver`,
 :math:`Y` or :math:`Y = I`), the generalized-momentum observer
 (:class:`~hmpc_pin.compensation.observers.MomentumObserver`) and integral sliding mode
 (:class:`~hmpc_pin.compensation.ism.IntegralSlidingMode`, ± boundary layer).
+
+Optionally, a compensation offers ``compiled_form()``: ``("ndo", obj)`` names a compiled
+observer (``hmpc_pin._core.NDO``) that the compiled control step advances itself, and
+``("zero",)`` an estimate that stays zero; the step then never calls :meth:`update` from
+Python. Without it (the momentum observer, ISM, any user class) the step calls
+:meth:`update` between its two compiled halves, with the M and :math:`C\\dot q + G` it
+computed (buffers valid during the call only).
 """
 
 from __future__ import annotations
@@ -74,6 +81,11 @@ class NoCompensation:
     def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
         """Nothing to reset; the estimate stays zero."""
         self.estimate = np.zeros(self.n)
+
+    def compiled_form(self) -> tuple[str]:
+        """``("zero",)``: the control step keeps :math:`\\hat d = 0` without calling
+        :meth:`update`."""
+        return ("zero",)
 
     def update(
         self,

@@ -144,6 +144,11 @@ class DisturbanceObserver:
             self.cY, self.Ts, self.discretization == "implicit", self._z, self._estimate
         )
 
+    def compiled_form(self) -> tuple:
+        """``("ndo", the compiled observer)``: the control step advances this very object
+        in C++ (:meth:`update` is the same computation called from Python)."""
+        return ("ndo", self._core)
+
     def p(self, dq: np.ndarray) -> np.ndarray:
         """Auxiliary function :math:`p(\\dot q) = c Y \\dot q` (Eq 28)."""
         return self.cY @ dq

@@ -13,25 +13,20 @@ At every control instant :math:`t_k`:
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ..compensation.base import Compensation, NoCompensation
+from ..compensation.base import Compensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import DimensionError, NonFiniteError, SolverError
+from ..exceptions import ConfigError, DimensionError, NonFiniteError
 from ..model.robot import Robot
-from ..mpc.condensed import (
-    CondensedMPC,
-    JointQPs,
-    StateLimits,
-    cold_twin_settings,
-    solver_settings,
-)
+from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
+from ..native import BACKENDS, model_string
 from ..native import load as load_native
-from ..native import model_string, resolve_backend
 from ..tasks.base import Reference, as_reference
 from .base import AppliedTorque
 
@@ -61,9 +56,9 @@ class MPCSettings:
         qp_layout: ``"auto"`` (``"block"`` up to n·Nc = 140 variables, ``"joint"`` above),
             ``"block"`` (one block-diagonal QP) or ``"joint"`` (one QP per joint);
             :func:`~hmpc_pin.mpc.condensed.resolve_layout`.
-        backend: ``"auto"`` (the native step, :mod:`hmpc_pin.native`, when it loads and
-            supports the controller: the NDO of Eq 13 or no compensation, no mimic joint),
-            ``"native"`` (an error otherwise) or ``"python"``.
+        backend: Deprecated since 0.3 and without effect: the step is always compiled
+            (:mod:`hmpc_pin.native`). ``"auto"`` and ``"native"`` are accepted silently,
+            ``"python"`` with a :class:`DeprecationWarning`.
     """
 
     Ts: float = 0.01
@@ -86,31 +81,25 @@ class MPCSettings:
         return lo, hi
 
 
-#: Set by :mod:`hmpc_pin.experiment.build` (which imports this module, not the other way
-#: round): ``f(robot, ControllerConfig) -> constructor arguments after robot``.
-LEGACY_CONFIG_PARTS = None
-
-
 def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
     """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts the builder
-    makes of the config, with a :class:`DeprecationWarning`."""
-    parts = LEGACY_CONFIG_PARTS
-    if parts is None or not hasattr(config, "compensation"):
+    makes of the config (``ControllerConfig.controller_parts``, asked of the object, so that
+    this layer imports nothing above it), with a :class:`DeprecationWarning`."""
+    parts = getattr(config, "controller_parts", None)
+    if not callable(parts) or not hasattr(config, "compensation"):
         from ..exceptions import InterfaceError
 
         raise InterfaceError(
             config, "MPCSettings", "or build a controller from a ControllerConfig with "
             "hmpc_pin.make_controller(robot, config)",
         )  # fmt: skip
-    import warnings
-
     warnings.warn(
         f"{who}(robot, ControllerConfig) is deprecated since 0.2; use "
         "hmpc_pin.make_controller(robot, config)",
         DeprecationWarning,
         stacklevel=3,
     )
-    return parts(robot, config)
+    return parts(robot)
 
 
 def state_limits(
@@ -181,6 +170,15 @@ class HierarchicalMPC(AppliedTorque):
         if settings is not None and not isinstance(settings, MPCSettings):
             settings, compensation, limits = _from_legacy(settings, robot, "HierarchicalMPC")
         self.settings = settings = settings if settings is not None else MPCSettings()
+        if settings.backend not in BACKENDS:
+            raise ConfigError("controller.backend",
+                              f"got {settings.backend!r}; expected one of {BACKENDS}")  # fmt: skip
+        if settings.backend == "python":
+            warnings.warn(
+                'backend = "python" is deprecated since 0.3 and has no effect: the step is '
+                "compiled (a compensation written in Python still runs in Python); remove "
+                "the key", DeprecationWarning, stacklevel=2,
+            )  # fmt: skip
         n = robot.nq
         self.n = n
         self.compensation = (
@@ -208,95 +206,70 @@ class HierarchicalMPC(AppliedTorque):
         self._times = np.empty(N)
         # The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] (rows), each block contiguous, and the
         # gradient map with its rows in that order (CondensedMPC.F interleaves r_j, ṙ_j).
-        # It lives in the QPs' buffer right after [U; −c; h_q; v̄] (JointQPs.stack), so
-        # that the state rows are shared with the limit test (JointQPs.x0), no copy.
+        # It lives in the QPs' buffer right after [U; −c; h_q; v̄] (JointQPs.stack).
         self._stack = self.qps.stack[self.mpc.Nc + 3 :]
-        self._x0 = self.qps.x0
-        self._stack_flat = self._stack.reshape(-1)
-        self._stack_finite = np.empty(self._stack_flat.size, dtype=bool)
         self._stack_q_ref = self._stack[2 : N + 2]
         self._stack_dq_ref = self._stack[N + 2 :]
         self._ref_out = (self._stack_q_ref, self._stack_dq_ref)
         order = np.concatenate([[0, 1], np.arange(2, 2 * N + 2, 2), np.arange(3, 2 * N + 2, 2)])
         self._FT = np.ascontiguousarray(self.mpc.FT[order])
-        # Long horizons: without a velocity weight (the paper's Q = diag(50, 0), P = 2Q) the
-        # ṙ rows of the map are zero; the product skips them (half the work at N = 100).
-        self._S_grad, self._FT_grad = self._stack, self._FT
-        if settings.N * settings.Nc > 200 and not self._FT[N + 2 :].any():
-            self._S_grad, self._FT_grad = self._stack[: N + 2], self._FT[: N + 2]
-        self._model, self._data = robot.model, robot.data
-        self._crba_direct = bool(getattr(robot, "crba_is_symmetric", False))
         self._ref_shape = (N, n)
         self._shape = (n,)
         self._reference: object = None
         self._ref: Reference | None = None
-        self.disturbance_estimate = np.zeros(n)
-        self.v = np.zeros(n)
-        self.tau = np.zeros(n)
+        self._native_ref = False
+        # The step's buffers, updated in place by the compiled step: v, τ and d̂, and
+        # M, C q̇ + G at the measured state (what a Python compensation's update receives).
+        self._buf = {name: np.zeros(n) for name in ("v", "tau", "d_hat", "nle")}
+        self._M = np.zeros((n, n))
+        # Models the compiled dynamics cannot load (mimic joints): M and C q̇ + G in Python.
+        self._python_dynamics = bool(robot.mimic_joints)
+        self.disturbance_estimate = self._buf["d_hat"]
+        self.v = self._buf["v"]
+        self.tau = self._buf["tau"]
         self._started = False
         self._core = None
-        self._choose_path()
+        self._make_core()
 
     @property
     def compensation(self) -> Compensation:
         """The disturbance compensation; setting it (e.g. behind a
-        :class:`~hmpc_pin.compensation.gate.FeedbackGate`) chooses the step's path again."""
+        :class:`~hmpc_pin.compensation.gate.FeedbackGate`) rebuilds the compiled step."""
         return self._compensation
 
     @compensation.setter
     def compensation(self, comp: Compensation) -> None:
         self._compensation = comp
         if hasattr(self, "_core"):
-            self._choose_path()
-
-    def _choose_path(self) -> None:
-        """The native step if ``settings.backend`` and the compensation allow it."""
-        self._core = None
-        self._native_ref = False
-        if resolve_backend(self.settings.backend, "controller.backend",
-                                  self._native_unsupported()):  # fmt: skip
-            self._make_core(*self.settings.bounds(self.n))
+            self._make_core()
 
     @property
     def native(self) -> bool:
-        """Whether :meth:`step` runs natively (:mod:`hmpc_pin.native`)."""
-        return self._core is not None
+        """Whether :meth:`step` runs compiled: always, since 0.3 (kept for old callers)."""
+        return True
 
-    def _native_unsupported(self) -> str | None:
-        """Why this controller has no native step (``None``: it has one)."""
-        comp = self.compensation
-        if type(comp) not in (DisturbanceObserver, NoCompensation):
-            return f"the compensation {type(comp).__name__} (only the NDO of Eq 13 or none)"
-        if self.robot.mimic_joints:
-            return "mimic joints"
-        if self.qps.always_constrained:
-            return "always_constrained QPs"
-        return None
+    @property
+    def fused(self) -> bool:
+        """Whether the compensation is advanced inside the compiled step (the NDO of Eq 13,
+        or none) rather than called from Python between its two halves."""
+        return self._fused
 
-    def _make_core(self, v_min: FloatArray, v_max: FloatArray) -> None:
-        """The native step, writing into buffers that this object exposes (``v``, ``tau``,
-        ``disturbance_estimate``, the QPs' solution); the observer object advances its
-        own state."""
-        n, s, qps = self.n, self.settings, self.qps
+    def _make_core(self) -> None:
+        """The compiled step (``src/core.cpp``), composed of the compiled components: the
+        QPs are :attr:`qps`' own, the observer (if any) the compensation's own object."""
         comp = self.compensation
-        # The observer object itself: the fused step advances its state (one implementation).
-        ndo = comp._core if isinstance(comp, DisturbanceObserver) else None
-        self._buf = {name: np.zeros(n) for name in ("v", "tau", "d_hat")}
-        for array in (qps.solution, qps.slack, self._stack):
-            if not (array.flags.c_contiguous and array.dtype == np.float64):
-                raise RuntimeError("native buffers must be C-contiguous float64")  # internal
+        form_of = getattr(comp, "compiled_form", None)
+        form = form_of() if callable(form_of) else None
+        ndo = None
+        if form is not None and form[0] == "ndo":
+            ndo = form[1]
+        self._fused = form is not None and not self._python_dynamics
+        model = None if self._python_dynamics else model_string(self.robot)
+        buf = self._buf
         core = load_native().HMPCCore(
-            model_string(self.robot), self._FT, s.N, s.Nc, qps.layout == "block",
-            self.mpc.H, v_min, v_max, solver_settings(s.eps_abs, s.max_iter),
-            cold_twin_settings(s.eps_abs, s.max_iter), ndo,
-            qps.solution, qps.slack, *self._buf.values(),
+            model, self._FT, self.settings.N, self.qps._core, ndo,
+            buf["v"], buf["tau"], buf["d_hat"], self._M, buf["nle"],
         )  # fmt: skip
-        if qps.soft_qps:
-            core.set_limits(
-                self.mpc.Phi, self.mpc.Gamma, qps._lower, qps._upper, qps._vel, qps._Hs,
-                qps._C, qps._row_scale, float(qps._g_soft[0, s.Nc]), float(qps._k),
-                solver_settings(s.eps_abs, s.max_iter, warm=False),
-            )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
         self._core = core
         self._reference = None  # the reference's native form is set on the next step
@@ -332,22 +305,21 @@ class HierarchicalMPC(AppliedTorque):
         q0 = self.robot.check_vector("q0", q0)
         dq0 = self.robot.check_vector("dq0", dq0)
         self.compensation.reset(q0, dq0)
-        self.disturbance_estimate = np.zeros(self.n)
-        self.v = np.zeros(self.n)
-        self.tau = np.zeros(self.n)
+        # v, τ and d̂ are the compiled step's buffers, updated in place from now on.
+        self._core.reset(np.asarray(self.compensation.estimate, dtype=float))
         self._started = False
-        if self._core is not None:
-            buf = self._buf
-            self._core.reset(self.compensation.estimate)
-            # Updated in place by every native step from now on (the observer's own state
-            # by the observer object, which the step shares).
-            self.v, self.tau, self.disturbance_estimate = buf["v"], buf["tau"], buf["d_hat"]
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
         """Compute the torque for the measured state at time ``t``.
 
         Call once per control period :math:`T_s`, after :meth:`reset`. The
         observer assumes the torque returned by the previous call was held since.
+
+        One compiled step (``src/core.cpp``): the horizon's gradients, M and
+        :math:`C\\dot q + G`, the compensation's estimate, the joint QPs and Eq (4). A
+        compensation with a compiled form (the NDO of Eq 13, or none) is advanced inside
+        it; any other (momentum, ISM, a user class) is called from Python between the
+        step's two halves, with the same compiled dynamics and QPs.
 
         Args:
             t: Time [s].
@@ -366,75 +338,71 @@ class HierarchicalMPC(AppliedTorque):
         """
         if reference is not self._reference:  # adapted once per reference object
             self._set_reference(reference)
-        if self._native_ref:  # the whole step in C++, the reference sampled there too
+        core = self._core
+        S = self._stack
+        if self._native_ref:  # the reference sampled in C++ too
             try:
-                code = self._core.step_t(t, q, dq)  # type: ignore[union-attr]
+                code = core.fill(t, q, dq)
             except TypeError:  # not convertible to a float vector
                 code = 3
             if code:
-                self._native_failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
-            return self.tau.copy()
-        if not math.isfinite(t):
-            raise NonFiniteError("t", t)
-        q = np.asarray(q, dtype=float)
-        dq = np.asarray(dq, dtype=float)
-        if q.shape != self._shape or dq.shape != self._shape:
-            self.robot.check_vector("q", q)  # raises the precise error
-            self.robot.check_vector("dq", dq)
-
-        S = self._stack
-        S[0] = q
-        S[1] = dq
-        times = np.add(self._offsets, t, self._times)
-        q_ref, dq_ref = self._ref.sample_many(times, self._ref_out)  # type: ignore[union-attr]
-        if q_ref is not self._stack_q_ref:
-            if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
-                raise DimensionError(
-                    f"reference.sample_many returned q_ref of shape {q_ref.shape} and dq_ref "
-                    f"of shape {dq_ref.shape} but the horizon needs {self._ref_shape} "
-                    f"({self.n} joints); return two arrays of shape (len(times), {self.n})"
-                )
-            self._stack_q_ref[:] = q_ref
-            self._stack_dq_ref[:] = dq_ref
-        core = self._core
-        if core is not None:
-            code = core.step(self._stack)
-            if code:
-                self._native_failure(code, t, q, dq, q_ref, dq_ref)
-            return self.tau.copy()
-        # One finiteness test covers q, q̇ and the whole reference horizon, before
-        # anything is updated: a bad input changes no state.
-        finite = np.isfinite(self._stack_flat, out=self._stack_finite)
-        if np.count_nonzero(finite) != finite.size:
-            self._raise_non_finite(t, q, dq, q_ref, dq_ref)
-        G = self._S_grad.T.dot(self._FT_grad)  # (n, Nc), one row per joint
-
-        model, data = self._model, self._data
-        M = pin.crba(model, data, q) if self._crba_direct else self.robot.mass_matrix(q)
-        nle = pin.nonLinearEffects(model, data, q, dq)
-        if self._started:
-            d_hat = self.compensation.update(M, nle, q, dq, self._applied(), self.v)
+                self._failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
         else:
-            d_hat = self.compensation.estimate.copy()
-        self.disturbance_estimate = d_hat
-
-        self.v = v = self.qps.solve(G, self._x0)
-        tau = M.dot(v)
-        tau += nle
-        tau -= d_hat
-        self.tau = tau
+            if not math.isfinite(t):
+                raise NonFiniteError("t", t)
+            q = np.asarray(q, dtype=float)
+            dq = np.asarray(dq, dtype=float)
+            if q.shape != self._shape or dq.shape != self._shape:
+                self.robot.check_vector("q", q)  # raises the precise error
+                self.robot.check_vector("dq", dq)
+            S[0] = q
+            S[1] = dq
+            times = np.add(self._offsets, t, self._times)
+            q_ref, dq_ref = self._ref.sample_many(times, self._ref_out)  # type: ignore[union-attr]
+            if q_ref is not self._stack_q_ref:
+                if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
+                    raise DimensionError(
+                        f"reference.sample_many returned q_ref of shape {q_ref.shape} and "
+                        f"dq_ref of shape {dq_ref.shape} but the horizon needs "
+                        f"{self._ref_shape} ({self.n} joints); return two arrays of shape "
+                        f"(len(times), {self.n})"
+                    )
+                self._stack_q_ref[:] = q_ref
+                self._stack_dq_ref[:] = dq_ref
+        if self._fused:
+            code = core.step(S)
+        else:
+            code = core.prepare(S, not self._python_dynamics)
+            if not code:
+                self._python_compensation()
+                code = core.finish()
+        if code:
+            self._failure(code, t, S[0], S[1], self._stack_q_ref, self._stack_dq_ref)
         self._started = True
-        return tau.copy()
+        return self.tau.copy()
+
+    def _python_compensation(self) -> None:
+        """Between the step's halves: M and C q̇ + G (from Pinocchio's Python API where the
+        compiled dynamics cannot load the model), then the compensation's estimate."""
+        q, dq = self._stack[0].copy(), self._stack[1].copy()
+        M, nle = self._M, self._buf["nle"]
+        if self._python_dynamics:
+            M[:] = self.robot.mass_matrix(q)
+            nle[:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
+        comp = self.compensation
+        if self._started:
+            d_hat = comp.update(M, nle, q, dq, self._applied(), self.v)
+        else:
+            d_hat = comp.estimate
+        self.disturbance_estimate[:] = d_hat
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
-        native form, if it has one, to the native step."""
+        native form, if it has one, to the compiled step."""
         self._ref = as_reference(reference)
         self._reference = reference
         self._native_ref = False
         core = self._core
-        if core is None:
-            return
         form_of = getattr(self._ref, "native_form", None)
         form = form_of() if callable(form_of) else None
         if form is not None and form[0] == "sine":
@@ -446,19 +414,15 @@ class HierarchicalMPC(AppliedTorque):
         else:
             core.clear_reference()
 
-    def _native_failure(self, code: int, t, q, dq, q_ref, dq_ref) -> None:
-        """Raise what the Python path raises for a native step's failure ``code``."""
-        core = self._core
+    def _failure(self, code: int, t, q, dq, q_ref, dq_ref) -> None:
+        """Raise the error of a compiled step's failure ``code`` (nothing was changed)."""
         if code == 4:
             raise NonFiniteError("t", t)
         if code == 3:  # q or q̇ not a vector of n floats
             self.robot.check_vector("q", q)
             self.robot.check_vector("dq", dq)
             raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")
-        if code == 1:  # an input is not finite; nothing was changed
+        if code == 1:  # an input is not finite
             self._raise_non_finite(t, q, dq, q_ref, dq_ref)
             raise NonFiniteError("q, dq or the reference horizon", (q, dq), f"at t={t:.6g}")
-        joint = core.fail_joint  # type: ignore[union-attr]
-        name = "all-joint block" if joint < 0 else self.robot.joint_names[joint]
-        raise SolverError(None if joint < 0 else joint, name,
-                          core.fail_status, core.fail_iter)  # type: ignore[union-attr]  # fmt: skip
+        self.qps.raise_failure()

@@ -13,24 +13,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..compensation.base import Compensation, NoCompensation
-from ..compensation.ism import IntegralSlidingMode
-from ..compensation.observers import DisturbanceObserver, MomentumObserver
-from ..controllers import hierarchical as _hierarchical
 from ..controllers.base import Controller
-from ..controllers.computed_torque import ComputedTorque, CTSettings
-from ..controllers.hierarchical import HierarchicalMPC, MPCSettings, state_limits
+from ..controllers.computed_torque import ComputedTorque
+from ..controllers.hierarchical import HierarchicalMPC
 from ..controllers.wrappers import CollisionReaction
 from ..exceptions import (
     ConfigError,
     InterfaceError,
     LimitError,
     SimulationError,
-    URDFError,
     ValidityWarning,
 )
 from ..model.robot import Robot, load_robot
-from ..mpc.condensed import StateLimits
 from ..realtime.loop import LoopSettings
 from ..realtime.safety import SafeTorque, SafetySettings
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
@@ -55,6 +49,8 @@ from ..tasks.quintic import QuinticReference
 from ..tasks.sine import SineReference
 from ..tasks.trajectory import JointTrajectory, load_trajectory
 from ..tasks.waypoints import retime_waypoints
+from .combos import HMPC_ONLY, TABLES, applies
+from .controllers import _limits, controller_parts, make_compensation, mpc_settings
 from .schema import (
     DEFAULT_COMPENSATION,
     OBSERVERS,
@@ -90,89 +86,6 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
     """The robot of ``[robot]`` (optionally with another gravity [m/s²])."""
     g = rc.gravity if gravity is None else gravity
     return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
-
-
-def mpc_settings(cc: ControllerConfig, n: int) -> MPCSettings:
-    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``."""
-    v_min, v_max = cc.bounds(n)
-    return MPCSettings(
-        Ts=cc.Ts, N=cc.N, Nc=cc.Nc, Q=cc.Q, R=cc.R, P=cc.P, v_min=v_min, v_max=v_max,
-        eps_abs=cc.eps_abs if cc.eps_abs is not None else 1e-9,
-        max_iter=cc.max_iter if cc.max_iter is not None else 1000,
-        qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
-        backend=cc.backend if cc.backend is not None else "auto",
-    )  # fmt: skip
-
-
-def _limits(cc: ControllerConfig, robot: Robot) -> StateLimits | None:
-    """The soft state limits of ``[controller.constraints]`` for ``robot`` (``None`` if off)."""
-    con = cc.constraints
-    if con is None or not con.enabled:
-        return None
-    over = con.overrides(robot.nq)
-    lower = over["lower"] if over["lower"] is not None else robot.lower
-    upper = over["upper"] if over["upper"] is not None else robot.upper
-    bad = np.flatnonzero(np.asarray(lower) >= np.asarray(upper))
-    if bad.size and con.position:
-        i = int(bad[0])
-        if over["lower"] is not None or over["upper"] is not None:
-            key = "lower" if over["lower"] is not None else "upper"
-            raise ConfigError(
-                f"controller.constraints.{key}",
-                f"joint {robot.joint_names[i]!r}: lower={lower[i]:g} >= upper={upper[i]:g}; "
-                "expected lower < upper",
-            )
-        what = "a zero" if lower[i] == upper[i] else "an inverted"
-        raise URDFError(
-            robot.source,
-            f"joint {robot.joint_names[i]!r} has {what} position range <limit lower="
-            f'"{lower[i]:g}" upper="{upper[i]:g}">; expected lower < upper. Fix the URDF, '
-            "override the range in [controller.constraints] lower/upper, or set "
-            "controller.constraints.position = false (no position limits)",
-        )
-    return state_limits(
-        robot,
-        lower=over["lower"],
-        upper=over["upper"],
-        velocity=over["velocity_limit"],
-        position_on=con.position,
-        velocity_on=con.velocity,
-        slack_weight=con.slack_weight,
-        slack_linear_weight=con.slack_linear_weight,
-    )
-
-
-def make_compensation(robot: Robot, cc: ControllerConfig) -> Compensation:
-    """The compensation ``cc.compensation`` names, with its table's settings."""
-    n, Ts = robot.nq, cc.Ts
-    comp = cc.compensation
-    if comp in ("chen", "general"):
-        return DisturbanceObserver(n, Ts, cc.observer.gain, comp, cc.observer.discretization)
-    if comp == "momentum":
-        return MomentumObserver(robot, Ts, cc.observer.gain)
-    if comp in ("ism", "ism-bl"):
-        width = cc.ism.width(Ts) if comp == "ism-bl" else None
-        return IntegralSlidingMode(n, Ts, cc.ism.gain, width)
-    return NoCompensation(n)
-
-
-def controller_parts(robot: Robot, cc: ControllerConfig) -> tuple:
-    """The arguments after ``robot`` of the controller class of ``cc``: for ``hmpc``
-    ``(MPCSettings, compensation, limits)``, for ``computed-torque*``
-    ``(CTSettings, compensation)``."""
-    compensation = make_compensation(robot, cc)
-    settings = mpc_settings(cc, robot.nq)
-    if cc.kind == "hmpc":
-        return settings, compensation, _limits(cc, robot)
-    ct = cc.computed_torque
-    gains = CTSettings.matching(
-        settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
-    )
-    return gains, compensation
-
-
-# The deprecated 0.1 call HierarchicalMPC(robot, ControllerConfig) goes through here.
-_hierarchical.LEGACY_CONFIG_PARTS = controller_parts
 
 
 def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
@@ -293,19 +206,14 @@ def with_controller(
         comp = "none"
     elif observer is True and comp not in OBSERVERS:
         comp = cc.compensation if cc.compensation in OBSERVERS else "chen"
-    keep = {
-        "observer": cc.observer if comp in OBSERVERS else None,
-        "ism": cc.ism if comp in ("ism", "ism-bl") else None,
-        "computed_torque": cc.computed_torque if controller.startswith("computed") else None,
-    }
+    keep = {name: (getattr(cc, name) if applies(name, controller, comp) else None)
+            for name in TABLES}  # fmt: skip
     if keep["ism"] is not None and comp == "ism":
         keep["ism"] = replace(keep["ism"], boundary_layer=None)
     if keep["computed_torque"] is not None and controller == "computed-torque":
         keep["computed_torque"] = replace(keep["computed_torque"], ki=None)
-    hmpc_only = {
-        name: (getattr(cc, name) if controller == "hmpc" else None)
-        for name in ("constraints", "eps_abs", "max_iter", "qp_layout", "backend")
-    }
+    hmpc_only = {name: (getattr(cc, name) if applies(name, controller, comp) else None)
+                 for name in HMPC_ONLY}  # fmt: skip
     new = replace(cc, kind=controller, compensation=comp, **keep, **hmpc_only)
     return (
         config

@@ -29,6 +29,7 @@ from ..exceptions import ConfigError
 from ..native import BACKENDS
 from ..sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
 from ..sim.plants import PLANTS
+from .combos import HMPC_ONLY, OBSERVERS, applies
 
 __all__ = [
     "CONTROLLER_KINDS",
@@ -139,10 +140,9 @@ def _set(obj, name: str, value) -> None:
 CONTROLLERS = ("hmpc", "computed-torque", "computed-torque-pid")
 #: Compensations (``[controller] compensation``): the disturbance estimate cancelled.
 COMPENSATIONS = ("chen", "general", "momentum", "ism", "ism-bl", "none")
-#: Compensations of the native step (``[controller] backend``, :mod:`hmpc_pin.native`).
+#: Compensations advanced inside the compiled step (the others are called from Python
+#: between its two compiled halves); kept for callers of version 0.2.
 NATIVE_COMPENSATIONS = ("chen", "general", "none")
-#: Compensations that are observers (they use ``[controller.observer]``).
-OBSERVERS = ("chen", "general", "momentum")
 #: Controller names of version 0.1, each one controller × one compensation.
 KIND_ALIASES = {
     "hmpc-none": ("hmpc", "none"),
@@ -377,9 +377,9 @@ class ControllerConfig:
             ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
             QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per
             joint; fastest for long ones) (``hmpc``; :func:`hmpc_pin.mpc.condensed.resolve_layout`).
-        backend: ``"auto"`` (default: the native step when it builds here and supports the
-            compensation -- ``chen``, ``general`` or ``none`` -- else Python), ``"native"``
-            (an error otherwise) or ``"python"`` (``hmpc``; :mod:`hmpc_pin.native`).
+        backend: Deprecated since 0.3, without effect (``hmpc``): the step is always the
+            compiled one, :mod:`hmpc_pin.native`; ``"auto"`` and ``"native"`` load silently,
+            ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
     """
@@ -494,7 +494,7 @@ class ControllerConfig:
                     "with [controller] compensation",
                 )
         # The tables of the pair; any other given table is an error.
-        if comp in OBSERVERS:
+        if applies("observer", controller, comp):
             obs = obs if obs is not None else ObserverConfig()
             if (obs.enabled, obs.kind) != (None, None):  # 0.1 keys, now resolved
                 obs = replace(obs, enabled=None, kind=None)
@@ -507,7 +507,7 @@ class ControllerConfig:
         elif obs is not None:
             self._not_applicable("observer", controller, comp)
         ism = self.ism
-        if comp in ("ism", "ism-bl"):
+        if applies("ism", controller, comp):
             ism = ism if ism is not None else ISMConfig()
             if comp == "ism" and ism.boundary_layer is not None:
                 raise ConfigError(
@@ -517,14 +517,14 @@ class ControllerConfig:
         elif ism is not None:
             self._not_applicable("ism", controller, comp)
         ct = self.computed_torque
-        if controller.startswith("computed-torque"):
+        if applies("computed_torque", controller, comp):
             ct = ct if ct is not None else ComputedTorqueConfig()
             if controller == "computed-torque" and ct.ki is not None:
                 raise ConfigError(
                     "computed_torque.ki", "applies only to kind = 'computed-torque-pid'"
                 )
-            for name in ("constraints", "eps_abs", "max_iter", "qp_layout", "backend"):
-                if getattr(self, name) is not None:
+            for name in HMPC_ONLY:
+                if getattr(self, name) is not None and not applies(name, controller, comp):
                     self._not_applicable(name, controller, comp)
         else:
             if ct is not None:
@@ -539,16 +539,19 @@ class ControllerConfig:
             _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
             backend = "auto" if self.backend is None else self.backend
             _set(self, "backend", _choice("backend", backend, BACKENDS))
-            if self.backend == "native" and comp not in NATIVE_COMPENSATIONS:
-                raise ConfigError(
-                    "backend", f"'native' does not support compensation {comp!r} (only "
-                    f"{NATIVE_COMPENSATIONS}); use 'auto' or 'python'",
-                )  # fmt: skip
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)
         _set(self, "ism", ism)
         _set(self, "computed_torque", ct)
+
+    def controller_parts(self, robot) -> tuple:
+        """The constructor arguments after ``robot`` of this controller's class (the
+        deprecated 0.1 call ``HierarchicalMPC(robot, ControllerConfig)`` asks for them;
+        :func:`hmpc_pin.experiment.controllers.controller_parts`)."""
+        from .controllers import controller_parts
+
+        return controller_parts(robot, self)
 
     @staticmethod
     def _not_applicable(name: str, controller: str, comp: str) -> None:

@@ -66,6 +66,7 @@ import numpy as np
 from proxsuite import proxqp
 
 from ..exceptions import ConfigError, InterfaceError, SolverError
+from ..native import load as load_native
 
 __all__ = [
     "AUTO_BLOCK_MAX",
@@ -327,50 +328,31 @@ class JointQPs:
         self.n = n = len(joint_names)
         self.limits = limits
         Nc, N = mpc.Nc, mpc.N
-        self.qps = []
+        v_min = np.broadcast_to(np.asarray(v_min, dtype=float), (n,)).astype(float)
+        v_max = np.broadcast_to(np.asarray(v_max, dtype=float), (n,)).astype(float)
+        bad = np.flatnonzero(~(v_min <= v_max))
+        if bad.size:
+            i = int(bad[0])
+            raise ConfigError(
+                "controller.v_min",
+                f"joint {joint_names[i]!r}: v_min = {v_min[i]:g} > v_max = {v_max[i]:g} "
+                "[rad/s²]; expected v_min <= v_max for every joint",
+            )
         self._eps_abs, self._max_iter = eps_abs, max_iter
-        if layout == "block":
-            self._box_data = [(np.kron(np.eye(n), mpc.H), np.repeat(v_min, Nc),
-                               np.repeat(v_max, Nc))]  # fmt: skip
-        else:
-            self._box_data = [(mpc.H, np.full(Nc, v_min[i]), np.full(Nc, v_max[i]))
-                              for i in range(n)]  # fmt: skip
-        self._cold: dict[int, object] = {}
-        self.cold_solves = 0
-        self.unconstrained_solves = 0
-        if layout == "joint":
-            Hinv = np.linalg.inv(mpc.H)
-            self._neg_Hinv = -0.5 * (Hinv + Hinv.T)
-            self._lo_col = np.asarray(v_min, dtype=float).reshape(-1, 1)
-            self._hi_col = np.asarray(v_max, dtype=float).reshape(-1, 1)
-        if layout == "block":
-            qp = _new_qp(n * Nc, 0, eps_abs, max_iter)
-            H, lo, hi = self._box_data[0]
-            qp.init(H, np.zeros(n * Nc), None, None, None, None, None, lo, hi)
-            qp.solve()  # update() before any solve() segfaults (proxsuite 0.8.0)
-            self.qps.append(qp)
-        else:
-            for i in range(n):
-                qp = _new_qp(Nc, 0, eps_abs, max_iter)
-                H, lo, hi = self._box_data[i]
-                qp.init(H, np.zeros(Nc), None, None, None, None, None, lo, hi)
-                # One solve right after init(): update() before any solve() crashes
-                # proxsuite 0.8.0 with warm start (segfault, measured here).
-                qp.solve()
-                self.qps.append(qp)
-        self._solved = proxqp.QPSolverOutput.PROXQP_SOLVED
+        self.v_min, self.v_max = v_min, v_max
         # [U (Nc); −c; h_q; v̄; q; q̇; caller's rows]: one product of the limit matrix with
         # its first Nc + 5 rows gives ±(X − mid) − half for every joint (_enforce_limits).
         self.stack = np.zeros((Nc + 5 + stack_rows, n))
-        self.solution = self.stack[:Nc]  # solved into place
+        self.solution = self.stack[:Nc]  # solved into place by the compiled QPs
         self.x0 = self.stack[Nc + 3 : Nc + 5]
-        self._limit_rows = self.stack[: Nc + 5]
-        self._sol_T_shape = (n, Nc)
-        self._Nc1 = Nc == 1
         self.slack = np.zeros(n)
-        self.constrained = 0
-        self.constrained_last = False
-        self.soft_qps = []
+        # The compiled QPs (src/joint_qps.cpp), writing solution and slack in place.
+        self._core = load_native().JointQPs(
+            n, N, Nc, layout == "block", mpc.H, v_min, v_max,
+            solver_settings(eps_abs, max_iter), cold_twin_settings(eps_abs, max_iter),
+            self.solution, self.slack,
+        )  # fmt: skip
+        self.soft_qps = False
         if limits is None:
             return
 
@@ -382,35 +364,10 @@ class JointQPs:
             vec(limits.upper),
             vec(limits.velocity),
         )
-        # The box-only prediction X = Φ x0 + Γ U is inside the limits iff |X − mid| <= half
-        # on every row (rows q_1, q̇_1, …, q_N, q̇_N; mid = the mid position c on the
-        # position rows, 0 on the velocity rows; half = h_q = (upper − lower)/2 on the
-        # position rows, v̄ on the velocity rows), i.e. iff every entry of
-        #   [Γ  m_q −m_q −m_v  Φ; −Γ −m_q −m_q −m_v −Φ] · [U; −c; h_q; v̄; x0]
-        # is <= 0 (m_q, m_v: ones on the position, velocity rows): one product, one max.
         stack = self.stack
         stack[Nc] = -0.5 * (self._lower + self._upper)
         stack[Nc + 1] = 0.5 * (self._upper - self._lower)
         stack[Nc + 2] = self._vel
-        m_q = np.zeros((2 * N, 1))
-        m_q[0::2] = 1.0
-        m_v = 1.0 - m_q
-        upper_rows = np.hstack([mpc.Gamma, m_q, -m_q, -m_v, mpc.Phi])
-        lower_rows = np.hstack([-mpc.Gamma, -m_q, -m_q, -m_v, -mpc.Phi])
-        # Long horizons: the product's cost (4N·(Nc + 5)·n) outweighs two more numpy
-        # calls, so X − mid alone (half the rows) is compared with the half ranges instead.
-        self._two_sided = N * Nc <= 200
-        if self._two_sided:
-            self._L = np.ascontiguousarray(np.vstack([upper_rows, lower_rows]))
-            rows = 4 * N
-            self._zeros = np.zeros((rows, n))
-        else:
-            zero = np.zeros((2 * N, 1))
-            self._L = np.ascontiguousarray(np.hstack([mpc.Gamma, m_q, zero, zero, mpc.Phi]))
-            rows = 2 * N
-            self._zeros = m_q * stack[Nc + 1] + m_v * stack[Nc + 2]  # the half ranges
-        self._excess = np.empty((rows, n))
-        self._outside = np.empty((rows, n), dtype=bool)
         Gq, Gv = mpc.Gamma[0::2], mpc.Gamma[1::2]
         # The slack enters the solver scaled, s = k·ŝ, so that its Hessian entry is 1
         # like the inputs' (unscaled, 2ρ₂·scale ~ 1e7 stalls ProxSuite's duality-gap test).
@@ -427,33 +384,52 @@ class JointQPs:
         Hs = np.zeros((Nc + 1, Nc + 1))
         Hs[:Nc, :Nc] = mpc.H
         Hs[Nc, Nc] = 1.0
-        self._Hs, self._C = Hs, C  # (the native kernels build their soft QPs from them)
-        self._g_soft = np.zeros((n, Nc + 1))
-        self._g_soft[:, Nc] = limits.slack_linear_weight * mpc.scale * k
-        inf = np.full(N, BIG)
-        self._l = np.concatenate([-inf, np.zeros(N), -inf, np.zeros(N)])
-        self._u = np.concatenate([np.zeros(N), inf, np.zeros(N), inf])
-        self._l = np.tile(self._l, (n, 1))
-        self._u = np.tile(self._u, (n, 1))
-        for i in range(n):
-            qp = _new_qp(Nc + 1, 4 * N, eps_abs, max_iter, warm=False)
-            lo, up = self._soft_bounds(i, np.zeros(N), np.zeros(N))
-            qp.init(Hs, self._g_soft[i], None, None, C, lo, up,
-                    np.append(np.full(Nc, v_min[i]), 0.0),
-                    np.append(np.full(Nc, v_max[i]), BIG))  # fmt: skip
-            qp.solve()
-            self.soft_qps.append(qp)
+        self._Hs, self._C = Hs, C
+        g_slack = limits.slack_linear_weight * mpc.scale * k
+        self._core.set_limits(
+            mpc.Phi, mpc.Gamma, self._lower, self._upper, self._vel, Hs, C, self._row_scale,
+            g_slack, k, solver_settings(eps_abs, max_iter, warm=False), always_constrained,
+        )  # fmt: skip
+        self.soft_qps = True
 
-    def _soft_bounds(self, i: int, q_free: np.ndarray, v_free: np.ndarray):
-        """Row bounds of joint ``i``'s soft QP for the free responses (N,) of q and q̇."""
-        N = self.mpc.N
-        lo, up = self._l[i], self._u[i]
-        rs = self._row_scale
-        up[:N] = (self._upper[i] - q_free) * rs[:N]
-        lo[N : 2 * N] = (self._lower[i] - q_free) * rs[N : 2 * N]
-        up[2 * N : 3 * N] = (self._vel[i] - v_free) * rs[2 * N : 3 * N]
-        lo[3 * N :] = (-self._vel[i] - v_free) * rs[3 * N :]
-        return lo, up
+    @property
+    def cold_solves(self) -> int:
+        """Box QPs solved again from scratch after a warm solve that did not converge."""
+        return int(self._core.cold_solves)
+
+    @property
+    def unconstrained_solves(self) -> int:
+        """``"joint"`` layout: joint QPs answered by the unconstrained minimiser."""
+        return int(self._core.unconstrained_solves)
+
+    @property
+    def constrained(self) -> int:
+        """Joints whose soft-constrained QP was solved at the last step."""
+        return int(self._core.constrained)
+
+    @property
+    def constrained_last(self) -> bool:
+        """Whether any joint's soft QP was solved at the last step."""
+        return bool(self._core.constrained_last)
+
+    @property
+    def max_iter(self) -> int:
+        """ProxSuite's iteration cap per solve; setting it applies to every QP."""
+        return self._max_iter
+
+    @max_iter.setter
+    def max_iter(self, value: int) -> None:
+        self._max_iter = int(value)
+        self._core.set_max_iter(self._max_iter)
+
+    @property
+    def shortcut(self) -> bool:
+        """``"joint"`` layout: the exact unconstrained shortcut (on by default)."""
+        return bool(self._core.shortcut)
+
+    @shortcut.setter
+    def shortcut(self, on: bool) -> None:
+        self._core.shortcut = bool(on)
 
     def predict(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
         """Predicted states ``X = Φ x0 + Γ U`` of all joints, shape (2N, n): rows q_1, q̇_1, …
@@ -466,7 +442,10 @@ class JointQPs:
     def solve(self, G: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """Solve every joint's QP for the gradients ``G`` (n×Nc); return the first inputs (n,).
 
-        Each row ``G[i]`` is passed to ProxSuite as is (C-contiguous, no copy).
+        The compiled QPs (``src/joint_qps.cpp``): the layout's box QPs (with the exact
+        unconstrained shortcut per joint and the cold retry), then, with limits, the soft
+        QPs of the joints whose box-only prediction leaves them. :attr:`solution` and
+        :attr:`slack` are written in place.
 
         Args:
             G: Scaled gradients from :meth:`CondensedMPC.gradient`, shape (n, Nc).
@@ -475,110 +454,24 @@ class JointQPs:
         Raises:
             SolverError: A QP did not report ``PROXQP_SOLVED`` (names joint and status).
         """
-        sol = self.solution
         if x0 is None:
             if self.soft_qps:
                 raise InterfaceError(x0, "the current states x0, shape (2, n)",
                                      "JointQPs.solve needs them when limits are set")  # fmt: skip
         elif x0 is not self.x0:
             self.x0[:] = x0
-        if self.layout == "block":
-            qp = self.qps[0]
-            g = G.ravel()  # row-major (n, Nc): joint by joint, as the blocks
-            qp.update(g=g)
-            qp.solve()
-            res = qp.results
-            if res.info.status != self._solved:
-                res = self._solve_cold(0, g, None, "all-joint block")
-            if self._Nc1:
-                sol[0] = res.x
-            else:
-                sol[:] = res.x.reshape(self._sol_T_shape).T
-        else:
-            # Exact shortcut: a joint whose unconstrained minimiser -H⁻¹g lies inside its
-            # box has it as the box QP's solution (a convex QP); ProxSuite solves the rest.
-            free = G.dot(self._neg_Hinv)
-            inside = ((free >= self._lo_col) & (free <= self._hi_col)).all(axis=1)
-            for i, qp in enumerate(self.qps):
-                if inside[i]:
-                    sol[:, i] = free[i]
-                    self.unconstrained_solves += 1
-                    continue
-                qp.update(g=G[i])
-                qp.solve()
-                res = qp.results
-                if res.info.status != self._solved:
-                    res = self._solve_cold(i, G[i], i, self.joint_names[i])
-                sol[:, i] = res.x
-        self.constrained = 0
-        if self.soft_qps:
-            self._enforce_limits(G)
-        return sol[0].copy()
+        G = np.ascontiguousarray(G, dtype=float)
+        if G.shape != (self.n, self.mpc.Nc):
+            raise InterfaceError(G, f"gradients of shape ({self.n}, {self.mpc.Nc})",
+                                 "pass one row of Nc values per joint")  # fmt: skip
+        if not self._core.solve(G, self.x0[0], self.x0[1]):
+            self.raise_failure()
+        return self.solution[0].copy()
 
-    def _solve_cold(self, k: int, g: np.ndarray, joint: int | None, name: str):
-        """Solve box QP ``k`` again from scratch (its cold twin, made on first use), after
-        the warm-started solve did not report solved; return the twin's results.
-
-        A warm start from a far-away previous solution can stall ProxSuite 0.8.0 (measured
-        here: one QP per joint, Nc = 5, a joint driven through its limits, MAX_ITER after
-        1045 iterations where a cold solve needs a few dozen).
-
-        Raises:
-            SolverError: The cold solve did not report solved either.
-        """
-        twin = self._cold.get(k)
-        if twin is None:
-            H, lo, hi = self._box_data[k]
-            twin = _new_qp(H.shape[0], 0, self._eps_abs, self._max_iter,
-                           settings=cold_twin_settings(self._eps_abs, self._max_iter))  # fmt: skip
-            twin.init(H, g, None, None, None, None, None, lo, hi)
-            self._cold[k] = twin
-        else:
-            twin.update(g=g)
-        warm = self.qps[k]
-        twin.settings.max_iter = warm.settings.max_iter  # the same iteration cap
-        twin.solve()
-        res = twin.results
-        if res.info.status != self._solved:
-            raise SolverError(joint, name, str(res.info.status), res.info.iter)
-        self.cold_solves += 1
-        # Restart the warm QP from this solution, so that the next steps warm-start from it.
-        warm.solve(res.x, res.y, None)  # (box multipliers cannot be passed in 0.8.0)
-        if warm.results.info.status == self._solved:
-            return warm.results
-        return res
-
-    def _enforce_limits(self, G: np.ndarray) -> None:
-        """Re-solve, with the soft state constraints, the joints whose prediction leaves them."""
-        sol, Nc = self.solution, self.mpc.Nc
-        excess = np.dot(self._L, self._limit_rows, self._excess)  # ±(X − mid) − half
-        if not self._two_sided:  # X − mid: compare |X − mid| with the half ranges
-            np.abs(excess, excess)
-        outside = np.greater(excess, self._zeros, self._outside)
-        if self.constrained_last:
-            self.slack[:] = 0.0
-            self.constrained_last = False
-        if not np.count_nonzero(outside) and not self.always_constrained:
-            return
-        bad = outside.any(axis=0) | self.always_constrained
-        self.constrained_last = True
-        x0 = self.x0
-        free = self.mpc.Phi @ x0
-        for i in np.flatnonzero(bad):
-            qp = self.soft_qps[i]
-            g = self._g_soft[i]
-            g[:Nc] = G[i]
-            lo, up = self._soft_bounds(i, free[0::2, i], free[1::2, i])
-            qp.update(g=g, l=lo, u=up)
-            qp.solve()
-            res = qp.results
-            if res.info.status != self._solved:
-                raise SolverError(
-                    i,
-                    self.joint_names[i],
-                    str(res.info.status),
-                    res.info.iter,
-                )
-            sol[:, i] = res.x[:Nc]
-            self.slack[i] = max(res.x[Nc], 0.0) * self._k
-            self.constrained += 1
+    def raise_failure(self) -> None:
+        """Raise the :class:`SolverError` of the compiled QPs' last failure."""
+        core = self._core
+        joint = int(core.fail_joint)
+        name = "all-joint block" if joint < 0 else self.joint_names[joint]
+        raise SolverError(None if joint < 0 else joint, name, core.fail_status,
+                          int(core.fail_iter))  # fmt: skip

@@ -1,0 +1,101 @@
+"""The controller of a ``[controller]`` table: its settings, compensation and soft limits.
+
+The part of the builder that turns a validated ``ControllerConfig`` into the arguments of a
+controller class. It imports nothing of the schema (it reads the table's attributes), so
+that the schema's deprecated path (``ControllerConfig.controller_parts``, behind the 0.1
+call ``HierarchicalMPC(robot, ControllerConfig)``) can use it without an import cycle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..compensation.base import Compensation, NoCompensation
+from ..compensation.ism import IntegralSlidingMode
+from ..compensation.observers import DisturbanceObserver, MomentumObserver
+from ..controllers.computed_torque import CTSettings
+from ..controllers.hierarchical import MPCSettings, state_limits
+from ..exceptions import ConfigError, URDFError
+from ..model.robot import Robot
+from ..mpc.condensed import StateLimits
+
+__all__ = ["controller_parts", "make_compensation", "mpc_settings"]
+
+
+def mpc_settings(cc, n: int) -> MPCSettings:
+    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``."""
+    v_min, v_max = cc.bounds(n)
+    return MPCSettings(
+        Ts=cc.Ts, N=cc.N, Nc=cc.Nc, Q=cc.Q, R=cc.R, P=cc.P, v_min=v_min, v_max=v_max,
+        eps_abs=cc.eps_abs if cc.eps_abs is not None else 1e-9,
+        max_iter=cc.max_iter if cc.max_iter is not None else 1000,
+        qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
+        backend=cc.backend if cc.backend is not None else "auto",
+    )  # fmt: skip
+
+
+def _limits(cc, robot: Robot) -> StateLimits | None:
+    """The soft state limits of ``[controller.constraints]`` for ``robot`` (``None`` if off)."""
+    con = cc.constraints
+    if con is None or not con.enabled:
+        return None
+    over = con.overrides(robot.nq)
+    lower = over["lower"] if over["lower"] is not None else robot.lower
+    upper = over["upper"] if over["upper"] is not None else robot.upper
+    bad = np.flatnonzero(np.asarray(lower) >= np.asarray(upper))
+    if bad.size and con.position:
+        i = int(bad[0])
+        if over["lower"] is not None or over["upper"] is not None:
+            key = "lower" if over["lower"] is not None else "upper"
+            raise ConfigError(
+                f"controller.constraints.{key}",
+                f"joint {robot.joint_names[i]!r}: lower={lower[i]:g} >= upper={upper[i]:g}; "
+                "expected lower < upper",
+            )
+        what = "a zero" if lower[i] == upper[i] else "an inverted"
+        raise URDFError(
+            robot.source,
+            f"joint {robot.joint_names[i]!r} has {what} position range <limit lower="
+            f'"{lower[i]:g}" upper="{upper[i]:g}">; expected lower < upper. Fix the URDF, '
+            "override the range in [controller.constraints] lower/upper, or set "
+            "controller.constraints.position = false (no position limits)",
+        )
+    return state_limits(
+        robot,
+        lower=over["lower"],
+        upper=over["upper"],
+        velocity=over["velocity_limit"],
+        position_on=con.position,
+        velocity_on=con.velocity,
+        slack_weight=con.slack_weight,
+        slack_linear_weight=con.slack_linear_weight,
+    )
+
+
+def make_compensation(robot: Robot, cc) -> Compensation:
+    """The compensation ``cc.compensation`` names, with its table's settings."""
+    n, Ts = robot.nq, cc.Ts
+    comp = cc.compensation
+    if comp in ("chen", "general"):
+        return DisturbanceObserver(n, Ts, cc.observer.gain, comp, cc.observer.discretization)
+    if comp == "momentum":
+        return MomentumObserver(robot, Ts, cc.observer.gain)
+    if comp in ("ism", "ism-bl"):
+        width = cc.ism.width(Ts) if comp == "ism-bl" else None
+        return IntegralSlidingMode(n, Ts, cc.ism.gain, width)
+    return NoCompensation(n)
+
+
+def controller_parts(robot: Robot, cc) -> tuple:
+    """The arguments after ``robot`` of the controller class of ``cc``: for ``hmpc``
+    ``(MPCSettings, compensation, limits)``, for ``computed-torque*``
+    ``(CTSettings, compensation)``."""
+    compensation = make_compensation(robot, cc)
+    settings = mpc_settings(cc, robot.nq)
+    if cc.kind == "hmpc":
+        return settings, compensation, _limits(cc, robot)
+    ct = cc.computed_torque
+    gains = CTSettings.matching(
+        settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
+    )
+    return gains, compensation

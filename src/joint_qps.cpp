@@ -1,0 +1,270 @@
+// The per-joint MPC's QPs: see joint_qps.hpp.
+#include "joint_qps.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace hmpc_native {
+
+namespace pqp = proxsuite::proxqp;
+
+void QPOptions::apply(pqp::Settings<double>& s) const {
+  if (initial_guess) s.initial_guess = *initial_guess;
+  if (eps_abs) s.eps_abs = *eps_abs;
+  if (eps_rel) s.eps_rel = *eps_rel;
+  if (max_iter) s.max_iter = *max_iter;
+  if (verbose) s.verbose = *verbose;
+  if (check_duality_gap) s.check_duality_gap = *check_duality_gap;
+  if (eps_duality_gap_abs) s.eps_duality_gap_abs = *eps_duality_gap_abs;
+  if (eps_duality_gap_rel) s.eps_duality_gap_rel = *eps_duality_gap_rel;
+  if (eps_primal_inf) s.eps_primal_inf = *eps_primal_inf;
+  if (eps_dual_inf) s.eps_dual_inf = *eps_dual_inf;
+}
+
+std::string status_name(pqp::QPSolverOutput status) {
+  switch (status) {
+    case pqp::QPSolverOutput::PROXQP_SOLVED: return "QPSolverOutput.PROXQP_SOLVED";
+    case pqp::QPSolverOutput::PROXQP_MAX_ITER_REACHED: return "QPSolverOutput.PROXQP_MAX_ITER_REACHED";
+    case pqp::QPSolverOutput::PROXQP_PRIMAL_INFEASIBLE: return "QPSolverOutput.PROXQP_PRIMAL_INFEASIBLE";
+    case pqp::QPSolverOutput::PROXQP_DUAL_INFEASIBLE: return "QPSolverOutput.PROXQP_DUAL_INFEASIBLE";
+    case pqp::QPSolverOutput::PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE:
+      return "QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE";
+    case pqp::QPSolverOutput::PROXQP_NOT_RUN: return "QPSolverOutput.PROXQP_NOT_RUN";
+  }
+  return "QPSolverOutput.UNKNOWN";
+}
+
+namespace {
+
+// A box-constrained dense QP, initialised and solved once: update() before any solve()
+// crashes ProxSuite 0.8.0 with warm starts (measured here).
+std::unique_ptr<JointQPs::DenseQP> new_box_qp(const JointQPs::Mat& H, const JointQPs::Vec& g,
+                                              const JointQPs::Vec& lo, const JointQPs::Vec& hi,
+                                              const QPOptions& options) {
+  auto qp = std::make_unique<JointQPs::DenseQP>(H.rows(), 0, 0, true);
+  options.apply(qp->settings);
+  qp->init(H, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt, lo, hi);
+  qp->solve();
+  return qp;
+}
+
+}  // namespace
+
+JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const CRefVec& v_min,
+                   const CRefVec& v_max, const Settings& warm, const Settings& cold, double* U_,
+                   double* slack_)
+    : n(n_), N(N_), Nc(Nc_), block(block_), U(U_, Nc_, n_), slack(slack_, n_), H_(H),
+      v_min_(v_min), v_max_(v_max), warm_(warm), cold_(cold) {
+  if (H.rows() != Nc || H.cols() != Nc || v_min.size() != n || v_max.size() != n)
+    throw std::invalid_argument("JointQPs: H must be (Nc, Nc) and v_min, v_max (n,)");
+  if ((v_min.array() > v_max.array()).any())
+    throw std::invalid_argument("JointQPs: v_min > v_max for some joint");
+  g_.setZero(Nc);
+  u_.setZero(Nc);
+  if (block) {
+    H_block_ = Mat::Zero(n * Nc, n * Nc);
+    Vec lo(n * Nc), hi(n * Nc);
+    for (int i = 0; i < n; ++i) {
+      H_block_.block(i * Nc, i * Nc, Nc, Nc) = H_;
+      lo.segment(i * Nc, Nc).setConstant(v_min_[i]);
+      hi.segment(i * Nc, Nc).setConstant(v_max_[i]);
+    }
+    g_block_.setZero(n * Nc);
+    qps_.emplace_back(new_box_qp(H_block_, g_block_, lo, hi, warm_));
+  } else {
+    const Mat Hinv = H_.inverse();
+    neg_Hinv_ = -0.5 * (Hinv + Hinv.transpose());
+    for (int i = 0; i < n; ++i) {
+      Vec g = Vec::Zero(Nc);
+      qps_.emplace_back(new_box_qp(H_, g, Vec::Constant(Nc, v_min_[i]),
+                                   Vec::Constant(Nc, v_max_[i]), warm_));
+    }
+  }
+  cold_qps_.resize(qps_.size());
+}
+
+void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
+                          const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs,
+                          const CRefMat& C, const CRefVec& row_scale, double g_slack,
+                          double k_slack, const Settings& soft, bool always) {
+  if (Phi.rows() != 2 * N || Phi.cols() != 2 || Gamma.rows() != 2 * N || Gamma.cols() != Nc ||
+      lower.size() != n || upper.size() != n || vel.size() != n || Hs.rows() != Nc + 1 ||
+      Hs.cols() != Nc + 1 || C.rows() != 4 * N || C.cols() != Nc + 1 || row_scale.size() != 4 * N)
+    throw std::invalid_argument("JointQPs.set_limits: shapes do not match the horizon");
+  Phi_ = Phi;
+  Gamma_ = Gamma;
+  lower_ = lower;
+  upper_ = upper;
+  vel_ = vel;
+  Hs_ = Hs;
+  C_ = C;
+  row_scale_ = row_scale;
+  g_slack_ = g_slack;
+  k_slack_ = k_slack;
+  soft_ = soft;
+  always_constrained = always;
+  mid_ = 0.5 * (lower_ + upper_);
+  half_ = 0.5 * (upper_ - lower_);
+  g_soft_.setZero(Nc + 1);
+  l_soft_.setZero(4 * N);
+  u_soft_.setZero(4 * N);
+  X_.setZero(2 * N);
+  q_free_.setZero(N);
+  v_free_.setZero(N);
+  soft_qps_.clear();
+  for (int i = 0; i < n; ++i) {
+    auto qp = std::make_unique<DenseQP>(Nc + 1, 0, 4 * N, true);
+    soft_.apply(qp->settings);
+    g_soft_.head(Nc).setZero();
+    g_soft_[Nc] = g_slack_;
+    soft_bounds(i, Vec::Zero(N), Vec::Zero(N));
+    Vec lo(Nc + 1), hi(Nc + 1);
+    lo.head(Nc).setConstant(v_min_[i]);
+    hi.head(Nc).setConstant(v_max_[i]);
+    lo[Nc] = 0.0;
+    hi[Nc] = BIG;
+    qp->init(Hs_, g_soft_, std::nullopt, std::nullopt, C_, l_soft_, u_soft_, lo, hi);
+    qp->solve();
+    soft_qps_.push_back(std::move(qp));
+  }
+  limits = true;
+}
+
+void JointQPs::set_max_iter(long max_iter) {
+  warm_.max_iter = cold_.max_iter = soft_.max_iter = max_iter;
+  for (auto* list : {&qps_, &cold_qps_, &soft_qps_})
+    for (auto& qp : *list)
+      if (qp) qp->settings.max_iter = max_iter;
+}
+
+bool JointQPs::fail(int joint, const Results& res) {
+  fail_joint = joint;
+  fail_status = status_name(res.info.status);
+  fail_iter = res.info.iter;
+  return false;
+}
+
+// Box QP k with gradient g; on a failed warm solve, its cold twin.
+const JointQPs::Results* JointQPs::solve_box(int k, const Vec& g, int joint) {
+  DenseQP& qp = *qps_[k];
+  qp.update(std::nullopt, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt,
+            std::nullopt, std::nullopt, std::nullopt);
+  qp.solve();
+  if (qp.results.info.status == pqp::QPSolverOutput::PROXQP_SOLVED) return &qp.results;
+  if (!cold_qps_[k]) {
+    const Mat& Hq = block ? H_block_ : H_;
+    Vec lo(Hq.rows()), hi(Hq.rows());
+    if (block) {
+      for (int i = 0; i < n; ++i) {
+        lo.segment(i * Nc, Nc).setConstant(v_min_[i]);
+        hi.segment(i * Nc, Nc).setConstant(v_max_[i]);
+      }
+    } else {
+      lo.setConstant(v_min_[k]);
+      hi.setConstant(v_max_[k]);
+    }
+    auto twin = std::make_unique<DenseQP>(Hq.rows(), 0, 0, true);
+    cold_.apply(twin->settings);
+    twin->init(Hq, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt, lo, hi);
+    twin->solve();
+    cold_qps_[k] = std::move(twin);
+  } else {
+    cold_qps_[k]->update(std::nullopt, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt,
+                         std::nullopt, std::nullopt, std::nullopt);
+    cold_qps_[k]->solve();
+  }
+  const auto& res = cold_qps_[k]->results;
+  if (res.info.status != pqp::QPSolverOutput::PROXQP_SOLVED) {
+    fail(joint, res);
+    return nullptr;
+  }
+  ++cold_solves;
+  // Restart the warm QP from this solution, so that the next steps warm-start from it.
+  Vec x = res.x, y = res.y;
+  qp.solve(x, y, std::nullopt);
+  if (qp.results.info.status == pqp::QPSolverOutput::PROXQP_SOLVED) return &qp.results;
+  return &res;
+}
+
+bool JointQPs::solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
+  if (G.rows() != n || G.cols() != Nc || q.size() != n || dq.size() != n)
+    throw std::invalid_argument("JointQPs.solve: G must be (n, Nc) and q, dq (n,)");
+  if (block) {
+    for (int i = 0; i < n; ++i) g_block_.segment(i * Nc, Nc) = G.row(i).transpose();
+    const auto* res = solve_box(0, g_block_, -1);
+    if (!res) return false;
+    for (int i = 0; i < n; ++i) U.col(i) = res->x.segment(i * Nc, Nc);
+  } else {
+    for (int i = 0; i < n; ++i) {
+      g_ = G.row(i).transpose();
+      if (shortcut) {
+        u_.noalias() = neg_Hinv_ * g_;
+        if ((u_.array() >= v_min_[i]).all() && (u_.array() <= v_max_[i]).all()) {
+          U.col(i) = u_;
+          ++unconstrained_solves;
+          continue;
+        }
+      }
+      const auto* res = solve_box(i, g_, i);
+      if (!res) return false;
+      U.col(i) = res->x;
+    }
+  }
+  constrained = 0;
+  if (limits && !enforce_limits(G, q, dq)) return false;
+  return true;
+}
+
+// Row bounds of joint i's soft QP for the free responses of q and q̇.
+void JointQPs::soft_bounds(int i, const Vec& q_free, const Vec& v_free) {
+  for (int j = 0; j < N; ++j) {
+    l_soft_[j] = -BIG;
+    u_soft_[j] = (upper_[i] - q_free[j]) * row_scale_[j];
+    l_soft_[N + j] = (lower_[i] - q_free[j]) * row_scale_[N + j];
+    u_soft_[N + j] = BIG;
+    l_soft_[2 * N + j] = -BIG;
+    u_soft_[2 * N + j] = (vel_[i] - v_free[j]) * row_scale_[2 * N + j];
+    l_soft_[3 * N + j] = (-vel_[i] - v_free[j]) * row_scale_[3 * N + j];
+    u_soft_[3 * N + j] = BIG;
+  }
+}
+
+// Re-solve with the soft state constraints the joints whose box-only prediction leaves the
+// limits (every joint when always_constrained).
+bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
+  if (constrained_last) {
+    slack.setZero();
+    constrained_last = false;
+  }
+  for (int i = 0; i < n; ++i) {
+    bool outside = always_constrained;
+    if (!outside) {
+      X_.noalias() = Phi_.col(0) * q[i] + Phi_.col(1) * dq[i];
+      X_.noalias() += Gamma_ * U.col(i);
+      const double m = mid_[i];
+      for (int j = 0; j < N && !outside; ++j)
+        outside = std::abs(X_[2 * j] - m) > half_[i] || std::abs(X_[2 * j + 1]) > vel_[i];
+    }
+    if (!outside) continue;
+    constrained_last = true;
+    for (int j = 0; j < N; ++j) {
+      q_free_[j] = Phi_(2 * j, 0) * q[i] + Phi_(2 * j, 1) * dq[i];
+      v_free_[j] = Phi_(2 * j + 1, 0) * q[i] + Phi_(2 * j + 1, 1) * dq[i];
+    }
+    g_soft_.head(Nc) = G.row(i).transpose();
+    g_soft_[Nc] = g_slack_;
+    soft_bounds(i, q_free_, v_free_);
+    DenseQP& qp = *soft_qps_[i];
+    qp.update(std::nullopt, g_soft_, std::nullopt, std::nullopt, std::nullopt, l_soft_, u_soft_,
+              std::nullopt, std::nullopt);
+    qp.solve();
+    if (qp.results.info.status != pqp::QPSolverOutput::PROXQP_SOLVED) return fail(i, qp.results);
+    U.col(i) = qp.results.x.head(Nc);
+    slack[i] = std::max(qp.results.x[Nc], 0.0) * k_slack_;
+    ++constrained;
+  }
+  return true;
+}
+
+}  // namespace hmpc_native

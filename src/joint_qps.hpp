@@ -1,0 +1,105 @@
+// The per-joint MPC's quadratic programs (Eq 25–26), solved by ProxSuite: the one
+// implementation, used on its own (hmpc_pin.mpc.condensed.JointQPs) and inside the fused
+// step (core.cpp, HMPCCore). The numpy/ProxSuite-Python oracle it is tested against is
+// tests/reference/joint_qps.py.
+//
+// Layouts: "block" (the n box QPs as one block-diagonal QP of n·Nc variables) or "joint"
+// (one QP per joint; a joint whose unconstrained minimiser −H⁻¹g lies inside its box takes
+// it without a solver call, the exact solution of a convex QP with inactive constraints).
+// A warm-started box QP that does not report solved is solved again by its cold twin
+// (made on first use), and the warm QP restarted from that solution. With soft state limits,
+// a joint whose box-only prediction X = Φ x0 + Γ U leaves them is solved again with the soft
+// constraints (hmpc_pin.mpc.condensed, module docstring).
+#pragma once
+
+#include <Eigen/Core>
+#include <proxsuite/proxqp/dense/dense.hpp>
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hmpc_native {
+
+// ProxSuite settings to set on a QP after its construction (the others keep ProxSuite's
+// defaults); hmpc_pin.mpc.condensed.solver_settings() chooses them, in one place.
+struct QPOptions {
+  std::optional<proxsuite::proxqp::InitialGuessStatus> initial_guess;
+  std::optional<double> eps_abs, eps_rel, eps_duality_gap_abs, eps_duality_gap_rel,
+      eps_primal_inf, eps_dual_inf;
+  std::optional<long> max_iter;
+  std::optional<bool> verbose, check_duality_gap;
+  void apply(proxsuite::proxqp::Settings<double>& s) const;
+};
+
+class JointQPs {
+ public:
+  using Vec = Eigen::VectorXd;
+  using Mat = Eigen::MatrixXd;
+  using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using CRefVec = Eigen::Ref<const Vec>;
+  using CRefMat = Eigen::Ref<const Mat>;
+  using CRefRow = Eigen::Ref<const RowMat>;
+  using MapRow = Eigen::Map<RowMat>;
+  using Settings = QPOptions;
+  using DenseQP = proxsuite::proxqp::dense::QP<double>;
+  using Results = proxsuite::proxqp::Results<double>;
+
+  static constexpr double BIG = 1e10;  // as hmpc_pin.mpc.condensed.BIG
+
+  // H: one joint's scaled Hessian (Nc×Nc); v_min, v_max (n,) [rad/s²]; warm, cold: the box
+  // QPs' and their cold twins' settings; U (Nc×n, row-major) and slack (n): the caller's
+  // buffers, written in place.
+  JointQPs(int n, int N, int Nc, bool block, const CRefMat& H, const CRefVec& v_min,
+           const CRefVec& v_max, const Settings& warm, const Settings& cold, double* U,
+           double* slack);
+
+  // Soft state limits (hmpc_pin.mpc.condensed.JointQPs builds every matrix).
+  void set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
+                  const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
+                  const CRefVec& row_scale, double g_slack, double k_slack,
+                  const Settings& soft, bool always_constrained);
+
+  // Solve every joint's QP for the gradients G (n×Nc, one row per joint) at the state
+  // (q, q̇) (used by the soft limits only). Writes U and slack. Returns false when a QP did
+  // not report solved (fail_joint: the joint, −1 for the block; fail_status, fail_iter).
+  bool solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
+
+  // The iteration cap of every QP (the warm ones, their twins, the soft ones).
+  void set_max_iter(long max_iter);
+
+  int n, N, Nc;
+  bool block;
+  bool shortcut = true;  // "joint" layout: the unconstrained shortcut (exact; off for tests)
+  bool limits = false;
+  bool always_constrained = false;
+  MapRow U;
+  Eigen::Map<Vec> slack;
+  long cold_solves = 0;
+  long unconstrained_solves = 0;
+  long constrained = 0;
+  bool constrained_last = false;
+  int fail_joint = -2;
+  std::string fail_status;
+  long fail_iter = 0;
+
+ private:
+  const Results* solve_box(int k, const Vec& g, int joint);
+  bool enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
+  void soft_bounds(int i, const Vec& q_free, const Vec& v_free);
+  bool fail(int joint, const Results& res);
+
+  Mat H_, H_block_, neg_Hinv_;
+  Vec v_min_, v_max_, g_block_, g_;
+  Settings warm_, cold_, soft_;
+  std::vector<std::unique_ptr<DenseQP>> qps_, cold_qps_, soft_qps_;
+  Mat Phi_, Gamma_, Hs_, C_;
+  Vec lower_, upper_, vel_, row_scale_, mid_, half_, g_soft_, l_soft_, u_soft_, X_, u_;
+  Vec q_free_, v_free_;
+  double g_slack_ = 0.0, k_slack_ = 0.0;
+};
+
+std::string status_name(proxsuite::proxqp::QPSolverOutput status);
+
+}  // namespace hmpc_native

@@ -1,0 +1,67 @@
+"""Oracle of the hierarchical MPC's step, paper Figure 1 (compiled: ``src/core.cpp``).
+
+At every control instant, written from the equations with Pinocchio's Python API and the
+other oracles of this folder:
+
+1. :math:`M(q_k)` (CRBA) and :math:`C\\dot q_k + G` (RNEA) at the measured state;
+2. the NDO of Eq 13 over the period that just ended, with the torque applied over it
+   (:class:`~tests.reference.observers.NumpyNDO`), or :math:`\\hat d = 0`;
+3. each joint's condensed QP (Eq 25–26) for the gradient
+   :math:`g_i = 2\\Gamma^T\\bar Q(\\Phi x_{0,i} - \\bar r_i)` (scaled), with the reference
+   sampled at :math:`t_k + jT_s,\\ j = 1..N`
+   (:class:`~tests.reference.joint_qps.NumpyJointQPs`);
+4. :math:`\\tau = M v + C\\dot q + G - \\hat d` with :math:`v` the first input (Eq 4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from .joint_qps import NumpyJointQPs
+from .observers import NumpyNDO
+
+
+class OracleHMPC:
+    """The step of a :class:`hmpc_pin.HierarchicalMPC` ``ctrl``, from the equations.
+
+    Args:
+        ctrl: The compiled controller whose settings, model, MPC data, limits and observer
+            gain are reproduced (nothing of its state is used).
+    """
+
+    def __init__(self, ctrl):
+        self.robot = ctrl.robot
+        self.mpc = ctrl.mpc
+        s = ctrl.settings
+        self.Ts, self.N = s.Ts, s.N
+        v_min, v_max = s.bounds(ctrl.n)
+        self.qps = NumpyJointQPs(ctrl.mpc, v_min, v_max, ctrl.limits, eps_abs=s.eps_abs)
+        comp = ctrl.compensation
+        form = comp.compiled_form() if hasattr(comp, "compiled_form") else None
+        self.ndo = None
+        if form is not None and form[0] == "ndo":
+            self.ndo = NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit")
+        self.data = self.robot.model.createData()
+
+    def reset(self, dq0: np.ndarray) -> None:
+        if self.ndo is not None:
+            self.ndo.reset(dq0)
+        self.d_hat = np.zeros(self.robot.nq)
+
+    def step(self, t, q, dq, reference, tau_applied_prev=None) -> tuple[np.ndarray, np.ndarray]:
+        """Returns ``(τ, d̂)``; ``tau_applied_prev`` is None at the first step."""
+        model, data = self.robot.model, self.data
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        nle = pin.rnea(model, data, q, dq, np.zeros_like(dq))
+        if self.ndo is not None and tau_applied_prev is not None:
+            self.d_hat = self.ndo.update(M, nle, dq, tau_applied_prev)
+        times = t + self.Ts * np.arange(1, self.N + 1)
+        q_ref, dq_ref = reference.sample_many(times)
+        ref = np.empty((2 * self.N, q.size))
+        ref[0::2], ref[1::2] = q_ref, dq_ref
+        x0 = np.vstack([q, dq])
+        G = self.mpc.gradient(x0, ref)
+        U, _slack, _soft = self.qps.solve(G, x0)
+        return M @ U[0] + nle - self.d_hat, self.d_hat.copy()

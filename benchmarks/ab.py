@@ -90,7 +90,7 @@ def ab_sweep(old_pkg, new_pkg, rounds: int, samples: int, jobs: int) -> dict:
 
 def ab_step(old_pkg, new_pkg, rounds: int) -> dict:
     """Median ``step`` of planar3 and Panda (Nc = 1) along the step benchmark's states."""
-    from benchmarks.run import HOMES, PANDA_LOCKED, load_arm, record_trajectory
+    from benchmarks._fixtures import HOMES, PANDA_LOCKED, load_arm, record_trajectory
 
     out = {}
     arms = [

@@ -21,7 +21,13 @@ import numpy as np
 import pinocchio as pin
 
 import hmpc_pin
-from hmpc_pin.mpc.condensed import _new_qp
+import sys  # noqa: I001
+from pathlib import Path
+
+if str(Path(__file__).resolve().parent.parent) not in sys.path:  # run as a script
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks._fixtures import new_qp  # noqa: E402
 
 __all__ = ["Floor", "FloorRatio", "step_floor_ratio"]
 
@@ -39,7 +45,7 @@ class Floor:
         n, Nc = ctrl.n, mpc.Nc
         v_min, v_max = s.bounds(n)
         self.model, self.data = ctrl.robot.model, ctrl.robot.data
-        self.qp = qp = _new_qp(n * Nc, 0, s.eps_abs, s.max_iter)
+        self.qp = qp = new_qp(n * Nc, 0, s.eps_abs, s.max_iter)
         qp.init(np.kron(np.eye(n), mpc.H), np.zeros(n * Nc), None, None, None, None, None,
                 np.repeat(v_min, Nc), np.repeat(v_max, Nc))  # fmt: skip
         qp.solve()
@@ -132,7 +138,7 @@ def step_floor_ratio(
 
 def main() -> int:
     """Print step / floor for planar3 and Panda (Nc = 1, the step benchmark's trajectory)."""
-    from benchmarks.run import HOMES, PANDA_LOCKED, ROOT, load_arm, record_trajectory
+    from benchmarks._fixtures import HOMES, PANDA_LOCKED, ROOT, load_arm, record_trajectory
 
     arms = [
         load_arm("planar3", ROOT / "robots" / "planar3.urdf", HOMES["planar3"], "chen"),

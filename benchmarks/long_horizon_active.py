@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.run import HOMES, PANDA_LOCKED, load_arm  # noqa: E402
+from benchmarks._fixtures import HOMES, PANDA_LOCKED, load_arm  # noqa: E402
 from hmpc_pin.compensation.observers import DisturbanceObserver  # noqa: E402
 from hmpc_pin.controllers.hierarchical import HierarchicalMPC, MPCSettings  # noqa: E402
 

@@ -19,7 +19,14 @@ import numpy as np
 import scipy.sparse as sp
 from proxsuite import proxqp
 
-from hmpc_pin.mpc.condensed import CondensedMPC, _new_qp
+import sys  # noqa: I001
+from pathlib import Path
+
+if str(Path(__file__).resolve().parent.parent) not in sys.path:  # run as a script
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks._fixtures import new_qp  # noqa: E402
+from hmpc_pin.mpc.condensed import CondensedMPC
 
 N, TS, R = 100, 0.001, 1e-6
 Q, P = np.diag([50.0, 0.0]), np.diag([100.0, 0.0])
@@ -56,7 +63,7 @@ def sparse_qp():
 def main() -> int:
     sparse, A = sparse_qp()
     mpc = CondensedMPC(TS, N, N, Q, R, P)
-    dense = _new_qp(N, 0, 1e-9, 1000)
+    dense = new_qp(N, 0, 1e-9, 1000)
     dense.init(mpc.H, np.zeros(N), None, None, None, None, None,
                np.full(N, -100.0), np.full(N, 100.0))  # fmt: skip
     dense.solve()

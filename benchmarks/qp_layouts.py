@@ -12,7 +12,7 @@ Issue 6 asks to batch the n identical-Hessian joint QPs and to measure the optio
   C = I (in proxsuite 0.8.0, ``BatchQP.insert`` of a box-constrained QP left the batch
   empty: ``size() == 0``).
 
-All with the package's solver settings (``joint_mpc._new_qp``), warm-started, the box
+All with the package's solver settings (``benchmarks._fixtures.new_qp``), warm-started, the box
 QPs only (no state limits). The gradients are those of a closed-loop run of the
 controller, recorded from ``HierarchicalMPC.step``, so the warm starts see what they see
 in a run.
@@ -27,7 +27,8 @@ import numpy as np
 from proxsuite import proxqp
 
 import hmpc_pin
-from hmpc_pin.mpc.condensed import JointQPs, _new_qp
+from benchmarks._fixtures import new_qp
+from hmpc_pin.mpc.condensed import JointQPs
 
 __all__ = ["LayoutTiming", "record_gradients", "time_layouts"]
 
@@ -73,7 +74,7 @@ def record_gradients(ctrl: hmpc_pin.HierarchicalMPC, t, q, dq, reference) -> np.
 def _batch(mpc, v_min, v_max, eps_abs, max_iter):
     n, Nc = v_min.size, mpc.Nc
     batch = proxqp.dense.BatchQP(n)
-    template = _new_qp(Nc, 0, eps_abs, max_iter).settings
+    template = new_qp(Nc, 0, eps_abs, max_iter).settings
     qps = []
     for i in range(n):
         qp = batch.init_qp_in_place(Nc, 0, Nc)

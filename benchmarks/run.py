@@ -63,22 +63,25 @@ from benchmarks.qp_layouts import LayoutTiming, record_gradients, time_layouts  
 from benchmarks.ratios import Alternated, aba_floor, long_horizon, references  # noqa: E402
 from hmpc_pin.experiment.schema import load_config  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.compensation.observers import OBSERVER_KINDS  # noqa: E402
+from benchmarks._fixtures import (  # noqa: E402
+    AMPLITUDE,
+    FREQUENCY,
+    GRAVITY,
+    HOMES,
+    PANDA_LOCKED,
+    Arm,
+    Trajectory,
+    load_arm,
+    log,
+    observer_kinds,
+    record_trajectory,
+    spatial_observer_kind,
+)
 
 __all__ = ["Settings", "main"]
 
 #: The paper's Section 5.3 scenario (friction + pulses, 10 s, planar3).
 PAPER_CONFIG = ROOT / "configs" / "paper_combined.toml"
-PANDA_LOCKED = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
-#: Home poses [rad], each ± the sine amplitude inside the joint limits (checked at run time).
-HOMES = {
-    "planar3": (0.0, 0.0, 0.0),
-    "ur5": (0.0, -1.2, 1.4, -1.0, -1.57, 0.0),
-    "panda": (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785),
-}
-AMPLITUDE = 0.3  # [rad]
-FREQUENCY = 0.1  # [Hz]
-GRAVITY = 9.8  # [m/s²]
 CHAIN_SIZES = (2, 3, 6, 7, 12)
 MiB = 2**20
 
@@ -130,11 +133,6 @@ QUICK = Settings(
 
 
 # --------------------------------------------------------------------------- helpers
-def log(message: str) -> None:
-    """Progress line on stderr (the report goes to the file)."""
-    print(message, file=sys.stderr, flush=True)
-
-
 def git_state() -> str:
     """The repository's commit and whether ``hmpc_pin/`` differs from it (read-only git)."""
     try:
@@ -155,108 +153,6 @@ def git_state() -> str:
     if not changed:
         return f"{head.stdout.strip()}, hmpc_pin/ unmodified"
     return f"{head.stdout.strip()} with uncommitted changes in {', '.join(changed)}"
-
-
-def observer_kinds() -> tuple[str, ...]:
-    """The observer kinds this ``hmpc_pin`` offers."""
-    return OBSERVER_KINDS
-
-
-def spatial_observer_kind() -> str:
-    """The NDO design for spatial arms: Y = I (``"general"``)."""
-    return "general"
-
-
-@dataclass
-class Arm:
-    """A robot with its benchmark reference.
-
-    Attributes:
-        name: Label in the report. robot: The loaded robot.
-        home: Sine offset [rad], shape (n,). observer: NDO kind.
-    """
-
-    name: str
-    robot: hmpc_pin.Robot
-    home: np.ndarray
-    observer: str
-
-    @property
-    def n(self) -> int:
-        """Number of joints."""
-        return self.robot.nq
-
-    def reference(self) -> hmpc_pin.SineReference:
-        """The benchmark reference: ``AMPLITUDE`` at ``FREQUENCY`` around ``home``."""
-        return hmpc_pin.SineReference(
-            self.n, amplitude=AMPLITUDE, frequency=FREQUENCY, offset=self.home
-        )
-
-    def config(self, Nc: int) -> hmpc_pin.ControllerConfig:
-        """The paper's controller with control horizon ``Nc`` and this arm's observer."""
-        observer = hmpc_pin.ObserverConfig(kind=self.observer)
-        return hmpc_pin.ControllerConfig(Nc=Nc, observer=observer)
-
-
-def load_arm(
-    name: str,
-    source: str | Path,
-    home: tuple[float, ...] | np.ndarray,
-    observer: str,
-    locked: dict[str, float] | None = None,
-) -> Arm:
-    """Load an arm and check that ``home`` ± ``AMPLITUDE`` is inside its joint limits.
-
-    Args:
-        name: Label in the report.
-        source: URDF path or example-robot-data name (:func:`hmpc_pin.load_robot`).
-        home: Sine offset [rad], shape (n,).
-        observer: NDO kind for :class:`hmpc_pin.ObserverConfig`.
-        locked: Joints removed from the model, with their positions [rad or m].
-    """
-    robot = hmpc_pin.load_robot(source, gravity=GRAVITY, locked_joints=locked)
-    home = np.asarray(home, dtype=float)
-    if home.shape != (robot.nq,):
-        raise ValueError(f"{name}: home pose has {home.size} entries, robot has {robot.nq}")
-    bad = (home - AMPLITUDE <= robot.lower) | (home + AMPLITUDE >= robot.upper)
-    if bad.any():
-        raise ValueError(f"{name}: home ± {AMPLITUDE} rad leaves the limits on joints {bad}")
-    return Arm(name, robot, home, observer)
-
-
-@dataclass
-class Trajectory:
-    """States at the control instants [s, rad, rad/s] to replay through ``step``.
-
-    Attributes:
-        source: ``"closed loop"`` or ``"reference"`` (if the closed-loop run failed).
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    dq: np.ndarray
-    source: str
-
-
-def record_trajectory(arm: Arm, steps: int) -> Trajectory:
-    """States along a closed-loop run of the hierarchical MPC (Nc = 1) on ``arm``.
-
-    The run starts on the reference at rest, without disturbance, 1 ms RK4 plant. If
-    it fails, the reference itself is returned (and labelled so).
-    """
-    ref = arm.reference()
-    ctrl = hmpc_pin.make_controller(arm.robot, arm.config(1))
-    q0 = ref.sample(0.0)[0]
-    try:
-        res = hmpc_pin.simulate(
-            arm.robot, ctrl, ref, None, duration=(steps - 1) * ctrl.Ts, q0=q0, dq0=np.zeros(arm.n)
-        )
-        return Trajectory(res.t, res.q, res.dq, "closed loop")
-    except hmpc_pin.SimulationError as exc:
-        log(f"  {arm.name}: closed-loop recording failed ({exc}); replaying the reference")
-    t = ctrl.Ts * np.arange(steps)
-    q, dq = ref.sample_many(t)
-    return Trajectory(t, q, dq, "reference")
 
 
 @dataclass

@@ -215,6 +215,9 @@ struct HMPCCore {
   Buffer<MapRow> M_out;   // (n, n) M(q) of the last prepare
   Buffer<MapRow> nle_out; // (1, n) C q̇ + G of the last prepare
   Vec applied, qv, dqv;
+  const Mat* M = nullptr;    // M(q) of the last prepare (the dynamics' own, or none)
+  const Vec* nle = nullptr;  // C q̇ + G of the last prepare
+  bool external = false;     // the last prepare took M, nle from the caller (M_out, nle_out)
   // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), Python-owned (fill() writes it).
   std::optional<Buffer<MapRow>> stack;
   // The reference in native form: 0 none, 1 sine, 2 piecewise polynomial.
@@ -342,10 +345,11 @@ struct HMPCCore {
     started = false;
   }
 
-  // The first half of a step from the stack S: the gradients, and M, C q̇ + G (computed
-  // here when `dynamics`, else already written by the caller into M_out, nle_out).
+  // The first half of a step from the stack S: the gradients, and M, C q̇ + G -- computed
+  // here when `dynamics` (and written to M_out, nle_out when `export_`, for a compensation
+  // in Python), else already written by the caller into M_out, nle_out.
   // Returns 0, or 1 (an input is not finite: nothing changed).
-  int prepare(const CRefRow& S, bool dynamics = true) {
+  int prepare(const CRefRow& S, bool dynamics = true, bool export_ = true) {
     if (S.rows() != 2 + 2 * N || S.cols() != n)
       throw std::invalid_argument("HMPCCore: stack of wrong shape");
     if (!S.allFinite()) return 1;
@@ -353,10 +357,15 @@ struct HMPCCore {
     dqv = S.row(1).transpose();
     // Gradients, one column per joint: G^T = FT^T S (Nc×n).
     Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+    external = !dynamics;
     if (dynamics) {
       if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
-      M_out.map = dyn->mass_matrix(qv);
-      nle_out.map.row(0) = dyn->nle(qv, dqv).transpose();
+      M = &dyn->mass_matrix(qv);
+      nle = &dyn->nle(qv, dqv);
+      if (export_) {
+        M_out.map = *M;
+        nle_out.map.row(0) = nle->transpose();
+      }
     }
     return 0;
   }
@@ -374,8 +383,13 @@ struct HMPCCore {
     if (!qp->qps.solve(G, qv, dqv)) return 2;
     v.map = qp->qps.U.row(0);
     auto t = tau.map.row(0).transpose();
-    t.noalias() = M_out.map * v.map.row(0).transpose();
-    t += nle_out.map.row(0).transpose();
+    if (external) {
+      t.noalias() = M_out.map * v.map.row(0).transpose();
+      t += nle_out.map.row(0).transpose();
+    } else {
+      t.noalias() = *M * v.map.row(0).transpose();
+      t += *nle;
+    }
     t -= dhat.map.row(0).transpose();
     started = true;
     return 0;
@@ -384,11 +398,11 @@ struct HMPCCore {
   // One control step from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), with the
   // observer (or none) advanced here. Returns prepare()'s or finish()'s code.
   int step(const CRefRow& S) {
-    int code = prepare(S);
+    int code = prepare(S, true, false);
     if (code) return code;
     if (started && ndo) {
       // Eq (13) over the period that just ended, with the torque applied over it.
-      ndo->ndo.update(M_out.map, nle_out.map.row(0).transpose(), dqv, applied_torque());
+      ndo->ndo.update(*M, *nle, dqv, applied_torque());
       dhat.map.row(0) = ndo->ndo.estimate.transpose();
     }
     return finish();
@@ -473,7 +487,8 @@ PYBIND11_MODULE(_core, m) {
       .def("step", &HMPCCore::step)
       .def("step_t", &HMPCCore::step_t)
       .def("fill", &HMPCCore::fill)
-      .def("prepare", &HMPCCore::prepare, py::arg("S"), py::arg("dynamics") = true)
+      .def("prepare", &HMPCCore::prepare, py::arg("S"), py::arg("dynamics") = true,
+           py::arg("export") = true)
       .def("finish", &HMPCCore::finish)
       .def("set_stack", &HMPCCore::set_stack)
       .def("set_sine", &HMPCCore::set_sine)

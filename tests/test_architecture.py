@@ -134,3 +134,63 @@ def test_every_exception_is_defined_in_exceptions_py():
             if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call):
                 fn = getattr(node.exc.func, "id", "")
                 assert fn not in ("ValueError", "TypeError"), f"{name}: bare {fn}"
+
+
+# ------------------------------------------------------------------ benchmarks/
+BENCH = PKG.parent / "benchmarks"
+
+
+def _bench_imports(path: Path) -> tuple[set[str], list[str]]:
+    """The ``benchmarks`` modules ``path`` imports and the private names it takes from
+    ``hmpc_pin`` (function-level imports included)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    mods, private = set(), []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            if node.module.startswith("benchmarks"):
+                parts = node.module.split(".")
+                if len(parts) > 1:
+                    mods.add(parts[1])
+                else:
+                    mods.update(alias.name for alias in node.names)
+            elif node.module.startswith("hmpc_pin"):
+                private += [f"{node.module}.{a.name}" for a in node.names
+                            if a.name.startswith("_")]  # fmt: skip
+                private += [node.module] if any(p.startswith("_") for p in
+                                                node.module.split(".")) else []  # fmt: skip
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("benchmarks."):
+                    mods.add(alias.name.split(".")[1])
+                if alias.name.startswith("hmpc_pin") and any(
+                    p.startswith("_") for p in alias.name.split(".")
+                ):
+                    private.append(alias.name)
+    return mods, private
+
+
+def test_benchmarks_form_no_import_cycle_and_use_only_public_names():
+    graph, private = {}, {}
+    for path in BENCH.glob("*.py"):
+        if path.stem == "__init__":
+            continue
+        graph[path.stem], found = _bench_imports(path)
+        if found:
+            private[path.stem] = found
+    assert not private, f"benchmarks importing private hmpc_pin names: {private}"
+    assert "_fixtures" in graph and not graph["_fixtures"], "the fixtures import no benchmark"
+    for name in graph:
+        graph[name] = {m for m in graph[name] if m in graph}
+    state: dict[str, int] = {}
+
+    def visit(name: str, stack: list[str]) -> None:
+        state[name] = 1
+        for dep in graph[name]:
+            assert state.get(dep) != 1, f"import cycle: {' -> '.join([*stack, name, dep])}"
+            if dep not in state:
+                visit(dep, [*stack, name])
+        state[name] = 2
+
+    for name in graph:
+        if name not in state:
+            visit(name, [])

@@ -340,6 +340,15 @@ class HierarchicalMPC(AppliedTorque):
             self._set_reference(reference)
         core = self._core
         S = self._stack
+        if self._native_ref and self._fused:  # the whole step in one call
+            try:
+                code = core.step_t(t, q, dq)
+            except TypeError:  # not convertible to a float vector
+                code = 3
+            if code:
+                self._failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
+            self._started = True
+            return self.tau.copy()
         if self._native_ref:  # the reference sampled in C++ too
             try:
                 code = core.fill(t, q, dq)

@@ -63,7 +63,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from proxsuite import proxqp
 
 from ..exceptions import ConfigError, InterfaceError, SolverError
 from ..native import load as load_native
@@ -237,20 +236,6 @@ def cold_twin_settings(eps_abs: float, max_iter: int) -> dict:
     settings = solver_settings(eps_abs, max_iter, warm=False)
     settings["eps_rel"] = 0.0
     return settings
-
-
-def _new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = True,
-            settings: dict | None = None):  # fmt: skip
-    """A dense ProxSuite QP with :func:`solver_settings` (or ``settings``), set before
-    ``init``."""
-    qp = proxqp.dense.QP(nvar, 0, n_in, True)
-    if settings is None:
-        settings = solver_settings(eps_abs, max_iter, warm)
-    for key, value in settings.items():
-        if key == "initial_guess":
-            value = getattr(proxqp.InitialGuess, value)
-        setattr(qp.settings, key, value)
-    return qp
 
 
 class JointQPs:

@@ -242,8 +242,9 @@ class TrajectoryError(HmpcError, ValueError):
 class NativeError(HmpcError, RuntimeError):
     """The compiled core (``hmpc_pin._core``) cannot be loaded here.
 
-    Raised where ``backend = "native"`` was asked for; ``backend = "auto"`` falls back to
-    the Python path with one :class:`PerformanceWarning` instead.
+    Raised when a controller or an RK4 plant is built (they have no Python twin): the
+    package was used from a source tree without ``pip install``, or the core was built
+    against other Pinocchio/ProxSuite versions.
 
     Attributes:
         reason: What failed (the module is not installed, or was built against other
@@ -253,8 +254,8 @@ class NativeError(HmpcError, RuntimeError):
     def __init__(self, reason: str):
         self.reason = reason
         super().__init__(
-            f"the native kernels are not available: {reason}. `hmpc-pin native` reports "
-            'what is installed; set backend = "python" to run the Python path'
+            f"the compiled core is not available: {reason}. `hmpc-pin native` reports what "
+            "is installed"
         )
 
 

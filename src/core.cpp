@@ -70,15 +70,42 @@ struct PyNDO {
 };
 
 // -------------------------------------------------------------------------------------
-// The RK4 plant's period: see hmpc_pin.sim.plants.RK4Plant (same stages, same torques).
+// The RK4 plant's period (hmpc_pin.sim.plants.RK4Plant), the one implementation: classical
+// Runge-Kutta steps of h with the torque held, the disturbance evaluated at every stage,
+//   k1 = f(t_s, x), k2 = f(t_s + h/2, x + h/2 k1), k3 = f(t_s + h/2, x + h/2 k2),
+//   k4 = f(t_s + h, x + h k3),  x += h/6 (k1 + 2 k2 + 2 k3 + k4),
+//   f(t, [q; q̇]) = [q̇; ABA(q, q̇, τ + d(t, q, q̇))].
+// The disturbance is either fused (period(): time-only terms tabulated by the caller per
+// stage time, one Coulomb-viscous friction −(a q̇ + b sgn q̇) here) or any Python callable
+// d(t, q, q̇) (period_with()). ABA is Pinocchio's, compiled, or a Python callable for models
+// the compiled dynamics cannot load (mimic joints). Oracle: tests/reference/rk4.py.
 
 struct RK4 {
-  Dynamics dyn;
+  std::unique_ptr<Dynamics> dyn;  // null: aba_cb
+  py::object aba_cb;              // aba(q, v, tau) -> q̈ (Python), when no dyn
+  int n;
   Vec q2, v2, q3, v3, q4, v4, a1, a2, a3, a4, u;
 
-  explicit RK4(const std::string& serialized) : dyn(serialized) {
-    const int n = dyn.n;
+  RK4(py::object model, int n_, py::object aba) : aba_cb(std::move(aba)), n(n_) {
+    if (!model.is_none()) {
+      dyn = std::make_unique<Dynamics>(model.cast<std::string>());
+      n = dyn->n;
+    } else if (aba_cb.is_none()) {
+      throw std::invalid_argument("RK4: give a serialized model or an aba callable");
+    }
     for (Vec* x : {&q2, &v2, &q3, &v3, &q4, &v4, &a1, &a2, &a3, &a4, &u}) x->setZero(n);
+  }
+
+  // q̈ = ABA(q, q̇, τ) into `out`.
+  template <class Q, class V>
+  void aba(const Q& q, const V& v, const Vec& tau, Vec& out) {
+    if (dyn) {
+      out = dyn->aba(q, v, tau);
+      return;
+    }
+    Vec qc = q, vc = v;
+    out = aba_cb(qc, vc, tau).template cast<Vec>();
+    if (out.size() != n) throw std::invalid_argument("RK4: aba returned a vector of wrong size");
   }
 
   // Stage torque: the held torque plus the time-only terms T_row, minus the friction
@@ -87,7 +114,7 @@ struct RK4 {
   void torque(const Row& T_row, const Vec& v, const CRefVec& a, const CRefVec& b, bool friction) {
     u = T_row.transpose();
     if (friction) {
-      for (int i = 0; i < dyn.n; ++i) {
+      for (int i = 0; i < n; ++i) {
         const double s = (v[i] > 0.0) - (v[i] < 0.0);
         u[i] += -a[i] * v[i] + -b[i] * s;
       }
@@ -99,26 +126,65 @@ struct RK4 {
   void period(RefVec q, RefVec v, const CRefRow& T, const CRefVec& a, const CRefVec& b,
               bool friction, double h) {
     const int S = static_cast<int>(T.rows() / 3);
-    if (T.rows() != 3 * S || T.cols() != dyn.n || q.size() != dyn.n || v.size() != dyn.n)
+    if (T.rows() != 3 * S || T.cols() != n || q.size() != n || v.size() != n)
       throw std::invalid_argument("RK4.period: shapes do not match the model");
     const double hh = 0.5 * h, h6 = h / 6.0;
     Vec vq = v;  // v as a Vec for the stage torque
     for (int s = 0; s < S; ++s) {
       vq = v;
       torque(T.row(s), vq, a, b, friction);
-      a1 = dyn.aba(q, v, u);
+      aba(q, v, u, a1);
       q2 = q + hh * v;
       v2 = v + hh * a1;
       torque(T.row(S + s), v2, a, b, friction);
-      a2 = dyn.aba(q2, v2, u);
+      aba(q2, v2, u, a2);
       q3 = q + hh * v2;
       v3 = v + hh * a2;
       torque(T.row(S + s), v3, a, b, friction);
-      a3 = dyn.aba(q3, v3, u);
+      aba(q3, v3, u, a3);
       q4 = q + h * v3;
       v4 = v + h * a3;
       torque(T.row(2 * S + s), v4, a, b, friction);
-      a4 = dyn.aba(q4, v4, u);
+      aba(q4, v4, u, a4);
+      q += h6 * v + (2.0 * h6) * v2 + (2.0 * h6) * v3 + h6 * v4;
+      v += h6 * a1 + (2.0 * h6) * a2 + (2.0 * h6) * a3 + h6 * a4;
+    }
+  }
+
+  // τ + d(t, q, q̇) into u, d a Python callable (given copies of the stage state).
+  template <class Q, class V>
+  void torque_with(const py::object& dist, const CRefVec& tau, double t, const Q& q, const V& v) {
+    Vec qc = q, vc = v;
+    Vec d = dist(t, qc, vc).template cast<Vec>();
+    if (d.size() != n)
+      throw std::invalid_argument("the disturbance returned a vector of wrong size");
+    u = tau + d;
+  }
+
+  // Advance (q, v) in place over S steps of h from time t with τ held, the disturbance a
+  // Python callable d(t, q, q̇) evaluated at every stage (stage times t_s = t + s·h,
+  // t_s + h/2, t_s + h).
+  void period_with(RefVec q, RefVec v, const CRefVec& tau, double t, double h, int S,
+                   const py::object& dist) {
+    if (q.size() != n || v.size() != n || tau.size() != n)
+      throw std::invalid_argument("RK4.period_with: shapes do not match the model");
+    const double hh = 0.5 * h, h6 = h / 6.0;
+    for (int s = 0; s < S; ++s) {
+      const double t0 = t + s * h, tm = t0 + hh, t1 = t0 + h;
+      torque_with(dist, tau, t0, q, v);
+      aba(q, v, u, a1);
+      q2 = q + hh * v;
+      v2 = v + hh * a1;
+      torque_with(dist, tau, tm, q2, v2);
+      aba(q2, v2, u, a2);
+      q3 = q + hh * v2;
+      v3 = v + hh * a2;
+      torque_with(dist, tau, tm, q3, v3);
+      aba(q3, v3, u, a3);
+      q4 = q + h * v3;
+      v4 = v + h * a3;
+      torque_with(dist, tau, t1, q4, v4);
+      aba(q4, v4, u, a4);
       q += h6 * v + (2.0 * h6) * v2 + (2.0 * h6) * v3 + h6 * v4;
       v += h6 * a1 + (2.0 * h6) * a2 + (2.0 * h6) * a3 + h6 * a4;
     }
@@ -422,15 +488,34 @@ PYBIND11_MODULE(_core, m) {
   info["build_type"] = HMPC_BUILD_TYPE;
   m.attr("build_info") = info;
 
-  py::class_<RK4>(m, "RK4", py::module_local())
+  py::class_<Dynamics>(m, "Dynamics", py::module_local())
       .def(py::init<const std::string&>(), py::arg("model"))
-      .def_property_readonly("nq", [](const RK4& r) { return r.dyn.n; })
+      .def_readonly("nq", &Dynamics::n)
+      .def("mass_matrix", [](Dynamics& d, const CRefVec& q) { return Mat(d.mass_matrix(q)); },
+           py::arg("q"))
+      .def("nle", [](Dynamics& d, const CRefVec& q, const CRefVec& v) { return Vec(d.nle(q, v)); },
+           py::arg("q"), py::arg("v"))
+      .def("aba", [](Dynamics& d, const CRefVec& q, const CRefVec& v, const CRefVec& tau) {
+             return Vec(d.aba(q, v, tau)); }, py::arg("q"), py::arg("v"), py::arg("tau"));
+
+  py::class_<RK4>(m, "RK4", py::module_local())
+      .def(py::init<py::object, int, py::object>(), py::arg("model"), py::arg("n") = 0,
+           py::arg("aba") = py::none())
+      .def_property_readonly("nq", [](const RK4& r) { return r.n; })
       .def("period", &RK4::period, py::arg("q"), py::arg("v"), py::arg("T"), py::arg("a"),
            py::arg("b"), py::arg("friction"), py::arg("h"))
+      .def("period_with", &RK4::period_with, py::arg("q"), py::arg("v"), py::arg("tau"),
+           py::arg("t"), py::arg("h"), py::arg("S"), py::arg("disturbance"))
       .def("aba", [](RK4& r, const CRefVec& q, const CRefVec& v, const CRefVec& tau) {
-             return Vec(r.dyn.aba(q, v, tau)); })
-      .def("mass_matrix", [](RK4& r, const CRefVec& q) { return Mat(r.dyn.mass_matrix(q)); })
-      .def("nle", [](RK4& r, const CRefVec& q, const CRefVec& v) { return Vec(r.dyn.nle(q, v)); });
+             Vec out(r.n);
+             r.aba(q, v, Vec(tau), out);
+             return out; })
+      .def("mass_matrix", [](RK4& r, const CRefVec& q) {
+             if (!r.dyn) throw std::invalid_argument("RK4: no compiled dynamics");
+             return Mat(r.dyn->mass_matrix(q)); })
+      .def("nle", [](RK4& r, const CRefVec& q, const CRefVec& v) {
+             if (!r.dyn) throw std::invalid_argument("RK4: no compiled dynamics");
+             return Vec(r.dyn->nle(q, v)); });
 
   py::class_<PyNDO, std::shared_ptr<PyNDO>>(m, "NDO", py::module_local())
       .def(py::init<const CRefMat&, double, bool, py::array_t<double, py::array::c_style>,

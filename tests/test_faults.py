@@ -53,9 +53,9 @@ def _run(planar3, controller=None, disturbance=None, **kw):
     dist = hmpc_pin.CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8])
     if disturbance is not None:
         dist = dist + disturbance
-    # The Python plant in every run: a user callable has no native path, and the runs are
+    # The same plant in every run (a user callable: called per stage), and the runs are
     # compared bit for bit with the clean one.
-    plant = RK4Plant(planar3.copy(), dist, 0.01, 0.001, backend="python")
+    plant = RK4Plant(planar3.copy(), dist, 0.01, 0.001)
     return hmpc_pin.simulate(
         planar3, controller, hmpc_pin.SineReference(3), plant=plant,
         duration=kw.pop("duration", 0.6), q0=np.ones(3), **kw,

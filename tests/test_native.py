@@ -75,7 +75,7 @@ def _paper_disturbance():
 def test_a_native_plant_survives_pickling(planar3):
     import pickle
 
-    plant = RK4Plant(planar3.copy(), _paper_disturbance(), 0.01, 0.001, backend="native")
+    plant = RK4Plant(planar3.copy(), _paper_disturbance(), 0.01, 0.001)
     plant.reset(np.array([0.3, -0.4, 0.2]), np.zeros(3))
     plant.advance(np.ones(3))
     twin = pickle.loads(pickle.dumps(plant))
@@ -83,29 +83,33 @@ def test_a_native_plant_survives_pickling(planar3):
     np.testing.assert_array_equal(twin.advance(np.ones(3))[0], plant.advance(np.ones(3))[0])
 
 
-@pytest.mark.parametrize("disturbance", ["none", "friction+pulse", "pulse"])
-def test_rk4_period_equals_the_python_loop(planar3, disturbance):
-    """The same stages and stage torques: equal to rounding over 300 periods (3 s),
-    through the pulses (centred in the run) and across velocity sign changes (friction)."""
+@pytest.mark.parametrize("disturbance", ["none", "friction+pulse", "pulse", "callable"])
+def test_rk4_period_equals_the_oracle(planar3, disturbance):
+    """Every period of a 3 s run (through the pulses, across velocity sign changes of the
+    friction) equals the plain RK4 loop of tests/reference/rk4.py started from the same
+    state, to rounding; a disturbance that is not fused is called from C++ per stage."""
+    from .reference.rk4 import rk4_period
+
     d = {
-        "none": None,
+        "none": hmpc_pin.ZeroDisturbance(3),
         "friction+pulse": _paper_disturbance(),
         "pulse": hmpc_pin.GaussianPulse([10, 8, 0.3], [0.05, 0.1, 0.15], 0.03),
+        "callable": lambda t, q, dq: -0.5 * dq + np.sin(3.0 * t) * np.array([1.0, 0.5, 0.2]),
     }[disturbance]
-    plants = [RK4Plant(planar3.copy(), d, 0.01, 0.001, backend=b) for b in ("python", "native")]
-    assert [p.native for p in plants] == [False, True]
-    q0, dq0 = np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1])
-    for p in plants:
-        p.reset(q0, dq0)
+    plant = RK4Plant(planar3.copy(), d, 0.01, 0.001)
+    assert plant.fused is (disturbance != "callable")
+    q, dq = np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1])
+    plant.reset(q, dq)
     signs = set()
     for k in range(300):
         tau = np.array([5.0, 2.0, 1.0]) * np.sin(0.07 * k)
-        a, b = (p.advance(tau) for p in plants)
-        signs.add(tuple(np.sign(a[1])))
-        np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(b[1], a[1], rtol=0, atol=1e-11)
-        np.testing.assert_allclose(plants[1].disturbance_now(), plants[0].disturbance_now(),
+        want = rk4_period(planar3.model, plant.q, plant.dq, tau, d, plant.t, 0.001, 10)
+        np.testing.assert_allclose(plant.disturbance_now(), d(plant.t, plant.q, plant.dq),
                                    rtol=0, atol=1e-12)  # fmt: skip
+        q, dq = plant.advance(tau)
+        signs.add(tuple(np.sign(dq)))
+        np.testing.assert_allclose(q, want[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dq, want[1], rtol=0, atol=1e-11)
     assert len(signs) > 2  # the friction's sign switched along the way
 
 
@@ -285,16 +289,25 @@ def test_step_failures_are_one_error_each_and_change_nothing(planar3):
 
 
 def test_a_model_with_mimic_joints_takes_its_dynamics_from_python():
-    """Pinocchio 4.1 restores mimic joints badly from a serialized model: the plant runs
-    its Python period, and the controller's compiled step takes M and C q̇ + G from
-    Pinocchio's Python API (its torque is Eq 4 with them)."""
+    """Pinocchio 4.1 restores mimic joints badly from a serialized model: the plant's
+    compiled period calls Pinocchio's Python ABA (equal to the oracle's period), and the
+    controller's compiled step takes M and C q̇ + G from its Python API (Eq 4 with them)."""
     robot = hmpc_pin.load_robot("panda")  # finger joint 2 mimics joint 1
     assert robot.mimic_joints
     with pytest.raises(hmpc_pin.ConfigError, match="mimic"):
         native.model_string(robot)
-    with pytest.raises(hmpc_pin.ConfigError, match="mimic"):
-        RK4Plant(robot, None, 0.01, 0.001, backend="native")
-    assert not RK4Plant(robot, None, 0.01, 0.001).native
+    from .reference.rk4 import rk4_period
+
+    plant = RK4Plant(robot, None, 0.01, 0.001)  # the compiled period on the Python ABA
+    q0 = 0.5 * (robot.lower + robot.upper)
+    plant.reset(q0, np.zeros(robot.nq))
+    tau = robot.gravity_torque(q0) + 0.1
+    data = robot.model.createData()
+    want = rk4_period(robot.model, q0, np.zeros(robot.nq), tau, plant.disturbance, 0.0, 0.001,
+                      10, aba=lambda q, v, u: robot.aba(robot.model, data, q, v, u))  # fmt: skip
+    q, dq = plant.advance(tau)
+    np.testing.assert_allclose(q, want[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(dq, want[1], rtol=0, atol=1e-10)
     ctrl = hmpc_pin.HierarchicalMPC(robot)
     assert not ctrl.fused
     q = 0.5 * (robot.lower + robot.upper)
@@ -357,33 +370,29 @@ _BLOCK_CORE = "import sys; sys.modules['hmpc_pin._core'] = None\n"
 
 def test_without_the_compiled_module_the_package_imports_and_says_how_to_install():
     """The compiled module missing (a source tree used without ``pip install``): ``import
-    hmpc_pin`` works; the controller (compiled step, QPs, observer) is one NativeError
-    saying how to install; the RK4 plant under ``auto`` runs its Python period after one
-    PerformanceWarning."""
+    hmpc_pin`` works; the controller (compiled step, QPs, observer) and the RK4 plant are
+    each one NativeError saying how to install."""
     code = _BLOCK_CORE + """
 import warnings, numpy as np, hmpc_pin
 from hmpc_pin.sim.plants import RK4Plant
 robot = hmpc_pin.load_robot(PATH)
-for comp in (None, hmpc_pin.NoCompensation(robot.nq)):
+makers = (lambda: hmpc_pin.HierarchicalMPC(robot),
+          lambda: hmpc_pin.HierarchicalMPC(robot, compensation=hmpc_pin.NoCompensation(3)),
+          lambda: RK4Plant(robot, None, 0.01, 0.001))
+for make in makers:
     try:
-        hmpc_pin.HierarchicalMPC(robot, compensation=comp)
+        make()
     except hmpc_pin.NativeError as exc:
         print("error:", exc)
-with warnings.catch_warnings(record=True) as caught:
-    warnings.simplefilter("always")
-    a = RK4Plant(robot, None, 0.01, 0.001)
-    b = RK4Plant(robot, None, 0.01, 0.001)
-perf = [w for w in caught if issubclass(w.category, hmpc_pin.PerformanceWarning)]
-print("native", a.native, b.native, "warnings", len(perf))
 """.replace("PATH", repr(str(PLANAR3)))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=ROOT, timeout=120)  # fmt: skip
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
-    for line in lines[:2]:
+    assert len(lines) == 3
+    for line in lines:
         assert line.startswith("error:") and "hmpc_pin._core is not installed" in line
         assert "pip install" in line
-    assert lines[2] == "native False False warnings 1"
 
 
 def test_a_version_mismatch_is_one_message_naming_both_versions():

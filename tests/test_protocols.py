@@ -210,19 +210,12 @@ def test_compensation_conformance(robot, name):
 
 
 PLANTS = {"rk4": RK4Plant, "euler": EulerPlant, "mujoco": MuJoCoPlant}
-#: Variants run by the conformance test: each plant, and the RK4 plant on each backend.
-PLANT_VARIANTS = {
-    "rk4-python": lambda *a: RK4Plant(*a, backend="python"),
-    "rk4-native": lambda *a: RK4Plant(*a, backend="native"),
-    "euler": EulerPlant,
-    "mujoco": MuJoCoPlant,
-}
+#: Variants run by the conformance test: each plant.
+PLANT_VARIANTS = {"rk4": RK4Plant, "euler": EulerPlant, "mujoco": MuJoCoPlant}
 
 
 @pytest.mark.parametrize("name", sorted(PLANT_VARIANTS))
 def test_plant_conformance(robot, name):
-    if name == "rk4-native" and not hmpc_pin.native.available():
-        pytest.skip("native kernels unavailable here (tests/test_native.py says why)")
     kind = name.split("-")[0]
     plant = PLANT_VARIANTS[name](robot.copy(), None, 0.01, 0.001)
     assert isinstance(plant, Plant)

@@ -731,9 +731,9 @@ class PlantConfig:
         effort_limit: Effort limits [N·m] overriding the URDF's (per joint or one value);
             ``None`` keeps the URDF's (a URDF value <= 0 means no limit).
         mujoco: :class:`MuJoCoConfig` (``engine = "mujoco"`` only).
-        backend: ``"auto"`` (default: the native RK4 period when it builds here and the
-            disturbance is made of the shipped terms, else Python), ``"native"`` or
-            ``"python"`` (``integrator = "rk4"`` only; :mod:`hmpc_pin.native`).
+        backend: Deprecated since 0.3, without effect (``integrator = "rk4"`` only): the
+            period is always the compiled one; ``"python"`` loads with a
+            :class:`DeprecationWarning`.
     """
 
     urdf: Path | None = None

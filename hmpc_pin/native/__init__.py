@@ -9,10 +9,11 @@ import. The run-time requirements pin the very Pinocchio and ProxSuite versions 
 built against; :func:`load` checks them again (``_core.build_info``), so that an environment
 changed by hand fails with one message instead of a crash.
 
-The choice between the compiled and the Python paths is ``backend`` in ``[controller]`` and
-``[plant]``: ``"auto"`` (compiled when the module loads and supports the configuration, else
-Python with one :class:`~hmpc_pin.exceptions.PerformanceWarning`), ``"native"`` (an error
-when it cannot), ``"python"``.
+Every component is compiled and has no Python twin in the package (their numpy oracles are in
+``tests/reference/``): the dynamics (``Dynamics``), the disturbance observer of Eq 13
+(``NDO``), the joint QPs (``JointQPs``), the RK4 period (``RK4``) and the hierarchical MPC's
+step composed of them (``HMPCCore``). ``backend`` in ``[controller]`` and ``[plant]`` is
+deprecated since 0.3 and has no effect.
 """
 
 from __future__ import annotations
@@ -136,7 +137,8 @@ def available() -> bool:
 
 
 def resolve_backend(backend: str, key: str, unsupported: str | None = None) -> bool:
-    """Whether a component with option ``key = backend`` runs natively.
+    """Deprecated since 0.3 (nothing in the package asks any more: every component is
+    compiled). Whether a component with option ``key = backend`` would run natively.
 
     Args:
         backend: ``"auto"``, ``"native"`` or ``"python"``.

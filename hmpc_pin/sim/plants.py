@@ -20,49 +20,30 @@ Runge–Kutta (RK4) steps of ``dt``, the disturbance evaluated at every stage:
     x \\leftarrow x + \\tfrac h6 (k_1 + 2k_2 + 2k_3 + k_4), \\qquad
     f(t, [q; \\dot q]) = [\\dot q;\\ \\mathrm{ABA}(q, \\dot q, \\tau + d(t, q, \\dot q))].
 
-This is the simulation's hot loop (40 ABA calls per 10 ms control period at 1 ms),
-written for few Python-level numpy calls, not for a different result:
-
-* One buffer row per stage, ``[q_j | q̇_j | q̈_j | 1]``, so that the stage state
-  :math:`[q_j; \\dot q_j]` and the stage derivative :math:`k_j = [\\dot q_j; \\ddot q_j]`
-  are contiguous views: each stage update is one multiply and one add, and the final
-  combination one product with the weights ``h/6·(1, 2, 2, 1)``.
-* Terms that say what they are are evaluated fused: time-only terms (a
-  ``sample_times(times)`` method, e.g. :class:`~hmpc_pin.sim.disturbances.GaussianPulse`)
-  at all 3·substeps stage times of
-  the period in one call each, added to the held torque once per period; one
-  Coulomb–viscous friction term (a ``friction_coefficients()`` method, e.g.
-  :class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`)
-  inside one product per stage: with :math:`\\mathrm{sgn}(\\dot q_j)` written where
-  :math:`\\ddot q_j` goes next, the row ends in
-  :math:`e_j = [\\dot q_j; \\mathrm{sgn}(\\dot q_j); 1]` and the ABA torque is
-  :math:`e_j^T W_j`, :math:`W_j = [-\\mathrm{diag}(a); -\\mathrm{diag}(b);
-  (\\tau + d_\\mathrm{pulse}(t_j))^T]`. Each fused term is checked once, at
-  construction, against its own ``d(t, q, dq)`` at a few random points (a subclass
-  that changed ``__call__`` only is not fused). Any other disturbance (a user callable,
-  two friction terms) is called as ``d(t, q, dq)`` at every stage.
-* numpy outputs passed positionally (cheaper than ``out=``), loops over precomputed
-  views: six numpy calls and one ``pin.aba`` per stage.
-
-The results equal the plain loop (``q2 = q + h/2·dq`` …, ``aba(q, dq, tau + d(t, q, dq))``
-per stage) up to floating-point rounding (tested to 1e-12 on the paper scenario).
-
-Native backend (``backend``, :mod:`hmpc_pin.native`): with fused terms only and no mimic
-joint, the whole period -- the same stages, the same stage torques (time-only terms
-tabulated here, friction :math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)` per stage) and
-Pinocchio's ABA -- runs in one C++ call; it equals the Python loop up to rounding
-(``tests/native``).
+The period is one call into the compiled core (``src/core.cpp``, ``RK4``), the only
+implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
+Terms that say what they are are evaluated fused: time-only terms (a
+``sample_times(times)`` method, e.g. :class:`~hmpc_pin.sim.disturbances.GaussianPulse`)
+at all 3·substeps stage times of :data:`PULSE_CHUNK` periods in one call each, added to the
+held torque here; one Coulomb–viscous friction term (a ``friction_coefficients()`` method,
+e.g. :class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`),
+:math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, evaluated per stage in C++. Each fused term
+is checked once, at construction, against its own ``d(t, q, dq)`` at a few random points
+(a subclass that changed ``__call__`` only is not fused). Any other disturbance (a user
+callable, two friction terms) is called from C++ as ``d(t, q, dq)`` at every stage.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import ConfigError, DimensionError
 from ..model.robot import Robot
+from ..native import BACKENDS, model_string
 from ..native import load as load_native
-from ..native import model_string, resolve_backend
 from .base import Plant
 from .disturbances import ZeroDisturbance
 
@@ -84,6 +65,17 @@ def _substeps(Ts: float, dt: float) -> int:
             "expected Ts / dt to be a whole number >= 1",
         )
     return substeps
+
+
+def _reset_state(plant, q0: FloatArray, dq0: FloatArray, t0: float) -> None:
+    """A Pinocchio plant's state ``(q0, dq0)`` [rad, rad/s] at time ``t0`` [s], checked."""
+    plant.q = np.array(q0, dtype=float)
+    plant.dq = np.array(dq0, dtype=float)
+    if plant.q.shape != (plant.n,) or plant.dq.shape != (plant.n,):
+        raise DimensionError(
+            f"plant state of shapes {plant.q.shape}, {plant.dq.shape}; expected ({plant.n},)"
+        )
+    plant.t0, plant.k, plant.t = float(t0), 0, float(t0)
 
 
 def _agrees(term, fused, n: int) -> bool:
@@ -137,20 +129,28 @@ def split_disturbance(disturbance, n: int):
 class RK4Plant:
     """Classical RK4 integration of a Pinocchio model over one control period.
 
+    The period is the compiled core's (``src/core.cpp``, ``RK4``; module docstring): one
+    C++ call per period, with the disturbance's fused terms (time-only terms tabulated here,
+    one Coulomb–viscous friction evaluated per stage in C++), or any other disturbance
+    called as ``d(t, q, dq)`` at every stage from C++; Pinocchio's compiled ABA, or its
+    Python ABA for a model with mimic joints.
+
     Args:
         robot: The plant's :class:`~hmpc_pin.model.robot.Robot` (its own ``model``/``data``).
         disturbance: Callable ``d(t, q, dq) -> (n,)`` [N·m]; ``None`` for none.
         Ts: Control period [s] (the torque is held over it).
         dt: Integration step [s]; must divide ``Ts`` (default 1 ms).
-        backend: ``"auto"`` (the native period when it loads and the disturbance is made
-            of fused terms only, with no mimic joint), ``"native"`` (an error otherwise)
-            or ``"python"`` (:func:`hmpc_pin.native.resolve_backend`).
+        backend: Deprecated since 0.3, without effect (the period is always compiled):
+            ``"auto"`` and ``"native"`` silently, ``"python"`` with a
+            :class:`DeprecationWarning`.
 
     Attributes:
-        native: Whether the period runs natively.
+        native: ``True`` (kept for callers of 0.2).
+        fused: Whether the disturbance's terms are evaluated fused (else called per stage).
     """
 
     name = "rk4"
+    native = True
 
     def __init__(
         self,
@@ -162,104 +162,63 @@ class RK4Plant:
     ):
         n = robot.nq
         substeps = _substeps(Ts, dt)
+        if backend not in BACKENDS:
+            raise ConfigError("plant.backend", f"got {backend!r}; expected one of {BACKENDS}")
+        if backend == "python":
+            warnings.warn(
+                'plant backend = "python" is deprecated since 0.3 and has no effect: the RK4 '
+                "period is compiled; remove the key", DeprecationWarning, stacklevel=2,
+            )  # fmt: skip
         self.nq = self.n = n
         self.robot = robot
         self.Ts = float(Ts)
         self.model, self.data = robot.model, robot.data
         disturbance = disturbance if disturbance is not None else ZeroDisturbance(n)
         self.disturbance = disturbance
-        self.h = h = Ts / substeps
+        self.h = Ts / substeps
         self.substeps = substeps
         self.t0, self.k, self.t = 0.0, 0, 0.0
         self.q, self.dq = np.zeros(n), np.zeros(n)
+        self._x = np.zeros(2 * n)
         self._chunk_k, self._chunk = 0, np.empty((0, 3 * substeps, n))
         self._split = split_disturbance(disturbance, n)
-        # Stage rows [q_j | dq_j | ddq_j | 1]; row 0 holds the current state.
-        self._B = B = np.zeros((4, 3 * n + 1))
-        B[:, 3 * n] = 1.0
-        self._x = B[0, : 2 * n]
-        self._K = B[:, n : 3 * n]  # k_j = [dq_j | ddq_j], shape (4, 2n)
-        self._rows = [
-            (B[j, :n], B[j, n : 2 * n], B[j, 2 * n : 3 * n], B[j, n : 3 * n], B[j, n:])
-            for j in range(4)
-        ]
-        self._next = [B[j, : 2 * n] for j in range(1, 4)]
-        self._c = [np.full(2 * n, c) for c in (0.5 * h, 0.5 * h, h)]
-        self._w = (h / 6.0) * np.array([1.0, 2.0, 2.0, 1.0])
-        self._tmp = np.empty(2 * n)
-        self._dx = np.empty(2 * n)
-        self._u = np.empty(n)
-        # The stage times of a period, t_s = t + s·h, t_s + h/2 and t_s + h for each step s,
-        # as three blocks of one flat array (what the plain loop computes, the same way).
-        S = substeps
-        self._s_h = np.arange(S) * h
-        self._half = 0.5 * h
-        self._times = np.empty(3 * S)
-        self._t0, self._tm, self._t1 = self._times[:S], self._times[S : 2 * S], self._times[2 * S :]
-        # Per stage time (rows ordered as _times) the matrix W with [dq | sgn(dq) | 1] @ W =
-        # tau + pulses(t) - (a·dq + b·sgn(dq)): rows -diag(a), -diag(b), and T = tau +
-        # pulses(t), the held torque plus the time-only terms at that stage time.
-        self._W = W = np.zeros((3 * S, 2 * n + 1, n))
-        self._T = W[:, 2 * n, :]
-        self._W_triples = [(W[s], W[S + s], W[2 * S + s]) for s in range(S)]
-        self._T_triples = [(self._T[s], self._T[S + s], self._T[2 * S + s]) for s in range(S)]
-        if self._split is not None:
-            pulses, friction = self._split
-            self._friction = friction
-            # Each pulse's coefficients tiled over the 3·S stage times: the pulses of a
-            # whole period in a few flat numpy calls.
-            self._pulses = pulses
-            if friction is not None:
-                W[:, :n, :] = -np.diag(np.broadcast_to(friction[0], (n,)))
-                W[:, n : 2 * n, :] = -np.diag(np.broadcast_to(friction[1], (n,)))
-        unsupported = None
-        if self._split is None:
-            unsupported = ("a disturbance with terms other than time-only ones and one "
-                           "Coulomb-viscous friction (it is called in Python at every stage)")
-        elif robot.mimic_joints:
-            unsupported = "mimic joints (Pinocchio has no ABA for them)"
-        self.native = resolve_backend(backend, "plant.backend", unsupported)
-        if self.native:
-            self._kernel = load_native().RK4(model_string(robot))
-            self._Tn = np.empty((3 * S, n))  # stage torques, C-contiguous
-            zero = np.zeros(n)
-            a, b = self._friction if self._friction is not None else (zero, zero)
-            self._ab = (np.broadcast_to(a, (n,)).astype(float),
-                        np.broadcast_to(b, (n,)).astype(float))  # fmt: skip
+        self.fused = self._split is not None
+        self._pulses, self._friction = self._split if self._split is not None else ([], None)
+        # Stage torques of a period (time-only terms added to the held torque), C-contiguous.
+        self._T = np.empty((3 * substeps, n))
+        zero = np.zeros(n)
+        a, b = self._friction if self._friction is not None else (zero, zero)
+        self._ab = (np.broadcast_to(a, (n,)).astype(float),
+                    np.broadcast_to(b, (n,)).astype(float))  # fmt: skip
+        self._kernel = self._make_kernel()
+
+    def _make_kernel(self):
+        """The compiled period, on the compiled dynamics or (mimic joints, which Pinocchio
+        4.1 restores badly from a serialized model) on Pinocchio's Python ABA."""
+        core = load_native()
+        if self.robot.mimic_joints:
+            robot, model, data = self.robot, self.model, self.data
+            return core.RK4(None, self.n, lambda q, v, u: robot.aba(model, data, q, v, u))
+        return core.RK4(model_string(self.robot))
 
     def __getstate__(self) -> dict:
-        """Picklable: the native kernel is rebuilt from the robot on unpickling."""
+        """Picklable: the compiled period is rebuilt from the robot on unpickling."""
         state = self.__dict__.copy()
         state.pop("_kernel", None)
         return state
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
-        if self.native:
-            self._kernel = load_native().RK4(model_string(self.robot))
-
-    def _stage_times(self, t: float) -> np.ndarray:
-        """Stage times of the period starting at ``t``: blocks t_s, t_s + h/2, t_s + h."""
-        t0 = self._t0
-        np.add(t, self._s_h, t0)
-        np.add(t0, self._half, self._tm)
-        np.add(t0, self.h, self._t1)
-        return self._times
+        self._kernel = self._make_kernel()
 
     def reset(self, q0: FloatArray, dq0: FloatArray, t0: float = 0.0) -> None:
         """Start at ``(q0, dq0)`` [rad, rad/s] at time ``t0`` [s]."""
-        self.q = np.array(q0, dtype=float)
-        self.dq = np.array(dq0, dtype=float)
-        if self.q.shape != (self.n,) or self.dq.shape != (self.n,):
-            raise DimensionError(
-                f"plant state of shapes {self.q.shape}, {self.dq.shape}; expected ({self.n},)"
-            )
-        self.t0, self.k, self.t = float(t0), 0, float(t0)
+        _reset_state(self, q0, dq0, t0)
         self._chunk_k, self._chunk = 0, np.empty((0, 3 * self.substeps, self.n))
 
     def disturbance_now(self) -> FloatArray:
         """:math:`d(t, q, \\dot q)` [N·m] at the current time and state."""
-        if not self.native:
+        if not self.fused:
             return self.disturbance(self.t, self.q, self.dq)
         # The fused terms: the time-only ones from the table (stage 0 of the period is t
         # itself), the friction here (the same terms as d(t, q, dq), summed in another order).
@@ -271,16 +230,18 @@ class RK4Plant:
         return d
 
     def _pulses_at(self, k: int) -> np.ndarray:
-        """The time-only terms at the stage times of period ``k`` (rows as ``_times``),
-        tabulated :data:`PULSE_CHUNK` periods per call of each term: the same stage times,
-        computed the same way as :meth:`_stage_times` (``t = t0 + Ts·k``), so the same values."""
+        """The time-only terms at the stage times of period ``k`` (rows t_s, t_s + h/2,
+        t_s + h for the steps s), tabulated :data:`PULSE_CHUNK` periods per call of each
+        term, at the stage times the compiled period uses (``t = t0 + Ts·k``,
+        ``t_s = t + s·h``)."""
         j = k - self._chunk_k
         chunk = self._chunk
         if 0 <= j < chunk.shape[0]:
             return chunk[j]
+        h = self.h
         t = self.t0 + self.Ts * np.arange(k, k + PULSE_CHUNK)
-        t_s = np.add.outer(t, self._s_h)
-        times = np.concatenate([t_s, t_s + self._half, t_s + self.h], axis=1).ravel()
+        t_s = np.add.outer(t, np.arange(self.substeps) * h)
+        times = np.concatenate([t_s, t_s + 0.5 * h, t_s + h], axis=1).ravel()
         total = self._pulses[0].sample_times(times)
         for term in self._pulses[1:]:
             total = total + term.sample_times(times)
@@ -289,102 +250,25 @@ class RK4Plant:
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
-        n = self.n
-        x = self._x
+        n, x = self.n, self._x
         x[:n] = self.q
         x[n:] = self.dq
-        if self.native:
-            self._advance_native(tau)
-        elif self._split is None:
-            self._advance_generic(self._stage_times(self.t), tau)
+        if self.fused:
+            T = self._T
+            if self._pulses:
+                np.add(tau, self._pulses_at(self.k), T)
+            else:
+                T[:] = tau
+            a, b = self._ab
+            self._kernel.period(x[:n], x[n:], T, a, b, self._friction is not None, self.h)
         else:
-            self._advance_fused(tau)
+            tau = np.ascontiguousarray(tau, dtype=float)
+            self._kernel.period_with(x[:n], x[n:], tau, self.t, self.h, self.substeps,
+                                     self.disturbance)  # fmt: skip
         self.k += 1
         self.t = self.t0 + self.Ts * self.k
         self.q, self.dq = x[:n].copy(), x[n:].copy()
         return self.q, self.dq
-
-    def _advance_native(self, tau: np.ndarray) -> None:
-        """The period in one native call (:mod:`hmpc_pin.native`), the same stages."""
-        T = self._Tn
-        if self._pulses:
-            np.add(tau, self._pulses_at(self.k), T)
-        else:
-            T[:] = tau
-        n, x = self.n, self._x
-        a, b = self._ab
-        self._kernel.period(x[:n], x[n:], T, a, b, self._friction is not None, self.h)
-
-    def _advance_fused(self, tau: np.ndarray) -> None:
-        """RK4 with the time-only terms tabulated and the friction fused (module doc)."""
-        if self._pulses:
-            # Time-only terms at all stage times of the period (tabulated per chunk).
-            np.add(tau, self._pulses_at(self.k), self._T)
-        else:
-            self._T[:] = tau
-        model, data, aba = self.model, self.data, self.robot.aba
-        rows = self._rows
-        (q0, v0, a0, k0, e0), (q1, v1, a1, k1, e1) = rows[0], rows[1]
-        (q2, v2, a2, k2, e2), (q3, v3, a3, _, e3) = rows[2], rows[3]
-        x1, x2, x3 = self._next
-        c1, c2, c3 = self._c
-        x, K, w, tmp, dx = self._x, self._K, self._w, self._tmp, self._dx
-        add, mul, sign, dot = np.add, np.multiply, np.sign, np.dot
-        # (outputs passed positionally: a little cheaper than out=, 40 times per period)
-        if self._friction is None:
-            for r0, r1, r2 in self._T_triples:
-                a0[:] = aba(model, data, q0, v0, r0)
-                mul(k0, c1, tmp)
-                add(x, tmp, x1)
-                a1[:] = aba(model, data, q1, v1, r1)
-                mul(k1, c2, tmp)
-                add(x, tmp, x2)
-                a2[:] = aba(model, data, q2, v2, r1)
-                mul(k2, c3, tmp)
-                add(x, tmp, x3)
-                a3[:] = aba(model, data, q3, v3, r2)
-                dot(w, K, dx)
-                add(x, dx, x)
-            return
-        for W0, W1, W2 in self._W_triples:
-            # sgn(dq_j) is written where ddq_j goes next, so that the stage row ends in
-            # e_j = [dq_j | sgn(dq_j) | 1] and the torque is one product e_j @ W.
-            sign(v0, a0)
-            a0[:] = aba(model, data, q0, v0, e0.dot(W0))
-            mul(k0, c1, tmp)
-            add(x, tmp, x1)
-            sign(v1, a1)
-            a1[:] = aba(model, data, q1, v1, e1.dot(W1))
-            mul(k1, c2, tmp)
-            add(x, tmp, x2)
-            sign(v2, a2)
-            a2[:] = aba(model, data, q2, v2, e2.dot(W1))
-            mul(k2, c3, tmp)
-            add(x, tmp, x3)
-            sign(v3, a3)
-            a3[:] = aba(model, data, q3, v3, e3.dot(W2))
-            dot(w, K, dx)
-            add(x, dx, x)
-
-    def _advance_generic(self, times: np.ndarray, tau: np.ndarray) -> None:
-        """RK4 calling ``d(t, q, dq)`` at every stage (with copies of the stage state)."""
-        dist = self.disturbance
-        model, data, aba = self.model, self.data, self.robot.aba
-        rows = self._rows
-        nxt = self._next
-        c = self._c
-        x, K, w, tmp, dx, u = self._x, self._K, self._w, self._tmp, self._dx, self._u
-        stage_times = zip(self._t0.tolist(), self._tm.tolist(), self._t1.tolist(), strict=True)
-        for t0, tm, t1 in stage_times:
-            for j, ts in enumerate((t0, tm, tm, t1)):
-                qj, vj, aj, kj, _ = rows[j]
-                np.add(tau, dist(ts, qj.copy(), vj.copy()), out=u)
-                aj[:] = aba(model, data, qj, vj, u)
-                if j < 3:
-                    np.multiply(kj, c[j], out=tmp)
-                    np.add(x, tmp, out=nxt[j])
-            np.dot(w, K, out=dx)
-            np.add(x, dx, out=x)
 
 
 class EulerPlant:
@@ -414,8 +298,13 @@ class EulerPlant:
         self.t0, self.k, self.t = 0.0, 0, 0.0
         self.q, self.dq = np.zeros(self.n), np.zeros(self.n)
 
-    reset = RK4Plant.reset
-    disturbance_now = RK4Plant.disturbance_now
+    def reset(self, q0: FloatArray, dq0: FloatArray, t0: float = 0.0) -> None:
+        """Start at ``(q0, dq0)`` [rad, rad/s] at time ``t0`` [s]."""
+        _reset_state(self, q0, dq0, t0)
+
+    def disturbance_now(self) -> FloatArray:
+        """:math:`d(t, q, \\dot q)` [N·m] at the current time and state."""
+        return self.disturbance(self.t, self.q, self.dq)
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""

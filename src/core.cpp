@@ -18,6 +18,7 @@
 #include "dynamics.hpp"
 #include "joint_qps.hpp"
 #include "observer.hpp"
+#include "sampler.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -286,14 +287,9 @@ struct HMPCCore {
   bool external = false;     // the last prepare took M, nle from the caller (M_out, nle_out)
   // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), Python-owned (fill() writes it).
   std::optional<Buffer<MapRow>> stack;
-  // The reference in native form: 0 none, 1 sine, 2 piecewise polynomial.
-  int ref_kind = 0;
-  Vec offsets;                           // horizon offsets j·Ts, j = 1..N [s]
-  Vec s_omega, s_phase, s_amp, s_offset, s_amp_omega;
-  Vec p_times, p_knots;                  // breakpoints t_0..t_{K-1}; segment origins
-  RowMat p_coef;                         // (segments·(deg + 1))×2n: [q | q̇] per power
-  int p_deg = 0;
-  Eigen::RowVectorXd acc;                // one segment's [q | q̇] at s
+  // The reference in native form (sampler.hpp).
+  hmpc_native::HorizonSampler sampler;
+  Vec offsets;  // horizon offsets j·Ts, j = 1..N [s]
 
   HMPCCore(py::object model, const CRefRow& FT_, int N_, std::shared_ptr<PyJointQPs> qp_,
            std::shared_ptr<PyNDO> ndo_, py::array_t<double, py::array::c_style> v_,
@@ -302,7 +298,8 @@ struct HMPCCore {
            py::array_t<double, py::array::c_style> M_,
            py::array_t<double, py::array::c_style> nle_)
       : n(qp_->qps.n), N(N_), Nc(qp_->qps.Nc), FT(FT_), qp(std::move(qp_)), ndo(std::move(ndo_)),
-        v(v_, 1, n), tau(tau_, 1, n), dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n) {
+        v(v_, 1, n), tau(tau_, 1, n), dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n),
+        sampler(n) {
     if (!model.is_none()) {
       dyn = std::make_unique<Dynamics>(model.cast<std::string>());
       if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
@@ -322,59 +319,19 @@ struct HMPCCore {
     offsets = offsets_;
   }
 
-  // q_ref = offset + amplitude·sin(ω t + φ), q̇_ref = (amplitude·ω)·cos(ω t + φ)
-  // (hmpc_pin.tasks.sine.SineReference).
   void set_sine(const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
                 const CRefVec& offset, const CRefVec& amp_omega) {
-    for (const CRefVec* x : {&omega, &phase, &amp, &offset, &amp_omega})
-      if (x->size() != n) throw std::invalid_argument("sine coefficients of wrong size");
-    s_omega = omega; s_phase = phase; s_amp = amp; s_offset = offset; s_amp_omega = amp_omega;
-    ref_kind = 1;
+    sampler.set_sine(omega, phase, amp, offset, amp_omega);
   }
-
-  // Piecewise polynomial in s = t − knot of its segment (hmpc_pin.tasks.trajectory):
-  // segment index = the number of breakpoints <= t (0: before the first, K: after the last).
   void set_ppoly(const CRefVec& times, const CRefVec& knots, const CRefRow& coef, int deg) {
-    const Eigen::Index K = times.size();
-    if (knots.size() != K + 1 || coef.rows() != (K + 1) * (deg + 1) || coef.cols() != 2 * n)
-      throw std::invalid_argument("piecewise polynomial of wrong shape");
-    p_times = times; p_knots = knots; p_coef = coef; p_deg = deg;
-    acc.setZero(2 * n);
-    ref_kind = 2;
+    sampler.set_ppoly(times, knots, coef, deg);
   }
-
-  void clear_reference() { ref_kind = 0; }
+  void clear_reference() { sampler.clear(); }
 
   // The horizon rows of the stack for time t.
   void sample_horizon(double t) {
     auto& S = stack->map;
-    if (ref_kind == 1) {
-      for (int j = 0; j < N; ++j) {
-        const double tj = t + offsets[j];
-        for (int i = 0; i < n; ++i) {
-          const double arg = tj * s_omega[i] + s_phase[i];
-          S(2 + j, i) = std::sin(arg) * s_amp[i] + s_offset[i];
-          S(2 + N + j, i) = std::cos(arg) * s_amp_omega[i];
-        }
-      }
-      return;
-    }
-    const double* begin = p_times.data();
-    const double* end = begin + p_times.size();
-    for (int j = 0; j < N; ++j) {
-      const double tj = t + offsets[j];
-      const Eigen::Index seg = std::upper_bound(begin, end, tj) - begin;
-      const double s = tj - p_knots[seg];
-      const auto block = p_coef.middleRows(seg * (p_deg + 1), p_deg + 1);
-      double power = 1.0;
-      acc = block.row(0);
-      for (int k = 1; k <= p_deg; ++k) {
-        power *= s;
-        acc += power * block.row(k);
-      }
-      S.row(2 + j) = acc.head(n);
-      S.row(2 + N + j) = acc.tail(n);
-    }
+    for (int j = 0; j < N; ++j) sampler.sample(t + offsets[j], &S(2 + j, 0), &S(2 + N + j, 0));
   }
 
   // The stack's state and horizon rows for time t (the native reference). Returns 0, 3 (q or
@@ -497,6 +454,27 @@ PYBIND11_MODULE(_core, m) {
            py::arg("q"), py::arg("v"))
       .def("aba", [](Dynamics& d, const CRefVec& q, const CRefVec& v, const CRefVec& tau) {
              return Vec(d.aba(q, v, tau)); }, py::arg("q"), py::arg("v"), py::arg("tau"));
+
+  using HS = hmpc_native::HorizonSampler;
+  py::class_<HS>(m, "Sampler", py::module_local())
+      .def(py::init<int>(), py::arg("n"))
+      .def("set_sine", &HS::set_sine, py::arg("omega"), py::arg("phase"), py::arg("amp"),
+           py::arg("offset"), py::arg("amp_omega"))
+      .def("set_ppoly", &HS::set_ppoly, py::arg("times"), py::arg("knots"), py::arg("coef"),
+           py::arg("deg"))
+      .def("sample",
+           [](const HS& h, const CRefVec& times, py::array_t<double, py::array::c_style> q,
+              py::array_t<double, py::array::c_style> dq) {
+             const Eigen::Index m = times.size();
+             if (q.ndim() != 2 || dq.ndim() != 2 || q.shape(0) != m || q.shape(1) != h.n ||
+                 dq.shape(0) != m || dq.shape(1) != h.n || !q.writeable() || !dq.writeable())
+               throw std::invalid_argument("Sampler.sample: q and dq must be writable (m, n)");
+             double* qp = q.mutable_data();
+             double* dqp = dq.mutable_data();
+             for (Eigen::Index j = 0; j < m; ++j) h.sample(times[j], qp + j * h.n, dqp + j * h.n);
+           }, py::arg("times"), py::arg("q"), py::arg("dq"))
+      .def_readonly("n", &HS::n)
+      .def_readonly("kind", &HS::kind);
 
   py::class_<RK4>(m, "RK4", py::module_local())
       .def(py::init<py::object, int, py::object>(), py::arg("model"), py::arg("n") = 0,

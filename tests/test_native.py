@@ -202,18 +202,37 @@ def _references(n):
     }  # fmt: skip
 
 
+def _oracle_sampling(ref, times):
+    from .reference import sampling
+
+    if isinstance(ref, hmpc_pin.SineReference):
+        return sampling.sine(ref, times)
+    if isinstance(ref, hmpc_pin.QuinticReference):
+        return sampling.quintic(ref, times)
+    _, t_k, knots, coef, degree = ref.native_form()
+    return sampling.ppoly(t_k, knots, coef, degree, ref.n, times)
+
+
 @pytest.mark.parametrize("name", ["sine", "quintic", "cubic spline", "quintic Hermite"])
-def test_native_reference_sampling_equals_sample_many(planar3, name):
-    """The horizon the native step samples (before, across and after the segments) is
-    what the reference's own sample_many gives, to rounding."""
+def test_compiled_sampling_equals_the_oracle(planar3, name):
+    """The compiled sampler, through the references' sample_many and through the fused
+    step's horizon (before, across and after the segments), equals the closed forms of
+    tests/reference/sampling.py to rounding (|q| and |q̇| up to a few units here)."""
     ref = _references(3)[name]
-    ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(N=30, backend="native"))
+    times = np.linspace(-0.5, 2.0, 301)
+    q, dq = ref.sample_many(times)
+    q_o, dq_o = _oracle_sampling(ref, times)
+    np.testing.assert_allclose(q, q_o, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(dq, dq_o, rtol=0, atol=1e-11)
+    grid = ref.sample_many(times.reshape(7, 43))  # any shape of times
+    np.testing.assert_array_equal(grid[0].reshape(-1, 3), q)
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(N=30))
     q0 = np.zeros(3)
     ctrl.reset(q0, q0)
     for t in (-0.5, 0.0, 0.15, 0.19, 0.37, 0.55, 0.7, 0.81, 2.0):
         ctrl.step(t, q0, q0, ref)
         assert ctrl._native_ref
-        q_ref, dq_ref = ref.sample_many(t + ctrl._offsets)
+        q_ref, dq_ref = _oracle_sampling(ref, t + ctrl._offsets)
         np.testing.assert_allclose(ctrl._stack_q_ref, q_ref, rtol=0, atol=1e-12)
         np.testing.assert_allclose(ctrl._stack_dq_ref, dq_ref, rtol=0, atol=1e-11)
 

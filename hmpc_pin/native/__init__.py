@@ -11,9 +11,9 @@ changed by hand fails with one message instead of a crash.
 
 Every component is compiled and has no Python twin in the package (their numpy oracles are in
 ``tests/reference/``): the dynamics (``Dynamics``), the disturbance observer of Eq 13
-(``NDO``), the joint QPs (``JointQPs``), the RK4 period (``RK4``) and the hierarchical MPC's
-step composed of them (``HMPCCore``). ``backend`` in ``[controller]`` and ``[plant]`` is
-deprecated since 0.3 and has no effect.
+(``NDO``), the joint QPs (``JointQPs``), the references' sampler (``Sampler``), the RK4
+period (``RK4``) and the hierarchical MPC's step composed of them (``HMPCCore``).
+``backend`` in ``[controller]`` and ``[plant]`` is deprecated since 0.3 and has no effect.
 """
 
 from __future__ import annotations

@@ -34,12 +34,13 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import DimensionError, InterfaceError, LimitError
+from ..native import load as load_native
 
 __all__ = ["Reference", "as_reference", "check_limits", "sample_horizon"]
 
@@ -74,6 +75,67 @@ def _write(values: Pair, out: Pair | None) -> Pair:
     out[0][...] = q
     out[1][...] = dq
     return out
+
+
+class CompiledSampling:
+    """Base of the references that the compiled sampler evaluates (``src/sampler.cpp``):
+    ``sample_many`` and ``sample`` are that one implementation, from :meth:`_form` --
+    ``("sine", ω, φ, amplitude, offset, amplitude·ω)`` or ``("ppoly", t_k, origins,
+    [q | q̇] coefficients, degree)``, the same tuple the fused step samples (``native_form``).
+    """
+
+    n: int
+    _compiled: Any = None
+
+    def _form(self) -> tuple[Any, ...]:
+        raise NotImplementedError
+
+    def _sampler(self) -> Any:
+        sampler = self._compiled
+        if sampler is None:
+            form = self._form()
+            sampler = load_native().Sampler(self.n)
+            getattr(sampler, f"set_{form[0]}")(*form[1:])
+            self._compiled = sampler
+        return sampler
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state.pop("_compiled", None)  # rebuilt on first use after unpickling
+        return state
+
+    def sample_many(self, times: FloatArray, out: Pair | None = None) -> Pair:
+        """Positions [rad] and velocities [rad/s] at ``times`` [s], each of shape
+        ``times.shape + (n,)``, written into ``out`` when given (the
+        :class:`Reference` protocol)."""
+        t = np.asarray(times, dtype=float)
+        flat = t.reshape(-1)
+        shape = (flat.size, self.n)
+        if out is not None and t.ndim == 1 and all(
+            a.shape == shape and a.dtype == np.float64 and a.flags.c_contiguous
+            and a.flags.writeable for a in out
+        ):  # fmt: skip
+            self._sampler().sample(flat, out[0], out[1])
+            return out
+        q, dq = np.empty(shape), np.empty(shape)
+        self._sampler().sample(flat, q, dq)
+        if t.ndim != 1:
+            q, dq = q.reshape((*t.shape, self.n)), dq.reshape((*t.shape, self.n))
+        return _write((q, dq), out)
+
+    def sample(self, t: float) -> Pair:
+        """Position [rad] and velocity [rad/s] at ``t`` [s], each of shape (n,)."""
+        q, dq = self.sample_many(np.array([float(t)]))
+        return q[0], dq[0]
+
+    def native_form(self) -> tuple[Any, ...] | None:
+        """:meth:`_form` for the fused step; ``None`` for a subclass that samples otherwise
+        (it overrides ``sample_many`` or ``sample``)."""
+        cls = type(self)
+        if (cls.sample_many is not CompiledSampling.sample_many
+                or cls.sample is not CompiledSampling.sample):  # fmt: skip
+            return None
+        return self._form()
 
 
 class _ManyWithoutOut:

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DimensionError, TrajectoryError
-from .base import FloatArray, Pair, _write
+from .base import CompiledSampling, FloatArray
 
 __all__ = ["JointTrajectory", "load_trajectory"]
 
@@ -138,7 +138,7 @@ def _quintic_coefficients(
     return c
 
 
-class JointTrajectory:
+class JointTrajectory(CompiledSampling):
     """Joint reference through timed samples, C²-smooth, first/last point held (module doc).
 
     Args:
@@ -198,9 +198,6 @@ class JointTrajectory:
         self._qd = np.concatenate([c, np.pad(d, ((0, 0), (0, 1), (0, 0)))], axis=2)  # [q | q̇]
         self._pow = np.arange(deg + 1, dtype=float)
         self._knots = np.concatenate([[t[0] - 1.0], t])
-        self._out: Pair | None = None  # the last out buffers, and the product buffer
-        self._buf = np.empty((0, 1, 2 * n))
-        self._m = -1
 
     @property
     def duration(self) -> float:
@@ -217,54 +214,12 @@ class JointTrajectory:
         idx = np.searchsorted(self.times, times, side="right")
         return times - self._knots.take(idx), idx
 
-    def sample_many(self, times: FloatArray, out: Pair | None = None) -> Pair:
-        """Positions [rad] and velocities [rad/s] at ``times`` (m,) [s]: two (m, n) arrays,
-        written into ``out`` when given (the :class:`~hmpc_pin.tasks.base.Reference`
-        protocol). Before :math:`t_0` and from :math:`t_{K-1}` on, the end point is held
-        (velocity 0).
-
-        One gather of the segments' coefficients of :math:`[q, \\dot q]`, stacked as
-        (segments, d+1, 2n), and one batched product with the powers :math:`s^j`.
-        """
-        if type(times) is not np.ndarray or times.ndim != 1:
-            times = np.asarray(times, dtype=float).reshape(-1)
-        idx = self.times.searchsorted(times, side="right")  # the method: no Python wrapper
-        s = times - self._knots.take(idx)
-        if out is not None and out is self._out and times.size == self._m:
-            buf = np.matmul((s[:, None] ** self._pow)[:, None, :], self._qd.take(idx, axis=0),
-                            out=self._buf)  # fmt: skip
-            n = self.n
-            out[0][...] = buf[:, 0, :n]
-            out[1][...] = buf[:, 0, n:]
-            return out
-        powers = (s[:, None] ** self._pow)[:, None, :]
-        coeffs = self._qd.take(idx, axis=0)
-        if out is not None:
-            m, n = times.size, self.n
-            if out[0].shape == (m, n) and out[1].shape == (m, n):
-                # the controller passes the same buffers every step: checked once
-                self._out, self._m, self._buf = out, m, np.empty((m, 1, 2 * n))
-                return self.sample_many(times, out)
-        n = self.n
-        both = np.matmul(powers, coeffs)
-        return _write((both[:, 0, :n], both[:, 0, n:]), out)
-
-    def native_form(self) -> tuple | None:
-        """The segments as ``("ppoly", t_k, origins, [q | q̇] coefficients, degree)`` for
-        the native step (:mod:`hmpc_pin.tasks.base`); ``None`` for a subclass that samples
-        otherwise."""
-        cls = type(self)
-        if cls.sample_many is not JointTrajectory.sample_many or (
-            cls.sample is not JointTrajectory.sample
-        ):
-            return None
+    def _form(self) -> tuple:
+        """The segments as ``("ppoly", t_k, origins, [q | q̇] coefficients, degree)`` for the
+        compiled sampler (:class:`~hmpc_pin.tasks.base.CompiledSampling`). Before
+        :math:`t_0` and from :math:`t_{K-1}` on, the end point is held (velocity 0)."""
         coef = np.ascontiguousarray(self._qd.reshape(-1, 2 * self.n))
         return ("ppoly", self.times, self._knots, coef, self.degree)
-
-    def sample(self, t: float) -> Pair:
-        """Position [rad] and velocity [rad/s] at ``t`` [s], each of shape (n,)."""
-        q, dq = self.sample_many(np.array([t], dtype=float))
-        return q[0], dq[0]
 
     def acceleration_many(self, times: FloatArray) -> FloatArray:
         """Accelerations [rad/s²] at ``times`` (m,): shape (m, n); 0 outside the samples."""

@@ -288,3 +288,18 @@ def test_observer_is_fed_the_applied_torque_when_the_plant_saturates():
     assert np.all(e < 0.1), e
     err, scale, _ = rms["commanded"]
     assert np.any(err > 2.0 * scale), (err, scale)  # wind-up: the bound above can fail
+
+
+def test_the_0_1_constructor_with_a_controller_config_still_works(planar3):
+    """``HierarchicalMPC(robot, ControllerConfig)`` (version 0.1): a DeprecationWarning
+    naming the replacement, and the controller the config describes."""
+    import hmpc_pin
+
+    cfg = hmpc_pin.ControllerConfig(Nc=3, compensation="general")
+    with pytest.warns(DeprecationWarning, match="make_controller"):
+        ctrl = hmpc_pin.HierarchicalMPC(planar3, cfg)
+    assert ctrl.settings.Nc == 3 and ctrl.compensation.kind == "general"
+    ref = hmpc_pin.SineReference(3)
+    q0, dq0 = ref.sample(0.0)
+    ctrl.reset(q0, dq0)
+    assert np.all(np.isfinite(ctrl.step(0.0, q0, dq0, ref)))

@@ -1,0 +1,97 @@
+"""The spellings of earlier versions of ``[controller]``, in one place.
+
+Version 0.1 named a controller × compensation in one ``kind`` (:data:`KIND_ALIASES`, e.g.
+``"hmpc-momentum"``) and chose the observer of ``kind = "hmpc"`` with
+``[controller.observer] enabled`` and ``kind``; version 0.2 writes ``kind`` and
+``compensation``. Both load; this module turns the old spellings into the pair.
+"""
+
+from __future__ import annotations
+
+from ...exceptions import ConfigError
+
+__all__ = ["CONTROLLER_KINDS", "KIND_ALIASES", "resolve_compensation"]
+
+#: Controller names of version 0.1, each one controller × one compensation.
+KIND_ALIASES = {
+    "hmpc-none": ("hmpc", "none"),
+    "hmpc-momentum": ("hmpc", "momentum"),
+    "hmpc-ism": ("hmpc", "ism"),
+    "hmpc-ism-bl": ("hmpc", "ism-bl"),
+}
+#: Every name accepted by ``[controller] kind`` in version 0.1 (still accepted).
+CONTROLLER_KINDS = (
+    "hmpc",
+    "hmpc-none",
+    "hmpc-momentum",
+    "hmpc-ism",
+    "hmpc-ism-bl",
+    "computed-torque",
+    "computed-torque-pid",
+)
+#: The compensation a controller has when ``compensation`` is not given.
+DEFAULT_COMPENSATION = {"hmpc": "chen", "computed-torque": "none", "computed-torque-pid": "none"}
+
+
+def resolve_compensation(kind: str, controller: str, alias_comp: str | None,
+                         compensation: str | None, observer) -> tuple[str, object]:
+    """The compensation of ``[controller]`` and its observer table, from the spellings of
+    version 0.1 and 0.2.
+
+    ``kind`` may be a 0.1 alias (:data:`KIND_ALIASES`: the compensation is in the name,
+    ``alias_comp``); without ``compensation``, ``kind = "hmpc"`` takes it from the 0.1 keys
+    ``[controller.observer] enabled`` and ``kind`` (default Chen's NDO); every other
+    controller its :data:`DEFAULT_COMPENSATION`. A 0.1 key beside the 0.2 spelling that
+    supersedes it, or a contradiction between the two, is one :class:`ConfigError`.
+
+    Returns:
+        ``(compensation, observer table or None)``.
+    """
+    obs = observer
+    legacy_keys = [
+        k for k in ("enabled", "kind") if obs is not None and getattr(obs, k) is not None
+    ]
+    if alias_comp is not None:  # a 0.1 name: the compensation is in the name
+        if compensation is not None and compensation != alias_comp:
+            raise ConfigError(
+                "compensation",
+                f"{compensation!r} contradicts kind = {kind!r} (which is "
+                f"hmpc × {alias_comp}); write kind = 'hmpc' with the compensation",
+            )
+        comp = alias_comp
+        if obs is not None and comp == "momentum":
+            if obs.enabled is False:
+                raise ConfigError(
+                    "observer.enabled",
+                    "false, but kind = 'hmpc-momentum' is hmpc × momentum observer; for "
+                    "no compensation write compensation = 'none'",
+                )
+            if obs.kind not in (None, "momentum"):
+                raise ConfigError(
+                    "observer.kind",
+                    f"{obs.kind!r}, but kind = 'hmpc-momentum' uses the momentum "
+                    "observer; write kind = 'hmpc', compensation = "
+                    f"{obs.kind!r} instead",
+                )
+    elif compensation is not None:
+        if legacy_keys:
+            raise ConfigError(
+                f"observer.{legacy_keys[0]}",
+                "superseded by [controller] compensation; remove it (compensation = "
+                f"{compensation!r} already chooses)",
+            )
+        comp = compensation
+    elif controller == "hmpc":  # 0.1 spelling: the observer table decides
+        enabled = True if obs is None or obs.enabled is None else obs.enabled
+        comp = ((obs.kind if obs is not None else None) or "chen") if enabled else "none"
+        if not enabled:
+            obs = None  # a table switched off by its own enabled = false
+    else:
+        comp = DEFAULT_COMPENSATION[controller]
+        if legacy_keys:
+            raise ConfigError(
+                f"observer.{legacy_keys[0]}",
+                f"does not apply to kind = {controller!r}; choose the compensation "
+                "with [controller] compensation",
+            )
+    return comp, obs

@@ -1,0 +1,172 @@
+"""``[plant]``, ``[plant.mujoco]`` and ``[plant.mujoco.obstacle]``: the simulated arm."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ...exceptions import ConfigError
+from ...native import BACKENDS
+from ...sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
+from ...sim.plants import PLANTS
+from ._fields import _array, _bool, _choice, _float, _section, _set
+
+#: Physics engines of the plant (``[plant] engine``).
+ENGINES = ("pinocchio", "mujoco")
+#: Integrators of the Pinocchio plant (``[plant] integrator``): the plants of
+#: :data:`~hmpc_pin.sim.plants.PLANTS` that integrate Pinocchio's ABA.
+PINOCCHIO_INTEGRATORS = tuple(
+    name for name, cls in PLANTS.items() if getattr(cls, "engine", "pinocchio") == "pinocchio"
+)
+
+
+@dataclass(frozen=True, eq=False)
+class ObstacleConfig:
+    """A box fixed in the world that the MuJoCo arm can touch (a wall, a table).
+
+    Attributes:
+        position: Centre [x, y, z] in the world frame [m].
+        size: Half-lengths [x, y, z] [m] (MuJoCo's box ``size``).
+        friction: Sliding friction coefficient of the contact [-] (default 0.5).
+        solref: Softness of the surface, MuJoCo's contact ``solref`` [time constant [s],
+            damping ratio] (default MuJoCo's [0.02, 1]; larger time constant: softer).
+    """
+
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    size: np.ndarray = field(default_factory=lambda: np.full(3, 0.1))
+    friction: float = 0.5
+    solref: np.ndarray = field(default_factory=lambda: np.array([0.02, 1.0]))
+
+    def __post_init__(self):
+        for name in ("position", "size"):
+            arr = _array(name, getattr(self, name), positive=name == "size")
+            if arr.shape != (3,):
+                raise ConfigError(name, f"expected [x, y, z], got {arr.tolist()}")
+            _set(self, name, arr)
+        _set(self, "friction", _float("friction", self.friction, nonneg=True))
+        solref = _array("solref", self.solref, positive=True)
+        if solref.shape != (2,):
+            raise ConfigError("solref", f"expected [time constant, damping ratio], got {solref!r}")
+        _set(self, "solref", solref)
+
+
+@dataclass(frozen=True, eq=False)
+class MuJoCoConfig:
+    """The MuJoCo plant (``[plant] engine = "mujoco"``): the simulated arm's own joint
+    friction, damping and armature, MuJoCo's integrator and the scene.
+
+    Attributes:
+        integrator: ``"implicitfast"`` (default), ``"euler"``, ``"rk4"`` or ``"implicit"``.
+        timestep: MuJoCo's step [s]; must divide the control period (default 1 ms).
+        frictionloss: Dry joint friction [N·m] (MuJoCo ``frictionloss``), per joint or one
+            value (default 0).
+        damping: Viscous joint damping [N·m·s/rad], per joint or one value (default 0).
+        armature: Rotor inertia added to each joint [kg·m²] (default 0).
+        import_urdf_dynamics: Also apply the URDF's ``<dynamics damping friction>``
+            (added to the values above; default ``false``: the controller's Pinocchio
+            model ignores them too).
+        geometry: Collision geometry of the arm: ``"collision"`` (the URDF's, default),
+            ``"visual"`` (its visual shapes, for an arm without collision tags) or
+            ``"none"`` (dynamics only).
+        obstacle: :class:`ObstacleConfig`, or ``None`` (no contacts).
+    """
+
+    integrator: str = "implicitfast"
+    timestep: float = 0.001
+    frictionloss: np.ndarray = 0.0
+    damping: np.ndarray = 0.0
+    armature: np.ndarray = 0.0
+    import_urdf_dynamics: bool = False
+    geometry: str = "collision"
+    obstacle: ObstacleConfig | None = None
+
+    def __post_init__(self):
+        _set(self, "integrator", _choice("integrator", self.integrator, tuple(MUJOCO_INTEGRATORS)))
+        _set(self, "timestep", _float("timestep", self.timestep, positive=True))
+        for name in ("frictionloss", "damping", "armature"):
+            _set(self, name, _array(name, getattr(self, name), nonneg=True))
+        _set(self, "import_urdf_dynamics", _bool("import_urdf_dynamics", self.import_urdf_dynamics))
+        _set(self, "geometry", _choice("geometry", self.geometry, GEOMETRY_SOURCES))
+        if isinstance(self.obstacle, dict):
+            _set(self, "obstacle", _section(ObstacleConfig, self.obstacle, "obstacle"))
+        elif self.obstacle is not None and not isinstance(self.obstacle, ObstacleConfig):
+            raise ConfigError("obstacle", f"expected a table, got {self.obstacle!r}")
+        if self.obstacle is not None and self.geometry == "none":
+            raise ConfigError(
+                "geometry", "'none' leaves the arm without geometry to touch the obstacle; "
+                "use 'collision' or 'visual'",
+            )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class PlantConfig:
+    """The simulated plant.
+
+    Attributes:
+        engine: ``"pinocchio"`` (default: Pinocchio's ABA on the plant model, integrated
+            by ``integrator``) or ``"mujoco"`` (MuJoCo on the same URDF; then
+            ``[plant.mujoco]`` holds its settings and ``dt``/``integrator`` do not apply).
+        urdf: URDF of the plant; ``None`` uses the controller's model (no mismatch).
+        gravity: Plant gravity [m/s²]; ``None`` uses the robot's.
+        dt: Integration step [s], must divide the control period (default 1 ms).
+        integrator: ``"rk4"`` (default) or ``"euler"`` (semi-implicit).
+        saturate: Clip the applied torque to the effort limits (default ``True``).
+        effort_limit: Effort limits [N·m] overriding the URDF's (per joint or one value);
+            ``None`` keeps the URDF's (a URDF value <= 0 means no limit).
+        mujoco: :class:`MuJoCoConfig` (``engine = "mujoco"`` only).
+        backend: Deprecated since 0.3, without effect (``integrator = "rk4"`` only): the
+            period is always the compiled one; ``"python"`` loads with a
+            :class:`DeprecationWarning`.
+    """
+
+    urdf: Path | None = None
+    gravity: float | None = None
+    dt: float = 0.001
+    integrator: str = "rk4"
+    saturate: bool = True
+    effort_limit: np.ndarray | None = None
+    engine: str = "pinocchio"
+    mujoco: MuJoCoConfig | None = None
+    backend: str = "auto"
+
+    def __post_init__(self):
+        if self.urdf is not None:
+            if not isinstance(self.urdf, (str, Path)):
+                raise ConfigError("urdf", f"expected a path string, got {self.urdf!r}")
+            _set(self, "urdf", Path(self.urdf))
+        if self.gravity is not None:
+            _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
+        _set(self, "dt", _float("dt", self.dt, positive=True))
+        _set(self, "integrator", _choice("integrator", self.integrator, PINOCCHIO_INTEGRATORS))
+        _set(self, "saturate", _bool("saturate", self.saturate))
+        if self.effort_limit is not None:
+            _set(self, "effort_limit", _array("effort_limit", self.effort_limit, positive=True))
+        _set(self, "engine", _choice("engine", self.engine, ENGINES))
+        if isinstance(self.mujoco, dict):
+            _set(self, "mujoco", _section(MuJoCoConfig, self.mujoco, "mujoco"))
+        elif self.mujoco is not None and not isinstance(self.mujoco, MuJoCoConfig):
+            raise ConfigError("mujoco", f"expected a table, got {self.mujoco!r}")
+        _set(self, "backend", _choice("backend", self.backend, BACKENDS))
+        if self.backend != "auto" and (self.engine != "pinocchio" or self.integrator != "rk4"):
+            raise ConfigError(
+                "backend", f"does not apply to engine = {self.engine!r}, integrator = "
+                f"{self.integrator!r} (only the Pinocchio RK4 plant has a native path); "
+                "remove it",
+            )  # fmt: skip
+        if self.engine == "pinocchio" and self.mujoco is not None:
+            raise ConfigError("mujoco", "applies only to engine = 'mujoco'; remove the table "
+                              "or set plant.engine = 'mujoco'")  # fmt: skip
+        if self.engine == "mujoco":
+            if self.mujoco is None:
+                _set(self, "mujoco", MuJoCoConfig())
+            for key, default, instead in (
+                ("dt", 0.001, "timestep"),
+                ("integrator", "rk4", "integrator"),
+            ):
+                if getattr(self, key) != default:
+                    raise ConfigError(
+                        key, f"does not apply to engine = 'mujoco'; set "
+                        f"plant.mujoco.{instead} instead",
+                    )  # fmt: skip

@@ -1,0 +1,89 @@
+"""``[realtime]``: the wall-clock loop and its safe stops."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...exceptions import ConfigError
+from ._fields import _array, _bool, _float, _int, _set
+
+
+@dataclass(frozen=True, eq=False)
+class RealtimeConfig:
+    """The real-time loop of ``hmpc-pin realtime`` (:mod:`hmpc_pin.realtime`).
+
+    Attributes:
+        rate: Interface rate [Hz]; ``1/rate`` must divide ``controller.Ts`` and be a whole
+            number of ``plant.dt`` (the arm process integrates its plant at that period).
+        gc: Garbage-collection handling (freeze after start-up, collect in the slack).
+        gc_slack: Minimum slack [s] before the next deadline for a collection.
+        damping: Joint damping of the safe torque [N·m·s/rad], one value or per joint.
+        gravity: Gravity compensation in the safe torque.
+        max_misses: Consecutive missed deadlines that stop the loop (k).
+        watchdog: A state stamp that does not advance for this long [s] stops the loop.
+        hold: How long the safe torque is refreshed after a stop [s].
+        limits: Stop when the measured state leaves the URDF limits widened by
+            ``position_margin`` and ``velocity_scale``.
+        position_margin: Margin [rad] outside the URDF position limits (with ``limits``).
+        velocity_scale: Factor on the URDF velocity limits (with ``limits``).
+        priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process; 0
+            (default) keeps normal scheduling.
+        spin: Busy-wait this long [s] before each deadline instead of sleeping (the loop
+            is awake at the deadline: no wake-up latency), below ``1/rate``; 0 (default)
+            sleeps.
+    """
+
+    rate: float = 1000.0
+    gc: bool = True
+    gc_slack: float = 3e-4
+    damping: np.ndarray = 2.0
+    gravity: bool = True
+    max_misses: int = 10
+    watchdog: float = 0.02
+    hold: float = 0.1
+    limits: bool = True
+    position_margin: float | None = None
+    velocity_scale: float | None = None
+    priority: int = 0
+    spin: float = 0.0
+
+    def __post_init__(self):
+        _set(self, "rate", _float("rate", self.rate, positive=True))
+        _set(self, "spin", _float("spin", self.spin, nonneg=True))
+        if self.spin >= 1.0 / self.rate:
+            raise ConfigError(
+                "spin", f"expected a time [s] below the period 1/rate = {1.0 / self.rate:g} s, "
+                f"got {self.spin:g}"
+            )
+        _set(self, "priority", _int("priority", self.priority, minimum=0))
+        if self.priority > 99:
+            raise ConfigError("priority", f"expected 0 (off) or 1..99, got {self.priority}")
+        _set(self, "gc", _bool("gc", self.gc))
+        _set(self, "gc_slack", _float("gc_slack", self.gc_slack, positive=True))
+        _set(self, "damping", _array("damping", self.damping, nonneg=True))
+        _set(self, "gravity", _bool("gravity", self.gravity))
+        _set(self, "max_misses", _int("max_misses", self.max_misses, minimum=1))
+        _set(self, "watchdog", _float("watchdog", self.watchdog, positive=True))
+        _set(self, "hold", _float("hold", self.hold, nonneg=True))
+        _set(self, "limits", _bool("limits", self.limits))
+        for name in ("position_margin", "velocity_scale"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if not self.limits:
+                raise ConfigError(name, "does not apply with limits = false; drop it or set "
+                                  "limits = true")  # fmt: skip
+            _set(self, name, _float(name, value, nonneg=name == "position_margin",
+                                    positive=name == "velocity_scale"))  # fmt: skip
+
+    @property
+    def margin(self) -> float:
+        """``position_margin`` [rad] (default 0.05)."""
+        return 0.05 if self.position_margin is None else self.position_margin
+
+    @property
+    def scale(self) -> float:
+        """``velocity_scale`` (default 1.5)."""
+        return 1.5 if self.velocity_scale is None else self.velocity_scale

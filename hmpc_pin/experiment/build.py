@@ -1,5 +1,8 @@
-"""The one place where a config becomes objects: robot, controller × compensation,
-reference, disturbance, plant (``ARCHITECTURE``: names in a config → objects here only).
+"""Where a config becomes objects: robot, controller × compensation, reference, disturbance,
+plant (names in a config → objects in this layer only), split by what is built:
+:mod:`.controllers` (the controller's settings, compensation and limits),
+:mod:`.references` (the reference), :mod:`.plants` (the plant and its disturbance), and
+here the :class:`Experiment` that holds them and runs them.
 
 The algorithms below (controllers, compensations, plants, references) take their own
 small settings or plain arguments and never see the TOML schema; every check that needs
@@ -27,36 +30,26 @@ from ..exceptions import (
 from ..model.robot import Robot, load_robot
 from ..realtime.loop import LoopSettings
 from ..realtime.safety import SafeTorque, SafetySettings
-from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
-from ..sim.mujoco import MuJoCoPlant, MuJoCoSettings, Obstacle
-from ..sim.plants import PLANTS, Plant, RK4Plant
+from ..sim.disturbances import Disturbance
+from ..sim.mujoco import MuJoCoPlant
+from ..sim.plants import Plant
 from ..sim.result import Result
 from ..sim.simulate import simulate
 from ..tasks.base import Reference, check_limits
-from ..tasks.pose import (
-    QUATERNION_ORDER,
-    CirclePath,
-    LinePath,
-    PoseReference,
-    PoseWaypoints,
-    check_frame,
-    frame_pose,
-    matrix_to_quat,
-    plane_axes,
-    quat_to_matrix,
-)
-from ..tasks.quintic import QuinticReference
-from ..tasks.sine import SineReference
-from ..tasks.trajectory import JointTrajectory, load_trajectory
-from ..tasks.waypoints import retime_waypoints
 from .combos import HMPC_ONLY, TABLES, applies
 from .controllers import _limits, controller_parts, make_compensation, mpc_settings
+from .plants import (
+    _effort_limit,
+    build_disturbance,
+    mujoco_settings,
+    pinocchio_plant,
+)
+from .references import build_reference, build_task_reference, check_trajectory_limits, task_space
 from .schema import (
     DEFAULT_COMPENSATION,
     OBSERVERS,
     ControllerConfig,
     ExperimentConfig,
-    PlantConfig,
     RobotConfig,
     parse_combination,
 )
@@ -86,18 +79,6 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
     """The robot of ``[robot]`` (optionally with another gravity [m/s²])."""
     g = rc.gravity if gravity is None else gravity
     return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
-
-
-def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
-    """The plant's effort limits [N·m]: ``plant.effort_limit``, else the plant URDF's (a
-    value <= 0 means none); ``None`` when ``plant.saturate`` is false."""
-    pc = config.plant
-    if not pc.saturate:
-        return None
-    if pc.effort_limit is not None:
-        return config.vector("plant.effort_limit", plant.nq)
-    eff = plant.effort_limit
-    return np.where(eff > 0, eff, np.inf)
 
 
 def make_controller(
@@ -143,33 +124,6 @@ def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
             ValidityWarning,
             stacklevel=3,
         )
-
-
-def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
-    """:class:`~hmpc_pin.sim.mujoco.MuJoCoSettings` of ``[plant.mujoco]`` for ``n`` joints."""
-    mc = pc.mujoco
-    if mc is None:
-        raise ConfigError("plant.mujoco", "only with plant.engine = 'mujoco'")
-    ob = mc.obstacle
-    per_joint = {}
-    for name in ("frictionloss", "damping", "armature"):
-        value = getattr(mc, name)
-        if value.ndim == 1 and value.shape != (n,):
-            raise ConfigError(
-                f"plant.mujoco.{name}", f"has {value.shape[0]} entries but the robot has {n} "
-                f"joints; give {n} values or one value for all joints",
-            )  # fmt: skip
-        per_joint[name] = tuple(np.broadcast_to(value, (n,)).tolist())
-    return MuJoCoSettings(
-        integrator=mc.integrator,
-        import_urdf_dynamics=mc.import_urdf_dynamics,
-        geometry=mc.geometry,
-        obstacle=None if ob is None else Obstacle(
-            tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction,
-            tuple(ob.solref.tolist()),
-        ),
-        **per_joint,
-    )  # fmt: skip
 
 
 def uses_observer(cc: ControllerConfig) -> bool:
@@ -221,204 +175,6 @@ def with_controller(
         and all(getattr(new, k) is getattr(cc, k) for k in keep)
         else replace(config, controller=new)
     )
-
-
-def build_reference(config: ExperimentConfig, robot: Robot) -> Reference:
-    """The joint reference of ``config``: the sine of Eq 31 or the Section 5.4 motion.
-
-    For ``kind = "cartesian"`` both tool poses are solved by inverse kinematics
-    inside the joint limits (the goal on the branch closest to the start) and
-    joined by a quintic. Raises :class:`~hmpc_pin.kinematics.KinematicsError`
-    naming the pose when one is unreachable.
-    """
-    n = robot.nq
-    rc = config.reference
-    if rc.kind in ("trajectory", "waypoints", "pose"):
-        return build_task_reference(config, robot)
-    if rc.kind == "cartesian":
-        from ..model.planar import solve_pose
-
-        cc = rc.cartesian
-        q_start = solve_pose(robot, cc.start_position, np.deg2rad(cc.start_angle))
-        q_goal = solve_pose(robot, cc.goal_position, np.deg2rad(cc.goal_angle), near=q_start)
-        return QuinticReference(q_start, q_goal, cc.t_start, cc.move_time)
-    return SineReference(
-        n,
-        amplitude=config.vector("reference.amplitude", n),
-        frequency=config.vector("reference.frequency", n),
-        offset=config.vector("reference.offset", n),
-        phase=config.vector("reference.phase", n),
-    )
-
-
-def _task_limits(config: ExperimentConfig, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
-    """Position limits a task must keep: ``[controller.constraints]`` overrides, else the
-    URDF's; none (±inf) for a joint without a range (lower >= upper, a 0/0 URDF limit) and for
-    every joint when ``controller.constraints.position = false``."""
-    con = config.controller.constraints
-    over = con.overrides(robot.nq) if con is not None else {"lower": None, "upper": None}
-    lower = np.array(over["lower"] if over["lower"] is not None else robot.lower, dtype=float)
-    upper = np.array(over["upper"] if over["upper"] is not None else robot.upper, dtype=float)
-    none = lower >= upper
-    if con is not None and not con.position:
-        none[:] = True
-    lower[none], upper[none] = -np.inf, np.inf
-    return lower, upper
-
-
-def check_trajectory_limits(
-    trajectory: JointTrajectory, robot: Robot, lower: np.ndarray, upper: np.ndarray,
-    what: str = "reference", hint: str | None = None,
-) -> None:  # fmt: skip
-    """Check a joint trajectory against position and (URDF) velocity limits at its samples
-    and 10 points per segment between them.
-
-    Raises:
-        LimitError: Naming the first joint and time where a limit is left.
-    """
-    t = trajectory.times
-    fine = np.union1d(t, np.linspace(t[0], t[-1], 10 * (t.size - 1) + 1))
-    q, dq = trajectory.sample_many(fine)
-    names = robot.joint_names
-    bad = (q < lower - 1e-9) | (q > upper + 1e-9)
-    if bad.any():
-        k, i = np.argwhere(bad)[0]
-        raise LimitError(what, names[i], float(fine[k]), float(q[k, i]), lower[i], upper[i],
-                         hint)  # fmt: skip
-    vmax = np.where(robot.velocity_limit > 0, robot.velocity_limit, np.inf)
-    bad = np.abs(dq) > vmax * (1 + 1e-9)
-    if bad.any():
-        k, i = np.argwhere(bad)[0]
-        raise LimitError(f"{what} velocity", names[i], float(fine[k]), float(dq[k, i]),
-                         -vmax[i], vmax[i], hint)  # fmt: skip
-
-
-def _pose_path(pc, robot: Robot, q_init: np.ndarray):
-    """The target path of ``[reference.pose]`` (orientation and start from ``q_init``)."""
-    frame = pc.frame or robot.tool_frame
-    p0, R0 = frame_pose(robot, frame, q_init)
-    p0, R0 = p0[0], R0[0]
-    R_held = quat_to_matrix(pc.orientation) if pc.orientation is not None else R0
-    if pc.path == "circle":
-        u, v = plane_axes(pc.plane)
-        center = pc.center if pc.center is not None else p0 - pc.radius * u
-        return CirclePath(center, pc.radius, pc.frequency, u, v, R_held, ramp=pc.ramp)
-    if pc.path == "line":
-        start = pc.start if pc.start is not None else p0
-        return LinePath(start, pc.end, pc.t_start, pc.duration, R_held)
-    rots = (
-        np.array([quat_to_matrix(q) for q in pc.orientations])
-        if pc.orientations is not None
-        else np.repeat(R0[None], len(pc.times), axis=0)
-    )
-    return PoseWaypoints(pc.times, pc.positions, rots)
-
-
-def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
-    """The reference of ``kind = "trajectory" | "waypoints" | "pose"`` (README, "Tasks"),
-    checked against the joint position and velocity limits before any run.
-
-    Raises:
-        TrajectoryError: A bad file or waypoint list. KinematicsError: an unknown frame or
-            an unreachable pose. LimitError: a limit left (joint and time named).
-    """
-    rc = config.reference
-    lower, upper = _task_limits(config, robot)
-    names = robot.joint_names
-    if rc.kind == "trajectory":
-        trajectory = load_trajectory(rc.trajectory.file, names)
-        check_trajectory_limits(
-            trajectory, robot, lower, upper, f"reference ({rc.trajectory.file.name})",
-            "change the file: slower (velocity limits: the URDF's) or inside the position "
-            "limits (the URDF's or controller.constraints.lower/upper)",
-        )  # fmt: skip
-        return trajectory
-    if rc.kind == "waypoints":
-        wc = rc.waypoints
-        n = robot.nq
-        for p, point in enumerate(wc.points):
-            for i in np.flatnonzero((point < lower) | (point > upper)):
-                raise LimitError(f"waypoint {p}", names[i], None, point[i], lower[i], upper[i],
-                                 "move the waypoint (reference.waypoints.points) inside the "
-                                 "limits")  # fmt: skip
-        vmax = (
-            config.vector("reference.waypoints.velocity_limit", n)
-            if wc.velocity_limit is not None
-            else robot.velocity_limit
-        )
-        trajectory = retime_waypoints(
-            wc.points, vmax, config.vector("reference.waypoints.acceleration_limit", n),
-            t_start=wc.t_start, dt=config.controller.Ts, joint_names=names,
-        )  # fmt: skip
-        check_trajectory_limits(
-            trajectory, robot, lower, upper, "waypoint path",
-            "the spline through the waypoints overshoots: add a waypoint or move them away "
-            "from the limit",
-        )  # fmt: skip
-        return trajectory
-    pc = rc.pose
-    n = robot.nq
-    if pc.q_init is not None:
-        q_init = config.vector("reference.pose.q_init", n)
-    elif config.simulation.q0 is not None:
-        q_init = config.vector("simulation.q0", n)
-    else:
-        q_init = np.where(np.isfinite(lower + upper), (lower + upper) / 2, 0.0)
-    frame = pc.frame or robot.tool_frame
-    check_frame(robot, frame)
-    for i in np.flatnonzero((q_init < lower) | (q_init > upper)):
-        raise LimitError("reference.pose.q_init", names[i], None, q_init[i], lower[i], upper[i],
-                         "give reference.pose.q_init inside the limits")  # fmt: skip
-    cc = config.controller
-    t_end = config.simulation.duration + (cc.N + 2) * cc.Ts
-    reference = PoseReference.solve(
-        robot, frame, _pose_path(pc, robot, q_init), t_end, q_init, dt=pc.dt,
-        posture_cost=pc.posture_cost,
-    )  # fmt: skip
-    check_trajectory_limits(
-        reference.trajectory, robot, lower, upper, f"pose task ({frame})",
-        "the spline through the IK samples leaves a limit: lower reference.pose.dt or move "
-        "the path away from the limits",
-    )  # fmt: skip
-    return reference
-
-
-def task_space(reference, robot: Robot, result: Result) -> Result:
-    """``result`` with the task-space arrays of a pose task: the frame's position
-    ``ee_pos`` and quaternion ``ee_quat`` (x, y, z, w) from the measured joints by Pinocchio's
-    forward kinematics, and the targets ``ee_pos_ref``, ``ee_quat_ref``; unchanged for a
-    joint-space reference."""
-    if not isinstance(reference, PoseReference) or len(result.t) == 0:
-        return result
-    pos, rot = frame_pose(robot, reference.frame, result.q)
-    pos_ref, quat_ref = reference.target(result.t)
-    result.ee_pos, result.ee_pos_ref = pos, pos_ref
-    result.ee_quat = np.array([matrix_to_quat(R) for R in rot])
-    result.ee_quat_ref = quat_ref
-    result.meta["task"] = {"frame": reference.frame, "quaternion": QUATERNION_ORDER}
-    return result
-
-
-def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) -> Disturbance:
-    """The plant disturbance of ``config`` (Eq 32–34); with ``scale = "inertia"`` each
-    joint's coefficients are multiplied by :math:`M_{ii}(q_0)` of the controller's model."""
-    n = robot.nq
-    dc = config.disturbance
-    k = np.diag(robot.mass_matrix(q0)).copy() if dc.scale == "inertia" else np.ones(n)
-    disturbance: Disturbance = ZeroDisturbance(n)
-    if dc.friction is not None:
-        sign = -1.0 if dc.friction.sign == "literal" else 1.0  # literal: d = +(a q̇ + b sgn q̇)
-        disturbance = disturbance + CoulombViscousFriction(
-            sign * k * np.broadcast_to(dc.friction.viscous, (n,)),
-            sign * k * np.broadcast_to(dc.friction.coulomb, (n,)),
-        )
-    if dc.pulse is not None:
-        disturbance = disturbance + GaussianPulse(
-            k * np.broadcast_to(dc.pulse.amplitude, (n,)),
-            np.broadcast_to(dc.pulse.center, (n,)),
-            np.broadcast_to(dc.pulse.sigma, (n,)),
-        )
-    return disturbance
 
 
 @dataclass
@@ -657,13 +413,6 @@ class Experiment:
                 mujoco_settings(pc, self.robot.nq),
             )  # fmt: skip
         return pinocchio_plant(pc, self.plant, self.disturbance, Ts)
-
-
-def pinocchio_plant(pc: PlantConfig, robot: Robot, disturbance, Ts: float) -> Plant:
-    """The Pinocchio plant of ``[plant]`` (its integrator, step and backend) on ``robot``."""
-    if pc.integrator == "rk4":
-        return RK4Plant(robot, disturbance, Ts, pc.dt, backend=pc.backend)
-    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt)
 
 
 def make_arm_plant(config: ExperimentConfig) -> Plant:

@@ -1,0 +1,88 @@
+"""The plant of an experiment: ``[plant]`` and ``[disturbance]`` → the simulated arm (the
+Pinocchio RK4 or Euler plant, or MuJoCo) with its disturbance and effort limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..exceptions import (
+    ConfigError,
+)
+from ..model.robot import Robot
+from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
+from ..sim.mujoco import MuJoCoSettings, Obstacle
+from ..sim.plants import PLANTS, Plant, RK4Plant
+from .schema import (
+    ExperimentConfig,
+    PlantConfig,
+)
+
+__all__ = ["build_disturbance", "mujoco_settings", "pinocchio_plant"]
+
+
+def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
+    """The plant's effort limits [N·m]: ``plant.effort_limit``, else the plant URDF's (a
+    value <= 0 means none); ``None`` when ``plant.saturate`` is false."""
+    pc = config.plant
+    if not pc.saturate:
+        return None
+    if pc.effort_limit is not None:
+        return config.vector("plant.effort_limit", plant.nq)
+    eff = plant.effort_limit
+    return np.where(eff > 0, eff, np.inf)
+
+
+def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
+    """:class:`~hmpc_pin.sim.mujoco.MuJoCoSettings` of ``[plant.mujoco]`` for ``n`` joints."""
+    mc = pc.mujoco
+    if mc is None:
+        raise ConfigError("plant.mujoco", "only with plant.engine = 'mujoco'")
+    ob = mc.obstacle
+    per_joint = {}
+    for name in ("frictionloss", "damping", "armature"):
+        value = getattr(mc, name)
+        if value.ndim == 1 and value.shape != (n,):
+            raise ConfigError(
+                f"plant.mujoco.{name}", f"has {value.shape[0]} entries but the robot has {n} "
+                f"joints; give {n} values or one value for all joints",
+            )  # fmt: skip
+        per_joint[name] = tuple(np.broadcast_to(value, (n,)).tolist())
+    return MuJoCoSettings(
+        integrator=mc.integrator,
+        import_urdf_dynamics=mc.import_urdf_dynamics,
+        geometry=mc.geometry,
+        obstacle=None if ob is None else Obstacle(
+            tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction,
+            tuple(ob.solref.tolist()),
+        ),
+        **per_joint,
+    )  # fmt: skip
+
+
+def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) -> Disturbance:
+    """The plant disturbance of ``config`` (Eq 32–34); with ``scale = "inertia"`` each
+    joint's coefficients are multiplied by :math:`M_{ii}(q_0)` of the controller's model."""
+    n = robot.nq
+    dc = config.disturbance
+    k = np.diag(robot.mass_matrix(q0)).copy() if dc.scale == "inertia" else np.ones(n)
+    disturbance: Disturbance = ZeroDisturbance(n)
+    if dc.friction is not None:
+        sign = -1.0 if dc.friction.sign == "literal" else 1.0  # literal: d = +(a q̇ + b sgn q̇)
+        disturbance = disturbance + CoulombViscousFriction(
+            sign * k * np.broadcast_to(dc.friction.viscous, (n,)),
+            sign * k * np.broadcast_to(dc.friction.coulomb, (n,)),
+        )
+    if dc.pulse is not None:
+        disturbance = disturbance + GaussianPulse(
+            k * np.broadcast_to(dc.pulse.amplitude, (n,)),
+            np.broadcast_to(dc.pulse.center, (n,)),
+            np.broadcast_to(dc.pulse.sigma, (n,)),
+        )
+    return disturbance
+
+
+def pinocchio_plant(pc: PlantConfig, robot: Robot, disturbance, Ts: float) -> Plant:
+    """The Pinocchio plant of ``[plant]`` (its integrator, step and backend) on ``robot``."""
+    if pc.integrator == "rk4":
+        return RK4Plant(robot, disturbance, Ts, pc.dt, backend=pc.backend)
+    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt)

@@ -153,3 +153,54 @@ def record_trajectory(arm: Arm, steps: int) -> Trajectory:
     t = ctrl.Ts * np.arange(steps)
     q, dq = ref.sample_many(t)
     return Trajectory(t, q, dq, "reference")
+
+
+PAPER_CONFIG = ROOT / "configs" / "paper_combined.toml"
+CHAIN_SIZES = (2, 3, 6, 7, 12)
+MiB = 2**20
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Sizes of the runs (full or ``--quick``).
+
+    Attributes:
+        warmup: Untimed controller steps before the timed ones.
+        steps: Timed controller steps per case.
+        sim_repeats: Repetitions of the 10 s simulation (wall-time median over them).
+        soak_duration: Simulated time of the memory soak [s].
+        soak_every: RSS sampling period of the soak, simulated [s].
+        compare_duration: Simulated time of each comparison run on planar3 [s].
+        compare_panda_duration: The same on Panda [s] (0 skips Panda).
+        crocoddyl_iterations: Crocoddyl's (Box-)FDDP iteration budget per step.
+    """
+
+    warmup: int = 200
+    steps: int = 2000
+    sim_repeats: int = 5
+    soak_duration: float = 600.0
+    soak_every: float = 60.0
+    compare_duration: float = 10.0
+    compare_panda_duration: float = 10.0
+    crocoddyl_iterations: int = 3
+    floor_blocks: int = 8
+    floor_steps: int = 800
+    ratio_blocks: int = 6
+    ratio_steps: int = 600
+    long_steps: int = 300
+
+
+QUICK = Settings(
+    warmup=20,
+    steps=200,
+    sim_repeats=1,
+    soak_duration=30.0,
+    soak_every=10.0,
+    compare_duration=2.0,
+    compare_panda_duration=2.0,
+    floor_blocks=2,
+    floor_steps=100,
+    ratio_blocks=2,
+    ratio_steps=100,
+    long_steps=40,
+)

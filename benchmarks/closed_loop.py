@@ -1,0 +1,150 @@
+"""The closed loop's benchmarks: the paper's 10 s run (with the plant alone as its floor)
+and memory over long runs, each in a fresh process."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks.steps import GravityCompensation  # noqa: E402
+from benchmarks._fixtures import (  # noqa: E402
+    PAPER_CONFIG,
+    MiB,
+    Settings,
+    log,
+)
+from benchmarks.ratios import aba_floor  # noqa: E402
+from hmpc_pin.experiment.build import Experiment  # noqa: E402
+from hmpc_pin.experiment.schema import load_config  # noqa: E402
+
+@dataclass
+class SimResult:
+    """Wall times of the paper's 10 s scenario [s].
+
+    Attributes:
+        build: ``Experiment.from_config`` wall times [s].
+        run: ``Experiment.run()`` wall times [s].
+        plant_only: The same simulation with :class:`GravityCompensation` instead of
+            the MPC [s] (plant integration, disturbance and loop overhead).
+        duration: Simulated time [s]. complete: Whether every run finished.
+    """
+
+    build: list[float]
+    run: list[float]
+    plant_only: list[float]
+    duration: float
+    complete: bool
+    aba_only: list[float] = field(default_factory=list)
+
+    @property
+    def median(self) -> float:
+        """Median wall time of ``run()`` [s]."""
+        return float(np.median(self.run))
+
+    @property
+    def rtf(self) -> float:
+        """Real-time factor: simulated time / median wall time."""
+        return self.duration / self.median
+
+
+def plant_floor(plant, periods: int) -> float:
+    """Wall time [s] of the plant alone over ``periods`` control periods, τ = 0 held from
+    rest at zero: the native plant's ``advance`` calls (kernel, disturbance table), or for
+    the Python plant its ``4 · substeps · periods`` bare ``pin.aba`` calls."""
+    if not getattr(plant, "native", False):
+        return aba_floor(plant, 4 * plant.substeps * periods)
+    n = plant.nq
+    plant.reset(np.zeros(n), np.zeros(n))
+    tau = np.zeros(n)
+    start = time.perf_counter()
+    for _ in range(periods):
+        plant.advance(tau)
+    return time.perf_counter() - start
+
+
+def bench_simulation(settings: Settings) -> SimResult:
+    """Wall time of ``Experiment.from_config(cfg)`` and of ``.run()`` on the paper scenario."""
+    cfg = load_config(PAPER_CONFIG)
+    build, run, plant_only, aba_only = [], [], [], []
+    complete = True
+    for _ in range(settings.sim_repeats):
+        t0 = time.perf_counter()
+        exp = Experiment.from_config(cfg)
+        t1 = time.perf_counter()
+        result = exp.run()
+        t2 = time.perf_counter()
+        build.append(t1 - t0)
+        run.append(t2 - t1)
+        complete &= bool(result.complete)
+        t0 = time.perf_counter()
+        replace(exp, controller=GravityCompensation(exp.robot, exp.controller.Ts)).run()
+        plant_only.append(time.perf_counter() - t0)
+        plant = exp.make_plant()
+        periods = round(cfg.simulation.duration / exp.controller.Ts)
+        aba_only.append(plant_floor(plant, periods))
+    out = SimResult(build, run, plant_only, cfg.simulation.duration, complete, aba_only)
+    log(
+        f"  10 s simulation: median {out.median:.3f} s, real-time factor {out.rtf:.1f}; "
+        f"with tau = G(q) instead of the MPC {np.median(plant_only):.3f} s"
+    )
+    return out
+
+
+def run_memory_child(duration: float, every: float) -> dict:
+    """Run ``benchmarks/memory.py`` in a fresh interpreter and return its JSON result."""
+    cmd = [sys.executable, "-m", "benchmarks.memory", "--duration", str(duration)]
+    cmd += ["--every", str(every)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@dataclass
+class MemoryResult:
+    """RSS figures [bytes] of the 10 s run and of the soak."""
+
+    peak: dict
+    soak: dict
+
+    @property
+    def soak_rss(self) -> np.ndarray:
+        """Sampled RSS of the soak [bytes]."""
+        return np.array([s[1] for s in self.soak["samples"]], dtype=float)
+
+    @property
+    def growth_start(self) -> float:
+        """Simulated time of the sample the growth is measured from [s]: the second one
+        (after the first interval, once every buffer of the run exists)."""
+        samples = self.soak["samples"]
+        return float(samples[min(1, len(samples) - 1)][0])
+
+    @property
+    def soak_growth(self) -> float:
+        """RSS growth from the sample at :attr:`growth_start` to the last [bytes]."""
+        rss = self.soak_rss
+        return float(rss[-1] - rss[min(1, rss.size - 1)])
+
+
+def bench_memory(settings: Settings) -> MemoryResult:
+    """Peak RSS of the 10 s scenario and RSS over the soak, each in a fresh process."""
+    peak = run_memory_child(10.0, 0.0)
+    log(f"  peak RSS of the 10 s run: {peak['peak_rss'] / MiB:.1f} MiB")
+    soak = run_memory_child(settings.soak_duration, settings.soak_every)
+    out = MemoryResult(peak, soak)
+    rss = out.soak_rss / MiB
+    log(
+        f"  soak {settings.soak_duration:g} s: RSS first {rss[0]:.1f}, last {rss[-1]:.1f}, "
+        f"max {rss.max():.1f} MiB"
+    )
+    return out

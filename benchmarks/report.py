@@ -420,12 +420,11 @@ def report(
         floor_table(steps),
         "",
         "The floor calls Pinocchio and ProxSuite from Python (four calls through their "
-        "bindings). The step (native backend, the default where it builds: "
-        "`hmpc_pin/native`) is one call into C++ that samples the reference, computes "
-        "the gradients, M, C q̇ + G, the observer, the QPs and the joint-limit test there: "
-        "it can cost less than the floor. With `backend = \"python\"` the same step is about "
-        "30 numpy calls around the floor's calls, 4.5–5.2 floors (BENCHMARKS.md of "
-        "`c3d49fe`).",
+        "bindings). The step (the compiled core `hmpc_pin._core`, built with the package) is "
+        "one call into C++ that samples the reference, computes the gradients, M, C q̇ + G, "
+        "the observer, the QPs and the joint-limit test there: it can cost less than the "
+        "floor. The former Python step (about 30 numpy calls around the floor's calls) took "
+        "4.5–5.2 floors (BENCHMARKS.md of `c3d49fe`).",
         "",
         "## Controller step (`HierarchicalMPC.step`)",
         "",

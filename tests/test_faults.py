@@ -114,8 +114,8 @@ def test_non_finite_plant_state_from_a_disturbance(planar3, clean, tmp_path):
 
 @pytest.mark.parametrize("layout", ["block", "joint"])
 def test_qp_iteration_cap_is_a_solver_error_at_that_step(planar3, clean, tmp_path, layout):
-    # the Python QP objects are capped below (the native step: tests/test_native.py)
-    config = hmpc_pin.ControllerConfig(qp_layout=layout, backend="python")
+    # the compiled QPs are capped below (JointQPs.max_iter, the shortcut off)
+    config = hmpc_pin.ControllerConfig(qp_layout=layout)
     base = hmpc_pin.make_controller(planar3, config)
     ctrl = Faulty(base, K0, "iteration cap")
     with pytest.raises(hmpc_pin.SimulationError, match=r"step 37 \(t=0\.37 s\)") as info:

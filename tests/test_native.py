@@ -476,3 +476,23 @@ def test_long_horizon_per_joint_qps_equal_the_oracle():
         np.testing.assert_allclose(ta, tb, rtol=0, atol=1e-6 * max(1.0, np.abs(tb).max()))
     took = ctrl.qps.unconstrained_solves
     assert 0 < took < 60 * robot.nq
+
+def test_the_deprecated_backend_argument_is_checked_and_changes_nothing(planar3):
+    """``backend`` of 0.2 on a controller or an RK4 plant: an unknown value is one
+    ConfigError naming the key; ``"python"`` warns and gives the same run bit for bit."""
+    with pytest.raises(hmpc_pin.ConfigError, match="plant.backend"):
+        RK4Plant(planar3, None, 0.01, 0.001, backend="fast")
+    with pytest.raises(hmpc_pin.ConfigError, match="controller.backend"):
+        hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend="fast"))
+    runs = []
+    for backend in ("auto", "python"):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend=backend))
+            plant = RK4Plant(planar3.copy(), _paper_disturbance(), 0.01, 0.001, backend=backend)
+        deprecations = [w for w in caught if issubclass(w.category, DeprecationWarning)]
+        assert len(deprecations) == (2 if backend == "python" else 0)
+        runs.append(hmpc_pin.simulate(planar3, ctrl, hmpc_pin.SineReference(3), plant=plant,
+                                      duration=0.3, q0=np.zeros(3)))  # fmt: skip
+    np.testing.assert_array_equal(runs[0].q, runs[1].q)
+    np.testing.assert_array_equal(runs[0].tau, runs[1].tau)

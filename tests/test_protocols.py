@@ -248,11 +248,8 @@ def test_simulate_drives_a_plant_object_and_rejects_options_it_does_not_take(rob
 
 CONTROLLERS = {
     "hmpc+chen": lambda r: hmpc_pin.make_controller(r),
-    "hmpc+chen-python": lambda r: hmpc_pin.make_controller(
-        r, hmpc_pin.ControllerConfig(backend="python")
-    ),
-    "hmpc+chen-native": lambda r: hmpc_pin.make_controller(
-        r, hmpc_pin.ControllerConfig(backend="native")
+    "hmpc+momentum": lambda r: hmpc_pin.make_controller(
+        r, hmpc_pin.ControllerConfig(compensation="momentum")
     ),
     "hmpc+none": lambda r: hmpc_pin.make_controller(
         r, hmpc_pin.ControllerConfig(compensation="none")

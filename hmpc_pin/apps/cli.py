@@ -563,8 +563,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="report the compiled core (built when the package was installed)",
         description="Print where hmpc_pin's compiled core (the RK4 plant's period and the "
         "MPC step) is installed and what it was built against. It is built when the "
-        "package is built (pip install); exit 1 if it cannot be loaded here, and runs then "
-        "take the Python path (backend = \"auto\").",
+        "package is built (pip install); exit 1 if it cannot be loaded here.",
     )
     nat.add_argument(
         "--build", action="store_true",

@@ -22,10 +22,10 @@ from numpy.typing import NDArray
 
 from ..compensation.base import Compensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import ConfigError, DimensionError, NonFiniteError
+from ..exceptions import DimensionError, NonFiniteError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
-from ..native import BACKENDS, model_string
+from ..native import deprecated_backend, model_string
 from ..native import load as load_native
 from ..tasks.base import Reference, as_reference
 from .base import AppliedTorque
@@ -170,15 +170,7 @@ class HierarchicalMPC(AppliedTorque):
         if settings is not None and not isinstance(settings, MPCSettings):
             settings, compensation, limits = _from_legacy(settings, robot, "HierarchicalMPC")
         self.settings = settings = settings if settings is not None else MPCSettings()
-        if settings.backend not in BACKENDS:
-            raise ConfigError("controller.backend",
-                              f"got {settings.backend!r}; expected one of {BACKENDS}")  # fmt: skip
-        if settings.backend == "python":
-            warnings.warn(
-                'backend = "python" is deprecated since 0.3 and has no effect: the step is '
-                "compiled (a compensation written in Python still runs in Python); remove "
-                "the key", DeprecationWarning, stacklevel=2,
-            )  # fmt: skip
+        deprecated_backend(settings.backend, "controller.backend")
         n = robot.nq
         self.n = n
         self.compensation = (

@@ -231,7 +231,8 @@ def solver_settings(eps_abs: float, max_iter: int, warm: bool = True) -> dict:
 
 
 def cold_twin_settings(eps_abs: float, max_iter: int) -> dict:
-    """The settings of a box QP's cold twin (:meth:`JointQPs._solve_cold`): solved from
+    """The settings of a box QP's cold twin (the compiled QPs' retry after a warm solve that
+    did not converge, ``src/joint_qps.cpp``): solved from
     scratch without the duality-gap test, like the soft QPs, but with no relative tolerance."""
     settings = solver_settings(eps_abs, max_iter, warm=False)
     settings["eps_rel"] = 0.0
@@ -280,15 +281,15 @@ class JointQPs:
             state constraints were inactive.
         constrained: Number of joints whose constrained QP was solved at the last step.
         cold_solves: Number of box QPs solved again from scratch because the warm-started
-            solve did not converge (:meth:`_solve_cold`), since construction.
+            solve did not converge (the cold twin, ``src/joint_qps.cpp``), since construction.
         unconstrained_solves: ``"joint"`` layout: joint QPs not sent to ProxSuite because
             the unconstrained minimiser :math:`-H^{-1}g` lay inside the box (then it is the
             box QP's solution, exactly), since construction.
         layout: The layout in use (``"block"`` or ``"joint"``; ``"auto"`` resolved).
-        stack: One buffer, rows ``[U (Nc); −c; h_q; v̄; q; q̇; caller's stack_rows]`` (each
+        stack: One buffer, rows ``[U (Nc); 3 unused; q; q̇; caller's stack_rows]`` (each
             row one value per joint): the free inputs (:attr:`solution` is this view),
-            minus the mid positions, the half ranges and velocity limits (clipped to
-            ``BIG``), the current state (:attr:`x0`) and the caller's rows.
+            three rows kept from the layout of version 0.2, the current state (:attr:`x0`)
+            and the caller's rows.
         x0: The view of :attr:`stack` that holds the state (2, n); :meth:`solve` copies
             its ``x0`` argument there unless it is this very object.
     """
@@ -325,8 +326,8 @@ class JointQPs:
             )
         self._eps_abs, self._max_iter = eps_abs, max_iter
         self.v_min, self.v_max = v_min, v_max
-        # [U (Nc); −c; h_q; v̄; q; q̇; caller's rows]: one product of the limit matrix with
-        # its first Nc + 5 rows gives ±(X − mid) − half for every joint (_enforce_limits).
+        # [U (Nc); 3 unused rows; q; q̇; caller's rows] (the layout of 0.2, whose limit test
+        # used the three rows; the compiled QPs keep the limits themselves).
         self.stack = np.zeros((Nc + 5 + stack_rows, n))
         self.solution = self.stack[:Nc]  # solved into place by the compiled QPs
         self.x0 = self.stack[Nc + 3 : Nc + 5]
@@ -344,19 +345,11 @@ class JointQPs:
         def vec(x):
             return np.clip(np.broadcast_to(np.asarray(x, float), (n,)), -BIG, BIG)
 
-        self._lower, self._upper, self._vel = (
-            vec(limits.lower),
-            vec(limits.upper),
-            vec(limits.velocity),
-        )
-        stack = self.stack
-        stack[Nc] = -0.5 * (self._lower + self._upper)
-        stack[Nc + 1] = 0.5 * (self._upper - self._lower)
-        stack[Nc + 2] = self._vel
+        lower, upper, vel = vec(limits.lower), vec(limits.upper), vec(limits.velocity)
         Gq, Gv = mpc.Gamma[0::2], mpc.Gamma[1::2]
         # The slack enters the solver scaled, s = k·ŝ, so that its Hessian entry is 1
         # like the inputs' (unscaled, 2ρ₂·scale ~ 1e7 stalls ProxSuite's duality-gap test).
-        self._k = k = 1.0 / np.sqrt(2.0 * limits.slack_weight * mpc.scale)
+        k = 1.0 / np.sqrt(2.0 * limits.slack_weight * mpc.scale)
         one = np.full((N, 1), k)
         C = np.vstack([np.hstack([Gq, -one]), np.hstack([Gq, one]),
                        np.hstack([Gv, -one]), np.hstack([Gv, one])])  # fmt: skip
@@ -364,16 +357,15 @@ class JointQPs:
         # duality-gap test: measured on 36 000 random near-limit states (Nc = 1..10),
         # the only combination for which ProxSuite 0.8.0 solved every one; warm starts or
         # unscaled rows stalled (MAX_ITER) or reported PRIMAL_INFEASIBLE within 500.
-        self._row_scale = 1.0 / np.linalg.norm(C, axis=1)
-        C = C * self._row_scale[:, None]
+        row_scale = 1.0 / np.linalg.norm(C, axis=1)
+        C = C * row_scale[:, None]
         Hs = np.zeros((Nc + 1, Nc + 1))
         Hs[:Nc, :Nc] = mpc.H
         Hs[Nc, Nc] = 1.0
-        self._Hs, self._C = Hs, C
         g_slack = limits.slack_linear_weight * mpc.scale * k
         self._core.set_limits(
-            mpc.Phi, mpc.Gamma, self._lower, self._upper, self._vel, Hs, C, self._row_scale,
-            g_slack, k, solver_settings(eps_abs, max_iter, warm=False), always_constrained,
+            mpc.Phi, mpc.Gamma, lower, upper, vel, Hs, C, row_scale, g_slack, k,
+            solver_settings(eps_abs, max_iter, warm=False), always_constrained,
         )  # fmt: skip
         self.soft_qps = True
 

@@ -30,6 +30,7 @@ __all__ = [
     "available",
     "build",
     "build_info",
+    "deprecated_backend",
     "load",
     "model_string",
     "resolve_backend",
@@ -109,6 +110,27 @@ def build(verbose: bool = False) -> Path:
         stacklevel=2,
     )
     return Path(build_info()["path"])
+
+
+def deprecated_backend(backend: str, key: str) -> None:
+    """Check a ``backend`` option of version 0.2 (``[controller]``, ``[plant]``, or the
+    ``backend`` argument of a controller or plant): deprecated since 0.3, without effect.
+
+    Raises:
+        ConfigError: ``backend`` is not one of :data:`BACKENDS`.
+
+    Warns:
+        DeprecationWarning: ``"python"``, which asked for a Python path that is gone.
+    """
+    if backend not in BACKENDS:
+        raise ConfigError(key, f"got {backend!r}; expected one of {BACKENDS}")
+    if backend == "python":
+        warnings.warn(
+            f'{key} = "python" is deprecated since 0.3 and has no effect: the compiled core '
+            "runs (a compensation written in Python still runs in Python); remove the key",
+            DeprecationWarning,
+            stacklevel=3,
+        )
 
 
 def model_string(robot) -> str:

@@ -35,14 +35,12 @@ callable, two friction terms) is called from C++ as ``d(t, q, dq)`` at every sta
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import ConfigError, DimensionError
 from ..model.robot import Robot
-from ..native import BACKENDS, model_string
+from ..native import deprecated_backend, model_string
 from ..native import load as load_native
 from .base import Plant
 from .disturbances import ZeroDisturbance
@@ -162,13 +160,7 @@ class RK4Plant:
     ):
         n = robot.nq
         substeps = _substeps(Ts, dt)
-        if backend not in BACKENDS:
-            raise ConfigError("plant.backend", f"got {backend!r}; expected one of {BACKENDS}")
-        if backend == "python":
-            warnings.warn(
-                'plant backend = "python" is deprecated since 0.3 and has no effect: the RK4 '
-                "period is compiled; remove the key", DeprecationWarning, stacklevel=2,
-            )  # fmt: skip
+        deprecated_backend(backend, "plant.backend")
         self.nq = self.n = n
         self.robot = robot
         self.Ts = float(Ts)

@@ -438,7 +438,12 @@ def test_wall_clock_run_against_the_arm_process_completes_with_statistics(robot)
     np.testing.assert_allclose(stamps / P, np.round(stamps / P), atol=1e-6)
     # and the arm tracked (loose: a wall-clock run on a loaded machine)
     assert np.abs(run.result.error[-1]).max() < 0.05, why
-    assert run.result.t[-1] == pytest.approx(1.0), why
+    # the record ends at the last control instant that ran: 1 s, or, when the machine made
+    # the loop skip its last cycles, at most one run of misses (plus one control period)
+    # earlier
+    ctrl_period = hmpc_pin.ControllerConfig().Ts
+    slack = s["max_consecutive_misses"] * P + ctrl_period
+    assert 1.0 - slack - 1e-9 <= run.result.t[-1] <= 1.0 + 1e-9, why
 
 
 def test_the_arm_process_stall_trips_the_watchdog(robot):

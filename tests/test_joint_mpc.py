@@ -787,3 +787,13 @@ def test_compiled_qps_equal_the_oracle_along_a_closed_loop(planar3, N, Nc):
     tol = solution_tolerance(ctrl.mpc.H)
     soft = sum(_compare_with_oracle(qps, oracle, G, x0, tol) for G, x0 in inputs)
     assert soft > 0
+
+
+def test_inverted_input_bounds_are_one_config_error_naming_the_joint():
+    """v_min > v_max for one joint: refused before any solve, naming the joint and both
+    values (ProxSuite would iterate to its cap on an empty box)."""
+    from hmpc_pin.exceptions import ConfigError
+
+    mpc = CondensedMPC(TS, 10, 1, Q_PAPER, R_PAPER, P_PAPER)
+    with pytest.raises(ConfigError, match=r"joint 'b': v_min = 5 > v_max = -5"):
+        JointQPs(mpc, np.array([-1.0, 5.0]), np.array([1.0, -5.0]), ("a", "b"))

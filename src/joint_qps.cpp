@@ -62,6 +62,7 @@ JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const
     throw std::invalid_argument("JointQPs: v_min > v_max for some joint");
   g_.setZero(Nc);
   u_.setZero(Nc);
+  // Each box QP's bounds, kept for its cold twin (made on first use).
   if (block) {
     H_block_ = Mat::Zero(n * Nc, n * Nc);
     Vec lo(n * Nc), hi(n * Nc);
@@ -70,15 +71,17 @@ JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const
       lo.segment(i * Nc, Nc).setConstant(v_min_[i]);
       hi.segment(i * Nc, Nc).setConstant(v_max_[i]);
     }
+    box_lo_.push_back(lo);
+    box_hi_.push_back(hi);
     g_block_.setZero(n * Nc);
     qps_.emplace_back(new_box_qp(H_block_, g_block_, lo, hi, warm_));
   } else {
     const Mat Hinv = H_.inverse();
     neg_Hinv_ = -0.5 * (Hinv + Hinv.transpose());
     for (int i = 0; i < n; ++i) {
-      Vec g = Vec::Zero(Nc);
-      qps_.emplace_back(new_box_qp(H_, g, Vec::Constant(Nc, v_min_[i]),
-                                   Vec::Constant(Nc, v_max_[i]), warm_));
+      box_lo_.push_back(Vec::Constant(Nc, v_min_[i]));
+      box_hi_.push_back(Vec::Constant(Nc, v_max_[i]));
+      qps_.emplace_back(new_box_qp(H_, Vec::Zero(Nc), box_lo_[i], box_hi_[i], warm_));
     }
   }
   cold_qps_.resize(qps_.size());
@@ -154,19 +157,10 @@ const JointQPs::Results* JointQPs::solve_box(int k, const Vec& g, int joint) {
   if (qp.results.info.status == pqp::QPSolverOutput::PROXQP_SOLVED) return &qp.results;
   if (!cold_qps_[k]) {
     const Mat& Hq = block ? H_block_ : H_;
-    Vec lo(Hq.rows()), hi(Hq.rows());
-    if (block) {
-      for (int i = 0; i < n; ++i) {
-        lo.segment(i * Nc, Nc).setConstant(v_min_[i]);
-        hi.segment(i * Nc, Nc).setConstant(v_max_[i]);
-      }
-    } else {
-      lo.setConstant(v_min_[k]);
-      hi.setConstant(v_max_[k]);
-    }
     auto twin = std::make_unique<DenseQP>(Hq.rows(), 0, 0, true);
     cold_.apply(twin->settings);
-    twin->init(Hq, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt, lo, hi);
+    twin->init(Hq, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt,
+                box_lo_[k], box_hi_[k]);
     twin->solve();
     cold_qps_[k] = std::move(twin);
   } else {

@@ -94,6 +94,7 @@ class JointQPs {
   Vec v_min_, v_max_, g_block_, g_;
   Settings warm_, cold_, soft_;
   std::vector<std::unique_ptr<DenseQP>> qps_, cold_qps_, soft_qps_;
+  std::vector<Vec> box_lo_, box_hi_;  // each box QP's bounds (its cold twin's too)
   Mat Phi_, Gamma_, Hs_, C_;
   Vec lower_, upper_, vel_, row_scale_, mid_, half_, g_soft_, l_soft_, u_soft_, X_, u_;
   Vec q_free_, v_free_;

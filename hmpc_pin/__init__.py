@@ -33,6 +33,7 @@ one compensation and calls its MPC; the torque goes to a plant; ``simulate`` clo
 loop; ``experiment.build`` assembles all of it from a config.
 """
 
+from . import _startup  # noqa: F401  (first: Ctrl-C while the command line starts, exit 130)
 from .apps.compare import Comparison, run_comparison
 from .apps.metrics import Metrics, compute_metrics, format_metrics
 from .compensation import (

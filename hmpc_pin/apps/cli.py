@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _startup
 from ..exceptions import (
     ConfigError,
     HmpcError,
@@ -37,7 +38,7 @@ from ..experiment.schema import (
 )
 from ..sim.result import Result
 from .metrics import DEFAULT_ERROR_THRESHOLD, compute_metrics, format_metrics, run_warnings
-from .run import live_view, run_one, write_csv
+from .run import after_the_run, live_view, run_one, write_csv
 
 __all__ = ["main", "write_csv"]
 
@@ -47,7 +48,9 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 def _out_dir(path: Path, option: str = "--out") -> Path:
     """Create ``path`` and check it is a writable directory, or raise :class:`OutputError`
-    naming ``option``."""
+    naming ``option``. The first side effect of a command: it ends the start-up (Ctrl-C
+    raises :class:`KeyboardInterrupt` from here on, :mod:`hmpc_pin._startup`)."""
+    _startup.end()
     if path.exists() and not path.is_dir():
         raise OutputError(path, "is a file", option)
     try:
@@ -164,6 +167,11 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
     experiment, result, files, failure = run_one(config, out, stem, open_view=open_view,
                                                  experiment=experiment)  # fmt: skip
+    with after_the_run(config.name, files):
+        return _report(args, config, out, stem, warn, views, experiment, result, files, failure)
+
+
+def _report(args, config, out, stem, warn, views, experiment, result, files, failure) -> int:
     view = views[0] if views else None
     observer = uses_observer(config.controller)
     if len(result.t) > 1:
@@ -358,12 +366,18 @@ def cmd_realtime(args) -> int:
                                priority=args.priority, spin=args.spin)  # fmt: skip
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key}", exc.message) from None
+    experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     out = _out_dir(args.out)
     print(f"{config.name}: {config.description} ({config.controller.label}) in real time at "
           f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
-          "process")  # fmt: skip
+          "process", flush=True)  # fmt: skip
+
+    def ready() -> None:  # the readiness line (scripts and tests wait for it)
+        print("arm process ready; running (Ctrl-C: safe stop, partial run saved)", flush=True)
+
     try:
-        run, files = run_realtime(config, out, viz=ArmView if args.viz else None)
+        run, files = run_realtime(config, out, viz=ArmView if args.viz else None,
+                                  experiment=experiment, ready=ready)  # fmt: skip
     except KeyboardInterrupt:  # before the loop took over SIGINT: nothing ran yet
         print("interrupted at start-up, before the first cycle; nothing was run or written",
               file=sys.stderr)  # fmt: skip
@@ -601,6 +615,7 @@ def main(argv=None) -> int:
     """Entry point of ``hmpc-pin``; returns the exit code."""
     import warnings
 
+    previous = _startup.guard()  # Ctrl-C before the first side effect: exit 130 at once
     try:
         args = build_parser().parse_args(argv)
         with warnings.catch_warnings():
@@ -614,6 +629,8 @@ def main(argv=None) -> int:
             return EXIT_FAILED
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    finally:
+        _startup.restore(previous)
 
 
 if __name__ == "__main__":

@@ -14,6 +14,8 @@ PKG = Path(__file__).resolve().parent.parent / "hmpc_pin"
 RANK = {
     "data": 0,
     "exceptions": 0,
+    "_startup": 0,
+    "checks": 0.5,  # imports exceptions only
     "model": 1,
     "native": 1,
     "compensation": 2,

@@ -20,15 +20,16 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ..compensation.base import Compensation
+from ..checks import as_choice, as_float, as_int, mpc_fields
+from ..compensation.base import Compensation, check_compensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import DimensionError, NonFiniteError
+from ..exceptions import ConfigError, DimensionError, NonFiniteError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
-from ..tasks.base import Reference, as_reference
-from .base import AppliedTorque
+from ..tasks.base import Reference, as_reference, check_reference_size
+from .base import AppliedTorque, not_reset
 
 __all__ = ["HierarchicalMPC", "MPCSettings", "state_limits"]
 
@@ -74,11 +75,31 @@ class MPCSettings:
     qp_layout: str = "auto"
     backend: str = "auto"
 
+    def __post_init__(self):
+        # The same checks and errors as the [controller] table (hmpc_pin.checks).
+        fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
+                            self.v_max, prefix="MPCSettings.")  # fmt: skip
+        fields["eps_abs"] = as_float("MPCSettings.eps_abs", self.eps_abs, positive=True)
+        fields["max_iter"] = as_int("MPCSettings.max_iter", self.max_iter, minimum=1)
+        fields["qp_layout"] = as_choice("MPCSettings.qp_layout", self.qp_layout,
+                                        ("auto", "block", "joint"))  # fmt: skip
+        for name, value in fields.items():
+            object.__setattr__(self, name, value)
+
     def bounds(self, n: int) -> tuple[FloatArray, FloatArray]:
-        """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints."""
-        lo = np.broadcast_to(np.asarray(self.v_min, dtype=float), (n,)).astype(float)
-        hi = np.broadcast_to(np.asarray(self.v_max, dtype=float), (n,)).astype(float)
-        return lo, hi
+        """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints.
+
+        Raises:
+            ConfigError: A per-joint bound has a length other than ``n``.
+        """
+        out = []
+        for name in ("v_min", "v_max"):
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.ndim == 1 and arr.shape != (n,):
+                raise ConfigError(f"MPCSettings.{name}", f"has {arr.shape[0]} entries but the "
+                                  f"robot has {n} joints; give one value or {n}")  # fmt: skip
+            out.append(np.broadcast_to(arr, (n,)).astype(float))
+        return out[0], out[1]
 
 
 def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
@@ -140,8 +161,23 @@ class HierarchicalMPC(AppliedTorque):
     """Inverse dynamics + disturbance compensation + one ProxSuite MPC per joint (``hmpc*`` kinds).
 
     Args:
-        robot: The controller's model of the arm (its :class:`~hmpc_pin.robot.Robot`).
-        config: Settings; the default is the paper's controller (Section 4).
+        robot: The controller's model of the arm (its :class:`~hmpc_pin.model.robot.Robot`).
+        settings: The MPC's :class:`MPCSettings` (checked when built, with the
+            :class:`~hmpc_pin.exceptions.ConfigError` a config file gets); the default is
+            the paper's controller (Section 4).
+        compensation: The disturbance compensation
+            (:class:`~hmpc_pin.compensation.base.Compensation`): its estimate has one entry
+            per joint and its period, if it has one (``Ts``), is ``settings.Ts``. Default:
+            the paper's observer, Chen's :math:`Y` (Eq 28) with gain 100, which is proven
+            for planar serial arms only: on any other arm it comes with a
+            :class:`~hmpc_pin.exceptions.ValidityWarning` (as in a config).
+        limits: The joint limits imposed on the predictions as soft state constraints:
+            ``"urdf"`` (default: the robot's position and velocity limits), a
+            :class:`~hmpc_pin.mpc.condensed.StateLimits`, or ``None`` (none).
+
+    Raises:
+        ConfigError: A setting is out of range, or the compensation's period differs.
+        DimensionError: The compensation is for another number of joints.
 
     Attributes:
         disturbance_estimate: :math:`\\hat d` [N·m], shape (n,), updated by :meth:`step`
@@ -178,6 +214,7 @@ class HierarchicalMPC(AppliedTorque):
             if compensation is not None
             else DisturbanceObserver(n, settings.Ts, 100.0, "chen", "implicit")
         )
+        check_compensation(self.compensation, robot, settings.Ts, "HierarchicalMPC")
         v_min, v_max = settings.bounds(n)
         self.mpc = CondensedMPC(settings.Ts, settings.N, settings.Nc, settings.Q, settings.R,
                                 settings.P)  # fmt: skip
@@ -220,6 +257,7 @@ class HierarchicalMPC(AppliedTorque):
         self.v = self._buf["v"]
         self.tau = self._buf["tau"]
         self._started = False
+        self._was_reset = False
         self._core = None
         self._make_core()
 
@@ -300,6 +338,7 @@ class HierarchicalMPC(AppliedTorque):
         # v, τ and d̂ are the compiled step's buffers, updated in place from now on.
         self._core.reset(np.asarray(self.compensation.estimate, dtype=float))
         self._started = False
+        self._was_reset = True
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
         """Compute the torque for the measured state at time ``t``.
@@ -327,8 +366,11 @@ class HierarchicalMPC(AppliedTorque):
             NonFiniteError: ``t``, ``q``, ``dq`` or the reference is not finite.
             DimensionError: ``q``, ``dq`` or the reference has the wrong shape.
             SolverError: A joint QP did not report solved.
+            SimulationError: Called before :meth:`reset`.
         """
         if reference is not self._reference:  # adapted once per reference object
+            if not self._was_reset:
+                raise not_reset(self)
             self._set_reference(reference)
         core = self._core
         S = self._stack
@@ -400,6 +442,7 @@ class HierarchicalMPC(AppliedTorque):
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
         native form, if it has one, to the compiled step."""
+        check_reference_size(reference, self.n, "HierarchicalMPC.step")
         self._ref = as_reference(reference)
         self._reference = reference
         self._native_ref = False

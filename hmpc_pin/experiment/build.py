@@ -115,7 +115,11 @@ def make_controller(
 def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
     """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) when the compensation of ``cc``
     is used outside the arms it is proven for: Chen's :math:`Y` (Eq 28–30) on an arm that
-    is not a planar serial chain (:meth:`~hmpc_pin.model.robot.Robot.is_planar_chain`)."""
+    is not a planar serial chain (:meth:`~hmpc_pin.model.robot.Robot.is_planar_chain`).
+
+    The controllers warn the same when built
+    (:func:`~hmpc_pin.compensation.base.check_compensation`); this is kept for callers
+    that check a config without building its controller."""
     if cc.compensation == "chen" and not robot.is_planar_chain():
         warnings.warn(
             f"compensation 'chen' (Chen's observer, Eq 28-30) is proven for planar serial "
@@ -264,8 +268,7 @@ class Experiment:
             else config.vector("simulation.q0", n)
         )
         robot.check_mass_matrix(q0)
-        warn_validity(robot, config.controller)
-        controller = make_controller(robot, config.controller)
+        controller = make_controller(robot, config.controller)  # warns as warn_validity
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
         controller.effort_limit = _effort_limit(config, plant)
         if config.collision is not None and uses_observer(config.controller):

@@ -57,7 +57,7 @@ from numpy.typing import NDArray
 from ..exceptions import ConfigError, DimensionError, ExtraError, URDFError
 from ..model.robot import Robot
 from .disturbances import ZeroDisturbance
-from .plants import PLANTS, _substeps, split_disturbance
+from .plants import PLANTS, _substeps, held_torque, split_disturbance
 
 __all__ = [
     "MUJOCO_INTEGRATORS",
@@ -512,6 +512,7 @@ class MuJoCoPlant:
     """
 
     name = "mujoco"
+    _was_reset = False
     engine = "mujoco"
 
     def __init__(
@@ -617,6 +618,7 @@ class MuJoCoPlant:
         self.contact_force = np.zeros(self.n)
         self.engine_force = np.zeros(self.n)
         self.history = [self.contact_force] if self._contacts else []
+        self._was_reset = True
 
     def disturbance_now(self) -> FloatArray:
         """What the controller's model does not know [N·m]: the config's
@@ -646,6 +648,7 @@ class MuJoCoPlant:
         disturbance the period is one ``mj_step(model, data, nstep)`` call; any other
         disturbance is called at every step with the state MuJoCo has reached.
         """
+        tau = held_torque(self, tau)
         m, d, step = self.model, self.data, self._mj.mj_step
         S, v = self.substeps, self.vadr
         qfrc = d.qfrc_applied

@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..exceptions import ConfigError, DimensionError
+from ..exceptions import ConfigError, DimensionError, SimulationError
 from ..model.robot import Robot
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
@@ -74,6 +74,29 @@ def _reset_state(plant, q0: FloatArray, dq0: FloatArray, t0: float) -> None:
             f"plant state of shapes {plant.q.shape}, {plant.dq.shape}; expected ({plant.n},)"
         )
     plant.t0, plant.k, plant.t = float(t0), 0, float(t0)
+    plant._was_reset = True
+
+
+def held_torque(plant, tau) -> FloatArray:
+    """``tau`` [N·m] as the (n,) float array a plant's ``advance`` holds, after checking
+    that the plant was reset (its state and time are set by ``reset`` only).
+
+    Raises:
+        SimulationError: ``advance`` before ``reset``.
+        DimensionError: ``tau`` is not one torque per joint.
+    """
+    if not plant._was_reset:
+        raise SimulationError(
+            f"{type(plant).__name__}.advance before reset: call reset(q0, dq0) first to "
+            "set the state the period starts from"
+        )
+    tau = np.asarray(tau, dtype=float)
+    if tau.shape != (plant.n,):
+        raise DimensionError(
+            f"{type(plant).__name__}.advance: torque of shape {tau.shape}; expected "
+            f"({plant.n},), one per joint of the plant"
+        )
+    return tau
 
 
 def _agrees(term, fused, n: int) -> bool:
@@ -149,6 +172,7 @@ class RK4Plant:
 
     name = "rk4"
     native = True
+    _was_reset = False
 
     def __init__(
         self,
@@ -241,7 +265,13 @@ class RK4Plant:
         return self._chunk[0]
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
+        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+            DimensionError: ``tau`` is not of shape (n,).
+        """
+        tau = held_torque(self, tau)
         n, x = self.n, self._x
         x[:n] = self.q
         x[n:] = self.dq
@@ -278,6 +308,7 @@ class EulerPlant:
 
     name = "euler"
     native = False
+    _was_reset = False
 
     def __init__(self, robot: Robot, disturbance=None, Ts: float = 0.01, dt: float = 0.001):
         self.nq = self.n = robot.nq
@@ -299,7 +330,13 @@ class EulerPlant:
         return self.disturbance(self.t, self.q, self.dq)
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
+        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+            DimensionError: ``tau`` is not of shape (n,).
+        """
+        tau = held_torque(self, tau)
         q, dq, t, h = self.q, self.dq, self.t, self.h
         model, data, aba, dist = self.model, self.data, self.robot.aba, self.disturbance
         for s in range(self.substeps):

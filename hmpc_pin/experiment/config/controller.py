@@ -7,10 +7,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ...checks import mpc_fields
 from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ..combos import HMPC_ONLY, OBSERVERS, applies
-from ._fields import _array, _bool, _choice, _float, _int, _section, _set, _weight
+from ._fields import _array, _bool, _choice, _float, _int, _section, _set
 from .legacy import KIND_ALIASES, resolve_compensation
 
 #: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
@@ -261,25 +262,10 @@ class ControllerConfig:
     computed_torque: ComputedTorqueConfig | None = None
 
     def __post_init__(self):
-        _set(self, "Ts", _float("Ts", self.Ts, positive=True))
-        _set(self, "N", _int("N", self.N, minimum=1))
-        _set(self, "Nc", _int("Nc", self.Nc, minimum=1))
-        if self.Nc > self.N:
-            raise ConfigError("Nc", f"{self.Nc=} but {self.N=}; expected 1 <= Nc <= N")
-        _set(self, "Q", _weight("Q", self.Q))
-        _set(self, "P", _weight("P", self.P))
-        _set(self, "R", _float("R", self.R, positive=True))
-        _set(self, "v_min", _array("v_min", self.v_min))
-        _set(self, "v_max", _array("v_max", self.v_max))
-        if self.v_min.shape != self.v_max.shape and self.v_min.ndim and self.v_max.ndim:
-            raise ConfigError(
-                "v_max", f"{self.v_min.shape=} but {self.v_max.shape=}; give both per joint"
-            )
-        if np.any(self.v_min >= self.v_max):
-            raise ConfigError(
-                "v_min",
-                f"v_min={self.v_min.tolist()} must be < v_max={self.v_max.tolist()} on every joint",
-            )
+        fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
+                            self.v_max)  # fmt: skip  (the checks of MPCSettings too)
+        for name, value in fields.items():
+            _set(self, name, value)
         for name, cls in (
             ("observer", ObserverConfig),
             ("constraints", ConstraintConfig),

@@ -129,6 +129,8 @@ def cmd_run(args) -> int:
     if not args.speed > 0:
         raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
+    if args.replay is not None:  # Meshcat and the meshes, before the run and any file
+        _check_meshes(config, "--replay")
     out = _out_dir(args.out)
     stem = config.name
     if args.compensation is not None:
@@ -137,7 +139,6 @@ def cmd_run(args) -> int:
         stem += "_no_ndo"
     if args.replay is not None:
         _out_file(args.replay, "--replay")
-        _check_meshes(config, "--replay")
     warn = _warn_thresholds(args)
     for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):
         if value and not args.viz:
@@ -218,9 +219,10 @@ def _check_meshes(config: ExperimentConfig, option: str) -> None:
     """Load the visual geometry of the config's arm before the run, so that a missing
     mesh is bad input naming the mesh and ``option`` (no run, no file)."""
     from ..experiment.build import load_robot_config
-    from .viz import visual_model
+    from .viz import require_meshcat, visual_model
 
     try:
+        require_meshcat()
         visual_model(load_robot_config(config.robot))
     except VizError as exc:
         raise VizError(f"{option}: {exc}; or run without {option}") from None

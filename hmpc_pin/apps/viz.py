@@ -10,7 +10,7 @@ Each geometry is therefore loaded one node deeper (``.../<name>/geom``) with its
 scale as a static transform, and only the parent node ``.../<name>`` is
 animated with the unscaled placement ``oMg``.
 
-Requires the ``viz`` extra (``pip install -e ".[viz]"``).
+Requires the ``viz`` extra (``pip install "hmpc_pin[viz]"``).
 """
 
 from __future__ import annotations
@@ -47,15 +47,23 @@ def draw_obstacle(vis, obstacle: dict | None) -> None:
     vis[OBSTACLE].set_transform(placement)
 
 
+#: The message when Meshcat is missing: the extra that installs it (as a wheel user types it).
+MESHCAT_MISSING = 'meshcat is not installed; install the viz extra: pip install "hmpc_pin[viz]"'
+
+
+def require_meshcat() -> None:
+    """Raise :class:`~hmpc_pin.exceptions.VizError` (:data:`MESHCAT_MISSING`) now when
+    Meshcat cannot be imported, e.g. before a run that ends with a replay."""
+    _meshcat()
+
+
 def _meshcat():
     try:
         import meshcat
         import meshcat.animation
         import meshcat.geometry
     except ImportError as exc:
-        raise VizError(
-            "meshcat is not installed; install the viz extra: pip install -e '.[viz]'"
-        ) from exc
+        raise VizError(MESHCAT_MISSING) from exc
     return meshcat
 
 

@@ -31,6 +31,7 @@ def mpc_settings(cc, n: int) -> MPCSettings:
         max_iter=cc.max_iter if cc.max_iter is not None else 1000,
         qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
         backend=cc.backend if cc.backend is not None else "auto",
+        latency=cc.latency if cc.latency is not None else 0.0,
     )  # fmt: skip
 
 

@@ -239,6 +239,11 @@ class ControllerConfig:
             ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
+        latency: Age of the measurements the controller receives [s] (``hmpc``;
+            default 0). With L > 0 the compensation is fed the torque applied over the
+            interval its measurements span and the MPC and the inverse dynamics start from
+            the state predicted over L (guide "Sensing and latency"); a fraction of Ts is
+            allowed.
     """
 
     kind: str = "hmpc"
@@ -259,6 +264,7 @@ class ControllerConfig:
     backend: str | None = None
     ism: ISMConfig | None = None
     computed_torque: ComputedTorqueConfig | None = None
+    latency: float | None = None
 
     def __post_init__(self):
         _set(self, "Ts", _float("Ts", self.Ts, positive=True))
@@ -352,6 +358,8 @@ class ControllerConfig:
             _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
             backend = "auto" if self.backend is None else self.backend
             _set(self, "backend", _choice("backend", backend, BACKENDS))
+            latency = 0.0 if self.latency is None else self.latency
+            _set(self, "latency", _float("latency", latency, nonneg=True))
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)

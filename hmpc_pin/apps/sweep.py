@@ -174,10 +174,24 @@ def perturbed_config(config: ExperimentConfig, params: SampleParams) -> Experime
     return config
 
 
+def _told_latency(config: ExperimentConfig, condition: str) -> ExperimentConfig:
+    """``config`` with ``[controller] latency`` set to the modelled latency (latency plus
+    whole-period delay) when ``known_latency`` and the controller is ``hmpc`` (the 0.3
+    keys: unchanged)."""
+    sc, cc = config.sweep, config.controller
+    if sc.legacy or not sc.known_latency or cc.kind != "hmpc":
+        return config
+    if "latency" not in CONDITION_PARTS[condition]:
+        return config
+    si = sc.interface
+    latency = si.latency + si.delay * cc.Ts
+    return replace(config, controller=replace(cc, latency=latency))
+
+
 def _measured(experiment: Experiment, config: ExperimentConfig, params: SampleParams,
               condition: str) -> None:
     """Put the interface model of ``condition`` between ``experiment``'s controller and
-    plant (and, with ``known_latency``, tell an ``hmpc`` controller its latency)."""
+    plant."""
     sc = config.sweep
     parts = CONDITION_PARTS[condition]
     rng = np.random.default_rng(params.noise_seed)
@@ -191,9 +205,6 @@ def _measured(experiment: Experiment, config: ExperimentConfig, params: SamplePa
         )  # fmt: skip
         return
     model = sc.interface.model(experiment.robot.nq, parts)
-    latency = model.latency.seconds + model.delay.periods * ctrl.Ts
-    if sc.known_latency and latency > 0 and hasattr(ctrl, "set_latency"):
-        ctrl.set_latency(latency)
     if not model.ideal:
         experiment.controller = SensedController(ctrl, model, rng)
 
@@ -226,7 +237,7 @@ def run_sample(
                           f"{condition!r}")  # fmt: skip
     perturb = condition in ("plant", "all")
     base = perturbed_config(config, params) if perturb else config
-    experiment = Experiment.from_config(variant_config(base, variant))
+    experiment = Experiment.from_config(_told_latency(variant_config(base, variant), condition))
     if perturb:
         experiment.plant = experiment.plant.with_scaled_inertias(params.mass)
     _measured(experiment, config, params, condition)

@@ -81,12 +81,9 @@ def _limits(cc, robot: Robot) -> StateLimits | None:
 
 
 def bandwidth_posture(robot: Robot) -> np.ndarray:
-    """The posture :math:`q_0` at which a bandwidth is exact: q = 0 moved inside the
-    joint limits."""
-    lo = np.where(np.isfinite(robot.lower), robot.lower, -np.inf)
-    hi = np.where(np.isfinite(robot.upper), robot.upper, np.inf)
-    mid = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
-    return np.where((lo <= 0) & (0 <= hi), 0.0, mid)
+    """The posture :math:`q_0` at which a bandwidth is exact: q = 0 moved to the nearest
+    joint limit where 0 is outside the range."""
+    return np.minimum(np.maximum(np.zeros(robot.nq), robot.lower), robot.upper)
 
 
 def observer_bandwidth(robot: Robot, cc) -> np.ndarray | None:

@@ -290,6 +290,17 @@ struct HMPCCore {
   // The reference in native form (sampler.hpp).
   hmpc_native::HorizonSampler sampler;
   Vec offsets;  // horizon offsets j·Ts, j = 1..N [s]
+  // Measurement latency L = m Ts + alpha Ts (0 <= alpha < 1), known to the controller
+  // (set_latency): the observer is fed the torque applied over the interval its two
+  // measurements span, and the MPC and the inverse dynamics start from the state predicted
+  // over L. Off (latency_on false): the step is exactly the latency-free one.
+  bool latency_on = false;
+  int lat_m = 0;
+  double lat_alpha = 0.0, Ts = 0.0;
+  long steps = 0;            // finished steps since reset
+  std::vector<Vec> tau_hist; // tau_hist[j]: torque applied over [t_{k-1-j}, t_{k-j}), j = 0..m+1
+  std::vector<Vec> v_hist;   // v_hist[j]: acceleration commanded then, j = 0..m+1
+  Vec tau_obs, v_obs;        // the torque and acceleration aligned with the measurement
 
   HMPCCore(py::object model, const CRefRow& FT_, int N_, std::shared_ptr<PyJointQPs> qp_,
            std::shared_ptr<PyNDO> ndo_, py::array_t<double, py::array::c_style> v_,
@@ -352,6 +363,69 @@ struct HMPCCore {
     return code ? code : step(stack->map);
   }
 
+  // The measurement latency L [s] at the control period Ts_ [s] (L = 0: off).
+  void set_latency(double L, double Ts_) {
+    if (!(std::isfinite(L) && L >= 0.0 && std::isfinite(Ts_) && Ts_ > 0.0))
+      throw std::invalid_argument("set_latency: expected L >= 0 and Ts > 0");
+    Ts = Ts_;
+    latency_on = L > 0.0;
+    const double periods = L / Ts;
+    lat_m = static_cast<int>(std::floor(periods + 1e-9));
+    lat_alpha = periods - lat_m;
+    if (lat_alpha < 1e-9) lat_alpha = 0.0;
+    tau_hist.assign(lat_m + 2, Vec::Zero(n));
+    v_hist.assign(lat_m + 2, Vec::Zero(n));
+    tau_obs.setZero(n);
+    v_obs.setZero(n);
+  }
+
+  // Whether the interval [t_{k-1} - L, t_k - L] between the last two measurements lies
+  // after the start (k = steps): the observer can be advanced over it.
+  bool observer_ready() const {
+    if (!latency_on) return started;
+    return steps >= lat_m + 1 + (lat_alpha > 0.0 ? 1 : 0);
+  }
+
+  // The torque applied over [t_{k-1} - L, t_k - L], averaged (the observer's input):
+  //   alpha τ_{k-2-m} + (1 - alpha) τ_{k-1-m};  likewise the commanded acceleration.
+  void align() {
+    tau_obs = (1.0 - lat_alpha) * tau_hist[lat_m] + lat_alpha * tau_hist[lat_m + 1];
+    v_obs = (1.0 - lat_alpha) * v_hist[lat_m] + lat_alpha * v_hist[lat_m + 1];
+  }
+
+  // The state at t_k predicted from the measurement of t_k - L by the decoupled double
+  // integrator q̈ = v with the accelerations commanded over [t_k - L, t_k]: v_{k-1-m} over
+  // alpha Ts, then v_{k-m}, ..., v_{k-1} over Ts each (exact for piecewise-constant v).
+  // Writes rows 0 and 1 of S.
+  void predict(RefVec q, RefVec dq) const {
+    auto seg = [&](const Vec& a, double h) {
+      q += h * dq + (0.5 * h * h) * a;
+      dq += h * a;
+    };
+    if (lat_alpha > 0.0) seg(v_hist[lat_m], lat_alpha * Ts);
+    for (int j = lat_m - 1; j >= 0; --j) seg(v_hist[j], Ts);
+  }
+  int predict_stack(py::array_t<double, py::array::c_style> S) {
+    if (S.ndim() != 2 || S.shape(0) != 2 + 2 * N || S.shape(1) != n || !S.writeable())
+      throw std::invalid_argument("predict: stack of wrong shape");
+    MapRow Sm(S.mutable_data(), 2 + 2 * N, n);
+    if (!Sm.topRows(2).allFinite()) return 1;
+    Vec q = Sm.row(0).transpose(), dq = Sm.row(1).transpose();
+    predict(q, dq);
+    Sm.row(0) = q.transpose();
+    Sm.row(1) = dq.transpose();
+    return 0;
+  }
+
+  // After a step with latency: the torque as the plant applies it and v enter the history.
+  void record() {
+    if (!latency_on) return;
+    std::rotate(tau_hist.rbegin(), tau_hist.rbegin() + 1, tau_hist.rend());
+    std::rotate(v_hist.rbegin(), v_hist.rbegin() + 1, v_hist.rend());
+    tau_hist[0] = tau.map.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
+    v_hist[0] = v.map.row(0).transpose();
+  }
+
   void set_effort(const CRefVec& limit) {
     if (limit.size() != n) throw std::invalid_argument("effort limit of wrong size");
     effort = limit;
@@ -366,6 +440,9 @@ struct HMPCCore {
     qp->qps.constrained_last = false;
     qp->qps.constrained = 0;
     started = false;
+    steps = 0;
+    for (Vec& x : tau_hist) x.setZero();
+    for (Vec& x : v_hist) x.setZero();
   }
 
   // The first half of a step from the stack S: the gradients, and M, C q̇ + G -- computed
@@ -415,12 +492,15 @@ struct HMPCCore {
     }
     t -= dhat.map.row(0).transpose();
     started = true;
+    ++steps;
+    record();
     return 0;
   }
 
   // One control step from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), with the
   // observer (or none) advanced here. Returns prepare()'s or finish()'s code.
   int step(const CRefRow& S) {
+    if (latency_on) return step_latency(S);
     int code = prepare(S, true, false);
     if (code) return code;
     if (started && ndo) {
@@ -429,6 +509,35 @@ struct HMPCCore {
       dhat.map.row(0) = ndo->ndo.estimate.transpose();
     }
     return finish();
+  }
+
+  // The step with latency: the observer over the measured interval (M, C q̇ + G at the
+  // measured state, the aligned torque), then the MPC and Eq (4) at the predicted state.
+  // Before the measured interval lies after the start, the observer restarts at each
+  // measurement (d̂ = 0). S's state rows are overwritten with the prediction.
+  int step_latency(const CRefRow& S_in) {
+    if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
+      throw std::invalid_argument("HMPCCore: stack of wrong shape");
+    if (!S_in.allFinite()) return 1;
+    if (!dyn) throw std::invalid_argument("HMPCCore.step: no compiled dynamics here");
+    auto& S = stack->map;
+    if (S.data() != S_in.data()) S = S_in;
+    Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
+    if (ndo) {
+      if (observer_ready()) {
+        align();
+        ndo->ndo.update(dyn->mass_matrix(q), dyn->nle(q, dq), dq, tau_obs);
+        dhat.map.row(0) = ndo->ndo.estimate.transpose();
+      } else {
+        ndo->ndo.reset(dq);
+        dhat.map.setZero();
+      }
+    }
+    predict(q, dq);
+    S.row(0) = q.transpose();
+    S.row(1) = dq.transpose();
+    int code = prepare(S, true, false);
+    return code ? code : finish();
   }
 };
 
@@ -546,6 +655,14 @@ PYBIND11_MODULE(_core, m) {
            py::arg("model"), py::arg("FT"), py::arg("N"), py::arg("qps"), py::arg("ndo"),
            py::arg("v"), py::arg("tau"), py::arg("d_hat"), py::arg("M"), py::arg("nle"))
       .def("set_effort", &HMPCCore::set_effort)
+      .def("set_latency", &HMPCCore::set_latency, py::arg("L"), py::arg("Ts"))
+      .def("observer_ready", &HMPCCore::observer_ready)
+      .def("aligned", [](HMPCCore& c) {
+             c.align();
+             return py::make_tuple(Vec(c.tau_obs), Vec(c.v_obs)); })
+      .def("predict", &HMPCCore::predict_stack, py::arg("S"))
+      .def_readonly("latency_periods", &HMPCCore::lat_m)
+      .def_readonly("latency_fraction", &HMPCCore::lat_alpha)
       .def("reset", &HMPCCore::reset)
       .def("step", &HMPCCore::step)
       .def("step_t", &HMPCCore::step_t)

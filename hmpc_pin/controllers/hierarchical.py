@@ -60,6 +60,11 @@ class MPCSettings:
         backend: Deprecated since 0.3 and without effect: the step is always compiled
             (:mod:`hmpc_pin.native`). ``"auto"`` and ``"native"`` are accepted silently,
             ``"python"`` with a :class:`DeprecationWarning`.
+        latency: The age L [s] of the measurement handed to :meth:`HierarchicalMPC.step`
+            (0: none; a fraction of Ts allowed). With L > 0 the compensation is fed the
+            torque applied over the interval its two measurements span, and the MPC and the
+            inverse dynamics start from the state predicted over L (the guide
+            "Sensing and latency"). L = 0 is the latency-free step, bit for bit.
     """
 
     Ts: float = 0.01
@@ -74,6 +79,15 @@ class MPCSettings:
     max_iter: int = 1000
     qp_layout: str = "auto"
     backend: str = "auto"
+    latency: float = 0.0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.latency) and self.latency >= 0):
+            from ..exceptions import ConfigError
+
+            raise ConfigError(
+                "latency", f"got {self.latency!r}; expected a finite number >= 0 [s]"
+            )
 
     def __post_init__(self):
         # The same checks and errors as the [controller] table (hmpc_pin.checks).
@@ -301,6 +315,7 @@ class HierarchicalMPC(AppliedTorque):
             buf["v"], buf["tau"], buf["d_hat"], self._M, buf["nle"],
         )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
+        core.set_latency(self.settings.latency, self.settings.Ts)
         self._core = core
         self._reference = None  # the reference's native form is set on the next step
         self.effort_limit = self.effort_limit
@@ -329,6 +344,29 @@ class HierarchicalMPC(AppliedTorque):
     def Ts(self) -> float:
         """Control period [s]."""
         return self.settings.Ts
+
+    @property
+    def state(self) -> tuple[FloatArray, FloatArray]:
+        """``(q, q̇)`` [rad, rad/s] the MPC and Eq (4) started from at the last step: the
+        measurement, or with a latency its prediction (copies)."""
+        return self._stack[0].copy(), self._stack[1].copy()
+
+    @property
+    def latency(self) -> float:
+        """The measurement latency L [s] the step compensates (:class:`MPCSettings`)."""
+        return self.settings.latency
+
+    def set_latency(self, latency: float) -> None:
+        """Compensate a measurement latency of ``latency`` [s] from the next :meth:`reset`
+        on (e.g. the one a real-time loop measured); 0 switches it off.
+
+        Raises:
+            ConfigError: ``latency`` is not a finite number >= 0.
+        """
+        from dataclasses import replace
+
+        self.settings = replace(self.settings, latency=float(latency))
+        self._core.set_latency(self.settings.latency, self.settings.Ts)
 
     def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
         """Start a new run from the state ``(q0, dq0)``; the estimate restarts at zero."""
@@ -418,7 +456,12 @@ class HierarchicalMPC(AppliedTorque):
             code = core.prepare(S, not self._python_dynamics)
             if not code:
                 self._python_compensation()
-                code = core.finish()
+                if self.settings.latency > 0:  # MPC and Eq (4) at the predicted state
+                    code = core.predict(S) or core.prepare(S, not self._python_dynamics)
+                    if not code and self._python_dynamics:
+                        self._python_dynamics_at_stack()
+                if not code:
+                    code = core.finish()
         if code:
             self._failure(code, t, S[0], S[1], self._stack_q_ref, self._stack_dq_ref)
         self._started = True
@@ -430,14 +473,27 @@ class HierarchicalMPC(AppliedTorque):
         q, dq = self._stack[0].copy(), self._stack[1].copy()
         M, nle = self._M, self._buf["nle"]
         if self._python_dynamics:
-            M[:] = self.robot.mass_matrix(q)
-            nle[:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
+            self._python_dynamics_at_stack()
         comp = self.compensation
-        if self._started:
+        if self.settings.latency > 0:  # the torque and v over the measured interval
+            if self._core.observer_ready():
+                tau_obs, v_obs = self._core.aligned()
+                d_hat = comp.update(M, nle, q, dq, tau_obs, v_obs)
+            else:  # the interval begins before the start: restart at this measurement
+                comp.reset(q, dq)
+                d_hat = comp.estimate
+        elif self._started:
             d_hat = comp.update(M, nle, q, dq, self._applied(), self.v)
         else:
             d_hat = comp.estimate
         self.disturbance_estimate[:] = d_hat
+
+    def _python_dynamics_at_stack(self) -> None:
+        """M and C q̇ + G at the stack's state from Pinocchio's Python API (models the
+        compiled dynamics cannot load)."""
+        q, dq = self._stack[0].copy(), self._stack[1].copy()
+        self._M[:] = self.robot.mass_matrix(q)
+        self._buf["nle"][:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its

@@ -128,6 +128,15 @@ def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
             ValidityWarning,
             stacklevel=3,
         )
+    obs = cc.observer
+    if obs is not None and obs.bandwidth is not None:
+        from ..compensation.bandwidth import check_bandwidth
+        from .controllers import observer_bandwidth
+
+        check_bandwidth(
+            observer_bandwidth(robot, cc), cc.Ts, cc.latency or 0.0, robot.joint_names,
+            explicit=obs.discretization == "explicit",
+        )  # fmt: skip
 
 
 def uses_observer(cc: ControllerConfig) -> bool:

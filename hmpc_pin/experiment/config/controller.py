@@ -61,7 +61,13 @@ class ObserverConfig:
 
     Attributes:
         gain: Observer gain c (the paper does not give it; 100 is this project's choice,
-            README); for ``"momentum"`` the gain K_O [1/s].
+            README); for ``"momentum"`` the gain K_O [1/s]. ``None`` when ``bandwidth``
+            is given.
+        bandwidth: The observer's bandwidth ω [1/s], one value or one per joint, instead
+            of ``gain`` (not both): the rate at which each joint's estimation error decays
+            (``"general"``: cY = diag(ω) M(q0); ``"momentum"``: K_O = ω; not for
+            ``"chen"``, whose Y is fixed). Checked against the rule of
+            :mod:`hmpc_pin.compensation.bandwidth` (a warning names the joints above it).
         discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``
             (not for ``"momentum"``, which is always semi-implicit).
         enabled: Version 0.1 key, with ``kind = "hmpc"`` only: ``false`` means
@@ -72,17 +78,26 @@ class ObserverConfig:
             ``[controller] compensation``.
     """
 
-    gain: float = 100.0
+    gain: float | None = None
     discretization: str = "implicit"
     enabled: bool | None = None
     kind: str | None = None
+    bandwidth: np.ndarray | None = None
 
     def __post_init__(self):
         if self.enabled is not None:
             _set(self, "enabled", _bool("enabled", self.enabled))
         if self.kind is not None:
             _set(self, "kind", _choice("kind", self.kind, OBSERVERS))
-        _set(self, "gain", _float("gain", self.gain, positive=True))
+        if self.bandwidth is not None:
+            if self.gain is not None:
+                raise ConfigError(
+                    "bandwidth", "give the observer's gain or its bandwidth, not both"
+                )
+            _set(self, "bandwidth", _array("bandwidth", self.bandwidth, positive=True))
+        else:
+            gain = 100.0 if self.gain is None else self.gain
+            _set(self, "gain", _float("gain", gain, positive=True))
         _set(
             self,
             "discretization",
@@ -240,6 +255,11 @@ class ControllerConfig:
             ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
+        latency: Age of the measurements the controller receives [s] (``hmpc``;
+            default 0). With L > 0 the compensation is fed the torque applied over the
+            interval its measurements span and the MPC and the inverse dynamics start from
+            the state predicted over L (guide "Sensing and latency"); a fraction of Ts is
+            allowed.
     """
 
     kind: str = "hmpc"
@@ -260,6 +280,7 @@ class ControllerConfig:
     backend: str | None = None
     ism: ISMConfig | None = None
     computed_torque: ComputedTorqueConfig | None = None
+    latency: float | None = None
 
     def __post_init__(self):
         fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
@@ -297,6 +318,11 @@ class ControllerConfig:
             obs = obs if obs is not None else ObserverConfig()
             if (obs.enabled, obs.kind) != (None, None):  # 0.1 keys, now resolved
                 obs = replace(obs, enabled=None, kind=None)
+            if comp == "chen" and obs.bandwidth is not None:
+                raise ConfigError(
+                    "observer.bandwidth", "does not apply to compensation 'chen' (its Y is "
+                    "fixed, Eq 28); give gain, or use compensation 'general' or 'momentum'",
+                )  # fmt: skip
             if comp == "momentum" and obs.discretization != "implicit":
                 raise ConfigError(
                     "observer.discretization",
@@ -338,6 +364,8 @@ class ControllerConfig:
             _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
             backend = "auto" if self.backend is None else self.backend
             _set(self, "backend", _choice("backend", backend, BACKENDS))
+            latency = 0.0 if self.latency is None else self.latency
+            _set(self, "latency", _float("latency", latency, nonneg=True))
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)

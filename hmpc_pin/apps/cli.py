@@ -37,7 +37,13 @@ from ..experiment.schema import (
     load_config,
 )
 from ..sim.result import Result
-from .metrics import DEFAULT_ERROR_THRESHOLD, compute_metrics, format_metrics, run_warnings
+from .metrics import (
+    DEFAULT_ERROR_THRESHOLD,
+    compute_metrics,
+    contact_lines,
+    format_metrics,
+    run_warnings,
+)
 from .run import after_the_run, live_view, run_one, write_csv
 
 __all__ = ["main", "write_csv"]
@@ -190,10 +196,17 @@ def _report(args, config, out, stem, warn, views, experiment, result, files, fai
               f"(t = {ref.t_start:g} to {ref.t_end:.3f} s)")  # fmt: skip
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
+    for line in contact_lines(result):
+        print(line)
     timing = getattr(result, "step_time", None)
     median = f" (median {timing['median_us']:.0f} µs)" if timing else ""
     slow = [f"{w}{median}" for w in result.meta.get("warnings", ())]
+    touch = result.meta.get("first_contact")
+    if touch is None:
+        touch = (result.meta.get("collision") or {}).get("detected_at")
     for line in slow + run_warnings(result, **warn):
+        if touch is not None and line.startswith("tracking error"):
+            line += f"; expected once the arm touches something (contact at t = {touch:.3f} s)"
         print(f"warning: {line}", file=sys.stderr)
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))

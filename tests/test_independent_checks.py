@@ -207,8 +207,9 @@ def test_trajectory_velocity_check_is_per_joint(tmp_path):
 
     traj = hmpc_pin.load_trajectory(write(dqb), ["a", "b"])
     np.testing.assert_allclose(traj.sample(0.5)[1], [dqa[50], dqb[50]], atol=1e-9)
-    with pytest.raises(TrajectoryError, match="the velocities of b between"):
-        hmpc_pin.load_trajectory(write(np.degrees(dqb)), ["a", "b"])
+    for wrong in (np.degrees(dqb), 3.0 * dqb):  # deg/s; a wrong scale of a small motion
+        with pytest.raises(TrajectoryError, match="the velocities of b between"):
+            hmpc_pin.load_trajectory(write(wrong), ["a", "b"])
 
 
 # ---------------------------------------------------------------- waypoint retiming
@@ -292,12 +293,37 @@ def test_mujoco_per_joint_parameters_land_on_their_joints_and_forces_oppose_moti
         assert model.dof_frictionloss[dof] == pytest.approx(settings.frictionloss[k])
         assert model.dof_armature[dof] == pytest.approx(settings.armature[k])
     assert model.dof_damping[model.joint("jm").dofadr[0]] == 0.0
-    # engine force: damping only, no gravity (arm in the horizontal plane), no torque
-    plain = MuJoCoSettings(damping=(2.0, 5.0))
-    flat = hmpc_pin.load_robot(urdf, gravity=0.0)
-    plant = MuJoCoPlant(flat, None, 0.01, 0.001, plain)
-    plant.reset(np.zeros(2), np.array([1.0, -2.0]))
-    _, dq = plant.advance(np.zeros(2))
+    # engine force: damping only, no gravity, no torque; with the mimic (its equality's
+    # forces mapped by Eᵀ) and without (MuJoCo's forces as they are)
     assert mujoco.__version__
-    force = plant.engine_force
-    assert np.all(np.sign(force) == -np.sign(dq)), (force, dq)
+    for arm, dq0 in ((hmpc_pin.load_robot(urdf, gravity=0.0), [1.0, -2.0]),
+                     (hmpc_pin.load_robot("planar3", gravity=0.0), [1.0, -2.0, 0.5])):  # fmt: skip
+        damping = np.array([2.0, 5.0, 3.0][: arm.nq])
+        plant = MuJoCoPlant(arm, None, 0.01, 0.001, MuJoCoSettings(damping=tuple(damping)))
+        plant.reset(np.zeros(arm.nq), np.array(dq0))
+        _, dq = plant.advance(np.zeros(arm.nq))
+        force = plant.engine_force
+        assert np.all(np.sign(force) == -np.sign(dq)) and np.all(force != 0), (force, dq)
+
+
+def test_contact_lines_name_the_joint_of_the_peak_force_and_its_unit():
+    """Hand-built arrays (the peak on the prismatic third joint, at t = 0.2 s): the line
+    names that joint with newtons; the flag line names the joint and its threshold."""
+    from types import SimpleNamespace
+
+    from hmpc_pin.apps.metrics import contact_lines
+
+    t = np.arange(5) * 0.1
+    force = np.zeros((5, 3))
+    force[2:, 0], force[3, 2] = 1.0, -7.5
+    result = SimpleNamespace(
+        t=t, q=np.zeros((5, 3)), joint_names=("a", "b", "c"), extra={"contact_force": force},
+        meta={"first_contact": 0.2, "joint_kinds": ["revolute", "revolute", "prismatic"],
+              "collision": {"detected_at": 0.3, "joint": "b", "reaction": "stop",
+                            "threshold": [2.0, 4.0, 1.0]}},
+    )  # fmt: skip
+    lines = contact_lines(result)
+    assert lines[0] == ("contact: first at t = 0.200 s with the obstacle; peak generalized "
+                        "contact force 7.5 N at c")  # fmt: skip
+    assert lines[1] == ("collision: flagged at t = 0.300 s on b (|d_hat| above its threshold "
+                        "4 N·m); reaction: stop")  # fmt: skip

@@ -108,7 +108,7 @@ from .tasks import (
     retime_waypoints,
 )
 
-__version__ = "0.2.0"
+__version__ = "0.3.0.dev0"  # the same as pyproject.toml (tested)
 
 __all__ = [
     "COMPENSATIONS",

@@ -187,3 +187,26 @@ def test_replay_without_meshcat_stops_before_the_run(tmp_path):
     assert len(err) == 1 and err[0].startswith("error: --replay: meshcat is not installed")
     assert 'pip install "hmpc_pin[viz]"' in err[0] and "pip install -e" not in err[0]
     assert not out.exists()
+
+
+def test_run_prints_the_first_contact_and_the_collision_flag(tmp_path, capsys):
+    """MuJoCo, the arm pressing on a table with a collision watch: `run` prints the first
+    contact and the flag, each checked against the saved arrays (the first instant the
+    contact force is not zero; the first instant |d_hat| exceeds the threshold)."""
+    pytest.importorskip("mujoco")
+    cfg = CONFIGS / "planar3_contact_mujoco.toml"
+    assert main(["run", str(cfg), "--duration", "2.0", "--out", str(tmp_path)]) == 0
+    out, err = capsys.readouterr()
+    result = hmpc_pin.Result.load(tmp_path / "planar3_contact_mujoco.npz")
+    force = np.abs(result.extra["contact_force"]).max(axis=1)
+    first = result.t[np.flatnonzero(force > 0)[0]]
+    assert f"contact: first at t = {first:.3f} s with the obstacle" in out
+    threshold = np.asarray(result.meta["collision"]["threshold"])
+    over = np.flatnonzero((np.abs(result.d_hat) > threshold).any(axis=1))
+    at = result.t[over[0]]
+    joint = result.joint_names[int(np.argmax(np.abs(result.d_hat[over[0]]) / threshold))]
+    assert f"collision: flagged at t = {at:.3f} s on {joint} (|d_hat| above its threshold" in out
+    assert "reaction: ignore" in out
+    for line in err.splitlines():  # the tracking warning says why
+        if "tracking error exceeds" in line:
+            assert "contact at t =" in line

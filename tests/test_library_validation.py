@@ -54,9 +54,18 @@ def test_mpc_settings_refuse_what_the_config_refuses(kwargs, key, text):
     assert cfg.value.key == key and cfg.value.message == lib.value.message
 
 
+def test_mpc_settings_boundaries():
+    """Nc = N is a valid horizon; equal bounds leave no acceleration to choose."""
+    assert MPCSettings(N=4, Nc=4).Nc == 4
+    with pytest.raises(ConfigError, match=r"v_min: .* must be < v_max"):
+        MPCSettings(v_min=[-1.0, 2.0, -1.0], v_max=[1.0, 2.0, 1.0])
+    with pytest.raises(ConfigError, match="Ts: expected a finite number"):
+        MPCSettings(Ts=float("nan"))
+
+
 def test_mpc_settings_per_joint_bounds_of_the_wrong_length(planar3):
     settings = MPCSettings(v_min=[-1.0, -1.0], v_max=[1.0, 1.0])
-    with pytest.raises(ConfigError, match="MPCSettings.v_min: has 2 entries but the robot has 3"):
+    with pytest.raises(ConfigError, match=r"MPCSettings\.v_min: has 2 entries but the robot has 3"):
         HierarchicalMPC(planar3, settings)
 
 
@@ -69,7 +78,7 @@ def test_valid_settings_are_kept(planar3):
 # ------------------------------------------------------------------ compensation
 def test_observer_for_another_number_of_joints_is_refused(planar3):
     observer = DisturbanceObserver(2, 0.01, 100.0, "general")
-    with pytest.raises(DimensionError, match="estimates \\(2,\\) torques but robot .* has 3"):
+    with pytest.raises(DimensionError, match=r"estimates \(2,\) torques but robot .* has 3"):
         HierarchicalMPC(planar3, MPCSettings(), observer)
     with pytest.raises(DimensionError, match="has 3 joints"):
         ComputedTorque(planar3, None, observer)
@@ -77,7 +86,8 @@ def test_observer_for_another_number_of_joints_is_refused(planar3):
 
 def test_observer_with_another_period_is_refused(planar3):
     observer = DisturbanceObserver(3, 0.005, 100.0, "general")
-    with pytest.raises(ConfigError, match="period 0.005 s differs from the controller's Ts = 0.01"):
+    words = r"period 0\.005 s differs from the controller's Ts = 0\.01"
+    with pytest.raises(ConfigError, match=words):
         HierarchicalMPC(planar3, MPCSettings(Ts=0.01), observer)
 
 

@@ -37,7 +37,13 @@ from ..experiment.schema import (
     load_config,
 )
 from ..sim.result import Result
-from .metrics import DEFAULT_ERROR_THRESHOLD, compute_metrics, format_metrics, run_warnings
+from .metrics import (
+    DEFAULT_ERROR_THRESHOLD,
+    compute_metrics,
+    contact_lines,
+    format_metrics,
+    run_warnings,
+)
 from .run import after_the_run, live_view, run_one, write_csv
 
 __all__ = ["main", "write_csv"]
@@ -181,7 +187,8 @@ def _report(args, config, out, stem, warn, views, experiment, result, files, fai
         label = "with NDO" if observer else "without NDO"
         files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
     label = config.controller.label
-    print(f"{config.name}: {config.description} ({label}, observer {'on' if observer else 'off'})")
+    about = f"{config.description} " if config.description else ""
+    print(f"{config.name}: {about}({label}, observer {'on' if observer else 'off'})")
     if args.reference is not None:
         print(f"reference: the trajectory of {args.reference} (--reference), not the config's")
     if config.reference.kind == "waypoints":
@@ -190,10 +197,17 @@ def _report(args, config, out, stem, warn, views, experiment, result, files, fai
               f"(t = {ref.t_start:g} to {ref.t_end:.3f} s)")  # fmt: skip
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
+    for line in contact_lines(result):
+        print(line)
     timing = getattr(result, "step_time", None)
     median = f" (median {timing['median_us']:.0f} µs)" if timing else ""
     slow = [f"{w}{median}" for w in result.meta.get("warnings", ())]
+    touch = result.meta.get("first_contact")
+    if touch is None:
+        touch = (result.meta.get("collision") or {}).get("detected_at")
     for line in slow + run_warnings(result, **warn):
+        if touch is not None and line.startswith("tracking error"):
+            line += f"; expected once the arm touches something (contact at t = {touch:.3f} s)"
         print(f"warning: {line}", file=sys.stderr)
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))
@@ -330,6 +344,16 @@ def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
     from ..experiment.init import write_config
 
+    if args.list:
+        from ..model.robot import example_robot_names
+
+        print("planar3  (the paper's arm, shipped with hmpc_pin)")
+        for name in example_robot_names():
+            print(f"{name}  (example-robot-data)")
+        print("or the path of any fixed-base arm's .urdf file")
+        return EXIT_OK
+    if args.robot is None:
+        raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
     if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
         raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
     duration = 10.0 if args.duration is None else args.duration
@@ -348,7 +372,11 @@ def add_init_parser(sub) -> None:
         "limits, inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
         "joints locked. Exit 2 with one line when the URDF cannot be controlled.",
     )
-    ini.add_argument("robot", help="URDF path or robot name (planar3, ur5, panda, kinova, ...)")
+    ini.add_argument(
+        "robot", nargs="?", help="URDF path or robot name (planar3, ur5, panda, ...; --list)"
+    )
+    ini.add_argument("--list", action="store_true",
+                     help="list the robot names init accepts and exit")  # fmt: skip
     ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
     ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
     ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
@@ -370,7 +398,8 @@ def cmd_realtime(args) -> int:
         raise ConfigError(f"--{exc.key}", exc.message) from None
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     out = _out_dir(args.out)
-    print(f"{config.name}: {config.description} ({config.controller.label}) in real time at "
+    about = f"{config.description} " if config.description else ""
+    print(f"{config.name}: {about}({config.controller.label}) in real time at "
           f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
           "process", flush=True)  # fmt: skip
 

@@ -53,8 +53,13 @@ MESHCAT_MISSING = 'meshcat is not installed; install the viz extra: pip install 
 
 def require_meshcat() -> None:
     """Raise :class:`~hmpc_pin.exceptions.VizError` (:data:`MESHCAT_MISSING`) now when
-    Meshcat cannot be imported, e.g. before a run that ends with a replay."""
-    _meshcat()
+    Meshcat cannot be imported, e.g. before a run that ends with a replay (its
+    dependencies' deprecation notices, not the user's business, are not shown)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        _meshcat()
 
 
 def _meshcat():

@@ -84,13 +84,14 @@ def example_robot_urdf(name: str) -> Path:
 
     loader = robots_loader.ROBOTS.get(name)
     if loader is None:
-        close = difflib.get_close_matches(name, list(robots_loader.ROBOTS), n=5, cutoff=0.5)
+        arms = ["planar3", *example_robot_names()]  # suggest arms only (not drones, legs)
+        close = difflib.get_close_matches(name, arms, n=5, cutoff=0.5)
         hint = f"did you mean {', '.join(map(repr, close))}? " if close else ""
         raise URDFError(
             name,
             "is neither a URDF file nor an example-robot-data model name; "
             f"{hint}known arms include 'ur5', 'ur10', 'panda', 'z1' "
-            "(hmpc_pin.robot.example_robot_names() lists all)",
+            "(`hmpc-pin init --list` or hmpc_pin.model.robot.example_robot_names() lists all)",
         )
     # The loader's free_flyer flag is not read: it says how example-robot-data mounts the
     # model, not what the URDF is (so100/so101 are flagged but are fixed-base arms). A

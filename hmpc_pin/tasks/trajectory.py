@@ -60,14 +60,14 @@ def _check_samples(
         if arr is not None and not np.all(np.isfinite(arr)):
             k = int(np.argwhere(~np.isfinite(arr.reshape(len(t), -1)))[0][0])
             raise TrajectoryError(
-                where, f"{name} = {arr[k].tolist()} at sample {k} (t = {t[k]:g} s)",
+                where, f"{name} = {arr[k].tolist()} at sample {k} (0-based; t = {t[k]:g} s)",
                 "finite numbers (no NaN or inf)",
             )  # fmt: skip
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0]) + 1
         raise TrajectoryError(
-            where, f"time {t[k]:g} s at sample {k} after {t[k - 1]:g} s",
+            where, f"time {t[k]:g} s at sample {k} (0-based) after {t[k - 1]:g} s",
             "time strictly increasing",
         )  # fmt: skip
     if dq is not None:

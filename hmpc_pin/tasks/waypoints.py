@@ -91,7 +91,7 @@ def retime_waypoints(
     step = np.linalg.norm(np.diff(way, axis=0), axis=1)
     if np.any(step <= 0):
         k = int(np.flatnonzero(step <= 0)[0]) + 1
-        raise TrajectoryError(where, f"waypoint {k} equals waypoint {k - 1}",
+        raise TrajectoryError(where, f"waypoint {k} equals waypoint {k - 1} (0-based)",
                               "distinct consecutive waypoints")  # fmt: skip
     ta = _toppra()
     ss = np.concatenate([[0.0], np.cumsum(step)])

@@ -112,6 +112,54 @@ class ExperimentConfig:
             ) from None
 
 
+def _urdf_path(key: str, given: Path, base: Path) -> Path:
+    """The URDF ``given`` under ``key``, resolved against the config's folder ``base``
+    (an absolute path is kept); a file that is not there is a :class:`ConfigError`
+    naming the key, the path tried and what to write instead (a config moved without its
+    URDF, or copied out of the repository)."""
+    resolved = given if given.is_absolute() else (base / given).resolve()
+    if resolved.is_file():
+        return resolved
+    if resolved.exists():
+        raise ConfigError(key, f"{str(given)!r} is not a file ({resolved} is a directory); "
+                          "give the path of a .urdf file")  # fmt: skip
+    hints = []
+    beside = base / given.name
+    if beside.is_file() and beside.resolve() != resolved:
+        hints.append(f"{given.name} is next to the config: write {key.split('.')[1]} = "
+                     f'"{given.name}"')  # fmt: skip
+    cwd = Path.cwd() / given
+    if not given.is_absolute() and cwd.is_file():
+        hints.append(f"it exists relative to the current directory ({cwd}), but a relative "
+                     "path is relative to the config file's folder")  # fmt: skip
+    if _shipped_robot(given.stem):
+        hints.append(f'for the robot shipped with hmpc_pin write model = "{given.stem}" '
+                     "instead of urdf")  # fmt: skip
+    else:
+        hints.append("give an existing .urdf (absolute, or relative to the config file), or "
+                     'model = "planar3" (or an example-robot-data name) for a shipped '
+                     "robot")  # fmt: skip
+    raise ConfigError(
+        key,
+        f"{str(given)!r} not found: tried {resolved} (relative paths are relative to the "
+        f"config file's folder, {base.resolve()}); " + "; ".join(hints),
+    )
+
+
+def _shipped_robot(name: str) -> bool:
+    """Whether ``name`` is a robot ``model =`` loads (shipped, or example-robot-data)."""
+    from ...data import robot_path
+
+    if robot_path(name) is not None:
+        return True
+    try:
+        from ...model.robot import example_robot_names
+
+        return name in example_robot_names()
+    except ImportError:  # pragma: no cover - a dependency of the package
+        return False
+
+
 def load_config(path: str | Path) -> ExperimentConfig:
     """Load and validate an experiment TOML file.
 
@@ -165,8 +213,8 @@ def load_config(path: str | Path) -> ExperimentConfig:
                 kwargs[name] = _section(cls, raw[name], name)
         base = path.parent
         robot = kwargs.get("robot", RobotConfig())
-        if robot.urdf is not None and not robot.urdf.is_absolute():
-            robot = replace(robot, urdf=(base / robot.urdf).resolve())
+        if robot.urdf is not None:
+            robot = replace(robot, urdf=_urdf_path("robot.urdf", robot.urdf, base))
         kwargs["robot"] = robot
         plant = kwargs.get("plant", PlantConfig())
         given = [k for k in ("dt", "integrator") if k in raw.get("plant", {})]
@@ -175,8 +223,8 @@ def load_config(path: str | Path) -> ExperimentConfig:
                 f"plant.{given[0]}", "does not apply to engine = 'mujoco'; set "
                 f"plant.mujoco.{'timestep' if given[0] == 'dt' else 'integrator'} instead",
             )  # fmt: skip
-        if plant.urdf is not None and not plant.urdf.is_absolute():
-            plant = replace(plant, urdf=(base / plant.urdf).resolve())
+        if plant.urdf is not None:
+            plant = replace(plant, urdf=_urdf_path("plant.urdf", plant.urdf, base))
         kwargs["plant"] = plant
         if (
             "collision" in kwargs

@@ -1,0 +1,75 @@
+"""Messages a new user meets: the arms init accepts, "did you mean" among arms only,
+0-based indices said, a config without description, one version string."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.apps.cli import main
+from hmpc_pin.exceptions import TrajectoryError, URDFError
+from hmpc_pin.model.robot import example_robot_names, load_robot
+
+from .conftest import CONFIGS
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_init_list_prints_every_accepted_name(capsys):
+    assert main(["init", "--list"]) == 0
+    out = capsys.readouterr().out
+    listed = {line.split()[0] for line in out.splitlines() if line and not line.startswith("or")}
+    assert listed == {"planar3", *example_robot_names()}
+    assert "ur5" in listed and "iris" not in listed  # a drone is no arm
+
+
+def test_init_without_a_robot_says_what_to_give(capsys):
+    assert main(["init"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: ROBOT: give a URDF path or a robot name (--list lists the names)"
+
+
+def test_did_you_mean_offers_arms_only():
+    with pytest.raises(URDFError) as info:
+        load_robot("iiwa")
+    message = str(info.value)
+    offered = re.findall(r"'([^']+)'", message.split("did you mean", 1)[-1].split("?")[0])
+    assert "iris" not in message
+    assert set(offered) <= {"planar3", *example_robot_names()}
+    with pytest.raises(URDFError, match="did you mean 'ur5'"):
+        load_robot("ur5x")
+
+
+def test_indices_in_messages_say_they_are_0_based(tmp_path):
+    with pytest.raises(TrajectoryError, match=r"waypoint 2 equals waypoint 1 \(0-based\)"):
+        hmpc_pin.retime_waypoints(np.array([[0.0], [1.0], [1.0]]), [1.0], [1.0])
+    path = tmp_path / "t.csv"
+    path.write_text("t,j1\n0,0\n0.1,0.1\n0.1,0.2\n", encoding="utf-8")
+    with pytest.raises(TrajectoryError, match=r"at sample 2 \(0-based\)"):
+        hmpc_pin.load_trajectory(path, ["j1"])
+
+
+def test_a_config_without_description_prints_no_empty_part(tmp_path, capsys):
+    text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
+    text = re.sub(r'(?m)^description = .*\n', "", text)
+    text = text.replace('urdf = "../robots/planar3.urdf"', 'model = "planar3"')
+    cfg = tmp_path / "bare.toml"
+    cfg.write_text(text, encoding="utf-8")
+    assert main(["run", str(cfg), "--duration", "0.2", "--out", str(tmp_path)]) == 0
+    title = capsys.readouterr().out.splitlines()[0]
+    assert title.startswith("paper_combined: (hmpc+") and ":  (" not in title
+
+
+def test_one_version_string():
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    assert hmpc_pin.__version__ == meta["project"]["version"]
+    # what the messages call "since 0.3" is this version or an earlier one
+    major_minor = tuple(int(x) for x in hmpc_pin.__version__.split(".")[:2])
+    for path in (ROOT / "hmpc_pin").rglob("*.py"):
+        for since in re.findall(r"since (\d+)\.(\d+)", path.read_text(encoding="utf-8")):
+            assert tuple(map(int, since)) <= major_minor, (path, since)

@@ -69,7 +69,7 @@ def test_warning_fires_and_names_the_joint():
 
 
 def test_explicit_observer_pole_outside_the_unit_circle_is_an_error():
-    with pytest.raises(ConfigError, match="joint2.*explicit"):
+    with pytest.raises(ConfigError, match=r"joint2.*explicit"):
         check_bandwidth(np.array([1.0, 250.0, 1.0]), 0.01, 0.001, NAMES, explicit=True)
     check_bandwidth(np.array([1.0, 150.0, 1.0]), 0.01, 0.001, NAMES, explicit=True)
 
@@ -88,8 +88,8 @@ def test_config_bandwidth_keys(planar3):
     with pytest.raises(ConfigError, match="chen"):
         ControllerConfig(compensation="chen", observer={"bandwidth": 10.0})
     with pytest.raises(ConfigError, match="3 joints"):
-        make_compensation(planar3, ControllerConfig(compensation="general",
-                                                    observer={"bandwidth": [1.0, 2.0]}))  # fmt: skip
+        two = ControllerConfig(compensation="general", observer={"bandwidth": [1.0, 2.0]})
+        make_compensation(planar3, two)
     # an earlier gain still loads, as the gain
     old = ControllerConfig(compensation="general", observer={"gain": 100.0})
     assert old.observer.gain == 100.0 and old.observer.bandwidth is None

@@ -624,8 +624,10 @@ def test_cli_compare_and_sweep_run_on_mujoco(tmp_path, capsys):
             "--jobs", "1", "--quiet"]  # fmt: skip
     assert main(argv) == 0
     rows = (tmp_path / "paper_combined_mujoco_sweep.csv").read_text().strip().splitlines()
-    assert len(rows) == 3  # header + the NDO and no-NDO runs of the one sample
+    # header + the NDO and no-NDO runs of the one sample under each of the 4 conditions
+    assert len(rows) == 1 + 2 * 4
     assert all(",True," in row for row in rows[1:])
+    assert {row.split(",")[2] for row in rows[1:]} == {"sensing", "latency", "plant", "all"}
 
 
 def test_csv_holds_the_contact_force(contact_runs, tmp_path):

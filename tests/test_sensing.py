@@ -180,3 +180,47 @@ def test_sensed_closed_loop_tracks():
     res = exp.run()
     e = res.error[res.t >= 1.0]
     assert np.sqrt(np.mean(e * e, axis=0)).max() < 5e-3
+
+
+BASE = """
+[robot]
+urdf = "@URDF@"
+[sweep]
+"""
+
+
+def test_sweep_sensing_table_loads(write_config):
+    cfg = hmpc_pin.load_config(write_config(BASE + "conditions = ['latency', 'all']\n"
+                                            "[sweep.sensing]\nlatency = 0.002\n"
+                                            "encoder_counts = [4096, 4096, 0]\n"))  # fmt: skip
+    sc = cfg.sweep
+    assert sc.conditions == ("latency", "all") and not sc.legacy
+    assert sc.interface.latency == 0.002
+    model = sc.interface.model(3)
+    assert model.encoder is not None and np.isinf(model.encoder.counts[2])
+    assert hmpc_pin.load_config(write_config(BASE)).sweep.interface.latency == 0.001
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("[sweep.sensing]\nlatncy = 0.002\n", "sweep.sensing.latncy"),
+        ("q_noise = 1e-3\n[sweep.sensing]\nlatency = 0.002\n", "not both"),
+        ("conditions = ['noise']\n", "conditions"),
+        ("[sweep.sensing]\nlatency = -1.0\n", "latency"),
+        ("[sweep.sensing]\nvelocity = 'kalman'\n", "velocity"),
+    ],
+)
+def test_sweep_sensing_bad_input(write_config, text, match):
+    with pytest.raises(ConfigError, match=match):
+        hmpc_pin.load_config(write_config(BASE + text))
+
+
+def test_latency_key_applies_to_hmpc_only(write_config):
+    with pytest.raises(ConfigError, match="latency"):
+        hmpc_pin.load_config(write_config(
+            "[robot]\nurdf = '@URDF@'\n[controller]\nkind = 'computed-torque'\nlatency = 0.001\n"
+        ))  # fmt: skip
+    cfg = hmpc_pin.load_config(write_config("[robot]\nurdf = '@URDF@'\n[controller]\n"
+                                            "latency = 0.001\n"))  # fmt: skip
+    assert cfg.controller.latency == 0.001

@@ -546,9 +546,12 @@ def build_parser() -> argparse.ArgumentParser:
         "sweep",
         help="Monte Carlo robustness sweep of an experiment (with and without NDO)",
         description="Draw K plant perturbations from the config's [sweep] table (link "
-        "mass/inertia, friction and disturbance amplitudes, measurement noise and delay), "
-        "run each with every controller variant, write DIR/<name>_sweep.csv (one row per "
-        "sample and variant) and DIR/<name>_sweep.md (summary), and print the summary.",
+        "mass/inertia, friction and disturbance amplitudes) and run each with every "
+        "controller variant under each of sweep.conditions: the interface's sensing "
+        "([sweep.sensing]: encoders, finite-difference velocity, noise), its timing "
+        "(latency, delay, torque filter), the drawn plant, and all together; write "
+        "DIR/<name>_sweep.csv (one row per sample, variant and condition) and "
+        "DIR/<name>_sweep.md (summary), and print the summary.",
     )
     swp.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     swp.add_argument("--samples", type=int, default=100, help="number of samples K [100]")

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..compensation.bandwidth import implied_bandwidth, observer_cY
 from ..compensation.base import Compensation, NoCompensation
 from ..compensation.ism import IntegralSlidingMode
-from ..compensation.bandwidth import implied_bandwidth, observer_cY
 from ..compensation.observers import DisturbanceObserver, MomentumObserver, observer_matrix
 from ..controllers.computed_torque import CTSettings
 from ..controllers.hierarchical import MPCSettings, state_limits

@@ -4,7 +4,8 @@ component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_conf
 ``[robot]`` :mod:`.robot` · ``[controller]`` (and its tables) :mod:`.controller` ·
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
-``[collision]`` :mod:`.collision` · ``[realtime]`` :mod:`.realtime` · the whole file
+``[sweep.sensing]`` :mod:`.sensing` · ``[collision]`` :mod:`.collision` ·
+``[realtime]`` :mod:`.realtime` · the whole file
 :mod:`.experiment`; the value converters shared by all of them :mod:`._fields`; the
 spellings of earlier versions :mod:`.legacy`. Which ``[controller]`` keys apply to which
 controller × compensation is :mod:`hmpc_pin.experiment.combos`.
@@ -59,15 +60,20 @@ from .reference import (
 from .robot import (
     RobotConfig,
 )
+from .sensing import (
+    SensingConfig,
+)
 from .simulation import (
     SimulationConfig,
 )
 from .sweep import (
+    CONDITIONS,
     SweepConfig,
 )
 
 __all__ = [
     "COMPENSATIONS",
+    "CONDITIONS",
     "CONTROLLERS",
     "CONTROLLER_KINDS",
     "DEFAULT_COMPENSATION",
@@ -98,6 +104,7 @@ __all__ = [
     "RealtimeConfig",
     "ReferenceConfig",
     "RobotConfig",
+    "SensingConfig",
     "SimulationConfig",
     "SweepConfig",
     "TrajectoryConfig",

@@ -400,6 +400,8 @@ def _add_warn_option(parser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``hmpc-pin`` parser with one subcommand per command (the docs' CLI reference is
+    generated from it)."""
     parser = argparse.ArgumentParser(
         prog="hmpc-pin",
         description="Hierarchical multiloop MPC with a nonlinear disturbance observer "

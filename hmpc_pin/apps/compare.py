@@ -6,7 +6,7 @@ plant, reference, disturbance, initial state and MPC settings — only the contr
 and its compensation change. Per controller
 and joint the table holds RMS and max tracking error after 1 s, the time to stay
 within 0.01 rad, the RMS observer error (where there is an observer), the control
-effort (RMS τ), two chattering measures (:func:`~hmpc_pin.metrics.chattering`: total
+effort (RMS τ), two chattering measures (:func:`~hmpc_pin.apps.metrics.chattering`: total
 variation of τ per second and the share of τ's energy above 10 Hz, both after 1 s),
 constraint violations (position-limit excursion, saturated periods) and the median
 controller step time, measured around ``step`` during the run.

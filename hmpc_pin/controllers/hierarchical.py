@@ -140,7 +140,7 @@ class HierarchicalMPC(AppliedTorque):
     """Inverse dynamics + disturbance compensation + one ProxSuite MPC per joint (``hmpc*`` kinds).
 
     Args:
-        robot: The controller's model of the arm (its :class:`~hmpc_pin.robot.Robot`).
+        robot: The controller's model of the arm (its :class:`~hmpc_pin.model.robot.Robot`).
         config: Settings; the default is the paper's controller (Section 4).
 
     Attributes:
@@ -150,7 +150,7 @@ class HierarchicalMPC(AppliedTorque):
         v: The last commanded accelerations [rad/s²], shape (n,).
         tau: The last torque [N·m], shape (n,).
         limits: The joint limits imposed on each MPC's prediction as soft state
-            constraints (:class:`~hmpc_pin.joint_mpc.StateLimits`), ``None`` if disabled.
+            constraints (:class:`~hmpc_pin.mpc.condensed.StateLimits`), ``None`` if disabled.
 
     Example:
         >>> robot = hmpc_pin.load_robot("robots/planar3.urdf")

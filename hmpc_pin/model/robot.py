@@ -88,7 +88,7 @@ def example_robot_urdf(name: str) -> Path:
             name,
             "is neither a URDF file nor an example-robot-data model name; "
             f"{hint}known arms include 'ur5', 'ur10', 'panda', 'z1' "
-            "(hmpc_pin.robot.example_robot_names() lists all)",
+            "(hmpc_pin.model.robot.example_robot_names() lists all)",
         )
     # The loader's free_flyer flag is not read: it says how example-robot-data mounts the
     # model, not what the URDF is (so100/so101 are flagged but are fixed-base arms). A

@@ -1,4 +1,5 @@
-"""Simulation: disturbances, plants (one protocol, :mod:`.plants`), the closed loop, results."""
+"""Simulation: disturbances, plants (one protocol, :mod:`~hmpc_pin.sim.plants`), the closed
+loop, results."""
 
 from .disturbances import (
     CoulombViscousFriction,

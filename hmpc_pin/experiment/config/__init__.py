@@ -5,7 +5,7 @@ component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_conf
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
 ``[collision]`` :mod:`.collision` · ``[realtime]`` :mod:`.realtime` · the whole file
-:mod:`.experiment`; the value converters shared by all of them :mod:`._fields`; the
+:mod:`.experiment`; the value converters shared by all of them ``_fields``; the
 spellings of earlier versions :mod:`.legacy`. Which ``[controller]`` keys apply to which
 controller × compensation is :mod:`hmpc_pin.experiment.combos`.
 """

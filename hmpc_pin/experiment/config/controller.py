@@ -26,7 +26,7 @@ def parse_combination(name: str, key: str = "controller") -> tuple[str, str | No
     """``"controller+compensation"``, a 0.1 alias or a bare controller → the pair.
 
     A bare controller gives ``(controller, None)``: its compensation is decided by the
-    caller (the config's, or :data:`DEFAULT_COMPENSATION`).
+    caller (the config's, or :data:`~hmpc_pin.experiment.config.legacy.DEFAULT_COMPENSATION`).
 
     Raises:
         ConfigError: Unknown controller or compensation, naming ``key``.
@@ -153,7 +153,8 @@ class ConstraintConfig:
 
 @dataclass(frozen=True, eq=False)
 class ISMConfig:
-    """Integral sliding mode loop of ``hmpc-ism`` / ``hmpc-ism-bl`` (:mod:`hmpc_pin.ism`).
+    """Integral sliding mode loop of ``hmpc-ism`` / ``hmpc-ism-bl``
+    (:mod:`hmpc_pin.compensation.ism`).
 
     Attributes:
         gain: Switching gain K [rad/s²], above the bound of the matched disturbance
@@ -183,7 +184,7 @@ class ComputedTorqueConfig:
 
     By default the PD gains are the MPC's own unconstrained state-feedback gain (so both
     loops have the same closed-loop poles, i.e. the same bandwidth) and the integral gain
-    gives the PID loop its fastest decay (:mod:`hmpc_pin.computed_torque`).
+    gives the PID loop its fastest decay (:mod:`hmpc_pin.controllers.computed_torque`).
 
     Attributes:
         kp: Proportional gain [1/s²]; ``None`` for the MPC-equivalent gain.
@@ -215,9 +216,10 @@ class ControllerConfig:
     Attributes:
         kind: The controller, one of :data:`CONTROLLERS` (default ``"hmpc"``), or a
             version-0.1 name of :data:`KIND_ALIASES` (``"hmpc-ism"`` = ``hmpc`` × ``ism``).
-        compensation: One of :data:`COMPENSATIONS`; default :data:`DEFAULT_COMPENSATION`
-            of the controller (for ``hmpc`` written the 0.1 way, the
-            ``observer.enabled``/``observer.kind`` keys decide).
+        compensation: One of :data:`COMPENSATIONS`; default
+            :data:`~hmpc_pin.experiment.config.legacy.DEFAULT_COMPENSATION` of the controller
+            (for ``hmpc`` written the 0.1 way, the ``observer.enabled``/``observer.kind``
+            keys decide).
         Ts: Control period [s] (paper: 0.01).
         N: Prediction horizon [steps] (paper: 10).
         Nc: Control horizon [steps], 1 <= Nc <= N (paper: 1).

@@ -29,7 +29,7 @@ test: $(VENV)/.installed
 # The documentation site, strict: warnings are errors (-W, all of them reported with
 # --keep-going) and every cross-reference must resolve (-n). Offline: no intersphinx.
 docs: $(VENV)/.installed
-	$(VENV)/bin/sphinx-build -W --keep-going -n -q -b html docs docs/_build/html
+	$(VENV)/bin/sphinx-build -E -W --keep-going -n -q -b html docs docs/_build/html
 
 # A platform wheel in dist/ (the compiled core inside).
 wheel: $(VENV)/.installed

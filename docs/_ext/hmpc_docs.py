@@ -145,9 +145,13 @@ def applies_to(table: str, key: str) -> str:
     name = parts[1] if len(parts) > 1 else key
     if name not in combos.HMPC_ONLY + combos.TABLES:
         return "all"
+    per = {c: [p for p in COMPENSATIONS if combos.applies(name, c, p)] for c in CONTROLLERS}
+    first = per[CONTROLLERS[0]]
+    if all(v == first for v in per.values()) and len(first) < len(COMPENSATIONS):
+        return f"any controller × {', '.join(first)}"
     out = []
     for ctrl in CONTROLLERS:
-        comps = [c for c in COMPENSATIONS if combos.applies(name, ctrl, c)]
+        comps = per[ctrl]
         if len(comps) == len(COMPENSATIONS):
             out.append(f"{ctrl} × any")
         elif comps:
@@ -182,7 +186,7 @@ def config_rows(cls=None, table: str = "") -> list[Row]:
                 "description in the class docstring's 'Attributes:' section; document it "
                 "(type, unit in [brackets], meaning) before it can be used"
             )
-        unit = _UNIT.search(text)
+        unit = _UNIT.search(_ROLE.sub("", text))
         rows.append(
             Row(
                 table=table,
@@ -232,7 +236,9 @@ def config_reference_rst() -> str:
         if not mine:
             continue
         title = f"[{table}]" if table else "Top level"
-        out += [title, "-" * len(title), "", f"{summary} (:class:`~{path}`)", ""]
+        module = path.rpartition(".")[0]
+        out += [title, "-" * len(title), "", f".. py:currentmodule:: {module}", ""]
+        out += [f"{summary} (:class:`~{path}`)", ""]
         out += [
             ".. list-table::",
             "   :header-rows: 1",
@@ -271,10 +277,13 @@ def _setup_directive(app):
         has_content = False
 
         def run(self):
+            from sphinx.util.nodes import nested_parse_with_titles
+
             text = config_reference_rst()
             node = nodes.section()
             node.document = self.state.document
-            self.state.nested_parse(StringList(text.splitlines(), "<config-reference>"), 0, node)
+            lines = StringList(text.splitlines(), "<config-reference>")
+            nested_parse_with_titles(self.state, lines, node)
             return node.children
 
     class Exports(SphinxDirective):

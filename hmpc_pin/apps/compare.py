@@ -1,6 +1,6 @@
 """``hmpc-pin compare``: every controller on the same experiment, side by side.
 
-Each controller × compensation (README, "Controllers"; by default the seven of
+Each controller × compensation (docs, "Controllers"; by default the seven of
 :data:`~hmpc_pin.experiment.schema.CONTROLLER_KINDS`) runs on the same robot model,
 plant, reference, disturbance, initial state and MPC settings — only the controller
 and its compensation change. Per controller

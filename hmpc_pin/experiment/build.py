@@ -85,7 +85,7 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
 def make_controller(
     robot: Robot, config: ControllerConfig | ExperimentConfig | None = None
 ) -> Controller:
-    """The controller × compensation of ``config`` (README, "Controllers").
+    """The controller × compensation of ``config`` (docs, "Controllers").
 
     ``config`` is a :class:`~hmpc_pin.experiment.schema.ControllerConfig`, a whole
     :class:`~hmpc_pin.experiment.schema.ExperimentConfig` (its ``controller`` table is

@@ -1,4 +1,4 @@
-"""A starting config for any arm: ``hmpc-pin init ROBOT`` (README, "Any arm").
+"""A starting config for any arm: ``hmpc-pin init ROBOT`` (docs, "Your own arm").
 
 :func:`init_config` looks at the URDF (and its SRDF where ``example-robot-data`` ships one)
 and writes a commented TOML experiment that runs as written:

@@ -127,7 +127,7 @@ def _pose_path(pc, robot: Robot, q_init: np.ndarray):
 
 
 def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
-    """The reference of ``kind = "trajectory" | "waypoints" | "pose"`` (README, "Tasks"),
+    """The reference of ``kind = "trajectory" | "waypoints" | "pose"`` (docs, "Tutorials"),
     checked against the joint position and velocity limits before any run.
 
     Raises:

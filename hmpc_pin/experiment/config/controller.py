@@ -60,7 +60,7 @@ class ObserverConfig:
 
     Attributes:
         gain: Observer gain c (the paper does not give it; 100 is this project's choice,
-            README); for ``"momentum"`` the gain K_O [1/s].
+            docs, "Decisions"); for ``"momentum"`` the gain K_O [1/s].
         discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``
             (not for ``"momentum"``, which is always semi-implicit).
         enabled: Version 0.1 key, with ``kind = "hmpc"`` only: ``false`` means
@@ -204,7 +204,7 @@ class ComputedTorqueConfig:
 
 @dataclass(frozen=True, eq=False)
 class ControllerConfig:
-    """The controller: an outer loop × a disturbance compensation (README "Controllers").
+    """The controller: an outer loop × a disturbance compensation (docs, "Controllers").
 
     Every default is the paper's value (Section 4): ``ControllerConfig()`` is the
     paper's scheme, ``hmpc`` × ``chen``. A table that does not apply to the chosen
@@ -373,7 +373,7 @@ class ControllerConfig:
         raise ConfigError(
             name,
             f"does not apply to {controller} × {comp}; remove it, or choose a controller "
-            "and compensation it applies to (README, Controllers)",
+            "and compensation it applies to (docs, Controllers)",
         )
 
     @property

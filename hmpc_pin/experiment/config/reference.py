@@ -257,7 +257,7 @@ REFERENCE_TABLES = {
 @dataclass(frozen=True, eq=False)
 class ReferenceConfig:
     """Joint reference: the sine of Eq (31), the Cartesian motion of Section 5.4, a
-    trajectory file, joint waypoints or an end-effector task (README, "Tasks").
+    trajectory file, joint waypoints or an end-effector task (docs, "Tutorials").
 
     ``kind = "sine"``: :math:`r_i = o_i + a_i \\sin(2\\pi f_i t + \\phi_i)`. Every other
     kind needs its own table (``[reference.cartesian]``, ``[reference.trajectory]``,

@@ -230,8 +230,8 @@ class ControllerConfig:
             (paper: −100, 100).
         observer: :class:`ObserverConfig` (compensations ``chen``, ``general``, ``momentum``).
         constraints: :class:`ConstraintConfig` (``hmpc``: joint limits as soft constraints).
-        eps_abs: ProxSuite absolute tolerance (``hmpc``).
-        max_iter: ProxSuite iteration cap per solve (``hmpc``).
+        eps_abs: ProxSuite absolute tolerance (``hmpc``; unset: 1e-9).
+        max_iter: ProxSuite iteration cap per solve (``hmpc``; unset: 1000).
         qp_layout: ``"auto"`` (default: ``"block"`` up to n·Nc = 140 QP variables,
             ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
             QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per

@@ -336,7 +336,7 @@ def round2_targets(steps: list[StepResult], sim: SimResult, r2: Round2) -> str:
         q = a.ratio("QuinticReference (vectorised)")
         rows.append([f"{arm}: step with the vectorised quintic / with the sine", "≤ 1.15",
                      f"{q:.2f}", verdict(q <= 1.15)])  # fmt: skip
-    rows.append(["paper 10 s run, real-time factor (absolute: depends on the machine's phase)",
+    rows.append(["paper 10 s run, real-time factor (absolute, this machine)",
                  "≥ 100", f"{sim.rtf:.0f}", verdict(sim.rtf >= 100)])  # fmt: skip
     if "run" in AB_SPEEDUPS:
         rows.append(["paper 10 s run, old / this code in one process (`--old`)", "≥ 3",

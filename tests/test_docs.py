@@ -241,3 +241,16 @@ def test_guide_index_collects_the_guide_pages():
     index = (DOCS / "guide" / "index.md").read_text(encoding="utf-8")
     assert ":glob:" in index
     assert [p for p in (DOCS / "guide").glob("*.md") if p.name != "index.md"]
+
+
+def test_files_the_pages_name_exist():
+    """A script, config or source file named in the pages is in the repository."""
+    path = re.compile(
+        r"\b((?:benchmarks|examples|tests|src|hmpc_pin|configs)/[\w/.-]+\.(?:py|toml|cpp|csv|urdf))"
+    )
+    named = set()
+    for page in [*PAGES, ROOT / "BENCHMARKS.md"]:
+        named |= set(path.findall(page.read_text(encoding="utf-8")))
+    assert len(named) > 20
+    missing = sorted(p for p in named if not (ROOT / p).exists())
+    assert not missing, missing

@@ -184,9 +184,7 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
         f"Controller step alone (`step` over {steps['steps']} states of a `simulate` run, "
         f"{steps['blocks']} alternating blocks): median {steps['warm']:.0f} µs called back "
         f"to back, {steps['cold']:.0f} µs with a sleep of Ts before each call as in the loop "
-        f"(ratio {steps['ratio']:.2f}, median of the blocks' ratios): a step after a sleep "
-        "starts on caches other processes have used, or on a core waking from idle (not "
-        "separated here).",
+        f"(ratio {steps['ratio']:.2f}, median of the blocks' ratios).",
     ]
     for name, r in (("floor", floor), ("GC handling", with_gc), ("no GC handling", without_gc)):
         if r["stop"] is not None:

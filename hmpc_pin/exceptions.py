@@ -114,7 +114,7 @@ class SimulationError(HmpcError, RuntimeError):
     """A closed-loop run stopped early (non-finite state, divergence, solver failure).
 
     Attributes:
-        result: The partial :class:`~hmpc_pin.simulate.Result` up to the failing step,
+        result: The partial :class:`~hmpc_pin.sim.result.Result` up to the failing step,
             marked ``complete=False``.
     """
 

@@ -94,7 +94,7 @@ def _with_reference(config: ExperimentConfig, file: Path | None) -> ExperimentCo
         return config
     if file.suffix.lower() not in (".csv", ".npz"):
         raise ConfigError("--reference", f"{str(file)!r}: expected a .csv or .npz trajectory "
-                          "file (README, Tasks)")  # fmt: skip
+                          "file (docs, Tutorials)")  # fmt: skip
     if not file.is_file():
         raise ConfigError("--reference", f"{str(file)!r} not found; pass a .csv or .npz file")
     ref = ReferenceConfig(kind="trajectory", trajectory=TrajectoryConfig(file=file.resolve()))
@@ -363,7 +363,7 @@ def cmd_init(args) -> int:
 
 
 def add_init_parser(sub) -> None:
-    """The ``init`` subcommand (README, "Any arm")."""
+    """The ``init`` subcommand (docs, "Your own arm")."""
     ini = sub.add_parser(
         "init",
         help="write a commented config for any arm (URDF path or example-robot-data name)",
@@ -445,6 +445,8 @@ def _add_warn_option(parser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``hmpc-pin`` parser with one subcommand per command (the docs' CLI reference is
+    generated from it)."""
     parser = argparse.ArgumentParser(
         prog="hmpc-pin",
         description="Hierarchical multiloop MPC with a nonlinear disturbance observer "
@@ -507,7 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_ = sub.add_parser(
         "compare",
         help="run several controllers on one experiment and compare them",
-        description="Run the controllers (README, 'Controllers') on the same robot, plant, "
+        description="Run the controllers (docs, 'Controllers') on the same robot, plant, "
         "reference, disturbances and MPC settings; print and write a Markdown + CSV table "
         "(tracking error, settling, observer error, effort, chattering, constraint "
         "violations, step time) and figures.",

@@ -1,4 +1,4 @@
-"""Tracking and observer metrics of a :class:`~hmpc_pin.simulate.Result`."""
+"""Tracking and observer metrics of a :class:`~hmpc_pin.sim.result.Result`."""
 
 from __future__ import annotations
 

@@ -111,7 +111,7 @@ def plot_error(results: dict, path, title: str = "") -> Path:
     """Tracking error |q − r| on a log scale, one row per joint, several runs overlaid.
 
     Args:
-        results: Label → :class:`~hmpc_pin.simulate.Result`, e.g.
+        results: Label → :class:`~hmpc_pin.sim.result.Result`, e.g.
             ``{"with NDO": r1, "without NDO": r2}``.
     """
 
@@ -187,7 +187,7 @@ def plot_cartesian(
     """Figure 10: the tool path in the x–z plane with start, goal and a few arm poses.
 
     Args:
-        result: A :class:`~hmpc_pin.simulate.Result` of the Cartesian experiment.
+        result: A :class:`~hmpc_pin.sim.result.Result` of the Cartesian experiment.
         start, goal: Tool (x, z) of the start and goal poses.
         arms: Number of arm poses drawn, evenly spaced in time over ``window``.
         window: (t0, t1) [s] of the motion; default the whole run.
@@ -212,7 +212,7 @@ def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
     """Torque τ per joint for several runs overlaid, optionally over a time ``window`` [s].
 
     Args:
-        results: Label → :class:`~hmpc_pin.simulate.Result`.
+        results: Label → :class:`~hmpc_pin.sim.result.Result`.
         window: ``(t0, t1)`` to zoom on (chattering is invisible over 10 s); ``None``: all.
 
     The y axis is symmetric-log (linear within ±1 N·m), so a chattering run of thousands

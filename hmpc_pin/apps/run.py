@@ -56,7 +56,7 @@ def write_csv(result: Result, path: Path) -> Path:
 
 
 def live_view(robot, speed: float, obstacle: dict | None = None):
-    """A :class:`~hmpc_pin.viz.LiveView` (with the MuJoCo scene's ``obstacle``, if any), or
+    """A :class:`~hmpc_pin.apps.viz.LiveView` (with the MuJoCo scene's ``obstacle``, if any), or
     ``None`` with a warning if Meshcat cannot run."""
     from .viz import LiveView, VizError
 

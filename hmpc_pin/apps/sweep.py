@@ -1,12 +1,13 @@
 """Monte Carlo robustness sweep: many perturbed runs of one experiment, summarised.
 
 For each of K samples, plant perturbations are drawn from the ``[sweep]`` table of the
-config (:class:`~hmpc_pin.config.SweepConfig`): link mass and inertia factors (plant
-model only), friction and disturbance amplitude factors, a noise seed. Each sample is
-run once per controller *variant* (today ``"ndo"`` and ``"no-ndo"``; see
-:data:`VARIANTS`), with the same draws and the same noise sequence for every variant
-(common random numbers), and summarised as: fraction of runs bounded, median and
-95th-percentile RMS tracking error, worst case.
+config (:class:`~hmpc_pin.experiment.config.sweep.SweepConfig`): link mass and inertia
+factors (plant model only), friction and disturbance amplitude factors, a noise seed. Each
+sample is run once per controller *variant* (``[sweep] variants``: controller ×
+compensation pairs, by default the config's pair and the same controller without
+compensation; :func:`resolve_variants`), with the same draws and the same noise sequence
+for every variant (common random numbers), and summarised as: fraction of runs bounded,
+median and 95th-percentile RMS tracking error, worst case.
 
 Reproducibility: sample ``i`` draws from ``np.random.SeedSequence(seed).spawn(K)[i]``,
 and every run is a pure function of ``(config, params, variant)``

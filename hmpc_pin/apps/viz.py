@@ -321,7 +321,7 @@ def export_replay(
 
     Args:
         robot: The arm (its URDF's visual geometry is drawn).
-        result: A :class:`~hmpc_pin.simulate.Result`.
+        result: A :class:`~hmpc_pin.sim.result.Result`.
         path: Output ``.html`` file.
         fps: Maximum animation frame rate [1/s]; samples are decimated to it.
         ghost: Draw the reference as a translucent arm.

@@ -15,10 +15,10 @@ the NDO of Eq 13 (:class:`~hmpc_pin.compensation.observers.DisturbanceObserver`,
 
 Optionally, a compensation offers ``compiled_form()``: ``("ndo", obj)`` names a compiled
 observer (``hmpc_pin._core.NDO``) that the compiled control step advances itself, and
-``("zero",)`` an estimate that stays zero; the step then never calls :meth:`update` from
-Python. Without it (the momentum observer, ISM, any user class) the step calls
-:meth:`update` between its two compiled halves, with the M and :math:`C\\dot q + G` it
-computed (buffers valid during the call only).
+``("zero",)`` an estimate that stays zero; the step then never calls
+:meth:`Compensation.update` from Python. Without it (the momentum observer, ISM, any user
+class) the step calls :meth:`Compensation.update` between its two compiled halves, with the
+M and :math:`C\\dot q + G` it computed (buffers valid during the call only).
 """
 
 from __future__ import annotations

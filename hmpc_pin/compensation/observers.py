@@ -224,7 +224,7 @@ class MomentumObserver:
     :math:`C^T\\dot q` comes from ``pin.computeCoriolisMatrix``, :math:`G = n - C\\dot q`.
 
     Args:
-        robot: The controller's :class:`~hmpc_pin.robot.Robot` (for :math:`C`).
+        robot: The controller's :class:`~hmpc_pin.model.robot.Robot` (for :math:`C`).
         Ts: Sampling period [s].
         gain: :math:`K_O` [1/s], scalar or per joint (n,), > 0.
 
@@ -281,7 +281,7 @@ def general_gain_bound(robot, samples: int = 200, seed: int = 0, velocity=None) 
     The observer error converges for :math:`c` above it.
 
     Args:
-        robot: The :class:`~hmpc_pin.robot.Robot`.
+        robot: The :class:`~hmpc_pin.model.robot.Robot`.
         samples: Number of random configurations.
         seed: Random seed.
         velocity: Velocity bounds [rad/s] (n,); default the robot's velocity limits.

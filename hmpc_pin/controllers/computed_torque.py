@@ -12,7 +12,7 @@ run at the control period :math:`T_s` with the torque held over it, like the MPC
 
 Fair tuning (same bandwidth). By default :math:`k_p, k_d` are the MPC's own
 unconstrained state-feedback gain: the first row of :math:`H^{-1}F` restricted to
-:math:`x_0` (:mod:`hmpc_pin.joint_mpc`), so the PD loop has exactly the closed-loop poles
+:math:`x_0` (:mod:`hmpc_pin.mpc.condensed`), so the PD loop has exactly the closed-loop poles
 of the unconstrained MPC, :math:`\\mathrm{eig}(A_d - B_d[k_p\\;k_d])`. For the paper's
 settings (Nc = 1) that is :math:`k_p = 273.9\\,\\mathrm{s^{-2}}`,
 :math:`k_d = 22.73\\,\\mathrm{s^{-1}}` (poles 0.879 ± 0.113j, ω_n ≈ 16.5 rad/s,

@@ -200,7 +200,7 @@ class HierarchicalMPC(AppliedTorque):
         v: The last commanded accelerations [rad/s²], shape (n,).
         tau: The last torque [N·m], shape (n,).
         limits: The joint limits imposed on each MPC's prediction as soft state
-            constraints (:class:`~hmpc_pin.joint_mpc.StateLimits`), ``None`` if disabled.
+            constraints (:class:`~hmpc_pin.mpc.condensed.StateLimits`), ``None`` if disabled.
 
     Example:
         >>> robot = hmpc_pin.load_robot("robots/planar3.urdf")

@@ -94,7 +94,7 @@ class MeasuredController(ControllerWrapper):
 class TimedController(ControllerWrapper):
     """Wrap a controller and time each ``step`` with ``perf_counter_ns``.
 
-    It has the interface :func:`hmpc_pin.simulate.simulate` expects (``Ts``, ``reset``,
+    It has the interface :func:`hmpc_pin.sim.simulate.simulate` expects (``Ts``, ``reset``,
     ``step``, ``disturbance_estimate``), so a closed-loop run measures the step too.
 
     Attributes:

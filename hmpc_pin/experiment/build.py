@@ -1,8 +1,9 @@
 """Where a config becomes objects: robot, controller × compensation, reference, disturbance,
 plant (names in a config → objects in this layer only), split by what is built:
-:mod:`.controllers` (the controller's settings, compensation and limits),
-:mod:`.references` (the reference), :mod:`.plants` (the plant and its disturbance), and
-here the :class:`Experiment` that holds them and runs them.
+:mod:`~hmpc_pin.experiment.controllers` (the controller's settings, compensation and limits),
+:mod:`~hmpc_pin.experiment.references` (the reference),
+:mod:`~hmpc_pin.experiment.plants` (the plant and its disturbance), and here the
+:class:`Experiment` that holds them and runs them.
 
 The algorithms below (controllers, compensations, plants, references) take their own
 small settings or plain arguments and never see the TOML schema; every check that needs
@@ -84,7 +85,7 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
 def make_controller(
     robot: Robot, config: ControllerConfig | ExperimentConfig | None = None
 ) -> Controller:
-    """The controller × compensation of ``config`` (README, "Controllers").
+    """The controller × compensation of ``config`` (docs, "Controllers").
 
     ``config`` is a :class:`~hmpc_pin.experiment.schema.ControllerConfig`, a whole
     :class:`~hmpc_pin.experiment.schema.ExperimentConfig` (its ``controller`` table is

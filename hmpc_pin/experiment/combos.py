@@ -1,8 +1,9 @@
 """Which ``[controller]`` keys and tables apply to which controller × compensation.
 
 The one registry of it: the loader (:mod:`hmpc_pin.experiment.schema`) refuses a key that
-does not apply to the chosen pair, and the builder (:func:`hmpc_pin.experiment.build.
-with_controller`) drops the keys that stop applying when a run switches the pair
+does not apply to the chosen pair, and the builder
+(:func:`~hmpc_pin.experiment.build.with_controller`) drops the keys that stop applying when a
+run switches the pair
 (``--compensation``, ``--no-ndo``, ``compare``).
 """
 

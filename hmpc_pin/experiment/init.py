@@ -1,4 +1,4 @@
-"""A starting config for any arm: ``hmpc-pin init ROBOT`` (README, "Any arm").
+"""A starting config for any arm: ``hmpc-pin init ROBOT`` (docs, "Your own arm").
 
 :func:`init_config` looks at the URDF (and its SRDF where ``example-robot-data`` ships one)
 and writes a commented TOML experiment that runs as written:
@@ -84,9 +84,11 @@ HOLD = 0.8
 #: Amplitude scales tried, in order, until gravity along the sine fits the effort limits.
 AMPLITUDE_SCALES = (1.0, 0.5, 0.25)
 HOLD_STEPS = 400
-#: Control periods tried, in order [s]; the trial run's pass mark [rad or m]; its length [s].
+#: Control periods tried, in order [s].
 PERIODS = (0.01, 0.005, 0.002)
+#: The trial run's pass mark, RMS error over its second half [rad or m].
 TRIAL_RMS = 2.5e-3
+#: The trial run's length [s].
 TRIAL = 2.0
 
 

@@ -40,7 +40,7 @@ def build_reference(config: ExperimentConfig, robot: Robot) -> Reference:
 
     For ``kind = "cartesian"`` both tool poses are solved by inverse kinematics
     inside the joint limits (the goal on the branch closest to the start) and
-    joined by a quintic. Raises :class:`~hmpc_pin.kinematics.KinematicsError`
+    joined by a quintic. Raises :class:`~hmpc_pin.exceptions.KinematicsError`
     naming the pose when one is unreachable.
     """
     n = robot.nq
@@ -127,7 +127,7 @@ def _pose_path(pc, robot: Robot, q_init: np.ndarray):
 
 
 def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
-    """The reference of ``kind = "trajectory" | "waypoints" | "pose"`` (README, "Tasks"),
+    """The reference of ``kind = "trajectory" | "waypoints" | "pose"`` (docs, "Tutorials"),
     checked against the joint position and velocity limits before any run.
 
     Raises:

@@ -12,7 +12,7 @@ parser (well-formedness, with line and column) and with yourdfpy (URDF
 completeness), so that a bad file gets a message naming the file and the
 problem instead of urdfdom's terse output.
 
-Joint types (README, "Any arm"):
+Joint types (docs, "Your own arm"):
 
 * ``revolute`` and ``prismatic`` joints are one coordinate each [rad or m];
 * a ``continuous`` joint is loaded as a revolute joint without position limits (limits

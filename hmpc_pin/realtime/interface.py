@@ -8,9 +8,10 @@ the controller's side: :meth:`~RobotInterface.read` the newest measurement,
 not advance between two reads means no new state arrived (the loop's watchdog counts it).
 
 Implementations: :class:`PlantArm` (a :class:`~hmpc_pin.sim.base.Plant` in this process,
-stepped to a clock you give it: deterministic tests), :class:`~hmpc_pin.realtime.
-process_arm.ProcessArm` (a plant in a separate process stepping in wall-clock time, state
-and torque exchanged through shared memory, as a driver would), and the template in
+stepped to a clock you give it: deterministic tests),
+:class:`~hmpc_pin.realtime.process_arm.ProcessArm` (a plant in a separate process stepping in
+wall-clock time, state and torque exchanged through shared memory, as a driver would), and
+the template in
 :mod:`~hmpc_pin.realtime.driver_template` (not run on hardware).
 """
 

@@ -7,8 +7,8 @@ it wakes late, so that the arm's time follows the wall. Every period it samples 
 newest torque and publishes ``(stamp, q, dq)``. Until the first torque arrives the arm
 holds still (on its brakes) while its stamp advances.
 
-State and torque are exchanged through one :class:`multiprocessing.shared_memory.
-SharedMemory` block, each direction guarded by a sequence counter (a seqlock: the
+State and torque are exchanged through one :class:`~multiprocessing.shared_memory.SharedMemory`
+block, each direction guarded by a sequence counter (a seqlock: the
 writer makes the counter odd, writes, makes it even; a reader retries when the counter
 was odd or changed during its copy). Counters are 8-byte aligned int64 stores, atomic on
 x86-64 and, under its total store order, seen in program order by the other process;

@@ -1,5 +1,5 @@
-"""Simulation: disturbances, plants (one protocol, :mod:`.plants`), the arm's interface as
-drivers deliver it (:mod:`.sensing`), the closed loop, results."""
+"""Simulation: disturbances, plants (one protocol, :mod:`~hmpc_pin.sim.plants`), the arm's
+interface as drivers deliver it (:mod:`~hmpc_pin.sim.sensing`), the closed loop, results."""
 
 from .disturbances import (
     CoulombViscousFriction,

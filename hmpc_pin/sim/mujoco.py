@@ -1,6 +1,6 @@
 """MuJoCo as the plant: a second physics engine on the same URDF as the controller's model.
 
-The plant of :mod:`.plants` integrates the controller's own Pinocchio model (ABA), with
+The plant of :mod:`~hmpc_pin.sim.plants` integrates the controller's own Pinocchio model (ABA), with
 friction an added formula. :class:`MuJoCoPlant` instead compiles the arm's URDF with
 MuJoCo (``MjSpec``) and steps it with MuJoCo's integrator, so that the arm's joint
 friction (``frictionloss``, a dry-friction constraint), viscous damping, rotor armature,

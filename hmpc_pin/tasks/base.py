@@ -80,7 +80,7 @@ def _write(values: Pair, out: Pair | None) -> Pair:
 
 class CompiledSampling:
     """Base of the references that the compiled sampler evaluates (``src/sampler.cpp``):
-    ``sample_many`` and ``sample`` are that one implementation, from :meth:`_form` --
+    ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` --
     ``("sine", ω, φ, amplitude, offset, amplitude·ω)`` or ``("ppoly", t_k, origins,
     [q | q̇] coefficients, degree)``, the same tuple the fused step samples (``native_form``).
     """
@@ -130,7 +130,7 @@ class CompiledSampling:
         return q[0], dq[0]
 
     def native_form(self) -> tuple[Any, ...] | None:
-        """:meth:`_form` for the fused step; ``None`` for a subclass that samples otherwise
+        """``_form()`` for the fused step; ``None`` for a subclass that samples otherwise
         (it overrides ``sample_many`` or ``sample``)."""
         cls = type(self)
         if (cls.sample_many is not CompiledSampling.sample_many

@@ -6,7 +6,7 @@ component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_conf
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
 ``[sweep.sensing]`` :mod:`.sensing` · ``[collision]`` :mod:`.collision` ·
 ``[realtime]`` :mod:`.realtime` · the whole file
-:mod:`.experiment`; the value converters shared by all of them :mod:`._fields`; the
+:mod:`.experiment`; the value converters shared by all of them ``_fields``; the
 spellings of earlier versions :mod:`.legacy`. Which ``[controller]`` keys apply to which
 controller × compensation is :mod:`hmpc_pin.experiment.combos`.
 """

@@ -27,7 +27,7 @@ def parse_combination(name: str, key: str = "controller") -> tuple[str, str | No
     """``"controller+compensation"``, a 0.1 alias or a bare controller → the pair.
 
     A bare controller gives ``(controller, None)``: its compensation is decided by the
-    caller (the config's, or :data:`DEFAULT_COMPENSATION`).
+    caller (the config's, or :data:`~hmpc_pin.experiment.config.legacy.DEFAULT_COMPENSATION`).
 
     Raises:
         ConfigError: Unknown controller or compensation, naming ``key``.
@@ -61,7 +61,7 @@ class ObserverConfig:
 
     Attributes:
         gain: Observer gain c (the paper does not give it; 100 is this project's choice,
-            README); for ``"momentum"`` the gain K_O [1/s]. ``None`` when ``bandwidth``
+            docs, "Decisions"); for ``"momentum"`` the gain K_O [1/s]. ``None`` when ``bandwidth``
             is given.
         bandwidth: The observer's bandwidth ω [1/s], one value or one per joint, instead
             of ``gain`` (not both): the rate at which each joint's estimation error decays
@@ -169,7 +169,8 @@ class ConstraintConfig:
 
 @dataclass(frozen=True, eq=False)
 class ISMConfig:
-    """Integral sliding mode loop of ``hmpc-ism`` / ``hmpc-ism-bl`` (:mod:`hmpc_pin.ism`).
+    """Integral sliding mode loop of ``hmpc-ism`` / ``hmpc-ism-bl``
+    (:mod:`hmpc_pin.compensation.ism`).
 
     Attributes:
         gain: Switching gain K [rad/s²], above the bound of the matched disturbance
@@ -199,7 +200,7 @@ class ComputedTorqueConfig:
 
     By default the PD gains are the MPC's own unconstrained state-feedback gain (so both
     loops have the same closed-loop poles, i.e. the same bandwidth) and the integral gain
-    gives the PID loop its fastest decay (:mod:`hmpc_pin.computed_torque`).
+    gives the PID loop its fastest decay (:mod:`hmpc_pin.controllers.computed_torque`).
 
     Attributes:
         kp: Proportional gain [1/s²]; ``None`` for the MPC-equivalent gain.
@@ -219,7 +220,7 @@ class ComputedTorqueConfig:
 
 @dataclass(frozen=True, eq=False)
 class ControllerConfig:
-    """The controller: an outer loop × a disturbance compensation (README "Controllers").
+    """The controller: an outer loop × a disturbance compensation (docs, "Controllers").
 
     Every default is the paper's value (Section 4): ``ControllerConfig()`` is the
     paper's scheme, ``hmpc`` × ``chen``. A table that does not apply to the chosen
@@ -231,9 +232,10 @@ class ControllerConfig:
     Attributes:
         kind: The controller, one of :data:`CONTROLLERS` (default ``"hmpc"``), or a
             version-0.1 name of :data:`KIND_ALIASES` (``"hmpc-ism"`` = ``hmpc`` × ``ism``).
-        compensation: One of :data:`COMPENSATIONS`; default :data:`DEFAULT_COMPENSATION`
-            of the controller (for ``hmpc`` written the 0.1 way, the
-            ``observer.enabled``/``observer.kind`` keys decide).
+        compensation: One of :data:`COMPENSATIONS`; default
+            :data:`~hmpc_pin.experiment.config.legacy.DEFAULT_COMPENSATION` of the controller
+            (for ``hmpc`` written the 0.1 way, the ``observer.enabled``/``observer.kind``
+            keys decide).
         Ts: Control period [s] (paper: 0.01).
         N: Prediction horizon [steps] (paper: 10).
         Nc: Control horizon [steps], 1 <= Nc <= N (paper: 1).
@@ -244,8 +246,8 @@ class ControllerConfig:
             (paper: −100, 100).
         observer: :class:`ObserverConfig` (compensations ``chen``, ``general``, ``momentum``).
         constraints: :class:`ConstraintConfig` (``hmpc``: joint limits as soft constraints).
-        eps_abs: ProxSuite absolute tolerance (``hmpc``).
-        max_iter: ProxSuite iteration cap per solve (``hmpc``).
+        eps_abs: ProxSuite absolute tolerance (``hmpc``; unset: 1e-9).
+        max_iter: ProxSuite iteration cap per solve (``hmpc``; unset: 1000).
         qp_layout: ``"auto"`` (default: ``"block"`` up to n·Nc = 140 QP variables,
             ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
             QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per
@@ -385,7 +387,7 @@ class ControllerConfig:
         raise ConfigError(
             name,
             f"does not apply to {controller} × {comp}; remove it, or choose a controller "
-            "and compensation it applies to (README, Controllers)",
+            "and compensation it applies to (docs, Controllers)",
         )
 
     @property

@@ -70,7 +70,8 @@ class SweepConfig:
         rms_target: The pass mark on the worst joint's RMS error after ``after`` [rad]
             reported in the summary (issue 7: 1e-2).
         variants: Controllers run on every sample, each a controller × compensation
-            pair (:func:`parse_combination`: ``"hmpc+momentum"``, a 0.1 name such as
+            pair (:func:`~hmpc_pin.experiment.config.controller.parse_combination`:
+            ``"hmpc+momentum"``, a 0.1 name such as
             ``"hmpc-ism"``, a bare controller for its default compensation), or
             ``"ndo"`` (the config's pair; its compensation must be an observer) and
             ``"no-ndo"`` (the config's controller without compensation). Two variants

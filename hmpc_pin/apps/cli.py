@@ -1,5 +1,5 @@
 """Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
-realtime`` (also ``python -m hmpc_pin``).
+realtime | identify | tune`` (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback, checked before any run: no output file), 1 when a run fails (e.g.
@@ -531,6 +531,9 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)
     add_init_parser(sub)
+    from .identify import add_identify_parser
+
+    add_identify_parser(sub)
 
     rt = sub.add_parser(
         "realtime",

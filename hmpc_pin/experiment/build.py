@@ -19,7 +19,7 @@ import numpy as np
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
 from ..controllers.hierarchical import HierarchicalMPC
-from ..controllers.wrappers import CollisionReaction
+from ..controllers.wrappers import CollisionReaction, FrictionFeedforward
 from ..exceptions import (
     ConfigError,
     InterfaceError,
@@ -268,6 +268,12 @@ class Experiment:
         controller = make_controller(robot, config.controller)
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
         controller.effort_limit = _effort_limit(config, plant)
+        fm = config.controller.friction
+        if fm is not None:  # the friction model, fed forward around the controller
+            controller = FrictionFeedforward(
+                controller, config.vector("controller.friction.viscous", n),
+                config.vector("controller.friction.coulomb", n), fm.smoothing,
+            )  # fmt: skip
         if config.collision is not None and uses_observer(config.controller):
             controller = CollisionReaction(
                 controller, config.vector("collision.threshold", n), config.collision.reaction
@@ -338,6 +344,23 @@ class Experiment:
             import pinocchio
 
             result.meta["engine_version"] = pinocchio.__version__
+        cc = self.config.controller
+        if cc.compensation in OBSERVERS:  # identify passes its regressors through it
+            result.meta["observer_model"] = {
+                "kind": cc.compensation, "gain": cc.observer.gain, "Ts": cc.Ts,
+                "discretization": cc.observer.discretization,
+            }  # fmt: skip
+        fm = self.config.controller.friction
+        if fm is not None:  # identify adds it back to the observer's estimate
+            n = self.robot.nq
+            a = self.config.vector("controller.friction.viscous", n)
+            b = self.config.vector("controller.friction.coulomb", n)
+            result.meta["friction_feedforward"] = {
+                "viscous": a.tolist(), "coulomb": b.tolist(), "smoothing": fm.smoothing,
+            }  # fmt: skip
+            # the model's torque at the recorded velocity (the observer's target is d + it)
+            sign = np.tanh(result.dq / fm.smoothing) if fm.smoothing > 0 else np.sign(result.dq)
+            result.extra["friction_feedforward"] = a * result.dq + b * sign
         if isinstance(self.controller, CollisionReaction):
             c = self.controller
             result.meta["collision"] = {

@@ -1,5 +1,6 @@
 """``[controller]`` and its tables ``[controller.observer]``, ``[controller.constraints]``,
-``[controller.ism]``, ``[controller.computed_torque]``; the controller × compensation names."""
+``[controller.ism]``, ``[controller.computed_torque]`` (``[controller.friction]`` is
+:mod:`.friction`); the controller × compensation names."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ..combos import HMPC_ONLY, OBSERVERS, applies
 from ._fields import _array, _bool, _choice, _float, _int, _section, _set, _weight
+from .friction import FrictionModelConfig
 from .legacy import KIND_ALIASES, resolve_compensation
 
 #: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
@@ -239,6 +241,8 @@ class ControllerConfig:
             ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
+        friction: :class:`~hmpc_pin.experiment.config.friction.FrictionModelConfig`: the
+            arm's friction, compensated feed-forward (every pair; ``None``: none).
     """
 
     kind: str = "hmpc"
@@ -259,6 +263,7 @@ class ControllerConfig:
     backend: str | None = None
     ism: ISMConfig | None = None
     computed_torque: ComputedTorqueConfig | None = None
+    friction: FrictionModelConfig | None = None
 
     def __post_init__(self):
         _set(self, "Ts", _float("Ts", self.Ts, positive=True))
@@ -285,6 +290,7 @@ class ControllerConfig:
             ("constraints", ConstraintConfig),
             ("ism", ISMConfig),
             ("computed_torque", ComputedTorqueConfig),
+            ("friction", FrictionModelConfig),
         ):
             value = getattr(self, name)
             if isinstance(value, dict):

@@ -70,7 +70,8 @@ def _table(toml_text: str) -> tuple[str, dict]:
 
 FRICTION_OPTIONS = {"source": "observer", "urdf": None, "velocity_threshold": 0.01,
                     "confidence": 0.95}  # fmt: skip
-THRESHOLD_OPTIONS = {"false_alarm": 0.01, "horizon": 60.0, "block": 1.0, "safety": 1.25}
+THRESHOLD_OPTIONS = {"false_alarm": 0.01, "horizon": 60.0, "block": 1.0, "safety": 1.25,
+                     "method": "gumbel"}  # fmt: skip
 
 
 def _options(args) -> None:
@@ -108,6 +109,7 @@ def cmd_identify(args) -> int:
         fit = learn_thresholds(
             result, false_alarm=args.false_alarm, horizon=args.horizon, block=args.block,
             safety=args.safety, after=args.after if args.after is not None else 0.0,
+            method=args.method,
             run=args.run.name,
         )  # fmt: skip
         suffix = "collision"
@@ -184,4 +186,7 @@ def add_identify_parser(sub) -> None:
                     help="block of the block maxima [s] [1]")  # fmt: skip
     th.add_argument("--safety", type=float, default=None,
                     help="factor >= 1 on the fitted quantile [1.25]")  # fmt: skip
+    th.add_argument("--method", choices=("gumbel", "gev"), default=None,
+                    help="extreme-value fit: gumbel (conservative: at most the stated rate) "
+                    "or gev (calibrated on long runs of hundreds of blocks) [gumbel]")  # fmt: skip
     idf.set_defaults(func=cmd_identify)

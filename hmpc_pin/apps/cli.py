@@ -316,6 +316,17 @@ def cmd_sweep(args) -> int:
     return EXIT_OK
 
 
+def cmd_tune(args) -> int:
+    """``hmpc-pin tune CONFIG`` (:mod:`hmpc_pin.apps.tune`): exit 2 naming the extra
+    ``tune`` without Optuna, before anything runs."""
+    from .tune import _optuna
+    from .tune import cmd_tune as run_tune
+
+    _optuna()
+    config = _with_overrides(load_config(args.config), False, args.duration)
+    return run_tune(args, config, _out_dir(args.out))
+
+
 def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
     from ..experiment.init import write_config
@@ -534,6 +545,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .identify import add_identify_parser
 
     add_identify_parser(sub)
+    from .tune import add_tune_parser
+
+    add_tune_parser(sub).set_defaults(func=cmd_tune)
 
     rt = sub.add_parser(
         "realtime",

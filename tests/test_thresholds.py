@@ -51,14 +51,27 @@ def test_false_alarm_rate_of_the_learned_thresholds(make_rng):
     def rate(thr, factor=1.0):
         return np.any(test > factor * thr.threshold, axis=(1, 2)).mean()
 
-    gev = learn_thresholds(train, false_alarm=0.2, horizon=10.0, safety=1.0, method="gev")
+    ev = {"false_alarm": 0.2, "horizon": 10.0, "safety": 1.0, "floor_at_peak": False}
+    gev = learn_thresholds(train, method="gev", **ev)
     assert 0.12 <= rate(gev) <= 0.28, rate(gev)
-    alone = learn_thresholds(_result(train.d_hat[:, :1]), false_alarm=0.2, horizon=10.0,
-                             safety=1.0, method="gev")  # fmt: skip
+    alone = learn_thresholds(_result(train.d_hat[:, :1]), method="gev", **ev)
     assert alone.threshold[0] < gev.threshold[0]  # one joint: no split, a lower threshold
-    gumbel = learn_thresholds(train, false_alarm=0.2, horizon=10.0, safety=1.0)
+    gumbel = learn_thresholds(train, **ev)
     assert 0.01 <= rate(gumbel) <= 0.2
     assert rate(gumbel, 1.25) < rate(gumbel)  # a safety factor lowers it
+    # by default never below the learning run's own peak (here 2000 s: above the 10 s
+    # quantile)
+    floored = learn_thresholds(train, false_alarm=0.2, horizon=10.0, safety=1.0)
+    np.testing.assert_array_equal(floored.threshold, np.abs(train.d_hat).max(axis=0))
+
+
+def test_a_move_then_rest_is_not_flagged_on_itself(make_rng):
+    """A non-stationary residual (a burst, then noise): the fit of the block maxima is
+    below the burst, the threshold is not."""
+    d_hat = 0.01 * _ar1(make_rng(2), 6000, 2)
+    d_hat[100:250] += 1.0
+    thr = learn_thresholds(_result(d_hat))
+    assert np.all(thr.threshold >= 1.25 * np.abs(d_hat).max(axis=0))
 
 
 def test_threshold_table_loads_as_collision(make_rng, write_config):

@@ -20,7 +20,10 @@ over the :math:`n` joints (Bonferroni: :math:`\\alpha/n` each) gives
     \\tfrac{\\alpha}{n}\\big)\\Big)\\Big],
 
 with a safety factor :math:`s \\ge 1` against what one run cannot show (another posture,
-temperature, payload).
+temperature, payload). The bracket is never taken below the learning run's own peak
+:math:`\\max_k |\\hat d_{i,k}|` (``floor_at_peak``): the run is contact-free, so a threshold
+it crosses is wrong, and a residual that is not stationary (a move, then rest) has block
+maxima whose fit lies below its peak.
 
 ``method = "gumbel"`` (default) fixes the extreme-value shape at 0. The maximum of a
 light-tailed residual (Gaussian noise, a bounded friction residue) converges to it from
@@ -131,6 +134,7 @@ def learn_thresholds(
     safety: float = 1.25,
     after: float = 0.0,
     method: str = "gumbel",
+    floor_at_peak: bool = True,
     run: str = "",
 ) -> CollisionThresholds:
     """Thresholds on :math:`|\\hat d|` from a contact-free run (module docstring).
@@ -186,7 +190,7 @@ def learn_thresholds(
     names = result.joint_names or tuple(f"joint{i + 1}" for i in range(n))
     return CollisionThresholds(
         names=tuple(names),
-        threshold=safety * thr,
+        threshold=safety * (np.maximum(thr, r.max(axis=0)) if floor_at_peak else thr),
         peak=r.max(axis=0),
         loc=loc,
         scale=scale,

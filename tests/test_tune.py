@@ -81,8 +81,9 @@ def test_objective_penalises_saturation_and_chattering():
     assert objective_value(sat, 1.0, tv0=10.0)[0] == pytest.approx(0.19 * 1.5)
     tv = [dict(r, torque_tv=30.0) for r in rows]
     assert objective_value(tv, 1.0, tv0=10.0)[0] == pytest.approx(0.19 * (1 + 0.1 * 2))
-    lost = [dict(r, bounded=False) for r in rows]
-    assert objective_value(lost, 1.0, tv0=10.0)[1]["p95_rms"] == 1.0  # the error bound
+    lost = [dict(r, bounded=False, t_end=5.0) for r in rows]  # half the run lost
+    assert objective_value(lost, 1.0, tv0=10.0, duration=10.0)[1]["p95_rms"] == pytest.approx(
+        1.0 * 1.5 + 0.19)  # fmt: skip
 
 
 def test_a_real_trial_runs_the_sweep(tmp_path, friction_config, capsys):
@@ -111,3 +112,22 @@ def test_without_optuna_the_extra_is_named(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "hmpc_pin[tune]" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_the_observer_can_be_searched_too(tmp_path, friction_config):
+    """--observers: the observer is a choice; the tuned config names it (the 0.1 keys
+    of the source's [controller.observer] dropped) and loads."""
+
+    def prefer_momentum(config):
+        value = _toy(config)[0]
+        value += 0.0 if config.controller.compensation == "momentum" else 100.0
+        return value, {"p95_rms": value}
+
+    result = tune(friction_config, tmp_path, trials=10, seed=3, objective=prefer_momentum,
+                  observers=("chen", "momentum"), holdout=0, progress=False)  # fmt: skip
+    best = result.study.best_trial.params
+    tuned = load_config(tmp_path / "paper_friction_tuned.toml")
+    assert tuned.controller.compensation == best["compensation"] == "momentum"
+    assert tuned.controller.observer.gain == pytest.approx(best["observer_gain"])
+    with pytest.raises(Exception, match="--observers"):
+        search_space(friction_config, observers=("ism",))

@@ -1,11 +1,12 @@
 """``hmpc-pin tune CONFIG``: search the controller's settings on the sweep's perturbed plants.
 
 Each trial (Optuna, :class:`optuna.samplers.TPESampler` seeded with ``seed``) proposes
-the observer gain :math:`c` (log-uniform on :math:`[c_0/5, 5c_0]`), the MPC weights
+the observer gain :math:`c` (log-uniform on :math:`[c_0/10, 5c_0]`), the MPC weights
 :math:`Q = \\mathrm{diag}(q_p, q_v)` (log-uniform :math:`q_p \\in [1, 10^4]`,
 :math:`q_v \\in [10^{-4}, 10^2]`, terminal weight :math:`P = 2Q` as the paper's),
 :math:`R \\in [10^{-8}, 10^{-3}]` (log) and the horizon :math:`N \\in [5, 30]`; with
-``ts`` also the period :math:`T_s` among the given values. It runs the config's
+``ts`` also the period :math:`T_s` among the given values, and with ``observers`` the
+observer (``chen``, ``general``, ``momentum``). It runs the config's
 controller on ``samples`` plants of the sweep (:mod:`hmpc_pin.apps.sweep`: link masses,
 friction and pulse amplitudes drawn from ``[sweep]``, with its measurement noise and
 delay; the same draws for every trial) and scores
@@ -16,7 +17,8 @@ delay; the same draws for every trial) and scores
     w_{tv}\\,\\max\\big(0, \\overline{TV}/\\overline{TV}_0 - 1\\big)\\Big),
 
 the 95th percentile over the samples of the worst joint's RMS error after
-``sweep.after`` (a run that is not bounded counts as ``sweep.error_bound``), :math:`\\bar s`
+``sweep.after`` (a run that is not bounded scores more than any bounded one:
+:func:`run_score`), :math:`\\bar s`
 the mean fraction of periods with a saturated torque, :math:`\\overline{TV}` the mean
 torque total variation per second (:func:`~hmpc_pin.apps.sweep.torque_effort`) and
 :math:`\\overline{TV}_0` that of the config as given, which is always the first trial.
@@ -44,6 +46,7 @@ __all__ = [
     "add_tune_parser",
     "apply_params",
     "objective_value",
+    "run_score",
     "search_space",
     "tune",
 ]
@@ -61,10 +64,20 @@ def _optuna():
     return optuna
 
 
-def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None) -> dict:
+def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
+                 observers: tuple[str, ...] | None = None) -> dict:  # fmt: skip
     """The parameters a trial proposes: name → ``("log", low, high)``, ``("int", low,
-    high)`` or ``("choice", values)``."""
+    high)`` or ``("choice", values)``.
+
+    Raises:
+        ConfigError: ``observers`` names no observer, or the config has none.
+    """
     cc = config.controller
+    if observers:
+        bad = [o for o in observers if o not in OBSERVERS]
+        if bad or cc.compensation not in OBSERVERS:
+            raise ConfigError("--observers", f"expected observers of {OBSERVERS} for a config "
+                              f"with an observer; got {observers!r} for {cc.label}")  # fmt: skip
     space: dict = {
         "Q_position": ("log", 1.0, 1e4),
         "Q_velocity": ("log", 1e-4, 1e2),
@@ -74,9 +87,11 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None) 
         space["N"] = ("int", 5, 30)
     if cc.compensation in OBSERVERS:
         c0 = cc.observer.gain
-        space["observer_gain"] = ("log", c0 / 5, c0 * 5)
+        space["observer_gain"] = ("log", c0 / 10, c0 * 5)
     if ts:
         space["Ts"] = ("choice", tuple(float(v) for v in ts))
+    if observers:
+        space["compensation"] = ("choice", tuple(observers))
     return space
 
 
@@ -91,11 +106,14 @@ def current_params(config: ExperimentConfig, space: dict) -> dict:
         "N": int(cc.N),
         "observer_gain": float(cc.observer.gain) if cc.observer is not None else None,
         "Ts": float(cc.Ts),
+        "compensation": cc.compensation,
     }
     out = {}
     for name, spec in space.items():
         v = values[name]
-        if spec[0] == "choice":
+        if name == "compensation":
+            out[name] = v if v in spec[1] else spec[1][0]
+        elif spec[0] == "choice":
             out[name] = min(spec[1], key=lambda c, v=v: abs(c - v))
         else:
             out[name] = type(v)(min(max(v, spec[1]), spec[2]))
@@ -103,7 +121,12 @@ def current_params(config: ExperimentConfig, space: dict) -> dict:
 
 
 def apply_params(config: ExperimentConfig, params: dict) -> ExperimentConfig:
-    """``config`` with a trial's parameters set (``P = 2Q``)."""
+    """``config`` with a trial's parameters set (``P = 2Q``; another observer with
+    ``compensation``)."""
+    if "compensation" in params:
+        from ..experiment.build import with_controller
+
+        config = with_controller(config, compensation=params["compensation"])
     cc = config.controller
     Q = np.diag([params.get("Q_position", cc.Q[0, 0]), params.get("Q_velocity", cc.Q[1, 1])])
     new = replace(cc, Q=Q, P=2 * Q, R=float(params.get("R", cc.R)),
@@ -125,12 +148,27 @@ def _suggest(trial, space: dict) -> dict:
     return out
 
 
+def run_score(row: dict, error_bound: float, duration: float | None) -> float:
+    """One run's score [rad]: its worst joint's RMS error :math:`e` when bounded;
+    otherwise :math:`\\bar e\\,(1 + \\ell) + \\min(e, 10\\bar e)` with :math:`\\bar e` the
+    error bound and :math:`\\ell` the fraction of the run it did not finish, so that any
+    bounded run ranks before any unbounded one, a later failure before an earlier one,
+    and a smaller error before a larger one."""
+    rms = float(row["rms_max"])
+    if row["bounded"] and np.isfinite(rms):
+        return rms
+    lost = 1.0 - row["t_end"] / duration if duration and "t_end" in row else 0.0
+    rms = min(rms, 10 * error_bound) if np.isfinite(rms) else 10 * error_bound
+    return error_bound * (1.0 + min(max(lost, 0.0), 1.0)) + rms
+
+
 def objective_value(rows: list[dict], error_bound: float, tv0: float | None,
                     saturation_weight: float = SATURATION_WEIGHT,
-                    tv_weight: float = TV_WEIGHT) -> tuple[float, dict]:  # fmt: skip
-    """:math:`J` of a trial's sweep rows (module docstring) and its parts."""
-    rms = np.array([r["rms_max"] if r["bounded"] else error_bound for r in rows])
-    rms = np.where(np.isfinite(rms), rms, error_bound)
+                    tv_weight: float = TV_WEIGHT,
+                    duration: float | None = None) -> tuple[float, dict]:  # fmt: skip
+    """:math:`J` of a trial's sweep rows (module docstring, each run scored by
+    :func:`run_score`) and its parts."""
+    rms = np.array([run_score(r, error_bound, duration) for r in rows])
     p95 = float(np.quantile(rms, 0.95, method="inverted_cdf"))
     sat = float(np.mean([r["saturation"] for r in rows]))
     tv = float(np.mean([r["torque_tv"] for r in rows]))
@@ -175,6 +213,7 @@ def tune(
     executor: str = "local",
     scheduler: str | None = None,
     ts: tuple[float, ...] | None = None,
+    observers: tuple[str, ...] | None = None,
     holdout: int | None = None,
     holdout_seed: int | None = None,
     progress: bool = True,
@@ -191,6 +230,8 @@ def tune(
         samples: Sweep samples per trial (>= 1). seed: Seed of the sampler and the samples.
         jobs, executor, scheduler: As :func:`~hmpc_pin.apps.sweep.run_sweep`.
         ts: Control periods [s] to choose from (``None``: keep the config's).
+        observers: Observers to choose from (``"chen"``, ``"general"``, ``"momentum"``;
+            ``None``: keep the config's).
         holdout: Samples of the final comparison (0: none; default ``samples``).
         holdout_seed: Their seed (default ``seed + 1``).
         objective: ``objective(config) -> (value, parts)`` instead of the sweep's (tests).
@@ -210,7 +251,7 @@ def tune(
                           "tuned copy of it)")  # fmt: skip
     holdout = samples if holdout is None else holdout
     holdout_seed = seed + 1 if holdout_seed is None else holdout_seed
-    space = search_space(config, ts)
+    space = search_space(config, ts, observers)
     for params in (current_params(config, space), {k: s[-1] if s[0] != "choice" else s[1][-1]
                                                    for k, s in space.items()}):  # fmt: skip
         from ..experiment.build import Experiment
@@ -238,7 +279,8 @@ def tune(
         if objective is not None:
             return objective(cfg)
         rows = _evaluate(cfg, samples, seed, jobs, executor, scheduler)
-        return objective_value(rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"))
+        return objective_value(rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
+                               duration=cfg.simulation.duration)  # fmt: skip
 
     def run_trial(trial):
         params = _suggest(trial, space)
@@ -261,7 +303,8 @@ def tune(
         for label, cfg in (("shipped", config), ("tuned", tuned)):
             rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
             comparison[label] = objective_value(rows, cfg.sweep.error_bound,
-                                                study.user_attrs.get("tv0"))[1]  # fmt: skip
+                                                study.user_attrs.get("tv0"),
+                                                duration=cfg.simulation.duration)[1]  # fmt: skip
     files += _report(config, study, best, out, comparison, samples, seed, holdout, holdout_seed)
     files.insert(1, out / f"{name}_tune.db")
     return TuneResult(study, best, tuned, files, comparison)
@@ -292,6 +335,12 @@ def _write_tuned(config, tuned, best, study, out: Path) -> Path:
     if "observer_gain" in best:
         obs = dict(ctrl.get("observer", {}))
         obs["gain"] = float(cc.observer.gain)
+        if "compensation" in best:  # the 0.1 keys would contradict it
+            obs.pop("kind", None)
+            obs.pop("enabled", None)
+            ctrl["compensation"] = cc.compensation
+            if cc.compensation == "momentum":
+                obs.pop("discretization", None)
         ctrl["observer"] = obs
     path = out / f"{config.name}_tuned.toml"
     header = (f"{config.name} tuned by `hmpc-pin tune` (trial {study.best_trial.number} of "
@@ -301,6 +350,10 @@ def _write_tuned(config, tuned, best, study, out: Path) -> Path:
                  name=f"{config.name}_tuned")  # fmt: skip
     load_config(path)  # the written config loads
     return path
+
+
+def _cell(v) -> str:
+    return v if isinstance(v, str) else f"{v:.4g}"
 
 
 def _report(config, study, best, out: Path, comparison, samples, seed, holdout, holdout_seed):
@@ -339,12 +392,16 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
         f"{TV_WEIGHT:g}·max(0, TV/TV₀ − 1)); trial 0 is the config as given.",
         "",
         f"Best: trial {study.best_trial.number}, J = {study.best_value:.4g}: "
-        + ", ".join(f"{k} = {v:.4g}" for k, v in best.items()),
+        + ", ".join(f"{k} = {_cell(v)}" for k, v in best.items()),
         "",
     ]
     if comparison:
         lines += [
             f"## Held-out comparison: {holdout} other samples (seed {holdout_seed})",
+            "",
+            "p95 over the samples of the worst joint's RMS error [rad]; a run that is not "
+            "bounded scores the error bound b times one plus the fraction it did not "
+            "finish, plus its RMS error (at most 10 b): above any bounded run.",
             "",
             "| config | p95 worst RMS [rad] | bounded | saturation | torque TV [N·m/s] |",
             "|---|---|---|---|---|",
@@ -359,7 +416,7 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
     for t in study.trials:
         if t.value is None:
             continue
-        vals = " | ".join(f"{t.params.get(k, math.nan):.4g}" for k in best)
+        vals = " | ".join(_cell(t.params.get(k, math.nan)) for k in best)
         lines.append(f"| {t.number} | {t.value:.4g} | {t.user_attrs.get('p95_rms', math.nan):.4g}"
                      f" | {vals} |")  # fmt: skip
     lines += ["", *(f"![{p.stem}]({p.name})" for p in files), ""]
@@ -384,13 +441,15 @@ def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
     result = tune(
         config, out, trials=args.trials, samples=args.samples, seed=args.seed, jobs=jobs,
         executor=args.executor, scheduler=args.scheduler,
-        ts=_periods(args.ts) if args.ts else None, holdout=args.holdout,
+        ts=_periods(args.ts) if args.ts else None,
+        observers=tuple(args.observers.split(",")) if args.observers else None,
+        holdout=args.holdout,
         holdout_seed=args.holdout_seed, progress=not args.quiet,
     )  # fmt: skip
     study = result.study
     print(f"{config.name}: {len(study.trials)} trials; best trial {study.best_trial.number}, "
           f"J = {study.best_value:.4g}: "
-          + ", ".join(f"{k} = {v:.4g}" for k, v in result.best.items()))  # fmt: skip
+          + ", ".join(f"{k} = {_cell(v)}" for k, v in result.best.items()))  # fmt: skip
     if result.holdout:
         s, t = result.holdout["shipped"]["p95_rms"], result.holdout["tuned"]["p95_rms"]
         print(f"held-out samples: p95 worst-joint RMS {s:.4g} rad as given, {t:.4g} rad tuned "
@@ -424,6 +483,8 @@ def add_tune_parser(sub):
     tun.add_argument("--scheduler", help="with --executor dask: a running scheduler's address")
     tun.add_argument("--ts", metavar="T1,T2,...",
                      help="also choose the control period among these [s]")  # fmt: skip
+    tun.add_argument("--observers", metavar="NAME,...",
+                     help="also choose the observer: chen, general, momentum")  # fmt: skip
     tun.add_argument("--holdout", type=int, default=None,
                      help="held-out samples of the comparison (0: none) [--samples]")  # fmt: skip
     tun.add_argument("--holdout-seed", type=int, default=None, help="their seed [--seed + 1]")

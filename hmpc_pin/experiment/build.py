@@ -344,20 +344,11 @@ class Experiment:
             import pinocchio
 
             result.meta["engine_version"] = pinocchio.__version__
-        cc = self.config.controller
-        if cc.compensation in OBSERVERS:  # identify passes its regressors through it
-            result.meta["observer_model"] = {
-                "kind": cc.compensation, "gain": cc.observer.gain, "Ts": cc.Ts,
-                "discretization": cc.observer.discretization,
-            }  # fmt: skip
         fm = self.config.controller.friction
-        if fm is not None:  # identify adds it back to the observer's estimate
+        if fm is not None:
             n = self.robot.nq
             a = self.config.vector("controller.friction.viscous", n)
             b = self.config.vector("controller.friction.coulomb", n)
-            result.meta["friction_feedforward"] = {
-                "viscous": a.tolist(), "coulomb": b.tolist(), "smoothing": fm.smoothing,
-            }  # fmt: skip
             # the model's torque at the recorded velocity (the observer's target is d + it)
             sign = np.tanh(result.dq / fm.smoothing) if fm.smoothing > 0 else np.sign(result.dq)
             result.extra["friction_feedforward"] = a * result.dq + b * sign
@@ -404,7 +395,27 @@ class Experiment:
             "N": cfg.controller.N,
             "Nc": cfg.controller.Nc,
             "state_bound": cfg.simulation.state_bound,
+            **self._identification_meta(),
         }
+
+    def _identification_meta(self) -> dict:
+        """What ``hmpc-pin identify`` needs of the controller: the observer (its
+        regressors are passed through its dynamics) and the friction fed forward (added
+        back to its estimate)."""
+        cc, n = self.config.controller, self.robot.nq
+        out: dict = {}
+        if cc.compensation in OBSERVERS:
+            out["observer_model"] = {
+                "kind": cc.compensation, "gain": cc.observer.gain, "Ts": cc.Ts,
+                "discretization": cc.observer.discretization,
+            }  # fmt: skip
+        if cc.friction is not None:
+            out["friction_feedforward"] = {
+                "viscous": self.config.vector("controller.friction.viscous", n).tolist(),
+                "coulomb": self.config.vector("controller.friction.coulomb", n).tolist(),
+                "smoothing": cc.friction.smoothing,
+            }
+        return out
 
     def _recorded_limits(self) -> dict[str, list[float]]:
         """The URDF position limits the metrics measure excursions against; a zero or

@@ -293,21 +293,43 @@ def tune(
             trial.set_user_attr(k, v)
         return value
 
-    study.optimize(run_trial, n_trials=trials, show_progress_bar=progress)
-    best = dict(study.best_trial.params)
-    tuned = config if study.best_trial.number == 0 else apply_params(config, best)
-    files = [_write_tuned(config, tuned, best, study, out)]
-    comparison = None
-    if holdout and objective is None:
-        comparison = {}
-        for label, cfg in (("shipped", config), ("tuned", tuned)):
-            rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
-            comparison[label] = objective_value(rows, cfg.sweep.error_bound,
-                                                study.user_attrs.get("tv0"),
-                                                duration=cfg.simulation.duration)[1]  # fmt: skip
+    cluster = None
+    if executor == "dask" and scheduler is None and objective is None:
+        cluster = _local_cluster(jobs)  # one cluster for every trial, not one per trial
+        scheduler = cluster.scheduler_address
+    try:
+        study.optimize(run_trial, n_trials=trials, show_progress_bar=progress)
+        best = dict(study.best_trial.params)
+        tuned = config if study.best_trial.number == 0 else apply_params(config, best)
+        files = [_write_tuned(config, tuned, best, study, out)]
+        comparison = None
+        if holdout and objective is None:
+            comparison = {}
+            for label, cfg in (("shipped", config), ("tuned", tuned)):
+                rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
+                comparison[label] = objective_value(
+                    rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
+                    duration=cfg.simulation.duration,
+                )[1]  # fmt: skip
+    finally:
+        if cluster is not None:
+            cluster.close()
     files += _report(config, study, best, out, comparison, samples, seed, holdout, holdout_seed)
     files.insert(1, out / f"{name}_tune.db")
     return TuneResult(study, best, tuned, files, comparison)
+
+
+def _local_cluster(jobs: int):
+    """A local Dask cluster of ``jobs`` single-threaded worker processes (extra
+    ``cluster``), or the sweep's one-line error naming the extra."""
+    try:
+        from dask.distributed import LocalCluster
+    except ImportError as exc:
+        raise ConfigError(
+            "--executor", "dask needs the optional dependency dask.distributed; install it "
+            "with `pip install 'hmpc_pin[cluster]'` or use --executor local",
+        ) from exc  # fmt: skip
+    return LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
 
 
 def len_trials(optuna, storage: str, name: str) -> int:

@@ -164,3 +164,19 @@ def test_identify_options_of_the_other_mode_are_errors(friction_run, tmp_path, c
     assert "--source" in capsys.readouterr().err
     assert main(["identify", str(path), "--safety", "2"]) == 2
     assert "--thresholds" in capsys.readouterr().err
+
+
+def test_regressor_source_fits_the_rigid_body_too():
+    """Plant links 2 and 3 30 % heavier than the model: the model's inverse dynamics
+    blames the friction for the missing inertia and gravity, the regressor source fits
+    the base inertial parameters alongside and recovers the plant's friction."""
+    config = load_config(CONFIGS / "paper_friction.toml")
+    config = replace(config, simulation=replace(config.simulation, duration=5.0))
+    exp = Experiment.from_config(config)
+    exp.plant = exp.plant.with_scaled_inertias([1.0, 1.3, 1.3])
+    result = exp.run()
+    biased = fit_friction(result, source="dynamics", robot=exp.robot)
+    assert np.max(np.abs(biased.viscous / VISCOUS - 1)) > 0.2
+    fit = fit_friction(result, source="regressor", robot=exp.robot)
+    np.testing.assert_allclose(fit.viscous, VISCOUS, rtol=2e-3)
+    np.testing.assert_allclose(fit.coulomb, COULOMB, rtol=2e-3)

@@ -167,7 +167,7 @@ def add_identify_parser(sub) -> None:
     idf.add_argument("--after", type=float, default=None,
                      help="skip samples before this time [s] [0.5; thresholds: 0]")  # fmt: skip
     fr = idf.add_argument_group("friction")
-    fr.add_argument("--source", choices=("observer", "dynamics"), default=None,
+    fr.add_argument("--source", choices=("observer", "dynamics", "regressor"), default=None,
                     help="the observer's estimate d_hat, or the model's inverse dynamics "
                     "(Pinocchio's regressor) against the applied torque [observer]")  # fmt: skip
     fr.add_argument("--urdf", help="with --source dynamics: the arm's URDF [the run's]")

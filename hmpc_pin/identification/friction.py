@@ -24,6 +24,11 @@ Two measurements of :math:`f` are offered (``source``):
   period; the rigid-body part is Pinocchio's joint-torque regressor times the model's
   inertial parameters, :math:`Y(q, \\dot q, \\ddot q)\\,\\pi`. No lag, but it needs the model
   to be right.
+* ``"regressor"``: the same equation with the rigid-body parameters fitted too,
+  :math:`\\tau_k = Y_k\\,\\pi + \\Phi_k\\,\\theta`, :math:`\\pi` reduced to the columns of
+  :math:`Y` that the run identifies (QR with column pivoting of the stacked regressor:
+  the base parameters of this motion). For an arm whose model is off (a payload, a
+  wrong link mass); it needs a richer motion than the friction alone.
 
 Per joint, ordinary least squares on :math:`A = [\\dot q,\\ \\mathrm{sgn}\\,\\dot q]`:
 :math:`\\hat\\theta = (A^TA)^{-1}A^Ty`, residual :math:`r = y - A\\hat\\theta`,
@@ -61,7 +66,7 @@ __all__ = [
 ]
 
 #: Measurements of the friction torque a fit can use.
-SOURCES = ("observer", "dynamics")
+SOURCES = ("observer", "dynamics", "regressor")
 
 
 @dataclass(frozen=True)
@@ -212,6 +217,10 @@ def _least_squares(blocks: list[tuple[np.ndarray, np.ndarray]], confidence: floa
 
     A = np.vstack([a for a, _ in blocks])
     y = np.concatenate([v for _, v in blocks])
+    norms = np.linalg.norm(A, axis=0)
+    norms[norms == 0] = 1.0
+    blocks = [(a / norms, v) for a, v in blocks]  # unit columns: a well-scaled A^T W A
+    A = A / norms
     theta = np.linalg.lstsq(A, y, rcond=None)[0]
     p = A.shape[1]
     var = [max(float(np.mean((v - a @ theta) ** 2)), 1e-300) for a, v in blocks]
@@ -228,7 +237,7 @@ def _least_squares(blocks: list[tuple[np.ndarray, np.ndarray]], confidence: floa
         scale * np.diag(AtWA_inv) * m / m_eff
     )
     m_effs = [len(r) * (1 - max(0.0, _lag1(r))) / (1 + max(0.0, _lag1(r))) for r in res]
-    return theta, half, res, m_effs
+    return theta / norms, half / norms, res, m_effs
 
 
 def fit_joint(
@@ -375,6 +384,36 @@ def dynamics_friction(result: Result, robot) -> tuple[np.ndarray, np.ndarray]:
     return f, dq_mid
 
 
+def _regressor_rows(result: Result, robot):
+    """Per period: the joint-torque regressor :math:`Y_k` (n, 10·n_b), the applied torque,
+    the mid-period velocity and time."""
+    import pinocchio as pin
+
+    model = robot.model
+    data = model.createData()
+    t, q, dq = result.t, result.q, result.dq
+    tau = result.tau_applied if result.tau_applied is not None else result.tau
+    dq_mid = 0.5 * (dq[1:] + dq[:-1])
+    Y = np.empty((len(t) - 1, q.shape[1], 10 * (model.njoints - 1)))
+    for k in range(len(t) - 1):
+        ddq = (dq[k + 1] - dq[k]) / (t[k + 1] - t[k])
+        Y[k] = pin.computeJointTorqueRegressor(model, data, 0.5 * (q[k] + q[k + 1]),
+                                               dq_mid[k], ddq)  # fmt: skip
+    return Y, tau[:-1], dq_mid, 0.5 * (t[1:] + t[:-1])
+
+
+def _base_columns(Y: np.ndarray, tol: float = 1e-8) -> np.ndarray:
+    """Indices of a maximal set of independent columns of ``Y`` (QR, column pivoting)."""
+    from scipy.linalg import qr
+
+    norms = np.linalg.norm(Y, axis=0)
+    live = np.flatnonzero(norms > tol * max(norms.max(), 1e-300))
+    _, R, piv = qr(Y[:, live] / norms[live], mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    rank = int(np.count_nonzero(d > tol * d[0])) if d.size else 0
+    return np.sort(live[piv[:rank]])
+
+
 def fit_friction(
     result: Result,
     *,
@@ -418,9 +457,16 @@ def fit_friction(
                           f"{velocity_threshold!r}")  # fmt: skip
     n = result.dq.shape[1]
     names = result.joint_names or tuple(f"joint{i + 1}" for i in range(n))
-    if source == "dynamics":
-        if robot is None:
-            raise ConfigError("robot", "the 'dynamics' source needs the arm's model")
+    if source in ("dynamics", "regressor") and robot is None:
+        raise ConfigError("robot", f"the {source!r} source needs the arm's model")
+    if source == "regressor":
+        Yr, tau, dq, t = _regressor_rows(result, robot)
+        use = (t >= after - 1e-12) & np.all(np.isfinite(tau), axis=1)
+        base = _base_columns(Yr[use].reshape(-1, Yr.shape[2]))
+        phi = _regressors(dq)
+        g = np.concatenate([phi, Yr[:, :, base]], axis=2)  # friction first, then pi_base
+        y = tau
+    elif source == "dynamics":
         y, dq = dynamics_friction(result, robot)
         t = 0.5 * (result.t[1:] + result.t[:-1])
         g = _regressors(dq)
@@ -445,7 +491,7 @@ def fit_friction(
         raw = np.column_stack([dq[keep, i], np.sign(dq[keep, i])])
         conds.append(_condition(name, raw, max_condition))
         blocks.append((g[keep, i, :], y[keep, i]))
-    if observer is None or source == "dynamics":  # block-diagonal: one fit per joint
+    if source == "dynamics" or (source == "observer" and observer is None):  # one per joint
         fits = []
         for i, (A, v) in enumerate(blocks):
             theta, half, res, m_eff = _least_squares([(A[:, 2 * i : 2 * i + 2], v)], confidence)

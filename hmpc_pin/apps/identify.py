@@ -168,9 +168,11 @@ def add_identify_parser(sub) -> None:
                      help="skip samples before this time [s] [0.5; thresholds: 0]")  # fmt: skip
     fr = idf.add_argument_group("friction")
     fr.add_argument("--source", choices=("observer", "dynamics", "regressor"), default=None,
-                    help="the observer's estimate d_hat, or the model's inverse dynamics "
-                    "(Pinocchio's regressor) against the applied torque [observer]")  # fmt: skip
-    fr.add_argument("--urdf", help="with --source dynamics: the arm's URDF [the run's]")
+                    help="observer: the estimate d_hat through the observer's dynamics; "
+                    "dynamics: the model's inverse dynamics (Pinocchio's regressor) against the "
+                    "applied torque; regressor: the same with the rigid-body parameters "
+                    "fitted too [observer]")  # fmt: skip
+    fr.add_argument("--urdf", help="the arm's URDF [the run's]")
     fr.add_argument("--velocity-threshold", type=float, default=None, metavar="RAD_S",
                     help="leave out samples slower than this [rad/s] [0.01]")  # fmt: skip
     fr.add_argument("--confidence", type=float, default=None,

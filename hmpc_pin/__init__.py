@@ -9,11 +9,12 @@ external torques.
 
 The package is layered; each layer imports only the layers below it (tested)::
 
-    apps/          cli, run, compare, sweep, report, metrics, plots, viz
+    apps/          cli, run, compare, sweep, tune, identify, report, metrics, plots, viz
       │
     experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
       │
     realtime/      RobotInterface protocol · arm in another process · fixed-rate loop, safe stops
+    identification/ friction (observer or inverse dynamics) and collision thresholds from a run
       │
     sim/           disturbances · plants (Plant protocol: RK4, Euler, MuJoCo) · simulate · Result
       │

@@ -261,3 +261,21 @@ class NativeError(HmpcError, RuntimeError):
 
 class PerformanceWarning(UserWarning):
     """A run takes a slower path than it could (e.g. the native kernels are unavailable)."""
+
+
+class ExcitationError(HmpcError, ValueError):
+    """A run does not excite a joint enough to identify it (``hmpc-pin identify``).
+
+    Attributes:
+        joint: The joint's name. reason: What was measured.
+    """
+
+    def __init__(self, joint: str, reason: str):
+        self.joint = joint
+        self.reason = reason
+        super().__init__(
+            f"joint {joint!r} is not excited enough to identify its friction: {reason}; "
+            f"record a run in which {joint} moves both ways at speed, e.g. a sine reference "
+            "on it with a peak velocity 2π·amplitude·frequency of 0.2 rad/s or more, over "
+            "several periods"
+        )

@@ -24,6 +24,7 @@ RANK = {
     "controllers": 3,
     "sim": 4,
     "realtime": 5,
+    "identification": 5,
     "experiment": 6,
     "apps": 7,
     "__init__": 8,

@@ -30,7 +30,7 @@ from hmpc_pin.compensation import (
     NoCompensation,
 )
 from hmpc_pin.controllers import Controller, MeasuredController, TimedController
-from hmpc_pin.controllers.wrappers import CollisionReaction
+from hmpc_pin.controllers.wrappers import CollisionReaction, FrictionFeedforward
 from hmpc_pin.realtime import PlantArm, ProcessArm, RobotInterface
 from hmpc_pin.sim import EulerPlant, Plant, RK4Plant
 from hmpc_pin.sim.mujoco import MuJoCoPlant
@@ -267,6 +267,10 @@ CONTROLLERS = {
         r, hmpc_pin.ControllerConfig(compensation="momentum", latency=0.012)
     ),
     "collision": lambda r: CollisionReaction(hmpc_pin.make_controller(r), 1e3, "stop"),
+    # a friction model fed forward on a frictionless plant: the observer cancels it
+    "friction-feedforward": lambda r: FrictionFeedforward(
+        hmpc_pin.make_controller(r), [1.0, 0.8, 0.5], [0.3, 0.2, 0.1]
+    ),
 }
 
 

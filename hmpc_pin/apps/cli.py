@@ -1,5 +1,5 @@
 """Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
-realtime`` (also ``python -m hmpc_pin``).
+realtime | identify | tune`` (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback, checked before any run: no output file), 1 when a run fails (e.g.
@@ -340,6 +340,17 @@ def cmd_sweep(args) -> int:
     return EXIT_OK
 
 
+def cmd_tune(args) -> int:
+    """``hmpc-pin tune CONFIG`` (:mod:`hmpc_pin.apps.tune`): exit 2 naming the extra
+    ``tune`` without Optuna, before anything runs."""
+    from .tune import _optuna
+    from .tune import cmd_tune as run_tune
+
+    _optuna()
+    config = _with_overrides(load_config(args.config), False, args.duration)
+    return run_tune(args, config, _out_dir(args.out))
+
+
 def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
     from ..experiment.init import write_config
@@ -581,6 +592,12 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)
     add_init_parser(sub)
+    from .identify import add_identify_parser
+
+    add_identify_parser(sub)
+    from .tune import add_tune_parser
+
+    add_tune_parser(sub).set_defaults(func=cmd_tune)
 
     rt = sub.add_parser(
         "realtime",

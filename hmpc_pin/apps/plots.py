@@ -62,7 +62,12 @@ def _tracking(ax, result, i):
 
 
 def _disturbance(ax, result, i):
-    ax.plot(result.t, result.d[:, i], "k", lw=1.2, label=f"true $d_{i + 1}$")
+    ff = result.extra.get("friction_feedforward")
+    if ff is None:
+        ax.plot(result.t, result.d[:, i], "k", lw=1.2, label=f"true $d_{i + 1}$")
+    else:  # the observer estimates what the friction model fed forward leaves
+        ax.plot(result.t, result.d[:, i] + ff[:, i], "k", lw=1.2,
+                label=rf"true $d_{i + 1} + \tau_{{f,{i + 1}}}$")  # fmt: skip
     ax.plot(result.t, result.d_hat[:, i], "C3--", lw=1.2, label=rf"NDO $\hat d_{i + 1}$")
     ax.set_ylabel(f"joint {i + 1} [{joint_units(result)[i][2]}]")
     ax.legend(loc="upper right", fontsize=8)

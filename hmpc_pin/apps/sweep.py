@@ -49,6 +49,7 @@ __all__ = [
     "resolve_variants",
     "run_sample",
     "run_sweep",
+    "torque_effort",
     "variant_config",
 ]
 
@@ -230,7 +231,8 @@ def run_sample(
         and the failure ``message`` ("" if the run completed); for a pose task also
         ``position_rms`` [m] and ``orientation_rms`` [rad] after ``sweep.after``. A run
         that stops early (divergence, non-finite state, solver failure) is a row with
-        ``complete=False``, not an exception.
+        ``complete=False``, not an exception. Also the torque's effort
+        (:func:`torque_effort`): ``saturation`` and ``torque_tv``.
     """
     sc = config.sweep
     if condition not in CONDITION_PARTS:
@@ -264,10 +266,29 @@ def run_sample(
     row.update(complete=bool(result.complete), bounded=bounded, t_end=float(result.t[-1]))
     row.update({f"rms_{j}": float(v) for j, v in zip(names, rms, strict=True)})
     row.update(rms_max=float(np.max(rms)), max_error=max_error, message=result.message)
+    row.update(torque_effort(result))
     task = task_metrics(result, sc.after)  # a pose task: its task-space errors too
     if task is not None:
         row.update(position_rms=task.position_rms, orientation_rms=task.orientation_rms)
     return row
+
+
+def torque_effort(result) -> dict[str, float]:
+    """How hard a run drove its actuators.
+
+    Returns:
+        ``saturation``: the fraction of control periods in which the plant clipped the
+        torque on some joint (:math:`\\tau \\ne \\tau_\\mathrm{applied}`); ``torque_tv``:
+        the commanded torque's total variation per second, summed over joints,
+        :math:`\\sum_i \\sum_k |\\tau_{i,k+1} - \\tau_{i,k}| / t_\\mathrm{end}` [N·m/s]
+        (chattering shows as a large value).
+    """
+    tau, applied = result.tau, result.tau_applied
+    ok = np.all(np.isfinite(tau), axis=1)
+    clipped = np.any(np.abs(tau - applied) > 1e-9 * (1 + np.abs(tau)), axis=1) & ok
+    span = float(result.t[-1] - result.t[0]) if len(result.t) > 1 else 0.0
+    tv = float(np.abs(np.diff(tau[ok], axis=0)).sum() / span) if span > 0 else 0.0
+    return {"saturation": float(np.mean(clipped)) if len(clipped) else 0.0, "torque_tv": tv}
 
 
 @dataclass

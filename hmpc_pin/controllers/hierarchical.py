@@ -82,14 +82,6 @@ class MPCSettings:
     latency: float = 0.0
 
     def __post_init__(self):
-        if not (math.isfinite(self.latency) and self.latency >= 0):
-            from ..exceptions import ConfigError
-
-            raise ConfigError(
-                "latency", f"got {self.latency!r}; expected a finite number >= 0 [s]"
-            )
-
-    def __post_init__(self):
         # The same checks and errors as the [controller] table (hmpc_pin.checks).
         fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
                             self.v_max, prefix="MPCSettings.")  # fmt: skip
@@ -97,6 +89,7 @@ class MPCSettings:
         fields["max_iter"] = as_int("MPCSettings.max_iter", self.max_iter, minimum=1)
         fields["qp_layout"] = as_choice("MPCSettings.qp_layout", self.qp_layout,
                                         ("auto", "block", "joint"))  # fmt: skip
+        fields["latency"] = as_float("MPCSettings.latency", self.latency, nonneg=True)
         for name, value in fields.items():
             object.__setattr__(self, name, value)
 

@@ -20,7 +20,7 @@ import numpy as np
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
 from ..controllers.hierarchical import HierarchicalMPC
-from ..controllers.wrappers import CollisionReaction
+from ..controllers.wrappers import CollisionReaction, FrictionFeedforward
 from ..exceptions import (
     ConfigError,
     InterfaceError,
@@ -281,6 +281,12 @@ class Experiment:
         controller = make_controller(robot, config.controller)  # warns as warn_validity
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
         controller.effort_limit = _effort_limit(config, plant)
+        fm = config.controller.friction
+        if fm is not None:  # the friction model, fed forward around the controller
+            controller = FrictionFeedforward(
+                controller, config.vector("controller.friction.viscous", n),
+                config.vector("controller.friction.coulomb", n), fm.smoothing,
+            )  # fmt: skip
         if config.collision is not None and uses_observer(config.controller):
             controller = CollisionReaction(
                 controller, config.vector("collision.threshold", n), config.collision.reaction
@@ -351,6 +357,14 @@ class Experiment:
             import pinocchio
 
             result.meta["engine_version"] = pinocchio.__version__
+        fm = self.config.controller.friction
+        if fm is not None:
+            n = self.robot.nq
+            a = self.config.vector("controller.friction.viscous", n)
+            b = self.config.vector("controller.friction.coulomb", n)
+            # the model's torque at the recorded velocity (the observer's target is d + it)
+            sign = np.tanh(result.dq / fm.smoothing) if fm.smoothing > 0 else np.sign(result.dq)
+            result.extra["friction_feedforward"] = a * result.dq + b * sign
         if isinstance(self.controller, CollisionReaction):
             c = self.controller
             result.meta["collision"] = {
@@ -394,7 +408,27 @@ class Experiment:
             "N": cfg.controller.N,
             "Nc": cfg.controller.Nc,
             "state_bound": cfg.simulation.state_bound,
+            **self._identification_meta(),
         }
+
+    def _identification_meta(self) -> dict:
+        """What ``hmpc-pin identify`` needs of the controller: the observer (its
+        regressors are passed through its dynamics) and the friction fed forward (added
+        back to its estimate)."""
+        cc, n = self.config.controller, self.robot.nq
+        out: dict = {}
+        if cc.compensation in OBSERVERS:
+            out["observer_model"] = {
+                "kind": cc.compensation, "gain": cc.observer.gain, "Ts": cc.Ts,
+                "discretization": cc.observer.discretization,
+            }  # fmt: skip
+        if cc.friction is not None:
+            out["friction_feedforward"] = {
+                "viscous": self.config.vector("controller.friction.viscous", n).tolist(),
+                "coulomb": self.config.vector("controller.friction.coulomb", n).tolist(),
+                "smoothing": cc.friction.smoothing,
+            }
+        return out
 
     def _recorded_limits(self) -> dict[str, list[float]]:
         """The URDF position limits the metrics measure excursions against; a zero or

@@ -1,7 +1,8 @@
 """The configuration, one module per TOML table (do-mpc style: one settings class per
 component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_config`.
 
-``[robot]`` :mod:`.robot` · ``[controller]`` (and its tables) :mod:`.controller` ·
+``[robot]`` :mod:`.robot` · ``[controller]`` (and its tables) :mod:`.controller`
+(``[controller.friction]`` :mod:`.friction`) ·
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
 ``[sweep.sensing]`` :mod:`.sensing` · ``[collision]`` :mod:`.collision` ·
@@ -34,6 +35,9 @@ from .disturbance import (
 from .experiment import (
     ExperimentConfig,
     load_config,
+)
+from .friction import (
+    FrictionModelConfig,
 )
 from .legacy import CONTROLLER_KINDS, DEFAULT_COMPENSATION, KIND_ALIASES
 from .plant import (
@@ -94,6 +98,7 @@ __all__ = [
     "DisturbanceConfig",
     "ExperimentConfig",
     "FrictionConfig",
+    "FrictionModelConfig",
     "ISMConfig",
     "MuJoCoConfig",
     "ObserverConfig",

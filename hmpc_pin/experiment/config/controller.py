@@ -1,5 +1,6 @@
 """``[controller]`` and its tables ``[controller.observer]``, ``[controller.constraints]``,
-``[controller.ism]``, ``[controller.computed_torque]``; the controller × compensation names."""
+``[controller.ism]``, ``[controller.computed_torque]`` (``[controller.friction]`` is
+:mod:`.friction`); the controller × compensation names."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ..combos import HMPC_ONLY, OBSERVERS, applies
 from ._fields import _array, _bool, _choice, _float, _int, _section, _set
+from .friction import FrictionModelConfig
 from .legacy import KIND_ALIASES, resolve_compensation
 
 #: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
@@ -262,6 +264,8 @@ class ControllerConfig:
             interval its measurements span and the MPC and the inverse dynamics start from
             the state predicted over L (guide "Sensing and latency"); a fraction of Ts is
             allowed.
+        friction: :class:`~hmpc_pin.experiment.config.friction.FrictionModelConfig`: the
+            arm's friction, compensated feed-forward (every pair; ``None``: none).
     """
 
     kind: str = "hmpc"
@@ -283,6 +287,7 @@ class ControllerConfig:
     ism: ISMConfig | None = None
     computed_torque: ComputedTorqueConfig | None = None
     latency: float | None = None
+    friction: FrictionModelConfig | None = None
 
     def __post_init__(self):
         fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
@@ -294,6 +299,7 @@ class ControllerConfig:
             ("constraints", ConstraintConfig),
             ("ism", ISMConfig),
             ("computed_torque", ComputedTorqueConfig),
+            ("friction", FrictionModelConfig),
         ):
             value = getattr(self, name)
             if isinstance(value, dict):

@@ -96,6 +96,8 @@ class ExperimentConfig:
             keys += [f"plant.mujoco.{k}" for k in ("frictionloss", "damping", "armature")]
         if self.collision is not None:
             keys.append("collision.threshold")
+        if self.controller.friction is not None:
+            keys += ["controller.friction.viscous", "controller.friction.coulomb"]
         if self.disturbance.pulse is not None:
             keys += [
                 "disturbance.pulse.amplitude",

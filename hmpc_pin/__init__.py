@@ -16,7 +16,8 @@ The package is layered; each layer imports only the layers below it (tested)::
     realtime/      RobotInterface protocol · arm in another process · fixed-rate loop, safe stops
     identification/ friction (observer or inverse dynamics) and collision thresholds from a run
       │
-    sim/           disturbances · plants (Plant protocol: RK4, Euler, MuJoCo) · simulate · Result
+    sim/           disturbances · plants (Plant protocol: RK4, Euler, MuJoCo) · sensing (the
+      │            arm's interface: encoders, velocity estimate, latency) · simulate · Result
       │
     controllers/   Controller protocol · HierarchicalMPC · ComputedTorque · wrappers
       │      ╲

@@ -93,3 +93,18 @@ def test_config_bandwidth_keys(planar3):
     # an earlier gain still loads, as the gain
     old = ControllerConfig(compensation="general", observer={"gain": 100.0})
     assert old.observer.gain == 100.0 and old.observer.bandwidth is None
+
+
+def test_experiment_makes_the_bandwidth_exact_at_the_start(write_config):
+    """Built from a config, the general observer's bandwidth is exact at the run's q0."""
+    import hmpc_pin
+
+    cfg = hmpc_pin.load_config(write_config(
+        "[robot]\nurdf = '@URDF@'\n[controller]\ncompensation = 'general'\nlatency = 0.001\n"
+        "[controller.observer]\nbandwidth = [300.0, 400.0, 500.0]\n"
+        "[simulation]\nq0 = [0.4, -0.3, 0.9]\n"
+    ))  # fmt: skip
+    exp = hmpc_pin.Experiment.from_config(cfg)
+    M0 = exp.robot.mass_matrix(np.array([0.4, -0.3, 0.9]))
+    cY = exp.controller.compensation.cY
+    np.testing.assert_allclose(implied_bandwidth(cY, M0), [300, 400, 500], rtol=1e-12)

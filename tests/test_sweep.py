@@ -306,3 +306,13 @@ def test_conditions_perturb_what_they_name(short_config):
     assert len(set(values.values())) == 4  # each condition changes something
     drawn = run_sample(cfg, params, "ndo", "sensing")  # the draws do not enter "sensing"
     assert drawn["rms_max"] == rows["sensing"]["rms_max"]
+
+
+def test_interface_rate_must_divide_the_period_before_any_run(short_config):
+    from hmpc_pin.exceptions import ConfigError
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+    from hmpc_pin.experiment.config.sweep import SweepConfig
+
+    cfg = replace(short_config, sweep=SweepConfig(sensing=SensingConfig(rate=250.0)))
+    with pytest.raises(ConfigError, match="interface periods"):
+        run_sweep(cfg, 1, progress=False)

@@ -489,7 +489,9 @@ def run_sweep(
     if executor not in EXECUTORS:
         raise ConfigError("--executor", f"expected one of {EXECUTORS}, got {executor!r}")
     config = replace(config, sweep=replace(config.sweep, variants=resolve_variants(config)))
-    Experiment.from_config(config)  # bad input fails here, once, not in every worker
+    nominal = Experiment.from_config(config)  # bad input fails here, once, not in every worker
+    if not config.sweep.legacy:  # the interface model fits the arm and the control period
+        config.sweep.interface.model(nominal.robot.nq).ticks(config.controller.Ts)
     params = draw_samples(config, samples, seed)
     tasks = [(p, v, c) for p in params for v in config.sweep.variants
              for c in config.sweep.conditions]  # fmt: skip

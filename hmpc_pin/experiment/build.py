@@ -71,6 +71,7 @@ __all__ = [
     "run_experiment",
     "task_space",
     "uses_observer",
+    "warn_bandwidth",
     "warn_validity",
     "with_controller",
 ]
@@ -83,9 +84,15 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
 
 
 def make_controller(
-    robot: Robot, config: ControllerConfig | ExperimentConfig | None = None
+    robot: Robot,
+    config: ControllerConfig | ExperimentConfig | None = None,
+    *,
+    posture: np.ndarray | None = None,
 ) -> Controller:
     """The controller × compensation of ``config`` (docs, "Controllers").
+
+    ``posture`` [rad] is where an observer bandwidth is made exact (the run's start; default
+    :func:`~hmpc_pin.experiment.controllers.bandwidth_posture`).
 
     ``config`` is a :class:`~hmpc_pin.experiment.schema.ControllerConfig`, a whole
     :class:`~hmpc_pin.experiment.schema.ExperimentConfig` (its ``controller`` table is
@@ -107,13 +114,13 @@ def make_controller(
         )
     cc = config if config is not None else ControllerConfig()
     if cc.kind == "hmpc":
-        settings, compensation, limits = controller_parts(robot, cc)
+        settings, compensation, limits = controller_parts(robot, cc, posture)
         return HierarchicalMPC(robot, settings, compensation, limits=limits)
-    gains, compensation = controller_parts(robot, cc)
+    gains, compensation = controller_parts(robot, cc, posture)
     return ComputedTorque(robot, gains, compensation)
 
 
-def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
+def warn_validity(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None = None) -> None:
     """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) when the compensation of ``cc``
     is used outside the arms it is proven for: Chen's :math:`Y` (Eq 28–30) on an arm that
     is not a planar serial chain (:meth:`~hmpc_pin.model.robot.Robot.is_planar_chain`).
@@ -129,13 +136,20 @@ def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
             ValidityWarning,
             stacklevel=3,
         )
+    warn_bandwidth(robot, cc, posture)
+
+
+def warn_bandwidth(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None = None) -> None:
+    """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) when an observer given as a
+    bandwidth breaks the rule of :mod:`hmpc_pin.compensation.bandwidth` for ``cc.Ts`` and
+    ``cc.latency`` at ``posture`` [rad] (naming the joints)."""
     obs = cc.observer
     if obs is not None and obs.bandwidth is not None:
         from ..compensation.bandwidth import check_bandwidth
         from .controllers import observer_bandwidth
 
         check_bandwidth(
-            observer_bandwidth(robot, cc), cc.Ts, cc.latency or 0.0, robot.joint_names,
+            observer_bandwidth(robot, cc, posture), cc.Ts, cc.latency or 0.0, robot.joint_names,
             explicit=obs.discretization == "explicit",
         )  # fmt: skip
 
@@ -278,7 +292,8 @@ class Experiment:
             else config.vector("simulation.q0", n)
         )
         robot.check_mass_matrix(q0)
-        controller = make_controller(robot, config.controller)  # warns as warn_validity
+        controller = make_controller(robot, config.controller, posture=q0)  # warns as warn_validity
+        warn_bandwidth(robot, config.controller, q0)
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
         controller.effort_limit = _effort_limit(config, plant)
         fm = config.controller.friction

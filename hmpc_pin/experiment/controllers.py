@@ -86,9 +86,10 @@ def bandwidth_posture(robot: Robot) -> np.ndarray:
     return np.minimum(np.maximum(np.zeros(robot.nq), robot.lower), robot.upper)
 
 
-def observer_bandwidth(robot: Robot, cc) -> np.ndarray | None:
+def observer_bandwidth(robot: Robot, cc, posture: np.ndarray | None = None) -> np.ndarray | None:
     """Per joint, the bandwidth [1/s] of the observer of ``cc`` (configured, or implied
-    by its gain at :func:`bandwidth_posture`); ``None`` without an observer."""
+    by its gain at ``posture``, default :func:`bandwidth_posture`); ``None`` without an
+    observer."""
     obs = cc.observer
     if obs is None:
         return None
@@ -97,12 +98,13 @@ def observer_bandwidth(robot: Robot, cc) -> np.ndarray | None:
         return np.broadcast_to(obs.bandwidth, (n,)).astype(float)
     if cc.compensation == "momentum":
         return np.full(n, obs.gain)
-    M0 = robot.mass_matrix(bandwidth_posture(robot))
+    M0 = robot.mass_matrix(bandwidth_posture(robot) if posture is None else posture)
     return implied_bandwidth(obs.gain * observer_matrix(cc.compensation, n), M0)
 
 
-def make_compensation(robot: Robot, cc) -> Compensation:
-    """The compensation ``cc.compensation`` names, with its table's settings."""
+def make_compensation(robot: Robot, cc, posture: np.ndarray | None = None) -> Compensation:
+    """The compensation ``cc.compensation`` names, with its table's settings (a
+    bandwidth made exact at ``posture`` [rad], default :func:`bandwidth_posture`)."""
     n, Ts = robot.nq, cc.Ts
     comp = cc.compensation
     obs = cc.observer
@@ -116,7 +118,8 @@ def make_compensation(robot: Robot, cc) -> Compensation:
         w = np.broadcast_to(w, (n,)).astype(float)
         if comp == "momentum":
             return MomentumObserver(robot, Ts, w)
-        cY = observer_cY(w, robot.mass_matrix(bandwidth_posture(robot)))
+        q0 = bandwidth_posture(robot) if posture is None else posture
+        cY = observer_cY(w, robot.mass_matrix(q0))
         return DisturbanceObserver(n, Ts, 1.0, "general", obs.discretization, cY=cY)
     if comp in ("chen", "general"):
         return DisturbanceObserver(n, Ts, cc.observer.gain, comp, cc.observer.discretization)
@@ -128,11 +131,11 @@ def make_compensation(robot: Robot, cc) -> Compensation:
     return NoCompensation(n)
 
 
-def controller_parts(robot: Robot, cc) -> tuple:
+def controller_parts(robot: Robot, cc, posture: np.ndarray | None = None) -> tuple:
     """The arguments after ``robot`` of the controller class of ``cc``: for ``hmpc``
     ``(MPCSettings, compensation, limits)``, for ``computed-torque*``
     ``(CTSettings, compensation)``."""
-    compensation = make_compensation(robot, cc)
+    compensation = make_compensation(robot, cc, posture)
     settings = mpc_settings(cc, robot.nq)
     if cc.kind == "hmpc":
         return settings, compensation, _limits(cc, robot)

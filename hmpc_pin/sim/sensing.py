@@ -270,6 +270,7 @@ class _History:
         self.Ts = Ts
         self.states: deque = deque(maxlen=keep)
         self.k0 = 0  # the control index of states[0]
+        self.k = 0  # the control index of the newest state
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         self.states.clear()

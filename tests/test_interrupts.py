@@ -321,3 +321,39 @@ def test_ctrl_c_while_the_figures_are_drawn_names_the_files_written(tmp_path, ca
     for suffix in (".npz", ".csv"):
         assert f"paper_combined{suffix}" in err and (tmp_path / f"paper_combined{suffix}").is_file()
     assert hmpc_pin.Result.load(tmp_path / "paper_combined.npz").complete
+
+
+def _never_ready():  # the arm process's plant factory: it never finishes building
+    time.sleep(60.0)
+
+
+def test_ctrl_c_while_the_arm_process_starts_leaves_no_process_and_no_memory(monkeypatch):
+    """A real SIGINT while :class:`ProcessArm` waits for its child: KeyboardInterrupt
+    propagates, the child is gone and the shared-memory block unlinked (a new attach
+    fails), at once."""
+    import threading
+    from multiprocessing import active_children
+    from multiprocessing.shared_memory import SharedMemory
+
+    from hmpc_pin.realtime import process_arm
+
+    made = []
+
+    class Recorded(SharedMemory):  # the real block, its name kept for the check
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(self.name)
+
+    monkeypatch.setattr(process_arm, "SharedMemory", Recorded)
+    timer = threading.Timer(1.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.monotonic()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            process_arm.ProcessArm(_never_ready, np.zeros(3))
+    finally:
+        timer.cancel()
+    assert time.monotonic() - start < 10.0
+    assert made and not [p for p in active_children() if p.name == "hmpc-pin-arm"]
+    with pytest.raises(FileNotFoundError):
+        SharedMemory(name=made[0])

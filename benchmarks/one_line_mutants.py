@@ -97,6 +97,21 @@ MUTANTS = [
      "dofs = np.arange(robot.nq)", [IC]),
     ("earlier", "hmpc_pin/sim/mujoco.py", "self.engine_force = d.qfrc_constraint + d.qfrc_passive",
      "self.engine_force = d.qfrc_constraint - d.qfrc_passive", [IC]),
+    # ---- written after the tests were final (no test changed for them): an unbiased sample
+    ("fresh", "hmpc_pin/checks.py", "if lo.shape != hi.shape and lo.ndim and hi.ndim:", "if False:", [LV, "tests/test_config.py"]),
+    ("fresh", "hmpc_pin/model/robot.py", "moving[link] = movable or moves(par, depth + 1)", "moving[link] = movable", ["tests/test_inertias.py"]),
+    ("fresh", "hmpc_pin/experiment/config/experiment.py", "if beside.is_file() and beside.resolve() != resolved:",
+     "if beside.is_file() and beside.resolve() == resolved:", ["tests/test_moved_configs.py"]),
+    ("fresh", "hmpc_pin/realtime/process_arm.py", "            self.close(wait=0.0)", "            pass",
+     ["tests/test_interrupts.py", "-k", "any_instant and realtime"]),
+    ("fresh", "hmpc_pin/_startup.py", "            return next(args, None) in names", "            return False",
+     ["tests/test_interrupts.py", "-k", "any_instant and run"]),
+    ("fresh", "hmpc_pin/apps/cli.py", 'if touch is not None and line.startswith("tracking error"):',
+     'if touch is None and line.startswith("tracking error"):', ["tests/test_cli_outputs.py"]),
+    ("fresh", "hmpc_pin/controllers/computed_torque.py", 'if not getattr(self, "_was_reset", False):',
+     'if getattr(self, "_was_reset", True) is None:', [LV]),
+    ("fresh", "hmpc_pin/sim/mujoco.py", "        tau = held_torque(self, tau)", "        tau = np.asarray(tau, dtype=float)", [LV]),
+    ("fresh", "hmpc_pin/apps/viz.py", "        _meshcat()", "        pass", ["tests/test_cli_outputs.py"]),
 ]
 
 
@@ -125,10 +140,11 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
+    parser.add_argument("--group", default="", help="run one group: new, earlier or fresh")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:
-        if args.only not in mutant[1]:
+        if args.only not in mutant[1] or (args.group and mutant[0] != args.group):
             continue
         killed, seconds = run(mutant)
         tally.setdefault(mutant[0], [0, 0])

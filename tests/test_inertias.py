@@ -71,6 +71,16 @@ def test_a_violated_triangle_inequality_warns_naming_the_link(write_urdf):
     assert np.linalg.eigvalsh(robot.mass_matrix(np.full(3, 0.3))).min() > 0
 
 
+def test_a_link_fixed_to_a_moving_link_is_checked(write_urdf):
+    """A tool fixed to the last link moves with it: its impossible inertia is refused."""
+    tool = INERTIA.format(name="tool", mass=0.5, ixx=1e-3, iyy=-1e-3, izz=1e-3, ixy=0, ixz=0,
+                          iyz=0)  # fmt: skip
+    text = arm(GOOD).replace("</robot>", tool + joint("tool_joint", "fixed", "l3", "tool")
+                             + "\n</robot>")  # fmt: skip
+    with pytest.raises(URDFError, match="link 'tool'"):
+        load_robot(write_urdf(text))
+
+
 def test_valid_inertias_load_and_a_fixed_link_is_not_judged(write_urdf):
     # Off-diagonal terms of a valid body (diag(1, 2, 2.5)e-3 turned about z by 30°) pass.
     c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)

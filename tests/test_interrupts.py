@@ -218,6 +218,13 @@ def _session_left(sid: int) -> list[int]:
     return left
 
 
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()[:200]
+    except OSError:
+        return "?"
+
+
 def _in_interpreter_start(stderr: str) -> bool:
     """Whether a Ctrl-C landed in the interpreter's own start-up (``site`` running the
     ``.pth`` files, about 0.1 s here) or on the package's first statement, the import of
@@ -282,10 +289,13 @@ def test_ctrl_c_at_any_instant_exits_130_at_once_with_one_line(tmp_path, command
         err.seek(0)
         pytest.fail(f"{command} ended (exit {proc.returncode}) before {delay} s: {err.read()}")
     code, elapsed, _, text = _interrupt(proc, err, group=True, children=set())
-    left = _session_left(proc.pid)
+    deadline = time.monotonic() + 3.0  # helpers (e.g. the resource tracker) end by themselves
+    while (left := _session_left(proc.pid)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    names = {pid: _cmdline(pid) for pid in left}
     for pid in left:
         os.kill(pid, signal.SIGKILL)
-    assert not left, f"processes of the command left after exit: {left}"
+    assert not left, f"processes of the command left 3 s after exit: {names}"
     assert elapsed <= 1.0, f"exit {elapsed:.2f} s after SIGINT"
     if _in_interpreter_start(text):
         return  # Python's own start (site, .pth files): no line of hmpc_pin has run yet
@@ -321,3 +331,39 @@ def test_ctrl_c_while_the_figures_are_drawn_names_the_files_written(tmp_path, ca
     for suffix in (".npz", ".csv"):
         assert f"paper_combined{suffix}" in err and (tmp_path / f"paper_combined{suffix}").is_file()
     assert hmpc_pin.Result.load(tmp_path / "paper_combined.npz").complete
+
+
+def _never_ready():  # the arm process's plant factory: it never finishes building
+    time.sleep(60.0)
+
+
+def test_ctrl_c_while_the_arm_process_starts_leaves_no_process_and_no_memory(monkeypatch):
+    """A real SIGINT while :class:`ProcessArm` waits for its child: KeyboardInterrupt
+    propagates, the child is gone and the shared-memory block unlinked (a new attach
+    fails), at once."""
+    import threading
+    from multiprocessing import active_children
+    from multiprocessing.shared_memory import SharedMemory
+
+    from hmpc_pin.realtime import process_arm
+
+    made = []
+
+    class Recorded(SharedMemory):  # the real block, its name kept for the check
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(self.name)
+
+    monkeypatch.setattr(process_arm, "SharedMemory", Recorded)
+    timer = threading.Timer(1.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.monotonic()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            process_arm.ProcessArm(_never_ready, np.zeros(3))
+    finally:
+        timer.cancel()
+    assert time.monotonic() - start < 10.0
+    assert made and not [p for p in active_children() if p.name == "hmpc-pin-arm"]
+    with pytest.raises(FileNotFoundError):
+        SharedMemory(name=made[0])

@@ -59,6 +59,8 @@ def test_mpc_settings_boundaries():
     assert MPCSettings(N=4, Nc=4).Nc == 4
     with pytest.raises(ConfigError, match=r"v_min: .* must be < v_max"):
         MPCSettings(v_min=[-1.0, 2.0, -1.0], v_max=[1.0, 2.0, 1.0])
+    with pytest.raises(ConfigError, match="v_max: v_min has shape"):
+        MPCSettings(v_min=[-1.0, -1.0], v_max=[1.0, 1.0, 1.0])
     with pytest.raises(ConfigError, match="Ts: expected a finite number"):
         MPCSettings(Ts=float("nan"))
 

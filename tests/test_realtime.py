@@ -175,6 +175,7 @@ def test_skipped_deadlines_count_as_misses(robot):
     k = 200
     assert run.timing["missed"][k : k + 3].all() and not run.timing["missed"][k + 3]
     assert np.isnan(run.timing["latency"][k + 1 : k + 3]).all()
+    assert run.stats["miss_fraction"] == pytest.approx(3 / 501)  # of the 501 deadlines due
 
 
 def _check_stop(robot, run, arm, cause, t_expected, tol, held=None):

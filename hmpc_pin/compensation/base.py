@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -102,7 +102,7 @@ class NoCompensation:
         return self.estimate
 
 
-def check_compensation(compensation, robot, Ts: float, who: str) -> None:
+def check_compensation(compensation: object, robot: Any, Ts: float, who: str) -> None:
     """Check that ``compensation`` fits a controller of ``robot`` with period ``Ts`` [s]:
     its estimate has one entry per joint, its own period (attribute ``Ts``, if it has one)
     is ``Ts``; warn when Chen's observer (Eq 28–30, proven for planar serial arms only)
@@ -116,7 +116,8 @@ def check_compensation(compensation, robot, Ts: float, who: str) -> None:
     from ..exceptions import ConfigError, DimensionError, ValidityWarning
 
     n = robot.nq
-    shape = np.shape(getattr(compensation, "estimate", None))
+    estimate: Any = getattr(compensation, "estimate", None)
+    shape = np.shape(estimate) if estimate is not None else None
     if shape != (n,):
         raise DimensionError(
             f"{who}: the compensation {type(compensation).__name__} estimates {shape} "

@@ -74,7 +74,7 @@ class ControllerWrapper:
         return self.controller.step(t, q, dq, reference)
 
 
-def not_reset(controller) -> Exception:
+def not_reset(controller: object) -> Exception:
     """The error of a controller's ``step`` before its ``reset`` (the estimate, the
     integral and the previous torque would be a former run's or undefined)."""
     from ..exceptions import SimulationError

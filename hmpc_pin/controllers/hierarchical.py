@@ -8,6 +8,15 @@ At every control instant :math:`t_k`:
 3. Each joint's MPC (Eq 25–26) chooses its acceleration :math:`v_i` from the
    reference sampled at :math:`t_k + jT_s,\\ j = 1..N`.
 4. Inverse dynamics (Eq 4): :math:`\\tau = M(q)v + C(q,\\dot q)\\dot q + G(q) - \\hat d`.
+
+With joint damping :math:`B` and Coulomb friction :math:`F` in the model (the URDF's
+``<dynamics>``, :attr:`MPCSettings.joint_dynamics`), :math:`C\\dot q + G` reads
+:math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in steps 2 and 4, and a damped
+joint j gets the extra torque :math:`(g_j - 1) m_j v_j`, :math:`m_j = 1/(M^{-1})_{jj}`,
+:math:`g_j = a_jT_s / (1 - e^{-a_jT_s})`, :math:`a_j = b_j/m_j`: with the torque held over
+the period and :math:`b_j\\dot q_k` compensated at the sampled velocity, the damped joint
+then gains exactly the velocity :math:`v_jT_s` the MPC's double integrator predicts (the
+zero-order-hold discretisation of :math:`m_j\\dot w = -b_jw + u`).
 """
 
 from __future__ import annotations
@@ -59,6 +68,12 @@ class MPCSettings:
         backend: Deprecated since 0.3 and without effect: the step is always compiled
             (:mod:`hmpc_pin.native`). ``"auto"`` and ``"native"`` are accepted silently,
             ``"python"`` with a :class:`DeprecationWarning`.
+        joint_dynamics: Compensate the model's joint damping and Coulomb friction
+            (:attr:`~hmpc_pin.model.robot.Robot.joint_damping`, ``joint_friction``, the
+            URDF's ``<dynamics>``): :math:`C\\dot q + G` becomes
+            :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
+            Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
+            (:meth:`HierarchicalMPC.zoh_gains`). Default ``True``.
     """
 
     Ts: float = 0.01
@@ -73,6 +88,7 @@ class MPCSettings:
     max_iter: int = 1000
     qp_layout: str = "auto"
     backend: str = "auto"
+    joint_dynamics: bool = True
 
     def bounds(self, n: int) -> tuple[FloatArray, FloatArray]:
         """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints."""
@@ -263,9 +279,25 @@ class HierarchicalMPC(AppliedTorque):
             buf["v"], buf["tau"], buf["d_hat"], self._M, buf["nle"],
         )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
+        b, f = self.joint_dynamics
+        if b.any() or f.any():
+            core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
         self._reference = None  # the reference's native form is set on the next step
         self.effort_limit = self.effort_limit
+
+    @property
+    def joint_dynamics(self) -> tuple[FloatArray, FloatArray]:
+        """``(B, F)``: the joint damping [N·m·s/rad] and Coulomb friction [N·m] the step
+        compensates (the model's, :attr:`~hmpc_pin.model.robot.Robot.joint_damping` and
+        ``joint_friction``; zeros with ``settings.joint_dynamics = False``)."""
+        n = self.n
+        if not self.settings.joint_dynamics:
+            return np.zeros(n), np.zeros(n)
+        robot = self.robot
+        b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float)
+        f = np.asarray(getattr(robot, "joint_friction", np.zeros(n)), dtype=float)
+        return b.copy(), f.copy()
 
     @AppliedTorque.effort_limit.setter  # type: ignore[attr-defined]
     def effort_limit(self, limit: FloatArray | None) -> None:
@@ -390,6 +422,8 @@ class HierarchicalMPC(AppliedTorque):
         if self._python_dynamics:
             M[:] = self.robot.mass_matrix(q)
             nle[:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
+            b, f = self.joint_dynamics
+            nle += b * dq + f * np.sign(dq)
         comp = self.compensation
         if self._started:
             d_hat = comp.update(M, nle, q, dq, self._applied(), self.v)

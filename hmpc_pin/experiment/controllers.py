@@ -31,6 +31,7 @@ def mpc_settings(cc, n: int) -> MPCSettings:
         max_iter=cc.max_iter if cc.max_iter is not None else 1000,
         qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
         backend=cc.backend if cc.backend is not None else "auto",
+        joint_dynamics=cc.joint_dynamics if cc.joint_dynamics is not None else True,
     )  # fmt: skip
 
 

@@ -33,8 +33,9 @@ The URDF is made consistent with the controller's model before MuJoCo sees it:
   turns into a joint equality constraint :math:`q_f = m q_l + o`, made stiff (see
   :func:`mujoco_model`); a follower the controller controls as an independent coordinate
   loses it; a locked follower is fixed with its leader;
-* ``<dynamics damping friction>``: imported only with ``import_urdf_dynamics = True``
-  (Pinocchio's model ignores them, so by default MuJoCo does too);
+* ``<dynamics damping friction>``: imported as ``dof_damping`` and ``dof_frictionloss``
+  of the joint's dof (matched by name) unless ``import_urdf_dynamics = False``, as the
+  Pinocchio plants apply them (:attr:`~hmpc_pin.model.robot.Robot.joint_damping`);
 * the joints are matched to the controller's by name, not by order.
 
 ``mujoco`` is an optional dependency (extra ``mujoco``); it is imported when a plant is
@@ -155,7 +156,8 @@ class MuJoCoSettings:
         damping: Viscous joint damping [N·m·s/rad], ``dof_damping``.
         armature: Rotor inertia added to the joint [kg·m²], ``dof_armature``.
         import_urdf_dynamics: Keep the URDF's ``<dynamics damping friction>`` (added to
-            the values above); ``False`` (default) drops them, as Pinocchio does.
+            the values above; default ``True``, as the Pinocchio plants apply them);
+            ``False`` drops them.
         geometry: ``"collision"`` (the URDF's collision geometry, default), ``"visual"``
             (its visual geometry used for collisions, e.g. for an arm without collision
             tags) or ``"none"`` (no geometry: dynamics only).
@@ -167,7 +169,7 @@ class MuJoCoSettings:
     frictionloss: float | tuple[float, ...] = 0.0
     damping: float | tuple[float, ...] = 0.0
     armature: float | tuple[float, ...] = 0.0
-    import_urdf_dynamics: bool = False
+    import_urdf_dynamics: bool = True
     geometry: str = "collision"
     obstacle: Obstacle | None = None
     package_dirs: tuple[str, ...] = field(default_factory=tuple)

@@ -11,6 +11,11 @@ other oracles of this folder:
    sampled at :math:`t_k + jT_s,\\ j = 1..N`
    (:class:`~tests.reference.joint_qps.NumpyJointQPs`);
 4. :math:`\\tau = M v + C\\dot q + G - \\hat d` with :math:`v` the first input (Eq 4).
+
+With joint damping and friction ``(B, F)`` compensated, :math:`C\\dot q + G` carries
+:math:`+B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in steps 2 and 4, and joint j's torque gets
+:math:`(g_j - 1) v_j / (M^{-1})_{jj}`, :math:`g_j = x/(1 - e^{-x})`,
+:math:`x = b_j (M^{-1})_{jj} T_s` (``numpy.linalg.inv``).
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ class OracleHMPC:
         if form is not None and form[0] == "ndo":
             self.ndo = NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit")
         self.data = self.robot.model.createData()
+        self.joint = ctrl.joint_dynamics  # (B, F) compensated (zeros: none)
 
     def reset(self, dq0: np.ndarray) -> None:
         if self.ndo is not None:
@@ -55,6 +61,8 @@ class OracleHMPC:
         M = pin.crba(model, data, q)
         M = np.triu(M) + np.triu(M, 1).T
         nle = pin.rnea(model, data, q, dq, np.zeros_like(dq))
+        B, F = self.joint
+        nle = nle + B * dq + F * np.sign(dq)
         if self.ndo is not None and tau_applied_prev is not None:
             self.d_hat = self.ndo.update(M, nle, dq, tau_applied_prev)
         times = t + self.Ts * np.arange(1, self.N + 1)
@@ -64,4 +72,10 @@ class OracleHMPC:
         x0 = np.vstack([q, dq])
         G = self.mpc.gradient(x0, ref)
         U, _slack, _soft = self.qps.solve(G, x0)
-        return M @ U[0] + nle - self.d_hat, self.d_hat.copy()
+        v = U[0]
+        tau = M @ v + nle - self.d_hat
+        minv = np.diag(np.linalg.inv(M))
+        x = B * minv * self.Ts
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g = np.where(x > 0, x / (1.0 - np.exp(-x)), 1.0)
+        return tau + (g - 1.0) / minv * v, self.d_hat.copy()

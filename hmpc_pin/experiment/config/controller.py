@@ -238,6 +238,10 @@ class ControllerConfig:
             compiled one, :mod:`hmpc_pin.native`; ``"auto"`` and ``"native"`` load silently,
             ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
+        joint_dynamics: Compensate the URDF's joint damping and Coulomb friction in the
+            inverse dynamics, :math:`\\tau \\mathrel{+}= b\\dot q + f\\,\\mathrm{sgn}\\,\\dot q`,
+            with the zero-order-hold gain of the damped joints (``hmpc``; default ``true``;
+            no effect on an arm whose URDF declares none).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
     """
 
@@ -259,6 +263,7 @@ class ControllerConfig:
     backend: str | None = None
     ism: ISMConfig | None = None
     computed_torque: ComputedTorqueConfig | None = None
+    joint_dynamics: bool | None = None
 
     def __post_init__(self):
         _set(self, "Ts", _float("Ts", self.Ts, positive=True))
@@ -352,6 +357,8 @@ class ControllerConfig:
             _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
             backend = "auto" if self.backend is None else self.backend
             _set(self, "backend", _choice("backend", backend, BACKENDS))
+            jd = True if self.joint_dynamics is None else self.joint_dynamics
+            _set(self, "joint_dynamics", _bool("joint_dynamics", jd))
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)

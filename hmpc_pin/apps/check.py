@@ -89,7 +89,8 @@ class CheckReport:
         for j, name in enumerate(self.joints):
             bw = "-" if self.bandwidth is None else f"{self.bandwidth[j]:.3g}"
             wts = "-" if self.bandwidth is None else f"{self.bandwidth[j] * self.Ts:.3g}"
-            mg = "-" if self.margin is None else f"{math.degrees(self.margin[j]):.0f} deg"
+            mg = ("-" if self.margin is None else "none" if self.margin[j] <= 0
+                  else f"{math.degrees(self.margin[j]):.0f} deg")  # fmt: skip
             tau = "-" if not np.isfinite(self.damping_tau[j]) else f"{self.damping_tau[j]:.3g}"
             hr = "-" if not np.isfinite(self.headroom[j]) else f"{100 * self.headroom[j]:.0f} %"
             lines.append(f"{name:<24} {bw:>9} {wts:>7} {mg:>8} {tau:>9} {hr:>9}")
@@ -175,7 +176,10 @@ def _engines(ex: Experiment) -> tuple[float, float] | str:
         data.qpos[qadr], data.qvel[vadr] = q, dq
         data.qfrc_applied[vadr] = tau
         mujoco.mj_forward(model, data)
-        mujoco.mj_fullM(model, full, data.qM)
+        try:  # MuJoCo >= 3.3: mj_fullM(m, d, dst); before: mj_fullM(m, dst, d.qM)
+            mujoco.mj_fullM(model, data, full)
+        except TypeError:
+            mujoco.mj_fullM(model, full, data.qM)
         M_mj = full[np.ix_(vadr, vadr)]
         M_pin = robot.mass_matrix(q)
         err_M = max(err_M, float(np.abs(M_mj - M_pin).max() / np.abs(M_pin).max()))
@@ -204,16 +208,17 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     margin = None
     if bw is not None:
         margin = math.pi / 2 - bw * (latency + Ts / 2)
-        for j in np.flatnonzero(bw * Ts > 1.0):
+        limit = math.pi / 2 / (latency + Ts / 2)
+        for j in np.flatnonzero((bw * Ts > 1.0) | (margin <= 0.0)):
+            why = []
+            if bw[j] * Ts > 1.0:
+                why.append(f"w Ts = {bw[j] * Ts:.3g} > 1")
+            if margin[j] <= 0.0:
+                why.append(f"no phase margin for a latency of {latency:g} s "
+                           f"(pi/2 - w (L + Ts/2) = {margin[j]:.3g} rad)")  # fmt: skip
             problems.append(
-                f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s is {bw[j] * Ts:.3g}/Ts "
-                f"(Ts = {Ts:g} s); keep it <= 1/Ts = {1 / Ts:.3g} 1/s (lower the observer gain)"
-            )
-        for j in np.flatnonzero(margin <= 0.0):
-            problems.append(
-                f"joint {names[j]!r}: the observer loop has no phase margin for a latency of "
-                f"{latency:g} s (pi/2 - w (L + Ts/2) = {math.degrees(margin[j]):.0f} deg); "
-                f"keep the bandwidth below {math.pi / 2 / (latency + Ts / 2):.3g} 1/s"
+                f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s: {'; '.join(why)}; "
+                f"keep it below {min(1 / Ts, limit):.3g} 1/s (lower the observer gain)"
             )
 
     b = robot.joint_damping

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from ..compensation.base import Compensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import DimensionError, NonFiniteError
+from ..exceptions import DimensionError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import deprecated_backend, model_string
@@ -39,7 +39,7 @@ from ..native import load as load_native
 from ..tasks.base import Reference, as_reference
 from .base import AppliedTorque
 
-__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits"]
+__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits", "warn_fast_damping"]
 
 FloatArray = NDArray[np.float64]
 
@@ -150,6 +150,29 @@ def state_limits(
         vel = inf.copy()
     return StateLimits(lo, hi, vel, slack_weight=slack_weight,
                        slack_linear_weight=slack_linear_weight)  # fmt: skip
+
+
+def warn_fast_damping(robot: Robot, Ts: float) -> None:
+    """A :class:`~hmpc_pin.exceptions.ValidityWarning` naming each joint of ``robot`` (the
+    arm as simulated or built) whose URDF damping time constant :math:`M_{jj}/b_j` (at
+    mid-range) is below :math:`2T_s` [s], for a controller that does not compensate the
+    joint dynamics (``joint_dynamics = False``): tracking degrades there."""
+    n = robot.nq
+    b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float)
+    if not b.any():
+        return
+    lo = np.where(np.isfinite(robot.lower), robot.lower, 0.0)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, 0.0)
+    M = robot.mass_matrix(0.5 * (lo + hi))
+    for j in np.flatnonzero((b > 0) & (np.diag(M) < 2 * Ts * b)):
+        warnings.warn(
+            f"joint {robot.joint_names[j]!r}: its URDF damping's time constant "
+            f"M_jj/b = {M[j, j] / b[j]:.3g} s is below 2 Ts = {2 * Ts:g} s and the "
+            "controller does not compensate it (joint_dynamics = false): tracking "
+            "degrades; set controller.joint_dynamics = true or lower Ts",
+            ValidityWarning,
+            stacklevel=3,
+        )
 
 
 class HierarchicalMPC(AppliedTorque):

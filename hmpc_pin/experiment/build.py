@@ -18,7 +18,7 @@ import numpy as np
 
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
-from ..controllers.hierarchical import HierarchicalMPC
+from ..controllers.hierarchical import HierarchicalMPC, warn_fast_damping
 from ..controllers.wrappers import CollisionReaction
 from ..exceptions import (
     ConfigError,
@@ -265,6 +265,9 @@ class Experiment:
         )
         robot.check_mass_matrix(q0)
         warn_validity(robot, config.controller)
+        cc = config.controller
+        if cc.kind == "hmpc" and not cc.joint_dynamics and config.plant.joint_dynamics:
+            warn_fast_damping(plant, cc.Ts)  # the simulated arm has them, uncompensated
         controller = make_controller(robot, config.controller)
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
         controller.effort_limit = _effort_limit(config, plant)

@@ -325,6 +325,12 @@ struct HMPCCore {
   // of the torque held the damped joint reaches the velocity the MPC's double integrator
   // predicts (finish()).
   Vec jb, jf, nle_j, jv, extra;
+  // J = B q̇_k + F σ + ZOH gain: the joint-dynamics torque of the last finish(). The observer
+  // is given the applied torque minus J and C q̇ + G without the joint terms: what the
+  // joint dynamics took over the period J was designed to cancel, the model of Eq (13) is
+  // the plain rigid body again (its Euler model of a damped joint would be wrong by g_j).
+  Vec jtau;
+  const Vec* nle0 = nullptr;  // C q̇ + G alone of the last prepare (compiled dynamics)
   bool joint = false;
   double zoh_Ts = 0.0;
   Eigen::LLT<Mat> llt;
@@ -404,6 +410,8 @@ struct HMPCCore {
     zoh_Ts = joint ? Ts : 0.0;
     nle_j.setZero(n);
     jv.setZero(n);
+    extra.setZero(n);
+    jtau.setZero(n);
   }
 
   void set_effort(const CRefVec& limit) {
@@ -420,6 +428,7 @@ struct HMPCCore {
     qp->qps.constrained_last = false;
     qp->qps.constrained = 0;
     started = false;
+    if (joint) jtau.setZero();
   }
 
   // The first half of a step from the stack S: the gradients, and M, C q̇ + G -- computed
@@ -438,7 +447,7 @@ struct HMPCCore {
     if (dynamics) {
       if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
       M = &dyn->mass_matrix(qv);
-      nle = &dyn->nle(qv, dqv);
+      nle = nle0 = &dyn->nle(qv, dqv);
       if (joint) {  // + B q̇ + F sgn q̇ (sgn 0 = 0)
         for (int i = 0; i < n; ++i) {
           const double s = (dqv[i] > 0.0) - (dqv[i] < 0.0);
@@ -446,9 +455,9 @@ struct HMPCCore {
         }
         nle = &nle_j;
       }
-      if (export_) {
+      if (export_) {  // C q̇ + G alone: the compensation's model (the joint terms: J)
         M_out.map = *M;
-        nle_out.map.row(0) = nle->transpose();
+        nle_out.map.row(0) = nle0->transpose();
       }
     }
     return 0;
@@ -478,6 +487,12 @@ struct HMPCCore {
       if (external) zoh_gain(Mat(M_out.map));
       else zoh_gain(*M);
       t += extra;
+    }
+    if (joint) {  // J of this step, for the observer's next update
+      for (int i = 0; i < n; ++i) {
+        const double sg = (dqv[i] > 0.0) - (dqv[i] < 0.0);
+        jtau[i] = jb[i] * dqv[i] + jf[i] * sg + extra[i];
+      }
     }
     t -= dhat.map.row(0).transpose();
     started = true;
@@ -536,7 +551,13 @@ struct HMPCCore {
     if (code) return code;
     if (started && ndo) {
       // Eq (13) over the period that just ended, with the torque applied over it.
-      ndo->ndo.update(*M, *nle, dqv, applied_torque());
+      if (joint) {  // the rigid body's model, the torque beyond J (see jtau)
+        applied_torque();
+        applied -= jtau;
+        ndo->ndo.update(*M, *nle0, dqv, applied);
+      } else {
+        ndo->ndo.update(*M, *nle, dqv, applied_torque());
+      }
       dhat.map.row(0) = ndo->ndo.estimate.transpose();
     }
     return finish();
@@ -674,5 +695,7 @@ PYBIND11_MODULE(_core, m) {
       .def("set_sine", &HMPCCore::set_sine)
       .def("set_ppoly", &HMPCCore::set_ppoly)
       .def("clear_reference", &HMPCCore::clear_reference)
-      .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); });
+      .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); })
+      .def_property_readonly("joint_torque", [](const HMPCCore& c) {
+             return c.joint ? Vec(c.jtau) : Vec(Vec::Zero(c.n)); });
 }

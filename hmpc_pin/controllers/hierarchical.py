@@ -439,20 +439,28 @@ class HierarchicalMPC(AppliedTorque):
 
     def _python_compensation(self) -> None:
         """Between the step's halves: M and C q̇ + G (from Pinocchio's Python API where the
-        compiled dynamics cannot load the model), then the compensation's estimate."""
+        compiled dynamics cannot load the model), then the compensation's estimate. With
+        joint dynamics compensated, the compensation gets C q̇ + G alone and the applied
+        torque minus the joint-dynamics torque J of the last step (the compiled step's
+        ``joint_torque``), as the compiled observer does."""
         q, dq = self._stack[0].copy(), self._stack[1].copy()
         M, nle = self._M, self._buf["nle"]
         if self._python_dynamics:
             M[:] = self.robot.mass_matrix(q)
             nle[:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
-            b, f = self.joint_dynamics
-            nle += b * dq + f * np.sign(dq)
+        b, f = self.joint_dynamics
+        joint = bool(b.any() or f.any())
         comp = self.compensation
         if self._started:
-            d_hat = comp.update(M, nle, q, dq, self._applied(), self.v)
+            applied = self._applied()
+            if joint:
+                applied = applied - self._core.joint_torque
+            d_hat = comp.update(M, nle, q, dq, applied, self.v)
         else:
             d_hat = comp.estimate
         self.disturbance_estimate[:] = d_hat
+        if self._python_dynamics and joint:  # Eq 4 takes C q̇ + G + B q̇ + F sgn q̇
+            nle += b * dq + f * np.sign(dq)
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its

@@ -13,7 +13,9 @@ other oracles of this folder:
 4. :math:`\\tau = M v + C\\dot q + G - \\hat d` with :math:`v` the first input (Eq 4).
 
 With joint damping and friction ``(B, F)`` compensated, :math:`C\\dot q + G` carries
-:math:`+B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in steps 2 and 4, and joint j's torque gets
+:math:`+B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in step 4 (the observer of step 2 is given
+:math:`C\\dot q + G` alone and the applied torque minus the last step's joint-dynamics
+torque :math:`J = B\\dot q + F\\sigma + (g - 1)v/(M^{-1})_{jj}`), and joint j's torque gets
 :math:`(g_j - 1) v_j / (M^{-1})_{jj}`, :math:`g_j = x/(1 - e^{-x})`,
 :math:`x = b_j (M^{-1})_{jj} T_s` (``numpy.linalg.inv``), and the Coulomb term
 :math:`f_j\\,\\mathrm{sgn}\\,\\dot q_j` is replaced by :math:`f_j\\sigma_j`, the sign of the
@@ -56,17 +58,18 @@ class OracleHMPC:
         if self.ndo is not None:
             self.ndo.reset(dq0)
         self.d_hat = np.zeros(self.robot.nq)
+        self.J = np.zeros(self.robot.nq)  # the joint-dynamics torque of the last step
 
     def step(self, t, q, dq, reference, tau_applied_prev=None) -> tuple[np.ndarray, np.ndarray]:
         """Returns ``(τ, d̂)``; ``tau_applied_prev`` is None at the first step."""
         model, data = self.robot.model, self.data
         M = pin.crba(model, data, q)
         M = np.triu(M) + np.triu(M, 1).T
-        nle = pin.rnea(model, data, q, dq, np.zeros_like(dq))
+        nle0 = pin.rnea(model, data, q, dq, np.zeros_like(dq))
         B, F = self.joint
-        nle = nle + B * dq + F * np.sign(dq)
         if self.ndo is not None and tau_applied_prev is not None:
-            self.d_hat = self.ndo.update(M, nle, dq, tau_applied_prev)
+            # the rigid body's model; the torque beyond the last step's joint torque J
+            self.d_hat = self.ndo.update(M, nle0, dq, tau_applied_prev - self.J)
         times = t + self.Ts * np.arange(1, self.N + 1)
         q_ref, dq_ref = reference.sample_many(times)
         ref = np.empty((2 * self.N, q.size))
@@ -75,15 +78,16 @@ class OracleHMPC:
         G = self.mpc.gradient(x0, ref)
         U, _slack, _soft = self.qps.solve(G, x0)
         v = U[0]
-        tau = M @ v + nle - self.d_hat
         minv = np.diag(np.linalg.inv(M))
         x = B * minv * self.Ts
         with np.errstate(invalid="ignore", divide="ignore"):
             g = np.where(x > 0, x / (1.0 - np.exp(-x)), 1.0)
-        tau = tau + (g - 1.0) / minv * v
+        sigma = np.sign(dq)
         for j in np.flatnonzero(F):
-            tau[j] += F[j] * (self._mean_sign(dq[j], dq[j] + v[j] * self.Ts, x[j])
-                              - np.sign(dq[j]))  # fmt: skip
+            sigma[j] = self._mean_sign(dq[j], dq[j] + v[j] * self.Ts, x[j])
+        J = B * dq + F * sigma + (g - 1.0) / minv * v
+        tau = M @ v + nle0 + J - self.d_hat
+        self.J = J
         return tau, self.d_hat.copy()
 
     @staticmethod

@@ -6,7 +6,7 @@
   2 ms, below the 10 ms period) and Coulomb friction :math:`I\\dot\\omega = -f`; switched
   off by ``joint_dynamics=False``; the compiled RK4 period equals its oracle with them; each
   MuJoCo dof gets its own joint's values.
-- Compensated by the step: one period from the step's torque takes a damped joint to the
+- Compensated by the step (compiled observer or one called from Python alike): one period from the step's torque takes a damped joint to the
   velocity the MPC's double integrator predicts (the zero-order-hold gain), also from rest
   against Coulomb friction; without compensation it falls short by the closed-form factor;
   whole runs equal the oracle step.
@@ -276,3 +276,28 @@ def test_config_keys_of_the_joint_dynamics():
     with pytest.raises(ConfigError, match="import_urdf_dynamics"):
         PlantConfig(engine="mujoco", joint_dynamics=False,
                     mujoco={"import_urdf_dynamics": True})  # fmt: skip
+
+
+def test_a_python_compensation_gets_what_the_compiled_observer_gets():
+    """Z1 with its joint dynamics: the NDO called from Python between the step's halves
+    (given C q̇ + G alone and the applied torque minus the step's joint torque J) gives the
+    fused step's run bit for bit."""
+    from .test_native import _Unfused
+
+    config = load_config(CONFIGS / "z1_sine.toml")
+    config = replace(
+        config,
+        controller=replace(config.controller, joint_dynamics=True),
+        plant=replace(config.plant, joint_dynamics=True),
+        simulation=replace(config.simulation, duration=1.0),
+    )
+    runs = []
+    for fused in (True, False):
+        ex = hmpc_pin.Experiment.from_config(config)
+        if not fused:
+            ex.controller.compensation = _Unfused(ex.controller.compensation)
+        assert ex.controller.fused is fused
+        runs.append(ex.run())
+    assert np.abs(runs[0].d_hat).max() > 0.01  # the observer was at work
+    for name in ("q", "dq", "tau", "d_hat"):
+        np.testing.assert_array_equal(getattr(runs[1], name), getattr(runs[0], name))

@@ -6,10 +6,11 @@
   2 ms, below the 10 ms period) and Coulomb friction :math:`I\\dot\\omega = -f`; switched
   off by ``joint_dynamics=False``; the compiled RK4 period equals its oracle with them; each
   MuJoCo dof gets its own joint's values.
-- Compensated by the step (compiled observer or one called from Python alike): one period from the step's torque takes a damped joint to the
-  velocity the MPC's double integrator predicts (the zero-order-hold gain), also from rest
-  against Coulomb friction; without compensation it falls short by the closed-form factor;
-  whole runs equal the oracle step.
+- Compensated by the step (compiled observer or one called from Python alike): one
+  period from the step's torque takes a damped joint to the velocity the MPC's double
+  integrator predicts (the zero-order-hold gain), also from rest against Coulomb
+  friction; without compensation it falls short by the closed-form factor; whole runs
+  equal the oracle step.
 - Config: the keys, the deprecated ``plant.mujoco.import_urdf_dynamics``, a key that does
   not apply.
 """

@@ -122,3 +122,19 @@ def test_engines_that_disagree_are_detected():
     ex.robot = ex.robot.with_scaled_inertias([1.0, 1.0, 1.5])
     err_M, err_a = _engines(ex)
     assert err_M > 0.01 and err_a > 0.01
+
+
+@pytest.mark.parametrize("compensation, expected", [("momentum", 100.0), ("ism", None),
+                                                    ("none", None)])  # fmt: skip
+def test_the_bandwidth_is_the_observers_own(compensation, expected):
+    """Momentum observer: K [1/s] itself; no observer (ISM, none): no bandwidth, no margin."""
+    from hmpc_pin.experiment.schema import ControllerConfig
+
+    config = load_config(PAPER)
+    config = replace(config, controller=ControllerConfig(compensation=compensation))
+    report = check_config(config, engines=False)
+    if expected is None:
+        assert report.bandwidth is None and report.margin is None
+    else:
+        np.testing.assert_array_equal(report.bandwidth, expected)
+    assert report.problems == []

@@ -114,15 +114,16 @@ def _latency(config: ExperimentConfig) -> float:
 
 def _bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
     """The observer's bandwidth per joint [1/s], or ``None`` without an observer."""
+    from ..compensation.observers import DisturbanceObserver, MomentumObserver
+
     comp = getattr(ex.controller, "compensation", None)
-    if comp is None:
-        return None
-    if hasattr(comp, "K"):  # momentum observer
+    while hasattr(comp, "inner"):  # a gate around the observer (collision reaction)
+        comp = comp.inner
+    if isinstance(comp, MomentumObserver):
         return np.broadcast_to(np.asarray(comp.K, dtype=float), (M0.shape[0],)).copy()
-    cY = getattr(comp, "cY", None)
-    if cY is None:
-        return None
-    return np.diag(cY) / np.diag(M0)
+    if isinstance(comp, DisturbanceObserver):
+        return np.diag(comp.cY) / np.diag(M0)
+    return None  # no observer (none, ISM)
 
 
 def _headroom(ex: Experiment, limit: np.ndarray | None) -> np.ndarray:
@@ -212,7 +213,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         for j in np.flatnonzero((bw * Ts > 1.0) | (margin <= 0.0)):
             why = []
             if bw[j] * Ts > 1.0:
-                why.append(f"w Ts = {bw[j] * Ts:.3g} > 1")
+                why.append(f"w Ts = {bw[j] * Ts:.4g} > 1")
             if margin[j] <= 0.0:
                 why.append(f"no phase margin for a latency of {latency:g} s "
                            f"(pi/2 - w (L + Ts/2) = {margin[j]:.3g} rad)")  # fmt: skip

@@ -82,10 +82,14 @@ def main(argv=None) -> int:
         engines = ["pinocchio"]
     print("| plant | plant joint dynamics | controller compensates | observer | worst RMS [rad] |")
     print("|---|---|---|---|---|")
-    for engine in engines:
+    for engine in engines + (["mujoco, friction_timeconst = 2 ms"] if "mujoco" in engines else []):
         # the Pinocchio plant at 0.1 ms: RK4 resolves the 0.8 ms time constant
-        pc = (replace(base.plant, dt=1e-4) if engine == "pinocchio"
-              else replace(base.plant, engine="mujoco"))  # fmt: skip
+        if engine == "pinocchio":
+            pc = replace(base.plant, dt=1e-4)
+        else:
+            pc = replace(base.plant, engine="mujoco")
+            if "friction_timeconst" in engine:  # MuJoCo's friction closer to Coulomb's
+                pc = replace(pc, mujoco=replace(pc.mujoco, friction_timeconst=0.002))
         for plant_jd, ctrl_jd, obs in [(False, False, True), (True, False, True),
                                        (True, True, True), (True, True, False)]:  # fmt: skip
             cfg = replace(base, plant=replace(pc, joint_dynamics=plant_jd),

@@ -50,6 +50,7 @@ def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
     return MuJoCoSettings(
         integrator=mc.integrator,
         import_urdf_dynamics=pc.joint_dynamics,
+        friction_timeconst=mc.friction_timeconst,
         geometry=mc.geometry,
         obstacle=None if ob is None else Obstacle(
             tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction,

@@ -155,6 +155,11 @@ class MuJoCoSettings:
             order), MuJoCo's ``dof_frictionloss``.
         damping: Viscous joint damping [N·m·s/rad], ``dof_damping``.
         armature: Rotor inertia added to the joint [kg·m²], ``dof_armature``.
+        friction_timeconst: Time constant [s] of the joints' dry-friction constraint (the
+            controlled dofs' ``dof_solref``, damping ratio 1); ``None`` (default) keeps
+            MuJoCo's 0.02 s. MuJoCo's ``frictionloss`` is a soft constraint: on a joint of
+            small inertia or fast damping its force stays far below ``f`` at the speeds of a
+            run unless this is short (2 timesteps is MuJoCo's shortest advisable value).
         import_urdf_dynamics: Keep the URDF's ``<dynamics damping friction>`` (added to
             the values above; default ``True``, as the Pinocchio plants apply them);
             ``False`` drops them.
@@ -169,6 +174,7 @@ class MuJoCoSettings:
     frictionloss: float | tuple[float, ...] = 0.0
     damping: float | tuple[float, ...] = 0.0
     armature: float | tuple[float, ...] = 0.0
+    friction_timeconst: float | None = None
     import_urdf_dynamics: bool = True
     geometry: str = "collision"
     obstacle: Obstacle | None = None
@@ -190,6 +196,9 @@ class MuJoCoSettings:
                 "'none' leaves the arm without geometry, so it cannot touch the obstacle; "
                 "use 'collision' or 'visual'",
             )
+        tc = self.friction_timeconst
+        if tc is not None and not (isinstance(tc, (int, float)) and math.isfinite(tc) and tc > 0):
+            raise ConfigError("friction_timeconst", f"expected a time [s] > 0, got {tc!r}")
         for name in ("frictionloss", "damping", "armature"):
             value = np.asarray(getattr(self, name), dtype=float)
             if value.ndim > 1 or not np.all(np.isfinite(value)) or np.any(value < 0):
@@ -439,6 +448,8 @@ def mujoco_model(robot: Robot, settings: MuJoCoSettings | None = None):
     for name in ("frictionloss", "damping", "armature"):
         base = getattr(model, f"dof_{name}")[dofs] if s.import_urdf_dynamics else 0.0
         getattr(model, f"dof_{name}")[dofs] = base + s.per_joint(name, n)
+    if s.friction_timeconst is not None:
+        model.dof_solref[dofs] = (s.friction_timeconst, 1.0)
     model.opt.integrator = getattr(mujoco.mjtIntegrator, MUJOCO_INTEGRATORS[s.integrator])
     model.opt.gravity[:] = robot.model.gravity.linear
     if s.obstacle is None:

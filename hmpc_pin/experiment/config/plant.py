@@ -65,6 +65,9 @@ class MuJoCoConfig:
             value (default 0).
         damping: Viscous joint damping [N·m·s/rad], per joint or one value (default 0).
         armature: Rotor inertia added to each joint [kg·m²] (default 0).
+        friction_timeconst: Time constant [s] of MuJoCo's joint dry-friction constraint
+            (``dof_solref``; default: MuJoCo's 0.02 s). Shorter is closer to Coulomb's
+            :math:`-f\\,\\mathrm{sgn}\\,\\dot q`; at least twice ``timestep``.
         import_urdf_dynamics: Deprecated since 0.4: use ``[plant] joint_dynamics`` (the
             same switch for every engine). Loads with a :class:`DeprecationWarning` and
             sets ``plant.joint_dynamics``.
@@ -79,6 +82,7 @@ class MuJoCoConfig:
     frictionloss: np.ndarray = 0.0
     damping: np.ndarray = 0.0
     armature: np.ndarray = 0.0
+    friction_timeconst: float | None = None
     import_urdf_dynamics: bool | None = None
     geometry: str = "collision"
     obstacle: ObstacleConfig | None = None
@@ -86,6 +90,15 @@ class MuJoCoConfig:
     def __post_init__(self):
         _set(self, "integrator", _choice("integrator", self.integrator, tuple(MUJOCO_INTEGRATORS)))
         _set(self, "timestep", _float("timestep", self.timestep, positive=True))
+        if self.friction_timeconst is not None:
+            tc = _float("friction_timeconst", self.friction_timeconst, positive=True)
+            if tc < 2 * self.timestep:
+                raise ConfigError(
+                    "friction_timeconst", f"{tc:g} s is below 2 timesteps "
+                    f"({2 * self.timestep:g} s), where MuJoCo's soft constraint is unstable; "
+                    "expected at least twice plant.mujoco.timestep",
+                )  # fmt: skip
+            _set(self, "friction_timeconst", tc)
         for name in ("frictionloss", "damping", "armature"):
             _set(self, name, _array(name, getattr(self, name), nonneg=True))
         if self.import_urdf_dynamics is not None:

@@ -1,5 +1,5 @@
 """Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
-realtime | identify | tune`` (also ``python -m hmpc_pin``).
+check | realtime | identify | tune`` (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback, checked before any run: no output file), 1 when a run fails (e.g.
@@ -394,6 +394,37 @@ def add_init_parser(sub) -> None:
     ini.set_defaults(func=cmd_init)
 
 
+def cmd_check(args) -> int:
+    """``hmpc-pin check CONFIG``: per-joint figures; exit 1 with one line per problem."""
+    from .check import check_config
+
+    report = check_config(load_config(args.config), engines=not args.no_engine)
+    print(report.format())
+    for line in report.problems:
+        print(f"problem: {line}")
+    if report.problems:
+        return EXIT_FAILED
+    print("no problem found")
+    return EXIT_OK
+
+
+def add_check_parser(sub) -> None:
+    """The ``check`` subcommand."""
+    chk = sub.add_parser(
+        "check",
+        help="check a config's arm before running it (observer, damping, torque, engines)",
+        description="Before anything runs on an arm, per joint: the observer bandwidth "
+        "times Ts, its phase margin for the configured latency, the URDF damping's time "
+        "constant against Ts, the torque headroom along the reference, and (with MuJoCo "
+        "installed) the model against MuJoCo's. Exit 0 when fine, 1 with one line per "
+        "problem, 2 on bad input.",
+    )
+    chk.add_argument("config", type=Path, help="experiment TOML file")
+    chk.add_argument("--no-engine", action="store_true",
+                     help="do not compare the model against MuJoCo")  # fmt: skip
+    chk.set_defaults(func=cmd_check)
+
+
 def cmd_realtime(args) -> int:
     from .realtime import ArmView, format_tracking, run_realtime, with_realtime
 
@@ -598,6 +629,7 @@ def build_parser() -> argparse.ArgumentParser:
     from .tune import add_tune_parser
 
     add_tune_parser(sub).set_defaults(func=cmd_tune)
+    add_check_parser(sub)
 
     rt = sub.add_parser(
         "realtime",

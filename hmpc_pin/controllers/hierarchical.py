@@ -8,6 +8,15 @@ At every control instant :math:`t_k`:
 3. Each joint's MPC (Eq 25–26) chooses its acceleration :math:`v_i` from the
    reference sampled at :math:`t_k + jT_s,\\ j = 1..N`.
 4. Inverse dynamics (Eq 4): :math:`\\tau = M(q)v + C(q,\\dot q)\\dot q + G(q) - \\hat d`.
+
+With joint damping :math:`B` and Coulomb friction :math:`F` in the model (the URDF's
+``<dynamics>``, :attr:`MPCSettings.joint_dynamics`), :math:`C\\dot q + G` reads
+:math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in steps 2 and 4, and a damped
+joint j gets the extra torque :math:`(g_j - 1) m_j v_j`, :math:`m_j = 1/(M^{-1})_{jj}`,
+:math:`g_j = a_jT_s / (1 - e^{-a_jT_s})`, :math:`a_j = b_j/m_j`: with the torque held over
+the period and :math:`b_j\\dot q_k` compensated at the sampled velocity, the damped joint
+then gains exactly the velocity :math:`v_jT_s` the MPC's double integrator predicts (the
+zero-order-hold discretisation of :math:`m_j\\dot w = -b_jw + u`).
 """
 
 from __future__ import annotations
@@ -20,10 +29,10 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ..checks import as_choice, as_float, as_int, mpc_fields
+from ..checks import as_bool, as_choice, as_float, as_int, mpc_fields
 from ..compensation.base import Compensation, check_compensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import ConfigError, DimensionError, NonFiniteError
+from ..exceptions import ConfigError, DimensionError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import deprecated_backend, model_string
@@ -31,7 +40,7 @@ from ..native import load as load_native
 from ..tasks.base import Reference, as_reference, check_reference_size
 from .base import AppliedTorque, not_reset
 
-__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits"]
+__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits", "warn_fast_damping"]
 
 FloatArray = NDArray[np.float64]
 
@@ -65,6 +74,12 @@ class MPCSettings:
             torque applied over the interval its two measurements span, and the MPC and the
             inverse dynamics start from the state predicted over L (the guide
             "Sensing and latency"). L = 0 is the latency-free step, bit for bit.
+        joint_dynamics: Compensate the model's joint damping and Coulomb friction
+            (:attr:`~hmpc_pin.model.robot.Robot.joint_damping`, ``joint_friction``, the
+            URDF's ``<dynamics>``): :math:`C\\dot q + G` becomes
+            :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
+            Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
+            (:meth:`HierarchicalMPC.zoh_gains`). Default ``True``.
     """
 
     Ts: float = 0.01
@@ -80,6 +95,7 @@ class MPCSettings:
     qp_layout: str = "auto"
     backend: str = "auto"
     latency: float = 0.0
+    joint_dynamics: bool = True
 
     def __post_init__(self):
         # The same checks and errors as the [controller] table (hmpc_pin.checks).
@@ -90,6 +106,7 @@ class MPCSettings:
         fields["qp_layout"] = as_choice("MPCSettings.qp_layout", self.qp_layout,
                                         ("auto", "block", "joint"))  # fmt: skip
         fields["latency"] = as_float("MPCSettings.latency", self.latency, nonneg=True)
+        fields["joint_dynamics"] = as_bool("MPCSettings.joint_dynamics", self.joint_dynamics)
         for name, value in fields.items():
             object.__setattr__(self, name, value)
 
@@ -162,6 +179,29 @@ def state_limits(
         vel = inf.copy()
     return StateLimits(lo, hi, vel, slack_weight=slack_weight,
                        slack_linear_weight=slack_linear_weight)  # fmt: skip
+
+
+def warn_fast_damping(robot: Robot, Ts: float) -> None:
+    """A :class:`~hmpc_pin.exceptions.ValidityWarning` naming each joint of ``robot`` (the
+    arm as simulated or built) whose URDF damping time constant :math:`M_{jj}/b_j` (at
+    mid-range) is below :math:`2T_s` [s], for a controller that does not compensate the
+    joint dynamics (``joint_dynamics = False``): tracking degrades there."""
+    n = robot.nq
+    b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float)
+    if not b.any():
+        return
+    lo = np.where(np.isfinite(robot.lower), robot.lower, 0.0)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, 0.0)
+    M = robot.mass_matrix(0.5 * (lo + hi))
+    for j in np.flatnonzero((b > 0) & (np.diag(M) < 2 * Ts * b)):
+        warnings.warn(
+            f"joint {robot.joint_names[j]!r}: its URDF damping's time constant "
+            f"M_jj/b = {M[j, j] / b[j]:.3g} s is below 2 Ts = {2 * Ts:g} s and the "
+            "controller does not compensate it (joint_dynamics = false): tracking "
+            "degrades; set controller.joint_dynamics = true or lower Ts",
+            ValidityWarning,
+            stacklevel=3,
+        )
 
 
 class HierarchicalMPC(AppliedTorque):
@@ -309,9 +349,25 @@ class HierarchicalMPC(AppliedTorque):
         )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
         core.set_latency(self.settings.latency, self.settings.Ts)
+        b, f = self.joint_dynamics
+        if b.any() or f.any():
+            core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
         self._reference = None  # the reference's native form is set on the next step
         self.effort_limit = self.effort_limit
+
+    @property
+    def joint_dynamics(self) -> tuple[FloatArray, FloatArray]:
+        """``(B, F)``: the joint damping [N·m·s/rad] and Coulomb friction [N·m] the step
+        compensates (the model's, :attr:`~hmpc_pin.model.robot.Robot.joint_damping` and
+        ``joint_friction``; zeros with ``settings.joint_dynamics = False``)."""
+        n = self.n
+        if not self.settings.joint_dynamics:
+            return np.zeros(n), np.zeros(n)
+        robot = self.robot
+        b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float)
+        f = np.asarray(getattr(robot, "joint_friction", np.zeros(n)), dtype=float)
+        return b.copy(), f.copy()
 
     @AppliedTorque.effort_limit.setter  # type: ignore[attr-defined]
     def effort_limit(self, limit: FloatArray | None) -> None:
@@ -462,24 +518,34 @@ class HierarchicalMPC(AppliedTorque):
 
     def _python_compensation(self) -> None:
         """Between the step's halves: M and C q̇ + G (from Pinocchio's Python API where the
-        compiled dynamics cannot load the model), then the compensation's estimate."""
+        compiled dynamics cannot load the model), then the compensation's estimate. With
+        joint dynamics compensated, the compensation gets C q̇ + G alone and the applied
+        torque minus the joint-dynamics torque J of the last step (the compiled step's
+        ``joint_torque``), as the compiled observer does."""
         q, dq = self._stack[0].copy(), self._stack[1].copy()
         M, nle = self._M, self._buf["nle"]
         if self._python_dynamics:
             self._python_dynamics_at_stack()
+        b, f = self.joint_dynamics
+        joint = bool(b.any() or f.any())
         comp = self.compensation
         if self.settings.latency > 0:  # the torque and v over the measured interval
-            if self._core.observer_ready():
+            if self._core.observer_ready():  # (the torque beyond the joint dynamics' J)
                 tau_obs, v_obs = self._core.aligned()
                 d_hat = comp.update(M, nle, q, dq, tau_obs, v_obs)
             else:  # the interval begins before the start: restart at this measurement
                 comp.reset(q, dq)
                 d_hat = comp.estimate
         elif self._started:
-            d_hat = comp.update(M, nle, q, dq, self._applied(), self.v)
+            applied = self._applied()
+            if joint:  # the rigid body's model, the torque beyond J
+                applied = applied - self._core.joint_torque
+            d_hat = comp.update(M, nle, q, dq, applied, self.v)
         else:
             d_hat = comp.estimate
         self.disturbance_estimate[:] = d_hat
+        if self._python_dynamics and joint:  # Eq 4 takes C q̇ + G + B q̇ + F sgn q̇
+            nle += b * dq + f * np.sign(dq)
 
     def _python_dynamics_at_stack(self) -> None:
         """M and C q̇ + G at the stack's state from Pinocchio's Python API (models the

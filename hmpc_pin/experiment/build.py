@@ -19,7 +19,7 @@ import numpy as np
 
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
-from ..controllers.hierarchical import HierarchicalMPC
+from ..controllers.hierarchical import HierarchicalMPC, warn_fast_damping
 from ..controllers.wrappers import CollisionReaction, FrictionFeedforward
 from ..exceptions import (
     ConfigError,
@@ -60,6 +60,7 @@ __all__ = [
     "build_disturbance",
     "build_reference",
     "build_task_reference",
+    "check_friction_sources",
     "check_trajectory_limits",
     "load_robot_config",
     "make_arm_plant",
@@ -137,6 +138,28 @@ def warn_validity(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None
             stacklevel=3,
         )
     warn_bandwidth(robot, cc, posture)
+
+
+def check_friction_sources(robot: Robot, cc: ControllerConfig) -> None:
+    """Refuse a friction compensated twice: ``[controller.friction]`` (an identified
+    model, fed forward) on an arm whose URDF declares ``<dynamics damping friction>`` that
+    the hierarchical MPC already compensates (``[controller] joint_dynamics``).
+
+    Raises:
+        ConfigError: Both apply; names the joints whose URDF declares joint dynamics.
+    """
+    if cc.friction is None or cc.kind != "hmpc" or not cc.joint_dynamics:
+        return
+    declared = np.flatnonzero((robot.joint_damping != 0) | (robot.joint_friction != 0))
+    if declared.size:
+        names = ", ".join(robot.joint_names[i] for i in declared)
+        raise ConfigError(
+            "controller.friction",
+            f"the URDF already declares <dynamics> on joints {names}, which [controller] "
+            "joint_dynamics = true compensates; give one friction model: set [controller] "
+            "joint_dynamics = false to use [controller.friction] instead, or remove "
+            "[controller.friction]",
+        )
 
 
 def warn_bandwidth(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None = None) -> None:
@@ -292,8 +315,12 @@ class Experiment:
             else config.vector("simulation.q0", n)
         )
         robot.check_mass_matrix(q0)
-        controller = make_controller(robot, config.controller, posture=q0)  # warns as warn_validity
-        warn_bandwidth(robot, config.controller, q0)
+        cc = config.controller
+        if cc.kind == "hmpc" and not cc.joint_dynamics and config.plant.joint_dynamics:
+            warn_fast_damping(plant, cc.Ts)  # the simulated arm has them, uncompensated
+        check_friction_sources(robot, cc)
+        controller = make_controller(robot, cc, posture=q0)  # warns as warn_validity
+        warn_bandwidth(robot, cc, q0)
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
         controller.effort_limit = _effort_limit(config, plant)
         fm = config.controller.friction

@@ -39,6 +39,7 @@ def mpc_settings(cc, n: int) -> MPCSettings:
         qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
         backend=cc.backend if cc.backend is not None else "auto",
         latency=cc.latency if cc.latency is not None else 0.0,
+        joint_dynamics=cc.joint_dynamics if cc.joint_dynamics is not None else True,
     )  # fmt: skip
 
 

@@ -360,6 +360,10 @@ class Robot:
         lower, upper: Joint position limits [rad or m], shape (n,).
         velocity_limit: Joint velocity limits [rad/s or m/s], shape (n,).
         effort_limit: Joint effort limits [N·m or N], shape (n,).
+        joint_damping, joint_friction: The URDF's ``<dynamics damping friction>`` per
+            coordinate [N·m·s/rad, N·m], shape (n,): the joint torque
+            :math:`-b\\dot q - f\\,\\mathrm{sgn}\\,\\dot q` the plants apply and the inverse
+            dynamics compensates.
     """
 
     def __init__(
@@ -408,6 +412,12 @@ class Robot:
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self.velocity_limit = np.array(model.velocityLimit, dtype=float)
         self.effort_limit = np.array(model.effortLimit, dtype=float)
+        #: Viscous joint damping b [N·m·s/rad or N·s/m] per coordinate, the URDF's
+        #: ``<dynamics damping>`` (Pinocchio's ``model.damping``; 0 where not declared).
+        self.joint_damping = np.array(model.damping, dtype=float)
+        #: Coulomb joint friction f [N·m or N] per coordinate, the URDF's ``<dynamics
+        #: friction>`` (Pinocchio's ``model.friction``; 0 where not declared).
+        self.joint_friction = np.array(model.friction, dtype=float)
         # Pinocchio's C++ CRBA fills only the upper triangle; some bindings
         # symmetrise. Detect once, at a generic configuration (where M has
         # non-zero off-diagonal terms), so the hot path does no needless work.

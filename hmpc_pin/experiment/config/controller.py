@@ -258,6 +258,10 @@ class ControllerConfig:
             compiled one, :mod:`hmpc_pin.native`; ``"auto"`` and ``"native"`` load silently,
             ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
+        joint_dynamics: Compensate the URDF's joint damping and Coulomb friction in the
+            inverse dynamics, :math:`\\tau \\mathrel{+}= b\\dot q + f\\,\\mathrm{sgn}\\,\\dot q`,
+            with the zero-order-hold gain of the damped joints (``hmpc``; default ``true``;
+            no effect on an arm whose URDF declares none).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
         latency: Age of the measurements the controller receives [s] (``hmpc``;
             default 0). With L > 0 the compensation is fed the torque applied over the
@@ -288,6 +292,7 @@ class ControllerConfig:
     computed_torque: ComputedTorqueConfig | None = None
     latency: float | None = None
     friction: FrictionModelConfig | None = None
+    joint_dynamics: bool | None = None
 
     def __post_init__(self):
         fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
@@ -374,6 +379,8 @@ class ControllerConfig:
             _set(self, "backend", _choice("backend", backend, BACKENDS))
             latency = 0.0 if self.latency is None else self.latency
             _set(self, "latency", _float("latency", latency, nonneg=True))
+            jd = True if self.joint_dynamics is None else self.joint_dynamics
+            _set(self, "joint_dynamics", _bool("joint_dynamics", jd))
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)

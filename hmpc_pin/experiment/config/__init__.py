@@ -4,10 +4,11 @@ component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_conf
 ``[robot]`` :mod:`.robot` · ``[controller]`` (and its tables) :mod:`.controller` ·
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
-``[collision]`` :mod:`.collision` · ``[realtime]`` :mod:`.realtime` · the whole file
-:mod:`.experiment`; the value converters shared by all of them :mod:`._fields`; the
-spellings of earlier versions :mod:`.legacy`. Which ``[controller]`` keys apply to which
-controller × compensation is :mod:`hmpc_pin.experiment.combos`.
+``[collision]`` :mod:`.collision` · ``[realtime]`` :mod:`.realtime` · ``[ros]``
+:mod:`.ros` · the whole file :mod:`.experiment`; the value converters shared by all of
+them :mod:`._fields`; the spellings of earlier versions :mod:`.legacy`. Which
+``[controller]`` keys apply to which controller × compensation is
+:mod:`hmpc_pin.experiment.combos`.
 """
 
 from .collision import (
@@ -59,6 +60,7 @@ from .reference import (
 from .robot import (
     RobotConfig,
 )
+from .ros import DISCOVERY_RANGES, RosConfig
 from .simulation import (
     SimulationConfig,
 )
@@ -71,6 +73,7 @@ __all__ = [
     "CONTROLLERS",
     "CONTROLLER_KINDS",
     "DEFAULT_COMPENSATION",
+    "DISCOVERY_RANGES",
     "ENGINES",
     "FRICTION_SIGNS",
     "KIND_ALIASES",
@@ -98,6 +101,7 @@ __all__ = [
     "RealtimeConfig",
     "ReferenceConfig",
     "RobotConfig",
+    "RosConfig",
     "SimulationConfig",
     "SweepConfig",
     "TrajectoryConfig",

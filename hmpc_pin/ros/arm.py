@@ -1,7 +1,8 @@
 """A simulated arm as a ROS 2 node, with the topics and message types of ros2_control.
 
 Every interface period :math:`T_a` (absolute deadlines on the system clock; a late wake
-steps through every period it missed, so the arm's time follows the wall) the node
+steps through every period it missed and publishes each state, so the arm's time follows
+the wall and a state is published per period) the node
 advances its :class:`~hmpc_pin.sim.base.Plant` by one period with the latest effort
 command held, then publishes ``sensor_msgs/JointState`` (name, position, velocity, the
 applied effort; ``header.stamp`` the system time of the measurement) as
@@ -39,7 +40,8 @@ class RosArmNode:
         effort_limit: Per-joint torque limit [N·m] (``None``: none).
 
     Attributes:
-        steps: Periods integrated. late: Periods the node woke too late for.
+        steps: Periods elapsed (a state published for each). late: Periods the node
+            woke too late for (stepped and published late).
         commands: Commands applied. rejected: Commands ignored.
     """
 
@@ -120,13 +122,13 @@ class RosArmNode:
             if due > k:
                 self.late += due - k
                 k = due
-            if started:
-                while self.steps < k:
+            # (a late wake steps through the missed periods and publishes each: a state per
+            # period, as a driver's, so that the controller counts the periods it missed)
+            while self.steps < k:
+                if started:
                     self.q, self.dq = self.plant.advance(self.tau)
-                    self.steps += 1
-            else:
-                self.steps = k
-            self._publish()
+                self.steps += 1
+                self._publish()
 
     def close(self) -> None:
         """Stop the node (idempotent)."""

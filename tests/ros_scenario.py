@@ -4,7 +4,7 @@ network namespace (``unshare -n``; never outside one: DDS discovery multicasts).
 Starts ``hmpc-pin ros-arm CONFIG`` and ``hmpc-pin ros CONFIG --duration D --out OUT``,
 watches the topics with its own rclpy node, acts on the run (a trajectory message, the
 arm stopped, Ctrl-C), and writes ``OUT/scenario.json``: exit codes, the controller's
-stderr, every effort command received (with the time it came), the last joint state.
+stderr, every effort command and disturbance estimate received.
 
     python tests/ros_scenario.py SCENARIO CONFIG OUT DURATION
 """
@@ -27,7 +27,6 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
-    from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -42,20 +41,13 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     node = rclpy.create_node("scenario")
     lock = threading.Lock()
     commands: list[tuple[float, list[float]]] = []
-    states: list = []
     torques: list[list[float]] = []
 
     def on_command(msg):
         with lock:
             commands.append((time.monotonic(), list(msg.data)))
 
-    def on_state(msg):
-        with lock:
-            states[:] = [(time.monotonic(), list(msg.name), list(msg.position),
-                          list(msg.velocity))]  # fmt: skip
-
     node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command, 100)
-    node.create_subscription(JointState, "/joint_states", on_state, 10)
     node.create_subscription(Float64MultiArray, "/hmpc_pin_controller/external_torque",
                              lambda m: torques.append(list(m.data)), 100)  # fmt: skip
     pub = node.create_publisher(JointTrajectory, "/hmpc_pin_controller/joint_trajectory", 10)
@@ -86,10 +78,14 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
         return msg
 
     if scenario == "trajectory" and running_for(1.0):
-        with lock:
-            _, names, pos, _ = states[-1]
-        # reversed joint order: matched by name; every joint 0.1 rad above where it is
-        target = [p + 0.1 for p in pos]
+        from hmpc_pin.experiment.build import Experiment
+        from hmpc_pin.experiment.schema import load_config
+
+        experiment = Experiment.from_config(load_config(config))
+        names = list(experiment.robot.joint_names)
+        # every joint 0.1 rad above the sine's centre, sent in reversed joint order
+        # (matched by name)
+        target = [float(p) + 0.1 for p in experiment.reference.sample(0.0)[0]]
         events["target"] = dict(zip(names, target, strict=True))
         pub.publish(trajectory(names[::-1], target[::-1], 1.0))
         events["accepted_sent"] = time.monotonic()
@@ -124,8 +120,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
             "controller": {"exit": ctrl.returncode, "stdout": c_out, "stderr": c_err},
             "arm": {"exit": arm.returncode, "stdout": a_out, "stderr": a_err},
             "commands": commands,
-            "last_state": states[-1] if states else None,
-            "external_torque_messages": len(torques),
+            "external_torque": torques,
             "events": events,
         }
     (outdir / "scenario.json").write_text(json.dumps(report))

@@ -52,15 +52,14 @@ def _limits_of(experiment: Experiment) -> tuple[np.ndarray, np.ndarray]:
 
 class _Trajectories:
     """The ``~/joint_trajectory`` subscription: each message checked, then handed to the
-    loop or refused with one logged line (the executor thread runs it)."""
+    loop or refused with one logged line (in the loop's thread, between two states)."""
 
     def __init__(self, ros, experiment: Experiment, iface, topic: str):
         self.ros, self.experiment, self.iface = ros, experiment, iface
         self.lower, self.upper = _limits_of(experiment)
         self.loop: RealtimeLoop | None = None
         self.events: list[dict] = []
-        self.topic = ros.topic(topic)
-        self._sub = ros.node.create_subscription(
+        self.topic = iface.add_subscription(
             ros.msgs["trajectory_msgs"].JointTrajectory, topic, self._on_message, ros.qos(10)
         )
 

@@ -5,7 +5,8 @@ steps through every period it missed and publishes each state, so the arm's time
 the wall and a state is published per period) the node
 advances its :class:`~hmpc_pin.sim.base.Plant` by one period with the latest effort
 command held, then publishes ``sensor_msgs/JointState`` (name, position, velocity, the
-applied effort; ``header.stamp`` the system time of the measurement) as
+applied effort; ``header.stamp`` the period's instant :math:`t_0 + kT_a` on the system
+clock, the simulated measurement's time) as
 joint_state_broadcaster does. Effort commands arrive as ``std_msgs/Float64MultiArray``
 (JointGroupEffortController's input), one value per joint in the robot's order, and are
 clipped to the effort limits; a command of the wrong length or with a non-finite value
@@ -15,7 +16,6 @@ publishing its state.
 
 from __future__ import annotations
 
-import threading
 import time
 
 import numpy as np
@@ -55,16 +55,13 @@ class RosArmNode:
         plant.reset(self.q, self.dq, 0.0)
         self.limit = None if effort_limit is None else np.asarray(effort_limit, dtype=float)
         self._cmd: np.ndarray | None = None
-        self._lock = threading.Lock()
         self.tau = np.zeros(n)
         self.steps = self.late = self.commands = self.rejected = 0
         sensor = ros.msgs["sensor_msgs"]
         self._msg = sensor.JointState()
         self._msg.name = self.names
         self._pub = ros.node.create_publisher(sensor.JointState, joint_states, ros.qos(10))
-        self._sub = ros.node.create_subscription(
-            ros.msgs["std_msgs"].Float64MultiArray, commands, self._on_command, ros.qos(10)
-        )
+        self._sub = ros.subscribe(ros.msgs["std_msgs"].Float64MultiArray, commands, ros.qos(10))
         self.commands_topic = ros.topic(commands)
         self.joint_states_topic = ros.topic(joint_states)
         self._stop = False
@@ -80,13 +77,12 @@ class RosArmNode:
                 throttle_duration_sec=1.0,
             )
             return
-        with self._lock:
-            self._cmd = tau
+        self._cmd = tau
 
-    def _publish(self) -> None:
+    def _publish(self, stamp: float) -> None:
         msg = self._msg
-        now = time.time_ns()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now, 1_000_000_000)
+        ns = round(stamp * 1e9)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
         msg.position = self.q.tolist()
         msg.velocity = self.dq.tolist()
         msg.effort = self.tau.tolist()
@@ -98,19 +94,19 @@ class RosArmNode:
 
     def run(self, duration: float | None = None) -> None:
         """Publish and step until ``duration`` [s] (``None``: until :meth:`stop`)."""
-        self.ros.start()
         P = self.period
         clock = time.time
         t0 = clock()
         k = 0
         end = None if duration is None else round(duration / P)
         started = False
-        self._publish()
+        self._publish(t0)
         while not self._stop and (end is None or k < end):
             k += 1
             sleep_until(t0 + k * P, clock)
-            with self._lock:
-                cmd, self._cmd = self._cmd, None
+            for msg in self.ros.take(self._sub):  # the newest valid command counts
+                self._on_command(msg)
+            cmd, self._cmd = self._cmd, None
             if cmd is not None:
                 started = True
                 self.commands += 1
@@ -128,7 +124,7 @@ class RosArmNode:
                 if started:
                     self.q, self.dq = self.plant.advance(self.tau)
                 self.steps += 1
-                self._publish()
+                self._publish(t0 + self.steps * P)
 
     def close(self) -> None:
         """Stop the node (idempotent)."""

@@ -15,7 +15,6 @@ arrival instead (``stamps`` says which).
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Sequence
 
@@ -62,11 +61,10 @@ class RosArmInterface:
         std = ros.msgs["std_msgs"]
         self._cmd = std.Float64MultiArray()
         self._pub = ros.node.create_publisher(std.Float64MultiArray, commands, ros.qos(10))
-        self._sub = ros.node.create_subscription(
-            ros.msgs["sensor_msgs"].JointState, joint_states, self._on_state,
-            ros.qos(10, reliable=False),
-        )  # fmt: skip
-        self._cond = threading.Condition()
+        self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states,
+                                  ros.qos(1, reliable=False))  # the newest state only  # fmt: skip
+        self._others: list[tuple[object, object]] = []
+        self._wait = ros.waiter([self._sub])
         self._arrived = 0
         self._latest: tuple[float, np.ndarray, np.ndarray] | None = None
         self._seen_names: list[str] | None = None
@@ -80,7 +78,23 @@ class RosArmInterface:
         self._stamp = 0.0
         self._q, self._dq = np.zeros(n), np.zeros(n)
 
-    # ------------------------------------------------------------- executor thread
+    def add_subscription(self, msg_type, topic: str, callback, qos) -> str:
+        """Take ``topic``'s messages in :meth:`wait` too, calling ``callback(msg)`` in the
+        loop's thread (between states); returns the resolved topic name."""
+        sub = self.ros.subscribe(msg_type, topic, qos)
+        self._others.append((sub, callback))
+        self._wait = self.ros.waiter([self._sub] + [s for s, _ in self._others])
+        return self.ros.topic(topic)
+
+    def _poll(self) -> None:
+        """Take what has arrived: the states (newest last), then the other topics."""
+        take = self.ros.take
+        for msg in take(self._sub):
+            self._on_state(msg)
+        for sub, callback in self._others:
+            for msg in take(sub):
+                callback(msg)
+
     def _on_state(self, msg) -> None:
         now = time.time()
         names = msg.name
@@ -99,47 +113,51 @@ class RosArmInterface:
             dq = vel[self._index] if vel.size == len(names) else np.full(n, np.nan)
         st = msg.header.stamp
         stamp = st.sec + 1e-9 * st.nanosec
-        with self._cond:
-            if self.received == 0:
-                # the first state decides the time base (module doc)
-                self._arrival = stamp == 0.0 or abs(stamp - now) > 1.0
-                self.stamps = "arrival" if self._arrival else "header"
-                self._origin = float(int(now))
-            stamp = (now if self._arrival or stamp == 0.0 else stamp) - self._origin
-            self._latest = (stamp, q, dq)
+        if self.received == 0:
+            # the first state decides the time base (module doc)
+            self._arrival = stamp == 0.0 or abs(stamp - now) > 1.0
+            self.stamps = "arrival" if self._arrival else "header"
+            self._origin = float(int(now))
+        stamp = (now if self._arrival or stamp == 0.0 else stamp) - self._origin
+        if self._latest is not None:  # periods since the previous state (>= 1)
+            self._arrived += max(1, round((stamp - self._latest[0]) / self.period))
+        else:
             self._arrived += 1
-            self.received += 1
-            self._cond.notify()
+        self._latest = (stamp, q, dq)
+        self.received += 1
 
     # -------------------------------------------------------------- the loop's side
     def start(self) -> None:
-        """Spin, and wait for the first state: its joints must cover the robot's.
+        """Wait for the first state (spinning the node in this thread): its joints must
+        cover the robot's.
 
         Raises:
             InterfaceError: No state within ``start_timeout``, or one without some of
                 the robot's joints or without positions and velocities for each.
         """
-        self.ros.start()
-        with self._cond:
-            if not self._cond.wait_for(lambda: self._latest is not None, self.start_timeout):
-                raise InterfaceError(
-                    f"no sensor_msgs/JointState on {self.joint_states_topic} within "
-                    f"{self.start_timeout:g} s (ros.start_timeout); start the arm's driver "
-                    "(or `hmpc-pin ros-arm CONFIG`) and check ros.joint_states and the "
-                    "namespace"
-                )
-            if self._missing:
-                raise InterfaceError(
-                    f"the joint states on {self.joint_states_topic} name "
-                    f"{self._seen_names} but not the robot's joints {self._missing}; "
-                    "expected every controlled joint (lock the others in [robot])"
-                )
-            _, q, dq = self._latest  # type: ignore[misc]
-            if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-                raise InterfaceError(
-                    f"the joint states on {self.joint_states_topic} carry no finite position "
-                    "and velocity for every joint; the controller needs both"
-                )
+        end = time.monotonic() + self.start_timeout
+        while self._latest is None and time.monotonic() < end:
+            self._wait(min(0.1, max(0.0, end - time.monotonic())))
+            self._poll()
+        if self._latest is None:
+            raise InterfaceError(
+                f"no sensor_msgs/JointState on {self.joint_states_topic} within "
+                f"{self.start_timeout:g} s (ros.start_timeout); start the arm's driver "
+                "(or `hmpc-pin ros-arm CONFIG`) and check ros.joint_states and the "
+                "namespace"
+            )
+        if self._missing:
+            raise InterfaceError(
+                f"the joint states on {self.joint_states_topic} name "
+                f"{self._seen_names} but not the robot's joints {self._missing}; "
+                "expected every controlled joint (lock the others in [robot])"
+            )
+        _, q, dq = self._latest  # type: ignore[misc]
+        if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+            raise InterfaceError(
+                f"the joint states on {self.joint_states_topic} carry no finite position "
+                "and velocity for every joint; the controller needs both"
+            )
         self.wait(0.0)
 
     def clock(self) -> float:
@@ -147,16 +165,20 @@ class RosArmInterface:
         return time.time() - self._origin
 
     def wait(self, timeout: float) -> int:
-        """Block until a new state arrives or ``timeout`` [s]; take the newest, return
-        how many arrived since the previous call."""
-        with self._cond:
-            if not self._arrived and timeout > 0:
-                self._cond.wait(timeout)
-            count, self._arrived = self._arrived, 0
-            if count:
-                self._stamp, q, dq = self._latest  # type: ignore[misc]
-                self._q[:] = q
-                self._dq[:] = dq
+        """Block until a new state arrives or ``timeout`` [s] (messages of the other
+        subscriptions are handled here too); take the newest and return how many
+        interface periods its stamp is after the previous one taken."""
+        self._poll()
+        if not self._arrived:
+            end = time.monotonic() + timeout
+            while not self._arrived and (remaining := end - time.monotonic()) > 0:
+                self._wait(remaining)
+                self._poll()
+        count, self._arrived = self._arrived, 0
+        if count:
+            self._stamp, q, dq = self._latest  # type: ignore[misc]
+            self._q[:] = q
+            self._dq[:] = dq
         return count
 
     def read(self) -> tuple[float, np.ndarray, np.ndarray]:

@@ -387,11 +387,10 @@ def cmd_ros(args) -> int:
     """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
     from ..ros.node import import_ros
     from .realtime import format_tracking
-    from .ros import format_ros, run_ros, with_namespace
+    from .ros import format_ros, run_ros
 
     import_ros("hmpc-pin ros")  # the extra, before anything else
-    config = with_namespace(_with_overrides(load_config(args.config), False, args.duration),
-                            args.namespace)  # fmt: skip
+    config = _ros_config(args, _with_overrides(load_config(args.config), False, args.duration))
     out = _out_dir(args.out)
     print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
           f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
@@ -418,15 +417,25 @@ def cmd_ros(args) -> int:
     return EXIT_FAILED
 
 
+def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
+    """``--namespace`` and ``--priority`` of the ROS commands applied to ``config``."""
+    from .realtime import with_realtime
+    from .ros import with_namespace
+
+    if args.priority is not None and not 0 <= args.priority <= 99:
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
+    return with_namespace(with_realtime(config, priority=args.priority), args.namespace)
+
+
 def cmd_ros_arm(args) -> int:
     """``hmpc-pin ros-arm``: the config's plant as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
     from ..ros.node import import_ros
-    from .ros import run_ros_arm, with_namespace
+    from .ros import run_ros_arm
 
     import_ros("hmpc-pin ros-arm")
     if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
         raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
-    config = with_namespace(load_config(args.config), args.namespace)
+    config = _ros_config(args, load_config(args.config))
     counts = run_ros_arm(config, args.duration)
     return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
 
@@ -448,6 +457,8 @@ def add_ros_parsers(sub) -> None:
     ros.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     ros.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
+    ros.add_argument("--priority", type=int, metavar="N",
+                     help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)")
     ros.set_defaults(func=cmd_ros)
     arm = sub.add_parser(
         "ros-arm",
@@ -461,6 +472,8 @@ def add_ros_parsers(sub) -> None:
     arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     arm.add_argument("--duration", type=float, help="stop after this long [s] [until Ctrl-C]")
     arm.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
+    arm.add_argument("--priority", type=int, metavar="N",
+                     help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)")
     arm.set_defaults(func=cmd_ros_arm)
 
 

@@ -23,7 +23,7 @@ from ..exceptions import HmpcError
 from ..experiment.build import Experiment, realtime_parts
 from ..experiment.controllers import _limits
 from ..experiment.schema import ExperimentConfig
-from ..realtime.loop import RealtimeLoop, RealtimeRun
+from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from .realtime import _finite, tracking_summary
 
 __all__ = ["run_ros", "run_ros_arm", "with_namespace"]
@@ -94,6 +94,9 @@ class _Trajectories:
 def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None):
     """Run ``config``'s controller as a ROS 2 node until its duration or a safe stop.
 
+    With ``[realtime] priority`` > 0 the whole node runs under ``SCHED_FIFO`` (the DDS
+    threads rclpy starts inherit it: a state is delivered on time on a loaded machine).
+
     Returns:
         ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
 
@@ -101,6 +104,11 @@ def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None):
         InterfaceError: No joint state within ``ros.start_timeout`` or one that lacks
             the robot's joints (nothing written).
     """
+    with fifo_priority(config.realtime.priority):
+        return _run_ros(config, out, stem)
+
+
+def _run_ros(config: ExperimentConfig, out: Path, stem: str | None):
     from ..ros.interface import RosArmInterface
     from ..ros.node import RosNode, discovery_range
 
@@ -178,12 +186,18 @@ def format_ros(run: RealtimeRun) -> str:
 
 def run_ros_arm(config: ExperimentConfig, duration: float | None = None) -> dict:
     """Run ``config``'s plant as a ROS 2 node (:class:`~hmpc_pin.ros.arm.RosArmNode`)
-    until ``duration`` [s] (``None``: until SIGINT or SIGTERM).
+    until ``duration`` [s] (``None``: until SIGINT or SIGTERM); under ``SCHED_FIFO``
+    with ``[realtime] priority`` > 0.
 
     Returns:
         The node's counts (``steps``, ``late``, ``commands``, ``rejected``) and
         ``"interrupted"`` (stopped by SIGINT).
     """
+    with fifo_priority(config.realtime.priority):
+        return _run_ros_arm(config, duration)
+
+
+def _run_ros_arm(config: ExperimentConfig, duration: float | None) -> dict:
     from ..ros.arm import RosArmNode
     from ..ros.node import RosNode, discovery_range
 

@@ -20,10 +20,65 @@ import threading
 import time
 from pathlib import Path
 
-SCENARIOS = ("track", "trajectory", "watchdog", "interrupt")
+SCENARIOS = ("track", "trajectory", "watchdog", "interrupt", "interface")
+
+
+def probe_interface(config: str, out: Path) -> None:
+    """The ``interface`` scenario: the arm node only, and this process as the controller
+    side through :class:`~hmpc_pin.ros.interface.RosArmInterface`."""
+    import numpy as np
+
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.schema import load_config
+    from hmpc_pin.realtime.interface import PacedInterface
+    from hmpc_pin.ros.interface import RosArmInterface
+    from hmpc_pin.ros.node import RosNode
+
+    exe = [sys.executable, "-m", "hmpc_pin"]
+    arm = subprocess.Popen([*exe, "ros-arm", config], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)  # fmt: skip
+    experiment = Experiment.from_config(load_config(config))
+    robot, P = experiment.robot, experiment.config.ros.period
+    ros = RosNode("probe", "", "LOCALHOST", "the probe")
+    iface = RosArmInterface(ros, robot.joint_names, P, "/joint_states",
+                            "/effort_controller/commands", start_timeout=120.0)  # fmt: skip
+    report: dict = {"paced": isinstance(iface, PacedInterface), "period": P}
+    iface.start()
+    stamp0, q, dq = iface.read()
+    report["first"] = [stamp0, q.tolist(), dq.tolist(), iface.clock() - stamp0]
+    steps = []
+    for _ in range(100):
+        count = iface.wait(1.0)
+        stamp, q, _ = iface.read()
+        steps.append([count, stamp, q.tolist()])
+    report["steps"] = steps
+    q0 = np.array(report["first"][1])
+    iface.write(robot.gravity_torque(q0))  # held by the arm until the next write
+    end = time.monotonic() + 0.2
+    while time.monotonic() < end:
+        iface.wait(0.1)
+    stamp, q, dq = iface.read()
+    report["held"] = [q.tolist(), dq.tolist()]
+    iface.write(np.zeros(robot.nq))
+    end = time.monotonic() + 0.05
+    while time.monotonic() < end:
+        iface.wait(0.1)
+    report["fell"] = iface.read()[1].tolist()
+    report["timeout"] = [iface.wait(0.0)]
+    iface.close()
+    iface.close()
+    report["closed_twice"] = True
+    arm.send_signal(signal.SIGINT)
+    _a_out, a_err = arm.communicate(timeout=30)
+    report["arm"] = {"exit": arm.returncode, "stderr": a_err}
+    (out / "scenario.json").write_text(json.dumps(report))
+    sys.stdout.flush()
+    os._exit(0)
 
 
 def main(scenario: str, config: str, out: str, duration: float) -> None:
+    if scenario == "interface":
+        probe_interface(config, Path(out))
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions

@@ -267,3 +267,73 @@ def test_ros_ctrl_c_publishes_the_safe_torque_and_saves(tmp_path):
     q, dq = np.array(stop["q"]), np.array(stop["dq"])
     G = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
     np.testing.assert_allclose(safe, G - 2.0 * dq, atol=1e-9)
+
+
+PROBE = """
+name = "probe"
+
+[robot]
+model = "panda"
+gravity = 9.81
+
+[robot.locked_joints]
+panda_finger_joint1 = 0.02
+panda_finger_joint2 = 0.02
+
+[controller]
+Ts = 0.01
+
+[controller.observer]
+kind = "general"
+gain = 100.0
+
+[reference]
+kind = "sine"
+amplitude = 0.3
+frequency = 0.1
+offset = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
+
+[ros]
+rate = 500
+"""
+
+
+def test_ros_arm_interface_conformance(tmp_path):
+    """The ROS arm as a PacedInterface (the protocol's conformance, as for the in-process
+    and process arms): the first state is the initial one, each wait takes a state whose
+    stamp is whole periods after the last, on the interface's clock; the arm holds still
+    before the first torque; under τ = G(q0) it stays at rest (ABA(q0, 0, G(q0)) = 0, no
+    disturbance), with zero torque it falls; close is idempotent."""
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    config = tmp_path / "probe.toml"
+    config.write_text(PROBE)
+    out = tmp_path / "out"
+    out.mkdir()
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
+    script = f"ip link set lo up && exec {sys.executable} {SCENARIO} interface {config} {out} 0"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], env=env, cwd=ROOT,
+                          capture_output=True, text=True, timeout=400)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    r = json.loads((out / "scenario.json").read_text())
+    assert r["paced"] and r["closed_twice"]
+    P = r["period"]
+    stamp0, q0, dq0, age = r["first"]
+    experiment = Experiment.from_config(load_config(config))
+    np.testing.assert_allclose(q0, experiment.q0, atol=1e-12)  # the arm's initial state
+    np.testing.assert_allclose(dq0, 0.0, atol=1e-12)
+    assert 0.0 <= age < 5.0  # the clock is the stamps' clock
+    last = stamp0
+    for count, stamp, q in r["steps"]:
+        periods = (stamp - last) / P
+        assert count >= 1 and periods == pytest.approx(round(periods), abs=1e-3)
+        assert count == round(periods)  # each wait reports the periods since the last
+        np.testing.assert_allclose(q, q0, atol=1e-12)  # on its brakes
+        last = stamp
+    q_held, dq_held = r["held"]
+    np.testing.assert_allclose(q_held, q0, atol=1e-9)
+    np.testing.assert_allclose(dq_held, 0.0, atol=1e-9)
+    assert np.abs(np.array(r["fell"]) - q0).max() > 1e-4
+    assert r["timeout"] == [0] or r["timeout"][0] >= 1
+    assert r["arm"]["exit"] == 130 and "Traceback" not in r["arm"]["stderr"]

@@ -457,8 +457,12 @@ def add_ros_parsers(sub) -> None:
     ros.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     ros.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
-    ros.add_argument("--priority", type=int, metavar="N",
-                     help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)")
+    ros.add_argument(
+        "--priority",
+        type=int,
+        metavar="N",
+        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+    )
     ros.set_defaults(func=cmd_ros)
     arm = sub.add_parser(
         "ros-arm",
@@ -472,8 +476,12 @@ def add_ros_parsers(sub) -> None:
     arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     arm.add_argument("--duration", type=float, help="stop after this long [s] [until Ctrl-C]")
     arm.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
-    arm.add_argument("--priority", type=int, metavar="N",
-                     help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)")
+    arm.add_argument(
+        "--priority",
+        type=int,
+        metavar="N",
+        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+    )
     arm.set_defaults(func=cmd_ros_arm)
 
 

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..exceptions import ConfigError, InterfaceError
+from ..exceptions import InterfaceError
 from .node import RosNode
 
 __all__ = ["RosArmInterface"]
@@ -30,7 +30,8 @@ class RosArmInterface:
     """Joint states in, effort commands out (module doc); paces the loop.
 
     Args:
-        ros: The controller's :class:`~hmpc_pin.ros.node.RosNode` (not yet spinning).
+        ros: The controller's :class:`~hmpc_pin.ros.node.RosNode`; its messages are taken
+            in :meth:`wait`, in the loop's thread.
         joint_names: The robot's joints, in the order of ``q`` and of the command.
         period: The interface period [s] the arm publishes at.
         joint_states, commands: Topic names.
@@ -194,13 +195,3 @@ class RosArmInterface:
     def close(self) -> None:
         """Stop the node (idempotent)."""
         self.ros.close()
-
-
-def check_joint_names(names: Sequence[str], robot_names: Sequence[str], what: str) -> np.ndarray:
-    """Indices of ``robot_names`` in ``names``, or :class:`ConfigError` naming the missing."""
-    where = {name: i for i, name in enumerate(names)}
-    missing = [x for x in robot_names if x not in where]
-    if missing:
-        raise ConfigError(what, f"names joints {list(names)} but not the robot's {missing}; "
-                          "expected every controlled joint")  # fmt: skip
-    return np.array([where[x] for x in robot_names], dtype=int)

@@ -19,14 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import HmpcError
+from ..exceptions import ConfigError, HmpcError
 from ..experiment.build import Experiment, realtime_parts
 from ..experiment.controllers import _limits
-from ..experiment.schema import ExperimentConfig
+from ..experiment.schema import ExperimentConfig, load_config
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from .realtime import _finite, tracking_summary
 
-__all__ = ["run_ros", "run_ros_arm", "with_namespace"]
+__all__ = ["add_ros_parsers", "run_ros", "run_ros_arm", "with_namespace"]
 
 
 def with_namespace(config: ExperimentConfig, namespace: str | None) -> ExperimentConfig:
@@ -233,3 +233,104 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None) -> dict:
           f"{counts['rejected']} ignored, {counts['late']} periods late",
           file=sys.stderr)  # fmt: skip
     return counts
+
+
+def cmd_ros(args) -> int:
+    """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ..ros.node import import_ros
+    from .cli import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, _out_dir, _with_overrides
+    from .realtime import format_tracking
+
+    import_ros("hmpc-pin ros")  # the extra, before anything else
+    config = _ros_config(args, _with_overrides(load_config(args.config), False, args.duration))
+    out = _out_dir(args.out)
+    print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
+          f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
+          f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz", flush=True)  # fmt: skip
+    try:
+        run, files = run_ros(config, out)
+    except KeyboardInterrupt:  # before the loop took over SIGINT: no torque was sent
+        print("interrupted at start-up, before the first cycle; nothing was run or written",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    print(run.summary())
+    print(format_ros(run))
+    print(format_tracking(run))
+    for f in files:
+        print(f"wrote {f}")
+    if run.stop is None:
+        return EXIT_OK
+    if run.stop["cause"] == "interrupted":
+        print(f"interrupted at t={run.stop['t']:.3f} s of {config.simulation.duration:g} s; "
+              "safe torque published, partial run saved (complete = false)",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
+    return EXIT_FAILED
+
+
+def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
+    """``--namespace`` and ``--priority`` of the ROS commands applied to ``config``."""
+    from .realtime import with_realtime
+
+    if args.priority is not None and not 0 <= args.priority <= 99:
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
+    return with_namespace(with_realtime(config, priority=args.priority), args.namespace)
+
+
+def cmd_ros_arm(args) -> int:
+    """``hmpc-pin ros-arm``: the config's plant as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ..ros.node import import_ros
+    from .cli import EXIT_INTERRUPTED, EXIT_OK
+
+    import_ros("hmpc-pin ros-arm")
+    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
+    config = _ros_config(args, load_config(args.config))
+    counts = run_ros_arm(config, args.duration)
+    return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
+
+
+def add_ros_parsers(sub) -> None:
+    """The ``ros`` and ``ros-arm`` subcommands (extra ``ros``)."""
+    ros = sub.add_parser(
+        "ros",
+        help="run the controller as a ROS 2 node against /joint_states (extra: ros)",
+        description="Run the experiment's controller as a ROS 2 node on the topics "
+        "ros2_control exposes: sensor_msgs/JointState in ([ros] joint_states), "
+        "std_msgs/Float64MultiArray efforts out ([ros] commands), paced by the arriving "
+        "states; a new reference as trajectory_msgs/JointTrajectory on ~/joint_trajectory "
+        "(checked against the limits first), the disturbance estimate on "
+        "~/external_torque. Same safe stops, latency statistics and saved run as "
+        "`realtime`: exit 130 on Ctrl-C, 1 on a fault or a watchdog stop.",
+    )
+    ros.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    ros.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
+    ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    ros.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
+    ros.add_argument(
+        "--priority",
+        type=int,
+        metavar="N",
+        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+    )
+    ros.set_defaults(func=cmd_ros)
+    arm = sub.add_parser(
+        "ros-arm",
+        help="run the config's plant as a ROS 2 node (joint states out, efforts in; extra: ros)",
+        description="Run the experiment's plant (RK4 or MuJoCo) as a ROS 2 node that "
+        "publishes sensor_msgs/JointState at [ros] rate and applies the latest "
+        "std_msgs/Float64MultiArray effort command, as ros2_control's "
+        "joint_state_broadcaster and JointGroupEffortController do. Runs until Ctrl-C "
+        "(exit 130) or --duration.",
+    )
+    arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    arm.add_argument("--duration", type=float, help="stop after this long [s] [until Ctrl-C]")
+    arm.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
+    arm.add_argument(
+        "--priority",
+        type=int,
+        metavar="N",
+        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+    )
+    arm.set_defaults(func=cmd_ros_arm)

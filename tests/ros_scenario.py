@@ -82,7 +82,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
-    from std_msgs.msg import Float64MultiArray
+    from std_msgs.msg import Bool, Float64MultiArray
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -105,6 +105,9 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command, 100)
     node.create_subscription(Float64MultiArray, "/hmpc_pin_controller/external_torque",
                              lambda m: torques.append(list(m.data)), 100)  # fmt: skip
+    flags: list[bool] = []
+    node.create_subscription(Bool, "/hmpc_pin_controller/collision",
+                             lambda m: flags.append(bool(m.data)), 100)  # fmt: skip
     pub = node.create_publisher(JointTrajectory, "/hmpc_pin_controller/joint_trajectory", 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -176,6 +179,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
             "arm": {"exit": arm.returncode, "stdout": a_out, "stderr": a_err},
             "commands": commands,
             "external_torque": torques,
+            "collision": flags,
             "events": events,
         }
     (outdir / "scenario.json").write_text(json.dumps(report))

@@ -171,14 +171,17 @@ rate = 500
 [realtime]
 max_misses = 1000   # a loaded CI machine: the watchdog, not the misses, is under test
 watchdog = 0.2
+
+[collision]
+threshold = 1000.0  # never reached: the flag is published, false
 """
 
 
-def _scenario(tmp_path: Path, scenario: str, duration: float):
+def _scenario(tmp_path: Path, scenario: str, duration: float, settings: str = SETTINGS):
     reason = _netns_reason()
     if reason:
         pytest.skip(reason)
-    config = _write(tmp_path, SETTINGS)
+    config = _write(tmp_path, settings)
     out = tmp_path / "out"
     out.mkdir()
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
@@ -210,6 +213,9 @@ def test_ros_tracks_like_the_simulation(tmp_path):
     for row in received[-10:]:
         assert np.any(np.all(recorded == row, axis=1))
     assert np.abs(received).max() > 0.1  # the friction estimate, not zeros
+    # [collision] set: the flag at every step, false (|d̂| far below the threshold)
+    assert len(report["collision"]) > 10 and not any(report["collision"])
+    assert result.meta["collision"]["detected_at"] is None
     # the same controller against the same plant in simulated time (no DDS, no clock)
     sim = Experiment.from_config(config).run(3.0)
     rms_ros, rms_sim = _rms_after(result), _rms_after(sim)
@@ -241,13 +247,18 @@ def test_ros_trajectory_replaces_the_reference_and_bad_one_is_refused(tmp_path):
 
 
 def test_ros_watchdog_stops_on_stale_joint_states(tmp_path):
-    _, report, result = _scenario(tmp_path, "watchdog", 5.0)
+    # (and a collision threshold the friction estimate crosses: the flag turns true)
+    low = SETTINGS.replace("threshold = 1000.0", "threshold = 0.05")
+    _, report, result = _scenario(tmp_path, "watchdog", 5.0, low)
     ctrl = report["controller"]
     assert ctrl["exit"] == 1, ctrl["stderr"]
     assert "no new state from the arm" in ctrl["stderr"] and "Traceback" not in ctrl["stderr"]
     stop = result.meta["stop"]
     assert not result.complete and stop["cause"] == "watchdog"
     assert 0.5 < stop["t"] < 4.0
+    detected = result.meta["collision"]["detected_at"]
+    assert detected is not None and report["collision"][-1] is True
+    assert not report["collision"][0] or detected < 0.05  # false until it was flagged
 
 
 def test_ros_ctrl_c_publishes_the_safe_torque_and_saves(tmp_path):

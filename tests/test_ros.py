@@ -348,3 +348,22 @@ def test_ros_arm_interface_conformance(tmp_path):
     assert np.abs(np.array(r["fell"]) - q0).max() > 1e-4
     assert r["timeout"] == [0] or r["timeout"][0] >= 1
     assert r["arm"]["exit"] == 130 and "Traceback" not in r["arm"]["stderr"]
+
+
+def test_ros_without_an_arm_is_one_line_and_no_file(tmp_path):
+    """No joint state within [ros] start_timeout: exit 2, one line naming the topic and
+    what to do, nothing written."""
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    config = _write(tmp_path, "[ros]\nstart_timeout = 1.0\njoint_states = '/nobody'\n")
+    out = tmp_path / "out"
+    script = (f"ip link set lo up && exec {sys.executable} -m hmpc_pin ros {config} "
+              f"--out {out} --duration 1")  # fmt: skip
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], cwd=ROOT,
+                          capture_output=True, text=True, timeout=200)  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    lines = [x for x in proc.stderr.splitlines() if x.startswith("error:")]
+    assert len(lines) == 1 and "/nobody within 1 s" in lines[0] and "ros-arm" in lines[0]
+    assert "Traceback" not in proc.stderr
+    assert not list(out.glob("*.npz"))

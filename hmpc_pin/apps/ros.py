@@ -101,7 +101,7 @@ def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None):
         ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
 
     Raises:
-        InterfaceError: No joint state within ``ros.start_timeout`` or one that lacks
+        ArmError: No joint state within ``ros.start_timeout`` or one that lacks
             the robot's joints (nothing written).
     """
     with fifo_priority(config.realtime.priority):

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..exceptions import InterfaceError
+from ..exceptions import ArmError
 from .node import RosNode
 
 __all__ = ["RosArmInterface"]
@@ -133,7 +133,7 @@ class RosArmInterface:
         cover the robot's.
 
         Raises:
-            InterfaceError: No state within ``start_timeout``, or one without some of
+            ArmError: No state within ``start_timeout``, or one without some of
                 the robot's joints or without positions and velocities for each.
         """
         end = time.monotonic() + self.start_timeout
@@ -141,21 +141,21 @@ class RosArmInterface:
             self._wait(min(0.1, max(0.0, end - time.monotonic())))
             self._poll()
         if self._latest is None:
-            raise InterfaceError(
+            raise ArmError(
                 f"no sensor_msgs/JointState on {self.joint_states_topic} within "
                 f"{self.start_timeout:g} s (ros.start_timeout); start the arm's driver "
                 "(or `hmpc-pin ros-arm CONFIG`) and check ros.joint_states and the "
                 "namespace"
             )
         if self._missing:
-            raise InterfaceError(
+            raise ArmError(
                 f"the joint states on {self.joint_states_topic} name "
                 f"{self._seen_names} but not the robot's joints {self._missing}; "
                 "expected every controlled joint (lock the others in [robot])"
             )
         _, q, dq = self._latest  # type: ignore[misc]
         if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-            raise InterfaceError(
+            raise ArmError(
                 f"the joint states on {self.joint_states_topic} carry no finite position "
                 "and velocity for every joint; the controller needs both"
             )

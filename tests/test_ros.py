@@ -66,8 +66,8 @@ def _write(tmp_path: Path, extra: str, base: str = "panda_sine") -> Path:
 def test_ros_table_defaults_and_keys(tmp_path):
     rc = load_config(_write(tmp_path, "[ros]\nrate = 500\nnamespace = 'arm1'\n")).ros
     assert rc.rate == 500.0 and rc.period == pytest.approx(2e-3)
-    assert rc.namespace == "/arm1" and rc.joint_states == "/joint_states"
-    assert rc.commands == "/effort_controller/commands"
+    assert rc.namespace == "/arm1" and rc.joint_states == "joint_states"
+    assert rc.commands == "effort_controller/commands"  # relative: in the namespace
     with pytest.raises(ConfigError, match=r"ros\.topics.*unknown key"):
         load_config(_write(tmp_path, "[ros]\ntopics = 1\n"))
     with pytest.raises(ConfigError, match=r"ros\.commands.*topic name"):

@@ -44,7 +44,10 @@ class RosConfig:
     ros2_control's joint_state_broadcaster publishes) and publishes the torque on
     ``commands`` (``std_msgs/Float64MultiArray``, as effort_controllers'
     JointGroupEffortController takes it, in the robot's joint order). Relative names are
-    resolved in the node's namespace, ``~/`` names under the node's own name.
+    resolved in the node's namespace (the defaults: ``/joint_states`` and
+    ``/effort_controller/commands`` at the root, ``/arm1/joint_states`` ... under
+    ``namespace = "/arm1"``, as ros2_control's controllers resolve theirs), ``~/`` names
+    under the node's own name, names starting with ``/`` as they are.
 
     Attributes:
         joint_states: Topic of the measured state (``sensor_msgs/JointState``).
@@ -68,8 +71,8 @@ class RosConfig:
         start_timeout: How long [s] the controller waits for the first joint state.
     """
 
-    joint_states: str = "/joint_states"
-    commands: str = "/effort_controller/commands"
+    joint_states: str = "joint_states"
+    commands: str = "effort_controller/commands"
     joint_trajectory: str = "~/joint_trajectory"
     external_torque: str = "~/external_torque"
     collision: str = "~/collision"
@@ -85,7 +88,7 @@ class RosConfig:
                     "collision"):  # fmt: skip
             value = getattr(self, key)
             if not (isinstance(value, str) and _TOPIC.match(value)):
-                raise ConfigError(key, f"expected a ROS topic name such as '/joint_states' or "
+                raise ConfigError(key, f"expected a ROS topic name such as 'joint_states' or "
                                   f"'~/{key}', got {value!r}")  # fmt: skip
         for key in ("node", "arm_node"):
             value = getattr(self, key)

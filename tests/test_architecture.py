@@ -23,6 +23,7 @@ RANK = {
     "sim": 4,
     "realtime": 5,
     "experiment": 6,
+    "ros": 6.5,
     "apps": 7,
     "__init__": 8,
     "__main__": 9,

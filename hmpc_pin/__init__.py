@@ -9,7 +9,10 @@ external torques.
 
 The package is layered; each layer imports only the layers below it (tested)::
 
-    apps/          cli, run, compare, sweep, tune, identify, report, metrics, plots, viz
+    apps/          cli, run, compare, sweep, tune, identify, check, report, metrics, plots, viz,
+                   ros (the nodes' commands)
+      │
+    ros/           ROS 2: the arm's topics as a PacedInterface · trajectory messages · arm node
       │
     experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
       │

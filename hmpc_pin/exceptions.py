@@ -201,6 +201,13 @@ class InterfaceError(HmpcError, TypeError):
         super().__init__(text + (f"; {hint}" if hint else ""))
 
 
+class ArmError(HmpcError, RuntimeError):
+    """The arm does not give the controller what it needs, before any torque is sent: no
+    state within the start-up time (a ROS topic nobody publishes), a state without some of
+    the robot's joints, or without positions and velocities. The message names the
+    source (topic) and what to check."""
+
+
 class ValidityWarning(UserWarning):
     """A design is used outside the conditions it is proven for (e.g. Chen's observer on a
     spatial arm); the run goes on. The message names the valid alternative."""

@@ -26,6 +26,7 @@ RANK = {
     "realtime": 5,
     "identification": 5,
     "experiment": 6,
+    "ros": 6.5,
     "apps": 7,
     "__init__": 8,
     "__main__": 9,

@@ -1,5 +1,5 @@
 """Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
-check | realtime | identify | tune`` (also ``python -m hmpc_pin``).
+check | realtime | identify | tune | ros | ros-arm`` (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback, checked before any run: no output file), 1 when a run fails (e.g.
@@ -486,6 +486,63 @@ def _add_warn_option(parser) -> None:
     )  # fmt: skip
 
 
+def cmd_ros(args) -> int:
+    """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ..ros.node import import_ros
+    from .realtime import format_tracking
+    from .ros import format_ros, run_ros
+
+    import_ros("hmpc-pin ros")  # the extra, before anything else
+    config = _ros_config(args, _with_overrides(load_config(args.config), False, args.duration))
+    out = _out_dir(args.out)
+    print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
+          f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
+          f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz", flush=True)  # fmt: skip
+    try:
+        run, files = run_ros(config, out)
+    except KeyboardInterrupt:  # before the loop took over SIGINT: no torque was sent
+        print("interrupted at start-up, before the first cycle; nothing was run or written",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    print(run.summary())
+    print(format_ros(run))
+    print(format_tracking(run))
+    for f in files:
+        print(f"wrote {f}")
+    if run.stop is None:
+        return EXIT_OK
+    if run.stop["cause"] == "interrupted":
+        print(f"interrupted at t={run.stop['t']:.3f} s of {config.simulation.duration:g} s; "
+              "safe torque published, partial run saved (complete = false)",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
+    return EXIT_FAILED
+
+
+def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
+    """``--namespace`` and ``--priority`` of the ROS commands applied to ``config``."""
+    from .realtime import with_realtime
+    from .ros import with_namespace
+
+    if args.priority is not None and not 0 <= args.priority <= 99:
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
+    return with_namespace(with_realtime(config, priority=args.priority), args.namespace)
+
+
+def cmd_ros_arm(args) -> int:
+    """``hmpc-pin ros-arm``: the config's plant as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ..ros.node import import_ros
+    from .ros import run_ros_arm
+
+    import_ros("hmpc-pin ros-arm")
+    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
+    config = _ros_config(args, load_config(args.config))
+    counts = run_ros_arm(config, args.duration)
+    return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``hmpc-pin`` parser with one subcommand per command (the docs' CLI reference is
     generated from it)."""
@@ -656,6 +713,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="live Meshcat view of the arm, drawn by a separate process")  # fmt: skip
     rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     rt.set_defaults(func=cmd_realtime)
+    from .ros import add_ros_parsers  # `ros`, `ros-arm`
+
+    add_ros_parsers(sub, cmd_ros, cmd_ros_arm)
 
     nat = sub.add_parser(
         "native",

@@ -511,8 +511,17 @@ def make_arm_plant(config: ExperimentConfig) -> Plant:
     return Experiment.from_config(config).make_plant(1.0 / config.realtime.rate)
 
 
-def realtime_parts(experiment: Experiment) -> tuple[LoopSettings, SafetySettings, SafeTorque]:
+def realtime_parts(
+    experiment: Experiment, rate: float | None = None, *, plant: bool = True
+) -> tuple[LoopSettings, SafetySettings, SafeTorque]:
     """The loop settings, safety settings and safe torque of ``[realtime]``.
+
+    Args:
+        experiment: The experiment.
+        rate: The interface rate [Hz] (default ``realtime.rate``; the ROS commands pass
+            ``ros.rate``).
+        plant: Check that ``plant.dt`` divides the interface period (``False`` where
+            the arm is not this experiment's plant: a ROS driver).
 
     Raises:
         ConfigError: The rate does not divide the controller period, or ``plant.dt``
@@ -521,10 +530,12 @@ def realtime_parts(experiment: Experiment) -> tuple[LoopSettings, SafetySettings
     cfg = experiment.config
     rc, robot = cfg.realtime, experiment.robot
     n = robot.nq
-    loop = LoopSettings(rate=rc.rate, duration=cfg.simulation.duration, gc_handling=rc.gc,
+    loop = LoopSettings(rate=rc.rate if rate is None else rate,
+                        duration=cfg.simulation.duration, gc_handling=rc.gc,
                         gc_slack=rc.gc_slack, spin=rc.spin)  # fmt: skip
     loop.decimation(cfg.controller.Ts)
-    experiment.make_plant(loop.period)  # checks that the plant's step divides the period
+    if plant:
+        experiment.make_plant(loop.period)  # checks that the plant's step divides the period
     if rc.limits:
         vel = np.where(robot.velocity_limit > 0, robot.velocity_limit * rc.scale, np.inf)
         lim = experiment._recorded_limits()  # a URDF without a range: no position bound

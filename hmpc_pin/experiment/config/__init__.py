@@ -6,7 +6,7 @@ component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_conf
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
 ``[sweep.sensing]`` :mod:`.sensing` · ``[collision]`` :mod:`.collision` ·
-``[realtime]`` :mod:`.realtime` · the whole file
+``[realtime]`` :mod:`.realtime` · ``[ros]`` :mod:`.ros` · the whole file
 :mod:`.experiment`; the value converters shared by all of them ``_fields``; the
 spellings of earlier versions :mod:`.legacy`. Which ``[controller]`` keys apply to which
 controller × compensation is :mod:`hmpc_pin.experiment.combos`.
@@ -64,6 +64,7 @@ from .reference import (
 from .robot import (
     RobotConfig,
 )
+from .ros import DISCOVERY_RANGES, RosConfig
 from .sensing import (
     SensingConfig,
 )
@@ -81,6 +82,7 @@ __all__ = [
     "CONTROLLERS",
     "CONTROLLER_KINDS",
     "DEFAULT_COMPENSATION",
+    "DISCOVERY_RANGES",
     "ENGINES",
     "FRICTION_SIGNS",
     "KIND_ALIASES",
@@ -109,6 +111,7 @@ __all__ = [
     "RealtimeConfig",
     "ReferenceConfig",
     "RobotConfig",
+    "RosConfig",
     "SensingConfig",
     "SimulationConfig",
     "SweepConfig",

@@ -20,6 +20,7 @@ from .plant import PlantConfig
 from .realtime import RealtimeConfig
 from .reference import SINE_KEYS, ReferenceConfig
 from .robot import RobotConfig
+from .ros import RosConfig
 from .simulation import SimulationConfig
 from .sweep import SweepConfig
 
@@ -46,6 +47,7 @@ class ExperimentConfig:
     realtime: RealtimeConfig = field(default_factory=RealtimeConfig)
     source: Path | None = None
     collision: CollisionConfig | None = None
+    ros: RosConfig = field(default_factory=RosConfig)
 
     def __post_init__(self):
         for name in ("name", "description"):
@@ -201,6 +203,7 @@ def load_config(path: str | Path) -> ExperimentConfig:
         "sweep": SweepConfig,
         "collision": CollisionConfig,
         "realtime": RealtimeConfig,
+        "ros": RosConfig,
     }
     top_allowed = set(sections) | {"name", "description"}
     unknown = sorted(set(raw) - top_allowed)

@@ -2,16 +2,17 @@
 
 Per joint, from the config's models alone (nothing is simulated):
 
-* **observer bandwidth** :math:`\\omega_j` [1/s] and :math:`\\omega_j T_s`: the NDO of Eq (13)
-  with gain :math:`cY` has :math:`\\omega_j = (cY)_{jj} / M_{jj}(q_0)` (``chen``, ``general``),
-  the momentum observer :math:`\\omega_j = K_j`. A problem when :math:`\\omega_j T_s > 1`:
-  the implicit observer is then close to deadbeat and a measurement a period old makes it
-  oscillate;
-* **stability margin for the latency** :math:`L` [s]: the phase margin of the observer
-  loop, a first-order lag of bandwidth :math:`\\omega_j` behind the latency and the
-  zero-order hold, :math:`\\varphi_j = \\pi/2 - \\omega_j (L + T_s/2)` [rad]. A problem when
-  :math:`\\varphi_j \\le 0`. :math:`L` is the config's ``latency`` when it has one, else the
-  sweep's ``delay`` periods (default one period);
+* **observer bandwidth** :math:`\\omega_j` [1/s] and :math:`\\omega_j T_s`: the rate at which
+  joint j's estimation error decays, :math:`\\omega_j = (cY M(q_0)^{-1})_{jj}` for the NDO
+  of Eq (13) (``chen``, ``general``;
+  :func:`~hmpc_pin.compensation.bandwidth.implied_bandwidth`), :math:`K_j` for the momentum
+  observer;
+* **stability margin for the latency**: the rule of :mod:`hmpc_pin.compensation.bandwidth`,
+  :math:`\\omega_j r (T_s + L_u) \\le 1/2` with :math:`L_u` the latency the controller does
+  not compensate: none when the config declares its latency (``[controller] latency`` > 0),
+  else one unknown control period (an arm's interface always delays its measurements).
+  The margin is :math:`\\omega_{\\max}/\\omega_j` [-] (a problem below 1); the explicit
+  observer also needs :math:`T_s\\omega_j < 2`;
 * **damping time constant** :math:`M_{jj}(q_0)/b_j` [s] of the URDF's joint damping
   against :math:`T_s`: a problem when it is below :math:`2T_s` and the controller does not
   compensate the joint dynamics (``controller.joint_dynamics = false``);
@@ -37,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from ..compensation.bandwidth import MASS_RATIO, bandwidth_limit
 from ..experiment.build import Experiment
 from ..experiment.plants import _effort_limit
 from ..experiment.schema import ExperimentConfig
@@ -59,9 +61,10 @@ class CheckReport:
     Attributes:
         joints: Joint names.
         Ts: Control period [s].
-        latency: Latency the margin is computed for [s].
+        latency: The latency the controller is told about, ``[controller] latency`` [s].
         bandwidth: Observer bandwidth per joint [1/s] (``None``: no observer).
-        margin: Phase margin of the observer loop per joint [rad] (``None``: no observer).
+        margin: The rule's margin :math:`\\omega_{\\max}/\\omega_j` per joint [-] (below 1: a
+            problem; inf: no bound; ``None``: no observer).
         damping_tau: Damping time constant :math:`M_{jj}/b_j` per joint [s] (inf: none).
         headroom: Torque headroom per joint [-] (inf: no limit).
         engine: ``(max rel. difference of M, of q̈)`` against MuJoCo, or a sentence why
@@ -89,8 +92,8 @@ class CheckReport:
         for j, name in enumerate(self.joints):
             bw = "-" if self.bandwidth is None else f"{self.bandwidth[j]:.3g}"
             wts = "-" if self.bandwidth is None else f"{self.bandwidth[j] * self.Ts:.3g}"
-            mg = ("-" if self.margin is None else "none" if self.margin[j] <= 0
-                  else f"{math.degrees(self.margin[j]):.0f} deg")  # fmt: skip
+            mg = ("-" if self.margin is None else "inf" if np.isinf(self.margin[j])
+                  else f"{self.margin[j]:.2g}x")  # fmt: skip
             tau = "-" if not np.isfinite(self.damping_tau[j]) else f"{self.damping_tau[j]:.3g}"
             hr = "-" if not np.isfinite(self.headroom[j]) else f"{100 * self.headroom[j]:.0f} %"
             lines.append(f"{name:<24} {bw:>9} {wts:>7} {mg:>8} {tau:>9} {hr:>9}")
@@ -102,18 +105,18 @@ class CheckReport:
         return "\n".join(lines)
 
 
-def _latency(config: ExperimentConfig) -> float:
-    """The latency [s]: a ``latency`` key of the config if it has one, else the sweep's
-    ``delay`` in whole periods."""
-    for section in ("sensing", "simulation", "controller"):
-        value = getattr(getattr(config, section, None), "latency", None)
-        if value is not None:
-            return float(value)
-    return float(config.sweep.delay) * config.controller.Ts
+def _latency(config: ExperimentConfig) -> tuple[float, float]:
+    """``(declared, uncompensated)`` latency [s]: ``[controller] latency`` (compensated by
+    the controller) and the latency the rule assumes the controller was not told about
+    (one control period when none is declared, as
+    :func:`~hmpc_pin.compensation.bandwidth.check_bandwidth`)."""
+    declared = float(getattr(config.controller, "latency", None) or 0.0)
+    return declared, (0.0 if declared > 0 else config.controller.Ts)
 
 
 def _bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
     """The observer's bandwidth per joint [1/s], or ``None`` without an observer."""
+    from ..compensation.bandwidth import implied_bandwidth
     from ..compensation.observers import DisturbanceObserver, MomentumObserver
 
     comp = getattr(ex.controller, "compensation", None)
@@ -122,7 +125,7 @@ def _bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
     if isinstance(comp, MomentumObserver):
         return np.broadcast_to(np.asarray(comp.K, dtype=float), (M0.shape[0],)).copy()
     if isinstance(comp, DisturbanceObserver):
-        return np.diag(comp.cY) / np.diag(M0)
+        return implied_bandwidth(comp.cY, M0)
     return None  # no observer (none, ISM)
 
 
@@ -202,25 +205,30 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     names = robot.joint_names
     Ts = config.controller.Ts
     M0 = robot.mass_matrix(ex.q0)
-    latency = _latency(config)
+    latency, uncompensated = _latency(config)
     problems: list[str] = []
 
     bw = _bandwidth(ex, M0)
     margin = None
     if bw is not None:
-        margin = math.pi / 2 - bw * (latency + Ts / 2)
-        limit = math.pi / 2 / (latency + Ts / 2)
-        for j in np.flatnonzero((bw * Ts > 1.0) | (margin <= 0.0)):
-            why = []
-            if bw[j] * Ts > 1.0:
-                why.append(f"w Ts = {bw[j] * Ts:.4g} > 1")
-            if margin[j] <= 0.0:
-                why.append(f"no phase margin for a latency of {latency:g} s "
-                           f"(pi/2 - w (L + Ts/2) = {margin[j]:.3g} rad)")  # fmt: skip
-            problems.append(
-                f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s: {'; '.join(why)}; "
-                f"keep it below {min(1 / Ts, limit):.3g} 1/s (lower the observer gain)"
-            )
+        limit = bandwidth_limit(Ts, uncompensated)
+        margin = np.where(bw > 0, limit / np.where(bw > 0, bw, 1.0), np.inf)
+        explicit = getattr(config.controller.observer, "discretization", "") == "explicit"
+        for j in np.flatnonzero((margin < 1.0) | (explicit & (bw * Ts >= 2.0))):
+            if explicit and bw[j] * Ts >= 2.0:
+                problems.append(
+                    f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s: w Ts = "
+                    f"{bw[j] * Ts:.3g} >= 2 puts the explicit observer's pole outside the "
+                    f"unit circle; use w < {2 / Ts:.4g} 1/s or discretization = 'implicit'"
+                )
+            else:
+                problems.append(
+                    f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s (w Ts = "
+                    f"{bw[j] * Ts:.3g}) above {limit:.3g} 1/s, the rule w r (Ts + L) <= 1/2 "
+                    f"for a latency of L = {uncompensated:g} s the controller is not told "
+                    f"about (r = {MASS_RATIO:g}): declare the latency ([controller] latency) "
+                    "or lower the observer gain"
+                )
 
     b = robot.joint_damping
     with np.errstate(divide="ignore"):

@@ -68,7 +68,7 @@ class MuJoCoConfig:
         friction_timeconst: Time constant [s] of MuJoCo's joint dry-friction constraint
             (``dof_solref``; default: MuJoCo's 0.02 s). Shorter is closer to Coulomb's
             :math:`-f\\,\\mathrm{sgn}\\,\\dot q`; at least twice ``timestep``.
-        import_urdf_dynamics: Deprecated since 0.4: use ``[plant] joint_dynamics`` (the
+        import_urdf_dynamics: Deprecated since 0.3: use ``[plant] joint_dynamics`` (the
             same switch for every engine). Loads with a :class:`DeprecationWarning` and
             sets ``plant.joint_dynamics``.
         geometry: Collision geometry of the arm: ``"collision"`` (the URDF's, default),
@@ -180,7 +180,7 @@ class PlantConfig:
                     "remove the deprecated key and keep plant.joint_dynamics",
                 )  # fmt: skip
             warnings.warn(
-                "plant.mujoco.import_urdf_dynamics is deprecated since 0.4; use "
+                "plant.mujoco.import_urdf_dynamics is deprecated since 0.3; use "
                 f"plant.joint_dynamics = {str(old).lower()} (one switch for every engine)",
                 DeprecationWarning,
                 stacklevel=2,

@@ -1,6 +1,6 @@
 """``hmpc-pin tune CONFIG``: search the controller's settings on the sweep's perturbed plants.
 
-Each trial (Optuna, :class:`optuna.samplers.TPESampler` seeded with ``seed``) proposes
+Each trial (Optuna, Optuna's ``TPESampler`` seeded with ``seed``) proposes
 the observer gain :math:`c` (log-uniform on :math:`[c_0/10, 5c_0]`), the MPC weights
 :math:`Q = \\mathrm{diag}(q_p, q_v)` (log-uniform :math:`q_p \\in [1, 10^4]`,
 :math:`q_v \\in [10^{-4}, 10^2]`, terminal weight :math:`P = 2Q` as the paper's),

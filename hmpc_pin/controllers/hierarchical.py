@@ -79,7 +79,7 @@ class MPCSettings:
             URDF's ``<dynamics>``): :math:`C\\dot q + G` becomes
             :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
             Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
-            (:meth:`HierarchicalMPC.zoh_gains`). Default ``True``.
+            (computed in the compiled step, see ``src/core.cpp``). Default ``True``.
     """
 
     Ts: float = 0.01

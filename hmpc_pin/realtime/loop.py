@@ -341,7 +341,7 @@ class RealtimeLoop:
     def set_reference(self, reference) -> None:
         """Replace the reference from the next controller step on (callable from another
         thread: the loop swaps it in at a step). The caller checks it (limits, continuity
-        at :attr:`time`, the loop time of the last step)."""
+        at ``time``, the loop time of the last step)."""
         self._pending_reference = as_reference(reference)
 
     # ------------------------------------------------------------------ stopping

@@ -2,7 +2,7 @@
 component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_config`.
 
 ``[robot]`` :mod:`.robot` · ``[controller]`` (and its tables) :mod:`.controller`
-(``[controller.friction]`` :mod:`.friction`) ·
+(``[controller.friction]`` :mod:`~hmpc_pin.experiment.config.friction`) ·
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
 ``[sweep.sensing]`` :mod:`.sensing` · ``[collision]`` :mod:`.collision` ·

@@ -1,6 +1,6 @@
 """``[controller]`` and its tables ``[controller.observer]``, ``[controller.constraints]``,
 ``[controller.ism]``, ``[controller.computed_torque]`` (``[controller.friction]`` is
-:mod:`.friction`); the controller × compensation names."""
+:mod:`hmpc_pin.experiment.config.friction`); the controller × compensation names."""
 
 from __future__ import annotations
 

@@ -45,8 +45,8 @@ class SweepConfig:
             the MuJoCo plant's joint frictionloss and damping)
             (one factor per joint for both).
         disturbance: Factor range per joint on the Gaussian pulse amplitude.
-        sensing: The arm's interface (:class:`~hmpc_pin.experiment.config.sensing.
-            SensingConfig`, table ``[sweep.sensing]``): encoders, velocity estimate,
+        sensing: The arm's interface (:class:`~hmpc_pin.experiment.config.sensing.SensingConfig`,
+            table ``[sweep.sensing]``): encoders, velocity estimate,
             latency, torque filter. Default: the realistic model of that class.
         conditions: What each sample is run under, a subset of :data:`CONDITIONS`:
             ``"sensing"`` (the interface's angles and velocities, white noise; exact

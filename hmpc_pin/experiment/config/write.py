@@ -1,6 +1,6 @@
 """Writing a config back: a TOML file with some tables replaced (``identify``, ``tune``).
 
-The source file is parsed with :mod:`tomllib`, the tables are replaced, and the result is
+The source file is parsed with ``tomllib``, the tables are replaced, and the result is
 written as TOML with the relative file paths (``robot.urdf``, ``plant.urdf``,
 ``reference.trajectory.file``) rewritten relative to the new file's folder, so that the
 written config loads from wherever it is written. Comments of the source are not kept; a

@@ -73,3 +73,24 @@ def test_one_version_string():
     for path in (ROOT / "hmpc_pin").rglob("*.py"):
         for since in re.findall(r"since (\d+)\.(\d+)", path.read_text(encoding="utf-8")):
             assert tuple(map(int, since)) <= major_minor, (path, since)
+
+
+def test_a_limit_without_effort_names_the_joint(write_urdf):
+    from .test_urdf_joints import chain, joint, rod
+
+    text = chain(rod("l1"), joint("j1", "revolute", "base", "l1", x=0.0), rod("l2"),
+                 joint("j2", "revolute", "l1", "l2",
+                       limit='<limit lower="-1" upper="1" velocity="2"/>'))  # fmt: skip
+    with pytest.raises(URDFError) as info:
+        load_robot(write_urdf(text))
+    message = str(info.value)
+    assert "joint 'j2': <limit> has no effort attribute" in message
+    assert message.count("effort") == 3 and 'effort="0" is no torque limit' in message
+
+
+def test_a_header_typo_points_at_the_column(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_text("t,joint1,jiont2\n0,0,0\n0.1,0.1,0.1\n", encoding="utf-8")
+    with pytest.raises(TrajectoryError, match=r"no column for joint 'joint2' \(column "
+                       r"'jiont2' is not a joint: a typo of 'joint2'\?\)"):  # fmt: skip
+        hmpc_pin.load_trajectory(path, ["joint1", "joint2"])

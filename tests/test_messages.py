@@ -94,3 +94,22 @@ def test_a_header_typo_points_at_the_column(tmp_path):
     with pytest.raises(TrajectoryError, match=r"no column for joint 'joint2' \(column "
                        r"'jiont2' is not a joint: a typo of 'joint2'\?\)"):  # fmt: skip
         hmpc_pin.load_trajectory(path, ["joint1", "joint2"])
+
+
+def test_init_says_what_it_assumes(write_urdf, tmp_path, capsys):
+    """A URDF effort of 0 is said to be no torque limit; a model example-robot-data puts
+    on a floating base is said to be controlled with its base fixed."""
+    from .test_urdf_joints import chain, joint, rod
+
+    free = '<limit lower="-2" upper="2" effort="0" velocity="3"/>'
+    text = chain(rod("l1"), joint("j1", "revolute", "base", "l1", x=0.0), rod("l2"),
+                 joint("j2", "revolute", "l1", "l2", limit=free))  # fmt: skip
+    assert main(["init", str(write_urdf(text)), "--out", str(tmp_path / "a.toml")]) == 0
+    err = capsys.readouterr().err
+    assert "joint(s) ['j2'] have effort=\"0\" in the URDF: taken as no torque limit" in err
+    assert "floating base" not in err
+    from hmpc_pin.experiment.init import plan
+
+    with pytest.warns(hmpc_pin.ValidityWarning, match="so100: example-robot-data gives it a "
+                      "floating base"):  # fmt: skip
+        plan("so100")

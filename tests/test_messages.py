@@ -113,3 +113,30 @@ def test_init_says_what_it_assumes(write_urdf, tmp_path, capsys):
     with pytest.warns(hmpc_pin.ValidityWarning, match="so100: example-robot-data gives it a "
                       "floating base"):  # fmt: skip
         plan("so100")
+
+
+def test_a_trajectory_in_degrees_is_called_so_and_a_position_error_does_not_say_slower(
+    tmp_path, capsys
+):
+    """planar3's first joint is limited to ±π/2: a sine of 45° amplitude written in
+    degrees leaves it: the one line suggests degrees; a slow motion in rad beyond the
+    limits says to move it inside them, not to slow down."""
+    t = np.linspace(0.0, 2.0, 201)
+    cfg = tmp_path / "c.toml"
+    text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
+    cfg.write_text(text.replace('urdf = "../robots/planar3.urdf"', 'model = "planar3"'))
+    robot = load_robot("planar3")
+    lo, hi = robot.lower[0], robot.upper[0]
+    assert (lo, hi) == pytest.approx((-np.pi / 2, np.pi / 2))
+    for values, words, absent in (
+        (np.degrees(0.5 * lo) * np.sin(np.pi * t), "look like degrees", None),
+        (np.full_like(t, hi + 0.2), "positions inside the limits", "slower"),
+    ):
+        path = tmp_path / "traj.csv"
+        pairs = zip(t, values, strict=True)
+        rows = ["t,joint1,joint2,joint3"] + [f"{float(a)!r},{float(b)!r},0,0" for a, b in pairs]
+        path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+        assert main(["run", str(cfg), "--reference", str(path), "--out", str(tmp_path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and words in err, err
+        assert absent is None or absent not in err

@@ -44,7 +44,7 @@ import pinocchio as pin
 
 from ..compensation.observers import general_gain_bound
 from ..data import robot_path
-from ..exceptions import ConfigError, OutputError, SimulationError, URDFError
+from ..exceptions import ConfigError, OutputError, SimulationError, URDFError, ValidityWarning
 from ..model.robot import (
     Robot,
     check_urdf,
@@ -102,6 +102,33 @@ def _resolve(source: str | Path) -> tuple[Path, tuple[str, str], str | None]:
             return packaged, ("model", str(source)), None
         return example_robot_urdf(str(source)), ("model", str(source)), str(source)
     return path, ("urdf", str(path.resolve())), None
+
+
+def _say_what_is_assumed(name: str | None, robot: Robot) -> None:
+    """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) about what the config assumes
+    silently otherwise: a model example-robot-data mounts on a floating base (legged,
+    flying or mobile robots) is controlled with its base fixed to the world; a URDF effort
+    of 0 is no torque limit."""
+    if name is not None:
+        from example_robot_data import robots_loader
+
+        loader = robots_loader.ROBOTS.get(name)
+        if loader is not None and loader.free_flyer:
+            warnings.warn(
+                f"{name}: example-robot-data gives it a floating base (a legged, flying or "
+                "mobile robot, or an arm mounted that way); the config controls its "
+                f"{robot.nq} joints with the base fixed to the world",
+                ValidityWarning,
+                stacklevel=4,
+            )
+    zero = [j for j, e in zip(robot.joint_names, robot.effort_limit, strict=True) if e == 0]
+    if zero:
+        warnings.warn(
+            f"joint(s) {zero} have effort=\"0\" in the URDF: taken as no torque limit "
+            "(the plant never clips their torque); set plant.effort_limit to impose one",
+            ValidityWarning,
+            stacklevel=4,
+        )
 
 
 def _posture(path: Path, name: str | None) -> tuple[dict[str, float], str]:
@@ -190,6 +217,7 @@ class InitPlan:
         self.locked = {n: _inside(posture.get(n, 0.0), *limits[n]) for n in lock if n in limits}
         self.robot: Robot = load_robot(path, gravity=9.81, locked_joints=self.locked)
         robot = self.robot
+        _say_what_is_assumed(name, robot)
         lo, hi = robot.lower, robot.upper
         names = robot.joint_names
         self.bad_ranges = tuple(n for n, a, b in zip(names, lo, hi, strict=True) if a >= b)

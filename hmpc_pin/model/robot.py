@@ -142,6 +142,17 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
     if root.tag != "robot":
         raise URDFError(path, f"root element is <{root.tag}>, expected <robot>")
     check_inertias(root, path, locked)
+    for joint in root.findall("joint"):  # yourdfpy's message names neither joint nor fix
+        limit = joint.find("limit")
+        if joint.get("type") in ("revolute", "prismatic", "continuous") and limit is not None:
+            missing = [a for a in ("effort", "velocity") if limit.get(a) is None]
+            if missing:
+                raise URDFError(
+                    path, f"joint {joint.get('name')!r}: <limit> has no {' and no '.join(missing)} "
+                    "attribute; the URDF requires both on a movable joint's <limit> (write "
+                    '0 where the arm has none: effort="0" is no torque limit, velocity="0" '
+                    "no velocity limit)",
+                )  # fmt: skip
 
     import yourdfpy  # local import: only needed on load
 

@@ -38,6 +38,27 @@ LINE = "interrupted at start-up, before any run (nothing written)"
 SWALLOWING_IMPORTS = ("yourdfpy",)
 
 
+#: Whether a Ctrl-C came after the start-up (:func:`end`). Set by the command line's
+#: handler before it raises :class:`KeyboardInterrupt`, so that a Ctrl-C which a library
+#: swallowed while the run was set up (``except BaseException`` around a lazy import) still
+#: stops the run: the run's entry points call :func:`raise_if_interrupted`.
+interrupted = False
+
+
+def _interrupt(signum, frame) -> None:
+    """The command line's SIGINT handler after the start-up: remember, then raise."""
+    global interrupted
+    interrupted = True
+    raise KeyboardInterrupt
+
+
+def raise_if_interrupted() -> None:
+    """Raise :class:`KeyboardInterrupt` when a Ctrl-C came after the start-up, even one a
+    library swallowed (nothing happens for library users: no handler is installed)."""
+    if interrupted:
+        raise KeyboardInterrupt
+
+
 def _exit_now(signum, frame) -> None:  # pragma: no cover - runs in subprocess tests
     try:
         os.write(2, (LINE + "\n").encode())
@@ -72,6 +93,8 @@ def active() -> bool:
 def guard():
     """Make Ctrl-C end the process at once (exit 130, one line); return the handler it
     replaced (``None`` outside the main thread, where no handler can be installed)."""
+    global interrupted
+    interrupted = False
     try:
         return signal.signal(signal.SIGINT, _exit_now)
     except ValueError:  # not the main thread
@@ -80,7 +103,8 @@ def guard():
 
 def end() -> None:
     """End the start-up: import :data:`SWALLOWING_IMPORTS` while the guard holds, then let
-    Ctrl-C raise :class:`KeyboardInterrupt` (nothing changes when the guard is not set)."""
+    Ctrl-C raise :class:`KeyboardInterrupt`, remembered in :data:`interrupted` (nothing
+    changes when the guard is not set)."""
     if not active():
         return
     import importlib
@@ -88,7 +112,7 @@ def end() -> None:
     for name in SWALLOWING_IMPORTS:
         with contextlib.suppress(ImportError):  # a dependency of the package
             importlib.import_module(name)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGINT, _interrupt)
 
 
 def restore(previous) -> None:

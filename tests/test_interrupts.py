@@ -297,8 +297,10 @@ def test_ctrl_c_at_any_instant_exits_130_at_once_with_one_line(tmp_path, command
         os.kill(pid, signal.SIGKILL)
     assert not left, f"processes of the command left 3 s after exit: {names}"
     # 1 s on an idle machine; on a loaded one the command gets a share of a core only
+    # (the load average lags, hence 0.5 s for the scheduler; a Ctrl-C that is not
+    # honoured runs the hour-long command on, far beyond this bound)
     load = os.getloadavg()[0] / (os.cpu_count() or 1)
-    assert elapsed <= max(1.0, load), f"exit {elapsed:.2f} s after SIGINT (load {load:.1f})"
+    assert elapsed <= max(1.0, load) + 0.5, f"exit {elapsed:.2f} s after SIGINT (load {load:.1f})"
     if _in_interpreter_start(text):
         return  # Python's own start (site, .pth files): no line of hmpc_pin has run yet
     assert code in (EXIT_INTERRUPTED, -signal.SIGINT), text
@@ -369,3 +371,33 @@ def test_ctrl_c_while_the_arm_process_starts_leaves_no_process_and_no_memory(mon
     assert made and not [p for p in active_children() if p.name == "hmpc-pin-arm"]
     with pytest.raises(FileNotFoundError):
         SharedMemory(name=made[0])
+
+
+def test_a_ctrl_c_a_library_swallowed_during_set_up_still_stops_the_run():
+    """After the start-up a Ctrl-C is remembered: one that a library's ``except
+    BaseException`` swallowed while the run was set up (a lazy import) stops the run at its
+    first step, with the partial run kept, instead of running to the end."""
+    import hmpc_pin
+    from hmpc_pin import _startup
+
+    previous = _startup.guard()
+    try:
+        _startup.end()
+        try:  # what trimesh does around a lazy import
+            signal.raise_signal(signal.SIGINT)
+        except BaseException:
+            pass
+        assert _startup.interrupted
+        experiment = hmpc_pin.Experiment.from_config(
+            hmpc_pin.load_config(CONFIGS / "paper_combined.toml")
+        )
+        with pytest.raises(RunInterrupted) as info:
+            experiment.run()
+        result = info.value.result
+        assert not result.complete and "interrupted" in result.message
+        assert len(result.t) <= 1
+    finally:
+        _startup.restore(previous)
+        _startup.interrupted = False
+    # without a handler installed (a library user), nothing is remembered
+    assert not _startup.interrupted

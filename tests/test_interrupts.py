@@ -383,7 +383,7 @@ def test_a_ctrl_c_a_library_swallowed_during_set_up_still_stops_the_run():
     previous = _startup.guard()
     try:
         _startup.end()
-        try:  # what trimesh does around a lazy import
+        try:  # noqa: SIM105  (what trimesh does around a lazy import)
             signal.raise_signal(signal.SIGINT)
         except BaseException:
             pass

@@ -526,6 +526,12 @@ PYBIND11_MODULE(_core, m) {
       .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
       .def_property("shortcut", [](const PyJointQPs& o) { return o.qps.shortcut; },
                     [](PyJointQPs& o, bool on) { o.qps.shortcut = on; })
+      .def_property("shift", [](const PyJointQPs& o) { return o.qps.shift; },
+                    [](PyJointQPs& o, bool on) { o.qps.shift = on; })
+      .def_property("active_set_iter", [](const PyJointQPs& o) { return o.qps.active_set_iter; },
+                    [](PyJointQPs& o, int k) { o.qps.active_set_iter = k; })
+      .def_property_readonly("active_set_solves",
+                             [](const PyJointQPs& o) { return o.qps.active_set_solves; })
       .def_property_readonly("cold_solves", [](const PyJointQPs& o) { return o.qps.cold_solves; })
       .def_property_readonly("unconstrained_solves",
                              [](const PyJointQPs& o) { return o.qps.unconstrained_solves; })

@@ -503,7 +503,16 @@ PYBIND11_MODULE(_core, m) {
       .def("update", &PyNDO::update, py::arg("M"), py::arg("nle"), py::arg("dq"),
            py::arg("tau_prev"))
       .def_property_readonly("n", [](const PyNDO& o) { return o.ndo.n; })
-      .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; });
+      .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; })
+      .def_property(  // (z, d̂), copies; restored after a dry step (warm_up)
+          "state", [](const PyNDO& o) { return py::make_tuple(Vec(o.ndo.z), Vec(o.ndo.estimate)); },
+          [](PyNDO& o, const py::tuple& s) {
+            const Vec z = s[0].cast<Vec>(), e = s[1].cast<Vec>();
+            if (z.size() != o.ndo.n || e.size() != o.ndo.n)
+              throw std::invalid_argument("NDO.state: (z, estimate) of n values each");
+            o.ndo.z = z;
+            o.ndo.estimate = e;
+          });
 
   using JQ = hmpc_native::JointQPs;
   py::class_<PyJointQPs, std::shared_ptr<PyJointQPs>>(m, "JointQPs", py::module_local())
@@ -532,6 +541,21 @@ PYBIND11_MODULE(_core, m) {
                     [](PyJointQPs& o, int k) { o.qps.active_set_iter = k; })
       .def_property_readonly("active_set_solves",
                              [](const PyJointQPs& o) { return o.qps.active_set_solves; })
+      .def_property(
+          "counters",
+          [](const PyJointQPs& o) {
+            const auto& q = o.qps;
+            return py::make_tuple(q.cold_solves, q.unconstrained_solves, q.active_set_solves,
+                                  q.constrained, q.constrained_last);
+          },
+          [](PyJointQPs& o, const py::tuple& c) {  // restored after a dry step (warm_up)
+            auto& q = o.qps;
+            q.cold_solves = c[0].cast<long>();
+            q.unconstrained_solves = c[1].cast<long>();
+            q.active_set_solves = c[2].cast<long>();
+            q.constrained = c[3].cast<long>();
+            q.constrained_last = c[4].cast<bool>();
+          })
       .def_property_readonly("cold_solves", [](const PyJointQPs& o) { return o.qps.cold_solves; })
       .def_property_readonly("unconstrained_solves",
                              [](const PyJointQPs& o) { return o.qps.unconstrained_solves; })

@@ -433,7 +433,8 @@ def realtime_parts(experiment: Experiment) -> tuple[LoopSettings, SafetySettings
     rc, robot = cfg.realtime, experiment.robot
     n = robot.nq
     loop = LoopSettings(rate=rc.rate, duration=cfg.simulation.duration, gc_handling=rc.gc,
-                        gc_slack=rc.gc_slack, spin=rc.spin)  # fmt: skip
+                        gc_slack=rc.gc_slack, spin=rc.spin,
+                        warm_up=rc.warm_up)  # fmt: skip
     loop.decimation(cfg.controller.Ts)
     experiment.make_plant(loop.period)  # checks that the plant's step divides the period
     if rc.limits:

@@ -263,7 +263,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{args.lead:g}`: step alone over {steps['steps']} states, {steps['blocks']} "
               f"alternating blocks: back to back {steps['warm']:.0f} µs, after a sleep of Ts "
               f"{steps['cold']:.0f} µs (ratio {steps['ratio']:.2f}), after the sleep with "
-              f"warm_up {1e6 * steps['lead']:.0f} µs before {steps['warmed']:.0f} µs (ratio {steps['warmed_ratio']:.2f})")
+              f"warm_up {1e6 * steps['lead']:.0f} µs before {steps['warmed']:.0f} µs "
+              f"(ratio {steps['warmed_ratio']:.2f})")
         return 0
     machine = {**machine_info(), **package_versions(("pin", "proxsuite", "numpy"))}
     try:

@@ -1,13 +1,14 @@
 # Two entry points on a fresh machine (see README):
 #   make demo   - create .venv, install hmpc_pin, run examples/track_sine.py
 #   make test   - create .venv, install hmpc_pin with the dev and viz extras, run the tests
+#   make docs   - build the documentation site strictly into docs/_build/html
 # Installing builds the compiled core (CMakeLists.txt, about a minute on 2 cores); nothing
 # is compiled at run time.
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: demo test wheel lint clean
+.PHONY: demo test docs wheel lint clean
 
 $(VENV)/.installed: pyproject.toml CMakeLists.txt $(wildcard src/*.cpp src/*.hpp)
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +26,11 @@ test: $(VENV)/.installed
 	$(VENV)/bin/mypy
 	HMPC_PIN_REQUIRE_NATIVE=1 $(PY) -m pytest
 
+# The documentation site, strict: warnings are errors (-W, all of them reported with
+# --keep-going) and every cross-reference must resolve (-n). Offline: no intersphinx.
+docs: $(VENV)/.installed
+	$(VENV)/bin/sphinx-build -E -W --keep-going -n -q -b html docs docs/_build/html
+
 # A platform wheel in dist/ (the compiled core inside).
 wheel: $(VENV)/.installed
 	$(PY) -m pip wheel . --no-deps -w dist
@@ -34,4 +40,4 @@ lint: $(VENV)/.installed
 	$(VENV)/bin/ruff format --check hmpc_pin tests examples
 
 clean:
-	rm -rf $(VENV) out build dist
+	rm -rf $(VENV) out build dist docs/_build docs/api/generated

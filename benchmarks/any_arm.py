@@ -68,7 +68,9 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         code = main(["init", name, "--out", str(path), "--force"])
     if code != 0:
-        why = re.sub(r"/\S+/(\S+\.urdf)", r"\1", err.getvalue().strip().removeprefix("error: "))
+        lines = [x for x in err.getvalue().splitlines() if not x.startswith("warning: ")]
+        text = lines[-1] if lines else ""  # the error line (warnings, e.g. of inertias, before)
+        why = re.sub(r"/\S+/(\S+\.urdf)", r"\1", text.strip().removeprefix("error: "))
         return {**row, "status": f"exit {code}", "why": why}
     try:
         config = load_config(path)

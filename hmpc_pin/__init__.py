@@ -9,13 +9,18 @@ external torques.
 
 The package is layered; each layer imports only the layers below it (tested)::
 
-    apps/          cli, run, compare, sweep, report, metrics, plots, viz
+    apps/          cli, run, compare, sweep, tune, identify, check, report, metrics, plots, viz,
+                   ros (the nodes' commands)
+      │
+    ros/           ROS 2: the arm's topics as a PacedInterface · trajectory messages · arm node
       │
     experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
       │
     realtime/      RobotInterface protocol · arm in another process · fixed-rate loop, safe stops
+    identification/ friction (observer or inverse dynamics) and collision thresholds from a run
       │
-    sim/           disturbances · plants (Plant protocol: RK4, Euler, MuJoCo) · simulate · Result
+    sim/           disturbances · plants (Plant protocol: RK4, Euler, MuJoCo) · sensing (the
+      │            arm's interface: encoders, velocity estimate, latency) · simulate · Result
       │
     controllers/   Controller protocol · HierarchicalMPC · ComputedTorque · wrappers
       │      ╲
@@ -33,6 +38,7 @@ one compensation and calls its MPC; the torque goes to a plant; ``simulate`` clo
 loop; ``experiment.build`` assembles all of it from a config.
 """
 
+from . import _startup  # noqa: F401  (first: Ctrl-C while the command line starts, exit 130)
 from .apps.compare import Comparison, run_comparison
 from .apps.metrics import Metrics, compute_metrics, format_metrics
 from .compensation import (
@@ -107,7 +113,7 @@ from .tasks import (
     retime_waypoints,
 )
 
-__version__ = "0.2.0"
+__version__ = "0.3.0.dev0"  # the same as pyproject.toml (tested)
 
 __all__ = [
     "COMPENSATIONS",

@@ -114,7 +114,7 @@ class SimulationError(HmpcError, RuntimeError):
     """A closed-loop run stopped early (non-finite state, divergence, solver failure).
 
     Attributes:
-        result: The partial :class:`~hmpc_pin.simulate.Result` up to the failing step,
+        result: The partial :class:`~hmpc_pin.sim.result.Result` up to the failing step,
             marked ``complete=False``.
     """
 
@@ -201,6 +201,13 @@ class InterfaceError(HmpcError, TypeError):
         super().__init__(text + (f"; {hint}" if hint else ""))
 
 
+class ArmError(HmpcError, RuntimeError):
+    """The arm does not give the controller what it needs, before any torque is sent: no
+    state within the start-up time (a ROS topic nobody publishes), a state without some of
+    the robot's joints, or without positions and velocities. The message names the
+    source (topic) and what to check."""
+
+
 class ValidityWarning(UserWarning):
     """A design is used outside the conditions it is proven for (e.g. Chen's observer on a
     spatial arm); the run goes on. The message names the valid alternative."""
@@ -261,3 +268,21 @@ class NativeError(HmpcError, RuntimeError):
 
 class PerformanceWarning(UserWarning):
     """A run takes a slower path than it could (e.g. the native kernels are unavailable)."""
+
+
+class ExcitationError(HmpcError, ValueError):
+    """A run does not excite a joint enough to identify it (``hmpc-pin identify``).
+
+    Attributes:
+        joint: The joint's name. reason: What was measured.
+    """
+
+    def __init__(self, joint: str, reason: str):
+        self.joint = joint
+        self.reason = reason
+        super().__init__(
+            f"joint {joint!r} is not excited enough to identify its friction: {reason}; "
+            f"record a run in which {joint} moves both ways at speed, e.g. a sine reference "
+            "on it with a peak velocity 2π·amplitude·frequency of 0.2 rad/s or more, over "
+            "several periods"
+        )

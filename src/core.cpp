@@ -13,6 +13,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 
 #include "dynamics.hpp"
@@ -75,7 +76,9 @@ struct PyNDO {
 // Runge-Kutta steps of h with the torque held, the disturbance evaluated at every stage,
 //   k1 = f(t_s, x), k2 = f(t_s + h/2, x + h/2 k1), k3 = f(t_s + h/2, x + h/2 k2),
 //   k4 = f(t_s + h, x + h k3),  x += h/6 (k1 + 2 k2 + 2 k3 + k4),
-//   f(t, [q; q̇]) = [q̇; ABA(q, q̇, τ + d(t, q, q̇))].
+//   f(t, [q; q̇]) = [q̇; ABA(q, q̇, τ + d(t, q, q̇) − B q̇ − F sgn q̇)].
+// B q̇ + F sgn q̇ (sgn 0 = 0) is the arm's own joint damping and Coulomb friction, the URDF's
+// <dynamics damping friction> (set_joint_dynamics; none by default), evaluated per stage.
 // The disturbance is either fused (period(): time-only terms tabulated by the caller per
 // stage time, one Coulomb-viscous friction −(a q̇ + b sgn q̇) here) or any Python callable
 // d(t, q, q̇) (period_with()). ABA is Pinocchio's, compiled, or a Python callable for models
@@ -86,6 +89,8 @@ struct RK4 {
   py::object aba_cb;              // aba(q, v, tau) -> q̈ (Python), when no dyn
   int n;
   Vec q2, v2, q3, v3, q4, v4, a1, a2, a3, a4, u;
+  Vec jb, jf;          // joint damping B [N·m·s/rad] and Coulomb friction F [N·m], diagonal
+  bool joint = false;  // whether B, F are applied (any non-zero)
 
   RK4(py::object model, int n_, py::object aba) : aba_cb(std::move(aba)), n(n_) {
     if (!model.is_none()) {
@@ -94,7 +99,29 @@ struct RK4 {
     } else if (aba_cb.is_none()) {
       throw std::invalid_argument("RK4: give a serialized model or an aba callable");
     }
-    for (Vec* x : {&q2, &v2, &q3, &v3, &q4, &v4, &a1, &a2, &a3, &a4, &u}) x->setZero(n);
+    for (Vec* x : {&q2, &v2, &q3, &v3, &q4, &v4, &a1, &a2, &a3, &a4, &u, &jb, &jf}) x->setZero(n);
+  }
+
+  // The joint damping B and Coulomb friction F applied at every stage (zeros: none).
+  void set_joint_dynamics(const CRefVec& damping, const CRefVec& friction) {
+    if (damping.size() != n || friction.size() != n)
+      throw std::invalid_argument("RK4.set_joint_dynamics: damping and friction must be (n,)");
+    if ((damping.array() < 0.0).any() || (friction.array() < 0.0).any() ||
+        !damping.allFinite() || !friction.allFinite())
+      throw std::invalid_argument("RK4.set_joint_dynamics: expected finite values >= 0");
+    jb = damping;
+    jf = friction;
+    joint = (jb.array() != 0.0).any() || (jf.array() != 0.0).any();
+  }
+
+  // u −= B v + F sgn v (sgn 0 = 0), when there are joint dynamics.
+  template <class V>
+  void joint_terms(const V& v) {
+    if (!joint) return;
+    for (int i = 0; i < n; ++i) {
+      const double s = (v[i] > 0.0) - (v[i] < 0.0);
+      u[i] -= jb[i] * v[i] + jf[i] * s;
+    }
   }
 
   // q̈ = ABA(q, q̇, τ) into `out`.
@@ -120,6 +147,7 @@ struct RK4 {
         u[i] += -a[i] * v[i] + -b[i] * s;
       }
     }
+    joint_terms(v);
   }
 
   // Advance (q, v) in place over T.rows() / 3 steps of h. T holds, per stage time, the
@@ -160,6 +188,7 @@ struct RK4 {
     if (d.size() != n)
       throw std::invalid_argument("the disturbance returned a vector of wrong size");
     u = tau + d;
+    joint_terms(v);
   }
 
   // Advance (q, v) in place over S steps of h from time t with τ held, the disturbance a
@@ -290,6 +319,32 @@ struct HMPCCore {
   // The reference in native form (sampler.hpp).
   hmpc_native::HorizonSampler sampler;
   Vec offsets;  // horizon offsets j·Ts, j = 1..N [s]
+  // Measurement latency L = m Ts + alpha Ts (0 <= alpha < 1), known to the controller
+  // (set_latency): the observer is fed the torque applied over the interval its two
+  // measurements span, and the MPC and the inverse dynamics start from the state predicted
+  // over L. Off (latency_on false): the step is exactly the latency-free one.
+  bool latency_on = false;
+  int lat_m = 0;
+  double lat_alpha = 0.0, Ts = 0.0;
+  long steps = 0;            // finished steps since reset
+  std::vector<Vec> tau_hist; // tau_hist[j]: torque applied over [t_{k-1-j}, t_{k-j}), j = 0..m+1
+  std::vector<Vec> v_hist;   // v_hist[j]: acceleration commanded then, j = 0..m+1
+  Vec tau_obs, v_obs;        // the torque and acceleration aligned with the measurement
+  // The arm's joint damping B and Coulomb friction F (the URDF's <dynamics>), compensated:
+  // C q̇ + G becomes C q̇ + G + B q̇ + F sgn q̇ (for the observer and Eq 4), and with
+  // zoh_Ts > 0 the commanded acceleration of a damped joint is scaled so that over a period
+  // of the torque held the damped joint reaches the velocity the MPC's double integrator
+  // predicts (finish()).
+  Vec jb, jf, nle_j, jv, extra;
+  // J = B q̇_k + F σ + ZOH gain: the joint-dynamics torque of the last finish(). The observer
+  // is given the applied torque minus J and C q̇ + G without the joint terms: what the
+  // joint dynamics took over the period J was designed to cancel, the model of Eq (13) is
+  // the plain rigid body again (its Euler model of a damped joint would be wrong by g_j).
+  Vec jtau;
+  const Vec* nle0 = nullptr;  // C q̇ + G alone of the last prepare (compiled dynamics)
+  bool joint = false;
+  double zoh_Ts = 0.0;
+  Eigen::LLT<Mat> llt;
 
   HMPCCore(py::object model, const CRefRow& FT_, int N_, std::shared_ptr<PyJointQPs> qp_,
            std::shared_ptr<PyNDO> ndo_, py::array_t<double, py::array::c_style> v_,
@@ -352,6 +407,89 @@ struct HMPCCore {
     return code ? code : step(stack->map);
   }
 
+  // The measurement latency L [s] at the control period Ts_ [s] (L = 0: off).
+  void set_latency(double L, double Ts_) {
+    if (!(std::isfinite(L) && L >= 0.0 && std::isfinite(Ts_) && Ts_ > 0.0))
+      throw std::invalid_argument("set_latency: expected L >= 0 and Ts > 0");
+    Ts = Ts_;
+    latency_on = L > 0.0;
+    const double periods = L / Ts;
+    lat_m = static_cast<int>(std::floor(periods + 1e-9));
+    lat_alpha = periods - lat_m;
+    if (lat_alpha < 1e-9) lat_alpha = 0.0;
+    tau_hist.assign(lat_m + 2, Vec::Zero(n));
+    v_hist.assign(lat_m + 2, Vec::Zero(n));
+    tau_obs.setZero(n);
+    v_obs.setZero(n);
+  }
+
+  // Whether the interval [t_{k-1} - L, t_k - L] between the last two measurements lies
+  // after the start (k = steps): the observer can be advanced over it.
+  bool observer_ready() const {
+    if (!latency_on) return started;
+    return steps >= lat_m + 1 + (lat_alpha > 0.0 ? 1 : 0);
+  }
+
+  // The torque applied over [t_{k-1} - L, t_k - L], averaged (the observer's input):
+  //   alpha τ_{k-2-m} + (1 - alpha) τ_{k-1-m};  likewise the commanded acceleration.
+  void align() {
+    tau_obs = (1.0 - lat_alpha) * tau_hist[lat_m] + lat_alpha * tau_hist[lat_m + 1];
+    v_obs = (1.0 - lat_alpha) * v_hist[lat_m] + lat_alpha * v_hist[lat_m + 1];
+  }
+
+  // The state at t_k predicted from the measurement of t_k - L by the decoupled double
+  // integrator q̈ = v with the accelerations commanded over [t_k - L, t_k]: v_{k-1-m} over
+  // alpha Ts, then v_{k-m}, ..., v_{k-1} over Ts each (exact for piecewise-constant v).
+  // Writes rows 0 and 1 of S.
+  void predict(RefVec q, RefVec dq) const {
+    auto seg = [&](const Vec& a, double h) {
+      q += h * dq + (0.5 * h * h) * a;
+      dq += h * a;
+    };
+    if (lat_alpha > 0.0) seg(v_hist[lat_m], lat_alpha * Ts);
+    for (int j = lat_m - 1; j >= 0; --j) seg(v_hist[j], Ts);
+  }
+  int predict_stack(py::array_t<double, py::array::c_style> S) {
+    if (S.ndim() != 2 || S.shape(0) != 2 + 2 * N || S.shape(1) != n || !S.writeable())
+      throw std::invalid_argument("predict: stack of wrong shape");
+    MapRow Sm(S.mutable_data(), 2 + 2 * N, n);
+    if (!Sm.topRows(2).allFinite()) return 1;
+    Vec q = Sm.row(0).transpose(), dq = Sm.row(1).transpose();
+    predict(q, dq);
+    Sm.row(0) = q.transpose();
+    Sm.row(1) = dq.transpose();
+    return 0;
+  }
+
+  // After a step with latency: the torque as the plant applies it and v enter the history.
+  void record() {
+    if (!latency_on) return;
+    std::rotate(tau_hist.rbegin(), tau_hist.rbegin() + 1, tau_hist.rend());
+    std::rotate(v_hist.rbegin(), v_hist.rbegin() + 1, v_hist.rend());
+    // what the observer is fed: the applied torque beyond the joint dynamics' J (jtau)
+    tau_hist[0] = tau.map.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
+    if (joint) tau_hist[0] -= jtau;
+    v_hist[0] = v.map.row(0).transpose();
+  }
+
+  // The joint damping B [N·m·s/rad] and Coulomb friction F [N·m] to compensate (zeros:
+  // none); Ts > 0 also applies their zero-order-hold terms (zoh_gain(), in finish()).
+  void set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts) {
+    if (damping.size() != n || friction.size() != n)
+      throw std::invalid_argument("HMPCCore.set_joint_dynamics: damping, friction must be (n,)");
+    if ((damping.array() < 0.0).any() || (friction.array() < 0.0).any() ||
+        !damping.allFinite() || !friction.allFinite() || !(Ts >= 0.0))
+      throw std::invalid_argument("HMPCCore.set_joint_dynamics: expected finite values >= 0");
+    jb = damping;
+    jf = friction;
+    joint = (jb.array() != 0.0).any() || (jf.array() != 0.0).any();
+    zoh_Ts = joint ? Ts : 0.0;
+    nle_j.setZero(n);
+    jv.setZero(n);
+    extra.setZero(n);
+    jtau.setZero(n);
+  }
+
   void set_effort(const CRefVec& limit) {
     if (limit.size() != n) throw std::invalid_argument("effort limit of wrong size");
     effort = limit;
@@ -366,6 +504,10 @@ struct HMPCCore {
     qp->qps.constrained_last = false;
     qp->qps.constrained = 0;
     started = false;
+    steps = 0;
+    for (Vec& x : tau_hist) x.setZero();
+    for (Vec& x : v_hist) x.setZero();
+    if (joint) jtau.setZero();
   }
 
   // The first half of a step from the stack S: the gradients, and M, C q̇ + G -- computed
@@ -384,10 +526,17 @@ struct HMPCCore {
     if (dynamics) {
       if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
       M = &dyn->mass_matrix(qv);
-      nle = &dyn->nle(qv, dqv);
-      if (export_) {
+      nle = nle0 = &dyn->nle(qv, dqv);
+      if (joint) {  // + B q̇ + F sgn q̇ (sgn 0 = 0)
+        for (int i = 0; i < n; ++i) {
+          const double s = (dqv[i] > 0.0) - (dqv[i] < 0.0);
+          nle_j[i] = (*nle)[i] + jb[i] * dqv[i] + jf[i] * s;
+        }
+        nle = &nle_j;
+      }
+      if (export_) {  // C q̇ + G alone: the compensation's model (the joint terms: J)
         M_out.map = *M;
-        nle_out.map.row(0) = nle->transpose();
+        nle_out.map.row(0) = nle0->transpose();
       }
     }
     return 0;
@@ -413,22 +562,116 @@ struct HMPCCore {
       t.noalias() = *M * v.map.row(0).transpose();
       t += *nle;
     }
+    if (zoh_Ts > 0.0) {
+      if (external) zoh_gain(Mat(M_out.map));
+      else zoh_gain(*M);
+      t += extra;
+    }
+    if (joint) {  // J of this step, for the observer's next update
+      for (int i = 0; i < n; ++i) {
+        const double sg = (dqv[i] > 0.0) - (dqv[i] < 0.0);
+        jtau[i] = jb[i] * dqv[i] + jf[i] * sg + extra[i];
+      }
+    }
     t -= dhat.map.row(0).transpose();
     started = true;
+    ++steps;
+    record();
     return 0;
+  }
+
+  // The zero-order-hold terms of the joint dynamics, into `extra`. With B q̇_k compensated,
+  // joint j's velocity over a period of the torque held follows m_j ẇ = −b_j w + m_j v_j + e_j
+  // (w = q̇ − q̇_k, m_j = 1/(M⁻¹)_jj its inertia with the others free, a_j = b_j/m_j), so it
+  // gains v_j (1 − e^{−a_j Ts})/a_j instead of the v_j Ts the MPC predicts. The extra
+  // torque (g_j − 1) m_j v_j, g_j = a_j Ts / (1 − e^{−a_j Ts}), restores v_j Ts
+  // (g_j → 1 + a_j Ts/2 as a_j Ts → 0). The Coulomb term f_j sgn(q̇) changes sign where the
+  // velocity path from q̇_k to q̇_k + v_j Ts (exponential with a_j, linear without damping)
+  // crosses zero, at the fraction s* of the period: f_j sgn(q̇_k) is replaced by f_j σ_j,
+  // σ_j the mean sign weighted by e^{−a_j (Ts − t)}, the weight the velocity at the end of
+  // the period gives the force at t (σ_j = sgn(q̇_k + v_j Ts) when q̇_k = 0, so that a joint
+  // at rest is not left to stick).
+  void zoh_gain(const Mat& Mq) {
+    extra.setZero(n);
+    llt.compute(Mq);
+    if (llt.info() != Eigen::Success) return;
+    for (int j = 0; j < n; ++j) {
+      if (jb[j] == 0.0 && jf[j] == 0.0) continue;
+      jv.setZero();
+      jv[j] = 1.0;
+      const double minv = llt.solve(jv)[j];
+      const double x = jb[j] * minv * zoh_Ts;
+      const double vj = v.map(0, j);
+      if (jb[j] != 0.0) {
+        const double g = x < 1e-8 ? 1.0 + 0.5 * x : x / -std::expm1(-x);
+        extra[j] = (g - 1.0) / minv * vj;
+      }
+      if (jf[j] != 0.0) {
+        const double a = dqv[j], c = a + vj * zoh_Ts;
+        const double sa = (a > 0.0) - (a < 0.0), sc = (c > 0.0) - (c < 0.0);
+        double sigma = sc;
+        if (sa != 0.0 && sa != sc) {
+          const double p = a / (a - c);  // in (0, 1]: the crossing on a linear path
+          double w1 = p;                 // weight of the part before the crossing
+          if (x > 1e-8) {
+            const double E = std::exp(-x);
+            const double s_star = -std::log1p(-p * (1.0 - E)) / x;
+            w1 = (std::exp(-x * (1.0 - s_star)) - E) / (1.0 - E);
+          }
+          sigma = sa * w1 + sc * (1.0 - w1);
+        }
+        extra[j] += jf[j] * (sigma - sa);
+      }
+    }
   }
 
   // One control step from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), with the
   // observer (or none) advanced here. Returns prepare()'s or finish()'s code.
   int step(const CRefRow& S) {
+    if (latency_on) return step_latency(S);
     int code = prepare(S, true, false);
     if (code) return code;
     if (started && ndo) {
       // Eq (13) over the period that just ended, with the torque applied over it.
-      ndo->ndo.update(*M, *nle, dqv, applied_torque());
+      if (joint) {  // the rigid body's model, the torque beyond J (see jtau)
+        applied_torque();
+        applied -= jtau;
+        ndo->ndo.update(*M, *nle0, dqv, applied);
+      } else {
+        ndo->ndo.update(*M, *nle, dqv, applied_torque());
+      }
       dhat.map.row(0) = ndo->ndo.estimate.transpose();
     }
     return finish();
+  }
+
+  // The step with latency: the observer over the measured interval (M, C q̇ + G at the
+  // measured state, the aligned torque), then the MPC and Eq (4) at the predicted state.
+  // Before the measured interval lies after the start, the observer restarts at each
+  // measurement (d̂ = 0). S's state rows are overwritten with the prediction.
+  int step_latency(const CRefRow& S_in) {
+    if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
+      throw std::invalid_argument("HMPCCore: stack of wrong shape");
+    if (!S_in.allFinite()) return 1;
+    if (!dyn) throw std::invalid_argument("HMPCCore.step: no compiled dynamics here");
+    auto& S = stack->map;
+    if (S.data() != S_in.data()) S = S_in;
+    Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
+    if (ndo) {
+      if (observer_ready()) {
+        align();
+        ndo->ndo.update(dyn->mass_matrix(q), dyn->nle(q, dq), dq, tau_obs);
+        dhat.map.row(0) = ndo->ndo.estimate.transpose();
+      } else {
+        ndo->ndo.reset(dq);
+        dhat.map.setZero();
+      }
+    }
+    predict(q, dq);
+    S.row(0) = q.transpose();
+    S.row(1) = dq.transpose();
+    int code = prepare(S, true, false);
+    return code ? code : finish();
   }
 };
 
@@ -482,6 +725,10 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("nq", [](const RK4& r) { return r.n; })
       .def("period", &RK4::period, py::arg("q"), py::arg("v"), py::arg("T"), py::arg("a"),
            py::arg("b"), py::arg("friction"), py::arg("h"))
+      .def("set_joint_dynamics", &RK4::set_joint_dynamics, py::arg("damping"),
+           py::arg("friction"))
+      .def_property_readonly("joint_damping", [](const RK4& r) { return Vec(r.jb); })
+      .def_property_readonly("joint_friction", [](const RK4& r) { return Vec(r.jf); })
       .def("period_with", &RK4::period_with, py::arg("q"), py::arg("v"), py::arg("tau"),
            py::arg("t"), py::arg("h"), py::arg("S"), py::arg("disturbance"))
       .def("aba", [](RK4& r, const CRefVec& q, const CRefVec& v, const CRefVec& tau) {
@@ -576,6 +823,16 @@ PYBIND11_MODULE(_core, m) {
            py::arg("model"), py::arg("FT"), py::arg("N"), py::arg("qps"), py::arg("ndo"),
            py::arg("v"), py::arg("tau"), py::arg("d_hat"), py::arg("M"), py::arg("nle"))
       .def("set_effort", &HMPCCore::set_effort)
+      .def("set_latency", &HMPCCore::set_latency, py::arg("L"), py::arg("Ts"))
+      .def("observer_ready", &HMPCCore::observer_ready)
+      .def("aligned", [](HMPCCore& c) {
+             c.align();
+             return py::make_tuple(Vec(c.tau_obs), Vec(c.v_obs)); })
+      .def("predict", &HMPCCore::predict_stack, py::arg("S"))
+      .def_readonly("latency_periods", &HMPCCore::lat_m)
+      .def_readonly("latency_fraction", &HMPCCore::lat_alpha)
+      .def("set_joint_dynamics", &HMPCCore::set_joint_dynamics, py::arg("damping"),
+           py::arg("friction"), py::arg("Ts"))
       .def("reset", &HMPCCore::reset)
       .def("step", &HMPCCore::step)
       .def("step_t", &HMPCCore::step_t)
@@ -587,5 +844,7 @@ PYBIND11_MODULE(_core, m) {
       .def("set_sine", &HMPCCore::set_sine)
       .def("set_ppoly", &HMPCCore::set_ppoly)
       .def("clear_reference", &HMPCCore::clear_reference)
-      .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); });
+      .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); })
+      .def_property_readonly("joint_torque", [](const HMPCCore& c) {
+             return c.joint ? Vec(c.jtau) : Vec(Vec::Zero(c.n)); });
 }

@@ -14,6 +14,8 @@ PKG = Path(__file__).resolve().parent.parent / "hmpc_pin"
 RANK = {
     "data": 0,
     "exceptions": 0,
+    "_startup": 0,
+    "checks": 0.5,  # imports exceptions only
     "model": 1,
     "native": 1,
     "compensation": 2,
@@ -22,7 +24,9 @@ RANK = {
     "controllers": 3,
     "sim": 4,
     "realtime": 5,
+    "identification": 5,
     "experiment": 6,
+    "ros": 6.5,
     "apps": 7,
     "__init__": 8,
     "__main__": 9,

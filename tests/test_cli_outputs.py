@@ -4,6 +4,7 @@ tracking-error warnings; the applied (clipped) torque beside the commanded one."
 from __future__ import annotations
 
 import csv
+import os
 
 import numpy as np
 import pytest
@@ -162,3 +163,50 @@ def test_run_warnings_from_a_hand_built_result():
     assert lines[1].startswith("tracking error exceeds 0.25 rad after 1 s: max |e| a 0.3 rad")
     assert len(lines) == 2
     assert run_warnings(r, error_threshold=0.3) == lines[:1]  # 0.3 is not above 0.3
+
+
+def test_replay_without_meshcat_stops_before_the_run(tmp_path):
+    """A Python where ``import meshcat`` fails (a package of that name that raises, put
+    first on the path): `run --replay` exits 2 before the run, with one line naming the
+    extra as a wheel user installs it, and writes nothing."""
+    import subprocess
+    import sys
+
+    shadow = tmp_path / "shadow" / "meshcat"
+    shadow.mkdir(parents=True)
+    (shadow / "__init__.py").write_text("raise ImportError('no meshcat here')\n")
+    env = {**os.environ, "PYTHONPATH": str(shadow.parent), "MPLBACKEND": "Agg"}
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "hmpc_pin", "run", str(CONFIGS / "paper_combined.toml"),
+         "--duration", "2", "--replay", str(out / "r.html"), "--out", str(out)],
+        capture_output=True, text=True, timeout=300, env=env,
+    )  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --replay: meshcat is not installed")
+    assert 'pip install "hmpc_pin[viz]"' in err[0] and "pip install -e" not in err[0]
+    assert not out.exists()
+
+
+def test_run_prints_the_first_contact_and_the_collision_flag(tmp_path, capsys):
+    """MuJoCo, the arm pressing on a table with a collision watch: `run` prints the first
+    contact and the flag, each checked against the saved arrays (the first instant the
+    contact force is not zero; the first instant |d_hat| exceeds the threshold)."""
+    pytest.importorskip("mujoco")
+    cfg = CONFIGS / "planar3_contact_mujoco.toml"
+    assert main(["run", str(cfg), "--duration", "2.0", "--out", str(tmp_path)]) == 0
+    out, err = capsys.readouterr()
+    result = hmpc_pin.Result.load(tmp_path / "planar3_contact_mujoco.npz")
+    force = np.abs(result.extra["contact_force"]).max(axis=1)
+    first = result.t[np.flatnonzero(force > 0)[0]]
+    assert f"contact: first at t = {first:.3f} s with the obstacle" in out
+    threshold = np.asarray(result.meta["collision"]["threshold"])
+    over = np.flatnonzero((np.abs(result.d_hat) > threshold).any(axis=1))
+    at = result.t[over[0]]
+    joint = result.joint_names[int(np.argmax(np.abs(result.d_hat[over[0]]) / threshold))]
+    assert f"collision: flagged at t = {at:.3f} s on {joint} (|d_hat| above its threshold" in out
+    assert "reaction: ignore" in out
+    for line in err.splitlines():  # the tracking warning says why
+        if "tracking error exceeds" in line:
+            assert "contact at t =" in line

@@ -83,8 +83,9 @@ def test_ctrl_c_stops_safely_exits_130_and_keeps_the_partial_run(tmp_path):
         start_new_session=True,
     )  # fmt: skip
     try:
-        proc.stdout.readline()  # the first line is printed before the arm starts
-        time.sleep(6.0)  # arm start-up (a second or two) and a few seconds of the loop
+        lines = [proc.stdout.readline() for _ in range(2)]  # the title, then readiness
+        assert lines[1].startswith("arm process ready"), lines
+        time.sleep(1.0)  # a second of the loop
         os.killpg(proc.pid, signal.SIGINT)
         out, err = proc.communicate(timeout=120)
     finally:

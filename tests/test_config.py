@@ -190,10 +190,17 @@ def test_missing_file_and_bad_toml(tmp_path):
         hmpc_pin.load_config(bad)
 
 
-def test_bad_urdf_in_config_is_a_urdf_error(write_config, tmp_path):
+def test_missing_urdf_in_config_is_a_config_error_naming_the_key(write_config, tmp_path):
     path = write_config(f'[robot]\nurdf = "{(tmp_path / "missing.urdf").as_posix()}"\n')
-    config = hmpc_pin.load_config(path)  # only the TOML is read here
-    with pytest.raises(hmpc_pin.URDFError, match=r"missing\.urdf: file not found"):
+    with pytest.raises(hmpc_pin.ConfigError, match=r"robot\.urdf: .*missing\.urdf' not found"):
+        hmpc_pin.load_config(path)  # the boundary: before anything is built
+
+
+def test_bad_urdf_in_config_is_a_urdf_error(write_config, tmp_path):
+    (tmp_path / "bad.urdf").write_text("<robot name='x'><link name='a'>", encoding="utf-8")
+    path = write_config(f'[robot]\nurdf = "{(tmp_path / "bad.urdf").as_posix()}"\n')
+    config = hmpc_pin.load_config(path)  # the file exists: its content is read on build
+    with pytest.raises(hmpc_pin.URDFError, match=r"bad\.urdf: malformed XML"):
         Experiment.from_config(config)
 
 

@@ -55,8 +55,8 @@ CASES = {
     # --- URDF
     "urdf missing": (
         lambda tmp: _sub(URDF, (tmp / "gone.urdf").as_posix()),
-        URDFError,
-        ["gone.urdf", "file not found"],
+        ConfigError,  # when the config is read: the key, the path tried
+        ["robot.urdf", "gone.urdf' not found", "tried"],
     ),
     "urdf unreadable": (
         lambda tmp: _sub(URDF, _urdf(tmp, "bin.urdf", b"\xff\xfe\x00\x81 not text")),
@@ -65,8 +65,8 @@ CASES = {
     ),
     "urdf is a directory": (
         lambda tmp: _sub(URDF, tmp.as_posix()),
-        URDFError,
-        ["is not a file"],
+        ConfigError,
+        ["robot.urdf", "is not a file"],
     ),
     "urdf malformed XML": (
         lambda tmp: _sub(URDF, _urdf(tmp, "bad.urdf", "<robot name='x'><link name='a'></robot>")),

@@ -93,6 +93,11 @@ def test_init_observer_choice(written):
     assert written["double_pendulum"][1]["controller"]["compensation"] == "chen"
     p = plan("panda")
     assert p.compensation == "general" and p.gain >= 1.2 * p.gain_bound and p.gain >= 100
+    # written as a bandwidth (Ts·ω = 10) with the latency declared: the rule then holds
+    path, raw = written["panda"]
+    obs = raw["controller"]["observer"]
+    assert "gain" not in obs and obs["bandwidth"] * raw["controller"]["Ts"] == pytest.approx(10)
+    assert raw["controller"]["latency"] == pytest.approx(0.001)
 
 
 def test_init_locks_fingers_and_mimic_followers(written):

@@ -4,8 +4,9 @@
   states on planar3, UR5, Panda (fingers locked and free) and Z1, to 1e-8 rad/s².
 - The URDF cases: ``package://`` and relative mesh paths, a missing or unreadable mesh,
   ``<mimic>`` (dropped as Pinocchio does; MuJoCo's own import adds an equality that
-  changes the accelerations), ``<dynamics damping friction>`` (dropped by default;
-  imported: MuJoCo's acceleration is ABA with the damping torque −D·q̇), locked joints
+  changes the accelerations), ``<dynamics damping friction>`` (imported by default,
+  as the Pinocchio plants apply them: MuJoCo's acceleration is ABA with the damping torque
+  −D·q̇), locked joints
   with rotated origins, a URDF MuJoCo cannot compile.
 - Contacts: the generalized contact force from the constraint rows equals the sum of
   ``mj_contactForce`` mapped by the contact-point Jacobians, and in steady contact the
@@ -52,6 +53,9 @@ ARMS = {
     "z1": ("z1", None),
 }
 
+#: The bare arm (the URDF's <dynamics> dropped): the rigid-body dynamics alone.
+BARE = MuJoCoSettings(import_urdf_dynamics=False)
+
 
 def _qacc(model, robot, q, dq, tau):
     """MuJoCo's forward dynamics at (q, dq) with tau applied, in the robot's joint order."""
@@ -86,7 +90,7 @@ def _planar3_variant(tmp_path, edit, name="variant.urdf") -> Path:
 def test_accelerations_equal_pinocchio_aba(arm, make_rng):
     source, locked = ARMS[arm]
     robot = load_robot(source, 9.81, locked)
-    model = mujoco_model(robot)
+    model = mujoco_model(robot, BARE)
     assert model.nq == robot.nq and model.neq == 0
     for q, dq, tau in _random_states(robot, make_rng(1)):
         expected = pin.aba(robot.model, robot.data, q, dq, tau)
@@ -108,7 +112,7 @@ def test_scaled_plant_inertias_scale_mujoco_links(make_rng):
     robot = load_robot("panda", 9.81, PANDA_FINGERS)
     factors = make_rng(3).uniform(0.8, 1.2, robot.nq)
     scaled = robot.with_scaled_inertias(factors)
-    plant = MuJoCoPlant(scaled, None, 0.01, 0.001)
+    plant = MuJoCoPlant(scaled, None, 0.01, 0.001, BARE)
     for q, dq, tau in _random_states(robot, make_rng(4), 5):
         expected = pin.aba(scaled.model, scaled.data, q, dq, tau)
         np.testing.assert_allclose(_qacc(plant.model, robot, q, dq, tau), expected, atol=1e-8)
@@ -229,8 +233,8 @@ def test_mimic_joint_is_a_stiff_equality_as_in_pinocchio(tmp_path, make_rng):
 def test_panda_mimic_fingers_free_and_locked(make_rng):
     # Panda's finger 2 mimics finger 1: free, one equality and 8 coordinates; locked, none.
     free = load_robot("panda")
-    plant = MuJoCoPlant(free)
-    locked = mujoco_model(load_robot("panda", 9.81, PANDA_FINGERS))
+    plant = MuJoCoPlant(free, settings=BARE)
+    locked = mujoco_model(load_robot("panda", 9.81, PANDA_FINGERS), BARE)
     assert (plant.model.neq, plant.model.nq, free.nq, locked.neq, locked.nq) == (1, 9, 8, 0, 7)
     for q, dq, tau in _random_states(free, make_rng(10), 5):
         plant.reset(q, dq)
@@ -241,17 +245,19 @@ def test_panda_mimic_fingers_free_and_locked(make_rng):
         np.testing.assert_allclose(plant.data.qacc[plant.vadr], expected, atol=3e-4 * scale)
 
 
-def test_urdf_damping_dropped_by_default_and_imported_on_request(tmp_path, make_rng):
+def test_urdf_damping_imported_by_default_and_dropped_on_request(tmp_path, make_rng):
     def add_dynamics(text):
         return text.replace(
             '<axis xyz="0 -1 0"/>', '<axis xyz="0 -1 0"/><dynamics damping="0.7" friction="0.4"/>'
         )
 
     robot = load_robot(_planar3_variant(tmp_path, add_dynamics), 9.8)
-    default = mujoco_model(robot)
-    np.testing.assert_array_equal(default.dof_damping, 0.0)
-    np.testing.assert_array_equal(default.dof_frictionloss, 0.0)
-    imported = mujoco_model(robot, MuJoCoSettings(import_urdf_dynamics=True, damping=0.1))
+    dropped = mujoco_model(robot, BARE)
+    np.testing.assert_array_equal(dropped.dof_damping, 0.0)
+    np.testing.assert_array_equal(dropped.dof_frictionloss, 0.0)
+    np.testing.assert_allclose(robot.joint_damping, 0.7)  # Pinocchio's model carries them
+    np.testing.assert_allclose(robot.joint_friction, 0.4)
+    imported = mujoco_model(robot, MuJoCoSettings(damping=0.1))  # the default imports
     np.testing.assert_allclose(imported.dof_damping, 0.8)  # URDF's + configured
     np.testing.assert_allclose(imported.dof_frictionloss, 0.4)
     imported.dof_frictionloss[:] = 0.0  # damping alone: M q̈ = τ − D q̇ − C q̇ − G
@@ -286,7 +292,7 @@ def test_armature_is_rotor_inertia_on_the_diagonal(planar3, make_rng):
 def test_locked_joint_is_fixed_at_its_position(arm, joint, value, make_rng):
     locked = {joint: value, **(PANDA_FINGERS if arm == "panda" else {})}
     robot = load_robot(arm, 9.81, locked)  # pin.buildReducedModel
-    model = mujoco_model(robot)
+    model = mujoco_model(robot, BARE)
     assert model.nq == robot.nq and joint not in [model.joint(i).name for i in range(model.njnt)]
     for q, dq, tau in _random_states(robot, make_rng(9), 5):
         expected = pin.aba(robot.model, robot.data, q, dq, tau)
@@ -624,8 +630,10 @@ def test_cli_compare_and_sweep_run_on_mujoco(tmp_path, capsys):
             "--jobs", "1", "--quiet"]  # fmt: skip
     assert main(argv) == 0
     rows = (tmp_path / "paper_combined_mujoco_sweep.csv").read_text().strip().splitlines()
-    assert len(rows) == 3  # header + the NDO and no-NDO runs of the one sample
+    # header + the NDO and no-NDO runs of the one sample under each of the 4 conditions
+    assert len(rows) == 1 + 2 * 4
     assert all(",True," in row for row in rows[1:])
+    assert {row.split(",")[2] for row in rows[1:]} == {"sensing", "latency", "plant", "all"}
 
 
 def test_csv_holds_the_contact_force(contact_runs, tmp_path):

@@ -323,7 +323,8 @@ def test_a_model_with_mimic_joints_takes_its_dynamics_from_python():
     tau = robot.gravity_torque(q0) + 0.1
     data = robot.model.createData()
     want = rk4_period(robot.model, q0, np.zeros(robot.nq), tau, plant.disturbance, 0.0, 0.001,
-                      10, aba=lambda q, v, u: robot.aba(robot.model, data, q, v, u))  # fmt: skip
+                      10, aba=lambda q, v, u: robot.aba(robot.model, data, q, v, u),
+                      joint=(robot.joint_damping, robot.joint_friction))  # fmt: skip
     q, dq = plant.advance(tau)
     np.testing.assert_allclose(q, want[0], rtol=0, atol=1e-12)
     np.testing.assert_allclose(dq, want[1], rtol=0, atol=1e-10)
@@ -335,7 +336,13 @@ def test_a_model_with_mimic_joints_takes_its_dynamics_from_python():
     ctrl.reset(q, dq)
     tau = ctrl.step(0.0, q, dq, ref)
     M, nle = robot.mass_matrix(q), robot.nonlinear_effects(q, dq)
-    np.testing.assert_allclose(tau, M @ ctrl.v + nle - ctrl.disturbance_estimate,
+    # Eq 4 with the URDF's joint damping and friction compensated (tests/reference/step.py)
+    B, F = robot.joint_damping, robot.joint_friction
+    minv = np.diag(np.linalg.inv(M))
+    x = B * minv * 0.01
+    g = np.where(x > 0, x / -np.expm1(-np.where(x > 0, x, 1.0)), 1.0)
+    want = M @ ctrl.v + nle + B * dq + F * np.sign(dq) + (g - 1) / minv * ctrl.v
+    np.testing.assert_allclose(tau, want - ctrl.disturbance_estimate,
                                rtol=0, atol=1e-9 * max(1.0, np.abs(tau).max()))  # fmt: skip
 
 

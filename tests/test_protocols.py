@@ -30,7 +30,7 @@ from hmpc_pin.compensation import (
     NoCompensation,
 )
 from hmpc_pin.controllers import Controller, MeasuredController, TimedController
-from hmpc_pin.controllers.wrappers import CollisionReaction
+from hmpc_pin.controllers.wrappers import CollisionReaction, FrictionFeedforward
 from hmpc_pin.realtime import PlantArm, ProcessArm, RobotInterface
 from hmpc_pin.sim import EulerPlant, Plant, RK4Plant
 from hmpc_pin.sim.mujoco import MuJoCoPlant
@@ -259,8 +259,27 @@ CONTROLLERS = {
     ),
     "measured": lambda r: MeasuredController(hmpc_pin.make_controller(r)),
     "timed": lambda r: TimedController(hmpc_pin.make_controller(r)),
+    "sensed": lambda r: _sensed(r),
+    "hmpc+chen latency 4 ms": lambda r: hmpc_pin.make_controller(
+        r, hmpc_pin.ControllerConfig(latency=0.004)
+    ),
+    "hmpc+momentum latency 12 ms": lambda r: hmpc_pin.make_controller(
+        r, hmpc_pin.ControllerConfig(compensation="momentum", latency=0.012)
+    ),
     "collision": lambda r: CollisionReaction(hmpc_pin.make_controller(r), 1e3, "stop"),
+    # a friction model fed forward on a frictionless plant: the observer cancels it
+    "friction-feedforward": lambda r: FrictionFeedforward(
+        hmpc_pin.make_controller(r), [1.0, 0.8, 0.5], [0.3, 0.2, 0.1]
+    ),
 }
+
+
+def _sensed(robot):
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+    from hmpc_pin.sim.sensing import SensedController
+
+    ctrl = hmpc_pin.make_controller(robot, hmpc_pin.ControllerConfig(latency=0.001))
+    return SensedController(ctrl, SensingConfig().model(robot.nq), np.random.default_rng(0))
 
 
 @pytest.mark.parametrize("name", sorted(CONTROLLERS))

@@ -175,6 +175,7 @@ def test_skipped_deadlines_count_as_misses(robot):
     k = 200
     assert run.timing["missed"][k : k + 3].all() and not run.timing["missed"][k + 3]
     assert np.isnan(run.timing["latency"][k + 1 : k + 3]).all()
+    assert run.stats["miss_fraction"] == pytest.approx(3 / 501)  # of the 501 deadlines due
 
 
 def _check_stop(robot, run, arm, cause, t_expected, tol, held=None):
@@ -528,3 +529,107 @@ def test_warm_up_must_be_below_the_period():
         LoopSettings(1000.0, 1.0, warm_up=1e-3)
     with pytest.raises(ConfigError, match=r"realtime\.warm_up"):
         LoopSettings(1000.0, 1.0, warm_up=-1e-4)
+
+
+# ------------------------------------------------------------- paced by the arm
+class Paced:
+    """A :class:`PlantArm` as a :class:`~hmpc_pin.realtime.PacedInterface` on the fake
+    clock: a state every period at t0 + kP; ``wait`` moves the clock to the next one
+    (``extra[k]`` more periods pass unanswered before state k is taken; no state after
+    ``silent_after``)."""
+
+    def __init__(self, arm, clock, extra=None, silent_after=np.inf):
+        self.arm, self._clock = arm, clock
+        self.nq, self.period = arm.nq, arm.period
+        self.extra, self.silent_after = dict(extra or {}), silent_after
+        self.t0, self.k = clock.now, 0
+        self._state = (0.0, *arm.read()[1:])
+
+    def clock(self):
+        return self._clock.now
+
+    def wait(self, timeout):
+        k = self.k + 1
+        k += self.extra.pop(k, 0)
+        t = self.t0 + k * self.period
+        if t > self._clock.now + timeout + 1e-12 or t - self.t0 > self.silent_after:
+            self._clock.now += timeout
+            return 0
+        self._clock.now = max(self._clock.now, t)
+        count, self.k = k - self.k, k
+        _, q, dq = self.arm.read()
+        self._state = (t, q.copy(), dq.copy())
+        return count
+
+    def read(self):
+        return self._state
+
+    def write(self, tau):
+        self.arm.write(tau)
+
+    def close(self):
+        self.arm.close()
+
+
+def _paced(robot, duration=1.0, **kwargs):
+    clock = FakeClock()
+    q0 = _sine().sample(0.0)[0]
+    arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
+    iface = Paced(arm, clock, **kwargs)
+    ctrl = Spend(hmpc_pin.make_controller(robot), clock, lambda t: 0.0)
+    loop = RealtimeLoop(
+        iface, ctrl, _sine(), SafeTorque(robot, damping=3.0), LoopSettings(1.0 / P, duration),
+        SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
+        joint_names=tuple(robot.joint_names),
+    )  # fmt: skip
+    return loop, arm, q0
+
+
+def test_paced_by_the_arm_without_latency_is_the_simulation(robot):
+    """Each state answered at once: the torques and states of ``simulate``; every
+    cycle's deadline is its state's stamp (latency 0 on the fake clock)."""
+    from hmpc_pin.realtime import PacedInterface
+
+    loop, _, q0 = _paced(robot, 1.0)
+    assert isinstance(loop.interface, PacedInterface) and loop.paced
+    run = loop.run()
+    sim = hmpc_pin.simulate(robot, hmpc_pin.make_controller(robot), _sine(), duration=1.0, q0=q0)
+    assert run.complete
+    np.testing.assert_allclose(run.result.q, sim.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(run.result.tau, sim.tau, rtol=0, atol=1e-9)
+    assert run.stats["cycles_run"] == 1001 and run.stats["misses"] == 0
+    assert run.stats["latency"]["max_us"] == 0.0
+
+
+def test_paced_states_not_answered_are_skipped_misses(robot):
+    """Two extra periods pass before the state of cycle 300 is taken: cycles 300 and 301
+    are skipped, counted as missed,
+    the loop's time keeps the arm's (the run still ends at its duration)."""
+    loop, _, _ = _paced(robot, 0.5, extra={301: 2})  # state k is cycle k - 1
+    run = loop.run()
+    assert run.complete
+    assert run.stats["skipped"] == 2 and run.stats["misses"] == 2
+    assert run.timing["missed"][300:302].all() and not run.timing["missed"][302]
+    assert run.stats["cycles_run"] == 501 - 2
+
+
+def test_paced_silent_arm_trips_the_watchdog_and_gets_the_safe_torque(robot):
+    loop, arm, _ = _paced(robot, 1.0, silent_after=0.3)
+    run = loop.run()
+    assert not run.complete and run.stop["cause"] == "watchdog"
+    assert run.stop["t"] == pytest.approx(0.3, abs=2 * P)
+    # the safe torque at the last state the arm sent, held (no newer state came)
+    safe = _safe(robot, np.array(run.stop["q"]), np.array(run.stop["dq"]))
+    np.testing.assert_allclose(run.stop["safe_tau"], safe, atol=1e-9)
+    np.testing.assert_allclose(arm.tau, safe, atol=1e-9)
+
+
+def test_paced_interface_refuses_clock_options(robot):
+    clock = FakeClock()
+    arm = PlantArm(RK4Plant(robot.copy(), None, P, P), np.zeros(3), clock=clock)
+    parts = (hmpc_pin.make_controller(robot), _sine(), SafeTorque(robot),
+             LoopSettings(1.0 / P, 0.1), SafetySettings.unlimited(3))  # fmt: skip
+    with pytest.raises(hmpc_pin.ConfigError, match="does not apply to an arm that paces"):
+        RealtimeLoop(Paced(arm, clock), *parts, sleep=clock.sleep)
+    with pytest.raises(hmpc_pin.ConfigError, match="does not apply to an arm that paces"):
+        RealtimeLoop(Paced(arm, clock), *parts, clock=clock)

@@ -285,3 +285,34 @@ def test_default_variants_run_under_their_labels(short_config):
     for label, named in (("hmpc+chen", "ndo"), ("hmpc+none", "no-ndo")):
         row = run_sample(short_config, params, named)
         assert result.variant_rows(label)[0]["rms_max"] == row["rms_max"]
+
+
+def test_conditions_perturb_what_they_name(short_config):
+    """The interface model (no 0.3 keys): "plant" with unit factors is the nominal run;
+    "sensing" and "latency" keep the nominal plant and change the measurement; "all"
+    differs from each; every row names its condition."""
+    from hmpc_pin.experiment.config.sweep import SweepConfig
+
+    cfg = replace(short_config, sweep=SweepConfig(variants=("ndo",)))
+    params = draw_samples(cfg, 1, seed=0)[0]
+    ones = replace(params, mass=(1.0,) * 3, friction=(1.0,) * 3, disturbance=(1.0,) * 3)
+    nominal = hmpc_pin.compute_metrics(hmpc_pin.run_experiment(cfg, observer=True))
+    rows = {c: run_sample(cfg, ones, "ndo", c) for c in ("sensing", "latency", "plant", "all")}
+    np.testing.assert_array_equal(
+        [rows["plant"][f"rms_joint{i}"] for i in (1, 2, 3)], nominal.rms_error
+    )
+    assert all(rows[c]["condition"] == c for c in rows)
+    values = {c: rows[c]["rms_max"] for c in rows}
+    assert len(set(values.values())) == 4  # each condition changes something
+    drawn = run_sample(cfg, params, "ndo", "sensing")  # the draws do not enter "sensing"
+    assert drawn["rms_max"] == rows["sensing"]["rms_max"]
+
+
+def test_interface_rate_must_divide_the_period_before_any_run(short_config):
+    from hmpc_pin.exceptions import ConfigError
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+    from hmpc_pin.experiment.config.sweep import SweepConfig
+
+    cfg = replace(short_config, sweep=SweepConfig(sensing=SensingConfig(rate=250.0)))
+    with pytest.raises(ConfigError, match="interface periods"):
+        run_sweep(cfg, 1, progress=False)

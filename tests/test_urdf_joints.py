@@ -24,7 +24,7 @@ from hmpc_pin.model.robot import load_robot
 # A link: a rod of mass m along x, centre of mass at x = 0.25, inertia about its centre.
 ROD = (
     '<link name="{name}"><inertial><origin xyz="0.25 0 0"/><mass value="{mass}"/>'
-    '<inertia ixx="0.001" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{i}"/></inertial></link>'
+    '<inertia ixx="{ix}" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{i}"/></inertial></link>'
 )
 BARE = '<link name="{name}"/>'
 
@@ -46,7 +46,8 @@ def joint(name, kind, parent, child, *, x=0.5, axis="0 1 0", limit=None, extra="
 
 
 def rod(name, mass=1.0):
-    return ROD.format(name=name, mass=mass, i=mass * 0.5**2 / 12)
+    # a massless link has no inertia either (a mass of 0 with moments is no rigid body)
+    return ROD.format(name=name, mass=mass, i=mass * 0.5**2 / 12, ix=min(0.001, 0.001 * mass))
 
 
 def chain(*parts: str) -> str:

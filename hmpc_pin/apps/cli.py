@@ -1,5 +1,5 @@
 """Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
-realtime`` (also ``python -m hmpc_pin``).
+check | realtime | identify | tune | ros | ros-arm`` (also ``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback, checked before any run: no output file), 1 when a run fails (e.g.
@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _startup
 from ..exceptions import (
     ConfigError,
     HmpcError,
@@ -36,8 +37,14 @@ from ..experiment.schema import (
     load_config,
 )
 from ..sim.result import Result
-from .metrics import DEFAULT_ERROR_THRESHOLD, compute_metrics, format_metrics, run_warnings
-from .run import live_view, run_one, write_csv
+from .metrics import (
+    DEFAULT_ERROR_THRESHOLD,
+    compute_metrics,
+    contact_lines,
+    format_metrics,
+    run_warnings,
+)
+from .run import after_the_run, live_view, run_one, write_csv
 
 __all__ = ["main", "write_csv"]
 
@@ -47,7 +54,9 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 def _out_dir(path: Path, option: str = "--out") -> Path:
     """Create ``path`` and check it is a writable directory, or raise :class:`OutputError`
-    naming ``option``."""
+    naming ``option``. The first side effect of a command: it ends the start-up (Ctrl-C
+    raises :class:`KeyboardInterrupt` from here on, :mod:`hmpc_pin._startup`)."""
+    _startup.end()
     if path.exists() and not path.is_dir():
         raise OutputError(path, "is a file", option)
     try:
@@ -85,7 +94,7 @@ def _with_reference(config: ExperimentConfig, file: Path | None) -> ExperimentCo
         return config
     if file.suffix.lower() not in (".csv", ".npz"):
         raise ConfigError("--reference", f"{str(file)!r}: expected a .csv or .npz trajectory "
-                          "file (README, Tasks)")  # fmt: skip
+                          "file (docs, Tutorials)")  # fmt: skip
     if not file.is_file():
         raise ConfigError("--reference", f"{str(file)!r} not found; pass a .csv or .npz file")
     ref = ReferenceConfig(kind="trajectory", trajectory=TrajectoryConfig(file=file.resolve()))
@@ -126,6 +135,8 @@ def cmd_run(args) -> int:
     if not args.speed > 0:
         raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
+    if args.replay is not None:  # Meshcat and the meshes, before the run and any file
+        _check_meshes(config, "--replay")
     out = _out_dir(args.out)
     stem = config.name
     if args.compensation is not None:
@@ -134,7 +145,6 @@ def cmd_run(args) -> int:
         stem += "_no_ndo"
     if args.replay is not None:
         _out_file(args.replay, "--replay")
-        _check_meshes(config, "--replay")
     warn = _warn_thresholds(args)
     for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):
         if value and not args.viz:
@@ -164,6 +174,11 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
     experiment, result, files, failure = run_one(config, out, stem, open_view=open_view,
                                                  experiment=experiment)  # fmt: skip
+    with after_the_run(config.name, files):
+        return _report(args, config, out, stem, warn, views, experiment, result, files, failure)
+
+
+def _report(args, config, out, stem, warn, views, experiment, result, files, failure) -> int:
     view = views[0] if views else None
     observer = uses_observer(config.controller)
     if len(result.t) > 1:
@@ -172,7 +187,8 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
         label = "with NDO" if observer else "without NDO"
         files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
     label = config.controller.label
-    print(f"{config.name}: {config.description} ({label}, observer {'on' if observer else 'off'})")
+    about = f"{config.description} " if config.description else ""
+    print(f"{config.name}: {about}({label}, observer {'on' if observer else 'off'})")
     if args.reference is not None:
         print(f"reference: the trajectory of {args.reference} (--reference), not the config's")
     if config.reference.kind == "waypoints":
@@ -181,10 +197,17 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
               f"(t = {ref.t_start:g} to {ref.t_end:.3f} s)")  # fmt: skip
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
+    for line in contact_lines(result):
+        print(line)
     timing = getattr(result, "step_time", None)
     median = f" (median {timing['median_us']:.0f} µs)" if timing else ""
     slow = [f"{w}{median}" for w in result.meta.get("warnings", ())]
+    touch = result.meta.get("first_contact")
+    if touch is None:
+        touch = (result.meta.get("collision") or {}).get("detected_at")
     for line in slow + run_warnings(result, **warn):
+        if touch is not None and line.startswith("tracking error"):
+            line += f"; expected once the arm touches something (contact at t = {touch:.3f} s)"
         print(f"warning: {line}", file=sys.stderr)
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))
@@ -210,9 +233,10 @@ def _check_meshes(config: ExperimentConfig, option: str) -> None:
     """Load the visual geometry of the config's arm before the run, so that a missing
     mesh is bad input naming the mesh and ``option`` (no run, no file)."""
     from ..experiment.build import load_robot_config
-    from .viz import visual_model
+    from .viz import require_meshcat, visual_model
 
     try:
+        require_meshcat()
         visual_model(load_robot_config(config.robot))
     except VizError as exc:
         raise VizError(f"{option}: {exc}; or run without {option}") from None
@@ -316,10 +340,31 @@ def cmd_sweep(args) -> int:
     return EXIT_OK
 
 
+def cmd_tune(args) -> int:
+    """``hmpc-pin tune CONFIG`` (:mod:`hmpc_pin.apps.tune`): exit 2 naming the extra
+    ``tune`` without Optuna, before anything runs."""
+    from .tune import _optuna
+    from .tune import cmd_tune as run_tune
+
+    _optuna()
+    config = _with_overrides(load_config(args.config), False, args.duration)
+    return run_tune(args, config, _out_dir(args.out))
+
+
 def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
     from ..experiment.init import write_config
 
+    if args.list:
+        from ..model.robot import example_robot_names
+
+        print("planar3  (the paper's arm, shipped with hmpc_pin)")
+        for name in example_robot_names():
+            print(f"{name}  (example-robot-data)")
+        print("or the path of any fixed-base arm's .urdf file")
+        return EXIT_OK
+    if args.robot is None:
+        raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
     if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
         raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
     duration = 10.0 if args.duration is None else args.duration
@@ -329,7 +374,7 @@ def cmd_init(args) -> int:
 
 
 def add_init_parser(sub) -> None:
-    """The ``init`` subcommand (README, "Any arm")."""
+    """The ``init`` subcommand (docs, "Your own arm")."""
     ini = sub.add_parser(
         "init",
         help="write a commented config for any arm (URDF path or example-robot-data name)",
@@ -338,11 +383,46 @@ def add_init_parser(sub) -> None:
         "limits, inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
         "joints locked. Exit 2 with one line when the URDF cannot be controlled.",
     )
-    ini.add_argument("robot", help="URDF path or robot name (planar3, ur5, panda, kinova, ...)")
+    ini.add_argument(
+        "robot", nargs="?", help="URDF path or robot name (planar3, ur5, panda, ...; --list)"
+    )
+    ini.add_argument("--list", action="store_true",
+                     help="list the robot names init accepts and exit")  # fmt: skip
     ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
     ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
     ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
     ini.set_defaults(func=cmd_init)
+
+
+def cmd_check(args) -> int:
+    """``hmpc-pin check CONFIG``: per-joint figures; exit 1 with one line per problem."""
+    from .check import check_config
+
+    report = check_config(load_config(args.config), engines=not args.no_engine)
+    print(report.format())
+    for line in report.problems:
+        print(f"problem: {line}")
+    if report.problems:
+        return EXIT_FAILED
+    print("no problem found")
+    return EXIT_OK
+
+
+def add_check_parser(sub) -> None:
+    """The ``check`` subcommand."""
+    chk = sub.add_parser(
+        "check",
+        help="check a config's arm before running it (observer, damping, torque, engines)",
+        description="Before anything runs on an arm, per joint: the observer bandwidth "
+        "times Ts, its phase margin for the configured latency, the URDF damping's time "
+        "constant against Ts, the torque headroom along the reference, and (with MuJoCo "
+        "installed) the model against MuJoCo's. Exit 0 when fine, 1 with one line per "
+        "problem, 2 on bad input.",
+    )
+    chk.add_argument("config", type=Path, help="experiment TOML file")
+    chk.add_argument("--no-engine", action="store_true",
+                     help="do not compare the model against MuJoCo")  # fmt: skip
+    chk.set_defaults(func=cmd_check)
 
 
 def cmd_realtime(args) -> int:
@@ -358,12 +438,19 @@ def cmd_realtime(args) -> int:
                                priority=args.priority, spin=args.spin)  # fmt: skip
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key}", exc.message) from None
+    experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     out = _out_dir(args.out)
-    print(f"{config.name}: {config.description} ({config.controller.label}) in real time at "
+    about = f"{config.description} " if config.description else ""
+    print(f"{config.name}: {about}({config.controller.label}) in real time at "
           f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
-          "process")  # fmt: skip
+          "process", flush=True)  # fmt: skip
+
+    def ready() -> None:  # the readiness line (scripts and tests wait for it)
+        print("arm process ready; running (Ctrl-C: safe stop, partial run saved)", flush=True)
+
     try:
-        run, files = run_realtime(config, out, viz=ArmView if args.viz else None)
+        run, files = run_realtime(config, out, viz=ArmView if args.viz else None,
+                                  experiment=experiment, ready=ready)  # fmt: skip
     except KeyboardInterrupt:  # before the loop took over SIGINT: nothing ran yet
         print("interrupted at start-up, before the first cycle; nothing was run or written",
               file=sys.stderr)  # fmt: skip
@@ -399,7 +486,66 @@ def _add_warn_option(parser) -> None:
     )  # fmt: skip
 
 
+def cmd_ros(args) -> int:
+    """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ..ros.node import import_ros
+    from .realtime import format_tracking
+    from .ros import format_ros, run_ros
+
+    import_ros("hmpc-pin ros")  # the extra, before anything else
+    config = _ros_config(args, _with_overrides(load_config(args.config), False, args.duration))
+    out = _out_dir(args.out)
+    print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
+          f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
+          f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz", flush=True)  # fmt: skip
+    try:
+        run, files = run_ros(config, out)
+    except KeyboardInterrupt:  # before the loop took over SIGINT: no torque was sent
+        print("interrupted at start-up, before the first cycle; nothing was run or written",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    print(run.summary())
+    print(format_ros(run))
+    print(format_tracking(run))
+    for f in files:
+        print(f"wrote {f}")
+    if run.stop is None:
+        return EXIT_OK
+    if run.stop["cause"] == "interrupted":
+        print(f"interrupted at t={run.stop['t']:.3f} s of {config.simulation.duration:g} s; "
+              "safe torque published, partial run saved (complete = false)",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
+    return EXIT_FAILED
+
+
+def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
+    """``--namespace`` and ``--priority`` of the ROS commands applied to ``config``."""
+    from .realtime import with_realtime
+    from .ros import with_namespace
+
+    if args.priority is not None and not 0 <= args.priority <= 99:
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
+    return with_namespace(with_realtime(config, priority=args.priority), args.namespace)
+
+
+def cmd_ros_arm(args) -> int:
+    """``hmpc-pin ros-arm``: the config's plant as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ..ros.node import import_ros
+    from .ros import run_ros_arm
+
+    import_ros("hmpc-pin ros-arm")
+    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
+    config = _ros_config(args, load_config(args.config))
+    counts = run_ros_arm(config, args.duration)
+    return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
+    """The ``hmpc-pin`` parser with one subcommand per command (the docs' CLI reference is
+    generated from it)."""
     parser = argparse.ArgumentParser(
         prog="hmpc-pin",
         description="Hierarchical multiloop MPC with a nonlinear disturbance observer "
@@ -462,7 +608,7 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_ = sub.add_parser(
         "compare",
         help="run several controllers on one experiment and compare them",
-        description="Run the controllers (README, 'Controllers') on the same robot, plant, "
+        description="Run the controllers (docs, 'Controllers') on the same robot, plant, "
         "reference, disturbances and MPC settings; print and write a Markdown + CSV table "
         "(tracking error, settling, observer error, effort, chattering, constraint "
         "violations, step time) and figures.",
@@ -501,9 +647,12 @@ def build_parser() -> argparse.ArgumentParser:
         "sweep",
         help="Monte Carlo robustness sweep of an experiment (with and without NDO)",
         description="Draw K plant perturbations from the config's [sweep] table (link "
-        "mass/inertia, friction and disturbance amplitudes, measurement noise and delay), "
-        "run each with every controller variant, write DIR/<name>_sweep.csv (one row per "
-        "sample and variant) and DIR/<name>_sweep.md (summary), and print the summary.",
+        "mass/inertia, friction and disturbance amplitudes) and run each with every "
+        "controller variant under each of sweep.conditions: the interface's sensing "
+        "([sweep.sensing]: encoders, finite-difference velocity, noise), its timing "
+        "(latency, delay, torque filter), the drawn plant, and all together; write "
+        "DIR/<name>_sweep.csv (one row per sample, variant and condition) and "
+        "DIR/<name>_sweep.md (summary), and print the summary.",
     )
     swp.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     swp.add_argument("--samples", type=int, default=100, help="number of samples K [100]")
@@ -531,6 +680,13 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)
     add_init_parser(sub)
+    from .identify import add_identify_parser
+
+    add_identify_parser(sub)
+    from .tune import add_tune_parser
+
+    add_tune_parser(sub).set_defaults(func=cmd_tune)
+    add_check_parser(sub)
 
     rt = sub.add_parser(
         "realtime",
@@ -557,6 +713,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="live Meshcat view of the arm, drawn by a separate process")  # fmt: skip
     rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     rt.set_defaults(func=cmd_realtime)
+    from .ros import add_ros_parsers  # `ros`, `ros-arm`
+
+    add_ros_parsers(sub, cmd_ros, cmd_ros_arm)
 
     nat = sub.add_parser(
         "native",
@@ -601,6 +760,7 @@ def main(argv=None) -> int:
     """Entry point of ``hmpc-pin``; returns the exit code."""
     import warnings
 
+    previous = _startup.guard()  # Ctrl-C before the first side effect: exit 130 at once
     try:
         args = build_parser().parse_args(argv)
         with warnings.catch_warnings():
@@ -614,6 +774,8 @@ def main(argv=None) -> int:
             return EXIT_FAILED
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    finally:
+        _startup.restore(previous)
 
 
 if __name__ == "__main__":

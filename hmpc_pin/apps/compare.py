@@ -1,12 +1,12 @@
 """``hmpc-pin compare``: every controller on the same experiment, side by side.
 
-Each controller × compensation (README, "Controllers"; by default the seven of
+Each controller × compensation (docs, "Controllers"; by default the seven of
 :data:`~hmpc_pin.experiment.schema.CONTROLLER_KINDS`) runs on the same robot model,
 plant, reference, disturbance, initial state and MPC settings — only the controller
 and its compensation change. Per controller
 and joint the table holds RMS and max tracking error after 1 s, the time to stay
 within 0.01 rad, the RMS observer error (where there is an observer), the control
-effort (RMS τ), two chattering measures (:func:`~hmpc_pin.metrics.chattering`: total
+effort (RMS τ), two chattering measures (:func:`~hmpc_pin.apps.metrics.chattering`: total
 variation of τ per second and the share of τ's energy above 10 Hz, both after 1 s),
 constraint violations (position-limit excursion, saturated periods) and the median
 controller step time, measured around ``step`` during the run.

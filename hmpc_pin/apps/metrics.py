@@ -1,4 +1,4 @@
-"""Tracking and observer metrics of a :class:`~hmpc_pin.simulate.Result`."""
+"""Tracking and observer metrics of a :class:`~hmpc_pin.sim.result.Result`."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ __all__ = [
     "TaskMetrics",
     "chattering",
     "compute_metrics",
+    "contact_lines",
     "joint_units",
     "run_warnings",
     "settling_time",
@@ -308,3 +309,44 @@ def format_metrics(metrics: Metrics, joint_names=None, result=None) -> str:
             f"(max {tm.orientation_max:.3e} rad)"
         )
     return "\n".join(lines)
+
+
+def contact_lines(result) -> list[str]:
+    """Lines saying what touched what in a run: the first contact with the obstacle
+    (MuJoCo, ``meta["first_contact"]``, with the peak generalized contact force per joint)
+    and the collision watch's flag (``meta["collision"]``: when, which joint, the reaction).
+
+    Returns:
+        Empty when the run had neither an obstacle nor a collision watch.
+    """
+    meta = result.meta
+    names = result.joint_names or tuple(f"joint{i + 1}" for i in range(result.q.shape[1]))
+    lines = []
+    if "first_contact" in meta:
+        first = meta["first_contact"]
+        if first is None:
+            lines.append("contact: the arm never touched the obstacle")
+        else:
+            force = np.abs(np.asarray(result.extra.get("contact_force", np.zeros((1, 1)))))
+            peak = force.max(axis=0) if force.size else np.zeros(len(names))
+            j = int(np.argmax(peak))
+            lines.append(
+                f"contact: first at t = {first:.3f} s with the obstacle; peak generalized "
+                f"contact force {peak[j]:.4g} {joint_units(result)[j][2]} at {names[j]}"
+            )
+    collision = meta.get("collision")
+    if collision:
+        at, reaction = collision.get("detected_at"), collision.get("reaction")
+        if at is None:
+            lines.append("collision: none flagged (|d_hat| stayed below the threshold)")
+        else:
+            joint = collision.get("joint")
+            k = names.index(joint) if joint in names else None
+            limit = collision.get("threshold")
+            unit = joint_units(result)[k][2] if k is not None else ""
+            bound = f" above its threshold {limit[k]:g} {unit}" if k is not None and limit else ""
+            lines.append(
+                f"collision: flagged at t = {at:.3f} s on {joint} (|d_hat|{bound}); "
+                f"reaction: {reaction}"
+            )
+    return lines

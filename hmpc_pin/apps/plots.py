@@ -62,7 +62,12 @@ def _tracking(ax, result, i):
 
 
 def _disturbance(ax, result, i):
-    ax.plot(result.t, result.d[:, i], "k", lw=1.2, label=f"true $d_{i + 1}$")
+    ff = result.extra.get("friction_feedforward")
+    if ff is None:
+        ax.plot(result.t, result.d[:, i], "k", lw=1.2, label=f"true $d_{i + 1}$")
+    else:  # the observer estimates what the friction model fed forward leaves
+        ax.plot(result.t, result.d[:, i] + ff[:, i], "k", lw=1.2,
+                label=rf"true $d_{i + 1} + \tau_{{f,{i + 1}}}$")  # fmt: skip
     ax.plot(result.t, result.d_hat[:, i], "C3--", lw=1.2, label=rf"NDO $\hat d_{i + 1}$")
     ax.set_ylabel(f"joint {i + 1} [{joint_units(result)[i][2]}]")
     ax.legend(loc="upper right", fontsize=8)
@@ -111,7 +116,7 @@ def plot_error(results: dict, path, title: str = "") -> Path:
     """Tracking error |q − r| on a log scale, one row per joint, several runs overlaid.
 
     Args:
-        results: Label → :class:`~hmpc_pin.simulate.Result`, e.g.
+        results: Label → :class:`~hmpc_pin.sim.result.Result`, e.g.
             ``{"with NDO": r1, "without NDO": r2}``.
     """
 
@@ -187,7 +192,7 @@ def plot_cartesian(
     """Figure 10: the tool path in the x–z plane with start, goal and a few arm poses.
 
     Args:
-        result: A :class:`~hmpc_pin.simulate.Result` of the Cartesian experiment.
+        result: A :class:`~hmpc_pin.sim.result.Result` of the Cartesian experiment.
         start, goal: Tool (x, z) of the start and goal poses.
         arms: Number of arm poses drawn, evenly spaced in time over ``window``.
         window: (t0, t1) [s] of the motion; default the whole run.
@@ -212,7 +217,7 @@ def plot_torques(results: dict, path, title: str = "", window=None) -> Path:
     """Torque τ per joint for several runs overlaid, optionally over a time ``window`` [s].
 
     Args:
-        results: Label → :class:`~hmpc_pin.simulate.Result`.
+        results: Label → :class:`~hmpc_pin.sim.result.Result`.
         window: ``(t0, t1)`` to zoom on (chattering is invisible over 10 s); ``None``: all.
 
     The y axis is symmetric-log (linear within ±1 N·m), so a chattering run of thousands

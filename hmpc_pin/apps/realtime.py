@@ -18,7 +18,7 @@ from pathlib import Path
 from ..experiment.build import Experiment, make_arm_plant, realtime_parts
 from ..experiment.schema import ExperimentConfig
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
-from ..realtime.process_arm import ProcessArm
+from ..realtime.process_arm import ProcessArm, start_child
 from .metrics import compute_metrics
 
 __all__ = ["ArmView", "run_realtime", "with_realtime"]
@@ -54,7 +54,14 @@ def tracking_summary(result, after: float = 1.0) -> dict:
     return {"after": after, "rms_error": m.rms_error.tolist(), "max_error": m.max_error.tolist()}
 
 
-def run_realtime(config: ExperimentConfig, out: Path, stem: str | None = None, viz=None):
+def run_realtime(
+    config: ExperimentConfig,
+    out: Path,
+    stem: str | None = None,
+    viz=None,
+    experiment: Experiment | None = None,
+    ready=None,
+):
     """Run ``config`` in real time against an arm process; write the files to ``out``.
 
     Args:
@@ -63,12 +70,15 @@ def run_realtime(config: ExperimentConfig, out: Path, stem: str | None = None, v
         stem: File stem (default: the config's name).
         viz: ``None``, or a callable ``viz(arm, experiment)`` started beside the loop and
             returning an object with ``close()``.
+        experiment: ``config`` already built (default: built here).
+        ready: ``None``, or a callable ``ready()`` called once the arm process runs, just
+            before the first cycle (the command line prints a line there).
 
     Returns:
         ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
     """
     stem = (stem or config.name) + "_realtime"
-    experiment = Experiment.from_config(config)
+    experiment = Experiment.from_config(config) if experiment is None else experiment
     loop_settings, safety, safe = realtime_parts(experiment)
     priority = config.realtime.priority
     with fifo_priority(priority):  # checked here, before the arm starts
@@ -88,6 +98,8 @@ def run_realtime(config: ExperimentConfig, out: Path, stem: str | None = None, v
             arm, experiment.controller, experiment.reference, safe, loop_settings, safety,
             joint_names=tuple(experiment.robot.joint_names), meta=experiment.meta(),
         )  # fmt: skip
+        if ready is not None:
+            ready()
         with fifo_priority(priority):
             run = loop.run(experiment.q0, experiment.dq0)
         run.result.meta["arm"] = arm.counters
@@ -128,6 +140,7 @@ def _view_main(shm_name, n, robot_config, reference, fps, conn, stop) -> None:  
     from .viz import ARM, GHOST, LiveView, VizError
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked by start_child
     try:
         view = LiveView(load_robot_config(robot_config), speed=math.inf)
     except VizError as exc:
@@ -174,7 +187,7 @@ class ArmView:
                   send, self._stop),
             name="hmpc-pin-view", daemon=True,
         )  # fmt: skip
-        self._proc.start()
+        start_child(self._proc)
         send.close()
         self.url = None
         if recv.poll(120.0):

@@ -259,7 +259,7 @@ def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
 
 
 def comparison_claims(comp) -> list[Claim]:
-    """The paper's comparative claims checked on a :class:`~hmpc_pin.compare.Comparison`.
+    """The paper's comparative claims checked on a :class:`~hmpc_pin.apps.compare.Comparison`.
 
     Needs the runs ``hmpc``, ``hmpc-none``, ``hmpc-ism``, ``hmpc-ism-bl`` and
     ``computed-torque``(``-pid``); claims whose runs are missing are skipped.
@@ -532,7 +532,8 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
         "Settings: the paper's controller (Ts = 0.01, N = 10, Nc = 1, Q = diag(50, 0), "
         "R = 1e-6, P = 2Q, v ∈ [−100, 100]) with observer gain c = "
         f"{configs['paper_combined'].controller.observer.gain:g} (not given in the paper); "
-        "plant integrated with RK4 at 1 ms; friction opposing motion (see README).",
+        "plant integrated with RK4 at 1 ms; friction opposing motion (documentation: "
+        "Concepts, decisions the paper leaves open).",
         "",
         "## The paper's claims",
         "",
@@ -577,7 +578,8 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
         "## Controller comparison on the Section 5.3 scenario",
         "",
         "Same robot, plant, reference, disturbances and MPC settings; only the controller "
-        "changes (README, Controllers; `hmpc-pin compare configs/paper_combined.toml`). "
+        "changes (documentation: Concepts, controllers; "
+        "`hmpc-pin compare configs/paper_combined.toml`). "
         "Errors, effort and chattering over t ≥ 1 s.",
         "",
         markdown_table(comp),

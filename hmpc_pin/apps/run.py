@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import sys
 from pathlib import Path
@@ -55,7 +56,7 @@ def write_csv(result: Result, path: Path) -> Path:
 
 
 def live_view(robot, speed: float, obstacle: dict | None = None):
-    """A :class:`~hmpc_pin.viz.LiveView` (with the MuJoCo scene's ``obstacle``, if any), or
+    """A :class:`~hmpc_pin.apps.viz.LiveView` (with the MuJoCo scene's ``obstacle``, if any), or
     ``None`` with a warning if Meshcat cannot run."""
     from .viz import LiveView, VizError
 
@@ -127,10 +128,25 @@ def run_one(
         if own_view and view is not None:
             view.close()
     files = _save_data(result, out, stem)
-    if len(result.t) > 1:
-        title = config.description or config.name
-        files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
-        files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
-        if result.ee_pos is not None:
-            files.append(plots.plot_task_space(result, out / f"{stem}_task_space.png", title))
+    with after_the_run(config.name, files):
+        if len(result.t) > 1:
+            title = config.description or config.name
+            files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
+            files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
+            if result.ee_pos is not None:
+                files.append(plots.plot_task_space(result, out / f"{stem}_task_space.png", title))
     return experiment, result, files, failure
+
+
+@contextlib.contextmanager
+def after_the_run(name: str, files: list):
+    """A Ctrl-C while the figures (or anything after the run) are drawn says where it
+    stopped and which files were already written (``exc.where``, ``exc.files``)."""
+    try:
+        yield
+    except KeyboardInterrupt as exc:
+        if not getattr(exc, "where", ""):
+            exc.where = f"drawing the figures of {name}, after a complete run"  # type: ignore[attr-defined]
+        if not getattr(exc, "files", ()):
+            exc.files = tuple(files)  # type: ignore[attr-defined]
+        raise

@@ -1,12 +1,13 @@
 """Monte Carlo robustness sweep: many perturbed runs of one experiment, summarised.
 
 For each of K samples, plant perturbations are drawn from the ``[sweep]`` table of the
-config (:class:`~hmpc_pin.config.SweepConfig`): link mass and inertia factors (plant
-model only), friction and disturbance amplitude factors, a noise seed. Each sample is
-run once per controller *variant* (today ``"ndo"`` and ``"no-ndo"``; see
-:data:`VARIANTS`), with the same draws and the same noise sequence for every variant
-(common random numbers), and summarised as: fraction of runs bounded, median and
-95th-percentile RMS tracking error, worst case.
+config (:class:`~hmpc_pin.experiment.config.sweep.SweepConfig`): link mass and inertia
+factors (plant model only), friction and disturbance amplitude factors, a noise seed. Each
+sample is run once per controller *variant* (``[sweep] variants``: controller ×
+compensation pairs, by default the config's pair and the same controller without
+compensation; :func:`resolve_variants`), with the same draws and the same noise sequence
+for every variant (common random numbers), and summarised as: fraction of runs bounded,
+median and 95th-percentile RMS tracking error, worst case.
 
 Reproducibility: sample ``i`` draws from ``np.random.SeedSequence(seed).spawn(K)[i]``,
 and every run is a pure function of ``(config, params, variant)``
@@ -36,7 +37,9 @@ import numpy as np
 from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError, SimulationError
 from ..experiment.build import Experiment, load_robot_config, with_controller
+from ..experiment.config.sweep import CONDITION_PARTS
 from ..experiment.schema import OBSERVERS, ExperimentConfig
+from ..sim.sensing import SensedController
 from .metrics import task_metrics
 
 __all__ = [
@@ -46,6 +49,7 @@ __all__ = [
     "resolve_variants",
     "run_sample",
     "run_sweep",
+    "torque_effort",
     "variant_config",
 ]
 
@@ -172,13 +176,54 @@ def perturbed_config(config: ExperimentConfig, params: SampleParams) -> Experime
     return config
 
 
-def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> dict:
-    """Run one perturbed sample with one controller variant; return its table row.
+def _told_latency(config: ExperimentConfig, condition: str) -> ExperimentConfig:
+    """``config`` with ``[controller] latency`` set to the modelled latency (latency plus
+    whole-period delay) when ``known_latency`` and the controller is ``hmpc`` (the 0.3
+    keys: unchanged)."""
+    sc, cc = config.sweep, config.controller
+    if sc.legacy or not sc.known_latency or cc.kind != "hmpc":
+        return config
+    if "latency" not in CONDITION_PARTS[condition]:
+        return config
+    si = sc.interface
+    latency = si.latency + si.delay * cc.Ts
+    return replace(config, controller=replace(cc, latency=latency))
 
-    The plant's links are scaled by ``params.mass`` (the controller keeps the nominal
-    model), friction and pulse amplitudes by ``params.friction`` / ``params.disturbance``,
-    and the controller sees the state through :class:`~hmpc_pin.measurement.MeasuredController`
-    (noise and delay of ``config.sweep``, noise seeded by ``params.noise_seed``).
+
+def _measured(experiment: Experiment, config: ExperimentConfig, params: SampleParams,
+              condition: str) -> None:
+    """Put the interface model of ``condition`` between ``experiment``'s controller and
+    plant."""
+    sc = config.sweep
+    parts = CONDITION_PARTS[condition]
+    rng = np.random.default_rng(params.noise_seed)
+    ctrl = experiment.controller
+    if sc.legacy:  # the 0.3 model: white noise and a delay in whole periods
+        q_noise, dq_noise, delay = sc.legacy_measurement()
+        on = "sensing" in parts
+        experiment.controller = MeasuredController(
+            ctrl, q_noise=q_noise if on else 0.0, dq_noise=dq_noise if on else 0.0,
+            delay=delay if "latency" in parts else 0, rng=rng,
+        )  # fmt: skip
+        return
+    model = sc.interface.model(experiment.robot.nq, parts)
+    if not model.ideal:
+        experiment.controller = SensedController(ctrl, model, rng)
+
+
+def run_sample(
+    config: ExperimentConfig, params: SampleParams, variant: str, condition: str = "all"
+) -> dict:
+    """Run one perturbed sample with one controller variant under one condition; return
+    its table row.
+
+    Under ``"plant"`` and ``"all"`` the plant's links are scaled by ``params.mass`` (the
+    controller keeps the nominal model), friction and pulse amplitudes by
+    ``params.friction`` / ``params.disturbance``; under ``"sensing"``, ``"latency"`` and
+    ``"all"`` the controller sees the arm through the interface model of
+    ``config.sweep`` (:class:`~hmpc_pin.sim.sensing.SensedController`, or with the 0.3 keys
+    :class:`~hmpc_pin.controllers.wrappers.MeasuredController`), noise seeded by
+    ``params.noise_seed``.
 
     Returns:
         A dict (one CSV row): the draws, ``complete``, ``bounded``, ``t_end``, RMS error
@@ -186,18 +231,19 @@ def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> 
         and the failure ``message`` ("" if the run completed); for a pose task also
         ``position_rms`` [m] and ``orientation_rms`` [rad] after ``sweep.after``. A run
         that stops early (divergence, non-finite state, solver failure) is a row with
-        ``complete=False``, not an exception.
+        ``complete=False``, not an exception. Also the torque's effort
+        (:func:`torque_effort`): ``saturation`` and ``torque_tv``.
     """
     sc = config.sweep
-    experiment = Experiment.from_config(variant_config(perturbed_config(config, params), variant))
-    experiment.plant = experiment.plant.with_scaled_inertias(params.mass)
-    experiment.controller = MeasuredController(
-        experiment.controller,
-        q_noise=sc.q_noise,
-        dq_noise=sc.dq_noise,
-        delay=sc.delay,
-        rng=np.random.default_rng(params.noise_seed),
-    )
+    if condition not in CONDITION_PARTS:
+        raise ConfigError("condition", f"expected one of {tuple(CONDITION_PARTS)}, got "
+                          f"{condition!r}")  # fmt: skip
+    perturb = condition in ("plant", "all")
+    base = perturbed_config(config, params) if perturb else config
+    experiment = Experiment.from_config(_told_latency(variant_config(base, variant), condition))
+    if perturb:
+        experiment.plant = experiment.plant.with_scaled_inertias(params.mass)
+    _measured(experiment, config, params, condition)
     try:
         result = experiment.run()
     except SimulationError as exc:
@@ -212,17 +258,37 @@ def run_sample(config: ExperimentConfig, params: SampleParams, variant: str) -> 
     else:
         rms, max_error = np.full(len(names), np.nan), math.nan
     bounded = bool(result.complete and max_error <= sc.error_bound)
-    row = {"sample": params.index, "variant": variant, "noise_seed": params.noise_seed}
+    row = {"sample": params.index, "variant": variant, "condition": condition,
+           "noise_seed": params.noise_seed}  # fmt: skip
     row.update({f"mass_{i + 1}": v for i, v in enumerate(params.mass)})
     row.update({f"friction_{j}": v for j, v in zip(names, params.friction, strict=True)})
     row.update({f"disturbance_{j}": v for j, v in zip(names, params.disturbance, strict=True)})
     row.update(complete=bool(result.complete), bounded=bounded, t_end=float(result.t[-1]))
     row.update({f"rms_{j}": float(v) for j, v in zip(names, rms, strict=True)})
     row.update(rms_max=float(np.max(rms)), max_error=max_error, message=result.message)
+    row.update(torque_effort(result))
     task = task_metrics(result, sc.after)  # a pose task: its task-space errors too
     if task is not None:
         row.update(position_rms=task.position_rms, orientation_rms=task.orientation_rms)
     return row
+
+
+def torque_effort(result) -> dict[str, float]:
+    """How hard a run drove its actuators.
+
+    Returns:
+        ``saturation``: the fraction of control periods in which the plant clipped the
+        torque on some joint (:math:`\\tau \\ne \\tau_\\mathrm{applied}`); ``torque_tv``:
+        the commanded torque's total variation per second, summed over joints,
+        :math:`\\sum_i \\sum_k |\\tau_{i,k+1} - \\tau_{i,k}| / t_\\mathrm{end}` [N·m/s]
+        (chattering shows as a large value).
+    """
+    tau, applied = result.tau, result.tau_applied
+    ok = np.all(np.isfinite(tau), axis=1)
+    clipped = np.any(np.abs(tau - applied) > 1e-9 * (1 + np.abs(tau)), axis=1) & ok
+    span = float(result.t[-1] - result.t[0]) if len(result.t) > 1 else 0.0
+    tv = float(np.abs(np.diff(tau[ok], axis=0)).sum() / span) if span > 0 else 0.0
+    return {"saturation": float(np.mean(clipped)) if len(clipped) else 0.0, "torque_tv": tv}
 
 
 @dataclass
@@ -240,8 +306,9 @@ class SweepResult:
 
     @property
     def planned_runs(self) -> int:
-        """Runs the sweep was asked for: samples × variants."""
-        return self.samples * len(self.config.sweep.variants)
+        """Runs the sweep was asked for: samples × variants × conditions."""
+        sc = self.config.sweep
+        return self.samples * len(sc.variants) * len(sc.conditions)
 
     @property
     def finished_samples(self) -> int:
@@ -249,20 +316,26 @@ class SweepResult:
         per_sample: dict[int, int] = {}
         for r in self.rows:
             per_sample[r["sample"]] = per_sample.get(r["sample"], 0) + 1
-        return sum(v == len(self.config.sweep.variants) for v in per_sample.values())
+        sc = self.config.sweep
+        per = len(sc.variants) * len(sc.conditions)
+        return sum(v == per for v in per_sample.values())
 
-    def variant_rows(self, variant: str) -> list[dict]:
-        """The rows of one variant."""
-        return [r for r in self.rows if r["variant"] == variant]
+    def variant_rows(self, variant: str, condition: str | None = None) -> list[dict]:
+        """The rows of one variant (under one condition; ``None``: the last configured,
+        ``"all"`` by default)."""
+        condition = self.config.sweep.conditions[-1] if condition is None else condition
+        return [r for r in self.rows if r["variant"] == variant
+                and r.get("condition", "all") == condition]  # fmt: skip
 
-    def summary(self) -> dict[str, dict]:
-        """Per variant: runs, fraction bounded, fraction bounded with RMS <= target,
-        median / 95th-percentile / worst RMS (worst joint, runs not bounded count as inf;
-        empirical quantiles, no interpolation), and the worst sample."""
+    def summary(self, condition: str | None = None) -> dict[str, dict]:
+        """Per variant, under ``condition`` (default: the last configured, ``"all"``):
+        runs, fraction bounded, fraction bounded with RMS <= target, median /
+        95th-percentile / worst RMS (worst joint, runs not bounded count as inf; empirical
+        quantiles, no interpolation), and the worst sample."""
         target = self.config.sweep.rms_target
         out = {}
         for variant in self.config.sweep.variants:
-            rows = self.variant_rows(variant)
+            rows = self.variant_rows(variant, condition)
             if not rows:
                 continue
             rms = np.array([r["rms_max"] if r["bounded"] else math.inf for r in rows])
@@ -303,28 +376,49 @@ class SweepResult:
     def summary_markdown(self) -> str:
         """The summary as a Markdown section (settings, one table row per variant)."""
         cfg, sc = self.config, self.config.sweep
+        if sc.legacy:
+            q_noise, dq_noise, delay = sc.legacy_measurement()
+            sensing = (f"noise σ_q = {q_noise:g} rad, σ_q̇ = {dq_noise:g} rad/s; delay "
+                       f"{delay} period(s)")  # fmt: skip
+        else:
+            si = sc.interface
+            counts = ", ".join(f"{c:g}" for c in np.atleast_1d(si.encoder_counts))
+            vel = si.velocity + (f" low-passed at {si.velocity_filter:g} Hz"
+                                 if si.velocity_filter else "")  # fmt: skip
+            sensing = (
+                f"interface at {si.rate:g} Hz: encoders of {counts} counts/rev, velocity "
+                f"{vel}, latency {si.latency * 1e3:g} ms"
+                + (f" + {si.delay} period(s)" if si.delay else "")
+                + (f", torque filter {si.torque_filter:g} Hz" if si.torque_filter else "")
+                + (f", noise σ_q = {si.q_noise:g} rad, σ_q̇ = {si.dq_noise:g} rad/s"
+                   if si.q_noise or si.dq_noise else "")
+                + ("; hmpc told the latency" if sc.known_latency else "")
+            )  # fmt: skip
         lines = [
             f"# Sweep of {cfg.name}: {self.samples} samples, seed {self.seed}",
             "",
             *self._interrupted_lines(),
             f"Config `{cfg.source}`; plant link mass and inertia ×U({sc.mass[0]:g}, "
             f"{sc.mass[1]:g}), friction ×U({sc.friction[0]:g}, {sc.friction[1]:g}), pulse "
-            f"amplitude ×U({sc.disturbance[0]:g}, {sc.disturbance[1]:g}) per joint; noise "
-            f"σ_q = {sc.q_noise:g} rad, σ_q̇ = {sc.dq_noise:g} rad/s; delay {sc.delay} "
-            f"period(s); {cfg.simulation.duration:g} s per run. RMS and max error over "
-            f"t ≥ {sc.after:g} s, worst joint. Bounded: completed and max |e| ≤ "
-            f"{sc.error_bound:g} rad.",
+            f"amplitude ×U({sc.disturbance[0]:g}, {sc.disturbance[1]:g}) per joint; "
+            f"{sensing}; {cfg.simulation.duration:g} s per run. Conditions: sensing (the "
+            "measurement model only), latency (timing only), plant (the drawn plant only), "
+            f"all (together). RMS and max error over t ≥ {sc.after:g} s, worst joint. "
+            f"Bounded: completed and max |e| ≤ {sc.error_bound:g} rad.",
             "",
-            f"| variant | runs | bounded | bounded and RMS ≤ {sc.rms_target:g} | median RMS "
-            "[rad] | p95 RMS [rad] | worst RMS [rad] (sample) | worst max \\|e\\| [rad] |",
-            "|---|---|---|---|---|---|---|---|",
+            f"| condition | variant | runs | bounded | bounded and RMS ≤ {sc.rms_target:g} | "
+            "median RMS [rad] | p95 RMS [rad] | worst RMS [rad] (sample) | worst max "
+            "\\|e\\| [rad] |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
-        for variant, s in self.summary().items():
-            lines.append(
-                f"| {variant} | {s['runs']} | {100 * s['bounded']:.1f} % | "
-                f"{100 * s['pass']:.1f} % | {s['median_rms']:.3e} | {s['p95_rms']:.3e} | "
-                f"{s['worst_rms']:.3e} ({s['worst_sample']}) | {s['worst_max_error']:.3e} |"
-            )
+        for condition in sc.conditions:
+            for variant, s in self.summary(condition).items():
+                lines.append(
+                    f"| {condition} | {variant} | {s['runs']} | {100 * s['bounded']:.1f} % | "
+                    f"{100 * s['pass']:.1f} % | {s['median_rms']:.3e} | {s['p95_rms']:.3e} | "
+                    f"{s['worst_rms']:.3e} ({s['worst_sample']}) | "
+                    f"{s['worst_max_error']:.3e} |"
+                )
         lines += [
             "",
             f"Wall time {self.wall_time:.1f} s ({self.executor} executor, {self.jobs} jobs).",
@@ -395,20 +489,23 @@ def run_sweep(
     if executor not in EXECUTORS:
         raise ConfigError("--executor", f"expected one of {EXECUTORS}, got {executor!r}")
     config = replace(config, sweep=replace(config.sweep, variants=resolve_variants(config)))
-    Experiment.from_config(config)  # bad input fails here, once, not in every worker
+    nominal = Experiment.from_config(config)  # bad input fails here, once, not in every worker
+    if not config.sweep.legacy:  # the interface model fits the arm and the control period
+        config.sweep.interface.model(nominal.robot.nq).ticks(config.controller.Ts)
     params = draw_samples(config, samples, seed)
-    tasks = [(p, v) for p in params for v in config.sweep.variants]
+    tasks = [(p, v, c) for p in params for v in config.sweep.variants
+             for c in config.sweep.conditions]  # fmt: skip
 
     from tqdm import tqdm
 
     start = time.perf_counter()
-    rows: dict[tuple[int, str], dict] = {}
+    rows: dict[tuple[int, str, str], dict] = {}
     interrupted = False
     bar = tqdm(total=len(tasks), desc=f"sweep {config.name}", unit="run", disable=not progress)
     try:
         if executor == "local" and jobs == 1:
-            for p, v in tasks:
-                rows[p.index, v] = run_sample(config, p, v)
+            for p, v, c in tasks:
+                rows[p.index, v, c] = run_sample(config, p, v, c)
                 bar.update()
         elif executor == "local":
             _run_pool(config, tasks, jobs, rows, bar)
@@ -418,8 +515,8 @@ def run_sweep(
                 from dask.distributed import as_completed
 
                 futures = {
-                    client.submit(run_sample, config, p, v, pure=False): (p.index, v)
-                    for p, v in tasks
+                    client.submit(run_sample, config, p, v, c, pure=False): (p.index, v, c)
+                    for p, v, c in tasks
                 }
                 try:
                     for future in as_completed(list(futures)):
@@ -436,7 +533,7 @@ def run_sweep(
         interrupted = True
     finally:
         bar.close()
-    ordered = [rows[p.index, v] for p, v in tasks if (p.index, v) in rows]
+    ordered = [rows[p.index, v, c] for p, v, c in tasks if (p.index, v, c) in rows]
     return SweepResult(config, samples, seed, ordered, time.perf_counter() - start, jobs,
                        executor, interrupted)  # fmt: skip
 
@@ -465,7 +562,8 @@ def _run_pool(config, tasks, jobs: int, rows: dict, bar) -> None:
     try:
         try:
             pool = ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_ignore_sigint)
-            futures = {pool.submit(run_sample, config, p, v): (p.index, v) for p, v in tasks}
+            futures = {pool.submit(run_sample, config, p, v, c): (p.index, v, c)
+                       for p, v, c in tasks}  # fmt: skip
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         for future in as_completed(futures):

@@ -10,7 +10,7 @@ Each geometry is therefore loaded one node deeper (``.../<name>/geom``) with its
 scale as a static transform, and only the parent node ``.../<name>`` is
 animated with the unscaled placement ``oMg``.
 
-Requires the ``viz`` extra (``pip install -e ".[viz]"``).
+Requires the ``viz`` extra (``pip install "hmpc_pin[viz]"``).
 """
 
 from __future__ import annotations
@@ -47,15 +47,28 @@ def draw_obstacle(vis, obstacle: dict | None) -> None:
     vis[OBSTACLE].set_transform(placement)
 
 
+#: The message when Meshcat is missing: the extra that installs it (as a wheel user types it).
+MESHCAT_MISSING = 'meshcat is not installed; install the viz extra: pip install "hmpc_pin[viz]"'
+
+
+def require_meshcat() -> None:
+    """Raise :class:`~hmpc_pin.exceptions.VizError` (:data:`MESHCAT_MISSING`) now when
+    Meshcat cannot be imported, e.g. before a run that ends with a replay (its
+    dependencies' deprecation notices, not the user's business, are not shown)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        _meshcat()
+
+
 def _meshcat():
     try:
         import meshcat
         import meshcat.animation
         import meshcat.geometry
     except ImportError as exc:
-        raise VizError(
-            "meshcat is not installed; install the viz extra: pip install -e '.[viz]'"
-        ) from exc
+        raise VizError(MESHCAT_MISSING) from exc
     return meshcat
 
 
@@ -308,7 +321,7 @@ def export_replay(
 
     Args:
         robot: The arm (its URDF's visual geometry is drawn).
-        result: A :class:`~hmpc_pin.simulate.Result`.
+        result: A :class:`~hmpc_pin.sim.result.Result`.
         path: Output ``.html`` file.
         fps: Maximum animation frame rate [1/s]; samples are decimated to it.
         ghost: Draw the reference as a translucent arm.

@@ -15,20 +15,22 @@ the NDO of Eq 13 (:class:`~hmpc_pin.compensation.observers.DisturbanceObserver`,
 
 Optionally, a compensation offers ``compiled_form()``: ``("ndo", obj)`` names a compiled
 observer (``hmpc_pin._core.NDO``) that the compiled control step advances itself, and
-``("zero",)`` an estimate that stays zero; the step then never calls :meth:`update` from
-Python. Without it (the momentum observer, ISM, any user class) the step calls
-:meth:`update` between its two compiled halves, with the M and :math:`C\\dot q + G` it
-computed (buffers valid during the call only).
+``("zero",)`` an estimate that stays zero; the step then never calls
+:meth:`Compensation.update` from Python. Without it (the momentum observer, ISM, any user
+class) the step calls :meth:`Compensation.update` between its two compiled halves, with the
+M and :math:`C\\dot q + G` it computed (buffers valid during the call only).
 """
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+import math
+import warnings
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Compensation", "NoCompensation"]
+__all__ = ["Compensation", "NoCompensation", "check_compensation"]
 
 FloatArray = NDArray[np.float64]
 
@@ -98,3 +100,41 @@ class NoCompensation:
     ) -> FloatArray:
         """Return zeros [N·m]."""
         return self.estimate
+
+
+def check_compensation(compensation: object, robot: Any, Ts: float, who: str) -> None:
+    """Check that ``compensation`` fits a controller of ``robot`` with period ``Ts`` [s]:
+    its estimate has one entry per joint, its own period (attribute ``Ts``, if it has one)
+    is ``Ts``; warn when Chen's observer (Eq 28–30, proven for planar serial arms only)
+    is used on another arm. The controllers call this when built, so that the library
+    refuses and warns as a config file does.
+
+    Raises:
+        DimensionError: The estimate's shape is not ``(robot.nq,)``.
+        ConfigError: The compensation's period differs from ``Ts``.
+    """
+    from ..exceptions import ConfigError, DimensionError, ValidityWarning
+
+    n = robot.nq
+    estimate: Any = getattr(compensation, "estimate", None)
+    shape = np.shape(estimate) if estimate is not None else None
+    if shape != (n,):
+        raise DimensionError(
+            f"{who}: the compensation {type(compensation).__name__} estimates {shape} "
+            f"torques but robot {robot.name!r} has {n} joints; build it for n = {n}"
+        )
+    period = getattr(compensation, "Ts", None)
+    if period is not None and not math.isclose(float(period), float(Ts), rel_tol=1e-9):
+        raise ConfigError(
+            f"{who}.compensation.Ts",
+            f"the compensation's period {float(period):g} s differs from the controller's "
+            f"Ts = {float(Ts):g} s; build it with the controller's period",
+        )
+    if getattr(compensation, "kind", None) == "chen" and not robot.is_planar_chain():
+        warnings.warn(
+            f"compensation 'chen' (Chen's observer, Eq 28-30) is proven for planar serial "
+            f"arms only, and robot {robot.name!r} is not one; use compensation = 'general' "
+            "(Y = I, valid on any arm for gain c above general_gain_bound) or 'momentum'",
+            ValidityWarning,
+            stacklevel=3,
+        )

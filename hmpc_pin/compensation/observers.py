@@ -92,6 +92,9 @@ class DisturbanceObserver:
         gain: Observer gain :math:`c` [1/s·(kg·m²)]; larger is faster.
         kind: ``"chen"`` or ``"general"`` (see module docstring).
         discretization: ``"implicit"`` (backward Euler, default) or ``"explicit"``.
+        cY: The matrix :math:`cY` itself, (n, n), instead of ``gain`` × the ``kind``'s
+            :math:`Y` (e.g. :func:`~hmpc_pin.compensation.bandwidth.observer_cY` of a
+            bandwidth); ``gain`` is then ignored and ``kind`` must be ``"general"``.
 
     Attributes:
         estimate: The current disturbance estimate :math:`\\hat d` [N·m], shape (n,).
@@ -104,6 +107,7 @@ class DisturbanceObserver:
         gain: float,
         kind: str = "chen",
         discretization: str = "implicit",
+        cY: np.ndarray | None = None,
     ):
         if discretization not in DISCRETIZATIONS:
             raise ConfigError(
@@ -114,7 +118,16 @@ class DisturbanceObserver:
         self.gain = float(gain)
         self.kind = kind
         self.discretization = discretization
-        self.cY = self.gain * observer_matrix(kind, n)
+        if cY is not None:
+            cY = np.array(cY, dtype=float)
+            if cY.shape != (n, n) or not np.all(np.isfinite(cY)) or kind != "general":
+                raise ConfigError(
+                    "cY", f"expected a finite ({n}, {n}) matrix with kind 'general', got "
+                    f"shape {cY.shape} with kind {kind!r}",
+                )  # fmt: skip
+            self.cY = cY
+        else:
+            self.cY = self.gain * observer_matrix(kind, n)
         self._z = np.zeros(n)
         self._estimate = np.zeros(n)
         self._core = load_native().NDO(
@@ -211,7 +224,7 @@ class MomentumObserver:
     :math:`C^T\\dot q` comes from ``pin.computeCoriolisMatrix``, :math:`G = n - C\\dot q`.
 
     Args:
-        robot: The controller's :class:`~hmpc_pin.robot.Robot` (for :math:`C`).
+        robot: The controller's :class:`~hmpc_pin.model.robot.Robot` (for :math:`C`).
         Ts: Sampling period [s].
         gain: :math:`K_O` [1/s], scalar or per joint (n,), > 0.
 
@@ -268,7 +281,7 @@ def general_gain_bound(robot, samples: int = 200, seed: int = 0, velocity=None) 
     The observer error converges for :math:`c` above it.
 
     Args:
-        robot: The :class:`~hmpc_pin.robot.Robot`.
+        robot: The :class:`~hmpc_pin.model.robot.Robot`.
         samples: Number of random configurations.
         seed: Random seed.
         velocity: Velocity bounds [rad/s] (n,); default the robot's velocity limits.

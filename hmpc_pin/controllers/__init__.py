@@ -1,4 +1,5 @@
-"""Controllers: inverse dynamics × an outer loop × a compensation (one protocol, :mod:`.base`)."""
+"""Controllers: inverse dynamics × an outer loop × a compensation (one protocol,
+:mod:`~hmpc_pin.controllers.base`)."""
 
 from .base import Controller, ControllerWrapper
 from .computed_torque import ComputedTorque, CTSettings

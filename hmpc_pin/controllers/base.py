@@ -74,6 +74,17 @@ class ControllerWrapper:
         return self.controller.step(t, q, dq, reference)
 
 
+def not_reset(controller: object) -> Exception:
+    """The error of a controller's ``step`` before its ``reset`` (the estimate, the
+    integral and the previous torque would be a former run's or undefined)."""
+    from ..exceptions import SimulationError
+
+    return SimulationError(
+        f"{type(controller).__name__}.step before reset: call reset(q0, dq0) with the "
+        "initial state first"
+    )
+
+
 class AppliedTorque:
     r"""Mixin of the controllers whose compensation needs the torque the arm applied.
 

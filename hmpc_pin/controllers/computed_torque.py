@@ -12,7 +12,7 @@ run at the control period :math:`T_s` with the torque held over it, like the MPC
 
 Fair tuning (same bandwidth). By default :math:`k_p, k_d` are the MPC's own
 unconstrained state-feedback gain: the first row of :math:`H^{-1}F` restricted to
-:math:`x_0` (:mod:`hmpc_pin.joint_mpc`), so the PD loop has exactly the closed-loop poles
+:math:`x_0` (:mod:`hmpc_pin.mpc.condensed`), so the PD loop has exactly the closed-loop poles
 of the unconstrained MPC, :math:`\\mathrm{eig}(A_d - B_d[k_p\\;k_d])`. For the paper's
 settings (Nc = 1) that is :math:`k_p = 273.9\\,\\mathrm{s^{-2}}`,
 :math:`k_d = 22.73\\,\\mathrm{s^{-1}}` (poles 0.879 ± 0.113j, ω_n ≈ 16.5 rad/s,
@@ -31,12 +31,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..compensation.base import Compensation, NoCompensation
+from ..compensation.base import Compensation, NoCompensation, check_compensation
 from ..exceptions import ConfigError, NonFiniteError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC
-from ..tasks.base import as_reference
-from .base import AppliedTorque
+from ..tasks.base import as_reference, check_reference_size
+from .base import AppliedTorque, not_reset
 from .hierarchical import MPCSettings, _from_legacy
 
 __all__ = [
@@ -178,6 +178,7 @@ class ComputedTorque(AppliedTorque):
         self.compensation: Compensation = (
             compensation if compensation is not None else NoCompensation(n)
         )
+        check_compensation(self.compensation, robot, settings.Ts, "ComputedTorque")
         self.disturbance_estimate = np.zeros(n)
         self.integral = np.zeros(n)
         self.v = np.zeros(n)
@@ -198,6 +199,7 @@ class ComputedTorque(AppliedTorque):
         self.compensation.reset(q0, dq0)
         self.disturbance_estimate = np.zeros(self.n)
         self._started = False
+        self._was_reset = True
         self.integral = np.zeros(self.n)
         self.v = np.zeros(self.n)
         self.tau = np.zeros(self.n)
@@ -218,6 +220,9 @@ class ComputedTorque(AppliedTorque):
         q = self.robot.check_vector("q", q)
         dq = self.robot.check_vector("dq", dq)
         if reference is not self._reference:
+            if not getattr(self, "_was_reset", False):
+                raise not_reset(self)
+            check_reference_size(reference, self.n, "ComputedTorque.step")
             self._ref = as_reference(reference)
             self._reference = reference
         r, dr = self._ref.sample(t)  # type: ignore[attr-defined]

@@ -8,6 +8,15 @@ At every control instant :math:`t_k`:
 3. Each joint's MPC (Eq 25–26) chooses its acceleration :math:`v_i` from the
    reference sampled at :math:`t_k + jT_s,\\ j = 1..N`.
 4. Inverse dynamics (Eq 4): :math:`\\tau = M(q)v + C(q,\\dot q)\\dot q + G(q) - \\hat d`.
+
+With joint damping :math:`B` and Coulomb friction :math:`F` in the model (the URDF's
+``<dynamics>``, :attr:`MPCSettings.joint_dynamics`), :math:`C\\dot q + G` reads
+:math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in steps 2 and 4, and a damped
+joint j gets the extra torque :math:`(g_j - 1) m_j v_j`, :math:`m_j = 1/(M^{-1})_{jj}`,
+:math:`g_j = a_jT_s / (1 - e^{-a_jT_s})`, :math:`a_j = b_j/m_j`: with the torque held over
+the period and :math:`b_j\\dot q_k` compensated at the sampled velocity, the damped joint
+then gains exactly the velocity :math:`v_jT_s` the MPC's double integrator predicts (the
+zero-order-hold discretisation of :math:`m_j\\dot w = -b_jw + u`).
 """
 
 from __future__ import annotations
@@ -20,17 +29,18 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ..compensation.base import Compensation
+from ..checks import as_bool, as_choice, as_float, as_int, mpc_fields
+from ..compensation.base import Compensation, check_compensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import DimensionError, HmpcError, NonFiniteError
+from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
-from ..tasks.base import Reference, as_reference
-from .base import AppliedTorque
+from ..tasks.base import Reference, as_reference, check_reference_size
+from .base import AppliedTorque, not_reset
 
-__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits"]
+__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits", "warn_fast_damping"]
 
 FloatArray = NDArray[np.float64]
 
@@ -59,6 +69,17 @@ class MPCSettings:
         backend: Deprecated since 0.3 and without effect: the step is always compiled
             (:mod:`hmpc_pin.native`). ``"auto"`` and ``"native"`` are accepted silently,
             ``"python"`` with a :class:`DeprecationWarning`.
+        latency: The age L [s] of the measurement handed to :meth:`HierarchicalMPC.step`
+            (0: none; a fraction of Ts allowed). With L > 0 the compensation is fed the
+            torque applied over the interval its two measurements span, and the MPC and the
+            inverse dynamics start from the state predicted over L (the guide
+            "Sensing and latency"). L = 0 is the latency-free step, bit for bit.
+        joint_dynamics: Compensate the model's joint damping and Coulomb friction
+            (:attr:`~hmpc_pin.model.robot.Robot.joint_damping`, ``joint_friction``, the
+            URDF's ``<dynamics>``): :math:`C\\dot q + G` becomes
+            :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
+            Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
+            (computed in the compiled step, see ``src/core.cpp``). Default ``True``.
     """
 
     Ts: float = 0.01
@@ -73,12 +94,36 @@ class MPCSettings:
     max_iter: int = 1000
     qp_layout: str = "auto"
     backend: str = "auto"
+    latency: float = 0.0
+    joint_dynamics: bool = True
+
+    def __post_init__(self):
+        # The same checks and errors as the [controller] table (hmpc_pin.checks).
+        fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
+                            self.v_max, prefix="MPCSettings.")  # fmt: skip
+        fields["eps_abs"] = as_float("MPCSettings.eps_abs", self.eps_abs, positive=True)
+        fields["max_iter"] = as_int("MPCSettings.max_iter", self.max_iter, minimum=1)
+        fields["qp_layout"] = as_choice("MPCSettings.qp_layout", self.qp_layout,
+                                        ("auto", "block", "joint"))  # fmt: skip
+        fields["latency"] = as_float("MPCSettings.latency", self.latency, nonneg=True)
+        fields["joint_dynamics"] = as_bool("MPCSettings.joint_dynamics", self.joint_dynamics)
+        for name, value in fields.items():
+            object.__setattr__(self, name, value)
 
     def bounds(self, n: int) -> tuple[FloatArray, FloatArray]:
-        """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints."""
-        lo = np.broadcast_to(np.asarray(self.v_min, dtype=float), (n,)).astype(float)
-        hi = np.broadcast_to(np.asarray(self.v_max, dtype=float), (n,)).astype(float)
-        return lo, hi
+        """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints.
+
+        Raises:
+            ConfigError: A per-joint bound has a length other than ``n``.
+        """
+        out = []
+        for name in ("v_min", "v_max"):
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.ndim == 1 and arr.shape != (n,):
+                raise ConfigError(f"MPCSettings.{name}", f"has {arr.shape[0]} entries but the "
+                                  f"robot has {n} joints; give one value or {n}")  # fmt: skip
+            out.append(np.broadcast_to(arr, (n,)).astype(float))
+        return out[0], out[1]
 
 
 def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
@@ -136,12 +181,50 @@ def state_limits(
                        slack_linear_weight=slack_linear_weight)  # fmt: skip
 
 
+def warn_fast_damping(robot: Robot, Ts: float) -> None:
+    """A :class:`~hmpc_pin.exceptions.ValidityWarning` naming each joint of ``robot`` (the
+    arm as simulated or built) whose URDF damping time constant :math:`M_{jj}/b_j` (at
+    mid-range) is below :math:`2T_s` [s], for a controller that does not compensate the
+    joint dynamics (``joint_dynamics = False``): tracking degrades there."""
+    n = robot.nq
+    b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float)
+    if not b.any():
+        return
+    lo = np.where(np.isfinite(robot.lower), robot.lower, 0.0)
+    hi = np.where(np.isfinite(robot.upper), robot.upper, 0.0)
+    M = robot.mass_matrix(0.5 * (lo + hi))
+    for j in np.flatnonzero((b > 0) & (np.diag(M) < 2 * Ts * b)):
+        warnings.warn(
+            f"joint {robot.joint_names[j]!r}: its URDF damping's time constant "
+            f"M_jj/b = {M[j, j] / b[j]:.3g} s is below 2 Ts = {2 * Ts:g} s and the "
+            "controller does not compensate it (joint_dynamics = false): tracking "
+            "degrades; set controller.joint_dynamics = true or lower Ts",
+            ValidityWarning,
+            stacklevel=3,
+        )
+
+
 class HierarchicalMPC(AppliedTorque):
     """Inverse dynamics + disturbance compensation + one ProxSuite MPC per joint (``hmpc*`` kinds).
 
     Args:
-        robot: The controller's model of the arm (its :class:`~hmpc_pin.robot.Robot`).
-        config: Settings; the default is the paper's controller (Section 4).
+        robot: The controller's model of the arm (its :class:`~hmpc_pin.model.robot.Robot`).
+        settings: The MPC's :class:`MPCSettings` (checked when built, with the
+            :class:`~hmpc_pin.exceptions.ConfigError` a config file gets); the default is
+            the paper's controller (Section 4).
+        compensation: The disturbance compensation
+            (:class:`~hmpc_pin.compensation.base.Compensation`): its estimate has one entry
+            per joint and its period, if it has one (``Ts``), is ``settings.Ts``. Default:
+            the paper's observer, Chen's :math:`Y` (Eq 28) with gain 100, which is proven
+            for planar serial arms only: on any other arm it comes with a
+            :class:`~hmpc_pin.exceptions.ValidityWarning` (as in a config).
+        limits: The joint limits imposed on the predictions as soft state constraints:
+            ``"urdf"`` (default: the robot's position and velocity limits), a
+            :class:`~hmpc_pin.mpc.condensed.StateLimits`, or ``None`` (none).
+
+    Raises:
+        ConfigError: A setting is out of range, or the compensation's period differs.
+        DimensionError: The compensation is for another number of joints.
 
     Attributes:
         disturbance_estimate: :math:`\\hat d` [N·m], shape (n,), updated by :meth:`step`
@@ -150,7 +233,7 @@ class HierarchicalMPC(AppliedTorque):
         v: The last commanded accelerations [rad/s²], shape (n,).
         tau: The last torque [N·m], shape (n,).
         limits: The joint limits imposed on each MPC's prediction as soft state
-            constraints (:class:`~hmpc_pin.joint_mpc.StateLimits`), ``None`` if disabled.
+            constraints (:class:`~hmpc_pin.mpc.condensed.StateLimits`), ``None`` if disabled.
 
     Example:
         >>> robot = hmpc_pin.load_robot("robots/planar3.urdf")
@@ -178,6 +261,7 @@ class HierarchicalMPC(AppliedTorque):
             if compensation is not None
             else DisturbanceObserver(n, settings.Ts, 100.0, "chen", "implicit")
         )
+        check_compensation(self.compensation, robot, settings.Ts, "HierarchicalMPC")
         v_min, v_max = settings.bounds(n)
         self.mpc = CondensedMPC(settings.Ts, settings.N, settings.Nc, settings.Q, settings.R,
                                 settings.P)  # fmt: skip
@@ -220,6 +304,7 @@ class HierarchicalMPC(AppliedTorque):
         self.v = self._buf["v"]
         self.tau = self._buf["tau"]
         self._started = False
+        self._was_reset = False
         self._core = None
         self._make_core()
 
@@ -263,9 +348,27 @@ class HierarchicalMPC(AppliedTorque):
             buf["v"], buf["tau"], buf["d_hat"], self._M, buf["nle"],
         )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
+        core.set_latency(self.settings.latency, self.settings.Ts)
+        b, f = self.joint_dynamics
+        self._joint_dynamics_on = bool(b.any() or f.any())
+        if self._joint_dynamics_on:
+            core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
         self._reference = None  # the reference's native form is set on the next step
         self.effort_limit = self.effort_limit
+
+    @property
+    def joint_dynamics(self) -> tuple[FloatArray, FloatArray]:
+        """``(B, F)``: the joint damping [N·m·s/rad] and Coulomb friction [N·m] the step
+        compensates (the model's, :attr:`~hmpc_pin.model.robot.Robot.joint_damping` and
+        ``joint_friction``; zeros with ``settings.joint_dynamics = False``)."""
+        n = self.n
+        if not self.settings.joint_dynamics:
+            return np.zeros(n), np.zeros(n)
+        robot = self.robot
+        b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float)
+        f = np.asarray(getattr(robot, "joint_friction", np.zeros(n)), dtype=float)
+        return b.copy(), f.copy()
 
     @AppliedTorque.effort_limit.setter  # type: ignore[attr-defined]
     def effort_limit(self, limit: FloatArray | None) -> None:
@@ -292,6 +395,29 @@ class HierarchicalMPC(AppliedTorque):
         """Control period [s]."""
         return self.settings.Ts
 
+    @property
+    def state(self) -> tuple[FloatArray, FloatArray]:
+        """``(q, q̇)`` [rad, rad/s] the MPC and Eq (4) started from at the last step: the
+        measurement, or with a latency its prediction (copies)."""
+        return self._stack[0].copy(), self._stack[1].copy()
+
+    @property
+    def latency(self) -> float:
+        """The measurement latency L [s] the step compensates (:class:`MPCSettings`)."""
+        return self.settings.latency
+
+    def set_latency(self, latency: float) -> None:
+        """Compensate a measurement latency of ``latency`` [s] from the next :meth:`reset`
+        on (e.g. the one a real-time loop measured); 0 switches it off.
+
+        Raises:
+            ConfigError: ``latency`` is not a finite number >= 0.
+        """
+        from dataclasses import replace
+
+        self.settings = replace(self.settings, latency=float(latency))
+        self._core.set_latency(self.settings.latency, self.settings.Ts)
+
     def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
         """Start a new run from the state ``(q0, dq0)``; the estimate restarts at zero."""
         q0 = self.robot.check_vector("q0", q0)
@@ -300,6 +426,7 @@ class HierarchicalMPC(AppliedTorque):
         # v, τ and d̂ are the compiled step's buffers, updated in place from now on.
         self._core.reset(np.asarray(self.compensation.estimate, dtype=float))
         self._started = False
+        self._was_reset = True
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
         """Compute the torque for the measured state at time ``t``.
@@ -327,8 +454,11 @@ class HierarchicalMPC(AppliedTorque):
             NonFiniteError: ``t``, ``q``, ``dq`` or the reference is not finite.
             DimensionError: ``q``, ``dq`` or the reference has the wrong shape.
             SolverError: A joint QP did not report solved.
+            SimulationError: Called before :meth:`reset`.
         """
         if reference is not self._reference:  # adapted once per reference object
+            if not self._was_reset:
+                raise not_reset(self)
             self._set_reference(reference)
         core = self._core
         S = self._stack
@@ -376,7 +506,12 @@ class HierarchicalMPC(AppliedTorque):
             code = core.prepare(S, not self._python_dynamics)
             if not code:
                 self._python_compensation()
-                code = core.finish()
+                if self.settings.latency > 0:  # MPC and Eq (4) at the predicted state
+                    code = core.predict(S) or core.prepare(S, not self._python_dynamics)
+                    if not code and self._python_dynamics:
+                        self._python_dynamics_at_stack()
+                if not code:
+                    code = core.finish()
         if code:
             self._failure(code, t, S[0], S[1], self._stack_q_ref, self._stack_dq_ref)
         self._started = True
@@ -394,10 +529,14 @@ class HierarchicalMPC(AppliedTorque):
         and the compiled observer's state. ProxSuite's own warm start keeps this step's
         solution (a solution of a neighbouring problem; each solve still converges to the
         solver's tolerance). Does nothing before the first :meth:`step` after
-        :meth:`reset`, or with a compensation advanced from Python (its state is its own).
-        Errors of the dry step are dropped: the real step reports them.
+        :meth:`reset`, with a compensation advanced from Python (its state is its own), with a
+        measurement latency or compensated joint dynamics (the compiled step then keeps
+        torque histories of its own). Errors of the dry step are dropped: the real step
+        reports them.
         """
-        if not (self._started and self._fused):
+        if not (self._started and self._fused) or self.settings.latency > 0:
+            return
+        if self._joint_dynamics_on:
             return
         form = self.compensation.compiled_form()
         ndo = form[1] if form[0] == "ndo" else None
@@ -422,22 +561,46 @@ class HierarchicalMPC(AppliedTorque):
 
     def _python_compensation(self) -> None:
         """Between the step's halves: M and C q̇ + G (from Pinocchio's Python API where the
-        compiled dynamics cannot load the model), then the compensation's estimate."""
+        compiled dynamics cannot load the model), then the compensation's estimate. With
+        joint dynamics compensated, the compensation gets C q̇ + G alone and the applied
+        torque minus the joint-dynamics torque J of the last step (the compiled step's
+        ``joint_torque``), as the compiled observer does."""
         q, dq = self._stack[0].copy(), self._stack[1].copy()
         M, nle = self._M, self._buf["nle"]
         if self._python_dynamics:
-            M[:] = self.robot.mass_matrix(q)
-            nle[:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
+            self._python_dynamics_at_stack()
+        b, f = self.joint_dynamics
+        joint = bool(b.any() or f.any())
         comp = self.compensation
-        if self._started:
-            d_hat = comp.update(M, nle, q, dq, self._applied(), self.v)
+        if self.settings.latency > 0:  # the torque and v over the measured interval
+            if self._core.observer_ready():  # (the torque beyond the joint dynamics' J)
+                tau_obs, v_obs = self._core.aligned()
+                d_hat = comp.update(M, nle, q, dq, tau_obs, v_obs)
+            else:  # the interval begins before the start: restart at this measurement
+                comp.reset(q, dq)
+                d_hat = comp.estimate
+        elif self._started:
+            applied = self._applied()
+            if joint:  # the rigid body's model, the torque beyond J
+                applied = applied - self._core.joint_torque
+            d_hat = comp.update(M, nle, q, dq, applied, self.v)
         else:
             d_hat = comp.estimate
         self.disturbance_estimate[:] = d_hat
+        if self._python_dynamics and joint:  # Eq 4 takes C q̇ + G + B q̇ + F sgn q̇
+            nle += b * dq + f * np.sign(dq)
+
+    def _python_dynamics_at_stack(self) -> None:
+        """M and C q̇ + G at the stack's state from Pinocchio's Python API (models the
+        compiled dynamics cannot load)."""
+        q, dq = self._stack[0].copy(), self._stack[1].copy()
+        self._M[:] = self.robot.mass_matrix(q)
+        self._buf["nle"][:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
         native form, if it has one, to the compiled step."""
+        check_reference_size(reference, self.n, "HierarchicalMPC.step")
         self._ref = as_reference(reference)
         self._reference = reference
         self._native_ref = False

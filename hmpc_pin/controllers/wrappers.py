@@ -17,7 +17,7 @@ from ..compensation.gate import FeedbackGate
 from ..exceptions import ConfigError
 from .base import ControllerWrapper
 
-__all__ = ["CollisionReaction", "MeasuredController", "TimedController"]
+__all__ = ["CollisionReaction", "FrictionFeedforward", "MeasuredController", "TimedController"]
 
 
 class MeasuredController(ControllerWrapper):
@@ -91,10 +91,74 @@ class MeasuredController(ControllerWrapper):
         return getattr(self.controller, name)
 
 
+class FrictionFeedforward(ControllerWrapper):
+    """Add a friction model's torque to a controller's, feed-forward.
+
+    .. math::
+
+        \\tau = \\tau_c + a \\odot \\dot q + b \\odot \\sigma(\\dot q), \\qquad
+        \\sigma(\\dot q) = \\mathrm{sgn}\\,\\dot q \\ (v_s = 0) \\text{ or }
+        \\tanh(\\dot q / v_s),
+
+    at the measured velocity: the friction :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,
+    \\dot q)` of the package's model (Eq 32, opposing) is cancelled before the observer
+    sees it. The wrapped controller's compensation is fed its own torque
+    :math:`\\tau_c`, so its estimate is what the model leaves (the model error plus any
+    external torque). ``hmpc-pin identify`` fits :math:`a, b` from a run.
+
+    Args:
+        controller: Any controller.
+        viscous: :math:`a` [N·m·s/rad], (n,). coulomb: :math:`b` [N·m], (n,).
+        smoothing: :math:`v_s` [rad/s], >= 0.
+
+    Attributes:
+        torque: The feed-forward torque of the last step [N·m].
+    """
+
+    def __init__(self, controller, viscous, coulomb, smoothing: float = 0.0):
+        a, b = np.array(viscous, dtype=float), np.array(coulomb, dtype=float)
+        if a.shape != b.shape or a.ndim != 1 or not np.all(np.isfinite(np.r_[a, b])):
+            raise ConfigError(
+                "controller.friction", f"expected finite per-joint viscous and coulomb of one "
+                f"length, got {a.tolist()} and {b.tolist()}",
+            )  # fmt: skip
+        if not (np.isfinite(smoothing) and smoothing >= 0):
+            raise ConfigError("controller.friction.smoothing", f"expected >= 0, got {smoothing!r}")
+        super().__init__(controller)
+        self.viscous, self.coulomb, self.smoothing = a, b, float(smoothing)
+        self.torque = np.zeros_like(a)
+
+    def model(self, dq: np.ndarray) -> np.ndarray:
+        """:math:`a \\odot \\dot q + b \\odot \\sigma(\\dot q)` [N·m]."""
+        s = self.smoothing
+        sign = np.tanh(dq / s) if s > 0 else np.sign(dq)
+        return self.viscous * dq + self.coulomb * sign
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """The wrapped controller's torque plus the friction model's [N·m]."""
+        tau = self.controller.step(t, q, dq, reference)
+        self.torque = self.model(np.asarray(dq, dtype=float))
+        return tau + self.torque
+
+    @property
+    def compensation(self):
+        """The wrapped controller's compensation (a collision watch may replace it)."""
+        return self.controller.compensation
+
+    @compensation.setter
+    def compensation(self, value) -> None:
+        self.controller.compensation = value
+
+    def __getattr__(self, name):  # v, tau, observer, ... of the wrapped controller
+        if name == "controller":
+            raise AttributeError(name)
+        return getattr(self.controller, name)
+
+
 class TimedController(ControllerWrapper):
     """Wrap a controller and time each ``step`` with ``perf_counter_ns``.
 
-    It has the interface :func:`hmpc_pin.simulate.simulate` expects (``Ts``, ``reset``,
+    It has the interface :func:`hmpc_pin.sim.simulate.simulate` expects (``Ts``, ``reset``,
     ``step``, ``disturbance_estimate``), so a closed-loop run measures the step too.
 
     Attributes:

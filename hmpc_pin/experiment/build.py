@@ -1,8 +1,9 @@
 """Where a config becomes objects: robot, controller × compensation, reference, disturbance,
 plant (names in a config → objects in this layer only), split by what is built:
-:mod:`.controllers` (the controller's settings, compensation and limits),
-:mod:`.references` (the reference), :mod:`.plants` (the plant and its disturbance), and
-here the :class:`Experiment` that holds them and runs them.
+:mod:`~hmpc_pin.experiment.controllers` (the controller's settings, compensation and limits),
+:mod:`~hmpc_pin.experiment.references` (the reference),
+:mod:`~hmpc_pin.experiment.plants` (the plant and its disturbance), and here the
+:class:`Experiment` that holds them and runs them.
 
 The algorithms below (controllers, compensations, plants, references) take their own
 small settings or plain arguments and never see the TOML schema; every check that needs
@@ -18,8 +19,8 @@ import numpy as np
 
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
-from ..controllers.hierarchical import HierarchicalMPC
-from ..controllers.wrappers import CollisionReaction
+from ..controllers.hierarchical import HierarchicalMPC, warn_fast_damping
+from ..controllers.wrappers import CollisionReaction, FrictionFeedforward
 from ..exceptions import (
     ConfigError,
     InterfaceError,
@@ -59,6 +60,7 @@ __all__ = [
     "build_disturbance",
     "build_reference",
     "build_task_reference",
+    "check_friction_sources",
     "check_trajectory_limits",
     "load_robot_config",
     "make_arm_plant",
@@ -70,6 +72,7 @@ __all__ = [
     "run_experiment",
     "task_space",
     "uses_observer",
+    "warn_bandwidth",
     "warn_validity",
     "with_controller",
 ]
@@ -82,9 +85,15 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
 
 
 def make_controller(
-    robot: Robot, config: ControllerConfig | ExperimentConfig | None = None
+    robot: Robot,
+    config: ControllerConfig | ExperimentConfig | None = None,
+    *,
+    posture: np.ndarray | None = None,
 ) -> Controller:
-    """The controller × compensation of ``config`` (README, "Controllers").
+    """The controller × compensation of ``config`` (docs, "Controllers").
+
+    ``posture`` [rad] is where an observer bandwidth is made exact (the run's start; default
+    :func:`~hmpc_pin.experiment.controllers.bandwidth_posture`).
 
     ``config`` is a :class:`~hmpc_pin.experiment.schema.ControllerConfig`, a whole
     :class:`~hmpc_pin.experiment.schema.ExperimentConfig` (its ``controller`` table is
@@ -106,16 +115,20 @@ def make_controller(
         )
     cc = config if config is not None else ControllerConfig()
     if cc.kind == "hmpc":
-        settings, compensation, limits = controller_parts(robot, cc)
+        settings, compensation, limits = controller_parts(robot, cc, posture)
         return HierarchicalMPC(robot, settings, compensation, limits=limits)
-    gains, compensation = controller_parts(robot, cc)
+    gains, compensation = controller_parts(robot, cc, posture)
     return ComputedTorque(robot, gains, compensation)
 
 
-def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
+def warn_validity(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None = None) -> None:
     """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) when the compensation of ``cc``
     is used outside the arms it is proven for: Chen's :math:`Y` (Eq 28–30) on an arm that
-    is not a planar serial chain (:meth:`~hmpc_pin.model.robot.Robot.is_planar_chain`)."""
+    is not a planar serial chain (:meth:`~hmpc_pin.model.robot.Robot.is_planar_chain`).
+
+    The controllers warn the same when built
+    (:func:`~hmpc_pin.compensation.base.check_compensation`); this is kept for callers
+    that check a config without building its controller."""
     if cc.compensation == "chen" and not robot.is_planar_chain():
         warnings.warn(
             f"compensation 'chen' (Chen's observer, Eq 28-30) is proven for planar serial "
@@ -124,6 +137,44 @@ def warn_validity(robot: Robot, cc: ControllerConfig) -> None:
             ValidityWarning,
             stacklevel=3,
         )
+    warn_bandwidth(robot, cc, posture)
+
+
+def check_friction_sources(robot: Robot, cc: ControllerConfig) -> None:
+    """Refuse a friction compensated twice: ``[controller.friction]`` (an identified
+    model, fed forward) on an arm whose URDF declares ``<dynamics damping friction>`` that
+    the hierarchical MPC already compensates (``[controller] joint_dynamics``).
+
+    Raises:
+        ConfigError: Both apply; names the joints whose URDF declares joint dynamics.
+    """
+    if cc.friction is None or cc.kind != "hmpc" or not cc.joint_dynamics:
+        return
+    declared = np.flatnonzero((robot.joint_damping != 0) | (robot.joint_friction != 0))
+    if declared.size:
+        names = ", ".join(robot.joint_names[i] for i in declared)
+        raise ConfigError(
+            "controller.friction",
+            f"the URDF already declares <dynamics> on joints {names}, which [controller] "
+            "joint_dynamics = true compensates; give one friction model: set [controller] "
+            "joint_dynamics = false to use [controller.friction] instead, or remove "
+            "[controller.friction]",
+        )
+
+
+def warn_bandwidth(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None = None) -> None:
+    """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) when an observer given as a
+    bandwidth breaks the rule of :mod:`hmpc_pin.compensation.bandwidth` for ``cc.Ts`` and
+    ``cc.latency`` at ``posture`` [rad] (naming the joints)."""
+    obs = cc.observer
+    if obs is not None and obs.bandwidth is not None:
+        from ..compensation.bandwidth import check_bandwidth
+        from .controllers import observer_bandwidth
+
+        check_bandwidth(
+            observer_bandwidth(robot, cc, posture), cc.Ts, cc.latency or 0.0, robot.joint_names,
+            explicit=obs.discretization == "explicit",
+        )  # fmt: skip
 
 
 def uses_observer(cc: ControllerConfig) -> bool:
@@ -264,10 +315,20 @@ class Experiment:
             else config.vector("simulation.q0", n)
         )
         robot.check_mass_matrix(q0)
-        warn_validity(robot, config.controller)
-        controller = make_controller(robot, config.controller)
+        cc = config.controller
+        if cc.kind == "hmpc" and not cc.joint_dynamics and config.plant.joint_dynamics:
+            warn_fast_damping(plant, cc.Ts)  # the simulated arm has them, uncompensated
+        check_friction_sources(robot, cc)
+        controller = make_controller(robot, cc, posture=q0)  # warns as warn_validity
+        warn_bandwidth(robot, cc, q0)
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
         controller.effort_limit = _effort_limit(config, plant)
+        fm = config.controller.friction
+        if fm is not None:  # the friction model, fed forward around the controller
+            controller = FrictionFeedforward(
+                controller, config.vector("controller.friction.viscous", n),
+                config.vector("controller.friction.coulomb", n), fm.smoothing,
+            )  # fmt: skip
         if config.collision is not None and uses_observer(config.controller):
             controller = CollisionReaction(
                 controller, config.vector("collision.threshold", n), config.collision.reaction
@@ -338,6 +399,14 @@ class Experiment:
             import pinocchio
 
             result.meta["engine_version"] = pinocchio.__version__
+        fm = self.config.controller.friction
+        if fm is not None:
+            n = self.robot.nq
+            a = self.config.vector("controller.friction.viscous", n)
+            b = self.config.vector("controller.friction.coulomb", n)
+            # the model's torque at the recorded velocity (the observer's target is d + it)
+            sign = np.tanh(result.dq / fm.smoothing) if fm.smoothing > 0 else np.sign(result.dq)
+            result.extra["friction_feedforward"] = a * result.dq + b * sign
         if isinstance(self.controller, CollisionReaction):
             c = self.controller
             result.meta["collision"] = {
@@ -381,7 +450,27 @@ class Experiment:
             "N": cfg.controller.N,
             "Nc": cfg.controller.Nc,
             "state_bound": cfg.simulation.state_bound,
+            **self._identification_meta(),
         }
+
+    def _identification_meta(self) -> dict:
+        """What ``hmpc-pin identify`` needs of the controller: the observer (its
+        regressors are passed through its dynamics) and the friction fed forward (added
+        back to its estimate)."""
+        cc, n = self.config.controller, self.robot.nq
+        out: dict = {}
+        if cc.compensation in OBSERVERS:
+            out["observer_model"] = {
+                "kind": cc.compensation, "gain": cc.observer.gain, "Ts": cc.Ts,
+                "discretization": cc.observer.discretization,
+            }  # fmt: skip
+        if cc.friction is not None:
+            out["friction_feedforward"] = {
+                "viscous": self.config.vector("controller.friction.viscous", n).tolist(),
+                "coulomb": self.config.vector("controller.friction.coulomb", n).tolist(),
+                "smoothing": cc.friction.smoothing,
+            }
+        return out
 
     def _recorded_limits(self) -> dict[str, list[float]]:
         """The URDF position limits the metrics measure excursions against; a zero or
@@ -422,8 +511,17 @@ def make_arm_plant(config: ExperimentConfig) -> Plant:
     return Experiment.from_config(config).make_plant(1.0 / config.realtime.rate)
 
 
-def realtime_parts(experiment: Experiment) -> tuple[LoopSettings, SafetySettings, SafeTorque]:
+def realtime_parts(
+    experiment: Experiment, rate: float | None = None, *, plant: bool = True
+) -> tuple[LoopSettings, SafetySettings, SafeTorque]:
     """The loop settings, safety settings and safe torque of ``[realtime]``.
+
+    Args:
+        experiment: The experiment.
+        rate: The interface rate [Hz] (default ``realtime.rate``; the ROS commands pass
+            ``ros.rate``).
+        plant: Check that ``plant.dt`` divides the interface period (``False`` where
+            the arm is not this experiment's plant: a ROS driver).
 
     Raises:
         ConfigError: The rate does not divide the controller period, or ``plant.dt``
@@ -432,11 +530,13 @@ def realtime_parts(experiment: Experiment) -> tuple[LoopSettings, SafetySettings
     cfg = experiment.config
     rc, robot = cfg.realtime, experiment.robot
     n = robot.nq
-    loop = LoopSettings(rate=rc.rate, duration=cfg.simulation.duration, gc_handling=rc.gc,
+    loop = LoopSettings(rate=rc.rate if rate is None else rate,
+                        duration=cfg.simulation.duration, gc_handling=rc.gc,
                         gc_slack=rc.gc_slack, spin=rc.spin,
                         warm_up=rc.warm_up)  # fmt: skip
     loop.decimation(cfg.controller.Ts)
-    experiment.make_plant(loop.period)  # checks that the plant's step divides the period
+    if plant:
+        experiment.make_plant(loop.period)  # checks that the plant's step divides the period
     if rc.limits:
         vel = np.where(robot.velocity_limit > 0, robot.velocity_limit * rc.scale, np.inf)
         lim = experiment._recorded_limits()  # a URDF without a range: no position bound

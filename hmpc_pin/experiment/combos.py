@@ -1,8 +1,9 @@
 """Which ``[controller]`` keys and tables apply to which controller × compensation.
 
 The one registry of it: the loader (:mod:`hmpc_pin.experiment.schema`) refuses a key that
-does not apply to the chosen pair, and the builder (:func:`hmpc_pin.experiment.build.
-with_controller`) drops the keys that stop applying when a run switches the pair
+does not apply to the chosen pair, and the builder
+(:func:`~hmpc_pin.experiment.build.with_controller`) drops the keys that stop applying when a
+run switches the pair
 (``--compensation``, ``--no-ndo``, ``compare``).
 """
 
@@ -15,7 +16,8 @@ OBSERVERS = ("chen", "general", "momentum")
 #: Compensations of integral sliding mode (``[controller.ism]``).
 ISM = ("ism", "ism-bl")
 #: Keys of the hierarchical MPC only (``kind = "hmpc"``).
-HMPC_ONLY = ("constraints", "eps_abs", "max_iter", "qp_layout", "backend")
+HMPC_ONLY = ("constraints", "eps_abs", "max_iter", "qp_layout", "backend", "latency",
+             "joint_dynamics")
 #: The sub-tables of ``[controller]`` and the pairs they apply to.
 TABLES = ("observer", "ism", "computed_torque")
 

@@ -10,16 +10,23 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..compensation.bandwidth import implied_bandwidth, observer_cY
 from ..compensation.base import Compensation, NoCompensation
 from ..compensation.ism import IntegralSlidingMode
-from ..compensation.observers import DisturbanceObserver, MomentumObserver
+from ..compensation.observers import DisturbanceObserver, MomentumObserver, observer_matrix
 from ..controllers.computed_torque import CTSettings
 from ..controllers.hierarchical import MPCSettings, state_limits
 from ..exceptions import ConfigError, URDFError
 from ..model.robot import Robot
 from ..mpc.condensed import StateLimits
 
-__all__ = ["controller_parts", "make_compensation", "mpc_settings"]
+__all__ = [
+    "bandwidth_posture",
+    "controller_parts",
+    "make_compensation",
+    "mpc_settings",
+    "observer_bandwidth",
+]
 
 
 def mpc_settings(cc, n: int) -> MPCSettings:
@@ -31,6 +38,8 @@ def mpc_settings(cc, n: int) -> MPCSettings:
         max_iter=cc.max_iter if cc.max_iter is not None else 1000,
         qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
         backend=cc.backend if cc.backend is not None else "auto",
+        latency=cc.latency if cc.latency is not None else 0.0,
+        joint_dynamics=cc.joint_dynamics if cc.joint_dynamics is not None else True,
     )  # fmt: skip
 
 
@@ -72,10 +81,47 @@ def _limits(cc, robot: Robot) -> StateLimits | None:
     )
 
 
-def make_compensation(robot: Robot, cc) -> Compensation:
-    """The compensation ``cc.compensation`` names, with its table's settings."""
+def bandwidth_posture(robot: Robot) -> np.ndarray:
+    """The posture :math:`q_0` at which a bandwidth is exact: q = 0 moved to the nearest
+    joint limit where 0 is outside the range."""
+    return np.minimum(np.maximum(np.zeros(robot.nq), robot.lower), robot.upper)
+
+
+def observer_bandwidth(robot: Robot, cc, posture: np.ndarray | None = None) -> np.ndarray | None:
+    """Per joint, the bandwidth [1/s] of the observer of ``cc`` (configured, or implied
+    by its gain at ``posture``, default :func:`bandwidth_posture`); ``None`` without an
+    observer."""
+    obs = cc.observer
+    if obs is None:
+        return None
+    n = robot.nq
+    if obs.bandwidth is not None:
+        return np.broadcast_to(obs.bandwidth, (n,)).astype(float)
+    if cc.compensation == "momentum":
+        return np.full(n, obs.gain)
+    M0 = robot.mass_matrix(bandwidth_posture(robot) if posture is None else posture)
+    return implied_bandwidth(obs.gain * observer_matrix(cc.compensation, n), M0)
+
+
+def make_compensation(robot: Robot, cc, posture: np.ndarray | None = None) -> Compensation:
+    """The compensation ``cc.compensation`` names, with its table's settings (a
+    bandwidth made exact at ``posture`` [rad], default :func:`bandwidth_posture`)."""
     n, Ts = robot.nq, cc.Ts
     comp = cc.compensation
+    obs = cc.observer
+    if obs is not None and obs.bandwidth is not None:
+        w = obs.bandwidth
+        if w.ndim == 1 and w.shape != (n,):
+            raise ConfigError(
+                "controller.observer.bandwidth",
+                f"has {w.shape[0]} entries but the robot has {n} joints",
+            )
+        w = np.broadcast_to(w, (n,)).astype(float)
+        if comp == "momentum":
+            return MomentumObserver(robot, Ts, w)
+        q0 = bandwidth_posture(robot) if posture is None else posture
+        cY = observer_cY(w, robot.mass_matrix(q0))
+        return DisturbanceObserver(n, Ts, 1.0, "general", obs.discretization, cY=cY)
     if comp in ("chen", "general"):
         return DisturbanceObserver(n, Ts, cc.observer.gain, comp, cc.observer.discretization)
     if comp == "momentum":
@@ -86,11 +132,11 @@ def make_compensation(robot: Robot, cc) -> Compensation:
     return NoCompensation(n)
 
 
-def controller_parts(robot: Robot, cc) -> tuple:
+def controller_parts(robot: Robot, cc, posture: np.ndarray | None = None) -> tuple:
     """The arguments after ``robot`` of the controller class of ``cc``: for ``hmpc``
     ``(MPCSettings, compensation, limits)``, for ``computed-torque*``
     ``(CTSettings, compensation)``."""
-    compensation = make_compensation(robot, cc)
+    compensation = make_compensation(robot, cc, posture)
     settings = mpc_settings(cc, robot.nq)
     if cc.kind == "hmpc":
         return settings, compensation, _limits(cc, robot)

@@ -1,4 +1,4 @@
-"""A starting config for any arm: ``hmpc-pin init ROBOT`` (README, "Any arm").
+"""A starting config for any arm: ``hmpc-pin init ROBOT`` (docs, "Your own arm").
 
 :func:`init_config` looks at the URDF (and its SRDF where ``example-robot-data`` ships one)
 and writes a commented TOML experiment that runs as written:
@@ -17,10 +17,13 @@ and writes a commented TOML experiment that runs as written:
   URDF velocity limit.
 * **Limits.** A zero or inverted URDF range (``double_pendulum``: 0/0) means the URDF gives
   none: ``[controller.constraints] position = false``, and the joint is unbounded.
-* **Observer.** Chen's NDO (the paper's, Eq 28–30) on a planar serial chain; elsewhere the
-  general NDO (Y = I) with gain :math:`c = \\max(100, 1.2\\,c_{min})`, :math:`c_{min}` of
-  :func:`~hmpc_pin.compensation.observers.general_gain_bound` (the Lyapunov bound over the
-  joint ranges and URDF velocity limits).
+* **Observer.** Chen's NDO (the paper's, Eq 28–30, gain 100) on a planar serial chain;
+  elsewhere the general NDO with a bandwidth of :data:`BANDWIDTH_PERIODS` / Ts per joint
+  (the estimate moves 91 % of the way per period) and a declared measurement latency of
+  one 1 kHz interface cycle (``[controller] latency = 0.001``): with the latency
+  compensated, any bandwidth keeps the observer stable
+  (:mod:`hmpc_pin.compensation.bandwidth`); without it the rule would cap it near
+  1/(5 Ts), which tracks about ten times worse.
 * **Disturbances.** As the arm configs (``ur5_sine``, ``panda_sine``): friction 2.0·|q̇| +
   0.5·sgn(q̇) and Gaussian pulses of amplitude 1.0, each times :math:`M_{ii}(q_0)`
   (``scale = "inertia"``: the same acceleration-level disturbance on any arm), pulse j at
@@ -41,7 +44,7 @@ import pinocchio as pin
 
 from ..compensation.observers import general_gain_bound
 from ..data import robot_path
-from ..exceptions import ConfigError, OutputError, SimulationError, URDFError
+from ..exceptions import ConfigError, OutputError, SimulationError, URDFError, ValidityWarning
 from ..model.robot import (
     Robot,
     check_urdf,
@@ -51,7 +54,20 @@ from ..model.robot import (
     urdf_mimics,
 )
 
-__all__ = ["LOCK_PATTERN", "InitPlan", "init_config", "plan", "write_config"]
+__all__ = [
+    "BANDWIDTH_PERIODS",
+    "LATENCY",
+    "LOCK_PATTERN",
+    "InitPlan",
+    "init_config",
+    "plan",
+    "write_config",
+]
+
+#: The general observer's bandwidth ``init`` writes, times Ts (Ts·ω = 10).
+BANDWIDTH_PERIODS = 10.0
+#: The measurement latency ``init`` declares [s]: one cycle of a 1 kHz interface.
+LATENCY = 0.001
 
 #: Joints locked by ``init`` (case-insensitive search in the joint name).
 LOCK_PATTERN = re.compile(
@@ -68,9 +84,11 @@ HOLD = 0.8
 #: Amplitude scales tried, in order, until gravity along the sine fits the effort limits.
 AMPLITUDE_SCALES = (1.0, 0.5, 0.25)
 HOLD_STEPS = 400
-#: Control periods tried, in order [s]; the trial run's pass mark [rad or m]; its length [s].
+#: Control periods tried, in order [s].
 PERIODS = (0.01, 0.005, 0.002)
+#: The trial run's pass mark, RMS error over its second half [rad or m].
 TRIAL_RMS = 2.5e-3
+#: The trial run's length [s].
 TRIAL = 2.0
 
 
@@ -84,6 +102,33 @@ def _resolve(source: str | Path) -> tuple[Path, tuple[str, str], str | None]:
             return packaged, ("model", str(source)), None
         return example_robot_urdf(str(source)), ("model", str(source)), str(source)
     return path, ("urdf", str(path.resolve())), None
+
+
+def _say_what_is_assumed(name: str | None, robot: Robot) -> None:
+    """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) about what the config assumes
+    silently otherwise: a model example-robot-data mounts on a floating base (legged,
+    flying or mobile robots) is controlled with its base fixed to the world; a URDF effort
+    of 0 is no torque limit."""
+    if name is not None:
+        from example_robot_data import robots_loader
+
+        loader = robots_loader.ROBOTS.get(name)
+        if loader is not None and loader.free_flyer:
+            warnings.warn(
+                f"{name}: example-robot-data gives it a floating base (a legged, flying or "
+                "mobile robot, or an arm mounted that way); the config controls its "
+                f"{robot.nq} joints with the base fixed to the world",
+                ValidityWarning,
+                stacklevel=4,
+            )
+    zero = [j for j, e in zip(robot.joint_names, robot.effort_limit, strict=True) if e == 0]
+    if zero:
+        warnings.warn(
+            f"joint(s) {zero} have effort=\"0\" in the URDF: taken as no torque limit "
+            "(the plant never clips their torque); set plant.effort_limit to impose one",
+            ValidityWarning,
+            stacklevel=4,
+        )
 
 
 def _posture(path: Path, name: str | None) -> tuple[dict[str, float], str]:
@@ -140,7 +185,9 @@ class InitPlan:
         position_limits: Whether the URDF's position ranges are usable (``False``: a
             zero or inverted range, ``position = false``).
         bad_ranges: Joints whose URDF range is zero or inverted.
-        compensation, gain, gain_bound: The observer and its gain (bound for ``general``).
+        compensation, gain, gain_bound: The observer and its gain (bound for ``general``,
+            reported; the config gets :attr:`bandwidth` instead).
+        bandwidth: The general observer's bandwidth [1/s] (``None`` for ``chen``).
     """
 
     def __init__(self, source: str | Path):
@@ -170,6 +217,7 @@ class InitPlan:
         self.locked = {n: _inside(posture.get(n, 0.0), *limits[n]) for n in lock if n in limits}
         self.robot: Robot = load_robot(path, gravity=9.81, locked_joints=self.locked)
         robot = self.robot
+        _say_what_is_assumed(name, robot)
         lo, hi = robot.lower, robot.upper
         names = robot.joint_names
         self.bad_ranges = tuple(n for n, a, b in zip(names, lo, hi, strict=True) if a >= b)
@@ -220,6 +268,11 @@ class InitPlan:
             self.gain = float(max(100.0, math.ceil(1.2 * bound)))
         self.name = name or (self.source[1] if self.source[0] == "model" else robot.name)
         self.Ts = 0.01
+
+    @property
+    def bandwidth(self) -> float | None:
+        """The general observer's bandwidth [1/s] at the chosen Ts (``None`` for ``chen``)."""
+        return None if self.compensation == "chen" else BANDWIDTH_PERIODS / self.Ts
 
     def trial(self, duration: float = TRIAL) -> None:
         """Pick the control period: the largest of :data:`PERIODS` whose ``duration`` s trial
@@ -377,12 +430,15 @@ def _render(p: InitPlan, duration: float) -> str:
         ]
     else:
         lines += [
-            'compensation = "general"           # Y = I: valid on any arm (Chen\'s Y only on',
-            "                                   # planar chains)",
+            'compensation = "general"           # valid on any arm (Chen\'s Y only on planar',
+            "                                   # chains)",
+            f"latency = {LATENCY:g}                    # [s] age of the measurements: one 1 kHz "
+            "cycle;",
+            "                                   # set your driver's (guide: Sensing and latency)",
             "",
             "[controller.observer]",
-            f"gain = {p.gain:g}                      # >= 1.2 x general_gain_bound = "
-            f"{p.gain_bound:.3g} (and >= 100)",
+            f"bandwidth = {p.bandwidth:g}                 # [1/s] per joint: Ts x bandwidth = "
+            f"{BANDWIDTH_PERIODS:g}",
         ]
     if not p.position_limits:
         lines += [

@@ -49,7 +49,8 @@ def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
         per_joint[name] = tuple(np.broadcast_to(value, (n,)).tolist())
     return MuJoCoSettings(
         integrator=mc.integrator,
-        import_urdf_dynamics=mc.import_urdf_dynamics,
+        import_urdf_dynamics=pc.joint_dynamics,
+        friction_timeconst=mc.friction_timeconst,
         geometry=mc.geometry,
         obstacle=None if ob is None else Obstacle(
             tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction,
@@ -84,5 +85,7 @@ def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) ->
 def pinocchio_plant(pc: PlantConfig, robot: Robot, disturbance, Ts: float) -> Plant:
     """The Pinocchio plant of ``[plant]`` (its integrator, step and backend) on ``robot``."""
     if pc.integrator == "rk4":
-        return RK4Plant(robot, disturbance, Ts, pc.dt, backend=pc.backend)
-    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt)
+        return RK4Plant(robot, disturbance, Ts, pc.dt, backend=pc.backend,
+                        joint_dynamics=pc.joint_dynamics)  # fmt: skip
+    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt,
+                                 joint_dynamics=pc.joint_dynamics)  # fmt: skip

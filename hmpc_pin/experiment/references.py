@@ -40,7 +40,7 @@ def build_reference(config: ExperimentConfig, robot: Robot) -> Reference:
 
     For ``kind = "cartesian"`` both tool poses are solved by inverse kinematics
     inside the joint limits (the goal on the branch closest to the start) and
-    joined by a quintic. Raises :class:`~hmpc_pin.kinematics.KinematicsError`
+    joined by a quintic. Raises :class:`~hmpc_pin.exceptions.KinematicsError`
     naming the pose when one is unreachable.
     """
     n = robot.nq
@@ -80,10 +80,15 @@ def _task_limits(config: ExperimentConfig, robot: Robot) -> tuple[np.ndarray, np
 
 def check_trajectory_limits(
     trajectory: JointTrajectory, robot: Robot, lower: np.ndarray, upper: np.ndarray,
-    what: str = "reference", hint: str | None = None,
+    what: str = "reference", hint: str | None = None, velocity_hint: str | None = None,
 ) -> None:  # fmt: skip
     """Check a joint trajectory against position and (URDF) velocity limits at its samples
     and 10 points per segment between them.
+
+    Args:
+        hint: What to do when a position limit is left (and a velocity limit, unless
+            ``velocity_hint`` is given). A revolute joint whose positions, read as
+            degrees, would lie inside its limits gets a "degrees?" note.
 
     Raises:
         LimitError: Naming the first joint and time where a limit is left.
@@ -95,6 +100,13 @@ def check_trajectory_limits(
     bad = (q < lower - 1e-9) | (q > upper + 1e-9)
     if bad.any():
         k, i = np.argwhere(bad)[0]
+        radians = np.radians(q[:, i])
+        if (robot.joint_kinds[i] != "prismatic" and np.abs(q[:, i]).max() > 2 * np.pi
+                and np.all((radians >= lower[i]) & (radians <= upper[i]))):  # fmt: skip
+            peak = np.abs(q[:, i]).max()
+            todo = hint or "change the file"
+            hint = (f"its positions look like degrees (max |q| = {peak:.4g}; trajectory "
+                    f"files are in rad): convert them; or {todo}")  # fmt: skip
         raise LimitError(what, names[i], float(fine[k]), float(q[k, i]), lower[i], upper[i],
                          hint)  # fmt: skip
     vmax = np.where(robot.velocity_limit > 0, robot.velocity_limit, np.inf)
@@ -102,7 +114,7 @@ def check_trajectory_limits(
     if bad.any():
         k, i = np.argwhere(bad)[0]
         raise LimitError(f"{what} velocity", names[i], float(fine[k]), float(dq[k, i]),
-                         -vmax[i], vmax[i], hint)  # fmt: skip
+                         -vmax[i], vmax[i], velocity_hint or hint)  # fmt: skip
 
 
 def _pose_path(pc, robot: Robot, q_init: np.ndarray):
@@ -127,7 +139,7 @@ def _pose_path(pc, robot: Robot, q_init: np.ndarray):
 
 
 def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
-    """The reference of ``kind = "trajectory" | "waypoints" | "pose"`` (README, "Tasks"),
+    """The reference of ``kind = "trajectory" | "waypoints" | "pose"`` (docs, "Tutorials"),
     checked against the joint position and velocity limits before any run.
 
     Raises:
@@ -141,8 +153,9 @@ def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
         trajectory = load_trajectory(rc.trajectory.file, names)
         check_trajectory_limits(
             trajectory, robot, lower, upper, f"reference ({rc.trajectory.file.name})",
-            "change the file: slower (velocity limits: the URDF's) or inside the position "
-            "limits (the URDF's or controller.constraints.lower/upper)",
+            "change the file (positions inside the limits) or the limits (the URDF's or "
+            "controller.constraints.lower/upper)",
+            "change the file: a slower motion (velocity limits: the URDF's)",
         )  # fmt: skip
         return trajectory
     if rc.kind == "waypoints":

@@ -12,7 +12,7 @@ parser (well-formedness, with line and column) and with yourdfpy (URDF
 completeness), so that a bad file gets a message naming the file and the
 problem instead of urdfdom's terse output.
 
-Joint types (README, "Any arm"):
+Joint types (docs, "Your own arm"):
 
 * ``revolute`` and ``prismatic`` joints are one coordinate each [rad or m];
 * a ``continuous`` joint is loaded as a revolute joint without position limits (limits
@@ -30,6 +30,8 @@ Joint types (README, "Any arm"):
 from __future__ import annotations
 
 import difflib
+import math
+import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from pathlib import Path
@@ -38,7 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..data import robot_path
-from ..exceptions import DimensionError, NonFiniteError, URDFError
+from ..exceptions import DimensionError, NonFiniteError, URDFError, ValidityWarning
 
 __all__ = [
     "Robot",
@@ -82,13 +84,14 @@ def example_robot_urdf(name: str) -> Path:
 
     loader = robots_loader.ROBOTS.get(name)
     if loader is None:
-        close = difflib.get_close_matches(name, list(robots_loader.ROBOTS), n=5, cutoff=0.5)
+        arms = ["planar3", *example_robot_names()]  # suggest arms only (not drones, legs)
+        close = difflib.get_close_matches(name, arms, n=5, cutoff=0.5)
         hint = f"did you mean {', '.join(map(repr, close))}? " if close else ""
         raise URDFError(
             name,
             "is neither a URDF file nor an example-robot-data model name; "
             f"{hint}known arms include 'ur5', 'ur10', 'panda', 'z1' "
-            "(hmpc_pin.robot.example_robot_names() lists all)",
+            "(`hmpc-pin init --list` or hmpc_pin.model.robot.example_robot_names() lists all)",
         )
     # The loader's free_flyer flag is not read: it says how example-robot-data mounts the
     # model, not what the URDF is (so100/so101 are flagged but are fixed-base arms). A
@@ -138,6 +141,18 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
         raise URDFError(path, f"malformed XML at line {line}, column {col}: {exc.msg}") from exc
     if root.tag != "robot":
         raise URDFError(path, f"root element is <{root.tag}>, expected <robot>")
+    check_inertias(root, path, locked)
+    for joint in root.findall("joint"):  # yourdfpy's message names neither joint nor fix
+        limit = joint.find("limit")
+        if joint.get("type") in ("revolute", "prismatic", "continuous") and limit is not None:
+            missing = [a for a in ("effort", "velocity") if limit.get(a) is None]
+            if missing:
+                raise URDFError(
+                    path, f"joint {joint.get('name')!r}: <limit> has no {' and no '.join(missing)} "
+                    "attribute; the URDF requires both on a movable joint's <limit> (write "
+                    '0 where the arm has none: effort="0" is no torque limit, velocity="0" '
+                    "no velocity limit)",
+                )  # fmt: skip
 
     import yourdfpy  # local import: only needed on load
 
@@ -197,6 +212,100 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
             "mimic); there is nothing to control",
         )
     return root
+
+
+def _moving_links(root: ET.Element, locked: tuple[str, ...]) -> set[str]:
+    """The links that move when the controlled joints move: those with a movable joint
+    (not fixed, not locked) on their path from the root."""
+    parent = {}
+    for joint in root.findall("joint"):
+        child, par = joint.find("child"), joint.find("parent")
+        if child is not None and par is not None:
+            movable = joint.get("type") != "fixed" and joint.get("name") not in locked
+            parent[child.get("link", "")] = (par.get("link", ""), movable)
+    moving: dict[str, bool] = {}
+
+    def moves(link: str, depth: int = 0) -> bool:
+        if link not in moving:
+            if link not in parent or depth > len(parent):  # the root (or a cycle)
+                moving[link] = False
+            else:
+                par, movable = parent[link]
+                moving[link] = movable or moves(par, depth + 1)
+        return moving[link]
+
+    return {link.get("name", "") for link in root.findall("link") if moves(link.get("name", ""))}
+
+
+def check_inertias(root: ET.Element, path: Path, locked: tuple[str, ...] = ()) -> None:
+    r"""Check the ``<inertial>`` of every link that moves, before any model is built.
+
+    A rigid body has a mass :math:`m \ge 0` and a rotational inertia :math:`I` that is
+    symmetric (the URDF gives its six entries) and positive semi-definite, with principal
+    moments satisfying the triangle inequalities :math:`I_1 + I_2 \ge I_3` (for each
+    order). Zero moments (a point mass, a thin rod) are valid; a singular :math:`M(q)`
+    they may cause is refused later, naming the joint
+    (:meth:`Robot.check_mass_matrix`). Links fixed to the world are not checked (their
+    inertia acts on nothing). Tolerances: :math:`10^{-9}` of the largest moment for the
+    sign, :math:`10^{-6}` of the trace for the triangle (values rounded in the file).
+
+    A negative mass or a moment below zero makes :math:`M(q)` indefinite: refused. A
+    violated triangle inequality leaves :math:`M(q)` positive definite and is common in
+    published URDFs exported from CAD (the Allegro hand, PR2, Romeo): a
+    :class:`~hmpc_pin.exceptions.ValidityWarning` naming the link, the arm still loads.
+
+    Raises:
+        URDFError: Naming the link, the offending values and what is expected.
+    """
+    moving = _moving_links(root, locked)
+    for link in root.findall("link"):
+        name = link.get("name", "")
+        inertial = link.find("inertial")
+        if inertial is None or name not in moving:
+            continue
+        mass_el = inertial.find("mass")
+        try:
+            mass = float(mass_el.get("value", "nan")) if mass_el is not None else 0.0
+        except ValueError:
+            mass = math.nan
+        if not (math.isfinite(mass) and mass >= 0):
+            text = mass_el.get("value") if mass_el is not None else None
+            raise URDFError(
+                path, f"link {name!r}: <mass value> = {text!r}; expected a finite mass >= 0 [kg]"
+            )
+        inertia = inertial.find("inertia")
+        if inertia is None:
+            continue
+        keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+        try:
+            v = {k: float(inertia.get(k, "0")) for k in keys}
+        except ValueError as exc:
+            raise URDFError(path, f"link {name!r}: <inertia> {exc}; expected numbers") from None
+        if not all(math.isfinite(x) for x in v.values()):
+            raise URDFError(path, f"link {name!r}: <inertia> {v}; expected finite numbers")
+        matrix = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]],
+                           [v["ixz"], v["iyz"], v["izz"]]])  # fmt: skip
+        moments = np.linalg.eigvalsh(matrix)
+        scale = float(np.abs(moments).max())
+        given = ", ".join(f"{k}={inertia.get(k, '0')}" for k in keys)
+        if moments[0] < -1e-9 * scale:
+            raise URDFError(
+                path,
+                f"link {name!r}: the inertia ({given}) is not positive semi-definite: its "
+                f"principal moments are {np.round(moments, 12).tolist()} kg·m²; a rigid "
+                "body's are all >= 0. Correct the link's <inertia> (e.g. from its CAD model)",
+            )
+        if moments[0] + moments[1] < moments[2] - 1e-6 * float(moments.sum()):
+            warnings.warn(
+                f"{path}: link {name!r}: the principal moments of inertia "
+                f"{np.round(moments, 12).tolist()} kg·m² ({given}) violate the triangle "
+                f"inequality I1 + I2 >= I3 ({moments[0] + moments[1]:.4g} < {moments[2]:.4g}): "
+                "no rigid body has them. The Pinocchio plant runs on them as given (M(q) "
+                "stays positive definite), MuJoCo refuses them; correct the link's <inertia> "
+                "(e.g. from its CAD model)",
+                ValidityWarning,
+                stacklevel=4,
+            )
 
 
 def urdf_mimics(root: ET.Element) -> dict[str, tuple[str, float, float]]:
@@ -262,6 +371,10 @@ class Robot:
         lower, upper: Joint position limits [rad or m], shape (n,).
         velocity_limit: Joint velocity limits [rad/s or m/s], shape (n,).
         effort_limit: Joint effort limits [N·m or N], shape (n,).
+        joint_damping, joint_friction: The URDF's ``<dynamics damping friction>`` per
+            coordinate [N·m·s/rad, N·m], shape (n,): the joint torque
+            :math:`-b\\dot q - f\\,\\mathrm{sgn}\\,\\dot q` the plants apply and the inverse
+            dynamics compensates.
     """
 
     def __init__(
@@ -310,6 +423,12 @@ class Robot:
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self.velocity_limit = np.array(model.velocityLimit, dtype=float)
         self.effort_limit = np.array(model.effortLimit, dtype=float)
+        #: Viscous joint damping b [N·m·s/rad or N·s/m] per coordinate, the URDF's
+        #: ``<dynamics damping>`` (Pinocchio's ``model.damping``; 0 where not declared).
+        self.joint_damping = np.array(model.damping, dtype=float)
+        #: Coulomb joint friction f [N·m or N] per coordinate, the URDF's ``<dynamics
+        #: friction>`` (Pinocchio's ``model.friction``; 0 where not declared).
+        self.joint_friction = np.array(model.friction, dtype=float)
         # Pinocchio's C++ CRBA fills only the upper triangle; some bindings
         # symmetrise. Detect once, at a generic configuration (where M has
         # non-zero off-diagonal terms), so the hot path does no needless work.
@@ -370,9 +489,11 @@ class Robot:
         raise URDFError(
             self.source,
             f"M(q) is not positive definite at q={np.round(np.asarray(q), 4).tolist()}: "
-            f"joint {name!r} moves no mass or inertia about its axis (pivot {pivot:.3g}); "
-            f"the link(s) it moves: {', '.join(why)}. Give the link at the end of the chain "
-            "a mass and an inertia (<inertial>), or lock the joint ([robot] locked_joints)",
+            f"joint {name!r} meets no inertia about its axis (pivot {pivot:.3g}): the "
+            f"link(s) it moves, {', '.join(why)}, are massless, have no <inertial>, or are "
+            "point masses on its axis. Give the link at the end of the chain a mass and an "
+            "inertia about the joint's axis (<inertial>), or lock the joint "
+            "([robot] locked_joints)",
         )
 
     def __getstate__(self) -> dict:

@@ -4,11 +4,12 @@
 close): :class:`PlantArm` in this process, :class:`ProcessArm` in a separate process in
 wall-clock time, a pylibfranka-style template in :mod:`.driver_template` (not run on
 hardware). :class:`RealtimeLoop` runs any :class:`~hmpc_pin.controllers.base.Controller`
-against it at absolute deadlines, records latency and misses, and stops safely
-(:mod:`.safety`).
+against it at absolute deadlines (or, against a :class:`PacedInterface` such as the
+ROS 2 arm of :mod:`hmpc_pin.ros`, answering each state the arm publishes), records
+latency and misses, and stops safely (:mod:`.safety`).
 """
 
-from .interface import PlantArm, RobotInterface
+from .interface import PacedInterface, PlantArm, RobotInterface
 from .loop import (
     LoopSettings,
     RealtimeLoop,
@@ -23,6 +24,7 @@ from .safety import STOP_CAUSES, SafeTorque, SafetySettings
 __all__ = [
     "STOP_CAUSES",
     "LoopSettings",
+    "PacedInterface",
     "PlantArm",
     "ProcessArm",
     "RealtimeLoop",

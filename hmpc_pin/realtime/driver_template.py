@@ -23,10 +23,10 @@ real Panda / FR3:
   stop in hand.
 
 For a UR arm (ur_rtde), the same shape holds with ``RTDEReceiveInterface.getActualQ()``/
-``getActualQd()`` for :meth:`read`, the controller's direct-torque command for
-:meth:`write` (available only on recent controller software; check the ur_rtde and
-PolyScope versions), ``initPeriod()``/``waitPeriod()`` for the pacing and
-``stopScript()`` for :meth:`close`.
+``getActualQd()`` for :meth:`~FrankaTorqueDriver.read`, the controller's direct-torque
+command for :meth:`~FrankaTorqueDriver.write` (available only on recent controller software;
+check the ur_rtde and PolyScope versions), ``initPeriod()``/``waitPeriod()`` for the pacing and
+``stopScript()`` for :meth:`~FrankaTorqueDriver.close`.
 """
 
 from __future__ import annotations

@@ -7,10 +7,15 @@ the controller's side: :meth:`~RobotInterface.read` the newest measurement,
 :meth:`~RobotInterface.write` a torque, :meth:`~RobotInterface.close`. A stamp that does
 not advance between two reads means no new state arrived (the loop's watchdog counts it).
 
+An arm that pushes its states (a ROS 2 topic, a fieldbus frame) rather than being
+polled is a :class:`PacedInterface`: the loop then waits for each state and answers it,
+instead of keeping its own deadlines.
+
 Implementations: :class:`PlantArm` (a :class:`~hmpc_pin.sim.base.Plant` in this process,
-stepped to a clock you give it: deterministic tests), :class:`~hmpc_pin.realtime.
-process_arm.ProcessArm` (a plant in a separate process stepping in wall-clock time, state
-and torque exchanged through shared memory, as a driver would), and the template in
+stepped to a clock you give it: deterministic tests),
+:class:`~hmpc_pin.realtime.process_arm.ProcessArm` (a plant in a separate process stepping in
+wall-clock time, state and torque exchanged through shared memory, as a driver would), and
+the template in
 :mod:`~hmpc_pin.realtime.driver_template` (not run on hardware).
 """
 
@@ -26,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..exceptions import DimensionError
 from ..sim.base import Plant
 
-__all__ = ["PlantArm", "RobotInterface"]
+__all__ = ["PacedInterface", "PlantArm", "RobotInterface"]
 
 FloatArray = NDArray[np.float64]
 
@@ -58,6 +63,29 @@ class RobotInterface(Protocol):
 
     def close(self) -> None:
         """Release the arm (stop the process, disconnect); idempotent."""
+        ...
+
+
+@runtime_checkable
+class PacedInterface(RobotInterface, Protocol):
+    """An arm that paces the loop: it publishes a state every period on its own clock and
+    the loop answers each state with a torque (a ROS 2 ``/joint_states`` topic).
+
+    The loop's deadline for a state is its stamp: latency is stamp → torque written, on
+    :meth:`clock`, which must be the clock of the stamps.
+    """
+
+    def clock(self) -> float:
+        """Now [s], on the clock of the stamps :meth:`read` returns."""
+        ...
+
+    def wait(self, timeout: float) -> int:
+        """Block until a state newer than the last one taken arrives, or ``timeout`` [s].
+
+        Takes the newest state (what :meth:`read` returns next) and returns how many
+        states arrived since the previous call: 0 when none came within ``timeout``,
+        more than 1 when the loop fell behind (the extra ones are periods not answered).
+        """
         ...
 
 

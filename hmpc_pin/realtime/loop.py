@@ -13,6 +13,13 @@ Timing (interface period :math:`P = 1/f`, start :math:`t_0`):
 * the controller runs every :math:`m = T_s / P` cycles (e.g. MPC at 100 Hz under a 1 kHz
   interface) at loop time :math:`kP`; the torque is held in between.
 
+Paced by the arm (a :class:`~hmpc_pin.realtime.interface.PacedInterface`, e.g. a ROS 2
+``/joint_states`` topic): cycle :math:`k` waits for the arm's next state and its deadline
+is that state's stamp :math:`s_k` (on the interface's clock), so the latency
+:math:`e_k - s_k` runs from the measurement to the torque written and the cycle misses
+when :math:`e_k > s_k + P`; states that arrived while the loop was busy are periods not
+answered (skipped, counted as missed); no state within ``watchdog`` stops the loop.
+
 Garbage collection (``gc_handling``): after start-up everything alive is moved out of
 the collector's reach (:func:`gc.freeze`) and automatic collection is switched off; the
 generation CPython would collect next (its counts against its thresholds) is collected
@@ -47,7 +54,7 @@ from ..controllers.base import Controller
 from ..exceptions import ConfigError, HmpcError
 from ..sim.result import Result
 from ..tasks.base import as_reference
-from .interface import RobotInterface
+from .interface import PacedInterface, RobotInterface
 from .safety import SafetySettings
 
 __all__ = [
@@ -126,7 +133,8 @@ class LoopSettings:
             controller's ``warm_up(t, q, dq, reference)`` (if it has one, e.g.
             :meth:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC.warm_up`: a step on the
             last measured state, undone) so that the cycle's step finds its memory in the
-            caches, then busy-wait to the deadline (with the default sleep); 0 disables it.
+            caches, then busy-wait to the deadline (with the default sleep); 0 disables it. Not
+            with an arm that paces the loop (it waits for the state, not a deadline).
             Less than the period. Measured (``benchmarks/realtime.py --steps-only``): the
             step after a 10 ms sleep 1.5× the step back to back with 2e-4, 10–15× without.
     """
@@ -285,6 +293,12 @@ class RealtimeLoop:
             (default: :func:`sleep_until` on ``clock``).
         joint_names: Stored in the result.
         meta: Stored in the result's ``meta``.
+        on_step: ``on_step(t)``, called after the torque of each controller step is
+            written (in the cycle's slack), with the loop time t [s]: publish estimates.
+
+    Against a :class:`~hmpc_pin.realtime.interface.PacedInterface` the loop is paced by
+    the arm's states and keeps time on the interface's clock (``clock``, ``sleep`` and
+    ``spin`` do not apply).
     """
 
     def __init__(
@@ -300,28 +314,54 @@ class RealtimeLoop:
         sleep: Callable[[float], None] | None = None,
         joint_names: tuple[str, ...] = (),
         meta: dict | None = None,
+        on_step: Callable[[float], None] | None = None,
     ):
         self.interface, self.controller = interface, controller
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
+        self.paced = isinstance(interface, PacedInterface)
+        if self.paced:
+            for name, given in (("spin", settings.spin > 0), ("sleep=", sleep is not None),
+                                ("clock=", clock is not time.perf_counter)):  # fmt: skip
+                if given:
+                    raise ConfigError(
+                        "realtime.spin" if name == "spin" else name,
+                        f"{name} does not apply to an arm that paces the loop "
+                        f"({type(interface).__name__}: the loop waits for its states, on "
+                        "its clock); drop it",
+                    )
+            clock = interface.clock  # type: ignore[union-attr]
         self.clock = clock
-        if sleep is not None and settings.spin > 0:
+        self.on_step = on_step
+        self._pending_reference = None
+        self.time = 0.0
+        if self.paced:
+            wait = interface.wait  # type: ignore[union-attr]
+            self.sleep = lambda d: wait(max(0.0, d - clock()))
+        elif sleep is not None and settings.spin > 0:
             raise ConfigError(
                 "realtime.spin",
                 f"spin={settings.spin:g} s does not apply with a sleep function given to the "
                 "loop (it spins in the default sleep only); set spin = 0 or drop sleep=",
             )
+        else:
+            self.sleep = (
+                sleep if sleep is not None else (lambda d: sleep_until(d, clock, settings.spin))
+            )
         # After warm_up the default sleep busy-waits to the deadline (the core stays awake and
         # the caches stay this process's); a given sleep function is called instead.
-        self._spin_after_warm_up = sleep is None
-        self.sleep = sleep if sleep is not None else (
-            lambda d: sleep_until(d, clock, settings.spin)
-        )
+        self._spin_after_warm_up = sleep is None and not self.paced
         self.joint_names = tuple(joint_names)
         self.meta = dict(meta or {})
         self.decimation = settings.decimation(controller.Ts)
         self._interrupt = 0
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
+
+    def set_reference(self, reference) -> None:
+        """Replace the reference from the next controller step on (callable from another
+        thread: the loop swaps it in at a step). The caller checks it (limits, continuity
+        at ``time``, the loop time of the last step)."""
+        self._pending_reference = as_reference(reference)
 
     # ------------------------------------------------------------------ stopping
     def request_stop(self) -> None:
@@ -400,34 +440,66 @@ class RealtimeLoop:
         watch.count, watch.longest = 0, 0.0  # from the first cycle on
         stop: tuple[str, str] | None = None
         next_mpc = 0
+        paced, on_step = self.paced, self.on_step
+        wait = getattr(iface, "wait", None)
         warm_lead = st.warm_up
-        warm_up = getattr(ctrl, "warm_up", None) if warm_lead > 0 else None
+        warm_up = getattr(ctrl, "warm_up", None) if warm_lead > 0 and not paced else None
         t0 = clock() + P
         last_stamp, fresh_at = stamp, t0
         k = 0
         deadline = t0
         while k <= K:
-            deadline = t0 + k * P
-            if warm_up is not None and k >= next_mpc and k > 0:
-                # in the slack before an MPC cycle: the step on the last state, undone
-                sleep(deadline - warm_lead)
-                warm_up(k * P, q_last, dq_last, ref)
-                if self._spin_after_warm_up:
-                    while clock() < deadline:
-                        pass
-            sleep(deadline)
-            wake = clock()
-            if self._interrupt:
-                stop = ("interrupted", "interrupted (Ctrl-C)")
-                break
-            stamp, q, dq = iface.read()
-            if stamp != last_stamp:
-                last_stamp, fresh_at = stamp, wake
-            elif wake - fresh_at > watchdog:
-                silent = 1e3 * (wake - fresh_at)
-                stop = ("watchdog", f"no new state from the arm for {silent:.1f} ms (watchdog "
-                        f"{1e3 * watchdog:g} ms), last stamp {stamp:.6g} s")  # fmt: skip
-                break
+            if paced:
+                arrived = wait(watchdog)
+                wake = clock()
+                if self._interrupt:
+                    stop = ("interrupted", "interrupted (Ctrl-C)")
+                    break
+                if not arrived:
+                    stop = ("watchdog", f"no new state from the arm for {1e3 * watchdog:g} ms "
+                            f"(watchdog), last stamp {last_stamp:.6g} s")  # fmt: skip
+                    break
+                if arrived > 1 and k > 0:  # states not answered: periods skipped
+                    skip = min(arrived - 1, K + 1 - k)
+                    missed_a[k : k + skip] = True
+                    misses += skip
+                    skipped += skip
+                    consecutive += skip
+                    worst_run = max(worst_run, consecutive)
+                    k += skip
+                    if consecutive >= max_misses:
+                        stop = ("misses", f"{consecutive} consecutive missed deadlines (limit "
+                                f"{max_misses}), {skip} states not answered")  # fmt: skip
+                        break
+                    if k > K:
+                        break
+                stamp, q, dq = iface.read()
+                deadline = last_stamp = stamp
+            else:
+                deadline = t0 + k * P
+                if warm_up is not None and k >= next_mpc and k > 0:
+                    # in the slack before an MPC cycle: the step on the last state, undone
+                    sleep(deadline - warm_lead)
+                    warm_up(k * P, q_last, dq_last, ref)
+                    if self._spin_after_warm_up:
+                        while clock() < deadline:
+                            pass
+                sleep(deadline)
+                wake = clock()
+                if self._interrupt:
+                    stop = ("interrupted", "interrupted (Ctrl-C)")
+                    break
+                stamp, q, dq = iface.read()
+                if stamp != last_stamp:
+                    last_stamp, fresh_at = stamp, wake
+                elif wake - fresh_at > watchdog:
+                    silent = 1e3 * (wake - fresh_at)
+                    stop = (
+                        "watchdog",
+                        f"no new state from the arm for {silent:.1f} ms "
+                        f"(watchdog {1e3 * watchdog:g} ms), last stamp {stamp:.6g} s",
+                    )
+                    break
             # One comparison each in the common case; NaN fails every one of them.
             if not ((q >= lower).all() and (q <= upper).all() and (np.abs(dq) <= vmax).all()):
                 stop = ("fault", self._state_fault(q, dq))
@@ -436,6 +508,9 @@ class RealtimeLoop:
             dq_last[:] = dq
             is_mpc = k >= next_mpc
             if is_mpc:
+                if self._pending_reference is not None:
+                    ref, self._pending_reference = self._pending_reference, None
+                    self.reference = ref
                 try:
                     # copies: the interface may reuse its arrays, a controller may keep them
                     tau = ctrl.step(k * P, q.copy(), dq.copy(), ref)
@@ -465,6 +540,9 @@ class RealtimeLoop:
                 rec["q_ref"][j] = q_ref
                 rec["dq_ref"][j] = dq_ref
                 j += 1
+                self.time = k * P
+                if on_step is not None:
+                    on_step(k * P)
             if done > deadline + P:
                 missed_a[k] = True
                 misses += 1
@@ -493,7 +571,7 @@ class RealtimeLoop:
                         gc_deferred += 1
             k += 1
             # Deadlines already passed are skipped (the arm holds the torque through them).
-            behind = int((clock() - t0) / P) - k
+            behind = 0 if paced else int((clock() - t0) / P) - k
             if behind > 0 and k <= K:
                 skip = min(behind, K + 1 - k)
                 missed_a[k : k + skip] = True

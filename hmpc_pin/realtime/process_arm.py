@@ -7,8 +7,8 @@ it wakes late, so that the arm's time follows the wall. Every period it samples 
 newest torque and publishes ``(stamp, q, dq)``. Until the first torque arrives the arm
 holds still (on its brakes) while its stamp advances.
 
-State and torque are exchanged through one :class:`multiprocessing.shared_memory.
-SharedMemory` block, each direction guarded by a sequence counter (a seqlock: the
+State and torque are exchanged through one :class:`~multiprocessing.shared_memory.SharedMemory`
+block, each direction guarded by a sequence counter (a seqlock: the
 writer makes the counter odd, writes, makes it even; a reader retries when the counter
 was odd or changed during its copy). Counters are 8-byte aligned int64 stores, atomic on
 x86-64 and, under its total store order, seen in program order by the other process;
@@ -54,6 +54,17 @@ def _size(n: int) -> int:
     return 8 * (_NCTL + 2 + 3 * n)
 
 
+def start_child(proc) -> None:
+    """Start the process ``proc`` with SIGINT blocked, so that a Ctrl-C to the process
+    group while the child starts (before its own code sets SIGINT to ignored and unblocks
+    it) neither kills it nor prints a traceback; the parent's mask is restored after."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        proc.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def _arm_main(
     name, n, make_plant, q0, dq0, effort_limit, conn, priority=0
 ) -> None:  # pragma: no cover
@@ -62,6 +73,7 @@ def _arm_main(
     (Covered by the tests through :class:`ProcessArm`, in another process.)
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked by start_child
     # (spawned children share the parent's resource tracker: the parent's unlink
     # unregisters the block once for both)
     shm = SharedMemory(name=name)
@@ -227,25 +239,29 @@ class ProcessArm:
             name="hmpc-pin-arm",
             daemon=True,
         )
-        self._proc.start()
-        child.close()
+        try:
+            start_child(self._proc)
+            child.close()
+            self._wait_ready(start_timeout)
+        except BaseException:  # Ctrl-C or a failure while starting: no process, no block left
+            self.close(wait=0.0)
+            raise
+        self.period = float(self._period[0])
+        self._buf = np.empty(1 + 2 * n)
+        self._q, self._dq = self._buf[1 : 1 + n], self._buf[1 + n :]
+
+    def _wait_ready(self, start_timeout: float) -> None:
         end = time.monotonic() + start_timeout
         while not self._ctl[_READY]:
             if self._conn.poll(0.01):
                 message = self._conn.recv()
                 if message is not None:
-                    self.close()
                     raise SimulationError(f"the arm process failed to start:\n{message}")
             if not self._proc.is_alive() or time.monotonic() > end:
-                code = self._proc.exitcode
-                self.close()
                 raise SimulationError(
                     f"the arm process did not start within {start_timeout:g} s "
-                    f"(exit code {code}); check the plant factory"
+                    f"(exit code {self._proc.exitcode}); check the plant factory"
                 )
-        self.period = float(self._period[0])
-        self._buf = np.empty(1 + 2 * n)
-        self._q, self._dq = self._buf[1 : 1 + n], self._buf[1 + n :]
 
     @property
     def shm_name(self) -> str:
@@ -281,13 +297,18 @@ class ProcessArm:
         """Whether the arm process runs."""
         return self._proc.is_alive()
 
-    def close(self) -> None:
-        """Stop the arm process and free the shared memory (idempotent)."""
+    def close(self, wait: float = 5.0) -> None:
+        """Stop the arm process and free the shared memory (idempotent).
+
+        Args:
+            wait: Time [s] the arm is given to stop by itself before it is terminated.
+        """
         if self._closed:
             return
         self._closed = True
         self._ctl[_STOP] = 1
-        self._proc.join(timeout=5.0)
+        if self._proc.pid is not None:
+            self._proc.join(timeout=wait)
         if self._proc.is_alive():
             self._proc.terminate()
             self._proc.join(timeout=5.0)

@@ -1,4 +1,5 @@
-"""Simulation: disturbances, plants (one protocol, :mod:`.plants`), the closed loop, results."""
+"""Simulation: disturbances, plants (one protocol, :mod:`~hmpc_pin.sim.plants`), the arm's
+interface as drivers deliver it (:mod:`~hmpc_pin.sim.sensing`), the closed loop, results."""
 
 from .disturbances import (
     CoulombViscousFriction,
@@ -12,6 +13,7 @@ from .disturbances import (
 from .mujoco import MuJoCoPlant, MuJoCoSettings, Obstacle
 from .plants import PLANTS, EulerPlant, Plant, RK4Plant
 from .result import RESULT_ARRAYS, Result
+from .sensing import SensedController, Sensing
 from .simulate import simulate
 
 __all__ = [
@@ -28,6 +30,8 @@ __all__ = [
     "Plant",
     "RK4Plant",
     "Result",
+    "SensedController",
+    "Sensing",
     "SumDisturbance",
     "ZeroDisturbance",
     "as_disturbance",

@@ -74,7 +74,7 @@ class CoulombViscousFriction(Disturbance):
 
     The paper writes :math:`d = +F_r`; taken literally, friction feeds energy into the
     arm (negative ``viscous``/``coulomb`` give that reading; the config's
-    ``[disturbance.friction] sign = "literal"``). Measured (README, "Friction sign"): the
+    ``[disturbance.friction] sign = "literal"``). Measured (docs, "Decisions"): the
     literal reading fails without the observer and with it settles only after 0.5 s, so
     friction opposing motion is the default.
 

@@ -1,6 +1,6 @@
 """MuJoCo as the plant: a second physics engine on the same URDF as the controller's model.
 
-The plant of :mod:`.plants` integrates the controller's own Pinocchio model (ABA), with
+The plant of :mod:`~hmpc_pin.sim.plants` integrates the controller's own Pinocchio model (ABA), with
 friction an added formula. :class:`MuJoCoPlant` instead compiles the arm's URDF with
 MuJoCo (``MjSpec``) and steps it with MuJoCo's integrator, so that the arm's joint
 friction (``frictionloss``, a dry-friction constraint), viscous damping, rotor armature,
@@ -33,8 +33,9 @@ The URDF is made consistent with the controller's model before MuJoCo sees it:
   turns into a joint equality constraint :math:`q_f = m q_l + o`, made stiff (see
   :func:`mujoco_model`); a follower the controller controls as an independent coordinate
   loses it; a locked follower is fixed with its leader;
-* ``<dynamics damping friction>``: imported only with ``import_urdf_dynamics = True``
-  (Pinocchio's model ignores them, so by default MuJoCo does too);
+* ``<dynamics damping friction>``: imported as ``dof_damping`` and ``dof_frictionloss``
+  of the joint's dof (matched by name) unless ``import_urdf_dynamics = False``, as the
+  Pinocchio plants apply them (:attr:`~hmpc_pin.model.robot.Robot.joint_damping`);
 * the joints are matched to the controller's by name, not by order.
 
 ``mujoco`` is an optional dependency (extra ``mujoco``); it is imported when a plant is
@@ -57,7 +58,7 @@ from numpy.typing import NDArray
 from ..exceptions import ConfigError, DimensionError, ExtraError, URDFError
 from ..model.robot import Robot
 from .disturbances import ZeroDisturbance
-from .plants import PLANTS, _substeps, split_disturbance
+from .plants import PLANTS, _substeps, held_torque, split_disturbance
 
 __all__ = [
     "MUJOCO_INTEGRATORS",
@@ -154,8 +155,14 @@ class MuJoCoSettings:
             order), MuJoCo's ``dof_frictionloss``.
         damping: Viscous joint damping [N·m·s/rad], ``dof_damping``.
         armature: Rotor inertia added to the joint [kg·m²], ``dof_armature``.
+        friction_timeconst: Time constant [s] of the joints' dry-friction constraint (the
+            controlled dofs' ``dof_solref``, damping ratio 1); ``None`` (default) keeps
+            MuJoCo's 0.02 s. MuJoCo's ``frictionloss`` is a soft constraint: on a joint of
+            small inertia or fast damping its force stays far below ``f`` at the speeds of a
+            run unless this is short (2 timesteps is MuJoCo's shortest advisable value).
         import_urdf_dynamics: Keep the URDF's ``<dynamics damping friction>`` (added to
-            the values above); ``False`` (default) drops them, as Pinocchio does.
+            the values above; default ``True``, as the Pinocchio plants apply them);
+            ``False`` drops them.
         geometry: ``"collision"`` (the URDF's collision geometry, default), ``"visual"``
             (its visual geometry used for collisions, e.g. for an arm without collision
             tags) or ``"none"`` (no geometry: dynamics only).
@@ -167,7 +174,8 @@ class MuJoCoSettings:
     frictionloss: float | tuple[float, ...] = 0.0
     damping: float | tuple[float, ...] = 0.0
     armature: float | tuple[float, ...] = 0.0
-    import_urdf_dynamics: bool = False
+    friction_timeconst: float | None = None
+    import_urdf_dynamics: bool = True
     geometry: str = "collision"
     obstacle: Obstacle | None = None
     package_dirs: tuple[str, ...] = field(default_factory=tuple)
@@ -188,6 +196,9 @@ class MuJoCoSettings:
                 "'none' leaves the arm without geometry, so it cannot touch the obstacle; "
                 "use 'collision' or 'visual'",
             )
+        tc = self.friction_timeconst
+        if tc is not None and not (isinstance(tc, (int, float)) and math.isfinite(tc) and tc > 0):
+            raise ConfigError("friction_timeconst", f"expected a time [s] > 0, got {tc!r}")
         for name in ("frictionloss", "damping", "armature"):
             value = np.asarray(getattr(self, name), dtype=float)
             if value.ndim > 1 or not np.all(np.isfinite(value)) or np.any(value < 0):
@@ -437,6 +448,8 @@ def mujoco_model(robot: Robot, settings: MuJoCoSettings | None = None):
     for name in ("frictionloss", "damping", "armature"):
         base = getattr(model, f"dof_{name}")[dofs] if s.import_urdf_dynamics else 0.0
         getattr(model, f"dof_{name}")[dofs] = base + s.per_joint(name, n)
+    if s.friction_timeconst is not None:
+        model.dof_solref[dofs] = (s.friction_timeconst, 1.0)
     model.opt.integrator = getattr(mujoco.mjtIntegrator, MUJOCO_INTEGRATORS[s.integrator])
     model.opt.gravity[:] = robot.model.gravity.linear
     if s.obstacle is None:
@@ -512,6 +525,7 @@ class MuJoCoPlant:
     """
 
     name = "mujoco"
+    _was_reset = False
     engine = "mujoco"
 
     def __init__(
@@ -617,6 +631,7 @@ class MuJoCoPlant:
         self.contact_force = np.zeros(self.n)
         self.engine_force = np.zeros(self.n)
         self.history = [self.contact_force] if self._contacts else []
+        self._was_reset = True
 
     def disturbance_now(self) -> FloatArray:
         """What the controller's model does not know [N·m]: the config's
@@ -646,6 +661,7 @@ class MuJoCoPlant:
         disturbance the period is one ``mj_step(model, data, nstep)`` call; any other
         disturbance is called at every step with the state MuJoCo has reached.
         """
+        tau = held_torque(self, tau)
         m, d, step = self.model, self.data, self._mj.mj_step
         S, v = self.substeps, self.vadr
         qfrc = d.qfrc_applied

@@ -18,7 +18,17 @@ Runge–Kutta (RK4) steps of ``dt``, the disturbance evaluated at every stage:
     k_3 = f(t_s + h/2, x + \\tfrac h2 k_2), \\quad k_4 = f(t_s + h, x + h k_3),
 
     x \\leftarrow x + \\tfrac h6 (k_1 + 2k_2 + 2k_3 + k_4), \\qquad
-    f(t, [q; \\dot q]) = [\\dot q;\\ \\mathrm{ABA}(q, \\dot q, \\tau + d(t, q, \\dot q))].
+    f(t, [q; \\dot q]) = [\\dot q;\\ \\mathrm{ABA}(q, \\dot q, \\tau + d(t, q, \\dot q)
+        - B\\dot q - F\\,\\mathrm{sgn}\\,\\dot q)].
+
+:math:`B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` is the arm's own joint damping and Coulomb
+friction, the URDF's ``<dynamics damping friction>``
+(:attr:`~hmpc_pin.model.robot.Robot.joint_damping`, ``joint_friction``), applied by both
+plants here unless ``joint_dynamics=False``. The Coulomb term is set-valued in nature;
+these plants use the discontinuous :math:`\\mathrm{sgn}` with :math:`\\mathrm{sgn}\\,0 = 0`
+per stage (as the ``[disturbance.friction]`` term), which chatters about
+:math:`\\dot q = 0` within one step rather than sticking; MuJoCo's ``frictionloss`` is a
+soft constraint that holds a joint at rest while the torque is below :math:`f`.
 
 The period is one call into the compiled core (``src/core.cpp``, ``RK4``), the only
 implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
@@ -38,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..exceptions import ConfigError, DimensionError
+from ..exceptions import ConfigError, DimensionError, SimulationError
 from ..model.robot import Robot
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
@@ -74,6 +84,40 @@ def _reset_state(plant, q0: FloatArray, dq0: FloatArray, t0: float) -> None:
             f"plant state of shapes {plant.q.shape}, {plant.dq.shape}; expected ({plant.n},)"
         )
     plant.t0, plant.k, plant.t = float(t0), 0, float(t0)
+    plant._was_reset = True
+
+
+def held_torque(plant, tau) -> FloatArray:
+    """``tau`` [N·m] as the (n,) float array a plant's ``advance`` holds, after checking
+    that the plant was reset (its state and time are set by ``reset`` only).
+
+    Raises:
+        SimulationError: ``advance`` before ``reset``.
+        DimensionError: ``tau`` is not one torque per joint.
+    """
+    if not plant._was_reset:
+        raise SimulationError(
+            f"{type(plant).__name__}.advance before reset: call reset(q0, dq0) first to "
+            "set the state the period starts from"
+        )
+    tau = np.asarray(tau, dtype=float)
+    if tau.shape != (plant.n,):
+        raise DimensionError(
+            f"{type(plant).__name__}.advance: torque of shape {tau.shape}; expected "
+            f"({plant.n},), one per joint of the plant"
+        )
+    return tau
+
+
+def _joint_terms(robot: Robot, on: bool) -> tuple[FloatArray, FloatArray] | None:
+    """``(B, F)`` of ``robot`` (its URDF's joint damping and Coulomb friction) when ``on``
+    and any is non-zero, else ``None``."""
+    if not on:
+        return None
+    n = robot.nq
+    b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float).copy()
+    f = np.asarray(getattr(robot, "joint_friction", np.zeros(n)), dtype=float).copy()
+    return (b, f) if (b.any() or f.any()) else None
 
 
 def _agrees(term, fused, n: int) -> bool:
@@ -141,6 +185,8 @@ class RK4Plant:
         backend: Deprecated since 0.3, without effect (the period is always compiled):
             ``"auto"`` and ``"native"`` silently, ``"python"`` with a
             :class:`DeprecationWarning`.
+        joint_dynamics: Apply the robot's joint damping and Coulomb friction (the
+            URDF's ``<dynamics>``; default ``True``).
 
     Attributes:
         native: ``True`` (kept for callers of 0.2).
@@ -149,6 +195,7 @@ class RK4Plant:
 
     name = "rk4"
     native = True
+    _was_reset = False
 
     def __init__(
         self,
@@ -157,8 +204,10 @@ class RK4Plant:
         Ts: float = 0.01,
         dt: float = 0.001,
         backend: str = "auto",
+        joint_dynamics: bool = True,
     ):
         n = robot.nq
+        self.joint_dynamics = _joint_terms(robot, joint_dynamics)
         substeps = _substeps(Ts, dt)
         deprecated_backend(backend, "plant.backend")
         self.nq = self.n = n
@@ -190,8 +239,12 @@ class RK4Plant:
         core = load_native()
         if self.robot.mimic_joints:
             robot, model, data = self.robot, self.model, self.data
-            return core.RK4(None, self.n, lambda q, v, u: robot.aba(model, data, q, v, u))
-        return core.RK4(model_string(self.robot))
+            kernel = core.RK4(None, self.n, lambda q, v, u: robot.aba(model, data, q, v, u))
+        else:
+            kernel = core.RK4(model_string(self.robot))
+        if self.joint_dynamics is not None:
+            kernel.set_joint_dynamics(*self.joint_dynamics)
+        return kernel
 
     def __getstate__(self) -> dict:
         """Picklable: the compiled period is rebuilt from the robot on unpickling."""
@@ -241,7 +294,13 @@ class RK4Plant:
         return self._chunk[0]
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
+        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+            DimensionError: ``tau`` is not of shape (n,).
+        """
+        tau = held_torque(self, tau)
         n, x = self.n, self._x
         x[:n] = self.q
         x[n:] = self.dq
@@ -267,20 +326,32 @@ class EulerPlant:
     """Semi-implicit Euler integration of a Pinocchio model over one control period.
 
     Per step of ``h = dt``: :math:`\\dot q \\leftarrow \\dot q + h\\,\\mathrm{ABA}(q, \\dot q,
-    \\tau + d(t, q, \\dot q))`, then :math:`q \\leftarrow q + h\\dot q`.
+    \\tau + d(t, q, \\dot q) - B\\dot q - F\\,\\mathrm{sgn}\\,\\dot q)`, then
+    :math:`q \\leftarrow q + h\\dot q`.
 
     Args:
         robot: The plant's :class:`~hmpc_pin.model.robot.Robot`.
         disturbance: Callable ``d(t, q, dq) -> (n,)`` [N·m]; ``None`` for none.
         Ts: Control period [s].
         dt: Integration step [s]; must divide ``Ts``.
+        joint_dynamics: Apply the robot's joint damping and Coulomb friction,
+            :math:`-B\\dot q - F\\,\\mathrm{sgn}\\,\\dot q` (default ``True``).
     """
 
     name = "euler"
     native = False
+    _was_reset = False
 
-    def __init__(self, robot: Robot, disturbance=None, Ts: float = 0.01, dt: float = 0.001):
+    def __init__(
+        self,
+        robot: Robot,
+        disturbance=None,
+        Ts: float = 0.01,
+        dt: float = 0.001,
+        joint_dynamics: bool = True,
+    ):
         self.nq = self.n = robot.nq
+        self.joint_dynamics = _joint_terms(robot, joint_dynamics)
         self.robot = robot
         self.Ts = float(Ts)
         self.substeps = _substeps(Ts, dt)
@@ -299,11 +370,21 @@ class EulerPlant:
         return self.disturbance(self.t, self.q, self.dq)
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``."""
+        """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+            DimensionError: ``tau`` is not of shape (n,).
+        """
+        tau = held_torque(self, tau)
         q, dq, t, h = self.q, self.dq, self.t, self.h
         model, data, aba, dist = self.model, self.data, self.robot.aba, self.disturbance
+        joint = self.joint_dynamics
         for s in range(self.substeps):
-            dq = dq + h * aba(model, data, q, dq, tau + dist(t + s * h, q, dq))
+            u = tau + dist(t + s * h, q, dq)
+            if joint is not None:
+                u = u - joint[0] * dq - joint[1] * np.sign(dq)
+            dq = dq + h * aba(model, data, q, dq, u)
             q = q + h * dq
         self.k += 1
         self.t = self.t0 + self.Ts * self.k

@@ -79,8 +79,11 @@ class Result:
 
     @property
     def observer_error(self) -> np.ndarray:
-        """Observer error :math:`w = d - \\hat d` (Eq 14) [N·m]."""
-        return self.d - self.d_hat
+        """Observer error :math:`w = d - \\hat d` (Eq 14) [N·m]; with a friction model fed
+        forward (``extra["friction_feedforward"]``, :math:`\\tau_f`) the observer
+        estimates what the model leaves, and :math:`w = d + \\tau_f - \\hat d`."""
+        ff = self.extra.get("friction_feedforward")
+        return self.d - self.d_hat if ff is None else self.d + ff - self.d_hat
 
     def save(self, path: str | Path) -> Path:
         """Write the arrays, joint names, completeness flag and metadata to ``.npz``.

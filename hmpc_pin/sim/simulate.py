@@ -101,7 +101,7 @@ def simulate(
             control periods saturated and the largest excess :math:`|\\tau| - \\tau_{\\max}`.
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
-            instant (e.g. :class:`~hmpc_pin.viz.LiveView`).
+            instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
 
     Returns:
         :class:`Result` with K+1 samples, K = round(duration / Ts).

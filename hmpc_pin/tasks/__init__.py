@@ -1,4 +1,4 @@
-"""Tasks: the references the controllers track (one protocol, :mod:`.base`).
+"""Tasks: the references the controllers track (one protocol, :mod:`~hmpc_pin.tasks.base`).
 
 Joint space: the paper's sine, a quintic move, a trajectory through timed samples or from a
 file (:mod:`.trajectory`), joint waypoints retimed by TOPP-RA (:mod:`.waypoints`). Task

@@ -42,7 +42,8 @@ from numpy.typing import NDArray
 from ..exceptions import DimensionError, InterfaceError, LimitError
 from ..native import load as load_native
 
-__all__ = ["Reference", "as_reference", "check_limits", "sample_horizon"]
+__all__ = ["Reference", "as_reference", "check_limits", "check_reference_size",
+           "sample_horizon"]
 
 FloatArray = NDArray[np.float64]
 Pair = tuple[FloatArray, FloatArray]
@@ -79,7 +80,7 @@ def _write(values: Pair, out: Pair | None) -> Pair:
 
 class CompiledSampling:
     """Base of the references that the compiled sampler evaluates (``src/sampler.cpp``):
-    ``sample_many`` and ``sample`` are that one implementation, from :meth:`_form` --
+    ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` --
     ``("sine", ω, φ, amplitude, offset, amplitude·ω)`` or ``("ppoly", t_k, origins,
     [q | q̇] coefficients, degree)``, the same tuple the fused step samples (``native_form``).
     """
@@ -129,7 +130,7 @@ class CompiledSampling:
         return q[0], dq[0]
 
     def native_form(self) -> tuple[Any, ...] | None:
-        """:meth:`_form` for the fused step; ``None`` for a subclass that samples otherwise
+        """``_form()`` for the fused step; ``None`` for a subclass that samples otherwise
         (it overrides ``sample_many`` or ``sample``)."""
         cls = type(self)
         if (cls.sample_many is not CompiledSampling.sample_many
@@ -219,6 +220,22 @@ def as_reference(obj: object) -> Reference:
         "or sample(t) -> (q, dq) of shape (n,), or to be a callable f(t) -> (q, dq)",
         "see hmpc_pin.tasks.base",
     )
+
+
+def check_reference_size(reference: object, n: int, who: str) -> None:
+    """Refuse a reference built for another number of joints than ``n``: one that says
+    its size (attribute ``n``, as the package's references do) is checked when it is
+    given; any other is checked on its first sample (the shapes it returns).
+
+    Raises:
+        DimensionError: ``reference.n`` differs from ``n``.
+    """
+    size = getattr(reference, "n", None)
+    if isinstance(size, (int, np.integer)) and int(size) != n:
+        raise DimensionError(
+            f"{who}: the reference {type(reference).__name__} is for {int(size)} joints but "
+            f"the robot has {n}; build it with one value per joint ({n})"
+        )
 
 
 def sample_horizon(reference: object, times: FloatArray) -> Pair:

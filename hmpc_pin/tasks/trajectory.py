@@ -27,6 +27,7 @@ naming the file, the row or column, and what was expected).
 from __future__ import annotations
 
 import csv
+import difflib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -60,14 +61,14 @@ def _check_samples(
         if arr is not None and not np.all(np.isfinite(arr)):
             k = int(np.argwhere(~np.isfinite(arr.reshape(len(t), -1)))[0][0])
             raise TrajectoryError(
-                where, f"{name} = {arr[k].tolist()} at sample {k} (t = {t[k]:g} s)",
+                where, f"{name} = {arr[k].tolist()} at sample {k} (0-based; t = {t[k]:g} s)",
                 "finite numbers (no NaN or inf)",
             )  # fmt: skip
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0]) + 1
         raise TrajectoryError(
-            where, f"time {t[k]:g} s at sample {k} after {t[k - 1]:g} s",
+            where, f"time {t[k]:g} s at sample {k} (0-based) after {t[k - 1]:g} s",
             "time strictly increasing",
         )  # fmt: skip
     if dq is not None:
@@ -327,12 +328,16 @@ def load_trajectory(path: str | Path, joint_names: Sequence[str]) -> JointTrajec
             raise TrajectoryError(where, f"column {h!r} given twice", "one column per joint")
         column[key] = c
     missing = [j for j in names if j not in column]
+    allowed = set(names) | {f"dq_{j}" for j in names}
     if missing:
+        extra = [h for h in column if h not in allowed]
+        close = difflib.get_close_matches(missing[0], extra, n=1, cutoff=0.6)
+        hint = (f" (column {close[0]!r} is not a joint: a typo of {missing[0]!r}?)" if close
+                else f" (columns that are no joint: {extra})" if extra else "")  # fmt: skip
         raise TrajectoryError(
-            where, f"no column for joint {missing[0]!r}",
+            where, f"no column for joint {missing[0]!r}{hint}",
             f"a column per controlled joint: t, {', '.join(names)} [, dq_<joint>...]",
         )  # fmt: skip
-    allowed = set(names) | {f"dq_{j}" for j in names}
     unknown = [h for h in column if h not in allowed]
     if unknown:
         raise TrajectoryError(

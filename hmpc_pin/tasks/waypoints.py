@@ -16,7 +16,7 @@ starting and ending at rest. The result is sampled every ``dt`` and interpolated
 grid points, and where the interpolant still exceeds :math:`\\alpha` times a limit
 between its samples, time is stretched uniformly (:math:`t \\to \\lambda t`,
 :math:`\\lambda \\ge 1`: same path, velocity / :math:`\\lambda`, acceleration /
-:math:`\\lambda^2`). Why TOPP-RA rather than Ruckig: README, "Tasks".
+:math:`\\lambda^2`). Why TOPP-RA rather than Ruckig: docs, "Tutorials".
 
 ``toppra`` is in the extra ``hmpc_pin[tasks]``; without it :func:`retime_waypoints`
 raises :class:`~hmpc_pin.exceptions.ExtraError` naming the extra.
@@ -91,7 +91,7 @@ def retime_waypoints(
     step = np.linalg.norm(np.diff(way, axis=0), axis=1)
     if np.any(step <= 0):
         k = int(np.flatnonzero(step <= 0)[0]) + 1
-        raise TrajectoryError(where, f"waypoint {k} equals waypoint {k - 1}",
+        raise TrajectoryError(where, f"waypoint {k} equals waypoint {k - 1} (0-based)",
                               "distinct consecutive waypoints")  # fmt: skip
     ta = _toppra()
     ss = np.concatenate([[0.0], np.cumsum(step)])

@@ -9,7 +9,8 @@ Classical Runge–Kutta steps of :math:`h` over one control period with the torq
     k_3 = f(t_s + \\tfrac h2, x + \\tfrac h2 k_2),\\ k_4 = f(t_s + h, x + h k_3),\\
     x \\leftarrow x + \\tfrac h6 (k_1 + 2k_2 + 2k_3 + k_4),
 
-with :math:`f(t, [q; \\dot q]) = [\\dot q; \\mathrm{ABA}(q, \\dot q, \\tau + d(t, q, \\dot q))]`,
+with :math:`f(t, [q; \\dot q]) = [\\dot q; \\mathrm{ABA}(q, \\dot q, \\tau + d(t, q, \\dot q)
+- B\\dot q - F\\,\\mathrm{sgn}\\,\\dot q)]` (``joint = (B, F)``, the joint damping and friction),
 the disturbance called as a plain function at every stage and ABA from Pinocchio's
 Python API -- the plain loop, with none of the compiled period's fusing.
 """
@@ -20,8 +21,11 @@ import numpy as np
 import pinocchio as pin
 
 
-def rk4_period(model, q, dq, tau, disturbance, t: float, h: float, substeps: int, aba=None):
+def rk4_period(model, q, dq, tau, disturbance, t: float, h: float, substeps: int, aba=None,
+               joint=None):
     """``(q, q̇)`` after ``substeps`` RK4 steps of ``h`` from time ``t`` (new arrays).
+
+    ``joint``: ``(B, F)`` per joint, the torque ``−B q̇ − F sgn q̇`` added at every stage.
 
     ``aba(q, v, u)``: the forward dynamics (default Pinocchio's ``pin.aba`` on ``model``;
     a model with mimic joints needs the package's ``Robot.aba``)."""
@@ -32,7 +36,10 @@ def rk4_period(model, q, dq, tau, disturbance, t: float, h: float, substeps: int
             return pin.aba(model, data, q, v, u)
 
     def f(ts, q, v):
-        return v, aba(q, v, tau + disturbance(ts, q.copy(), v.copy()))
+        u = tau + disturbance(ts, q.copy(), v.copy())
+        if joint is not None:
+            u = u - joint[0] * v - joint[1] * np.sign(v)
+        return v, aba(q, v, u)
 
     q, v = np.array(q, dtype=float), np.array(dq, dtype=float)
     for s in range(substeps):

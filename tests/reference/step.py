@@ -11,6 +11,15 @@ other oracles of this folder:
    sampled at :math:`t_k + jT_s,\\ j = 1..N`
    (:class:`~tests.reference.joint_qps.NumpyJointQPs`);
 4. :math:`\\tau = M v + C\\dot q + G - \\hat d` with :math:`v` the first input (Eq 4).
+
+With joint damping and friction ``(B, F)`` compensated, :math:`C\\dot q + G` carries
+:math:`+B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in step 4 (the observer of step 2 is given
+:math:`C\\dot q + G` alone and the applied torque minus the last step's joint-dynamics
+torque :math:`J = B\\dot q + F\\sigma + (g - 1)v/(M^{-1})_{jj}`), and joint j's torque gets
+:math:`(g_j - 1) v_j / (M^{-1})_{jj}`, :math:`g_j = x/(1 - e^{-x})`,
+:math:`x = b_j (M^{-1})_{jj} T_s` (``numpy.linalg.inv``), and the Coulomb term
+:math:`f_j\\,\\mathrm{sgn}\\,\\dot q_j` is replaced by :math:`f_j\\sigma_j`, the sign of the
+velocity's path over the period averaged by quadrature (:meth:`OracleHMPC._mean_sign`).
 """
 
 from __future__ import annotations
@@ -43,20 +52,24 @@ class OracleHMPC:
         if form is not None and form[0] == "ndo":
             self.ndo = NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit")
         self.data = self.robot.model.createData()
+        self.joint = ctrl.joint_dynamics  # (B, F) compensated (zeros: none)
 
     def reset(self, dq0: np.ndarray) -> None:
         if self.ndo is not None:
             self.ndo.reset(dq0)
         self.d_hat = np.zeros(self.robot.nq)
+        self.J = np.zeros(self.robot.nq)  # the joint-dynamics torque of the last step
 
     def step(self, t, q, dq, reference, tau_applied_prev=None) -> tuple[np.ndarray, np.ndarray]:
         """Returns ``(τ, d̂)``; ``tau_applied_prev`` is None at the first step."""
         model, data = self.robot.model, self.data
         M = pin.crba(model, data, q)
         M = np.triu(M) + np.triu(M, 1).T
-        nle = pin.rnea(model, data, q, dq, np.zeros_like(dq))
+        nle0 = pin.rnea(model, data, q, dq, np.zeros_like(dq))
+        B, F = self.joint
         if self.ndo is not None and tau_applied_prev is not None:
-            self.d_hat = self.ndo.update(M, nle, dq, tau_applied_prev)
+            # the rigid body's model; the torque beyond the last step's joint torque J
+            self.d_hat = self.ndo.update(M, nle0, dq, tau_applied_prev - self.J)
         times = t + self.Ts * np.arange(1, self.N + 1)
         q_ref, dq_ref = reference.sample_many(times)
         ref = np.empty((2 * self.N, q.size))
@@ -64,4 +77,41 @@ class OracleHMPC:
         x0 = np.vstack([q, dq])
         G = self.mpc.gradient(x0, ref)
         U, _slack, _soft = self.qps.solve(G, x0)
-        return M @ U[0] + nle - self.d_hat, self.d_hat.copy()
+        v = U[0]
+        minv = np.diag(np.linalg.inv(M))
+        x = B * minv * self.Ts
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g = np.where(x > 0, x / (1.0 - np.exp(-x)), 1.0)
+        sigma = np.sign(dq)
+        for j in np.flatnonzero(F):
+            sigma[j] = self._mean_sign(dq[j], dq[j] + v[j] * self.Ts, x[j])
+        J = B * dq + F * sigma + (g - 1.0) / minv * v
+        tau = M @ v + nle0 + J - self.d_hat
+        self.J = J
+        return tau, self.d_hat.copy()
+
+    @staticmethod
+    def _mean_sign(a: float, c: float, x: float) -> float:
+        """The mean of sgn w(t) over the period weighted by e^{-x(1 - s)}, w the path
+        a + (c - a)(1 - e^{-xs})/(1 - e^{-x}) (linear for x = 0), s = t/Ts: the crossing
+        found by bisection, each side integrated by Simpson's rule."""
+        if a == 0.0 or np.sign(a) == np.sign(c):
+            return float(np.sign(c))
+
+        def w(s):
+            phi = s if x < 1e-8 else np.expm1(-x * s) / np.expm1(-x)
+            return a + (c - a) * phi
+
+        lo, hi = 0.0, 1.0
+        for _ in range(100):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if np.sign(w(mid)) == np.sign(a) else (lo, mid)
+
+        def integral(s0, s1, m=2001):
+            s = np.linspace(s0, s1, m)
+            f = np.exp(-x * (1.0 - s))
+            h = (s1 - s0) / (m - 1)
+            return h / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum())
+
+        before, after = integral(0.0, lo), integral(lo, 1.0)
+        return float((np.sign(a) * before + np.sign(c) * after) / (before + after))

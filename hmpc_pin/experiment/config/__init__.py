@@ -1,11 +1,13 @@
 """The configuration, one module per TOML table (do-mpc style: one settings class per
 component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_config`.
 
-``[robot]`` :mod:`.robot` · ``[controller]`` (and its tables) :mod:`.controller` ·
+``[robot]`` :mod:`.robot` · ``[controller]`` (and its tables) :mod:`.controller`
+(``[controller.friction]`` :mod:`~hmpc_pin.experiment.config.friction`) ·
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
-``[collision]`` :mod:`.collision` · ``[realtime]`` :mod:`.realtime` · the whole file
-:mod:`.experiment`; the value converters shared by all of them :mod:`._fields`; the
+``[sweep.sensing]`` :mod:`.sensing` · ``[collision]`` :mod:`.collision` ·
+``[realtime]`` :mod:`.realtime` · ``[ros]`` :mod:`.ros` · the whole file
+:mod:`.experiment`; the value converters shared by all of them ``_fields``; the
 spellings of earlier versions :mod:`.legacy`. Which ``[controller]`` keys apply to which
 controller × compensation is :mod:`hmpc_pin.experiment.combos`.
 """
@@ -34,6 +36,9 @@ from .experiment import (
     ExperimentConfig,
     load_config,
 )
+from .friction import (
+    FrictionModelConfig,
+)
 from .legacy import CONTROLLER_KINDS, DEFAULT_COMPENSATION, KIND_ALIASES
 from .plant import (
     ENGINES,
@@ -59,18 +64,25 @@ from .reference import (
 from .robot import (
     RobotConfig,
 )
+from .ros import DISCOVERY_RANGES, RosConfig
+from .sensing import (
+    SensingConfig,
+)
 from .simulation import (
     SimulationConfig,
 )
 from .sweep import (
+    CONDITIONS,
     SweepConfig,
 )
 
 __all__ = [
     "COMPENSATIONS",
+    "CONDITIONS",
     "CONTROLLERS",
     "CONTROLLER_KINDS",
     "DEFAULT_COMPENSATION",
+    "DISCOVERY_RANGES",
     "ENGINES",
     "FRICTION_SIGNS",
     "KIND_ALIASES",
@@ -88,6 +100,7 @@ __all__ = [
     "DisturbanceConfig",
     "ExperimentConfig",
     "FrictionConfig",
+    "FrictionModelConfig",
     "ISMConfig",
     "MuJoCoConfig",
     "ObserverConfig",
@@ -98,6 +111,8 @@ __all__ = [
     "RealtimeConfig",
     "ReferenceConfig",
     "RobotConfig",
+    "RosConfig",
+    "SensingConfig",
     "SimulationConfig",
     "SweepConfig",
     "TrajectoryConfig",

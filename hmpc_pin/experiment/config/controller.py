@@ -1,5 +1,6 @@
 """``[controller]`` and its tables ``[controller.observer]``, ``[controller.constraints]``,
-``[controller.ism]``, ``[controller.computed_torque]``; the controller × compensation names."""
+``[controller.ism]``, ``[controller.computed_torque]`` (``[controller.friction]`` is
+:mod:`hmpc_pin.experiment.config.friction`); the controller × compensation names."""
 
 from __future__ import annotations
 
@@ -7,10 +8,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ...checks import mpc_fields
 from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ..combos import HMPC_ONLY, OBSERVERS, applies
-from ._fields import _array, _bool, _choice, _float, _int, _section, _set, _weight
+from ._fields import _array, _bool, _choice, _float, _int, _section, _set
+from .friction import FrictionModelConfig
 from .legacy import KIND_ALIASES, resolve_compensation
 
 #: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
@@ -26,7 +29,7 @@ def parse_combination(name: str, key: str = "controller") -> tuple[str, str | No
     """``"controller+compensation"``, a 0.1 alias or a bare controller → the pair.
 
     A bare controller gives ``(controller, None)``: its compensation is decided by the
-    caller (the config's, or :data:`DEFAULT_COMPENSATION`).
+    caller (the config's, or :data:`~hmpc_pin.experiment.config.legacy.DEFAULT_COMPENSATION`).
 
     Raises:
         ConfigError: Unknown controller or compensation, naming ``key``.
@@ -60,7 +63,13 @@ class ObserverConfig:
 
     Attributes:
         gain: Observer gain c (the paper does not give it; 100 is this project's choice,
-            README); for ``"momentum"`` the gain K_O [1/s].
+            docs, "Decisions"); for ``"momentum"`` the gain K_O [1/s]. ``None`` when ``bandwidth``
+            is given.
+        bandwidth: The observer's bandwidth ω [1/s], one value or one per joint, instead
+            of ``gain`` (not both): the rate at which each joint's estimation error decays
+            (``"general"``: cY = diag(ω) M(q0); ``"momentum"``: K_O = ω; not for
+            ``"chen"``, whose Y is fixed). Checked against the rule of
+            :mod:`hmpc_pin.compensation.bandwidth` (a warning names the joints above it).
         discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``
             (not for ``"momentum"``, which is always semi-implicit).
         enabled: Version 0.1 key, with ``kind = "hmpc"`` only: ``false`` means
@@ -71,17 +80,26 @@ class ObserverConfig:
             ``[controller] compensation``.
     """
 
-    gain: float = 100.0
+    gain: float | None = None
     discretization: str = "implicit"
     enabled: bool | None = None
     kind: str | None = None
+    bandwidth: np.ndarray | None = None
 
     def __post_init__(self):
         if self.enabled is not None:
             _set(self, "enabled", _bool("enabled", self.enabled))
         if self.kind is not None:
             _set(self, "kind", _choice("kind", self.kind, OBSERVERS))
-        _set(self, "gain", _float("gain", self.gain, positive=True))
+        if self.bandwidth is not None:
+            if self.gain is not None:
+                raise ConfigError(
+                    "bandwidth", "give the observer's gain or its bandwidth, not both"
+                )
+            _set(self, "bandwidth", _array("bandwidth", self.bandwidth, positive=True))
+        else:
+            gain = 100.0 if self.gain is None else self.gain
+            _set(self, "gain", _float("gain", gain, positive=True))
         _set(
             self,
             "discretization",
@@ -153,7 +171,8 @@ class ConstraintConfig:
 
 @dataclass(frozen=True, eq=False)
 class ISMConfig:
-    """Integral sliding mode loop of ``hmpc-ism`` / ``hmpc-ism-bl`` (:mod:`hmpc_pin.ism`).
+    """Integral sliding mode loop of ``hmpc-ism`` / ``hmpc-ism-bl``
+    (:mod:`hmpc_pin.compensation.ism`).
 
     Attributes:
         gain: Switching gain K [rad/s²], above the bound of the matched disturbance
@@ -183,7 +202,7 @@ class ComputedTorqueConfig:
 
     By default the PD gains are the MPC's own unconstrained state-feedback gain (so both
     loops have the same closed-loop poles, i.e. the same bandwidth) and the integral gain
-    gives the PID loop its fastest decay (:mod:`hmpc_pin.computed_torque`).
+    gives the PID loop its fastest decay (:mod:`hmpc_pin.controllers.computed_torque`).
 
     Attributes:
         kp: Proportional gain [1/s²]; ``None`` for the MPC-equivalent gain.
@@ -203,7 +222,7 @@ class ComputedTorqueConfig:
 
 @dataclass(frozen=True, eq=False)
 class ControllerConfig:
-    """The controller: an outer loop × a disturbance compensation (README "Controllers").
+    """The controller: an outer loop × a disturbance compensation (docs, "Controllers").
 
     Every default is the paper's value (Section 4): ``ControllerConfig()`` is the
     paper's scheme, ``hmpc`` × ``chen``. A table that does not apply to the chosen
@@ -215,9 +234,10 @@ class ControllerConfig:
     Attributes:
         kind: The controller, one of :data:`CONTROLLERS` (default ``"hmpc"``), or a
             version-0.1 name of :data:`KIND_ALIASES` (``"hmpc-ism"`` = ``hmpc`` × ``ism``).
-        compensation: One of :data:`COMPENSATIONS`; default :data:`DEFAULT_COMPENSATION`
-            of the controller (for ``hmpc`` written the 0.1 way, the
-            ``observer.enabled``/``observer.kind`` keys decide).
+        compensation: One of :data:`COMPENSATIONS`; default
+            :data:`~hmpc_pin.experiment.config.legacy.DEFAULT_COMPENSATION` of the controller
+            (for ``hmpc`` written the 0.1 way, the ``observer.enabled``/``observer.kind``
+            keys decide).
         Ts: Control period [s] (paper: 0.01).
         N: Prediction horizon [steps] (paper: 10).
         Nc: Control horizon [steps], 1 <= Nc <= N (paper: 1).
@@ -228,8 +248,8 @@ class ControllerConfig:
             (paper: −100, 100).
         observer: :class:`ObserverConfig` (compensations ``chen``, ``general``, ``momentum``).
         constraints: :class:`ConstraintConfig` (``hmpc``: joint limits as soft constraints).
-        eps_abs: ProxSuite absolute tolerance (``hmpc``).
-        max_iter: ProxSuite iteration cap per solve (``hmpc``).
+        eps_abs: ProxSuite absolute tolerance (``hmpc``; unset: 1e-9).
+        max_iter: ProxSuite iteration cap per solve (``hmpc``; unset: 1000).
         qp_layout: ``"auto"`` (default: ``"block"`` up to n·Nc = 140 QP variables,
             ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
             QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per
@@ -238,7 +258,18 @@ class ControllerConfig:
             compiled one, :mod:`hmpc_pin.native`; ``"auto"`` and ``"native"`` load silently,
             ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.
         ism: :class:`ISMConfig` (compensations ``ism``, ``ism-bl``).
+        joint_dynamics: Compensate the URDF's joint damping and Coulomb friction in the
+            inverse dynamics, :math:`\\tau \\mathrel{+}= b\\dot q + f\\,\\mathrm{sgn}\\,\\dot q`,
+            with the zero-order-hold gain of the damped joints (``hmpc``; default ``true``;
+            no effect on an arm whose URDF declares none).
         computed_torque: :class:`ComputedTorqueConfig` (``computed-torque*``).
+        latency: Age of the measurements the controller receives [s] (``hmpc``;
+            default 0). With L > 0 the compensation is fed the torque applied over the
+            interval its measurements span and the MPC and the inverse dynamics start from
+            the state predicted over L (guide "Sensing and latency"); a fraction of Ts is
+            allowed.
+        friction: :class:`~hmpc_pin.experiment.config.friction.FrictionModelConfig`: the
+            arm's friction, compensated feed-forward (every pair; ``None``: none).
     """
 
     kind: str = "hmpc"
@@ -259,32 +290,21 @@ class ControllerConfig:
     backend: str | None = None
     ism: ISMConfig | None = None
     computed_torque: ComputedTorqueConfig | None = None
+    latency: float | None = None
+    friction: FrictionModelConfig | None = None
+    joint_dynamics: bool | None = None
 
     def __post_init__(self):
-        _set(self, "Ts", _float("Ts", self.Ts, positive=True))
-        _set(self, "N", _int("N", self.N, minimum=1))
-        _set(self, "Nc", _int("Nc", self.Nc, minimum=1))
-        if self.Nc > self.N:
-            raise ConfigError("Nc", f"{self.Nc=} but {self.N=}; expected 1 <= Nc <= N")
-        _set(self, "Q", _weight("Q", self.Q))
-        _set(self, "P", _weight("P", self.P))
-        _set(self, "R", _float("R", self.R, positive=True))
-        _set(self, "v_min", _array("v_min", self.v_min))
-        _set(self, "v_max", _array("v_max", self.v_max))
-        if self.v_min.shape != self.v_max.shape and self.v_min.ndim and self.v_max.ndim:
-            raise ConfigError(
-                "v_max", f"{self.v_min.shape=} but {self.v_max.shape=}; give both per joint"
-            )
-        if np.any(self.v_min >= self.v_max):
-            raise ConfigError(
-                "v_min",
-                f"v_min={self.v_min.tolist()} must be < v_max={self.v_max.tolist()} on every joint",
-            )
+        fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
+                            self.v_max)  # fmt: skip  (the checks of MPCSettings too)
+        for name, value in fields.items():
+            _set(self, name, value)
         for name, cls in (
             ("observer", ObserverConfig),
             ("constraints", ConstraintConfig),
             ("ism", ISMConfig),
             ("computed_torque", ComputedTorqueConfig),
+            ("friction", FrictionModelConfig),
         ):
             value = getattr(self, name)
             if isinstance(value, dict):
@@ -311,6 +331,11 @@ class ControllerConfig:
             obs = obs if obs is not None else ObserverConfig()
             if (obs.enabled, obs.kind) != (None, None):  # 0.1 keys, now resolved
                 obs = replace(obs, enabled=None, kind=None)
+            if comp == "chen" and obs.bandwidth is not None:
+                raise ConfigError(
+                    "observer.bandwidth", "does not apply to compensation 'chen' (its Y is "
+                    "fixed, Eq 28); give gain, or use compensation 'general' or 'momentum'",
+                )  # fmt: skip
             if comp == "momentum" and obs.discretization != "implicit":
                 raise ConfigError(
                     "observer.discretization",
@@ -352,6 +377,10 @@ class ControllerConfig:
             _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
             backend = "auto" if self.backend is None else self.backend
             _set(self, "backend", _choice("backend", backend, BACKENDS))
+            latency = 0.0 if self.latency is None else self.latency
+            _set(self, "latency", _float("latency", latency, nonneg=True))
+            jd = True if self.joint_dynamics is None else self.joint_dynamics
+            _set(self, "joint_dynamics", _bool("joint_dynamics", jd))
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)
@@ -371,7 +400,7 @@ class ControllerConfig:
         raise ConfigError(
             name,
             f"does not apply to {controller} × {comp}; remove it, or choose a controller "
-            "and compensation it applies to (README, Controllers)",
+            "and compensation it applies to (docs, Controllers)",
         )
 
     @property

@@ -19,7 +19,7 @@ class FrictionConfig:
         coulomb: b [N·m] (paper: 3.0, 2.4, 1.8).
         sign: ``"opposing"`` (default, physical): :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,
             \\dot q)`; ``"literal"``: the paper's Eq 32 as printed, :math:`d = +F`, friction
-            feeding energy in (the second reading of the paper, README "Friction sign").
+            feeding energy in (the second reading of the paper, docs, "Decisions").
     """
 
     viscous: np.ndarray = field(default_factory=lambda: np.array([10.0, 8.0, 5.0]))

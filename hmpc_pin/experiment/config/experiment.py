@@ -20,6 +20,7 @@ from .plant import PlantConfig
 from .realtime import RealtimeConfig
 from .reference import SINE_KEYS, ReferenceConfig
 from .robot import RobotConfig
+from .ros import RosConfig
 from .simulation import SimulationConfig
 from .sweep import SweepConfig
 
@@ -46,6 +47,7 @@ class ExperimentConfig:
     realtime: RealtimeConfig = field(default_factory=RealtimeConfig)
     source: Path | None = None
     collision: CollisionConfig | None = None
+    ros: RosConfig = field(default_factory=RosConfig)
 
     def __post_init__(self):
         for name in ("name", "description"):
@@ -96,6 +98,8 @@ class ExperimentConfig:
             keys += [f"plant.mujoco.{k}" for k in ("frictionloss", "damping", "armature")]
         if self.collision is not None:
             keys.append("collision.threshold")
+        if self.controller.friction is not None:
+            keys += ["controller.friction.viscous", "controller.friction.coulomb"]
         if self.disturbance.pulse is not None:
             keys += [
                 "disturbance.pulse.amplitude",
@@ -110,6 +114,54 @@ class ExperimentConfig:
             raise ConfigError(
                 exc.key, exc.message, source=str(self.source) if self.source else None
             ) from None
+
+
+def _urdf_path(key: str, given: Path, base: Path) -> Path:
+    """The URDF ``given`` under ``key``, resolved against the config's folder ``base``
+    (an absolute path is kept); a file that is not there is a :class:`ConfigError`
+    naming the key, the path tried and what to write instead (a config moved without its
+    URDF, or copied out of the repository)."""
+    resolved = given if given.is_absolute() else (base / given).resolve()
+    if resolved.is_file():
+        return resolved
+    if resolved.exists():
+        raise ConfigError(key, f"{str(given)!r} is not a file ({resolved} is a directory); "
+                          "give the path of a .urdf file")  # fmt: skip
+    hints = []
+    beside = base / given.name
+    if beside.is_file() and beside.resolve() != resolved:
+        hints.append(f"{given.name} is next to the config: write {key.split('.')[1]} = "
+                     f'"{given.name}"')  # fmt: skip
+    cwd = Path.cwd() / given
+    if not given.is_absolute() and cwd.is_file():
+        hints.append(f"it exists relative to the current directory ({cwd}), but a relative "
+                     "path is relative to the config file's folder")  # fmt: skip
+    if _shipped_robot(given.stem):
+        hints.append(f'for the robot shipped with hmpc_pin write model = "{given.stem}" '
+                     "instead of urdf")  # fmt: skip
+    else:
+        hints.append("give an existing .urdf (absolute, or relative to the config file), or "
+                     'model = "planar3" (or an example-robot-data name) for a shipped '
+                     "robot")  # fmt: skip
+    raise ConfigError(
+        key,
+        f"{str(given)!r} not found: tried {resolved} (relative paths are relative to the "
+        f"config file's folder, {base.resolve()}); " + "; ".join(hints),
+    )
+
+
+def _shipped_robot(name: str) -> bool:
+    """Whether ``name`` is a robot ``model =`` loads (shipped, or example-robot-data)."""
+    from ...data import robot_path
+
+    if robot_path(name) is not None:
+        return True
+    try:
+        from ...model.robot import example_robot_names
+
+        return name in example_robot_names()
+    except ImportError:  # pragma: no cover - a dependency of the package
+        return False
 
 
 def load_config(path: str | Path) -> ExperimentConfig:
@@ -151,6 +203,7 @@ def load_config(path: str | Path) -> ExperimentConfig:
         "sweep": SweepConfig,
         "collision": CollisionConfig,
         "realtime": RealtimeConfig,
+        "ros": RosConfig,
     }
     top_allowed = set(sections) | {"name", "description"}
     unknown = sorted(set(raw) - top_allowed)
@@ -165,8 +218,8 @@ def load_config(path: str | Path) -> ExperimentConfig:
                 kwargs[name] = _section(cls, raw[name], name)
         base = path.parent
         robot = kwargs.get("robot", RobotConfig())
-        if robot.urdf is not None and not robot.urdf.is_absolute():
-            robot = replace(robot, urdf=(base / robot.urdf).resolve())
+        if robot.urdf is not None:
+            robot = replace(robot, urdf=_urdf_path("robot.urdf", robot.urdf, base))
         kwargs["robot"] = robot
         plant = kwargs.get("plant", PlantConfig())
         given = [k for k in ("dt", "integrator") if k in raw.get("plant", {})]
@@ -175,8 +228,8 @@ def load_config(path: str | Path) -> ExperimentConfig:
                 f"plant.{given[0]}", "does not apply to engine = 'mujoco'; set "
                 f"plant.mujoco.{'timestep' if given[0] == 'dt' else 'integrator'} instead",
             )  # fmt: skip
-        if plant.urdf is not None and not plant.urdf.is_absolute():
-            plant = replace(plant, urdf=(base / plant.urdf).resolve())
+        if plant.urdf is not None:
+            plant = replace(plant, urdf=_urdf_path("plant.urdf", plant.urdf, base))
         kwargs["plant"] = plant
         if (
             "collision" in kwargs

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -64,9 +65,12 @@ class MuJoCoConfig:
             value (default 0).
         damping: Viscous joint damping [N·m·s/rad], per joint or one value (default 0).
         armature: Rotor inertia added to each joint [kg·m²] (default 0).
-        import_urdf_dynamics: Also apply the URDF's ``<dynamics damping friction>``
-            (added to the values above; default ``false``: the controller's Pinocchio
-            model ignores them too).
+        friction_timeconst: Time constant [s] of MuJoCo's joint dry-friction constraint
+            (``dof_solref``; default: MuJoCo's 0.02 s). Shorter is closer to Coulomb's
+            :math:`-f\\,\\mathrm{sgn}\\,\\dot q`; at least twice ``timestep``.
+        import_urdf_dynamics: Deprecated since 0.3: use ``[plant] joint_dynamics`` (the
+            same switch for every engine). Loads with a :class:`DeprecationWarning` and
+            sets ``plant.joint_dynamics``.
         geometry: Collision geometry of the arm: ``"collision"`` (the URDF's, default),
             ``"visual"`` (its visual shapes, for an arm without collision tags) or
             ``"none"`` (dynamics only).
@@ -78,16 +82,28 @@ class MuJoCoConfig:
     frictionloss: np.ndarray = 0.0
     damping: np.ndarray = 0.0
     armature: np.ndarray = 0.0
-    import_urdf_dynamics: bool = False
+    friction_timeconst: float | None = None
+    import_urdf_dynamics: bool | None = None
     geometry: str = "collision"
     obstacle: ObstacleConfig | None = None
 
     def __post_init__(self):
         _set(self, "integrator", _choice("integrator", self.integrator, tuple(MUJOCO_INTEGRATORS)))
         _set(self, "timestep", _float("timestep", self.timestep, positive=True))
+        if self.friction_timeconst is not None:
+            tc = _float("friction_timeconst", self.friction_timeconst, positive=True)
+            if tc < 2 * self.timestep:
+                raise ConfigError(
+                    "friction_timeconst", f"{tc:g} s is below 2 timesteps "
+                    f"({2 * self.timestep:g} s), where MuJoCo's soft constraint is unstable; "
+                    "expected at least twice plant.mujoco.timestep",
+                )  # fmt: skip
+            _set(self, "friction_timeconst", tc)
         for name in ("frictionloss", "damping", "armature"):
             _set(self, name, _array(name, getattr(self, name), nonneg=True))
-        _set(self, "import_urdf_dynamics", _bool("import_urdf_dynamics", self.import_urdf_dynamics))
+        if self.import_urdf_dynamics is not None:
+            _set(self, "import_urdf_dynamics",
+                 _bool("import_urdf_dynamics", self.import_urdf_dynamics))  # fmt: skip
         _set(self, "geometry", _choice("geometry", self.geometry, GEOMETRY_SOURCES))
         if isinstance(self.obstacle, dict):
             _set(self, "obstacle", _section(ObstacleConfig, self.obstacle, "obstacle"))
@@ -116,6 +132,11 @@ class PlantConfig:
         effort_limit: Effort limits [N·m] overriding the URDF's (per joint or one value);
             ``None`` keeps the URDF's (a URDF value <= 0 means no limit).
         mujoco: :class:`MuJoCoConfig` (``engine = "mujoco"`` only).
+        joint_dynamics: Apply the URDF's ``<dynamics damping friction>`` of every joint:
+            viscous damping :math:`-b\\dot q` [N·m·s/rad] and Coulomb friction
+            :math:`-f\\,\\mathrm{sgn}\\,\\dot q` [N·m] (MuJoCo: ``dof_damping`` and the
+            ``frictionloss`` constraint, added to ``[plant.mujoco]``'s own). Default
+            ``true``; ``false`` simulates the arm without them.
         backend: Deprecated since 0.3, without effect (``integrator = "rk4"`` only): the
             period is always the compiled one; ``"python"`` loads with a
             :class:`DeprecationWarning`.
@@ -130,6 +151,7 @@ class PlantConfig:
     engine: str = "pinocchio"
     mujoco: MuJoCoConfig | None = None
     backend: str = "auto"
+    joint_dynamics: bool = True
 
     def __post_init__(self):
         if self.urdf is not None:
@@ -149,6 +171,21 @@ class PlantConfig:
         elif self.mujoco is not None and not isinstance(self.mujoco, MuJoCoConfig):
             raise ConfigError("mujoco", f"expected a table, got {self.mujoco!r}")
         _set(self, "backend", _choice("backend", self.backend, BACKENDS))
+        _set(self, "joint_dynamics", _bool("joint_dynamics", self.joint_dynamics))
+        old = self.mujoco.import_urdf_dynamics if isinstance(self.mujoco, MuJoCoConfig) else None
+        if old is not None:
+            if not self.joint_dynamics and old:
+                raise ConfigError(
+                    "mujoco.import_urdf_dynamics", "is true but plant.joint_dynamics is false; "
+                    "remove the deprecated key and keep plant.joint_dynamics",
+                )  # fmt: skip
+            warnings.warn(
+                "plant.mujoco.import_urdf_dynamics is deprecated since 0.3; use "
+                f"plant.joint_dynamics = {str(old).lower()} (one switch for every engine)",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            _set(self, "joint_dynamics", old)
         if self.backend != "auto" and (self.engine != "pinocchio" or self.integrator != "rk4"):
             raise ConfigError(
                 "backend", f"does not apply to engine = {self.engine!r}, integrator = "

@@ -141,13 +141,19 @@ class PoseConfig:
         orientation: Orientation held by ``circle`` and ``line`` (default: the frame's at
             ``q_init``).
         center: Circle centre [m] (default: so that the circle starts at the frame's
-            position at ``q_init``). radius: [m]. frequency: [Hz]. plane: ``"xy"``,
-            ``"xz"``, ``"yz"`` or a normal ``[nx, ny, nz]`` (default ``"yz"``). ramp: time
-            [s] over which the circle's angular speed rises from rest (minimum-jerk
+            position at ``q_init``).
+        radius: Circle radius [m].
+        frequency: Circle frequency [Hz].
+        plane: Circle plane: ``"xy"``, ``"xz"``, ``"yz"`` or a normal ``[nx, ny, nz]``
+            (default ``"yz"``).
+        ramp: Time [s] over which the circle's angular speed rises from rest (minimum-jerk
             profile; default 0: the circle starts at full speed).
-        start: Line start [m] (default: the frame's position at ``q_init``). end: [m].
-        t_start: Line start time [s]. duration: Line duration [s] (minimum-jerk timing).
-        times: Waypoint times [s], strictly increasing. positions: Waypoint positions [m].
+        start: Line start [m] (default: the frame's position at ``q_init``).
+        end: Line end [m].
+        t_start: Line start time [s].
+        duration: Line duration [s] (minimum-jerk timing).
+        times: Waypoint times [s], strictly increasing.
+        positions: Waypoint positions [m].
         orientations: Waypoint quaternions (default: the frame's at ``q_init`` for all).
         dt: Period of the IK samples [s].
         posture_cost: Weight of the posture term relative to the frame task.
@@ -251,7 +257,7 @@ REFERENCE_TABLES = {
 @dataclass(frozen=True, eq=False)
 class ReferenceConfig:
     """Joint reference: the sine of Eq (31), the Cartesian motion of Section 5.4, a
-    trajectory file, joint waypoints or an end-effector task (README, "Tasks").
+    trajectory file, joint waypoints or an end-effector task (docs, "Tutorials").
 
     ``kind = "sine"``: :math:`r_i = o_i + a_i \\sin(2\\pi f_i t + \\phi_i)`. Every other
     kind needs its own table (``[reference.cartesian]``, ``[reference.trajectory]``,

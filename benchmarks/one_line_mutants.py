@@ -1,0 +1,161 @@
+"""Kill rate of one-line mutations: apply each, run the tests that cover that code, revert.
+
+A mutant is *killed* when its tests fail. The set covers the code of the reliability
+checks (start-up guard, library validation, inertia check, moved configs, contact lines)
+and the code whose one-line bugs an earlier suite missed (retiming, trajectory files,
+pose IK, quaternions, MuJoCo mapping, collision watch, measurement model, init's speed
+cap, the applied-torque clip). Run from the repository root:
+
+    .venv/bin/python benchmarks/one_line_mutants.py [--only SUBSTRING]
+
+Prints one line per mutant and the kill rate per group.
+"""
+
+# ruff: noqa: E501  (the mutants are one source line each)
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+IC = "tests/test_independent_checks.py"
+LV = "tests/test_library_validation.py"
+
+#: (group, file, old line part, new line part, tests)
+MUTANTS = [
+    # ---- code of this round (reliability)
+    ("new", "hmpc_pin/checks.py", 'if out["Nc"] > out["N"]:', 'if out["Nc"] >= out["N"]:', [LV]),
+    ("new", "hmpc_pin/checks.py", "if np.any(lo >= hi):", "if np.any(lo > hi):", [LV]),
+    ("new", "hmpc_pin/checks.py", "if positive and x <= 0:", "if positive and x < 0:", [LV]),
+    ("new", "hmpc_pin/compensation/base.py", "if shape != (n,):", "if shape != (n,) and False:", [LV]),
+    ("new", "hmpc_pin/compensation/base.py", "rel_tol=1e-9):", "rel_tol=1.0):", [LV]),
+    ("new", "hmpc_pin/compensation/base.py", 'and not robot.is_planar_chain():',
+     'and robot.is_planar_chain():', [LV]),
+    ("new", "hmpc_pin/tasks/base.py", "and int(size) != n:", "and int(size) > n:", [LV]),
+    ("new", "hmpc_pin/sim/plants.py", "    if not plant._was_reset:", "    if False:", [LV]),
+    ("new", "hmpc_pin/sim/plants.py", "if tau.shape != (plant.n,):", "if tau.ndim != 1:", [LV]),
+    ("new", "hmpc_pin/controllers/hierarchical.py", "            if not self._was_reset:",
+     "            if self._was_reset is None:", [LV]),
+    ("new", "hmpc_pin/model/robot.py", "if moments[0] < -1e-9 * scale:",
+     "if moments[0] < -1e-3 * scale:", ["tests/test_inertias.py"]),
+    ("new", "hmpc_pin/model/robot.py", "if moments[0] + moments[1] < moments[2]",
+     "if moments[0] + moments[2] < moments[1]", ["tests/test_inertias.py"]),
+    ("new", "hmpc_pin/model/robot.py", "movable = joint.get(\"type\") != \"fixed\"",
+     "movable = True or joint.get(\"type\") != \"fixed\"", ["tests/test_inertias.py"]),
+    ("new", "hmpc_pin/model/robot.py", "if not (math.isfinite(mass) and mass >= 0):",
+     "if not math.isfinite(mass):", ["tests/test_inertias.py"]),
+    ("new", "hmpc_pin/experiment/config/experiment.py",
+     "resolved = given if given.is_absolute() else (base / given).resolve()",
+     "resolved = given if given.is_absolute() else given.resolve()",
+     ["tests/test_moved_configs.py"]),
+    ("new", "hmpc_pin/experiment/config/experiment.py", "if _shipped_robot(given.stem):",
+     "if _shipped_robot(given.name):", ["tests/test_moved_configs.py"]),
+    ("new", "hmpc_pin/apps/metrics.py", "j = int(np.argmax(peak))", "j = 0",
+     [IC + "::test_contact_lines_name_the_joint_of_the_peak_force_and_its_unit",
+      "tests/test_cli_outputs.py::test_run_prints_the_first_contact_and_the_collision_flag"]),
+    ("new", "hmpc_pin/_startup.py", "    signal.signal(signal.SIGINT, signal.default_int_handler)",
+     "    pass", ["tests/test_interrupts.py::test_ctrl_c_while_the_figures_are_drawn_names_the_files_written"]),
+    ("new", "hmpc_pin/apps/run.py", "        if not getattr(exc, \"files\", ()):",
+     "        if getattr(exc, \"files\", ()):",
+     ["tests/test_interrupts.py::test_ctrl_c_while_the_figures_are_drawn_names_the_files_written"]),
+    # ---- code an earlier suite let one-line bugs through
+    ("earlier", "hmpc_pin/controllers/base.py", "return np.clip(self.tau, effort[0], effort[1], out=effort[2])",
+     "return self.tau", [IC]),
+    ("earlier", "hmpc_pin/controllers/wrappers.py", "ratio = np.abs(self.gate.observed) / self.threshold",
+     "ratio = self.gate.observed / self.threshold", [IC]),
+    ("earlier", "hmpc_pin/controllers/wrappers.py", "self._hold = _Hold(q)", "self._hold = _Hold(q * 0)", [IC]),
+    ("earlier", "hmpc_pin/controllers/wrappers.py", "return q + self.q_noise * noise[:n], dq + self.dq_noise * noise[n:]",
+     "return q + self.q_noise * noise[:n], dq + self.dq_noise * noise[:n]", [IC]),
+    ("earlier", "hmpc_pin/controllers/wrappers.py", "return q + self.q_noise * noise[:n], dq + self.dq_noise * noise[n:]",
+     "return q + self.dq_noise * noise[:n], dq + self.q_noise * noise[n:]", [IC]),
+    ("earlier", "hmpc_pin/tasks/pose.py", "return -coeffs if coeffs[3] < 0 else coeffs",
+     "return -coeffs if coeffs[3] > 0 else coeffs", [IC]),
+    ("earlier", "hmpc_pin/tasks/pose.py", "return pin.Quaternion(w, x, y, z).toRotationMatrix()",
+     "return pin.Quaternion(w, -x, -y, -z).toRotationMatrix()", [IC]),
+    ("earlier", "hmpc_pin/tasks/pose.py", "if e_pos > position_tol or e_rot > orientation_tol:",
+     "if e_pos > position_tol and e_rot > orientation_tol:", [IC]),
+    ("earlier", "hmpc_pin/tasks/pose.py", "if e_pos > position_tol or e_rot > orientation_tol:",
+     "if e_pos > position_tol:", [IC]),
+    ("earlier", "hmpc_pin/tasks/trajectory.py", "tol = 0.25 * np.abs(step).max(axis=0) + 1e-6",
+     "tol = 0.25 * np.abs(step).max() + 1e-6", [IC]),
+    ("earlier", "hmpc_pin/tasks/waypoints.py", "lam = max(1.0, v_ratio / margin, np.sqrt(a_ratio / margin))",
+     "lam = max(1.0, v_ratio / margin, a_ratio / margin)", [IC]),
+    ("earlier", "hmpc_pin/tasks/waypoints.py", "lam = max(1.0, v_ratio / margin, np.sqrt(a_ratio / margin))",
+     "lam = max(1.0, v_ratio / margin)", [IC]),
+    ("earlier", "hmpc_pin/tasks/waypoints.py", "return JointTrajectory(ts * lam + t_start, q, dq / lam,",
+     "return JointTrajectory((ts + t_start) * lam, q, dq / lam,", [IC]),
+    ("earlier", "hmpc_pin/tasks/waypoints.py", "ddq=ddq / lam**2)", "ddq=ddq / lam)", [IC]),
+    ("earlier", "hmpc_pin/experiment/init.py", "speed_cap = np.where(vmax > 0, 0.5 * vmax / (2 * np.pi * amp), np.inf)",
+     "speed_cap = np.where(vmax > 0, 0.5 * vmax / (np.pi * amp), np.inf)", [IC]),
+    ("earlier", "hmpc_pin/experiment/init.py", "self.frequency = float(min(FREQUENCY, speed_cap.min()))",
+     "self.frequency = float(min(FREQUENCY, speed_cap[0]))", [IC]),
+    ("earlier", "hmpc_pin/sim/mujoco.py", "dofs = np.array([model.joint(name).dofadr[0] for name in robot.joint_names])",
+     "dofs = np.arange(robot.nq)", [IC]),
+    ("earlier", "hmpc_pin/sim/mujoco.py", "self.engine_force = d.qfrc_constraint + d.qfrc_passive",
+     "self.engine_force = d.qfrc_constraint - d.qfrc_passive", [IC]),
+    # ---- written after the tests were final (no test changed for them): an unbiased sample
+    ("fresh", "hmpc_pin/checks.py", "if lo.shape != hi.shape and lo.ndim and hi.ndim:", "if False:", [LV, "tests/test_config.py"]),
+    ("fresh", "hmpc_pin/model/robot.py", "moving[link] = movable or moves(par, depth + 1)", "moving[link] = movable", ["tests/test_inertias.py"]),
+    ("fresh", "hmpc_pin/experiment/config/experiment.py", "if beside.is_file() and beside.resolve() != resolved:",
+     "if beside.is_file() and beside.resolve() == resolved:", ["tests/test_moved_configs.py"]),
+    ("fresh", "hmpc_pin/realtime/process_arm.py", "            self.close(wait=0.0)", "            pass",
+     ["tests/test_interrupts.py", "-k", "any_instant and realtime"]),
+    ("fresh", "hmpc_pin/_startup.py", "            return next(args, None) in names", "            return False",
+     ["tests/test_interrupts.py", "-k", "any_instant and run"]),
+    ("fresh", "hmpc_pin/apps/cli.py", 'if touch is not None and line.startswith("tracking error"):',
+     'if touch is None and line.startswith("tracking error"):', ["tests/test_cli_outputs.py"]),
+    ("fresh", "hmpc_pin/controllers/computed_torque.py", 'if not getattr(self, "_was_reset", False):',
+     'if getattr(self, "_was_reset", True) is None:', [LV]),
+    ("fresh", "hmpc_pin/sim/mujoco.py", "        tau = held_torque(self, tau)", "        tau = np.asarray(tau, dtype=float)", [LV]),
+    ("fresh", "hmpc_pin/apps/viz.py", "        _meshcat()", "        pass", ["tests/test_cli_outputs.py"]),
+]
+
+
+def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
+    _group, file, old, new, tests = mutant
+    path = ROOT / file
+    text = path.read_text(encoding="utf-8")
+    count = text.count(old)
+    if count != 1:
+        raise SystemExit(f"{file}: {old!r} occurs {count} times; expected once")
+    path.write_text(text.replace(old, new), encoding="utf-8")
+    start = time.perf_counter()
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests],
+            cwd=ROOT, capture_output=True, text=True, timeout=timeout,
+        )  # fmt: skip
+        killed = proc.returncode != 0
+    except subprocess.TimeoutExpired:
+        killed = True
+    finally:
+        path.write_text(text, encoding="utf-8")
+    return killed, time.perf_counter() - start
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", default="", help="run the mutants whose file contains this")
+    parser.add_argument("--group", default="", help="run one group: new, earlier or fresh")
+    args = parser.parse_args()
+    tally: dict[str, list[int]] = {}
+    for mutant in MUTANTS:
+        if args.only not in mutant[1] or (args.group and mutant[0] != args.group):
+            continue
+        killed, seconds = run(mutant)
+        tally.setdefault(mutant[0], [0, 0])
+        tally[mutant[0]][0] += killed
+        tally[mutant[0]][1] += 1
+        print(f"{'killed ' if killed else 'SURVIVED'} {seconds:5.1f} s  {mutant[1]}: "
+              f"{mutant[2]!r} -> {mutant[3]!r}", flush=True)  # fmt: skip
+    for group, (k, n) in tally.items():
+        print(f"{group}: {k} of {n} killed ({100 * k / n:.0f} %)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,102 @@
+"""Ctrl-C during the command line's start-up: exit 130 at once, with one line.
+
+While ``hmpc-pin`` starts (imports, reading the config, loading the URDF, building the
+controller) nothing has been written and no process started, so a Ctrl-C needs no
+clean-up: :func:`guard` installs a SIGINT handler that prints one line and ends the
+process with exit status 130 at once. A handler that ends the process is the only
+reliable one here: a ``KeyboardInterrupt`` raised during an import is swallowed by a
+library's ``except BaseException`` (``yourdfpy`` → trimesh does that) or aborts the
+process when it crosses compiled code.
+
+The command ends the start-up (:func:`end`) just before its first side effect (an output
+folder, a process, a file): from then on Ctrl-C raises :class:`KeyboardInterrupt` again and
+the command stops the way it documents (what was computed is written, the arm gets its
+safe torque). :func:`end` first imports the modules whose import swallows Ctrl-C, so that
+no later import can.
+
+The package's ``__init__`` calls :func:`guard` first of all when the process is the
+command line (``hmpc-pin`` or ``python -m hmpc_pin``), so that the guard covers the
+package's own imports; library users never get a handler installed.
+
+This module imports nothing from the package (it runs before the package is imported).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+
+#: Exit status of a Ctrl-C (128 + SIGINT, the shell's convention).
+EXIT_INTERRUPTED = 130
+
+#: The line printed by a Ctrl-C during start-up.
+LINE = "interrupted at start-up, before any run (nothing written)"
+
+#: Modules whose import swallows a KeyboardInterrupt (``except BaseException``).
+SWALLOWING_IMPORTS = ("yourdfpy",)
+
+
+def _exit_now(signum, frame) -> None:  # pragma: no cover - runs in subprocess tests
+    try:
+        os.write(2, (LINE + "\n").encode())
+    finally:
+        os._exit(EXIT_INTERRUPTED)
+
+
+def is_command_line() -> bool:
+    """Whether this process is the ``hmpc-pin`` command (script or ``python -m hmpc_pin``)."""
+    argv0 = os.path.basename(sys.argv[0]) if sys.argv else ""
+    if argv0 in ("hmpc-pin", "hmpc-pin.exe"):
+        return True
+    names = ("hmpc_pin", "hmpc_pin.__main__")
+    args = iter(list(getattr(sys, "orig_argv", ()))[1:])
+    for arg in args:
+        if arg == "-m":
+            return next(args, None) in names
+        if arg.startswith("-m"):
+            return arg[2:] in names
+        if arg in ("-X", "-W"):  # options taking a value
+            next(args, None)
+        elif arg == "-c" or not arg.startswith("-"):
+            return False
+    return False
+
+
+def active() -> bool:
+    """Whether the start-up guard is the SIGINT handler now."""
+    return signal.getsignal(signal.SIGINT) is _exit_now
+
+
+def guard():
+    """Make Ctrl-C end the process at once (exit 130, one line); return the handler it
+    replaced (``None`` outside the main thread, where no handler can be installed)."""
+    try:
+        return signal.signal(signal.SIGINT, _exit_now)
+    except ValueError:  # not the main thread
+        return None
+
+
+def end() -> None:
+    """End the start-up: import :data:`SWALLOWING_IMPORTS` while the guard holds, then let
+    Ctrl-C raise :class:`KeyboardInterrupt` (nothing changes when the guard is not set)."""
+    if not active():
+        return
+    import importlib
+
+    for name in SWALLOWING_IMPORTS:
+        with contextlib.suppress(ImportError):  # a dependency of the package
+            importlib.import_module(name)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def restore(previous) -> None:
+    """Put back the handler :func:`guard` returned (at the end of an in-process ``main``)."""
+    if previous is not None:
+        with contextlib.suppress(ValueError):  # not the main thread
+            signal.signal(signal.SIGINT, previous)
+
+
+if is_command_line():  # first thing the package does when it is the command line
+    guard()

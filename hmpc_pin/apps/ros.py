@@ -1,0 +1,281 @@
+"""``hmpc-pin ros`` and ``hmpc-pin ros-arm``: the controller and the arm as ROS 2 nodes on
+the topics ros2_control exposes (:mod:`hmpc_pin.ros`).
+
+``ros`` runs the experiment's controller in the real-time loop of
+:mod:`hmpc_pin.realtime` (same safe stops, latency statistics and saved run), paced by
+the joint states, and writes ``<stem>_ros.npz`` (trajectories at the controller steps;
+``meta["ros"]`` the topics, the trajectory messages accepted and refused, the message
+counts; ``complete = False`` after a safe stop), ``<stem>_ros_timing.npz`` (every
+cycle) and ``<stem>_ros.json`` (statistics and tracking metrics).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import HmpcError
+from ..experiment.build import Experiment, realtime_parts
+from ..experiment.controllers import _limits
+from ..experiment.schema import ExperimentConfig
+from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
+from .realtime import _finite, tracking_summary
+
+__all__ = ["add_ros_parsers", "format_ros", "run_ros", "run_ros_arm", "with_namespace"]
+
+
+def with_namespace(config: ExperimentConfig, namespace: str | None) -> ExperimentConfig:
+    """``config`` with ``[ros] namespace`` replaced (``--namespace``)."""
+    if namespace is None:
+        return config
+    from ..experiment.config.ros import check_namespace
+
+    ns = check_namespace("--namespace", namespace)
+    return replace(config, ros=replace(config.ros, namespace=ns))
+
+
+def _limits_of(experiment: Experiment) -> tuple[np.ndarray, np.ndarray]:
+    """The position limits a trajectory message is checked against: the MPC's state
+    limits, else the URDF's (a joint without a range: none)."""
+    cc = experiment.config.controller
+    lim = _limits(cc, experiment.robot) if cc.kind == "hmpc" else None
+    if lim is not None:
+        return np.asarray(lim.lower, dtype=float), np.asarray(lim.upper, dtype=float)
+    rec = experiment._recorded_limits()
+    return np.asarray(rec["lower"]), np.asarray(rec["upper"])
+
+
+class _Trajectories:
+    """The ``~/joint_trajectory`` subscription: each message checked, then handed to the
+    loop or refused with one logged line (in the loop's thread, between two states)."""
+
+    def __init__(self, ros, experiment: Experiment, iface, topic: str):
+        self.ros, self.experiment, self.iface = ros, experiment, iface
+        self.lower, self.upper = _limits_of(experiment)
+        self.loop: RealtimeLoop | None = None
+        self.events: list[dict] = []
+        self.topic = iface.add_subscription(
+            ros.msgs["trajectory_msgs"].JointTrajectory, topic, self._on_message, ros.qos(10)
+        )
+
+    def _on_message(self, msg) -> None:
+        from ..ros.trajectory import refusal, trajectory_from_message
+
+        loop, log = self.loop, self.ros.node.get_logger()
+        if loop is None:  # before the loop runs: the config's reference stands
+            log.error(f"refused a joint_trajectory message on {self.topic}: the controller "
+                      "is not running yet")  # fmt: skip
+            return
+        now = loop.time + self.experiment.controller.Ts  # the step that takes it over
+        try:
+            traj = trajectory_from_message(msg, self.experiment.robot, loop.reference, now,
+                                           self.lower, self.upper,
+                                           origin=self.iface._origin)  # fmt: skip
+        except HmpcError as exc:
+            line = refusal(exc)
+            log.error(line)
+            self.events.append({"t": now, "accepted": False, "reason": line})
+            return
+        loop.set_reference(traj)
+        line = (
+            f"accepted a joint_trajectory message of {len(msg.points)} points: the "
+            f"reference from t={now:.3f} s to {traj.t_end:.3f} s, last point held"
+        )
+        log.info(line)
+        self.events.append({"t": now, "accepted": True, "t_end": traj.t_end,
+                            "points": len(msg.points)})  # fmt: skip
+
+
+def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None):
+    """Run ``config``'s controller as a ROS 2 node until its duration or a safe stop.
+
+    With ``[realtime] priority`` > 0 the whole node runs under ``SCHED_FIFO`` (the DDS
+    threads rclpy starts inherit it: a state is delivered on time on a loaded machine).
+
+    Returns:
+        ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
+
+    Raises:
+        ArmError: No joint state within ``ros.start_timeout`` or one that lacks
+            the robot's joints (nothing written).
+    """
+    with fifo_priority(config.realtime.priority):
+        return _run_ros(config, out, stem)
+
+
+def _run_ros(config: ExperimentConfig, out: Path, stem: str | None):
+    from ..ros.interface import RosArmInterface
+    from ..ros.node import RosNode, discovery_range
+
+    rc = config.ros
+    stem = (stem or config.name) + "_ros"
+    experiment = Experiment.from_config(config)
+    loop_settings, safety, safe = realtime_parts(experiment, rc.rate, plant=False)
+    ros = RosNode(rc.node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros")
+    try:
+        iface = RosArmInterface(ros, experiment.robot.joint_names, rc.period, rc.joint_states,
+                                rc.commands, rc.start_timeout)  # fmt: skip
+        std = ros.msgs["std_msgs"]
+        ctrl = experiment.controller
+        d_pub = ros.node.create_publisher(std.Float64MultiArray, rc.external_torque, ros.qos(10))
+        d_msg = std.Float64MultiArray()
+        collision = config.collision is not None and hasattr(ctrl, "detected_at")
+        c_pub = (
+            ros.node.create_publisher(std.Bool, rc.collision, ros.qos(10)) if collision else None
+        )
+        c_msg = std.Bool()
+        trajectories = _Trajectories(ros, experiment, iface, rc.joint_trajectory)
+
+        def on_step(t: float) -> None:
+            d_msg.data = ctrl.disturbance_estimate.tolist()
+            d_pub.publish(d_msg)
+            if c_pub is not None:
+                c_msg.data = ctrl.detected_at is not None
+                c_pub.publish(c_msg)
+
+        iface.start()
+        loop = RealtimeLoop(
+            iface, ctrl, experiment.reference, safe, loop_settings, safety,
+            joint_names=tuple(experiment.robot.joint_names), meta=experiment.meta(),
+            on_step=on_step,
+        )  # fmt: skip
+        trajectories.loop = loop
+        run = loop.run()
+        run.result.meta["ros"] = {
+            "node": ros.node.get_fully_qualified_name(),
+            "joint_states": iface.joint_states_topic,
+            "commands": iface.commands_topic,
+            "joint_trajectory": trajectories.topic,
+            "external_torque": ros.topic(rc.external_torque),
+            "collision": ros.topic(rc.collision) if collision else None,
+            "stamps": iface.stamps,
+            "states_received": iface.received,
+            "commands_published": iface.published,
+            "trajectories": list(trajectories.events),
+        }
+        if collision:
+            c = ctrl.detected_at
+            run.result.meta["collision"] = {"detected_at": c}
+    finally:
+        ros.close()
+    files = [run.result.save(out / f"{stem}.npz"), run.save_timing(out / f"{stem}_timing.npz")]
+    summary = {"realtime": run.stats, "stop": run.stop, "ros": run.result.meta["ros"],
+               "tracking": tracking_summary(run.result)}  # fmt: skip
+    path = out / f"{stem}.json"
+    path.write_text(json.dumps(_finite(summary), indent=2, sort_keys=True) + "\n")
+    files.append(path)
+    return run, files
+
+
+def format_ros(run: RealtimeRun) -> str:
+    """The message counts and the trajectory messages, a few lines."""
+    r = run.result.meta["ros"]
+    lines = [f"ros: {r['states_received']} joint states received on {r['joint_states']} "
+             f"(stamps: {r['stamps']}), {r['commands_published']} commands published on "
+             f"{r['commands']}"]  # fmt: skip
+    for ev in r["trajectories"]:
+        lines.append(f"  t={ev['t']:.3f} s: " + ("accepted a trajectory of "
+                     f"{ev['points']} points" if ev["accepted"] else ev["reason"]))  # fmt: skip
+    return "\n".join(lines)
+
+
+def run_ros_arm(config: ExperimentConfig, duration: float | None = None) -> dict:
+    """Run ``config``'s plant as a ROS 2 node (:class:`~hmpc_pin.ros.arm.RosArmNode`)
+    until ``duration`` [s] (``None``: until SIGINT or SIGTERM); under ``SCHED_FIFO``
+    with ``[realtime] priority`` > 0.
+
+    Returns:
+        The node's counts (``steps``, ``late``, ``commands``, ``rejected``) and
+        ``"interrupted"`` (stopped by SIGINT).
+    """
+    with fifo_priority(config.realtime.priority):
+        return _run_ros_arm(config, duration)
+
+
+def _run_ros_arm(config: ExperimentConfig, duration: float | None) -> dict:
+    from ..ros.arm import RosArmNode
+    from ..ros.node import RosNode, discovery_range
+
+    rc = config.ros
+    experiment = Experiment.from_config(config)
+    plant = experiment.make_plant(rc.period)  # checks that plant.dt divides the period
+    ros = RosNode(rc.arm_node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros-arm")
+    stopped_by: list[int] = []
+    try:
+        arm = RosArmNode(ros, plant, experiment.robot.joint_names, experiment.q0,
+                         experiment.dq0, rc.period, rc.joint_states, rc.commands,
+                         experiment.effort_limit)  # fmt: skip
+
+        def on_signal(signum, frame) -> None:
+            stopped_by.append(signum)
+            arm.stop()
+
+        old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        print(f"{config.name}: the arm's plant ({config.plant.engine}) as node "
+              f"{ros.node.get_fully_qualified_name()}: {arm.joint_states_topic} at "
+              f"{rc.rate:g} Hz, efforts from {arm.commands_topic}", flush=True)  # fmt: skip
+        try:
+            arm.run(duration)
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+        counts = {"steps": arm.steps, "late": arm.late, "commands": arm.commands,
+                  "rejected": arm.rejected}  # fmt: skip
+    finally:
+        ros.close()
+    counts["interrupted"] = signal.SIGINT in stopped_by
+    print(f"arm stopped after {counts['steps']} steps: {counts['commands']} commands applied, "
+          f"{counts['rejected']} ignored, {counts['late']} periods late",
+          file=sys.stderr)  # fmt: skip
+    return counts
+
+
+def add_ros_parsers(sub, cmd_ros, cmd_ros_arm) -> None:
+    """The ``ros`` and ``ros-arm`` subcommands (extra ``ros``), run by ``cmd_ros`` and
+    ``cmd_ros_arm`` (the CLI's, which own the exit codes and the output checks)."""
+    ros = sub.add_parser(
+        "ros",
+        help="run the controller as a ROS 2 node against /joint_states (extra: ros)",
+        description="Run the experiment's controller as a ROS 2 node on the topics "
+        "ros2_control exposes: sensor_msgs/JointState in ([ros] joint_states), "
+        "std_msgs/Float64MultiArray efforts out ([ros] commands), paced by the arriving "
+        "states; a new reference as trajectory_msgs/JointTrajectory on ~/joint_trajectory "
+        "(checked against the limits first), the disturbance estimate on "
+        "~/external_torque. Same safe stops, latency statistics and saved run as "
+        "`realtime`: exit 130 on Ctrl-C, 1 on a fault or a watchdog stop.",
+    )
+    ros.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    ros.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
+    ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    ros.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
+    ros.add_argument(
+        "--priority",
+        type=int,
+        metavar="N",
+        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+    )
+    ros.set_defaults(func=cmd_ros)
+    arm = sub.add_parser(
+        "ros-arm",
+        help="run the config's plant as a ROS 2 node (joint states out, efforts in; extra: ros)",
+        description="Run the experiment's plant (RK4 or MuJoCo) as a ROS 2 node that "
+        "publishes sensor_msgs/JointState at [ros] rate and applies the latest "
+        "std_msgs/Float64MultiArray effort command, as ros2_control's "
+        "joint_state_broadcaster and JointGroupEffortController do. Runs until Ctrl-C "
+        "(exit 130) or --duration.",
+    )
+    arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    arm.add_argument("--duration", type=float, help="stop after this long [s] [until Ctrl-C]")
+    arm.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
+    arm.add_argument(
+        "--priority",
+        type=int,
+        metavar="N",
+        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+    )
+    arm.set_defaults(func=cmd_ros_arm)

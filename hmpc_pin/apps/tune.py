@@ -1,0 +1,516 @@
+"""``hmpc-pin tune CONFIG``: search the controller's settings on the sweep's perturbed plants.
+
+Each trial (Optuna, Optuna's ``TPESampler`` seeded with ``seed``) proposes
+the observer gain :math:`c` (log-uniform on :math:`[c_0/10, 5c_0]`), the MPC weights
+:math:`Q = \\mathrm{diag}(q_p, q_v)` (log-uniform :math:`q_p \\in [1, 10^4]`,
+:math:`q_v \\in [10^{-4}, 10^2]`, terminal weight :math:`P = 2Q` as the paper's),
+:math:`R \\in [10^{-8}, 10^{-3}]` (log) and the horizon :math:`N \\in [5, 30]`; with
+``ts`` also the period :math:`T_s` among the given values, and with ``observers`` the
+observer (``chen``, ``general``, ``momentum``). It runs the config's
+controller on ``samples`` plants of the sweep (:mod:`hmpc_pin.apps.sweep`: link masses,
+friction and pulse amplitudes drawn from ``[sweep]``, with its measurement noise and
+delay; the same draws for every trial) and scores
+
+.. math::
+
+    J = p_{95}\\big(\\max_i \\mathrm{RMS}_i\\big)\\,\\Big(1 + w_s\\,\\bar s +
+    w_{tv}\\,\\max\\big(0, \\overline{TV}/\\overline{TV}_0 - 1\\big)\\Big),
+
+the 95th percentile over the samples of the worst joint's RMS error after
+``sweep.after`` (a run that is not bounded scores more than any bounded one:
+:func:`run_score`), :math:`\\bar s`
+the mean fraction of periods with a saturated torque, :math:`\\overline{TV}` the mean
+torque total variation per second (:func:`~hmpc_pin.apps.sweep.torque_effort`) and
+:math:`\\overline{TV}_0` that of the config as given, which is always the first trial.
+
+The study is kept in an SQLite file (Optuna's RDB storage): running the command again
+with the same ``--out`` resumes it. The best trial is written as a config, and the
+shipped and tuned configs are compared on ``holdout`` other samples (another seed).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import ConfigError, ExtraError
+from ..experiment.config.write import write_config
+from ..experiment.schema import OBSERVERS, ExperimentConfig, load_config
+from .sweep import run_sweep
+
+__all__ = [
+    "TuneResult",
+    "add_tune_parser",
+    "apply_params",
+    "objective_value",
+    "run_score",
+    "search_space",
+    "tune",
+]
+
+#: Weights of the penalties (module docstring): saturation, total variation.
+SATURATION_WEIGHT = 1.0
+TV_WEIGHT = 0.1
+
+
+def _optuna():
+    try:
+        import optuna
+    except ImportError as exc:
+        raise ExtraError("tune", "hmpc-pin tune (Optuna)") from exc
+    return optuna
+
+
+def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
+                 observers: tuple[str, ...] | None = None) -> dict:  # fmt: skip
+    """The parameters a trial proposes: name → ``("log", low, high)``, ``("int", low,
+    high)`` or ``("choice", values)``.
+
+    Raises:
+        ConfigError: ``observers`` names no observer, or the config has none.
+    """
+    cc = config.controller
+    if observers:
+        bad = [o for o in observers if o not in OBSERVERS]
+        if bad or cc.compensation not in OBSERVERS:
+            raise ConfigError("--observers", f"expected observers of {OBSERVERS} for a config "
+                              f"with an observer; got {observers!r} for {cc.label}")  # fmt: skip
+    space: dict = {
+        "Q_position": ("log", 1.0, 1e4),
+        "Q_velocity": ("log", 1e-4, 1e2),
+        "R": ("log", 1e-8, 1e-3),
+    }
+    if cc.kind == "hmpc":
+        space["N"] = ("int", 5, 30)
+    if cc.compensation in OBSERVERS:
+        c0 = cc.observer.gain
+        space["observer_gain"] = ("log", c0 / 10, c0 * 5)
+    if ts:
+        space["Ts"] = ("choice", tuple(float(v) for v in ts))
+    if observers:
+        space["compensation"] = ("choice", tuple(observers))
+    return space
+
+
+def current_params(config: ExperimentConfig, space: dict) -> dict:
+    """The config's own values of the parameters of ``space`` (its first trial), each
+    clipped into its range (Optuna refuses an enqueued value outside it)."""
+    cc = config.controller
+    values = {
+        "Q_position": float(cc.Q[0, 0]),
+        "Q_velocity": float(cc.Q[1, 1]),
+        "R": float(cc.R),
+        "N": int(cc.N),
+        "observer_gain": float(cc.observer.gain) if cc.observer is not None else None,
+        "Ts": float(cc.Ts),
+        "compensation": cc.compensation,
+    }
+    out = {}
+    for name, spec in space.items():
+        v = values[name]
+        if name == "compensation":
+            out[name] = v if v in spec[1] else spec[1][0]
+        elif spec[0] == "choice":
+            out[name] = min(spec[1], key=lambda c, v=v: abs(c - v))
+        else:
+            out[name] = type(v)(min(max(v, spec[1]), spec[2]))
+    return out
+
+
+def apply_params(config: ExperimentConfig, params: dict) -> ExperimentConfig:
+    """``config`` with a trial's parameters set (``P = 2Q``; another observer with
+    ``compensation``)."""
+    if "compensation" in params:
+        from ..experiment.build import with_controller
+
+        config = with_controller(config, compensation=params["compensation"])
+    cc = config.controller
+    Q = np.diag([params.get("Q_position", cc.Q[0, 0]), params.get("Q_velocity", cc.Q[1, 1])])
+    new = replace(cc, Q=Q, P=2 * Q, R=float(params.get("R", cc.R)),
+                  N=int(params.get("N", cc.N)), Ts=float(params.get("Ts", cc.Ts)))  # fmt: skip
+    if "observer_gain" in params:
+        new = replace(new, observer=replace(cc.observer, gain=float(params["observer_gain"])))
+    return replace(config, controller=new)
+
+
+def _suggest(trial, space: dict) -> dict:
+    out = {}
+    for name, spec in space.items():
+        if spec[0] == "log":
+            out[name] = trial.suggest_float(name, spec[1], spec[2], log=True)
+        elif spec[0] == "int":
+            out[name] = trial.suggest_int(name, spec[1], spec[2])
+        else:
+            out[name] = trial.suggest_categorical(name, list(spec[1]))
+    return out
+
+
+def run_score(row: dict, error_bound: float, duration: float | None) -> float:
+    """One run's score [rad]: its worst joint's RMS error :math:`e` when bounded;
+    otherwise :math:`\\bar e\\,(1 + \\ell) + \\min(e, 10\\bar e)` with :math:`\\bar e` the
+    error bound and :math:`\\ell` the fraction of the run it did not finish, so that any
+    bounded run ranks before any unbounded one, a later failure before an earlier one,
+    and a smaller error before a larger one."""
+    rms = float(row["rms_max"])
+    if row["bounded"] and np.isfinite(rms):
+        return rms
+    lost = 1.0 - row["t_end"] / duration if duration and "t_end" in row else 0.0
+    rms = min(rms, 10 * error_bound) if np.isfinite(rms) else 10 * error_bound
+    return error_bound * (1.0 + min(max(lost, 0.0), 1.0)) + rms
+
+
+def objective_value(rows: list[dict], error_bound: float, tv0: float | None,
+                    saturation_weight: float = SATURATION_WEIGHT,
+                    tv_weight: float = TV_WEIGHT,
+                    duration: float | None = None) -> tuple[float, dict]:  # fmt: skip
+    """:math:`J` of a trial's sweep rows (module docstring, each run scored by
+    :func:`run_score`) and its parts."""
+    rms = np.array([run_score(r, error_bound, duration) for r in rows])
+    p95 = float(np.quantile(rms, 0.95, method="inverted_cdf"))
+    sat = float(np.mean([r["saturation"] for r in rows]))
+    tv = float(np.mean([r["torque_tv"] for r in rows]))
+    excess = max(0.0, tv / tv0 - 1.0) if tv0 else 0.0
+    value = p95 * (1.0 + saturation_weight * sat + tv_weight * excess)
+    return value, {"p95_rms": p95, "saturation": sat, "torque_tv": tv,
+                   "bounded": float(np.mean([r["bounded"] for r in rows]))}  # fmt: skip
+
+
+def _evaluate(config, samples, seed, jobs, executor, scheduler) -> list[dict]:
+    """The sweep rows of ``config``'s own controller on ``samples`` plants."""
+    config = replace(config, sweep=replace(config.sweep, variants=(config.controller.label,)))
+    return run_sweep(config, samples, seed, jobs=jobs, executor=executor,
+                     scheduler=scheduler, progress=False).rows  # fmt: skip
+
+
+@dataclass
+class TuneResult:
+    """What ``tune`` wrote and measured.
+
+    Attributes:
+        study: The Optuna study. best: The best trial's parameters. config: The tuned
+        config. files: The files written. holdout: ``{"shipped": parts, "tuned": parts}``
+        (:func:`objective_value`'s parts on the held-out samples), or ``None``.
+    """
+
+    study: object
+    best: dict
+    config: ExperimentConfig
+    files: list
+    holdout: dict | None
+
+
+def tune(
+    config: ExperimentConfig,
+    out: Path,
+    *,
+    trials: int,
+    samples: int = 8,
+    seed: int = 0,
+    jobs: int = 1,
+    executor: str = "local",
+    scheduler: str | None = None,
+    ts: tuple[float, ...] | None = None,
+    observers: tuple[str, ...] | None = None,
+    holdout: int | None = None,
+    holdout_seed: int | None = None,
+    progress: bool = True,
+    objective=None,
+) -> TuneResult:
+    """Run (or resume) the study of ``config`` in ``out``; write the tuned config, the
+    study and the report.
+
+    Args:
+        config: The config to tune (its ``[sweep]`` table draws the plants).
+        out: Folder of ``<name>_tune.db``, ``<name>_tuned.toml``, ``<name>_tune.md`` and
+            the two figures.
+        trials: Trials to add to the study (>= 1).
+        samples: Sweep samples per trial (>= 1). seed: Seed of the sampler and the samples.
+        jobs, executor, scheduler: As :func:`~hmpc_pin.apps.sweep.run_sweep`.
+        ts: Control periods [s] to choose from (``None``: keep the config's).
+        observers: Observers to choose from (``"chen"``, ``"general"``, ``"momentum"``;
+            ``None``: keep the config's).
+        holdout: Samples of the final comparison (0: none; default ``samples``).
+        holdout_seed: Their seed (default ``seed + 1``).
+        objective: ``objective(config) -> (value, parts)`` instead of the sweep's (tests).
+
+    Raises:
+        ExtraError: Optuna is not installed (extra ``tune``). ConfigError: bad options.
+    """
+    optuna = _optuna()
+    for key, value, low in (("--trials", trials, 1), ("--samples", samples, 1),
+                            ("--seed", seed, 0), ("--jobs", jobs, 1)):  # fmt: skip
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ConfigError(key, f"expected an integer >= {low}, got {value!r}")
+    if ts is not None and not (ts and all(np.isfinite(v) and v > 0 for v in ts)):
+        raise ConfigError("--ts", f"expected control periods [s] > 0, got {ts!r}")
+    if config.source is None:
+        raise ConfigError("CONFIG", "tune needs a config loaded from a file (it writes a "
+                          "tuned copy of it)")  # fmt: skip
+    holdout = samples if holdout is None else holdout
+    holdout_seed = seed + 1 if holdout_seed is None else holdout_seed
+    space = search_space(config, ts, observers)
+    for params in (current_params(config, space), {k: s[-1] if s[0] != "choice" else s[1][-1]
+                                                   for k, s in space.items()}):  # fmt: skip
+        from ..experiment.build import Experiment
+
+        Experiment.from_config(apply_params(config, params))  # bad input before any trial
+    name = config.name
+    storage = f"sqlite:///{(out / f'{name}_tune.db').resolve()}"
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.create_study(
+        study_name=name, storage=storage, direction="minimize", load_if_exists=True,
+        sampler=optuna.samplers.TPESampler(seed=seed + len_trials(optuna, storage, name)),
+    )  # fmt: skip
+    if not study.trials:
+        study.enqueue_trial(current_params(config, space))
+        study.set_user_attr("samples", samples)
+        study.set_user_attr("seed", seed)
+    elif study.user_attrs.get("samples") != samples or study.user_attrs.get("seed") != seed:
+        raise ConfigError(
+            "--samples/--seed", f"the study in {out} was run with --samples "
+            f"{study.user_attrs.get('samples')} --seed {study.user_attrs.get('seed')}; resume "
+            "it with the same, or write to another --out",
+        )  # fmt: skip
+
+    def evaluate(cfg: ExperimentConfig):
+        if objective is not None:
+            return objective(cfg)
+        rows = _evaluate(cfg, samples, seed, jobs, executor, scheduler)
+        return objective_value(rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
+                               duration=cfg.simulation.duration)  # fmt: skip
+
+    def run_trial(trial):
+        params = _suggest(trial, space)
+        as_given = trial.number == 0  # enqueued: the config itself (a Q_velocity of 0 too)
+        trial.set_user_attr("as_given", as_given)
+        value, parts = evaluate(config if as_given else apply_params(config, params))
+        if "tv0" not in study.user_attrs and "torque_tv" in parts:  # trial 0: as given
+            study.set_user_attr("tv0", parts["torque_tv"])
+        for k, v in parts.items():
+            trial.set_user_attr(k, v)
+        return value
+
+    cluster = None
+    if executor == "dask" and scheduler is None and objective is None:
+        cluster = _local_cluster(jobs)  # one cluster for every trial, not one per trial
+        scheduler = cluster.scheduler_address
+    try:
+        study.optimize(run_trial, n_trials=trials, show_progress_bar=progress)
+        best = dict(study.best_trial.params)
+        tuned = config if study.best_trial.number == 0 else apply_params(config, best)
+        files = [_write_tuned(config, tuned, best, study, out)]
+        comparison = None
+        if holdout and objective is None:
+            comparison = {}
+            for label, cfg in (("shipped", config), ("tuned", tuned)):
+                rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
+                comparison[label] = objective_value(
+                    rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
+                    duration=cfg.simulation.duration,
+                )[1]  # fmt: skip
+    finally:
+        if cluster is not None:
+            cluster.close()
+    files += _report(config, study, best, out, comparison, samples, seed, holdout, holdout_seed)
+    files.insert(1, out / f"{name}_tune.db")
+    return TuneResult(study, best, tuned, files, comparison)
+
+
+def _local_cluster(jobs: int):
+    """A local Dask cluster of ``jobs`` single-threaded worker processes (extra
+    ``cluster``), or the sweep's one-line error naming the extra."""
+    try:
+        from dask.distributed import LocalCluster
+    except ImportError as exc:
+        raise ConfigError(
+            "--executor", "dask needs the optional dependency dask.distributed; install it "
+            "with `pip install 'hmpc_pin[cluster]'` or use --executor local",
+        ) from exc  # fmt: skip
+    return LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
+
+
+def len_trials(optuna, storage: str, name: str) -> int:
+    """Trials already in the stored study (0 if none): a resumed study's sampler is seeded
+    ``seed + len`` so that its continuation is reproducible too."""
+    try:
+        return len(optuna.load_study(study_name=name, storage=storage).trials)
+    except KeyError:
+        return 0
+
+
+def _write_tuned(config, tuned, best, study, out: Path) -> Path:
+    cc = tuned.controller
+    def weight(W: np.ndarray) -> list:
+        W = np.asarray(W, dtype=float)
+        return np.diag(W).tolist() if W[0, 1] == 0 and W[1, 0] == 0 else W.tolist()
+
+    table: dict = {"Q": weight(cc.Q), "P": weight(cc.P), "R": float(cc.R), "N": int(cc.N),
+                   "Ts": float(cc.Ts)}  # fmt: skip
+    import tomllib
+
+    raw = tomllib.loads(Path(config.source).read_text(encoding="utf-8"))
+    ctrl = dict(raw.get("controller", {}))
+    ctrl.update(table)
+    if "observer_gain" in best:
+        obs = dict(ctrl.get("observer", {}))
+        obs["gain"] = float(cc.observer.gain)
+        if "compensation" in best:  # the 0.1 keys would contradict it
+            obs.pop("kind", None)
+            obs.pop("enabled", None)
+            ctrl["compensation"] = cc.compensation
+            if cc.compensation == "momentum":
+                obs.pop("discretization", None)
+        ctrl["observer"] = obs
+    path = out / f"{config.name}_tuned.toml"
+    header = (f"{config.name} tuned by `hmpc-pin tune` (trial {study.best_trial.number} of "
+              f"{len(study.trials)}, objective {study.best_value:.4g})\n"
+              f"from {config.source}")  # fmt: skip
+    write_config(Path(config.source), {"controller": ctrl}, path, header=header,
+                 name=f"{config.name}_tuned")  # fmt: skip
+    load_config(path)  # the written config loads
+    return path
+
+
+def _cell(v) -> str:
+    return v if isinstance(v, str) else f"{v:.4g}"
+
+
+def _report(config, study, best, out: Path, comparison, samples, seed, holdout, holdout_seed):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from optuna.visualization.matplotlib import plot_optimization_history, plot_param_importances
+
+    files = []
+    name = config.name
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # optuna marks its matplotlib backend experimental
+        ax = plot_optimization_history(study)
+        path = out / f"{name}_tune_history.png"
+        ax.figure.savefig(path, dpi=100, bbox_inches="tight")
+        plt.close(ax.figure)
+        files.append(path)
+        done = [t for t in study.trials if t.value is not None]
+        if len(done) >= 2 and len(best) >= 2:
+            try:
+                ax = plot_param_importances(study)
+                path = out / f"{name}_tune_importance.png"
+                ax.figure.savefig(path, dpi=100, bbox_inches="tight")
+                plt.close(ax.figure)
+                files.append(path)
+            except (RuntimeError, ValueError):  # e.g. every trial scored the same
+                pass
+    lines = [
+        f"# Tuning of {name}: {len(study.trials)} trials",
+        "",
+        f"Config `{config.source}`; {samples} sweep samples per trial (seed {seed}); "
+        f"objective J = p95 worst-joint RMS × (1 + {SATURATION_WEIGHT:g}·saturation + "
+        f"{TV_WEIGHT:g}·max(0, TV/TV₀ − 1)); trial 0 is the config as given.",
+        "",
+        f"Best: trial {study.best_trial.number}, J = {study.best_value:.4g}: "
+        + ", ".join(f"{k} = {_cell(v)}" for k, v in best.items()),
+        "",
+    ]
+    if comparison:
+        lines += [
+            f"## Held-out comparison: {holdout} other samples (seed {holdout_seed})",
+            "",
+            "p95 over the samples of the worst joint's RMS error [rad]; a run that is not "
+            "bounded scores the error bound b times one plus the fraction it did not "
+            "finish, plus its RMS error (at most 10 b): above any bounded run.",
+            "",
+            "| config | p95 worst RMS [rad] | bounded | saturation | torque TV [N·m/s] |",
+            "|---|---|---|---|---|",
+        ]
+        for label, p in comparison.items():
+            lines.append(f"| {label} | {p['p95_rms']:.4g} | {100 * p['bounded']:.0f} % | "
+                         f"{100 * p['saturation']:.2f} % | {p['torque_tv']:.4g} |")  # fmt: skip
+        ratio = comparison["shipped"]["p95_rms"] / comparison["tuned"]["p95_rms"]
+        lines += ["", f"Shipped / tuned p95: {ratio:.3g}.", ""]
+    lines += ["## Trials", "", "| trial | J | p95 RMS [rad] | " + " | ".join(best) + " |",
+              "|---|---|---|" + "---|" * len(best)]  # fmt: skip
+    for t in study.trials:
+        if t.value is None:
+            continue
+        vals = " | ".join(_cell(t.params.get(k, math.nan)) for k in best)
+        lines.append(f"| {t.number} | {t.value:.4g} | {t.user_attrs.get('p95_rms', math.nan):.4g}"
+                     f" | {vals} |")  # fmt: skip
+    lines += ["", *(f"![{p.stem}]({p.name})" for p in files), ""]
+    path = out / f"{name}_tune.md"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return [path, *files]
+
+
+def _periods(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError as exc:
+        raise ConfigError("--ts", f"expected comma-separated periods [s], got {text!r}") from exc
+
+
+def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
+    """``hmpc-pin tune CONFIG`` once the command line has checked the config and ``out``:
+    run or resume the study; print the held-out comparison."""
+    import os
+
+    jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+    result = tune(
+        config, out, trials=args.trials, samples=args.samples, seed=args.seed, jobs=jobs,
+        executor=args.executor, scheduler=args.scheduler,
+        ts=_periods(args.ts) if args.ts else None,
+        observers=tuple(args.observers.split(",")) if args.observers else None,
+        holdout=args.holdout,
+        holdout_seed=args.holdout_seed, progress=not args.quiet,
+    )  # fmt: skip
+    study = result.study
+    print(f"{config.name}: {len(study.trials)} trials; best trial {study.best_trial.number}, "
+          f"J = {study.best_value:.4g}: "
+          + ", ".join(f"{k} = {_cell(v)}" for k, v in result.best.items()))  # fmt: skip
+    if result.holdout:
+        s, t = result.holdout["shipped"]["p95_rms"], result.holdout["tuned"]["p95_rms"]
+        print(f"held-out samples: p95 worst-joint RMS {s:.4g} rad as given, {t:.4g} rad tuned "
+              f"(ratio {s / t:.3g})")  # fmt: skip
+    for f in result.files:
+        print(f"wrote {f}")
+    return 0
+
+
+def add_tune_parser(sub):
+    """The ``tune`` subcommand's parser (the command line sets its ``func``)."""
+    tun = sub.add_parser(
+        "tune",
+        help="tune observer gain, Q, R, N (and Ts) on the sweep's perturbed plants (Optuna)",
+        description="Search the observer gain, the MPC weights Q (P = 2Q) and R, the "
+        "horizon N and, with --ts, the control period to minimise the 95th percentile of "
+        "the worst joint's RMS error over the sweep's perturbed plants (with its noise and "
+        "delay), penalised by torque saturation and total variation. Optuna's TPE sampler "
+        "seeded with --seed; the study is kept in DIR/<name>_tune.db (run again to resume). "
+        "Writes DIR/<name>_tuned.toml and a report with the history and importance plots, "
+        "and compares both configs on held-out samples. Needs the extra hmpc_pin[tune].",
+    )
+    tun.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    tun.add_argument("--trials", type=int, required=True, help="trials to run (added to a "
+                     "resumed study)")  # fmt: skip
+    tun.add_argument("--samples", type=int, default=8, help="sweep samples per trial [8]")
+    tun.add_argument("--seed", type=int, default=0, help="seed of the sampler and samples [0]")
+    tun.add_argument("--jobs", type=int, default=None, help="worker processes [all cores]")
+    tun.add_argument("--executor", choices=("local", "dask"), default="local",
+                     help="each trial's samples on local processes or Dask [local]")  # fmt: skip
+    tun.add_argument("--scheduler", help="with --executor dask: a running scheduler's address")
+    tun.add_argument("--ts", metavar="T1,T2,...",
+                     help="also choose the control period among these [s]")  # fmt: skip
+    tun.add_argument("--observers", metavar="NAME,...",
+                     help="also choose the observer: chen, general, momentum")  # fmt: skip
+    tun.add_argument("--holdout", type=int, default=None,
+                     help="held-out samples of the comparison (0: none) [--samples]")  # fmt: skip
+    tun.add_argument("--holdout-seed", type=int, default=None, help="their seed [--seed + 1]")
+    tun.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
+    tun.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    tun.add_argument("--quiet", action="store_true", help="no progress bar")
+    return tun

@@ -1,0 +1,506 @@
+"""Joint friction identified from a run of the controller (``hmpc-pin identify``).
+
+The model is the package's friction model (Eq 32, sign ``"opposing"``): joint i feels the
+torque :math:`d_i = -f_i` with
+
+.. math::
+
+    f_i = a_i\\,\\dot q_i + b_i\\,\\mathrm{sgn}\\,\\dot q_i ,
+
+:math:`a_i` the viscous coefficient [N·m·s/rad], :math:`b_i` the Coulomb level [N·m].
+A positive :math:`a_i, b_i` opposes the motion; a negative one feeds energy in (the
+paper's Eq 32 read literally, README "Friction sign").
+
+Two measurements of :math:`f` are offered (``source``):
+
+* ``"observer"``: the observer's estimate, :math:`f \\approx -\\hat d`, plus any friction
+  the run already fed forward (:math:`\\hat d` then holds only what was left). The
+  observer lags the true disturbance by its bandwidth; samples within ``velocity_threshold``
+  of a velocity reversal (where the Coulomb term jumps) are left out.
+* ``"dynamics"``: the rigid-body model's inverse dynamics over each control period,
+  :math:`f_k = \\tau_k - [M(\\bar q)\\,\\ddot q_k + C(\\bar q, \\bar{\\dot q})\\bar{\\dot q} +
+  G(\\bar q)]` with :math:`\\ddot q_k = (\\dot q_{k+1} - \\dot q_k)/T_s`, the mid-period state
+  :math:`\\bar q = (q_k + q_{k+1})/2` and :math:`\\tau_k` the torque applied over the
+  period; the rigid-body part is Pinocchio's joint-torque regressor times the model's
+  inertial parameters, :math:`Y(q, \\dot q, \\ddot q)\\,\\pi`. No lag, but it needs the model
+  to be right.
+* ``"regressor"``: the same equation with the rigid-body parameters fitted too,
+  :math:`\\tau_k = Y_k\\,\\pi + \\Phi_k\\,\\theta`, :math:`\\pi` reduced to the columns of
+  :math:`Y` that the run identifies (QR with column pivoting of the stacked regressor:
+  the base parameters of this motion). For an arm whose model is off (a payload, a
+  wrong link mass); it needs a richer motion than the friction alone.
+
+Per joint, ordinary least squares on :math:`A = [\\dot q,\\ \\mathrm{sgn}\\,\\dot q]`:
+:math:`\\hat\\theta = (A^TA)^{-1}A^Ty`, residual :math:`r = y - A\\hat\\theta`,
+:math:`\\hat\\sigma^2 = r^Tr/(m - 2)`, and the confidence interval
+:math:`\\hat\\theta_j \\pm t_{1-\\alpha/2,\\,m_e-2}\\,\\hat\\sigma\\sqrt{[(A^TA)^{-1}]_{jj}
+\\cdot m/m_e}`, where :math:`m_e = m(1-\\rho)/(1+\\rho)` is the effective number of samples
+of a residual whose lag-1 autocorrelation is :math:`\\rho > 0` (an AR(1) correction: the
+residual of a closed-loop run is not white; with :math:`\\rho \\le 0`, :math:`m_e = m`).
+
+A joint is identifiable when it moves both ways at speed: at least ``min_coverage`` of the
+samples with :math:`\\dot q_i > v_e` and as many with :math:`\\dot q_i < -v_e`
+(``excitation_velocity``, 0.05 rad/s: a joint only shaken by its neighbours' tracking
+errors is refused), and the
+column-normalised :math:`A` has a condition number <= ``max_condition``. Otherwise
+:class:`ExcitationError` names the joint and the motion that would identify it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import ConfigError, ExcitationError
+from ..sim.result import Result
+
+__all__ = [
+    "SOURCES",
+    "FrictionFit",
+    "JointFriction",
+    "ObserverModel",
+    "dynamics_friction",
+    "fit_friction",
+    "fit_joint",
+]
+
+#: Measurements of the friction torque a fit can use.
+SOURCES = ("observer", "dynamics", "regressor")
+
+
+@dataclass(frozen=True)
+class JointFriction:
+    """The friction fit of one joint.
+
+    Attributes:
+        name: The joint.
+        viscous: :math:`\\hat a` [N·m·s/rad]. coulomb: :math:`\\hat b` [N·m].
+        viscous_ci, coulomb_ci: Their confidence intervals (low, high).
+        residual_rms: RMS of the fit's residual [N·m].
+        samples: Samples used, :math:`m`. effective_samples: :math:`m_e` (AR(1)).
+        condition: Condition number of the column-normalised regressor.
+        coverage: Fractions of the samples moving forward and backward (> v_0, < -v_0).
+    """
+
+    name: str
+    viscous: float
+    coulomb: float
+    viscous_ci: tuple[float, float]
+    coulomb_ci: tuple[float, float]
+    residual_rms: float
+    samples: int
+    effective_samples: float
+    condition: float
+    coverage: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class FrictionFit:
+    """Friction fitted for every joint of a run.
+
+    Attributes:
+        joints: One :class:`JointFriction` per joint.
+        source: ``"observer"`` or ``"dynamics"``.
+        confidence: Level of the intervals (e.g. 0.95).
+        run: The run it was fitted from (file or config name), for the TOML comment.
+    """
+
+    joints: tuple[JointFriction, ...]
+    source: str
+    confidence: float
+    run: str = ""
+
+    @property
+    def viscous(self) -> np.ndarray:
+        """:math:`\\hat a` per joint [N·m·s/rad]."""
+        return np.array([j.viscous for j in self.joints])
+
+    @property
+    def coulomb(self) -> np.ndarray:
+        """:math:`\\hat b` per joint [N·m]."""
+        return np.array([j.coulomb for j in self.joints])
+
+    def table(self) -> str:
+        """A Markdown table: coefficient, interval, residual, samples, condition, coverage."""
+        pct = f"{100 * self.confidence:g} %"
+        lines = [
+            f"| joint | viscous [N·m·s/rad] ({pct} CI) | Coulomb [N·m] ({pct} CI) | "
+            "residual RMS [N·m] | samples (effective) | cond | moving +/- |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for j in self.joints:
+            lines.append(
+                f"| {j.name} | {j.viscous:.4g} [{j.viscous_ci[0]:.4g}, {j.viscous_ci[1]:.4g}] "
+                f"| {j.coulomb:.4g} [{j.coulomb_ci[0]:.4g}, {j.coulomb_ci[1]:.4g}] | "
+                f"{j.residual_rms:.3g} | {j.samples} ({j.effective_samples:.0f}) | "
+                f"{j.condition:.3g} | {100 * j.coverage[0]:.0f} % / {100 * j.coverage[1]:.0f} % |"
+            )
+        return "\n".join(lines)
+
+    def toml(self) -> str:
+        """The ``[controller.friction]`` table (feed-forward friction compensation) with
+        the intervals as comments; paste it into a config (or merge it with
+        ``hmpc-pin identify --config``)."""
+        pct = f"{100 * self.confidence:g} %"
+        names = ", ".join(j.name for j in self.joints)
+        lines = [
+            f"# Friction identified by `hmpc-pin identify` from {self.run or 'a run'} "
+            f"(source: {self.source}); joints: {names}",
+            f"# {pct} confidence intervals and fit residual per joint:",
+        ]
+        for j in self.joints:
+            lines.append(
+                f"#   {j.name}: viscous {j.viscous:.6g} [{j.viscous_ci[0]:.6g}, "
+                f"{j.viscous_ci[1]:.6g}] N·m·s/rad, Coulomb {j.coulomb:.6g} "
+                f"[{j.coulomb_ci[0]:.6g}, {j.coulomb_ci[1]:.6g}] N·m, residual RMS "
+                f"{j.residual_rms:.3g} N·m"
+            )
+        lines += [
+            "[controller.friction]",
+            f"viscous = [{', '.join(f'{v:.6g}' for v in self.viscous)}]   # [N·m·s/rad]",
+            f"coulomb = [{', '.join(f'{v:.6g}' for v in self.coulomb)}]   # [N·m]",
+        ]
+        return "\n".join(lines) + "\n"
+
+
+def coverage(dq: np.ndarray, velocity_threshold: float) -> tuple[float, float]:
+    """Fractions of the samples moving forward and backward faster than :math:`v_0`."""
+    total = max(len(dq), 1)
+    fast = np.isfinite(dq) & (np.abs(dq) > velocity_threshold)
+    return (float(np.count_nonzero(fast & (dq > 0)) / total),
+            float(np.count_nonzero(fast & (dq < 0)) / total))  # fmt: skip
+
+
+def check_excitation(name: str, dq: np.ndarray, velocity_threshold: float,
+                     min_coverage: float) -> tuple[float, float]:  # fmt: skip
+    """The coverage of one joint at :math:`v_e` (``velocity_threshold``), or
+    :class:`ExcitationError` if it does not move both ways."""
+    forward, backward = coverage(dq, velocity_threshold)
+    if min(forward, backward) < min_coverage:
+        peak = float(np.max(np.abs(dq))) if len(dq) else 0.0
+        raise ExcitationError(
+            name,
+            f"moves forward in {100 * forward:.1f} % and backward in {100 * backward:.1f} % "
+            f"of the samples faster than {velocity_threshold:g} rad/s (peak |q̇| "
+            f"{peak:.3g} rad/s); at least {100 * min_coverage:g} % each way is needed",
+        )
+    return forward, backward
+
+
+def _condition(name: str, A: np.ndarray, max_condition: float) -> float:
+    cond = float(np.linalg.cond(A / np.linalg.norm(A, axis=0)))
+    if not cond <= max_condition:
+        raise ExcitationError(
+            name,
+            f"its velocity and velocity sign are nearly collinear (condition number "
+            f"{cond:.3g} > {max_condition:g}): viscous and Coulomb friction cannot be "
+            "told apart",
+        )
+    return cond
+
+
+def _lag1(r: np.ndarray) -> float:
+    rr = float(np.dot(r, r))
+    return float(np.dot(r[1:], r[:-1]) / rr) if len(r) > 2 and rr > 0 else 0.0
+
+
+def _least_squares(blocks: list[tuple[np.ndarray, np.ndarray]], confidence: float):
+    """Weighted least squares over joint blocks ``(A_i, y_i)`` sharing one parameter
+    vector: each block weighted by its residual variance of an ordinary fit
+    (feasible GLS; with block-diagonal regressors it is one OLS per joint).
+
+    Returns:
+        (theta, half-widths of the intervals, residuals per block, m_e per block).
+    """
+    from scipy.stats import t as student_t
+
+    A = np.vstack([a for a, _ in blocks])
+    y = np.concatenate([v for _, v in blocks])
+    norms = np.linalg.norm(A, axis=0)
+    norms[norms == 0] = 1.0
+    blocks = [(a / norms, v) for a, v in blocks]  # unit columns: a well-scaled A^T W A
+    A = A / norms
+    theta = np.linalg.lstsq(A, y, rcond=None)[0]
+    p = A.shape[1]
+    var = [max(float(np.mean((v - a @ theta) ** 2)), 1e-300) for a, v in blocks]
+    W = np.concatenate([np.full(len(v), 1.0 / s) for (_, v), s in zip(blocks, var, strict=True)])
+    AtWA_inv = np.linalg.inv(A.T @ (A * W[:, None]))
+    theta = AtWA_inv @ (A.T @ (W * y))
+    res = [v - a @ theta for a, v in blocks]
+    m = len(y)
+    rho = max(0.0, float(np.mean([_lag1(r) for r in res])))
+    m_eff = max(m * (1 - rho) / (1 + rho), p + 1.0)
+    chi2 = float(sum(float(r @ r) / s for r, s in zip(res, var, strict=True)))
+    scale = chi2 / max(m - p, 1)  # ≈ 1 when the weights are the residual variances
+    half = student_t.ppf(0.5 + confidence / 2, m_eff - p) * np.sqrt(
+        scale * np.diag(AtWA_inv) * m / m_eff
+    )
+    m_effs = [len(r) * (1 - max(0.0, _lag1(r))) / (1 + max(0.0, _lag1(r))) for r in res]
+    return theta / norms, half / norms, res, m_effs
+
+
+def fit_joint(
+    y: np.ndarray,
+    dq: np.ndarray,
+    *,
+    name: str = "joint",
+    velocity_threshold: float = 0.01,
+    confidence: float = 0.95,
+    min_coverage: float = 0.05,
+    max_condition: float = 100.0,
+    excitation_velocity: float = 0.05,
+) -> JointFriction:
+    """Fit :math:`y = a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q` on the samples with
+    :math:`|\\dot q| > v_0` (``velocity_threshold``); see the module docstring.
+
+    Args:
+        y: Friction torque samples [N·m], (m,). dq: Joint velocity [rad/s], (m,).
+
+    Raises:
+        ExcitationError: The joint does not move both ways enough, or the regressor is
+            ill-conditioned; the message names the joint and the motion that would do.
+    """
+    y, dq = np.asarray(y, float), np.asarray(dq, float)
+    cover = check_excitation(name, dq, max(excitation_velocity, velocity_threshold),
+                             min_coverage)  # fmt: skip
+    keep = np.isfinite(y) & np.isfinite(dq) & (np.abs(dq) > velocity_threshold)
+    A = np.column_stack([dq[keep], np.sign(dq[keep])])
+    cond = _condition(name, A, max_condition)
+    theta, half, res, m_eff = _least_squares([(A, y[keep])], confidence)
+    return _joint(name, theta, half, res[0], m_eff[0], cond, cover)
+
+
+def _joint(name, theta, half, r, m_eff, cond, cover) -> JointFriction:
+    return JointFriction(
+        name=name,
+        viscous=float(theta[0]),
+        coulomb=float(theta[1]),
+        viscous_ci=(float(theta[0] - half[0]), float(theta[0] + half[0])),
+        coulomb_ci=(float(theta[1] - half[1]), float(theta[1] + half[1])),
+        residual_rms=float(np.sqrt(np.mean(r * r))),
+        samples=len(r),
+        effective_samples=float(m_eff),
+        condition=cond,
+        coverage=cover,
+    )
+
+
+@dataclass(frozen=True)
+class ObserverModel:
+    """The observer whose estimate is fitted: its error dynamics
+    :math:`\\dot{\\hat d} = L(q)\\,(d - \\hat d)` (exact for any :math:`d`,
+    :mod:`hmpc_pin.compensation.observers`), with :math:`L = cYM(q)^{-1}` (``"chen"``,
+    ``"general"``) or :math:`L = K_O I` (``"momentum"``), discretised as the observer is.
+
+    Attributes:
+        kind: ``"chen"``, ``"general"`` or ``"momentum"``. gain: :math:`c` or :math:`K_O`.
+        Ts: The control period [s]. implicit: Backward (``True``) or forward Euler.
+        robot: The arm's :class:`~hmpc_pin.model.robot.Robot` (for :math:`M(q)`).
+    """
+
+    kind: str
+    gain: float
+    Ts: float
+    robot: object = None
+    implicit: bool = True
+
+    def filter(self, q: np.ndarray, phi: np.ndarray) -> np.ndarray:
+        """The observer's response :math:`g` to the disturbance signals ``phi``,
+        (K, n, p) for K instants, n joints and p signals, started at rest.
+
+        Backward Euler: :math:`(I + T_sL_k)\\,g_k = g_{k-1} + T_sL_k\\,\\varphi_k`.
+        """
+        K, n, p = phi.shape
+        g = np.zeros_like(phi)
+        if self.kind == "momentum":
+            L = None
+            a = self.Ts * self.gain
+        else:
+            cY = self.gain * (np.tril(np.ones((n, n))) if self.kind == "chen" else np.eye(n))
+        prev = np.zeros((n, p))
+        for k in range(1, K):
+            if self.kind == "momentum":
+                if self.implicit:
+                    prev = (prev + a * phi[k]) / (1 + a)
+                else:
+                    prev = prev + a * (phi[k] - prev)
+            else:
+                M = self.robot.mass_matrix(q[k])
+                L = self.Ts * cY @ np.linalg.inv(M)
+                if self.implicit:
+                    prev = np.linalg.solve(np.eye(n) + L, prev + L @ phi[k])
+                else:
+                    prev = prev + L @ (phi[k] - prev)
+            g[k] = prev
+        return g
+
+
+def _feedforward(result: Result, dq: np.ndarray) -> np.ndarray:
+    """The friction model the run fed forward, at the velocities ``dq`` [N·m] (zeros if
+    none)."""
+    ff = result.meta.get("friction_feedforward")
+    if not ff:
+        return np.zeros_like(dq)
+    a, b = np.asarray(ff["viscous"], float), np.asarray(ff["coulomb"], float)
+    s = float(ff.get("smoothing", 0.0))
+    sgn = np.tanh(dq / s) if s > 0 else np.sign(dq)
+    return a * dq + b * sgn
+
+
+def _regressors(dq: np.ndarray) -> np.ndarray:
+    """:math:`\\Phi` (K, n, 2n): joint i's viscous and Coulomb columns 2i, 2i+1."""
+    K, n = dq.shape
+    phi = np.zeros((K, n, 2 * n))
+    for i in range(n):
+        phi[:, i, 2 * i] = dq[:, i]
+        phi[:, i, 2 * i + 1] = np.sign(dq[:, i])
+    return phi
+
+
+def dynamics_friction(result: Result, robot) -> tuple[np.ndarray, np.ndarray]:
+    """``(f, dq)`` over each period from the rigid-body model (module docstring):
+    :math:`f_k = \\tau_k - Y(\\bar q, \\bar{\\dot q}, \\ddot q_k)\\,\\pi`, with Pinocchio's
+    joint-torque regressor :math:`Y` and the model's inertial parameters :math:`\\pi`.
+
+    Args:
+        robot: A :class:`~hmpc_pin.model.robot.Robot` of the arm that ran.
+    """
+    import pinocchio as pin
+
+    model = robot.model
+    data = model.createData()
+    pi = np.concatenate([model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)])
+    t, q, dq = result.t, result.q, result.dq
+    tau = result.tau_applied if result.tau_applied is not None else result.tau
+    dt = np.diff(t)
+    f = np.full((len(t) - 1, q.shape[1]), np.nan)
+    dq_mid = 0.5 * (dq[1:] + dq[:-1])
+    for k in range(len(t) - 1):
+        ddq = (dq[k + 1] - dq[k]) / dt[k]
+        qm = 0.5 * (q[k] + q[k + 1])
+        Y = pin.computeJointTorqueRegressor(model, data, qm, dq_mid[k], ddq)
+        f[k] = tau[k] - Y @ pi
+    return f, dq_mid
+
+
+def _regressor_rows(result: Result, robot):
+    """Per period: the joint-torque regressor :math:`Y_k` (n, 10·n_b), the applied torque,
+    the mid-period velocity and time."""
+    import pinocchio as pin
+
+    model = robot.model
+    data = model.createData()
+    t, q, dq = result.t, result.q, result.dq
+    tau = result.tau_applied if result.tau_applied is not None else result.tau
+    dq_mid = 0.5 * (dq[1:] + dq[:-1])
+    Y = np.empty((len(t) - 1, q.shape[1], 10 * (model.njoints - 1)))
+    for k in range(len(t) - 1):
+        ddq = (dq[k + 1] - dq[k]) / (t[k + 1] - t[k])
+        Y[k] = pin.computeJointTorqueRegressor(model, data, 0.5 * (q[k] + q[k + 1]),
+                                               dq_mid[k], ddq)  # fmt: skip
+    return Y, tau[:-1], dq_mid, 0.5 * (t[1:] + t[:-1])
+
+
+def _base_columns(Y: np.ndarray, tol: float = 1e-8) -> np.ndarray:
+    """Indices of a maximal set of independent columns of ``Y`` (QR, column pivoting)."""
+    from scipy.linalg import qr
+
+    norms = np.linalg.norm(Y, axis=0)
+    live = np.flatnonzero(norms > tol * max(norms.max(), 1e-300))
+    _, R, piv = qr(Y[:, live] / norms[live], mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    rank = int(np.count_nonzero(d > tol * d[0])) if d.size else 0
+    return np.sort(live[piv[:rank]])
+
+
+def fit_friction(
+    result: Result,
+    *,
+    source: str = "observer",
+    robot=None,
+    observer: ObserverModel | None = None,
+    after: float = 0.5,
+    velocity_threshold: float = 0.01,
+    confidence: float = 0.95,
+    min_coverage: float = 0.05,
+    max_condition: float = 100.0,
+    excitation_velocity: float = 0.05,
+    run: str = "",
+) -> FrictionFit:
+    """Fit every joint's viscous and Coulomb friction from ``result``.
+
+    Args:
+        result: A run of ``hmpc-pin run`` / ``realtime`` (:class:`~hmpc_pin.sim.result.Result`).
+        source: ``"observer"`` or ``"dynamics"`` (module docstring).
+        robot: The arm's :class:`~hmpc_pin.model.robot.Robot` (``"dynamics"`` only).
+        observer: With ``"observer"``: the observer that ran; the regressors are passed
+            through its dynamics, so that its lag is no bias (all joints are then fitted
+            together). ``None``: :math:`\\hat d` is taken as the disturbance itself.
+        after: Samples before this time [s] are left out (the observer's start-up).
+        velocity_threshold: :math:`v_0` [rad/s]: slower samples are left out.
+        confidence: Level of the intervals, in (0, 1).
+        min_coverage: Fraction of samples needed moving each way faster than
+            ``excitation_velocity`` [rad/s].
+        max_condition: Largest condition number of the normalised regressor.
+
+    Raises:
+        ExcitationError: A joint is not excited enough (the first such joint).
+        ConfigError: A bad option.
+    """
+    if source not in SOURCES:
+        raise ConfigError("--source", f"expected one of {SOURCES}, got {source!r}")
+    if not 0 < confidence < 1:
+        raise ConfigError("--confidence", f"expected a level in (0, 1), got {confidence!r}")
+    if not (np.isfinite(velocity_threshold) and velocity_threshold >= 0):
+        raise ConfigError("--velocity-threshold", f"expected a number >= 0, got "
+                          f"{velocity_threshold!r}")  # fmt: skip
+    n = result.dq.shape[1]
+    names = result.joint_names or tuple(f"joint{i + 1}" for i in range(n))
+    if source in ("dynamics", "regressor") and robot is None:
+        raise ConfigError("robot", f"the {source!r} source needs the arm's model")
+    if source == "regressor":
+        Yr, tau, dq, t = _regressor_rows(result, robot)
+        use = (t >= after - 1e-12) & np.all(np.isfinite(tau), axis=1)
+        base = _base_columns(Yr[use].reshape(-1, Yr.shape[2]))
+        phi = _regressors(dq)
+        g = np.concatenate([phi, Yr[:, :, base]], axis=2)  # friction first, then pi_base
+        y = tau
+    elif source == "dynamics":
+        y, dq = dynamics_friction(result, robot)
+        t = 0.5 * (result.t[1:] + result.t[:-1])
+        g = _regressors(dq)
+    elif observer is None:
+        dq, t = result.dq, result.t
+        y = _feedforward(result, dq) - result.d_hat
+        g = _regressors(dq)
+    else:  # the observer's response to each regressor and to the fed-forward friction
+        dq = np.vstack([result.dq[:1], 0.5 * (result.dq[1:] + result.dq[:-1])])
+        t = result.t
+        ff = np.vstack([np.zeros((1, n)), _feedforward(result, result.dq[:-1])])
+        phi = np.concatenate([_regressors(dq), ff[:, :, None]], axis=2)
+        filtered = observer.filter(result.q, phi)
+        g, y = filtered[:, :, :-1], filtered[:, :, -1] - result.d_hat
+    use = t >= after - 1e-12
+    blocks, covers, conds = [], [], []
+    for i, name in enumerate(names):
+        covers.append(check_excitation(name, dq[use, i],
+                                       max(excitation_velocity, velocity_threshold),
+                                       min_coverage))  # fmt: skip
+        keep = use & np.isfinite(y[:, i]) & (np.abs(dq[:, i]) > velocity_threshold)
+        raw = np.column_stack([dq[keep, i], np.sign(dq[keep, i])])
+        conds.append(_condition(name, raw, max_condition))
+        blocks.append((g[keep, i, :], y[keep, i]))
+    if source == "dynamics" or (source == "observer" and observer is None):  # one per joint
+        fits = []
+        for i, (A, v) in enumerate(blocks):
+            theta, half, res, m_eff = _least_squares([(A[:, 2 * i : 2 * i + 2], v)], confidence)
+            fits.append(_joint(names[i], theta, half, res[0], m_eff[0], conds[i], covers[i]))
+        return FrictionFit(tuple(fits), source, confidence, run)
+    theta, half, res, m_eff = _least_squares(blocks, confidence)
+    joints = tuple(
+        _joint(name, theta[2 * i : 2 * i + 2], half[2 * i : 2 * i + 2], res[i], m_eff[i],
+               conds[i], covers[i])
+        for i, name in enumerate(names)
+    )
+    return FrictionFit(joints, source, confidence, run)

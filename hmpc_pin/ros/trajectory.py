@@ -1,0 +1,143 @@
+"""A ``trajectory_msgs/JointTrajectory`` message as a new joint reference, checked before
+it replaces the current one.
+
+The message's points (``positions``, optionally ``velocities``, at ``time_from_start``)
+start at ``header.stamp`` (zero: now, as ros2_control's joint trajectory controller
+reads it), on the loop's time axis. The new reference is the
+:class:`~hmpc_pin.tasks.trajectory.JointTrajectory` through
+
+* the current reference's position at the switch time :math:`t_s`, unless the first
+  point is at ``time_from_start = 0``, so that the reference moves from where it was to
+  the first point (no position jump), then
+* the message's points at :math:`t_s + \\text{time\\_from\\_start}`, the last one held.
+
+With velocities in every point and the first at ``time_from_start = 0`` the reference is
+the quintic Hermite through positions and velocities; otherwise the clamped cubic spline
+through the positions (the message's velocities, if any, checked against its positions).
+
+Joints are matched by name (any order, every controlled joint present). Checked, in
+this order, before anything changes: names, at least one point, strictly increasing
+times, finite values, velocities for all points or none, a start not in the past, and
+position and velocity limits at the samples and 10 points per segment
+(:func:`~hmpc_pin.experiment.references.check_trajectory_limits`). A message that fails
+is refused with one line naming what was wrong and the current reference is kept.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..exceptions import DimensionError, HmpcError, TrajectoryError
+from ..model.robot import Robot
+from ..tasks.trajectory import JointTrajectory
+
+__all__ = ["trajectory_from_message"]
+
+_SOURCE = "joint_trajectory message"
+
+
+def _duration(d) -> float:
+    return d.sec + 1e-9 * d.nanosec
+
+
+def trajectory_from_message(
+    msg,
+    robot: Robot,
+    current,
+    now: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    *,
+    origin: float = 0.0,
+) -> JointTrajectory:
+    """The reference of ``msg`` (module doc), checked.
+
+    Args:
+        msg: A ``trajectory_msgs/JointTrajectory`` (any object with its fields).
+        robot: The controller's model (joint names, velocity limits).
+        current: The reference in use (sampled at the switch time).
+        now: The loop time [s] at which the message takes over (if unstamped).
+        lower, upper: Position limits [rad], (n,).
+        origin: The loop clock's origin on the system clock [s] (for a stamped start).
+
+    Raises:
+        TrajectoryError: A malformed message (names, points, times, values).
+        LimitError: The trajectory leaves the limits.
+    """
+    from ..experiment.references import check_trajectory_limits
+
+    names: Sequence[str] = list(msg.joint_names)
+    where = {name: i for i, name in enumerate(names)}
+    missing = [x for x in robot.joint_names if x not in where]
+    if missing:
+        raise TrajectoryError(_SOURCE, f"joint_names {list(names)} lack {missing}",
+                              f"every controlled joint {list(robot.joint_names)}")  # fmt: skip
+    if len(where) != len(names):
+        raise TrajectoryError(_SOURCE, f"joint_names {list(names)} repeat a name",
+                              "each joint once")  # fmt: skip
+    idx = np.array([where[x] for x in robot.joint_names])
+    points = list(msg.points)
+    if not points:
+        raise TrajectoryError(_SOURCE, "no points", "at least one point")
+    m = len(names)
+    times = np.array([_duration(p.time_from_start) for p in points])
+    q = np.full((len(points), robot.nq), np.nan)
+    with_dq = [len(p.velocities) > 0 for p in points]
+    if any(with_dq) and not all(with_dq):
+        raise TrajectoryError(_SOURCE, "velocities in some points only",
+                              "velocities for every point or for none")  # fmt: skip
+    dq = np.full_like(q, np.nan) if all(with_dq) else None
+    for k, p in enumerate(points):
+        if len(p.positions) != m:
+            raise TrajectoryError(_SOURCE, f"point {k} has {len(p.positions)} positions for "
+                                  f"{m} joint_names", f"{m} positions")  # fmt: skip
+        q[k] = np.asarray(p.positions, dtype=float)[idx]
+        if dq is not None:
+            if len(p.velocities) != m:
+                raise TrajectoryError(_SOURCE, f"point {k} has {len(p.velocities)} velocities "
+                                      f"for {m} joint_names", f"{m} velocities")  # fmt: skip
+            dq[k] = np.asarray(p.velocities, dtype=float)[idx]
+    if not (np.isfinite(q).all() and (dq is None or np.isfinite(dq).all())):
+        raise TrajectoryError(_SOURCE, "a non-finite position or velocity", "finite values")
+    if times[0] < 0 or np.any(np.diff(times) <= 0):
+        raise TrajectoryError(_SOURCE, f"time_from_start {times.tolist()}",
+                              "times >= 0, strictly increasing")  # fmt: skip
+    st = msg.header.stamp
+    stamp = st.sec + 1e-9 * st.nanosec
+    t_s = now if stamp == 0.0 else stamp - origin
+    if t_s < now - 1e-3:
+        raise TrajectoryError(_SOURCE, f"header.stamp {t_s - now:.3f} s in the past",
+                              "a start not in the past (or a zero stamp: now)")  # fmt: skip
+    t_s = max(t_s, now)
+    q_now = np.asarray(current.sample(now)[0], dtype=float)
+    times = t_s + times
+    if times[0] > now + 1e-9:  # move from the current reference to the first point
+        if dq is not None and times.size > 1:  # the message's own velocities checked
+            JointTrajectory(times, q, dq, robot.joint_names, source=_SOURCE)
+        times = np.concatenate([[now], times])
+        q = np.vstack([q_now, q])
+        dq = None
+    if times.size == 1:  # one point at the switch: hold it
+        times = np.array([now, now + 1.0])
+        q = np.vstack([q, q])
+        dq = None if dq is None else np.vstack([dq, np.zeros_like(dq)])
+    try:
+        traj = JointTrajectory(times, q, dq, robot.joint_names, source=_SOURCE)
+    except DimensionError as exc:
+        raise TrajectoryError(_SOURCE, str(exc), "consistent shapes") from None
+    check_trajectory_limits(
+        traj,
+        robot,
+        lower,
+        upper,
+        what=_SOURCE,
+        hint="the message was refused; the current reference is kept",
+    )
+    return traj
+
+
+def refusal(exc: HmpcError) -> str:
+    """One line for a refused message."""
+    return f"refused the joint_trajectory message: {exc}"

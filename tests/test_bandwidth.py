@@ -1,0 +1,110 @@
+"""Observer gains in bandwidth units and the rule relating bandwidth, Ts and latency
+(hmpc_pin.compensation.bandwidth)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from hmpc_pin.compensation.bandwidth import (
+    bandwidth_limit,
+    check_bandwidth,
+    implied_bandwidth,
+    observer_cY,
+)
+from hmpc_pin.compensation.observers import DisturbanceObserver
+from hmpc_pin.exceptions import ConfigError, ValidityWarning
+from hmpc_pin.experiment.config.controller import ControllerConfig
+from hmpc_pin.experiment.controllers import bandwidth_posture, make_compensation
+
+NAMES = ("joint1", "joint2", "joint3")
+
+
+def test_bandwidth_is_the_error_decay_rate(planar3):
+    """With cY = diag(ω) M(q0), at q0 at rest the implicit observer's error obeys
+    e_k = (I + Ts diag(ω))^{-1} e_{k-1} (backward Euler on ė = −ω e), joint by joint."""
+    Ts, w = 0.01, np.array([5.0, 20.0, 80.0])
+    q0 = np.array([0.2, -0.4, 0.6])
+    M0 = planar3.mass_matrix(q0)
+    obs = DisturbanceObserver(3, Ts, 1.0, "general", cY=observer_cY(w, M0))
+    np.testing.assert_allclose(implied_bandwidth(obs.cY, M0), w, rtol=1e-12)
+    obs.reset(q0, np.zeros(3))
+    d = np.array([1.0, -2.0, 0.5])
+    import pinocchio as pin
+
+    nle = pin.nonLinearEffects(planar3.model, planar3.data, q0, np.zeros(3))
+    e_prev = d.copy()
+    for _ in range(5):  # at rest: τ balances gravity and d (M·0 = τ + d − nle)
+        d_hat = obs.update(M0, nle, q0, np.zeros(3), nle - d)
+        e = d - d_hat
+        np.testing.assert_allclose(e, e_prev / (1 + Ts * w), rtol=1e-9, atol=1e-13)
+        e_prev = e
+
+
+@pytest.mark.parametrize("D", [1, 2, 3])
+def test_rule_keeps_a_joint_with_unknown_latency_stable(D):
+    """At the rule's bound (ω r (Ts + D Ts) = 1/2, r = 1.25) the simulated joint of
+    benchmarks/observer_rule.py converges, at 8× the bound it does not (D = 1: 16×)."""
+    from benchmarks.observer_rule import final_error
+
+    Ts, r = 0.01, 1.25
+    limit = bandwidth_limit(Ts, D * Ts, r)
+    assert final_error(limit, Ts, r, D) < 1e-6
+    assert final_error((16 if D == 1 else 8) * limit, Ts, r, D) > 1e-2
+
+
+def test_warning_fires_and_names_the_joint():
+    Ts = 0.01
+    limit = bandwidth_limit(Ts, Ts)
+    assert limit == pytest.approx(0.5 / (1.25 * 2 * Ts))
+    with pytest.warns(ValidityWarning, match="'joint3'") as rec:
+        check_bandwidth(np.array([1.0, 1.0, 2 * limit]), Ts, 0.0, NAMES)
+    assert "'joint1'" not in str(rec[0].message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_bandwidth(np.full(3, 0.99 * limit), Ts, 0.0, NAMES)  # below: silent
+        check_bandwidth(np.full(3, 100 * limit), Ts, 0.001, NAMES)  # latency declared
+
+
+def test_explicit_observer_pole_outside_the_unit_circle_is_an_error():
+    with pytest.raises(ConfigError, match=r"joint2.*explicit"):
+        check_bandwidth(np.array([1.0, 250.0, 1.0]), 0.01, 0.001, NAMES, explicit=True)
+    check_bandwidth(np.array([1.0, 150.0, 1.0]), 0.01, 0.001, NAMES, explicit=True)
+
+
+def test_config_bandwidth_keys(planar3):
+    cc = ControllerConfig(compensation="general", observer={"bandwidth": [10.0, 20.0, 30.0]})
+    assert cc.observer.gain is None
+    obs = make_compensation(planar3, cc)
+    M0 = planar3.mass_matrix(bandwidth_posture(planar3))
+    np.testing.assert_allclose(implied_bandwidth(obs.cY, M0), [10, 20, 30], rtol=1e-12)
+    mom = make_compensation(planar3, ControllerConfig(compensation="momentum",
+                                                      observer={"bandwidth": 40.0}))  # fmt: skip
+    np.testing.assert_array_equal(mom.K, [40.0, 40.0, 40.0])
+    with pytest.raises(ConfigError, match="not both"):
+        ControllerConfig(compensation="general", observer={"bandwidth": 10.0, "gain": 5.0})
+    with pytest.raises(ConfigError, match="chen"):
+        ControllerConfig(compensation="chen", observer={"bandwidth": 10.0})
+    with pytest.raises(ConfigError, match="3 joints"):
+        two = ControllerConfig(compensation="general", observer={"bandwidth": [1.0, 2.0]})
+        make_compensation(planar3, two)
+    # an earlier gain still loads, as the gain
+    old = ControllerConfig(compensation="general", observer={"gain": 100.0})
+    assert old.observer.gain == 100.0 and old.observer.bandwidth is None
+
+
+def test_experiment_makes_the_bandwidth_exact_at_the_start(write_config):
+    """Built from a config, the general observer's bandwidth is exact at the run's q0."""
+    import hmpc_pin
+
+    cfg = hmpc_pin.load_config(write_config(
+        "[robot]\nurdf = '@URDF@'\n[controller]\ncompensation = 'general'\nlatency = 0.001\n"
+        "[controller.observer]\nbandwidth = [300.0, 400.0, 500.0]\n"
+        "[simulation]\nq0 = [0.4, -0.3, 0.9]\n"
+    ))  # fmt: skip
+    exp = hmpc_pin.Experiment.from_config(cfg)
+    M0 = exp.robot.mass_matrix(np.array([0.4, -0.3, 0.9]))
+    cY = exp.controller.compensation.cY
+    np.testing.assert_allclose(implied_bandwidth(cY, M0), [300, 400, 500], rtol=1e-12)

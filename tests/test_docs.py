@@ -1,0 +1,256 @@
+"""The documentation: every Python example runs, the configuration reference lists every
+key the loader accepts, and no page points outside the repository.
+
+The strict build itself (``make docs``: warnings are errors, every cross-reference
+resolved) runs in ``.ci/run`` after the tests.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import re
+import runpy
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from hmpc_pin.exceptions import ConfigError, URDFError
+from hmpc_pin.experiment.config import ExperimentConfig, load_config
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+PAGES = sorted(
+    [ROOT / "README.md"]
+    + [p for p in DOCS.rglob("*.md") if "_build" not in p.parts and "_static" not in p.parts]
+)
+FENCE = re.compile(r"^```python[^\n]*\n(.*?)^```", re.S | re.M)
+
+
+def python_blocks() -> list[tuple[str, str]]:
+    out = []
+    for page in PAGES:
+        for i, m in enumerate(FENCE.finditer(page.read_text(encoding="utf-8"))):
+            out.append((f"{page.relative_to(ROOT)}#{i + 1}", m.group(1)))
+    return out
+
+
+BLOCKS = python_blocks()
+
+
+def test_the_docs_have_python_examples():
+    pages = {name.split("#")[0] for name, _ in BLOCKS}
+    assert "README.md" in pages
+    assert len(BLOCKS) >= 15, BLOCKS
+
+
+@pytest.mark.parametrize(("name", "code"), BLOCKS, ids=[n for n, _ in BLOCKS])
+def test_python_example_runs(name, code, tmp_path, monkeypatch):
+    """Each block runs as written, in a fresh namespace, from an empty folder (where it may
+    write files); packaged configs and robots are found by name."""
+    monkeypatch.chdir(tmp_path)
+    script = tmp_path / "example.py"
+    script.write_text(code, encoding="utf-8")
+    monkeypatch.setattr(sys, "argv", [str(script)])
+    import matplotlib
+
+    matplotlib.use("Agg")
+    runpy.run_path(str(script), run_name="__main__")
+
+
+# -- the configuration reference ----------------------------------------------------------
+
+
+def _ext():
+    sys.path.insert(0, str(DOCS / "_ext"))
+    try:
+        return importlib.import_module("hmpc_docs")
+    finally:
+        sys.path.remove(str(DOCS / "_ext"))
+
+
+def accepted_keys() -> set[str]:
+    """Every dotted key the loader accepts, found by asking it: a key is accepted when a
+    file holding only that key is not refused as an unknown key."""
+    import typing
+
+    keys = set()
+
+    def walk(cls, prefix):
+        module = sys.modules[cls.__module__]
+        hints = typing.get_type_hints(cls, vars(module))
+        for f in dataclasses.fields(cls):
+            if f.name == "source":
+                continue
+            sub = next(
+                (a for a in (*typing.get_args(hints[f.name]), hints[f.name])
+                 if dataclasses.is_dataclass(a)),
+                None,
+            )  # fmt: skip
+            dotted = f"{prefix}.{f.name}" if prefix else f.name
+            if sub is not None:
+                walk(sub, dotted)
+            else:
+                keys.add(dotted)
+
+    walk(ExperimentConfig, "")
+    return keys
+
+
+def _refused_as_unknown(dotted: str, tmp_path: Path) -> bool:
+    *tables, key = dotted.split(".")
+    text = (f"[{'.'.join(tables)}]\n" if tables else "") + f"{key} = 12345\n"
+    path = tmp_path / "probe.toml"
+    path.write_text(text, encoding="utf-8")
+    try:
+        load_config(path)
+    except ConfigError as exc:
+        return "unknown key" in str(exc)
+    return False
+
+
+def test_the_loader_accepts_the_keys_the_schema_walk_finds_and_no_other(tmp_path):
+    """The oracle of the reference test is the loader itself: each key found by walking
+    the dataclasses is not an unknown key, and a key that is not there is."""
+    keys = accepted_keys()
+    assert len(keys) > 100
+    for dotted in sorted(keys):
+        assert not _refused_as_unknown(dotted, tmp_path), dotted
+    for dotted in ("controller.horizon", "plant.mujoco.stepsize", "colour"):
+        assert _refused_as_unknown(dotted, tmp_path), dotted
+
+
+def test_configuration_reference_lists_every_key_with_type_default_and_meaning():
+    ext = _ext()
+    rows = {r.dotted: r for r in ext.config_rows()}
+    missing = accepted_keys() - set(rows)
+    assert not missing, f"keys the loader accepts but the reference does not list: {missing}"
+    assert set(rows) <= accepted_keys()
+    for dotted, row in rows.items():
+        assert row.type and row.default and row.text.strip(), dotted
+    text = ext.config_reference_rst()
+    for dotted, row in rows.items():
+        assert f"``{row.key}``" in text, dotted
+    # the sections of the generated page: one per table
+    for table in {r.table for r in rows.values() if r.table}:
+        assert f"[{table}]" in text, table
+
+
+def test_configuration_reference_units_defaults_and_pairs_match_the_schema():
+    """A few entries against values written here by hand from the paper and combos.py."""
+    rows = {r.dotted: r for r in _ext().config_rows()}
+    assert rows["controller.Ts"].unit == "s" and rows["controller.Ts"].default == "0.01"
+    assert rows["controller.N"].default == "10"
+    assert rows["robot.gravity"].unit == "m/s²"
+    assert rows["controller.observer.gain"].applies == "any controller × chen, general, momentum"
+    assert rows["controller.qp_layout"].applies == "hmpc × any"
+    assert rows["controller.ism.gain"].applies == "any controller × ism, ism-bl"
+    assert rows["controller.computed_torque.kp"].applies == (
+        "computed-torque × any; computed-torque-pid × any"
+    )
+    assert rows["controller.Q"].default == "[[50.0, 0.0], [0.0, 0.0]]"
+
+
+def test_a_key_without_documentation_fails_the_reference():
+    ext = _ext()
+
+    @dataclasses.dataclass(frozen=True)
+    class Table:
+        """A table.
+
+        Attributes:
+            documented: A documented key [s].
+        """
+
+        documented: float = 1.0
+        undocumented: float = 2.0
+
+    with pytest.raises(ValueError, match="undocumented"):
+        ext.config_rows(Table, "demo")
+
+
+def test_every_packaged_config_uses_only_documented_keys():
+    rows = {r.dotted for r in _ext().config_rows()}
+    free = ("robot.locked_joints.",)  # a table of joint names
+
+    def keys(table, prefix=""):
+        for k, v in table.items():
+            dotted = f"{prefix}.{k}" if prefix else k
+            if isinstance(v, dict) and dotted not in rows:
+                yield from keys(v, dotted)
+            else:
+                yield dotted
+
+    for path in sorted((ROOT / "hmpc_pin" / "data" / "configs").glob("*.toml")):
+        for dotted in keys(tomllib.loads(path.read_text(encoding="utf-8"))):
+            assert dotted in rows or dotted.startswith(free), (path.name, dotted)
+
+
+# -- what the pages say -------------------------------------------------------------------
+
+
+def test_readme_is_a_front_page():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 250
+    assert "make demo" in text and "make test" in text
+    for image in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text):
+        assert (ROOT / image).is_file(), image
+    for link in re.findall(r"\]\(([^)#]+\.md)\)", text):
+        assert (ROOT / link).is_file(), link
+
+
+def test_no_page_points_outside_the_repository():
+    for page in [*PAGES, ROOT / "BENCHMARKS.md"]:
+        text = page.read_text(encoding="utf-8")
+        assert "../shared" not in text and "/work/" not in text, page
+        assert not re.search(r"\bissue \d+", text, re.I), page
+
+
+def test_equation_map_names_modules_that_exist():
+    text = (DOCS / "concepts" / "scheme.md").read_text(encoding="utf-8")
+    targets = re.findall(r"\{(?:class|func|mod)\}`~?([\w.]+)`", text)
+    assert len(targets) >= 10
+    for target in targets:
+        module, _, name = target.rpartition(".")
+        try:
+            importlib.import_module(target)
+            continue
+        except ImportError:
+            pass
+        assert hasattr(importlib.import_module(module), name), target
+    for path in re.findall(r"`(src/[\w.]+)`", text):
+        assert (ROOT / path).is_file(), path
+
+
+def test_unknown_robot_error_names_a_function_that_exists():
+    from hmpc_pin.model.robot import load_robot
+
+    with pytest.raises(URDFError) as info:
+        load_robot("not_a_robot_anywhere")
+    named = re.findall(r"(hmpc_pin(?:\.\w+)+)\(\)", str(info.value))
+    assert named, str(info.value)
+    for dotted in named:
+        module, _, name = dotted.rpartition(".")
+        names = getattr(importlib.import_module(module), name)()
+        assert "panda" in names and "ur5" in names
+
+
+def test_guide_index_collects_the_guide_pages():
+    index = (DOCS / "guide" / "index.md").read_text(encoding="utf-8")
+    assert ":glob:" in index
+    assert [p for p in (DOCS / "guide").glob("*.md") if p.name != "index.md"]
+
+
+def test_files_the_pages_name_exist():
+    """A script, config or source file named in the pages is in the repository."""
+    path = re.compile(
+        r"\b((?:benchmarks|examples|tests|src|hmpc_pin|configs)/[\w/.-]+\.(?:py|toml|cpp|csv|urdf))"
+    )
+    named = set()
+    for page in [*PAGES, ROOT / "BENCHMARKS.md"]:
+        named |= set(path.findall(page.read_text(encoding="utf-8")))
+    assert len(named) > 20
+    missing = sorted(p for p in named if not (ROOT / p).exists())
+    assert not missing, missing

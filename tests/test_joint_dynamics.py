@@ -1,0 +1,334 @@
+"""The arm's own joint dynamics, the URDF's ``<dynamics damping friction>``.
+
+- Parsed: Pinocchio's model carries them as yourdfpy reads them (Z1 declares both).
+- Applied by the plants (RK4, Euler, MuJoCo) by default, against closed forms of a single
+  joint without gravity: viscous damping :math:`I\\dot\\omega = u - b\\omega` (time constant
+  2 ms, below the 10 ms period) and Coulomb friction :math:`I\\dot\\omega = -f`; switched
+  off by ``joint_dynamics=False``; the compiled RK4 period equals its oracle with them; each
+  MuJoCo dof gets its own joint's values.
+- Compensated by the step (compiled observer or one called from Python alike): one
+  period from the step's torque takes a damped joint to the velocity the MPC's double
+  integrator predicts (the zero-order-hold gain), also from rest against Coulomb
+  friction; without compensation it falls short by the closed-form factor; whole runs
+  equal the oracle step.
+- Config: the keys, the deprecated ``plant.mujoco.import_urdf_dynamics``, a key that does
+  not apply.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.compensation.base import NoCompensation
+from hmpc_pin.exceptions import ConfigError
+from hmpc_pin.experiment.schema import ControllerConfig, PlantConfig, load_config
+from hmpc_pin.model.robot import example_robot_urdf, load_robot
+from hmpc_pin.sim.plants import EulerPlant, RK4Plant
+
+from .conftest import CONFIGS
+
+I_ZZ = 0.01  # the disc's inertia about the joint axis [kg·m²]
+TS = 0.01
+
+
+def disc_urdf(tmp_path, damping: float, friction: float) -> str:
+    """One revolute joint about z turning a disc centred on its axis: no gravity torque,
+    M = I_ZZ, and the joint dynamics given."""
+    text = f"""<?xml version="1.0"?>
+<robot name="disc">
+  <link name="base"/>
+  <link name="disc">
+    <inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="1.0"/>
+      <inertia ixx="0.02" iyy="0.02" izz="{I_ZZ}" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="spin" type="revolute">
+    <parent link="base"/><child link="disc"/><origin xyz="0 0 0" rpy="0 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-1000" upper="1000" effort="100" velocity="1000"/>
+    <dynamics damping="{damping}" friction="{friction}"/>
+  </joint>
+</robot>
+"""
+    path = tmp_path / f"disc_{damping}_{friction}.urdf"
+    path.write_text(text)
+    return str(path)
+
+
+def damped(t, q0, w0, u, b):
+    """Closed form of I ω̇ = u − b ω: (q(t), ω(t))."""
+    T, w_inf = I_ZZ / b, u / b
+    e = np.exp(-t / T)
+    return q0 + w_inf * t + (w0 - w_inf) * T * (1 - e), w_inf + (w0 - w_inf) * e
+
+
+def make_plant(kind: str, robot, dt: float, **kw):
+    if kind == "rk4":
+        return RK4Plant(robot, None, TS, dt, **kw)
+    if kind == "euler":
+        return EulerPlant(robot, None, TS, dt, **kw)
+    pytest.importorskip("mujoco")
+    from hmpc_pin.sim.mujoco import MuJoCoPlant, MuJoCoSettings
+
+    integrator = kind.split("-")[1]
+    return MuJoCoPlant(robot, None, TS, dt, MuJoCoSettings(integrator=integrator,
+                                                            geometry="none"))  # fmt: skip
+
+
+def test_pinocchio_reads_the_urdf_dynamics_as_yourdfpy_does():
+    import yourdfpy
+
+    robot = load_robot("z1", 9.81, {"jointGripper": 0.0})
+    urdf = yourdfpy.URDF.load(str(example_robot_urdf("z1")), build_scene_graph=False,
+                              load_meshes=False)  # fmt: skip
+    joints = {j.name: j for j in urdf.robot.joints}
+    for j, name in enumerate(robot.joint_names):
+        assert robot.joint_damping[j] == float(joints[name].dynamics.damping)
+        assert robot.joint_friction[j] == float(joints[name].dynamics.friction)
+    assert robot.joint_damping.min() > 0 and robot.joint_friction.min() > 0
+
+
+# Per integrator: step [s] and the error bound of the method on the damped joint (h/T =
+# 0.05): RK4's local error (h/T)^5/120 of the exponential, a first-order method's h/T.
+@pytest.mark.parametrize("kind, dt, rtol", [
+    ("rk4", 1e-4, 1e-6), ("euler", 1e-4, 0.05), ("mujoco-rk4", 1e-4, 1e-6),
+    ("mujoco-implicitfast", 1e-4, 0.05),
+])  # fmt: skip
+def test_damping_applied_by_the_plants_equals_the_closed_form(tmp_path, kind, dt, rtol):
+    b = 5.0  # T = I/b = 2 ms < Ts
+    robot = load_robot(disc_urdf(tmp_path, b, 0.0), 9.81)
+    plant = make_plant(kind, robot, dt)
+    q0, w0, u = 0.2, 3.0, 1.5  # ω from 3 to u/b = 0.3 rad/s
+    plant.reset(np.array([q0]), np.array([w0]))
+    scale = abs(w0 - u / b)
+    for k in range(1, 6):
+        q, dq = plant.advance(np.array([u]))
+        q_want, w_want = damped(k * TS, q0, w0, u, b)
+        assert abs(dq[0] - w_want) <= rtol * scale, (k, dq[0], w_want)
+        assert abs(q[0] - q_want) <= rtol * scale * I_ZZ / b + 2 * dt * rtol * scale
+    # the key turns it off: the free disc, q̈ = u/I
+    if not kind.startswith("mujoco"):
+        free = make_plant(kind, robot, dt, joint_dynamics=False)
+        free.reset(np.array([q0]), np.array([w0]))
+        _, dq = free.advance(np.array([u]))
+        assert dq[0] == pytest.approx(w0 + u / I_ZZ * TS, rel=1e-9)
+
+
+@pytest.mark.parametrize("kind, tol", [("rk4", 1e-12), ("euler", 2e-3), ("mujoco-rk4", 0.02)])
+def test_coulomb_friction_decelerates_the_joint_at_f_over_inertia(tmp_path, kind, tol):
+    """I ω̇ = −f sgn ω: ω = ω0 − (f/I) t until it stops (at 0.5 s here; checked to 0.3 s).
+    MuJoCo's frictionloss is a soft constraint: within 2 % of the dry-friction law."""
+    f, w0 = 0.02, 1.0  # f/I = 2 rad/s²
+    robot = load_robot(disc_urdf(tmp_path, 0.0, f), 9.81)
+    plant = make_plant(kind, robot, 1e-4)
+    plant.reset(np.zeros(1), np.array([w0]))
+    for k in range(1, 31):
+        q, dq = plant.advance(np.zeros(1))
+        t = k * TS
+        assert dq[0] == pytest.approx(w0 - f / I_ZZ * t, abs=tol * w0)
+        assert q[0] == pytest.approx(w0 * t - 0.5 * f / I_ZZ * t**2, abs=tol * w0 * t + 1e-12)
+
+
+def _planar3_with_dynamics(tmp_path) -> str:
+    """planar3 with distinct damping and friction per joint (0.4, 0.5, 0.6; 0.7, 0.8, 0.9)."""
+    text = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+    parts = text.split('<axis xyz="0 -1 0"/>')
+    assert len(parts) == 4, "planar3 changed: three joints about -y expected"
+    out = parts[0]
+    for j, rest in enumerate(parts[1:]):
+        out += (f'<axis xyz="0 -1 0"/><dynamics damping="{0.4 + 0.1 * j}" '
+                f'friction="{0.7 + 0.1 * j}"/>' + rest)  # fmt: skip
+    path = tmp_path / "planar3_dyn.urdf"
+    path.write_text(out)
+    return str(path)
+
+
+def test_rk4_period_with_joint_dynamics_equals_the_oracle(tmp_path):
+    from .reference.rk4 import rk4_period
+
+    robot = load_robot(_planar3_with_dynamics(tmp_path), 9.81)
+    np.testing.assert_allclose(robot.joint_damping, [0.4, 0.5, 0.6])
+    np.testing.assert_allclose(robot.joint_friction, [0.7, 0.8, 0.9])
+    plant = RK4Plant(robot, None, TS, 0.001)
+    plant.reset(np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1]))
+    joint = (robot.joint_damping, robot.joint_friction)
+    signs = set()
+    for k in range(100):
+        tau = np.array([5.0, 2.0, 1.0]) * np.sin(0.2 * k) + robot.gravity_torque(plant.q)
+        want = rk4_period(robot.model, plant.q, plant.dq, tau, plant.disturbance, plant.t,
+                          0.001, 10, joint=joint)  # fmt: skip
+        q, dq = plant.advance(tau)
+        signs.add(tuple(np.sign(dq)))
+        np.testing.assert_allclose(q, want[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dq, want[1], rtol=0, atol=1e-11)
+    assert len(signs) > 2  # the friction's sign switched along the way
+
+
+def test_each_mujoco_dof_gets_its_own_joints_dynamics(tmp_path):
+    pytest.importorskip("mujoco")
+    from hmpc_pin.sim.mujoco import mujoco_model
+
+    robot = load_robot(_planar3_with_dynamics(tmp_path), 9.81)
+    model = mujoco_model(robot)
+    dofs = [model.joint(name).dofadr[0] for name in robot.joint_names]
+    np.testing.assert_allclose(model.dof_damping[dofs], robot.joint_damping)
+    np.testing.assert_allclose(model.dof_frictionloss[dofs], robot.joint_friction)
+
+
+def _one_period(robot, dq0: float, joint_dynamics: bool = True):
+    """The step's torque at (0, dq0) towards a ramp, and the RK4 plant over one period
+    (h = 1e-5 s): (v, velocity gained)."""
+    ctrl = hmpc_pin.HierarchicalMPC(
+        robot, hmpc_pin.MPCSettings(joint_dynamics=joint_dynamics), NoCompensation(1), None
+    )
+    ref = hmpc_pin.SineReference(1, amplitude=0.5, frequency=0.5, offset=0.0)
+    q0 = np.zeros(1)
+    ctrl.reset(q0, np.array([dq0]))
+    tau = ctrl.step(0.0, q0, np.array([dq0]), ref)
+    plant = RK4Plant(robot, None, TS, 1e-5)
+    plant.reset(q0, np.array([dq0]))
+    _, dq = plant.advance(tau)
+    return float(ctrl.v[0]), float(dq[0] - dq0)
+
+
+@pytest.mark.parametrize("dq0", [0.8, -0.3])
+def test_a_damped_joint_gains_the_velocity_the_mpc_predicts(tmp_path, dq0):
+    """T = 2 ms, Ts = 10 ms: with B q̇_k compensated at the sampled velocity the joint
+    gains v (1 − e^{−x})/x · Ts, x = Ts/T = 5 (a fifth); the zero-order-hold gain restores
+    v·Ts (to the plant's RK4 accuracy)."""
+    b = 5.0
+    robot = load_robot(disc_urdf(tmp_path, b, 0.0), 9.81)
+    v, gained = _one_period(robot, dq0)
+    assert abs(v) > 1.0  # a real command
+    assert gained == pytest.approx(v * TS, rel=1e-6)
+    # without the gain (B q̇_k only): the closed form of the shortfall
+    ctrl = hmpc_pin.HierarchicalMPC(robot, hmpc_pin.MPCSettings(), NoCompensation(1), None)
+    ctrl._core.set_joint_dynamics(robot.joint_damping, robot.joint_friction, 0.0)
+    ref = hmpc_pin.SineReference(1, amplitude=0.5, frequency=0.5, offset=0.0)
+    ctrl.reset(np.zeros(1), np.array([dq0]))
+    tau = ctrl.step(0.0, np.zeros(1), np.array([dq0]), ref)
+    plant = RK4Plant(robot, None, TS, 1e-5)
+    plant.reset(np.zeros(1), np.array([dq0]))
+    _, dq = plant.advance(tau)
+    x = TS * b / I_ZZ
+    assert dq[0] - dq0 == pytest.approx(ctrl.v[0] * TS * (-math.expm1(-x)) / x, rel=1e-6)
+    # uncompensated, τ = I v: the damped joint's closed form, ω(Ts) = τ/b + (ω0 − τ/b) e^{−x}
+    v_off, gained_off = _one_period(robot, dq0, joint_dynamics=False)
+    w_inf = I_ZZ * v_off / b
+    assert dq0 + gained_off == pytest.approx(w_inf + (dq0 - w_inf) * math.exp(-x), rel=1e-6)
+
+
+def test_a_joint_at_rest_is_not_left_to_stick(tmp_path):
+    """At q̇ = 0 the Coulomb term takes the sign of the commanded velocity q̇ + v·Ts (sgn 0 = 0
+    would leave the friction uncompensated): damped and dry, the joint gains v·Ts, to the
+    plant's first RK4 stage, which sees sgn 0 = 0 (at most (f/I)·h)."""
+    f = 0.5
+    robot = load_robot(disc_urdf(tmp_path, 5.0, f), 9.81)
+    v, gained = _one_period(robot, 0.0)
+    assert gained == pytest.approx(v * TS, abs=f / I_ZZ * 1e-5)
+    # uncompensated friction would lose f/b (1 − e^{−x}) = 0.1 rad/s, 200 times that bound
+
+
+def test_whole_runs_with_joint_dynamics_equal_the_oracle_step():
+    """Z1 (damping and friction on every joint, the wrist's time constant 0.8 ms) simulated
+    with them: every step equals the oracle step (tests/reference/step.py)."""
+    from .reference.step import OracleHMPC
+
+    config = load_config(CONFIGS / "z1_sine.toml")
+    config = replace(
+        config,
+        controller=replace(config.controller, joint_dynamics=True),
+        plant=replace(config.plant, joint_dynamics=True),
+        simulation=replace(config.simulation, duration=1.0),
+    )
+    ex = hmpc_pin.Experiment.from_config(config)
+    b, f = ex.controller.joint_dynamics
+    assert b.min() > 0 and f.min() > 0
+    oracle = OracleHMPC(ex.controller)
+    r = ex.run()
+    assert r.complete
+    oracle.reset(r.dq[0])
+    scale = max(1.0, float(np.abs(r.tau).max()))
+    for k in range(len(r.t)):
+        tau, d_hat = oracle.step(r.t[k], r.q[k], r.dq[k], ex.reference,
+                                 None if k == 0 else r.tau_applied[k - 1])  # fmt: skip
+        np.testing.assert_allclose(r.d_hat[k], d_hat, rtol=0, atol=5e-8 * scale)
+        np.testing.assert_allclose(r.tau[k], tau, rtol=0, atol=5e-8 * scale)
+
+
+def test_config_keys_of_the_joint_dynamics():
+    assert PlantConfig().joint_dynamics is True
+    assert PlantConfig(joint_dynamics=False).joint_dynamics is False
+    assert ControllerConfig().joint_dynamics is True
+    with pytest.raises(ConfigError, match="joint_dynamics"):
+        ControllerConfig(kind="computed-torque", joint_dynamics=False)
+    with pytest.raises(ConfigError, match="joint_dynamics"):
+        PlantConfig(joint_dynamics="yes")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pc = PlantConfig(engine="mujoco", mujoco={"import_urdf_dynamics": False})
+    assert pc.joint_dynamics is False
+    assert any(issubclass(w.category, DeprecationWarning)
+               and "plant.joint_dynamics" in str(w.message) for w in caught)  # fmt: skip
+    with pytest.raises(ConfigError, match="import_urdf_dynamics"):
+        PlantConfig(engine="mujoco", joint_dynamics=False,
+                    mujoco={"import_urdf_dynamics": True})  # fmt: skip
+
+
+def test_a_python_compensation_gets_what_the_compiled_observer_gets():
+    """Z1 with its joint dynamics: the NDO called from Python between the step's halves
+    (given C q̇ + G alone and the applied torque minus the step's joint torque J) gives the
+    fused step's run bit for bit."""
+    from .test_native import _Unfused
+
+    config = load_config(CONFIGS / "z1_sine.toml")
+    config = replace(
+        config,
+        controller=replace(config.controller, joint_dynamics=True),
+        plant=replace(config.plant, joint_dynamics=True),
+        simulation=replace(config.simulation, duration=1.0),
+    )
+    runs = []
+    for fused in (True, False):
+        ex = hmpc_pin.Experiment.from_config(config)
+        if not fused:
+            ex.controller.compensation = _Unfused(ex.controller.compensation)
+        assert ex.controller.fused is fused
+        runs.append(ex.run())
+    assert np.abs(runs[0].d_hat).max() > 0.01  # the observer was at work
+    for name in ("q", "dq", "tau", "d_hat"):
+        np.testing.assert_array_equal(getattr(runs[1], name), getattr(runs[0], name))
+
+
+def test_mujoco_friction_is_coulomb_with_a_short_constraint_time_constant(tmp_path):
+    """Damped (T = 2 ms) and dry: I ω̇ = −b ω − f until ω = 0 at t* = T ln((ω0 + f/b)/(f/b)),
+    then held. With the friction constraint's time constant at 2 steps MuJoCo meets the
+    closed form to 1.5 % of the friction's effect on q and holds the joint; with MuJoCo's
+    default 0.02 s it misses it by more than the whole effect (its soft friction)."""
+    pytest.importorskip("mujoco")
+    from hmpc_pin.sim.mujoco import MuJoCoPlant, MuJoCoSettings
+
+    b, f, w0 = 5.0, 0.5, 3.0
+    T, wf = I_ZZ / b, f / b
+    t_stop = T * math.log((w0 + wf) / wf)
+    q_stop = T * w0 - wf * t_stop  # ∫ω from 0 to t*
+    effect = T * w0 * (1 - math.exp(-TS / T)) - q_stop  # of the friction on q(Ts)
+    robot = load_robot(disc_urdf(tmp_path, b, f), 9.81)
+    for tc, ok in ((2e-4, True), (None, False)):
+        settings = MuJoCoSettings(integrator="rk4", geometry="none", friction_timeconst=tc)
+        plant = MuJoCoPlant(robot, None, TS, 1e-4, settings)
+        plant.reset(np.zeros(1), np.array([w0]))
+        q, dq = plant.advance(np.zeros(1))
+        if ok:
+            assert q[0] == pytest.approx(q_stop, abs=0.015 * effect)
+            assert abs(dq[0]) < 1e-6
+        else:
+            assert abs(q[0] - q_stop) > effect
+    with pytest.raises(ConfigError, match="friction_timeconst"):
+        MuJoCoSettings(friction_timeconst=-1.0)
+    with pytest.raises(ConfigError, match="2 timesteps"):
+        PlantConfig(engine="mujoco", mujoco={"friction_timeconst": 0.001, "timestep": 0.001})

@@ -1,0 +1,369 @@
+"""The ROS 2 nodes: ``[ros]``, trajectory messages, and both nodes as real processes in a
+private network namespace (tests/ros_scenario.py).
+
+DDS discovery multicasts: rclpy is initialised only inside ``unshare -n`` (with the
+loopback up and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``); where that is impossible
+the process tests skip with the reason. Importing the message packages (no rclpy.init)
+is safe anywhere.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from hmpc_pin.apps.cli import main
+from hmpc_pin.apps.metrics import compute_metrics
+from hmpc_pin.exceptions import ConfigError, LimitError, TrajectoryError
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.sim.result import Result
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = Path(__file__).with_name("ros_scenario.py")
+
+try:
+    import rclpy  # noqa: F401
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    HAVE_ROS = True
+except ImportError:  # pragma: no cover - the extra is in dev
+    HAVE_ROS = False
+
+needs_msgs = pytest.mark.skipif(not HAVE_ROS, reason="rclpy not installed (extra hmpc_pin[ros])")
+
+
+def _netns_reason() -> str | None:
+    if not HAVE_ROS:
+        return "rclpy not installed (extra hmpc_pin[ros])"
+    if shutil.which("unshare") is None or shutil.which("ip") is None:
+        return "unshare/ip not available: DDS must run in a private network namespace"
+    probe = subprocess.run(["unshare", "-n", "ip", "link", "set", "lo", "up"],
+                           capture_output=True, text=True)  # fmt: skip
+    if probe.returncode != 0:
+        return f"cannot create a private network namespace ({probe.stderr.strip()})"
+    return None
+
+
+# --------------------------------------------------------------------------- [ros]
+def _write(tmp_path: Path, extra: str, base: str = "panda_sine") -> Path:
+    text = (ROOT / "configs" / f"{base}.toml").read_text()
+    path = tmp_path / f"{base}.toml"
+    path.write_text(text + "\n" + extra)
+    return path
+
+
+def test_ros_table_defaults_and_keys(tmp_path):
+    rc = load_config(_write(tmp_path, "[ros]\nrate = 500\nnamespace = 'arm1'\n")).ros
+    assert rc.rate == 500.0 and rc.period == pytest.approx(2e-3)
+    assert rc.namespace == "/arm1" and rc.joint_states == "joint_states"
+    assert rc.commands == "effort_controller/commands"  # relative: in the namespace
+    with pytest.raises(ConfigError, match=r"ros\.topics.*unknown key"):
+        load_config(_write(tmp_path, "[ros]\ntopics = 1\n"))
+    with pytest.raises(ConfigError, match=r"ros\.commands.*topic name"):
+        load_config(_write(tmp_path, "[ros]\ncommands = 'a b'\n"))
+    with pytest.raises(ConfigError, match=r"ros\.discovery.*localhost"):
+        load_config(_write(tmp_path, "[ros]\ndiscovery = 'everywhere'\n"))
+    with pytest.raises(ConfigError, match=r"ros\.rate.*> 0"):
+        load_config(_write(tmp_path, "[ros]\nrate = 0\n"))
+
+
+def test_discovery_range_precedence():
+    from hmpc_pin.ros.node import discovery_range
+
+    assert discovery_range(None, {}) == "LOCALHOST"
+    assert discovery_range(None, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}) == "SUBNET"
+    assert discovery_range("off", {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}) == "OFF"
+
+
+def test_ros_commands_without_the_extra_exit_2(monkeypatch, capsys):
+    for name in ("rclpy", "sensor_msgs", "std_msgs", "trajectory_msgs"):
+        monkeypatch.setitem(sys.modules, name, None)  # import fails as if not installed
+    for command in ("ros", "ros-arm"):
+        assert main([command, "panda_sine"]) == 2
+        err = capsys.readouterr().err
+        assert f"hmpc-pin {command}" in err and 'pip install "hmpc_pin[ros]"' in err
+        assert "Traceback" not in err
+
+
+# ------------------------------------------------------------ trajectory messages
+def _message(names, points, stamp=0.0):
+    msg = JointTrajectory()
+    msg.joint_names = list(names)
+    msg.header.stamp.sec = int(stamp)
+    for t, q in points:
+        p = JointTrajectoryPoint()
+        p.positions = [float(x) for x in q]
+        p.time_from_start = Duration(sec=int(t), nanosec=round((t % 1) * 1e9))
+        msg.points.append(p)
+    return msg
+
+
+@pytest.fixture(scope="module")
+def panda():
+    config = load_config("panda_sine")
+    return Experiment.from_config(replace(config, simulation=replace(config.simulation,
+                                                                     duration=1.0)))  # fmt: skip
+
+
+@needs_msgs
+def test_trajectory_message_becomes_the_reference(panda):
+    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.ros.trajectory import trajectory_from_message
+
+    robot, ref = panda.robot, panda.reference
+    names = list(robot.joint_names)
+    now = 2.0
+    q_now = ref.sample(now)[0]
+    target = q_now + 0.1
+    # reversed order and an extra joint the robot does not control: matched by name
+    msg = _message(["gripper", *names[::-1]], [(1.5, [0.0, *target[::-1]])])
+    lower, upper = _limits_of(panda)
+    traj = trajectory_from_message(msg, robot, ref, now, lower, upper)
+    q, _dq = traj.sample(now)
+    np.testing.assert_allclose(q, q_now, atol=1e-12)  # starts where the reference was
+    np.testing.assert_allclose(traj.sample(now + 1.5)[0], target, atol=1e-12)
+    np.testing.assert_allclose(traj.sample(now + 5.0)[0], target, atol=1e-12)  # held
+    np.testing.assert_allclose(traj.sample(now + 5.0)[1], 0.0, atol=1e-12)
+
+
+@needs_msgs
+def test_trajectory_messages_refused(panda):
+    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.ros.trajectory import trajectory_from_message
+
+    robot, ref = panda.robot, panda.reference
+    names = list(robot.joint_names)
+    lower, upper = _limits_of(panda)
+    q_now = ref.sample(0.0)[0]
+    beyond = q_now.copy()
+    beyond[3] = upper[3] + 0.2
+    with pytest.raises(LimitError, match=r"panda_joint4.*outside its limits.*refused"):
+        trajectory_from_message(_message(names, [(1.0, beyond)]), robot, ref, 0.0, lower, upper)
+    with pytest.raises(TrajectoryError, match=r"lack \['panda_joint7'\]"):
+        trajectory_from_message(_message(names[:-1], [(1.0, q_now[:-1])]), robot, ref, 0.0,
+                                lower, upper)  # fmt: skip
+    with pytest.raises(TrajectoryError, match="strictly increasing"):
+        trajectory_from_message(_message(names, [(1.0, q_now), (1.0, q_now)]), robot, ref, 0.0,
+                                lower, upper)  # fmt: skip
+    with pytest.raises(TrajectoryError, match="no points"):
+        trajectory_from_message(_message(names, []), robot, ref, 0.0, lower, upper)
+    with pytest.raises(TrajectoryError, match="in the past"):
+        trajectory_from_message(_message(names, [(1.0, q_now)], stamp=5.0), robot, ref, 10.0,
+                                lower, upper)  # fmt: skip
+
+
+# ------------------------------------------------------- both nodes as processes
+SETTINGS = """
+[ros]
+rate = 500
+
+[realtime]
+max_misses = 1000   # a loaded CI machine: the watchdog, not the misses, is under test
+watchdog = 0.2
+
+[collision]
+threshold = 1000.0  # never reached: the flag is published, false
+"""
+
+
+def _scenario(tmp_path: Path, scenario: str, duration: float, settings: str = SETTINGS):
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    config = _write(tmp_path, settings)
+    out = tmp_path / "out"
+    out.mkdir()
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
+    script = (f"ip link set lo up && exec {sys.executable} {SCENARIO} {scenario} {config} "
+              f"{out} {duration}")  # fmt: skip
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], env=env, cwd=ROOT,
+                          capture_output=True, text=True, timeout=400)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((out / "scenario.json").read_text())
+    result = Result.load(out / "panda_sine_ros.npz") if (out / "panda_sine_ros.npz").exists() \
+        else None  # fmt: skip
+    return load_config(config), report, result
+
+
+def _rms_after(result: Result, after: float = 1.0) -> np.ndarray:
+    return compute_metrics(result, after=after).rms_error
+
+
+def test_ros_tracks_like_the_simulation(tmp_path):
+    config, report, result = _scenario(tmp_path, "track", 3.0)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    assert result.complete and result.t[-1] == pytest.approx(3.0, abs=0.05)
+    assert report["arm"]["exit"] == 130 and "Traceback" not in report["arm"]["stderr"]
+    # d̂ published at the controller's steps: what arrived is what the run recorded
+    received = np.array(report["external_torque"])
+    assert received.shape[0] > 10 and received.shape[1] == 7
+    recorded = result.d_hat
+    for row in received[-10:]:
+        assert np.any(np.all(recorded == row, axis=1))
+    assert np.abs(received).max() > 0.1  # the friction estimate, not zeros
+    # [collision] set: the flag at every step, false (|d̂| far below the threshold)
+    assert len(report["collision"]) > 10 and not any(report["collision"])
+    assert result.meta["collision"]["detected_at"] is None
+    # the same controller against the same plant in simulated time (no DDS, no clock)
+    sim = Experiment.from_config(config).run(3.0)
+    rms_ros, rms_sim = _rms_after(result), _rms_after(sim)
+    # the loop answers most states (misses hold the torque one more period): the error
+    # stays of the simulation's order
+    assert np.all(rms_ros < 3.0 * rms_sim), (rms_ros, rms_sim)
+    assert result.meta["ros"]["stamps"] == "header"
+
+
+def test_ros_trajectory_replaces_the_reference_and_bad_one_is_refused(tmp_path):
+    config, report, result = _scenario(tmp_path, "trajectory", 8.0)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    events = result.meta["ros"]["trajectories"]
+    assert [e["accepted"] for e in events] == [True, False], events
+    assert "panda_joint4" in events[1]["reason"] and "outside its limits" in events[1]["reason"]
+    assert "refused the joint_trajectory message" in ctrl["stderr"]  # logged
+    target = np.array([report["events"]["target"][n] for n in result.joint_names])
+    t_end = events[0]["t_end"]
+    after = result.t > t_end + 1e-9
+    assert after.sum() > 50  # the run went on > 0.5 s after the motion
+    # the accepted message's last point is the reference (the refused one changed nothing)
+    np.testing.assert_allclose(result.q_ref[after], np.broadcast_to(target, (after.sum(), 7)),
+                               atol=1e-9)  # fmt: skip
+    before = result.t < events[0]["t"] - 1e-9
+    sine = Experiment.from_config(config).reference.sample_many(result.t[before])[0]
+    np.testing.assert_allclose(result.q_ref[before], sine, atol=1e-12)
+    assert np.abs(result.q[after][-20:] - target).max() < 0.02  # and the arm went there
+
+
+def test_ros_watchdog_stops_on_stale_joint_states(tmp_path):
+    # (and a collision threshold the friction estimate crosses: the flag turns true)
+    low = SETTINGS.replace("threshold = 1000.0", "threshold = 0.05")
+    _, report, result = _scenario(tmp_path, "watchdog", 5.0, low)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 1, ctrl["stderr"]
+    assert "no new state from the arm" in ctrl["stderr"] and "Traceback" not in ctrl["stderr"]
+    stop = result.meta["stop"]
+    assert not result.complete and stop["cause"] == "watchdog"
+    assert 0.5 < stop["t"] < 4.0
+    detected = result.meta["collision"]["detected_at"]
+    assert detected is not None and report["collision"][-1] is True
+    assert not report["collision"][0] or detected < 0.05  # false until it was flagged
+
+
+def test_ros_ctrl_c_publishes_the_safe_torque_and_saves(tmp_path):
+    config, report, result = _scenario(tmp_path, "interrupt", 5.0)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 130, ctrl["stderr"]
+    assert "interrupted at t=" in ctrl["stderr"] and "Traceback" not in ctrl["stderr"]
+    stop = result.meta["stop"]
+    assert not result.complete and stop["cause"] == "interrupted"
+    assert 0.5 < stop["t"] < 4.0
+    # the safe torque was published: a command received equals the stop's, and it is
+    # G(q) − 2 q̇ at the stop's state (Pinocchio directly: gravity + damping 2)
+    safe = np.array(stop["safe_tau"])
+    received = np.array([c for _, c in report["commands"]])
+    assert np.any(np.all(np.abs(received - safe) < 1e-9, axis=1))
+    robot = Experiment.from_config(config).robot
+    q, dq = np.array(stop["q"]), np.array(stop["dq"])
+    G = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
+    np.testing.assert_allclose(safe, G - 2.0 * dq, atol=1e-9)
+
+
+PROBE = """
+name = "probe"
+
+[robot]
+model = "panda"
+gravity = 9.81
+
+[robot.locked_joints]
+panda_finger_joint1 = 0.02
+panda_finger_joint2 = 0.02
+
+[controller]
+Ts = 0.01
+
+[controller.observer]
+kind = "general"
+gain = 100.0
+
+[reference]
+kind = "sine"
+amplitude = 0.3
+frequency = 0.1
+offset = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]
+
+[ros]
+rate = 500
+"""
+
+
+def test_ros_arm_interface_conformance(tmp_path):
+    """The ROS arm as a PacedInterface (the protocol's conformance, as for the in-process
+    and process arms): the first state is the initial one, each wait takes a state whose
+    stamp is whole periods after the last, on the interface's clock; the arm holds still
+    before the first torque; under τ = G(q0) it stays at rest (ABA(q0, 0, G(q0)) = 0, no
+    disturbance), with zero torque it falls; close is idempotent."""
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    config = tmp_path / "probe.toml"
+    config.write_text(PROBE)
+    out = tmp_path / "out"
+    out.mkdir()
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
+    script = f"ip link set lo up && exec {sys.executable} {SCENARIO} interface {config} {out} 0"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], env=env, cwd=ROOT,
+                          capture_output=True, text=True, timeout=400)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    r = json.loads((out / "scenario.json").read_text())
+    assert r["paced"] and r["closed_twice"]
+    P = r["period"]
+    stamp0, q0, dq0, age = r["first"]
+    experiment = Experiment.from_config(load_config(config))
+    np.testing.assert_allclose(q0, experiment.q0, atol=1e-12)  # the arm's initial state
+    np.testing.assert_allclose(dq0, 0.0, atol=1e-12)
+    assert 0.0 <= age < 5.0  # the clock is the stamps' clock
+    last = stamp0
+    for count, stamp, q in r["steps"]:
+        periods = (stamp - last) / P
+        assert count >= 1 and periods == pytest.approx(round(periods), abs=1e-3)
+        assert count == round(periods)  # each wait reports the periods since the last
+        np.testing.assert_allclose(q, q0, atol=1e-12)  # on its brakes
+        last = stamp
+    q_held, dq_held = r["held"]
+    np.testing.assert_allclose(q_held, q0, atol=1e-9)
+    np.testing.assert_allclose(dq_held, 0.0, atol=1e-9)
+    assert np.abs(np.array(r["fell"]) - q0).max() > 1e-4
+    assert r["timeout"] == [0] or r["timeout"][0] >= 1
+    assert r["arm"]["exit"] == 130 and "Traceback" not in r["arm"]["stderr"]
+
+
+def test_ros_without_an_arm_is_one_line_and_no_file(tmp_path):
+    """No joint state within [ros] start_timeout: exit 2, one line naming the topic and
+    what to do, nothing written."""
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    config = _write(tmp_path, "[ros]\nstart_timeout = 1.0\njoint_states = '/nobody'\n")
+    out = tmp_path / "out"
+    script = (f"ip link set lo up && exec {sys.executable} -m hmpc_pin ros {config} "
+              f"--out {out} --duration 1")  # fmt: skip
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], cwd=ROOT,
+                          capture_output=True, text=True, timeout=200)  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    lines = [x for x in proc.stderr.splitlines() if x.startswith("error:")]
+    assert len(lines) == 1 and "/nobody within 1 s" in lines[0] and "ros-arm" in lines[0]
+    assert "Traceback" not in proc.stderr
+    assert not list(out.glob("*.npz"))

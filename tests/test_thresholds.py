@@ -1,0 +1,110 @@
+"""Collision thresholds learned from a contact-free run (``identify --thresholds``)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hmpc_pin.apps.cli import main
+from hmpc_pin.exceptions import ConfigError
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.identification import learn_thresholds
+from hmpc_pin.sim.result import Result
+
+from .conftest import CONFIGS
+
+TS = 0.01
+
+
+def _ar1(rng, steps: int, n: int, rho: float = 0.8, sigma: float = 1.0) -> np.ndarray:
+    """A stationary AR(1) residual per joint (the observer's estimate is low-pass)."""
+    e = rng.standard_normal((steps, n)) * sigma * np.sqrt(1 - rho**2)
+    x = np.empty((steps, n))
+    x[0] = rng.standard_normal(n) * sigma
+    for k in range(1, steps):
+        x[k] = rho * x[k - 1] + e[k]
+    return x
+
+
+def _result(d_hat: np.ndarray) -> Result:
+    steps, n = d_hat.shape
+    zeros = np.zeros((steps, n))
+    t = TS * np.arange(steps)
+    return Result(t, zeros, zeros, zeros, zeros, d_hat, zeros, zeros,
+                  joint_names=tuple(f"j{i + 1}" for i in range(n)))  # fmt: skip
+
+
+def test_false_alarm_rate_of_the_learned_thresholds(make_rng):
+    """Learned on 2000 s of a synthetic residual with s = 1 and measured on 400 fresh
+    10 s stretches: with the shape fitted (GEV), the false-alarm probability over
+    H = 10 s is the stated alpha = 0.2 (binomial sd 0.02: between 0.12 and 0.28; without
+    the horizon scaling it would be ~1, without the split over the 3 joints ~0.5); the
+    Gumbel fit is conservative (at most alpha, module docstring)."""
+    rng = make_rng(3)
+    n = 3
+    train = _result(_ar1(rng, 200_000, n))
+    test = np.abs(_ar1(rng, 400 * 1000, n)).reshape(400, 1000, n)
+
+    def rate(thr, factor=1.0):
+        return np.any(test > factor * thr.threshold, axis=(1, 2)).mean()
+
+    ev = {"false_alarm": 0.2, "horizon": 10.0, "safety": 1.0, "floor_at_peak": False}
+    gev = learn_thresholds(train, method="gev", **ev)
+    assert 0.12 <= rate(gev) <= 0.28, rate(gev)
+    alone = learn_thresholds(_result(train.d_hat[:, :1]), method="gev", **ev)
+    assert alone.threshold[0] < gev.threshold[0]  # one joint: no split, a lower threshold
+    gumbel = learn_thresholds(train, **ev)
+    assert 0.01 <= rate(gumbel) <= 0.2
+    assert rate(gumbel, 1.25) < rate(gumbel)  # a safety factor lowers it
+    # by default never below the learning run's own peak (here 2000 s: above the 10 s
+    # quantile)
+    floored = learn_thresholds(train, false_alarm=0.2, horizon=10.0, safety=1.0)
+    np.testing.assert_array_equal(floored.threshold, np.abs(train.d_hat).max(axis=0))
+
+
+def test_a_move_then_rest_is_not_flagged_on_itself(make_rng):
+    """A non-stationary residual (a burst, then noise): the fit of the block maxima is
+    below the burst, the threshold is not."""
+    d_hat = 0.01 * _ar1(make_rng(2), 6000, 2)
+    d_hat[100:250] += 1.0
+    thr = learn_thresholds(_result(d_hat))
+    assert np.all(thr.threshold >= 1.25 * np.abs(d_hat).max(axis=0))
+
+
+def test_threshold_table_loads_as_collision(make_rng, write_config):
+    thr = learn_thresholds(_result(_ar1(make_rng(0), 6000, 3)))
+    text = "[robot]\nurdf = '@URDF@'\n" + thr.toml()
+    config = load_config(write_config(text))
+    np.testing.assert_allclose(config.collision.threshold, thr.threshold, rtol=1e-5)
+
+
+def test_bad_options_and_short_runs_are_refused(make_rng):
+    run = _result(_ar1(make_rng(0), 6000, 2))
+    with pytest.raises(ConfigError, match="--safety"):
+        learn_thresholds(run, safety=0.5)
+    with pytest.raises(ConfigError, match="--false-alarm"):
+        learn_thresholds(run, false_alarm=1.5)
+    with pytest.raises(ConfigError, match="too short"):
+        learn_thresholds(_result(_ar1(make_rng(0), 50, 2)))
+    with pytest.raises(ConfigError, match="observer"):
+        learn_thresholds(_result(np.zeros((6000, 2))))
+
+
+def test_no_false_alarm_on_another_contact_free_run(tmp_path, capsys):
+    """paper_friction (no contact) learned on one 10 s run; the thresholds written into
+    the config watch a second run with another sine phase: no collision is flagged."""
+    config = load_config(CONFIGS / "paper_friction.toml")
+    run = Experiment.from_config(config).run().save(tmp_path / "learn.npz")
+    out = tmp_path / "watch.toml"
+    assert main(["identify", str(run), "--thresholds", "--config",
+                 str(CONFIGS / "paper_friction.toml"), "--out", str(out)]) == 0  # fmt: skip
+    watched = load_config(out)
+    assert watched.collision is not None
+    q0 = np.sin(0.3) * np.ones(3)
+    other = replace(watched, reference=replace(watched.reference, phase=0.3),
+                    simulation=replace(watched.simulation, q0=q0))  # fmt: skip
+    result = Experiment.from_config(other).run()
+    assert result.meta["collision"]["detected_at"] is None

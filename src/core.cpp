@@ -844,6 +844,22 @@ PYBIND11_MODULE(_core, m) {
       .def("set_sine", &HMPCCore::set_sine)
       .def("set_ppoly", &HMPCCore::set_ppoly)
       .def("clear_reference", &HMPCCore::clear_reference)
+      .def_property(  // what a step carries to the next (restored after a dry step, warm_up)
+          "state",
+          [](const HMPCCore& c) {  // copies
+            std::vector<Vec> th = c.tau_hist, vh = c.v_hist;
+            return py::make_tuple(c.started, Vec(c.jtau), std::move(th), std::move(vh),
+                                  Vec(c.tau_obs), Vec(c.v_obs), c.steps);
+          },
+          [](HMPCCore& c, const py::tuple& s) {
+            c.steps = s[6].cast<decltype(c.steps)>();
+            c.started = s[0].cast<bool>();
+            c.jtau = s[1].cast<Vec>();
+            c.tau_hist = s[2].cast<std::vector<Vec>>();
+            c.v_hist = s[3].cast<std::vector<Vec>>();
+            c.tau_obs = s[4].cast<Vec>();
+            c.v_obs = s[5].cast<Vec>();
+          })
       .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); })
       .def_property_readonly("joint_torque", [](const HMPCCore& c) {
              return c.joint ? Vec(c.jtau) : Vec(Vec::Zero(c.n)); });

@@ -305,14 +305,22 @@ def test_the_0_1_constructor_with_a_controller_config_still_works(planar3):
     assert np.all(np.isfinite(ctrl.step(0.0, q0, dq0, ref)))
 
 
-@pytest.mark.parametrize(("layout", "latency"), [("joint", 0.0), ("block", 0.0), ("joint", 0.02)])
-def test_warm_up_leaves_the_next_step_unchanged(planar3, layout, latency):
+@pytest.mark.parametrize(("layout", "latency", "joint_dynamics"),
+                         [("joint", 0.0, False), ("block", 0.0, False), ("joint", 0.02, False),
+                          ("joint", 0.0, True), ("joint", 0.015, True)])  # fmt: skip
+def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, latency,
+                                                joint_dynamics):  # fmt: skip
     """``warm_up`` (a step undone, run by the real-time loop before an MPC cycle) between
     the steps of a closed loop from 1 rad off, against the same loop without it: the same
-    torques and estimates — exactly in the per-joint layout (its exact shortcuts answer nearly
-    every QP, whatever the last solution they start from), to ProxSuite's tolerance in the
-    block layout (its warm start is the dry step's solution) — and the same QP counters.
-    With a measurement latency (torque histories in the compiled step) it does nothing."""
+    torques and estimates to ProxSuite's tolerance (its warm start, and the active-set
+    shortcut's guess, is the dry step's solution).
+    Also with a measurement latency and with compensated URDF joint dynamics (the compiled
+    step's torque histories and joint torque restored)."""
+    if joint_dynamics:
+        from .test_joint_dynamics import _planar3_with_dynamics
+
+        planar3 = hmpc_pin.load_robot(_planar3_with_dynamics(tmp_path), 9.81)
+        assert planar3.joint_damping.min() > 0
     Ts = 0.01
     ref = hmpc_pin.SineReference(3)
     d = np.array([3.0, -2.0, 1.0])
@@ -336,14 +344,12 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, layout, latency):
             q, dq = _rk4_hold(planar3, q, dq, tau, d, Ts, steps=10)
         out.append((np.array(taus), np.array(dhats), ctrl.qps._core.counters))
     (tau_a, d_a, c_a), (tau_b, d_b, c_b) = out
-    assert c_a == c_b
-    if layout == "joint":
-        assert latency > 0 or c_a[1] + c_a[2] >= 170  # nearly every QP by a shortcut
-        np.testing.assert_array_equal(tau_b, tau_a)
-        np.testing.assert_array_equal(d_b, d_a)
-    else:
-        np.testing.assert_allclose(tau_b, tau_a, rtol=1e-7, atol=1e-4)
-        np.testing.assert_allclose(d_b, d_a, rtol=1e-7, atol=1e-4)
+    # the same solutions, to ProxSuite's tolerance: the dry step's solution is the next warm
+    # start (ProxSuite, active-set guesses), so a QP may be answered by another exact path
+    np.testing.assert_allclose(tau_b, tau_a, rtol=1e-7, atol=1e-4)
+    np.testing.assert_allclose(d_b, d_a, rtol=1e-7, atol=1e-4)
+    if layout == "joint":  # the exact shortcuts answered (the block QP has none)
+        assert sum(c_a[1:3]) > 0 and sum(c_b[1:3]) > 0
     assert np.abs(tau_a).max() > 0  # a real run
 
 

@@ -350,8 +350,7 @@ class HierarchicalMPC(AppliedTorque):
         core.set_stack(self._stack, self._offsets)
         core.set_latency(self.settings.latency, self.settings.Ts)
         b, f = self.joint_dynamics
-        self._joint_dynamics_on = bool(b.any() or f.any())
-        if self._joint_dynamics_on:
+        if b.any() or f.any():
             core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
         self._reference = None  # the reference's native form is set on the next step
@@ -528,15 +527,12 @@ class HierarchicalMPC(AppliedTorque):
         v, τ, d̂, M, C q̇ + G, the horizon stack and solution, the slacks, the QPs' counters
         and the compiled observer's state. ProxSuite's own warm start keeps this step's
         solution (a solution of a neighbouring problem; each solve still converges to the
-        solver's tolerance). Does nothing before the first :meth:`step` after
-        :meth:`reset`, with a compensation advanced from Python (its state is its own), with a
-        measurement latency or compensated joint dynamics (the compiled step then keeps
-        torque histories of its own). Errors of the dry step are dropped: the real step
-        reports them.
+        solver's tolerance). The compiled step's own carry-over (the joint-dynamics torque,
+        the latency's torque histories) is restored too. Does nothing before the first
+        :meth:`step` after :meth:`reset`, or with a compensation advanced from Python (its
+        state is its own). Errors of the dry step are dropped: the real step reports them.
         """
-        if not (self._started and self._fused) or self.settings.latency > 0:
-            return
-        if self._joint_dynamics_on:
+        if not (self._started and self._fused):
             return
         form = self.compensation.compiled_form()
         ndo = form[1] if form[0] == "ndo" else None
@@ -545,6 +541,11 @@ class HierarchicalMPC(AppliedTorque):
         core = self.qps._core
         counters = core.counters
         ndo_state = ndo.state if ndo is not None else None
+        step_core = self._core
+        # copies: the histories come back as views of the compiled step's own vectors
+        carried = tuple(np.array(x, copy=True) if isinstance(x, np.ndarray) else
+                        [np.array(a, copy=True) for a in x] if isinstance(x, list) else x
+                        for x in step_core.state)  # fmt: skip
         try:
             self.step(t, q, dq, reference)
         except HmpcError:
@@ -556,6 +557,7 @@ class HierarchicalMPC(AppliedTorque):
             self.qps.stack[:] = stack
             self.qps.slack[:] = slack
             core.counters = counters
+            step_core.state = carried
             if ndo is not None:
                 ndo.state = ndo_state
 

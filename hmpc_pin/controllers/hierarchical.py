@@ -542,7 +542,7 @@ class HierarchicalMPC(AppliedTorque):
         counters = core.counters
         ndo_state = ndo.state if ndo is not None else None
         step_core = self._core
-        # copies: the histories come back as views of the compiled step's own vectors
+        # copies, independent of the compiled step's own vectors
         carried = tuple(np.array(x, copy=True) if isinstance(x, np.ndarray) else
                         [np.array(a, copy=True) for a in x] if isinstance(x, list) else x
                         for x in step_core.state)  # fmt: skip

@@ -104,30 +104,44 @@ def simulate_rms(config, duration: float) -> tuple[np.ndarray, float]:
     return compute_metrics(res).rms_error, time.perf_counter() - t0
 
 
-def step_warm_vs_cold(config, blocks: int = 3, seconds: float = 5.0) -> dict:
+def step_warm_vs_cold(config, blocks: int = 3, seconds: float = 5.0,
+                      lead: float = 2e-4) -> dict:
     """``controller.step`` over the states of a ``simulate`` run, called back to back
-    (warm caches) and with a sleep of ``Ts`` before each call (as in the loop, where other
-    processes run meanwhile), in alternating blocks; medians [µs] and their ratio."""
+    (warm caches), with a sleep of ``Ts`` before each call (as in the loop, where other
+    processes run meanwhile), and with the same sleep but ``warm_up`` on the previous state
+    ``lead`` before the call and a busy-wait to it (as the loop does with
+    ``realtime.warm_up``), in alternating
+    blocks; medians [µs] and their ratios to back to back."""
     config = replace(config, simulation=replace(config.simulation, duration=seconds))
     exp = Experiment.from_config(config)
     res = exp.run()
     ctrl, ref, Ts = exp.controller, exp.reference, config.controller.Ts
-    out = {"warm": [], "after sleep": []}
+    kinds = (("warm", 0.0, False), ("after sleep", Ts, False), ("after sleep, warmed up", Ts, True))
+    out: dict = {kind: [] for kind, *_ in kinds}
     for _ in range(blocks):
-        for kind, pause in (("warm", 0.0), ("after sleep", Ts)):
+        for kind, pause, warm in kinds:
             ctrl.reset(res.q[0], res.dq[0])
             times = []
             for k in range(len(res.t)):
                 if pause:
-                    time.sleep(pause)
+                    deadline = time.perf_counter() + pause
+                    if warm and k > 0:
+                        time.sleep(pause - lead)
+                        ctrl.warm_up(res.t[k], res.q[k - 1], res.dq[k - 1], ref)
+                        while time.perf_counter() < deadline:  # awake to the deadline
+                            pass
+                    else:
+                        time.sleep(pause)
                 t0 = time.perf_counter_ns()
                 ctrl.step(res.t[k], res.q[k], res.dq[k], ref)
                 times.append(time.perf_counter_ns() - t0)
             out[kind].append(np.median(times[10:]) / 1e3)
-    warm, cold = np.array(out["warm"]), np.array(out["after sleep"])
+    warm = np.array(out["warm"])
+    cold, warmed = np.array(out["after sleep"]), np.array(out["after sleep, warmed up"])
     return {"warm": float(np.median(warm)), "cold": float(np.median(cold)),
-            "ratio": float(np.median(cold / warm)), "blocks": blocks,
-            "steps": len(res.t) - 10}  # fmt: skip
+            "ratio": float(np.median(cold / warm)), "warmed": float(np.median(warmed)),
+            "warmed_ratio": float(np.median(warmed / warm)), "blocks": blocks,
+            "lead": lead, "steps": len(res.t) - 10}  # fmt: skip
 
 
 def _row(name: str, r: dict, floor_median: float) -> str:
@@ -184,7 +198,12 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
         f"Controller step alone (`step` over {steps['steps']} states of a `simulate` run, "
         f"{steps['blocks']} alternating blocks): median {steps['warm']:.0f} µs called back "
         f"to back, {steps['cold']:.0f} µs with a sleep of Ts before each call as in the loop "
-        f"(ratio {steps['ratio']:.2f}, median of the blocks' ratios).",
+        f"(ratio {steps['ratio']:.2f}, median of the blocks' ratios), {steps['warmed']:.0f} µs "
+        f"with the same sleep and `warm_up` on the previous state {1e6 * steps['lead']:.0f} µs "
+        f"before the call, then a busy-wait, as the loop does (ratio "
+        f"{steps['warmed_ratio']:.2f}): a step after a sleep starts on caches other "
+        "processes have used, or on a core waking from idle; the dry step just before puts "
+        "its memory back.",
     ]
     for name, r in (("floor", floor), ("GC handling", with_gc), ("no GC handling", without_gc)):
         if r["stop"] is not None:
@@ -228,11 +247,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spin", type=float, default=0.0,
                         help="busy-wait before each deadline [s] (0: sleep) [0]")  # fmt: skip
     parser.add_argument("--out", type=Path, help="also write the Markdown here")
+    parser.add_argument("--lead", type=float, default=2e-4,
+                        help="warm_up this long before the step [s] [2e-4]")
+    parser.add_argument("--steps-only", action="store_true",
+                        help="only the controller step alone (back to back, after a sleep, "
+                        "warmed up); no real-time runs")  # fmt: skip
     args = parser.parse_args(argv)
     args.floor = min(60.0, args.duration / 5)
     config = load_config(args.config)
     config = replace(config, realtime=replace(config.realtime, rate=args.rate,
                                               priority=args.priority, spin=args.spin))  # fmt: skip
+    if args.steps_only:
+        steps = step_warm_vs_cold(config, blocks=5, lead=args.lead)
+        print(f"`python benchmarks/realtime.py --config {args.config} --steps-only --lead "
+              f"{args.lead:g}`: step alone over {steps['steps']} states, {steps['blocks']} "
+              f"alternating blocks: back to back {steps['warm']:.0f} µs, after a sleep of Ts "
+              f"{steps['cold']:.0f} µs (ratio {steps['ratio']:.2f}), after the sleep with "
+              f"warm_up {1e6 * steps['lead']:.0f} µs before {steps['warmed']:.0f} µs "
+              f"(ratio {steps['warmed_ratio']:.2f})")
+        return 0
     machine = {**machine_info(), **package_versions(("pin", "proxsuite", "numpy"))}
     try:
         commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
@@ -245,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     with_gc = realtime_run(config, args.duration, gc=True)
     without_gc = realtime_run(config, args.duration, gc=False)
     sim_rms, sim_wall = simulate_rms(config, args.duration)
-    steps = step_warm_vs_cold(config)
+    steps = step_warm_vs_cold(config, lead=args.lead)
     names = Experiment.from_config(config).robot.joint_names
     text, ok = report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine,
                       commit, steps)  # fmt: skip

@@ -750,7 +750,16 @@ PYBIND11_MODULE(_core, m) {
       .def("update", &PyNDO::update, py::arg("M"), py::arg("nle"), py::arg("dq"),
            py::arg("tau_prev"))
       .def_property_readonly("n", [](const PyNDO& o) { return o.ndo.n; })
-      .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; });
+      .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; })
+      .def_property(  // (z, d̂), copies; restored after a dry step (warm_up)
+          "state", [](const PyNDO& o) { return py::make_tuple(Vec(o.ndo.z), Vec(o.ndo.estimate)); },
+          [](PyNDO& o, const py::tuple& s) {
+            const Vec z = s[0].cast<Vec>(), e = s[1].cast<Vec>();
+            if (z.size() != o.ndo.n || e.size() != o.ndo.n)
+              throw std::invalid_argument("NDO.state: (z, estimate) of n values each");
+            o.ndo.z = z;
+            o.ndo.estimate = e;
+          });
 
   using JQ = hmpc_native::JointQPs;
   py::class_<PyJointQPs, std::shared_ptr<PyJointQPs>>(m, "JointQPs", py::module_local())
@@ -773,6 +782,27 @@ PYBIND11_MODULE(_core, m) {
       .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
       .def_property("shortcut", [](const PyJointQPs& o) { return o.qps.shortcut; },
                     [](PyJointQPs& o, bool on) { o.qps.shortcut = on; })
+      .def_property("shift", [](const PyJointQPs& o) { return o.qps.shift; },
+                    [](PyJointQPs& o, bool on) { o.qps.shift = on; })
+      .def_property("active_set_iter", [](const PyJointQPs& o) { return o.qps.active_set_iter; },
+                    [](PyJointQPs& o, int k) { o.qps.active_set_iter = k; })
+      .def_property_readonly("active_set_solves",
+                             [](const PyJointQPs& o) { return o.qps.active_set_solves; })
+      .def_property(
+          "counters",
+          [](const PyJointQPs& o) {
+            const auto& q = o.qps;
+            return py::make_tuple(q.cold_solves, q.unconstrained_solves, q.active_set_solves,
+                                  q.constrained, q.constrained_last);
+          },
+          [](PyJointQPs& o, const py::tuple& c) {  // restored after a dry step (warm_up)
+            auto& q = o.qps;
+            q.cold_solves = c[0].cast<long>();
+            q.unconstrained_solves = c[1].cast<long>();
+            q.active_set_solves = c[2].cast<long>();
+            q.constrained = c[3].cast<long>();
+            q.constrained_last = c[4].cast<bool>();
+          })
       .def_property_readonly("cold_solves", [](const PyJointQPs& o) { return o.qps.cold_solves; })
       .def_property_readonly("unconstrained_solves",
                              [](const PyJointQPs& o) { return o.qps.unconstrained_solves; })
@@ -814,6 +844,22 @@ PYBIND11_MODULE(_core, m) {
       .def("set_sine", &HMPCCore::set_sine)
       .def("set_ppoly", &HMPCCore::set_ppoly)
       .def("clear_reference", &HMPCCore::clear_reference)
+      .def_property(  // what a step carries to the next (restored after a dry step, warm_up)
+          "state",
+          [](const HMPCCore& c) {  // copies
+            std::vector<Vec> th = c.tau_hist, vh = c.v_hist;
+            return py::make_tuple(c.started, Vec(c.jtau), std::move(th), std::move(vh),
+                                  Vec(c.tau_obs), Vec(c.v_obs), c.steps);
+          },
+          [](HMPCCore& c, const py::tuple& s) {
+            c.steps = s[6].cast<decltype(c.steps)>();
+            c.started = s[0].cast<bool>();
+            c.jtau = s[1].cast<Vec>();
+            c.tau_hist = s[2].cast<std::vector<Vec>>();
+            c.v_hist = s[3].cast<std::vector<Vec>>();
+            c.tau_obs = s[4].cast<Vec>();
+            c.v_obs = s[5].cast<Vec>();
+          })
       .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); })
       .def_property_readonly("joint_torque", [](const HMPCCore& c) {
              return c.joint ? Vec(c.jtau) : Vec(Vec::Zero(c.n)); });

@@ -1,6 +1,8 @@
 // The per-joint MPC's QPs: see joint_qps.hpp.
 #include "joint_qps.hpp"
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -62,6 +64,13 @@ JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const
     throw std::invalid_argument("JointQPs: v_min > v_max for some joint");
   g_.setZero(Nc);
   u_.setZero(Nc);
+  HFF_.setZero(Nc, Nc);
+  u0_.setZero(Nc);
+  active_.reserve(Nc);
+  r_.setZero(Nc);
+  rhs_.setZero(Nc);
+  free_.reserve(Nc);
+  state_.assign(Nc, 0);
   // Each box QP's bounds, kept for its cold twin (made on first use).
   if (block) {
     H_block_ = Mat::Zero(n * Nc, n * Nc);
@@ -148,9 +157,126 @@ bool JointQPs::fail(int joint, const Results& res) {
   return false;
 }
 
+// Joint i's box QP answered without ProxSuite. Guesses of the active set: the last
+// solution's shifted one step along the horizon (right in a closed loop, where the plan
+// advances one step per period) with one active-set exchange, then the last solution's as it
+// stands (right when the error persists) with up to active_set_iter exchanges (free inputs
+// outside the box fixed at the bound they cross, fixed inputs whose multiplier has the wrong
+// sign freed). Each guess fixes its active inputs at their bounds and solves
+// H_FF u_F = −(g_F + H_FA u_A) for the free ones (or, with fewer active than free inputs,
+// the same point as u = u0 − H⁻¹E_A μ, (H⁻¹)_AA μ = u0_A − u_A from u0 = −H⁻¹g: a
+// Cholesky factorisation of the smaller size); it answers when that point satisfies the
+// box QP's KKT conditions to the solver's tolerance eps_abs: free inputs inside the box
+// with a zero gradient (H u + g)_F, multipliers z = −(H u + g) of the fixed inputs with the sign of their bound. It is then the
+// QP's minimiser (a convex QP's KKT point), u_ on return, with its multipliers remembered.
+bool JointQPs::active_set(int i) {
+  if (active_set_iter < 0) return false;
+  u0_ = u_;  // the unconstrained minimiser −H⁻¹g
+  const Vec& x = qps_[i]->results.x;
+  const double lo = v_min_[i], hi = v_max_[i];
+  const double guess_tol = 1e-6 * std::max(1.0, hi - lo);
+  for (int shifted = Nc > 1 ? 1 : 0; shifted >= 0; --shifted) {
+    for (int j = 0; j < Nc; ++j) {
+      const double c = x[shifted && j + 1 < Nc ? j + 1 : j];
+      state_[j] = c <= lo + guess_tol ? -1 : (c >= hi - guess_tol ? 1 : 0);
+    }
+    if (exchange(i, shifted ? std::min(1, active_set_iter) : active_set_iter)) return true;
+  }
+  return false;
+}
+
+// The active set state_ (−1 lower, +1 upper, 0 free) and up to `exchanges` exchanges.
+bool JointQPs::exchange(int i, int exchanges) {
+  const double lo = v_min_[i], hi = v_max_[i];
+  const double eps = warm_.eps_abs ? *warm_.eps_abs : 1e-9;
+  for (int it = 0; it <= exchanges; ++it) {
+    free_.clear();
+    for (int j = 0; j < Nc; ++j) {
+      if (state_[j] == 0) free_.push_back(j);
+      else u_[j] = state_[j] < 0 ? lo : hi;
+    }
+    const int m = static_cast<int>(free_.size()), a = Nc - m;
+    if (m > 0 && m <= a) {  // H_FF u_F = −(g_F + H_FA u_A), a Cholesky of size m
+      for (int p = 0; p < m; ++p) {
+        double s = -g_[free_[p]];
+        for (int j = 0; j < Nc; ++j)
+          if (state_[j] != 0) s -= H_(free_[p], j) * u_[j];
+        rhs_[p] = s;
+        for (int q = 0; q <= p; ++q) HFF_(p, q) = H_(free_[p], free_[q]);
+      }
+      Eigen::Ref<Mat> block_ref = HFF_.topLeftCorner(m, m);
+      Eigen::LLT<Eigen::Ref<Mat>, Eigen::Lower> llt(block_ref);
+      if (llt.info() != Eigen::Success) return false;
+      auto sol = rhs_.head(m);
+      llt.solveInPlace(sol);
+      for (int p = 0; p < m; ++p) u_[free_[p]] = sol[p];
+    } else if (m > 0) {  // fewer active inputs: u = u0 − H⁻¹ E_A μ with (H⁻¹)_AA μ = u0_A − u_A
+      active_.clear();
+      for (int j = 0; j < Nc; ++j)
+        if (state_[j] != 0) active_.push_back(j);
+      for (int p = 0; p < a; ++p) {
+        rhs_[p] = u0_[active_[p]] - u_[active_[p]];
+        for (int q = 0; q <= p; ++q) HFF_(p, q) = -neg_Hinv_(active_[p], active_[q]);
+      }
+      Eigen::Ref<Mat> block_ref = HFF_.topLeftCorner(a, a);
+      Eigen::LLT<Eigen::Ref<Mat>, Eigen::Lower> llt(block_ref);
+      if (llt.info() != Eigen::Success) return false;
+      auto mu = rhs_.head(a);
+      llt.solveInPlace(mu);
+      for (int p = 0; p < m; ++p) {
+        double s = u0_[free_[p]];
+        for (int q = 0; q < a; ++q) s += neg_Hinv_(free_[p], active_[q]) * mu[q];
+        u_[free_[p]] = s;
+      }
+    }
+    r_.noalias() = H_ * u_;
+    r_ += g_;
+    bool ok = true;
+    for (int j = 0; j < Nc; ++j) {
+      const int s = state_[j];
+      if (s == 0) {
+        if (u_[j] < lo - eps) { state_[j] = -1; ok = false; }
+        else if (u_[j] > hi + eps) { state_[j] = 1; ok = false; }
+        else if (std::abs(r_[j]) > eps) return false;  // stationarity lost to rounding
+      } else if (s * r_[j] > eps) {  // lower bound: r >= 0; upper: r <= 0
+        state_[j] = 0;
+        ok = false;
+      }
+    }
+    if (ok) {
+      u_ = u_.cwiseMax(lo).cwiseMin(hi);
+      for (int j = 0; j < Nc; ++j) r_[j] = state_[j] == 0 ? 0.0 : -r_[j];
+      remember(i, 0, u_, &r_);
+      return true;
+    }
+  }
+  return false;
+}
+
+// Box QP k's last solution set to x (multipliers z, or 0) at its variables offset..offset+Nc,
+// so that its next warm start (shifted) begins there.
+void JointQPs::remember(int k, int offset, const Vec& x, const Vec* z) {
+  auto& res = qps_[k]->results;
+  res.x.segment(offset, Nc) = x;
+  if (z) res.z.segment(offset, Nc) = *z;
+  else res.z.segment(offset, Nc).setZero();
+}
+
 // Box QP k with gradient g; on a failed warm solve, its cold twin.
 const JointQPs::Results* JointQPs::solve_box(int k, const Vec& g, int joint) {
   DenseQP& qp = *qps_[k];
+  if (shift && Nc > 1) {  // warm start from the last solution, one step on
+    auto& x = qp.results.x;
+    auto& z = qp.results.z;
+    const int blocks = static_cast<int>(x.size()) / Nc;
+    for (int b = 0; b < blocks; ++b) {
+      const int o = b * Nc;
+      for (int j = 0; j + 1 < Nc; ++j) {
+        x[o + j] = x[o + j + 1];
+        z[o + j] = z[o + j + 1];
+      }
+    }
+  }
   qp.update(std::nullopt, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt,
             std::nullopt, std::nullopt, std::nullopt);
   qp.solve();
@@ -196,7 +322,13 @@ bool JointQPs::solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
         u_.noalias() = neg_Hinv_ * g_;
         if ((u_.array() >= v_min_[i]).all() && (u_.array() <= v_max_[i]).all()) {
           U.col(i) = u_;
+          remember(i, 0, u_, nullptr);
           ++unconstrained_solves;
+          continue;
+        }
+        if (active_set(i)) {
+          U.col(i) = u_;
+          ++active_set_solves;
           continue;
         }
       }

@@ -5,7 +5,12 @@
 //
 // Layouts: "block" (the n box QPs as one block-diagonal QP of n·Nc variables) or "joint"
 // (one QP per joint; a joint whose unconstrained minimiser −H⁻¹g lies inside its box takes
-// it without a solver call, the exact solution of a convex QP with inactive constraints).
+// it without a solver call, the exact solution of a convex QP with inactive constraints;
+// failing that, the active set guessed from the last solution shifted one step along the
+// horizon or as it stands, refined by a few primal-dual active-set exchanges, answers when
+// its point passes the KKT test of the box QP to the solver's tolerance). A box QP sent to
+// ProxSuite is warm-started from its last primal and dual solution (shifted one step along
+// the horizon when `shift` is on).
 // A warm-started box QP that does not report solved is solved again by its cold twin
 // (made on first use), and the warm QP restarted from that solution. With soft state limits,
 // a joint whose box-only prediction X = Φ x0 + Γ U leaves them is solved again with the soft
@@ -71,13 +76,18 @@ class JointQPs {
 
   int n, N, Nc;
   bool block;
-  bool shortcut = true;  // "joint" layout: the unconstrained shortcut (exact; off for tests)
+  bool shortcut = true;  // "joint" layout: the exact shortcuts (off for tests)
+  // ProxSuite's warm start shifted one step along the horizon (primal and dual); off: the
+  // last solution as it stands (measured faster in a closed loop, benchmarks/long_horizon_active.py).
+  bool shift = false;
+  int active_set_iter = 4;  // "joint" layout: active-set exchanges (< 0: no active-set shortcut)
   bool limits = false;
   bool always_constrained = false;
   MapRow U;
   Eigen::Map<Vec> slack;
   long cold_solves = 0;
   long unconstrained_solves = 0;
+  long active_set_solves = 0;
   long constrained = 0;
   bool constrained_last = false;
   int fail_joint = -2;
@@ -89,6 +99,9 @@ class JointQPs {
   bool enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
   void soft_bounds(int i, const Vec& q_free, const Vec& v_free);
   bool fail(int joint, const Results& res);
+  bool active_set(int i);
+  bool exchange(int i, int exchanges);
+  void remember(int k, int offset, const Vec& x, const Vec* z);
 
   Mat H_, H_block_, neg_Hinv_;
   Vec v_min_, v_max_, g_block_, g_;
@@ -98,6 +111,10 @@ class JointQPs {
   Mat Phi_, Gamma_, Hs_, C_;
   Vec lower_, upper_, vel_, row_scale_, mid_, half_, g_soft_, l_soft_, u_soft_, X_, u_;
   Vec q_free_, v_free_;
+  // The active-set shortcut's workspace.
+  Mat HFF_;
+  Vec r_, rhs_, u0_;
+  std::vector<int> free_, active_, state_;
   double g_slack_ = 0.0, k_slack_ = 0.0;
 };
 

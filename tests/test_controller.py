@@ -303,3 +303,61 @@ def test_the_0_1_constructor_with_a_controller_config_still_works(planar3):
     q0, dq0 = ref.sample(0.0)
     ctrl.reset(q0, dq0)
     assert np.all(np.isfinite(ctrl.step(0.0, q0, dq0, ref)))
+
+
+@pytest.mark.parametrize(("layout", "latency", "joint_dynamics"),
+                         [("joint", 0.0, False), ("block", 0.0, False), ("joint", 0.02, False),
+                          ("joint", 0.0, True), ("joint", 0.015, True)])  # fmt: skip
+def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, latency,
+                                                joint_dynamics):  # fmt: skip
+    """``warm_up`` (a step undone, run by the real-time loop before an MPC cycle) between
+    the steps of a closed loop from 1 rad off, against the same loop without it: the same
+    torques and estimates to ProxSuite's tolerance (its warm start, and the active-set
+    shortcut's guess, is the dry step's solution).
+    Also with a measurement latency and with compensated URDF joint dynamics (the compiled
+    step's torque histories and joint torque restored)."""
+    if joint_dynamics:
+        from .test_joint_dynamics import _planar3_with_dynamics
+
+        planar3 = hmpc_pin.load_robot(_planar3_with_dynamics(tmp_path), 9.81)
+        assert planar3.joint_damping.min() > 0
+    Ts = 0.01
+    ref = hmpc_pin.SineReference(3)
+    d = np.array([3.0, -2.0, 1.0])
+    settings = MPCSettings(Ts=Ts, N=10, Nc=3, qp_layout=layout, latency=latency)
+    ctrls = [hmpc_pin.HierarchicalMPC(planar3, settings,
+                                      DisturbanceObserver(3, Ts, 100.0, "chen", "implicit"))
+             for _ in range(2)]  # fmt: skip
+    q0, dq0 = np.ones(3), np.zeros(3)
+    out = []
+    for warm, ctrl in zip((False, True), ctrls, strict=True):
+        ctrl.reset(q0, dq0)
+        q, dq, taus, dhats = q0.copy(), dq0.copy(), [], []
+        q_prev, dq_prev = q.copy(), dq.copy()
+        for k in range(60):
+            if warm:
+                ctrl.warm_up(k * Ts, q_prev, dq_prev, ref)  # before the first step: no-op
+            tau = ctrl.step(k * Ts, q, dq, ref)
+            taus.append(tau)
+            dhats.append(ctrl.disturbance_estimate.copy())
+            q_prev, dq_prev = q, dq
+            q, dq = _rk4_hold(planar3, q, dq, tau, d, Ts, steps=10)
+        out.append((np.array(taus), np.array(dhats), ctrl.qps._core.counters))
+    (tau_a, d_a, c_a), (tau_b, d_b, c_b) = out
+    # the same solutions, to ProxSuite's tolerance: the dry step's solution is the next warm
+    # start (ProxSuite, active-set guesses), so a QP may be answered by another exact path
+    np.testing.assert_allclose(tau_b, tau_a, rtol=1e-7, atol=1e-4)
+    np.testing.assert_allclose(d_b, d_a, rtol=1e-7, atol=1e-4)
+    if layout == "joint":  # the exact shortcuts answered (the block QP has none)
+        assert sum(c_a[1:3]) > 0 and sum(c_b[1:3]) > 0
+    assert np.abs(tau_a).max() > 0  # a real run
+
+
+def test_warm_up_before_the_first_step_changes_nothing(planar3):
+    """Right after reset there is nothing to warm: the call leaves every buffer alone."""
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    ctrl.reset(np.ones(3), np.zeros(3))
+    before = (ctrl.tau.copy(), ctrl.v.copy(), ctrl.qps.stack.copy())
+    ctrl.warm_up(0.0, np.ones(3), np.zeros(3), hmpc_pin.SineReference(3))
+    for a, b in zip(before, (ctrl.tau, ctrl.v, ctrl.qps.stack), strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -797,3 +797,72 @@ def test_inverted_input_bounds_are_one_config_error_naming_the_joint():
     mpc = CondensedMPC(TS, 10, 1, Q_PAPER, R_PAPER, P_PAPER)
     with pytest.raises(ConfigError, match=r"joint 'b': v_min = 5 > v_max = -5"):
         JointQPs(mpc, np.array([-1.0, 5.0]), np.array([1.0, -5.0]), ("a", "b"))
+
+
+# ------------------------------------------------- long horizons with active bounds
+def cold_box_solve(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """An independent solve: a fresh ProxSuite QP (Python API), no warm start."""
+    from proxsuite import proxqp
+
+    qp = proxqp.dense.QP(len(g), 0, 0, True)
+    qp.settings.eps_abs, qp.settings.eps_rel, qp.settings.verbose = EPS_ABS, 0.0, False
+    qp.settings.initial_guess = proxqp.InitialGuess.NO_INITIAL_GUESS
+    qp.init(H, g, None, None, None, None, None, lo, hi)
+    qp.solve()
+    assert qp.results.info.status == proxqp.QPSolverOutput.PROXQP_SOLVED
+    return qp.results.x.copy()
+
+
+LONG_STRATEGIES = {  # (shift, active_set_iter)
+    "default": (False, 4),
+    "proxsuite, previous": (False, -1),
+    "proxsuite, shifted": (True, -1),
+    "active set, shifted proxsuite": (True, 4),
+}
+
+
+@pytest.mark.parametrize("strategy", list(LONG_STRATEGIES))
+@pytest.mark.parametrize("case", ["closed loop", "held 0.2", "held 0.05"])
+def test_long_horizon_with_active_bounds_equals_cold_solves_and_kkt(strategy, case):
+    """Ts = 1 ms, N = Nc = 100, three joints 0.2 rad off a sine reference (a closed loop of
+    the double integrators of Eq 24 from there, or the state held 0.2 or 0.05 rad off): at
+    every step each joint's solution equals a cold ProxSuite solve to the solver's tolerance
+    and satisfies the box QP's KKT conditions, whichever path answered (the active-set
+    shortcut, ProxSuite warm-started from the last solution as it stands or shifted)."""
+    N = Nc = 100
+    Ts, n = 0.001, 3
+    mpc = CondensedMPC(Ts, N, Nc, Q_PAPER, R_PAPER, P_PAPER)
+    lo, hi = np.full(Nc, -V_LIMIT), np.full(Nc, V_LIMIT)
+    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, layout="joint")
+    qps.shift, qps.active_set_iter = LONG_STRATEGIES[strategy]
+    phase = np.array([0.0, 1.0, 2.0])
+    w = 2.0 * np.pi
+
+    def reference(t):  # r, ṙ of the sine, shape (2, n)
+        return np.vstack([0.5 * np.sin(w * t + phase), 0.5 * w * np.cos(w * t + phase)])
+
+    offset = 0.2 if case == "closed loop" else float(case.split()[1])
+    x = reference(0.0) + np.array([[offset], [0.0]])
+    tol = solution_tolerance(mpc.H)
+    A = np.array([[1.0, Ts], [0.0, 1.0]])
+    B = np.array([[Ts * Ts / 2.0], [Ts]])
+    active = 0
+    for k in range(30):
+        t = k * Ts
+        if case != "closed loop":
+            x = reference(t) + np.array([[offset], [0.0]])
+        ref = np.vstack([reference(t + j * Ts) for j in range(1, N + 1)])  # (2N, n)
+        G = mpc.gradient(x, ref)
+        qps.solve(G, x)
+        for i in range(n):
+            u = qps.solution[:, i]
+            np.testing.assert_allclose(u, cold_box_solve(mpc.H, G[i], lo, hi), rtol=0, atol=tol)
+            assert kkt_violations(mpc.H, G[i], u, lo, hi, tol_z=10.0 * EPS_ABS) == []
+            active += int(np.sum((u <= lo + 1e-7) | (u >= hi - 1e-7)) > 0)
+        if case == "closed loop":
+            x = A @ x + B @ qps.solution[:1]
+    assert active >= 10 * n  # the bounds were active
+    if qps.active_set_iter >= 0:
+        assert qps.active_set_solves > 0
+    else:
+        assert qps.active_set_solves == 0

@@ -473,6 +473,64 @@ def test_a_failing_arm_process_reports_its_traceback():
         ProcessArm(_broken_plant, np.zeros(3))
 
 
+class WarmRecorder(Spend):
+    """``Spend`` that also forwards ``warm_up``, recording the clock and arguments of each."""
+
+    def __init__(self, controller, clock):
+        super().__init__(controller, clock, lambda t: 0.0)
+        self.calls = []
+
+    def warm_up(self, t, q, dq, reference):
+        self.calls.append((self.clock(), t, np.array(q), np.array(dq)))
+        self.controller.warm_up(t, q, dq, reference)
+
+
+def test_warm_up_runs_in_the_slack_before_each_mpc_cycle_and_changes_no_result(robot):
+    """With ``warm_up`` = 2e-4 s the loop calls the controller's ``warm_up`` once before each
+    MPC cycle but the first, 2e-4 s before its deadline, with that cycle's time and the last
+    measured state; the run equals ``simulate`` (the step it precedes is unchanged)."""
+    clock = FakeClock()
+    q0 = _sine().sample(0.0)[0]
+    arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
+    ctrl = WarmRecorder(hmpc_pin.make_controller(robot), clock)
+    states = []
+    real_read = arm.read
+
+    def read():
+        stamp, q, dq = real_read()
+        states.append((q.copy(), dq.copy()))
+        return stamp, q, dq
+
+    arm.read = read
+    loop = RealtimeLoop(
+        arm, ctrl, _sine(), SafeTorque(robot, damping=3.0),
+        LoopSettings(1.0 / P, 1.0, warm_up=2e-4),
+        SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
+        clock=clock, sleep=clock.sleep, joint_names=tuple(robot.joint_names),
+    )  # fmt: skip
+    t0 = clock() + P
+    run = loop.run()
+    m = loop.decimation
+    mpc_cycles = list(range(0, 1001, m))
+    assert [round(c[1] / P) for c in ctrl.calls] == mpc_cycles[1:]
+    for (now, _, q, dq), k in zip(ctrl.calls, mpc_cycles[1:], strict=True):
+        assert now == pytest.approx(t0 + k * P - 2e-4, abs=1e-12)
+        np.testing.assert_array_equal(q, states[k][0])  # states[0]: before cycle 0
+        np.testing.assert_array_equal(dq, states[k][1])
+    sim = hmpc_pin.simulate(robot, hmpc_pin.make_controller(robot), _sine(), duration=1.0, q0=q0)
+    np.testing.assert_allclose(run.result.q, sim.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(run.result.tau, sim.tau, rtol=0, atol=1e-6)
+
+
+def test_warm_up_must_be_below_the_period():
+    from hmpc_pin.exceptions import ConfigError
+
+    with pytest.raises(ConfigError, match=r"realtime\.warm_up"):
+        LoopSettings(1000.0, 1.0, warm_up=1e-3)
+    with pytest.raises(ConfigError, match=r"realtime\.warm_up"):
+        LoopSettings(1000.0, 1.0, warm_up=-1e-4)
+
+
 # ------------------------------------------------------------- paced by the arm
 class Paced:
     """A :class:`PlantArm` as a :class:`~hmpc_pin.realtime.PacedInterface` on the fake

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from ..checks import as_bool, as_choice, as_float, as_int, mpc_fields
 from ..compensation.base import Compensation, check_compensation
 from ..compensation.observers import DisturbanceObserver
-from ..exceptions import ConfigError, DimensionError, NonFiniteError, ValidityWarning
+from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import deprecated_backend, model_string
@@ -515,6 +515,51 @@ class HierarchicalMPC(AppliedTorque):
             self._failure(code, t, S[0], S[1], self._stack_q_ref, self._stack_dq_ref)
         self._started = True
         return self.tau.copy()
+
+    def warm_up(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> None:
+        """Run :meth:`step` on ``(t, q, dq)`` and undo it: the next step computes what it
+        would have computed without this call, but finds its memory (the compiled step's
+        matrices, the QPs' workspaces, the Python path) in the caches.
+
+        The real-time loop calls it in the slack before an MPC cycle with the last measured
+        state (:class:`~hmpc_pin.realtime.loop.LoopSettings` ``warm_up``): a step after a
+        sleep otherwise starts on caches other processes have used. Restored afterwards:
+        v, τ, d̂, M, C q̇ + G, the horizon stack and solution, the slacks, the QPs' counters
+        and the compiled observer's state. ProxSuite's own warm start keeps this step's
+        solution (a solution of a neighbouring problem; each solve still converges to the
+        solver's tolerance). The compiled step's own carry-over (the joint-dynamics torque,
+        the latency's torque histories) is restored too. Does nothing before the first
+        :meth:`step` after :meth:`reset`, or with a compensation advanced from Python (its
+        state is its own). Errors of the dry step are dropped: the real step reports them.
+        """
+        if not (self._started and self._fused):
+            return
+        form = self.compensation.compiled_form()
+        ndo = form[1] if form[0] == "ndo" else None
+        buffers = [self._buf[name].copy() for name in ("v", "tau", "d_hat", "nle")]
+        M, stack, slack = self._M.copy(), self.qps.stack.copy(), self.qps.slack.copy()
+        core = self.qps._core
+        counters = core.counters
+        ndo_state = ndo.state if ndo is not None else None
+        step_core = self._core
+        # copies, independent of the compiled step's own vectors
+        carried = tuple(np.array(x, copy=True) if isinstance(x, np.ndarray) else
+                        [np.array(a, copy=True) for a in x] if isinstance(x, list) else x
+                        for x in step_core.state)  # fmt: skip
+        try:
+            self.step(t, q, dq, reference)
+        except HmpcError:
+            pass
+        finally:
+            for name, saved in zip(("v", "tau", "d_hat", "nle"), buffers, strict=True):
+                self._buf[name][:] = saved
+            self._M[:] = M
+            self.qps.stack[:] = stack
+            self.qps.slack[:] = slack
+            core.counters = counters
+            step_core.state = carried
+            if ndo is not None:
+                ndo.state = ndo_state
 
     def _python_compensation(self) -> None:
         """Between the step's halves: M and C q̇ + G (from Pinocchio's Python API where the

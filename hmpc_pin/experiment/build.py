@@ -532,7 +532,8 @@ def realtime_parts(
     n = robot.nq
     loop = LoopSettings(rate=rc.rate if rate is None else rate,
                         duration=cfg.simulation.duration, gc_handling=rc.gc,
-                        gc_slack=rc.gc_slack, spin=rc.spin)  # fmt: skip
+                        gc_slack=rc.gc_slack, spin=rc.spin,
+                        warm_up=rc.warm_up)  # fmt: skip
     loop.decimation(cfg.controller.Ts)
     if plant:
         experiment.make_plant(loop.period)  # checks that the plant's step divides the period

@@ -258,7 +258,12 @@ class JointQPs:
             QPs as one block-diagonal ProxSuite QP of n·Nc variables, one ``update`` +
             ``solve`` per step; ``"joint"``: one QP per joint (n calls; a joint whose
             unconstrained minimiser :math:`-H^{-1}g` lies inside its box takes it without a
-            solver call — the solution of a convex QP whose constraints are inactive). All
+            solver call — the solution of a convex QP whose constraints are inactive; failing
+            that, the active-set shortcut: the last solution's active set, shifted one step
+            along the horizon or as it stands, refined by up to :attr:`active_set_iter`
+            exchanges, whose point answers only when it passes the box QP's KKT test to
+            ``eps_abs`` — free inputs inside the box with zero gradient, multipliers of the
+            fixed ones of the right sign, so the QP's minimiser). All
             have the same minimiser (the blocks are independent). The block QP's cost grows with
             (n·Nc)³, the joint QPs' with n·Nc³: the block QP wins for short horizons (one
             solver call), the joint QPs for long ones (``BENCHMARKS.md``: Panda at Nc = 100,
@@ -285,6 +290,7 @@ class JointQPs:
         unconstrained_solves: ``"joint"`` layout: joint QPs not sent to ProxSuite because
             the unconstrained minimiser :math:`-H^{-1}g` lay inside the box (then it is the
             box QP's solution, exactly), since construction.
+        active_set_solves: ``"joint"`` layout: joint QPs answered by the active-set shortcut.
         layout: The layout in use (``"block"`` or ``"joint"``; ``"auto"`` resolved).
         stack: One buffer, rows ``[U (Nc); 3 unused; q; q̇; caller's stack_rows]`` (each
             row one value per joint): the free inputs (:attr:`solution` is this view),
@@ -380,6 +386,12 @@ class JointQPs:
         return int(self._core.unconstrained_solves)
 
     @property
+    def active_set_solves(self) -> int:
+        """``"joint"`` layout: joint QPs answered by the active-set shortcut (a guessed active
+        set whose point passed the box QP's KKT test), since construction."""
+        return int(self._core.active_set_solves)
+
+    @property
     def constrained(self) -> int:
         """Joints whose soft-constrained QP was solved at the last step."""
         return int(self._core.constrained)
@@ -407,6 +419,27 @@ class JointQPs:
     @shortcut.setter
     def shortcut(self, on: bool) -> None:
         self._core.shortcut = bool(on)
+
+    @property
+    def active_set_iter(self) -> int:
+        """``"joint"`` layout: active-set exchanges the active-set shortcut may make after its
+        guess (default 4; negative: no active-set shortcut, ProxSuite for every active box)."""
+        return int(self._core.active_set_iter)
+
+    @active_set_iter.setter
+    def active_set_iter(self, k: int) -> None:
+        self._core.active_set_iter = int(k)
+
+    @property
+    def shift(self) -> bool:
+        """Whether ProxSuite's warm start is the last primal and dual solution shifted one
+        step along the horizon (default off: the last solution as it stands, measured faster
+        in a closed loop; ``benchmarks/long_horizon_active.py``)."""
+        return bool(self._core.shift)
+
+    @shift.setter
+    def shift(self, on: bool) -> None:
+        self._core.shift = bool(on)
 
     def predict(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
         """Predicted states ``X = Φ x0 + Γ U`` of all joints, shape (2N, n): rows q_1, q̇_1, …

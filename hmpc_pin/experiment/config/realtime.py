@@ -33,6 +33,10 @@ class RealtimeConfig:
         spin: Busy-wait this long [s] before each deadline instead of sleeping (the loop
             is awake at the deadline: no wake-up latency), below ``1/rate``; 0 (default)
             sleeps.
+        warm_up: Wake this long [s] before each MPC cycle's deadline and run the
+            controller's step on the last measured state, undone (its memory then warm in
+            the caches for the cycle's step), then busy-wait to the deadline; below
+            ``1/rate``; 0 disables it. Default 2e-4.
     """
 
     rate: float = 1000.0
@@ -48,6 +52,7 @@ class RealtimeConfig:
     velocity_scale: float | None = None
     priority: int = 0
     spin: float = 0.0
+    warm_up: float = 2e-4
 
     def __post_init__(self):
         _set(self, "rate", _float("rate", self.rate, positive=True))
@@ -56,6 +61,12 @@ class RealtimeConfig:
             raise ConfigError(
                 "spin", f"expected a time [s] below the period 1/rate = {1.0 / self.rate:g} s, "
                 f"got {self.spin:g}"
+            )
+        _set(self, "warm_up", _float("warm_up", self.warm_up, nonneg=True))
+        if self.warm_up >= 1.0 / self.rate:
+            raise ConfigError(
+                "warm_up", f"expected a time [s] below the period 1/rate = "
+                f"{1.0 / self.rate:g} s, got {self.warm_up:g}"
             )
         _set(self, "priority", _int("priority", self.priority, minimum=0))
         if self.priority > 99:

@@ -52,6 +52,11 @@ def _interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def was_interrupted() -> bool:
+    """Whether a Ctrl-C came after the start-up (:data:`interrupted`)."""
+    return interrupted
+
+
 def raise_if_interrupted() -> None:
     """Raise :class:`KeyboardInterrupt` when a Ctrl-C came after the start-up, even one a
     library swallowed (nothing happens for library users: no handler is installed)."""

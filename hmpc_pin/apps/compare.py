@@ -277,6 +277,8 @@ def compare(
     if controllers is None:
         controllers = parse_controllers(None, config)
     comp = run_comparison(config, controllers, progress)
+    if comp.interrupted and not comp.runs:  # Ctrl-C before any controller ran: no file
+        raise RunInterrupted(comp.interrupted, files=[])
     stem = f"{config.name}_compare"
     title = config.description or config.name
     results = {k: r.result for k, r in comp.runs.items() if len(r.result.t) > 1}

@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _startup
+from .._startup import was_interrupted
 from ..controllers.base import Controller
 from ..exceptions import ConfigError, HmpcError
 from ..sim.result import Result
@@ -383,7 +383,7 @@ class RealtimeLoop:
         """
         main = threading.current_thread() is threading.main_thread()
         old_handler = signal.signal(signal.SIGINT, self._on_sigint) if main else None
-        if _startup.interrupted:  # a Ctrl-C swallowed while the run was set up: stop safely
+        if was_interrupted():  # a Ctrl-C swallowed while the run was set up: stop safely
             self._on_sigint(signal.SIGINT, None)
         gc_was_enabled = gc.isenabled()
         self._gc_watch = _GCWatch(self.clock)

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from .. import _startup
+from .._startup import raise_if_interrupted
 from ..exceptions import (
     ConfigError,
     DimensionError,
@@ -179,7 +179,7 @@ def simulate(
     last = -1
     message = ""
     try:
-        _startup.raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
+        raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
         for k in range(K + 1):
             t = t_arr[k]
             start = clock()

@@ -2,7 +2,8 @@
 
 Z1 declares ``<dynamics damping friction>`` on every joint (1-2 N·m·s/rad, 1-2 N·m); at
 the posture below its wrist's time constant M_66/b_6 is 0.8 ms, below Ts = 10 ms. The
-config is the one ``hmpc-pin init z1`` writes, with a 0.5 Hz, 0.5 rad sine on every joint
+config is the one ``hmpc-pin init z1`` writes (observer bandwidth 10/Ts, a declared 1 ms
+latency), with a 0.5 Hz, 0.5 rad sine on every joint
 (joints 2 and 3 moved to offsets 0.6, −0.6 to keep it inside the limits) and no added
 disturbance: the URDF's joint dynamics are the only friction. Each row is one 10 s run;
 the worst joint's RMS tracking error [rad].
@@ -34,8 +35,9 @@ Ts = 0.01
 v_min = [-100, -100, -39.18, -100, -100, -100]
 v_max = [100, 100, 39.18, 100, 100, 100]
 compensation = "general"
+latency = 0.001
 [controller.observer]
-gain = 100
+bandwidth = 1000
 [reference]
 kind = "sine"
 amplitude = 0.5

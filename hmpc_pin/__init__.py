@@ -57,8 +57,10 @@ from .controllers import (
     MPCSettings,
 )
 from .exceptions import (
+    ArmError,
     ConfigError,
     DimensionError,
+    ExtraError,
     HmpcError,
     InterfaceError,
     KinematicsError,
@@ -119,6 +121,7 @@ __all__ = [
     "COMPENSATIONS",
     "CONTROLLERS",
     "CONTROLLER_KINDS",
+    "ArmError",
     "CTSettings",
     "Comparison",
     "Compensation",
@@ -134,6 +137,7 @@ __all__ = [
     "EulerPlant",
     "Experiment",
     "ExperimentConfig",
+    "ExtraError",
     "GaussianPulse",
     "HierarchicalMPC",
     "HmpcError",

@@ -38,6 +38,8 @@ compensation = "general"
 latency = 0.001
 [controller.observer]
 bandwidth = 1000
+[plant]
+dt = 0.0001
 [reference]
 kind = "sine"
 amplitude = 0.5

@@ -114,7 +114,7 @@ def test_fast_damping_is_a_problem_unless_compensated(tmp_path):
     )
     urdf = tmp_path / "damped.urdf"
     urdf.write_text(text)
-    config = _paper(1.0)
+    config = _paper(1.0, dt=1e-4)  # the RK4 plant's step for the 0.64 ms damping
     config = replace(config, robot=replace(config.robot, urdf=urdf, model=None))
     ex = Experiment.from_config(config)
     M33 = ex.robot.mass_matrix(ex.q0)[2, 2]

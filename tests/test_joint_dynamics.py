@@ -332,3 +332,26 @@ def test_mujoco_friction_is_coulomb_with_a_short_constraint_time_constant(tmp_pa
         MuJoCoSettings(friction_timeconst=-1.0)
     with pytest.raises(ConfigError, match="2 timesteps"):
         PlantConfig(engine="mujoco", mujoco={"friction_timeconst": 0.001, "timestep": 0.001})
+
+
+def test_a_plant_step_too_long_for_the_urdf_damping_is_refused_naming_the_joint(tmp_path):
+    """Z1's wrist (b = 2 N·m·s/rad on a light link): the RK4 plant at 2 ms has
+    dt·b·(M⁻¹)_jj above RK4's stability bound, so the run would diverge at once; the config is
+    refused before anything runs, and a short enough step or no joint dynamics is accepted."""
+    from dataclasses import replace
+
+    from benchmarks.damped_arm import config
+    from hmpc_pin.exceptions import ConfigError
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.plants import DAMPING_STEP_LIMIT
+
+    base = config(tmp_path / "z1.toml")
+    slow = replace(base, plant=replace(base.plant, dt=2e-3))
+    ex = Experiment.from_config(base)  # 0.1 ms: accepted
+    M = ex.robot.mass_matrix(ex.q0)
+    lam = ex.robot.joint_damping * np.diag(np.linalg.inv(M))  # independent of the package
+    assert 2e-3 * lam.max() > DAMPING_STEP_LIMIT["rk4"] >= 1e-4 * lam.max()
+    name = ex.robot.joint_names[int(np.argmax(lam))]
+    with pytest.raises(ConfigError, match=rf"plant\.dt.*{name}"):
+        Experiment.from_config(slow)
+    Experiment.from_config(replace(slow, plant=replace(slow.plant, joint_dynamics=False)))

@@ -42,6 +42,7 @@ from .controllers import _limits, controller_parts, make_compensation, mpc_setti
 from .plants import (
     _effort_limit,
     build_disturbance,
+    check_plant_damping,
     mujoco_settings,
     pinocchio_plant,
 )
@@ -315,6 +316,7 @@ class Experiment:
             else config.vector("simulation.q0", n)
         )
         robot.check_mass_matrix(q0)
+        check_plant_damping(pc, plant, q0)  # the plant's step against the URDF damping
         cc = config.controller
         if cc.kind == "hmpc" and not cc.joint_dynamics and config.plant.joint_dynamics:
             warn_fast_damping(plant, cc.Ts)  # the simulated arm has them, uncompensated

@@ -53,6 +53,7 @@ from ..model.robot import (
     load_robot,
     urdf_mimics,
 )
+from .plants import DAMPING_STEP_LIMIT, damping_rates
 
 __all__ = [
     "BANDWIDTH_PERIODS",
@@ -64,6 +65,8 @@ __all__ = [
     "write_config",
 ]
 
+#: The RK4 plant steps ``init`` chooses from [s] (the first that suits the URDF damping).
+PLANT_STEPS = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5)
 #: The general observer's bandwidth ``init`` writes, times Ts (Ts·ω = 10).
 BANDWIDTH_PERIODS = 10.0
 #: The measurement latency ``init`` declares [s]: one cycle of a 1 kHz interface.
@@ -268,6 +271,19 @@ class InitPlan:
             self.gain = float(max(100.0, math.ceil(1.2 * bound)))
         self.name = name or (self.source[1] if self.source[0] == "model" else robot.name)
         self.Ts = 0.01
+        # The plant's step: an explicit integrator needs dt·λ_j within DAMPING_STEP_LIMIT
+        # for the URDF's joint damping (λ_j = b_j (M⁻¹)_jj), with a factor 2 for the
+        # postures along the sine; a damping too stiff for the shortest step is left out of
+        # the simulation (plant and controller), which a real arm applies.
+        self.damping_rate = float(damping_rates(robot, self.offset).max(initial=0.0))
+        self.plant_dt, self.joint_dynamics = PLANT_STEPS[0], True
+        if self.damping_rate > 0:
+            fits = [dt for dt in PLANT_STEPS
+                    if dt * self.damping_rate <= 0.5 * DAMPING_STEP_LIMIT["rk4"]]  # fmt: skip
+            if fits:
+                self.plant_dt = fits[0]
+            else:
+                self.joint_dynamics = False
 
     @property
     def bandwidth(self) -> float | None:
@@ -302,6 +318,19 @@ class InitPlan:
     def text(self, duration: float) -> str:
         """The TOML text (:func:`init_config`)."""
         return _render(self, duration)
+
+
+def _plant_lines(p: InitPlan) -> list[str]:
+    """The ``[plant]`` table when the URDF's joint damping needs it (else nothing)."""
+    if p.joint_dynamics and p.plant_dt == PLANT_STEPS[0]:
+        return []
+    tau = 1.0 / p.damping_rate
+    if p.joint_dynamics:
+        return ["[plant]", f"# The URDF's joint damping (time constant down to {tau:.3g} s) needs "
+                "a short", "# step of the RK4 plant.", f"dt = {p.plant_dt:g}", ""]  # fmt: skip
+    return ["[plant]", f"# The URDF's joint damping (time constant down to {tau:.3g} s) is "
+            f"too stiff for", f"# the RK4 plant even at dt = {PLANT_STEPS[-1]:g} s: the simulated "
+            "arm leaves it out.", "joint_dynamics = false", ""]  # fmt: skip
 
 
 def _vec(values, digits: int = 4) -> str:
@@ -414,6 +443,12 @@ def _render(p: InitPlan, duration: float) -> str:
             "# the torque is held over a period while M(q) changes (error ~ Ts^3).",
         ]
     lines += [f"Ts = {p.Ts:g}", "N = 10", "Nc = 1"]
+    if not p.joint_dynamics:
+        lines += [
+            "# The URDF's joint damping is too stiff to simulate (see [plant]); on the real",
+            "# arm, which applies it, set this to true (the default) to compensate it.",
+            "joint_dynamics = false",
+        ]
     if np.any(p.v_max < 100.0):
         lines += [
             "# Acceleration bounds [rad/s² or m/s²] the URDF effort limits can pay for at the",
@@ -450,6 +485,7 @@ def _render(p: InitPlan, duration: float) -> str:
         ]
     lines += [
         "",
+        *_plant_lines(p),
         "[reference]",
         'kind = "sine"',
         f"amplitude = {_vec(p.amplitude)}     # [{unit}]",

@@ -17,7 +17,14 @@ from .schema import (
     PlantConfig,
 )
 
-__all__ = ["build_disturbance", "mujoco_settings", "pinocchio_plant"]
+__all__ = [
+    "DAMPING_STEP_LIMIT",
+    "build_disturbance",
+    "check_plant_damping",
+    "damping_rates",
+    "mujoco_settings",
+    "pinocchio_plant",
+]
 
 
 def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
@@ -80,6 +87,46 @@ def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) ->
             np.broadcast_to(dc.pulse.sigma, (n,)),
         )
     return disturbance
+
+
+#: The largest plant step × damping rate h·b_j·(M⁻¹)_jj an explicit integrator is given:
+#: RK4 is stable on x' = −λx up to hλ = 2.785, explicit Euler up to 2 (half of each, for
+#: the posture-dependent M(q)).
+DAMPING_STEP_LIMIT = {"rk4": 1.39, "euler": 1.0}
+
+
+def damping_rates(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Per joint the rate λ_j = b_j (M(q)⁻¹)_jj [1/s] at which the URDF's joint damping
+    b_j [N·m·s/rad] slows joint j at ``q`` (0 without damping)."""
+    b = np.asarray(robot.joint_damping, dtype=float)
+    if not b.any():
+        return np.zeros_like(b)
+    return b * np.diag(np.linalg.inv(robot.mass_matrix(q)))
+
+
+def check_plant_damping(pc: PlantConfig, robot: Robot, q: np.ndarray) -> None:
+    """Refuse a plant step too long for the URDF's joint damping (the explicit integrator
+    would diverge at once).
+
+    Raises:
+        ConfigError: ``plant.dt`` × λ_j (:func:`damping_rates` at ``q``) above
+            :data:`DAMPING_STEP_LIMIT`, naming the joint, its time constant 1/λ_j and the
+            step that would do.
+    """
+    if pc.engine != "pinocchio" or not pc.joint_dynamics:
+        return
+    limit = DAMPING_STEP_LIMIT.get(pc.integrator)
+    lam = damping_rates(robot, q)
+    if limit is None or pc.dt * lam.max(initial=0.0) <= limit:
+        return
+    j = int(np.argmax(lam))
+    raise ConfigError(
+        "plant.dt",
+        f"{pc.dt:g} s is too long for the URDF damping of joint {robot.joint_names[j]!r} "
+        f"(time constant 1/(b (M^-1)_jj) = {1 / lam[j]:.3g} s): the {pc.integrator} plant "
+        f"diverges; use [plant] dt <= {limit / lam[j]:.3g} s (dividing Ts), engine = "
+        "'mujoco' (implicit damping), or [plant] joint_dynamics = false",
+    )
 
 
 def pinocchio_plant(pc: PlantConfig, robot: Robot, disturbance, Ts: float) -> Plant:

@@ -414,7 +414,8 @@ def add_check_parser(sub) -> None:
         "check",
         help="check a config's arm before running it (observer, damping, torque, engines)",
         description="Before anything runs on an arm, per joint: the observer bandwidth "
-        "times Ts, its phase margin for the configured latency, the URDF damping's time "
+        "times Ts and its margin under the bandwidth rule for the latency the controller is not "
+        "told about, the URDF damping's time "
         "constant against Ts, the torque headroom along the reference, and (with MuJoCo "
         "installed) the model against MuJoCo's. Exit 0 when fine, 1 with one line per "
         "problem, 2 on bad input.",

@@ -2,8 +2,8 @@
 
 Z1 declares ``<dynamics damping friction>`` on every joint (1-2 N·m·s/rad, 1-2 N·m); at
 the posture below its wrist's time constant M_66/b_6 is 0.8 ms, below Ts = 10 ms. The
-config is the one ``hmpc-pin init z1`` writes (observer bandwidth 10/Ts, a declared 1 ms
-latency), with a 0.5 Hz, 0.5 rad sine on every joint
+config is the one ``hmpc-pin init z1`` writes (observer bandwidth 10/Ts, its model at the
+start of the period, a declared 1 ms latency), with a 0.5 Hz, 0.5 rad sine on every joint
 (joints 2 and 3 moved to offsets 0.6, −0.6 to keep it inside the limits) and no added
 disturbance: the URDF's joint dynamics are the only friction. Each row is one 10 s run;
 the worst joint's RMS tracking error [rad].
@@ -38,6 +38,7 @@ compensation = "general"
 latency = 0.001
 [controller.observer]
 bandwidth = 1000
+model_at = "start"
 [plant]
 dt = 0.0001
 [reference]
@@ -84,23 +85,30 @@ def main(argv=None) -> int:
         engines = ["pinocchio", "mujoco"]
     except ImportError:
         engines = ["pinocchio"]
-    print("| plant | plant joint dynamics | controller compensates | observer | worst RMS [rad] |")
+    print("| plant | plant joint dynamics | controller compensates | observer (model at) "
+          "| worst RMS [rad] |")  # fmt: skip
     print("|---|---|---|---|---|")
     for engine in engines + (["mujoco, friction_timeconst = 2 ms"] if "mujoco" in engines else []):
         # the Pinocchio plant at 0.1 ms: RK4 resolves the 0.8 ms time constant
         if engine == "pinocchio":
             pc = replace(base.plant, dt=1e-4)
         else:
-            pc = replace(base.plant, engine="mujoco")
+            pc = replace(base.plant, engine="mujoco", dt=0.001)  # MuJoCo's own timestep
             if "friction_timeconst" in engine:  # MuJoCo's friction closer to Coulomb's
                 pc = replace(pc, mujoco=replace(pc.mujoco, friction_timeconst=0.002))
-        for plant_jd, ctrl_jd, obs in [(False, False, True), (True, False, True),
-                                       (True, True, True), (True, True, False)]:  # fmt: skip
+        for plant_jd, ctrl_jd, obs, at in [
+            (False, False, True, "start"), (True, False, True, "start"),
+            (True, True, True, "end"), (True, True, True, "start"), (True, True, False, "-"),
+        ]:  # fmt: skip
+            cc = base.controller
+            if obs:
+                cc = replace(cc, observer=replace(cc.observer, model_at=at))
             cfg = replace(base, plant=replace(pc, joint_dynamics=plant_jd),
-                          controller=replace(base.controller, joint_dynamics=ctrl_jd))  # fmt: skip
+                          controller=replace(cc, joint_dynamics=ctrl_jd))  # fmt: skip
             rms, joint = worst_rms(cfg, obs)
-            print(f"| {engine} | {plant_jd} | {ctrl_jd} | {'general' if obs else 'none'} | "
-                  f"{rms:.3g} (joint {joint}) |", flush=True)  # fmt: skip
+            what = f"general ({at})" if obs else "none"
+            print(f"| {engine} | {plant_jd} | {ctrl_jd} | {what} | {rms:.3g} (joint {joint}) |",
+                  flush=True)  # fmt: skip
     return 0
 
 

@@ -324,6 +324,17 @@ struct HMPCCore {
   // measurements span, and the MPC and the inverse dynamics start from the state predicted
   // over L. Off (latency_on false): the step is exactly the latency-free one.
   bool latency_on = false;
+  // Where the observer's model (M, C q̇ + G of Eq 13) is evaluated over the period that
+  // just ended (set_observer_model): at its end, the new measurement (false, Eq 13's
+  // backward Euler), or at its start, the state the torque held over it was computed from
+  // (true; with latency, the previous measurement). At the start, the observer's residual
+  // is what the held torque's model missed over the period, the correction Eq (4) needs for
+  // the next one; at the end it is that residual minus the model's change over the period,
+  // which Eq (4) then applies with the wrong sign (guide "Joint dynamics", observer model).
+  bool obs_start = false;
+  bool has_prev = false;  // with latency: prev_M, prev_nle hold the previous measurement's
+  Mat prev_M;
+  Vec prev_nle;
   int lat_m = 0;
   double lat_alpha = 0.0, Ts = 0.0;
   long steps = 0;            // finished steps since reset
@@ -490,6 +501,11 @@ struct HMPCCore {
     jtau.setZero(n);
   }
 
+  void set_observer_model(bool at_start) {
+    obs_start = at_start;
+    has_prev = false;
+  }
+
   void set_effort(const CRefVec& limit) {
     if (limit.size() != n) throw std::invalid_argument("effort limit of wrong size");
     effort = limit;
@@ -504,6 +520,7 @@ struct HMPCCore {
     qp->qps.constrained_last = false;
     qp->qps.constrained = 0;
     started = false;
+    has_prev = false;
     steps = 0;
     for (Vec& x : tau_hist) x.setZero();
     for (Vec& x : v_hist) x.setZero();
@@ -629,16 +646,22 @@ struct HMPCCore {
   // observer (or none) advanced here. Returns prepare()'s or finish()'s code.
   int step(const CRefRow& S) {
     if (latency_on) return step_latency(S);
+    if (obs_start && started && ndo) {  // the model the held torque was computed from
+      prev_M = *M;
+      prev_nle = *nle0;
+    }
     int code = prepare(S, true, false);
     if (code) return code;
     if (started && ndo) {
       // Eq (13) over the period that just ended, with the torque applied over it.
+      const Mat& Mo = obs_start ? prev_M : *M;
+      const Vec& no = obs_start ? prev_nle : (joint ? *nle0 : *nle);
       if (joint) {  // the rigid body's model, the torque beyond J (see jtau)
         applied_torque();
         applied -= jtau;
-        ndo->ndo.update(*M, *nle0, dqv, applied);
+        ndo->ndo.update(Mo, no, dqv, applied);
       } else {
-        ndo->ndo.update(*M, *nle, dqv, applied_torque());
+        ndo->ndo.update(Mo, no, dqv, applied_torque());
       }
       dhat.map.row(0) = ndo->ndo.estimate.transpose();
     }
@@ -658,13 +681,21 @@ struct HMPCCore {
     if (S.data() != S_in.data()) S = S_in;
     Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
     if (ndo) {
-      if (observer_ready()) {
+      const Mat& Mq = dyn->mass_matrix(q);
+      const Vec& nq = dyn->nle(q, dq);
+      if (observer_ready() && (!obs_start || has_prev)) {
         align();
-        ndo->ndo.update(dyn->mass_matrix(q), dyn->nle(q, dq), dq, tau_obs);
+        if (obs_start) ndo->ndo.update(prev_M, prev_nle, dq, tau_obs);
+        else ndo->ndo.update(Mq, nq, dq, tau_obs);
         dhat.map.row(0) = ndo->ndo.estimate.transpose();
       } else {
         ndo->ndo.reset(dq);
         dhat.map.setZero();
+      }
+      if (obs_start) {  // the start of the next measured interval
+        prev_M = Mq;
+        prev_nle = nq;
+        has_prev = true;
       }
     }
     predict(q, dq);
@@ -823,6 +854,7 @@ PYBIND11_MODULE(_core, m) {
            py::arg("model"), py::arg("FT"), py::arg("N"), py::arg("qps"), py::arg("ndo"),
            py::arg("v"), py::arg("tau"), py::arg("d_hat"), py::arg("M"), py::arg("nle"))
       .def("set_effort", &HMPCCore::set_effort)
+      .def("set_observer_model", &HMPCCore::set_observer_model, py::arg("at_start"))
       .def("set_latency", &HMPCCore::set_latency, py::arg("L"), py::arg("Ts"))
       .def("observer_ready", &HMPCCore::observer_ready)
       .def("aligned", [](HMPCCore& c) {
@@ -849,7 +881,8 @@ PYBIND11_MODULE(_core, m) {
           [](const HMPCCore& c) {  // copies
             std::vector<Vec> th = c.tau_hist, vh = c.v_hist;
             return py::make_tuple(c.started, Vec(c.jtau), std::move(th), std::move(vh),
-                                  Vec(c.tau_obs), Vec(c.v_obs), c.steps);
+                                  Vec(c.tau_obs), Vec(c.v_obs), c.steps, Mat(c.prev_M),
+                                  Vec(c.prev_nle), c.has_prev);
           },
           [](HMPCCore& c, const py::tuple& s) {
             c.steps = s[6].cast<decltype(c.steps)>();
@@ -859,6 +892,9 @@ PYBIND11_MODULE(_core, m) {
             c.v_hist = s[3].cast<std::vector<Vec>>();
             c.tau_obs = s[4].cast<Vec>();
             c.v_obs = s[5].cast<Vec>();
+            c.prev_M = s[7].cast<Mat>();
+            c.prev_nle = s[8].cast<Vec>();
+            c.has_prev = s[9].cast<bool>();
           })
       .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); })
       .def_property_readonly("joint_torque", [](const HMPCCore& c) {

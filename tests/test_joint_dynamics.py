@@ -233,15 +233,18 @@ def test_a_joint_at_rest_is_not_left_to_stick(tmp_path):
     # uncompensated friction would lose f/b (1 − e^{−x}) = 0.1 rad/s, 200 times that bound
 
 
-def test_whole_runs_with_joint_dynamics_equal_the_oracle_step():
+@pytest.mark.parametrize("at", ["end", "start"])
+def test_whole_runs_with_joint_dynamics_equal_the_oracle_step(at):
     """Z1 (damping and friction on every joint, the wrist's time constant 0.8 ms) simulated
-    with them: every step equals the oracle step (tests/reference/step.py)."""
+    with them: every step equals the oracle step (tests/reference/step.py), with the
+    observer's model at the end or the start of the period."""
     from .reference.step import OracleHMPC
 
     config = load_config(CONFIGS / "z1_sine.toml")
+    obs = replace(config.controller.observer, model_at=at)
     config = replace(
         config,
-        controller=replace(config.controller, joint_dynamics=True),
+        controller=replace(config.controller, joint_dynamics=True, observer=obs),
         plant=replace(config.plant, joint_dynamics=True),
         simulation=replace(config.simulation, duration=1.0),
     )
@@ -279,16 +282,20 @@ def test_config_keys_of_the_joint_dynamics():
                     mujoco={"import_urdf_dynamics": True})  # fmt: skip
 
 
-def test_a_python_compensation_gets_what_the_compiled_observer_gets():
+@pytest.mark.parametrize(("at", "latency"), [("end", 0.0), ("start", 0.0), ("start", 0.004)])
+def test_a_python_compensation_gets_what_the_compiled_observer_gets(at, latency):
     """Z1 with its joint dynamics: the NDO called from Python between the step's halves
     (given C q̇ + G alone and the applied torque minus the step's joint torque J) gives the
-    fused step's run bit for bit."""
+    fused step's run bit for bit, with the observer's model at the end or the start of the
+    period, with and without a latency."""
     from .test_native import _Unfused
 
     config = load_config(CONFIGS / "z1_sine.toml")
+    obs = replace(config.controller.observer, model_at=at)
     config = replace(
         config,
-        controller=replace(config.controller, joint_dynamics=True),
+        controller=replace(config.controller, joint_dynamics=True, observer=obs,
+                           latency=latency),
         plant=replace(config.plant, joint_dynamics=True),
         simulation=replace(config.simulation, duration=1.0),
     )
@@ -355,3 +362,20 @@ def test_a_plant_step_too_long_for_the_urdf_damping_is_refused_naming_the_joint(
     with pytest.raises(ConfigError, match=rf"plant\.dt.*{name}"):
         Experiment.from_config(slow)
     Experiment.from_config(replace(slow, plant=replace(slow.plant, joint_dynamics=False)))
+
+
+def test_the_observer_model_key():
+    """``[controller.observer] model_at`` reaches MPCSettings.observer_model; another value
+    is one ConfigError naming the key."""
+    from hmpc_pin.controllers.hierarchical import MPCSettings
+    from hmpc_pin.experiment.config.controller import ObserverConfig
+    from hmpc_pin.experiment.controllers import mpc_settings
+
+    assert ObserverConfig().model_at == "end"
+    assert MPCSettings().observer_model == "end"
+    cc = ControllerConfig(compensation="general", observer={"model_at": "start"})
+    assert mpc_settings(cc, 3).observer_model == "start"
+    with pytest.raises(ConfigError, match="model_at"):
+        ObserverConfig(model_at="middle")
+    with pytest.raises(ConfigError, match="observer_model"):
+        MPCSettings(observer_model="middle")

@@ -72,13 +72,16 @@ def test_alignment_hand_computed_two_steps(planar3):
     np.testing.assert_allclose(v_fed, 0.4 * vs[0] + 0.6 * vs[1], rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("at", ["end", "start"])
 @pytest.mark.parametrize("L", [0.004, 0.01, 0.023])
-def test_compiled_observer_fed_the_aligned_torque(planar3, L):
+def test_compiled_observer_fed_the_aligned_torque(planar3, L, at):
     """The fused step's NDO against the numpy NDO fed the oracle's aligned torque, with M
-    and C q̇ + G at the measured (not the predicted) state."""
+    and C q̇ + G at the measured (not the predicted) state: the measurement ending the
+    interval (``observer_model = "end"``) or the one starting it (``"start"``)."""
     Ts = 0.01
     obs = DisturbanceObserver(3, Ts, 50.0, "chen")
-    ctrl = hmpc_pin.HierarchicalMPC(planar3, MPCSettings(Ts=Ts, latency=L), obs)
+    settings = MPCSettings(Ts=Ts, latency=L, observer_model=at)
+    ctrl = hmpc_pin.HierarchicalMPC(planar3, settings, obs)
     assert ctrl.fused
     oracle = NumpyNDO(obs.cY, Ts)
     ctrl.reset(Q0, np.zeros(3))
@@ -86,14 +89,16 @@ def test_compiled_observer_fed_the_aligned_torque(planar3, L):
     m, alpha = split(L, Ts)
     first = m + 1 + (alpha > 0)
     taus = []
-    for k, (q, dq) in enumerate(_states(first + 3, seed=1)):
+    states = _states(first + 3, seed=1)
+    for k, (q, dq) in enumerate(states):
         taus.append(ctrl.step(k * Ts, q, dq, _ref()))
         if k < first:
             oracle.reset(dq)
             expected = np.zeros(3)
         else:
-            M = planar3.mass_matrix(q)
-            nle = planar3.nle(q, dq) if hasattr(planar3, "nle") else _nle(planar3, q, dq)
+            qm, dqm = states[k - 1] if at == "start" else (q, dq)
+            M = planar3.mass_matrix(qm)
+            nle = _nle(planar3, qm, dqm)
             expected = oracle.update(M, nle, dq, aligned(taus[:-1], k, L, Ts))
         np.testing.assert_allclose(ctrl.disturbance_estimate, expected, rtol=0, atol=1e-9)
 

@@ -80,6 +80,17 @@ class MPCSettings:
             :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
             Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
             (computed in the compiled step, see ``src/core.cpp``). Default ``True``.
+        observer_model: Where the compensation's model :math:`M,\\ C\\dot q + G` is
+            evaluated over the period that just ended: ``"end"`` (default; the new
+            measurement, Eq 13's backward Euler as the paper discretises it) or ``"start"``
+            (the state the torque held over the period was computed from; with a latency,
+            the previous measurement). With the torque held over :math:`T_s` the plant's
+            :math:`C\\dot q + G` drifts by :math:`\\dot n T_s` over a period; at the end the
+            estimate carries :math:`+\\dot n T_s/2` where Eq (4) of the next period needs
+            :math:`-\\dot n T_s/2`, doubling the error it should cancel; at the start it is
+            the residual of the model the held torque used, which Eq (4) applies with the
+            right sign (the guide "Joint dynamics", observer model). ``hmpc-pin init``
+            writes ``"start"``.
     """
 
     Ts: float = 0.01
@@ -96,6 +107,7 @@ class MPCSettings:
     backend: str = "auto"
     latency: float = 0.0
     joint_dynamics: bool = True
+    observer_model: str = "end"
 
     def __post_init__(self):
         # The same checks and errors as the [controller] table (hmpc_pin.checks).
@@ -107,6 +119,8 @@ class MPCSettings:
                                         ("auto", "block", "joint"))  # fmt: skip
         fields["latency"] = as_float("MPCSettings.latency", self.latency, nonneg=True)
         fields["joint_dynamics"] = as_bool("MPCSettings.joint_dynamics", self.joint_dynamics)
+        fields["observer_model"] = as_choice("MPCSettings.observer_model",
+                                             self.observer_model, ("end", "start"))  # fmt: skip
         for name, value in fields.items():
             object.__setattr__(self, name, value)
 
@@ -349,6 +363,8 @@ class HierarchicalMPC(AppliedTorque):
         )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
         core.set_latency(self.settings.latency, self.settings.Ts)
+        core.set_observer_model(self.settings.observer_model == "start")
+        self._obs_prev = None  # the Python path's model at the previous measurement
         b, f = self.joint_dynamics
         if b.any() or f.any():
             core.set_joint_dynamics(b, f, self.settings.Ts)
@@ -574,6 +590,11 @@ class HierarchicalMPC(AppliedTorque):
         b, f = self.joint_dynamics
         joint = bool(b.any() or f.any())
         comp = self.compensation
+        if self.settings.observer_model == "start":  # the previous measurement's model
+            current = (M.copy(), nle.copy())
+            if self._started and self._obs_prev is not None:
+                M, nle = self._obs_prev
+            self._obs_prev = current
         if self.settings.latency > 0:  # the torque and v over the measured interval
             if self._core.observer_ready():  # (the torque beyond the joint dynamics' J)
                 tau_obs, v_obs = self._core.aligned()
@@ -590,7 +611,7 @@ class HierarchicalMPC(AppliedTorque):
             d_hat = comp.estimate
         self.disturbance_estimate[:] = d_hat
         if self._python_dynamics and joint:  # Eq 4 takes C q̇ + G + B q̇ + F sgn q̇
-            nle += b * dq + f * np.sign(dq)
+            self._buf["nle"][:] += b * dq + f * np.sign(dq)
 
     def _python_dynamics_at_stack(self) -> None:
         """M and C q̇ + G at the stack's state from Pinocchio's Python API (models the

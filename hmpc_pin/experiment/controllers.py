@@ -40,6 +40,7 @@ def mpc_settings(cc, n: int) -> MPCSettings:
         backend=cc.backend if cc.backend is not None else "auto",
         latency=cc.latency if cc.latency is not None else 0.0,
         joint_dynamics=cc.joint_dynamics if cc.joint_dynamics is not None else True,
+        observer_model=cc.observer.model_at if cc.observer is not None else "end",
     )  # fmt: skip
 
 

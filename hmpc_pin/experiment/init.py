@@ -69,6 +69,13 @@ __all__ = [
 PLANT_STEPS = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5)
 #: The general observer's bandwidth ``init`` writes, times Ts (Ts·ω = 10).
 BANDWIDTH_PERIODS = 10.0
+#: The observer's model at the start of the period (the state the held torque was computed
+#: from): its estimate is then the correction Eq (4) needs for the next period.
+MODEL_AT_LINES = [
+    'model_at = "start"                 # M, C dq + G where the held torque was computed',
+    "                                   # (guide: Joint dynamics, the observer's model)",
+]
+
 #: The measurement latency ``init`` declares [s]: one cycle of a 1 kHz interface.
 LATENCY = 0.001
 
@@ -462,6 +469,7 @@ def _render(p: InitPlan, duration: float) -> str:
             "",
             "[controller.observer]",
             "gain = 100.0",
+            *MODEL_AT_LINES,
         ]
     else:
         lines += [
@@ -474,6 +482,7 @@ def _render(p: InitPlan, duration: float) -> str:
             "[controller.observer]",
             f"bandwidth = {p.bandwidth:g}                 # [1/s] per joint: Ts x bandwidth = "
             f"{BANDWIDTH_PERIODS:g}",
+            *MODEL_AT_LINES,
         ]
     if not p.position_limits:
         lines += [

@@ -20,6 +20,10 @@ torque :math:`J = B\\dot q + F\\sigma + (g - 1)v/(M^{-1})_{jj}`), and joint j's 
 :math:`x = b_j (M^{-1})_{jj} T_s` (``numpy.linalg.inv``), and the Coulomb term
 :math:`f_j\\,\\mathrm{sgn}\\,\\dot q_j` is replaced by :math:`f_j\\sigma_j`, the sign of the
 velocity's path over the period averaged by quadrature (:meth:`OracleHMPC._mean_sign`).
+
+With ``observer_model = "start"`` step 2 takes :math:`M` and :math:`C\\dot q + G` of the
+previous step's measured state (the state the held torque was computed from) instead of
+this step's.
 """
 
 from __future__ import annotations
@@ -53,12 +57,14 @@ class OracleHMPC:
             self.ndo = NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit")
         self.data = self.robot.model.createData()
         self.joint = ctrl.joint_dynamics  # (B, F) compensated (zeros: none)
+        self.at_start = s.observer_model == "start"
 
     def reset(self, dq0: np.ndarray) -> None:
         if self.ndo is not None:
             self.ndo.reset(dq0)
         self.d_hat = np.zeros(self.robot.nq)
         self.J = np.zeros(self.robot.nq)  # the joint-dynamics torque of the last step
+        self.prev = None  # M, C q̇ + G of the last step's measured state
 
     def step(self, t, q, dq, reference, tau_applied_prev=None) -> tuple[np.ndarray, np.ndarray]:
         """Returns ``(τ, d̂)``; ``tau_applied_prev`` is None at the first step."""
@@ -69,7 +75,9 @@ class OracleHMPC:
         B, F = self.joint
         if self.ndo is not None and tau_applied_prev is not None:
             # the rigid body's model; the torque beyond the last step's joint torque J
-            self.d_hat = self.ndo.update(M, nle0, dq, tau_applied_prev - self.J)
+            Mo, no = self.prev if self.at_start else (M, nle0)
+            self.d_hat = self.ndo.update(Mo, no, dq, tau_applied_prev - self.J)
+        self.prev = (M, nle0)
         times = t + self.Ts * np.arange(1, self.N + 1)
         q_ref, dq_ref = reference.sample_many(times)
         ref = np.empty((2 * self.N, q.size))

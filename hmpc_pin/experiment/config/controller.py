@@ -72,6 +72,12 @@ class ObserverConfig:
             :mod:`hmpc_pin.compensation.bandwidth` (a warning names the joints above it).
         discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``
             (not for ``"momentum"``, which is always semi-implicit).
+        model_at: Where the observer's model M, C q̇ + G is evaluated over the period that
+            just ended: ``"end"`` (default, the new measurement: Eq 13 as the paper
+            discretises it) or ``"start"`` (the state the torque held over the period was
+            computed from; what ``hmpc-pin init`` writes). ``"start"`` makes the estimate
+            the correction Eq (4) needs for the next period
+            (:attr:`~hmpc_pin.controllers.hierarchical.MPCSettings.observer_model`).
         enabled: Version 0.1 key, with ``kind = "hmpc"`` only: ``false`` means
             compensation ``"none"`` (the whole table is then switched off). Superseded
             by ``[controller] compensation``.
@@ -85,8 +91,10 @@ class ObserverConfig:
     enabled: bool | None = None
     kind: str | None = None
     bandwidth: np.ndarray | None = None
+    model_at: str = "end"
 
     def __post_init__(self):
+        _set(self, "model_at", _choice("model_at", self.model_at, ("end", "start")))
         if self.enabled is not None:
             _set(self, "enabled", _bool("enabled", self.enabled))
         if self.kind is not None:

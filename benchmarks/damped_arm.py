@@ -1,7 +1,7 @@
 """A damped arm: Z1 with its URDF's joint damping and friction, a brisk sine.
 
 Z1 declares ``<dynamics damping friction>`` on every joint (1-2 N·m·s/rad, 1-2 N·m); at
-the posture below its wrist's time constant M_66/b_6 is 0.8 ms, below Ts = 10 ms. The
+the posture below its wrist's damping time constant is 0.8 ms, below Ts = 10 ms. The
 config is the one ``hmpc-pin init z1`` writes (observer bandwidth 10/Ts, its model at the
 start of the period, a declared 1 ms latency), with a 0.5 Hz, 0.5 rad sine on every joint
 (joints 2 and 3 moved to offsets 0.6, −0.6 to keep it inside the limits) and no added
@@ -21,6 +21,7 @@ import numpy as np
 
 import hmpc_pin
 from hmpc_pin.experiment.schema import ExperimentConfig, load_config
+from hmpc_pin.model.robot import damping_time_constants
 
 CONFIG = """
 name = "z1_damped_sine"
@@ -76,9 +77,8 @@ def main(argv=None) -> int:
         base = config(Path(tmp) / "z1_damped.toml")
     base = replace(base, simulation=replace(base.simulation, duration=args.duration))
     ex = hmpc_pin.Experiment.from_config(base)
-    M = ex.robot.mass_matrix(ex.q0)
-    tau = np.diag(M) / ex.robot.joint_damping
-    print(f"M_jj/b_j [ms]: {np.array2string(1e3 * tau, precision=2)}; Ts = 10 ms")
+    tau = damping_time_constants(ex.robot, ex.q0)
+    print(f"1/(b_j (M^-1)_jj) [ms]: {np.array2string(1e3 * tau, precision=2)}; Ts = 10 ms")
     try:
         import mujoco  # noqa: F401
 

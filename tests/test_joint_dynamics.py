@@ -379,3 +379,21 @@ def test_the_observer_model_key():
         ObserverConfig(model_at="middle")
     with pytest.raises(ConfigError, match="observer_model"):
         MPCSettings(observer_model="middle")
+
+
+def test_damping_time_constant_uses_the_inertia_with_the_other_joints_free():
+    """T_j = 1/(b_j (M⁻¹)_jj): for M = [[2, 1], [1, 1]] (det 1), (M⁻¹)_11 = M_22/det = 1,
+    so joint 1 with b = 4 has T = 0.25 s (M_11/b would say 0.5 s); undamped: inf."""
+    from hmpc_pin.model.robot import damping_time_constants
+
+    class Arm:
+        joint_damping = np.array([4.0, 0.0])
+
+        def mass_matrix(self, q):
+            return np.array([[2.0, 1.0], [1.0, 1.0]])
+
+    T = damping_time_constants(Arm(), np.zeros(2))
+    assert T[0] == pytest.approx(0.25, rel=1e-12)
+    assert np.isinf(T[1])
+    Arm.joint_damping = np.zeros(2)
+    assert np.isinf(damping_time_constants(Arm(), np.zeros(2))).all()

@@ -13,7 +13,8 @@ Per joint, from the config's models alone (nothing is simulated):
   else one unknown control period (an arm's interface always delays its measurements).
   The margin is :math:`\\omega_{\\max}/\\omega_j` [-] (a problem below 1); the explicit
   observer also needs :math:`T_s\\omega_j < 2`;
-* **damping time constant** :math:`M_{jj}(q_0)/b_j` [s] of the URDF's joint damping
+* **damping time constant** :math:`1/(b_j (M(q_0)^{-1})_{jj})` [s] of the URDF's joint
+  damping (:func:`~hmpc_pin.model.robot.damping_time_constants`)
   against :math:`T_s`: a problem when it is below :math:`2T_s` and the controller does not
   compensate the joint dynamics (``controller.joint_dynamics = false``);
 * **torque headroom** along the reference: :math:`1 - \\max_t |\\tau_j(t)| / \\tau_{j,\\max}`
@@ -42,6 +43,7 @@ from ..compensation.bandwidth import MASS_RATIO, bandwidth_limit
 from ..experiment.build import Experiment
 from ..experiment.plants import _effort_limit
 from ..experiment.schema import ExperimentConfig
+from ..model.robot import damping_time_constants
 
 __all__ = ["ENGINE_RTOL", "ENGINE_SAMPLES", "MIN_HEADROOM", "CheckReport", "check_config"]
 
@@ -65,7 +67,8 @@ class CheckReport:
         bandwidth: Observer bandwidth per joint [1/s] (``None``: no observer).
         margin: The rule's margin :math:`\\omega_{\\max}/\\omega_j` per joint [-] (below 1: a
             problem; inf: no bound; ``None``: no observer).
-        damping_tau: Damping time constant :math:`M_{jj}/b_j` per joint [s] (inf: none).
+        damping_tau: Damping time constant per joint [s] (inf: none;
+            :func:`~hmpc_pin.model.robot.damping_time_constants`).
         headroom: Torque headroom per joint [-] (inf: no limit).
         engine: ``(max rel. difference of M, of q̈)`` against MuJoCo, or a sentence why
             not compared.
@@ -230,14 +233,13 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
                     "or lower the observer gain"
                 )
 
-    b = robot.joint_damping
-    with np.errstate(divide="ignore"):
-        damping_tau = np.where(b > 0, np.diag(M0) / np.where(b > 0, b, 1.0), np.inf)
+    damping_tau = damping_time_constants(robot, ex.q0)
     compensated = bool(getattr(config.controller, "joint_dynamics", False))
     if not compensated:
         for j in np.flatnonzero(damping_tau < 2 * Ts):
             problems.append(
-                f"joint {names[j]!r}: damping time constant M_jj/b = {damping_tau[j]:.3g} s is "
+                f"joint {names[j]!r}: damping time constant 1/(b (M^-1)_jj) = "
+                f"{damping_tau[j]:.3g} s is "
                 f"below 2 Ts = {2 * Ts:g} s and controller.joint_dynamics is false; set it "
                 "true (compensation with the zero-order-hold gain) or lower Ts"
             )

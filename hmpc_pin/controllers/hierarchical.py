@@ -33,7 +33,7 @@ from ..checks import as_bool, as_choice, as_float, as_int, mpc_fields
 from ..compensation.base import Compensation, check_compensation
 from ..compensation.observers import DisturbanceObserver
 from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
-from ..model.robot import Robot
+from ..model.robot import Robot, damping_time_constants
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
@@ -197,20 +197,17 @@ def state_limits(
 
 def warn_fast_damping(robot: Robot, Ts: float) -> None:
     """A :class:`~hmpc_pin.exceptions.ValidityWarning` naming each joint of ``robot`` (the
-    arm as simulated or built) whose URDF damping time constant :math:`M_{jj}/b_j` (at
-    mid-range) is below :math:`2T_s` [s], for a controller that does not compensate the
-    joint dynamics (``joint_dynamics = False``): tracking degrades there."""
-    n = robot.nq
-    b = np.asarray(getattr(robot, "joint_damping", np.zeros(n)), dtype=float)
-    if not b.any():
-        return
+    arm as simulated or built) whose URDF damping time constant (at mid-range,
+    :func:`~hmpc_pin.model.robot.damping_time_constants`) is below :math:`2T_s` [s], for a
+    controller that does not compensate the joint dynamics (``joint_dynamics = False``):
+    tracking degrades there."""
     lo = np.where(np.isfinite(robot.lower), robot.lower, 0.0)
     hi = np.where(np.isfinite(robot.upper), robot.upper, 0.0)
-    M = robot.mass_matrix(0.5 * (lo + hi))
-    for j in np.flatnonzero((b > 0) & (np.diag(M) < 2 * Ts * b)):
+    tc = damping_time_constants(robot, 0.5 * (lo + hi))
+    for j in np.flatnonzero(tc < 2 * Ts):
         warnings.warn(
             f"joint {robot.joint_names[j]!r}: its URDF damping's time constant "
-            f"M_jj/b = {M[j, j] / b[j]:.3g} s is below 2 Ts = {2 * Ts:g} s and the "
+            f"1/(b (M^-1)_jj) = {tc[j]:.3g} s is below 2 Ts = {2 * Ts:g} s and the "
             "controller does not compensate it (joint_dynamics = false): tracking "
             "degrades; set controller.joint_dynamics = true or lower Ts",
             ValidityWarning,

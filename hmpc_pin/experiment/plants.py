@@ -8,7 +8,7 @@ import numpy as np
 from ..exceptions import (
     ConfigError,
 )
-from ..model.robot import Robot
+from ..model.robot import Robot, damping_time_constants
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
 from ..sim.mujoco import MuJoCoSettings, Obstacle
 from ..sim.plants import PLANTS, Plant, RK4Plant
@@ -97,11 +97,9 @@ DAMPING_STEP_LIMIT = {"rk4": 1.39, "euler": 1.0}
 
 def damping_rates(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Per joint the rate λ_j = b_j (M(q)⁻¹)_jj [1/s] at which the URDF's joint damping
-    b_j [N·m·s/rad] slows joint j at ``q`` (0 without damping)."""
-    b = np.asarray(robot.joint_damping, dtype=float)
-    if not b.any():
-        return np.zeros_like(b)
-    return b * np.diag(np.linalg.inv(robot.mass_matrix(q)))
+    b_j [N·m·s/rad] slows joint j at ``q`` (0 without damping): the inverse of
+    :func:`~hmpc_pin.model.robot.damping_time_constants`."""
+    return 1.0 / damping_time_constants(robot, q)
 
 
 def check_plant_damping(pc: PlantConfig, robot: Robot, q: np.ndarray) -> None:

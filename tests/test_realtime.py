@@ -633,3 +633,77 @@ def test_paced_interface_refuses_clock_options(robot):
         RealtimeLoop(Paced(arm, clock), *parts, sleep=clock.sleep)
     with pytest.raises(hmpc_pin.ConfigError, match="does not apply to an arm that paces"):
         RealtimeLoop(Paced(arm, clock), *parts, clock=clock)
+
+
+# ------------------------------------------------------------- measured latency
+class DelayedPaced(Paced):
+    """:class:`Paced` whose states reach the loop ``delay`` [s] after their stamp (a
+    transport delay; ``delay`` < P)."""
+
+    def __init__(self, arm, clock, delay):
+        super().__init__(arm, clock)
+        self.delay = delay
+
+    def wait(self, timeout):
+        count = super().wait(timeout)
+        if count:
+            self._clock.now += self.delay
+        return count
+
+
+def _delayed(robot, delay, declared):
+    clock = FakeClock()
+    q0 = _sine().sample(0.0)[0]
+    arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
+    ctrl = hmpc_pin.make_controller(robot)
+    ctrl.set_latency(declared)
+    loop = RealtimeLoop(
+        DelayedPaced(arm, clock, delay), ctrl, _sine(), SafeTorque(robot, damping=3.0),
+        LoopSettings(1.0 / P, 0.3),
+        SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
+    )  # fmt: skip
+    return loop
+
+
+def test_the_loop_measures_the_latency_and_warns_when_the_declared_one_is_off(robot):
+    """A state that reaches the loop 0.8 ms after its stamp: every controller step records
+    an age of 0.8 ms (measurement -> torque written, nothing else costs time on the fake
+    clock); with no latency declared the loop warns naming the measured median and the
+    declared value, and with 0.8 ms declared it does not."""
+    from hmpc_pin.exceptions import ValidityWarning
+
+    delay = 0.0008
+    loop = _delayed(robot, delay, 0.0)
+    with pytest.warns(ValidityWarning, match=r"median 0\.8 ms.*latency = 0 s"):
+        run = loop.run()
+    assert run.complete
+    ages = run.timing["age"][run.timing["mpc"].astype(bool)]
+    np.testing.assert_allclose(ages, delay, rtol=0, atol=1e-9)
+    assert np.isnan(run.timing["age"][~run.timing["mpc"].astype(bool)]).all()
+    assert run.stats["measured_latency"]["median_us"] == pytest.approx(800.0)
+    assert run.stats["declared_latency"] == 0.0
+    assert "measurement->torque" in run.summary()
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ValidityWarning)
+        run = _delayed(robot, delay, delay).run()
+    assert run.complete and run.stats["declared_latency"] == pytest.approx(delay)
+
+
+def test_a_polled_arm_on_its_own_clock_has_no_measured_latency(robot):
+    """PlantArm's stamps are its plant time: not comparable with the loop's clock."""
+    loop, *_ = _setup(robot, 0.05)
+    run = loop.run()
+    assert run.stats["measured_latency"] is None
+    assert np.isnan(run.timing["age"]).all()
+
+
+def test_latency_tolerance_follows_the_bandwidth_rule():
+    """ΔL = max(P/2, 1/(2 r ω_max) − Ts): ω = 10 1/s at Ts = 10 ms allows
+    0.5/(1.25·10) − 0.01 = 0.03 s; ω = 1000 1/s allows none but half a period."""
+    from hmpc_pin.compensation.bandwidth import latency_tolerance
+
+    assert latency_tolerance(np.array([10.0, 5.0]), 0.01, 0.001) == pytest.approx(0.03)
+    assert latency_tolerance(np.array([1000.0]), 0.01, 0.001) == pytest.approx(0.0005)
+    assert latency_tolerance(None, 0.01, 0.001) == pytest.approx(0.0005)

@@ -60,7 +60,9 @@ __all__ = [
     "RULE",
     "bandwidth_limit",
     "check_bandwidth",
+    "compensation_bandwidth",
     "implied_bandwidth",
+    "latency_tolerance",
     "observer_cY",
 ]
 
@@ -143,3 +145,45 @@ def check_bandwidth(
             ValidityWarning,
             stacklevel=4,
         )
+
+
+def compensation_bandwidth(compensation, M0: np.ndarray) -> np.ndarray | None:
+    """Per joint the bandwidth [1/s] of ``compensation`` at the mass matrix ``M0``:
+    :func:`implied_bandwidth` of an NDO (its ``cY``), the momentum observer's ``K``;
+    ``None`` for a compensation that is not an observer."""
+    cY = getattr(compensation, "cY", None)
+    if cY is not None:
+        return implied_bandwidth(cY, M0)
+    K = getattr(compensation, "K", None)
+    if K is not None:
+        return np.asarray(K, dtype=float).copy()
+    return None
+
+
+def latency_tolerance(bandwidth: np.ndarray | None, Ts: float, period: float) -> float:
+    """How far [s] a measured latency may lie from the declared one
+    (``[controller] latency``) before the real-time loop warns.
+
+    A measured latency above the declared one leaves :math:`L_u` = the difference
+    uncompensated; the rule (module docstring) tolerates it while
+    :math:`\\omega_{\\max} r (T_s + L_u) \\le 1/2`, i.e. up to
+    :math:`1/(2 r \\omega_{\\max}) - T_s`. The measured age has the granularity of the
+    interface period P (a state every P), so half a period is always tolerated:
+
+    .. math:: \\Delta L = \\max(P/2,\\ 1/(2 r \\omega_{\\max}) - T_s)
+
+    (:math:`P/2` without an observer). A declared latency above the measured one by more
+    than :math:`\\Delta L` is reported too: the controller then predicts the state further
+    ahead than it is old.
+
+    Args:
+        bandwidth: The observer's bandwidth per joint [1/s] (``None``: no observer).
+        Ts: Control period [s].
+        period: Interface period P [s].
+    """
+    tol = 0.5 * period
+    if bandwidth is not None and np.size(bandwidth):
+        w = float(np.max(bandwidth))
+        if w > 0:
+            tol = max(tol, RULE / (MASS_RATIO * w) - Ts)
+    return tol

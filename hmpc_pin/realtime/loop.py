@@ -20,6 +20,19 @@ is that state's stamp :math:`s_k` (on the interface's clock), so the latency
 when :math:`e_k > s_k + P`; states that arrived while the loop was busy are periods not
 answered (skipped, counted as missed); no state within ``watchdog`` stops the loop.
 
+**Measured latency.** Where the stamps are on a clock the loop can read (an arm that paces
+the loop; a polled interface with a ``clock()`` method), every controller step records the
+measurement's age when its torque is written, :math:`e_k - s_k` (``timing["age"]``;
+``stats["measured_latency"]``, median/p99/max). That is the latency L the controller
+compensates (``[controller] latency``, the guide "Sensing and latency"): the loop compares
+its median with the declared one and warns (:class:`~hmpc_pin.exceptions.ValidityWarning`,
+naming both) when they differ by more than
+:func:`~hmpc_pin.compensation.bandwidth.latency_tolerance` (the bandwidth rule for the
+controller's observer, at least half an interface period). It is not fed to the controller
+during the run: the latency changes the observer's torque alignment and the prediction,
+which take effect at a reset, and a per-step value would carry the loop's jitter into the
+model. Set the measured median in the config instead.
+
 Garbage collection (``gc_handling``): after start-up everything alive is moved out of
 the collector's reach (:func:`gc.freeze`) and automatic collection is switched off; the
 generation CPython would collect next (its counts against its thresholds) is collected
@@ -44,6 +57,7 @@ import os
 import signal
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,8 +65,9 @@ from pathlib import Path
 import numpy as np
 
 from .._startup import was_interrupted
+from ..compensation.bandwidth import compensation_bandwidth, latency_tolerance
 from ..controllers.base import Controller
-from ..exceptions import ConfigError, HmpcError
+from ..exceptions import ConfigError, HmpcError, ValidityWarning
 from ..sim.result import Result
 from ..tasks.base import as_reference
 from .interface import PacedInterface, RobotInterface
@@ -184,6 +199,20 @@ class LoopSettings:
         return m
 
 
+def _inner(controller):
+    """The controller inside any wrappers (the one with the settings)."""
+    c = controller
+    while not hasattr(c, "latency") and hasattr(c, "controller"):
+        c = c.controller
+    return c
+
+
+def _declared_latency(controller) -> float | None:
+    """The latency [s] the controller compensates (``None``: it has no such setting)."""
+    latency = getattr(_inner(controller), "latency", None)
+    return None if latency is None else float(latency)
+
+
 def latency_stats(latency: np.ndarray) -> dict:
     """Median, p99, p99.9, max [µs] of the finite entries of ``latency`` [s]."""
     x = latency[np.isfinite(latency)] * 1e6
@@ -256,6 +285,13 @@ class RealtimeRun:
             f"  missed deadlines: {s['misses']} ({100 * s['miss_fraction']:.3f} %; "
             f"{s['skipped']} skipped), longest run of misses {s['max_consecutive_misses']}",
         ]
+        age, declared = s.get("measured_latency"), s.get("declared_latency")
+        if age is not None:
+            lines.append(
+                f"  measurement->torque [us]:      median {age['median_us']:.0f}, p99 "
+                f"{age['p99_us']:.0f}, max {age['max_us']:.0f}"
+                + ("" if declared is None else f" (declared latency {1e6 * declared:.0f})")
+            )
         if s["gc_handling"]:
             lines.append(
                 f"  GC in the slack: {s['gc_collections']} collections (max "
@@ -422,7 +458,11 @@ class RealtimeLoop:
         rec = {name: np.full((J, n), np.nan) for name in ("q", "dq", "tau", "d", "d_hat",
                                                           "q_ref", "dq_ref")}  # fmt: skip
         rec_t = np.full(J, np.nan)
-        wake_a, done_a, stamp_a, gc_a = (np.full(K + 1, np.nan) for _ in range(4))
+        wake_a, done_a, stamp_a, gc_a, age_a = (np.full(K + 1, np.nan) for _ in range(5))
+        # The measurement's age when its torque is written, on the stamps' clock: the
+        # loop's own against an arm that paces it, else the interface's clock() if it has
+        # one (stamps on another clock cannot be compared).
+        stamp_clock = clock if self.paced else getattr(iface, "clock", None)
         missed_a = np.zeros(K + 1, dtype=bool)
         mpc_a = np.zeros(K + 1, dtype=bool)
         lower, upper, vmax = sf.lower, sf.upper, sf.velocity
@@ -528,6 +568,8 @@ class RealtimeLoop:
                     next_mpc += m
             iface.write(tau)
             done = clock()
+            if is_mpc and stamp_clock is not None:
+                age_a[k] = (done if self.paced else stamp_clock()) - stamp
             # ---- bookkeeping, in the slack
             wake_a[k] = wake - deadline
             done_a[k] = done - deadline
@@ -626,6 +668,10 @@ class RealtimeLoop:
             "wake": latency_stats(wake_a),
             "compute": latency_stats(done_a - wake_a),
             "latency_mpc": latency_stats(np.where(mpc_a, done_a, np.nan)),
+            # measurement -> torque written, at the controller's steps (None: the stamps
+            # are on the arm's own clock) against the declared [controller] latency
+            "measured_latency": latency_stats(age_a) if stamp_clock is not None else None,
+            "declared_latency": _declared_latency(ctrl),
             "gc_handling": handle_gc,
             "gc_collections": gc_runs,
             "gc_deferred": gc_deferred,
@@ -634,6 +680,7 @@ class RealtimeLoop:
             "gc_all_max_s": watch.longest,
             "period_us": 1e6 * P,
         }
+        self._check_latency(stats)
         meta = {**self.meta, "realtime": stats, "stop": stop_record}
         result = Result(
             t=rec_t[:j].copy(),
@@ -644,8 +691,41 @@ class RealtimeLoop:
             meta=meta,
         )
         timing = {"wake": wake_a, "latency": done_a, "compute": done_a - wake_a,
-                  "stamp": stamp_a, "missed": missed_a, "mpc": mpc_a, "gc": gc_a}  # fmt: skip
+                  "stamp": stamp_a, "missed": missed_a, "mpc": mpc_a, "gc": gc_a,
+                  "age": age_a}  # fmt: skip
         return RealtimeRun(result, timing, stats, stop_record)
+
+    def _check_latency(self, stats: dict) -> None:
+        """Warn when the measured latency (median) lies farther from the declared
+        ``[controller] latency`` than :func:`~hmpc_pin.compensation.bandwidth.latency_tolerance`
+        allows for the controller's observer; record the tolerance in ``stats``."""
+        measured, declared = stats["measured_latency"], stats["declared_latency"]
+        stats["latency_tolerance"] = None
+        if measured is None or declared is None or not np.isfinite(measured["median_us"]):
+            return
+        inner = _inner(self.controller)
+        bandwidth = None
+        comp, robot = getattr(inner, "compensation", None), getattr(inner, "robot", None)
+        if comp is not None and robot is not None and self._last_state is not None:
+            bandwidth = compensation_bandwidth(comp, robot.mass_matrix(self._last_state[0]))
+        tol = latency_tolerance(bandwidth, float(self.controller.Ts), self.settings.period)
+        stats["latency_tolerance"] = tol
+        median, p99 = 1e-6 * measured["median_us"], 1e-6 * measured["p99_us"]
+        if abs(median - declared) <= tol:
+            return
+        what = ("older than declared: the observer and the prediction pair the measurement "
+                "with the wrong torques" if median > declared else
+                "younger than declared: the controller predicts further ahead than the "
+                "measurement is old")  # fmt: skip
+        warnings.warn(
+            f"measured latency (measurement -> torque written) median {1e3 * median:.3g} ms, "
+            f"p99 {1e3 * p99:.3g} ms against the declared [controller] latency = "
+            f"{declared:g} s: {what}; beyond the tolerance {1e3 * tol:.3g} ms (the bandwidth "
+            "rule for this observer, at least half an interface period); set "
+            f"[controller] latency = {median:.3g}",
+            ValidityWarning,
+            stacklevel=3,
+        )
 
     def _safe_write(self, q, dq) -> np.ndarray:
         tau = np.asarray(self.safe_torque(q, dq), dtype=float)

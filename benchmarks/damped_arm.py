@@ -20,6 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 import hmpc_pin
+from hmpc_pin.experiment.init import InitPlan
 from hmpc_pin.experiment.schema import ExperimentConfig, load_config
 from hmpc_pin.model.robot import damping_time_constants
 
@@ -109,6 +110,21 @@ def main(argv=None) -> int:
             what = f"general ({at})" if obs else "none"
             print(f"| {engine} | {plant_jd} | {ctrl_jd} | {what} | {rms:.3g} (joint {joint}) |",
                   flush=True)  # fmt: skip
+    # The period hmpc-pin init picks for this damping (2 ms, the shortest it offers: the
+    # wrist's 0.76 ms asks for Ts <= 1.2 ms), bandwidth 10/Ts, N = 10.
+    Ts = InitPlan("z1").periods()[0]
+    cc = replace(base.controller, Ts=Ts, observer=replace(base.controller.observer,
+                                                          bandwidth=10.0 / Ts))  # fmt: skip
+    print(f"\nTs = {1e3 * Ts:g} ms as hmpc-pin init picks it (bandwidth 10/Ts, N = 10):")
+    for engine in engines:
+        pc = replace(base.plant, dt=1e-4) if engine == "pinocchio" else replace(
+            base.plant, engine="mujoco", dt=0.001)  # fmt: skip
+        if engine == "mujoco":
+            pc = replace(pc, mujoco=replace(pc.mujoco, friction_timeconst=0.002))
+        for obs in (True, False):
+            rms, joint = worst_rms(replace(base, plant=pc, controller=cc), obs)
+            print(f"| {engine} | True | True | {'general (start)' if obs else 'none'} | "
+                  f"{rms:.3g} (joint {joint}) |", flush=True)  # fmt: skip
     return 0
 
 

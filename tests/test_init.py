@@ -187,3 +187,28 @@ def test_every_example_robot_arm_tracks_or_is_refused(tmp_path):
         assert r["status"] in ("tracks", "exit 2"), r
         if r["status"] == "exit 2":
             assert "\n" not in r["why"]
+
+
+def test_init_picks_a_period_that_suits_the_urdf_damping():
+    """Z1's wrist: damping time constant 1/(b (M⁻¹)_jj) = 0.76 ms at the offset posture;
+    only Ts <= x_max·T (g(x_max) = x/(1 − e^−x) = 2) suits it, none of the periods offered
+    does, so init takes the shortest (2 ms) and says why in the config."""
+    import math
+
+    from hmpc_pin.experiment import init as init_mod
+    from hmpc_pin.model.robot import damping_time_constants
+
+    x = init_mod.ZOH_X_MAX
+    assert x / (1.0 - math.exp(-x)) == pytest.approx(init_mod.ZOH_GAIN_MAX, rel=1e-12)
+    plan = init_mod.InitPlan("z1")
+    T = damping_time_constants(plan.robot, plan.offset).min()
+    assert plan.damping_tau == pytest.approx(T)
+    assert all(Ts > x * T for Ts in init_mod.PERIODS)
+    assert plan.periods() == (init_mod.PERIODS[-1],)
+    plan.trial(1.2)
+    assert plan.Ts == init_mod.PERIODS[-1]
+    text = plan.text(1.0)
+    assert "Ts = 0.002" in text and "zero-order-hold gain" in text and "'joint6'" in text
+    # an arm without damping keeps every period
+    planar = init_mod.InitPlan("double_pendulum")
+    assert planar.periods() == init_mod.PERIODS

@@ -44,6 +44,10 @@ class RobotInterface(Protocol):
         nq: Number of joints n.
         period: The arm's own period [s] (1 ms for libfranka): how often it publishes a
             state and samples the torque.
+
+    Optional: a method ``stamp_clock() -> float``, now [s] on the clock of the stamps,
+    lets the loop measure the latency from measurement to torque written (an arm that
+    paces the loop has it as :meth:`PacedInterface.clock`).
     """
 
     nq: int

@@ -21,7 +21,8 @@ when :math:`e_k > s_k + P`; states that arrived while the loop was busy are peri
 answered (skipped, counted as missed); no state within ``watchdog`` stops the loop.
 
 **Measured latency.** Where the stamps are on a clock the loop can read (an arm that paces
-the loop; a polled interface with a ``clock()`` method), every controller step records the
+the loop; a polled interface with a ``stamp_clock()`` method, now on the stamps' clock),
+every controller step records the
 measurement's age when its torque is written, :math:`e_k - s_k` (``timing["age"]``;
 ``stats["measured_latency"]``, median/p99/max). That is the latency L the controller
 compensates (``[controller] latency``, the guide "Sensing and latency"): the loop compares
@@ -460,9 +461,9 @@ class RealtimeLoop:
         rec_t = np.full(J, np.nan)
         wake_a, done_a, stamp_a, gc_a, age_a = (np.full(K + 1, np.nan) for _ in range(5))
         # The measurement's age when its torque is written, on the stamps' clock: the
-        # loop's own against an arm that paces it, else the interface's clock() if it has
-        # one (stamps on another clock cannot be compared).
-        stamp_clock = clock if self.paced else getattr(iface, "clock", None)
+        # loop's own against an arm that paces it, else the interface's stamp_clock() if
+        # it offers one (stamps on another clock cannot be compared).
+        stamp_clock = clock if self.paced else getattr(iface, "stamp_clock", None)
         missed_a = np.zeros(K + 1, dtype=bool)
         mpc_a = np.zeros(K + 1, dtype=bool)
         lower, upper, vmax = sf.lower, sf.upper, sf.velocity

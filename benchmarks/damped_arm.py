@@ -98,7 +98,8 @@ def main(argv=None) -> int:
             if "friction_timeconst" in engine:  # MuJoCo's friction closer to Coulomb's
                 pc = replace(pc, mujoco=replace(pc.mujoco, friction_timeconst=0.002))
         for plant_jd, ctrl_jd, obs, at in [
-            (False, False, True, "start"), (True, False, True, "start"),
+            (False, False, True, "end"), (False, False, True, "start"),
+            (True, False, True, "start"),
             (True, True, True, "end"), (True, True, True, "start"), (True, True, False, "-"),
         ]:  # fmt: skip
             cc = base.controller

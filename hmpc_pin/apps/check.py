@@ -89,7 +89,7 @@ class CheckReport:
         """The per-joint table, the engine comparison and the problems, as text."""
         lines = [
             f"Ts = {self.Ts:g} s, latency = {self.latency:g} s",
-            f"{'joint':<24} {'w [1/s]':>9} {'w*Ts':>7} {'margin':>8} {'M/b [s]':>9} "
+            f"{'joint':<24} {'w [1/s]':>9} {'w*Ts':>7} {'margin':>8} {'T_b [s]':>9} "
             f"{'headroom':>9}",
         ]
         for j, name in enumerate(self.joints):

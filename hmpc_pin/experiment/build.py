@@ -363,8 +363,11 @@ class Experiment:
         URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
         return _effort_limit(self.config, self.plant)
 
-    def run(self, duration: float | None = None, on_step=None) -> Result:
+    def run(self, duration: float | None = None, on_step=None, loop: str = "auto") -> Result:
         """Simulate the closed loop for ``duration`` [s] (default: the config's).
+
+        ``loop`` chooses between the compiled loop and the per-step loop
+        (:func:`~hmpc_pin.sim.simulate.simulate`; default: compiled when every part is).
 
         ``on_step(t, q, q_ref)`` is called at every control instant (live view). The
         result's ``meta`` records the plant's engine and version (and, with a collision
@@ -374,7 +377,7 @@ class Experiment:
         """
         plant = self.make_plant()
         try:
-            result = self._simulate(plant, duration, on_step)
+            result = self._simulate(plant, duration, on_step, loop)
         except SimulationError as exc:
             if exc.result is not None:
                 self._record_plant(plant, exc.result)
@@ -419,7 +422,8 @@ class Experiment:
             }
         return result
 
-    def _simulate(self, plant: Plant, duration: float | None, on_step) -> Result:
+    def _simulate(self, plant: Plant, duration: float | None, on_step,
+                  loop: str = "auto") -> Result:  # fmt: skip
         cfg = self.config
         return simulate(
             self.robot,
@@ -433,6 +437,7 @@ class Experiment:
             state_bound=cfg.simulation.state_bound,
             on_step=on_step,
             meta=self.meta(),
+            loop=loop,
         )
 
     def meta(self) -> dict:

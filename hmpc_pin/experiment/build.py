@@ -12,8 +12,11 @@ the robot (vector lengths, limits, the initial state) is made here, before a run
 
 from __future__ import annotations
 
+import contextlib
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -70,6 +73,7 @@ __all__ = [
     "mpc_settings",
     "mujoco_settings",
     "realtime_parts",
+    "reuse_robots",
     "run_experiment",
     "task_space",
     "uses_observer",
@@ -79,10 +83,40 @@ __all__ = [
 ]
 
 
+#: Robots loaded while :func:`reuse_robots` is on, by source (with the file's size and
+#: modification time), gravity and locked joints.
+_ROBOTS: dict[tuple, Robot] = {}
+_REUSE = [False]
+
+
+@contextlib.contextmanager
+def reuse_robots() -> Iterator[None]:
+    """Within this context :func:`load_robot_config` returns a copy of a robot it loaded
+    before from the same unchanged file, gravity and locked joints, instead of parsing the
+    URDF again (many runs of one config in one process: the sweep's workers). The file's
+    checks and warnings come with its first load only."""
+    before, _REUSE[0] = _REUSE[0], True
+    try:
+        yield
+    finally:
+        _REUSE[0] = before
+
+
 def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
     """The robot of ``[robot]`` (optionally with another gravity [m/s²])."""
     g = rc.gravity if gravity is None else gravity
-    return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+    if not _REUSE[0]:
+        return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+    path = Path(rc.source)
+    stamp = (path.stat().st_size, path.stat().st_mtime_ns) if path.is_file() else None
+    locked = tuple(sorted((rc.locked_joints or {}).items()))
+    key = (str(rc.source), stamp, float(g), locked)
+    robot = _ROBOTS.get(key)
+    if robot is None:
+        if len(_ROBOTS) >= 16:
+            _ROBOTS.clear()
+        robot = _ROBOTS[key] = load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+    return robot.copy()
 
 
 def make_controller(

@@ -39,6 +39,7 @@ from ..controllers.wrappers import MeasuredController
 from ..exceptions import NonFiniteError
 from ..native import load as load_native
 from ..tasks.base import as_reference
+from .base import state_error
 from .plants import PULSE_CHUNK, RK4Plant
 
 __all__ = ["LOOPS", "CompiledLoop", "why_not_compiled"]
@@ -190,8 +191,6 @@ class CompiledLoop:
 
     def _raise(self, code: int, k: int) -> None:
         """The per-step loop's exception for the compiled loop's fault ``code`` at step ``k``."""
-        from .simulate import state_error
-
         t = float(self.t_arr[k])
         n = self.n
         if code <= 4:  # the controller's step: its own error, from its own inputs

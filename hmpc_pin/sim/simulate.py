@@ -28,6 +28,7 @@ from ..exceptions import (
 )
 from ..model.robot import Robot
 from ..tasks.base import as_reference
+from .base import state_error
 from .compiled_loop import LOOPS, CompiledLoop, why_not_compiled
 from .disturbances import ZeroDisturbance
 from .plants import PLANTS, Plant
@@ -56,17 +57,6 @@ def _step_time(result: Result, step_ns: np.ndarray, Ts: float) -> None:
             f"the median controller step exceeds Ts/2 = {0.5 * Ts * 1e6:.0f} µs: too slow "
             "for real time at this Ts (shorten the horizon N or Nc, or raise Ts)"
         )
-
-
-def state_error(q: np.ndarray, dq: np.ndarray, t: float, state_bound: float) -> HmpcError:
-    """The error of a plant state ``(q, dq)`` at ``t`` [s] that failed the test
-    :math:`|q|, |\\dot q| \\le` ``state_bound``: not finite, or diverged."""
-    if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-        return NonFiniteError("plant state", (q, dq), f"at t={t:.6g}")
-    return SimulationError(
-        f"run diverged at t={t:.6g}: max |q|={np.abs(q).max():.3g}, "
-        f"max |dq|={np.abs(dq).max():.3g} exceed state_bound={state_bound}"
-    )
 
 
 def choose_loop(loop: str, controller, plant, reference, on_step) -> bool:

@@ -316,3 +316,32 @@ def test_a_mujoco_config_runs_per_step(name):
 def test_loop_must_be_one_of_the_three():
     with pytest.raises(hmpc_pin.ConfigError, match="expected one of"):
         _short(loop="fast")
+
+
+def test_a_step_replaced_on_the_instance_is_called_per_step():
+    """A spy on the controller's step (or the plant's advance) is called at every step."""
+    calls = []
+
+    def spied(r):
+        ctrl = hmpc_pin.HierarchicalMPC(r)
+        step = ctrl.step
+
+        def spy(*args):
+            calls.append(args[0])
+            return step(*args)
+
+        ctrl.step = spy
+        return ctrl
+
+    result = _short(ctrl=spied)
+    assert result.loop == "python" and len(calls) == len(result.t)
+
+    def plant(r, c):
+        p = RK4Plant(r.copy(), None, c.Ts)
+        advance = p.advance
+        p.advance = lambda tau: (calls.append(tau), advance(tau))[1]
+        return p
+
+    calls.clear()
+    result = _short(plant=plant)
+    assert result.loop == "python" and len(calls) == len(result.t) - 1

@@ -50,12 +50,21 @@ __all__ = ["LOOPS", "CompiledLoop", "why_not_compiled"]
 LOOPS = ("auto", "compiled", "python")
 
 
+def _own(obj, cls, *names: str) -> bool:
+    """Whether ``obj``'s methods ``names`` are ``cls``'s own (not overridden by a subclass
+    or replaced on the instance, e.g. by a spy: then the loop must call them)."""
+    return all(getattr(getattr(obj, name, None), "__func__", None) is getattr(cls, name)
+               for name in names)  # fmt: skip
+
+
 def _parts(controller):
     """``(HierarchicalMPC, MeasuredController or None)`` of ``controller``, or ``None``."""
     measured = None
-    if type(controller) is MeasuredController:
+    if isinstance(controller, MeasuredController) and _own(
+        controller, MeasuredController, "step", "reset", "_measure"
+    ):
         measured, controller = controller, controller.controller
-    if isinstance(controller, HierarchicalMPC) and type(controller).step is HierarchicalMPC.step:
+    if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
         return controller, measured
     return None
 
@@ -65,7 +74,8 @@ def why_not_compiled(controller, plant, reference, on_step) -> str | None:
     whole loop can run compiled (module docstring)."""
     if on_step is not None:
         return "an on_step callback is called from Python at every step"
-    if type(plant) is not RK4Plant:
+    if not (isinstance(plant, RK4Plant)
+            and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")):
         return (f"the plant {type(plant).__name__} is advanced in Python (only RK4Plant's "
                 "period is compiled)")  # fmt: skip
     if not plant.fused:

@@ -148,3 +148,51 @@ def bench_memory(settings: Settings) -> MemoryResult:
         f"max {rss.max():.1f} MiB"
     )
     return out
+
+
+def ab_loops(rounds: int, config: Path = PAPER_CONFIG) -> dict:
+    """The paper's 10 s run per step in Python and in compiled chunks
+    (``Experiment.run(loop="python" | "compiled")``), alternating in this process, beside
+    the plant's period alone over the same 1000 periods (the compiled loop's floor).
+
+    Returns:
+        Medians [s] of each and the median over rounds of python / compiled.
+    """
+    exp = Experiment.from_config(load_config(config))
+    periods = round(exp.config.simulation.duration / exp.controller.Ts)
+    exp.run(loop="compiled")  # warm
+    times: dict[str, list[float]] = {"python": [], "compiled": [], "plant": []}
+    for _ in range(rounds):
+        for loop in ("python", "compiled"):
+            start = time.perf_counter()
+            result = exp.run(loop=loop)
+            times[loop].append(time.perf_counter() - start)
+            assert result.complete and result.loop == loop
+        times["plant"].append(plant_floor(exp.make_plant(), periods))
+    py, co, pl = (np.array(times[k]) for k in ("python", "compiled", "plant"))
+    out = {
+        "python_s": float(np.median(py)),
+        "compiled_s": float(np.median(co)),
+        "plant_s": float(np.median(pl)),
+        "speedup": float(np.median(py / co)),
+        "compiled_over_plant": float(np.median(co / pl)),
+        "rounds": rounds,
+    }
+    print(
+        f"paper 10 s run: per step {out['python_s'] * 1e3:.1f} ms, compiled "
+        f"{out['compiled_s'] * 1e3:.1f} ms, python/compiled {out['speedup']:.2f} "
+        f"(rounds: {np.round(py / co, 2)}); the plant's periods alone "
+        f"{out['plant_s'] * 1e3:.1f} ms (compiled / plant {out['compiled_over_plant']:.2f})"
+    )
+    return out
+
+
+if __name__ == "__main__":
+    import argparse
+
+    parser = argparse.ArgumentParser(description=ab_loops.__doc__)
+    parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--config", type=Path, default=PAPER_CONFIG)
+    args = parser.parse_args()
+    json.dump(ab_loops(args.rounds, args.config), sys.stdout)
+    print()

@@ -22,6 +22,8 @@
 #include "sampler.hpp"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdint>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -706,6 +708,188 @@ struct HMPCCore {
   }
 };
 
+// -------------------------------------------------------------------------------------
+// The closed loop (hmpc_pin.sim.compiled_loop): the per-step loop of
+// hmpc_pin.sim.simulate.simulate, many control periods per call, when every part has a
+// compiled form: the controller's fused step with its native reference (HMPCCore.step_t),
+// optionally behind a measurement model of white noise and a whole-period delay
+// (MeasuredController: the noise drawn by the caller, one row of 2n per step), and the RK4
+// plant's period with its fused disturbance (time-only terms tabulated by the caller, one
+// Coulomb-viscous friction here). Per step k, as the Python loop does:
+//   τ = step(t_k, measured state) → record q, q̇, τ, d, d̂ → (k = K: stop) → τ finite →
+//   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
+//   state finite and within the bound.
+// run() returns (k, code) with k the step where it stopped: code 0 the chunk ran (k = k1),
+// or stopped at the last step K (recorded); 1-4 the controller's step failed (its code,
+// nothing recorded at k); 5 τ not finite; 6 the state not finite; 7 beyond the bound (at k
+// recorded). Signals are checked before every step (Ctrl-C: the Python exception is
+// raised with `last` the last recorded step).
+
+struct ClosedLoop {
+  HMPCCore* core;
+  RK4* plant;
+  int n, K;
+  py::array_t<double, py::array::c_style> t_arr;
+  // (K+1)×n records, Python-owned: q, q̇, τ, d, d̂, τ applied.
+  std::vector<py::array_t<double, py::array::c_style>> rec;
+  py::array_t<std::int64_t, py::array::c_style> step_ns, sat_steps;
+  py::array_t<double, py::array::c_style> sat_excess;
+  Vec limit, fa, fb;
+  bool has_limit, friction;
+  double bound, h;
+  int substeps;
+  // Measurement (MeasuredController): noise levels, delay D, the last D+1 measurements
+  // (ring: step k in row k % (D+1), [q; q̇]), Python-owned.
+  bool measured = false;
+  double q_noise = 0.0, dq_noise = 0.0;
+  int delay = 0;
+  std::optional<py::array_t<double, py::array::c_style>> hist;
+  long last = -1;     // the last recorded step
+  long advances = 0;  // plant periods integrated by run()
+  long started = 0;   // steps begun by run() (the measurement drew their noise)
+  long stepped = 0;   // controller steps that succeeded
+  Vec qm, dqm, tau, d;
+  RowMat T;
+
+  static double* row_of(py::array_t<double, py::array::c_style>& a, long r0, int n) {
+    return a.mutable_data() + r0 * n;
+  }
+
+  ClosedLoop(HMPCCore& c, RK4& p, py::array_t<double, py::array::c_style> t_arr_,
+             std::vector<py::array_t<double, py::array::c_style>> rec_,
+             py::array_t<std::int64_t, py::array::c_style> step_ns_,
+             py::array_t<std::int64_t, py::array::c_style> sat_steps_,
+             py::array_t<double, py::array::c_style> sat_excess_, const CRefVec& limit_,
+             bool has_limit_, double bound_, const CRefVec& a, const CRefVec& b, bool friction_,
+             double h_, int substeps_)
+      : core(&c), plant(&p), n(c.n), t_arr(t_arr_), rec(std::move(rec_)), step_ns(step_ns_),
+        sat_steps(sat_steps_), sat_excess(sat_excess_), limit(limit_), fa(a), fb(b),
+        has_limit(has_limit_), friction(friction_), bound(bound_), h(h_), substeps(substeps_) {
+    K = static_cast<int>(t_arr.size()) - 1;
+    if (p.n != n || rec.size() != 6 || limit.size() != n || fa.size() != n || fb.size() != n ||
+        step_ns.size() != K + 1 || sat_steps.size() != n || sat_excess.size() != n ||
+        substeps < 1 || !c.stack)
+      throw std::invalid_argument("ClosedLoop: shapes do not match");
+    for (auto& r : rec)
+      if (r.size() != static_cast<py::ssize_t>(K + 1) * n || !r.writeable())
+        throw std::invalid_argument("ClosedLoop: records must be writable (K+1, n)");
+    qm.setZero(n);
+    dqm.setZero(n);
+    tau.setZero(n);
+    d.setZero(n);
+    T.setZero(3 * substeps, n);
+  }
+
+  void set_measurement(double qn, double dqn, int D, py::array_t<double, py::array::c_style> H) {
+    if (D < 0 || H.ndim() != 2 || H.shape(0) != D + 1 || H.shape(1) != 2 * n || !H.writeable())
+      throw std::invalid_argument("ClosedLoop.set_measurement: history of (delay + 1, 2n)");
+    measured = true;
+    q_noise = qn;
+    dq_noise = dqn;
+    delay = D;
+    hist.emplace(H);
+  }
+
+  // Steps k0 .. k1-1 from the plant state (q, v) (updated in place). P: the time-only
+  // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows);
+  // noise: one row of 2n standard normal draws per step k0.. (measured; row of step 0
+  // unused: the measurement at reset).
+  py::tuple run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P, const CRefRow& noise) {
+    if (q.size() != n || v.size() != n || k0 < 0 || k1 > K + 1 || k0 > k1)
+      throw std::invalid_argument("ClosedLoop.run: bad state or steps");
+    const int rows = 3 * substeps;
+    const bool pulses = P.rows() > 0;
+    if (pulses && (P.rows() < (k1 - k0) * rows || P.cols() != n))
+      throw std::invalid_argument("ClosedLoop.run: the table of time-only terms is too short");
+    if (measured && (noise.rows() < k1 - k0 || noise.cols() != 2 * n))
+      throw std::invalid_argument("ClosedLoop.run: the noise is too short");
+    const double* t = t_arr.data();
+    std::int64_t* ns = step_ns.mutable_data();
+    std::int64_t* sat_n = sat_steps.mutable_data();
+    double* sat_x = sat_excess.mutable_data();
+    HMPCCore& c = *core;
+    for (long k = k0; k < k1; ++k) {
+      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+      const long j = k - k0;
+      const Vec* qc = &qm;  // the state the controller is given
+      const Vec* dqc = &dqm;
+      if (measured) {
+        ++started;
+        double* H = hist->mutable_data();
+        if (k > 0) {  // this step's measurement (step 0's was taken at reset)
+          double* row = H + (k % (delay + 1)) * 2 * n;
+          for (int i = 0; i < n; ++i) {
+            row[i] = q[i] + q_noise * noise(j, i);
+            row[n + i] = v[i] + dq_noise * noise(j, n + i);
+          }
+        }
+        const double* row = H + ((k > delay ? k - delay : 0) % (delay + 1)) * 2 * n;
+        for (int i = 0; i < n; ++i) {
+          qm[i] = row[i];
+          dqm[i] = row[n + i];
+        }
+      } else {
+        qm = q;
+        dqm = v;
+      }
+      const auto start = std::chrono::steady_clock::now();
+      const int code = c.step_t(t[k], *qc, *dqc);
+      ns[k] = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                  std::chrono::steady_clock::now() - start).count();
+      if (code) return py::make_tuple(k, code);
+      ++stepped;
+      tau = c.tau.map.row(0).transpose();
+      // d(t_k, q, q̇): the time-only terms at the period's first stage, minus the friction
+      if (pulses) d = P.row(j * rows).transpose();
+      else d.setZero();
+      if (friction) {
+        for (int i = 0; i < n; ++i) {
+          const double s = (v[i] > 0.0) - (v[i] < 0.0);
+          d[i] = d[i] - (fa[i] * v[i] + fb[i] * s);
+        }
+      }
+      double* rq = row_of(rec[0], k, n);
+      double* rdq = row_of(rec[1], k, n);
+      double* rtau = row_of(rec[2], k, n);
+      double* rd = row_of(rec[3], k, n);
+      double* rdh = row_of(rec[4], k, n);
+      for (int i = 0; i < n; ++i) {
+        rq[i] = q[i];
+        rdq[i] = v[i];
+        rtau[i] = tau[i];
+        rd[i] = d[i];
+        rdh[i] = c.dhat.map(0, i);
+      }
+      last = k;
+      if (k == K) return py::make_tuple(k, 0);
+      if (!tau.allFinite()) return py::make_tuple(k, 5);
+      if (has_limit) {
+        for (int i = 0; i < n; ++i) {
+          const double excess = std::abs(tau[i]) - limit[i];
+          if (excess > 0.0) {
+            ++sat_n[i];
+            sat_x[i] = std::max(sat_x[i], excess);
+            tau[i] = std::min(std::max(tau[i], -limit[i]), limit[i]);
+          }
+        }
+      }
+      double* rap = row_of(rec[5], k, n);
+      for (int i = 0; i < n; ++i) rap[i] = tau[i];
+      for (int r = 0; r < rows; ++r) {
+        if (pulses) T.row(r) = tau.transpose() + P.row(j * rows + r);
+        else T.row(r) = tau.transpose();
+      }
+      plant->period(q, v, T, fa, fb, friction, h);
+      ++advances;
+      bool inside = true;
+      for (int i = 0; i < n && inside; ++i)
+        inside = std::abs(q[i]) <= bound && std::abs(v[i]) <= bound;
+      if (!inside) return py::make_tuple(k, q.allFinite() && v.allFinite() ? 7 : 6);
+    }
+    return py::make_tuple(k1, 0);
+  }
+};
+
 PYBIND11_MODULE(_core, m) {
   m.doc() = "hmpc_pin native kernels (RK4 period, hierarchical MPC step)";
   // Every class is module-local: another build of this module (an older version loaded
@@ -899,4 +1083,25 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("has_dynamics", [](const HMPCCore& c) { return bool(c.dyn); })
       .def_property_readonly("joint_torque", [](const HMPCCore& c) {
              return c.joint ? Vec(c.jtau) : Vec(Vec::Zero(c.n)); });
+
+  py::class_<ClosedLoop>(m, "ClosedLoop", py::module_local())
+      .def(py::init<HMPCCore&, RK4&, py::array_t<double, py::array::c_style>,
+                    std::vector<py::array_t<double, py::array::c_style>>,
+                    py::array_t<std::int64_t, py::array::c_style>,
+                    py::array_t<std::int64_t, py::array::c_style>,
+                    py::array_t<double, py::array::c_style>, const CRefVec&, bool, double,
+                    const CRefVec&, const CRefVec&, bool, double, int>(),
+           py::arg("core"), py::arg("plant"), py::arg("t"), py::arg("records"),
+           py::arg("step_ns"), py::arg("sat_steps"), py::arg("sat_excess"), py::arg("limit"),
+           py::arg("has_limit"), py::arg("bound"), py::arg("a"), py::arg("b"),
+           py::arg("friction"), py::arg("h"), py::arg("substeps"),
+           py::keep_alive<1, 2>(), py::keep_alive<1, 3>())
+      .def("set_measurement", &ClosedLoop::set_measurement, py::arg("q_noise"),
+           py::arg("dq_noise"), py::arg("delay"), py::arg("history"))
+      .def("run", &ClosedLoop::run, py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"),
+           py::arg("P"), py::arg("noise"))
+      .def_readonly("last", &ClosedLoop::last)
+      .def_readonly("advances", &ClosedLoop::advances)
+      .def_readonly("started", &ClosedLoop::started)
+      .def_readonly("stepped", &ClosedLoop::stepped);
 }

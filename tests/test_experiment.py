@@ -16,7 +16,7 @@ from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.schema import ConstraintConfig, ControllerConfig, load_config
 from hmpc_pin.sim.simulate import simulate
 
-from .conftest import CONFIGS
+from .conftest import CONFIGS, PLANAR3
 
 
 @pytest.mark.parametrize("name", ["ur5_sine", "panda_sine", "z1_sine"])
@@ -233,3 +233,27 @@ def test_make_controller_takes_a_whole_experiment_config(planar3):
 def test_make_controller_rejects_other_objects_with_the_fix(planar3, bad):
     with pytest.raises(hmpc_pin.exceptions.InterfaceError, match="load_config"):
         hmpc_pin.make_controller(planar3, bad)
+
+
+def test_reuse_robots_gives_copies_equal_to_a_fresh_load_and_reloads_a_changed_file(tmp_path):
+    """Within reuse_robots: a copy per call (independent models), the same dynamics as a
+    fresh load; a file changed since is parsed again."""
+    from hmpc_pin.experiment.build import load_robot_config, reuse_robots
+    from hmpc_pin.experiment.config.robot import RobotConfig
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(PLANAR3.read_text())
+    rc = RobotConfig(urdf=str(urdf))
+    fresh = load_robot_config(rc)
+    q, dq = np.array([0.3, -0.2, 0.5]), np.array([0.1, 0.4, -0.3])
+    with reuse_robots():
+        a, b = load_robot_config(rc), load_robot_config(rc)
+        assert a is not b and a.model is not b.model
+        a.model.inertias[1].mass = 99.0  # a copy: the next load does not see it
+        c = load_robot_config(rc)
+        np.testing.assert_array_equal(c.mass_matrix(q), fresh.mass_matrix(q))
+        np.testing.assert_array_equal(c.nonlinear_effects(q, dq), fresh.nonlinear_effects(q, dq))
+        np.testing.assert_array_equal(c.joint_damping, fresh.joint_damping)
+        urdf.write_text(PLANAR3.read_text().replace('<mass value="1.0"/>', '<mass value="2.50"/>'))
+        heavier = load_robot_config(rc)
+        assert heavier.mass_matrix(q)[2, 2] > fresh.mass_matrix(q)[2, 2]

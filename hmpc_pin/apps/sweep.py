@@ -36,7 +36,7 @@ import numpy as np
 
 from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError, SimulationError
-from ..experiment.build import Experiment, load_robot_config, with_controller
+from ..experiment.build import Experiment, load_robot_config, reuse_robots, with_controller
 from ..experiment.config.sweep import CONDITION_PARTS
 from ..experiment.schema import OBSERVERS, ExperimentConfig
 from ..sim.sensing import SensedController
@@ -240,7 +240,10 @@ def run_sample(
                           f"{condition!r}")  # fmt: skip
     perturb = condition in ("plant", "all")
     base = perturbed_config(config, params) if perturb else config
-    experiment = Experiment.from_config(_told_latency(variant_config(base, variant), condition))
+    with reuse_robots():  # the worker's runs share the config's URDF, parsed once
+        experiment = Experiment.from_config(
+            _told_latency(variant_config(base, variant), condition)
+        )
     if perturb:
         experiment.plant = experiment.plant.with_scaled_inertias(params.mass)
     _measured(experiment, config, params, condition)

@@ -12,8 +12,11 @@ the robot (vector lengths, limits, the initial state) is made here, before a run
 
 from __future__ import annotations
 
+import contextlib
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -70,6 +73,7 @@ __all__ = [
     "mpc_settings",
     "mujoco_settings",
     "realtime_parts",
+    "reuse_robots",
     "run_experiment",
     "task_space",
     "uses_observer",
@@ -79,10 +83,40 @@ __all__ = [
 ]
 
 
+#: Robots loaded while :func:`reuse_robots` is on, by source (with the file's size and
+#: modification time), gravity and locked joints.
+_ROBOTS: dict[tuple, Robot] = {}
+_REUSE = [False]
+
+
+@contextlib.contextmanager
+def reuse_robots() -> Iterator[None]:
+    """Within this context :func:`load_robot_config` returns a copy of a robot it loaded
+    before from the same unchanged file, gravity and locked joints, instead of parsing the
+    URDF again (many runs of one config in one process: the sweep's workers). The file's
+    checks and warnings come with its first load only."""
+    before, _REUSE[0] = _REUSE[0], True
+    try:
+        yield
+    finally:
+        _REUSE[0] = before
+
+
 def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
     """The robot of ``[robot]`` (optionally with another gravity [m/s²])."""
     g = rc.gravity if gravity is None else gravity
-    return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+    if not _REUSE[0]:
+        return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+    path = Path(rc.source)
+    stamp = (path.stat().st_size, path.stat().st_mtime_ns) if path.is_file() else None
+    locked = tuple(sorted((rc.locked_joints or {}).items()))
+    key = (str(rc.source), stamp, float(g), locked)
+    robot = _ROBOTS.get(key)
+    if robot is None:
+        if len(_ROBOTS) >= 16:
+            _ROBOTS.clear()
+        robot = _ROBOTS[key] = load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+    return robot.copy()
 
 
 def make_controller(
@@ -363,8 +397,11 @@ class Experiment:
         URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
         return _effort_limit(self.config, self.plant)
 
-    def run(self, duration: float | None = None, on_step=None) -> Result:
+    def run(self, duration: float | None = None, on_step=None, loop: str = "auto") -> Result:
         """Simulate the closed loop for ``duration`` [s] (default: the config's).
+
+        ``loop`` chooses between the compiled loop and the per-step loop
+        (:func:`~hmpc_pin.sim.simulate.simulate`; default: compiled when every part is).
 
         ``on_step(t, q, q_ref)`` is called at every control instant (live view). The
         result's ``meta`` records the plant's engine and version (and, with a collision
@@ -374,7 +411,7 @@ class Experiment:
         """
         plant = self.make_plant()
         try:
-            result = self._simulate(plant, duration, on_step)
+            result = self._simulate(plant, duration, on_step, loop)
         except SimulationError as exc:
             if exc.result is not None:
                 self._record_plant(plant, exc.result)
@@ -419,7 +456,8 @@ class Experiment:
             }
         return result
 
-    def _simulate(self, plant: Plant, duration: float | None, on_step) -> Result:
+    def _simulate(self, plant: Plant, duration: float | None, on_step,
+                  loop: str = "auto") -> Result:  # fmt: skip
         cfg = self.config
         return simulate(
             self.robot,
@@ -433,6 +471,7 @@ class Experiment:
             state_bound=cfg.simulation.state_bound,
             on_step=on_step,
             meta=self.meta(),
+            loop=loop,
         )
 
     def meta(self) -> dict:

@@ -7,7 +7,9 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Plant"]
+from ..exceptions import HmpcError, NonFiniteError, SimulationError
+
+__all__ = ["Plant", "state_error"]
 
 FloatArray = NDArray[np.float64]
 
@@ -37,3 +39,14 @@ class Plant(Protocol):
     def disturbance_now(self) -> FloatArray:
         """The disturbance :math:`d(t, q, \\dot q)` [N·m] at the current time and state."""
         ...
+
+
+def state_error(q: np.ndarray, dq: np.ndarray, t: float, state_bound: float) -> HmpcError:
+    """The error of a plant state ``(q, dq)`` at ``t`` [s] that failed the test
+    :math:`|q|, |\\dot q| \\le` ``state_bound``: not finite, or diverged."""
+    if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+        return NonFiniteError("plant state", (q, dq), f"at t={t:.6g}")
+    return SimulationError(
+        f"run diverged at t={t:.6g}: max |q|={np.abs(q).max():.3g}, "
+        f"max |dq|={np.abs(dq).max():.3g} exceed state_bound={state_bound}"
+    )

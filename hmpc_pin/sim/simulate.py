@@ -28,6 +28,8 @@ from ..exceptions import (
 )
 from ..model.robot import Robot
 from ..tasks.base import as_reference
+from .base import state_error
+from .compiled_loop import LOOPS, CompiledLoop, why_not_compiled
 from .disturbances import ZeroDisturbance
 from .plants import PLANTS, Plant
 from .result import RESULT_ARRAYS, Result
@@ -57,6 +59,27 @@ def _step_time(result: Result, step_ns: np.ndarray, Ts: float) -> None:
         )
 
 
+def choose_loop(loop: str, controller, plant, reference, on_step) -> bool:
+    """Whether the run goes through the compiled loop
+    (:mod:`~hmpc_pin.sim.compiled_loop`): ``loop`` is ``"auto"`` (when every part has a
+    compiled form), ``"compiled"`` or ``"python"`` (the per-step loop).
+
+    Raises:
+        ConfigError: ``loop`` is none of :data:`~hmpc_pin.sim.compiled_loop.LOOPS`, or
+            ``"compiled"`` with a part that has no compiled form (named).
+    """
+    if loop not in LOOPS:
+        raise ConfigError("loop", f"loop={loop!r}; expected one of {LOOPS}")
+    if loop == "python":
+        return False
+    reason = why_not_compiled(controller, plant, reference, on_step)
+    if reason is not None and loop == "compiled":
+        raise ConfigError(
+            "loop", f'"compiled" but {reason}; use loop="auto" to run such a loop per step'
+        )
+    return reason is None
+
+
 def simulate(
     robot: Robot,
     controller,
@@ -73,6 +96,7 @@ def simulate(
     effort_limit=None,
     meta: dict | None = None,
     on_step=None,
+    loop: str = "auto",
 ) -> Result:
     """Run the closed loop and return the sampled trajectories.
 
@@ -103,6 +127,12 @@ def simulate(
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
+        loop: ``"auto"`` runs the loop in compiled chunks when every part has a compiled
+            form (:mod:`~hmpc_pin.sim.compiled_loop`: the same arrays, faults and partial
+            results), else per step in Python; ``"compiled"`` requires the compiled loop
+            (a :class:`~hmpc_pin.exceptions.ConfigError` names the part without a compiled
+            form); ``"python"`` always runs per step. The result's ``loop`` attribute says
+            which ran (not saved with it).
 
     Returns:
         :class:`Result` with K+1 samples, K = round(duration / Ts).
@@ -174,13 +204,21 @@ def simulate(
     bound2 = min(bound * bound, sys.float_info.max)  # inf <= bound2 must be False
     step_ns = np.zeros(K + 1, dtype=np.int64)
     clock = time.perf_counter_ns
+    compiled = choose_loop(loop, controller, sim_plant, reference, on_step)
     sim_plant.reset(q, dq, 0.0)
     controller.reset(q, dq)
-    last = -1
+    last = k = -1
     message = ""
     try:
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
-        for k in range(K + 1):
+        if compiled:
+            runner = CompiledLoop(controller, sim_plant, reference, t_arr, rec, step_ns, limit,
+                                  state_bound, sat_steps, sat_excess)  # fmt: skip
+            try:
+                runner.run()
+            finally:
+                k, last = runner.k, runner.last
+        for k in range(0 if not compiled else K + 1, K + 1):
             t = t_arr[k]
             start = clock()
             tau = controller.step(t, q, dq, reference)
@@ -215,13 +253,7 @@ def simulate(
             q_max, dq_max = np.abs(q).max(), np.abs(dq).max()
             if q_max <= bound and dq_max <= bound:
                 continue
-            if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-                raise NonFiniteError("plant state", (q, dq), f"at t={t + Ts:.6g}")
-            if q_max > state_bound or dq_max > state_bound:
-                raise SimulationError(
-                    f"run diverged at t={t + Ts:.6g}: max |q|={np.abs(q).max():.3g}, "
-                    f"max |dq|={np.abs(dq).max():.3g} exceed state_bound={state_bound}"
-                )
+            raise state_error(q, dq, t + Ts, state_bound)
     except HmpcError as exc:
         message = str(exc)
         cause = exc
@@ -249,6 +281,7 @@ def simulate(
         meta=dict(meta or {}),
     )
     _step_time(result, step_ns[:m], Ts)
+    result.loop = "compiled" if compiled else "python"  # type: ignore[attr-defined]
     if limit is not None:
         result.meta["saturation"] = {
             "effort_limit": [float(x) for x in limit],

@@ -1,0 +1,216 @@
+"""The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
+loop, many control periods per call into the compiled core (``src/core.cpp``,
+``ClosedLoop``), when every part of the loop has a compiled form:
+
+- the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
+  is wholly compiled (its compensation the NDO of Eq 13 or none, its model loaded by the
+  compiled dynamics), alone or behind a
+  :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (white noise drawn here from
+  its generator, the same stream as its own draws, and a delay in whole periods);
+- the reference: one with a native form (sine, piecewise polynomial), sampled in C++;
+- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` with its disturbance fused (time-only
+  terms tabulated here per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same
+  tables as the per-step loop's, one Coulomb–viscous friction evaluated in C++);
+- no ``on_step`` callback.
+
+Each chunk is :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods: per step it does what the
+per-step loop does, in the same order and with the same floating-point operations (the
+controller's compiled step, the records, the torque check, the effort clip and its
+counts, the plant's compiled period, the state check), so both loops give the same
+arrays. A fault stops the chunk at its step, and the same exception as the per-step
+loop's is raised from here; Ctrl-C is checked before every step (the run keeps the steps
+recorded so far). Afterwards the controller, the measurement wrapper (its delay buffer and
+its generator) and the plant are in the state the per-step loop leaves them in.
+
+Anything else (another controller or wrapper, a compensation advanced in Python, a user
+disturbance, the Euler or MuJoCo plant, an ``on_step`` callback) runs the per-step loop:
+:func:`why_not_compiled` names the first part without a compiled form.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections import deque
+
+import numpy as np
+
+from ..controllers.hierarchical import HierarchicalMPC
+from ..controllers.wrappers import MeasuredController
+from ..exceptions import NonFiniteError
+from ..native import load as load_native
+from ..tasks.base import as_reference
+from .base import state_error
+from .plants import PULSE_CHUNK, RK4Plant
+
+__all__ = ["LOOPS", "CompiledLoop", "why_not_compiled"]
+
+#: The values of :func:`~hmpc_pin.sim.simulate.simulate`'s ``loop``: ``"auto"`` (compiled
+#: when every part has a compiled form), ``"compiled"`` (an error otherwise), ``"python"``
+#: (the per-step loop always).
+LOOPS = ("auto", "compiled", "python")
+
+
+def _own(obj, cls, *names: str) -> bool:
+    """Whether ``obj``'s methods ``names`` are ``cls``'s own (not overridden by a subclass
+    or replaced on the instance, e.g. by a spy: then the loop must call them)."""
+    return all(getattr(getattr(obj, name, None), "__func__", None) is getattr(cls, name)
+               for name in names)  # fmt: skip
+
+
+def _parts(controller):
+    """``(HierarchicalMPC, MeasuredController or None)`` of ``controller``, or ``None``."""
+    measured = None
+    if isinstance(controller, MeasuredController) and _own(
+        controller, MeasuredController, "step", "reset", "_measure"
+    ):
+        measured, controller = controller, controller.controller
+    if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
+        return controller, measured
+    return None
+
+
+def why_not_compiled(controller, plant, reference, on_step) -> str | None:
+    """The first part of the loop without a compiled form, in words, or ``None`` when the
+    whole loop can run compiled (module docstring)."""
+    if on_step is not None:
+        return "an on_step callback is called from Python at every step"
+    if not (isinstance(plant, RK4Plant)
+            and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")):
+        return (f"the plant {type(plant).__name__} is advanced in Python (only RK4Plant's "
+                "period is compiled)")  # fmt: skip
+    if not plant.fused:
+        return (f"the disturbance {type(plant.disturbance).__name__} has a term without a "
+                "compiled form (a callable d(t, q, dq), or two friction terms)")  # fmt: skip
+    parts = _parts(controller)
+    if parts is None:
+        return (f"the controller {type(controller).__name__} has no compiled step (only "
+                "HierarchicalMPC's, alone or behind a MeasuredController)")  # fmt: skip
+    ctrl = parts[0]
+    if not ctrl.fused:
+        return (f"the compensation {type(ctrl.compensation).__name__} is advanced in Python"
+                if not ctrl._python_dynamics else
+                "the controller's model (mimic joints) is evaluated in Python")  # fmt: skip
+    form_of = getattr(as_reference(reference), "native_form", None)
+    form = form_of() if callable(form_of) else None
+    if form is None or form[0] not in ("sine", "ppoly"):
+        return (f"the reference {type(reference).__name__} has no native form (sampled in "
+                "Python; sine and piecewise-polynomial references are sampled in C++)")
+    return None
+
+
+class CompiledLoop:
+    """One run's compiled loop over the recording arrays of
+    :func:`~hmpc_pin.sim.simulate.simulate` (which builds it after ``reset``).
+
+    Attributes:
+        k: The step being run (where a fault or interrupt stopped the run).
+        last: The last recorded step (-1: none).
+    """
+
+    def __init__(self, controller, plant: RK4Plant, reference, t_arr, records, step_ns,
+                 limit, state_bound: float, sat_steps, sat_excess):  # fmt: skip
+        ctrl, measured = _parts(controller)  # type: ignore[misc]
+        self.ctrl, self.measured, self.plant, self.reference = ctrl, measured, plant, reference
+        self.t_arr, self.records = t_arr, records
+        n = plant.n
+        self.n, self.K = n, len(t_arr) - 1
+        a, b = plant._ab
+        self._loop = load_native().ClosedLoop(
+            ctrl._core, plant._kernel, t_arr, [records[name] for name in
+            ("q", "dq", "tau", "d", "d_hat", "tau_applied")], step_ns, sat_steps, sat_excess,
+            np.full(n, np.inf) if limit is None else limit, limit is not None,
+            min(state_bound, sys.float_info.max), a, b,
+            plant._friction is not None, plant.h, plant.substeps,
+        )  # fmt: skip
+        self._hist = None
+        if measured is not None:
+            D = measured.delay
+            self._hist = np.zeros((D + 1, 2 * n))
+            self._hist[0] = np.concatenate(measured._buffer[0])
+            self._loop.set_measurement(measured.q_noise, measured.dq_noise, D, self._hist)
+        self._x = np.concatenate([plant.q, plant.dq])
+        self._no_rows = np.empty((0, n))
+        self._no_noise = np.empty((0, 2 * n))
+        self._state_bound = state_bound
+        self.k, self.last = 0, -1
+
+    def run(self) -> None:
+        """Run every step, chunk by chunk, raising the per-step loop's exception at a fault
+        (:attr:`k`, :attr:`last` kept up to date for the caller's partial result)."""
+        ctrl, plant, K = self.ctrl, self.plant, self.K
+        if self.reference is not ctrl._reference:  # as the first step does
+            ctrl._set_reference(self.reference)
+        k0 = 0
+        while k0 <= K:
+            self.k = k0
+            P = plant._pulses_at(k0) if plant._pulses else None  # the per-step loop's table
+            if P is not None:
+                first = k0 - plant._chunk_k
+                k1 = min(K + 1, plant._chunk_k + plant._chunk.shape[0])
+                P = plant._chunk[first : first + (k1 - k0)].reshape(-1, self.n)
+            else:
+                k1 = min(K + 1, k0 + PULSE_CHUNK)
+                P = self._no_rows
+            k, code = self._chunk(k0, k1, P)
+            self.k = k
+            if code:
+                self._raise(code, k)
+            if k == K:
+                return
+            k0 = k1
+
+    def _chunk(self, k0: int, k1: int, P) -> tuple[int, int]:
+        """Steps ``k0 .. k1 - 1``; the parts' Python state brought up to date afterwards
+        (also when Ctrl-C stops the chunk)."""
+        loop, n, measured = self._loop, self.n, self.measured
+        noise, rng_state, drawn = self._no_noise, None, 0
+        if measured is not None:  # one row of 2n draws per step k >= 1, as _measure draws
+            rng_state = measured.rng.bit_generator.state
+            drawn = k1 - max(k0, 1)
+            noise = np.zeros((k1 - k0, 2 * n))
+            noise[k1 - k0 - drawn :] = measured.rng.standard_normal((drawn, 2 * n))
+        started, stepped, advances = loop.started, loop.stepped, loop.advances
+        x = self._x
+        try:
+            return loop.run(x[:n], x[n:], k0, k1, P, noise)
+        finally:
+            self.last = loop.last
+            plant = self.plant
+            if loop.advances != advances:
+                plant.k += loop.advances - advances
+                plant.t = plant.t0 + plant.Ts * plant.k
+                plant.q, plant.dq = x[:n].copy(), x[n:].copy()
+            if loop.stepped != stepped:
+                self.ctrl._started = True
+            begun = loop.started - started
+            if measured is not None and begun:
+                used = k0 + begun - max(k0, 1)  # the draws of the steps begun
+                if used < drawn:  # give back the draws of the steps not begun
+                    measured.rng.bit_generator.state = rng_state
+                    measured.rng.standard_normal((used, 2 * n))
+                s = k0 + begun - 1  # the last step begun: its measurement is the newest
+                D = measured.delay
+                hist = self._hist
+                measured._started = True
+                measured._buffer = deque(
+                    ((hist[j % (D + 1), :n].copy(), hist[j % (D + 1), n:].copy())
+                     for j in range(max(0, s - D), s + 1)), maxlen=D + 1,
+                )  # fmt: skip
+            elif measured is not None and drawn:
+                measured.rng.bit_generator.state = rng_state
+
+    def _raise(self, code: int, k: int) -> None:
+        """The per-step loop's exception for the compiled loop's fault ``code`` at step ``k``."""
+        t = float(self.t_arr[k])
+        n = self.n
+        if code <= 4:  # the controller's step: its own error, from its own inputs
+            ctrl = self.ctrl
+            if self.measured is not None:
+                q, dq = self.measured._buffer[0]
+            else:
+                q, dq = self._x[:n].copy(), self._x[n:].copy()
+            ctrl._failure(code, t, q, dq, ctrl._stack_q_ref, ctrl._stack_dq_ref)
+        if code == 5:
+            raise NonFiniteError("tau", self.records["tau"][k].copy(), f"at t={t:.6g}")
+        q, dq = self.plant.q, self.plant.dq
+        raise state_error(q, dq, t + float(self.ctrl.Ts), self._state_bound)

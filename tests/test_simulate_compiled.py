@@ -1,0 +1,347 @@
+"""The compiled loop (hmpc_pin.sim.compiled_loop) against the per-step loop of simulate,
+its oracle: the same arrays on every shipped config it covers, the same faults and partial
+results, the same state of the parts afterwards; every other setup runs per step."""
+
+from __future__ import annotations
+
+import signal
+import threading
+import warnings
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.controllers.wrappers import MeasuredController
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.sim.disturbances import CoulombViscousFriction, GaussianPulse
+from hmpc_pin.sim.plants import PULSE_CHUNK, EulerPlant, RK4Plant
+
+from .conftest import CONFIGS
+
+ARRAYS = ("t", "q", "dq", "tau", "d", "d_hat", "tau_applied", "q_ref", "dq_ref")
+TOL = 1e-12
+
+# Shipped configs the compiled loop covers (the MuJoCo ones run per step: below).
+COMPILED = [
+    "panda_circle", "panda_sine", "panda_trajectory", "paper_cartesian",
+    "paper_cartesian_no_ndo", "paper_combined", "paper_combined_no_ndo", "paper_external",
+    "paper_external_no_ndo", "paper_friction", "paper_friction_literal",
+    "paper_friction_literal_no_ndo", "paper_friction_no_ndo", "ur5_circle", "ur5_sine",
+    "z1_sine",
+]  # fmt: skip
+SLOW = {"panda_circle", "panda_trajectory", "ur5_circle"}
+
+
+def _experiment(name: str) -> Experiment:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return Experiment.from_config(hmpc_pin.load_config(CONFIGS / f"{name}.toml"))
+
+
+def _same(a, b, what: str = "") -> None:
+    """Every array of two results equal to TOL (absolute and relative)."""
+    assert len(a.t) == len(b.t), (what, len(a.t), len(b.t))
+    for name in ARRAYS:
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.shape == y.shape, (what, name)
+        np.testing.assert_allclose(y, x, rtol=TOL, atol=TOL, err_msg=f"{what} {name}")
+
+
+def _controller_state(ctrl) -> list:
+    """What a HierarchicalMPC carries to its next step (compiled step, QPs, observer)."""
+    core = ctrl._core.state
+    state = [np.array(core[1]), *map(np.array, core[2]), *map(np.array, core[3]),
+             np.array(core[4]), np.array(core[5]), core[0], core[6], ctrl._started,
+             ctrl.qps._core.counters, ctrl.v.copy(), ctrl.tau.copy(),
+             ctrl.disturbance_estimate.copy(), ctrl.qps.stack.copy(), ctrl.qps.slack.copy()]
+    ndo = getattr(ctrl.compensation, "compiled_form", lambda: None)()
+    if ndo is not None and ndo[0] == "ndo":
+        state += list(ndo[1].state)
+    return state
+
+
+def _assert_same_state(a, b) -> None:
+    for x, y in zip(_controller_state(a), _controller_state(b), strict=True):
+        if isinstance(x, np.ndarray):
+            np.testing.assert_allclose(y, x, rtol=TOL, atol=TOL)
+        else:
+            assert x == y
+
+
+def _run(exp: Experiment, loop: str, duration: float):
+    try:
+        return exp.run(duration, loop=loop), None
+    except hmpc_pin.SimulationError as exc:
+        return exc.result, exc
+
+
+def _both(make, duration: float, **sim):
+    """Run the same setup (``make()`` -> (robot, controller, reference, plant)) per step
+    and compiled through simulate; return the two (result, exception, parts)."""
+    out = []
+    for loop in ("python", "compiled"):
+        robot, ctrl, ref, plant = make()
+        try:
+            res, exc = hmpc_pin.simulate(robot, ctrl, ref, duration=duration, plant=plant,
+                                         loop=loop, **sim), None  # fmt: skip
+        except hmpc_pin.SimulationError as e:
+            res, exc = e.result, e
+        out.append((res, exc, (robot, ctrl, ref, plant)))
+    return out
+
+
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n for n in COMPILED]
+)
+def test_compiled_loop_equals_the_per_step_loop_on_each_shipped_config(name):
+    """1 s of each config: the same arrays, the same end, the same controller state (its
+    next step gives the same torque)."""
+    a, b = _experiment(name), _experiment(name)
+    ra, ea = _run(a, "python", 1.0)
+    rb, eb = _run(b, "compiled", 1.0)
+    assert ra.loop == "python" and rb.loop == "compiled"
+    assert (ea is None) == (eb is None) and ra.complete == rb.complete
+    _same(ra, rb, name)
+    assert ra.meta.get("saturation") == rb.meta.get("saturation")
+    _assert_same_state(a.controller, b.controller)
+    t, q, dq = float(ra.t[-1]) + a.controller.Ts, ra.q[-1], ra.dq[-1]
+    np.testing.assert_allclose(b.controller.step(t, q, dq, b.reference),
+                               a.controller.step(t, q, dq, a.reference), rtol=TOL, atol=TOL)
+
+
+@pytest.mark.slow
+def test_the_paper_run_is_the_same_over_its_10_s():
+    a, b = _experiment("paper_combined"), _experiment("paper_combined")
+    _same(a.run(loop="python"), b.run(loop="compiled"), "paper_combined 10 s")
+
+
+def _paper(*, pulse=None, friction=True, effort=None, delay=None, settings=None):
+    """A factory of the paper's arm, controller, sine reference and RK4 plant."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(robot, settings)
+        terms = [GaussianPulse(*pulse)] if pulse is not None else []
+        if friction:
+            terms.append(CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8]))
+        dist = hmpc_pin.sim.SumDisturbance(*terms) if terms else None
+        plant = RK4Plant(robot.copy(), dist, ctrl.Ts)
+        if delay is not None:
+            ctrl = MeasuredController(ctrl, q_noise=1e-3, dq_noise=1e-2, delay=delay,
+                                      rng=np.random.default_rng(7))  # fmt: skip
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    return make
+
+
+def _same_fault(pair) -> None:
+    (ra, ea, _), (rb, eb, _) = pair
+    assert ea is not None and eb is not None
+    assert type(ea) is type(eb) and str(ea) == str(eb)
+    assert type(ea.__cause__) is type(eb.__cause__)
+    assert ra.message == rb.message and ra.complete == rb.complete is False
+    assert ra.meta["failed_step"] == rb.meta["failed_step"]
+    assert ra.meta["failed_at"] == rb.meta["failed_at"]
+    _same(ra, rb, str(ea))
+
+
+@pytest.mark.parametrize("delay", [0, 1, 3])
+def test_behind_a_measured_controller_the_noise_stream_and_delay_are_the_same(delay):
+    """Noise drawn per chunk equals the wrapper's draw per step; afterwards its generator
+    and delay buffer are where the per-step loop leaves them."""
+    (ra, _, pa), (rb, _, pb) = _both(_paper(pulse=([10.0, 8.0, 0.3], [0.3, 0.6, 0.9],
+                                                   [0.1] * 3), delay=delay), 1.0, q0=np.ones(3))
+    assert rb.loop == "compiled"
+    _same(ra, rb)
+    wa, wb = pa[1], pb[1]
+    assert wa.rng.bit_generator.state == wb.rng.bit_generator.state
+    assert len(wa._buffer) == len(wb._buffer)
+    for (qa, dqa), (qb, dqb) in zip(wa._buffer, wb._buffer, strict=True):
+        np.testing.assert_array_equal(qb, qa)
+        np.testing.assert_array_equal(dqb, dqa)
+    _assert_same_state(wa.controller, wb.controller)
+
+
+def test_effort_saturation_is_counted_the_same():
+    pair = _both(_paper(), 1.0, q0=np.ones(3), effort_limit=np.array([20.0, 5.0, np.inf]))
+    (ra, _, _), (rb, _, _) = pair
+    assert ra.meta["saturation"]["steps"][1] > 0
+    assert ra.meta["saturation"] == rb.meta["saturation"]
+    _same(ra, rb)
+
+
+def test_a_non_finite_state_stops_both_loops_at_the_same_step():
+    pair = _both(_paper(pulse=([1e308] * 3, [0.5] * 3, [0.002] * 3)), 1.0, q0=np.ones(3),
+                 state_bound=np.inf)  # fmt: skip
+    _same_fault(pair)
+    assert "plant state" in str(pair[0][1]) and pair[0][0].meta["failed_step"] > 10
+
+
+def test_a_state_beyond_the_bound_stops_both_loops_at_the_same_step():
+    pair = _both(_paper(pulse=([3e3, 0.0, 0.0], [0.5] * 3, [0.05] * 3)), 1.0, q0=np.ones(3),
+                 state_bound=20.0)  # fmt: skip
+    _same_fault(pair)
+    assert "diverged" in str(pair[0][1])
+
+
+def test_a_qp_failure_stops_both_loops_at_the_same_step():
+    """Started on the reference, then pushed off it until the acceleration bounds are
+    active: ProxSuite with 3 iterations allowed fails (a SolverError) mid-run."""
+    settings = hmpc_pin.MPCSettings(max_iter=3, Nc=3, v_min=-30.0, v_max=30.0)
+    q0, dq0 = hmpc_pin.SineReference(3).sample(0.0)
+    pair = _both(_paper(pulse=([3e3, 0.0, 0.0], [0.5] * 3, [0.05] * 3), settings=settings),
+                 1.0, q0=q0, dq0=dq0)  # fmt: skip
+    _same_fault(pair)
+    assert isinstance(pair[0][1].__cause__, hmpc_pin.SolverError)
+    assert pair[0][0].meta["failed_step"] > 10
+
+
+class _InterruptingPulse(GaussianPulse):
+    """A pulse whose table of periods from ``at`` on is made with a Ctrl-C (SIGINT)
+    delivered to the process: the same instant of both loops (before step ``at``'s
+    disturbance is recorded)."""
+
+    def __init__(self, at_time):
+        super().__init__([1.0] * 3, [0.5] * 3, [0.1] * 3)
+        self.at_time = at_time
+
+    def sample_times(self, times):
+        if times.size > 1 and times.min() >= self.at_time - 1e-9:
+            signal.raise_signal(signal.SIGINT)
+        return super().sample_times(times)
+
+
+def test_a_ctrl_c_between_chunks_keeps_the_same_partial_result():
+    at = 2 * PULSE_CHUNK
+
+    def make():
+        robot, ctrl, ref, _ = _paper()()
+        plant = RK4Plant(robot.copy(), _InterruptingPulse(at * ctrl.Ts), ctrl.Ts)
+        return robot, ctrl, ref, plant
+
+    out = []
+    for loop in ("python", "compiled"):
+        robot, ctrl, ref, plant = make()
+        with pytest.raises(hmpc_pin.RunInterrupted) as info:
+            hmpc_pin.simulate(robot, ctrl, ref, duration=5.0, q0=np.ones(3), plant=plant,
+                              loop=loop)  # fmt: skip
+        out.append(info.value)
+    a, b = out
+    assert str(a) == str(b) and a.result.message == b.result.message
+    assert len(a.result.t) == at
+    assert a.result.meta["interrupted_at"] == b.result.meta["interrupted_at"]
+    _same(a.result, b.result)
+
+
+def test_a_real_sigint_during_a_compiled_run_stops_it_with_a_prefix_of_the_run():
+    """SIGINT from another thread while the compiled loop runs: RunInterrupted at once
+    (signals are checked before every step), its samples those of the whole run."""
+    whole = _both(_paper(), 3.0, q0=np.ones(3))[0][0]
+    robot, ctrl, ref, plant = _paper()()
+    timer = threading.Timer(0.02, signal.raise_signal, (signal.SIGINT,))
+    timer.start()
+    try:
+        with pytest.raises(hmpc_pin.RunInterrupted) as info:
+            hmpc_pin.simulate(robot, ctrl, ref, duration=600.0, q0=np.ones(3), plant=plant,
+                              loop="compiled")  # fmt: skip
+    finally:
+        timer.cancel()
+    part = info.value.result
+    m = min(len(part.t), len(whole.t))
+    assert 0 < len(part.t) < 60001 and part.meta["interrupted_at"] == part.t[-1]
+    for name in ARRAYS:
+        np.testing.assert_allclose(getattr(part, name)[:m], getattr(whole, name)[:m],
+                                   rtol=TOL, atol=TOL)  # fmt: skip
+    assert np.isfinite(part.tau_applied).all()
+
+
+# ---- setups without a compiled form: the per-step loop, one per reason ----
+
+
+class _PlainSine:
+    """A sine reference sampled in Python (no native form)."""
+
+    def sample(self, t):
+        return np.full(3, np.sin(t)), np.full(3, np.cos(t))
+
+    def sample_many(self, times, out=None):
+        times = np.asarray(times, dtype=float)[:, None]
+        return np.sin(times) * np.ones(3), np.cos(times) * np.ones(3)
+
+
+def _short(ctrl=None, plant=None, ref=None, **kw):
+    robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+    ctrl = ctrl(robot) if callable(ctrl) else hmpc_pin.HierarchicalMPC(robot)
+    plant = plant(robot, ctrl) if plant is not None else None
+    ref = ref() if ref is not None else hmpc_pin.SineReference(3)
+    return hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), plant=plant, **kw)
+
+
+NOT_COMPILED = {
+    "on_step": (dict(on_step=lambda t, q, r: None), "on_step"),
+    "euler": (dict(plant=lambda r, c: EulerPlant(r.copy(), None, c.Ts)), "EulerPlant"),
+    "callable disturbance": (
+        dict(plant=lambda r, c: RK4Plant(r.copy(), lambda t, q, dq: np.zeros(3), c.Ts)),
+        "disturbance",
+    ),
+    "other controller": (
+        dict(ctrl=lambda r: hmpc_pin.ComputedTorque(r)), "controller ComputedTorque"),
+    "compensation in Python": (
+        dict(ctrl=lambda r: hmpc_pin.HierarchicalMPC(
+            r, compensation=hmpc_pin.MomentumObserver(r, 0.01, 50.0))),
+        "compensation MomentumObserver"),
+    "reference without native form": (dict(ref=lambda: _PlainSine()), "reference _PlainSine"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("reason", list(NOT_COMPILED))
+def test_a_setup_without_a_compiled_form_runs_per_step(reason):
+    kw, named = NOT_COMPILED[reason]
+    result = _short(**kw)
+    assert result.loop == "python" and result.complete
+    with pytest.raises(hmpc_pin.ConfigError, match=named):
+        _short(**kw, loop="compiled")
+
+
+@pytest.mark.parametrize("name", ["paper_combined_mujoco", "panda_mujoco"])
+def test_a_mujoco_config_runs_per_step(name):
+    pytest.importorskip("mujoco")
+    exp = _experiment(name)
+    assert exp.run(0.1).loop == "python"
+    with pytest.raises(hmpc_pin.ConfigError, match="MuJoCoPlant"):
+        exp.run(0.1, loop="compiled")
+
+
+def test_loop_must_be_one_of_the_three():
+    with pytest.raises(hmpc_pin.ConfigError, match="expected one of"):
+        _short(loop="fast")
+
+
+def test_a_step_replaced_on_the_instance_is_called_per_step():
+    """A spy on the controller's step (or the plant's advance) is called at every step."""
+    calls = []
+
+    def spied(r):
+        ctrl = hmpc_pin.HierarchicalMPC(r)
+        step = ctrl.step
+
+        def spy(*args):
+            calls.append(args[0])
+            return step(*args)
+
+        ctrl.step = spy
+        return ctrl
+
+    result = _short(ctrl=spied)
+    assert result.loop == "python" and len(calls) == len(result.t)
+
+    def plant(r, c):
+        p = RK4Plant(r.copy(), None, c.Ts)
+        advance = p.advance
+        p.advance = lambda tau: (calls.append(tau), advance(tau))[1]
+        return p
+
+    calls.clear()
+    result = _short(plant=plant)
+    assert result.loop == "python" and len(calls) == len(result.t) - 1

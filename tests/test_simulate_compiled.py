@@ -345,3 +345,22 @@ def test_a_step_replaced_on_the_instance_is_called_per_step():
     calls.clear()
     result = _short(plant=plant)
     assert result.loop == "python" and len(calls) == len(result.t) - 1
+
+
+@pytest.mark.parametrize("model", ["z1", "panda"])
+def test_an_init_config_runs_compiled_as_per_step(tmp_path, model):
+    """The config ``hmpc-pin init`` writes (observer in bandwidth units, its model at the
+    start of the period, 1 ms latency declared, the URDF's joint dynamics in plant and
+    controller where they suit): the same arrays and controller state in both loops."""
+    from hmpc_pin.experiment.init import write_config
+
+    path = write_config(model, tmp_path / f"{model}.toml", duration=0.5)
+    text = path.read_text(encoding="utf-8")
+    assert 'model_at = "start"' in text and "latency" in text
+    a, b = (Experiment.from_config(hmpc_pin.load_config(path)) for _ in range(2))
+    ra, ea = _run(a, "python", 0.5)
+    rb, eb = _run(b, "compiled", 0.5)
+    assert ra.loop == "python" and rb.loop == "compiled"
+    assert ea is None and eb is None
+    _same(ra, rb, model)
+    _assert_same_state(a.controller, b.controller)

@@ -4,8 +4,9 @@ For each arm config: Ts = 1 ms, the sweep's default interface model ([sweep.sens
 2^19-count encoders, finite-difference velocity at 1 kHz, 1 ms latency, 100 Hz torque
 filter), the plant's last link ``--light`` times the model's mass and inertia (others
 nominal, friction and pulses at their nominal amplitudes), the config's controller with
-the latency compensated (``known``) and not (``unknown``). Prints the worst joint's RMS
-error after 1 s.
+the latency compensated (``known``) and not (``unknown``), and the opposite mistake
+(``over``: the controller told of a one-cycle latency the interface does not have). Prints
+the worst joint's RMS error.
 
     python benchmarks/latency_1khz.py panda_sine ur5_circle z1_sine --duration 3 --light 0.8
 """
@@ -34,17 +35,22 @@ def main() -> None:
     for name in args.configs:
         cfg = hmpc_pin.load_config(name)
         n = hmpc_pin.Experiment.from_config(cfg).robot.nq
-        for known in (True, False):
+        for case in ("known", "unknown", "over"):
+            sweep = replace(cfg.sweep, known_latency=case == "known", variants=None)
+            controller = replace(cfg.controller, Ts=0.001)
+            if case == "over":
+                sweep = replace(sweep, sensing=replace(sweep.interface, latency=0.0, delay=0))
+                controller = replace(controller, latency=0.001)
             c = replace(
                 cfg,
-                controller=replace(cfg.controller, Ts=0.001),
+                controller=controller,
                 simulation=replace(cfg.simulation, duration=args.duration),
-                sweep=replace(cfg.sweep, known_latency=known, variants=None),
+                sweep=sweep,
             )
             params = SampleParams(0, (1.0,) * (n - 1) + (args.light,), (1.0,) * n,
                                   (1.0,) * n, 0)  # fmt: skip
             row = run_sample(c, params, "ndo", "all")
-            print(f"| {name} | {'known' if known else 'unknown'} | {args.light:g} | "
+            print(f"| {name} | {case} | {args.light:g} | "
                   f"{row['rms_max']:.3e} | {row['bounded']} |")  # fmt: skip
     np.seterr(all="warn")
 

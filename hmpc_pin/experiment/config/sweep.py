@@ -68,7 +68,7 @@ class SweepConfig:
             non-finite value, no solver failure) and its max |q − r| after ``after``
             stays <= error_bound [rad].
         rms_target: The pass mark on the worst joint's RMS error after ``after`` [rad]
-            reported in the summary (issue 7: 1e-2).
+            reported in the summary (default 1e-2).
         variants: Controllers run on every sample, each a controller × compensation
             pair (:func:`~hmpc_pin.experiment.config.controller.parse_combination`:
             ``"hmpc+momentum"``, a 0.1 name such as

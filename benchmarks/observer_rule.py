@@ -100,8 +100,8 @@ def main_over() -> None:
         for label, (kp, kd) in loops.items():
             for beta in (0.25, 0.5, 1.0):
                 for r in (1.0, 1.25):
-                    stable = [x for x in grid
-                              if final_error_over(x / Ts, Ts, r, beta, kp=kp, kd=kd) < 1e-3]  # fmt: skip
+                    errs = [final_error_over(x / Ts, Ts, r, beta, kp=kp, kd=kd) for x in grid]
+                    stable = [x for x, e in zip(grid, errs, strict=True) if e < 1e-3]
                     den = r + 2 * beta - 2
                     bound = 2 / den if den > 0 else math.inf
                     rule = Ts * overdeclared_limit(Ts, beta * Ts, r)

@@ -62,9 +62,9 @@ fraction :math:`g_j = T_s\\omega_j/(1 + T_s\\omega_j)` of the way to the residua
    loop and the paper MPC's equivalent gains alike) is 7.1 at β = ½ and 1.4 at β = 1,
    where the rule allows 4 and 0.8; at Ts = 10 ms the outer loop lowers it to 4.0 / 3.5
    (PD / MPC) at β = ½ and 1.1 / 1.0 at β = 1 (with r = 1: 14 / 11 at β = ½, where the
-   rule sets no bound), below the rule's 4 with the MPC's gains. The rule is meant for what a measured
-   latency may be off by, half an interface cycle: a large fraction of a 1 kHz control
-   period, a small one of a 10 ms period (no bound then).
+   rule sets no bound), below the rule's 4 with the MPC's gains. The rule is meant for
+   what a measured latency may be off by, half an interface cycle: a large fraction of a
+   1 kHz control period, a small one of a 10 ms period (no bound then).
 
 :func:`check_bandwidth` applies case 3 with :math:`L_u = T_s` (an interface cycle the
 controller was not told about) when ``[controller] latency`` is 0, and case 4 with

@@ -9,6 +9,13 @@ disturbance: the URDF's joint dynamics are the only friction. Each row is one 10
 the worst joint's RMS tracking error [rad].
 
 Run: ``python -m benchmarks.damped_arm [--duration S]`` (about a minute).
+
+``--latency-error``: instead, Ts = 1 ms (N = 10) with ``[controller] latency = 0.001``
+declared, the measurements through the sweep's latency model (``[sweep.sensing]``, the
+latency part only) 1, 0.5 and 0 ms old, the observer's bandwidth 10/Ts, the 4/Ts
+``hmpc-pin init`` writes at 1 ms (:func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`)
+and 1/Ts: the worst joint's RMS, or when the run stopped.
+``python -m benchmarks.damped_arm --latency-error --duration 2`` (seconds).
 """
 
 from __future__ import annotations
@@ -67,16 +74,44 @@ def worst_rms(cfg: ExperimentConfig, observer: bool = True) -> tuple[float, int]
     return float(rms.max()), int(rms.argmax()) + 1
 
 
+def latency_error(base: ExperimentConfig) -> int:
+    """The ``--latency-error`` table (module docstring)."""
+    import warnings
+
+    from hmpc_pin.apps.sweep import SampleParams, run_sample
+
+    warnings.simplefilter("ignore")  # the bandwidth check's warning on 10/Ts
+    Ts, n = 0.001, 6
+    params = SampleParams(0, (1.0,) * n, (1.0,) * n, (1.0,) * n, 0)  # the nominal plant
+    print("| declared [ms] | measurements' age [ms] | bandwidth | worst RMS [rad] |")
+    print("|---|---|---|---|")
+    for age in (0.001, 0.0005, 0.0):
+        for periods in (10.0, 4.0, 1.0):
+            cc = replace(base.controller, Ts=Ts, N=10, latency=0.001,
+                         observer=replace(base.controller.observer, bandwidth=periods / Ts))  # fmt: skip
+            sweep = replace(base.sweep, known_latency=False, variants=None,
+                            sensing=replace(base.sweep.interface, latency=age, delay=0))  # fmt: skip
+            row = run_sample(replace(base, controller=cc, sweep=sweep), params, "ndo", "latency")
+            out = (f"{row['rms_max']:.2e}" if row["complete"] else
+                   f"stopped at {row['t_end']:.3f} s: {row['message'].split(':')[0]}")  # fmt: skip
+            print(f"| 1 | {1e3 * age:g} | {periods:g}/Ts | {out} |", flush=True)
+    return 0
+
+
 def main(argv=None) -> int:
     import tempfile
     from pathlib import Path
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--duration", type=float, default=10.0)
+    p.add_argument("--latency-error", action="store_true",
+                   help="Ts = 1 ms, 1 ms declared, the measurements 1, 0.5, 0 ms old")  # fmt: skip
     args = p.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         base = config(Path(tmp) / "z1_damped.toml")
     base = replace(base, simulation=replace(base.simulation, duration=args.duration))
+    if args.latency_error:
+        return latency_error(base)
     ex = hmpc_pin.Experiment.from_config(base)
     tau = damping_time_constants(ex.robot, ex.q0)
     print(f"1/(b_j (M^-1)_jj) [ms]: {np.array2string(1e3 * tau, precision=2)}; Ts = 10 ms")

@@ -87,10 +87,10 @@ def latency_error(base: ExperimentConfig) -> int:
     print("|---|---|---|---|")
     for age in (0.001, 0.0005, 0.0):
         for periods in (10.0, 4.0, 1.0):
-            cc = replace(base.controller, Ts=Ts, N=10, latency=0.001,
-                         observer=replace(base.controller.observer, bandwidth=periods / Ts))  # fmt: skip
-            sweep = replace(base.sweep, known_latency=False, variants=None,
-                            sensing=replace(base.sweep.interface, latency=age, delay=0))  # fmt: skip
+            obs = replace(base.controller.observer, bandwidth=periods / Ts)
+            cc = replace(base.controller, Ts=Ts, N=10, latency=0.001, observer=obs)
+            sensing = replace(base.sweep.interface, latency=age, delay=0)
+            sweep = replace(base.sweep, known_latency=False, variants=None, sensing=sensing)
             row = run_sample(replace(base, controller=cc, sweep=sweep), params, "ndo", "latency")
             out = (f"{row['rms_max']:.2e}" if row["complete"] else
                    f"stopped at {row['t_end']:.3f} s: {row['message'].split(':')[0]}")  # fmt: skip

@@ -112,7 +112,10 @@ def latency_error(base: ExperimentConfig) -> int:
     ratio = np.abs(r.dq[upto]).max(axis=0) / ex.robot.model.velocityLimit
     print(f"\nage 0, 10/Ts with controller.max_iter = 10000: passes t = {failed.t[-1]:.3f} s "
           f"(the default cap's stop): {bool(r.t[-1] > failed.t[-1])}; there the largest "
-          f"|dq|/velocity limit is {ratio.max():.2f} (joint {int(ratio.argmax()) + 1})")
+          f"|dq|/velocity limit is {ratio.max():.2f} (joint {int(ratio.argmax()) + 1}); over "
+          f"the run (to t = {r.t[-1]:.3f} s, complete {r.complete}) "
+          f"{(np.abs(r.dq).max(axis=0) / ex.robot.model.velocityLimit).max():.2f}, max |d̂| "
+          f"{np.abs(r.d_hat).max():.3g} N·m")
     return 0
 
 

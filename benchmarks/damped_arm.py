@@ -14,9 +14,10 @@ Run: ``python -m benchmarks.damped_arm [--duration S]`` (about a minute).
 declared, the measurements 1, 0.5 and 0 ms old
 (:class:`~hmpc_pin.sim.sensing.SensedController` with a
 :class:`~hmpc_pin.sim.sensing.Latency` only), the observer's bandwidth 10/Ts, the 4/Ts
-``hmpc-pin init`` writes at 1 ms (:func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`)
-1/Ts and 0.5/Ts: the worst joint's RMS, or when the run stopped; then the stopped 10/Ts run again
-with a higher QP iteration cap.
+``hmpc-pin init`` writes at 1 ms (:func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`),
+1/Ts and 0.5/Ts: the worst joint's RMS, or when the run stopped; the sweep's whole
+interface model with the latency declared right; then the stopped 10/Ts run again with a
+higher QP iteration cap.
 ``python -m benchmarks.damped_arm --latency-error --duration 2`` (seconds).
 """
 
@@ -105,6 +106,18 @@ def latency_error(base: ExperimentConfig) -> int:
             out = (f"{np.sqrt(((r.q - r.q_ref) ** 2).mean(axis=0)).max():.2e}" if r.complete
                    else f"stopped at {r.t[-1]:.3f} s")  # fmt: skip
             print(f"| 1 | {1e3 * age:g} | {periods:g}/Ts | {out} |", flush=True)
+    # The sweep's whole interface model ([sweep.sensing]: 2^19-count encoders, finite
+    # differences at 1 kHz, 1 ms latency declared right, 100 Hz torque filter).
+    from hmpc_pin.apps.sweep import SampleParams, run_sample
+
+    params = SampleParams(0, (1.0,) * 6, (1.0,) * 6, (1.0,) * 6, 0)  # the nominal plant
+    for periods in (10.0, 4.0):
+        obs = replace(base.controller.observer, bandwidth=periods / Ts)
+        cc = replace(base.controller, Ts=Ts, N=10, latency=0.001, observer=obs)
+        sweep = replace(base.sweep, known_latency=True, variants=None)
+        row = run_sample(replace(base, controller=cc, sweep=sweep), params, "ndo", "all")
+        out = f"{row['rms_max']:.2e}" if row["complete"] else f"stopped at {row['t_end']:.3f} s"
+        print(f"| 1 | 1, the sweep's interface model | {periods:g}/Ts | {out} |", flush=True)
     # The failed QP: the same run with a higher iteration cap, the state where it failed.
     _, failed = run(0.0, 10.0)
     ex, r = run(0.0, 10.0, max_iter=10000)

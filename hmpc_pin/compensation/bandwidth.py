@@ -225,30 +225,42 @@ def compensation_bandwidth(compensation, M0: np.ndarray) -> np.ndarray | None:
     return None
 
 
-def latency_tolerance(bandwidth: np.ndarray | None, Ts: float, period: float) -> float:
+def latency_tolerance(
+    bandwidth: np.ndarray | None, Ts: float, period: float, *, over: bool = False
+) -> float:
     """How far [s] a measured latency may lie from the declared one
     (``[controller] latency``) before the real-time loop warns.
 
     A measured latency above the declared one leaves :math:`L_u` = the difference
-    uncompensated; the rule (module docstring) tolerates it while
+    uncompensated; the rule (module docstring, case 3) tolerates it while
     :math:`\\omega_{\\max} r (T_s + L_u) \\le 1/2`, i.e. up to
     :math:`1/(2 r \\omega_{\\max}) - T_s`. The measured age has the granularity of the
     interface period P (a state every P), so half a period is always tolerated:
 
     .. math:: \\Delta L = \\max(P/2,\\ 1/(2 r \\omega_{\\max}) - T_s)
 
-    (:math:`P/2` without an observer). A declared latency above the measured one by more
-    than :math:`\\Delta L` is reported too: the controller then predicts the state further
-    ahead than it is old.
+    (:math:`P/2` without an observer). A declared latency above the measured one
+    (``over``) is checked against case 4 instead, :math:`\\omega_{\\max}(r T_s + 2\\Delta L
+    - 2T_s) \\le 1`, derived for up to one period:
+
+    .. math:: \\Delta L = \\max\\big(P/2,\\ \\min(T_s,\\ (1/\\omega_{\\max} - (r - 2) T_s)/2)\\big)
+
+    (:math:`P/2` without an observer: the controller then only predicts the state
+    further ahead than it is old).
 
     Args:
         bandwidth: The observer's bandwidth per joint [1/s] (``None``: no observer).
         Ts: Control period [s].
         period: Interface period P [s].
+        over: The declared latency is the larger one.
     """
     tol = 0.5 * period
     if bandwidth is not None and np.size(bandwidth):
         w = float(np.max(bandwidth))
         if w > 0:
-            tol = max(tol, RULE / (MASS_RATIO * w) - Ts)
+            if over:
+                reach = 0.5 * (RULE_OVER / w - (MASS_RATIO - 2.0) * Ts)
+                tol = max(tol, min(Ts, reach))
+            else:
+                tol = max(tol, RULE / (MASS_RATIO * w) - Ts)
     return tol

@@ -120,10 +120,16 @@ def latency_error(base: ExperimentConfig) -> int:
         print(f"| 1 | 1, the sweep's interface model | {periods:g}/Ts | {out} |", flush=True)
     # The failed QP: the same run with a higher iteration cap, the state where it failed.
     _, failed = run(0.0, 10.0)
+    j = int(np.abs(failed.d_hat).max(axis=0).argmax())
+    d = failed.d_hat[:, j]
+    grow = (np.abs(d[1:]) > 0.1) & (np.abs(d[1:]) < 0.5 * np.abs(d).max())  # before saturating
+    factor = np.median(d[1:][grow] / d[:-1][grow])
+    print(f"\nage 0, 10/Ts: joint {j + 1}'s estimate multiplied by {factor:.3f} per period "
+          "before it saturated (the rule's root at r = 1, g = 10/11: -1.446)")
     ex, r = run(0.0, 10.0, max_iter=10000)
     upto = r.t <= failed.t[-1] + 1e-12
     ratio = np.abs(r.dq[upto]).max(axis=0) / ex.robot.model.velocityLimit
-    print(f"\nage 0, 10/Ts with controller.max_iter = 10000: passes t = {failed.t[-1]:.3f} s "
+    print(f"age 0, 10/Ts with controller.max_iter = 10000: passes t = {failed.t[-1]:.3f} s "
           f"(the default cap's stop): {bool(r.t[-1] > failed.t[-1])}; there the largest "
           f"|dq|/velocity limit is {ratio.max():.2f} (joint {int(ratio.argmax()) + 1}); over "
           f"the run (to t = {r.t[-1]:.3f} s, complete {r.complete}) "

@@ -9,6 +9,16 @@ disturbance: the URDF's joint dynamics are the only friction. Each row is one 10
 the worst joint's RMS tracking error [rad].
 
 Run: ``python -m benchmarks.damped_arm [--duration S]`` (about a minute).
+
+``--latency-error``: instead, Ts = 1 ms (N = 10) with ``[controller] latency = 0.001``
+declared, the measurements 1, 0.5 and 0 ms old
+(:class:`~hmpc_pin.sim.sensing.SensedController` with a
+:class:`~hmpc_pin.sim.sensing.Latency` only), the observer's bandwidth 10/Ts, the 4/Ts
+``hmpc-pin init`` writes at 1 ms (:func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`),
+1/Ts and 0.5/Ts: the worst joint's RMS, or when the run stopped; the sweep's whole
+interface model with the latency declared right; then the stopped 10/Ts run again with a
+higher QP iteration cap.
+``python -m benchmarks.damped_arm --latency-error --duration 2`` (seconds).
 """
 
 from __future__ import annotations
@@ -67,16 +77,81 @@ def worst_rms(cfg: ExperimentConfig, observer: bool = True) -> tuple[float, int]
     return float(rms.max()), int(rms.argmax()) + 1
 
 
+def latency_error(base: ExperimentConfig) -> int:
+    """The ``--latency-error`` table (module docstring)."""
+    import warnings
+
+    from hmpc_pin.sim.sensing import Latency, SensedController, Sensing
+
+    warnings.simplefilter("ignore")  # the bandwidth check's warning on 10/Ts
+    Ts = 0.001
+
+    def run(age: float, periods: float, **controller):
+        obs = replace(base.controller.observer, bandwidth=periods / Ts)
+        cc = replace(base.controller, Ts=Ts, N=10, latency=0.001, observer=obs, **controller)
+        ex = hmpc_pin.Experiment.from_config(replace(base, controller=cc))
+        if age > 0:  # the measurements age [s] old, nothing else modelled
+            sensing = Sensing(rate=1000.0, latency=Latency(age))
+            ex.controller = SensedController(ex.controller, sensing)
+        try:
+            return ex, ex.run()
+        except hmpc_pin.SimulationError as exc:
+            return ex, exc.result
+
+    print("| declared [ms] | measurements' age [ms] | bandwidth | worst RMS [rad] |")
+    print("|---|---|---|---|")
+    for age in (0.001, 0.0005, 0.0):
+        for periods in (10.0, 4.0, 1.0, 0.5):
+            _, r = run(age, periods)
+            out = (f"{np.sqrt(((r.q - r.q_ref) ** 2).mean(axis=0)).max():.2e}" if r.complete
+                   else f"stopped at {r.t[-1]:.3f} s")  # fmt: skip
+            print(f"| 1 | {1e3 * age:g} | {periods:g}/Ts | {out} |", flush=True)
+    # The sweep's whole interface model ([sweep.sensing]: 2^19-count encoders, finite
+    # differences at 1 kHz, 1 ms latency declared right, 100 Hz torque filter).
+    from hmpc_pin.apps.sweep import SampleParams, run_sample
+
+    params = SampleParams(0, (1.0,) * 6, (1.0,) * 6, (1.0,) * 6, 0)  # the nominal plant
+    for periods in (10.0, 4.0):
+        obs = replace(base.controller.observer, bandwidth=periods / Ts)
+        cc = replace(base.controller, Ts=Ts, N=10, latency=0.001, observer=obs)
+        sweep = replace(base.sweep, known_latency=True, variants=None)
+        row = run_sample(replace(base, controller=cc, sweep=sweep), params, "ndo", "all")
+        out = f"{row['rms_max']:.2e}" if row["complete"] else f"stopped at {row['t_end']:.3f} s"
+        print(f"| 1 | 1, the sweep's interface model | {periods:g}/Ts | {out} |", flush=True)
+    # The failed QP: the same run with a higher iteration cap, the state where it failed.
+    _, failed = run(0.0, 10.0)
+    j = int(np.abs(failed.d_hat).max(axis=0).argmax())
+    d = failed.d_hat[:, j]
+    grow = (np.abs(d[1:]) > 0.1) & (np.abs(d[1:]) < 0.5 * np.abs(d).max())  # before saturating
+    factor = np.median(d[1:][grow] / d[:-1][grow])
+    print(f"\nage 0, 10/Ts: joint {j + 1}'s estimate multiplied by {factor:.3f} per period "
+          "before it saturated (the rule's root at r = 1, g = 10/11: -1.446)")
+    ex, r = run(0.0, 10.0, max_iter=10000)
+    upto = r.t <= failed.t[-1] + 1e-12
+    ratio = np.abs(r.dq[upto]).max(axis=0) / ex.robot.model.velocityLimit
+    print(f"age 0, 10/Ts with controller.max_iter = 10000: passes t = {failed.t[-1]:.3f} s "
+          f"(the default cap's stop): {bool(r.t[-1] > failed.t[-1])}; there the largest "
+          f"|dq|/velocity limit is {ratio.max():.2f} (joint {int(ratio.argmax()) + 1}); over "
+          f"the run (to t = {r.t[-1]:.3f} s, complete {r.complete}) "
+          f"{(np.abs(r.dq).max(axis=0) / ex.robot.model.velocityLimit).max():.2f}, max |d̂| "
+          f"{np.abs(r.d_hat).max():.3g} N·m")
+    return 0
+
+
 def main(argv=None) -> int:
     import tempfile
     from pathlib import Path
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--duration", type=float, default=10.0)
+    p.add_argument("--latency-error", action="store_true",
+                   help="Ts = 1 ms, 1 ms declared, the measurements 1, 0.5, 0 ms old")  # fmt: skip
     args = p.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         base = config(Path(tmp) / "z1_damped.toml")
     base = replace(base, simulation=replace(base.simulation, duration=args.duration))
+    if args.latency_error:
+        return latency_error(base)
     ex = hmpc_pin.Experiment.from_config(base)
     tau = damping_time_constants(ex.robot, ex.q0)
     print(f"1/(b_j (M^-1)_jj) [ms]: {np.array2string(1e3 * tau, precision=2)}; Ts = 10 ms")

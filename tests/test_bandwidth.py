@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -13,6 +14,8 @@ from hmpc_pin.compensation.bandwidth import (
     check_bandwidth,
     implied_bandwidth,
     observer_cY,
+    overdeclared_excess,
+    overdeclared_limit,
 )
 from hmpc_pin.compensation.observers import DisturbanceObserver
 from hmpc_pin.exceptions import ConfigError, ValidityWarning
@@ -108,3 +111,51 @@ def test_experiment_makes_the_bandwidth_exact_at_the_start(write_config):
     M0 = exp.robot.mass_matrix(np.array([0.4, -0.3, 0.9]))
     cY = exp.controller.compensation.cY
     np.testing.assert_allclose(implied_bandwidth(cY, M0), [300, 400, 500], rtol=1e-12)
+
+
+@pytest.mark.parametrize("beta", [0.5, 1.0])
+def test_rule_keeps_a_joint_with_an_overdeclared_latency_stable(beta):
+    """A latency declared β Ts too long at Ts = 1 ms (the simulated joint of
+    benchmarks/observer_rule.py --over, r = 1.25): at the rule's bound
+    ω (r Ts + 2ΔL − 2Ts) = 1 it converges; at 1.25× the stability bound (2.5× the rule)
+    its estimate alternates in sign and grows."""
+    from benchmarks.observer_rule import final_error_over
+
+    Ts, r = 0.001, 1.25
+    limit = overdeclared_limit(Ts, beta * Ts, r)
+    assert Ts * limit == pytest.approx(1.0 / (r + 2 * beta - 2))
+    assert final_error_over(limit, Ts, r, beta) < 1e-6
+    assert final_error_over(2.5 * limit, Ts, r, beta) > 1e-2
+    # the bound's closed form: the estimate's recursion with v = 0 (numpy), its poles
+    # z^2 − (1 − g(r + β)) z − gβ inside the unit circle below ω (r Ts + 2ΔL − 2Ts) = 2
+    for factor, stable in ((0.95, True), (1.05, False)):
+        w = factor * 2 * limit
+        g = Ts * w / (1 + Ts * w)
+        d = [1.0, 1.0]
+        for _ in range(4000):
+            d.append((1 - g * (r + beta)) * d[-1] + g * beta * d[-2])
+        assert (abs(d[-1]) < 1e-3) == stable
+
+
+def test_overdeclared_limit_is_unbounded_for_a_small_excess():
+    """No bound while r Ts + 2ΔL <= 2 Ts: the 0.5 ms check at Ts = 10 ms, 2 ms."""
+    assert overdeclared_limit(0.01, 0.0005) == math.inf
+    assert overdeclared_limit(0.002, 0.0005) == math.inf
+    assert overdeclared_excess(0.01, 0.001) == pytest.approx(0.0005)
+    assert overdeclared_excess(0.001, 0.01) == pytest.approx(0.0005)
+    assert overdeclared_excess(0.001, 0.0) == 0.0
+
+
+def test_warning_for_an_overdeclared_latency_names_the_joint():
+    """With a latency declared, the check warns above the rule for half a cycle too many:
+    Ts = 1 ms, latency 1 ms → ΔL = 0.5 ms, limit 1/(0.25 Ts) = 4000 1/s."""
+    Ts = 0.001
+    limit = overdeclared_limit(Ts, 0.0005)
+    assert limit == pytest.approx(4000.0)
+    with pytest.warns(ValidityWarning, match=r"'joint2'.*declared") as rec:
+        check_bandwidth(np.array([1000.0, 10000.0, 1000.0]), Ts, 0.001, NAMES)
+    assert "'joint1'" not in str(rec[0].message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_bandwidth(np.full(3, 0.99 * limit), Ts, 0.001, NAMES)
+        check_bandwidth(np.full(3, 1000.0), 0.01, 0.001, NAMES)  # 10/Ts at 10 ms: no bound

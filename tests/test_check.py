@@ -159,3 +159,17 @@ def test_the_bandwidth_is_the_observers_own(compensation, expected):
     else:
         np.testing.assert_array_equal(report.bandwidth, expected)
     assert report.problems == []
+
+
+def test_a_latency_declared_at_1khz_bounds_the_bandwidth_for_half_a_cycle_too_many():
+    """Ts = 1 ms, latency 1 ms declared: the rule for it declared ΔL = 0.5 ms too long,
+    ω (r Ts + 2ΔL − 2Ts) <= 1, allows 1/(0.25 ms) = 4000 1/s; the paper's joint 3
+    (578 1/s) at 10× passes 4000, the others not."""
+    config = load_config(PAPER)
+    obs = replace(config.controller.observer, gain=1000.0)  # 10× the paper's c = 100
+    cc = replace(config.controller, Ts=0.001, latency=0.001, observer=obs)
+    report = check_config(replace(config, controller=cc), engines=False)
+    np.testing.assert_allclose(report.margin, 4000.0 / report.bandwidth, rtol=1e-9)
+    over = np.flatnonzero(report.bandwidth > 4000.0)
+    assert over.tolist() == [2] and len(report.problems) == 1
+    assert all("declared" in p and "alternate in sign" in p for p in report.problems)

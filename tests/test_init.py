@@ -212,3 +212,23 @@ def test_init_picks_a_period_that_suits_the_urdf_damping():
     # an arm without damping keeps every period
     planar = init_mod.InitPlan("double_pendulum")
     assert planar.periods() == init_mod.PERIODS
+
+
+def test_bandwidth_survives_a_latency_declared_half_a_cycle_too_long():
+    """The general observer's bandwidth: 10/Ts where a latency declared half a 1 kHz cycle
+    too long sets no bound (Ts >= 1.33 ms); below, the largest the bandwidth rule allows
+    for it, ω (r Ts + 2ΔL − 2Ts) = 1 with ΔL = min(0.001, Ts)/2, r = 1.25 (closed form),
+    and check_bandwidth is silent on it."""
+    import warnings
+
+    from hmpc_pin.compensation.bandwidth import check_bandwidth
+    from hmpc_pin.experiment.init import LATENCY, InitPlan
+
+    plan = InitPlan("z1")
+    for Ts, expected in ((0.01, 1000.0), (0.002, 5000.0), (0.001, 1 / (0.25e-3)),
+                         (0.0005, 1 / (1.25 * 0.0005 + 0.0005 - 0.001))):  # fmt: skip
+        plan.Ts = Ts
+        assert plan.bandwidth == pytest.approx(expected)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            check_bandwidth(np.full(6, plan.bandwidth), Ts, LATENCY, [f"j{i}" for i in range(6)])

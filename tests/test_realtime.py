@@ -709,6 +709,21 @@ def test_latency_tolerance_follows_the_bandwidth_rule():
     assert latency_tolerance(None, 0.01, 0.001) == pytest.approx(0.0005)
 
 
+def test_latency_tolerance_declared_too_long_follows_its_rule():
+    """Declared above measured: ΔL = max(P/2, min(Ts, (1/ω − (r − 2) Ts)/2)), the ΔL at
+    which ω (r Ts + 2ΔL − 2Ts) = 1: ω = 1000 1/s at Ts = 10 ms allows
+    (0.001 + 0.75·0.01)/2 = 4.25 ms, exactly where overdeclared_limit equals ω; ω = 10 1/s
+    is capped at one period (the case is derived up to one); 10/Ts at 1 kHz: half a period."""
+    from hmpc_pin.compensation.bandwidth import latency_tolerance, overdeclared_limit
+
+    tol = latency_tolerance(np.array([1000.0, 5.0]), 0.01, 0.001, over=True)
+    assert tol == pytest.approx(0.00425)
+    assert overdeclared_limit(0.01, tol) == pytest.approx(1000.0)
+    assert latency_tolerance(np.array([10.0]), 0.01, 0.001, over=True) == pytest.approx(0.01)
+    assert latency_tolerance(np.array([1e4]), 0.001, 0.001, over=True) == pytest.approx(5e-4)
+    assert latency_tolerance(None, 0.01, 0.001, over=True) == pytest.approx(0.0005)
+
+
 def test_a_polled_arm_with_a_stamp_clock_has_its_latency_measured(robot):
     """A polled arm offering ``stamp_clock()`` (the loop's fake clock shifted to the
     arm's plant time, states 0.3 ms old when read): the ages are measured on it."""

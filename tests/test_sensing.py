@@ -224,3 +224,22 @@ def test_latency_key_applies_to_hmpc_only(write_config):
     cfg = hmpc_pin.load_config(write_config("[robot]\nurdf = '@URDF@'\n[controller]\n"
                                             "latency = 0.001\n"))  # fmt: skip
     assert cfg.controller.latency == 0.001
+
+
+def test_a_run_started_in_motion_is_seen_moving_from_its_first_measurement():
+    """An arm at constant velocity v (q = q0 + v t, also before t = 0), a 2.5 ms latency,
+    finite-difference velocities at 1 kHz, Ts = 1 ms: every measurement, the first ones
+    included, is q0 + v (t_k − L) and v (the angle exactly, the difference of a ramp
+    within one encoder count per interface period)."""
+    Ts, rate, L = 0.001, 1000.0, 0.0025
+    enc = Encoder(np.array([2.0**19]))
+    step = 2 * np.pi / 2**19
+    q0, v = 0.3, 1.5
+    probe = _Probe(1, Ts)
+    model = Sensing(rate=rate, encoder=enc, velocity=FiniteDifference(1 / rate),
+                    latency=Latency(L))  # fmt: skip
+    _feed(SensedController(probe, model), lambda t: (np.array([q0 + v * t]), np.array([v])),
+          Ts, 10)  # fmt: skip
+    for k, (q_seen, dq_seen) in enumerate(probe.seen[1:]):
+        assert abs(q_seen[0] - (q0 + v * (k * Ts - L))) <= 0.5 * step + 1e-12
+        assert abs(dq_seen[0] - v) <= step * rate + 1e-9

@@ -11,8 +11,12 @@ Per joint, from the config's models alone (nothing is simulated):
   :math:`\\omega_j r (T_s + L_u) \\le 1/2` with :math:`L_u` the latency the controller does
   not compensate: none when the config declares its latency (``[controller] latency`` > 0),
   else one unknown control period (an arm's interface always delays its measurements).
-  The margin is :math:`\\omega_{\\max}/\\omega_j` [-] (a problem below 1); the explicit
-  observer also needs :math:`T_s\\omega_j < 2`;
+  With a latency declared, the rule for one declared too long instead,
+  :math:`\\omega_j (r T_s + 2\\Delta L - 2T_s) \\le 1` with
+  :math:`\\Delta L = \\min(L, T_s)/2` (half an interface cycle;
+  :func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`). The margin is
+  :math:`\\omega_{\\max}/\\omega_j` [-] (a problem below 1); the explicit observer also
+  needs :math:`T_s\\omega_j < 2`;
 * **damping time constant** :math:`1/(b_j (M(q_0)^{-1})_{jj})` [s] of the URDF's joint
   damping (:func:`~hmpc_pin.model.robot.damping_time_constants`)
   against :math:`T_s`: a problem when it is below :math:`2T_s` and the controller does not
@@ -39,7 +43,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from ..compensation.bandwidth import MASS_RATIO, bandwidth_limit
+from ..compensation.bandwidth import (
+    MASS_RATIO,
+    bandwidth_limit,
+    overdeclared_excess,
+    overdeclared_limit,
+)
 from ..experiment.build import Experiment
 from ..experiment.plants import _effort_limit
 from ..experiment.schema import ExperimentConfig
@@ -214,15 +223,26 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     bw = _bandwidth(ex, M0)
     margin = None
     if bw is not None:
-        limit = bandwidth_limit(Ts, uncompensated)
+        excess = overdeclared_excess(Ts, latency)
+        limit = (overdeclared_limit(Ts, excess) if latency > 0
+                 else bandwidth_limit(Ts, uncompensated))  # fmt: skip
         margin = np.where(bw > 0, limit / np.where(bw > 0, bw, 1.0), np.inf)
         explicit = getattr(config.controller.observer, "discretization", "") == "explicit"
-        for j in np.flatnonzero((margin < 1.0) | (explicit & (bw * Ts >= 2.0))):
+        for j in np.flatnonzero((margin < 1.0 - 1e-9) | (explicit & (bw * Ts >= 2.0))):
             if explicit and bw[j] * Ts >= 2.0:
                 problems.append(
                     f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s: w Ts = "
                     f"{bw[j] * Ts:.3g} >= 2 puts the explicit observer's pole outside the "
                     f"unit circle; use w < {2 / Ts:.4g} 1/s or discretization = 'implicit'"
+                )
+            elif latency > 0:
+                problems.append(
+                    f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s (w Ts = "
+                    f"{bw[j] * Ts:.3g}) above {limit:.4g} 1/s, the rule "
+                    f"w (r Ts + 2 dL - 2 Ts) <= 1 for a latency declared dL = {excess:g} s "
+                    f"longer than it is (half an interface cycle, r = {MASS_RATIO:g}): the "
+                    "observer's estimate would alternate in sign and grow; lower the "
+                    "bandwidth or measure the latency"
                 )
             else:
                 problems.append(

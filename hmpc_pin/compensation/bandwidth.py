@@ -41,9 +41,36 @@ fraction :math:`g_j = T_s\\omega_j/(1 + T_s\\omega_j)` of the way to the residua
    with the MPC's gains the rule is no longer conservative (0.032 stable, 0.1 allowed):
    declare such a latency.
 
-:func:`check_bandwidth` applies it with :math:`L_u = T_s` (an interface cycle the controller
-was not told about) when ``[controller] latency`` is 0, and with :math:`L_u = 0` (no bound
-but the explicit form's) when a latency is declared.
+4. *A latency declared longer than it is* (by :math:`\\Delta L = \\beta T_s`,
+   :math:`0 < \\beta \\le 1`): the observer pairs the velocity change caused by
+   :math:`\\tau_{k-1}` with :math:`\\beta\\tau_{k-2} + (1 - \\beta)\\tau_{k-1}`, a torque
+   partly one period too early. With :math:`u = v - \\hat d` the estimate obeys
+   :math:`\\hat d_k = (1 - g(r + \\beta))\\hat d_{k-1} + g\\beta\\,\\hat d_{k-2} + \\dots`,
+   denominator :math:`z^2 - (1 - g(r + \\beta))z - g\\beta`; Jury's conditions reduce to
+   :math:`g(r + 2\\beta) < 2`, i.e. with :math:`g = T_s\\omega/(1 + T_s\\omega)`
+
+   .. math:: \\omega\\,(r T_s + 2\\Delta L - 2 T_s) < 2,
+
+   no bound while :math:`r T_s + 2\\Delta L \\le 2 T_s`. The pole leaves the unit circle
+   at :math:`z = -1`: the estimate alternates in sign every period and grows (the
+   observer-only loop, exact as :math:`T_s \\to 0` against the outer loop). A full period
+   too many (:math:`\\beta = 1`) allows :math:`T_s\\omega < 2/r` (1.6 at r = 1.25); half a
+   period (:math:`\\beta = \\tfrac12`) :math:`T_s\\omega < 2/(r - 1)` (8). The package keeps
+   half of it, :math:`\\omega (r T_s + 2\\Delta L - 2T_s) \\le 1`
+   (:func:`overdeclared_limit`). Measured with ``python benchmarks/observer_rule.py
+   --over`` at Ts = 1 ms, the largest stable :math:`T_s\\omega` (r = 1.25, a PD outer
+   loop and the paper MPC's equivalent gains alike) is 7.1 at β = ½ and 1.4 at β = 1,
+   where the rule allows 4 and 0.8; at Ts = 10 ms the outer loop lowers it to 4.0 / 3.5
+   (PD / MPC) at β = ½ and 1.1 / 1.0 at β = 1 (with r = 1: 14 / 11 at β = ½, where the
+   rule sets no bound), below the rule's 4 with the MPC's gains. The rule is meant for
+   what a measured latency may be off by, half an interface cycle: a large fraction of a
+   1 kHz control period, a small one of a 10 ms period (no bound then).
+
+:func:`check_bandwidth` applies case 3 with :math:`L_u = T_s` (an interface cycle the
+controller was not told about) when ``[controller] latency`` is 0, and case 4 with
+:math:`\\Delta L = \\min(L, T_s)/2` (:func:`overdeclared_excess`: half an interface cycle,
+the error a latency measured in whole cycles may have, the cycle taken no longer than the
+declared latency nor the control period) when a latency L is declared.
 """
 
 from __future__ import annotations
@@ -64,12 +91,17 @@ __all__ = [
     "implied_bandwidth",
     "latency_tolerance",
     "observer_cY",
+    "overdeclared_excess",
+    "overdeclared_limit",
 ]
 
 #: The worst plant-to-model inertia ratio the rule is checked for (a link 20 % lighter).
 MASS_RATIO = 1.25
 #: The bound of :math:`\\omega r (T_s + L_u)`.
 RULE = 0.5
+#: The bound of :math:`\\omega (r T_s + 2\\Delta L - 2 T_s)` for a latency declared
+#: :math:`\\Delta L` too long (half the stability bound 2; module docstring, case 4).
+RULE_OVER = 1.0
 
 
 def bandwidth_limit(Ts: float, uncompensated: float, mass_ratio: float = MASS_RATIO) -> float:
@@ -79,6 +111,21 @@ def bandwidth_limit(Ts: float, uncompensated: float, mass_ratio: float = MASS_RA
     if uncompensated <= 0:
         return math.inf
     return RULE / (mass_ratio * (Ts + uncompensated))
+
+
+def overdeclared_limit(Ts: float, excess: float, mass_ratio: float = MASS_RATIO) -> float:
+    """The largest bandwidth [1/s] the rule for a latency declared ``excess`` [s] longer
+    than the measurements' age allows: :math:`\\omega (r T_s + 2\\Delta L - 2T_s) \\le 1`
+    (module docstring, case 4); ``inf`` when :math:`r T_s + 2\\Delta L \\le 2T_s`."""
+    den = mass_ratio * Ts + 2.0 * excess - 2.0 * Ts
+    return math.inf if den <= 0 else RULE_OVER / den
+
+
+def overdeclared_excess(Ts: float, latency: float) -> float:
+    """The over-declaration [s] :func:`check_bandwidth` checks a declared ``latency`` [s]
+    for: :math:`\\min(L, T_s)/2`, half an interface cycle (a latency measured in whole
+    cycles is off by up to half of one; the cycle no longer than the latency nor Ts)."""
+    return 0.5 * min(latency, Ts) if latency > 0 else 0.0
 
 
 def observer_cY(bandwidth: np.ndarray, M0: np.ndarray) -> np.ndarray:
@@ -117,7 +164,9 @@ def check_bandwidth(
 
     Warns:
         ValidityWarning: With ``latency`` 0, the joints whose bandwidth exceeds
-            :func:`bandwidth_limit` for one unknown control period of latency.
+            :func:`bandwidth_limit` for one unknown control period of latency; with a
+            latency declared, those above :func:`overdeclared_limit` for a latency
+            declared :func:`overdeclared_excess` too long.
     """
     w = np.asarray(bandwidth, dtype=float)
     names = list(joint_names)
@@ -131,6 +180,22 @@ def check_bandwidth(
                 "or discretization = 'implicit'",
             )  # fmt: skip
     if latency > 0:
+        excess = overdeclared_excess(Ts, latency)
+        limit = overdeclared_limit(Ts, excess)
+        bad = np.flatnonzero(w > limit * (1 + 1e-9))  # at the limit (init's value): silent
+        if bad.size:
+            listed = ", ".join(f"{names[j]!r} ({w[j]:.4g} 1/s)" for j in bad)
+            warnings.warn(
+                f"{key}: joint(s) {listed} above {limit:.4g} 1/s, the bound "
+                f"ω·(r·Ts + 2·ΔL - 2·Ts) <= 1 for a latency declared ΔL = {excess:g} s longer "
+                f"than it is (half an interface cycle; Ts = {Ts:g} s, latency = {latency:g} s, "
+                "r = 1.25): then the observer pairs each velocity change with a torque one "
+                "period too early and its estimate oscillates, alternating in sign, and grows; "
+                f"lower the bandwidth to {limit:.4g} 1/s or below, and measure the latency "
+                "(guide 'Sensing and latency')",
+                ValidityWarning,
+                stacklevel=4,
+            )
         return
     limit = bandwidth_limit(Ts, Ts)
     bad = np.flatnonzero(w > limit)
@@ -160,30 +225,42 @@ def compensation_bandwidth(compensation, M0: np.ndarray) -> np.ndarray | None:
     return None
 
 
-def latency_tolerance(bandwidth: np.ndarray | None, Ts: float, period: float) -> float:
+def latency_tolerance(
+    bandwidth: np.ndarray | None, Ts: float, period: float, *, over: bool = False
+) -> float:
     """How far [s] a measured latency may lie from the declared one
     (``[controller] latency``) before the real-time loop warns.
 
     A measured latency above the declared one leaves :math:`L_u` = the difference
-    uncompensated; the rule (module docstring) tolerates it while
+    uncompensated; the rule (module docstring, case 3) tolerates it while
     :math:`\\omega_{\\max} r (T_s + L_u) \\le 1/2`, i.e. up to
     :math:`1/(2 r \\omega_{\\max}) - T_s`. The measured age has the granularity of the
     interface period P (a state every P), so half a period is always tolerated:
 
     .. math:: \\Delta L = \\max(P/2,\\ 1/(2 r \\omega_{\\max}) - T_s)
 
-    (:math:`P/2` without an observer). A declared latency above the measured one by more
-    than :math:`\\Delta L` is reported too: the controller then predicts the state further
-    ahead than it is old.
+    (:math:`P/2` without an observer). A declared latency above the measured one
+    (``over``) is checked against case 4 instead, :math:`\\omega_{\\max}(r T_s + 2\\Delta L
+    - 2T_s) \\le 1`, derived for up to one period:
+
+    .. math:: \\Delta L = \\max\\big(P/2,\\ \\min(T_s,\\ (1/\\omega_{\\max} - (r - 2) T_s)/2)\\big)
+
+    (:math:`P/2` without an observer: the controller then only predicts the state
+    further ahead than it is old).
 
     Args:
         bandwidth: The observer's bandwidth per joint [1/s] (``None``: no observer).
         Ts: Control period [s].
         period: Interface period P [s].
+        over: The declared latency is the larger one.
     """
     tol = 0.5 * period
     if bandwidth is not None and np.size(bandwidth):
         w = float(np.max(bandwidth))
         if w > 0:
-            tol = max(tol, RULE / (MASS_RATIO * w) - Ts)
+            if over:
+                reach = 0.5 * (RULE_OVER / w - (MASS_RATIO - 2.0) * Ts)
+                tol = max(tol, min(Ts, reach))
+            else:
+                tol = max(tol, RULE / (MASS_RATIO * w) - Ts)
     return tol

@@ -23,7 +23,9 @@ and writes a commented TOML experiment that runs as written:
   one 1 kHz interface cycle (``[controller] latency = 0.001``): with the latency
   compensated, any bandwidth keeps the observer stable
   (:mod:`hmpc_pin.compensation.bandwidth`); without it the rule would cap it near
-  1/(5 Ts), which tracks about ten times worse.
+  1/(5 Ts), which tracks about ten times worse. Below Ts = 1.33 ms the bandwidth is
+  lowered to :func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit` (4/Ts at 1 ms),
+  so that the config survives a latency declared half a 1 kHz cycle too long.
 * **Control period.** The largest of :data:`PERIODS` whose trial run (:data:`TRIAL` s)
   tracks within :data:`TRIAL_RMS`, among those that suit the URDF's joint damping: with
   :math:`T_j` the damping time constant at the offset posture
@@ -316,7 +318,14 @@ class InitPlan:
     @property
     def bandwidth(self) -> float | None:
         """The general observer's bandwidth [1/s] at the chosen Ts (``None`` for ``chen``)."""
-        return None if self.compensation == "chen" else BANDWIDTH_PERIODS / self.Ts
+        if self.compensation == "chen":
+            return None
+        from ..compensation.bandwidth import overdeclared_excess, overdeclared_limit
+
+        # no faster than the rule for the declared latency half a cycle too long allows
+        # (Ts·ω <= 4 at Ts = 1 ms; no bound from Ts = 1.33 ms on)
+        limit = overdeclared_limit(self.Ts, overdeclared_excess(self.Ts, LATENCY))
+        return min(BANDWIDTH_PERIODS / self.Ts, limit)
 
     def periods(self) -> tuple[float, ...]:
         """The control periods the trial may pick: those of :data:`PERIODS` with
@@ -524,7 +533,7 @@ def _render(p: InitPlan, duration: float) -> str:
             "",
             "[controller.observer]",
             f"bandwidth = {p.bandwidth:g}                 # [1/s] per joint: Ts x bandwidth = "
-            f"{BANDWIDTH_PERIODS:g}",
+            f"{p.Ts * p.bandwidth:.3g}",
             *MODEL_AT_LINES,
         ]
     if not p.position_limits:

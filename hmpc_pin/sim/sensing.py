@@ -20,7 +20,8 @@ and the simulated plant: the plant loop (:func:`~hmpc_pin.sim.simulate.simulate`
 unchanged. The plant state is known at the control instants; in between, the angle is the
 cubic Hermite interpolant of the angles and velocities at the two instants around it (the
 torque is constant over a period, so the motion there is smooth); before the start the arm
-is at rest at its initial state.
+moves at its initial velocity, :math:`q(t) = q_0 + t\\,\\dot q_0` (at rest at its initial
+state when :math:`\\dot q_0 = 0`): a run started in motion is not seen standing still.
 """
 
 from __future__ import annotations
@@ -264,7 +265,10 @@ class Sensing:
 
 class _History:
     """The plant's states at the control instants; the angle at any past time by cubic
-    Hermite interpolation (constant before the start)."""
+    Hermite interpolation. Before the start the arm moved at its initial velocity:
+    :math:`q(t) = q_0 + t\\,\\dot q_0`, :math:`\\dot q(t) = \\dot q_0` for :math:`t \\le 0`
+    (at rest when :math:`\\dot q_0 = 0`), so that a run started in motion is not seen
+    standing still for its first latency."""
 
     def __init__(self, Ts: float, keep: int):
         self.Ts = Ts
@@ -288,7 +292,8 @@ class _History:
         """q(t) [rad] for t <= the newest instant."""
         s = t / self.Ts
         if s <= 0 or self.k == 0:
-            return self._at(0)[0]
+            q0, v0 = self._at(0)
+            return q0 + min(t, 0.0) * v0
         j = min(math.floor(s), self.k - 1)
         q0, v0 = self._at(j)
         q1, v1 = self._at(j + 1)
@@ -348,7 +353,8 @@ class SensedController(ControllerWrapper):
         self._tau_filter = None if sensing.torque is None else sensing.torque.filter()
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
-        """Start a run at rest history ``(q0, dq0)``; the filters start settled there."""
+        """Start a run at ``(q0, dq0)``, moving at ``dq0`` before it; the filters start
+        settled there."""
         q0 = np.asarray(q0, float)
         dq0 = np.asarray(dq0, float)
         self._history.reset(q0, dq0)
@@ -369,7 +375,7 @@ class SensedController(ControllerWrapper):
         if s.velocity is None:
             return q_rep, self._history.velocity(t)
         if self._q_prev is None:
-            dq = np.zeros_like(q_rep) if t <= 0 else self._history.velocity(t)
+            dq = self._history.velocity(t)  # the first sample: no difference yet
             self._dq_filt = dq
         else:
             dq = (q_rep - self._q_prev) / self._Tif

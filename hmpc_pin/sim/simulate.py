@@ -301,7 +301,44 @@ def simulate(
         result.meta["failed_at"] = float(t_arr[k])
         raise SimulationError(
             f"simulation stopped in step {k} (t={t_arr[k]:.6g} s), {m} of {K + 1} samples "
-            f"kept: {message}",
+            f"kept: {message}{observer_hint(result.d_hat, result.joint_names)}",
             result,
         ) from cause
     return result
+
+
+#: Samples over which :func:`observer_hint` looks for an estimate alternating in sign.
+ALTERNATING = 6
+
+
+def observer_hint(d_hat: np.ndarray, joint_names) -> str:
+    """A clause naming an unstable observer for a failed run's message, or "".
+
+    The observer loop that leaves the unit circle at :math:`z = -1` (a latency declared
+    longer than the measurements' age, :mod:`hmpc_pin.compensation.bandwidth` case 4)
+    shows as an estimate whose sign flips every period: flagged on a joint whose last
+    :data:`ALTERNATING` estimates alternate in sign, each at least a tenth of its largest
+    magnitude over the run (an oscillation that dominates it, not noise about zero).
+
+    Args:
+        d_hat: The recorded estimates [N·m], (m, n).
+        joint_names: Names of the n joints.
+    """
+    d = np.asarray(d_hat, dtype=float)
+    if d.ndim != 2 or len(d) < ALTERNATING or not np.all(np.isfinite(d[-ALTERNATING:])):
+        return ""
+    tail = d[-ALTERNATING:]
+    flips = np.all(tail[1:] * tail[:-1] < 0, axis=0)
+    peak = np.nanmax(np.abs(d), axis=0)
+    big = np.all(np.abs(tail) >= 0.1 * peak, axis=0) & (peak > 0)
+    bad = np.flatnonzero(flips & big)
+    if not bad.size:
+        return ""
+    j = int(bad[np.argmax(peak[bad])])
+    names = list(joint_names)
+    return (
+        f"; before it, the disturbance observer's estimate changed sign every period on "
+        f"{bad.size} joint(s) (joint {names[j]!r}: |d̂| up to {peak[j]:.4g} N·m): its loop "
+        "is unstable; the usual cause is a [controller] latency declared longer than the "
+        "measurements' age, or a bandwidth above the rule (guide 'Sensing and latency')"
+    )

@@ -580,16 +580,20 @@ def test_soft_constraints_keep_prediction_inside_when_feasible(make_rng):
         assert X[0::2].max() <= hi + 1e-7 and np.abs(X[1::2]).max() <= vel + 1e-7
 
 
-@pytest.mark.parametrize("Nc", [1, 3, 5])
-def test_fast_path_equals_always_constrained(make_rng, Nc):
-    """Solving the soft QP only where the box solution leaves the limits changes nothing."""
-    rng = make_rng(Nc)
-    N, lo, hi, vel = 10, -1.5, 1.5, 3.0
-    mpc, fast = soft_qps(N, Nc, lo, hi, vel)
-    _, full = soft_qps(N, Nc, lo, hi, vel, always=True)
+def fast_path_draws(rng, N, Nc, draws, q_low, Ts=TS, check_inside=False):
+    """``draws`` random soft QPs (limits ±1.5 rad, 3 rad/s; the start position drawn in
+    [``q_low``, 1.6] rad) solved by the fast path and always constrained: the two agree.
+    With ``check_inside``, a box solution the fast path keeps predicts inside the limits.
+
+    Returns:
+        How many of the draws took the constrained branch.
+    """
+    lo, hi, vel = -1.5, 1.5, 3.0
+    mpc, fast = soft_qps(N, Nc, lo, hi, vel, Ts=Ts)
+    _, full = soft_qps(N, Nc, lo, hi, vel, always=True, Ts=Ts)
     used = 0
-    for _ in range(60):
-        x0 = np.array([[rng.uniform(0.5, 1.6)], [rng.uniform(-3.0, 3.0)]])
+    for _ in range(draws):
+        x0 = np.array([[rng.uniform(q_low, 1.6)], [rng.uniform(-3.0, 3.0)]])
         ref = np.zeros((2 * N, 1))
         ref[0::2] = rng.uniform(0.0, 2.0)
         G = mpc.gradient(x0, ref)
@@ -597,30 +601,24 @@ def test_fast_path_equals_always_constrained(make_rng, Nc):
         used += fast.constrained
         v_full = full.solve(G, x0)
         assert v_fast == pytest.approx(v_full, abs=1e-4)
+        if check_inside and not fast.constrained:  # the box solution's prediction
+            X = fast.predict(x0, fast.solution)
+            assert X[0::2].max() <= hi + 1e-9 and X[0::2].min() >= lo - 1e-9
+            assert np.abs(X[1::2]).max() <= vel + 1e-9
+    return used
+
+
+@pytest.mark.parametrize("Nc", [1, 3, 5])
+def test_fast_path_equals_always_constrained(make_rng, Nc):
+    """Solving the soft QP only where the box solution leaves the limits changes nothing."""
+    used = fast_path_draws(make_rng(Nc), 10, Nc, 60, q_low=0.5)
     assert 0 < used < 60  # both branches of the fast path were taken
 
 
 @pytest.mark.parametrize("N, Nc", [(100, 3), (60, 60)])
 def test_fast_path_equals_always_constrained_for_long_horizons(make_rng, N, Nc):
     """The one-sided limit test of long horizons (N·Nc > 200) decides as the soft QP does."""
-    rng = make_rng(N + Nc)
-    lo, hi, vel, Ts = -1.5, 1.5, 3.0, 0.002
-    mpc, fast = soft_qps(N, Nc, lo, hi, vel, Ts=Ts)
-    _, full = soft_qps(N, Nc, lo, hi, vel, always=True, Ts=Ts)
-    used = 0
-    for _ in range(40):
-        x0 = np.array([[rng.uniform(0.8, 1.6)], [rng.uniform(-3.0, 3.0)]])
-        ref = np.zeros((2 * N, 1))
-        ref[0::2] = rng.uniform(0.0, 2.0)
-        G = mpc.gradient(x0, ref)
-        v_fast = fast.solve(G, x0)
-        used += fast.constrained
-        v_full = full.solve(G, x0)
-        assert v_fast == pytest.approx(v_full, abs=1e-4)
-        if not fast.constrained:  # the box solution's prediction is inside the limits
-            X = fast.predict(x0, fast.solution)
-            assert X[0::2].max() <= hi + 1e-9 and X[0::2].min() >= lo - 1e-9
-            assert np.abs(X[1::2]).max() <= vel + 1e-9
+    used = fast_path_draws(make_rng(N + Nc), N, Nc, 40, q_low=0.8, Ts=0.002, check_inside=True)
     assert 0 < used < 40  # both branches of the fast path were taken
 
 

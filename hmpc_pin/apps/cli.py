@@ -101,6 +101,20 @@ def _with_reference(config: ExperimentConfig, file: Path | None) -> ExperimentCo
     return replace(config, reference=ref)
 
 
+def _checked_duration(duration: float | None) -> float | None:
+    """``--duration`` checked: ``None`` or a number of seconds > 0."""
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise ConfigError("--duration", f"expected a number of seconds > 0, got {duration!r}")
+    return duration
+
+
+def _checked_priority(priority: int | None) -> int | None:
+    """``--priority`` checked: ``None``, 0 (off) or a ``SCHED_FIFO`` priority 1..99."""
+    if priority is not None and not 0 <= priority <= 99:
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {priority}")
+    return priority
+
+
 def _with_overrides(
     config: ExperimentConfig,
     no_ndo: bool,
@@ -122,9 +136,7 @@ def _with_overrides(
                 "drop --no-ndo",
             )
         config = with_controller(config, observer=False)
-    if duration is not None:
-        if not np.isfinite(duration) or duration <= 0:
-            raise ConfigError("--duration", f"expected a number of seconds > 0, got {duration!r}")
+    if _checked_duration(duration) is not None:
         config = replace(config, simulation=replace(config.simulation, duration=duration))
     return config
 
@@ -365,9 +377,7 @@ def cmd_init(args) -> int:
         return EXIT_OK
     if args.robot is None:
         raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
-    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
-        raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
-    duration = 10.0 if args.duration is None else args.duration
+    duration = 10.0 if _checked_duration(args.duration) is None else args.duration
     path = write_config(args.robot, args.out, duration, overwrite=args.force)
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
     return EXIT_OK
@@ -432,11 +442,10 @@ def cmd_realtime(args) -> int:
     config = _with_overrides(load_config(args.config), False, args.duration)
     if args.rate is not None and not (np.isfinite(args.rate) and args.rate > 0):
         raise ConfigError("--rate", f"expected a rate [Hz] > 0, got {args.rate!r}")
-    if args.priority is not None and not 0 <= args.priority <= 99:
-        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
+    priority = _checked_priority(args.priority)
     try:
         config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None,
-                               priority=args.priority, spin=args.spin)  # fmt: skip
+                               priority=priority, spin=args.spin)  # fmt: skip
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key}", exc.message) from None
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
@@ -449,23 +458,39 @@ def cmd_realtime(args) -> int:
     def ready() -> None:  # the readiness line (scripts and tests wait for it)
         print("arm process ready; running (Ctrl-C: safe stop, partial run saved)", flush=True)
 
+    def start():
+        return run_realtime(config, out, viz=ArmView if args.viz else None,
+                            experiment=experiment, ready=ready)  # fmt: skip
+
+    return _report_realtime(start, config, "commanded", format_tracking)
+
+
+def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> int:
+    """Run a real-time command and report it: ``start()`` returns ``(run, files)``;
+    print the run's summary, each ``format(run)``, the files written and the stop;
+    ``safe``: what became of the safe torque ("commanded", "published").
+
+    Returns:
+        The exit code: 0 the whole run, 130 interrupted (also at start-up, before the first
+        cycle: nothing run or written), 1 another safe stop.
+    """
     try:
-        run, files = run_realtime(config, out, viz=ArmView if args.viz else None,
-                                  experiment=experiment, ready=ready)  # fmt: skip
+        run, files = start()
     except KeyboardInterrupt:  # before the loop took over SIGINT: nothing ran yet
         print("interrupted at start-up, before the first cycle; nothing was run or written",
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
     print(run.summary())
-    print(format_tracking(run))
+    for format_run in formats:
+        print(format_run(run))
     for f in files:
         print(f"wrote {f}")
     if run.stop is None:
         return EXIT_OK
     if run.stop["cause"] == "interrupted":
-        t = run.stop["t"]
-        print(f"interrupted at t={t:.3f} s of {config.simulation.duration:g} s; safe torque "
-              "commanded, partial run saved (complete = false)", file=sys.stderr)  # fmt: skip
+        print(f"interrupted at t={run.stop['t']:.3f} s of {config.simulation.duration:g} s; "
+              f"safe torque {safe}, partial run saved (complete = false)",
+              file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
     print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
     return EXIT_FAILED
@@ -499,26 +524,8 @@ def cmd_ros(args) -> int:
     print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
           f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
           f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz", flush=True)  # fmt: skip
-    try:
-        run, files = run_ros(config, out)
-    except KeyboardInterrupt:  # before the loop took over SIGINT: no torque was sent
-        print("interrupted at start-up, before the first cycle; nothing was run or written",
-              file=sys.stderr)  # fmt: skip
-        return EXIT_INTERRUPTED
-    print(run.summary())
-    print(format_ros(run))
-    print(format_tracking(run))
-    for f in files:
-        print(f"wrote {f}")
-    if run.stop is None:
-        return EXIT_OK
-    if run.stop["cause"] == "interrupted":
-        print(f"interrupted at t={run.stop['t']:.3f} s of {config.simulation.duration:g} s; "
-              "safe torque published, partial run saved (complete = false)",
-              file=sys.stderr)  # fmt: skip
-        return EXIT_INTERRUPTED
-    print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
-    return EXIT_FAILED
+    return _report_realtime(lambda: run_ros(config, out), config, "published", format_ros,
+                            format_tracking)  # fmt: skip
 
 
 def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
@@ -526,9 +533,8 @@ def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
     from .realtime import with_realtime
     from .ros import with_namespace
 
-    if args.priority is not None and not 0 <= args.priority <= 99:
-        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {args.priority}")
-    return with_namespace(with_realtime(config, priority=args.priority), args.namespace)
+    priority = _checked_priority(args.priority)
+    return with_namespace(with_realtime(config, priority=priority), args.namespace)
 
 
 def cmd_ros_arm(args) -> int:
@@ -537,8 +543,7 @@ def cmd_ros_arm(args) -> int:
     from .ros import run_ros_arm
 
     import_ros("hmpc-pin ros-arm")
-    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
-        raise ConfigError("--duration", f"expected a number of seconds > 0, got {args.duration!r}")
+    _checked_duration(args.duration)
     config = _ros_config(args, load_config(args.config))
     counts = run_ros_arm(config, args.duration)
     return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK

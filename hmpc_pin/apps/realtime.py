@@ -108,13 +108,24 @@ def run_realtime(
         if view is not None:
             view.close()
         arm.close()
+    return run, save_run(run, out, stem, "arm")
+
+
+def save_run(run: RealtimeRun, out: Path, stem: str, meta_key: str) -> list[Path]:
+    """Write a real-time run: ``<stem>.npz`` (the result), ``<stem>_timing.npz`` (every
+    cycle) and ``<stem>.json`` (statistics, stop record, ``run.result.meta[meta_key]``,
+    tracking metrics; NaN as null).
+
+    Returns:
+        The three files written.
+    """
     files = [run.result.save(out / f"{stem}.npz"), run.save_timing(out / f"{stem}_timing.npz")]
-    summary = {"realtime": run.stats, "stop": run.stop, "arm": run.result.meta["arm"],
+    summary = {"realtime": run.stats, "stop": run.stop, meta_key: run.result.meta[meta_key],
                "tracking": tracking_summary(run.result)}  # fmt: skip
     path = out / f"{stem}.json"
     path.write_text(json.dumps(_finite(summary), indent=2, sort_keys=True) + "\n")
     files.append(path)
-    return run, files
+    return files
 
 
 def format_tracking(run: RealtimeRun) -> str:

@@ -11,7 +11,6 @@ cycle) and ``<stem>_ros.json`` (statistics and tracking metrics).
 
 from __future__ import annotations
 
-import json
 import signal
 import sys
 from dataclasses import replace
@@ -24,7 +23,7 @@ from ..experiment.build import Experiment, realtime_parts
 from ..experiment.controllers import _limits
 from ..experiment.schema import ExperimentConfig
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
-from .realtime import _finite, tracking_summary
+from .realtime import save_run
 
 __all__ = ["add_ros_parsers", "format_ros", "run_ros", "run_ros_arm", "with_namespace"]
 
@@ -163,13 +162,7 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None):
             run.result.meta["collision"] = {"detected_at": c}
     finally:
         ros.close()
-    files = [run.result.save(out / f"{stem}.npz"), run.save_timing(out / f"{stem}_timing.npz")]
-    summary = {"realtime": run.stats, "stop": run.stop, "ros": run.result.meta["ros"],
-               "tracking": tracking_summary(run.result)}  # fmt: skip
-    path = out / f"{stem}.json"
-    path.write_text(json.dumps(_finite(summary), indent=2, sort_keys=True) + "\n")
-    files.append(path)
-    return run, files
+    return run, save_run(run, out, stem, "ros")
 
 
 def format_ros(run: RealtimeRun) -> str:
@@ -252,13 +245,7 @@ def add_ros_parsers(sub, cmd_ros, cmd_ros_arm) -> None:
     ros.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     ros.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
-    ros.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
-    ros.add_argument(
-        "--priority",
-        type=int,
-        metavar="N",
-        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
-    )
+    _add_node_options(ros)
     ros.set_defaults(func=cmd_ros)
     arm = sub.add_parser(
         "ros-arm",
@@ -271,11 +258,16 @@ def add_ros_parsers(sub, cmd_ros, cmd_ros_arm) -> None:
     )
     arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     arm.add_argument("--duration", type=float, help="stop after this long [s] [until Ctrl-C]")
-    arm.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
-    arm.add_argument(
+    _add_node_options(arm)
+    arm.set_defaults(func=cmd_ros_arm)
+
+
+def _add_node_options(parser) -> None:
+    """``--namespace`` and ``--priority``, the options of both ROS nodes."""
+    parser.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
+    parser.add_argument(
         "--priority",
         type=int,
         metavar="N",
         help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
     )
-    arm.set_defaults(func=cmd_ros_arm)

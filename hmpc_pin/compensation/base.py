@@ -30,7 +30,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Compensation", "NoCompensation", "check_compensation"]
+__all__ = ["Compensation", "NoCompensation", "check_compensation", "warn_chen_validity"]
 
 FloatArray = NDArray[np.float64]
 
@@ -113,7 +113,7 @@ def check_compensation(compensation: object, robot: Any, Ts: float, who: str) ->
         DimensionError: The estimate's shape is not ``(robot.nq,)``.
         ConfigError: The compensation's period differs from ``Ts``.
     """
-    from ..exceptions import ConfigError, DimensionError, ValidityWarning
+    from ..exceptions import ConfigError, DimensionError
 
     n = robot.nq
     estimate: Any = getattr(compensation, "estimate", None)
@@ -130,11 +130,21 @@ def check_compensation(compensation: object, robot: Any, Ts: float, who: str) ->
             f"the compensation's period {float(period):g} s differs from the controller's "
             f"Ts = {float(Ts):g} s; build it with the controller's period",
         )
-    if getattr(compensation, "kind", None) == "chen" and not robot.is_planar_chain():
+    warn_chen_validity(robot, getattr(compensation, "kind", None), stacklevel=3)
+
+
+def warn_chen_validity(robot: Any, kind: object, stacklevel: int = 2) -> None:
+    """Warn (:class:`~hmpc_pin.exceptions.ValidityWarning`) when the compensation ``kind``
+    is ``"chen"`` (Chen's :math:`Y`, Eq 28–30, proven for planar serial arms only) and
+    ``robot`` is not a planar serial chain; ``stacklevel`` as :func:`warnings.warn`'s,
+    counted from the caller."""
+    from ..exceptions import ValidityWarning
+
+    if kind == "chen" and not robot.is_planar_chain():
         warnings.warn(
             f"compensation 'chen' (Chen's observer, Eq 28-30) is proven for planar serial "
             f"arms only, and robot {robot.name!r} is not one; use compensation = 'general' "
             "(Y = I, valid on any arm for gain c above general_gain_bound) or 'momentum'",
             ValidityWarning,
-            stacklevel=3,
+            stacklevel=stacklevel + 1,
         )

@@ -13,13 +13,13 @@ the robot (vector lengths, limits, the initial state) is made here, before a run
 from __future__ import annotations
 
 import contextlib
-import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..compensation.base import warn_chen_validity
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
 from ..controllers.hierarchical import HierarchicalMPC, warn_fast_damping
@@ -29,7 +29,6 @@ from ..exceptions import (
     InterfaceError,
     LimitError,
     SimulationError,
-    ValidityWarning,
 )
 from ..model.robot import Robot, load_robot
 from ..realtime.loop import LoopSettings
@@ -164,14 +163,7 @@ def warn_validity(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None
     The controllers warn the same when built
     (:func:`~hmpc_pin.compensation.base.check_compensation`); this is kept for callers
     that check a config without building its controller."""
-    if cc.compensation == "chen" and not robot.is_planar_chain():
-        warnings.warn(
-            f"compensation 'chen' (Chen's observer, Eq 28-30) is proven for planar serial "
-            f"arms only, and robot {robot.name!r} is not one; use compensation = 'general' "
-            "(Y = I, valid on any arm for gain c above general_gain_bound) or 'momentum'",
-            ValidityWarning,
-            stacklevel=3,
-        )
+    warn_chen_validity(robot, cc.compensation, stacklevel=3)
     warn_bandwidth(robot, cc, posture)
 
 

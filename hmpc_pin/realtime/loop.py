@@ -503,20 +503,27 @@ class RealtimeLoop:
                     stop = ("watchdog", f"no new state from the arm for {1e3 * watchdog:g} ms "
                             f"(watchdog), last stamp {last_stamp:.6g} s")  # fmt: skip
                     break
-                if arrived > 1 and k > 0:  # states not answered: periods skipped
-                    skip = min(arrived - 1, K + 1 - k)
-                    missed_a[k : k + skip] = True
-                    misses += skip
-                    skipped += skip
-                    consecutive += skip
-                    worst_run = max(worst_run, consecutive)
-                    k += skip
-                    if consecutive >= max_misses:
-                        stop = ("misses", f"{consecutive} consecutive missed deadlines (limit "
-                                f"{max_misses}), {skip} states not answered")  # fmt: skip
-                        break
-                    if k > K:
-                        break
+                behind = arrived - 1  # states not answered: periods skipped
+                skipped_why = "states not answered"
+            else:
+                # Deadlines already passed are skipped (the arm holds the torque through them).
+                behind = int((clock() - t0) / P) - k
+                skipped_why = "periods skipped behind the clock"
+            if behind > 0 and k > 0:
+                skip = min(behind, K + 1 - k)
+                missed_a[k : k + skip] = True
+                misses += skip
+                skipped += skip
+                consecutive += skip
+                worst_run = max(worst_run, consecutive)
+                k += skip
+                if consecutive >= max_misses:
+                    stop = ("misses", f"{consecutive} consecutive missed deadlines (limit "
+                            f"{max_misses}), {skip} {skipped_why}")  # fmt: skip
+                    break
+                if k > K:
+                    break
+            if paced:
                 stamp, q, dq = iface.read()
                 deadline = last_stamp = stamp
             else:
@@ -616,21 +623,6 @@ class RealtimeLoop:
                     else:
                         gc_deferred += 1
             k += 1
-            # Deadlines already passed are skipped (the arm holds the torque through them).
-            behind = 0 if paced else int((clock() - t0) / P) - k
-            if behind > 0 and k <= K:
-                skip = min(behind, K + 1 - k)
-                missed_a[k : k + skip] = True
-                misses += skip
-                skipped += skip
-                consecutive += skip
-                worst_run = max(worst_run, consecutive)
-                k += skip
-                if consecutive >= max_misses:
-                    why = f"{skip} periods skipped behind the clock"
-                    stop = ("misses", f"{consecutive} consecutive missed deadlines "
-                            f"(limit {max_misses}), {why}")  # fmt: skip
-                    break
         # ---- stop: the safe torque now, from the last finite state
         stop_record = None
         if stop is not None:

@@ -16,7 +16,6 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.steps import GravityCompensation  # noqa: E402
 from benchmarks._fixtures import (  # noqa: E402
     PAPER_CONFIG,
     MiB,
@@ -24,8 +23,10 @@ from benchmarks._fixtures import (  # noqa: E402
     log,
 )
 from benchmarks.ratios import aba_floor  # noqa: E402
+from benchmarks.steps import GravityCompensation  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
 from hmpc_pin.experiment.schema import load_config  # noqa: E402
+
 
 @dataclass
 class SimResult:

@@ -29,6 +29,7 @@ from benchmarks.harness import (  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
 from hmpc_pin.experiment.schema import load_config  # noqa: E402
 
+
 @dataclass
 class Scenario:
     """One arm's closed-loop comparison setting."""

@@ -14,20 +14,20 @@ Run alone: ``python -m benchmarks.floor`` prints the ratios of planar3 and Panda
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 import hmpc_pin
-import sys  # noqa: I001
-from pathlib import Path
 
 if str(Path(__file__).resolve().parent.parent) not in sys.path:  # run as a script
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._fixtures import new_qp  # noqa: E402
+from benchmarks._fixtures import new_qp
 
 __all__ = ["Floor", "FloorRatio", "step_floor_ratio"]
 

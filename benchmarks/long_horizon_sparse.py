@@ -13,19 +13,18 @@ Run: ``python benchmarks/long_horizon_sparse.py``.
 
 from __future__ import annotations
 
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 from proxsuite import proxqp
 
-import sys  # noqa: I001
-from pathlib import Path
-
 if str(Path(__file__).resolve().parent.parent) not in sys.path:  # run as a script
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._fixtures import new_qp  # noqa: E402
+from benchmarks._fixtures import new_qp
 from hmpc_pin.mpc.condensed import CondensedMPC
 
 N, TS, R = 100, 0.001, 1e-6

@@ -40,10 +40,10 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks.harness import rss_bytes  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
-from hmpc_pin.sim.disturbances import Periodic  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
+from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.sim.disturbances import Periodic  # noqa: E402
 
 CONFIG = ROOT / "configs" / "paper_combined.toml"
 MINUTE = 60.0

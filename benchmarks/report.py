@@ -14,9 +14,6 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks import crocoddyl_mpc  # noqa: E402
-from benchmarks.closed_loop import MemoryResult, SimResult  # noqa: E402
-from benchmarks.comparisons import CompareRow, Scenario  # noqa: E402
-from benchmarks.steps import StepResult  # noqa: E402
 from benchmarks._fixtures import (  # noqa: E402
     AMPLITUDE,
     FREQUENCY,
@@ -25,8 +22,12 @@ from benchmarks._fixtures import (  # noqa: E402
     Settings,
     observer_kinds,
 )
+from benchmarks.closed_loop import MemoryResult, SimResult  # noqa: E402
+from benchmarks.comparisons import CompareRow, Scenario  # noqa: E402
 from benchmarks.qp_layouts import LayoutTiming  # noqa: E402
 from benchmarks.ratios import Alternated  # noqa: E402
+from benchmarks.steps import StepResult  # noqa: E402
+
 
 def table(headers: list[str], rows: list[list[str]]) -> str:
     """A Markdown table."""
@@ -343,7 +344,8 @@ def round2_targets(steps: list[StepResult], sim: SimResult, r2: Round2) -> str:
                      f"{AB_SPEEDUPS['run']:.2f}", verdict(AB_SPEEDUPS["run"] >= 3.0)])  # fmt: skip
     if "sweep" in AB_SPEEDUPS:
         rows.append(["sweep, old / this code in one process (1 job)", "≥ 2.5",
-                     f"{AB_SPEEDUPS['sweep']:.2f}", verdict(AB_SPEEDUPS["sweep"] >= 2.5)])  # fmt: skip
+                     f"{AB_SPEEDUPS['sweep']:.2f}",
+                     verdict(AB_SPEEDUPS["sweep"] >= 2.5)])  # fmt: skip
     return table(["target", "target", "measured", "verdict"], rows)
 
 

@@ -45,26 +45,26 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks import crocoddyl_mpc  # noqa: E402
+from benchmarks._fixtures import (  # noqa: E402
+    CHAIN_SIZES,
+    HOMES,
+    PANDA_LOCKED,
+    QUICK,
+    Settings,
+    load_arm,
+    log,
+    spatial_observer_kind,
+)
 from benchmarks.chains import write_planar_chain  # noqa: E402
+from benchmarks.closed_loop import bench_memory, bench_simulation  # noqa: E402
+from benchmarks.comparisons import bench_compare, panda_scenario, planar3_scenario  # noqa: E402
 from benchmarks.harness import (  # noqa: E402
     machine_info,
     package_versions,
 )
 from benchmarks.ratios import long_horizon, references  # noqa: E402
-from benchmarks.closed_loop import bench_memory, bench_simulation  # noqa: E402
-from benchmarks.comparisons import bench_compare, panda_scenario, planar3_scenario  # noqa: E402
 from benchmarks.report import Round2, bench_ab, find_step, report  # noqa: E402
 from benchmarks.steps import bench_qp_layouts, bench_steps  # noqa: E402
-from benchmarks._fixtures import (  # noqa: E402
-    CHAIN_SIZES,
-    QUICK,
-    Settings,
-    HOMES,
-    PANDA_LOCKED,
-    load_arm,
-    log,
-    spatial_observer_kind,
-)
 
 __all__ = ["Settings", "main"]
 

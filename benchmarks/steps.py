@@ -28,6 +28,7 @@ from benchmarks.harness import (  # noqa: E402
 )
 from benchmarks.qp_layouts import LayoutTiming, record_gradients, time_layouts  # noqa: E402
 
+
 @dataclass
 class StepResult:
     """Step timing of one (arm, Nc) case."""

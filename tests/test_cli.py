@@ -25,7 +25,8 @@ def test_every_paper_config_exists():
     assert expected | {"paper_cartesian"} <= set(ALL_CONFIGS)
 
 
-# Eq 32 read literally without the observer: the run fails by design (docs: Concepts, decisions, "Friction sign").
+# Eq 32 read literally without the observer: the run fails by design
+# (docs: Concepts, decisions, "Friction sign").
 FAILS_BY_DESIGN = ("paper_friction_literal_no_ndo",)
 
 
@@ -180,7 +181,8 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, case):
 
 
 def test_failed_run_exits_1_and_keeps_partial_results(tmp_path, capsys):
-    """The explicit-Euler observer at c = 200 diverges (docs: Concepts, decisions): exit 1, data kept.
+    """The explicit-Euler observer at c = 200 diverges (docs: Concepts, decisions): exit 1,
+    data kept.
 
     The divergence is caught either as a non-finite state or as the soft
     state-constrained QP failing on the runaway state, whichever comes first."""

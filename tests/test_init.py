@@ -94,7 +94,7 @@ def test_init_observer_choice(written):
     p = plan("panda")
     assert p.compensation == "general" and p.gain >= 1.2 * p.gain_bound and p.gain >= 100
     # written as a bandwidth (Ts·ω = 10) with the latency declared: the rule then holds
-    path, raw = written["panda"]
+    _, raw = written["panda"]
     obs = raw["controller"]["observer"]
     assert "gain" not in obs and obs["bandwidth"] * raw["controller"]["Ts"] == pytest.approx(10)
     assert raw["controller"]["latency"] == pytest.approx(0.001)
@@ -149,7 +149,7 @@ def test_init_refuses_an_arm_gravity_overwhelms(write_urdf, tmp_path, capsys):
         + "\n</robot>\n"
     )
     urdf = write_urdf(text)
-    with pytest.raises(URDFError, match="out of scope: joint 'j1' needs 2.4"):
+    with pytest.raises(URDFError, match=r"out of scope: joint 'j1' needs 2\.4"):
         init_config(urdf)
     assert main(["init", str(urdf), "--out", str(tmp_path / "x.toml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -75,7 +75,7 @@ def test_settling_time_is_the_first_sample_after_the_last_exit():
     st = settling_time(t, np.column_stack([e, inside_always, outside_at_end]), 0.01)
     assert st[0] == t[6] and st[1] == t[0] and np.isnan(st[2])
     # the definition, evaluated directly: every sample from st on is inside the band
-    k = int(round(st[0] / 0.1))
+    k = round(st[0] / 0.1)
     assert np.all(np.abs(e[k:]) < 0.01) and abs(e[k - 1]) >= 0.01
 
 

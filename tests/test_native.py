@@ -487,9 +487,9 @@ def test_long_horizon_per_joint_qps_equal_the_oracle():
 def test_the_deprecated_backend_argument_is_checked_and_changes_nothing(planar3):
     """``backend`` of 0.2 on a controller or an RK4 plant: an unknown value is one
     ConfigError naming the key; ``"python"`` warns and gives the same run bit for bit."""
-    with pytest.raises(hmpc_pin.ConfigError, match="plant.backend"):
+    with pytest.raises(hmpc_pin.ConfigError, match=r"plant\.backend"):
         RK4Plant(planar3, None, 0.01, 0.001, backend="fast")
-    with pytest.raises(hmpc_pin.ConfigError, match="controller.backend"):
+    with pytest.raises(hmpc_pin.ConfigError, match=r"controller\.backend"):
         hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend="fast"))
     runs = []
     for backend in ("auto", "python"):

@@ -129,7 +129,8 @@ def test_a_light_but_massive_end_link_loads(write_urdf):
 
 
 def test_massless_end_link_exits_2_with_one_line(make_config, capsys, tmp_path):
-    code = main(["run", str(make_config(three_links(masses=(1.0, 1.0, 0.0)))), "--out", str(tmp_path)])
+    config = make_config(three_links(masses=(1.0, 1.0, 0.0)))
+    code = main(["run", str(config), "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
     assert len(err) == 1 and "'l3' (mass 0 kg)" in err[0]
@@ -330,7 +331,7 @@ def test_prismatic_joint_kind_and_dynamics(write_urdf):
 # --------------------------------------------------------------- floating base, Chen
 def test_floating_joint_in_the_urdf_is_refused(write_urdf):
     text = chain(rod("l1"), joint("free", "floating", "base", "l1", limit=""))
-    with pytest.raises(URDFError, match="has a floating base: joint.s. 'free' .floating."):
+    with pytest.raises(URDFError, match=r"has a floating base: joint.s. 'free' .floating."):
         load_robot(write_urdf(text))
 
 

@@ -22,7 +22,7 @@ demo: $(VENV)/.installed
 # The suite includes tests/test_wheel.py: `pip wheel .`, the wheel installed into a fresh
 # environment with no compiler on PATH, a run from an empty folder.
 test: $(VENV)/.installed
-	$(VENV)/bin/ruff check hmpc_pin
+	$(VENV)/bin/ruff check hmpc_pin tests examples benchmarks
 	$(VENV)/bin/mypy
 	HMPC_PIN_REQUIRE_NATIVE=1 $(PY) -m pytest
 

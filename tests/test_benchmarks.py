@@ -15,8 +15,14 @@ def test_quick_benchmark_writes_its_report(tmp_path, monkeypatch):
     out = tmp_path / "BENCHMARKS.md"
     assert main(["--quick", "--out", str(out)]) == 0
     text = out.read_text()
-    for heading in ("## Machine and versions", "## Targets", "## Controller step",
-                    "## Step against its floor", "## Long horizons", "## References"):
+    for heading in (
+        "## Machine and versions",
+        "## Targets",
+        "## Controller step",
+        "## Step against its floor",
+        "## Long horizons",
+        "## References",
+    ):
         assert heading in text
     # every step case was measured against its floor: a finite positive ratio per arm
     import re

@@ -305,11 +305,19 @@ def test_the_0_1_constructor_with_a_controller_config_still_works(planar3):
     assert np.all(np.isfinite(ctrl.step(0.0, q0, dq0, ref)))
 
 
-@pytest.mark.parametrize(("layout", "latency", "joint_dynamics", "at"),
-                         [("joint", 0.0, False, "end"), ("block", 0.0, False, "end"),
-                          ("joint", 0.02, False, "end"), ("joint", 0.0, True, "end"),
-                          ("joint", 0.015, True, "end"), ("joint", 0.0, False, "start"),
-                          ("joint", 0.015, False, "start"), ("joint", 0.0, True, "start")])
+@pytest.mark.parametrize(
+    ("layout", "latency", "joint_dynamics", "at"),
+    [
+        ("joint", 0.0, False, "end"),
+        ("block", 0.0, False, "end"),
+        ("joint", 0.02, False, "end"),
+        ("joint", 0.0, True, "end"),
+        ("joint", 0.015, True, "end"),
+        ("joint", 0.0, False, "start"),
+        ("joint", 0.015, False, "start"),
+        ("joint", 0.0, True, "start"),
+    ],
+)
 # (latency, joint dynamics and "start" together: the closed loop amplifies ProxSuite's
 # tolerance to 2e-6 of the torque from step 29 on, beyond this test's rtol; each pair is here)
 def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, latency,
@@ -329,8 +337,7 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, laten
     Ts = 0.01
     ref = hmpc_pin.SineReference(3)
     d = np.array([3.0, -2.0, 1.0])
-    settings = MPCSettings(Ts=Ts, N=10, Nc=3, qp_layout=layout, latency=latency,
-                           observer_model=at)
+    settings = MPCSettings(Ts=Ts, N=10, Nc=3, qp_layout=layout, latency=latency, observer_model=at)
     ctrls = [hmpc_pin.HierarchicalMPC(planar3, settings,
                                       DisturbanceObserver(3, Ts, 100.0, "chen", "implicit"))
              for _ in range(2)]  # fmt: skip

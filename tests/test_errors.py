@@ -88,8 +88,12 @@ CASES = {
             ),
         ),
         URDFError,
-        ["crossed.urdf", "joint 'joint1' has an inverted position range",
-         '<limit lower="1.6" upper="1.5708">', "controller.constraints.position = false"],
+        [
+            "crossed.urdf",
+            "joint 'joint1' has an inverted position range",
+            '<limit lower="1.6" upper="1.5708">',
+            "controller.constraints.position = false",
+        ],
     ),
     "unknown example-robot-data name": (
         lambda tmp: _sub(f'urdf = "{URDF}"', 'model = "ur55"'),

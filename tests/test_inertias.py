@@ -50,8 +50,11 @@ GOOD = {"ixx": 1e-3, "iyy": 2e-2, "izz": 2e-2}
         ({"ixx": 1e-3, "iyy": 1e-3, "izz": 1e-3, "ixy": 2e-3}, 1.0, "not positive semi-definite"),
         (GOOD, -1.0, "expected a finite mass >= 0"),
         # a moment of -1e-7 kg·m² (1e-4 of the largest): small, but no rigid body has it
-        ({"ixx": 1e-3, "iyy": 1e-3, "izz": 1e-3, "ixy": 1.0001e-3}, 1.0,
-         "not positive semi-definite"),
+        (
+            {"ixx": 1e-3, "iyy": 1e-3, "izz": 1e-3, "ixy": 1.0001e-3},
+            1.0,
+            "not positive semi-definite",
+        ),
     ],
     ids=["negative_moment", "indefinite_off_diagonal", "negative_mass", "slightly_negative"],
 )

@@ -237,8 +237,10 @@ def _in_interpreter_start(stderr: str) -> bool:
     if not ours:
         return True  # site, runpy: before the package
     # only the package's first statement (from . import _startup) was reached
-    return ours == [ours[0]] * len(ours) and ours[0].endswith("hmpc_pin/__init__.py") and (
-        "import _startup" in stderr
+    return (
+        ours == [ours[0]] * len(ours)
+        and ours[0].endswith("hmpc_pin/__init__.py")
+        and ("import _startup" in stderr)
     )
 
 

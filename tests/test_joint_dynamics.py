@@ -294,8 +294,7 @@ def test_a_python_compensation_gets_what_the_compiled_observer_gets(at, latency)
     obs = replace(config.controller.observer, model_at=at)
     config = replace(
         config,
-        controller=replace(config.controller, joint_dynamics=True, observer=obs,
-                           latency=latency),
+        controller=replace(config.controller, joint_dynamics=True, observer=obs, latency=latency),
         plant=replace(config.plant, joint_dynamics=True),
         simulation=replace(config.simulation, duration=1.0),
     )

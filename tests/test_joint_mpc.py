@@ -670,9 +670,7 @@ def test_layouts_give_the_block_solution_on_recorded_gradients(planar3, N, Nc):
     ctrl, inputs = recorded_qp_inputs(planar3, N, Nc, 150)
     v_min, v_max = ctrl.settings.bounds(3)
     layouts = {
-        name: JointQPs(
-            ctrl.mpc, v_min, v_max, planar3.joint_names, limits=ctrl.limits, layout=name
-        )
+        name: JointQPs(ctrl.mpc, v_min, v_max, planar3.joint_names, limits=ctrl.limits, layout=name)
         for name in ("block", "joint", "auto")
     }
     assert layouts["auto"].layout == resolve_layout("auto", 3, Nc)

@@ -56,7 +56,7 @@ def test_indices_in_messages_say_they_are_0_based(tmp_path):
 
 def test_a_config_without_description_prints_no_empty_part(tmp_path, capsys):
     text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
-    text = re.sub(r'(?m)^description = .*\n', "", text)
+    text = re.sub(r"(?m)^description = .*\n", "", text)
     text = text.replace('urdf = "../robots/planar3.urdf"', 'model = "planar3"')
     cfg = tmp_path / "bare.toml"
     cfg.write_text(text, encoding="utf-8")

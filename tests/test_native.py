@@ -398,7 +398,9 @@ def test_without_the_compiled_module_the_package_imports_and_says_how_to_install
     """The compiled module missing (a source tree used without ``pip install``): ``import
     hmpc_pin`` works; the controller (compiled step, QPs, observer) and the RK4 plant are
     each one NativeError saying how to install."""
-    code = _BLOCK_CORE + """
+    code = (
+        _BLOCK_CORE
+        + """
 import warnings, numpy as np, hmpc_pin
 from hmpc_pin.sim.plants import RK4Plant
 robot = hmpc_pin.load_robot(PATH)
@@ -411,6 +413,7 @@ for make in makers:
     except hmpc_pin.NativeError as exc:
         print("error:", exc)
 """.replace("PATH", repr(str(PLANAR3)))
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=ROOT, timeout=120)  # fmt: skip
     assert out.returncode == 0, out.stderr
@@ -483,6 +486,7 @@ def test_long_horizon_per_joint_qps_equal_the_oracle():
         np.testing.assert_allclose(ta, tb, rtol=0, atol=1e-6 * max(1.0, np.abs(tb).max()))
     took = ctrl.qps.unconstrained_solves
     assert 0 < took < 60 * robot.nq
+
 
 def test_the_deprecated_backend_argument_is_checked_and_changes_nothing(planar3):
     """``backend`` of 0.2 on a controller or an RK4 plant: an unknown value is one

@@ -116,8 +116,9 @@ def _pose_reference():
     q0 = np.array([0.3, 0.6, -0.9])
     p0, R0 = frame_pose(robot, robot.tool_frame, q0)
     u, v = plane_axes("xz")  # the planar arm's plane; orientation held
-    return PoseReference.solve(robot, robot.tool_frame,
-                               CirclePath(p0[0] - 0.05 * u, 0.05, 0.2, u, v, R0[0]), 3.5, q0)
+    return PoseReference.solve(
+        robot, robot.tool_frame, CirclePath(p0[0] - 0.05 * u, 0.05, 0.2, u, v, R0[0]), 3.5, q0
+    )
 
 
 TASK_REFERENCES = {
@@ -325,7 +326,8 @@ INTERFACES = {
     "arm process": lambda q0: (ProcessArm(_interface_plant, q0), _wall_wait),
     # any Plant can be the arm: MuJoCo's, built in the arm's process
     "arm process (mujoco)": lambda q0: (
-        ProcessArm(functools.partial(_interface_plant, "mujoco"), q0), _wall_wait
+        ProcessArm(functools.partial(_interface_plant, "mujoco"), q0),
+        _wall_wait,
     ),
 }
 

@@ -51,10 +51,22 @@ def _same(a, b, what: str = "") -> None:
 def _controller_state(ctrl) -> list:
     """What a HierarchicalMPC carries to its next step (compiled step, QPs, observer)."""
     core = ctrl._core.state
-    state = [np.array(core[1]), *map(np.array, core[2]), *map(np.array, core[3]),
-             np.array(core[4]), np.array(core[5]), core[0], core[6], ctrl._started,
-             ctrl.qps._core.counters, ctrl.v.copy(), ctrl.tau.copy(),
-             ctrl.disturbance_estimate.copy(), ctrl.qps.stack.copy(), ctrl.qps.slack.copy()]
+    state = [
+        np.array(core[1]),
+        *map(np.array, core[2]),
+        *map(np.array, core[3]),
+        np.array(core[4]),
+        np.array(core[5]),
+        core[0],
+        core[6],
+        ctrl._started,
+        ctrl.qps._core.counters,
+        ctrl.v.copy(),
+        ctrl.tau.copy(),
+        ctrl.disturbance_estimate.copy(),
+        ctrl.qps.stack.copy(),
+        ctrl.qps.slack.copy(),
+    ]
     ndo = getattr(ctrl.compensation, "compiled_form", lambda: None)()
     if ndo is not None and ndo[0] == "ndo":
         state += list(ndo[1].state)
@@ -106,8 +118,12 @@ def test_compiled_loop_equals_the_per_step_loop_on_each_shipped_config(name):
     assert ra.meta.get("saturation") == rb.meta.get("saturation")
     _assert_same_state(a.controller, b.controller)
     t, q, dq = float(ra.t[-1]) + a.controller.Ts, ra.q[-1], ra.dq[-1]
-    np.testing.assert_allclose(b.controller.step(t, q, dq, b.reference),
-                               a.controller.step(t, q, dq, a.reference), rtol=TOL, atol=TOL)
+    np.testing.assert_allclose(
+        b.controller.step(t, q, dq, b.reference),
+        a.controller.step(t, q, dq, a.reference),
+        rtol=TOL,
+        atol=TOL,
+    )
 
 
 @pytest.mark.slow
@@ -150,8 +166,11 @@ def _same_fault(pair) -> None:
 def test_behind_a_measured_controller_the_noise_stream_and_delay_are_the_same(delay):
     """Noise drawn per chunk equals the wrapper's draw per step; afterwards its generator
     and delay buffer are where the per-step loop leaves them."""
-    (ra, _, pa), (rb, _, pb) = _both(_paper(pulse=([10.0, 8.0, 0.3], [0.3, 0.6, 0.9],
-                                                   [0.1] * 3), delay=delay), 1.0, q0=np.ones(3))
+    (ra, _, pa), (rb, _, pb) = _both(
+        _paper(pulse=([10.0, 8.0, 0.3], [0.3, 0.6, 0.9], [0.1] * 3), delay=delay),
+        1.0,
+        q0=np.ones(3),
+    )
     assert rb.loop == "compiled"
     _same(ra, rb)
     wa, wb = pa[1], pb[1]

@@ -318,9 +318,7 @@ def test_bad_pose_tasks_exit_2_with_one_line_and_write_nothing(tmp_path, capsys,
     assert not out.exists()
 
 
-def test_a_waypoint_path_prints_its_duration_and_keys_of_other_kinds_are_errors(
-    tmp_path, capsys
-):
+def test_a_waypoint_path_prints_its_duration_and_keys_of_other_kinds_are_errors(tmp_path, capsys):
     way = [PANDA_READY.tolist(), (PANDA_READY + 0.2).tolist()]
     config = _config(tmp_path, '[reference]\nkind = "waypoints"\n[reference.waypoints]\n'
                      f"points = {way}\nacceleration_limit = 4.0\n")  # fmt: skip

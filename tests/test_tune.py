@@ -100,8 +100,11 @@ def test_a_real_trial_runs_the_sweep(tmp_path, friction_config, capsys):
     out = capsys.readouterr().out
     assert "held-out samples: p95 worst-joint RMS" in out
     tuned = load_config(tmp_path / "out" / "paper_friction_tuned.toml")
-    assert Experiment.from_config(replace(tuned, simulation=replace(tuned.simulation,
-                                                                    duration=0.3))).run().complete
+    assert (
+        Experiment.from_config(replace(tuned, simulation=replace(tuned.simulation, duration=0.3)))
+        .run()
+        .complete
+    )
 
 
 def test_without_optuna_the_extra_is_named(tmp_path, monkeypatch, capsys):

@@ -141,9 +141,7 @@ def test_replay_of_a_mesh_arm_from_example_robot_data(tmp_path):
     loaders = pytest.importorskip("example_robot_data.robots_loader")
     robot = hmpc_pin.load_robot(loaders.UR5Loader().df_path)
     q0 = np.array([0.0, -1.2, 1.4, -1.0, -1.57, 0.0])
-    ctrl = hmpc_pin.make_controller(
-        robot, hmpc_pin.ControllerConfig(compensation="general")
-    )
+    ctrl = hmpc_pin.make_controller(robot, hmpc_pin.ControllerConfig(compensation="general"))
     ref = hmpc_pin.SineReference(6, amplitude=0.3, offset=q0)
     result = hmpc_pin.simulate(robot, ctrl, ref, duration=1.0, q0=q0)
     html = export_replay(robot, result, tmp_path / "ur5.html", ghost=False).read_text()
@@ -192,8 +190,12 @@ def test_live_view_draws_a_target_path(tmp_path):
         view(0.0, np.ones(3), np.ones(3))
         before = _screenshot(view.url, tmp_path / "before.png", tmp_path / "p0")
         theta = np.linspace(0.0, 2 * np.pi, 200)
-        view.draw_path("target_path", np.column_stack(
-            [1.5 + 0.8 * np.cos(theta), np.zeros_like(theta), 1.5 + 0.8 * np.sin(theta)]))
+        view.draw_path(
+            "target_path",
+            np.column_stack(
+                [1.5 + 0.8 * np.cos(theta), np.zeros_like(theta), 1.5 + 0.8 * np.sin(theta)]
+            ),
+        )
         after = _screenshot(view.url, tmp_path / "after.png", tmp_path / "p1")
     finally:
         view.close()

@@ -190,8 +190,9 @@ def _told_latency(config: ExperimentConfig, condition: str) -> ExperimentConfig:
     return replace(config, controller=replace(cc, latency=latency))
 
 
-def _measured(experiment: Experiment, config: ExperimentConfig, params: SampleParams,
-              condition: str) -> None:
+def _measured(
+    experiment: Experiment, config: ExperimentConfig, params: SampleParams, condition: str
+) -> None:
     """Put the interface model of ``condition`` between ``experiment``'s controller and
     plant."""
     sc = config.sweep
@@ -241,9 +242,7 @@ def run_sample(
     perturb = condition in ("plant", "all")
     base = perturbed_config(config, params) if perturb else config
     with reuse_robots():  # the worker's runs share the config's URDF, parsed once
-        experiment = Experiment.from_config(
-            _told_latency(variant_config(base, variant), condition)
-        )
+        experiment = Experiment.from_config(_told_latency(variant_config(base, variant), condition))
     if perturb:
         experiment.plant = experiment.plant.with_scaled_inertias(params.mass)
     _measured(experiment, config, params, condition)

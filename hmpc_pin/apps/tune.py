@@ -343,6 +343,7 @@ def len_trials(optuna, storage: str, name: str) -> int:
 
 def _write_tuned(config, tuned, best, study, out: Path) -> Path:
     cc = tuned.controller
+
     def weight(W: np.ndarray) -> list:
         W = np.asarray(W, dtype=float)
         return np.diag(W).tolist() if W[0, 1] == 0 and W[1, 0] == 0 else W.tolist()

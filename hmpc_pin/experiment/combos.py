@@ -16,8 +16,15 @@ OBSERVERS = ("chen", "general", "momentum")
 #: Compensations of integral sliding mode (``[controller.ism]``).
 ISM = ("ism", "ism-bl")
 #: Keys of the hierarchical MPC only (``kind = "hmpc"``).
-HMPC_ONLY = ("constraints", "eps_abs", "max_iter", "qp_layout", "backend", "latency",
-             "joint_dynamics")
+HMPC_ONLY = (
+    "constraints",
+    "eps_abs",
+    "max_iter",
+    "qp_layout",
+    "backend",
+    "latency",
+    "joint_dynamics",
+)
 #: The sub-tables of ``[controller]`` and the pairs they apply to.
 TABLES = ("observer", "ism", "computed_torque")
 

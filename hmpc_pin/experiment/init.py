@@ -153,7 +153,7 @@ def _say_what_is_assumed(name: str | None, robot: Robot) -> None:
     zero = [j for j, e in zip(robot.joint_names, robot.effort_limit, strict=True) if e == 0]
     if zero:
         warnings.warn(
-            f"joint(s) {zero} have effort=\"0\" in the URDF: taken as no torque limit "
+            f'joint(s) {zero} have effort="0" in the URDF: taken as no torque limit '
             "(the plant never clips their torque); set plant.effort_limit to impose one",
             ValidityWarning,
             stacklevel=4,
@@ -493,8 +493,11 @@ def _render(p: InitPlan, duration: float) -> str:
             f"# {1e3 * ZOH_X_MAX * p.damping_tau:.3g} ms keep its zero-order-hold gain "
             f"x/(1 - e^-x), x = Ts/T, within {ZOH_GAIN_MAX:g}",
             f"# (here x = {x:.3g}); "
-            + ("the shortest period offered." if p.Ts == PERIODS[-1] and x > ZOH_X_MAX
-               else "the longest such period that tracks."),
+            + (
+                "the shortest period offered."
+                if p.Ts == PERIODS[-1] and x > ZOH_X_MAX
+                else "the longest such period that tracks."
+            ),
         ]
     elif p.Ts != 0.01:
         lines += [

@@ -499,8 +499,15 @@ def fit_friction(
         return FrictionFit(tuple(fits), source, confidence, run)
     theta, half, res, m_eff = _least_squares(blocks, confidence)
     joints = tuple(
-        _joint(name, theta[2 * i : 2 * i + 2], half[2 * i : 2 * i + 2], res[i], m_eff[i],
-               conds[i], covers[i])
+        _joint(
+            name,
+            theta[2 * i : 2 * i + 2],
+            half[2 * i : 2 * i + 2],
+            res[i],
+            m_eff[i],
+            conds[i],
+            covers[i],
+        )
         for i, name in enumerate(names)
     )
     return FrictionFit(joints, source, confidence, run)

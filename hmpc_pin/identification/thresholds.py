@@ -182,8 +182,13 @@ def learn_thresholds(
     block = per_block * Ts
     n = r.shape[1]
     out = [
-        gumbel_threshold(r[:, i], per_block, false_alarm=false_alarm / n,
-                         blocks_per_horizon=horizon / block, method=method)
+        gumbel_threshold(
+            r[:, i],
+            per_block,
+            false_alarm=false_alarm / n,
+            blocks_per_horizon=horizon / block,
+            method=method,
+        )
         for i in range(n)
     ]
     thr, loc, scale = (np.array(v) for v in zip(*out, strict=True))

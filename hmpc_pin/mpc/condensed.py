@@ -203,9 +203,7 @@ def qp_settings(warm: bool = True) -> dict:
     return {
         # Settings must be set before init(): changing initial_guess after
         # init() crashes proxsuite 0.8.0 (segfault, measured here).
-        "initial_guess": (
-            "WARM_START_WITH_PREVIOUS_RESULT" if warm else "NO_INITIAL_GUESS"
-        ),
+        "initial_guess": ("WARM_START_WITH_PREVIOUS_RESULT" if warm else "NO_INITIAL_GUESS"),
         # Soft QPs far outside the limits have slacks of 1e6 and more, where an absolute
         # 1e-9 residual is below double precision: add a relative tolerance there.
         "eps_rel": 0.0 if warm else 1e-12,

@@ -74,8 +74,10 @@ def why_not_compiled(controller, plant, reference, on_step) -> str | None:
     whole loop can run compiled (module docstring)."""
     if on_step is not None:
         return "an on_step callback is called from Python at every step"
-    if not (isinstance(plant, RK4Plant)
-            and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")):
+    if not (
+        isinstance(plant, RK4Plant)
+        and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")
+    ):
         return (f"the plant {type(plant).__name__} is advanced in Python (only RK4Plant's "
                 "period is compiled)")  # fmt: skip
     if not plant.fused:
@@ -93,8 +95,10 @@ def why_not_compiled(controller, plant, reference, on_step) -> str | None:
     form_of = getattr(as_reference(reference), "native_form", None)
     form = form_of() if callable(form_of) else None
     if form is None or form[0] not in ("sine", "ppoly"):
-        return (f"the reference {type(reference).__name__} has no native form (sampled in "
-                "Python; sine and piecewise-polynomial references are sampled in C++)")
+        return (
+            f"the reference {type(reference).__name__} has no native form (sampled in "
+            "Python; sine and piecewise-polynomial references are sampled in C++)"
+        )
     return None
 
 

@@ -42,8 +42,7 @@ from numpy.typing import NDArray
 from ..exceptions import DimensionError, InterfaceError, LimitError
 from ..native import load as load_native
 
-__all__ = ["Reference", "as_reference", "check_limits", "check_reference_size",
-           "sample_horizon"]
+__all__ = ["Reference", "as_reference", "check_limits", "check_reference_size", "sample_horizon"]
 
 FloatArray = NDArray[np.float64]
 Pair = tuple[FloatArray, FloatArray]

@@ -21,8 +21,9 @@ import numpy as np
 import pinocchio as pin
 
 
-def rk4_period(model, q, dq, tau, disturbance, t: float, h: float, substeps: int, aba=None,
-               joint=None):
+def rk4_period(
+    model, q, dq, tau, disturbance, t: float, h: float, substeps: int, aba=None, joint=None
+):
     """``(q, q̇)`` after ``substeps`` RK4 steps of ``h`` from time ``t`` (new arrays).
 
     ``joint``: ``(B, F)`` per joint, the torque ``−B q̇ − F sgn q̇`` added at every stage.

@@ -303,8 +303,9 @@ class ControllerConfig:
     joint_dynamics: bool | None = None
 
     def __post_init__(self):
-        fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
-                            self.v_max)  # fmt: skip  (the checks of MPCSettings too)
+        fields = mpc_fields(
+            self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min, self.v_max
+        )  # fmt: skip  (the checks of MPCSettings too)
         for name, value in fields.items():
             _set(self, name, value)
         for name, cls in (

@@ -33,8 +33,9 @@ CONTROLLER_KINDS = (
 DEFAULT_COMPENSATION = {"hmpc": "chen", "computed-torque": "none", "computed-torque-pid": "none"}
 
 
-def resolve_compensation(kind: str, controller: str, alias_comp: str | None,
-                         compensation: str | None, observer) -> tuple[str, object]:
+def resolve_compensation(
+    kind: str, controller: str, alias_comp: str | None, compensation: str | None, observer
+) -> tuple[str, object]:
     """The compensation of ``[controller]`` and its observer table, from the spellings of
     version 0.1 and 0.2.
 

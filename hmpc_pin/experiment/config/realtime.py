@@ -59,14 +59,16 @@ class RealtimeConfig:
         _set(self, "spin", _float("spin", self.spin, nonneg=True))
         if self.spin >= 1.0 / self.rate:
             raise ConfigError(
-                "spin", f"expected a time [s] below the period 1/rate = {1.0 / self.rate:g} s, "
-                f"got {self.spin:g}"
+                "spin",
+                f"expected a time [s] below the period 1/rate = {1.0 / self.rate:g} s, "
+                f"got {self.spin:g}",
             )
         _set(self, "warm_up", _float("warm_up", self.warm_up, nonneg=True))
         if self.warm_up >= 1.0 / self.rate:
             raise ConfigError(
-                "warm_up", f"expected a time [s] below the period 1/rate = "
-                f"{1.0 / self.rate:g} s, got {self.warm_up:g}"
+                "warm_up",
+                f"expected a time [s] below the period 1/rate = "
+                f"{1.0 / self.rate:g} s, got {self.warm_up:g}",
             )
         _set(self, "priority", _int("priority", self.priority, minimum=0))
         if self.priority > 99:

@@ -235,8 +235,11 @@ class PoseConfig:
                 if not isinstance(quats, (list, tuple)) or len(quats) != times.size:
                     raise ConfigError("orientations", f"expected {times.size} quaternions "
                                       f"[x, y, z, w], got {quats!r}")  # fmt: skip
-                _set(self, "orientations", np.array(
-                    [_quaternion(f"orientations[{i}]", q) for i, q in enumerate(quats)]))
+                _set(
+                    self,
+                    "orientations",
+                    np.array([_quaternion(f"orientations[{i}]", q) for i, q in enumerate(quats)]),
+                )
         _set(self, "dt", _float("dt", self.dt, positive=True))
         _set(self, "posture_cost", _float("posture_cost", self.posture_cost, positive=True))
 

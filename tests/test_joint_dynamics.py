@@ -238,7 +238,7 @@ def test_whole_runs_with_joint_dynamics_equal_the_oracle_step(at):
     """Z1 (damping and friction on every joint, the wrist's time constant 0.8 ms) simulated
     with them: every step equals the oracle step (tests/reference/step.py), with the
     observer's model at the end or the start of the period."""
-    from .reference.step import OracleHMPC
+    from .reference.step import OracleHMPC, assert_run_matches
 
     config = load_config(CONFIGS / "z1_sine.toml")
     obs = replace(config.controller.observer, model_at=at)
@@ -254,13 +254,7 @@ def test_whole_runs_with_joint_dynamics_equal_the_oracle_step(at):
     oracle = OracleHMPC(ex.controller)
     r = ex.run()
     assert r.complete
-    oracle.reset(r.dq[0])
-    scale = max(1.0, float(np.abs(r.tau).max()))
-    for k in range(len(r.t)):
-        tau, d_hat = oracle.step(r.t[k], r.q[k], r.dq[k], ex.reference,
-                                 None if k == 0 else r.tau_applied[k - 1])  # fmt: skip
-        np.testing.assert_allclose(r.d_hat[k], d_hat, rtol=0, atol=5e-8 * scale)
-        np.testing.assert_allclose(r.tau[k], tau, rtol=0, atol=5e-8 * scale)
+    assert_run_matches(oracle, r, ex.reference, 5e-8)
 
 
 def test_config_keys_of_the_joint_dynamics():

@@ -138,20 +138,14 @@ def test_closed_loop_equals_the_oracle_step(config, changes):
     the oracle step (tests/reference/step.py: Pinocchio's Python API, the numpy NDO, every
     QP solved from scratch) fed the run's measured states and applied torques gives the
     recorded torque and estimate to the solver's tolerance."""
-    from .reference.step import OracleHMPC
+    from .reference.step import OracleHMPC, assert_run_matches
 
     ex = _experiment(CONFIGS / f"{config}.toml", "auto", **changes)
     ex.config = replace(ex.config, simulation=replace(ex.config.simulation, duration=1.0))
     oracle = OracleHMPC(ex.controller)
     r = ex.run()
     assert r.complete
-    oracle.reset(r.dq[0])
-    scale = max(1.0, float(np.abs(r.tau).max()))
-    for k in range(len(r.t)):
-        tau, d_hat = oracle.step(r.t[k], r.q[k], r.dq[k], ex.reference,
-                                 None if k == 0 else r.tau_applied[k - 1])  # fmt: skip
-        np.testing.assert_allclose(r.d_hat[k], d_hat, rtol=0, atol=TAU_TOL * scale)
-        np.testing.assert_allclose(r.tau[k], tau, rtol=0, atol=TAU_TOL * scale)
+    assert_run_matches(oracle, r, ex.reference, TAU_TOL)
 
 
 class _Unfused:

@@ -123,3 +123,17 @@ class OracleHMPC:
 
         before, after = integral(0.0, lo), integral(lo, 1.0)
         return float((np.sign(a) * before + np.sign(c) * after) / (before + after))
+
+
+def assert_run_matches(oracle: OracleHMPC, result, reference, atol: float) -> None:
+    """Replay a closed-loop ``result`` through ``oracle`` (reset at its first velocity) and
+    check, at every recorded instant, the estimate d̂ and the torque τ to ``atol`` [N·m]
+    times max(1, max |τ|): the oracle is given the measured state and the torque applied
+    over the period before, as the compiled step was."""
+    oracle.reset(result.dq[0])
+    scale = max(1.0, float(np.abs(result.tau).max()))
+    for k in range(len(result.t)):
+        prev = None if k == 0 else result.tau_applied[k - 1]
+        tau, d_hat = oracle.step(result.t[k], result.q[k], result.dq[k], reference, prev)
+        np.testing.assert_allclose(result.d_hat[k], d_hat, rtol=0, atol=atol * scale)
+        np.testing.assert_allclose(result.tau[k], tau, rtol=0, atol=atol * scale)

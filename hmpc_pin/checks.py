@@ -15,7 +15,22 @@ import numpy as np
 
 from .exceptions import ConfigError
 
-__all__ = ["as_array", "as_bool", "as_choice", "as_float", "as_int", "as_weight", "mpc_fields"]
+__all__ = [
+    "MAX_LATENCY",
+    "as_array",
+    "as_bool",
+    "as_choice",
+    "as_float",
+    "as_int",
+    "as_latency",
+    "as_weight",
+    "mpc_fields",
+]
+
+#: The longest measurement latency a controller accepts [s]. Arms' interfaces deliver
+#: their state within milliseconds (one 1 kHz cycle for libfranka, 2 ms for UR's RTDE);
+#: a second is a unit error, and the controller keeps one torque per period of it.
+MAX_LATENCY = 1.0
 
 
 def as_float(key: str, value, *, positive: bool = False, nonneg: bool = False) -> float:
@@ -28,6 +43,18 @@ def as_float(key: str, value, *, positive: bool = False, nonneg: bool = False) -
         raise ConfigError(key, f"expected a number > 0, got {x!r}")
     if nonneg and x < 0:
         raise ConfigError(key, f"expected a number >= 0, got {x!r}")
+    return x
+
+
+def as_latency(key: str, value) -> float:
+    """A measurement latency [s]: a finite number in ``[0, MAX_LATENCY]``."""
+    x = as_float(key, value, nonneg=True)
+    if x > MAX_LATENCY:
+        raise ConfigError(
+            key,
+            f"expected a latency in [0, {MAX_LATENCY:g}] s (the age of the measurements, "
+            f"milliseconds on an arm's interface), got {x!r} s",
+        )
     return x
 
 

@@ -769,9 +769,24 @@ def main(argv=None) -> int:
     previous = _startup.guard()  # Ctrl-C before the first side effect: exit 130 at once
     try:
         args = build_parser().parse_args(argv)
+        printed: set[str] = set()
+
+        def show_once(message, category, *rest, **kw) -> None:
+            """Each warning once: the arm's URDF is loaded for the controller and for the
+            plant (and again per variant), each load warning alike."""
+            if str(message) not in printed:
+                printed.add(str(message))
+                _print_warning(message, category, *rest, **kw)
+
         with warnings.catch_warnings():
-            warnings.showwarning = _print_warning
-            return args.func(args)
+            warnings.showwarning = show_once
+            code = args.func(args)
+        sys.stdout.flush()  # a closed pipe raises here, not at the interpreter's exit
+        return code
+    except BrokenPipeError:  # the reader stopped (`hmpc-pin check ... | head`): not an error
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # the exit's flush writes nowhere
+        return EXIT_OK
     except KeyboardInterrupt as exc:
         return _interrupted(exc)
     except HmpcError as exc:

@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from ..checks import as_bool, as_choice, as_float, as_int, mpc_fields
+from ..checks import as_bool, as_choice, as_float, as_int, as_latency, mpc_fields
 from ..compensation.base import Compensation, check_compensation
 from ..compensation.observers import DisturbanceObserver
 from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
@@ -117,7 +117,7 @@ class MPCSettings:
         fields["max_iter"] = as_int("MPCSettings.max_iter", self.max_iter, minimum=1)
         fields["qp_layout"] = as_choice("MPCSettings.qp_layout", self.qp_layout,
                                         ("auto", "block", "joint"))  # fmt: skip
-        fields["latency"] = as_float("MPCSettings.latency", self.latency, nonneg=True)
+        fields["latency"] = as_latency("MPCSettings.latency", self.latency)
         fields["joint_dynamics"] = as_bool("MPCSettings.joint_dynamics", self.joint_dynamics)
         fields["observer_model"] = as_choice("MPCSettings.observer_model",
                                              self.observer_model, ("end", "start"))  # fmt: skip

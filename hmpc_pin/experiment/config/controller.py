@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ...checks import mpc_fields
+from ...checks import as_latency, mpc_fields
 from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ..combos import HMPC_ONLY, OBSERVERS, applies
@@ -387,7 +387,7 @@ class ControllerConfig:
             backend = "auto" if self.backend is None else self.backend
             _set(self, "backend", _choice("backend", backend, BACKENDS))
             latency = 0.0 if self.latency is None else self.latency
-            _set(self, "latency", _float("latency", latency, nonneg=True))
+            _set(self, "latency", as_latency("latency", latency))
             jd = True if self.joint_dynamics is None else self.joint_dynamics
             _set(self, "joint_dynamics", _bool("joint_dynamics", jd))
         _set(self, "kind", controller)

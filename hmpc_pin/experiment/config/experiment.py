@@ -187,10 +187,19 @@ def load_config(path: str | Path) -> ExperimentConfig:
             source=src,
         )
     try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError("<file>", f"cannot be read ({exc})", source=src) from exc
+    try:
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
+        if path.suffix.lower() in (".urdf", ".xml") or text.lstrip().startswith("<"):
+            raise ConfigError(
+                "<file>", "is a robot description (URDF/XML), not an experiment config; "
+                f"write a config for this arm with `hmpc-pin init {path}` and pass the "
+                ".toml file it writes",
+                source=src,
+            ) from exc  # fmt: skip
         raise ConfigError("<file>", f"not valid TOML: {exc}", source=src) from exc
 
     sections = {

@@ -38,7 +38,8 @@ to the largest entry): the two engines read the URDF differently.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -49,15 +50,37 @@ from ..compensation.bandwidth import (
     overdeclared_excess,
     overdeclared_limit,
 )
+from ..exceptions import HmpcError
 from ..experiment.build import Experiment
 from ..experiment.plants import _effort_limit
 from ..experiment.schema import ExperimentConfig
 from ..model.robot import damping_time_constants
 
-__all__ = ["ENGINE_RTOL", "ENGINE_SAMPLES", "MIN_HEADROOM", "CheckReport", "check_config"]
+__all__ = [
+    "ENGINE_RTOL",
+    "ENGINE_SAMPLES",
+    "MAX_RADIUS",
+    "MIN_DECAY",
+    "MIN_HEADROOM",
+    "CheckReport",
+    "apply_fix",
+    "check_config",
+    "lead_radius",
+    "overdeclared_radius",
+]
 
 #: Smallest torque headroom along the reference [-] that is not a problem.
 MIN_HEADROOM = 0.1
+#: Largest pole modulus [-] of the observer loop with the declared latency too long
+#: (:func:`overdeclared_radius`) that is not a problem: measured on the Panda (init's
+#: Ts w = 10 and the shipped config's Ts w up to 153), runs track at |z| <= 0.96 and
+#: oscillate from |z| = 0.99 (a pole that close to -1 rings with the outer loop).
+MAX_RADIUS = 0.95
+#: Smallest share [-] of the outer loop's decay rate :math:`-\ln|z|/T_s` without a
+#: prediction that it may keep with a latency declared too long (:func:`lead_radius`):
+#: the paper's MPC (kp = 274, kd = 22.7 at Ts = 10 ms, 12 1/s) tracks with 5 periods
+#: declared too many (6.7 1/s) and leaves its tolerance with 10 (3.1 1/s).
+MIN_DECAY = 0.5
 #: States at which Pinocchio and MuJoCo are compared.
 ENGINE_SAMPLES = 5
 #: Largest relative difference of M(q) and q̈ between Pinocchio and MuJoCo [-] (both are
@@ -81,7 +104,13 @@ class CheckReport:
         headroom: Torque headroom per joint [-] (inf: no limit).
         engine: ``(max rel. difference of M, of q̈)`` against MuJoCo, or a sentence why
             not compared.
-        problems: One line per problem (empty: fine).
+        problems: One line per problem: ``run`` would not track within its tolerance,
+            and the change the line suggests (``fixes``) makes it track (empty: fine).
+        fixes: Per problem the config change that removes it (:func:`apply_fix`), or
+            ``None`` when there is no single change.
+        warnings: One line per finding that does not affect ``run`` but matters on an arm
+            (an interface's latency, lighter links, the real arm's damping) or leaves
+            little margin.
     """
 
     joints: tuple[str, ...]
@@ -93,6 +122,14 @@ class CheckReport:
     headroom: np.ndarray
     engine: tuple[float, float] | str
     problems: list[str] = field(default_factory=list)
+    fixes: list[dict[str, Any] | None] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def add_problem(self, text: str, fix: dict[str, Any] | None) -> None:
+        """One problem and the change of the config that removes it in ``run``
+        (:func:`apply_fix`; ``None``: no single change)."""
+        self.problems.append(text)
+        self.fixes.append(fix)
 
     def format(self) -> str:
         """The per-joint table, the engine comparison and the problems, as text."""
@@ -117,15 +154,6 @@ class CheckReport:
         return "\n".join(lines)
 
 
-def _latency(config: ExperimentConfig) -> tuple[float, float]:
-    """``(declared, uncompensated)`` latency [s]: ``[controller] latency`` (compensated by
-    the controller) and the latency the rule assumes the controller was not told about
-    (one control period when none is declared, as
-    :func:`~hmpc_pin.compensation.bandwidth.check_bandwidth`)."""
-    declared = float(getattr(config.controller, "latency", None) or 0.0)
-    return declared, (0.0 if declared > 0 else config.controller.Ts)
-
-
 def _bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
     """The observer's bandwidth per joint [1/s], or ``None`` without an observer."""
     from ..compensation.bandwidth import implied_bandwidth
@@ -141,8 +169,9 @@ def _bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
     return None  # no observer (none, ISM)
 
 
-def _headroom(ex: Experiment, limit: np.ndarray | None) -> np.ndarray:
-    """1 − max |τ_j| / τ_max along the reference (inf without limits)."""
+def _headroom(ex: Experiment, limit: np.ndarray | None, damped: bool = True) -> np.ndarray:
+    """1 − max |τ_j| / τ_max along the reference (inf without limits); the URDF's joint
+    damping and friction counted when the plant applies them (``damped``)."""
     n = ex.robot.nq
     if limit is None:
         return np.full(n, np.inf)
@@ -154,6 +183,8 @@ def _headroom(ex: Experiment, limit: np.ndarray | None) -> np.ndarray:
     ddq = np.gradient(dq, dt, axis=0)
     model, data = ex.robot.model, ex.robot.model.createData()
     b, f = ex.robot.joint_damping, ex.robot.joint_friction
+    if not damped:
+        b, f = np.zeros(n), np.zeros(n)
     need = np.zeros(n)
     for k in range(len(t)):
         tau = pin.rnea(model, data, q[k], dq[k], ddq[k]) + b * dq[k] + f * np.sign(dq[k])
@@ -205,8 +236,233 @@ def _engines(ex: Experiment) -> tuple[float, float] | str:
     return err_M, err_a
 
 
+def overdeclared_radius(wTs: float, ratio: float, over: float) -> float:
+    """Spectral radius [-] of the observer loop with a latency declared ``over`` control
+    periods longer than the measurements' age (case 4 of
+    :mod:`hmpc_pin.compensation.bandwidth`, extended to several periods).
+
+    With :math:`g = T_s\\omega/(1 + T_s\\omega)` (implicit observer), the over-declaration
+    :math:`m + \\beta` periods (m whole, :math:`0 \\le \\beta < 1`) and a plant whose
+    inertia is :math:`1/r` of the model's, the observer pairs the velocity change caused
+    by :math:`u_{k-1}` with :math:`(1-\\beta) u_{k-1-m} + \\beta u_{k-2-m}`, and with
+    :math:`u = v - \\hat d` its estimate obeys
+
+    .. math:: \\hat d_k = (1 - g - g r)\\hat d_{k-1} + g(1-\\beta)\\hat d_{k-1-m}
+              + g\\beta\\,\\hat d_{k-2-m} + \\dots
+
+    whose characteristic polynomial's largest root modulus is returned (m = 0 gives the
+    docstring's :math:`z^2 - (1 - g(r + \\beta))z - g\\beta`).
+
+    Args:
+        wTs: :math:`T_s\\omega` [-].
+        ratio: r, model-to-plant inertia ratio [-].
+        over: The over-declaration in control periods [-] (>= 0).
+    """
+    g = wTs / (1.0 + wTs)
+    m = math.floor(over + 1e-9)
+    beta = max(over - m, 0.0)
+    coeffs = np.zeros(m + 3)
+    coeffs[0] = 1.0
+    coeffs[1] -= 1.0 - g - g * ratio
+    coeffs[1 + m] -= g * (1.0 - beta)
+    coeffs[2 + m] -= g * beta
+    return float(np.max(np.abs(np.roots(np.trim_zeros(coeffs, "b"))), initial=0.0))
+
+
+def _run_ratio(ex: Experiment) -> float:
+    """r of the simulated plant: the largest :math:`M_{jj}` of the controller's model
+    over the plant's at :math:`q_0` (1 when the plant is the controller's model)."""
+    plant = getattr(ex, "plant", None)
+    if plant is None or getattr(plant, "nq", None) != ex.robot.nq:
+        return MASS_RATIO
+    m_model = np.diag(ex.robot.mass_matrix(ex.q0))
+    m_plant = np.diag(plant.mass_matrix(ex.q0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(m_plant > 0, m_model / m_plant, 1.0)
+    return float(max(np.max(ratio), 1e-3))
+
+
+def _is_paper(config: ExperimentConfig) -> bool:
+    """A config reproducing the paper (``paper_*``): its settings are kept as the paper's."""
+    return str(getattr(config, "name", "")).startswith("paper_")
+
+
+def _observer_findings(
+    report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray
+) -> np.ndarray:
+    """The observer's rules: problems for ``run``, warnings for an arm; the margin."""
+    names, Ts, latency = report.joints, report.Ts, report.latency
+    uncompensated = 0.0 if latency > 0 else Ts
+    excess = overdeclared_excess(Ts, latency)
+    limit = (overdeclared_limit(Ts, excess) if latency > 0
+             else bandwidth_limit(Ts, uncompensated))  # fmt: skip
+    margin = np.where(bw > 0, limit / np.where(bw > 0, bw, 1.0), np.inf)
+    # an arm: its interface delays the measurements (one period unknown, or the declared
+    # latency off by half an interface cycle) and its links may be 20 % lighter
+    over = np.flatnonzero(margin < 1.0 - 1e-9)
+    if over.size:
+        listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, w Ts = {bw[j] * Ts:.3g})"
+                           for j in over)  # fmt: skip
+        if latency > 0:
+            report.warnings.append(
+                f"on an arm: observer bandwidth above {limit:.4g} 1/s on joint(s) {listed}, "
+                f"the rule w (r Ts + 2 dL - 2 Ts) <= 1 for a latency declared dL = {excess:g} "
+                f"s longer than it is (half an interface cycle, r = {MASS_RATIO:g}): the "
+                "observer's estimate would alternate in sign and grow; lower the "
+                "bandwidth or measure the latency"
+            )
+        else:
+            kept = " (the paper's setting, kept: its simulation has no latency)"
+            report.warnings.append(
+                f"on an arm: observer bandwidth above {limit:.3g} 1/s on joint(s) {listed}, "
+                f"the rule w r (Ts + L) <= 1/2 for a latency of L = {uncompensated:g} s the "
+                f"controller is not told about (r = {MASS_RATIO:g}); `run` simulates "
+                f"measurements without latency{kept if _is_paper(config) else ''}; on an "
+                "arm declare its latency ([controller] latency) or lower the observer gain"
+            )
+    return margin
+
+
+def lead_radius(kp: float, kd: float, Ts: float, over: float) -> float:
+    """Spectral radius [-] of one joint's outer loop when the controller predicts its
+    state ``over`` control periods ahead of measurements that are fresh (a latency
+    declared that much too long).
+
+    The joint is the double integrator the inverse dynamics leaves, held for a period
+    (:math:`x^+ = x + T_s\\dot x + \\tfrac12 T_s^2 u`, :math:`\\dot x^+ = \\dot x + T_s u`),
+    under the MPC's equivalent feedback :math:`u_k = -k_p\\hat x_k - k_d\\hat{\\dot x}_k`
+    (:func:`~hmpc_pin.controllers.computed_torque.mpc_feedback_gain`), where
+    :math:`\\hat x_k` is the measured state integrated over :math:`L = D T_s` with the
+    inputs of the last :math:`\\lceil D\\rceil` periods, as the controller does for a
+    latency L (the oldest over the fraction :math:`D - \\lceil D\\rceil + 1` of a period).
+    The loop's state is :math:`[x, \\dot x, u_{k-1}, \\dots, u_{k-\\lceil D\\rceil}]`.
+
+    Args:
+        kp: [1/s²], kd: [1/s]: the feedback gains.
+        Ts: Control period [s].
+        over: D, the over-declaration in control periods [-] (>= 0).
+    """
+    m = math.ceil(over - 1e-9) if over > 0 else 0
+    size = 2 + m
+
+    def hold(h: float) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([[1.0, h], [0.0, 1.0]]), np.array([0.5 * h * h, h])
+
+    predict = np.eye(2, size)  # (x̂, v̂) as a map of the loop's state
+    for i in range(m, 0, -1):  # u_{k-i}, the oldest first
+        A, B = hold((over - (m - 1) if i == m else 1.0) * Ts)
+        predict = A @ predict
+        predict[:, 1 + i] += B
+    gain = -np.array([kp, kd]) @ predict  # u_k
+    A, B = hold(Ts)
+    step = np.zeros((size, size))
+    step[:2] = A @ np.eye(2, size) + np.outer(B, gain)
+    if m:
+        step[2] = gain
+        for i in range(1, m):
+            step[2 + i, 1 + i] = 1.0
+    return float(np.max(np.abs(np.linalg.eigvals(step))))
+
+
+def _run_latency_findings(
+    report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray | None
+) -> None:
+    """``run`` simulates measurements without latency: a declared latency L is L too
+    long there. A problem when the observer's loop (:func:`overdeclared_radius`) has a
+    pole of modulus >= :data:`MAX_RADIUS` or the
+    outer loop (:func:`lead_radius`) then decays slower than :data:`MIN_DECAY` times
+    its rate without the prediction."""
+    from ..controllers.computed_torque import mpc_feedback_gain
+    from ..mpc.condensed import CondensedMPC
+
+    names, Ts, latency = report.joints, report.Ts, report.latency
+    if latency <= 0:
+        return
+    cc = config.controller
+    over = latency / Ts
+    parts = []
+    if bw is not None:
+        ratio = _run_ratio(ex)
+        radius = np.array([overdeclared_radius(w * Ts, ratio, over) for w in bw])
+        bad = np.flatnonzero(radius >= MAX_RADIUS)
+        if bad.size:
+            listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, |z| = {radius[j]:.3g})"
+                               for j in bad)  # fmt: skip
+            parts.append(
+                f"the observer pairs each velocity change with a torque {over:.3g} periods "
+                f"too early and its loop's pole reaches |z| >= {MAX_RADIUS:g} on joint(s) "
+                f"{listed}"
+            )
+    kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    base, lead = lead_radius(kp, kd, Ts, 0.0), lead_radius(kp, kd, Ts, over)
+    decay, decay0 = -math.log(min(lead, 1.0)) / Ts, -math.log(base) / Ts
+    if decay < MIN_DECAY * decay0:
+        parts.append(
+            f"the MPC acts on the state predicted {latency:g} s ahead of the measured one, "
+            f"and its loop (kp = {kp:.4g} 1/s², kd = {kd:.4g} 1/s) then decays at "
+            f"{decay:.3g} 1/s (|z| = {lead:.3g}), below {MIN_DECAY:g} x its {decay0:.3g} 1/s "
+            "without the prediction"
+        )
+    if parts:
+        report.add_problem(
+            f"latency = {latency:g} s ({over:.3g} periods) is declared, but `run` simulates "
+            f"measurements without latency: {'; and '.join(parts)}; in `run` set "
+            "[controller] latency = 0 (on an arm: the latency it measures, "
+            "`hmpc-pin realtime` reports it)",
+            {"controller.latency": 0.0},
+        )
+
+
+def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
+    """Friction read with the literal sign (it feeds energy in) and nothing compensating
+    it: the arm runs away from the reference."""
+    friction = getattr(config.disturbance, "friction", None)
+    if getattr(friction, "sign", None) != "literal" or config.controller.compensation != "none":
+        return
+    text = ("[disturbance.friction] sign = 'literal' feeds energy in (d = +F) and the "
+            "controller compensates nothing (compensation 'none'): the arm is expected to "
+            "lose the reference")  # fmt: skip
+    if _is_paper(config):
+        report.warnings.append(f"{text} (the paper's baseline without the observer, kept)")
+    else:
+        report.add_problem(f"{text}; choose a compensation (an observer)", None)
+
+
+def _damping_findings(report: CheckReport, config: ExperimentConfig) -> None:
+    """The URDF damping against Ts, in the controller and in the simulated plant."""
+    names, Ts, tau = report.joints, report.Ts, report.damping_tau
+    controller = bool(getattr(config.controller, "joint_dynamics", False))
+    plant = bool(config.plant.joint_dynamics)
+    fast = np.flatnonzero(tau < 2 * Ts)
+    if not fast.size or controller == plant == True:  # noqa: E712
+        return
+    listed = ", ".join(f"{names[j]!r} ({tau[j]:.3g} s)" for j in fast)
+    rule = (f"damping time constant 1/(b (M^-1)_jj) below 2 Ts = {2 * Ts:g} s on joint(s) "
+            f"{listed}")  # fmt: skip
+    if plant and not controller:
+        report.add_problem(
+            f"{rule}; the plant applies the damping ([plant] joint_dynamics) but "
+            "controller.joint_dynamics is false; set it true (compensation with the "
+            "zero-order-hold gain) or lower Ts",
+            {"controller.joint_dynamics": True},
+        )
+    elif controller and not plant:
+        report.add_problem(
+            f"{rule}; controller.joint_dynamics compensates it but the simulated plant "
+            "leaves it out ([plant] joint_dynamics = false): the compensation then drives "
+            "the arm; in `run` set controller.joint_dynamics = false as the plant (on the "
+            "real arm, which applies the damping, keep it true)",
+            {"controller.joint_dynamics": False},
+        )
+    else:
+        report.warnings.append(
+            f"{rule}; `run` leaves it out of the plant and the controller alike, but a "
+            "real arm applies it: there set controller.joint_dynamics = true"
+        )
+
+
 def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
-    """The figures and problems of ``config`` (module docstring), nothing run.
+    """The figures, problems and warnings of ``config`` (module docstring), nothing run.
 
     Args:
         config: A validated experiment config.
@@ -217,70 +473,75 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     names = robot.joint_names
     Ts = config.controller.Ts
     M0 = robot.mass_matrix(ex.q0)
-    latency, uncompensated = _latency(config)
-    problems: list[str] = []
+    latency = float(getattr(config.controller, "latency", None) or 0.0)
+    plant_damped = bool(config.plant.joint_dynamics)
+    report = CheckReport(
+        names, Ts, latency, None, None, damping_time_constants(robot, ex.q0),
+        _headroom(ex, _effort_limit(config, ex.plant), damped=plant_damped),
+        "not compared (--no-engine)",
+    )  # fmt: skip
 
     bw = _bandwidth(ex, M0)
-    margin = None
     if bw is not None:
-        excess = overdeclared_excess(Ts, latency)
-        limit = (overdeclared_limit(Ts, excess) if latency > 0
-                 else bandwidth_limit(Ts, uncompensated))  # fmt: skip
-        margin = np.where(bw > 0, limit / np.where(bw > 0, bw, 1.0), np.inf)
+        report.bandwidth = bw
+        report.margin = _observer_findings(report, config, ex, bw)
         explicit = getattr(config.controller.observer, "discretization", "") == "explicit"
-        for j in np.flatnonzero((margin < 1.0 - 1e-9) | (explicit & (bw * Ts >= 2.0))):
-            if explicit and bw[j] * Ts >= 2.0:
-                problems.append(
-                    f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s: w Ts = "
-                    f"{bw[j] * Ts:.3g} >= 2 puts the explicit observer's pole outside the "
-                    f"unit circle; use w < {2 / Ts:.4g} 1/s or discretization = 'implicit'"
-                )
-            elif latency > 0:
-                problems.append(
-                    f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s (w Ts = "
-                    f"{bw[j] * Ts:.3g}) above {limit:.4g} 1/s, the rule "
-                    f"w (r Ts + 2 dL - 2 Ts) <= 1 for a latency declared dL = {excess:g} s "
-                    f"longer than it is (half an interface cycle, r = {MASS_RATIO:g}): the "
-                    "observer's estimate would alternate in sign and grow; lower the "
-                    "bandwidth or measure the latency"
-                )
-            else:
-                problems.append(
-                    f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s (w Ts = "
-                    f"{bw[j] * Ts:.3g}) above {limit:.3g} 1/s, the rule w r (Ts + L) <= 1/2 "
-                    f"for a latency of L = {uncompensated:g} s the controller is not told "
-                    f"about (r = {MASS_RATIO:g}): declare the latency ([controller] latency) "
-                    "or lower the observer gain"
-                )
-
-    damping_tau = damping_time_constants(robot, ex.q0)
-    compensated = bool(getattr(config.controller, "joint_dynamics", False))
-    if not compensated:
-        for j in np.flatnonzero(damping_tau < 2 * Ts):
-            problems.append(
-                f"joint {names[j]!r}: damping time constant 1/(b (M^-1)_jj) = "
-                f"{damping_tau[j]:.3g} s is "
-                f"below 2 Ts = {2 * Ts:g} s and controller.joint_dynamics is false; set it "
-                "true (compensation with the zero-order-hold gain) or lower Ts"
+        for j in np.flatnonzero(explicit & (bw * Ts >= 2.0)):
+            report.add_problem(
+                f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s: w Ts = "
+                f"{bw[j] * Ts:.3g} >= 2 puts the explicit observer's pole outside the "
+                f"unit circle; use w < {2 / Ts:.4g} 1/s or discretization = 'implicit'",
+                {"controller.observer.discretization": "implicit"},
             )
 
-    headroom = _headroom(ex, _effort_limit(config, ex.plant))
-    for j in np.flatnonzero(headroom < MIN_HEADROOM):
-        problems.append(
-            f"joint {names[j]!r}: the reference needs {100 * (1 - headroom[j]):.0f} % of the "
-            f"effort limit (headroom {100 * headroom[j]:.0f} %, expected >= "
-            f"{100 * MIN_HEADROOM:.0f} %); slow or shrink the reference"
-        )
+    _run_latency_findings(report, config, ex, bw)
+    _damping_findings(report, config)
+    _friction_findings(report, config)
 
-    engine: tuple[float, float] | str = "not compared (--no-engine)"
+    headroom = report.headroom
+    for j in np.flatnonzero(headroom < MIN_HEADROOM):
+        text = (f"joint {names[j]!r}: the reference needs {100 * (1 - headroom[j]):.0f} % of "
+                f"the effort limit (headroom {100 * headroom[j]:.0f} %, expected >= "
+                f"{100 * MIN_HEADROOM:.0f} %)")  # fmt: skip
+        if headroom[j] < 0:  # the plant clips the torque the reference needs
+            report.add_problem(f"{text}; slow or shrink the reference", None)
+        else:
+            report.warnings.append(f"{text}: the feedback and the disturbance compensation "
+                                   "need the rest; slow or shrink the reference")  # fmt: skip
+
     if engines:
-        engine = _engines(ex)
-        if not isinstance(engine, str):
-            for what, err in zip(("M(q)", "the forward dynamics"), engine, strict=True):
+        try:
+            report.engine = _engines(ex)
+        except HmpcError as exc:  # MuJoCo refuses the URDF: one problem, the table stays
+            report.engine = "refused the URDF"
+            report.add_problem(
+                f"MuJoCo cannot load the arm's URDF ({exc}); the engines cannot be compared "
+                "(pass --no-engine to skip the comparison)",
+                None,
+            )
+        if not isinstance(report.engine, str):
+            for what, err in zip(("M(q)", "the forward dynamics"), report.engine, strict=True):
                 if err > ENGINE_RTOL:
-                    problems.append(
-                        f"model: MuJoCo's {what} differs from Pinocchio's by {err:.2g} "
-                        f"(relative, expected <= {ENGINE_RTOL:g}); the engines read the URDF "
-                        "differently (check its <inertial> frames)"
-                    )
-    return CheckReport(names, Ts, latency, bw, margin, damping_tau, headroom, engine, problems)
+                    text = (f"model: MuJoCo's {what} differs from Pinocchio's by {err:.2g} "
+                            f"(relative, expected <= {ENGINE_RTOL:g}); the engines read the "
+                            "URDF differently (check its <inertial> frames)")  # fmt: skip
+                    if config.plant.engine == "mujoco":  # the simulated arm is not the model
+                        report.add_problem(text, None)
+                    else:
+                        report.warnings.append(text)
+    return report
+
+
+def apply_fix(config: ExperimentConfig, fix: dict[str, Any]) -> ExperimentConfig:
+    """``config`` with the changes of a problem's fix (``{"controller.latency": 0.0}``):
+    dotted keys of the config's tables."""
+    for key, value in fix.items():
+        *tables, name = key.split(".")
+        chain = [config]
+        for t in tables:
+            chain.append(getattr(chain[-1], t))
+        new: Any = replace(chain[-1], **{name: value})
+        for parent, t in zip(reversed(chain[:-1]), reversed(tables), strict=True):
+            new = replace(parent, **{t: new})
+        config = new
+    return config

@@ -410,6 +410,8 @@ def cmd_check(args) -> int:
 
     report = check_config(load_config(args.config), engines=not args.no_engine)
     print(report.format())
+    for line in report.warnings:
+        print(f"warning: {line}")
     for line in report.problems:
         print(f"problem: {line}")
     if report.problems:

@@ -109,19 +109,32 @@ def test_too_little_torque_is_a_problem_per_joint():
     assert report.headroom[2] == pytest.approx(1 - max(tau3) / 0.5, rel=1e-3)
 
 
-def test_fast_damping_is_a_problem_unless_compensated(tmp_path):
+def _damped_paper(tmp_path, b3: float, **plant):
+    """The paper's arm (gain 1: no observer finding) with joint 3 damped by ``b3``
+    [N·m·s/rad] in its URDF."""
     text = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
     parts = text.split('<axis xyz="0 -1 0"/>')
     text = parts[0] + "".join(
-        '<axis xyz="0 -1 0"/>' + ('<dynamics damping="200.0"/>' if j == 2 else "") + rest
+        '<axis xyz="0 -1 0"/>' + (f'<dynamics damping="{float(b3)!r}"/>' if j == 2 else "") + rest
         for j, rest in enumerate(parts[1:])
     )
-    urdf = tmp_path / "damped.urdf"
+    urdf = tmp_path / f"damped_{b3:g}.urdf"
     urdf.write_text(text)
-    config = _paper(1.0, dt=1e-4)  # the RK4 plant's step for the 0.64 ms damping
-    config = replace(config, robot=replace(config.robot, urdf=urdf, model=None))
+    config = _paper(1.0, **plant)
+    return replace(config, robot=replace(config.robot, urdf=urdf, model=None))
+
+
+def _m3(config) -> float:
+    """Joint 3's effective inertia with the others free, 1/(M^-1)_33 [kg m²] at q0."""
     ex = Experiment.from_config(config)
-    m3 = 1.0 / np.linalg.inv(ex.robot.mass_matrix(ex.q0))[2, 2]  # the others free
+    M0 = pin.crba(ex.robot.model, ex.robot.model.createData(), ex.q0)
+    M0 = np.triu(M0) + np.triu(M0, 1).T
+    return 1.0 / np.linalg.inv(M0)[2, 2]
+
+
+def test_fast_damping_is_a_problem_unless_compensated(tmp_path):
+    config = _damped_paper(tmp_path, 200.0, dt=1e-4)  # the RK4 step for the 0.64 ms
+    m3 = _m3(config)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ValidityWarning)  # compensated: no warning
         report = check_config(config, engines=False)
@@ -133,6 +146,69 @@ def test_fast_damping_is_a_problem_unless_compensated(tmp_path):
         report = check_config(off, engines=False)
     assert len(report.problems) == 1
     assert "'joint3'" in report.problems[0] and "damping time constant" in report.problems[0]
+    assert report.fixes == [{"controller.joint_dynamics": True}]
+
+
+@pytest.mark.parametrize("periods, flagged", [(1.2, True), (1.9, True), (2.1, False)])
+def test_a_damping_time_constant_below_two_periods_is_flagged_without_compensation(
+    tmp_path, periods, flagged
+):
+    """T_b = m3 / b between Ts and 2 Ts (and above): b chosen from the effective inertia
+    computed here by CRBA, so that T_b = periods × Ts."""
+    Ts = 0.01
+    m3 = _m3(_paper(1.0))
+    config = _damped_paper(tmp_path, m3 / (periods * Ts))
+    assert config.controller.Ts == Ts
+    off = replace(config, controller=replace(config.controller, joint_dynamics=False))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)
+        report = check_config(off, engines=False)
+        assert report.damping_tau[2] == pytest.approx(periods * Ts, rel=1e-9)
+        assert len(report.problems) == int(flagged)
+        if flagged:
+            assert "'joint3'" in report.problems[0]
+            assert report.fixes == [{"controller.joint_dynamics": True}]
+        # a plant without the damping: nothing to compensate in `run`; a warning for an
+        # arm, and compensating what the simulated arm lacks is a problem
+        bare = replace(off, plant=replace(off.plant, joint_dynamics=False))
+        report = check_config(bare, engines=False)
+        assert report.problems == [] and len(report.warnings) == int(flagged)
+        both = replace(bare, controller=replace(bare.controller, joint_dynamics=True))
+        report = check_config(both, engines=False)
+        assert len(report.problems) == int(flagged)
+        if flagged:
+            assert report.fixes == [{"controller.joint_dynamics": False}]
+
+
+def test_damping_lowers_the_torque_headroom(tmp_path):
+    """Joint 3 damped by b = 5 N·m·s/rad with an effort limit of 5 N·m: the headroom is
+    1 − max |τ_3 + b ṙ_3| / 5 along the closed-form sine (RNEA), lower than without the
+    damping; a plant without the joint dynamics does not pay for it."""
+    b, limit = 5.0, 5.0
+    effort = np.array([1e3, 1e3, limit])
+    damped = _damped_paper(tmp_path, b, effort_limit=effort)
+    bare = _paper(1.0, effort_limit=effort)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)
+        h_damped = check_config(damped, engines=False).headroom[2]
+        h_bare = check_config(bare, engines=False).headroom[2]
+        off = replace(damped, plant=replace(damped.plant, joint_dynamics=False))
+        h_off = check_config(off, engines=False).headroom[2]
+    ex = Experiment.from_config(bare)
+    w = 2 * math.pi * 0.1
+    t = np.linspace(0.0, bare.simulation.duration, 4001)
+    data = ex.robot.model.createData()
+    need_bare, need_damped = 0.0, 0.0
+    for tk in t:
+        r, dr, ddr = math.sin(w * tk), w * math.cos(w * tk), -w * w * math.sin(w * tk)
+        tau3 = pin.rnea(ex.robot.model, data, np.full(3, r), np.full(3, dr),
+                        np.full(3, ddr))[2]  # fmt: skip
+        need_bare = max(need_bare, abs(tau3))
+        need_damped = max(need_damped, abs(tau3 + b * dr))
+    assert h_bare == pytest.approx(1 - need_bare / limit, rel=1e-3)
+    assert h_damped == pytest.approx(1 - need_damped / limit, rel=1e-3)
+    assert h_damped < h_bare - 0.1 * b * w / limit  # lower by about b |ṙ| / limit
+    assert h_off == pytest.approx(h_bare, rel=1e-12)
 
 
 def test_engines_that_disagree_are_detected():
@@ -185,3 +261,128 @@ def test_a_latency_declared_at_1khz_bounds_the_bandwidth_for_half_a_cycle_too_ma
     assert max(abs(np.roots([1.0, -(1 - 2 * g), -g, 0.0]))) > 1.0
     assert len(report.problems) == 1 and "'joint3'" in report.problems[0]
     assert report.fixes == [{"controller.latency": 0.0}]
+
+
+def test_a_reference_near_the_effort_limit_warns_and_beyond_it_is_a_problem():
+    """Headroom 5 % (the limit 1/0.95 of the peak torque): a warning, the run can still
+    pay for it; headroom −5 %: the plant clips the torque the reference needs, a problem."""
+    base = _paper(1.0)
+    need = (1.0 - check_config(base, engines=False).headroom) * 1e4  # the URDF's 1e4 N·m
+    for share, problem in ((0.95, False), (1.05, True)):
+        effort = np.array([1e3, 1e3, need[2] / share])
+        report = check_config(_paper(1.0, effort_limit=effort), engines=False)
+        assert report.headroom[2] == pytest.approx(1 - share, rel=1e-9)
+        assert len(report.problems) == int(problem) and len(report.warnings) == int(not problem)
+        assert "'joint3'" in (report.problems + report.warnings)[0]
+
+
+def _recurrence_growth(coeffs: list[float], steps: int = 20000) -> float:
+    """Growth per step of x_k = sum_i coeffs[i] x_{k-1-i} from a seeded start (power
+    iteration on the recurrence itself, not on its polynomial)."""
+    rng = np.random.default_rng(3)
+    x = list(rng.standard_normal(len(coeffs)))
+    norms = []
+    for _ in range(steps):
+        x.append(sum(c * x[-1 - i] for i, c in enumerate(coeffs)))
+        window = np.array(x[-len(coeffs) :])
+        scale = np.abs(window).max()
+        x = list(window / scale)
+        norms.append(scale)
+    return float(np.exp(np.mean(np.log(norms[steps // 2 :]))))
+
+
+@pytest.mark.parametrize("wTs, ratio, over", [(10.0, 1.0, 0.5), (10.0, 1.25, 0.3),
+                                               (3.0, 1.0, 2.4), (0.5, 1.0, 5.0)])  # fmt: skip
+def test_the_observer_loop_of_a_latency_declared_too_long(wTs, ratio, over):
+    """overdeclared_radius against the recurrence it describes, iterated:
+    d_k = (1 − g − g r) d_{k−1} + g (1 − β) d_{k−1−m} + g β d_{k−2−m}."""
+    from hmpc_pin.apps.check import overdeclared_radius
+
+    g = wTs / (1 + wTs)
+    m = math.floor(over)
+    beta = over - m
+    coeffs = [0.0] * (m + 2)
+    coeffs[0] += 1 - g - g * ratio
+    coeffs[m] += g * (1 - beta)
+    coeffs[m + 1] += g * beta
+    assert overdeclared_radius(wTs, ratio, over) == pytest.approx(
+        _recurrence_growth(coeffs), rel=1e-4
+    )
+
+
+@pytest.mark.parametrize("over", [0.0, 0.5, 2.5, 3.0, 12.0])
+def test_the_outer_loop_predicting_ahead_of_fresh_measurements(over):
+    """lead_radius against a simulation of the double integrator under u = −kp x̂ − kd v̂,
+    x̂ the state integrated over L = over × Ts with the inputs of the last periods (the
+    oldest over the fraction of a period that is left); without a prediction the poles
+    are those of the PD loop (computed_torque.closed_loop_poles)."""
+    from hmpc_pin.apps.check import lead_radius
+    from hmpc_pin.controllers.computed_torque import closed_loop_poles
+
+    Ts, kp, kd = 0.01, 273.9, 22.73
+    if over == 0:
+        assert lead_radius(kp, kd, Ts, 0.0) == pytest.approx(
+            max(abs(closed_loop_poles(Ts, kp, kd))), rel=1e-12
+        )
+    m = math.ceil(over)
+    x, v, inputs, norms = 1.0, 0.0, [0.0] * m, []
+    for _ in range(20000):
+        xh, vh = x, v
+        for i, u in enumerate(inputs):  # the oldest first
+            h = (over - (m - 1) if i == 0 else 1.0) * Ts
+            xh, vh = xh + vh * h + 0.5 * u * h * h, vh + u * h
+        u = -kp * xh - kd * vh
+        x, v = x + v * Ts + 0.5 * u * Ts * Ts, v + u * Ts
+        inputs = [*inputs, u][1:] if m else []
+        scale = max(abs(x), abs(v) * Ts, *(abs(w) * Ts * Ts for w in inputs), 1e-300)
+        x, v, inputs = x / scale, v / scale, [w / scale for w in inputs]
+        norms.append(scale)
+    growth = float(np.exp(np.mean(np.log(norms[10000:]))))  # converges as 1/steps
+    assert lead_radius(kp, kd, Ts, over) == pytest.approx(growth, rel=5e-4)
+
+
+@pytest.mark.parametrize("periods, problem", [(0.25, False), (1.0, True)])
+def test_a_latency_declared_above_runs_measured_one_is_reported(periods, problem):
+    """``run`` hands over fresh measurements: a declared latency is that much too long.
+    A quarter period is harmless for the paper's observer; a whole one is a problem
+    naming the observer, fixed by latency = 0."""
+    config = load_config(PAPER)
+    config = replace(config, controller=replace(config.controller, latency=periods * 0.01))
+    report = check_config(config, engines=False)
+    assert len(report.problems) == int(problem)
+    if problem:
+        assert "observer" in report.problems[0] and "without latency" in report.problems[0]
+        assert report.fixes == [{"controller.latency": 0.0}]
+
+
+@pytest.mark.parametrize("periods, problem", [(0.45, False), (0.5, True)])
+def test_a_fast_observer_rings_from_half_a_period_declared_too_long(periods, problem):
+    """panda_sine's observer (Ts w up to 153) in ``run`` (plant = model, r = 1): the
+    loop's pole z² − (1 − g(1 + β))z − gβ reaches |z| = 0.99 at β = 1/2 (the run leaves
+    its tolerance there) and stays below 0.95 at 0.45 (the run tracks); with the arm's
+    r = 1.25 it would already be unstable at 0.45."""
+    config = load_config(CONFIGS / "panda_sine.toml")
+    config = replace(config, controller=replace(config.controller, latency=periods * 0.01))
+    report = check_config(config, engines=False)
+    g = 0.01 * report.bandwidth.max() / (1 + 0.01 * report.bandwidth.max())
+    for r, unstable in ((1.0, problem), (1.25, True)):
+        radius = max(abs(np.roots([1.0, -(1 - g * (r + periods)), -g * periods])))
+        assert (radius >= 0.95) == unstable
+    assert len(report.problems) == int(problem)
+
+
+@pytest.mark.parametrize("gain", [None, 0.1])
+def test_a_latency_declared_far_too_long_is_a_problem_through_the_mpc(gain):
+    """The paper's baseline without the observer, and with a slow one (c = 0.1, whose own
+    loop stays stable): the MPC acts on the state predicted L ahead; 3 periods keep more
+    than half the loop's decay rate, 10 do not."""
+    config = load_config(CONFIGS / "paper_combined_no_ndo.toml")
+    if gain is not None:
+        config = _paper(gain)
+    for periods, problem in ((3.0, False), (10.0, True)):
+        cc = replace(config.controller, latency=periods * 0.01)
+        report = check_config(replace(config, controller=cc), engines=False)
+        assert len(report.problems) == int(problem)
+        if problem:
+            assert "predicted 0.1 s ahead" in report.problems[0]
+            assert "observer pairs" not in report.problems[0]

@@ -369,7 +369,9 @@ def _run_latency_findings(
 ) -> None:
     """``run`` simulates measurements without latency: a declared latency L is L too
     long there. A problem when the observer's loop (:func:`overdeclared_radius`) has a
-    pole of modulus >= :data:`MAX_RADIUS` or the
+    pole of modulus >= 1, or >= :data:`MAX_RADIUS` and decaying slower than
+    :data:`MIN_DECAY` times the observer's own pole :math:`|1 - gr|` (a slow observer's
+    lies near 1 by design), or the
     outer loop (:func:`lead_radius`) then decays slower than :data:`MIN_DECAY` times
     its rate without the prediction."""
     from ..controllers.computed_torque import mpc_feedback_gain
@@ -384,7 +386,12 @@ def _run_latency_findings(
     if bw is not None:
         ratio = _run_ratio(ex)
         radius = np.array([overdeclared_radius(w * Ts, ratio, over) for w in bw])
-        bad = np.flatnonzero(radius >= MAX_RADIUS)
+        own = np.array([overdeclared_radius(w * Ts, ratio, 0.0) for w in bw])
+        # a slow observer's own pole (1 - g r) lies near 1 by design: only a pole that
+        # also decays slower than MIN_DECAY times it counts
+        with np.errstate(divide="ignore"):
+            slower = np.log(np.minimum(radius, 1.0)) > MIN_DECAY * np.log(own)
+        bad = np.flatnonzero((radius >= 1.0) | ((radius >= MAX_RADIUS) & slower))
         if bad.size:
             listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, |z| = {radius[j]:.3g})"
                                for j in bad)  # fmt: skip

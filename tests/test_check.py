@@ -386,3 +386,51 @@ def test_a_latency_declared_far_too_long_is_a_problem_through_the_mpc(gain):
         if problem:
             assert "predicted 0.1 s ahead" in report.problems[0]
             assert "observer pairs" not in report.problems[0]
+
+
+def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path, capsys):
+    """A link whose principal moments break the triangle inequality (0.1 + 1e-6 < 0.28):
+    Pinocchio runs on it, MuJoCo refuses it. The table is printed, one problem names
+    MuJoCo and --no-engine, the URDF's warning is printed once; --no-engine passes."""
+    pytest.importorskip("mujoco")
+    text = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+    bad = 'iyy="0.1" iyz="0" izz="0.28125"/>'
+    text = text.replace('iyy="0.28125" iyz="0" izz="0.28125"/>', bad, 1)
+    assert bad in text
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(text)
+    config = PAPER.read_text().replace('"../robots/planar3.urdf"', f'"{urdf.as_posix()}"')
+    path = tmp_path / "arm.toml"
+    path.write_text(config.replace("gain = 100.0", "gain = 1.0"))
+    assert main(["check", str(path)]) == 1
+    captured = capsys.readouterr()
+    out = captured.out.splitlines()
+    problems = [x for x in out if x.startswith("problem:")]
+    assert len(problems) == 1 and "MuJoCo" in problems[0] and "--no-engine" in problems[0]
+    assert any(x.startswith("joint3") for x in out) and "MuJoCo: refused the URDF" in out
+    assert captured.err.count("triangle inequality") == 1  # loaded twice, printed once
+    assert main(["check", str(path), "--no-engine"]) == 0
+
+
+def test_a_urdf_given_as_the_config_points_at_init(capsys):
+    urdf = CONFIGS.parent / "robots" / "planar3.urdf"
+    assert main(["check", str(urdf)]) == 2
+    err = capsys.readouterr().err
+    assert "not valid TOML" not in err and f"hmpc-pin init {urdf}" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_check_piped_into_a_closed_reader_ends_without_a_traceback():
+    """`hmpc-pin check ... | head -0`: the reader is gone before the table is written."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hmpc_pin", "check", "paper_combined", "--no-engine"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    proc.stdout.close()  # before the interpreter has even started
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=120)
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+    assert proc.returncode == 0

@@ -521,8 +521,9 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
             report.engine = _engines(ex)
         except HmpcError as exc:  # MuJoCo refuses the URDF: one problem, the table stays
             report.engine = "refused the URDF"
+            why = " ".join(str(exc).split())  # MuJoCo's message spans lines
             report.add_problem(
-                f"MuJoCo cannot load the arm's URDF ({exc}); the engines cannot be compared "
+                f"MuJoCo cannot load the arm's URDF ({why}); the engines cannot be compared "
                 "(pass --no-engine to skip the comparison)",
                 None,
             )

@@ -54,6 +54,16 @@ def test_init_config_runs_and_tracks(written, name):
 
 
 @pytest.mark.parametrize("name", CI_MODELS)
+def test_init_config_passes_check(written, name, capsys):
+    """``hmpc-pin check`` finds no problem in init's file (exit 0), the file it just
+    showed to run (the corpus test of check compares every arm with its run)."""
+    path, _ = written[name]
+    assert main(["check", str(path), "--no-engine"]) == 0
+    out = capsys.readouterr().out
+    assert "no problem found" in out and "problem:" not in out
+
+
+@pytest.mark.parametrize("name", CI_MODELS)
 def test_init_reference_inside_position_and_velocity_limits(written, name):
     """Offset ± amplitude inside the URDF limits (when they are used) and the peak speed
     2π f a at most half of every URDF velocity limit; r(0), ṙ(0) as the start state."""

@@ -7,32 +7,46 @@ Per joint, from the config's models alone (nothing is simulated):
   of Eq (13) (``chen``, ``general``;
   :func:`~hmpc_pin.compensation.bandwidth.implied_bandwidth`), :math:`K_j` for the momentum
   observer;
-* **stability margin for the latency**: the rule of :mod:`hmpc_pin.compensation.bandwidth`,
-  :math:`\\omega_j r (T_s + L_u) \\le 1/2` with :math:`L_u` the latency the controller does
-  not compensate: none when the config declares its latency (``[controller] latency`` > 0),
-  else one unknown control period (an arm's interface always delays its measurements).
-  With a latency declared, the rule for one declared too long instead,
-  :math:`\\omega_j (r T_s + 2\\Delta L - 2T_s) \\le 1` with
-  :math:`\\Delta L = \\min(L, T_s)/2` (half an interface cycle;
-  :func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`). The margin is
-  :math:`\\omega_{\\max}/\\omega_j` [-] (a problem below 1); the explicit observer also
-  needs :math:`T_s\\omega_j < 2`;
+* **margin** of the rule of :mod:`hmpc_pin.compensation.bandwidth` for an arm:
+  :math:`\\omega_j r (T_s + L_u) \\le 1/2` with :math:`L_u` one control period the
+  controller is not told about (none declared), or, with a latency declared,
+  :math:`\\omega_j (r T_s + 2\\Delta L - 2T_s) \\le 1` with :math:`\\Delta L = \\min(L, T_s)/2`
+  (:func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`), r = 1.25: the margin is
+  :math:`\\omega_{\\max}/\\omega_j` [-];
 * **damping time constant** :math:`1/(b_j (M(q_0)^{-1})_{jj})` [s] of the URDF's joint
-  damping (:func:`~hmpc_pin.model.robot.damping_time_constants`)
-  against :math:`T_s`: a problem when it is below :math:`2T_s` and the controller does not
-  compensate the joint dynamics (``controller.joint_dynamics = false``);
+  damping (:func:`~hmpc_pin.model.robot.damping_time_constants`);
 * **torque headroom** along the reference: :math:`1 - \\max_t |\\tau_j(t)| / \\tau_{j,\\max}`
   with :math:`\\tau = M(r)\\ddot r + C(r, \\dot r)\\dot r + G(r)
-  + B\\dot r + F\\,\\mathrm{sgn}\\,\\dot r`
-  (RNEA along the reference sampled every :math:`T_s/4` over the run, :math:`\\ddot r` by
-  central differences) and the plant's effort limits. A problem below
-  :data:`MIN_HEADROOM`: the feedback and the disturbance compensation need the rest;
+  + B\\dot r + F\\,\\mathrm{sgn}\\,\\dot r` (B, F when the plant applies the URDF's joint
+  dynamics; RNEA along the reference sampled every :math:`T_s/4` over the run,
+  :math:`\\ddot r` by central differences) against the plant's effort limits;
 
 and, with MuJoCo installed, **the model against a second engine**: :math:`M(q)` and the
-forward dynamics :math:`\\ddot q(q, \\dot q, \\tau)` of Pinocchio and MuJoCo (the bare arm:
-no joint dynamics, no armature, no contacts) at :data:`ENGINE_SAMPLES` seeded states
-within the limits. A problem when they differ by more than :data:`ENGINE_RTOL` (relative
-to the largest entry): the two engines read the URDF differently.
+forward dynamics :math:`\\ddot q(q, \\dot q, \\tau)` of Pinocchio and MuJoCo (the bare arm)
+at :data:`ENGINE_SAMPLES` seeded states within the limits, within :data:`ENGINE_RTOL`.
+
+**Problems and warnings.** A *problem* is what ``hmpc-pin run`` would show: the run
+leaves its tolerance, and the change the problem names (:attr:`CheckReport.fixes`,
+:func:`apply_fix`) makes it track (the package's tests check both over every packaged
+config, ``init``'s files and variants of them). A *warning* matters on a
+real arm or leaves little margin, not in ``run``. ``run`` hands the controller fresh
+measurements of a plant equal to the model (r = 1 unless the plant differs); so:
+
+* the margin below 1 is a warning (the paper's configs keep their settings, and say so);
+* a declared latency L is L too long in ``run``: a problem when the observer's loop then
+  has a pole at :math:`|z| \\ge 1`, or at :math:`|z| \\ge` :data:`MAX_RADIUS` decaying
+  slower than :data:`MIN_DECAY` times the observer's own (:func:`overdeclared_radius`),
+  or when the MPC, acting on the state predicted L ahead, decays slower than
+  :data:`MIN_DECAY` times its rate without the prediction (:func:`lead_radius`);
+* the explicit observer with :math:`T_s\\omega_j \\ge 2`: a problem;
+* a damping time constant below :math:`2T_s` that plant and controller treat differently
+  (one applies it, the other not): a problem; left out of both: a warning (the real arm
+  applies it);
+* headroom below 0: a problem; below :data:`MIN_HEADROOM`: a warning;
+* friction with the literal sign (it feeds energy in) and no compensation: a problem (a
+  warning for the paper's baseline, which is expected to lose the reference);
+* MuJoCo refusing the URDF: a problem; the engines differing: a problem with a MuJoCo
+  plant, else a warning.
 """
 
 from __future__ import annotations
@@ -69,7 +83,7 @@ __all__ = [
     "overdeclared_radius",
 ]
 
-#: Smallest torque headroom along the reference [-] that is not a problem.
+#: Smallest torque headroom along the reference [-] without a warning (below 0: a problem).
 MIN_HEADROOM = 0.1
 #: Largest pole modulus [-] of the observer loop with the declared latency too long
 #: (:func:`overdeclared_radius`) that is not a problem: measured on the Panda (init's

@@ -429,8 +429,9 @@ def add_check_parser(sub) -> None:
         "times Ts and its margin under the bandwidth rule for the latency the controller is not "
         "told about, the URDF damping's time "
         "constant against Ts, the torque headroom along the reference, and (with MuJoCo "
-        "installed) the model against MuJoCo's. Exit 0 when fine, 1 with one line per "
-        "problem, 2 on bad input.",
+        "installed) the model against MuJoCo's. A problem is what `run` would show (with the "
+        "change that fixes it), a warning what matters on a real arm. Exit 0 when no "
+        "problem is found, 1 with one line per problem, 2 on bad input.",
     )
     chk.add_argument("config", type=Path, help="experiment TOML file")
     chk.add_argument("--no-engine", action="store_true",

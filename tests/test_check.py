@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hmpc_pin.apps.check import ENGINE_RTOL, check_config
+from hmpc_pin.apps.check import ENGINE_RTOL, apply_fix, check_config
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import ValidityWarning
 from hmpc_pin.experiment.build import Experiment
@@ -390,8 +390,9 @@ def test_a_latency_declared_far_too_long_is_a_problem_through_the_mpc(gain):
 
 def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path, capsys):
     """A link whose principal moments break the triangle inequality (0.1 + 1e-6 < 0.28):
-    Pinocchio runs on it, MuJoCo refuses it. The table is printed, one problem names
-    MuJoCo and --no-engine, the URDF's warning is printed once; --no-engine passes."""
+    Pinocchio runs on it, MuJoCo refuses it. With a MuJoCo plant (which ``run`` could not
+    build) the table is printed and one problem names MuJoCo and --no-engine, the URDF's
+    warning is printed once; with the Pinocchio plant it is a warning; --no-engine passes."""
     pytest.importorskip("mujoco")
     text = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
     bad = 'iyy="0.1" iyz="0" izz="0.28125"/>'
@@ -402,6 +403,13 @@ def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path,
     config = PAPER.read_text().replace('"../robots/planar3.urdf"', f'"{urdf.as_posix()}"')
     path = tmp_path / "arm.toml"
     path.write_text(config.replace("gain = 100.0", "gain = 1.0"))
+    assert main(["check", str(path)]) == 0  # the Pinocchio plant: a warning
+    out = capsys.readouterr().out.splitlines()
+    (line,) = [x for x in out if "MuJoCo cannot load" in x]
+    assert line.startswith("warning:")
+    path.write_text(config.replace("gain = 100.0", "gain = 1.0")
+                    .replace("dt = 0.001 ", 'engine = "mujoco"\n# dt = 0.001 ', 1)
+                    .replace('integrator = "rk4"', "", 1))  # fmt: skip
     assert main(["check", str(path)]) == 1
     captured = capsys.readouterr()
     out = captured.out.splitlines()
@@ -409,7 +417,15 @@ def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path,
     assert len(problems) == 1 and "MuJoCo" in problems[0] and "--no-engine" in problems[0]
     assert any(x.startswith("joint3") for x in out) and "MuJoCo: refused the URDF" in out
     assert captured.err.count("triangle inequality") == 1  # loaded twice, printed once
-    assert main(["check", str(path), "--no-engine"]) == 0
+    assert main(["check", str(path), "--no-engine"]) == 1  # the plant itself is refused
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("problem:")]
+    assert "plant.engine = 'pinocchio'" in line
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)  # the inertia, printed above
+        report = check_config(load_config(path), engines=False)
+        fixed = apply_fix(load_config(path), report.fixes[0])
+        assert fixed.plant.engine == "pinocchio" and fixed.plant.mujoco is None
+        assert check_config(fixed, engines=False).problems == []
 
 
 def test_a_urdf_given_as_the_config_points_at_init(capsys):

@@ -45,8 +45,8 @@ measurements of a plant equal to the model (r = 1 unless the plant differs); so:
 * headroom below 0: a problem; below :data:`MIN_HEADROOM`: a warning;
 * friction with the literal sign (it feeds energy in) and no compensation: a problem (a
   warning for the paper's baseline, which is expected to lose the reference);
-* MuJoCo refusing the URDF: a problem; the engines differing: a problem with a MuJoCo
-  plant, else a warning.
+* MuJoCo refusing the URDF, or the engines differing: a problem with a MuJoCo plant,
+  else a warning (the table is printed either way).
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ from ..compensation.bandwidth import (
     overdeclared_excess,
     overdeclared_limit,
 )
-from ..exceptions import HmpcError
+from ..exceptions import HmpcError, URDFError
 from ..experiment.build import Experiment
 from ..experiment.plants import _effort_limit
 from ..experiment.schema import ExperimentConfig
@@ -489,7 +489,15 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         config: A validated experiment config.
         engines: Compare the model against MuJoCo (when installed).
     """
-    ex = Experiment.from_config(config)
+    refused: HmpcError | None = None
+    try:
+        ex = Experiment.from_config(config)
+    except URDFError as exc:  # a MuJoCo plant refusing the URDF: the figures without it
+        if config.plant.engine != "mujoco":
+            raise
+        refused = exc
+        bare = replace(config.plant, engine="pinocchio", mujoco=None)
+        ex = Experiment.from_config(replace(config, plant=bare))
     robot = ex.robot
     names = robot.joint_names
     Ts = config.controller.Ts
@@ -530,17 +538,27 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
             report.warnings.append(f"{text}: the feedback and the disturbance compensation "
                                    "need the rest; slow or shrink the reference")  # fmt: skip
 
-    if engines:
+    if refused is not None:
+        report.engine = "refused the URDF"
+        why = " ".join(str(refused).split())  # MuJoCo's message spans lines
+        report.add_problem(
+            f"the MuJoCo plant cannot be built ({why}); `run` cannot simulate this arm on "
+            "MuJoCo: correct the URDF, or set plant.engine = 'pinocchio' (the figures above "
+            "are for it); --no-engine does not skip the plant",
+            {"plant.engine": "pinocchio", "plant.mujoco": None},
+        )
+    elif engines:
         try:
             report.engine = _engines(ex)
-        except HmpcError as exc:  # MuJoCo refuses the URDF: one problem, the table stays
+        except HmpcError as exc:  # MuJoCo refuses the URDF: one line, the table stays
             report.engine = "refused the URDF"
             why = " ".join(str(exc).split())  # MuJoCo's message spans lines
-            report.add_problem(
-                f"MuJoCo cannot load the arm's URDF ({why}); the engines cannot be compared "
-                "(pass --no-engine to skip the comparison)",
-                None,
-            )
+            text = (f"MuJoCo cannot load the arm's URDF ({why}); the engines cannot be "
+                    "compared (pass --no-engine to skip the comparison)")  # fmt: skip
+            if config.plant.engine == "mujoco":  # `run` would be refused as well
+                report.add_problem(text, None)
+            else:  # `run` simulates it with Pinocchio: a MuJoCo plant would refuse it
+                report.warnings.append(f"{text}; a MuJoCo plant would refuse it too")
         if not isinstance(report.engine, str):
             for what, err in zip(("M(q)", "the forward dynamics"), report.engine, strict=True):
                 if err > ENGINE_RTOL:
@@ -556,14 +574,20 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
 
 def apply_fix(config: ExperimentConfig, fix: dict[str, Any]) -> ExperimentConfig:
     """``config`` with the changes of a problem's fix (``{"controller.latency": 0.0}``):
-    dotted keys of the config's tables."""
+    dotted keys of the config's tables, the keys of one table changed together (so that
+    ``{"plant.engine": "pinocchio", "plant.mujoco": None}`` is one valid change)."""
+    nested: dict[str, Any] = {}
     for key, value in fix.items():
         *tables, name = key.split(".")
-        chain = [config]
-        for t in tables:
-            chain.append(getattr(chain[-1], t))
-        new: Any = replace(chain[-1], **{name: value})
-        for parent, t in zip(reversed(chain[:-1]), reversed(tables), strict=True):
-            new = replace(parent, **{t: new})
-        config = new
-    return config
+        level = nested
+        for table in tables:
+            level = level.setdefault(table, {})
+        level[name] = value
+
+    def changed(obj, changes: dict[str, Any]):
+        return replace(obj, **{
+            k: changed(getattr(obj, k), v) if isinstance(v, dict) else v
+            for k, v in changes.items()
+        })  # fmt: skip
+
+    return changed(config, nested)

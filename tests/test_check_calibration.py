@@ -30,7 +30,7 @@ from hmpc_pin.apps.check import apply_fix, check_config
 from hmpc_pin.apps.metrics import DEFAULT_ERROR_THRESHOLD
 from hmpc_pin.checks import MAX_LATENCY
 from hmpc_pin.data import config_names, config_path
-from hmpc_pin.exceptions import HmpcError, SimulationError
+from hmpc_pin.exceptions import HmpcError, SimulationError, URDFError
 from hmpc_pin.experiment.build import Experiment, reuse_robots
 from hmpc_pin.experiment.init import init_config
 from hmpc_pin.experiment.schema import load_config
@@ -58,10 +58,9 @@ def _short(config):
 
 def _run(config) -> tuple[bool, float]:
     """(within the tolerance, worst error relative to it) of a short run of ``config``."""
-    ex = Experiment.from_config(config)
     try:
-        result = ex.run(DURATION)
-    except SimulationError:
+        result = Experiment.from_config(config).run(DURATION)
+    except (SimulationError, URDFError):  # diverged, or a MuJoCo plant refused the URDF
         return False, math.inf
     mask = result.t >= DURATION / 2
     q_ref = np.asarray(result.q_ref)
@@ -111,6 +110,21 @@ def _corpus(tmp_path) -> list[tuple[str, object]]:
             controller=replace(z1.controller, joint_dynamics=controller),
         )  # fmt: skip
         cases.append((f"z1_sine, damping plant {plant} controller {controller}", variant))
+    paper = by_name["paper_combined"]
+    need = (1.0 - check_config(paper, engines=False).headroom) * 1e4  # planar3: 1e4 N·m
+    for share in (0.95, 1.5):  # the peak torque 5 % below / 50 % above the limit
+        plant = replace(paper.plant, effort_limit=np.array([1e4, 1e4, need[2] / share]))
+        cases.append((f"paper_combined, joint 3 at {share:.0%} of its limit",
+                      replace(paper, plant=plant)))  # fmt: skip
+    # MuJoCo refuses a link whose principal moments break the triangle inequality
+    text = config_path("paper_combined_mujoco").read_text()
+    urdf = tmp_path / "unphysical.urdf"
+    robot = config_path("paper_combined_mujoco").parent.parent / "robots" / "planar3.urdf"
+    good, bad = 'iyy="0.28125" iyz="0" izz="0.28125"/>', 'iyy="0.1" iyz="0" izz="0.28125"/>'
+    urdf.write_text(robot.read_text().replace(good, bad, 1))
+    path = tmp_path / "unphysical_mujoco.toml"
+    path.write_text(text.replace('"../robots/planar3.urdf"', f'"{urdf.as_posix()}"'))
+    cases.append(("paper_combined_mujoco, URDF MuJoCo refuses", _short(load_config(path))))
     tiago = by_name["init tiago_no_hand"]
     cases.append((
         "init tiago_no_hand, controller.joint_dynamics true",

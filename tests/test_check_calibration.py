@@ -17,9 +17,9 @@ excursion is a run that does not follow its reference.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
-import subprocess
-import sys
 import warnings
 from dataclasses import replace
 
@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from hmpc_pin.apps.check import apply_fix, check_config
+from hmpc_pin.apps.cli import main
 from hmpc_pin.apps.metrics import DEFAULT_ERROR_THRESHOLD
 from hmpc_pin.checks import MAX_LATENCY
 from hmpc_pin.data import config_names, config_path
@@ -44,12 +45,12 @@ LATENCY_PERIODS = (0.25, 0.5, 0.6, 1.0, 3.0, 10.0, 100.0)
 
 
 def _arms() -> list[str]:
-    """The names ``hmpc-pin init --list`` prints."""
-    out = subprocess.run(
-        [sys.executable, "-m", "hmpc_pin", "init", "--list"], capture_output=True, text=True,
-        check=True,
-    ).stdout  # fmt: skip
-    return [line.split()[0] for line in out.splitlines() if line and not line.startswith("or ")]
+    """The names ``hmpc-pin init --list`` prints (run in this process)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["init", "--list"]) == 0
+    lines = out.getvalue().splitlines()
+    return [line.split()[0] for line in lines if line and not line.startswith("or ")]
 
 
 def _short(config):

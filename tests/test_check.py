@@ -188,6 +188,10 @@ def test_a_damping_time_constant_below_two_periods_is_flagged_without_compensati
         assert len(report.problems) == int(flagged)
         if flagged:
             assert report.fixes == [{"controller.joint_dynamics": False}]
+        # plant and controller both with the damping: compensated, nothing to say
+        on = replace(both, plant=replace(both.plant, joint_dynamics=True))
+        report = check_config(on, engines=False)
+        assert report.problems == [] and report.warnings == []
 
 
 def test_damping_lowers_the_torque_headroom(tmp_path):
@@ -454,3 +458,24 @@ def test_check_piped_into_a_closed_reader_ends_without_a_traceback():
     proc.wait(timeout=120)
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
     assert proc.returncode == 0
+
+
+def test_literal_friction_without_compensation_loses_the_reference():
+    """d = +F feeds energy in: with no compensation a problem, except in the paper's own
+    baseline, where a warning says it is expected (and kept); with the observer, nothing."""
+    baseline = load_config(CONFIGS / "paper_friction_literal_no_ndo.toml")
+    report = check_config(baseline, engines=False)
+    assert report.problems == []
+    assert any("expected to lose the reference" in w and "kept" in w for w in report.warnings)
+    mine = check_config(replace(baseline, name="my_arm"), engines=False)
+    assert len(mine.problems) == 1 and "literal" in mine.problems[0]
+    assert mine.fixes == [None]
+    observed = check_config(load_config(CONFIGS / "paper_friction_literal.toml"), engines=False)
+    assert not any("literal" in x for x in observed.problems + observed.warnings)
+
+
+def test_only_the_papers_configs_say_their_setting_is_kept():
+    config = load_config(PAPER)
+    (paper,) = check_config(config, engines=False).warnings
+    (mine,) = check_config(replace(config, name="my_arm"), engines=False).warnings
+    assert "the paper's setting, kept" in paper and "paper" not in mine

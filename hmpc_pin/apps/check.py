@@ -30,7 +30,7 @@ at :data:`ENGINE_SAMPLES` seeded states within the limits, within :data:`ENGINE_
 leaves its tolerance, and the change the problem names (:attr:`CheckReport.fixes`,
 :func:`apply_fix`) makes it track (the package's tests check both over every packaged
 config, ``init``'s files and variants of them). A *warning* matters on a
-real arm or leaves little margin, not in ``run``. ``run`` hands the controller fresh
+real arm, not in ``run``. ``run`` hands the controller fresh
 measurements of a plant equal to the model (r = 1 unless the plant differs); so:
 
 * the margin below 1 is a warning (the paper's configs keep their settings, and say so);
@@ -126,8 +126,8 @@ class CheckReport:
         fixes: Per problem the config change that removes it (:func:`apply_fix`), or
             ``None`` when there is no single change.
         warnings: One line per finding that does not affect ``run`` but matters on an arm
-            (an interface's latency, lighter links, the real arm's damping) or leaves
-            little margin.
+            (an interface's latency, lighter links, the real arm's damping, a second
+            engine).
     """
 
     joints: tuple[str, ...]

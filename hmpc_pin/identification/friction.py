@@ -268,12 +268,10 @@ def _least_squares(blocks: list[tuple[np.ndarray, np.ndarray]], confidence: floa
     m_eff = m * (1 - rho) / (1 + rho)
     chi2 = float(sum(float(r @ r) / s for r, s in zip(res, var, strict=True)))
     scale = chi2 / max(m - p, 1)  # ≈ 1 when the weights are the residual variances
-    if m_eff - p < MIN_DEGREES_OF_FREEDOM:  # no honest interval (JointFriction.interval)
-        half = np.full(p, np.nan)
-    else:
-        half = student_t.ppf(0.5 + confidence / 2, m_eff - p) * np.sqrt(
-            scale * np.diag(AtWA_inv) * m / m_eff
-        )
+    # too few effective samples: NaN here, and _joint gives no interval below its rule
+    half = student_t.ppf(0.5 + confidence / 2, max(m_eff - p, 1.0)) * np.sqrt(
+        scale * np.diag(AtWA_inv) * m / max(m_eff, 1e-300)
+    )
     m_effs = [len(r) * (1 - max(0.0, _lag1(r))) / (1 + max(0.0, _lag1(r))) for r in res]
     return theta / norms, half / norms, res, m_effs
 
@@ -310,7 +308,7 @@ def fit_joint(
 
 
 def _joint(name, theta, half, r, m_eff, cond, cover) -> JointFriction:
-    if m_eff < 2 + MIN_DEGREES_OF_FREEDOM:  # this joint's residual alone is too correlated
+    if m_eff - 2 < MIN_DEGREES_OF_FREEDOM:  # its residual too correlated: no interval
         half = np.full(2, np.nan)
     return JointFriction(
         name=name,

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ConfigError, ExtraError, RunInterrupted
+from ..exceptions import ConfigError, ExtraError, RunInterrupted, install_command
 from ..experiment.config.write import write_config
 from ..experiment.schema import OBSERVERS, ExperimentConfig, load_config
 from .sweep import run_sweep
@@ -412,8 +412,9 @@ def _local_cluster(jobs: int):
         from dask.distributed import LocalCluster
     except ImportError as exc:
         raise ConfigError(
-            "--executor", "dask needs the optional dependency dask.distributed; install it "
-            "with `pip install 'hmpc_pin[cluster]'` or use --executor local",
+            "--executor", "dask needs the optional dependency dask.distributed (extra "
+            f"hmpc_pin[cluster]); install it with `{install_command('cluster')}` or use "
+            "--executor local",
         ) from exc  # fmt: skip
     return LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
 

@@ -118,7 +118,10 @@ def retime_waypoints(
     q, dq, ddq = (np.asarray(traj(ts, order), dtype=float) for order in (0, 1, 2))
     if q.shape != (k, n):
         raise DimensionError(f"toppra returned shape {q.shape}, expected {(k, n)}")
-    q[0], q[-1], dq[0], dq[-1], ddq[0], ddq[-1] = way[0], way[-1], 0.0, 0.0, 0.0, 0.0
+    # At rest at both ends (q̇ = 0); the acceleration is TOPP-RA's, which jumps at the start
+    # and end (bang-bang): forcing it to 0 there made the first and last interpolant
+    # overshoot by a third and stretched the whole motion ~17 % (one segment's optimum).
+    q[0], q[-1], dq[0], dq[-1] = way[0], way[-1], 0.0, 0.0
     trajectory = JointTrajectory(ts, q, dq, joint_names, source=where, ddq=ddq)
     # The interpolant may exceed a limit between TOPP-RA's grid points (its acceleration
     # is piecewise constant): check it on a grid 20x finer than the samples and stretch

@@ -228,3 +228,23 @@ def test_a_run_of_an_init_spatial_arm_is_identified(tmp_path, capsys):
     v = 2 * np.pi * np.asarray(ref.amplitude) * 0.5  # peak speed [rad/s]: torques there agree
     np.testing.assert_allclose(np.multiply(a["viscous"], v) + a["coulomb"],
                                np.multiply(b["viscous"], v) + b["coulomb"], rtol=0.05)  # fmt: skip
+
+
+def test_a_closed_stdout_loses_no_file(saved_run, tmp_path):
+    """`identify RUN | head`: stdout whose reader is gone (a pipe with its read end closed,
+    unbuffered, so the first print fails): the table was written before anything was
+    printed, so nothing is lost."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "f.toml"
+    r, w = os.pipe()
+    os.close(r)  # the reader is gone before the first byte
+    try:
+        cmd = [sys.executable, "-u", "-m", "hmpc_pin", "identify", str(saved_run), "--out",
+               str(out)]  # fmt: skip
+        subprocess.run(cmd, stdout=w, stderr=subprocess.PIPE, timeout=300)
+    finally:
+        os.close(w)
+    assert tomllib.loads(out.read_text())["controller"]["friction"]["viscous"]

@@ -158,9 +158,13 @@ def _out_file(path: Path) -> Path:
 
 
 def cmd_identify(args) -> int:
+    """Fit, write the table (or the config with it), then print the report: the file is
+    written before anything goes to stdout, so a closed pipe (``| head``) loses nothing."""
     _options(args)
     result = load_run(args.run)
     config = load_config(args.config) if args.config is not None else None  # checked first
+    suffix = "collision" if args.thresholds else "friction"
+    out = _out_file(args.out or args.run.with_name(f"{args.run.stem}_{suffix}.toml"))
     if args.thresholds:
         fit = learn_thresholds(
             result, false_alarm=args.false_alarm, horizon=args.horizon, block=args.block,
@@ -168,11 +172,13 @@ def cmd_identify(args) -> int:
             method=args.method,
             run=args.run.name,
         )  # fmt: skip
-        suffix = "collision"
-        print(f"{args.run.name}: collision thresholds on |d_hat|, false alarm <= "
-              f"{args.false_alarm:g} per {args.horizon:g} s, safety x{args.safety:g}")  # fmt: skip
-        for name, thr, peak in zip(fit.names, fit.threshold, fit.peak, strict=True):
-            print(f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})")
+        report = [
+            f"{args.run.name}: collision thresholds on |d_hat|, false alarm <= "
+            f"{args.false_alarm:g} per {args.horizon:g} s, safety x{args.safety:g}"
+        ]
+        rows = zip(fit.names, fit.threshold, fit.peak, strict=True)
+        report += [f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})"
+                   for name, thr, peak in rows]  # fmt: skip
     else:
         robot = _robot(result, args.urdf)
         observer = observer_model(result, robot) if args.source == "observer" else None
@@ -185,13 +191,9 @@ def cmd_identify(args) -> int:
             velocity_threshold=args.velocity_threshold, confidence=args.confidence,
             run=args.run.name,
         )  # fmt: skip
-        suffix = "friction"
-        print(f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} "
-              "(source)")  # fmt: skip
-        print(fit.table())
+        report = [f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} "
+                  "(source)", fit.table()]  # fmt: skip
     text = fit.toml()
-    out = args.out or args.run.with_name(f"{args.run.stem}_{suffix}.toml")
-    _out_file(out)
     if config is None:
         out.write_text(text, encoding="utf-8")
     else:
@@ -199,7 +201,9 @@ def cmd_identify(args) -> int:
         header = "\n".join(line[2:] for line in text.splitlines() if line.startswith("# "))
         write_config(config.source, {name: body}, out, header=header)
         load_config(out)  # the written config loads (the table is valid for it)
-    print(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config else ""))
+    report.append(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config
+                                    else ""))  # fmt: skip
+    print("\n".join(report))
     return 0
 
 

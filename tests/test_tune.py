@@ -301,3 +301,34 @@ def test_the_score_ranks_a_later_failure_before_an_earlier_one():
     assert s_late == pytest.approx(1.0 * (1 + 0.2) + 0.5)  # b (1 + lost) + e
     assert run_score(dict(late, rms_max=0.1), 1.0, 10.0) < s_late
     assert run_score(dict(late, rms_max=np.inf), 1.0, 10.0) == pytest.approx(1.2 + 10.0)
+
+
+def test_an_observer_given_by_its_bandwidth_is_tuned_by_its_bandwidth(tmp_path):
+    """A config whose observer is a per-joint bandwidth (what init writes for a spatial
+    arm; it has no gain): the trials scale every joint's bandwidth together, and the
+    tuned config keeps the per-joint shape."""
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
+    text = text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"')
+    text = text.replace('kind = "chen"', 'kind = "general"')
+    text = text.replace("gain = 100.0", "bandwidth = [10.0, 15.0, 20.0]")
+    path = tmp_path / "bw.toml"
+    path.write_text(text)
+    config = load_config(path)
+    assert config.controller.observer.gain is None
+
+    def prefer_5(cfg):
+        w = np.asarray(cfg.controller.observer.bandwidth)
+        np.testing.assert_allclose(w / w.max(), [0.5, 0.75, 1.0])  # the shape is kept
+        value = (np.log10(w.max()) - np.log10(5.0)) ** 2
+        return float(value), {"p95_rms": float(value)}
+
+    (tmp_path / "o").mkdir()
+    result = tune(config, tmp_path / "o", trials=12, seed=1, objective=prefer_5, holdout=0,
+                  progress=False)  # fmt: skip
+    assert "observer_bandwidth" in result.best
+    tuned = load_config(tmp_path / "o" / f"{config.name}_tuned.toml")
+    w = np.asarray(tuned.controller.observer.bandwidth)
+    np.testing.assert_allclose(w / w.max(), [0.5, 0.75, 1.0])
+    assert w.max() == pytest.approx(result.best["observer_bandwidth"])
+    assert abs(np.log10(w.max() / 5.0)) < abs(np.log10(20.0 / 5.0))  # moved toward 5

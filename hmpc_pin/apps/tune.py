@@ -32,6 +32,7 @@ shipped and tuned configs are compared on ``holdout`` other samples (another see
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -86,7 +87,10 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
     }
     if cc.kind == "hmpc":
         space["N"] = ("int", 5, 30)
-    if cc.compensation in OBSERVERS:
+    if cc.compensation in OBSERVERS and cc.observer.bandwidth is not None:
+        w0 = _bandwidth_scale(cc)  # the largest joint's; the others keep their ratio to it
+        space["observer_bandwidth"] = ("log", w0 / 10, w0 * 5)
+    elif cc.compensation in OBSERVERS:
         c0 = cc.observer.gain
         space["observer_gain"] = ("log", c0 / 10, c0 * 5)
     if ts:
@@ -94,6 +98,12 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
     if observers:
         space["compensation"] = ("choice", tuple(observers))
     return space
+
+
+def _bandwidth_scale(cc) -> float:
+    """The largest joint bandwidth [1/s] of an observer given by its bandwidth: the
+    parameter ``observer_bandwidth`` a trial proposes (every joint scaled with it)."""
+    return float(np.max(cc.observer.bandwidth))
 
 
 def current_params(config: ExperimentConfig, space: dict) -> dict:
@@ -105,7 +115,10 @@ def current_params(config: ExperimentConfig, space: dict) -> dict:
         "Q_velocity": float(cc.Q[1, 1]),
         "R": float(cc.R),
         "N": int(cc.N),
-        "observer_gain": float(cc.observer.gain) if cc.observer is not None else None,
+        "observer_gain": None if cc.observer is None else cc.observer.gain,
+        "observer_bandwidth": None
+        if cc.observer is None or cc.observer.bandwidth is None
+        else _bandwidth_scale(cc),
         "Ts": float(cc.Ts),
         "compensation": cc.compensation,
     }
@@ -134,6 +147,9 @@ def apply_params(config: ExperimentConfig, params: dict) -> ExperimentConfig:
                   N=int(params.get("N", cc.N)), Ts=float(params.get("Ts", cc.Ts)))  # fmt: skip
     if "observer_gain" in params:
         new = replace(new, observer=replace(cc.observer, gain=float(params["observer_gain"])))
+    if "observer_bandwidth" in params:  # every joint scaled: the per-joint shape is kept
+        w = cc.observer.bandwidth * (float(params["observer_bandwidth"]) / _bandwidth_scale(cc))
+        new = replace(new, observer=replace(cc.observer, bandwidth=w))
     return replace(config, controller=new)
 
 
@@ -225,7 +241,9 @@ def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=N
 
     for params in (current_params(config, space), {k: s[-1] if s[0] != "choice" else s[1][-1]
                                                    for k, s in space.items()}):  # fmt: skip
-        Experiment.from_config(apply_params(config, params))  # bad input before any trial
+        with warnings.catch_warnings():  # a range's end may warn; only errors matter here
+            warnings.simplefilter("ignore")
+            Experiment.from_config(apply_params(config, params))  # bad input before any trial
     return int(holdout), int(holdout_seed)
 
 
@@ -392,7 +410,9 @@ def _own_params(config: ExperimentConfig, space: dict) -> dict:
     cc = config.controller
     own = {"Q_position": float(cc.Q[0, 0]), "Q_velocity": float(cc.Q[1, 1]), "R": float(cc.R),
            "N": int(cc.N), "Ts": float(cc.Ts), "compensation": cc.compensation,
-           "observer_gain": None if cc.observer is None else cc.observer.gain}  # fmt: skip
+           "observer_gain": None if cc.observer is None else cc.observer.gain,
+           "observer_bandwidth": None if cc.observer is None or cc.observer.bandwidth is None
+           else _bandwidth_scale(cc)}  # fmt: skip
     return {k: own[k] for k in space}
 
 
@@ -442,9 +462,14 @@ def _write_tuned(config, tuned, best, study, out: Path) -> Path:
     raw = tomllib.loads(Path(config.source).read_text(encoding="utf-8"))
     ctrl = dict(raw.get("controller", {}))
     ctrl.update(table)
-    if "observer_gain" in best:
+    if "observer_gain" in best or "observer_bandwidth" in best:
         obs = dict(ctrl.get("observer", {}))
-        obs["gain"] = float(cc.observer.gain)
+        if cc.observer.bandwidth is not None:
+            w = np.atleast_1d(cc.observer.bandwidth)
+            obs["bandwidth"] = float(w[0]) if np.all(w == w[0]) else w.tolist()
+            obs.pop("gain", None)
+        else:
+            obs["gain"] = float(cc.observer.gain)
         if "compensation" in best:  # the 0.1 keys would contradict it
             obs.pop("kind", None)
             obs.pop("enabled", None)
@@ -476,7 +501,6 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
 
     files = []
     name = config.name
-    import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # optuna marks its matplotlib backend experimental

@@ -283,3 +283,41 @@ def test_a_joint_moving_below_the_excitation_velocity_is_refused():
         fit_joint(y, dq, name="wrist")
     fit = fit_joint(y, dq, excitation_velocity=0.03)  # the same motion, a lower bar
     assert fit.viscous == pytest.approx(3.0, rel=1e-9)
+
+
+GOOD_RECORD = {"kind": "general", "Ts": 0.01, "matrix": np.eye(3).tolist(),
+               "discretization": "implicit", "model_at": "end"}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"kind": "ism"}, "kind"),
+        ({"Ts": -0.01}, "period"),
+        ({"Ts": "fast"}, "period"),
+        ({"model_at": "middle"}, "model_at"),
+        ({"matrix": np.eye(2).tolist()}, "shape"),
+        ({"matrix": [[1.0, np.nan, 0], [0, 1, 0], [0, 0, 1]]}, "finite"),
+        ({"matrix": None, "gain": None}, "older version"),
+        ({"matrix": None, "gain": [1.0, 2.0, 3.0]}, "per-joint gain"),
+        ({"matrix": None, "gain": -5.0}, "gain"),
+    ],
+)
+def test_an_unusable_observer_record_is_one_error_naming_it(change, match, planar3):
+    record = {**GOOD_RECORD, **change}
+    with pytest.raises(ConfigError, match=match) as info:
+        ObserverModel.from_record(record, planar3, 3)
+    assert info.value.key == "observer_model" and "--source dynamics" in str(info.value)
+    assert ObserverModel.from_record(GOOD_RECORD, planar3, 3).matrix.shape == (3, 3)
+
+
+def test_the_model_of_a_watched_observer_looks_through_the_gate(planar3):
+    """With a [collision] watch the compensation is behind a FeedbackGate; the record is
+    the observer's own."""
+    from hmpc_pin.compensation.gate import FeedbackGate
+    from hmpc_pin.compensation.observers import DisturbanceObserver
+
+    obs = DisturbanceObserver(3, 0.01, 50.0, "chen")
+    model = ObserverModel.of(FeedbackGate(obs), planar3)
+    np.testing.assert_array_equal(model.matrix, obs.cY)
+    assert ObserverModel.of(object(), planar3) is None

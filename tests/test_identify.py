@@ -162,9 +162,12 @@ def test_a_bad_file_is_one_line_and_exit_2(kind, saved_run, tmp_path, capsys):
 @pytest.mark.parametrize("source", ["observer", "dynamics"])
 def test_nan_samples_are_left_out_with_a_count(source, saved_run, tmp_path, capsys):
     """NaN in q̇ for 5 samples: the fit leaves them out (the observer's filter: everything
-    after them) and says how many; with every sample NaN, one line and exit 2."""
+    after them) and says how many (not counting those before --after); with every sample
+    NaN, one line and exit 2."""
     result = Result.load(saved_run)
     result.dq[300:305, 1] = np.nan
+    if source == "dynamics":  # before --after (0.5 s): left out anyway, not counted
+        result.dq[10:20, 0] = np.nan
     code, out, err, table = _identify(result.save(tmp_path / "nan.npz"), tmp_path, capsys,
                                       "--source", source)  # fmt: skip
     assert code == 0, err

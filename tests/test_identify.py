@@ -140,7 +140,7 @@ BAD_FILES = {
     "text": (lambda p, s: p.write_text("t,q\n0,1\n"), "not a .npz archive"),
     "npy": (_npy, "not a .npz archive"),
     "truncated": (_truncated, "truncated or corrupt"),
-    "foreign npz": (lambda p, s: _foreign_npz(p), "not a hmpc_pin result"),
+    "foreign npz": (lambda p, s: _foreign_npz(p), "has no 'meta' array"),
     "object arrays": (lambda p, s: _object_npz(p), "not a hmpc_pin result"),
     "arrays of different lengths": (_bad_shapes, "'dq' has shape"),
     "a zip of something else": (_zip, "not a hmpc_pin result"),

@@ -41,8 +41,9 @@ def load_run(path: Path, key: str = "RUN") -> Result:
         raise ConfigError(key, f"{str(path)!r} is truncated or corrupt ({exc}); write it "
                           "again, or pass another run") from None  # fmt: skip
     except KeyError as exc:
+        missing = str(exc.args[0] if exc.args else exc).split(" is not a file")[0]
         raise ConfigError(key, f"{str(path)!r} is a .npz but not a hmpc_pin result (it "
-                          f"has no {exc} array); {what}") from None  # fmt: skip
+                          f"has no {missing!r} array); {what}") from None  # fmt: skip
     except (OSError, ValueError, TypeError) as exc:
         why = ("it holds object arrays, which a result never does" if "pickle" in str(exc)
                else str(exc))  # fmt: skip

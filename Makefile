@@ -1,5 +1,5 @@
 # Two entry points on a fresh machine (see README):
-#   make demo   - create .venv, install hmpc_pin, run examples/track_sine.py
+#   make demo   - create .venv, install hmpc_pin (no extra), run examples/track_sine.py
 #   make test   - create .venv, install hmpc_pin with the dev and viz extras, run the tests
 #   make docs   - build the documentation site strictly into docs/_build/html
 # Installing builds the compiled core (CMakeLists.txt, about a minute on 2 cores); nothing
@@ -16,7 +16,15 @@ $(VENV)/.installed: pyproject.toml CMakeLists.txt $(wildcard src/*.cpp src/*.hpp
 	$(PY) -m pip install -e ".[dev,viz]"
 	touch $@
 
-demo: $(VENV)/.installed
+# The demo needs the package and its dependencies only (no extra): a full test environment
+# (.installed) serves too, else the package alone is installed.
+$(VENV)/.demo: pyproject.toml CMakeLists.txt $(wildcard src/*.cpp src/*.hpp)
+	if [ ! -f $(VENV)/.installed ] || [ $(VENV)/.installed -ot pyproject.toml ]; then \
+	  $(PYTHON) -m venv $(VENV) && $(PY) -m pip install --upgrade pip && \
+	  $(PY) -m pip install -e . ; fi
+	touch $@
+
+demo: $(VENV)/.demo
 	$(PY) examples/track_sine.py --out out
 
 # The suite includes tests/test_wheel.py: `pip wheel .`, the wheel installed into a fresh

@@ -89,9 +89,8 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     row.update(
         n=robot.nq,
         locked=len(robot.locked_joints),
-        observer=config.controller.compensation,
+        observer=observer_cell(config.controller),
         Ts=config.controller.Ts,
-        gain=config.controller.observer.gain,
         prismatic=sum(k == "prismatic" for k in robot.joint_kinds),
         continuous=len(robot.continuous_joints),
     )
@@ -121,10 +120,25 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     return row
 
 
+def observer_cell(cc) -> str:
+    """What ``init`` chose for the observer: its kind, bandwidth ω [1/s] or gain c, and the
+    declared latency [ms] (the tutorial's column; the docs test reads it back)."""
+    obs = cc.observer
+    if obs is None:
+        return cc.compensation
+    if obs.bandwidth is not None:
+        w = np.unique(np.atleast_1d(obs.bandwidth))
+        size = f"ω {w[0]:g} 1/s" if len(w) == 1 else f"ω {w.min():g}–{w.max():g} 1/s"
+    else:
+        size = f"c {obs.gain:g}"
+    latency = f", latency {1e3 * cc.latency:g} ms" if cc.latency else ""
+    return f"{cc.compensation} ({size}{latency})"
+
+
 def markdown(rows: list[dict]) -> str:
     """The README table."""
     head = (
-        "| model | joints controlled (locked) | observer (gain) | Ts [ms] | worst RMS after 1 s "
+        "| model | joints controlled (locked) | observer | Ts [ms] | worst RMS after 1 s "
         "| limit excess | step median [µs] | step / floor | status |\n"
         "|---|---|---|---|---|---|---|---|---|"
     )
@@ -140,7 +154,7 @@ def markdown(rows: list[dict]) -> str:
             extra.append(f"{r['prismatic']} prismatic")
         joints = f"{r['n']} ({r['locked']})" + (f", {', '.join(extra)}" if extra else "")
         lines.append(
-            f"| {r['model']} | {joints} | {r['observer']} ({r['gain']:g}) | {1e3 * r['Ts']:g} | "
+            f"| {r['model']} | {joints} | {r['observer']} | {1e3 * r['Ts']:g} | "
             f"{r['worst_rms']:.2e} ({r['worst_joint']}) | {r['limit_violation']:.1e} | "
             f"{r['step_us']:.0f} | {r['step_us'] / r['floor_us']:.1f} | {r['status']} |"
         )

@@ -213,11 +213,46 @@ class ValidityWarning(UserWarning):
     spatial arm); the run goes on. The message names the valid alternative."""
 
 
+def install_command(extra: str) -> str:
+    """The one ``pip`` command that adds the extra ``extra`` to this installation of
+    hmpc_pin (every missing-extra message and the docs' "Extras" use this rule).
+
+    hmpc_pin is installed from a clone or from a wheel, not from a package index, so a
+    bare ``pip install "hmpc_pin[extra]"`` would not find it. pip records where the
+    package came from (``direct_url.json``, PEP 610):
+
+    * run from a clone (an editable install): ``pip install -e "<clone>[extra]"`` (from
+      the clone's folder: ``pip install -e ".[extra]"``);
+    * a wheel file: ``pip install "hmpc_pin[extra] @ file:///…/hmpc_pin-….whl"`` (the same
+      wheel: pip then installs only the extra's packages);
+    * anything else (an index, a wheel moved since): ``pip install "hmpc_pin[extra]"``
+      with the source it came from, e.g. ``"hmpc_pin[extra] @ /path/to/the.whl"``.
+    """
+    import json
+    from importlib import metadata
+    from pathlib import Path
+    from urllib.parse import unquote, urlparse
+
+    clone = Path(__file__).resolve().parent.parent
+    if (clone / "pyproject.toml").is_file() and (clone / "CMakeLists.txt").is_file():
+        return f'pip install -e "{clone}[{extra}]"'  # run from a source tree (editable)
+    try:
+        record = json.loads(metadata.distribution("hmpc_pin").read_text("direct_url.json") or "")
+    except (metadata.PackageNotFoundError, ValueError, OSError):
+        record = {}
+    url = record.get("url", "") if isinstance(record, dict) else ""
+    wheel = url.startswith("file:") and "archive_info" in record
+    if wheel and Path(unquote(urlparse(url).path)).is_file():  # the wheel it came from
+        return f'pip install "hmpc_pin[{extra}] @ {url}"'
+    return (f'pip install "hmpc_pin[{extra}] @ <the hmpc_pin wheel>" (or, in a clone, '
+            f'pip install -e ".[{extra}]")')  # fmt: skip
+
+
 class ExtraError(HmpcError, ImportError):
     """An optional dependency of the package is not installed.
 
     Attributes:
-        extra: The ``hmpc_pin`` extra that installs it (``pip install "hmpc_pin[extra]"``).
+        extra: The ``hmpc_pin`` extra that installs it (:func:`install_command`).
         needed_for: What needs it, in words.
     """
 
@@ -225,8 +260,9 @@ class ExtraError(HmpcError, ImportError):
         self.extra = extra
         self.needed_for = needed_for
         super().__init__(
-            f"{needed_for} needs the optional package of the extra {extra!r}, which is not "
-            f'installed; install it with: pip install "hmpc_pin[{extra}]"'
+            f"{needed_for} needs the optional package of the extra {extra!r} "
+            f"(hmpc_pin[{extra}]), which is not installed; install it with: "
+            f"{install_command(extra)}"
         )
 
 

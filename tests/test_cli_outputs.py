@@ -12,6 +12,7 @@ import pytest
 import hmpc_pin
 from hmpc_pin.apps.cli import main
 from hmpc_pin.apps.metrics import compute_metrics, run_warnings
+from hmpc_pin.exceptions import install_command
 
 from .conftest import CONFIGS
 
@@ -185,7 +186,7 @@ def test_replay_without_meshcat_stops_before_the_run(tmp_path):
     assert proc.returncode == 2, proc.stderr
     err = proc.stderr.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: --replay: meshcat is not installed")
-    assert 'pip install "hmpc_pin[viz]"' in err[0] and "pip install -e" not in err[0]
+    assert "hmpc_pin[viz]" in err[0] and install_command("viz") in err[0]
     assert not out.exists()
 
 

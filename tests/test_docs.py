@@ -254,3 +254,134 @@ def test_files_the_pages_name_exist():
     assert len(named) > 20
     missing = sorted(p for p in named if not (ROOT / p).exists())
     assert not missing, missing
+
+
+# ------------------------------------------------------------ docs that work from a wheel
+SHELL_FENCE = re.compile(r"^```(?:bash|console|sh)[^\n]*\n(.*?)^```", re.S | re.M)
+INLINE = re.compile(r"`([^`\n]+)`")
+
+
+def _commands(page: Path) -> list[str]:
+    """Every command a page gives: the lines of its shell blocks and its inline code spans
+    that start with ``hmpc-pin`` or ``python``."""
+    text = page.read_text(encoding="utf-8")
+    lines = [ln for m in SHELL_FENCE.finditer(text) for ln in m.group(1).splitlines()]
+    spans = [s for s in INLINE.findall(text.replace("\n", " "))]
+    return [c.strip() for c in lines + spans if c.strip().startswith(("hmpc-pin", "python "))]
+
+
+#: Pages rewritten on another branch at the time of these tests (merge: drop the mark).
+_ELSEWHERE = {"docs/guide/ros2.md", "docs/tutorials/realtime.md",
+              "docs/guide/joint-dynamics-and-check.md", "docs/guide/reliability.md"}  # fmt: skip
+_ELSEWHERE_MARK = pytest.mark.xfail(reason="rewritten on another branch", strict=False)
+PAGE_PARAMS = [pytest.param(p, marks=_ELSEWHERE_MARK, id=str(p.relative_to(ROOT)))
+               if str(p.relative_to(ROOT)) in _ELSEWHERE else
+               pytest.param(p, id=str(p.relative_to(ROOT))) for p in PAGES]  # fmt: skip
+
+
+@pytest.mark.parametrize("page", PAGE_PARAMS)
+def test_commands_use_packaged_names_or_say_they_need_a_clone(page):
+    """A wheel has no configs/, examples/ or benchmarks/ folder: a command names a packaged
+    config by name, and a script of the repository is run where the page says it needs a
+    clone."""
+    bad = []
+    text = page.read_text(encoding="utf-8")
+    for cmd in _commands(page):
+        if re.search(r"(^|\s)configs/", cmd):
+            bad.append(f"{page.relative_to(ROOT)}: {cmd}")
+        elif re.search(r"(examples|benchmarks)[/.]", cmd) and "clone" not in text:
+            bad.append(f"{page.relative_to(ROOT)} (no word of a clone): {cmd}")
+    assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("page", PAGE_PARAMS)
+def test_no_page_installs_an_extra_from_an_index(page):
+    """No bare `pip install "hmpc_pin[extra]"`: the package is on no index."""
+    text = page.read_text(encoding="utf-8")
+    assert not re.search(r"pip install [\"']hmpc_pin\[\w+\][\"']", text)
+
+
+def test_install_hints_work_for_the_installation_they_run_from():
+    """A missing extra's message gives the command of this installation, here an
+    editable clone (the wheel's form is checked in test_wheel)."""
+    from hmpc_pin.exceptions import ExtraError, install_command
+
+    assert install_command("ros") == f'pip install -e "{ROOT}[ros]"'
+    assert install_command("ros") in str(ExtraError("ros", "hmpc-pin ros"))
+
+
+def test_the_reproduction_report_is_this_versions():
+    """The report the reproduction page includes was written by the package it documents."""
+    import hmpc_pin
+
+    head = (DOCS / "_static" / "reproduce" / "report.md").read_text(encoding="utf-8")
+    assert f"(hmpc_pin {hmpc_pin.__version__}," in head.splitlines()[2]
+
+
+def test_make_demo_installs_only_what_the_demo_needs():
+    """The demo runs examples/track_sine.py: the package and its dependencies, no extra
+    (the dev extra alone pulls about 240 MB of ROS 2)."""
+    make = (ROOT / "Makefile").read_text(encoding="utf-8")
+    rule = re.search(r"^\$\(VENV\)/\.demo:.*?(?=^\S)", make, re.S | re.M).group(0)
+    assert "pip install -e ." in rule and "[" not in rule.split("pip install", 1)[1]
+    assert re.search(r"^demo: \$\(VENV\)/\.demo$", make, re.M)
+    imports = re.findall(r"^(?:from|import) (\w+)", (ROOT / "examples" / "track_sine.py")
+                         .read_text(encoding="utf-8"), re.M)  # fmt: skip
+    core = {"argparse", "sys", "time", "pathlib", "__future__", "hmpc_pin"}
+    assert set(imports) <= core, set(imports) - core
+
+
+OWN_ARM_ROW = re.compile(r"^\| (\w+) \| (\d+) \((\d+)\)[^|]* \| ([^|]+) \| (\d+) \|", re.M)
+OBSERVER_CELL = re.compile(
+    r"(chen|general|momentum) \((?:ω ([\d.]+)(?:–([\d.]+))? 1/s|c ([\d.]+))"
+    r"(?:, latency ([\d.]+) ms)?\)"
+)
+OWN_ARM_QUICK = ("ur5", "double_pendulum", "so101")
+
+
+def _own_arm_rows() -> dict[str, tuple]:
+    text = (DOCS / "tutorials" / "own-arm.md").read_text(encoding="utf-8")
+    return {m.group(1): m.groups()[1:] for m in OWN_ARM_ROW.finditer(text)}
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        pytest.param(m, marks=() if m in OWN_ARM_QUICK else pytest.mark.slow)
+        for m in sorted(_own_arm_rows())
+    ],
+)
+def test_the_own_arm_table_is_what_init_writes_today(model, tmp_path):
+    """The tutorial's table (joints, observer, period) against `hmpc-pin init` now."""
+    import numpy as np
+
+    from hmpc_pin.experiment.build import load_robot_config
+    from hmpc_pin.experiment.init import init_config
+
+    joints, locked, observer, ts_ms = _own_arm_rows()[model]
+    path = tmp_path / f"{model}.toml"
+    path.write_text(init_config(model), encoding="utf-8")
+    config = load_config(path)
+    cc = config.controller
+    robot = load_robot_config(config.robot)
+    assert (robot.nq, len(robot.locked_joints)) == (int(joints), int(locked))
+    assert cc.Ts == pytest.approx(float(ts_ms) / 1e3)
+    m = OBSERVER_CELL.fullmatch(observer.strip())
+    assert m, observer
+    kind, w_lo, w_hi, gain, latency = m.groups()
+    assert cc.compensation == kind
+    if w_lo is not None:
+        w = np.atleast_1d(cc.observer.bandwidth)
+        assert (w.min(), w.max()) == pytest.approx((float(w_lo), float(w_hi or w_lo)))
+    else:
+        assert cc.observer.gain == pytest.approx(float(gain))
+    assert (cc.latency or 0.0) == pytest.approx(float(latency or 0) / 1e3)
+
+
+def test_the_own_arm_table_lists_every_model_init_offers():
+    from hmpc_pin.model.robot import example_robot_names
+
+    rows = _own_arm_rows()
+    text = (DOCS / "tutorials" / "own-arm.md").read_text(encoding="utf-8")
+    listed = set(rows) | set(re.findall(r"^\| (\w+) \| \|", text, re.M))
+    assert set(example_robot_names()) <= listed, set(example_robot_names()) - listed

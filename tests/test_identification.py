@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -180,3 +181,143 @@ def test_regressor_source_fits_the_rigid_body_too():
     fit = fit_friction(result, source="regressor", robot=exp.robot)
     np.testing.assert_allclose(fit.viscous, VISCOUS, rtol=2e-3)
     np.testing.assert_allclose(fit.coulomb, COULOMB, rtol=2e-3)
+
+
+@pytest.mark.parametrize("form", ["implicit matrix", "explicit matrix", "momentum"])
+def test_observer_model_is_the_observer_that_runs(form, planar3):
+    """The filter identify passes the regressors through is the observer's own response:
+    the compiled NDO / the momentum observer, run on an arm held at rest against a
+    constant disturbance (τ = G(q) - d, so q̈ = 0), give the estimate the model's
+    filter gives for that disturbance, to rounding."""
+    from hmpc_pin.compensation.observers import DisturbanceObserver, MomentumObserver
+
+    n, Ts = planar3.nq, 0.01
+    q, dq, d = np.array([0.3, -0.5, 0.8]), np.zeros(3), np.array([2.0, -1.0, 0.5])
+    M, G = planar3.mass_matrix(q), planar3.gravity_torque(q)
+    cY = np.diag([30.0, 40.0, 50.0]) @ M + 0.1 * np.ones((n, n))  # not symmetric, not Y
+    if form == "momentum":
+        obs = MomentumObserver(planar3, Ts, np.array([20.0, 35.0, 50.0]))
+    else:
+        obs = DisturbanceObserver(n, Ts, 1.0, "general", form.split()[0], cY=cY)
+    obs.reset(q, dq)
+    estimates = [np.zeros(n)]
+    for _ in range(30):
+        estimates.append(obs.update(M, G, q, dq, G - d))
+    model = ObserverModel.of(obs, planar3)
+    g = model.filter(np.tile(q, (31, 1)), np.tile(np.diag(d)[None], (31, 1, 1)))
+    np.testing.assert_allclose(g.sum(axis=2), np.array(estimates), rtol=1e-9, atol=1e-12)
+    back = ObserverModel.from_record(json.loads(json.dumps(model.record())), planar3, n)
+    np.testing.assert_array_equal(
+        back.filter(np.tile(q, (31, 1)), np.tile(np.diag(d)[None], (31, 1, 1))), g
+    )
+
+
+def test_observer_model_at_start_uses_the_previous_posture(planar3, make_rng):
+    """model_at = "start": the period's M is the one at q_{k-1}; the response equals
+    the "end" model's on the posture sequence delayed by one sample."""
+    rng = make_rng(3)
+    q = np.cumsum(0.05 * rng.standard_normal((40, 3)), axis=0)
+    phi = rng.standard_normal((40, 3, 2))
+    start = ObserverModel("general", 1.0, 0.01, planar3, True, 20.0 * np.eye(3), "start")
+    end = replace(start, model_at="end")
+    np.testing.assert_allclose(start.filter(q, phi), end.filter(np.vstack([q[:1], q[:-1]]), phi),
+                               rtol=1e-12)  # fmt: skip
+    assert np.max(np.abs(start.filter(q, phi) - end.filter(q, phi))) > 1e-6  # it matters
+
+
+def _ar1(rng, m: int, rho: float, sigma: float) -> np.ndarray:
+    """AR(1) noise of stationary standard deviation ``sigma``."""
+    e = np.empty(m)
+    e[0] = sigma * rng.standard_normal()
+    innov = sigma * np.sqrt(1 - rho**2) * rng.standard_normal(m)
+    for k in range(1, m):
+        e[k] = rho * e[k - 1] + innov[k]
+    return e
+
+
+def test_intervals_widen_with_correlated_residuals_and_keep_their_level(make_rng):
+    """AR(1) residuals (ρ = 0.7) on a slow velocity sweep: the OLS variance is larger by
+    about (1+ρ)/(1-ρ) = 5.7 than white noise of the same variance, so the intervals
+    must widen by about sqrt(5.7) = 2.4 and still hold the true value at their level.
+    400 seeded fits: coverage 95 % ± 4 % (3.7 binomial standard deviations); the
+    white-noise formula (no correction) would cover about 60 %."""
+    rng = make_rng(7)
+    t = np.linspace(0, 20, 1000)
+    dq = np.sin(0.9 * t)
+    hits, widths, white = np.zeros(2), [], []
+    for _ in range(400):
+        y = 2.0 * dq + 0.7 * np.sign(dq) + _ar1(rng, len(t), 0.7, 0.3)
+        fit = fit_joint(y, dq, confidence=0.95)
+        hits += [fit.viscous_ci[0] <= 2.0 <= fit.viscous_ci[1],
+                 fit.coulomb_ci[0] <= 0.7 <= fit.coulomb_ci[1]]  # fmt: skip
+        widths.append(fit.viscous_ci[1] - fit.viscous_ci[0])
+        w = fit_joint(2.0 * dq + 0.7 * np.sign(dq) + 0.3 * rng.standard_normal(len(t)), dq)
+        white.append(w.viscous_ci[1] - w.viscous_ci[0])
+    assert np.all(np.abs(hits / 400 - 0.95) < 0.04), hits / 400
+    ratio = np.median(widths) / np.median(white)
+    assert 1.8 < ratio < 3.2, ratio  # sqrt((1+ρ)/(1-ρ)) = 2.38
+
+
+def test_no_interval_below_the_effective_samples_needed(make_rng):
+    """The interval is given exactly when m_e - 2 >= MIN_DEGREES_OF_FREEDOM: residuals
+    from white to nearly a random walk (ρ up to 0.995) on 400 samples."""
+    from hmpc_pin.identification.friction import MIN_DEGREES_OF_FREEDOM
+
+    rng = make_rng(11)
+    dq = np.sin(np.linspace(0, 12, 400))
+    seen = set()
+    for rho in (0.0, 0.9, 0.95, 0.97, 0.98, 0.99, 0.995):
+        fit = fit_joint(dq + np.sign(dq) + _ar1(rng, 400, rho, 0.2), dq)
+        enough = fit.effective_samples - 2 >= MIN_DEGREES_OF_FREEDOM
+        assert fit.has_interval == enough, (rho, fit.effective_samples)
+        seen.add(enough)
+    assert seen == {True, False}
+
+
+def test_a_joint_moving_below_the_excitation_velocity_is_refused():
+    """A joint shaken both ways but never faster than the excitation velocity (0.05 rad/s)
+    is refused even though it moves faster than the velocity threshold (0.01 rad/s)."""
+    dq = 0.04 * np.sin(np.linspace(0, 30, 2000))
+    y = 3.0 * dq + 0.5 * np.sign(dq)
+    with pytest.raises(ExcitationError, match=r"faster than 0\.05 rad/s"):
+        fit_joint(y, dq, name="wrist")
+    fit = fit_joint(y, dq, excitation_velocity=0.03)  # the same motion, a lower bar
+    assert fit.viscous == pytest.approx(3.0, rel=1e-9)
+
+
+GOOD_RECORD = {"kind": "general", "Ts": 0.01, "matrix": np.eye(3).tolist(),
+               "discretization": "implicit", "model_at": "end"}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"kind": "ism"}, "kind"),
+        ({"Ts": -0.01}, "period"),
+        ({"Ts": "fast"}, "period"),
+        ({"model_at": "middle"}, "model_at"),
+        ({"matrix": np.eye(2).tolist()}, "shape"),
+        ({"matrix": [[1.0, np.nan, 0], [0, 1, 0], [0, 0, 1]]}, "finite"),
+        ({"matrix": None, "gain": None}, "older version"),
+        ({"matrix": None, "gain": [1.0, 2.0, 3.0]}, "per-joint gain"),
+        ({"matrix": None, "gain": -5.0}, "gain"),
+    ],
+)
+def test_an_unusable_observer_record_is_one_error_naming_it(change, match, planar3):
+    record = {**GOOD_RECORD, **change}
+    with pytest.raises(ConfigError, match=match) as info:
+        ObserverModel.from_record(record, planar3, 3)
+    assert info.value.key == "observer_model" and "--source dynamics" in str(info.value)
+    assert ObserverModel.from_record(GOOD_RECORD, planar3, 3).matrix.shape == (3, 3)
+
+
+def test_the_model_of_a_watched_observer_looks_through_the_gate(planar3):
+    """With a [collision] watch the compensation is behind a FeedbackGate; the record is
+    the observer's own."""
+    from hmpc_pin.compensation.gate import FeedbackGate
+    from hmpc_pin.compensation.observers import DisturbanceObserver
+
+    obs = DisturbanceObserver(3, 0.01, 50.0, "chen")
+    model = ObserverModel.of(FeedbackGate(obs), planar3)
+    np.testing.assert_array_equal(model.matrix, obs.cY)
+    assert ObserverModel.of(object(), planar3) is None

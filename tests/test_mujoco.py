@@ -29,7 +29,7 @@ import pytest
 mujoco = pytest.importorskip("mujoco")
 
 from hmpc_pin.apps.cli import main  # noqa: E402
-from hmpc_pin.exceptions import ConfigError, ExtraError, URDFError  # noqa: E402
+from hmpc_pin.exceptions import ConfigError, ExtraError, URDFError, install_command  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
 from hmpc_pin.experiment.schema import PlantConfig, load_config  # noqa: E402
 from hmpc_pin.model.robot import example_robot_urdf, load_robot  # noqa: E402
@@ -326,7 +326,7 @@ def test_missing_extra_names_it(monkeypatch, tmp_path, capsys):
     with pytest.raises(ExtraError, match=r"hmpc_pin\[mujoco\]"):
         MuJoCoPlant(load_robot("planar3"))
     assert main(["run", str(CONFIGS / "paper_combined_mujoco.toml"), "--out", str(tmp_path)]) == 2
-    assert 'pip install "hmpc_pin[mujoco]"' in capsys.readouterr().err
+    assert install_command("mujoco") in capsys.readouterr().err
 
 
 def test_package_and_configs_load_without_mujoco():

@@ -23,7 +23,7 @@ import pytest
 
 from hmpc_pin.apps.cli import main
 from hmpc_pin.apps.metrics import compute_metrics
-from hmpc_pin.exceptions import ConfigError, LimitError, TrajectoryError
+from hmpc_pin.exceptions import ConfigError, LimitError, TrajectoryError, install_command
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.schema import load_config
 from hmpc_pin.sim.result import Result
@@ -92,7 +92,7 @@ def test_ros_commands_without_the_extra_exit_2(monkeypatch, capsys):
     for command in ("ros", "ros-arm"):
         assert main([command, "panda_sine"]) == 2
         err = capsys.readouterr().err
-        assert f"hmpc-pin {command}" in err and 'pip install "hmpc_pin[ros]"' in err
+        assert f"hmpc-pin {command}" in err and install_command("ros") in err
         assert "Traceback" not in err
 
 

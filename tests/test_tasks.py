@@ -22,6 +22,7 @@ from hmpc_pin.tasks.pose import (
     PoseReference,
     PoseWaypoints,
     plane_axes,
+    quat_series,
     quat_to_matrix,
     rotation_angle,
 )
@@ -519,3 +520,93 @@ def test_a_joint_without_a_range_is_not_checked_for_position(tmp_path):
     result = exp.run()
     np.testing.assert_allclose(result.q_ref[-1], [1.5, 0.5], atol=1e-12)
     assert hmpc_pin.compute_metrics(result).rms_error.max() < 1e-2
+
+
+def _bang_bang_time(delta, vmax, amax, margin=0.97) -> float:
+    """Closed form: the fastest rest-to-rest motion along the straight segment ``delta``
+    with |q̇_i| <= α v_i and |q̈_i| <= α a_i. On the path q = q0 + s Δ, s in [0, 1], the
+    limits are ṡ <= V = α min v_i/|Δ_i|, s̈ <= A = α min a_i/|Δ_i|: accelerate at A,
+    cruise at V if it is reached, decelerate at A. T = 1/V + V/A, or 2/sqrt(A) when V is
+    not reached (V² > A)."""
+    d = np.abs(delta)
+    V = margin * np.min(vmax / d)
+    A = margin * np.min(amax / d)
+    return 1 / V + V / A if V * V <= A else 2 / np.sqrt(A)
+
+
+def _quintic_overshoot(a0: float, a1: float) -> float:
+    """Worst peak |q̈| / max(|a0|, |a1|) of the quintic Hermite through the exact
+    q, q̇, q̈ at the ends of one sample interval in which the acceleration steps from a0
+    to a1 (over every instant of the step): what a C² interpolant of a bang-bang
+    profile can overshoot, computed here with numpy (a 6 x 6 solve per instant)."""
+    M = np.array([[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 2, 0, 0, 0],
+                  [1, 1, 1, 1, 1, 1], [0, 1, 2, 3, 4, 5], [0, 0, 2, 6, 12, 20]], float)  # fmt: skip
+    t = np.linspace(0.0, 1.0, 401)
+    worst = 0.0
+    for tau in np.linspace(0.0, 1.0, 401):
+        q1 = a0 * tau**2 / 2 + a0 * tau * (1 - tau) + a1 * (1 - tau) ** 2 / 2
+        c = np.linalg.solve(M, [0.0, 0.0, a0, q1, a0 * tau + a1 * (1 - tau), a1])
+        acc = 2 * c[2] + 6 * c[3] * t + 12 * c[4] * t**2 + 20 * c[5] * t**3
+        worst = max(worst, np.abs(acc).max() / max(abs(a0), abs(a1)))
+    return worst
+
+
+@pytest.mark.parametrize(
+    ("delta", "vmax", "amax", "steps"),
+    [
+        (np.array([1.0, -0.5, 0.2]), np.array([0.5, 1.0, 1.0]), np.array([2.0, 2.0, 2.0]),
+         (1.0, 0.0)),  # accelerate, cruise, brake: steps A -> 0 -> -A
+        (np.array([0.3, 0.1, -0.2]), np.array([5.0, 5.0, 5.0]), np.array([1.0, 4.0, 0.5]),
+         (1.0, -1.0)),  # never at the velocity limit: one step A -> -A
+    ],
+    ids=["cruise at the velocity limit", "triangle: the velocity limit never reached"],
+)  # fmt: skip
+@pytest.mark.parametrize("dt", [0.01, 0.005, 0.002])
+def test_retiming_one_segment_against_the_bang_bang_optimum(delta, vmax, amax, steps, dt):
+    """Two waypoints: a straight segment, whose time-optimal motion has a closed form.
+    The retimed motion is never faster than it, stays on the segment, meets every limit
+    with one of them active (the stretch is the least that makes the interpolant fit),
+    and is slower than the optimum by at most what the C² interpolant's overshoot of the
+    optimum's acceleration steps costs: t ≤ t* sqrt(overshoot) (velocity / λ,
+    acceleration / λ²)."""
+    q0 = np.array([0.1, -0.2, 0.3])
+    traj = retime_waypoints(np.array([q0, q0 + delta]), vmax, amax, dt=dt)
+    optimum = _bang_bang_time(delta, vmax, amax)
+    bound = optimum * np.sqrt(_quintic_overshoot(*steps))
+    assert optimum * (1 - 1e-3) <= traj.t_end <= bound * (1 + 1e-3), (traj.t_end, optimum)
+    ts = np.linspace(0.0, traj.t_end, 20001)
+    q, dq = traj.sample_many(ts)
+    ratio = max(np.max(np.abs(dq) / vmax), np.max(np.abs(traj.acceleration_many(ts)) / amax))
+    assert 0.97 * (1 - 2e-3) <= ratio <= 1.0  # a limit is active at its margin α, none crossed
+    # on the segment: every sample is q0 + s Δ with s in [0, 1]
+    s = (q - q0) @ delta / (delta @ delta)
+    np.testing.assert_allclose(q, q0 + s[:, None] * delta, atol=1e-9)
+    assert s.min() >= -1e-9 and s.max() <= 1 + 1e-9
+
+
+def test_a_pose_path_through_a_half_turn_keeps_its_quaternions_continuous():
+    """A rotation of 4.8 rad about z in two segments passes w = 0; the target's
+    quaternions follow the closed form (0, 0, sin θ/2, cos θ/2) with θ the min-jerk angle,
+    with no jump to -q. Waypoints given as q and -q (one rotation) hold still."""
+
+    def rz(a):
+        return pin.exp3(np.array([0.0, 0.0, a]))
+
+    path = PoseWaypoints(np.array([0.0, 1.0, 2.0]), np.zeros((3, 3)),
+                         np.array([rz(0.0), rz(2.4), rz(4.8)]))  # fmt: skip
+    t = np.linspace(0.0, 2.0, 401)
+    _, rot = path.poses(t)
+    quats = quat_series(rot)
+    s = np.where(t >= 1.0, t - 1.0, t)
+    theta = np.where(t >= 1.0, 2.4, 0.0) + 2.4 * s**3 * (10 - 15 * s + 6 * s**2)
+    theta[-1] = 4.8
+    expected = np.column_stack([0 * t, 0 * t, np.sin(theta / 2), np.cos(theta / 2)])
+    np.testing.assert_allclose(quats, expected, atol=1e-9)
+    assert np.max(np.linalg.norm(np.diff(quats, axis=0), axis=1)) < 0.05
+    q = np.array([0.2, -0.4, 0.1, 0.8]) / np.linalg.norm([0.2, -0.4, 0.1, 0.8])
+    still = PoseWaypoints(np.array([0.0, 1.0]), np.zeros((2, 3)),
+                          np.array([quat_to_matrix(q), quat_to_matrix(-q)]))  # fmt: skip
+    held = quat_series(still.poses(t[:201])[1])
+    np.testing.assert_allclose(held, np.tile(q, (201, 1)), atol=1e-12)
+    # a measured orientation is given in its target's hemisphere
+    np.testing.assert_allclose(quat_series(rot[:3], like=-quats[:3]), -quats[:3], atol=1e-12)

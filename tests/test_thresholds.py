@@ -108,3 +108,41 @@ def test_no_false_alarm_on_another_contact_free_run(tmp_path, capsys):
                     simulation=replace(watched.simulation, q0=q0))  # fmt: skip
     result = Experiment.from_config(other).run()
     assert result.meta["collision"]["detected_at"] is None
+
+
+def test_the_sign_of_the_estimate_does_not_matter(make_rng):
+    """Thresholds are on |d_hat|: a run whose estimate is the mirror image (-d_hat) learns
+    the same thresholds, and one offset to large negative values learns them from their
+    magnitude (above its peak |d_hat|), not from the small positive side."""
+    rng = make_rng(5)
+    d = _ar1(rng, 20_000, 2)
+    opts = {"false_alarm": 0.1, "horizon": 10.0, "safety": 1.0, "method": "gev",
+            "floor_at_peak": False}  # fmt: skip
+    plus, minus = learn_thresholds(_result(d), **opts), learn_thresholds(_result(-d), **opts)
+    np.testing.assert_allclose(minus.threshold, plus.threshold, rtol=1e-9)
+    low = learn_thresholds(_result(d - 5.0), false_alarm=0.1, horizon=10.0, safety=1.0)
+    assert np.all(low.threshold >= np.abs(d - 5.0).max(axis=0))
+    assert np.all(low.peak == np.abs(d - 5.0).max(axis=0))
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_collision_is_flagged_on_a_negative_estimate_too(sign, planar3):
+    """A constant external torque of ±40 N·m on joint 2 from t = 0.5 s: the observer's
+    estimate goes to ±40 (its sign), and the collision is flagged on joint 2 within the
+    observer's settling (gain 100: time constant M_22/c, well under 0.1 s) for either sign."""
+    import hmpc_pin
+    from hmpc_pin.controllers.wrappers import CollisionReaction
+    from hmpc_pin.sim.disturbances import Disturbance
+
+    class Push(Disturbance):
+        def __call__(self, t, q, dq):
+            return np.array([0.0, sign * 40.0 if t >= 0.5 else 0.0, 0.0])
+
+    ctrl = CollisionReaction(hmpc_pin.HierarchicalMPC(planar3), threshold=[20.0, 20.0, 20.0],
+                             reaction="stop")  # fmt: skip
+    ref = hmpc_pin.SineReference(planar3.nq)
+    result = hmpc_pin.simulate(planar3, ctrl, ref, Push(), duration=1.0, q0=np.zeros(3))
+    assert ctrl.joint == 1
+    assert 0.5 <= ctrl.detected_at <= 0.6, ctrl.detected_at
+    k = np.searchsorted(result.t, ctrl.detected_at)
+    assert np.sign(result.d_hat[k, 1]) == sign and abs(result.d_hat[k, 1]) > 20.0

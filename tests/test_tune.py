@@ -134,3 +134,201 @@ def test_the_observer_can_be_searched_too(tmp_path, friction_config):
     assert tuned.controller.observer.gain == pytest.approx(best["observer_gain"])
     with pytest.raises(Exception, match="--observers"):
         search_space(friction_config, observers=("ism",))
+
+
+def _short_config(tmp_path):
+    """paper_friction with an absolute URDF path (copied into a test folder)."""
+    path = tmp_path / "short.toml"
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    path.write_text(text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"'))
+    return path
+
+
+class _StopAt:
+    """The toy objective, with Ctrl-C arriving during call ``stop`` (0-based)."""
+
+    def __init__(self, stop: int):
+        self.stop, self.calls = stop, 0
+
+    def __call__(self, config):
+        self.calls += 1
+        if self.calls > self.stop:
+            raise KeyboardInterrupt
+        return _toy(config)
+
+
+def test_ctrl_c_keeps_the_best_of_the_finished_trials(tmp_path, friction_config):
+    """Ctrl-C in trial 3 of 10: the tuned config is the best of trials 0-2, the report
+    says where it stopped, and the study resumes from its file."""
+    from hmpc_pin.exceptions import RunInterrupted
+
+    with pytest.raises(RunInterrupted) as info:
+        tune(friction_config, tmp_path, trials=10, seed=5, objective=_StopAt(3), holdout=0,
+             progress=False)  # fmt: skip
+    assert info.value.where.startswith("trial 3 of the study (3 finished")
+    files = {p.name for p in info.value.files}
+    assert {"paper_friction_tuned.toml", "paper_friction_tune.md"} <= files
+    report = (tmp_path / "paper_friction_tune.md").read_text()
+    assert "Interrupted (Ctrl-C) at trial 3" in report and "4 trials (3 finished)" in report
+    import optuna
+
+    db = tmp_path / "paper_friction_tune.db"
+    study = optuna.load_study(study_name="paper_friction", storage=f"sqlite:///{db}")
+    values = [t.value for t in study.trials if t.value is not None]
+    assert len(values) == 3
+    tuned = load_config(tmp_path / "paper_friction_tuned.toml")
+    assert _toy(tuned)[0] == pytest.approx(min(values), rel=1e-9)
+    resumed = tune(friction_config, tmp_path, trials=2, seed=5, objective=_toy, holdout=0,
+                   progress=False)  # fmt: skip
+    assert sum(t.value is not None for t in resumed.study.trials) == 5
+
+
+def test_ctrl_c_before_any_trial_finished_writes_no_config(tmp_path, friction_config):
+    from hmpc_pin.exceptions import RunInterrupted
+
+    with pytest.raises(RunInterrupted, match="no trial finished"):
+        tune(friction_config, tmp_path, trials=3, objective=_StopAt(0), holdout=0,
+             progress=False)  # fmt: skip
+    assert not (tmp_path / "paper_friction_tuned.toml").exists()
+
+
+def test_sigint_through_the_command_line(tmp_path):
+    """A real study of real sweeps: SIGINT to the process group once a trial finished ->
+    exit 130, one line naming the files, the tuned config of the finished trials."""
+    import contextlib
+    import sqlite3
+
+    from .test_interrupts import _interrupt, _last_line, _start, _wait_for
+
+    config = _short_config(tmp_path)
+    out = tmp_path / "out"
+    proc, err = _start(["tune", str(config), "--trials", "200", "--samples", "1", "--jobs",
+                        "1", "--duration", "1.5", "--holdout", "0", "--out", str(out),
+                        "--quiet"], tmp_path)  # fmt: skip
+    db = out / "paper_friction_tune.db"
+
+    def finished() -> bool:  # read-only: Optuna's load_study would write the schema
+        if not db.exists():
+            return False
+        try:
+            with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
+                rows = con.execute("SELECT count(*) FROM trials WHERE state = 'COMPLETE'")
+                return rows.fetchone()[0] >= 2
+        except sqlite3.Error:  # the tables are not created yet
+            return False
+
+    _wait_for(finished, proc, 300, "two finished trials")
+    code, _, _, stderr = _interrupt(proc, err, True, set())
+    assert code == 130, stderr
+    assert "Traceback" not in stderr
+    line = _last_line(stderr)
+    assert line.startswith("interrupted at trial") and "paper_friction_tuned.toml" in line, line
+    assert load_config(out / "paper_friction_tuned.toml").controller.Q.shape == (2, 2)
+
+
+@pytest.mark.parametrize(
+    ("flags", "named"),
+    [
+        (["--seed", str(2**32)], "--seed"),
+        (["--seed", "-1"], "--seed"),
+        (["--holdout", "-1"], "--holdout"),
+        (["--holdout-seed", "-1"], "--holdout-seed"),
+        (["--holdout-seed", str(2**32)], "--holdout-seed"),
+        (["--samples", "0"], "--samples"),
+        (["--trials", "0"], "--trials"),
+        (["--jobs", "0"], "--jobs"),
+        (["--duration", "0.5"], "--duration"),  # shorter than sweep.after = 1 s
+        (["--duration", "1.0"], "--duration"),  # no time left after sweep.after
+        (["--ts", "0.01,-1"], "--ts"),
+        (["--observers", "ism"], "--observers"),
+    ],
+)
+def test_each_option_is_refused_by_its_own_name_before_out_exists(flags, named, tmp_path,
+                                                                  capsys):  # fmt: skip
+    out = tmp_path / "never"
+    trials = [] if "--trials" in flags else ["--trials", "1"]
+    code = main(["tune", str(_short_config(tmp_path)), *trials, *flags, "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert err.startswith(f"error: {named}:"), err
+    assert not out.exists()
+
+
+def test_the_largest_seed_is_accepted(tmp_path, friction_config):
+    """2**32 - 1: the sampler's largest seed, also when the study resumes (its sampler
+    is seeded seed + trials done); the held-out seed wraps to 0."""
+    result = tune(friction_config, tmp_path, trials=2, seed=2**32 - 1, objective=_toy,
+                  holdout=0, progress=False)  # fmt: skip
+    assert len(result.study.trials) == 2
+    resumed = tune(
+        friction_config,
+        tmp_path,
+        trials=1,
+        seed=2**32 - 1,
+        objective=_toy,
+        holdout=0,
+        progress=False,
+    )  # its sampler's seed wraps past 2**32 - 1
+    assert len(resumed.study.trials) == 3
+
+
+def test_trial_0_shows_the_configs_own_weights(tmp_path, friction_config):
+    """paper_friction's velocity weight is 0, below the search range (its enqueued value
+    is clipped to 1e-4); the report's trial 0 is the config as given: 0."""
+    assert friction_config.controller.Q[1, 1] == 0.0
+    tune(friction_config, tmp_path, trials=2, seed=2, objective=_toy, holdout=0, progress=False)
+    report = (tmp_path / "paper_friction_tune.md").read_text().splitlines()
+    header = next(line for line in report if line.startswith("| trial | J |"))
+    row0 = next(line for line in report if line.startswith("| 0 |"))
+    cells = dict(zip([c.strip() for c in header.split("|")], [c.strip() for c in row0.split("|")],
+                     strict=True))  # fmt: skip
+    assert float(cells["Q_velocity"]) == 0.0
+    assert float(cells["Q_position"]) == friction_config.controller.Q[0, 0]
+
+
+def test_the_score_ranks_a_later_failure_before_an_earlier_one():
+    """Two runs that did not stay bounded, one lost at 8 s and one at 2 s of 10 s: the
+    later failure scores lower (better), any bounded run lower than both, and among
+    runs lost at the same time the smaller error lower."""
+    from hmpc_pin.apps.tune import run_score
+
+    late = {"rms_max": 0.5, "bounded": False, "t_end": 8.0}
+    early = {"rms_max": 0.5, "bounded": False, "t_end": 2.0}
+    worst_bounded = {"rms_max": 0.999, "bounded": True, "t_end": 10.0}
+    s_late, s_early = run_score(late, 1.0, 10.0), run_score(early, 1.0, 10.0)
+    assert run_score(worst_bounded, 1.0, 10.0) < s_late < s_early
+    assert s_late == pytest.approx(1.0 * (1 + 0.2) + 0.5)  # b (1 + lost) + e
+    assert run_score(dict(late, rms_max=0.1), 1.0, 10.0) < s_late
+    assert run_score(dict(late, rms_max=np.inf), 1.0, 10.0) == pytest.approx(1.2 + 10.0)
+
+
+def test_an_observer_given_by_its_bandwidth_is_tuned_by_its_bandwidth(tmp_path):
+    """A config whose observer is a per-joint bandwidth (what init writes for a spatial
+    arm; it has no gain): the trials scale every joint's bandwidth together, and the
+    tuned config keeps the per-joint shape."""
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
+    text = text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"')
+    text = text.replace('kind = "chen"', 'kind = "general"')
+    text = text.replace("gain = 100.0", "bandwidth = [10.0, 15.0, 20.0]")
+    path = tmp_path / "bw.toml"
+    path.write_text(text)
+    config = load_config(path)
+    assert config.controller.observer.gain is None
+
+    def prefer_5(cfg):
+        w = np.asarray(cfg.controller.observer.bandwidth)
+        np.testing.assert_allclose(w / w.max(), [0.5, 0.75, 1.0])  # the shape is kept
+        value = (np.log10(w.max()) - np.log10(5.0)) ** 2
+        return float(value), {"p95_rms": float(value)}
+
+    (tmp_path / "o").mkdir()
+    result = tune(config, tmp_path / "o", trials=12, seed=1, objective=prefer_5, holdout=0,
+                  progress=False)  # fmt: skip
+    assert "observer_bandwidth" in result.best
+    tuned = load_config(tmp_path / "o" / f"{config.name}_tuned.toml")
+    w = np.asarray(tuned.controller.observer.bandwidth)
+    np.testing.assert_allclose(w / w.max(), [0.5, 0.75, 1.0])
+    assert w.max() == pytest.approx(result.best["observer_bandwidth"])
+    assert abs(np.log10(w.max() / 5.0)) < abs(np.log10(20.0 / 5.0))  # moved toward 5

@@ -14,6 +14,7 @@ types it, and ``hmpc-pin reproduce``.
 from __future__ import annotations
 
 import os
+import shlex
 import subprocess
 import sys
 import venv
@@ -95,3 +96,40 @@ def test_the_wheel_runs_from_an_empty_folder_with_no_compiler(tmp_path):
     _run([str(bindir / "hmpc-pin"), "reproduce", "--out", "rep", "--quiet"], cwd=empty,
          env=clean, timeout=900)  # fmt: skip
     assert "paper_combined" in (empty / "rep" / "report.md").read_text(encoding="utf-8")
+
+    # The README's command line, as a wheel user types it (the long ones left out: a 200
+    # sample sweep, a 60 s real-time run, a 30 trial study, a ROS node).
+    for cmd in readme_commands():
+        out = subprocess.run([str(bindir / cmd[0]), *cmd[1:]], cwd=empty, env=clean,
+                             capture_output=True, text=True, timeout=900)  # fmt: skip
+        ok = (0, 1) if cmd[1] == "check" else (0,)  # check: 1 when it finds a problem
+        assert out.returncode in ok and "Traceback" not in out.stderr, (cmd, out.stderr[-2000:])
+
+    # A missing extra's hint installs it for this wheel (resolved, not installed: --dry-run).
+    out = _run([str(bindir / "python"), "-c",
+                "from hmpc_pin.exceptions import install_command; print(install_command('tune'))"],
+               cwd=empty, env=clean, timeout=120)  # fmt: skip
+    hint = out.stdout.strip()
+    assert hint == f'pip install "hmpc_pin[tune] @ {wheel.resolve().as_uri()}"', hint
+    args = shlex.split(hint)[2:]
+    _run([str(bindir / "python"), "-m", "pip", "install", "--dry-run", "-q", *args], cwd=empty,
+         env={**clean, "PATH": str(bindir)}, timeout=600)  # fmt: skip
+
+
+#: README commands the wheel test runs (the others take minutes or a ROS 2 network).
+QUICK = ("run", "compare", "init", "check", "identify")
+
+
+def readme_commands() -> list[list[str]]:
+    """The README's ``hmpc-pin`` commands of :data:`QUICK`, in order, comments dropped."""
+    import re
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = re.search(r"## Command line\s+```bash\n(.*?)```", text, re.S).group(1)
+    cmds = [shlex.split(line.split("#", 1)[0]) for line in block.splitlines()]
+    return [c for c in cmds if len(c) > 1 and c[0] == "hmpc-pin" and c[1] in QUICK]
+
+
+def test_the_readme_commands_the_wheel_test_runs_are_there():
+    """The list the wheel test runs is the README's (a renamed command would drop out)."""
+    assert [c[1] for c in readme_commands()] == ["run", "compare", "init", "check", "identify"]

@@ -355,11 +355,12 @@ def cmd_sweep(args) -> int:
 def cmd_tune(args) -> int:
     """``hmpc-pin tune CONFIG`` (:mod:`hmpc_pin.apps.tune`): exit 2 naming the extra
     ``tune`` without Optuna, before anything runs."""
-    from .tune import _optuna
+    from .tune import _optuna, check_args
     from .tune import cmd_tune as run_tune
 
     _optuna()
     config = _with_overrides(load_config(args.config), False, args.duration)
+    check_args(args, config)  # every option, before --out is created
     return run_tune(args, config, _out_dir(args.out))
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ..exceptions import ConfigError
 from ..experiment.config.write import write_config
 from ..experiment.schema import load_config
@@ -14,15 +16,64 @@ from ..sim.result import Result
 __all__ = ["add_identify_parser", "cmd_identify", "load_run"]
 
 
-def load_run(path: Path) -> Result:
-    """The run saved at ``path``, or one :class:`ConfigError` naming it."""
+def load_run(path: Path, key: str = "RUN") -> Result:
+    """The run saved at ``path``, or one :class:`ConfigError` (named ``key``) saying what
+    the file is instead: missing, empty, not a ``.npz``, truncated, another program's
+    ``.npz``, or arrays of the wrong shapes. Nothing is ever unpickled."""
+    import zipfile
+
+    what = "pass a .npz written by `hmpc-pin run`, `realtime` or `ros`"
     if not path.is_file():
-        raise ConfigError("RUN", f"{str(path)!r} not found; pass a .npz written by `hmpc-pin "
-                          "run` or `hmpc-pin realtime`")  # fmt: skip
+        raise ConfigError(key, f"{str(path)!r} not found; {what}")
     try:
-        return Result.load(path)
-    except (OSError, ValueError, KeyError) as exc:
-        raise ConfigError("RUN", f"{str(path)!r} is not a hmpc_pin result: {exc}") from exc
+        with path.open("rb") as f:
+            head = f.read(4)
+    except OSError as exc:
+        raise ConfigError(key, f"{str(path)!r} cannot be read ({exc.strerror or exc})") from None
+    if not head:
+        raise ConfigError(key, f"{str(path)!r} is empty (0 bytes); {what}")
+    if head != b"PK\x03\x04":
+        raise ConfigError(key, f"{str(path)!r} is not a .npz archive (a result is a zip of "
+                          f"arrays); {what}")  # fmt: skip
+    try:
+        result = Result.load(path)
+    except (zipfile.BadZipFile, EOFError) as exc:
+        raise ConfigError(key, f"{str(path)!r} is truncated or corrupt ({exc}); write it "
+                          "again, or pass another run") from None  # fmt: skip
+    except KeyError as exc:
+        missing = str(exc.args[0] if exc.args else exc).split(" is not a file")[0]
+        raise ConfigError(key, f"{str(path)!r} is a .npz but not a hmpc_pin result (it "
+                          f"has no {missing!r} array); {what}") from None  # fmt: skip
+    except (OSError, ValueError, TypeError) as exc:
+        why = ("it holds object arrays, which a result never does" if "pickle" in str(exc)
+               else str(exc))  # fmt: skip
+        raise ConfigError(key, f"{str(path)!r} is not a hmpc_pin result ({why}); "
+                          f"{what}") from None  # fmt: skip
+    _check_shapes(result, path, key)
+    return result
+
+
+def _check_shapes(result: Result, path: Path, key: str) -> None:
+    """The arrays of a result agree: ``t`` (K+1,), the others (K+1, n), K >= 1."""
+    if not isinstance(result.meta, dict):
+        raise ConfigError(key, f"{str(path)!r}: its metadata is not a table; is it a result?")
+    t = np.asarray(result.t)
+    if t.ndim != 1 or len(t) < 2:
+        raise ConfigError(key, f"{str(path)!r}: the time array has shape {t.shape}, expected "
+                          "(K+1,) with at least 2 samples")  # fmt: skip
+    numeric = np.issubdtype(t.dtype, np.number)
+    if not (numeric and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+        raise ConfigError(key, f"{str(path)!r}: the time array is not finite and increasing; "
+                          "is it a result?")  # fmt: skip
+    n = np.asarray(result.q).shape[-1] if np.ndim(result.q) == 2 else None
+    for name in ("q", "dq", "tau", "d_hat", "tau_applied"):
+        arr = getattr(result, name)
+        shape = np.shape(arr)
+        if n is None or shape != (len(t), n):
+            raise ConfigError(key, f"{str(path)!r}: the array {name!r} has shape {shape}, "
+                              f"expected ({len(t)}, n) like q")  # fmt: skip
+        if not np.issubdtype(np.asarray(arr).dtype, np.number):
+            raise ConfigError(key, f"{str(path)!r}: the array {name!r} is not numeric")
 
 
 def _robot(result: Result, urdf: str | None):
@@ -39,21 +90,27 @@ def _robot(result: Result, urdf: str | None):
 
 
 def observer_model(result: Result, robot):
-    """The :class:`~hmpc_pin.identification.friction.ObserverModel` of the run's
-    observer (recorded in its ``meta``, else read from the config it names), or ``None``
-    when the run had no observer or does not say which."""
+    """The :class:`~hmpc_pin.identification.friction.ObserverModel` of the observer that
+    ran (recorded in the run's ``meta``: its matrix, period and discretization; files of
+    older versions record kind and gain, or are read from the config they name), or
+    ``None`` when the run had no observer or does not say which.
+
+    Raises:
+        ConfigError: The record is there but unusable (the message says what to do).
+    """
+    from ..experiment.controllers import make_compensation
     from ..identification import ObserverModel
 
+    n = robot.nq
     om = result.meta.get("observer_model")
-    if om is None and result.meta.get("config") and Path(result.meta["config"]).is_file():
-        cc = load_config(result.meta["config"]).controller
-        if cc.observer is not None and cc.compensation in ("chen", "general", "momentum"):
-            om = {"kind": cc.compensation, "gain": cc.observer.gain, "Ts": cc.Ts,
-                  "discretization": cc.observer.discretization}  # fmt: skip
-    if om is None:
-        return None
-    return ObserverModel(om["kind"], float(om["gain"]), float(om["Ts"]), robot,
-                         om.get("discretization", "implicit") == "implicit")  # fmt: skip
+    if om is not None:
+        return ObserverModel.from_record(om, robot, n)
+    config = result.meta.get("config")
+    if config and Path(config).is_file():  # an older file without a record
+        cc = load_config(config).controller
+        if cc.observer is not None:
+            return ObserverModel.of(make_compensation(robot, cc), robot, cc.observer.model_at)
+    return None
 
 
 def _table(toml_text: str) -> tuple[str, dict]:
@@ -102,9 +159,13 @@ def _out_file(path: Path) -> Path:
 
 
 def cmd_identify(args) -> int:
+    """Fit, write the table (or the config with it), then print the report: the file is
+    written before anything goes to stdout, so a closed pipe (``| head``) loses nothing."""
     _options(args)
     result = load_run(args.run)
     config = load_config(args.config) if args.config is not None else None  # checked first
+    suffix = "collision" if args.thresholds else "friction"
+    out = _out_file(args.out or args.run.with_name(f"{args.run.stem}_{suffix}.toml"))
     if args.thresholds:
         fit = learn_thresholds(
             result, false_alarm=args.false_alarm, horizon=args.horizon, block=args.block,
@@ -112,11 +173,13 @@ def cmd_identify(args) -> int:
             method=args.method,
             run=args.run.name,
         )  # fmt: skip
-        suffix = "collision"
-        print(f"{args.run.name}: collision thresholds on |d_hat|, false alarm <= "
-              f"{args.false_alarm:g} per {args.horizon:g} s, safety x{args.safety:g}")  # fmt: skip
-        for name, thr, peak in zip(fit.names, fit.threshold, fit.peak, strict=True):
-            print(f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})")
+        report = [
+            f"{args.run.name}: collision thresholds on |d_hat|, false alarm <= "
+            f"{args.false_alarm:g} per {args.horizon:g} s, safety x{args.safety:g}"
+        ]
+        rows = zip(fit.names, fit.threshold, fit.peak, strict=True)
+        report += [f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})"
+                   for name, thr, peak in rows]  # fmt: skip
     else:
         robot = _robot(result, args.urdf)
         observer = observer_model(result, robot) if args.source == "observer" else None
@@ -129,13 +192,9 @@ def cmd_identify(args) -> int:
             velocity_threshold=args.velocity_threshold, confidence=args.confidence,
             run=args.run.name,
         )  # fmt: skip
-        suffix = "friction"
-        print(f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} "
-              "(source)")  # fmt: skip
-        print(fit.table())
+        report = [f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} "
+                  "(source)", fit.table()]  # fmt: skip
     text = fit.toml()
-    out = args.out or args.run.with_name(f"{args.run.stem}_{suffix}.toml")
-    _out_file(out)
     if config is None:
         out.write_text(text, encoding="utf-8")
     else:
@@ -143,7 +202,9 @@ def cmd_identify(args) -> int:
         header = "\n".join(line[2:] for line in text.splitlines() if line.startswith("# "))
         write_config(config.source, {name: body}, out, header=header)
         load_config(out)  # the written config loads (the table is valid for it)
-    print(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config else ""))
+    report.append(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config
+                                    else ""))  # fmt: skip
+    print("\n".join(report))
     return 0
 
 

@@ -579,7 +579,7 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
         "",
         "Same robot, plant, reference, disturbances and MPC settings; only the controller "
         "changes (documentation: Concepts, controllers; "
-        "`hmpc-pin compare configs/paper_combined.toml`). "
+        "`hmpc-pin compare paper_combined`). "
         "Errors, effort and chattering over t ≥ 1 s.",
         "",
         markdown_table(comp),

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..controllers.wrappers import MeasuredController
-from ..exceptions import ConfigError, SimulationError
+from ..exceptions import ConfigError, SimulationError, install_command
 from ..experiment.build import Experiment, load_robot_config, reuse_robots, with_controller
 from ..experiment.config.sweep import CONDITION_PARTS
 from ..experiment.schema import OBSERVERS, ExperimentConfig
@@ -446,8 +446,8 @@ def _dask_client(jobs: int, scheduler: str | None):
     except ImportError as exc:
         raise ConfigError(
             "--executor",
-            "dask needs the optional dependency dask.distributed; install it with "
-            "`pip install 'hmpc_pin[cluster]'` or use --executor local",
+            "dask needs the optional dependency dask.distributed (extra hmpc_pin[cluster]); "
+            f"install it with `{install_command('cluster')}` or use --executor local",
         ) from exc
     if scheduler:
         return Client(scheduler), None

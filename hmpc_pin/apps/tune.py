@@ -24,19 +24,21 @@ torque total variation per second (:func:`~hmpc_pin.apps.sweep.torque_effort`) a
 :math:`\\overline{TV}_0` that of the config as given, which is always the first trial.
 
 The study is kept in an SQLite file (Optuna's RDB storage): running the command again
-with the same ``--out`` resumes it. The best trial is written as a config, and the
+with the same ``--out`` resumes it. Ctrl-C writes the best config and the report of the
+trials that finished, then exits 130. The best trial is written as a config, and the
 shipped and tuned configs are compared on ``holdout`` other samples (another seed).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ConfigError, ExtraError
+from ..exceptions import ConfigError, ExtraError, RunInterrupted, install_command
 from ..experiment.config.write import write_config
 from ..experiment.schema import OBSERVERS, ExperimentConfig, load_config
 from .sweep import run_sweep
@@ -85,7 +87,10 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
     }
     if cc.kind == "hmpc":
         space["N"] = ("int", 5, 30)
-    if cc.compensation in OBSERVERS:
+    if cc.compensation in OBSERVERS and cc.observer.bandwidth is not None:
+        w0 = _bandwidth_scale(cc)  # the largest joint's; the others keep their ratio to it
+        space["observer_bandwidth"] = ("log", w0 / 10, w0 * 5)
+    elif cc.compensation in OBSERVERS:
         c0 = cc.observer.gain
         space["observer_gain"] = ("log", c0 / 10, c0 * 5)
     if ts:
@@ -93,6 +98,12 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
     if observers:
         space["compensation"] = ("choice", tuple(observers))
     return space
+
+
+def _bandwidth_scale(cc) -> float:
+    """The largest joint bandwidth [1/s] of an observer given by its bandwidth: the
+    parameter ``observer_bandwidth`` a trial proposes (every joint scaled with it)."""
+    return float(np.max(cc.observer.bandwidth))
 
 
 def current_params(config: ExperimentConfig, space: dict) -> dict:
@@ -104,7 +115,10 @@ def current_params(config: ExperimentConfig, space: dict) -> dict:
         "Q_velocity": float(cc.Q[1, 1]),
         "R": float(cc.R),
         "N": int(cc.N),
-        "observer_gain": float(cc.observer.gain) if cc.observer is not None else None,
+        "observer_gain": None if cc.observer is None else cc.observer.gain,
+        "observer_bandwidth": None
+        if cc.observer is None or cc.observer.bandwidth is None
+        else _bandwidth_scale(cc),
         "Ts": float(cc.Ts),
         "compensation": cc.compensation,
     }
@@ -133,6 +147,9 @@ def apply_params(config: ExperimentConfig, params: dict) -> ExperimentConfig:
                   N=int(params.get("N", cc.N)), Ts=float(params.get("Ts", cc.Ts)))  # fmt: skip
     if "observer_gain" in params:
         new = replace(new, observer=replace(cc.observer, gain=float(params["observer_gain"])))
+    if "observer_bandwidth" in params:  # every joint scaled: the per-joint shape is kept
+        w = cc.observer.bandwidth * (float(params["observer_bandwidth"]) / _bandwidth_scale(cc))
+        new = replace(new, observer=replace(cc.observer, bandwidth=w))
     return replace(config, controller=new)
 
 
@@ -178,11 +195,70 @@ def objective_value(rows: list[dict], error_bound: float, tv0: float | None,
                    "bounded": float(np.mean([r["bounded"] for r in rows]))}  # fmt: skip
 
 
+#: Largest seed: Optuna's sampler seeds a NumPy ``RandomState`` (32 bits).
+MAX_SEED = 2**32 - 1
+
+
+def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=None,
+                  observers=None, holdout=None, holdout_seed=None,
+                  duration_key: str = "simulation.duration") -> tuple[int, int]:  # fmt: skip
+    """Check every option of :func:`tune` against ``config``, each error naming its own
+    option, before anything is created (the command line calls it before ``--out``).
+
+    Returns:
+        ``(holdout, holdout_seed)`` with their defaults filled in (``samples``, ``seed + 1``).
+
+    Raises:
+        ConfigError: The first bad option (``--trials``, ``--samples``, ``--seed``,
+            ``--jobs``, ``--holdout``, ``--holdout-seed``, ``--ts``, ``--observers``,
+            ``duration_key``), or a config that no trial could build.
+    """
+    holdout = samples if holdout is None else holdout
+    if holdout_seed is None and isinstance(seed, int) and not isinstance(seed, bool):
+        holdout_seed = (seed + 1) % (MAX_SEED + 1)
+    for key, value, low, high in (("--trials", trials, 1, None), ("--samples", samples, 1, None),
+                                  ("--seed", seed, 0, MAX_SEED), ("--jobs", jobs, 1, None),
+                                  ("--holdout", holdout, 0, None),
+                                  ("--holdout-seed", holdout_seed, 0, MAX_SEED)):  # fmt: skip
+        if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
+                or value < low or (high is not None and value > high)):  # fmt: skip
+            within = (
+                f"an integer in [{low}, {high}]" if high is not None else f"an integer >= {low}"
+            )
+            raise ConfigError(key, f"expected an integer {within}, got {value!r}")
+    if ts is not None and not (ts and all(np.isfinite(v) and v > 0 for v in ts)):
+        raise ConfigError("--ts", f"expected control periods [s] > 0, got {ts!r}")
+    if config.source is None:
+        raise ConfigError("CONFIG", "tune needs a config loaded from a file (it writes a "
+                          "tuned copy of it)")  # fmt: skip
+    duration, after = config.simulation.duration, config.sweep.after
+    if not duration > after:
+        raise ConfigError(duration_key, f"expected a simulated time longer than sweep.after = "
+                          f"{after:g} s (the error is scored after it), got {duration:g} s; "
+                          "lengthen it or lower [sweep] after")  # fmt: skip
+    space = search_space(config, ts, observers)
+    from ..experiment.build import Experiment
+
+    for params in (current_params(config, space), {k: s[-1] if s[0] != "choice" else s[1][-1]
+                                                   for k, s in space.items()}):  # fmt: skip
+        with warnings.catch_warnings():  # a range's end may warn; only errors matter here
+            warnings.simplefilter("ignore")
+            Experiment.from_config(apply_params(config, params))  # bad input before any trial
+    return int(holdout), int(holdout_seed)
+
+
 def _evaluate(config, samples, seed, jobs, executor, scheduler) -> list[dict]:
-    """The sweep rows of ``config``'s own controller on ``samples`` plants."""
+    """The sweep rows of ``config``'s own controller on ``samples`` plants.
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C stopped the sweep (its partial rows score nothing).
+    """
     config = replace(config, sweep=replace(config.sweep, variants=(config.controller.label,)))
-    return run_sweep(config, samples, seed, jobs=jobs, executor=executor,
-                     scheduler=scheduler, progress=False).rows  # fmt: skip
+    result = run_sweep(config, samples, seed, jobs=jobs, executor=executor,
+                       scheduler=scheduler, progress=False)  # fmt: skip
+    if result.interrupted:
+        raise KeyboardInterrupt
+    return result.rows
 
 
 @dataclass
@@ -237,34 +313,27 @@ def tune(
         objective: ``objective(config) -> (value, parts)`` instead of the sweep's (tests).
 
     Raises:
-        ExtraError: Optuna is not installed (extra ``tune``). ConfigError: bad options.
+        ExtraError: Optuna is not installed (extra ``tune``). ConfigError: bad options
+            (:func:`check_options`, before anything is written).
+        RunInterrupted: Ctrl-C: the tuned config and the report of the trials that
+            finished were written first (:attr:`~hmpc_pin.exceptions.RunInterrupted.files`;
+            none if no trial finished); the study resumes from its file.
     """
     optuna = _optuna()
-    for key, value, low in (("--trials", trials, 1), ("--samples", samples, 1),
-                            ("--seed", seed, 0), ("--jobs", jobs, 1)):  # fmt: skip
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ConfigError(key, f"expected an integer >= {low}, got {value!r}")
-    if ts is not None and not (ts and all(np.isfinite(v) and v > 0 for v in ts)):
-        raise ConfigError("--ts", f"expected control periods [s] > 0, got {ts!r}")
-    if config.source is None:
-        raise ConfigError("CONFIG", "tune needs a config loaded from a file (it writes a "
-                          "tuned copy of it)")  # fmt: skip
-    holdout = samples if holdout is None else holdout
-    holdout_seed = seed + 1 if holdout_seed is None else holdout_seed
+    holdout, holdout_seed = check_options(config, trials=trials, samples=samples, seed=seed,
+                                          jobs=jobs, ts=ts, observers=observers,
+                                          holdout=holdout, holdout_seed=holdout_seed)  # fmt: skip
     space = search_space(config, ts, observers)
-    for params in (current_params(config, space), {k: s[-1] if s[0] != "choice" else s[1][-1]
-                                                   for k, s in space.items()}):  # fmt: skip
-        from ..experiment.build import Experiment
-
-        Experiment.from_config(apply_params(config, params))  # bad input before any trial
     name = config.name
     storage = f"sqlite:///{(out / f'{name}_tune.db').resolve()}"
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    optuna.logging.set_verbosity(optuna.logging.ERROR)  # a failed trial is ours to report
     study = optuna.create_study(
         study_name=name, storage=storage, direction="minimize", load_if_exists=True,
-        sampler=optuna.samplers.TPESampler(seed=seed + len_trials(optuna, storage, name)),
+        sampler=optuna.samplers.TPESampler(
+            seed=(seed + len_trials(optuna, storage, name)) % (MAX_SEED + 1)),
     )  # fmt: skip
     if not study.trials:
+        study.set_user_attr("as_given", _own_params(config, space))
         study.enqueue_trial(current_params(config, space))
         study.set_user_attr("samples", samples)
         study.set_user_attr("seed", seed)
@@ -297,26 +366,63 @@ def tune(
     if executor == "dask" and scheduler is None and objective is None:
         cluster = _local_cluster(jobs)  # one cluster for every trial, not one per trial
         scheduler = cluster.scheduler_address
+    db = out / f"{name}_tune.db"
+    stopped = None  # where Ctrl-C stopped the call, in words
+    comparison = None
     try:
-        study.optimize(run_trial, n_trials=trials, show_progress_bar=progress)
-        best = dict(study.best_trial.params)
+        try:
+            study.optimize(run_trial, n_trials=trials, show_progress_bar=progress)
+        except KeyboardInterrupt:
+            finished = sum(t.state.name == "COMPLETE" for t in study.trials)
+            stopped = (f"trial {len(study.trials) - 1} of the study ({finished} finished; run "
+                       "again with the same --out to resume it)")  # fmt: skip
+        if not any(t.state.name == "COMPLETE" for t in study.trials):
+            raise RunInterrupted(f"{stopped}: no trial finished, no config written", files=[db])
+        best = _shown_params(study.best_trial, study)
         tuned = config if study.best_trial.number == 0 else apply_params(config, best)
         files = [_write_tuned(config, tuned, best, study, out)]
-        comparison = None
-        if holdout and objective is None:
-            comparison = {}
-            for label, cfg in (("shipped", config), ("tuned", tuned)):
-                rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
-                comparison[label] = objective_value(
-                    rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
-                    duration=cfg.simulation.duration,
-                )[1]  # fmt: skip
+        if holdout and objective is None and stopped is None:
+            try:
+                comparison = {}
+                for label, cfg in (("shipped", config), ("tuned", tuned)):
+                    rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
+                    comparison[label] = objective_value(
+                        rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
+                        duration=cfg.simulation.duration,
+                    )[1]  # fmt: skip
+            except KeyboardInterrupt:
+                comparison = None
+                stopped = f"the held-out comparison, after {len(study.trials)} trials"
     finally:
         if cluster is not None:
             cluster.close()
-    files += _report(config, study, best, out, comparison, samples, seed, holdout, holdout_seed)
-    files.insert(1, out / f"{name}_tune.db")
+    files += _report(config, study, best, out, comparison, samples, seed, holdout, holdout_seed,
+                     stopped)  # fmt: skip
+    files.insert(1, db)
+    if stopped is not None:
+        raise RunInterrupted(stopped, files=files)
     return TuneResult(study, best, tuned, files, comparison)
+
+
+def _own_params(config: ExperimentConfig, space: dict) -> dict:
+    """The config's own values of the parameters of ``space``, not clipped (what the
+    report shows for trial 0, the config as given)."""
+    cc = config.controller
+    own = {"Q_position": float(cc.Q[0, 0]), "Q_velocity": float(cc.Q[1, 1]), "R": float(cc.R),
+           "N": int(cc.N), "Ts": float(cc.Ts), "compensation": cc.compensation,
+           "observer_gain": None if cc.observer is None else cc.observer.gain,
+           "observer_bandwidth": None if cc.observer is None or cc.observer.bandwidth is None
+           else _bandwidth_scale(cc)}  # fmt: skip
+    return {k: own[k] for k in space}
+
+
+def _shown_params(trial, study) -> dict:
+    """A trial's parameters as they ran: the config's own for the config as given
+    (trial 0, whose enqueued values are clipped into the search ranges), else the
+    sampled ones."""
+    if trial.user_attrs.get("as_given") and "as_given" in study.user_attrs:
+        return dict(study.user_attrs["as_given"])
+    return dict(trial.params)
 
 
 def _local_cluster(jobs: int):
@@ -326,8 +432,9 @@ def _local_cluster(jobs: int):
         from dask.distributed import LocalCluster
     except ImportError as exc:
         raise ConfigError(
-            "--executor", "dask needs the optional dependency dask.distributed; install it "
-            "with `pip install 'hmpc_pin[cluster]'` or use --executor local",
+            "--executor", "dask needs the optional dependency dask.distributed (extra "
+            f"hmpc_pin[cluster]); install it with `{install_command('cluster')}` or use "
+            "--executor local",
         ) from exc  # fmt: skip
     return LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
 
@@ -355,9 +462,14 @@ def _write_tuned(config, tuned, best, study, out: Path) -> Path:
     raw = tomllib.loads(Path(config.source).read_text(encoding="utf-8"))
     ctrl = dict(raw.get("controller", {}))
     ctrl.update(table)
-    if "observer_gain" in best:
+    if "observer_gain" in best or "observer_bandwidth" in best:
         obs = dict(ctrl.get("observer", {}))
-        obs["gain"] = float(cc.observer.gain)
+        if cc.observer.bandwidth is not None:
+            w = np.atleast_1d(cc.observer.bandwidth)
+            obs["bandwidth"] = float(w[0]) if np.all(w == w[0]) else w.tolist()
+            obs.pop("gain", None)
+        else:
+            obs["gain"] = float(cc.observer.gain)
         if "compensation" in best:  # the 0.1 keys would contradict it
             obs.pop("kind", None)
             obs.pop("enabled", None)
@@ -379,7 +491,8 @@ def _cell(v) -> str:
     return v if isinstance(v, str) else f"{v:.4g}"
 
 
-def _report(config, study, best, out: Path, comparison, samples, seed, holdout, holdout_seed):
+def _report(config, study, best, out: Path, comparison, samples, seed, holdout, holdout_seed,
+            stopped: str | None = None):  # fmt: skip
     import matplotlib
 
     matplotlib.use("Agg")
@@ -388,7 +501,6 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
 
     files = []
     name = config.name
-    import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # optuna marks its matplotlib backend experimental
@@ -407,9 +519,15 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
                 files.append(path)
             except (RuntimeError, ValueError):  # e.g. every trial scored the same
                 pass
+    finished = [t for t in study.trials if t.value is not None]
     lines = [
-        f"# Tuning of {name}: {len(study.trials)} trials",
+        f"# Tuning of {name}: {len(study.trials)} trials ({len(finished)} finished)",
         "",
+        *(
+            [f"Interrupted (Ctrl-C) at {stopped}: the best of the trials that finished.", ""]
+            if stopped
+            else []
+        ),
         f"Config `{config.source}`; {samples} sweep samples per trial (seed {seed}); "
         f"objective J = p95 worst-joint RMS × (1 + {SATURATION_WEIGHT:g}·saturation + "
         f"{TV_WEIGHT:g}·max(0, TV/TV₀ − 1)); trial 0 is the config as given.",
@@ -439,7 +557,8 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
     for t in study.trials:
         if t.value is None:
             continue
-        vals = " | ".join(_cell(t.params.get(k, math.nan)) for k in best)
+        shown = _shown_params(t, study)
+        vals = " | ".join(_cell(shown.get(k, math.nan)) for k in best)
         lines.append(f"| {t.number} | {t.value:.4g} | {t.user_attrs.get('p95_rms', math.nan):.4g}"
                      f" | {vals} |")  # fmt: skip
     lines += ["", *(f"![{p.stem}]({p.name})" for p in files), ""]
@@ -455,15 +574,31 @@ def _periods(text: str) -> tuple[float, ...]:
         raise ConfigError("--ts", f"expected comma-separated periods [s], got {text!r}") from exc
 
 
-def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
-    """``hmpc-pin tune CONFIG`` once the command line has checked the config and ``out``:
-    run or resume the study; print the held-out comparison."""
+def _jobs(args) -> int:
     import os
 
-    jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+    return args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+
+
+def check_args(args, config: ExperimentConfig) -> None:
+    """Every option of ``hmpc-pin tune`` checked against ``config``, each error naming
+    its own flag, before anything is created (:func:`check_options`)."""
+    check_options(
+        config, trials=args.trials, samples=args.samples, seed=args.seed, jobs=_jobs(args),
+        ts=_periods(args.ts) if args.ts else None,
+        observers=tuple(args.observers.split(",")) if args.observers else None,
+        holdout=args.holdout, holdout_seed=args.holdout_seed,
+        duration_key="--duration" if args.duration is not None else "simulation.duration",
+    )  # fmt: skip
+
+
+def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
+    """``hmpc-pin tune CONFIG`` once the command line has checked the config, the options
+    (:func:`check_args`) and ``out``: run or resume the study; print the held-out
+    comparison."""
     result = tune(
-        config, out, trials=args.trials, samples=args.samples, seed=args.seed, jobs=jobs,
-        executor=args.executor, scheduler=args.scheduler,
+        config, out, trials=args.trials, samples=args.samples, seed=args.seed,
+        jobs=_jobs(args), executor=args.executor, scheduler=args.scheduler,
         ts=_periods(args.ts) if args.ts else None,
         observers=tuple(args.observers.split(",")) if args.observers else None,
         holdout=args.holdout,

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..exceptions import VizError
+from ..exceptions import VizError, install_command
 
 __all__ = ["LiveView", "VizError", "export_replay", "visual_model"]
 
@@ -48,7 +48,9 @@ def draw_obstacle(vis, obstacle: dict | None) -> None:
 
 
 #: The message when Meshcat is missing: the extra that installs it (as a wheel user types it).
-MESHCAT_MISSING = 'meshcat is not installed; install the viz extra: pip install "hmpc_pin[viz]"'
+MESHCAT_MISSING = (
+    f"meshcat is not installed; install the viz extra (hmpc_pin[viz]): {install_command('viz')}"
+)
 
 
 def require_meshcat() -> None:

@@ -30,6 +30,7 @@ from ..exceptions import (
     LimitError,
     SimulationError,
 )
+from ..identification.friction import ObserverModel
 from ..model.robot import Robot, load_robot
 from ..realtime.loop import LoopSettings
 from ..realtime.safety import SafeTorque, SafetySettings
@@ -492,11 +493,12 @@ class Experiment:
         back to its estimate)."""
         cc, n = self.config.controller, self.robot.nq
         out: dict = {}
-        if cc.compensation in OBSERVERS:
-            out["observer_model"] = {
-                "kind": cc.compensation, "gain": cc.observer.gain, "Ts": cc.Ts,
-                "discretization": cc.observer.discretization,
-            }  # fmt: skip
+        model = ObserverModel.of(
+            getattr(self.controller, "compensation", None),
+            model_at=cc.observer.model_at if cc.observer is not None else "end",
+        )
+        if model is not None:  # the observer that runs: its matrix (cY or K_O), Ts, Euler
+            out["observer_model"] = model.record()
         if cc.friction is not None:
             out["friction_feedforward"] = {
                 "viscous": self.config.vector("controller.friction.viscous", n).tolist(),

@@ -20,8 +20,8 @@ from ..tasks.pose import (
     PoseWaypoints,
     check_frame,
     frame_pose,
-    matrix_to_quat,
     plane_axes,
+    quat_series,
     quat_to_matrix,
 )
 from ..tasks.quintic import QuinticReference
@@ -218,7 +218,7 @@ def task_space(reference, robot: Robot, result: Result) -> Result:
     pos, rot = frame_pose(robot, reference.frame, result.q)
     pos_ref, quat_ref = reference.target(result.t)
     result.ee_pos, result.ee_pos_ref = pos, pos_ref
-    result.ee_quat = np.array([matrix_to_quat(R) for R in rot])
+    result.ee_quat = quat_series(rot, like=quat_ref)  # the target's hemisphere
     result.ee_quat_ref = quat_ref
     result.meta["task"] = {"frame": reference.frame, "quaternion": QUATERNION_ORDER}
     return result

@@ -67,6 +67,10 @@ __all__ = [
 
 #: Measurements of the friction torque a fit can use.
 SOURCES = ("observer", "dynamics", "regressor")
+#: Fewest degrees of freedom :math:`m_e - p` of an interval: below it the residual is so
+#: correlated (:math:`m_e` so small) that the AR(1) correction, itself estimated from the
+#: residual, cannot be trusted, and no interval is given (NaN, printed "n/a").
+MIN_DEGREES_OF_FREEDOM = 10
 
 
 @dataclass(frozen=True)
@@ -76,7 +80,8 @@ class JointFriction:
     Attributes:
         name: The joint.
         viscous: :math:`\\hat a` [N·m·s/rad]. coulomb: :math:`\\hat b` [N·m].
-        viscous_ci, coulomb_ci: Their confidence intervals (low, high).
+        viscous_ci, coulomb_ci: Their confidence intervals (low, high); NaN when the
+            residual leaves too few effective samples (:data:`MIN_DEGREES_OF_FREEDOM`).
         residual_rms: RMS of the fit's residual [N·m].
         samples: Samples used, :math:`m`. effective_samples: :math:`m_e` (AR(1)).
         condition: Condition number of the column-normalised regressor.
@@ -94,6 +99,17 @@ class JointFriction:
     condition: float
     coverage: tuple[float, float]
 
+    @property
+    def has_interval(self) -> bool:
+        """Whether the intervals are given (enough effective samples)."""
+        return bool(np.all(np.isfinite(self.viscous_ci + self.coulomb_ci)))
+
+
+def _ci(value: float, ci: tuple[float, float], digits: int) -> str:
+    if not np.all(np.isfinite(ci)):
+        return f"{value:.{digits}g} [n/a]"
+    return f"{value:.{digits}g} [{ci[0]:.{digits}g}, {ci[1]:.{digits}g}]"
+
 
 @dataclass(frozen=True)
 class FrictionFit:
@@ -104,12 +120,32 @@ class FrictionFit:
         source: ``"observer"`` or ``"dynamics"``.
         confidence: Level of the intervals (e.g. 0.95).
         run: The run it was fitted from (file or config name), for the TOML comment.
+        excluded: Samples left out because a recorded column used by the fit (q, q̇,
+            τ, :math:`\\hat d`) is NaN or infinite there.
     """
 
     joints: tuple[JointFriction, ...]
     source: str
     confidence: float
     run: str = ""
+    excluded: int = 0
+
+    def notes(self) -> list[str]:
+        """Why an interval is missing, and what was left out (one sentence each)."""
+        out = []
+        short = [j for j in self.joints if not j.has_interval]
+        if short:
+            names = ", ".join(f"{j.name} (m_e = {j.effective_samples:.1f})" for j in short)
+            out.append(
+                f"no confidence interval for {names}: the residual is so correlated that "
+                "its effective samples m_e = m(1-rho)/(1+rho) (rho: lag-1 autocorrelation) "
+                f"leave fewer than {MIN_DEGREES_OF_FREEDOM} degrees of freedom (a disturbance "
+                "the friction model does not hold, or the observer's lag); record a longer "
+                "run" + (", or try --source dynamics" if self.source == "observer" else "")
+            )
+        if self.excluded:
+            out.append(f"{self.excluded} samples left out: NaN or inf in a recorded column")
+        return out
 
     @property
     def viscous(self) -> np.ndarray:
@@ -131,12 +167,12 @@ class FrictionFit:
         ]
         for j in self.joints:
             lines.append(
-                f"| {j.name} | {j.viscous:.4g} [{j.viscous_ci[0]:.4g}, {j.viscous_ci[1]:.4g}] "
-                f"| {j.coulomb:.4g} [{j.coulomb_ci[0]:.4g}, {j.coulomb_ci[1]:.4g}] | "
-                f"{j.residual_rms:.3g} | {j.samples} ({j.effective_samples:.0f}) | "
+                f"| {j.name} | {_ci(j.viscous, j.viscous_ci, 4)} "
+                f"| {_ci(j.coulomb, j.coulomb_ci, 4)} | {j.residual_rms:.3g} | "
+                f"{j.samples} ({j.effective_samples:.0f}) | "
                 f"{j.condition:.3g} | {100 * j.coverage[0]:.0f} % / {100 * j.coverage[1]:.0f} % |"
             )
-        return "\n".join(lines)
+        return "\n".join(lines + [f"note: {n}" for n in self.notes()])
 
     def toml(self) -> str:
         """The ``[controller.friction]`` table (feed-forward friction compensation) with
@@ -151,11 +187,10 @@ class FrictionFit:
         ]
         for j in self.joints:
             lines.append(
-                f"#   {j.name}: viscous {j.viscous:.6g} [{j.viscous_ci[0]:.6g}, "
-                f"{j.viscous_ci[1]:.6g}] N·m·s/rad, Coulomb {j.coulomb:.6g} "
-                f"[{j.coulomb_ci[0]:.6g}, {j.coulomb_ci[1]:.6g}] N·m, residual RMS "
-                f"{j.residual_rms:.3g} N·m"
+                f"#   {j.name}: viscous {_ci(j.viscous, j.viscous_ci, 6)} N·m·s/rad, Coulomb "
+                f"{_ci(j.coulomb, j.coulomb_ci, 6)} N·m, residual RMS {j.residual_rms:.3g} N·m"
             )
+        lines += [f"# note: {n}" for n in self.notes()]
         lines += [
             "[controller.friction]",
             f"viscous = [{', '.join(f'{v:.6g}' for v in self.viscous)}]   # [N·m·s/rad]",
@@ -230,11 +265,12 @@ def _least_squares(blocks: list[tuple[np.ndarray, np.ndarray]], confidence: floa
     res = [v - a @ theta for a, v in blocks]
     m = len(y)
     rho = max(0.0, float(np.mean([_lag1(r) for r in res])))
-    m_eff = max(m * (1 - rho) / (1 + rho), p + 1.0)
+    m_eff = m * (1 - rho) / (1 + rho)
     chi2 = float(sum(float(r @ r) / s for r, s in zip(res, var, strict=True)))
     scale = chi2 / max(m - p, 1)  # ≈ 1 when the weights are the residual variances
-    half = student_t.ppf(0.5 + confidence / 2, m_eff - p) * np.sqrt(
-        scale * np.diag(AtWA_inv) * m / m_eff
+    # too few effective samples: NaN here, and _joint gives no interval below its rule
+    half = student_t.ppf(0.5 + confidence / 2, max(m_eff - p, 1.0)) * np.sqrt(
+        scale * np.diag(AtWA_inv) * m / max(m_eff, 1e-300)
     )
     m_effs = [len(r) * (1 - max(0.0, _lag1(r))) / (1 + max(0.0, _lag1(r))) for r in res]
     return theta / norms, half / norms, res, m_effs
@@ -272,6 +308,8 @@ def fit_joint(
 
 
 def _joint(name, theta, half, r, m_eff, cond, cover) -> JointFriction:
+    if m_eff - 2 < MIN_DEGREES_OF_FREEDOM:  # its residual too correlated: no interval
+        half = np.full(2, np.nan)
     return JointFriction(
         name=name,
         viscous=float(theta[0]),
@@ -290,20 +328,109 @@ def _joint(name, theta, half, r, m_eff, cond, cover) -> JointFriction:
 class ObserverModel:
     """The observer whose estimate is fitted: its error dynamics
     :math:`\\dot{\\hat d} = L(q)\\,(d - \\hat d)` (exact for any :math:`d`,
-    :mod:`hmpc_pin.compensation.observers`), with :math:`L = cYM(q)^{-1}` (``"chen"``,
-    ``"general"``) or :math:`L = K_O I` (``"momentum"``), discretised as the observer is.
+    :mod:`hmpc_pin.compensation.observers`), with :math:`L = cY\\,M(q)^{-1}` (the NDO of
+    Eq 13/30: ``"chen"``, ``"general"``, or any matrix :math:`cY`, e.g. of a bandwidth)
+    or :math:`L = \\mathrm{diag}(K_O)` (``"momentum"``), discretised as the observer is.
 
     Attributes:
-        kind: ``"chen"``, ``"general"`` or ``"momentum"``. gain: :math:`c` or :math:`K_O`.
-        Ts: The control period [s]. implicit: Backward (``True``) or forward Euler.
+        kind: ``"chen"``, ``"general"`` or ``"momentum"``.
+        gain: :math:`c` [1/s·(kg·m²)] (``matrix`` unset) or :math:`K_O` [1/s], one value or
+            one per joint (momentum).
+        Ts: The control period [s].
         robot: The arm's :class:`~hmpc_pin.model.robot.Robot` (for :math:`M(q)`).
+        implicit: Backward (``True``) or forward Euler (the NDO; the momentum observer is
+            always semi-implicit).
+        matrix: The NDO's :math:`cY` itself, (n, n) (overrides ``gain`` × the kind's
+            :math:`Y`): what a bandwidth observer runs with.
+        model_at: ``"end"``: :math:`M` at the period's end state :math:`q_k`;
+            ``"start"``: at :math:`q_{k-1}` (``[controller.observer] model_at``).
     """
 
     kind: str
-    gain: float
+    gain: float | np.ndarray
     Ts: float
     robot: object = None
     implicit: bool = True
+    matrix: np.ndarray | None = None
+    model_at: str = "end"
+
+    @classmethod
+    def of(cls, compensation, robot=None, model_at: str = "end") -> ObserverModel | None:
+        """The model of a built observer (the object that runs, not its config), or
+        ``None`` when ``compensation`` is no observer. A feedback gate
+        (:class:`~hmpc_pin.compensation.gate.FeedbackGate`) is looked through."""
+        from ..compensation.observers import DisturbanceObserver, MomentumObserver
+
+        while hasattr(compensation, "inner"):
+            compensation = compensation.inner
+        if isinstance(compensation, DisturbanceObserver):
+            return cls("general", 1.0, compensation.Ts, robot,
+                       compensation.discretization == "implicit",
+                       np.array(compensation.cY, dtype=float), model_at)  # fmt: skip
+        if isinstance(compensation, MomentumObserver):
+            return cls("momentum", np.array(compensation.K, dtype=float), compensation.Ts,
+                       robot, True, None, model_at)  # fmt: skip
+        return None
+
+    def record(self) -> dict:
+        """The JSON record a run keeps in ``meta["observer_model"]`` (:meth:`from_record`
+        reads it back)."""
+        out: dict = {"kind": self.kind, "Ts": float(self.Ts), "model_at": self.model_at,
+                     "discretization": "implicit" if self.implicit else "explicit"}  # fmt: skip
+        if self.matrix is not None:
+            out["matrix"] = np.asarray(self.matrix, dtype=float).tolist()
+        else:
+            out["gain"] = np.asarray(self.gain, dtype=float).tolist()
+        return out
+
+    @classmethod
+    def from_record(cls, record, robot=None, n: int | None = None) -> ObserverModel:
+        """The model of a run's ``meta["observer_model"]``: this version's record (the
+        matrix :math:`cY` or :math:`K_O` that ran) or an older one (kind and gain).
+
+        Raises:
+            ConfigError: (key ``"observer_model"``) the record is not one of these; the
+                message says what is missing.
+        """
+
+        def bad(what: str) -> ConfigError:
+            return ConfigError("observer_model", f"the run's observer record {what}; "
+                               "use --source dynamics")  # fmt: skip
+
+        if not isinstance(record, dict):
+            raise bad(f"is {type(record).__name__}, expected a table")
+        kind, Ts = record.get("kind"), record.get("Ts")
+        if kind not in ("chen", "general", "momentum"):
+            raise bad(f"names the kind {kind!r}, expected 'chen', 'general' or 'momentum'")
+        try:
+            Ts = float(Ts)
+        except (TypeError, ValueError):
+            raise bad(f"has the period Ts = {Ts!r}, expected a number [s]") from None
+        if not (np.isfinite(Ts) and Ts > 0):
+            raise bad(f"has the period Ts = {Ts!r}, expected > 0 [s]")
+        implicit = record.get("discretization", "implicit") == "implicit"
+        model_at = record.get("model_at", "end")
+        if model_at not in ("end", "start"):
+            raise bad(f"has model_at = {model_at!r}, expected 'end' or 'start'")
+        if record.get("matrix") is not None:
+            M = np.asarray(record["matrix"], dtype=float)
+            if M.ndim != 2 or M.shape[0] != M.shape[1] or (n is not None and M.shape[0] != n) \
+                    or not np.all(np.isfinite(M)):  # fmt: skip
+                raise bad(f"has an observer matrix of shape {M.shape}, expected a finite "
+                          f"({n or 'n'}, {n or 'n'}) matrix")  # fmt: skip
+            return cls(kind, 1.0, Ts, robot, implicit, M, model_at)
+        gain = record.get("gain")
+        try:
+            g = np.asarray(gain, dtype=float)
+        except (TypeError, ValueError):
+            g = np.array(np.nan)
+        if gain is None or g.ndim > 1 or not np.all(np.isfinite(g)) or not np.all(g > 0):
+            raise bad(f"has no observer matrix and the gain {gain!r} (a bandwidth observer "
+                      "recorded by an older version); run it again to record the observer "
+                      "that ran")  # fmt: skip
+        if g.ndim == 1 and kind != "momentum":
+            raise bad(f"has a per-joint gain for the {kind!r} observer, expected one value")
+        return cls(kind, g if g.ndim else float(g), Ts, robot, implicit, None, model_at)
 
     def filter(self, q: np.ndarray, phi: np.ndarray) -> np.ndarray:
         """The observer's response :math:`g` to the disturbance signals ``phi``,
@@ -314,19 +441,18 @@ class ObserverModel:
         K, n, p = phi.shape
         g = np.zeros_like(phi)
         if self.kind == "momentum":
-            L = None
-            a = self.Ts * self.gain
+            a = self.Ts * np.broadcast_to(np.asarray(self.gain, dtype=float), (n,))[:, None]
+        elif self.matrix is not None:
+            cY = np.asarray(self.matrix, dtype=float)
         else:
             cY = self.gain * (np.tril(np.ones((n, n))) if self.kind == "chen" else np.eye(n))
+        shift = 1 if self.model_at == "start" else 0
         prev = np.zeros((n, p))
         for k in range(1, K):
             if self.kind == "momentum":
-                if self.implicit:
-                    prev = (prev + a * phi[k]) / (1 + a)
-                else:
-                    prev = prev + a * (phi[k] - prev)
+                prev = (prev + a * phi[k]) / (1 + a)
             else:
-                M = self.robot.mass_matrix(q[k])
+                M = self.robot.mass_matrix(q[k - shift])
                 L = self.Ts * cY @ np.linalg.inv(M)
                 if self.implicit:
                     prev = np.linalg.solve(np.eye(n) + L, prev + L @ phi[k])
@@ -414,6 +540,41 @@ def _base_columns(Y: np.ndarray, tol: float = 1e-8) -> np.ndarray:
     return np.sort(live[piv[:rank]])
 
 
+def _valid_rows(result: Result, source: str, observer) -> tuple[np.ndarray, list[str]]:
+    """Per sample: whether every recorded column the fit reads is finite there, and the
+    names of the columns that are not somewhere. The applied torque of the last sample
+    (no period follows it) is not read; the time must be finite (``load_run`` checks)."""
+    columns = {"q": result.q, "dq": result.dq}
+    if source == "observer":
+        columns["d_hat"] = result.d_hat
+    else:
+        tau = result.tau_applied if result.tau_applied is not None else result.tau
+        columns["tau_applied"] = np.vstack([tau[:-1], np.zeros((1, tau.shape[1]))])
+    valid = np.ones(len(result.t), dtype=bool)
+    bad = []
+    for name, arr in columns.items():
+        ok = np.all(np.isfinite(arr), axis=1)
+        if not ok.all():
+            bad.append(name)
+        valid &= ok
+    return valid, bad
+
+
+def _zero_filled(result: Result, valid: np.ndarray) -> Result:
+    """``result`` with the rows that are not ``valid`` set to zero (the fit leaves them
+    out; zeros keep NaN out of Pinocchio and the observer's filter)."""
+    from dataclasses import replace
+
+    if valid.all():
+        return result
+
+    def fill(a):
+        return None if a is None else np.where(valid.reshape(-1, *([1] * (a.ndim - 1))), a, 0.0)
+
+    names = ("q", "dq", "tau", "tau_applied", "d_hat")
+    return replace(result, **{k: fill(getattr(result, k)) for k in names})
+
+
 def fit_friction(
     result: Result,
     *,
@@ -459,29 +620,42 @@ def fit_friction(
     names = result.joint_names or tuple(f"joint{i + 1}" for i in range(n))
     if source in ("dynamics", "regressor") and robot is None:
         raise ConfigError("robot", f"the {source!r} source needs the arm's model")
+    valid, bad_columns = _valid_rows(result, source, observer)
+    clean = _zero_filled(result, valid)
+    if source in ("regressor", "dynamics"):
+        valid = valid[:-1] & valid[1:]  # per period: both ends recorded
     if source == "regressor":
-        Yr, tau, dq, t = _regressor_rows(result, robot)
-        use = (t >= after - 1e-12) & np.all(np.isfinite(tau), axis=1)
+        Yr, tau, dq, t = _regressor_rows(clean, robot)
+        use = (t >= after - 1e-12) & valid
         base = _base_columns(Yr[use].reshape(-1, Yr.shape[2]))
         phi = _regressors(dq)
         g = np.concatenate([phi, Yr[:, :, base]], axis=2)  # friction first, then pi_base
         y = tau
     elif source == "dynamics":
-        y, dq = dynamics_friction(result, robot)
+        y, dq = dynamics_friction(clean, robot)
         t = 0.5 * (result.t[1:] + result.t[:-1])
         g = _regressors(dq)
     elif observer is None:
-        dq, t = result.dq, result.t
-        y = _feedforward(result, dq) - result.d_hat
+        dq, t = clean.dq, clean.t
+        y = _feedforward(clean, dq) - clean.d_hat
         g = _regressors(dq)
     else:  # the observer's response to each regressor and to the fed-forward friction
-        dq = np.vstack([result.dq[:1], 0.5 * (result.dq[1:] + result.dq[:-1])])
-        t = result.t
-        ff = np.vstack([np.zeros((1, n)), _feedforward(result, result.dq[:-1])])
+        valid = np.cumprod(valid).astype(bool)  # the filter's state: nothing after a gap
+        dq = np.vstack([clean.dq[:1], 0.5 * (clean.dq[1:] + clean.dq[:-1])])
+        t = clean.t
+        ff = np.vstack([np.zeros((1, n)), _feedforward(clean, clean.dq[:-1])])
         phi = np.concatenate([_regressors(dq), ff[:, :, None]], axis=2)
-        filtered = observer.filter(result.q, phi)
-        g, y = filtered[:, :, :-1], filtered[:, :, -1] - result.d_hat
+        filtered = observer.filter(clean.q, phi)
+        g, y = filtered[:, :, :-1], filtered[:, :, -1] - clean.d_hat
     use = t >= after - 1e-12
+    excluded = int(np.count_nonzero(use & ~valid))
+    if excluded and not np.any(use & valid):
+        raise ConfigError("RUN", f"every sample after {after:g} s has NaN or inf in "
+                          f"{' or '.join(bad_columns)}: nothing to fit"
+                          + (" (a file written before 0.3 of a saturated run does not know the "
+                             "applied torque; use --source observer)"
+                             if bad_columns == ["tau_applied"] else ""))  # fmt: skip
+    use &= valid
     blocks, covers, conds = [], [], []
     for i, name in enumerate(names):
         covers.append(check_excitation(name, dq[use, i],
@@ -496,7 +670,7 @@ def fit_friction(
         for i, (A, v) in enumerate(blocks):
             theta, half, res, m_eff = _least_squares([(A[:, 2 * i : 2 * i + 2], v)], confidence)
             fits.append(_joint(names[i], theta, half, res[0], m_eff[0], conds[i], covers[i]))
-        return FrictionFit(tuple(fits), source, confidence, run)
+        return FrictionFit(tuple(fits), source, confidence, run, excluded)
     theta, half, res, m_eff = _least_squares(blocks, confidence)
     joints = tuple(
         _joint(
@@ -510,4 +684,4 @@ def fit_friction(
         )
         for i, name in enumerate(names)
     )
-    return FrictionFit(joints, source, confidence, run)
+    return FrictionFit(joints, source, confidence, run, excluded)

@@ -55,6 +55,7 @@ __all__ = [
     "check_frame",
     "frame_pose",
     "plane_axes",
+    "quat_series",
     "quat_to_matrix",
     "rotation_angle",
     "solve_path_ik",
@@ -84,6 +85,23 @@ def matrix_to_quat(R) -> FloatArray:
     """The unit quaternion ``(x, y, z, w)`` of ``R``, with ``w >= 0``."""
     coeffs = np.array(pin.Quaternion(np.asarray(R, dtype=float)).coeffs(), dtype=float)
     return -coeffs if coeffs[3] < 0 else coeffs
+
+
+def quat_series(rotations, like=None) -> FloatArray:
+    """Unit quaternions ``(x, y, z, w)`` of a stack of rotations (m, 3, 3), continuous in
+    sign: :math:`q` and :math:`-q` are the same rotation, so each is chosen in the
+    hemisphere of its predecessor (the first with ``w >= 0``), or, with ``like`` (m, 4),
+    in the hemisphere of ``like``'s row (the measured orientation next to its target).
+    A path through a half turn then has no jump of :math:`|\\Delta q| = 2`."""
+    quats = np.array([matrix_to_quat(R) for R in rotations]).reshape(-1, 4)
+    if like is not None:
+        flip = np.sum(quats * np.asarray(like, dtype=float), axis=1) < 0
+        quats[flip] *= -1.0
+        return quats
+    for k in range(1, len(quats)):
+        if np.dot(quats[k], quats[k - 1]) < 0:
+            quats[k] *= -1.0
+    return quats
 
 
 def rotation_angle(R_ref, R) -> FloatArray:
@@ -403,9 +421,10 @@ class PoseReference:
         return self.trajectory.native_form()
 
     def target(self, times) -> tuple[FloatArray, FloatArray]:
-        """Target positions (m, 3) [m] and quaternions (m, 4) ``(x, y, z, w)`` at ``times``."""
+        """Target positions (m, 3) [m] and quaternions (m, 4) ``(x, y, z, w)`` at ``times``
+        (continuous in sign along the path: :func:`quat_series`)."""
         pos, rot = self.path.poses(times)
-        return pos, np.array([matrix_to_quat(R) for R in rot])
+        return pos, quat_series(rot)
 
     def __repr__(self) -> str:
         return f"PoseReference(frame={self.frame!r}, path={type(self.path).__name__}, " + (

@@ -45,6 +45,29 @@ def _toppra():
     return toppra
 
 
+def _peak_acceleration(trajectory: JointTrajectory) -> np.ndarray:
+    """The exact largest |q̈| per joint [rad/s²] of a quintic Hermite trajectory: on each
+    segment q̈(τ) = 2c₂ + 6c₃τ + 12c₄τ² + 20c₅τ³ is a cubic, so its extrema are at the
+    segment's ends and at the real roots of the jerk 6c₃ + 24c₄τ + 60c₅τ² inside it."""
+    c = trajectory._c  # (K-1, 6, n), local time τ in [0, h]
+    h = np.diff(trajectory.times)[:, None]
+
+    def acc(tau):
+        return 2 * c[:, 2] + 6 * c[:, 3] * tau + 12 * c[:, 4] * tau**2 + 20 * c[:, 5] * tau**3
+
+    peak = np.maximum(np.abs(acc(0.0 * h)), np.abs(acc(h))).max(axis=0)
+    a2, a1, a0 = 60 * c[:, 5], 24 * c[:, 4], 6 * c[:, 3]
+    disc = a1**2 - 4 * a2 * a0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = np.sqrt(np.where(disc >= 0, disc, np.nan))
+        cands = [(-a1 + root) / (2 * a2), (-a1 - root) / (2 * a2), -a0 / a1]
+    for tau in cands:
+        ok = np.isfinite(tau) & (tau > 0) & (tau < h)
+        val = np.where(ok, np.abs(acc(np.where(ok, tau, 0.0))), 0.0)
+        peak = np.maximum(peak, val.max(axis=0))
+    return peak
+
+
 def retime_waypoints(
     waypoints,
     velocity_limit,
@@ -118,14 +141,17 @@ def retime_waypoints(
     q, dq, ddq = (np.asarray(traj(ts, order), dtype=float) for order in (0, 1, 2))
     if q.shape != (k, n):
         raise DimensionError(f"toppra returned shape {q.shape}, expected {(k, n)}")
-    q[0], q[-1], dq[0], dq[-1], ddq[0], ddq[-1] = way[0], way[-1], 0.0, 0.0, 0.0, 0.0
+    # At rest at both ends (q̇ = 0); the acceleration is TOPP-RA's, which jumps at the start
+    # and end (bang-bang): forcing it to 0 there made the first and last interpolant
+    # overshoot by a third and stretched the whole motion ~17 % (one segment's optimum).
+    q[0], q[-1], dq[0], dq[-1] = way[0], way[-1], 0.0, 0.0
     trajectory = JointTrajectory(ts, q, dq, joint_names, source=where, ddq=ddq)
     # The interpolant may exceed a limit between TOPP-RA's grid points (its acceleration
     # is piecewise constant): check it on a grid 20x finer than the samples and stretch
     # time by lam >= 1 where needed (velocity / lam, acceleration / lam², same path).
     fine = np.linspace(0.0, duration, 20 * (k - 1) + 1)
     v_ratio = np.max(np.abs(trajectory.sample_many(fine)[1]) / vmax)
-    a_ratio = np.max(np.abs(trajectory.acceleration_many(fine)) / amax)
+    a_ratio = np.max(_peak_acceleration(trajectory) / amax)
     lam = max(1.0, v_ratio / margin, np.sqrt(a_ratio / margin))
     return JointTrajectory(ts * lam + t_start, q, dq / lam, joint_names, source=where,
                            ddq=ddq / lam**2)  # fmt: skip

@@ -1,0 +1,253 @@
+"""``hmpc-pin identify`` on every run the package writes: each observer form read back
+from the run's record, bad files refused in one line, NaN samples left out."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+import zipfile
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hmpc_pin.apps.cli import main
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.config.controller import ObserverConfig
+from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.identification import ObserverModel, fit_friction
+from hmpc_pin.sim.result import Result
+
+from .conftest import CONFIGS
+
+VISCOUS, COULOMB = np.array([10.0, 8.0, 5.0]), np.array([3.0, 2.4, 1.8])  # paper_friction
+
+
+def _friction_config(compensation: str, observer: ObserverConfig, duration: float = 5.0):
+    config = load_config(CONFIGS / "paper_friction.toml")
+    cc = replace(config.controller, compensation=compensation, observer=observer)
+    return replace(config, controller=cc, simulation=replace(config.simulation, duration=duration))
+
+
+def _identify(path, tmp_path, capsys, *extra) -> tuple[int, str, str, dict | None]:
+    out = tmp_path / "friction.toml"
+    out.unlink(missing_ok=True)
+    code = main(["identify", str(path), "--out", str(out), *extra])
+    captured = capsys.readouterr()
+    table = tomllib.loads(out.read_text()) if out.exists() else None
+    return code, captured.out, captured.err, table
+
+
+FORMS = {
+    "chen gain": ("chen", ObserverConfig(gain=100.0)),
+    "general bandwidth, model at start (init's)": (
+        "general", ObserverConfig(bandwidth=np.array([15.0, 20.0, 20.0]), model_at="start")),
+    "momentum gain": ("momentum", ObserverConfig(gain=50.0)),
+    "momentum bandwidth per joint": (
+        "momentum", ObserverConfig(bandwidth=np.array([10.0, 15.0, 20.0]))),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("form", sorted(FORMS))
+def test_every_observer_form_is_identified_from_its_record(form, tmp_path, capsys):
+    """The run records the observer that ran; with it the observer's estimate gives the
+    plant's friction (known: paper_friction) within 3 % (the Coulomb jump inside a
+    period and the mid-period velocity leave ~2 %)."""
+    exp = Experiment.from_config(_friction_config(*FORMS[form]))
+    path = exp.run().save(tmp_path / "run.npz")
+    record = Result.load(path).meta["observer_model"]
+    comp = exp.controller.compensation
+    if hasattr(comp, "cY"):  # the matrix that ran, not a config key
+        np.testing.assert_array_equal(record["matrix"], comp.cY)
+    else:
+        np.testing.assert_array_equal(np.broadcast_to(record["gain"], (3,)), comp.K)
+    code, _out, err, table = _identify(path, tmp_path, capsys)
+    assert code == 0, err
+    fr = table["controller"]["friction"]
+    np.testing.assert_allclose(fr["viscous"], VISCOUS, rtol=0.03)
+    np.testing.assert_allclose(fr["coulomb"], COULOMB, rtol=0.03)
+
+
+def test_an_explicit_observer_is_read_as_explicit(tmp_path):
+    """Forward Euler is recorded and filtered as forward Euler (its record differs from
+    the implicit one only there)."""
+    exp = Experiment.from_config(
+        _friction_config("general", ObserverConfig(gain=5.0, discretization="explicit"), 1.0)
+    )
+    record = exp.meta()["observer_model"]
+    assert record["discretization"] == "explicit"
+    assert ObserverModel.from_record(record, exp.robot, 3).implicit is False
+
+
+def test_records_of_older_versions_are_read(tmp_path, capsys):
+    """A file that records kind and gain (before the matrix) is read as that observer;
+    one whose bandwidth observer recorded no gain is one line, not a traceback."""
+    exp = Experiment.from_config(_friction_config("chen", ObserverConfig(gain=100.0)))
+    result = exp.run()
+    new = fit_friction(result, observer=ObserverModel.from_record(
+        result.meta["observer_model"], exp.robot, 3))  # fmt: skip
+    result.meta["observer_model"] = {"kind": "chen", "gain": 100.0, "Ts": 0.01,
+                                     "discretization": "implicit"}  # fmt: skip
+    result.meta["config"] = None
+    code, _, err, table = _identify(result.save(tmp_path / "old.npz"), tmp_path, capsys)
+    assert code == 0, err
+    np.testing.assert_allclose(table["controller"]["friction"]["viscous"], new.viscous,
+                               rtol=1e-5)  # fmt: skip
+    result.meta["observer_model"] = {"kind": "general", "gain": None, "Ts": 0.01}
+    code, _out, err, table = _identify(result.save(tmp_path / "bw.npz"), tmp_path, capsys)
+    assert code == 2 and table is None
+    assert len(err.strip().splitlines()) == 1 and "--source dynamics" in err, err
+
+
+@pytest.fixture(scope="module")
+def saved_run(tmp_path_factory):
+    exp = Experiment.from_config(_friction_config("chen", ObserverConfig(gain=100.0)))
+    return exp.run().save(tmp_path_factory.mktemp("run") / "run.npz")
+
+
+def _foreign_npz(path):
+    np.savez(path, a=np.arange(3))
+
+
+def _object_npz(path):
+    np.savez(path, meta=np.array([{"a": 1}], dtype=object))
+
+
+def _truncated(path, saved):
+    data = saved.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+def _npy(path, saved):
+    np.save(path.with_suffix(".npy"), np.ones(3))
+    path.with_suffix(".npy").rename(path)
+
+
+def _zip(path, saved):
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("x.txt", "hello")
+
+
+def _bad_shapes(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    arrays["dq"] = arrays["dq"][:-3]
+    np.savez(path, **arrays)
+
+
+BAD_FILES = {
+    "empty": (lambda p, s: p.write_bytes(b""), "empty"),
+    "text": (lambda p, s: p.write_text("t,q\n0,1\n"), "not a .npz archive"),
+    "npy": (_npy, "not a .npz archive"),
+    "truncated": (_truncated, "truncated or corrupt"),
+    "foreign npz": (lambda p, s: _foreign_npz(p), "has no 'meta' array"),
+    "object arrays": (lambda p, s: _object_npz(p), "not a hmpc_pin result"),
+    "arrays of different lengths": (_bad_shapes, "'dq' has shape"),
+    "a zip of something else": (_zip, "not a hmpc_pin result"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(BAD_FILES))
+def test_a_bad_file_is_one_line_and_exit_2(kind, saved_run, tmp_path, capsys):
+    make, expected = BAD_FILES[kind]
+    path = tmp_path / "bad.npz"
+    make(path, saved_run)
+    code, _out, err, table = _identify(path, tmp_path, capsys)
+    assert code == 2 and table is None
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0], err
+    assert "pickle" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("source", ["observer", "dynamics"])
+def test_nan_samples_are_left_out_with_a_count(source, saved_run, tmp_path, capsys):
+    """NaN in q̇ for 5 samples: the fit leaves them out (the observer's filter: everything
+    after them) and says how many (not counting those before --after); with every sample
+    NaN, one line and exit 2."""
+    result = Result.load(saved_run)
+    result.dq[300:305, 1] = np.nan
+    if source == "dynamics":  # before --after (0.5 s): left out anyway, not counted
+        result.dq[10:20, 0] = np.nan
+    code, out, err, table = _identify(result.save(tmp_path / "nan.npz"), tmp_path, capsys,
+                                      "--source", source)  # fmt: skip
+    assert code == 0, err
+    # dynamics: the 6 periods touching the 5 samples; observer: everything from sample 300
+    excluded = 6 if source == "dynamics" else len(result.t) - 300
+    assert f"{excluded} samples left out" in out, out
+    np.testing.assert_allclose(table["controller"]["friction"]["viscous"], VISCOUS, rtol=0.05)
+    result.d_hat[:] = np.nan
+    result.tau_applied[:] = np.nan
+    code, out, err, table = _identify(result.save(tmp_path / "all.npz"), tmp_path, capsys,
+                                      "--source", source)  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "NaN" in err, err
+
+
+def test_no_interval_without_enough_effective_samples(saved_run, tmp_path, capsys):
+    """A residual that is a slow drift (a disturbance the friction model does not hold):
+    lag-1 autocorrelation near 1, m_e near 0: the table says n/a and why, no interval."""
+    result = Result.load(saved_run)
+    result.d_hat += 2.0 * np.sin(0.3 * result.t)[:, None]  # smooth, unmodelled
+    code, out, err, _table = _identify(result.save(tmp_path / "drift.npz"), tmp_path, capsys,
+                                      "--source", "observer")  # fmt: skip
+    assert code == 0, err
+    assert "[n/a]" in out and "no confidence interval" in out, out
+    fit_text = (tmp_path / "friction.toml").read_text()
+    assert "n/a" in fit_text
+
+
+def test_the_record_of_every_command_is_the_experiments():
+    """run, realtime and ros all save ``Experiment.meta()`` (apps/run.py, realtime.py,
+    ros.py): the record is JSON and rebuilds the observer's matrix of the controller."""
+    exp = Experiment.from_config(
+        _friction_config(*FORMS["general bandwidth, model at start (init's)"])
+    )
+    record = json.loads(json.dumps(exp.meta()))["observer_model"]
+    model = ObserverModel.from_record(record, exp.robot, 3)
+    np.testing.assert_array_equal(model.matrix, exp.controller.compensation.cY)
+    assert model.model_at == "start" and model.Ts == exp.config.controller.Ts
+
+
+def test_a_run_of_an_init_spatial_arm_is_identified(tmp_path, capsys):
+    """``init ur5`` writes a bandwidth observer evaluated at the period's start, with a
+    latency: identify reads the run (it crashed on it before) and the observer's
+    estimate gives the friction the model's inverse dynamics gives (two independent
+    measurements of it; the init's disturbance pulses are in both)."""
+    toml = tmp_path / "ur5.toml"
+    assert main(["init", "ur5", "--out", str(toml)]) == 0
+    config = load_config(toml)
+    assert config.controller.observer.bandwidth is not None
+    ref = replace(config.reference, frequency=0.5)  # both ways within 2.5 s
+    dq0 = config.simulation.dq0 * 5  # still on the reference: dr/dt(0) = 2π A f
+    config = replace(config, reference=ref, simulation=replace(config.simulation, duration=2.5,
+                                                              dq0=dq0))  # fmt: skip
+    path = Experiment.from_config(config).run().save(tmp_path / "ur5.npz")
+    capsys.readouterr()
+    code, _out, err, obs = _identify(path, tmp_path, capsys, "--after", "0.3")
+    assert code == 0, err
+    code, _out, err, dyn = _identify(path, tmp_path, capsys, "--after", "0.3", "--source",
+                                     "dynamics")  # fmt: skip
+    assert code == 0, err
+    a, b = obs["controller"]["friction"], dyn["controller"]["friction"]
+    v = 2 * np.pi * np.asarray(ref.amplitude) * 0.5  # peak speed [rad/s]: torques there agree
+    np.testing.assert_allclose(np.multiply(a["viscous"], v) + a["coulomb"],
+                               np.multiply(b["viscous"], v) + b["coulomb"], rtol=0.05)  # fmt: skip
+
+
+def test_a_closed_stdout_loses_no_file(saved_run, tmp_path):
+    """`identify RUN | head`: stdout whose reader is gone (a pipe with its read end closed,
+    unbuffered, so the first print fails): the table was written before anything was
+    printed, so nothing is lost."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "f.toml"
+    r, w = os.pipe()
+    os.close(r)  # the reader is gone before the first byte
+    try:
+        cmd = [sys.executable, "-u", "-m", "hmpc_pin", "identify", str(saved_run), "--out",
+               str(out)]  # fmt: skip
+        subprocess.run(cmd, stdout=w, stderr=subprocess.PIPE, timeout=300)
+    finally:
+        os.close(w)
+    assert tomllib.loads(out.read_text())["controller"]["friction"]["viscous"]

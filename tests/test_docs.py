@@ -271,8 +271,7 @@ def _commands(page: Path) -> list[str]:
 
 
 #: Pages rewritten on another branch at the time of these tests (merge: drop the mark).
-_ELSEWHERE = {"docs/guide/ros2.md", "docs/tutorials/realtime.md",
-              "docs/guide/joint-dynamics-and-check.md", "docs/guide/reliability.md"}  # fmt: skip
+_ELSEWHERE = {"docs/guide/ros2.md", "docs/tutorials/realtime.md", "docs/guide/reliability.md"}  # fmt: skip
 _ELSEWHERE_MARK = pytest.mark.xfail(reason="rewritten on another branch", strict=False)
 PAGE_PARAMS = [pytest.param(p, marks=_ELSEWHERE_MARK, id=str(p.relative_to(ROOT)))
                if str(p.relative_to(ROOT)) in _ELSEWHERE else

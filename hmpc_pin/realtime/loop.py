@@ -44,9 +44,13 @@ Safe stop (:mod:`.safety`): on Ctrl-C (SIGINT sets a flag read at every cycle; a
 one raises :class:`KeyboardInterrupt`), a fault (non-finite state or torque, a
 controller error such as a QP not solved, a measured state beyond the bounds),
 ``max_misses`` consecutive misses, or a stamp that stops advancing for ``watchdog``
-seconds, the loop writes the safe torque in the same cycle, holds it for ``hold``
-seconds, and returns the run up to that point with ``complete = False`` and one line
-saying why. A complete run also ends on the safe torque.
+seconds, the loop writes the safe torque at the last finite state in the same cycle,
+runs the stop sequence of :mod:`.safety` (brake on the fresh states, at most ``hold``
+seconds, then the held-safe torque :math:`g\\,G(q)`; after a watchdog stop the held-safe
+torque at once), and returns the run up to that point with ``complete = False`` and one
+line saying why (``stop["brake"]``: how the brake ended). A complete run ends with the
+same sequence. No path writes a non-finite torque: the controller's is checked before it
+is written, the safe torques are computed from copies of the last finite state.
 """
 
 from __future__ import annotations
@@ -428,10 +432,11 @@ class RealtimeLoop:
         try:
             return self._run(q0, dq0)
         except BaseException:
-            # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the safe torque
-            # at the last state read before the error propagates.
+            # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the held-safe
+            # torque at the last finite position before the error propagates (nothing
+            # refreshes it after this: no velocity term).
             if self._last_state is not None:
-                self._safe_write(*self._last_state)
+                self._held_write(self._last_state[0])
             raise
         finally:
             gc.callbacks.remove(self._gc_watch)
@@ -623,12 +628,15 @@ class RealtimeLoop:
                     else:
                         gc_deferred += 1
             k += 1
-        # ---- stop: the safe torque now, from the last finite state
+        # ---- stop: the safe torque now, from the last finite state, then the brake
+        # (module doc, "Safe stop"); with no fresh state to brake on, the held-safe torque
         stop_record = None
+        fresh = stop is None or stop[0] != "watchdog"
         if stop is not None:
             cause, reason = stop
             detected = clock()
-            tau_safe = self._safe_write(q_last, dq_last)
+            tau_safe = (self._safe_write(q_last, dq_last) if fresh
+                        else self._held_write(q_last))  # fmt: skip
             written = clock()
             cycle = min(k, K)
             stop_record = {
@@ -643,9 +651,11 @@ class RealtimeLoop:
                 "safe_after_deadline": written - deadline,
                 "safe_after_detection": written - detected,
             }
-        else:
+        elif fresh:
             self._safe_write(q_last, dq_last)
-        self._hold(P)
+        brake = self._brake(P, q_last, dq_last, last_stamp if not paced else stamp, fresh)
+        if stop_record is not None:
+            stop_record["brake"] = brake
         cycles_run = int(np.count_nonzero(np.isfinite(done_a)))
         stats = {
             "rate": st.rate,
@@ -672,6 +682,7 @@ class RealtimeLoop:
             "gc_all_collections": watch.count,
             "gc_all_max_s": watch.longest,
             "period_us": 1e6 * P,
+            "brake": brake,
         }
         self._check_latency(stats)
         meta = {**self.meta, "realtime": stats, "stop": stop_record}
@@ -722,28 +733,88 @@ class RealtimeLoop:
         )
 
     def _safe_write(self, q, dq) -> np.ndarray:
+        """Write the safe torque at ``(q, dq)``; a non-finite one (a model or a state gone
+        wrong) is replaced by the held-safe torque at the last finite position, then by
+        zero: a non-finite command is never written."""
         tau = np.asarray(self.safe_torque(q, dq), dtype=float)
+        if not np.isfinite(tau).all():
+            return self._held_write(q)
         self.interface.write(tau)
+        return tau
+
+    def _held(self, q) -> np.ndarray:
+        """The held-safe torque at ``q`` (:meth:`~.safety.SafeTorque.held`; for another
+        safe-torque function, itself at zero velocity)."""
+        held = getattr(self.safe_torque, "held", None)
+        if callable(held):
+            return np.asarray(held(q), dtype=float)
+        return np.asarray(self.safe_torque(q, np.zeros_like(q)), dtype=float)
+
+    def _held_write(self, q) -> np.ndarray:
+        """Write the held-safe torque at ``q`` (zero if it is not finite)."""
+        tau = self._held(q) if np.isfinite(q).all() else np.full(len(q), np.nan)
+        if not np.isfinite(tau).all():
+            tau = np.zeros(len(q))
+        self.interface.write(tau)
+        self._held_tau = tau
         return tau
 
     def _safe_words(self) -> str:
         describe = getattr(self.safe_torque, "describe", None)
         return "safe torque " + (describe() if callable(describe) else "commanded") + " commanded"
 
-    def _hold(self, P: float) -> None:
-        """Refresh the safe torque at the loop rate for ``safety.hold`` seconds."""
-        end = self.clock() + self.safety.hold
-        q_keep = dq_keep = None
-        while True:
-            now = self.clock()
+    def _brake(self, P: float, q_last, dq_last, stamp: float, fresh: bool) -> dict:
+        """The stop sequence (:mod:`.safety`): while fresh finite states arrive, the safe
+        torque at each, until every joint is slower than ``safety.brake_speed`` or
+        ``safety.hold`` has passed; then the held-safe torque at the last finite position,
+        the last command written. Works on copies: the interface may reuse its arrays.
+
+        Returns:
+            ``ended`` (``"still"``, ``"time bound"``, ``"no fresh state"``), ``duration``
+            [s], ``states`` (fresh states braked on), ``speed`` (max |q̇| [rad/s] at the
+            last finite state), ``held_tau`` [N·m] (the last command).
+        """
+        sf, iface, clock = self.safety, self.interface, self.clock
+        q_keep, dq_keep = np.array(q_last, dtype=float), np.array(dq_last, dtype=float)
+        start = clock()
+        end = start + sf.hold
+        fresh_at = start
+        states = 0
+        ended = "no fresh state"
+        wait = getattr(iface, "wait", None) if self.paced else None
+        while fresh:
+            now = clock()
+            if float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:
+                ended = "still"
+                break
             if now >= end:
-                return
-            self.sleep(min(now + P, end))
-            _, q, dq = self.interface.read()
-            if np.isfinite(q).all() and np.isfinite(dq).all():
-                q_keep, dq_keep = q, dq
-            if q_keep is not None:
+                ended = "time bound"
+                break
+            if wait is not None:
+                if not wait(min(sf.watchdog, end - now)):
+                    if clock() >= end:
+                        continue
+                    break
+            else:
+                self.sleep(min(now + P, end))
+            new_stamp, q, dq = iface.read()
+            if new_stamp == stamp:
+                if clock() - fresh_at > sf.watchdog:
+                    break
+                continue
+            stamp, fresh_at = new_stamp, clock()
+            if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+                continue  # not a state to brake on; the last finite one stands
+            q_keep[:] = q
+            dq_keep[:] = dq
+            states += 1
+            if float(np.max(np.abs(dq_keep), initial=0.0)) >= sf.brake_speed:
                 self._safe_write(q_keep, dq_keep)
+        held = self._held_write(q_keep)
+        self._last_state = (q_keep, np.zeros_like(dq_keep))
+        return {"ended": ended, "duration": clock() - start, "states": states,
+                "speed": float(np.max(np.abs(dq_keep), initial=0.0)),
+                "q": q_keep.tolist(), "held_tau": held.tolist()}  # fmt: skip
 
     def _state_fault(self, q, dq) -> str:
         sf = self.safety

@@ -213,6 +213,9 @@ def test_ros_tracks_like_the_simulation(tmp_path):
     for row in received[-10:]:
         assert np.any(np.all(recorded == row, axis=1))
     assert np.abs(received).max() > 0.1  # the friction estimate, not zeros
+    # stamped, with the joint names: the stamp of a state the arm sent (within the run)
+    header = report["external_torque_header"][-1]
+    assert header[:7] == list(result.joint_names) and header[7] > 1e9
     # [collision] set: the flag at every step, false (|d̂| far below the threshold)
     assert len(report["collision"]) > 10 and not any(report["collision"])
     assert result.meta["collision"]["detected_at"] is None

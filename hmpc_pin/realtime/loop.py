@@ -29,7 +29,8 @@ compensates (``[controller] latency``, the guide "Sensing and latency"): the loo
 its median with the declared one and warns (:class:`~hmpc_pin.exceptions.ValidityWarning`,
 naming both) when they differ by more than
 :func:`~hmpc_pin.compensation.bandwidth.latency_tolerance` (the bandwidth rule for the
-controller's observer, at least half an interface period). It is not fed to the controller
+controller's observer, at least half an interface period), once at least
+:data:`MIN_LATENCY_SAMPLES` steps were measured. It is not fed to the controller
 during the run: the latency changes the observer's torque alignment and the prediction,
 which take effect at a reset, and a per-step value would carry the loop's jitter into the
 model. Set the measured median in the config instead.
@@ -86,6 +87,11 @@ __all__ = [
     "latency_stats",
     "sleep_until",
 ]
+
+
+#: The latency advice (``[controller] latency``) needs at least this many measured
+#: controller steps (a failed start's single sample says nothing).
+MIN_LATENCY_SAMPLES = 50
 
 
 def sleep_until(
@@ -219,14 +225,14 @@ def _declared_latency(controller) -> float | None:
 
 
 def latency_stats(latency: np.ndarray) -> dict:
-    """Median, p99, p99.9, max [µs] of the finite entries of ``latency`` [s]."""
+    """Median, p99, p99.9, max [µs] and count of the finite entries of ``latency`` [s]."""
     x = latency[np.isfinite(latency)] * 1e6
     if x.size == 0:
         return {"median_us": math.nan, "p99_us": math.nan, "p999_us": math.nan,
-                "max_us": math.nan}  # fmt: skip
+                "max_us": math.nan, "count": 0}  # fmt: skip
     p50, p99, p999 = np.percentile(x, [50.0, 99.0, 99.9])
     return {"median_us": float(p50), "p99_us": float(p99), "p999_us": float(p999),
-            "max_us": float(x.max())}  # fmt: skip
+            "max_us": float(x.max()), "count": int(x.size)}  # fmt: skip
 
 
 class _GCWatch:
@@ -397,18 +403,29 @@ class RealtimeLoop:
         self.meta = dict(meta or {})
         self.decimation = settings.decimation(controller.Ts)
         self._interrupt = 0
+        self._requested: str | None = None
+        self._started = False
+        self._finished = threading.Event()
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
 
-    def set_reference(self, reference) -> None:
-        """Replace the reference from the next controller step on (callable from another
-        thread: the loop swaps it in at a step). The caller checks it (limits, continuity
-        at ``time``, the loop time of the last step)."""
-        self._pending_reference = as_reference(reference)
+    def set_reference(self, reference, at: float = 0.0) -> None:
+        """Replace the reference from the first controller step at or after loop time
+        ``at`` [s] (default: the next step) on; callable from another thread (the loop
+        swaps it in at a step). The caller checks it (limits, continuity at that time)."""
+        self._pending_reference = (as_reference(reference), float(at))
 
     # ------------------------------------------------------------------ stopping
     def request_stop(self) -> None:
         """Ask the loop to stop safely at its next cycle (what SIGINT does)."""
         self._interrupt += 1
+
+    def request_stop_by(self, cause: str = "deactivated", timeout: float | None = None) -> bool:
+        """Stop at the next cycle with ``cause`` (e.g. a ROS lifecycle node deactivated;
+        callable from another thread) and wait until the stop sequence has run (at most
+        ``timeout`` [s], default ``safety.hold`` + 1 s). Returns whether it has."""
+        self._requested = cause
+        wait = self.safety.hold + 1.0 if timeout is None else timeout
+        return self._finished.wait(wait) if self._started else True
 
     def _on_sigint(self, signum, frame) -> None:
         self._interrupt += 1
@@ -429,6 +446,7 @@ class RealtimeLoop:
         gc_was_enabled = gc.isenabled()
         self._gc_watch = _GCWatch(self.clock)
         gc.callbacks.append(self._gc_watch)
+        self._started = True
         try:
             return self._run(q0, dq0)
         except BaseException:
@@ -439,6 +457,7 @@ class RealtimeLoop:
                 self._held_write(self._last_state[0])
             raise
         finally:
+            self._finished.set()
             gc.callbacks.remove(self._gc_watch)
             if self.settings.gc_handling:
                 gc.unfreeze()
@@ -491,6 +510,8 @@ class RealtimeLoop:
         next_mpc = 0
         paced, on_step = self.paced, self.on_step
         wait = getattr(iface, "wait", None)
+        has_overdue = paced and hasattr(iface, "overdue")
+        has_arrival = paced and hasattr(iface, "arrival")
         warm_lead = st.warm_up
         warm_up = getattr(ctrl, "warm_up", None) if warm_lead > 0 and not paced else None
         t0 = clock() + P
@@ -504,25 +525,40 @@ class RealtimeLoop:
                 if self._interrupt:
                     stop = ("interrupted", "interrupted (Ctrl-C)")
                     break
+                if self._requested is not None:
+                    stop = (self._requested, f"stop requested ({self._requested})")
+                    break
                 if not arrived:
-                    stop = ("watchdog", f"no new state from the arm for {1e3 * watchdog:g} ms "
-                            f"(watchdog), last stamp {last_stamp:.6g} s")  # fmt: skip
+                    received = getattr(iface, "received", None)
+                    streamed = (
+                        ""
+                        if received is None
+                        else f"the arm stopped streaming after {received} states: "
+                    )
+                    stop = ("watchdog", f"{streamed}no new state from the arm for "
+                            f"{1e3 * watchdog:g} ms (watchdog), last stamp "
+                            f"{last_stamp:.6g} s")  # fmt: skip
                     break
                 behind = arrived - 1  # states not answered: periods skipped
+                # of which missed: those the arm reports overdue (a burst after its own
+                # stall is not the loop's miss), else all
+                late = min(behind, iface.overdue) if has_overdue else behind  # type: ignore[attr-defined]
                 skipped_why = "states not answered"
             else:
                 # Deadlines already passed are skipped (the arm holds the torque through them).
-                behind = int((clock() - t0) / P) - k
+                behind = late = int((clock() - t0) / P) - k
                 skipped_why = "periods skipped behind the clock"
             if behind > 0 and k > 0:
                 skip = min(behind, K + 1 - k)
-                missed_a[k : k + skip] = True
-                misses += skip
+                late = min(late, skip)
+                missed_a[k : k + late] = True
+                misses += late
                 skipped += skip
-                consecutive += skip
-                worst_run = max(worst_run, consecutive)
+                if late:
+                    consecutive += late
+                    worst_run = max(worst_run, consecutive)
                 k += skip
-                if consecutive >= max_misses:
+                if late and consecutive >= max_misses:
                     stop = ("misses", f"{consecutive} consecutive missed deadlines (limit "
                             f"{max_misses}), {skip} {skipped_why}")  # fmt: skip
                     break
@@ -530,7 +566,9 @@ class RealtimeLoop:
                     break
             if paced:
                 stamp, q, dq = iface.read()
-                deadline = last_stamp = stamp
+                last_stamp = stamp
+                # the deadline follows the arrival (a constant transport delay is no miss)
+                deadline = iface.arrival if has_arrival else stamp  # type: ignore[attr-defined]
             else:
                 deadline = t0 + k * P
                 if warm_up is not None and k >= next_mpc and k > 0:
@@ -544,6 +582,9 @@ class RealtimeLoop:
                 wake = clock()
                 if self._interrupt:
                     stop = ("interrupted", "interrupted (Ctrl-C)")
+                    break
+                if self._requested is not None:
+                    stop = (self._requested, f"stop requested ({self._requested})")
                     break
                 stamp, q, dq = iface.read()
                 if stamp != last_stamp:
@@ -564,8 +605,9 @@ class RealtimeLoop:
             dq_last[:] = dq
             is_mpc = k >= next_mpc
             if is_mpc:
-                if self._pending_reference is not None:
-                    ref, self._pending_reference = self._pending_reference, None
+                pending = self._pending_reference
+                if pending is not None and k * P >= pending[1] - 1e-9:
+                    ref, self._pending_reference = pending[0], None
                     self.reference = ref
                 try:
                     # copies: the interface may reuse its arrays, a controller may keep them
@@ -706,6 +748,8 @@ class RealtimeLoop:
         measured, declared = stats["measured_latency"], stats["declared_latency"]
         stats["latency_tolerance"] = None
         if measured is None or declared is None or not np.isfinite(measured["median_us"]):
+            return
+        if measured.get("count", 0) < MIN_LATENCY_SAMPLES:  # no advice from a few samples
             return
         inner = _inner(self.controller)
         bandwidth = None

@@ -36,16 +36,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..controllers.base import ControllerWrapper
 from ..exceptions import ConfigError
 from ..model.robot import Robot
 
-__all__ = ["STOP_CAUSES", "SafeTorque", "SafetySettings"]
+__all__ = ["STOP_CAUSES", "GravityByArm", "SafeTorque", "SafetySettings"]
 
 FloatArray = NDArray[np.float64]
 
 #: Why a loop stops early: Ctrl-C, a fault (non-finite value, QP not solved, state beyond
-#: limits, any controller error), k consecutive missed deadlines, no new state (watchdog).
-STOP_CAUSES = ("interrupted", "fault", "misses", "watchdog")
+#: limits, any controller error), k consecutive missed deadlines, no new state (watchdog),
+#: a stop asked by the program (a ROS lifecycle node deactivated).
+STOP_CAUSES = ("interrupted", "fault", "misses", "watchdog", "deactivated")
 
 
 class SafeTorque:
@@ -120,3 +122,30 @@ class SafetySettings:
         """No position or velocity bound (tests, simulated arms without limits)."""
         inf = np.full(n, np.inf)
         return cls(-inf, inf.copy(), inf.copy(), **kwargs)
+
+
+class GravityByArm(ControllerWrapper):
+    """The wrapped controller's torque without gravity, for an arm that adds
+    :math:`G(q)` itself (Franka's FCI, KUKA's FRI torque overlay):
+    :math:`\\tau_\\mathrm{sent} = \\tau - G(q)` at the state of the step (pair it with a
+    :class:`SafeTorque` with ``gravity=False``).
+
+    Args:
+        controller: The controller (its torque includes :math:`G(q)`).
+        robot: The model :math:`G` is computed on (the controller's).
+    """
+
+    def __init__(self, controller, robot: Robot):
+        super().__init__(controller)
+        self.robot = robot
+
+    def step(self, t: float, q: FloatArray, dq: FloatArray, reference: object) -> FloatArray:
+        """The controller's torque minus :math:`G(q)` [N·m]."""
+        tau = self.controller.step(t, q, dq, reference)
+        return np.asarray(tau, dtype=float) - self.robot.gravity_torque(q)
+
+    def __getattr__(self, name: str):
+        # everything else (latency, detected_at, warm_up, ...) is the controller's
+        if name == "controller":
+            raise AttributeError(name)
+        return getattr(self.controller, name)

@@ -757,7 +757,7 @@ class DelayedPaced(Paced):
         return count
 
 
-def _delayed(robot, delay, declared):
+def _delayed(robot, delay, declared, duration=0.6):
     clock = FakeClock()
     q0 = _sine().sample(0.0)[0]
     arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
@@ -765,7 +765,7 @@ def _delayed(robot, delay, declared):
     ctrl.set_latency(declared)
     loop = RealtimeLoop(
         DelayedPaced(arm, clock, delay), ctrl, _sine(), SafeTorque(robot, damping=3.0),
-        LoopSettings(1.0 / P, 0.3),
+        LoopSettings(1.0 / P, duration),
         SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
     )  # fmt: skip
     return loop
@@ -795,6 +795,13 @@ def test_the_loop_measures_the_latency_and_warns_when_the_declared_one_is_off(ro
         warnings.simplefilter("error", ValidityWarning)
         run = _delayed(robot, delay, delay).run()
     assert run.complete and run.stats["declared_latency"] == pytest.approx(delay)
+    # fewer steps than MIN_LATENCY_SAMPLES (a failed start, a short run): no advice
+    from hmpc_pin.realtime.loop import MIN_LATENCY_SAMPLES
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ValidityWarning)
+        run = _delayed(robot, delay, 0.0, duration=(MIN_LATENCY_SAMPLES - 2) * Ts).run()
+    assert run.stats["measured_latency"]["count"] < MIN_LATENCY_SAMPLES
 
 
 def test_a_polled_arm_on_its_own_clock_has_no_measured_latency(robot):

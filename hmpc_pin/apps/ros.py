@@ -247,6 +247,7 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
             "external_torque": ros.topic(rc.external_torque),
             "collision": ros.topic(rc.collision) if collision else None,
             "stamps": iface.stamps,
+            "stamp_origin": iface._origin,
             "states_received": iface.received,
             "states_ignored": iface.ignored,
             "commands_published": iface.published,

@@ -407,6 +407,7 @@ class RealtimeLoop:
         self._started = False
         self._finished = threading.Event()
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
+        self._held_tau = np.zeros(interface.nq)
 
     def set_reference(self, reference, at: float = 0.0) -> None:
         """Replace the reference from the first controller step at or after loop time
@@ -854,7 +855,8 @@ class RealtimeLoop:
             states += 1
             if float(np.max(np.abs(dq_keep), initial=0.0)) >= sf.brake_speed:
                 self._safe_write(q_keep, dq_keep)
-        held = self._held_write(q_keep)
+        # (after a watchdog stop it is on the arm already: written once)
+        held = self._held_write(q_keep) if fresh else self._held_tau
         self._last_state = (q_keep, np.zeros_like(dq_keep))
         return {"ended": ended, "duration": clock() - start, "states": states,
                 "speed": float(np.max(np.abs(dq_keep), initial=0.0)),

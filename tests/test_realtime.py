@@ -863,3 +863,61 @@ def test_a_polled_arm_with_a_stamp_clock_has_its_latency_measured(robot):
     ages = run.timing["age"][run.timing["mpc"].astype(bool)]
     np.testing.assert_allclose(ages, 0.0003, rtol=0, atol=1e-12)
     assert run.stats["measured_latency"]["median_us"] == pytest.approx(300.0)
+
+
+class TransportDelayed(Paced):
+    """:class:`Paced` whose state k reaches the loop a constant ``delay`` [s] after its
+    stamp t0 + kP (a transport delay, any length)."""
+
+    def __init__(self, arm, clock, delay):
+        super().__init__(arm, clock)
+        self.delay = delay
+
+    def wait(self, timeout):
+        k = self.k + 1
+        arrive = self.t0 + k * self.period + self.delay
+        if arrive > self._clock.now + timeout + 1e-12:
+            self._clock.now += timeout
+            return 0
+        self._clock.now = max(self._clock.now, arrive)
+        self.k = k
+        _, q, dq = self.arm.read()
+        self._state = (self.t0 + k * self.period, q.copy(), dq.copy())
+        return 1
+
+
+class ArrivingPaced(TransportDelayed):
+    """:class:`TransportDelayed` that reports each state's arrival and no overdue state
+    (what the ROS interface reports for a constant transport delay)."""
+
+    arrival, overdue = 0.0, 0
+
+    def wait(self, timeout):
+        count = super().wait(timeout)
+        self.arrival = self._clock.now
+        return count
+
+
+@pytest.mark.parametrize("reports_arrival", [False, True])
+def test_a_transport_delay_longer_than_the_period_is_no_miss_with_the_arrival(
+    robot, reports_arrival
+):
+    """States reach the loop 1.5 P after their stamp: with the stamp as the deadline every
+    cycle misses (k = 5 stops the loop at its fifth cycle); with the arrival as the
+    deadline none does, and the stamp-to-torque latency is still measured (1.5 P)."""
+    clock = FakeClock()
+    q0 = _sine().sample(0.0)[0]
+    arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
+    cls = ArrivingPaced if reports_arrival else TransportDelayed
+    loop = RealtimeLoop(
+        cls(arm, clock, 1.5 * P), hmpc_pin.make_controller(robot), _sine(),
+        SafeTorque(robot, damping=3.0), LoopSettings(1.0 / P, 0.2),
+        SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
+    )  # fmt: skip
+    run = loop.run()
+    if not reports_arrival:
+        assert run.stop["cause"] == "misses" and run.stop["cycle"] <= 5
+        return
+    assert run.complete and run.stats["misses"] == 0
+    ages = run.timing["age"][run.timing["mpc"].astype(bool)]
+    np.testing.assert_allclose(ages, 1.5 * P, atol=1e-9)

@@ -34,7 +34,10 @@ from pathlib import Path
 import numpy as np
 
 SCENARIOS = ("traffic", "nan", "silent", "stall", "delay", "trajectory", "interrupt",
-             "deactivate")  # fmt: skip
+             "deactivate", "remap", "gravity_arm")  # fmt: skip
+#: "remap": the arm's topics under /arm, the controller told so by --ros-args remaps.
+REMAP = ["-r", "joint_states:=/arm/joint_states", "-r", "effort_controller/commands:=/arm/effort",
+         "-p", "use_sim_time:=false"]  # fmt: skip
 GRIPPER = ["panda_finger_joint1", "panda_finger_joint2"]
 #: [s] The transport delay of "delay": each state is sent this long after its stamp — 1.5
 #: interface periods at the tests' 500 Hz (the 1.5 ms of a 1 kHz arm): were the deadline the
@@ -62,12 +65,15 @@ class Arm:
         self.sub = max(1, round(period / 1e-3))
         self.tau: np.ndarray | None = None  # None: on its brakes
         self.applied: tuple | None = None  # (q, dq, tau) when the last command was applied
+        self.adds_gravity = False
 
     def _advance(self, q, dq, tau, h):
         """One semi-implicit Euler step of h [s] with friction: ABA with the viscous term,
         then the Coulomb impulse h·fc/M_ii against each joint's motion, never reversing it
         (a joint it brings to rest sticks)."""
         pin = self.pin
+        if self.adds_gravity:  # the arm's own gravity compensation, at the current q
+            tau = tau + pin.computeGeneralizedGravity(self.model, self.data, q)
         ddq = pin.aba(self.model, self.data, q, dq, tau - VISCOUS * dq)
         dq = dq + h * ddq
         M = pin.crba(self.model, self.data, q)
@@ -122,7 +128,8 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     arm = Arm(robot.model, experiment.q0, P)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("test_arm")
-    pub = node.create_publisher(JointState, "/joint_states", 10)
+    prefix = "/arm" if scenario == "remap" else ""
+    pub = node.create_publisher(JointState, prefix + "/joint_states", 10)
     lock = threading.Lock()
     commands: list[tuple[float, list[float]]] = []
     report: dict = {"scenario": scenario, "nonfinite_commands": 0, "events": {}}
@@ -137,7 +144,9 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
             arm.pending = tau
 
     arm.pending = None
-    node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command, 10)
+    node.create_subscription(Float64MultiArray,
+                             "/arm/effort" if prefix else "/effort_controller/commands",
+                             on_command, 10)  # fmt: skip
     traj_pub = node.create_publisher(JointTrajectory, "/hmpc_pin_controller/joint_trajectory",
                                      10)  # fmt: skip
     executor = SingleThreadedExecutor()
@@ -192,6 +201,9 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
         extra = subprocess.Popen([sys.executable, __file__, "--extra-node"])
     exe = [sys.executable, "-m", "hmpc_pin"]
     ctrl_cmd = [*exe, "ros", config_path, "--duration", str(duration), "--out", out]
+    if scenario == "remap":
+        ctrl_cmd += ["--ros-args", *REMAP]
+    arm.adds_gravity = scenario == "gravity_arm"  # as Franka's FCI: the arm adds G(q)
     t0 = time.time()
     published = 0
     # (the last, above the watchdog, at the sine's turning point: the arm nearly at rest)
@@ -273,7 +285,8 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
             bad = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
             bad[3] = 1.0  # above the Panda's joint 4 range (< 0)
             traj_pub.publish(_trajectory(JointTrajectory, JointTrajectoryPoint, names, bad))
-        if scenario == "interrupt" and "sigint" not in acted and run_t >= 1.5:
+        if (scenario in ("interrupt", "gravity_arm") and "sigint" not in acted
+                and run_t >= 1.5):  # fmt: skip
             acted.add("sigint")
             ctrl.send_signal(signal.SIGINT)
         if scenario == "deactivate" and "deactivate" not in acted and run_t >= 1.5:

@@ -219,3 +219,31 @@ def test_lifecycle_deactivate_is_the_stop_sequence_and_parameters_are_listed(tmp
     assert stop["cause"] == "deactivated" and stop["brake"]["ended"] == "still"
     _held_is_gravity(config, report, stop["brake"]["q"])
     assert report["drift"] <= FRESH, report["drift"]
+
+
+def test_ros_args_remap_the_topics(tmp_path):
+    """The arm on /arm/joint_states and /arm/effort; the controller told so by
+    ``--ros-args -r ... -p use_sim_time:=false``: it runs to the end on them."""
+    _, report, result = _run(tmp_path, "remap", 2.0)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    _no_nan(report)
+    assert result.meta["ros"]["joint_states"] == "/arm/joint_states"
+    assert result.meta["ros"]["commands"] == "/arm/effort"
+    assert report["drift"] <= FRESH, report["drift"]
+
+
+def test_an_arm_that_compensates_gravity_itself_gets_none_and_is_left_with_zero(tmp_path):
+    """``[ros] gravity = "arm"`` against an arm that adds G(q) to every command (as
+    Franka's FCI): it tracks, and after Ctrl-C the last command is exactly zero; the arm,
+    holding it (its own G(q) on), stays."""
+    settings = SETTINGS.replace("rate = 500", "rate = 500\ngravity = 'arm'")
+    _, report, result = _run(tmp_path, "gravity_arm", 3.0, settings)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 130, ctrl["stderr"]
+    _no_nan(report)
+    assert np.abs(result.q - result.q_ref)[result.t > 1.0].max() < 0.05
+    stop = result.meta["stop"]
+    assert stop["brake"]["ended"] == "still"
+    assert report["held"] == [0.0] * 7
+    assert report["drift"] <= FRESH, report["drift"]

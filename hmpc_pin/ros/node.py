@@ -120,9 +120,15 @@ class RosNode:
         from rcl_interfaces.msg import ParameterDescriptor
 
         for key, value in parameters.items():
-            got = self.node.declare_parameter(
-                key, value, ParameterDescriptor(read_only=True, description="from the config")
-            ).value
+            try:
+                got = self.node.declare_parameter(
+                    key, value, ParameterDescriptor(read_only=True, description="from the config")
+                ).value
+            except Exception as exc:  # an override of another type (rclpy's exceptions)
+                self.close()
+                raise ConfigError(key, f"--ros-args sets it to a value of another type than "
+                                  f"the config's {value!r} ({exc}); set it in the config "
+                                  "file") from None  # fmt: skip
             if got != value and not (isinstance(value, list) and list(got) == value):
                 self.close()
                 raise ConfigError(

@@ -21,7 +21,7 @@ clock: the loop's deadline for a state is its arrival plus a period, so a consta
 transport delay is no miss; the stamp-to-command latency is measured apart
 (``stats["measured_latency"]``). :meth:`RosArmInterface.wait` returns the periods
 elapsed by the stamps (the loop's time follows the arm's) and sets
-:attr:`RosArmInterface.overdue`, the states among them the loop failed to answer in time
+``overdue``, the states among them the loop failed to answer in time
 (taken more than a period after they arrived); a burst after a stall of the arm is not
 the loop's miss.
 """
@@ -103,11 +103,17 @@ class RosArmInterface:
         period: The interface period [s] the arm publishes at.
         joint_states, commands: Topic names.
         start_timeout: How long [s] :meth:`start` waits for the first state.
+        qos: The QoS profile of both topics (default: keep-last 10, reliable, as
+            ros2_control's).
 
     Attributes:
         stamps: ``"header"`` or ``"arrival"`` (module doc), set by :meth:`start`.
-        received: Joint-state messages received.
+        received: Complete joint states received (periods).
         published: Commands published.
+        arrival: When the state taken by the last :meth:`wait` arrived [s], on
+            :meth:`clock`.
+        overdue: How many of the periods the last :meth:`wait` returned arrived more than
+            a period before it (states not answered in time: misses).
     """
 
     def __init__(
@@ -255,7 +261,7 @@ class RosArmInterface:
         """Block until a new complete state arrives or ``timeout`` [s] (messages of the
         other subscriptions are handled here too); take the newest and return how many
         interface periods its stamp is after the previous one taken. Sets
-        :attr:`arrival` (the state's arrival, on :meth:`clock`) and :attr:`overdue` (the
+        ``arrival`` (the state's arrival, on :meth:`clock`) and ``overdue`` (the
         states taken with it that arrived more than a period ago: not answered in time)."""
         self._poll()
         if not self._arrivals:

@@ -185,8 +185,9 @@ def test_a_trajectory_mid_run_costs_no_cycle_and_an_out_of_limits_one_is_refused
     events = result.meta["ros"]["trajectories"]
     assert [e["accepted"] for e in events] == [True, False], events
     assert "panda_joint4" in events[1]["reason"] and "outside its limits" in events[1]["reason"]
-    # accepting it: no run of misses around it (it took 90 ms of the control thread)
-    assert result.meta["realtime"]["max_consecutive_misses"] < 5
+    # accepting it: no long run of misses (a first check of 90 ms in the control thread
+    # left 45 states of 2 ms unanswered in a row; a loaded machine may delay a few)
+    assert result.meta["realtime"]["max_consecutive_misses"] < 20
     target = np.array(report["events"]["target"])
     after = result.t > events[0]["t_end"] + 0.5
     assert after.sum() > 20
@@ -247,3 +248,23 @@ def test_an_arm_that_compensates_gravity_itself_gets_none_and_is_left_with_zero(
     assert stop["brake"]["ended"] == "still"
     assert report["held"] == [0.0] * 7
     assert report["drift"] <= FRESH, report["drift"]
+
+
+def test_ros_args_that_contradict_the_config_or_rclpy_are_one_line(tmp_path):
+    """The node's parameters mirror the config: ``-p ros.rate:=250.0`` against the config's
+    500 is refused (exit 2, one line naming the key); so is an argument rclpy refuses."""
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    config = _write(tmp_path, SETTINGS)
+    exe = f"{sys.executable} -m hmpc_pin ros {config} --out {tmp_path / 'out'} --ros-args"
+    for args, expected in ((["-p", "ros.rate:=250.0"], "ros.rate: --ros-args sets 250.0"),
+                           (["--bogus"], "--ros-args: rclpy refused")):  # fmt: skip
+        script = f"ip link set lo up && exec {exe} {' '.join(args)}"
+        proc = subprocess.run(["unshare", "-n", "bash", "-c", script], cwd=ROOT,
+                              capture_output=True, text=True, timeout=120)  # fmt: skip
+        assert proc.returncode == 2, proc.stderr
+        lines = [x for x in proc.stderr.splitlines() if x.startswith("error:")]
+        assert len(lines) == 1 and expected in lines[0], proc.stderr
+        assert "Traceback" not in proc.stderr
+        assert not (tmp_path / "out").exists() or not list((tmp_path / "out").iterdir())

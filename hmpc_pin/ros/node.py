@@ -87,7 +87,9 @@ class RosNode:
             rclpy.init(args=args, context=self.context,
                        signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)  # fmt: skip
         except Exception as exc:  # rcl's RCLInvalidROSArgsError, ...
-            raise ConfigError("--ros-args", f"rclpy refused {ros_args}: {exc}") from None
+            raise ConfigError("--ros-args", f"rclpy refused {ros_args} ({exc}); expected ROS 2 "
+                              "arguments such as -r from:=to, -r __ns:=/arm1, -p "
+                              "use_sim_time:=true") from None  # fmt: skip
         self._deactivate: tuple[Callable, tuple] | None = None
         self._executor = None
         self._thread = None

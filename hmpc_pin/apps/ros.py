@@ -224,6 +224,8 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
                 c_pub.publish(c_msg)
 
         trajectories.warm()
+        early: list[bool] = []  # deactivated before the loop exists: it stops at once
+        ros.on_deactivate(early.append, True)
         ros.serve()  # parameters and lifecycle services, in their own thread
         iface.start()
         loop = RealtimeLoop(
@@ -233,6 +235,8 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
         )  # fmt: skip
         trajectories.loop = loop
         ros.on_deactivate(loop.request_stop_by, "deactivated")
+        if early:
+            loop.request_stop_by("deactivated", timeout=0.0)
         # a Python thread (the trajectory check) holds the GIL at most this long when the
         # control thread wants it back
         sys.setswitchinterval(min(switch, 1e-4))

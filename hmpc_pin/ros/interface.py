@@ -154,6 +154,7 @@ class RosArmInterface:
         self.overdue = 0
         self.arrival = 0.0
         self._stamp = 0.0
+        self._header_stamp = self._latest_header = self._taken_header = 0.0
         self._q, self._dq = np.zeros(n), np.zeros(n)
 
     @property
@@ -186,6 +187,7 @@ class RosArmInterface:
             return
         st = msg.header.stamp
         stamp = st.sec + 1e-9 * st.nanosec
+        self._header_stamp = stamp
         if not self._based:
             # the first complete state decides the time base (module doc)
             self._based = True
@@ -199,6 +201,7 @@ class RosArmInterface:
         else:
             self._periods += 1
         self._latest = (stamp, self._merge.q.copy(), self._merge.dq.copy(), arrival)
+        self._latest_header = self._header_stamp or arrival + self._origin
         self._arrivals.append(arrival)
         self.received += 1
 
@@ -248,10 +251,10 @@ class RosArmInterface:
         self.wait(0.0)
 
     def stamp_time(self) -> float:
-        """The stamp [s] of the state taken last, on its own clock (the message's
-        ``header.stamp``; with stamps timed from arrival, its arrival on the system
-        clock)."""
-        return self._stamp + self._origin
+        """The stamp [s] of the state taken last, on the arm's clock: the message's
+        ``header.stamp`` (simulated time under ``use_sim_time``), or its arrival on the
+        system clock if the stamp is zero."""
+        return self._taken_header
 
     def clock(self) -> float:
         """Now [s] on the stamps' clock (the system clock shifted as the stamps are)."""
@@ -277,6 +280,7 @@ class RosArmInterface:
         self.overdue = sum(1 for a in self._arrivals[:-1] if a < late)
         self._arrivals.clear()
         self._stamp, q, dq, self.arrival = self._latest  # type: ignore[misc]
+        self._taken_header = self._latest_header
         self._q[:] = q
         self._dq[:] = dq
         return count

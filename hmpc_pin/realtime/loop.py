@@ -806,7 +806,11 @@ class RealtimeLoop:
 
     def _safe_words(self) -> str:
         describe = getattr(self.safe_torque, "describe", None)
-        return "safe torque " + (describe() if callable(describe) else "commanded") + " commanded"
+        held = getattr(self.safe_torque, "describe_held", None)
+        return ("safe torque " + (describe() if callable(describe) else "commanded")
+                + " commanded, then the brake; "
+                + (held() if callable(held) else "the safe torque at rest")
+                + " at the last position left on the arm")  # fmt: skip
 
     def _brake(self, P: float, q_last, dq_last, stamp: float, fresh: bool) -> dict:
         """The stop sequence (:mod:`.safety`): while fresh finite states arrive, the safe

@@ -79,6 +79,10 @@ class SafeTorque:
             return np.array(self.robot.gravity_torque(q), dtype=float)
         return np.zeros(self.robot.nq)
 
+    def describe_held(self) -> str:
+        """The held-safe torque in words: ``"G(q)"`` or ``"zero torque"``."""
+        return "G(q)" if self.gravity else "zero torque"
+
     def describe(self) -> str:
         """In words, e.g. ``"gravity compensation + damping 2 N·m·s/rad"``."""
         d = self.damping

@@ -138,20 +138,21 @@ def test_stalls_below_the_watchdog_are_no_stop_and_one_above_is(tmp_path):
     assert stop["cause"] == "watchdog", stop["reason"]
     # the stop is the fourth stall's (at 2.45 s of the arm's run), not an earlier one's
     assert stop["t"] > 2.3, stop["reason"]
-    # the periods of each short stall were not answered (their states came in a burst
-    # after it) and they are not misses: the arm was silent, the loop was not late (the
-    # old rule counted every one: 7 and 15 in a row for the 15 and 30 ms stalls)
+    # the periods of the 15 and 30 ms stalls (their states came in a burst after it,
+    # skipped or answered one by one) are not misses: the arm was silent, the loop was not
+    # late. The old rule (deadline = stamp, every state beyond the first a miss) counted
+    # each of them: 7 and 15 in a row.
     timing = np.load(tmp_path / "out" / "panda_sine_ros_timing.npz")
     P, origin = config.ros.period, result.meta["ros"]["stamp_origin"]
     stamps, missed = timing["stamp"], timing["missed"]
     answered = np.flatnonzero(np.isfinite(timing["latency"]))
-    for s0, length in report["events"]["stall_stamps"][:3]:
+    for s0, length in report["events"]["stall_stamps"][1:3]:
+        before = answered[stamps[answered] < s0 - origin - 0.5 * P][-1]
         after = answered[stamps[answered] >= s0 - origin + length - 0.5 * P][0]
-        before = answered[answered < after][-1]
-        skipped = after - before - 1
-        assert skipped >= round(length / P) - 2, (length, skipped)
-        # (a loop preempted just when the burst came would count it: not all of it)
-        assert missed[before + 1 : after].sum() < skipped, (length, skipped)
+        periods = after - before  # the cycles from the stall to the first state after it
+        assert periods >= round(length / P) - 1, (length, periods)
+        # (a loaded machine may delay a few of them: not most)
+        assert missed[before + 1 : after + 1].sum() < periods / 2, (length, periods)
     assert stop["brake"]["ended"] == "no fresh state" and stop["brake"]["states"] == 0
     _held_is_gravity(config, report, stop["q"])
     assert report["drift"] <= STALE, report["drift"]

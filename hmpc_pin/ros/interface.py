@@ -266,17 +266,19 @@ class RosArmInterface:
         interface periods its stamp is after the previous one taken. Sets
         ``arrival`` (the state's arrival, on :meth:`clock`) and ``overdue`` (the
         states taken with it that arrived more than a period ago: not answered in time)."""
+        woke = self.clock()  # (taking a burst of messages is not the loop being late)
         self._poll()
         if not self._arrivals:
             end = time.monotonic() + timeout
             while not self._arrivals and (remaining := end - time.monotonic()) > 0:
                 self._wait(remaining)
+                woke = self.clock()
                 self._poll()
         if not self._arrivals:
             self.overdue = 0
             return 0
         count, self._periods = self._periods, 0
-        late = self.clock() - self.period
+        late = woke - self.period
         self.overdue = sum(1 for a in self._arrivals[:-1] if a < late)
         self._arrivals.clear()
         self._stamp, q, dq, self.arrival = self._latest  # type: ignore[misc]

@@ -274,13 +274,15 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
         published += 1
         if run_t is None:
             continue
-        if scenario == "trajectory" and "good" not in acted and run_t >= 1.0:
+        matched = scenario == "trajectory" and traj_pub.get_subscription_count() > 0
+        if matched and "good" not in acted and run_t >= 1.0:  # (once discovered: not lost)
             acted.add("good")
             target = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
             report["events"]["target"] = target
             report["events"]["good_at"] = run_t
             traj_pub.publish(_trajectory(JointTrajectory, JointTrajectoryPoint, names, target))
-        if scenario == "trajectory" and "bad" not in acted and run_t >= 2.0:
+        good_at = report["events"].get("good_at")
+        if matched and "bad" not in acted and good_at is not None and run_t >= good_at + 0.5:
             acted.add("bad")
             bad = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
             bad[3] = 1.0  # above the Panda's joint 4 range (< 0)

@@ -179,7 +179,7 @@ def test_a_constant_transport_delay_is_no_miss_and_its_latency_is_measured(tmp_p
 
 
 def test_a_trajectory_mid_run_costs_no_cycle_and_an_out_of_limits_one_is_refused(tmp_path):
-    _, report, result = _run(tmp_path, "trajectory", 4.0)
+    _, report, result = _run(tmp_path, "trajectory", 5.0)
     ctrl = report["controller"]
     assert ctrl["exit"] == 0, ctrl["stderr"]
     _no_nan(report)

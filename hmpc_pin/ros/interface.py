@@ -103,8 +103,8 @@ class RosArmInterface:
         period: The interface period [s] the arm publishes at.
         joint_states, commands: Topic names.
         start_timeout: How long [s] :meth:`start` waits for the first state.
-        qos: The QoS profile of both topics (default: keep-last 10, reliable, as
-            ros2_control's).
+        qos: The QoS profile of the command topic (default: keep-last 10, reliable, as
+            ros2_control's); the joint states are subscribed best effort with its depth.
 
     Attributes:
         stamps: ``"header"`` or ``"arrival"`` (module doc), set by :meth:`start`.
@@ -137,8 +137,11 @@ class RosArmInterface:
         std = ros.msgs["std_msgs"]
         self._cmd = std.Float64MultiArray()
         self._pub = ros.node.create_publisher(std.Float64MultiArray, commands, qos)
-        # every state taken (merged by name), the newest answered
-        self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states, qos)
+        # every state taken (merged by name), the newest answered; best effort (matches a
+        # reliable publisher too): the arm's driver never waits for, or resends to, the
+        # controller
+        state_qos = ros.qos(getattr(qos, "depth", 10), reliable=False)
+        self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states, state_qos)
         self._others: list[tuple[object, object]] = []
         self._wait = ros.waiter([self._sub])
         self._merge = JointStateMerger(self.names)

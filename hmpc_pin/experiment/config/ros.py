@@ -89,7 +89,11 @@ class RosConfig:
         qos_depth: History depth of every subscription and publisher (ros2_control's
             default: 10, ``SystemDefaultsQoS``). The joint states are all taken (merged by
             joint name), the newest answered.
-        qos_reliability: ``"reliable"`` (ros2_control's default) or ``"best_effort"``.
+        qos_reliability: ``"reliable"`` (ros2_control's default) or ``"best_effort"``:
+            the commands, the trajectory messages and the published estimates. The
+            joint states are always subscribed best effort (it matches a reliable
+            publisher too, and the arm's driver never waits for, or resends to, the
+            controller).
     """
 
     joint_states: str = "joint_states"

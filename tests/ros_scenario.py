@@ -82,6 +82,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
+    from sensor_msgs.msg import JointState
     from std_msgs.msg import Bool, Float64MultiArray
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -103,8 +104,13 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
             commands.append((time.monotonic(), list(msg.data)))
 
     node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command, 100)
-    node.create_subscription(Float64MultiArray, "/hmpc_pin_controller/external_torque",
-                             lambda m: torques.append(list(m.data)), 100)  # fmt: skip
+    names_seen: list[list[str]] = []
+
+    def on_torque(m):  # sensor_msgs/JointState: names, stamp, d̂ in effort
+        torques.append(list(m.effort))
+        names_seen.append([*m.name, m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec])
+
+    node.create_subscription(JointState, "/hmpc_pin_controller/external_torque", on_torque, 100)
     flags: list[bool] = []
     node.create_subscription(Bool, "/hmpc_pin_controller/collision",
                              lambda m: flags.append(bool(m.data)), 100)  # fmt: skip
@@ -120,7 +126,9 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
         end = time.monotonic() + timeout
         while time.monotonic() < end and ctrl.poll() is None:
             with lock:
-                if commands and time.monotonic() - commands[0][0] >= seconds:
+                # (every topic discovered: DDS matches endpoints one by one)
+                heard = commands and torques and (flags or scenario != "watchdog")
+                if heard and time.monotonic() - commands[0][0] >= seconds:
                     return True
             time.sleep(0.01)
         return False
@@ -179,6 +187,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
             "arm": {"exit": arm.returncode, "stdout": a_out, "stderr": a_err},
             "commands": commands,
             "external_torque": torques,
+            "external_torque_header": names_seen,
             "collision": flags,
             "events": events,
         }

@@ -38,11 +38,14 @@ def test_realtime_writes_run_timing_and_statistics(tmp_path, capsys):
                  "RMS e (t>=1s)", "joint3", "1000 Hz interface"):  # fmt: skip
         assert text in out
     result = hmpc_pin.Result.load(tmp_path / "rt_realtime.npz")
-    assert result.complete and result.t[-1] == pytest.approx(1.5)
+    # (the last step's cycle may be skipped on a loaded machine: 1.49 then)
+    assert result.complete and result.t[-1] == pytest.approx(1.5, abs=0.015)
     assert result.meta["realtime"]["cycles"] == 1501 and result.meta["stop"] is None
     assert result.meta["urdf"] and result.meta["controller"] == "hmpc+chen"
     summary = json.loads((tmp_path / "rt_realtime.json").read_text())
-    assert set(summary["realtime"]["latency"]) == {"median_us", "p99_us", "p999_us", "max_us"}
+    assert set(summary["realtime"]["latency"]) == {"median_us", "p99_us", "p999_us", "max_us",
+                                                   "count"}  # fmt: skip
+    assert summary["realtime"]["brake"]["ended"] in ("still", "time bound")
     assert len(summary["tracking"]["rms_error"]) == 3
     timing = np.load(tmp_path / "rt_realtime_timing.npz")
     assert timing["latency"].shape == (1501,)

@@ -97,7 +97,8 @@ def _sine():
 
 
 def _setup(robot, duration=1.0, *, cost=lambda t: 0.0, hook=None, settings=None,
-           safety=None, wrap=None, controller=None, gc_handling=True, reference=None):  # fmt: skip
+           safety=None, wrap=None, controller=None, gc_handling=True, reference=None,
+           damping=3.0):  # fmt: skip
     clock = FakeClock()
     ref = reference if reference is not None else _sine()
     q0 = _sine().sample(0.0)[0]
@@ -105,7 +106,7 @@ def _setup(robot, duration=1.0, *, cost=lambda t: 0.0, hook=None, settings=None,
     iface = wrap(arm) if wrap is not None else arm
     ctrl = Spend(controller or hmpc_pin.make_controller(robot), clock, cost, hook)
     loop = RealtimeLoop(
-        iface, ctrl, ref, SafeTorque(robot, damping=3.0),
+        iface, ctrl, ref, SafeTorque(robot, damping=damping),
         settings or LoopSettings(1.0 / P, duration, gc_handling=gc_handling),
         safety or SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
         clock=clock, sleep=clock.sleep, joint_names=tuple(robot.joint_names),
@@ -187,12 +188,17 @@ def _check_stop(robot, run, arm, cause, t_expected, tol, held=None):
     assert "\n" not in stop["reason"]
     assert "gravity compensation + damping 3 N·m·s/rad" in stop["reason"]
     # the safe torque, written in the detecting cycle, is G(q) − D q̇ at the last state
+    # (after a watchdog stop, with no fresh state to brake on, G(q): no velocity term)
     assert stop["safe_after_detection"] <= P
-    np.testing.assert_allclose(stop["safe_tau"], _safe(robot, stop["q"], np.array(stop["dq"])),
-                               atol=1e-10)  # fmt: skip
-    # the arm holds the safe torque of the last state read when the loop returns (hold)
-    q, dq = held if held is not None else (arm.q, arm.dq)
-    np.testing.assert_allclose(arm.tau, _safe(robot, q, np.asarray(dq)), atol=1e-10)
+    dq_stop = np.zeros(3) if cause == "watchdog" else np.array(stop["dq"])
+    np.testing.assert_allclose(stop["safe_tau"], _safe(robot, stop["q"], dq_stop), atol=1e-10)
+    # the arm is left holding G(q) at the last finite position (no velocity term): the
+    # arm's own position at the end of the brake, or the frozen state it last sent
+    brake = stop["brake"]
+    q = held[0] if held is not None else arm.q
+    np.testing.assert_allclose(brake["q"], q, atol=1e-12)
+    np.testing.assert_allclose(arm.tau, _safe(robot, q, np.zeros(3)), atol=1e-10)
+    assert np.isfinite(arm.tau).all()
     # the run up to the stop: samples on the controller grid, all before the stop
     assert run.result.t[-1] <= stop["t"] + 1e-12
     np.testing.assert_allclose(np.diff(run.result.t), Ts, atol=1e-12)
@@ -316,11 +322,109 @@ def test_partial_run_is_saved_with_complete_false(robot, tmp_path):
     np.testing.assert_array_equal(timing["latency"], run.timing["latency"])
 
 
-def test_a_complete_run_ends_on_the_safe_torque(robot):
-    loop, arm, _, _ = _setup(robot, 0.3)
+def _drift_holding(robot, q, dq, tau, seconds=2.0):
+    """The largest |q(t) − q| [rad] over ``seconds`` of the arm holding ``tau`` from
+    (q, dq): Pinocchio's ABA, semi-implicit Euler at 1 ms (no friction)."""
+    model, data = robot.model, robot.model.createData()
+    q, dq, q0 = np.array(q, dtype=float), np.array(dq, dtype=float), np.array(q, dtype=float)
+    worst = 0.0
+    for _ in range(round(seconds / 1e-3)):
+        dq = dq + 1e-3 * pin.aba(model, data, q, dq, np.asarray(tau))
+        q = q + 1e-3 * dq
+        worst = max(worst, float(np.abs(q - q0).max()))
+    return worst
+
+
+@pytest.mark.parametrize("stop", ["complete", "interrupted", "watchdog"])
+def test_the_stop_sequence_leaves_the_arm_still(robot, stop):
+    """After every kind of end the last command is G(q) at the last finite position (no
+    velocity term); with fresh states the loop brakes until every joint is below
+    brake_speed first. Holding that command for 2 s (the arm integrated by ABA, no
+    friction) moves it at its residual speed, below brake_speed, with fresh states;
+    without (watchdog) the arm coasts at the speed it had, and the command itself adds no
+    motion. (Damping 40 N·m·s/rad: planar3's first joint carries
+    16 kg·m², a decay time M/D of 0.4 s.)"""
+    safety = SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=3.0,
+                                      brake_speed=0.005)  # fmt: skip
+    hook = None
+    if stop == "interrupted":
+
+        def hook(t):
+            if abs(t - 0.35) < 1e-9:
+                os.kill(os.getpid(), signal.SIGINT)
+
+    wrap = (lambda a: Frozen(a, t_stop=0.4)) if stop == "watchdog" else None
+    loop, arm, _, _ = _setup(robot, 0.6, safety=safety, hook=hook, wrap=wrap, damping=40.0)
     run = loop.run()
-    assert run.complete and run.stop is None
-    np.testing.assert_allclose(arm.tau, _safe(robot, arm.q, arm.dq), atol=1e-10)
+    brake = run.stats["brake"]
+    # the command the arm holds is G at the last finite position (RNEA directly)
+    np.testing.assert_allclose(arm.tau, _safe(robot, brake["q"], np.zeros(3), 40.0),
+                               atol=1e-10)  # fmt: skip
+    if stop == "watchdog":
+        assert run.stop["cause"] == "watchdog" and brake["ended"] == "no fresh state"
+        assert brake["states"] == 0
+        # no velocity term: the command is an equilibrium at the last position the arm
+        # sent (the old G − D q̇_frozen was a constant torque accelerating it)
+        q = np.array(brake["q"])
+        np.testing.assert_allclose(q, run.stop["q"], atol=0)
+        ddq = pin.aba(robot.model, robot.model.createData(), q, np.zeros(3), arm.tau)
+        np.testing.assert_allclose(ddq, 0.0, atol=1e-9)
+    else:
+        assert run.complete == (stop == "complete")
+        assert brake["ended"] == "still" and brake["states"] > 0
+        assert np.abs(arm.dq).max() < safety.brake_speed
+        np.testing.assert_allclose(brake["q"], arm.q, atol=1e-12)
+        # the held command is an equilibrium at the brake's position (ABA at rest: 0) ...
+        model = robot.model
+        ddq = pin.aba(model, model.createData(), arm.q, np.zeros(3), arm.tau)
+        np.testing.assert_allclose(ddq, 0.0, atol=1e-9)
+        # ... and the arm leaves it at the residual speed only: over 0.2 s (before the
+        # configuration's gravity instability, a frictionless planar arm held above the
+        # horizontal, grows it) it drifts at most 0.2 s · brake_speed
+        drift = _drift_holding(robot, arm.q, arm.dq, arm.tau, 0.2)
+        assert drift <= 0.2 * safety.brake_speed * 1.1
+
+
+class Reused:
+    """An interface whose ``read`` returns the same two arrays every time (as drivers
+    do), filled with NaN from ``t_nan`` on."""
+
+    def __init__(self, arm, t_nan):
+        self.arm, self.t_nan = arm, t_nan
+        self.nq, self.period = arm.nq, arm.period
+        self.q, self.dq = np.zeros(arm.nq), np.zeros(arm.nq)
+        self.written = []
+
+    def read(self):
+        stamp, q, dq = self.arm.read()
+        self.q[:] = np.nan if stamp >= self.t_nan else q
+        self.dq[:] = np.nan if stamp >= self.t_nan else dq
+        return stamp, self.q, self.dq
+
+    def write(self, tau):
+        self.written.append(np.array(tau, dtype=float))
+        self.arm.write(tau)
+
+    def close(self):
+        self.arm.close()
+
+
+def test_no_non_finite_command_when_the_reused_arrays_turn_nan(robot):
+    """States turn NaN in the interface's reused arrays: a fault; every command written
+    before, during and after the stop is finite, and the last is G at the last finite
+    position (the brake ignores the non-finite states)."""
+    box = []
+    safety = SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.05)
+    loop, _arm, _, _ = _setup(robot, 1.0, safety=safety,
+                             wrap=lambda a: box.append(Reused(a, 0.25)) or box[0])  # fmt: skip
+    run = loop.run()
+    iface = box[0]
+    assert run.stop["cause"] == "fault" and "non-finite state" in run.stop["reason"]
+    assert len(iface.written) > 250 and all(np.isfinite(t).all() for t in iface.written)
+    # (NaN states keep coming: none braked on, the brake ends at its time bound)
+    assert run.stop["brake"]["states"] == 0 and run.stop["brake"]["ended"] == "time bound"
+    np.testing.assert_allclose(iface.written[-1], _safe(robot, run.stop["q"], np.zeros(3)),
+                               atol=1e-10)  # fmt: skip
 
 
 def test_garbage_is_collected_only_in_the_slack_and_gc_state_is_restored(robot):
@@ -618,8 +722,10 @@ def test_paced_silent_arm_trips_the_watchdog_and_gets_the_safe_torque(robot):
     run = loop.run()
     assert not run.complete and run.stop["cause"] == "watchdog"
     assert run.stop["t"] == pytest.approx(0.3, abs=2 * P)
-    # the safe torque at the last state the arm sent, held (no newer state came)
-    safe = _safe(robot, np.array(run.stop["q"]), np.array(run.stop["dq"]))
+    # no newer state came: at once the held-safe torque G(q) at the last state the arm
+    # sent, no velocity term (a damping torque on a frozen speed would push the arm)
+    safe = _safe(robot, np.array(run.stop["q"]), np.zeros(3))
+    assert run.stop["brake"]["ended"] == "no fresh state"
     np.testing.assert_allclose(run.stop["safe_tau"], safe, atol=1e-9)
     np.testing.assert_allclose(arm.tau, safe, atol=1e-9)
 
@@ -651,7 +757,7 @@ class DelayedPaced(Paced):
         return count
 
 
-def _delayed(robot, delay, declared):
+def _delayed(robot, delay, declared, duration=0.6):
     clock = FakeClock()
     q0 = _sine().sample(0.0)[0]
     arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
@@ -659,7 +765,7 @@ def _delayed(robot, delay, declared):
     ctrl.set_latency(declared)
     loop = RealtimeLoop(
         DelayedPaced(arm, clock, delay), ctrl, _sine(), SafeTorque(robot, damping=3.0),
-        LoopSettings(1.0 / P, 0.3),
+        LoopSettings(1.0 / P, duration),
         SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
     )  # fmt: skip
     return loop
@@ -689,6 +795,13 @@ def test_the_loop_measures_the_latency_and_warns_when_the_declared_one_is_off(ro
         warnings.simplefilter("error", ValidityWarning)
         run = _delayed(robot, delay, delay).run()
     assert run.complete and run.stats["declared_latency"] == pytest.approx(delay)
+    # fewer steps than MIN_LATENCY_SAMPLES (a failed start, a short run): no advice
+    from hmpc_pin.realtime.loop import MIN_LATENCY_SAMPLES
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ValidityWarning)
+        run = _delayed(robot, delay, 0.0, duration=(MIN_LATENCY_SAMPLES - 2) * Ts).run()
+    assert run.stats["measured_latency"]["count"] < MIN_LATENCY_SAMPLES
 
 
 def test_a_polled_arm_on_its_own_clock_has_no_measured_latency(robot):
@@ -750,3 +863,61 @@ def test_a_polled_arm_with_a_stamp_clock_has_its_latency_measured(robot):
     ages = run.timing["age"][run.timing["mpc"].astype(bool)]
     np.testing.assert_allclose(ages, 0.0003, rtol=0, atol=1e-12)
     assert run.stats["measured_latency"]["median_us"] == pytest.approx(300.0)
+
+
+class TransportDelayed(Paced):
+    """:class:`Paced` whose state k reaches the loop a constant ``delay`` [s] after its
+    stamp t0 + kP (a transport delay, any length)."""
+
+    def __init__(self, arm, clock, delay):
+        super().__init__(arm, clock)
+        self.delay = delay
+
+    def wait(self, timeout):
+        k = self.k + 1
+        arrive = self.t0 + k * self.period + self.delay
+        if arrive > self._clock.now + timeout + 1e-12:
+            self._clock.now += timeout
+            return 0
+        self._clock.now = max(self._clock.now, arrive)
+        self.k = k
+        _, q, dq = self.arm.read()
+        self._state = (self.t0 + k * self.period, q.copy(), dq.copy())
+        return 1
+
+
+class ArrivingPaced(TransportDelayed):
+    """:class:`TransportDelayed` that reports each state's arrival and no overdue state
+    (what the ROS interface reports for a constant transport delay)."""
+
+    arrival, overdue = 0.0, 0
+
+    def wait(self, timeout):
+        count = super().wait(timeout)
+        self.arrival = self._clock.now
+        return count
+
+
+@pytest.mark.parametrize("reports_arrival", [False, True])
+def test_a_transport_delay_longer_than_the_period_is_no_miss_with_the_arrival(
+    robot, reports_arrival
+):
+    """States reach the loop 1.5 P after their stamp: with the stamp as the deadline every
+    cycle misses (k = 5 stops the loop at its fifth cycle); with the arrival as the
+    deadline none does, and the stamp-to-torque latency is still measured (1.5 P)."""
+    clock = FakeClock()
+    q0 = _sine().sample(0.0)[0]
+    arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
+    cls = ArrivingPaced if reports_arrival else TransportDelayed
+    loop = RealtimeLoop(
+        cls(arm, clock, 1.5 * P), hmpc_pin.make_controller(robot), _sine(),
+        SafeTorque(robot, damping=3.0), LoopSettings(1.0 / P, 0.2),
+        SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.01),
+    )  # fmt: skip
+    run = loop.run()
+    if not reports_arrival:
+        assert run.stop["cause"] == "misses" and run.stop["cycle"] <= 5
+        return
+    assert run.complete and run.stats["misses"] == 0
+    ages = run.timing["age"][run.timing["mpc"].astype(bool)]
+    np.testing.assert_allclose(ages, 1.5 * P, atol=1e-9)

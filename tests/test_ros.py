@@ -213,6 +213,9 @@ def test_ros_tracks_like_the_simulation(tmp_path):
     for row in received[-10:]:
         assert np.any(np.all(recorded == row, axis=1))
     assert np.abs(received).max() > 0.1  # the friction estimate, not zeros
+    # stamped, with the joint names: the stamp of a state the arm sent (within the run)
+    header = report["external_torque_header"][-1]
+    assert header[:7] == list(result.joint_names) and header[7] > 1e9
     # [collision] set: the flag at every step, false (|d̂| far below the threshold)
     assert len(report["collision"]) > 10 and not any(report["collision"])
     assert result.meta["collision"]["detected_at"] is None
@@ -226,7 +229,9 @@ def test_ros_tracks_like_the_simulation(tmp_path):
 
 
 def test_ros_trajectory_replaces_the_reference_and_bad_one_is_refused(tmp_path):
-    config, report, result = _scenario(tmp_path, "trajectory", 8.0)
+    # (12 s: on a loaded machine DDS discovery between this scenario's node and the
+    # controller's, with its parameter and lifecycle services, took up to 5.5 s)
+    config, report, result = _scenario(tmp_path, "trajectory", 12.0)
     ctrl = report["controller"]
     assert ctrl["exit"] == 0, ctrl["stderr"]
     events = result.meta["ros"]["trajectories"]
@@ -367,3 +372,116 @@ def test_ros_without_an_arm_is_one_line_and_no_file(tmp_path):
     assert len(lines) == 1 and "/nobody within 1 s" in lines[0] and "ros-arm" in lines[0]
     assert "Traceback" not in proc.stderr
     assert not list(out.glob("*.npz"))
+
+
+# ------------------------------------------------------------- no DDS: the parts
+def test_joint_states_merge_by_name_and_other_joints_are_not_periods():
+    """The merge of :class:`JointStateMerger` against a dict of the last value per name
+    (the oracle): any order, subsets, a gripper's message ignored and not a period."""
+    from hmpc_pin.ros.interface import JointStateMerger
+
+    names = ["j1", "j2", "j3"]
+    merge = JointStateMerger(names)
+    rng = np.random.default_rng(3)
+    truth: dict[str, tuple[float, float]] = {}
+    assert not merge.add(["finger"], [0.02], [0.0]) and merge.ignored == 1
+    assert merge.missing == names
+    assert not merge.add(["j3", "j1"], [3.0, 1.0], [0.3, 0.1])  # a subset: not yet a state
+    assert merge.missing == ["j2"]
+    assert merge.add(["finger", "j2"], [0.0, 2.0], [0.0, 0.2])  # completes it
+    np.testing.assert_array_equal(merge.q, [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(merge.dq, [0.1, 0.2, 0.3])
+    for _ in range(50):
+        # a random split of the joints into messages, each in a random order, with a
+        # gripper's message in between: one complete state per split
+        order = list(rng.permutation(names))
+        cut = int(rng.integers(1, 3))
+        parts = [order[:cut], order[cut:]]
+        done = []
+        for part in parts:
+            values = {x: (float(rng.normal()), float(rng.normal())) for x in part}
+            truth.update(values)
+            done.append(merge.add(part, [values[x][0] for x in part],
+                                  [values[x][1] for x in part]))  # fmt: skip
+            assert not merge.add(["finger"], [0.0], [0.0])
+        assert done == [False] * (len(parts) - 1) + [True]
+        np.testing.assert_array_equal(merge.q, [truth[x][0] for x in names])
+        np.testing.assert_array_equal(merge.dq, [truth[x][1] for x in names])
+    # a message without velocities: non-finite (a fault downstream), never stale values
+    assert merge.add(["j1", "j2", "j3"], [0.0, 0.0, 0.0], [])
+    assert np.isnan(merge.dq).all() and np.isfinite(merge.q).all()
+
+
+def test_ros_gravity_qos_and_message_keys(tmp_path):
+    rc = load_config(_write(tmp_path, "")).ros
+    assert rc.gravity == "controller" and rc.qos_depth == 10
+    assert rc.qos_reliability == "reliable" and rc.external_torque_type == "joint_state"
+    rc = load_config(_write(tmp_path, "[ros]\ngravity = 'arm'\nqos_depth = 3\n")).ros
+    assert rc.gravity == "arm" and rc.qos_depth == 3
+    with pytest.raises(ConfigError, match=r"ros\.gravity.*'controller', 'arm'.*'robot'"):
+        load_config(_write(tmp_path, "[ros]\ngravity = 'robot'\n"))
+    with pytest.raises(ConfigError, match=r"ros\.qos_reliability"):
+        load_config(_write(tmp_path, "[ros]\nqos_reliability = 'sometimes'\n"))
+    with pytest.raises(ConfigError, match=r"ros\.qos_depth"):
+        load_config(_write(tmp_path, "[ros]\nqos_depth = 0\n"))
+    with pytest.warns(DeprecationWarning, match="external_torque_type"):
+        load_config(_write(tmp_path, "[ros]\nexternal_torque_type = 'float64_multi_array'\n"))
+    rt = load_config(_write(tmp_path, "[realtime]\nbrake_speed = 0.01\n")).realtime
+    assert rt.brake_speed == 0.01 and rt.hold == 2.0
+    with pytest.raises(ConfigError, match=r"realtime\.brake_speed"):
+        load_config(_write(tmp_path, "[realtime]\nbrake_speed = 0\n"))
+
+
+def test_ros_rate_errors_name_ros_rate(tmp_path, capsys):
+    """150 Hz does not divide Ts = 0.01 s (the controller node); 300 Hz divides it but is
+    no whole number of plant.dt = 1 ms (the arm node): both named ros.rate, exit 2."""
+    from hmpc_pin.apps.ros import ros_parts
+
+    config = load_config(_write(tmp_path, "[ros]\nrate = 150\n"))
+    with pytest.raises(ConfigError) as err:
+        ros_parts(Experiment.from_config(config))
+    assert err.value.key == "ros.rate" and "realtime.rate" not in str(err.value)
+    if HAVE_ROS:
+        path = _write(tmp_path, "[ros]\nrate = 300\n")
+        assert main(["ros-arm", str(path), "--duration", "0.1"]) == 2
+        err_text = capsys.readouterr().err
+        assert "ros.rate" in err_text and "Traceback" not in err_text
+
+
+def test_gravity_by_the_arm_takes_g_out_of_every_command(panda):
+    """``[ros] gravity = "arm"``: the command is the controller's torque minus G(q)
+    (Pinocchio's RNEA at rest, computed here), the safe torque has no G, and the
+    held-safe command is zero."""
+    from hmpc_pin.apps.ros import ros_parts
+
+    config = replace(panda.config, ros=replace(panda.config.ros, gravity="arm"))
+    experiment = Experiment.from_config(config)
+    _, _, safe, ctrl = ros_parts(experiment)
+    ref = experiment.reference
+    model = experiment.robot.model
+    q, dq = experiment.q0 + 0.05, np.full(7, 0.1)
+    ctrl.reset(q, dq)
+    tau = ctrl.step(0.0, q, dq, ref)
+    plain = Experiment.from_config(panda.config).controller
+    plain.reset(q, dq)
+    G = pin.computeGeneralizedGravity(model, model.createData(), q)
+    np.testing.assert_allclose(tau, plain.step(0.0, q, dq, ref) - G, atol=1e-9)
+    np.testing.assert_allclose(safe(q, dq), -safe.damping * dq, atol=0)
+    np.testing.assert_array_equal(safe.held(q), np.zeros(7))
+
+
+@needs_msgs
+def test_a_trajectory_stamped_in_the_future_starts_at_its_stamp(panda):
+    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.ros.trajectory import trajectory_from_message
+
+    robot, ref = panda.robot, panda.reference
+    names = list(robot.joint_names)
+    lower, upper = _limits_of(panda)
+    now, start = 2.0, 3.0  # the stamp 1 s ahead of the loop (origin 0)
+    target = ref.sample(start)[0] + 0.1
+    traj = trajectory_from_message(_message(names, [(1.0, target)], stamp=start), robot, ref,
+                                   now, lower, upper)  # fmt: skip
+    assert traj.times[0] == pytest.approx(start)  # the loop swaps it in then
+    np.testing.assert_allclose(traj.sample(start)[0], ref.sample(start)[0], atol=1e-12)
+    np.testing.assert_allclose(traj.sample(start + 1.0)[0], target, atol=1e-12)

@@ -491,8 +491,9 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
         print(f"wrote {f}")
     if run.stop is None:
         return EXIT_OK
-    if run.stop["cause"] == "interrupted":
-        print(f"interrupted at t={run.stop['t']:.3f} s of {config.simulation.duration:g} s; "
+    if run.stop["cause"] in ("interrupted", "deactivated"):  # stopped from outside
+        print(f"{run.stop['cause']} at t={run.stop['t']:.3f} s of "
+              f"{config.simulation.duration:g} s; "
               f"safe torque {safe}, partial run saved (complete = false)",
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
@@ -528,7 +529,8 @@ def cmd_ros(args) -> int:
     print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
           f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
           f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz", flush=True)  # fmt: skip
-    return _report_realtime(lambda: run_ros(config, out), config, "published", format_ros,
+    return _report_realtime(lambda: run_ros(config, out, ros_args=args.ros_args), config,
+                            "published", format_ros,
                             format_tracking)  # fmt: skip
 
 
@@ -549,7 +551,7 @@ def cmd_ros_arm(args) -> int:
     import_ros("hmpc-pin ros-arm")
     _checked_duration(args.duration)
     config = _ros_config(args, load_config(args.config))
-    counts = run_ros_arm(config, args.duration)
+    counts = run_ros_arm(config, args.duration, args.ros_args)
     return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
 
 

@@ -11,14 +11,17 @@ cycle) and ``<stem>_ros.json`` (statistics and tracking metrics).
 
 from __future__ import annotations
 
+import contextlib
+import queue
 import signal
 import sys
+import threading
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import HmpcError
+from ..exceptions import ConfigError, HmpcError
 from ..experiment.build import Experiment, realtime_parts
 from ..experiment.controllers import _limits
 from ..experiment.schema import ExperimentConfig
@@ -50,19 +53,52 @@ def _limits_of(experiment: Experiment) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Trajectories:
-    """The ``~/joint_trajectory`` subscription: each message checked, then handed to the
-    loop or refused with one logged line (in the loop's thread, between two states)."""
+    """The ``~/joint_trajectory`` subscription. The loop's thread only hands each message
+    over (a queue put); a worker thread checks it (names, times, limits) and hands the
+    new reference to the loop, which swaps it in at a controller step, or refuses it with
+    one logged line. Everything the check needs is loaded before the first cycle
+    (:meth:`warm`): accepting a message costs the control thread no slow work."""
 
-    def __init__(self, ros, experiment: Experiment, iface, topic: str):
+    def __init__(self, ros, experiment: Experiment, iface, topic: str, qos):
         self.ros, self.experiment, self.iface = ros, experiment, iface
         self.lower, self.upper = _limits_of(experiment)
         self.loop: RealtimeLoop | None = None
         self.events: list[dict] = []
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._worker = threading.Thread(target=self._work, name="joint_trajectory",
+                                        daemon=True)  # fmt: skip
         self.topic = iface.add_subscription(
-            ros.msgs["trajectory_msgs"].JointTrajectory, topic, self._on_message, ros.qos(10)
+            ros.msgs["trajectory_msgs"].JointTrajectory, topic, self._queue.put, qos
         )
 
-    def _on_message(self, msg) -> None:
+    def warm(self) -> None:
+        """Check one message (a hold of the reference's start, not used) and start the
+        worker: the modules and caches the check needs are loaded now, not in a cycle."""
+        from ..ros.trajectory import trajectory_from_message
+
+        msgs = self.ros.msgs["trajectory_msgs"]
+        robot, ref = self.experiment.robot, self.experiment.reference
+        msg = msgs.JointTrajectory()
+        msg.joint_names = list(robot.joint_names)
+        point = msgs.JointTrajectoryPoint()
+        point.positions = [float(x) for x in ref.sample(0.0)[0]]
+        point.time_from_start.sec = 1
+        msg.points = [point]
+        with contextlib.suppress(HmpcError):
+            trajectory_from_message(msg, robot, ref, 0.0, self.lower, self.upper)
+        self._worker.start()
+
+    def close(self) -> None:
+        """Stop the worker (after the messages already queued)."""
+        if self._worker.is_alive():
+            self._queue.put(None)
+            self._worker.join(timeout=5.0)
+
+    def _work(self) -> None:
+        while (msg := self._queue.get()) is not None:
+            self._check(msg)
+
+    def _check(self, msg) -> None:
         from ..ros.trajectory import refusal, trajectory_from_message
 
         loop, log = self.loop, self.ros.node.get_logger()
@@ -80,21 +116,57 @@ class _Trajectories:
             log.error(line)
             self.events.append({"t": now, "accepted": False, "reason": line})
             return
-        loop.set_reference(traj)
+        start = float(traj.times[0])
+        loop.set_reference(traj, at=start)
         line = (
             f"accepted a joint_trajectory message of {len(msg.points)} points: the "
-            f"reference from t={now:.3f} s to {traj.t_end:.3f} s, last point held"
+            f"reference from t={start:.3f} s to {traj.t_end:.3f} s, last point held"
         )
         log.info(line)
-        self.events.append({"t": now, "accepted": True, "t_end": traj.t_end,
+        self.events.append({"t": start, "accepted": True, "t_end": traj.t_end,
                             "points": len(msg.points)})  # fmt: skip
 
 
-def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None):
+def ros_parts(experiment: Experiment):
+    """The loop settings, safety settings, safe torque and controller of ``hmpc-pin ros``:
+    ``[realtime]``'s at ``[ros] rate`` (its errors named ``ros.rate``), the brake of
+    ``[realtime] hold`` and ``brake_speed``, and ``[ros] gravity`` (``"arm"``: the
+    controller's torque without G(q), no G(q) in the safe torques).
+
+    Raises:
+        ConfigError: ``[ros] rate`` does not divide the controller period.
+    """
+    from ..realtime.safety import GravityByArm, SafeTorque
+
+    cfg = experiment.config
+    rc = cfg.ros
+    try:
+        loop_settings, safety, safe = realtime_parts(experiment, rc.rate, plant=False)
+    except ConfigError as exc:
+        if exc.key != "realtime.rate":
+            raise
+        raise ConfigError("ros.rate", exc.message.replace("rate=", "ros.rate=")) from None
+    safety = replace(safety, brake_speed=cfg.realtime.brake_speed)
+    ctrl = experiment.controller
+    if rc.gravity == "arm":
+        safe = SafeTorque(experiment.robot, safe.damping, gravity=False)
+        ctrl = GravityByArm(ctrl, experiment.robot)
+    return loop_settings, safety, safe, ctrl
+
+
+def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None,
+            ros_args: list[str] | None = None):  # fmt: skip
     """Run ``config``'s controller as a ROS 2 node until its duration or a safe stop.
 
     With ``[realtime] priority`` > 0 the whole node runs under ``SCHED_FIFO`` (the DDS
     threads rclpy starts inherit it: a state is delivered on time on a loaded machine).
+
+    Args:
+        config: The experiment.
+        out: The output directory.
+        stem: The files' stem (default: the config's name).
+        ros_args: ROS arguments (those after ``--ros-args``: remaps, ``__ns``,
+            ``use_sim_time`` ...), given to rclpy.
 
     Returns:
         ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
@@ -104,39 +176,57 @@ def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None):
             the robot's joints (nothing written).
     """
     with fifo_priority(config.realtime.priority):
-        return _run_ros(config, out, stem)
+        return _run_ros(config, out, stem, ros_args)
 
 
-def _run_ros(config: ExperimentConfig, out: Path, stem: str | None):
+def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=None):
     from ..ros.interface import RosArmInterface
     from ..ros.node import RosNode, discovery_range
 
     rc = config.ros
     stem = (stem or config.name) + "_ros"
     experiment = Experiment.from_config(config)
-    loop_settings, safety, safe = realtime_parts(experiment, rc.rate, plant=False)
-    ros = RosNode(rc.node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros")
+    loop_settings, safety, safe, ctrl = ros_parts(experiment)
+    ros = RosNode(rc.node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros",
+                  ros_args=ros_args, parameters=config_parameters(config))  # fmt: skip
+    switch = sys.getswitchinterval()
+    trajectories = None
     try:
+        qos = ros.qos(rc.qos_depth, rc.qos_reliability == "reliable")
         iface = RosArmInterface(ros, experiment.robot.joint_names, rc.period, rc.joint_states,
-                                rc.commands, rc.start_timeout)  # fmt: skip
-        std = ros.msgs["std_msgs"]
-        ctrl = experiment.controller
-        d_pub = ros.node.create_publisher(std.Float64MultiArray, rc.external_torque, ros.qos(10))
-        d_msg = std.Float64MultiArray()
-        collision = config.collision is not None and hasattr(ctrl, "detected_at")
-        c_pub = (
-            ros.node.create_publisher(std.Bool, rc.collision, ros.qos(10)) if collision else None
-        )
+                                rc.commands, rc.start_timeout, qos=qos)  # fmt: skip
+        std, sensor = ros.msgs["std_msgs"], ros.msgs["sensor_msgs"]
+        inner = experiment.controller
+        names = list(experiment.robot.joint_names)
+        if rc.external_torque_type == "joint_state":
+            d_pub = ros.node.create_publisher(sensor.JointState, rc.external_torque, qos)
+            d_msg = sensor.JointState()
+            d_msg.name = names
+        else:  # deprecated: no stamp, no names
+            d_pub = ros.node.create_publisher(std.Float64MultiArray, rc.external_torque, qos)
+            d_msg = std.Float64MultiArray()
+        stamped = rc.external_torque_type == "joint_state"
+        collision = config.collision is not None and hasattr(inner, "detected_at")
+        c_pub = ros.node.create_publisher(std.Bool, rc.collision, qos) if collision else None
         c_msg = std.Bool()
-        trajectories = _Trajectories(ros, experiment, iface, rc.joint_trajectory)
+        trajectories = _Trajectories(ros, experiment, iface, rc.joint_trajectory, qos)
 
         def on_step(t: float) -> None:
-            d_msg.data = ctrl.disturbance_estimate.tolist()
+            if stamped:
+                ns = round(iface.stamp_time() * 1e9)
+                d_msg.header.stamp.sec, d_msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+                d_msg.effort = inner.disturbance_estimate.tolist()
+            else:
+                d_msg.data = inner.disturbance_estimate.tolist()
             d_pub.publish(d_msg)
             if c_pub is not None:
-                c_msg.data = ctrl.detected_at is not None
+                c_msg.data = inner.detected_at is not None
                 c_pub.publish(c_msg)
 
+        trajectories.warm()
+        early: list[bool] = []  # deactivated before the loop exists: it stops at once
+        ros.on_deactivate(early.append, True)
+        ros.serve()  # parameters and lifecycle services, in their own thread
         iface.start()
         loop = RealtimeLoop(
             iface, ctrl, experiment.reference, safe, loop_settings, safety,
@@ -144,7 +234,15 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None):
             on_step=on_step,
         )  # fmt: skip
         trajectories.loop = loop
+        ros.on_deactivate(loop.request_stop_by, "deactivated")
+        if early:
+            loop.request_stop_by("deactivated", timeout=0.0)
+        # a Python thread (the trajectory check) holds the GIL at most this long when the
+        # control thread wants it back
+        sys.setswitchinterval(min(switch, 1e-4))
         run = loop.run()
+        sys.setswitchinterval(switch)
+        trajectories.close()
         run.result.meta["ros"] = {
             "node": ros.node.get_fully_qualified_name(),
             "joint_states": iface.joint_states_topic,
@@ -153,16 +251,46 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None):
             "external_torque": ros.topic(rc.external_torque),
             "collision": ros.topic(rc.collision) if collision else None,
             "stamps": iface.stamps,
+            "stamp_origin": iface._origin,
             "states_received": iface.received,
+            "states_ignored": iface.ignored,
             "commands_published": iface.published,
+            "gravity": rc.gravity,
             "trajectories": list(trajectories.events),
         }
         if collision:
-            c = ctrl.detected_at
+            c = inner.detected_at
             run.result.meta["collision"] = {"detected_at": c}
     finally:
+        sys.setswitchinterval(switch)
+        if trajectories is not None:
+            trajectories.close()
         ros.close()
     return run, save_run(run, out, stem, "ros")
+
+
+def config_parameters(config: ExperimentConfig) -> dict:
+    """The ROS parameters the controller node declares (read-only, the config's values:
+    ``ros2 param list`` shows them): every ``[ros]`` key as ``ros.<key>``, and the
+    ``[realtime]`` keys of the loop and its stop as ``realtime.<key>``, plus
+    ``controller.Ts``, ``simulation.duration`` and ``config.name``."""
+    from dataclasses import fields
+
+    out: dict = {"config.name": config.name, "controller.Ts": float(config.controller.Ts),
+                 "simulation.duration": float(config.simulation.duration)}  # fmt: skip
+    for table in ("ros", "realtime"):
+        section = getattr(config, table)
+        for f in fields(section):
+            value = getattr(section, f.name)
+            if isinstance(value, np.ndarray):
+                value = [float(x) for x in np.atleast_1d(value)]
+            if value is None:
+                continue
+            if isinstance(value, (bool, int, float, str)) or (
+                isinstance(value, list) and all(isinstance(x, float) for x in value)
+            ):
+                out[f"{table}.{f.name}"] = value
+    return out
 
 
 def format_ros(run: RealtimeRun) -> str:
@@ -177,7 +305,8 @@ def format_ros(run: RealtimeRun) -> str:
     return "\n".join(lines)
 
 
-def run_ros_arm(config: ExperimentConfig, duration: float | None = None) -> dict:
+def run_ros_arm(config: ExperimentConfig, duration: float | None = None,
+                ros_args: list[str] | None = None) -> dict:  # fmt: skip
     """Run ``config``'s plant as a ROS 2 node (:class:`~hmpc_pin.ros.arm.RosArmNode`)
     until ``duration`` [s] (``None``: until SIGINT or SIGTERM); under ``SCHED_FIFO``
     with ``[realtime] priority`` > 0.
@@ -187,17 +316,23 @@ def run_ros_arm(config: ExperimentConfig, duration: float | None = None) -> dict
         ``"interrupted"`` (stopped by SIGINT).
     """
     with fifo_priority(config.realtime.priority):
-        return _run_ros_arm(config, duration)
+        return _run_ros_arm(config, duration, ros_args)
 
 
-def _run_ros_arm(config: ExperimentConfig, duration: float | None) -> dict:
+def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None) -> dict:
     from ..ros.arm import RosArmNode
     from ..ros.node import RosNode, discovery_range
 
     rc = config.ros
     experiment = Experiment.from_config(config)
-    plant = experiment.make_plant(rc.period)  # checks that plant.dt divides the period
-    ros = RosNode(rc.arm_node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros-arm")
+    try:
+        plant = experiment.make_plant(rc.period)  # checks that plant.dt divides the period
+    except ConfigError as exc:
+        raise ConfigError(
+            "ros.rate", f"the arm node's period 1/rate = {rc.period:g} s: {exc.message}"
+        ) from None
+    ros = RosNode(rc.arm_node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros-arm",
+                  ros_args=ros_args)  # fmt: skip
     stopped_by: list[int] = []
     try:
         arm = RosArmNode(ros, plant, experiment.robot.joint_names, experiment.q0,
@@ -263,7 +398,18 @@ def add_ros_parsers(sub, cmd_ros, cmd_ros_arm) -> None:
 
 
 def _add_node_options(parser) -> None:
-    """``--namespace`` and ``--priority``, the options of both ROS nodes."""
+    """``--namespace``, ``--priority`` and ``--ros-args``, the options of both ROS nodes."""
+    import argparse
+
+    parser.add_argument(
+        "--ros-args",
+        dest="ros_args",
+        nargs=argparse.REMAINDER,
+        default=None,
+        metavar="ARG",
+        help="ROS arguments, last on the line (remaps -r from:=to, -r __ns:=/ns, "
+        "-r __node:=name, -p use_sim_time:=true), as every ROS 2 node takes them",
+    )
     parser.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
     parser.add_argument(
         "--priority",

@@ -19,10 +19,11 @@ from .loop import (
     sleep_until,
 )
 from .process_arm import ProcessArm
-from .safety import STOP_CAUSES, SafeTorque, SafetySettings
+from .safety import STOP_CAUSES, GravityByArm, SafeTorque, SafetySettings
 
 __all__ = [
     "STOP_CAUSES",
+    "GravityByArm",
     "LoopSettings",
     "PacedInterface",
     "PlantArm",

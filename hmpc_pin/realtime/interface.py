@@ -77,6 +77,13 @@ class PacedInterface(RobotInterface, Protocol):
 
     The loop's deadline for a state is its stamp: latency is stamp → torque written, on
     :meth:`clock`, which must be the clock of the stamps.
+
+    Optional attributes, set by :meth:`wait`: ``arrival`` (when the state taken arrived,
+    on :meth:`clock`; the loop's deadline is then the arrival, and the stamp-to-torque
+    latency is measured apart, so a constant transport delay is no miss) and
+    ``overdue`` (how many of the periods :meth:`wait` reports arrived more than a period
+    before it returned: the states the loop failed to answer; without it every period
+    beyond the first is a miss).
     """
 
     def clock(self) -> float:

@@ -29,7 +29,8 @@ compensates (``[controller] latency``, the guide "Sensing and latency"): the loo
 its median with the declared one and warns (:class:`~hmpc_pin.exceptions.ValidityWarning`,
 naming both) when they differ by more than
 :func:`~hmpc_pin.compensation.bandwidth.latency_tolerance` (the bandwidth rule for the
-controller's observer, at least half an interface period). It is not fed to the controller
+controller's observer, at least half an interface period), once at least
+:data:`MIN_LATENCY_SAMPLES` steps were measured. It is not fed to the controller
 during the run: the latency changes the observer's torque alignment and the prediction,
 which take effect at a reset, and a per-step value would carry the loop's jitter into the
 model. Set the measured median in the config instead.
@@ -44,9 +45,13 @@ Safe stop (:mod:`.safety`): on Ctrl-C (SIGINT sets a flag read at every cycle; a
 one raises :class:`KeyboardInterrupt`), a fault (non-finite state or torque, a
 controller error such as a QP not solved, a measured state beyond the bounds),
 ``max_misses`` consecutive misses, or a stamp that stops advancing for ``watchdog``
-seconds, the loop writes the safe torque in the same cycle, holds it for ``hold``
-seconds, and returns the run up to that point with ``complete = False`` and one line
-saying why. A complete run also ends on the safe torque.
+seconds, the loop writes the safe torque at the last finite state in the same cycle,
+runs the stop sequence of :mod:`.safety` (brake on the fresh states, at most ``hold``
+seconds, then the held-safe torque :math:`g\\,G(q)`; after a watchdog stop the held-safe
+torque at once), and returns the run up to that point with ``complete = False`` and one
+line saying why (``stop["brake"]``: how the brake ended). A complete run ends with the
+same sequence. No path writes a non-finite torque: the controller's is checked before it
+is written, the safe torques are computed from copies of the last finite state.
 """
 
 from __future__ import annotations
@@ -82,6 +87,11 @@ __all__ = [
     "latency_stats",
     "sleep_until",
 ]
+
+
+#: The latency advice (``[controller] latency``) needs at least this many measured
+#: controller steps (a failed start's single sample says nothing).
+MIN_LATENCY_SAMPLES = 50
 
 
 def sleep_until(
@@ -215,14 +225,14 @@ def _declared_latency(controller) -> float | None:
 
 
 def latency_stats(latency: np.ndarray) -> dict:
-    """Median, p99, p99.9, max [µs] of the finite entries of ``latency`` [s]."""
+    """Median, p99, p99.9, max [µs] and count of the finite entries of ``latency`` [s]."""
     x = latency[np.isfinite(latency)] * 1e6
     if x.size == 0:
         return {"median_us": math.nan, "p99_us": math.nan, "p999_us": math.nan,
-                "max_us": math.nan}  # fmt: skip
+                "max_us": math.nan, "count": 0}  # fmt: skip
     p50, p99, p999 = np.percentile(x, [50.0, 99.0, 99.9])
     return {"median_us": float(p50), "p99_us": float(p99), "p999_us": float(p999),
-            "max_us": float(x.max())}  # fmt: skip
+            "max_us": float(x.max()), "count": int(x.size)}  # fmt: skip
 
 
 class _GCWatch:
@@ -393,18 +403,30 @@ class RealtimeLoop:
         self.meta = dict(meta or {})
         self.decimation = settings.decimation(controller.Ts)
         self._interrupt = 0
+        self._requested: str | None = None
+        self._started = False
+        self._finished = threading.Event()
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
+        self._held_tau = np.zeros(interface.nq)
 
-    def set_reference(self, reference) -> None:
-        """Replace the reference from the next controller step on (callable from another
-        thread: the loop swaps it in at a step). The caller checks it (limits, continuity
-        at ``time``, the loop time of the last step)."""
-        self._pending_reference = as_reference(reference)
+    def set_reference(self, reference, at: float = 0.0) -> None:
+        """Replace the reference from the first controller step at or after loop time
+        ``at`` [s] (default: the next step) on; callable from another thread (the loop
+        swaps it in at a step). The caller checks it (limits, continuity at that time)."""
+        self._pending_reference = (as_reference(reference), float(at))
 
     # ------------------------------------------------------------------ stopping
     def request_stop(self) -> None:
         """Ask the loop to stop safely at its next cycle (what SIGINT does)."""
         self._interrupt += 1
+
+    def request_stop_by(self, cause: str = "deactivated", timeout: float | None = None) -> bool:
+        """Stop at the next cycle with ``cause`` (e.g. a ROS lifecycle node deactivated;
+        callable from another thread) and wait until the stop sequence has run (at most
+        ``timeout`` [s], default ``safety.hold`` + 1 s). Returns whether it has."""
+        self._requested = cause
+        wait = self.safety.hold + 1.0 if timeout is None else timeout
+        return self._finished.wait(wait) if self._started else True
 
     def _on_sigint(self, signum, frame) -> None:
         self._interrupt += 1
@@ -425,15 +447,18 @@ class RealtimeLoop:
         gc_was_enabled = gc.isenabled()
         self._gc_watch = _GCWatch(self.clock)
         gc.callbacks.append(self._gc_watch)
+        self._started = True
         try:
             return self._run(q0, dq0)
         except BaseException:
-            # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the safe torque
-            # at the last state read before the error propagates.
+            # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the held-safe
+            # torque at the last finite position before the error propagates (nothing
+            # refreshes it after this: no velocity term).
             if self._last_state is not None:
-                self._safe_write(*self._last_state)
+                self._held_write(self._last_state[0])
             raise
         finally:
+            self._finished.set()
             gc.callbacks.remove(self._gc_watch)
             if self.settings.gc_handling:
                 gc.unfreeze()
@@ -486,6 +511,8 @@ class RealtimeLoop:
         next_mpc = 0
         paced, on_step = self.paced, self.on_step
         wait = getattr(iface, "wait", None)
+        has_overdue = paced and hasattr(iface, "overdue")
+        has_arrival = paced and hasattr(iface, "arrival")
         warm_lead = st.warm_up
         warm_up = getattr(ctrl, "warm_up", None) if warm_lead > 0 and not paced else None
         t0 = clock() + P
@@ -499,25 +526,40 @@ class RealtimeLoop:
                 if self._interrupt:
                     stop = ("interrupted", "interrupted (Ctrl-C)")
                     break
+                if self._requested is not None:
+                    stop = (self._requested, f"stop requested ({self._requested})")
+                    break
                 if not arrived:
-                    stop = ("watchdog", f"no new state from the arm for {1e3 * watchdog:g} ms "
-                            f"(watchdog), last stamp {last_stamp:.6g} s")  # fmt: skip
+                    received = getattr(iface, "received", None)
+                    streamed = (
+                        ""
+                        if received is None
+                        else f"the arm stopped streaming after {received} states: "
+                    )
+                    stop = ("watchdog", f"{streamed}no new state from the arm for "
+                            f"{1e3 * watchdog:g} ms (watchdog), last stamp "
+                            f"{last_stamp:.6g} s")  # fmt: skip
                     break
                 behind = arrived - 1  # states not answered: periods skipped
+                # of which missed: those the arm reports overdue (a burst after its own
+                # stall is not the loop's miss), else all
+                late = min(behind, iface.overdue) if has_overdue else behind  # type: ignore[attr-defined]
                 skipped_why = "states not answered"
             else:
                 # Deadlines already passed are skipped (the arm holds the torque through them).
-                behind = int((clock() - t0) / P) - k
+                behind = late = int((clock() - t0) / P) - k
                 skipped_why = "periods skipped behind the clock"
             if behind > 0 and k > 0:
                 skip = min(behind, K + 1 - k)
-                missed_a[k : k + skip] = True
-                misses += skip
+                late = min(late, skip)
+                missed_a[k : k + late] = True
+                misses += late
                 skipped += skip
-                consecutive += skip
-                worst_run = max(worst_run, consecutive)
+                if late:
+                    consecutive += late
+                    worst_run = max(worst_run, consecutive)
                 k += skip
-                if consecutive >= max_misses:
+                if late and consecutive >= max_misses:
                     stop = ("misses", f"{consecutive} consecutive missed deadlines (limit "
                             f"{max_misses}), {skip} {skipped_why}")  # fmt: skip
                     break
@@ -525,7 +567,9 @@ class RealtimeLoop:
                     break
             if paced:
                 stamp, q, dq = iface.read()
-                deadline = last_stamp = stamp
+                last_stamp = stamp
+                # the deadline follows the arrival (a constant transport delay is no miss)
+                deadline = iface.arrival if has_arrival else stamp  # type: ignore[attr-defined]
             else:
                 deadline = t0 + k * P
                 if warm_up is not None and k >= next_mpc and k > 0:
@@ -539,6 +583,9 @@ class RealtimeLoop:
                 wake = clock()
                 if self._interrupt:
                     stop = ("interrupted", "interrupted (Ctrl-C)")
+                    break
+                if self._requested is not None:
+                    stop = (self._requested, f"stop requested ({self._requested})")
                     break
                 stamp, q, dq = iface.read()
                 if stamp != last_stamp:
@@ -559,8 +606,9 @@ class RealtimeLoop:
             dq_last[:] = dq
             is_mpc = k >= next_mpc
             if is_mpc:
-                if self._pending_reference is not None:
-                    ref, self._pending_reference = self._pending_reference, None
+                pending = self._pending_reference
+                if pending is not None and k * P >= pending[1] - 1e-9:
+                    ref, self._pending_reference = pending[0], None
                     self.reference = ref
                 try:
                     # copies: the interface may reuse its arrays, a controller may keep them
@@ -623,12 +671,15 @@ class RealtimeLoop:
                     else:
                         gc_deferred += 1
             k += 1
-        # ---- stop: the safe torque now, from the last finite state
+        # ---- stop: the safe torque now, from the last finite state, then the brake
+        # (module doc, "Safe stop"); with no fresh state to brake on, the held-safe torque
         stop_record = None
+        fresh = stop is None or stop[0] != "watchdog"
         if stop is not None:
             cause, reason = stop
             detected = clock()
-            tau_safe = self._safe_write(q_last, dq_last)
+            tau_safe = (self._safe_write(q_last, dq_last) if fresh
+                        else self._held_write(q_last))  # fmt: skip
             written = clock()
             cycle = min(k, K)
             stop_record = {
@@ -643,9 +694,11 @@ class RealtimeLoop:
                 "safe_after_deadline": written - deadline,
                 "safe_after_detection": written - detected,
             }
-        else:
+        elif fresh:
             self._safe_write(q_last, dq_last)
-        self._hold(P)
+        brake = self._brake(P, q_last, dq_last, last_stamp if not paced else stamp, fresh)
+        if stop_record is not None:
+            stop_record["brake"] = brake
         cycles_run = int(np.count_nonzero(np.isfinite(done_a)))
         stats = {
             "rate": st.rate,
@@ -672,6 +725,7 @@ class RealtimeLoop:
             "gc_all_collections": watch.count,
             "gc_all_max_s": watch.longest,
             "period_us": 1e6 * P,
+            "brake": brake,
         }
         self._check_latency(stats)
         meta = {**self.meta, "realtime": stats, "stop": stop_record}
@@ -695,6 +749,8 @@ class RealtimeLoop:
         measured, declared = stats["measured_latency"], stats["declared_latency"]
         stats["latency_tolerance"] = None
         if measured is None or declared is None or not np.isfinite(measured["median_us"]):
+            return
+        if measured.get("count", 0) < MIN_LATENCY_SAMPLES:  # no advice from a few samples
             return
         inner = _inner(self.controller)
         bandwidth = None
@@ -722,28 +778,93 @@ class RealtimeLoop:
         )
 
     def _safe_write(self, q, dq) -> np.ndarray:
+        """Write the safe torque at ``(q, dq)``; a non-finite one (a model or a state gone
+        wrong) is replaced by the held-safe torque at the last finite position, then by
+        zero: a non-finite command is never written."""
         tau = np.asarray(self.safe_torque(q, dq), dtype=float)
+        if not np.isfinite(tau).all():
+            return self._held_write(q)
         self.interface.write(tau)
+        return tau
+
+    def _held(self, q) -> np.ndarray:
+        """The held-safe torque at ``q`` (:meth:`~.safety.SafeTorque.held`; for another
+        safe-torque function, itself at zero velocity)."""
+        held = getattr(self.safe_torque, "held", None)
+        if callable(held):
+            return np.asarray(held(q), dtype=float)
+        return np.asarray(self.safe_torque(q, np.zeros_like(q)), dtype=float)
+
+    def _held_write(self, q) -> np.ndarray:
+        """Write the held-safe torque at ``q`` (zero if it is not finite)."""
+        tau = self._held(q) if np.isfinite(q).all() else np.full(len(q), np.nan)
+        if not np.isfinite(tau).all():
+            tau = np.zeros(len(q))
+        self.interface.write(tau)
+        self._held_tau = tau
         return tau
 
     def _safe_words(self) -> str:
         describe = getattr(self.safe_torque, "describe", None)
-        return "safe torque " + (describe() if callable(describe) else "commanded") + " commanded"
+        held = getattr(self.safe_torque, "describe_held", None)
+        return ("safe torque " + (describe() if callable(describe) else "commanded")
+                + " commanded, then the brake; "
+                + (held() if callable(held) else "the safe torque at rest")
+                + " at the last position left on the arm")  # fmt: skip
 
-    def _hold(self, P: float) -> None:
-        """Refresh the safe torque at the loop rate for ``safety.hold`` seconds."""
-        end = self.clock() + self.safety.hold
-        q_keep = dq_keep = None
-        while True:
-            now = self.clock()
+    def _brake(self, P: float, q_last, dq_last, stamp: float, fresh: bool) -> dict:
+        """The stop sequence (:mod:`.safety`): while fresh finite states arrive, the safe
+        torque at each, until every joint is slower than ``safety.brake_speed`` or
+        ``safety.hold`` has passed; then the held-safe torque at the last finite position,
+        the last command written. Works on copies: the interface may reuse its arrays.
+
+        Returns:
+            ``ended`` (``"still"``, ``"time bound"``, ``"no fresh state"``), ``duration``
+            [s], ``states`` (fresh states braked on), ``speed`` (max |q̇| [rad/s] at the
+            last finite state), ``held_tau`` [N·m] (the last command).
+        """
+        sf, iface, clock = self.safety, self.interface, self.clock
+        q_keep, dq_keep = np.array(q_last, dtype=float), np.array(dq_last, dtype=float)
+        start = clock()
+        end = start + sf.hold
+        fresh_at = start
+        states = 0
+        ended = "no fresh state"
+        wait = getattr(iface, "wait", None) if self.paced else None
+        while fresh:
+            now = clock()
+            if float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:
+                ended = "still"
+                break
             if now >= end:
-                return
-            self.sleep(min(now + P, end))
-            _, q, dq = self.interface.read()
-            if np.isfinite(q).all() and np.isfinite(dq).all():
-                q_keep, dq_keep = q, dq
-            if q_keep is not None:
+                ended = "time bound"
+                break
+            if wait is not None:
+                if not wait(min(sf.watchdog, end - now)):
+                    if clock() >= end:
+                        continue
+                    break
+            else:
+                self.sleep(min(now + P, end))
+            new_stamp, q, dq = iface.read()
+            if new_stamp == stamp:
+                if clock() - fresh_at > sf.watchdog:
+                    break
+                continue
+            stamp, fresh_at = new_stamp, clock()
+            if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+                continue  # not a state to brake on; the last finite one stands
+            q_keep[:] = q
+            dq_keep[:] = dq
+            states += 1
+            if float(np.max(np.abs(dq_keep), initial=0.0)) >= sf.brake_speed:
                 self._safe_write(q_keep, dq_keep)
+        # (after a watchdog stop it is on the arm already: written once)
+        held = self._held_write(q_keep) if fresh else self._held_tau
+        self._last_state = (q_keep, np.zeros_like(dq_keep))
+        return {"ended": ended, "duration": clock() - start, "states": states,
+                "speed": float(np.max(np.abs(dq_keep), initial=0.0)),
+                "q": q_keep.tolist(), "held_tau": held.tolist()}  # fmt: skip
 
     def _state_fault(self, q, dq) -> str:
         sf = self.safety

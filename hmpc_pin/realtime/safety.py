@@ -8,6 +8,25 @@ with :math:`G(q)` from Pinocchio (the controller's model, ``rnea(q, 0, 0)``) and
 :math:`D = \\mathrm{diag}(d_i)` [N·m·s/rad] the joint damping. It is what a driver sends
 while it hands the arm back to its brakes (libfranka's and UR's own stops do the same
 with the controller's model replaced by the vendor's).
+
+An effort interface holds the last command it received until it is told otherwise
+(ros2_control's ``JointGroupEffortController`` has no timeout), so what is written last
+must be safe to hold forever without new states. The **stop sequence** of the real-time
+loop is therefore:
+
+1. at the stop, :math:`\\tau_\\mathrm{safe}` at the last finite state (or, with no fresh
+   state to brake on, step 3 at once);
+2. while fresh states arrive, brake: :math:`\\tau_\\mathrm{safe}` at each *current*
+   state, until every :math:`|\\dot q_i|` is below ``brake_speed`` or ``hold`` seconds
+   have passed (or no fresh state comes within the watchdog);
+3. the **held-safe** torque :math:`\\tau_\\mathrm{held} = g\\,G(q)` at the last finite
+   position, with no velocity term (a damping term on a velocity that is no longer
+   measured is a constant torque that accelerates the arm): zero when the arm
+   compensates gravity itself (:math:`g = 0`).
+
+On an arm without friction the held-safe torque leaves it coasting at the speed it had
+(at most ``brake_speed`` after a completed brake): the drift over a time :math:`T` is at
+most :math:`T \\cdot` ``brake_speed`` plus the model's gravity error.
 """
 
 from __future__ import annotations
@@ -17,16 +36,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..controllers.base import ControllerWrapper
 from ..exceptions import ConfigError
 from ..model.robot import Robot
 
-__all__ = ["STOP_CAUSES", "SafeTorque", "SafetySettings"]
+__all__ = ["STOP_CAUSES", "GravityByArm", "SafeTorque", "SafetySettings"]
 
 FloatArray = NDArray[np.float64]
 
 #: Why a loop stops early: Ctrl-C, a fault (non-finite value, QP not solved, state beyond
-#: limits, any controller error), k consecutive missed deadlines, no new state (watchdog).
-STOP_CAUSES = ("interrupted", "fault", "misses", "watchdog")
+#: limits, any controller error), k consecutive missed deadlines, no new state (watchdog),
+#: a stop asked by the program (a ROS lifecycle node deactivated).
+STOP_CAUSES = ("interrupted", "fault", "misses", "watchdog", "deactivated")
 
 
 class SafeTorque:
@@ -52,6 +73,16 @@ class SafeTorque:
             tau += self.robot.gravity_torque(q)
         return tau
 
+    def held(self, q: FloatArray) -> FloatArray:
+        """The held-safe torque :math:`g\\,G(q)` [N·m], (n,): no velocity term (module doc)."""
+        if self.gravity:
+            return np.array(self.robot.gravity_torque(q), dtype=float)
+        return np.zeros(self.robot.nq)
+
+    def describe_held(self) -> str:
+        """The held-safe torque in words: ``"G(q)"`` or ``"zero torque"``."""
+        return "G(q)" if self.gravity else "zero torque"
+
     def describe(self) -> str:
         """In words, e.g. ``"gravity compensation + damping 2 N·m·s/rad"``."""
         d = self.damping
@@ -69,8 +100,11 @@ class SafetySettings:
         max_misses: This many consecutive periods without a torque written in time
             stop the loop (k; libfranka's reflex trips after a few).
         watchdog: A stamp that has not advanced for longer than this [s] stops the loop.
-        hold: After a stop, the safe torque is refreshed at the loop rate for this long
-            [s] (at least once, immediately).
+        hold: Bound in time [s] of the brake after a stop (module doc): the safe torque
+            at each fresh state, at most this long, then the held-safe torque; 0 writes
+            the held-safe torque right after the stop's first safe torque.
+        brake_speed: The brake ends when every joint's measured speed is below this
+            [rad/s] (the arm then drifts at most this fast under the held-safe torque).
     """
 
     lower: FloatArray
@@ -79,9 +113,43 @@ class SafetySettings:
     max_misses: int = 10
     watchdog: float = 0.01
     hold: float = 0.1
+    brake_speed: float = 0.005
+
+    def __post_init__(self):
+        for name in ("watchdog", "hold", "brake_speed"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
+                raise ConfigError(f"realtime.{name}", f"expected a number >= 0, got {value!r}")
 
     @classmethod
     def unlimited(cls, n: int, **kwargs) -> SafetySettings:
         """No position or velocity bound (tests, simulated arms without limits)."""
         inf = np.full(n, np.inf)
         return cls(-inf, inf.copy(), inf.copy(), **kwargs)
+
+
+class GravityByArm(ControllerWrapper):
+    """The wrapped controller's torque without gravity, for an arm that adds
+    :math:`G(q)` itself (Franka's FCI, KUKA's FRI torque overlay):
+    :math:`\\tau_\\mathrm{sent} = \\tau - G(q)` at the state of the step (pair it with a
+    :class:`SafeTorque` with ``gravity=False``).
+
+    Args:
+        controller: The controller (its torque includes :math:`G(q)`).
+        robot: The model :math:`G` is computed on (the controller's).
+    """
+
+    def __init__(self, controller, robot: Robot):
+        super().__init__(controller)
+        self.robot = robot
+
+    def step(self, t: float, q: FloatArray, dq: FloatArray, reference: object) -> FloatArray:
+        """The controller's torque minus :math:`G(q)` [N·m]."""
+        tau = self.controller.step(t, q, dq, reference)
+        return np.asarray(tau, dtype=float) - self.robot.gravity_torque(q)
+
+    def __getattr__(self, name: str):
+        # everything else (latency, detected_at, warm_up, ...) is the controller's
+        if name == "controller":
+            raise AttributeError(name)
+        return getattr(self.controller, name)

@@ -2,15 +2,28 @@
 :class:`~hmpc_pin.realtime.interface.PacedInterface` over two topics.
 
 * states: ``sensor_msgs/JointState`` on ``/joint_states`` (joint_state_broadcaster),
-  matched to the robot's joints by name (any order, extra joints ignored); a message
-  without velocities is read as non-finite (a fault: the controller needs q̇);
+  **merged by joint name**: each message updates the controlled joints it names (any
+  order; other joints ignored); a message that names none of them (a gripper's driver, a
+  second broadcaster, joint_state_publisher) is ignored and is not a period; a state is
+  complete — one period — when every controlled joint has been updated since the last
+  one (one message from a broadcaster that publishes them all). A message without
+  positions or velocities for its joints gives non-finite values (a fault: the controller
+  needs both);
 * torque: ``std_msgs/Float64MultiArray`` on ``/effort_controller/commands``
   (effort_controllers' JointGroupEffortController), in the robot's joint order.
 
-Stamps are the messages' ``header.stamp`` on the system clock, shifted to start near 0;
-a driver that leaves the stamp at zero, or stamps on another clock (simulated time,
-more than 1 s from the wall when the first state arrives), is timed from each state's
-arrival instead (``stamps`` says which).
+Time: stamps are the messages' ``header.stamp`` on the system clock, shifted to start
+near 0; a driver that leaves the stamp at zero, or stamps on another clock (simulated
+time, more than 1 s from the wall when the first state arrives), is timed from each
+state's arrival instead (``stamps`` says which). Each state also has its **arrival**
+time (the middleware's reception time stamp, else the time it was taken), on the same
+clock: the loop's deadline for a state is its arrival plus a period, so a constant
+transport delay is no miss; the stamp-to-command latency is measured apart
+(``stats["measured_latency"]``). :meth:`RosArmInterface.wait` returns the periods
+elapsed by the stamps (the loop's time follows the arm's) and sets
+``overdue``, the states among them the loop failed to answer in time
+(taken more than a period after they arrived); a burst after a stall of the arm is not
+the loop's miss.
 """
 
 from __future__ import annotations
@@ -23,7 +36,61 @@ import numpy as np
 from ..exceptions import ArmError
 from .node import RosNode
 
-__all__ = ["RosArmInterface"]
+__all__ = ["JointStateMerger", "RosArmInterface"]
+
+
+class JointStateMerger:
+    """Joint states merged by name into the robot's order (module doc); no rclpy needed.
+
+    Args:
+        joint_names: The controlled joints, in the order of ``q``.
+
+    Attributes:
+        q, dq: The merged state [rad, rad/s], (n,) (NaN until a joint is named).
+        seen: Whether each joint has been named at least once.
+        ignored: Messages that named none of the controlled joints.
+    """
+
+    def __init__(self, joint_names: Sequence[str]):
+        self.names = tuple(joint_names)
+        n = len(self.names)
+        self.q, self.dq = np.full(n, np.nan), np.full(n, np.nan)
+        self.seen = np.zeros(n, dtype=bool)
+        self._fresh = np.zeros(n, dtype=bool)
+        self._key: list[str] | None = None
+        self._src = self._dst = np.zeros(0, dtype=int)
+        self.other_names: list[str] = []
+        self.ignored = 0
+
+    def add(self, names, position, velocity) -> bool:
+        """Merge one message; True when it completes a state (every controlled joint
+        updated since the last complete one)."""
+        if names != self._key:
+            self._key = list(names)
+            where = {name: i for i, name in enumerate(self._key)}
+            pairs = [(where[x], j) for j, x in enumerate(self.names) if x in where]
+            self._src = np.array([a for a, _ in pairs], dtype=int)
+            self._dst = np.array([b for _, b in pairs], dtype=int)
+        if self._dst.size == 0:
+            self.ignored += 1
+            self.other_names = list(names)
+            return False
+        m = len(self._key)
+        pos = np.asarray(position, dtype=float)
+        vel = np.asarray(velocity, dtype=float)
+        self.q[self._dst] = pos[self._src] if pos.size == m else np.nan
+        self.dq[self._dst] = vel[self._src] if vel.size == m else np.nan
+        self.seen[self._dst] = True
+        self._fresh[self._dst] = True
+        if not self._fresh.all():
+            return False
+        self._fresh[:] = False
+        return True
+
+    @property
+    def missing(self) -> list[str]:
+        """The controlled joints no message has named yet."""
+        return [x for x, s in zip(self.names, self.seen, strict=True) if not s]
 
 
 class RosArmInterface:
@@ -36,11 +103,17 @@ class RosArmInterface:
         period: The interface period [s] the arm publishes at.
         joint_states, commands: Topic names.
         start_timeout: How long [s] :meth:`start` waits for the first state.
+        qos: The QoS profile of the command topic (default: keep-last 10, reliable, as
+            ros2_control's); the joint states are subscribed best effort with its depth.
 
     Attributes:
         stamps: ``"header"`` or ``"arrival"`` (module doc), set by :meth:`start`.
-        received: Joint-state messages received.
+        received: Complete joint states received (periods).
         published: Commands published.
+        arrival: When the state taken by the last :meth:`wait` arrived [s], on
+            :meth:`clock`.
+        overdue: How many of the periods the last :meth:`wait` returned arrived more than
+            a period before it (states not answered in time: misses).
     """
 
     def __init__(
@@ -51,6 +124,7 @@ class RosArmInterface:
         joint_states: str,
         commands: str,
         start_timeout: float = 10.0,
+        qos=None,
     ):
         self.ros = ros
         self.names = tuple(joint_names)
@@ -59,25 +133,37 @@ class RosArmInterface:
         self.start_timeout = start_timeout
         self.joint_states_topic = ros.topic(joint_states)
         self.commands_topic = ros.topic(commands)
+        qos = qos if qos is not None else ros.qos(10)
         std = ros.msgs["std_msgs"]
         self._cmd = std.Float64MultiArray()
-        self._pub = ros.node.create_publisher(std.Float64MultiArray, commands, ros.qos(10))
-        self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states,
-                                  ros.qos(1, reliable=False))  # the newest state only  # fmt: skip
+        self._pub = ros.node.create_publisher(std.Float64MultiArray, commands, qos)
+        # every state taken (merged by name), the newest answered; best effort (matches a
+        # reliable publisher too): the arm's driver never waits for, or resends to, the
+        # controller
+        state_qos = ros.qos(getattr(qos, "depth", 10), reliable=False)
+        self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states, state_qos)
         self._others: list[tuple[object, object]] = []
         self._wait = ros.waiter([self._sub])
-        self._arrived = 0
-        self._latest: tuple[float, np.ndarray, np.ndarray] | None = None
-        self._seen_names: list[str] | None = None
-        self._index: np.ndarray | None = None
-        self._missing: list[str] = []
+        self._merge = JointStateMerger(self.names)
+        self._arrivals: list[float] = []
+        self._periods = 0
+        self._latest: tuple[float, np.ndarray, np.ndarray, float] | None = None
         self._origin = 0.0
         self._arrival = False
+        self._based = False
         self.stamps = "header"
         self.received = 0
         self.published = 0
+        self.overdue = 0
+        self.arrival = 0.0
         self._stamp = 0.0
+        self._header_stamp = self._latest_header = self._taken_header = 0.0
         self._q, self._dq = np.zeros(n), np.zeros(n)
+
+    @property
+    def ignored(self) -> int:
+        """Messages that named none of the controlled joints (not periods)."""
+        return self._merge.ignored
 
     def add_subscription(self, msg_type, topic: str, callback, qos) -> str:
         """Take ``topic``'s messages in :meth:`wait` too, calling ``callback(msg)`` in the
@@ -88,58 +174,70 @@ class RosArmInterface:
         return self.ros.topic(topic)
 
     def _poll(self) -> None:
-        """Take what has arrived: the states (newest last), then the other topics."""
+        """Take what has arrived: the states (oldest first), then the other topics."""
+        for msg, received in self.ros.take_with_time(self._sub):
+            self._on_state(msg, received)
         take = self.ros.take
-        for msg in take(self._sub):
-            self._on_state(msg)
         for sub, callback in self._others:
             for msg in take(sub):
                 callback(msg)
 
-    def _on_state(self, msg) -> None:
+    def _on_state(self, msg, received: float) -> None:
+        """Merge one message; ``received`` [s] is its reception on the system clock (0:
+        unknown, now)."""
         now = time.time()
-        names = msg.name
-        if names != self._seen_names:
-            self._seen_names = list(names)
-            where = {name: i for i, name in enumerate(names)}
-            self._missing = [name for name in self.names if name not in where]
-            self._index = None if self._missing else np.array([where[x] for x in self.names])
-        n = self.nq
-        if self._index is None:
-            q = dq = np.full(n, np.nan)
-        else:
-            pos = np.asarray(msg.position, dtype=float)
-            vel = np.asarray(msg.velocity, dtype=float)
-            q = pos[self._index] if pos.size == len(names) else np.full(n, np.nan)
-            dq = vel[self._index] if vel.size == len(names) else np.full(n, np.nan)
+        if not self._merge.add(msg.name, msg.position, msg.velocity):
+            return
         st = msg.header.stamp
         stamp = st.sec + 1e-9 * st.nanosec
-        if self.received == 0:
-            # the first state decides the time base (module doc)
+        self._header_stamp = stamp
+        if not self._based:
+            # the first complete state decides the time base (module doc)
+            self._based = True
             self._arrival = stamp == 0.0 or abs(stamp - now) > 1.0
             self.stamps = "arrival" if self._arrival else "header"
             self._origin = float(int(now))
-        stamp = (now if self._arrival or stamp == 0.0 else stamp) - self._origin
+        arrival = (received if 0.0 < received <= now + 1e-3 else now) - self._origin
+        stamp = arrival if self._arrival or stamp == 0.0 else stamp - self._origin
         if self._latest is not None:  # periods since the previous state (>= 1)
-            self._arrived += max(1, round((stamp - self._latest[0]) / self.period))
+            self._periods += max(1, round((stamp - self._latest[0]) / self.period))
         else:
-            self._arrived += 1
-        self._latest = (stamp, q, dq)
+            self._periods += 1
+        self._latest = (stamp, self._merge.q.copy(), self._merge.dq.copy(), arrival)
+        self._latest_header = self._header_stamp or arrival + self._origin
+        self._arrivals.append(arrival)
         self.received += 1
 
     # -------------------------------------------------------------- the loop's side
     def start(self) -> None:
-        """Wait for the first state (spinning the node in this thread): its joints must
-        cover the robot's.
+        """Wait for the first complete state (spinning the node in this thread): the
+        messages, merged by name, must cover the robot's joints; messages naming only
+        other joints are ignored.
 
         Raises:
-            ArmError: No state within ``start_timeout``, or one without some of
-                the robot's joints or without positions and velocities for each.
+            ArmError: No complete state within ``start_timeout`` (none at all, only
+                other joints, or some of the robot's joints never named), or one
+                without finite positions and velocities.
         """
         end = time.monotonic() + self.start_timeout
         while self._latest is None and time.monotonic() < end:
             self._wait(min(0.1, max(0.0, end - time.monotonic())))
             self._poll()
+        merge = self._merge
+        if self._latest is None and merge.seen.any():
+            raise ArmError(
+                f"the joint states on {self.joint_states_topic} named the robot's joints "
+                f"{[x for x, s in zip(self.names, merge.seen, strict=True) if s]} but never "
+                f"{merge.missing} within {self.start_timeout:g} s (ros.start_timeout); "
+                "expected every controlled joint (lock the others in [robot])"
+            )
+        if self._latest is None and merge.ignored:
+            raise ArmError(
+                f"the {merge.ignored} joint states on {self.joint_states_topic} within "
+                f"{self.start_timeout:g} s name only other joints (last: "
+                f"{merge.other_names}), none of the robot's {list(self.names)}; start the "
+                "arm's joint_state_broadcaster, or check ros.joint_states and [robot]"
+            )
         if self._latest is None:
             raise ArmError(
                 f"no sensor_msgs/JointState on {self.joint_states_topic} within "
@@ -147,13 +245,7 @@ class RosArmInterface:
                 "(or `hmpc-pin ros-arm CONFIG`) and check ros.joint_states and the "
                 "namespace"
             )
-        if self._missing:
-            raise ArmError(
-                f"the joint states on {self.joint_states_topic} name "
-                f"{self._seen_names} but not the robot's joints {self._missing}; "
-                "expected every controlled joint (lock the others in [robot])"
-            )
-        _, q, dq = self._latest  # type: ignore[misc]
+        _, q, dq, _ = self._latest
         if not (np.isfinite(q).all() and np.isfinite(dq).all()):
             raise ArmError(
                 f"the joint states on {self.joint_states_topic} carry no finite position "
@@ -161,25 +253,41 @@ class RosArmInterface:
             )
         self.wait(0.0)
 
+    def stamp_time(self) -> float:
+        """The stamp [s] of the state taken last, on the arm's clock: the message's
+        ``header.stamp`` (simulated time under ``use_sim_time``), or its arrival on the
+        system clock if the stamp is zero."""
+        return self._taken_header
+
     def clock(self) -> float:
         """Now [s] on the stamps' clock (the system clock shifted as the stamps are)."""
         return time.time() - self._origin
 
     def wait(self, timeout: float) -> int:
-        """Block until a new state arrives or ``timeout`` [s] (messages of the other
-        subscriptions are handled here too); take the newest and return how many
-        interface periods its stamp is after the previous one taken."""
+        """Block until a new complete state arrives or ``timeout`` [s] (messages of the
+        other subscriptions are handled here too); take the newest and return how many
+        interface periods its stamp is after the previous one taken. Sets
+        ``arrival`` (the state's arrival, on :meth:`clock`) and ``overdue`` (the
+        states taken with it that arrived more than a period ago: not answered in time)."""
+        woke = self.clock()  # (taking a burst of messages is not the loop being late)
         self._poll()
-        if not self._arrived:
+        if not self._arrivals:
             end = time.monotonic() + timeout
-            while not self._arrived and (remaining := end - time.monotonic()) > 0:
+            while not self._arrivals and (remaining := end - time.monotonic()) > 0:
                 self._wait(remaining)
+                woke = self.clock()
                 self._poll()
-        count, self._arrived = self._arrived, 0
-        if count:
-            self._stamp, q, dq = self._latest  # type: ignore[misc]
-            self._q[:] = q
-            self._dq[:] = dq
+        if not self._arrivals:
+            self.overdue = 0
+            return 0
+        count, self._periods = self._periods, 0
+        late = woke - self.period
+        self.overdue = sum(1 for a in self._arrivals[:-1] if a < late)
+        self._arrivals.clear()
+        self._stamp, q, dq, self.arrival = self._latest  # type: ignore[misc]
+        self._taken_header = self._latest_header
+        self._q[:] = q
+        self._dq[:] = dq
         return count
 
     def read(self) -> tuple[float, np.ndarray, np.ndarray]:

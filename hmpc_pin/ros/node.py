@@ -12,7 +12,9 @@ back and forth at every state; taken directly a state costs tens of µs.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import threading
 from collections.abc import Callable
 from types import ModuleType
 
@@ -52,32 +54,117 @@ def discovery_range(configured: str | None, environ=os.environ) -> str:
 class RosNode:
     """One rclpy context and node; messages taken by the caller (module doc).
 
+    The node is a lifecycle node (``rclpy.lifecycle``; its ``change_state`` and
+    ``get_state`` services answered once :meth:`serve` runs): it configures and activates
+    itself at :meth:`serve`; ``deactivate`` (or ``shutdown``) from an orchestrator calls
+    the function given to :meth:`on_deactivate` (the controller's stop sequence) and
+    returns when it has run. Parameters given here are declared read-only with the
+    config's values (``ros2 param list``); a ``--ros-args -p`` override of one of them
+    that differs from the config is refused (set it in the config file).
+
     Args:
         name: Node name.
         namespace: Node namespace (``""``: the root).
         discovery: ``ROS_AUTOMATIC_DISCOVERY_RANGE`` set before rclpy starts.
         needed_for: What needs rclpy (for the missing-extra message).
+        ros_args: Arguments after ``--ros-args`` (remaps ``-r``, ``__ns``, ``__node``,
+            ``-p use_sim_time:=true``, ...), given to rclpy.
+        parameters: ``{name: value}`` declared read-only on the node.
 
     Attributes:
-        node: The ``rclpy.node.Node``.
+        node: The ``rclpy`` node.
         msgs: The modules of :func:`import_ros`.
     """
 
-    def __init__(self, name: str, namespace: str, discovery: str, needed_for: str):
+    def __init__(self, name: str, namespace: str, discovery: str, needed_for: str,
+                 ros_args: list[str] | None = None, parameters: dict | None = None):  # fmt: skip
         self.msgs = import_ros(needed_for)
         rclpy = self.msgs["rclpy"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery
         self.context = rclpy.context.Context()
-        rclpy.init(context=self.context,
-                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)  # fmt: skip
+        args = ["hmpc-pin", "--ros-args", *ros_args] if ros_args else None
         try:
-            self.node = rclpy.create_node(name, namespace=namespace or None,
-                                          context=self.context)  # fmt: skip
+            rclpy.init(args=args, context=self.context,
+                       signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)  # fmt: skip
+        except Exception as exc:  # rcl's RCLInvalidROSArgsError, ...
+            raise ConfigError("--ros-args", f"rclpy refused {ros_args} ({exc}); expected ROS 2 "
+                              "arguments such as -r from:=to, -r __ns:=/arm1, -p "
+                              "use_sim_time:=true") from None  # fmt: skip
+        self._deactivate: tuple[Callable, tuple] | None = None
+        self._executor = None
+        self._thread = None
+        try:
+            self.node = _lifecycle_node(self, name, namespace)
         except Exception as exc:  # rclpy's InvalidNodeNameException, ...
             self.context.try_shutdown()
             raise ConfigError("ros.node", f"rclpy refused the node {name!r} in namespace "
                               f"{namespace!r}: {exc}") from None  # fmt: skip
         self._closed = False
+        from rclpy.callback_groups import CallbackGroup
+
+        class _Manual(CallbackGroup):
+            """Subscriptions whose messages the caller takes: never an executor's."""
+
+            def can_execute(self, entity) -> bool:
+                return False
+
+            def beginning_execution(self, entity) -> bool:
+                return False
+
+            def ending_execution(self, entity) -> None:
+                pass
+
+        self._manual = _Manual()
+        if parameters:
+            self._declare(parameters)
+
+    def _declare(self, parameters: dict) -> None:
+        from rcl_interfaces.msg import ParameterDescriptor
+
+        for key, value in parameters.items():
+            try:
+                got = self.node.declare_parameter(
+                    key, value, ParameterDescriptor(read_only=True, description="from the config")
+                ).value
+            except Exception as exc:  # an override of another type (rclpy's exceptions)
+                self.close()
+                raise ConfigError(key, f"--ros-args sets it to a value of another type than "
+                                  f"the config's {value!r} ({exc}); set it in the config "
+                                  "file") from None  # fmt: skip
+            if got != value and not (isinstance(value, list) and list(got) == value):
+                self.close()
+                raise ConfigError(
+                    key, f"--ros-args sets {got!r} but the config has {value!r}; the node's "
+                    "parameters mirror the config: set it in the config file"
+                )  # fmt: skip
+
+    def serve(self) -> None:
+        """Configure and activate the lifecycle node, and answer its services (parameters,
+        lifecycle, ``/clock`` with ``use_sim_time``) in a thread of their own; the
+        subscriptions of :meth:`subscribe` stay the caller's."""
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.node.trigger_configure()
+        self.node.trigger_activate()
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name="ros_services", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        with contextlib.suppress(Exception):  # the context shut down under it
+            self._executor.spin()  # type: ignore[union-attr]
+
+    def on_deactivate(self, stop: Callable, *args) -> None:
+        """Call ``stop(*args)`` when the node is deactivated or shut down (from the
+        services' thread); it returns when the stop sequence has run."""
+        self._deactivate = (stop, args)
+
+    def _transition_stop(self) -> None:
+        if self._deactivate is not None:
+            stop, args = self._deactivate
+            self._deactivate = None
+            stop(*args)
 
     def qos(self, depth: int = 10, reliable: bool = True):
         """A keep-last QoS profile (best effort subscribes to both kinds of publisher)."""
@@ -100,8 +187,10 @@ class RosNode:
             return f"{ns}/{name}"
 
     def subscribe(self, msg_type, topic: str, qos):
-        """A subscription whose messages are taken with :meth:`take` (no callback)."""
-        return self.node.create_subscription(msg_type, topic, _never, qos)
+        """A subscription whose messages are taken with :meth:`take` (no callback; no
+        executor takes them)."""
+        return self.node.create_subscription(msg_type, topic, _never, qos,
+                                             callback_group=self._manual)  # fmt: skip
 
     @staticmethod
     def take(sub) -> list:
@@ -110,6 +199,19 @@ class RosNode:
         with sub.handle:
             while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
                 out.append(taken[0])
+        return out
+
+    @staticmethod
+    def take_with_time(sub) -> list:
+        """``(message, received [s])`` for each message waiting on ``sub``, oldest first:
+        ``received`` is the middleware's reception time on the system clock (0 where the
+        middleware does not give it)."""
+        out = []
+        with sub.handle:
+            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                msg, info = taken
+                received = info.get("received_timestamp", 0) if isinstance(info, dict) else 0
+                out.append((msg, 1e-9 * received))
         return out
 
     def waiter(self, subs) -> Callable[[float], None]:
@@ -132,8 +234,30 @@ class RosNode:
         if self._closed:
             return
         self._closed = True
+        self._deactivate = None
+        if self._executor is not None:
+            self._executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         self.context.try_shutdown()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+
+
+def _lifecycle_node(owner: RosNode, name: str, namespace: str):
+    """A ``rclpy.lifecycle.LifecycleNode`` whose deactivate and shutdown run the owner's
+    stop (:meth:`RosNode.on_deactivate`)."""
+    from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+
+    class _Node(LifecycleNode):
+        def on_deactivate(self, state):
+            owner._transition_stop()
+            return TransitionCallbackReturn.SUCCESS
+
+        def on_shutdown(self, state):
+            owner._transition_stop()
+            return TransitionCallbackReturn.SUCCESS
+
+    return _Node(name, namespace=namespace or None, context=owner.context)
 
 
 def _never(msg) -> None:  # pragma: no cover - messages are taken, never dispatched

@@ -3,7 +3,9 @@ it replaces the current one.
 
 The message's points (``positions``, optionally ``velocities``, at ``time_from_start``)
 start at ``header.stamp`` (zero: now, as ros2_control's joint trajectory controller
-reads it), on the loop's time axis. The new reference is the
+reads it), on the loop's time axis; a stamp in the future is where the new reference
+begins (the current one runs until then: the returned trajectory starts at its
+``times[0]``). The new reference is the
 :class:`~hmpc_pin.tasks.trajectory.JointTrajectory` through
 
 * the current reference's position at the switch time :math:`t_s`, unless the first
@@ -58,7 +60,8 @@ def trajectory_from_message(
         msg: A ``trajectory_msgs/JointTrajectory`` (any object with its fields).
         robot: The controller's model (joint names, velocity limits).
         current: The reference in use (sampled at the switch time).
-        now: The loop time [s] at which the message takes over (if unstamped).
+        now: The loop time [s] at which the message takes over (if unstamped or stamped
+            earlier).
         lower, upper: Position limits [rad], (n,).
         origin: The loop clock's origin on the system clock [s] (for a stamped start).
 
@@ -110,7 +113,9 @@ def trajectory_from_message(
     if t_s < now - 1e-3:
         raise TrajectoryError(_SOURCE, f"header.stamp {t_s - now:.3f} s in the past",
                               "a start not in the past (or a zero stamp: now)")  # fmt: skip
-    t_s = max(t_s, now)
+    # a start in the future: the current reference runs until then (the caller swaps the
+    # new one in at its first time, ``traj.times[0]``)
+    now = t_s = max(t_s, now)
     q_now = np.asarray(current.sample(now)[0], dtype=float)
     times = t_s + times
     if times[0] > now + 1e-9:  # move from the current reference to the first point

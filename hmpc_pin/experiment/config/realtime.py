@@ -23,7 +23,13 @@ class RealtimeConfig:
         gravity: Gravity compensation in the safe torque.
         max_misses: Consecutive missed deadlines that stop the loop (k).
         watchdog: A state stamp that does not advance for this long [s] stops the loop.
-        hold: How long the safe torque is refreshed after a stop [s].
+        hold: Bound in time [s] of the brake after a stop (and at the end of a run): the
+            safe torque at each fresh state until every joint is slower than
+            ``brake_speed``, at most this long; then the held-safe torque ``G(q)`` (no
+            velocity term), the last command (:mod:`hmpc_pin.realtime.safety`). Default 2.
+        brake_speed: The brake ends when every joint is slower than this [rad/s]; the
+            arm then drifts at most about this fast under the held-safe torque. Default
+            0.005.
         limits: Stop when the measured state leaves the URDF limits widened by
             ``position_margin`` and ``velocity_scale``.
         position_margin: Margin [rad] outside the URDF position limits (with ``limits``).
@@ -46,7 +52,8 @@ class RealtimeConfig:
     gravity: bool = True
     max_misses: int = 10
     watchdog: float = 0.02
-    hold: float = 0.1
+    hold: float = 2.0
+    brake_speed: float = 0.005
     limits: bool = True
     position_margin: float | None = None
     velocity_scale: float | None = None
@@ -80,6 +87,7 @@ class RealtimeConfig:
         _set(self, "max_misses", _int("max_misses", self.max_misses, minimum=1))
         _set(self, "watchdog", _float("watchdog", self.watchdog, positive=True))
         _set(self, "hold", _float("hold", self.hold, nonneg=True))
+        _set(self, "brake_speed", _float("brake_speed", self.brake_speed, positive=True))
         _set(self, "limits", _bool("limits", self.limits))
         for name in ("position_margin", "velocity_scale"):
             value = getattr(self, name)

@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 
 from ...exceptions import ConfigError
-from ._fields import _float, _set
+from ._fields import _choice, _float, _int, _set
+
+#: ``[ros] gravity``: who compensates gravity (the guide "ROS 2" has a table per arm).
+GRAVITY = ("controller", "arm")
+#: ``[ros] qos_reliability`` values.
+RELIABILITY = ("reliable", "best_effort")
+#: ``[ros] external_torque_type`` values; ``"float64_multi_array"`` is deprecated.
+EXTERNAL_TORQUE_TYPES = ("joint_state", "float64_multi_array")
 
 #: ``[ros] discovery`` values and the ``ROS_AUTOMATIC_DISCOVERY_RANGE`` each sets.
 DISCOVERY_RANGES = {
@@ -53,8 +61,12 @@ class RosConfig:
         joint_states: Topic of the measured state (``sensor_msgs/JointState``).
         commands: Topic of the effort command [N·m] (``std_msgs/Float64MultiArray``).
         joint_trajectory: Topic of new references (``trajectory_msgs/JointTrajectory``).
-        external_torque: Topic of the disturbance estimate d̂ [N·m]
-            (``std_msgs/Float64MultiArray``), published at every controller step.
+        external_torque: Topic of the disturbance estimate d̂ [N·m], published at every
+            controller step as ``sensor_msgs/JointState`` (``header.stamp`` the state's
+            stamp, ``name`` the joints, ``effort`` d̂).
+        external_torque_type: ``"joint_state"`` (default) or ``"float64_multi_array"``
+            (the message of earlier versions, ``std_msgs/Float64MultiArray`` without
+            stamp or names; deprecated).
         collision: Topic of the collision flag (``std_msgs/Bool``), published at every
             controller step when ``[collision]`` is set.
         node: Name of the controller node.
@@ -69,6 +81,19 @@ class RosConfig:
             environment's value if set, else ``"localhost"`` (the controller and the
             arm's driver normally share a machine).
         start_timeout: How long [s] the controller waits for the first joint state.
+        gravity: Who compensates gravity. ``"controller"`` (default): every command
+            includes G(q) (ros2_control's effort interfaces on UR, simulated arms, the
+            mock). ``"arm"``: the arm adds G(q) itself (Franka FCI, KUKA FRI torque
+            overlay): no command includes it, and the held-safe command after a stop is
+            zero.
+        qos_depth: History depth of every subscription and publisher (ros2_control's
+            default: 10, ``SystemDefaultsQoS``). The joint states are all taken (merged by
+            joint name), the newest answered.
+        qos_reliability: ``"reliable"`` (ros2_control's default) or ``"best_effort"``:
+            the commands, the trajectory messages and the published estimates. The
+            joint states are always subscribed best effort (it matches a reliable
+            publisher too, and the arm's driver never waits for, or resends to, the
+            controller).
     """
 
     joint_states: str = "joint_states"
@@ -82,6 +107,10 @@ class RosConfig:
     rate: float = 1000.0
     discovery: str | None = None
     start_timeout: float = 10.0
+    gravity: str = "controller"
+    qos_depth: int = 10
+    qos_reliability: str = "reliable"
+    external_torque_type: str = "joint_state"
 
     def __post_init__(self):
         for key in ("joint_states", "commands", "joint_trajectory", "external_torque",
@@ -101,6 +130,21 @@ class RosConfig:
         _set(self, "namespace", check_namespace("namespace", self.namespace))
         _set(self, "rate", _float("rate", self.rate, positive=True))
         _set(self, "start_timeout", _float("start_timeout", self.start_timeout, positive=True))
+        _set(self, "gravity", _choice("gravity", self.gravity, GRAVITY))
+        _set(self, "qos_depth", _int("qos_depth", self.qos_depth, minimum=1))
+        _set(self, "qos_reliability", _choice("qos_reliability", self.qos_reliability,
+                                              RELIABILITY))  # fmt: skip
+        _set(self, "external_torque_type", _choice("external_torque_type",
+                                                   self.external_torque_type,
+                                                   EXTERNAL_TORQUE_TYPES))  # fmt: skip
+        if self.external_torque_type == "float64_multi_array":
+            warnings.warn(
+                "ros.external_torque_type = 'float64_multi_array' is deprecated: the "
+                "disturbance estimate is published as sensor_msgs/JointState (stamped, with "
+                "joint names, d̂ in effort); drop the key once the subscribers read it",
+                DeprecationWarning,
+                stacklevel=2,
+            )
         if self.discovery is not None and self.discovery not in DISCOVERY_RANGES:
             raise ConfigError("discovery", f"expected one of {tuple(DISCOVERY_RANGES)}, got "
                               f"{self.discovery!r}")  # fmt: skip

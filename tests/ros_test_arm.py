@@ -1,0 +1,380 @@
+"""An arm node the tests write themselves (plain rclpy, Pinocchio's ABA), run against
+``hmpc-pin ros`` by tests/test_ros_boundary.py inside a private network namespace
+(``unshare -n``; never outside one: DDS discovery multicasts).
+
+The arm publishes ``sensor_msgs/JointState`` on ``/joint_states`` every period (stamped
+with the period's instant on the system clock), applies the newest
+``std_msgs/Float64MultiArray`` on ``/effort_controller/commands`` from the next period
+on, and holds it (as ros2_control's effort controller: no timeout). Its physics is the
+controller's URDF integrated by Pinocchio's ABA (semi-implicit Euler, 1 ms substeps, joint
+friction); before the first command it holds still (brakes). Each scenario perturbs what
+the controller sees (module ``SCENARIOS``). When the controller has exited, the arm
+integrates 2 s of holding the last command it received, in simulated time, from its state
+when that command was applied: the drift is what the motors would do with the last thing
+sent. The physics has joint friction (``COULOMB``, ``VISCOUS``): a real arm's.
+
+    python tests/ros_test_arm.py SCENARIO CONFIG OUT DURATION
+
+Writes ``OUT/arm.json``: the controller's exit code and stderr, every command's arrival
+time and values (non-finite ones counted), the states published, and the drift.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+SCENARIOS = ("traffic", "nan", "silent", "stall", "delay", "trajectory", "interrupt",
+             "deactivate", "remap", "gravity_arm")  # fmt: skip
+#: "remap": the arm's topics under /arm, the controller told so by --ros-args remaps.
+REMAP = ["-r", "joint_states:=/arm/joint_states", "-r", "effort_controller/commands:=/arm/effort",
+         "-p", "use_sim_time:=false"]  # fmt: skip
+GRIPPER = ["panda_finger_joint1", "panda_finger_joint2"]
+#: [s] The transport delay of "delay": each state is sent this long after its stamp — 1.5
+#: interface periods at the tests' 500 Hz (the 1.5 ms of a 1 kHz arm): were the deadline the
+#: stamp, every cycle would miss.
+DELAY = 3e-3
+
+
+#: The arm's joint friction: Coulomb [N·m] (with stiction: a joint at rest stays until the
+#: other torques exceed it) and viscous [N·m·s/rad]. The Panda's identified Coulomb
+#: friction is 0.3–1.3 N·m per joint (Gaz et al., RA-L 2019); 0.3 is below all of them.
+#: Without friction no constant command holds a Panda still: balanced by G(q) above its
+#: joints, the posture is an unstable equilibrium (1 mrad/s grows to radians in 2 s).
+COULOMB, VISCOUS = 0.3, 0.1
+
+
+class Arm:
+    """The physics and the command held (module doc)."""
+
+    def __init__(self, model, q0, period: float):
+        import pinocchio as pin
+
+        self.pin, self.model, self.data = pin, model, model.createData()
+        self.q, self.dq = np.array(q0, dtype=float), np.zeros(model.nv)
+        self.period = period
+        self.sub = max(1, round(period / 1e-3))
+        self.tau: np.ndarray | None = None  # None: on its brakes
+        self.applied: tuple | None = None  # (q, dq, tau) when the last command was applied
+        self.adds_gravity = False
+
+    def _advance(self, q, dq, tau, h):
+        """One semi-implicit Euler step of h [s] with friction: ABA with the viscous term,
+        then the Coulomb impulse h·fc/M_ii against each joint's motion, never reversing it
+        (a joint it brings to rest sticks)."""
+        pin = self.pin
+        if self.adds_gravity:  # the arm's own gravity compensation, at the current q
+            tau = tau + pin.computeGeneralizedGravity(self.model, self.data, q)
+        ddq = pin.aba(self.model, self.data, q, dq, tau - VISCOUS * dq)
+        dq = dq + h * ddq
+        M = pin.crba(self.model, self.data, q)
+        slow = h * COULOMB / np.diag(M)
+        dq = np.sign(dq) * np.maximum(0.0, np.abs(dq) - slow)
+        return q + h * dq, dq
+
+    def apply(self, tau) -> None:
+        """Hold ``tau`` from now on (and remember the state it started from)."""
+        self.tau = tau
+        self.applied = (self.q.copy(), self.dq.copy(), tau.copy())
+
+    def step(self) -> None:
+        """One period with the held command."""
+        if self.tau is None:
+            return
+        h = self.period / self.sub
+        for _ in range(self.sub):
+            self.q, self.dq = self._advance(self.q, self.dq, self.tau, h)
+
+    def drift(self, seconds: float = 2.0) -> float:
+        """Largest |q(t) − q(0)| [rad] over ``seconds`` of holding the last command from
+        the state it was applied at (simulated time, the same physics)."""
+        if self.applied is None:
+            return 0.0
+        q, dq, tau = (x.copy() for x in self.applied)
+        q0 = q.copy()
+        worst = 0.0
+        for _ in range(round(seconds / 1e-3)):
+            q, dq = self._advance(q, dq, tau, 1e-3)
+            worst = max(worst, float(np.abs(q - q0).max()))
+        return worst
+
+
+def main(scenario: str, config_path: str, out: str, duration: float) -> None:
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.schema import load_config
+
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    config = load_config(config_path)
+    experiment = Experiment.from_config(config)
+    robot = experiment.robot
+    names = list(robot.joint_names)
+    P = config.ros.period
+    arm = Arm(robot.model, experiment.q0, P)
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("test_arm")
+    prefix = "/arm" if scenario == "remap" else ""
+    pub = node.create_publisher(JointState, prefix + "/joint_states", 10)
+    lock = threading.Lock()
+    commands: list[tuple[float, list[float]]] = []
+    report: dict = {"scenario": scenario, "nonfinite_commands": 0, "events": {}}
+
+    def on_command(msg):
+        tau = np.asarray(msg.data, dtype=float)
+        with lock:
+            commands.append((time.time(), tau.tolist()))
+            if not np.isfinite(tau).all():
+                report["nonfinite_commands"] += 1
+                return  # (an effort controller would apply it; counted, never expected)
+            arm.pending = tau
+
+    arm.pending = None
+    node.create_subscription(Float64MultiArray,
+                             "/arm/effort" if prefix else "/effort_controller/commands",
+                             on_command, 10)  # fmt: skip
+    traj_pub = node.create_publisher(JointTrajectory, "/hmpc_pin_controller/joint_trajectory",
+                                     10)  # fmt: skip
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+
+    def state_msg(stamp: float, which=None, order=None, nan=False):
+        msg = JointState()
+        idx = list(range(len(names))) if which is None else list(which)
+        if order == "reversed":
+            idx = idx[::-1]
+        msg.name = [names[i] for i in idx]
+        ns = round(stamp * 1e9)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+        q = arm.q.copy()
+        if nan:
+            q[2] = math.nan
+        msg.position = [float(q[i]) for i in idx]
+        msg.velocity = [float(arm.dq[i]) for i in idx]
+        msg.effort = [0.0] * len(idx)
+        return msg
+
+    delayed: list = []  # (due [s], message): "delay" publishes each state DELAY late
+    delay_cv = threading.Condition()
+
+    def delayed_publisher():
+        while True:
+            with delay_cv:
+                while not delayed:
+                    delay_cv.wait()
+                due, msg = delayed[0]
+            wait = due - time.time()
+            if wait > 0:
+                time.sleep(wait)
+            with delay_cv:
+                delayed.pop(0)
+            pub.publish(msg)
+
+    if scenario == "delay":
+        threading.Thread(target=delayed_publisher, daemon=True).start()
+
+    def gripper_msg(stamp: float):
+        msg = JointState()
+        msg.name = list(GRIPPER)
+        ns = round(stamp * 1e9)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+        msg.position, msg.velocity, msg.effort = [0.02, 0.02], [0.0, 0.0], [0.0, 0.0]
+        return msg
+
+    extra = None
+    if scenario == "traffic":  # one more node in the graph: gripper states and chatter
+        extra = subprocess.Popen([sys.executable, __file__, "--extra-node"])
+    exe = [sys.executable, "-m", "hmpc_pin"]
+    ctrl_cmd = [*exe, "ros", config_path, "--duration", str(duration), "--out", out]
+    if scenario == "remap":
+        ctrl_cmd += ["--ros-args", *REMAP]
+    arm.adds_gravity = scenario == "gravity_arm"  # as Franka's FCI: the arm adds G(q)
+    t0 = time.time()
+    published = 0
+    # (the last, above the watchdog, at the sine's turning point: the arm nearly at rest)
+    stalls = {"stall": [(0.8, 0.005), (1.4, 0.015), (2.0, 0.030), (2.45, 0.150)]}.get(scenario, [])
+    report["stalls"] = stalls
+    if scenario == "traffic":  # gripper-only states before the controller starts
+        for _ in range(20):
+            pub.publish(gripper_msg(time.time()))
+            time.sleep(0.005)
+    ctrl = subprocess.Popen(ctrl_cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    k = 0
+    first_cmd_at = None
+    backlog: list = []
+    stall_end = -1.0
+    acted = set()
+    t0 = time.time()
+    while ctrl.poll() is None:
+        k += 1
+        deadline = t0 + k * P
+        now = time.time()
+        if deadline > now:
+            time.sleep(deadline - now)
+        with lock:
+            if arm.pending is not None:
+                arm.apply(arm.pending)
+                arm.pending = None
+                if first_cmd_at is None:
+                    first_cmd_at = deadline
+        arm.step()
+        stamp = t0 + k * P
+        run_t = None if first_cmd_at is None else stamp - first_cmd_at
+        if scenario == "silent":  # one state once the controller listens, then silence
+            if published >= 1 or pub.get_subscription_count() == 0:
+                continue
+            if "matched" not in acted:
+                acted.add("matched")
+                time.sleep(0.5)  # discovery completes both ways
+                continue
+        if run_t is not None:
+            for at, length in stalls:
+                if (at, length) not in acted and run_t >= at:
+                    acted.add((at, length))
+                    stall_end = stamp + length
+                    report["events"].setdefault("stall_started", []).append(run_t)
+                    report["events"].setdefault("stall_stamps", []).append([stamp, length])
+        if stamp < stall_end:
+            backlog.append(state_msg(stamp))
+            continue  # stalled: the states of these periods come in a burst after it
+        for msg in backlog:  # the burst: every missed period's state (a driver's queue)
+            pub.publish(msg)
+        published += len(backlog)
+        backlog.clear()
+        if scenario == "nan" and run_t is not None and 1.0 <= run_t < 1.05:
+            # NaN states for 50 ms, then finite ones: one of them is the newest the
+            # controller takes even if it takes several states at once
+            report["events"].setdefault("nan_at", run_t)
+            pub.publish(state_msg(stamp, nan=True))
+        elif scenario == "traffic":  # the arm's joints in two messages, any order
+            pub.publish(state_msg(stamp, which=range(4), order="reversed"))
+            pub.publish(state_msg(stamp, which=range(4, len(names))))
+            if k % 5 == 0:
+                pub.publish(gripper_msg(stamp))
+        elif scenario == "delay":
+            with delay_cv:
+                delayed.append((stamp + DELAY, state_msg(stamp)))
+                delay_cv.notify()
+        else:
+            pub.publish(state_msg(stamp))
+        published += 1
+        if run_t is None:
+            continue
+        matched = scenario == "trajectory" and traj_pub.get_subscription_count() > 0
+        if matched and "good" not in acted and run_t >= 1.0:  # (once discovered: not lost)
+            acted.add("good")
+            target = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
+            report["events"]["target"] = target
+            report["events"]["good_at"] = run_t
+            traj_pub.publish(_trajectory(JointTrajectory, JointTrajectoryPoint, names, target))
+        good_at = report["events"].get("good_at")
+        if matched and "bad" not in acted and good_at is not None and run_t >= good_at + 0.5:
+            acted.add("bad")
+            bad = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
+            bad[3] = 1.0  # above the Panda's joint 4 range (< 0)
+            traj_pub.publish(_trajectory(JointTrajectory, JointTrajectoryPoint, names, bad))
+        if (scenario in ("interrupt", "gravity_arm") and "sigint" not in acted
+                and run_t >= 1.5):  # fmt: skip
+            acted.add("sigint")
+            ctrl.send_signal(signal.SIGINT)
+        if scenario == "deactivate" and "deactivate" not in acted and run_t >= 1.5:
+            acted.add("deactivate")
+            threading.Thread(target=_deactivate, args=(node, report), daemon=True).start()
+    c_out, c_err = ctrl.communicate()
+    report["controller"] = {"exit": ctrl.returncode, "stdout": c_out, "stderr": c_err}
+    time.sleep(0.1)  # commands in flight
+    with lock:
+        if arm.pending is not None:
+            arm.apply(arm.pending)
+        report["commands"] = commands
+        report["published"] = published
+        report["q_end"], report["dq_end"] = arm.q.tolist(), arm.dq.tolist()
+        report["held"] = None if arm.tau is None else arm.tau.tolist()
+        report["drift"] = arm.drift(2.0)
+    if extra is not None:
+        extra.send_signal(signal.SIGINT)
+        extra.wait(timeout=10)
+    (Path(out) / "arm.json").write_text(json.dumps(report))
+    sys.stdout.flush()
+    os._exit(0)
+
+
+def _trajectory(JointTrajectory, JointTrajectoryPoint, names, target, seconds=1.0):
+    msg = JointTrajectory()
+    msg.joint_names = list(names)
+    point = JointTrajectoryPoint()
+    point.positions = [float(x) for x in target]
+    point.time_from_start.sec = int(seconds)
+    point.time_from_start.nanosec = round((seconds % 1) * 1e9)
+    msg.points = [point]
+    return msg
+
+
+def _deactivate(node, report) -> None:
+    """``ros2 lifecycle set /hmpc_pin_controller deactivate`` and ``ros2 param list``, as
+    rclpy service calls."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+    from rcl_interfaces.srv import ListParameters
+
+    params = node.create_client(ListParameters, "/hmpc_pin_controller/list_parameters")
+    if params.wait_for_service(timeout_sec=10.0):
+        res = params.call(ListParameters.Request(), timeout_sec=10.0)
+        report["events"]["parameters"] = [] if res is None else list(res.result.names)
+    client = node.create_client(ChangeState, "/hmpc_pin_controller/change_state")
+    if client.wait_for_service(timeout_sec=10.0):
+        req = ChangeState.Request()
+        req.transition.id = Transition.TRANSITION_DEACTIVATE
+        report["events"]["deactivate_sent"] = time.time()
+        res = client.call(req, timeout_sec=10.0)
+        report["events"]["deactivated"] = None if res is None else bool(res.success)
+
+
+def extra_node() -> None:
+    """One more node in the graph: a gripper's joint states and chatter at 100 Hz until
+    SIGINT."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("gripper_driver")
+    js = node.create_publisher(JointState, "/joint_states", 10)
+    chat = node.create_publisher(String, "/chatter", 10)
+    stop = []
+    signal.signal(signal.SIGINT, lambda *_: stop.append(1))
+    k = 0
+    while not stop:
+        k += 1
+        if k % 2 == 0:
+            msg = JointState()
+            msg.name = list(GRIPPER)
+            msg.position, msg.velocity = [0.03, 0.03], [0.0, 0.0]
+            js.publish(msg)
+        s = String()
+        s.data = "x" * 200
+        chat.publish(s)
+        time.sleep(0.01)
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "--extra-node":
+        extra_node()
+    main(sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4]))

@@ -79,7 +79,7 @@ class MPCSettings:
             URDF's ``<dynamics>``): :math:`C\\dot q + G` becomes
             :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
             Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
-            (computed in the compiled step, see ``src/core.cpp``). Default ``True``.
+            (computed in the compiled step, see ``cpp/src/step.cpp``). Default ``True``.
         observer_model: Where the compensation's model :math:`M,\\ C\\dot q + G` is
             evaluated over the period that just ended: ``"end"`` (default; the new
             measurement, Eq 13's backward Euler as the paper discretises it) or ``"start"``
@@ -343,7 +343,7 @@ class HierarchicalMPC(AppliedTorque):
         return self._fused
 
     def _make_core(self) -> None:
-        """The compiled step (``src/core.cpp``), composed of the compiled components: the
+        """The compiled step (``cpp/src/step.cpp``), composed of the compiled components: the
         QPs are :attr:`qps`' own, the observer (if any) the compensation's own object."""
         comp = self.compensation
         form_of = getattr(comp, "compiled_form", None)
@@ -446,7 +446,7 @@ class HierarchicalMPC(AppliedTorque):
         Call once per control period :math:`T_s`, after :meth:`reset`. The
         observer assumes the torque returned by the previous call was held since.
 
-        One compiled step (``src/core.cpp``): the horizon's gradients, M and
+        One compiled step (``cpp/src/step.cpp``): the horizon's gradients, M and
         :math:`C\\dot q + G`, the compensation's estimate, the joint QPs and Eq (4). A
         compensation with a compiled form (the NDO of Eq 13, or none) is advanced inside
         it; any other (momentum, ISM, a user class) is called from Python between the

@@ -230,7 +230,7 @@ def solver_settings(eps_abs: float, max_iter: int, warm: bool = True) -> dict:
 
 def cold_twin_settings(eps_abs: float, max_iter: int) -> dict:
     """The settings of a box QP's cold twin (the compiled QPs' retry after a warm solve that
-    did not converge, ``src/joint_qps.cpp``): solved from
+    did not converge, ``cpp/src/joint_qps.cpp``): solved from
     scratch without the duality-gap test, like the soft QPs, but with no relative tolerance."""
     settings = solver_settings(eps_abs, max_iter, warm=False)
     settings["eps_rel"] = 0.0
@@ -284,7 +284,7 @@ class JointQPs:
             state constraints were inactive.
         constrained: Number of joints whose constrained QP was solved at the last step.
         cold_solves: Number of box QPs solved again from scratch because the warm-started
-            solve did not converge (the cold twin, ``src/joint_qps.cpp``), since construction.
+            solve did not converge (the cold twin, ``cpp/src/joint_qps.cpp``), since construction.
         unconstrained_solves: ``"joint"`` layout: joint QPs not sent to ProxSuite because
             the unconstrained minimiser :math:`-H^{-1}g` lay inside the box (then it is the
             box QP's solution, exactly), since construction.
@@ -336,7 +336,7 @@ class JointQPs:
         self.solution = self.stack[:Nc]  # solved into place by the compiled QPs
         self.x0 = self.stack[Nc + 3 : Nc + 5]
         self.slack = np.zeros(n)
-        # The compiled QPs (src/joint_qps.cpp), writing solution and slack in place.
+        # The compiled QPs (cpp/src/joint_qps.cpp), writing solution and slack in place.
         self._core = load_native().JointQPs(
             n, N, Nc, layout == "block", mpc.H, v_min, v_max,
             solver_settings(eps_abs, max_iter), cold_twin_settings(eps_abs, max_iter),
@@ -450,7 +450,7 @@ class JointQPs:
     def solve(self, G: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """Solve every joint's QP for the gradients ``G`` (n×Nc); return the first inputs (n,).
 
-        The compiled QPs (``src/joint_qps.cpp``): the layout's box QPs (with the exact
+        The compiled QPs (``cpp/src/joint_qps.cpp``): the layout's box QPs (with the exact
         unconstrained shortcut per joint and the cold retry), then, with limits, the soft
         QPs of the joints whose box-only prediction leaves them. :attr:`solution` and
         :attr:`slack` are written in place.

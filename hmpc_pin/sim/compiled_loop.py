@@ -1,5 +1,5 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
-loop, many control periods per call into the compiled core (``src/core.cpp``,
+loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``,
 ``ClosedLoop``), when every part of the loop has a compiled form:
 
 - the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step

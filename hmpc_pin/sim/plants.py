@@ -30,7 +30,7 @@ per stage (as the ``[disturbance.friction]`` term), which chatters about
 :math:`\\dot q = 0` within one step rather than sticking; MuJoCo's ``frictionloss`` is a
 soft constraint that holds a joint at rest while the torque is below :math:`f`.
 
-The period is one call into the compiled core (``src/core.cpp``, ``RK4``), the only
+The period is one call into the compiled core (``cpp/src/rk4.cpp``, ``RK4``), the only
 implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
 Terms that say what they are are evaluated fused: time-only terms (a
 ``sample_times(times)`` method, e.g. :class:`~hmpc_pin.sim.disturbances.GaussianPulse`)
@@ -171,7 +171,7 @@ def split_disturbance(disturbance, n: int):
 class RK4Plant:
     """Classical RK4 integration of a Pinocchio model over one control period.
 
-    The period is the compiled core's (``src/core.cpp``, ``RK4``; module docstring): one
+    The period is the compiled core's (``cpp/src/rk4.cpp``, ``RK4``; module docstring): one
     C++ call per period, with the disturbance's fused terms (time-only terms tabulated here,
     one Coulomb–viscous friction evaluated per stage in C++), or any other disturbance
     called as ``d(t, q, dq)`` at every stage from C++; Pinocchio's compiled ABA, or its

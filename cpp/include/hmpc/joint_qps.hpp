@@ -1,6 +1,6 @@
 // The per-joint MPC's quadratic programs (Eq 25–26), solved by ProxSuite: the one
 // implementation, used on its own (hmpc_pin.mpc.condensed.JointQPs) and inside the fused
-// step (core.cpp, HMPCCore). The numpy/ProxSuite-Python oracle it is tested against is
+// step (step.cpp, HMPCCore). The numpy/ProxSuite-Python oracle it is tested against is
 // tests/reference/joint_qps.py.
 //
 // Layouts: "block" (the n box QPs as one block-diagonal QP of n·Nc variables) or "joint"
@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-namespace hmpc_native {
+namespace hmpc {
 
 // ProxSuite settings to set on a QP after its construction (the others keep ProxSuite's
 // defaults); hmpc_pin.mpc.condensed.solver_settings() chooses them, in one place.
@@ -120,4 +120,4 @@ class JointQPs {
 
 std::string status_name(proxsuite::proxqp::QPSolverOutput status);
 
-}  // namespace hmpc_native
+}  // namespace hmpc

@@ -1,5 +1,5 @@
 // The per-joint MPC's QPs: see joint_qps.hpp.
-#include "joint_qps.hpp"
+#include "hmpc/joint_qps.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -7,7 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace hmpc_native {
+namespace hmpc {
 
 namespace pqp = proxsuite::proxqp;
 
@@ -393,4 +393,4 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
   return true;
 }
 
-}  // namespace hmpc_native
+}  // namespace hmpc

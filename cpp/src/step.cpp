@@ -1,0 +1,278 @@
+// The hierarchical MPC's step: see step.hpp.
+#include "hmpc/step.hpp"
+
+#include "hmpc/joint_qps.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace hmpc {
+
+HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& FT_, int N_,
+                   JointQPs* qps, NDO* ndo_, double* v_, double* tau_, double* dhat_,
+                   double* M_, double* nle_)
+    : n(qps->n), N(N_), Nc(qps->Nc), FT(FT_), qp(qps), ndo(ndo_), v(v_, 1, n), tau(tau_, 1, n),
+      dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n), sampler(n) {
+  if (model) {
+    dyn = std::make_unique<Dynamics>(*model);
+    if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
+  }
+  if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || qp->N != N || (ndo && ndo->n != n))
+    throw std::invalid_argument("HMPCCore: shapes do not match the model and horizon");
+  // Without a velocity weight the ṙ rows of the map are zero: skip them.
+  grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
+  applied.setZero(n);
+  Gt.setZero(Nc, n);
+  effort = Vec::Constant(n, std::numeric_limits<double>::infinity());
+}
+
+void HMPCCore::set_stack(double* S, const CRefVec& offsets_) {
+  stack.emplace(S, 2 + 2 * N, n);
+  if (offsets_.size() != N) throw std::invalid_argument("offsets of wrong size");
+  offsets = offsets_;
+}
+
+void HMPCCore::sample_horizon(double t) {
+  auto& S = *stack;
+  for (int j = 0; j < N; ++j) sampler.sample(t + offsets[j], &S(2 + j, 0), &S(2 + N + j, 0));
+}
+
+int HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
+  if (!std::isfinite(t)) return 4;
+  if (q.size() != n || dq.size() != n) return 3;
+  auto& S = *stack;
+  S.row(0) = q.transpose();
+  S.row(1) = dq.transpose();
+  sample_horizon(t);
+  return 0;
+}
+
+int HMPCCore::step_t(double t, const CRefVec& q, const CRefVec& dq) {
+  const int code = fill(t, q, dq);
+  return code ? code : step(*stack);
+}
+
+int HMPCCore::predict_stack(Eigen::Ref<RowMat> Sm) {
+  if (!Sm.topRows(2).allFinite()) return 1;
+  Vec q = Sm.row(0).transpose(), dq = Sm.row(1).transpose();
+  latency.predict(q, dq);
+  Sm.row(0) = q.transpose();
+  Sm.row(1) = dq.transpose();
+  return 0;
+}
+
+// After a step with latency: the torque as the plant applies it and v enter the history.
+void HMPCCore::record() {
+  if (!latency.on) return;
+  // what the observer is fed: the applied torque beyond the joint dynamics' J (jtau)
+  Vec fed = tau.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
+  if (joint) fed -= jtau;
+  latency.record(fed, v.row(0).transpose());
+}
+
+void HMPCCore::set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts) {
+  if (damping.size() != n || friction.size() != n)
+    throw std::invalid_argument("HMPCCore.set_joint_dynamics: damping, friction must be (n,)");
+  if ((damping.array() < 0.0).any() || (friction.array() < 0.0).any() || !damping.allFinite() ||
+      !friction.allFinite() || !(Ts >= 0.0))
+    throw std::invalid_argument("HMPCCore.set_joint_dynamics: expected finite values >= 0");
+  jb = damping;
+  jf = friction;
+  joint = (jb.array() != 0.0).any() || (jf.array() != 0.0).any();
+  zoh_Ts = joint ? Ts : 0.0;
+  nle_j.setZero(n);
+  jv.setZero(n);
+  extra.setZero(n);
+  jtau.setZero(n);
+}
+
+void HMPCCore::set_effort(const CRefVec& limit) {
+  if (limit.size() != n) throw std::invalid_argument("effort limit of wrong size");
+  effort = limit;
+}
+
+void HMPCCore::reset(const CRefVec& dhat0) {
+  dhat.row(0) = dhat0.transpose();
+  v.setZero();
+  tau.setZero();
+  qp->slack.setZero();
+  qp->constrained_last = false;
+  qp->constrained = 0;
+  started = false;
+  has_prev = false;
+  steps = 0;
+  latency.clear();
+  if (joint) jtau.setZero();
+}
+
+int HMPCCore::prepare(const CRefRow& S, bool dynamics, bool export_) {
+  if (S.rows() != 2 + 2 * N || S.cols() != n)
+    throw std::invalid_argument("HMPCCore: stack of wrong shape");
+  if (!S.allFinite()) return 1;
+  qv = S.row(0).transpose();
+  dqv = S.row(1).transpose();
+  // Gradients, one column per joint: G^T = FT^T S (Nc×n).
+  Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+  external = !dynamics;
+  if (dynamics) {
+    if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
+    M = &dyn->mass_matrix(qv);
+    nle = nle0 = &dyn->nle(qv, dqv);
+    if (joint) {  // + B q̇ + F sgn q̇ (sgn 0 = 0)
+      for (int i = 0; i < n; ++i) {
+        const double s = (dqv[i] > 0.0) - (dqv[i] < 0.0);
+        nle_j[i] = (*nle)[i] + jb[i] * dqv[i] + jf[i] * s;
+      }
+      nle = &nle_j;
+    }
+    if (export_) {  // C q̇ + G alone: the compensation's model (the joint terms: J)
+      M_out = *M;
+      nle_out.row(0) = nle0->transpose();
+    }
+  }
+  return 0;
+}
+
+const Vec& HMPCCore::applied_torque() {
+  applied = tau.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
+  return applied;
+}
+
+int HMPCCore::finish() {
+  const Eigen::Map<const RowMat> G(Gt.data(), n, Nc);
+  if (!qp->solve(G, qv, dqv)) return 2;
+  v = qp->U.row(0);
+  auto t = tau.row(0).transpose();
+  if (external) {
+    t.noalias() = M_out * v.row(0).transpose();
+    t += nle_out.row(0).transpose();
+  } else {
+    t.noalias() = *M * v.row(0).transpose();
+    t += *nle;
+  }
+  if (zoh_Ts > 0.0) {
+    if (external) zoh_gain(Mat(M_out));
+    else zoh_gain(*M);
+    t += extra;
+  }
+  if (joint) {  // J of this step, for the observer's next update
+    for (int i = 0; i < n; ++i) {
+      const double sg = (dqv[i] > 0.0) - (dqv[i] < 0.0);
+      jtau[i] = jb[i] * dqv[i] + jf[i] * sg + extra[i];
+    }
+  }
+  t -= dhat.row(0).transpose();
+  started = true;
+  ++steps;
+  record();
+  return 0;
+}
+
+// The zero-order-hold terms of the joint dynamics, into `extra`. With B q̇_k compensated,
+// joint j's velocity over a period of the torque held follows m_j ẇ = −b_j w + m_j v_j + e_j
+// (w = q̇ − q̇_k, m_j = 1/(M⁻¹)_jj its inertia with the others free, a_j = b_j/m_j), so it
+// gains v_j (1 − e^{−a_j Ts})/a_j instead of the v_j Ts the MPC predicts. The extra
+// torque (g_j − 1) m_j v_j, g_j = a_j Ts / (1 − e^{−a_j Ts}), restores v_j Ts
+// (g_j → 1 + a_j Ts/2 as a_j Ts → 0). The Coulomb term f_j sgn(q̇) changes sign where the
+// velocity path from q̇_k to q̇_k + v_j Ts (exponential with a_j, linear without damping)
+// crosses zero, at the fraction s* of the period: f_j sgn(q̇_k) is replaced by f_j σ_j,
+// σ_j the mean sign weighted by e^{−a_j (Ts − t)}, the weight the velocity at the end of
+// the period gives the force at t (σ_j = sgn(q̇_k + v_j Ts) when q̇_k = 0, so that a joint
+// at rest is not left to stick).
+void HMPCCore::zoh_gain(const Mat& Mq) {
+  extra.setZero(n);
+  llt.compute(Mq);
+  if (llt.info() != Eigen::Success) return;
+  for (int j = 0; j < n; ++j) {
+    if (jb[j] == 0.0 && jf[j] == 0.0) continue;
+    jv.setZero();
+    jv[j] = 1.0;
+    const double minv = llt.solve(jv)[j];
+    const double x = jb[j] * minv * zoh_Ts;
+    const double vj = v(0, j);
+    if (jb[j] != 0.0) {
+      const double g = x < 1e-8 ? 1.0 + 0.5 * x : x / -std::expm1(-x);
+      extra[j] = (g - 1.0) / minv * vj;
+    }
+    if (jf[j] != 0.0) {
+      const double a = dqv[j], c = a + vj * zoh_Ts;
+      const double sa = (a > 0.0) - (a < 0.0), sc = (c > 0.0) - (c < 0.0);
+      double sigma = sc;
+      if (sa != 0.0 && sa != sc) {
+        const double p = a / (a - c);  // in (0, 1]: the crossing on a linear path
+        double w1 = p;                 // weight of the part before the crossing
+        if (x > 1e-8) {
+          const double E = std::exp(-x);
+          const double s_star = -std::log1p(-p * (1.0 - E)) / x;
+          w1 = (std::exp(-x * (1.0 - s_star)) - E) / (1.0 - E);
+        }
+        sigma = sa * w1 + sc * (1.0 - w1);
+      }
+      extra[j] += jf[j] * (sigma - sa);
+    }
+  }
+}
+
+int HMPCCore::step(const CRefRow& S) {
+  if (latency.on) return step_latency(S);
+  if (obs_start && started && ndo) {  // the model the held torque was computed from
+    prev_M = *M;
+    prev_nle = *nle0;
+  }
+  int code = prepare(S, true, false);
+  if (code) return code;
+  if (started && ndo) {
+    // Eq (13) over the period that just ended, with the torque applied over it.
+    const Mat& Mo = obs_start ? prev_M : *M;
+    const Vec& no = obs_start ? prev_nle : (joint ? *nle0 : *nle);
+    if (joint) {  // the rigid body's model, the torque beyond J (see jtau)
+      applied_torque();
+      applied -= jtau;
+      ndo->update(Mo, no, dqv, applied);
+    } else {
+      ndo->update(Mo, no, dqv, applied_torque());
+    }
+    dhat.row(0) = ndo->estimate.transpose();
+  }
+  return finish();
+}
+
+// The step with latency: the observer over the measured interval (M, C q̇ + G at the
+// measured state, the aligned torque), then the MPC and Eq (4) at the predicted state.
+// Before the measured interval lies after the start, the observer restarts at each
+// measurement (d̂ = 0). S's state rows are overwritten with the prediction.
+int HMPCCore::step_latency(const CRefRow& S_in) {
+  if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
+    throw std::invalid_argument("HMPCCore: stack of wrong shape");
+  if (!S_in.allFinite()) return 1;
+  if (!dyn) throw std::invalid_argument("HMPCCore.step: no compiled dynamics here");
+  auto& S = *stack;
+  if (S.data() != S_in.data()) S = S_in;
+  Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
+  if (ndo) {
+    const Mat& Mq = dyn->mass_matrix(q);
+    const Vec& nq = dyn->nle(q, dq);
+    if (observer_ready() && (!obs_start || has_prev)) {
+      latency.align();
+      if (obs_start) ndo->update(prev_M, prev_nle, dq, latency.tau_obs);
+      else ndo->update(Mq, nq, dq, latency.tau_obs);
+      dhat.row(0) = ndo->estimate.transpose();
+    } else {
+      ndo->reset(dq);
+      dhat.setZero();
+    }
+    if (obs_start) {  // the start of the next measured interval
+      prev_M = Mq;
+      prev_nle = nq;
+      has_prev = true;
+    }
+  }
+  latency.predict(q, dq);
+  S.row(0) = q.transpose();
+  S.row(1) = dq.transpose();
+  int code = prepare(S, true, false);
+  return code ? code : finish();
+}
+
+}  // namespace hmpc

@@ -301,6 +301,55 @@ def test_step_failures_are_one_error_each_and_change_nothing(planar3):
         assert info.value.joint is None if layout == "block" else info.value.joint == 0
 
 
+class _NaNAfter:
+    """A sine reference (sampled in Python: no compiled form) that is NaN from ``t_bad`` on."""
+
+    def __init__(self, n, t_bad):
+        self.sine, self.t_bad = hmpc_pin.SineReference(n), t_bad
+
+    def sample(self, t):
+        q, dq = self.sine.sample(t)
+        return (q, dq) if t < self.t_bad else (q * np.nan, dq)
+
+
+def test_the_compiled_steps_faults_read_as_the_python_checks_of_the_same_input(planar3):
+    """Each fault of the compiled step arrives as the exceptions.py error a check of the same
+    input in Python raises, message for message: a vector of the wrong size (the robot's own
+    check_vector), a non-finite state, the first non-finite row of the reference's horizon
+    at its own time, and an unsolved QP naming its joint."""
+    ref = hmpc_pin.SineReference(3)
+    q0, dq0 = ref.sample(0.0)
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    ctrl.reset(q0, dq0)
+    ctrl.step(0.0, q0, dq0, ref)
+    for name, q, dq in (("q", q0[:2], dq0), ("dq", q0, np.zeros(4))):
+        with pytest.raises(hmpc_pin.DimensionError) as got:
+            ctrl.step(0.01, q, dq, ref)
+        with pytest.raises(hmpc_pin.DimensionError) as want:
+            planar3.check_vector(name, q if name == "q" else dq)
+        assert str(got.value) == str(want.value)
+    bad = np.array([0.1, np.inf, 0.0])
+    with pytest.raises(hmpc_pin.NonFiniteError) as got:
+        ctrl.step(0.01, bad, dq0, ref)
+    assert str(got.value) == str(hmpc_pin.NonFiniteError("q", bad))
+    Ts, N = ctrl.Ts, ctrl.settings.N
+    late = _NaNAfter(3, 0.5 + 3.5 * Ts)  # rows j = 1..N at t + j Ts: row 4 is the first
+    c = hmpc_pin.HierarchicalMPC(planar3)
+    c.reset(q0, dq0)
+    with pytest.raises(hmpc_pin.NonFiniteError) as got:
+        c.step(0.5, q0, dq0, late)
+    assert got.value.name == "reference" and N >= 4
+    np.testing.assert_array_equal(got.value.value[1], late.sine.sample(0.5 + 4 * Ts)[1])
+    assert f"at t={0.5 + 4 * Ts:.6g}" in str(got.value)
+    c = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(max_iter=1, qp_layout="joint"))
+    c.qps.shortcut = False
+    c.reset(q0, dq0)
+    with pytest.raises(hmpc_pin.SolverError) as got:
+        for k in range(50):
+            c.step(0.01 * k, q0 + 0.3, dq0 - 1.0, ref)
+    assert f"joint 0 ({planar3.joint_names[0]!r}) MPC QP was not solved" in str(got.value)
+
+
 def test_a_model_with_mimic_joints_takes_its_dynamics_from_python():
     """Pinocchio 4.1 restores mimic joints badly from a serialized model: the plant's
     compiled period calls Pinocchio's Python ABA (equal to the oracle's period), and the

@@ -51,9 +51,12 @@ void expose_joint_qps(py::module_& m) {
       .def(
           "solve",
           [](PyJointQPs& o, const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
-            return o.qps.solve(G, q, dq);
+            if (!o.qps.solve(G, q, dq)) throw o.qps.failure();
           },
           py::arg("G"), py::arg("q"), py::arg("dq"))
+      .def_property(  // for the faults' messages
+          "joint_names", [](const PyJointQPs& o) { return o.qps.joint_names; },
+          [](PyJointQPs& o, std::vector<std::string> names) { o.qps.joint_names = names; })
       .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
       .def_property(
           "shortcut", [](const PyJointQPs& o) { return o.qps.shortcut; },

@@ -43,7 +43,7 @@ void expose_loop(py::module_& m) {
       .def(py::init([](PyHMPCCore& core, RK4& plant, Array t, std::vector<Array> records,
                        IntArray step_ns, IntArray sat_steps, Array sat_excess,
                        const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
-                       const CRefVec& b, bool friction, double h, int substeps) {
+                       const CRefVec& b, bool friction, double h, int substeps, double Ts) {
              auto o = std::make_unique<PyClosedLoop>();
              const int n = core.core.n;
              const auto K = static_cast<Eigen::Index>(t.size()) - 1;
@@ -58,7 +58,7 @@ void expose_loop(py::module_& m) {
                  core.core, plant, o->t.data(), static_cast<int>(K),
                  record_data(o->records, K + 1, n), o->step_ns.mutable_data(),
                  o->sat_steps.mutable_data(), o->sat_excess.mutable_data(), limit, has_limit,
-                 bound, a, b, friction, h, substeps);
+                 bound, a, b, friction, h, substeps, Ts);
              o->loop->interrupted = [] {
                if (PyErr_CheckSignals() != 0) throw py::error_already_set();
              };
@@ -67,8 +67,8 @@ void expose_loop(py::module_& m) {
            py::arg("core"), py::arg("plant"), py::arg("t"), py::arg("records"),
            py::arg("step_ns"), py::arg("sat_steps"), py::arg("sat_excess"), py::arg("limit"),
            py::arg("has_limit"), py::arg("bound"), py::arg("a"), py::arg("b"),
-           py::arg("friction"), py::arg("h"), py::arg("substeps"), py::keep_alive<1, 2>(),
-           py::keep_alive<1, 3>())
+           py::arg("friction"), py::arg("h"), py::arg("substeps"), py::arg("Ts"),
+           py::keep_alive<1, 2>(), py::keep_alive<1, 3>())
       .def(
           "set_measurement",
           [](PyClosedLoop& o, double q_noise, double dq_noise, int D, Array H) {
@@ -87,6 +87,7 @@ void expose_loop(py::module_& m) {
              const CRefRow& noise) { return o.loop->run(q, v, k0, k1, P, noise); },
           py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"), py::arg("P"),
           py::arg("noise"))
+      .def_property_readonly("k", [](const PyClosedLoop& o) { return o.loop->k; })
       .def_property_readonly("last", [](const PyClosedLoop& o) { return o.loop->last; })
       .def_property_readonly("advances", [](const PyClosedLoop& o) { return o.loop->advances; })
       .def_property_readonly("started", [](const PyClosedLoop& o) { return o.loop->started; })

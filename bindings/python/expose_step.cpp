@@ -34,7 +34,7 @@ void expose_step(py::module_& m) {
             if (S.ndim() != 2 || S.shape(0) != 2 + 2 * N || S.shape(1) != n || !S.writeable())
               throw std::invalid_argument("predict: stack of wrong shape");
             MapRow Sm(S.mutable_data(), 2 + 2 * N, n);
-            return h.core.predict_stack(Sm);
+            h.core.predict_stack(Sm);
           },
           py::arg("S"))
       .def_property_readonly("latency_periods", [](const H& h) { return h.core.latency.m; })
@@ -46,22 +46,23 @@ void expose_step(py::module_& m) {
           },
           py::arg("damping"), py::arg("friction"), py::arg("Ts"))
       .def("reset", [](H& h, const CRefVec& dhat0) { h.core.reset(dhat0); })
-      .def("step", [](H& h, const CRefRow& S) { return h.core.step(S); })
+      .def(
+          "step", [](H& h, const CRefRow& S, double t) { h.core.step(S, t); }, py::arg("S"),
+          py::arg("t"))
       .def("step_t",
-           [](H& h, double t, const CRefVec& q, const CRefVec& dq) {
-             return h.core.step_t(t, q, dq);
-           })
+           [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.core.step_t(t, q, dq); })
       .def("fill",
-           [](H& h, double t, const CRefVec& q, const CRefVec& dq) {
-             return h.core.fill(t, q, dq);
-           })
+           [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.core.fill(t, q, dq); })
       .def(
           "prepare",
-          [](H& h, const CRefRow& S, bool dynamics, bool export_) {
-            return h.core.prepare(S, dynamics, export_);
+          [](H& h, const CRefRow& S, double t, bool dynamics, bool export_) {
+            h.core.prepare(S, t, dynamics, export_);
           },
-          py::arg("S"), py::arg("dynamics") = true, py::arg("export") = true)
-      .def("finish", [](H& h) { return h.core.finish(); })
+          py::arg("S"), py::arg("t"), py::arg("dynamics") = true, py::arg("export") = true)
+      .def("finish", [](H& h) { h.core.finish(); })
+      .def_property(  // how faults name the robot: "the robot 'x' has n joints (...)"
+          "robot", [](const H& h) { return h.core.robot; },
+          [](H& h, const std::string& robot) { h.core.robot = robot; })
       .def("set_stack",
            [](H& h, Array S, const CRefVec& offsets) {
              double* data = writable(S, static_cast<Eigen::Index>(2 + 2 * h.core.N) * h.core.n);

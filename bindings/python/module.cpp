@@ -21,4 +21,5 @@ PYBIND11_MODULE(_core, m) {
   hp::expose_joint_qps(m);
   hp::expose_step(m);
   hp::expose_loop(m);
+  hp::expose_errors(m);
 }

@@ -150,6 +150,14 @@ void JointQPs::set_max_iter(long max_iter) {
       if (qp) qp->settings.max_iter = max_iter;
 }
 
+QPNotSolved JointQPs::failure() const {
+  std::string name = "all-joint block";
+  if (fail_joint >= 0)
+    name = fail_joint < static_cast<int>(joint_names.size()) ? joint_names[fail_joint]
+                                                             : "joint " + std::to_string(fail_joint);
+  return QPNotSolved(fail_joint < 0 ? -1 : fail_joint, name, fail_status, fail_iter);
+}
+
 bool JointQPs::fail(int joint, const Results& res) {
   fail_joint = joint;
   fail_status = status_name(res.info.status);

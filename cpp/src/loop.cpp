@@ -12,10 +12,11 @@ ClosedLoop::ClosedLoop(HMPCCore& c, RK4& p, const double* t, int K_,
                        std::array<double*, 6> records, std::int64_t* step_ns_,
                        std::int64_t* sat_steps_, double* sat_excess_, const CRefVec& limit_,
                        bool has_limit_, double bound_, const CRefVec& a, const CRefVec& b,
-                       bool friction_, double h_, int substeps_)
+                       bool friction_, double h_, int substeps_, double Ts_)
     : core(&c), plant(&p), n(c.n), K(K_), t_arr(t), rec(records), step_ns(step_ns_),
       sat_steps(sat_steps_), sat_excess(sat_excess_), limit(limit_), fa(a), fb(b),
-      has_limit(has_limit_), friction(friction_), bound(bound_), h(h_), substeps(substeps_) {
+      has_limit(has_limit_), friction(friction_), bound(bound_), h(h_), substeps(substeps_),
+      Ts(Ts_) {
   if (p.n != n || limit.size() != n || fa.size() != n || fb.size() != n || substeps < 1 ||
       !c.stack)
     throw std::invalid_argument("ClosedLoop: shapes do not match");
@@ -34,8 +35,8 @@ void ClosedLoop::set_measurement(double qn, double dqn, int D, double* history) 
   hist = history;
 }
 
-std::pair<long, int> ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
-                                     const CRefRow& noise) {
+long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
+                     const CRefRow& noise) {
   if (q.size() != n || v.size() != n || k0 < 0 || k1 > K + 1 || k0 > k1)
     throw std::invalid_argument("ClosedLoop.run: bad state or steps");
   const int rows = 3 * substeps;
@@ -49,7 +50,7 @@ std::pair<long, int> ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const
   std::int64_t* sat_n = sat_steps;
   double* sat_x = sat_excess;
   HMPCCore& c = *core;
-  for (long k = k0; k < k1; ++k) {
+  for (k = k0; k < k1; ++k) {
     if (interrupted) interrupted();
     const long j = k - k0;
     const Vec* qc = &qm;  // the state the controller is given
@@ -74,11 +75,10 @@ std::pair<long, int> ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const
       dqm = v;
     }
     const auto start = std::chrono::steady_clock::now();
-    const int code = c.step_t(t[k], *qc, *dqc);
+    c.step_t(t[k], *qc, *dqc);
     ns[k] = std::chrono::duration_cast<std::chrono::nanoseconds>(
                 std::chrono::steady_clock::now() - start)
                 .count();
-    if (code) return {k, code};
     ++stepped;
     tau = c.tau.row(0).transpose();
     // d(t_k, q, q̇): the time-only terms at the period's first stage, minus the friction
@@ -103,8 +103,8 @@ std::pair<long, int> ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const
       rdh[i] = c.dhat(0, i);
     }
     last = k;
-    if (k == K) return {k, 0};
-    if (!tau.allFinite()) return {k, 5};
+    if (k == K) return k;
+    if (!tau.allFinite()) throw NonFinite("tau", {tau}, t[k]);
     if (has_limit) {
       for (int i = 0; i < n; ++i) {
         const double excess = std::abs(tau[i]) - limit[i];
@@ -126,9 +126,9 @@ std::pair<long, int> ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const
     bool inside = true;
     for (int i = 0; i < n && inside; ++i)
       inside = std::abs(q[i]) <= bound && std::abs(v[i]) <= bound;
-    if (!inside) return {k, q.allFinite() && v.allFinite() ? 7 : 6};
+    if (!inside) throw StateOutOfBound(q, v, t[k] + Ts, bound);
   }
-  return {k1, 0};
+  return k1;
 }
 
 }  // namespace hmpc

@@ -38,28 +38,44 @@ void HMPCCore::sample_horizon(double t) {
   for (int j = 0; j < N; ++j) sampler.sample(t + offsets[j], &S(2 + j, 0), &S(2 + N + j, 0));
 }
 
-int HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
-  if (!std::isfinite(t)) return 4;
-  if (q.size() != n || dq.size() != n) return 3;
+void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
+  if (!std::isfinite(t)) throw NonFinite("t", t);
+  if (q.size() != n) throw DimensionMismatch("q", q.size(), n, robot);
+  if (dq.size() != n) {
+    if (!q.allFinite()) throw NonFinite("q", {Vec(q)});
+    throw DimensionMismatch("dq", dq.size(), n, robot);
+  }
+  t_now = t;
   auto& S = *stack;
   S.row(0) = q.transpose();
   S.row(1) = dq.transpose();
   sample_horizon(t);
-  return 0;
 }
 
-int HMPCCore::step_t(double t, const CRefVec& q, const CRefVec& dq) {
-  const int code = fill(t, q, dq);
-  return code ? code : step(*stack);
+void HMPCCore::step_t(double t, const CRefVec& q, const CRefVec& dq) {
+  fill(t, q, dq);
+  step(*stack, t);
 }
 
-int HMPCCore::predict_stack(Eigen::Ref<RowMat> Sm) {
-  if (!Sm.topRows(2).allFinite()) return 1;
+void HMPCCore::non_finite(const CRefRow& S) const {
+  const Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
+  if (!q.allFinite()) throw NonFinite("q", {q});
+  if (!dq.allFinite()) throw NonFinite("dq", {dq});
+  for (int j = 0; j < N; ++j) {
+    if (S.row(2 + j).allFinite() && S.row(2 + N + j).allFinite()) continue;
+    const double at = j < offsets.size() ? t_now + offsets[j] : t_now;
+    throw NonFinite(
+        "reference", {Vec(S.row(2 + j).transpose()), Vec(S.row(2 + N + j).transpose())}, at);
+  }
+  throw NonFinite("q, dq or the reference horizon", {q, dq}, t_now);
+}
+
+void HMPCCore::predict_stack(Eigen::Ref<RowMat> Sm) {
+  if (!Sm.topRows(2).allFinite()) non_finite(Sm);
   Vec q = Sm.row(0).transpose(), dq = Sm.row(1).transpose();
   latency.predict(q, dq);
   Sm.row(0) = q.transpose();
   Sm.row(1) = dq.transpose();
-  return 0;
 }
 
 // After a step with latency: the torque as the plant applies it and v enter the history.
@@ -106,10 +122,11 @@ void HMPCCore::reset(const CRefVec& dhat0) {
   if (joint) jtau.setZero();
 }
 
-int HMPCCore::prepare(const CRefRow& S, bool dynamics, bool export_) {
+void HMPCCore::prepare(const CRefRow& S, double t, bool dynamics, bool export_) {
   if (S.rows() != 2 + 2 * N || S.cols() != n)
     throw std::invalid_argument("HMPCCore: stack of wrong shape");
-  if (!S.allFinite()) return 1;
+  t_now = t;
+  if (!S.allFinite()) non_finite(S);
   qv = S.row(0).transpose();
   dqv = S.row(1).transpose();
   // Gradients, one column per joint: G^T = FT^T S (Nc×n).
@@ -131,7 +148,6 @@ int HMPCCore::prepare(const CRefRow& S, bool dynamics, bool export_) {
       nle_out.row(0) = nle0->transpose();
     }
   }
-  return 0;
 }
 
 const Vec& HMPCCore::applied_torque() {
@@ -139,9 +155,9 @@ const Vec& HMPCCore::applied_torque() {
   return applied;
 }
 
-int HMPCCore::finish() {
+void HMPCCore::finish() {
   const Eigen::Map<const RowMat> G(Gt.data(), n, Nc);
-  if (!qp->solve(G, qv, dqv)) return 2;
+  if (!qp->solve(G, qv, dqv)) throw qp->failure();
   v = qp->U.row(0);
   auto t = tau.row(0).transpose();
   if (external) {
@@ -166,7 +182,6 @@ int HMPCCore::finish() {
   started = true;
   ++steps;
   record();
-  return 0;
 }
 
 // The zero-order-hold terms of the joint dynamics, into `extra`. With B q̇_k compensated,
@@ -214,14 +229,14 @@ void HMPCCore::zoh_gain(const Mat& Mq) {
   }
 }
 
-int HMPCCore::step(const CRefRow& S) {
+void HMPCCore::step(const CRefRow& S, double t) {
+  t_now = t;
   if (latency.on) return step_latency(S);
   if (obs_start && started && ndo) {  // the model the held torque was computed from
     prev_M = *M;
     prev_nle = *nle0;
   }
-  int code = prepare(S, true, false);
-  if (code) return code;
+  prepare(S, t, true, false);
   if (started && ndo) {
     // Eq (13) over the period that just ended, with the torque applied over it.
     const Mat& Mo = obs_start ? prev_M : *M;
@@ -235,17 +250,17 @@ int HMPCCore::step(const CRefRow& S) {
     }
     dhat.row(0) = ndo->estimate.transpose();
   }
-  return finish();
+  finish();
 }
 
 // The step with latency: the observer over the measured interval (M, C q̇ + G at the
 // measured state, the aligned torque), then the MPC and Eq (4) at the predicted state.
 // Before the measured interval lies after the start, the observer restarts at each
 // measurement (d̂ = 0). S's state rows are overwritten with the prediction.
-int HMPCCore::step_latency(const CRefRow& S_in) {
+void HMPCCore::step_latency(const CRefRow& S_in) {
   if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
     throw std::invalid_argument("HMPCCore: stack of wrong shape");
-  if (!S_in.allFinite()) return 1;
+  if (!S_in.allFinite()) non_finite(S_in);
   if (!dyn) throw std::invalid_argument("HMPCCore.step: no compiled dynamics here");
   auto& S = *stack;
   if (S.data() != S_in.data()) S = S_in;
@@ -271,8 +286,8 @@ int HMPCCore::step_latency(const CRefRow& S_in) {
   latency.predict(q, dq);
   S.row(0) = q.transpose();
   S.row(1) = dq.transpose();
-  int code = prepare(S, true, false);
-  return code ? code : finish();
+  prepare(S, t_now, true, false);
+  finish();
 }
 
 }  // namespace hmpc

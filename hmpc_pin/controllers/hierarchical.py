@@ -359,6 +359,8 @@ class HierarchicalMPC(AppliedTorque):
             buf["v"], buf["tau"], buf["d_hat"], self._M, buf["nle"],
         )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
+        robot = self.robot  # how the compiled step's faults name it
+        core.robot = f"the robot {robot.name!r} has {self.n} joints {robot.joint_names}"
         core.set_latency(self.settings.latency, self.settings.Ts)
         core.set_observer_model(self.settings.observer_model == "start")
         self._obs_prev = None  # the Python path's model at the previous measurement
@@ -387,20 +389,6 @@ class HierarchicalMPC(AppliedTorque):
         AppliedTorque.effort_limit.fset(self, limit)  # type: ignore[attr-defined]
         if self._core is not None:
             self._core.set_effort(np.full(self.n, np.inf) if limit is None else self._effort[1])
-
-    def _raise_non_finite(self, t, q, dq, q_ref, dq_ref) -> None:
-        """Name the first non-finite input (slow path); return if every input is finite."""
-        self.robot.check_vector("q", q)
-        self.robot.check_vector("dq", dq)
-        bad_rows = np.flatnonzero(
-            ~(np.isfinite(q_ref).all(axis=1) & np.isfinite(dq_ref).all(axis=1))
-        )
-        if bad_rows.size == 0:
-            return
-        bad = int(bad_rows[0])
-        raise NonFiniteError(
-            "reference", (q_ref[bad], dq_ref[bad]), f"at t={t + self._offsets[bad]:.6g}"
-        )
 
     @property
     def Ts(self) -> float:
@@ -476,20 +464,16 @@ class HierarchicalMPC(AppliedTorque):
         S = self._stack
         if self._native_ref and self._fused:  # the whole step in one call
             try:
-                code = core.step_t(t, q, dq)
+                core.step_t(t, q, dq)
             except TypeError:  # not convertible to a float vector
-                code = 3
-            if code:
-                self._failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
+                self._not_vectors(q, dq)
             self._started = True
             return self.tau.copy()
         if self._native_ref:  # the reference sampled in C++ too
             try:
-                code = core.fill(t, q, dq)
+                core.fill(t, q, dq)
             except TypeError:  # not convertible to a float vector
-                code = 3
-            if code:
-                self._failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
+                self._not_vectors(q, dq)
         else:
             if not math.isfinite(t):
                 raise NonFiniteError("t", t)
@@ -513,19 +497,16 @@ class HierarchicalMPC(AppliedTorque):
                 self._stack_q_ref[:] = q_ref
                 self._stack_dq_ref[:] = dq_ref
         if self._fused:
-            code = core.step(S)
+            core.step(S, t)
         else:
-            code = core.prepare(S, not self._python_dynamics)
-            if not code:
-                self._python_compensation()
-                if self.settings.latency > 0:  # MPC and Eq (4) at the predicted state
-                    code = core.predict(S) or core.prepare(S, not self._python_dynamics)
-                    if not code and self._python_dynamics:
-                        self._python_dynamics_at_stack()
-                if not code:
-                    code = core.finish()
-        if code:
-            self._failure(code, t, S[0], S[1], self._stack_q_ref, self._stack_dq_ref)
+            core.prepare(S, t, not self._python_dynamics)
+            self._python_compensation()
+            if self.settings.latency > 0:  # MPC and Eq (4) at the predicted state
+                core.predict(S)
+                core.prepare(S, t, not self._python_dynamics)
+                if self._python_dynamics:
+                    self._python_dynamics_at_stack()
+            core.finish()
         self._started = True
         return self.tau.copy()
 
@@ -636,15 +617,8 @@ class HierarchicalMPC(AppliedTorque):
         else:
             core.clear_reference()
 
-    def _failure(self, code: int, t, q, dq, q_ref, dq_ref) -> None:
-        """Raise the error of a compiled step's failure ``code`` (nothing was changed)."""
-        if code == 4:
-            raise NonFiniteError("t", t)
-        if code == 3:  # q or q̇ not a vector of n floats
-            self.robot.check_vector("q", q)
-            self.robot.check_vector("dq", dq)
-            raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")
-        if code == 1:  # an input is not finite
-            self._raise_non_finite(t, q, dq, q_ref, dq_ref)
-            raise NonFiniteError("q, dq or the reference horizon", (q, dq), f"at t={t:.6g}")
-        self.qps.raise_failure()
+    def _not_vectors(self, q, dq) -> None:
+        """Raise the error of ``q`` or ``dq`` that is not a vector of n floats."""
+        self.robot.check_vector("q", q)
+        self.robot.check_vector("dq", dq)
+        raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")

@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import ConfigError, InterfaceError, SolverError
+from ..exceptions import ConfigError, InterfaceError
 from ..native import load as load_native
 
 __all__ = [
@@ -342,6 +342,7 @@ class JointQPs:
             solver_settings(eps_abs, max_iter), cold_twin_settings(eps_abs, max_iter),
             self.solution, self.slack,
         )  # fmt: skip
+        self._core.joint_names = list(joint_names)  # its faults name the joint
         self.soft_qps = False
         if limits is None:
             return
@@ -472,14 +473,5 @@ class JointQPs:
         if G.shape != (self.n, self.mpc.Nc):
             raise InterfaceError(G, f"gradients of shape ({self.n}, {self.mpc.Nc})",
                                  "pass one row of Nc values per joint")  # fmt: skip
-        if not self._core.solve(G, self.x0[0], self.x0[1]):
-            self.raise_failure()
+        self._core.solve(G, self.x0[0], self.x0[1])
         return self.solution[0].copy()
-
-    def raise_failure(self) -> None:
-        """Raise the :class:`SolverError` of the compiled QPs' last failure."""
-        core = self._core
-        joint = int(core.fail_joint)
-        name = "all-joint block" if joint < 0 else self.joint_names[joint]
-        raise SolverError(None if joint < 0 else joint, name, core.fail_status,
-                          int(core.fail_iter))  # fmt: skip

@@ -17,6 +17,8 @@
 // constraints (hmpc_pin.mpc.condensed, module docstring).
 #pragma once
 
+#include "hmpc/errors.hpp"
+
 #include <Eigen/Core>
 #include <proxsuite/proxqp/dense/dense.hpp>
 
@@ -71,6 +73,10 @@ class JointQPs {
   // not report solved (fail_joint: the joint, −1 for the block; fail_status, fail_iter).
   bool solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
 
+  // The fault of the last solve() that returned false (fail_joint, fail_status, fail_iter,
+  // the joint's name from joint_names).
+  QPNotSolved failure() const;
+
   // The iteration cap of every QP (the warm ones, their twins, the soft ones).
   void set_max_iter(long max_iter);
 
@@ -93,6 +99,7 @@ class JointQPs {
   int fail_joint = -2;
   std::string fail_status;
   long fail_iter = 0;
+  std::vector<std::string> joint_names;  // for failure() (empty: "joint i")
 
  private:
   const Results* solve_box(int k, const Vec& g, int joint);

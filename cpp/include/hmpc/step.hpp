@@ -14,6 +14,7 @@
 #pragma once
 
 #include "hmpc/dynamics.hpp"
+#include "hmpc/errors.hpp"
 #include "hmpc/latency.hpp"
 #include "hmpc/observer.hpp"
 #include "hmpc/sampler.hpp"
@@ -50,19 +51,20 @@ class HMPCCore {
   }
   void clear_reference() { sampler.clear(); }
 
-  // The stack's state and horizon rows for time t (the compiled reference). Returns 0, 3 (q
-  // or q̇ of wrong size) or 4 (t not finite); nothing changed then.
-  int fill(double t, const CRefVec& q, const CRefVec& dq);
+  // The stack's state and horizon rows for time t (the compiled reference).
+  // Throws NonFinite (t, or q before a wrong-sized q̇) or DimensionMismatch (q or q̇ of a
+  // size other than n); nothing changed then.
+  void fill(double t, const CRefVec& q, const CRefVec& dq);
   // A whole step at time t with the compiled reference: fill(), then step().
-  int step_t(double t, const CRefVec& q, const CRefVec& dq);
+  void step_t(double t, const CRefVec& q, const CRefVec& dq);
 
   // The measurement latency L [s] at the control period Ts [s] (L = 0: off).
   void set_latency(double L, double Ts) { latency.set(L, Ts, n); }
   // Whether the observer can be advanced over the interval between the last two
   // measurements.
   bool observer_ready() const { return latency.on ? latency.ready(steps) : started; }
-  // The state rows of S predicted over the latency; 1 if they are not finite (unchanged).
-  int predict_stack(Eigen::Ref<RowMat> S);
+  // The state rows of S predicted over the latency (NonFinite if they are not: unchanged).
+  void predict_stack(Eigen::Ref<RowMat> S);
 
   // The joint damping B [N·m·s/rad] and Coulomb friction F [N·m] to compensate (zeros:
   // none); Ts > 0 also applies their zero-order-hold terms (zoh_gain(), in finish()).
@@ -78,15 +80,16 @@ class HMPCCore {
 
   // The first half of a step from the stack S: the gradients, and M, C q̇ + G -- computed
   // here when `dynamics` (and written to M_out, nle_out when `export_`, for a compensation
-  // elsewhere), else already written by the caller into M_out, nle_out.
-  // Returns 0, or 1 (an input is not finite: nothing changed).
-  int prepare(const CRefRow& S, bool dynamics = true, bool export_ = true);
+  // elsewhere), else already written by the caller into M_out, nle_out. t [s]: the step's
+  // time (for the fault's message). Throws NonFinite (an input is not finite: nothing
+  // changed).
+  void prepare(const CRefRow& S, double t, bool dynamics = true, bool export_ = true);
   // The second half: the joint QPs for the gradients, then τ = M v + C q̇ + G − d̂ (Eq 4)
-  // with d̂ in dhat. Returns 0, or 2 (a QP did not report solved: the QPs' fail_*).
-  int finish();
-  // One control step from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n), with the
-  // observer (or none) advanced here. Returns prepare()'s or finish()'s code.
-  int step(const CRefRow& S);
+  // with d̂ in dhat. Throws QPNotSolved (a QP did not report solved).
+  void finish();
+  // One control step at time t [s] from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N]
+  // ((2 + 2N)×n), with the observer (or none) advanced here. Throws as prepare(), finish().
+  void step(const CRefRow& S, double t);
 
   // The torque held over the period that just ended, as the plant applied it.
   const Vec& applied_torque();
@@ -142,12 +145,18 @@ class HMPCCore {
   bool joint = false;
   double zoh_Ts = 0.0;
   Eigen::LLT<Mat> llt;
+  // The robot as faults name it ("the robot 'panda' has 7 joints (...)").
+  std::string robot = "the model";
+  double t_now = 0.0;  // the time of the step being run [s]
 
  private:
+  // The NonFinite fault of a stack with a non-finite entry: q, q̇, the first reference row
+  // of the horizon that is not finite, or (none of those) the stack as a whole.
+  [[noreturn]] void non_finite(const CRefRow& S) const;
   void sample_horizon(double t);
   void record();
   void zoh_gain(const Mat& Mq);
-  int step_latency(const CRefRow& S);
+  void step_latency(const CRefRow& S);
 };
 
 }  // namespace hmpc

@@ -550,3 +550,27 @@ def test_the_deprecated_backend_argument_is_checked_and_changes_nothing(planar3)
                                       duration=0.3, q0=np.zeros(3)))  # fmt: skip
     np.testing.assert_array_equal(runs[0].q, runs[1].q)
     np.testing.assert_array_equal(runs[0].tau, runs[1].tau)
+
+
+def test_the_qp_settings_are_typed_fields_that_default_to_proxsuites_own():
+    """``QPSettings`` (the compiled QPs' ProxSuite settings): a default one holds ProxSuite's
+    defaults (read from ProxSuite's Python API), each field keeps its type, and the
+    package's choice differs from them where it says so."""
+    from proxsuite import proxqp
+
+    from hmpc_pin.mpc.condensed import solver_settings
+
+    core = native.load()
+    ours, theirs = core.QPSettings(), proxqp.dense.QP(2, 0, 0).settings
+    fields = [name for name in dir(ours) if not name.startswith("_")]
+    assert len(fields) == 10 and "initial_guess" in fields
+    fields.remove("initial_guess")
+    for name in fields:
+        assert getattr(ours, name) == getattr(theirs, name), name
+    assert ours.initial_guess.name == theirs.initial_guess.name
+    with pytest.raises(TypeError):
+        ours.eps_abs = "tight"
+    chosen = solver_settings(1e-9, 77)
+    assert (chosen.eps_abs, chosen.max_iter, chosen.check_duality_gap) == (1e-9, 77, True)
+    assert chosen.initial_guess == core.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+    assert solver_settings(1e-9, 77, warm=False).initial_guess.name == "NO_INITIAL_GUESS"

@@ -1,52 +1,51 @@
 // hmpc_pin._core.JointQPs: the per-joint MPC's box QPs (joint_qps.hpp), the solution and
-// slack in numpy arrays that the Python object owns (hmpc_pin.mpc.condensed.JointQPs).
+// slack in numpy arrays that the Python object owns (hmpc_pin.mpc.condensed.JointQPs); their
+// ProxSuite settings, QPSettings, bound field by field.
 #include "holders.hpp"
 
 namespace hmpc::python {
 
 namespace pqp = proxsuite::proxqp;
 
-QPOptions qp_options(const py::dict& settings) {
-  QPOptions o;
-  for (auto item : settings) {
-    const std::string key = py::str(item.first);
-    py::handle value = item.second;
-    if (key == "initial_guess") {
-      const std::string name = py::str(value);
-      if (name == "WARM_START_WITH_PREVIOUS_RESULT")
-        o.initial_guess = pqp::InitialGuessStatus::WARM_START_WITH_PREVIOUS_RESULT;
-      else if (name == "NO_INITIAL_GUESS")
-        o.initial_guess = pqp::InitialGuessStatus::NO_INITIAL_GUESS;
-      else
-        throw std::invalid_argument("unknown initial_guess " + name);
-    } else if (key == "eps_abs") o.eps_abs = value.cast<double>();
-    else if (key == "eps_rel") o.eps_rel = value.cast<double>();
-    else if (key == "max_iter") o.max_iter = value.cast<long>();
-    else if (key == "verbose") o.verbose = value.cast<bool>();
-    else if (key == "check_duality_gap") o.check_duality_gap = value.cast<bool>();
-    else if (key == "eps_duality_gap_abs") o.eps_duality_gap_abs = value.cast<double>();
-    else if (key == "eps_duality_gap_rel") o.eps_duality_gap_rel = value.cast<double>();
-    else if (key == "eps_primal_inf") o.eps_primal_inf = value.cast<double>();
-    else if (key == "eps_dual_inf") o.eps_dual_inf = value.cast<double>();
-    else throw std::invalid_argument("the compiled core does not know the ProxSuite setting " + key);
-  }
-  return o;
+static void expose_qp_settings(py::module_& m) {
+  py::enum_<pqp::InitialGuessStatus>(m, "InitialGuess", py::module_local())
+      .value("NO_INITIAL_GUESS", pqp::InitialGuessStatus::NO_INITIAL_GUESS)
+      .value("EQUALITY_CONSTRAINED_INITIAL_GUESS",
+             pqp::InitialGuessStatus::EQUALITY_CONSTRAINED_INITIAL_GUESS)
+      .value("WARM_START_WITH_PREVIOUS_RESULT",
+             pqp::InitialGuessStatus::WARM_START_WITH_PREVIOUS_RESULT)
+      .value("WARM_START", pqp::InitialGuessStatus::WARM_START)
+      .value("COLD_START_WITH_PREVIOUS_RESULT",
+             pqp::InitialGuessStatus::COLD_START_WITH_PREVIOUS_RESULT);
+  py::class_<QPSettings>(m, "QPSettings", py::module_local())
+      .def(py::init<>())  // ProxSuite's defaults
+      .def_readwrite("initial_guess", &QPSettings::initial_guess)
+      .def_readwrite("eps_abs", &QPSettings::eps_abs)
+      .def_readwrite("eps_rel", &QPSettings::eps_rel)
+      .def_readwrite("eps_duality_gap_abs", &QPSettings::eps_duality_gap_abs)
+      .def_readwrite("eps_duality_gap_rel", &QPSettings::eps_duality_gap_rel)
+      .def_readwrite("eps_primal_inf", &QPSettings::eps_primal_inf)
+      .def_readwrite("eps_dual_inf", &QPSettings::eps_dual_inf)
+      .def_readwrite("max_iter", &QPSettings::max_iter)
+      .def_readwrite("verbose", &QPSettings::verbose)
+      .def_readwrite("check_duality_gap", &QPSettings::check_duality_gap);
 }
 
 void expose_joint_qps(py::module_& m) {
+  expose_qp_settings(m);
   py::class_<PyJointQPs, std::shared_ptr<PyJointQPs>>(m, "JointQPs", py::module_local())
       .def(py::init<int, int, int, bool, const CRefMat&, const CRefVec&, const CRefVec&,
-                    const py::dict&, const py::dict&, Array, Array>(),
+                    const QPSettings&, const QPSettings&, Array, Array>(),
            py::arg("n"), py::arg("N"), py::arg("Nc"), py::arg("block"), py::arg("H"),
            py::arg("v_min"), py::arg("v_max"), py::arg("warm"), py::arg("cold"), py::arg("U"),
            py::arg("slack"))
       .def("set_limits",
            [](PyJointQPs& o, const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
               const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
-              const CRefVec& row_scale, double g_slack, double k_slack, const py::dict& soft,
+              const CRefVec& row_scale, double g_slack, double k_slack, const QPSettings& soft,
               bool always) {
              o.qps.set_limits(Phi, Gamma, lower, upper, vel, Hs, C, row_scale, g_slack, k_slack,
-                              qp_options(soft), always);
+                              soft, always);
            })
       .def(
           "solve",

@@ -16,10 +16,6 @@
 
 namespace hmpc::python {
 
-// ProxSuite settings from a dict (keys: the Settings attributes chosen on the Python side,
-// hmpc_pin.mpc.condensed.solver_settings), parsed once.
-QPOptions qp_options(const py::dict& settings);
-
 struct PyNDO {
   Array z_array, estimate_array;
   NDO ndo;
@@ -37,10 +33,10 @@ struct PyJointQPs {
   Array U_array, slack_array;
   JointQPs qps;
   PyJointQPs(int n, int N, int Nc, bool block, const CRefMat& H, const CRefVec& v_min,
-             const CRefVec& v_max, const py::dict& warm, const py::dict& cold, Array U,
+             const CRefVec& v_max, const QPSettings& warm, const QPSettings& cold, Array U,
              Array slack)
       : U_array(U), slack_array(slack),
-        qps(n, N, Nc, block, H, v_min, v_max, qp_options(warm), qp_options(cold),
+        qps(n, N, Nc, block, H, v_min, v_max, warm, cold,
             writable(U_array, static_cast<Eigen::Index>(Nc) * n), writable(slack_array, n)) {}
 };
 

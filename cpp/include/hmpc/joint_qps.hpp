@@ -29,14 +29,18 @@
 
 namespace hmpc {
 
-// ProxSuite settings to set on a QP after its construction (the others keep ProxSuite's
-// defaults); hmpc_pin.mpc.condensed.solver_settings() chooses them, in one place.
-struct QPOptions {
-  std::optional<proxsuite::proxqp::InitialGuessStatus> initial_guess;
-  std::optional<double> eps_abs, eps_rel, eps_duality_gap_abs, eps_duality_gap_rel,
-      eps_primal_inf, eps_dual_inf;
-  std::optional<long> max_iter;
-  std::optional<bool> verbose, check_duality_gap;
+// The ProxSuite settings this package chooses for a QP, each a typed field, set on the QP
+// after its construction and before init (the others keep ProxSuite's defaults). A
+// default-constructed QPSettings holds ProxSuite's own defaults;
+// hmpc_pin.mpc.condensed.qp_settings() chooses the package's values, in one place.
+struct QPSettings {
+  QPSettings();
+  proxsuite::proxqp::InitialGuessStatus initial_guess;
+  double eps_abs, eps_rel;                          // primal/dual residual tolerances
+  double eps_duality_gap_abs, eps_duality_gap_rel;  // duality-gap test (check_duality_gap)
+  double eps_primal_inf, eps_dual_inf;              // infeasibility tolerances
+  long max_iter;
+  bool verbose, check_duality_gap;
   void apply(proxsuite::proxqp::Settings<double>& s) const;
 };
 
@@ -49,7 +53,7 @@ class JointQPs {
   using CRefMat = Eigen::Ref<const Mat>;
   using CRefRow = Eigen::Ref<const RowMat>;
   using MapRow = Eigen::Map<RowMat>;
-  using Settings = QPOptions;
+  using Settings = QPSettings;
   using DenseQP = proxsuite::proxqp::dense::QP<double>;
   using Results = proxsuite::proxqp::Results<double>;
 

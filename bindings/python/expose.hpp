@@ -23,6 +23,7 @@ void expose_joint_qps(py::module_& m);
 void expose_step(py::module_& m);
 void expose_loop(py::module_& m);
 void expose_errors(py::module_& m);
+void expose_joint_dynamics(py::module_& m);
 
 // The data of a float64 C-contiguous numpy array of `size` values that may be written.
 inline double* writable(Array& a, Eigen::Index size) {

@@ -25,8 +25,8 @@ void expose_rk4(py::module_& m) {
            py::arg("b"), py::arg("friction"), py::arg("h"))
       .def("set_joint_dynamics", &RK4::set_joint_dynamics, py::arg("damping"),
            py::arg("friction"))
-      .def_property_readonly("joint_damping", [](const RK4& r) { return Vec(r.jb); })
-      .def_property_readonly("joint_friction", [](const RK4& r) { return Vec(r.jf); })
+      .def_property_readonly("joint_damping", [](const RK4& r) { return Vec(r.joint.b); })
+      .def_property_readonly("joint_friction", [](const RK4& r) { return Vec(r.joint.f); })
       .def(
           "period_with",
           [](RK4& r, RefVec q, RefVec v, const CRefVec& tau, double t, double h, int S,

@@ -103,7 +103,7 @@ void expose_step(py::module_& m) {
           })
       .def_property_readonly("has_dynamics", [](const H& h) { return bool(h.core.dyn); })
       .def_property_readonly("joint_torque", [](const H& h) {
-        return h.core.joint ? Vec(h.core.jtau) : Vec(Vec::Zero(h.core.n));
+        return h.core.joint.any ? Vec(h.core.jtau) : Vec(Vec::Zero(h.core.n));
       });
 }
 

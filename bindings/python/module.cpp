@@ -22,4 +22,5 @@ PYBIND11_MODULE(_core, m) {
   hp::expose_step(m);
   hp::expose_loop(m);
   hp::expose_errors(m);
+  hp::expose_joint_dynamics(m);
 }

@@ -1,6 +1,8 @@
 // The closed loop: see loop.hpp.
 #include "hmpc/loop.hpp"
 
+#include "hmpc/joint_dynamics.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -84,12 +86,8 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
     // d(t_k, q, q̇): the time-only terms at the period's first stage, minus the friction
     if (pulses) d = P.row(j * rows).transpose();
     else d.setZero();
-    if (friction) {
-      for (int i = 0; i < n; ++i) {
-        const double s = (v[i] > 0.0) - (v[i] < 0.0);
-        d[i] = d[i] - (fa[i] * v[i] + fb[i] * s);
-      }
-    }
+    if (friction)
+      for (int i = 0; i < n; ++i) d[i] -= joint_torque(fa[i], fb[i], v[i]);
     double* rq = rec[0] + k * n;
     double* rdq = rec[1] + k * n;
     double* rtau = rec[2] + k * n;

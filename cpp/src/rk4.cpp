@@ -16,28 +16,19 @@ RK4::RK4(int n_, AbaFunction aba) : aba_fn(std::move(aba)), n(n_) {
 }
 
 void RK4::allocate() {
-  for (Vec* x : {&q2, &v2, &q3, &v3, &q4, &v4, &a1, &a2, &a3, &a4, &u, &jb, &jf}) x->setZero(n);
+  for (Vec* x : {&q2, &v2, &q3, &v3, &q4, &v4, &a1, &a2, &a3, &a4, &u, &joint.b, &joint.f})
+    x->setZero(n);
 }
 
 void RK4::set_joint_dynamics(const CRefVec& damping, const CRefVec& friction) {
-  if (damping.size() != n || friction.size() != n)
-    throw std::invalid_argument("RK4.set_joint_dynamics: damping and friction must be (n,)");
-  if ((damping.array() < 0.0).any() || (friction.array() < 0.0).any() ||
-      !damping.allFinite() || !friction.allFinite())
-    throw std::invalid_argument("RK4.set_joint_dynamics: expected finite values >= 0");
-  jb = damping;
-  jf = friction;
-  joint = (jb.array() != 0.0).any() || (jf.array() != 0.0).any();
+  joint.set(damping, friction, n, "RK4.set_joint_dynamics");
 }
 
 // u −= B v + F sgn v (sgn 0 = 0), when there are joint dynamics.
 template <class V>
 void RK4::joint_terms(const V& v) {
-  if (!joint) return;
-  for (int i = 0; i < n; ++i) {
-    const double s = (v[i] > 0.0) - (v[i] < 0.0);
-    u[i] -= jb[i] * v[i] + jf[i] * s;
-  }
+  if (!joint.any) return;
+  for (int i = 0; i < n; ++i) u[i] -= joint.torque(i, v[i]);
 }
 
 template <class Q, class V>
@@ -61,12 +52,8 @@ template <class Row>
 void RK4::torque(const Row& T_row, const Vec& v, const CRefVec& a, const CRefVec& b,
                  bool friction) {
   u = T_row.transpose();
-  if (friction) {
-    for (int i = 0; i < n; ++i) {
-      const double s = (v[i] > 0.0) - (v[i] < 0.0);
-      u[i] += -a[i] * v[i] + -b[i] * s;
-    }
-  }
+  if (friction)
+    for (int i = 0; i < n; ++i) u[i] -= joint_torque(a[i], b[i], v[i]);
   joint_terms(v);
 }
 

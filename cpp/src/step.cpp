@@ -83,22 +83,15 @@ void HMPCCore::record() {
   if (!latency.on) return;
   // what the observer is fed: the applied torque beyond the joint dynamics' J (jtau)
   Vec fed = tau.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
-  if (joint) fed -= jtau;
+  if (joint.any) fed -= jtau;
   latency.record(fed, v.row(0).transpose());
 }
 
 void HMPCCore::set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts) {
-  if (damping.size() != n || friction.size() != n)
-    throw std::invalid_argument("HMPCCore.set_joint_dynamics: damping, friction must be (n,)");
-  if ((damping.array() < 0.0).any() || (friction.array() < 0.0).any() || !damping.allFinite() ||
-      !friction.allFinite() || !(Ts >= 0.0))
-    throw std::invalid_argument("HMPCCore.set_joint_dynamics: expected finite values >= 0");
-  jb = damping;
-  jf = friction;
-  joint = (jb.array() != 0.0).any() || (jf.array() != 0.0).any();
-  zoh_Ts = joint ? Ts : 0.0;
+  if (!(Ts >= 0.0)) throw std::invalid_argument("HMPCCore.set_joint_dynamics: expected Ts >= 0");
+  joint.set(damping, friction, n, "HMPCCore.set_joint_dynamics");
+  zoh_Ts = joint.any ? Ts : 0.0;
   nle_j.setZero(n);
-  jv.setZero(n);
   extra.setZero(n);
   jtau.setZero(n);
 }
@@ -119,7 +112,7 @@ void HMPCCore::reset(const CRefVec& dhat0) {
   has_prev = false;
   steps = 0;
   latency.clear();
-  if (joint) jtau.setZero();
+  if (joint.any) jtau.setZero();
 }
 
 void HMPCCore::prepare(const CRefRow& S, double t, bool dynamics, bool export_) {
@@ -136,11 +129,8 @@ void HMPCCore::prepare(const CRefRow& S, double t, bool dynamics, bool export_) 
     if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
     M = &dyn->mass_matrix(qv);
     nle = nle0 = &dyn->nle(qv, dqv);
-    if (joint) {  // + B q̇ + F sgn q̇ (sgn 0 = 0)
-      for (int i = 0; i < n; ++i) {
-        const double s = (dqv[i] > 0.0) - (dqv[i] < 0.0);
-        nle_j[i] = (*nle)[i] + jb[i] * dqv[i] + jf[i] * s;
-      }
+    if (joint.any) {  // + B q̇ + F sgn q̇
+      for (int i = 0; i < n; ++i) nle_j[i] = (*nle)[i] + joint.torque(i, dqv[i]);
       nle = &nle_j;
     }
     if (export_) {  // C q̇ + G alone: the compensation's model (the joint terms: J)
@@ -168,65 +158,16 @@ void HMPCCore::finish() {
     t += *nle;
   }
   if (zoh_Ts > 0.0) {
-    if (external) zoh_gain(Mat(M_out));
-    else zoh_gain(*M);
+    if (external) joint.zoh(Mat(M_out), dqv, v.data(), zoh_Ts, extra);
+    else joint.zoh(*M, dqv, v.data(), zoh_Ts, extra);
     t += extra;
   }
-  if (joint) {  // J of this step, for the observer's next update
-    for (int i = 0; i < n; ++i) {
-      const double sg = (dqv[i] > 0.0) - (dqv[i] < 0.0);
-      jtau[i] = jb[i] * dqv[i] + jf[i] * sg + extra[i];
-    }
-  }
+  if (joint.any)  // J of this step, for the observer's next update
+    for (int i = 0; i < n; ++i) jtau[i] = joint.torque(i, dqv[i]) + extra[i];
   t -= dhat.row(0).transpose();
   started = true;
   ++steps;
   record();
-}
-
-// The zero-order-hold terms of the joint dynamics, into `extra`. With B q̇_k compensated,
-// joint j's velocity over a period of the torque held follows m_j ẇ = −b_j w + m_j v_j + e_j
-// (w = q̇ − q̇_k, m_j = 1/(M⁻¹)_jj its inertia with the others free, a_j = b_j/m_j), so it
-// gains v_j (1 − e^{−a_j Ts})/a_j instead of the v_j Ts the MPC predicts. The extra
-// torque (g_j − 1) m_j v_j, g_j = a_j Ts / (1 − e^{−a_j Ts}), restores v_j Ts
-// (g_j → 1 + a_j Ts/2 as a_j Ts → 0). The Coulomb term f_j sgn(q̇) changes sign where the
-// velocity path from q̇_k to q̇_k + v_j Ts (exponential with a_j, linear without damping)
-// crosses zero, at the fraction s* of the period: f_j sgn(q̇_k) is replaced by f_j σ_j,
-// σ_j the mean sign weighted by e^{−a_j (Ts − t)}, the weight the velocity at the end of
-// the period gives the force at t (σ_j = sgn(q̇_k + v_j Ts) when q̇_k = 0, so that a joint
-// at rest is not left to stick).
-void HMPCCore::zoh_gain(const Mat& Mq) {
-  extra.setZero(n);
-  llt.compute(Mq);
-  if (llt.info() != Eigen::Success) return;
-  for (int j = 0; j < n; ++j) {
-    if (jb[j] == 0.0 && jf[j] == 0.0) continue;
-    jv.setZero();
-    jv[j] = 1.0;
-    const double minv = llt.solve(jv)[j];
-    const double x = jb[j] * minv * zoh_Ts;
-    const double vj = v(0, j);
-    if (jb[j] != 0.0) {
-      const double g = x < 1e-8 ? 1.0 + 0.5 * x : x / -std::expm1(-x);
-      extra[j] = (g - 1.0) / minv * vj;
-    }
-    if (jf[j] != 0.0) {
-      const double a = dqv[j], c = a + vj * zoh_Ts;
-      const double sa = (a > 0.0) - (a < 0.0), sc = (c > 0.0) - (c < 0.0);
-      double sigma = sc;
-      if (sa != 0.0 && sa != sc) {
-        const double p = a / (a - c);  // in (0, 1]: the crossing on a linear path
-        double w1 = p;                 // weight of the part before the crossing
-        if (x > 1e-8) {
-          const double E = std::exp(-x);
-          const double s_star = -std::log1p(-p * (1.0 - E)) / x;
-          w1 = (std::exp(-x * (1.0 - s_star)) - E) / (1.0 - E);
-        }
-        sigma = sa * w1 + sc * (1.0 - w1);
-      }
-      extra[j] += jf[j] * (sigma - sa);
-    }
-  }
 }
 
 void HMPCCore::step(const CRefRow& S, double t) {
@@ -240,8 +181,8 @@ void HMPCCore::step(const CRefRow& S, double t) {
   if (started && ndo) {
     // Eq (13) over the period that just ended, with the torque applied over it.
     const Mat& Mo = obs_start ? prev_M : *M;
-    const Vec& no = obs_start ? prev_nle : (joint ? *nle0 : *nle);
-    if (joint) {  // the rigid body's model, the torque beyond J (see jtau)
+    const Vec& no = obs_start ? prev_nle : (joint.any ? *nle0 : *nle);
+    if (joint.any) {  // the rigid body's model, the torque beyond J (see jtau)
       applied_torque();
       applied -= jtau;
       ndo->update(Mo, no, dqv, applied);

@@ -589,7 +589,7 @@ class HierarchicalMPC(AppliedTorque):
             d_hat = comp.estimate
         self.disturbance_estimate[:] = d_hat
         if self._python_dynamics and joint:  # Eq 4 takes C q̇ + G + B q̇ + F sgn q̇
-            self._buf["nle"][:] += b * dq + f * np.sign(dq)
+            self._buf["nle"][:] += load_native().joint_torque(b, f, dq)
 
     def _python_dynamics_at_stack(self) -> None:
         """M and C q̇ + G at the stack's state from Pinocchio's Python API (models the

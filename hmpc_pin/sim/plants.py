@@ -158,7 +158,9 @@ def split_disturbance(disturbance, n: int):
             a, b = (np.asarray(c, dtype=float) for c in coef_fn())
             if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
                 return None  # let the plain evaluation raise its own broadcasting error
-            if not _agrees(term, lambda t, q, dq, a=a, b=b: -(a * dq + b * np.sign(dq)), n):
+            law = load_native().joint_torque  # what the compiled period evaluates
+            a, b = np.broadcast_to(a, (n,)), np.broadcast_to(b, (n,))
+            if not _agrees(term, lambda t, q, dq, a=a, b=b, law=law: -law(a, b, dq), n):
                 return None
             friction.append((a, b))
         else:
@@ -271,7 +273,7 @@ class RK4Plant:
         d = self._pulses_at(self.k)[0].copy() if self._pulses else np.zeros(self.n)
         if self._friction is not None:
             a, b = self._ab
-            d -= a * dq + b * np.sign(dq)
+            d -= load_native().joint_torque(a, b, dq)
         return d
 
     def _pulses_at(self, k: int) -> np.ndarray:
@@ -383,7 +385,7 @@ class EulerPlant:
         for s in range(self.substeps):
             u = tau + dist(t + s * h, q, dq)
             if joint is not None:
-                u = u - joint[0] * dq - joint[1] * np.sign(dq)
+                u = u - load_native().joint_torque(joint[0], joint[1], dq)
             dq = dq + h * aba(model, data, q, dq, u)
             q = q + h * dq
         self.k += 1

@@ -13,6 +13,7 @@
 #pragma once
 
 #include "hmpc/dynamics.hpp"
+#include "hmpc/joint_dynamics.hpp"
 #include "hmpc/types.hpp"
 
 #include <functional>
@@ -52,8 +53,7 @@ class RK4 {
   std::unique_ptr<Dynamics> dyn;  // null: aba_fn
   AbaFunction aba_fn;
   int n;
-  Vec jb, jf;          // joint damping B [N·m·s/rad] and Coulomb friction F [N·m], diagonal
-  bool joint = false;  // whether B, F are applied (any non-zero)
+  JointDynamics joint;  // the arm's joint damping B and Coulomb friction F (none by default)
 
  private:
   void allocate();

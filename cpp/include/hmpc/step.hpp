@@ -15,6 +15,7 @@
 
 #include "hmpc/dynamics.hpp"
 #include "hmpc/errors.hpp"
+#include "hmpc/joint_dynamics.hpp"
 #include "hmpc/latency.hpp"
 #include "hmpc/observer.hpp"
 #include "hmpc/sampler.hpp"
@@ -67,7 +68,8 @@ class HMPCCore {
   void predict_stack(Eigen::Ref<RowMat> S);
 
   // The joint damping B [N·m·s/rad] and Coulomb friction F [N·m] to compensate (zeros:
-  // none); Ts > 0 also applies their zero-order-hold terms (zoh_gain(), in finish()).
+  // none); Ts > 0 also applies their zero-order-hold terms (JointDynamics::zoh(), in
+  // finish()).
   void set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts);
   void set_observer_model(bool at_start) {
     obs_start = at_start;
@@ -135,16 +137,15 @@ class HMPCCore {
   // zoh_Ts > 0 the commanded acceleration of a damped joint is scaled so that over a period
   // of the torque held the damped joint reaches the velocity the MPC's double integrator
   // predicts (finish()).
-  Vec jb, jf, nle_j, jv, extra;
+  JointDynamics joint;
+  Vec nle_j, extra;  // C q̇ + G + B q̇ + F sgn q̇; the zero-order-hold terms
   // J = B q̇_k + F σ + ZOH gain: the joint-dynamics torque of the last finish(). The observer
   // is given the applied torque minus J and C q̇ + G without the joint terms: what the
   // joint dynamics took over the period J was designed to cancel, the model of Eq (13) is
   // the plain rigid body again (its Euler model of a damped joint would be wrong by g_j).
   Vec jtau;
   const Vec* nle0 = nullptr;  // C q̇ + G alone of the last prepare (compiled dynamics)
-  bool joint = false;
   double zoh_Ts = 0.0;
-  Eigen::LLT<Mat> llt;
   // The robot as faults name it ("the robot 'panda' has 7 joints (...)").
   std::string robot = "the model";
   double t_now = 0.0;  // the time of the step being run [s]
@@ -155,7 +156,6 @@ class HMPCCore {
   [[noreturn]] void non_finite(const CRefRow& S) const;
   void sample_horizon(double t);
   void record();
-  void zoh_gain(const Mat& Mq);
   void step_latency(const CRefRow& S);
 };
 

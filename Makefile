@@ -10,7 +10,7 @@ PY := $(VENV)/bin/python
 
 .PHONY: demo test docs wheel lint clean
 
-$(VENV)/.installed: pyproject.toml CMakeLists.txt $(wildcard src/*.cpp src/*.hpp)
+$(VENV)/.installed: pyproject.toml CMakeLists.txt $(wildcard cpp/include/hmpc/*.hpp cpp/src/*.cpp bindings/python/*.cpp bindings/python/*.hpp)
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip
 	$(PY) -m pip install -e ".[dev,viz]"

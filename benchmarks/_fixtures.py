@@ -39,17 +39,30 @@ def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
+#: The fields of the compiled core's ``QPSettings`` (ProxSuite ``Settings`` attributes).
+QP_SETTINGS = (
+    "eps_abs",
+    "eps_rel",
+    "eps_duality_gap_abs",
+    "eps_duality_gap_rel",
+    "eps_primal_inf",
+    "eps_dual_inf",
+    "max_iter",
+    "verbose",
+    "check_duality_gap",
+)
+
+
 def new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = True,
-           settings: dict | None = None):  # fmt: skip
+           settings=None):  # fmt: skip
     """A dense ProxSuite QP (Python API) with the package's settings
     (:func:`hmpc_pin.mpc.condensed.solver_settings`, or ``settings``), set before ``init``."""
     qp = proxqp.dense.QP(nvar, 0, n_in, True)
     if settings is None:
         settings = solver_settings(eps_abs, max_iter, warm)
-    for key, value in settings.items():
-        if key == "initial_guess":
-            value = getattr(proxqp.InitialGuess, value)
-        setattr(qp.settings, key, value)
+    for key in QP_SETTINGS:
+        setattr(qp.settings, key, getattr(settings, key))
+    qp.settings.initial_guess = getattr(proxqp.InitialGuess, settings.initial_guess.name)
     return qp
 
 

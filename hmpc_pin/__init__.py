@@ -29,7 +29,7 @@ The package is layered; each layer imports only the layers below it (tested)::
     compensation/  Compensation protocol: NDO (Chen, general), momentum observer, ISM, none
       │
     model/         Robot (URDF → Pinocchio: M, C·q̇ + G, ABA), planar 3R IK
-    native/        loads the compiled core _core (src/, built with the package): dynamics,
+    native/        loads the compiled core _core (cpp/ + bindings/, built): dynamics,
       │            NDO, RK4 period, the fused MPC step
     data/, exceptions.py
 

@@ -220,7 +220,7 @@ def test_equation_map_names_modules_that_exist():
         except ImportError:
             pass
         assert hasattr(importlib.import_module(module), name), target
-    for path in re.findall(r"`(src/[\w.]+)`", text):
+    for path in re.findall(r"`((?:cpp|bindings)/[\w./]+)`", text):
         assert (ROOT / path).is_file(), path
 
 

@@ -390,3 +390,23 @@ def test_damping_time_constant_uses_the_inertia_with_the_other_joints_free():
     assert np.isinf(T[1])
     Arm.joint_damping = np.zeros(2)
     assert np.isinf(damping_time_constants(Arm(), np.zeros(2))).all()
+
+
+def test_the_one_joint_law_is_b_dq_plus_f_sign_dq_with_sign_0_zero(make_rng):
+    """The compiled law every part evaluates (the RK4 period, the step, the fused friction,
+    and from Python the Euler plant, a friction term, dynamics from Python): B q̇ + F sgn q̇
+    against numpy, at random velocities and at rest (sgn 0 = 0: no torque at rest), and
+    the Coulomb–viscous term is its negative, with scalar coefficients broadcast."""
+    from hmpc_pin import native
+    from hmpc_pin.sim.disturbances import CoulombViscousFriction
+
+    rng = make_rng(3)
+    b, f = rng.uniform(0.0, 5.0, 6), rng.uniform(0.0, 2.0, 6)
+    v = np.concatenate([rng.standard_normal(4), [0.0, -0.0]])
+    law = native.load().joint_torque(b, f, v)
+    np.testing.assert_array_equal(law, b * v + f * np.sign(v))
+    assert law[4] == 0.0 and law[5] == 0.0
+    term = CoulombViscousFriction(2.0, 0.5)
+    np.testing.assert_array_equal(term(0.0, v, v), -(2.0 * v + 0.5 * np.sign(v)))
+    with pytest.raises(ValueError, match="one value per joint"):
+        native.load().joint_torque(b[:2], f, v)

@@ -1,5 +1,5 @@
 """The latency-aware step: the observer's torque alignment, the prediction over the
-latency, and the latency-free step untouched (``HMPCCore.set_latency``, src/core.cpp)."""
+latency, and the latency-free step untouched (``HMPCCore.set_latency``, cpp/src/step.cpp)."""
 
 from __future__ import annotations
 

@@ -301,6 +301,55 @@ def test_step_failures_are_one_error_each_and_change_nothing(planar3):
         assert info.value.joint is None if layout == "block" else info.value.joint == 0
 
 
+class _NaNAfter:
+    """A sine reference (sampled in Python: no compiled form) that is NaN from ``t_bad`` on."""
+
+    def __init__(self, n, t_bad):
+        self.sine, self.t_bad = hmpc_pin.SineReference(n), t_bad
+
+    def sample(self, t):
+        q, dq = self.sine.sample(t)
+        return (q, dq) if t < self.t_bad else (q * np.nan, dq)
+
+
+def test_the_compiled_steps_faults_read_as_the_python_checks_of_the_same_input(planar3):
+    """Each fault of the compiled step arrives as the exceptions.py error a check of the same
+    input in Python raises, message for message: a vector of the wrong size (the robot's own
+    check_vector), a non-finite state, the first non-finite row of the reference's horizon
+    at its own time, and an unsolved QP naming its joint."""
+    ref = hmpc_pin.SineReference(3)
+    q0, dq0 = ref.sample(0.0)
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    ctrl.reset(q0, dq0)
+    ctrl.step(0.0, q0, dq0, ref)
+    for name, q, dq in (("q", q0[:2], dq0), ("dq", q0, np.zeros(4))):
+        with pytest.raises(hmpc_pin.DimensionError) as got:
+            ctrl.step(0.01, q, dq, ref)
+        with pytest.raises(hmpc_pin.DimensionError) as want:
+            planar3.check_vector(name, q if name == "q" else dq)
+        assert str(got.value) == str(want.value)
+    bad = np.array([0.1, np.inf, 0.0])
+    with pytest.raises(hmpc_pin.NonFiniteError) as got:
+        ctrl.step(0.01, bad, dq0, ref)
+    assert str(got.value) == str(hmpc_pin.NonFiniteError("q", bad))
+    Ts, N = ctrl.Ts, ctrl.settings.N
+    late = _NaNAfter(3, 0.5 + 3.5 * Ts)  # rows j = 1..N at t + j Ts: row 4 is the first
+    c = hmpc_pin.HierarchicalMPC(planar3)
+    c.reset(q0, dq0)
+    with pytest.raises(hmpc_pin.NonFiniteError) as got:
+        c.step(0.5, q0, dq0, late)
+    assert got.value.name == "reference" and N >= 4
+    np.testing.assert_array_equal(got.value.value[1], late.sine.sample(0.5 + 4 * Ts)[1])
+    assert f"at t={0.5 + 4 * Ts:.6g}" in str(got.value)
+    c = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(max_iter=1, qp_layout="joint"))
+    c.qps.shortcut = False
+    c.reset(q0, dq0)
+    with pytest.raises(hmpc_pin.SolverError) as got:
+        for k in range(50):
+            c.step(0.01 * k, q0 + 0.3, dq0 - 1.0, ref)
+    assert f"joint 0 ({planar3.joint_names[0]!r}) MPC QP was not solved" in str(got.value)
+
+
 def test_a_model_with_mimic_joints_takes_its_dynamics_from_python():
     """Pinocchio 4.1 restores mimic joints badly from a serialized model: the plant's
     compiled period calls Pinocchio's Python ABA (equal to the oracle's period), and the
@@ -501,3 +550,27 @@ def test_the_deprecated_backend_argument_is_checked_and_changes_nothing(planar3)
                                       duration=0.3, q0=np.zeros(3)))  # fmt: skip
     np.testing.assert_array_equal(runs[0].q, runs[1].q)
     np.testing.assert_array_equal(runs[0].tau, runs[1].tau)
+
+
+def test_the_qp_settings_are_typed_fields_that_default_to_proxsuites_own():
+    """``QPSettings`` (the compiled QPs' ProxSuite settings): a default one holds ProxSuite's
+    defaults (read from ProxSuite's Python API), each field keeps its type, and the
+    package's choice differs from them where it says so."""
+    from proxsuite import proxqp
+
+    from hmpc_pin.mpc.condensed import solver_settings
+
+    core = native.load()
+    ours, theirs = core.QPSettings(), proxqp.dense.QP(2, 0, 0).settings
+    fields = [name for name in dir(ours) if not name.startswith("_")]
+    assert len(fields) == 10 and "initial_guess" in fields
+    fields.remove("initial_guess")
+    for name in fields:
+        assert getattr(ours, name) == getattr(theirs, name), name
+    assert ours.initial_guess.name == theirs.initial_guess.name
+    with pytest.raises(TypeError):
+        ours.eps_abs = "tight"
+    chosen = solver_settings(1e-9, 77)
+    assert (chosen.eps_abs, chosen.max_iter, chosen.check_duality_gap) == (1e-9, 77, True)
+    assert chosen.initial_guess == core.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+    assert solver_settings(1e-9, 77, warm=False).initial_guess.name == "NO_INITIAL_GUESS"

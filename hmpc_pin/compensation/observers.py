@@ -45,7 +45,7 @@ with :math:`n_k = C\\dot q + G` at the measured state and :math:`\\tau_{k-1}` th
 torque held over the last period. Explicit (forward) Euler is available for
 comparison only: it diverges once :math:`T_s c\\,\\lambda_{\\max}(Y M^{-1}) > 2`.
 
-The NDO's update is the compiled core's (``src/observer.cpp``, :mod:`hmpc_pin.native`), the
+The NDO's update is the compiled core's (``cpp/src/observer.cpp``, :mod:`hmpc_pin.native`), the
 same object the fused control step advances; its numpy version is the test oracle
 (``tests/reference/observers.py``).
 """
@@ -188,7 +188,7 @@ class DisturbanceObserver:
         (the :class:`~hmpc_pin.compensation.base.Compensation` protocol).
 
         Backward (implicit) or forward (explicit) Euler on Eq (13), each one linear solve
-        with Eigen's partial-pivoting LU (module docstring; ``src/observer.hpp``):
+        with Eigen's partial-pivoting LU (module docstring; ``cpp/include/hmpc/observer.hpp``):
         :math:`(M + T_s cY)\\,w = n_k - \\tau_{k-1} - p_k - z` (explicit: :math:`M w = \\dots`),
         :math:`z \\leftarrow z + T_s cY w`, :math:`\\hat d_k = z + p_k`.
 

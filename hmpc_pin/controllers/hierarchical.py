@@ -79,7 +79,7 @@ class MPCSettings:
             URDF's ``<dynamics>``): :math:`C\\dot q + G` becomes
             :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
             Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
-            (computed in the compiled step, see ``src/core.cpp``). Default ``True``.
+            (computed in the compiled step, see ``cpp/src/step.cpp``). Default ``True``.
         observer_model: Where the compensation's model :math:`M,\\ C\\dot q + G` is
             evaluated over the period that just ended: ``"end"`` (default; the new
             measurement, Eq 13's backward Euler as the paper discretises it) or ``"start"``
@@ -343,7 +343,7 @@ class HierarchicalMPC(AppliedTorque):
         return self._fused
 
     def _make_core(self) -> None:
-        """The compiled step (``src/core.cpp``), composed of the compiled components: the
+        """The compiled step (``cpp/src/step.cpp``), composed of the compiled components: the
         QPs are :attr:`qps`' own, the observer (if any) the compensation's own object."""
         comp = self.compensation
         form_of = getattr(comp, "compiled_form", None)
@@ -359,6 +359,8 @@ class HierarchicalMPC(AppliedTorque):
             buf["v"], buf["tau"], buf["d_hat"], self._M, buf["nle"],
         )  # fmt: skip
         core.set_stack(self._stack, self._offsets)
+        robot = self.robot  # how the compiled step's faults name it
+        core.robot = f"the robot {robot.name!r} has {self.n} joints {robot.joint_names}"
         core.set_latency(self.settings.latency, self.settings.Ts)
         core.set_observer_model(self.settings.observer_model == "start")
         self._obs_prev = None  # the Python path's model at the previous measurement
@@ -387,20 +389,6 @@ class HierarchicalMPC(AppliedTorque):
         AppliedTorque.effort_limit.fset(self, limit)  # type: ignore[attr-defined]
         if self._core is not None:
             self._core.set_effort(np.full(self.n, np.inf) if limit is None else self._effort[1])
-
-    def _raise_non_finite(self, t, q, dq, q_ref, dq_ref) -> None:
-        """Name the first non-finite input (slow path); return if every input is finite."""
-        self.robot.check_vector("q", q)
-        self.robot.check_vector("dq", dq)
-        bad_rows = np.flatnonzero(
-            ~(np.isfinite(q_ref).all(axis=1) & np.isfinite(dq_ref).all(axis=1))
-        )
-        if bad_rows.size == 0:
-            return
-        bad = int(bad_rows[0])
-        raise NonFiniteError(
-            "reference", (q_ref[bad], dq_ref[bad]), f"at t={t + self._offsets[bad]:.6g}"
-        )
 
     @property
     def Ts(self) -> float:
@@ -446,7 +434,7 @@ class HierarchicalMPC(AppliedTorque):
         Call once per control period :math:`T_s`, after :meth:`reset`. The
         observer assumes the torque returned by the previous call was held since.
 
-        One compiled step (``src/core.cpp``): the horizon's gradients, M and
+        One compiled step (``cpp/src/step.cpp``): the horizon's gradients, M and
         :math:`C\\dot q + G`, the compensation's estimate, the joint QPs and Eq (4). A
         compensation with a compiled form (the NDO of Eq 13, or none) is advanced inside
         it; any other (momentum, ISM, a user class) is called from Python between the
@@ -476,20 +464,16 @@ class HierarchicalMPC(AppliedTorque):
         S = self._stack
         if self._native_ref and self._fused:  # the whole step in one call
             try:
-                code = core.step_t(t, q, dq)
+                core.step_t(t, q, dq)
             except TypeError:  # not convertible to a float vector
-                code = 3
-            if code:
-                self._failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
+                self._not_vectors(q, dq)
             self._started = True
             return self.tau.copy()
         if self._native_ref:  # the reference sampled in C++ too
             try:
-                code = core.fill(t, q, dq)
+                core.fill(t, q, dq)
             except TypeError:  # not convertible to a float vector
-                code = 3
-            if code:
-                self._failure(code, t, q, dq, self._stack_q_ref, self._stack_dq_ref)
+                self._not_vectors(q, dq)
         else:
             if not math.isfinite(t):
                 raise NonFiniteError("t", t)
@@ -513,19 +497,16 @@ class HierarchicalMPC(AppliedTorque):
                 self._stack_q_ref[:] = q_ref
                 self._stack_dq_ref[:] = dq_ref
         if self._fused:
-            code = core.step(S)
+            core.step(S, t)
         else:
-            code = core.prepare(S, not self._python_dynamics)
-            if not code:
-                self._python_compensation()
-                if self.settings.latency > 0:  # MPC and Eq (4) at the predicted state
-                    code = core.predict(S) or core.prepare(S, not self._python_dynamics)
-                    if not code and self._python_dynamics:
-                        self._python_dynamics_at_stack()
-                if not code:
-                    code = core.finish()
-        if code:
-            self._failure(code, t, S[0], S[1], self._stack_q_ref, self._stack_dq_ref)
+            core.prepare(S, t, not self._python_dynamics)
+            self._python_compensation()
+            if self.settings.latency > 0:  # MPC and Eq (4) at the predicted state
+                core.predict(S)
+                core.prepare(S, t, not self._python_dynamics)
+                if self._python_dynamics:
+                    self._python_dynamics_at_stack()
+            core.finish()
         self._started = True
         return self.tau.copy()
 
@@ -608,7 +589,7 @@ class HierarchicalMPC(AppliedTorque):
             d_hat = comp.estimate
         self.disturbance_estimate[:] = d_hat
         if self._python_dynamics and joint:  # Eq 4 takes C q̇ + G + B q̇ + F sgn q̇
-            self._buf["nle"][:] += b * dq + f * np.sign(dq)
+            self._buf["nle"][:] += load_native().joint_torque(b, f, dq)
 
     def _python_dynamics_at_stack(self) -> None:
         """M and C q̇ + G at the stack's state from Pinocchio's Python API (models the
@@ -636,15 +617,8 @@ class HierarchicalMPC(AppliedTorque):
         else:
             core.clear_reference()
 
-    def _failure(self, code: int, t, q, dq, q_ref, dq_ref) -> None:
-        """Raise the error of a compiled step's failure ``code`` (nothing was changed)."""
-        if code == 4:
-            raise NonFiniteError("t", t)
-        if code == 3:  # q or q̇ not a vector of n floats
-            self.robot.check_vector("q", q)
-            self.robot.check_vector("dq", dq)
-            raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")
-        if code == 1:  # an input is not finite
-            self._raise_non_finite(t, q, dq, q_ref, dq_ref)
-            raise NonFiniteError("q, dq or the reference horizon", (q, dq), f"at t={t:.6g}")
-        self.qps.raise_failure()
+    def _not_vectors(self, q, dq) -> None:
+        """Raise the error of ``q`` or ``dq`` that is not a vector of n floats."""
+        self.robot.check_vector("q", q)
+        self.robot.check_vector("dq", dq)
+        raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")

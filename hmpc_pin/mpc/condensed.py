@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import ConfigError, InterfaceError, SolverError
+from ..exceptions import ConfigError, InterfaceError
 from ..native import load as load_native
 
 __all__ = [
@@ -193,47 +193,51 @@ class StateLimits:
     slack_linear_weight: float = 1e4
 
 
-def qp_settings(warm: bool = True) -> dict:
-    """This package's ProxSuite settings, by attribute name (set before ``init``); the
-    native kernels (:mod:`hmpc_pin.native`) apply the same dict.
+def qp_settings(warm: bool = True):
+    """This package's ProxSuite settings, the compiled core's typed ``QPSettings`` (each
+    field a ProxSuite ``Settings`` attribute, set before ``init``; the fields not chosen
+    here keep ProxSuite's defaults).
 
     ``warm=False`` (the soft state-constrained QPs) solves from scratch each time,
     without the duality-gap test.
     """
-    return {
-        # Settings must be set before init(): changing initial_guess after
-        # init() crashes proxsuite 0.8.0 (segfault, measured here).
-        "initial_guess": ("WARM_START_WITH_PREVIOUS_RESULT" if warm else "NO_INITIAL_GUESS"),
-        # Soft QPs far outside the limits have slacks of 1e6 and more, where an absolute
-        # 1e-9 residual is below double precision: add a relative tolerance there.
-        "eps_rel": 0.0 if warm else 1e-12,
-        "verbose": False,
-        # Without the duality-gap test a warm-started solve can stop after 1-3
-        # iterations, reporting SOLVED at a feasible point that keeps a stale bound
-        # multiplier (measured here: v off by up to 1e-3 for Nc = 1, 1e-2 for Nc = 3).
-        "check_duality_gap": warm,
-        "eps_duality_gap_rel": 0.0,
-        # Every QP here is feasible by construction (box, or soft constraints with a free
-        # slack). ProxSuite's default infeasibility tolerance (1e-4) nevertheless declared
-        # soft-constrained QPs PRIMAL_INFEASIBLE after 2-3 iterations (measured here).
-        "eps_primal_inf": 1e-12,
-        "eps_dual_inf": 1e-12,
-    }
+    core = load_native()
+    s = core.QPSettings()
+    # Settings must be set before init(): changing initial_guess after
+    # init() crashes proxsuite 0.8.0 (segfault, measured here).
+    guess = core.InitialGuess
+    s.initial_guess = guess.WARM_START_WITH_PREVIOUS_RESULT if warm else guess.NO_INITIAL_GUESS
+    # Soft QPs far outside the limits have slacks of 1e6 and more, where an absolute
+    # 1e-9 residual is below double precision: add a relative tolerance there.
+    s.eps_rel = 0.0 if warm else 1e-12
+    s.verbose = False
+    # Without the duality-gap test a warm-started solve can stop after 1-3
+    # iterations, reporting SOLVED at a feasible point that keeps a stale bound
+    # multiplier (measured here: v off by up to 1e-3 for Nc = 1, 1e-2 for Nc = 3).
+    s.check_duality_gap = warm
+    s.eps_duality_gap_rel = 0.0
+    # Every QP here is feasible by construction (box, or soft constraints with a free
+    # slack). ProxSuite's default infeasibility tolerance (1e-4) nevertheless declared
+    # soft-constrained QPs PRIMAL_INFEASIBLE after 2-3 iterations (measured here).
+    s.eps_primal_inf = 1e-12
+    s.eps_dual_inf = 1e-12
+    return s
 
 
-def solver_settings(eps_abs: float, max_iter: int, warm: bool = True) -> dict:
+def solver_settings(eps_abs: float, max_iter: int, warm: bool = True):
     """:func:`qp_settings` with the tolerance and the iteration cap of the controller."""
-    settings = qp_settings(warm)
-    settings.update(eps_abs=eps_abs, max_iter=max_iter, eps_duality_gap_abs=eps_abs)
-    return settings
+    s = qp_settings(warm)
+    s.eps_abs = s.eps_duality_gap_abs = eps_abs
+    s.max_iter = max_iter
+    return s
 
 
-def cold_twin_settings(eps_abs: float, max_iter: int) -> dict:
+def cold_twin_settings(eps_abs: float, max_iter: int):
     """The settings of a box QP's cold twin (the compiled QPs' retry after a warm solve that
-    did not converge, ``src/joint_qps.cpp``): solved from
+    did not converge, ``cpp/src/joint_qps.cpp``): solved from
     scratch without the duality-gap test, like the soft QPs, but with no relative tolerance."""
     settings = solver_settings(eps_abs, max_iter, warm=False)
-    settings["eps_rel"] = 0.0
+    settings.eps_rel = 0.0
     return settings
 
 
@@ -284,7 +288,7 @@ class JointQPs:
             state constraints were inactive.
         constrained: Number of joints whose constrained QP was solved at the last step.
         cold_solves: Number of box QPs solved again from scratch because the warm-started
-            solve did not converge (the cold twin, ``src/joint_qps.cpp``), since construction.
+            solve did not converge (the cold twin, ``cpp/src/joint_qps.cpp``), since construction.
         unconstrained_solves: ``"joint"`` layout: joint QPs not sent to ProxSuite because
             the unconstrained minimiser :math:`-H^{-1}g` lay inside the box (then it is the
             box QP's solution, exactly), since construction.
@@ -336,12 +340,13 @@ class JointQPs:
         self.solution = self.stack[:Nc]  # solved into place by the compiled QPs
         self.x0 = self.stack[Nc + 3 : Nc + 5]
         self.slack = np.zeros(n)
-        # The compiled QPs (src/joint_qps.cpp), writing solution and slack in place.
+        # The compiled QPs (cpp/src/joint_qps.cpp), writing solution and slack in place.
         self._core = load_native().JointQPs(
             n, N, Nc, layout == "block", mpc.H, v_min, v_max,
             solver_settings(eps_abs, max_iter), cold_twin_settings(eps_abs, max_iter),
             self.solution, self.slack,
         )  # fmt: skip
+        self._core.joint_names = list(joint_names)  # its faults name the joint
         self.soft_qps = False
         if limits is None:
             return
@@ -450,7 +455,7 @@ class JointQPs:
     def solve(self, G: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """Solve every joint's QP for the gradients ``G`` (n×Nc); return the first inputs (n,).
 
-        The compiled QPs (``src/joint_qps.cpp``): the layout's box QPs (with the exact
+        The compiled QPs (``cpp/src/joint_qps.cpp``): the layout's box QPs (with the exact
         unconstrained shortcut per joint and the cold retry), then, with limits, the soft
         QPs of the joints whose box-only prediction leaves them. :attr:`solution` and
         :attr:`slack` are written in place.
@@ -472,14 +477,5 @@ class JointQPs:
         if G.shape != (self.n, self.mpc.Nc):
             raise InterfaceError(G, f"gradients of shape ({self.n}, {self.mpc.Nc})",
                                  "pass one row of Nc values per joint")  # fmt: skip
-        if not self._core.solve(G, self.x0[0], self.x0[1]):
-            self.raise_failure()
+        self._core.solve(G, self.x0[0], self.x0[1])
         return self.solution[0].copy()
-
-    def raise_failure(self) -> None:
-        """Raise the :class:`SolverError` of the compiled QPs' last failure."""
-        core = self._core
-        joint = int(core.fail_joint)
-        name = "all-joint block" if joint < 0 else self.joint_names[joint]
-        raise SolverError(None if joint < 0 else joint, name, core.fail_status,
-                          int(core.fail_iter))  # fmt: skip

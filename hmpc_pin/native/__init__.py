@@ -1,8 +1,9 @@
 """The compiled core: the RK4 plant's period and the hierarchical MPC's step in C++.
 
-The extension module ``hmpc_pin._core`` (sources in ``src/``, built by
-``CMakeLists.txt``) is compiled **when the package is built** -- ``pip install .``,
-``pip install -e .`` or ``pip wheel .`` run CMake through scikit-build-core against the
+The extension module ``hmpc_pin._core`` (the library ``hmpc_core`` in ``cpp/``, one unit
+per concept, and its bindings in ``bindings/python/``, built by ``CMakeLists.txt``) is
+compiled **when the package is built** -- ``pip install .``, ``pip install -e .`` or
+``pip wheel .`` run CMake through scikit-build-core against the
 Pinocchio and ProxSuite CMake packages of the build environment -- and ships in the platform
 wheel. Nothing is compiled at run time: there is no compiler, cache or lock here, only an
 import. The run-time requirements pin the very Pinocchio and ProxSuite versions the module was

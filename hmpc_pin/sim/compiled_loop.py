@@ -1,5 +1,5 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
-loop, many control periods per call into the compiled core (``src/core.cpp``,
+loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``,
 ``ClosedLoop``), when every part of the loop has a compiled form:
 
 - the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
@@ -36,10 +36,8 @@ import numpy as np
 
 from ..controllers.hierarchical import HierarchicalMPC
 from ..controllers.wrappers import MeasuredController
-from ..exceptions import NonFiniteError
 from ..native import load as load_native
 from ..tasks.base import as_reference
-from .base import state_error
 from .plants import PULSE_CHUNK, RK4Plant
 
 __all__ = ["LOOPS", "CompiledLoop", "why_not_compiled"]
@@ -124,7 +122,7 @@ class CompiledLoop:
             ("q", "dq", "tau", "d", "d_hat", "tau_applied")], step_ns, sat_steps, sat_excess,
             np.full(n, np.inf) if limit is None else limit, limit is not None,
             min(state_bound, sys.float_info.max), a, b,
-            plant._friction is not None, plant.h, plant.substeps,
+            plant._friction is not None, plant.h, plant.substeps, float(ctrl.Ts),
         )  # fmt: skip
         self._hist = None
         if measured is not None:
@@ -135,12 +133,12 @@ class CompiledLoop:
         self._x = np.concatenate([plant.q, plant.dq])
         self._no_rows = np.empty((0, n))
         self._no_noise = np.empty((0, 2 * n))
-        self._state_bound = state_bound
         self.k, self.last = 0, -1
 
     def run(self) -> None:
-        """Run every step, chunk by chunk, raising the per-step loop's exception at a fault
-        (:attr:`k`, :attr:`last` kept up to date for the caller's partial result)."""
+        """Run every step, chunk by chunk; a fault raises the compiled core's exception
+        (the per-step loop's, translated from C++ in one place) with :attr:`k`,
+        :attr:`last` kept up to date for the caller's partial result."""
         ctrl, plant, K = self.ctrl, self.plant, self.K
         if self.reference is not ctrl._reference:  # as the first step does
             ctrl._set_reference(self.reference)
@@ -155,17 +153,15 @@ class CompiledLoop:
             else:
                 k1 = min(K + 1, k0 + PULSE_CHUNK)
                 P = self._no_rows
-            k, code = self._chunk(k0, k1, P)
+            k = self._chunk(k0, k1, P)
             self.k = k
-            if code:
-                self._raise(code, k)
             if k == K:
                 return
             k0 = k1
 
-    def _chunk(self, k0: int, k1: int, P) -> tuple[int, int]:
+    def _chunk(self, k0: int, k1: int, P) -> int:
         """Steps ``k0 .. k1 - 1``; the parts' Python state brought up to date afterwards
-        (also when Ctrl-C stops the chunk)."""
+        (also when a fault or Ctrl-C stops the chunk). Returns the step where it stopped."""
         loop, n, measured = self._loop, self.n, self.measured
         noise, rng_state, drawn = self._no_noise, None, 0
         if measured is not None:  # one row of 2n draws per step k >= 1, as _measure draws
@@ -178,7 +174,7 @@ class CompiledLoop:
         try:
             return loop.run(x[:n], x[n:], k0, k1, P, noise)
         finally:
-            self.last = loop.last
+            self.k, self.last = loop.k, loop.last
             plant = self.plant
             if loop.advances != advances:
                 plant.k += loop.advances - advances
@@ -202,19 +198,3 @@ class CompiledLoop:
                 )  # fmt: skip
             elif measured is not None and drawn:
                 measured.rng.bit_generator.state = rng_state
-
-    def _raise(self, code: int, k: int) -> None:
-        """The per-step loop's exception for the compiled loop's fault ``code`` at step ``k``."""
-        t = float(self.t_arr[k])
-        n = self.n
-        if code <= 4:  # the controller's step: its own error, from its own inputs
-            ctrl = self.ctrl
-            if self.measured is not None:
-                q, dq = self.measured._buffer[0]
-            else:
-                q, dq = self._x[:n].copy(), self._x[n:].copy()
-            ctrl._failure(code, t, q, dq, ctrl._stack_q_ref, ctrl._stack_dq_ref)
-        if code == 5:
-            raise NonFiniteError("tau", self.records["tau"][k].copy(), f"at t={t:.6g}")
-        q, dq = self.plant.q, self.plant.dq
-        raise state_error(q, dq, t + float(self.ctrl.Ts), self._state_bound)

@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..exceptions import ConfigError, InterfaceError
+from ..native import load as load_native
 
 __all__ = [
     "CoulombViscousFriction",
@@ -88,7 +89,9 @@ class CoulombViscousFriction(Disturbance):
         self.coulomb = np.asarray(coulomb, dtype=float)
 
     def __call__(self, t, q, dq):
-        return -(self.viscous * dq + self.coulomb * np.sign(dq))
+        dq = np.asarray(dq, dtype=float)  # the compiled law (joint_dynamics.hpp), per joint
+        a, b = (np.broadcast_to(c, dq.shape) for c in (self.viscous, self.coulomb))
+        return -load_native().joint_torque(a, b, dq)
 
     def friction_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
         """``(a, b)`` with :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`: lets a plant

@@ -30,7 +30,7 @@ per stage (as the ``[disturbance.friction]`` term), which chatters about
 :math:`\\dot q = 0` within one step rather than sticking; MuJoCo's ``frictionloss`` is a
 soft constraint that holds a joint at rest while the torque is below :math:`f`.
 
-The period is one call into the compiled core (``src/core.cpp``, ``RK4``), the only
+The period is one call into the compiled core (``cpp/src/rk4.cpp``, ``RK4``), the only
 implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
 Terms that say what they are are evaluated fused: time-only terms (a
 ``sample_times(times)`` method, e.g. :class:`~hmpc_pin.sim.disturbances.GaussianPulse`)
@@ -158,7 +158,9 @@ def split_disturbance(disturbance, n: int):
             a, b = (np.asarray(c, dtype=float) for c in coef_fn())
             if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
                 return None  # let the plain evaluation raise its own broadcasting error
-            if not _agrees(term, lambda t, q, dq, a=a, b=b: -(a * dq + b * np.sign(dq)), n):
+            law = load_native().joint_torque  # what the compiled period evaluates
+            a, b = np.broadcast_to(a, (n,)), np.broadcast_to(b, (n,))
+            if not _agrees(term, lambda t, q, dq, a=a, b=b, law=law: -law(a, b, dq), n):
                 return None
             friction.append((a, b))
         else:
@@ -171,7 +173,7 @@ def split_disturbance(disturbance, n: int):
 class RK4Plant:
     """Classical RK4 integration of a Pinocchio model over one control period.
 
-    The period is the compiled core's (``src/core.cpp``, ``RK4``; module docstring): one
+    The period is the compiled core's (``cpp/src/rk4.cpp``, ``RK4``; module docstring): one
     C++ call per period, with the disturbance's fused terms (time-only terms tabulated here,
     one Coulomb–viscous friction evaluated per stage in C++), or any other disturbance
     called as ``d(t, q, dq)`` at every stage from C++; Pinocchio's compiled ABA, or its
@@ -271,7 +273,7 @@ class RK4Plant:
         d = self._pulses_at(self.k)[0].copy() if self._pulses else np.zeros(self.n)
         if self._friction is not None:
             a, b = self._ab
-            d -= a * dq + b * np.sign(dq)
+            d -= load_native().joint_torque(a, b, dq)
         return d
 
     def _pulses_at(self, k: int) -> np.ndarray:
@@ -383,7 +385,7 @@ class EulerPlant:
         for s in range(self.substeps):
             u = tau + dist(t + s * h, q, dq)
             if joint is not None:
-                u = u - joint[0] * dq - joint[1] * np.sign(dq)
+                u = u - load_native().joint_torque(joint[0], joint[1], dq)
             dq = dq + h * aba(model, data, q, dq, u)
             q = q + h * dq
         self.k += 1

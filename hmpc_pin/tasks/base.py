@@ -78,7 +78,7 @@ def _write(values: Pair, out: Pair | None) -> Pair:
 
 
 class CompiledSampling:
-    """Base of the references that the compiled sampler evaluates (``src/sampler.cpp``):
+    """Base of the references that the compiled sampler evaluates (``cpp/src/sampler.cpp``):
     ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` --
     ``("sine", ω, φ, amplitude, offset, amplitude·ω)`` or ``("ppoly", t_k, origins,
     [q | q̇] coefficients, degree)``, the same tuple the fused step samples (``native_form``).

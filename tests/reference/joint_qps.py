@@ -1,4 +1,4 @@
-"""Oracle of the per-joint MPC's QPs, Eq (25)–(26) (compiled: ``src/joint_qps.cpp``).
+"""Oracle of the per-joint MPC's QPs, Eq (25)–(26) (compiled: ``cpp/src/joint_qps.cpp``).
 
 Each joint's condensed QP :math:`\\min_U \\tfrac12 U^T H U + g_i^T U` s.t.
 :math:`v_{\\min,i} \\le U \\le v_{\\max,i}` (Eq 26), and with soft state limits the QP with

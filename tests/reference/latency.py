@@ -1,4 +1,4 @@
-"""Numpy oracle of the latency-aware step's two parts (compiled: ``src/core.cpp``,
+"""Numpy oracle of the latency-aware step's two parts (compiled: ``cpp/src/latency.cpp``,
 ``HMPCCore.set_latency``), written from their definitions.
 
 With the measurement at :math:`t_k` describing the arm at :math:`t_k - L`,

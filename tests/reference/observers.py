@@ -1,4 +1,4 @@
-"""Numpy oracle of the NDO of Eq (13) (compiled: ``src/observer.cpp``).
+"""Numpy oracle of the NDO of Eq (13) (compiled: ``cpp/src/observer.cpp``).
 
 Continuous form, with :math:`p = cY\\dot q` (Eq 28) and :math:`L = cY M^{-1}` (Eq 30):
 

@@ -1,4 +1,4 @@
-"""Oracle of the hierarchical MPC's step, paper Figure 1 (compiled: ``src/core.cpp``).
+"""Oracle of the hierarchical MPC's step, paper Figure 1 (compiled: ``cpp/src/step.cpp``).
 
 At every control instant, written from the equations with Pinocchio's Python API and the
 other oracles of this folder:

@@ -2,12 +2,12 @@
 // have a closed form here -- a sine per joint (hmpc_pin.tasks.sine.SineReference) or a
 // piecewise polynomial in s = t − origin of its segment (quintic moves, trajectory files,
 // waypoints and pose tasks) -- used on its own by the references' sample_many and inside the
-// fused step (core.cpp, HMPCCore). Oracle: tests/reference/sampling.py.
+// fused step (step.cpp, HMPCCore). Oracle: tests/reference/sampling.py.
 #pragma once
 
 #include <Eigen/Core>
 
-namespace hmpc_native {
+namespace hmpc {
 
 class HorizonSampler {
  public:
@@ -41,4 +41,4 @@ class HorizonSampler {
   mutable Eigen::RowVectorXd acc_;
 };
 
-}  // namespace hmpc_native
+}  // namespace hmpc

@@ -1,5 +1,5 @@
 // The per-joint MPC's QPs: see joint_qps.hpp.
-#include "joint_qps.hpp"
+#include "hmpc/joint_qps.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -7,21 +7,35 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace hmpc_native {
+namespace hmpc {
 
 namespace pqp = proxsuite::proxqp;
 
-void QPOptions::apply(pqp::Settings<double>& s) const {
-  if (initial_guess) s.initial_guess = *initial_guess;
-  if (eps_abs) s.eps_abs = *eps_abs;
-  if (eps_rel) s.eps_rel = *eps_rel;
-  if (max_iter) s.max_iter = *max_iter;
-  if (verbose) s.verbose = *verbose;
-  if (check_duality_gap) s.check_duality_gap = *check_duality_gap;
-  if (eps_duality_gap_abs) s.eps_duality_gap_abs = *eps_duality_gap_abs;
-  if (eps_duality_gap_rel) s.eps_duality_gap_rel = *eps_duality_gap_rel;
-  if (eps_primal_inf) s.eps_primal_inf = *eps_primal_inf;
-  if (eps_dual_inf) s.eps_dual_inf = *eps_dual_inf;
+QPSettings::QPSettings() {
+  const pqp::Settings<double> d;  // ProxSuite's defaults
+  initial_guess = d.initial_guess;
+  eps_abs = d.eps_abs;
+  eps_rel = d.eps_rel;
+  eps_duality_gap_abs = d.eps_duality_gap_abs;
+  eps_duality_gap_rel = d.eps_duality_gap_rel;
+  eps_primal_inf = d.eps_primal_inf;
+  eps_dual_inf = d.eps_dual_inf;
+  max_iter = d.max_iter;
+  verbose = d.verbose;
+  check_duality_gap = d.check_duality_gap;
+}
+
+void QPSettings::apply(pqp::Settings<double>& s) const {
+  s.initial_guess = initial_guess;
+  s.eps_abs = eps_abs;
+  s.eps_rel = eps_rel;
+  s.max_iter = max_iter;
+  s.verbose = verbose;
+  s.check_duality_gap = check_duality_gap;
+  s.eps_duality_gap_abs = eps_duality_gap_abs;
+  s.eps_duality_gap_rel = eps_duality_gap_rel;
+  s.eps_primal_inf = eps_primal_inf;
+  s.eps_dual_inf = eps_dual_inf;
 }
 
 std::string status_name(pqp::QPSolverOutput status) {
@@ -43,7 +57,7 @@ namespace {
 // crashes ProxSuite 0.8.0 with warm starts (measured here).
 std::unique_ptr<JointQPs::DenseQP> new_box_qp(const JointQPs::Mat& H, const JointQPs::Vec& g,
                                               const JointQPs::Vec& lo, const JointQPs::Vec& hi,
-                                              const QPOptions& options) {
+                                              const QPSettings& options) {
   auto qp = std::make_unique<JointQPs::DenseQP>(H.rows(), 0, 0, true);
   options.apply(qp->settings);
   qp->init(H, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt, lo, hi);
@@ -150,6 +164,14 @@ void JointQPs::set_max_iter(long max_iter) {
       if (qp) qp->settings.max_iter = max_iter;
 }
 
+QPNotSolved JointQPs::failure() const {
+  std::string name = "all-joint block";
+  if (fail_joint >= 0)
+    name = fail_joint < static_cast<int>(joint_names.size()) ? joint_names[fail_joint]
+                                                             : "joint " + std::to_string(fail_joint);
+  return QPNotSolved(fail_joint < 0 ? -1 : fail_joint, name, fail_status, fail_iter);
+}
+
 bool JointQPs::fail(int joint, const Results& res) {
   fail_joint = joint;
   fail_status = status_name(res.info.status);
@@ -188,7 +210,7 @@ bool JointQPs::active_set(int i) {
 // The active set state_ (−1 lower, +1 upper, 0 free) and up to `exchanges` exchanges.
 bool JointQPs::exchange(int i, int exchanges) {
   const double lo = v_min_[i], hi = v_max_[i];
-  const double eps = warm_.eps_abs ? *warm_.eps_abs : 1e-9;
+  const double eps = warm_.eps_abs;
   for (int it = 0; it <= exchanges; ++it) {
     free_.clear();
     for (int j = 0; j < Nc; ++j) {
@@ -393,4 +415,4 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
   return true;
 }
 
-}  // namespace hmpc_native
+}  // namespace hmpc

@@ -1,6 +1,6 @@
 // The per-joint MPC's quadratic programs (Eq 25–26), solved by ProxSuite: the one
 // implementation, used on its own (hmpc_pin.mpc.condensed.JointQPs) and inside the fused
-// step (core.cpp, HMPCCore). The numpy/ProxSuite-Python oracle it is tested against is
+// step (step.cpp, HMPCCore). The numpy/ProxSuite-Python oracle it is tested against is
 // tests/reference/joint_qps.py.
 //
 // Layouts: "block" (the n box QPs as one block-diagonal QP of n·Nc variables) or "joint"
@@ -17,6 +17,8 @@
 // constraints (hmpc_pin.mpc.condensed, module docstring).
 #pragma once
 
+#include "hmpc/errors.hpp"
+
 #include <Eigen/Core>
 #include <proxsuite/proxqp/dense/dense.hpp>
 
@@ -25,16 +27,20 @@
 #include <string>
 #include <vector>
 
-namespace hmpc_native {
+namespace hmpc {
 
-// ProxSuite settings to set on a QP after its construction (the others keep ProxSuite's
-// defaults); hmpc_pin.mpc.condensed.solver_settings() chooses them, in one place.
-struct QPOptions {
-  std::optional<proxsuite::proxqp::InitialGuessStatus> initial_guess;
-  std::optional<double> eps_abs, eps_rel, eps_duality_gap_abs, eps_duality_gap_rel,
-      eps_primal_inf, eps_dual_inf;
-  std::optional<long> max_iter;
-  std::optional<bool> verbose, check_duality_gap;
+// The ProxSuite settings this package chooses for a QP, each a typed field, set on the QP
+// after its construction and before init (the others keep ProxSuite's defaults). A
+// default-constructed QPSettings holds ProxSuite's own defaults;
+// hmpc_pin.mpc.condensed.qp_settings() chooses the package's values, in one place.
+struct QPSettings {
+  QPSettings();
+  proxsuite::proxqp::InitialGuessStatus initial_guess;
+  double eps_abs, eps_rel;                          // primal/dual residual tolerances
+  double eps_duality_gap_abs, eps_duality_gap_rel;  // duality-gap test (check_duality_gap)
+  double eps_primal_inf, eps_dual_inf;              // infeasibility tolerances
+  long max_iter;
+  bool verbose, check_duality_gap;
   void apply(proxsuite::proxqp::Settings<double>& s) const;
 };
 
@@ -47,7 +53,7 @@ class JointQPs {
   using CRefMat = Eigen::Ref<const Mat>;
   using CRefRow = Eigen::Ref<const RowMat>;
   using MapRow = Eigen::Map<RowMat>;
-  using Settings = QPOptions;
+  using Settings = QPSettings;
   using DenseQP = proxsuite::proxqp::dense::QP<double>;
   using Results = proxsuite::proxqp::Results<double>;
 
@@ -71,6 +77,10 @@ class JointQPs {
   // not report solved (fail_joint: the joint, −1 for the block; fail_status, fail_iter).
   bool solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
 
+  // The fault of the last solve() that returned false (fail_joint, fail_status, fail_iter,
+  // the joint's name from joint_names).
+  QPNotSolved failure() const;
+
   // The iteration cap of every QP (the warm ones, their twins, the soft ones).
   void set_max_iter(long max_iter);
 
@@ -93,6 +103,7 @@ class JointQPs {
   int fail_joint = -2;
   std::string fail_status;
   long fail_iter = 0;
+  std::vector<std::string> joint_names;  // for failure() (empty: "joint i")
 
  private:
   const Results* solve_box(int k, const Vec& g, int joint);
@@ -120,4 +131,4 @@ class JointQPs {
 
 std::string status_name(proxsuite::proxqp::QPSolverOutput status);
 
-}  // namespace hmpc_native
+}  // namespace hmpc

@@ -1,5 +1,5 @@
-// The Pinocchio part of the native kernels (see _dynamics.hpp).
-#include "dynamics.hpp"
+// Pinocchio behind an Eigen-only interface: see dynamics.hpp.
+#include "hmpc/dynamics.hpp"
 
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
@@ -9,7 +9,7 @@
 
 #include <stdexcept>
 
-namespace hmpc_native {
+namespace hmpc {
 
 struct Dynamics::Impl {
   pinocchio::Model model;
@@ -45,4 +45,4 @@ const Dynamics::Vec& Dynamics::aba(const CRefVec& q, const CRefVec& v, const CRe
   return pinocchio::aba(impl_->model, impl_->data, q, v, tau, pinocchio::Convention::LOCAL);
 }
 
-}  // namespace hmpc_native
+}  // namespace hmpc

@@ -1,9 +1,9 @@
 // The NDO of Eq (13): see observer.hpp.
-#include "observer.hpp"
+#include "hmpc/observer.hpp"
 
 #include <stdexcept>
 
-namespace hmpc_native {
+namespace hmpc {
 
 NDO::NDO(const CRefMat& cY_, double Ts, bool implicit_, double* z_, double* estimate_)
     : n(static_cast<int>(cY_.rows())), implicit(implicit_), cY(cY_), TcY(Ts * cY_),
@@ -33,4 +33,4 @@ void NDO::update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq,
   estimate = z + p_;
 }
 
-}  // namespace hmpc_native
+}  // namespace hmpc

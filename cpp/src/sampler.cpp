@@ -1,11 +1,11 @@
 // The reference's horizon sampler: see sampler.hpp.
-#include "sampler.hpp"
+#include "hmpc/sampler.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-namespace hmpc_native {
+namespace hmpc {
 
 HorizonSampler::HorizonSampler(int n_) : n(n_) { acc_.setZero(2 * n_); }
 
@@ -61,4 +61,4 @@ void HorizonSampler::sample(double t, double* q, double* dq) const {
   }
 }
 
-}  // namespace hmpc_native
+}  // namespace hmpc

@@ -1,6 +1,5 @@
-// The Pinocchio part of the native kernels, behind an interface that needs only Eigen:
-// _dynamics.cpp (Pinocchio's headers) and _core.cpp (ProxSuite's and pybind11's) compile
-// in parallel (hmpc_pin/native/__init__.py).
+// Pinocchio behind an interface that needs only Eigen: only dynamics.cpp includes Pinocchio's
+// headers, so that the other units compile without them.
 #pragma once
 
 #include <Eigen/Core>
@@ -8,7 +7,7 @@
 #include <memory>
 #include <string>
 
-namespace hmpc_native {
+namespace hmpc {
 
 // A Pinocchio model (passed as its serialized string) and its data.
 class Dynamics {
@@ -36,4 +35,4 @@ class Dynamics {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace hmpc_native
+}  // namespace hmpc

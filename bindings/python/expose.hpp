@@ -1,0 +1,35 @@
+// The Python module hmpc_pin._core: one expose_*() per component of the library (module.cpp
+// calls them), and the holders that keep the Python-owned arrays a component writes in place
+// alive as long as the component.
+#pragma once
+
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "hmpc/types.hpp"
+
+namespace hmpc::python {
+
+namespace py = pybind11;
+using Array = py::array_t<double, py::array::c_style>;
+
+void expose_dynamics(py::module_& m);
+void expose_sampler(py::module_& m);
+void expose_rk4(py::module_& m);
+void expose_observer(py::module_& m);
+void expose_joint_qps(py::module_& m);
+void expose_step(py::module_& m);
+void expose_loop(py::module_& m);
+void expose_errors(py::module_& m);
+void expose_joint_dynamics(py::module_& m);
+
+// The data of a float64 C-contiguous numpy array of `size` values that may be written.
+inline double* writable(Array& a, Eigen::Index size) {
+  if (a.size() != size || !a.writeable())
+    throw std::invalid_argument("native buffer of wrong size or not writable");
+  return a.mutable_data();
+}
+
+}  // namespace hmpc::python

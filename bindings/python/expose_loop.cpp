@@ -1,0 +1,97 @@
+// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step and the RK4
+// plant, its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
+// before every step.
+#include "holders.hpp"
+
+#include "hmpc/loop.hpp"
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <vector>
+
+namespace hmpc::python {
+
+namespace {
+
+using IntArray = py::array_t<std::int64_t, py::array::c_style>;
+
+struct PyClosedLoop {
+  Array t;
+  std::vector<Array> records;
+  IntArray step_ns, sat_steps;
+  Array sat_excess;
+  std::optional<Array> history;
+  std::unique_ptr<ClosedLoop> loop;
+};
+
+std::array<double*, 6> record_data(std::vector<Array>& rec, Eigen::Index rows, int n) {
+  if (rec.size() != 6) throw std::invalid_argument("ClosedLoop: shapes do not match");
+  std::array<double*, 6> out{};
+  for (std::size_t i = 0; i < 6; ++i) {
+    if (rec[i].size() != rows * n || !rec[i].writeable())
+      throw std::invalid_argument("ClosedLoop: records must be writable (K+1, n)");
+    out[i] = rec[i].mutable_data();
+  }
+  return out;
+}
+
+}  // namespace
+
+void expose_loop(py::module_& m) {
+  py::class_<PyClosedLoop>(m, "ClosedLoop", py::module_local())
+      .def(py::init([](PyHMPCCore& core, RK4& plant, Array t, std::vector<Array> records,
+                       IntArray step_ns, IntArray sat_steps, Array sat_excess,
+                       const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
+                       const CRefVec& b, bool friction, double h, int substeps, double Ts) {
+             auto o = std::make_unique<PyClosedLoop>();
+             const int n = core.core.n;
+             const auto K = static_cast<Eigen::Index>(t.size()) - 1;
+             if (step_ns.size() != K + 1 || sat_steps.size() != n || sat_excess.size() != n)
+               throw std::invalid_argument("ClosedLoop: shapes do not match");
+             o->t = t;
+             o->records = std::move(records);
+             o->step_ns = step_ns;
+             o->sat_steps = sat_steps;
+             o->sat_excess = sat_excess;
+             o->loop = std::make_unique<ClosedLoop>(
+                 core.core, plant, o->t.data(), static_cast<int>(K),
+                 record_data(o->records, K + 1, n), o->step_ns.mutable_data(),
+                 o->sat_steps.mutable_data(), o->sat_excess.mutable_data(), limit, has_limit,
+                 bound, a, b, friction, h, substeps, Ts);
+             o->loop->interrupted = [] {
+               if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+             };
+             return o;
+           }),
+           py::arg("core"), py::arg("plant"), py::arg("t"), py::arg("records"),
+           py::arg("step_ns"), py::arg("sat_steps"), py::arg("sat_excess"), py::arg("limit"),
+           py::arg("has_limit"), py::arg("bound"), py::arg("a"), py::arg("b"),
+           py::arg("friction"), py::arg("h"), py::arg("substeps"), py::arg("Ts"),
+           py::keep_alive<1, 2>(), py::keep_alive<1, 3>())
+      .def(
+          "set_measurement",
+          [](PyClosedLoop& o, double q_noise, double dq_noise, int D, Array H) {
+            const int n = o.loop->n;
+            if (D < 0 || H.ndim() != 2 || H.shape(0) != D + 1 || H.shape(1) != 2 * n ||
+                !H.writeable())
+              throw std::invalid_argument(
+                  "ClosedLoop.set_measurement: history of (delay + 1, 2n)");
+            o.history = H;
+            o.loop->set_measurement(q_noise, dq_noise, D, o.history->mutable_data());
+          },
+          py::arg("q_noise"), py::arg("dq_noise"), py::arg("delay"), py::arg("history"))
+      .def(
+          "run",
+          [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
+             const CRefRow& noise) { return o.loop->run(q, v, k0, k1, P, noise); },
+          py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"), py::arg("P"),
+          py::arg("noise"))
+      .def_property_readonly("k", [](const PyClosedLoop& o) { return o.loop->k; })
+      .def_property_readonly("last", [](const PyClosedLoop& o) { return o.loop->last; })
+      .def_property_readonly("advances", [](const PyClosedLoop& o) { return o.loop->advances; })
+      .def_property_readonly("started", [](const PyClosedLoop& o) { return o.loop->started; })
+      .def_property_readonly("stepped", [](const PyClosedLoop& o) { return o.loop->stepped; });
+}
+
+}  // namespace hmpc::python

@@ -1,0 +1,37 @@
+// hmpc_pin._core.NDO: the disturbance observer of Eq (13) (observer.hpp), its state in two
+// numpy arrays that the Python object owns (DisturbanceObserver.z, .estimate).
+#include "holders.hpp"
+
+namespace hmpc::python {
+
+void expose_observer(py::module_& m) {
+  py::class_<PyNDO, std::shared_ptr<PyNDO>>(m, "NDO", py::module_local())
+      .def(py::init<const CRefMat&, double, bool, Array, Array>(), py::arg("cY"), py::arg("Ts"),
+           py::arg("implicit"), py::arg("z"), py::arg("estimate"))
+      .def("reset", [](PyNDO& o, const CRefVec& dq0) { o.ndo.reset(dq0); }, py::arg("dq0"))
+      .def(
+          "update",
+          [](PyNDO& o, const CRefMat& M, const CRefVec& nle, const CRefVec& dq,
+             const CRefVec& tau) {
+            const int n = o.ndo.n;
+            if (M.rows() != n || M.cols() != n || nle.size() != n || dq.size() != n ||
+                tau.size() != n)
+              throw std::invalid_argument("NDO.update: M must be (n, n) and nle, dq, tau (n,)");
+            o.ndo.update(M, nle, dq, tau);
+          },
+          py::arg("M"), py::arg("nle"), py::arg("dq"), py::arg("tau_prev"))
+      .def_property_readonly("n", [](const PyNDO& o) { return o.ndo.n; })
+      .def_property_readonly("implicit", [](const PyNDO& o) { return o.ndo.implicit; })
+      .def_property(  // (z, d̂), copies; restored after a dry step (warm_up)
+          "state",
+          [](const PyNDO& o) { return py::make_tuple(Vec(o.ndo.z), Vec(o.ndo.estimate)); },
+          [](PyNDO& o, const py::tuple& s) {
+            const Vec z = s[0].cast<Vec>(), e = s[1].cast<Vec>();
+            if (z.size() != o.ndo.n || e.size() != o.ndo.n)
+              throw std::invalid_argument("NDO.state: (z, estimate) of n values each");
+            o.ndo.z = z;
+            o.ndo.estimate = e;
+          });
+}
+
+}  // namespace hmpc::python

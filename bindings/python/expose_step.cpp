@@ -1,0 +1,110 @@
+// hmpc_pin._core.HMPCCore: the hierarchical MPC's step (step.hpp), its inputs and outputs in
+// numpy arrays that the Python controller owns.
+#include "holders.hpp"
+
+#include <stdexcept>
+#include <vector>
+
+namespace hmpc::python {
+
+void expose_step(py::module_& m) {
+  using H = PyHMPCCore;
+  py::class_<H>(m, "HMPCCore", py::module_local())
+      .def(py::init<const py::object&, const CRefRow&, int, std::shared_ptr<PyJointQPs>,
+                    std::shared_ptr<PyNDO>, Array, Array, Array, Array, Array>(),
+           py::arg("model"), py::arg("FT"), py::arg("N"), py::arg("qps"), py::arg("ndo"),
+           py::arg("v"), py::arg("tau"), py::arg("d_hat"), py::arg("M"), py::arg("nle"))
+      .def("set_effort", [](H& h, const CRefVec& limit) { h.core.set_effort(limit); })
+      .def(
+          "set_observer_model", [](H& h, bool at_start) { h.core.set_observer_model(at_start); },
+          py::arg("at_start"))
+      .def(
+          "set_latency", [](H& h, double L, double Ts) { h.core.set_latency(L, Ts); },
+          py::arg("L"), py::arg("Ts"))
+      .def("observer_ready", [](const H& h) { return h.core.observer_ready(); })
+      .def("aligned",
+           [](H& h) {
+             h.core.latency.align();
+             return py::make_tuple(Vec(h.core.latency.tau_obs), Vec(h.core.latency.v_obs));
+           })
+      .def(
+          "predict",
+          [](H& h, Array S) {
+            const int N = h.core.N, n = h.core.n;
+            if (S.ndim() != 2 || S.shape(0) != 2 + 2 * N || S.shape(1) != n || !S.writeable())
+              throw std::invalid_argument("predict: stack of wrong shape");
+            MapRow Sm(S.mutable_data(), 2 + 2 * N, n);
+            h.core.predict_stack(Sm);
+          },
+          py::arg("S"))
+      .def_property_readonly("latency_periods", [](const H& h) { return h.core.latency.m; })
+      .def_property_readonly("latency_fraction", [](const H& h) { return h.core.latency.alpha; })
+      .def(
+          "set_joint_dynamics",
+          [](H& h, const CRefVec& damping, const CRefVec& friction, double Ts) {
+            h.core.set_joint_dynamics(damping, friction, Ts);
+          },
+          py::arg("damping"), py::arg("friction"), py::arg("Ts"))
+      .def("reset", [](H& h, const CRefVec& dhat0) { h.core.reset(dhat0); })
+      .def(
+          "step", [](H& h, const CRefRow& S, double t) { h.core.step(S, t); }, py::arg("S"),
+          py::arg("t"))
+      .def("step_t",
+           [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.core.step_t(t, q, dq); })
+      .def("fill",
+           [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.core.fill(t, q, dq); })
+      .def(
+          "prepare",
+          [](H& h, const CRefRow& S, double t, bool dynamics, bool export_) {
+            h.core.prepare(S, t, dynamics, export_);
+          },
+          py::arg("S"), py::arg("t"), py::arg("dynamics") = true, py::arg("export") = true)
+      .def("finish", [](H& h) { h.core.finish(); })
+      .def_property(  // how faults name the robot: "the robot 'x' has n joints (...)"
+          "robot", [](const H& h) { return h.core.robot; },
+          [](H& h, const std::string& robot) { h.core.robot = robot; })
+      .def("set_stack",
+           [](H& h, Array S, const CRefVec& offsets) {
+             double* data = writable(S, static_cast<Eigen::Index>(2 + 2 * h.core.N) * h.core.n);
+             h.stack = S;
+             h.core.set_stack(data, offsets);
+           })
+      .def("set_sine",
+           [](H& h, const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
+              const CRefVec& offset, const CRefVec& amp_omega) {
+             h.core.set_sine(omega, phase, amp, offset, amp_omega);
+           })
+      .def("set_ppoly",
+           [](H& h, const CRefVec& times, const CRefVec& knots, const CRefRow& coef, int deg) {
+             h.core.set_ppoly(times, knots, coef, deg);
+           })
+      .def("clear_reference", [](H& h) { h.core.clear_reference(); })
+      .def_property(  // what a step carries to the next (restored after a dry step, warm_up)
+          "state",
+          [](const H& h) {  // copies
+            const HMPCCore& c = h.core;
+            std::vector<Vec> th = c.latency.tau_hist, vh = c.latency.v_hist;
+            return py::make_tuple(c.started, Vec(c.jtau), std::move(th), std::move(vh),
+                                  Vec(c.latency.tau_obs), Vec(c.latency.v_obs), c.steps,
+                                  Mat(c.prev_M), Vec(c.prev_nle), c.has_prev);
+          },
+          [](H& h, const py::tuple& s) {
+            HMPCCore& c = h.core;
+            c.steps = s[6].cast<decltype(c.steps)>();
+            c.started = s[0].cast<bool>();
+            c.jtau = s[1].cast<Vec>();
+            c.latency.tau_hist = s[2].cast<std::vector<Vec>>();
+            c.latency.v_hist = s[3].cast<std::vector<Vec>>();
+            c.latency.tau_obs = s[4].cast<Vec>();
+            c.latency.v_obs = s[5].cast<Vec>();
+            c.prev_M = s[7].cast<Mat>();
+            c.prev_nle = s[8].cast<Vec>();
+            c.has_prev = s[9].cast<bool>();
+          })
+      .def_property_readonly("has_dynamics", [](const H& h) { return bool(h.core.dyn); })
+      .def_property_readonly("joint_torque", [](const H& h) {
+        return h.core.joint.any ? Vec(h.core.jtau) : Vec(Vec::Zero(h.core.n));
+      });
+}
+
+}  // namespace hmpc::python

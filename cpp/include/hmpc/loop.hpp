@@ -1,0 +1,82 @@
+// The closed loop (hmpc_pin.sim.compiled_loop): the per-step loop of
+// hmpc_pin.sim.simulate.simulate, many control periods per call, when every part has a
+// compiled form: the controller's fused step with its compiled reference (HMPCCore.step_t),
+// optionally behind a measurement model of white noise and a whole-period delay
+// (MeasuredController: the noise drawn by the caller, one row of 2n per step), and the RK4
+// plant's period with its fused disturbance (time-only terms tabulated by the caller, one
+// Coulomb-viscous friction here). Per step k, as the Python loop does:
+//   τ = step(t_k, measured state) → record q, q̇, τ, d, d̂ → (k = K: stop) → τ finite →
+//   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
+//   state finite and within the bound.
+// run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
+// A fault throws (errors.hpp), with `k` the step during which it was detected: the
+// controller's step (its fault, nothing recorded at k), NonFinite (τ not finite, recorded at
+// k) or StateOutOfBound (the plant's state over the period from t_k, recorded at k).
+// `interrupted` is called before every step (it may throw to stop the run, with `last` the
+// last recorded step).
+//
+// Every array (times, records, timings, saturation counts, measurement history) is the
+// caller's memory, written in place; the caller keeps it alive as long as the loop.
+#pragma once
+
+#include "hmpc/errors.hpp"
+#include "hmpc/rk4.hpp"
+#include "hmpc/step.hpp"
+#include "hmpc/types.hpp"
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <utility>
+
+namespace hmpc {
+
+class ClosedLoop {
+ public:
+  // t: K+1 instants [s]; records: q, q̇, τ, d, d̂, τ applied, each (K+1)×n row-major;
+  // step_ns: K+1 step times [ns]; sat_steps, sat_excess: n each; Ts: the control period [s]
+  // (for the time of a fault of the plant).
+  ClosedLoop(HMPCCore& core, RK4& plant, const double* t, int K, std::array<double*, 6> records,
+             std::int64_t* step_ns, std::int64_t* sat_steps, double* sat_excess,
+             const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
+             const CRefVec& b, bool friction, double h, int substeps, double Ts);
+
+  // White noise (q_noise [rad], dq_noise [rad/s]) and a delay of D periods; history: the
+  // last D+1 measurements ((D+1)×2n, row k % (D+1) for step k, [q; q̇]).
+  void set_measurement(double q_noise, double dq_noise, int D, double* history);
+
+  // Steps k0 .. k1-1 from the plant state (q, v) (updated in place). P: the time-only
+  // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows);
+  // noise: one row of 2n standard normal draws per step k0.. (measured; row of step 0
+  // unused: the measurement at reset).
+  long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P, const CRefRow& noise);
+
+  std::function<void()> interrupted;  // called before every step (may throw)
+  HMPCCore* core;
+  RK4* plant;
+  int n, K;
+  const double* t_arr;
+  std::array<double*, 6> rec;
+  std::int64_t *step_ns, *sat_steps;
+  double* sat_excess;
+  Vec limit, fa, fb;
+  bool has_limit, friction;
+  double bound, h;
+  int substeps;
+  double Ts;
+  bool measured = false;
+  double q_noise = 0.0, dq_noise = 0.0;
+  int delay = 0;
+  double* hist = nullptr;
+  long k = 0;         // the step being run
+  long last = -1;     // the last recorded step
+  long advances = 0;  // plant periods integrated by run()
+  long started = 0;   // steps begun by run() (the measurement drew their noise)
+  long stepped = 0;   // controller steps that succeeded
+
+ private:
+  Vec qm, dqm, tau, d;
+  RowMat T;
+};
+
+}  // namespace hmpc

@@ -1,0 +1,162 @@
+// The hierarchical MPC's step (hmpc_pin.controllers.hierarchical.HierarchicalMPC.step),
+// composed of the components: the reference sampler (sampler.hpp), the gradient map, the
+// dynamics (dynamics.hpp), the observer (observer.hpp) or an estimate given by the caller,
+// the joint QPs (joint_qps.hpp), and the inverse dynamics τ = M v + C q̇ + G − d̂ (Eq 4).
+//
+// Two ways to run it: step(S) (everything here, for the NDO of Eq 13 or no compensation)
+// or prepare(S) → the caller's estimate into dhat → finish() (any compensation written
+// elsewhere; with dynamics = false the caller also wrote M and C q̇ + G, for models the
+// compiled dynamics cannot load).
+//
+// The outputs and inputs v, τ, d̂, M, C q̇ + G and the stack live in the caller's memory
+// (the Python object's arrays), updated in place; the caller keeps them, the joint QPs and
+// the observer alive as long as the step.
+#pragma once
+
+#include "hmpc/dynamics.hpp"
+#include "hmpc/errors.hpp"
+#include "hmpc/joint_dynamics.hpp"
+#include "hmpc/latency.hpp"
+#include "hmpc/observer.hpp"
+#include "hmpc/sampler.hpp"
+#include "hmpc/types.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace hmpc {
+
+class JointQPs;
+
+class HMPCCore {
+ public:
+  // model: a serialized Pinocchio model (none: M and nle come from the caller); FT: the
+  // gradient map ((2 + 2N)×Nc); qps: the joint QPs; ndo: the observer this step advances
+  // (none: no compensation here); v, tau, dhat, nle_out: n doubles each; M_out: n×n.
+  HMPCCore(const std::optional<std::string>& model, const CRefRow& FT, int N, JointQPs* qps,
+           NDO* ndo, double* v, double* tau, double* dhat, double* M_out, double* nle_out);
+
+  // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n, the caller's) that fill() writes, and
+  // the horizon offsets j·Ts, j = 1..N [s].
+  void set_stack(double* S, const CRefVec& offsets);
+
+  void set_sine(const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
+                const CRefVec& offset, const CRefVec& amp_omega) {
+    sampler.set_sine(omega, phase, amp, offset, amp_omega);
+  }
+  void set_ppoly(const CRefVec& times, const CRefVec& knots, const CRefRow& coef, int deg) {
+    sampler.set_ppoly(times, knots, coef, deg);
+  }
+  void clear_reference() { sampler.clear(); }
+
+  // The stack's state and horizon rows for time t (the compiled reference).
+  // Throws NonFinite (t, or q before a wrong-sized q̇) or DimensionMismatch (q or q̇ of a
+  // size other than n); nothing changed then.
+  void fill(double t, const CRefVec& q, const CRefVec& dq);
+  // A whole step at time t with the compiled reference: fill(), then step().
+  void step_t(double t, const CRefVec& q, const CRefVec& dq);
+
+  // The measurement latency L [s] at the control period Ts [s] (L = 0: off).
+  void set_latency(double L, double Ts) { latency.set(L, Ts, n); }
+  // Whether the observer can be advanced over the interval between the last two
+  // measurements.
+  bool observer_ready() const { return latency.on ? latency.ready(steps) : started; }
+  // The state rows of S predicted over the latency (NonFinite if they are not: unchanged).
+  void predict_stack(Eigen::Ref<RowMat> S);
+
+  // The joint damping B [N·m·s/rad] and Coulomb friction F [N·m] to compensate (zeros:
+  // none); Ts > 0 also applies their zero-order-hold terms (JointDynamics::zoh(), in
+  // finish()).
+  void set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts);
+  void set_observer_model(bool at_start) {
+    obs_start = at_start;
+    has_prev = false;
+  }
+  void set_effort(const CRefVec& limit);
+
+  // Start a run: the estimate (the compensation's, after its own reset).
+  void reset(const CRefVec& dhat0);
+
+  // The first half of a step from the stack S: the gradients, and M, C q̇ + G -- computed
+  // here when `dynamics` (and written to M_out, nle_out when `export_`, for a compensation
+  // elsewhere), else already written by the caller into M_out, nle_out. t [s]: the step's
+  // time (for the fault's message). Throws NonFinite (an input is not finite: nothing
+  // changed).
+  void prepare(const CRefRow& S, double t, bool dynamics = true, bool export_ = true);
+  // The second half: the joint QPs for the gradients, then τ = M v + C q̇ + G − d̂ (Eq 4)
+  // with d̂ in dhat. Throws QPNotSolved (a QP did not report solved).
+  void finish();
+  // One control step at time t [s] from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N]
+  // ((2 + 2N)×n), with the observer (or none) advanced here. Throws as prepare(), finish().
+  void step(const CRefRow& S, double t);
+
+  // The torque held over the period that just ended, as the plant applied it.
+  const Vec& applied_torque();
+
+  std::unique_ptr<Dynamics> dyn;  // null: M and nle come from the caller
+  int n, N, Nc;
+  // Gradient map, rows in stack order [q; q̇; r_1..r_N; ṙ_1..ṙ_N]; rows used.
+  RowMat FT;
+  Eigen::Index grad_rows;
+  Mat Gt;  // Nc×n: one column per joint (the memory of G, n×Nc row-major)
+  JointQPs* qp;
+  NDO* ndo;  // the observer advanced by step(); null: none here
+  Vec effort;
+  bool started = false;
+  MapRow v;        // (1, n) commanded acceleration
+  MapRow tau;      // (1, n) commanded torque
+  MapRow dhat;     // (1, n) disturbance estimate
+  MapRow M_out;    // (n, n) M(q) of the last prepare
+  MapRow nle_out;  // (1, n) C q̇ + G of the last prepare
+  Vec applied, qv, dqv;
+  const Mat* M = nullptr;    // M(q) of the last prepare (the dynamics' own, or none)
+  const Vec* nle = nullptr;  // C q̇ + G of the last prepare
+  bool external = false;     // the last prepare took M, nle from the caller (M_out, nle_out)
+  std::optional<MapRow> stack;
+  HorizonSampler sampler;
+  Vec offsets;  // horizon offsets j·Ts, j = 1..N [s]
+  // The measurement latency (off: the step is exactly the latency-free one).
+  Latency latency;
+  // Where the observer's model (M, C q̇ + G of Eq 13) is evaluated over the period that
+  // just ended (set_observer_model): at its end, the new measurement (false, Eq 13's
+  // backward Euler), or at its start, the state the torque held over it was computed from
+  // (true; with latency, the previous measurement). At the start, the observer's residual
+  // is what the held torque's model missed over the period, the correction Eq (4) needs for
+  // the next one; at the end it is that residual minus the model's change over the period,
+  // which Eq (4) then applies with the wrong sign (guide "Joint dynamics", observer model).
+  bool obs_start = false;
+  bool has_prev = false;  // with latency: prev_M, prev_nle hold the previous measurement's
+  Mat prev_M;
+  Vec prev_nle;
+  long steps = 0;  // finished steps since reset
+  // The arm's joint damping B and Coulomb friction F (the URDF's <dynamics>), compensated:
+  // C q̇ + G becomes C q̇ + G + B q̇ + F sgn q̇ (for the observer and Eq 4), and with
+  // zoh_Ts > 0 the commanded acceleration of a damped joint is scaled so that over a period
+  // of the torque held the damped joint reaches the velocity the MPC's double integrator
+  // predicts (finish()).
+  JointDynamics joint;
+  Vec nle_j, extra;  // C q̇ + G + B q̇ + F sgn q̇; the zero-order-hold terms
+  // J = B q̇_k + F σ + ZOH gain: the joint-dynamics torque of the last finish(). The observer
+  // is given the applied torque minus J and C q̇ + G without the joint terms: what the
+  // joint dynamics took over the period J was designed to cancel, the model of Eq (13) is
+  // the plain rigid body again (its Euler model of a damped joint would be wrong by g_j).
+  Vec jtau;
+  const Vec* nle0 = nullptr;  // C q̇ + G alone of the last prepare (compiled dynamics)
+  double zoh_Ts = 0.0;
+  // The robot as faults name it ("the robot 'panda' has 7 joints (...)").
+  std::string robot = "the model";
+  double t_now = 0.0;  // the time of the step being run [s]
+
+ private:
+  // The NonFinite fault of a stack with a non-finite entry: q, q̇, the first reference row
+  // of the horizon that is not finite, or (none of those) the stack as a whole.
+  [[noreturn]] void non_finite(const CRefRow& S) const;
+  void sample_horizon(double t);
+  void record();
+  void step_latency(const CRefRow& S);
+};
+
+}  // namespace hmpc

@@ -1,0 +1,234 @@
+// The hierarchical MPC's step: see step.hpp.
+#include "hmpc/step.hpp"
+
+#include "hmpc/joint_qps.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace hmpc {
+
+HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& FT_, int N_,
+                   JointQPs* qps, NDO* ndo_, double* v_, double* tau_, double* dhat_,
+                   double* M_, double* nle_)
+    : n(qps->n), N(N_), Nc(qps->Nc), FT(FT_), qp(qps), ndo(ndo_), v(v_, 1, n), tau(tau_, 1, n),
+      dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n), sampler(n) {
+  if (model) {
+    dyn = std::make_unique<Dynamics>(*model);
+    if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
+  }
+  if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || qp->N != N || (ndo && ndo->n != n))
+    throw std::invalid_argument("HMPCCore: shapes do not match the model and horizon");
+  // Without a velocity weight the ṙ rows of the map are zero: skip them.
+  grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
+  applied.setZero(n);
+  Gt.setZero(Nc, n);
+  effort = Vec::Constant(n, std::numeric_limits<double>::infinity());
+}
+
+void HMPCCore::set_stack(double* S, const CRefVec& offsets_) {
+  stack.emplace(S, 2 + 2 * N, n);
+  if (offsets_.size() != N) throw std::invalid_argument("offsets of wrong size");
+  offsets = offsets_;
+}
+
+void HMPCCore::sample_horizon(double t) {
+  auto& S = *stack;
+  for (int j = 0; j < N; ++j) sampler.sample(t + offsets[j], &S(2 + j, 0), &S(2 + N + j, 0));
+}
+
+void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
+  if (!std::isfinite(t)) throw NonFinite("t", t);
+  if (q.size() != n) throw DimensionMismatch("q", q.size(), n, robot);
+  if (dq.size() != n) {
+    if (!q.allFinite()) throw NonFinite("q", {Vec(q)});
+    throw DimensionMismatch("dq", dq.size(), n, robot);
+  }
+  t_now = t;
+  auto& S = *stack;
+  S.row(0) = q.transpose();
+  S.row(1) = dq.transpose();
+  sample_horizon(t);
+}
+
+void HMPCCore::step_t(double t, const CRefVec& q, const CRefVec& dq) {
+  fill(t, q, dq);
+  step(*stack, t);
+}
+
+void HMPCCore::non_finite(const CRefRow& S) const {
+  const Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
+  if (!q.allFinite()) throw NonFinite("q", {q});
+  if (!dq.allFinite()) throw NonFinite("dq", {dq});
+  for (int j = 0; j < N; ++j) {
+    if (S.row(2 + j).allFinite() && S.row(2 + N + j).allFinite()) continue;
+    const double at = j < offsets.size() ? t_now + offsets[j] : t_now;
+    throw NonFinite(
+        "reference", {Vec(S.row(2 + j).transpose()), Vec(S.row(2 + N + j).transpose())}, at);
+  }
+  throw NonFinite("q, dq or the reference horizon", {q, dq}, t_now);
+}
+
+void HMPCCore::predict_stack(Eigen::Ref<RowMat> Sm) {
+  if (!Sm.topRows(2).allFinite()) non_finite(Sm);
+  Vec q = Sm.row(0).transpose(), dq = Sm.row(1).transpose();
+  latency.predict(q, dq);
+  Sm.row(0) = q.transpose();
+  Sm.row(1) = dq.transpose();
+}
+
+// After a step with latency: the torque as the plant applies it and v enter the history.
+void HMPCCore::record() {
+  if (!latency.on) return;
+  // what the observer is fed: the applied torque beyond the joint dynamics' J (jtau)
+  Vec fed = tau.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
+  if (joint.any) fed -= jtau;
+  latency.record(fed, v.row(0).transpose());
+}
+
+void HMPCCore::set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts) {
+  if (!(Ts >= 0.0)) throw std::invalid_argument("HMPCCore.set_joint_dynamics: expected Ts >= 0");
+  joint.set(damping, friction, n, "HMPCCore.set_joint_dynamics");
+  zoh_Ts = joint.any ? Ts : 0.0;
+  nle_j.setZero(n);
+  extra.setZero(n);
+  jtau.setZero(n);
+}
+
+void HMPCCore::set_effort(const CRefVec& limit) {
+  if (limit.size() != n) throw std::invalid_argument("effort limit of wrong size");
+  effort = limit;
+}
+
+void HMPCCore::reset(const CRefVec& dhat0) {
+  dhat.row(0) = dhat0.transpose();
+  v.setZero();
+  tau.setZero();
+  qp->slack.setZero();
+  qp->constrained_last = false;
+  qp->constrained = 0;
+  started = false;
+  has_prev = false;
+  steps = 0;
+  latency.clear();
+  if (joint.any) jtau.setZero();
+}
+
+void HMPCCore::prepare(const CRefRow& S, double t, bool dynamics, bool export_) {
+  if (S.rows() != 2 + 2 * N || S.cols() != n)
+    throw std::invalid_argument("HMPCCore: stack of wrong shape");
+  t_now = t;
+  if (!S.allFinite()) non_finite(S);
+  qv = S.row(0).transpose();
+  dqv = S.row(1).transpose();
+  // Gradients, one column per joint: G^T = FT^T S (Nc×n).
+  Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+  external = !dynamics;
+  if (dynamics) {
+    if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
+    M = &dyn->mass_matrix(qv);
+    nle = nle0 = &dyn->nle(qv, dqv);
+    if (joint.any) {  // + B q̇ + F sgn q̇
+      for (int i = 0; i < n; ++i) nle_j[i] = (*nle)[i] + joint.torque(i, dqv[i]);
+      nle = &nle_j;
+    }
+    if (export_) {  // C q̇ + G alone: the compensation's model (the joint terms: J)
+      M_out = *M;
+      nle_out.row(0) = nle0->transpose();
+    }
+  }
+}
+
+const Vec& HMPCCore::applied_torque() {
+  applied = tau.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
+  return applied;
+}
+
+void HMPCCore::finish() {
+  const Eigen::Map<const RowMat> G(Gt.data(), n, Nc);
+  if (!qp->solve(G, qv, dqv)) throw qp->failure();
+  v = qp->U.row(0);
+  auto t = tau.row(0).transpose();
+  if (external) {
+    t.noalias() = M_out * v.row(0).transpose();
+    t += nle_out.row(0).transpose();
+  } else {
+    t.noalias() = *M * v.row(0).transpose();
+    t += *nle;
+  }
+  if (zoh_Ts > 0.0) {
+    if (external) joint.zoh(Mat(M_out), dqv, v.data(), zoh_Ts, extra);
+    else joint.zoh(*M, dqv, v.data(), zoh_Ts, extra);
+    t += extra;
+  }
+  if (joint.any)  // J of this step, for the observer's next update
+    for (int i = 0; i < n; ++i) jtau[i] = joint.torque(i, dqv[i]) + extra[i];
+  t -= dhat.row(0).transpose();
+  started = true;
+  ++steps;
+  record();
+}
+
+void HMPCCore::step(const CRefRow& S, double t) {
+  t_now = t;
+  if (latency.on) return step_latency(S);
+  if (obs_start && started && ndo) {  // the model the held torque was computed from
+    prev_M = *M;
+    prev_nle = *nle0;
+  }
+  prepare(S, t, true, false);
+  if (started && ndo) {
+    // Eq (13) over the period that just ended, with the torque applied over it.
+    const Mat& Mo = obs_start ? prev_M : *M;
+    const Vec& no = obs_start ? prev_nle : (joint.any ? *nle0 : *nle);
+    if (joint.any) {  // the rigid body's model, the torque beyond J (see jtau)
+      applied_torque();
+      applied -= jtau;
+      ndo->update(Mo, no, dqv, applied);
+    } else {
+      ndo->update(Mo, no, dqv, applied_torque());
+    }
+    dhat.row(0) = ndo->estimate.transpose();
+  }
+  finish();
+}
+
+// The step with latency: the observer over the measured interval (M, C q̇ + G at the
+// measured state, the aligned torque), then the MPC and Eq (4) at the predicted state.
+// Before the measured interval lies after the start, the observer restarts at each
+// measurement (d̂ = 0). S's state rows are overwritten with the prediction.
+void HMPCCore::step_latency(const CRefRow& S_in) {
+  if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
+    throw std::invalid_argument("HMPCCore: stack of wrong shape");
+  if (!S_in.allFinite()) non_finite(S_in);
+  if (!dyn) throw std::invalid_argument("HMPCCore.step: no compiled dynamics here");
+  auto& S = *stack;
+  if (S.data() != S_in.data()) S = S_in;
+  Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
+  if (ndo) {
+    const Mat& Mq = dyn->mass_matrix(q);
+    const Vec& nq = dyn->nle(q, dq);
+    if (observer_ready() && (!obs_start || has_prev)) {
+      latency.align();
+      if (obs_start) ndo->update(prev_M, prev_nle, dq, latency.tau_obs);
+      else ndo->update(Mq, nq, dq, latency.tau_obs);
+      dhat.row(0) = ndo->estimate.transpose();
+    } else {
+      ndo->reset(dq);
+      dhat.setZero();
+    }
+    if (obs_start) {  // the start of the next measured interval
+      prev_M = Mq;
+      prev_nle = nq;
+      has_prev = true;
+    }
+  }
+  latency.predict(q, dq);
+  S.row(0) = q.transpose();
+  S.row(1) = dq.transpose();
+  prepare(S, t_now, true, false);
+  finish();
+}
+
+}  // namespace hmpc

@@ -270,12 +270,7 @@ def _commands(page: Path) -> list[str]:
     return [c.strip() for c in lines + spans if c.strip().startswith(("hmpc-pin", "python "))]
 
 
-#: Pages rewritten on another branch at the time of these tests (merge: drop the mark).
-_ELSEWHERE = {"docs/guide/ros2.md", "docs/tutorials/realtime.md", "docs/guide/reliability.md"}  # fmt: skip
-_ELSEWHERE_MARK = pytest.mark.xfail(reason="rewritten on another branch", strict=False)
-PAGE_PARAMS = [pytest.param(p, marks=_ELSEWHERE_MARK, id=str(p.relative_to(ROOT)))
-               if str(p.relative_to(ROOT)) in _ELSEWHERE else
-               pytest.param(p, id=str(p.relative_to(ROOT))) for p in PAGES]  # fmt: skip
+PAGE_PARAMS = [pytest.param(p, id=str(p.relative_to(ROOT))) for p in PAGES]
 
 
 @pytest.mark.parametrize("page", PAGE_PARAMS)

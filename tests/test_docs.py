@@ -246,7 +246,7 @@ def test_guide_index_collects_the_guide_pages():
 def test_files_the_pages_name_exist():
     """A script, config or source file named in the pages is in the repository."""
     path = re.compile(
-        r"\b((?:benchmarks|examples|tests|src|hmpc_pin|configs)/[\w/.-]+\.(?:py|toml|cpp|csv|urdf))"
+        r"(?<![\w/])((?:benchmarks|examples|tests|cpp|bindings|hmpc_pin|configs)/[\w/.-]+\.(?:py|toml|cpp|hpp|csv|urdf))"
     )
     named = set()
     for page in [*PAGES, ROOT / "BENCHMARKS.md"]:

@@ -66,11 +66,12 @@ def in_process(experiment: Experiment) -> float:
 def loaded_by_import() -> tuple[int, int, list[str]]:
     """(the package's modules loaded by ``import hmpc_pin``, all of them, heavy ones loaded)."""
     code = ("import json, pkgutil, sys, hmpc_pin; "
+            "ours = sorted(m for m in sys.modules if m.startswith('hmpc_pin')); "
+            "heavy = sorted(h for h in ('numpy', 'pinocchio', 'proxsuite', 'matplotlib', "
+            "'scipy') if h in sys.modules); "
             "n = sum(1 for _ in pkgutil.walk_packages(hmpc_pin.__path__, 'hmpc_pin.', "
             "onerror=lambda name: None)) + 1; "
-            "print(json.dumps([sorted(m for m in sys.modules if m.startswith('hmpc_pin')), n, "
-            "sorted(h for h in ('numpy', 'pinocchio', 'proxsuite', 'matplotlib', 'scipy') "
-            "if h in sys.modules)]))")  # fmt: skip
+            "print(json.dumps([ours, n, heavy]))")  # fmt: skip
     out = subprocess.run([PYTHON, "-c", code], capture_output=True, text=True, check=True)
     ours, total, heavy = json.loads(out.stdout.strip().splitlines()[-1])
     return len(ours), total, heavy

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullLocator
 
 from .metrics import joint_units
 
@@ -161,8 +162,9 @@ def plot_error(results: dict, path, title: str = "") -> Path:
         ax.axhline(0.01, color="k", ls=":", lw=0.8, label=f"0.01 {unit[i][0]}")
         ax.set_ylabel(f"|e{i + 1}| [{unit[i][0]}]")
         ax.set_ylim(1e-7, None)
-        ax.legend(loc="upper right", fontsize=8)
-        ax.grid(alpha=0.3, which="both")
+        ax.yaxis.set_minor_locator(NullLocator())  # a line per decade: 7+ decades stay
+        ax.legend(loc="upper right", fontsize=8)  # readable (and half the drawing time)
+        ax.grid(alpha=0.3)
 
     return _overlay(results, path, title, draw, decorate)
 

@@ -17,6 +17,7 @@ pinocchio or matplotlib are among them). Blocks alternate the measurements, so a
 shared with other work loads each alike.
 
 Usage: python benchmarks/cli_overhead.py [--repeats 5] [--configs panda_sine paper_combined]
+       [--parts]  (also: the parts of a run, timed one after the other in one process)
 """
 
 from __future__ import annotations
@@ -77,10 +78,62 @@ def loaded_by_import() -> tuple[int, int, list[str]]:
     return len(ours), total, heavy
 
 
+#: ``hmpc-pin run``'s steps timed one after the other in a fresh process (``--parts``).
+PARTS = """
+import sys, tempfile, time
+from pathlib import Path
+T = time.perf_counter
+t = [T()]
+import numpy, pinocchio, proxsuite, matplotlib
+t.append(T())
+import hmpc_pin.apps.cli
+t.append(T())
+import yourdfpy
+t.append(T())
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.schema import load_config
+experiment = Experiment.from_config(load_config(sys.argv[1]))
+t.append(T())
+result = experiment.run()
+t.append(T())
+from hmpc_pin.apps import plots
+t.append(T())
+out = Path(tempfile.mkdtemp())
+plots.plot_tracking(result, out / "t.png", "t")
+plots.plot_disturbance(result, out / "d.png", "d")
+plots.plot_error({"run": result}, out / "e.png", "e")
+t.append(T())
+print(" ".join(f"{b - a:.3f}" for a, b in zip(t, t[1:])))
+"""
+PART_NAMES = ("numpy, pinocchio, proxsuite, matplotlib", "the package's modules (cli)",
+              "yourdfpy (URDF check)", "config and build", "Experiment.run()",
+              "matplotlib's figure module (plots)", "the three figures")  # fmt: skip
+
+
+def parts(names: list[str], repeats: int) -> None:
+    """Print the median time [s] of each of :data:`PART_NAMES` per config."""
+    print(f"\n| part [s] | {' | '.join(names)} |")
+    print(f"|---|{'---|' * len(names)}")
+    times = {}
+    for _ in range(repeats):
+        for name in names:
+            out = subprocess.run([PYTHON, "-c", PARTS, name], capture_output=True, text=True,
+                                 check=True)  # fmt: skip
+            times.setdefault(name, []).append([float(x) for x in out.stdout.split()])
+    med = {name: np.median(np.array(v), axis=0) for name, v in times.items()}
+    for i, part in enumerate(PART_NAMES):
+        print(f"| {part} | {' | '.join(f'{med[n][i]:.2f}' for n in names)} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5, help="blocks per measurement")
     parser.add_argument("--configs", nargs="+", default=["panda_sine", "paper_combined"])
+    parser.add_argument(
+        "--parts",
+        action="store_true",
+        help="also time a run's parts one after the other in one process",
+    )
     args = parser.parse_args()
     cli = command()
     for key, value in machine_info().items():

@@ -173,6 +173,8 @@ def main() -> None:
         f"`python -c pass`) | {np.median(ratio):.1f} ({ratio.min():.1f}–{ratio.max():.1f}); "
         f"over the bare start: median {np.median(diff):.3f} s |"
     )
+    if args.parts:
+        parts(args.configs, args.repeats)
 
 
 if __name__ == "__main__":

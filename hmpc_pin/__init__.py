@@ -36,6 +36,10 @@ The package is layered; each layer imports only the layers below it (tested)::
 Data flows one way: a reference and the measured state enter a controller, which holds
 one compensation and calls its MPC; the torque goes to a plant; ``simulate`` closes the
 loop; ``experiment.build`` assembles all of it from a config.
+
+``import hmpc_pin`` loads the exceptions only; every other public name (``hmpc_pin.X``,
+``from hmpc_pin import X``) imports its module on first use, so that a script pays for the
+parts it uses and never for the applications (``apps/``) or matplotlib.
 """
 
 from . import _startup  # noqa: F401  (first: Ctrl-C while the command line starts, exit 130)

@@ -58,3 +58,17 @@ def test_subpackages_are_attributes_and_unknown_names_an_attribute_error():
     assert hmpc_pin.sim.__name__ == "hmpc_pin.sim"
     with pytest.raises(AttributeError, match="no attribute 'no_such_name'"):
         _ = hmpc_pin.no_such_name
+
+
+def test_help_loads_no_figure_engine_no_optional_extra_and_no_other_command():
+    loaded = _loaded(
+        "import contextlib, io\n"
+        "from hmpc_pin.apps.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+        "    main(['--help'])"
+    )
+    heavy = ("matplotlib", "scipy", "yourdfpy", "trimesh", "mujoco", "optuna", "dask",
+             "rclpy", "meshcat")  # fmt: skip
+    assert not [m for m in heavy if m in loaded], [m for m in heavy if m in loaded]
+    commands = ("compare", "report", "viz", "check", "plots")
+    assert not [c for c in commands if f"hmpc_pin.apps.{c}" in loaded]

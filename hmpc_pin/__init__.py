@@ -36,26 +36,13 @@ The package is layered; each layer imports only the layers below it (tested)::
 Data flows one way: a reference and the measured state enter a controller, which holds
 one compensation and calls its MPC; the torque goes to a plant; ``simulate`` closes the
 loop; ``experiment.build`` assembles all of it from a config.
+
+``import hmpc_pin`` loads the exceptions only; every other public name (``hmpc_pin.X``,
+``from hmpc_pin import X``) imports its module on first use, so that a script pays for the
+parts it uses and never for the applications (``apps/``) or matplotlib.
 """
 
 from . import _startup  # noqa: F401  (first: Ctrl-C while the command line starts, exit 130)
-from .apps.compare import Comparison, run_comparison
-from .apps.metrics import Metrics, compute_metrics, format_metrics
-from .compensation import (
-    Compensation,
-    DisturbanceObserver,
-    IntegralSlidingMode,
-    MomentumObserver,
-    NoCompensation,
-)
-from .controllers import (
-    ComputedTorque,
-    Controller,
-    CTSettings,
-    HierarchicalMPC,
-    MeasuredController,
-    MPCSettings,
-)
 from .exceptions import (
     ArmError,
     ConfigError,
@@ -77,43 +64,164 @@ from .exceptions import (
     ValidityWarning,
     VizError,
 )
-from .experiment.build import Experiment, make_controller, run_experiment, with_controller
-from .experiment.schema import (
-    COMPENSATIONS,
-    CONTROLLER_KINDS,
-    CONTROLLERS,
-    ControllerConfig,
-    ExperimentConfig,
-    ObserverConfig,
-    load_config,
-)
-from .model.planar import planar_ik, solve_pose, tool_pose
-from .model.robot import Robot, load_robot
-from .mpc import CondensedMPC, JointQPs
-from .sim import (
-    CoulombViscousFriction,
-    Disturbance,
-    EulerPlant,
-    GaussianPulse,
-    MuJoCoPlant,
-    Periodic,
-    Plant,
-    Result,
-    RK4Plant,
-    SumDisturbance,
-    ZeroDisturbance,
-    simulate,
-)
-from .tasks import (
-    JointTrajectory,
-    PoseReference,
-    QuinticReference,
-    Reference,
-    SineReference,
-    as_reference,
-    load_trajectory,
-    retime_waypoints,
-)
+
+TYPE_CHECKING = False  # True for type checkers (no import of typing: the guard comes first)
+if TYPE_CHECKING:  # what the lazy names below are (for type checkers and editors)
+    from .apps.compare import Comparison, run_comparison
+    from .apps.metrics import Metrics, compute_metrics, format_metrics
+    from .compensation import (
+        Compensation,
+        DisturbanceObserver,
+        IntegralSlidingMode,
+        MomentumObserver,
+        NoCompensation,
+    )
+    from .controllers import (
+        ComputedTorque,
+        Controller,
+        CTSettings,
+        HierarchicalMPC,
+        MeasuredController,
+        MPCSettings,
+    )
+    from .experiment.build import Experiment, make_controller, run_experiment, with_controller
+    from .experiment.schema import (
+        COMPENSATIONS,
+        CONTROLLER_KINDS,
+        CONTROLLERS,
+        ControllerConfig,
+        ExperimentConfig,
+        ObserverConfig,
+        load_config,
+    )
+    from .model.planar import planar_ik, solve_pose, tool_pose
+    from .model.robot import Robot, load_robot
+    from .mpc import CondensedMPC, JointQPs
+    from .sim import (
+        CoulombViscousFriction,
+        Disturbance,
+        EulerPlant,
+        GaussianPulse,
+        MuJoCoPlant,
+        Periodic,
+        Plant,
+        Result,
+        RK4Plant,
+        SumDisturbance,
+        ZeroDisturbance,
+        simulate,
+    )
+    from .tasks import (
+        JointTrajectory,
+        PoseReference,
+        QuinticReference,
+        Reference,
+        SineReference,
+        as_reference,
+        load_trajectory,
+        retime_waypoints,
+    )
+
+#: Public name → the module that defines it. Imported on first use (PEP 562): ``import
+#: hmpc_pin`` loads the exceptions only, so that ``hmpc-pin --help`` and a library user who
+#: needs one part do not pay for Pinocchio, ProxSuite, the applications or matplotlib.
+_LAZY: dict[str, str] = {
+    **dict.fromkeys(("Comparison", "run_comparison"), ".apps.compare"),
+    **dict.fromkeys(("Metrics", "compute_metrics", "format_metrics"), ".apps.metrics"),
+    **dict.fromkeys(
+        (
+            "Compensation",
+            "DisturbanceObserver",
+            "IntegralSlidingMode",
+            "MomentumObserver",
+            "NoCompensation",
+        ),
+        ".compensation",
+    ),
+    **dict.fromkeys(
+        (
+            "ComputedTorque",
+            "Controller",
+            "CTSettings",
+            "HierarchicalMPC",
+            "MeasuredController",
+            "MPCSettings",
+        ),
+        ".controllers",
+    ),
+    **dict.fromkeys(
+        ("Experiment", "make_controller", "run_experiment", "with_controller"), ".experiment.build"
+    ),
+    **dict.fromkeys(
+        (
+            "COMPENSATIONS",
+            "CONTROLLER_KINDS",
+            "CONTROLLERS",
+            "ControllerConfig",
+            "ExperimentConfig",
+            "ObserverConfig",
+            "load_config",
+        ),
+        ".experiment.schema",
+    ),
+    **dict.fromkeys(("planar_ik", "solve_pose", "tool_pose"), ".model.planar"),
+    **dict.fromkeys(("Robot", "load_robot"), ".model.robot"),
+    **dict.fromkeys(("CondensedMPC", "JointQPs"), ".mpc"),
+    **dict.fromkeys(
+        (
+            "CoulombViscousFriction",
+            "Disturbance",
+            "EulerPlant",
+            "GaussianPulse",
+            "MuJoCoPlant",
+            "Periodic",
+            "Plant",
+            "Result",
+            "RK4Plant",
+            "SumDisturbance",
+            "ZeroDisturbance",
+            "simulate",
+        ),
+        ".sim",
+    ),
+    **dict.fromkeys(
+        (
+            "JointTrajectory",
+            "PoseReference",
+            "QuinticReference",
+            "Reference",
+            "SineReference",
+            "as_reference",
+            "load_trajectory",
+            "retime_waypoints",
+        ),
+        ".tasks",
+    ),
+}
+
+
+def __getattr__(name: str):
+    """``hmpc_pin.X`` for a name of :data:`__all__` (imported on first use, then cached)
+    or a subpackage (``hmpc_pin.sim``)."""
+    import importlib
+
+    module = _LAZY.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(module, __name__), name)
+        globals()[name] = value
+        return value
+    if not name.startswith("_"):
+        try:
+            return importlib.import_module(f"{__name__}.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __version__ = "0.3.0.dev0"  # the same as pyproject.toml (tested)
 

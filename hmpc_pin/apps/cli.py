@@ -44,7 +44,7 @@ from .metrics import (
     format_metrics,
     run_warnings,
 )
-from .run import after_the_run, live_view, run_one, write_csv
+from .run import after_the_run, draw_figures, live_view, run_one, write_csv
 
 __all__ = ["main", "write_csv"]
 
@@ -185,7 +185,7 @@ def _open_view(experiment, args, views: list):
 def _run_and_report(args, config, out, stem, warn, views: list, experiment=None) -> int:
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
     experiment, result, files, failure = run_one(config, out, stem, open_view=open_view,
-                                                 experiment=experiment)  # fmt: skip
+                                                 experiment=experiment, figures=False)  # fmt: skip
     with after_the_run(config.name, files):
         return _report(args, config, out, stem, warn, views, experiment, result, files, failure)
 
@@ -193,11 +193,6 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
 def _report(args, config, out, stem, warn, views, experiment, result, files, failure) -> int:
     view = views[0] if views else None
     observer = uses_observer(config.controller)
-    if len(result.t) > 1:
-        from .plots import plot_error
-
-        label = "with NDO" if observer else "without NDO"
-        files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
     label = config.controller.label
     about = f"{config.description} " if config.description else ""
     print(f"{config.name}: {about}({label}, observer {'on' if observer else 'off'})")
@@ -221,6 +216,12 @@ def _report(args, config, out, stem, warn, views, experiment, result, files, fai
         if touch is not None and line.startswith("tracking error"):
             line += f"; expected once the arm touches something (contact at t = {touch:.3f} s)"
         print(f"warning: {line}", file=sys.stderr)
+    draw_figures(config, result, out, stem, files)  # after the table: it is what one reads
+    if len(result.t) > 1:
+        from .plots import plot_error
+
+        label = "with NDO" if observer else "without NDO"
+        files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))
     for f in files:

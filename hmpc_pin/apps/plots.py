@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullLocator
 
 from .metrics import joint_units
 
@@ -28,8 +29,17 @@ __all__ = [
 ]
 
 
+def _new_figure(figsize) -> Figure:
+    """A figure on the Agg canvas (PNG, headless, the user's pyplot state untouched)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def _rows(n: int, cols: int = 1):
-    fig = Figure(figsize=(6 * cols, 2.2 * n + 0.8))
+    fig = _new_figure((6 * cols, 2.2 * n + 0.8))
     axes = fig.subplots(n, cols, sharex=True, squeeze=False)
     return fig, axes
 
@@ -42,12 +52,35 @@ def _wrap(title: str, fig) -> str:
     return "\n".join(textwrap.wrap(title, width=max(20, int(9.5 * fig.get_figwidth()))))
 
 
+#: Margins of the per-joint figures [in]: left (tick labels and the joint's label), right,
+#: bottom (time axis), the gap between rows (shared time axis: no labels between) and
+#: between columns (each column has its own labels), and one line of the title.
+_MARGINS = {"left": 0.9, "right": 0.2, "bottom": 0.55, "row_gap": 0.25, "col_gap": 1.0,
+            "top": 0.2, "title_line": 0.26}  # fmt: skip
+
+
+def _fixed_layout(fig, rows: int, cols: int, title_lines: int) -> None:
+    """Place the axes with :data:`_MARGINS` (what ``tight_layout`` finds for these figures,
+    without the extra drawing pass it costs: half the figure's time)."""
+    w, h = fig.get_size_inches()
+    m = _MARGINS
+    top = m["top"] + m["title_line"] * title_lines
+    ax_h = (h - top - m["bottom"] - m["row_gap"] * (rows - 1)) / rows
+    ax_w = (w - m["left"] - m["right"] - m["col_gap"] * (cols - 1)) / cols
+    fig.subplots_adjust(left=m["left"] / w, right=1 - m["right"] / w, bottom=m["bottom"] / h,
+                        top=1 - top / h, hspace=m["row_gap"] / ax_h,
+                        wspace=m["col_gap"] / ax_w)  # fmt: skip
+
+
 def _finish(fig, axes, path, title):
     for ax in axes[-1]:
         ax.set_xlabel("time t [s]")
+    lines = 0
     if title:
-        fig.suptitle(_wrap(title, fig))
-    fig.tight_layout()
+        wrapped = _wrap(title, fig)
+        lines = wrapped.count("\n") + 1
+        fig.suptitle(wrapped, y=1 - 0.1 / fig.get_figheight(), va="top")
+    _fixed_layout(fig, len(axes), len(axes[0]), lines)
     path = Path(path)
     fig.savefig(path, dpi=110)
     return path
@@ -129,8 +162,9 @@ def plot_error(results: dict, path, title: str = "") -> Path:
         ax.axhline(0.01, color="k", ls=":", lw=0.8, label=f"0.01 {unit[i][0]}")
         ax.set_ylabel(f"|e{i + 1}| [{unit[i][0]}]")
         ax.set_ylim(1e-7, None)
-        ax.legend(loc="upper right", fontsize=8)
-        ax.grid(alpha=0.3, which="both")
+        ax.yaxis.set_minor_locator(NullLocator())  # a line per decade: 7+ decades stay
+        ax.legend(loc="upper right", fontsize=8)  # readable (and half the drawing time)
+        ax.grid(alpha=0.3)
 
     return _overlay(results, path, title, draw, decorate)
 
@@ -178,7 +212,7 @@ def plot_workspace(robot, path, poses: dict, points: np.ndarray, title: str = ""
         poses: Label → joint configuration to draw, e.g. ``{"q = 0": np.zeros(3)}``.
         points: Reachable tool positions (m, 2) in the x–z plane.
     """
-    fig = Figure(figsize=(6.5, 6))
+    fig = _new_figure((6.5, 6))
     ax = fig.subplots()
     ax.scatter(points[:, 0], points[:, 1], s=1, c="0.75", label="reachable tool positions")
     for k, (label, q) in enumerate(poses.items()):
@@ -197,7 +231,7 @@ def plot_cartesian(
         arms: Number of arm poses drawn, evenly spaced in time over ``window``.
         window: (t0, t1) [s] of the motion; default the whole run.
     """
-    fig = Figure(figsize=(6.5, 6))
+    fig = _new_figure((6.5, 6))
     ax = fig.subplots()
     ref = tool_path(robot, result.q_ref)
     act = tool_path(robot, result.q)
@@ -245,7 +279,7 @@ def plot_task_space(result, path, title: str = "", after: float = 1.0) -> Path:
     :math:`2\\arccos|\\langle q^*, q\\rangle|` [mrad] over time (``after`` marked)."""
     from .metrics import _quat_angle
 
-    fig = Figure(figsize=(11, 4.6))
+    fig = _new_figure((11, 4.6))
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ref, pos = result.ee_pos_ref, result.ee_pos
     ax3.plot(ref[:, 0], ref[:, 1], ref[:, 2], "k--", lw=1.2, label="target path")

@@ -15,7 +15,7 @@ from ..experiment.build import Experiment
 from ..experiment.schema import ExperimentConfig
 from ..sim.result import RESULT_ARRAYS, TASK_ARRAYS, Result
 
-__all__ = ["live_view", "run_one", "write_csv"]
+__all__ = ["draw_figures", "live_view", "run_one", "write_csv"]
 
 
 def write_csv(result: Result, path: Path) -> Path:
@@ -82,6 +82,7 @@ def run_one(
     viz: float | None = None,
     open_view=None,
     experiment: Experiment | None = None,
+    figures: bool = True,
 ):
     """Run ``config``; write ``<stem>.npz``, ``<stem>.csv`` and figures to ``out``.
 
@@ -91,6 +92,8 @@ def run_one(
             caller owns: it is animated and left open.
         experiment: The experiment of ``config`` if already built (so that bad input is
             found before the output directory is created).
+        figures: Draw the figures (:func:`draw_figures`); ``False``: the caller draws
+            them later (the command line prints its table first).
 
     Returns:
         (experiment, result, files, failure message or None).
@@ -99,8 +102,6 @@ def run_one(
         RunInterrupted: Ctrl-C; the data up to that step are written first
             (``exc.files``), no figure.
     """
-    from . import plots
-
     stem = stem or config.name
     if experiment is None:
         experiment = Experiment.from_config(config)
@@ -128,14 +129,30 @@ def run_one(
         if own_view and view is not None:
             view.close()
     files = _save_data(result, out, stem)
-    with after_the_run(config.name, files):
-        if len(result.t) > 1:
-            title = config.description or config.name
-            files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
-            files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
-            if result.ee_pos is not None:
-                files.append(plots.plot_task_space(result, out / f"{stem}_task_space.png", title))
+    if figures:
+        with after_the_run(config.name, files):
+            draw_figures(config, result, out, stem, files)
     return experiment, result, files, failure
+
+
+def draw_figures(
+    config: ExperimentConfig, result: Result, out: Path, stem: str, files: list[Path]
+) -> list[Path]:
+    """Draw the run's figures to ``out`` and append each to ``files`` as it is written (a
+    Ctrl-C keeps the list of what exists): ``<stem>_tracking.png``,
+    ``<stem>_disturbance.png`` and, for an end-effector task, ``<stem>_task_space.png``
+    (none for a run of one sample). Matplotlib is imported here, on first use."""
+    sys.stdout.flush()  # what was printed (the command's table) shows while they are drawn
+    if len(result.t) <= 1:
+        return files
+    from . import plots
+
+    title = config.description or config.name
+    files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
+    files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
+    if result.ee_pos is not None:
+        files.append(plots.plot_task_space(result, out / f"{stem}_task_space.png", title))
+    return files
 
 
 @contextlib.contextmanager

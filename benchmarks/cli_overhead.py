@@ -1,0 +1,181 @@
+"""The command line around its work: ``hmpc-pin run`` and ``hmpc-pin --help`` against what
+they cannot avoid.
+
+For each config, every block measures, one after the other:
+
+* the wall time of ``hmpc-pin run <config> --out <tmp>`` (a fresh process: imports,
+  config, URDF, controller, run, files, figures);
+* the wall time of a fresh ``python -c "import numpy, pinocchio, proxsuite, matplotlib"``
+  (the imports no command can skip);
+* the in-process ``Experiment.run()`` of the same config in this process (built once).
+
+The ratio of a block is run wall / (imports + in-process run); the table gives the median of
+the ratios over the blocks beside the median absolute times. ``--help`` is measured the
+same way against a bare ``python -c pass``: the difference [s] and the ratio. The modules a
+bare ``import hmpc_pin`` loads are counted (of the package's own, and whether numpy,
+pinocchio or matplotlib are among them). Blocks alternate the measurements, so a machine
+shared with other work loads each alike.
+
+Usage: python benchmarks/cli_overhead.py [--repeats 5] [--configs panda_sine paper_combined]
+       [--parts]  (also: the parts of a run, timed one after the other in one process)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks.harness import machine_info  # noqa: E402
+from hmpc_pin.experiment.build import Experiment  # noqa: E402
+from hmpc_pin.experiment.schema import load_config  # noqa: E402
+
+PYTHON = sys.executable
+IMPORTS = "import numpy, pinocchio, proxsuite, matplotlib"
+
+
+def command() -> list[str]:
+    """The ``hmpc-pin`` script beside this interpreter, else ``python -m hmpc_pin``."""
+    script = Path(PYTHON).parent / "hmpc-pin"
+    return [str(script)] if script.exists() else [PYTHON, "-m", "hmpc_pin"]
+
+
+def wall(argv: list[str]) -> float:
+    """Wall time [s] of a fresh process running ``argv`` (output discarded; must succeed)."""
+    t0 = time.perf_counter()
+    subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+    return time.perf_counter() - t0
+
+
+def in_process(experiment: Experiment) -> float:
+    """Wall time [s] of ``experiment.run()`` in this process."""
+    t0 = time.perf_counter()
+    experiment.run()
+    return time.perf_counter() - t0
+
+
+def loaded_by_import() -> tuple[int, int, list[str]]:
+    """(the package's modules loaded by ``import hmpc_pin``, all of them, heavy ones loaded)."""
+    code = ("import json, pkgutil, sys, hmpc_pin; "
+            "ours = sorted(m for m in sys.modules if m.startswith('hmpc_pin')); "
+            "heavy = sorted(h for h in ('numpy', 'pinocchio', 'proxsuite', 'matplotlib', "
+            "'scipy') if h in sys.modules); "
+            "n = sum(1 for _ in pkgutil.walk_packages(hmpc_pin.__path__, 'hmpc_pin.', "
+            "onerror=lambda name: None)) + 1; "
+            "print(json.dumps([ours, n, heavy]))")  # fmt: skip
+    out = subprocess.run([PYTHON, "-c", code], capture_output=True, text=True, check=True)
+    ours, total, heavy = json.loads(out.stdout.strip().splitlines()[-1])
+    return len(ours), total, heavy
+
+
+#: ``hmpc-pin run``'s steps timed one after the other in a fresh process (``--parts``).
+PARTS = """
+import sys, tempfile, time
+from pathlib import Path
+T = time.perf_counter
+t = [T()]
+import numpy, pinocchio, proxsuite, matplotlib
+t.append(T())
+import hmpc_pin.apps.cli
+t.append(T())
+import yourdfpy
+t.append(T())
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.schema import load_config
+experiment = Experiment.from_config(load_config(sys.argv[1]))
+t.append(T())
+result = experiment.run()
+t.append(T())
+from hmpc_pin.apps import plots
+t.append(T())
+out = Path(tempfile.mkdtemp())
+plots.plot_tracking(result, out / "t.png", "t")
+plots.plot_disturbance(result, out / "d.png", "d")
+plots.plot_error({"run": result}, out / "e.png", "e")
+t.append(T())
+print(" ".join(f"{b - a:.3f}" for a, b in zip(t, t[1:])))
+"""
+PART_NAMES = ("numpy, pinocchio, proxsuite, matplotlib", "the package's modules (cli)",
+              "yourdfpy (URDF check)", "config and build", "Experiment.run()",
+              "matplotlib's figure module (plots)", "the three figures")  # fmt: skip
+
+
+def parts(names: list[str], repeats: int) -> None:
+    """Print the median time [s] of each of :data:`PART_NAMES` per config."""
+    print(f"\n| part [s] | {' | '.join(names)} |")
+    print(f"|---|{'---|' * len(names)}")
+    times = {}
+    for _ in range(repeats):
+        for name in names:
+            out = subprocess.run([PYTHON, "-c", PARTS, name], capture_output=True, text=True,
+                                 check=True)  # fmt: skip
+            times.setdefault(name, []).append([float(x) for x in out.stdout.split()])
+    med = {name: np.median(np.array(v), axis=0) for name, v in times.items()}
+    for i, part in enumerate(PART_NAMES):
+        print(f"| {part} | {' | '.join(f'{med[n][i]:.2f}' for n in names)} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=5, help="blocks per measurement")
+    parser.add_argument("--configs", nargs="+", default=["panda_sine", "paper_combined"])
+    parser.add_argument(
+        "--parts",
+        action="store_true",
+        help="also time a run's parts one after the other in one process",
+    )
+    args = parser.parse_args()
+    cli = command()
+    for key, value in machine_info().items():
+        print(f"- {key}: {value}")
+    ours, total, heavy = loaded_by_import()
+    print(
+        f"- `import hmpc_pin` loads {ours} of the package's {total} modules; "
+        f"heavy dependencies loaded: {', '.join(heavy) or 'none'}\n"
+    )
+    print(
+        "| command | median wall [s] | median reference [s] (imports + run) | "
+        "median ratio (min–max) |"
+    )
+    print("|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.configs:
+            experiment = Experiment.from_config(load_config(name))
+            in_process(experiment)  # warm: the first run pays for lazy imports
+            walls, refs = [], []
+            for _ in range(args.repeats):
+                walls.append(wall([*cli, "run", name, "--out", tmp]))
+                refs.append(wall([PYTHON, "-c", IMPORTS]) + in_process(experiment))
+            ratio = np.array(walls) / np.array(refs)
+            print(
+                f"| `hmpc-pin run {name}` | {np.median(walls):.2f} | {np.median(refs):.2f} | "
+                f"{np.median(ratio):.2f} ({ratio.min():.2f}–{ratio.max():.2f}) |",
+                flush=True,
+            )
+    helps, bares = [], []
+    for _ in range(args.repeats):
+        helps.append(wall([*cli, "--help"]))
+        bares.append(wall([PYTHON, "-c", "pass"]))
+    diff = np.array(helps) - np.array(bares)
+    ratio = np.array(helps) / np.array(bares)
+    print(
+        f"| `hmpc-pin --help` | {np.median(helps):.3f} | {np.median(bares):.3f} (bare "
+        f"`python -c pass`) | {np.median(ratio):.1f} ({ratio.min():.1f}–{ratio.max():.1f}); "
+        f"over the bare start: median {np.median(diff):.3f} s |"
+    )
+    if args.parts:
+        parts(args.configs, args.repeats)
+
+
+if __name__ == "__main__":
+    main()

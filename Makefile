@@ -2,7 +2,7 @@
 #   make demo   - create .venv, install hmpc_pin (no extra), run examples/track_sine.py
 #   make test   - create .venv, install hmpc_pin with the dev and viz extras, run the tests
 #   make docs   - build the documentation site strictly into docs/_build/html
-# Installing builds the compiled core (CMakeLists.txt, about a minute on 2 cores); nothing
+# Installing builds the compiled core (CMakeLists.txt, about 3 minutes on 2 cores); nothing
 # is compiled at run time.
 PYTHON ?= python3
 VENV ?= .venv

@@ -251,3 +251,26 @@ def test_a_closed_stdout_loses_no_file(saved_run, tmp_path):
     finally:
         os.close(w)
     assert tomllib.loads(out.read_text())["controller"]["friction"]["viscous"]
+
+
+def _renamed_planar3(path):
+    from .conftest import PLANAR3
+
+    path.write_text(PLANAR3.read_text().replace('"joint1"', '"shoulder"'))
+    return path
+
+
+@pytest.mark.parametrize("source", ["observer", "dynamics"])
+@pytest.mark.parametrize("arm", ["ur5 (6 joints)", "planar3 with a joint renamed"])
+def test_the_urdf_of_another_arm_is_one_line(arm, source, saved_run, tmp_path, capsys):
+    """``--urdf`` of an arm that did not run (another joint count, or the same count with
+    other names) is refused naming both arms' joints: no Pinocchio size error."""
+    from hmpc_pin.model.robot import load_robot
+
+    urdf = (load_robot("ur5").source if arm.startswith("ur5")
+            else str(_renamed_planar3(tmp_path / "renamed.urdf")))  # fmt: skip
+    code, _out, err, table = _identify(saved_run, tmp_path, capsys, "--urdf", urdf,
+                                       "--source", source)  # fmt: skip
+    assert code == 2 and table is None, err
+    assert len(err.strip().splitlines()) == 1 and "--urdf" in err, err
+    assert "joint1" in err and ("shoulder" in err if "renamed" in arm else "6 joints" in err)

@@ -82,11 +82,20 @@ def _robot(result: Result, urdf: str | None):
     source = urdf or result.meta.get("urdf")
     if not source:
         raise ConfigError("--urdf", "the run does not name its URDF; pass --urdf PATH")
-    return load_robot(
+    robot = load_robot(
         source,
         gravity=result.meta.get("gravity", 9.81),
         locked_joints=result.meta.get("locked_joints") if not urdf else None,
     )
+    n = np.shape(result.q)[1]
+    names = tuple(result.joint_names)
+    if robot.nq != n or (names and tuple(robot.joint_names) != names):
+        ran = f"{n} joints {names}" if names else f"{n} joints"
+        raise ConfigError("--urdf" if urdf else "RUN", f"the URDF {str(source)!r} has "
+                          f"{robot.nq} joints {tuple(robot.joint_names)} but the run has "
+                          f"{ran}; pass the URDF of the arm that ran"
+                          + ("" if urdf else " with --urdf"))  # fmt: skip
+    return robot
 
 
 def observer_model(result: Result, robot):

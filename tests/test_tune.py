@@ -242,6 +242,9 @@ def test_sigint_through_the_command_line(tmp_path):
         (["--duration", "1.0"], "--duration"),  # no time left after sweep.after
         (["--ts", "0.01,-1"], "--ts"),
         (["--observers", "ism"], "--observers"),
+        (["--scheduler", "foo:1"], "--scheduler"),  # the default executor is local
+        (["--executor", "local", "--scheduler", "foo:1"], "--scheduler"),
+        (["--holdout", "0", "--holdout-seed", "3"], "--holdout-seed"),  # no held-out samples
     ],
 )
 def test_each_option_is_refused_by_its_own_name_before_out_exists(flags, named, tmp_path,
@@ -252,6 +255,7 @@ def test_each_option_is_refused_by_its_own_name_before_out_exists(flags, named, 
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1, err
     assert err.startswith(f"error: {named}:"), err
+    assert "an integer an integer" not in err, err  # the message reads once
     assert not out.exists()
 
 

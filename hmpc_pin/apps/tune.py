@@ -215,7 +215,8 @@ MAX_SEED = 2**32 - 1
 
 
 def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=None,
-                  observers=None, holdout=None, holdout_seed=None,
+                  observers=None, holdout=None, holdout_seed=None, executor="local",
+                  scheduler=None,
                   duration_key: str = "simulation.duration") -> tuple[int, int]:  # fmt: skip
     """Check every option of :func:`tune` against ``config``, each error naming its own
     option, before anything is created (the command line calls it before ``--out``).
@@ -226,8 +227,16 @@ def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=N
     Raises:
         ConfigError: The first bad option (``--trials``, ``--samples``, ``--seed``,
             ``--jobs``, ``--holdout``, ``--holdout-seed``, ``--ts``, ``--observers``,
-            ``duration_key``), or a config that no trial could build.
+            ``duration_key``), an option that does not apply (``--scheduler`` without
+            the dask executor, ``--holdout-seed`` with ``--holdout 0``), or a config that
+            no trial could build.
     """
+    if scheduler is not None and executor != "dask":  # an option that does not apply
+        raise ConfigError("--scheduler", f"applies to --executor dask only (got --executor "
+                          f"{executor}); add --executor dask or drop it")  # fmt: skip
+    if holdout_seed is not None and holdout == 0:
+        raise ConfigError("--holdout-seed", "seeds the held-out samples, and --holdout 0 "
+                          "draws none; drop it or set --holdout N >= 1")  # fmt: skip
     holdout = samples if holdout is None else holdout
     if holdout_seed is None and isinstance(seed, int) and not isinstance(seed, bool):
         holdout_seed = (seed + 1) % (MAX_SEED + 1)
@@ -240,7 +249,7 @@ def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=N
             within = (
                 f"an integer in [{low}, {high}]" if high is not None else f"an integer >= {low}"
             )
-            raise ConfigError(key, f"expected an integer {within}, got {value!r}")
+            raise ConfigError(key, f"expected {within}, got {value!r}")
     if ts is not None and not (ts and all(np.isfinite(v) and v > 0 for v in ts)):
         raise ConfigError("--ts", f"expected control periods [s] > 0, got {ts!r}")
     if config.source is None:
@@ -337,7 +346,8 @@ def tune(
     optuna = _optuna()
     holdout, holdout_seed = check_options(config, trials=trials, samples=samples, seed=seed,
                                           jobs=jobs, ts=ts, observers=observers,
-                                          holdout=holdout, holdout_seed=holdout_seed)  # fmt: skip
+                                          holdout=holdout, holdout_seed=holdout_seed,
+                                          executor=executor, scheduler=scheduler)  # fmt: skip
     space = search_space(config, ts, observers)
     name = config.name
     storage = f"sqlite:///{(out / f'{name}_tune.db').resolve()}"
@@ -602,7 +612,8 @@ def check_args(args, config: ExperimentConfig) -> None:
         config, trials=args.trials, samples=args.samples, seed=args.seed, jobs=_jobs(args),
         ts=_periods(args.ts) if args.ts else None,
         observers=tuple(args.observers.split(",")) if args.observers else None,
-        holdout=args.holdout, holdout_seed=args.holdout_seed,
+        holdout=args.holdout, holdout_seed=args.holdout_seed, executor=args.executor,
+        scheduler=args.scheduler,
         duration_key="--duration" if args.duration is not None else "simulation.duration",
     )  # fmt: skip
 

@@ -427,7 +427,8 @@ def _run_latency_findings(
         # also decays slower than MIN_DECAY times it counts
         with np.errstate(divide="ignore"):
             slower = np.log(np.minimum(radius, 1.0)) > MIN_DECAY * np.log(own)
-        bad = np.flatnonzero((radius >= 1.0) | ((radius >= MAX_RADIUS) & slower))
+        # own >= 1: unstable without the latency too (an explicit w Ts >= 2, its own problem)
+        bad = np.flatnonzero(((radius >= 1.0) | ((radius >= MAX_RADIUS) & slower)) & (own < 1.0))
         if bad.size:
             listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, |z| = {radius[j]:.3g})"
                                for j in bad)  # fmt: skip

@@ -274,3 +274,16 @@ def test_the_urdf_of_another_arm_is_one_line(arm, source, saved_run, tmp_path, c
     assert code == 2 and table is None, err
     assert len(err.strip().splitlines()) == 1 and "--urdf" in err, err
     assert "joint1" in err and ("shoulder" in err if "renamed" in arm else "6 joints" in err)
+
+
+@pytest.mark.parametrize("mode", [(), ("--thresholds",)])
+@pytest.mark.parametrize("after", ["1e9", "5", "nan"])
+def test_after_past_the_end_of_the_run_is_named(after, mode, saved_run, tmp_path, capsys):
+    """The saved run spans 0 to 5 s: --after at or past its end names --after and the
+    run's length, not 'not excited enough (0 %)'."""
+    t_end = float(Result.load(saved_run).t[-1])
+    assert t_end == pytest.approx(5.0)
+    code, _out, err, table = _identify(saved_run, tmp_path, capsys, "--after", after, *mode)
+    assert code == 2 and table is None, err
+    assert len(err.strip().splitlines()) == 1 and "--after" in err, err
+    assert "past the end of the run" in err and f"{t_end:g} s" in err, err

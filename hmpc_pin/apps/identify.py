@@ -172,6 +172,11 @@ def cmd_identify(args) -> int:
     written before anything goes to stdout, so a closed pipe (``| head``) loses nothing."""
     _options(args)
     result = load_run(args.run)
+    t0, t1 = float(result.t[0]), float(result.t[-1])
+    if args.after is not None and not args.after < t1:
+        raise ConfigError("--after", f"{args.after:g} s is past the end of the run (its samples "
+                          f"span t = {t0:g} to {t1:g} s, {t1 - t0:g} s); pass a time before "
+                          f"{t1:g} s")  # fmt: skip
     config = load_config(args.config) if args.config is not None else None  # checked first
     suffix = "collision" if args.thresholds else "friction"
     out = _out_file(args.out or args.run.with_name(f"{args.run.stem}_{suffix}.toml"))

@@ -233,6 +233,46 @@ def test_a_run_of_an_init_spatial_arm_is_identified(tmp_path, capsys):
                                np.multiply(b["viscous"], v) + b["coulomb"], rtol=0.05)  # fmt: skip
 
 
+def _init_ur5_run(tmp_path, pulses: bool):
+    """``init ur5``'s config moving both ways within 2.5 s (with or without the init's
+    disturbance pulses), run and saved; with the friction it configures [N·m·s/rad, N·m]
+    (``scale = "inertia"``: the coefficients times M_jj(q0))."""
+    toml = tmp_path / "ur5.toml"
+    assert main(["init", "ur5", "--out", str(toml)]) == 0
+    config = load_config(toml)
+    ref = replace(config.reference, frequency=0.5)
+    dist = config.disturbance if pulses else replace(config.disturbance, pulse=None)
+    config = replace(config, reference=ref, disturbance=dist, simulation=replace(
+        config.simulation, duration=2.5, dq0=config.simulation.dq0 * 5))  # fmt: skip
+    exp = Experiment.from_config(config)
+    assert config.disturbance.scale == "inertia"
+    m = np.diag(exp.robot.mass_matrix(exp.q0))
+    fr = config.disturbance.friction
+    true = (np.asarray(fr.viscous) * m, np.asarray(fr.coulomb) * m)
+    return exp.run().save(tmp_path / "ur5.npz"), ref, true
+
+
+def test_init_ur5_without_pulses_gives_the_configured_friction(tmp_path, capsys):
+    """Pulses off, the plant's friction is the config's alone: the dynamics source (the
+    applied torque against Pinocchio's model, exact here) gives it within 2 % (a Coulomb
+    reversal inside a period biases the samples around it), the observer source the
+    friction torque at the peak speed within 3 % (its lag and the model taken at the
+    period's start, as for the planar forms)."""
+    path, ref, (viscous, coulomb) = _init_ur5_run(tmp_path, pulses=False)
+    capsys.readouterr()
+    code, _out, err, dyn = _identify(path, tmp_path, capsys, "--after", "0.3", "--source",
+                                     "dynamics")  # fmt: skip
+    assert code == 0, err
+    np.testing.assert_allclose(dyn["controller"]["friction"]["viscous"], viscous, rtol=0.02)
+    np.testing.assert_allclose(dyn["controller"]["friction"]["coulomb"], coulomb, rtol=0.02)
+    code, _out, err, obs = _identify(path, tmp_path, capsys, "--after", "0.3")
+    assert code == 0, err
+    a = obs["controller"]["friction"]
+    v = 2 * np.pi * np.asarray(ref.amplitude) * 0.5  # peak speed [rad/s]
+    np.testing.assert_allclose(np.multiply(a["viscous"], v) + a["coulomb"],
+                               viscous * v + coulomb, rtol=0.03)  # fmt: skip
+
+
 def test_a_closed_stdout_loses_no_file(saved_run, tmp_path):
     """`identify RUN | head`: stdout whose reader is gone (a pipe with its read end closed,
     unbuffered, so the first print fails): the table was written before anything was

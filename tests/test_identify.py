@@ -273,6 +273,22 @@ def test_init_ur5_without_pulses_gives_the_configured_friction(tmp_path, capsys)
                                viscous * v + coulomb, rtol=0.03)  # fmt: skip
 
 
+@pytest.mark.parametrize("source", ["observer", "dynamics"])
+def test_with_the_pulses_the_advice_names_them(source, tmp_path, capsys):
+    """init's disturbance pulses are not friction: where they leave too few effective
+    samples for an interval, the note names the pulses (and --after), not a longer run,
+    which would hold the same pulses."""
+    path, _ref, _true = _init_ur5_run(tmp_path, pulses=True)
+    capsys.readouterr()
+    code, out, err, _table = _identify(path, tmp_path, capsys, "--after", "0.3", "--source",
+                                       source)  # fmt: skip
+    assert code == 0, err
+    assert "[n/a]" in out, out  # the pulses at 1..6 s leave a correlated residual
+    note = next(line for line in out.splitlines() if "no confidence interval" in line)
+    assert "disturbance pulses" in note and "--after" in note, note
+    assert "record a longer run" not in note, note
+
+
 def test_a_closed_stdout_loses_no_file(saved_run, tmp_path):
     """`identify RUN | head`: stdout whose reader is gone (a pipe with its read end closed,
     unbuffered, so the first print fails): the table was written before anything was

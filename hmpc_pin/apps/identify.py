@@ -3,6 +3,7 @@ thresholds) from a saved run, written as the config table that uses it."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -122,6 +123,24 @@ def observer_model(result: Result, robot):
     return None
 
 
+def _unmodelled(result: Result) -> str:
+    """The disturbances besides friction that the run's config (``meta["config"]``, when
+    the file is still there) adds, in words (``[disturbance.pulse]``), or ``""``."""
+    from ..exceptions import HmpcError
+
+    source = result.meta.get("config")
+    if not source or not Path(source).is_file():
+        return ""
+    try:
+        pulse = load_config(source).disturbance.pulse
+    except HmpcError:
+        return ""
+    if pulse is None or not np.any(np.asarray(pulse.amplitude) != 0):
+        return ""
+    at = ", ".join(f"{c:g}" for c in np.unique(np.atleast_1d(pulse.center)))
+    return f"disturbance pulses ([disturbance.pulse] of {source}, at t = {at} s)"
+
+
 def _table(toml_text: str) -> tuple[str, dict]:
     """The one table of a snippet written by the identification: (dotted name, keys)."""
     import tomllib
@@ -206,6 +225,7 @@ def cmd_identify(args) -> int:
             velocity_threshold=args.velocity_threshold, confidence=args.confidence,
             run=args.run.name,
         )  # fmt: skip
+        fit = replace(fit, unmodelled=_unmodelled(result))
         report = [f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} "
                   "(source)", fit.table()]  # fmt: skip
     text = fit.toml()

@@ -522,3 +522,18 @@ def test_only_the_papers_configs_say_their_setting_is_kept():
     (paper,) = check_config(config, engines=False).warnings
     (mine,) = check_config(replace(config, name="my_arm"), engines=False).warnings
     assert "the paper's setting, kept" in paper and "paper" not in mine
+
+
+@pytest.mark.parametrize("name", ["paper_friction_no_ndo", "paper_combined_no_ndo"])
+def test_an_uncompensated_disturbance_warns_that_run_will(name):
+    """compensation 'none' with a [disturbance]: `run` warns about its tracking error
+    (the paper's baselines reach 0.12-0.13 rad, above 0.05): check says so in a warning
+    (kept for the paper), not a problem; with the observer there is no such warning."""
+    from hmpc_pin.data import config_path
+    from hmpc_pin.experiment.schema import load_config as load
+
+    report = check_config(load(config_path(name)), engines=False)
+    assert not report.problems
+    assert any("error is expected above" in w and "kept" in w for w in report.warnings)
+    with_observer = check_config(load(config_path(name.replace("_no_ndo", ""))), engines=False)
+    assert not any("error is expected above" in w for w in with_observer.warnings)

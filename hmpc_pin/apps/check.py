@@ -458,10 +458,22 @@ def _run_latency_findings(
 
 
 def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
-    """Friction read with the literal sign (it feeds energy in) and nothing compensating
-    it: the arm runs away from the reference."""
+    """A disturbance and nothing compensating it: with friction read with the literal sign
+    (it feeds energy in) the arm runs away from the reference (a problem, kept as a
+    warning for the paper's baseline), otherwise `run` warns about the error (a
+    warning)."""
     friction = getattr(config.disturbance, "friction", None)
-    if getattr(friction, "sign", None) != "literal" or config.controller.compensation != "none":
+    if config.controller.compensation != "none":
+        return
+    if getattr(friction, "sign", None) != "literal":
+        pulse = getattr(config.disturbance, "pulse", None)
+        if friction is not None or (pulse is not None and np.any(np.asarray(pulse.amplitude))):
+            report.warnings.append(
+                "the [disturbance] is not compensated (compensation 'none'): `run`'s "
+                "tracking error is expected above its --warn-error threshold"
+                + (" (the paper's baseline without the observer, kept)" if _is_paper(config)
+                   else "; choose a compensation (an observer) to reject it")
+            )  # fmt: skip
         return
     text = ("[disturbance.friction] sign = 'literal' feeds energy in (d = +F) and the "
             "controller compensates nothing (compensation 'none'): the arm is expected to "

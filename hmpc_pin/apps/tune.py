@@ -119,7 +119,7 @@ def _own_params(config: ExperimentConfig, space: dict) -> dict:
 
 
 def current_params(config: ExperimentConfig, space: dict) -> dict:
-    """The point of ``space`` nearest the config's own values (:func:`_own_params`): each
+    """The point of ``space`` nearest the config's own values (``_own_params``): each
     clipped into its range, the nearest period of ``Ts``, the first observer of
     ``compensation`` when the config's is not listed. The sampler records trial 0 there
     (Optuna refuses a value outside the space); the report says where it differs from

@@ -6,18 +6,24 @@ observer's bandwidth, the joint damping in the plant and in the controller). For
 ``check`` (without the engine comparison) and a short compiled run of the same config:
 
 * no problem reported ⇒ the run stays within its tolerance;
-* a problem reported ⇒ its fix (:func:`~hmpc_pin.apps.check.apply_fix`) helps in ``run``:
-  the fixed run is within its tolerance or tracks better than the original.
+* a problem reported ⇒ its fix (:func:`~hmpc_pin.apps.check.apply_fix`) makes the run
+  within its tolerance (:data:`UNFIXED` lists, with the reason, the cases where one
+  change cannot).
 
-The tolerance of a run is set by the motion asked for: after the first half of the run,
-per joint :math:`\\max|e_j| \\le \\max(0.05, A_j/2)` with :math:`A_j` the reference's
-half range (0.05 rad is ``run``'s own ``--warn-error``): an error of half the
-excursion is a run that does not follow its reference.
+The tolerance is ``run``'s own tracking warning (:func:`~hmpc_pin.apps.metrics.run_warnings`):
+per joint :math:`\\max_{t \\ge t_a}|e_j| \\le` 0.05 rad (``--warn-error``), :math:`t_a` =
+1 s, its start-up window. "No problem" from ``check`` must mean ``run`` will not warn:
+any other tolerance lets the two tools disagree on the same run. The runs last
+:data:`DURATION` = 5 s so that a slow divergence shows: a loop pole of modulus
+:math:`e^{\\sigma T_s}` just above 1 grows an error of 1 mrad past 0.05 rad within the 4 s
+after :math:`t_a` once :math:`\\sigma \\ge \\ln 50 / 4 \\approx 1` 1/s (|z| >= 1.01 at
+100 Hz); at 1.5 s it took :math:`\\sigma \\ge 8` 1/s.
 """
 
 from __future__ import annotations
 
 import contextlib
+import inspect
 import io
 import math
 import warnings
@@ -28,7 +34,7 @@ import pytest
 
 from hmpc_pin.apps.check import apply_fix, check_config
 from hmpc_pin.apps.cli import main
-from hmpc_pin.apps.metrics import DEFAULT_ERROR_THRESHOLD
+from hmpc_pin.apps.metrics import DEFAULT_ERROR_THRESHOLD, run_warnings
 from hmpc_pin.checks import MAX_LATENCY
 from hmpc_pin.data import config_names, config_path
 from hmpc_pin.exceptions import HmpcError, SimulationError, URDFError
@@ -38,8 +44,41 @@ from hmpc_pin.experiment.schema import load_config
 
 pytestmark = pytest.mark.slow
 
-#: Simulated time of every run [s]: the error is judged over its second half.
-DURATION = 1.5
+#: Simulated time of every run [s] (module docstring: long enough for a slow divergence).
+DURATION = 5.0
+#: ``run``'s tracking warning: the threshold [rad] and the start-up it leaves out [s].
+TOLERANCE = DEFAULT_ERROR_THRESHOLD
+AFTER = inspect.signature(run_warnings).parameters["after"].default
+#: Arms ``init --list`` offers that ``init`` refuses, each with the reason (one line, tested
+#: with init): the calibration cannot include them.
+REFUSED = {
+    "alex_psyonic_hands": "its URDF's mimic joint 'Left_index_q2' names 'index_q1', which "
+    "is not a joint of the URDF",
+}
+#: Cases where ``check`` finds no problem and ``run`` warns: ``check``'s known blind spots
+#: at ``run``'s own tolerance, each with what is known of it. Listed, not skipped: an entry
+#: whose run tracks fails the test (remove it), and no other case may disagree.
+MISSED = {
+    "planar3_contact_mujoco": "a wall stops the tool: the error while in contact is the "
+    "contact's (by design of the config), not a setting check could flag",
+    "paper_friction_literal": "the paper's literal friction sign feeds energy in; the "
+    "observer holds the error near 0.07 rad, above 0.05 rad; check has no finding for it",
+    "paper_combined, latency 0.6 Ts": "a fractional over-declared latency: check's models "
+    "of the observer loop and the MPC loop, taken separately, both pass it",
+    "init panda, latency 0.5 Ts": "as paper_combined, latency 0.6 Ts",
+    "paper_combined, observer x0.01": "an observer 100 x slower leaves the friction "
+    "uncompensated for seconds; check has no lower limit on the bandwidth",
+}
+#: Problems whose one suggested change cannot bring the run within the tolerance, each
+#: with the physical reason (the change must still lower the error).
+_NO_OBSERVER = (
+    "without an observer (the paper's baseline) the friction is not compensated: "
+    "with the latency fixed the run keeps that baseline's error, 0.13 rad"
+)
+UNFIXED: dict[str, str] = {
+    "paper_combined_no_ndo, latency 10 Ts": _NO_OBSERVER,
+    "paper_combined_no_ndo, latency 100 Ts": _NO_OBSERVER,
+}
 #: Declared latencies of the variants, in control periods.
 LATENCY_PERIODS = (0.25, 0.5, 0.6, 1.0, 3.0, 10.0, 100.0)
 
@@ -63,12 +102,9 @@ def _run(config) -> tuple[bool, float]:
         result = Experiment.from_config(config).run(DURATION)
     except (SimulationError, URDFError):  # diverged, or a MuJoCo plant refused the URDF
         return False, math.inf
-    mask = result.t >= DURATION / 2
-    q_ref = np.asarray(result.q_ref)
-    half_range = 0.5 * (q_ref.max(axis=0) - q_ref.min(axis=0))
-    tol = np.maximum(DEFAULT_ERROR_THRESHOLD, 0.5 * half_range)
+    mask = result.t >= AFTER - 1e-12  # the window of run's own warning
     err = np.abs(np.asarray(result.error)[mask]).max(axis=0)
-    worst = float(np.max(err / tol)) if np.all(np.isfinite(err)) else math.inf
+    worst = float(np.max(err / TOLERANCE)) if np.all(np.isfinite(err)) else math.inf
     return worst <= 1.0, worst
 
 
@@ -88,14 +124,17 @@ def _with_gain(config, factor: float):
 
 def _corpus(tmp_path) -> list[tuple[str, object]]:
     cases = [(name, _short(load_config(config_path(name)))) for name in config_names()]
+    refused = {}
     for arm in _arms():
         try:
             text = init_config(arm, duration=DURATION)
-        except HmpcError:  # init refuses the arm (one line, tested with init)
+        except HmpcError as exc:  # init refuses the arm (one line, tested with init)
+            refused[arm] = str(exc)
             continue
         path = tmp_path / f"{arm}.toml"
         path.write_text(text, encoding="utf-8")
         cases.append((f"init {arm}", load_config(path)))
+    assert sorted(refused) == sorted(REFUSED), f"init refuses {refused}, listed {REFUSED}"
     by_name = dict(cases)
     for base in ("panda_sine", "paper_combined", "paper_combined_no_ndo", "init panda",
                  "init tiago", "init ur5"):  # fmt: skip
@@ -148,7 +187,15 @@ def test_check_agrees_with_run_over_the_corpus(tmp_path):
                 disagreements.append(f"{name}: check fails it: {report.problems}")
             bounded, worst = _run(config)
             if not report.problems:
-                kept = any("expected to lose the reference" in w for w in report.warnings)
+                kept = any("expected to lose the reference" in w
+                           or "error is expected above" in w for w in report.warnings)  # fmt: skip
+                if name in MISSED:
+                    if bounded:
+                        disagreements.append(
+                            f"{name}: listed in MISSED, but the run tracks ({worst:.3g} × "
+                            "the tolerance): remove it"
+                        )
+                    continue
                 if not bounded and not kept:  # (the paper's baseline that runs away: said)
                     disagreements.append(
                         f"{name}: no problem found, but the run's error is {worst:.3g} × "
@@ -161,9 +208,15 @@ def test_check_agrees_with_run_over_the_corpus(tmp_path):
                         disagreements.append(f"{name}: {problem!r} but the run tracks")
                     continue
                 fixed, fixed_worst = _run(apply_fix(config, fix))
-                if not (fixed or fixed_worst < worst):
+                if name in UNFIXED and (fixed or not fixed_worst < worst):
                     disagreements.append(
-                        f"{name}: the fix {fix} of {problem!r} does not help: error "
-                        f"{worst:.3g} -> {fixed_worst:.3g} × the tolerance"
+                        f"{name}: listed as not fixable by one change ({UNFIXED[name]}), "
+                        f"but the fix {fix} gives {worst:.3g} -> {fixed_worst:.3g} × the "
+                        "tolerance"
+                    )
+                elif name not in UNFIXED and not fixed:
+                    disagreements.append(
+                        f"{name}: the fix {fix} of {problem!r} leaves the run outside its "
+                        f"tolerance: error {worst:.3g} -> {fixed_worst:.3g} × {TOLERANCE:g} rad"
                     )
     assert not disagreements, "\n".join(disagreements)

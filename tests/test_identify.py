@@ -233,6 +233,62 @@ def test_a_run_of_an_init_spatial_arm_is_identified(tmp_path, capsys):
                                np.multiply(b["viscous"], v) + b["coulomb"], rtol=0.05)  # fmt: skip
 
 
+def _init_ur5_run(tmp_path, pulses: bool):
+    """``init ur5``'s config moving both ways within 2.5 s (with or without the init's
+    disturbance pulses), run and saved; with the friction it configures [N·m·s/rad, N·m]
+    (``scale = "inertia"``: the coefficients times M_jj(q0))."""
+    toml = tmp_path / "ur5.toml"
+    assert main(["init", "ur5", "--out", str(toml)]) == 0
+    config = load_config(toml)
+    ref = replace(config.reference, frequency=0.5)
+    dist = config.disturbance if pulses else replace(config.disturbance, pulse=None)
+    config = replace(config, reference=ref, disturbance=dist, simulation=replace(
+        config.simulation, duration=2.5, dq0=config.simulation.dq0 * 5))  # fmt: skip
+    exp = Experiment.from_config(config)
+    assert config.disturbance.scale == "inertia"
+    m = np.diag(exp.robot.mass_matrix(exp.q0))
+    fr = config.disturbance.friction
+    true = (np.asarray(fr.viscous) * m, np.asarray(fr.coulomb) * m)
+    return exp.run().save(tmp_path / "ur5.npz"), ref, true
+
+
+def test_init_ur5_without_pulses_gives_the_configured_friction(tmp_path, capsys):
+    """Pulses off, the plant's friction is the config's alone: the dynamics source (the
+    applied torque against Pinocchio's model, exact here) gives it within 2 % (a Coulomb
+    reversal inside a period biases the samples around it), the observer source the
+    friction torque at the peak speed within 3 % (its lag and the model taken at the
+    period's start, as for the planar forms)."""
+    path, ref, (viscous, coulomb) = _init_ur5_run(tmp_path, pulses=False)
+    capsys.readouterr()
+    code, _out, err, dyn = _identify(path, tmp_path, capsys, "--after", "0.3", "--source",
+                                     "dynamics")  # fmt: skip
+    assert code == 0, err
+    np.testing.assert_allclose(dyn["controller"]["friction"]["viscous"], viscous, rtol=0.02)
+    np.testing.assert_allclose(dyn["controller"]["friction"]["coulomb"], coulomb, rtol=0.02)
+    code, _out, err, obs = _identify(path, tmp_path, capsys, "--after", "0.3")
+    assert code == 0, err
+    a = obs["controller"]["friction"]
+    v = 2 * np.pi * np.asarray(ref.amplitude) * 0.5  # peak speed [rad/s]
+    np.testing.assert_allclose(np.multiply(a["viscous"], v) + a["coulomb"],
+                               viscous * v + coulomb, rtol=0.03)  # fmt: skip
+
+
+@pytest.mark.parametrize("source", ["observer", "dynamics"])
+def test_with_the_pulses_the_advice_names_them(source, tmp_path, capsys):
+    """init's disturbance pulses are not friction: where they leave too few effective
+    samples for an interval, the note names the pulses (and --after), not a longer run,
+    which would hold the same pulses."""
+    path, _ref, _true = _init_ur5_run(tmp_path, pulses=True)
+    capsys.readouterr()
+    code, out, err, _table = _identify(path, tmp_path, capsys, "--after", "0.3", "--source",
+                                       source)  # fmt: skip
+    assert code == 0, err
+    assert "[n/a]" in out, out  # the pulses at 1..6 s leave a correlated residual
+    note = next(line for line in out.splitlines() if "no confidence interval" in line)
+    assert "disturbance pulses" in note and "--after" in note, note
+    assert "record a longer run" not in note, note
+
+
 def test_a_closed_stdout_loses_no_file(saved_run, tmp_path):
     """`identify RUN | head`: stdout whose reader is gone (a pipe with its read end closed,
     unbuffered, so the first print fails): the table was written before anything was
@@ -251,3 +307,39 @@ def test_a_closed_stdout_loses_no_file(saved_run, tmp_path):
     finally:
         os.close(w)
     assert tomllib.loads(out.read_text())["controller"]["friction"]["viscous"]
+
+
+def _renamed_planar3(path):
+    from .conftest import PLANAR3
+
+    path.write_text(PLANAR3.read_text().replace('"joint1"', '"shoulder"'))
+    return path
+
+
+@pytest.mark.parametrize("source", ["observer", "dynamics"])
+@pytest.mark.parametrize("arm", ["ur5 (6 joints)", "planar3 with a joint renamed"])
+def test_the_urdf_of_another_arm_is_one_line(arm, source, saved_run, tmp_path, capsys):
+    """``--urdf`` of an arm that did not run (another joint count, or the same count with
+    other names) is refused naming both arms' joints: no Pinocchio size error."""
+    from hmpc_pin.model.robot import load_robot
+
+    urdf = (load_robot("ur5").source if arm.startswith("ur5")
+            else str(_renamed_planar3(tmp_path / "renamed.urdf")))  # fmt: skip
+    code, _out, err, table = _identify(saved_run, tmp_path, capsys, "--urdf", urdf,
+                                       "--source", source)  # fmt: skip
+    assert code == 2 and table is None, err
+    assert len(err.strip().splitlines()) == 1 and "--urdf" in err, err
+    assert "joint1" in err and ("shoulder" in err if "renamed" in arm else "6 joints" in err)
+
+
+@pytest.mark.parametrize("mode", [(), ("--thresholds",)])
+@pytest.mark.parametrize("after", ["1e9", "5", "nan"])
+def test_after_past_the_end_of_the_run_is_named(after, mode, saved_run, tmp_path, capsys):
+    """The saved run spans 0 to 5 s: --after at or past its end names --after and the
+    run's length, not 'not excited enough (0 %)'."""
+    t_end = float(Result.load(saved_run).t[-1])
+    assert t_end == pytest.approx(5.0)
+    code, _out, err, table = _identify(saved_run, tmp_path, capsys, "--after", after, *mode)
+    assert code == 2 and table is None, err
+    assert len(err.strip().splitlines()) == 1 and "--after" in err, err
+    assert "past the end of the run" in err and f"{t_end:g} s" in err, err

@@ -242,6 +242,9 @@ def test_sigint_through_the_command_line(tmp_path):
         (["--duration", "1.0"], "--duration"),  # no time left after sweep.after
         (["--ts", "0.01,-1"], "--ts"),
         (["--observers", "ism"], "--observers"),
+        (["--scheduler", "foo:1"], "--scheduler"),  # the default executor is local
+        (["--executor", "local", "--scheduler", "foo:1"], "--scheduler"),
+        (["--holdout", "0", "--holdout-seed", "3"], "--holdout-seed"),  # no held-out samples
     ],
 )
 def test_each_option_is_refused_by_its_own_name_before_out_exists(flags, named, tmp_path,
@@ -252,6 +255,7 @@ def test_each_option_is_refused_by_its_own_name_before_out_exists(flags, named, 
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1, err
     assert err.startswith(f"error: {named}:"), err
+    assert "an integer an integer" not in err, err  # the message reads once
     assert not out.exists()
 
 
@@ -332,3 +336,35 @@ def test_an_observer_given_by_its_bandwidth_is_tuned_by_its_bandwidth(tmp_path):
     np.testing.assert_allclose(w / w.max(), [0.5, 0.75, 1.0])
     assert w.max() == pytest.approx(result.best["observer_bandwidth"])
     assert abs(np.log10(w.max() / 5.0)) < abs(np.log10(20.0 / 5.0))  # moved toward 5
+
+
+def test_trial_0_records_what_it_ran_and_a_winning_trial_0_is_written_as_it_ran(tmp_path):
+    """A config outside the search space (Ts not among --ts, its observer not among
+    --observers, Q_velocity 0 below the range, P ≠ 2Q): trial 0 runs the config's own
+    values, records them, the report shows them and says where the sampler's record
+    differs, and when trial 0 wins the written config is the one that ran."""
+    path = _short_config(tmp_path)
+    path.write_text(path.read_text().replace("P = [100.0, 0.0]", "P = [300.0, 0.0]"))
+    config = load_config(path)
+    seen = []
+
+    def first_wins(cfg):
+        seen.append(cfg.controller)
+        value = 0.0 if len(seen) == 1 else 1.0
+        return value, {"p95_rms": value}
+
+    (tmp_path / "o").mkdir()
+    result = tune(config, tmp_path / "o", trials=3, seed=4, ts=(0.005, 0.02),
+                  observers=("general", "momentum"), objective=first_wins, holdout=0,
+                  progress=False)  # fmt: skip
+    ran = seen[0]
+    assert (ran.Ts, ran.compensation, ran.Q[1, 1]) == (0.01, "chen", 0.0)  # its own values
+    assert result.study.trials[0].user_attrs["ran"] == result.best
+    assert result.best["Ts"] == 0.01 and result.best["compensation"] == "chen"
+    written = load_config(tmp_path / "o" / "paper_friction_tuned.toml").controller
+    for key in ("Q", "P", "R", "N", "Ts", "compensation"):
+        np.testing.assert_array_equal(getattr(written, key), getattr(ran, key), err_msg=key)
+    assert written.observer.gain == ran.observer.gain
+    report = (tmp_path / "o" / "paper_friction_tune.md").read_text()
+    assert "Ts = 0.005 (ran 0.01)" in report and "compensation = general (ran chen)" in report
+    assert "Q_velocity = 0.0001 (ran 0)" in report and "P = 2Q" in report

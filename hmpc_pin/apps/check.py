@@ -257,12 +257,16 @@ def _engines(ex: Experiment) -> tuple[float, float] | str:
     return err_M, err_a
 
 
-def overdeclared_radius(wTs: float, ratio: float, over: float) -> float:
+def overdeclared_radius(wTs: float, ratio: float, over: float, explicit: bool = False) -> float:
     """Spectral radius [-] of the observer loop with a latency declared ``over`` control
     periods longer than the measurements' age (case 4 of
     :mod:`hmpc_pin.compensation.bandwidth`, extended to several periods).
 
-    With :math:`g = T_s\\omega/(1 + T_s\\omega)` (implicit observer), the over-declaration
+    With the fraction of the way the observer moves per period, Eq (13) discretised:
+    :math:`g = T_s\\omega/(1 + T_s\\omega)` for backward (implicit) Euler,
+    :math:`(M + T_s cY) w = \\dots`, and :math:`g = T_s\\omega` for forward (explicit)
+    Euler, :math:`M w = \\dots`
+    (:meth:`~hmpc_pin.compensation.observers.DisturbanceObserver.update`), the over-declaration
     :math:`m + \\beta` periods (m whole, :math:`0 \\le \\beta < 1`) and a plant whose
     inertia is :math:`1/r` of the model's, the observer pairs the velocity change caused
     by :math:`u_{k-1}` with :math:`(1-\\beta) u_{k-1-m} + \\beta u_{k-2-m}`, and with
@@ -278,8 +282,10 @@ def overdeclared_radius(wTs: float, ratio: float, over: float) -> float:
         wTs: :math:`T_s\\omega` [-].
         ratio: r, model-to-plant inertia ratio [-].
         over: The over-declaration in control periods [-] (>= 0).
+        explicit: The observer is the forward-Euler form (``discretization =
+            "explicit"``).
     """
-    g = wTs / (1.0 + wTs)
+    g = wTs if explicit else wTs / (1.0 + wTs)
     m = math.floor(over + 1e-9)
     beta = max(over - m, 0.0)
     coeffs = np.zeros(m + 3)
@@ -288,6 +294,14 @@ def overdeclared_radius(wTs: float, ratio: float, over: float) -> float:
     coeffs[1 + m] -= g * (1.0 - beta)
     coeffs[2 + m] -= g * beta
     return float(np.max(np.abs(np.roots(np.trim_zeros(coeffs, "b"))), initial=0.0))
+
+
+def _explicit(config: ExperimentConfig) -> bool:
+    """The observer is the NDO in its forward-Euler form (the momentum observer has one
+    form, semi-implicit: :math:`g = T_sK_O/(1 + T_sK_O)`)."""
+    cc = config.controller
+    return (cc.compensation != "momentum"
+            and getattr(cc.observer, "discretization", "") == "explicit")  # fmt: skip
 
 
 def _run_ratio(ex: Experiment) -> float:
@@ -406,13 +420,15 @@ def _run_latency_findings(
     parts = []
     if bw is not None:
         ratio = _run_ratio(ex)
-        radius = np.array([overdeclared_radius(w * Ts, ratio, over) for w in bw])
-        own = np.array([overdeclared_radius(w * Ts, ratio, 0.0) for w in bw])
+        explicit = _explicit(config)
+        radius = np.array([overdeclared_radius(w * Ts, ratio, over, explicit) for w in bw])
+        own = np.array([overdeclared_radius(w * Ts, ratio, 0.0, explicit) for w in bw])
         # a slow observer's own pole (1 - g r) lies near 1 by design: only a pole that
         # also decays slower than MIN_DECAY times it counts
         with np.errstate(divide="ignore"):
             slower = np.log(np.minimum(radius, 1.0)) > MIN_DECAY * np.log(own)
-        bad = np.flatnonzero((radius >= 1.0) | ((radius >= MAX_RADIUS) & slower))
+        # own >= 1: unstable without the latency too (an explicit w Ts >= 2, its own problem)
+        bad = np.flatnonzero(((radius >= 1.0) | ((radius >= MAX_RADIUS) & slower)) & (own < 1.0))
         if bad.size:
             listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, |z| = {radius[j]:.3g})"
                                for j in bad)  # fmt: skip
@@ -442,10 +458,22 @@ def _run_latency_findings(
 
 
 def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
-    """Friction read with the literal sign (it feeds energy in) and nothing compensating
-    it: the arm runs away from the reference."""
+    """A disturbance and nothing compensating it: with friction read with the literal sign
+    (it feeds energy in) the arm runs away from the reference (a problem, kept as a
+    warning for the paper's baseline), otherwise `run` warns about the error (a
+    warning)."""
     friction = getattr(config.disturbance, "friction", None)
-    if getattr(friction, "sign", None) != "literal" or config.controller.compensation != "none":
+    if config.controller.compensation != "none":
+        return
+    if getattr(friction, "sign", None) != "literal":
+        pulse = getattr(config.disturbance, "pulse", None)
+        if friction is not None or (pulse is not None and np.any(np.asarray(pulse.amplitude))):
+            report.warnings.append(
+                "the [disturbance] is not compensated (compensation 'none'): `run`'s "
+                "tracking error is expected above its --warn-error threshold"
+                + (" (the paper's baseline without the observer, kept)" if _is_paper(config)
+                   else "; choose a compensation (an observer) to reject it")
+            )  # fmt: skip
         return
     text = ("[disturbance.friction] sign = 'literal' feeds energy in (d = +F) and the "
             "controller compensates nothing (compensation 'none'): the arm is expected to "
@@ -521,8 +549,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     if bw is not None:
         report.bandwidth = bw
         report.margin = _observer_findings(report, config, ex, bw)
-        explicit = getattr(config.controller.observer, "discretization", "") == "explicit"
-        for j in np.flatnonzero(explicit & (bw * Ts >= 2.0)):
+        for j in np.flatnonzero(_explicit(config) & (bw * Ts >= 2.0)):
             report.add_problem(
                 f"joint {names[j]!r}: observer bandwidth {bw[j]:.3g} 1/s: w Ts = "
                 f"{bw[j] * Ts:.3g} >= 2 puts the explicit observer's pole outside the "

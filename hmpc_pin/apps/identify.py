@@ -3,6 +3,7 @@ thresholds) from a saved run, written as the config table that uses it."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -82,11 +83,20 @@ def _robot(result: Result, urdf: str | None):
     source = urdf or result.meta.get("urdf")
     if not source:
         raise ConfigError("--urdf", "the run does not name its URDF; pass --urdf PATH")
-    return load_robot(
+    robot = load_robot(
         source,
         gravity=result.meta.get("gravity", 9.81),
         locked_joints=result.meta.get("locked_joints") if not urdf else None,
     )
+    n = np.shape(result.q)[1]
+    names = tuple(result.joint_names)
+    if robot.nq != n or (names and tuple(robot.joint_names) != names):
+        ran = f"{n} joints {names}" if names else f"{n} joints"
+        raise ConfigError("--urdf" if urdf else "RUN", f"the URDF {str(source)!r} has "
+                          f"{robot.nq} joints {tuple(robot.joint_names)} but the run has "
+                          f"{ran}; pass the URDF of the arm that ran"
+                          + ("" if urdf else " with --urdf"))  # fmt: skip
+    return robot
 
 
 def observer_model(result: Result, robot):
@@ -111,6 +121,24 @@ def observer_model(result: Result, robot):
         if cc.observer is not None:
             return ObserverModel.of(make_compensation(robot, cc), robot, cc.observer.model_at)
     return None
+
+
+def _unmodelled(result: Result) -> str:
+    """The disturbances besides friction that the run's config (``meta["config"]``, when
+    the file is still there) adds, in words (``[disturbance.pulse]``), or ``""``."""
+    from ..exceptions import HmpcError
+
+    source = result.meta.get("config")
+    if not source or not Path(source).is_file():
+        return ""
+    try:
+        pulse = load_config(source).disturbance.pulse
+    except HmpcError:
+        return ""
+    if pulse is None or not np.any(np.asarray(pulse.amplitude) != 0):
+        return ""
+    at = ", ".join(f"{c:g}" for c in np.unique(np.atleast_1d(pulse.center)))
+    return f"disturbance pulses ([disturbance.pulse] of {source}, at t = {at} s)"
 
 
 def _table(toml_text: str) -> tuple[str, dict]:
@@ -163,6 +191,11 @@ def cmd_identify(args) -> int:
     written before anything goes to stdout, so a closed pipe (``| head``) loses nothing."""
     _options(args)
     result = load_run(args.run)
+    t0, t1 = float(result.t[0]), float(result.t[-1])
+    if args.after is not None and not args.after < t1:
+        raise ConfigError("--after", f"{args.after:g} s is past the end of the run (its samples "
+                          f"span t = {t0:g} to {t1:g} s, {t1 - t0:g} s); pass a time before "
+                          f"{t1:g} s")  # fmt: skip
     config = load_config(args.config) if args.config is not None else None  # checked first
     suffix = "collision" if args.thresholds else "friction"
     out = _out_file(args.out or args.run.with_name(f"{args.run.stem}_{suffix}.toml"))
@@ -192,6 +225,7 @@ def cmd_identify(args) -> int:
             velocity_threshold=args.velocity_threshold, confidence=args.confidence,
             run=args.run.name,
         )  # fmt: skip
+        fit = replace(fit, unmodelled=_unmodelled(result))
         report = [f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} "
                   "(source)", fit.table()]  # fmt: skip
     text = fit.toml()

@@ -106,25 +106,27 @@ def _bandwidth_scale(cc) -> float:
     return float(np.max(cc.observer.bandwidth))
 
 
-def current_params(config: ExperimentConfig, space: dict) -> dict:
-    """The config's own values of the parameters of ``space`` (its first trial), each
-    clipped into its range (Optuna refuses an enqueued value outside it)."""
+def _own_params(config: ExperimentConfig, space: dict) -> dict:
+    """The config's own values of the parameters of ``space``, not clipped: what trial 0
+    (the config as given) runs, through :func:`apply_params` like every trial."""
     cc = config.controller
-    values = {
-        "Q_position": float(cc.Q[0, 0]),
-        "Q_velocity": float(cc.Q[1, 1]),
-        "R": float(cc.R),
-        "N": int(cc.N),
-        "observer_gain": None if cc.observer is None else cc.observer.gain,
-        "observer_bandwidth": None
-        if cc.observer is None or cc.observer.bandwidth is None
-        else _bandwidth_scale(cc),
-        "Ts": float(cc.Ts),
-        "compensation": cc.compensation,
-    }
+    own = {"Q_position": float(cc.Q[0, 0]), "Q_velocity": float(cc.Q[1, 1]), "R": float(cc.R),
+           "N": int(cc.N), "Ts": float(cc.Ts), "compensation": cc.compensation,
+           "observer_gain": None if cc.observer is None else cc.observer.gain,
+           "observer_bandwidth": None if cc.observer is None or cc.observer.bandwidth is None
+           else _bandwidth_scale(cc)}  # fmt: skip
+    return {k: own[k] for k in space}
+
+
+def current_params(config: ExperimentConfig, space: dict) -> dict:
+    """The point of ``space`` nearest the config's own values (``_own_params``): each
+    clipped into its range, the nearest period of ``Ts``, the first observer of
+    ``compensation`` when the config's is not listed. The sampler records trial 0 there
+    (Optuna refuses a value outside the space); the report says where it differs from
+    what ran."""
     out = {}
-    for name, spec in space.items():
-        v = values[name]
+    for name, v in _own_params(config, space).items():
+        spec = space[name]
         if name == "compensation":
             out[name] = v if v in spec[1] else spec[1][0]
         elif spec[0] == "choice":
@@ -132,6 +134,19 @@ def current_params(config: ExperimentConfig, space: dict) -> dict:
         else:
             out[name] = type(v)(min(max(v, spec[1]), spec[2]))
     return out
+
+
+def _sampler_record(config: ExperimentConfig, space: dict) -> list[str]:
+    """Where the sampler's record of trial 0 (:func:`current_params`) differs from what it
+    ran (:func:`_own_params`), and ``P = 2Q`` when the config's ``P`` is not: in words."""
+    own, near = _own_params(config, space), current_params(config, space)
+    lines = [f"{k} = {_cell(near[k])} (ran {_cell(own[k])})" for k in space
+             if near[k] != own[k]]  # fmt: skip
+    cc = config.controller
+    Q = np.diag([cc.Q[0, 0], cc.Q[1, 1]])
+    if not (np.array_equal(cc.Q, Q) and np.array_equal(cc.P, 2 * Q)):
+        lines.append("P = 2Q, diagonal Q like every trial (the config's P or Q differ)")
+    return lines
 
 
 def apply_params(config: ExperimentConfig, params: dict) -> ExperimentConfig:
@@ -200,7 +215,8 @@ MAX_SEED = 2**32 - 1
 
 
 def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=None,
-                  observers=None, holdout=None, holdout_seed=None,
+                  observers=None, holdout=None, holdout_seed=None, executor="local",
+                  scheduler=None,
                   duration_key: str = "simulation.duration") -> tuple[int, int]:  # fmt: skip
     """Check every option of :func:`tune` against ``config``, each error naming its own
     option, before anything is created (the command line calls it before ``--out``).
@@ -211,8 +227,16 @@ def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=N
     Raises:
         ConfigError: The first bad option (``--trials``, ``--samples``, ``--seed``,
             ``--jobs``, ``--holdout``, ``--holdout-seed``, ``--ts``, ``--observers``,
-            ``duration_key``), or a config that no trial could build.
+            ``duration_key``), an option that does not apply (``--scheduler`` without
+            the dask executor, ``--holdout-seed`` with ``--holdout 0``), or a config that
+            no trial could build.
     """
+    if scheduler is not None and executor != "dask":  # an option that does not apply
+        raise ConfigError("--scheduler", f"applies to --executor dask only (got --executor "
+                          f"{executor}); add --executor dask or drop it")  # fmt: skip
+    if holdout_seed is not None and holdout == 0:
+        raise ConfigError("--holdout-seed", "seeds the held-out samples, and --holdout 0 "
+                          "draws none; drop it or set --holdout N >= 1")  # fmt: skip
     holdout = samples if holdout is None else holdout
     if holdout_seed is None and isinstance(seed, int) and not isinstance(seed, bool):
         holdout_seed = (seed + 1) % (MAX_SEED + 1)
@@ -225,7 +249,7 @@ def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=N
             within = (
                 f"an integer in [{low}, {high}]" if high is not None else f"an integer >= {low}"
             )
-            raise ConfigError(key, f"expected an integer {within}, got {value!r}")
+            raise ConfigError(key, f"expected {within}, got {value!r}")
     if ts is not None and not (ts and all(np.isfinite(v) and v > 0 for v in ts)):
         raise ConfigError("--ts", f"expected control periods [s] > 0, got {ts!r}")
     if config.source is None:
@@ -322,7 +346,8 @@ def tune(
     optuna = _optuna()
     holdout, holdout_seed = check_options(config, trials=trials, samples=samples, seed=seed,
                                           jobs=jobs, ts=ts, observers=observers,
-                                          holdout=holdout, holdout_seed=holdout_seed)  # fmt: skip
+                                          holdout=holdout, holdout_seed=holdout_seed,
+                                          executor=executor, scheduler=scheduler)  # fmt: skip
     space = search_space(config, ts, observers)
     name = config.name
     storage = f"sqlite:///{(out / f'{name}_tune.db').resolve()}"
@@ -333,7 +358,6 @@ def tune(
             seed=(seed + len_trials(optuna, storage, name)) % (MAX_SEED + 1)),
     )  # fmt: skip
     if not study.trials:
-        study.set_user_attr("as_given", _own_params(config, space))
         study.enqueue_trial(current_params(config, space))
         study.set_user_attr("samples", samples)
         study.set_user_attr("seed", seed)
@@ -353,9 +377,10 @@ def tune(
 
     def run_trial(trial):
         params = _suggest(trial, space)
-        as_given = trial.number == 0  # enqueued: the config itself (a Q_velocity of 0 too)
-        trial.set_user_attr("as_given", as_given)
-        value, parts = evaluate(config if as_given else apply_params(config, params))
+        if trial.number == 0:  # the config as given, its own values (a Q_velocity of 0 too)
+            params = _own_params(config, space)
+            trial.set_user_attr("ran", params)  # the sampler's record is the nearest point
+        value, parts = evaluate(apply_params(config, params))
         if "tv0" not in study.user_attrs and "torque_tv" in parts:  # trial 0: as given
             study.set_user_attr("tv0", parts["torque_tv"])
         for k, v in parts.items():
@@ -379,7 +404,7 @@ def tune(
         if not any(t.state.name == "COMPLETE" for t in study.trials):
             raise RunInterrupted(f"{stopped}: no trial finished, no config written", files=[db])
         best = _shown_params(study.best_trial, study)
-        tuned = config if study.best_trial.number == 0 else apply_params(config, best)
+        tuned = apply_params(config, best)  # what the best trial ran
         files = [_write_tuned(config, tuned, best, study, out)]
         if holdout and objective is None and stopped is None:
             try:
@@ -397,29 +422,19 @@ def tune(
         if cluster is not None:
             cluster.close()
     files += _report(config, study, best, out, comparison, samples, seed, holdout, holdout_seed,
-                     stopped)  # fmt: skip
+                     stopped, space)  # fmt: skip
     files.insert(1, db)
     if stopped is not None:
         raise RunInterrupted(stopped, files=files)
     return TuneResult(study, best, tuned, files, comparison)
 
 
-def _own_params(config: ExperimentConfig, space: dict) -> dict:
-    """The config's own values of the parameters of ``space``, not clipped (what the
-    report shows for trial 0, the config as given)."""
-    cc = config.controller
-    own = {"Q_position": float(cc.Q[0, 0]), "Q_velocity": float(cc.Q[1, 1]), "R": float(cc.R),
-           "N": int(cc.N), "Ts": float(cc.Ts), "compensation": cc.compensation,
-           "observer_gain": None if cc.observer is None else cc.observer.gain,
-           "observer_bandwidth": None if cc.observer is None or cc.observer.bandwidth is None
-           else _bandwidth_scale(cc)}  # fmt: skip
-    return {k: own[k] for k in space}
-
-
 def _shown_params(trial, study) -> dict:
-    """A trial's parameters as they ran: the config's own for the config as given
-    (trial 0, whose enqueued values are clipped into the search ranges), else the
-    sampled ones."""
+    """A trial's parameters as they ran: the config's own for trial 0 (the config as
+    given, recorded by the sampler at the nearest point of its space: :func:`current_params`),
+    else the sampled ones. A study of an earlier version kept trial 0's in the study."""
+    if "ran" in trial.user_attrs:
+        return dict(trial.user_attrs["ran"])
     if trial.user_attrs.get("as_given") and "as_given" in study.user_attrs:
         return dict(study.user_attrs["as_given"])
     return dict(trial.params)
@@ -492,7 +507,7 @@ def _cell(v) -> str:
 
 
 def _report(config, study, best, out: Path, comparison, samples, seed, holdout, holdout_seed,
-            stopped: str | None = None):  # fmt: skip
+            stopped: str | None = None, space: dict | None = None):  # fmt: skip
     import matplotlib
 
     matplotlib.use("Agg")
@@ -520,6 +535,7 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
             except (RuntimeError, ValueError):  # e.g. every trial scored the same
                 pass
     finished = [t for t in study.trials if t.value is not None]
+    moved = _sampler_record(config, space or {})
     lines = [
         f"# Tuning of {name}: {len(study.trials)} trials ({len(finished)} finished)",
         "",
@@ -532,6 +548,15 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
         f"objective J = p95 worst-joint RMS × (1 + {SATURATION_WEIGHT:g}·saturation + "
         f"{TV_WEIGHT:g}·max(0, TV/TV₀ − 1)); trial 0 is the config as given.",
         "",
+        *(
+            [
+                "Trial 0 ran the config's own values; outside the search space, the sampler "
+                "records it at: " + "; ".join(moved) + ".",
+                "",
+            ]
+            if moved
+            else []
+        ),
         f"Best: trial {study.best_trial.number}, J = {study.best_value:.4g}: "
         + ", ".join(f"{k} = {_cell(v)}" for k, v in best.items()),
         "",
@@ -587,7 +612,8 @@ def check_args(args, config: ExperimentConfig) -> None:
         config, trials=args.trials, samples=args.samples, seed=args.seed, jobs=_jobs(args),
         ts=_periods(args.ts) if args.ts else None,
         observers=tuple(args.observers.split(",")) if args.observers else None,
-        holdout=args.holdout, holdout_seed=args.holdout_seed,
+        holdout=args.holdout, holdout_seed=args.holdout_seed, executor=args.executor,
+        scheduler=args.scheduler,
         duration_key="--duration" if args.duration is not None else "simulation.duration",
     )  # fmt: skip
 

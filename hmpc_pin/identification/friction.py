@@ -122,6 +122,9 @@ class FrictionFit:
         run: The run it was fitted from (file or config name), for the TOML comment.
         excluded: Samples left out because a recorded column used by the fit (q, q̇,
             τ, :math:`\\hat d`) is NaN or infinite there.
+        unmodelled: The disturbances besides friction the run is known to have had (its
+            config's ``[disturbance.pulse]``), in words, or ``""``: named as the cause
+            of a missing interval.
     """
 
     joints: tuple[JointFriction, ...]
@@ -129,6 +132,7 @@ class FrictionFit:
     confidence: float
     run: str = ""
     excluded: int = 0
+    unmodelled: str = ""
 
     def notes(self) -> list[str]:
         """Why an interval is missing, and what was left out (one sentence each)."""
@@ -139,10 +143,14 @@ class FrictionFit:
             out.append(
                 f"no confidence interval for {names}: the residual is so correlated that "
                 "its effective samples m_e = m(1-rho)/(1+rho) (rho: lag-1 autocorrelation) "
-                f"leave fewer than {MIN_DEGREES_OF_FREEDOM} degrees of freedom (a disturbance "
-                "the friction model does not hold, or the observer's lag); record a longer "
-                "run" + (", or try --source dynamics" if self.source == "observer" else "")
-            )
+                f"leave fewer than {MIN_DEGREES_OF_FREEDOM} degrees of freedom "
+                + (f"(the run had {self.unmodelled}, which the friction model does not "
+                   "hold); fit a run without them, or pass --after past them"
+                   if self.unmodelled else
+                   "(a disturbance the friction model does not hold, or the observer's "
+                   "lag); record a longer run")
+                + (", or try --source dynamics" if self.source == "observer" else "")
+            )  # fmt: skip
         if self.excluded:
             out.append(f"{self.excluded} samples left out: NaN or inf in a recorded column")
         return out

@@ -170,7 +170,7 @@ rate = 500
 
 [realtime]
 max_misses = 1000   # a loaded CI machine: the watchdog, not the misses, is under test
-watchdog = 0.2
+watchdog = 1.0      # the arm process descheduled 200 ms on a loaded 2-core machine is no stop
 
 [collision]
 threshold = 1000.0  # never reached: the flag is published, false

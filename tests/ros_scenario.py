@@ -23,6 +23,21 @@ from pathlib import Path
 SCENARIOS = ("track", "trajectory", "watchdog", "interrupt", "interface")
 
 
+def trajectory_message(names, target, seconds: float = 1.0):
+    """A one-point ``trajectory_msgs/JointTrajectory``: ``target`` [rad] reached ``seconds``
+    after the message's start (shared with the tests' arm node, ``ros_test_arm.py``)."""
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    msg = JointTrajectory()
+    msg.joint_names = list(names)
+    point = JointTrajectoryPoint()
+    point.positions = [float(x) for x in target]
+    point.time_from_start.sec = int(seconds)
+    point.time_from_start.nanosec = round((seconds % 1) * 1e9)
+    msg.points = [point]
+    return msg
+
+
 def probe_interface(config: str, out: Path) -> None:
     """The ``interface`` scenario: the arm node only, and this process as the controller
     side through :class:`~hmpc_pin.ros.interface.RosArmInterface`."""
@@ -84,7 +99,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Bool, Float64MultiArray
-    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    from trajectory_msgs.msg import JointTrajectory
 
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     outdir = Path(out)
@@ -133,16 +148,6 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
             time.sleep(0.01)
         return False
 
-    def trajectory(names, target, seconds):
-        msg = JointTrajectory()
-        msg.joint_names = list(names)
-        point = JointTrajectoryPoint()
-        point.positions = [float(x) for x in target]
-        point.time_from_start.sec = int(seconds)
-        point.time_from_start.nanosec = round((seconds % 1) * 1e9)
-        msg.points = [point]
-        return msg
-
     if scenario == "trajectory" and running_for(1.0):
         from hmpc_pin.experiment.build import Experiment
         from hmpc_pin.experiment.schema import load_config
@@ -153,12 +158,12 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
         # (matched by name)
         target = [float(p) + 0.1 for p in experiment.reference.sample(0.0)[0]]
         events["target"] = dict(zip(names, target, strict=True))
-        pub.publish(trajectory(names[::-1], target[::-1], 1.0))
+        pub.publish(trajectory_message(names[::-1], target[::-1], 1.0))
         events["accepted_sent"] = time.monotonic()
         time.sleep(0.5)
         bad = list(target)
         bad[names.index("panda_joint4")] = 1.0  # above the Panda's joint 4 range (< 0)
-        pub.publish(trajectory(names, bad, 1.0))
+        pub.publish(trajectory_message(names, bad, 1.0))
         events["refused_sent"] = time.monotonic()
     elif scenario == "watchdog" and running_for(1.0):
         arm.send_signal(signal.SIGSTOP)

@@ -112,9 +112,10 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
+    from ros_scenario import trajectory_message  # run as a script: tests/ is on sys.path
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray
-    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    from trajectory_msgs.msg import JointTrajectory
 
     from hmpc_pin.experiment.build import Experiment
     from hmpc_pin.experiment.schema import load_config
@@ -281,13 +282,13 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
             target = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
             report["events"]["target"] = target
             report["events"]["good_at"] = run_t
-            traj_pub.publish(_trajectory(JointTrajectory, JointTrajectoryPoint, names, target))
+            traj_pub.publish(trajectory_message(names, target))
         good_at = report["events"].get("good_at")
         if matched and "bad" not in acted and good_at is not None and run_t >= good_at + 0.5:
             acted.add("bad")
             bad = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
             bad[3] = 1.0  # above the Panda's joint 4 range (< 0)
-            traj_pub.publish(_trajectory(JointTrajectory, JointTrajectoryPoint, names, bad))
+            traj_pub.publish(trajectory_message(names, bad))
         if (scenario in ("interrupt", "gravity_arm") and "sigint" not in acted
                 and run_t >= 1.5):  # fmt: skip
             acted.add("sigint")
@@ -312,17 +313,6 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     (Path(out) / "arm.json").write_text(json.dumps(report))
     sys.stdout.flush()
     os._exit(0)
-
-
-def _trajectory(JointTrajectory, JointTrajectoryPoint, names, target, seconds=1.0):
-    msg = JointTrajectory()
-    msg.joint_names = list(names)
-    point = JointTrajectoryPoint()
-    point.positions = [float(x) for x in target]
-    point.time_from_start.sec = int(seconds)
-    point.time_from_start.nanosec = round((seconds % 1) * 1e9)
-    msg.points = [point]
-    return msg
 
 
 def _deactivate(node, report) -> None:

@@ -177,7 +177,18 @@ threshold = 1000.0  # never reached: the flag is published, false
 """
 
 
-def _scenario(tmp_path: Path, scenario: str, duration: float, settings: str = SETTINGS):
+def run_in_netns(
+    tmp_path: Path,
+    script: Path,
+    scenario: str,
+    duration: float,
+    settings: str,
+    report: str,
+    timeout: float = 400,
+):
+    """Run the node script ``script`` (its own arm or scenario node, and the controller it
+    starts) for ``scenario`` in a private network namespace; return the config, the script's
+    JSON ``report`` and the controller's saved run (None when it saved none)."""
     reason = _netns_reason()
     if reason:
         pytest.skip(reason)
@@ -185,15 +196,18 @@ def _scenario(tmp_path: Path, scenario: str, duration: float, settings: str = SE
     out = tmp_path / "out"
     out.mkdir()
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
-    script = (f"ip link set lo up && exec {sys.executable} {SCENARIO} {scenario} {config} "
-              f"{out} {duration}")  # fmt: skip
-    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], env=env, cwd=ROOT,
-                          capture_output=True, text=True, timeout=400)  # fmt: skip
+    command = (f"ip link set lo up && exec {sys.executable} {script} {scenario} {config} "
+               f"{out} {duration}")  # fmt: skip
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", command], env=env, cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    report = json.loads((out / "scenario.json").read_text())
-    result = Result.load(out / "panda_sine_ros.npz") if (out / "panda_sine_ros.npz").exists() \
-        else None  # fmt: skip
-    return load_config(config), report, result
+    saved = out / "panda_sine_ros.npz"
+    result = Result.load(saved) if saved.exists() else None
+    return load_config(config), json.loads((out / report).read_text()), result
+
+
+def _scenario(tmp_path: Path, scenario: str, duration: float, settings: str = SETTINGS):
+    return run_in_netns(tmp_path, SCENARIO, scenario, duration, settings, "scenario.json")
 
 
 def _rms_after(result: Result, after: float = 1.0) -> np.ndarray:

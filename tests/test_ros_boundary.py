@@ -15,8 +15,6 @@ fault), not the scheduler's luck.
 
 from __future__ import annotations
 
-import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -26,10 +24,8 @@ import pinocchio as pin
 import pytest
 
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
-from hmpc_pin.sim.result import Result
 
-from .test_ros import ROOT, _netns_reason, _write
+from .test_ros import ROOT, _netns_reason, _write, run_in_netns
 
 ARM = Path(__file__).with_name("ros_test_arm.py")
 
@@ -48,22 +44,7 @@ FRESH, STALE = 0.02, 0.05  # [rad] drift bounds over 2 s, with and without fresh
 
 
 def _run(tmp_path: Path, scenario: str, duration: float = 3.0, settings: str = SETTINGS):
-    reason = _netns_reason()
-    if reason:
-        pytest.skip(reason)
-    config = _write(tmp_path, settings)
-    out = tmp_path / "out"
-    out.mkdir()
-    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
-    script = (f"ip link set lo up && exec {sys.executable} {ARM} {scenario} {config} {out} "
-              f"{duration}")  # fmt: skip
-    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], env=env, cwd=ROOT,
-                          capture_output=True, text=True, timeout=300)  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
-    report = json.loads((out / "arm.json").read_text())
-    path = out / "panda_sine_ros.npz"
-    result = Result.load(path) if path.exists() else None
-    return load_config(config), report, result
+    return run_in_netns(tmp_path, ARM, scenario, duration, settings, "arm.json", timeout=300)
 
 
 def _no_nan(report) -> None:

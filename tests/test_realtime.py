@@ -394,15 +394,18 @@ class Reused:
         self.nq, self.period = arm.nq, arm.period
         self.q, self.dq = np.zeros(arm.nq), np.zeros(arm.nq)
         self.written = []
+        self.events = []  # ("read", stamp) and ("write", tau), in order
 
     def read(self):
         stamp, q, dq = self.arm.read()
         self.q[:] = np.nan if stamp >= self.t_nan else q
         self.dq[:] = np.nan if stamp >= self.t_nan else dq
+        self.events.append(("read", stamp))
         return stamp, self.q, self.dq
 
     def write(self, tau):
         self.written.append(np.array(tau, dtype=float))
+        self.events.append(("write", self.written[-1]))
         self.arm.write(tau)
 
     def close(self):
@@ -423,8 +426,17 @@ def test_no_non_finite_command_when_the_reused_arrays_turn_nan(robot):
     assert len(iface.written) > 250 and all(np.isfinite(t).all() for t in iface.written)
     # (NaN states keep coming: none braked on, the brake ends at its time bound)
     assert run.stop["brake"]["states"] == 0 and run.stop["brake"]["ended"] == "time bound"
-    np.testing.assert_allclose(iface.written[-1], _safe(robot, run.stop["q"], np.zeros(3)),
-                               atol=1e-10)  # fmt: skip
+    held = _safe(robot, run.stop["q"], np.zeros(3))
+    np.testing.assert_allclose(iface.written[-1], held, atol=1e-10)
+    # the stop's damping on the last finite velocity does not stay on the arm while NaN
+    # states come: the first fresh (NaN) state after it is answered by the held-safe torque
+    ev = iface.events
+    first = next(i for i, e in enumerate(ev)
+                 if e[0] == "write" and np.allclose(e[1], run.stop["safe_tau"]))  # fmt: skip
+    stamp = max(e[1] for e in ev[:first] if e[0] == "read")
+    fresh = next(i for i in range(first, len(ev)) if ev[i][0] == "read" and ev[i][1] > stamp)
+    assert ev[fresh + 1][0] == "write", ev[fresh : fresh + 3]
+    np.testing.assert_allclose(ev[fresh + 1][1], held, atol=1e-10)
 
 
 def test_garbage_is_collected_only_in_the_slack_and_gc_state_is_restored(robot):
@@ -921,3 +933,18 @@ def test_a_transport_delay_longer_than_the_period_is_no_miss_with_the_arrival(
     assert run.complete and run.stats["misses"] == 0
     ages = run.timing["age"][run.timing["mpc"].astype(bool)]
     np.testing.assert_allclose(ages, 1.5 * P, atol=1e-9)
+
+
+def test_the_configs_brake_speed_and_hold_reach_every_loop_built_from_it(tmp_path):
+    """``[realtime] brake_speed`` and ``hold`` are read where the safety settings are
+    built, so the CLI, the ROS node and the benchmarks all brake as configured."""
+    from hmpc_pin.experiment.build import Experiment, realtime_parts
+    from hmpc_pin.experiment.schema import load_config
+
+    from .test_ros import _write
+
+    for limits in ("true", "false"):
+        extra = f"[realtime]\nbrake_speed = 0.0125\nhold = 0.7\nlimits = {limits}\n"
+        config = load_config(_write(tmp_path, extra))
+        _, safety, _ = realtime_parts(Experiment.from_config(config))
+        assert safety.brake_speed == 0.0125 and safety.hold == 0.7

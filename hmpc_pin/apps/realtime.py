@@ -80,7 +80,6 @@ def run_realtime(
     stem = (stem or config.name) + "_realtime"
     experiment = Experiment.from_config(config) if experiment is None else experiment
     loop_settings, safety, safe = realtime_parts(experiment)
-    safety = replace(safety, brake_speed=config.realtime.brake_speed)
     priority = config.realtime.priority
     with fifo_priority(priority):  # checked here, before the arm starts
         pass

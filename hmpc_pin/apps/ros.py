@@ -146,7 +146,6 @@ def ros_parts(experiment: Experiment):
         if exc.key != "realtime.rate":
             raise
         raise ConfigError("ros.rate", exc.message.replace("rate=", "ros.rate=")) from None
-    safety = replace(safety, brake_speed=cfg.realtime.brake_speed)
     ctrl = experiment.controller
     if rc.gravity == "arm":
         safe = SafeTorque(experiment.robot, safe.damping, gravity=False)

@@ -578,10 +578,10 @@ def realtime_parts(
         lower, upper = np.asarray(lim["lower"]), np.asarray(lim["upper"])
         safety = SafetySettings(lower - rc.margin, upper + rc.margin, vel,
                                 max_misses=rc.max_misses, watchdog=rc.watchdog,
-                                hold=rc.hold)  # fmt: skip
+                                hold=rc.hold, brake_speed=rc.brake_speed)  # fmt: skip
     else:
         safety = SafetySettings.unlimited(n, max_misses=rc.max_misses, watchdog=rc.watchdog,
-                                          hold=rc.hold)  # fmt: skip
+                                          hold=rc.hold, brake_speed=rc.brake_speed)  # fmt: skip
     safe = SafeTorque(robot, cfg.vector("realtime.damping", n), gravity=rc.gravity)
     return loop, safety, safe
 

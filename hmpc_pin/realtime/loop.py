@@ -825,6 +825,7 @@ class RealtimeLoop:
         """
         sf, iface, clock = self.safety, self.interface, self.clock
         q_keep, dq_keep = np.array(q_last, dtype=float), np.array(dq_last, dtype=float)
+        self._last_state = (q_keep, dq_keep)  # an error inside the brake holds G at q_keep
         start = clock()
         end = start + sf.hold
         fresh_at = start
@@ -853,7 +854,10 @@ class RealtimeLoop:
                 continue
             stamp, fresh_at = new_stamp, clock()
             if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-                continue  # not a state to brake on; the last finite one stands
+                # not a state to brake on: the damping on the last finite velocity would be
+                # a stale torque, so the held-safe one replaces it until a finite state comes
+                self._held_write(q_keep)
+                continue
             q_keep[:] = q
             dq_keep[:] = dq
             states += 1

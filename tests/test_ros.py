@@ -499,3 +499,33 @@ def test_a_trajectory_stamped_in_the_future_starts_at_its_stamp(panda):
     assert traj.times[0] == pytest.approx(start)  # the loop swaps it in then
     np.testing.assert_allclose(traj.sample(start)[0], ref.sample(start)[0], atol=1e-12)
     np.testing.assert_allclose(traj.sample(start + 1.0)[0], target, atol=1e-12)
+
+
+_RELIABLE_COMMANDS = """
+from hmpc_pin.ros.interface import RosArmInterface
+from hmpc_pin.ros.node import RosNode
+
+ros = RosNode("qos_probe", "", "LOCALHOST", "test")
+qos = ros.qos(7, reliable=False)  # [ros] qos_reliability = "best_effort", qos_depth = 7
+iface = RosArmInterface(ros, ["j1", "j2"], 0.002, "joint_states", "commands", qos=qos)
+Reliability = ros.msgs["rclpy"].qos.ReliabilityPolicy
+pub, sub = iface._pub.qos_profile, iface._sub.qos_profile
+best = Reliability.BEST_EFFORT
+print(pub.reliability == Reliability.RELIABLE, pub.depth, sub.reliability == best)
+iface.close()
+ros.close()
+"""
+
+
+def test_commands_are_published_reliable_whatever_qos_reliability_says():
+    """A best-effort publisher matches no reliable subscriber (ros2_control's effort
+    controller): with ``qos_reliability = "best_effort"`` the commands stay reliable, with
+    the configured depth; the joint states are subscribed best effort."""
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    script = f"ip link set lo up && exec {sys.executable} -c '{_RELIABLE_COMMANDS}'"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
+                          text=True, timeout=120, cwd=ROOT)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split()[-3:] == ["True", "7", "True"], proc.stdout

@@ -103,8 +103,11 @@ class RosArmInterface:
         period: The interface period [s] the arm publishes at.
         joint_states, commands: Topic names.
         start_timeout: How long [s] :meth:`start` waits for the first state.
-        qos: The QoS profile of the command topic (default: keep-last 10, reliable, as
-            ros2_control's); the joint states are subscribed best effort with its depth.
+        qos: The QoS profile whose depth the topics take (default: keep-last 10). The
+            commands are always published reliable, whatever its reliability: a reliable
+            publisher reaches a reliable subscriber (ros2_control's effort controller) and
+            a best-effort one alike, where a best-effort publisher reaches no reliable
+            controller. The joint states are subscribed best effort.
 
     Attributes:
         stamps: ``"header"`` or ``"arrival"`` (module doc), set by :meth:`start`.
@@ -133,14 +136,15 @@ class RosArmInterface:
         self.start_timeout = start_timeout
         self.joint_states_topic = ros.topic(joint_states)
         self.commands_topic = ros.topic(commands)
-        qos = qos if qos is not None else ros.qos(10)
+        depth = getattr(qos, "depth", 10) if qos is not None else 10
         std = ros.msgs["std_msgs"]
         self._cmd = std.Float64MultiArray()
-        self._pub = ros.node.create_publisher(std.Float64MultiArray, commands, qos)
+        self._pub = ros.node.create_publisher(std.Float64MultiArray, commands,
+                                              ros.qos(depth, reliable=True))  # fmt: skip
         # every state taken (merged by name), the newest answered; best effort (matches a
         # reliable publisher too): the arm's driver never waits for, or resends to, the
         # controller
-        state_qos = ros.qos(getattr(qos, "depth", 10), reliable=False)
+        state_qos = ros.qos(depth, reliable=False)
         self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states, state_qos)
         self._others: list[tuple[object, object]] = []
         self._wait = ros.waiter([self._sub])

@@ -90,10 +90,11 @@ class RosConfig:
             default: 10, ``SystemDefaultsQoS``). The joint states are all taken (merged by
             joint name), the newest answered.
         qos_reliability: ``"reliable"`` (ros2_control's default) or ``"best_effort"``:
-            the commands, the trajectory messages and the published estimates. The
-            joint states are always subscribed best effort (it matches a reliable
-            publisher too, and the arm's driver never waits for, or resends to, the
-            controller).
+            the trajectory messages and the published estimates. The commands are
+            always published reliable (a best-effort publisher would reach no reliable
+            effort controller; a reliable one reaches both kinds), and the joint states
+            always subscribed best effort (it matches a reliable publisher too, and the
+            arm's driver never waits for, or resends to, the controller).
     """
 
     joint_states: str = "joint_states"

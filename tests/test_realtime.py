@@ -948,3 +948,27 @@ def test_the_configs_brake_speed_and_hold_reach_every_loop_built_from_it(tmp_pat
         config = load_config(_write(tmp_path, extra))
         _, safety, _ = realtime_parts(Experiment.from_config(config))
         assert safety.brake_speed == 0.0125 and safety.hold == 0.7
+
+
+def test_a_reference_made_against_one_swapped_out_since_is_not_taken(robot):
+    """``set_reference(..., base=)`` from another thread: a trajectory made continuous with
+    the reference of its check is refused when the loop has swapped in another meanwhile
+    (it would jump at its start); one made against the current reference supersedes a
+    pending one."""
+    r0, r1, r2 = _sine(), SineReference(3, amplitude=0.1), SineReference(3, amplitude=0.2)
+    box, taken = {}, []
+
+    def hook(t):  # the calls a trajectory worker makes, at chosen loop times
+        loop = box["loop"]
+        if abs(t - 0.05) < P / 2:
+            taken.append(loop.set_reference(r1, at=0.1, base=r0))  # pending until 0.1
+        if abs(t - 0.2) < P / 2:
+            taken.append(loop.set_reference(r2, at=0.3, base=r0))  # r0 is gone since 0.1
+        if abs(t - 0.25) < P / 2:
+            taken.append(loop.set_reference(r2, at=0.3, base=r1))
+
+    loop, _, _, _ = _setup(robot, 0.4, hook=hook, reference=r0)
+    box["loop"] = loop
+    run = loop.run()
+    assert taken == [True, False, True]
+    assert run.stop is None and loop.reference is r2

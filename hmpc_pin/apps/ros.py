@@ -107,8 +107,9 @@ class _Trajectories:
                       "is not running yet")  # fmt: skip
             return
         now = loop.time + self.experiment.controller.Ts  # the step that takes it over
+        base = loop.reference
         try:
-            traj = trajectory_from_message(msg, self.experiment.robot, loop.reference, now,
+            traj = trajectory_from_message(msg, self.experiment.robot, base, now,
                                            self.lower, self.upper,
                                            origin=self.iface._origin)  # fmt: skip
         except HmpcError as exc:
@@ -117,7 +118,13 @@ class _Trajectories:
             self.events.append({"t": now, "accepted": False, "reason": line})
             return
         start = float(traj.times[0])
-        loop.set_reference(traj, at=start)
+        if not loop.set_reference(traj, at=start, base=base):
+            line = (f"refused a joint_trajectory message on {self.topic}: the reference "
+                    "changed while it was checked (a trajectory sent before it started); "
+                    "send it again")  # fmt: skip
+            log.error(line)
+            self.events.append({"t": now, "accepted": False, "reason": line})
+            return
         line = (
             f"accepted a joint_trajectory message of {len(msg.points)} points: the "
             f"reference from t={start:.3f} s to {traj.t_end:.3f} s, last point held"

@@ -382,6 +382,7 @@ class RealtimeLoop:
         self.clock = clock
         self.on_step = on_step
         self._pending_reference = None
+        self._reference_lock = threading.Lock()  # the swap against set_reference
         self.time = 0.0
         if self.paced:
             wait = interface.wait  # type: ignore[union-attr]
@@ -409,11 +410,25 @@ class RealtimeLoop:
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
         self._held_tau = np.zeros(interface.nq)
 
-    def set_reference(self, reference, at: float = 0.0) -> None:
+    def set_reference(self, reference, at: float = 0.0, base=None) -> bool:
         """Replace the reference from the first controller step at or after loop time
         ``at`` [s] (default: the next step) on; callable from another thread (the loop
-        swaps it in at a step). The caller checks it (limits, continuity at that time)."""
-        self._pending_reference = (as_reference(reference), float(at))
+        swaps it in at a step). A reference still pending is superseded (as a new
+        trajectory replaces the last in ros2_control's trajectory controller). The caller
+        checks it (limits, continuity at that time).
+
+        Args:
+            base: The reference the caller made ``reference`` continuous with: if the loop
+                has swapped in another since, ``reference`` is not taken.
+
+        Returns:
+            Whether it was taken (False only when ``base`` is no longer the reference).
+        """
+        with self._reference_lock:
+            if base is not None and self.reference is not base:
+                return False
+            self._pending_reference = (as_reference(reference), float(at))
+            return True
 
     # ------------------------------------------------------------------ stopping
     def request_stop(self) -> None:
@@ -606,10 +621,12 @@ class RealtimeLoop:
             dq_last[:] = dq
             is_mpc = k >= next_mpc
             if is_mpc:
-                pending = self._pending_reference
-                if pending is not None and k * P >= pending[1] - 1e-9:
-                    ref, self._pending_reference = pending[0], None
-                    self.reference = ref
+                if self._pending_reference is not None:
+                    with self._reference_lock:
+                        pending = self._pending_reference
+                        if pending is not None and k * P >= pending[1] - 1e-9:
+                            ref, self._pending_reference = pending[0], None
+                            self.reference = ref
                 try:
                     # copies: the interface may reuse its arrays, a controller may keep them
                     tau = ctrl.step(k * P, q.copy(), dq.copy(), ref)

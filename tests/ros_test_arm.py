@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 SCENARIOS = ("traffic", "nan", "silent", "stall", "delay", "trajectory", "interrupt",
-             "deactivate", "remap", "gravity_arm")  # fmt: skip
+             "deactivate", "remap", "gravity_arm", "inactive")  # fmt: skip
 #: "remap": the arm's topics under /arm, the controller told so by --ros-args remaps.
 REMAP = ["-r", "joint_states:=/arm/joint_states", "-r", "effort_controller/commands:=/arm/effort",
          "-p", "use_sim_time:=false"]  # fmt: skip
@@ -274,6 +274,10 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
         else:
             pub.publish(state_msg(stamp))
         published += 1
+        if scenario == "inactive" and "activate" not in acted:
+            acted.add("activate")  # an orchestrator: configure, wait, then activate
+            threading.Thread(target=_activate, args=(node, report, commands, lock),
+                             daemon=True).start()  # fmt: skip
         if run_t is None:
             continue
         matched = scenario == "trajectory" and traj_pub.get_subscription_count() > 0
@@ -333,6 +337,31 @@ def _deactivate(node, report) -> None:
         report["events"]["deactivate_sent"] = time.time()
         res = client.call(req, timeout_sec=10.0)
         report["events"]["deactivated"] = None if res is None else bool(res.success)
+
+
+def _activate(node, report, commands, lock) -> None:
+    """An orchestrator (``ros2 lifecycle set ... configure``, then ``activate``) for a
+    controller started with ``[ros] autostart = false``: the commands received before
+    the activation are counted (there must be none)."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+
+    state = node.create_client(GetState, "/hmpc_pin_controller/get_state")
+    client = node.create_client(ChangeState, "/hmpc_pin_controller/change_state")
+    if not (state.wait_for_service(timeout_sec=60.0) and client.wait_for_service(60.0)):
+        return
+    res = state.call(GetState.Request(), timeout_sec=10.0)
+    report["events"]["state_at_start"] = None if res is None else res.current_state.label
+    time.sleep(0.5)  # states stream meanwhile; an inactive controller answers none
+    for name in ("configure", "activate"):
+        req = ChangeState.Request()
+        req.transition.id = getattr(Transition, f"TRANSITION_{name.upper()}")
+        if name == "activate":
+            time.sleep(0.3)
+            with lock:
+                report["events"]["commands_before_activate"] = len(commands)
+        res = client.call(req, timeout_sec=10.0)
+        report["events"][name] = None if res is None else bool(res.success)
 
 
 def extra_node() -> None:

@@ -972,3 +972,120 @@ def test_a_reference_made_against_one_swapped_out_since_is_not_taken(robot):
     run = loop.run()
     assert taken == [True, False, True]
     assert run.stop is None and loop.reference is r2
+
+
+# ------------------------------------------------- before the first command, the limits
+class Counting(Frozen):
+    """:class:`Frozen` that counts the commands written to the arm."""
+
+    def __init__(self, arm, **kwargs):
+        super().__init__(arm, **kwargs)
+        self.writes = 0
+
+    def write(self, tau):
+        self.writes += 1
+        super().write(tau)
+
+
+@pytest.mark.parametrize("first", ["nan", "beyond"])
+def test_a_first_state_the_loop_cannot_start_from_is_refused_before_any_command(robot, first):
+    """A non-finite first state, or one beyond the bounds: ArmError naming it, and not
+    one command written (the arm keeps what it had)."""
+    box = {}
+
+    def wrap(arm):
+        box["iface"] = Counting(arm, t_nan=0.0 if first == "nan" else np.inf)
+        return box["iface"]
+
+    q0 = _sine().sample(0.0)[0]
+    hi = q0 + 1.0
+    hi[1] = q0[1] - 0.1  # joint 2 starts 0.1 rad above its upper bound
+    safety = SafetySettings(q0 - 1.0, hi, np.full(3, 10.0), watchdog=0.005, hold=0.01)
+    loop, _, _, _ = _setup(robot, 0.1, wrap=wrap, safety=None if first == "nan" else safety)
+    with pytest.raises(hmpc_pin.ArmError, match="nothing was sent") as err:
+        loop.run()
+    assert ("non-finite" in str(err.value)) == (first == "nan")
+    assert (robot.joint_names[1] in str(err.value)) == (first == "beyond")
+    assert box["iface"].writes == 0
+
+
+@pytest.mark.parametrize("how", ["deactivated", "interrupted"])
+def test_a_stop_asked_before_the_first_command_sends_nothing(robot, how):
+    """Deactivated (or Ctrl-C) before the loop's first command: the arm never had one
+    from it, and gets none (no stop sequence, ``safe_tau`` None)."""
+    box = {}
+
+    def wrap(arm):
+        box["iface"] = Counting(arm)
+        return box["iface"]
+
+    loop, _, _, _ = _setup(robot, 0.2, wrap=wrap)
+    if how == "deactivated":
+        assert loop.request_stop_by("deactivated", timeout=0.0)  # not started: at once
+    else:
+        loop.request_stop()
+    run = loop.run()
+    assert box["iface"].writes == 0
+    assert run.stop["cause"] == how and run.stop["safe_tau"] is None
+    assert "nothing was sent" in run.stop["reason"]
+    assert run.stop["brake"]["ended"] == "nothing sent"
+
+
+def test_a_stop_after_the_first_command_still_runs_the_stop_sequence(robot):
+    """The other side of the rule: deactivated after one command, the safe torque and
+    the held-safe one are written."""
+    box = {}
+
+    def wrap(arm):
+        box["iface"] = Counting(arm)
+        return box["iface"]
+
+    def hook(t):
+        if t > 0:
+            box["loop"].request_stop_by("deactivated", timeout=0.0)
+
+    loop, _, _, _ = _setup(robot, 0.2, wrap=wrap, hook=hook)
+    box["loop"] = loop
+    run = loop.run()
+    assert run.stop["cause"] == "deactivated" and run.stop["safe_tau"] is not None
+    assert box["iface"].writes >= Ts / P + 2  # the steps, the safe and the held torque
+
+
+def test_set_reference_reports_the_pending_reference_it_superseded(robot):
+    """Two references set before the loop swaps either in: the second supersedes the
+    first (``superseded``), which never runs; one set after the swap supersedes none."""
+    r0, r1, r2, r3 = _sine(), SineReference(3, amplitude=0.1), SineReference(3, 0.2), _sine()
+    seen = []
+
+    def hook(t):
+        loop = box["loop"]
+        if abs(t - 0.05) < P / 2:
+            loop.set_reference(r1, at=0.2)
+            seen.append(loop.superseded)
+            loop.set_reference(r2, at=0.2)
+            seen.append(loop.superseded)
+        if abs(t - 0.25) < P / 2:
+            loop.set_reference(r3, at=0.3)
+            seen.append(loop.superseded)
+
+    box = {}
+    loop, _, _, _ = _setup(robot, 0.4, hook=hook, reference=r0)
+    box["loop"] = loop
+    run = loop.run()
+    assert run.stop is None
+    assert seen[0] is None and seen[2] is None
+    assert seen[1] is not None and seen[1].sample(0.3)[0] == pytest.approx(r1.sample(0.3)[0])
+    assert loop.reference is not None and loop.pending_reference is None
+
+
+def test_safe_torques_are_clipped_to_the_effort_limits(robot):
+    """G(q) − D q̇ from RNEA, clipped per joint to the limits (closed form)."""
+    q, dq = np.array([0.3, -0.4, 0.2]), np.array([2.0, -3.0, 0.5])
+    limit = np.array([1.0, np.inf, 0.5])
+    safe = SafeTorque(robot, damping=3.0, effort_limit=limit)
+    expected = _safe(robot, q, dq)
+    assert safe(q, dq) == pytest.approx(np.clip(expected, -limit, limit), abs=1e-12)
+    g = _safe(robot, q, np.zeros(3))
+    assert safe.held(q) == pytest.approx(np.clip(g, -limit, limit), abs=1e-12)
+    with pytest.raises(hmpc_pin.ConfigError, match="effort_limit"):
+        SafeTorque(robot, effort_limit=[1.0, 0.0, 1.0])

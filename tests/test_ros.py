@@ -214,8 +214,12 @@ def _rms_after(result: Result, after: float = 1.0) -> np.ndarray:
     return compute_metrics(result, after=after).rms_error
 
 
-def test_ros_tracks_like_the_simulation(tmp_path):
-    config, report, result = _scenario(tmp_path, "track", 3.0)
+@pytest.mark.parametrize("gravity", ["controller", "arm"])
+def test_ros_tracks_like_the_simulation(tmp_path, gravity):
+    """Both nodes; with ``[ros] gravity = "arm"`` the arm node adds G(q) to each command
+    itself (an FCI-like arm) and the controller leaves it out: the same tracking."""
+    settings = SETTINGS.replace("rate = 500", f"rate = 500\ngravity = '{gravity}'")
+    config, report, result = _scenario(tmp_path, "track", 3.0, settings)
     ctrl = report["controller"]
     assert ctrl["exit"] == 0, ctrl["stderr"]
     assert result.complete and result.t[-1] == pytest.approx(3.0, abs=0.05)
@@ -529,3 +533,30 @@ def test_commands_are_published_reliable_whatever_qos_reliability_says():
                           text=True, timeout=120, cwd=ROOT)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split()[-3:] == ["True", "7", "True"], proc.stdout
+
+
+@pytest.mark.parametrize(
+    ("ros_gravity", "realtime_gravity", "error"),
+    [
+        ("controller", None, None),
+        ("arm", None, None),
+        ("controller", True, None),
+        ("arm", False, None),
+        ("controller", False, "would let it fall"),
+        ("arm", True, "counted twice"),
+    ],
+)
+def test_gravity_is_one_choice_for_both_nodes(tmp_path, ros_gravity, realtime_gravity, error):
+    """``[ros] gravity`` decides; ``[realtime] gravity``, if given, must agree (checked
+    before a node starts, by both commands)."""
+    from hmpc_pin.apps.ros import check_gravity
+
+    extra = f"[ros]\ngravity = '{ros_gravity}'\n"
+    if realtime_gravity is not None:
+        extra += f"[realtime]\ngravity = {str(realtime_gravity).lower()}\n"
+    config = load_config(_write(tmp_path, extra))
+    if error is None:
+        check_gravity(config)
+        return
+    with pytest.raises(ConfigError, match=rf"realtime\.gravity.*{error}"):
+        check_gravity(config)

@@ -232,6 +232,21 @@ def test_an_arm_that_compensates_gravity_itself_gets_none_and_is_left_with_zero(
     assert report["drift"] <= FRESH, report["drift"]
 
 
+def test_a_controller_started_inactive_waits_for_its_orchestrator(tmp_path):
+    """``[ros] autostart = false``: the node starts unconfigured and sends nothing while
+    the arm streams; an orchestrator's configure and activate start the run."""
+    settings = SETTINGS.replace("rate = 500", "rate = 500\nautostart = false")
+    _, report, result = _run(tmp_path, "inactive", 1.5, settings)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    events = report["events"]
+    assert events["state_at_start"] == "unconfigured"
+    assert events["commands_before_activate"] == 0
+    assert events["configure"] is True and events["activate"] is True
+    _no_nan(report)
+    assert result.complete and result.t[-1] == pytest.approx(1.5, abs=0.05)
+
+
 def test_ros_args_that_contradict_the_config_or_rclpy_are_one_line(tmp_path):
     """The node's parameters mirror the config: ``-p ros.rate:=250.0`` against the config's
     500 is refused (exit 2, one line naming the key); so is an argument rclpy refuses."""

@@ -493,10 +493,10 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
     if run.stop is None:
         return EXIT_OK
     if run.stop["cause"] in ("interrupted", "deactivated"):  # stopped from outside
+        sent = "nothing sent to the arm" if run.stop["safe_tau"] is None else f"safe torque {safe}"
         print(f"{run.stop['cause']} at t={run.stop['t']:.3f} s of "
-              f"{config.simulation.duration:g} s; "
-              f"safe torque {safe}, partial run saved (complete = false)",
-              file=sys.stderr)  # fmt: skip
+              f"{config.simulation.duration:g} s; {sent}, partial run saved "
+              "(complete = false)", file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
     print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
     return EXIT_FAILED

@@ -64,6 +64,7 @@ class _Trajectories:
         self.lower, self.upper = _limits_of(experiment)
         self.loop: RealtimeLoop | None = None
         self.events: list[dict] = []
+        self._pending: tuple | None = None  # (reference, event) of the last accepted
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._worker = threading.Thread(target=self._work, name="joint_trajectory",
                                         daemon=True)  # fmt: skip
@@ -125,13 +126,22 @@ class _Trajectories:
             log.error(line)
             self.events.append({"t": now, "accepted": False, "reason": line})
             return
+        pending, self._pending = self._pending, None
+        if pending is not None and loop.superseded is pending[0]:
+            # accepted, but replaced before its start: it never ran (ros2_control's
+            # trajectory controller replaces a pending goal the same way)
+            pending[1]["superseded_at"] = now
+            log.info(f"the joint_trajectory accepted for t={pending[1]['t']:.3f} s is "
+                     "superseded by a newer one before it started")  # fmt: skip
         line = (
             f"accepted a joint_trajectory message of {len(msg.points)} points: the "
             f"reference from t={start:.3f} s to {traj.t_end:.3f} s, last point held"
         )
         log.info(line)
-        self.events.append({"t": start, "accepted": True, "t_end": traj.t_end,
-                            "points": len(msg.points)})  # fmt: skip
+        event = {"t": start, "accepted": True, "t_end": traj.t_end, "points": len(msg.points)}
+        self.events.append(event)
+        waiting = loop.pending_reference  # None: the loop has swapped it in already
+        self._pending = None if waiting is None else (waiting, event)
 
 
 def ros_parts(experiment: Experiment):
@@ -153,11 +163,39 @@ def ros_parts(experiment: Experiment):
         if exc.key != "realtime.rate":
             raise
         raise ConfigError("ros.rate", exc.message.replace("rate=", "ros.rate=")) from None
+    check_gravity(cfg)
     ctrl = experiment.controller
     if rc.gravity == "arm":
-        safe = SafeTorque(experiment.robot, safe.damping, gravity=False)
+        safe = SafeTorque(experiment.robot, safe.damping, gravity=False,
+                          effort_limit=safe.effort_limit)  # fmt: skip
         ctrl = GravityByArm(ctrl, experiment.robot)
     return loop_settings, safety, safe, ctrl
+
+
+def check_gravity(config: ExperimentConfig) -> None:
+    """Who compensates gravity is one choice, ``[ros] gravity``, for both ROS nodes;
+    ``[realtime] gravity``, if given, must agree with it.
+
+    Raises:
+        ConfigError: ``realtime.gravity`` contradicts ``ros.gravity``.
+    """
+    given, who = config.realtime.gravity, config.ros.gravity
+    if given is None or given == (who == "controller"):
+        return
+    if who == "controller":
+        raise ConfigError(
+            "realtime.gravity",
+            "is false, but [ros] gravity = 'controller' says the arm does not compensate "
+            "gravity itself: the zero torque held after a stop would let it fall. Drop "
+            "realtime.gravity (the ROS nodes follow [ros] gravity), or set [ros] gravity = "
+            "'arm' if the arm adds G(q) itself",
+        )
+    raise ConfigError(
+        "realtime.gravity",
+        "is true, but [ros] gravity = 'arm' says the arm adds G(q) itself: G(q) in the safe "
+        "torque would be counted twice. Drop realtime.gravity (the ROS nodes follow [ros] "
+        "gravity), or set [ros] gravity = 'controller'",
+    )
 
 
 def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None,
@@ -232,7 +270,13 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
         trajectories.warm()
         early: list[bool] = []  # deactivated before the loop exists: it stops at once
         ros.on_deactivate(early.append, True)
-        ros.serve()  # parameters and lifecycle services, in their own thread
+        ros.serve(activate=rc.autostart)  # parameters and lifecycle, in their own thread
+        if not rc.autostart:
+            ros.node.get_logger().info(
+                f"waiting for an orchestrator to configure and activate "
+                f"{ros.node.get_fully_qualified_name()} ([ros] autostart = false)"
+            )
+            ros.wait_active()  # (a shutdown before: the loop stops before its first command)
         iface.start()
         loop = RealtimeLoop(
             iface, ctrl, experiment.reference, safe, loop_settings, safety,
@@ -306,8 +350,10 @@ def format_ros(run: RealtimeRun) -> str:
              f"(stamps: {r['stamps']}), {r['commands_published']} commands published on "
              f"{r['commands']}"]  # fmt: skip
     for ev in r["trajectories"]:
-        lines.append(f"  t={ev['t']:.3f} s: " + ("accepted a trajectory of "
-                     f"{ev['points']} points" if ev["accepted"] else ev["reason"]))  # fmt: skip
+        what = f"accepted a trajectory of {ev['points']} points" if ev["accepted"] else ev["reason"]
+        if "superseded_at" in ev:
+            what += f", superseded at t={ev['superseded_at']:.3f} s before it started"
+        lines.append(f"  t={ev['t']:.3f} s: {what}")
     return "\n".join(lines)
 
 
@@ -330,6 +376,7 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
     from ..ros.node import RosNode, discovery_range
 
     rc = config.ros
+    check_gravity(config)
     experiment = Experiment.from_config(config)
     try:
         plant = experiment.make_plant(rc.period)  # checks that plant.dt divides the period
@@ -341,9 +388,10 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
                   ros_args=ros_args)  # fmt: skip
     stopped_by: list[int] = []
     try:
+        gravity = experiment.plant.gravity_torque if rc.gravity == "arm" else None
         arm = RosArmNode(ros, plant, experiment.robot.joint_names, experiment.q0,
                          experiment.dq0, rc.period, rc.joint_states, rc.commands,
-                         experiment.effort_limit)  # fmt: skip
+                         experiment.effort_limit, gravity=gravity)  # fmt: skip
 
         def on_signal(signum, frame) -> None:
             stopped_by.append(signum)

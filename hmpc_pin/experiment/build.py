@@ -582,7 +582,8 @@ def realtime_parts(
     else:
         safety = SafetySettings.unlimited(n, max_misses=rc.max_misses, watchdog=rc.watchdog,
                                           hold=rc.hold, brake_speed=rc.brake_speed)  # fmt: skip
-    safe = SafeTorque(robot, cfg.vector("realtime.damping", n), gravity=rc.gravity)
+    safe = SafeTorque(robot, cfg.vector("realtime.damping", n), gravity=rc.gravity is not False,
+                      effort_limit=experiment.effort_limit)  # fmt: skip
     return loop, safety, safe
 
 

@@ -73,7 +73,7 @@ import numpy as np
 from .._startup import was_interrupted
 from ..compensation.bandwidth import compensation_bandwidth, latency_tolerance
 from ..controllers.base import Controller
-from ..exceptions import ConfigError, HmpcError, ValidityWarning
+from ..exceptions import ArmError, ConfigError, HmpcError, ValidityWarning
 from ..sim.result import Result
 from ..tasks.base import as_reference
 from .interface import PacedInterface, RobotInterface
@@ -268,7 +268,9 @@ class RealtimeRun:
             ``cycle``, ``t`` [s], ``safe_tau`` [N·m], ``q``, ``dq`` used, and
             ``safe_after_deadline`` and ``safe_after_detection`` [s], the time from
             the detecting cycle's deadline, and from the detection, to the safe torque
-            written.
+            written. Stopped by Ctrl-C or a deactivate before the first command:
+            ``safe_tau`` is ``None`` and nothing was sent (``brake["ended"]`` is
+            ``"nothing sent"``).
     """
 
     result: Result
@@ -382,6 +384,7 @@ class RealtimeLoop:
         self.clock = clock
         self.on_step = on_step
         self._pending_reference = None
+        self.superseded = None  # the pending reference the last set_reference replaced
         self._reference_lock = threading.Lock()  # the swap against set_reference
         self.time = 0.0
         if self.paced:
@@ -423,12 +426,21 @@ class RealtimeLoop:
 
         Returns:
             Whether it was taken (False only when ``base`` is no longer the reference).
+            :attr:`superseded` is then the pending reference it replaced (``None``: none).
         """
         with self._reference_lock:
             if base is not None and self.reference is not base:
                 return False
+            previous = self._pending_reference
+            self.superseded = None if previous is None else previous[0]
             self._pending_reference = (as_reference(reference), float(at))
             return True
+
+    @property
+    def pending_reference(self):
+        """The reference set but not yet swapped in (``None``: none)."""
+        pending = self._pending_reference
+        return None if pending is None else pending[0]
 
     # ------------------------------------------------------------------ stopping
     def request_stop(self) -> None:
@@ -491,6 +503,13 @@ class RealtimeLoop:
         n = iface.nq
         stamp, q, dq = iface.read()
         q_last, dq_last = np.array(q, dtype=float), np.array(dq, dtype=float)
+        refused = self._start_fault(q_last, dq_last)
+        if refused is not None:  # before any command: nothing is sent, the arm keeps its own
+            raise ArmError(
+                f"the first state from the arm ({type(iface).__name__}) is refused: {refused}; "
+                "nothing was sent to the arm. Check its driver (or the limits in "
+                "[realtime]) and start again"
+            )
         self._last_state = (q_last, dq_last)
         ctrl.reset(q_last if q0 is None else q0, dq_last if dq0 is None else dq0)
 
@@ -509,6 +528,7 @@ class RealtimeLoop:
         lower, upper, vmax = sf.lower, sf.upper, sf.velocity
         watchdog, max_misses = sf.watchdog, sf.max_misses
         tau = np.zeros(n)
+        wrote = False
         j = 0
         misses = consecutive = worst_run = skipped = 0
         gc_runs = gc_deferred = 0
@@ -641,6 +661,7 @@ class RealtimeLoop:
                     next_mpc += m
             iface.write(tau)
             done = clock()
+            wrote = True
             if is_mpc and stamp_clock is not None:
                 age_a[k] = (done if self.paced else stamp_clock()) - stamp
             # ---- bookkeeping, in the slack
@@ -692,7 +713,20 @@ class RealtimeLoop:
         # (module doc, "Safe stop"); with no fresh state to brake on, the held-safe torque
         stop_record = None
         fresh = stop is None or stop[0] != "watchdog"
-        if stop is not None:
+        # stopped by its operator (Ctrl-C, a lifecycle deactivate) before its first command:
+        # the arm never had one from this loop, so none is sent now either
+        unsent = stop is not None and stop[0] in ("interrupted", "deactivated") and not wrote
+        if unsent:
+            cause, reason = stop  # type: ignore[misc]
+            cycle = min(k, K)
+            stop_record = {
+                "cause": cause,
+                "reason": f"stopped at t={cycle * P:.4f} s (cycle {cycle}) before the first "
+                f"command: {reason}; nothing was sent to the arm",
+                "cycle": int(cycle), "t": cycle * P, "safe_tau": None,
+                "q": q_last.tolist(), "dq": dq_last.tolist(),
+            }  # fmt: skip
+        elif stop is not None:
             cause, reason = stop
             detected = clock()
             tau_safe = (self._safe_write(q_last, dq_last) if fresh
@@ -713,7 +747,12 @@ class RealtimeLoop:
             }
         elif fresh:
             self._safe_write(q_last, dq_last)
-        brake = self._brake(P, q_last, dq_last, last_stamp if not paced else stamp, fresh)
+        if unsent:
+            brake = {"ended": "nothing sent", "duration": 0.0, "states": 0,
+                     "speed": float(np.max(np.abs(dq_last), initial=0.0)),
+                     "q": q_last.tolist(), "held_tau": None}  # fmt: skip
+        else:
+            brake = self._brake(P, q_last, dq_last, last_stamp if not paced else stamp, fresh)
         if stop_record is not None:
             stop_record["brake"] = brake
         cycles_run = int(np.count_nonzero(np.isfinite(done_a)))
@@ -886,6 +925,14 @@ class RealtimeLoop:
         return {"ended": ended, "duration": clock() - start, "states": states,
                 "speed": float(np.max(np.abs(dq_keep), initial=0.0)),
                 "q": q_keep.tolist(), "held_tau": held.tolist()}  # fmt: skip
+
+    def _start_fault(self, q, dq) -> str | None:
+        """Why the first state cannot start the loop (non-finite, beyond the bounds), or
+        ``None``."""
+        sf = self.safety
+        if (q >= sf.lower).all() and (q <= sf.upper).all() and (np.abs(dq) <= sf.velocity).all():
+            return None
+        return self._state_fault(q, dq)
 
     def _state_fault(self, q, dq) -> str:
         sf = self.safety

@@ -24,6 +24,10 @@ loop is therefore:
    measured is a constant torque that accelerates the arm): zero when the arm
    compensates gravity itself (:math:`g = 0`).
 
+Every safe torque is clipped to the joints' effort limits (``effort_limit``; the
+controller's torques are clipped to the same): a brake command beyond what the drive
+takes is clipped by the drive anyway, and a clipped command is what the arm really gets.
+
 On an arm without friction the held-safe torque leaves it coasting at the speed it had
 (at most ``brake_speed`` after a completed brake): the drift over a time :math:`T` is at
 most :math:`T \\cdot` ``brake_speed`` plus the model's gravity error.
@@ -57,26 +61,36 @@ class SafeTorque:
         robot: The controller's model (its own ``pin.Data`` is used: call from one thread).
         damping: :math:`d_i` [N·m·s/rad], one value or (n,), each >= 0.
         gravity: Include the gravity compensation :math:`G(q)`.
+        effort_limit: Per-joint torque limit [N·m], one value or (n,), each > 0 (``inf``
+            or ``None``: none); every safe torque is clipped to it.
     """
 
-    def __init__(self, robot: Robot, damping=2.0, gravity: bool = True):
+    def __init__(self, robot: Robot, damping=2.0, gravity: bool = True, effort_limit=None):
         n = robot.nq
         d = np.broadcast_to(np.asarray(damping, dtype=float), (n,)).copy()
         if not np.all(np.isfinite(d)) or np.any(d < 0):
             raise ConfigError("realtime.damping", f"expected values >= 0, got {d.tolist()}")
         self.robot, self.damping, self.gravity = robot, d, bool(gravity)
+        limit = np.full(n, np.inf) if effort_limit is None else effort_limit
+        lim = np.broadcast_to(np.asarray(limit, dtype=float), (n,)).copy()
+        if np.any(np.isnan(lim)) or np.any(lim <= 0):
+            raise ConfigError("plant.effort_limit", f"expected values > 0 [N·m] (inf: no limit), "
+                              f"got {lim.tolist()}")  # fmt: skip
+        self.effort_limit = lim
 
     def __call__(self, q: FloatArray, dq: FloatArray) -> FloatArray:
-        """The safe torque [N·m], (n,), at the measured state."""
+        """The safe torque [N·m], (n,), at the measured state, clipped to the limits."""
         tau = -self.damping * dq
         if self.gravity:
             tau += self.robot.gravity_torque(q)
-        return tau
+        return np.clip(tau, -self.effort_limit, self.effort_limit, out=tau)
 
     def held(self, q: FloatArray) -> FloatArray:
-        """The held-safe torque :math:`g\\,G(q)` [N·m], (n,): no velocity term (module doc)."""
+        """The held-safe torque :math:`g\\,G(q)` [N·m], (n,): no velocity term (module
+        doc), clipped to the limits."""
         if self.gravity:
-            return np.array(self.robot.gravity_torque(q), dtype=float)
+            tau = np.array(self.robot.gravity_torque(q), dtype=float)
+            return np.clip(tau, -self.effort_limit, self.effort_limit, out=tau)
         return np.zeros(self.robot.nq)
 
     def describe_held(self) -> str:

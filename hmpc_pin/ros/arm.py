@@ -12,6 +12,11 @@ joint_state_broadcaster does. Effort commands arrive as ``std_msgs/Float64MultiA
 clipped to the effort limits; a command of the wrong length or with a non-finite value
 is ignored and logged. Until the first command the arm holds still (on its brakes),
 publishing its state.
+
+With ``[ros] gravity = "arm"`` the node is an arm that compensates gravity itself
+(Franka's FCI, KUKA's FRI torque overlay): each period it applies the clipped command
+plus :math:`G(q)` of its own model at the period's start, and publishes that total as the
+effort; a zero command then holds it.
 """
 
 from __future__ import annotations
@@ -37,7 +42,9 @@ class RosArmNode:
         q0, dq0: Initial state [rad, rad/s].
         period: Interface period [s].
         joint_states, commands: Topic names.
-        effort_limit: Per-joint torque limit [N·m] (``None``: none).
+        effort_limit: Per-joint torque limit [N·m] (``None``: none), on the command.
+        gravity: ``G(q)`` [N·m] the arm adds to each command itself (``None``: it adds
+            nothing, the command is the torque).
 
     Attributes:
         steps: Periods elapsed (a state published for each). late: Periods the node
@@ -46,8 +53,10 @@ class RosArmNode:
     """
 
     def __init__(self, ros: RosNode, plant: Plant, joint_names, q0, dq0, period: float,
-                 joint_states: str, commands: str, effort_limit=None):  # fmt: skip
+                 joint_states: str, commands: str, effort_limit=None,
+                 gravity=None):  # fmt: skip
         self.ros, self.plant = ros, plant
+        self.gravity = gravity
         self.names = list(joint_names)
         self.n = n = len(self.names)
         self.period = float(period)
@@ -55,7 +64,8 @@ class RosArmNode:
         plant.reset(self.q, self.dq, 0.0)
         self.limit = None if effort_limit is None else np.asarray(effort_limit, dtype=float)
         self._cmd: np.ndarray | None = None
-        self.tau = np.zeros(n)
+        self.tau = np.zeros(n)  # the torque applied (the command, plus G(q) with gravity)
+        self._command = np.zeros(n)
         self.steps = self.late = self.commands = self.rejected = 0
         sensor = ros.msgs["sensor_msgs"]
         self._msg = sensor.JointState()
@@ -111,9 +121,9 @@ class RosArmNode:
                 started = True
                 self.commands += 1
                 if self.limit is not None:
-                    np.clip(cmd, -self.limit, self.limit, out=self.tau)
+                    np.clip(cmd, -self.limit, self.limit, out=self._command)
                 else:
-                    self.tau[:] = cmd
+                    self._command[:] = cmd
             due = int((clock() - t0) / P)
             if due > k:
                 self.late += due - k
@@ -122,6 +132,9 @@ class RosArmNode:
             # period, as a driver's, so that the controller counts the periods it missed)
             while self.steps < k:
                 if started:
+                    self.tau[:] = self._command
+                    if self.gravity is not None:
+                        self.tau += self.gravity(self.q)
                     self.q, self.dq = self.plant.advance(self.tau)
                 self.steps += 1
                 self._publish(t0 + self.steps * P)

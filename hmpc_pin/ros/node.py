@@ -56,7 +56,8 @@ class RosNode:
 
     The node is a lifecycle node (``rclpy.lifecycle``; its ``change_state`` and
     ``get_state`` services answered once :meth:`serve` runs): it configures and activates
-    itself at :meth:`serve`; ``deactivate`` (or ``shutdown``) from an orchestrator calls
+    itself at :meth:`serve`, or waits for an orchestrator to (``serve(activate=False)``,
+    :meth:`wait_active`); ``deactivate`` (or ``shutdown``) from an orchestrator calls
     the function given to :meth:`on_deactivate` (the controller's stop sequence) and
     returns when it has run. Parameters given here are declared read-only with the
     config's values (``ros2 param list``); a ``--ros-args -p`` override of one of them
@@ -91,6 +92,8 @@ class RosNode:
                               "arguments such as -r from:=to, -r __ns:=/arm1, -p "
                               "use_sim_time:=true") from None  # fmt: skip
         self._deactivate: tuple[Callable, tuple] | None = None
+        self._active = threading.Event()  # set on activate (and on a shutdown before it)
+        self._shut_down = False
         self._executor = None
         self._thread = None
         try:
@@ -138,14 +141,21 @@ class RosNode:
                     "parameters mirror the config: set it in the config file"
                 )  # fmt: skip
 
-    def serve(self) -> None:
-        """Configure and activate the lifecycle node, and answer its services (parameters,
-        lifecycle, ``/clock`` with ``use_sim_time``) in a thread of their own; the
-        subscriptions of :meth:`subscribe` stay the caller's."""
+    def serve(self, activate: bool = True) -> None:
+        """Answer the node's services (parameters, lifecycle, ``/clock`` with
+        ``use_sim_time``) in a thread of their own; the subscriptions of :meth:`subscribe`
+        stay the caller's.
+
+        Args:
+            activate: Configure and activate the lifecycle node now (``False``: it stays
+                unconfigured until an orchestrator configures and activates it;
+                :meth:`wait_active` waits for that).
+        """
         from rclpy.executors import SingleThreadedExecutor
 
-        self.node.trigger_configure()
-        self.node.trigger_activate()
+        if activate:
+            self.node.trigger_configure()
+            self.node.trigger_activate()
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name="ros_services", daemon=True)
@@ -154,6 +164,13 @@ class RosNode:
     def _spin(self) -> None:
         with contextlib.suppress(Exception):  # the context shut down under it
             self._executor.spin()  # type: ignore[union-attr]
+
+    def wait_active(self) -> bool:
+        """Block until the node is activated (True) or shut down before (False); Ctrl-C
+        raises ``KeyboardInterrupt`` meanwhile."""
+        while not self._active.wait(0.1):
+            pass
+        return not self._shut_down
 
     def on_deactivate(self, stop: Callable, *args) -> None:
         """Call ``stop(*args)`` when the node is deactivated or shut down (from the
@@ -249,11 +266,17 @@ def _lifecycle_node(owner: RosNode, name: str, namespace: str):
     from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
     class _Node(LifecycleNode):
+        def on_activate(self, state):
+            owner._active.set()
+            return super().on_activate(state)
+
         def on_deactivate(self, state):
             owner._transition_stop()
             return TransitionCallbackReturn.SUCCESS
 
         def on_shutdown(self, state):
+            owner._shut_down = not owner._active.is_set()
+            owner._active.set()
             owner._transition_stop()
             return TransitionCallbackReturn.SUCCESS
 

@@ -20,7 +20,9 @@ class RealtimeConfig:
         gc: Garbage-collection handling (freeze after start-up, collect in the slack).
         gc_slack: Minimum slack [s] before the next deadline for a collection.
         damping: Joint damping of the safe torque [N·m·s/rad], one value or per joint.
-        gravity: Gravity compensation in the safe torque.
+        gravity: Gravity compensation in the safe torque (not given: on). Under
+            ``hmpc-pin ros`` the choice is ``[ros] gravity``; this key, if given, must
+            agree with it (``true`` with ``"controller"``, ``false`` with ``"arm"``).
         max_misses: Consecutive missed deadlines that stop the loop (k).
         watchdog: A state stamp that does not advance for this long [s] stops the loop.
         hold: Bound in time [s] of the brake after a stop (and at the end of a run): the
@@ -49,7 +51,7 @@ class RealtimeConfig:
     gc: bool = True
     gc_slack: float = 3e-4
     damping: np.ndarray = 2.0
-    gravity: bool = True
+    gravity: bool | None = None
     max_misses: int = 10
     watchdog: float = 0.02
     hold: float = 2.0
@@ -83,7 +85,8 @@ class RealtimeConfig:
         _set(self, "gc", _bool("gc", self.gc))
         _set(self, "gc_slack", _float("gc_slack", self.gc_slack, positive=True))
         _set(self, "damping", _array("damping", self.damping, nonneg=True))
-        _set(self, "gravity", _bool("gravity", self.gravity))
+        if self.gravity is not None:
+            _set(self, "gravity", _bool("gravity", self.gravity))
         _set(self, "max_misses", _int("max_misses", self.max_misses, minimum=1))
         _set(self, "watchdog", _float("watchdog", self.watchdog, positive=True))
         _set(self, "hold", _float("hold", self.hold, nonneg=True))

@@ -7,7 +7,7 @@ import warnings
 from dataclasses import dataclass
 
 from ...exceptions import ConfigError
-from ._fields import _choice, _float, _int, _set
+from ._fields import _bool, _choice, _float, _int, _set
 
 #: ``[ros] gravity``: who compensates gravity (the guide "ROS 2" has a table per arm).
 GRAVITY = ("controller", "arm")
@@ -86,6 +86,11 @@ class RosConfig:
             mock). ``"arm"``: the arm adds G(q) itself (Franka FCI, KUKA FRI torque
             overlay): no command includes it, and the held-safe command after a stop is
             zero.
+        autostart: ``true`` (default): the controller node configures and activates
+            itself. ``false``: it starts unconfigured, publishes nothing and waits for an
+            orchestrator (a launch file's lifecycle manager, ``ros2 lifecycle set``) to
+            configure and activate it; the run then starts. A deactivate ends the run
+            (stop sequence, exit 130); the node does not activate again.
         qos_depth: History depth of every subscription and publisher (ros2_control's
             default: 10, ``SystemDefaultsQoS``). The joint states are all taken (merged by
             joint name), the newest answered.
@@ -109,6 +114,7 @@ class RosConfig:
     discovery: str | None = None
     start_timeout: float = 10.0
     gravity: str = "controller"
+    autostart: bool = True
     qos_depth: int = 10
     qos_reliability: str = "reliable"
     external_torque_type: str = "joint_state"
@@ -132,6 +138,7 @@ class RosConfig:
         _set(self, "rate", _float("rate", self.rate, positive=True))
         _set(self, "start_timeout", _float("start_timeout", self.start_timeout, positive=True))
         _set(self, "gravity", _choice("gravity", self.gravity, GRAVITY))
+        _set(self, "autostart", _bool("autostart", self.autostart))
         _set(self, "qos_depth", _int("qos_depth", self.qos_depth, minimum=1))
         _set(self, "qos_reliability", _choice("qos_reliability", self.qos_reliability,
                                               RELIABILITY))  # fmt: skip

@@ -34,7 +34,11 @@ from pathlib import Path
 import numpy as np
 
 SCENARIOS = ("traffic", "nan", "silent", "stall", "delay", "trajectory", "interrupt",
-             "deactivate", "remap", "gravity_arm", "inactive")  # fmt: skip
+             "deactivate", "remap", "gravity_arm", "inactive", "sim_time")  # fmt: skip
+#: "sim_time": a simulator's arm (Gazebo-like) at a real-time factor of 0.5: states stamped
+#: on its simulated clock (from SIM0, one period per period), /clock published, the
+#: controller run with use_sim_time.
+SIM0, SIM_WALL = 100.0, 2.0  # [s] the simulated clock's start; wall seconds per simulated one
 #: "remap": the arm's topics under /arm, the controller told so by --ros-args remaps.
 REMAP = ["-r", "joint_states:=/arm/joint_states", "-r", "effort_controller/commands:=/arm/effort",
          "-p", "use_sim_time:=false"]  # fmt: skip
@@ -204,6 +208,13 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     ctrl_cmd = [*exe, "ros", config_path, "--duration", str(duration), "--out", out]
     if scenario == "remap":
         ctrl_cmd += ["--ros-args", *REMAP]
+    wall = SIM_WALL if scenario == "sim_time" else 1.0
+    if scenario == "sim_time":
+        from rosgraph_msgs.msg import Clock
+
+        ctrl_cmd += ["--ros-args", "-p", "use_sim_time:=true"]
+        clock_pub = node.create_publisher(Clock, "/clock", 10)
+        clock_msg = Clock()
     arm.adds_gravity = scenario == "gravity_arm"  # as Franka's FCI: the arm adds G(q)
     t0 = time.time()
     published = 0
@@ -223,7 +234,7 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     t0 = time.time()
     while ctrl.poll() is None:
         k += 1
-        deadline = t0 + k * P
+        deadline = t0 + k * P * wall
         now = time.time()
         if deadline > now:
             time.sleep(deadline - now)
@@ -234,7 +245,7 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
                 if first_cmd_at is None:
                     first_cmd_at = deadline
         arm.step()
-        stamp = t0 + k * P
+        stamp = t0 + k * P * wall
         run_t = None if first_cmd_at is None else stamp - first_cmd_at
         if scenario == "silent":  # one state once the controller listens, then silence
             if published >= 1 or pub.get_subscription_count() == 0:
@@ -271,6 +282,11 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
             with delay_cv:
                 delayed.append((stamp + DELAY, state_msg(stamp)))
                 delay_cv.notify()
+        elif scenario == "sim_time":  # the simulator's clock first, then the state
+            ns = round((SIM0 + k * P) * 1e9)
+            clock_msg.clock.sec, clock_msg.clock.nanosec = divmod(ns, 1_000_000_000)
+            clock_pub.publish(clock_msg)
+            pub.publish(state_msg(SIM0 + k * P))
         else:
             pub.publish(state_msg(stamp))
         published += 1

@@ -1089,3 +1089,62 @@ def test_safe_torques_are_clipped_to_the_effort_limits(robot):
     assert safe.held(q) == pytest.approx(np.clip(g, -limit, limit), abs=1e-12)
     with pytest.raises(hmpc_pin.ConfigError, match="effort_limit"):
         SafeTorque(robot, effort_limit=[1.0, 0.0, 1.0])
+
+
+def test_the_inertia_brake_slows_every_joint_alike_and_stops_a_heavy_arm(robot):
+    """τ = G(q) − M(q) q̇ / T_b on the frictionless planar3 (RK4, 1 kHz zero-order hold):
+    with the Coriolis forces power-neutral, the kinetic energy decays as e^(−2t/T_b)
+    (closed form; the hold's error is O(P/T_b) = 1 % per time constant). The diagonal
+    damping of 2 N·m·s/rad leaves the arm's slowest mode at e^(−t/λmax(M, D)), λmax the
+    largest generalized eigenvalue (numpy's non-symmetric eig of D⁻¹M here)."""
+    from hmpc_pin.realtime.safety import brake_time_constant
+
+    T_b, P_, T = 0.2, 1e-3, 0.6
+    q0, dq0 = np.array([0.3, -0.4, 0.2]), np.array([1.0, -1.0, 0.5])
+    model, data = robot.model, robot.model.createData()
+
+    def kinetic(q, dq):
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        return 0.5 * dq @ M @ dq
+
+    for safe, rate in ((SafeTorque(robot, brake_time=T_b), 2.0 / T_b), (SafeTorque(robot), None)):
+        plant = RK4Plant(robot.copy(), None, P_, P_)
+        plant.reset(q0, dq0, 0.0)
+        q, dq = q0.copy(), dq0.copy()
+        for _ in range(round(T / P_)):
+            q, dq = plant.advance(safe(q, dq))
+        ratio = kinetic(q, dq) / kinetic(q0, dq0)
+        if rate is not None:
+            assert ratio == pytest.approx(np.exp(-rate * T), rel=0.05)
+        else:  # the slowest mode decays no faster than e^(-t/λmax): KE ≥ its share
+            lam = brake_time_constant(robot.mass_matrix(q0), safe.damping)
+            M0 = robot.mass_matrix(q0)
+            oracle = np.max(np.linalg.eigvals(np.linalg.solve(np.diag(safe.damping), M0)).real)
+            assert lam == pytest.approx(oracle, rel=1e-9)
+            assert lam > 5.0  # ~8 s for the paper's arm: the reason for the inertia brake
+            assert ratio > 0.5  # most of the energy left after 0.6 s
+    assert brake_time_constant(np.eye(3), np.array([1.0, 0.0, 1.0])) == np.inf
+
+
+def test_the_default_brake_is_the_inertia_brake_and_a_weak_damping_warns(tmp_path):
+    """No ``damping`` or ``brake_time``: the inertia brake with T_b = hold/6; an explicit
+    damping too weak for the arm's inertia warns with the numbers; both given is an error."""
+    from dataclasses import replace as dc_replace
+
+    from hmpc_pin.exceptions import ConfigError, ValidityWarning
+    from hmpc_pin.experiment.build import Experiment, realtime_parts
+    from hmpc_pin.experiment.config.realtime import RealtimeConfig
+    from hmpc_pin.experiment.schema import load_config
+
+    config = load_config("paper_combined")
+    _, _, safe = realtime_parts(Experiment.from_config(config))
+    assert safe.brake_time == pytest.approx(config.realtime.hold / 6)
+    weak = dc_replace(config, realtime=RealtimeConfig(damping=2.0))
+    with pytest.warns(ValidityWarning, match=r"realtime\.damping.*time constant of (\d+\.?\d*) s"):
+        _, _, safe = realtime_parts(Experiment.from_config(weak))
+    assert safe.brake_time is None
+    with pytest.raises(ConfigError, match=r"damping.*does not apply with brake_time"):
+        RealtimeConfig(damping=2.0, brake_time=0.1)
+    with pytest.raises(ConfigError, match=r"brake_time.*two interface periods"):
+        RealtimeConfig(brake_time=1e-3)

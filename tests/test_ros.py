@@ -293,14 +293,20 @@ def test_ros_ctrl_c_publishes_the_safe_torque_and_saves(tmp_path):
     assert not result.complete and stop["cause"] == "interrupted"
     assert 0.5 < stop["t"] < 4.0
     # the safe torque was published: a command received equals the stop's, and it is
-    # G(q) − 2 q̇ at the stop's state (Pinocchio directly: gravity + damping 2)
+    # G(q) − M(q) q̇ / T_b at the stop's state, T_b = hold/6 = 1/3 s (no damping given:
+    # the inertia brake), clipped to the URDF's effort limits (Pinocchio directly)
     safe = np.array(stop["safe_tau"])
     received = np.array([c for _, c in report["commands"]])
     assert np.any(np.all(np.abs(received - safe) < 1e-9, axis=1))
     robot = Experiment.from_config(config).robot
     q, dq = np.array(stop["q"]), np.array(stop["dq"])
-    G = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), q)
-    np.testing.assert_allclose(safe, G - 2.0 * dq, atol=1e-9)
+    data = robot.model.createData()
+    G = pin.computeGeneralizedGravity(robot.model, data, q)
+    M = pin.crba(robot.model, data, q)
+    M = np.triu(M) + np.triu(M, 1).T
+    limit = robot.model.effortLimit
+    expected = np.clip(G - M @ dq / (config.realtime.hold / 6.0), -limit, limit)
+    np.testing.assert_allclose(safe, expected, atol=1e-9)
 
 
 PROBE = """
@@ -484,7 +490,10 @@ def test_gravity_by_the_arm_takes_g_out_of_every_command(panda):
     plain.reset(q, dq)
     G = pin.computeGeneralizedGravity(model, model.createData(), q)
     np.testing.assert_allclose(tau, plain.step(0.0, q, dq, ref) - G, atol=1e-9)
-    np.testing.assert_allclose(safe(q, dq), -safe.damping * dq, atol=0)
+    # the inertia brake of the default (hold/6), without G: −M(q) q̇ / T_b (CRBA here)
+    M = pin.crba(model, model.createData(), q)
+    M = np.triu(M) + np.triu(M, 1).T
+    np.testing.assert_allclose(safe(q, dq), -M @ dq / (config.realtime.hold / 6), atol=1e-12)
     np.testing.assert_array_equal(safe.held(q), np.zeros(7))
 
 

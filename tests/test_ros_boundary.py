@@ -247,6 +247,21 @@ def test_a_controller_started_inactive_waits_for_its_orchestrator(tmp_path):
     assert result.complete and result.t[-1] == pytest.approx(1.5, abs=0.05)
 
 
+def test_a_simulator_on_its_own_clock_at_half_real_time_with_use_sim_time(tmp_path):
+    """A Gazebo-like arm: states stamped on its simulated clock (starting at 100 s),
+    ``/clock`` published, a real-time factor of 0.5; the controller under
+    ``use_sim_time``. The loop is paced by the states (time from their arrival, the
+    stamps on another clock), runs the config's duration of simulated periods and tracks."""
+    _, report, result = _run(tmp_path, "sim_time", 2.0)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    _no_nan(report)
+    assert result.meta["ros"]["stamps"] == "arrival"
+    assert result.complete and result.t[-1] == pytest.approx(2.0, abs=0.05)
+    assert np.abs(result.q - result.q_ref)[result.t > 1.0].max() < 0.05
+    assert report["drift"] <= FRESH, report["drift"]
+
+
 def test_ros_args_that_contradict_the_config_or_rclpy_are_one_line(tmp_path):
     """The node's parameters mirror the config: ``-p ros.rate:=250.0`` against the config's
     500 is refused (exit 2, one line naming the key); so is an argument rclpy refuses."""

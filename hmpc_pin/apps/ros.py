@@ -167,7 +167,8 @@ def ros_parts(experiment: Experiment):
     ctrl = experiment.controller
     if rc.gravity == "arm":
         safe = SafeTorque(experiment.robot, safe.damping, gravity=False,
-                          effort_limit=safe.effort_limit)  # fmt: skip
+                          effort_limit=safe.effort_limit,
+                          brake_time=safe.brake_time)  # fmt: skip
         ctrl = GravityByArm(ctrl, experiment.robot)
     return loop_settings, safety, safe, ctrl
 

@@ -13,6 +13,7 @@ the robot (vector lengths, limits, the initial state) is made here, before a run
 from __future__ import annotations
 
 import contextlib
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -29,11 +30,12 @@ from ..exceptions import (
     InterfaceError,
     LimitError,
     SimulationError,
+    ValidityWarning,
 )
 from ..identification.friction import ObserverModel
 from ..model.robot import Robot, load_robot
 from ..realtime.loop import LoopSettings
-from ..realtime.safety import SafeTorque, SafetySettings
+from ..realtime.safety import SafeTorque, SafetySettings, brake_time_constant
 from ..sim.disturbances import Disturbance
 from ..sim.mujoco import MuJoCoPlant
 from ..sim.plants import Plant
@@ -582,8 +584,27 @@ def realtime_parts(
     else:
         safety = SafetySettings.unlimited(n, max_misses=rc.max_misses, watchdog=rc.watchdog,
                                           hold=rc.hold, brake_speed=rc.brake_speed)  # fmt: skip
-    safe = SafeTorque(robot, cfg.vector("realtime.damping", n), gravity=rc.gravity is not False,
-                      effort_limit=experiment.effort_limit)  # fmt: skip
+    gravity = rc.gravity is not False
+    if rc.damping is not None:
+        damping = cfg.vector("realtime.damping", n)
+        slowest = brake_time_constant(robot.mass_matrix(experiment.q0), damping)
+        if slowest > rc.hold / 3.0:
+            warnings.warn(
+                f"realtime.damping: the brake slows this arm's slowest motion with a time "
+                f"constant of {slowest:.3g} s (its inertia at the start posture): after "
+                f"hold = {rc.hold:g} s it still moves at {100 * np.exp(-rc.hold / slowest):.0f} % "
+                f"of its speed at the stop. Set realtime.brake_time = {rc.hold / 6:.3g} "
+                "(brakes with M(q)/brake_time: every joint alike), or damping above "
+                f"{3.0 * slowest / rc.hold * float(damping.max()):.3g} N·m·s/rad",
+                ValidityWarning,
+                stacklevel=2,
+            )
+        safe = SafeTorque(robot, damping, gravity=gravity,
+                          effort_limit=experiment.effort_limit)  # fmt: skip
+    else:  # the inertia brake: given, or hold/6 (every joint slows alike, still at the end)
+        brake = rc.brake_time if rc.brake_time is not None else max(rc.hold / 6.0, 2 * loop.period)
+        safe = SafeTorque(robot, gravity=gravity, effort_limit=experiment.effort_limit,
+                          brake_time=brake)  # fmt: skip
     return loop, safety, safe
 
 

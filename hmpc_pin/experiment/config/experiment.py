@@ -74,7 +74,9 @@ class ExperimentConfig:
 
     def check_dimensions(self, n: int) -> None:
         """Raise :class:`ConfigError` if any per-joint vector does not have ``n`` entries."""
-        keys = ["simulation.dq0", "realtime.damping"]
+        keys = ["simulation.dq0"]
+        if self.realtime.damping is not None:
+            keys.append("realtime.damping")
         if self.simulation.q0 is not None:
             keys.append("simulation.q0")
         if self.reference.kind == "sine":

@@ -19,7 +19,13 @@ class RealtimeConfig:
             number of ``plant.dt`` (the arm process integrates its plant at that period).
         gc: Garbage-collection handling (freeze after start-up, collect in the slack).
         gc_slack: Minimum slack [s] before the next deadline for a collection.
-        damping: Joint damping of the safe torque [N·m·s/rad], one value or per joint.
+        damping: Joint damping of the safe torque [N·m·s/rad], one value or per joint
+            (a diagonal brake: a joint of large inertia slows slowly; a warning says
+            when the arm would still move when ``hold`` ends).
+        brake_time: Brake with the inertia-scaled damping :math:`M(q)/T_b` [s] instead of
+            ``damping``: every joint slows as :math:`e^{-t/T_b}` (with ``damping``: an
+            error, one or the other). At least two interface periods. Neither given:
+            ``hold``/6 (at least two periods): the arm is still when the brake ends.
         gravity: Gravity compensation in the safe torque (not given: on). Under
             ``hmpc-pin ros`` the choice is ``[ros] gravity``; this key, if given, must
             agree with it (``true`` with ``"controller"``, ``false`` with ``"arm"``).
@@ -50,7 +56,8 @@ class RealtimeConfig:
     rate: float = 1000.0
     gc: bool = True
     gc_slack: float = 3e-4
-    damping: np.ndarray = 2.0
+    damping: np.ndarray | None = None
+    brake_time: float | None = None
     gravity: bool | None = None
     max_misses: int = 10
     watchdog: float = 0.02
@@ -84,7 +91,17 @@ class RealtimeConfig:
             raise ConfigError("priority", f"expected 0 (off) or 1..99, got {self.priority}")
         _set(self, "gc", _bool("gc", self.gc))
         _set(self, "gc_slack", _float("gc_slack", self.gc_slack, positive=True))
-        _set(self, "damping", _array("damping", self.damping, nonneg=True))
+        if self.brake_time is not None:
+            if self.damping is not None:
+                raise ConfigError("damping", "does not apply with brake_time (the brake is "
+                                  "M(q)/brake_time); give one of them")  # fmt: skip
+            _set(self, "brake_time", _float("brake_time", self.brake_time, positive=True))
+            if self.brake_time < 2.0 / self.rate:
+                raise ConfigError("brake_time", f"expected at least two interface periods "
+                                  f"2/rate = {2.0 / self.rate:g} s (a shorter brake "
+                                  f"oscillates), got {self.brake_time:g}")  # fmt: skip
+        elif self.damping is not None:
+            _set(self, "damping", _array("damping", self.damping, nonneg=True))
         if self.gravity is not None:
             _set(self, "gravity", _bool("gravity", self.gravity))
         _set(self, "max_misses", _int("max_misses", self.max_misses, minimum=1))

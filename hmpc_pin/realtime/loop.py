@@ -324,6 +324,90 @@ class RealtimeRun:
         return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
 
 
+class _Records:
+    """The run's preallocated records: trajectories at the controller steps (``J``
+    rows), timing per interface cycle (``C`` entries, NaN where skipped)."""
+
+    __slots__ = ("age", "done", "gc", "j", "missed", "mpc", "stamp", "t", "traj", "wake")
+
+    def __init__(self, J: int, C: int, n: int):
+        self.traj = {name: np.full((J, n), np.nan) for name in ("q", "dq", "tau", "d", "d_hat",
+                                                                "q_ref", "dq_ref")}  # fmt: skip
+        self.t = np.full(J, np.nan)
+        self.wake, self.done, self.stamp, self.gc, self.age = (np.full(C, np.nan) for _ in range(5))
+        self.missed = np.zeros(C, dtype=bool)
+        self.mpc = np.zeros(C, dtype=bool)
+        self.j = 0  # controller steps recorded
+
+    def cycle(self, k: int, wake: float, done: float, stamp: float, is_mpc: bool) -> None:
+        """Cycle ``k``'s wake and write times after its deadline [s], stamp, kind."""
+        self.wake[k] = wake
+        self.done[k] = done
+        self.stamp[k] = stamp
+        self.mpc[k] = is_mpc
+
+    def step(self, j: int, t: float, q, dq, tau, d_hat, reference) -> None:
+        """Controller step ``j`` at loop time ``t`` [s]."""
+        traj = self.traj
+        self.t[j] = t
+        traj["q"][j] = q
+        traj["dq"][j] = dq
+        traj["tau"][j] = tau
+        traj["d_hat"][j] = d_hat
+        q_ref, dq_ref = reference.sample(t)
+        traj["q_ref"][j] = q_ref
+        traj["dq_ref"][j] = dq_ref
+
+
+class _Tally:
+    """Missed deadlines and garbage collections of a run."""
+
+    __slots__ = ("consecutive", "gc_deferred", "gc_max", "gc_runs", "misses", "skipped",
+                 "th", "worst_run")  # fmt: skip
+
+    def __init__(self):
+        self.misses = self.consecutive = self.worst_run = self.skipped = 0
+        self.gc_runs = self.gc_deferred = 0
+        self.gc_max = 0.0
+        self.th = gc.get_threshold()
+
+    def miss(self, max_misses: int) -> bool:
+        """One missed deadline; whether the run of misses reached ``max_misses``."""
+        self.misses += 1
+        self.consecutive += 1
+        self.worst_run = max(self.worst_run, self.consecutive)
+        return self.consecutive >= max_misses
+
+    def skip(self, skip: int, late: int, max_misses: int) -> bool:
+        """``skip`` periods skipped, ``late`` of them missed; whether the run of misses
+        reached ``max_misses``."""
+        self.misses += late
+        self.skipped += skip
+        if not late:
+            return False
+        self.consecutive += late
+        self.worst_run = max(self.worst_run, self.consecutive)
+        return self.consecutive >= max_misses
+
+    def collect(self, k: int, next_deadline: float, clock, slack: float, record) -> None:
+        """Collect the generation automatic collection would, if at least ``slack`` [s]
+        remains before ``next_deadline``; else defer it."""
+        c0, c1, c2 = gc.get_count()
+        th0, th1, th2 = self.th
+        if c0 < th0:
+            return
+        gen = 2 if (c2 + 1 >= th2 and c1 + 1 >= th1) else (1 if c1 + 1 >= th1 else 0)
+        if next_deadline - clock() < slack:
+            self.gc_deferred += 1
+            return
+        g0 = clock()
+        gc.collect(gen)
+        spent = clock() - g0
+        record[k] = spent
+        self.gc_runs += 1
+        self.gc_max = max(self.gc_max, spent)
+
+
 class RealtimeLoop:
     """Run a controller against a :class:`~hmpc_pin.realtime.interface.RobotInterface`
     at a fixed rate (module doc).
@@ -412,6 +496,7 @@ class RealtimeLoop:
         self._finished = threading.Event()
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
         self._held_tau = np.zeros(interface.nq)
+        self._fresh = (0.0, 0.0)  # the last stamp and when it came (the watchdog's)
 
     def set_reference(self, reference, at: float = 0.0, base=None) -> bool:
         """Replace the reference from the first controller step at or after loop time
@@ -495,12 +580,8 @@ class RealtimeLoop:
                 signal.signal(signal.SIGINT, old_handler)
 
     def _run(self, q0, dq0) -> RealtimeRun:
-        st, sf = self.settings, self.safety
-        iface, ctrl, ref = self.interface, self.controller, self.reference
-        clock, sleep = self.clock, self.sleep
-        P, m = st.period, self.decimation
+        st, iface, ctrl = self.settings, self.interface, self.controller
         K = round(st.duration * st.rate)
-        n = iface.nq
         stamp, q, dq = iface.read()
         q_last, dq_last = np.array(q, dtype=float), np.array(dq, dtype=float)
         refused = self._start_fault(q_last, dq_last)
@@ -512,68 +593,54 @@ class RealtimeLoop:
             )
         self._last_state = (q_last, dq_last)
         ctrl.reset(q_last if q0 is None else q0, dq_last if dq0 is None else dq0)
+        rec = _Records(K // self.decimation + 2, K + 1, iface.nq)
+        tally = _Tally()
+        if st.gc_handling:
+            gc.collect()
+            gc.freeze()
+            gc.disable()
+        watch = self._gc_watch
+        watch.count, watch.longest = 0, 0.0  # from the first cycle on
+        stop, k, stamp, deadline, wrote = self._cycles(K, rec, tally, q_last, dq_last, stamp)
+        return self._finish(stop, k, K, rec, tally, q_last, dq_last, stamp, deadline, wrote)
 
-        # Preallocated records: trajectories at controller steps, timing per cycle.
-        J = K // m + 2
-        rec = {name: np.full((J, n), np.nan) for name in ("q", "dq", "tau", "d", "d_hat",
-                                                          "q_ref", "dq_ref")}  # fmt: skip
-        rec_t = np.full(J, np.nan)
-        wake_a, done_a, stamp_a, gc_a, age_a = (np.full(K + 1, np.nan) for _ in range(5))
+    def _cycles(self, K: int, rec: _Records, tally: _Tally, q_last, dq_last, stamp: float):
+        """The cycles 0..K: wait, read, step every ``decimation`` cycles, write, record.
+
+        Returns:
+            ``(stop, k, stamp, deadline, wrote)``: the stop (``(cause, reason)`` or
+            ``None``), the cycle it came at, the last stamp, that cycle's deadline and
+            whether any command was written.
+        """
+        st, sf = self.settings, self.safety
+        iface, ctrl, ref = self.interface, self.controller, self.reference
+        clock, sleep = self.clock, self.sleep
+        P, m = st.period, self.decimation
         # The measurement's age when its torque is written, on the stamps' clock: the
         # loop's own against an arm that paces it, else the interface's stamp_clock() if
         # it offers one (stamps on another clock cannot be compared).
         stamp_clock = clock if self.paced else getattr(iface, "stamp_clock", None)
-        missed_a = np.zeros(K + 1, dtype=bool)
-        mpc_a = np.zeros(K + 1, dtype=bool)
         lower, upper, vmax = sf.lower, sf.upper, sf.velocity
         watchdog, max_misses = sf.watchdog, sf.max_misses
-        tau = np.zeros(n)
+        tau = np.zeros(iface.nq)
         wrote = False
         j = 0
-        misses = consecutive = worst_run = skipped = 0
-        gc_runs = gc_deferred = 0
-        gc_max = 0.0
         handle_gc = st.gc_handling
-        if handle_gc:
-            gc.collect()
-            gc.freeze()
-            gc.disable()
-            th0, th1, th2 = gc.get_threshold()
-            gc_slack = st.gc_slack
-        watch = self._gc_watch
-        watch.count, watch.longest = 0, 0.0  # from the first cycle on
         stop: tuple[str, str] | None = None
         next_mpc = 0
         paced, on_step = self.paced, self.on_step
-        wait = getattr(iface, "wait", None)
         has_overdue = paced and hasattr(iface, "overdue")
         has_arrival = paced and hasattr(iface, "arrival")
         warm_lead = st.warm_up
         warm_up = getattr(ctrl, "warm_up", None) if warm_lead > 0 and not paced else None
         t0 = clock() + P
-        last_stamp, fresh_at = stamp, t0
+        self._fresh = (stamp, t0)  # the last stamp and when it was fresh (the watchdog)
         k = 0
         deadline = t0
         while k <= K:
             if paced:
-                arrived = wait(watchdog)
-                wake = clock()
-                if self._interrupt:
-                    stop = ("interrupted", "interrupted (Ctrl-C)")
-                    break
-                if self._requested is not None:
-                    stop = (self._requested, f"stop requested ({self._requested})")
-                    break
-                if not arrived:
-                    received = getattr(iface, "received", None)
-                    streamed = (
-                        ""
-                        if received is None
-                        else f"the arm stopped streaming after {received} states: "
-                    )
-                    stop = ("watchdog", f"{streamed}no new state from the arm for "
-                            f"{1e3 * watchdog:g} ms (watchdog), last stamp "
-                            f"{last_stamp:.6g} s")  # fmt: skip
+                arrived, wake, stop = self._await_state(watchdog)
+                if stop is not None:
                     break
                 behind = arrived - 1  # states not answered: periods skipped
                 # of which missed: those the arm reports overdue (a burst after its own
@@ -587,22 +654,17 @@ class RealtimeLoop:
             if behind > 0 and k > 0:
                 skip = min(behind, K + 1 - k)
                 late = min(late, skip)
-                missed_a[k : k + late] = True
-                misses += late
-                skipped += skip
-                if late:
-                    consecutive += late
-                    worst_run = max(worst_run, consecutive)
+                rec.missed[k : k + late] = True
                 k += skip
-                if late and consecutive >= max_misses:
-                    stop = ("misses", f"{consecutive} consecutive missed deadlines (limit "
-                            f"{max_misses}), {skip} {skipped_why}")  # fmt: skip
+                if tally.skip(skip, late, max_misses):
+                    stop = ("misses", f"{tally.consecutive} consecutive missed deadlines "
+                            f"(limit {max_misses}), {skip} {skipped_why}")  # fmt: skip
                     break
                 if k > K:
                     break
             if paced:
                 stamp, q, dq = iface.read()
-                last_stamp = stamp
+                self._fresh = (stamp, wake)
                 # the deadline follows the arrival (a constant transport delay is no miss)
                 deadline = iface.arrival if has_arrival else stamp  # type: ignore[attr-defined]
             else:
@@ -616,22 +678,12 @@ class RealtimeLoop:
                             pass
                 sleep(deadline)
                 wake = clock()
-                if self._interrupt:
-                    stop = ("interrupted", "interrupted (Ctrl-C)")
-                    break
-                if self._requested is not None:
-                    stop = (self._requested, f"stop requested ({self._requested})")
+                stop = self._requested_stop()
+                if stop is not None:
                     break
                 stamp, q, dq = iface.read()
-                if stamp != last_stamp:
-                    last_stamp, fresh_at = stamp, wake
-                elif wake - fresh_at > watchdog:
-                    silent = 1e3 * (wake - fresh_at)
-                    stop = (
-                        "watchdog",
-                        f"no new state from the arm for {silent:.1f} ms "
-                        f"(watchdog {1e3 * watchdog:g} ms), last stamp {stamp:.6g} s",
-                    )
+                stop = self._watch(stamp, wake, watchdog)
+                if stop is not None:
                     break
             # One comparison each in the common case; NaN fails every one of them.
             if not ((q >= lower).all() and (q <= upper).all() and (np.abs(dq) <= vmax).all()):
@@ -642,11 +694,7 @@ class RealtimeLoop:
             is_mpc = k >= next_mpc
             if is_mpc:
                 if self._pending_reference is not None:
-                    with self._reference_lock:
-                        pending = self._pending_reference
-                        if pending is not None and k * P >= pending[1] - 1e-9:
-                            ref, self._pending_reference = pending[0], None
-                            self.reference = ref
+                    ref = self._swap_reference(k * P, ref)
                 try:
                     # copies: the interface may reuse its arrays, a controller may keep them
                     tau = ctrl.step(k * P, q.copy(), dq.copy(), ref)
@@ -663,54 +711,87 @@ class RealtimeLoop:
             done = clock()
             wrote = True
             if is_mpc and stamp_clock is not None:
-                age_a[k] = (done if self.paced else stamp_clock()) - stamp
+                rec.age[k] = (done if self.paced else stamp_clock()) - stamp
             # ---- bookkeeping, in the slack
-            wake_a[k] = wake - deadline
-            done_a[k] = done - deadline
-            stamp_a[k] = stamp
-            mpc_a[k] = is_mpc
+            rec.cycle(k, wake - deadline, done - deadline, stamp, is_mpc)
             if is_mpc:
-                rec_t[j] = k * P
-                rec["q"][j] = q
-                rec["dq"][j] = dq
-                rec["tau"][j] = tau
-                rec["d_hat"][j] = ctrl.disturbance_estimate
-                q_ref, dq_ref = ref.sample(k * P)
-                rec["q_ref"][j] = q_ref
-                rec["dq_ref"][j] = dq_ref
+                rec.step(j, k * P, q, dq, tau, ctrl.disturbance_estimate, ref)
                 j += 1
                 self.time = k * P
                 if on_step is not None:
                     on_step(k * P)
             if done > deadline + P:
-                missed_a[k] = True
-                misses += 1
-                consecutive += 1
-                worst_run = max(worst_run, consecutive)
-                if consecutive >= max_misses:
-                    stop = ("misses", f"{consecutive} consecutive missed deadlines "
+                rec.missed[k] = True
+                if tally.miss(max_misses):
+                    stop = ("misses", f"{tally.consecutive} consecutive missed deadlines "
                             f"(limit {max_misses}); last latency {1e6 * (done - deadline):.0f} us "
                             f"for a {1e6 * P:.0f} us period")  # fmt: skip
                     k += 1
                     break
             else:
-                consecutive = 0
+                tally.consecutive = 0
             if handle_gc:
-                c0, c1, c2 = gc.get_count()
-                if c0 >= th0:
-                    gen = 2 if (c2 + 1 >= th2 and c1 + 1 >= th1) else (1 if c1 + 1 >= th1 else 0)
-                    if deadline + P - clock() >= gc_slack:
-                        g0 = clock()
-                        gc.collect(gen)
-                        spent = clock() - g0
-                        gc_a[k] = spent
-                        gc_runs += 1
-                        gc_max = max(gc_max, spent)
-                    else:
-                        gc_deferred += 1
+                tally.collect(k, deadline + P, clock, st.gc_slack, rec.gc)
             k += 1
-        # ---- stop: the safe torque now, from the last finite state, then the brake
-        # (module doc, "Safe stop"); with no fresh state to brake on, the held-safe torque
+        rec.j = j
+        return stop, k, stamp, deadline, wrote
+
+    def _await_state(self, watchdog: float) -> tuple[int, float, tuple[str, str] | None]:
+        """Against an arm that paces the loop: wait for its next state (at most the
+        watchdog). Returns ``(states arrived, wake time, stop or None)``."""
+        arrived = self.interface.wait(watchdog)  # type: ignore[attr-defined]
+        wake = self.clock()
+        stop = self._requested_stop()
+        if stop is None and not arrived:
+            received = getattr(self.interface, "received", None)
+            streamed = (
+                "" if received is None else f"the arm stopped streaming after {received} states: "
+            )
+            stop = ("watchdog", f"{streamed}no new state from the arm for "
+                    f"{1e3 * watchdog:g} ms (watchdog), last stamp "
+                    f"{self._fresh[0]:.6g} s")  # fmt: skip
+        return arrived, wake, stop
+
+    def _requested_stop(self) -> tuple[str, str] | None:
+        """Ctrl-C or a stop asked by the program (a lifecycle deactivate), else ``None``."""
+        if self._interrupt:
+            return ("interrupted", "interrupted (Ctrl-C)")
+        if self._requested is not None:
+            return (self._requested, f"stop requested ({self._requested})")
+        return None
+
+    def _watch(self, stamp: float, wake: float, watchdog: float) -> tuple[str, str] | None:
+        """The watchdog of a polled arm: a stamp that has not advanced for longer than
+        ``watchdog`` [s] is a stop."""
+        last, fresh_at = self._fresh
+        if stamp != last:
+            self._fresh = (stamp, wake)
+            return None
+        if wake - fresh_at <= watchdog:
+            return None
+        return (
+            "watchdog",
+            f"no new state from the arm for {1e3 * (wake - fresh_at):.1f} ms "
+            f"(watchdog {1e3 * watchdog:g} ms), last stamp {stamp:.6g} s",
+        )
+
+    def _swap_reference(self, t: float, ref):
+        """The pending reference if its time ``at`` has come (under the lock that
+        :meth:`set_reference` takes), else ``ref``."""
+        with self._reference_lock:
+            pending = self._pending_reference
+            if pending is not None and t >= pending[1] - 1e-9:
+                ref, self._pending_reference = pending[0], None
+                self.reference = ref
+        return ref
+
+    def _finish(self, stop, k: int, K: int, rec: _Records, tally: _Tally, q_last, dq_last,
+                stamp: float, deadline: float, wrote: bool) -> RealtimeRun:  # fmt: skip
+        """The stop sequence (module doc, "Safe stop"; with no fresh state to brake on, the
+        held-safe torque; before the first command, nothing), then the statistics and
+        the run."""
+        st, ctrl, clock = self.settings, self.controller, self.clock
+        P, m = st.period, self.decimation
         stop_record = None
         fresh = stop is None or stop[0] != "watchdog"
         # stopped by its operator (Ctrl-C, a lifecycle deactivate) before its first command:
@@ -752,32 +833,35 @@ class RealtimeLoop:
                      "speed": float(np.max(np.abs(dq_last), initial=0.0)),
                      "q": q_last.tolist(), "held_tau": None}  # fmt: skip
         else:
-            brake = self._brake(P, q_last, dq_last, last_stamp if not paced else stamp, fresh)
+            last = self._fresh[0] if not self.paced else stamp
+            brake = self._brake(P, q_last, dq_last, last, fresh)
         if stop_record is not None:
             stop_record["brake"] = brake
+        done_a, wake_a = rec.done, rec.wake
         cycles_run = int(np.count_nonzero(np.isfinite(done_a)))
+        watch = self._gc_watch
         stats = {
             "rate": st.rate,
             "controller_Ts": float(ctrl.Ts),
             "decimation": m,
             "cycles": K + 1,
             "cycles_run": cycles_run,
-            "misses": misses,
-            "skipped": skipped,
-            "miss_fraction": misses / max(1, cycles_run + skipped),
-            "max_consecutive_misses": worst_run,
+            "misses": tally.misses,
+            "skipped": tally.skipped,
+            "miss_fraction": tally.misses / max(1, cycles_run + tally.skipped),
+            "max_consecutive_misses": tally.worst_run,
             "latency": latency_stats(done_a),
             "wake": latency_stats(wake_a),
             "compute": latency_stats(done_a - wake_a),
-            "latency_mpc": latency_stats(np.where(mpc_a, done_a, np.nan)),
+            "latency_mpc": latency_stats(np.where(rec.mpc, done_a, np.nan)),
             # measurement -> torque written, at the controller's steps (None: the stamps
             # are on the arm's own clock) against the declared [controller] latency
-            "measured_latency": latency_stats(age_a) if stamp_clock is not None else None,
+            "measured_latency": latency_stats(rec.age) if self._stamp_clocked() else None,
             "declared_latency": _declared_latency(ctrl),
-            "gc_handling": handle_gc,
-            "gc_collections": gc_runs,
-            "gc_deferred": gc_deferred,
-            "gc_max_s": gc_max,
+            "gc_handling": st.gc_handling,
+            "gc_collections": tally.gc_runs,
+            "gc_deferred": tally.gc_deferred,
+            "gc_max_s": tally.gc_max,
             "gc_all_collections": watch.count,
             "gc_all_max_s": watch.longest,
             "period_us": 1e6 * P,
@@ -785,18 +869,23 @@ class RealtimeLoop:
         }
         self._check_latency(stats)
         meta = {**self.meta, "realtime": stats, "stop": stop_record}
+        j = rec.j
         result = Result(
-            t=rec_t[:j].copy(),
-            **{name: arr[:j].copy() for name, arr in rec.items()},
+            t=rec.t[:j].copy(),
+            **{name: arr[:j].copy() for name, arr in rec.traj.items()},
             joint_names=self.joint_names,
             complete=stop is None,
             message="" if stop_record is None else stop_record["reason"],
             meta=meta,
         )
         timing = {"wake": wake_a, "latency": done_a, "compute": done_a - wake_a,
-                  "stamp": stamp_a, "missed": missed_a, "mpc": mpc_a, "gc": gc_a,
-                  "age": age_a}  # fmt: skip
+                  "stamp": rec.stamp, "missed": rec.missed, "mpc": rec.mpc, "gc": rec.gc,
+                  "age": rec.age}  # fmt: skip
         return RealtimeRun(result, timing, stats, stop_record)
+
+    def _stamp_clocked(self) -> bool:
+        """Whether the measurement's age can be measured (module doc of :meth:`_cycles`)."""
+        return self.paced or getattr(self.interface, "stamp_clock", None) is not None
 
     def _check_latency(self, stats: dict) -> None:
         """Warn when the measured latency (median) lies farther from the declared

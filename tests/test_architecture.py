@@ -198,3 +198,11 @@ def test_benchmarks_form_no_import_cycle_and_use_only_public_names():
     for name in graph:
         if name not in state:
             visit(name, [])
+
+
+# ------------------------------------------------------------------ test tiers
+def test_every_end_to_end_file_of_the_tiers_exists():
+    from tests.conftest import E2E_FILES
+
+    tests = PKG.parent / "tests"
+    assert E2E_FILES and all((tests / name).is_file() for name in E2E_FILES)

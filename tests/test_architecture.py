@@ -120,6 +120,17 @@ def test_no_import_cycle_between_modules():
             visit(name, [])
 
 
+def test_the_config_imports_nothing_of_the_builder():
+    # The configuration validates; the builder (hmpc_pin.experiment's other modules) turns
+    # a validated config into objects: the config may import its own package, the table of
+    # which keys apply to which pair (combos) and the layers below the experiment only.
+    allowed = ("hmpc_pin.experiment.config", "hmpc_pin.experiment.combos")
+    for module in (m for m in GRAPH if m.startswith("hmpc_pin.experiment.config")):
+        for target in GRAPH[module]:
+            if _layer(target) == "experiment":
+                assert target.startswith(allowed), f"{module} imports the builder's {target}"
+
+
 def test_report_does_not_import_the_command_line():
     assert "hmpc_pin.apps.cli" not in GRAPH["hmpc_pin.apps.report"]
 

@@ -305,6 +305,21 @@ def test_the_0_1_constructor_with_a_controller_config_still_works(planar3):
     assert np.all(np.isfinite(ctrl.step(0.0, q0, dq0, ref)))
 
 
+def test_settings_of_another_type_are_one_error_naming_the_settings_class(planar3):
+    """Neither MPCSettings nor a ControllerConfig: an InterfaceError naming both, no
+    DeprecationWarning (the 0.1 path takes only the registered config type)."""
+    import warnings
+
+    import hmpc_pin
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        with pytest.raises(hmpc_pin.InterfaceError, match=r"MPCSettings.*make_controller"):
+            hmpc_pin.HierarchicalMPC(planar3, {"Ts": 0.01, "compensation": "chen"})
+        with pytest.raises(hmpc_pin.InterfaceError, match=r"CTSettings.*make_controller"):
+            hmpc_pin.ComputedTorque(planar3, {"Ts": 0.01})
+
+
 @pytest.mark.parametrize(
     ("layout", "latency", "joint_dynamics", "at"),
     [

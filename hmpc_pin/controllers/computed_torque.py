@@ -160,7 +160,7 @@ class ComputedTorque(AppliedTorque):
         compensation: Compensation | None = None,
     ):
         if settings is not None and not isinstance(settings, CTSettings):
-            settings, compensation = _from_legacy(settings, robot, "ComputedTorque")
+            settings, compensation = _from_legacy(settings, robot, "ComputedTorque", "CTSettings")
         settings = settings if settings is not None else CTSettings.matching(MPCSettings())
         self.robot, self.settings, self.n = robot, settings, robot.nq
         n = robot.nq

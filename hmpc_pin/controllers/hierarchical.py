@@ -38,7 +38,7 @@ from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
 from ..tasks.base import Reference, as_reference, check_reference_size
-from .base import AppliedTorque, not_reset
+from .base import AppliedTorque, config_parts, not_reset
 
 __all__ = ["HierarchicalMPC", "MPCSettings", "state_limits", "warn_fast_damping"]
 
@@ -140,25 +140,12 @@ class MPCSettings:
         return out[0], out[1]
 
 
-def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
-    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts the builder
-    makes of the config (``ControllerConfig.controller_parts``, asked of the object, so that
-    this layer imports nothing above it), with a :class:`DeprecationWarning`."""
-    parts = getattr(config, "controller_parts", None)
-    if not callable(parts) or not hasattr(config, "compensation"):
-        from ..exceptions import InterfaceError
-
-        raise InterfaceError(
-            config, "MPCSettings", "or build a controller from a ControllerConfig with "
-            "hmpc_pin.make_controller(robot, config)",
-        )  # fmt: skip
-    warnings.warn(
-        f"{who}(robot, ControllerConfig) is deprecated since 0.2; use "
-        "hmpc_pin.make_controller(robot, config)",
-        DeprecationWarning,
-        stacklevel=3,
-    )
-    return parts(robot)
+def _from_legacy(config: object, robot: Robot, who: str, expected: str = "MPCSettings") -> tuple:
+    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts the experiment
+    builder makes of the config (:func:`~hmpc_pin.controllers.base.config_parts`: the
+    builder registers itself, so that this layer imports nothing above it), with a
+    :class:`DeprecationWarning`."""
+    return config_parts(config, robot, who, expected)
 
 
 def state_limits(

@@ -1,9 +1,10 @@
 """The controller of a ``[controller]`` table: its settings, compensation and soft limits.
 
 The part of the builder that turns a validated ``ControllerConfig`` into the arguments of a
-controller class. It imports nothing of the schema (it reads the table's attributes), so
-that the schema's deprecated path (``ControllerConfig.controller_parts``, behind the 0.1
-call ``HierarchicalMPC(robot, ControllerConfig)``) can use it without an import cycle.
+controller class. It registers :func:`controller_parts` with the controllers
+(:func:`~hmpc_pin.controllers.base.register_config_builder`) for the deprecated call of
+version 0.1, ``HierarchicalMPC(robot, ControllerConfig)``: the controllers and the config
+import nothing of the builder.
 """
 
 from __future__ import annotations
@@ -14,11 +15,13 @@ from ..compensation.bandwidth import implied_bandwidth, observer_cY
 from ..compensation.base import Compensation, NoCompensation
 from ..compensation.ism import IntegralSlidingMode
 from ..compensation.observers import DisturbanceObserver, MomentumObserver, observer_matrix
+from ..controllers.base import register_config_builder
 from ..controllers.computed_torque import CTSettings
 from ..controllers.hierarchical import MPCSettings, state_limits
 from ..exceptions import ConfigError, URDFError
 from ..model.robot import Robot
 from ..mpc.condensed import StateLimits
+from .config.controller import ControllerConfig
 
 __all__ = [
     "bandwidth_posture",
@@ -146,3 +149,6 @@ def controller_parts(robot: Robot, cc, posture: np.ndarray | None = None) -> tup
         settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
     )
     return gains, compensation
+
+
+register_config_builder(ControllerConfig, controller_parts)

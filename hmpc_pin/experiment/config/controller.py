@@ -396,14 +396,6 @@ class ControllerConfig:
         _set(self, "ism", ism)
         _set(self, "computed_torque", ct)
 
-    def controller_parts(self, robot) -> tuple:
-        """The constructor arguments after ``robot`` of this controller's class (the
-        deprecated 0.1 call ``HierarchicalMPC(robot, ControllerConfig)`` asks for them;
-        :func:`hmpc_pin.experiment.controllers.controller_parts`)."""
-        from ..controllers import controller_parts
-
-        return controller_parts(robot, self)
-
     @staticmethod
     def _not_applicable(name: str, controller: str, comp: str) -> None:
         raise ConfigError(

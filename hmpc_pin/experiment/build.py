@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..compensation.base import warn_chen_validity
+from ..compensation.registry import compensation_spec
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
 from ..controllers.hierarchical import HierarchicalMPC, warn_fast_damping
@@ -241,7 +242,7 @@ def with_controller(
         comp = cc.compensation if cc.compensation in OBSERVERS else "chen"
     keep = {name: (getattr(cc, name) if applies(name, controller, comp) else None)
             for name in TABLES}  # fmt: skip
-    if keep["ism"] is not None and comp == "ism":
+    if keep["ism"] is not None and not compensation_spec(comp).boundary_layer:
         keep["ism"] = replace(keep["ism"], boundary_layer=None)
     if keep["computed_torque"] is not None and controller == "computed-torque":
         keep["computed_torque"] = replace(keep["computed_torque"], ki=None)

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compensation.bandwidth import implied_bandwidth, observer_cY
-from ..compensation.base import Compensation, NoCompensation
-from ..compensation.ism import IntegralSlidingMode
-from ..compensation.observers import DisturbanceObserver, MomentumObserver, observer_matrix
+from ..compensation.bandwidth import bandwidth_posture, implied_bandwidth
+from ..compensation.base import Compensation
+from ..compensation.registry import build_compensation, compensation_spec
 from ..controllers.base import register_config_builder
 from ..controllers.computed_torque import CTSettings
 from ..controllers.hierarchical import MPCSettings, state_limits
@@ -85,12 +84,6 @@ def _limits(cc, robot: Robot) -> StateLimits | None:
     )
 
 
-def bandwidth_posture(robot: Robot) -> np.ndarray:
-    """The posture :math:`q_0` at which a bandwidth is exact: q = 0 moved to the nearest
-    joint limit where 0 is outside the range."""
-    return np.minimum(np.maximum(np.zeros(robot.nq), robot.lower), robot.upper)
-
-
 def observer_bandwidth(robot: Robot, cc, posture: np.ndarray | None = None) -> np.ndarray | None:
     """Per joint, the bandwidth [1/s] of the observer of ``cc`` (configured, or implied
     by its gain at ``posture``, default :func:`bandwidth_posture`); ``None`` without an
@@ -101,39 +94,20 @@ def observer_bandwidth(robot: Robot, cc, posture: np.ndarray | None = None) -> n
     n = robot.nq
     if obs.bandwidth is not None:
         return np.broadcast_to(obs.bandwidth, (n,)).astype(float)
-    if cc.compensation == "momentum":
+    Y = compensation_spec(cc.compensation).Y
+    if Y is None:  # the momentum observer: its gain is its bandwidth
         return np.full(n, obs.gain)
     M0 = robot.mass_matrix(bandwidth_posture(robot) if posture is None else posture)
-    return implied_bandwidth(obs.gain * observer_matrix(cc.compensation, n), M0)
+    return implied_bandwidth(obs.gain * Y(n), M0)
 
 
 def make_compensation(robot: Robot, cc, posture: np.ndarray | None = None) -> Compensation:
     """The compensation ``cc.compensation`` names, with its table's settings (a
-    bandwidth made exact at ``posture`` [rad], default :func:`bandwidth_posture`)."""
-    n, Ts = robot.nq, cc.Ts
-    comp = cc.compensation
-    obs = cc.observer
-    if obs is not None and obs.bandwidth is not None:
-        w = obs.bandwidth
-        if w.ndim == 1 and w.shape != (n,):
-            raise ConfigError(
-                "controller.observer.bandwidth",
-                f"has {w.shape[0]} entries but the robot has {n} joints",
-            )
-        w = np.broadcast_to(w, (n,)).astype(float)
-        if comp == "momentum":
-            return MomentumObserver(robot, Ts, w)
-        q0 = bandwidth_posture(robot) if posture is None else posture
-        cY = observer_cY(w, robot.mass_matrix(q0))
-        return DisturbanceObserver(n, Ts, 1.0, "general", obs.discretization, cY=cY)
-    if comp in ("chen", "general"):
-        return DisturbanceObserver(n, Ts, cc.observer.gain, comp, cc.observer.discretization)
-    if comp == "momentum":
-        return MomentumObserver(robot, Ts, cc.observer.gain)
-    if comp in ("ism", "ism-bl"):
-        width = cc.ism.width(Ts) if comp == "ism-bl" else None
-        return IntegralSlidingMode(n, Ts, cc.ism.gain, width)
-    return NoCompensation(n)
+    bandwidth made exact at ``posture`` [rad], default :func:`bandwidth_posture`), as the
+    registry builds it (:func:`~hmpc_pin.compensation.registry.build_compensation`)."""
+    spec = compensation_spec(cc.compensation)
+    table = getattr(cc, spec.table) if spec.table is not None else None
+    return build_compensation(spec.name, robot, cc.Ts, table, posture)
 
 
 def controller_parts(robot: Robot, cc, posture: np.ndarray | None = None) -> tuple:

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..compensation.registry import compensation_names, compensation_spec
 from ..exceptions import ConfigError, ExcitationError
 from ..sim.result import Result
 
@@ -408,8 +409,9 @@ class ObserverModel:
         if not isinstance(record, dict):
             raise bad(f"is {type(record).__name__}, expected a table")
         kind, Ts = record.get("kind"), record.get("Ts")
-        if kind not in ("chen", "general", "momentum"):
-            raise bad(f"names the kind {kind!r}, expected 'chen', 'general' or 'momentum'")
+        kinds = compensation_names(table="observer")
+        if kind not in kinds:
+            raise bad(f"names the kind {kind!r}, expected one of {kinds}")
         try:
             Ts = float(Ts)
         except (TypeError, ValueError):
@@ -436,7 +438,7 @@ class ObserverModel:
             raise bad(f"has no observer matrix and the gain {gain!r} (a bandwidth observer "
                       "recorded by an older version); run it again to record the observer "
                       "that ran")  # fmt: skip
-        if g.ndim == 1 and kind != "momentum":
+        if g.ndim == 1 and compensation_spec(kind).Y is not None:
             raise bad(f"has a per-joint gain for the {kind!r} observer, expected one value")
         return cls(kind, g if g.ndim else float(g), Ts, robot, implicit, None, model_at)
 
@@ -448,16 +450,17 @@ class ObserverModel:
         """
         K, n, p = phi.shape
         g = np.zeros_like(phi)
-        if self.kind == "momentum":
+        Y = compensation_spec(self.kind).Y  # None: L = diag(K_O) (the momentum observer)
+        if Y is None:
             a = self.Ts * np.broadcast_to(np.asarray(self.gain, dtype=float), (n,))[:, None]
         elif self.matrix is not None:
             cY = np.asarray(self.matrix, dtype=float)
         else:
-            cY = self.gain * (np.tril(np.ones((n, n))) if self.kind == "chen" else np.eye(n))
+            cY = self.gain * Y(n)
         shift = 1 if self.model_at == "start" else 0
         prev = np.zeros((n, p))
         for k in range(1, K):
-            if self.kind == "momentum":
+            if Y is None:
                 prev = (prev + a * phi[k]) / (1 + a)
             else:
                 M = self.robot.mass_matrix(q[k - shift])

@@ -9,20 +9,22 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...checks import as_latency, mpc_fields
+from ...compensation.registry import REGISTRY, compensation_names, compensation_spec
 from ...exceptions import ConfigError
 from ...native import BACKENDS
-from ..combos import HMPC_ONLY, OBSERVERS, applies
+from ..combos import HMPC_ONLY, applies
 from ._fields import _array, _bool, _choice, _float, _int, _section, _set
 from .friction import FrictionModelConfig
 from .legacy import KIND_ALIASES, resolve_compensation
 
 #: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
 CONTROLLERS = ("hmpc", "computed-torque", "computed-torque-pid")
-#: Compensations (``[controller] compensation``): the disturbance estimate cancelled.
-COMPENSATIONS = ("chen", "general", "momentum", "ism", "ism-bl", "none")
+#: Compensations (``[controller] compensation``): the disturbance estimate cancelled; the
+#: names of the registry (:data:`~hmpc_pin.compensation.registry.REGISTRY`).
+COMPENSATIONS = compensation_names()
 #: Compensations advanced inside the compiled step (the others are called from Python
 #: between its two compiled halves); kept for callers of version 0.2.
-NATIVE_COMPENSATIONS = ("chen", "general", "none")
+NATIVE_COMPENSATIONS = tuple(name for name, spec in REGISTRY.items() if spec.compiled)
 
 
 def parse_combination(name: str, key: str = "controller") -> tuple[str, str | None]:
@@ -48,11 +50,7 @@ def parse_combination(name: str, key: str = "controller") -> tuple[str, str | No
         )
     if not plus:
         return controller, None
-    if compensation not in COMPENSATIONS:
-        raise ConfigError(
-            key, f"unknown compensation {compensation!r} in {name!r}; expected one of "
-            f"{COMPENSATIONS}",
-        )  # fmt: skip
+    compensation_spec(compensation, key)  # one error naming every registered name
     return controller, compensation
 
 
@@ -98,7 +96,7 @@ class ObserverConfig:
         if self.enabled is not None:
             _set(self, "enabled", _bool("enabled", self.enabled))
         if self.kind is not None:
-            _set(self, "kind", _choice("kind", self.kind, OBSERVERS))
+            _set(self, "kind", _choice("kind", self.kind, compensation_names(table="observer")))
         if self.bandwidth is not None:
             if self.gain is not None:
                 raise ConfigError(
@@ -325,7 +323,7 @@ class ControllerConfig:
     def _resolve(self) -> None:
         """Resolve ``kind``/``compensation`` to one pair; reject tables that do not apply."""
         if self.compensation is not None:
-            _choice("compensation", self.compensation, COMPENSATIONS)
+            compensation_spec(self.compensation)  # one error naming every registered name
         controller, alias_comp = parse_combination(self.kind, "kind")
         if "+" in self.kind:
             raise ConfigError(
@@ -336,30 +334,34 @@ class ControllerConfig:
             self.kind, controller, alias_comp, self.compensation, self.observer
         )
         # The tables of the pair; any other given table is an error.
+        spec = compensation_spec(comp)
         if applies("observer", controller, comp):
             obs = obs if obs is not None else ObserverConfig()
             if (obs.enabled, obs.kind) != (None, None):  # 0.1 keys, now resolved
                 obs = replace(obs, enabled=None, kind=None)
-            if comp == "chen" and obs.bandwidth is not None:
+            if not spec.bandwidth and obs.bandwidth is not None:
+                takes = tuple(n for n, s in REGISTRY.items() if s.bandwidth)
                 raise ConfigError(
-                    "observer.bandwidth", "does not apply to compensation 'chen' (its Y is "
-                    "fixed, Eq 28); give gain, or use compensation 'general' or 'momentum'",
+                    "observer.bandwidth", f"does not apply to compensation {comp!r} "
+                    f"({spec.summary}: its Y is fixed); give gain, or use a compensation of "
+                    f"{takes}",
                 )  # fmt: skip
-            if comp == "momentum" and obs.discretization != "implicit":
+            if obs.discretization not in spec.discretizations:
                 raise ConfigError(
                     "observer.discretization",
-                    "the momentum observer has only the semi-implicit form; remove the key "
-                    "or set it to 'implicit'",
+                    f"compensation {comp!r} ({spec.summary}) has only the form(s) "
+                    f"{spec.discretizations}; remove the key or set it to one of them",
                 )
         elif obs is not None:
             self._not_applicable("observer", controller, comp)
         ism = self.ism
         if applies("ism", controller, comp):
             ism = ism if ism is not None else ISMConfig()
-            if comp == "ism" and ism.boundary_layer is not None:
+            if not spec.boundary_layer and ism.boundary_layer is not None:
+                takes = tuple(n for n, s in REGISTRY.items() if s.boundary_layer)
                 raise ConfigError(
                     "ism.boundary_layer",
-                    "applies only to compensation 'ism-bl' (the pure sign law has none)",
+                    f"applies only to compensation(s) {takes} (the pure sign law has none)",
                 )
         elif ism is not None:
             self._not_applicable("ism", controller, comp)

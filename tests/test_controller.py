@@ -352,7 +352,7 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, laten
     Ts = 0.01
     ref = hmpc_pin.SineReference(3)
     d = np.array([3.0, -2.0, 1.0])
-    settings = MPCSettings(Ts=Ts, N=10, Nc=3, qp_layout=layout, latency=latency, observer_model=at)
+    settings = MPCSettings(Ts=Ts, N=10, Nc=3, qp_layout=layout, latency=latency, model_at=at)
     ctrls = [hmpc_pin.HierarchicalMPC(planar3, settings,
                                       DisturbanceObserver(3, Ts, 100.0, "chen", "implicit"))
              for _ in range(2)]  # fmt: skip

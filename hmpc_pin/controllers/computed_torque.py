@@ -110,8 +110,8 @@ class CTSettings:
     kp: float
     kd: float
     ki: float = 0.0
-    v_min: np.ndarray | float = -100.0
-    v_max: np.ndarray | float = 100.0
+    v_min: np.ndarray | float = MPCSettings.v_min
+    v_max: np.ndarray | float = MPCSettings.v_max
 
     @classmethod
     def matching(

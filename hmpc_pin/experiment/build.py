@@ -496,7 +496,7 @@ class Experiment:
         out: dict = {}
         model = ObserverModel.of(
             getattr(self.controller, "compensation", None),
-            model_at=cc.observer.model_at if cc.observer is not None else "end",
+            model_at=mpc_settings(cc, n).model_at,
         )
         if model is not None:  # the observer that runs: its matrix (cY or K_O), Ts, Euler
             out["observer_model"] = model.record()

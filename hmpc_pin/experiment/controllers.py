@@ -20,7 +20,7 @@ from ..controllers.hierarchical import MPCSettings, state_limits
 from ..exceptions import ConfigError, URDFError
 from ..model.robot import Robot
 from ..mpc.condensed import StateLimits
-from .config.controller import ControllerConfig
+from .config.controller import _MPC_KEYS, ControllerConfig
 
 __all__ = [
     "bandwidth_posture",
@@ -32,17 +32,16 @@ __all__ = [
 
 
 def mpc_settings(cc, n: int) -> MPCSettings:
-    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``."""
+    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``: the
+    table's values, MPCSettings' own defaults for those that do not apply (the settings
+    of ``hmpc`` for ``computed-torque*``, ``model_at`` without an observer)."""
     v_min, v_max = cc.bounds(n)
+    given = {name: getattr(cc, name) for name in _MPC_KEYS}
+    if cc.observer is not None:
+        given["model_at"] = cc.observer.model_at
     return MPCSettings(
         Ts=cc.Ts, N=cc.N, Nc=cc.Nc, Q=cc.Q, R=cc.R, P=cc.P, v_min=v_min, v_max=v_max,
-        eps_abs=cc.eps_abs if cc.eps_abs is not None else 1e-9,
-        max_iter=cc.max_iter if cc.max_iter is not None else 1000,
-        qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
-        backend=cc.backend if cc.backend is not None else "auto",
-        latency=cc.latency if cc.latency is not None else 0.0,
-        joint_dynamics=cc.joint_dynamics if cc.joint_dynamics is not None else True,
-        observer_model=cc.observer.model_at if cc.observer is not None else "end",
+        **{name: value for name, value in given.items() if value is not None},
     )  # fmt: skip
 
 

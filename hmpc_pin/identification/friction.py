@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..compensation.registry import compensation_names, compensation_spec
+from ..controllers.hierarchical import MODEL_AT, MPCSettings
 from ..exceptions import ConfigError, ExcitationError
 from ..sim.result import Result
 
@@ -361,10 +362,12 @@ class ObserverModel:
     robot: object = None
     implicit: bool = True
     matrix: np.ndarray | None = None
-    model_at: str = "end"
+    model_at: str = MPCSettings.model_at
 
     @classmethod
-    def of(cls, compensation, robot=None, model_at: str = "end") -> ObserverModel | None:
+    def of(
+        cls, compensation, robot=None, model_at: str = MPCSettings.model_at
+    ) -> ObserverModel | None:
         """The model of a built observer (the object that runs, not its config), or
         ``None`` when ``compensation`` is no observer. A feedback gate
         (:class:`~hmpc_pin.compensation.gate.FeedbackGate`) is looked through."""
@@ -419,9 +422,9 @@ class ObserverModel:
         if not (np.isfinite(Ts) and Ts > 0):
             raise bad(f"has the period Ts = {Ts!r}, expected > 0 [s]")
         implicit = record.get("discretization", "implicit") == "implicit"
-        model_at = record.get("model_at", "end")
-        if model_at not in ("end", "start"):
-            raise bad(f"has model_at = {model_at!r}, expected 'end' or 'start'")
+        model_at = record.get("model_at", "end")  # records without it ran at the end
+        if model_at not in MODEL_AT:
+            raise bad(f"has model_at = {model_at!r}, expected one of {MODEL_AT}")
         if record.get("matrix") is not None:
             M = np.asarray(record["matrix"], dtype=float)
             if M.ndim != 2 or M.shape[0] != M.shape[1] or (n is not None and M.shape[0] != n) \

@@ -137,9 +137,8 @@ class MPCSettings:
             :math:`-\\dot n T_s/2`, doubling the error it should cancel; at the start it is
             the residual of the model the held torque used, which Eq (4) applies with the
             right sign (the guide "Joint dynamics", observer model). ``hmpc-pin init``
-            writes ``"start"``.
-        observer_model: Deprecated since 0.3: the name of :attr:`model_at` in 0.2
-            (accepted as a keyword and readable, with a :class:`DeprecationWarning`).
+            writes ``"start"``. Its name in 0.2, ``observer_model``, is still accepted as a
+            keyword and readable, with a :class:`DeprecationWarning`.
     """
 
     Ts: float = 0.01

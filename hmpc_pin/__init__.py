@@ -85,7 +85,7 @@ if TYPE_CHECKING:  # what the lazy names below are (for type checkers and editor
         MPCSettings,
     )
     from .experiment.build import Experiment, make_controller, run_experiment, with_controller
-    from .experiment.schema import (
+    from .experiment.config import (
         COMPENSATIONS,
         CONTROLLER_KINDS,
         CONTROLLERS,
@@ -162,7 +162,7 @@ _LAZY: dict[str, str] = {
             "ObserverConfig",
             "load_config",
         ),
-        ".experiment.schema",
+        ".experiment.config",
     ),
     **dict.fromkeys(("planar_ik", "solve_pose", "tool_pose"), ".model.planar"),
     **dict.fromkeys(("Robot", "load_robot"), ".model.robot"),

@@ -9,7 +9,7 @@ import pytest
 
 import hmpc_pin
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig, RobotConfig
+from hmpc_pin.experiment.config import ControllerConfig, ObserverConfig, RobotConfig
 
 from .conftest import CONFIGS, PLANAR3
 

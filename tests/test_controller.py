@@ -11,7 +11,7 @@ import pytest
 import hmpc_pin
 from hmpc_pin.compensation.observers import DisturbanceObserver
 from hmpc_pin.controllers.hierarchical import MPCSettings
-from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig
+from hmpc_pin.experiment.config import ControllerConfig, ObserverConfig
 
 
 def _controller(robot, observer=None, **kw):

@@ -23,7 +23,7 @@ import numpy as np
 from ..controllers.wrappers import TimedController
 from ..exceptions import ConfigError, RunInterrupted, SimulationError
 from ..experiment.build import Experiment, uses_observer, with_controller
-from ..experiment.schema import CONTROLLER_KINDS, ExperimentConfig, parse_combination
+from ..experiment.config import CONTROLLER_KINDS, ExperimentConfig, parse_combination
 from ..sim.result import Result
 from .metrics import DEFAULT_ERROR_THRESHOLD, Metrics, compute_metrics, run_warnings
 

@@ -37,8 +37,9 @@ import numpy as np
 from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError, SimulationError, install_command
 from ..experiment.build import Experiment, load_robot_config, reuse_robots, with_controller
+from ..experiment.combos import OBSERVERS
+from ..experiment.config import ExperimentConfig
 from ..experiment.config.sweep import CONDITION_PARTS
-from ..experiment.schema import OBSERVERS, ExperimentConfig
 from ..sim.sensing import SensedController
 from .metrics import task_metrics
 

@@ -40,8 +40,8 @@ import numpy as np
 
 from ..compensation.registry import compensation_names, compensation_spec
 from ..exceptions import ConfigError, ExtraError, RunInterrupted, install_command
+from ..experiment.config import ExperimentConfig, load_config
 from ..experiment.config.write import write_config
-from ..experiment.schema import ExperimentConfig, load_config
 from .sweep import run_sweep
 
 __all__ = [

@@ -2,7 +2,7 @@
 (:mod:`.build`)."""
 
 from .build import Experiment, make_controller, run_experiment, with_controller
-from .schema import ControllerConfig, ExperimentConfig, load_config
+from .config import ControllerConfig, ExperimentConfig, load_config
 
 __all__ = [
     "ControllerConfig",

@@ -41,7 +41,14 @@ from ..sim.plants import Plant
 from ..sim.result import Result
 from ..sim.simulate import simulate
 from ..tasks.base import Reference, check_limits
-from .combos import HMPC_ONLY, TABLES, applies
+from .combos import HMPC_ONLY, OBSERVERS, TABLES, applies
+from .config import (
+    DEFAULT_COMPENSATION,
+    ControllerConfig,
+    ExperimentConfig,
+    RobotConfig,
+    parse_combination,
+)
 from .controllers import _limits, controller_parts, make_compensation, mpc_settings
 from .plants import (
     _effort_limit,
@@ -51,14 +58,6 @@ from .plants import (
     pinocchio_plant,
 )
 from .references import build_reference, build_task_reference, check_trajectory_limits, task_space
-from .schema import (
-    DEFAULT_COMPENSATION,
-    OBSERVERS,
-    ControllerConfig,
-    ExperimentConfig,
-    RobotConfig,
-    parse_combination,
-)
 
 __all__ = [
     "Experiment",

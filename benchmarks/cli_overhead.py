@@ -91,7 +91,7 @@ t.append(T())
 import yourdfpy
 t.append(T())
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 experiment = Experiment.from_config(load_config(sys.argv[1]))
 t.append(T())
 result = experiment.run()

@@ -14,7 +14,7 @@ The package is layered; each layer imports only the layers below it (tested)::
       │
     ros/           ROS 2: the arm's topics as a PacedInterface · trajectory messages · arm node
       │
-    experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
+    experiment/    config (TOML → dataclasses) · build (the one place names become objects)
       │
     realtime/      RobotInterface protocol · arm in another process · fixed-rate loop, safe stops
     identification/ friction (observer or inverse dynamics) and collision thresholds from a run

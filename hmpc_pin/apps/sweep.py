@@ -56,7 +56,7 @@ __all__ = [
 
 
 def variant_config(config: ExperimentConfig, variant: str) -> ExperimentConfig:
-    """The config of one sweep variant (:class:`~hmpc_pin.experiment.schema.SweepConfig`):
+    """The config of one sweep variant (:class:`~hmpc_pin.experiment.config.sweep.SweepConfig`):
     ``"ndo"`` the config's pair (its compensation must be an observer), ``"no-ndo"`` the
     config's controller without compensation, any other name a controller × compensation
     (:func:`~hmpc_pin.experiment.build.with_controller`).

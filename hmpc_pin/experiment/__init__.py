@@ -1,5 +1,5 @@
-"""Experiments: the TOML schema (:mod:`.schema`) and the one place a config becomes objects
-(:mod:`.build`)."""
+"""Experiments: the TOML configuration (:mod:`.config`) and the one place a config becomes
+objects (:mod:`.build`)."""
 
 from .build import Experiment, make_controller, run_experiment, with_controller
 from .config import ControllerConfig, ExperimentConfig, load_config

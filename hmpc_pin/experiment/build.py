@@ -130,8 +130,8 @@ def make_controller(
     ``posture`` [rad] is where an observer bandwidth is made exact (the run's start; default
     :func:`~hmpc_pin.experiment.controllers.bandwidth_posture`).
 
-    ``config`` is a :class:`~hmpc_pin.experiment.schema.ControllerConfig`, a whole
-    :class:`~hmpc_pin.experiment.schema.ExperimentConfig` (its ``controller`` table is
+    ``config`` is a :class:`~hmpc_pin.experiment.config.controller.ControllerConfig`, a whole
+    :class:`~hmpc_pin.experiment.config.experiment.ExperimentConfig` (its ``controller`` table is
     used) or ``None`` (the defaults). ``hmpc`` gives a
     :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC`, ``computed-torque*`` a
     :class:`~hmpc_pin.controllers.computed_torque.ComputedTorque`; each holds the

@@ -2,7 +2,7 @@
 
 The table a compensation is configured by is the compensation registry's
 (:mod:`hmpc_pin.compensation.registry`); the keys of the hierarchical MPC only are listed
-here. The loader (:mod:`hmpc_pin.experiment.schema`) refuses a key that
+here. The loader (:mod:`hmpc_pin.experiment.config`) refuses a key that
 does not apply to the chosen pair, and the builder
 (:func:`~hmpc_pin.experiment.build.with_controller`) drops the keys that stop applying when a
 run switches the pair

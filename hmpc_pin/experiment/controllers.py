@@ -20,7 +20,7 @@ from ..controllers.hierarchical import MPCSettings, state_limits
 from ..exceptions import ConfigError, URDFError
 from ..model.robot import Robot
 from ..mpc.condensed import StateLimits
-from .config.controller import _MPC_KEYS, ControllerConfig
+from .config.controller import MPC_KEYS, ControllerConfig
 
 __all__ = [
     "bandwidth_posture",
@@ -36,7 +36,7 @@ def mpc_settings(cc, n: int) -> MPCSettings:
     table's values, MPCSettings' own defaults for those that do not apply (the settings
     of ``hmpc`` for ``computed-torque*``, ``model_at`` without an observer)."""
     v_min, v_max = cc.bounds(n)
-    given = {name: getattr(cc, name) for name in _MPC_KEYS}
+    given = {name: getattr(cc, name) for name in MPC_KEYS}
     if cc.observer is not None:
         given["model_at"] = cc.observer.model_at
     return MPCSettings(

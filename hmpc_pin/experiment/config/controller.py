@@ -29,7 +29,7 @@ NATIVE_COMPENSATIONS = tuple(name for name, spec in REGISTRY.items() if spec.com
 
 #: The keys of ``[controller]`` that are settings of the MPC only (``kind = "hmpc"``):
 #: unset (``None``) until resolved, then MPCSettings' default where not given.
-_MPC_KEYS = ("eps_abs", "max_iter", "qp_layout", "backend", "latency", "joint_dynamics")
+MPC_KEYS = ("eps_abs", "max_iter", "qp_layout", "backend", "latency", "joint_dynamics")
 
 
 def parse_combination(name: str, key: str = "controller") -> tuple[str, str | None]:
@@ -389,7 +389,7 @@ class ControllerConfig:
             if self.constraints is None:
                 _set(self, "constraints", ConstraintConfig())
             # the settings of the MPC: MPCSettings' defaults where not given, its checks
-            given = {name: getattr(self, name) for name in _MPC_KEYS}
+            given = {name: getattr(self, name) for name in MPC_KEYS}
             given = {k: MPCSettings.default(k) if v is None else v for k, v in given.items()}
             for name, value in check_settings(given).items():
                 _set(self, name, value)

@@ -19,7 +19,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import hmpc_pin  # noqa: E402
-from hmpc_pin.compensation.observers import OBSERVER_KINDS  # noqa: E402
+from hmpc_pin.compensation.registry import compensation_names  # noqa: E402
 from hmpc_pin.mpc.condensed import solver_settings  # noqa: E402
 
 PANDA_LOCKED = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
@@ -67,8 +67,8 @@ def new_qp(nvar: int, n_in: int, eps_abs: float, max_iter: int, warm: bool = Tru
 
 
 def observer_kinds() -> tuple[str, ...]:
-    """The observer kinds this ``hmpc_pin`` offers."""
-    return OBSERVER_KINDS
+    """The observer kinds this ``hmpc_pin`` offers (its compensation registry's observers)."""
+    return compensation_names(table="observer")
 
 
 def spatial_observer_kind() -> str:

@@ -59,8 +59,8 @@ def ab_run(old_pkg, new_pkg, rounds: int) -> dict:
 
     def runner(pkg):
         build = importlib.import_module(pkg.__name__ + ".experiment.build")
-        schema = importlib.import_module(pkg.__name__ + ".experiment.schema")
-        config = schema.load_config(PAPER)
+        experiment = importlib.import_module(pkg.__name__ + ".experiment")
+        config = experiment.load_config(PAPER)
 
         def run():
             build.Experiment.from_config(config).run()
@@ -80,8 +80,8 @@ def ab_sweep(old_pkg, new_pkg, rounds: int, samples: int, jobs: int) -> dict:
 
     def runner(pkg):
         sweep = importlib.import_module(pkg.__name__ + ".apps.sweep")
-        schema = importlib.import_module(pkg.__name__ + ".experiment.schema")
-        config = schema.load_config(PAPER)
+        experiment = importlib.import_module(pkg.__name__ + ".experiment")
+        config = experiment.load_config(PAPER)
         return lambda: sweep.run_sweep(config, samples, 0, jobs=jobs, progress=False)
 
     t_old, t_new = _alternate(runner(old_pkg), runner(new_pkg), rounds)

@@ -60,7 +60,7 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     from hmpc_pin.controllers.wrappers import TimedController
     from hmpc_pin.exceptions import HmpcError, SimulationError
     from hmpc_pin.experiment.build import Experiment
-    from hmpc_pin.experiment.schema import load_config
+    from hmpc_pin.experiment.config import load_config
 
     path = out / f"{name}.toml"
     row: dict = {"model": name}

@@ -35,8 +35,8 @@ if str(ROOT) not in sys.path:
 from hmpc_pin.controllers.wrappers import MeasuredController  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.experiment.config.sensing import SensingConfig  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
 from hmpc_pin.sim.result import RESULT_ARRAYS, TASK_ARRAYS  # noqa: E402
 from hmpc_pin.sim.sensing import SensedController  # noqa: E402
 

@@ -38,7 +38,7 @@ if str(ROOT) not in sys.path:
 
 from benchmarks.harness import machine_info  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 
 PYTHON = sys.executable
 IMPORTS = "import numpy, pinocchio, proxsuite, matplotlib"
@@ -91,7 +91,7 @@ t.append(T())
 import yourdfpy
 t.append(T())
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 experiment = Experiment.from_config(load_config(sys.argv[1]))
 t.append(T())
 result = experiment.run()

@@ -25,7 +25,7 @@ from benchmarks._fixtures import (  # noqa: E402
 from benchmarks.ratios import aba_floor  # noqa: E402
 from benchmarks.steps import GravityCompensation  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 
 
 @dataclass

@@ -27,7 +27,7 @@ from benchmarks.harness import (  # noqa: E402
     Timing,
 )
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 
 
 @dataclass

@@ -30,8 +30,8 @@ from dataclasses import replace
 import numpy as np
 
 import hmpc_pin
+from hmpc_pin.experiment.config import ExperimentConfig, load_config
 from hmpc_pin.experiment.init import InitPlan
-from hmpc_pin.experiment.schema import ExperimentConfig, load_config
 from hmpc_pin.model.robot import damping_time_constants
 
 CONFIG = """

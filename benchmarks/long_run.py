@@ -42,7 +42,7 @@ if str(ROOT) not in sys.path:
 from benchmarks.harness import rss_bytes  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.sim.disturbances import Periodic  # noqa: E402
 
 CONFIG = ROOT / "configs" / "paper_combined.toml"

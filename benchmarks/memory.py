@@ -29,7 +29,7 @@ if str(ROOT) not in sys.path:
 
 from benchmarks.harness import peak_rss_bytes, rss_bytes  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 
 #: The paper's Section 5.3 scenario.
 CONFIG = ROOT / "configs" / "paper_combined.toml"

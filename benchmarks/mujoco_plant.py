@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import PlantConfig, load_config
+from hmpc_pin.experiment.config import PlantConfig, load_config
 
 ROOT = Path(__file__).resolve().parent.parent
 

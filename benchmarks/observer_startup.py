@@ -19,7 +19,7 @@ import numpy as np
 
 import hmpc_pin
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 
 CONFIGS = Path(hmpc_pin.__file__).parent / "data" / "configs"
 

@@ -48,7 +48,7 @@ from hmpc_pin.experiment.build import (  # noqa: E402
     make_arm_plant,
     realtime_parts,
 )
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.realtime import ProcessArm, RealtimeLoop, fifo_priority  # noqa: E402
 
 P999_TARGET_US = 300.0

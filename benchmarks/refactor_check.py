@@ -37,7 +37,7 @@ if str(ROOT) not in sys.path:
 from hmpc_pin.apps.sweep import run_sweep  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.sim.result import RESULT_ARRAYS  # noqa: E402
 
 CONFIGS = sorted((ROOT / "hmpc_pin" / "data" / "configs").glob("*.toml"))

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.init import write_config
-from hmpc_pin.experiment.schema import load_config
 
 
 def main(argv=None) -> int:

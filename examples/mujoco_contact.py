@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -14,7 +14,7 @@ The package is layered; each layer imports only the layers below it (tested)::
       │
     ros/           ROS 2: the arm's topics as a PacedInterface · trajectory messages · arm node
       │
-    experiment/    schema (TOML → dataclasses) · build (the one place names become objects)
+    experiment/    config (TOML → dataclasses) · build (the one place names become objects)
       │
     realtime/      RobotInterface protocol · arm in another process · fixed-rate loop, safe stops
     identification/ friction (observer or inverse dynamics) and collision thresholds from a run
@@ -85,7 +85,7 @@ if TYPE_CHECKING:  # what the lazy names below are (for type checkers and editor
         MPCSettings,
     )
     from .experiment.build import Experiment, make_controller, run_experiment, with_controller
-    from .experiment.schema import (
+    from .experiment.config import (
         COMPENSATIONS,
         CONTROLLER_KINDS,
         CONTROLLERS,
@@ -162,7 +162,7 @@ _LAZY: dict[str, str] = {
             "ObserverConfig",
             "load_config",
         ),
-        ".experiment.schema",
+        ".experiment.config",
     ),
     **dict.fromkeys(("planar_ik", "solve_pose", "tool_pose"), ".model.planar"),
     **dict.fromkeys(("Robot", "load_robot"), ".model.robot"),

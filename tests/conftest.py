@@ -1,7 +1,21 @@
-"""Shared fixtures: paths of the repository's robot and configs, and small factories."""
+"""Shared fixtures: paths of the repository's robot and configs, and small factories; the
+test tiers.
+
+Every test is in one of two tiers, marked at collection (:func:`pytest_collection_modifyitems`),
+so that no test is marked by hand:
+
+- ``e2e``: the tests that go through a process boundary or a real clock: every test of the
+  files of :data:`E2E_FILES` (the command line, the viewer, ROS 2, the real-time loop, the
+  wheel, the interrupts), and any other test whose body starts a subprocess or a Meshcat
+  viewer (:data:`E2E_SIGNS`);
+- ``unit``: every other test (in-process, no subprocess).
+
+``pytest`` runs both; ``pytest -m unit`` the fast tier, ``pytest -m e2e`` the other.
+"""
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +24,43 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 PLANAR3 = ROOT / "robots" / "planar3.urdf"
 CONFIGS = ROOT / "configs"
+
+#: Test files whose every test is end to end (CLI subprocesses, viewer, ROS, real time, wheel).
+E2E_FILES = frozenset(
+    {
+        "test_cli.py",
+        "test_cli_outputs.py",
+        "test_cli_realtime.py",
+        "test_imports.py",
+        "test_interrupts.py",
+        "test_realtime.py",
+        "test_realtime_declared_latency.py",
+        "test_ros.py",
+        "test_ros_boundary.py",
+        "test_viz.py",
+        "test_wheel.py",
+    }
+)
+#: What in a test's own source makes it end to end in any other file.
+E2E_SIGNS = ("subprocess.", '"meshcat"', "run_in_netns(")
+
+
+def _tier(item: pytest.Item) -> str:
+    """``"e2e"`` or ``"unit"`` for a collected test (module docstring)."""
+    if item.path.name in E2E_FILES:
+        return "e2e"
+    function = getattr(item, "function", None)
+    try:
+        source = inspect.getsource(function) if function is not None else ""
+    except (OSError, TypeError):
+        source = ""
+    return "e2e" if any(sign in source for sign in E2E_SIGNS) else "unit"
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark every collected test ``unit`` or ``e2e`` (module docstring)."""
+    for item in items:
+        item.add_marker(_tier(item))
 
 
 @pytest.fixture(scope="session")

@@ -44,7 +44,7 @@ def probe_interface(config: str, out: Path) -> None:
     import numpy as np
 
     from hmpc_pin.experiment.build import Experiment
-    from hmpc_pin.experiment.schema import load_config
+    from hmpc_pin.experiment.config import load_config
     from hmpc_pin.realtime.interface import PacedInterface
     from hmpc_pin.ros.interface import RosArmInterface
     from hmpc_pin.ros.node import RosNode
@@ -150,7 +150,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
 
     if scenario == "trajectory" and running_for(1.0):
         from hmpc_pin.experiment.build import Experiment
-        from hmpc_pin.experiment.schema import load_config
+        from hmpc_pin.experiment.config import load_config
 
         experiment = Experiment.from_config(load_config(config))
         names = list(experiment.robot.joint_names)

@@ -122,7 +122,7 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     from trajectory_msgs.msg import JointTrajectory
 
     from hmpc_pin.experiment.build import Experiment
-    from hmpc_pin.experiment.schema import load_config
+    from hmpc_pin.experiment.config import load_config
 
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     config = load_config(config_path)

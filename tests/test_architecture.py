@@ -4,6 +4,7 @@ its own subpackage and the layers below; no import cycle; the data ships in the 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -120,6 +121,62 @@ def test_no_import_cycle_between_modules():
             visit(name, [])
 
 
+def test_the_config_imports_nothing_of_the_builder():
+    # The configuration validates; the builder (hmpc_pin.experiment's other modules) turns
+    # a validated config into objects: the config may import its own package, the table of
+    # which keys apply to which pair (combos) and the layers below the experiment only.
+    allowed = ("hmpc_pin.experiment.config", "hmpc_pin.experiment.combos")
+    for module in (m for m in GRAPH if m.startswith("hmpc_pin.experiment.config")):
+        for target in GRAPH[module]:
+            if _layer(target) == "experiment":
+                assert target.startswith(allowed), f"{module} imports the builder's {target}"
+
+
+#: The deprecated module of 0.2 (``hmpc_pin.experiment.schema``), and the one file that
+#: imports it on purpose: the shim's own test.
+SHIM = "hmpc_pin.experiment.schema"
+SHIM_USERS = {"hmpc_pin/experiment/schema.py", "tests/test_schema_shim.py"}
+
+
+def _imports_the_shim(path: Path) -> bool:
+    """Whether ``path`` imports :data:`SHIM` (absolute, relative, or a string handed to
+    importlib or to a subprocess)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    named: list[str] = []  # what each import (or string) names, relative ones resolved
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            module = node.module or ""
+            if node.level:  # from .schema / from ..experiment.schema / from . import schema
+                anchor = ".".join(
+                    path.relative_to(PKG.parent).parent.parts[: 1 - node.level]
+                    if node.level > 1
+                    else path.relative_to(PKG.parent).parent.parts
+                )
+                base = f"{anchor}.{module}" if module else anchor
+                named += [base, *(f"{base}.{a.name}" for a in node.names)]
+            else:
+                named += [module, *(f"{module}.{a.name}" for a in node.names)]
+        elif isinstance(node, ast.Import):
+            named += [a.name for a in node.names]
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", None) == "import_module":
+            named += [c.value for c in ast.walk(node) if isinstance(c, ast.Constant)]
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):  # code to run
+            named += re.findall(r"(?:from|import)\s+([\w.]+)", node.value)
+    return any(name == SHIM or name.endswith(".experiment.schema") for name in named)
+
+
+def test_nothing_in_the_repository_imports_the_schema_shim():
+    root = PKG.parent
+    files = [p for d in ("hmpc_pin", "tests", "benchmarks", "examples", "docs")
+             for p in (root / d).rglob("*.py")]  # fmt: skip
+    users = {p.relative_to(root).as_posix() for p in files if _imports_the_shim(p)}
+    assert users == SHIM_USERS
+    pages = [p for p in (root / "docs").rglob("*.md") if "import" in p.read_text("utf-8")]
+    for page in [*pages, root / "README.md"]:
+        text = page.read_text(encoding="utf-8")
+        assert f"from {SHIM} import" not in text and f"import {SHIM}" not in text, page
+
+
 def test_report_does_not_import_the_command_line():
     assert "hmpc_pin.apps.cli" not in GRAPH["hmpc_pin.apps.report"]
 
@@ -198,3 +255,11 @@ def test_benchmarks_form_no_import_cycle_and_use_only_public_names():
     for name in graph:
         if name not in state:
             visit(name, [])
+
+
+# ------------------------------------------------------------------ test tiers
+def test_every_end_to_end_file_of_the_tiers_exists():
+    from tests.conftest import E2E_FILES
+
+    tests = PKG.parent / "tests"
+    assert E2E_FILES and all((tests / name).is_file() for name in E2E_FILES)

@@ -19,7 +19,7 @@ from hmpc_pin.apps.check import ENGINE_RTOL, apply_fix, check_config
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import ValidityWarning
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 
 from .conftest import CONFIGS
 
@@ -236,7 +236,7 @@ def test_engines_that_disagree_are_detected():
                                                     ("none", None)])  # fmt: skip
 def test_the_bandwidth_is_the_observers_own(compensation, expected):
     """Momentum observer: K [1/s] itself; no observer (ISM, none): no bandwidth, no margin."""
-    from hmpc_pin.experiment.schema import ControllerConfig
+    from hmpc_pin.experiment.config import ControllerConfig
 
     config = load_config(PAPER)
     config = replace(config, controller=ControllerConfig(compensation=compensation, latency=1e-3))
@@ -530,7 +530,7 @@ def test_an_uncompensated_disturbance_warns_that_run_will(name):
     (the paper's baselines reach 0.12-0.13 rad, above 0.05): check says so in a warning
     (kept for the paper), not a problem; with the observer there is no such warning."""
     from hmpc_pin.data import config_path
-    from hmpc_pin.experiment.schema import load_config as load
+    from hmpc_pin.experiment.config import load_config as load
 
     report = check_config(load(config_path(name)), engines=False)
     assert not report.problems

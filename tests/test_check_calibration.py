@@ -39,8 +39,8 @@ from hmpc_pin.checks import MAX_LATENCY
 from hmpc_pin.data import config_names, config_path
 from hmpc_pin.exceptions import HmpcError, SimulationError, URDFError
 from hmpc_pin.experiment.build import Experiment, reuse_robots
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.init import init_config
-from hmpc_pin.experiment.schema import load_config
 
 pytestmark = pytest.mark.slow
 

@@ -12,7 +12,7 @@ from hmpc_pin.apps.cli import main
 from hmpc_pin.apps.compare import parse_controllers, run_comparison
 from hmpc_pin.exceptions import ConfigError
 from hmpc_pin.experiment.build import run_experiment
-from hmpc_pin.experiment.schema import CONTROLLER_KINDS, load_config
+from hmpc_pin.experiment.config import CONTROLLER_KINDS, load_config
 
 from .conftest import CONFIGS, ROOT
 

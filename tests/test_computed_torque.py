@@ -13,7 +13,7 @@ from hmpc_pin.controllers.computed_torque import (
     mpc_feedback_gain,
 )
 from hmpc_pin.exceptions import ConfigError
-from hmpc_pin.experiment.schema import ComputedTorqueConfig, ControllerConfig
+from hmpc_pin.experiment.config import ComputedTorqueConfig, ControllerConfig
 from hmpc_pin.mpc.condensed import CondensedMPC
 
 from .conftest import PLANAR3

@@ -9,7 +9,7 @@ import pytest
 
 import hmpc_pin
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig, RobotConfig
+from hmpc_pin.experiment.config import ControllerConfig, ObserverConfig, RobotConfig
 
 from .conftest import CONFIGS, PLANAR3
 
@@ -348,3 +348,40 @@ def test_packaged_config_loads_by_name():
     assert by_name.source.samefile(by_path.source)
     assert by_name.robot.urdf.samefile(by_path.robot.urdf)
     assert by_name.controller.label == by_path.controller.label == "hmpc+chen"
+
+
+def test_the_controller_table_states_no_default_of_the_mpcs_settings():
+    """Each MPC default is stated once, in MPCSettings: the [controller] table's fields
+    read it (no literal there but a field's name), the computed-torque settings' bounds
+    too, and the table's resolved values are MPCSettings' own."""
+    import ast
+    import inspect
+    from dataclasses import fields
+
+    from hmpc_pin.controllers.computed_torque import CTSettings
+    from hmpc_pin.controllers.hierarchical import MPCSettings
+    from hmpc_pin.experiment.config import controller as module
+    from hmpc_pin.experiment.controllers import mpc_settings
+
+    mpc = {f.name for f in fields(MPCSettings)}
+    checked = 0
+    for cls, names in (
+        (module.ControllerConfig, mpc),
+        (module.ObserverConfig, {"model_at"}),
+        (CTSettings, {"v_min", "v_max"}),
+    ):
+        tree = ast.parse(inspect.getsource(cls).lstrip())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.AnnAssign) and node.target.id in names and node.value:
+                literals = [
+                    n.value
+                    for n in ast.walk(node.value)
+                    if isinstance(n, ast.Constant) and n.value is not None and n.value not in mpc
+                ]
+                assert not literals, f"{cls.__name__}.{node.target.id} = {literals}"
+                checked += 1
+    assert checked == 14 + 1 + 2  # [controller]'s MPC keys, model_at, CTSettings' bounds
+    ours, theirs = mpc_settings(module.ControllerConfig(), 3), MPCSettings()
+    for name in mpc:
+        a, b = getattr(ours, name), getattr(theirs, name)
+        assert np.array_equal(np.broadcast_to(b, np.shape(a)), a), name

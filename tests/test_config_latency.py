@@ -10,7 +10,7 @@ from hmpc_pin.apps.cli import main
 from hmpc_pin.checks import MAX_LATENCY
 from hmpc_pin.controllers import MPCSettings
 from hmpc_pin.exceptions import ConfigError
-from hmpc_pin.experiment.schema import ControllerConfig
+from hmpc_pin.experiment.config import ControllerConfig
 
 from .conftest import CONFIGS
 

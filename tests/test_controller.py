@@ -11,7 +11,7 @@ import pytest
 import hmpc_pin
 from hmpc_pin.compensation.observers import DisturbanceObserver
 from hmpc_pin.controllers.hierarchical import MPCSettings
-from hmpc_pin.experiment.schema import ControllerConfig, ObserverConfig
+from hmpc_pin.experiment.config import ControllerConfig, ObserverConfig
 
 
 def _controller(robot, observer=None, **kw):
@@ -305,6 +305,21 @@ def test_the_0_1_constructor_with_a_controller_config_still_works(planar3):
     assert np.all(np.isfinite(ctrl.step(0.0, q0, dq0, ref)))
 
 
+def test_settings_of_another_type_are_one_error_naming_the_settings_class(planar3):
+    """Neither MPCSettings nor a ControllerConfig: an InterfaceError naming both, no
+    DeprecationWarning (the 0.1 path takes only the registered config type)."""
+    import warnings
+
+    import hmpc_pin
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        with pytest.raises(hmpc_pin.InterfaceError, match=r"MPCSettings.*make_controller"):
+            hmpc_pin.HierarchicalMPC(planar3, {"Ts": 0.01, "compensation": "chen"})
+        with pytest.raises(hmpc_pin.InterfaceError, match=r"CTSettings.*make_controller"):
+            hmpc_pin.ComputedTorque(planar3, {"Ts": 0.01})
+
+
 @pytest.mark.parametrize(
     ("layout", "latency", "joint_dynamics", "at"),
     [
@@ -337,7 +352,7 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, laten
     Ts = 0.01
     ref = hmpc_pin.SineReference(3)
     d = np.array([3.0, -2.0, 1.0])
-    settings = MPCSettings(Ts=Ts, N=10, Nc=3, qp_layout=layout, latency=latency, observer_model=at)
+    settings = MPCSettings(Ts=Ts, N=10, Nc=3, qp_layout=layout, latency=latency, model_at=at)
     ctrls = [hmpc_pin.HierarchicalMPC(planar3, settings,
                                       DisturbanceObserver(3, Ts, 100.0, "chen", "implicit"))
              for _ in range(2)]  # fmt: skip

@@ -13,7 +13,7 @@ import hmpc_pin
 from hmpc_pin.apps.metrics import compute_metrics
 from hmpc_pin.exceptions import LimitError
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import ConstraintConfig, ControllerConfig, load_config
+from hmpc_pin.experiment.config import ConstraintConfig, ControllerConfig, load_config
 from hmpc_pin.sim.simulate import simulate
 
 from .conftest import CONFIGS, PLANAR3

@@ -12,7 +12,7 @@ from hmpc_pin.apps.cli import main
 from hmpc_pin.controllers.wrappers import FrictionFeedforward
 from hmpc_pin.exceptions import ConfigError, ExcitationError
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.identification import ObserverModel, fit_friction, fit_joint
 
 from .conftest import CONFIGS

@@ -13,8 +13,8 @@ import pytest
 
 from hmpc_pin.apps.cli import main
 from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.config.controller import ObserverConfig
-from hmpc_pin.experiment.schema import load_config
 from hmpc_pin.identification import ObserverModel, fit_friction
 from hmpc_pin.sim.result import Result
 

@@ -14,8 +14,8 @@ import pytest
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import URDFError
 from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.init import init_config, plan, write_config
-from hmpc_pin.experiment.schema import load_config
 from hmpc_pin.model.robot import example_robot_srdf, example_robot_urdf
 
 from .test_urdf_joints import joint, rod, three_links

@@ -8,7 +8,7 @@ import pytest
 import hmpc_pin
 from hmpc_pin.compensation.ism import IntegralSlidingMode
 from hmpc_pin.experiment.build import make_controller
-from hmpc_pin.experiment.schema import ControllerConfig
+from hmpc_pin.experiment.config import ControllerConfig
 
 
 def test_sigma_is_velocity_minus_nominal_integral(make_rng):

@@ -27,7 +27,7 @@ import pytest
 import hmpc_pin
 from hmpc_pin.compensation.base import NoCompensation
 from hmpc_pin.exceptions import ConfigError
-from hmpc_pin.experiment.schema import ControllerConfig, PlantConfig, load_config
+from hmpc_pin.experiment.config import ControllerConfig, PlantConfig, load_config
 from hmpc_pin.model.robot import example_robot_urdf, load_robot
 from hmpc_pin.sim.plants import EulerPlant, RK4Plant
 
@@ -358,20 +358,43 @@ def test_a_plant_step_too_long_for_the_urdf_damping_is_refused_naming_the_joint(
 
 
 def test_the_observer_model_key():
-    """``[controller.observer] model_at`` reaches MPCSettings.observer_model; another value
-    is one ConfigError naming the key."""
+    """``[controller.observer] model_at`` reaches MPCSettings.model_at under its one name;
+    another value is one ConfigError naming the key; the default is MPCSettings'."""
     from hmpc_pin.controllers.hierarchical import MPCSettings
     from hmpc_pin.experiment.config.controller import ObserverConfig
     from hmpc_pin.experiment.controllers import mpc_settings
 
-    assert ObserverConfig().model_at == "end"
-    assert MPCSettings().observer_model == "end"
+    assert ObserverConfig().model_at == MPCSettings().model_at == "end"
     cc = ControllerConfig(compensation="general", observer={"model_at": "start"})
-    assert mpc_settings(cc, 3).observer_model == "start"
-    with pytest.raises(ConfigError, match="model_at"):
+    assert mpc_settings(cc, 3).model_at == "start"
+    assert mpc_settings(ControllerConfig(compensation="none"), 3).model_at == "end"
+    with pytest.raises(ConfigError, match=r"^model_at: expected one of \('end', 'start'\)"):
         ObserverConfig(model_at="middle")
-    with pytest.raises(ConfigError, match="observer_model"):
+    with pytest.raises(ConfigError, match=r"^MPCSettings\.model_at: expected one of"):
+        MPCSettings(model_at="middle")
+
+
+def test_the_observer_model_name_of_0_2_still_works_with_a_deprecation_warning():
+    from dataclasses import replace
+
+    from hmpc_pin.controllers.hierarchical import MPCSettings
+
+    with pytest.warns(DeprecationWarning, match="write model_at"):
+        settings = MPCSettings(observer_model="start")
+    assert settings.model_at == "start"
+    with pytest.warns(DeprecationWarning, match="read model_at"):
+        assert settings.observer_model == "start"
+    with pytest.warns(DeprecationWarning), pytest.raises(ConfigError, match="model_at"):
         MPCSettings(observer_model="middle")
+    with pytest.warns(DeprecationWarning), pytest.raises(ConfigError, match="model_at only"):
+        MPCSettings(observer_model="start", model_at="end")
+    # replace() passes the fields only: the alias neither warns nor undoes a change
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        assert replace(settings, model_at="end").model_at == "end"
+        assert replace(settings, latency=0.002).model_at == "start"
 
 
 def test_damping_time_constant_uses_the_inertia_with_the_other_joints_free():

@@ -12,7 +12,7 @@ from hmpc_pin import ConfigError, ControllerConfig
 from hmpc_pin.apps.compare import parse_controllers
 from hmpc_pin.apps.sweep import resolve_variants
 from hmpc_pin.experiment.build import Experiment, make_compensation, with_controller
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 
 ALIASES = {
     "hmpc": ("hmpc", "chen"),

@@ -77,10 +77,10 @@ def test_alignment_hand_computed_two_steps(planar3):
 def test_compiled_observer_fed_the_aligned_torque(planar3, L, at):
     """The fused step's NDO against the numpy NDO fed the oracle's aligned torque, with M
     and C q̇ + G at the measured (not the predicted) state: the measurement ending the
-    interval (``observer_model = "end"``) or the one starting it (``"start"``)."""
+    interval (``model_at = "end"``) or the one starting it (``"start"``)."""
     Ts = 0.01
     obs = DisturbanceObserver(3, Ts, 50.0, "chen")
-    settings = MPCSettings(Ts=Ts, latency=L, observer_model=at)
+    settings = MPCSettings(Ts=Ts, latency=L, model_at=at)
     ctrl = hmpc_pin.HierarchicalMPC(planar3, settings, obs)
     assert ctrl.fused
     oracle = NumpyNDO(obs.cY, Ts)

@@ -31,7 +31,7 @@ mujoco = pytest.importorskip("mujoco")
 from hmpc_pin.apps.cli import main  # noqa: E402
 from hmpc_pin.exceptions import ConfigError, ExtraError, URDFError, install_command  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
-from hmpc_pin.experiment.schema import PlantConfig, load_config  # noqa: E402
+from hmpc_pin.experiment.config import PlantConfig, load_config  # noqa: E402
 from hmpc_pin.model.robot import example_robot_urdf, load_robot  # noqa: E402
 from hmpc_pin.sim.mujoco import (  # noqa: E402
     MuJoCoPlant,
@@ -335,7 +335,7 @@ def test_package_and_configs_load_without_mujoco():
 
     code = (
         "import sys; sys.modules['mujoco'] = None; import hmpc_pin; "
-        "from hmpc_pin.experiment.schema import load_config; "
+        "from hmpc_pin.experiment.config import load_config; "
         f"print(load_config({str(CONFIGS / 'paper_combined_mujoco.toml')!r}).plant.engine)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -536,8 +536,8 @@ def test_the_deprecated_backend_argument_is_checked_and_changes_nothing(planar3)
     ConfigError naming the key; ``"python"`` warns and gives the same run bit for bit."""
     with pytest.raises(hmpc_pin.ConfigError, match=r"plant\.backend"):
         RK4Plant(planar3, None, 0.01, 0.001, backend="fast")
-    with pytest.raises(hmpc_pin.ConfigError, match=r"controller\.backend"):
-        hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend="fast"))
+    with pytest.raises(hmpc_pin.ConfigError, match=r"MPCSettings\.backend"):
+        hmpc_pin.MPCSettings(backend="fast")
     runs = []
     for backend in ("auto", "python"):
         with warnings.catch_warnings(record=True) as caught:

@@ -939,7 +939,7 @@ def test_the_configs_brake_speed_and_hold_reach_every_loop_built_from_it(tmp_pat
     """``[realtime] brake_speed`` and ``hold`` are read where the safety settings are
     built, so the CLI, the ROS node and the benchmarks all brake as configured."""
     from hmpc_pin.experiment.build import Experiment, realtime_parts
-    from hmpc_pin.experiment.schema import load_config
+    from hmpc_pin.experiment.config import load_config
 
     from .test_ros import _write
 

@@ -25,7 +25,7 @@ from hmpc_pin.apps.cli import main
 from hmpc_pin.apps.metrics import compute_metrics
 from hmpc_pin.exceptions import ConfigError, LimitError, TrajectoryError, install_command
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.sim.result import Result
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,7 +10,7 @@ import pytest
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import ConfigError
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.identification import learn_thresholds
 from hmpc_pin.sim.result import Result
 

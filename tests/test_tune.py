@@ -11,7 +11,7 @@ import pytest
 from hmpc_pin.apps.cli import main
 from hmpc_pin.apps.tune import apply_params, objective_value, search_space, tune
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 
 from .conftest import CONFIGS
 

@@ -18,7 +18,7 @@ import pytest
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import URDFError, ValidityWarning
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.experiment.schema import load_config
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.model.robot import load_robot
 
 # A link: a rod of mass m along x, centre of mass at x = 0.25, inertia about its centre.

@@ -252,7 +252,7 @@ def test_panda_replay_stores_each_mesh_once_and_draws_the_same_picture(tmp_path,
     pixel like the page with every mesh inlined per node (Meshcat's own format)."""
     from hmpc_pin.apps import viz
     from hmpc_pin.experiment.build import Experiment
-    from hmpc_pin.experiment.schema import load_config
+    from hmpc_pin.experiment.config import load_config
 
     from .conftest import CONFIGS
 

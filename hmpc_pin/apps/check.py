@@ -67,8 +67,8 @@ from ..compensation.bandwidth import (
 )
 from ..exceptions import HmpcError, URDFError
 from ..experiment.build import Experiment
+from ..experiment.config import ExperimentConfig
 from ..experiment.plants import _effort_limit
-from ..experiment.schema import ExperimentConfig
 from ..model.robot import damping_time_constants
 
 __all__ = [

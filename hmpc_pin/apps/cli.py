@@ -28,7 +28,7 @@ from ..exceptions import (
     VizError,
 )
 from ..experiment.build import Experiment, uses_observer, with_controller
-from ..experiment.schema import (
+from ..experiment.config import (
     COMPENSATIONS,
     CONTROLLER_KINDS,
     ExperimentConfig,

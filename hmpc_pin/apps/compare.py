@@ -1,7 +1,7 @@
 """``hmpc-pin compare``: every controller on the same experiment, side by side.
 
 Each controller × compensation (docs, "Controllers"; by default the seven of
-:data:`~hmpc_pin.experiment.schema.CONTROLLER_KINDS`) runs on the same robot model,
+:data:`~hmpc_pin.experiment.config.legacy.CONTROLLER_KINDS`) runs on the same robot model,
 plant, reference, disturbance, initial state and MPC settings — only the controller
 and its compensation change. Per controller
 and joint the table holds RMS and max tracking error after 1 s, the time to stay
@@ -23,7 +23,7 @@ import numpy as np
 from ..controllers.wrappers import TimedController
 from ..exceptions import ConfigError, RunInterrupted, SimulationError
 from ..experiment.build import Experiment, uses_observer, with_controller
-from ..experiment.schema import CONTROLLER_KINDS, ExperimentConfig, parse_combination
+from ..experiment.config import CONTROLLER_KINDS, ExperimentConfig, parse_combination
 from ..sim.result import Result
 from .metrics import DEFAULT_ERROR_THRESHOLD, Metrics, compute_metrics, run_warnings
 

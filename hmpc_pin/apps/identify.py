@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import ConfigError
+from ..experiment.config import load_config
 from ..experiment.config.write import write_config
-from ..experiment.schema import load_config
 from ..identification import fit_friction, learn_thresholds
 from ..sim.result import Result
 

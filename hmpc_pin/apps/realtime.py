@@ -16,7 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..experiment.build import Experiment, make_arm_plant, realtime_parts
-from ..experiment.schema import ExperimentConfig
+from ..experiment.config import ExperimentConfig
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..realtime.process_arm import ProcessArm, start_child
 from .metrics import compute_metrics

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..data import DATA
 from ..experiment.build import load_robot_config
-from ..experiment.schema import load_config
+from ..experiment.config import load_config
 from .metrics import DEFAULT_ERROR_THRESHOLD, Metrics, compute_metrics, run_warnings
 
 __all__ = ["PAPER_EXPERIMENTS", "comparison_claims", "reproduce"]

@@ -23,8 +23,8 @@ import numpy as np
 
 from ..exceptions import ConfigError, HmpcError
 from ..experiment.build import Experiment, realtime_parts
+from ..experiment.config import ExperimentConfig
 from ..experiment.controllers import _limits
-from ..experiment.schema import ExperimentConfig
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from .realtime import save_run
 

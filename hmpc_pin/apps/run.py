@@ -12,7 +12,7 @@ import numpy as np
 
 from ..exceptions import RunInterrupted, SimulationError
 from ..experiment.build import Experiment
-from ..experiment.schema import ExperimentConfig
+from ..experiment.config import ExperimentConfig
 from ..sim.result import RESULT_ARRAYS, TASK_ARRAYS, Result
 
 __all__ = ["draw_figures", "live_view", "run_one", "write_csv"]

@@ -37,8 +37,9 @@ import numpy as np
 from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError, SimulationError, install_command
 from ..experiment.build import Experiment, load_robot_config, reuse_robots, with_controller
+from ..experiment.combos import OBSERVERS
+from ..experiment.config import ExperimentConfig
 from ..experiment.config.sweep import CONDITION_PARTS
-from ..experiment.schema import OBSERVERS, ExperimentConfig
 from ..sim.sensing import SensedController
 from .metrics import task_metrics
 
@@ -55,7 +56,7 @@ __all__ = [
 
 
 def variant_config(config: ExperimentConfig, variant: str) -> ExperimentConfig:
-    """The config of one sweep variant (:class:`~hmpc_pin.experiment.schema.SweepConfig`):
+    """The config of one sweep variant (:class:`~hmpc_pin.experiment.config.sweep.SweepConfig`):
     ``"ndo"`` the config's pair (its compensation must be an observer), ``"no-ndo"`` the
     config's controller without compensation, any other name a controller × compensation
     (:func:`~hmpc_pin.experiment.build.with_controller`).

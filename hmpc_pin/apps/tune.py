@@ -38,9 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..compensation.registry import compensation_names, compensation_spec
 from ..exceptions import ConfigError, ExtraError, RunInterrupted, install_command
+from ..experiment.config import ExperimentConfig, load_config
 from ..experiment.config.write import write_config
-from ..experiment.schema import OBSERVERS, ExperimentConfig, load_config
 from .sweep import run_sweep
 
 __all__ = [
@@ -75,10 +76,11 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
         ConfigError: ``observers`` names no observer, or the config has none.
     """
     cc = config.controller
+    names = compensation_names(table="observer")
     if observers:
-        bad = [o for o in observers if o not in OBSERVERS]
-        if bad or cc.compensation not in OBSERVERS:
-            raise ConfigError("--observers", f"expected observers of {OBSERVERS} for a config "
+        bad = [o for o in observers if o not in names]
+        if bad or cc.compensation not in names:
+            raise ConfigError("--observers", f"expected observers of {names} for a config "
                               f"with an observer; got {observers!r} for {cc.label}")  # fmt: skip
     space: dict = {
         "Q_position": ("log", 1.0, 1e4),
@@ -87,10 +89,10 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
     }
     if cc.kind == "hmpc":
         space["N"] = ("int", 5, 30)
-    if cc.compensation in OBSERVERS and cc.observer.bandwidth is not None:
+    if cc.compensation in names and cc.observer.bandwidth is not None:
         w0 = _bandwidth_scale(cc)  # the largest joint's; the others keep their ratio to it
         space["observer_bandwidth"] = ("log", w0 / 10, w0 * 5)
-    elif cc.compensation in OBSERVERS:
+    elif cc.compensation in names:
         c0 = cc.observer.gain
         space["observer_gain"] = ("log", c0 / 10, c0 * 5)
     if ts:
@@ -489,8 +491,8 @@ def _write_tuned(config, tuned, best, study, out: Path) -> Path:
             obs.pop("kind", None)
             obs.pop("enabled", None)
             ctrl["compensation"] = cc.compensation
-            if cc.compensation == "momentum":
-                obs.pop("discretization", None)
+            if len(compensation_spec(cc.compensation).discretizations) == 1:
+                obs.pop("discretization", None)  # its one form (the momentum observer's)
         ctrl["observer"] = obs
     path = out / f"{config.name}_tuned.toml"
     header = (f"{config.name} tuned by `hmpc-pin tune` (trial {study.best_trial.number} of "
@@ -668,7 +670,8 @@ def add_tune_parser(sub):
     tun.add_argument("--ts", metavar="T1,T2,...",
                      help="also choose the control period among these [s]")  # fmt: skip
     tun.add_argument("--observers", metavar="NAME,...",
-                     help="also choose the observer: chen, general, momentum")  # fmt: skip
+                     help="also choose the observer: "
+                     + ", ".join(compensation_names(table="observer")))  # fmt: skip
     tun.add_argument("--holdout", type=int, default=None,
                      help="held-out samples of the comparison (0: none) [--samples]")  # fmt: skip
     tun.add_argument("--holdout-seed", type=int, default=None, help="their seed [--seed + 1]")

@@ -86,6 +86,7 @@ __all__ = [
     "MASS_RATIO",
     "RULE",
     "bandwidth_limit",
+    "bandwidth_posture",
     "check_bandwidth",
     "compensation_bandwidth",
     "implied_bandwidth",
@@ -126,6 +127,12 @@ def overdeclared_excess(Ts: float, latency: float) -> float:
     for: :math:`\\min(L, T_s)/2`, half an interface cycle (a latency measured in whole
     cycles is off by up to half of one; the cycle no longer than the latency nor Ts)."""
     return 0.5 * min(latency, Ts) if latency > 0 else 0.0
+
+
+def bandwidth_posture(robot) -> np.ndarray:
+    """The posture :math:`q_0` [rad] at which a bandwidth is exact: q = 0 moved to the
+    nearest joint limit where 0 is outside the range."""
+    return np.minimum(np.maximum(np.zeros(robot.nq), robot.lower), robot.upper)
 
 
 def observer_cY(bandwidth: np.ndarray, M0: np.ndarray) -> np.ndarray:

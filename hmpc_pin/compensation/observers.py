@@ -65,6 +65,9 @@ __all__ = [
     "observer_matrix",
 ]
 
+#: The observers' compensation names, kept for callers of 0.2: the compensation registry
+#: (:mod:`hmpc_pin.compensation.registry`, which imports this module) is the source, and
+#: ``compensation_names(table="observer")`` the names (a test checks that they agree).
 OBSERVER_KINDS = ("chen", "general", "momentum")
 DISCRETIZATIONS = ("implicit", "explicit")
 

@@ -8,12 +8,13 @@ this protocol.
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["AppliedTorque", "Controller", "ControllerWrapper"]
+__all__ = ["AppliedTorque", "Controller", "ControllerWrapper", "register_config_builder"]
 
 FloatArray = NDArray[np.float64]
 
@@ -72,6 +73,54 @@ class ControllerWrapper:
     def step(self, t: float, q: FloatArray, dq: FloatArray, reference: object) -> FloatArray:
         """The wrapped controller's step [N·m]."""
         return self.controller.step(t, q, dq, reference)
+
+
+#: ``(config type, builder)`` of the deprecated call ``Controller(robot, config)``
+#: (:func:`register_config_builder`); ``None`` until the builder registers.
+_CONFIG_BUILDER: tuple[type, Callable[..., tuple[Any, ...]]] | None = None
+
+
+def register_config_builder(config_type: type, builder: Callable[..., tuple[Any, ...]]) -> None:
+    """Register how a ``[controller]`` table of type ``config_type`` becomes a controller's
+    constructor arguments: ``builder(robot, config)`` returns those after ``robot``.
+
+    The experiment builder registers itself when imported (it imports the controllers, not
+    the other way round), for the call of version 0.1 ``HierarchicalMPC(robot,
+    ControllerConfig)``; a config cannot exist before it is imported (importing
+    :mod:`hmpc_pin.experiment` imports the builder first).
+    """
+    global _CONFIG_BUILDER
+    _CONFIG_BUILDER = (config_type, builder)
+
+
+def config_parts(config: object, robot: Any, who: str, expected: str) -> tuple[Any, ...]:
+    """The constructor arguments after ``robot`` that the registered builder makes of a
+    ``[controller]`` table (the deprecated call ``Controller(robot, config)``), with a
+    :class:`DeprecationWarning` naming the replacement.
+
+    Raises:
+        InterfaceError: ``config`` is neither ``expected`` (the settings class the caller
+            takes) nor a registered ``[controller]`` table.
+    """
+    import warnings
+
+    from ..exceptions import InterfaceError
+
+    registered = _CONFIG_BUILDER
+    if registered is None or not isinstance(config, registered[0]):
+        raise InterfaceError(
+            config,
+            expected,
+            "or build a controller from a ControllerConfig with "
+            "hmpc_pin.make_controller(robot, config)",
+        )
+    warnings.warn(
+        f"{who}(robot, ControllerConfig) is deprecated since 0.2; use "
+        "hmpc_pin.make_controller(robot, config)",
+        DeprecationWarning,
+        stacklevel=4,
+    )
+    return registered[1](robot, config)
 
 
 def not_reset(controller: object) -> Exception:

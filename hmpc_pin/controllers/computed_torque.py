@@ -110,8 +110,8 @@ class CTSettings:
     kp: float
     kd: float
     ki: float = 0.0
-    v_min: np.ndarray | float = -100.0
-    v_max: np.ndarray | float = 100.0
+    v_min: np.ndarray | float = MPCSettings.v_min
+    v_max: np.ndarray | float = MPCSettings.v_max
 
     @classmethod
     def matching(
@@ -160,7 +160,7 @@ class ComputedTorque(AppliedTorque):
         compensation: Compensation | None = None,
     ):
         if settings is not None and not isinstance(settings, CTSettings):
-            settings, compensation = _from_legacy(settings, robot, "ComputedTorque")
+            settings, compensation = _from_legacy(settings, robot, "ComputedTorque", "CTSettings")
         settings = settings if settings is not None else CTSettings.matching(MPCSettings())
         self.robot, self.settings, self.n = robot, settings, robot.nq
         n = robot.nq

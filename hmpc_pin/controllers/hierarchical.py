@@ -21,9 +21,12 @@ zero-order-hold discretisation of :math:`m_j\\dot w = -b_jw + u`).
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import MISSING, dataclass, field
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -35,14 +38,57 @@ from ..compensation.observers import DisturbanceObserver
 from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot, damping_time_constants
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
-from ..native import deprecated_backend, model_string
+from ..native import BACKENDS, deprecated_backend, model_string
 from ..native import load as load_native
 from ..tasks.base import Reference, as_reference, check_reference_size
-from .base import AppliedTorque, not_reset
+from .base import AppliedTorque, config_parts, not_reset
 
-__all__ = ["HierarchicalMPC", "MPCSettings", "state_limits", "warn_fast_damping"]
+__all__ = [
+    "MODEL_AT",
+    "QP_LAYOUTS",
+    "HierarchicalMPC",
+    "MPCSettings",
+    "check_settings",
+    "state_limits",
+    "warn_fast_damping",
+]
 
 FloatArray = NDArray[np.float64]
+
+#: The values of :attr:`MPCSettings.qp_layout` (:func:`~hmpc_pin.mpc.condensed.resolve_layout`).
+QP_LAYOUTS = ("auto", "block", "joint")
+#: The values of :attr:`MPCSettings.model_at` (``[controller.observer] model_at``).
+MODEL_AT = ("end", "start")
+
+#: The check of each setting of :class:`MPCSettings` besides the MPC's weights
+#: (:func:`~hmpc_pin.checks.mpc_fields`): ``check(key, value)`` → the value, or a
+#: :class:`~hmpc_pin.exceptions.ConfigError` naming ``key``.
+_CHECKS: dict[str, Callable[[str, Any], Any]] = {
+    "eps_abs": lambda key, value: as_float(key, value, positive=True),
+    "max_iter": lambda key, value: as_int(key, value, minimum=1),
+    "qp_layout": lambda key, value: as_choice(key, value, QP_LAYOUTS),
+    "backend": lambda key, value: as_choice(key, value, BACKENDS),
+    "latency": as_latency,
+    "joint_dynamics": as_bool,
+    "model_at": lambda key, value: as_choice(key, value, MODEL_AT),
+}
+
+
+def check_settings(values: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """The settings of :class:`MPCSettings` in ``values`` (by field name, besides the
+    MPC's weights) checked: the one check of each, for the settings class and the
+    ``[controller]`` table alike (a value refused in a file is refused in code, with the
+    same error).
+
+    Args:
+        values: Field name → value, any subset of ``eps_abs``, ``max_iter``,
+            ``qp_layout``, ``backend``, ``latency``, ``joint_dynamics``, ``model_at``.
+        prefix: Put before every key in the errors (``"MPCSettings."``).
+
+    Raises:
+        ConfigError: The first value that is wrong, naming ``prefix + name``.
+    """
+    return {name: _CHECKS[name](prefix + name, value) for name, value in values.items()}
 
 
 @dataclass(frozen=True)
@@ -80,8 +126,9 @@ class MPCSettings:
             :math:`C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` in the observer and
             Eq (4), and a damped joint's acceleration gets its zero-order-hold gain
             (computed in the compiled step, see ``cpp/src/step.cpp``). Default ``True``.
-        observer_model: Where the compensation's model :math:`M,\\ C\\dot q + G` is
-            evaluated over the period that just ended: ``"end"`` (default; the new
+        model_at: Where the compensation's model :math:`M,\\ C\\dot q + G` is
+            evaluated over the period that just ended (one of :data:`MODEL_AT`;
+            ``[controller.observer] model_at``): ``"end"`` (default; the new
             measurement, Eq 13's backward Euler as the paper discretises it) or ``"start"``
             (the state the torque held over the period was computed from; with a latency,
             the previous measurement). With the torque held over :math:`T_s` the plant's
@@ -90,7 +137,8 @@ class MPCSettings:
             :math:`-\\dot n T_s/2`, doubling the error it should cancel; at the start it is
             the residual of the model the held torque used, which Eq (4) applies with the
             right sign (the guide "Joint dynamics", observer model). ``hmpc-pin init``
-            writes ``"start"``.
+            writes ``"start"``. Its name in 0.2, ``observer_model``, is still accepted as a
+            keyword and readable, with a :class:`DeprecationWarning`.
     """
 
     Ts: float = 0.01
@@ -107,22 +155,27 @@ class MPCSettings:
     backend: str = "auto"
     latency: float = 0.0
     joint_dynamics: bool = True
-    observer_model: str = "end"
+    model_at: str = "end"
 
     def __post_init__(self):
         # The same checks and errors as the [controller] table (hmpc_pin.checks).
         fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
                             self.v_max, prefix="MPCSettings.")  # fmt: skip
-        fields["eps_abs"] = as_float("MPCSettings.eps_abs", self.eps_abs, positive=True)
-        fields["max_iter"] = as_int("MPCSettings.max_iter", self.max_iter, minimum=1)
-        fields["qp_layout"] = as_choice("MPCSettings.qp_layout", self.qp_layout,
-                                        ("auto", "block", "joint"))  # fmt: skip
-        fields["latency"] = as_latency("MPCSettings.latency", self.latency)
-        fields["joint_dynamics"] = as_bool("MPCSettings.joint_dynamics", self.joint_dynamics)
-        fields["observer_model"] = as_choice("MPCSettings.observer_model",
-                                             self.observer_model, ("end", "start"))  # fmt: skip
+        fields.update(
+            check_settings({name: getattr(self, name) for name in _CHECKS}, "MPCSettings.")
+        )
         for name, value in fields.items():
             object.__setattr__(self, name, value)
+
+    @staticmethod
+    def default(name: str) -> Any:
+        """The default of the field ``name`` (a fresh copy of an array): the one place each
+        default is stated, read by the ``[controller]`` table and
+        :class:`~hmpc_pin.controllers.computed_torque.CTSettings`."""
+        spec = MPCSettings.__dataclass_fields__[name]
+        if spec.default_factory is not MISSING:
+            return spec.default_factory()
+        return spec.default
 
     def bounds(self, n: int) -> tuple[FloatArray, FloatArray]:
         """``(v_min, v_max)`` [rad/s²] broadcast to ``n`` joints.
@@ -140,25 +193,50 @@ class MPCSettings:
         return out[0], out[1]
 
 
-def _from_legacy(config: object, robot: Robot, who: str) -> tuple:
-    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts the builder
-    makes of the config (``ControllerConfig.controller_parts``, asked of the object, so that
-    this layer imports nothing above it), with a :class:`DeprecationWarning`."""
-    parts = getattr(config, "controller_parts", None)
-    if not callable(parts) or not hasattr(config, "compensation"):
-        from ..exceptions import InterfaceError
-
-        raise InterfaceError(
-            config, "MPCSettings", "or build a controller from a ControllerConfig with "
-            "hmpc_pin.make_controller(robot, config)",
-        )  # fmt: skip
+def _observer_model(self: MPCSettings) -> str:
+    """Deprecated since 0.3: :attr:`MPCSettings.model_at`."""
     warnings.warn(
-        f"{who}(robot, ControllerConfig) is deprecated since 0.2; use "
-        "hmpc_pin.make_controller(robot, config)",
+        "MPCSettings.observer_model is deprecated since 0.3; read model_at",
         DeprecationWarning,
-        stacklevel=3,
+        stacklevel=2,
     )
-    return parts(robot)
+    return self.model_at
+
+
+def _with_observer_model(generated: Callable[..., None]) -> Callable[..., None]:
+    """The constructor taking ``observer_model``, the name of ``model_at`` in 0.2, with
+    a :class:`DeprecationWarning` (not a field: ``dataclasses.replace`` never passes it)."""
+
+    @functools.wraps(generated)
+    def init(self: MPCSettings, *args: Any, observer_model: Any = None, **kwargs: Any) -> None:
+        if observer_model is not None:
+            warnings.warn(
+                "MPCSettings(observer_model=...) is deprecated since 0.3; write model_at "
+                "(the name of [controller.observer] model_at)",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            if "model_at" in kwargs:
+                raise ConfigError(
+                    "MPCSettings.observer_model",
+                    "is the deprecated name of model_at; give model_at only",
+                )
+            kwargs["model_at"] = observer_model
+        generated(self, *args, **kwargs)
+
+    return init
+
+
+MPCSettings.__init__ = _with_observer_model(MPCSettings.__init__)  # type: ignore[method-assign]
+MPCSettings.observer_model = property(_observer_model)  # type: ignore[attr-defined]
+
+
+def _from_legacy(config: object, robot: Robot, who: str, expected: str = "MPCSettings") -> tuple:
+    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts the experiment
+    builder makes of the config (:func:`~hmpc_pin.controllers.base.config_parts`: the
+    builder registers itself, so that this layer imports nothing above it), with a
+    :class:`DeprecationWarning`."""
+    return config_parts(config, robot, who, expected)
 
 
 def state_limits(
@@ -362,7 +440,7 @@ class HierarchicalMPC(AppliedTorque):
         robot = self.robot  # how the compiled step's faults name it
         core.robot = f"the robot {robot.name!r} has {self.n} joints {robot.joint_names}"
         core.set_latency(self.settings.latency, self.settings.Ts)
-        core.set_observer_model(self.settings.observer_model == "start")
+        core.set_observer_model(self.settings.model_at == "start")
         self._obs_prev = None  # the Python path's model at the previous measurement
         b, f = self.joint_dynamics
         if b.any() or f.any():
@@ -568,7 +646,7 @@ class HierarchicalMPC(AppliedTorque):
         b, f = self.joint_dynamics
         joint = bool(b.any() or f.any())
         comp = self.compensation
-        if self.settings.observer_model == "start":  # the previous measurement's model
+        if self.settings.model_at == "start":  # the previous measurement's model
             current = (M.copy(), nle.copy())
             if self._started and self._obs_prev is not None:
                 M, nle = self._obs_prev

@@ -1,8 +1,8 @@
-"""Experiments: the TOML schema (:mod:`.schema`) and the one place a config becomes objects
-(:mod:`.build`)."""
+"""Experiments: the TOML configuration (:mod:`.config`) and the one place a config becomes
+objects (:mod:`.build`)."""
 
 from .build import Experiment, make_controller, run_experiment, with_controller
-from .schema import ControllerConfig, ExperimentConfig, load_config
+from .config import ControllerConfig, ExperimentConfig, load_config
 
 __all__ = [
     "ControllerConfig",

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..compensation.base import warn_chen_validity
+from ..compensation.registry import compensation_spec
 from ..controllers.base import Controller
 from ..controllers.computed_torque import ComputedTorque
 from ..controllers.hierarchical import HierarchicalMPC, warn_fast_damping
@@ -42,7 +43,14 @@ from ..sim.plants import Plant
 from ..sim.result import Result
 from ..sim.simulate import simulate
 from ..tasks.base import Reference, check_limits
-from .combos import HMPC_ONLY, TABLES, applies
+from .combos import HMPC_ONLY, OBSERVERS, TABLES, applies
+from .config import (
+    DEFAULT_COMPENSATION,
+    ControllerConfig,
+    ExperimentConfig,
+    RobotConfig,
+    parse_combination,
+)
 from .controllers import _limits, controller_parts, make_compensation, mpc_settings
 from .plants import (
     _effort_limit,
@@ -52,14 +60,6 @@ from .plants import (
     pinocchio_plant,
 )
 from .references import build_reference, build_task_reference, check_trajectory_limits, task_space
-from .schema import (
-    DEFAULT_COMPENSATION,
-    OBSERVERS,
-    ControllerConfig,
-    ExperimentConfig,
-    RobotConfig,
-    parse_combination,
-)
 
 __all__ = [
     "Experiment",
@@ -132,8 +132,8 @@ def make_controller(
     ``posture`` [rad] is where an observer bandwidth is made exact (the run's start; default
     :func:`~hmpc_pin.experiment.controllers.bandwidth_posture`).
 
-    ``config`` is a :class:`~hmpc_pin.experiment.schema.ControllerConfig`, a whole
-    :class:`~hmpc_pin.experiment.schema.ExperimentConfig` (its ``controller`` table is
+    ``config`` is a :class:`~hmpc_pin.experiment.config.controller.ControllerConfig`, a whole
+    :class:`~hmpc_pin.experiment.config.experiment.ExperimentConfig` (its ``controller`` table is
     used) or ``None`` (the defaults). ``hmpc`` gives a
     :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC`, ``computed-torque*`` a
     :class:`~hmpc_pin.controllers.computed_torque.ComputedTorque`; each holds the
@@ -243,7 +243,7 @@ def with_controller(
         comp = cc.compensation if cc.compensation in OBSERVERS else "chen"
     keep = {name: (getattr(cc, name) if applies(name, controller, comp) else None)
             for name in TABLES}  # fmt: skip
-    if keep["ism"] is not None and comp == "ism":
+    if keep["ism"] is not None and not compensation_spec(comp).boundary_layer:
         keep["ism"] = replace(keep["ism"], boundary_layer=None)
     if keep["computed_torque"] is not None and controller == "computed-torque":
         keep["computed_torque"] = replace(keep["computed_torque"], ki=None)
@@ -497,7 +497,7 @@ class Experiment:
         out: dict = {}
         model = ObserverModel.of(
             getattr(self.controller, "compensation", None),
-            model_at=cc.observer.model_at if cc.observer is not None else "end",
+            model_at=mpc_settings(cc, n).model_at,
         )
         if model is not None:  # the observer that runs: its matrix (cY or K_O), Ts, Euler
             out["observer_model"] = model.record()

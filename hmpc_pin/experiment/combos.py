@@ -1,6 +1,8 @@
 """Which ``[controller]`` keys and tables apply to which controller × compensation.
 
-The one registry of it: the loader (:mod:`hmpc_pin.experiment.schema`) refuses a key that
+The table a compensation is configured by is the compensation registry's
+(:mod:`hmpc_pin.compensation.registry`); the keys of the hierarchical MPC only are listed
+here. The loader (:mod:`hmpc_pin.experiment.config`) refuses a key that
 does not apply to the chosen pair, and the builder
 (:func:`~hmpc_pin.experiment.build.with_controller`) drops the keys that stop applying when a
 run switches the pair
@@ -9,12 +11,14 @@ run switches the pair
 
 from __future__ import annotations
 
+from ..compensation.registry import compensation_names, compensation_spec
+
 __all__ = ["HMPC_ONLY", "TABLES", "applies"]
 
-#: Compensations that are observers (they use ``[controller.observer]``).
-OBSERVERS = ("chen", "general", "momentum")
-#: Compensations of integral sliding mode (``[controller.ism]``).
-ISM = ("ism", "ism-bl")
+#: Compensations that are observers (they use ``[controller.observer]``; the registry's).
+OBSERVERS = compensation_names(table="observer")
+#: Compensations of integral sliding mode (``[controller.ism]``; the registry's).
+ISM = compensation_names(table="ism")
 #: Keys of the hierarchical MPC only (``kind = "hmpc"``).
 HMPC_ONLY = (
     "constraints",
@@ -35,12 +39,11 @@ def applies(name: str, controller: str, compensation: str) -> bool:
     Args:
         name: A key of :data:`HMPC_ONLY` or a table of :data:`TABLES`.
         controller: ``hmpc``, ``computed-torque`` or ``computed-torque-pid``.
-        compensation: ``chen``, ``general``, ``momentum``, ``ism``, ``ism-bl`` or ``none``.
+        compensation: A name of the compensation registry
+            (:data:`~hmpc_pin.compensation.registry.REGISTRY`).
     """
-    if name == "observer":
-        return compensation in OBSERVERS
-    if name == "ism":
-        return compensation in ISM
+    if name in ("observer", "ism"):
+        return compensation_spec(compensation).table == name
     if name == "computed_torque":
         return controller.startswith("computed-torque")
     if name in HMPC_ONLY:

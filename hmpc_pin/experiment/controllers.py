@@ -1,24 +1,26 @@
 """The controller of a ``[controller]`` table: its settings, compensation and soft limits.
 
 The part of the builder that turns a validated ``ControllerConfig`` into the arguments of a
-controller class. It imports nothing of the schema (it reads the table's attributes), so
-that the schema's deprecated path (``ControllerConfig.controller_parts``, behind the 0.1
-call ``HierarchicalMPC(robot, ControllerConfig)``) can use it without an import cycle.
+controller class. It registers :func:`controller_parts` with the controllers
+(:func:`~hmpc_pin.controllers.base.register_config_builder`) for the deprecated call of
+version 0.1, ``HierarchicalMPC(robot, ControllerConfig)``: the controllers and the config
+import nothing of the builder.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..compensation.bandwidth import implied_bandwidth, observer_cY
-from ..compensation.base import Compensation, NoCompensation
-from ..compensation.ism import IntegralSlidingMode
-from ..compensation.observers import DisturbanceObserver, MomentumObserver, observer_matrix
+from ..compensation.bandwidth import bandwidth_posture, implied_bandwidth
+from ..compensation.base import Compensation
+from ..compensation.registry import build_compensation, compensation_spec
+from ..controllers.base import register_config_builder
 from ..controllers.computed_torque import CTSettings
 from ..controllers.hierarchical import MPCSettings, state_limits
 from ..exceptions import ConfigError, URDFError
 from ..model.robot import Robot
 from ..mpc.condensed import StateLimits
+from .config.controller import MPC_KEYS, ControllerConfig
 
 __all__ = [
     "bandwidth_posture",
@@ -30,17 +32,16 @@ __all__ = [
 
 
 def mpc_settings(cc, n: int) -> MPCSettings:
-    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``."""
+    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``: the
+    table's values, MPCSettings' own defaults for those that do not apply (the settings
+    of ``hmpc`` for ``computed-torque*``, ``model_at`` without an observer)."""
     v_min, v_max = cc.bounds(n)
+    given = {name: getattr(cc, name) for name in MPC_KEYS}
+    if cc.observer is not None:
+        given["model_at"] = cc.observer.model_at
     return MPCSettings(
         Ts=cc.Ts, N=cc.N, Nc=cc.Nc, Q=cc.Q, R=cc.R, P=cc.P, v_min=v_min, v_max=v_max,
-        eps_abs=cc.eps_abs if cc.eps_abs is not None else 1e-9,
-        max_iter=cc.max_iter if cc.max_iter is not None else 1000,
-        qp_layout=cc.qp_layout if cc.qp_layout is not None else "auto",
-        backend=cc.backend if cc.backend is not None else "auto",
-        latency=cc.latency if cc.latency is not None else 0.0,
-        joint_dynamics=cc.joint_dynamics if cc.joint_dynamics is not None else True,
-        observer_model=cc.observer.model_at if cc.observer is not None else "end",
+        **{name: value for name, value in given.items() if value is not None},
     )  # fmt: skip
 
 
@@ -82,12 +83,6 @@ def _limits(cc, robot: Robot) -> StateLimits | None:
     )
 
 
-def bandwidth_posture(robot: Robot) -> np.ndarray:
-    """The posture :math:`q_0` at which a bandwidth is exact: q = 0 moved to the nearest
-    joint limit where 0 is outside the range."""
-    return np.minimum(np.maximum(np.zeros(robot.nq), robot.lower), robot.upper)
-
-
 def observer_bandwidth(robot: Robot, cc, posture: np.ndarray | None = None) -> np.ndarray | None:
     """Per joint, the bandwidth [1/s] of the observer of ``cc`` (configured, or implied
     by its gain at ``posture``, default :func:`bandwidth_posture`); ``None`` without an
@@ -98,39 +93,20 @@ def observer_bandwidth(robot: Robot, cc, posture: np.ndarray | None = None) -> n
     n = robot.nq
     if obs.bandwidth is not None:
         return np.broadcast_to(obs.bandwidth, (n,)).astype(float)
-    if cc.compensation == "momentum":
+    Y = compensation_spec(cc.compensation).Y
+    if Y is None:  # the momentum observer: its gain is its bandwidth
         return np.full(n, obs.gain)
     M0 = robot.mass_matrix(bandwidth_posture(robot) if posture is None else posture)
-    return implied_bandwidth(obs.gain * observer_matrix(cc.compensation, n), M0)
+    return implied_bandwidth(obs.gain * Y(n), M0)
 
 
 def make_compensation(robot: Robot, cc, posture: np.ndarray | None = None) -> Compensation:
     """The compensation ``cc.compensation`` names, with its table's settings (a
-    bandwidth made exact at ``posture`` [rad], default :func:`bandwidth_posture`)."""
-    n, Ts = robot.nq, cc.Ts
-    comp = cc.compensation
-    obs = cc.observer
-    if obs is not None and obs.bandwidth is not None:
-        w = obs.bandwidth
-        if w.ndim == 1 and w.shape != (n,):
-            raise ConfigError(
-                "controller.observer.bandwidth",
-                f"has {w.shape[0]} entries but the robot has {n} joints",
-            )
-        w = np.broadcast_to(w, (n,)).astype(float)
-        if comp == "momentum":
-            return MomentumObserver(robot, Ts, w)
-        q0 = bandwidth_posture(robot) if posture is None else posture
-        cY = observer_cY(w, robot.mass_matrix(q0))
-        return DisturbanceObserver(n, Ts, 1.0, "general", obs.discretization, cY=cY)
-    if comp in ("chen", "general"):
-        return DisturbanceObserver(n, Ts, cc.observer.gain, comp, cc.observer.discretization)
-    if comp == "momentum":
-        return MomentumObserver(robot, Ts, cc.observer.gain)
-    if comp in ("ism", "ism-bl"):
-        width = cc.ism.width(Ts) if comp == "ism-bl" else None
-        return IntegralSlidingMode(n, Ts, cc.ism.gain, width)
-    return NoCompensation(n)
+    bandwidth made exact at ``posture`` [rad], default :func:`bandwidth_posture`), as the
+    registry builds it (:func:`~hmpc_pin.compensation.registry.build_compensation`)."""
+    spec = compensation_spec(cc.compensation)
+    table = getattr(cc, spec.table) if spec.table is not None else None
+    return build_compensation(spec.name, robot, cc.Ts, table, posture)
 
 
 def controller_parts(robot: Robot, cc, posture: np.ndarray | None = None) -> tuple:
@@ -146,3 +122,6 @@ def controller_parts(robot: Robot, cc, posture: np.ndarray | None = None) -> tup
         settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
     )
     return gains, compensation
+
+
+register_config_builder(ControllerConfig, controller_parts)

@@ -344,7 +344,7 @@ class InitPlan:
         M(q) changes costs a tracking error that grows as Ts³ (talos_arm: 4.9e-3 rad at
         10 ms, 6.1e-4 at 5 ms); most arms keep 10 ms."""
         from .build import Experiment
-        from .schema import load_config
+        from .config import load_config
 
         for Ts in self.periods():
             self.Ts = Ts

@@ -12,7 +12,7 @@ from ..model.robot import Robot, damping_time_constants
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
 from ..sim.mujoco import MuJoCoSettings, Obstacle
 from ..sim.plants import PLANTS, Plant, RK4Plant
-from .schema import (
+from .config import (
     ExperimentConfig,
     PlantConfig,
 )

@@ -28,7 +28,7 @@ from ..tasks.quintic import QuinticReference
 from ..tasks.sine import SineReference
 from ..tasks.trajectory import JointTrajectory, load_trajectory
 from ..tasks.waypoints import retime_waypoints
-from .schema import (
+from .config import (
     ExperimentConfig,
 )
 

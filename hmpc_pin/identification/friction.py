@@ -52,6 +52,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..compensation.registry import compensation_names, compensation_spec
+from ..controllers.hierarchical import MODEL_AT, MPCSettings
 from ..exceptions import ConfigError, ExcitationError
 from ..sim.result import Result
 
@@ -360,10 +362,12 @@ class ObserverModel:
     robot: object = None
     implicit: bool = True
     matrix: np.ndarray | None = None
-    model_at: str = "end"
+    model_at: str = MPCSettings.model_at
 
     @classmethod
-    def of(cls, compensation, robot=None, model_at: str = "end") -> ObserverModel | None:
+    def of(
+        cls, compensation, robot=None, model_at: str = MPCSettings.model_at
+    ) -> ObserverModel | None:
         """The model of a built observer (the object that runs, not its config), or
         ``None`` when ``compensation`` is no observer. A feedback gate
         (:class:`~hmpc_pin.compensation.gate.FeedbackGate`) is looked through."""
@@ -408,8 +412,9 @@ class ObserverModel:
         if not isinstance(record, dict):
             raise bad(f"is {type(record).__name__}, expected a table")
         kind, Ts = record.get("kind"), record.get("Ts")
-        if kind not in ("chen", "general", "momentum"):
-            raise bad(f"names the kind {kind!r}, expected 'chen', 'general' or 'momentum'")
+        kinds = compensation_names(table="observer")
+        if kind not in kinds:
+            raise bad(f"names the kind {kind!r}, expected one of {kinds}")
         try:
             Ts = float(Ts)
         except (TypeError, ValueError):
@@ -417,9 +422,9 @@ class ObserverModel:
         if not (np.isfinite(Ts) and Ts > 0):
             raise bad(f"has the period Ts = {Ts!r}, expected > 0 [s]")
         implicit = record.get("discretization", "implicit") == "implicit"
-        model_at = record.get("model_at", "end")
-        if model_at not in ("end", "start"):
-            raise bad(f"has model_at = {model_at!r}, expected 'end' or 'start'")
+        model_at = record.get("model_at", "end")  # records without it ran at the end
+        if model_at not in MODEL_AT:
+            raise bad(f"has model_at = {model_at!r}, expected one of {MODEL_AT}")
         if record.get("matrix") is not None:
             M = np.asarray(record["matrix"], dtype=float)
             if M.ndim != 2 or M.shape[0] != M.shape[1] or (n is not None and M.shape[0] != n) \
@@ -436,7 +441,7 @@ class ObserverModel:
             raise bad(f"has no observer matrix and the gain {gain!r} (a bandwidth observer "
                       "recorded by an older version); run it again to record the observer "
                       "that ran")  # fmt: skip
-        if g.ndim == 1 and kind != "momentum":
+        if g.ndim == 1 and compensation_spec(kind).Y is not None:
             raise bad(f"has a per-joint gain for the {kind!r} observer, expected one value")
         return cls(kind, g if g.ndim else float(g), Ts, robot, implicit, None, model_at)
 
@@ -448,16 +453,17 @@ class ObserverModel:
         """
         K, n, p = phi.shape
         g = np.zeros_like(phi)
-        if self.kind == "momentum":
+        Y = compensation_spec(self.kind).Y  # None: L = diag(K_O) (the momentum observer)
+        if Y is None:
             a = self.Ts * np.broadcast_to(np.asarray(self.gain, dtype=float), (n,))[:, None]
         elif self.matrix is not None:
             cY = np.asarray(self.matrix, dtype=float)
         else:
-            cY = self.gain * (np.tril(np.ones((n, n))) if self.kind == "chen" else np.eye(n))
+            cY = self.gain * Y(n)
         shift = 1 if self.model_at == "start" else 0
         prev = np.zeros((n, p))
         for k in range(1, K):
-            if self.kind == "momentum":
+            if Y is None:
                 prev = (prev + a * phi[k]) / (1 + a)
             else:
                 M = self.robot.mass_matrix(q[k - shift])

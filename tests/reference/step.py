@@ -21,7 +21,7 @@ torque :math:`J = B\\dot q + F\\sigma + (g - 1)v/(M^{-1})_{jj}`), and joint j's 
 :math:`f_j\\,\\mathrm{sgn}\\,\\dot q_j` is replaced by :math:`f_j\\sigma_j`, the sign of the
 velocity's path over the period averaged by quadrature (:meth:`OracleHMPC._mean_sign`).
 
-With ``observer_model = "start"`` step 2 takes :math:`M` and :math:`C\\dot q + G` of the
+With ``model_at = "start"`` step 2 takes :math:`M` and :math:`C\\dot q + G` of the
 previous step's measured state (the state the held torque was computed from) instead of
 this step's.
 """
@@ -57,7 +57,7 @@ class OracleHMPC:
             self.ndo = NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit")
         self.data = self.robot.model.createData()
         self.joint = ctrl.joint_dynamics  # (B, F) compensated (zeros: none)
-        self.at_start = s.observer_model == "start"
+        self.at_start = s.model_at == "start"
 
     def reset(self, dq0: np.ndarray) -> None:
         if self.ndo is not None:

@@ -8,21 +8,28 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ...checks import as_latency, mpc_fields
+from ...checks import mpc_fields
+from ...compensation.registry import REGISTRY, compensation_names, compensation_spec
+from ...controllers.hierarchical import MPCSettings, check_settings
 from ...exceptions import ConfigError
-from ...native import BACKENDS
-from ..combos import HMPC_ONLY, OBSERVERS, applies
-from ._fields import _array, _bool, _choice, _float, _int, _section, _set
+from ..combos import HMPC_ONLY, applies
+from ._fields import _array, _bool, _choice, _float, _section, _set
 from .friction import FrictionModelConfig
 from .legacy import KIND_ALIASES, resolve_compensation
 
 #: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
 CONTROLLERS = ("hmpc", "computed-torque", "computed-torque-pid")
-#: Compensations (``[controller] compensation``): the disturbance estimate cancelled.
-COMPENSATIONS = ("chen", "general", "momentum", "ism", "ism-bl", "none")
+#: Compensations (``[controller] compensation``): the disturbance estimate cancelled; the
+#: names of the registry (:data:`~hmpc_pin.compensation.registry.REGISTRY`).
+COMPENSATIONS = compensation_names()
 #: Compensations advanced inside the compiled step (the others are called from Python
 #: between its two compiled halves); kept for callers of version 0.2.
-NATIVE_COMPENSATIONS = ("chen", "general", "none")
+NATIVE_COMPENSATIONS = tuple(name for name, spec in REGISTRY.items() if spec.compiled)
+
+
+#: The keys of ``[controller]`` that are settings of the MPC only (``kind = "hmpc"``):
+#: unset (``None``) until resolved, then MPCSettings' default where not given.
+MPC_KEYS = ("eps_abs", "max_iter", "qp_layout", "backend", "latency", "joint_dynamics")
 
 
 def parse_combination(name: str, key: str = "controller") -> tuple[str, str | None]:
@@ -48,11 +55,7 @@ def parse_combination(name: str, key: str = "controller") -> tuple[str, str | No
         )
     if not plus:
         return controller, None
-    if compensation not in COMPENSATIONS:
-        raise ConfigError(
-            key, f"unknown compensation {compensation!r} in {name!r}; expected one of "
-            f"{COMPENSATIONS}",
-        )  # fmt: skip
+    compensation_spec(compensation, key)  # one error naming every registered name
     return controller, compensation
 
 
@@ -73,11 +76,12 @@ class ObserverConfig:
         discretization: ``"implicit"`` (backward Euler, stable for any c) or ``"explicit"``
             (not for ``"momentum"``, which is always semi-implicit).
         model_at: Where the observer's model M, C q̇ + G is evaluated over the period that
-            just ended: ``"end"`` (default, the new measurement: Eq 13 as the paper
-            discretises it) or ``"start"`` (the state the torque held over the period was
-            computed from; what ``hmpc-pin init`` writes). ``"start"`` makes the estimate
-            the correction Eq (4) needs for the next period
-            (:attr:`~hmpc_pin.controllers.hierarchical.MPCSettings.observer_model`).
+            just ended: ``"end"`` (the new measurement: Eq 13 as the paper discretises
+            it) or ``"start"`` (the state the torque held over the period was computed
+            from; what ``hmpc-pin init`` writes). ``"start"`` makes the estimate the
+            correction Eq (4) needs for the next period. The controller's setting
+            :attr:`~hmpc_pin.controllers.hierarchical.MPCSettings.model_at`: its default
+            and its check are that class's.
         enabled: Version 0.1 key, with ``kind = "hmpc"`` only: ``false`` means
             compensation ``"none"`` (the whole table is then switched off). Superseded
             by ``[controller] compensation``.
@@ -91,14 +95,14 @@ class ObserverConfig:
     enabled: bool | None = None
     kind: str | None = None
     bandwidth: np.ndarray | None = None
-    model_at: str = "end"
+    model_at: str = MPCSettings.model_at
 
     def __post_init__(self):
-        _set(self, "model_at", _choice("model_at", self.model_at, ("end", "start")))
+        _set(self, "model_at", check_settings({"model_at": self.model_at})["model_at"])
         if self.enabled is not None:
             _set(self, "enabled", _bool("enabled", self.enabled))
         if self.kind is not None:
-            _set(self, "kind", _choice("kind", self.kind, OBSERVERS))
+            _set(self, "kind", _choice("kind", self.kind, compensation_names(table="observer")))
         if self.bandwidth is not None:
             if self.gain is not None:
                 raise ConfigError(
@@ -237,7 +241,9 @@ class ControllerConfig:
     pair (``observer`` without an observer, ``ism`` without ISM, ``computed_torque``
     or ``constraints`` with the other controller) is a :class:`ConfigError` naming it.
     After validation ``kind`` and ``compensation`` hold the resolved pair and exactly
-    the applicable tables are set (the others are ``None``).
+    the applicable tables are set (the others are ``None``). The MPC's settings are the
+    controller's own, :class:`~hmpc_pin.controllers.hierarchical.MPCSettings`: each default
+    and each check is stated there, once, and read here.
 
     Attributes:
         kind: The controller, one of :data:`CONTROLLERS` (default ``"hmpc"``), or a
@@ -256,8 +262,8 @@ class ControllerConfig:
             (paper: −100, 100).
         observer: :class:`ObserverConfig` (compensations ``chen``, ``general``, ``momentum``).
         constraints: :class:`ConstraintConfig` (``hmpc``: joint limits as soft constraints).
-        eps_abs: ProxSuite absolute tolerance (``hmpc``; unset: 1e-9).
-        max_iter: ProxSuite iteration cap per solve (``hmpc``; unset: 1000).
+        eps_abs: ProxSuite absolute tolerance (``hmpc``; unset: MPCSettings').
+        max_iter: ProxSuite iteration cap per solve (``hmpc``; unset: MPCSettings').
         qp_layout: ``"auto"`` (default: ``"block"`` up to n·Nc = 140 QP variables,
             ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
             QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per
@@ -282,14 +288,14 @@ class ControllerConfig:
 
     kind: str = "hmpc"
     compensation: str | None = None
-    Ts: float = 0.01
-    N: int = 10
-    Nc: int = 1
-    Q: np.ndarray = field(default_factory=lambda: np.diag([50.0, 0.0]))
-    R: float = 1e-6
-    P: np.ndarray = field(default_factory=lambda: np.diag([100.0, 0.0]))
-    v_min: np.ndarray = -100.0
-    v_max: np.ndarray = 100.0
+    Ts: float = MPCSettings.Ts
+    N: int = MPCSettings.N
+    Nc: int = MPCSettings.Nc
+    Q: np.ndarray = field(default_factory=lambda: MPCSettings.default("Q"))
+    R: float = MPCSettings.R
+    P: np.ndarray = field(default_factory=lambda: MPCSettings.default("P"))
+    v_min: np.ndarray = MPCSettings.v_min
+    v_max: np.ndarray = MPCSettings.v_max
     observer: ObserverConfig | None = None
     constraints: ConstraintConfig | None = None
     eps_abs: float | None = None
@@ -325,7 +331,7 @@ class ControllerConfig:
     def _resolve(self) -> None:
         """Resolve ``kind``/``compensation`` to one pair; reject tables that do not apply."""
         if self.compensation is not None:
-            _choice("compensation", self.compensation, COMPENSATIONS)
+            compensation_spec(self.compensation)  # one error naming every registered name
         controller, alias_comp = parse_combination(self.kind, "kind")
         if "+" in self.kind:
             raise ConfigError(
@@ -336,30 +342,34 @@ class ControllerConfig:
             self.kind, controller, alias_comp, self.compensation, self.observer
         )
         # The tables of the pair; any other given table is an error.
+        spec = compensation_spec(comp)
         if applies("observer", controller, comp):
             obs = obs if obs is not None else ObserverConfig()
             if (obs.enabled, obs.kind) != (None, None):  # 0.1 keys, now resolved
                 obs = replace(obs, enabled=None, kind=None)
-            if comp == "chen" and obs.bandwidth is not None:
+            if not spec.bandwidth and obs.bandwidth is not None:
+                takes = tuple(n for n, s in REGISTRY.items() if s.bandwidth)
                 raise ConfigError(
-                    "observer.bandwidth", "does not apply to compensation 'chen' (its Y is "
-                    "fixed, Eq 28); give gain, or use compensation 'general' or 'momentum'",
+                    "observer.bandwidth", f"does not apply to compensation {comp!r} "
+                    f"({spec.summary}: its Y is fixed); give gain, or use a compensation of "
+                    f"{takes}",
                 )  # fmt: skip
-            if comp == "momentum" and obs.discretization != "implicit":
+            if obs.discretization not in spec.discretizations:
                 raise ConfigError(
                     "observer.discretization",
-                    "the momentum observer has only the semi-implicit form; remove the key "
-                    "or set it to 'implicit'",
+                    f"compensation {comp!r} ({spec.summary}) has only the form(s) "
+                    f"{spec.discretizations}; remove the key or set it to one of them",
                 )
         elif obs is not None:
             self._not_applicable("observer", controller, comp)
         ism = self.ism
         if applies("ism", controller, comp):
             ism = ism if ism is not None else ISMConfig()
-            if comp == "ism" and ism.boundary_layer is not None:
+            if not spec.boundary_layer and ism.boundary_layer is not None:
+                takes = tuple(n for n, s in REGISTRY.items() if s.boundary_layer)
                 raise ConfigError(
                     "ism.boundary_layer",
-                    "applies only to compensation 'ism-bl' (the pure sign law has none)",
+                    f"applies only to compensation(s) {takes} (the pure sign law has none)",
                 )
         elif ism is not None:
             self._not_applicable("ism", controller, comp)
@@ -378,31 +388,16 @@ class ControllerConfig:
                 self._not_applicable("computed_torque", controller, comp)
             if self.constraints is None:
                 _set(self, "constraints", ConstraintConfig())
-            eps = 1e-9 if self.eps_abs is None else self.eps_abs
-            _set(self, "eps_abs", _float("eps_abs", eps, positive=True))
-            cap = 1000 if self.max_iter is None else self.max_iter
-            _set(self, "max_iter", _int("max_iter", cap, minimum=1))
-            layout = "auto" if self.qp_layout is None else self.qp_layout
-            _set(self, "qp_layout", _choice("qp_layout", layout, ("auto", "block", "joint")))
-            backend = "auto" if self.backend is None else self.backend
-            _set(self, "backend", _choice("backend", backend, BACKENDS))
-            latency = 0.0 if self.latency is None else self.latency
-            _set(self, "latency", as_latency("latency", latency))
-            jd = True if self.joint_dynamics is None else self.joint_dynamics
-            _set(self, "joint_dynamics", _bool("joint_dynamics", jd))
+            # the settings of the MPC: MPCSettings' defaults where not given, its checks
+            given = {name: getattr(self, name) for name in MPC_KEYS}
+            given = {k: MPCSettings.default(k) if v is None else v for k, v in given.items()}
+            for name, value in check_settings(given).items():
+                _set(self, name, value)
         _set(self, "kind", controller)
         _set(self, "compensation", comp)
         _set(self, "observer", obs)
         _set(self, "ism", ism)
         _set(self, "computed_torque", ct)
-
-    def controller_parts(self, robot) -> tuple:
-        """The constructor arguments after ``robot`` of this controller's class (the
-        deprecated 0.1 call ``HierarchicalMPC(robot, ControllerConfig)`` asks for them;
-        :func:`hmpc_pin.experiment.controllers.controller_parts`)."""
-        from ..controllers import controller_parts
-
-        return controller_parts(robot, self)
 
     @staticmethod
     def _not_applicable(name: str, controller: str, comp: str) -> None:

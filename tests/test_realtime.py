@@ -1134,8 +1134,8 @@ def test_the_default_brake_is_the_inertia_brake_and_a_weak_damping_warns(tmp_pat
 
     from hmpc_pin.exceptions import ConfigError, ValidityWarning
     from hmpc_pin.experiment.build import Experiment, realtime_parts
+    from hmpc_pin.experiment.config import load_config
     from hmpc_pin.experiment.config.realtime import RealtimeConfig
-    from hmpc_pin.experiment.schema import load_config
 
     config = load_config("paper_combined")
     _, _, safe = realtime_parts(Experiment.from_config(config))

@@ -75,21 +75,45 @@ def _fmt(arr, spec=".2e") -> str:
     return ", ".join("never" if v != v else format(v, spec) for v in arr)
 
 
-def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
-    out = []
+class _Claims(list):
+    """The claims checked so far; :meth:`add` checks one whose runs all ran."""
 
-    def add(section, text, check, fn: Callable[[], tuple[bool, str]], needs=()):
-        if not all(k in metrics for k in needs):
+    def __init__(self, runs: dict, metrics: dict):
+        super().__init__()
+        self.runs, self.metrics = runs, metrics
+
+    def add(self, section, text, check, fn: Callable[[], tuple[bool, str]], needs=()) -> None:
+        if not all(k in self.metrics for k in needs):
             return
         ok, ev = fn()
-        out.append(Claim(section, text, check, ev, ok))
+        self.append(Claim(section, text, check, ev, ok))
+
+
+def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
+    """Every claim of the paper's section 5, each with its reading and evidence."""
+    out = _Claims(runs, metrics)
+    _friction_claims(out, runs, metrics)
+    _external_and_combined_claims(out, metrics)
+    if cart is not None:
+        _cartesian_claims(out, cart)
+    return list(out)
+
+
+def _relative_observer_error(runs: dict, metrics: dict, name: str, joints) -> np.ndarray:
+    """RMS(d − d̂) after 1 s over RMS(d) of run ``name`` on ``joints``."""
+    r = runs[name]
+    mask = r.t >= 1.0
+    scale = np.sqrt(np.mean(r.d[mask] ** 2, axis=0))
+    rel = metrics[name].observer_rms / np.maximum(scale, 1e-12)
+    return rel[joints]
+
+
+def _friction_claims(out: _Claims, runs: dict, metrics: dict) -> None:
+    """Section 5.1 (unknown friction), with both readings of Eq 32's sign."""
+    add = out.add
 
     def rel_obs(name, joints):
-        r = runs[name]
-        mask = r.t >= 1.0
-        scale = np.sqrt(np.mean(r.d[mask] ** 2, axis=0))
-        rel = metrics[name].observer_rms / np.maximum(scale, 1e-12)
-        return rel[joints]
+        return _relative_observer_error(runs, metrics, name, joints)
 
     add(
         "5.1",
@@ -172,6 +196,11 @@ def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
         ),
         ("paper_friction_literal",),
     )
+
+
+def _external_and_combined_claims(out: _Claims, metrics: dict) -> None:
+    """Sections 5.2 (external disturbances) and 5.3 (both together)."""
+    add = out.add
     add(
         "5.2",
         "The estimated values of the NDO approximate the actual values of the unknown external "
@@ -227,35 +256,37 @@ def _claims(runs: dict, metrics: dict, cart: dict | None) -> list[Claim]:
         ),
         ("paper_combined",),
     )
-    if cart is not None:
+
+
+def _cartesian_claims(out: _Claims, cart: dict) -> None:
+    """Section 5.4 (a Cartesian target)."""
+    out.append(
+        Claim(
+            "5.4",
+            "The robot manipulator can still reach the preset position in Cartesian space "
+            "well even under unknown frictions and external disturbances.",
+            "final tool position error below 1e-3 and link-3 angle error below 1e-3 rad",
+            f"final tool position error {cart['pos_err']:.2e}, angle error "
+            f"{cart['ang_err']:.2e} rad (t = {cart['t']:.1f} s)"
+            + (f"; without NDO the final error is {cart['base_pos_err']:.2e} m: this "
+               "check passes without the observer too" if "base_pos_err" in cart else ""),
+            bool(cart["pos_err"] < 1e-3 and cart["ang_err"] < 1e-3),
+        )
+    )  # fmt: skip
+    if "base_path_dev" in cart:
+        t0, t1 = cart["move"]
         out.append(
             Claim(
                 "5.4",
-                "The robot manipulator can still reach the preset position in Cartesian space "
-                "well even under unknown frictions and external disturbances.",
-                "final tool position error below 1e-3 and link-3 angle error below 1e-3 rad",
-                f"final tool position error {cart['pos_err']:.2e}, angle error "
-                f"{cart['ang_err']:.2e} rad (t = {cart['t']:.1f} s)"
-                + (f"; without NDO the final error is {cart['base_pos_err']:.2e} m: this "
-                   "check passes without the observer too" if "base_pos_err" in cart else ""),
-                bool(cart["pos_err"] < 1e-3 and cart["ang_err"] < 1e-3),
+                "... even under unknown frictions and external disturbances (the "
+                "observer's part in it).",
+                f"max tool position error during the move ({t0:g}–{t1:g} s) with NDO at "
+                "least 5× below the run without NDO",
+                f"max |p(q) − p(r)| during the move: {cart['path_dev']:.2e} m with NDO, "
+                f"{cart['base_path_dev']:.2e} m without",
+                bool(5 * cart["path_dev"] <= cart["base_path_dev"]),
             )
-        )  # fmt: skip
-        if "base_path_dev" in cart:
-            t0, t1 = cart["move"]
-            out.append(
-                Claim(
-                    "5.4",
-                    "... even under unknown frictions and external disturbances (the "
-                    "observer's part in it).",
-                    f"max tool position error during the move ({t0:g}–{t1:g} s) with NDO at "
-                    "least 5× below the run without NDO",
-                    f"max |p(q) − p(r)| during the move: {cart['path_dev']:.2e} m with NDO, "
-                    f"{cart['base_path_dev']:.2e} m without",
-                    bool(5 * cart["path_dev"] <= cart["base_path_dev"]),
-                )
-            )
-    return out
+        )
 
 
 def comparison_claims(comp) -> list[Claim]:
@@ -386,16 +417,7 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
     Returns:
         ``True`` if every run completed.
     """
-    import pinocchio as pin
-    import proxsuite
-    from tqdm import tqdm
-
-    from .. import __version__
-    from ..model.planar import tool_pose, workspace_points
-    from . import plots
-    from .compare import compare, markdown_table
-    from .metrics import settling_time
-    from .run import run_one
+    from .compare import compare
 
     configs_dir = Path(configs_dir) if configs_dir else REPO_CONFIGS
     start = time.perf_counter()
@@ -405,8 +427,38 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
         if exp.baseline:
             tasks.append(exp.baseline)
     configs = {name: load_config(configs_dir / f"{name}.toml") for name in tasks}
+    runs, metrics, failures = _run_paper(configs, tasks, out, progress)
+    figures = _paper_figures(runs, out)
+    robot = load_robot_config(configs["paper_combined"].robot)
+    figures.insert(0, _workspace_figure(robot, configs["paper_combined"], out))
+    cart = _cartesian(robot, configs, runs, out, figures)
+    claims = _claims(runs, metrics, cart)
+    comp, comp_files = compare(configs["paper_combined"], out, progress=False,
+                               sweep_boundary_layer=False)  # fmt: skip
+    claims += comparison_claims(comp)
+    figures += [
+        (comp_files[-2], "Controller comparison, Section 5.3 scenario: tracking error of every "
+                         "controller (log scale)."),
+        (comp_files[-1], "Controller comparison, Section 5.3 scenario: torque over 2–2.5 s "
+                         "(the ISM's chattering)."),
+    ]  # fmt: skip
+    elapsed = time.perf_counter() - start
+    lines = _report_lines(out, elapsed, configs, runs, metrics, failures, claims, comp, cart,
+                          figures)  # fmt: skip
+    (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
+    if progress:
+        print(f"wrote {out / 'report.md'} ({len(figures)} figures) in {elapsed:.1f} s")
+    return not set(failures) - EXPECTED_FAILURES
 
-    runs, metrics, failures, figures = {}, {}, {}, []
+
+def _run_paper(configs: dict, tasks: list[str], out: Path, progress: bool):
+    """Run ``tasks`` (config names) into ``out``: ``(runs, metrics, failures)``."""
+    from tqdm import tqdm
+
+    from .metrics import settling_time
+    from .run import run_one
+
+    runs, metrics, failures = {}, {}, {}
     bar = tqdm(tasks, desc="reproduce", unit="run", disable=not progress)
     for name in bar:
         bar.set_postfix_str(name)
@@ -419,7 +471,15 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
             metrics[name + "_band"] = settling_time(result.t, result.error, 0.02)
             metrics[name + "_t0"] = compute_metrics(result, after=0.0)
 
-    # Figures in the paper's numbering
+    return runs, metrics, failures
+
+
+def _paper_figures(runs: dict, out: Path) -> list[tuple]:
+    """The figures in the paper's numbering, ``(path, caption)``, and each run's error
+    against its baseline."""
+    from . import plots
+
+    figures: list[tuple] = []
     for exp in PAPER_EXPERIMENTS:
         if exp.baseline and exp.name in runs and exp.baseline in runs:
             figures.append(
@@ -446,9 +506,15 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
                 )
                 figures.append((path, f"Paper {fig} — Section {exp.section}: {what}."))
 
-    robot_cfg = configs["paper_combined"].robot
-    robot = load_robot_config(robot_cfg)
-    q0 = configs["paper_combined"].vector("simulation.q0", robot.nq)
+    return figures
+
+
+def _workspace_figure(robot, config, out: Path) -> tuple:
+    """Paper Figure 3(b), ``(path, caption)``."""
+    from ..model.planar import workspace_points
+    from . import plots
+
+    q0 = config.vector("simulation.q0", robot.nq)
     ws = plots.plot_workspace(
         robot,
         out / "figure3b_workspace.png",
@@ -456,15 +522,19 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
         workspace_points(robot),
         "Workspace within the joint limits of Eq 27",
     )
-    figures.insert(
-        0,
-        (
-            ws,
-            "Paper Figure 3(b): the arm's workspace (tool positions reachable "
-            "within the joint limits of Eq 27), the arm drawn at q = 0 and at the "
-            "start pose of Sections 5.1–5.3.",
-        ),
+    return (
+        ws,
+        "Paper Figure 3(b): the arm's workspace (tool positions reachable "
+        "within the joint limits of Eq 27), the arm drawn at q = 0 and at the "
+        "start pose of Sections 5.1–5.3.",
     )
+
+
+def _cartesian(robot, configs: dict, runs: dict, out: Path, figures: list) -> dict | None:
+    """Section 5.4's figures (appended to ``figures``): the final tool errors, the path
+    deviation with and without the NDO; ``None`` without the Cartesian run."""
+    from ..model.planar import tool_pose
+    from . import plots
 
     cart = None
     if "paper_cartesian" in runs and len(runs["paper_cartesian"].t) > 1:
@@ -509,17 +579,18 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
             )
         )
 
-    claims = _claims(runs, metrics, cart)
-    comp, comp_files = compare(configs["paper_combined"], out, progress=False,
-                               sweep_boundary_layer=False)  # fmt: skip
-    claims += comparison_claims(comp)
-    figures += [
-        (comp_files[-2], "Controller comparison, Section 5.3 scenario: tracking error of every "
-                         "controller (log scale)."),
-        (comp_files[-1], "Controller comparison, Section 5.3 scenario: torque over 2–2.5 s "
-                         "(the ISM's chattering)."),
-    ]  # fmt: skip
-    elapsed = time.perf_counter() - start
+    return cart
+
+
+def _report_lines(out: Path, elapsed: float, configs: dict, runs: dict, metrics: dict,
+                  failures: dict, claims: list, comp, cart, figures) -> list[str]:  # fmt: skip
+    """The report's Markdown lines."""
+    import pinocchio as pin
+    import proxsuite
+
+    from .. import __version__
+    from .compare import markdown_table
+
     joint_names = runs["paper_combined"].joint_names
     lines = [
         "# hmpc_pin — reproduction of Li et al. (2022), Section 5",
@@ -593,7 +664,4 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
     lines += ["", "## Figures", ""]
     for path, caption in figures:
         lines += [f"![{caption}]({Path(path).name})", "", f"*{caption}*", ""]
-    (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
-    if progress:
-        print(f"wrote {out / 'report.md'} ({len(figures)} figures) in {elapsed:.1f} s")
-    return not set(failures) - EXPECTED_FAILURES
+    return lines

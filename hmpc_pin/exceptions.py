@@ -145,6 +145,13 @@ class OutputError(HmpcError, ValueError):
         super().__init__(f"{where}{what} {self.path!r} {reason}; {fix} you can write to")
 
 
+class NodeShutDown(KeyboardInterrupt):
+    """A ROS 2 lifecycle node waiting for its activation (``[ros] autostart = false``) was
+    shut down by its orchestrator first: a stop from outside before anything ran, sent or
+    was written (exit 130, as Ctrl-C). A :class:`KeyboardInterrupt`, as
+    :class:`RunInterrupted`."""
+
+
 class RunInterrupted(KeyboardInterrupt):
     """The user interrupted a run (Ctrl-C, SIGINT) and what it computed was kept.
 

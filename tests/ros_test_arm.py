@@ -34,7 +34,8 @@ from pathlib import Path
 import numpy as np
 
 SCENARIOS = ("traffic", "nan", "silent", "stall", "delay", "trajectory", "interrupt",
-             "deactivate", "remap", "gravity_arm", "inactive", "sim_time")  # fmt: skip
+             "deactivate", "remap", "gravity_arm", "inactive", "sim_time",
+             "shutdown_inactive")  # fmt: skip
 #: "sim_time": a simulator's arm (Gazebo-like) at a real-time factor of 0.5: states stamped
 #: on its simulated clock (from SIM0, one period per period), /clock published, the
 #: controller run with use_sim_time.
@@ -290,10 +291,10 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
         else:
             pub.publish(state_msg(stamp))
         published += 1
-        if scenario == "inactive" and "activate" not in acted:
-            acted.add("activate")  # an orchestrator: configure, wait, then activate
-            threading.Thread(target=_activate, args=(node, report, commands, lock),
-                             daemon=True).start()  # fmt: skip
+        if scenario in ("inactive", "shutdown_inactive") and "activate" not in acted:
+            acted.add("activate")  # an orchestrator: configure, wait, then activate (or shut down)
+            threading.Thread(target=_activate, args=(node, report, commands, lock,
+                             scenario == "shutdown_inactive"), daemon=True).start()  # fmt: skip
         if run_t is None:
             continue
         matched = scenario == "trajectory" and traj_pub.get_subscription_count() > 0
@@ -355,7 +356,7 @@ def _deactivate(node, report) -> None:
         report["events"]["deactivated"] = None if res is None else bool(res.success)
 
 
-def _activate(node, report, commands, lock) -> None:
+def _activate(node, report, commands, lock, shutdown: bool = False) -> None:
     """An orchestrator (``ros2 lifecycle set ... configure``, then ``activate``) for a
     controller started with ``[ros] autostart = false``: the commands received before
     the activation are counted (there must be none)."""
@@ -369,10 +370,10 @@ def _activate(node, report, commands, lock) -> None:
     res = state.call(GetState.Request(), timeout_sec=10.0)
     report["events"]["state_at_start"] = None if res is None else res.current_state.label
     time.sleep(0.5)  # states stream meanwhile; an inactive controller answers none
-    for name in ("configure", "activate"):
+    for name in ("unconfigured_shutdown",) if shutdown else ("configure", "activate"):
         req = ChangeState.Request()
         req.transition.id = getattr(Transition, f"TRANSITION_{name.upper()}")
-        if name == "activate":
+        if name in ("activate", "unconfigured_shutdown"):
             time.sleep(0.3)
             with lock:
                 report["events"]["commands_before_activate"] = len(commands)

@@ -1141,10 +1141,59 @@ def test_the_default_brake_is_the_inertia_brake_and_a_weak_damping_warns(tmp_pat
     _, _, safe = realtime_parts(Experiment.from_config(config))
     assert safe.brake_time == pytest.approx(config.realtime.hold / 6)
     weak = dc_replace(config, realtime=RealtimeConfig(damping=2.0))
-    with pytest.warns(ValidityWarning, match=r"realtime\.damping.*time constant of (\d+\.?\d*) s"):
+    with pytest.warns(ValidityWarning, match=r"realtime\.damping.*time constant of") as rec:
         _, _, safe = realtime_parts(Experiment.from_config(weak))
     assert safe.brake_time is None
+    # the figure quoted is the arm's slowest mode under D = 2 (numpy's eig of D⁻¹M at q0)
+    import re
+
+    quoted = float(re.search(r"time constant of ([0-9.]+) s", str(rec[0].message)).group(1))
+    robot = Experiment.from_config(weak).robot
+    M0 = robot.mass_matrix(Experiment.from_config(weak).q0)
+    assert quoted == pytest.approx(np.max(np.linalg.eigvals(M0 / 2.0).real), rel=5e-3)
     with pytest.raises(ConfigError, match=r"damping.*does not apply with brake_time"):
         RealtimeConfig(damping=2.0, brake_time=0.1)
-    with pytest.raises(ConfigError, match=r"brake_time.*two interface periods"):
-        RealtimeConfig(brake_time=1e-3)
+
+
+def test_the_brake_time_is_checked_at_the_rate_that_runs_and_hold_0_is_no_crash():
+    """The inertia brake's minimum e·(d+1)·P follows the interface period that runs (a ROS
+    rate of 100 Hz, not ``[realtime] rate``) and the declared latency; the discrete brake
+    v_{k+1} = v_k − (P/T_b)·v_{k−d} at that minimum decays without changing sign (numpy
+    recursion) and at a third of it oscillates; hold = 0 with a damping builds, no error."""
+    import math
+    from dataclasses import replace as dc_replace
+
+    from hmpc_pin.exceptions import ConfigError
+    from hmpc_pin.experiment.build import (
+        Experiment,
+        brake_settings,
+        minimum_brake_time,
+        realtime_parts,
+    )
+    from hmpc_pin.experiment.config import load_config
+    from hmpc_pin.experiment.config.realtime import RealtimeConfig
+
+    config = load_config("panda_sine")
+    given = dc_replace(config, realtime=RealtimeConfig(brake_time=0.01))
+    assert brake_settings(given, 1e-3) == (None, 0.01)  # 1 kHz: minimum e·2·1 ms = 5.4 ms
+    with pytest.raises(ConfigError, match=r"realtime\.brake_time.*P = 0\.01 s"):
+        brake_settings(given, 1e-2)  # 100 Hz: minimum 54 ms
+    late = dc_replace(given, controller=dc_replace(config.controller, latency=3e-3))
+    assert minimum_brake_time(late, 1e-3) == pytest.approx(math.e * 5 * 1e-3)  # d = 1 + 3
+
+    def brake(d, T_b, P=1e-3, steps=2000):
+        v = np.zeros(steps + d + 1)
+        v[: d + 1] = 1.0
+        for k in range(d, steps + d):
+            v[k + 1] = v[k] - P / T_b * v[k - d]
+        return v
+
+    for d in (1, 2, 4):
+        shortest = math.e * (d + 1) * 1e-3
+        assert np.all(np.diff(brake(d, shortest)) <= 0) and brake(d, shortest)[-1] >= 0
+        assert np.any(brake(d, shortest / 3) < 0)  # shorter: it overshoots
+    # hold = 0 with an explicit damping (no brake after the first safe torque): no warning
+    # arithmetic on hold, a SafeTorque built
+    zero = dc_replace(config, realtime=RealtimeConfig(damping=2.0, hold=0.0))
+    _, _, safe = realtime_parts(Experiment.from_config(zero))
+    assert safe.brake_time is None and safe.damping[0] == 2.0

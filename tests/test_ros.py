@@ -569,3 +569,10 @@ def test_gravity_is_one_choice_for_both_nodes(tmp_path, ros_gravity, realtime_gr
         return
     with pytest.raises(ConfigError, match=rf"realtime\.gravity.*{error}"):
         check_gravity(config)
+    # both commands check it before anything starts (the controller's parts, the arm node)
+    from hmpc_pin.apps.ros import ros_parts, run_ros_arm
+
+    with pytest.raises(ConfigError, match=r"realtime\.gravity"):
+        ros_parts(Experiment.from_config(config))
+    with pytest.raises(ConfigError, match=r"realtime\.gravity"):
+        run_ros_arm(config, 0.01)

@@ -247,6 +247,19 @@ def test_a_controller_started_inactive_waits_for_its_orchestrator(tmp_path):
     assert result.complete and result.t[-1] == pytest.approx(1.5, abs=0.05)
 
 
+def test_a_controller_shut_down_before_its_activation_runs_nothing(tmp_path):
+    """``[ros] autostart = false`` and the orchestrator shuts the node down instead of
+    activating it: exit 130 with one line, no command ever sent, nothing written."""
+    settings = SETTINGS.replace("rate = 500", "rate = 500\nautostart = false")
+    _, report, result = _run(tmp_path, "shutdown_inactive", 1.5, settings)
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 130, ctrl["stderr"]
+    assert "shut down before it was activated" in ctrl["stderr"]
+    assert "Traceback" not in ctrl["stderr"]
+    assert report["events"]["unconfigured_shutdown"] is True
+    assert report["commands"] == [] and result is None
+
+
 def test_a_simulator_on_its_own_clock_at_half_real_time_with_use_sim_time(tmp_path):
     """A Gazebo-like arm: states stamped on its simulated clock (starting at 100 s),
     ``/clock`` published, a real-time factor of 0.5; the controller under
@@ -264,14 +277,22 @@ def test_a_simulator_on_its_own_clock_at_half_real_time_with_use_sim_time(tmp_pa
 
 def test_ros_args_that_contradict_the_config_or_rclpy_are_one_line(tmp_path):
     """The node's parameters mirror the config: ``-p ros.rate:=250.0`` against the config's
-    500 is refused (exit 2, one line naming the key); so is an argument rclpy refuses."""
+    500 is refused (exit 2, one line naming the key), as is an override of a parameter the
+    node does not have (rclpy would ignore it) and an argument rclpy refuses."""
     reason = _netns_reason()
     if reason:
         pytest.skip(reason)
     config = _write(tmp_path, SETTINGS)
     exe = f"{sys.executable} -m hmpc_pin ros {config} --out {tmp_path / 'out'} --ros-args"
-    for args, expected in ((["-p", "ros.rate:=250.0"], "ros.rate: --ros-args sets 250.0"),
-                           (["--bogus"], "--ros-args: rclpy refused")):  # fmt: skip
+    cases = (
+        (["-p", "ros.rate:=250.0"], "ros.rate: --ros-args sets 250.0"),
+        (["--bogus"], "--ros-args: rclpy refused"),
+        # the brake the node runs (the inertia brake, hold/6 = 0.5 s) is declared: another
+        # value is refused; a key of a declared table the node does not have is refused
+        (["-p", "realtime.brake_time:=0.01"], "realtime.brake_time: --ros-args sets 0.01"),
+        (["-p", "realtime.damping:=50.0"], "realtime.damping: --ros-args sets it, but"),
+    )
+    for args, expected in cases:
         script = f"ip link set lo up && exec {exe} {' '.join(args)}"
         proc = subprocess.run(["unshare", "-n", "bash", "-c", script], cwd=ROOT,
                               capture_output=True, text=True, timeout=120)  # fmt: skip

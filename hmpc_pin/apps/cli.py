@@ -481,9 +481,9 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
     """
     try:
         run, files = start()
-    except KeyboardInterrupt:  # before the loop took over SIGINT: nothing ran yet
-        print("interrupted at start-up, before the first cycle; nothing was run or written",
-              file=sys.stderr)  # fmt: skip
+    except KeyboardInterrupt as exc:  # before the loop took over SIGINT: nothing ran yet
+        print(str(exc) or "interrupted at start-up, before the first cycle; nothing was run or "
+              "written", file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
     print(run.summary())
     for format_run in formats:

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ConfigError, HmpcError
-from ..experiment.build import Experiment, realtime_parts
+from ..exceptions import ConfigError, HmpcError, NodeShutDown
+from ..experiment.build import Experiment, brake_settings, realtime_parts
 from ..experiment.config import ExperimentConfig
 from ..experiment.controllers import _limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
@@ -269,15 +269,17 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
                 c_pub.publish(c_msg)
 
         trajectories.warm()
-        early: list[bool] = []  # deactivated before the loop exists: it stops at once
-        ros.on_deactivate(early.append, True)
         ros.serve(activate=rc.autostart)  # parameters and lifecycle, in their own thread
         if not rc.autostart:
             ros.node.get_logger().info(
                 f"waiting for an orchestrator to configure and activate "
                 f"{ros.node.get_fully_qualified_name()} ([ros] autostart = false)"
             )
-            ros.wait_active()  # (a shutdown before: the loop stops before its first command)
+            if not ros.wait_active():
+                raise NodeShutDown(
+                    f"{ros.node.get_fully_qualified_name()} was shut down before it was "
+                    "activated: nothing was run, sent or written"
+                )
         iface.start()
         loop = RealtimeLoop(
             iface, ctrl, experiment.reference, safe, loop_settings, safety,
@@ -285,9 +287,8 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
             on_step=on_step,
         )  # fmt: skip
         trajectories.loop = loop
+        # (deactivated before this: the loop is asked to stop now, before its first cycle)
         ros.on_deactivate(loop.request_stop_by, "deactivated")
-        if early:
-            loop.request_stop_by("deactivated", timeout=0.0)
         # a Python thread (the trajectory check) holds the GIL at most this long when the
         # control thread wants it back
         sys.setswitchinterval(min(switch, 1e-4))
@@ -323,8 +324,10 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
 def config_parameters(config: ExperimentConfig) -> dict:
     """The ROS parameters the controller node declares (read-only, the config's values:
     ``ros2 param list`` shows them): every ``[ros]`` key as ``ros.<key>``, and the
-    ``[realtime]`` keys of the loop and its stop as ``realtime.<key>``, plus
-    ``controller.Ts``, ``simulation.duration`` and ``config.name``."""
+    ``[realtime]`` keys of the loop and its stop as ``realtime.<key>`` (the brake and the
+    gravity as the node runs them: ``realtime.brake_time`` or ``realtime.damping``,
+    ``realtime.gravity``), plus ``controller.Ts``, ``simulation.duration`` and
+    ``config.name``."""
     from dataclasses import fields
 
     out: dict = {"config.name": config.name, "controller.Ts": float(config.controller.Ts),
@@ -341,6 +344,14 @@ def config_parameters(config: ExperimentConfig) -> dict:
                 isinstance(value, list) and all(isinstance(x, float) for x in value)
             ):
                 out[f"{table}.{f.name}"] = value
+    # the brake and the gravity the node runs with (not only what the file gives)
+    damping, brake = brake_settings(config, config.ros.period)
+    out.pop("realtime.damping", None)
+    if brake is not None:
+        out["realtime.brake_time"] = brake
+    else:
+        out["realtime.damping"] = [float(x) for x in np.atleast_1d(damping)]
+    out["realtime.gravity"] = config.ros.gravity == "controller"
     return out
 
 

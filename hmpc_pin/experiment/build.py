@@ -13,6 +13,7 @@ the robot (vector lengths, limits, the initial state) is made here, before a run
 from __future__ import annotations
 
 import contextlib
+import math
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -584,28 +585,78 @@ def realtime_parts(
     else:
         safety = SafetySettings.unlimited(n, max_misses=rc.max_misses, watchdog=rc.watchdog,
                                           hold=rc.hold, brake_speed=rc.brake_speed)  # fmt: skip
-    gravity = rc.gravity is not False
-    if rc.damping is not None:
+    damping, brake = brake_settings(cfg, loop.period)
+    if damping is not None:
         damping = cfg.vector("realtime.damping", n)
-        slowest = brake_time_constant(robot.mass_matrix(experiment.q0), damping)
-        if slowest > rc.hold / 3.0:
-            warnings.warn(
-                f"realtime.damping: the brake slows this arm's slowest motion with a time "
-                f"constant of {slowest:.3g} s (its inertia at the start posture): after "
-                f"hold = {rc.hold:g} s it still moves at {100 * np.exp(-rc.hold / slowest):.0f} % "
-                f"of its speed at the stop. Set realtime.brake_time = {rc.hold / 6:.3g} "
-                "(brakes with M(q)/brake_time: every joint alike), or damping above "
-                f"{3.0 * slowest / rc.hold * float(damping.max()):.3g} N·m·s/rad",
-                ValidityWarning,
-                stacklevel=2,
-            )
-        safe = SafeTorque(robot, damping, gravity=gravity,
-                          effort_limit=experiment.effort_limit)  # fmt: skip
-    else:  # the inertia brake: given, or hold/6 (every joint slows alike, still at the end)
-        brake = rc.brake_time if rc.brake_time is not None else max(rc.hold / 6.0, 2 * loop.period)
-        safe = SafeTorque(robot, gravity=gravity, effort_limit=experiment.effort_limit,
-                          brake_time=brake)  # fmt: skip
+        _warn_weak_damping(robot.mass_matrix(experiment.q0), damping, rc.hold,
+                           minimum_brake_time(cfg, loop.period))  # fmt: skip
+    safe = SafeTorque(robot, damping if damping is not None else 0.0, rc.gravity is not False,
+                      effort_limit=experiment.effort_limit, brake_time=brake)  # fmt: skip
     return loop, safety, safe
+
+
+def minimum_brake_time(config: ExperimentConfig, period: float) -> float:
+    """The shortest inertia brake time [s] that slows the arm without overshoot at the
+    interface ``period`` [s] P.
+
+    A command acts ``d`` periods after the state it was computed from (one for the arm to
+    take it, plus the declared ``[controller] latency`` L rounded up to periods), so the
+    brake's speed follows :math:`v_{k+1} = v_k - (P/T_b)\\,v_{k-d}`; it decays without
+    oscillating when :math:`P/T_b \\le d^d/(d+1)^{d+1}`, which :math:`T_b \\ge e\\,(d+1)P`
+    guarantees: :math:`d = 1 + \\lceil L/P \\rceil`.
+    """
+    latency = config.controller.latency or 0.0
+    d = 1 + math.ceil(latency / period - 1e-9)
+    return math.e * (d + 1) * period
+
+
+def brake_settings(
+    config: ExperimentConfig, period: float
+) -> tuple[np.ndarray | None, float | None]:
+    """``(damping, brake_time)`` of the safe torque at the interface ``period`` [s]: the
+    diagonal ``[realtime] damping`` [N·m·s/rad] if given, else the inertia brake's time [s]
+    (``[realtime] brake_time``, default ``hold``/6, at least :func:`minimum_brake_time`).
+
+    Raises:
+        ConfigError: ``brake_time`` below :func:`minimum_brake_time` at this period.
+    """
+    rc = config.realtime
+    if rc.damping is not None:
+        return np.asarray(rc.damping, dtype=float), None
+    shortest = minimum_brake_time(config, period)
+    if rc.brake_time is None:
+        return None, max(rc.hold / 6.0, shortest)
+    if rc.brake_time < shortest:
+        raise ConfigError(
+            "realtime.brake_time",
+            f"is {rc.brake_time:g} s, below {shortest:.3g} s = e·(d+1)·P for the interface "
+            f"period P = {period:g} s and a command acting d = "
+            f"{round(shortest / (math.e * period)) - 1} periods after its state (one, plus "
+            "[controller] latency): a shorter brake overshoots and oscillates. Give at least "
+            f"{shortest:.3g} s, or lower the interface rate's period (the rate of the command "
+            "that runs)",
+        )
+    return None, float(rc.brake_time)
+
+
+def _warn_weak_damping(M: np.ndarray, damping: np.ndarray, hold: float, shortest: float) -> None:
+    """Warn when the diagonal damping cannot slow the arm within ``hold`` [s]."""
+    if hold <= 0:
+        return  # no brake after the first safe torque: nothing to slow
+    d = np.broadcast_to(damping, (M.shape[0],))
+    slowest = brake_time_constant(M, d)
+    if slowest <= hold / 3.0:
+        return
+    advice = (f"Set realtime.brake_time = {max(hold / 6, shortest):.3g} (brakes with "
+              "M(q)/brake_time: every joint alike)")  # fmt: skip
+    if np.isfinite(slowest):
+        what = (f"slows this arm's slowest motion with a time constant of {slowest:.3g} s (its "
+                f"inertia at the start posture): after hold = {hold:g} s it still moves at "
+                f"{100 * np.exp(-hold / slowest):.0f} % of its speed at the stop")  # fmt: skip
+        advice += f", or damping above {3.0 * slowest / hold * float(d.max()):.3g} N·m·s/rad"
+    else:
+        what = "leaves a joint with damping 0 unbraked: it keeps its speed at the stop"
+    warnings.warn(f"realtime.damping: the brake {what}. {advice}", ValidityWarning, stacklevel=3)
 
 
 def run_experiment(

@@ -29,9 +29,12 @@ loop is therefore:
    measured is a constant torque that accelerates the arm): zero when the arm
    compensates gravity itself (:math:`g = 0`).
 
-Every safe torque is clipped to the joints' effort limits (``effort_limit``; the
-controller's torques are clipped to the same): a brake command beyond what the drive
-takes is clipped by the drive anyway, and a clipped command is what the arm really gets.
+Every safe torque is clipped to the joints' effort limits (``effort_limit``, the
+plant's): a brake command beyond what the drive takes is clipped by the drive anyway. The
+limit is on the total joint torque: with :math:`g = 0` (the arm adds its own
+:math:`G(q)`) the command is clipped to :math:`[-L - G(q), L - G(q)]`, as the simulated
+plant clips the total (the controller's torques are sent as computed: the arm's drive
+clips them, and the controller's observer models that clip).
 
 On an arm without friction the held-safe torque leaves it coasting at the speed it had
 (at most ``brake_speed`` after a completed brake): the drift over a time :math:`T` is at
@@ -88,6 +91,7 @@ class SafeTorque:
             raise ConfigError("plant.effort_limit", f"expected values > 0 [N·m] (inf: no limit), "
                               f"got {lim.tolist()}")  # fmt: skip
         self.effort_limit = lim
+        self._limited = bool(np.isfinite(lim).any())
 
     def __call__(self, q: FloatArray, dq: FloatArray) -> FloatArray:
         """The safe torque [N·m], (n,), at the measured state, clipped to the limits."""
@@ -96,9 +100,14 @@ class SafeTorque:
         else:
             tau = self.robot.mass_matrix(q) @ dq
             tau *= -1.0 / self.brake_time
+        lim = self.effort_limit
         if self.gravity:
             tau += self.robot.gravity_torque(q)
-        return np.clip(tau, -self.effort_limit, self.effort_limit, out=tau)
+            return np.clip(tau, -lim, lim, out=tau)
+        if self._limited:  # the arm adds G(q): the total joint torque is what is limited
+            g = self.robot.gravity_torque(q)
+            return np.clip(tau + g, -lim, lim) - g
+        return tau
 
     def held(self, q: FloatArray) -> FloatArray:
         """The held-safe torque :math:`g\\,G(q)` [N·m], (n,): no velocity term (module

@@ -14,9 +14,10 @@ is ignored and logged. Until the first command the arm holds still (on its brake
 publishing its state.
 
 With ``[ros] gravity = "arm"`` the node is an arm that compensates gravity itself
-(Franka's FCI, KUKA's FRI torque overlay): each period it applies the clipped command
-plus :math:`G(q)` of its own model at the period's start, and publishes that total as the
-effort; a zero command then holds it.
+(Franka's FCI, KUKA's FRI torque overlay): each period it applies the command plus
+:math:`G(q)` of its own model at the period's start, that total clipped to the effort
+limits (as the simulated plant clips its total), and publishes it as the effort; a zero
+command then holds it.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ class RosArmNode:
         q0, dq0: Initial state [rad, rad/s].
         period: Interface period [s].
         joint_states, commands: Topic names.
-        effort_limit: Per-joint torque limit [N·m] (``None``: none), on the command.
+        effort_limit: Per-joint torque limit [N·m] (``None``: none), on the torque
+            applied (with ``gravity``, the command plus G(q)).
         gravity: ``G(q)`` [N·m] the arm adds to each command itself (``None``: it adds
             nothing, the command is the torque).
 
@@ -120,9 +122,9 @@ class RosArmNode:
             if cmd is not None:
                 started = True
                 self.commands += 1
-                if self.limit is not None:
+                if self.limit is not None and self.gravity is None:
                     np.clip(cmd, -self.limit, self.limit, out=self._command)
-                else:
+                else:  # (with gravity added by the arm, the total is clipped at each step)
                     self._command[:] = cmd
             due = int((clock() - t0) / P)
             if due > k:
@@ -135,6 +137,8 @@ class RosArmNode:
                     self.tau[:] = self._command
                     if self.gravity is not None:
                         self.tau += self.gravity(self.q)
+                        if self.limit is not None:  # the total joint torque is limited
+                            np.clip(self.tau, -self.limit, self.limit, out=self.tau)
                     self.q, self.dq = self.plant.advance(self.tau)
                 self.steps += 1
                 self._publish(t0 + self.steps * P)

@@ -94,6 +94,9 @@ class RosNode:
         self._deactivate: tuple[Callable, tuple] | None = None
         self._active = threading.Event()  # set on activate (and on a shutdown before it)
         self._shut_down = False
+        self._transition_lock = threading.Lock()  # on_deactivate against the transition
+        #: Whether the node was deactivated or shut down (the run does not start again).
+        self.deactivated = False
         self._executor = None
         self._thread = None
         try:
@@ -120,6 +123,7 @@ class RosNode:
         self._manual = _Manual()
         if parameters:
             self._declare(parameters)
+            self._refuse_undeclared(parameters)
 
     def _declare(self, parameters: dict) -> None:
         from rcl_interfaces.msg import ParameterDescriptor
@@ -139,6 +143,20 @@ class RosNode:
                 raise ConfigError(
                     key, f"--ros-args sets {got!r} but the config has {value!r}; the node's "
                     "parameters mirror the config: set it in the config file"
+                )  # fmt: skip
+
+    def _refuse_undeclared(self, parameters: dict) -> None:
+        """A ``--ros-args -p`` of a name in one of the declared tables (``ros.*``,
+        ``realtime.*``, ...) that is not declared would be ignored by rclpy: refuse it."""
+        tables = {key.split(".")[0] for key in parameters if "." in key}
+        overrides = getattr(self.node, "_parameter_overrides", None) or {}
+        for name in overrides:
+            if name not in parameters and name.split(".")[0] in tables:
+                self.close()
+                raise ConfigError(
+                    name, "--ros-args sets it, but the node has no such parameter (its "
+                    "parameters mirror the config: `ros2 param list` shows them); set the "
+                    "config file's key instead"
                 )  # fmt: skip
 
     def serve(self, activate: bool = True) -> None:
@@ -174,13 +192,20 @@ class RosNode:
 
     def on_deactivate(self, stop: Callable, *args) -> None:
         """Call ``stop(*args)`` when the node is deactivated or shut down (from the
-        services' thread); it returns when the stop sequence has run."""
-        self._deactivate = (stop, args)
+        services' thread); it returns when the stop sequence has run. Deactivated
+        already (before this call): ``stop(*args)`` is called now."""
+        with self._transition_lock:
+            fire = self.deactivated
+            self._deactivate = None if fire else (stop, args)
+        if fire:
+            stop(*args)
 
     def _transition_stop(self) -> None:
-        if self._deactivate is not None:
-            stop, args = self._deactivate
-            self._deactivate = None
+        with self._transition_lock:
+            self.deactivated = True
+            pending, self._deactivate = self._deactivate, None
+        if pending is not None:
+            stop, args = pending
             stop(*args)
 
     def qos(self, depth: int = 10, reliable: bool = True):
@@ -267,6 +292,8 @@ def _lifecycle_node(owner: RosNode, name: str, namespace: str):
 
     class _Node(LifecycleNode):
         def on_activate(self, state):
+            if owner.deactivated:  # the run has stopped: it does not start again
+                return TransitionCallbackReturn.FAILURE
             owner._active.set()
             return super().on_activate(state)
 

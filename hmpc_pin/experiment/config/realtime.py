@@ -24,8 +24,10 @@ class RealtimeConfig:
             when the arm would still move when ``hold`` ends).
         brake_time: Brake with the inertia-scaled damping :math:`M(q)/T_b` [s] instead of
             ``damping``: every joint slows as :math:`e^{-t/T_b}` (with ``damping``: an
-            error, one or the other). At least two interface periods. Neither given:
-            ``hold``/6 (at least two periods): the arm is still when the brake ends.
+            error, one or the other). At least e·(d+1) interface periods, d the periods
+            between a state and its command taking effect (1 + the declared latency):
+            shorter overshoots (checked where the rate is known). Neither given:
+            ``hold``/6 (at least that minimum): the arm is still when the brake ends.
         gravity: Gravity compensation in the safe torque (not given: on). Under
             ``hmpc-pin ros`` the choice is ``[ros] gravity``; this key, if given, must
             agree with it (``true`` with ``"controller"``, ``false`` with ``"arm"``).
@@ -96,10 +98,6 @@ class RealtimeConfig:
                 raise ConfigError("damping", "does not apply with brake_time (the brake is "
                                   "M(q)/brake_time); give one of them")  # fmt: skip
             _set(self, "brake_time", _float("brake_time", self.brake_time, positive=True))
-            if self.brake_time < 2.0 / self.rate:
-                raise ConfigError("brake_time", f"expected at least two interface periods "
-                                  f"2/rate = {2.0 / self.rate:g} s (a shorter brake "
-                                  f"oscillates), got {self.brake_time:g}")  # fmt: skip
         elif self.damping is not None:
             _set(self, "damping", _array("damping", self.damping, nonneg=True))
         if self.gravity is not None:

@@ -155,8 +155,39 @@ def test_a_bad_file_is_one_line_and_exit_2(kind, saved_run, tmp_path, capsys):
     code, _out, err, table = _identify(path, tmp_path, capsys)
     assert code == 2 and table is None
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and expected in lines[0], err
+    assert len(lines) == 1 and expected in lines[0] and str(path) in lines[0], err
     assert "pickle" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("kind", sorted(BAD_FILES))
+def test_replay_reads_a_run_as_identify_does(kind, saved_run, tmp_path, capsys):
+    """``replay`` refuses the same bad files with the same line (named RESULT), before
+    anything is written."""
+    make, expected = BAD_FILES[kind]
+    path, html = tmp_path / "bad.npz", tmp_path / "replay.html"
+    make(path, saved_run)
+    code = main(["replay", str(path), "--out", str(html)])
+    err = capsys.readouterr().err
+    assert code == 2 and not html.exists()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0] and str(path) in lines[0], err
+    assert "RESULT" in lines[0] and "pickle" not in err and "Traceback" not in err
+
+
+def test_replay_refuses_a_urdf_of_another_arm(saved_run, tmp_path, capsys):
+    """A ``--urdf`` with other joints than the run's: one line naming both, exit 2."""
+    urdf, html = tmp_path / "one.urdf", tmp_path / "replay.html"
+    urdf.write_text(
+        '<robot name="one"><link name="base"/><link name="arm"><inertial><mass value="1"/>'
+        '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>'
+        "</robot>"
+    )
+    code = main(["replay", str(saved_run), "--urdf", str(urdf), "--out", str(html)])
+    err = capsys.readouterr().err
+    assert code == 2 and not html.exists()
+    assert len(err.strip().splitlines()) == 1 and "--urdf" in err and "3 joints" in err, err
 
 
 @pytest.mark.parametrize("source", ["observer", "dynamics"])

@@ -63,11 +63,6 @@ MISSED = {
     "contact's (by design of the config), not a setting check could flag",
     "paper_friction_literal": "the paper's literal friction sign feeds energy in; the "
     "observer holds the error near 0.07 rad, above 0.05 rad; check has no finding for it",
-    "paper_combined, latency 0.6 Ts": "a fractional over-declared latency: check's models "
-    "of the observer loop and the MPC loop, taken separately, both pass it",
-    "init panda, latency 0.5 Ts": "as paper_combined, latency 0.6 Ts",
-    "paper_combined, observer x0.01": "an observer 100 x slower leaves the friction "
-    "uncompensated for seconds; check has no lower limit on the bandwidth",
 }
 #: Problems whose one suggested change cannot bring the run within the tolerance, each
 #: with the physical reason (the change must still lower the error).

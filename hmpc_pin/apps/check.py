@@ -38,14 +38,22 @@ measurements of a plant equal to the model (r = 1 unless the plant differs); so:
   has a pole at :math:`|z| \\ge 1`, or at :math:`|z| \\ge` :data:`MAX_RADIUS` decaying
   slower than :data:`MIN_DECAY` times the observer's own (:func:`overdeclared_radius`),
   or when the MPC, acting on the state predicted L ahead, decays slower than
-  :data:`MIN_DECAY` times its rate without the prediction (:func:`lead_radius`);
+  :data:`MIN_DECAY` times its rate without the prediction (:func:`lead_radius`), or when
+  the two together (:func:`loop_radius`) grow or decay slower than :data:`MIN_DECAY`
+  times the loop's rate without the latency (a fraction of a period over-declared can
+  pass each alone);
+* an observer too slow for the disturbance: the error its lag along the reference leaves
+  through the MPC's loop (:func:`observer_lag_error`) above ``run``'s tracking threshold
+  after its start-up: a problem whose fix raises the observer's gain (a warning when no
+  gain within the explicit form's limit does);
 * the explicit observer with :math:`T_s\\omega_j \\ge 2`: a problem;
 * a damping time constant below :math:`2T_s` that plant and controller treat differently
   (one applies it, the other not): a problem; left out of both: a warning (the real arm
   applies it);
 * headroom below :data:`MIN_HEADROOM`: a problem;
 * friction with the literal sign (it feeds energy in) and no compensation: a problem (a
-  warning for the paper's baseline, which is expected to lose the reference);
+  warning for the paper's baseline, which is expected to lose the reference); with an
+  observer a warning (nothing here bounds the error it leaves);
 * MuJoCo refusing the URDF, or the engines differing: a problem with a MuJoCo plant,
   else a warning (the table is printed either way).
 """
@@ -582,7 +590,7 @@ def observer_lag_error(
     The config's disturbance :math:`d_k = d(t_k, r_k, \dot r_k)` sampled every
     :math:`T_s` along the reference :math:`r_k`; the observer that runs (its matrix
     :math:`cY` or :math:`K_O` times ``scale``, its discretization;
-    :meth:`~hmpc_pin.identification.friction.ObserverModel.filter`) estimating, at
+    ``ObserverModel.filter`` of :mod:`hmpc_pin.identification`) estimating, at
     :math:`t_k`, the disturbance of the period that ended,
     :math:`\hat d_k = F(d_{k-1}, \hat d_{k-1})` (implicit Euler:
     :math:`(I + T_sL_k)\hat d_k = \hat d_{k-1} + T_sL_kd_{k-1}`,
@@ -677,6 +685,15 @@ def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
     warning)."""
     friction = getattr(config.disturbance, "friction", None)
     if config.controller.compensation != "none":
+        if getattr(friction, "sign", None) == "literal":  # the observer must outrun it
+            report.warnings.append(
+                "[disturbance.friction] sign = 'literal' feeds energy in (d = +(B q' + F "
+                "sgn q'): negative damping): the observer must cancel a disturbance that "
+                "grows with the error it leaves, which no rule here bounds; `run`'s "
+                "tracking error may exceed its --warn-error threshold"
+                + (" (the paper's literal reading of Eq 32, kept)" if _is_paper(config)
+                   else "; sign = 'physical' simulates friction that dissipates")
+            )  # fmt: skip
         return
     if getattr(friction, "sign", None) != "literal":
         pulse = getattr(config.disturbance, "pulse", None)

@@ -1,6 +1,6 @@
 """``hmpc-pin check CONFIG``: what to know about an arm before anything runs on it.
 
-Per joint, from the config's models alone (nothing is simulated):
+Per joint, from the config's models alone (the arm is not simulated; the loops' linear models are):
 
 * **observer bandwidth** :math:`\\omega_j` [1/s] and :math:`\\omega_j T_s`: the rate at which
   joint j's estimation error decays, :math:`\\omega_j = (cY M(q_0)^{-1})_{jj}` for the NDO

@@ -166,6 +166,26 @@ MUTANTS = [
      'wheel = url.startswith("file:")', ["tests/test_wheel.py", "-m", "not slow"]),
     ("i36", "hmpc_pin/exceptions.py", """return f'pip install -e "{clone}[{extra}]"'""",
      """return f'pip install "hmpc_pin[{extra}]"'""", ["tests/test_wheel.py", "-m", "not slow"]),
+    # ---- the code written for issue 36's last items (loop_radius, observer_lag_error, the
+    # run loader, ConfigError's file): written down after the survivors' tests, before running
+    ("i36b", "hmpc_pin/apps/check.py", "estimate[iu(1 + m)] -= g * (1.0 - beta)", "estimate[iu(1 + m)] -= g * beta", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "h = ((over - (lead - 1)) if i == lead else 1.0) * Ts", "h = Ts", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "whole_bad = np.flatnonzero(((whole >= 1.0) | slower) & (whole0 < 1.0))",
+     "whole_bad = np.flatnonzero((whole >= 1.0) & (whole0 < 1.0))", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "before = np.vstack([np.zeros((1, n)), d[:-1]])", "before = d", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "acc = minv[k] @ (d[k] - dhat[k]) - kp * x - kd * xd",
+     "acc = minv[k] @ (d[k] - dhat[k]) - kp * x", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "            if t[k] >= after - 1e-12:", "            if t[k] >= 0.0:", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "<= 0.5 * DEFAULT_ERROR_THRESHOLD):  # fmt: skip",
+     "<= 2 * DEFAULT_ERROR_THRESHOLD):  # fmt: skip", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", 'if getattr(friction, "sign", None) == "literal":  # the observer must outrun it',
+     "if False:", [CHK]),
+    ("i36b", "hmpc_pin/apps/runfile.py", 'if head != b"PK\\x03\\x04":', 'if head[:2] != b"PK":', [IDF]),
+    ("i36b", "hmpc_pin/apps/runfile.py", "if robot.nq != n or (names and tuple(robot.joint_names) != names):",
+     "if robot.nq != n:", [IDF]),
+    ("i36b", "hmpc_pin/apps/cli.py", 'robot = run_robot(result, str(args.urdf) if args.urdf else None, "RESULT")',
+     'robot = run_robot(result, None, "RESULT")', [IDF, "tests/test_cli.py", "-k", "replay"]),
+    ("i36b", "hmpc_pin/exceptions.py", 'what = f"{key}: " if key else ""', 'what = f"{key}: "', ["tests/test_errors.py"]),
 ]
 
 
@@ -194,7 +214,7 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh or i36")
+    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36 or i36b")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:

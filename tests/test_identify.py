@@ -138,6 +138,7 @@ def _bad_shapes(path, saved):
 BAD_FILES = {
     "empty": (lambda p, s: p.write_bytes(b""), "empty"),
     "text": (lambda p, s: p.write_text("t,q\n0,1\n"), "not a .npz archive"),
+    "text starting with PK": (lambda p, s: p.write_text("PK,q\n0,1\n"), "not a .npz archive"),
     "npy": (_npy, "not a .npz archive"),
     "truncated": (_truncated, "truncated or corrupt"),
     "foreign npz": (lambda p, s: _foreign_npz(p), "has no 'meta' array"),

@@ -429,9 +429,9 @@ def loop_radius(
     commanded :math:`u_k = v_k - \\hat e_k`:
 
     * the observer, with :math:`g` as in :func:`overdeclared_radius` and the
-      over-declaration :math:`m + \beta`:
-      :math:`\\hat e_k = (1-g)\\hat e_{k-1} + g\\,(r u_{k-1} - (1-\beta)u_{k-1-m}
-      - \beta u_{k-2-m})` (the velocity change of period k-1 paired with the torques
+      over-declaration :math:`m + \\beta`:
+      :math:`\\hat e_k = (1-g)\\hat e_{k-1} + g\\,(r u_{k-1} - (1-\\beta)u_{k-1-m}
+      - \\beta u_{k-2-m})` (the velocity change of period k-1 paired with the torques
       the declared latency names);
     * the MPC, :math:`v_k = -k_p\\hat x_k - k_d\\hat{\\dot x}_k` on the state predicted
       over :math:`L = DT_s` with the past :math:`v` (as in :func:`lead_radius`);
@@ -439,7 +439,7 @@ def loop_radius(
       :math:`\\dot x^+ = \\dot x + T_s r u_k`.
 
     The loop's state is :math:`[x, \\dot x, \\hat e_{k-1}, u_{k-1}, \\dots, u_{k-2-m},
-    v_{k-1}, \\dots, v_{k-\\lceil D\rceil}]`; its transition matrix's largest eigenvalue
+    v_{k-1}, \\dots, v_{k-\\lceil D\\rceil}]`; its transition matrix's largest eigenvalue
     modulus is returned.
 
     Args:
@@ -606,7 +606,7 @@ def observer_lag_error(
         kp: [1/s²], kd: [1/s]: the MPC's equivalent feedback gains.
         after: The start-up left out [s].
         scale: Factor on the observer's gain [-].
-        inputs: :func:`_lag_inputs` of ``ex``, when already computed.
+        inputs: ``_lag_inputs(ex)``, when already computed.
     """
     from ..identification.friction import ObserverModel
 

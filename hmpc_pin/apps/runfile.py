@@ -1,6 +1,7 @@
 """A run saved by ``hmpc-pin run``, ``realtime`` or ``ros`` read back for the commands
-that work on one (``identify``, ``replay``): bad files are one :class:`ConfigError` naming
-the file and what was expected, and nothing is ever unpickled."""
+that work on one (``identify``, ``replay``): a bad file is one
+:class:`~hmpc_pin.exceptions.ConfigError` naming the file and what was expected, and
+nothing is ever unpickled."""
 
 from __future__ import annotations
 
@@ -15,9 +16,10 @@ __all__ = ["load_run", "run_robot"]
 
 
 def load_run(path: Path, key: str = "RUN") -> Result:
-    """The run saved at ``path``, or one :class:`ConfigError` (named ``key``) saying what
-    the file is instead: missing, empty, not a ``.npz``, truncated, another program's
-    ``.npz``, or arrays of the wrong shapes. Nothing is ever unpickled."""
+    """The run saved at ``path``, or one :class:`~hmpc_pin.exceptions.ConfigError`
+    (named ``key``) saying what the file is instead: missing, empty, not a ``.npz``,
+    truncated, another program's ``.npz``, or arrays of the wrong shapes. Nothing is
+    ever unpickled."""
     import zipfile
 
     what = "pass a .npz written by `hmpc-pin run`, `realtime` or `ros`"
@@ -76,7 +78,8 @@ def _check_shapes(result: Result, path: Path, key: str) -> None:
 
 def run_robot(result: Result, urdf: str | None, key: str = "RUN"):
     """The arm of ``result``: the URDF it names (or ``urdf``, from ``--urdf``), reduced as
-    it ran, with as many joints of the same names as the run (else a :class:`ConfigError`)."""
+    it ran, with as many joints of the same names as the run (else a
+    :class:`~hmpc_pin.exceptions.ConfigError`)."""
     from ..model.robot import load_robot
 
     source = urdf or result.meta.get("urdf")

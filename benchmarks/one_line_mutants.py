@@ -24,6 +24,10 @@ ROOT = Path(__file__).resolve().parent.parent
 
 IC = "tests/test_independent_checks.py"
 LV = "tests/test_library_validation.py"
+CHK = "tests/test_check.py"
+IDF = "tests/test_identify.py"
+IDN = "tests/test_identification.py"
+TUN = "tests/test_tune.py"
 
 #: (group, file, old line part, new line part, tests)
 MUTANTS = [
@@ -112,6 +116,76 @@ MUTANTS = [
      'if getattr(self, "_was_reset", True) is None:', [LV]),
     ("fresh", "hmpc_pin/sim/mujoco.py", "        tau = held_torque(self, tau)", "        tau = np.asarray(tau, dtype=float)", [LV]),
     ("fresh", "hmpc_pin/apps/viz.py", "        _meshcat()", "        pass", ["tests/test_cli_outputs.py"]),
+    # ---- issue 36's code (check, identify, tune, identification, the observer record,
+    # install_command), written down before looking at which tests would catch them
+    ("i36", "hmpc_pin/apps/check.py", "tau = pin.rnea(model, data, q[k], dq[k], ddq[k]) + b * dq[k] + f * np.sign(dq[k])",
+     "tau = pin.rnea(model, data, q[k], dq[k], ddq[k]) + f * np.sign(dq[k])", [CHK]),
+    ("i36", "hmpc_pin/apps/check.py", "tau = tau - np.asarray(disturbance(float(t[k]), q[k], dq[k]), dtype=float)",
+     "tau = tau + np.asarray(disturbance(float(t[k]), q[k], dq[k]), dtype=float)", [CHK]),
+    ("i36", "hmpc_pin/apps/check.py", "fast = np.flatnonzero(tau < 2 * Ts)", "fast = np.flatnonzero(tau < Ts)", [CHK]),
+    ("i36", "hmpc_pin/apps/check.py", "for j in np.flatnonzero(headroom < MIN_HEADROOM):",
+     "for j in np.flatnonzero(headroom < 0):", [CHK]),
+    ("i36", "hmpc_pin/apps/check.py", "for j in np.flatnonzero(_explicit(config) & (bw * Ts >= 2.0)):",
+     "for j in np.flatnonzero(_explicit(config) & (bw * Ts >= 1.0)):", [CHK]),
+    ("i36", "hmpc_pin/apps/identify.py", "return ObserverModel.from_record(om, robot, n)",
+     "return ObserverModel.from_record(om, robot, None)", [IDF]),
+    ("i36", "hmpc_pin/apps/identify.py", "if config and Path(config).is_file():  # an older file without a record",
+     "if False:", [IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", "return float(np.dot(r[1:], r[:-1]) / rr) if len(r) > 2 and rr > 0 else 0.0",
+     "return float(np.dot(r[1:], r[1:]) / rr) if len(r) > 2 and rr > 0 else 0.0", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", "m_eff = m * (1 - rho) / (1 + rho)", "m_eff = m * (1 - rho)", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", "if m_eff - 2 < MIN_DEGREES_OF_FREEDOM:",
+     "if m_eff < MIN_DEGREES_OF_FREEDOM:", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", "cover = check_excitation(name, dq, max(excitation_velocity, velocity_threshold),",
+     "cover = check_excitation(name, dq, velocity_threshold,", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", 'shift = 1 if self.model_at == "start" else 0', "shift = 0", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", "prev = np.linalg.solve(np.eye(n) + L, prev + L @ phi[k])",
+     "prev = prev + L @ (phi[k] - prev)", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", 'implicit = record.get("discretization", "implicit") == "implicit"',
+     "implicit = True", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", "valid = np.cumprod(valid).astype(bool)",
+     "valid = valid.astype(bool)", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", "sgn = np.tanh(dq / s) if s > 0 else np.sign(dq)",
+     "sgn = np.sign(dq)", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/friction.py", 'compensation.discretization == "implicit",',
+     "True,", [IDN, IDF]),
+    ("i36", "hmpc_pin/identification/thresholds.py", "false_alarm=false_alarm / n,", "false_alarm=false_alarm,",
+     ["tests/test_thresholds.py"]),
+    ("i36", "hmpc_pin/identification/thresholds.py", "p_block = (1.0 - false_alarm) ** (1.0 / blocks_per_horizon)",
+     "p_block = (1.0 - false_alarm) ** blocks_per_horizon", ["tests/test_thresholds.py"]),
+    ("i36", "hmpc_pin/apps/tune.py", 'lost = 1.0 - row["t_end"] / duration if duration and "t_end" in row else 0.0',
+     'lost = row["t_end"] / duration if duration and "t_end" in row else 0.0', [TUN]),
+    ("i36", "hmpc_pin/apps/tune.py", "holdout_seed = (seed + 1) % (MAX_SEED + 1)", "holdout_seed = seed", [TUN]),
+    ("i36", "hmpc_pin/apps/tune.py", 'w = cc.observer.bandwidth * (float(params["observer_bandwidth"]) / _bandwidth_scale(cc))',
+     'w = cc.observer.bandwidth * 0 + float(params["observer_bandwidth"])', [TUN]),
+    ("i36", "hmpc_pin/apps/tune.py", 'p95 = float(np.quantile(rms, 0.95, method="inverted_cdf"))',
+     "p95 = float(np.mean(rms))", [TUN]),
+    ("i36", "hmpc_pin/experiment/build.py", 'model_at=cc.observer.model_at if cc.observer is not None else "end",',
+     'model_at="end",', [IDF]),
+    ("i36", "hmpc_pin/exceptions.py", 'wheel = url.startswith("file:") and "archive_info" in record',
+     'wheel = url.startswith("file:")', ["tests/test_wheel.py", "-m", "not slow"]),
+    ("i36", "hmpc_pin/exceptions.py", """return f'pip install -e "{clone}[{extra}]"'""",
+     """return f'pip install "hmpc_pin[{extra}]"'""", ["tests/test_wheel.py", "-m", "not slow"]),
+    # ---- the code written for issue 36's last items (loop_radius, observer_lag_error, the
+    # run loader, ConfigError's file): written down after the survivors' tests, before running
+    ("i36b", "hmpc_pin/apps/check.py", "estimate[iu(1 + m)] -= g * (1.0 - beta)", "estimate[iu(1 + m)] -= g * beta", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "h = ((over - (lead - 1)) if i == lead else 1.0) * Ts", "h = Ts", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "whole_bad = np.flatnonzero(((whole >= 1.0) | slower) & (whole0 < 1.0))",
+     "whole_bad = np.flatnonzero((whole >= 1.0) & (whole0 < 1.0))", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "before = np.vstack([np.zeros((1, n)), d[:-1]])", "before = d", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "acc = minv[k] @ (d[k] - dhat[k]) - kp * x - kd * xd",
+     "acc = minv[k] @ (d[k] - dhat[k]) - kp * x", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "            if t[k] >= after - 1e-12:", "            if t[k] >= 0.0:", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", "<= 0.5 * DEFAULT_ERROR_THRESHOLD):  # fmt: skip",
+     "<= 2 * DEFAULT_ERROR_THRESHOLD):  # fmt: skip", [CHK]),
+    ("i36b", "hmpc_pin/apps/check.py", 'if getattr(friction, "sign", None) == "literal":  # the observer must outrun it',
+     "if False:", [CHK]),
+    ("i36b", "hmpc_pin/apps/runfile.py", 'if head != b"PK\\x03\\x04":', 'if head[:2] != b"PK":', [IDF]),
+    ("i36b", "hmpc_pin/apps/runfile.py", "if robot.nq != n or (names and tuple(robot.joint_names) != names):",
+     "if robot.nq != n:", [IDF]),
+    ("i36b", "hmpc_pin/apps/cli.py", 'robot = run_robot(result, str(args.urdf) if args.urdf else None, "RESULT")',
+     'robot = run_robot(result, None, "RESULT")', [IDF, "tests/test_cli.py", "-k", "replay"]),
+    ("i36b", "hmpc_pin/exceptions.py", 'what = f"{key}: " if key else ""', 'what = f"{key}: "', ["tests/test_errors.py"]),
 ]
 
 
@@ -140,7 +214,7 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--group", default="", help="run one group: new, earlier or fresh")
+    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36 or i36b")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:

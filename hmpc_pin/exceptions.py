@@ -17,8 +17,12 @@ class HmpcError(Exception):
 class ConfigError(HmpcError, ValueError):
     """A configuration value (TOML file, dataclass field) is invalid.
 
+    The message is ``"<source>: <key>: <message>"``, each part left out when empty.
+
     Attributes:
-        key: Dotted name of the offending key, e.g. ``"controller.N"``.
+        key: Dotted name of the offending key, e.g. ``"controller.N"``, or an option
+            (``"--out"``); ``""`` when the file itself is wrong (missing, not TOML).
+        source: The file the value came from, if any.
     """
 
     def __init__(self, key: str, message: str, source: str | None = None):
@@ -26,7 +30,8 @@ class ConfigError(HmpcError, ValueError):
         self.message = message
         self.source = source
         where = f"{source}: " if source else ""
-        super().__init__(f"{where}{key}: {message}")
+        what = f"{key}: " if key else ""
+        super().__init__(f"{where}{what}{message}")
 
 
 class URDFError(HmpcError, ValueError):

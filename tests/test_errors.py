@@ -288,12 +288,35 @@ def test_library_raises_a_typed_package_error(tmp_path, case):
         Experiment.from_config(hmpc_pin.load_config(cfg))
     for w in words:
         assert w in str(info.value), (w, str(info.value))
+    if kind is ConfigError:  # every config error names the file, and no placeholder
+        assert str(info.value).startswith(f"{cfg}: "), str(info.value)
+        assert "<" not in str(info.value).removeprefix(f"{cfg}: ")[:8], str(info.value)
 
 
 def test_config_errors_name_the_file(tmp_path):
     cfg = _config_file(tmp_path, lambda tmp: _sub("R = 1e-6", "R = 0.0"))
     with pytest.raises(ConfigError, match=re.escape(str(cfg))):
         hmpc_pin.load_config(cfg)
+
+
+@pytest.mark.parametrize("text", [None, "[controller\nN = 3\n", b"name = '\xff'\n",
+                                  "<robot name='x'/>"])  # fmt: skip
+def test_an_unloadable_config_is_named_by_its_path_alone(tmp_path, text):
+    """The file itself is wrong (missing, not TOML, not UTF-8, a URDF): the message is
+    ``<path>: <what>``, no key and no placeholder in place of one; the same from
+    write_config when its source cannot be read."""
+    from hmpc_pin.experiment.config.write import write_config
+
+    cfg = _config_file(tmp_path, lambda tmp: text)
+    with pytest.raises(ConfigError) as info:
+        hmpc_pin.load_config(cfg)
+    assert info.value.key == "" and info.value.source == str(cfg)
+    head, _, what = str(info.value).partition(": ")
+    assert head == str(cfg) and what == info.value.message, str(info.value)
+    if text is not None and not isinstance(text, bytes):
+        with pytest.raises(ConfigError) as info:
+            write_config(cfg, {}, tmp_path / "out.toml")
+        assert str(info.value).startswith(f"{cfg}: cannot be read"), str(info.value)
 
 
 # ------------------------------------------------------------- outputs and the library

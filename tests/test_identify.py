@@ -138,6 +138,7 @@ def _bad_shapes(path, saved):
 BAD_FILES = {
     "empty": (lambda p, s: p.write_bytes(b""), "empty"),
     "text": (lambda p, s: p.write_text("t,q\n0,1\n"), "not a .npz archive"),
+    "text starting with PK": (lambda p, s: p.write_text("PK,q\n0,1\n"), "not a .npz archive"),
     "npy": (_npy, "not a .npz archive"),
     "truncated": (_truncated, "truncated or corrupt"),
     "foreign npz": (lambda p, s: _foreign_npz(p), "has no 'meta' array"),
@@ -155,8 +156,39 @@ def test_a_bad_file_is_one_line_and_exit_2(kind, saved_run, tmp_path, capsys):
     code, _out, err, table = _identify(path, tmp_path, capsys)
     assert code == 2 and table is None
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and expected in lines[0], err
+    assert len(lines) == 1 and expected in lines[0] and str(path) in lines[0], err
     assert "pickle" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("kind", sorted(BAD_FILES))
+def test_replay_reads_a_run_as_identify_does(kind, saved_run, tmp_path, capsys):
+    """``replay`` refuses the same bad files with the same line (named RESULT), before
+    anything is written."""
+    make, expected = BAD_FILES[kind]
+    path, html = tmp_path / "bad.npz", tmp_path / "replay.html"
+    make(path, saved_run)
+    code = main(["replay", str(path), "--out", str(html)])
+    err = capsys.readouterr().err
+    assert code == 2 and not html.exists()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0] and str(path) in lines[0], err
+    assert "RESULT" in lines[0] and "pickle" not in err and "Traceback" not in err
+
+
+def test_replay_refuses_a_urdf_of_another_arm(saved_run, tmp_path, capsys):
+    """A ``--urdf`` with other joints than the run's: one line naming both, exit 2."""
+    urdf, html = tmp_path / "one.urdf", tmp_path / "replay.html"
+    urdf.write_text(
+        '<robot name="one"><link name="base"/><link name="arm"><inertial><mass value="1"/>'
+        '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>'
+        "</robot>"
+    )
+    code = main(["replay", str(saved_run), "--urdf", str(urdf), "--out", str(html)])
+    err = capsys.readouterr().err
+    assert code == 2 and not html.exists()
+    assert len(err.strip().splitlines()) == 1 and "--urdf" in err and "3 joints" in err, err
 
 
 @pytest.mark.parametrize("source", ["observer", "dynamics"])
@@ -343,3 +375,53 @@ def test_after_past_the_end_of_the_run_is_named(after, mode, saved_run, tmp_path
     assert code == 2 and table is None, err
     assert len(err.strip().splitlines()) == 1 and "--after" in err, err
     assert "past the end of the run" in err and f"{t_end:g} s" in err, err
+
+
+def test_a_smoothed_feedforward_is_added_back_as_it_ran(tmp_path, capsys):
+    """Half the friction fed forward with a smoothed sign, tanh(q̇/v_s) at v_s = 2 rad/s:
+    identify adds back what was fed, so the fit is the plant's whole friction (known),
+    within 3 % like every observer form (the exact sign in its place would add back
+    b (1 - tanh(|q̇|/v_s)) too much)."""
+    from hmpc_pin.experiment.config.friction import FrictionModelConfig
+
+    config = _friction_config("chen", ObserverConfig(gain=100.0))
+    ff = FrictionModelConfig(viscous=VISCOUS / 2, coulomb=COULOMB / 2, smoothing=2.0)
+    config = replace(config, controller=replace(config.controller, friction=ff))
+    path = Experiment.from_config(config).run().save(tmp_path / "ff.npz")
+    assert Result.load(path).meta["friction_feedforward"]["smoothing"] == 2.0
+    code, _out, err, table = _identify(path, tmp_path, capsys)
+    assert code == 0, err
+    fr = table["controller"]["friction"]
+    np.testing.assert_allclose(fr["viscous"], VISCOUS, rtol=0.03)
+    np.testing.assert_allclose(fr["coulomb"], COULOMB, rtol=0.03)
+
+
+def test_a_file_without_a_record_reads_the_observer_of_its_config(tmp_path, capsys):
+    """A run written before the observer was recorded: identify builds the observer from
+    the config file the run names, and its dynamics give the plant's friction within
+    3 %; the estimate taken as the disturbance itself is further off (the observer's
+    lag: 13 % on a Coulomb coefficient)."""
+    path = CONFIGS / "paper_friction.toml"
+    result = Experiment.from_config(load_config(path)).run()
+    assert result.meta["config"] == str(path)
+    del result.meta["observer_model"]
+    saved = result.save(tmp_path / "old.npz")
+    code, _out, err, table = _identify(saved, tmp_path, capsys)
+    assert code == 0, err
+    fr = table["controller"]["friction"]
+    np.testing.assert_allclose(fr["viscous"], VISCOUS, rtol=0.03)
+    np.testing.assert_allclose(fr["coulomb"], COULOMB, rtol=0.03)
+    raw = fit_friction(result, observer=None)  # the estimate as the disturbance itself
+    off = np.concatenate([raw.viscous / VISCOUS, raw.coulomb / COULOMB]) - 1
+    assert np.max(np.abs(off)) > 0.03, off
+
+
+def test_a_recorded_matrix_of_another_size_is_one_line(saved_run, tmp_path, capsys):
+    """The record's observer matrix must be n x n for the run's n joints: a 2 x 2 one for
+    a 3-joint run is one line naming the shape expected, exit 2."""
+    result = Result.load(saved_run)
+    result.meta["observer_model"] = {"kind": "general", "Ts": 0.01,
+                                     "matrix": np.eye(2).tolist()}  # fmt: skip
+    code, _out, err, table = _identify(result.save(tmp_path / "m.npz"), tmp_path, capsys)
+    assert code == 2 and table is None
+    assert len(err.strip().splitlines()) == 1 and "(3, 3)" in err, err

@@ -145,3 +145,46 @@ def test_the_readmes_check_commands_exit_0(capsys):
     for cmd in checks:
         code = main(cmd[1:])  # as the README types it (with the engine comparison)
         assert code == 0, (cmd, capsys.readouterr())
+
+
+def test_the_install_hint_of_a_clone_names_the_clone():
+    """Run from this source tree (pyproject.toml and CMakeLists.txt beside the package):
+    the hint installs the extra into the clone, editable."""
+    from hmpc_pin.exceptions import install_command
+
+    assert install_command("mujoco") == f'pip install -e "{ROOT.resolve()}[mujoco]"'
+
+
+@pytest.mark.parametrize("record, wheel", [
+    ({"archive_info": {}}, True),   # installed from the wheel file: that wheel again
+    ({"dir_info": {}}, False),      # a file: URL pip did not record as an archive
+    (None, False),                  # no record (an index): the generic hint
+])  # fmt: skip
+def test_the_install_hint_of_an_installed_package_names_its_wheel(
+    record, wheel, tmp_path, monkeypatch
+):
+    """Outside a clone the hint follows pip's record of where the package came from
+    (PEP 610 direct_url.json): a wheel file that is still there is named by its URL."""
+    import importlib.metadata
+    import json
+
+    import hmpc_pin.exceptions as exceptions
+
+    whl = tmp_path / "hmpc_pin-0.3.0-cp311-cp311-linux_x86_64.whl"
+    whl.write_bytes(b"PK")
+    url = whl.as_uri()
+    site = tmp_path / "site" / "hmpc_pin"
+    site.mkdir(parents=True)
+    monkeypatch.setattr(exceptions, "__file__", str(site / "exceptions.py"))
+
+    class Dist:
+        def read_text(self, name):
+            assert name == "direct_url.json"
+            return None if record is None else json.dumps({"url": url, **record})
+
+    monkeypatch.setattr(importlib.metadata, "distribution", lambda name: Dist())
+    hint = exceptions.install_command("ros")
+    if wheel:
+        assert hint == f'pip install "hmpc_pin[ros] @ {url}"'
+    else:
+        assert url not in hint and "hmpc_pin[ros] @ <the hmpc_pin wheel>" in hint

@@ -1,6 +1,6 @@
 """``hmpc-pin check CONFIG``: what to know about an arm before anything runs on it.
 
-Per joint, from the config's models alone (nothing is simulated):
+Per joint, from the config's models alone (the arm is not simulated; the loops' linear models are):
 
 * **observer bandwidth** :math:`\\omega_j` [1/s] and :math:`\\omega_j T_s`: the rate at which
   joint j's estimation error decays, :math:`\\omega_j = (cY M(q_0)^{-1})_{jj}` for the NDO
@@ -38,14 +38,22 @@ measurements of a plant equal to the model (r = 1 unless the plant differs); so:
   has a pole at :math:`|z| \\ge 1`, or at :math:`|z| \\ge` :data:`MAX_RADIUS` decaying
   slower than :data:`MIN_DECAY` times the observer's own (:func:`overdeclared_radius`),
   or when the MPC, acting on the state predicted L ahead, decays slower than
-  :data:`MIN_DECAY` times its rate without the prediction (:func:`lead_radius`);
+  :data:`MIN_DECAY` times its rate without the prediction (:func:`lead_radius`), or when
+  the two together (:func:`loop_radius`) grow or decay slower than :data:`MIN_DECAY`
+  times the loop's rate without the latency (a fraction of a period over-declared can
+  pass each alone);
+* an observer too slow for the disturbance: the error its lag along the reference leaves
+  through the MPC's loop (:func:`observer_lag_error`) above ``run``'s tracking threshold
+  after its start-up: a problem whose fix raises the observer's gain (a warning when no
+  gain within the explicit form's limit does);
 * the explicit observer with :math:`T_s\\omega_j \\ge 2`: a problem;
 * a damping time constant below :math:`2T_s` that plant and controller treat differently
   (one applies it, the other not): a problem; left out of both: a warning (the real arm
   applies it);
 * headroom below :data:`MIN_HEADROOM`: a problem;
 * friction with the literal sign (it feeds energy in) and no compensation: a problem (a
-  warning for the paper's baseline, which is expected to lose the reference);
+  warning for the paper's baseline, which is expected to lose the reference); with an
+  observer a warning (nothing here bounds the error it leaves);
 * MuJoCo refusing the URDF, or the engines differing: a problem with a MuJoCo plant,
   else a warning (the table is printed either way).
 """
@@ -70,6 +78,7 @@ from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
 from ..experiment.plants import _effort_limit
 from ..model.robot import damping_time_constants
+from .metrics import DEFAULT_ERROR_THRESHOLD, RUN_WARN_AFTER
 
 __all__ = [
     "ENGINE_RTOL",
@@ -81,6 +90,8 @@ __all__ = [
     "apply_fix",
     "check_config",
     "lead_radius",
+    "loop_radius",
+    "observer_lag_error",
     "overdeclared_radius",
 ]
 
@@ -399,6 +410,85 @@ def lead_radius(kp: float, kd: float, Ts: float, over: float) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(step))))
 
 
+def loop_radius(
+    kp: float,
+    kd: float,
+    Ts: float,
+    wTs: float,
+    over: float,
+    ratio: float = 1.0,
+    explicit: bool = False,
+) -> float:
+    """Spectral radius [-] of one joint's whole loop, the MPC and the observer together,
+    with a latency declared ``over`` control periods too long (measurements fresh).
+
+    :func:`overdeclared_radius` takes the MPC's input as given and :func:`lead_radius`
+    the disturbance as cancelled; each may pass a fractional over-declaration that the
+    two loops together do not. Per period k, in acceleration units (the inverse dynamics
+    leaves a double integrator; a plant of inertia :math:`1/r` of the model's), with the
+    commanded :math:`u_k = v_k - \\hat e_k`:
+
+    * the observer, with :math:`g` as in :func:`overdeclared_radius` and the
+      over-declaration :math:`m + \\beta`:
+      :math:`\\hat e_k = (1-g)\\hat e_{k-1} + g\\,(r u_{k-1} - (1-\\beta)u_{k-1-m}
+      - \\beta u_{k-2-m})` (the velocity change of period k-1 paired with the torques
+      the declared latency names);
+    * the MPC, :math:`v_k = -k_p\\hat x_k - k_d\\hat{\\dot x}_k` on the state predicted
+      over :math:`L = DT_s` with the past :math:`v` (as in :func:`lead_radius`);
+    * the joint, held for a period: :math:`x^+ = x + T_s\\dot x + \\tfrac12T_s^2 r u_k`,
+      :math:`\\dot x^+ = \\dot x + T_s r u_k`.
+
+    The loop's state is :math:`[x, \\dot x, \\hat e_{k-1}, u_{k-1}, \\dots, u_{k-2-m},
+    v_{k-1}, \\dots, v_{k-\\lceil D\\rceil}]`; its transition matrix's largest eigenvalue
+    modulus is returned.
+
+    Args:
+        kp: [1/s²], kd: [1/s]: the MPC's equivalent feedback gains.
+        Ts: Control period [s].
+        wTs: The observer's :math:`T_s\\omega` [-].
+        over: D, the over-declaration in control periods [-] (>= 0).
+        ratio: r, model-to-plant inertia ratio [-].
+        explicit: The observer is the forward-Euler form.
+    """
+    g = wTs if explicit else wTs / (1.0 + wTs)
+    m = math.floor(over + 1e-9)
+    beta = max(over - m, 0.0)
+    lead = math.ceil(over - 1e-9) if over > 0 else 0  # the v's the prediction integrates
+    nu = m + 2  # u_{k-1} .. u_{k-2-m}
+    size = 3 + nu + lead
+
+    def iu(j: int) -> int:  # u_{k-j}
+        return 2 + j
+
+    def iv(j: int) -> int:  # v_{k-j}
+        return 2 + nu + j
+
+    estimate = np.zeros(size)  # ê_k
+    estimate[2] = 1.0 - g
+    estimate[iu(1)] += g * ratio
+    estimate[iu(1 + m)] -= g * (1.0 - beta)
+    estimate[iu(2 + m)] -= g * beta
+    predict = np.eye(2, size)  # (x̂, v̂)
+    for i in range(lead, 0, -1):  # v_{k-i}, the oldest first
+        h = ((over - (lead - 1)) if i == lead else 1.0) * Ts
+        predict = np.array([[1.0, h], [0.0, 1.0]]) @ predict
+        predict[:, iv(i)] += np.array([0.5 * h * h, h])
+    v = -kp * predict[0] - kd * predict[1]
+    u = v - estimate
+    step = np.zeros((size, size))
+    step[:2] = (np.array([[1.0, Ts], [0.0, 1.0]]) @ np.eye(2, size)
+                + np.outer(np.array([0.5 * Ts * Ts, Ts]), ratio * u))  # fmt: skip
+    step[2] = estimate
+    step[iu(1)] = u
+    for j in range(2, nu + 1):
+        step[iu(j), iu(j - 1)] = 1.0
+    if lead:
+        step[iv(1)] = v
+        for j in range(2, lead + 1):
+            step[iv(j), iv(j - 1)] = 1.0
+    return float(np.max(np.abs(np.linalg.eigvals(step))))
+
+
 def _run_latency_findings(
     report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray | None
 ) -> None:
@@ -418,9 +508,16 @@ def _run_latency_findings(
     cc = config.controller
     over = latency / Ts
     parts = []
+    kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    whole_bad: np.ndarray = np.array([], dtype=int)
     if bw is not None:
         ratio = _run_ratio(ex)
         explicit = _explicit(config)
+        whole = np.array([loop_radius(kp, kd, Ts, w * Ts, over, ratio, explicit) for w in bw])
+        whole0 = np.array([loop_radius(kp, kd, Ts, w * Ts, 0.0, ratio, explicit) for w in bw])
+        with np.errstate(divide="ignore"):
+            slower = np.log(np.minimum(whole, 1.0)) > MIN_DECAY * np.log(whole0)
+        whole_bad = np.flatnonzero(((whole >= 1.0) | slower) & (whole0 < 1.0))
         radius = np.array([overdeclared_radius(w * Ts, ratio, over, explicit) for w in bw])
         own = np.array([overdeclared_radius(w * Ts, ratio, 0.0, explicit) for w in bw])
         # a slow observer's own pole (1 - g r) lies near 1 by design: only a pole that
@@ -437,7 +534,6 @@ def _run_latency_findings(
                 f"too early and its loop's pole reaches |z| >= {MAX_RADIUS:g} on joint(s) "
                 f"{listed}"
             )
-    kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
     base, lead = lead_radius(kp, kd, Ts, 0.0), lead_radius(kp, kd, Ts, over)
     decay, decay0 = -math.log(min(lead, 1.0)) / Ts, -math.log(base) / Ts
     if decay < MIN_DECAY * decay0:
@@ -446,6 +542,15 @@ def _run_latency_findings(
             f"and its loop (kp = {kp:.4g} 1/s², kd = {kd:.4g} 1/s) then decays at "
             f"{decay:.3g} 1/s (|z| = {lead:.3g}), below {MIN_DECAY:g} x its {decay0:.3g} 1/s "
             "without the prediction"
+        )
+    if not parts and whole_bad.size:  # each loop alone passes; together they do not
+        listed = ", ".join(f"{names[j]!r} (|z| = {whole[j]:.3g}, {whole0[j]:.3g} without)"
+                           for j in whole_bad)  # fmt: skip
+        parts.append(
+            "the MPC acting on the state predicted that far ahead and the observer pairing "
+            f"each velocity change with torques {over:.3g} periods too early together "
+            f"(loop_radius) decay slower than {MIN_DECAY:g} x the loop's rate without the "
+            f"latency, or grow, on joint(s) {listed}"
         )
     if parts:
         report.add_problem(
@@ -457,6 +562,122 @@ def _run_latency_findings(
         )
 
 
+def _lag_inputs(ex: Experiment) -> tuple:
+    """:func:`observer_lag_error`'s samples along the reference, every control period:
+    ``(Ts, t, q_k, d_k, M(q_k)^-1)``."""
+    cfg = ex.config
+    Ts = cfg.controller.Ts
+    t = np.arange(0.0, cfg.simulation.duration + Ts / 2, Ts)
+    q, dq = ex.reference.sample_many(t)
+    q, dq = np.array(q, dtype=float), np.array(dq, dtype=float)
+    d = np.array([np.asarray(ex.disturbance(float(t[k]), q[k], dq[k]), dtype=float)
+                  for k in range(len(t))])  # fmt: skip
+    minv = np.array([np.linalg.inv(ex.robot.mass_matrix(q[k])) for k in range(len(t))])
+    return Ts, t, q, d, minv
+
+
+def observer_lag_error(
+    ex: Experiment,
+    kp: float,
+    kd: float,
+    after: float,
+    scale: float = 1.0,
+    inputs: tuple | None = None,
+) -> np.ndarray:
+    r"""Per joint, the largest tracking error [rad] after ``after`` [s] that the
+    disturbance the observer has not yet caught leaves, along the reference.
+
+    The config's disturbance :math:`d_k = d(t_k, r_k, \dot r_k)` sampled every
+    :math:`T_s` along the reference :math:`r_k`; the observer that runs (its matrix
+    :math:`cY` or :math:`K_O` times ``scale``, its discretization;
+    ``ObserverModel.filter`` of :mod:`hmpc_pin.identification`) estimating, at
+    :math:`t_k`, the disturbance of the period that ended,
+    :math:`\hat d_k = F(d_{k-1}, \hat d_{k-1})` (implicit Euler:
+    :math:`(I + T_sL_k)\hat d_k = \hat d_{k-1} + T_sL_kd_{k-1}`,
+    :math:`L = cY M(r_k)^{-1}`); what it leaves,
+    :math:`a_k = M(r_k)^{-1}(d_k - \hat d_k)`, drives each joint's error through the
+    MPC's loop (its equivalent feedback, :func:`lead_radius` without latency):
+    :math:`x^+ = x + T_s\dot x + \tfrac12T_s^2(a_k - k_px - k_d\dot x)`,
+    :math:`\dot x^+ = \dot x + T_s(a_k - k_px - k_d\dot x)`, from rest. Without an
+    observer :math:`\hat d = 0`.
+
+    Args:
+        ex: The built experiment (its reference, disturbance, model and observer).
+        kp: [1/s²], kd: [1/s]: the MPC's equivalent feedback gains.
+        after: The start-up left out [s].
+        scale: Factor on the observer's gain [-].
+        inputs: ``_lag_inputs(ex)``, when already computed.
+    """
+    from ..identification.friction import ObserverModel
+
+    Ts, t, q, d, minv = _lag_inputs(ex) if inputs is None else inputs
+    n = d.shape[1]
+    model = ObserverModel.of(getattr(ex.controller, "compensation", None), ex.robot)
+    if model is None:
+        dhat = np.zeros_like(d)
+    else:
+        if model.matrix is not None:
+            model = replace(model, matrix=np.asarray(model.matrix) * scale)
+        else:
+            model = replace(model, gain=np.asarray(model.gain, dtype=float) * scale)
+        before = np.vstack([np.zeros((1, n)), d[:-1]])  # d over the period that ended
+        with np.errstate(over="ignore", invalid="ignore"):  # an unstable observer: inf
+            dhat = model.filter(q, before[:, :, None])[:, :, 0]
+    x, xd, worst = np.zeros(n), np.zeros(n), np.zeros(n)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(len(t)):
+            if t[k] >= after - 1e-12:
+                worst = np.maximum(worst, np.abs(x))
+            acc = minv[k] @ (d[k] - dhat[k]) - kp * x - kd * xd
+            x, xd = x + Ts * xd + 0.5 * Ts * Ts * acc, xd + Ts * acc
+    return np.where(np.isfinite(worst), worst, np.inf)
+
+
+def _observer_lag_findings(
+    report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray
+) -> None:
+    r"""An observer too slow for the disturbance (:func:`observer_lag_error` above
+    `run`'s tracking tolerance): a problem whose fix raises the bandwidth by the
+    smallest power of 2 that brings the predicted error within half the tolerance
+    (below the explicit form's :math:`T_s\omega < 2`); a warning when none does."""
+    from ..controllers.computed_torque import mpc_feedback_gain
+    from ..mpc.condensed import CondensedMPC
+
+    cc = config.controller
+    Ts = report.Ts
+    if not np.any(bw > 0) or (_explicit(config) and np.max(bw) * Ts >= 2.0):
+        return  # no observer, or an unstable one (its own problem)
+    kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    inputs = _lag_inputs(ex)
+    err = observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, inputs=inputs)
+    bad = np.flatnonzero(err > DEFAULT_ERROR_THRESHOLD)
+    if not bad.size or not np.all(np.isfinite(err)):
+        return  # (an estimate that diverges along the reference is no lag)
+    listed = ", ".join(f"{report.joints[j]!r} ({bw[j]:.3g} 1/s: {err[j]:.3g} rad)" for j in bad)
+    text = (f"observer too slow for the disturbance: what it has not yet caught leaves a "
+            f"predicted tracking error above `run`'s {DEFAULT_ERROR_THRESHOLD:g} rad after "
+            f"{RUN_WARN_AFTER:g} s on joint(s) {listed} (its lag along the reference, "
+            "through the MPC's loop: observer_lag_error)")  # fmt: skip
+    for power in range(1, 13):
+        scale = 2.0**power
+        if _explicit(config) and np.max(bw) * scale * Ts >= 2.0:
+            break
+        if np.all(observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, scale, inputs)
+                  <= 0.5 * DEFAULT_ERROR_THRESHOLD):  # fmt: skip
+            obs = cc.observer
+            if obs.bandwidth is not None:
+                key, value = "bandwidth", np.asarray(obs.bandwidth, dtype=float) * scale
+            else:
+                key, value = "gain", np.asarray(obs.gain, dtype=float) * scale
+            fix = value.tolist() if value.ndim else float(value)
+            report.add_problem(
+                f"{text}; raise [controller.observer] {key} {scale:g} x (to {fix})",
+                {f"controller.observer.{key}": value if value.ndim else float(value)},
+            )
+            return
+    report.warnings.append(f"{text}; no observer bandwidth within its limits removes it")
+
+
 def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
     """A disturbance and nothing compensating it: with friction read with the literal sign
     (it feeds energy in) the arm runs away from the reference (a problem, kept as a
@@ -464,6 +685,15 @@ def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
     warning)."""
     friction = getattr(config.disturbance, "friction", None)
     if config.controller.compensation != "none":
+        if getattr(friction, "sign", None) == "literal":  # the observer must outrun it
+            report.warnings.append(
+                "[disturbance.friction] sign = 'literal' feeds energy in (d = +(B q' + F "
+                "sgn q'): negative damping): the observer must cancel a disturbance that "
+                "grows with the error it leaves, which no rule here bounds; `run`'s "
+                "tracking error may exceed its --warn-error threshold"
+                + (" (the paper's literal reading of Eq 32, kept)" if _is_paper(config)
+                   else "; sign = 'physical' simulates friction that dissipates")
+            )  # fmt: skip
         return
     if getattr(friction, "sign", None) != "literal":
         pulse = getattr(config.disturbance, "pulse", None)
@@ -558,6 +788,8 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
             )
 
     _run_latency_findings(report, config, ex, bw)
+    if bw is not None:
+        _observer_lag_findings(report, config, ex, bw)
     _damping_findings(report, config)
     _friction_findings(report, config)
 

@@ -36,7 +36,6 @@ from ..experiment.config import (
     TrajectoryConfig,
     load_config,
 )
-from ..sim.result import Result
 from .metrics import (
     DEFAULT_ERROR_THRESHOLD,
     compute_metrics,
@@ -264,24 +263,10 @@ def _warn_thresholds(args) -> dict:
 
 
 def cmd_replay(args) -> int:
-    from ..model.robot import load_robot
+    from .runfile import load_run, run_robot
 
-    if not args.result.is_file():
-        raise ConfigError("RESULT", f"{str(args.result)!r} not found; pass a .npz written by run")
-    try:
-        result = Result.load(args.result)
-    except (OSError, ValueError, KeyError) as exc:
-        raise ConfigError(
-            "RESULT", f"{str(args.result)!r} is not a hmpc_pin result: {exc}"
-        ) from exc
-    urdf = args.urdf or result.meta.get("urdf")
-    if not urdf:
-        raise ConfigError("--urdf", "the result does not name its URDF; pass --urdf PATH")
-    robot = load_robot(
-        urdf,
-        gravity=result.meta.get("gravity", 9.8),
-        locked_joints=result.meta.get("locked_joints") if not args.urdf else None,
-    )
+    result = load_run(args.result, "RESULT")
+    robot = run_robot(result, str(args.urdf) if args.urdf else None, "RESULT")
     path = _replay(robot, result, args.out, "--out")
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
     return EXIT_OK

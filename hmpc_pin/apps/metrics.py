@@ -8,6 +8,7 @@ import numpy as np
 
 __all__ = [
     "DEFAULT_ERROR_THRESHOLD",
+    "RUN_WARN_AFTER",
     "UNITS",
     "Metrics",
     "TaskMetrics",
@@ -23,6 +24,8 @@ __all__ = [
 
 #: Default threshold of the tracking-error warning [rad] (``--warn-error``).
 DEFAULT_ERROR_THRESHOLD = 0.05
+#: The start-up [s] that `run`'s tracking warning leaves out (:func:`run_warnings`).
+RUN_WARN_AFTER = 1.0
 
 #: Units of a joint's (position, velocity, effort) by kind.
 UNITS = {"revolute": ("rad", "rad/s", "N·m"), "prismatic": ("m", "m/s", "N")}
@@ -227,7 +230,7 @@ def _nanmax_abs(a: np.ndarray) -> np.ndarray:
 
 
 def run_warnings(
-    result, error_threshold: float = DEFAULT_ERROR_THRESHOLD, after: float = 1.0
+    result, error_threshold: float = DEFAULT_ERROR_THRESHOLD, after: float = RUN_WARN_AFTER
 ) -> list[str]:
     """Lines warning that a run which completed was not controlled as designed.
 

@@ -183,7 +183,7 @@ def load_config(path: str | Path) -> ExperimentConfig:
     src = str(path)
     if not path.is_file():
         raise ConfigError(
-            "<file>",
+            "",
             "config file not found; pass a .toml file path or the name of a packaged config "
             f"{config_names()}",
             source=src,
@@ -191,18 +191,18 @@ def load_config(path: str | Path) -> ExperimentConfig:
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError("<file>", f"cannot be read ({exc})", source=src) from exc
+        raise ConfigError("", f"cannot be read ({exc})", source=src) from exc
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         if path.suffix.lower() in (".urdf", ".xml") or text.lstrip().startswith("<"):
             raise ConfigError(
-                "<file>", "is a robot description (URDF/XML), not an experiment config; "
+                "", "is a robot description (URDF/XML), not an experiment config; "
                 f"write a config for this arm with `hmpc-pin init {path}` and pass the "
                 ".toml file it writes",
                 source=src,
             ) from exc  # fmt: skip
-        raise ConfigError("<file>", f"not valid TOML: {exc}", source=src) from exc
+        raise ConfigError("", f"not valid TOML: {exc}", source=src) from exc
 
     sections = {
         "robot": RobotConfig,

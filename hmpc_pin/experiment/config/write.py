@@ -85,7 +85,7 @@ def write_config(
     try:
         raw = tomllib.loads(Path(source).read_text(encoding="utf-8"))
     except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ConfigError("<file>", f"cannot be read ({exc})", source=str(source)) from exc
+        raise ConfigError("", f"cannot be read ({exc})", source=str(source)) from exc
     base, dest = Path(source).resolve().parent, Path(out).resolve().parent
     for keys in PATH_KEYS:
         table = raw

@@ -310,6 +310,19 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
             bad = [float(x) + 0.1 for x in experiment.reference.sample(0.0)[0]]
             bad[3] = 1.0  # above the Panda's joint 4 range (< 0)
             traj_pub.publish(trajectory_message(names, bad))
+        if matched and "future" not in acted and good_at is not None and run_t >= good_at + 1.6:
+            # one stamped 1 s ahead (pending), then one stamped now: the second supersedes
+            # the first, which never runs (its target is elsewhere)
+            acted.add("future")
+            elsewhere = [float(x) + 0.2 for x in experiment.reference.sample(0.0)[0]]
+            msg = trajectory_message(names, elsewhere)
+            ns = round((time.time() + 1.0) * 1e9)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+            traj_pub.publish(msg)
+            report["events"]["elsewhere"] = elsewhere
+        if matched and "now" not in acted and "future" in acted and run_t >= good_at + 1.8:
+            acted.add("now")
+            traj_pub.publish(trajectory_message(names, report["events"]["target"]))
         if (scenario in ("interrupt", "gravity_arm") and "sigint" not in acted
                 and run_t >= 1.5):  # fmt: skip
             acted.add("sigint")

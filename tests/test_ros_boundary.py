@@ -165,7 +165,12 @@ def test_a_trajectory_mid_run_costs_no_cycle_and_an_out_of_limits_one_is_refused
     assert ctrl["exit"] == 0, ctrl["stderr"]
     _no_nan(report)
     events = result.meta["ros"]["trajectories"]
-    assert [e["accepted"] for e in events] == [True, False], events
+    assert [e["accepted"] for e in events] == [True, False, True, True], events
+    # the third (stamped 1 s ahead) was superseded by the fourth before it started: it
+    # is recorded so, and the reference never went where it led (q_ref stays on the
+    # target below through the third's would-be window)
+    assert "superseded_at" in events[2] and "superseded_at" not in events[3], events
+    assert events[2]["superseded_at"] < events[2]["t"] < result.t[-1] - 0.5
     assert "panda_joint4" in events[1]["reason"] and "outside its limits" in events[1]["reason"]
     # accepting it: no long run of misses (a first check of 90 ms in the control thread
     # left 45 states of 2 ms unanswered in a row; a loaded machine may delay a few)

@@ -511,7 +511,7 @@ class RealtimeLoop:
 
         Returns:
             Whether it was taken (False only when ``base`` is no longer the reference).
-            :attr:`superseded` is then the pending reference it replaced (``None``: none).
+            ``self.superseded`` is then the pending reference it replaced (``None``: none).
         """
         with self._reference_lock:
             if base is not None and self.reference is not base:

@@ -165,7 +165,7 @@ def _same_fault(pair) -> None:
 @pytest.mark.parametrize("delay", [0, 1, 3])
 def test_behind_a_measured_controller_the_noise_stream_and_delay_are_the_same(delay):
     """Noise drawn per chunk equals the wrapper's draw per step; afterwards its generator
-    and delay buffer are where the per-step loop leaves them."""
+    and its port's measurement are where the per-step loop leaves them."""
     (ra, _, pa), (rb, _, pb) = _both(
         _paper(pulse=([10.0, 8.0, 0.3], [0.3, 0.6, 0.9], [0.1] * 3), delay=delay),
         1.0,
@@ -175,10 +175,14 @@ def test_behind_a_measured_controller_the_noise_stream_and_delay_are_the_same(de
     _same(ra, rb)
     wa, wb = pa[1], pb[1]
     assert wa.rng.bit_generator.state == wb.rng.bit_generator.state
-    assert len(wa._buffer) == len(wb._buffer)
-    for (qa, dqa), (qb, dqb) in zip(wa._buffer, wb._buffer, strict=True):
-        np.testing.assert_array_equal(qb, qa)
-        np.testing.assert_array_equal(dqb, dqa)
+    for a, b in zip(wa.measurement.current, wb.measurement.current, strict=True):
+        np.testing.assert_array_equal(b, a)
+    for j in range(delay + 1):  # the delay lines hold the same measurements
+        t, q, dq = float(ra.t[-1]) + (j + 1) * 0.01, ra.q[-1] + j, ra.dq[-1] - j
+        seen_a = wa.measurement.call_measure(t, q, dq)
+        seen_b = wb.measurement.call_measure(t, q, dq)
+        for a, b in zip(seen_a, seen_b, strict=True):
+            np.testing.assert_array_equal(b, a)
     _assert_same_state(wa.controller, wb.controller)
 
 

@@ -1,5 +1,5 @@
-// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step and the RK4
-// plant, its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
+// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step, the RK4
+// plant and a Measurement port (compiled or a Python subclass), its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
 // before every step.
 #include "holders.hpp"
 
@@ -21,7 +21,6 @@ struct PyClosedLoop {
   std::vector<Array> records;
   IntArray step_ns, sat_steps;
   Array sat_excess;
-  std::optional<Array> history;
   std::unique_ptr<ClosedLoop> loop;
 };
 
@@ -71,22 +70,14 @@ void expose_loop(py::module_& m) {
            py::keep_alive<1, 2>(), py::keep_alive<1, 3>())
       .def(
           "set_measurement",
-          [](PyClosedLoop& o, double q_noise, double dq_noise, int D, Array H) {
-            const int n = o.loop->n;
-            if (D < 0 || H.ndim() != 2 || H.shape(0) != D + 1 || H.shape(1) != 2 * n ||
-                !H.writeable())
-              throw std::invalid_argument(
-                  "ClosedLoop.set_measurement: history of (delay + 1, 2n)");
-            o.history = H;
-            o.loop->set_measurement(q_noise, dq_noise, D, o.history->mutable_data());
-          },
-          py::arg("q_noise"), py::arg("dq_noise"), py::arg("delay"), py::arg("history"))
+          [](PyClosedLoop& o, Measurement* m) { o.loop->set_measurement(m); },
+          py::arg("measurement"), py::keep_alive<1, 2>())
       .def(
           "run",
-          [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
-             const CRefRow& noise) { return o.loop->run(q, v, k0, k1, P, noise); },
-          py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"), py::arg("P"),
-          py::arg("noise"))
+          [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
+            return o.loop->run(q, v, k0, k1, P);
+          },
+          py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"), py::arg("P"))
       .def_property_readonly("k", [](const PyClosedLoop& o) { return o.loop->k; })
       .def_property_readonly("last", [](const PyClosedLoop& o) { return o.loop->last; })
       .def_property_readonly("advances", [](const PyClosedLoop& o) { return o.loop->advances; })

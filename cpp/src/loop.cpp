@@ -29,24 +29,15 @@ ClosedLoop::ClosedLoop(HMPCCore& c, RK4& p, const double* t, int K_,
   T.setZero(3 * substeps, n);
 }
 
-void ClosedLoop::set_measurement(double qn, double dqn, int D, double* history) {
-  measured = true;
-  q_noise = qn;
-  dq_noise = dqn;
-  delay = D;
-  hist = history;
-}
+void ClosedLoop::set_measurement(Measurement* m) { measurement = m; }
 
-long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
-                     const CRefRow& noise) {
+long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
   if (q.size() != n || v.size() != n || k0 < 0 || k1 > K + 1 || k0 > k1)
     throw std::invalid_argument("ClosedLoop.run: bad state or steps");
   const int rows = 3 * substeps;
   const bool pulses = P.rows() > 0;
   if (pulses && (P.rows() < (k1 - k0) * rows || P.cols() != n))
     throw std::invalid_argument("ClosedLoop.run: the table of time-only terms is too short");
-  if (measured && (noise.rows() < k1 - k0 || noise.cols() != 2 * n))
-    throw std::invalid_argument("ClosedLoop.run: the noise is too short");
   const double* t = t_arr;
   std::int64_t* ns = step_ns;
   std::int64_t* sat_n = sat_steps;
@@ -57,21 +48,11 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
     const long j = k - k0;
     const Vec* qc = &qm;  // the state the controller is given
     const Vec* dqc = &dqm;
-    if (measured) {
-      ++started;
-      double* H = hist;
-      if (k > 0) {  // this step's measurement (step 0's was taken at reset)
-        double* row = H + (k % (delay + 1)) * 2 * n;
-        for (int i = 0; i < n; ++i) {
-          row[i] = q[i] + q_noise * noise(j, i);
-          row[n + i] = v[i] + dq_noise * noise(j, n + i);
-        }
-      }
-      const double* row = H + ((k > delay ? k - delay : 0) % (delay + 1)) * 2 * n;
-      for (int i = 0; i < n; ++i) {
-        qm[i] = row[i];
-        dqm[i] = row[n + i];
-      }
+    ++started;
+    if (measurement) {
+      if (k > 0) measurement->measure(t[k], q, v);  // step 0's was taken at reset
+      qc = &measurement->qm;
+      dqc = &measurement->dqm;
     } else {
       qm = q;
       dqm = v;
@@ -83,6 +64,7 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
                 .count();
     ++stepped;
     tau = c.tau.row(0).transpose();
+    if (measurement) measurement->command(tau);
     // d(t_k, q, q̇): the time-only terms at the period's first stage, minus the friction
     if (pulses) d = P.row(j * rows).transpose();
     else d.setZero();

@@ -5,8 +5,10 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
 - the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
   is wholly compiled (its compensation the NDO of Eq 13 or none, its model loaded by the
   compiled dynamics), alone or behind a
-  :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (white noise drawn here from
-  its generator, the same stream as its own draws, and a delay in whole periods);
+  :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (or
+  :class:`~hmpc_pin.sim.sensing.SensedController`): its measurement port, compiled (the
+  plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`) or a Python
+  subclass, is called by the compiled loop;
 - the reference: one with a native form (sine, piecewise polynomial), sampled in C++;
 - the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` with its disturbance fused (time-only
   terms tabulated here per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same
@@ -19,8 +21,9 @@ controller's compiled step, the records, the torque check, the effort clip and i
 counts, the plant's compiled period, the state check), so both loops give the same
 arrays. A fault stops the chunk at its step, and the same exception as the per-step
 loop's is raised from here; Ctrl-C is checked before every step (the run keeps the steps
-recorded so far). Afterwards the controller, the measurement wrapper (its delay buffer and
-its generator) and the plant are in the state the per-step loop leaves them in.
+recorded so far). Afterwards the controller, the measurement (its state lives in the port;
+its generator is where a draw per measurement leaves it) and the plant are in the state the
+per-step loop leaves them in.
 
 Anything else (another controller or wrapper, a compensation advanced in Python, a user
 disturbance, the Euler or MuJoCo plant, an ``on_step`` callback) runs the per-step loop:
@@ -30,7 +33,6 @@ disturbance, the Euler or MuJoCo plant, an ``on_step`` callback) runs the per-st
 from __future__ import annotations
 
 import sys
-from collections import deque
 
 import numpy as np
 
@@ -59,7 +61,7 @@ def _parts(controller):
     """``(HierarchicalMPC, MeasuredController or None)`` of ``controller``, or ``None``."""
     measured = None
     if isinstance(controller, MeasuredController) and _own(
-        controller, MeasuredController, "step", "reset", "_measure"
+        controller, MeasuredController, "step", "reset"
     ):
         measured, controller = controller, controller.controller
     if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
@@ -124,24 +126,32 @@ class CompiledLoop:
             min(state_bound, sys.float_info.max), a, b,
             plant._friction is not None, plant.h, plant.substeps, float(ctrl.Ts),
         )  # fmt: skip
-        self._hist = None
         if measured is not None:
-            D = measured.delay
-            self._hist = np.zeros((D + 1, 2 * n))
-            self._hist[0] = np.concatenate(measured._buffer[0])
-            self._loop.set_measurement(measured.q_noise, measured.dq_noise, D, self._hist)
+            self._loop.set_measurement(measured.measurement)
         self._x = np.concatenate([plant.q, plant.dq])
         self._no_rows = np.empty((0, n))
-        self._no_noise = np.empty((0, 2 * n))
         self.k, self.last = 0, -1
 
     def run(self) -> None:
         """Run every step, chunk by chunk; a fault raises the compiled core's exception
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
-        ctrl, plant, K = self.ctrl, self.plant, self.K
+        ctrl, K = self.ctrl, self.K
         if self.reference is not ctrl._reference:  # as the first step does
             ctrl._set_reference(self.reference)
+        port = None if self.measured is None else self.measured.measurement
+        ahead = isinstance(port, load_native().SensingMeasurement)
+        if ahead:  # the noise of a chunk drawn at once, the unused draws given back
+            port.ahead = PULSE_CHUNK
+        try:
+            self._chunks(K)
+        finally:
+            if ahead:
+                port.give_back()
+                port.ahead = 1
+
+    def _chunks(self, K: int) -> None:
+        plant = self.plant
         k0 = 0
         while k0 <= K:
             self.k = k0
@@ -162,17 +172,11 @@ class CompiledLoop:
     def _chunk(self, k0: int, k1: int, P) -> int:
         """Steps ``k0 .. k1 - 1``; the parts' Python state brought up to date afterwards
         (also when a fault or Ctrl-C stops the chunk). Returns the step where it stopped."""
-        loop, n, measured = self._loop, self.n, self.measured
-        noise, rng_state, drawn = self._no_noise, None, 0
-        if measured is not None:  # one row of 2n draws per step k >= 1, as _measure draws
-            rng_state = measured.rng.bit_generator.state
-            drawn = k1 - max(k0, 1)
-            noise = np.zeros((k1 - k0, 2 * n))
-            noise[k1 - k0 - drawn :] = measured.rng.standard_normal((drawn, 2 * n))
+        loop, n = self._loop, self.n
         started, stepped, advances = loop.started, loop.stepped, loop.advances
         x = self._x
         try:
-            return loop.run(x[:n], x[n:], k0, k1, P, noise)
+            return loop.run(x[:n], x[n:], k0, k1, P)
         finally:
             self.k, self.last = loop.k, loop.last
             plant = self.plant
@@ -182,19 +186,5 @@ class CompiledLoop:
                 plant.q, plant.dq = x[:n].copy(), x[n:].copy()
             if loop.stepped != stepped:
                 self.ctrl._started = True
-            begun = loop.started - started
-            if measured is not None and begun:
-                used = k0 + begun - max(k0, 1)  # the draws of the steps begun
-                if used < drawn:  # give back the draws of the steps not begun
-                    measured.rng.bit_generator.state = rng_state
-                    measured.rng.standard_normal((used, 2 * n))
-                s = k0 + begun - 1  # the last step begun: its measurement is the newest
-                D = measured.delay
-                hist = self._hist
-                measured._started = True
-                measured._buffer = deque(
-                    ((hist[j % (D + 1), :n].copy(), hist[j % (D + 1), n:].copy())
-                     for j in range(max(0, s - D), s + 1)), maxlen=D + 1,
-                )  # fmt: skip
-            elif measured is not None and drawn:
-                measured.rng.bit_generator.state = rng_state
+            if self.measured is not None and loop.started != started:
+                self.measured._started = True

@@ -1,11 +1,12 @@
 // The closed loop (hmpc_pin.sim.compiled_loop): the per-step loop of
 // hmpc_pin.sim.simulate.simulate, many control periods per call, when every part has a
 // compiled form: the controller's fused step with its compiled reference (HMPCCore.step_t),
-// optionally behind a measurement model of white noise and a whole-period delay
-// (MeasuredController: the noise drawn by the caller, one row of 2n per step), and the RK4
-// plant's period with its fused disturbance (time-only terms tabulated by the caller, one
-// Coulomb-viscous friction here). Per step k, as the Python loop does:
-//   τ = step(t_k, measured state) → record q, q̇, τ, d, d̂ → (k = K: stop) → τ finite →
+// optionally behind a Measurement port (interfaces.hpp: compiled, measurement.hpp, or a
+// Python subclass), and the RK4 plant's period with its fused disturbance (time-only terms
+// tabulated by the caller, one Coulomb-viscous friction here). Per step k, as the Python
+// loop does:
+//   (k >= 1: measure(t_k, q, q̇)) → τ = step(t_k, measured state) → command(τ) →
+//   record q, q̇, τ, d, d̂ → (k = K: stop) → τ finite →
 //   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
 //   state finite and within the bound.
 // run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
@@ -20,6 +21,7 @@
 #pragma once
 
 #include "hmpc/errors.hpp"
+#include "hmpc/interfaces.hpp"
 #include "hmpc/rk4.hpp"
 #include "hmpc/step.hpp"
 #include "hmpc/types.hpp"
@@ -41,15 +43,13 @@ class ClosedLoop {
              const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
              const CRefVec& b, bool friction, double h, int substeps, double Ts);
 
-  // White noise (q_noise [rad], dq_noise [rad/s]) and a delay of D periods; history: the
-  // last D+1 measurements ((D+1)×2n, row k % (D+1) for step k, [q; q̇]).
-  void set_measurement(double q_noise, double dq_noise, int D, double* history);
+  // The controller sees the plant through `m` (reset by the caller with the controller; the
+  // caller keeps it alive); nullptr: the plant's state as is.
+  void set_measurement(Measurement* m);
 
   // Steps k0 .. k1-1 from the plant state (q, v) (updated in place). P: the time-only
-  // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows);
-  // noise: one row of 2n standard normal draws per step k0.. (measured; row of step 0
-  // unused: the measurement at reset).
-  long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P, const CRefRow& noise);
+  // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows).
+  long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P);
 
   std::function<void()> interrupted;  // called before every step (may throw)
   HMPCCore* core;
@@ -64,14 +64,11 @@ class ClosedLoop {
   double bound, h;
   int substeps;
   double Ts;
-  bool measured = false;
-  double q_noise = 0.0, dq_noise = 0.0;
-  int delay = 0;
-  double* hist = nullptr;
+  Measurement* measurement = nullptr;
   long k = 0;         // the step being run
   long last = -1;     // the last recorded step
   long advances = 0;  // plant periods integrated by run()
-  long started = 0;   // steps begun by run() (the measurement drew their noise)
+  long started = 0;   // steps begun by run()
   long stepped = 0;   // controller steps that succeeded
 
  private:

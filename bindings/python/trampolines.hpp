@@ -1,0 +1,82 @@
+// The Python-side ports: a Python subclass of a bound port (interfaces.hpp) runs inside the
+// compiled loop through these trampolines, as Crocoddyl's Python action models run inside
+// its solvers. Each override is called with the GIL held (the loop runs with it); what it
+// returns is checked here and kept where the loop reads it.
+#pragma once
+
+#include "expose.hpp"
+
+#include "hmpc/errors.hpp"
+#include "hmpc/interfaces.hpp"
+
+#include <string>
+#include <utility>
+
+namespace hmpc::python {
+
+// hmpc_pin._core.Measurement subclassed in Python: reset(q0, dq0) and measure(t, q, dq)
+// return the measurement handed over, a pair (q, dq) of n floats each; command(tau), when
+// defined, returns the torque the plant receives (n floats).
+class PyMeasurementPort : public Measurement {
+ public:
+  using Measurement::Measurement;
+
+  void reset(const CRefVec& q0, const CRefVec& dq0) override {
+    py::gil_scoped_acquire gil;
+    keep(override_of("reset")(Vec(q0), Vec(dq0)), q0.size(), "reset");
+  }
+
+  void measure(double t, const CRefVec& q, const CRefVec& dq) override {
+    py::gil_scoped_acquire gil;
+    keep(override_of("measure")(t, Vec(q), Vec(dq)), q.size(), "measure");
+  }
+
+  void command(RefVec tau) override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Measurement*>(this), "command");
+    if (!f) return;  // no filter of the torque
+    Vec out = vector(f(Vec(tau)), "command");
+    if (out.size() != tau.size())
+      throw DimensionMismatch("the torque Measurement.command returned", out.size(), tau.size(),
+                              "the controller commands " + std::to_string(tau.size()));
+    tau = out;
+  }
+
+ private:
+  py::function override_of(const char* name) const {
+    py::function f = py::get_override(static_cast<const Measurement*>(this), name);
+    if (!f)
+      throw py::type_error(std::string("a subclass of Measurement must define ") + name +
+                           " (returning the measurement (q, dq) handed over)");
+    return f;
+  }
+
+  static Vec vector(const py::handle& value, const char* name) {
+    try {
+      return value.cast<Vec>();
+    } catch (const py::cast_error&) {
+      throw py::type_error(std::string("Measurement.") + name +
+                           " must return float vectors, got " +
+                           std::string(py::str(py::repr(value))));
+    }
+  }
+
+  void keep(const py::object& result, Eigen::Index n, const char* name) {
+    if (!py::isinstance<py::sequence>(result) || py::len(result) != 2)
+      throw py::type_error(std::string("Measurement.") + name +
+                           " must return the pair (q, dq), got " +
+                           std::string(py::str(py::repr(result))));
+    const auto pair = result.cast<py::sequence>();
+    Vec q = vector(pair[0], name);
+    Vec dq = vector(pair[1], name);
+    for (const Vec* v : {&q, &dq})
+      if (v->size() != n)
+        throw DimensionMismatch(std::string("the measurement Measurement.") + name +
+                                    " returned",
+                                v->size(), n, "the plant has " + std::to_string(n) + " joints");
+    qm = std::move(q);
+    dqm = std::move(dq);
+  }
+};
+
+}  // namespace hmpc::python

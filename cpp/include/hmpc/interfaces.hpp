@@ -1,0 +1,29 @@
+// The ports of the loop: abstract parts the closed loop (loop.hpp) calls without knowing
+// whether they are compiled (measurement.hpp) or written in Python (a subclass of the bound
+// port, reached through the trampolines of bindings/python/trampolines.hpp).
+//
+// Measurement: what the controller is handed at each control instant t_k, and what the arm's
+// interface does to the torque the controller commands.
+//   reset(q0, q̇0)      the start of a run at (q0, q̇0) [rad, rad/s]: the measurement handed
+//                      over at t_0 (qm, dqm);
+//   measure(t_k, q, q̇) the plant's state at t_k, k >= 1: the measurement handed over at t_k;
+//   command(τ)         the interface's filter of the commanded torque τ [N·m], in place
+//                      (none by default).
+// The loop calls reset once (through the controller's reset), measure at every later step
+// before the controller's step, and command on the controller's torque before recording it.
+#pragma once
+
+#include "hmpc/types.hpp"
+
+namespace hmpc {
+
+class Measurement {
+ public:
+  virtual ~Measurement() = default;
+  virtual void reset(const CRefVec& q0, const CRefVec& dq0) = 0;
+  virtual void measure(double t, const CRefVec& q, const CRefVec& dq) = 0;
+  virtual void command(RefVec tau) { (void)tau; }
+  Vec qm, dqm;  // the measurement handed over now [rad, rad/s]
+};
+
+}  // namespace hmpc

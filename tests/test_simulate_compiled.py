@@ -186,6 +186,35 @@ def test_behind_a_measured_controller_the_noise_stream_and_delay_are_the_same(de
     _assert_same_state(wa.controller, wb.controller)
 
 
+def test_a_fault_behind_a_measured_controller_leaves_its_generator_where_per_step_does():
+    """The compiled loop draws a chunk's noise at once: a fault mid-chunk gives back the
+    draws of the steps not begun."""
+    pulse = ([3e3, 0.0, 0.0], [0.5] * 3, [0.05] * 3)
+    pair = _both(_paper(pulse=pulse, delay=1), 1.0, q0=np.ones(3), state_bound=20.0)
+    _same_fault(pair)
+    assert pair[0][0].meta["failed_step"] % PULSE_CHUNK != 0
+    wa, wb = pair[0][2][1], pair[1][2][1]
+    assert wa.rng.bit_generator.state == wb.rng.bit_generator.state
+
+
+def test_a_sensed_controller_runs_compiled_with_the_per_step_loops_arrays():
+    """The interface model of hmpc_pin.sim.sensing (encoder, finite difference, latency,
+    noise, delay, torque filter) is a compiled port: the run goes through the compiled
+    loop, with the per-step loop's arrays and generator."""
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+    from hmpc_pin.sim.sensing import SensedController
+
+    def make():
+        robot, ctrl, ref, plant = _paper(pulse=([10.0, 8.0, 0.3], [0.3] * 3, [0.1] * 3))()
+        model = SensingConfig(q_noise=1e-4, dq_noise=1e-3, delay=1).model(3)
+        return robot, SensedController(ctrl, model, np.random.default_rng(3)), ref, plant
+
+    (ra, _, pa), (rb, _, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert rb.loop == "compiled" and ra.loop == "python"
+    _same(ra, rb)
+    assert pa[1].rng.bit_generator.state == pb[1].rng.bit_generator.state
+
+
 def test_effort_saturation_is_counted_the_same():
     pair = _both(_paper(), 1.0, q0=np.ones(3), effort_limit=np.array([20.0, 5.0, np.inf]))
     (ra, _, _), (rb, _, _) = pair

@@ -16,6 +16,8 @@ from hmpc_pin.controllers.wrappers import MeasuredController
 from hmpc_pin.sim import sensing as s
 from hmpc_pin.sim.plants import RK4Plant
 
+from .reference import sensing as oracle
+
 N = 3
 TS = 0.01
 
@@ -106,6 +108,53 @@ def test_measurement_conformance(planar3, name):
     result = hmpc_pin.simulate(planar3, ctrl, ref, duration=2.0, q0=ref.sample(0.0)[0])
     assert result.loop == "compiled" and result.complete
     assert np.abs(result.error[100:]).max() < 0.01
+
+
+@pytest.mark.parametrize(
+    "latency, rate, delay, cutoff",
+    [(0.0, 100.0, 0, math.inf), (0.0037, 1000.0, 1, math.inf), (0.023, 500.0, 2, 60.0)],
+)
+def test_the_compiled_interface_model_equals_its_spline_oracle(latency, rate, delay, cutoff):
+    """Random smooth states at the control instants through the compiled model (encoder,
+    finite difference and its filter, a latency of a fraction or several periods, noise,
+    delay) against tests/reference/sensing.py (SciPy's cubic Hermite spline): equal to the
+    rounding of the interpolation (1e-12 on the angle; the velocity's difference divides
+    that by T_if)."""
+    rng = np.random.default_rng(8)
+    K = 40
+    t = TS * np.arange(K + 1)[:, None]
+    w, phase, amp = rng.uniform(1, 8, N), rng.uniform(0, 6, N), rng.uniform(0.2, 1.0, N)
+    q, dq = amp * np.sin(w * t + phase), amp * w * np.cos(w * t + phase)
+    counts = np.array([2.0**14, 2.0**18, np.inf])
+    sigma = (1e-4, 1e-3)
+    model = s.Sensing(
+        rate=rate,
+        encoder=s.Encoder(counts),
+        velocity=s.FiniteDifference(1 / rate, cutoff),
+        latency=s.Latency(latency),
+        noise=s.WhiteNoise(*sigma),
+        delay=s.PeriodDelay(delay),
+    )
+    port = model.compiled(TS, np.random.default_rng(4))
+    seen = [port.call_reset(q[0], dq[0])] + [
+        port.call_measure(k * TS, q[k], dq[k]) for k in range(1, K + 1)
+    ]
+    expected = oracle.handed_over(
+        TS,
+        q,
+        dq,
+        rate=rate,
+        latency=latency,
+        step=2 * np.pi / counts,
+        difference=True,
+        gain=s.lowpass_gain(1 / rate, cutoff),
+        noise=np.random.default_rng(4).standard_normal((K + 1, 2 * N)),
+        sigma=sigma,
+        delay=delay,
+    )
+    for k, ((q_m, v_m), (q_x, v_x)) in enumerate(zip(seen, expected, strict=True)):
+        np.testing.assert_allclose(q_m, q_x, rtol=0, atol=1e-12, err_msg=f"q at step {k}")
+        np.testing.assert_allclose(v_m, v_x, rtol=0, atol=1e-12 * rate, err_msg=f"dq at {k}")
 
 
 def test_quantisation_is_the_grid_nearest_the_angle():
@@ -280,3 +329,25 @@ def test_options_that_do_not_apply_to_a_port_of_your_own_are_errors():
         MeasuredController(_Probe(), q_noise=0.1, measurement=Quantised(1e-3))
     with pytest.raises(hmpc_pin.ConfigError, match="subclass of"):
         MeasuredController(_Probe(), measurement=object())
+
+
+def test_a_port_that_does_not_define_measure_is_refused_before_the_run():
+    class Half(s.Measurement):
+        def reset(self, q0, dq0):
+            return q0, dq0
+
+    with pytest.raises(hmpc_pin.ConfigError, match="does not define measure"):
+        MeasuredController(_Probe(), measurement=Half())
+
+
+def test_a_python_subclass_of_the_compiled_model_is_refused():
+    """Its overrides would be called per step but not by the compiled loop."""
+
+    class Spy(hmpc_pin.native.load().SensingMeasurement):
+        def measure(self, t, q, dq):
+            return q, dq
+
+    settings = hmpc_pin.native.load().SensingSettings()
+    settings.exact = True
+    with pytest.raises(hmpc_pin.ConfigError, match="subclass Measurement instead"):
+        MeasuredController(_Probe(), measurement=Spy(settings, None))

@@ -21,6 +21,38 @@ from .base import ControllerWrapper
 __all__ = ["CollisionReaction", "FrictionFeedforward", "MeasuredController", "TimedController"]
 
 
+def _check_port(port) -> None:
+    """A measurement port the loops can call: compiled, or a Python subclass of the port
+    that defines ``reset`` and ``measure``.
+
+    Raises:
+        ConfigError: Anything else (named).
+    """
+    core = load_native()
+    base = core.Measurement
+    cls = type(port)
+    if not isinstance(port, base):
+        raise ConfigError(
+            "measurement",
+            f"expected a subclass of hmpc_pin.sim.sensing.Measurement, got {cls.__name__}",
+        )
+    if cls.__module__ == base.__module__:
+        return  # compiled
+    if isinstance(port, core.SensingMeasurement):
+        raise ConfigError(
+            "measurement",
+            f"{cls.__name__} subclasses the compiled SensingMeasurement, whose loop calls "
+            "the compiled model and not your overrides; subclass Measurement instead",
+        )
+    missing = [name for name in ("reset", "measure") if getattr(cls, name) is getattr(base, name)]
+    if missing:
+        raise ConfigError(
+            "measurement",
+            f"{cls.__name__} does not define {' and '.join(missing)}; a Measurement returns "
+            "the measurement (q, dq) handed over from reset(q0, dq0) and measure(t, q, dq)",
+        )
+
+
 class MeasuredController(ControllerWrapper):
     """A controller that sees the plant through a measurement port.
 
@@ -72,11 +104,7 @@ class MeasuredController(ControllerWrapper):
                     "measurement", "q_noise, dq_noise, delay and rng do not apply to a "
                     "measurement port of your own; give them to the port",
                 )  # fmt: skip
-            if not isinstance(measurement, load_native().Measurement):
-                raise ConfigError(
-                    "measurement", f"expected a subclass of hmpc_pin.sim.sensing.Measurement, "
-                    f"got {type(measurement).__name__}",
-                )  # fmt: skip
+            _check_port(measurement)
         if not (np.isfinite(q_noise) and q_noise >= 0 and np.isfinite(dq_noise) and dq_noise >= 0):
             raise ConfigError(
                 "q_noise/dq_noise",

@@ -215,6 +215,37 @@ def test_a_sensed_controller_runs_compiled_with_the_per_step_loops_arrays():
     assert pa[1].rng.bit_generator.state == pb[1].rng.bit_generator.state
 
 
+class _NoisyDisturbance:
+    """A disturbance written in Python, d = 0.5 sin(3t) − 0.2 q̇ + 0.01 ε with its own
+    random stream: the values depend on the order and number of its calls."""
+
+    def __init__(self):
+        self.rng, self.calls = np.random.default_rng(2), 0
+
+    def __call__(self, t, q, dq):
+        self.calls += 1
+        return 0.5 * np.sin(3 * t) * np.ones(3) - 0.2 * dq + 0.01 * self.rng.standard_normal(3)
+
+
+def test_a_callable_disturbance_is_called_by_the_compiled_loop_as_by_the_per_step_loop():
+    """Through the Disturbance port: once per step for the record and at each of the 4
+    stages of every substep of a period, in the per-step loop's order (same arrays, same
+    stream)."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(robot)
+        plant = RK4Plant(robot.copy(), _NoisyDisturbance(), ctrl.Ts)
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    (ra, _, pa), (rb, _, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert ra.loop == "python" and rb.loop == "compiled" and rb.complete
+    _same(ra, rb)
+    K, substeps = len(ra.t) - 1, pa[3].substeps
+    assert pa[3].disturbance.calls == pb[3].disturbance.calls == (K + 1) + 4 * substeps * K
+    assert pb[3].k == K and np.array_equal(pb[3].q, pa[3].q)
+
+
 def test_effort_saturation_is_counted_the_same():
     pair = _both(_paper(), 1.0, q0=np.ones(3), effort_limit=np.array([20.0, 5.0, np.inf]))
     (ra, _, _), (rb, _, _) = pair
@@ -333,10 +364,6 @@ def _short(ctrl=None, plant=None, ref=None, **kw):
 NOT_COMPILED = {
     "on_step": (dict(on_step=lambda t, q, r: None), "on_step"),
     "euler": (dict(plant=lambda r, c: EulerPlant(r.copy(), None, c.Ts)), "EulerPlant"),
-    "callable disturbance": (
-        dict(plant=lambda r, c: RK4Plant(r.copy(), lambda t, q, dq: np.zeros(3), c.Ts)),
-        "disturbance",
-    ),
     "other controller": (
         dict(ctrl=lambda r: hmpc_pin.ComputedTorque(r)), "controller ComputedTorque"),
     "compensation in Python": (

@@ -1,7 +1,9 @@
 // hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step, the RK4
-// plant and a Measurement port (compiled or a Python subclass), its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
+// plant (its disturbance fused, or a Python callable through the Disturbance port) and a
+// Measurement port (compiled or a Python subclass), its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
 // before every step.
 #include "holders.hpp"
+#include "trampolines.hpp"
 
 #include "hmpc/loop.hpp"
 
@@ -21,6 +23,7 @@ struct PyClosedLoop {
   std::vector<Array> records;
   IntArray step_ns, sat_steps;
   Array sat_excess;
+  std::unique_ptr<PyCallableDisturbance> disturbance;
   std::unique_ptr<ClosedLoop> loop;
 };
 
@@ -72,6 +75,14 @@ void expose_loop(py::module_& m) {
           "set_measurement",
           [](PyClosedLoop& o, Measurement* m) { o.loop->set_measurement(m); },
           py::arg("measurement"), py::keep_alive<1, 2>())
+      .def(
+          "set_disturbance",
+          [](PyClosedLoop& o, py::object d) {
+            auto port = std::make_unique<PyCallableDisturbance>(std::move(d));
+            o.loop->set_disturbance(port.get());
+            o.disturbance = std::move(port);
+          },
+          py::arg("disturbance"))
       .def(
           "run",
           [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {

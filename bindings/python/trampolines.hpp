@@ -79,4 +79,16 @@ class PyMeasurementPort : public Measurement {
   }
 };
 
+// A Python callable d(t, q, dq) -> (n,) [N·m] as the loop's Disturbance port (the
+// disturbance protocol of hmpc_pin.sim.disturbances is any such callable).
+class PyCallableDisturbance : public Disturbance {
+ public:
+  explicit PyCallableDisturbance(py::object f) : fn(std::move(f)) {}
+  Vec at(double t, const Vec& q, const Vec& dq) override {
+    py::gil_scoped_acquire gil;
+    return fn(t, q, dq).cast<Vec>();
+  }
+  py::object fn;
+};
+
 }  // namespace hmpc::python

@@ -31,11 +31,19 @@ ClosedLoop::ClosedLoop(HMPCCore& c, RK4& p, const double* t, int K_,
 
 void ClosedLoop::set_measurement(Measurement* m) { measurement = m; }
 
+void ClosedLoop::set_disturbance(Disturbance* d) {
+  if (d && friction)
+    throw std::invalid_argument("ClosedLoop: a disturbance port and a fused friction");
+  disturbance = d;
+}
+
 long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
   if (q.size() != n || v.size() != n || k0 < 0 || k1 > K + 1 || k0 > k1)
     throw std::invalid_argument("ClosedLoop.run: bad state or steps");
   const int rows = 3 * substeps;
   const bool pulses = P.rows() > 0;
+  if (pulses && disturbance)
+    throw std::invalid_argument("ClosedLoop.run: a disturbance port and a table of terms");
   if (pulses && (P.rows() < (k1 - k0) * rows || P.cols() != n))
     throw std::invalid_argument("ClosedLoop.run: the table of time-only terms is too short");
   const double* t = t_arr;
@@ -66,10 +74,16 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
     tau = c.tau.row(0).transpose();
     if (measurement) measurement->command(tau);
     // d(t_k, q, q̇): the time-only terms at the period's first stage, minus the friction
-    if (pulses) d = P.row(j * rows).transpose();
-    else d.setZero();
-    if (friction)
-      for (int i = 0; i < n; ++i) d[i] -= joint_torque(fa[i], fb[i], v[i]);
+    if (disturbance) {
+      d = disturbance->at(t[k], Vec(q), Vec(v));
+      if (d.size() != n)
+        throw std::invalid_argument("the disturbance returned a vector of wrong size");
+    } else {
+      if (pulses) d = P.row(j * rows).transpose();
+      else d.setZero();
+      if (friction)
+        for (int i = 0; i < n; ++i) d[i] -= joint_torque(fa[i], fb[i], v[i]);
+    }
     double* rq = rec[0] + k * n;
     double* rdq = rec[1] + k * n;
     double* rtau = rec[2] + k * n;
@@ -97,11 +111,18 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
     }
     double* rap = rec[5] + k * n;
     for (int i = 0; i < n; ++i) rap[i] = tau[i];
-    for (int r = 0; r < rows; ++r) {
-      if (pulses) T.row(r) = tau.transpose() + P.row(j * rows + r);
-      else T.row(r) = tau.transpose();
+    if (disturbance) {
+      plant->period_with(q, v, tau, t[k], h, substeps,
+                         [this](double ts, const Vec& qs, const Vec& vs) {
+                           return disturbance->at(ts, qs, vs);
+                         });
+    } else {
+      for (int r = 0; r < rows; ++r) {
+        if (pulses) T.row(r) = tau.transpose() + P.row(j * rows + r);
+        else T.row(r) = tau.transpose();
+      }
+      plant->period(q, v, T, fa, fb, friction, h);
     }
-    plant->period(q, v, T, fa, fb, friction, h);
     ++advances;
     bool inside = true;
     for (int i = 0; i < n && inside; ++i)

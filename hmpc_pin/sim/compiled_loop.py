@@ -12,7 +12,9 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
 - the reference: one with a native form (sine, piecewise polynomial), sampled in C++;
 - the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` with its disturbance fused (time-only
   terms tabulated here per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same
-  tables as the per-step loop's, one Coulomb–viscous friction evaluated in C++);
+  tables as the per-step loop's, one Coulomb–viscous friction evaluated in C++), or any
+  other disturbance (a callable ``d(t, q, dq)``) called from the compiled loop through its
+  Disturbance port at every stage, as the per-step loop's plant calls it;
 - no ``on_step`` callback.
 
 Each chunk is :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods: per step it does what the
@@ -25,8 +27,8 @@ recorded so far). Afterwards the controller, the measurement (its state lives in
 its generator is where a draw per measurement leaves it) and the plant are in the state the
 per-step loop leaves them in.
 
-Anything else (another controller or wrapper, a compensation advanced in Python, a user
-disturbance, the Euler or MuJoCo plant, an ``on_step`` callback) runs the per-step loop:
+Anything else (another controller or wrapper, a compensation advanced in Python, the Euler
+or MuJoCo plant, an ``on_step`` callback) runs the per-step loop:
 :func:`why_not_compiled` names the first part without a compiled form.
 """
 
@@ -80,9 +82,6 @@ def why_not_compiled(controller, plant, reference, on_step) -> str | None:
     ):
         return (f"the plant {type(plant).__name__} is advanced in Python (only RK4Plant's "
                 "period is compiled)")  # fmt: skip
-    if not plant.fused:
-        return (f"the disturbance {type(plant.disturbance).__name__} has a term without a "
-                "compiled form (a callable d(t, q, dq), or two friction terms)")  # fmt: skip
     parts = _parts(controller)
     if parts is None:
         return (f"the controller {type(controller).__name__} has no compiled step (only "
@@ -128,6 +127,8 @@ class CompiledLoop:
         )  # fmt: skip
         if measured is not None:
             self._loop.set_measurement(measured.measurement)
+        if not plant.fused:
+            self._loop.set_disturbance(plant.disturbance)
         self._x = np.concatenate([plant.q, plant.dq])
         self._no_rows = np.empty((0, n))
         self.k, self.last = 0, -1

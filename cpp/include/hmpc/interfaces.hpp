@@ -11,6 +11,12 @@
 //                      (none by default).
 // The loop calls reset once (through the controller's reset), measure at every later step
 // before the controller's step, and command on the controller's torque before recording it.
+//
+// Disturbance: the torque d(t, q, q̇) [N·m] acting on the plant (Eq 1: τ + d), evaluated at
+// every RK4 stage of a period and, for the record, at each t_k. The loop evaluates the
+// disturbances whose terms say what they are fused (time-only terms tabulated, one
+// Coulomb-viscous friction, loop.hpp); any other disturbance (a Python callable) plugs in
+// here.
 #pragma once
 
 #include "hmpc/types.hpp"
@@ -24,6 +30,12 @@ class Measurement {
   virtual void measure(double t, const CRefVec& q, const CRefVec& dq) = 0;
   virtual void command(RefVec tau) { (void)tau; }
   Vec qm, dqm;  // the measurement handed over now [rad, rad/s]
+};
+
+class Disturbance {
+ public:
+  virtual ~Disturbance() = default;
+  virtual Vec at(double t, const Vec& q, const Vec& dq) = 0;
 };
 
 }  // namespace hmpc

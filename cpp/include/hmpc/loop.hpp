@@ -3,8 +3,8 @@
 // compiled form: the controller's fused step with its compiled reference (HMPCCore.step_t),
 // optionally behind a Measurement port (interfaces.hpp: compiled, measurement.hpp, or a
 // Python subclass), and the RK4 plant's period with its fused disturbance (time-only terms
-// tabulated by the caller, one Coulomb-viscous friction here). Per step k, as the Python
-// loop does:
+// tabulated by the caller, one Coulomb-viscous friction here) or a Disturbance port called
+// at every stage (interfaces.hpp: a Python callable). Per step k, as the Python loop does:
 //   (k >= 1: measure(t_k, q, q̇)) → τ = step(t_k, measured state) → command(τ) →
 //   record q, q̇, τ, d, d̂ → (k = K: stop) → τ finite →
 //   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
@@ -47,6 +47,10 @@ class ClosedLoop {
   // caller keeps it alive); nullptr: the plant's state as is.
   void set_measurement(Measurement* m);
 
+  // The plant's disturbance is `d`, called at every stage and for the record (the caller
+  // keeps it alive; no table of time-only terms, no friction then); nullptr: the fused one.
+  void set_disturbance(Disturbance* d);
+
   // Steps k0 .. k1-1 from the plant state (q, v) (updated in place). P: the time-only
   // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows).
   long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P);
@@ -65,6 +69,7 @@ class ClosedLoop {
   int substeps;
   double Ts;
   Measurement* measurement = nullptr;
+  Disturbance* disturbance = nullptr;
   long k = 0;         // the step being run
   long last = -1;     // the last recorded step
   long advances = 0;  // plant periods integrated by run()

@@ -246,6 +246,34 @@ def test_a_callable_disturbance_is_called_by_the_compiled_loop_as_by_the_per_ste
     assert pb[3].k == K and np.array_equal(pb[3].q, pa[3].q)
 
 
+def test_an_on_step_callback_is_called_by_the_compiled_loop_as_by_the_per_step_loop():
+    """Once per recorded step, with t_k, the plant's state and the reference sampled at
+    t_k (recorded as the result's q_ref), as the per-step loop calls it."""
+    seen = {}
+
+    def make(loop):
+        def on_step(t, q, q_ref):
+            seen[loop].append((float(t), np.array(q), np.array(q_ref)))
+
+        seen[loop] = []
+        return on_step
+
+    results = {}
+    for loop in ("python", "compiled"):
+        robot, ctrl, ref, plant = _paper()()
+        kw = dict(duration=1.0, plant=plant, q0=np.ones(3), loop=loop, on_step=make(loop))
+        results[loop] = hmpc_pin.simulate(robot, ctrl, ref, **kw)
+    ra, rb = results["python"], results["compiled"]
+    assert rb.loop == "compiled"
+    _same(ra, rb)
+    assert len(seen["compiled"]) == len(rb.t)
+    for k, (t, q, q_ref) in enumerate(seen["compiled"]):
+        assert t == rb.t[k]
+        np.testing.assert_array_equal(q, rb.q[k])
+        np.testing.assert_array_equal(q_ref, rb.q_ref[k])
+        np.testing.assert_array_equal(q_ref, seen["python"][k][2])
+
+
 def test_effort_saturation_is_counted_the_same():
     pair = _both(_paper(), 1.0, q0=np.ones(3), effort_limit=np.array([20.0, 5.0, np.inf]))
     (ra, _, _), (rb, _, _) = pair
@@ -362,7 +390,6 @@ def _short(ctrl=None, plant=None, ref=None, **kw):
 
 
 NOT_COMPILED = {
-    "on_step": (dict(on_step=lambda t, q, r: None), "on_step"),
     "euler": (dict(plant=lambda r, c: EulerPlant(r.copy(), None, c.Ts)), "EulerPlant"),
     "other controller": (
         dict(ctrl=lambda r: hmpc_pin.ComputedTorque(r)), "controller ComputedTorque"),

@@ -84,6 +84,12 @@ void expose_loop(py::module_& m) {
           },
           py::arg("disturbance"))
       .def(
+          "set_recorded",
+          [](PyClosedLoop& o, py::function f) {
+            o.loop->recorded = [f = std::move(f)](long k) { f(k); };
+          },
+          py::arg("callback"))
+      .def(
           "run",
           [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
             return o.loop->run(q, v, k0, k1, P);

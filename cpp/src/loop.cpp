@@ -97,6 +97,7 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
       rdh[i] = c.dhat(0, i);
     }
     last = k;
+    if (recorded) recorded(k);
     if (k == K) return k;
     if (!tau.allFinite()) throw NonFinite("tau", {tau}, t[k]);
     if (has_limit) {

@@ -15,7 +15,8 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
   tables as the per-step loop's, one Coulomb–viscous friction evaluated in C++), or any
   other disturbance (a callable ``d(t, q, dq)``) called from the compiled loop through its
   Disturbance port at every stage, as the per-step loop's plant calls it;
-- no ``on_step`` callback.
+- an ``on_step`` callback, if any, is called from the compiled loop once a step is recorded
+  (with the reference sampled at that instant, as the per-step loop does).
 
 Each chunk is :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods: per step it does what the
 per-step loop does, in the same order and with the same floating-point operations (the
@@ -28,7 +29,7 @@ its generator is where a draw per measurement leaves it) and the plant are in th
 per-step loop leaves them in.
 
 Anything else (another controller or wrapper, a compensation advanced in Python, the Euler
-or MuJoCo plant, an ``on_step`` callback) runs the per-step loop:
+or MuJoCo plant) runs the per-step loop:
 :func:`why_not_compiled` names the first part without a compiled form.
 """
 
@@ -71,11 +72,10 @@ def _parts(controller):
     return None
 
 
-def why_not_compiled(controller, plant, reference, on_step) -> str | None:
+def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
     """The first part of the loop without a compiled form, in words, or ``None`` when the
-    whole loop can run compiled (module docstring)."""
-    if on_step is not None:
-        return "an on_step callback is called from Python at every step"
+    whole loop can run compiled (module docstring; ``on_step`` is called from the compiled
+    loop and is never the reason)."""
     if not (
         isinstance(plant, RK4Plant)
         and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")
@@ -111,7 +111,7 @@ class CompiledLoop:
     """
 
     def __init__(self, controller, plant: RK4Plant, reference, t_arr, records, step_ns,
-                 limit, state_bound: float, sat_steps, sat_excess):  # fmt: skip
+                 limit, state_bound: float, sat_steps, sat_excess, on_step=None):  # fmt: skip
         ctrl, measured = _parts(controller)  # type: ignore[misc]
         self.ctrl, self.measured, self.plant, self.reference = ctrl, measured, plant, reference
         self.t_arr, self.records = t_arr, records
@@ -129,9 +129,26 @@ class CompiledLoop:
             self._loop.set_measurement(measured.measurement)
         if not plant.fused:
             self._loop.set_disturbance(plant.disturbance)
+        if on_step is not None:
+            self._loop.set_recorded(self._on_step(on_step))
         self._x = np.concatenate([plant.q, plant.dq])
         self._no_rows = np.empty((0, n))
         self.k, self.last = 0, -1
+
+    def _on_step(self, on_step):
+        """The callback after step k is recorded: the reference sampled at t_k into the
+        records, then ``on_step(t_k, q_k, q_ref)``, as the per-step loop does."""
+        t_arr, reference, rec = self.t_arr, self.reference, self.records
+        rec_q, rec_q_ref, rec_dq_ref = rec["q"], rec["q_ref"], rec["dq_ref"]
+
+        def recorded(k: int) -> None:
+            t = t_arr[k]
+            q_ref, dq_ref = reference.sample(t)
+            rec_q_ref[k] = q_ref
+            rec_dq_ref[k] = dq_ref
+            on_step(t, rec_q[k].copy(), q_ref)
+
+        return recorded
 
     def run(self) -> None:
         """Run every step, chunk by chunk; a fault raises the compiled core's exception

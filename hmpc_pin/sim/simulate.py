@@ -213,7 +213,7 @@ def simulate(
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
         if compiled:
             runner = CompiledLoop(controller, sim_plant, reference, t_arr, rec, step_ns, limit,
-                                  state_bound, sat_steps, sat_excess)  # fmt: skip
+                                  state_bound, sat_steps, sat_excess, on_step)  # fmt: skip
             try:
                 runner.run()
             finally:

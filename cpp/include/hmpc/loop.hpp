@@ -6,7 +6,7 @@
 // tabulated by the caller, one Coulomb-viscous friction here) or a Disturbance port called
 // at every stage (interfaces.hpp: a Python callable). Per step k, as the Python loop does:
 //   (k >= 1: measure(t_k, q, q̇)) → τ = step(t_k, measured state) → command(τ) →
-//   record q, q̇, τ, d, d̂ → (k = K: stop) → τ finite →
+//   record q, q̇, τ, d, d̂ → recorded(k) → (k = K: stop) → τ finite →
 //   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
 //   state finite and within the bound.
 // run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
@@ -56,6 +56,7 @@ class ClosedLoop {
   long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P);
 
   std::function<void()> interrupted;  // called before every step (may throw)
+  std::function<void(long)> recorded;  // called with k once step k is recorded (may throw)
   HMPCCore* core;
   RK4* plant;
   int n, K;

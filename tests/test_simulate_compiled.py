@@ -381,6 +381,50 @@ class _PlainSine:
         return np.sin(times) * np.ones(3), np.cos(times) * np.ones(3)
 
 
+class _CountedSine(_PlainSine):
+    """The sine above, counting its horizon calls and the times they asked for."""
+
+    def __init__(self, width: int = 3):
+        self.calls, self.width = [], width
+
+    def sample_many(self, times, out=None):
+        self.calls.append(np.array(times))
+        times = np.asarray(times, dtype=float)[:, None]
+        return np.sin(times) * np.ones(self.width), np.cos(times) * np.ones(self.width)
+
+
+def test_a_reference_sampled_in_python_is_called_by_the_compiled_loop_as_per_step():
+    """Through the Reference port: one sample_many of the horizon t_k + j Ts per step,
+    the same arrays as per step."""
+    refs, results = {}, {}
+    for loop in ("python", "compiled"):
+        refs[loop] = _CountedSine()
+        results[loop] = _short(ref=lambda loop=loop: refs[loop], loop=loop)
+        assert results[loop].loop == loop and results[loop].complete
+    _same(results["python"], results["compiled"])
+    a, b = refs["python"].calls, refs["compiled"].calls
+    K = len(results["compiled"].t) - 1
+    assert len(b) == K + 2  # the steps', then the recorded reference's (sample_many of t)
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(y, x)
+
+
+def test_a_python_reference_of_the_wrong_width_stops_both_loops_alike():
+    """sample_many returning 2 columns for 3 joints: the same DimensionError, at step 0."""
+    pair = []
+    for loop in ("python", "compiled"):
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(robot)
+        ref = _CountedSine(width=2)
+        ref.sample = lambda t: (np.full(3, np.sin(t)), np.full(3, np.cos(t)))
+        with pytest.raises(hmpc_pin.SimulationError) as info:
+            hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), loop=loop)
+        pair.append(info.value)
+    assert str(pair[0]) == str(pair[1]) and "sample_many returned" in str(pair[1])
+    assert isinstance(pair[1].__cause__, hmpc_pin.DimensionError)
+
+
 def _short(ctrl=None, plant=None, ref=None, **kw):
     robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
     ctrl = ctrl(robot) if callable(ctrl) else hmpc_pin.HierarchicalMPC(robot)
@@ -397,7 +441,6 @@ NOT_COMPILED = {
         dict(ctrl=lambda r: hmpc_pin.HierarchicalMPC(
             r, compensation=hmpc_pin.MomentumObserver(r, 0.01, 50.0))),
         "compensation MomentumObserver"),
-    "reference without native form": (dict(ref=lambda: _PlainSine()), "reference _PlainSine"),
 }  # fmt: skip
 
 

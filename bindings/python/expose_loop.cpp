@@ -24,6 +24,7 @@ struct PyClosedLoop {
   IntArray step_ns, sat_steps;
   Array sat_excess;
   std::unique_ptr<PyCallableDisturbance> disturbance;
+  std::unique_ptr<PyCallableReference> reference;
   std::unique_ptr<ClosedLoop> loop;
 };
 
@@ -83,6 +84,14 @@ void expose_loop(py::module_& m) {
             o.disturbance = std::move(port);
           },
           py::arg("disturbance"))
+      .def(
+          "set_reference",
+          [](PyClosedLoop& o, py::object horizon) {
+            auto port = std::make_unique<PyCallableReference>(std::move(horizon));
+            o.loop->set_reference(port.get());
+            o.reference = std::move(port);
+          },
+          py::arg("horizon"))
       .def(
           "set_recorded",
           [](PyClosedLoop& o, py::function f) {

@@ -91,4 +91,16 @@ class PyCallableDisturbance : public Disturbance {
   py::object fn;
 };
 
+// A Python callable horizon(t) as the loop's Reference port: it writes the horizon into the
+// step's stack through the numpy array the stack maps (HierarchicalMPC._sample_horizon).
+class PyCallableReference : public Reference {
+ public:
+  explicit PyCallableReference(py::object f) : fn(std::move(f)) {}
+  void horizon(double t, Eigen::Ref<RowMat>) override {
+    py::gil_scoped_acquire gil;
+    fn(t);
+  }
+  py::object fn;
+};
+
 }  // namespace hmpc::python

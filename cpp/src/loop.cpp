@@ -66,7 +66,15 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
       dqm = v;
     }
     const auto start = std::chrono::steady_clock::now();
-    c.step_t(t[k], *qc, *dqc);
+    if (reference) {  // as HierarchicalMPC.step with a reference sampled in Python
+      auto& S = *c.stack;
+      S.row(0) = qc->transpose();
+      S.row(1) = dqc->transpose();
+      reference->horizon(t[k], S);
+      c.step(S, t[k]);
+    } else {
+      c.step_t(t[k], *qc, *dqc);
+    }
     ns[k] = std::chrono::duration_cast<std::chrono::nanoseconds>(
                 std::chrono::steady_clock::now() - start)
                 .count();

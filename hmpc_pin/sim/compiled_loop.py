@@ -9,7 +9,9 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
   :class:`~hmpc_pin.sim.sensing.SensedController`): its measurement port, compiled (the
   plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`) or a Python
   subclass, is called by the compiled loop;
-- the reference: one with a native form (sine, piecewise polynomial), sampled in C++;
+- the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
+  any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
+  per-step ``step`` does), called from the compiled loop through its Reference port;
 - the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` with its disturbance fused (time-only
   terms tabulated here per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same
   tables as the per-step loop's, one Coulomb–viscous friction evaluated in C++), or any
@@ -28,8 +30,8 @@ recorded so far). Afterwards the controller, the measurement (its state lives in
 its generator is where a draw per measurement leaves it) and the plant are in the state the
 per-step loop leaves them in.
 
-Anything else (another controller or wrapper, a compensation advanced in Python, the Euler
-or MuJoCo plant) runs the per-step loop:
+Anything else (another controller or wrapper, a compensation advanced in Python, a model
+with mimic joints, the Euler or MuJoCo plant) runs the per-step loop:
 :func:`why_not_compiled` names the first part without a compiled form.
 """
 
@@ -42,7 +44,6 @@ import numpy as np
 from ..controllers.hierarchical import HierarchicalMPC
 from ..controllers.wrappers import MeasuredController
 from ..native import load as load_native
-from ..tasks.base import as_reference
 from .plants import PULSE_CHUNK, RK4Plant
 
 __all__ = ["LOOPS", "CompiledLoop", "why_not_compiled"]
@@ -74,8 +75,8 @@ def _parts(controller):
 
 def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
     """The first part of the loop without a compiled form, in words, or ``None`` when the
-    whole loop can run compiled (module docstring; ``on_step`` is called from the compiled
-    loop and is never the reason)."""
+    whole loop can run compiled (module docstring; ``on_step`` and a reference without a
+    native form are called from the compiled loop and are never the reason)."""
     if not (
         isinstance(plant, RK4Plant)
         and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")
@@ -91,13 +92,6 @@ def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
         return (f"the compensation {type(ctrl.compensation).__name__} is advanced in Python"
                 if not ctrl._python_dynamics else
                 "the controller's model (mimic joints) is evaluated in Python")  # fmt: skip
-    form_of = getattr(as_reference(reference), "native_form", None)
-    form = form_of() if callable(form_of) else None
-    if form is None or form[0] not in ("sine", "ppoly"):
-        return (
-            f"the reference {type(reference).__name__} has no native form (sampled in "
-            "Python; sine and piecewise-polynomial references are sampled in C++)"
-        )
     return None
 
 
@@ -157,6 +151,8 @@ class CompiledLoop:
         ctrl, K = self.ctrl, self.K
         if self.reference is not ctrl._reference:  # as the first step does
             ctrl._set_reference(self.reference)
+        if not ctrl._native_ref:  # the horizon sampled in Python, as its step does
+            self._loop.set_reference(ctrl._sample_horizon)
         port = None if self.measured is None else self.measured.measurement
         ahead = isinstance(port, load_native().SensingMeasurement)
         if ahead:  # the noise of a chunk drawn at once, the unused draws given back

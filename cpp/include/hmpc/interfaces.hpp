@@ -17,6 +17,11 @@
 // disturbances whose terms say what they are fused (time-only terms tabulated, one
 // Coulomb-viscous friction, loop.hpp); any other disturbance (a Python callable) plugs in
 // here.
+//
+// Reference: the MPC's horizon for a step at t, r(t + j Ts) and ṙ(t + j Ts), j = 1..N, written
+// into rows 2..2N+1 of the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n). The
+// references with a compiled form (sine, piecewise polynomial) are sampled inside the step
+// (sampler.hpp); any other (sampled in Python) plugs in here.
 #pragma once
 
 #include "hmpc/types.hpp"
@@ -30,6 +35,12 @@ class Measurement {
   virtual void measure(double t, const CRefVec& q, const CRefVec& dq) = 0;
   virtual void command(RefVec tau) { (void)tau; }
   Vec qm, dqm;  // the measurement handed over now [rad, rad/s]
+};
+
+class Reference {
+ public:
+  virtual ~Reference() = default;
+  virtual void horizon(double t, Eigen::Ref<RowMat> stack) = 0;
 };
 
 class Disturbance {

@@ -1,7 +1,7 @@
 // The closed loop (hmpc_pin.sim.compiled_loop): the per-step loop of
 // hmpc_pin.sim.simulate.simulate, many control periods per call, when every part has a
 // compiled form: the controller's fused step with its compiled reference (HMPCCore.step_t),
-// optionally behind a Measurement port (interfaces.hpp: compiled, measurement.hpp, or a
+// (or the step from a Reference port's horizon), optionally behind a Measurement port (interfaces.hpp: compiled, measurement.hpp, or a
 // Python subclass), and the RK4 plant's period with its fused disturbance (time-only terms
 // tabulated by the caller, one Coulomb-viscous friction here) or a Disturbance port called
 // at every stage (interfaces.hpp: a Python callable). Per step k, as the Python loop does:
@@ -47,6 +47,10 @@ class ClosedLoop {
   // caller keeps it alive); nullptr: the plant's state as is.
   void set_measurement(Measurement* m);
 
+  // The controller's reference is `r` (its horizon written into the step's stack, then the
+  // step from the stack; the caller keeps it alive); nullptr: the compiled one (step_t).
+  void set_reference(Reference* r) { reference = r; }
+
   // The plant's disturbance is `d`, called at every stage and for the record (the caller
   // keeps it alive; no table of time-only terms, no friction then); nullptr: the fused one.
   void set_disturbance(Disturbance* d);
@@ -71,6 +75,7 @@ class ClosedLoop {
   double Ts;
   Measurement* measurement = nullptr;
   Disturbance* disturbance = nullptr;
+  Reference* reference = nullptr;
   long k = 0;         // the step being run
   long last = -1;     // the last recorded step
   long advances = 0;  // plant periods integrated by run()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.controllers.wrappers import MeasuredController
+from hmpc_pin.controllers.wrappers import CollisionReaction, MeasuredController, TimedController
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.sim.disturbances import CoulombViscousFriction, GaussianPulse
 from hmpc_pin.sim.plants import PULSE_CHUNK, EulerPlant, RK4Plant
@@ -435,13 +435,38 @@ def _short(ctrl=None, plant=None, ref=None, **kw):
 
 NOT_COMPILED = {
     "euler": (dict(plant=lambda r, c: EulerPlant(r.copy(), None, c.Ts)), "EulerPlant"),
-    "other controller": (
-        dict(ctrl=lambda r: hmpc_pin.ComputedTorque(r)), "controller ComputedTorque"),
-    "compensation in Python": (
-        dict(ctrl=lambda r: hmpc_pin.HierarchicalMPC(
-            r, compensation=hmpc_pin.MomentumObserver(r, 0.01, 50.0))),
-        "compensation MomentumObserver"),
-}  # fmt: skip
+}
+
+#: Controllers without a compiled step: called as a whole through the Controller port.
+PYTHON_CONTROLLERS = {
+    "computed torque": lambda r: hmpc_pin.ComputedTorque(r),
+    "compensation in Python": lambda r: hmpc_pin.HierarchicalMPC(
+        r, compensation=hmpc_pin.MomentumObserver(r, 0.01, 50.0)
+    ),
+    "collision watch": lambda r: CollisionReaction(hmpc_pin.HierarchicalMPC(r), 5.0, "stop"),
+    "timed": lambda r: TimedController(hmpc_pin.HierarchicalMPC(r)),
+}
+
+
+@pytest.mark.parametrize("name", list(PYTHON_CONTROLLERS))
+def test_a_python_controller_runs_in_the_compiled_loop_as_per_step(name):
+    """The same arrays, the same number of steps, as the per-step loop."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = PYTHON_CONTROLLERS[name](robot)
+        terms = [GaussianPulse([10.0, 8.0, 3.0], [0.3] * 3, [0.1] * 3)]
+        terms.append(CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8]))
+        plant = RK4Plant(robot.copy(), hmpc_pin.sim.SumDisturbance(*terms), ctrl.Ts)
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    (ra, ea, pa), (rb, eb, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    _same(ra, rb, name)
+    if name == "timed":
+        assert len(pa[1].samples_ns) == len(pb[1].samples_ns) == len(rb.t)
+    if name == "collision watch":
+        assert pa[1].detected_at == pb[1].detected_at
 
 
 @pytest.mark.parametrize("reason", list(NOT_COMPILED))
@@ -467,8 +492,9 @@ def test_loop_must_be_one_of_the_three():
         _short(loop="fast")
 
 
-def test_a_step_replaced_on_the_instance_is_called_per_step():
-    """A spy on the controller's step (or the plant's advance) is called at every step."""
+def test_a_step_replaced_on_the_instance_is_called_at_every_step():
+    """A spy on the controller's step (called through the compiled loop's Controller port)
+    or on the plant's advance (the per-step loop) is called at every step."""
     calls = []
 
     def spied(r):
@@ -483,7 +509,7 @@ def test_a_step_replaced_on_the_instance_is_called_per_step():
         return ctrl
 
     result = _short(ctrl=spied)
-    assert result.loop == "python" and len(calls) == len(result.t)
+    assert result.loop == "compiled" and len(calls) == len(result.t)  # the Controller port
 
     def plant(r, c):
         p = RK4Plant(r.copy(), None, c.Ts)

@@ -103,4 +103,28 @@ class PyCallableReference : public Reference {
   py::object fn;
 };
 
+// A Python controller (the Controller protocol of hmpc_pin.controllers.base) as the loop's
+// Controller port: step(t, q, dq, reference) and disturbance_estimate, each n floats (a
+// shape numpy broadcasts to (n,) is broadcast, as the per-step loop's records do).
+class PyCallableController : public Controller {
+ public:
+  PyCallableController(py::object c, py::object r, int n_)
+      : ctrl(std::move(c)), ref(std::move(r)), n(n_) {}
+  void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) override {
+    py::gil_scoped_acquire gil;
+    tau = vector(ctrl.attr("step")(t, q, dq, ref));
+    dhat = vector(ctrl.attr("disturbance_estimate"));
+  }
+  py::object ctrl, ref;
+  int n;
+
+ private:
+  Vec vector(const py::object& value) const {
+    auto a = py::array_t<double, py::array::forcecast>::ensure(value);
+    if (a && a.ndim() == 1 && a.shape(0) == n) return a.cast<Vec>();
+    py::object np = py::module_::import("numpy");
+    return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
+  }
+};
+
 }  // namespace hmpc::python

@@ -1,14 +1,17 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
 loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``,
-``ClosedLoop``), when every part of the loop has a compiled form:
+``ClosedLoop``), whenever the plant is :class:`~hmpc_pin.sim.plants.RK4Plant`. The loop
+calls each part through a port (``cpp/include/hmpc/interfaces.hpp``):
 
 - the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
   is wholly compiled (its compensation the NDO of Eq 13 or none, its model loaded by the
-  compiled dynamics), alone or behind a
+  compiled dynamics) is stepped in C++, alone or behind a
   :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (or
-  :class:`~hmpc_pin.sim.sensing.SensedController`): its measurement port, compiled (the
-  plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`) or a Python
-  subclass, is called by the compiled loop;
+  :class:`~hmpc_pin.sim.sensing.SensedController`), whose measurement port (compiled: the
+  plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`; or a Python
+  subclass) is called by the loop; any other controller (computed torque, a compensation
+  advanced in Python, a model with mimic joints, any other wrapper) is called as a whole,
+  ``step(t, q, dq, reference)`` and ``disturbance_estimate``, through the Controller port;
 - the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
   any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
   per-step ``step`` does), called from the compiled loop through its Reference port;
@@ -22,17 +25,16 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
 
 Each chunk is :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods: per step it does what the
 per-step loop does, in the same order and with the same floating-point operations (the
-controller's compiled step, the records, the torque check, the effort clip and its
-counts, the plant's compiled period, the state check), so both loops give the same
-arrays. A fault stops the chunk at its step, and the same exception as the per-step
-loop's is raised from here; Ctrl-C is checked before every step (the run keeps the steps
-recorded so far). Afterwards the controller, the measurement (its state lives in the port;
-its generator is where a draw per measurement leaves it) and the plant are in the state the
-per-step loop leaves them in.
+controller's step, the records, the torque check, the effort clip and its counts, the
+plant's compiled period, the state check), so both loops give the same arrays. A fault
+stops the chunk at its step, and the same exception as the per-step loop's is raised from
+here; Ctrl-C is checked before every step (the run keeps the steps recorded so far).
+Afterwards the controller, the measurement (its state lives in the port; its generator is
+where a draw per measurement leaves it) and the plant are in the state the per-step loop
+leaves them in.
 
-Anything else (another controller or wrapper, a compensation advanced in Python, a model
-with mimic joints, the Euler or MuJoCo plant) runs the per-step loop:
-:func:`why_not_compiled` names the first part without a compiled form.
+The Euler and MuJoCo plants (and an RK4 plant whose methods are replaced) run the per-step
+loop: :func:`why_not_compiled` names the reason.
 """
 
 from __future__ import annotations
@@ -62,36 +64,34 @@ def _own(obj, cls, *names: str) -> bool:
 
 
 def _parts(controller):
-    """``(HierarchicalMPC, MeasuredController or None)`` of ``controller``, or ``None``."""
+    """``(HierarchicalMPC, MeasuredController or None)`` of ``controller`` when its step is
+    wholly compiled (then the loop calls the compiled step and the ports around it), or
+    ``None`` (then the loop calls the controller as a whole through its Controller port)."""
     measured = None
     if isinstance(controller, MeasuredController) and _own(
         controller, MeasuredController, "step", "reset"
     ):
         measured, controller = controller, controller.controller
-    if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
+    if (
+        isinstance(controller, HierarchicalMPC)
+        and _own(controller, HierarchicalMPC, "step")
+        and controller.fused
+    ):
         return controller, measured
     return None
 
 
 def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
     """The first part of the loop without a compiled form, in words, or ``None`` when the
-    whole loop can run compiled (module docstring; ``on_step`` and a reference without a
-    native form are called from the compiled loop and are never the reason)."""
+    whole loop can run compiled (module docstring: only the plant can be the reason; a
+    controller, a reference, a disturbance and ``on_step`` written in Python are called from
+    the compiled loop through its ports)."""
     if not (
         isinstance(plant, RK4Plant)
         and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")
     ):
         return (f"the plant {type(plant).__name__} is advanced in Python (only RK4Plant's "
                 "period is compiled)")  # fmt: skip
-    parts = _parts(controller)
-    if parts is None:
-        return (f"the controller {type(controller).__name__} has no compiled step (only "
-                "HierarchicalMPC's, alone or behind a MeasuredController)")  # fmt: skip
-    ctrl = parts[0]
-    if not ctrl.fused:
-        return (f"the compensation {type(ctrl.compensation).__name__} is advanced in Python"
-                if not ctrl._python_dynamics else
-                "the controller's model (mimic joints) is evaluated in Python")  # fmt: skip
     return None
 
 
@@ -106,19 +106,21 @@ class CompiledLoop:
 
     def __init__(self, controller, plant: RK4Plant, reference, t_arr, records, step_ns,
                  limit, state_bound: float, sat_steps, sat_excess, on_step=None):  # fmt: skip
-        ctrl, measured = _parts(controller)  # type: ignore[misc]
+        ctrl, measured = _parts(controller) or (None, None)
         self.ctrl, self.measured, self.plant, self.reference = ctrl, measured, plant, reference
         self.t_arr, self.records = t_arr, records
         n = plant.n
         self.n, self.K = n, len(t_arr) - 1
         a, b = plant._ab
         self._loop = load_native().ClosedLoop(
-            ctrl._core, plant._kernel, t_arr, [records[name] for name in
+            None if ctrl is None else ctrl._core, plant._kernel, t_arr, [records[name] for name in
             ("q", "dq", "tau", "d", "d_hat", "tau_applied")], step_ns, sat_steps, sat_excess,
             np.full(n, np.inf) if limit is None else limit, limit is not None,
             min(state_bound, sys.float_info.max), a, b,
-            plant._friction is not None, plant.h, plant.substeps, float(ctrl.Ts),
+            plant._friction is not None, plant.h, plant.substeps, float(controller.Ts),
         )  # fmt: skip
+        if ctrl is None:  # the controller as a whole, from Python
+            self._loop.set_controller(controller, reference)
         if measured is not None:
             self._loop.set_measurement(measured.measurement)
         if not plant.fused:
@@ -149,9 +151,9 @@ class CompiledLoop:
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
         ctrl, K = self.ctrl, self.K
-        if self.reference is not ctrl._reference:  # as the first step does
+        if ctrl is not None and self.reference is not ctrl._reference:  # as its step does
             ctrl._set_reference(self.reference)
-        if not ctrl._native_ref:  # the horizon sampled in Python, as its step does
+        if ctrl is not None and not ctrl._native_ref:  # the horizon sampled in Python
             self._loop.set_reference(ctrl._sample_horizon)
         port = None if self.measured is None else self.measured.measurement
         ahead = isinstance(port, load_native().SensingMeasurement)
@@ -198,7 +200,7 @@ class CompiledLoop:
                 plant.k += loop.advances - advances
                 plant.t = plant.t0 + plant.Ts * plant.k
                 plant.q, plant.dq = x[:n].copy(), x[n:].copy()
-            if loop.stepped != stepped:
+            if loop.stepped != stepped and self.ctrl is not None:
                 self.ctrl._started = True
             if self.measured is not None and loop.started != started:
                 self.measured._started = True

@@ -22,6 +22,11 @@
 // into rows 2..2N+1 of the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n). The
 // references with a compiled form (sine, piecewise polynomial) are sampled inside the step
 // (sampler.hpp); any other (sampled in Python) plugs in here.
+//
+// Controller: the torque τ_k [N·m] for the plant's state at t_k and the disturbance estimate
+// d̂_k [N·m] of that step. The hierarchical MPC's compiled step (step.hpp) is called by the
+// loop directly; a controller without one (computed torque, a compensation advanced in
+// Python, a wrapper) plugs in here as a whole.
 #pragma once
 
 #include "hmpc/types.hpp"
@@ -35,6 +40,12 @@ class Measurement {
   virtual void measure(double t, const CRefVec& q, const CRefVec& dq) = 0;
   virtual void command(RefVec tau) { (void)tau; }
   Vec qm, dqm;  // the measurement handed over now [rad, rad/s]
+};
+
+class Controller {
+ public:
+  virtual ~Controller() = default;
+  virtual void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) = 0;
 };
 
 class Reference {

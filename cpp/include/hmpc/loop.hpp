@@ -38,10 +38,15 @@ class ClosedLoop {
   // t: K+1 instants [s]; records: q, q̇, τ, d, d̂, τ applied, each (K+1)×n row-major;
   // step_ns: K+1 step times [ns]; sat_steps, sat_excess: n each; Ts: the control period [s]
   // (for the time of a fault of the plant).
-  ClosedLoop(HMPCCore& core, RK4& plant, const double* t, int K, std::array<double*, 6> records,
+  // core: the controller's compiled step (nullptr: a Controller port, set_controller()).
+  ClosedLoop(HMPCCore* core, RK4& plant, const double* t, int K, std::array<double*, 6> records,
              std::int64_t* step_ns, std::int64_t* sat_steps, double* sat_excess,
              const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
              const CRefVec& b, bool friction, double h, int substeps, double Ts);
+
+  // The controller is `c` as a whole (called with the plant's state; no compiled step, no
+  // measurement or reference port then; the caller keeps it alive).
+  void set_controller(Controller* c) { controller = c; }
 
   // The controller sees the plant through `m` (reset by the caller with the controller; the
   // caller keeps it alive); nullptr: the plant's state as is.
@@ -76,6 +81,7 @@ class ClosedLoop {
   Measurement* measurement = nullptr;
   Disturbance* disturbance = nullptr;
   Reference* reference = nullptr;
+  Controller* controller = nullptr;
   long k = 0;         // the step being run
   long last = -1;     // the last recorded step
   long advances = 0;  // plant periods integrated by run()
@@ -83,7 +89,9 @@ class ClosedLoop {
   long stepped = 0;   // controller steps that succeeded
 
  private:
-  Vec qm, dqm, tau, d;
+  void compiled_step(const RefVec& q, const RefVec& v);
+  bool record_and_advance(RefVec q, RefVec v, const CRefRow& P, long j);
+  Vec qm, dqm, tau, d, dh;
   RowMat T;
 };
 

@@ -433,10 +433,6 @@ def _short(ctrl=None, plant=None, ref=None, **kw):
     return hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), plant=plant, **kw)
 
 
-NOT_COMPILED = {
-    "euler": (dict(plant=lambda r, c: EulerPlant(r.copy(), None, c.Ts)), "EulerPlant"),
-}
-
 #: Controllers without a compiled step: called as a whole through the Controller port.
 PYTHON_CONTROLLERS = {
     "computed torque": lambda r: hmpc_pin.ComputedTorque(r),
@@ -469,22 +465,29 @@ def test_a_python_controller_runs_in_the_compiled_loop_as_per_step(name):
         assert pa[1].detected_at == pb[1].detected_at
 
 
-@pytest.mark.parametrize("reason", list(NOT_COMPILED))
-def test_a_setup_without_a_compiled_form_runs_per_step(reason):
-    kw, named = NOT_COMPILED[reason]
-    result = _short(**kw)
-    assert result.loop == "python" and result.complete
-    with pytest.raises(hmpc_pin.ConfigError, match=named):
-        _short(**kw, loop="compiled")
+def test_the_euler_plant_runs_in_the_compiled_loop_as_per_step():
+    """Through the Plant port: advance(tau) and disturbance_now(), the same arrays."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(robot)
+        friction = CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8])
+        plant = EulerPlant(robot.copy(), friction, ctrl.Ts)
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    (ra, ea, pa), (rb, eb, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    _same(ra, rb, "euler")
+    assert pa[3].k == pb[3].k == len(rb.t) - 1
 
 
 @pytest.mark.parametrize("name", ["paper_combined_mujoco", "panda_mujoco"])
-def test_a_mujoco_config_runs_per_step(name):
+def test_a_mujoco_config_runs_in_the_compiled_loop_as_per_step(name):
     pytest.importorskip("mujoco")
-    exp = _experiment(name)
-    assert exp.run(0.1).loop == "python"
-    with pytest.raises(hmpc_pin.ConfigError, match="MuJoCoPlant"):
-        exp.run(0.1, loop="compiled")
+    ra, ea = _run(_experiment(name), "python", 0.3)
+    rb, eb = _run(_experiment(name), "auto", 0.3)
+    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    _same(ra, rb, name)
 
 
 def test_loop_must_be_one_of_the_three():
@@ -493,8 +496,8 @@ def test_loop_must_be_one_of_the_three():
 
 
 def test_a_step_replaced_on_the_instance_is_called_at_every_step():
-    """A spy on the controller's step (called through the compiled loop's Controller port)
-    or on the plant's advance (the per-step loop) is called at every step."""
+    """A spy on the controller's step or on the plant's advance is called at every step
+    (through the compiled loop's Controller and Plant ports)."""
     calls = []
 
     def spied(r):
@@ -519,7 +522,7 @@ def test_a_step_replaced_on_the_instance_is_called_at_every_step():
 
     calls.clear()
     result = _short(plant=plant)
-    assert result.loop == "python" and len(calls) == len(result.t) - 1
+    assert result.loop == "compiled" and len(calls) == len(result.t) - 1  # the Plant port
 
 
 @pytest.mark.parametrize("model", ["z1", "panda"])

@@ -26,6 +26,7 @@ struct PyClosedLoop {
   std::unique_ptr<PyCallableDisturbance> disturbance;
   std::unique_ptr<PyCallableReference> reference;
   std::unique_ptr<PyCallableController> controller;
+  std::unique_ptr<PyCallablePlant> plant;
   std::unique_ptr<ClosedLoop> loop;
 };
 
@@ -44,12 +45,11 @@ std::array<double*, 6> record_data(std::vector<Array>& rec, Eigen::Index rows, i
 
 void expose_loop(py::module_& m) {
   py::class_<PyClosedLoop>(m, "ClosedLoop", py::module_local())
-      .def(py::init([](PyHMPCCore* core, RK4& plant, Array t, std::vector<Array> records,
+      .def(py::init([](PyHMPCCore* core, RK4* plant, int n, Array t, std::vector<Array> records,
                        IntArray step_ns, IntArray sat_steps, Array sat_excess,
                        const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
                        const CRefVec& b, bool friction, double h, int substeps, double Ts) {
              auto o = std::make_unique<PyClosedLoop>();
-             const int n = plant.n;
              const auto K = static_cast<Eigen::Index>(t.size()) - 1;
              if (step_ns.size() != K + 1 || sat_steps.size() != n || sat_excess.size() != n)
                throw std::invalid_argument("ClosedLoop: shapes do not match");
@@ -59,7 +59,7 @@ void expose_loop(py::module_& m) {
              o->sat_steps = sat_steps;
              o->sat_excess = sat_excess;
              o->loop = std::make_unique<ClosedLoop>(
-                 core ? &core->core : nullptr, plant, o->t.data(), static_cast<int>(K),
+                 core ? &core->core : nullptr, plant, n, o->t.data(), static_cast<int>(K),
                  record_data(o->records, K + 1, n), o->step_ns.mutable_data(),
                  o->sat_steps.mutable_data(), o->sat_excess.mutable_data(), limit, has_limit,
                  bound, a, b, friction, h, substeps, Ts);
@@ -68,7 +68,7 @@ void expose_loop(py::module_& m) {
              };
              return o;
            }),
-           py::arg("core"), py::arg("plant"), py::arg("t"), py::arg("records"),
+           py::arg("core"), py::arg("plant"), py::arg("n"), py::arg("t"), py::arg("records"),
            py::arg("step_ns"), py::arg("sat_steps"), py::arg("sat_excess"), py::arg("limit"),
            py::arg("has_limit"), py::arg("bound"), py::arg("a"), py::arg("b"),
            py::arg("friction"), py::arg("h"), py::arg("substeps"), py::arg("Ts"),
@@ -85,6 +85,14 @@ void expose_loop(py::module_& m) {
             o.disturbance = std::move(port);
           },
           py::arg("disturbance"))
+      .def(
+          "set_plant",
+          [](PyClosedLoop& o, py::object plant) {
+            auto port = std::make_unique<PyCallablePlant>(std::move(plant), o.loop->n);
+            o.loop->set_plant(port.get());
+            o.plant = std::move(port);
+          },
+          py::arg("plant"))
       .def(
           "set_controller",
           [](PyClosedLoop& o, py::object controller, py::object reference) {

@@ -103,6 +103,37 @@ class PyCallableReference : public Reference {
   py::object fn;
 };
 
+// n floats of a Python value: a float vector of n, or what numpy broadcasts to (n,) (as the
+// per-step loop's records do; numpy's error otherwise).
+inline Vec broadcast_vector(const py::object& value, int n) {
+  auto a = py::array_t<double, py::array::forcecast>::ensure(value);
+  if (a && a.ndim() == 1 && a.shape(0) == n) return a.cast<Vec>();
+  py::object np = py::module_::import("numpy");
+  return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
+}
+
+// A Python plant (the Plant protocol of hmpc_pin.sim.base: advance(tau) -> (q, dq),
+// disturbance_now()) as the loop's Plant port.
+class PyCallablePlant : public Plant {
+ public:
+  PyCallablePlant(py::object p, int n_) : plant(std::move(p)), n(n_) {}
+  void advance(const Vec& tau, Vec& q, Vec& dq) override {
+    py::gil_scoped_acquire gil;
+    py::object state = plant.attr("advance")(tau);
+    const auto pair = state.cast<py::sequence>();
+    if (py::len(pair) != 2)
+      throw py::type_error("Plant.advance must return the pair (q, dq)");
+    q = pair[0].cast<Vec>();
+    dq = pair[1].cast<Vec>();
+  }
+  Vec disturbance_now() override {
+    py::gil_scoped_acquire gil;
+    return broadcast_vector(plant.attr("disturbance_now")(), n);
+  }
+  py::object plant;
+  int n;
+};
+
 // A Python controller (the Controller protocol of hmpc_pin.controllers.base) as the loop's
 // Controller port: step(t, q, dq, reference) and disturbance_estimate, each n floats (a
 // shape numpy broadcasts to (n,) is broadcast, as the per-step loop's records do).
@@ -112,19 +143,11 @@ class PyCallableController : public Controller {
       : ctrl(std::move(c)), ref(std::move(r)), n(n_) {}
   void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) override {
     py::gil_scoped_acquire gil;
-    tau = vector(ctrl.attr("step")(t, q, dq, ref));
-    dhat = vector(ctrl.attr("disturbance_estimate"));
+    tau = broadcast_vector(ctrl.attr("step")(t, q, dq, ref), n);
+    dhat = broadcast_vector(ctrl.attr("disturbance_estimate"), n);
   }
   py::object ctrl, ref;
   int n;
-
- private:
-  Vec vector(const py::object& value) const {
-    auto a = py::array_t<double, py::array::forcecast>::ensure(value);
-    if (a && a.ndim() == 1 && a.shape(0) == n) return a.cast<Vec>();
-    py::object np = py::module_::import("numpy");
-    return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
-  }
 };
 
 }  // namespace hmpc::python

@@ -10,17 +10,17 @@
 
 namespace hmpc {
 
-ClosedLoop::ClosedLoop(HMPCCore* c, RK4& p, const double* t, int K_,
+ClosedLoop::ClosedLoop(HMPCCore* c, RK4* p, int n_, const double* t, int K_,
                        std::array<double*, 6> records, std::int64_t* step_ns_,
                        std::int64_t* sat_steps_, double* sat_excess_, const CRefVec& limit_,
                        bool has_limit_, double bound_, const CRefVec& a, const CRefVec& b,
                        bool friction_, double h_, int substeps_, double Ts_)
-    : core(c), plant(&p), n(p.n), K(K_), t_arr(t), rec(records), step_ns(step_ns_),
+    : core(c), plant(p), n(n_), K(K_), t_arr(t), rec(records), step_ns(step_ns_),
       sat_steps(sat_steps_), sat_excess(sat_excess_), limit(limit_), fa(a), fb(b),
       has_limit(has_limit_), friction(friction_), bound(bound_), h(h_), substeps(substeps_),
       Ts(Ts_) {
-  if ((c && (c->n != n || !c->stack)) || limit.size() != n || fa.size() != n ||
-      fb.size() != n || substeps < 1)
+  if ((c && (c->n != n || !c->stack)) || (p && p->n != n) || limit.size() != n ||
+      fa.size() != n || fb.size() != n || substeps < 1)
     throw std::invalid_argument("ClosedLoop: shapes do not match");
   qm.setZero(n);
   dqm.setZero(n);
@@ -42,6 +42,9 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
   if (q.size() != n || v.size() != n || k0 < 0 || k1 > K + 1 || k0 > k1)
     throw std::invalid_argument("ClosedLoop.run: bad state or steps");
   if (!core && !controller) throw std::invalid_argument("ClosedLoop.run: no controller");
+  if (!plant && !plant_port) throw std::invalid_argument("ClosedLoop.run: no plant");
+  if (plant_port && (disturbance || friction || P.rows() > 0))
+    throw std::invalid_argument("ClosedLoop.run: a plant port carries its own disturbance");
   const int rows = 3 * substeps;
   if (P.rows() > 0 && disturbance)
     throw std::invalid_argument("ClosedLoop.run: a disturbance port and a table of terms");
@@ -106,7 +109,9 @@ bool ClosedLoop::record_and_advance(RefVec q, RefVec v, const CRefRow& P, long j
   const int rows = 3 * substeps;
   const bool pulses = P.rows() > 0;
   // d(t_k, q, q̇): the time-only terms at the period's first stage, minus the friction
-  if (disturbance) {
+  if (plant_port) {
+    d = plant_port->disturbance_now();
+  } else if (disturbance) {
     d = disturbance->at(t[k], Vec(q), Vec(v));
     if (d.size() != n)
       throw std::invalid_argument("the disturbance returned a vector of wrong size");
@@ -144,7 +149,13 @@ bool ClosedLoop::record_and_advance(RefVec q, RefVec v, const CRefRow& P, long j
   }
   double* rap = rec[5] + k * n;
   for (int i = 0; i < n; ++i) rap[i] = tau[i];
-  if (disturbance) {
+  if (plant_port) {
+    plant_port->advance(tau, qn, vn);
+    if (qn.size() != n || vn.size() != n)
+      throw std::invalid_argument("the plant's state is not of n values");
+    q = qn;
+    v = vn;
+  } else if (disturbance) {
     plant->period_with(q, v, tau, t[k], h, substeps,
                        [this](double ts, const Vec& qs, const Vec& vs) {
                          return disturbance->at(ts, qs, vs);

@@ -1,7 +1,7 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
 loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``,
-``ClosedLoop``), whenever the plant is :class:`~hmpc_pin.sim.plants.RK4Plant`. The loop
-calls each part through a port (``cpp/include/hmpc/interfaces.hpp``):
+``ClosedLoop``), for every setup: the loop calls each part through a port
+(``cpp/include/hmpc/interfaces.hpp``):
 
 - the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
   is wholly compiled (its compensation the NDO of Eq 13 or none, its model loaded by the
@@ -15,11 +15,14 @@ calls each part through a port (``cpp/include/hmpc/interfaces.hpp``):
 - the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
   any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
   per-step ``step`` does), called from the compiled loop through its Reference port;
-- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` with its disturbance fused (time-only
-  terms tabulated here per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same
-  tables as the per-step loop's, one Coulomb–viscous friction evaluated in C++), or any
-  other disturbance (a callable ``d(t, q, dq)``) called from the compiled loop through its
-  Disturbance port at every stage, as the per-step loop's plant calls it;
+- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` (its period compiled) with its
+  disturbance fused (time-only terms tabulated here per
+  :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same tables as the per-step loop's,
+  one Coulomb–viscous friction evaluated in C++), or any other disturbance (a callable
+  ``d(t, q, dq)``) called from the compiled loop through its Disturbance port at every
+  stage, as the per-step loop's plant calls it; any other plant (semi-implicit Euler,
+  MuJoCo, an RK4 plant whose methods are replaced) is called as a whole, ``advance(tau)``
+  and ``disturbance_now()``, through the Plant port;
 - an ``on_step`` callback, if any, is called from the compiled loop once a step is recorded
   (with the reference sampled at that instant, as the per-step loop does).
 
@@ -33,8 +36,7 @@ Afterwards the controller, the measurement (its state lives in the port; its gen
 where a draw per measurement leaves it) and the plant are in the state the per-step loop
 leaves them in.
 
-The Euler and MuJoCo plants (and an RK4 plant whose methods are replaced) run the per-step
-loop: :func:`why_not_compiled` names the reason.
+``simulate(loop="python")`` runs the per-step loop instead, the compiled loop's oracle.
 """
 
 from __future__ import annotations
@@ -82,17 +84,18 @@ def _parts(controller):
 
 
 def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
-    """The first part of the loop without a compiled form, in words, or ``None`` when the
-    whole loop can run compiled (module docstring: only the plant can be the reason; a
-    controller, a reference, a disturbance and ``on_step`` written in Python are called from
-    the compiled loop through its ports)."""
-    if not (
-        isinstance(plant, RK4Plant)
-        and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")
-    ):
-        return (f"the plant {type(plant).__name__} is advanced in Python (only RK4Plant's "
-                "period is compiled)")  # fmt: skip
+    """The part that keeps the loop from running compiled, in words, or ``None``: since every
+    part is called through a port of the compiled loop (module docstring), ``None`` for every
+    setup (kept for callers of earlier versions)."""
     return None
+
+
+def _compiled_plant(plant) -> bool:
+    """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose period the loop
+    runs itself (its methods not replaced, e.g. by a spy: then it is called as a plant)."""
+    return isinstance(plant, RK4Plant) and _own(
+        plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at"
+    )
 
 
 class CompiledLoop:
@@ -104,30 +107,36 @@ class CompiledLoop:
         last: The last recorded step (-1: none).
     """
 
-    def __init__(self, controller, plant: RK4Plant, reference, t_arr, records, step_ns,
-                 limit, state_bound: float, sat_steps, sat_excess, on_step=None):  # fmt: skip
+    def __init__(self, controller, plant, reference, t_arr, records, step_ns, limit,
+                 state_bound: float, sat_steps, sat_excess, on_step=None, state=None):  # fmt: skip
         ctrl, measured = _parts(controller) or (None, None)
         self.ctrl, self.measured, self.plant, self.reference = ctrl, measured, plant, reference
         self.t_arr, self.records = t_arr, records
-        n = plant.n
+        n = records["q"].shape[1]
         self.n, self.K = n, len(t_arr) - 1
-        a, b = plant._ab
+        self._rk4 = rk4 = _compiled_plant(plant)
+        zero = np.zeros(n)
+        a, b = plant._ab if rk4 else (zero, zero)
         self._loop = load_native().ClosedLoop(
-            None if ctrl is None else ctrl._core, plant._kernel, t_arr, [records[name] for name in
-            ("q", "dq", "tau", "d", "d_hat", "tau_applied")], step_ns, sat_steps, sat_excess,
-            np.full(n, np.inf) if limit is None else limit, limit is not None,
-            min(state_bound, sys.float_info.max), a, b,
-            plant._friction is not None, plant.h, plant.substeps, float(controller.Ts),
+            None if ctrl is None else ctrl._core, plant._kernel if rk4 else None, n, t_arr,
+            [records[name] for name in ("q", "dq", "tau", "d", "d_hat", "tau_applied")],
+            step_ns, sat_steps, sat_excess, np.full(n, np.inf) if limit is None else limit,
+            limit is not None, min(state_bound, sys.float_info.max), a, b,
+            rk4 and plant._friction is not None, plant.h if rk4 else 0.0,
+            plant.substeps if rk4 else 1, float(controller.Ts),
         )  # fmt: skip
+        if not rk4:  # the plant as a whole, from Python
+            self._loop.set_plant(plant)
         if ctrl is None:  # the controller as a whole, from Python
             self._loop.set_controller(controller, reference)
         if measured is not None:
             self._loop.set_measurement(measured.measurement)
-        if not plant.fused:
+        if rk4 and not plant.fused:
             self._loop.set_disturbance(plant.disturbance)
         if on_step is not None:
             self._loop.set_recorded(self._on_step(on_step))
-        self._x = np.concatenate([plant.q, plant.dq])
+        q0, dq0 = state if state is not None else (plant.q, plant.dq)
+        self._x = np.concatenate([q0, dq0])
         self._no_rows = np.empty((0, n))
         self.k, self.last = 0, -1
 
@@ -171,7 +180,7 @@ class CompiledLoop:
         k0 = 0
         while k0 <= K:
             self.k = k0
-            P = plant._pulses_at(k0) if plant._pulses else None  # the per-step loop's table
+            P = plant._pulses_at(k0) if self._rk4 and plant._pulses else None  # its table
             if P is not None:
                 first = k0 - plant._chunk_k
                 k1 = min(K + 1, plant._chunk_k + plant._chunk.shape[0])
@@ -196,7 +205,7 @@ class CompiledLoop:
         finally:
             self.k, self.last = loop.k, loop.last
             plant = self.plant
-            if loop.advances != advances:
+            if loop.advances != advances and self._rk4:
                 plant.k += loop.advances - advances
                 plant.t = plant.t0 + plant.Ts * plant.k
                 plant.q, plant.dq = x[:n].copy(), x[n:].copy()

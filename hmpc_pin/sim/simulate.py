@@ -127,12 +127,10 @@ def simulate(
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
-        loop: ``"auto"`` runs the loop in compiled chunks when the plant is an
-            :class:`~hmpc_pin.sim.plants.RK4Plant` (:mod:`~hmpc_pin.sim.compiled_loop`: the
-            parts written in Python called through its ports; the same arrays, faults and
-            partial results), else per step in Python; ``"compiled"`` requires the compiled
-            loop (a :class:`~hmpc_pin.exceptions.ConfigError` names the plant it cannot
-            advance); ``"python"`` always runs per step. The result's ``loop`` attribute says
+        loop: ``"auto"`` (and ``"compiled"``) run the loop in compiled chunks
+            (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python called through
+            its ports; the same arrays, faults and partial results as per step);
+            ``"python"`` runs it per step in Python. The result's ``loop`` attribute says
             which ran (not saved with it).
 
     Returns:
@@ -214,7 +212,8 @@ def simulate(
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
         if compiled:
             runner = CompiledLoop(controller, sim_plant, reference, t_arr, rec, step_ns, limit,
-                                  state_bound, sat_steps, sat_excess, on_step)  # fmt: skip
+                                  state_bound, sat_steps, sat_excess, on_step,
+                                  (q, dq))  # fmt: skip
             try:
                 runner.run()
             finally:

@@ -27,6 +27,11 @@
 // d̂_k [N·m] of that step. The hierarchical MPC's compiled step (step.hpp) is called by the
 // loop directly; a controller without one (computed torque, a compensation advanced in
 // Python, a wrapper) plugs in here as a whole.
+//
+// Plant: the arm, advanced over one control period with the torque τ [N·m] held, and the
+// disturbance d(t_k, q, q̇) [N·m] acting on it now (for the record). The RK4 plant's period
+// is compiled (rk4.hpp) and called by the loop directly; any other plant (semi-implicit
+// Euler, MuJoCo) plugs in here.
 #pragma once
 
 #include "hmpc/types.hpp"
@@ -40,6 +45,13 @@ class Measurement {
   virtual void measure(double t, const CRefVec& q, const CRefVec& dq) = 0;
   virtual void command(RefVec tau) { (void)tau; }
   Vec qm, dqm;  // the measurement handed over now [rad, rad/s]
+};
+
+class Plant {
+ public:
+  virtual ~Plant() = default;
+  virtual void advance(const Vec& tau, Vec& q, Vec& dq) = 0;
+  virtual Vec disturbance_now() = 0;
 };
 
 class Controller {

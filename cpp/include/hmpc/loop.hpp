@@ -38,8 +38,10 @@ class ClosedLoop {
   // t: K+1 instants [s]; records: q, q̇, τ, d, d̂, τ applied, each (K+1)×n row-major;
   // step_ns: K+1 step times [ns]; sat_steps, sat_excess: n each; Ts: the control period [s]
   // (for the time of a fault of the plant).
-  // core: the controller's compiled step (nullptr: a Controller port, set_controller()).
-  ClosedLoop(HMPCCore* core, RK4& plant, const double* t, int K, std::array<double*, 6> records,
+  // core: the controller's compiled step (nullptr: a Controller port, set_controller());
+  // plant: the compiled RK4 period (nullptr: a Plant port, set_plant()); n: the joints.
+  ClosedLoop(HMPCCore* core, RK4* plant, int n, const double* t, int K,
+             std::array<double*, 6> records,
              std::int64_t* step_ns, std::int64_t* sat_steps, double* sat_excess,
              const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
              const CRefVec& b, bool friction, double h, int substeps, double Ts);
@@ -47,6 +49,10 @@ class ClosedLoop {
   // The controller is `c` as a whole (called with the plant's state; no compiled step, no
   // measurement or reference port then; the caller keeps it alive).
   void set_controller(Controller* c) { controller = c; }
+
+  // The plant is `p` (advanced, and asked its disturbance, from here; the caller keeps it
+  // alive; no table, no friction, no disturbance port then).
+  void set_plant(Plant* p) { plant_port = p; }
 
   // The controller sees the plant through `m` (reset by the caller with the controller; the
   // caller keeps it alive); nullptr: the plant's state as is.
@@ -82,6 +88,7 @@ class ClosedLoop {
   Disturbance* disturbance = nullptr;
   Reference* reference = nullptr;
   Controller* controller = nullptr;
+  Plant* plant_port = nullptr;
   long k = 0;         // the step being run
   long last = -1;     // the last recorded step
   long advances = 0;  // plant periods integrated by run()
@@ -91,7 +98,7 @@ class ClosedLoop {
  private:
   void compiled_step(const RefVec& q, const RefVec& v);
   bool record_and_advance(RefVec q, RefVec v, const CRefRow& P, long j);
-  Vec qm, dqm, tau, d, dh;
+  Vec qm, dqm, tau, d, dh, qn, vn;
   RowMat T;
 };
 

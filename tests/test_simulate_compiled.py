@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import hmpc_pin
-from hmpc_pin.controllers.wrappers import MeasuredController
+from hmpc_pin.controllers.wrappers import CollisionReaction, MeasuredController, TimedController
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.sim.disturbances import CoulombViscousFriction, GaussianPulse
 from hmpc_pin.sim.plants import PULSE_CHUNK, EulerPlant, RK4Plant
@@ -165,7 +165,7 @@ def _same_fault(pair) -> None:
 @pytest.mark.parametrize("delay", [0, 1, 3])
 def test_behind_a_measured_controller_the_noise_stream_and_delay_are_the_same(delay):
     """Noise drawn per chunk equals the wrapper's draw per step; afterwards its generator
-    and delay buffer are where the per-step loop leaves them."""
+    and its port's measurement are where the per-step loop leaves them."""
     (ra, _, pa), (rb, _, pb) = _both(
         _paper(pulse=([10.0, 8.0, 0.3], [0.3, 0.6, 0.9], [0.1] * 3), delay=delay),
         1.0,
@@ -175,11 +175,103 @@ def test_behind_a_measured_controller_the_noise_stream_and_delay_are_the_same(de
     _same(ra, rb)
     wa, wb = pa[1], pb[1]
     assert wa.rng.bit_generator.state == wb.rng.bit_generator.state
-    assert len(wa._buffer) == len(wb._buffer)
-    for (qa, dqa), (qb, dqb) in zip(wa._buffer, wb._buffer, strict=True):
-        np.testing.assert_array_equal(qb, qa)
-        np.testing.assert_array_equal(dqb, dqa)
+    for a, b in zip(wa.measurement.current, wb.measurement.current, strict=True):
+        np.testing.assert_array_equal(b, a)
+    for j in range(delay + 1):  # the delay lines hold the same measurements
+        t, q, dq = float(ra.t[-1]) + (j + 1) * 0.01, ra.q[-1] + j, ra.dq[-1] - j
+        seen_a = wa.measurement.call_measure(t, q, dq)
+        seen_b = wb.measurement.call_measure(t, q, dq)
+        for a, b in zip(seen_a, seen_b, strict=True):
+            np.testing.assert_array_equal(b, a)
     _assert_same_state(wa.controller, wb.controller)
+
+
+def test_a_fault_behind_a_measured_controller_leaves_its_generator_where_per_step_does():
+    """The compiled loop draws a chunk's noise at once: a fault mid-chunk gives back the
+    draws of the steps not begun."""
+    pulse = ([3e3, 0.0, 0.0], [0.5] * 3, [0.05] * 3)
+    pair = _both(_paper(pulse=pulse, delay=1), 1.0, q0=np.ones(3), state_bound=20.0)
+    _same_fault(pair)
+    assert pair[0][0].meta["failed_step"] % PULSE_CHUNK != 0
+    wa, wb = pair[0][2][1], pair[1][2][1]
+    assert wa.rng.bit_generator.state == wb.rng.bit_generator.state
+
+
+def test_a_sensed_controller_runs_compiled_with_the_per_step_loops_arrays():
+    """The interface model of hmpc_pin.sim.sensing (encoder, finite difference, latency,
+    noise, delay, torque filter) is a compiled port: the run goes through the compiled
+    loop, with the per-step loop's arrays and generator."""
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+    from hmpc_pin.sim.sensing import SensedController
+
+    def make():
+        robot, ctrl, ref, plant = _paper(pulse=([10.0, 8.0, 0.3], [0.3] * 3, [0.1] * 3))()
+        model = SensingConfig(q_noise=1e-4, dq_noise=1e-3, delay=1).model(3)
+        return robot, SensedController(ctrl, model, np.random.default_rng(3)), ref, plant
+
+    (ra, _, pa), (rb, _, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert rb.loop == "compiled" and ra.loop == "python"
+    _same(ra, rb)
+    assert pa[1].rng.bit_generator.state == pb[1].rng.bit_generator.state
+
+
+class _NoisyDisturbance:
+    """A disturbance written in Python, d = 0.5 sin(3t) − 0.2 q̇ + 0.01 ε with its own
+    random stream: the values depend on the order and number of its calls."""
+
+    def __init__(self):
+        self.rng, self.calls = np.random.default_rng(2), 0
+
+    def __call__(self, t, q, dq):
+        self.calls += 1
+        return 0.5 * np.sin(3 * t) * np.ones(3) - 0.2 * dq + 0.01 * self.rng.standard_normal(3)
+
+
+def test_a_callable_disturbance_is_called_by_the_compiled_loop_as_by_the_per_step_loop():
+    """Through the Disturbance port: once per step for the record and at each of the 4
+    stages of every substep of a period, in the per-step loop's order (same arrays, same
+    stream)."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(robot)
+        plant = RK4Plant(robot.copy(), _NoisyDisturbance(), ctrl.Ts)
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    (ra, _, pa), (rb, _, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert ra.loop == "python" and rb.loop == "compiled" and rb.complete
+    _same(ra, rb)
+    K, substeps = len(ra.t) - 1, pa[3].substeps
+    assert pa[3].disturbance.calls == pb[3].disturbance.calls == (K + 1) + 4 * substeps * K
+    assert pb[3].k == K and np.array_equal(pb[3].q, pa[3].q)
+
+
+def test_an_on_step_callback_is_called_by_the_compiled_loop_as_by_the_per_step_loop():
+    """Once per recorded step, with t_k, the plant's state and the reference sampled at
+    t_k (recorded as the result's q_ref), as the per-step loop calls it."""
+    seen = {}
+
+    def make(loop):
+        def on_step(t, q, q_ref):
+            seen[loop].append((float(t), np.array(q), np.array(q_ref)))
+
+        seen[loop] = []
+        return on_step
+
+    results = {}
+    for loop in ("python", "compiled"):
+        robot, ctrl, ref, plant = _paper()()
+        kw = dict(duration=1.0, plant=plant, q0=np.ones(3), loop=loop, on_step=make(loop))
+        results[loop] = hmpc_pin.simulate(robot, ctrl, ref, **kw)
+    ra, rb = results["python"], results["compiled"]
+    assert rb.loop == "compiled"
+    _same(ra, rb)
+    assert len(seen["compiled"]) == len(rb.t)
+    for k, (t, q, q_ref) in enumerate(seen["compiled"]):
+        assert t == rb.t[k]
+        np.testing.assert_array_equal(q, rb.q[k])
+        np.testing.assert_array_equal(q_ref, rb.q_ref[k])
+        np.testing.assert_array_equal(q_ref, seen["python"][k][2])
 
 
 def test_effort_saturation_is_counted_the_same():
@@ -289,6 +381,50 @@ class _PlainSine:
         return np.sin(times) * np.ones(3), np.cos(times) * np.ones(3)
 
 
+class _CountedSine(_PlainSine):
+    """The sine above, counting its horizon calls and the times they asked for."""
+
+    def __init__(self, width: int = 3):
+        self.calls, self.width = [], width
+
+    def sample_many(self, times, out=None):
+        self.calls.append(np.array(times))
+        times = np.asarray(times, dtype=float)[:, None]
+        return np.sin(times) * np.ones(self.width), np.cos(times) * np.ones(self.width)
+
+
+def test_a_reference_sampled_in_python_is_called_by_the_compiled_loop_as_per_step():
+    """Through the Reference port: one sample_many of the horizon t_k + j Ts per step,
+    the same arrays as per step."""
+    refs, results = {}, {}
+    for loop in ("python", "compiled"):
+        refs[loop] = _CountedSine()
+        results[loop] = _short(ref=lambda loop=loop: refs[loop], loop=loop)
+        assert results[loop].loop == loop and results[loop].complete
+    _same(results["python"], results["compiled"])
+    a, b = refs["python"].calls, refs["compiled"].calls
+    K = len(results["compiled"].t) - 1
+    assert len(b) == K + 2  # the steps', then the recorded reference's (sample_many of t)
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(y, x)
+
+
+def test_a_python_reference_of_the_wrong_width_stops_both_loops_alike():
+    """sample_many returning 2 columns for 3 joints: the same DimensionError, at step 0."""
+    pair = []
+    for loop in ("python", "compiled"):
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(robot)
+        ref = _CountedSine(width=2)
+        ref.sample = lambda t: (np.full(3, np.sin(t)), np.full(3, np.cos(t)))
+        with pytest.raises(hmpc_pin.SimulationError) as info:
+            hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), loop=loop)
+        pair.append(info.value)
+    assert str(pair[0]) == str(pair[1]) and "sample_many returned" in str(pair[1])
+    assert isinstance(pair[1].__cause__, hmpc_pin.DimensionError)
+
+
 def _short(ctrl=None, plant=None, ref=None, **kw):
     robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
     ctrl = ctrl(robot) if callable(ctrl) else hmpc_pin.HierarchicalMPC(robot)
@@ -297,39 +433,61 @@ def _short(ctrl=None, plant=None, ref=None, **kw):
     return hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), plant=plant, **kw)
 
 
-NOT_COMPILED = {
-    "on_step": (dict(on_step=lambda t, q, r: None), "on_step"),
-    "euler": (dict(plant=lambda r, c: EulerPlant(r.copy(), None, c.Ts)), "EulerPlant"),
-    "callable disturbance": (
-        dict(plant=lambda r, c: RK4Plant(r.copy(), lambda t, q, dq: np.zeros(3), c.Ts)),
-        "disturbance",
+#: Controllers without a compiled step: called as a whole through the Controller port.
+PYTHON_CONTROLLERS = {
+    "computed torque": lambda r: hmpc_pin.ComputedTorque(r),
+    "compensation in Python": lambda r: hmpc_pin.HierarchicalMPC(
+        r, compensation=hmpc_pin.MomentumObserver(r, 0.01, 50.0)
     ),
-    "other controller": (
-        dict(ctrl=lambda r: hmpc_pin.ComputedTorque(r)), "controller ComputedTorque"),
-    "compensation in Python": (
-        dict(ctrl=lambda r: hmpc_pin.HierarchicalMPC(
-            r, compensation=hmpc_pin.MomentumObserver(r, 0.01, 50.0))),
-        "compensation MomentumObserver"),
-    "reference without native form": (dict(ref=lambda: _PlainSine()), "reference _PlainSine"),
-}  # fmt: skip
+    "collision watch": lambda r: CollisionReaction(hmpc_pin.HierarchicalMPC(r), 5.0, "stop"),
+    "timed": lambda r: TimedController(hmpc_pin.HierarchicalMPC(r)),
+}
 
 
-@pytest.mark.parametrize("reason", list(NOT_COMPILED))
-def test_a_setup_without_a_compiled_form_runs_per_step(reason):
-    kw, named = NOT_COMPILED[reason]
-    result = _short(**kw)
-    assert result.loop == "python" and result.complete
-    with pytest.raises(hmpc_pin.ConfigError, match=named):
-        _short(**kw, loop="compiled")
+@pytest.mark.parametrize("name", list(PYTHON_CONTROLLERS))
+def test_a_python_controller_runs_in_the_compiled_loop_as_per_step(name):
+    """The same arrays, the same number of steps, as the per-step loop."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = PYTHON_CONTROLLERS[name](robot)
+        terms = [GaussianPulse([10.0, 8.0, 3.0], [0.3] * 3, [0.1] * 3)]
+        terms.append(CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8]))
+        plant = RK4Plant(robot.copy(), hmpc_pin.sim.SumDisturbance(*terms), ctrl.Ts)
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    (ra, ea, pa), (rb, eb, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    _same(ra, rb, name)
+    if name == "timed":
+        assert len(pa[1].samples_ns) == len(pb[1].samples_ns) == len(rb.t)
+    if name == "collision watch":
+        assert pa[1].detected_at == pb[1].detected_at
+
+
+def test_the_euler_plant_runs_in_the_compiled_loop_as_per_step():
+    """Through the Plant port: advance(tau) and disturbance_now(), the same arrays."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(robot)
+        friction = CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8])
+        plant = EulerPlant(robot.copy(), friction, ctrl.Ts)
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    (ra, ea, pa), (rb, eb, pb) = _both(make, 1.0, q0=np.ones(3))
+    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    _same(ra, rb, "euler")
+    assert pa[3].k == pb[3].k == len(rb.t) - 1
 
 
 @pytest.mark.parametrize("name", ["paper_combined_mujoco", "panda_mujoco"])
-def test_a_mujoco_config_runs_per_step(name):
+def test_a_mujoco_config_runs_in_the_compiled_loop_as_per_step(name):
     pytest.importorskip("mujoco")
-    exp = _experiment(name)
-    assert exp.run(0.1).loop == "python"
-    with pytest.raises(hmpc_pin.ConfigError, match="MuJoCoPlant"):
-        exp.run(0.1, loop="compiled")
+    ra, ea = _run(_experiment(name), "python", 0.3)
+    rb, eb = _run(_experiment(name), "auto", 0.3)
+    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    _same(ra, rb, name)
 
 
 def test_loop_must_be_one_of_the_three():
@@ -337,8 +495,9 @@ def test_loop_must_be_one_of_the_three():
         _short(loop="fast")
 
 
-def test_a_step_replaced_on_the_instance_is_called_per_step():
-    """A spy on the controller's step (or the plant's advance) is called at every step."""
+def test_a_step_replaced_on_the_instance_is_called_at_every_step():
+    """A spy on the controller's step or on the plant's advance is called at every step
+    (through the compiled loop's Controller and Plant ports)."""
     calls = []
 
     def spied(r):
@@ -353,7 +512,7 @@ def test_a_step_replaced_on_the_instance_is_called_per_step():
         return ctrl
 
     result = _short(ctrl=spied)
-    assert result.loop == "python" and len(calls) == len(result.t)
+    assert result.loop == "compiled" and len(calls) == len(result.t)  # the Controller port
 
     def plant(r, c):
         p = RK4Plant(r.copy(), None, c.Ts)
@@ -363,7 +522,7 @@ def test_a_step_replaced_on_the_instance_is_called_per_step():
 
     calls.clear()
     result = _short(plant=plant)
-    assert result.loop == "python" and len(calls) == len(result.t) - 1
+    assert result.loop == "compiled" and len(calls) == len(result.t) - 1  # the Plant port
 
 
 @pytest.mark.parametrize("model", ["z1", "panda"])

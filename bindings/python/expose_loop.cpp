@@ -1,7 +1,9 @@
-// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step and the RK4
-// plant, its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
+// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step, the RK4
+// plant (its disturbance fused, or a Python callable through the Disturbance port) and a
+// Measurement port (compiled or a Python subclass), its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
 // before every step.
 #include "holders.hpp"
+#include "trampolines.hpp"
 
 #include "hmpc/loop.hpp"
 
@@ -21,7 +23,10 @@ struct PyClosedLoop {
   std::vector<Array> records;
   IntArray step_ns, sat_steps;
   Array sat_excess;
-  std::optional<Array> history;
+  std::unique_ptr<PyCallableDisturbance> disturbance;
+  std::unique_ptr<PyCallableReference> reference;
+  std::unique_ptr<PyCallableController> controller;
+  std::unique_ptr<PyCallablePlant> plant;
   std::unique_ptr<ClosedLoop> loop;
 };
 
@@ -40,12 +45,11 @@ std::array<double*, 6> record_data(std::vector<Array>& rec, Eigen::Index rows, i
 
 void expose_loop(py::module_& m) {
   py::class_<PyClosedLoop>(m, "ClosedLoop", py::module_local())
-      .def(py::init([](PyHMPCCore& core, RK4& plant, Array t, std::vector<Array> records,
+      .def(py::init([](PyHMPCCore* core, RK4* plant, int n, Array t, std::vector<Array> records,
                        IntArray step_ns, IntArray sat_steps, Array sat_excess,
                        const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
                        const CRefVec& b, bool friction, double h, int substeps, double Ts) {
              auto o = std::make_unique<PyClosedLoop>();
-             const int n = core.core.n;
              const auto K = static_cast<Eigen::Index>(t.size()) - 1;
              if (step_ns.size() != K + 1 || sat_steps.size() != n || sat_excess.size() != n)
                throw std::invalid_argument("ClosedLoop: shapes do not match");
@@ -55,7 +59,7 @@ void expose_loop(py::module_& m) {
              o->sat_steps = sat_steps;
              o->sat_excess = sat_excess;
              o->loop = std::make_unique<ClosedLoop>(
-                 core.core, plant, o->t.data(), static_cast<int>(K),
+                 core ? &core->core : nullptr, plant, n, o->t.data(), static_cast<int>(K),
                  record_data(o->records, K + 1, n), o->step_ns.mutable_data(),
                  o->sat_steps.mutable_data(), o->sat_excess.mutable_data(), limit, has_limit,
                  bound, a, b, friction, h, substeps, Ts);
@@ -64,29 +68,60 @@ void expose_loop(py::module_& m) {
              };
              return o;
            }),
-           py::arg("core"), py::arg("plant"), py::arg("t"), py::arg("records"),
+           py::arg("core"), py::arg("plant"), py::arg("n"), py::arg("t"), py::arg("records"),
            py::arg("step_ns"), py::arg("sat_steps"), py::arg("sat_excess"), py::arg("limit"),
            py::arg("has_limit"), py::arg("bound"), py::arg("a"), py::arg("b"),
            py::arg("friction"), py::arg("h"), py::arg("substeps"), py::arg("Ts"),
            py::keep_alive<1, 2>(), py::keep_alive<1, 3>())
       .def(
           "set_measurement",
-          [](PyClosedLoop& o, double q_noise, double dq_noise, int D, Array H) {
-            const int n = o.loop->n;
-            if (D < 0 || H.ndim() != 2 || H.shape(0) != D + 1 || H.shape(1) != 2 * n ||
-                !H.writeable())
-              throw std::invalid_argument(
-                  "ClosedLoop.set_measurement: history of (delay + 1, 2n)");
-            o.history = H;
-            o.loop->set_measurement(q_noise, dq_noise, D, o.history->mutable_data());
+          [](PyClosedLoop& o, Measurement* m) { o.loop->set_measurement(m); },
+          py::arg("measurement"), py::keep_alive<1, 2>())
+      .def(
+          "set_disturbance",
+          [](PyClosedLoop& o, py::object d) {
+            auto port = std::make_unique<PyCallableDisturbance>(std::move(d));
+            o.loop->set_disturbance(port.get());
+            o.disturbance = std::move(port);
           },
-          py::arg("q_noise"), py::arg("dq_noise"), py::arg("delay"), py::arg("history"))
+          py::arg("disturbance"))
+      .def(
+          "set_plant",
+          [](PyClosedLoop& o, py::object plant) {
+            auto port = std::make_unique<PyCallablePlant>(std::move(plant), o.loop->n);
+            o.loop->set_plant(port.get());
+            o.plant = std::move(port);
+          },
+          py::arg("plant"))
+      .def(
+          "set_controller",
+          [](PyClosedLoop& o, py::object controller, py::object reference) {
+            auto port = std::make_unique<PyCallableController>(std::move(controller),
+                                                               std::move(reference), o.loop->n);
+            o.loop->set_controller(port.get());
+            o.controller = std::move(port);
+          },
+          py::arg("controller"), py::arg("reference"))
+      .def(
+          "set_reference",
+          [](PyClosedLoop& o, py::object horizon) {
+            auto port = std::make_unique<PyCallableReference>(std::move(horizon));
+            o.loop->set_reference(port.get());
+            o.reference = std::move(port);
+          },
+          py::arg("horizon"))
+      .def(
+          "set_recorded",
+          [](PyClosedLoop& o, py::function f) {
+            o.loop->recorded = [f = std::move(f)](long k) { f(k); };
+          },
+          py::arg("callback"))
       .def(
           "run",
-          [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P,
-             const CRefRow& noise) { return o.loop->run(q, v, k0, k1, P, noise); },
-          py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"), py::arg("P"),
-          py::arg("noise"))
+          [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
+            return o.loop->run(q, v, k0, k1, P);
+          },
+          py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"), py::arg("P"))
       .def_property_readonly("k", [](const PyClosedLoop& o) { return o.loop->k; })
       .def_property_readonly("last", [](const PyClosedLoop& o) { return o.loop->last; })
       .def_property_readonly("advances", [](const PyClosedLoop& o) { return o.loop->advances; })

@@ -20,6 +20,7 @@ PYBIND11_MODULE(_core, m) {
   hp::expose_observer(m);
   hp::expose_joint_qps(m);
   hp::expose_step(m);
+  hp::expose_measurement(m);
   hp::expose_loop(m);
   hp::expose_errors(m);
   hp::expose_joint_dynamics(m);

@@ -562,18 +562,7 @@ class HierarchicalMPC(AppliedTorque):
                 self.robot.check_vector("dq", dq)
             S[0] = q
             S[1] = dq
-            times = np.add(self._offsets, t, self._times)
-            q_ref, dq_ref = self._ref.sample_many(times, self._ref_out)  # type: ignore[union-attr]
-            if q_ref is not self._stack_q_ref:
-                if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
-                    raise DimensionError(
-                        f"reference.sample_many returned q_ref of shape {q_ref.shape} and "
-                        f"dq_ref of shape {dq_ref.shape} but the horizon needs "
-                        f"{self._ref_shape} ({self.n} joints); return two arrays of shape "
-                        f"(len(times), {self.n})"
-                    )
-                self._stack_q_ref[:] = q_ref
-                self._stack_dq_ref[:] = dq_ref
+            self._sample_horizon(t)
         if self._fused:
             core.step(S, t)
         else:
@@ -675,6 +664,27 @@ class HierarchicalMPC(AppliedTorque):
         q, dq = self._stack[0].copy(), self._stack[1].copy()
         self._M[:] = self.robot.mass_matrix(q)
         self._buf["nle"][:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
+
+    def _sample_horizon(self, t: float) -> None:
+        """The horizon rows of the step's stack, :math:`r(t + jT_s)`, :math:`\\dot r(t +
+        jT_s)`, j = 1..N, from a reference without a native form (sampled here, in one
+        ``sample_many`` call; the compiled loop calls this through its Reference port).
+
+        Raises:
+            DimensionError: ``sample_many`` returned arrays of another shape.
+        """
+        times = np.add(self._offsets, t, self._times)
+        q_ref, dq_ref = self._ref.sample_many(times, self._ref_out)  # type: ignore[union-attr]
+        if q_ref is not self._stack_q_ref:
+            if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
+                raise DimensionError(
+                    f"reference.sample_many returned q_ref of shape {q_ref.shape} and "
+                    f"dq_ref of shape {dq_ref.shape} but the horizon needs "
+                    f"{self._ref_shape} ({self.n} joints); return two arrays of shape "
+                    f"(len(times), {self.n})"
+                )
+            self._stack_q_ref[:] = q_ref
+            self._stack_dq_ref[:] = dq_ref
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its

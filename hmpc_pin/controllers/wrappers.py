@@ -1,34 +1,76 @@
-"""Controller wrappers: measurement (noise and delay) and timing.
+"""Controller wrappers: measurement, friction feed-forward, collision reaction, timing.
 
 :class:`MeasuredController` wraps any :class:`~hmpc_pin.controllers.base.Controller`
-and hands it, at :math:`t_k`, the state measured at :math:`t_{k-\\mathrm{delay}}` plus
-white Gaussian noise. The plant loop (:func:`~hmpc_pin.sim.simulate.simulate`) is
+and hands it, at :math:`t_k`, what a measurement port makes of the plant's state (by
+default the compiled plain model: the state measured at :math:`t_{k-\\mathrm{delay}}` plus
+white Gaussian noise). The plant loop (:func:`~hmpc_pin.sim.simulate.simulate`) is
 unchanged: it sees an ordinary controller. :class:`TimedController` times each step.
 """
 
 from __future__ import annotations
 
 import time
-from collections import deque
 
 import numpy as np
 
 from ..compensation.gate import FeedbackGate
 from ..exceptions import ConfigError
+from ..native import load as load_native
 from .base import ControllerWrapper
 
 __all__ = ["CollisionReaction", "FrictionFeedforward", "MeasuredController", "TimedController"]
 
 
-class MeasuredController(ControllerWrapper):
-    """A controller that sees noisy, delayed measurements of the plant state.
+def _check_port(port) -> None:
+    """A measurement port the loops can call: compiled, or a Python subclass of the port
+    that defines ``reset`` and ``measure``.
 
-    At each control instant the true state is measured with noise
+    Raises:
+        ConfigError: Anything else (named).
+    """
+    core = load_native()
+    base = core.Measurement
+    cls = type(port)
+    if not isinstance(port, base):
+        raise ConfigError(
+            "measurement",
+            f"expected a subclass of hmpc_pin.sim.sensing.Measurement, got {cls.__name__}",
+        )
+    if cls.__module__ == base.__module__:
+        return  # compiled
+    if isinstance(port, core.SensingMeasurement):
+        raise ConfigError(
+            "measurement",
+            f"{cls.__name__} subclasses the compiled SensingMeasurement, whose loop calls "
+            "the compiled model and not your overrides; subclass Measurement instead",
+        )
+    missing = [name for name in ("reset", "measure") if getattr(cls, name) is getattr(base, name)]
+    if missing:
+        raise ConfigError(
+            "measurement",
+            f"{cls.__name__} does not define {' and '.join(missing)}; a Measurement returns "
+            "the measurement (q, dq) handed over from reset(q0, dq0) and measure(t, q, dq)",
+        )
+
+
+class MeasuredController(ControllerWrapper):
+    """A controller that sees the plant through a measurement port.
+
+    The port is :class:`hmpc_pin._core.Measurement <hmpc_pin.native>` (the abstract
+    ``Measurement`` of ``cpp/include/hmpc/interfaces.hpp``): its ``reset(q0, dq0)`` gives the
+    measurement handed over at :math:`t_0`, ``measure(t, q, dq)`` the one handed over at
+    :math:`t_k` (k >= 1) from the plant's state, and ``command(tau)`` the torque the plant
+    receives (the interface's torque filter; by default the torque as commanded). The same
+    port serves both loops: the compiled loop calls it from C++ (a Python subclass through a
+    trampoline), the per-step loop through this wrapper. The time and the reference passed
+    on are the current ones: the controller does not know about the delay.
+
+    Without ``measurement``, the port is the compiled plain model: white Gaussian noise
     :math:`\\tilde q = q + \\sigma_q\\,\\mathcal N(0, I)`,
-    :math:`\\tilde{\\dot q} = \\dot q + \\sigma_{\\dot q}\\,\\mathcal N(0, I)`, and the
-    wrapped controller receives the measurement taken ``delay`` periods earlier (before
-    enough measurements exist, the first one). The time and the reference passed on are
-    the current ones: the controller does not know about the delay.
+    :math:`\\tilde{\\dot q} = \\dot q + \\sigma_{\\dot q}\\,\\mathcal N(0, I)` (2n draws
+    of ``rng`` per measurement, the angles' first, also when both levels are 0), and the
+    measurement taken ``delay`` periods earlier handed over (before enough measurements
+    exist, the first one).
 
     Args:
         controller: The wrapped controller (e.g. :class:`~hmpc_pin.HierarchicalMPC`).
@@ -36,9 +78,14 @@ class MeasuredController(ControllerWrapper):
         dq_noise: Standard deviation of the joint-velocity noise [rad/s].
         delay: Delay in control periods (0: none).
         rng: The noise source; seed it for reproducible runs.
+        measurement: A measurement port of your own (a subclass of
+            ``hmpc_pin.native.load().Measurement``, also available as
+            ``hmpc_pin.sim.sensing.Measurement``) instead of the plain model; then
+            ``q_noise``, ``dq_noise``, ``delay`` and ``rng`` do not apply.
 
     Attributes:
         controller: The wrapped controller.
+        measurement: The port.
     """
 
     def __init__(
@@ -49,7 +96,15 @@ class MeasuredController(ControllerWrapper):
         dq_noise: float = 0.0,
         delay: int = 0,
         rng: np.random.Generator | None = None,
+        measurement=None,
     ):
+        if measurement is not None:
+            if q_noise or dq_noise or delay or rng is not None:
+                raise ConfigError(
+                    "measurement", "q_noise, dq_noise, delay and rng do not apply to a "
+                    "measurement port of your own; give them to the port",
+                )  # fmt: skip
+            _check_port(measurement)
         if not (np.isfinite(q_noise) and q_noise >= 0 and np.isfinite(dq_noise) and dq_noise >= 0):
             raise ConfigError(
                 "q_noise/dq_noise",
@@ -61,29 +116,34 @@ class MeasuredController(ControllerWrapper):
         self.q_noise = float(q_noise)
         self.dq_noise = float(dq_noise)
         self.delay = int(delay)
-        self.rng = rng if rng is not None else np.random.default_rng()
-        self._buffer: deque = deque(maxlen=self.delay + 1)
+        self.rng = rng if rng is not None or measurement is not None else np.random.default_rng()
+        if measurement is None:
+            core = load_native()
+            plain = core.SensingSettings()
+            plain.exact = True
+            plain.q_noise, plain.dq_noise, plain.delay = self.q_noise, self.dq_noise, self.delay
+            measurement = core.SensingMeasurement(plain, self.rng)
+        self.measurement = measurement
         self._started = False
-
-    def _measure(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        n = len(q)
-        noise = self.rng.standard_normal(2 * n)  # one draw per step: fixed stream per seed
-        return q + self.q_noise * noise[:n], dq + self.dq_noise * noise[n:]
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
-        """Start a run: the controller starts from a measurement of ``(q0, dq0)``."""
-        self._buffer.clear()
+        """Start a run: the controller starts from the port's measurement of ``(q0, dq0)``."""
         self._started = False
-        self._buffer.append(self._measure(np.asarray(q0, float), np.asarray(dq0, float)))
-        self.controller.reset(*self._buffer[0])
+        q_m, dq_m = self.measurement.call_reset(np.asarray(q0, float), np.asarray(dq0, float))
+        self.controller.reset(q_m, dq_m)
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
-        """Measure ``(q, dq)``, and call the controller with the measurement ``delay`` old."""
+        """Measure ``(q, dq)`` (from the second step on; the first uses the measurement at
+        reset), call the controller with what the port hands over, pass its torque through
+        the port's ``command``."""
+        port = self.measurement
         if self._started:
-            self._buffer.append(self._measure(q, dq))
+            q_m, dq_m = port.call_measure(t, q, dq)
+        else:
+            q_m, dq_m = port.current
         self._started = True
-        q_m, dq_m = self._buffer[0]
-        return self.controller.step(t, q_m, dq_m, reference)
+        tau = self.controller.step(t, q_m, dq_m, reference)
+        return port.call_command(np.asarray(tau, dtype=float))
 
     def __getattr__(self, name):  # v, tau, observer, ... of the wrapped controller
         if name == "controller":

@@ -1,43 +1,53 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
 loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``,
-``ClosedLoop``), when every part of the loop has a compiled form:
+``ClosedLoop``), for every setup: the loop calls each part through a port
+(``cpp/include/hmpc/interfaces.hpp``):
 
 - the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
   is wholly compiled (its compensation the NDO of Eq 13 or none, its model loaded by the
-  compiled dynamics), alone or behind a
-  :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (white noise drawn here from
-  its generator, the same stream as its own draws, and a delay in whole periods);
-- the reference: one with a native form (sine, piecewise polynomial), sampled in C++;
-- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` with its disturbance fused (time-only
-  terms tabulated here per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same
-  tables as the per-step loop's, one Coulomb–viscous friction evaluated in C++);
-- no ``on_step`` callback.
+  compiled dynamics) is stepped in C++, alone or behind a
+  :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (or
+  :class:`~hmpc_pin.sim.sensing.SensedController`), whose measurement port (compiled: the
+  plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`; or a Python
+  subclass) is called by the loop; any other controller (computed torque, a compensation
+  advanced in Python, a model with mimic joints, any other wrapper) is called as a whole,
+  ``step(t, q, dq, reference)`` and ``disturbance_estimate``, through the Controller port;
+- the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
+  any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
+  per-step ``step`` does), called from the compiled loop through its Reference port;
+- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` (its period compiled) with its
+  disturbance fused (time-only terms tabulated here per
+  :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same tables as the per-step loop's,
+  one Coulomb–viscous friction evaluated in C++), or any other disturbance (a callable
+  ``d(t, q, dq)``) called from the compiled loop through its Disturbance port at every
+  stage, as the per-step loop's plant calls it; any other plant (semi-implicit Euler,
+  MuJoCo, an RK4 plant whose methods are replaced) is called as a whole, ``advance(tau)``
+  and ``disturbance_now()``, through the Plant port;
+- an ``on_step`` callback, if any, is called from the compiled loop once a step is recorded
+  (with the reference sampled at that instant, as the per-step loop does).
 
 Each chunk is :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods: per step it does what the
 per-step loop does, in the same order and with the same floating-point operations (the
-controller's compiled step, the records, the torque check, the effort clip and its
-counts, the plant's compiled period, the state check), so both loops give the same
-arrays. A fault stops the chunk at its step, and the same exception as the per-step
-loop's is raised from here; Ctrl-C is checked before every step (the run keeps the steps
-recorded so far). Afterwards the controller, the measurement wrapper (its delay buffer and
-its generator) and the plant are in the state the per-step loop leaves them in.
+controller's step, the records, the torque check, the effort clip and its counts, the
+plant's compiled period, the state check), so both loops give the same arrays. A fault
+stops the chunk at its step, and the same exception as the per-step loop's is raised from
+here; Ctrl-C is checked before every step (the run keeps the steps recorded so far).
+Afterwards the controller, the measurement (its state lives in the port; its generator is
+where a draw per measurement leaves it) and the plant are in the state the per-step loop
+leaves them in.
 
-Anything else (another controller or wrapper, a compensation advanced in Python, a user
-disturbance, the Euler or MuJoCo plant, an ``on_step`` callback) runs the per-step loop:
-:func:`why_not_compiled` names the first part without a compiled form.
+``simulate(loop="python")`` runs the per-step loop instead, the compiled loop's oracle.
 """
 
 from __future__ import annotations
 
 import sys
-from collections import deque
 
 import numpy as np
 
 from ..controllers.hierarchical import HierarchicalMPC
 from ..controllers.wrappers import MeasuredController
 from ..native import load as load_native
-from ..tasks.base import as_reference
 from .plants import PULSE_CHUNK, RK4Plant
 
 __all__ = ["LOOPS", "CompiledLoop", "why_not_compiled"]
@@ -56,48 +66,36 @@ def _own(obj, cls, *names: str) -> bool:
 
 
 def _parts(controller):
-    """``(HierarchicalMPC, MeasuredController or None)`` of ``controller``, or ``None``."""
+    """``(HierarchicalMPC, MeasuredController or None)`` of ``controller`` when its step is
+    wholly compiled (then the loop calls the compiled step and the ports around it), or
+    ``None`` (then the loop calls the controller as a whole through its Controller port)."""
     measured = None
     if isinstance(controller, MeasuredController) and _own(
-        controller, MeasuredController, "step", "reset", "_measure"
+        controller, MeasuredController, "step", "reset"
     ):
         measured, controller = controller, controller.controller
-    if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
+    if (
+        isinstance(controller, HierarchicalMPC)
+        and _own(controller, HierarchicalMPC, "step")
+        and controller.fused
+    ):
         return controller, measured
     return None
 
 
-def why_not_compiled(controller, plant, reference, on_step) -> str | None:
-    """The first part of the loop without a compiled form, in words, or ``None`` when the
-    whole loop can run compiled (module docstring)."""
-    if on_step is not None:
-        return "an on_step callback is called from Python at every step"
-    if not (
-        isinstance(plant, RK4Plant)
-        and _own(plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at")
-    ):
-        return (f"the plant {type(plant).__name__} is advanced in Python (only RK4Plant's "
-                "period is compiled)")  # fmt: skip
-    if not plant.fused:
-        return (f"the disturbance {type(plant.disturbance).__name__} has a term without a "
-                "compiled form (a callable d(t, q, dq), or two friction terms)")  # fmt: skip
-    parts = _parts(controller)
-    if parts is None:
-        return (f"the controller {type(controller).__name__} has no compiled step (only "
-                "HierarchicalMPC's, alone or behind a MeasuredController)")  # fmt: skip
-    ctrl = parts[0]
-    if not ctrl.fused:
-        return (f"the compensation {type(ctrl.compensation).__name__} is advanced in Python"
-                if not ctrl._python_dynamics else
-                "the controller's model (mimic joints) is evaluated in Python")  # fmt: skip
-    form_of = getattr(as_reference(reference), "native_form", None)
-    form = form_of() if callable(form_of) else None
-    if form is None or form[0] not in ("sine", "ppoly"):
-        return (
-            f"the reference {type(reference).__name__} has no native form (sampled in "
-            "Python; sine and piecewise-polynomial references are sampled in C++)"
-        )
+def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
+    """The part that keeps the loop from running compiled, in words, or ``None``: since every
+    part is called through a port of the compiled loop (module docstring), ``None`` for every
+    setup (kept for callers of earlier versions)."""
     return None
+
+
+def _compiled_plant(plant) -> bool:
+    """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose period the loop
+    runs itself (its methods not replaced, e.g. by a spy: then it is called as a plant)."""
+    return isinstance(plant, RK4Plant) and _own(
+        plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at"
+    )
 
 
 class CompiledLoop:
@@ -109,43 +107,80 @@ class CompiledLoop:
         last: The last recorded step (-1: none).
     """
 
-    def __init__(self, controller, plant: RK4Plant, reference, t_arr, records, step_ns,
-                 limit, state_bound: float, sat_steps, sat_excess):  # fmt: skip
-        ctrl, measured = _parts(controller)  # type: ignore[misc]
+    def __init__(self, controller, plant, reference, t_arr, records, step_ns, limit,
+                 state_bound: float, sat_steps, sat_excess, on_step=None, state=None):  # fmt: skip
+        ctrl, measured = _parts(controller) or (None, None)
         self.ctrl, self.measured, self.plant, self.reference = ctrl, measured, plant, reference
         self.t_arr, self.records = t_arr, records
-        n = plant.n
+        n = records["q"].shape[1]
         self.n, self.K = n, len(t_arr) - 1
-        a, b = plant._ab
+        self._rk4 = rk4 = _compiled_plant(plant)
+        zero = np.zeros(n)
+        a, b = plant._ab if rk4 else (zero, zero)
         self._loop = load_native().ClosedLoop(
-            ctrl._core, plant._kernel, t_arr, [records[name] for name in
-            ("q", "dq", "tau", "d", "d_hat", "tau_applied")], step_ns, sat_steps, sat_excess,
-            np.full(n, np.inf) if limit is None else limit, limit is not None,
-            min(state_bound, sys.float_info.max), a, b,
-            plant._friction is not None, plant.h, plant.substeps, float(ctrl.Ts),
+            None if ctrl is None else ctrl._core, plant._kernel if rk4 else None, n, t_arr,
+            [records[name] for name in ("q", "dq", "tau", "d", "d_hat", "tau_applied")],
+            step_ns, sat_steps, sat_excess, np.full(n, np.inf) if limit is None else limit,
+            limit is not None, min(state_bound, sys.float_info.max), a, b,
+            rk4 and plant._friction is not None, plant.h if rk4 else 0.0,
+            plant.substeps if rk4 else 1, float(controller.Ts),
         )  # fmt: skip
-        self._hist = None
+        if not rk4:  # the plant as a whole, from Python
+            self._loop.set_plant(plant)
+        if ctrl is None:  # the controller as a whole, from Python
+            self._loop.set_controller(controller, reference)
         if measured is not None:
-            D = measured.delay
-            self._hist = np.zeros((D + 1, 2 * n))
-            self._hist[0] = np.concatenate(measured._buffer[0])
-            self._loop.set_measurement(measured.q_noise, measured.dq_noise, D, self._hist)
-        self._x = np.concatenate([plant.q, plant.dq])
+            self._loop.set_measurement(measured.measurement)
+        if rk4 and not plant.fused:
+            self._loop.set_disturbance(plant.disturbance)
+        if on_step is not None:
+            self._loop.set_recorded(self._on_step(on_step))
+        q0, dq0 = state if state is not None else (plant.q, plant.dq)
+        self._x = np.concatenate([q0, dq0])
         self._no_rows = np.empty((0, n))
-        self._no_noise = np.empty((0, 2 * n))
         self.k, self.last = 0, -1
+
+    def _on_step(self, on_step):
+        """The callback after step k is recorded: the reference sampled at t_k into the
+        records, then ``on_step(t_k, q_k, q_ref)``, as the per-step loop does."""
+        t_arr, reference, rec = self.t_arr, self.reference, self.records
+        rec_q, rec_q_ref, rec_dq_ref = rec["q"], rec["q_ref"], rec["dq_ref"]
+
+        def recorded(k: int) -> None:
+            t = t_arr[k]
+            q_ref, dq_ref = reference.sample(t)
+            rec_q_ref[k] = q_ref
+            rec_dq_ref[k] = dq_ref
+            on_step(t, rec_q[k].copy(), q_ref)
+
+        return recorded
 
     def run(self) -> None:
         """Run every step, chunk by chunk; a fault raises the compiled core's exception
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
-        ctrl, plant, K = self.ctrl, self.plant, self.K
-        if self.reference is not ctrl._reference:  # as the first step does
+        ctrl, K = self.ctrl, self.K
+        if ctrl is not None and self.reference is not ctrl._reference:  # as its step does
             ctrl._set_reference(self.reference)
+        if ctrl is not None and not ctrl._native_ref:  # the horizon sampled in Python
+            self._loop.set_reference(ctrl._sample_horizon)
+        port = None if self.measured is None else self.measured.measurement
+        ahead = isinstance(port, load_native().SensingMeasurement)
+        if ahead:  # the noise of a chunk drawn at once, the unused draws given back
+            port.ahead = PULSE_CHUNK
+        try:
+            self._chunks(K)
+        finally:
+            if ahead:
+                port.give_back()
+                port.ahead = 1
+
+    def _chunks(self, K: int) -> None:
+        plant = self.plant
         k0 = 0
         while k0 <= K:
             self.k = k0
-            P = plant._pulses_at(k0) if plant._pulses else None  # the per-step loop's table
+            P = plant._pulses_at(k0) if self._rk4 and plant._pulses else None  # its table
             if P is not None:
                 first = k0 - plant._chunk_k
                 k1 = min(K + 1, plant._chunk_k + plant._chunk.shape[0])
@@ -162,39 +197,19 @@ class CompiledLoop:
     def _chunk(self, k0: int, k1: int, P) -> int:
         """Steps ``k0 .. k1 - 1``; the parts' Python state brought up to date afterwards
         (also when a fault or Ctrl-C stops the chunk). Returns the step where it stopped."""
-        loop, n, measured = self._loop, self.n, self.measured
-        noise, rng_state, drawn = self._no_noise, None, 0
-        if measured is not None:  # one row of 2n draws per step k >= 1, as _measure draws
-            rng_state = measured.rng.bit_generator.state
-            drawn = k1 - max(k0, 1)
-            noise = np.zeros((k1 - k0, 2 * n))
-            noise[k1 - k0 - drawn :] = measured.rng.standard_normal((drawn, 2 * n))
+        loop, n = self._loop, self.n
         started, stepped, advances = loop.started, loop.stepped, loop.advances
         x = self._x
         try:
-            return loop.run(x[:n], x[n:], k0, k1, P, noise)
+            return loop.run(x[:n], x[n:], k0, k1, P)
         finally:
             self.k, self.last = loop.k, loop.last
             plant = self.plant
-            if loop.advances != advances:
+            if loop.advances != advances and self._rk4:
                 plant.k += loop.advances - advances
                 plant.t = plant.t0 + plant.Ts * plant.k
                 plant.q, plant.dq = x[:n].copy(), x[n:].copy()
-            if loop.stepped != stepped:
+            if loop.stepped != stepped and self.ctrl is not None:
                 self.ctrl._started = True
-            begun = loop.started - started
-            if measured is not None and begun:
-                used = k0 + begun - max(k0, 1)  # the draws of the steps begun
-                if used < drawn:  # give back the draws of the steps not begun
-                    measured.rng.bit_generator.state = rng_state
-                    measured.rng.standard_normal((used, 2 * n))
-                s = k0 + begun - 1  # the last step begun: its measurement is the newest
-                D = measured.delay
-                hist = self._hist
-                measured._started = True
-                measured._buffer = deque(
-                    ((hist[j % (D + 1), :n].copy(), hist[j % (D + 1), n:].copy())
-                     for j in range(max(0, s - D), s + 1)), maxlen=D + 1,
-                )  # fmt: skip
-            elif measured is not None and drawn:
-                measured.rng.bit_generator.state = rng_state
+            if self.measured is not None and loop.started != started:
+                self.measured._started = True

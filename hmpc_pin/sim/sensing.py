@@ -16,24 +16,26 @@ and it low-passes the commanded torque before the drives apply it (libfranka's
 (:class:`WhiteNoise`) and a delay in whole control periods (:class:`PeriodDelay`) remain.
 
 :class:`Sensing` composes them and :class:`SensedController` puts them between a controller
-and the simulated plant: the plant loop (:func:`~hmpc_pin.sim.simulate.simulate`) is
-unchanged. The plant state is known at the control instants; in between, the angle is the
-cubic Hermite interpolant of the angles and velocities at the two instants around it (the
-torque is constant over a period, so the motion there is smooth); before the start the arm
-moves at its initial velocity, :math:`q(t) = q_0 + t\\,\\dot q_0` (at rest at its initial
-state when :math:`\\dot q_0 = 0`): a run started in motion is not seen standing still.
+and the simulated plant, through the compiled measurement port (:meth:`Sensing.compiled`;
+the algorithm is written once, in ``cpp/src/measurement.cpp``): the plant loop
+(:func:`~hmpc_pin.sim.simulate.simulate`) is unchanged, and runs compiled. The plant state
+is known at the control instants; in between, the angle is the cubic Hermite interpolant of
+the angles and velocities at the two instants around it (the torque is constant over a
+period, so the motion there is smooth); before the start the arm moves at its initial
+velocity, :math:`q(t) = q_0 + t\\,\\dot q_0` (at rest at its initial state when
+:math:`\\dot q_0 = 0`): a run started in motion is not seen standing still.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..controllers.base import ControllerWrapper
+from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError
+from ..native import load as load_native
 
 __all__ = [
     "Encoder",
@@ -250,6 +252,29 @@ class Sensing:
             )  # fmt: skip
         return m
 
+    def compiled(self, Ts: float, rng: np.random.Generator | None):
+        """The compiled measurement port of this model at control period ``Ts`` [s]
+        (``SensingMeasurement``), its noise drawn from ``rng``.
+
+        Raises:
+            ConfigError: ``Ts`` is not a whole number of interface periods, or a filter's
+                cutoff is not > 0.
+        """
+        core = load_native()
+        s = core.SensingSettings()
+        s.Ts, s.ticks, s.Tif = Ts, self.ticks(Ts), self.period
+        s.latency = self.latency.seconds
+        s.keep = math.ceil(self.latency.seconds / Ts) + 3
+        if self.encoder is not None:
+            s.encoder, s.encoder_step = True, np.atleast_1d(self.encoder.step)
+        if self.velocity is not None:
+            s.finite_difference, s.velocity_gain = True, self.velocity.filter().gain
+        s.q_noise, s.dq_noise = self.noise.q, self.noise.dq
+        s.delay = self.delay.periods
+        if self.torque is not None:
+            s.torque_filter, s.torque_gain = True, self.torque.filter().gain
+        return core.SensingMeasurement(s, rng)
+
     @property
     def ideal(self) -> bool:
         """Whether the controller gets the exact state (nothing modelled)."""
@@ -263,68 +288,11 @@ class Sensing:
         )
 
 
-class _History:
-    """The plant's states at the control instants; the angle at any past time by cubic
-    Hermite interpolation. Before the start the arm moved at its initial velocity:
-    :math:`q(t) = q_0 + t\\,\\dot q_0`, :math:`\\dot q(t) = \\dot q_0` for :math:`t \\le 0`
-    (at rest when :math:`\\dot q_0 = 0`), so that a run started in motion is not seen
-    standing still for its first latency."""
-
-    def __init__(self, Ts: float, keep: int):
-        self.Ts = Ts
-        self.states: deque = deque(maxlen=keep)
-        self.k0 = 0  # the control index of states[0]
-        self.k = 0  # the control index of the newest state
-
-    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
-        self.states.clear()
-        self.states.append((np.array(q0, float), np.array(dq0, float)))
-        self.k0 = 0
-        self.k = 0
-
-    def push(self, q: np.ndarray, dq: np.ndarray) -> None:
-        if len(self.states) == self.states.maxlen:
-            self.k0 += 1
-        self.states.append((np.array(q, float), np.array(dq, float)))
-        self.k += 1
-
-    def angle(self, t: float) -> np.ndarray:
-        """q(t) [rad] for t <= the newest instant."""
-        s = t / self.Ts
-        if s <= 0 or self.k == 0:
-            q0, v0 = self._at(0)
-            return q0 + min(t, 0.0) * v0
-        j = min(math.floor(s), self.k - 1)
-        q0, v0 = self._at(j)
-        q1, v1 = self._at(j + 1)
-        x = s - j
-        h = self.Ts
-        x2, x3 = x * x, x * x * x
-        return ((2 * x3 - 3 * x2 + 1) * q0 + (x3 - 2 * x2 + x) * h * v0
-                + (-2 * x3 + 3 * x2) * q1 + (x3 - x2) * h * v1)  # fmt: skip
-
-    def velocity(self, t: float) -> np.ndarray:
-        """q̇(t) [rad/s]: the derivative of the same interpolant."""
-        s = t / self.Ts
-        if s <= 0 or self.k == 0:
-            return self._at(0)[1]
-        j = min(math.floor(s), self.k - 1)
-        q0, v0 = self._at(j)
-        q1, v1 = self._at(j + 1)
-        x = s - j
-        h = self.Ts
-        x2 = x * x
-        return ((6 * x2 - 6 * x) * q0 / h + (3 * x2 - 4 * x + 1) * v0
-                + (-6 * x2 + 6 * x) * q1 / h + (3 * x2 - 2 * x) * v1)  # fmt: skip
-
-    def _at(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        i = max(k - self.k0, 0)
-        return self.states[min(i, len(self.states) - 1)]
-
-
-class SensedController(ControllerWrapper):
+class SensedController(MeasuredController):
     """A controller that sees the arm through :class:`Sensing` and whose torque passes the
-    interface's torque filter.
+    interface's torque filter: a :class:`~hmpc_pin.controllers.wrappers.MeasuredController`
+    whose port is the compiled interface model (``SensingMeasurement``,
+    ``cpp/include/hmpc/measurement.hpp``), so that it runs in the compiled loop.
 
     At each control instant :math:`t_k` the interface has sampled the arm at
     :math:`t_k - L - iT_\\mathrm{if}`; the encoder quantises each angle, the finite
@@ -333,6 +301,12 @@ class SensedController(ControllerWrapper):
     torque it returns is filtered at the interface rate and held (as the mean over the
     period) by the plant.
 
+    The noise: 2n standard normal draws of ``rng`` per measurement (the angles' first),
+    only when a noise level is not 0; the compiled model takes them from ``rng`` itself
+    (``rng.standard_normal``, several measurements' rows per call in the compiled loop,
+    the unused ones given back at its end), so that a seeded generator gives the stream a
+    draw per measurement gives.
+
     Args:
         controller: The wrapped controller.
         sensing: The :class:`Sensing` model.
@@ -340,96 +314,21 @@ class SensedController(ControllerWrapper):
     """
 
     def __init__(self, controller, sensing: Sensing, rng: np.random.Generator | None = None):
-        super().__init__(controller)
+        rng = rng if rng is not None else np.random.default_rng()
+        super().__init__(controller, measurement=sensing.compiled(float(controller.Ts), rng))
         self.sensing = sensing
-        self.rng = rng if rng is not None else np.random.default_rng()
-        Ts = float(controller.Ts)
-        self._m = sensing.ticks(Ts)
-        self._Tif = sensing.period
-        keep = math.ceil(sensing.latency.seconds / Ts) + 3
-        self._history = _History(Ts, keep)
-        self._buffer: deque = deque(maxlen=sensing.delay.periods + 1)
-        self._vel_filter = None if sensing.velocity is None else sensing.velocity.filter()
-        self._tau_filter = None if sensing.torque is None else sensing.torque.filter()
+        self.rng = rng
+        self.q_noise, self.dq_noise = sensing.noise.q, sensing.noise.dq
+        self.delay = sensing.delay.periods
 
-    def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
-        """Start a run at ``(q0, dq0)``, moving at ``dq0`` before it; the filters start
-        settled there."""
-        q0 = np.asarray(q0, float)
-        dq0 = np.asarray(dq0, float)
-        self._history.reset(q0, dq0)
-        self._k = 0
-        self._started = False
-        self._q_prev = None  # the last reported angle (finite difference)
-        self._dq_filt = np.array(dq0, float)
-        self._tau_f = None
-        self._buffer.clear()
-        self._buffer.append(self._measure())
-        self.controller.reset(*self._buffer[0])
 
-    def _sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """One interface sample of the arm at time t: (reported angle, velocity)."""
-        s = self.sensing
-        q = self._history.angle(t)
-        q_rep = s.encoder(q) if s.encoder is not None else np.array(q, float)
-        if s.velocity is None:
-            return q_rep, self._history.velocity(t)
-        if self._q_prev is None:
-            dq = self._history.velocity(t)  # the first sample: no difference yet
-            self._dq_filt = dq
-        else:
-            dq = (q_rep - self._q_prev) / self._Tif
-            if self._vel_filter is not None:
-                dq = self._vel_filter.step(self._dq_filt, dq)
-            self._dq_filt = dq
-        self._q_prev = q_rep
-        return q_rep, dq
-
-    def _measure(self) -> tuple[np.ndarray, np.ndarray]:
-        """The measurement handed over at the current control instant (before the delay)."""
-        s = self.sensing
-        t_now = self._k * self._history.Ts
-        t_meas = t_now - s.latency.seconds
-        # The interface samples since the last control instant (one at the start).
-        count = 1 if self._k == 0 else self._m
-        for i in range(count - 1, -1, -1):
-            q_rep, dq = self._sample(t_meas - i * self._Tif)
-        n = len(q_rep)
-        if s.noise.q or s.noise.dq:
-            noise = self.rng.standard_normal(2 * n)
-            q_rep = q_rep + s.noise.q * noise[:n]
-            dq = dq + s.noise.dq * noise[n:]
-        return q_rep, dq
-
-    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
-        """Record the plant state, measure it as the interface does, call the controller,
-        filter its torque."""
-        if self._started:
-            self._history.push(q, dq)
-            self._k = self._history.k
-            self._buffer.append(self._measure())
-        self._started = True
-        q_m, dq_m = self._buffer[0]
-        tau = self.controller.step(t, q_m, dq_m, reference)
-        return self._filter_torque(np.asarray(tau, dtype=float))
-
-    def _filter_torque(self, tau: np.ndarray) -> np.ndarray:
-        flt = self._tau_filter
-        if flt is None:
-            return tau
-        if self._tau_f is None:
-            self._tau_f = tau.copy()  # the filter starts settled at the first command
-            return tau
-        a = flt.gain
-        total = np.zeros_like(tau)
-        y = self._tau_f
-        for _ in range(self._m):
-            y = a * tau + (1.0 - a) * y
-            total += y
-        self._tau_f = y
-        return total / self._m
-
-    def __getattr__(self, name):  # v, tau, observer, ... of the wrapped controller
-        if name == "controller":
-            raise AttributeError(name)
-        return getattr(self.controller, name)
+def __getattr__(name: str):
+    """``Measurement``: the measurement port (``hmpc_pin.native.load().Measurement``),
+    loaded with the compiled core on first use. Subclass it in Python (define
+    ``reset(q0, dq0)`` and ``measure(t, q, dq)``, each returning the measurement
+    ``(q, dq)`` handed over, and optionally ``command(tau)``) and give an instance to
+    :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (``measurement=``): it runs
+    inside the compiled loop."""
+    if name == "Measurement":
+        return load_native().Measurement
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -61,12 +61,12 @@ def _step_time(result: Result, step_ns: np.ndarray, Ts: float) -> None:
 
 def choose_loop(loop: str, controller, plant, reference, on_step) -> bool:
     """Whether the run goes through the compiled loop
-    (:mod:`~hmpc_pin.sim.compiled_loop`): ``loop`` is ``"auto"`` (when every part has a
-    compiled form), ``"compiled"`` or ``"python"`` (the per-step loop).
+    (:mod:`~hmpc_pin.sim.compiled_loop`): ``loop`` is ``"auto"`` (when the compiled loop can
+    advance the plant), ``"compiled"`` or ``"python"`` (the per-step loop).
 
     Raises:
         ConfigError: ``loop`` is none of :data:`~hmpc_pin.sim.compiled_loop.LOOPS`, or
-            ``"compiled"`` with a part that has no compiled form (named).
+            ``"compiled"`` with a plant the compiled loop cannot advance (named).
     """
     if loop not in LOOPS:
         raise ConfigError("loop", f"loop={loop!r}; expected one of {LOOPS}")
@@ -127,11 +127,10 @@ def simulate(
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
-        loop: ``"auto"`` runs the loop in compiled chunks when every part has a compiled
-            form (:mod:`~hmpc_pin.sim.compiled_loop`: the same arrays, faults and partial
-            results), else per step in Python; ``"compiled"`` requires the compiled loop
-            (a :class:`~hmpc_pin.exceptions.ConfigError` names the part without a compiled
-            form); ``"python"`` always runs per step. The result's ``loop`` attribute says
+        loop: ``"auto"`` (and ``"compiled"``) run the loop in compiled chunks
+            (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python called through
+            its ports; the same arrays, faults and partial results as per step);
+            ``"python"`` runs it per step in Python. The result's ``loop`` attribute says
             which ran (not saved with it).
 
     Returns:
@@ -213,7 +212,8 @@ def simulate(
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
         if compiled:
             runner = CompiledLoop(controller, sim_plant, reference, t_arr, rec, step_ns, limit,
-                                  state_bound, sat_steps, sat_excess)  # fmt: skip
+                                  state_bound, sat_steps, sat_excess, on_step,
+                                  (q, dq))  # fmt: skip
             try:
                 runner.run()
             finally:

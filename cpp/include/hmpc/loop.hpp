@@ -1,11 +1,12 @@
 // The closed loop (hmpc_pin.sim.compiled_loop): the per-step loop of
 // hmpc_pin.sim.simulate.simulate, many control periods per call, when every part has a
 // compiled form: the controller's fused step with its compiled reference (HMPCCore.step_t),
-// optionally behind a measurement model of white noise and a whole-period delay
-// (MeasuredController: the noise drawn by the caller, one row of 2n per step), and the RK4
-// plant's period with its fused disturbance (time-only terms tabulated by the caller, one
-// Coulomb-viscous friction here). Per step k, as the Python loop does:
-//   τ = step(t_k, measured state) → record q, q̇, τ, d, d̂ → (k = K: stop) → τ finite →
+// (or the step from a Reference port's horizon), optionally behind a Measurement port (interfaces.hpp: compiled, measurement.hpp, or a
+// Python subclass), and the RK4 plant's period with its fused disturbance (time-only terms
+// tabulated by the caller, one Coulomb-viscous friction here) or a Disturbance port called
+// at every stage (interfaces.hpp: a Python callable). Per step k, as the Python loop does:
+//   (k >= 1: measure(t_k, q, q̇)) → τ = step(t_k, measured state) → command(τ) →
+//   record q, q̇, τ, d, d̂ → recorded(k) → (k = K: stop) → τ finite →
 //   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
 //   state finite and within the bound.
 // run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
@@ -20,6 +21,7 @@
 #pragma once
 
 #include "hmpc/errors.hpp"
+#include "hmpc/interfaces.hpp"
 #include "hmpc/rk4.hpp"
 #include "hmpc/step.hpp"
 #include "hmpc/types.hpp"
@@ -36,22 +38,40 @@ class ClosedLoop {
   // t: K+1 instants [s]; records: q, q̇, τ, d, d̂, τ applied, each (K+1)×n row-major;
   // step_ns: K+1 step times [ns]; sat_steps, sat_excess: n each; Ts: the control period [s]
   // (for the time of a fault of the plant).
-  ClosedLoop(HMPCCore& core, RK4& plant, const double* t, int K, std::array<double*, 6> records,
+  // core: the controller's compiled step (nullptr: a Controller port, set_controller());
+  // plant: the compiled RK4 period (nullptr: a Plant port, set_plant()); n: the joints.
+  ClosedLoop(HMPCCore* core, RK4* plant, int n, const double* t, int K,
+             std::array<double*, 6> records,
              std::int64_t* step_ns, std::int64_t* sat_steps, double* sat_excess,
              const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
              const CRefVec& b, bool friction, double h, int substeps, double Ts);
 
-  // White noise (q_noise [rad], dq_noise [rad/s]) and a delay of D periods; history: the
-  // last D+1 measurements ((D+1)×2n, row k % (D+1) for step k, [q; q̇]).
-  void set_measurement(double q_noise, double dq_noise, int D, double* history);
+  // The controller is `c` as a whole (called with the plant's state; no compiled step, no
+  // measurement or reference port then; the caller keeps it alive).
+  void set_controller(Controller* c) { controller = c; }
+
+  // The plant is `p` (advanced, and asked its disturbance, from here; the caller keeps it
+  // alive; no table, no friction, no disturbance port then).
+  void set_plant(Plant* p) { plant_port = p; }
+
+  // The controller sees the plant through `m` (reset by the caller with the controller; the
+  // caller keeps it alive); nullptr: the plant's state as is.
+  void set_measurement(Measurement* m);
+
+  // The controller's reference is `r` (its horizon written into the step's stack, then the
+  // step from the stack; the caller keeps it alive); nullptr: the compiled one (step_t).
+  void set_reference(Reference* r) { reference = r; }
+
+  // The plant's disturbance is `d`, called at every stage and for the record (the caller
+  // keeps it alive; no table of time-only terms, no friction then); nullptr: the fused one.
+  void set_disturbance(Disturbance* d);
 
   // Steps k0 .. k1-1 from the plant state (q, v) (updated in place). P: the time-only
-  // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows);
-  // noise: one row of 2n standard normal draws per step k0.. (measured; row of step 0
-  // unused: the measurement at reset).
-  long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P, const CRefRow& noise);
+  // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows).
+  long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P);
 
   std::function<void()> interrupted;  // called before every step (may throw)
+  std::function<void(long)> recorded;  // called with k once step k is recorded (may throw)
   HMPCCore* core;
   RK4* plant;
   int n, K;
@@ -64,18 +84,21 @@ class ClosedLoop {
   double bound, h;
   int substeps;
   double Ts;
-  bool measured = false;
-  double q_noise = 0.0, dq_noise = 0.0;
-  int delay = 0;
-  double* hist = nullptr;
+  Measurement* measurement = nullptr;
+  Disturbance* disturbance = nullptr;
+  Reference* reference = nullptr;
+  Controller* controller = nullptr;
+  Plant* plant_port = nullptr;
   long k = 0;         // the step being run
   long last = -1;     // the last recorded step
   long advances = 0;  // plant periods integrated by run()
-  long started = 0;   // steps begun by run() (the measurement drew their noise)
+  long started = 0;   // steps begun by run()
   long stepped = 0;   // controller steps that succeeded
 
  private:
-  Vec qm, dqm, tau, d;
+  void compiled_step(const RefVec& q, const RefVec& v);
+  bool record_and_advance(RefVec q, RefVec v, const CRefRow& P, long j);
+  Vec qm, dqm, tau, d, dh, qn, vn;
   RowMat T;
 };
 

@@ -1,0 +1,153 @@
+// The Python-side ports: a Python subclass of a bound port (interfaces.hpp) runs inside the
+// compiled loop through these trampolines, as Crocoddyl's Python action models run inside
+// its solvers. Each override is called with the GIL held (the loop runs with it); what it
+// returns is checked here and kept where the loop reads it.
+#pragma once
+
+#include "expose.hpp"
+
+#include "hmpc/errors.hpp"
+#include "hmpc/interfaces.hpp"
+
+#include <string>
+#include <utility>
+
+namespace hmpc::python {
+
+// hmpc_pin._core.Measurement subclassed in Python: reset(q0, dq0) and measure(t, q, dq)
+// return the measurement handed over, a pair (q, dq) of n floats each; command(tau), when
+// defined, returns the torque the plant receives (n floats).
+class PyMeasurementPort : public Measurement {
+ public:
+  using Measurement::Measurement;
+
+  void reset(const CRefVec& q0, const CRefVec& dq0) override {
+    py::gil_scoped_acquire gil;
+    keep(override_of("reset")(Vec(q0), Vec(dq0)), q0.size(), "reset");
+  }
+
+  void measure(double t, const CRefVec& q, const CRefVec& dq) override {
+    py::gil_scoped_acquire gil;
+    keep(override_of("measure")(t, Vec(q), Vec(dq)), q.size(), "measure");
+  }
+
+  void command(RefVec tau) override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Measurement*>(this), "command");
+    if (!f) return;  // no filter of the torque
+    Vec out = vector(f(Vec(tau)), "command");
+    if (out.size() != tau.size())
+      throw DimensionMismatch("the torque Measurement.command returned", out.size(), tau.size(),
+                              "the controller commands " + std::to_string(tau.size()));
+    tau = out;
+  }
+
+ private:
+  py::function override_of(const char* name) const {
+    py::function f = py::get_override(static_cast<const Measurement*>(this), name);
+    if (!f)
+      throw py::type_error(std::string("a subclass of Measurement must define ") + name +
+                           " (returning the measurement (q, dq) handed over)");
+    return f;
+  }
+
+  static Vec vector(const py::handle& value, const char* name) {
+    try {
+      return value.cast<Vec>();
+    } catch (const py::cast_error&) {
+      throw py::type_error(std::string("Measurement.") + name +
+                           " must return float vectors, got " +
+                           std::string(py::str(py::repr(value))));
+    }
+  }
+
+  void keep(const py::object& result, Eigen::Index n, const char* name) {
+    if (!py::isinstance<py::sequence>(result) || py::len(result) != 2)
+      throw py::type_error(std::string("Measurement.") + name +
+                           " must return the pair (q, dq), got " +
+                           std::string(py::str(py::repr(result))));
+    const auto pair = result.cast<py::sequence>();
+    Vec q = vector(pair[0], name);
+    Vec dq = vector(pair[1], name);
+    for (const Vec* v : {&q, &dq})
+      if (v->size() != n)
+        throw DimensionMismatch(std::string("the measurement Measurement.") + name +
+                                    " returned",
+                                v->size(), n, "the plant has " + std::to_string(n) + " joints");
+    qm = std::move(q);
+    dqm = std::move(dq);
+  }
+};
+
+// A Python callable d(t, q, dq) -> (n,) [N·m] as the loop's Disturbance port (the
+// disturbance protocol of hmpc_pin.sim.disturbances is any such callable).
+class PyCallableDisturbance : public Disturbance {
+ public:
+  explicit PyCallableDisturbance(py::object f) : fn(std::move(f)) {}
+  Vec at(double t, const Vec& q, const Vec& dq) override {
+    py::gil_scoped_acquire gil;
+    return fn(t, q, dq).cast<Vec>();
+  }
+  py::object fn;
+};
+
+// A Python callable horizon(t) as the loop's Reference port: it writes the horizon into the
+// step's stack through the numpy array the stack maps (HierarchicalMPC._sample_horizon).
+class PyCallableReference : public Reference {
+ public:
+  explicit PyCallableReference(py::object f) : fn(std::move(f)) {}
+  void horizon(double t, Eigen::Ref<RowMat>) override {
+    py::gil_scoped_acquire gil;
+    fn(t);
+  }
+  py::object fn;
+};
+
+// n floats of a Python value: a float vector of n, or what numpy broadcasts to (n,) (as the
+// per-step loop's records do; numpy's error otherwise).
+inline Vec broadcast_vector(const py::object& value, int n) {
+  auto a = py::array_t<double, py::array::forcecast>::ensure(value);
+  if (a && a.ndim() == 1 && a.shape(0) == n) return a.cast<Vec>();
+  py::object np = py::module_::import("numpy");
+  return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
+}
+
+// A Python plant (the Plant protocol of hmpc_pin.sim.base: advance(tau) -> (q, dq),
+// disturbance_now()) as the loop's Plant port.
+class PyCallablePlant : public Plant {
+ public:
+  PyCallablePlant(py::object p, int n_) : plant(std::move(p)), n(n_) {}
+  void advance(const Vec& tau, Vec& q, Vec& dq) override {
+    py::gil_scoped_acquire gil;
+    py::object state = plant.attr("advance")(tau);
+    const auto pair = state.cast<py::sequence>();
+    if (py::len(pair) != 2)
+      throw py::type_error("Plant.advance must return the pair (q, dq)");
+    q = pair[0].cast<Vec>();
+    dq = pair[1].cast<Vec>();
+  }
+  Vec disturbance_now() override {
+    py::gil_scoped_acquire gil;
+    return broadcast_vector(plant.attr("disturbance_now")(), n);
+  }
+  py::object plant;
+  int n;
+};
+
+// A Python controller (the Controller protocol of hmpc_pin.controllers.base) as the loop's
+// Controller port: step(t, q, dq, reference) and disturbance_estimate, each n floats (a
+// shape numpy broadcasts to (n,) is broadcast, as the per-step loop's records do).
+class PyCallableController : public Controller {
+ public:
+  PyCallableController(py::object c, py::object r, int n_)
+      : ctrl(std::move(c)), ref(std::move(r)), n(n_) {}
+  void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) override {
+    py::gil_scoped_acquire gil;
+    tau = broadcast_vector(ctrl.attr("step")(t, q, dq, ref), n);
+    dhat = broadcast_vector(ctrl.attr("disturbance_estimate"), n);
+  }
+  py::object ctrl, ref;
+  int n;
+};
+
+}  // namespace hmpc::python

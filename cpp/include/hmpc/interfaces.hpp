@@ -1,0 +1,75 @@
+// The ports of the loop: abstract parts the closed loop (loop.hpp) calls without knowing
+// whether they are compiled (measurement.hpp) or written in Python (a subclass of the bound
+// port, reached through the trampolines of bindings/python/trampolines.hpp).
+//
+// Measurement: what the controller is handed at each control instant t_k, and what the arm's
+// interface does to the torque the controller commands.
+//   reset(q0, q̇0)      the start of a run at (q0, q̇0) [rad, rad/s]: the measurement handed
+//                      over at t_0 (qm, dqm);
+//   measure(t_k, q, q̇) the plant's state at t_k, k >= 1: the measurement handed over at t_k;
+//   command(τ)         the interface's filter of the commanded torque τ [N·m], in place
+//                      (none by default).
+// The loop calls reset once (through the controller's reset), measure at every later step
+// before the controller's step, and command on the controller's torque before recording it.
+//
+// Disturbance: the torque d(t, q, q̇) [N·m] acting on the plant (Eq 1: τ + d), evaluated at
+// every RK4 stage of a period and, for the record, at each t_k. The loop evaluates the
+// disturbances whose terms say what they are fused (time-only terms tabulated, one
+// Coulomb-viscous friction, loop.hpp); any other disturbance (a Python callable) plugs in
+// here.
+//
+// Reference: the MPC's horizon for a step at t, r(t + j Ts) and ṙ(t + j Ts), j = 1..N, written
+// into rows 2..2N+1 of the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n). The
+// references with a compiled form (sine, piecewise polynomial) are sampled inside the step
+// (sampler.hpp); any other (sampled in Python) plugs in here.
+//
+// Controller: the torque τ_k [N·m] for the plant's state at t_k and the disturbance estimate
+// d̂_k [N·m] of that step. The hierarchical MPC's compiled step (step.hpp) is called by the
+// loop directly; a controller without one (computed torque, a compensation advanced in
+// Python, a wrapper) plugs in here as a whole.
+//
+// Plant: the arm, advanced over one control period with the torque τ [N·m] held, and the
+// disturbance d(t_k, q, q̇) [N·m] acting on it now (for the record). The RK4 plant's period
+// is compiled (rk4.hpp) and called by the loop directly; any other plant (semi-implicit
+// Euler, MuJoCo) plugs in here.
+#pragma once
+
+#include "hmpc/types.hpp"
+
+namespace hmpc {
+
+class Measurement {
+ public:
+  virtual ~Measurement() = default;
+  virtual void reset(const CRefVec& q0, const CRefVec& dq0) = 0;
+  virtual void measure(double t, const CRefVec& q, const CRefVec& dq) = 0;
+  virtual void command(RefVec tau) { (void)tau; }
+  Vec qm, dqm;  // the measurement handed over now [rad, rad/s]
+};
+
+class Plant {
+ public:
+  virtual ~Plant() = default;
+  virtual void advance(const Vec& tau, Vec& q, Vec& dq) = 0;
+  virtual Vec disturbance_now() = 0;
+};
+
+class Controller {
+ public:
+  virtual ~Controller() = default;
+  virtual void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) = 0;
+};
+
+class Reference {
+ public:
+  virtual ~Reference() = default;
+  virtual void horizon(double t, Eigen::Ref<RowMat> stack) = 0;
+};
+
+class Disturbance {
+ public:
+  virtual ~Disturbance() = default;
+  virtual Vec at(double t, const Vec& q, const Vec& dq) = 0;
+};
+
+}  // namespace hmpc

@@ -840,7 +840,7 @@ COMMANDS = {
 
 
 def build_parser(commands=None) -> argparse.ArgumentParser:
-    """The ``hmpc-pin`` parser with one subcommand per command of :data:`COMMANDS` (the
+    """The ``hmpc-pin`` parser with one subcommand per command of ``COMMANDS`` (the
     docs' CLI reference is generated from it).
 
     Args:
@@ -864,7 +864,7 @@ def build_parser(commands=None) -> argparse.ArgumentParser:
 
 def _command(argv: list[str]) -> tuple[str, ...]:
     """The command ``argv`` names (its first word not an option), if it is one of
-    :data:`COMMANDS`: the only one whose arguments :func:`main` builds."""
+    ``COMMANDS``: the only one whose arguments :func:`main` builds."""
     word = next((a for a in argv if not a.startswith("-")), None)
     return (word,) if word in COMMANDS else ()
 

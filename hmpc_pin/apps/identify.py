@@ -163,7 +163,7 @@ def cmd_identify(args) -> int:
 
 def identify_arguments(idf) -> None:
     """The ``identify`` subcommand's description and arguments (its one-line help is the
-    command line's, :data:`hmpc_pin.apps.cli.COMMANDS`)."""
+    command line's, ``hmpc_pin.apps.cli.COMMANDS``)."""
     idf.description = (
         "Fit each joint's viscous and Coulomb friction, d = -(a q̇ + b sgn q̇), "
         "from a run saved by `run` or `realtime` (least squares with confidence intervals) "

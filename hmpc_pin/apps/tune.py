@@ -647,7 +647,7 @@ def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
 
 def tune_arguments(tun):
     """The ``tune`` subcommand's description and arguments (the command line sets its
-    ``func`` and its one-line help, :data:`hmpc_pin.apps.cli.COMMANDS`)."""
+    ``func`` and its one-line help, ``hmpc_pin.apps.cli.COMMANDS``)."""
     tun.description = (
         "Search the observer gain, the MPC weights Q (P = 2Q) and R, the "
         "horizon N and, with --ts, the control period to minimise the 95th percentile of "

@@ -88,8 +88,6 @@ import numpy, pinocchio, proxsuite, matplotlib
 t.append(T())
 import hmpc_pin.apps.cli
 t.append(T())
-import yourdfpy
-t.append(T())
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 experiment = Experiment.from_config(load_config(sys.argv[1]))
@@ -105,8 +103,8 @@ plots.plot_error({"run": result}, out / "e.png", "e")
 t.append(T())
 print(" ".join(f"{b - a:.3f}" for a, b in zip(t, t[1:])))
 """
-PART_NAMES = ("numpy, pinocchio, proxsuite, matplotlib", "the package's modules (cli)",
-              "yourdfpy (URDF check)", "config and build", "Experiment.run()",
+PART_NAMES = ("numpy, pinocchio, proxsuite, matplotlib", "the command line (hmpc_pin.apps.cli)",
+              "the library, config and build (URDF check)", "Experiment.run()",
               "matplotlib's figure module (plots)", "the three figures")  # fmt: skip
 
 

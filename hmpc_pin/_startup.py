@@ -5,8 +5,8 @@ controller) nothing has been written and no process started, so a Ctrl-C needs n
 clean-up: :func:`guard` installs a SIGINT handler that prints one line and ends the
 process with exit status 130 at once. A handler that ends the process is the only
 reliable one here: a ``KeyboardInterrupt`` raised during an import is swallowed by a
-library's ``except BaseException`` (``yourdfpy`` → trimesh does that) or aborts the
-process when it crosses compiled code.
+library's ``except BaseException`` (trimesh, which yourdfpy imports, does that) or aborts
+the process when it crosses compiled code.
 
 The command ends the start-up (:func:`end`) just before its first side effect (an output
 folder, a process, a file): from then on Ctrl-C raises :class:`KeyboardInterrupt` again and
@@ -34,8 +34,11 @@ EXIT_INTERRUPTED = 130
 #: The line printed by a Ctrl-C during start-up.
 LINE = "interrupted at start-up, before any run (nothing written)"
 
-#: Modules whose import swallows a KeyboardInterrupt (``except BaseException``).
-SWALLOWING_IMPORTS = ("yourdfpy",)
+#: Modules on a command's path whose import swallows a KeyboardInterrupt (``except
+#: BaseException``), imported by :func:`end` while the guard holds. None today: the URDF
+#: is checked with the standard library's XML parser, not yourdfpy (trimesh); a module
+#: that swallows it and is imported after the start-up is caught by :data:`interrupted`.
+SWALLOWING_IMPORTS: tuple[str, ...] = ()
 
 
 #: Whether a Ctrl-C came after the start-up (:func:`end`). Set by the command line's

@@ -67,8 +67,40 @@ def test_help_loads_no_figure_engine_no_optional_extra_and_no_other_command():
         "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
         "    main(['--help'])"
     )
-    heavy = ("matplotlib", "scipy", "yourdfpy", "trimesh", "mujoco", "optuna", "dask",
-             "rclpy", "meshcat")  # fmt: skip
+    heavy = ("numpy", "pinocchio", "proxsuite", "matplotlib", "scipy", "yourdfpy", "trimesh",
+             "mujoco", "optuna", "dask", "rclpy", "meshcat")  # fmt: skip
     assert not [m for m in heavy if m in loaded], [m for m in heavy if m in loaded]
-    commands = ("compare", "report", "viz", "check", "plots")
+    commands = ("compare", "report", "viz", "check", "plots", "run", "metrics", "tune", "ros")
     assert not [c for c in commands if f"hmpc_pin.apps.{c}" in loaded]
+    library = ("experiment", "model", "controllers", "sim", "mpc", "compensation")
+    assert not [m for m in library if f"hmpc_pin.{m}" in loaded]
+
+
+def test_a_command_builds_its_own_arguments_only():
+    """``hmpc-pin replay --help`` builds the parser of ``replay`` alone: the library behind the
+    other commands' help texts (the compensations' registry, the metrics) is not loaded."""
+    loaded = _loaded(
+        "import contextlib, io\n"
+        "from hmpc_pin.apps.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+        "    main(['replay', '--help'])"
+    )
+    assert "hmpc_pin.compensation.registry" not in loaded and "numpy" not in loaded
+
+
+def test_the_parser_of_one_command_is_the_full_parsers_command():
+    """Built alone or with all the others, a command's parser is the same: its help and the
+    defaults it parses."""
+    from hmpc_pin.apps.cli import COMMANDS, build_parser
+
+    def command_parser(parser, name):
+        sub = next(a for a in parser._actions if isinstance(a.choices, dict))
+        return sub.choices[name]
+
+    full = build_parser()
+    for name in COMMANDS:
+        alone = command_parser(build_parser((name,)), name)
+        both = command_parser(full, name)
+        assert alone.format_help() == both.format_help(), name
+        assert [a.dest for a in alone._actions] == [a.dest for a in both._actions], name
+        assert alone.get_default("func") is both.get_default("func") is not None, name

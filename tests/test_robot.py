@@ -403,6 +403,35 @@ BAD_URDFS = {
         _urdf(*_TWO_LINKS, _joint("planar", limit="")),
         "has a floating base",
     ),
+    # The structure the specification requires (a traceback of the URDF reader before)
+    "robot_without_name": (
+        _urdf(*_TWO_LINKS, _joint("revolute")).replace('<robot name="bad">', "<robot>"),
+        "the <robot> tag has no 'name' attribute",
+    ),
+    "link_without_name": (
+        _urdf(_LINK.format(name="a"), _LINK.replace(' name="{name}"', ""), _joint("revolute")),
+        "a <link> has no 'name' attribute",
+    ),
+    "joint_without_parent": (
+        _urdf(*_TWO_LINKS, _joint("revolute").replace('<parent link="a"/>', "")),
+        "<joint> 'j1' has no <parent>",
+    ),
+    "empty_geometry": (
+        _urdf(
+            _LINK.format(name="a"),
+            '<link name="b"><visual><geometry/></visual></link>',
+            _joint("revolute"),
+        ),
+        "<link> 'b': the <geometry> of a <visual> holds nothing; expected one of <box>",
+    ),
+    "limit_not_a_number": (
+        _urdf(*_TWO_LINKS, _joint("revolute", _LIMIT.replace('upper="1"', 'upper="one"'))),
+        "<joint> 'j1': <limit upper='one'>: expected a number",
+    ),
+    "origin_of_two_numbers": (
+        _urdf(*_TWO_LINKS, _joint("revolute").replace("<axis", '<origin xyz="0 1"/><axis')),
+        "<joint> 'j1': <origin xyz='0 1'>: expected 3 numbers",
+    ),
 }
 
 
@@ -432,6 +461,45 @@ def test_bad_urdf_raises_urdf_error(make_bad_path, text, hint):
     assert hint in message
     assert info.value.path == str(path)
     assert isinstance(info.value, ValueError)
+
+
+#: URDFs missing what the specification requires, each reported by yourdfpy's validation.
+INCOMPLETE_URDFS = {
+    "no_limit": _urdf(*_TWO_LINKS, _joint("revolute", limit="")),
+    "no_lower_no_upper": _urdf(
+        *_TWO_LINKS,
+        _joint("prismatic", '<limit effort="1" velocity="1"/>'),
+    ),
+    "no_type": _urdf(*_TWO_LINKS, _joint("revolute").replace(' type="revolute"', "")),
+    "unknown_type": _urdf(*_TWO_LINKS, _joint("hinge")),
+    "empty_type_and_name": _urdf(*_TWO_LINKS, _joint("").replace('name="j1"', 'name=""')),
+    "empty_link_names": _urdf(
+        _LINK.format(name=""),
+        _LINK.format(name="b"),
+        _joint("revolute").replace('<parent link="a"/>', '<parent link=""/>'),
+    ),
+    "fixed_limit_without_effort": _urdf(
+        *_TWO_LINKS,
+        _joint("revolute"),
+        _joint("fixed", '<limit velocity="1"/>').replace('"j1"', '"j2"').replace('"b"', '"c"'),
+        _LINK.format(name="c"),
+    ),
+}
+
+
+@pytest.mark.parametrize("text", INCOMPLETE_URDFS.values(), ids=INCOMPLETE_URDFS.keys())
+def test_incomplete_urdf_is_named_as_yourdfpy_validates_it(write_urdf, text):
+    """The completeness check lists what yourdfpy's ``URDF.validate`` (an independent
+    reader of the specification) lists, in its words and order."""
+    import yourdfpy
+
+    path = write_urdf(text)
+    urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
+    assert not urdf.validate()
+    expected = "; ".join(str(e) for e in urdf.errors)
+    with pytest.raises(URDFError) as info:
+        load_robot(path)
+    assert str(info.value) == f"{path}: incomplete or invalid URDF: {expected}"
 
 
 def test_malformed_xml_reports_line_and_column(write_urdf):

@@ -11,12 +11,12 @@ diverges) — what was computed up to the failure is still written, with
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from dataclasses import replace
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from .. import _startup
 from ..exceptions import (
@@ -27,25 +27,25 @@ from ..exceptions import (
     SimulationError,
     VizError,
 )
-from ..experiment.build import Experiment, uses_observer, with_controller
-from ..experiment.config import (
-    COMPENSATIONS,
-    CONTROLLER_KINDS,
-    ExperimentConfig,
-    ReferenceConfig,
-    TrajectoryConfig,
-    load_config,
-)
-from .metrics import (
-    DEFAULT_ERROR_THRESHOLD,
-    compute_metrics,
-    contact_lines,
-    format_metrics,
-    run_warnings,
-)
-from .run import after_the_run, draw_figures, live_view, run_one, write_csv
 
-__all__ = ["main", "write_csv"]
+if TYPE_CHECKING:
+    from ..experiment.config import ExperimentConfig
+
+# The library is imported by the command that runs, not here: ``hmpc-pin --help`` (and a
+# command's bad flag) loads neither numpy nor Pinocchio.
+
+__all__ = ["build_parser", "main", "write_csv"]  # noqa: F822 (write_csv: __getattr__)
+
+
+def __getattr__(name: str):
+    """``write_csv`` and ``live_view`` of :mod:`hmpc_pin.apps.run`, re-exported on first use
+    (PEP 562; importing the command line loads no library)."""
+    if name in ("write_csv", "live_view"):
+        from . import run
+
+        return getattr(run, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
@@ -89,6 +89,8 @@ def _interrupted(exc: KeyboardInterrupt) -> int:
 
 def _with_reference(config: ExperimentConfig, file: Path | None) -> ExperimentConfig:
     """``config`` with its reference replaced by the trajectory file ``file`` (``--reference``)."""
+    from ..experiment.config import ReferenceConfig, TrajectoryConfig
+
     if file is None:
         return config
     if file.suffix.lower() not in (".csv", ".npz"):
@@ -102,7 +104,7 @@ def _with_reference(config: ExperimentConfig, file: Path | None) -> ExperimentCo
 
 def _checked_duration(duration: float | None) -> float | None:
     """``--duration`` checked: ``None`` or a number of seconds > 0."""
-    if duration is not None and not (np.isfinite(duration) and duration > 0):
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ConfigError("--duration", f"expected a number of seconds > 0, got {duration!r}")
     return duration
 
@@ -121,6 +123,9 @@ def _with_overrides(
     compensation: str | None = None,
     reference: Path | None = None,
 ) -> ExperimentConfig:
+    from ..experiment.build import with_controller
+    from ..experiment.config import COMPENSATIONS
+
     config = _with_reference(config, reference)
     if compensation is not None:
         if compensation not in COMPENSATIONS:
@@ -140,8 +145,17 @@ def _with_overrides(
     return config
 
 
+def _config(path: Path) -> ExperimentConfig:
+    """The experiment config of ``path`` (:func:`~hmpc_pin.experiment.config.load_config`)."""
+    from ..experiment.config import load_config
+
+    return load_config(path)
+
+
 def cmd_run(args) -> int:
-    config = _with_overrides(load_config(args.config), args.no_ndo, args.duration,
+    from ..experiment.build import Experiment
+
+    config = _with_overrides(_config(args.config), args.no_ndo, args.duration,
                              args.compensation, args.reference)  # fmt: skip
     if not args.speed > 0:
         raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
@@ -171,6 +185,8 @@ def cmd_run(args) -> int:
 def _open_view(experiment, args, views: list):
     """The live view of ``--viz`` (``None`` when it cannot start: the run goes on), waiting
     for a browser with ``--wait``; kept in ``views`` for the caller to close."""
+    from .run import live_view
+
     view = live_view(experiment.robot, args.speed, experiment.obstacle)
     if view is None:
         return None
@@ -182,6 +198,8 @@ def _open_view(experiment, args, views: list):
 
 
 def _run_and_report(args, config, out, stem, warn, views: list, experiment=None) -> int:
+    from .run import after_the_run, run_one
+
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
     experiment, result, files, failure = run_one(config, out, stem, open_view=open_view,
                                                  experiment=experiment, figures=False)  # fmt: skip
@@ -190,6 +208,10 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
 
 
 def _report(args, config, out, stem, warn, views, experiment, result, files, failure) -> int:
+    from ..experiment.build import uses_observer
+    from .metrics import compute_metrics, contact_lines, format_metrics, run_warnings
+    from .run import draw_figures
+
     view = views[0] if views else None
     observer = uses_observer(config.controller)
     label = config.controller.label
@@ -257,7 +279,7 @@ def _check_meshes(config: ExperimentConfig, option: str) -> None:
 def _warn_thresholds(args) -> dict:
     """The ``--warn-error`` threshold [rad] checked (a number > 0) before the run."""
     value = args.warn_error
-    if not (np.isfinite(value) and value > 0):
+    if not (math.isfinite(value) and value > 0):
         raise ConfigError("--warn-error", f"expected a tracking error in rad > 0, got {value!r}")
     return {"error_threshold": float(value)}
 
@@ -274,8 +296,9 @@ def cmd_replay(args) -> int:
 
 def cmd_compare(args) -> int:
     from .compare import compare, markdown_table, parse_controllers
+    from .metrics import run_warnings
 
-    config = _with_overrides(load_config(args.config), False, args.duration,
+    config = _with_overrides(_config(args.config), False, args.duration,
                              reference=args.reference)  # fmt: skip
     controllers = parse_controllers(args.controllers, config)
     out = _out_dir(args.out)
@@ -307,7 +330,7 @@ def cmd_reproduce(args) -> int:
 def cmd_sweep(args) -> int:
     from .sweep import run_sweep
 
-    config = _with_overrides(load_config(args.config), False, args.duration,
+    config = _with_overrides(_config(args.config), False, args.duration,
                              reference=args.reference)  # fmt: skip
     if args.controllers is not None:
         from .compare import parse_controllers
@@ -345,7 +368,7 @@ def cmd_tune(args) -> int:
     from .tune import cmd_tune as run_tune
 
     _optuna()
-    config = _with_overrides(load_config(args.config), False, args.duration)
+    config = _with_overrides(_config(args.config), False, args.duration)
     check_args(args, config)  # every option, before --out is created
     return run_tune(args, config, _out_dir(args.out))
 
@@ -370,32 +393,11 @@ def cmd_init(args) -> int:
     return EXIT_OK
 
 
-def add_init_parser(sub) -> None:
-    """The ``init`` subcommand (docs, "Your own arm")."""
-    ini = sub.add_parser(
-        "init",
-        help="write a commented config for any arm (URDF path or example-robot-data name)",
-        description="Write a TOML experiment that runs as written: a sine per joint around "
-        "the reference posture (SRDF, else mid-range) inside the position and velocity "
-        "limits, inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
-        "joints locked. Exit 2 with one line when the URDF cannot be controlled.",
-    )
-    ini.add_argument(
-        "robot", nargs="?", help="URDF path or robot name (planar3, ur5, panda, ...; --list)"
-    )
-    ini.add_argument("--list", action="store_true",
-                     help="list the robot names init accepts and exit")  # fmt: skip
-    ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
-    ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
-    ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
-    ini.set_defaults(func=cmd_init)
-
-
 def cmd_check(args) -> int:
     """``hmpc-pin check CONFIG``: per-joint figures; exit 1 with one line per problem."""
     from .check import check_config
 
-    report = check_config(load_config(args.config), engines=not args.no_engine)
+    report = check_config(_config(args.config), engines=not args.no_engine)
     print(report.format())
     for line in report.warnings:
         print(f"warning: {line}")
@@ -407,30 +409,12 @@ def cmd_check(args) -> int:
     return EXIT_OK
 
 
-def add_check_parser(sub) -> None:
-    """The ``check`` subcommand."""
-    chk = sub.add_parser(
-        "check",
-        help="check a config's arm before running it (observer, damping, torque, engines)",
-        description="Before anything runs on an arm, per joint: the observer bandwidth "
-        "times Ts and its margin under the bandwidth rule for the latency the controller is not "
-        "told about, the URDF damping's time "
-        "constant against Ts, the torque headroom along the reference, and (with MuJoCo "
-        "installed) the model against MuJoCo's. A problem is what `run` would show (with the "
-        "change that fixes it), a warning what matters on a real arm. Exit 0 when no "
-        "problem is found, 1 with one line per problem, 2 on bad input.",
-    )
-    chk.add_argument("config", type=Path, help="experiment TOML file")
-    chk.add_argument("--no-engine", action="store_true",
-                     help="do not compare the model against MuJoCo")  # fmt: skip
-    chk.set_defaults(func=cmd_check)
-
-
 def cmd_realtime(args) -> int:
+    from ..experiment.build import Experiment
     from .realtime import ArmView, format_tracking, run_realtime, with_realtime
 
-    config = _with_overrides(load_config(args.config), False, args.duration)
-    if args.rate is not None and not (np.isfinite(args.rate) and args.rate > 0):
+    config = _with_overrides(_config(args.config), False, args.duration)
+    if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):
         raise ConfigError("--rate", f"expected a rate [Hz] > 0, got {args.rate!r}")
     priority = _checked_priority(args.priority)
     try:
@@ -487,22 +471,6 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
     return EXIT_FAILED
 
 
-def _add_reference_option(parser) -> None:
-    parser.add_argument(
-        "--reference", type=Path, metavar="FILE",
-        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
-        "or .npz) instead of the config's reference",
-    )  # fmt: skip
-
-
-def _add_warn_option(parser) -> None:
-    parser.add_argument(
-        "--warn-error", type=float, default=DEFAULT_ERROR_THRESHOLD, metavar="RAD",
-        help="warn when max |e| after 1 s exceeds RAD (a warning is also printed when the "
-        f"plant clips the torque) [{DEFAULT_ERROR_THRESHOLD:g}]",
-    )  # fmt: skip
-
-
 def cmd_ros(args) -> int:
     """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
     from ..ros.node import import_ros
@@ -510,7 +478,7 @@ def cmd_ros(args) -> int:
     from .ros import format_ros, run_ros
 
     import_ros("hmpc-pin ros")  # the extra, before anything else
-    config = _ros_config(args, _with_overrides(load_config(args.config), False, args.duration))
+    config = _ros_config(args, _with_overrides(_config(args.config), False, args.duration))
     out = _out_dir(args.out)
     print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
           f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
@@ -536,28 +504,56 @@ def cmd_ros_arm(args) -> int:
 
     import_ros("hmpc-pin ros-arm")
     _checked_duration(args.duration)
-    config = _ros_config(args, load_config(args.config))
+    config = _ros_config(args, _config(args.config))
     counts = run_ros_arm(config, args.duration, args.ros_args)
     return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``hmpc-pin`` parser with one subcommand per command (the docs' CLI reference is
-    generated from it)."""
-    parser = argparse.ArgumentParser(
-        prog="hmpc-pin",
-        description="Hierarchical multiloop MPC with a nonlinear disturbance observer "
-        "(Li et al. 2022) on Pinocchio + ProxSuite.",
-        epilog="Exit codes: 0 success, 1 a run failed (partial results kept), 2 bad input, "
-        "130 interrupted by Ctrl-C (partial results kept; realtime: safe torque first).",
-    )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+def cmd_native(args) -> int:
+    """``hmpc-pin native``: where the compiled core is and what it was built against."""
+    from .. import native
+    from ..exceptions import NativeError
 
-    run = sub.add_parser(
-        "run",
-        help="run one experiment from a TOML config",
-        description="Run one experiment: print the metrics table; write .npz, .csv and PNG "
-        "figures (tracking, disturbance estimate, log tracking error).",
+    if args.build:
+        print("warning: `hmpc-pin native --build` is deprecated since 0.3: the compiled "
+              "core is built when the package is installed", file=sys.stderr)  # fmt: skip
+    try:
+        info = native.build_info()
+    except NativeError as exc:
+        print(f"native kernels: not available: {exc.reason}", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"native kernels: {info['path']}")
+    print(f"  built against pinocchio {info['pinocchio']}, proxsuite {info['proxsuite']} "
+          f"({info['compiler']}, {info['build_type']})")  # fmt: skip
+    return 0
+
+
+# ------------------------------------------------------------------------------ parser
+def _add_reference_option(parser) -> None:
+    parser.add_argument(
+        "--reference", type=Path, metavar="FILE",
+        help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
+        "or .npz) instead of the config's reference",
+    )  # fmt: skip
+
+
+def _add_warn_option(parser) -> None:
+    from .metrics import DEFAULT_ERROR_THRESHOLD
+
+    parser.add_argument(
+        "--warn-error", type=float, default=DEFAULT_ERROR_THRESHOLD, metavar="RAD",
+        help="warn when max |e| after 1 s exceeds RAD (a warning is also printed when the "
+        f"plant clips the torque) [{DEFAULT_ERROR_THRESHOLD:g}]",
+    )  # fmt: skip
+
+
+def _run_arguments(run) -> None:
+    """``hmpc-pin run``."""
+    from ..experiment.config import COMPENSATIONS
+
+    run.description = (
+        "Run one experiment: print the metrics table; write .npz, .csv and PNG "
+        "figures (tracking, disturbance estimate, log tracking error)."
     )
     run.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
@@ -592,24 +588,28 @@ def build_parser() -> argparse.ArgumentParser:
     _add_warn_option(run)
     run.set_defaults(func=cmd_run)
 
-    rpl = sub.add_parser(
-        "replay",
-        help="write a self-contained Meshcat HTML replay of a saved run",
-        description="Turn a result .npz written by `run` into one HTML file that plays the "
-        "run as a Meshcat animation (play/pause/scrub), with no server and no network.",
+
+def _replay_arguments(rpl) -> None:
+    """``hmpc-pin replay``."""
+    rpl.description = (
+        "Turn a result .npz written by `run` into one HTML file that plays the "
+        "run as a Meshcat animation (play/pause/scrub), with no server and no network."
     )
     rpl.add_argument("result", type=Path, help="result .npz")
     rpl.add_argument("--out", type=Path, default=Path("replay.html"), help="HTML file to write")
     rpl.add_argument("--urdf", help="URDF of the arm (default: the one named in the result)")
     rpl.set_defaults(func=cmd_replay)
 
-    cmp_ = sub.add_parser(
-        "compare",
-        help="run several controllers on one experiment and compare them",
-        description="Run the controllers (docs, 'Controllers') on the same robot, plant, "
+
+def _compare_arguments(cmp_) -> None:
+    """``hmpc-pin compare``."""
+    from ..experiment.config import CONTROLLER_KINDS
+
+    cmp_.description = (
+        "Run the controllers (docs, 'Controllers') on the same robot, plant, "
         "reference, disturbances and MPC settings; print and write a Markdown + CSV table "
         "(tracking error, settling, observer error, effort, chattering, constraint "
-        "violations, step time) and figures.",
+        "violations, step time) and figures."
     )
     cmp_.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     cmp_.add_argument(
@@ -624,12 +624,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_warn_option(cmp_)
     cmp_.set_defaults(func=cmd_compare)
 
-    rep = sub.add_parser(
-        "reproduce",
-        help="run every paper experiment and write DIR/report.md",
-        description="Run every experiment of the paper's Section 5 (with and without the "
+
+def _reproduce_arguments(rep) -> None:
+    """``hmpc-pin reproduce``."""
+    rep.description = (
+        "Run every experiment of the paper's Section 5 (with and without the "
         "observer), draw Figures 3(b) and 4-10, and write a Markdown report comparing "
-        "the numbers with the paper's claims.",
+        "the numbers with the paper's claims."
     )
     rep.add_argument("--out", type=Path, default=Path("out/reproduce"), help="output directory")
     rep.add_argument(
@@ -641,16 +642,19 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=cmd_reproduce)
 
-    swp = sub.add_parser(
-        "sweep",
-        help="Monte Carlo robustness sweep of an experiment (with and without NDO)",
-        description="Draw K plant perturbations from the config's [sweep] table (link "
+
+def _sweep_arguments(swp) -> None:
+    """``hmpc-pin sweep``."""
+    from ..experiment.config import CONTROLLER_KINDS
+
+    swp.description = (
+        "Draw K plant perturbations from the config's [sweep] table (link "
         "mass/inertia, friction and disturbance amplitudes) and run each with every "
         "controller variant under each of sweep.conditions: the interface's sensing "
         "([sweep.sensing]: encoders, finite-difference velocity, noise), its timing "
         "(latency, delay, torque filter), the drawn plant, and all together; write "
         "DIR/<name>_sweep.csv (one row per sample, variant and condition) and "
-        "DIR/<name>_sweep.md (summary), and print the summary.",
+        "DIR/<name>_sweep.md (summary), and print the summary."
     )
     swp.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     swp.add_argument("--samples", type=int, default=100, help="number of samples K [100]")
@@ -677,24 +681,68 @@ def build_parser() -> argparse.ArgumentParser:
     swp.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)
-    add_init_parser(sub)
-    from .identify import add_identify_parser
 
-    add_identify_parser(sub)
-    from .tune import add_tune_parser
 
-    add_tune_parser(sub).set_defaults(func=cmd_tune)
-    add_check_parser(sub)
+def _init_arguments(ini) -> None:
+    """``hmpc-pin init`` (docs, "Your own arm")."""
+    ini.description = (
+        "Write a TOML experiment that runs as written: a sine per joint around "
+        "the reference posture (SRDF, else mid-range) inside the position and velocity "
+        "limits, inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
+        "joints locked. Exit 2 with one line when the URDF cannot be controlled."
+    )
+    ini.add_argument(
+        "robot", nargs="?", help="URDF path or robot name (planar3, ur5, panda, ...; --list)"
+    )
+    ini.add_argument("--list", action="store_true",
+                     help="list the robot names init accepts and exit")  # fmt: skip
+    ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
+    ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
+    ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
+    ini.set_defaults(func=cmd_init)
 
-    rt = sub.add_parser(
-        "realtime",
-        help="run the controller in real time against an arm in a separate process",
-        description="Run the experiment's controller at a fixed rate (absolute deadlines, "
+
+def _identify_arguments(idf) -> None:
+    """``hmpc-pin identify`` (:mod:`hmpc_pin.apps.identify`)."""
+    from .identify import identify_arguments
+
+    identify_arguments(idf)
+
+
+def _tune_arguments(tun) -> None:
+    """``hmpc-pin tune`` (:mod:`hmpc_pin.apps.tune`)."""
+    from .tune import tune_arguments
+
+    tune_arguments(tun)
+    tun.set_defaults(func=cmd_tune)
+
+
+def _check_arguments(chk) -> None:
+    """``hmpc-pin check``."""
+    chk.description = (
+        "Before anything runs on an arm, per joint: the observer bandwidth "
+        "times Ts and its margin under the bandwidth rule for the latency the controller is not "
+        "told about, the URDF damping's time "
+        "constant against Ts, the torque headroom along the reference, and (with MuJoCo "
+        "installed) the model against MuJoCo's. A problem is what `run` would show (with the "
+        "change that fixes it), a warning what matters on a real arm. Exit 0 when no "
+        "problem is found, 1 with one line per problem, 2 on bad input."
+    )
+    chk.add_argument("config", type=Path, help="experiment TOML file")
+    chk.add_argument("--no-engine", action="store_true",
+                     help="do not compare the model against MuJoCo")  # fmt: skip
+    chk.set_defaults(func=cmd_check)
+
+
+def _realtime_arguments(rt) -> None:
+    """``hmpc-pin realtime``."""
+    rt.description = (
+        "Run the experiment's controller at a fixed rate (absolute deadlines, "
         "garbage collection in the slack) against its plant stepping in wall-clock time in "
         "a separate process, as a driver would; print and save the latency statistics "
         "(median, p99, p99.9, max, misses) with the tracking metrics. Safe stop (gravity "
         "compensation + damping) on Ctrl-C (exit 130), a fault, k consecutive missed "
-        "deadlines or a watchdog timeout (exit 1), the run saved with complete = false.",
+        "deadlines or a watchdog timeout (exit 1), the run saved with complete = false."
     )
     rt.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     rt.add_argument("--rate", type=float, help="interface rate [Hz] (overrides realtime.rate)")
@@ -711,42 +759,114 @@ def build_parser() -> argparse.ArgumentParser:
                     help="live Meshcat view of the arm, drawn by a separate process")  # fmt: skip
     rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     rt.set_defaults(func=cmd_realtime)
-    from .ros import add_ros_parsers  # `ros`, `ros-arm`
 
-    add_ros_parsers(sub, cmd_ros, cmd_ros_arm)
 
-    nat = sub.add_parser(
-        "native",
-        help="report the compiled core (built when the package was installed)",
-        description="Print where hmpc_pin's compiled core (the RK4 plant's period and the "
+def _ros_arguments(ros) -> None:
+    """``hmpc-pin ros`` (:mod:`hmpc_pin.apps.ros`)."""
+    from .ros import ros_arguments
+
+    ros_arguments(ros)
+    ros.set_defaults(func=cmd_ros)
+
+
+def _ros_arm_arguments(arm) -> None:
+    """``hmpc-pin ros-arm`` (:mod:`hmpc_pin.apps.ros`)."""
+    from .ros import ros_arm_arguments
+
+    ros_arm_arguments(arm)
+    arm.set_defaults(func=cmd_ros_arm)
+
+
+def _native_arguments(nat) -> None:
+    """``hmpc-pin native``."""
+    nat.description = (
+        "Print where hmpc_pin's compiled core (the RK4 plant's period and the "
         "MPC step) is installed and what it was built against. It is built when the "
-        "package is built (pip install); exit 1 if it cannot be loaded here.",
+        "package is built (pip install); exit 1 if it cannot be loaded here."
     )
     nat.add_argument(
         "--build", action="store_true",
         help="deprecated since 0.3 (the core is built at install time): same as without it",
     )  # fmt: skip
     nat.set_defaults(func=cmd_native)
+
+
+#: The commands in the order of ``hmpc-pin --help``: name -> (one-line help, the function
+#: that gives its parser its description, arguments and ``func``). A command's arguments
+#: are built only when it is the one that runs (:func:`build_parser`), so that
+#: ``hmpc-pin --help`` and each command import only what they need.
+COMMANDS = {
+    "run": ("run one experiment from a TOML config", _run_arguments),
+    "replay": ("write a self-contained Meshcat HTML replay of a saved run", _replay_arguments),
+    "compare": ("run several controllers on one experiment and compare them", _compare_arguments),
+    "reproduce": ("run every paper experiment and write DIR/report.md", _reproduce_arguments),
+    "sweep": (
+        "Monte Carlo robustness sweep of an experiment (with and without NDO)",
+        _sweep_arguments,
+    ),
+    "init": (
+        "write a commented config for any arm (URDF path or example-robot-data name)",
+        _init_arguments,
+    ),
+    "identify": (
+        "identify joint friction (or collision thresholds) from a saved run",
+        _identify_arguments,
+    ),
+    "tune": (
+        "tune observer gain, Q, R, N (and Ts) on the sweep's perturbed plants (Optuna)",
+        _tune_arguments,
+    ),
+    "check": (
+        "check a config's arm before running it (observer, damping, torque, engines)",
+        _check_arguments,
+    ),
+    "realtime": (
+        "run the controller in real time against an arm in a separate process",
+        _realtime_arguments,
+    ),
+    "ros": (
+        "run the controller as a ROS 2 node against /joint_states (extra: ros)",
+        _ros_arguments,
+    ),
+    "ros-arm": (
+        "run the config's plant as a ROS 2 node (joint states out, efforts in; extra: ros)",
+        _ros_arm_arguments,
+    ),
+    "native": (
+        "report the compiled core (built when the package was installed)",
+        _native_arguments,
+    ),
+}
+
+
+def build_parser(commands=None) -> argparse.ArgumentParser:
+    """The ``hmpc-pin`` parser with one subcommand per command of ``COMMANDS`` (the
+    docs' CLI reference is generated from it).
+
+    Args:
+        commands: The commands whose arguments are built (the others have their name and
+            one-line help only, all ``hmpc-pin --help`` shows); ``None``: all of them.
+    """
+    parser = argparse.ArgumentParser(
+        prog="hmpc-pin",
+        description="Hierarchical multiloop MPC with a nonlinear disturbance observer "
+        "(Li et al. 2022) on Pinocchio + ProxSuite.",
+        epilog="Exit codes: 0 success, 1 a run failed (partial results kept), 2 bad input, "
+        "130 interrupted by Ctrl-C (partial results kept; realtime: safe torque first).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, (help_, arguments) in COMMANDS.items():
+        command = sub.add_parser(name, help=help_)
+        if commands is None or name in commands:
+            arguments(command)
     return parser
 
 
-def cmd_native(args) -> int:
-    """``hmpc-pin native``: where the compiled core is and what it was built against."""
-    from .. import native
-    from ..exceptions import NativeError
-
-    if args.build:
-        print("warning: `hmpc-pin native --build` is deprecated since 0.3: the compiled "
-              "core is built when the package is installed", file=sys.stderr)  # fmt: skip
-    try:
-        info = native.build_info()
-    except NativeError as exc:
-        print(f"native kernels: not available: {exc.reason}", file=sys.stderr)
-        return EXIT_FAILED
-    print(f"native kernels: {info['path']}")
-    print(f"  built against pinocchio {info['pinocchio']}, proxsuite {info['proxsuite']} "
-          f"({info['compiler']}, {info['build_type']})")  # fmt: skip
-    return 0
+def _command(argv: list[str]) -> tuple[str, ...]:
+    """The command ``argv`` names (its first word not an option), if it is one of
+    ``COMMANDS``: the only one whose arguments :func:`main` builds."""
+    word = next((a for a in argv if not a.startswith("-")), None)
+    return (word,) if word in COMMANDS else ()
 
 
 def _print_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -760,7 +880,8 @@ def main(argv=None) -> int:
 
     previous = _startup.guard()  # Ctrl-C before the first side effect: exit 130 at once
     try:
-        args = build_parser().parse_args(argv)
+        argv = sys.argv[1:] if argv is None else list(argv)
+        args = build_parser(_command(argv)).parse_args(argv)
         printed: set[str] = set()
 
         def show_once(message, category, *rest, **kw) -> None:

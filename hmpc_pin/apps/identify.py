@@ -15,7 +15,7 @@ from ..identification import fit_friction, learn_thresholds
 from ..sim.result import Result
 from .runfile import load_run, run_robot
 
-__all__ = ["add_identify_parser", "cmd_identify", "load_run"]
+__all__ = ["cmd_identify", "identify_arguments", "load_run"]
 
 
 def observer_model(result: Result, robot):
@@ -161,17 +161,16 @@ def cmd_identify(args) -> int:
     return 0
 
 
-def add_identify_parser(sub) -> None:
-    """The ``identify`` subcommand."""
-    idf = sub.add_parser(
-        "identify",
-        help="identify joint friction (or collision thresholds) from a saved run",
-        description="Fit each joint's viscous and Coulomb friction, d = -(a q̇ + b sgn q̇), "
+def identify_arguments(idf) -> None:
+    """The ``identify`` subcommand's description and arguments (its one-line help is the
+    command line's, ``hmpc_pin.apps.cli.COMMANDS``)."""
+    idf.description = (
+        "Fit each joint's viscous and Coulomb friction, d = -(a q̇ + b sgn q̇), "
         "from a run saved by `run` or `realtime` (least squares with confidence intervals) "
         "and write it as the [controller.friction] table, fed forward by the controller. "
         "With --thresholds, learn the [collision] thresholds on |d_hat| of a contact-free "
         "run at a stated false-alarm probability instead. Exit 2 with one line when the run "
-        "does not excite a joint enough.",
+        "does not excite a joint enough."
     )
     idf.add_argument("run", type=Path, help="result .npz of a run")
     idf.add_argument("--out", type=Path, default=None,

@@ -28,7 +28,14 @@ from ..experiment.controllers import _limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from .realtime import save_run
 
-__all__ = ["add_ros_parsers", "format_ros", "run_ros", "run_ros_arm", "with_namespace"]
+__all__ = [
+    "format_ros",
+    "ros_arguments",
+    "ros_arm_arguments",
+    "run_ros",
+    "run_ros_arm",
+    "with_namespace",
+]
 
 
 def with_namespace(config: ExperimentConfig, namespace: str | None) -> ExperimentConfig:
@@ -429,38 +436,37 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
     return counts
 
 
-def add_ros_parsers(sub, cmd_ros, cmd_ros_arm) -> None:
-    """The ``ros`` and ``ros-arm`` subcommands (extra ``ros``), run by ``cmd_ros`` and
-    ``cmd_ros_arm`` (the CLI's, which own the exit codes and the output checks)."""
-    ros = sub.add_parser(
-        "ros",
-        help="run the controller as a ROS 2 node against /joint_states (extra: ros)",
-        description="Run the experiment's controller as a ROS 2 node on the topics "
+def ros_arguments(ros) -> None:
+    """The ``ros`` subcommand's description and arguments (extra ``ros``; the command line
+    sets its one-line help and its ``func``, which owns the exit codes and the output
+    checks)."""
+    ros.description = (
+        "Run the experiment's controller as a ROS 2 node on the topics "
         "ros2_control exposes: sensor_msgs/JointState in ([ros] joint_states), "
         "std_msgs/Float64MultiArray efforts out ([ros] commands), paced by the arriving "
         "states; a new reference as trajectory_msgs/JointTrajectory on ~/joint_trajectory "
         "(checked against the limits first), the disturbance estimate on "
         "~/external_torque. Same safe stops, latency statistics and saved run as "
-        "`realtime`: exit 130 on Ctrl-C, 1 on a fault or a watchdog stop.",
+        "`realtime`: exit 130 on Ctrl-C, 1 on a fault or a watchdog stop."
     )
     ros.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     ros.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     _add_node_options(ros)
-    ros.set_defaults(func=cmd_ros)
-    arm = sub.add_parser(
-        "ros-arm",
-        help="run the config's plant as a ROS 2 node (joint states out, efforts in; extra: ros)",
-        description="Run the experiment's plant (RK4 or MuJoCo) as a ROS 2 node that "
+
+
+def ros_arm_arguments(arm) -> None:
+    """The ``ros-arm`` subcommand's description and arguments (as :func:`ros_arguments`)."""
+    arm.description = (
+        "Run the experiment's plant (RK4 or MuJoCo) as a ROS 2 node that "
         "publishes sensor_msgs/JointState at [ros] rate and applies the latest "
         "std_msgs/Float64MultiArray effort command, as ros2_control's "
         "joint_state_broadcaster and JointGroupEffortController do. Runs until Ctrl-C "
-        "(exit 130) or --duration.",
+        "(exit 130) or --duration."
     )
     arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     arm.add_argument("--duration", type=float, help="stop after this long [s] [until Ctrl-C]")
     _add_node_options(arm)
-    arm.set_defaults(func=cmd_ros_arm)
 
 
 def _add_node_options(parser) -> None:

@@ -46,12 +46,12 @@ from .sweep import run_sweep
 
 __all__ = [
     "TuneResult",
-    "add_tune_parser",
     "apply_params",
     "objective_value",
     "run_score",
     "search_space",
     "tune",
+    "tune_arguments",
 ]
 
 #: Weights of the penalties (module docstring): saturation, total variation.
@@ -645,18 +645,17 @@ def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
     return 0
 
 
-def add_tune_parser(sub):
-    """The ``tune`` subcommand's parser (the command line sets its ``func``)."""
-    tun = sub.add_parser(
-        "tune",
-        help="tune observer gain, Q, R, N (and Ts) on the sweep's perturbed plants (Optuna)",
-        description="Search the observer gain, the MPC weights Q (P = 2Q) and R, the "
+def tune_arguments(tun):
+    """The ``tune`` subcommand's description and arguments (the command line sets its
+    ``func`` and its one-line help, ``hmpc_pin.apps.cli.COMMANDS``)."""
+    tun.description = (
+        "Search the observer gain, the MPC weights Q (P = 2Q) and R, the "
         "horizon N and, with --ts, the control period to minimise the 95th percentile of "
         "the worst joint's RMS error over the sweep's perturbed plants (with its noise and "
         "delay), penalised by torque saturation and total variation. Optuna's TPE sampler "
         "seeded with --seed; the study is kept in DIR/<name>_tune.db (run again to resume). "
         "Writes DIR/<name>_tuned.toml and a report with the history and importance plots, "
-        "and compares both configs on held-out samples. Needs the extra hmpc_pin[tune].",
+        "and compares both configs on held-out samples. Needs the extra hmpc_pin[tune]."
     )
     tun.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     tun.add_argument("--trials", type=int, required=True, help="trials to run (added to a "

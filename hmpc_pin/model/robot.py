@@ -8,9 +8,10 @@ Every dynamics quantity comes from Pinocchio: ``crba`` for :math:`M`,
 No dynamics is written by hand.
 
 Before Pinocchio sees a file, the file is checked with the standard library's XML
-parser (well-formedness, with line and column) and with yourdfpy (URDF
-completeness), so that a bad file gets a message naming the file and the
-problem instead of urdfdom's terse output.
+parser: well-formedness (with line and column), the structure and completeness the URDF
+specification requires (names, joint types, parent and child links, limits, numbers,
+geometry), so that a bad file gets a message naming the file and the problem instead of
+urdfdom's terse output.
 
 Joint types (docs, "Your own arm"):
 
@@ -143,7 +144,7 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
     if root.tag != "robot":
         raise URDFError(path, f"root element is <{root.tag}>, expected <robot>")
     check_inertias(root, path, locked)
-    for joint in root.findall("joint"):  # yourdfpy's message names neither joint nor fix
+    for joint in root.findall("joint"):  # named, with the fix (before the general check)
         limit = joint.find("limit")
         if joint.get("type") in ("revolute", "prismatic", "continuous") and limit is not None:
             missing = [a for a in ("effort", "velocity") if limit.get(a) is None]
@@ -155,14 +156,14 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
                     "no velocity limit)",
                 )  # fmt: skip
 
-    import yourdfpy  # local import: only needed on load
-
-    urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
-    if not urdf.validate():
-        problems = "; ".join(str(e) for e in urdf.errors) or "invalid URDF"
+    _check_structure(root, path)
+    problems = "; ".join(_completeness_problems(root))
+    if problems:
         raise URDFError(path, f"incomplete or invalid URDF: {problems}")
 
-    names = [j.name for j in urdf.robot.joints if j.type != "fixed"]
+    joints = [(j.get("name", ""), j) for j in root.findall("joint")]
+    joint_names = {name for name, _ in joints}
+    names = [name for name, j in joints if j.get("type") != "fixed"]
     unknown = [name for name in locked if name not in names]
     if unknown:
         raise URDFError(
@@ -170,9 +171,9 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
             f"locked joint(s) {unknown} not found; the movable joints are {names}",
         )
     floating = [
-        f"{j.name!r} ({j.type})"
-        for j in urdf.robot.joints
-        if j.type in ("floating", "planar") and j.name not in locked
+        f"{name!r} ({j.get('type')})"
+        for name, j in joints
+        if j.get("type") in ("floating", "planar") and name not in locked
     ]
     if floating:
         raise URDFError(
@@ -182,9 +183,9 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
             "the joint (the base is then fixed to the world) or lock it ([robot] locked_joints)",
         )
     unsupported = [
-        f"{j.name!r} ({j.type})"
-        for j in urdf.robot.joints
-        if j.type not in (*SUPPORTED_JOINT_TYPES, "fixed") and j.name not in locked
+        f"{name!r} ({j.get('type')})"
+        for name, j in joints
+        if j.get("type") not in (*SUPPORTED_JOINT_TYPES, "fixed") and name not in locked
     ]
     if unsupported:
         raise URDFError(
@@ -194,17 +195,17 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
             + f"; hmpc_pin controls {', '.join(SUPPORTED_JOINT_TYPES)} joints of a "
             "fixed-base arm (one coordinate per joint); lock them ([robot] locked_joints)",
         )
-    joints = {j.name: j for j in urdf.robot.joints}
-    for j in urdf.robot.joints:
-        if j.mimic is not None and j.mimic.joint not in joints:
+    for name, j in joints:
+        mimic = j.find("mimic")
+        if mimic is not None and mimic.get("joint") not in joint_names:
             raise URDFError(
                 path,
-                f"joint {j.name!r} mimics {j.mimic.joint!r}, which is not a joint of the URDF",
+                f"joint {name!r} mimics {mimic.get('joint')!r}, which is not a joint of the URDF",
             )
     actuated = [
-        j.name
-        for j in urdf.robot.joints
-        if j.type in SUPPORTED_JOINT_TYPES and j.name not in locked and j.mimic is None
+        name
+        for name, j in joints
+        if j.get("type") in SUPPORTED_JOINT_TYPES and name not in locked and j.find("mimic") is None
     ]
     if not actuated:
         raise URDFError(
@@ -213,6 +214,163 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
             "mimic); there is nothing to control",
         )
     return root
+
+
+#: The classes of yourdfpy's ``URDF.validate`` errors, which name each problem (the
+#: messages of earlier versions, which checked the file with yourdfpy, are kept word for word).
+_INCOMPLETE, _BAD_VALUE = "URDFIncompleteError", "URDFAttributeValueError"
+#: The joint types a URDF may name (the URDF specification).
+URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+
+
+def _required(value: str | None, message: str, allowed: tuple[str, ...] = ()) -> list[str]:
+    """The problems of a required attribute ``value``: missing or empty, or not one of
+    ``allowed``."""
+    out = []
+    if value is None or value == "":
+        out.append(f"{_INCOMPLETE}: {message}")
+    if allowed and value is not None and value not in allowed:
+        out.append(f"{_BAD_VALUE}: {message}")
+    return out
+
+
+def _completeness_problems(root: ET.Element) -> list[str]:
+    """Every required piece the URDF lacks, each in the words of yourdfpy's
+    ``URDF.validate`` (``"URDFIncompleteError: ..."``): the names of the robot, links and
+    joints, each joint's type, parent and child links, and the ``<limit>`` of a revolute or
+    prismatic joint with its bounds, effort and velocity. The elements themselves exist
+    (:func:`_check_structure` ran first)."""
+    out = _required(root.get("name"), "The <robot> tag misses a 'name' attribute.")
+    for link in root.findall("link"):
+        out += _required(link.get("name"), "The <link> tag misses a 'name' attribute.")
+    bad_type = (
+        "The <joint> tag misses a 'type' attribute or value is not part of allowed values "
+        f"[{', '.join(URDF_JOINT_TYPES)}]."
+    )
+    missing = f"{_INCOMPLETE}: Tag <limit> of joint is missing attribute"
+    for joint in root.findall("joint"):
+        kind = joint.get("type")
+        out += _required(joint.get("name"), "The <joint> tag misses a 'name' attribute.")
+        out += _required(kind, bad_type, URDF_JOINT_TYPES)
+        for end in ("parent", "child"):
+            element = joint.find(end)
+            link = element.get("link") if element is not None else None
+            out += _required(link, f"The <{end}> of a <joint> is missing.")
+        limit = joint.find("limit")
+        if limit is None:
+            if kind in ("revolute", "prismatic"):
+                out.append(
+                    f"{_INCOMPLETE}: The <limit> of a (prismatic, revolute) joint is missing."
+                )
+            continue
+        needed = ("upper", "lower") if kind in ("revolute", "prismatic") else ()
+        out += [
+            f"{missing} '{a}'." for a in (*needed, "effort", "velocity") if limit.get(a) is None
+        ]
+    return out
+
+
+#: How many numbers an attribute holds: one, any number (a vector read as given), a
+#: position (three, or one for all three) or three angles (the first three are read).
+_ONE, _ANY, _XYZ, _RPY = "a number", "numbers", "3 numbers", "3 angles"
+#: The numeric attributes of a ``<link>``, ``<joint>`` and ``<material>``: the path of the
+#: element below it -> {attribute: how many numbers}.
+_NUMBERS: dict[str, dict[str, dict[str, str]]] = {
+    "link": {
+        "inertial/origin": {"xyz": _XYZ, "rpy": _RPY},
+        "inertial/mass": {"value": _ONE},
+        "inertial/inertia": dict.fromkeys(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), _ONE),
+        "visual/origin": {"xyz": _XYZ, "rpy": _RPY},
+        "visual/material/color": {"rgba": _ANY},
+        "collision/origin": {"xyz": _XYZ, "rpy": _RPY},
+    },
+    "joint": {
+        "origin": {"xyz": _XYZ, "rpy": _RPY},
+        "axis": {"xyz": _ANY},
+        "limit": dict.fromkeys(("effort", "velocity", "lower", "upper"), _ONE),
+        "mimic": {"multiplier": _ONE, "offset": _ONE},
+        "calibration": {"rising": _ONE, "falling": _ONE},
+        "safety_controller": dict.fromkeys(
+            ("soft_lower_limit", "soft_upper_limit", "k_position", "k_velocity"), _ONE
+        ),
+    },
+    "material": {"color": {"rgba": _ANY}},
+}
+#: The shapes a ``<geometry>`` holds besides ``<mesh>``, with their required dimensions.
+_SHAPES = {
+    "box": {"size": _ANY},
+    "cylinder": {"radius": _ONE, "length": _ONE},
+    "sphere": {"radius": _ONE},
+}
+
+
+def _is_numbers(text: str, count: str, commas: bool = False) -> bool:
+    """Whether ``text`` is ``count`` numbers (:data:`_ONE`, ...) separated by spaces (or
+    commas)."""
+    try:
+        n = len([float(v) for v in (text.replace(",", " ") if commas else text).split()])
+    except ValueError:
+        return False
+    return {_ONE: n == 1, _ANY: True, _XYZ: n == 1 or n >= 3, _RPY: n >= 3}[count]
+
+
+def _check_numbers(path: Path, owner: str, element: ET.Element, attributes: dict[str, str]):
+    """Each of ``attributes`` that ``element`` has holds the numbers it must."""
+    commas = element.tag in ("box", "mesh")
+    for attribute, count in attributes.items():
+        text = element.get(attribute)
+        if text is not None and not _is_numbers(text, count, commas):
+            raise URDFError(
+                path, f"{owner}: <{element.tag} {attribute}={text!r}>: expected {count}"
+            )
+
+
+def _check_structure(root: ET.Element, path: Path) -> None:
+    """Refuse a URDF whose structure the URDF specification does not allow, naming the
+    element: a ``<robot>``, ``<link>`` or ``<joint>`` without ``name``, a joint without
+    ``<parent>`` or ``<child>``, a ``<visual>`` or ``<collision>`` without a box, cylinder,
+    sphere or mesh (with its dimensions), and a numeric attribute that is not the numbers
+    it must be."""
+    if root.get("name") is None:
+        raise URDFError(path, "the <robot> tag has no 'name' attribute; give the robot a name")
+    for kind in ("link", "joint", "material"):
+        for element in root.findall(kind):
+            name = element.get("name")
+            owner = f"<{kind}> {name!r}" if name is not None else f"a <{kind}>"
+            if kind != "material" and name is None:
+                raise URDFError(path, f"{owner} has no 'name' attribute; name each <{kind}>")
+            for end in ("parent", "child") if kind == "joint" else ():
+                if element.find(end) is None:
+                    raise URDFError(
+                        path,
+                        f"{owner} has no <{end}>; a joint names its parent "
+                        "and child links (<parent link=...>, <child link=...>)",
+                    )
+            for sub, attributes in _NUMBERS[kind].items():
+                for child in element.findall(sub):
+                    _check_numbers(path, owner, child, attributes)
+            for shape in element.findall("visual") + element.findall("collision"):
+                _check_geometry(shape, owner, path)
+
+
+def _check_geometry(shape: ET.Element, owner: str, path: Path) -> None:
+    """The ``<visual>`` or ``<collision>`` ``shape`` holds a ``<geometry>`` whose first
+    element is a mesh or a shape of :data:`_SHAPES` with its dimensions."""
+    shapes = ", ".join(f"<{s}>" for s in (*_SHAPES, "mesh"))
+    geometry = shape.find("geometry")
+    first = geometry[0] if geometry is not None and len(geometry) else None
+    if first is None or first.tag not in (*_SHAPES, "mesh"):
+        found = f"<{first.tag}>" if first is not None else "nothing"
+        raise URDFError(
+            path,
+            f"{owner}: the <geometry> of a <{shape.tag}> holds {found}; expected one of {shapes}",
+        )
+    for attribute in _SHAPES.get(first.tag, {}):
+        if first.get(attribute) is None:
+            raise URDFError(path, f"{owner}: <{first.tag}> has no {attribute!r} attribute")
+    _check_numbers(path, owner, first, _SHAPES.get(first.tag, {}))
+    if first.tag == "mesh":
+        _check_numbers(path, owner, first, {"scale": _ANY})
 
 
 def _moving_links(root: ET.Element, locked: tuple[str, ...]) -> set[str]:

@@ -18,7 +18,7 @@ $(VENV)/.installed: pyproject.toml CMakeLists.txt $(wildcard cpp/include/hmpc/*.
 
 # The demo needs the package and its dependencies only (no extra): a full test environment
 # (.installed) serves too, else the package alone is installed.
-$(VENV)/.demo: pyproject.toml CMakeLists.txt $(wildcard src/*.cpp src/*.hpp)
+$(VENV)/.demo: pyproject.toml CMakeLists.txt $(wildcard cpp/include/hmpc/*.hpp cpp/src/*.cpp bindings/python/*.cpp bindings/python/*.hpp)
 	if [ ! -f $(VENV)/.installed ] || [ $(VENV)/.installed -ot pyproject.toml ]; then \
 	  $(PYTHON) -m venv $(VENV) && $(PY) -m pip install --upgrade pip && \
 	  $(PY) -m pip install -e . ; fi

@@ -31,8 +31,8 @@ if str(ROOT) not in sys.path:
 from benchmarks._fixtures import PAPER_CONFIG  # noqa: E402
 from hmpc_pin import ControllerConfig, make_controller  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
+from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.experiment.config.sensing import SensingConfig  # noqa: E402
-from hmpc_pin.experiment.schema import load_config  # noqa: E402
 from hmpc_pin.sim.result import RESULT_ARRAYS  # noqa: E402
 from hmpc_pin.sim.sensing import SensedController  # noqa: E402
 

@@ -22,6 +22,7 @@ import pytest
 
 import hmpc_pin
 from hmpc_pin.exceptions import RunInterrupted
+from hmpc_pin.sim.result import Result
 
 from .conftest import CONFIGS
 
@@ -252,6 +253,24 @@ def _realtime_config(tmp_path) -> Path:
     return path
 
 
+def _time_to_write(out) -> float:
+    """Seconds this process takes to write the runs saved in ``out`` again (``.npz`` and
+    CSV, as ``run`` writes them on a Ctrl-C); 0 when none was saved."""
+    from hmpc_pin.apps.run import write_csv
+
+    total = 0.0
+    for path in sorted(out.glob("*.npz")) if out.is_dir() else ():
+        try:
+            result = Result.load(path)
+        except Exception:  # not a run (a timing file, a partial write)
+            continue
+        start = time.monotonic()
+        result.save(out / "again.npz")
+        write_csv(result, out / "again.csv")
+        total += time.monotonic() - start
+    return total
+
+
 def _command(name: str, tmp_path) -> list[str]:
     cfg = str(CONFIGS / "paper_combined.toml")
     long = ["--duration", "3600", "--out", "o"]
@@ -305,7 +324,13 @@ def test_ctrl_c_at_any_instant_exits_130_at_once_with_one_line(tmp_path, command
     # (the load average lags, hence 0.5 s for the scheduler; a Ctrl-C that is not
     # honoured runs the hour-long command on, far beyond this bound)
     load = os.getloadavg()[0] / (os.cpu_count() or 1)
-    assert elapsed <= max(1.0, load) + 0.5, f"exit {elapsed:.2f} s after SIGINT (load {load:.1f})"
+    # what was computed is written on the way out (documented): writing it again here, on
+    # the same machine now, is the time that belongs to it (a fast loop has computed many
+    # samples by 3 s: ~40,000, a CSV of 1–2 s on a loaded machine)
+    writing = _time_to_write(tmp_path / "o")
+    assert elapsed <= max(1.0, load) + 0.5 + writing, (
+        f"exit {elapsed:.2f} s after SIGINT (load {load:.1f}; writing its data: {writing:.2f} s)"
+    )
     if _in_interpreter_start(text):
         return  # Python's own start (site, .pth files): no line of hmpc_pin has run yet
     assert code in (EXIT_INTERRUPTED, -signal.SIGINT), text

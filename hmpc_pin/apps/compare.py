@@ -142,8 +142,9 @@ def run_comparison(
         if partial is not None and len(partial.t):
             metrics = compute_metrics(partial) if partial.t[-1] >= 1.0 else None
             observer = bool(partial.meta.get("observer"))
-            comp.runs[kind] = ControllerRun(kind, partial, metrics, float("nan"), observer,
-                                            partial.message)  # fmt: skip
+            comp.runs[kind] = ControllerRun(
+                kind, partial, metrics, float("nan"), observer, partial.message
+            )
     finally:
         bar.close()
     return comp
@@ -207,29 +208,43 @@ def markdown_table(comp: Comparison) -> str:
 
     first = next(iter(comp.runs.values())).result
     labels = unit_labels(first)
-    head = ["controller", "joint"] + [
-        c[0].replace("[rad]", f"[{labels['rad']}]").replace("[N·m]", f"[{labels['N·m']}]")
-        for c in COLUMNS
-    ] + ["step median [µs]"]  # fmt: skip
+    head = (
+        ["controller", "joint"]
+        + [
+            c[0].replace("[rad]", f"[{labels['rad']}]").replace("[N·m]", f"[{labels['N·m']}]")
+            for c in COLUMNS
+        ]
+        + ["step median [µs]"]
+    )
     units = joint_units(first)
-    lines = ["| " + " | ".join(h.replace("|", "\\|") for h in head) + " |",
-             "|" + "---|" * len(head)]  # fmt: skip
+    lines = [
+        "| " + " | ".join(h.replace("|", "\\|") for h in head) + " |",
+        "|" + "---|" * len(head),
+    ]
     for kind, run in comp.runs.items():
         for i, joint in enumerate(comp.joint_names):
             step = f"{run.step_us:.1f}" if i == 0 else ""
             name = kind + (" (failed)" if run.failure else "")
             row = [name, joint_label(joint, units[i]), *_cells(run, i), step]
             lines.append("| " + " | ".join(row) + " |")
-    tasks = {k: r.metrics.task for k, r in comp.runs.items()
-             if r.metrics is not None and r.metrics.task is not None}  # fmt: skip
+    tasks = {
+        k: r.metrics.task
+        for k, r in comp.runs.items()
+        if r.metrics is not None and r.metrics.task is not None
+    }
     if tasks:  # an end-effector task: its task-space errors, one row per controller
         frame = next(iter(tasks.values())).frame
-        lines += ["", f"| controller | position RMS after 1 s [m] ({frame}) | max position "
-                  "error [m] | orientation RMS after 1 s [rad] | max orientation error [rad] |",
-                  "|---|---|---|---|---|"]  # fmt: skip
-        lines += [f"| {k} | {t.position_rms:.3e} | {t.position_max:.3e} | "
-                  f"{t.orientation_rms:.3e} | {t.orientation_max:.3e} |"
-                  for k, t in tasks.items()]  # fmt: skip
+        lines += [
+            "",
+            f"| controller | position RMS after 1 s [m] ({frame}) | max position "
+            "error [m] | orientation RMS after 1 s [rad] | max orientation error [rad] |",
+            "|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {k} | {t.position_rms:.3e} | {t.position_max:.3e} | "
+            f"{t.orientation_rms:.3e} | {t.orientation_max:.3e} |"
+            for k, t in tasks.items()
+        ]
     return "\n".join(lines)
 
 
@@ -237,18 +252,28 @@ def write_csv(comp: Comparison, path: Path) -> Path:
     """One row per controller and joint, full precision; empty cells where not defined."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
-        w.writerow(["controller", "joint", *(a for _, a, _ in COLUMNS), "step_median_us",
-                    "observer", "complete"])  # fmt: skip
+        w.writerow(
+            [
+                "controller",
+                "joint",
+                *(a for _, a, _ in COLUMNS),
+                "step_median_us",
+                "observer",
+                "complete",
+            ]
+        )
         for kind, run in comp.runs.items():
             for i, joint in enumerate(comp.joint_names):
                 m = run.metrics
                 values = [
-                    "" if m is None or (a == "observer_rms" and not run.observer)
+                    ""
+                    if m is None or (a == "observer_rms" and not run.observer)
                     else repr(float(getattr(m, a)[i]))
                     for _, a, _ in COLUMNS
-                ]  # fmt: skip
-                w.writerow([kind, joint, *values, f"{run.step_us:.3f}", run.observer,
-                            run.failure is None])  # fmt: skip
+                ]
+                w.writerow(
+                    [kind, joint, *values, f"{run.step_us:.3f}", run.observer, run.failure is None]
+                )
     return path
 
 
@@ -308,8 +333,9 @@ def compare(
     if failed:
         lines += ["", "Failed runs (metrics from the part before the failure):", ""]
         lines += [f"- `{k}`: {v}" for k, v in failed.items()]
-    warned = [(k, line) for k, r in comp.runs.items()
-              for line in run_warnings(r.result, error_threshold)]  # fmt: skip
+    warned = [
+        (k, line) for k, r in comp.runs.items() for line in run_warnings(r.result, error_threshold)
+    ]
     if warned:
         lines += ["", "Warnings (runs that completed but were not controlled as designed):", ""]
         lines += [f"- `{k}`: {line}" for k, line in warned]

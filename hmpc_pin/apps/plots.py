@@ -55,8 +55,15 @@ def _wrap(title: str, fig) -> str:
 #: Margins of the per-joint figures [in]: left (tick labels and the joint's label), right,
 #: bottom (time axis), the gap between rows (shared time axis: no labels between) and
 #: between columns (each column has its own labels), and one line of the title.
-_MARGINS = {"left": 0.9, "right": 0.2, "bottom": 0.55, "row_gap": 0.25, "col_gap": 1.0,
-            "top": 0.2, "title_line": 0.26}  # fmt: skip
+_MARGINS = {
+    "left": 0.9,
+    "right": 0.2,
+    "bottom": 0.55,
+    "row_gap": 0.25,
+    "col_gap": 1.0,
+    "top": 0.2,
+    "title_line": 0.26,
+}
 
 
 def _fixed_layout(fig, rows: int, cols: int, title_lines: int) -> None:
@@ -67,9 +74,14 @@ def _fixed_layout(fig, rows: int, cols: int, title_lines: int) -> None:
     top = m["top"] + m["title_line"] * title_lines
     ax_h = (h - top - m["bottom"] - m["row_gap"] * (rows - 1)) / rows
     ax_w = (w - m["left"] - m["right"] - m["col_gap"] * (cols - 1)) / cols
-    fig.subplots_adjust(left=m["left"] / w, right=1 - m["right"] / w, bottom=m["bottom"] / h,
-                        top=1 - top / h, hspace=m["row_gap"] / ax_h,
-                        wspace=m["col_gap"] / ax_w)  # fmt: skip
+    fig.subplots_adjust(
+        left=m["left"] / w,
+        right=1 - m["right"] / w,
+        bottom=m["bottom"] / h,
+        top=1 - top / h,
+        hspace=m["row_gap"] / ax_h,
+        wspace=m["col_gap"] / ax_w,
+    )
 
 
 def _finish(fig, axes, path, title):
@@ -99,8 +111,13 @@ def _disturbance(ax, result, i):
     if ff is None:
         ax.plot(result.t, result.d[:, i], "k", lw=1.2, label=f"true $d_{i + 1}$")
     else:  # the observer estimates what the friction model fed forward leaves
-        ax.plot(result.t, result.d[:, i] + ff[:, i], "k", lw=1.2,
-                label=rf"true $d_{i + 1} + \tau_{{f,{i + 1}}}$")  # fmt: skip
+        ax.plot(
+            result.t,
+            result.d[:, i] + ff[:, i],
+            "k",
+            lw=1.2,
+            label=rf"true $d_{i + 1} + \tau_{{f,{i + 1}}}$",
+        )
     ax.plot(result.t, result.d_hat[:, i], "C3--", lw=1.2, label=rf"NDO $\hat d_{i + 1}$")
     ax.set_ylabel(f"joint {i + 1} [{joint_units(result)[i][2]}]")
     ax.legend(loc="upper right", fontsize=8)

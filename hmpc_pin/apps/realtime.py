@@ -95,9 +95,15 @@ def run_realtime(
         if viz is not None:
             view = viz(arm, experiment)
         loop = RealtimeLoop(
-            arm, experiment.controller, experiment.reference, safe, loop_settings, safety,
-            joint_names=tuple(experiment.robot.joint_names), meta=experiment.meta(),
-        )  # fmt: skip
+            arm,
+            experiment.controller,
+            experiment.reference,
+            safe,
+            loop_settings,
+            safety,
+            joint_names=tuple(experiment.robot.joint_names),
+            meta=experiment.meta(),
+        )
         if ready is not None:
             ready()
         with fifo_priority(priority):
@@ -120,8 +126,12 @@ def save_run(run: RealtimeRun, out: Path, stem: str, meta_key: str) -> list[Path
         The three files written.
     """
     files = [run.result.save(out / f"{stem}.npz"), run.save_timing(out / f"{stem}_timing.npz")]
-    summary = {"realtime": run.stats, "stop": run.stop, meta_key: run.result.meta[meta_key],
-               "tracking": tracking_summary(run.result)}  # fmt: skip
+    summary = {
+        "realtime": run.stats,
+        "stop": run.stop,
+        meta_key: run.result.meta[meta_key],
+        "tracking": tracking_summary(run.result),
+    }
     path = out / f"{stem}.json"
     path.write_text(json.dumps(_finite(summary), indent=2, sort_keys=True) + "\n")
     files.append(path)
@@ -194,10 +204,18 @@ class ArmView:
         recv, send = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(
             target=_view_main,
-            args=(arm.shm_name, arm.nq, experiment.config.robot, experiment.reference, fps,
-                  send, self._stop),
-            name="hmpc-pin-view", daemon=True,
-        )  # fmt: skip
+            args=(
+                arm.shm_name,
+                arm.nq,
+                experiment.config.robot,
+                experiment.reference,
+                fps,
+                send,
+                self._stop,
+            ),
+            name="hmpc-pin-view",
+            daemon=True,
+        )
         start_child(self._proc)
         send.close()
         self.url = None
@@ -207,8 +225,9 @@ class ArmView:
                 self.url = text
                 print(f"Meshcat live view: open {text}")
             else:
-                print(f"warning: no live view: {text}; the run goes on and is saved",
-                      file=sys.stderr)  # fmt: skip
+                print(
+                    f"warning: no live view: {text}; the run goes on and is saved", file=sys.stderr
+                )
         recv.close()
 
     def close(self) -> None:

@@ -268,11 +268,15 @@ def _cartesian_claims(out: _Claims, cart: dict) -> None:
             "final tool position error below 1e-3 and link-3 angle error below 1e-3 rad",
             f"final tool position error {cart['pos_err']:.2e}, angle error "
             f"{cart['ang_err']:.2e} rad (t = {cart['t']:.1f} s)"
-            + (f"; without NDO the final error is {cart['base_pos_err']:.2e} m: this "
-               "check passes without the observer too" if "base_pos_err" in cart else ""),
+            + (
+                f"; without NDO the final error is {cart['base_pos_err']:.2e} m: this "
+                "check passes without the observer too"
+                if "base_pos_err" in cart
+                else ""
+            ),
             bool(cart["pos_err"] < 1e-3 and cart["ang_err"] < 1e-3),
         )
-    )  # fmt: skip
+    )
     if "base_path_dev" in cart:
         t0, t1 = cart["move"]
         out.append(
@@ -433,18 +437,26 @@ def reproduce(out: Path, configs_dir: Path | None = None, progress: bool = True)
     figures.insert(0, _workspace_figure(robot, configs["paper_combined"], out))
     cart = _cartesian(robot, configs, runs, out, figures)
     claims = _claims(runs, metrics, cart)
-    comp, comp_files = compare(configs["paper_combined"], out, progress=False,
-                               sweep_boundary_layer=False)  # fmt: skip
+    comp, comp_files = compare(
+        configs["paper_combined"], out, progress=False, sweep_boundary_layer=False
+    )
     claims += comparison_claims(comp)
     figures += [
-        (comp_files[-2], "Controller comparison, Section 5.3 scenario: tracking error of every "
-                         "controller (log scale)."),
-        (comp_files[-1], "Controller comparison, Section 5.3 scenario: torque over 2–2.5 s "
-                         "(the ISM's chattering)."),
-    ]  # fmt: skip
+        (
+            comp_files[-2],
+            "Controller comparison, Section 5.3 scenario: tracking error of every "
+            "controller (log scale).",
+        ),
+        (
+            comp_files[-1],
+            "Controller comparison, Section 5.3 scenario: torque over 2–2.5 s "
+            "(the ISM's chattering).",
+        ),
+    ]
     elapsed = time.perf_counter() - start
-    lines = _report_lines(out, elapsed, configs, runs, metrics, failures, claims, comp, cart,
-                          figures)  # fmt: skip
+    lines = _report_lines(
+        out, elapsed, configs, runs, metrics, failures, claims, comp, cart, figures
+    )
     (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
     if progress:
         print(f"wrote {out / 'report.md'} ({len(figures)} figures) in {elapsed:.1f} s")
@@ -549,8 +561,10 @@ def _cartesian(robot, configs: dict, runs: dict, out: Path, figures: list) -> di
             "path_dev": _tool_deviation(robot, r, cc.t_start, cc.t_start + cc.move_time),
         }
         t_end_move = cc.t_start + cc.move_time
-        for key, window in (("obs_move", (r.t >= 1.0) & (r.t < t_end_move)),
-                            ("obs_rest", r.t >= t_end_move)):  # fmt: skip
+        for key, window in (
+            ("obs_move", (r.t >= 1.0) & (r.t < t_end_move)),
+            ("obs_rest", r.t >= t_end_move),
+        ):
             w = r.observer_error[window]
             cart[key] = np.sqrt(np.mean(w**2, axis=0)) if len(w) else np.full(r.q.shape[1], np.nan)
         base = runs.get("paper_cartesian_no_ndo")
@@ -582,8 +596,18 @@ def _cartesian(robot, configs: dict, runs: dict, out: Path, figures: list) -> di
     return cart
 
 
-def _report_lines(out: Path, elapsed: float, configs: dict, runs: dict, metrics: dict,
-                  failures: dict, claims: list, comp, cart, figures) -> list[str]:  # fmt: skip
+def _report_lines(
+    out: Path,
+    elapsed: float,
+    configs: dict,
+    runs: dict,
+    metrics: dict,
+    failures: dict,
+    claims: list,
+    comp,
+    cart,
+    figures,
+) -> list[str]:
     """The report's Markdown lines."""
     import pinocchio as pin
     import proxsuite
@@ -618,17 +642,26 @@ def _report_lines(out: Path, elapsed: float, configs: dict, runs: dict, metrics:
     if failures:
         lines += ["", "## Failed runs", ""]
         lines += [
-            f"- `{k}`: {v}" + (" (expected: the measured answer of a claim above)"
-                               if k in EXPECTED_FAILURES else "")
+            f"- `{k}`: {v}"
+            + (
+                " (expected: the measured answer of a claim above)"
+                if k in EXPECTED_FAILURES
+                else ""
+            )
             for k, v in failures.items()
-        ]  # fmt: skip
+        ]
     warned = [(k, w) for k, r in runs.items() for w in run_warnings(r)]
     warned += [(f"compare {k}", w) for k, r in comp.runs.items() for w in run_warnings(r.result)]
     if warned:
-        lines += ["", "## Warnings", "",
-                  "Runs that completed but were not controlled as designed (torque clipped "
-                  "by the plant, or max |e| after 1 s above "
-                  f"{DEFAULT_ERROR_THRESHOLD:g} rad):", ""]  # fmt: skip
+        lines += [
+            "",
+            "## Warnings",
+            "",
+            "Runs that completed but were not controlled as designed (torque clipped "
+            "by the plant, or max |e| after 1 s above "
+            f"{DEFAULT_ERROR_THRESHOLD:g} rad):",
+            "",
+        ]
         lines += [f"- `{k}`: {w}" for k, w in warned]
     table = _metrics_table(metrics, runs, joint_names)
     lines += ["", "## Metrics per experiment and joint", "", table]

@@ -73,8 +73,7 @@ class _Trajectories:
         self.events: list[dict] = []
         self._pending: tuple | None = None  # (reference, event) of the last accepted
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._worker = threading.Thread(target=self._work, name="joint_trajectory",
-                                        daemon=True)  # fmt: skip
+        self._worker = threading.Thread(target=self._work, name="joint_trajectory", daemon=True)
         self.topic = iface.add_subscription(
             ros.msgs["trajectory_msgs"].JointTrajectory, topic, self._queue.put, qos
         )
@@ -111,15 +110,23 @@ class _Trajectories:
 
         loop, log = self.loop, self.ros.node.get_logger()
         if loop is None:  # before the loop runs: the config's reference stands
-            log.error(f"refused a joint_trajectory message on {self.topic}: the controller "
-                      "is not running yet")  # fmt: skip
+            log.error(
+                f"refused a joint_trajectory message on {self.topic}: the controller "
+                "is not running yet"
+            )
             return
         now = loop.time + self.experiment.controller.Ts  # the step that takes it over
         base = loop.reference
         try:
-            traj = trajectory_from_message(msg, self.experiment.robot, base, now,
-                                           self.lower, self.upper,
-                                           origin=self.iface._origin)  # fmt: skip
+            traj = trajectory_from_message(
+                msg,
+                self.experiment.robot,
+                base,
+                now,
+                self.lower,
+                self.upper,
+                origin=self.iface._origin,
+            )
         except HmpcError as exc:
             line = refusal(exc)
             log.error(line)
@@ -127,9 +134,11 @@ class _Trajectories:
             return
         start = float(traj.times[0])
         if not loop.set_reference(traj, at=start, base=base):
-            line = (f"refused a joint_trajectory message on {self.topic}: the reference "
-                    "changed while it was checked (a trajectory sent before it started); "
-                    "send it again")  # fmt: skip
+            line = (
+                f"refused a joint_trajectory message on {self.topic}: the reference "
+                "changed while it was checked (a trajectory sent before it started); "
+                "send it again"
+            )
             log.error(line)
             self.events.append({"t": now, "accepted": False, "reason": line})
             return
@@ -138,8 +147,10 @@ class _Trajectories:
             # accepted, but replaced before its start: it never ran (ros2_control's
             # trajectory controller replaces a pending goal the same way)
             pending[1]["superseded_at"] = now
-            log.info(f"the joint_trajectory accepted for t={pending[1]['t']:.3f} s is "
-                     "superseded by a newer one before it started")  # fmt: skip
+            log.info(
+                f"the joint_trajectory accepted for t={pending[1]['t']:.3f} s is "
+                "superseded by a newer one before it started"
+            )
         line = (
             f"accepted a joint_trajectory message of {len(msg.points)} points: the "
             f"reference from t={start:.3f} s to {traj.t_end:.3f} s, last point held"
@@ -173,9 +184,13 @@ def ros_parts(experiment: Experiment):
     check_gravity(cfg)
     ctrl = experiment.controller
     if rc.gravity == "arm":
-        safe = SafeTorque(experiment.robot, safe.damping, gravity=False,
-                          effort_limit=safe.effort_limit,
-                          brake_time=safe.brake_time)  # fmt: skip
+        safe = SafeTorque(
+            experiment.robot,
+            safe.damping,
+            gravity=False,
+            effort_limit=safe.effort_limit,
+            brake_time=safe.brake_time,
+        )
         ctrl = GravityByArm(ctrl, experiment.robot)
     return loop_settings, safety, safe, ctrl
 
@@ -206,8 +221,9 @@ def check_gravity(config: ExperimentConfig) -> None:
     )
 
 
-def run_ros(config: ExperimentConfig, out: Path, stem: str | None = None,
-            ros_args: list[str] | None = None):  # fmt: skip
+def run_ros(
+    config: ExperimentConfig, out: Path, stem: str | None = None, ros_args: list[str] | None = None
+):
     """Run ``config``'s controller as a ROS 2 node until its duration or a safe stop.
 
     With ``[realtime] priority`` > 0 the whole node runs under ``SCHED_FIFO`` (the DDS
@@ -239,14 +255,27 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
     stem = (stem or config.name) + "_ros"
     experiment = Experiment.from_config(config)
     loop_settings, safety, safe, ctrl = ros_parts(experiment)
-    ros = RosNode(rc.node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros",
-                  ros_args=ros_args, parameters=config_parameters(config))  # fmt: skip
+    ros = RosNode(
+        rc.node,
+        rc.namespace,
+        discovery_range(rc.discovery),
+        "hmpc-pin ros",
+        ros_args=ros_args,
+        parameters=config_parameters(config),
+    )
     switch = sys.getswitchinterval()
     trajectories = None
     try:
         qos = ros.qos(rc.qos_depth, rc.qos_reliability == "reliable")
-        iface = RosArmInterface(ros, experiment.robot.joint_names, rc.period, rc.joint_states,
-                                rc.commands, rc.start_timeout, qos=qos)  # fmt: skip
+        iface = RosArmInterface(
+            ros,
+            experiment.robot.joint_names,
+            rc.period,
+            rc.joint_states,
+            rc.commands,
+            rc.start_timeout,
+            qos=qos,
+        )
         std, sensor = ros.msgs["std_msgs"], ros.msgs["sensor_msgs"]
         inner = experiment.controller
         names = list(experiment.robot.joint_names)
@@ -289,10 +318,16 @@ def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=Non
                 )
         iface.start()
         loop = RealtimeLoop(
-            iface, ctrl, experiment.reference, safe, loop_settings, safety,
-            joint_names=tuple(experiment.robot.joint_names), meta=experiment.meta(),
+            iface,
+            ctrl,
+            experiment.reference,
+            safe,
+            loop_settings,
+            safety,
+            joint_names=tuple(experiment.robot.joint_names),
+            meta=experiment.meta(),
             on_step=on_step,
-        )  # fmt: skip
+        )
         trajectories.loop = loop
         # (deactivated before this: the loop is asked to stop now, before its first cycle)
         ros.on_deactivate(loop.request_stop_by, "deactivated")
@@ -337,8 +372,11 @@ def config_parameters(config: ExperimentConfig) -> dict:
     ``config.name``."""
     from dataclasses import fields
 
-    out: dict = {"config.name": config.name, "controller.Ts": float(config.controller.Ts),
-                 "simulation.duration": float(config.simulation.duration)}  # fmt: skip
+    out: dict = {
+        "config.name": config.name,
+        "controller.Ts": float(config.controller.Ts),
+        "simulation.duration": float(config.simulation.duration),
+    }
     for table in ("ros", "realtime"):
         section = getattr(config, table)
         for f in fields(section):
@@ -365,9 +403,11 @@ def config_parameters(config: ExperimentConfig) -> dict:
 def format_ros(run: RealtimeRun) -> str:
     """The message counts and the trajectory messages, a few lines."""
     r = run.result.meta["ros"]
-    lines = [f"ros: {r['states_received']} joint states received on {r['joint_states']} "
-             f"(stamps: {r['stamps']}), {r['commands_published']} commands published on "
-             f"{r['commands']}"]  # fmt: skip
+    lines = [
+        f"ros: {r['states_received']} joint states received on {r['joint_states']} "
+        f"(stamps: {r['stamps']}), {r['commands_published']} commands published on "
+        f"{r['commands']}"
+    ]
     for ev in r["trajectories"]:
         what = f"accepted a trajectory of {ev['points']} points" if ev["accepted"] else ev["reason"]
         if "superseded_at" in ev:
@@ -376,8 +416,9 @@ def format_ros(run: RealtimeRun) -> str:
     return "\n".join(lines)
 
 
-def run_ros_arm(config: ExperimentConfig, duration: float | None = None,
-                ros_args: list[str] | None = None) -> dict:  # fmt: skip
+def run_ros_arm(
+    config: ExperimentConfig, duration: float | None = None, ros_args: list[str] | None = None
+) -> dict:
     """Run ``config``'s plant as a ROS 2 node (:class:`~hmpc_pin.ros.arm.RosArmNode`)
     until ``duration`` [s] (``None``: until SIGINT or SIGTERM); under ``SCHED_FIFO``
     with ``[realtime] priority`` > 0.
@@ -403,36 +444,59 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
         raise ConfigError(
             "ros.rate", f"the arm node's period 1/rate = {rc.period:g} s: {exc.message}"
         ) from None
-    ros = RosNode(rc.arm_node, rc.namespace, discovery_range(rc.discovery), "hmpc-pin ros-arm",
-                  ros_args=ros_args)  # fmt: skip
+    ros = RosNode(
+        rc.arm_node,
+        rc.namespace,
+        discovery_range(rc.discovery),
+        "hmpc-pin ros-arm",
+        ros_args=ros_args,
+    )
     stopped_by: list[int] = []
     try:
         gravity = experiment.plant.gravity_torque if rc.gravity == "arm" else None
-        arm = RosArmNode(ros, plant, experiment.robot.joint_names, experiment.q0,
-                         experiment.dq0, rc.period, rc.joint_states, rc.commands,
-                         experiment.effort_limit, gravity=gravity)  # fmt: skip
+        arm = RosArmNode(
+            ros,
+            plant,
+            experiment.robot.joint_names,
+            experiment.q0,
+            experiment.dq0,
+            rc.period,
+            rc.joint_states,
+            rc.commands,
+            experiment.effort_limit,
+            gravity=gravity,
+        )
 
         def on_signal(signum, frame) -> None:
             stopped_by.append(signum)
             arm.stop()
 
         old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-        print(f"{config.name}: the arm's plant ({config.plant.engine}) as node "
-              f"{ros.node.get_fully_qualified_name()}: {arm.joint_states_topic} at "
-              f"{rc.rate:g} Hz, efforts from {arm.commands_topic}", flush=True)  # fmt: skip
+        print(
+            f"{config.name}: the arm's plant ({config.plant.engine}) as node "
+            f"{ros.node.get_fully_qualified_name()}: {arm.joint_states_topic} at "
+            f"{rc.rate:g} Hz, efforts from {arm.commands_topic}",
+            flush=True,
+        )
         try:
             arm.run(duration)
         finally:
             for s, h in old.items():
                 signal.signal(s, h)
-        counts = {"steps": arm.steps, "late": arm.late, "commands": arm.commands,
-                  "rejected": arm.rejected}  # fmt: skip
+        counts = {
+            "steps": arm.steps,
+            "late": arm.late,
+            "commands": arm.commands,
+            "rejected": arm.rejected,
+        }
     finally:
         ros.close()
     counts["interrupted"] = signal.SIGINT in stopped_by
-    print(f"arm stopped after {counts['steps']} steps: {counts['commands']} commands applied, "
-          f"{counts['rejected']} ignored, {counts['late']} periods late",
-          file=sys.stderr)  # fmt: skip
+    print(
+        f"arm stopped after {counts['steps']} steps: {counts['commands']} commands applied, "
+        f"{counts['rejected']} ignored, {counts['late']} periods late",
+        file=sys.stderr,
+    )
     return counts
 
 

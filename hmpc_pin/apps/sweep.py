@@ -204,9 +204,12 @@ def _measured(
         q_noise, dq_noise, delay = sc.legacy_measurement()
         on = "sensing" in parts
         experiment.controller = MeasuredController(
-            ctrl, q_noise=q_noise if on else 0.0, dq_noise=dq_noise if on else 0.0,
-            delay=delay if "latency" in parts else 0, rng=rng,
-        )  # fmt: skip
+            ctrl,
+            q_noise=q_noise if on else 0.0,
+            dq_noise=dq_noise if on else 0.0,
+            delay=delay if "latency" in parts else 0,
+            rng=rng,
+        )
         return
     model = sc.interface.model(experiment.robot.nq, parts)
     if not model.ideal:
@@ -238,8 +241,9 @@ def run_sample(
     """
     sc = config.sweep
     if condition not in CONDITION_PARTS:
-        raise ConfigError("condition", f"expected one of {tuple(CONDITION_PARTS)}, got "
-                          f"{condition!r}")  # fmt: skip
+        raise ConfigError(
+            "condition", f"expected one of {tuple(CONDITION_PARTS)}, got {condition!r}"
+        )
     perturb = condition in ("plant", "all")
     base = perturbed_config(config, params) if perturb else config
     with reuse_robots():  # the worker's runs share the config's URDF, parsed once
@@ -261,8 +265,12 @@ def run_sample(
     else:
         rms, max_error = np.full(len(names), np.nan), math.nan
     bounded = bool(result.complete and max_error <= sc.error_bound)
-    row = {"sample": params.index, "variant": variant, "condition": condition,
-           "noise_seed": params.noise_seed}  # fmt: skip
+    row = {
+        "sample": params.index,
+        "variant": variant,
+        "condition": condition,
+        "noise_seed": params.noise_seed,
+    }
     row.update({f"mass_{i + 1}": v for i, v in enumerate(params.mass)})
     row.update({f"friction_{j}": v for j, v in zip(names, params.friction, strict=True)})
     row.update({f"disturbance_{j}": v for j, v in zip(names, params.disturbance, strict=True)})
@@ -327,8 +335,11 @@ class SweepResult:
         """The rows of one variant (under one condition; ``None``: the last configured,
         ``"all"`` by default)."""
         condition = self.config.sweep.conditions[-1] if condition is None else condition
-        return [r for r in self.rows if r["variant"] == variant
-                and r.get("condition", "all") == condition]  # fmt: skip
+        return [
+            r
+            for r in self.rows
+            if r["variant"] == variant and r.get("condition", "all") == condition
+        ]
 
     def summary(self, condition: str | None = None) -> dict[str, dict]:
         """Per variant, under ``condition`` (default: the last configured, ``"all"``):
@@ -381,22 +392,27 @@ class SweepResult:
         cfg, sc = self.config, self.config.sweep
         if sc.legacy:
             q_noise, dq_noise, delay = sc.legacy_measurement()
-            sensing = (f"noise σ_q = {q_noise:g} rad, σ_q̇ = {dq_noise:g} rad/s; delay "
-                       f"{delay} period(s)")  # fmt: skip
+            sensing = (
+                f"noise σ_q = {q_noise:g} rad, σ_q̇ = {dq_noise:g} rad/s; delay {delay} period(s)"
+            )
         else:
             si = sc.interface
             counts = ", ".join(f"{c:g}" for c in np.atleast_1d(si.encoder_counts))
-            vel = si.velocity + (f" low-passed at {si.velocity_filter:g} Hz"
-                                 if si.velocity_filter else "")  # fmt: skip
+            vel = si.velocity + (
+                f" low-passed at {si.velocity_filter:g} Hz" if si.velocity_filter else ""
+            )
             sensing = (
                 f"interface at {si.rate:g} Hz: encoders of {counts} counts/rev, velocity "
                 f"{vel}, latency {si.latency * 1e3:g} ms"
                 + (f" + {si.delay} period(s)" if si.delay else "")
                 + (f", torque filter {si.torque_filter:g} Hz" if si.torque_filter else "")
-                + (f", noise σ_q = {si.q_noise:g} rad, σ_q̇ = {si.dq_noise:g} rad/s"
-                   if si.q_noise or si.dq_noise else "")
+                + (
+                    f", noise σ_q = {si.q_noise:g} rad, σ_q̇ = {si.dq_noise:g} rad/s"
+                    if si.q_noise or si.dq_noise
+                    else ""
+                )
                 + ("; hmpc told the latency" if sc.known_latency else "")
-            )  # fmt: skip
+            )
         lines = [
             f"# Sweep of {cfg.name}: {self.samples} samples, seed {self.seed}",
             "",
@@ -496,8 +512,9 @@ def run_sweep(
     if not config.sweep.legacy:  # the interface model fits the arm and the control period
         config.sweep.interface.model(nominal.robot.nq).ticks(config.controller.Ts)
     params = draw_samples(config, samples, seed)
-    tasks = [(p, v, c) for p in params for v in config.sweep.variants
-             for c in config.sweep.conditions]  # fmt: skip
+    tasks = [
+        (p, v, c) for p in params for v in config.sweep.variants for c in config.sweep.conditions
+    ]
 
     from tqdm import tqdm
 
@@ -537,8 +554,9 @@ def run_sweep(
     finally:
         bar.close()
     ordered = [rows[p.index, v, c] for p, v, c in tasks if (p.index, v, c) in rows]
-    return SweepResult(config, samples, seed, ordered, time.perf_counter() - start, jobs,
-                       executor, interrupted)  # fmt: skip
+    return SweepResult(
+        config, samples, seed, ordered, time.perf_counter() - start, jobs, executor, interrupted
+    )
 
 
 def _ignore_sigint() -> None:
@@ -565,8 +583,9 @@ def _run_pool(config, tasks, jobs: int, rows: dict, bar) -> None:
     try:
         try:
             pool = ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_ignore_sigint)
-            futures = {pool.submit(run_sample, config, p, v, c): (p.index, v, c)
-                       for p, v, c in tasks}  # fmt: skip
+            futures = {
+                pool.submit(run_sample, config, p, v, c): (p.index, v, c) for p, v, c in tasks
+            }
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         for future in as_completed(futures):

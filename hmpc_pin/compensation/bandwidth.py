@@ -182,10 +182,11 @@ def check_bandwidth(
         if bad.size:
             j = int(bad[0])
             raise ConfigError(
-                key, f"joint {names[j]!r}: Ts·ω = {Ts * w[j]:.3g} >= 2 puts the explicit "
+                key,
+                f"joint {names[j]!r}: Ts·ω = {Ts * w[j]:.3g} >= 2 puts the explicit "
                 f"observer's pole 1 - Ts·ω outside the unit circle; use ω < {2 / Ts:.4g} 1/s "
                 "or discretization = 'implicit'",
-            )  # fmt: skip
+            )
     if latency > 0:
         excess = overdeclared_excess(Ts, latency)
         limit = overdeclared_limit(Ts, excess)

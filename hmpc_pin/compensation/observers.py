@@ -125,9 +125,10 @@ class DisturbanceObserver:
             cY = np.array(cY, dtype=float)
             if cY.shape != (n, n) or not np.all(np.isfinite(cY)) or kind != "general":
                 raise ConfigError(
-                    "cY", f"expected a finite ({n}, {n}) matrix with kind 'general', got "
+                    "cY",
+                    f"expected a finite ({n}, {n}) matrix with kind 'general', got "
                     f"shape {cY.shape} with kind {kind!r}",
-                )  # fmt: skip
+                )
             self.cY = cY
         else:
             self.cY = self.gain * observer_matrix(kind, n)

@@ -48,5 +48,4 @@ def applies(name: str, controller: str, compensation: str) -> bool:
         return controller.startswith("computed-torque")
     if name in HMPC_ONLY:
         return controller == "hmpc"
-    raise KeyError(f"{name!r} is not a key of the registry (expected one of "
-                   f"{HMPC_ONLY + TABLES})")  # fmt: skip
+    raise KeyError(f"{name!r} is not a key of the registry (expected one of {HMPC_ONLY + TABLES})")

@@ -40,9 +40,16 @@ def mpc_settings(cc, n: int) -> MPCSettings:
     if cc.observer is not None:
         given["model_at"] = cc.observer.model_at
     return MPCSettings(
-        Ts=cc.Ts, N=cc.N, Nc=cc.Nc, Q=cc.Q, R=cc.R, P=cc.P, v_min=v_min, v_max=v_max,
+        Ts=cc.Ts,
+        N=cc.N,
+        Nc=cc.Nc,
+        Q=cc.Q,
+        R=cc.R,
+        P=cc.P,
+        v_min=v_min,
+        v_max=v_max,
         **{name: value for name, value in given.items() if value is not None},
-    )  # fmt: skip
+    )
 
 
 def _limits(cc, robot: Robot) -> StateLimits | None:

@@ -50,21 +50,26 @@ def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
         value = getattr(mc, name)
         if value.ndim == 1 and value.shape != (n,):
             raise ConfigError(
-                f"plant.mujoco.{name}", f"has {value.shape[0]} entries but the robot has {n} "
+                f"plant.mujoco.{name}",
+                f"has {value.shape[0]} entries but the robot has {n} "
                 f"joints; give {n} values or one value for all joints",
-            )  # fmt: skip
+            )
         per_joint[name] = tuple(np.broadcast_to(value, (n,)).tolist())
     return MuJoCoSettings(
         integrator=mc.integrator,
         import_urdf_dynamics=pc.joint_dynamics,
         friction_timeconst=mc.friction_timeconst,
         geometry=mc.geometry,
-        obstacle=None if ob is None else Obstacle(
-            tuple(ob.position.tolist()), tuple(ob.size.tolist()), ob.friction,
+        obstacle=None
+        if ob is None
+        else Obstacle(
+            tuple(ob.position.tolist()),
+            tuple(ob.size.tolist()),
+            ob.friction,
             tuple(ob.solref.tolist()),
         ),
         **per_joint,
-    )  # fmt: skip
+    )
 
 
 def build_disturbance(config: ExperimentConfig, robot: Robot, q0: np.ndarray) -> Disturbance:
@@ -130,7 +135,7 @@ def check_plant_damping(pc: PlantConfig, robot: Robot, q: np.ndarray) -> None:
 def pinocchio_plant(pc: PlantConfig, robot: Robot, disturbance, Ts: float) -> Plant:
     """The Pinocchio plant of ``[plant]`` (its integrator, step and backend) on ``robot``."""
     if pc.integrator == "rk4":
-        return RK4Plant(robot, disturbance, Ts, pc.dt, backend=pc.backend,
-                        joint_dynamics=pc.joint_dynamics)  # fmt: skip
-    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt,
-                                 joint_dynamics=pc.joint_dynamics)  # fmt: skip
+        return RK4Plant(
+            robot, disturbance, Ts, pc.dt, backend=pc.backend, joint_dynamics=pc.joint_dynamics
+        )
+    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt, joint_dynamics=pc.joint_dynamics)

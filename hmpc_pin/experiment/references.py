@@ -79,9 +79,14 @@ def _task_limits(config: ExperimentConfig, robot: Robot) -> tuple[np.ndarray, np
 
 
 def check_trajectory_limits(
-    trajectory: JointTrajectory, robot: Robot, lower: np.ndarray, upper: np.ndarray,
-    what: str = "reference", hint: str | None = None, velocity_hint: str | None = None,
-) -> None:  # fmt: skip
+    trajectory: JointTrajectory,
+    robot: Robot,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    what: str = "reference",
+    hint: str | None = None,
+    velocity_hint: str | None = None,
+) -> None:
     """Check a joint trajectory against position and (URDF) velocity limits at its samples
     and 10 points per segment between them.
 
@@ -101,20 +106,31 @@ def check_trajectory_limits(
     if bad.any():
         k, i = np.argwhere(bad)[0]
         radians = np.radians(q[:, i])
-        if (robot.joint_kinds[i] != "prismatic" and np.abs(q[:, i]).max() > 2 * np.pi
-                and np.all((radians >= lower[i]) & (radians <= upper[i]))):  # fmt: skip
+        if (
+            robot.joint_kinds[i] != "prismatic"
+            and np.abs(q[:, i]).max() > 2 * np.pi
+            and np.all((radians >= lower[i]) & (radians <= upper[i]))
+        ):
             peak = np.abs(q[:, i]).max()
             todo = hint or "change the file"
-            hint = (f"its positions look like degrees (max |q| = {peak:.4g}; trajectory "
-                    f"files are in rad): convert them; or {todo}")  # fmt: skip
-        raise LimitError(what, names[i], float(fine[k]), float(q[k, i]), lower[i], upper[i],
-                         hint)  # fmt: skip
+            hint = (
+                f"its positions look like degrees (max |q| = {peak:.4g}; trajectory "
+                f"files are in rad): convert them; or {todo}"
+            )
+        raise LimitError(what, names[i], float(fine[k]), float(q[k, i]), lower[i], upper[i], hint)
     vmax = np.where(robot.velocity_limit > 0, robot.velocity_limit, np.inf)
     bad = np.abs(dq) > vmax * (1 + 1e-9)
     if bad.any():
         k, i = np.argwhere(bad)[0]
-        raise LimitError(f"{what} velocity", names[i], float(fine[k]), float(dq[k, i]),
-                         -vmax[i], vmax[i], velocity_hint or hint)  # fmt: skip
+        raise LimitError(
+            f"{what} velocity",
+            names[i],
+            float(fine[k]),
+            float(dq[k, i]),
+            -vmax[i],
+            vmax[i],
+            velocity_hint or hint,
+        )
 
 
 def _pose_path(pc, robot: Robot, q_init: np.ndarray):
@@ -152,34 +168,52 @@ def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
     if rc.kind == "trajectory":
         trajectory = load_trajectory(rc.trajectory.file, names)
         check_trajectory_limits(
-            trajectory, robot, lower, upper, f"reference ({rc.trajectory.file.name})",
+            trajectory,
+            robot,
+            lower,
+            upper,
+            f"reference ({rc.trajectory.file.name})",
             "change the file (positions inside the limits) or the limits (the URDF's or "
             "controller.constraints.lower/upper)",
             "change the file: a slower motion (velocity limits: the URDF's)",
-        )  # fmt: skip
+        )
         return trajectory
     if rc.kind == "waypoints":
         wc = rc.waypoints
         n = robot.nq
         for p, point in enumerate(wc.points):
             for i in np.flatnonzero((point < lower) | (point > upper)):
-                raise LimitError(f"waypoint {p}", names[i], None, point[i], lower[i], upper[i],
-                                 "move the waypoint (reference.waypoints.points) inside the "
-                                 "limits")  # fmt: skip
+                raise LimitError(
+                    f"waypoint {p}",
+                    names[i],
+                    None,
+                    point[i],
+                    lower[i],
+                    upper[i],
+                    "move the waypoint (reference.waypoints.points) inside the limits",
+                )
         vmax = (
             config.vector("reference.waypoints.velocity_limit", n)
             if wc.velocity_limit is not None
             else robot.velocity_limit
         )
         trajectory = retime_waypoints(
-            wc.points, vmax, config.vector("reference.waypoints.acceleration_limit", n),
-            t_start=wc.t_start, dt=config.controller.Ts, joint_names=names,
-        )  # fmt: skip
+            wc.points,
+            vmax,
+            config.vector("reference.waypoints.acceleration_limit", n),
+            t_start=wc.t_start,
+            dt=config.controller.Ts,
+            joint_names=names,
+        )
         check_trajectory_limits(
-            trajectory, robot, lower, upper, "waypoint path",
+            trajectory,
+            robot,
+            lower,
+            upper,
+            "waypoint path",
             "the spline through the waypoints overshoots: add a waypoint or move them away "
             "from the limit",
-        )  # fmt: skip
+        )
         return trajectory
     pc = rc.pose
     n = robot.nq
@@ -192,19 +226,35 @@ def build_task_reference(config: ExperimentConfig, robot: Robot) -> Reference:
     frame = pc.frame or robot.tool_frame
     check_frame(robot, frame)
     for i in np.flatnonzero((q_init < lower) | (q_init > upper)):
-        raise LimitError("reference.pose.q_init", names[i], None, q_init[i], lower[i], upper[i],
-                         "give reference.pose.q_init inside the limits")  # fmt: skip
+        raise LimitError(
+            "reference.pose.q_init",
+            names[i],
+            None,
+            q_init[i],
+            lower[i],
+            upper[i],
+            "give reference.pose.q_init inside the limits",
+        )
     cc = config.controller
     t_end = config.simulation.duration + (cc.N + 2) * cc.Ts
     reference = PoseReference.solve(
-        robot, frame, _pose_path(pc, robot, q_init), t_end, q_init, dt=pc.dt,
+        robot,
+        frame,
+        _pose_path(pc, robot, q_init),
+        t_end,
+        q_init,
+        dt=pc.dt,
         posture_cost=pc.posture_cost,
-    )  # fmt: skip
+    )
     check_trajectory_limits(
-        reference.trajectory, robot, lower, upper, f"pose task ({frame})",
+        reference.trajectory,
+        robot,
+        lower,
+        upper,
+        f"pose task ({frame})",
         "the spline through the IK samples leaves a limit: lower reference.pose.dt or move "
         "the path away from the limits",
-    )  # fmt: skip
+    )
     return reference
 
 

@@ -342,10 +342,18 @@ class JointQPs:
         self.slack = np.zeros(n)
         # The compiled QPs (cpp/src/joint_qps.cpp), writing solution and slack in place.
         self._core = load_native().JointQPs(
-            n, N, Nc, layout == "block", mpc.H, v_min, v_max,
-            solver_settings(eps_abs, max_iter), cold_twin_settings(eps_abs, max_iter),
-            self.solution, self.slack,
-        )  # fmt: skip
+            n,
+            N,
+            Nc,
+            layout == "block",
+            mpc.H,
+            v_min,
+            v_max,
+            solver_settings(eps_abs, max_iter),
+            cold_twin_settings(eps_abs, max_iter),
+            self.solution,
+            self.slack,
+        )
         self._core.joint_names = list(joint_names)  # its faults name the joint
         self.soft_qps = False
         if limits is None:
@@ -360,8 +368,14 @@ class JointQPs:
         # like the inputs' (unscaled, 2ρ₂·scale ~ 1e7 stalls ProxSuite's duality-gap test).
         k = 1.0 / np.sqrt(2.0 * limits.slack_weight * mpc.scale)
         one = np.full((N, 1), k)
-        C = np.vstack([np.hstack([Gq, -one]), np.hstack([Gq, one]),
-                       np.hstack([Gv, -one]), np.hstack([Gv, one])])  # fmt: skip
+        C = np.vstack(
+            [
+                np.hstack([Gq, -one]),
+                np.hstack([Gq, one]),
+                np.hstack([Gv, -one]),
+                np.hstack([Gv, one]),
+            ]
+        )
         # Rows normalised to unit norm, the soft QPs solved cold and without the
         # duality-gap test: measured on 36 000 random near-limit states (Nc = 1..10),
         # the only combination for which ProxSuite 0.8.0 solved every one; warm starts or
@@ -373,9 +387,19 @@ class JointQPs:
         Hs[Nc, Nc] = 1.0
         g_slack = limits.slack_linear_weight * mpc.scale * k
         self._core.set_limits(
-            mpc.Phi, mpc.Gamma, lower, upper, vel, Hs, C, row_scale, g_slack, k,
-            solver_settings(eps_abs, max_iter, warm=False), always_constrained,
-        )  # fmt: skip
+            mpc.Phi,
+            mpc.Gamma,
+            lower,
+            upper,
+            vel,
+            Hs,
+            C,
+            row_scale,
+            g_slack,
+            k,
+            solver_settings(eps_abs, max_iter, warm=False),
+            always_constrained,
+        )
         self.soft_qps = True
 
     @property
@@ -469,13 +493,19 @@ class JointQPs:
         """
         if x0 is None:
             if self.soft_qps:
-                raise InterfaceError(x0, "the current states x0, shape (2, n)",
-                                     "JointQPs.solve needs them when limits are set")  # fmt: skip
+                raise InterfaceError(
+                    x0,
+                    "the current states x0, shape (2, n)",
+                    "JointQPs.solve needs them when limits are set",
+                )
         elif x0 is not self.x0:
             self.x0[:] = x0
         G = np.ascontiguousarray(G, dtype=float)
         if G.shape != (self.n, self.mpc.Nc):
-            raise InterfaceError(G, f"gradients of shape ({self.n}, {self.mpc.Nc})",
-                                 "pass one row of Nc values per joint")  # fmt: skip
+            raise InterfaceError(
+                G,
+                f"gradients of shape ({self.n}, {self.mpc.Nc})",
+                "pass one row of Nc values per joint",
+            )
         self._core.solve(G, self.x0[0], self.x0[1])
         return self.solution[0].copy()

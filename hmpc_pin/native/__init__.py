@@ -70,8 +70,10 @@ def load() -> ModuleType:
         )
         raise _error from exc
     info = dict(module.build_info)
-    found = {"pinocchio": pinocchio.__version__,
-             "proxsuite": getattr(proxsuite, "__version__", info["proxsuite"])}  # fmt: skip
+    found = {
+        "pinocchio": pinocchio.__version__,
+        "proxsuite": getattr(proxsuite, "__version__", info["proxsuite"]),
+    }
     wrong = {k: v for k, v in found.items() if v != info[k]}
     if wrong:
         _error = NativeError(
@@ -180,8 +182,9 @@ def resolve_backend(backend: str, key: str, unsupported: str | None = None) -> b
         return False
     if unsupported is not None:
         if backend == "native":
-            raise ConfigError(key, f'"native" does not support {unsupported}; use "auto" '
-                              'or "python"')  # fmt: skip
+            raise ConfigError(
+                key, f'"native" does not support {unsupported}; use "auto" or "python"'
+            )
         return False
     if backend == "native":
         load()
@@ -193,7 +196,9 @@ def resolve_backend(backend: str, key: str, unsupported: str | None = None) -> b
             _warned = True
             warnings.warn(
                 f'{exc.reason}; running the slower Python path (set backend = "python" '
-                "to silence this)", PerformanceWarning, stacklevel=3,
-            )  # fmt: skip
+                "to silence this)",
+                PerformanceWarning,
+                stacklevel=3,
+            )
         return False
     return True

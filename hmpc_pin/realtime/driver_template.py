@@ -68,9 +68,11 @@ class FrankaTorqueDriver:
             import pylibfranka  # type: ignore[import-not-found]
         except ImportError as exc:
             raise InterfaceError(
-                address, "a reachable Franka arm", "pylibfranka is not installed (pip install "
+                address,
+                "a reachable Franka arm",
+                "pylibfranka is not installed (pip install "
                 "pylibfranka; it needs libfranka matching the robot's system version)",
-            ) from exc  # fmt: skip
+            ) from exc
         self._franka = pylibfranka
         self._robot = pylibfranka.Robot(address)
         if collision_thresholds is not None:

@@ -228,11 +228,21 @@ def latency_stats(latency: np.ndarray) -> dict:
     """Median, p99, p99.9, max [µs] and count of the finite entries of ``latency`` [s]."""
     x = latency[np.isfinite(latency)] * 1e6
     if x.size == 0:
-        return {"median_us": math.nan, "p99_us": math.nan, "p999_us": math.nan,
-                "max_us": math.nan, "count": 0}  # fmt: skip
+        return {
+            "median_us": math.nan,
+            "p99_us": math.nan,
+            "p999_us": math.nan,
+            "max_us": math.nan,
+            "count": 0,
+        }
     p50, p99, p999 = np.percentile(x, [50.0, 99.0, 99.9])
-    return {"median_us": float(p50), "p99_us": float(p99), "p999_us": float(p999),
-            "max_us": float(x.max()), "count": int(x.size)}  # fmt: skip
+    return {
+        "median_us": float(p50),
+        "p99_us": float(p99),
+        "p999_us": float(p999),
+        "max_us": float(x.max()),
+        "count": int(x.size),
+    }
 
 
 class _GCWatch:
@@ -331,8 +341,10 @@ class _Records:
     __slots__ = ("age", "done", "gc", "j", "missed", "mpc", "stamp", "t", "traj", "wake")
 
     def __init__(self, J: int, C: int, n: int):
-        self.traj = {name: np.full((J, n), np.nan) for name in ("q", "dq", "tau", "d", "d_hat",
-                                                                "q_ref", "dq_ref")}  # fmt: skip
+        self.traj = {
+            name: np.full((J, n), np.nan)
+            for name in ("q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref")
+        }
         self.t = np.full(J, np.nan)
         self.wake, self.done, self.stamp, self.gc, self.age = (np.full(C, np.nan) for _ in range(5))
         self.missed = np.zeros(C, dtype=bool)
@@ -362,8 +374,16 @@ class _Records:
 class _Tally:
     """Missed deadlines and garbage collections of a run."""
 
-    __slots__ = ("consecutive", "gc_deferred", "gc_max", "gc_runs", "misses", "skipped",
-                 "th", "worst_run")  # fmt: skip
+    __slots__ = (
+        "consecutive",
+        "gc_deferred",
+        "gc_max",
+        "gc_runs",
+        "misses",
+        "skipped",
+        "th",
+        "worst_run",
+    )
 
     def __init__(self):
         self.misses = self.consecutive = self.worst_run = self.skipped = 0
@@ -455,8 +475,11 @@ class RealtimeLoop:
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
         self.paced = isinstance(interface, PacedInterface)
         if self.paced:
-            for name, given in (("spin", settings.spin > 0), ("sleep=", sleep is not None),
-                                ("clock=", clock is not time.perf_counter)):  # fmt: skip
+            for name, given in (
+                ("spin", settings.spin > 0),
+                ("sleep=", sleep is not None),
+                ("clock=", clock is not time.perf_counter),
+            ):
                 if given:
                     raise ConfigError(
                         "realtime.spin" if name == "spin" else name,
@@ -657,8 +680,11 @@ class RealtimeLoop:
                 rec.missed[k : k + late] = True
                 k += skip
                 if tally.skip(skip, late, max_misses):
-                    stop = ("misses", f"{tally.consecutive} consecutive missed deadlines "
-                            f"(limit {max_misses}), {skip} {skipped_why}")  # fmt: skip
+                    stop = (
+                        "misses",
+                        f"{tally.consecutive} consecutive missed deadlines "
+                        f"(limit {max_misses}), {skip} {skipped_why}",
+                    )
                     break
                 if k > K:
                     break
@@ -723,9 +749,12 @@ class RealtimeLoop:
             if done > deadline + P:
                 rec.missed[k] = True
                 if tally.miss(max_misses):
-                    stop = ("misses", f"{tally.consecutive} consecutive missed deadlines "
-                            f"(limit {max_misses}); last latency {1e6 * (done - deadline):.0f} us "
-                            f"for a {1e6 * P:.0f} us period")  # fmt: skip
+                    stop = (
+                        "misses",
+                        f"{tally.consecutive} consecutive missed deadlines "
+                        f"(limit {max_misses}); last latency {1e6 * (done - deadline):.0f} us "
+                        f"for a {1e6 * P:.0f} us period",
+                    )
                     k += 1
                     break
             else:
@@ -747,9 +776,12 @@ class RealtimeLoop:
             streamed = (
                 "" if received is None else f"the arm stopped streaming after {received} states: "
             )
-            stop = ("watchdog", f"{streamed}no new state from the arm for "
-                    f"{1e3 * watchdog:g} ms (watchdog), last stamp "
-                    f"{self._fresh[0]:.6g} s")  # fmt: skip
+            stop = (
+                "watchdog",
+                f"{streamed}no new state from the arm for "
+                f"{1e3 * watchdog:g} ms (watchdog), last stamp "
+                f"{self._fresh[0]:.6g} s",
+            )
         return arrived, wake, stop
 
     def _requested_stop(self) -> tuple[str, str] | None:
@@ -785,8 +817,19 @@ class RealtimeLoop:
                 self.reference = ref
         return ref
 
-    def _finish(self, stop, k: int, K: int, rec: _Records, tally: _Tally, q_last, dq_last,
-                stamp: float, deadline: float, wrote: bool) -> RealtimeRun:  # fmt: skip
+    def _finish(
+        self,
+        stop,
+        k: int,
+        K: int,
+        rec: _Records,
+        tally: _Tally,
+        q_last,
+        dq_last,
+        stamp: float,
+        deadline: float,
+        wrote: bool,
+    ) -> RealtimeRun:
         """The stop sequence (module doc, "Safe stop"; with no fresh state to brake on, the
         held-safe torque; before the first command, nothing), then the statistics and
         the run."""
@@ -804,14 +847,16 @@ class RealtimeLoop:
                 "cause": cause,
                 "reason": f"stopped at t={cycle * P:.4f} s (cycle {cycle}) before the first "
                 f"command: {reason}; nothing was sent to the arm",
-                "cycle": int(cycle), "t": cycle * P, "safe_tau": None,
-                "q": q_last.tolist(), "dq": dq_last.tolist(),
-            }  # fmt: skip
+                "cycle": int(cycle),
+                "t": cycle * P,
+                "safe_tau": None,
+                "q": q_last.tolist(),
+                "dq": dq_last.tolist(),
+            }
         elif stop is not None:
             cause, reason = stop
             detected = clock()
-            tau_safe = (self._safe_write(q_last, dq_last) if fresh
-                        else self._held_write(q_last))  # fmt: skip
+            tau_safe = self._safe_write(q_last, dq_last) if fresh else self._held_write(q_last)
             written = clock()
             cycle = min(k, K)
             stop_record = {
@@ -829,9 +874,14 @@ class RealtimeLoop:
         elif fresh:
             self._safe_write(q_last, dq_last)
         if unsent:
-            brake = {"ended": "nothing sent", "duration": 0.0, "states": 0,
-                     "speed": float(np.max(np.abs(dq_last), initial=0.0)),
-                     "q": q_last.tolist(), "held_tau": None}  # fmt: skip
+            brake = {
+                "ended": "nothing sent",
+                "duration": 0.0,
+                "states": 0,
+                "speed": float(np.max(np.abs(dq_last), initial=0.0)),
+                "q": q_last.tolist(),
+                "held_tau": None,
+            }
         else:
             last = self._fresh[0] if not self.paced else stamp
             brake = self._brake(P, q_last, dq_last, last, fresh)
@@ -878,9 +928,16 @@ class RealtimeLoop:
             message="" if stop_record is None else stop_record["reason"],
             meta=meta,
         )
-        timing = {"wake": wake_a, "latency": done_a, "compute": done_a - wake_a,
-                  "stamp": rec.stamp, "missed": rec.missed, "mpc": rec.mpc, "gc": rec.gc,
-                  "age": rec.age}  # fmt: skip
+        timing = {
+            "wake": wake_a,
+            "latency": done_a,
+            "compute": done_a - wake_a,
+            "stamp": rec.stamp,
+            "missed": rec.missed,
+            "mpc": rec.mpc,
+            "gc": rec.gc,
+            "age": rec.age,
+        }
         return RealtimeRun(result, timing, stats, stop_record)
 
     def _stamp_clocked(self) -> bool:
@@ -903,15 +960,19 @@ class RealtimeLoop:
         if comp is not None and robot is not None and self._last_state is not None:
             bandwidth = compensation_bandwidth(comp, robot.mass_matrix(self._last_state[0]))
         median, p99 = 1e-6 * measured["median_us"], 1e-6 * measured["p99_us"]
-        tol = latency_tolerance(bandwidth, float(self.controller.Ts), self.settings.period,
-                                over=median < declared)  # fmt: skip
+        tol = latency_tolerance(
+            bandwidth, float(self.controller.Ts), self.settings.period, over=median < declared
+        )
         stats["latency_tolerance"] = tol
         if abs(median - declared) <= tol:
             return
-        what = ("older than declared: the observer and the prediction pair the measurement "
-                "with the wrong torques" if median > declared else
-                "younger than declared: the controller predicts further ahead than the "
-                "measurement is old")  # fmt: skip
+        what = (
+            "older than declared: the observer and the prediction pair the measurement "
+            "with the wrong torques"
+            if median > declared
+            else "younger than declared: the controller predicts further ahead than the "
+            "measurement is old"
+        )
         warnings.warn(
             f"measured latency (measurement -> torque written) median {1e3 * median:.3g} ms, "
             f"p99 {1e3 * p99:.3g} ms against the declared [controller] latency = "
@@ -952,10 +1013,13 @@ class RealtimeLoop:
     def _safe_words(self) -> str:
         describe = getattr(self.safe_torque, "describe", None)
         held = getattr(self.safe_torque, "describe_held", None)
-        return ("safe torque " + (describe() if callable(describe) else "commanded")
-                + " commanded, then the brake; "
-                + (held() if callable(held) else "the safe torque at rest")
-                + " at the last position left on the arm")  # fmt: skip
+        return (
+            "safe torque "
+            + (describe() if callable(describe) else "commanded")
+            + " commanded, then the brake; "
+            + (held() if callable(held) else "the safe torque at rest")
+            + " at the last position left on the arm"
+        )
 
     def _brake(self, P: float, q_last, dq_last, stamp: float, fresh: bool) -> dict:
         """The stop sequence (:mod:`.safety`): while fresh finite states arrive, the safe
@@ -1011,9 +1075,14 @@ class RealtimeLoop:
         # (after a watchdog stop it is on the arm already: written once)
         held = self._held_write(q_keep) if fresh else self._held_tau
         self._last_state = (q_keep, np.zeros_like(dq_keep))
-        return {"ended": ended, "duration": clock() - start, "states": states,
-                "speed": float(np.max(np.abs(dq_keep), initial=0.0)),
-                "q": q_keep.tolist(), "held_tau": held.tolist()}  # fmt: skip
+        return {
+            "ended": ended,
+            "duration": clock() - start,
+            "states": states,
+            "speed": float(np.max(np.abs(dq_keep), initial=0.0)),
+            "q": q_keep.tolist(),
+            "held_tau": held.tolist(),
+        }
 
     def _start_fault(self, q, dq) -> str | None:
         """Why the first state cannot start the loop (non-finite, beyond the bounds), or
@@ -1030,9 +1099,13 @@ class RealtimeLoop:
             return f"non-finite state from the arm: q={q.tolist()}, dq={dq.tolist()}"
         for i in range(len(q)):
             if not sf.lower[i] <= q[i] <= sf.upper[i]:
-                return (f"joint {names[i]!r} at q={q[i]:.4g} rad, beyond its bounds "
-                        f"[{sf.lower[i]:.4g}, {sf.upper[i]:.4g}]")  # fmt: skip
+                return (
+                    f"joint {names[i]!r} at q={q[i]:.4g} rad, beyond its bounds "
+                    f"[{sf.lower[i]:.4g}, {sf.upper[i]:.4g}]"
+                )
             if abs(dq[i]) > sf.velocity[i]:
-                return (f"joint {names[i]!r} at |dq|={abs(dq[i]):.4g} rad/s, beyond its bound "
-                        f"{sf.velocity[i]:.4g}")  # fmt: skip
+                return (
+                    f"joint {names[i]!r} at |dq|={abs(dq[i]):.4g} rad/s, beyond its bound "
+                    f"{sf.velocity[i]:.4g}"
+                )
         return "state beyond limits"

@@ -75,8 +75,14 @@ class SafeTorque:
             ``damping`` (module doc); ``None``: the diagonal damping.
     """
 
-    def __init__(self, robot: Robot, damping=2.0, gravity: bool = True, effort_limit=None,
-                 brake_time: float | None = None):  # fmt: skip
+    def __init__(
+        self,
+        robot: Robot,
+        damping=2.0,
+        gravity: bool = True,
+        effort_limit=None,
+        brake_time: float | None = None,
+    ):
         n = robot.nq
         d = np.broadcast_to(np.asarray(damping, dtype=float), (n,)).copy()
         if not np.all(np.isfinite(d)) or np.any(d < 0):
@@ -88,8 +94,10 @@ class SafeTorque:
         limit = np.full(n, np.inf) if effort_limit is None else effort_limit
         lim = np.broadcast_to(np.asarray(limit, dtype=float), (n,)).copy()
         if np.any(np.isnan(lim)) or np.any(lim <= 0):
-            raise ConfigError("plant.effort_limit", f"expected values > 0 [N·m] (inf: no limit), "
-                              f"got {lim.tolist()}")  # fmt: skip
+            raise ConfigError(
+                "plant.effort_limit",
+                f"expected values > 0 [N·m] (inf: no limit), got {lim.tolist()}",
+            )
         self.effort_limit = lim
         self._limited = bool(np.isfinite(lim).any())
 

@@ -54,9 +54,19 @@ class RosArmNode:
         commands: Commands applied. rejected: Commands ignored.
     """
 
-    def __init__(self, ros: RosNode, plant: Plant, joint_names, q0, dq0, period: float,
-                 joint_states: str, commands: str, effort_limit=None,
-                 gravity=None):  # fmt: skip
+    def __init__(
+        self,
+        ros: RosNode,
+        plant: Plant,
+        joint_names,
+        q0,
+        dq0,
+        period: float,
+        joint_states: str,
+        commands: str,
+        effort_limit=None,
+        gravity=None,
+    ):
         self.ros, self.plant = ros, plant
         self.gravity = gravity
         self.names = list(joint_names)

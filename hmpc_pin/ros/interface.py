@@ -139,8 +139,9 @@ class RosArmInterface:
         depth = getattr(qos, "depth", 10) if qos is not None else 10
         std = ros.msgs["std_msgs"]
         self._cmd = std.Float64MultiArray()
-        self._pub = ros.node.create_publisher(std.Float64MultiArray, commands,
-                                              ros.qos(depth, reliable=True))  # fmt: skip
+        self._pub = ros.node.create_publisher(
+            std.Float64MultiArray, commands, ros.qos(depth, reliable=True)
+        )
         # every state taken (merged by name), the newest answered; best effort (matches a
         # reliable publisher too): the arm's driver never waits for, or resends to, the
         # controller

@@ -36,8 +36,12 @@ def import_ros(needed_for: str) -> dict[str, ModuleType]:
         from trajectory_msgs import msg as trajectory_msgs
     except ImportError as exc:
         raise ExtraError("ros", f"{needed_for} (rclpy and the message packages: {exc})") from exc
-    return {"rclpy": rclpy, "sensor_msgs": sensor_msgs, "std_msgs": std_msgs,
-            "trajectory_msgs": trajectory_msgs}  # fmt: skip
+    return {
+        "rclpy": rclpy,
+        "sensor_msgs": sensor_msgs,
+        "std_msgs": std_msgs,
+        "trajectory_msgs": trajectory_msgs,
+    }
 
 
 def discovery_range(configured: str | None, environ=os.environ) -> str:
@@ -77,20 +81,33 @@ class RosNode:
         msgs: The modules of :func:`import_ros`.
     """
 
-    def __init__(self, name: str, namespace: str, discovery: str, needed_for: str,
-                 ros_args: list[str] | None = None, parameters: dict | None = None):  # fmt: skip
+    def __init__(
+        self,
+        name: str,
+        namespace: str,
+        discovery: str,
+        needed_for: str,
+        ros_args: list[str] | None = None,
+        parameters: dict | None = None,
+    ):
         self.msgs = import_ros(needed_for)
         rclpy = self.msgs["rclpy"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery
         self.context = rclpy.context.Context()
         args = ["hmpc-pin", "--ros-args", *ros_args] if ros_args else None
         try:
-            rclpy.init(args=args, context=self.context,
-                       signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)  # fmt: skip
+            rclpy.init(
+                args=args,
+                context=self.context,
+                signal_handler_options=rclpy.signals.SignalHandlerOptions.NO,
+            )
         except Exception as exc:  # rcl's RCLInvalidROSArgsError, ...
-            raise ConfigError("--ros-args", f"rclpy refused {ros_args} ({exc}); expected ROS 2 "
-                              "arguments such as -r from:=to, -r __ns:=/arm1, -p "
-                              "use_sim_time:=true") from None  # fmt: skip
+            raise ConfigError(
+                "--ros-args",
+                f"rclpy refused {ros_args} ({exc}); expected ROS 2 "
+                "arguments such as -r from:=to, -r __ns:=/arm1, -p "
+                "use_sim_time:=true",
+            ) from None
         self._deactivate: tuple[Callable, tuple] | None = None
         self._active = threading.Event()  # set on activate (and on a shutdown before it)
         self._shut_down = False
@@ -103,8 +120,9 @@ class RosNode:
             self.node = _lifecycle_node(self, name, namespace)
         except Exception as exc:  # rclpy's InvalidNodeNameException, ...
             self.context.try_shutdown()
-            raise ConfigError("ros.node", f"rclpy refused the node {name!r} in namespace "
-                              f"{namespace!r}: {exc}") from None  # fmt: skip
+            raise ConfigError(
+                "ros.node", f"rclpy refused the node {name!r} in namespace {namespace!r}: {exc}"
+            ) from None
         self._closed = False
         from rclpy.callback_groups import CallbackGroup
 
@@ -135,15 +153,19 @@ class RosNode:
                 ).value
             except Exception as exc:  # an override of another type (rclpy's exceptions)
                 self.close()
-                raise ConfigError(key, f"--ros-args sets it to a value of another type than "
-                                  f"the config's {value!r} ({exc}); set it in the config "
-                                  "file") from None  # fmt: skip
+                raise ConfigError(
+                    key,
+                    f"--ros-args sets it to a value of another type than "
+                    f"the config's {value!r} ({exc}); set it in the config "
+                    "file",
+                ) from None
             if got != value and not (isinstance(value, list) and list(got) == value):
                 self.close()
                 raise ConfigError(
-                    key, f"--ros-args sets {got!r} but the config has {value!r}; the node's "
-                    "parameters mirror the config: set it in the config file"
-                )  # fmt: skip
+                    key,
+                    f"--ros-args sets {got!r} but the config has {value!r}; the node's "
+                    "parameters mirror the config: set it in the config file",
+                )
 
     def _refuse_undeclared(self, parameters: dict) -> None:
         """A ``--ros-args -p`` of a name in one of the declared tables (``ros.*``,
@@ -154,10 +176,11 @@ class RosNode:
             if name not in parameters and name.split(".")[0] in tables:
                 self.close()
                 raise ConfigError(
-                    name, "--ros-args sets it, but the node has no such parameter (its "
+                    name,
+                    "--ros-args sets it, but the node has no such parameter (its "
                     "parameters mirror the config: `ros2 param list` shows them); set the "
-                    "config file's key instead"
-                )  # fmt: skip
+                    "config file's key instead",
+                )
 
     def serve(self, activate: bool = True) -> None:
         """Answer the node's services (parameters, lifecycle, ``/clock`` with
@@ -231,8 +254,9 @@ class RosNode:
     def subscribe(self, msg_type, topic: str, qos):
         """A subscription whose messages are taken with :meth:`take` (no callback; no
         executor takes them)."""
-        return self.node.create_subscription(msg_type, topic, _never, qos,
-                                             callback_group=self._manual)  # fmt: skip
+        return self.node.create_subscription(
+            msg_type, topic, _never, qos, callback_group=self._manual
+        )
 
     @staticmethod
     def take(sub) -> list:

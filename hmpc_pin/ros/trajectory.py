@@ -75,11 +75,15 @@ def trajectory_from_message(
     where = {name: i for i, name in enumerate(names)}
     missing = [x for x in robot.joint_names if x not in where]
     if missing:
-        raise TrajectoryError(_SOURCE, f"joint_names {list(names)} lack {missing}",
-                              f"every controlled joint {list(robot.joint_names)}")  # fmt: skip
+        raise TrajectoryError(
+            _SOURCE,
+            f"joint_names {list(names)} lack {missing}",
+            f"every controlled joint {list(robot.joint_names)}",
+        )
     if len(where) != len(names):
-        raise TrajectoryError(_SOURCE, f"joint_names {list(names)} repeat a name",
-                              "each joint once")  # fmt: skip
+        raise TrajectoryError(
+            _SOURCE, f"joint_names {list(names)} repeat a name", "each joint once"
+        )
     idx = np.array([where[x] for x in robot.joint_names])
     points = list(msg.points)
     if not points:
@@ -89,30 +93,41 @@ def trajectory_from_message(
     q = np.full((len(points), robot.nq), np.nan)
     with_dq = [len(p.velocities) > 0 for p in points]
     if any(with_dq) and not all(with_dq):
-        raise TrajectoryError(_SOURCE, "velocities in some points only",
-                              "velocities for every point or for none")  # fmt: skip
+        raise TrajectoryError(
+            _SOURCE, "velocities in some points only", "velocities for every point or for none"
+        )
     dq = np.full_like(q, np.nan) if all(with_dq) else None
     for k, p in enumerate(points):
         if len(p.positions) != m:
-            raise TrajectoryError(_SOURCE, f"point {k} has {len(p.positions)} positions for "
-                                  f"{m} joint_names", f"{m} positions")  # fmt: skip
+            raise TrajectoryError(
+                _SOURCE,
+                f"point {k} has {len(p.positions)} positions for {m} joint_names",
+                f"{m} positions",
+            )
         q[k] = np.asarray(p.positions, dtype=float)[idx]
         if dq is not None:
             if len(p.velocities) != m:
-                raise TrajectoryError(_SOURCE, f"point {k} has {len(p.velocities)} velocities "
-                                      f"for {m} joint_names", f"{m} velocities")  # fmt: skip
+                raise TrajectoryError(
+                    _SOURCE,
+                    f"point {k} has {len(p.velocities)} velocities for {m} joint_names",
+                    f"{m} velocities",
+                )
             dq[k] = np.asarray(p.velocities, dtype=float)[idx]
     if not (np.isfinite(q).all() and (dq is None or np.isfinite(dq).all())):
         raise TrajectoryError(_SOURCE, "a non-finite position or velocity", "finite values")
     if times[0] < 0 or np.any(np.diff(times) <= 0):
-        raise TrajectoryError(_SOURCE, f"time_from_start {times.tolist()}",
-                              "times >= 0, strictly increasing")  # fmt: skip
+        raise TrajectoryError(
+            _SOURCE, f"time_from_start {times.tolist()}", "times >= 0, strictly increasing"
+        )
     st = msg.header.stamp
     stamp = st.sec + 1e-9 * st.nanosec
     t_s = now if stamp == 0.0 else stamp - origin
     if t_s < now - 1e-3:
-        raise TrajectoryError(_SOURCE, f"header.stamp {t_s - now:.3f} s in the past",
-                              "a start not in the past (or a zero stamp: now)")  # fmt: skip
+        raise TrajectoryError(
+            _SOURCE,
+            f"header.stamp {t_s - now:.3f} s in the past",
+            "a start not in the past (or a zero stamp: now)",
+        )
     # a start in the future: the current reference runs until then (the caller swaps the
     # new one in at its first time, ``traj.times[0]``)
     now = t_s = max(t_s, now)

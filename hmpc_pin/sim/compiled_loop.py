@@ -61,8 +61,9 @@ LOOPS = ("auto", "compiled", "python")
 def _own(obj, cls, *names: str) -> bool:
     """Whether ``obj``'s methods ``names`` are ``cls``'s own (not overridden by a subclass
     or replaced on the instance, e.g. by a spy: then the loop must call them)."""
-    return all(getattr(getattr(obj, name, None), "__func__", None) is getattr(cls, name)
-               for name in names)  # fmt: skip
+    return all(
+        getattr(getattr(obj, name, None), "__func__", None) is getattr(cls, name) for name in names
+    )
 
 
 def _parts(controller):
@@ -107,8 +108,21 @@ class CompiledLoop:
         last: The last recorded step (-1: none).
     """
 
-    def __init__(self, controller, plant, reference, t_arr, records, step_ns, limit,
-                 state_bound: float, sat_steps, sat_excess, on_step=None, state=None):  # fmt: skip
+    def __init__(
+        self,
+        controller,
+        plant,
+        reference,
+        t_arr,
+        records,
+        step_ns,
+        limit,
+        state_bound: float,
+        sat_steps,
+        sat_excess,
+        on_step=None,
+        state=None,
+    ):
         ctrl, measured = _parts(controller) or (None, None)
         self.ctrl, self.measured, self.plant, self.reference = ctrl, measured, plant, reference
         self.t_arr, self.records = t_arr, records
@@ -118,13 +132,24 @@ class CompiledLoop:
         zero = np.zeros(n)
         a, b = plant._ab if rk4 else (zero, zero)
         self._loop = load_native().ClosedLoop(
-            None if ctrl is None else ctrl._core, plant._kernel if rk4 else None, n, t_arr,
+            None if ctrl is None else ctrl._core,
+            plant._kernel if rk4 else None,
+            n,
+            t_arr,
             [records[name] for name in ("q", "dq", "tau", "d", "d_hat", "tau_applied")],
-            step_ns, sat_steps, sat_excess, np.full(n, np.inf) if limit is None else limit,
-            limit is not None, min(state_bound, sys.float_info.max), a, b,
-            rk4 and plant._friction is not None, plant.h if rk4 else 0.0,
-            plant.substeps if rk4 else 1, float(controller.Ts),
-        )  # fmt: skip
+            step_ns,
+            sat_steps,
+            sat_excess,
+            np.full(n, np.inf) if limit is None else limit,
+            limit is not None,
+            min(state_bound, sys.float_info.max),
+            a,
+            b,
+            rk4 and plant._friction is not None,
+            plant.h if rk4 else 0.0,
+            plant.substeps if rk4 else 1,
+            float(controller.Ts),
+        )
         if not rk4:  # the plant as a whole, from Python
             self._loop.set_plant(plant)
         if ctrl is None:  # the controller as a whole, from Python

@@ -107,8 +107,9 @@ class LowPass:
 
     def __post_init__(self):
         if not (self.cutoff > 0):
-            raise ConfigError("cutoff", f"expected a cutoff > 0 [Hz] (inf: none), got "
-                              f"{self.cutoff!r}")  # fmt: skip
+            raise ConfigError(
+                "cutoff", f"expected a cutoff > 0 [Hz] (inf: none), got {self.cutoff!r}"
+            )
         if not (math.isfinite(self.period) and self.period > 0):
             raise ConfigError("period", f"expected a period > 0 [s], got {self.period!r}")
 
@@ -247,9 +248,10 @@ class Sensing:
         m = round(Ts * self.rate)
         if m < 1 or abs(m - Ts * self.rate) > 1e-6 * max(m, 1):
             raise ConfigError(
-                "sensing.rate", f"the control period Ts = {Ts:g} s is not a whole number of "
+                "sensing.rate",
+                f"the control period Ts = {Ts:g} s is not a whole number of "
                 f"interface periods 1/{self.rate:g} Hz; choose a rate that divides 1/Ts",
-            )  # fmt: skip
+            )
         return m
 
     def compiled(self, Ts: float, rng: np.random.Generator | None):

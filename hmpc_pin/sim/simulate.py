@@ -162,9 +162,10 @@ def simulate(
                 )
         if abs(plant.Ts - Ts) > 1e-12 * Ts:
             raise ConfigError(
-                "plant.Ts", f"the plant advances {plant.Ts:g} s per call but the controller "
+                "plant.Ts",
+                f"the plant advances {plant.Ts:g} s per call but the controller "
                 f"runs at Ts={Ts:g} s; build the plant with the controller's Ts",
-            )  # fmt: skip
+            )
         sim_plant = plant
     else:
         plant_robot = plant if plant is not None else robot.copy()
@@ -189,8 +190,11 @@ def simulate(
     t_arr = Ts * np.arange(K + 1)
     rec = {name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"}
 
-    limit = None if effort_limit is None else robot.check_vector("effort_limit", effort_limit,
-                                                                  finite=False)  # fmt: skip
+    limit = (
+        None
+        if effort_limit is None
+        else robot.check_vector("effort_limit", effort_limit, finite=False)
+    )
     sat_steps = np.zeros(n, dtype=int)
     sat_excess = np.zeros(n)
 
@@ -211,9 +215,20 @@ def simulate(
     try:
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
         if compiled:
-            runner = CompiledLoop(controller, sim_plant, reference, t_arr, rec, step_ns, limit,
-                                  state_bound, sat_steps, sat_excess, on_step,
-                                  (q, dq))  # fmt: skip
+            runner = CompiledLoop(
+                controller,
+                sim_plant,
+                reference,
+                t_arr,
+                rec,
+                step_ns,
+                limit,
+                state_bound,
+                sat_steps,
+                sat_excess,
+                on_step,
+                (q, dq),
+            )
             try:
                 runner.run()
             finally:

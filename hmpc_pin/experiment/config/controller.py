@@ -153,8 +153,9 @@ class ConstraintConfig:
             if getattr(self, name) is not None:
                 _set(self, name, _array(name, getattr(self, name)))
         if self.velocity_limit is not None:
-            _set(self, "velocity_limit", _array("velocity_limit", self.velocity_limit,
-                                                positive=True))  # fmt: skip
+            _set(
+                self, "velocity_limit", _array("velocity_limit", self.velocity_limit, positive=True)
+            )
         _set(self, "slack_weight", _float("slack_weight", self.slack_weight, positive=True))
         _set(
             self,
@@ -200,8 +201,9 @@ class ISMConfig:
     def __post_init__(self):
         _set(self, "gain", _float("gain", self.gain, positive=True))
         if self.boundary_layer is not None:
-            _set(self, "boundary_layer",
-                 _float("boundary_layer", self.boundary_layer, positive=True))  # fmt: skip
+            _set(
+                self, "boundary_layer", _float("boundary_layer", self.boundary_layer, positive=True)
+            )
 
     def width(self, Ts: float) -> float:
         """The boundary-layer width φ [rad/s] for the control period ``Ts`` [s]."""
@@ -335,9 +337,10 @@ class ControllerConfig:
         controller, alias_comp = parse_combination(self.kind, "kind")
         if "+" in self.kind:
             raise ConfigError(
-                "kind", f"{self.kind!r}: give the controller in kind and the compensation in "
+                "kind",
+                f"{self.kind!r}: give the controller in kind and the compensation in "
                 "compensation (e.g. kind = 'hmpc', compensation = 'momentum')",
-            )  # fmt: skip
+            )
         comp, obs = resolve_compensation(
             self.kind, controller, alias_comp, self.compensation, self.observer
         )
@@ -350,10 +353,11 @@ class ControllerConfig:
             if not spec.bandwidth and obs.bandwidth is not None:
                 takes = tuple(n for n, s in REGISTRY.items() if s.bandwidth)
                 raise ConfigError(
-                    "observer.bandwidth", f"does not apply to compensation {comp!r} "
+                    "observer.bandwidth",
+                    f"does not apply to compensation {comp!r} "
                     f"({spec.summary}: its Y is fixed); give gain, or use a compensation of "
                     f"{takes}",
-                )  # fmt: skip
+                )
             if obs.discretization not in spec.discretizations:
                 raise ConfigError(
                     "observer.discretization",

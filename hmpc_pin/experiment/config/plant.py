@@ -94,16 +94,20 @@ class MuJoCoConfig:
             tc = _float("friction_timeconst", self.friction_timeconst, positive=True)
             if tc < 2 * self.timestep:
                 raise ConfigError(
-                    "friction_timeconst", f"{tc:g} s is below 2 timesteps "
+                    "friction_timeconst",
+                    f"{tc:g} s is below 2 timesteps "
                     f"({2 * self.timestep:g} s), where MuJoCo's soft constraint is unstable; "
                     "expected at least twice plant.mujoco.timestep",
-                )  # fmt: skip
+                )
             _set(self, "friction_timeconst", tc)
         for name in ("frictionloss", "damping", "armature"):
             _set(self, name, _array(name, getattr(self, name), nonneg=True))
         if self.import_urdf_dynamics is not None:
-            _set(self, "import_urdf_dynamics",
-                 _bool("import_urdf_dynamics", self.import_urdf_dynamics))  # fmt: skip
+            _set(
+                self,
+                "import_urdf_dynamics",
+                _bool("import_urdf_dynamics", self.import_urdf_dynamics),
+            )
         _set(self, "geometry", _choice("geometry", self.geometry, GEOMETRY_SOURCES))
         if isinstance(self.obstacle, dict):
             _set(self, "obstacle", _section(ObstacleConfig, self.obstacle, "obstacle"))
@@ -111,9 +115,10 @@ class MuJoCoConfig:
             raise ConfigError("obstacle", f"expected a table, got {self.obstacle!r}")
         if self.obstacle is not None and self.geometry == "none":
             raise ConfigError(
-                "geometry", "'none' leaves the arm without geometry to touch the obstacle; "
+                "geometry",
+                "'none' leaves the arm without geometry to touch the obstacle; "
                 "use 'collision' or 'visual'",
-            )  # fmt: skip
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,9 +181,10 @@ class PlantConfig:
         if old is not None:
             if not self.joint_dynamics and old:
                 raise ConfigError(
-                    "mujoco.import_urdf_dynamics", "is true but plant.joint_dynamics is false; "
+                    "mujoco.import_urdf_dynamics",
+                    "is true but plant.joint_dynamics is false; "
                     "remove the deprecated key and keep plant.joint_dynamics",
-                )  # fmt: skip
+                )
             warnings.warn(
                 "plant.mujoco.import_urdf_dynamics is deprecated since 0.3; use "
                 f"plant.joint_dynamics = {str(old).lower()} (one switch for every engine)",
@@ -188,13 +194,17 @@ class PlantConfig:
             _set(self, "joint_dynamics", old)
         if self.backend != "auto" and (self.engine != "pinocchio" or self.integrator != "rk4"):
             raise ConfigError(
-                "backend", f"does not apply to engine = {self.engine!r}, integrator = "
+                "backend",
+                f"does not apply to engine = {self.engine!r}, integrator = "
                 f"{self.integrator!r} (only the Pinocchio RK4 plant has a native path); "
                 "remove it",
-            )  # fmt: skip
+            )
         if self.engine == "pinocchio" and self.mujoco is not None:
-            raise ConfigError("mujoco", "applies only to engine = 'mujoco'; remove the table "
-                              "or set plant.engine = 'mujoco'")  # fmt: skip
+            raise ConfigError(
+                "mujoco",
+                "applies only to engine = 'mujoco'; remove the table "
+                "or set plant.engine = 'mujoco'",
+            )
         if self.engine == "mujoco":
             if self.mujoco is None:
                 _set(self, "mujoco", MuJoCoConfig())
@@ -204,6 +214,6 @@ class PlantConfig:
             ):
                 if getattr(self, key) != default:
                     raise ConfigError(
-                        key, f"does not apply to engine = 'mujoco'; set "
-                        f"plant.mujoco.{instead} instead",
-                    )  # fmt: skip
+                        key,
+                        f"does not apply to engine = 'mujoco'; set plant.mujoco.{instead} instead",
+                    )

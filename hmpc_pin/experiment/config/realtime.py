@@ -95,8 +95,11 @@ class RealtimeConfig:
         _set(self, "gc_slack", _float("gc_slack", self.gc_slack, positive=True))
         if self.brake_time is not None:
             if self.damping is not None:
-                raise ConfigError("damping", "does not apply with brake_time (the brake is "
-                                  "M(q)/brake_time); give one of them")  # fmt: skip
+                raise ConfigError(
+                    "damping",
+                    "does not apply with brake_time (the brake is "
+                    "M(q)/brake_time); give one of them",
+                )
             _set(self, "brake_time", _float("brake_time", self.brake_time, positive=True))
         elif self.damping is not None:
             _set(self, "damping", _array("damping", self.damping, nonneg=True))
@@ -112,10 +115,16 @@ class RealtimeConfig:
             if value is None:
                 continue
             if not self.limits:
-                raise ConfigError(name, "does not apply with limits = false; drop it or set "
-                                  "limits = true")  # fmt: skip
-            _set(self, name, _float(name, value, nonneg=name == "position_margin",
-                                    positive=name == "velocity_scale"))  # fmt: skip
+                raise ConfigError(
+                    name, "does not apply with limits = false; drop it or set limits = true"
+                )
+            _set(
+                self,
+                name,
+                _float(
+                    name, value, nonneg=name == "position_margin", positive=name == "velocity_scale"
+                ),
+            )
 
     @property
     def margin(self) -> float:

@@ -63,8 +63,9 @@ class TrajectoryConfig:
 
     def __post_init__(self):
         if not isinstance(self.file, (str, Path)):
-            raise ConfigError("file", f"expected the path of a .csv or .npz file, got "
-                              f"{self.file!r}")  # fmt: skip
+            raise ConfigError(
+                "file", f"expected the path of a .csv or .npz file, got {self.file!r}"
+            )
         _set(self, "file", Path(self.file))
 
 
@@ -91,14 +92,19 @@ class WaypointsConfig:
             raise ConfigError("points", f"expected a list of >= 2 joint vectors, got {pts!r}")
         rows = [_array(f"points[{i}]", p) for i, p in enumerate(pts)]
         if any(r.ndim != 1 or r.shape != rows[0].shape for r in rows):
-            raise ConfigError("points", "expected joint vectors of one length, got "
-                              f"{[r.tolist() for r in rows]}")  # fmt: skip
+            raise ConfigError(
+                "points", f"expected joint vectors of one length, got {[r.tolist() for r in rows]}"
+            )
         _set(self, "points", np.array(rows))
-        _set(self, "acceleration_limit",
-             _array("acceleration_limit", self.acceleration_limit, positive=True))  # fmt: skip
+        _set(
+            self,
+            "acceleration_limit",
+            _array("acceleration_limit", self.acceleration_limit, positive=True),
+        )
         if self.velocity_limit is not None:
-            _set(self, "velocity_limit",
-                 _array("velocity_limit", self.velocity_limit, positive=True))  # fmt: skip
+            _set(
+                self, "velocity_limit", _array("velocity_limit", self.velocity_limit, positive=True)
+            )
         _set(self, "t_start", _float("t_start", self.t_start, nonneg=True))
 
 
@@ -120,8 +126,9 @@ def _point(key: str, value) -> np.ndarray:
 def _quaternion(key: str, value) -> np.ndarray:
     arr = _array(key, value)
     if arr.shape != (4,) or np.linalg.norm(arr) < 1e-9:
-        raise ConfigError(key, f"expected a quaternion [x, y, z, w] (scalar last), got "
-                          f"{arr.tolist()}")  # fmt: skip
+        raise ConfigError(
+            key, f"expected a quaternion [x, y, z, w] (scalar last), got {arr.tolist()}"
+        )
     return arr / np.linalg.norm(arr)
 
 
@@ -183,16 +190,19 @@ class PoseConfig:
         own = POSE_PATHS[self.path]
         for other in {k for keys in POSE_PATHS.values() for k in keys} - set(own):
             if getattr(self, other) is not None:
-                raise ConfigError(other, f"does not apply to path = {self.path!r} (its keys: "
-                                  f"{', '.join(own)})")  # fmt: skip
+                raise ConfigError(
+                    other, f"does not apply to path = {self.path!r} (its keys: {', '.join(own)})"
+                )
         if self.frame is not None and not isinstance(self.frame, str):
             raise ConfigError("frame", f"expected a frame name, got {self.frame!r}")
         if self.q_init is not None:
             _set(self, "q_init", _array("q_init", self.q_init))
         if self.orientation is not None:
             if self.path == "waypoints":
-                raise ConfigError("orientation", "does not apply to path = 'waypoints' (give "
-                                  "orientations, one per waypoint)")  # fmt: skip
+                raise ConfigError(
+                    "orientation",
+                    "does not apply to path = 'waypoints' (give orientations, one per waypoint)",
+                )
             _set(self, "orientation", _quaternion("orientation", self.orientation))
         for name in ("center", "start", "end"):
             if getattr(self, name) is not None:
@@ -206,11 +216,11 @@ class PoseConfig:
             if not isinstance(plane, str):
                 plane = _point("plane", plane)
             elif plane not in ("xy", "xz", "yz"):
-                raise ConfigError("plane", f"expected 'xy', 'xz', 'yz' or a normal [nx, ny, "
-                                  f"nz], got {plane!r}")  # fmt: skip
+                raise ConfigError(
+                    "plane", f"expected 'xy', 'xz', 'yz' or a normal [nx, ny, nz], got {plane!r}"
+                )
             _set(self, "plane", plane)
-            _set(self, "ramp", _float("ramp", 0.0 if self.ramp is None else self.ramp,
-                                      nonneg=True))  # fmt: skip
+            _set(self, "ramp", _float("ramp", 0.0 if self.ramp is None else self.ramp, nonneg=True))
         elif self.path == "line":
             if self.end is None or self.duration is None:
                 raise ConfigError("end", "path = 'line' needs end and duration")
@@ -221,20 +231,28 @@ class PoseConfig:
                 raise ConfigError("times", "path = 'waypoints' needs times and positions")
             times = _array("times", self.times)
             if times.ndim != 1 or times.size < 2 or np.any(np.diff(times) <= 0):
-                raise ConfigError("times", f"expected >= 2 strictly increasing times [s], got "
-                                  f"{times.tolist()}")  # fmt: skip
+                raise ConfigError(
+                    "times", f"expected >= 2 strictly increasing times [s], got {times.tolist()}"
+                )
             _set(self, "times", times)
             pos = self.positions
             if not isinstance(pos, (list, tuple)) or len(pos) != times.size:
-                raise ConfigError("positions", f"expected {times.size} points [x, y, z], one "
-                                  f"per time, got {pos!r}")  # fmt: skip
-            _set(self, "positions", np.array([_point(f"positions[{i}]", p)
-                                              for i, p in enumerate(pos)]))  # fmt: skip
+                raise ConfigError(
+                    "positions",
+                    f"expected {times.size} points [x, y, z], one per time, got {pos!r}",
+                )
+            _set(
+                self,
+                "positions",
+                np.array([_point(f"positions[{i}]", p) for i, p in enumerate(pos)]),
+            )
             if self.orientations is not None:
                 quats = self.orientations
                 if not isinstance(quats, (list, tuple)) or len(quats) != times.size:
-                    raise ConfigError("orientations", f"expected {times.size} quaternions "
-                                      f"[x, y, z, w], got {quats!r}")  # fmt: skip
+                    raise ConfigError(
+                        "orientations",
+                        f"expected {times.size} quaternions [x, y, z, w], got {quats!r}",
+                    )
                 _set(
                     self,
                     "orientations",

@@ -39,8 +39,11 @@ def check_namespace(key: str, value) -> str:
     ns = value if value in ("", "/") or value.startswith("/") else "/" + value
     ns = "" if ns == "/" else ns.rstrip("/") if len(ns) > 1 else ns
     if not _NAMESPACE.match(ns):
-        raise ConfigError(key, f"expected a ROS namespace such as '/arm1' (letters, digits, "
-                          f"underscores between '/'), got {value!r}")  # fmt: skip
+        raise ConfigError(
+            key,
+            f"expected a ROS namespace such as '/arm1' (letters, digits, "
+            f"underscores between '/'), got {value!r}",
+        )
     return ns
 
 
@@ -120,31 +123,38 @@ class RosConfig:
     external_torque_type: str = "joint_state"
 
     def __post_init__(self):
-        for key in ("joint_states", "commands", "joint_trajectory", "external_torque",
-                    "collision"):  # fmt: skip
+        for key in ("joint_states", "commands", "joint_trajectory", "external_torque", "collision"):
             value = getattr(self, key)
             if not (isinstance(value, str) and _TOPIC.match(value)):
-                raise ConfigError(key, f"expected a ROS topic name such as 'joint_states' or "
-                                  f"'~/{key}', got {value!r}")  # fmt: skip
+                raise ConfigError(
+                    key,
+                    f"expected a ROS topic name such as 'joint_states' or '~/{key}', got {value!r}",
+                )
         for key in ("node", "arm_node"):
             value = getattr(self, key)
             if not (isinstance(value, str) and _NAME.match(value)):
-                raise ConfigError(key, f"expected a node name (letters, digits, underscores, "
-                                  f"not starting with a digit), got {value!r}")  # fmt: skip
+                raise ConfigError(
+                    key,
+                    f"expected a node name (letters, digits, underscores, "
+                    f"not starting with a digit), got {value!r}",
+                )
         if self.node == self.arm_node:
-            raise ConfigError("arm_node", f"is the controller's name {self.node!r} too; give "
-                              "the two nodes different names")  # fmt: skip
+            raise ConfigError(
+                "arm_node",
+                f"is the controller's name {self.node!r} too; give the two nodes different names",
+            )
         _set(self, "namespace", check_namespace("namespace", self.namespace))
         _set(self, "rate", _float("rate", self.rate, positive=True))
         _set(self, "start_timeout", _float("start_timeout", self.start_timeout, positive=True))
         _set(self, "gravity", _choice("gravity", self.gravity, GRAVITY))
         _set(self, "autostart", _bool("autostart", self.autostart))
         _set(self, "qos_depth", _int("qos_depth", self.qos_depth, minimum=1))
-        _set(self, "qos_reliability", _choice("qos_reliability", self.qos_reliability,
-                                              RELIABILITY))  # fmt: skip
-        _set(self, "external_torque_type", _choice("external_torque_type",
-                                                   self.external_torque_type,
-                                                   EXTERNAL_TORQUE_TYPES))  # fmt: skip
+        _set(self, "qos_reliability", _choice("qos_reliability", self.qos_reliability, RELIABILITY))
+        _set(
+            self,
+            "external_torque_type",
+            _choice("external_torque_type", self.external_torque_type, EXTERNAL_TORQUE_TYPES),
+        )
         if self.external_torque_type == "float64_multi_array":
             warnings.warn(
                 "ros.external_torque_type = 'float64_multi_array' is deprecated: the "
@@ -154,8 +164,9 @@ class RosConfig:
                 stacklevel=2,
             )
         if self.discovery is not None and self.discovery not in DISCOVERY_RANGES:
-            raise ConfigError("discovery", f"expected one of {tuple(DISCOVERY_RANGES)}, got "
-                              f"{self.discovery!r}")  # fmt: skip
+            raise ConfigError(
+                "discovery", f"expected one of {tuple(DISCOVERY_RANGES)}, got {self.discovery!r}"
+            )
 
     @property
     def period(self) -> float:

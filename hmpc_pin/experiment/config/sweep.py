@@ -107,10 +107,11 @@ class SweepConfig:
             raise ConfigError("sensing", f"expected a table, got {self.sensing!r}")
         if self.legacy and self.sensing is not None:
             raise ConfigError(
-                "sensing", "give either [sweep.sensing] or the earlier keys q_noise, "
+                "sensing",
+                "give either [sweep.sensing] or the earlier keys q_noise, "
                 "dq_noise, delay of [sweep], not both (the table supersedes them: "
                 "[sweep.sensing] q_noise, dq_noise, delay)",
-            )  # fmt: skip
+            )
         conditions = self.conditions
         if (
             not isinstance(conditions, (list, tuple))
@@ -119,9 +120,9 @@ class SweepConfig:
             or any(c not in CONDITIONS for c in conditions)
         ):
             raise ConfigError(
-                "conditions", f"expected a non-empty list of distinct names of {CONDITIONS}, "
-                f"got {conditions!r}",
-            )  # fmt: skip
+                "conditions",
+                f"expected a non-empty list of distinct names of {CONDITIONS}, got {conditions!r}",
+            )
         _set(self, "conditions", tuple(conditions))
         _set(self, "known_latency", _bool("known_latency", self.known_latency))
         _set(self, "after", _float("after", self.after, nonneg=True))

@@ -41,8 +41,11 @@ def _value(v) -> str:
         return "{" + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + "}"
     if hasattr(v, "tolist"):  # a numpy array or scalar
         return _value(v.tolist())
-    raise ConfigError("<value>", f"cannot write {type(v).__name__} {v!r} as TOML; expected "
-                      "numbers, strings, booleans, lists or tables")  # fmt: skip
+    raise ConfigError(
+        "<value>",
+        f"cannot write {type(v).__name__} {v!r} as TOML; expected "
+        "numbers, strings, booleans, lists or tables",
+    )
 
 
 def _key(k: str) -> str:
@@ -109,8 +112,9 @@ def write_config(
         part.write_text(text, encoding="utf-8")
         os.replace(part, out)
     except OSError as exc:
-        raise OutputError(Path(out).parent, f"is not writable ({exc.strerror or exc})",
-                          "--out") from exc  # fmt: skip
+        raise OutputError(
+            Path(out).parent, f"is not writable ({exc.strerror or exc})", "--out"
+        ) from exc
     finally:
         if part.exists():
             part.unlink()

@@ -69,6 +69,19 @@ MISSED = {
     "error: its lag model along the reference (observer_lag_error) leaves out the "
     "friction fed back through the error and predicts well under 0.05 rad",
 }
+#: Cases where ``check`` reports a problem and ``run`` tracks: false alarms, each with what
+#: is known of it. Listed, not skipped: an entry whose run leaves its tolerance fails the
+#: test (remove it), and no other problem case may track. Both are the rule "a loop
+#: decaying at less than MIN_DECAY x its rate": a slow mode is not an error until the
+#: reference or the disturbance excites it, which a pole's modulus does not say (the
+#: same loop, 0.977 per period against 0.887, leaves the tolerance on init's Panda).
+FALSE_ALARMS = {
+    "init ur5, latency 0.5 Ts": "the whole loop decays at 0.977 per period (0.887 "
+    "without the latency) on every joint; the run's error stays at 0.03 x the tolerance",
+    "init z1, observer x10": "init's bandwidth x 10 (w Ts = 100) with the half period "
+    "of latency init declares: the observer's loop has a pole at 0.987 (0.01 without the "
+    "latency); the run's error stays at 0.26 x the tolerance",
+}
 #: Problems whose one suggested change cannot bring the run within the tolerance, each
 #: with the physical reason (the change must still lower the error).
 _NO_OBSERVER = (
@@ -205,6 +218,13 @@ def test_check_agrees_with_run_over_the_corpus(tmp_path):
                     disagreements.append(
                         f"{name}: no problem found, but the run's error is {worst:.3g} × "
                         "its tolerance"
+                    )
+                continue
+            if name in FALSE_ALARMS:
+                if not bounded:
+                    disagreements.append(
+                        f"{name}: listed in FALSE_ALARMS, but the run leaves its tolerance "
+                        f"({worst:.3g} × the tolerance): remove it"
                     )
                 continue
             if bounded:  # a problem is what the run shows, fixed by one change or not

@@ -321,3 +321,14 @@ def test_the_model_of_a_watched_observer_looks_through_the_gate(planar3):
     model = ObserverModel.of(FeedbackGate(obs), planar3)
     np.testing.assert_array_equal(model.matrix, obs.cY)
     assert ObserverModel.of(object(), planar3) is None
+
+
+def test_anti_correlated_residuals_count_no_more_samples_than_they_have(make_rng):
+    """m_e = m(1 − ρ)/(1 + ρ) corrects for positively correlated residuals; residuals
+    that alternate in sign (ρ < 0) are not worth more than m independent samples: the
+    effective samples never exceed the samples fitted."""
+    rng = make_rng(3)
+    dq = np.sin(np.linspace(0, 12, 400))
+    alternating = 0.2 * (-1.0) ** np.arange(400) * (1 + 0.1 * rng.standard_normal(400))
+    fit = fit_joint(dq + np.sign(dq) + alternating, dq)
+    assert fit.effective_samples <= 400

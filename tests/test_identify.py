@@ -135,7 +135,26 @@ def _bad_shapes(path, saved):
     np.savez(path, **arrays)
 
 
+def _repeated_time(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    arrays["t"] = arrays["t"].copy()
+    arrays["t"][5] = arrays["t"][4]  # two samples at one instant
+    np.savez(path, **arrays)
+
+
+def _one_sample(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    for name in ("t", "q", "dq", "tau", "d_hat", "tau_applied"):
+        if name in arrays and arrays[name].ndim:
+            arrays[name] = arrays[name][:1]
+    np.savez(path, **arrays)
+
+
 BAD_FILES = {
+    "a time stamp repeated": (_repeated_time, "not finite and increasing"),
+    "one sample": (_one_sample, "at least 2 samples"),
     "empty": (lambda p, s: p.write_bytes(b""), "empty"),
     "text": (lambda p, s: p.write_text("t,q\n0,1\n"), "not a .npz archive"),
     "text starting with PK": (lambda p, s: p.write_text("PK,q\n0,1\n"), "not a .npz archive"),

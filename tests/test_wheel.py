@@ -188,3 +188,26 @@ def test_the_install_hint_of_an_installed_package_names_its_wheel(
         assert hint == f'pip install "hmpc_pin[ros] @ {url}"'
     else:
         assert url not in hint and "hmpc_pin[ros] @ <the hmpc_pin wheel>" in hint
+
+
+@pytest.mark.parametrize("beside", ["pyproject.toml", "CMakeLists.txt"])
+def test_one_project_file_beside_the_package_is_not_a_clone(beside, tmp_path, monkeypatch):
+    """A clone has both pyproject.toml and CMakeLists.txt beside the package; an installed
+    package with only one of them beside it (a site folder inside another project) gets
+    the generic hint, not an editable install of that folder."""
+    import importlib.metadata
+
+    import hmpc_pin.exceptions as exceptions
+
+    site = tmp_path / "site" / "hmpc_pin"
+    site.mkdir(parents=True)
+    (site.parent / beside).write_text("")
+    monkeypatch.setattr(exceptions, "__file__", str(site / "exceptions.py"))
+
+    class Dist:
+        def read_text(self, name):
+            return None
+
+    monkeypatch.setattr(importlib.metadata, "distribution", lambda name: Dist())
+    hint = exceptions.install_command("ros")
+    assert str(site.parent) not in hint and "hmpc_pin[ros] @ <the hmpc_pin wheel>" in hint

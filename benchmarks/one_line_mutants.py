@@ -249,6 +249,58 @@ MUTANTS = [
     ("i36c", "hmpc_pin/exceptions.py", 'if (clone / "pyproject.toml").is_file() and (clone / "CMakeLists.txt").is_file():',
      'if (clone / "pyproject.toml").is_file() or (clone / "CMakeLists.txt").is_file():',
      ["tests/test_wheel.py", "-m", "not slow"]),
+    # ---- a second fresh group after the i36c survivors' tests, over the same code (none of
+    # these lines was mutated before), written down and committed before any of them ran
+    ("i36d", "hmpc_pin/apps/check.py", "coeffs[1 + m] -= g * (1.0 - beta)", "coeffs[1 + m] -= g", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "predict[:, 1 + i] += B", "predict[:, 1 + i] -= B", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "gain = -np.array([kp, kd]) @ predict  # u_k", "gain = -np.array([kp, kd]) @ np.eye(2, size)  # u_k", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "estimate[2] = 1.0 - g", "estimate[2] = 1.0", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "step[iv(1)] = v", "step[iv(1)] = u", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "predict[:, iv(i)] += np.array([0.5 * h * h, h])", "predict[:, iv(i)] += np.array([h * h, h])", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "slower = np.log(np.minimum(whole, 1.0)) > MIN_DECAY * np.log(whole0)",
+     "slower = np.log(np.minimum(whole, 1.0)) > np.log(whole0)", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "own = np.array([overdeclared_radius(w * Ts, ratio, 0.0, explicit) for w in bw])",
+     "own = np.array([overdeclared_radius(w * Ts, ratio, over, explicit) for w in bw])", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "margin = np.where(bw > 0, limit / np.where(bw > 0, bw, 1.0), np.inf)",
+     "margin = np.where(bw > 0, bw / limit, np.inf)", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "over = np.flatnonzero(margin < 1.0 - 1e-9)", "over = np.flatnonzero(margin < 0.5)", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "        b, f = np.zeros(n), np.zeros(n)", "        b, f = b, f", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "t = np.arange(0.0, ex.config.simulation.duration + dt / 2, dt)",
+     "t = np.arange(0.0, ex.config.simulation.duration / 2, dt)", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "minv = np.array([np.linalg.inv(ex.robot.mass_matrix(q[k])) for k in range(len(t))])",
+     "minv = np.array([np.linalg.inv(ex.robot.mass_matrix(q[0])) for k in range(len(t))])", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "model = replace(model, gain=np.asarray(model.gain, dtype=float) * scale)",
+     "model = replace(model, gain=np.asarray(model.gain, dtype=float))", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "if not bad.size or not np.all(np.isfinite(err)):", "if not bad.size:", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", 'key, value = "bandwidth", np.asarray(obs.bandwidth, dtype=float) * scale',
+     'key, value = "gain", np.asarray(obs.bandwidth, dtype=float) * scale', [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", 'listed = ", ".join(f"{names[j]!r} ({tau[j]:.3g} s)" for j in fast)',
+     'listed = ", ".join(f"{names[j]!r} ({tau[j]:.3g} s)" for j in range(len(names)))', [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "use w < {2 / Ts:.4g} 1/s", "use w < {1 / Ts:.4g} 1/s", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "                if err > ENGINE_RTOL:", "                if err > 10 * ENGINE_RTOL:", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", 'if config.plant.engine == "mujoco":  # the simulated arm is not the model', "if False:", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "if friction is not None or (pulse is not None and np.any(np.asarray(pulse.amplitude))):",
+     "if friction is not None:", [CHK]),
+    ("i36d", "hmpc_pin/apps/check.py", "implicit = np.array([loop_radius(kp, kd, Ts, w, 0.0, ratio) for w in wTs])",
+     "implicit = np.array([loop_radius(kp, kd, Ts, w, 0.0, ratio, True) for w in wTs])", [CHK]),
+    ("i36d", "hmpc_pin/identification/friction.py", "if not (np.isfinite(Ts) and Ts > 0):", "if not np.isfinite(Ts):", [IDN, IDF]),
+    ("i36d", "hmpc_pin/identification/friction.py", '"discretization": "implicit" if self.implicit else "explicit"}',
+     '"discretization": "implicit" if True else "explicit"}', [IDN, IDF]),
+    ("i36d", "hmpc_pin/identification/friction.py", "    return a * dq + b * sgn", "    return a * dq - b * sgn", [IDN, IDF]),
+    ("i36d", "hmpc_pin/identification/friction.py", "f[k] = tau[k] - Y @ pi", "f[k] = tau[k] + Y @ pi", [IDN, IDF]),
+    ("i36d", "hmpc_pin/identification/friction.py", "scale = chi2 / max(m - p, 1)", "scale = chi2 / max(m, 1)", [IDN, IDF]),
+    ("i36d", "hmpc_pin/identification/thresholds.py",
+     "threshold=safety * (np.maximum(thr, r.max(axis=0)) if floor_at_peak else thr),",
+     "threshold=safety * thr,", ["tests/test_thresholds.py"]),
+    ("i36d", "hmpc_pin/apps/identify.py", "        if getattr(args, key) is not None:", "        if getattr(args, key):", [IDF]),
+    ("i36d", "hmpc_pin/apps/identify.py", "    if path.is_dir():", "    if False:", [IDF]),
+    ("i36d", "hmpc_pin/apps/runfile.py", "    if not head:", "    if head is None:", [IDF]),
+    ("i36d", "hmpc_pin/apps/runfile.py", "        if not np.issubdtype(np.asarray(arr).dtype, np.number):", "        if False:", [IDF]),
+    ("i36d", "hmpc_pin/apps/tune.py", "holdout = samples if holdout is None else holdout", "holdout = samples", [TUN]),
+    ("i36d", "hmpc_pin/apps/tune.py", "if not duration > after:", "if not duration >= after:", [TUN]),
+    ("i36d", "hmpc_pin/apps/tune.py", "out[name] = min(spec[1], key=lambda c, v=v: abs(c - v))", "out[name] = spec[1][0]", [TUN]),
+    ("i36d", "hmpc_pin/exceptions.py", "if wheel and Path(unquote(urlparse(url).path)).is_file():", "if wheel:",
+     ["tests/test_wheel.py", "-m", "not slow"]),
 ]
 
 
@@ -277,7 +329,7 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36, i36b or i36c")
+    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36, i36b, i36c or i36d")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:

@@ -152,7 +152,15 @@ def _one_sample(path, saved):
     np.savez(path, **arrays)
 
 
+def _text_torque(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    arrays["tau"] = arrays["tau"].astype(str)
+    np.savez(path, **arrays)
+
+
 BAD_FILES = {
+    "a torque of text": (_text_torque, "'tau' is not numeric"),
     "a time stamp repeated": (_repeated_time, "not finite and increasing"),
     "one sample": (_one_sample, "at least 2 samples"),
     "empty": (lambda p, s: p.write_bytes(b""), "empty"),
@@ -444,3 +452,19 @@ def test_a_recorded_matrix_of_another_size_is_one_line(saved_run, tmp_path, caps
     code, _out, err, table = _identify(result.save(tmp_path / "m.npz"), tmp_path, capsys)
     assert code == 2 and table is None
     assert len(err.strip().splitlines()) == 1 and "(3, 3)" in err, err
+
+
+@pytest.mark.parametrize("option", [["--thresholds", "--velocity-threshold", "0"],
+                                    ["--false-alarm", "0"]])  # fmt: skip
+def test_an_option_of_the_other_mode_given_as_zero_is_refused(option, saved_run, tmp_path,
+                                                              capsys):  # fmt: skip
+    """An option that does not apply is an error even when its value is 0."""
+    code, _out, err, table = _identify(saved_run, tmp_path, capsys, *option)
+    flag = option[-2]
+    assert code == 2 and table is None and flag in err, err
+
+
+def test_out_naming_a_folder_is_refused_before_any_work(saved_run, tmp_path, capsys):
+    code = main(["identify", str(saved_run), "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--out" in err and "directory" in err, err

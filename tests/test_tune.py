@@ -377,3 +377,14 @@ def test_the_observer_gains_range_is_a_tenth_to_five_times_the_configs(friction_
     c0 = friction_config.controller.observer.gain
     kind, low, high = search_space(friction_config)["observer_gain"]
     assert kind == "log" and low == pytest.approx(c0 / 10) and high == pytest.approx(5 * c0)
+
+
+def test_trial_zero_starts_at_the_period_nearest_the_configs(friction_config):
+    """--ts choices: trial 0 records the config's own Ts where it is listed, else the
+    nearest listed period (not the first)."""
+    from hmpc_pin.apps.tune import current_params
+
+    space = search_space(friction_config, ts=(0.002, 0.01, 0.02))
+    assert current_params(friction_config, space)["Ts"] == 0.01  # the config's Ts
+    space = search_space(friction_config, ts=(0.001, 0.009, 0.05))
+    assert current_params(friction_config, space)["Ts"] == 0.009

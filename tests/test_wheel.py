@@ -158,6 +158,7 @@ def test_the_install_hint_of_a_clone_names_the_clone():
 @pytest.mark.parametrize("record, wheel", [
     ({"archive_info": {}}, True),   # installed from the wheel file: that wheel again
     ({"dir_info": {}}, False),      # a file: URL pip did not record as an archive
+    ({"archive_info": {}, "moved": True}, False),  # the wheel file is gone since
     (None, False),                  # no record (an index): the generic hint
 ])  # fmt: skip
 def test_the_install_hint_of_an_installed_package_names_its_wheel(
@@ -181,6 +182,9 @@ def test_the_install_hint_of_an_installed_package_names_its_wheel(
         def read_text(self, name):
             assert name == "direct_url.json"
             return None if record is None else json.dumps({"url": url, **record})
+
+    if record and record.get("moved"):
+        whl.unlink()
 
     monkeypatch.setattr(importlib.metadata, "distribution", lambda name: Dist())
     hint = exceptions.install_command("ros")

@@ -706,9 +706,10 @@ def _observer_lag_findings(
 
     cc = config.controller
     Ts = report.Ts
-    if not np.any(bw > 0) or (_explicit(config) and np.max(bw) * Ts >= 2.0):
-        return  # no observer, or an unstable one (its own problem)
     kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    if not np.any(bw > 0) or (_explicit(config) and (np.max(bw) * Ts >= 2.0 or np.any(
+            explicit_loop_slow(kp, kd, Ts, bw * Ts, _run_ratio(ex))))):  # fmt: skip
+        return  # no observer, or an unstable one, or its loop with the MPC (their problems)
     inputs = _lag_inputs(ex)
     err = observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, inputs=inputs)
     bad = np.flatnonzero(err > DEFAULT_ERROR_THRESHOLD)

@@ -301,6 +301,44 @@ MUTANTS = [
     ("i36d", "hmpc_pin/apps/tune.py", "out[name] = min(spec[1], key=lambda c, v=v: abs(c - v))", "out[name] = spec[1][0]", [TUN]),
     ("i36d", "hmpc_pin/exceptions.py", "if wheel and Path(unquote(urlparse(url).path)).is_file():", "if wheel:",
      ["tests/test_wheel.py", "-m", "not slow"]),
+    # ---- a third fresh group after the i36d survivors' tests, over lines of the same code not
+    # mutated before, written down and committed before any of them ran
+    ("i36e", "hmpc_pin/apps/check.py", "return float(max(np.max(ratio), 1e-3))", "return float(max(np.min(ratio), 1e-3))", [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", 'return (cc.compensation != "momentum"', 'return (cc.compensation == "momentum"', [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", "np.broadcast_to(np.asarray(comp.K, dtype=float), (M0.shape[0],))",
+     "np.broadcast_to(np.asarray(comp.K, dtype=float) * M0[0, 0], (M0.shape[0],))", [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", "excess = overdeclared_excess(Ts, latency)", "excess = overdeclared_excess(Ts, 2 * latency)", [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", "nu = m + 2  # u_{k-1} .. u_{k-2-m}", "nu = m + 1  # u_{k-1} .. u_{k-2-m}", [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", "        step[2] = gain", "        step[2] = -gain", [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", "        dhat = np.zeros_like(d)", "        dhat = d", [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", 'wts = "-" if self.bandwidth is None else f"{self.bandwidth[j] * self.Ts:.3g}"',
+     'wts = "-" if self.bandwidth is None else f"{self.bandwidth[j]:.3g}"', [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", 'else f"{100 * self.headroom[j]:.0f} %"', 'else f"{self.headroom[j]:.0f} %"', [CHK]),
+    ("i36e", "hmpc_pin/apps/check.py", 'f"effort limit (headroom {100 * headroom[j]:.0f} %, expected >= "',
+     'f"effort limit (headroom {100 * (1 - headroom[j]):.0f} %, expected >= "', [CHK]),
+    ("i36e", "hmpc_pin/identification/friction.py", "keep = np.isfinite(y) & np.isfinite(dq) & (np.abs(dq) > velocity_threshold)",
+     "keep = np.isfinite(y) & np.isfinite(dq)", [IDN, IDF]),
+    ("i36e", "hmpc_pin/identification/friction.py", "for v in self.viscous)}]   # [N·m·s/rad]", "for v in self.coulomb)}]   # [N·m·s/rad]", [IDN, IDF]),
+    ("i36e", "hmpc_pin/identification/friction.py", "rank = int(np.count_nonzero(d > tol * d[0])) if d.size else 0", "rank = len(d)", [IDN, IDF]),
+    ("i36e", "hmpc_pin/identification/friction.py", "ddq = (dq[k + 1] - dq[k]) / (t[k + 1] - t[k])", "ddq = (dq[k + 1] - dq[k]) / (t[1] - t[0])", [IDN, IDF]),
+    ("i36e", "hmpc_pin/identification/thresholds.py", "if np.ptp(maxima) == 0:", "if False:", ["tests/test_thresholds.py"]),
+    ("i36e", "hmpc_pin/identification/thresholds.py", '("--safety", safety, np.isfinite(safety) and safety >= 1),',
+     '("--safety", safety, np.isfinite(safety) and safety > 1),', ["tests/test_thresholds.py"]),
+    ("i36e", "hmpc_pin/identification/thresholds.py", "use = t >= after - 1e-12", "use = t > after", ["tests/test_thresholds.py"]),
+    ("i36e", "hmpc_pin/apps/identify.py", "if pulse is None or not np.any(np.asarray(pulse.amplitude) != 0):",
+     "if pulse is None:", [IDF]),
+    ("i36e", "hmpc_pin/apps/identify.py", 'suffix = "collision" if args.thresholds else "friction"',
+     'suffix = "friction"', [IDF]),
+    ("i36e", "hmpc_pin/apps/runfile.py", "n = np.asarray(result.q).shape[-1] if np.ndim(result.q) == 2 else None",
+     "n = np.asarray(result.q).shape[0] if np.ndim(result.q) == 2 else None", [IDF]),
+    ("i36e", "hmpc_pin/apps/runfile.py", 'gravity=result.meta.get("gravity", 9.81),', "gravity=9.81,", [IDF]),
+    ("i36e", "hmpc_pin/apps/tune.py", "rms = min(rms, 10 * error_bound) if np.isfinite(rms) else 10 * error_bound",
+     "rms = 10 * error_bound", [TUN]),
+    ("i36e", "hmpc_pin/apps/tune.py", "bad = [o for o in observers if o not in names]",
+     "bad = [o for o in observers if o in names]", [TUN]),
+    ("i36e", "hmpc_pin/apps/tune.py", "out[name] = type(v)(min(max(v, spec[1]), spec[2]))", "out[name] = v", [TUN]),
+    ("i36e", "hmpc_pin/exceptions.py", """f'pip install -e ".[{extra}]")')""", """f'pip install ".[{extra}]")')""",
+     ["tests/test_wheel.py", "-m", "not slow"]),
 ]
 
 
@@ -329,7 +367,7 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36, i36b, i36c or i36d")
+    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36, i36b, i36c, i36d or i36e")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:

@@ -123,6 +123,13 @@ def test_too_little_torque_is_a_problem_per_joint():
     config = _paper(3.0, effort_limit=np.array([1e3, 1e3, 0.5]))
     report = check_config(config, engines=False)
     assert len(report.problems) == 1 and "'joint3'" in report.problems[0]
+    h = report.headroom[2]  # negative: the reference needs more than the limit
+    assert f"needs {100 * (1 - h):.0f} % of the effort limit (headroom {100 * h:.0f} %" in (
+        report.problems[0])  # fmt: skip
+    row = next(line for line in report.format().splitlines() if line.startswith("joint3"))
+    w = report.bandwidth[2]
+    assert row.split()[1:3] == [f"{w:.3g}", f"{w * 0.01:.3g}"]  # ω [1/s], ω Ts [-]
+    assert row.endswith(f"{100 * h:.0f} %")
     t = np.linspace(0.0, config.simulation.duration, 4001)
     # the check samples every Ts/4 and differentiates ṙ centrally: O((w Ts)²) of r̈
     need = np.abs(_paper_tau3(t)).max()
@@ -851,6 +858,11 @@ def test_the_runs_inertia_ratio_is_the_models_over_the_plants():
     from hmpc_pin.apps.check import _run_ratio
 
     ex = Experiment.from_config(_paper(3.0))
+    M = ex.robot.mass_matrix(ex.q0)
+    lopsided = SimpleNamespace(nq=3, mass_matrix=lambda q: M @ np.diag([0.8, 1.0, 1.25]))
+    fake = SimpleNamespace(plant=lopsided, robot=ex.robot, q0=ex.q0)  # the lightest joint
+    assert _run_ratio(fake) == pytest.approx(1.25, rel=1e-12)  # decides (r per joint 1.25,
+    # 1, 0.8: the observer's loop is least stable where the plant is lightest)
     for scale, r in ((0.8, 1.25), (1.2, 1 / 1.2)):
         plant = SimpleNamespace(nq=3, mass_matrix=lambda q, s=scale: s * ex.robot.mass_matrix(q))
         fake = SimpleNamespace(plant=plant, robot=ex.robot, q0=ex.q0)

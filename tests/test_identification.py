@@ -353,3 +353,16 @@ def test_an_interval_with_uncorrelated_residuals_is_the_textbook_ols_one(make_rn
     np.testing.assert_allclose([fit.viscous, fit.coulomb], theta, rtol=1e-9)
     np.testing.assert_allclose(np.diff(fit.viscous_ci), 2 * half[0], rtol=1e-6)
     np.testing.assert_allclose(np.diff(fit.coulomb_ci), 2 * half[1], rtol=1e-6)
+
+
+def test_samples_slower_than_the_velocity_threshold_are_left_out():
+    """Samples with |q̇| <= v0 (stiction, sign changes) do not enter the fit: garbage
+    there leaves the noise-free fit exact."""
+    dq = np.sin(np.linspace(0, 30, 3000))
+    y = 2.0 * dq + 0.5 * np.sign(dq)
+    y[np.abs(dq) <= 0.01] = 100.0
+    fit = fit_joint(y, dq, velocity_threshold=0.01)
+    assert (fit.viscous, fit.coulomb) == (
+        pytest.approx(2.0, rel=1e-9),
+        pytest.approx(0.5, rel=1e-9),
+    )

@@ -468,3 +468,22 @@ def test_out_naming_a_folder_is_refused_before_any_work(saved_run, tmp_path, cap
     code = main(["identify", str(saved_run), "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "--out" in err and "directory" in err, err
+
+
+def test_the_runs_gravity_is_the_arms(saved_run):
+    """run_robot builds the arm with the gravity the run recorded (a run on the Moon, or
+    lying flat, is not identified under 9.81 m/s²)."""
+    from hmpc_pin.apps.runfile import load_run, run_robot
+
+    result = load_run(saved_run)
+    result.meta["gravity"] = 1.62
+    robot = run_robot(result, None)
+    assert np.linalg.norm(robot.model.gravity.linear) == pytest.approx(1.62)
+
+
+def test_thresholds_without_out_are_written_beside_the_run(saved_run, tmp_path, capsys):
+    run = tmp_path / "contact_free.npz"
+    run.write_bytes(saved_run.read_bytes())
+    assert main(["identify", str(run), "--thresholds"]) == 0
+    assert (tmp_path / "contact_free_collision.toml").is_file()
+    assert not (tmp_path / "contact_free_friction.toml").exists()

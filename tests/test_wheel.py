@@ -215,3 +215,4 @@ def test_one_project_file_beside_the_package_is_not_a_clone(beside, tmp_path, mo
     monkeypatch.setattr(importlib.metadata, "distribution", lambda name: Dist())
     hint = exceptions.install_command("ros")
     assert str(site.parent) not in hint and "hmpc_pin[ros] @ <the hmpc_pin wheel>" in hint
+    assert 'in a clone, pip install -e ".[ros]"' in hint  # editable, from the clone's folder

@@ -6,9 +6,10 @@ observer's bandwidth, the joint damping in the plant and in the controller). For
 ``check`` (without the engine comparison) and a short compiled run of the same config:
 
 * no problem reported ⇒ the run stays within its tolerance;
-* a problem reported ⇒ its fix (:func:`~hmpc_pin.apps.check.apply_fix`) makes the run
-  within its tolerance (:data:`UNFIXED` lists, with the reason, the cases where one
-  change cannot).
+* a problem reported ⇒ the run leaves its tolerance (a problem ``run`` would not show is
+  a false alarm, whether or not it names a fix), and its fix
+  (:func:`~hmpc_pin.apps.check.apply_fix`) makes the run within its tolerance
+  (:data:`UNFIXED` lists, with the reason, the cases where one change cannot).
 
 The tolerance is ``run``'s own tracking warning (:func:`~hmpc_pin.apps.metrics.run_warnings`):
 per joint :math:`\\max_{t \\ge t_a}|e_j| \\le` 0.05 rad (``--warn-error``), :math:`t_a` =
@@ -67,6 +68,19 @@ MISSED = {
     "injects energy and the error may exceed the threshold, but has no model of that "
     "error: its lag model along the reference (observer_lag_error) leaves out the "
     "friction fed back through the error and predicts well under 0.05 rad",
+}
+#: Cases where ``check`` reports a problem and ``run`` tracks: false alarms, each with what
+#: is known of it. Listed, not skipped: an entry whose run leaves its tolerance fails the
+#: test (remove it), and no other problem case may track. Both are the rule "a loop
+#: decaying at less than MIN_DECAY x its rate": a slow mode is not an error until the
+#: reference or the disturbance excites it, which a pole's modulus does not say (the
+#: same loop, 0.977 per period against 0.887, leaves the tolerance on init's Panda).
+FALSE_ALARMS = {
+    "init ur5, latency 0.5 Ts": "the whole loop decays at 0.977 per period (0.887 "
+    "without the latency) on every joint; the run's error stays at 0.03 x the tolerance",
+    "init z1, observer x10": "init's bandwidth x 10 (w Ts = 100) with the half period "
+    "of latency init declares: the observer's loop has a pole at 0.987 (0.01 without the "
+    "latency); the run's error stays at 0.26 x the tolerance",
 }
 #: Problems whose one suggested change cannot bring the run within the tolerance, each
 #: with the physical reason (the change must still lower the error).
@@ -142,6 +156,11 @@ def _corpus(tmp_path) -> list[tuple[str, object]]:
     for base in ("panda_sine", "paper_combined", "init panda", "init z1"):
         for factor in (0.01, 10.0):
             cases.append((f"{base}, observer x{factor:g}", _with_gain(by_name[base], factor)))
+    paper = by_name["paper_combined"]
+    for c in (10.0, 15.0, 30.0):  # the forward-Euler observer's loop with the MPC
+        obs = replace(paper.controller.observer, gain=c, discretization="explicit")
+        variant = replace(paper, controller=replace(paper.controller, observer=obs))
+        cases.append((f"paper_combined, explicit observer c = {c:g}", variant))
     z1 = by_name["z1_sine"]
     for plant, controller in ((True, False), (True, True), (False, True)):
         variant = replace(
@@ -201,10 +220,21 @@ def test_check_agrees_with_run_over_the_corpus(tmp_path):
                         "its tolerance"
                     )
                 continue
+            if name in FALSE_ALARMS:
+                if not bounded:
+                    disagreements.append(
+                        f"{name}: listed in FALSE_ALARMS, but the run leaves its tolerance "
+                        f"({worst:.3g} × the tolerance): remove it"
+                    )
+                continue
+            if bounded:  # a problem is what the run shows, fixed by one change or not
+                disagreements.append(
+                    f"{name}: check reports {report.problems!r} (fixes {report.fixes}), but "
+                    f"the run tracks ({worst:.3g} × the tolerance)"
+                )
+                continue
             for problem, fix in zip(report.problems, report.fixes, strict=True):
-                if fix is None:  # no single change: the run must show the problem
-                    if bounded:
-                        disagreements.append(f"{name}: {problem!r} but the run tracks")
+                if fix is None:  # no single change: the run shows the problem (above)
                     continue
                 fixed, fixed_worst = _run(apply_fix(config, fix))
                 if name in UNFIXED and (fixed or not fixed_worst < worst):

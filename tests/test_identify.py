@@ -135,7 +135,34 @@ def _bad_shapes(path, saved):
     np.savez(path, **arrays)
 
 
+def _repeated_time(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    arrays["t"] = arrays["t"].copy()
+    arrays["t"][5] = arrays["t"][4]  # two samples at one instant
+    np.savez(path, **arrays)
+
+
+def _one_sample(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    for name in ("t", "q", "dq", "tau", "d_hat", "tau_applied"):
+        if name in arrays and arrays[name].ndim:
+            arrays[name] = arrays[name][:1]
+    np.savez(path, **arrays)
+
+
+def _text_torque(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    arrays["tau"] = arrays["tau"].astype(str)
+    np.savez(path, **arrays)
+
+
 BAD_FILES = {
+    "a torque of text": (_text_torque, "'tau' is not numeric"),
+    "a time stamp repeated": (_repeated_time, "not finite and increasing"),
+    "one sample": (_one_sample, "at least 2 samples"),
     "empty": (lambda p, s: p.write_bytes(b""), "empty"),
     "text": (lambda p, s: p.write_text("t,q\n0,1\n"), "not a .npz archive"),
     "text starting with PK": (lambda p, s: p.write_text("PK,q\n0,1\n"), "not a .npz archive"),
@@ -425,3 +452,38 @@ def test_a_recorded_matrix_of_another_size_is_one_line(saved_run, tmp_path, caps
     code, _out, err, table = _identify(result.save(tmp_path / "m.npz"), tmp_path, capsys)
     assert code == 2 and table is None
     assert len(err.strip().splitlines()) == 1 and "(3, 3)" in err, err
+
+
+@pytest.mark.parametrize("option", [["--thresholds", "--velocity-threshold", "0"],
+                                    ["--false-alarm", "0"]])  # fmt: skip
+def test_an_option_of_the_other_mode_given_as_zero_is_refused(option, saved_run, tmp_path,
+                                                              capsys):  # fmt: skip
+    """An option that does not apply is an error even when its value is 0."""
+    code, _out, err, table = _identify(saved_run, tmp_path, capsys, *option)
+    flag = option[-2]
+    assert code == 2 and table is None and flag in err, err
+
+
+def test_out_naming_a_folder_is_refused_before_any_work(saved_run, tmp_path, capsys):
+    code = main(["identify", str(saved_run), "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--out" in err and "directory" in err, err
+
+
+def test_the_runs_gravity_is_the_arms(saved_run):
+    """run_robot builds the arm with the gravity the run recorded (a run on the Moon, or
+    lying flat, is not identified under 9.81 m/s²)."""
+    from hmpc_pin.apps.runfile import load_run, run_robot
+
+    result = load_run(saved_run)
+    result.meta["gravity"] = 1.62
+    robot = run_robot(result, None)
+    assert np.linalg.norm(robot.model.gravity.linear) == pytest.approx(1.62)
+
+
+def test_thresholds_without_out_are_written_beside_the_run(saved_run, tmp_path, capsys):
+    run = tmp_path / "contact_free.npz"
+    run.write_bytes(saved_run.read_bytes())
+    assert main(["identify", str(run), "--thresholds"]) == 0
+    assert (tmp_path / "contact_free_collision.toml").is_file()
+    assert not (tmp_path / "contact_free_friction.toml").exists()

@@ -146,3 +146,20 @@ def test_a_collision_is_flagged_on_a_negative_estimate_too(sign, planar3):
     assert 0.5 <= ctrl.detected_at <= 0.6, ctrl.detected_at
     k = np.searchsorted(result.t, ctrl.detected_at)
     assert np.sign(result.d_hat[k, 1]) == sign and abs(result.d_hat[k, 1]) > 20.0
+
+
+def test_a_constant_residual_gives_its_value_times_the_safety():
+    """|d̂| constant: every block maximum is that value and the extreme-value fit has no
+    spread; the threshold is the value times the safety factor (no fit, no NaN)."""
+    fit = learn_thresholds(_result(np.full((2001, 2), [0.3, -0.7])), safety=1.25)
+    np.testing.assert_allclose(fit.threshold, [0.375, 0.875], rtol=1e-12)
+
+
+def test_the_sample_at_after_is_kept():
+    """--after t0 keeps the sample at t0 itself (t >= t0): a spike there is the peak."""
+    d_hat = 0.01 * np.ones((2001, 1))
+    t = _result(d_hat).t
+    k = 500
+    d_hat[k] = 5.0
+    fit = learn_thresholds(_result(d_hat), after=float(t[k]), safety=1.0)
+    assert fit.peak[0] == pytest.approx(5.0)

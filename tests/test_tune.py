@@ -81,6 +81,8 @@ def test_objective_penalises_saturation_and_chattering():
     assert objective_value(sat, 1.0, tv0=10.0)[0] == pytest.approx(0.19 * 1.5)
     tv = [dict(r, torque_tv=30.0) for r in rows]
     assert objective_value(tv, 1.0, tv0=10.0)[0] == pytest.approx(0.19 * (1 + 0.1 * 2))
+    smooth = [dict(r, torque_tv=5.0) for r in rows]  # smoother than as given: no bonus
+    assert objective_value(smooth, 1.0, tv0=10.0)[0] == pytest.approx(0.19)
     lost = [dict(r, bounded=False, t_end=5.0) for r in rows]  # half the run lost
     assert objective_value(lost, 1.0, tv0=10.0, duration=10.0)[1]["p95_rms"] == pytest.approx(
         1.0 * 1.5 + 0.19)  # fmt: skip
@@ -368,3 +370,21 @@ def test_trial_0_records_what_it_ran_and_a_winning_trial_0_is_written_as_it_ran(
     report = (tmp_path / "o" / "paper_friction_tune.md").read_text()
     assert "Ts = 0.005 (ran 0.01)" in report and "compensation = general (ran chen)" in report
     assert "Q_velocity = 0.0001 (ran 0)" in report and "P = 2Q" in report
+
+
+def test_the_observer_gains_range_is_a_tenth_to_five_times_the_configs(friction_config):
+    """The module's search space: the observer gain log-uniform on [c0/10, 5 c0]."""
+    c0 = friction_config.controller.observer.gain
+    kind, low, high = search_space(friction_config)["observer_gain"]
+    assert kind == "log" and low == pytest.approx(c0 / 10) and high == pytest.approx(5 * c0)
+
+
+def test_trial_zero_starts_at_the_period_nearest_the_configs(friction_config):
+    """--ts choices: trial 0 records the config's own Ts where it is listed, else the
+    nearest listed period (not the first)."""
+    from hmpc_pin.apps.tune import current_params
+
+    space = search_space(friction_config, ts=(0.002, 0.01, 0.02))
+    assert current_params(friction_config, space)["Ts"] == 0.01  # the config's Ts
+    space = search_space(friction_config, ts=(0.001, 0.009, 0.05))
+    assert current_params(friction_config, space)["Ts"] == 0.009

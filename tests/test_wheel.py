@@ -158,6 +158,7 @@ def test_the_install_hint_of_a_clone_names_the_clone():
 @pytest.mark.parametrize("record, wheel", [
     ({"archive_info": {}}, True),   # installed from the wheel file: that wheel again
     ({"dir_info": {}}, False),      # a file: URL pip did not record as an archive
+    ({"archive_info": {}, "moved": True}, False),  # the wheel file is gone since
     (None, False),                  # no record (an index): the generic hint
 ])  # fmt: skip
 def test_the_install_hint_of_an_installed_package_names_its_wheel(
@@ -182,9 +183,36 @@ def test_the_install_hint_of_an_installed_package_names_its_wheel(
             assert name == "direct_url.json"
             return None if record is None else json.dumps({"url": url, **record})
 
+    if record and record.get("moved"):
+        whl.unlink()
+
     monkeypatch.setattr(importlib.metadata, "distribution", lambda name: Dist())
     hint = exceptions.install_command("ros")
     if wheel:
         assert hint == f'pip install "hmpc_pin[ros] @ {url}"'
     else:
         assert url not in hint and "hmpc_pin[ros] @ <the hmpc_pin wheel>" in hint
+
+
+@pytest.mark.parametrize("beside", ["pyproject.toml", "CMakeLists.txt"])
+def test_one_project_file_beside_the_package_is_not_a_clone(beside, tmp_path, monkeypatch):
+    """A clone has both pyproject.toml and CMakeLists.txt beside the package; an installed
+    package with only one of them beside it (a site folder inside another project) gets
+    the generic hint, not an editable install of that folder."""
+    import importlib.metadata
+
+    import hmpc_pin.exceptions as exceptions
+
+    site = tmp_path / "site" / "hmpc_pin"
+    site.mkdir(parents=True)
+    (site.parent / beside).write_text("")
+    monkeypatch.setattr(exceptions, "__file__", str(site / "exceptions.py"))
+
+    class Dist:
+        def read_text(self, name):
+            return None
+
+    monkeypatch.setattr(importlib.metadata, "distribution", lambda name: Dist())
+    hint = exceptions.install_command("ros")
+    assert str(site.parent) not in hint and "hmpc_pin[ros] @ <the hmpc_pin wheel>" in hint
+    assert 'in a clone, pip install -e ".[ros]"' in hint  # editable, from the clone's folder

@@ -46,7 +46,10 @@ measurements of a plant equal to the model (r = 1 unless the plant differs); so:
   through the MPC's loop (:func:`observer_lag_error`) above ``run``'s tracking threshold
   after its start-up: a problem whose fix raises the observer's gain (a warning when no
   gain within the explicit form's limit does);
-* the explicit observer with :math:`T_s\\omega_j \\ge 2`: a problem;
+* the explicit observer with :math:`T_s\\omega_j \\ge 2`: a problem; below, its loop with
+  the MPC (its estimate keeps :math:`-(T_s\\omega)^2` times the acceleration) decaying
+  slower than :data:`MIN_DECAY` times the implicit form's, or growing
+  (:func:`explicit_loop_slow`): a problem whose fix is the implicit form;
 * a damping time constant below :math:`2T_s` that plant and controller treat differently
   (one applies it, the other not): a problem; left out of both: a warning (the real arm
   applies it);
@@ -89,6 +92,7 @@ __all__ = [
     "CheckReport",
     "apply_fix",
     "check_config",
+    "explicit_loop_slow",
     "lead_radius",
     "loop_radius",
     "observer_lag_error",
@@ -301,7 +305,7 @@ def overdeclared_radius(wTs: float, ratio: float, over: float, explicit: bool = 
     beta = max(over - m, 0.0)
     coeffs = np.zeros(m + 3)
     coeffs[0] = 1.0
-    coeffs[1] -= 1.0 - g - g * ratio
+    coeffs[1] -= 1.0 - g - g * ratio * ((1.0 - g) if explicit else 1.0)
     coeffs[1 + m] -= g * (1.0 - beta)
     coeffs[2 + m] -= g * beta
     return float(np.max(np.abs(np.roots(np.trim_zeros(coeffs, "b"))), initial=0.0))
@@ -465,7 +469,7 @@ def loop_radius(
 
     estimate = np.zeros(size)  # ê_k
     estimate[2] = 1.0 - g
-    estimate[iu(1)] += g * ratio
+    estimate[iu(1)] += g * ratio * ((1.0 - g) if explicit else 1.0)
     estimate[iu(1 + m)] -= g * (1.0 - beta)
     estimate[iu(2 + m)] -= g * beta
     predict = np.eye(2, size)  # (x̂, v̂)
@@ -487,6 +491,63 @@ def loop_radius(
         for j in range(2, lead + 1):
             step[iv(j), iv(j - 1)] = 1.0
     return float(np.max(np.abs(np.linalg.eigvals(step))))
+
+
+def explicit_loop_slow(
+    kp: float, kd: float, Ts: float, wTs: np.ndarray, ratio: float = 1.0
+) -> np.ndarray:
+    """Per joint, whether the explicit observer's loop with the MPC, without latency,
+    grows or decays slowly: :func:`loop_radius` (``explicit``, no latency) :math:`|z|`
+    against the implicit form's at the same :math:`T_s\\omega_j`, :math:`|z_i|`:
+    :math:`\\ln\\min(|z|, 1) > ` :data:`MIN_DECAY` :math:`\\ln|z_i|`.
+
+    Forward Euler pairs the velocity change of the period that ended with the estimate of
+    the period before, so its estimate keeps :math:`-(T_s\\omega)^2` times the arm's
+    acceleration and feeds the MPC's own input back (backward Euler cancels it).
+
+    Args:
+        kp: [1/s²], kd: [1/s]: the MPC's equivalent feedback gains.
+        Ts: Control period [s].
+        wTs: :math:`T_s\\omega_j` per joint [-].
+        ratio: r, model-to-plant inertia ratio [-].
+    """
+    wTs = np.atleast_1d(np.asarray(wTs, dtype=float))
+    radius = np.array([loop_radius(kp, kd, Ts, w, 0.0, ratio, True) for w in wTs])
+    implicit = np.array([loop_radius(kp, kd, Ts, w, 0.0, ratio) for w in wTs])
+    with np.errstate(divide="ignore"):
+        return np.log(np.minimum(radius, 1.0)) > MIN_DECAY * np.log(implicit)
+
+
+def _explicit_loop_findings(
+    report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray
+) -> None:
+    """The explicit observer inside the MPC's loop without latency
+    (:func:`explicit_loop_slow`) on a joint whose own pole :math:`|1 - T_s\\omega_j|` is
+    inside the unit circle (outside: the rule of :func:`check_config`): a problem whose
+    fix is the implicit form."""
+    from ..controllers.computed_torque import mpc_feedback_gain
+    from ..mpc.condensed import CondensedMPC
+
+    if not _explicit(config):
+        return
+    cc, Ts, names = config.controller, report.Ts, report.joints
+    kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    ratio = _run_ratio(ex)
+    bad = np.flatnonzero(explicit_loop_slow(kp, kd, Ts, bw * Ts, ratio) & (bw * Ts < 2.0))
+    if bad.size:
+        listed = ", ".join(
+            f"{names[j]!r} (w Ts = {bw[j] * Ts:.3g}, |z| = "
+            f"{loop_radius(kp, kd, Ts, bw[j] * Ts, 0.0, ratio, True):.3g})"
+            for j in bad
+        )
+        report.add_problem(
+            "the observer's forward-Euler form keeps -(w Ts)^2 times the arm's acceleration "
+            "in its estimate, which feeds the MPC's input back: the loop of the two "
+            f"(loop_radius) decays slower than {MIN_DECAY:g} x the implicit form's loop at "
+            f"the same bandwidth, or grows, on joint(s) {listed}; set discretization = "
+            "'implicit' (or lower the observer's gain)",
+            {"controller.observer.discretization": "implicit"},
+        )
 
 
 def _run_latency_findings(
@@ -645,9 +706,10 @@ def _observer_lag_findings(
 
     cc = config.controller
     Ts = report.Ts
-    if not np.any(bw > 0) or (_explicit(config) and np.max(bw) * Ts >= 2.0):
-        return  # no observer, or an unstable one (its own problem)
     kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    if not np.any(bw > 0) or (_explicit(config) and (np.max(bw) * Ts >= 2.0 or np.any(
+            explicit_loop_slow(kp, kd, Ts, bw * Ts, _run_ratio(ex))))):  # fmt: skip
+        return  # no observer, or an unstable one, or its loop with the MPC (their problems)
     inputs = _lag_inputs(ex)
     err = observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, inputs=inputs)
     bad = np.flatnonzero(err > DEFAULT_ERROR_THRESHOLD)
@@ -660,7 +722,10 @@ def _observer_lag_findings(
             "through the MPC's loop: observer_lag_error)")  # fmt: skip
     for power in range(1, 13):
         scale = 2.0**power
-        if _explicit(config) and np.max(bw) * scale * Ts >= 2.0:
+        if _explicit(config) and (
+            np.max(bw) * scale * Ts >= 2.0
+            or np.any(explicit_loop_slow(kp, kd, Ts, bw * scale * Ts, _run_ratio(ex)))
+        ):
             break
         if np.all(observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, scale, inputs)
                   <= 0.5 * DEFAULT_ERROR_THRESHOLD):  # fmt: skip
@@ -787,6 +852,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
                 {"controller.observer.discretization": "implicit"},
             )
 
+        _explicit_loop_findings(report, config, ex, bw)
     _run_latency_findings(report, config, ex, bw)
     if bw is not None:
         _observer_lag_findings(report, config, ex, bw)

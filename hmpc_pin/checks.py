@@ -139,8 +139,7 @@ def mpc_fields(
         "Nc": as_int(prefix + "Nc", Nc, minimum=1),
     }
     if out["Nc"] > out["N"]:
-        raise ConfigError(prefix + "Nc", f"Nc={out['Nc']} but N={out['N']}; "
-                          "expected 1 <= Nc <= N")  # fmt: skip
+        raise ConfigError(prefix + "Nc", f"Nc={out['Nc']} but N={out['N']}; expected 1 <= Nc <= N")
     out["Q"] = as_weight(prefix + "Q", Q)
     out["P"] = as_weight(prefix + "P", P)
     out["R"] = as_float(prefix + "R", R, positive=True)
@@ -148,9 +147,9 @@ def mpc_fields(
     hi = out["v_max"] = as_array(prefix + "v_max", v_max)
     if lo.shape != hi.shape and lo.ndim and hi.ndim:
         raise ConfigError(
-            prefix + "v_max", f"v_min has shape {lo.shape} but v_max {hi.shape}; "
-            "give both per joint",
-        )  # fmt: skip
+            prefix + "v_max",
+            f"v_min has shape {lo.shape} but v_max {hi.shape}; give both per joint",
+        )
     if np.any(lo >= hi):
         raise ConfigError(
             prefix + "v_min",

@@ -79,9 +79,15 @@ class LimitError(HmpcError, ValueError):
     """
 
     def __init__(
-        self, what: str, joint: str, time, value: float, lower: float, upper: float,
+        self,
+        what: str,
+        joint: str,
+        time,
+        value: float,
+        lower: float,
+        upper: float,
         hint: str | None = None,
-    ):  # fmt: skip
+    ):
         self.joint, self.time, self.value, self.lower, self.upper = joint, time, value, lower, upper
         when = f" at t={time:.6g} s" if time is not None else ""
         todo = hint or (
@@ -256,8 +262,10 @@ def install_command(extra: str) -> str:
     wheel = url.startswith("file:") and "archive_info" in record
     if wheel and Path(unquote(urlparse(url).path)).is_file():  # the wheel it came from
         return f'pip install "hmpc_pin[{extra}] @ {url}"'
-    return (f'pip install "hmpc_pin[{extra}] @ <the hmpc_pin wheel>" (or, in a clone, '
-            f'pip install -e ".[{extra}]")')  # fmt: skip
+    return (
+        f'pip install "hmpc_pin[{extra}] @ <the hmpc_pin wheel>" (or, in a clone, '
+        f'pip install -e ".[{extra}]")'
+    )
 
 
 class ExtraError(HmpcError, ImportError):

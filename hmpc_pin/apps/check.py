@@ -173,16 +173,23 @@ class CheckReport:
         for j, name in enumerate(self.joints):
             bw = "-" if self.bandwidth is None else f"{self.bandwidth[j]:.3g}"
             wts = "-" if self.bandwidth is None else f"{self.bandwidth[j] * self.Ts:.3g}"
-            mg = ("-" if self.margin is None else "inf" if np.isinf(self.margin[j])
-                  else f"{self.margin[j]:.2g}x")  # fmt: skip
+            mg = (
+                "-"
+                if self.margin is None
+                else "inf"
+                if np.isinf(self.margin[j])
+                else f"{self.margin[j]:.2g}x"
+            )
             tau = "-" if not np.isfinite(self.damping_tau[j]) else f"{self.damping_tau[j]:.3g}"
             hr = "-" if not np.isfinite(self.headroom[j]) else f"{100 * self.headroom[j]:.0f} %"
             lines.append(f"{name:<24} {bw:>9} {wts:>7} {mg:>8} {tau:>9} {hr:>9}")
         if isinstance(self.engine, str):
             lines.append(f"MuJoCo: {self.engine}")
         else:
-            lines.append(f"MuJoCo: M(q) within {self.engine[0]:.2g}, forward dynamics within "
-                         f"{self.engine[1]:.2g} (relative) of Pinocchio's")  # fmt: skip
+            lines.append(
+                f"MuJoCo: M(q) within {self.engine[0]:.2g}, forward dynamics within "
+                f"{self.engine[1]:.2g} (relative) of Pinocchio's"
+            )
         return "\n".join(lines)
 
 
@@ -315,8 +322,9 @@ def _explicit(config: ExperimentConfig) -> bool:
     """The observer is the NDO in its forward-Euler form (the momentum observer has one
     form, semi-implicit: :math:`g = T_sK_O/(1 + T_sK_O)`)."""
     cc = config.controller
-    return (cc.compensation != "momentum"
-            and getattr(cc.observer, "discretization", "") == "explicit")  # fmt: skip
+    return (
+        cc.compensation != "momentum" and getattr(cc.observer, "discretization", "") == "explicit"
+    )
 
 
 def _run_ratio(ex: Experiment) -> float:
@@ -344,15 +352,13 @@ def _observer_findings(
     names, Ts, latency = report.joints, report.Ts, report.latency
     uncompensated = 0.0 if latency > 0 else Ts
     excess = overdeclared_excess(Ts, latency)
-    limit = (overdeclared_limit(Ts, excess) if latency > 0
-             else bandwidth_limit(Ts, uncompensated))  # fmt: skip
+    limit = overdeclared_limit(Ts, excess) if latency > 0 else bandwidth_limit(Ts, uncompensated)
     margin = np.where(bw > 0, limit / np.where(bw > 0, bw, 1.0), np.inf)
     # an arm: its interface delays the measurements (one period unknown, or the declared
     # latency off by half an interface cycle) and its links may be 20 % lighter
     over = np.flatnonzero(margin < 1.0 - 1e-9)
     if over.size:
-        listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, w Ts = {bw[j] * Ts:.3g})"
-                           for j in over)  # fmt: skip
+        listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, w Ts = {bw[j] * Ts:.3g})" for j in over)
         if latency > 0:
             report.warnings.append(
                 f"on an arm: observer bandwidth above {limit:.4g} 1/s on joint(s) {listed}, "
@@ -480,8 +486,9 @@ def loop_radius(
     v = -kp * predict[0] - kd * predict[1]
     u = v - estimate
     step = np.zeros((size, size))
-    step[:2] = (np.array([[1.0, Ts], [0.0, 1.0]]) @ np.eye(2, size)
-                + np.outer(np.array([0.5 * Ts * Ts, Ts]), ratio * u))  # fmt: skip
+    step[:2] = np.array([[1.0, Ts], [0.0, 1.0]]) @ np.eye(2, size) + np.outer(
+        np.array([0.5 * Ts * Ts, Ts]), ratio * u
+    )
     step[2] = estimate
     step[iu(1)] = u
     for j in range(2, nu + 1):
@@ -588,8 +595,9 @@ def _run_latency_findings(
         # own >= 1: unstable without the latency too (an explicit w Ts >= 2, its own problem)
         bad = np.flatnonzero(((radius >= 1.0) | ((radius >= MAX_RADIUS) & slower)) & (own < 1.0))
         if bad.size:
-            listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, |z| = {radius[j]:.3g})"
-                               for j in bad)  # fmt: skip
+            listed = ", ".join(
+                f"{names[j]!r} ({bw[j]:.3g} 1/s, |z| = {radius[j]:.3g})" for j in bad
+            )
             parts.append(
                 f"the observer pairs each velocity change with a torque {over:.3g} periods "
                 f"too early and its loop's pole reaches |z| >= {MAX_RADIUS:g} on joint(s) "
@@ -605,8 +613,9 @@ def _run_latency_findings(
             "without the prediction"
         )
     if not parts and whole_bad.size:  # each loop alone passes; together they do not
-        listed = ", ".join(f"{names[j]!r} (|z| = {whole[j]:.3g}, {whole0[j]:.3g} without)"
-                           for j in whole_bad)  # fmt: skip
+        listed = ", ".join(
+            f"{names[j]!r} (|z| = {whole[j]:.3g}, {whole0[j]:.3g} without)" for j in whole_bad
+        )
         parts.append(
             "the MPC acting on the state predicted that far ahead and the observer pairing "
             f"each velocity change with torques {over:.3g} periods too early together "
@@ -631,8 +640,9 @@ def _lag_inputs(ex: Experiment) -> tuple:
     t = np.arange(0.0, cfg.simulation.duration + Ts / 2, Ts)
     q, dq = ex.reference.sample_many(t)
     q, dq = np.array(q, dtype=float), np.array(dq, dtype=float)
-    d = np.array([np.asarray(ex.disturbance(float(t[k]), q[k], dq[k]), dtype=float)
-                  for k in range(len(t))])  # fmt: skip
+    d = np.array(
+        [np.asarray(ex.disturbance(float(t[k]), q[k], dq[k]), dtype=float) for k in range(len(t))]
+    )
     minv = np.array([np.linalg.inv(ex.robot.mass_matrix(q[k])) for k in range(len(t))])
     return Ts, t, q, d, minv
 
@@ -707,8 +717,13 @@ def _observer_lag_findings(
     cc = config.controller
     Ts = report.Ts
     kp, kd = mpc_feedback_gain(CondensedMPC(Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
-    if not np.any(bw > 0) or (_explicit(config) and (np.max(bw) * Ts >= 2.0 or np.any(
-            explicit_loop_slow(kp, kd, Ts, bw * Ts, _run_ratio(ex))))):  # fmt: skip
+    if not np.any(bw > 0) or (
+        _explicit(config)
+        and (
+            np.max(bw) * Ts >= 2.0
+            or np.any(explicit_loop_slow(kp, kd, Ts, bw * Ts, _run_ratio(ex)))
+        )
+    ):
         return  # no observer, or an unstable one, or its loop with the MPC (their problems)
     inputs = _lag_inputs(ex)
     err = observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, inputs=inputs)
@@ -716,10 +731,12 @@ def _observer_lag_findings(
     if not bad.size or not np.all(np.isfinite(err)):
         return  # (an estimate that diverges along the reference is no lag)
     listed = ", ".join(f"{report.joints[j]!r} ({bw[j]:.3g} 1/s: {err[j]:.3g} rad)" for j in bad)
-    text = (f"observer too slow for the disturbance: what it has not yet caught leaves a "
-            f"predicted tracking error above `run`'s {DEFAULT_ERROR_THRESHOLD:g} rad after "
-            f"{RUN_WARN_AFTER:g} s on joint(s) {listed} (its lag along the reference, "
-            "through the MPC's loop: observer_lag_error)")  # fmt: skip
+    text = (
+        f"observer too slow for the disturbance: what it has not yet caught leaves a "
+        f"predicted tracking error above `run`'s {DEFAULT_ERROR_THRESHOLD:g} rad after "
+        f"{RUN_WARN_AFTER:g} s on joint(s) {listed} (its lag along the reference, "
+        "through the MPC's loop: observer_lag_error)"
+    )
     for power in range(1, 13):
         scale = 2.0**power
         if _explicit(config) and (
@@ -727,8 +744,10 @@ def _observer_lag_findings(
             or np.any(explicit_loop_slow(kp, kd, Ts, bw * scale * Ts, _run_ratio(ex)))
         ):
             break
-        if np.all(observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, scale, inputs)
-                  <= 0.5 * DEFAULT_ERROR_THRESHOLD):  # fmt: skip
+        if np.all(
+            observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, scale, inputs)
+            <= 0.5 * DEFAULT_ERROR_THRESHOLD
+        ):
             obs = cc.observer
             if obs.bandwidth is not None:
                 key, value = "bandwidth", np.asarray(obs.bandwidth, dtype=float) * scale
@@ -756,9 +775,12 @@ def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
                 "sgn q'): negative damping): the observer must cancel a disturbance that "
                 "grows with the error it leaves, which no rule here bounds; `run`'s "
                 "tracking error may exceed its --warn-error threshold"
-                + (" (the paper's literal reading of Eq 32, kept)" if _is_paper(config)
-                   else "; sign = 'physical' simulates friction that dissipates")
-            )  # fmt: skip
+                + (
+                    " (the paper's literal reading of Eq 32, kept)"
+                    if _is_paper(config)
+                    else "; sign = 'physical' simulates friction that dissipates"
+                )
+            )
         return
     if getattr(friction, "sign", None) != "literal":
         pulse = getattr(config.disturbance, "pulse", None)
@@ -766,13 +788,18 @@ def _friction_findings(report: CheckReport, config: ExperimentConfig) -> None:
             report.warnings.append(
                 "the [disturbance] is not compensated (compensation 'none'): `run`'s "
                 "tracking error is expected above its --warn-error threshold"
-                + (" (the paper's baseline without the observer, kept)" if _is_paper(config)
-                   else "; choose a compensation (an observer) to reject it")
-            )  # fmt: skip
+                + (
+                    " (the paper's baseline without the observer, kept)"
+                    if _is_paper(config)
+                    else "; choose a compensation (an observer) to reject it"
+                )
+            )
         return
-    text = ("[disturbance.friction] sign = 'literal' feeds energy in (d = +F) and the "
-            "controller compensates nothing (compensation 'none'): the arm is expected to "
-            "lose the reference")  # fmt: skip
+    text = (
+        "[disturbance.friction] sign = 'literal' feeds energy in (d = +F) and the "
+        "controller compensates nothing (compensation 'none'): the arm is expected to "
+        "lose the reference"
+    )
     if _is_paper(config):
         report.warnings.append(f"{text} (the paper's baseline without the observer, kept)")
     else:
@@ -788,8 +815,7 @@ def _damping_findings(report: CheckReport, config: ExperimentConfig) -> None:
     if not fast.size or controller == plant == True:  # noqa: E712
         return
     listed = ", ".join(f"{names[j]!r} ({tau[j]:.3g} s)" for j in fast)
-    rule = (f"damping time constant 1/(b (M^-1)_jj) below 2 Ts = {2 * Ts:g} s on joint(s) "
-            f"{listed}")  # fmt: skip
+    rule = f"damping time constant 1/(b (M^-1)_jj) below 2 Ts = {2 * Ts:g} s on joint(s) {listed}"
     if plant and not controller:
         report.add_problem(
             f"{rule}; the plant applies the damping ([plant] joint_dynamics) but "
@@ -835,10 +861,15 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     latency = float(getattr(config.controller, "latency", None) or 0.0)
     plant_damped = bool(config.plant.joint_dynamics)
     report = CheckReport(
-        names, Ts, latency, None, None, damping_time_constants(robot, ex.q0),
+        names,
+        Ts,
+        latency,
+        None,
+        None,
+        damping_time_constants(robot, ex.q0),
         _headroom(ex, _effort_limit(config, ex.plant), damped=plant_damped),
         "not compared (--no-engine)",
-    )  # fmt: skip
+    )
 
     bw = _bandwidth(ex, M0)
     if bw is not None:
@@ -884,8 +915,10 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         except HmpcError as exc:  # MuJoCo refuses the URDF: one line, the table stays
             report.engine = "refused the URDF"
             why = " ".join(str(exc).split())  # MuJoCo's message spans lines
-            text = (f"MuJoCo cannot load the arm's URDF ({why}); the engines cannot be "
-                    "compared (pass --no-engine to skip the comparison)")  # fmt: skip
+            text = (
+                f"MuJoCo cannot load the arm's URDF ({why}); the engines cannot be "
+                "compared (pass --no-engine to skip the comparison)"
+            )
             if config.plant.engine == "mujoco":  # `run` would be refused as well
                 report.add_problem(text, None)
             else:  # `run` simulates it with Pinocchio: a MuJoCo plant would refuse it
@@ -893,9 +926,11 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         if not isinstance(report.engine, str):
             for what, err in zip(("M(q)", "the forward dynamics"), report.engine, strict=True):
                 if err > ENGINE_RTOL:
-                    text = (f"model: MuJoCo's {what} differs from Pinocchio's by {err:.2g} "
-                            f"(relative, expected <= {ENGINE_RTOL:g}); the engines read the "
-                            "URDF differently (check its <inertial> frames)")  # fmt: skip
+                    text = (
+                        f"model: MuJoCo's {what} differs from Pinocchio's by {err:.2g} "
+                        f"(relative, expected <= {ENGINE_RTOL:g}); the engines read the "
+                        "URDF differently (check its <inertial> frames)"
+                    )
                     if config.plant.engine == "mujoco":  # the simulated arm is not the model
                         report.add_problem(text, None)
                     else:
@@ -916,9 +951,12 @@ def apply_fix(config: ExperimentConfig, fix: dict[str, Any]) -> ExperimentConfig
         level[name] = value
 
     def changed(obj, changes: dict[str, Any]):
-        return replace(obj, **{
-            k: changed(getattr(obj, k), v) if isinstance(v, dict) else v
-            for k, v in changes.items()
-        })  # fmt: skip
+        return replace(
+            obj,
+            **{
+                k: changed(getattr(obj, k), v) if isinstance(v, dict) else v
+                for k, v in changes.items()
+            },
+        )
 
     return changed(config, nested)

@@ -94,8 +94,10 @@ def _with_reference(config: ExperimentConfig, file: Path | None) -> ExperimentCo
     if file is None:
         return config
     if file.suffix.lower() not in (".csv", ".npz"):
-        raise ConfigError("--reference", f"{str(file)!r}: expected a .csv or .npz trajectory "
-                          "file (docs, Tutorials)")  # fmt: skip
+        raise ConfigError(
+            "--reference",
+            f"{str(file)!r}: expected a .csv or .npz trajectory file (docs, Tutorials)",
+        )
     if not file.is_file():
         raise ConfigError("--reference", f"{str(file)!r} not found; pass a .csv or .npz file")
     ref = ReferenceConfig(kind="trajectory", trajectory=TrajectoryConfig(file=file.resolve()))
@@ -129,8 +131,9 @@ def _with_overrides(
     config = _with_reference(config, reference)
     if compensation is not None:
         if compensation not in COMPENSATIONS:
-            raise ConfigError("--compensation", f"expected one of {COMPENSATIONS}, got "
-                              f"{compensation!r}")  # fmt: skip
+            raise ConfigError(
+                "--compensation", f"expected one of {COMPENSATIONS}, got {compensation!r}"
+            )
         config = with_controller(config, compensation=compensation)
     if no_ndo:
         if config.controller.compensation == "none":
@@ -155,8 +158,9 @@ def _config(path: Path) -> ExperimentConfig:
 def cmd_run(args) -> int:
     from ..experiment.build import Experiment
 
-    config = _with_overrides(_config(args.config), args.no_ndo, args.duration,
-                             args.compensation, args.reference)  # fmt: skip
+    config = _with_overrides(
+        _config(args.config), args.no_ndo, args.duration, args.compensation, args.reference
+    )
     if not args.speed > 0:
         raise ConfigError("--speed", f"expected a number > 0, got {args.speed!r}")
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
@@ -201,8 +205,9 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
     from .run import after_the_run, run_one
 
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
-    experiment, result, files, failure = run_one(config, out, stem, open_view=open_view,
-                                                 experiment=experiment, figures=False)  # fmt: skip
+    experiment, result, files, failure = run_one(
+        config, out, stem, open_view=open_view, experiment=experiment, figures=False
+    )
     with after_the_run(config.name, files):
         return _report(args, config, out, stem, warn, views, experiment, result, files, failure)
 
@@ -221,8 +226,10 @@ def _report(args, config, out, stem, warn, views, experiment, result, files, fai
         print(f"reference: the trajectory of {args.reference} (--reference), not the config's")
     if config.reference.kind == "waypoints":
         ref = experiment.reference
-        print(f"waypoints retimed by TOPP-RA: motion of {ref.duration:.3f} s "
-              f"(t = {ref.t_start:g} to {ref.t_end:.3f} s)")  # fmt: skip
+        print(
+            f"waypoints retimed by TOPP-RA: motion of {ref.duration:.3f} s "
+            f"(t = {ref.t_start:g} to {ref.t_end:.3f} s)"
+        )
     if result.t[-1] >= 1.0:
         print(format_metrics(compute_metrics(result), result.joint_names, result))
     for line in contact_lines(result):
@@ -298,8 +305,7 @@ def cmd_compare(args) -> int:
     from .compare import compare, markdown_table, parse_controllers
     from .metrics import run_warnings
 
-    config = _with_overrides(_config(args.config), False, args.duration,
-                             reference=args.reference)  # fmt: skip
+    config = _with_overrides(_config(args.config), False, args.duration, reference=args.reference)
     controllers = parse_controllers(args.controllers, config)
     out = _out_dir(args.out)
     warn = _warn_thresholds(args)
@@ -330,8 +336,7 @@ def cmd_reproduce(args) -> int:
 def cmd_sweep(args) -> int:
     from .sweep import run_sweep
 
-    config = _with_overrides(_config(args.config), False, args.duration,
-                             reference=args.reference)  # fmt: skip
+    config = _with_overrides(_config(args.config), False, args.duration, reference=args.reference)
     if args.controllers is not None:
         from .compare import parse_controllers
 
@@ -418,23 +423,32 @@ def cmd_realtime(args) -> int:
         raise ConfigError("--rate", f"expected a rate [Hz] > 0, got {args.rate!r}")
     priority = _checked_priority(args.priority)
     try:
-        config = with_realtime(config, rate=args.rate, gc=False if args.no_gc else None,
-                               priority=priority, spin=args.spin)  # fmt: skip
+        config = with_realtime(
+            config,
+            rate=args.rate,
+            gc=False if args.no_gc else None,
+            priority=priority,
+            spin=args.spin,
+        )
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key}", exc.message) from None
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     out = _out_dir(args.out)
     about = f"{config.description} " if config.description else ""
-    print(f"{config.name}: {about}({config.controller.label}) in real time at "
-          f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
-          "process", flush=True)  # fmt: skip
+    print(
+        f"{config.name}: {about}({config.controller.label}) in real time at "
+        f"{config.realtime.rate:g} Hz for {config.simulation.duration:g} s against an arm "
+        "process",
+        flush=True,
+    )
 
     def ready() -> None:  # the readiness line (scripts and tests wait for it)
         print("arm process ready; running (Ctrl-C: safe stop, partial run saved)", flush=True)
 
     def start():
-        return run_realtime(config, out, viz=ArmView if args.viz else None,
-                            experiment=experiment, ready=ready)  # fmt: skip
+        return run_realtime(
+            config, out, viz=ArmView if args.viz else None, experiment=experiment, ready=ready
+        )
 
     return _report_realtime(start, config, "commanded", format_tracking)
 
@@ -451,8 +465,11 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
     try:
         run, files = start()
     except KeyboardInterrupt as exc:  # before the loop took over SIGINT: nothing ran yet
-        print(str(exc) or "interrupted at start-up, before the first cycle; nothing was run or "
-              "written", file=sys.stderr)  # fmt: skip
+        print(
+            str(exc)
+            or "interrupted at start-up, before the first cycle; nothing was run or written",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     print(run.summary())
     for format_run in formats:
@@ -463,9 +480,12 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
         return EXIT_OK
     if run.stop["cause"] in ("interrupted", "deactivated"):  # stopped from outside
         sent = "nothing sent to the arm" if run.stop["safe_tau"] is None else f"safe torque {safe}"
-        print(f"{run.stop['cause']} at t={run.stop['t']:.3f} s of "
-              f"{config.simulation.duration:g} s; {sent}, partial run saved "
-              "(complete = false)", file=sys.stderr)  # fmt: skip
+        print(
+            f"{run.stop['cause']} at t={run.stop['t']:.3f} s of "
+            f"{config.simulation.duration:g} s; {sent}, partial run saved "
+            "(complete = false)",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     print(f"error: {run.stop['reason']}; partial run saved (complete = false)", file=sys.stderr)
     return EXIT_FAILED
@@ -480,12 +500,19 @@ def cmd_ros(args) -> int:
     import_ros("hmpc-pin ros")  # the extra, before anything else
     config = _ros_config(args, _with_overrides(_config(args.config), False, args.duration))
     out = _out_dir(args.out)
-    print(f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
-          f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
-          f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz", flush=True)  # fmt: skip
-    return _report_realtime(lambda: run_ros(config, out, ros_args=args.ros_args), config,
-                            "published", format_ros,
-                            format_tracking)  # fmt: skip
+    print(
+        f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
+        f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
+        f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz",
+        flush=True,
+    )
+    return _report_realtime(
+        lambda: run_ros(config, out, ros_args=args.ros_args),
+        config,
+        "published",
+        format_ros,
+        format_tracking,
+    )
 
 
 def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
@@ -515,36 +542,46 @@ def cmd_native(args) -> int:
     from ..exceptions import NativeError
 
     if args.build:
-        print("warning: `hmpc-pin native --build` is deprecated since 0.3: the compiled "
-              "core is built when the package is installed", file=sys.stderr)  # fmt: skip
+        print(
+            "warning: `hmpc-pin native --build` is deprecated since 0.3: the compiled "
+            "core is built when the package is installed",
+            file=sys.stderr,
+        )
     try:
         info = native.build_info()
     except NativeError as exc:
         print(f"native kernels: not available: {exc.reason}", file=sys.stderr)
         return EXIT_FAILED
     print(f"native kernels: {info['path']}")
-    print(f"  built against pinocchio {info['pinocchio']}, proxsuite {info['proxsuite']} "
-          f"({info['compiler']}, {info['build_type']})")  # fmt: skip
+    print(
+        f"  built against pinocchio {info['pinocchio']}, proxsuite {info['proxsuite']} "
+        f"({info['compiler']}, {info['build_type']})"
+    )
     return 0
 
 
 # ------------------------------------------------------------------------------ parser
 def _add_reference_option(parser) -> None:
     parser.add_argument(
-        "--reference", type=Path, metavar="FILE",
+        "--reference",
+        type=Path,
+        metavar="FILE",
         help="track this joint trajectory (.csv: t, one column per joint [, dq_<joint>]; "
         "or .npz) instead of the config's reference",
-    )  # fmt: skip
+    )
 
 
 def _add_warn_option(parser) -> None:
     from .metrics import DEFAULT_ERROR_THRESHOLD
 
     parser.add_argument(
-        "--warn-error", type=float, default=DEFAULT_ERROR_THRESHOLD, metavar="RAD",
+        "--warn-error",
+        type=float,
+        default=DEFAULT_ERROR_THRESHOLD,
+        metavar="RAD",
         help="warn when max |e| after 1 s exceeds RAD (a warning is also printed when the "
         f"plant clips the torque) [{DEFAULT_ERROR_THRESHOLD:g}]",
-    )  # fmt: skip
+    )
 
 
 def _run_arguments(run) -> None:
@@ -558,14 +595,18 @@ def _run_arguments(run) -> None:
     run.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     run.add_argument(
-        "--no-ndo", action="store_true",
+        "--no-ndo",
+        action="store_true",
         help="run without disturbance compensation (the baseline; files named *_no_ndo)",
-    )  # fmt: skip
+    )
     run.add_argument(
-        "--compensation", default=None, metavar="NAME",
-        help="replace the config's compensation: " + ", ".join(COMPENSATIONS)
+        "--compensation",
+        default=None,
+        metavar="NAME",
+        help="replace the config's compensation: "
+        + ", ".join(COMPENSATIONS)
         + " (files named *_<NAME>)",
-    )  # fmt: skip
+    )
     run.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     _add_reference_option(run)
     run.add_argument(
@@ -578,13 +619,15 @@ def _run_arguments(run) -> None:
         "--speed", type=float, default=1.0, help="live view: simulated s per real s [1]"
     )
     run.add_argument(
-        "--wait", action="store_true",
+        "--wait",
+        action="store_true",
         help="live view: start the run only once a browser has opened the URL",
-    )  # fmt: skip
+    )
     run.add_argument(
-        "--keep-open", action="store_true",
+        "--keep-open",
+        action="store_true",
         help="live view: keep serving it after the run (files written) until Ctrl-C",
-    )  # fmt: skip
+    )
     _add_warn_option(run)
     run.set_defaults(func=cmd_run)
 
@@ -694,8 +737,9 @@ def _init_arguments(ini) -> None:
     ini.add_argument(
         "robot", nargs="?", help="URDF path or robot name (planar3, ur5, panda, ...; --list)"
     )
-    ini.add_argument("--list", action="store_true",
-                     help="list the robot names init accepts and exit")  # fmt: skip
+    ini.add_argument(
+        "--list", action="store_true", help="list the robot names init accepts and exit"
+    )
     ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
     ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
     ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
@@ -729,8 +773,9 @@ def _check_arguments(chk) -> None:
         "problem is found, 1 with one line per problem, 2 on bad input."
     )
     chk.add_argument("config", type=Path, help="experiment TOML file")
-    chk.add_argument("--no-engine", action="store_true",
-                     help="do not compare the model against MuJoCo")  # fmt: skip
+    chk.add_argument(
+        "--no-engine", action="store_true", help="do not compare the model against MuJoCo"
+    )
     chk.set_defaults(func=cmd_check)
 
 
@@ -747,16 +792,30 @@ def _realtime_arguments(rt) -> None:
     rt.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
     rt.add_argument("--rate", type=float, help="interface rate [Hz] (overrides realtime.rate)")
     rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
-    rt.add_argument("--spin", type=float, metavar="S",
-                    help="busy-wait S seconds before each deadline instead of sleeping, "
-                    "e.g. 2e-4 (overrides realtime.spin)")  # fmt: skip
-    rt.add_argument("--no-gc", action="store_true",
-                    help="leave Python's garbage collector as it is (for comparison)")  # fmt: skip
-    rt.add_argument("--priority", type=int, metavar="N",
-                    help="SCHED_FIFO priority 1-99 of the loop and the arm process "
-                    "(needs root or an rtprio limit; overrides realtime.priority)")  # fmt: skip
-    rt.add_argument("--viz", action="store_true",
-                    help="live Meshcat view of the arm, drawn by a separate process")  # fmt: skip
+    rt.add_argument(
+        "--spin",
+        type=float,
+        metavar="S",
+        help="busy-wait S seconds before each deadline instead of sleeping, "
+        "e.g. 2e-4 (overrides realtime.spin)",
+    )
+    rt.add_argument(
+        "--no-gc",
+        action="store_true",
+        help="leave Python's garbage collector as it is (for comparison)",
+    )
+    rt.add_argument(
+        "--priority",
+        type=int,
+        metavar="N",
+        help="SCHED_FIFO priority 1-99 of the loop and the arm process "
+        "(needs root or an rtprio limit; overrides realtime.priority)",
+    )
+    rt.add_argument(
+        "--viz",
+        action="store_true",
+        help="live Meshcat view of the arm, drawn by a separate process",
+    )
     rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     rt.set_defaults(func=cmd_realtime)
 
@@ -785,9 +844,10 @@ def _native_arguments(nat) -> None:
         "package is built (pip install); exit 1 if it cannot be loaded here."
     )
     nat.add_argument(
-        "--build", action="store_true",
+        "--build",
+        action="store_true",
         help="deprecated since 0.3 (the core is built at install time): same as without it",
-    )  # fmt: skip
+    )
     nat.set_defaults(func=cmd_native)
 
 

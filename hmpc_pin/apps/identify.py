@@ -72,22 +72,40 @@ def _table(toml_text: str) -> tuple[str, dict]:
     return name, body
 
 
-FRICTION_OPTIONS = {"source": "observer", "urdf": None, "velocity_threshold": 0.01,
-                    "confidence": 0.95}  # fmt: skip
-THRESHOLD_OPTIONS = {"false_alarm": 0.01, "horizon": 60.0, "block": 1.0, "safety": 1.25,
-                     "method": "gumbel"}  # fmt: skip
+FRICTION_OPTIONS = {
+    "source": "observer",
+    "urdf": None,
+    "velocity_threshold": 0.01,
+    "confidence": 0.95,
+}
+THRESHOLD_OPTIONS = {
+    "false_alarm": 0.01,
+    "horizon": 60.0,
+    "block": 1.0,
+    "safety": 1.25,
+    "method": "gumbel",
+}
 
 
 def _options(args) -> None:
     """Fill the defaults of the chosen mode; an option of the other mode is an error."""
-    mine, other = ((THRESHOLD_OPTIONS, FRICTION_OPTIONS) if args.thresholds
-                   else (FRICTION_OPTIONS, THRESHOLD_OPTIONS))  # fmt: skip
+    mine, other = (
+        (THRESHOLD_OPTIONS, FRICTION_OPTIONS)
+        if args.thresholds
+        else (FRICTION_OPTIONS, THRESHOLD_OPTIONS)
+    )
     for key in other:
         if getattr(args, key) is not None:
             flag = "--" + key.replace("_", "-")
-            raise ConfigError(flag, "applies to " + ("friction identification only; drop it "
-                              "or --thresholds" if args.thresholds else "--thresholds only; "
-                              "add --thresholds or drop it"))  # fmt: skip
+            raise ConfigError(
+                flag,
+                "applies to "
+                + (
+                    "friction identification only; drop it or --thresholds"
+                    if args.thresholds
+                    else "--thresholds only; add --thresholds or drop it"
+                ),
+            )
     for key, default in mine.items():
         if getattr(args, key) is None:
             setattr(args, key, default)
@@ -112,41 +130,59 @@ def cmd_identify(args) -> int:
     result = load_run(args.run)
     t0, t1 = float(result.t[0]), float(result.t[-1])
     if args.after is not None and not args.after < t1:
-        raise ConfigError("--after", f"{args.after:g} s is past the end of the run (its samples "
-                          f"span t = {t0:g} to {t1:g} s, {t1 - t0:g} s); pass a time before "
-                          f"{t1:g} s")  # fmt: skip
+        raise ConfigError(
+            "--after",
+            f"{args.after:g} s is past the end of the run (its samples "
+            f"span t = {t0:g} to {t1:g} s, {t1 - t0:g} s); pass a time before "
+            f"{t1:g} s",
+        )
     config = load_config(args.config) if args.config is not None else None  # checked first
     suffix = "collision" if args.thresholds else "friction"
     out = _out_file(args.out or args.run.with_name(f"{args.run.stem}_{suffix}.toml"))
     if args.thresholds:
         fit = learn_thresholds(
-            result, false_alarm=args.false_alarm, horizon=args.horizon, block=args.block,
-            safety=args.safety, after=args.after if args.after is not None else 0.0,
+            result,
+            false_alarm=args.false_alarm,
+            horizon=args.horizon,
+            block=args.block,
+            safety=args.safety,
+            after=args.after if args.after is not None else 0.0,
             method=args.method,
             run=args.run.name,
-        )  # fmt: skip
+        )
         report = [
             f"{args.run.name}: collision thresholds on |d_hat|, false alarm <= "
             f"{args.false_alarm:g} per {args.horizon:g} s, safety x{args.safety:g}"
         ]
         rows = zip(fit.names, fit.threshold, fit.peak, strict=True)
-        report += [f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})"
-                   for name, thr, peak in rows]  # fmt: skip
+        report += [
+            f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})"
+            for name, thr, peak in rows
+        ]
     else:
         robot = run_robot(result, args.urdf)
         observer = observer_model(result, robot) if args.source == "observer" else None
         if args.source == "observer" and observer is None:
-            raise ConfigError("--source", "the run does not say which observer ran (no "
-                              "observer_model in its meta); use --source dynamics")  # fmt: skip
+            raise ConfigError(
+                "--source",
+                "the run does not say which observer ran (no "
+                "observer_model in its meta); use --source dynamics",
+            )
         fit = fit_friction(
-            result, source=args.source, robot=robot, observer=observer,
+            result,
+            source=args.source,
+            robot=robot,
+            observer=observer,
             after=args.after if args.after is not None else 0.5,
-            velocity_threshold=args.velocity_threshold, confidence=args.confidence,
+            velocity_threshold=args.velocity_threshold,
+            confidence=args.confidence,
             run=args.run.name,
-        )  # fmt: skip
+        )
         fit = replace(fit, unmodelled=_unmodelled(result))
-        report = [f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} "
-                  "(source)", fit.table()]  # fmt: skip
+        report = [
+            f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} (source)",
+            fit.table(),
+        ]
     text = fit.toml()
     if config is None:
         out.write_text(text, encoding="utf-8")
@@ -155,8 +191,7 @@ def cmd_identify(args) -> int:
         header = "\n".join(line[2:] for line in text.splitlines() if line.startswith("# "))
         write_config(config.source, {name: body}, out, header=header)
         load_config(out)  # the written config loads (the table is valid for it)
-    report.append(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config
-                                    else ""))  # fmt: skip
+    report.append(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config else ""))
     print("\n".join(report))
     return 0
 
@@ -173,35 +208,71 @@ def identify_arguments(idf) -> None:
         "does not excite a joint enough."
     )
     idf.add_argument("run", type=Path, help="result .npz of a run")
-    idf.add_argument("--out", type=Path, default=None,
-                     help="TOML file [RUN_friction.toml / RUN_collision.toml]")  # fmt: skip
-    idf.add_argument("--config", type=Path, default=None,
-                     help="write this config with the table set, not the table alone")  # fmt: skip
-    idf.add_argument("--after", type=float, default=None,
-                     help="skip samples before this time [s] [0.5; thresholds: 0]")  # fmt: skip
+    idf.add_argument(
+        "--out", type=Path, default=None, help="TOML file [RUN_friction.toml / RUN_collision.toml]"
+    )
+    idf.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="write this config with the table set, not the table alone",
+    )
+    idf.add_argument(
+        "--after",
+        type=float,
+        default=None,
+        help="skip samples before this time [s] [0.5; thresholds: 0]",
+    )
     fr = idf.add_argument_group("friction")
-    fr.add_argument("--source", choices=("observer", "dynamics", "regressor"), default=None,
-                    help="observer: the estimate d_hat through the observer's dynamics; "
-                    "dynamics: the model's inverse dynamics (Pinocchio's regressor) against the "
-                    "applied torque; regressor: the same with the rigid-body parameters "
-                    "fitted too [observer]")  # fmt: skip
+    fr.add_argument(
+        "--source",
+        choices=("observer", "dynamics", "regressor"),
+        default=None,
+        help="observer: the estimate d_hat through the observer's dynamics; "
+        "dynamics: the model's inverse dynamics (Pinocchio's regressor) against the "
+        "applied torque; regressor: the same with the rigid-body parameters "
+        "fitted too [observer]",
+    )
     fr.add_argument("--urdf", help="the arm's URDF [the run's]")
-    fr.add_argument("--velocity-threshold", type=float, default=None, metavar="RAD_S",
-                    help="leave out samples slower than this [rad/s] [0.01]")  # fmt: skip
-    fr.add_argument("--confidence", type=float, default=None,
-                    help="level of the confidence intervals [0.95]")  # fmt: skip
+    fr.add_argument(
+        "--velocity-threshold",
+        type=float,
+        default=None,
+        metavar="RAD_S",
+        help="leave out samples slower than this [rad/s] [0.01]",
+    )
+    fr.add_argument(
+        "--confidence", type=float, default=None, help="level of the confidence intervals [0.95]"
+    )
     th = idf.add_argument_group("collision thresholds")
-    th.add_argument("--thresholds", action="store_true",
-                    help="learn [collision] thresholds instead of friction")  # fmt: skip
-    th.add_argument("--false-alarm", type=float, default=None, metavar="P",
-                    help="false-alarm probability over --horizon, all joints [0.01]")  # fmt: skip
-    th.add_argument("--horizon", type=float, default=None, metavar="S",
-                    help="the time over which --false-alarm holds [s] [60]")  # fmt: skip
-    th.add_argument("--block", type=float, default=None, metavar="S",
-                    help="block of the block maxima [s] [1]")  # fmt: skip
-    th.add_argument("--safety", type=float, default=None,
-                    help="factor >= 1 on the fitted quantile [1.25]")  # fmt: skip
-    th.add_argument("--method", choices=("gumbel", "gev"), default=None,
-                    help="extreme-value fit: gumbel (conservative: at most the stated rate) "
-                    "or gev (calibrated on long runs of hundreds of blocks) [gumbel]")  # fmt: skip
+    th.add_argument(
+        "--thresholds", action="store_true", help="learn [collision] thresholds instead of friction"
+    )
+    th.add_argument(
+        "--false-alarm",
+        type=float,
+        default=None,
+        metavar="P",
+        help="false-alarm probability over --horizon, all joints [0.01]",
+    )
+    th.add_argument(
+        "--horizon",
+        type=float,
+        default=None,
+        metavar="S",
+        help="the time over which --false-alarm holds [s] [60]",
+    )
+    th.add_argument(
+        "--block", type=float, default=None, metavar="S", help="block of the block maxima [s] [1]"
+    )
+    th.add_argument(
+        "--safety", type=float, default=None, help="factor >= 1 on the fitted quantile [1.25]"
+    )
+    th.add_argument(
+        "--method",
+        choices=("gumbel", "gev"),
+        default=None,
+        help="extreme-value fit: gumbel (conservative: at most the stated rate) "
+        "or gev (calibrated on long runs of hundreds of blocks) [gumbel]",
+    )
     idf.set_defaults(func=cmd_identify)

@@ -45,8 +45,16 @@ def write_csv(result: Result, path: Path) -> Path:
         + [result.extra[a] for a in extra]
     )
     if result.ee_pos is not None:  # pose task: the frame's position [m] and quaternion
-        header += [f"{a}_{c}" for a, comps in (("ee_pos", "xyz"), ("ee_pos_ref", "xyz"),
-                   ("ee_quat", "xyzw"), ("ee_quat_ref", "xyzw")) for c in comps]  # fmt: skip
+        header += [
+            f"{a}_{c}"
+            for a, comps in (
+                ("ee_pos", "xyz"),
+                ("ee_pos_ref", "xyz"),
+                ("ee_quat", "xyzw"),
+                ("ee_quat_ref", "xyzw"),
+            )
+            for c in comps
+        ]
         table = np.column_stack([table, *(getattr(result, a) for a in TASK_ARRAYS)])
     with open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)

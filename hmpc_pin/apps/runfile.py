@@ -33,22 +33,30 @@ def load_run(path: Path, key: str = "RUN") -> Result:
     if not head:
         raise ConfigError(key, f"{str(path)!r} is empty (0 bytes); {what}")
     if head != b"PK\x03\x04":
-        raise ConfigError(key, f"{str(path)!r} is not a .npz archive (a result is a zip of "
-                          f"arrays); {what}")  # fmt: skip
+        raise ConfigError(
+            key, f"{str(path)!r} is not a .npz archive (a result is a zip of arrays); {what}"
+        )
     try:
         result = Result.load(path)
     except (zipfile.BadZipFile, EOFError) as exc:
-        raise ConfigError(key, f"{str(path)!r} is truncated or corrupt ({exc}); write it "
-                          "again, or pass another run") from None  # fmt: skip
+        raise ConfigError(
+            key,
+            f"{str(path)!r} is truncated or corrupt ({exc}); write it again, or pass another run",
+        ) from None
     except KeyError as exc:
         missing = str(exc.args[0] if exc.args else exc).split(" is not a file")[0]
-        raise ConfigError(key, f"{str(path)!r} is a .npz but not a hmpc_pin result (it "
-                          f"has no {missing!r} array); {what}") from None  # fmt: skip
+        raise ConfigError(
+            key,
+            f"{str(path)!r} is a .npz but not a hmpc_pin result (it "
+            f"has no {missing!r} array); {what}",
+        ) from None
     except (OSError, ValueError, TypeError) as exc:
-        why = ("it holds object arrays, which a result never does" if "pickle" in str(exc)
-               else str(exc))  # fmt: skip
-        raise ConfigError(key, f"{str(path)!r} is not a hmpc_pin result ({why}); "
-                          f"{what}") from None  # fmt: skip
+        why = (
+            "it holds object arrays, which a result never does"
+            if "pickle" in str(exc)
+            else str(exc)
+        )
+        raise ConfigError(key, f"{str(path)!r} is not a hmpc_pin result ({why}); {what}") from None
     _check_shapes(result, path, key)
     return result
 
@@ -59,19 +67,26 @@ def _check_shapes(result: Result, path: Path, key: str) -> None:
         raise ConfigError(key, f"{str(path)!r}: its metadata is not a table; is it a result?")
     t = np.asarray(result.t)
     if t.ndim != 1 or len(t) < 2:
-        raise ConfigError(key, f"{str(path)!r}: the time array has shape {t.shape}, expected "
-                          "(K+1,) with at least 2 samples")  # fmt: skip
+        raise ConfigError(
+            key,
+            f"{str(path)!r}: the time array has shape {t.shape}, expected "
+            "(K+1,) with at least 2 samples",
+        )
     numeric = np.issubdtype(t.dtype, np.number)
     if not (numeric and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
-        raise ConfigError(key, f"{str(path)!r}: the time array is not finite and increasing; "
-                          "is it a result?")  # fmt: skip
+        raise ConfigError(
+            key, f"{str(path)!r}: the time array is not finite and increasing; is it a result?"
+        )
     n = np.asarray(result.q).shape[-1] if np.ndim(result.q) == 2 else None
     for name in ("q", "dq", "tau", "d_hat", "tau_applied"):
         arr = getattr(result, name)
         shape = np.shape(arr)
         if n is None or shape != (len(t), n):
-            raise ConfigError(key, f"{str(path)!r}: the array {name!r} has shape {shape}, "
-                              f"expected ({len(t)}, n) like q")  # fmt: skip
+            raise ConfigError(
+                key,
+                f"{str(path)!r}: the array {name!r} has shape {shape}, "
+                f"expected ({len(t)}, n) like q",
+            )
         if not np.issubdtype(np.asarray(arr).dtype, np.number):
             raise ConfigError(key, f"{str(path)!r}: the array {name!r} is not numeric")
 
@@ -94,8 +109,10 @@ def run_robot(result: Result, urdf: str | None, key: str = "RUN"):
     names = tuple(result.joint_names)
     if robot.nq != n or (names and tuple(robot.joint_names) != names):
         ran = f"{n} joints {names}" if names else f"{n} joints"
-        raise ConfigError("--urdf" if urdf else key, f"the URDF {str(source)!r} has "
-                          f"{robot.nq} joints {tuple(robot.joint_names)} but the run has "
-                          f"{ran}; pass the URDF of the arm that ran"
-                          + ("" if urdf else " with --urdf"))  # fmt: skip
+        raise ConfigError(
+            "--urdf" if urdf else key,
+            f"the URDF {str(source)!r} has "
+            f"{robot.nq} joints {tuple(robot.joint_names)} but the run has "
+            f"{ran}; pass the URDF of the arm that ran" + ("" if urdf else " with --urdf"),
+        )
     return robot

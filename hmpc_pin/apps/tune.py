@@ -67,8 +67,11 @@ def _optuna():
     return optuna
 
 
-def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
-                 observers: tuple[str, ...] | None = None) -> dict:  # fmt: skip
+def search_space(
+    config: ExperimentConfig,
+    ts: tuple[float, ...] | None = None,
+    observers: tuple[str, ...] | None = None,
+) -> dict:
     """The parameters a trial proposes: name → ``("log", low, high)``, ``("int", low,
     high)`` or ``("choice", values)``.
 
@@ -80,8 +83,11 @@ def search_space(config: ExperimentConfig, ts: tuple[float, ...] | None = None,
     if observers:
         bad = [o for o in observers if o not in names]
         if bad or cc.compensation not in names:
-            raise ConfigError("--observers", f"expected observers of {names} for a config "
-                              f"with an observer; got {observers!r} for {cc.label}")  # fmt: skip
+            raise ConfigError(
+                "--observers",
+                f"expected observers of {names} for a config "
+                f"with an observer; got {observers!r} for {cc.label}",
+            )
     space: dict = {
         "Q_position": ("log", 1.0, 1e4),
         "Q_velocity": ("log", 1e-4, 1e2),
@@ -112,11 +118,18 @@ def _own_params(config: ExperimentConfig, space: dict) -> dict:
     """The config's own values of the parameters of ``space``, not clipped: what trial 0
     (the config as given) runs, through :func:`apply_params` like every trial."""
     cc = config.controller
-    own = {"Q_position": float(cc.Q[0, 0]), "Q_velocity": float(cc.Q[1, 1]), "R": float(cc.R),
-           "N": int(cc.N), "Ts": float(cc.Ts), "compensation": cc.compensation,
-           "observer_gain": None if cc.observer is None else cc.observer.gain,
-           "observer_bandwidth": None if cc.observer is None or cc.observer.bandwidth is None
-           else _bandwidth_scale(cc)}  # fmt: skip
+    own = {
+        "Q_position": float(cc.Q[0, 0]),
+        "Q_velocity": float(cc.Q[1, 1]),
+        "R": float(cc.R),
+        "N": int(cc.N),
+        "Ts": float(cc.Ts),
+        "compensation": cc.compensation,
+        "observer_gain": None if cc.observer is None else cc.observer.gain,
+        "observer_bandwidth": None
+        if cc.observer is None or cc.observer.bandwidth is None
+        else _bandwidth_scale(cc),
+    }
     return {k: own[k] for k in space}
 
 
@@ -142,8 +155,7 @@ def _sampler_record(config: ExperimentConfig, space: dict) -> list[str]:
     """Where the sampler's record of trial 0 (:func:`current_params`) differs from what it
     ran (:func:`_own_params`), and ``P = 2Q`` when the config's ``P`` is not: in words."""
     own, near = _own_params(config, space), current_params(config, space)
-    lines = [f"{k} = {_cell(near[k])} (ran {_cell(own[k])})" for k in space
-             if near[k] != own[k]]  # fmt: skip
+    lines = [f"{k} = {_cell(near[k])} (ran {_cell(own[k])})" for k in space if near[k] != own[k]]
     cc = config.controller
     Q = np.diag([cc.Q[0, 0], cc.Q[1, 1]])
     if not (np.array_equal(cc.Q, Q) and np.array_equal(cc.P, 2 * Q)):
@@ -160,8 +172,14 @@ def apply_params(config: ExperimentConfig, params: dict) -> ExperimentConfig:
         config = with_controller(config, compensation=params["compensation"])
     cc = config.controller
     Q = np.diag([params.get("Q_position", cc.Q[0, 0]), params.get("Q_velocity", cc.Q[1, 1])])
-    new = replace(cc, Q=Q, P=2 * Q, R=float(params.get("R", cc.R)),
-                  N=int(params.get("N", cc.N)), Ts=float(params.get("Ts", cc.Ts)))  # fmt: skip
+    new = replace(
+        cc,
+        Q=Q,
+        P=2 * Q,
+        R=float(params.get("R", cc.R)),
+        N=int(params.get("N", cc.N)),
+        Ts=float(params.get("Ts", cc.Ts)),
+    )
     if "observer_gain" in params:
         new = replace(new, observer=replace(cc.observer, gain=float(params["observer_gain"])))
     if "observer_bandwidth" in params:  # every joint scaled: the per-joint shape is kept
@@ -196,10 +214,14 @@ def run_score(row: dict, error_bound: float, duration: float | None) -> float:
     return error_bound * (1.0 + min(max(lost, 0.0), 1.0)) + rms
 
 
-def objective_value(rows: list[dict], error_bound: float, tv0: float | None,
-                    saturation_weight: float = SATURATION_WEIGHT,
-                    tv_weight: float = TV_WEIGHT,
-                    duration: float | None = None) -> tuple[float, dict]:  # fmt: skip
+def objective_value(
+    rows: list[dict],
+    error_bound: float,
+    tv0: float | None,
+    saturation_weight: float = SATURATION_WEIGHT,
+    tv_weight: float = TV_WEIGHT,
+    duration: float | None = None,
+) -> tuple[float, dict]:
     """:math:`J` of a trial's sweep rows (module docstring, each run scored by
     :func:`run_score`) and its parts."""
     rms = np.array([run_score(r, error_bound, duration) for r in rows])
@@ -208,18 +230,33 @@ def objective_value(rows: list[dict], error_bound: float, tv0: float | None,
     tv = float(np.mean([r["torque_tv"] for r in rows]))
     excess = max(0.0, tv / tv0 - 1.0) if tv0 else 0.0
     value = p95 * (1.0 + saturation_weight * sat + tv_weight * excess)
-    return value, {"p95_rms": p95, "saturation": sat, "torque_tv": tv,
-                   "bounded": float(np.mean([r["bounded"] for r in rows]))}  # fmt: skip
+    return value, {
+        "p95_rms": p95,
+        "saturation": sat,
+        "torque_tv": tv,
+        "bounded": float(np.mean([r["bounded"] for r in rows])),
+    }
 
 
 #: Largest seed: Optuna's sampler seeds a NumPy ``RandomState`` (32 bits).
 MAX_SEED = 2**32 - 1
 
 
-def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=None,
-                  observers=None, holdout=None, holdout_seed=None, executor="local",
-                  scheduler=None,
-                  duration_key: str = "simulation.duration") -> tuple[int, int]:  # fmt: skip
+def check_options(
+    config: ExperimentConfig,
+    *,
+    trials,
+    samples,
+    seed,
+    jobs,
+    ts=None,
+    observers=None,
+    holdout=None,
+    holdout_seed=None,
+    executor="local",
+    scheduler=None,
+    duration_key: str = "simulation.duration",
+) -> tuple[int, int]:
     """Check every option of :func:`tune` against ``config``, each error naming its own
     option, before anything is created (the command line calls it before ``--out``).
 
@@ -234,20 +271,34 @@ def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=N
             no trial could build.
     """
     if scheduler is not None and executor != "dask":  # an option that does not apply
-        raise ConfigError("--scheduler", f"applies to --executor dask only (got --executor "
-                          f"{executor}); add --executor dask or drop it")  # fmt: skip
+        raise ConfigError(
+            "--scheduler",
+            f"applies to --executor dask only (got --executor "
+            f"{executor}); add --executor dask or drop it",
+        )
     if holdout_seed is not None and holdout == 0:
-        raise ConfigError("--holdout-seed", "seeds the held-out samples, and --holdout 0 "
-                          "draws none; drop it or set --holdout N >= 1")  # fmt: skip
+        raise ConfigError(
+            "--holdout-seed",
+            "seeds the held-out samples, and --holdout 0 "
+            "draws none; drop it or set --holdout N >= 1",
+        )
     holdout = samples if holdout is None else holdout
     if holdout_seed is None and isinstance(seed, int) and not isinstance(seed, bool):
         holdout_seed = (seed + 1) % (MAX_SEED + 1)
-    for key, value, low, high in (("--trials", trials, 1, None), ("--samples", samples, 1, None),
-                                  ("--seed", seed, 0, MAX_SEED), ("--jobs", jobs, 1, None),
-                                  ("--holdout", holdout, 0, None),
-                                  ("--holdout-seed", holdout_seed, 0, MAX_SEED)):  # fmt: skip
-        if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
-                or value < low or (high is not None and value > high)):  # fmt: skip
+    for key, value, low, high in (
+        ("--trials", trials, 1, None),
+        ("--samples", samples, 1, None),
+        ("--seed", seed, 0, MAX_SEED),
+        ("--jobs", jobs, 1, None),
+        ("--holdout", holdout, 0, None),
+        ("--holdout-seed", holdout_seed, 0, MAX_SEED),
+    ):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, np.integer))
+            or value < low
+            or (high is not None and value > high)
+        ):
             within = (
                 f"an integer in [{low}, {high}]" if high is not None else f"an integer >= {low}"
             )
@@ -255,18 +306,24 @@ def check_options(config: ExperimentConfig, *, trials, samples, seed, jobs, ts=N
     if ts is not None and not (ts and all(np.isfinite(v) and v > 0 for v in ts)):
         raise ConfigError("--ts", f"expected control periods [s] > 0, got {ts!r}")
     if config.source is None:
-        raise ConfigError("CONFIG", "tune needs a config loaded from a file (it writes a "
-                          "tuned copy of it)")  # fmt: skip
+        raise ConfigError(
+            "CONFIG", "tune needs a config loaded from a file (it writes a tuned copy of it)"
+        )
     duration, after = config.simulation.duration, config.sweep.after
     if not duration > after:
-        raise ConfigError(duration_key, f"expected a simulated time longer than sweep.after = "
-                          f"{after:g} s (the error is scored after it), got {duration:g} s; "
-                          "lengthen it or lower [sweep] after")  # fmt: skip
+        raise ConfigError(
+            duration_key,
+            f"expected a simulated time longer than sweep.after = "
+            f"{after:g} s (the error is scored after it), got {duration:g} s; "
+            "lengthen it or lower [sweep] after",
+        )
     space = search_space(config, ts, observers)
     from ..experiment.build import Experiment
 
-    for params in (current_params(config, space), {k: s[-1] if s[0] != "choice" else s[1][-1]
-                                                   for k, s in space.items()}):  # fmt: skip
+    for params in (
+        current_params(config, space),
+        {k: s[-1] if s[0] != "choice" else s[1][-1] for k, s in space.items()},
+    ):
         with warnings.catch_warnings():  # a range's end may warn; only errors matter here
             warnings.simplefilter("ignore")
             Experiment.from_config(apply_params(config, params))  # bad input before any trial
@@ -280,8 +337,9 @@ def _evaluate(config, samples, seed, jobs, executor, scheduler) -> list[dict]:
         KeyboardInterrupt: Ctrl-C stopped the sweep (its partial rows score nothing).
     """
     config = replace(config, sweep=replace(config.sweep, variants=(config.controller.label,)))
-    result = run_sweep(config, samples, seed, jobs=jobs, executor=executor,
-                       scheduler=scheduler, progress=False)  # fmt: skip
+    result = run_sweep(
+        config, samples, seed, jobs=jobs, executor=executor, scheduler=scheduler, progress=False
+    )
     if result.interrupted:
         raise KeyboardInterrupt
     return result.rows
@@ -346,36 +404,54 @@ def tune(
             none if no trial finished); the study resumes from its file.
     """
     optuna = _optuna()
-    holdout, holdout_seed = check_options(config, trials=trials, samples=samples, seed=seed,
-                                          jobs=jobs, ts=ts, observers=observers,
-                                          holdout=holdout, holdout_seed=holdout_seed,
-                                          executor=executor, scheduler=scheduler)  # fmt: skip
+    holdout, holdout_seed = check_options(
+        config,
+        trials=trials,
+        samples=samples,
+        seed=seed,
+        jobs=jobs,
+        ts=ts,
+        observers=observers,
+        holdout=holdout,
+        holdout_seed=holdout_seed,
+        executor=executor,
+        scheduler=scheduler,
+    )
     space = search_space(config, ts, observers)
     name = config.name
     storage = f"sqlite:///{(out / f'{name}_tune.db').resolve()}"
     optuna.logging.set_verbosity(optuna.logging.ERROR)  # a failed trial is ours to report
     study = optuna.create_study(
-        study_name=name, storage=storage, direction="minimize", load_if_exists=True,
+        study_name=name,
+        storage=storage,
+        direction="minimize",
+        load_if_exists=True,
         sampler=optuna.samplers.TPESampler(
-            seed=(seed + len_trials(optuna, storage, name)) % (MAX_SEED + 1)),
-    )  # fmt: skip
+            seed=(seed + len_trials(optuna, storage, name)) % (MAX_SEED + 1)
+        ),
+    )
     if not study.trials:
         study.enqueue_trial(current_params(config, space))
         study.set_user_attr("samples", samples)
         study.set_user_attr("seed", seed)
     elif study.user_attrs.get("samples") != samples or study.user_attrs.get("seed") != seed:
         raise ConfigError(
-            "--samples/--seed", f"the study in {out} was run with --samples "
+            "--samples/--seed",
+            f"the study in {out} was run with --samples "
             f"{study.user_attrs.get('samples')} --seed {study.user_attrs.get('seed')}; resume "
             "it with the same, or write to another --out",
-        )  # fmt: skip
+        )
 
     def evaluate(cfg: ExperimentConfig):
         if objective is not None:
             return objective(cfg)
         rows = _evaluate(cfg, samples, seed, jobs, executor, scheduler)
-        return objective_value(rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
-                               duration=cfg.simulation.duration)  # fmt: skip
+        return objective_value(
+            rows,
+            cfg.sweep.error_bound,
+            study.user_attrs.get("tv0"),
+            duration=cfg.simulation.duration,
+        )
 
     def run_trial(trial):
         params = _suggest(trial, space)
@@ -401,8 +477,10 @@ def tune(
             study.optimize(run_trial, n_trials=trials, show_progress_bar=progress)
         except KeyboardInterrupt:
             finished = sum(t.state.name == "COMPLETE" for t in study.trials)
-            stopped = (f"trial {len(study.trials) - 1} of the study ({finished} finished; run "
-                       "again with the same --out to resume it)")  # fmt: skip
+            stopped = (
+                f"trial {len(study.trials) - 1} of the study ({finished} finished; run "
+                "again with the same --out to resume it)"
+            )
         if not any(t.state.name == "COMPLETE" for t in study.trials):
             raise RunInterrupted(f"{stopped}: no trial finished, no config written", files=[db])
         best = _shown_params(study.best_trial, study)
@@ -414,17 +492,20 @@ def tune(
                 for label, cfg in (("shipped", config), ("tuned", tuned)):
                     rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
                     comparison[label] = objective_value(
-                        rows, cfg.sweep.error_bound, study.user_attrs.get("tv0"),
+                        rows,
+                        cfg.sweep.error_bound,
+                        study.user_attrs.get("tv0"),
                         duration=cfg.simulation.duration,
-                    )[1]  # fmt: skip
+                    )[1]
             except KeyboardInterrupt:
                 comparison = None
                 stopped = f"the held-out comparison, after {len(study.trials)} trials"
     finally:
         if cluster is not None:
             cluster.close()
-    files += _report(config, study, best, out, comparison, samples, seed, holdout, holdout_seed,
-                     stopped, space)  # fmt: skip
+    files += _report(
+        config, study, best, out, comparison, samples, seed, holdout, holdout_seed, stopped, space
+    )
     files.insert(1, db)
     if stopped is not None:
         raise RunInterrupted(stopped, files=files)
@@ -449,10 +530,11 @@ def _local_cluster(jobs: int):
         from dask.distributed import LocalCluster
     except ImportError as exc:
         raise ConfigError(
-            "--executor", "dask needs the optional dependency dask.distributed (extra "
+            "--executor",
+            "dask needs the optional dependency dask.distributed (extra "
             f"hmpc_pin[cluster]); install it with `{install_command('cluster')}` or use "
             "--executor local",
-        ) from exc  # fmt: skip
+        ) from exc
     return LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
 
 
@@ -472,8 +554,13 @@ def _write_tuned(config, tuned, best, study, out: Path) -> Path:
         W = np.asarray(W, dtype=float)
         return np.diag(W).tolist() if W[0, 1] == 0 and W[1, 0] == 0 else W.tolist()
 
-    table: dict = {"Q": weight(cc.Q), "P": weight(cc.P), "R": float(cc.R), "N": int(cc.N),
-                   "Ts": float(cc.Ts)}  # fmt: skip
+    table: dict = {
+        "Q": weight(cc.Q),
+        "P": weight(cc.P),
+        "R": float(cc.R),
+        "N": int(cc.N),
+        "Ts": float(cc.Ts),
+    }
     import tomllib
 
     raw = tomllib.loads(Path(config.source).read_text(encoding="utf-8"))
@@ -495,11 +582,14 @@ def _write_tuned(config, tuned, best, study, out: Path) -> Path:
                 obs.pop("discretization", None)  # its one form (the momentum observer's)
         ctrl["observer"] = obs
     path = out / f"{config.name}_tuned.toml"
-    header = (f"{config.name} tuned by `hmpc-pin tune` (trial {study.best_trial.number} of "
-              f"{len(study.trials)}, objective {study.best_value:.4g})\n"
-              f"from {config.source}")  # fmt: skip
-    write_config(Path(config.source), {"controller": ctrl}, path, header=header,
-                 name=f"{config.name}_tuned")  # fmt: skip
+    header = (
+        f"{config.name} tuned by `hmpc-pin tune` (trial {study.best_trial.number} of "
+        f"{len(study.trials)}, objective {study.best_value:.4g})\n"
+        f"from {config.source}"
+    )
+    write_config(
+        Path(config.source), {"controller": ctrl}, path, header=header, name=f"{config.name}_tuned"
+    )
     load_config(path)  # the written config loads
     return path
 
@@ -508,8 +598,19 @@ def _cell(v) -> str:
     return v if isinstance(v, str) else f"{v:.4g}"
 
 
-def _report(config, study, best, out: Path, comparison, samples, seed, holdout, holdout_seed,
-            stopped: str | None = None, space: dict | None = None):  # fmt: skip
+def _report(
+    config,
+    study,
+    best,
+    out: Path,
+    comparison,
+    samples,
+    seed,
+    holdout,
+    holdout_seed,
+    stopped: str | None = None,
+    space: dict | None = None,
+):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -575,19 +676,26 @@ def _report(config, study, best, out: Path, comparison, samples, seed, holdout, 
             "|---|---|---|---|---|",
         ]
         for label, p in comparison.items():
-            lines.append(f"| {label} | {p['p95_rms']:.4g} | {100 * p['bounded']:.0f} % | "
-                         f"{100 * p['saturation']:.2f} % | {p['torque_tv']:.4g} |")  # fmt: skip
+            lines.append(
+                f"| {label} | {p['p95_rms']:.4g} | {100 * p['bounded']:.0f} % | "
+                f"{100 * p['saturation']:.2f} % | {p['torque_tv']:.4g} |"
+            )
         ratio = comparison["shipped"]["p95_rms"] / comparison["tuned"]["p95_rms"]
         lines += ["", f"Shipped / tuned p95: {ratio:.3g}.", ""]
-    lines += ["## Trials", "", "| trial | J | p95 RMS [rad] | " + " | ".join(best) + " |",
-              "|---|---|---|" + "---|" * len(best)]  # fmt: skip
+    lines += [
+        "## Trials",
+        "",
+        "| trial | J | p95 RMS [rad] | " + " | ".join(best) + " |",
+        "|---|---|---|" + "---|" * len(best),
+    ]
     for t in study.trials:
         if t.value is None:
             continue
         shown = _shown_params(t, study)
         vals = " | ".join(_cell(shown.get(k, math.nan)) for k in best)
-        lines.append(f"| {t.number} | {t.value:.4g} | {t.user_attrs.get('p95_rms', math.nan):.4g}"
-                     f" | {vals} |")  # fmt: skip
+        lines.append(
+            f"| {t.number} | {t.value:.4g} | {t.user_attrs.get('p95_rms', math.nan):.4g} | {vals} |"
+        )
     lines += ["", *(f"![{p.stem}]({p.name})" for p in files), ""]
     path = out / f"{name}_tune.md"
     path.write_text("\n".join(lines), encoding="utf-8")
@@ -611,13 +719,19 @@ def check_args(args, config: ExperimentConfig) -> None:
     """Every option of ``hmpc-pin tune`` checked against ``config``, each error naming
     its own flag, before anything is created (:func:`check_options`)."""
     check_options(
-        config, trials=args.trials, samples=args.samples, seed=args.seed, jobs=_jobs(args),
+        config,
+        trials=args.trials,
+        samples=args.samples,
+        seed=args.seed,
+        jobs=_jobs(args),
         ts=_periods(args.ts) if args.ts else None,
         observers=tuple(args.observers.split(",")) if args.observers else None,
-        holdout=args.holdout, holdout_seed=args.holdout_seed, executor=args.executor,
+        holdout=args.holdout,
+        holdout_seed=args.holdout_seed,
+        executor=args.executor,
         scheduler=args.scheduler,
         duration_key="--duration" if args.duration is not None else "simulation.duration",
-    )  # fmt: skip
+    )
 
 
 def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
@@ -625,21 +739,32 @@ def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
     (:func:`check_args`) and ``out``: run or resume the study; print the held-out
     comparison."""
     result = tune(
-        config, out, trials=args.trials, samples=args.samples, seed=args.seed,
-        jobs=_jobs(args), executor=args.executor, scheduler=args.scheduler,
+        config,
+        out,
+        trials=args.trials,
+        samples=args.samples,
+        seed=args.seed,
+        jobs=_jobs(args),
+        executor=args.executor,
+        scheduler=args.scheduler,
         ts=_periods(args.ts) if args.ts else None,
         observers=tuple(args.observers.split(",")) if args.observers else None,
         holdout=args.holdout,
-        holdout_seed=args.holdout_seed, progress=not args.quiet,
-    )  # fmt: skip
+        holdout_seed=args.holdout_seed,
+        progress=not args.quiet,
+    )
     study = result.study
-    print(f"{config.name}: {len(study.trials)} trials; best trial {study.best_trial.number}, "
-          f"J = {study.best_value:.4g}: "
-          + ", ".join(f"{k} = {_cell(v)}" for k, v in result.best.items()))  # fmt: skip
+    print(
+        f"{config.name}: {len(study.trials)} trials; best trial {study.best_trial.number}, "
+        f"J = {study.best_value:.4g}: "
+        + ", ".join(f"{k} = {_cell(v)}" for k, v in result.best.items())
+    )
     if result.holdout:
         s, t = result.holdout["shipped"]["p95_rms"], result.holdout["tuned"]["p95_rms"]
-        print(f"held-out samples: p95 worst-joint RMS {s:.4g} rad as given, {t:.4g} rad tuned "
-              f"(ratio {s / t:.3g})")  # fmt: skip
+        print(
+            f"held-out samples: p95 worst-joint RMS {s:.4g} rad as given, {t:.4g} rad tuned "
+            f"(ratio {s / t:.3g})"
+        )
     for f in result.files:
         print(f"wrote {f}")
     return 0
@@ -658,21 +783,33 @@ def tune_arguments(tun):
         "and compares both configs on held-out samples. Needs the extra hmpc_pin[tune]."
     )
     tun.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
-    tun.add_argument("--trials", type=int, required=True, help="trials to run (added to a "
-                     "resumed study)")  # fmt: skip
+    tun.add_argument(
+        "--trials", type=int, required=True, help="trials to run (added to a resumed study)"
+    )
     tun.add_argument("--samples", type=int, default=8, help="sweep samples per trial [8]")
     tun.add_argument("--seed", type=int, default=0, help="seed of the sampler and samples [0]")
     tun.add_argument("--jobs", type=int, default=None, help="worker processes [all cores]")
-    tun.add_argument("--executor", choices=("local", "dask"), default="local",
-                     help="each trial's samples on local processes or Dask [local]")  # fmt: skip
+    tun.add_argument(
+        "--executor",
+        choices=("local", "dask"),
+        default="local",
+        help="each trial's samples on local processes or Dask [local]",
+    )
     tun.add_argument("--scheduler", help="with --executor dask: a running scheduler's address")
-    tun.add_argument("--ts", metavar="T1,T2,...",
-                     help="also choose the control period among these [s]")  # fmt: skip
-    tun.add_argument("--observers", metavar="NAME,...",
-                     help="also choose the observer: "
-                     + ", ".join(compensation_names(table="observer")))  # fmt: skip
-    tun.add_argument("--holdout", type=int, default=None,
-                     help="held-out samples of the comparison (0: none) [--samples]")  # fmt: skip
+    tun.add_argument(
+        "--ts", metavar="T1,T2,...", help="also choose the control period among these [s]"
+    )
+    tun.add_argument(
+        "--observers",
+        metavar="NAME,...",
+        help="also choose the observer: " + ", ".join(compensation_names(table="observer")),
+    )
+    tun.add_argument(
+        "--holdout",
+        type=int,
+        default=None,
+        help="held-out samples of the comparison (0: none) [--samples]",
+    )
     tun.add_argument("--holdout-seed", type=int, default=None, help="their seed [--seed + 1]")
     tun.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     tun.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")

@@ -159,8 +159,17 @@ class MPCSettings:
 
     def __post_init__(self):
         # The same checks and errors as the [controller] table (hmpc_pin.checks).
-        fields = mpc_fields(self.Ts, self.N, self.Nc, self.Q, self.R, self.P, self.v_min,
-                            self.v_max, prefix="MPCSettings.")  # fmt: skip
+        fields = mpc_fields(
+            self.Ts,
+            self.N,
+            self.Nc,
+            self.Q,
+            self.R,
+            self.P,
+            self.v_min,
+            self.v_max,
+            prefix="MPCSettings.",
+        )
         fields.update(
             check_settings({name: getattr(self, name) for name in _CHECKS}, "MPCSettings.")
         )
@@ -187,8 +196,11 @@ class MPCSettings:
         for name in ("v_min", "v_max"):
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.ndim == 1 and arr.shape != (n,):
-                raise ConfigError(f"MPCSettings.{name}", f"has {arr.shape[0]} entries but the "
-                                  f"robot has {n} joints; give one value or {n}")  # fmt: skip
+                raise ConfigError(
+                    f"MPCSettings.{name}",
+                    f"has {arr.shape[0]} entries but the "
+                    f"robot has {n} joints; give one value or {n}",
+                )
             out.append(np.broadcast_to(arr, (n,)).astype(float))
         return out[0], out[1]
 
@@ -269,8 +281,9 @@ def state_limits(
         lo, hi = -inf, inf.copy()
     if not velocity_on:
         vel = inf.copy()
-    return StateLimits(lo, hi, vel, slack_weight=slack_weight,
-                       slack_linear_weight=slack_linear_weight)  # fmt: skip
+    return StateLimits(
+        lo, hi, vel, slack_weight=slack_weight, slack_linear_weight=slack_linear_weight
+    )
 
 
 def warn_fast_damping(robot: Robot, Ts: float) -> None:
@@ -352,8 +365,9 @@ class HierarchicalMPC(AppliedTorque):
         )
         check_compensation(self.compensation, robot, settings.Ts, "HierarchicalMPC")
         v_min, v_max = settings.bounds(n)
-        self.mpc = CondensedMPC(settings.Ts, settings.N, settings.Nc, settings.Q, settings.R,
-                                settings.P)  # fmt: skip
+        self.mpc = CondensedMPC(
+            settings.Ts, settings.N, settings.Nc, settings.Q, settings.R, settings.P
+        )
         self.limits = state_limits(robot) if isinstance(limits, str) else limits
         self.qps = JointQPs(
             self.mpc,
@@ -433,9 +447,17 @@ class HierarchicalMPC(AppliedTorque):
         model = None if self._python_dynamics else model_string(self.robot)
         buf = self._buf
         core = load_native().HMPCCore(
-            model, self._FT, self.settings.N, self.qps._core, ndo,
-            buf["v"], buf["tau"], buf["d_hat"], self._M, buf["nle"],
-        )  # fmt: skip
+            model,
+            self._FT,
+            self.settings.N,
+            self.qps._core,
+            ndo,
+            buf["v"],
+            buf["tau"],
+            buf["d_hat"],
+            self._M,
+            buf["nle"],
+        )
         core.set_stack(self._stack, self._offsets)
         robot = self.robot  # how the compiled step's faults name it
         core.robot = f"the robot {robot.name!r} has {self.n} joints {robot.joint_names}"
@@ -604,9 +626,14 @@ class HierarchicalMPC(AppliedTorque):
         ndo_state = ndo.state if ndo is not None else None
         step_core = self._core
         # copies, independent of the compiled step's own vectors
-        carried = tuple(np.array(x, copy=True) if isinstance(x, np.ndarray) else
-                        [np.array(a, copy=True) for a in x] if isinstance(x, list) else x
-                        for x in step_core.state)  # fmt: skip
+        carried = tuple(
+            np.array(x, copy=True)
+            if isinstance(x, np.ndarray)
+            else [np.array(a, copy=True) for a in x]
+            if isinstance(x, list)
+            else x
+            for x in step_core.state
+        )
         try:
             self.step(t, q, dq, reference)
         except HmpcError:

@@ -101,9 +101,10 @@ class MeasuredController(ControllerWrapper):
         if measurement is not None:
             if q_noise or dq_noise or delay or rng is not None:
                 raise ConfigError(
-                    "measurement", "q_noise, dq_noise, delay and rng do not apply to a "
+                    "measurement",
+                    "q_noise, dq_noise, delay and rng do not apply to a "
                     "measurement port of your own; give them to the port",
-                )  # fmt: skip
+                )
             _check_port(measurement)
         if not (np.isfinite(q_noise) and q_noise >= 0 and np.isfinite(dq_noise) and dq_noise >= 0):
             raise ConfigError(
@@ -179,9 +180,10 @@ class FrictionFeedforward(ControllerWrapper):
         a, b = np.array(viscous, dtype=float), np.array(coulomb, dtype=float)
         if a.shape != b.shape or a.ndim != 1 or not np.all(np.isfinite(np.r_[a, b])):
             raise ConfigError(
-                "controller.friction", f"expected finite per-joint viscous and coulomb of one "
+                "controller.friction",
+                f"expected finite per-joint viscous and coulomb of one "
                 f"length, got {a.tolist()} and {b.tolist()}",
-            )  # fmt: skip
+            )
         if not (np.isfinite(smoothing) and smoothing >= 0):
             raise ConfigError("controller.friction.smoothing", f"expected >= 0, got {smoothing!r}")
         super().__init__(controller)
@@ -294,14 +296,16 @@ class CollisionReaction(ControllerWrapper):
 
     def __init__(self, controller, threshold, reaction: str = "ignore"):
         if reaction not in self.REACTIONS:
-            raise ConfigError("collision.reaction", f"expected one of {self.REACTIONS}, got "
-                              f"{reaction!r}")  # fmt: skip
+            raise ConfigError(
+                "collision.reaction", f"expected one of {self.REACTIONS}, got {reaction!r}"
+            )
         comp = getattr(controller, "compensation", None)
         if comp is None:
             raise ConfigError(
-                "collision", f"{type(controller).__name__} has no compensation to watch; use "
+                "collision",
+                f"{type(controller).__name__} has no compensation to watch; use "
                 "a controller with a disturbance observer",
-            )  # fmt: skip
+            )
         thr = np.asarray(threshold, dtype=float)
         if not (np.all(np.isfinite(thr)) and np.all(thr > 0)):
             raise ConfigError("collision.threshold", f"expected values > 0, got {thr!r}")

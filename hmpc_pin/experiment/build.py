@@ -203,9 +203,12 @@ def warn_bandwidth(robot: Robot, cc: ControllerConfig, posture: np.ndarray | Non
         from .controllers import observer_bandwidth
 
         check_bandwidth(
-            observer_bandwidth(robot, cc, posture), cc.Ts, cc.latency or 0.0, robot.joint_names,
+            observer_bandwidth(robot, cc, posture),
+            cc.Ts,
+            cc.latency or 0.0,
+            robot.joint_names,
             explicit=obs.discretization == "explicit",
-        )  # fmt: skip
+        )
 
 
 def uses_observer(cc: ControllerConfig) -> bool:
@@ -242,14 +245,16 @@ def with_controller(
         comp = "none"
     elif observer is True and comp not in OBSERVERS:
         comp = cc.compensation if cc.compensation in OBSERVERS else "chen"
-    keep = {name: (getattr(cc, name) if applies(name, controller, comp) else None)
-            for name in TABLES}  # fmt: skip
+    keep = {
+        name: (getattr(cc, name) if applies(name, controller, comp) else None) for name in TABLES
+    }
     if keep["ism"] is not None and not compensation_spec(comp).boundary_layer:
         keep["ism"] = replace(keep["ism"], boundary_layer=None)
     if keep["computed_torque"] is not None and controller == "computed-torque":
         keep["computed_torque"] = replace(keep["computed_torque"], ki=None)
-    hmpc_only = {name: (getattr(cc, name) if applies(name, controller, comp) else None)
-                 for name in HMPC_ONLY}  # fmt: skip
+    hmpc_only = {
+        name: (getattr(cc, name) if applies(name, controller, comp) else None) for name in HMPC_ONLY
+    }
     new = replace(cc, kind=controller, compensation=comp, **keep, **hmpc_only)
     return (
         config
@@ -335,8 +340,9 @@ class Experiment:
                 f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
             )
         if pc.engine == "mujoco":  # compiles the URDF (and checks timestep | Ts) before a run
-            MuJoCoPlant(plant, None, config.controller.Ts, pc.mujoco.timestep,
-                        mujoco_settings(pc, n))  # fmt: skip
+            MuJoCoPlant(
+                plant, None, config.controller.Ts, pc.mujoco.timestep, mujoco_settings(pc, n)
+            )
         else:
             pinocchio_plant(pc, plant, None, config.controller.Ts)  # checks dt | Ts
         reference = build_reference(config, robot)
@@ -358,9 +364,11 @@ class Experiment:
         fm = config.controller.friction
         if fm is not None:  # the friction model, fed forward around the controller
             controller = FrictionFeedforward(
-                controller, config.vector("controller.friction.viscous", n),
-                config.vector("controller.friction.coulomb", n), fm.smoothing,
-            )  # fmt: skip
+                controller,
+                config.vector("controller.friction.viscous", n),
+                config.vector("controller.friction.coulomb", n),
+                fm.smoothing,
+            )
         if config.collision is not None and uses_observer(config.controller):
             controller = CollisionReaction(
                 controller, config.vector("collision.threshold", n), config.collision.reaction
@@ -370,9 +378,13 @@ class Experiment:
             lower, upper = limits.lower, limits.upper
             for i in np.flatnonzero((q0 < lower - 1e-9) | (q0 > upper + 1e-9)):
                 raise LimitError(
-                    "initial position (simulation.q0)", robot.joint_names[i], None, q0[i],
-                    lower[i], upper[i],
-                )  # fmt: skip
+                    "initial position (simulation.q0)",
+                    robot.joint_names[i],
+                    None,
+                    q0[i],
+                    lower[i],
+                    upper[i],
+                )
             cc = config.controller
             times = cc.Ts * np.arange(round(config.simulation.duration / cc.Ts) + cc.N + 1)
             check_limits(reference, lower, upper, times, robot.joint_names)
@@ -452,8 +464,9 @@ class Experiment:
             }
         return result
 
-    def _simulate(self, plant: Plant, duration: float | None, on_step,
-                  loop: str = "auto") -> Result:  # fmt: skip
+    def _simulate(
+        self, plant: Plant, duration: float | None, on_step, loop: str = "auto"
+    ) -> Result:
         cfg = self.config
         return simulate(
             self.robot,
@@ -536,9 +549,12 @@ class Experiment:
         Ts = self.controller.Ts if Ts is None else Ts
         if pc.engine == "mujoco":
             return MuJoCoPlant(
-                self.plant, self.disturbance, Ts, pc.mujoco.timestep,
+                self.plant,
+                self.disturbance,
+                Ts,
+                pc.mujoco.timestep,
                 mujoco_settings(pc, self.robot.nq),
-            )  # fmt: skip
+            )
         return pinocchio_plant(pc, self.plant, self.disturbance, Ts)
 
 
@@ -568,10 +584,14 @@ def realtime_parts(
     cfg = experiment.config
     rc, robot = cfg.realtime, experiment.robot
     n = robot.nq
-    loop = LoopSettings(rate=rc.rate if rate is None else rate,
-                        duration=cfg.simulation.duration, gc_handling=rc.gc,
-                        gc_slack=rc.gc_slack, spin=rc.spin,
-                        warm_up=rc.warm_up)  # fmt: skip
+    loop = LoopSettings(
+        rate=rc.rate if rate is None else rate,
+        duration=cfg.simulation.duration,
+        gc_handling=rc.gc,
+        gc_slack=rc.gc_slack,
+        spin=rc.spin,
+        warm_up=rc.warm_up,
+    )
     loop.decimation(cfg.controller.Ts)
     if plant:
         experiment.make_plant(loop.period)  # checks that the plant's step divides the period
@@ -579,19 +599,36 @@ def realtime_parts(
         vel = np.where(robot.velocity_limit > 0, robot.velocity_limit * rc.scale, np.inf)
         lim = experiment._recorded_limits()  # a URDF without a range: no position bound
         lower, upper = np.asarray(lim["lower"]), np.asarray(lim["upper"])
-        safety = SafetySettings(lower - rc.margin, upper + rc.margin, vel,
-                                max_misses=rc.max_misses, watchdog=rc.watchdog,
-                                hold=rc.hold, brake_speed=rc.brake_speed)  # fmt: skip
+        safety = SafetySettings(
+            lower - rc.margin,
+            upper + rc.margin,
+            vel,
+            max_misses=rc.max_misses,
+            watchdog=rc.watchdog,
+            hold=rc.hold,
+            brake_speed=rc.brake_speed,
+        )
     else:
-        safety = SafetySettings.unlimited(n, max_misses=rc.max_misses, watchdog=rc.watchdog,
-                                          hold=rc.hold, brake_speed=rc.brake_speed)  # fmt: skip
+        safety = SafetySettings.unlimited(
+            n,
+            max_misses=rc.max_misses,
+            watchdog=rc.watchdog,
+            hold=rc.hold,
+            brake_speed=rc.brake_speed,
+        )
     damping, brake = brake_settings(cfg, loop.period)
     if damping is not None:
         damping = cfg.vector("realtime.damping", n)
-        _warn_weak_damping(robot.mass_matrix(experiment.q0), damping, rc.hold,
-                           minimum_brake_time(cfg, loop.period))  # fmt: skip
-    safe = SafeTorque(robot, damping if damping is not None else 0.0, rc.gravity is not False,
-                      effort_limit=experiment.effort_limit, brake_time=brake)  # fmt: skip
+        _warn_weak_damping(
+            robot.mass_matrix(experiment.q0), damping, rc.hold, minimum_brake_time(cfg, loop.period)
+        )
+    safe = SafeTorque(
+        robot,
+        damping if damping is not None else 0.0,
+        rc.gravity is not False,
+        effort_limit=experiment.effort_limit,
+        brake_time=brake,
+    )
     return loop, safety, safe
 
 
@@ -647,12 +684,16 @@ def _warn_weak_damping(M: np.ndarray, damping: np.ndarray, hold: float, shortest
     slowest = brake_time_constant(M, d)
     if slowest <= hold / 3.0:
         return
-    advice = (f"Set realtime.brake_time = {max(hold / 6, shortest):.3g} (brakes with "
-              "M(q)/brake_time: every joint alike)")  # fmt: skip
+    advice = (
+        f"Set realtime.brake_time = {max(hold / 6, shortest):.3g} (brakes with "
+        "M(q)/brake_time: every joint alike)"
+    )
     if np.isfinite(slowest):
-        what = (f"slows this arm's slowest motion with a time constant of {slowest:.3g} s (its "
-                f"inertia at the start posture): after hold = {hold:g} s it still moves at "
-                f"{100 * np.exp(-hold / slowest):.0f} % of its speed at the stop")  # fmt: skip
+        what = (
+            f"slows this arm's slowest motion with a time constant of {slowest:.3g} s (its "
+            f"inertia at the start posture): after hold = {hold:g} s it still moves at "
+            f"{100 * np.exp(-hold / slowest):.0f} % of its speed at the stop"
+        )
         advice += f", or damping above {3.0 * slowest / hold * float(d.max()):.3g} N·m·s/rad"
     else:
         what = "leaves a joint with damping 0 unbraked: it keeps its speed at the stop"

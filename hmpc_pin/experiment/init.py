@@ -234,10 +234,11 @@ class InitPlan:
         limits = {
             full.names[j]: (
                 (full.lowerPositionLimit[full.idx_qs[j]], full.upperPositionLimit[full.idx_qs[j]])
-                if full.nqs[j] == 1 else (-np.inf, np.inf)
+                if full.nqs[j] == 1
+                else (-np.inf, np.inf)
             )
             for j in range(1, full.njoints)
-        }  # fmt: skip
+        }
         links = {link.get("name") for link in root.findall("link")}
         # Pinocchio cannot lock a joint that shares its name with a link (so100's gripper).
         lock = [n for n in movable if LOCK_PATTERN.search(n) and n not in links]
@@ -253,11 +254,14 @@ class InitPlan:
         self.position_limits = not self.bad_ranges
         if not self.position_limits:
             lo, hi = np.full_like(lo, -np.inf), np.full_like(hi, np.inf)
-        center = np.array([
-            posture[n] if n in posture
-            else (0.5 * (a + b) if np.isfinite(a) and np.isfinite(b) else 0.0)
-            for n, a, b in zip(robot.joint_names, lo, hi, strict=True)
-        ])  # fmt: skip
+        center = np.array(
+            [
+                posture[n]
+                if n in posture
+                else (0.5 * (a + b) if np.isfinite(a) and np.isfinite(b) else 0.0)
+                for n, a, b in zip(robot.joint_names, lo, hi, strict=True)
+            ]
+        )
         if not self.posture_source:
             self.posture_source = "middle of the URDF limits (no SRDF)"
         span = hi - lo
@@ -268,8 +272,7 @@ class InitPlan:
             amp = scale * amp0
             start = np.clip(center, lo + amp + margin, hi - amp - margin)
             try:
-                self.offset = _hold_gravity(robot, start, amp, lo + amp + margin,
-                                            hi - amp - margin)  # fmt: skip
+                self.offset = _hold_gravity(robot, start, amp, lo + amp + margin, hi - amp - margin)
                 break
             except URDFError:
                 if scale == AMPLITUDE_SCALES[-1]:
@@ -304,12 +307,16 @@ class InitPlan:
         self.damping_rate = float(damping_rates(robot, self.offset).max(initial=0.0))
         taus = damping_time_constants(robot, self.offset)
         self.damping_tau = float(taus.min(initial=math.inf))
-        self.damped_joint = (robot.joint_names[int(np.argmin(taus))]
-                             if np.isfinite(self.damping_tau) else None)  # fmt: skip
+        self.damped_joint = (
+            robot.joint_names[int(np.argmin(taus))] if np.isfinite(self.damping_tau) else None
+        )
         self.plant_dt, self.joint_dynamics = PLANT_STEPS[0], True
         if self.damping_rate > 0:
-            fits = [dt for dt in PLANT_STEPS
-                    if dt * self.damping_rate <= 0.5 * DAMPING_STEP_LIMIT["rk4"]]  # fmt: skip
+            fits = [
+                dt
+                for dt in PLANT_STEPS
+                if dt * self.damping_rate <= 0.5 * DAMPING_STEP_LIMIT["rk4"]
+            ]
             if fits:
                 self.plant_dt = fits[0]
             else:
@@ -373,11 +380,20 @@ def _plant_lines(p: InitPlan) -> list[str]:
         return []
     tau = 1.0 / p.damping_rate
     if p.joint_dynamics:
-        return ["[plant]", f"# The URDF's joint damping (time constant down to {tau:.3g} s) needs "
-                "a short", "# step of the RK4 plant.", f"dt = {p.plant_dt:g}", ""]  # fmt: skip
-    return ["[plant]", f"# The URDF's joint damping (time constant down to {tau:.3g} s) is "
-            f"too stiff for", f"# the RK4 plant even at dt = {PLANT_STEPS[-1]:g} s: the simulated "
-            "arm leaves it out.", "joint_dynamics = false", ""]  # fmt: skip
+        return [
+            "[plant]",
+            f"# The URDF's joint damping (time constant down to {tau:.3g} s) needs a short",
+            "# step of the RK4 plant.",
+            f"dt = {p.plant_dt:g}",
+            "",
+        ]
+    return [
+        "[plant]",
+        f"# The URDF's joint damping (time constant down to {tau:.3g} s) is too stiff for",
+        f"# the RK4 plant even at dt = {PLANT_STEPS[-1]:g} s: the simulated arm leaves it out.",
+        "joint_dynamics = false",
+        "",
+    ]
 
 
 def _vec(values, digits: int = 4) -> str:
@@ -452,20 +468,26 @@ def _render(p: InitPlan, duration: float) -> str:
     ]
     lines += textwrap.wrap(
         f"Controlled ({n}): {', '.join(robot.joint_names)}",
-        88, initial_indent="# ", subsequent_indent="#   ",
-    )  # fmt: skip
+        88,
+        initial_indent="# ",
+        subsequent_indent="#   ",
+    )
     if robot.continuous_joints:
         lines += textwrap.wrap(
             "Continuous joints (revolute, no position limit, the angle does not wrap): "
             + ", ".join(robot.continuous_joints),
-            88, initial_indent="# ", subsequent_indent="#   ",
-        )  # fmt: skip
+            88,
+            initial_indent="# ",
+            subsequent_indent="#   ",
+        )
     if robot.mimic_joints:
         lines += textwrap.wrap(
             "Mimic joints (follow their leader, not controlled on their own): "
             + ", ".join(f"{f} = {m:g}*{j} + {o:g}" for f, (j, m, o) in robot.mimic_joints.items()),
-            88, initial_indent="# ", subsequent_indent="#   ",
-        )  # fmt: skip
+            88,
+            initial_indent="# ",
+            subsequent_indent="#   ",
+        )
     lines += [
         f'name = "{stem}_init"',
         f'description = "{p.name}, {n} joints: sine around the reference posture (hmpc-pin init)"',
@@ -597,9 +619,9 @@ def write_config(
     path = Path(out) if out is not None else Path(f"{name.group(1) if name else 'robot'}.toml")
     if path.exists() and not overwrite:
         raise ConfigError(
-            "--out", f"{str(path)!r} exists; pass --force (overwrite=True) to replace it, or "
-            "another path",
-        )  # fmt: skip
+            "--out",
+            f"{str(path)!r} exists; pass --force (overwrite=True) to replace it, or another path",
+        )
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text, encoding="utf-8")

@@ -146,13 +146,15 @@ class FrictionFit:
                 f"no confidence interval for {names}: the residual is so correlated that "
                 "its effective samples m_e = m(1-rho)/(1+rho) (rho: lag-1 autocorrelation) "
                 f"leave fewer than {MIN_DEGREES_OF_FREEDOM} degrees of freedom "
-                + (f"(the run had {self.unmodelled}, which the friction model does not "
-                   "hold); fit a run without them, or pass --after past them"
-                   if self.unmodelled else
-                   "(a disturbance the friction model does not hold, or the observer's "
-                   "lag); record a longer run")
+                + (
+                    f"(the run had {self.unmodelled}, which the friction model does not "
+                    "hold); fit a run without them, or pass --after past them"
+                    if self.unmodelled
+                    else "(a disturbance the friction model does not hold, or the observer's "
+                    "lag); record a longer run"
+                )
                 + (", or try --source dynamics" if self.source == "observer" else "")
-            )  # fmt: skip
+            )
         if self.excluded:
             out.append(f"{self.excluded} samples left out: NaN or inf in a recorded column")
         return out
@@ -213,12 +215,15 @@ def coverage(dq: np.ndarray, velocity_threshold: float) -> tuple[float, float]:
     """Fractions of the samples moving forward and backward faster than :math:`v_0`."""
     total = max(len(dq), 1)
     fast = np.isfinite(dq) & (np.abs(dq) > velocity_threshold)
-    return (float(np.count_nonzero(fast & (dq > 0)) / total),
-            float(np.count_nonzero(fast & (dq < 0)) / total))  # fmt: skip
+    return (
+        float(np.count_nonzero(fast & (dq > 0)) / total),
+        float(np.count_nonzero(fast & (dq < 0)) / total),
+    )
 
 
-def check_excitation(name: str, dq: np.ndarray, velocity_threshold: float,
-                     min_coverage: float) -> tuple[float, float]:  # fmt: skip
+def check_excitation(
+    name: str, dq: np.ndarray, velocity_threshold: float, min_coverage: float
+) -> tuple[float, float]:
     """The coverage of one joint at :math:`v_e` (``velocity_threshold``), or
     :class:`ExcitationError` if it does not move both ways."""
     forward, backward = coverage(dq, velocity_threshold)
@@ -308,8 +313,7 @@ def fit_joint(
             ill-conditioned; the message names the joint and the motion that would do.
     """
     y, dq = np.asarray(y, float), np.asarray(dq, float)
-    cover = check_excitation(name, dq, max(excitation_velocity, velocity_threshold),
-                             min_coverage)  # fmt: skip
+    cover = check_excitation(name, dq, max(excitation_velocity, velocity_threshold), min_coverage)
     keep = np.isfinite(y) & np.isfinite(dq) & (np.abs(dq) > velocity_threshold)
     A = np.column_stack([dq[keep], np.sign(dq[keep])])
     cond = _condition(name, A, max_condition)
@@ -376,19 +380,36 @@ class ObserverModel:
         while hasattr(compensation, "inner"):
             compensation = compensation.inner
         if isinstance(compensation, DisturbanceObserver):
-            return cls("general", 1.0, compensation.Ts, robot,
-                       compensation.discretization == "implicit",
-                       np.array(compensation.cY, dtype=float), model_at)  # fmt: skip
+            return cls(
+                "general",
+                1.0,
+                compensation.Ts,
+                robot,
+                compensation.discretization == "implicit",
+                np.array(compensation.cY, dtype=float),
+                model_at,
+            )
         if isinstance(compensation, MomentumObserver):
-            return cls("momentum", np.array(compensation.K, dtype=float), compensation.Ts,
-                       robot, True, None, model_at)  # fmt: skip
+            return cls(
+                "momentum",
+                np.array(compensation.K, dtype=float),
+                compensation.Ts,
+                robot,
+                True,
+                None,
+                model_at,
+            )
         return None
 
     def record(self) -> dict:
         """The JSON record a run keeps in ``meta["observer_model"]`` (:meth:`from_record`
         reads it back)."""
-        out: dict = {"kind": self.kind, "Ts": float(self.Ts), "model_at": self.model_at,
-                     "discretization": "implicit" if self.implicit else "explicit"}  # fmt: skip
+        out: dict = {
+            "kind": self.kind,
+            "Ts": float(self.Ts),
+            "model_at": self.model_at,
+            "discretization": "implicit" if self.implicit else "explicit",
+        }
         if self.matrix is not None:
             out["matrix"] = np.asarray(self.matrix, dtype=float).tolist()
         else:
@@ -406,8 +427,9 @@ class ObserverModel:
         """
 
         def bad(what: str) -> ConfigError:
-            return ConfigError("observer_model", f"the run's observer record {what}; "
-                               "use --source dynamics")  # fmt: skip
+            return ConfigError(
+                "observer_model", f"the run's observer record {what}; use --source dynamics"
+            )
 
         if not isinstance(record, dict):
             raise bad(f"is {type(record).__name__}, expected a table")
@@ -427,10 +449,16 @@ class ObserverModel:
             raise bad(f"has model_at = {model_at!r}, expected one of {MODEL_AT}")
         if record.get("matrix") is not None:
             M = np.asarray(record["matrix"], dtype=float)
-            if M.ndim != 2 or M.shape[0] != M.shape[1] or (n is not None and M.shape[0] != n) \
-                    or not np.all(np.isfinite(M)):  # fmt: skip
-                raise bad(f"has an observer matrix of shape {M.shape}, expected a finite "
-                          f"({n or 'n'}, {n or 'n'}) matrix")  # fmt: skip
+            if (
+                M.ndim != 2
+                or M.shape[0] != M.shape[1]
+                or (n is not None and M.shape[0] != n)
+                or not np.all(np.isfinite(M))
+            ):
+                raise bad(
+                    f"has an observer matrix of shape {M.shape}, expected a finite "
+                    f"({n or 'n'}, {n or 'n'}) matrix"
+                )
             return cls(kind, 1.0, Ts, robot, implicit, M, model_at)
         gain = record.get("gain")
         try:
@@ -438,9 +466,11 @@ class ObserverModel:
         except (TypeError, ValueError):
             g = np.array(np.nan)
         if gain is None or g.ndim > 1 or not np.all(np.isfinite(g)) or not np.all(g > 0):
-            raise bad(f"has no observer matrix and the gain {gain!r} (a bandwidth observer "
-                      "recorded by an older version); run it again to record the observer "
-                      "that ran")  # fmt: skip
+            raise bad(
+                f"has no observer matrix and the gain {gain!r} (a bandwidth observer "
+                "recorded by an older version); run it again to record the observer "
+                "that ran"
+            )
         if g.ndim == 1 and compensation_spec(kind).Y is not None:
             raise bad(f"has a per-joint gain for the {kind!r} observer, expected one value")
         return cls(kind, g if g.ndim else float(g), Ts, robot, implicit, None, model_at)
@@ -537,8 +567,7 @@ def _regressor_rows(result: Result, robot):
     Y = np.empty((len(t) - 1, q.shape[1], 10 * (model.njoints - 1)))
     for k in range(len(t) - 1):
         ddq = (dq[k + 1] - dq[k]) / (t[k + 1] - t[k])
-        Y[k] = pin.computeJointTorqueRegressor(model, data, 0.5 * (q[k] + q[k + 1]),
-                                               dq_mid[k], ddq)  # fmt: skip
+        Y[k] = pin.computeJointTorqueRegressor(model, data, 0.5 * (q[k] + q[k + 1]), dq_mid[k], ddq)
     return Y, tau[:-1], dq_mid, 0.5 * (t[1:] + t[:-1])
 
 
@@ -628,8 +657,9 @@ def fit_friction(
     if not 0 < confidence < 1:
         raise ConfigError("--confidence", f"expected a level in (0, 1), got {confidence!r}")
     if not (np.isfinite(velocity_threshold) and velocity_threshold >= 0):
-        raise ConfigError("--velocity-threshold", f"expected a number >= 0, got "
-                          f"{velocity_threshold!r}")  # fmt: skip
+        raise ConfigError(
+            "--velocity-threshold", f"expected a number >= 0, got {velocity_threshold!r}"
+        )
     n = result.dq.shape[1]
     names = result.joint_names or tuple(f"joint{i + 1}" for i in range(n))
     if source in ("dynamics", "regressor") and robot is None:
@@ -664,17 +694,25 @@ def fit_friction(
     use = t >= after - 1e-12
     excluded = int(np.count_nonzero(use & ~valid))
     if excluded and not np.any(use & valid):
-        raise ConfigError("RUN", f"every sample after {after:g} s has NaN or inf in "
-                          f"{' or '.join(bad_columns)}: nothing to fit"
-                          + (" (a file written before 0.3 of a saturated run does not know the "
-                             "applied torque; use --source observer)"
-                             if bad_columns == ["tau_applied"] else ""))  # fmt: skip
+        raise ConfigError(
+            "RUN",
+            f"every sample after {after:g} s has NaN or inf in "
+            f"{' or '.join(bad_columns)}: nothing to fit"
+            + (
+                " (a file written before 0.3 of a saturated run does not know the "
+                "applied torque; use --source observer)"
+                if bad_columns == ["tau_applied"]
+                else ""
+            ),
+        )
     use &= valid
     blocks, covers, conds = [], [], []
     for i, name in enumerate(names):
-        covers.append(check_excitation(name, dq[use, i],
-                                       max(excitation_velocity, velocity_threshold),
-                                       min_coverage))  # fmt: skip
+        covers.append(
+            check_excitation(
+                name, dq[use, i], max(excitation_velocity, velocity_threshold), min_coverage
+            )
+        )
         keep = use & np.isfinite(y[:, i]) & (np.abs(dq[:, i]) > velocity_threshold)
         raw = np.column_stack([dq[keep, i], np.sign(dq[keep, i])])
         conds.append(_condition(name, raw, max_condition))

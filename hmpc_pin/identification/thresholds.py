@@ -161,24 +161,31 @@ def learn_thresholds(
     ):
         if not ok:
             expected = {"--false-alarm": "a probability in (0, 1)", "--safety": "a factor >= 1"}
-            raise ConfigError(key, f"expected {expected.get(key, 'a duration [s] > 0')}, got "
-                              f"{value!r}")  # fmt: skip
+            raise ConfigError(
+                key, f"expected {expected.get(key, 'a duration [s] > 0')}, got {value!r}"
+            )
     if method not in METHODS:
         raise ConfigError("--method", f"expected one of {METHODS}, got {method!r}")
     t = result.t
     use = t >= after - 1e-12
     r = np.abs(result.d_hat[use])
     if not np.any(r):
-        raise ConfigError("RUN", "its observer estimate d_hat is zero throughout: learn the "
-                          "thresholds from a run with an observer")  # fmt: skip
+        raise ConfigError(
+            "RUN",
+            "its observer estimate d_hat is zero throughout: learn the "
+            "thresholds from a run with an observer",
+        )
     Ts = float(np.median(np.diff(t))) if len(t) > 1 else math.nan
     span = len(r) * Ts
     block = min(block, span / 10)
     per_block = round(block / Ts) if Ts > 0 else 0
     if per_block < 10:
-        raise ConfigError("RUN", f"{span:.3g} s of samples after t = {after:g} s is too short "
-                          "to learn thresholds: record at least 100 control periods "
-                          "(a minute or more is better)")  # fmt: skip
+        raise ConfigError(
+            "RUN",
+            f"{span:.3g} s of samples after t = {after:g} s is too short "
+            "to learn thresholds: record at least 100 control periods "
+            "(a minute or more is better)",
+        )
     block = per_block * Ts
     n = r.shape[1]
     out = [

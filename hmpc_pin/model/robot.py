@@ -150,11 +150,12 @@ def check_urdf(path: Path, locked: tuple[str, ...] = ()) -> ET.Element:
             missing = [a for a in ("effort", "velocity") if limit.get(a) is None]
             if missing:
                 raise URDFError(
-                    path, f"joint {joint.get('name')!r}: <limit> has no {' and no '.join(missing)} "
+                    path,
+                    f"joint {joint.get('name')!r}: <limit> has no {' and no '.join(missing)} "
                     "attribute; the URDF requires both on a movable joint's <limit> (write "
                     '0 where the arm has none: effort="0" is no torque limit, velocity="0" '
                     "no velocity limit)",
-                )  # fmt: skip
+                )
 
     _check_structure(root, path)
     problems = "; ".join(_completeness_problems(root))
@@ -442,8 +443,13 @@ def check_inertias(root: ET.Element, path: Path, locked: tuple[str, ...] = ()) -
             raise URDFError(path, f"link {name!r}: <inertia> {exc}; expected numbers") from None
         if not all(math.isfinite(x) for x in v.values()):
             raise URDFError(path, f"link {name!r}: <inertia> {v}; expected finite numbers")
-        matrix = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]],
-                           [v["ixz"], v["iyz"], v["izz"]]])  # fmt: skip
+        matrix = np.array(
+            [
+                [v["ixx"], v["ixy"], v["ixz"]],
+                [v["ixy"], v["iyy"], v["iyz"]],
+                [v["ixz"], v["iyz"], v["izz"]],
+            ]
+        )
         moments = np.linalg.eigvalsh(matrix)
         scale = float(np.abs(moments).max())
         given = ", ".join(f"{k}={inertia.get(k, '0')}" for k in keys)
@@ -574,10 +580,11 @@ class Robot:
         self.joint_names: tuple[str, ...] = tuple(name for _, name in coordinates)
         #: Per coordinate: ``"prismatic"`` [m, m/s, N] or ``"revolute"`` [rad, rad/s, N·m].
         self.joint_kinds: tuple[str, ...] = tuple(
-            "prismatic" if model.joints[model.getJointId(name)].shortname()[10:].startswith("P")
+            "prismatic"
+            if model.joints[model.getJointId(name)].shortname()[10:].startswith("P")
             else "revolute"
             for name in self.joint_names
-        )  # fmt: skip
+        )
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self.velocity_limit = np.array(model.velocityLimit, dtype=float)
@@ -689,9 +696,13 @@ class Robot:
         """Return a robot with a copy of the model and its own fresh data."""
         base = self._base_model.copy() if self._base_model is not None else None
         return Robot(
-            self.model.copy(), self.source, self.locked_joints, self.mimic_joints,
-            self.continuous_joints, base_model=base,
-        )  # fmt: skip
+            self.model.copy(),
+            self.source,
+            self.locked_joints,
+            self.mimic_joints,
+            self.continuous_joints,
+            base_model=base,
+        )
 
     def with_scaled_inertias(self, factors) -> Robot:
         """A copy whose link ``i`` has its mass and rotational inertia multiplied by
@@ -712,9 +723,13 @@ class Robot:
                 old = m.inertias[i]
                 m.inertias[i] = pin.Inertia(ki * old.mass, old.lever.copy(), ki * old.inertia)
         return Robot(
-            model, self.source, self.locked_joints, self.mimic_joints, self.continuous_joints,
+            model,
+            self.source,
+            self.locked_joints,
+            self.mimic_joints,
+            self.continuous_joints,
             base_model=base,
-        )  # fmt: skip
+        )
 
     def is_planar_chain(self, tol: float = 1e-9) -> bool:
         """Whether the arm is a planar serial chain: each joint hangs from the previous one,
@@ -726,8 +741,10 @@ class Robot:
             return False
         pin.computeJointJacobians(model, data, pin.neutral(model))
         J = pin.getJointJacobian(model, data, model.njoints - 1, pin.ReferenceFrame.WORLD)
-        axes = [(kind, J[3:, j] if kind == "revolute" else J[:3, j])
-                for j, kind in enumerate(self.joint_kinds)]  # fmt: skip
+        axes = [
+            (kind, J[3:, j] if kind == "revolute" else J[:3, j])
+            for j, kind in enumerate(self.joint_kinds)
+        ]
         normal = next((a for k, a in axes if k == "revolute"), None)
         if normal is None:
             return True

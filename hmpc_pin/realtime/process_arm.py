@@ -289,8 +289,11 @@ class ProcessArm:
         """Arm-side counts: ``steps`` integrated, ``missed_commands`` (periods without a
         new torque once started), ``late`` (periods the arm's own loop woke too late for)."""
         c = self._ctl
-        return {"steps": int(c[_STEPS]), "missed_commands": int(c[_MISSED_CMDS]),
-                "late": int(c[_LATE])}  # fmt: skip
+        return {
+            "steps": int(c[_STEPS]),
+            "missed_commands": int(c[_MISSED_CMDS]),
+            "late": int(c[_LATE]),
+        }
 
     @property
     def alive(self) -> bool:

@@ -211,9 +211,10 @@ class MuJoCoSettings:
         value = np.asarray(getattr(self, name), dtype=float)
         if value.ndim == 1 and value.shape != (n,):
             raise ConfigError(
-                name, f"has {value.shape[0]} entries but the robot has {n} joints; give {n} "
+                name,
+                f"has {value.shape[0]} entries but the robot has {n} joints; give {n} "
                 "values or one value for all joints",
-            )  # fmt: skip
+            )
         return np.broadcast_to(value, (n,)).astype(float)
 
 
@@ -255,9 +256,10 @@ def resolve_mesh_path(filename: str, urdf: Path, package_dirs: tuple[str, ...] =
     path = path if path.is_absolute() else urdf.parent / path
     if not path.is_file():
         raise URDFError(
-            urdf, f"mesh {filename!r} not found (looked for {path}); fix the path or use "
+            urdf,
+            f"mesh {filename!r} not found (looked for {path}); fix the path or use "
             "[plant.mujoco] geometry = 'none'",
-        )  # fmt: skip
+        )
     return path.resolve()
 
 
@@ -346,9 +348,10 @@ def urdf_for_mujoco(
                 continue  # a mimic joint in the controller's model too: MuJoCo's equality
             if name not in controlled:
                 raise URDFError(
-                    path, f"joint {name!r} mimics {mimic.get('joint')!r} but is neither "
+                    path,
+                    f"joint {name!r} mimics {mimic.get('joint')!r} but is neither "
                     "controlled, nor a mimic joint of the controller's model, nor locked",
-                )  # fmt: skip
+                )
             joint.remove(mimic)  # an independent coordinate of the controller's model
         if not s.import_urdf_dynamics:
             for dyn in joint.findall("dynamics"):
@@ -374,10 +377,11 @@ def urdf_for_mujoco(
             file = resolve_mesh_path(mesh.get("filename", ""), path, s.package_dirs)
             if file.suffix.lower() not in MESH_SUFFIXES:
                 raise URDFError(
-                    path, f"mesh {file.name!r} of link {link.get('name')!r}: MuJoCo reads "
+                    path,
+                    f"mesh {file.name!r} of link {link.get('name')!r}: MuJoCo reads "
                     f"{MESH_SUFFIXES} meshes only; use [plant.mujoco] geometry = 'collision' "
                     "(if the collision meshes are STL/OBJ) or 'none'",
-                )  # fmt: skip
+                )
             mesh.set("filename", str(file))
     mj = ET.Element("mujoco")
     # Inertias from the URDF only (as Pinocchio): a link without <inertial> is massless.
@@ -432,17 +436,19 @@ def mujoco_model(robot: Robot, settings: MuJoCoSettings | None = None):
     names = [model.joint(i).name for i in range(model.njnt)]
     if sorted(names) != sorted([*robot.joint_names, *mimics]):
         raise URDFError(
-            source, f"MuJoCo's model has the joints {names} but the controller's "
+            source,
+            f"MuJoCo's model has the joints {names} but the controller's "
             f"{list(robot.joint_names)} (mimic joints {list(mimics)}); they must be the same",
-        )  # fmt: skip
+        )
     if model.neq:  # the mimic equalities: as stiff as MuJoCo's soft constraints allow
         model.eq_solref[:] = (MIMIC_TIMECONST, 1.0)
         model.eq_solimp[:] = MIMIC_SOLIMP
     if s.obstacle is not None and model.ngeom < 2:  # the obstacle is the only geom
         raise URDFError(
-            source, f"the arm has no {s.geometry} geometry, so it can never touch the obstacle; "
+            source,
+            f"the arm has no {s.geometry} geometry, so it can never touch the obstacle; "
             "use [plant.mujoco] geometry = 'visual' (its visual shapes) or add <collision> tags",
-        )  # fmt: skip
+        )
     dofs = np.array([model.joint(name).dofadr[0] for name in robot.joint_names])
     n = robot.nq
     for name in ("frictionloss", "damping", "armature"):
@@ -492,9 +498,10 @@ def _inertia_factors(robot: Robot) -> np.ndarray | None:
             and np.allclose(a.inertia, k * b.inertia, rtol=1e-9, atol=1e-15)
         ):
             raise URDFError(
-                robot.source, f"the plant model's link {i} differs from its URDF other than "
+                robot.source,
+                f"the plant model's link {i} differs from its URDF other than "
                 "by a factor on mass and inertia; the MuJoCo plant can only scale a link",
-            )  # fmt: skip
+            )
         factors.append(k)
     k = np.array(factors)
     return None if np.allclose(k, 1.0, rtol=1e-12) else k
@@ -568,9 +575,11 @@ class MuJoCoPlant:
             E[j.dofadr[0], index[leader]] = mult
         self._E = E
         self._ident = bool(
-            np.array_equal(self.qadr, np.arange(n)) and np.array_equal(self.vadr, np.arange(n))
-            and model.nq == n and model.nv == n
-        )  # fmt: skip
+            np.array_equal(self.qadr, np.arange(n))
+            and np.array_equal(self.vadr, np.arange(n))
+            and model.nq == n
+            and model.nv == n
+        )
         self.disturbance = disturbance if disturbance is not None else ZeroDisturbance(n)
         split = split_disturbance(self.disturbance, n)
         # Time-only terms tabulated per period (none: the torque alone); ``None``: the

@@ -231,8 +231,7 @@ class RK4Plant:
         self._T = np.empty((3 * substeps, n))
         zero = np.zeros(n)
         a, b = self._friction if self._friction is not None else (zero, zero)
-        self._ab = (np.broadcast_to(a, (n,)).astype(float),
-                    np.broadcast_to(b, (n,)).astype(float))  # fmt: skip
+        self._ab = (np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float))
         self._kernel = self._make_kernel()
 
     def _make_kernel(self):
@@ -316,8 +315,9 @@ class RK4Plant:
             self._kernel.period(x[:n], x[n:], T, a, b, self._friction is not None, self.h)
         else:
             tau = np.ascontiguousarray(tau, dtype=float)
-            self._kernel.period_with(x[:n], x[n:], tau, self.t, self.h, self.substeps,
-                                     self.disturbance)  # fmt: skip
+            self._kernel.period_with(
+                x[:n], x[n:], tau, self.t, self.h, self.substeps, self.disturbance
+            )
         self.k += 1
         self.t = self.t0 + self.Ts * self.k
         self.q, self.dq = x[:n].copy(), x[n:].copy()

@@ -111,10 +111,17 @@ class CompiledSampling:
         t = np.asarray(times, dtype=float)
         flat = t.reshape(-1)
         shape = (flat.size, self.n)
-        if out is not None and t.ndim == 1 and all(
-            a.shape == shape and a.dtype == np.float64 and a.flags.c_contiguous
-            and a.flags.writeable for a in out
-        ):  # fmt: skip
+        if (
+            out is not None
+            and t.ndim == 1
+            and all(
+                a.shape == shape
+                and a.dtype == np.float64
+                and a.flags.c_contiguous
+                and a.flags.writeable
+                for a in out
+            )
+        ):
             self._sampler().sample(flat, out[0], out[1])
             return out
         q, dq = np.empty(shape), np.empty(shape)
@@ -132,8 +139,10 @@ class CompiledSampling:
         """``_form()`` for the fused step; ``None`` for a subclass that samples otherwise
         (it overrides ``sample_many`` or ``sample``)."""
         cls = type(self)
-        if (cls.sample_many is not CompiledSampling.sample_many
-                or cls.sample is not CompiledSampling.sample):  # fmt: skip
+        if (
+            cls.sample_many is not CompiledSampling.sample_many
+            or cls.sample is not CompiledSampling.sample
+        ):
             return None
         return self._form()
 

@@ -74,9 +74,10 @@ def quat_to_matrix(quat) -> FloatArray:
     q = np.asarray(quat, dtype=float)
     if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
         raise KinematicsError(
-            f"orientation {q.tolist()} is not a quaternion", value=q,
+            f"orientation {q.tolist()} is not a quaternion",
+            value=q,
             expected=f"4 finite numbers ({QUATERNION_ORDER}) of non-zero norm",
-        )  # fmt: skip
+        )
     x, y, z, w = q / np.linalg.norm(q)
     return pin.Quaternion(w, x, y, z).toRotationMatrix()
 
@@ -124,8 +125,9 @@ def check_frame(robot: Robot, frame: str) -> int:
         raise KinematicsError(
             f"frame {frame!r} is not in robot {robot.name!r} ({hint}); "
             f"the tool frame is {robot.tool_frame!r}",
-            value=frame, expected="a frame name of the robot's model",
-        )  # fmt: skip
+            value=frame,
+            expected="a frame name of the robot's model",
+        )
     return robot.model.getFrameId(frame)
 
 
@@ -202,18 +204,27 @@ def plane_axes(plane) -> tuple[FloatArray, FloatArray]:
     Raises:
         KinematicsError: Another name, or a zero or non-finite normal.
     """
-    named = {"xy": ((1, 0, 0), (0, 1, 0)), "xz": ((1, 0, 0), (0, 0, 1)),
-             "yz": ((0, 1, 0), (0, 0, 1))}  # fmt: skip
+    named = {
+        "xy": ((1, 0, 0), (0, 1, 0)),
+        "xz": ((1, 0, 0), (0, 0, 1)),
+        "yz": ((0, 1, 0), (0, 0, 1)),
+    }
     if isinstance(plane, str):
         if plane not in named:
-            raise KinematicsError(f"plane {plane!r} is not known", value=plane,
-                                  expected="'xy', 'xz', 'yz' or a normal [nx, ny, nz]")  # fmt: skip
+            raise KinematicsError(
+                f"plane {plane!r} is not known",
+                value=plane,
+                expected="'xy', 'xz', 'yz' or a normal [nx, ny, nz]",
+            )
         u, v = named[plane]
         return np.array(u, dtype=float), np.array(v, dtype=float)
     nrm = np.asarray(plane, dtype=float)
     if nrm.shape != (3,) or not np.all(np.isfinite(nrm)) or np.linalg.norm(nrm) < 1e-12:
-        raise KinematicsError(f"plane normal {nrm.tolist()} is not a direction", value=nrm,
-                              expected="3 finite numbers, not all zero")  # fmt: skip
+        raise KinematicsError(
+            f"plane normal {nrm.tolist()} is not a direction",
+            value=nrm,
+            expected="3 finite numbers, not all zero",
+        )
     nrm = nrm / np.linalg.norm(nrm)
     seed = np.eye(3)[int(np.argmin(np.abs(nrm)))]
     u = np.cross(nrm, seed)
@@ -278,9 +289,10 @@ def _pink():
     if solver is None:
         raise KinematicsError(
             "pose tasks solve pink's QP with ProxQP, which qpsolvers does not find; "
-            "pip install 'qpsolvers[proxqp]'", value=qpsolvers.available_solvers,
+            "pip install 'qpsolvers[proxqp]'",
+            value=qpsolvers.available_solvers,
             expected="'proxqp' among qpsolvers.available_solvers",
-        )  # fmt: skip
+        )
     return pink, solver
 
 
@@ -334,9 +346,14 @@ def solve_path_ik(
     ranged = robot.lower < robot.upper  # a 0/0 URDF range means no limit (pink skips it too)
     for i in np.flatnonzero(ranged & ((q < robot.lower) | (q > robot.upper))):
         raise LimitError(
-            "pose task q_init", robot.joint_names[i], None, q[i], robot.lower[i],
-            robot.upper[i], "give q_init inside the limits",
-        )  # fmt: skip
+            "pose task q_init",
+            robot.joint_names[i],
+            None,
+            q[i],
+            robot.lower[i],
+            robot.upper[i],
+            "give q_init inside the limits",
+        )
     model = robot.model.copy()  # pink attaches its limit objects to the model it is given
     targets_p, targets_R = path.poses(times)
     config = pink.Configuration(model, model.createData(), q)
@@ -397,17 +414,28 @@ class PoseReference:
 
     @classmethod
     def solve(
-        cls, robot: Robot, frame: str, path, t_end: float, q_init, *, dt: float = 0.01,
-        t_start: float = 0.0, **ik_options,
-    ) -> PoseReference:  # fmt: skip
+        cls,
+        robot: Robot,
+        frame: str,
+        path,
+        t_end: float,
+        q_init,
+        *,
+        dt: float = 0.01,
+        t_start: float = 0.0,
+        **ik_options,
+    ) -> PoseReference:
         """Solve ``path`` over [t_start, t_end] every ``dt`` [s] (:func:`solve_path_ik`)."""
         k = max(2, int(np.ceil((t_end - t_start) / dt - 1e-9)) + 1)
         times = t_start + dt * np.arange(k)
         qs = solve_path_ik(robot, frame, path, times, q_init, **ik_options)
         trajectory = JointTrajectory(
-            times, qs, joint_names=robot.joint_names, boundary="not-a-knot",
+            times,
+            qs,
+            joint_names=robot.joint_names,
+            boundary="not-a-knot",
             source=f"pose task of frame {frame!r}",
-        )  # fmt: skip
+        )
         return cls(robot, frame, path, trajectory)
 
     def sample(self, t: float) -> Pair:

@@ -61,16 +61,18 @@ def _check_samples(
         if arr is not None and not np.all(np.isfinite(arr)):
             k = int(np.argwhere(~np.isfinite(arr.reshape(len(t), -1)))[0][0])
             raise TrajectoryError(
-                where, f"{name} = {arr[k].tolist()} at sample {k} (0-based; t = {t[k]:g} s)",
+                where,
+                f"{name} = {arr[k].tolist()} at sample {k} (0-based; t = {t[k]:g} s)",
                 "finite numbers (no NaN or inf)",
-            )  # fmt: skip
+            )
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0]) + 1
         raise TrajectoryError(
-            where, f"time {t[k]:g} s at sample {k} (0-based) after {t[k - 1]:g} s",
+            where,
+            f"time {t[k]:g} s at sample {k} (0-based) after {t[k - 1]:g} s",
             "time strictly increasing",
-        )  # fmt: skip
+        )
     if dq is not None:
         names = tuple(names) or tuple(f"joint {i + 1}" for i in range(q.shape[1]))
         _check_velocities(t, q, dq, where, names)
@@ -94,11 +96,12 @@ def _check_velocities(
     if bad.any():
         k, i = np.argwhere(bad)[0]
         raise TrajectoryError(
-            where, f"the velocities of {names[i]} between t = {t[k]:g} and {t[k + 1]:g} s "
+            where,
+            f"the velocities of {names[i]} between t = {t[k]:g} and {t[k + 1]:g} s "
             f"integrate to {float(integral[k, i]):.6g} rad but "
             f"the positions move {float(step[k, i]):.6g} rad",
             "velocity columns that are the derivative of the positions [rad/s], or none",
-        )  # fmt: skip
+        )
 
 
 def _cubic_coefficients(t: FloatArray, q: FloatArray, bc: str) -> FloatArray:
@@ -296,18 +299,25 @@ def load_trajectory(path: str | Path, joint_names: Sequence[str]) -> JointTrajec
                 )
         unknown = sorted(set(arrays) - {"t", "q", "dq", "joint_names"})
         if unknown:
-            raise TrajectoryError(where, f"unknown array {unknown[0]!r}", "arrays t, q [, dq, "
-                                  "joint_names]")  # fmt: skip
+            raise TrajectoryError(
+                where, f"unknown array {unknown[0]!r}", "arrays t, q [, dq, joint_names]"
+            )
         q, dq = np.atleast_2d(arrays["q"]), arrays.get("dq")
         if "joint_names" in arrays:
             given = [str(s) for s in arrays["joint_names"]]
             missing = [j for j in names if j not in given]
             if missing:
-                raise TrajectoryError(where, f"no joint {missing[0]!r} in joint_names {given}",
-                                      f"the controlled joints {names}")  # fmt: skip
+                raise TrajectoryError(
+                    where,
+                    f"no joint {missing[0]!r} in joint_names {given}",
+                    f"the controlled joints {names}",
+                )
             if len(given) != q.shape[-1]:
-                raise TrajectoryError(where, f"{len(given)} joint_names for q of shape "
-                                      f"{q.shape}", "one name per column of q")  # fmt: skip
+                raise TrajectoryError(
+                    where,
+                    f"{len(given)} joint_names for q of shape {q.shape}",
+                    "one name per column of q",
+                )
             order = [given.index(j) for j in names]
             q = q[:, order]
             dq = None if dq is None else np.atleast_2d(dq)[:, order]
@@ -332,24 +342,34 @@ def load_trajectory(path: str | Path, joint_names: Sequence[str]) -> JointTrajec
     if missing:
         extra = [h for h in column if h not in allowed]
         close = difflib.get_close_matches(missing[0], extra, n=1, cutoff=0.6)
-        hint = (f" (column {close[0]!r} is not a joint: a typo of {missing[0]!r}?)" if close
-                else f" (columns that are no joint: {extra})" if extra else "")  # fmt: skip
+        hint = (
+            f" (column {close[0]!r} is not a joint: a typo of {missing[0]!r}?)"
+            if close
+            else f" (columns that are no joint: {extra})"
+            if extra
+            else ""
+        )
         raise TrajectoryError(
-            where, f"no column for joint {missing[0]!r}{hint}",
+            where,
+            f"no column for joint {missing[0]!r}{hint}",
             f"a column per controlled joint: t, {', '.join(names)} [, dq_<joint>...]",
-        )  # fmt: skip
+        )
     unknown = [h for h in column if h not in allowed]
     if unknown:
         raise TrajectoryError(
-            where, f"unknown column {unknown[0]!r}",
+            where,
+            f"unknown column {unknown[0]!r}",
             f"t, the controlled joints {names}, optionally dq_<joint> for every joint",
-        )  # fmt: skip
+        )
     vel = [f"dq_{j}" for j in names]
     given = [v for v in vel if v in column]
     if given and len(given) != len(vel):
         missing_v = next(v for v in vel if v not in column)
-        raise TrajectoryError(where, f"no column {missing_v!r} while {given[0]!r} is given",
-                              "velocity columns for every joint or none")  # fmt: skip
+        raise TrajectoryError(
+            where,
+            f"no column {missing_v!r} while {given[0]!r} is given",
+            "velocity columns for every joint or none",
+        )
     q = data[:, [column[j] for j in names]]
     dq = data[:, [column[v] for v in vel]] if given else None
     return JointTrajectory(data[:, 0], q, dq, names, source=where)

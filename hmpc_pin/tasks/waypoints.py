@@ -108,14 +108,21 @@ def retime_waypoints(
     amax = np.broadcast_to(np.asarray(acceleration_limit, dtype=float), (n,))
     for name, lim in (("velocity limit", vmax), ("acceleration limit", amax)):
         if not np.all(np.isfinite(lim) & (lim > 0)):
-            raise TrajectoryError(where, f"{name} {lim.tolist()}", f"a finite {name} > 0 "
-                                  "for every joint (a URDF velocity of 0 means none: give "
-                                  "reference.waypoints.velocity_limit)")  # fmt: skip
+            raise TrajectoryError(
+                where,
+                f"{name} {lim.tolist()}",
+                f"a finite {name} > 0 "
+                "for every joint (a URDF velocity of 0 means none: give "
+                "reference.waypoints.velocity_limit)",
+            )
     step = np.linalg.norm(np.diff(way, axis=0), axis=1)
     if np.any(step <= 0):
         k = int(np.flatnonzero(step <= 0)[0]) + 1
-        raise TrajectoryError(where, f"waypoint {k} equals waypoint {k - 1} (0-based)",
-                              "distinct consecutive waypoints")  # fmt: skip
+        raise TrajectoryError(
+            where,
+            f"waypoint {k} equals waypoint {k - 1} (0-based)",
+            "distinct consecutive waypoints",
+        )
     ta = _toppra()
     ss = np.concatenate([[0.0], np.cumsum(step)])
     ss /= ss[-1]
@@ -133,8 +140,11 @@ def retime_waypoints(
     )
     traj = instance.compute_trajectory(0.0, 0.0)
     if traj is None:
-        raise TrajectoryError(where, "TOPP-RA found no time parametrisation",
-                              "waypoints the arm can follow within its limits")  # fmt: skip
+        raise TrajectoryError(
+            where,
+            "TOPP-RA found no time parametrisation",
+            "waypoints the arm can follow within its limits",
+        )
     duration = float(traj.duration)
     k = max(2, int(np.ceil(duration / dt)) + 1)
     ts = np.linspace(0.0, duration, k)
@@ -153,5 +163,6 @@ def retime_waypoints(
     v_ratio = np.max(np.abs(trajectory.sample_many(fine)[1]) / vmax)
     a_ratio = np.max(_peak_acceleration(trajectory) / amax)
     lam = max(1.0, v_ratio / margin, np.sqrt(a_ratio / margin))
-    return JointTrajectory(ts * lam + t_start, q, dq / lam, joint_names, source=where,
-                           ddq=ddq / lam**2)  # fmt: skip
+    return JointTrajectory(
+        ts * lam + t_start, q, dq / lam, joint_names, source=where, ddq=ddq / lam**2
+    )

@@ -88,10 +88,11 @@ class ExperimentConfig:
                 keys.append("reference.waypoints.velocity_limit")
             if wc.points.shape[1] != n:
                 raise ConfigError(
-                    "reference.waypoints.points", f"has joint vectors of {wc.points.shape[1]} "
+                    "reference.waypoints.points",
+                    f"has joint vectors of {wc.points.shape[1]} "
                     f"entries but the robot has {n} joints",
                     source=str(self.source) if self.source else None,
-                )  # fmt: skip
+                )
         if self.reference.kind == "pose" and self.reference.pose.q_init is not None:
             keys.append("reference.pose.q_init")
         if self.disturbance.friction is not None:
@@ -127,24 +128,33 @@ def _urdf_path(key: str, given: Path, base: Path) -> Path:
     if resolved.is_file():
         return resolved
     if resolved.exists():
-        raise ConfigError(key, f"{str(given)!r} is not a file ({resolved} is a directory); "
-                          "give the path of a .urdf file")  # fmt: skip
+        raise ConfigError(
+            key,
+            f"{str(given)!r} is not a file ({resolved} is a directory); "
+            "give the path of a .urdf file",
+        )
     hints = []
     beside = base / given.name
     if beside.is_file() and beside.resolve() != resolved:
-        hints.append(f"{given.name} is next to the config: write {key.split('.')[1]} = "
-                     f'"{given.name}"')  # fmt: skip
+        hints.append(
+            f'{given.name} is next to the config: write {key.split(".")[1]} = "{given.name}"'
+        )
     cwd = Path.cwd() / given
     if not given.is_absolute() and cwd.is_file():
-        hints.append(f"it exists relative to the current directory ({cwd}), but a relative "
-                     "path is relative to the config file's folder")  # fmt: skip
+        hints.append(
+            f"it exists relative to the current directory ({cwd}), but a relative "
+            "path is relative to the config file's folder"
+        )
     if _shipped_robot(given.stem):
-        hints.append(f'for the robot shipped with hmpc_pin write model = "{given.stem}" '
-                     "instead of urdf")  # fmt: skip
+        hints.append(
+            f'for the robot shipped with hmpc_pin write model = "{given.stem}" instead of urdf'
+        )
     else:
-        hints.append("give an existing .urdf (absolute, or relative to the config file), or "
-                     'model = "planar3" (or an example-robot-data name) for a shipped '
-                     "robot")  # fmt: skip
+        hints.append(
+            "give an existing .urdf (absolute, or relative to the config file), or "
+            'model = "planar3" (or an example-robot-data name) for a shipped '
+            "robot"
+        )
     raise ConfigError(
         key,
         f"{str(given)!r} not found: tried {resolved} (relative paths are relative to the "
@@ -197,11 +207,12 @@ def load_config(path: str | Path) -> ExperimentConfig:
     except tomllib.TOMLDecodeError as exc:
         if path.suffix.lower() in (".urdf", ".xml") or text.lstrip().startswith("<"):
             raise ConfigError(
-                "", "is a robot description (URDF/XML), not an experiment config; "
+                "",
+                "is a robot description (URDF/XML), not an experiment config; "
                 f"write a config for this arm with `hmpc-pin init {path}` and pass the "
                 ".toml file it writes",
                 source=src,
-            ) from exc  # fmt: skip
+            ) from exc
         raise ConfigError("", f"not valid TOML: {exc}", source=src) from exc
 
     sections = {
@@ -236,9 +247,10 @@ def load_config(path: str | Path) -> ExperimentConfig:
         given = [k for k in ("dt", "integrator") if k in raw.get("plant", {})]
         if plant.engine == "mujoco" and given:
             raise ConfigError(
-                f"plant.{given[0]}", "does not apply to engine = 'mujoco'; set "
+                f"plant.{given[0]}",
+                "does not apply to engine = 'mujoco'; set "
                 f"plant.mujoco.{'timestep' if given[0] == 'dt' else 'integrator'} instead",
-            )  # fmt: skip
+            )
         if plant.urdf is not None:
             plant = replace(plant, urdf=_urdf_path("plant.urdf", plant.urdf, base))
         kwargs["plant"] = plant
@@ -247,9 +259,10 @@ def load_config(path: str | Path) -> ExperimentConfig:
             and kwargs.get("controller", ControllerConfig()).compensation not in OBSERVERS
         ):
             raise ConfigError(
-                "collision", "needs a disturbance observer (controller.compensation one of "
+                "collision",
+                "needs a disturbance observer (controller.compensation one of "
                 f"{OBSERVERS}): the collision is flagged on its estimate",
-            )  # fmt: skip
+            )
         ref = kwargs.get("reference")
         if ref is not None and ref.trajectory is not None and not ref.trajectory.file.is_absolute():
             traj = replace(ref.trajectory, file=(base / ref.trajectory.file).resolve())

@@ -6,6 +6,8 @@ For a config, every block measures, one after the other:
   (a fresh process: imports, config, URDF, every run of samples × variants × conditions,
   the table and files);
 * the same with ``--jobs 2`` (two worker processes);
+* with ``--dask``: the same with ``--executor dask --jobs 2`` (a local Dask cluster of two
+  workers); Dask's overhead per run is (its wall − the ``--jobs 2`` wall) / runs;
 * the wall time of a fresh ``python -c "import numpy, pinocchio, proxsuite, matplotlib"``;
 * the same runs in this process, one :func:`~hmpc_pin.apps.sweep.run_sample` each (build,
   run, row), summed.
@@ -17,6 +19,7 @@ loads each alike. The share of the runs that went through the compiled loop is c
 (every run does since the ports: ``why_not_compiled`` is ``None``).
 
 Usage: python benchmarks/sweep_overhead.py [--config panda_sine] [--samples 8] [--repeats 3]
+       [--dask]
 """
 
 from __future__ import annotations
@@ -57,6 +60,7 @@ def main() -> int:
     parser.add_argument("--config", default="panda_sine")
     parser.add_argument("--samples", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--dask", action="store_true", help="also the Dask executor (extra)")
     args = parser.parse_args()
     config = load_config(args.config)
     rows = []
@@ -65,11 +69,16 @@ def main() -> int:
         for block in range(args.repeats):
             one = wall([*base, "--jobs", "1", "--out", os.path.join(tmp, f"a{block}")])
             two = wall([*base, "--jobs", "2", "--out", os.path.join(tmp, f"b{block}")])
+            dask = np.nan
+            if args.dask:
+                out = os.path.join(tmp, f"d{block}")
+                dask = wall([*base, "--executor", "dask", "--jobs", "2", "--out", out])
             imports = wall([PYTHON, "-c", IMPORTS])
             runs, count = in_process(config, args.samples)
-            rows.append((one, two, imports, runs))
-            print(f"block {block}: jobs 1 {one:.2f} s, jobs 2 {two:.2f} s, imports "
-                  f"{imports:.2f} s, {count} runs in process {runs:.2f} s", flush=True)  # fmt: skip
+            rows.append((one, two, imports, runs, dask))
+            print(f"block {block}: jobs 1 {one:.2f} s, jobs 2 {two:.2f} s, dask {dask:.2f} s, "
+                  f"imports {imports:.2f} s, {count} runs in process {runs:.2f} s",
+                  flush=True)  # fmt: skip
     a = np.array(rows)
     ratio = a[:, 0] / (a[:, 2] + a[:, 3])
     speedup = a[:, 0] / a[:, 1]
@@ -82,6 +91,11 @@ def main() -> int:
     print(f"| {med[0]:.2f} | {med[1]:.2f} | {med[2]:.2f} | {med[3]:.2f} | "
           f"{np.median(ratio):.2f} ({ratio.min():.2f}–{ratio.max():.2f}) | "
           f"{np.median(speedup):.2f} ({speedup.min():.2f}–{speedup.max():.2f}) |")  # fmt: skip
+    if args.dask:
+        per_run = (a[:, 4] - a[:, 1]) / count
+        print(f"Dask (local cluster, 2 workers): {med[4]:.2f} s; over --jobs 2 "
+              f"{1e3 * np.median(per_run):.0f} ms per run ({1e3 * per_run.min():.0f}–"
+              f"{1e3 * per_run.max():.0f}), cluster start included")  # fmt: skip
     return 0
 
 

@@ -64,6 +64,11 @@ def test_realtime_writes_run_timing_and_statistics(tmp_path, capsys):
         (TOLERANT, ["--rate", "2000"], "plant.dt"),
         (TOLERANT, ["--spin", "0.002"], "--spin: expected a time [s] below the period"),
         ("\n[realtime]\nspin = -1e-4\n", [], "realtime.spin: expected a number >= 0"),
+        # the inertia brake's minimum e·(d+1)·P at the rate that runs: 5.4 ms at 1 kHz, 27 ms
+        # at --rate 200 (a brake of 10 ms passes the first and not the second)
+        ("\n[realtime]\nbrake_time = 0.003\n", [], "realtime.brake_time: is 0.003 s, below"),
+        ("\n[realtime]\nbrake_time = 0.01\n", ["--rate", "200"], "realtime.brake_time"),
+        ("\n[realtime]\nbrake_time = 0.1\ndamping = 2.0\n", [], "does not apply with brake_time"),
     ],
 )
 def test_bad_realtime_input_exits_2_with_one_line(tmp_path, capsys, extra, args, match):

@@ -415,7 +415,7 @@ def cmd_check(args) -> int:
 
 
 def cmd_realtime(args) -> int:
-    from ..experiment.build import Experiment
+    from ..experiment.build import Experiment, brake_settings
     from .realtime import ArmView, format_tracking, run_realtime, with_realtime
 
     config = _with_overrides(_config(args.config), False, args.duration)
@@ -433,6 +433,7 @@ def cmd_realtime(args) -> int:
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key}", exc.message) from None
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
+    brake_settings(config, 1.0 / config.realtime.rate)  # (the safe torque's brake too)
     out = _out_dir(args.out)
     about = f"{config.description} " if config.description else ""
     print(
@@ -493,12 +494,15 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
 
 def cmd_ros(args) -> int:
     """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ..experiment.build import brake_settings
     from ..ros.node import import_ros
     from .realtime import format_tracking
-    from .ros import format_ros, run_ros
+    from .ros import check_gravity, format_ros, run_ros
 
     import_ros("hmpc-pin ros")  # the extra, before anything else
     config = _ros_config(args, _with_overrides(_config(args.config), False, args.duration))
+    brake_settings(config, config.ros.period)  # bad input stops here: nothing written
+    check_gravity(config)
     out = _out_dir(args.out)
     print(
         f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "

@@ -578,8 +578,9 @@ def realtime_parts(
             the arm is not this experiment's plant: a ROS driver).
 
     Raises:
-        ConfigError: The rate does not divide the controller period, or ``plant.dt``
-            does not divide the interface period.
+        ConfigError: The rate does not divide the controller period, ``plant.dt`` does
+            not divide the interface period, or ``brake_time`` is below
+            :func:`minimum_brake_time` at that period.
     """
     cfg = experiment.config
     rc, robot = cfg.realtime, experiment.robot
@@ -670,8 +671,7 @@ def brake_settings(
             f"period P = {period:g} s and a command acting d = "
             f"{round(shortest / (math.e * period)) - 1} periods after its state (one, plus "
             "[controller] latency): a shorter brake overshoots and oscillates. Give at least "
-            f"{shortest:.3g} s, or lower the interface rate's period (the rate of the command "
-            "that runs)",
+            f"{shortest:.3g} s, or a higher interface rate (its period sets the minimum)",
         )
     return None, float(rc.brake_time)
 

@@ -12,8 +12,7 @@ with the disturbance evaluated at every plant step (and every RK4 stage).
 
 from __future__ import annotations
 
-import sys
-import time
+import warnings
 
 import numpy as np
 
@@ -22,14 +21,12 @@ from ..exceptions import (
     ConfigError,
     DimensionError,
     HmpcError,
-    NonFiniteError,
     RunInterrupted,
     SimulationError,
 )
 from ..model.robot import Robot
 from ..tasks.base import as_reference
-from .base import state_error
-from .compiled_loop import LOOPS, CompiledLoop, why_not_compiled
+from .compiled_loop import LOOPS, CompiledLoop
 from .disturbances import ZeroDisturbance
 from .plants import PLANTS, Plant
 from .result import RESULT_ARRAYS, Result
@@ -59,25 +56,23 @@ def _step_time(result: Result, step_ns: np.ndarray, Ts: float) -> None:
         )
 
 
-def choose_loop(loop: str, controller, plant, reference, on_step) -> bool:
-    """Whether the run goes through the compiled loop
-    (:mod:`~hmpc_pin.sim.compiled_loop`): ``loop`` is ``"auto"`` (when the compiled loop can
-    advance the plant), ``"compiled"`` or ``"python"`` (the per-step loop).
+def _deprecated_loop(loop: str | None) -> None:
+    """Warn that ``loop`` no longer chooses anything (every run goes through the compiled
+    loop, whose oracle lives in the tests); refuse a value that never meant anything.
 
     Raises:
-        ConfigError: ``loop`` is none of :data:`~hmpc_pin.sim.compiled_loop.LOOPS`, or
-            ``"compiled"`` with a plant the compiled loop cannot advance (named).
+        ConfigError: ``loop`` is none of :data:`~hmpc_pin.sim.compiled_loop.LOOPS`.
     """
+    if loop is None:
+        return
     if loop not in LOOPS:
-        raise ConfigError("loop", f"loop={loop!r}; expected one of {LOOPS}")
-    if loop == "python":
-        return False
-    reason = why_not_compiled(controller, plant, reference, on_step)
-    if reason is not None and loop == "compiled":
-        raise ConfigError(
-            "loop", f'"compiled" but {reason}; use loop="auto" to run such a loop per step'
-        )
-    return reason is None
+        raise ConfigError("loop", f"loop={loop!r}; expected one of {LOOPS} (or leave it out)")
+    warnings.warn(
+        f"simulate(loop={loop!r}) is deprecated and has no effect: every run goes through the "
+        "compiled loop (the same arrays the per-step loop gave); leave the keyword out",
+        DeprecationWarning,
+        stacklevel=3,
+    )
 
 
 def simulate(
@@ -96,7 +91,7 @@ def simulate(
     effort_limit=None,
     meta: dict | None = None,
     on_step=None,
-    loop: str = "auto",
+    loop: str | None = None,
 ) -> Result:
     """Run the closed loop and return the sampled trajectories.
 
@@ -127,11 +122,10 @@ def simulate(
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
-        loop: ``"auto"`` (and ``"compiled"``) run the loop in compiled chunks
-            (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python called through
-            its ports; the same arrays, faults and partial results as per step);
-            ``"python"`` runs it per step in Python. The result's ``loop`` attribute says
-            which ran (not saved with it).
+        loop: Deprecated, no effect (a ``DeprecationWarning``): every run goes through the
+            compiled loop (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python
+            called through its ports). Earlier versions chose here between it and a
+            per-step loop in Python, which gave the same arrays.
 
     Returns:
         :class:`Result` with K+1 samples, K = round(duration / Ts).
@@ -144,6 +138,7 @@ def simulate(
             to the last whole control step (``complete=False``, ``message`` "interrupted
             at t=… s"). It is a ``KeyboardInterrupt``, so a loop of runs still stops.
     """
+    _deprecated_loop(loop)
     n = robot.nq
     q = robot.check_vector("q0", q0).copy()
     dq = robot.check_vector("dq0", np.zeros(n) if dq0 is None else dq0).copy()
@@ -198,77 +193,34 @@ def simulate(
     sat_steps = np.zeros(n, dtype=int)
     sat_excess = np.zeros(n)
 
-    rec_q, rec_dq, rec_tau, rec_d, rec_d_hat, rec_q_ref, rec_dq_ref, rec_applied = (
-        rec[name] for name in ("q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref", "tau_applied")
+    rec_tau, rec_q_ref, rec_dq_ref, rec_applied = (
+        rec[name] for name in ("tau", "q_ref", "dq_ref", "tau_applied")
     )
-    bound = min(state_bound, sys.float_info.max)
-    # Fast pre-test of the state: |q|² + |q̇|² <= bound² implies every |entry| <= bound
-    # (and finiteness: a NaN fails the comparison); the exact test runs only otherwise.
-    bound2 = min(bound * bound, sys.float_info.max)  # inf <= bound2 must be False
     step_ns = np.zeros(K + 1, dtype=np.int64)
-    clock = time.perf_counter_ns
-    compiled = choose_loop(loop, controller, sim_plant, reference, on_step)
     sim_plant.reset(q, dq, 0.0)
     controller.reset(q, dq)
+    runner = CompiledLoop(
+        controller,
+        sim_plant,
+        reference,
+        t_arr,
+        rec,
+        step_ns,
+        limit,
+        state_bound,
+        sat_steps,
+        sat_excess,
+        on_step,
+        (q, dq),
+    )
     last = k = -1
     message = ""
     try:
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
-        if compiled:
-            runner = CompiledLoop(
-                controller,
-                sim_plant,
-                reference,
-                t_arr,
-                rec,
-                step_ns,
-                limit,
-                state_bound,
-                sat_steps,
-                sat_excess,
-                on_step,
-                (q, dq),
-            )
-            try:
-                runner.run()
-            finally:
-                k, last = runner.k, runner.last
-        for k in range(0 if not compiled else K + 1, K + 1):
-            t = t_arr[k]
-            start = clock()
-            tau = controller.step(t, q, dq, reference)
-            step_ns[k] = clock() - start
-            rec_q[k] = q
-            rec_dq[k] = dq
-            rec_tau[k] = tau
-            rec_d[k] = sim_plant.disturbance_now()
-            rec_d_hat[k] = controller.disturbance_estimate
-            last = k
-            if on_step is not None:
-                q_ref, dq_ref = reference.sample(t)
-                rec_q_ref[k] = q_ref
-                rec_dq_ref[k] = dq_ref
-                on_step(t, q, q_ref)
-            if k == K:
-                break
-            if np.count_nonzero(np.isfinite(tau)) != n:
-                raise NonFiniteError("tau", tau, f"at t={t:.6g}")
-            if limit is not None:
-                excess = np.abs(tau) - limit
-                if (excess > 0).any():
-                    sat_steps += excess > 0
-                    np.maximum(sat_excess, excess, out=sat_excess)
-                    tau = np.clip(tau, -limit, limit)
-            rec_applied[k] = tau
-            q, dq = sim_plant.advance(tau)
-            if q.dot(q) + dq.dot(dq) <= bound2:
-                continue
-            # The exact test: it fails for a NaN, an infinite (the bound is capped at the
-            # largest float) or a too large entry.
-            q_max, dq_max = np.abs(q).max(), np.abs(dq).max()
-            if q_max <= bound and dq_max <= bound:
-                continue
-            raise state_error(q, dq, t + Ts, state_bound)
+        try:
+            runner.run()
+        finally:
+            k, last = runner.k, runner.last
     except HmpcError as exc:
         message = str(exc)
         cause = exc
@@ -296,7 +248,7 @@ def simulate(
         meta=dict(meta or {}),
     )
     _step_time(result, step_ns[:m], Ts)
-    result.loop = "compiled" if compiled else "python"  # type: ignore[attr-defined]
+    result.loop = runner.name  # type: ignore[attr-defined]
     if limit is not None:
         result.meta["saturation"] = {
             "effort_limit": [float(x) for x in limit],

@@ -75,6 +75,81 @@ def _deprecated_loop(loop: str | None) -> None:
     )
 
 
+def _plant(robot: Robot, plant, disturbance, dt: float, integrator: str, Ts: float) -> Plant:
+    """The plant :func:`simulate` runs: ``plant`` itself when it is a
+    :class:`~hmpc_pin.sim.plants.Plant` object (then ``disturbance``, ``dt`` and
+    ``integrator`` do not apply), else the ``integrator``'s plant of ``plant`` (a ``Robot``)
+    or of a copy of ``robot``.
+
+    Raises:
+        ConfigError: An option that does not apply, a plant at another period, an unknown
+            integrator.
+    """
+    if hasattr(plant, "advance") and hasattr(plant, "reset"):
+        for name, value, default in (
+            ("disturbance", disturbance, None),
+            ("dt", dt, 0.001),
+            ("integrator", integrator, "rk4"),
+        ):
+            if value is not default and value != default:
+                raise ConfigError(
+                    name,
+                    f"{value!r} does not apply to a Plant object ({type(plant).__name__}); "
+                    "give it to the plant when you build it",
+                )
+        if abs(plant.Ts - Ts) > 1e-12 * Ts:
+            raise ConfigError(
+                "plant.Ts",
+                f"the plant advances {plant.Ts:g} s per call but the controller "
+                f"runs at Ts={Ts:g} s; build the plant with the controller's Ts",
+            )
+        return plant
+    plant_robot = plant if plant is not None else robot.copy()
+    if integrator not in PLANTS:
+        raise ConfigError(
+            "integrator", f"integrator={integrator!r}; expected one of {tuple(PLANTS)}"
+        )
+    dist = disturbance if disturbance is not None else ZeroDisturbance(robot.nq)
+    return PLANTS[integrator](plant_robot, dist, Ts, dt)
+
+
+def _complete(rec: dict, reference, times: np.ndarray, limit, sampled: bool) -> None:
+    """The records of the ``m = len(times)`` steps run, completed in place: the reference
+    at every instant in one vectorised call (unless ``sampled`` at each step already; the
+    controller has sampled every one of these instants, so this cannot fail where the run
+    did not), and the last torque as it would be applied when it was not (end of run,
+    interrupt)."""
+    m = len(times)
+    if not sampled:
+        rec["q_ref"][:m], rec["dq_ref"][:m] = reference.sample_many(times)
+    tau, applied = rec["tau"][m - 1], rec["tau_applied"][m - 1]
+    if np.isnan(applied).all() and np.isfinite(tau).all():
+        applied[:] = tau if limit is None else np.clip(tau, -limit, limit)
+
+
+def _raise_if_stopped(result: Result, cause, k: int, t_arr: np.ndarray, duration: float) -> None:
+    """Raise what stopped the run, with its partial ``result``: ``RunInterrupted`` for
+    Ctrl-C, ``SimulationError`` for a fault during step ``k`` (in the controller, in the
+    torque check or in the plant's period over :math:`[t_k, t_k + T_s)`); nothing when
+    ``cause`` is ``None``."""
+    m, K = len(result.t), len(t_arr) - 1
+    message = result.message
+    if isinstance(cause, KeyboardInterrupt):
+        result.meta["interrupted_at"] = float(result.t[-1]) if m else 0.0
+        raise RunInterrupted(
+            f"t={result.t[-1] if m else 0.0:.6g} s of {duration:g} s ({m} of {K + 1} samples kept)",
+            result,
+        ) from None
+    if cause is not None:
+        result.meta["failed_step"] = int(k)
+        result.meta["failed_at"] = float(t_arr[k])
+        raise SimulationError(
+            f"simulation stopped in step {k} (t={t_arr[k]:.6g} s), {m} of {K + 1} samples "
+            f"kept: {message}{observer_hint(result.d_hat, result.joint_names)}",
+            result,
+        ) from cause
+
+
 def simulate(
     robot: Robot,
     controller,
@@ -143,33 +218,7 @@ def simulate(
     q = robot.check_vector("q0", q0).copy()
     dq = robot.check_vector("dq0", np.zeros(n) if dq0 is None else dq0).copy()
     Ts = float(controller.Ts)
-    if hasattr(plant, "advance") and hasattr(plant, "reset"):
-        for name, value, default in (
-            ("disturbance", disturbance, None),
-            ("dt", dt, 0.001),
-            ("integrator", integrator, "rk4"),
-        ):
-            if value is not default and value != default:
-                raise ConfigError(
-                    name,
-                    f"{value!r} does not apply to a Plant object ({type(plant).__name__}); "
-                    "give it to the plant when you build it",
-                )
-        if abs(plant.Ts - Ts) > 1e-12 * Ts:
-            raise ConfigError(
-                "plant.Ts",
-                f"the plant advances {plant.Ts:g} s per call but the controller "
-                f"runs at Ts={Ts:g} s; build the plant with the controller's Ts",
-            )
-        sim_plant = plant
-    else:
-        plant_robot = plant if plant is not None else robot.copy()
-        if integrator not in PLANTS:
-            raise ConfigError(
-                "integrator", f"integrator={integrator!r}; expected one of {tuple(PLANTS)}"
-            )
-        dist = disturbance if disturbance is not None else ZeroDisturbance(n)
-        sim_plant = PLANTS[integrator](plant_robot, dist, Ts, dt)
+    sim_plant = _plant(robot, plant, disturbance, dt, integrator, Ts)
     if sim_plant.nq != n:
         raise DimensionError(
             f"the plant has {sim_plant.nq} joints but the controller's robot has {n}; "
@@ -193,9 +242,6 @@ def simulate(
     sat_steps = np.zeros(n, dtype=int)
     sat_excess = np.zeros(n)
 
-    rec_tau, rec_q_ref, rec_dq_ref, rec_applied = (
-        rec[name] for name in ("tau", "q_ref", "dq_ref", "tau_applied")
-    )
     step_ns = np.zeros(K + 1, dtype=np.int64)
     sim_plant.reset(q, dq, 0.0)
     controller.reset(q, dq)
@@ -231,14 +277,8 @@ def simulate(
         cause = None
 
     m = last + 1
-    if m and on_step is None:
-        # The recorded reference in one vectorised call (the controller has sampled every
-        # one of these instants already, so this cannot fail where the run did not).
-        rec_q_ref[:m], rec_dq_ref[:m] = reference.sample_many(t_arr[:m])
-    if m and np.isnan(rec_applied[last]).all() and np.isfinite(rec_tau[last]).all():
-        # The last torque was not applied (end of run, interrupt): record what would be.
-        last_tau = rec_tau[last]
-        rec_applied[last] = last_tau if limit is None else np.clip(last_tau, -limit, limit)
+    if m:
+        _complete(rec, reference, t_arr[:m], limit, sampled=on_step is not None)
     result = Result(
         t=t_arr[:m],
         **{name: arr[:m] for name, arr in rec.items()},
@@ -255,22 +295,7 @@ def simulate(
             "steps": sat_steps.tolist(),
             "max_excess": sat_excess.tolist(),
         }
-    if isinstance(cause, KeyboardInterrupt):
-        result.meta["interrupted_at"] = float(result.t[-1]) if m else 0.0
-        raise RunInterrupted(
-            f"t={result.t[-1] if m else 0.0:.6g} s of {duration:g} s ({m} of {K + 1} samples kept)",
-            result,
-        ) from None
-    if cause is not None:
-        # k is the control step during which the fault was detected (in the controller,
-        # in the torque check or in the plant integration over [t_k, t_k + Ts)).
-        result.meta["failed_step"] = int(k)
-        result.meta["failed_at"] = float(t_arr[k])
-        raise SimulationError(
-            f"simulation stopped in step {k} (t={t_arr[k]:.6g} s), {m} of {K + 1} samples "
-            f"kept: {message}{observer_hint(result.d_hat, result.joint_names)}",
-            result,
-        ) from cause
+    _raise_if_stopped(result, cause, k, t_arr, duration)
     return result
 
 

@@ -149,8 +149,8 @@ def test_closed_loop_equals_the_oracle_step(config, changes):
 
 
 class _Unfused:
-    """A compensation with no compiled form: the step calls it from Python between its
-    two compiled halves (what the momentum observer, ISM and user classes take)."""
+    """A compensation with no compiled form: the step calls it from C++ through its
+    Compensation port (what the momentum observer, ISM and user classes take)."""
 
     def __init__(self, inner):
         self.inner = inner
@@ -168,7 +168,7 @@ class _Unfused:
 
 @pytest.mark.parametrize("config", ["paper_combined", "panda_sine"])
 def test_python_compensations_take_the_same_compiled_step(config):
-    """The NDO called from Python between the step's halves gives the fused step's run
+    """The NDO called through the step's Compensation port gives the fused step's run
     bit for bit: the same compiled dynamics, QPs and Eq (4) either way."""
     runs = []
     for fused in (True, False):

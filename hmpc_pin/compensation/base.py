@@ -13,12 +13,15 @@ the NDO of Eq 13 (:class:`~hmpc_pin.compensation.observers.DisturbanceObserver`,
 (:class:`~hmpc_pin.compensation.observers.MomentumObserver`) and integral sliding mode
 (:class:`~hmpc_pin.compensation.ism.IntegralSlidingMode`, ± boundary layer).
 
-Optionally, a compensation offers ``compiled_form()``: ``("ndo", obj)`` names a compiled
-observer (``hmpc_pin._core.NDO``) that the compiled control step advances itself, and
-``("zero",)`` an estimate that stays zero; the step then never calls
-:meth:`Compensation.update` from Python. Without it (the momentum observer, ISM, any user
-class) the step calls :meth:`Compensation.update` between its two compiled halves, with the
-M and :math:`C\\dot q + G` it computed (buffers valid during the call only).
+The compiled control step advances the compensation through its Compensation port
+(``cpp/include/hmpc/interfaces.hpp``), which decides once, for every compensation, which
+model, torque and acceleration :meth:`Compensation.update` is given (the observer's model at
+the period's end or start, the torque beyond the joint dynamics, with a latency the measured
+interval). Optionally, a compensation offers ``compiled_form()``: ``("ndo", obj)`` names a
+compiled observer (``hmpc_pin._core.NDO``) that the step advances without Python, and
+``("zero",)`` an estimate that stays zero. Any other (the momentum observer, ISM, any user
+class, or a subclass of ``hmpc_pin._core.Compensation``) is called by the step through the
+port's trampoline, with the M and :math:`C\\dot q + G` it computed.
 """
 
 from __future__ import annotations

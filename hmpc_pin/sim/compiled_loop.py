@@ -3,14 +3,15 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
 ``ClosedLoop``), for every setup: the loop calls each part through a port
 (``cpp/include/hmpc/interfaces.hpp``):
 
-- the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
-  is wholly compiled (its compensation the NDO of Eq 13 or none, its model loaded by the
-  compiled dynamics) is stepped in C++, alone or behind a
+- the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` is stepped
+  in C++ (its compensation behind the step's Compensation port: the compiled NDO of Eq 13,
+  or a Python compensation called from the step; its model the compiled dynamics, or
+  Pinocchio's Python API called from the step for mimic joints), alone or behind a
   :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (or
   :class:`~hmpc_pin.sim.sensing.SensedController`), whose measurement port (compiled: the
   plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`; or a Python
-  subclass) is called by the loop; any other controller (computed torque, a compensation
-  advanced in Python, a model with mimic joints, any other wrapper) is called as a whole,
+  subclass) is called by the loop; any other controller (computed torque, any other
+  wrapper) is called as a whole,
   ``step(t, q, dq, reference)`` and ``disturbance_estimate``, through the Controller port;
 - the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
   any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
@@ -68,18 +69,14 @@ def _own(obj, cls, *names: str) -> bool:
 
 def _parts(controller):
     """``(HierarchicalMPC, MeasuredController or None)`` of ``controller`` when its step is
-    wholly compiled (then the loop calls the compiled step and the ports around it), or
+    the compiled one (then the loop calls the compiled step and the ports around it), or
     ``None`` (then the loop calls the controller as a whole through its Controller port)."""
     measured = None
     if isinstance(controller, MeasuredController) and _own(
         controller, MeasuredController, "step", "reset"
     ):
         measured, controller = controller, controller.controller
-    if (
-        isinstance(controller, HierarchicalMPC)
-        and _own(controller, HierarchicalMPC, "step")
-        and controller.fused
-    ):
+    if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
         return controller, measured
     return None
 

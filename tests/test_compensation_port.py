@@ -131,3 +131,65 @@ def test_a_wrong_estimate_or_a_missing_update_is_named(planar3):
         ctrl.step(0.0, q0, dq0, ref)  # the first step does not update
         with pytest.raises(error, match=match):
             ctrl.step(0.01, q0, dq0, ref)
+
+
+class _LegacyForm:
+    """A compensation of 0.3 offering its compiled observer as ``("ndo", observer)``."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    @property
+    def estimate(self):
+        return self.inner.estimate
+
+    def reset(self, q0, dq0):
+        self.inner.reset(q0, dq0)
+
+    def update(self, M, nle, q, dq, tau, v):
+        raise AssertionError("the compiled observer is advanced without Python")
+
+    def compiled_form(self):
+        return ("ndo", self.inner._core)
+
+
+def test_the_tuples_of_03_are_decoded_once_with_a_deprecation_note(planar3):
+    """compiled_form() of a user compensation and native_form() of a user reference still
+    run compiled (the same torques), each with a DeprecationWarning."""
+
+    class OldSine:
+        def __init__(self):
+            self.inner = hmpc_pin.SineReference(3)
+
+        def sample_many(self, times, out=None):
+            return self.inner.sample_many(times, out)
+
+        def sample(self, t):
+            return self.inner.sample(t)
+
+        def native_form(self):
+            return self.inner.compiled_sampling().as_tuple()
+
+    ref = hmpc_pin.SineReference(3)
+    q0, dq0 = ref.sample(0.0)
+    taus = []
+    for legacy in (False, True):
+        ctrl = hmpc_pin.HierarchicalMPC(planar3)
+        reference = ref
+        if legacy:
+            with pytest.warns(DeprecationWarning, match="compiled_form"):
+                ctrl.compensation = _LegacyForm(ctrl.compensation)
+            assert ctrl.fused  # the compiled observer, advanced without Python
+            reference = OldSine()
+        ctrl.reset(q0, dq0)
+        out = []
+        for k in range(5):
+            if legacy and k == 0:
+                with pytest.warns(DeprecationWarning, match="native_form"):
+                    out.append(ctrl.step(0.01 * k, q0, dq0 + 0.1, reference))
+                assert ctrl._native_ref
+            else:
+                out.append(ctrl.step(0.01 * k, q0, dq0 + 0.1, reference))
+        taus.append(np.array(out))
+    np.testing.assert_array_equal(taus[1], taus[0])
+    assert np.any(taus[0][-1] != taus[0][0])

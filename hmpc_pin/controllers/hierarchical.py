@@ -33,14 +33,14 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ..checks import as_bool, as_choice, as_float, as_int, as_latency, mpc_fields
-from ..compensation.base import Compensation, check_compensation
+from ..compensation.base import Compensation, check_compensation, step_compensation
 from ..compensation.observers import DisturbanceObserver
 from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot, damping_time_constants
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import BACKENDS, deprecated_backend, model_string
 from ..native import load as load_native
-from ..tasks.base import Reference, as_reference, check_reference_size
+from ..tasks.base import Reference, as_reference, check_reference_size, compiled_sampling
 from .base import AppliedTorque, config_parts, not_reset
 
 __all__ = [
@@ -440,13 +440,9 @@ class HierarchicalMPC(AppliedTorque):
         """The compiled step (``cpp/src/step.cpp``), composed of the compiled components: the
         QPs are :attr:`qps`' own, the compensation is behind the step's Compensation port
         (the compiled observer itself, or the Python object through its trampoline)."""
-        comp = self.compensation
-        form_of = getattr(comp, "compiled_form", None)
-        form = form_of() if callable(form_of) else None
-        # a Python compensation (called by the step through its port), the compiled
-        # observer of ("ndo", observer), or none for ("zero",)
-        port = comp if form is None else form[1] if form[0] == "ndo" else None
-        self._fused = form is not None and not self._python_dynamics
+        decoded = step_compensation(self.compensation)
+        port = decoded.port
+        self._fused = decoded.compiled and not self._python_dynamics
         self._port = port
         model = None if self._python_dynamics else model_string(self.robot)
         buf = self._buf
@@ -668,22 +664,18 @@ class HierarchicalMPC(AppliedTorque):
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
-        native form, if it has one, to the compiled step."""
+        compiled form (:func:`~hmpc_pin.tasks.base.compiled_sampling`), if it has one, to
+        the compiled step."""
         check_reference_size(reference, self.n, "HierarchicalMPC.step")
         self._ref = as_reference(reference)
         self._reference = reference
         self._native_ref = False
-        core = self._core
-        form_of = getattr(self._ref, "native_form", None)
-        form = form_of() if callable(form_of) else None
-        if form is not None and form[0] == "sine":
-            core.set_sine(*form[1:])
-            self._native_ref = True
-        elif form is not None and form[0] == "ppoly":
-            core.set_ppoly(*form[1:])
-            self._native_ref = True
+        form = compiled_sampling(self._ref)
+        if form is None:
+            self._core.clear_reference()
         else:
-            core.clear_reference()
+            form.load(self._core)
+            self._native_ref = True
 
     def _not_vectors(self, q, dq, exc: TypeError) -> None:
         """Raise the error of ``q`` or ``dq`` that is not a vector of n floats, or ``exc``

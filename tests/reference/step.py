@@ -35,6 +35,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from hmpc_pin.compensation.observers import DisturbanceObserver
+
 from .joint_qps import NumpyJointQPs
 from .observers import NumpyNDO
 
@@ -55,9 +57,8 @@ class OracleHMPC:
         v_min, v_max = s.bounds(ctrl.n)
         self.qps = NumpyJointQPs(ctrl.mpc, v_min, v_max, ctrl.limits, eps_abs=s.eps_abs)
         comp = ctrl.compensation
-        form = comp.compiled_form() if hasattr(comp, "compiled_form") else None
         self.ndo = law
-        if law is None and form is not None and form[0] == "ndo":
+        if law is None and isinstance(comp, DisturbanceObserver):
             self.ndo = _NDOLaw(NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit"))
         self.data = self.robot.model.createData()
         self.joint = ctrl.joint_dynamics  # (B, F) compensated (zeros: none)

@@ -102,7 +102,9 @@ void expose_step(py::module_& m) {
             c.prev_nle = s[8].cast<Vec>();
             c.has_prev = s[9].cast<bool>();
           })
-      .def_property_readonly("has_dynamics", [](const H& h) { return bool(h.core.dyn); });
+      .def_property_readonly("has_dynamics", [](const H& h) { return bool(h.core.dyn); })
+      .def_property_readonly(  // a step succeeded since the last reset
+          "started", [](const H& h) { return h.core.started; });
 }
 
 }  // namespace hmpc::python

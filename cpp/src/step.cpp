@@ -236,4 +236,33 @@ void HMPCCore::step_latency(const CRefRow& S_in) {
   finish();
 }
 
+StepController::StepController(HMPCCore* c) : core(c) {
+  if (!core || !core->stack)
+    throw std::invalid_argument("StepController: a step with its stack (set_stack) is needed");
+}
+
+void StepController::step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) {
+  HMPCCore& c = *core;
+  const Vec* qc = &q;  // the state the controller is given
+  const Vec* dqc = &dq;
+  if (measurement) {
+    if (measured) measurement->measure(t, q, dq);  // the first step's was taken at reset
+    qc = &measurement->qm;
+    dqc = &measurement->dqm;
+  }
+  measured = true;
+  if (reference) {  // as HierarchicalMPC.step with a reference sampled in Python
+    auto& S = *c.stack;
+    S.row(0) = qc->transpose();
+    S.row(1) = dqc->transpose();
+    reference->horizon(t, S);
+    c.step(S, t);
+  } else {
+    c.step_t(t, *qc, *dqc);
+  }
+  tau = c.tau.row(0).transpose();
+  dhat = c.dhat.row(0).transpose();
+  if (measurement) measurement->command(tau);
+}
+
 }  // namespace hmpc

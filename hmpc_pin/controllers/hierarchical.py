@@ -406,7 +406,6 @@ class HierarchicalMPC(AppliedTorque):
         self.disturbance_estimate = self._buf["d_hat"]
         self.v = self._buf["v"]
         self.tau = self._buf["tau"]
-        self._started = False
         self._was_reset = False
         self._core = None
         self._make_core()
@@ -422,6 +421,33 @@ class HierarchicalMPC(AppliedTorque):
         self._compensation = comp
         if hasattr(self, "_core"):
             self._make_core()
+
+    @property
+    def _started(self) -> bool:
+        """Whether a step succeeded since the last :meth:`reset` (the compiled step's)."""
+        return self._core is not None and bool(self._core.started)
+
+    def compiled_controller(self, reference, measurement=None) -> Any:
+        """This controller's compiled step as the compiled loop's Controller port
+        (``hmpc_pin._core.StepController``, ``cpp/include/hmpc/step.hpp``) for
+        ``reference``: sampled in C++ if it has a compiled form, else through the step's
+        Reference port (:meth:`_sample_horizon`); behind the Measurement port
+        ``measurement`` if given (reset with this controller by its wrapper). Built after
+        :meth:`reset`; the loop steps it as :meth:`step` would.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+        """
+        if reference is not self._reference:  # adapted once per reference object
+            if not self._was_reset:
+                raise not_reset(self)
+            self._set_reference(reference)
+        port = load_native().StepController(self._core)
+        if measurement is not None:
+            port.set_measurement(measurement)
+        if not self._native_ref:  # the horizon sampled in Python
+            port.set_reference(self._sample_horizon)
+        return port
 
     @property
     def native(self) -> bool:
@@ -528,7 +554,6 @@ class HierarchicalMPC(AppliedTorque):
         # The compensation restarted through the step's port; v, τ and d̂ are the compiled
         # step's buffers, updated in place from now on.
         self._core.reset(q0, dq0)
-        self._started = False
         self._was_reset = True
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
@@ -569,7 +594,6 @@ class HierarchicalMPC(AppliedTorque):
                 core.step_t(t, q, dq)
             except TypeError as exc:  # not convertible to a float vector, or the compensation's
                 self._not_vectors(q, dq, exc)
-            self._started = True
             return self.tau.copy()
         if not math.isfinite(t):
             raise NonFiniteError("t", t)
@@ -583,7 +607,6 @@ class HierarchicalMPC(AppliedTorque):
         S[1] = dq
         self._sample_horizon(t)
         core.step(S, t)
-        self._started = True
         return self.tau.copy()
 
     def warm_up(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> None:

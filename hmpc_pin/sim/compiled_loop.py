@@ -129,7 +129,6 @@ class CompiledLoop:
         zero = np.zeros(n)
         a, b = plant._ab if rk4 else (zero, zero)
         self._loop = load_native().ClosedLoop(
-            None if ctrl is None else ctrl._core,
             plant._kernel if rk4 else None,
             n,
             t_arr,
@@ -151,8 +150,6 @@ class CompiledLoop:
             self._loop.set_plant(plant)
         if ctrl is None:  # the controller as a whole, from Python
             self._loop.set_controller(controller, reference)
-        if measured is not None:
-            self._loop.set_measurement(measured.measurement)
         if rk4 and not plant.fused:
             self._loop.set_disturbance(plant.disturbance)
         if on_step is not None:
@@ -182,11 +179,9 @@ class CompiledLoop:
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
         ctrl, K = self.ctrl, self.K
-        if ctrl is not None and self.reference is not ctrl._reference:  # as its step does
-            ctrl._set_reference(self.reference)
-        if ctrl is not None and not ctrl._native_ref:  # the horizon sampled in Python
-            self._loop.set_reference(ctrl._sample_horizon)
         port = None if self.measured is None else self.measured.measurement
+        if ctrl is not None:  # its compiled step, with its reference and measurement ports
+            self._loop.set_controller(ctrl.compiled_controller(self.reference, port))
         ahead = isinstance(port, load_native().SensingMeasurement)
         if ahead:  # the noise of a chunk drawn at once, the unused draws given back
             port.ahead = PULSE_CHUNK
@@ -220,7 +215,7 @@ class CompiledLoop:
         """Steps ``k0 .. k1 - 1``; the parts' Python state brought up to date afterwards
         (also when a fault or Ctrl-C stops the chunk). Returns the step where it stopped."""
         loop, n = self._loop, self.n
-        started, stepped, advances = loop.started, loop.stepped, loop.advances
+        started, advances = loop.started, loop.advances
         x = self._x
         try:
             return loop.run(x[:n], x[n:], k0, k1, P)
@@ -231,7 +226,5 @@ class CompiledLoop:
                 plant.k += loop.advances - advances
                 plant.t = plant.t0 + plant.Ts * plant.k
                 plant.q, plant.dq = x[:n].copy(), x[n:].copy()
-            if loop.stepped != stepped and self.ctrl is not None:
-                self.ctrl._started = True
             if self.measured is not None and loop.started != started:
                 self.measured._started = True

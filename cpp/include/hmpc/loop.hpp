@@ -1,17 +1,18 @@
 // The closed loop (hmpc_pin.sim.compiled_loop): the per-step loop of
-// hmpc_pin.sim.simulate.simulate, many control periods per call, when every part has a
-// compiled form: the controller's fused step with its compiled reference (HMPCCore.step_t),
-// (or the step from a Reference port's horizon), optionally behind a Measurement port (interfaces.hpp: compiled, measurement.hpp, or a
-// Python subclass), and the RK4 plant's period with its fused disturbance (time-only terms
-// tabulated by the caller, one Coulomb-viscous friction here) or a Disturbance port called
-// at every stage (interfaces.hpp: a Python callable). Per step k, as the Python loop does:
-//   (k >= 1: measure(t_k, q, q̇)) → τ = step(t_k, measured state) → command(τ) →
+// hmpc_pin.sim.simulate.simulate, many control periods per call, over the ports of
+// interfaces.hpp: the controller is a Controller port (the hierarchical MPC's compiled step,
+// StepController of step.hpp, with its Measurement and Reference ports; or a Python
+// controller as a whole), the plant the RK4 plant's period with its fused disturbance
+// (time-only terms tabulated by the caller, one Coulomb-viscous friction here) or a
+// Disturbance port called at every stage (a Python callable), or a Plant port. Per step k,
+// as the Python loop does:
+//   τ, d̂ = controller(t_k, q, q̇) (timed) →
 //   record q, q̇, τ, d, d̂ → recorded(k) → (k = K: stop) → τ finite →
 //   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
 //   state finite and within the bound.
 // run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
 // A fault throws (errors.hpp), with `k` the step during which it was detected: the
-// controller's step (its fault, nothing recorded at k), NonFinite (τ not finite, recorded at
+// controller's step (its fault or its ports', nothing recorded at k), NonFinite (τ not finite, recorded at
 // k) or StateOutOfBound (the plant's state over the period from t_k, recorded at k).
 // `interrupted` is called before every step (it may throw to stop the run, with `last` the
 // last recorded step).
@@ -23,7 +24,6 @@
 #include "hmpc/errors.hpp"
 #include "hmpc/interfaces.hpp"
 #include "hmpc/rk4.hpp"
-#include "hmpc/step.hpp"
 #include "hmpc/types.hpp"
 
 #include <array>
@@ -38,29 +38,20 @@ class ClosedLoop {
   // t: K+1 instants [s]; records: q, q̇, τ, d, d̂, τ applied, each (K+1)×n row-major;
   // step_ns: K+1 step times [ns]; sat_steps, sat_excess: n each; Ts: the control period [s]
   // (for the time of a fault of the plant).
-  // core: the controller's compiled step (nullptr: a Controller port, set_controller());
   // plant: the compiled RK4 period (nullptr: a Plant port, set_plant()); n: the joints.
-  ClosedLoop(HMPCCore* core, RK4* plant, int n, const double* t, int K,
+  // The controller: set_controller().
+  ClosedLoop(RK4* plant, int n, const double* t, int K,
              std::array<double*, 6> records,
              std::int64_t* step_ns, std::int64_t* sat_steps, double* sat_excess,
              const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
              const CRefVec& b, bool friction, double h, int substeps, double Ts);
 
-  // The controller is `c` as a whole (called with the plant's state; no compiled step, no
-  // measurement or reference port then; the caller keeps it alive).
+  // The controller is `c` (called with the plant's state; the caller keeps it alive).
   void set_controller(Controller* c) { controller = c; }
 
   // The plant is `p` (advanced, and asked its disturbance, from here; the caller keeps it
   // alive; no table, no friction, no disturbance port then).
   void set_plant(Plant* p) { plant_port = p; }
-
-  // The controller sees the plant through `m` (reset by the caller with the controller; the
-  // caller keeps it alive); nullptr: the plant's state as is.
-  void set_measurement(Measurement* m);
-
-  // The controller's reference is `r` (its horizon written into the step's stack, then the
-  // step from the stack; the caller keeps it alive); nullptr: the compiled one (step_t).
-  void set_reference(Reference* r) { reference = r; }
 
   // The plant's disturbance is `d`, called at every stage and for the record (the caller
   // keeps it alive; no table of time-only terms, no friction then); nullptr: the fused one.
@@ -72,7 +63,6 @@ class ClosedLoop {
 
   std::function<void()> interrupted;  // called before every step (may throw)
   std::function<void(long)> recorded;  // called with k once step k is recorded (may throw)
-  HMPCCore* core;
   RK4* plant;
   int n, K;
   const double* t_arr;
@@ -84,9 +74,7 @@ class ClosedLoop {
   double bound, h;
   int substeps;
   double Ts;
-  Measurement* measurement = nullptr;
   Disturbance* disturbance = nullptr;
-  Reference* reference = nullptr;
   Controller* controller = nullptr;
   Plant* plant_port = nullptr;
   long k = 0;         // the step being run
@@ -96,9 +84,8 @@ class ClosedLoop {
   long stepped = 0;   // controller steps that succeeded
 
  private:
-  void compiled_step(const RefVec& q, const RefVec& v);
   bool record_and_advance(RefVec q, RefVec v, const CRefRow& P, long j);
-  Vec qm, dqm, tau, d, dh, qn, vn;
+  Vec tau, d, dh, qn, vn;
   RowMat T;
 };
 

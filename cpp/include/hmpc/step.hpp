@@ -14,6 +14,7 @@
 
 #include "hmpc/dynamics.hpp"
 #include "hmpc/errors.hpp"
+#include "hmpc/interfaces.hpp"
 #include "hmpc/joint_dynamics.hpp"
 #include "hmpc/latency.hpp"
 #include "hmpc/observer.hpp"
@@ -166,6 +167,22 @@ class HMPCCore {
   void evaluate(const Vec& q, const Vec& dq);
   void record();
   void step_latency(const CRefRow& S);
+};
+
+// The step as the loop's Controller port (interfaces.hpp): the controller sees the plant
+// through the Measurement port `measurement` (none: the plant's state as is; its
+// measurement of the first step was taken at its reset), samples its horizon through the
+// Reference port `reference` (none: the compiled reference, step_t), and the measurement's
+// command() filters the torque. The caller keeps the core and the ports alive.
+class StepController : public Controller {
+ public:
+  explicit StepController(HMPCCore* core);
+  void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) override;
+
+  HMPCCore* core;
+  Measurement* measurement = nullptr;
+  Reference* reference = nullptr;
+  bool measured = false;  // a step was run: the next one measures
 };
 
 }  // namespace hmpc

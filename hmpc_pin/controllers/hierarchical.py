@@ -431,7 +431,7 @@ class HierarchicalMPC(AppliedTorque):
         """This controller's compiled step as the compiled loop's Controller port
         (``hmpc_pin._core.StepController``, ``cpp/include/hmpc/step.hpp``) for
         ``reference``: sampled in C++ if it has a compiled form, else through the step's
-        Reference port (:meth:`_sample_horizon`); behind the Measurement port
+        Reference port (its ``_sample_horizon``); behind the Measurement port
         ``measurement`` if given (reset with this controller by its wrapper). Built after
         :meth:`reset`; the loop steps it as :meth:`step` would.
 
@@ -439,8 +439,6 @@ class HierarchicalMPC(AppliedTorque):
             SimulationError: Called before :meth:`reset`.
         """
         if reference is not self._reference:  # adapted once per reference object
-            if not self._was_reset:
-                raise not_reset(self)
             self._set_reference(reference)
         port = load_native().StepController(self._core)
         if measurement is not None:
@@ -585,8 +583,6 @@ class HierarchicalMPC(AppliedTorque):
             SimulationError: Called before :meth:`reset`.
         """
         if reference is not self._reference:  # adapted once per reference object
-            if not self._was_reset:
-                raise not_reset(self)
             self._set_reference(reference)
         core = self._core
         if self._native_ref:  # the whole step in one call
@@ -688,7 +684,13 @@ class HierarchicalMPC(AppliedTorque):
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
         compiled form (:func:`~hmpc_pin.tasks.base.compiled_sampling`), if it has one, to
-        the compiled step."""
+        the compiled step.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+        """
+        if not self._was_reset:
+            raise not_reset(self)
         check_reference_size(reference, self.n, "HierarchicalMPC.step")
         self._ref = as_reference(reference)
         self._reference = reference

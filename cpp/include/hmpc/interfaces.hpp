@@ -9,8 +9,9 @@
 //   measure(t_k, q, q̇) the plant's state at t_k, k >= 1: the measurement handed over at t_k;
 //   command(τ)         the interface's filter of the commanded torque τ [N·m], in place
 //                      (none by default).
-// The loop calls reset once (through the controller's reset), measure at every later step
-// before the controller's step, and command on the controller's torque before recording it.
+// The step's Controller port (StepController, step.hpp) calls measure at every step after
+// the first, before the step, and command on the step's torque; reset is called once, by
+// the controller's reset.
 //
 // Disturbance: the torque d(t, q, q̇) [N·m] acting on the plant (Eq 1: τ + d), evaluated at
 // every RK4 stage of a period and, for the record, at each t_k. The loop evaluates the
@@ -39,9 +40,9 @@
 // ISM, a user class) plugs in through a trampoline (bindings/python/trampolines.hpp).
 //
 // Controller: the torque τ_k [N·m] for the plant's state at t_k and the disturbance estimate
-// d̂_k [N·m] of that step. The hierarchical MPC's compiled step (step.hpp) is called by the
-// loop directly; a controller without one (computed torque, a wrapper) plugs in here as a
-// whole.
+// d̂_k [N·m] of that step. The hierarchical MPC's compiled step implements it
+// (StepController, step.hpp: the step behind its Measurement and Reference ports); any other
+// controller (computed torque, a wrapper) plugs in here as a whole.
 //
 // Plant: the arm, advanced over one control period with the torque τ [N·m] held, and the
 // disturbance d(t_k, q, q̇) [N·m] acting on it now (for the record). The RK4 plant's period

@@ -278,7 +278,7 @@ def test_config_keys_of_the_joint_dynamics():
 
 @pytest.mark.parametrize(("at", "latency"), [("end", 0.0), ("start", 0.0), ("start", 0.004)])
 def test_a_python_compensation_gets_what_the_compiled_observer_gets(at, latency):
-    """Z1 with its joint dynamics: the NDO called from Python between the step's halves
+    """Z1 with its joint dynamics: the NDO called through the step's Compensation port
     (given C q̇ + G alone and the applied torque minus the step's joint torque J) gives the
     fused step's run bit for bit, with the observer's model at the end or the start of the
     period, with and without a latency."""

@@ -17,7 +17,7 @@ Q0 = np.array([0.3, -0.5, 0.8])
 
 
 class Recorder:
-    """A compensation (called from Python between the step's halves) that records what
+    """A compensation (called through the step's Compensation port) that records what
     it is fed and estimates a fixed value."""
 
     def __init__(self, n):

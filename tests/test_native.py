@@ -149,8 +149,8 @@ def test_closed_loop_equals_the_oracle_step(config, changes):
 
 
 class _Unfused:
-    """A compensation with no compiled form: the step calls it from Python between its
-    two compiled halves (what the momentum observer, ISM and user classes take)."""
+    """A compensation with no compiled form: the step calls it from C++ through its
+    Compensation port (what the momentum observer, ISM and user classes take)."""
 
     def __init__(self, inner):
         self.inner = inner
@@ -168,7 +168,7 @@ class _Unfused:
 
 @pytest.mark.parametrize("config", ["paper_combined", "panda_sine"])
 def test_python_compensations_take_the_same_compiled_step(config):
-    """The NDO called from Python between the step's halves gives the fused step's run
+    """The NDO called through the step's Compensation port gives the fused step's run
     bit for bit: the same compiled dynamics, QPs and Eq (4) either way."""
     runs = []
     for fused in (True, False):
@@ -203,8 +203,10 @@ def _oracle_sampling(ref, times):
         return sampling.sine(ref, times)
     if isinstance(ref, hmpc_pin.QuinticReference):
         return sampling.quintic(ref, times)
-    _, t_k, knots, coef, degree = ref.native_form()
-    return sampling.ppoly(t_k, knots, coef, degree, ref.n, times)
+    form = ref.compiled_sampling()
+    return sampling.ppoly(
+        form.breakpoints, form.origins, form.coefficients, form.degree, ref.n, times
+    )
 
 
 @pytest.mark.parametrize("name", ["sine", "quintic", "cubic spline", "quintic Hermite"])
@@ -240,7 +242,7 @@ def test_a_reference_subclass_that_samples_otherwise_is_sampled_in_python(planar
             return super().sample(t + 0.25)
 
     ref, plain = Shifted(3), hmpc_pin.SineReference(3)
-    assert ref.native_form() is None and plain.native_form() is not None
+    assert ref.compiled_sampling() is None and plain.compiled_sampling() is not None
     ctrl = hmpc_pin.HierarchicalMPC(planar3, hmpc_pin.MPCSettings(backend="native"))
     ctrl.reset(np.zeros(3), np.zeros(3))
     ctrl.step(0.0, np.zeros(3), np.zeros(3), ref)

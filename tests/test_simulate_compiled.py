@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import hmpc_pin
+from hmpc_pin.compensation.base import step_compensation
 from hmpc_pin.controllers.wrappers import CollisionReaction, MeasuredController, TimedController
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.sim.disturbances import CoulombViscousFriction, GaussianPulse
@@ -71,9 +72,9 @@ def _controller_state(ctrl) -> list:
         ctrl.qps.stack.copy(),
         ctrl.qps.slack.copy(),
     ]
-    ndo = getattr(ctrl.compensation, "compiled_form", lambda: None)()
-    if ndo is not None and ndo[0] == "ndo":
-        state += list(ndo[1].state)
+    decoded = step_compensation(ctrl.compensation)
+    if decoded.compiled and decoded.port is not None:
+        state += list(decoded.port.state)
     return state
 
 

@@ -1,7 +1,8 @@
-// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step, the plant
-// (the compiled RK4Plant, or a Python plant through the Plant port) and a Measurement port
-// (compiled or a Python subclass), its records in numpy arrays that
-// hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked before every step.
+// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over its ports: the
+// controller (hmpc_pin._core.StepController, the hierarchical MPC's compiled step with its
+// Measurement and Reference ports, or a Python controller as a whole), the plant (the compiled
+// RK4Plant, or a Python plant through the Plant port); its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
+// before every step.
 #include "holders.hpp"
 #include "trampolines.hpp"
 
@@ -19,13 +20,22 @@ namespace {
 
 using IntArray = py::array_t<std::int64_t, py::array::c_style>;
 
+// The step as the Controller port, with the Python objects it uses kept alive.
+struct PyStepController {
+  py::object core_object, measurement_object;
+  std::unique_ptr<PyCallableReference> reference;
+  StepController controller;
+  explicit PyStepController(py::object core)
+      : core_object(std::move(core)), controller(&core_object.cast<PyHMPCCore&>().core) {}
+};
+
 struct PyClosedLoop {
   Array t;
   std::vector<Array> records;
   IntArray step_ns, sat_steps;
   Array sat_excess;
-  std::unique_ptr<PyCallableReference> reference;
   std::unique_ptr<PyCallableController> controller;
+  py::object step_controller;  // a StepController, kept alive
   std::unique_ptr<PyCallablePlant> python_plant;
   py::object plant;  // the plant object, kept alive
   std::unique_ptr<ClosedLoop> loop;
@@ -45,11 +55,32 @@ std::array<double*, 6> record_data(std::vector<Array>& rec, Eigen::Index rows, i
 }  // namespace
 
 void expose_loop(py::module_& m) {
+  py::class_<PyStepController>(m, "StepController", py::module_local())
+      .def(py::init<py::object>(), py::arg("core"))
+      .def(
+          "set_measurement",
+          [](PyStepController& o, py::object m) {
+            o.controller.measurement = m.is_none() ? nullptr : m.cast<Measurement*>();
+            o.measurement_object = std::move(m);
+          },
+          py::arg("measurement"))
+      .def(
+          "set_reference",
+          [](PyStepController& o, py::object horizon) {
+            if (horizon.is_none()) {
+              o.controller.reference = nullptr;
+              o.reference.reset();
+              return;
+            }
+            auto port = std::make_unique<PyCallableReference>(std::move(horizon));
+            o.controller.reference = port.get();
+            o.reference = std::move(port);
+          },
+          py::arg("horizon"));
   py::class_<PyClosedLoop>(m, "ClosedLoop", py::module_local())
-      .def(py::init([](PyHMPCCore* core, py::object plant, int n, Array t,
-                       std::vector<Array> records, IntArray step_ns, IntArray sat_steps,
-                       Array sat_excess, const CRefVec& limit, bool has_limit, double bound,
-                       double Ts) {
+      .def(py::init([](py::object plant, int n, Array t, std::vector<Array> records,
+                       IntArray step_ns, IntArray sat_steps, Array sat_excess,
+                       const CRefVec& limit, bool has_limit, double bound, double Ts) {
              auto o = std::make_unique<PyClosedLoop>();
              const auto K = static_cast<Eigen::Index>(t.size()) - 1;
              if (step_ns.size() != K + 1 || sat_steps.size() != n || sat_excess.size() != n)
@@ -70,7 +101,7 @@ void expose_loop(py::module_& m) {
              }
              o->plant = std::move(plant);
              o->loop = std::make_unique<ClosedLoop>(
-                 core ? &core->core : nullptr, port, n, o->t.data(), static_cast<int>(K),
+                 port, n, o->t.data(), static_cast<int>(K),
                  record_data(o->records, K + 1, n), o->step_ns.mutable_data(),
                  o->sat_steps.mutable_data(), o->sat_excess.mutable_data(), limit, has_limit,
                  bound, Ts);
@@ -79,30 +110,26 @@ void expose_loop(py::module_& m) {
              };
              return o;
            }),
-           py::arg("core"), py::arg("plant"), py::arg("n"), py::arg("t"), py::arg("records"),
+           py::arg("plant"), py::arg("n"), py::arg("t"), py::arg("records"),
            py::arg("step_ns"), py::arg("sat_steps"), py::arg("sat_excess"), py::arg("limit"),
-           py::arg("has_limit"), py::arg("bound"), py::arg("Ts"), py::keep_alive<1, 2>())
+           py::arg("has_limit"), py::arg("bound"), py::arg("Ts"))
       .def(
-          "set_measurement",
-          [](PyClosedLoop& o, Measurement* m) { o.loop->set_measurement(m); },
-          py::arg("measurement"), py::keep_alive<1, 2>())
-      .def(
-          "set_controller",
+          "set_controller",  // a StepController, or a Python controller stepped as a whole
           [](PyClosedLoop& o, py::object controller, py::object reference) {
+            if (py::isinstance<PyStepController>(controller)) {
+              if (controller.cast<PyStepController&>().controller.core->n != o.loop->n)
+                throw std::invalid_argument("ClosedLoop: the step has another size");
+              o.loop->set_controller(&controller.cast<PyStepController&>().controller);
+              o.step_controller = std::move(controller);
+              o.controller.reset();
+              return;
+            }
             auto port = std::make_unique<PyCallableController>(std::move(controller),
                                                                std::move(reference), o.loop->n);
             o.loop->set_controller(port.get());
             o.controller = std::move(port);
           },
-          py::arg("controller"), py::arg("reference"))
-      .def(
-          "set_reference",
-          [](PyClosedLoop& o, py::object horizon) {
-            auto port = std::make_unique<PyCallableReference>(std::move(horizon));
-            o.loop->set_reference(port.get());
-            o.reference = std::move(port);
-          },
-          py::arg("horizon"))
+          py::arg("controller"), py::arg("reference") = py::none())
       .def(
           "set_recorded",
           [](PyClosedLoop& o, py::function f) {

@@ -11,9 +11,20 @@ void expose_step(py::module_& m) {
   using H = PyHMPCCore;
   py::class_<H>(m, "HMPCCore", py::module_local())
       .def(py::init<const py::object&, const CRefRow&, int, std::shared_ptr<PyJointQPs>,
-                    std::shared_ptr<PyNDO>, Array, Array, Array, Array, Array>(),
-           py::arg("model"), py::arg("FT"), py::arg("N"), py::arg("qps"), py::arg("ndo"),
-           py::arg("v"), py::arg("tau"), py::arg("d_hat"), py::arg("M"), py::arg("nle"))
+                    py::object, Array, Array, Array, Array, Array>(),
+           py::arg("model"), py::arg("FT"), py::arg("N"), py::arg("qps"),
+           py::arg("compensation"), py::arg("v"), py::arg("tau"), py::arg("d_hat"),
+           py::arg("M"), py::arg("nle"))
+      .def(
+          "set_model",  // without compiled dynamics: model(q, dq) writes M and nle
+          [](H& h, py::function f) {
+            h.model_fn = f;
+            h.core.model = [f](const Vec& q, const Vec& dq) {
+              py::gil_scoped_acquire gil;
+              f(q, dq);
+            };
+          },
+          py::arg("model"))
       .def("set_effort", [](H& h, const CRefVec& limit) { h.core.set_effort(limit); })
       .def(
           "set_observer_model", [](H& h, bool at_start) { h.core.set_observer_model(at_start); },
@@ -21,22 +32,6 @@ void expose_step(py::module_& m) {
       .def(
           "set_latency", [](H& h, double L, double Ts) { h.core.set_latency(L, Ts); },
           py::arg("L"), py::arg("Ts"))
-      .def("observer_ready", [](const H& h) { return h.core.observer_ready(); })
-      .def("aligned",
-           [](H& h) {
-             h.core.latency.align();
-             return py::make_tuple(Vec(h.core.latency.tau_obs), Vec(h.core.latency.v_obs));
-           })
-      .def(
-          "predict",
-          [](H& h, Array S) {
-            const int N = h.core.N, n = h.core.n;
-            if (S.ndim() != 2 || S.shape(0) != 2 + 2 * N || S.shape(1) != n || !S.writeable())
-              throw std::invalid_argument("predict: stack of wrong shape");
-            MapRow Sm(S.mutable_data(), 2 + 2 * N, n);
-            h.core.predict_stack(Sm);
-          },
-          py::arg("S"))
       .def_property_readonly("latency_periods", [](const H& h) { return h.core.latency.m; })
       .def_property_readonly("latency_fraction", [](const H& h) { return h.core.latency.alpha; })
       .def(
@@ -45,7 +40,20 @@ void expose_step(py::module_& m) {
             h.core.set_joint_dynamics(damping, friction, Ts);
           },
           py::arg("damping"), py::arg("friction"), py::arg("Ts"))
-      .def("reset", [](H& h, const CRefVec& dhat0) { h.core.reset(dhat0); })
+      .def(
+          "reset",  // the compensation restarted at (q0, dq0) through its port, d̂ its estimate
+          [](H& h, const CRefVec& q0, const CRefVec& dq0) {
+            const int n = h.core.n;
+            if (q0.size() != n || dq0.size() != n)
+              throw std::invalid_argument("HMPCCore.reset: q0 and dq0 of n values each");
+            if (h.core.comp) {
+              h.core.comp->reset(q0, dq0);
+              h.core.reset(h.core.comp->estimate());
+            } else {
+              h.core.reset(Vec::Zero(n));
+            }
+          },
+          py::arg("q0"), py::arg("dq0"))
       .def(
           "step", [](H& h, const CRefRow& S, double t) { h.core.step(S, t); }, py::arg("S"),
           py::arg("t"))
@@ -53,13 +61,6 @@ void expose_step(py::module_& m) {
            [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.core.step_t(t, q, dq); })
       .def("fill",
            [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.core.fill(t, q, dq); })
-      .def(
-          "prepare",
-          [](H& h, const CRefRow& S, double t, bool dynamics, bool export_) {
-            h.core.prepare(S, t, dynamics, export_);
-          },
-          py::arg("S"), py::arg("t"), py::arg("dynamics") = true, py::arg("export") = true)
-      .def("finish", [](H& h) { h.core.finish(); })
       .def_property(  // how faults name the robot: "the robot 'x' has n joints (...)"
           "robot", [](const H& h) { return h.core.robot; },
           [](H& h, const std::string& robot) { h.core.robot = robot; })
@@ -102,9 +103,8 @@ void expose_step(py::module_& m) {
             c.has_prev = s[9].cast<bool>();
           })
       .def_property_readonly("has_dynamics", [](const H& h) { return bool(h.core.dyn); })
-      .def_property_readonly("joint_torque", [](const H& h) {
-        return h.core.joint.any ? Vec(h.core.jtau) : Vec(Vec::Zero(h.core.n));
-      });
+      .def_property_readonly(  // a step succeeded since the last reset
+          "started", [](const H& h) { return h.core.started; });
 }
 
 }  // namespace hmpc::python

@@ -48,20 +48,33 @@ struct PyJointQPs {
             writable(U_array, static_cast<Eigen::Index>(Nc) * n), writable(slack_array, n)) {}
 };
 
+// The step's compensation, decoded once: none (d̂ = 0), the compiled NDO (hmpc_pin._core.NDO,
+// advanced without Python), a Python subclass of hmpc_pin._core.Compensation, or any other
+// Python object of the Compensation protocol (adapted, `adapter` keeps it).
+inline Compensation* compensation_port(const py::object& c, int n,
+                                       std::unique_ptr<Compensation>& adapter) {
+  if (c.is_none()) return nullptr;
+  if (py::isinstance<PyNDO>(c)) return &c.cast<PyNDO&>().ndo;
+  if (py::isinstance<Compensation>(c)) return c.cast<Compensation*>();
+  adapter = std::make_unique<PyCallableCompensation>(c, n);
+  return adapter.get();
+}
+
 struct PyHMPCCore {
   std::shared_ptr<PyJointQPs> qp;
-  std::shared_ptr<PyNDO> ndo;
+  py::object comp_object;  // the compensation, alive as long as the step
+  std::unique_ptr<Compensation> adapter;
   Array v, tau, dhat, M, nle;
   std::optional<Array> stack;
+  py::object model_fn;  // the caller's model, without compiled dynamics
   HMPCCore core;
   PyHMPCCore(const py::object& model, const CRefRow& FT, int N, std::shared_ptr<PyJointQPs> qp_,
-             std::shared_ptr<PyNDO> ndo_, Array v_, Array tau_, Array dhat_, Array M_,
-             Array nle_)
-      : qp(std::move(qp_)), ndo(std::move(ndo_)), v(v_), tau(tau_), dhat(dhat_), M(M_),
+             py::object comp, Array v_, Array tau_, Array dhat_, Array M_, Array nle_)
+      : qp(std::move(qp_)), comp_object(std::move(comp)), v(v_), tau(tau_), dhat(dhat_), M(M_),
         nle(nle_),
         core(model.is_none() ? std::nullopt : std::optional<std::string>(model.cast<std::string>()),
-             FT, N, &qp->qps, ndo ? &ndo->ndo : nullptr, writable(v, qp->qps.n),
-             writable(tau, qp->qps.n), writable(dhat, qp->qps.n),
+             FT, N, &qp->qps, compensation_port(comp_object, qp->qps.n, adapter),
+             writable(v, qp->qps.n), writable(tau, qp->qps.n), writable(dhat, qp->qps.n),
              writable(M, static_cast<Eigen::Index>(qp->qps.n) * qp->qps.n),
              writable(nle, qp->qps.n)) {}
 };

@@ -9,6 +9,7 @@
 #include "hmpc/errors.hpp"
 #include "hmpc/interfaces.hpp"
 
+#include <stdexcept>
 #include <string>
 #include <utility>
 
@@ -111,6 +112,71 @@ inline Vec broadcast_vector(const py::object& value, int n) {
   py::object np = py::module_::import("numpy");
   return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
 }
+
+// A Python compensation (the Compensation protocol of hmpc_pin.compensation.base: reset(q0,
+// dq0), update(M, nle, q, dq, tau, v) -> d̂, estimate; the momentum observer, ISM, a gate, a
+// user class) as the step's Compensation port. M goes over as a C-contiguous (n, n) array,
+// as the controller's own buffer did; the estimate is what update returned (after reset: the
+// object's estimate), broadcast to n floats as the controller's record of it.
+class PyCallableCompensation : public Compensation {
+ public:
+  PyCallableCompensation(py::object c, int n_) : comp(std::move(c)), n(n_), est(Vec::Zero(n_)) {}
+  void reset(const CRefVec& q, const CRefVec& dq) override {
+    py::gil_scoped_acquire gil;
+    comp.attr("reset")(Vec(q), Vec(dq));
+    est = broadcast_vector(comp.attr("estimate"), n);
+  }
+  void update(const CRefMat& M, const CRefVec& nle, const CRefVec& q, const CRefVec& dq,
+              const CRefVec& tau, const CRefVec& v) override {
+    py::gil_scoped_acquire gil;
+    est = broadcast_vector(
+        comp.attr("update")(RowMat(M), Vec(nle), Vec(q), Vec(dq), Vec(tau), Vec(v)), n);
+  }
+  CRefVec estimate() const override { return est; }
+  py::object comp;
+  int n;
+  Vec est;
+};
+
+// hmpc_pin._core.Compensation subclassed in Python: update(M, nle, q, dq, tau, v) returns
+// the estimate d̂ (n floats); reset(q0, dq0), when defined, restarts it (d̂ = 0 then, as the
+// protocol says). The subclass calls Compensation.__init__(self, n).
+class PyCompensationPort : public Compensation {
+ public:
+  explicit PyCompensationPort(int n_) : n(n_), est(Vec::Zero(n_)) {
+    if (n_ < 1) throw std::invalid_argument("Compensation: expected n >= 1 joints");
+  }
+  void reset(const CRefVec& q, const CRefVec& dq) override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Compensation*>(this), "reset");
+    if (f) f(Vec(q), Vec(dq));
+    est.setZero();
+  }
+  void update(const CRefMat& M, const CRefVec& nle, const CRefVec& q, const CRefVec& dq,
+              const CRefVec& tau, const CRefVec& v) override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Compensation*>(this), "update");
+    if (!f)
+      throw py::type_error(
+          "a subclass of Compensation must define update(M, nle, q, dq, tau, v) returning "
+          "the estimate d̂ (n floats)");
+    py::object out = f(RowMat(M), Vec(nle), Vec(q), Vec(dq), Vec(tau), Vec(v));
+    Vec d;
+    try {
+      d = out.cast<Vec>();
+    } catch (const py::cast_error&) {
+      throw py::type_error("Compensation.update must return a float vector, got " +
+                           std::string(py::str(py::repr(out))));
+    }
+    if (d.size() != n)
+      throw DimensionMismatch("the estimate Compensation.update returned", d.size(), n,
+                              "the controller has " + std::to_string(n) + " joints");
+    est = std::move(d);
+  }
+  CRefVec estimate() const override { return est; }
+  int n;
+  Vec est;
+};
 
 // A Python plant (the Plant protocol of hmpc_pin.sim.base: advance(tau) -> (q, dq),
 // disturbance_now()) as the loop's Plant port.

@@ -8,79 +8,38 @@
 
 namespace hmpc {
 
-ClosedLoop::ClosedLoop(HMPCCore* c, Plant* p, int n_, const double* t, int K_,
+ClosedLoop::ClosedLoop(Plant* p, int n_, const double* t, int K_,
                        std::array<double*, 6> records, std::int64_t* step_ns_,
                        std::int64_t* sat_steps_, double* sat_excess_, const CRefVec& limit_,
                        bool has_limit_, double bound_, double Ts_)
-    : core(c), plant(p), n(n_), K(K_), t_arr(t), rec(records), step_ns(step_ns_),
+    : plant(p), n(n_), K(K_), t_arr(t), rec(records), step_ns(step_ns_),
       sat_steps(sat_steps_), sat_excess(sat_excess_), limit(limit_), has_limit(has_limit_),
       bound(bound_), Ts(Ts_) {
-  if ((c && (c->n != n || !c->stack)) || limit.size() != n)
-    throw std::invalid_argument("ClosedLoop: shapes do not match");
-  qm.setZero(n);
-  dqm.setZero(n);
+  if (limit.size() != n) throw std::invalid_argument("ClosedLoop: shapes do not match");
   tau.setZero(n);
   d.setZero(n);
   dh.setZero(n);
 }
 
-void ClosedLoop::set_measurement(Measurement* m) { measurement = m; }
-
 long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1) {
   if (q.size() != n || v.size() != n || k0 < 0 || k1 > K + 1 || k0 > k1)
     throw std::invalid_argument("ClosedLoop.run: bad state or steps");
-  if (!core && !controller) throw std::invalid_argument("ClosedLoop.run: no controller");
+  if (!controller) throw std::invalid_argument("ClosedLoop.run: no controller");
   if (!plant) throw std::invalid_argument("ClosedLoop.run: no plant");
   for (k = k0; k < k1; ++k) {
     if (interrupted) interrupted();
     ++started;
-    if (controller) {  // the controller as a whole, given the plant's state
-      const auto start = std::chrono::steady_clock::now();
-      controller->step(t_arr[k], q, v, tau, dh);
-      step_ns[k] = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                       std::chrono::steady_clock::now() - start)
-                       .count();
-      if (tau.size() != n || dh.size() != n)
-        throw std::invalid_argument("the controller's torque or estimate is not of n values");
-    } else {
-      compiled_step(q, v);
-    }
+    const auto start = std::chrono::steady_clock::now();
+    controller->step(t_arr[k], q, v, tau, dh);
+    step_ns[k] = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                     std::chrono::steady_clock::now() - start)
+                     .count();
+    if (tau.size() != n || dh.size() != n)
+      throw std::invalid_argument("the controller's torque or estimate is not of n values");
     ++stepped;
-    if (controller == nullptr && measurement) measurement->command(tau);
     if (!record_and_advance(q, v)) return k;
   }
   return k1;
-}
-
-// The compiled step at t_k behind the measurement (its time into step_ns[k]).
-void ClosedLoop::compiled_step(const RefVec& q, const RefVec& v) {
-  const double* t = t_arr;
-  HMPCCore& c = *core;
-  const Vec* qc = &qm;  // the state the controller is given
-  const Vec* dqc = &dqm;
-  if (measurement) {
-    if (k > 0) measurement->measure(t[k], q, v);  // step 0's was taken at reset
-    qc = &measurement->qm;
-    dqc = &measurement->dqm;
-  } else {
-    qm = q;
-    dqm = v;
-  }
-  const auto start = std::chrono::steady_clock::now();
-  if (reference) {  // as HierarchicalMPC.step with a reference sampled in Python
-    auto& S = *c.stack;
-    S.row(0) = qc->transpose();
-    S.row(1) = dqc->transpose();
-    reference->horizon(t[k], S);
-    c.step(S, t[k]);
-  } else {
-    c.step_t(t[k], *qc, *dqc);
-  }
-  step_ns[k] = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                   std::chrono::steady_clock::now() - start)
-                   .count();
-  tau = c.tau.row(0).transpose();
-  dh = c.dhat.row(0).transpose();
 }
 
 // Step k's records, then (k < K) the torque's check and clip and the plant's period; false

@@ -7,7 +7,7 @@ namespace hmpc {
 
 NDO::NDO(const CRefMat& cY_, double Ts, bool implicit_, double* z_, double* estimate_)
     : n(static_cast<int>(cY_.rows())), implicit(implicit_), cY(cY_), TcY(Ts * cY_),
-      z(z_, cY_.rows()), estimate(estimate_, cY_.rows()), lu_(cY_.rows()) {
+      z(z_, cY_.rows()), d_hat(estimate_, cY_.rows()), lu_(cY_.rows()) {
   if (cY.rows() != cY.cols()) throw std::invalid_argument("NDO: cY must be square");
   p_.setZero(n);
   rhs_.setZero(n);
@@ -17,7 +17,7 @@ NDO::NDO(const CRefMat& cY_, double Ts, bool implicit_, double* z_, double* esti
 void NDO::reset(const CRefVec& dq0) {
   if (dq0.size() != n) throw std::invalid_argument("NDO.reset: dq0 of wrong size");
   z.noalias() = -(cY * dq0);
-  estimate.setZero();
+  d_hat.setZero();
 }
 
 void NDO::update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq,
@@ -30,7 +30,7 @@ void NDO::update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq,
   else lu_.compute(M);
   w_ = lu_.solve(rhs_);
   z.noalias() += TcY * w_;
-  estimate = z + p_;
+  d_hat = z + p_;
 }
 
 }  // namespace hmpc

@@ -10,15 +10,15 @@
 namespace hmpc {
 
 HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& FT_, int N_,
-                   JointQPs* qps, NDO* ndo_, double* v_, double* tau_, double* dhat_,
-                   double* M_, double* nle_)
-    : n(qps->n), N(N_), Nc(qps->Nc), FT(FT_), qp(qps), ndo(ndo_), v(v_, 1, n), tau(tau_, 1, n),
+                   JointQPs* qps, Compensation* comp_, double* v_, double* tau_,
+                   double* dhat_, double* M_, double* nle_)
+    : n(qps->n), N(N_), Nc(qps->Nc), FT(FT_), qp(qps), comp(comp_), v(v_, 1, n), tau(tau_, 1, n),
       dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n), sampler(n) {
   if (model) {
     dyn = std::make_unique<Dynamics>(*model);
     if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
   }
-  if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || qp->N != N || (ndo && ndo->n != n))
+  if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || qp->N != N || (comp && comp->estimate().size() != n))
     throw std::invalid_argument("HMPCCore: shapes do not match the model and horizon");
   // Without a velocity weight the ṙ rows of the map are zero: skip them.
   grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
@@ -115,7 +115,7 @@ void HMPCCore::reset(const CRefVec& dhat0) {
   if (joint.any) jtau.setZero();
 }
 
-void HMPCCore::prepare(const CRefRow& S, double t, bool dynamics, bool export_) {
+void HMPCCore::prepare(const CRefRow& S, double t) {
   if (S.rows() != 2 + 2 * N || S.cols() != n)
     throw std::invalid_argument("HMPCCore: stack of wrong shape");
   t_now = t;
@@ -124,19 +124,27 @@ void HMPCCore::prepare(const CRefRow& S, double t, bool dynamics, bool export_) 
   dqv = S.row(1).transpose();
   // Gradients, one column per joint: G^T = FT^T S (Nc×n).
   Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
-  external = !dynamics;
-  if (dynamics) {
-    if (!dyn) throw std::invalid_argument("HMPCCore.prepare: no compiled dynamics here");
-    M = &dyn->mass_matrix(qv);
-    nle = nle0 = &dyn->nle(qv, dqv);
-    if (joint.any) {  // + B q̇ + F sgn q̇
-      for (int i = 0; i < n; ++i) nle_j[i] = (*nle)[i] + joint.torque(i, dqv[i]);
-      nle = &nle_j;
-    }
-    if (export_) {  // C q̇ + G alone: the compensation's model (the joint terms: J)
-      M_out = *M;
-      nle_out.row(0) = nle0->transpose();
-    }
+  evaluate(qv, dqv);
+}
+
+void HMPCCore::evaluate(const Vec& q, const Vec& dq) {
+  if (dyn) {
+    M = &dyn->mass_matrix(q);
+    nle = nle0 = &dyn->nle(q, dq);
+    external = false;
+  } else {
+    if (!model) throw std::invalid_argument("HMPCCore: no compiled dynamics and no model here");
+    model(q, dq);  // M_out, nle_out
+    Mx = M_out;
+    nx = nle_out.row(0).transpose();
+    M = &Mx;
+    nle = nle0 = &nx;
+    external = true;
+  }
+  if (joint.any) {  // + B q̇ + F sgn q̇
+    for (int i = 0; i < n; ++i) nle_j[i] = (*nle0)[i] + joint.torque(i, dq[i]);
+    nle = &nle_j;
+    if (external) nle_out.row(0) = nle_j.transpose();
   }
 }
 
@@ -173,51 +181,48 @@ void HMPCCore::finish() {
 void HMPCCore::step(const CRefRow& S, double t) {
   t_now = t;
   if (latency.on) return step_latency(S);
-  if (obs_start && started && ndo) {  // the model the held torque was computed from
+  if (obs_start && started && comp) {  // the model the held torque was computed from
     prev_M = *M;
     prev_nle = *nle0;
   }
-  prepare(S, t, true, false);
-  if (started && ndo) {
-    // Eq (13) over the period that just ended, with the torque applied over it.
+  prepare(S, t);
+  if (started && comp) {
+    // Eq (13) (or any compensation) over the period that just ended: the rigid body's
+    // model, the torque applied over it beyond the joint dynamics' J (see jtau).
     const Mat& Mo = obs_start ? prev_M : *M;
-    const Vec& no = obs_start ? prev_nle : (joint.any ? *nle0 : *nle);
-    if (joint.any) {  // the rigid body's model, the torque beyond J (see jtau)
-      applied_torque();
-      applied -= jtau;
-      ndo->update(Mo, no, dqv, applied);
-    } else {
-      ndo->update(Mo, no, dqv, applied_torque());
-    }
-    dhat.row(0) = ndo->estimate.transpose();
+    const Vec& no = obs_start ? prev_nle : *nle0;
+    applied_torque();
+    if (joint.any) applied -= jtau;
+    vprev = v.row(0).transpose();
+    comp->update(Mo, no, qv, dqv, applied, vprev);
+    dhat.row(0) = comp->estimate().transpose();
   }
   finish();
 }
 
-// The step with latency: the observer over the measured interval (M, C q̇ + G at the
-// measured state, the aligned torque), then the MPC and Eq (4) at the predicted state.
-// Before the measured interval lies after the start, the observer restarts at each
-// measurement (d̂ = 0). S's state rows are overwritten with the prediction.
+// The step with latency: the compensation over the measured interval (M, C q̇ + G at the
+// measured state, the aligned torque and acceleration), then the MPC and Eq (4) at the
+// predicted state. Before the measured interval lies after the start, the compensation
+// restarts at each measurement. S's state rows are overwritten with the prediction.
 void HMPCCore::step_latency(const CRefRow& S_in) {
   if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
     throw std::invalid_argument("HMPCCore: stack of wrong shape");
   if (!S_in.allFinite()) non_finite(S_in);
-  if (!dyn) throw std::invalid_argument("HMPCCore.step: no compiled dynamics here");
   auto& S = *stack;
   if (S.data() != S_in.data()) S = S_in;
   Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
-  if (ndo) {
-    const Mat& Mq = dyn->mass_matrix(q);
-    const Vec& nq = dyn->nle(q, dq);
+  if (comp) {
+    evaluate(q, dq);
+    const Mat& Mq = *M;
+    const Vec& nq = *nle0;
     if (observer_ready() && (!obs_start || has_prev)) {
       latency.align();
-      if (obs_start) ndo->update(prev_M, prev_nle, dq, latency.tau_obs);
-      else ndo->update(Mq, nq, dq, latency.tau_obs);
-      dhat.row(0) = ndo->estimate.transpose();
+      if (obs_start) comp->update(prev_M, prev_nle, q, dq, latency.tau_obs, latency.v_obs);
+      else comp->update(Mq, nq, q, dq, latency.tau_obs, latency.v_obs);
     } else {
-      ndo->reset(dq);
-      dhat.setZero();
+      comp->reset(q, dq);
     }
+    dhat.row(0) = comp->estimate().transpose();
     if (obs_start) {  // the start of the next measured interval
       prev_M = Mq;
       prev_nle = nq;
@@ -227,8 +232,37 @@ void HMPCCore::step_latency(const CRefRow& S_in) {
   latency.predict(q, dq);
   S.row(0) = q.transpose();
   S.row(1) = dq.transpose();
-  prepare(S, t_now, true, false);
+  prepare(S, t_now);
   finish();
+}
+
+StepController::StepController(HMPCCore* c) : core(c) {
+  if (!core || !core->stack)
+    throw std::invalid_argument("StepController: a step with its stack (set_stack) is needed");
+}
+
+void StepController::step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) {
+  HMPCCore& c = *core;
+  const Vec* qc = &q;  // the state the controller is given
+  const Vec* dqc = &dq;
+  if (measurement) {
+    if (measured) measurement->measure(t, q, dq);  // the first step's was taken at reset
+    qc = &measurement->qm;
+    dqc = &measurement->dqm;
+  }
+  measured = true;
+  if (reference) {  // as HierarchicalMPC.step with a reference sampled in Python
+    auto& S = *c.stack;
+    S.row(0) = qc->transpose();
+    S.row(1) = dqc->transpose();
+    reference->horizon(t, S);
+    c.step(S, t);
+  } else {
+    c.step_t(t, *qc, *dqc);
+  }
+  tau = c.tau.row(0).transpose();
+  dhat = c.dhat.row(0).transpose();
+  if (measurement) measurement->command(tau);
 }
 
 }  // namespace hmpc

@@ -13,24 +13,37 @@ the NDO of Eq 13 (:class:`~hmpc_pin.compensation.observers.DisturbanceObserver`,
 (:class:`~hmpc_pin.compensation.observers.MomentumObserver`) and integral sliding mode
 (:class:`~hmpc_pin.compensation.ism.IntegralSlidingMode`, ± boundary layer).
 
-Optionally, a compensation offers ``compiled_form()``: ``("ndo", obj)`` names a compiled
-observer (``hmpc_pin._core.NDO``) that the compiled control step advances itself, and
-``("zero",)`` an estimate that stays zero; the step then never calls
-:meth:`Compensation.update` from Python. Without it (the momentum observer, ISM, any user
-class) the step calls :meth:`Compensation.update` between its two compiled halves, with the
-M and :math:`C\\dot q + G` it computed (buffers valid during the call only).
+The compiled control step advances the compensation through its Compensation port
+(``cpp/include/hmpc/interfaces.hpp``), which decides once, for every compensation, which
+model, torque and acceleration :meth:`Compensation.update` is given (the observer's model at
+the period's end or start, the torque beyond the joint dynamics, with a latency the measured
+interval). Optionally, a compensation offers ``compiled_port()``: the compiled object the
+step advances in its place without Python (``hmpc_pin._core.NDO``, the NDO of Eq 13), or
+``None`` for an estimate that stays zero. Any other (the momentum observer, ISM, any user
+class, or a subclass of ``hmpc_pin._core.Compensation``) is called by the step through the
+port's trampoline, with the M and :math:`C\\dot q + G` it computed.
+:func:`step_compensation` decodes this, once, for the step (and the tuples of
+``compiled_form()`` of 0.3, with a :class:`DeprecationWarning`).
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Compensation", "NoCompensation", "check_compensation", "warn_chen_validity"]
+__all__ = [
+    "Compensation",
+    "NoCompensation",
+    "StepCompensation",
+    "check_compensation",
+    "step_compensation",
+    "warn_chen_validity",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -84,9 +97,18 @@ class NoCompensation:
         """Nothing to reset; the estimate stays zero."""
         self.estimate = np.zeros(self.n)
 
-    def compiled_form(self) -> tuple[str]:
-        """``("zero",)``: the control step keeps :math:`\\hat d = 0` without calling
+    def compiled_port(self) -> None:
+        """``None``: the control step keeps :math:`\\hat d = 0` without calling
         :meth:`update`."""
+        return None
+
+    def compiled_form(self) -> tuple[str]:
+        """Deprecated since 0.4: :meth:`compiled_port`; ``("zero",)``."""
+        warnings.warn(
+            "compiled_form() is deprecated since 0.4; call compiled_port()",
+            DeprecationWarning,
+            stacklevel=2,
+        )
         return ("zero",)
 
     def update(
@@ -100,6 +122,43 @@ class NoCompensation:
     ) -> FloatArray:
         """Return zeros [N·m]."""
         return self.estimate
+
+
+@dataclass(frozen=True)
+class StepCompensation:
+    """What the compiled step advances for a compensation (:func:`step_compensation`).
+
+    Attributes:
+        port: The object behind the step's Compensation port: a compiled observer
+            (``hmpc_pin._core.NDO``), the compensation itself (called from the step through
+            the port's trampoline), or ``None`` (no compensation: :math:`\\hat d = 0`).
+        compiled: Whether the step advances it without calling Python.
+    """
+
+    port: Any
+    compiled: bool
+
+
+def step_compensation(compensation: object) -> StepCompensation:
+    """The compensation as the compiled step takes it: its ``compiled_port()`` if it has one
+    (compiled), else (0.3) its ``compiled_form()`` tuple decoded with a
+    :class:`DeprecationWarning`, else itself, called through the port's trampoline. The one
+    place a compensation's form is decoded."""
+    own = getattr(compensation, "compiled_port", None)
+    if callable(own):
+        return StepCompensation(own(), True)
+    legacy = getattr(compensation, "compiled_form", None)
+    if callable(legacy):
+        warnings.warn(
+            f"{type(compensation).__name__}.compiled_form() is deprecated since 0.4; define "
+            "compiled_port() returning the compiled observer (or None: no estimate)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        form = legacy()
+        if form is not None:
+            return StepCompensation(form[1] if form[0] == "ndo" else None, True)
+    return StepCompensation(compensation, False)
 
 
 def check_compensation(compensation: object, robot: Any, Ts: float, who: str) -> None:

@@ -52,6 +52,9 @@ same object the fused control step advances; its numpy version is the test oracl
 
 from __future__ import annotations
 
+import warnings
+from typing import Any
+
 import numpy as np
 
 from ..exceptions import ConfigError
@@ -161,9 +164,18 @@ class DisturbanceObserver:
             self.cY, self.Ts, self.discretization == "implicit", self._z, self._estimate
         )
 
+    def compiled_port(self) -> Any:
+        """The compiled observer (``hmpc_pin._core.NDO``): the control step advances this very
+        object in C++ (:meth:`update` is the same computation called from Python)."""
+        return self._core
+
     def compiled_form(self) -> tuple:
-        """``("ndo", the compiled observer)``: the control step advances this very object
-        in C++ (:meth:`update` is the same computation called from Python)."""
+        """Deprecated since 0.4: :meth:`compiled_port`; ``("ndo", the compiled observer)``."""
+        warnings.warn(
+            "compiled_form() is deprecated since 0.4; call compiled_port()",
+            DeprecationWarning,
+            stacklevel=2,
+        )
         return ("ndo", self._core)
 
     def p(self, dq: np.ndarray) -> np.ndarray:

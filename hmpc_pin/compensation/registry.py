@@ -63,8 +63,8 @@ class CompensationSpec:
         Y: For an NDO (Eq 13), its constant design matrix :math:`Y(n)`, (n, n), with
             :math:`p = cY\\dot q` and :math:`L = cYM^{-1}` (Eq 28–30); ``None`` for the
             others (the momentum observer's gain is its bandwidth :math:`K_O` itself).
-        compiled: Advanced inside the compiled control step (the others are called from
-            Python between its halves).
+        compiled: Advanced by the compiled control step without Python (the others are
+            called from the step through its Compensation port).
         bandwidth: Its table accepts ``bandwidth`` instead of ``gain`` (not Chen's NDO,
             whose :math:`Y` is fixed).
         discretizations: The values ``[controller.observer] discretization`` may take.

@@ -33,14 +33,14 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ..checks import as_bool, as_choice, as_float, as_int, as_latency, mpc_fields
-from ..compensation.base import Compensation, check_compensation
+from ..compensation.base import Compensation, check_compensation, step_compensation
 from ..compensation.observers import DisturbanceObserver
 from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot, damping_time_constants
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
 from ..native import BACKENDS, deprecated_backend, model_string
 from ..native import load as load_native
-from ..tasks.base import Reference, as_reference, check_reference_size
+from ..tasks.base import Reference, as_reference, check_reference_size, compiled_sampling
 from .base import AppliedTorque, config_parts, not_reset
 
 __all__ = [
@@ -406,7 +406,6 @@ class HierarchicalMPC(AppliedTorque):
         self.disturbance_estimate = self._buf["d_hat"]
         self.v = self._buf["v"]
         self.tau = self._buf["tau"]
-        self._started = False
         self._was_reset = False
         self._core = None
         self._make_core()
@@ -424,26 +423,51 @@ class HierarchicalMPC(AppliedTorque):
             self._make_core()
 
     @property
+    def _started(self) -> bool:
+        """Whether a step succeeded since the last :meth:`reset` (the compiled step's)."""
+        return self._core is not None and bool(self._core.started)
+
+    def compiled_controller(self, reference, measurement=None) -> Any:
+        """This controller's compiled step as the compiled loop's Controller port
+        (``hmpc_pin._core.StepController``, ``cpp/include/hmpc/step.hpp``) for
+        ``reference``: sampled in C++ if it has a compiled form, else through the step's
+        Reference port (its ``_sample_horizon``); behind the Measurement port
+        ``measurement`` if given (reset with this controller by its wrapper). Built after
+        :meth:`reset`; the loop steps it as :meth:`step` would.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+        """
+        if reference is not self._reference:  # adapted once per reference object
+            self._set_reference(reference)
+        port = load_native().StepController(self._core)
+        if measurement is not None:
+            port.set_measurement(measurement)
+        if not self._native_ref:  # the horizon sampled in Python
+            port.set_reference(self._sample_horizon)
+        return port
+
+    @property
     def native(self) -> bool:
         """Whether :meth:`step` runs compiled: always, since 0.3 (kept for old callers)."""
         return True
 
     @property
     def fused(self) -> bool:
-        """Whether the compensation is advanced inside the compiled step (the NDO of Eq 13,
-        or none) rather than called from Python between its two halves."""
+        """Whether the whole step runs without calling Python: the compensation is compiled
+        (the NDO of Eq 13, or none) and so is the model's dynamics. Any other compensation
+        (momentum, ISM, a user class) is advanced inside the compiled step too, called
+        through its Compensation port (``cpp/include/hmpc/interfaces.hpp``)."""
         return self._fused
 
     def _make_core(self) -> None:
         """The compiled step (``cpp/src/step.cpp``), composed of the compiled components: the
-        QPs are :attr:`qps`' own, the observer (if any) the compensation's own object."""
-        comp = self.compensation
-        form_of = getattr(comp, "compiled_form", None)
-        form = form_of() if callable(form_of) else None
-        ndo = None
-        if form is not None and form[0] == "ndo":
-            ndo = form[1]
-        self._fused = form is not None and not self._python_dynamics
+        QPs are :attr:`qps`' own, the compensation is behind the step's Compensation port
+        (the compiled observer itself, or the Python object through its trampoline)."""
+        decoded = step_compensation(self.compensation)
+        port = decoded.port
+        self._fused = decoded.compiled and not self._python_dynamics
+        self._port = port
         model = None if self._python_dynamics else model_string(self.robot)
         buf = self._buf
         core = load_native().HMPCCore(
@@ -451,19 +475,20 @@ class HierarchicalMPC(AppliedTorque):
             self._FT,
             self.settings.N,
             self.qps._core,
-            ndo,
+            port,
             buf["v"],
             buf["tau"],
             buf["d_hat"],
             self._M,
             buf["nle"],
         )
+        if self._python_dynamics:
+            core.set_model(self._python_dynamics_at)
         core.set_stack(self._stack, self._offsets)
         robot = self.robot  # how the compiled step's faults name it
         core.robot = f"the robot {robot.name!r} has {self.n} joints {robot.joint_names}"
         core.set_latency(self.settings.latency, self.settings.Ts)
         core.set_observer_model(self.settings.model_at == "start")
-        self._obs_prev = None  # the Python path's model at the previous measurement
         b, f = self.joint_dynamics
         if b.any() or f.any():
             core.set_joint_dynamics(b, f, self.settings.Ts)
@@ -522,10 +547,11 @@ class HierarchicalMPC(AppliedTorque):
         """Start a new run from the state ``(q0, dq0)``; the estimate restarts at zero."""
         q0 = self.robot.check_vector("q0", q0)
         dq0 = self.robot.check_vector("dq0", dq0)
-        self.compensation.reset(q0, dq0)
-        # v, τ and d̂ are the compiled step's buffers, updated in place from now on.
-        self._core.reset(np.asarray(self.compensation.estimate, dtype=float))
-        self._started = False
+        if self._port is None:  # no compensation in the step: d̂ = 0
+            self.compensation.reset(q0, dq0)
+        # The compensation restarted through the step's port; v, τ and d̂ are the compiled
+        # step's buffers, updated in place from now on.
+        self._core.reset(q0, dq0)
         self._was_reset = True
 
     def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
@@ -535,10 +561,10 @@ class HierarchicalMPC(AppliedTorque):
         observer assumes the torque returned by the previous call was held since.
 
         One compiled step (``cpp/src/step.cpp``): the horizon's gradients, M and
-        :math:`C\\dot q + G`, the compensation's estimate, the joint QPs and Eq (4). A
-        compensation with a compiled form (the NDO of Eq 13, or none) is advanced inside
-        it; any other (momentum, ISM, a user class) is called from Python between the
-        step's two halves, with the same compiled dynamics and QPs.
+        :math:`C\\dot q + G`, the compensation's estimate, the joint QPs and Eq (4). The
+        compensation is advanced inside it, through its Compensation port: the compiled NDO
+        of Eq 13 without Python, any other (momentum, ISM, a user class) by a call of its
+        ``update`` from the compiled step.
 
         Args:
             t: Time [s].
@@ -557,46 +583,26 @@ class HierarchicalMPC(AppliedTorque):
             SimulationError: Called before :meth:`reset`.
         """
         if reference is not self._reference:  # adapted once per reference object
-            if not self._was_reset:
-                raise not_reset(self)
             self._set_reference(reference)
         core = self._core
-        S = self._stack
-        if self._native_ref and self._fused:  # the whole step in one call
+        if self._native_ref:  # the whole step in one call
             try:
                 core.step_t(t, q, dq)
-            except TypeError:  # not convertible to a float vector
-                self._not_vectors(q, dq)
-            self._started = True
+            except TypeError as exc:  # not convertible to a float vector, or the compensation's
+                self._not_vectors(q, dq, exc)
             return self.tau.copy()
-        if self._native_ref:  # the reference sampled in C++ too
-            try:
-                core.fill(t, q, dq)
-            except TypeError:  # not convertible to a float vector
-                self._not_vectors(q, dq)
-        else:
-            if not math.isfinite(t):
-                raise NonFiniteError("t", t)
-            q = np.asarray(q, dtype=float)
-            dq = np.asarray(dq, dtype=float)
-            if q.shape != self._shape or dq.shape != self._shape:
-                self.robot.check_vector("q", q)  # raises the precise error
-                self.robot.check_vector("dq", dq)
-            S[0] = q
-            S[1] = dq
-            self._sample_horizon(t)
-        if self._fused:
-            core.step(S, t)
-        else:
-            core.prepare(S, t, not self._python_dynamics)
-            self._python_compensation()
-            if self.settings.latency > 0:  # MPC and Eq (4) at the predicted state
-                core.predict(S)
-                core.prepare(S, t, not self._python_dynamics)
-                if self._python_dynamics:
-                    self._python_dynamics_at_stack()
-            core.finish()
-        self._started = True
+        if not math.isfinite(t):
+            raise NonFiniteError("t", t)
+        q = np.asarray(q, dtype=float)
+        dq = np.asarray(dq, dtype=float)
+        if q.shape != self._shape or dq.shape != self._shape:
+            self.robot.check_vector("q", q)  # raises the precise error
+            self.robot.check_vector("dq", dq)
+        S = self._stack
+        S[0] = q
+        S[1] = dq
+        self._sample_horizon(t)
+        core.step(S, t)
         return self.tau.copy()
 
     def warm_up(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> None:
@@ -617,8 +623,7 @@ class HierarchicalMPC(AppliedTorque):
         """
         if not (self._started and self._fused):
             return
-        form = self.compensation.compiled_form()
-        ndo = form[1] if form[0] == "ndo" else None
+        ndo = self._port
         buffers = [self._buf[name].copy() for name in ("v", "tau", "d_hat", "nle")]
         M, stack, slack = self._M.copy(), self.qps.stack.copy(), self.qps.slack.copy()
         core = self.qps._core
@@ -649,46 +654,9 @@ class HierarchicalMPC(AppliedTorque):
             if ndo is not None:
                 ndo.state = ndo_state
 
-    def _python_compensation(self) -> None:
-        """Between the step's halves: M and C q̇ + G (from Pinocchio's Python API where the
-        compiled dynamics cannot load the model), then the compensation's estimate. With
-        joint dynamics compensated, the compensation gets C q̇ + G alone and the applied
-        torque minus the joint-dynamics torque J of the last step (the compiled step's
-        ``joint_torque``), as the compiled observer does."""
-        q, dq = self._stack[0].copy(), self._stack[1].copy()
-        M, nle = self._M, self._buf["nle"]
-        if self._python_dynamics:
-            self._python_dynamics_at_stack()
-        b, f = self.joint_dynamics
-        joint = bool(b.any() or f.any())
-        comp = self.compensation
-        if self.settings.model_at == "start":  # the previous measurement's model
-            current = (M.copy(), nle.copy())
-            if self._started and self._obs_prev is not None:
-                M, nle = self._obs_prev
-            self._obs_prev = current
-        if self.settings.latency > 0:  # the torque and v over the measured interval
-            if self._core.observer_ready():  # (the torque beyond the joint dynamics' J)
-                tau_obs, v_obs = self._core.aligned()
-                d_hat = comp.update(M, nle, q, dq, tau_obs, v_obs)
-            else:  # the interval begins before the start: restart at this measurement
-                comp.reset(q, dq)
-                d_hat = comp.estimate
-        elif self._started:
-            applied = self._applied()
-            if joint:  # the rigid body's model, the torque beyond J
-                applied = applied - self._core.joint_torque
-            d_hat = comp.update(M, nle, q, dq, applied, self.v)
-        else:
-            d_hat = comp.estimate
-        self.disturbance_estimate[:] = d_hat
-        if self._python_dynamics and joint:  # Eq 4 takes C q̇ + G + B q̇ + F sgn q̇
-            self._buf["nle"][:] += load_native().joint_torque(b, f, dq)
-
-    def _python_dynamics_at_stack(self) -> None:
-        """M and C q̇ + G at the stack's state from Pinocchio's Python API (models the
-        compiled dynamics cannot load)."""
-        q, dq = self._stack[0].copy(), self._stack[1].copy()
+    def _python_dynamics_at(self, q: FloatArray, dq: FloatArray) -> None:
+        """M and C q̇ + G at ``(q, dq)`` from Pinocchio's Python API into the step's buffers
+        (models the compiled dynamics cannot load; called by the compiled step)."""
         self._M[:] = self.robot.mass_matrix(q)
         self._buf["nle"][:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
 
@@ -715,25 +683,30 @@ class HierarchicalMPC(AppliedTorque):
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
-        native form, if it has one, to the compiled step."""
+        compiled form (:func:`~hmpc_pin.tasks.base.compiled_sampling`), if it has one, to
+        the compiled step.
+
+        Raises:
+            SimulationError: Called before :meth:`reset`.
+        """
+        if not self._was_reset:
+            raise not_reset(self)
         check_reference_size(reference, self.n, "HierarchicalMPC.step")
         self._ref = as_reference(reference)
         self._reference = reference
         self._native_ref = False
-        core = self._core
-        form_of = getattr(self._ref, "native_form", None)
-        form = form_of() if callable(form_of) else None
-        if form is not None and form[0] == "sine":
-            core.set_sine(*form[1:])
-            self._native_ref = True
-        elif form is not None and form[0] == "ppoly":
-            core.set_ppoly(*form[1:])
-            self._native_ref = True
+        form = compiled_sampling(self._ref)
+        if form is None:
+            self._core.clear_reference()
         else:
-            core.clear_reference()
+            form.load(self._core)
+            self._native_ref = True
 
-    def _not_vectors(self, q, dq) -> None:
-        """Raise the error of ``q`` or ``dq`` that is not a vector of n floats."""
+    def _not_vectors(self, q, dq, exc: TypeError) -> None:
+        """Raise the error of ``q`` or ``dq`` that is not a vector of n floats, or ``exc``
+        (raised inside the step, e.g. by a Python compensation) if they are."""
         self.robot.check_vector("q", q)
         self.robot.check_vector("dq", dq)
-        raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)")
+        if "incompatible function arguments" not in str(exc):
+            raise exc
+        raise DimensionError(f"q and dq must be float vectors of shape ({self.n},)") from None

@@ -3,14 +3,15 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
 ``ClosedLoop``), for every setup: the loop calls each part through a port
 (``cpp/include/hmpc/interfaces.hpp``):
 
-- the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` whose step
-  is wholly compiled (its compensation the NDO of Eq 13 or none, its model loaded by the
-  compiled dynamics) is stepped in C++, alone or behind a
+- the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` is stepped
+  in C++ (its compensation behind the step's Compensation port: the compiled NDO of Eq 13,
+  or a Python compensation called from the step; its model the compiled dynamics, or
+  Pinocchio's Python API called from the step for mimic joints), alone or behind a
   :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (or
   :class:`~hmpc_pin.sim.sensing.SensedController`), whose measurement port (compiled: the
   plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`; or a Python
-  subclass) is called by the loop; any other controller (computed torque, a compensation
-  advanced in Python, a model with mimic joints, any other wrapper) is called as a whole,
+  subclass) is called by the loop; any other controller (computed torque, any other
+  wrapper) is called as a whole,
   ``step(t, q, dq, reference)`` and ``disturbance_estimate``, through the Controller port;
 - the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
   any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
@@ -68,18 +69,14 @@ def _own(obj, cls, *names: str) -> bool:
 
 def _parts(controller):
     """``(HierarchicalMPC, MeasuredController or None)`` of ``controller`` when its step is
-    wholly compiled (then the loop calls the compiled step and the ports around it), or
+    the compiled one (then the loop calls the compiled step and the ports around it), or
     ``None`` (then the loop calls the controller as a whole through its Controller port)."""
     measured = None
     if isinstance(controller, MeasuredController) and _own(
         controller, MeasuredController, "step", "reset"
     ):
         measured, controller = controller, controller.controller
-    if (
-        isinstance(controller, HierarchicalMPC)
-        and _own(controller, HierarchicalMPC, "step")
-        and controller.fused
-    ):
+    if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
         return controller, measured
     return None
 
@@ -92,9 +89,8 @@ def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
 
 
 def _compiled_plant(plant) -> bool:
-    """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose compiled plant
-    (its ``port``) the loop advances itself (its methods not replaced, e.g. by a spy: then
-    it is called as a plant)."""
+    """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose period the loop
+    runs itself (its methods not replaced, e.g. by a spy: then it is called as a plant)."""
     return isinstance(plant, RK4Plant) and _own(
         plant, RK4Plant, "advance", "disturbance_now", "reset", "prepare"
     )
@@ -134,7 +130,6 @@ class CompiledLoop:
         self.n, self.K = n, len(t_arr) - 1
         self._rk4 = rk4 = _compiled_plant(plant)
         self._loop = load_native().ClosedLoop(
-            None if ctrl is None else ctrl._core,
             plant.port if rk4 else plant,  # the compiled plant, or the plant through Python
             n,
             t_arr,
@@ -149,8 +144,6 @@ class CompiledLoop:
         )
         if ctrl is None:  # the controller as a whole, from Python
             self._loop.set_controller(controller, reference)
-        if measured is not None:
-            self._loop.set_measurement(measured.measurement)
         if on_step is not None:
             self._loop.set_recorded(self._on_step(on_step))
         q0, dq0 = state if state is not None else (plant.q, plant.dq)
@@ -177,11 +170,9 @@ class CompiledLoop:
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
         ctrl, K = self.ctrl, self.K
-        if ctrl is not None and self.reference is not ctrl._reference:  # as its step does
-            ctrl._set_reference(self.reference)
-        if ctrl is not None and not ctrl._native_ref:  # the horizon sampled in Python
-            self._loop.set_reference(ctrl._sample_horizon)
         port = None if self.measured is None else self.measured.measurement
+        if ctrl is not None:  # its compiled step, with its reference and measurement ports
+            self._loop.set_controller(ctrl.compiled_controller(self.reference, port))
         ahead = isinstance(port, load_native().SensingMeasurement)
         if ahead:  # the noise of a chunk drawn at once, the unused draws given back
             port.ahead = PULSE_CHUNK
@@ -206,17 +197,15 @@ class CompiledLoop:
             k0 = k1
 
     def _chunk(self, k0: int, k1: int) -> int:
-        """Steps ``k0 .. k1 - 1``; the controller's and the measurement's Python flags
-        brought up to date afterwards (also when a fault or Ctrl-C stops the chunk). Returns
-        the step where it stopped."""
+        """Steps ``k0 .. k1 - 1``; the measurement's Python flag brought up to date
+        afterwards (also when a fault or Ctrl-C stops the chunk). Returns the step where it
+        stopped."""
         loop, n = self._loop, self.n
-        started, stepped = loop.started, loop.stepped
+        started = loop.started
         x = self._x
         try:
             return loop.run(x[:n], x[n:], k0, k1)
         finally:
             self.k, self.last = loop.k, loop.last
-            if loop.stepped != stepped and self.ctrl is not None:
-                self.ctrl._started = True
             if self.measured is not None and loop.started != started:
                 self.measured._started = True

@@ -14,14 +14,15 @@ vectorised over time:
 ``sample(t) -> (q_ref, dq_ref)``
     one instant, two arrays of shape (n,).
 
-Optional: ``native_form() -> tuple | None``, the reference in a form the native step
-(:mod:`hmpc_pin.native`) samples in C++: ``("sine", ω, φ, amplitude, offset, amplitude·ω)``
-(:math:`q = \\mathrm{offset} + \\mathrm{amplitude}\\,\\sin(\\omega t + \\phi)`) or
-``("ppoly", breakpoints (K,), origins (K+1,), coefficients ((K+1)(d+1), 2n), d)`` (segment
-:math:`i` = the number of breakpoints <= t, :math:`[q\\ \\dot q] = \\sum_k c_{i,k}\\,s^k` with
-:math:`s = t - \\mathrm{origin}_i`). It must give what ``sample_many`` gives (up to rounding;
-tested for the package's references); ``None`` (e.g. a subclass that samples otherwise)
-keeps the Python sampling.
+Optional: ``compiled_sampling() -> SineSampling | PolynomialSampling | None``, the
+reference in a form the compiled step (:mod:`hmpc_pin.native`) samples in C++: a
+:class:`SineSampling` (:math:`q = \\mathrm{offset} + \\mathrm{amplitude}\\,\\sin(\\omega t +
+\\phi)`) or a :class:`PolynomialSampling` (segment :math:`i` = the number of breakpoints <=
+t, :math:`[q\\ \\dot q] = \\sum_k c_{i,k}\\,s^k` with :math:`s = t - \\mathrm{origin}_i`). It
+must give what ``sample_many`` gives (up to rounding; tested for the package's references);
+``None`` (e.g. a subclass that samples otherwise) keeps the Python sampling.
+:func:`compiled_sampling` decodes it, once, for the step (and the tuples of
+``native_form()`` of 0.3, with a :class:`DeprecationWarning`).
 
 Every reference of the package implements both, vectorised. Anything else a user has
 is adapted once, at the boundary, by :func:`as_reference`: an object with only
@@ -33,7 +34,9 @@ naming what is missing.
 from __future__ import annotations
 
 import inspect
+import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -42,7 +45,16 @@ from numpy.typing import NDArray
 from ..exceptions import DimensionError, InterfaceError, LimitError
 from ..native import load as load_native
 
-__all__ = ["Reference", "as_reference", "check_limits", "check_reference_size", "sample_horizon"]
+__all__ = [
+    "PolynomialSampling",
+    "Reference",
+    "SineSampling",
+    "as_reference",
+    "check_limits",
+    "check_reference_size",
+    "compiled_sampling",
+    "sample_horizon",
+]
 
 FloatArray = NDArray[np.float64]
 Pair = tuple[FloatArray, FloatArray]
@@ -77,25 +89,118 @@ def _write(values: Pair, out: Pair | None) -> Pair:
     return out
 
 
+@dataclass(frozen=True)
+class SineSampling:
+    """A sine per joint for the compiled sampler (``cpp/src/sampler.cpp``):
+    :math:`q = o + a\\sin(\\omega t + \\phi)`, :math:`\\dot q = (a\\omega)\\cos(\\omega t + \\phi)`.
+
+    Attributes:
+        omega: :math:`\\omega` [rad/s], (n,).
+        phase: :math:`\\phi` [rad], (n,).
+        amplitude: :math:`a` [rad], (n,).
+        offset: :math:`o` [rad], (n,).
+        amplitude_omega: :math:`a\\omega` [rad/s], (n,) (the velocity's amplitude, as
+            computed by the reference).
+    """
+
+    omega: FloatArray
+    phase: FloatArray
+    amplitude: FloatArray
+    offset: FloatArray
+    amplitude_omega: FloatArray
+
+    def load(self, target: Any) -> None:
+        """Give it to a compiled sampler or step (``target.set_sine``)."""
+        target.set_sine(self.omega, self.phase, self.amplitude, self.offset, self.amplitude_omega)
+
+    def as_tuple(self) -> tuple[Any, ...]:
+        """The tuple of ``native_form()`` (0.3): ``("sine", ω, φ, a, o, aω)``."""
+        return ("sine", self.omega, self.phase, self.amplitude, self.offset, self.amplitude_omega)
+
+
+@dataclass(frozen=True)
+class PolynomialSampling:
+    """A piecewise polynomial for the compiled sampler (``cpp/src/sampler.cpp``): segment
+    :math:`i` = the number of breakpoints <= t, :math:`[q\\ \\dot q] = \\sum_k c_{i,k}\\,s^k`
+    with :math:`s = t - \\mathrm{origin}_i`.
+
+    Attributes:
+        breakpoints: :math:`t_k` [s], (K,), increasing.
+        origins: The origin of each of the K + 1 segments [s], (K+1,).
+        coefficients: :math:`c_{i,k}`, ((K+1)(d+1), 2n): row :math:`i(d+1) + k`, the
+            columns :math:`[q\\ |\\ \\dot q]`.
+        degree: :math:`d`.
+    """
+
+    breakpoints: FloatArray
+    origins: FloatArray
+    coefficients: FloatArray
+    degree: int
+
+    def load(self, target: Any) -> None:
+        """Give it to a compiled sampler or step (``target.set_ppoly``)."""
+        target.set_ppoly(self.breakpoints, self.origins, self.coefficients, self.degree)
+
+    def as_tuple(self) -> tuple[Any, ...]:
+        """The tuple of ``native_form()`` (0.3): ``("ppoly", t_k, origins, c, d)``."""
+        return ("ppoly", self.breakpoints, self.origins, self.coefficients, self.degree)
+
+
+#: A reference's form for the compiled sampler.
+SamplingForm = SineSampling | PolynomialSampling
+
+
+def compiled_sampling(reference: object) -> SamplingForm | None:
+    """The form in which the compiled step samples ``reference`` itself, or ``None`` (it is
+    sampled in Python): its ``compiled_sampling()``, or (0.3) the tuple of its
+    ``native_form()`` decoded, with a :class:`DeprecationWarning`. The one place a
+    reference's form is decoded."""
+    own = getattr(reference, "compiled_sampling", None)
+    if callable(own):
+        form: SamplingForm | None = own()
+        return form
+    legacy = getattr(reference, "native_form", None)
+    if not callable(legacy):
+        return None
+    warnings.warn(
+        f"{type(reference).__name__}.native_form() is deprecated since 0.4; define "
+        "compiled_sampling() returning a SineSampling or PolynomialSampling "
+        "(hmpc_pin.tasks.base)",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    old = legacy()
+    if old is None:
+        return None
+    if old[0] == "sine":
+        return SineSampling(*old[1:])
+    if old[0] == "ppoly":
+        return PolynomialSampling(*old[1:])
+    raise InterfaceError(
+        old,
+        "a native form ('sine', ...) or ('ppoly', ...)",
+        f"{type(reference).__name__}.native_form() returned it; define compiled_sampling()",
+    )
+
+
 class CompiledSampling:
     """Base of the references that the compiled sampler evaluates (``cpp/src/sampler.cpp``):
-    ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` --
-    ``("sine", ω, φ, amplitude, offset, amplitude·ω)`` or ``("ppoly", t_k, origins,
-    [q | q̇] coefficients, degree)``, the same tuple the fused step samples (``native_form``).
+    ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` -- a
+    :class:`SineSampling` or :class:`PolynomialSampling`, the same form the compiled step
+    samples (``compiled_sampling``).
     """
 
     n: int
     _compiled: Any = None
 
-    def _form(self) -> tuple[Any, ...]:
+    def _form(self) -> SamplingForm:
         raise NotImplementedError
 
     def _sampler(self) -> Any:
         sampler = self._compiled
         if sampler is None:
-            form = self._form()
             sampler = load_native().Sampler(self.n)
-            getattr(sampler, f"set_{form[0]}")(*form[1:])
+            self._form().load(sampler)
             self._compiled = sampler
         return sampler
 
@@ -135,8 +240,8 @@ class CompiledSampling:
         q, dq = self.sample_many(np.array([float(t)]))
         return q[0], dq[0]
 
-    def native_form(self) -> tuple[Any, ...] | None:
-        """``_form()`` for the fused step; ``None`` for a subclass that samples otherwise
+    def compiled_sampling(self) -> SamplingForm | None:
+        """``_form()`` for the compiled step; ``None`` for a subclass that samples otherwise
         (it overrides ``sample_many`` or ``sample``)."""
         cls = type(self)
         if (
@@ -145,6 +250,16 @@ class CompiledSampling:
         ):
             return None
         return self._form()
+
+    def native_form(self) -> tuple[Any, ...] | None:
+        """Deprecated since 0.4: :meth:`compiled_sampling` (typed) as the tuple of 0.3."""
+        warnings.warn(
+            "native_form() is deprecated since 0.4; call compiled_sampling()",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        form = self.compiled_sampling()
+        return None if form is None else form.as_tuple()
 
 
 class _ManyWithoutOut:

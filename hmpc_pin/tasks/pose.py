@@ -37,6 +37,7 @@ Orientations are unit quaternions :math:`(x, y, z, w)`, scalar last (Pinocchio's
 from __future__ import annotations
 
 import difflib
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,7 +45,7 @@ import pinocchio as pin
 
 from ..exceptions import ExtraError, KinematicsError, LimitError
 from ..model.robot import Robot
-from .base import FloatArray, Pair
+from .base import FloatArray, Pair, SamplingForm
 from .trajectory import JointTrajectory
 
 __all__ = [
@@ -442,11 +443,21 @@ class PoseReference:
         """Joint position [rad] and velocity [rad/s] at ``t`` [s]."""
         return self.trajectory.sample(t)
 
-    def native_form(self) -> tuple | None:
-        """The joint trajectory's native form (:mod:`hmpc_pin.tasks.base`)."""
+    def compiled_sampling(self) -> SamplingForm | None:
+        """The joint trajectory's form for the compiled step (:mod:`hmpc_pin.tasks.base`)."""
         if type(self) is not PoseReference:
             return None
-        return self.trajectory.native_form()
+        return self.trajectory.compiled_sampling()
+
+    def native_form(self) -> tuple | None:
+        """Deprecated since 0.4: :meth:`compiled_sampling` (typed) as the tuple of 0.3."""
+        warnings.warn(
+            "native_form() is deprecated since 0.4; call compiled_sampling()",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        form = self.compiled_sampling()
+        return None if form is None else form.as_tuple()
 
     def target(self, times) -> tuple[FloatArray, FloatArray]:
         """Target positions (m, 3) [m] and quaternions (m, 4) ``(x, y, z, w)`` at ``times``

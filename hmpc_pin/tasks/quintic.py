@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..exceptions import ConfigError, DimensionError, NonFiniteError
-from .base import CompiledSampling
+from .base import CompiledSampling, PolynomialSampling
 
 __all__ = ["QuinticReference"]
 
@@ -73,7 +73,7 @@ class QuinticReference(CompiledSampling):
     def _phase(self, t):
         return np.clip((np.asarray(t, dtype=float) - self.t_start) / self.duration, 0.0, 1.0)
 
-    def _form(self) -> tuple:
+    def _form(self) -> PolynomialSampling:
         """The move as a piecewise polynomial in :math:`s = t - t_0` for the compiled
         sampler (:class:`~hmpc_pin.tasks.base.CompiledSampling`): hold :math:`q_{start}`,
         then :math:`q = q_{start} + \\Delta(10\\sigma^3 - 15\\sigma^4 + 6\\sigma^5)`,
@@ -87,7 +87,9 @@ class QuinticReference(CompiledSampling):
         c[1, 2, n:], c[1, 3, n:], c[1, 4, n:] = 30.0 * d / T**3, -60.0 * d / T**4, 30.0 * d / T**5
         c[2, 0, :n] = self.q_start + d
         t0, t1 = self.t_start, self.t_start + T
-        return ("ppoly", np.array([t0, t1]), np.array([t0 - 1.0, t0, t1]), c.reshape(-1, 2 * n), 5)
+        return PolynomialSampling(
+            np.array([t0, t1]), np.array([t0 - 1.0, t0, t1]), c.reshape(-1, 2 * n), 5
+        )
 
     def acceleration(self, t: float) -> np.ndarray:
         """Reference acceleration [rad/s²] at ``t`` [s], shape (n,)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import CompiledSampling
+from .base import CompiledSampling, SineSampling
 
 __all__ = ["SineReference"]
 
@@ -33,11 +33,10 @@ class SineReference(CompiledSampling):
         self.phase = np.broadcast_to(np.asarray(phase, float), shape).copy()
         self._amp_omega = self.amplitude * self.omega
 
-    def _form(self) -> tuple:
-        """``("sine", ω, φ, amplitude, offset, amplitude·ω)``: the compiled sampler's
-        :math:`q = o + a\\sin(\\omega t + \\phi)`,
+    def _form(self) -> SineSampling:
+        """The compiled sampler's :math:`q = o + a\\sin(\\omega t + \\phi)`,
         :math:`\\dot q = (a\\omega)\\cos(\\omega t + \\phi)`."""
-        return ("sine", self.omega, self.phase, self.amplitude, self.offset, self._amp_omega)
+        return SineSampling(self.omega, self.phase, self.amplitude, self.offset, self._amp_omega)
 
     def acceleration(self, t: float) -> np.ndarray:
         """Reference acceleration [rad/s²] at ``t``."""

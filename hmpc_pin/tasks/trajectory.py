@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import DimensionError, TrajectoryError
-from .base import CompiledSampling, FloatArray
+from .base import CompiledSampling, FloatArray, PolynomialSampling
 
 __all__ = ["JointTrajectory", "load_trajectory"]
 
@@ -218,12 +218,13 @@ class JointTrajectory(CompiledSampling):
         idx = np.searchsorted(self.times, times, side="right")
         return times - self._knots.take(idx), idx
 
-    def _form(self) -> tuple:
-        """The segments as ``("ppoly", t_k, origins, [q | q̇] coefficients, degree)`` for the
-        compiled sampler (:class:`~hmpc_pin.tasks.base.CompiledSampling`). Before
+    def _form(self) -> PolynomialSampling:
+        """The segments as a piecewise polynomial (breakpoints t_k, origins, [q | q̇]
+        coefficients, degree) for the compiled sampler
+        (:class:`~hmpc_pin.tasks.base.CompiledSampling`). Before
         :math:`t_0` and from :math:`t_{K-1}` on, the end point is held (velocity 0)."""
         coef = np.ascontiguousarray(self._qd.reshape(-1, 2 * self.n))
-        return ("ppoly", self.times, self._knots, coef, self.degree)
+        return PolynomialSampling(self.times, self._knots, coef, self.degree)
 
     def acceleration_many(self, times: FloatArray) -> FloatArray:
         """Accelerations [rad/s²] at ``times`` (m,): shape (m, n); 0 outside the samples."""

@@ -24,12 +24,18 @@ velocity's path over the period averaged by quadrature (:meth:`OracleHMPC._mean_
 With ``model_at = "start"`` step 2 takes :math:`M` and :math:`C\\dot q + G` of the
 previous step's measured state (the state the held torque was computed from) instead of
 this step's.
+
+Any other compensation law is given as ``law``: an object with ``reset(q0, dq0)`` and
+``update(M, nle, q, dq, tau, v) -> d̂`` written from its own equations, called in step 2 with
+the same model, the applied torque beyond :math:`J` and the oracle's previous :math:`v`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+
+from hmpc_pin.compensation.observers import DisturbanceObserver
 
 from .joint_qps import NumpyJointQPs
 from .observers import NumpyNDO
@@ -43,7 +49,7 @@ class OracleHMPC:
             gain are reproduced (nothing of its state is used).
     """
 
-    def __init__(self, ctrl):
+    def __init__(self, ctrl, law=None):
         self.robot = ctrl.robot
         self.mpc = ctrl.mpc
         s = ctrl.settings
@@ -51,20 +57,20 @@ class OracleHMPC:
         v_min, v_max = s.bounds(ctrl.n)
         self.qps = NumpyJointQPs(ctrl.mpc, v_min, v_max, ctrl.limits, eps_abs=s.eps_abs)
         comp = ctrl.compensation
-        form = comp.compiled_form() if hasattr(comp, "compiled_form") else None
-        self.ndo = None
-        if form is not None and form[0] == "ndo":
-            self.ndo = NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit")
+        self.ndo = law
+        if law is None and isinstance(comp, DisturbanceObserver):
+            self.ndo = _NDOLaw(NumpyNDO(comp.cY, comp.Ts, comp.discretization == "implicit"))
         self.data = self.robot.model.createData()
         self.joint = ctrl.joint_dynamics  # (B, F) compensated (zeros: none)
         self.at_start = s.model_at == "start"
 
-    def reset(self, dq0: np.ndarray) -> None:
+    def reset(self, dq0: np.ndarray, q0: np.ndarray | None = None) -> None:
         if self.ndo is not None:
-            self.ndo.reset(dq0)
+            self.ndo.reset(q0, dq0)
         self.d_hat = np.zeros(self.robot.nq)
         self.J = np.zeros(self.robot.nq)  # the joint-dynamics torque of the last step
         self.prev = None  # M, C q̇ + G of the last step's measured state
+        self.v = np.zeros(self.robot.nq)  # the last step's commanded acceleration
 
     def step(self, t, q, dq, reference, tau_applied_prev=None) -> tuple[np.ndarray, np.ndarray]:
         """Returns ``(τ, d̂)``; ``tau_applied_prev`` is None at the first step."""
@@ -76,7 +82,9 @@ class OracleHMPC:
         if self.ndo is not None and tau_applied_prev is not None:
             # the rigid body's model; the torque beyond the last step's joint torque J
             Mo, no = self.prev if self.at_start else (M, nle0)
-            self.d_hat = self.ndo.update(Mo, no, dq, tau_applied_prev - self.J)
+            self.d_hat = np.array(
+                self.ndo.update(Mo, no, q, dq, tau_applied_prev - self.J, self.v), dtype=float
+            )
         self.prev = (M, nle0)
         times = t + self.Ts * np.arange(1, self.N + 1)
         q_ref, dq_ref = reference.sample_many(times)
@@ -96,6 +104,7 @@ class OracleHMPC:
         J = B * dq + F * sigma + (g - 1.0) / minv * v
         tau = M @ v + nle0 + J - self.d_hat
         self.J = J
+        self.v = v
         return tau, self.d_hat.copy()
 
     @staticmethod
@@ -125,12 +134,25 @@ class OracleHMPC:
         return float((np.sign(a) * before + np.sign(c) * after) / (before + after))
 
 
+class _NDOLaw:
+    """:class:`~tests.reference.observers.NumpyNDO` as a compensation law."""
+
+    def __init__(self, ndo: NumpyNDO):
+        self.ndo = ndo
+
+    def reset(self, q0, dq0) -> None:
+        self.ndo.reset(dq0)
+
+    def update(self, M, nle, q, dq, tau, v):
+        return self.ndo.update(M, nle, dq, tau)
+
+
 def assert_run_matches(oracle: OracleHMPC, result, reference, atol: float) -> None:
     """Replay a closed-loop ``result`` through ``oracle`` (reset at its first velocity) and
     check, at every recorded instant, the estimate d̂ and the torque τ to ``atol`` [N·m]
     times max(1, max |τ|): the oracle is given the measured state and the torque applied
     over the period before, as the compiled step was."""
-    oracle.reset(result.dq[0])
+    oracle.reset(result.dq[0], result.q[0])
     scale = max(1.0, float(np.abs(result.tau).max()))
     for k in range(len(result.t)):
         prev = None if k == 0 else result.tau_applied[k - 1]

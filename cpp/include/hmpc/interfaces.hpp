@@ -9,8 +9,9 @@
 //   measure(t_k, q, q̇) the plant's state at t_k, k >= 1: the measurement handed over at t_k;
 //   command(τ)         the interface's filter of the commanded torque τ [N·m], in place
 //                      (none by default).
-// The loop calls reset once (through the controller's reset), measure at every later step
-// before the controller's step, and command on the controller's torque before recording it.
+// The step's Controller port (StepController, step.hpp) calls measure at every step after
+// the first, before the step, and command on the step's torque; reset is called once, by
+// the controller's reset.
 //
 // Disturbance: the torque d(t, q, q̇) [N·m] acting on the plant (Eq 1: τ + d), evaluated at
 // every RK4 stage of a period and, for the record, at each t_k. The compiled RK4 plant
@@ -23,10 +24,25 @@
 // references with a compiled form (sine, piecewise polynomial) are sampled inside the step
 // (sampler.hpp); any other (sampled in Python) plugs in here.
 //
+// Compensation: the disturbance estimate d̂ [N·m] the step cancels (Eq 4:
+// τ = M v + C q̇ + G − d̂), advanced once per control period by the step (step.hpp), which
+// decides -- once, for every compensation -- where its model is evaluated (observer model,
+// at the period's end or start) and, with a measurement latency, over which interval:
+//   reset(q, q̇)               restart at the measured state (q, q̇) [rad, rad/s]: d̂ is
+//                             then estimate() (zeros for the NDO);
+//   update(M, n, q, q̇, τ, v)  one period: M [kg·m²] and n = C q̇ + G [N·m] of the model
+//                             the step chose, (q, q̇) the measured state, τ [N·m] the torque
+//                             applied over the period beyond the joint dynamics' J, v
+//                             [rad/s²] the acceleration commanded over it; afterwards
+//                             estimate() is d̂_k;
+//   estimate()                d̂ now, n values.
+// The NDO of Eq 13 (observer.hpp) implements it; a Python compensation (momentum observer,
+// ISM, a user class) plugs in through a trampoline (bindings/python/trampolines.hpp).
+//
 // Controller: the torque τ_k [N·m] for the plant's state at t_k and the disturbance estimate
-// d̂_k [N·m] of that step. The hierarchical MPC's compiled step (step.hpp) is called by the
-// loop directly; a controller without one (computed torque, a compensation advanced in
-// Python, a wrapper) plugs in here as a whole.
+// d̂_k [N·m] of that step. The hierarchical MPC's compiled step implements it
+// (StepController, step.hpp: the step behind its Measurement and Reference ports); any other
+// controller (computed torque, a wrapper) plugs in here as a whole.
 //
 // Plant: the arm, advanced over one control period with the torque τ [N·m] held (its new
 // state into q, q̇), and the disturbance d(t_k, q, q̇) [N·m] acting on it now (for the
@@ -37,6 +53,15 @@
 #include "hmpc/types.hpp"
 
 namespace hmpc {
+
+class Compensation {
+ public:
+  virtual ~Compensation() = default;
+  virtual void reset(const CRefVec& q, const CRefVec& dq) = 0;
+  virtual void update(const CRefMat& M, const CRefVec& nle, const CRefVec& q, const CRefVec& dq,
+                      const CRefVec& tau, const CRefVec& v) = 0;
+  virtual CRefVec estimate() const = 0;
+};
 
 class Measurement {
  public:

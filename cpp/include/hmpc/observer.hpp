@@ -6,15 +6,18 @@
 // With p = cY q̇, L = cY M⁻¹ and b = n_k − τ_{k−1} − p_k, each update is one linear solve:
 //   implicit (backward Euler): (M + Ts cY) w = b − z,  z⁺ = z + Ts cY w
 //   explicit (forward Euler):   M w = b − z,           z⁺ = z + Ts cY w
-// and d̂ = z⁺ + p_k (Eq 13 with z = d̂ − p).
+// and d̂ = z⁺ + p_k (Eq 13 with z = d̂ − p). It is the compiled Compensation port
+// (interfaces.hpp): q and v are not used.
 #pragma once
+
+#include "hmpc/interfaces.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/LU>
 
 namespace hmpc {
 
-class NDO {
+class NDO : public Compensation {
  public:
   using Vec = Eigen::VectorXd;
   using Mat = Eigen::MatrixXd;
@@ -32,10 +35,23 @@ class NDO {
   // period that just ended. Writes z and the estimate d̂.
   void update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq, const CRefVec& tau_prev);
 
+  // The Compensation port.
+  void reset(const CRefVec& q, const CRefVec& dq) override {
+    (void)q;
+    reset(dq);
+  }
+  void update(const CRefMat& M, const CRefVec& nle, const CRefVec& q, const CRefVec& dq,
+              const CRefVec& tau, const CRefVec& v) override {
+    (void)q;
+    (void)v;
+    update(M, nle, dq, tau);
+  }
+  CRefVec estimate() const override { return d_hat; }
+
   int n;
   bool implicit;
   Mat cY, TcY;
-  MapVec z, estimate;
+  MapVec z, d_hat;  // z and the estimate d̂ (the caller's memory)
 
  private:
   Eigen::PartialPivLU<Mat> lu_;

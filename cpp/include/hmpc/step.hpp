@@ -1,12 +1,11 @@
 // The hierarchical MPC's step (hmpc_pin.controllers.hierarchical.HierarchicalMPC.step),
 // composed of the components: the reference sampler (sampler.hpp), the gradient map, the
-// dynamics (dynamics.hpp), the observer (observer.hpp) or an estimate given by the caller,
-// the joint QPs (joint_qps.hpp), and the inverse dynamics τ = M v + C q̇ + G − d̂ (Eq 4).
-//
-// Two ways to run it: step(S) (everything here, for the NDO of Eq 13 or no compensation)
-// or prepare(S) → the caller's estimate into dhat → finish() (any compensation written
-// elsewhere; with dynamics = false the caller also wrote M and C q̇ + G, for models the
-// compiled dynamics cannot load).
+// dynamics (dynamics.hpp, or the caller's model for models it cannot load), the
+// compensation behind its port (interfaces.hpp: the NDO of observer.hpp, or a Python
+// compensation through its trampoline), the joint QPs (joint_qps.hpp), and the inverse
+// dynamics τ = M v + C q̇ + G − d̂ (Eq 4). The rules of what the compensation is given --
+// the observer's model at the period's end or start, the torque beyond the joint dynamics,
+// with a latency the measured interval -- are here only, for every compensation.
 //
 // The outputs and inputs v, τ, d̂, M, C q̇ + G and the stack live in the caller's memory
 // (the Python object's arrays), updated in place; the caller keeps them, the joint QPs and
@@ -15,6 +14,7 @@
 
 #include "hmpc/dynamics.hpp"
 #include "hmpc/errors.hpp"
+#include "hmpc/interfaces.hpp"
 #include "hmpc/joint_dynamics.hpp"
 #include "hmpc/latency.hpp"
 #include "hmpc/observer.hpp"
@@ -23,6 +23,7 @@
 
 #include <Eigen/Cholesky>
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -33,11 +34,13 @@ class JointQPs;
 
 class HMPCCore {
  public:
-  // model: a serialized Pinocchio model (none: M and nle come from the caller); FT: the
-  // gradient map ((2 + 2N)×Nc); qps: the joint QPs; ndo: the observer this step advances
-  // (none: no compensation here); v, tau, dhat, nle_out: n doubles each; M_out: n×n.
+  // model: a serialized Pinocchio model (none: M and nle come from the caller's `model`
+  // function); FT: the gradient map ((2 + 2N)×Nc); qps: the joint QPs; comp: the
+  // compensation this step advances (none: d̂ stays what reset() set); v, tau, dhat,
+  // nle_out: n doubles each; M_out: n×n.
   HMPCCore(const std::optional<std::string>& model, const CRefRow& FT, int N, JointQPs* qps,
-           NDO* ndo, double* v, double* tau, double* dhat, double* M_out, double* nle_out);
+           Compensation* comp, double* v, double* tau, double* dhat, double* M_out,
+           double* nle_out);
 
   // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n, the caller's) that fill() writes, and
   // the horizon offsets j·Ts, j = 1..N [s].
@@ -61,7 +64,7 @@ class HMPCCore {
 
   // The measurement latency L [s] at the control period Ts [s] (L = 0: off).
   void set_latency(double L, double Ts) { latency.set(L, Ts, n); }
-  // Whether the observer can be advanced over the interval between the last two
+  // Whether the compensation can be advanced over the interval between the last two
   // measurements.
   bool observer_ready() const { return latency.on ? latency.ready(steps) : started; }
   // The state rows of S predicted over the latency (NonFinite if they are not: unchanged).
@@ -80,30 +83,32 @@ class HMPCCore {
   // Start a run: the estimate (the compensation's, after its own reset).
   void reset(const CRefVec& dhat0);
 
-  // The first half of a step from the stack S: the gradients, and M, C q̇ + G -- computed
-  // here when `dynamics` (and written to M_out, nle_out when `export_`, for a compensation
-  // elsewhere), else already written by the caller into M_out, nle_out. t [s]: the step's
-  // time (for the fault's message). Throws NonFinite (an input is not finite: nothing
-  // changed).
-  void prepare(const CRefRow& S, double t, bool dynamics = true, bool export_ = true);
+  // The first half of a step from the stack S: the gradients, and M, C q̇ + G (evaluate()).
+  // t [s]: the step's time (for the fault's message). Throws NonFinite (an input is not
+  // finite: nothing changed).
+  void prepare(const CRefRow& S, double t);
   // The second half: the joint QPs for the gradients, then τ = M v + C q̇ + G − d̂ (Eq 4)
   // with d̂ in dhat. Throws QPNotSolved (a QP did not report solved).
   void finish();
   // One control step at time t [s] from the stack S = [q; q̇; r_1..r_N; ṙ_1..ṙ_N]
-  // ((2 + 2N)×n), with the observer (or none) advanced here. Throws as prepare(), finish().
+  // ((2 + 2N)×n), with the compensation (or none) advanced here. Throws as prepare(),
+  // finish(), or what the compensation throws.
   void step(const CRefRow& S, double t);
 
   // The torque held over the period that just ended, as the plant applied it.
   const Vec& applied_torque();
 
-  std::unique_ptr<Dynamics> dyn;  // null: M and nle come from the caller
+  std::unique_ptr<Dynamics> dyn;  // null: M and nle come from the caller's `model`
+  // Without compiled dynamics: writes M(q) and C(q, q̇) q̇ + G(q) at (q, q̇) into M_out,
+  // nle_out (the caller's model, e.g. Pinocchio's Python API for mimic joints).
+  std::function<void(const Vec& q, const Vec& dq)> model;
   int n, N, Nc;
   // Gradient map, rows in stack order [q; q̇; r_1..r_N; ṙ_1..ṙ_N]; rows used.
   RowMat FT;
   Eigen::Index grad_rows;
   Mat Gt;  // Nc×n: one column per joint (the memory of G, n×Nc row-major)
   JointQPs* qp;
-  NDO* ndo;  // the observer advanced by step(); null: none here
+  Compensation* comp;  // advanced by step(); null: none
   Vec effort;
   bool started = false;
   MapRow v;        // (1, n) commanded acceleration
@@ -115,6 +120,8 @@ class HMPCCore {
   const Mat* M = nullptr;    // M(q) of the last prepare (the dynamics' own, or none)
   const Vec* nle = nullptr;  // C q̇ + G of the last prepare
   bool external = false;     // the last prepare took M, nle from the caller (M_out, nle_out)
+  Mat Mx;                    // the caller's M, C q̇ + G of the last evaluate()
+  Vec nx, vprev;
   std::optional<MapRow> stack;
   HorizonSampler sampler;
   Vec offsets;  // horizon offsets j·Ts, j = 1..N [s]
@@ -155,8 +162,27 @@ class HMPCCore {
   // of the horizon that is not finite, or (none of those) the stack as a whole.
   [[noreturn]] void non_finite(const CRefRow& S) const;
   void sample_horizon(double t);
+  // M, C q̇ + G (nle0) and C q̇ + G + B q̇ + F sgn q̇ (nle) at (q, q̇): the compiled dynamics,
+  // else the caller's model (then Eq 4 reads M_out, nle_out, the joint terms added there).
+  void evaluate(const Vec& q, const Vec& dq);
   void record();
   void step_latency(const CRefRow& S);
+};
+
+// The step as the loop's Controller port (interfaces.hpp): the controller sees the plant
+// through the Measurement port `measurement` (none: the plant's state as is; its
+// measurement of the first step was taken at its reset), samples its horizon through the
+// Reference port `reference` (none: the compiled reference, step_t), and the measurement's
+// command() filters the torque. The caller keeps the core and the ports alive.
+class StepController : public Controller {
+ public:
+  explicit StepController(HMPCCore* core);
+  void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) override;
+
+  HMPCCore* core;
+  Measurement* measurement = nullptr;
+  Reference* reference = nullptr;
+  bool measured = false;  // a step was run: the next one measures
 };
 
 }  // namespace hmpc

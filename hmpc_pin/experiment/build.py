@@ -59,6 +59,7 @@ from .plants import (
     check_plant_damping,
     mujoco_settings,
     pinocchio_plant,
+    plant_step,
 )
 from .references import build_reference, build_task_reference, check_trajectory_limits, task_space
 
@@ -343,7 +344,7 @@ class Experiment:
             MuJoCoPlant(
                 plant, None, config.controller.Ts, pc.mujoco.timestep, mujoco_settings(pc, n)
             )
-        else:
+        elif pc.tolerance is None:
             pinocchio_plant(pc, plant, None, config.controller.Ts)  # checks dt | Ts
         reference = build_reference(config, robot)
         q0 = (
@@ -544,7 +545,9 @@ class Experiment:
     def make_plant(self, Ts: float | None = None) -> Plant:
         """A new plant of ``[plant]`` (its integrator, step and this experiment's
         disturbance) on the plant model, advanced by ``Ts`` [s] per call (default: the
-        controller's period; a real-time arm's is the interface period)."""
+        controller's period; a real-time arm's is the interface period). With
+        ``plant.tolerance`` its step is chosen by the first plant of each period
+        (:func:`~hmpc_pin.experiment.plants.plant_step`), then kept for the experiment."""
         pc = self.config.plant
         Ts = self.controller.Ts if Ts is None else Ts
         if pc.engine == "mujoco":
@@ -555,7 +558,17 @@ class Experiment:
                 pc.mujoco.timestep,
                 mujoco_settings(pc, self.robot.nq),
             )
-        return pinocchio_plant(pc, self.plant, self.disturbance, Ts)
+        steps = self.__dict__.setdefault("_plant_steps", {})
+        if Ts not in steps:
+            steps[Ts] = plant_step(
+                pc,
+                self.plant,
+                self.disturbance,
+                Ts,
+                self.reference,
+                self.config.simulation.duration,
+            )
+        return pinocchio_plant(pc, self.plant, self.disturbance, Ts, steps[Ts])
 
 
 def make_arm_plant(config: ExperimentConfig) -> Plant:

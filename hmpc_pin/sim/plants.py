@@ -24,11 +24,28 @@ Runge–Kutta (RK4) steps of ``dt``, the disturbance evaluated at every stage:
 :math:`B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` is the arm's own joint damping and Coulomb
 friction, the URDF's ``<dynamics damping friction>``
 (:attr:`~hmpc_pin.model.robot.Robot.joint_damping`, ``joint_friction``), applied by both
-plants here unless ``joint_dynamics=False``. The Coulomb term is set-valued in nature;
-these plants use the discontinuous :math:`\\mathrm{sgn}` with :math:`\\mathrm{sgn}\\,0 = 0`
-per stage (as the ``[disturbance.friction]`` term), which chatters about
-:math:`\\dot q = 0` within one step rather than sticking; MuJoCo's ``frictionloss`` is a
-soft constraint that holds a joint at rest while the torque is below :math:`f`.
+plants here unless ``joint_dynamics=False``.
+
+The Coulomb term is discontinuous at :math:`\\dot q_i = 0`, where RK4 with
+:math:`\\mathrm{sgn}` per stage converges at first order only. :class:`RK4Plant` (``coulomb =
+"stick-slip"``, the default) integrates it as a stick-slip law with event location: the sign
+of each joint's Coulomb term (the URDF's :math:`F` and the fused ``[disturbance.friction]``
+term's :math:`b`) is held over a step at :math:`\\mathrm{sgn}\\,\\dot q_i` of its start, the
+step is split where a velocity changes sign (the crossing found by regula falsi on the RK4
+step's length, to :math:`10^{-13}` of the step), and a joint at rest sticks: its friction
+takes the value :math:`\\phi_i \\in [-F_i, F_i]` that keeps :math:`\\ddot q_i = 0` (with the
+other stuck joints, :math:`(M^{-1})_{SS}\\,\\phi_S = -(M^{-1}u)_S`) until that value would
+leave the interval, where it breaks away (another event) and slides against it. Between
+events the field is smooth and RK4 keeps its fourth order (``tests/test_plant_step.py``
+measures it against scipy's DOP853 with the same events). ``coulomb = "sign"``:
+:math:`\\mathrm{sgn}\\,\\dot q` with :math:`\\mathrm{sgn}\\,0 = 0` per stage, which chatters
+about :math:`\\dot q = 0` rather than sticking (versions before 0.3; :class:`EulerPlant`
+always). A disturbance that is a plain function keeps its own terms as they are. MuJoCo's
+``frictionloss`` is a soft constraint that holds a joint at rest while the torque is below
+:math:`f`.
+
+:func:`choose_step` picks the largest step dividing the period whose error against the half
+step stays within a tolerance (``[plant] tolerance``).
 
 The period is one call into the compiled core (``cpp/src/rk4.cpp``, ``RK4``), the only
 implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
@@ -55,9 +72,14 @@ from ..native import load as load_native
 from .base import Plant
 from .disturbances import ZeroDisturbance
 
-__all__ = ["PLANTS", "EulerPlant", "Plant", "RK4Plant", "split_disturbance"]
+__all__ = ["COULOMB_LAWS", "PLANTS", "EulerPlant", "Plant", "RK4Plant", "choose_step",
+           "split_disturbance"]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
+
+#: How :class:`RK4Plant` integrates the Coulomb friction (``[plant] coulomb``; module
+#: docstring): located sign changes and sticking, or the sign per stage.
+COULOMB_LAWS = ("stick-slip", "sign")
 
 #: Periods whose time-only terms :class:`RK4Plant` tabulates in one call per term.
 PULSE_CHUNK = 64
@@ -189,6 +211,8 @@ class RK4Plant:
             :class:`DeprecationWarning`.
         joint_dynamics: Apply the robot's joint damping and Coulomb friction (the
             URDF's ``<dynamics>``; default ``True``).
+        coulomb: ``"stick-slip"`` (default) or ``"sign"``: the Coulomb friction's law
+            (:data:`COULOMB_LAWS`, module docstring).
 
     Attributes:
         native: ``True`` (kept for callers of 0.2).
@@ -207,7 +231,11 @@ class RK4Plant:
         dt: float = 0.001,
         backend: str = "auto",
         joint_dynamics: bool = True,
+        coulomb: str = "stick-slip",
     ):
+        if coulomb not in COULOMB_LAWS:
+            raise ConfigError("plant.coulomb", f"{coulomb!r}; expected one of {COULOMB_LAWS}")
+        self.coulomb = coulomb
         n = robot.nq
         self.joint_dynamics = _joint_terms(robot, joint_dynamics)
         substeps = _substeps(Ts, dt)
@@ -245,6 +273,7 @@ class RK4Plant:
             kernel = core.RK4(model_string(self.robot))
         if self.joint_dynamics is not None:
             kernel.set_joint_dynamics(*self.joint_dynamics)
+        kernel.stick_slip = self.coulomb == "stick-slip"
         return kernel
 
     def __getstate__(self) -> dict:
@@ -392,6 +421,69 @@ class EulerPlant:
         self.t = self.t0 + self.Ts * self.k
         self.q, self.dq = q, dq
         return q, dq
+
+
+def choose_step(
+    make_plant, Ts: float, samples, tolerance: float, periods: int = 1, max_divisions: int = 64
+) -> tuple[float, float]:
+    """The largest step :math:`h = T_s/m` (m = 1, 2, ...) whose error over a run of
+    ``periods`` periods stays within ``tolerance`` [rad] (``[plant] tolerance``).
+
+    Each period's error is estimated by step doubling: from a sample's state, one period
+    with :math:`h` and one with :math:`h/2`, the torque held,
+    :math:`e_k(h) = \\max(\\|q_h - q_{h/2}\\|_\\infty,
+    \\ T_s \\|\\dot q_h - \\dot q_{h/2}\\|_\\infty)` (the velocity's error weighted by the
+    period, over which it moves the joints; for a method of order p, :math:`q_h - q_{h/2}` is :math:`1 - 2^{-p}` of :math:`h`'s own error),
+    and the run's error by the worst period's error added up over the run,
+
+    .. math::
+
+        E(h) = K \\max_k e_k(h) \\quad (K = \\text{periods}),
+
+    a bound on the run's state error when nothing amplifies it (a closed loop damps it:
+    its error against a fine integration is below :math:`E`). The steps are tried from the
+    longest; a step whose period diverges (not finite) fails.
+
+    Args:
+        make_plant: ``make_plant(h)``, a new plant advancing ``Ts`` per call with step ``h``.
+        Ts: The period [s].
+        samples: ``(t, q, dq, tau)`` tuples: start time [s], state [rad, rad/s] and the torque
+            held [N·m] of the periods checked.
+        tolerance: The largest error :math:`E` accepted [rad].
+        periods: The run's periods :math:`K`.
+        max_divisions: The finest step tried is ``Ts / max_divisions``.
+
+    Returns:
+        ``(h, E(h))``.
+
+    Raises:
+        ConfigError: (``plant.tolerance``) no step down to ``Ts / max_divisions`` is within
+            it, naming the error reached there.
+    """
+    samples = list(samples)
+    err = np.inf
+    for m in range(1, max_divisions + 1):
+        coarse, fine = make_plant(Ts / m), make_plant(Ts / (2 * m))
+        worst = 0.0
+        for t, q, dq, tau in samples:
+            coarse.reset(q, dq, t)
+            fine.reset(q, dq, t)
+            with np.errstate(all="ignore"):
+                qc, vc = coarse.advance(tau)
+                qf, vf = fine.advance(tau)
+                e = max(np.abs(qc - qf).max(), Ts * np.abs(vc - vf).max())
+            worst = max(worst, e if np.isfinite(e) else np.inf)
+            if periods * worst > tolerance:
+                break
+        err = periods * worst
+        if err <= tolerance:
+            return Ts / m, float(err)
+    raise ConfigError(
+        "plant.tolerance",
+        f"{tolerance:g} rad is not reached by any plant step down to Ts/{max_divisions} = "
+        f"{Ts / max_divisions:g} s (error {err:.3g} rad there); expected a larger tolerance, "
+        "or a fixed plant.dt",
+    )
 
 
 #: Plant classes by ``[plant] integrator`` name (and ``"mujoco"``: the MuJoCo plant,

@@ -54,6 +54,7 @@ from .config import (
 )
 from .controllers import _limits, controller_parts, make_compensation, mpc_settings
 from .plants import (
+    PILOT_DURATION,
     _effort_limit,
     build_disturbance,
     check_plant_damping,
@@ -560,15 +561,26 @@ class Experiment:
             )
         steps = self.__dict__.setdefault("_plant_steps", {})
         if Ts not in steps:
-            steps[Ts] = plant_step(
-                pc,
-                self.plant,
-                self.disturbance,
-                Ts,
-                self.reference,
-                self.config.simulation.duration,
-            )
+            steps[Ts] = self._plant_step(Ts)
         return pinocchio_plant(pc, self.plant, self.disturbance, Ts, steps[Ts])
+
+    def _plant_step(self, Ts: float) -> float:
+        """The step of the plant advanced by ``Ts`` (:func:`plant_step`): with a tolerance,
+        checked along the reference and, at the controller's period, on the closed loop's
+        first :data:`PILOT_DURATION` (its start, off the reference if ``q0`` is)."""
+        pc = self.config.plant
+        duration = self.config.simulation.duration
+        pilot = None
+        if pc.tolerance is not None and math.isclose(Ts, self.controller.Ts):
+            window = min(duration, PILOT_DURATION)
+
+            def pilot(plant: Plant) -> np.ndarray | None:
+                try:
+                    return self._simulate(plant, window, None).q
+                except SimulationError:
+                    return None
+
+        return plant_step(pc, self.plant, self.disturbance, Ts, self.reference, duration, pilot)
 
 
 def make_arm_plant(config: ExperimentConfig) -> Plant:

@@ -21,6 +21,7 @@ from .config import (
 
 __all__ = [
     "DAMPING_STEP_LIMIT",
+    "PILOT_DURATION",
     "build_disturbance",
     "check_plant_damping",
     "damping_rates",
@@ -31,6 +32,8 @@ __all__ = [
 
 #: Periods along the run whose error ``[plant] tolerance`` checks (evenly spaced).
 CALIBRATION_PERIODS = 64
+#: The stretch of the run's start [s] whose error ``[plant] tolerance`` also checks.
+PILOT_DURATION = 1.0
 
 
 def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
@@ -192,12 +195,30 @@ def calibration_samples(
     return out
 
 
+def _pilot_error(pilot, h: float) -> float:
+    """max |q_h − q_{h/2}| [rad] of the run's start (inf where either diverges)."""
+    a, b = pilot(h), pilot(h / 2)
+    if a is None or b is None or a.shape != b.shape:
+        return np.inf
+    with np.errstate(all="ignore"):
+        err = float(np.abs(a - b).max(initial=0.0))
+    return err if np.isfinite(err) else np.inf
+
+
 def plant_step(
-    pc: PlantConfig, robot: Robot, disturbance, Ts: float, reference, duration: float
+    pc: PlantConfig,
+    robot: Robot,
+    disturbance,
+    Ts: float,
+    reference,
+    duration: float,
+    pilot=None,
 ) -> float:
     """The plant's step [s]: ``plant.dt``, or with ``plant.tolerance`` the largest
     :math:`T_s/m` within it (:func:`~hmpc_pin.sim.plants.choose_step` on
-    :func:`calibration_samples` of ``reference`` over ``duration`` [s]).
+    :func:`calibration_samples` of ``reference`` over ``duration`` [s], and
+    ``pilot(plant)``: the positions [rad] of the run's start on ``plant``, whose difference
+    between the steps ``h`` and ``h/2`` is held to the tolerance too; ``None``: none).
 
     Raises:
         ConfigError: No step reaches the tolerance, or the step chosen is too long for the
@@ -206,12 +227,28 @@ def plant_step(
     if pc.tolerance is None:
         return pc.dt
     samples = calibration_samples(robot, reference, disturbance, Ts, duration, pc.joint_dynamics)
+    plants: dict[float, Plant] = {}
+    runs: dict[float, np.ndarray | None] = {}
+
+    def plant_of(h: float) -> Plant:  # one plant per step (h/2 is the next h's)
+        key = round(Ts / h, 6)
+        if key not in plants:
+            plants[key] = pinocchio_plant(pc, robot, disturbance, Ts, h)
+        return plants[key]
+
+    def run_of(h: float) -> np.ndarray | None:
+        key = round(Ts / h, 6)
+        if key not in runs:
+            runs[key] = pilot(plant_of(h))
+        return runs[key]
+
     h, _ = choose_step(
-        lambda h: pinocchio_plant(pc, robot, disturbance, Ts, h),
+        plant_of,
         Ts,
         samples,
         pc.tolerance,
         periods=max(1, round(duration / Ts)),
+        pilot=None if pilot is None else lambda h: _pilot_error(run_of, h),
     )
     check_plant_damping(replace(pc, dt=h, tolerance=None), robot, samples[0][1])
     return h

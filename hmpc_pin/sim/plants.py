@@ -424,7 +424,13 @@ class EulerPlant:
 
 
 def choose_step(
-    make_plant, Ts: float, samples, tolerance: float, periods: int = 1, max_divisions: int = 64
+    make_plant,
+    Ts: float,
+    samples,
+    tolerance: float,
+    periods: int = 1,
+    max_divisions: int = 64,
+    pilot=None,
 ) -> tuple[float, float]:
     """The largest step :math:`h = T_s/m` (m = 1, 2, ...) whose error over a run of
     ``periods`` periods stays within ``tolerance`` [rad] (``[plant] tolerance``).
@@ -433,15 +439,18 @@ def choose_step(
     with :math:`h` and one with :math:`h/2`, the torque held,
     :math:`e_k(h) = \\max(\\|q_h - q_{h/2}\\|_\\infty,
     \\ T_s \\|\\dot q_h - \\dot q_{h/2}\\|_\\infty)` (the velocity's error weighted by the
-    period, over which it moves the joints; for a method of order p, :math:`q_h - q_{h/2}` is :math:`1 - 2^{-p}` of :math:`h`'s own error),
-    and the run's error by the worst period's error added up over the run,
+    period, over which it moves the joints; for a method of order p, :math:`q_h - q_{h/2}`
+    is :math:`1 - 2^{-p}` of :math:`h`'s own error), and the run's error by the worst
+    period's error added up over the run,
 
     .. math::
 
         E(h) = K \\max_k e_k(h) \\quad (K = \\text{periods}),
 
     a bound on the run's state error when nothing amplifies it (a closed loop damps it:
-    its error against a fine integration is below :math:`E`). The steps are tried from the
+    its error against a fine integration is below :math:`E`). With ``pilot``, a step must
+    also keep ``pilot(h)`` [rad] within the tolerance (the error of a stretch of the run
+    itself: a closed loop's start far from the samples). The steps are tried from the
     longest; a step whose period diverges (not finite) fails.
 
     Args:
@@ -452,9 +461,10 @@ def choose_step(
         tolerance: The largest error :math:`E` accepted [rad].
         periods: The run's periods :math:`K`.
         max_divisions: The finest step tried is ``Ts / max_divisions``.
+        pilot: ``pilot(h)``, a further error [rad] of the step ``h``, or ``None``.
 
     Returns:
-        ``(h, E(h))``.
+        ``(h, E(h))`` (``E`` the larger of the two errors with ``pilot``).
 
     Raises:
         ConfigError: (``plant.tolerance``) no step down to ``Ts / max_divisions`` is within
@@ -476,6 +486,8 @@ def choose_step(
             if periods * worst > tolerance:
                 break
         err = periods * worst
+        if err <= tolerance and pilot is not None:
+            err = max(err, float(pilot(Ts / m)))
         if err <= tolerance:
             return Ts / m, float(err)
     raise ConfigError(

@@ -216,3 +216,27 @@ def test_plant_keys_that_do_not_apply_are_errors(kw, match):
     with pytest.raises(ConfigError, match=match) as info:
         PlantConfig(**kw)
     assert info.value.key.split(".")[-1] in ("tolerance", "coulomb")
+
+
+def test_a_friction_term_follows_the_same_law_fused_or_in_a_function(tmp_path):
+    """The paper's friction alone (fused) and summed with a function of the user's (then
+    evaluated as a function): the same stick-slip law, equal to rounding through reversals
+    and sticking."""
+    from hmpc_pin.sim.disturbances import CoulombViscousFriction
+
+    robot = _arm(tmp_path)
+    friction = CoulombViscousFriction([1.0, 0.8, 0.5], [3.0, 2.4, 1.8])
+    fused = RK4Plant(robot, friction, TS, TS / 4)
+    function = RK4Plant(robot, friction + _zero, TS, TS / 4)
+    assert fused.fused and not function.fused
+    for plant in (fused, function):
+        plant.reset(np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1]))
+    rests = 0
+    for k in range(60):
+        tau = np.array([5.0, 2.0, 1.0]) * np.sin(0.2 * k) + robot.gravity_torque(fused.q)
+        q, dq = fused.advance(tau)
+        q2, dq2 = function.advance(tau)
+        np.testing.assert_allclose(q2, q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dq2, dq, rtol=0, atol=1e-10)
+        rests += int((dq == 0).sum())
+    assert rests > 0 and fused._kernel.events >= 2

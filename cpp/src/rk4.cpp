@@ -22,11 +22,19 @@ RK4::RK4(int n_, AbaFunction aba) : aba_fn(std::move(aba)), n(n_) {
 
 void RK4::allocate() {
   for (Vec* x : {&q2, &v2, &q3, &v3, &q4, &v4, &a1, &a2, &a3, &a4, &u, &joint.b, &joint.f, &fc_,
-                 &qa_, &va_, &qs_, &vs_, &ue_, &col_, &phi_, &vscale_, &fa_, &fb_})
+                 &qa_, &va_, &qs_, &vs_, &ue_, &col_, &phi_, &vscale_, &fa_, &fb_, &wa_, &wb_})
     x->setZero(n);
   mode_.assign(n, 2);
   stuck_.reserve(n);
   W_.setZero(n, n);
+}
+
+void RK4::set_friction_in_disturbance(const CRefVec& a, const CRefVec& b) {
+  if (a.size() != n || b.size() != n || !a.allFinite() || !b.allFinite())
+    throw std::invalid_argument("RK4.set_friction_in_disturbance: expected (n,) finite values");
+  wa_ = a;
+  wb_ = b;
+  wf_ = (a.array() != 0.0).any() || (b.array() != 0.0).any();
 }
 
 // The Coulomb levels of this period (joint F plus the fused b); whether any is to be located.
@@ -306,8 +314,11 @@ void RK4::period_with(RefVec q, RefVec v, const CRefVec& tau, double t, double h
                       const DisturbanceFunction& dist) {
   if (q.size() != n || v.size() != n || tau.size() != n)
     throw std::invalid_argument("RK4.period_with: shapes do not match the model");
-  if (coulomb_in(tau, false)) {
-    fused_ = false;
+  if (coulomb_in(wb_, wf_)) {
+    // the function's own friction term added back; accel subtracts the stick-slip one
+    fused_ = wf_;
+    fa_ = wa_;
+    fb_ = wb_;
     for (int s = 0; s < S; ++s) {
       const double t0 = t + s * h;
       const auto base = [&](double th, const Vec& qs, const Vec& vs, Vec& out) {
@@ -316,6 +327,8 @@ void RK4::period_with(RefVec q, RefVec v, const CRefVec& tau, double t, double h
         if (d.size() != n)
           throw std::invalid_argument("the disturbance returned a vector of wrong size");
         out = tau + d;
+        if (wf_)
+          for (int i = 0; i < n; ++i) out[i] += joint_torque(wa_[i], wb_[i], vs[i]);
       };
       coulomb_step(q, v, h, base);
     }

@@ -40,7 +40,9 @@ events the field is smooth and RK4 keeps its fourth order (``tests/test_plant_st
 measures it against scipy's DOP853 with the same events). ``coulomb = "sign"``:
 :math:`\\mathrm{sgn}\\,\\dot q` with :math:`\\mathrm{sgn}\\,0 = 0` per stage, which chatters
 about :math:`\\dot q = 0` rather than sticking (versions before 0.3; :class:`EulerPlant`
-always). A disturbance that is a plain function keeps its own terms as they are. MuJoCo's
+always). A disturbance evaluated as a function (a sum with a term of the user's) keeps its
+own terms, but for its Coulomb–viscous terms (:func:`friction_in`), which follow the same
+law as when fused. MuJoCo's
 ``frictionloss`` is a soft constraint that holds a joint at rest while the torque is below
 :math:`f`.
 
@@ -73,7 +75,7 @@ from .base import Plant
 from .disturbances import ZeroDisturbance
 
 __all__ = ["COULOMB_LAWS", "PLANTS", "EulerPlant", "Plant", "RK4Plant", "choose_step",
-           "split_disturbance"]  # fmt: skip
+           "friction_in", "split_disturbance"]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
 
@@ -158,6 +160,33 @@ def _agrees(term, fused, n: int) -> bool:
     return True
 
 
+def _friction_of(term, n: int) -> tuple[FloatArray, FloatArray] | None:
+    """``(a, b)`` (n,) of a Coulomb–viscous term (a ``friction_coefficients()`` method)
+    whose ``d(t, q, dq)`` is :math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, else ``None``."""
+    coef_fn = getattr(term, "friction_coefficients", None)
+    if not callable(coef_fn):
+        return None
+    a, b = (np.asarray(c, dtype=float) for c in coef_fn())
+    if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
+        return None
+    law = load_native().joint_torque  # what the compiled period evaluates
+    a, b = np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float)
+    if not _agrees(term, lambda t, q, dq, a=a, b=b, law=law: -law(a, b, dq), n):
+        return None
+    return a, b
+
+
+def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
+    """The summed ``(a, b)`` of the Coulomb–viscous terms of a disturbance evaluated as a
+    function (a sum with other terms), which the stick-slip period then integrates as the
+    fused one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
+    found = [ab for term in getattr(disturbance, "terms", (disturbance,))
+             if (ab := _friction_of(term, n)) is not None]  # fmt: skip
+    if not found:
+        return None
+    return sum(a for a, _ in found), sum(b for _, b in found)
+
+
 def split_disturbance(disturbance, n: int):
     """Split ``disturbance`` into fused parts, or return ``None`` if it has other terms.
 
@@ -177,14 +206,10 @@ def split_disturbance(disturbance, n: int):
         ):
             pulses.append(term)
         elif callable(coef_fn):
-            a, b = (np.asarray(c, dtype=float) for c in coef_fn())
-            if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
-                return None  # let the plain evaluation raise its own broadcasting error
-            law = load_native().joint_torque  # what the compiled period evaluates
-            a, b = np.broadcast_to(a, (n,)), np.broadcast_to(b, (n,))
-            if not _agrees(term, lambda t, q, dq, a=a, b=b, law=law: -law(a, b, dq), n):
-                return None
-            friction.append((a, b))
+            ab = _friction_of(term, n)
+            if ab is None:
+                return None  # let the plain evaluation raise its own error, or call the term
+            friction.append(ab)
         else:
             return None
     if len(friction) > 1:
@@ -255,6 +280,8 @@ class RK4Plant:
         self._split = split_disturbance(disturbance, n)
         self.fused = self._split is not None
         self._pulses, self._friction = self._split if self._split is not None else ([], None)
+        # a function's own friction terms, integrated by the stick-slip law as the fused one
+        self._in_function = None if self.fused else friction_in(disturbance, n)
         # Stage torques of a period (time-only terms added to the held torque), C-contiguous.
         self._T = np.empty((3 * substeps, n))
         zero = np.zeros(n)
@@ -274,6 +301,8 @@ class RK4Plant:
         if self.joint_dynamics is not None:
             kernel.set_joint_dynamics(*self.joint_dynamics)
         kernel.stick_slip = self.coulomb == "stick-slip"
+        if self._in_function is not None:
+            kernel.set_friction_in_disturbance(*self._in_function)
         return kernel
 
     def __getstate__(self) -> dict:

@@ -26,7 +26,8 @@
 // within a step by the parabola through their three stage rows. Where no joint changes sign
 // or sticks, the step is the classical one with sgn q̇ of the step's start, bit for bit the
 // per-stage sgn when no stage crosses zero; a disturbance given as a function (period_with)
-// keeps its own terms as they are. stick_slip = false: sgn per stage (earlier versions).
+// keeps its own terms as they are, but for the friction set_friction_in_disturbance names.
+// stick_slip = false: sgn per stage (earlier versions).
 // Oracle: tests/reference/rk4.py.
 #pragma once
 
@@ -60,6 +61,13 @@ class RK4 {
   // torque without friction: rows t_s (s = 0..S-1), then t_s + h/2, then t_s + h.
   void period(RefVec q, RefVec v, const CRefRow& T, const CRefVec& a, const CRefVec& b,
               bool friction, double h);
+
+  // The Coulomb-viscous friction −(a q̇ + b sgn q̇) that the disturbance function of
+  // period_with contains (a user's sum of terms with a friction term): with stick_slip its
+  // sign is taken as the fused friction's (the function's own term added back, then the
+  // stick-slip one subtracted), so that a friction term follows the same law whether the
+  // disturbance is fused or a function. Zeros: none.
+  void set_friction_in_disturbance(const CRefVec& a, const CRefVec& b);
 
   // Advance (q, v) in place over S steps of h from time t with τ held, the disturbance
   // d(t, q, q̇) evaluated at every stage (stage times t_s = t + s·h, t_s + h/2, t_s + h).
@@ -106,10 +114,11 @@ class RK4 {
   Vec q2, v2, q3, v3, q4, v4, a1, a2, a3, a4, u;
   // stick_slip: Coulomb levels, modes (±1 slipping, 0 stuck, 2 no Coulomb term), the fused
   // friction of this period, the step's start and trial states, stuck-joint algebra.
-  Vec fc_, qa_, va_, qs_, vs_, ue_, col_, phi_, vscale_, fa_, fb_;
+  Vec fc_, qa_, va_, qs_, vs_, ue_, col_, phi_, vscale_, fa_, fb_, wa_, wb_;
   std::vector<int> mode_, stuck_;
   Mat W_;
   bool fused_ = false;
+  bool wf_ = false;  // set_friction_in_disturbance given
 };
 
 }  // namespace hmpc

@@ -9,7 +9,8 @@ the code, then compare:
 
 ``record`` runs every shipped config (``hmpc_pin/data/configs/*.toml`` and any
 ``configs/*.toml`` that differs from it) for its shipped duration (``--duration`` shortens
-every run alike), once as configured and once on the per-step loop (``loop="python"``), and
+every run alike), once as configured and once on the per-step oracle loop
+(``tests/reference/loop.py``), and
 a few runs with the interface models of ``hmpc_pin.sim.sensing`` (the 0.3 white noise and
 whole-period delay, and the realistic encoder, finite difference, latency and torque filter),
 seeded. Each run's arrays (:data:`~hmpc_pin.sim.result.RESULT_ARRAYS`, the task-space arrays,
@@ -22,6 +23,7 @@ Saved outputs are used only here: tests compare against independent computations
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -39,6 +41,7 @@ from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.experiment.config.sensing import SensingConfig  # noqa: E402
 from hmpc_pin.sim.result import RESULT_ARRAYS, TASK_ARRAYS  # noqa: E402
 from hmpc_pin.sim.sensing import SensedController  # noqa: E402
+from tests.reference.loop import per_step  # noqa: E402
 
 
 def shipped_configs() -> list[Path]:
@@ -84,7 +87,8 @@ def _arrays(result) -> dict[str, np.ndarray]:
 
 def _run(experiment: Experiment, duration: float | None, loop: str) -> dict[str, np.ndarray]:
     try:
-        result = experiment.run(duration, loop=loop)
+        with per_step() if loop == "python" else contextlib.nullcontext():
+            result = experiment.run(duration)
     except SimulationError as exc:
         result = exc.result
     return _arrays(result)

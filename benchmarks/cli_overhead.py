@@ -4,7 +4,7 @@ they cannot avoid.
 For each config, every block measures, one after the other:
 
 * the wall time of ``hmpc-pin run <config> --out <tmp>`` (a fresh process: imports,
-  config, URDF, controller, run, files, figures);
+  config, URDF, controller, run, files, figures), and with ``--no-figures``;
 * the wall time of a fresh ``python -c "import numpy, pinocchio, proxsuite, matplotlib"``
   (the imports no command can skip);
 * the in-process ``Experiment.run()`` of the same config in this process (built once).
@@ -150,16 +150,20 @@ def main() -> None:
         for name in args.configs:
             experiment = Experiment.from_config(load_config(name))
             in_process(experiment)  # warm: the first run pays for lazy imports
-            walls, refs = [], []
+            variants: dict[str, tuple[list[float], list[float]]] = {"": ([], [])}
+            variants[" --no-figures"] = ([], [])
             for _ in range(args.repeats):
-                walls.append(wall([*cli, "run", name, "--out", tmp]))
-                refs.append(wall([PYTHON, "-c", IMPORTS]) + in_process(experiment))
-            ratio = np.array(walls) / np.array(refs)
-            print(
-                f"| `hmpc-pin run {name}` | {np.median(walls):.2f} | {np.median(refs):.2f} | "
-                f"{np.median(ratio):.2f} ({ratio.min():.2f}–{ratio.max():.2f}) |",
-                flush=True,
-            )
+                for flags, (walls, refs) in variants.items():
+                    walls.append(wall([*cli, "run", name, "--out", tmp, *flags.split()]))
+                    refs.append(wall([PYTHON, "-c", IMPORTS]) + in_process(experiment))
+            for flags, (walls, refs) in variants.items():
+                ratio = np.array(walls) / np.array(refs)
+                print(
+                    f"| `hmpc-pin run {name}{flags}` | {np.median(walls):.2f} | "
+                    f"{np.median(refs):.2f} | {np.median(ratio):.2f} "
+                    f"({ratio.min():.2f}–{ratio.max():.2f}) |",
+                    flush=True,
+                )
     helps, bares = [], []
     for _ in range(args.repeats):
         helps.append(wall([*cli, "--help"]))

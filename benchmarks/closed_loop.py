@@ -3,6 +3,7 @@ and memory over long runs, each in a fresh process."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import subprocess
 import sys
@@ -26,6 +27,7 @@ from benchmarks.ratios import aba_floor  # noqa: E402
 from benchmarks.steps import GravityCompensation  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
 from hmpc_pin.experiment.config import load_config  # noqa: E402
+from tests.reference.loop import per_step  # noqa: E402
 
 
 @dataclass
@@ -153,7 +155,8 @@ def bench_memory(settings: Settings) -> MemoryResult:
 
 def ab_loops(rounds: int, config: Path = PAPER_CONFIG) -> dict:
     """The paper's 10 s run per step in Python and in compiled chunks
-    (``Experiment.run(loop="python" | "compiled")``), alternating in this process, beside
+    (the oracle of ``tests/reference/loop.py``, and ``Experiment.run``), alternating in this
+    process, beside
     the plant's period alone over the same 1000 periods (the compiled loop's floor).
 
     Returns:
@@ -161,14 +164,15 @@ def ab_loops(rounds: int, config: Path = PAPER_CONFIG) -> dict:
     """
     exp = Experiment.from_config(load_config(config))
     periods = round(exp.config.simulation.duration / exp.controller.Ts)
-    exp.run(loop="compiled")  # warm
+    exp.run()  # warm
     times: dict[str, list[float]] = {"python": [], "compiled": [], "plant": []}
     for _ in range(rounds):
         for loop in ("python", "compiled"):
             start = time.perf_counter()
-            result = exp.run(loop=loop)
+            with per_step() if loop == "python" else contextlib.nullcontext():
+                result = exp.run()
             times[loop].append(time.perf_counter() - start)
-            assert result.complete and result.loop == loop
+            assert result.complete and result.loop == {"python": "per-step"}.get(loop, loop)
         times["plant"].append(plant_floor(exp.make_plant(), periods))
     py, co, pl = (np.array(times[k]) for k in ("python", "compiled", "plant"))
     out = {

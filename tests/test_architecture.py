@@ -263,3 +263,33 @@ def test_every_end_to_end_file_of_the_tiers_exists():
 
     tests = PKG.parent / "tests"
     assert E2E_FILES and all((tests / name).is_file() for name in E2E_FILES)
+
+
+#: The sizes a maintainer can hold: a Python function, a C++ file; ``ruff format`` owns the
+#: formatting (``# fmt: skip`` only where a table is clearer).
+MAX_FUNCTION_LINES, MAX_CPP_LINES, MAX_FMT_SKIPS = 150, 700, 50
+
+
+def test_no_python_function_is_longer_than_a_maintainer_can_hold():
+    long = []
+    for path in PKG.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_FUNCTION_LINES:
+                    long.append((str(path.relative_to(PKG)), node.name, lines))
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
+
+
+def test_no_cpp_file_is_longer_than_a_maintainer_can_hold():
+    root = PKG.parent
+    files = [p for d in ("cpp", "bindings") for p in (root / d).rglob("*.[ch]pp")]
+    assert files, "the C++ sources are where the build finds them"
+    long = [(str(p.relative_to(root)), n) for p in files
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_CPP_LINES]  # fmt: skip
+    assert not long, f"C++ files over {MAX_CPP_LINES} lines: {long}"
+
+
+def test_ruff_format_owns_the_formatting_of_the_package():
+    skips = sum(p.read_text(encoding="utf-8").count("# fmt: skip") for p in PKG.rglob("*.py"))
+    assert skips <= MAX_FMT_SKIPS, f"{skips} '# fmt: skip' in the package"

@@ -64,6 +64,23 @@ def test_run_writes_npz_csv_and_figures(tmp_path, capsys, name):
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
 
 
+def test_no_figures_writes_the_data_files_only_and_the_same_run(tmp_path, capsys):
+    """--no-figures: the .npz and .csv of the same run (bit for bit), no PNG, and the table
+    printed as with figures."""
+    cfg = str(CONFIGS / "paper_friction.toml")
+    with_figures, without = tmp_path / "with", tmp_path / "without"
+    assert main(["run", cfg, "--out", str(with_figures), "--duration", "1.2"]) == 0
+    table = capsys.readouterr().out.split("wrote")[0]
+    assert main(["run", cfg, "--out", str(without), "--duration", "1.2", "--no-figures"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.split("wrote")[0] == table and ".png" not in printed
+    assert sorted(p.name for p in without.iterdir()) == ["paper_friction.csv", "paper_friction.npz"]
+    assert len(list(with_figures.glob("*.png"))) == 3
+    a, b = (hmpc_pin.Result.load(d / "paper_friction.npz") for d in (with_figures, without))
+    for name in ("q", "dq", "tau", "d", "d_hat"):
+        np.testing.assert_array_equal(getattr(b, name), getattr(a, name))
+
+
 def test_no_ndo_flag_disables_the_observer(tmp_path):
     cfg = str(CONFIGS / "paper_friction.toml")
     assert main(["run", cfg, "--out", str(tmp_path), "--duration", "1", "--no-ndo"]) == 0

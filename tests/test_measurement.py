@@ -6,6 +6,7 @@ measurement running inside the compiled loop."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -17,6 +18,7 @@ from hmpc_pin.sim import sensing as s
 from hmpc_pin.sim.plants import RK4Plant
 
 from .reference import sensing as oracle
+from .reference.loop import per_step
 
 N = 3
 TS = 0.01
@@ -274,10 +276,11 @@ def test_a_python_measurement_runs_inside_the_compiled_loop(planar3):
         ctrl = MeasuredController(hmpc_pin.HierarchicalMPC(planar3), measurement=port)
         plant = RK4Plant(planar3.copy(), None, ctrl.Ts)
         ref = hmpc_pin.SineReference(N)
-        res = hmpc_pin.simulate(
-            planar3, ctrl, ref, duration=1.0, q0=np.full(N, 0.2), plant=plant, loop=loop
-        )
-        assert res.loop == loop and res.complete
+        with per_step() if loop == "python" else contextlib.nullcontext():
+            res = hmpc_pin.simulate(
+                planar3, ctrl, ref, duration=1.0, q0=np.full(N, 0.2), plant=plant
+            )
+        assert res.loop == {"python": "per-step"}.get(loop, loop) and res.complete
         results.append(res)
         ports.append(port)
     res, port = results[0], ports[0]
@@ -305,7 +308,8 @@ def test_a_python_command_filters_the_torque_in_the_compiled_loop(planar3):
     for loop in ("compiled", "python"):
         ctrl = MeasuredController(hmpc_pin.HierarchicalMPC(planar3), measurement=Halved(1e-9))
         ref = hmpc_pin.SineReference(N)
-        res = hmpc_pin.simulate(planar3, ctrl, ref, duration=0.3, q0=np.full(N, 0.2), loop=loop)
+        with per_step() if loop == "python" else contextlib.nullcontext():
+            res = hmpc_pin.simulate(planar3, ctrl, ref, duration=0.3, q0=np.full(N, 0.2))
         results.append(res)
     np.testing.assert_array_equal(results[0].tau, results[1].tau)
     np.testing.assert_array_equal(results[0].tau_applied, results[0].tau)
@@ -319,7 +323,7 @@ def test_a_python_measurement_that_returns_the_wrong_shape_is_named(planar3):
     ctrl = MeasuredController(hmpc_pin.HierarchicalMPC(planar3), measurement=Short(1e-3))
     with pytest.raises(hmpc_pin.SimulationError) as info:
         ref = hmpc_pin.SineReference(N)
-        hmpc_pin.simulate(planar3, ctrl, ref, duration=0.1, q0=np.zeros(N), loop="compiled")
+        hmpc_pin.simulate(planar3, ctrl, ref, duration=0.1, q0=np.zeros(N))
     assert isinstance(info.value.__cause__, hmpc_pin.DimensionError)
     assert "Measurement.measure" in str(info.value)
 

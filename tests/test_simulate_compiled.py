@@ -1,9 +1,11 @@
-"""The compiled loop (hmpc_pin.sim.compiled_loop) against the per-step loop of simulate,
-its oracle: the same arrays on every shipped config it covers, the same faults and partial
-results, the same state of the parts afterwards; every other setup runs per step."""
+"""The compiled loop (hmpc_pin.sim.compiled_loop) against the per-step loop of
+tests/reference/loop.py, its oracle: the same arrays on every shipped config, the same
+faults and partial results, the same state of the parts afterwards, for every kind of part
+(compiled or called through a port)."""
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
 import warnings
@@ -18,9 +20,11 @@ from hmpc_pin.sim.disturbances import CoulombViscousFriction, GaussianPulse
 from hmpc_pin.sim.plants import PULSE_CHUNK, EulerPlant, RK4Plant
 
 from .conftest import CONFIGS
+from .reference.loop import per_step
 
 ARRAYS = ("t", "q", "dq", "tau", "d", "d_hat", "tau_applied", "q_ref", "dq_ref")
 TOL = 1e-12
+LOOP_NAMES = {"python": "per-step", "compiled": "compiled"}
 
 # Shipped configs the compiled loop covers (the MuJoCo ones run per step: below).
 COMPILED = [
@@ -81,9 +85,16 @@ def _assert_same_state(a, b) -> None:
             assert x == y
 
 
+def _loop(loop: str):
+    """``"python"``: the per-step oracle loop (tests/reference/loop.py) within the block;
+    otherwise the package's (compiled) loop."""
+    return per_step() if loop == "python" else contextlib.nullcontext()
+
+
 def _run(exp: Experiment, loop: str, duration: float):
     try:
-        return exp.run(duration, loop=loop), None
+        with _loop(loop):
+            return exp.run(duration), None
     except hmpc_pin.SimulationError as exc:
         return exc.result, exc
 
@@ -95,8 +106,9 @@ def _both(make, duration: float, **sim):
     for loop in ("python", "compiled"):
         robot, ctrl, ref, plant = make()
         try:
-            res, exc = hmpc_pin.simulate(robot, ctrl, ref, duration=duration, plant=plant,
-                                         loop=loop, **sim), None  # fmt: skip
+            with _loop(loop):
+                res = hmpc_pin.simulate(robot, ctrl, ref, duration=duration, plant=plant, **sim)
+            exc = None
         except hmpc_pin.SimulationError as e:
             res, exc = e.result, e
         out.append((res, exc, (robot, ctrl, ref, plant)))
@@ -112,7 +124,7 @@ def test_compiled_loop_equals_the_per_step_loop_on_each_shipped_config(name):
     a, b = _experiment(name), _experiment(name)
     ra, ea = _run(a, "python", 1.0)
     rb, eb = _run(b, "compiled", 1.0)
-    assert ra.loop == "python" and rb.loop == "compiled"
+    assert ra.loop == "per-step" and rb.loop == "compiled"
     assert (ea is None) == (eb is None) and ra.complete == rb.complete
     _same(ra, rb, name)
     assert ra.meta.get("saturation") == rb.meta.get("saturation")
@@ -129,7 +141,9 @@ def test_compiled_loop_equals_the_per_step_loop_on_each_shipped_config(name):
 @pytest.mark.slow
 def test_the_paper_run_is_the_same_over_its_10_s():
     a, b = _experiment("paper_combined"), _experiment("paper_combined")
-    _same(a.run(loop="python"), b.run(loop="compiled"), "paper_combined 10 s")
+    with per_step():
+        ra = a.run()
+    _same(ra, b.run(), "paper_combined 10 s")
 
 
 def _paper(*, pulse=None, friction=True, effort=None, delay=None, settings=None):
@@ -210,7 +224,7 @@ def test_a_sensed_controller_runs_compiled_with_the_per_step_loops_arrays():
         return robot, SensedController(ctrl, model, np.random.default_rng(3)), ref, plant
 
     (ra, _, pa), (rb, _, pb) = _both(make, 1.0, q0=np.ones(3))
-    assert rb.loop == "compiled" and ra.loop == "python"
+    assert rb.loop == "compiled" and ra.loop == "per-step"
     _same(ra, rb)
     assert pa[1].rng.bit_generator.state == pb[1].rng.bit_generator.state
 
@@ -239,7 +253,7 @@ def test_a_callable_disturbance_is_called_by_the_compiled_loop_as_by_the_per_ste
         return robot, ctrl, hmpc_pin.SineReference(3), plant
 
     (ra, _, pa), (rb, _, pb) = _both(make, 1.0, q0=np.ones(3))
-    assert ra.loop == "python" and rb.loop == "compiled" and rb.complete
+    assert ra.loop == "per-step" and rb.loop == "compiled" and rb.complete
     _same(ra, rb)
     K, substeps = len(ra.t) - 1, pa[3].substeps
     assert pa[3].disturbance.calls == pb[3].disturbance.calls == (K + 1) + 4 * substeps * K
@@ -261,8 +275,9 @@ def test_an_on_step_callback_is_called_by_the_compiled_loop_as_by_the_per_step_l
     results = {}
     for loop in ("python", "compiled"):
         robot, ctrl, ref, plant = _paper()()
-        kw = dict(duration=1.0, plant=plant, q0=np.ones(3), loop=loop, on_step=make(loop))
-        results[loop] = hmpc_pin.simulate(robot, ctrl, ref, **kw)
+        kw = dict(duration=1.0, plant=plant, q0=np.ones(3), on_step=make(loop))
+        with _loop(loop):
+            results[loop] = hmpc_pin.simulate(robot, ctrl, ref, **kw)
     ra, rb = results["python"], results["compiled"]
     assert rb.loop == "compiled"
     _same(ra, rb)
@@ -334,9 +349,8 @@ def test_a_ctrl_c_between_chunks_keeps_the_same_partial_result():
     out = []
     for loop in ("python", "compiled"):
         robot, ctrl, ref, plant = make()
-        with pytest.raises(hmpc_pin.RunInterrupted) as info:
-            hmpc_pin.simulate(robot, ctrl, ref, duration=5.0, q0=np.ones(3), plant=plant,
-                              loop=loop)  # fmt: skip
+        with pytest.raises(hmpc_pin.RunInterrupted) as info, _loop(loop):
+            hmpc_pin.simulate(robot, ctrl, ref, duration=5.0, q0=np.ones(3), plant=plant)
         out.append(info.value)
     a, b = out
     assert str(a) == str(b) and a.result.message == b.result.message
@@ -354,8 +368,7 @@ def test_a_real_sigint_during_a_compiled_run_stops_it_with_a_prefix_of_the_run()
     timer.start()
     try:
         with pytest.raises(hmpc_pin.RunInterrupted) as info:
-            hmpc_pin.simulate(robot, ctrl, ref, duration=600.0, q0=np.ones(3), plant=plant,
-                              loop="compiled")  # fmt: skip
+            hmpc_pin.simulate(robot, ctrl, ref, duration=600.0, q0=np.ones(3), plant=plant)
     finally:
         timer.cancel()
     part = info.value.result
@@ -400,7 +413,7 @@ def test_a_reference_sampled_in_python_is_called_by_the_compiled_loop_as_per_ste
     for loop in ("python", "compiled"):
         refs[loop] = _CountedSine()
         results[loop] = _short(ref=lambda loop=loop: refs[loop], loop=loop)
-        assert results[loop].loop == loop and results[loop].complete
+        assert results[loop].loop == LOOP_NAMES[loop] and results[loop].complete
     _same(results["python"], results["compiled"])
     a, b = refs["python"].calls, refs["compiled"].calls
     K = len(results["compiled"].t) - 1
@@ -418,19 +431,20 @@ def test_a_python_reference_of_the_wrong_width_stops_both_loops_alike():
         ctrl = hmpc_pin.HierarchicalMPC(robot)
         ref = _CountedSine(width=2)
         ref.sample = lambda t: (np.full(3, np.sin(t)), np.full(3, np.cos(t)))
-        with pytest.raises(hmpc_pin.SimulationError) as info:
-            hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), loop=loop)
+        with pytest.raises(hmpc_pin.SimulationError) as info, _loop(loop):
+            hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3))
         pair.append(info.value)
     assert str(pair[0]) == str(pair[1]) and "sample_many returned" in str(pair[1])
     assert isinstance(pair[1].__cause__, hmpc_pin.DimensionError)
 
 
-def _short(ctrl=None, plant=None, ref=None, **kw):
+def _short(ctrl=None, plant=None, ref=None, loop="compiled", **kw):
     robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
     ctrl = ctrl(robot) if callable(ctrl) else hmpc_pin.HierarchicalMPC(robot)
     plant = plant(robot, ctrl) if plant is not None else None
     ref = ref() if ref is not None else hmpc_pin.SineReference(3)
-    return hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), plant=plant, **kw)
+    with _loop(loop):
+        return hmpc_pin.simulate(robot, ctrl, ref, duration=0.3, q0=np.zeros(3), plant=plant, **kw)
 
 
 #: Controllers without a compiled step: called as a whole through the Controller port.
@@ -457,7 +471,7 @@ def test_a_python_controller_runs_in_the_compiled_loop_as_per_step(name):
         return robot, ctrl, hmpc_pin.SineReference(3), plant
 
     (ra, ea, pa), (rb, eb, pb) = _both(make, 1.0, q0=np.ones(3))
-    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    assert ra.loop == "per-step" and rb.loop == "compiled" and ea is None and eb is None
     _same(ra, rb, name)
     if name == "timed":
         assert len(pa[1].samples_ns) == len(pb[1].samples_ns) == len(rb.t)
@@ -476,7 +490,7 @@ def test_the_euler_plant_runs_in_the_compiled_loop_as_per_step():
         return robot, ctrl, hmpc_pin.SineReference(3), plant
 
     (ra, ea, pa), (rb, eb, pb) = _both(make, 1.0, q0=np.ones(3))
-    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    assert ra.loop == "per-step" and rb.loop == "compiled" and ea is None and eb is None
     _same(ra, rb, "euler")
     assert pa[3].k == pb[3].k == len(rb.t) - 1
 
@@ -486,13 +500,34 @@ def test_a_mujoco_config_runs_in_the_compiled_loop_as_per_step(name):
     pytest.importorskip("mujoco")
     ra, ea = _run(_experiment(name), "python", 0.3)
     rb, eb = _run(_experiment(name), "auto", 0.3)
-    assert ra.loop == "python" and rb.loop == "compiled" and ea is None and eb is None
+    assert ra.loop == "per-step" and rb.loop == "compiled" and ea is None and eb is None
     _same(ra, rb, name)
 
 
 def test_loop_must_be_one_of_the_three():
     with pytest.raises(hmpc_pin.ConfigError, match="expected one of"):
-        _short(loop="fast")
+        robot = hmpc_pin.load_robot("planar3")
+        ctrl, ref = hmpc_pin.HierarchicalMPC(robot), hmpc_pin.SineReference(3)
+        hmpc_pin.simulate(robot, ctrl, ref, duration=0.1, q0=np.zeros(3), loop="fast")
+
+
+@pytest.mark.parametrize("loop", ["auto", "compiled", "python"])
+def test_the_loop_keyword_of_earlier_versions_warns_and_changes_nothing(loop):
+    """``loop=`` still loads (users' scripts) with a DeprecationWarning; the run is the
+    compiled loop's, bit for bit."""
+    robot = hmpc_pin.load_robot("planar3")
+    runs = []
+    for kw in ({}, {"loop": loop}):
+        ctrl, ref = hmpc_pin.HierarchicalMPC(robot), hmpc_pin.SineReference(3)
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            runs.append(hmpc_pin.simulate(robot, ctrl, ref, duration=0.2, q0=np.ones(3), **kw))
+        deprecated = [w for w in seen if issubclass(w.category, DeprecationWarning)]
+        assert len(deprecated) == (1 if kw else 0)
+        assert not kw or "no effect" in str(deprecated[0].message)
+    assert runs[1].loop == "compiled"
+    for name in ARRAYS:
+        np.testing.assert_array_equal(getattr(runs[1], name), getattr(runs[0], name))
 
 
 def test_a_step_replaced_on_the_instance_is_called_at_every_step():
@@ -538,7 +573,7 @@ def test_an_init_config_runs_compiled_as_per_step(tmp_path, model):
     a, b = (Experiment.from_config(hmpc_pin.load_config(path)) for _ in range(2))
     ra, ea = _run(a, "python", 0.5)
     rb, eb = _run(b, "compiled", 0.5)
-    assert ra.loop == "python" and rb.loop == "compiled"
+    assert ra.loop == "per-step" and rb.loop == "compiled"
     assert ea is None and eb is None
     _same(ra, rb, model)
     _assert_same_state(a.controller, b.controller)

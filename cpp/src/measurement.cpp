@@ -125,6 +125,15 @@ void SensingMeasurement::sample(double t) {
   has_prev = true;
 }
 
+// The interpolation segment of the history around sk = t/Ts > 0 (k >= 1): the states at the
+// control indices j and j + 1 (j <= k − 1: beyond t_k the last segment extrapolates) and the
+// position x = sk − j within it.
+SensingMeasurement::Segment SensingMeasurement::segment(double sk) const {
+  const long j = std::min(static_cast<long>(std::floor(sk)), k - 1);
+  const auto a = static_cast<std::size_t>(slot(j)), b = static_cast<std::size_t>(slot(j + 1));
+  return {hq[a], hv[a], hq[b], hv[b], sk - static_cast<double>(j)};
+}
+
 void SensingMeasurement::angle(double t, Vec& out) const {
   const double sk = t / s.Ts;
   if (sk <= 0 || k == 0) {
@@ -135,19 +144,16 @@ void SensingMeasurement::angle(double t, Vec& out) const {
     for (int i = 0; i < n; ++i) out[i] = q0[i] + before * v0[i];
     return;
   }
-  const long j = std::min(static_cast<long>(std::floor(sk)), k - 1);
-  const Vec& q0 = hq[static_cast<std::size_t>(slot(j))];
-  const Vec& v0 = hv[static_cast<std::size_t>(slot(j))];
-  const Vec& q1 = hq[static_cast<std::size_t>(slot(j + 1))];
-  const Vec& v1 = hv[static_cast<std::size_t>(slot(j + 1))];
-  const double x = sk - static_cast<double>(j);
+  const Segment g = segment(sk);
+  const double x = g.x;
   const double h = s.Ts;
   const double x2 = x * x, x3 = x * x * x;
   const double c0 = 2.0 * x3 - 3.0 * x2 + 1.0;
   const double c1 = (x3 - 2.0 * x2 + x) * h;
   const double c2 = -2.0 * x3 + 3.0 * x2;
   const double c3 = (x3 - x2) * h;
-  for (int i = 0; i < n; ++i) out[i] = c0 * q0[i] + c1 * v0[i] + c2 * q1[i] + c3 * v1[i];
+  for (int i = 0; i < n; ++i)
+    out[i] = c0 * g.q0[i] + c1 * g.v0[i] + c2 * g.q1[i] + c3 * g.v1[i];
 }
 
 void SensingMeasurement::velocity(double t, Vec& out) const {
@@ -156,19 +162,16 @@ void SensingMeasurement::velocity(double t, Vec& out) const {
     out = hv[static_cast<std::size_t>(slot(0))];
     return;
   }
-  const long j = std::min(static_cast<long>(std::floor(sk)), k - 1);
-  const Vec& q0 = hq[static_cast<std::size_t>(slot(j))];
-  const Vec& v0 = hv[static_cast<std::size_t>(slot(j))];
-  const Vec& q1 = hq[static_cast<std::size_t>(slot(j + 1))];
-  const Vec& v1 = hv[static_cast<std::size_t>(slot(j + 1))];
-  const double x = sk - static_cast<double>(j);
+  const Segment g = segment(sk);
+  const double x = g.x;
   const double h = s.Ts;
   const double x2 = x * x;
   const double a = 6.0 * x2 - 6.0 * x;
   const double b = 3.0 * x2 - 4.0 * x + 1.0;
   const double c = -6.0 * x2 + 6.0 * x;
   const double d = 3.0 * x2 - 2.0 * x;
-  for (int i = 0; i < n; ++i) out[i] = a * q0[i] / h + b * v0[i] + c * q1[i] / h + d * v1[i];
+  for (int i = 0; i < n; ++i)
+    out[i] = a * g.q0[i] / h + b * g.v0[i] + c * g.q1[i] / h + d * g.v1[i];
 }
 
 void SensingMeasurement::command(RefVec tau) {

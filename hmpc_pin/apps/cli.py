@@ -244,8 +244,9 @@ def _report(args, config, out, stem, warn, views, experiment, result, files, fai
         if touch is not None and line.startswith("tracking error"):
             line += f"; expected once the arm touches something (contact at t = {touch:.3f} s)"
         print(f"warning: {line}", file=sys.stderr)
-    draw_figures(config, result, out, stem, files)  # after the table: it is what one reads
-    if len(result.t) > 1:
+    if args.figures:  # after the table: it is what one reads
+        draw_figures(config, result, out, stem, files)
+    if args.figures and len(result.t) > 1:
         from .plots import plot_error
 
         label = "with NDO" if observer else "without NDO"
@@ -631,6 +632,13 @@ def _run_arguments(run) -> None:
         "--keep-open",
         action="store_true",
         help="live view: keep serving it after the run (files written) until Ctrl-C",
+    )
+    run.add_argument(
+        "--no-figures",
+        dest="figures",
+        action="store_false",
+        help="write the data files only (.npz, .csv; no PNG figures, which take most of a "
+        "short run's time; the .npz holds every array they draw)",
     )
     _add_warn_option(run)
     run.set_defaults(func=cmd_run)

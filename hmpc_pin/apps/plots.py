@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.ticker import NullLocator
+from matplotlib.ticker import MaxNLocator, NullLocator
 
 from .metrics import joint_units
 
@@ -99,28 +99,29 @@ def _finish(fig, axes, path, title):
 
 
 def _tracking(ax, result, i):
-    ax.plot(result.t, result.q_ref[:, i], "k--", lw=1.2, label=f"reference $r_{i + 1}$")
-    ax.plot(result.t, result.q[:, i], "C0", lw=1.2, label=f"angle $q_{i + 1}$")
+    ax.plot(result.t, result.q_ref[:, i], "k--", lw=1.2, label="reference r")
+    ax.plot(result.t, result.q[:, i], "C0", lw=1.2, label="angle q")
     ax.set_ylabel(f"joint {i + 1} [{joint_units(result)[i][0]}]")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.grid(alpha=0.3)
+    _decorate(ax, i)
 
 
 def _disturbance(ax, result, i):
     ff = result.extra.get("friction_feedforward")
     if ff is None:
-        ax.plot(result.t, result.d[:, i], "k", lw=1.2, label=f"true $d_{i + 1}$")
+        ax.plot(result.t, result.d[:, i], "k", lw=1.2, label="true d")
     else:  # the observer estimates what the friction model fed forward leaves
-        ax.plot(
-            result.t,
-            result.d[:, i] + ff[:, i],
-            "k",
-            lw=1.2,
-            label=rf"true $d_{i + 1} + \tau_{{f,{i + 1}}}$",
-        )
-    ax.plot(result.t, result.d_hat[:, i], "C3--", lw=1.2, label=rf"NDO $\hat d_{i + 1}$")
+        ax.plot(result.t, result.d[:, i] + ff[:, i], "k", lw=1.2, label="true d + τ_f")
+    ax.plot(result.t, result.d_hat[:, i], "C3--", lw=1.2, label="NDO estimate d̂")
     ax.set_ylabel(f"joint {i + 1} [{joint_units(result)[i][2]}]")
-    ax.legend(loc="upper right", fontsize=8)
+    _decorate(ax, i)
+
+
+def _decorate(ax, i: int) -> None:
+    """The legend on the first row only (the same lines on every row: the figure's time
+    goes into ticks and legends), four y ticks, a light grid."""
+    if i == 0:
+        ax.legend(loc="upper right", fontsize=8)
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
     ax.grid(alpha=0.3)
 
 
@@ -180,7 +181,8 @@ def plot_error(results: dict, path, title: str = "") -> Path:
         ax.set_ylabel(f"|e{i + 1}| [{unit[i][0]}]")
         ax.set_ylim(1e-7, None)
         ax.yaxis.set_minor_locator(NullLocator())  # a line per decade: 7+ decades stay
-        ax.legend(loc="upper right", fontsize=8)  # readable (and half the drawing time)
+        if i == 0:  # the same lines on every row
+            ax.legend(loc="upper right", fontsize=8)
         ax.grid(alpha=0.3)
 
     return _overlay(results, path, title, draw, decorate)

@@ -407,11 +407,11 @@ class Experiment:
         URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
         return _effort_limit(self.config, self.plant)
 
-    def run(self, duration: float | None = None, on_step=None, loop: str = "auto") -> Result:
+    def run(self, duration: float | None = None, on_step=None, loop: str | None = None) -> Result:
         """Simulate the closed loop for ``duration`` [s] (default: the config's).
 
-        ``loop`` chooses between the compiled loop and the per-step loop
-        (:func:`~hmpc_pin.sim.simulate.simulate`; default: compiled when every part is).
+        ``loop`` is deprecated and has no effect (:func:`~hmpc_pin.sim.simulate.simulate`:
+        every run goes through the compiled loop).
 
         ``on_step(t, q, q_ref)`` is called at every control instant (live view). The
         result's ``meta`` records the plant's engine and version (and, with a collision
@@ -467,7 +467,7 @@ class Experiment:
         return result
 
     def _simulate(
-        self, plant: Plant, duration: float | None, on_step, loop: str = "auto"
+        self, plant: Plant, duration: float | None, on_step, loop: str | None = None
     ) -> Result:
         cfg = self.config
         return simulate(

@@ -36,7 +36,8 @@ Afterwards the controller, the measurement (its state lives in the port; its gen
 where a draw per measurement leaves it) and the plant are in the state the per-step loop
 leaves them in.
 
-``simulate(loop="python")`` runs the per-step loop instead, the compiled loop's oracle.
+The per-step loop in Python, this loop's oracle, lives in the tests
+(``tests/reference/loop.py``).
 """
 
 from __future__ import annotations
@@ -107,6 +108,9 @@ class CompiledLoop:
         k: The step being run (where a fault or interrupt stopped the run).
         last: The last recorded step (-1: none).
     """
+
+    #: What ``result.loop`` says of a run through this loop.
+    name = "compiled"
 
     def __init__(
         self,

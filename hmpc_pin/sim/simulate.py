@@ -12,8 +12,7 @@ with the disturbance evaluated at every plant step (and every RK4 stage).
 
 from __future__ import annotations
 
-import sys
-import time
+import warnings
 
 import numpy as np
 
@@ -22,14 +21,12 @@ from ..exceptions import (
     ConfigError,
     DimensionError,
     HmpcError,
-    NonFiniteError,
     RunInterrupted,
     SimulationError,
 )
 from ..model.robot import Robot
 from ..tasks.base import as_reference
-from .base import state_error
-from .compiled_loop import LOOPS, CompiledLoop, why_not_compiled
+from .compiled_loop import LOOPS, CompiledLoop
 from .disturbances import ZeroDisturbance
 from .plants import PLANTS, Plant
 from .result import RESULT_ARRAYS, Result
@@ -59,25 +56,98 @@ def _step_time(result: Result, step_ns: np.ndarray, Ts: float) -> None:
         )
 
 
-def choose_loop(loop: str, controller, plant, reference, on_step) -> bool:
-    """Whether the run goes through the compiled loop
-    (:mod:`~hmpc_pin.sim.compiled_loop`): ``loop`` is ``"auto"`` (when the compiled loop can
-    advance the plant), ``"compiled"`` or ``"python"`` (the per-step loop).
+def _deprecated_loop(loop: str | None) -> None:
+    """Warn that ``loop`` no longer chooses anything (every run goes through the compiled
+    loop, whose oracle lives in the tests); refuse a value that never meant anything.
 
     Raises:
-        ConfigError: ``loop`` is none of :data:`~hmpc_pin.sim.compiled_loop.LOOPS`, or
-            ``"compiled"`` with a plant the compiled loop cannot advance (named).
+        ConfigError: ``loop`` is none of :data:`~hmpc_pin.sim.compiled_loop.LOOPS`.
     """
+    if loop is None:
+        return
     if loop not in LOOPS:
-        raise ConfigError("loop", f"loop={loop!r}; expected one of {LOOPS}")
-    if loop == "python":
-        return False
-    reason = why_not_compiled(controller, plant, reference, on_step)
-    if reason is not None and loop == "compiled":
+        raise ConfigError("loop", f"loop={loop!r}; expected one of {LOOPS} (or leave it out)")
+    warnings.warn(
+        f"simulate(loop={loop!r}) is deprecated and has no effect: every run goes through the "
+        "compiled loop (the same arrays the per-step loop gave); leave the keyword out",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+
+
+def _plant(robot: Robot, plant, disturbance, dt: float, integrator: str, Ts: float) -> Plant:
+    """The plant :func:`simulate` runs: ``plant`` itself when it is a
+    :class:`~hmpc_pin.sim.plants.Plant` object (then ``disturbance``, ``dt`` and
+    ``integrator`` do not apply), else the ``integrator``'s plant of ``plant`` (a ``Robot``)
+    or of a copy of ``robot``.
+
+    Raises:
+        ConfigError: An option that does not apply, a plant at another period, an unknown
+            integrator.
+    """
+    if hasattr(plant, "advance") and hasattr(plant, "reset"):
+        for name, value, default in (
+            ("disturbance", disturbance, None),
+            ("dt", dt, 0.001),
+            ("integrator", integrator, "rk4"),
+        ):
+            if value is not default and value != default:
+                raise ConfigError(
+                    name,
+                    f"{value!r} does not apply to a Plant object ({type(plant).__name__}); "
+                    "give it to the plant when you build it",
+                )
+        if abs(plant.Ts - Ts) > 1e-12 * Ts:
+            raise ConfigError(
+                "plant.Ts",
+                f"the plant advances {plant.Ts:g} s per call but the controller "
+                f"runs at Ts={Ts:g} s; build the plant with the controller's Ts",
+            )
+        return plant
+    plant_robot = plant if plant is not None else robot.copy()
+    if integrator not in PLANTS:
         raise ConfigError(
-            "loop", f'"compiled" but {reason}; use loop="auto" to run such a loop per step'
+            "integrator", f"integrator={integrator!r}; expected one of {tuple(PLANTS)}"
         )
-    return reason is None
+    dist = disturbance if disturbance is not None else ZeroDisturbance(robot.nq)
+    return PLANTS[integrator](plant_robot, dist, Ts, dt)
+
+
+def _complete(rec: dict, reference, times: np.ndarray, limit, sampled: bool) -> None:
+    """The records of the ``m = len(times)`` steps run, completed in place: the reference
+    at every instant in one vectorised call (unless ``sampled`` at each step already; the
+    controller has sampled every one of these instants, so this cannot fail where the run
+    did not), and the last torque as it would be applied when it was not (end of run,
+    interrupt)."""
+    m = len(times)
+    if not sampled:
+        rec["q_ref"][:m], rec["dq_ref"][:m] = reference.sample_many(times)
+    tau, applied = rec["tau"][m - 1], rec["tau_applied"][m - 1]
+    if np.isnan(applied).all() and np.isfinite(tau).all():
+        applied[:] = tau if limit is None else np.clip(tau, -limit, limit)
+
+
+def _raise_if_stopped(result: Result, cause, k: int, t_arr: np.ndarray, duration: float) -> None:
+    """Raise what stopped the run, with its partial ``result``: ``RunInterrupted`` for
+    Ctrl-C, ``SimulationError`` for a fault during step ``k`` (in the controller, in the
+    torque check or in the plant's period over :math:`[t_k, t_k + T_s)`); nothing when
+    ``cause`` is ``None``."""
+    m, K = len(result.t), len(t_arr) - 1
+    message = result.message
+    if isinstance(cause, KeyboardInterrupt):
+        result.meta["interrupted_at"] = float(result.t[-1]) if m else 0.0
+        raise RunInterrupted(
+            f"t={result.t[-1] if m else 0.0:.6g} s of {duration:g} s ({m} of {K + 1} samples kept)",
+            result,
+        ) from None
+    if cause is not None:
+        result.meta["failed_step"] = int(k)
+        result.meta["failed_at"] = float(t_arr[k])
+        raise SimulationError(
+            f"simulation stopped in step {k} (t={t_arr[k]:.6g} s), {m} of {K + 1} samples "
+            f"kept: {message}{observer_hint(result.d_hat, result.joint_names)}",
+            result,
+        ) from cause
 
 
 def simulate(
@@ -96,7 +166,7 @@ def simulate(
     effort_limit=None,
     meta: dict | None = None,
     on_step=None,
-    loop: str = "auto",
+    loop: str | None = None,
 ) -> Result:
     """Run the closed loop and return the sampled trajectories.
 
@@ -127,11 +197,10 @@ def simulate(
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
-        loop: ``"auto"`` (and ``"compiled"``) run the loop in compiled chunks
-            (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python called through
-            its ports; the same arrays, faults and partial results as per step);
-            ``"python"`` runs it per step in Python. The result's ``loop`` attribute says
-            which ran (not saved with it).
+        loop: Deprecated, no effect (a ``DeprecationWarning``): every run goes through the
+            compiled loop (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python
+            called through its ports). Earlier versions chose here between it and a
+            per-step loop in Python, which gave the same arrays.
 
     Returns:
         :class:`Result` with K+1 samples, K = round(duration / Ts).
@@ -144,37 +213,12 @@ def simulate(
             to the last whole control step (``complete=False``, ``message`` "interrupted
             at t=… s"). It is a ``KeyboardInterrupt``, so a loop of runs still stops.
     """
+    _deprecated_loop(loop)
     n = robot.nq
     q = robot.check_vector("q0", q0).copy()
     dq = robot.check_vector("dq0", np.zeros(n) if dq0 is None else dq0).copy()
     Ts = float(controller.Ts)
-    if hasattr(plant, "advance") and hasattr(plant, "reset"):
-        for name, value, default in (
-            ("disturbance", disturbance, None),
-            ("dt", dt, 0.001),
-            ("integrator", integrator, "rk4"),
-        ):
-            if value is not default and value != default:
-                raise ConfigError(
-                    name,
-                    f"{value!r} does not apply to a Plant object ({type(plant).__name__}); "
-                    "give it to the plant when you build it",
-                )
-        if abs(plant.Ts - Ts) > 1e-12 * Ts:
-            raise ConfigError(
-                "plant.Ts",
-                f"the plant advances {plant.Ts:g} s per call but the controller "
-                f"runs at Ts={Ts:g} s; build the plant with the controller's Ts",
-            )
-        sim_plant = plant
-    else:
-        plant_robot = plant if plant is not None else robot.copy()
-        if integrator not in PLANTS:
-            raise ConfigError(
-                "integrator", f"integrator={integrator!r}; expected one of {tuple(PLANTS)}"
-            )
-        dist = disturbance if disturbance is not None else ZeroDisturbance(n)
-        sim_plant = PLANTS[integrator](plant_robot, dist, Ts, dt)
+    sim_plant = _plant(robot, plant, disturbance, dt, integrator, Ts)
     if sim_plant.nq != n:
         raise DimensionError(
             f"the plant has {sim_plant.nq} joints but the controller's robot has {n}; "
@@ -198,77 +242,31 @@ def simulate(
     sat_steps = np.zeros(n, dtype=int)
     sat_excess = np.zeros(n)
 
-    rec_q, rec_dq, rec_tau, rec_d, rec_d_hat, rec_q_ref, rec_dq_ref, rec_applied = (
-        rec[name] for name in ("q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref", "tau_applied")
-    )
-    bound = min(state_bound, sys.float_info.max)
-    # Fast pre-test of the state: |q|² + |q̇|² <= bound² implies every |entry| <= bound
-    # (and finiteness: a NaN fails the comparison); the exact test runs only otherwise.
-    bound2 = min(bound * bound, sys.float_info.max)  # inf <= bound2 must be False
     step_ns = np.zeros(K + 1, dtype=np.int64)
-    clock = time.perf_counter_ns
-    compiled = choose_loop(loop, controller, sim_plant, reference, on_step)
     sim_plant.reset(q, dq, 0.0)
     controller.reset(q, dq)
+    runner = CompiledLoop(
+        controller,
+        sim_plant,
+        reference,
+        t_arr,
+        rec,
+        step_ns,
+        limit,
+        state_bound,
+        sat_steps,
+        sat_excess,
+        on_step,
+        (q, dq),
+    )
     last = k = -1
     message = ""
     try:
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
-        if compiled:
-            runner = CompiledLoop(
-                controller,
-                sim_plant,
-                reference,
-                t_arr,
-                rec,
-                step_ns,
-                limit,
-                state_bound,
-                sat_steps,
-                sat_excess,
-                on_step,
-                (q, dq),
-            )
-            try:
-                runner.run()
-            finally:
-                k, last = runner.k, runner.last
-        for k in range(0 if not compiled else K + 1, K + 1):
-            t = t_arr[k]
-            start = clock()
-            tau = controller.step(t, q, dq, reference)
-            step_ns[k] = clock() - start
-            rec_q[k] = q
-            rec_dq[k] = dq
-            rec_tau[k] = tau
-            rec_d[k] = sim_plant.disturbance_now()
-            rec_d_hat[k] = controller.disturbance_estimate
-            last = k
-            if on_step is not None:
-                q_ref, dq_ref = reference.sample(t)
-                rec_q_ref[k] = q_ref
-                rec_dq_ref[k] = dq_ref
-                on_step(t, q, q_ref)
-            if k == K:
-                break
-            if np.count_nonzero(np.isfinite(tau)) != n:
-                raise NonFiniteError("tau", tau, f"at t={t:.6g}")
-            if limit is not None:
-                excess = np.abs(tau) - limit
-                if (excess > 0).any():
-                    sat_steps += excess > 0
-                    np.maximum(sat_excess, excess, out=sat_excess)
-                    tau = np.clip(tau, -limit, limit)
-            rec_applied[k] = tau
-            q, dq = sim_plant.advance(tau)
-            if q.dot(q) + dq.dot(dq) <= bound2:
-                continue
-            # The exact test: it fails for a NaN, an infinite (the bound is capped at the
-            # largest float) or a too large entry.
-            q_max, dq_max = np.abs(q).max(), np.abs(dq).max()
-            if q_max <= bound and dq_max <= bound:
-                continue
-            raise state_error(q, dq, t + Ts, state_bound)
+        try:
+            runner.run()
+        finally:
+            k, last = runner.k, runner.last
     except HmpcError as exc:
         message = str(exc)
         cause = exc
@@ -279,14 +277,8 @@ def simulate(
         cause = None
 
     m = last + 1
-    if m and on_step is None:
-        # The recorded reference in one vectorised call (the controller has sampled every
-        # one of these instants already, so this cannot fail where the run did not).
-        rec_q_ref[:m], rec_dq_ref[:m] = reference.sample_many(t_arr[:m])
-    if m and np.isnan(rec_applied[last]).all() and np.isfinite(rec_tau[last]).all():
-        # The last torque was not applied (end of run, interrupt): record what would be.
-        last_tau = rec_tau[last]
-        rec_applied[last] = last_tau if limit is None else np.clip(last_tau, -limit, limit)
+    if m:
+        _complete(rec, reference, t_arr[:m], limit, sampled=on_step is not None)
     result = Result(
         t=t_arr[:m],
         **{name: arr[:m] for name, arr in rec.items()},
@@ -296,29 +288,14 @@ def simulate(
         meta=dict(meta or {}),
     )
     _step_time(result, step_ns[:m], Ts)
-    result.loop = "compiled" if compiled else "python"  # type: ignore[attr-defined]
+    result.loop = runner.name  # type: ignore[attr-defined]
     if limit is not None:
         result.meta["saturation"] = {
             "effort_limit": [float(x) for x in limit],
             "steps": sat_steps.tolist(),
             "max_excess": sat_excess.tolist(),
         }
-    if isinstance(cause, KeyboardInterrupt):
-        result.meta["interrupted_at"] = float(result.t[-1]) if m else 0.0
-        raise RunInterrupted(
-            f"t={result.t[-1] if m else 0.0:.6g} s of {duration:g} s ({m} of {K + 1} samples kept)",
-            result,
-        ) from None
-    if cause is not None:
-        # k is the control step during which the fault was detected (in the controller,
-        # in the torque check or in the plant integration over [t_k, t_k + Ts)).
-        result.meta["failed_step"] = int(k)
-        result.meta["failed_at"] = float(t_arr[k])
-        raise SimulationError(
-            f"simulation stopped in step {k} (t={t_arr[k]:.6g} s), {m} of {K + 1} samples "
-            f"kept: {message}{observer_hint(result.d_hat, result.joint_names)}",
-            result,
-        ) from cause
+    _raise_if_stopped(result, cause, k, t_arr, duration)
     return result
 
 

@@ -64,6 +64,11 @@ class SensingMeasurement : public Measurement {
  private:
   void take();                         // the measurement of instant k into its delay slot
   void sample(double t);               // one interface sample at t into qr, dr
+  struct Segment {
+    const Vec &q0, &v0, &q1, &v1;  // the states at the segment's two control instants
+    double x;                      // the position within it, in control periods
+  };
+  Segment segment(double sk) const;    // the history's segment around sk = t/Ts > 0
   void angle(double t, Vec& out) const;
   void velocity(double t, Vec& out) const;
   long slot(long j) const;             // the history slot of control index j (clamped)

@@ -74,8 +74,16 @@ from ..native import load as load_native
 from .base import Plant
 from .disturbances import ZeroDisturbance
 
-__all__ = ["COULOMB_LAWS", "PLANTS", "EulerPlant", "Plant", "RK4Plant", "choose_step",
-           "friction_in", "split_disturbance"]  # fmt: skip
+__all__ = [
+    "COULOMB_LAWS",
+    "PLANTS",
+    "EulerPlant",
+    "Plant",
+    "RK4Plant",
+    "choose_step",
+    "friction_in",
+    "split_disturbance",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -180,8 +188,8 @@ def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
     """The summed ``(a, b)`` of the Coulomb–viscous terms of a disturbance evaluated as a
     function (a sum with other terms), which the stick-slip period then integrates as the
     fused one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
-    found = [ab for term in getattr(disturbance, "terms", (disturbance,))
-             if (ab := _friction_of(term, n)) is not None]  # fmt: skip
+    terms = getattr(disturbance, "terms", (disturbance,))
+    found = [ab for ab in (_friction_of(term, n) for term in terms) if ab is not None]
     if not found:
         return None
     return sum(a for a, _ in found), sum(b for _, b in found)

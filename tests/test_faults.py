@@ -55,7 +55,9 @@ def _run(planar3, controller=None, disturbance=None, **kw):
         dist = dist + disturbance
     # The same plant in every run (a user callable: called per stage), and the runs are
     # compared bit for bit with the clean one.
-    plant = RK4Plant(planar3.copy(), dist, 0.01, 0.001)
+    # (The sign law: the fused friction and the sum with a function equal bit for bit; the
+    # stick-slip law's function path adds the friction back and subtracts it: to rounding.)
+    plant = RK4Plant(planar3.copy(), dist, 0.01, 0.001, coulomb="sign")
     return hmpc_pin.simulate(
         planar3, controller, hmpc_pin.SineReference(3), plant=plant,
         duration=kw.pop("duration", 0.6), q0=np.ones(3), **kw,

@@ -153,7 +153,8 @@ def test_rk4_period_with_joint_dynamics_equals_the_oracle(tmp_path):
     robot = load_robot(_planar3_with_dynamics(tmp_path), 9.81)
     np.testing.assert_allclose(robot.joint_damping, [0.4, 0.5, 0.6])
     np.testing.assert_allclose(robot.joint_friction, [0.7, 0.8, 0.9])
-    plant = RK4Plant(robot, None, TS, 0.001)
+    plant = RK4Plant(robot, None, TS, 0.001, coulomb="sign")  # the oracle's law (the
+    # stick-slip law's: tests/test_plant_step.py)
     plant.reset(np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1]))
     joint = (robot.joint_damping, robot.joint_friction)
     signs = set()

@@ -96,7 +96,7 @@ def test_rk4_period_equals_the_oracle(planar3, disturbance):
         "pulse": hmpc_pin.GaussianPulse([10, 8, 0.3], [0.05, 0.1, 0.15], 0.03),
         "callable": lambda t, q, dq: -0.5 * dq + np.sin(3.0 * t) * np.array([1.0, 0.5, 0.2]),
     }[disturbance]
-    plant = RK4Plant(planar3.copy(), d, 0.01, 0.001)
+    plant = RK4Plant(planar3.copy(), d, 0.01, 0.001, coulomb="sign")  # the oracle's law
     assert plant.fused is (disturbance != "callable")
     q, dq = np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1])
     plant.reset(q, dq)

@@ -67,6 +67,10 @@ void expose_rk4(py::module_& m) {
            py::arg("b"), py::arg("friction"), py::arg("h"))
       .def("set_joint_dynamics", &RK4::set_joint_dynamics, py::arg("damping"),
            py::arg("friction"))
+      .def("set_friction_in_disturbance", &RK4::set_friction_in_disturbance, py::arg("a"),
+           py::arg("b"))
+      .def_readwrite("stick_slip", &RK4::stick_slip)
+      .def_readonly("events", &RK4::events)
       .def_property_readonly("joint_damping", [](const RK4& r) { return Vec(r.joint.b); })
       .def_property_readonly("joint_friction", [](const RK4& r) { return Vec(r.joint.f); })
       .def(

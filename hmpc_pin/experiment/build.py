@@ -54,11 +54,13 @@ from .config import (
 )
 from .controllers import _limits, controller_parts, make_compensation, mpc_settings
 from .plants import (
+    PILOT_DURATION,
     _effort_limit,
     build_disturbance,
     check_plant_damping,
     mujoco_settings,
     pinocchio_plant,
+    plant_step,
 )
 from .references import build_reference, build_task_reference, check_trajectory_limits, task_space
 
@@ -343,7 +345,7 @@ class Experiment:
             MuJoCoPlant(
                 plant, None, config.controller.Ts, pc.mujoco.timestep, mujoco_settings(pc, n)
             )
-        else:
+        elif pc.tolerance is None:
             pinocchio_plant(pc, plant, None, config.controller.Ts)  # checks dt | Ts
         reference = build_reference(config, robot)
         q0 = (
@@ -544,7 +546,9 @@ class Experiment:
     def make_plant(self, Ts: float | None = None) -> Plant:
         """A new plant of ``[plant]`` (its integrator, step and this experiment's
         disturbance) on the plant model, advanced by ``Ts`` [s] per call (default: the
-        controller's period; a real-time arm's is the interface period)."""
+        controller's period; a real-time arm's is the interface period). With
+        ``plant.tolerance`` its step is chosen by the first plant of each period
+        (:func:`~hmpc_pin.experiment.plants.plant_step`), then kept for the experiment."""
         pc = self.config.plant
         Ts = self.controller.Ts if Ts is None else Ts
         if pc.engine == "mujoco":
@@ -555,7 +559,28 @@ class Experiment:
                 pc.mujoco.timestep,
                 mujoco_settings(pc, self.robot.nq),
             )
-        return pinocchio_plant(pc, self.plant, self.disturbance, Ts)
+        steps = self.__dict__.setdefault("_plant_steps", {})
+        if Ts not in steps:
+            steps[Ts] = self._plant_step(Ts)
+        return pinocchio_plant(pc, self.plant, self.disturbance, Ts, steps[Ts])
+
+    def _plant_step(self, Ts: float) -> float:
+        """The step of the plant advanced by ``Ts`` (:func:`plant_step`): with a tolerance,
+        checked along the reference and, at the controller's period, on the closed loop's
+        first :data:`PILOT_DURATION` (its start, off the reference if ``q0`` is)."""
+        pc = self.config.plant
+        duration = self.config.simulation.duration
+        pilot = None
+        if pc.tolerance is not None and math.isclose(Ts, self.controller.Ts):
+            window = min(duration, PILOT_DURATION)
+
+            def pilot(plant: Plant) -> np.ndarray | None:
+                try:
+                    return self._simulate(plant, window, None).q
+                except SimulationError:
+                    return None
+
+        return plant_step(pc, self.plant, self.disturbance, Ts, self.reference, duration, pilot)
 
 
 def make_arm_plant(config: ExperimentConfig) -> Plant:

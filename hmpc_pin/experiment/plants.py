@@ -3,6 +3,8 @@ Pinocchio RK4 or Euler plant, or MuJoCo) with its disturbance and effort limits.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..exceptions import (
@@ -11,7 +13,7 @@ from ..exceptions import (
 from ..model.robot import Robot, damping_time_constants
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
 from ..sim.mujoco import MuJoCoSettings, Obstacle
-from ..sim.plants import PLANTS, Plant, RK4Plant
+from ..sim.plants import PLANTS, Plant, RK4Plant, choose_step
 from .config import (
     ExperimentConfig,
     PlantConfig,
@@ -19,12 +21,19 @@ from .config import (
 
 __all__ = [
     "DAMPING_STEP_LIMIT",
+    "PILOT_DURATION",
     "build_disturbance",
     "check_plant_damping",
     "damping_rates",
     "mujoco_settings",
     "pinocchio_plant",
+    "plant_step",
 ]
+
+#: Periods along the run whose error ``[plant] tolerance`` checks (evenly spaced).
+CALIBRATION_PERIODS = 64
+#: The stretch of the run's start [s] whose error ``[plant] tolerance`` also checks.
+PILOT_DURATION = 1.0
 
 
 def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
@@ -116,7 +125,7 @@ def check_plant_damping(pc: PlantConfig, robot: Robot, q: np.ndarray) -> None:
             :data:`DAMPING_STEP_LIMIT`, naming the joint, its time constant 1/λ_j and the
             step that would do.
     """
-    if pc.engine != "pinocchio" or not pc.joint_dynamics:
+    if pc.engine != "pinocchio" or not pc.joint_dynamics or pc.dt is None:
         return
     limit = DAMPING_STEP_LIMIT.get(pc.integrator)
     lam = damping_rates(robot, q)
@@ -132,10 +141,114 @@ def check_plant_damping(pc: PlantConfig, robot: Robot, q: np.ndarray) -> None:
     )
 
 
-def pinocchio_plant(pc: PlantConfig, robot: Robot, disturbance, Ts: float) -> Plant:
-    """The Pinocchio plant of ``[plant]`` (its integrator, step and backend) on ``robot``."""
+def pinocchio_plant(
+    pc: PlantConfig, robot: Robot, disturbance, Ts: float, dt: float | None = None
+) -> Plant:
+    """The Pinocchio plant of ``[plant]`` (its integrator, step and backend) on ``robot``,
+    with the step ``dt`` [s] when given (else ``plant.dt``)."""
+    dt = pc.dt if dt is None else dt
     if pc.integrator == "rk4":
         return RK4Plant(
-            robot, disturbance, Ts, pc.dt, backend=pc.backend, joint_dynamics=pc.joint_dynamics
+            robot,
+            disturbance,
+            Ts,
+            dt,
+            backend=pc.backend,
+            joint_dynamics=pc.joint_dynamics,
+            coulomb=pc.coulomb,
         )
-    return PLANTS[pc.integrator](robot, disturbance, Ts, pc.dt, joint_dynamics=pc.joint_dynamics)
+    return PLANTS[pc.integrator](robot, disturbance, Ts, dt, joint_dynamics=pc.joint_dynamics)
+
+
+def calibration_samples(
+    robot: Robot, reference, disturbance, Ts: float, duration: float, joint_dynamics: bool
+) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
+    """The periods ``[plant] tolerance`` checks: at :data:`CALIBRATION_PERIODS` instants
+    :math:`t_k` evenly along the run, the reference's state and the torque that makes the
+    plant follow it over the period, as a controller that tracks it and cancels the
+    disturbance would send:
+
+    .. math::
+
+        \\tau_k = \\mathrm{RNEA}(r_k, \\dot r_k, (\\dot r_{k+1} - \\dot r_k)/T_s)
+            + B\\dot r_k + F\\,\\mathrm{sgn}\\,\\dot r_k - d(t_k, r_k, \\dot r_k)
+
+    (:math:`B, F` the URDF's joint damping and Coulomb friction when ``joint_dynamics``).
+
+    Returns:
+        ``(t_k, r_k, ṙ_k, τ_k)`` tuples [s, rad, rad/s, N·m].
+    """
+    K = max(1, round(duration / Ts))
+    ks = np.unique(np.linspace(0, K - 1, min(CALIBRATION_PERIODS, K)).round().astype(int))
+    t = ks * Ts
+    q, dq = reference.sample_many(t)
+    _, dq1 = reference.sample_many(t + Ts)
+    n = robot.nq
+    b = np.asarray(robot.joint_damping if joint_dynamics else np.zeros(n), dtype=float)
+    f = np.asarray(robot.joint_friction if joint_dynamics else np.zeros(n), dtype=float)
+    out = []
+    for tk, qk, vk, vk1 in zip(t, q, dq, dq1, strict=True):
+        tau = robot.inverse_dynamics(qk, vk, (vk1 - vk) / Ts) + b * vk + f * np.sign(vk)
+        if disturbance is not None:
+            tau = tau - np.asarray(disturbance(float(tk), qk.copy(), vk.copy()), dtype=float)
+        out.append((float(tk), qk.copy(), vk.copy(), tau))
+    return out
+
+
+def _pilot_error(pilot, h: float) -> float:
+    """max |q_h − q_{h/2}| [rad] of the run's start (inf where either diverges)."""
+    a, b = pilot(h), pilot(h / 2)
+    if a is None or b is None or a.shape != b.shape:
+        return np.inf
+    with np.errstate(all="ignore"):
+        err = float(np.abs(a - b).max(initial=0.0))
+    return err if np.isfinite(err) else np.inf
+
+
+def plant_step(
+    pc: PlantConfig,
+    robot: Robot,
+    disturbance,
+    Ts: float,
+    reference,
+    duration: float,
+    pilot=None,
+) -> float:
+    """The plant's step [s]: ``plant.dt``, or with ``plant.tolerance`` the largest
+    :math:`T_s/m` within it (:func:`~hmpc_pin.sim.plants.choose_step` on
+    :func:`calibration_samples` of ``reference`` over ``duration`` [s], and
+    ``pilot(plant)``: the positions [rad] of the run's start on ``plant``, whose difference
+    between the steps ``h`` and ``h/2`` is held to the tolerance too; ``None``: none).
+
+    Raises:
+        ConfigError: No step reaches the tolerance, or the step chosen is too long for the
+            URDF's damping (:func:`check_plant_damping`).
+    """
+    if pc.tolerance is None:
+        return pc.dt
+    samples = calibration_samples(robot, reference, disturbance, Ts, duration, pc.joint_dynamics)
+    plants: dict[float, Plant] = {}
+    runs: dict[float, np.ndarray | None] = {}
+
+    def plant_of(h: float) -> Plant:  # one plant per step (h/2 is the next h's)
+        key = round(Ts / h, 6)
+        if key not in plants:
+            plants[key] = pinocchio_plant(pc, robot, disturbance, Ts, h)
+        return plants[key]
+
+    def run_of(h: float) -> np.ndarray | None:
+        key = round(Ts / h, 6)
+        if key not in runs:
+            runs[key] = pilot(plant_of(h))
+        return runs[key]
+
+    h, _ = choose_step(
+        plant_of,
+        Ts,
+        samples,
+        pc.tolerance,
+        periods=max(1, round(duration / Ts)),
+        pilot=None if pilot is None else lambda h: _pilot_error(run_of, h),
+    )
+    check_plant_damping(replace(pc, dt=h, tolerance=None), robot, samples[0][1])
+    return h

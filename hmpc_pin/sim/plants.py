@@ -24,11 +24,30 @@ Runge–Kutta (RK4) steps of ``dt``, the disturbance evaluated at every stage:
 :math:`B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q` is the arm's own joint damping and Coulomb
 friction, the URDF's ``<dynamics damping friction>``
 (:attr:`~hmpc_pin.model.robot.Robot.joint_damping`, ``joint_friction``), applied by both
-plants here unless ``joint_dynamics=False``. The Coulomb term is set-valued in nature;
-these plants use the discontinuous :math:`\\mathrm{sgn}` with :math:`\\mathrm{sgn}\\,0 = 0`
-per stage (as the ``[disturbance.friction]`` term), which chatters about
-:math:`\\dot q = 0` within one step rather than sticking; MuJoCo's ``frictionloss`` is a
-soft constraint that holds a joint at rest while the torque is below :math:`f`.
+plants here unless ``joint_dynamics=False``.
+
+The Coulomb term is discontinuous at :math:`\\dot q_i = 0`, where RK4 with
+:math:`\\mathrm{sgn}` per stage converges at first order only. :class:`RK4Plant` (``coulomb =
+"stick-slip"``, the default) integrates it as a stick-slip law with event location: the sign
+of each joint's Coulomb term (the URDF's :math:`F` and the fused ``[disturbance.friction]``
+term's :math:`b`) is held over a step at :math:`\\mathrm{sgn}\\,\\dot q_i` of its start, the
+step is split where a velocity changes sign (the crossing found by regula falsi on the RK4
+step's length, to :math:`10^{-13}` of the step), and a joint at rest sticks: its friction
+takes the value :math:`\\phi_i \\in [-F_i, F_i]` that keeps :math:`\\ddot q_i = 0` (with the
+other stuck joints, :math:`(M^{-1})_{SS}\\,\\phi_S = -(M^{-1}u)_S`) until that value would
+leave the interval, where it breaks away (another event) and slides against it. Between
+events the field is smooth and RK4 keeps its fourth order (``tests/test_plant_step.py``
+measures it against scipy's DOP853 with the same events). ``coulomb = "sign"``:
+:math:`\\mathrm{sgn}\\,\\dot q` with :math:`\\mathrm{sgn}\\,0 = 0` per stage, which chatters
+about :math:`\\dot q = 0` rather than sticking (versions before 0.3; :class:`EulerPlant`
+always). A disturbance evaluated as a function (a sum with a term of the user's) keeps its
+own terms, but for its Coulomb–viscous terms (:func:`friction_in`), which follow the same
+law as when fused. MuJoCo's
+``frictionloss`` is a soft constraint that holds a joint at rest while the torque is below
+:math:`f`.
+
+:func:`choose_step` picks the largest step dividing the period whose error against the half
+step stays within a tolerance (``[plant] tolerance``).
 
 The period is one call into the compiled core (``cpp/src/rk4.cpp``, ``RK4``), the only
 implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
@@ -55,9 +74,22 @@ from ..native import load as load_native
 from .base import Plant
 from .disturbances import ZeroDisturbance
 
-__all__ = ["PLANTS", "EulerPlant", "Plant", "RK4Plant", "split_disturbance"]
+__all__ = [
+    "COULOMB_LAWS",
+    "PLANTS",
+    "EulerPlant",
+    "Plant",
+    "RK4Plant",
+    "choose_step",
+    "friction_in",
+    "split_disturbance",
+]
 
 FloatArray = NDArray[np.float64]
+
+#: How :class:`RK4Plant` integrates the Coulomb friction (``[plant] coulomb``; module
+#: docstring): located sign changes and sticking, or the sign per stage.
+COULOMB_LAWS = ("stick-slip", "sign")
 
 #: Periods whose time-only terms :class:`RK4Plant` tabulates in one call per term.
 PULSE_CHUNK = 64
@@ -136,6 +168,33 @@ def _agrees(term, fused, n: int) -> bool:
     return True
 
 
+def _friction_of(term, n: int) -> tuple[FloatArray, FloatArray] | None:
+    """``(a, b)`` (n,) of a Coulomb–viscous term (a ``friction_coefficients()`` method)
+    whose ``d(t, q, dq)`` is :math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, else ``None``."""
+    coef_fn = getattr(term, "friction_coefficients", None)
+    if not callable(coef_fn):
+        return None
+    a, b = (np.asarray(c, dtype=float) for c in coef_fn())
+    if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
+        return None
+    law = load_native().joint_torque  # what the compiled period evaluates
+    a, b = np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float)
+    if not _agrees(term, lambda t, q, dq, a=a, b=b, law=law: -law(a, b, dq), n):
+        return None
+    return a, b
+
+
+def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
+    """The summed ``(a, b)`` of the Coulomb–viscous terms of a disturbance evaluated as a
+    function (a sum with other terms), which the stick-slip period then integrates as the
+    fused one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
+    terms = getattr(disturbance, "terms", (disturbance,))
+    found = [ab for ab in (_friction_of(term, n) for term in terms) if ab is not None]
+    if not found:
+        return None
+    return sum(a for a, _ in found), sum(b for _, b in found)
+
+
 def split_disturbance(disturbance, n: int):
     """Split ``disturbance`` into fused parts, or return ``None`` if it has other terms.
 
@@ -155,14 +214,10 @@ def split_disturbance(disturbance, n: int):
         ):
             pulses.append(term)
         elif callable(coef_fn):
-            a, b = (np.asarray(c, dtype=float) for c in coef_fn())
-            if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
-                return None  # let the plain evaluation raise its own broadcasting error
-            law = load_native().joint_torque  # what the compiled period evaluates
-            a, b = np.broadcast_to(a, (n,)), np.broadcast_to(b, (n,))
-            if not _agrees(term, lambda t, q, dq, a=a, b=b, law=law: -law(a, b, dq), n):
-                return None
-            friction.append((a, b))
+            ab = _friction_of(term, n)
+            if ab is None:
+                return None  # let the plain evaluation raise its own error, or call the term
+            friction.append(ab)
         else:
             return None
     if len(friction) > 1:
@@ -191,6 +246,8 @@ class RK4Plant:
             :class:`DeprecationWarning`.
         joint_dynamics: Apply the robot's joint damping and Coulomb friction (the
             URDF's ``<dynamics>``; default ``True``).
+        coulomb: ``"stick-slip"`` (default) or ``"sign"``: the Coulomb friction's law
+            (:data:`COULOMB_LAWS`, module docstring).
 
     Attributes:
         native: ``True`` (kept for callers of 0.2).
@@ -211,7 +268,11 @@ class RK4Plant:
         dt: float = 0.001,
         backend: str = "auto",
         joint_dynamics: bool = True,
+        coulomb: str = "stick-slip",
     ):
+        if coulomb not in COULOMB_LAWS:
+            raise ConfigError("plant.coulomb", f"{coulomb!r}; expected one of {COULOMB_LAWS}")
+        self.coulomb = coulomb
         n = robot.nq
         self.joint_dynamics = _joint_terms(robot, joint_dynamics)
         substeps = _substeps(Ts, dt)
@@ -228,6 +289,8 @@ class RK4Plant:
         self._split = split_disturbance(disturbance, n)
         self.fused = self._split is not None
         self._pulses, self._friction = self._split if self._split is not None else ([], None)
+        # a function's own friction terms, integrated by the stick-slip law as the fused one
+        self._in_function = None if self.fused else friction_in(disturbance, n)
         zero = np.zeros(n)
         a, b = self._friction if self._friction is not None else (zero, zero)
         self._ab = (np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float))
@@ -244,6 +307,9 @@ class RK4Plant:
             kernel = core.RK4(model_string(self.robot))
         if self.joint_dynamics is not None:
             kernel.set_joint_dynamics(*self.joint_dynamics)
+        kernel.stick_slip = self.coulomb == "stick-slip"
+        if self._in_function is not None:
+            kernel.set_friction_in_disturbance(*self._in_function)
         a, b = self._ab
         port = core.RK4Plant(kernel, self.Ts, self.substeps, a, b, self._friction is not None)
         if not self.fused:
@@ -422,6 +488,81 @@ class EulerPlant:
         self.t = self.t0 + self.Ts * self.k
         self.q, self.dq = q, dq
         return q, dq
+
+
+def choose_step(
+    make_plant,
+    Ts: float,
+    samples,
+    tolerance: float,
+    periods: int = 1,
+    max_divisions: int = 64,
+    pilot=None,
+) -> tuple[float, float]:
+    """The largest step :math:`h = T_s/m` (m = 1, 2, ...) whose error over a run of
+    ``periods`` periods stays within ``tolerance`` [rad] (``[plant] tolerance``).
+
+    Each period's error is estimated by step doubling: from a sample's state, one period
+    with :math:`h` and one with :math:`h/2`, the torque held,
+    :math:`e_k(h) = \\max(\\|q_h - q_{h/2}\\|_\\infty,
+    \\ T_s \\|\\dot q_h - \\dot q_{h/2}\\|_\\infty)` (the velocity's error weighted by the
+    period, over which it moves the joints; for a method of order p, :math:`q_h - q_{h/2}`
+    is :math:`1 - 2^{-p}` of :math:`h`'s own error), and the run's error by the worst
+    period's error added up over the run,
+
+    .. math::
+
+        E(h) = K \\max_k e_k(h) \\quad (K = \\text{periods}),
+
+    a bound on the run's state error when nothing amplifies it (a closed loop damps it:
+    its error against a fine integration is below :math:`E`). With ``pilot``, a step must
+    also keep ``pilot(h)`` [rad] within the tolerance (the error of a stretch of the run
+    itself: a closed loop's start far from the samples). The steps are tried from the
+    longest; a step whose period diverges (not finite) fails.
+
+    Args:
+        make_plant: ``make_plant(h)``, a new plant advancing ``Ts`` per call with step ``h``.
+        Ts: The period [s].
+        samples: ``(t, q, dq, tau)`` tuples: start time [s], state [rad, rad/s] and the torque
+            held [N·m] of the periods checked.
+        tolerance: The largest error :math:`E` accepted [rad].
+        periods: The run's periods :math:`K`.
+        max_divisions: The finest step tried is ``Ts / max_divisions``.
+        pilot: ``pilot(h)``, a further error [rad] of the step ``h``, or ``None``.
+
+    Returns:
+        ``(h, E(h))`` (``E`` the larger of the two errors with ``pilot``).
+
+    Raises:
+        ConfigError: (``plant.tolerance``) no step down to ``Ts / max_divisions`` is within
+            it, naming the error reached there.
+    """
+    samples = list(samples)
+    err = np.inf
+    for m in range(1, max_divisions + 1):
+        coarse, fine = make_plant(Ts / m), make_plant(Ts / (2 * m))
+        worst = 0.0
+        for t, q, dq, tau in samples:
+            coarse.reset(q, dq, t)
+            fine.reset(q, dq, t)
+            with np.errstate(all="ignore"):
+                qc, vc = coarse.advance(tau)
+                qf, vf = fine.advance(tau)
+                e = max(np.abs(qc - qf).max(), Ts * np.abs(vc - vf).max())
+            worst = max(worst, e if np.isfinite(e) else np.inf)
+            if periods * worst > tolerance:
+                break
+        err = periods * worst
+        if err <= tolerance and pilot is not None:
+            err = max(err, float(pilot(Ts / m)))
+        if err <= tolerance:
+            return Ts / m, float(err)
+    raise ConfigError(
+        "plant.tolerance",
+        f"{tolerance:g} rad is not reached by any plant step down to Ts/{max_divisions} = "
+        f"{Ts / max_divisions:g} s (error {err:.3g} rad there); expected a larger tolerance, "
+        "or a fixed plant.dt",
+    )
 
 
 #: Plant classes by ``[plant] integrator`` name (and ``"mujoco"``: the MuJoCo plant,

@@ -9,6 +9,25 @@
 // stage time, one Coulomb-viscous friction −(a q̇ + b sgn q̇) here) or any function
 // d(t, q, q̇) (period_with()). ABA is Pinocchio's, compiled, or a function given by the
 // caller for models the compiled dynamics cannot load (mimic joints).
+//
+// Coulomb friction (stick_slip, the default): the known Coulomb terms (the joint friction F
+// and the fused friction's b) make f discontinuous where q̇_i = 0, and RK4 with sgn evaluated
+// per stage converges at first order there. With stick_slip the sign of each joint's Coulomb
+// term is a mode held over a step (s_i = sgn q̇_i at its start), so that the step integrates
+// a smooth field; the velocity sign changes are located as events: after a trial step, a
+// joint whose q̇_i changed sign (or, for a stuck joint, whose holding torque left [−F_i, F_i])
+// triggers a search for the earliest event time (Illinois regula falsi on the RK4 step's
+// length, to 1e-13 of the step), the step is split there, the crossing velocity set to 0 and
+// the modes chosen again. A joint with q̇_i = 0 sticks (the usual stick-slip law): its Coulomb
+// torque takes the value φ_i in [−F_i, F_i] that keeps q̈_i = 0 (with the other stuck joints,
+// φ_S solves (M⁻¹)_SS φ_S = −(M⁻¹ u)_S), and it slips, with s_i = −sgn φ_i, when that value
+// would exceed F_i (joints leave the stuck set one at a time, largest |φ_i|/F_i first; a joint
+// that would slip against its acceleration stays stuck). Time-only terms are interpolated
+// within a step by the parabola through their three stage rows. Where no joint changes sign
+// or sticks, the step is the classical one with sgn q̇ of the step's start, bit for bit the
+// per-stage sgn when no stage crosses zero; a disturbance given as a function (period_with)
+// keeps its own terms as they are, but for the friction set_friction_in_disturbance names.
+// stick_slip = false: sgn per stage (earlier versions).
 // Oracle: tests/reference/rk4.py.
 #pragma once
 
@@ -19,6 +38,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace hmpc {
 
@@ -42,6 +62,13 @@ class RK4 {
   void period(RefVec q, RefVec v, const CRefRow& T, const CRefVec& a, const CRefVec& b,
               bool friction, double h);
 
+  // The Coulomb-viscous friction −(a q̇ + b sgn q̇) that the disturbance function of
+  // period_with contains (a user's sum of terms with a friction term): with stick_slip its
+  // sign is taken as the fused friction's (the function's own term added back, then the
+  // stick-slip one subtracted), so that a friction term follows the same law whether the
+  // disturbance is fused or a function. Zeros: none.
+  void set_friction_in_disturbance(const CRefVec& a, const CRefVec& b);
+
   // Advance (q, v) in place over S steps of h from time t with τ held, the disturbance
   // d(t, q, q̇) evaluated at every stage (stage times t_s = t + s·h, t_s + h/2, t_s + h).
   void period_with(RefVec q, RefVec v, const CRefVec& tau, double t, double h, int S,
@@ -49,6 +76,9 @@ class RK4 {
 
   // q̈ = ABA(q, q̇, τ) into `out`.
   void aba_into(const CRefVec& q, const CRefVec& v, const Vec& tau, Vec& out);
+
+  bool stick_slip = true;  // Coulomb friction by event location and sticking (see above)
+  long events = 0;         // events located since construction (sign changes, stick, slip)
 
   std::unique_ptr<Dynamics> dyn;  // null: aba_fn
   AbaFunction aba_fn;
@@ -67,7 +97,28 @@ class RK4 {
   void torque_with(const DisturbanceFunction& dist, const CRefVec& tau, double t, const Q& q,
                    const V& v);
 
+  // The Coulomb-aware step (stick_slip): one step of h from (q, v); base(θ, q, v, u) writes
+  // the torque at the fraction θ of the step without the Coulomb-viscous terms.
+  template <class Base>
+  void coulomb_step(RefVec q, RefVec v, double h, const Base& base);
+  template <class Base>
+  void accel(const Base& base, double th, const Vec& q, const Vec& v, Vec& out);
+  template <class Base>
+  void trial(const Base& base, double ta, double L, double h);
+  template <class Base>
+  double event_value(const Base& base, double th);
+  template <class Base>
+  void choose_modes(const Base& base, double th);
+  bool coulomb_in(const CRefVec& b, bool friction);
+
   Vec q2, v2, q3, v3, q4, v4, a1, a2, a3, a4, u;
+  // stick_slip: Coulomb levels, modes (±1 slipping, 0 stuck, 2 no Coulomb term), the fused
+  // friction of this period, the step's start and trial states, stuck-joint algebra.
+  Vec fc_, qa_, va_, qs_, vs_, ue_, col_, phi_, vscale_, fa_, fb_, wa_, wb_;
+  std::vector<int> mode_, stuck_;
+  Mat W_;
+  bool fused_ = false;
+  bool wf_ = false;  // set_friction_in_disturbance given
 };
 
 }  // namespace hmpc

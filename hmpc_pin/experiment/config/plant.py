@@ -11,7 +11,7 @@ import numpy as np
 from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ...sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
-from ...sim.plants import PLANTS
+from ...sim.plants import COULOMB_LAWS, PLANTS
 from ._fields import _array, _bool, _choice, _float, _section, _set
 
 #: Physics engines of the plant (``[plant] engine``).
@@ -131,8 +131,24 @@ class PlantConfig:
             ``[plant.mujoco]`` holds its settings and ``dt``/``integrator`` do not apply).
         urdf: URDF of the plant; ``None`` uses the controller's model (no mismatch).
         gravity: Plant gravity [m/s²]; ``None`` uses the robot's.
-        dt: Integration step [s], must divide the control period (default 1 ms).
+        dt: Integration step [s], must divide the control period (default 1 ms; with
+            ``tolerance``: ``None``, the step is chosen; give one or the other).
+        tolerance: Choose the step by its error instead of ``dt`` [rad]: the largest
+            step :math:`T_s/m` (m = 1, 2, ...) whose error over the run stays within it,
+            the error of each period against the half step (step doubling) on
+            :math:`\\max(|\\Delta q|, T_s |\\Delta\\dot q|)`, the worst one times the run's
+            periods (:func:`~hmpc_pin.sim.plants.choose_step`), on a calibration along the
+            reference made once, when the experiment's first plant is built: the step is then fixed,
+            so a run is reproducible and pays nothing per period. For batch work (sweeps,
+            tuning), where a coarser step that keeps the accuracy saves time. ``None``
+            (default): the fixed ``dt``. Pinocchio plants only.
         integrator: ``"rk4"`` (default) or ``"euler"`` (semi-implicit).
+        coulomb: How the RK4 plant integrates the Coulomb friction (the URDF's and the
+            ``[disturbance.friction]`` term's): ``"stick-slip"`` (default: the velocity's
+            sign changes located within a step, a joint at rest held while the torque on it
+            is within the Coulomb level, so that RK4 keeps its fourth order) or ``"sign"``
+            (:math:`\\mathrm{sgn}\\,\\dot q` per stage, first order at a sign change, as
+            versions before 0.3). ``integrator = "rk4"`` only.
         saturate: Clip the applied torque to the effort limits (default ``True``).
         effort_limit: Effort limits [N·m] overriding the URDF's (per joint or one value);
             ``None`` keeps the URDF's (a URDF value <= 0 means no limit).
@@ -149,7 +165,7 @@ class PlantConfig:
 
     urdf: Path | None = None
     gravity: float | None = None
-    dt: float = 0.001
+    dt: float | None = None
     integrator: str = "rk4"
     saturate: bool = True
     effort_limit: np.ndarray | None = None
@@ -157,6 +173,8 @@ class PlantConfig:
     mujoco: MuJoCoConfig | None = None
     backend: str = "auto"
     joint_dynamics: bool = True
+    tolerance: float | None = None
+    coulomb: str = "stick-slip"
 
     def __post_init__(self):
         if self.urdf is not None:
@@ -165,8 +183,18 @@ class PlantConfig:
             _set(self, "urdf", Path(self.urdf))
         if self.gravity is not None:
             _set(self, "gravity", _float("gravity", self.gravity, nonneg=True))
-        _set(self, "dt", _float("dt", self.dt, positive=True))
+        if self.tolerance is not None:
+            _set(self, "tolerance", _float("tolerance", self.tolerance, positive=True))
+            if self.dt is not None:
+                raise ConfigError(
+                    "tolerance",
+                    f"and plant.dt = {self.dt!r} are both given: the tolerance chooses the "
+                    "step; expected one of them (remove plant.dt to choose by the error)",
+                )
+        else:  # (with a tolerance, dt stays None: the plant's step is chosen when built)
+            _set(self, "dt", _float("dt", 0.001 if self.dt is None else self.dt, positive=True))
         _set(self, "integrator", _choice("integrator", self.integrator, PINOCCHIO_INTEGRATORS))
+        _set(self, "coulomb", _choice("coulomb", self.coulomb, COULOMB_LAWS))
         _set(self, "saturate", _bool("saturate", self.saturate))
         if self.effort_limit is not None:
             _set(self, "effort_limit", _array("effort_limit", self.effort_limit, positive=True))
@@ -204,6 +232,20 @@ class PlantConfig:
                 "mujoco",
                 "applies only to engine = 'mujoco'; remove the table "
                 "or set plant.engine = 'mujoco'",
+            )
+        if self.tolerance is not None and self.engine != "pinocchio":
+            raise ConfigError(
+                "tolerance",
+                f"does not apply to engine = {self.engine!r} (its step is fixed: "
+                "plant.mujoco.timestep); expected engine = 'pinocchio', or remove it",
+            )
+        if self.coulomb != "stick-slip" and (
+            self.engine != "pinocchio" or self.integrator != "rk4"
+        ):
+            raise ConfigError(
+                "coulomb",
+                f"does not apply to engine = {self.engine!r}, integrator = "
+                f"{self.integrator!r} (only the Pinocchio RK4 plant has the choice); remove it",
             )
         if self.engine == "mujoco":
             if self.mujoco is None:

@@ -1,0 +1,242 @@
+"""The plant's step: Coulomb friction integrated as stick-slip, and the step chosen by its
+error (``[plant] tolerance``).
+
+- Order: with the velocity's sign changes located, the RK4 plant's error against an
+  independent integration (scipy's DOP853 at 1e-12 with the same stick-slip law and its own
+  events, ``tests/reference/rk4.py``) falls as h⁴ on a 3-joint arm with joint damping and
+  Coulomb friction whose joints reverse; the per-stage sgn falls as h.
+- Sticking: a disc braked by Coulomb friction stops at t* = I ω₀ / f and stays there (closed
+  form); an arm whose friction exceeds the torques keeps its joints exactly at rest, the
+  holding torque φ = −τ without gravity (closed form), and with gravity agrees with the
+  oracle's stuck joints.
+- The step chosen by ``tolerance``: the largest Ts/m within it (the next larger is not), a
+  run's error against a fine integration within it; the keys that do not apply.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hmpc_pin.exceptions import ConfigError
+from hmpc_pin.experiment.config import PlantConfig, load_config
+from hmpc_pin.model.robot import load_robot
+from hmpc_pin.sim.plants import RK4Plant, choose_step
+
+from .conftest import CONFIGS
+from .reference.rk4 import stick_slip_period
+from .test_joint_dynamics import I_ZZ, _planar3_with_dynamics, disc_urdf
+
+TS = 0.01
+
+
+def _arm(tmp_path, friction_scale: float = 1.0, gravity: float = 9.81):
+    """planar3 with joint damping (0.4, 0.5, 0.6) and Coulomb friction (0.7, 0.8, 0.9) ×
+    ``friction_scale`` [N·m]."""
+    robot = load_robot(_planar3_with_dynamics(tmp_path), gravity)
+    robot.joint_friction[:] = robot.joint_friction * friction_scale
+    return robot
+
+
+def _oracle_run(robot, q0, dq0, periods, torque):
+    """The oracle's states over ``periods`` and the torques held (from its own states)."""
+    q, v = np.array(q0, dtype=float), np.array(dq0, dtype=float)
+    states, taus, events = [(q, v)], [], 0
+    for k in range(periods):
+        tau = torque(q, k)
+        q, v, e = stick_slip_period(robot.model, q, v, tau, TS, robot.joint_friction,
+                                    robot.joint_damping)  # fmt: skip
+        states.append((q, v))
+        taus.append(tau)
+        events += e
+    return states, taus, events
+
+
+def _zero(t, q, dq):
+    return np.zeros_like(q)
+
+
+def _error(robot, states, taus, h, coulomb="stick-slip", disturbance=None):
+    """The largest state error max(|Δq|, Ts |Δq̇|) of the plant with step h, driven by the
+    oracle's torques from its initial state (a disturbance function: the period that calls
+    it per stage)."""
+    plant = RK4Plant(robot, disturbance, TS, h, coulomb=coulomb)
+    plant.reset(*states[0])
+    err = 0.0
+    for k, tau in enumerate(taus):
+        q, dq = plant.advance(tau)
+        err = max(err, np.abs(q - states[k + 1][0]).max(), TS * np.abs(dq - states[k + 1][1]).max())
+    return err, plant
+
+
+@pytest.mark.parametrize("disturbance", [None, _zero])
+def test_stick_slip_rk4_converges_at_fourth_order_where_the_sign_law_is_first(
+    tmp_path, disturbance
+):
+    robot = _arm(tmp_path)
+
+    def torque(q, k):
+        return np.array([5.0, 2.0, 1.0]) * np.sin(0.2 * k) + robot.gravity_torque(q)
+
+    states, taus, events = _oracle_run(robot, [0.3, -0.4, 0.2], [0.5, -0.2, 0.1], 40, torque)
+    assert events >= 2  # velocities reverse within periods
+    e1, plant = _error(robot, states, taus, TS / 2, disturbance=disturbance)
+    e2, _ = _error(robot, states, taus, TS / 4, disturbance=disturbance)
+    assert plant._kernel.events >= 2 and plant.fused is (disturbance is None)
+    # the errors stand far above the oracle's (rtol 1e-12 over 40 periods)
+    assert e2 > 1e-11
+    order = math.log2(e1 / e2)
+    # RK4 on the smooth field between located events: 4 (+ O(h) before the asymptote)
+    assert 3.0 < order < 5.0, (e1, e2, order)
+    s1, _ = _error(robot, states, taus, TS / 2, "sign")
+    s2, _ = _error(robot, states, taus, TS / 4, "sign")
+    assert 0.5 < math.log2(s1 / s2) < 1.5  # sgn per stage: first order at the switch
+    assert s2 > 1e4 * e2
+
+
+def test_a_braked_disc_stops_at_i_w0_over_f_and_stays(tmp_path):
+    """I ω̇ = −f until ω = 0 at t* = I ω₀/f = 0.055 s, then at rest (|τ| = 0 < f) at
+    q* = ω₀ t*/2: exact for RK4 (ω linear in t) up to rounding, with the stop inside a step."""
+    f, w0 = 0.02, 0.11
+    robot = load_robot(disc_urdf(tmp_path, 0.0, f), 9.81)
+    plant = RK4Plant(robot, None, TS, TS / 3)
+    plant.reset(np.zeros(1), np.array([w0]))
+    t_star = I_ZZ * w0 / f
+    for k in range(1, 21):
+        q, dq = plant.advance(np.zeros(1))
+        t = k * TS
+        if t < t_star:
+            assert dq[0] == pytest.approx(w0 - f / I_ZZ * t, abs=1e-12)
+        else:
+            assert dq[0] == 0.0  # stuck, not chattering about 0
+            assert q[0] == pytest.approx(0.5 * w0 * t_star, abs=1e-12)
+    # the sign law chatters about zero instead
+    sign = RK4Plant(robot, None, TS, TS / 3, coulomb="sign")
+    sign.reset(np.zeros(1), np.array([w0]))
+    for _ in range(20):
+        _, dq = sign.advance(np.zeros(1))
+    assert dq[0] != 0.0
+
+
+def test_joints_stick_while_the_torque_is_within_their_friction(tmp_path):
+    """Without gravity and at rest, a joint sticks iff |τ_i| <= F_i with the others stuck
+    (φ = −τ keeps M q̈ = τ + φ at 0): all within → nothing moves, bit for bit."""
+    robot = _arm(tmp_path, 2.0, gravity=0.0)  # F = 1.4, 1.6, 1.8
+    plant = RK4Plant(robot, None, TS, TS / 4)
+    q0 = np.array([0.3, -0.4, 0.2])
+    plant.reset(q0, np.zeros(3))
+    for _ in range(5):
+        q, dq = plant.advance(np.array([1.3, -1.5, 1.7]))
+    np.testing.assert_array_equal(q, q0)
+    np.testing.assert_array_equal(dq, np.zeros(3))
+    # joint 0 pushed past its friction slides, in the torque's direction
+    q, dq = plant.advance(np.array([1.5, 0.0, 0.0]))
+    assert dq[0] > 0.0 and q[0] > q0[0]
+
+
+def test_stuck_and_sliding_joints_agree_with_the_oracle(tmp_path):
+    """Friction ×3: two joints come to rest and stay stuck for most of the run; the states
+    agree with the oracle within the plant's own error estimate (the step against its
+    half, twice, as for a 4th-order method the error is 16/15 of that difference), and the
+    stuck joints are exactly at rest in both."""
+    robot = _arm(tmp_path, 3.0)
+
+    def torque(q, k):
+        return np.array([3.0, 2.0, 1.0]) * np.sin(0.15 * k) + robot.gravity_torque(q)
+
+    states, taus, _ = _oracle_run(robot, [0.3, -0.4, 0.2], [0.5, -0.2, 0.1], 60, torque)
+    stuck = sum(int((v == 0).sum()) for _, v in states)
+    assert stuck > 60  # joint-periods at rest
+    coarse = RK4Plant(robot, None, TS, TS / 2)
+    fine = RK4Plant(robot, None, TS, TS / 4)
+    coarse.reset(*states[0])
+    fine.reset(*states[0])
+    for k, tau in enumerate(taus):
+        q, dq = coarse.advance(tau)
+        qf, _ = fine.advance(tau)
+        q_want, dq_want = states[k + 1]
+        np.testing.assert_array_equal(dq == 0.0, dq_want == 0.0)
+        bound = 2 * np.abs(q - qf).max() + 1e-10  # (+ the oracle's own error)
+        assert np.abs(q - q_want).max() <= bound, k
+
+
+def test_the_tolerance_picks_the_largest_step_within_it(planar3):
+    robot = planar3
+    rng = np.random.default_rng(3)
+    samples = [(0.01 * k, rng.uniform(-1, 1, 3), rng.uniform(-2, 2, 3),
+                robot.gravity_torque(np.zeros(3)) + rng.uniform(-5, 5, 3))
+               for k in range(8)]  # fmt: skip
+
+    def error(h):  # E(h) = K max_k e_k, computed here from its definition
+        worst = 0.0
+        for t, q, dq, tau in samples:
+            a, b = RK4Plant(robot, None, TS, h), RK4Plant(robot, None, TS, h / 2)
+            a.reset(q, dq, t)
+            b.reset(q, dq, t)
+            (qa, va), (qb, vb) = a.advance(tau), b.advance(tau)
+            worst = max(worst, np.abs(qa - qb).max(), TS * np.abs(va - vb).max())
+        return 100 * worst
+
+    tol = 1e-7
+    h, err = choose_step(lambda h: RK4Plant(robot, None, TS, h), TS, samples, tol, periods=100)
+    m = round(TS / h)
+    assert m > 1 and err <= tol
+    assert error(h) == pytest.approx(err, rel=1e-12)
+    assert error(TS / (m - 1)) > tol  # the next larger step is not within it
+    with pytest.raises(ConfigError, match=r"plant\.tolerance"):
+        choose_step(lambda h: RK4Plant(robot, None, TS, h), TS, samples, 1e-300, 100, 4)
+
+
+def test_a_run_with_the_chosen_step_is_within_the_tolerance_of_a_fine_one():
+    from hmpc_pin.experiment.build import Experiment
+
+    config = load_config(CONFIGS / "paper_combined.toml")
+    config = replace(config, simulation=replace(config.simulation, duration=2.0))
+    pc = config.plant
+    tol = 1e-5
+    chosen = Experiment.from_config(replace(config, plant=replace(pc, dt=None, tolerance=tol)))
+    plant = chosen.make_plant()
+    assert plant.h > pc.dt  # coarser than the fixed 1 ms
+    fine = Experiment.from_config(replace(config, plant=replace(pc, dt=1e-4)))
+    err = np.abs(chosen.run().q - fine.run().q).max()
+    assert err <= tol
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"tolerance": 1e-6, "dt": 0.001}, "both given"),
+    ({"tolerance": 0.0}, "tolerance"),
+    ({"tolerance": 1e-6, "engine": "mujoco"}, "does not apply to engine = 'mujoco'"),
+    ({"coulomb": "sign", "integrator": "euler"}, "integrator = 'euler'"),
+    ({"coulomb": "smooth"}, "coulomb"),
+])  # fmt: skip
+def test_plant_keys_that_do_not_apply_are_errors(kw, match):
+    with pytest.raises(ConfigError, match=match) as info:
+        PlantConfig(**kw)
+    assert info.value.key.split(".")[-1] in ("tolerance", "coulomb")
+
+
+def test_a_friction_term_follows_the_same_law_fused_or_in_a_function(tmp_path):
+    """The paper's friction alone (fused) and summed with a function of the user's (then
+    evaluated as a function): the same stick-slip law, equal to rounding through reversals
+    and sticking."""
+    from hmpc_pin.sim.disturbances import CoulombViscousFriction
+
+    robot = _arm(tmp_path)
+    friction = CoulombViscousFriction([1.0, 0.8, 0.5], [3.0, 2.4, 1.8])
+    fused = RK4Plant(robot, friction, TS, TS / 4)
+    function = RK4Plant(robot, friction + _zero, TS, TS / 4)
+    assert fused.fused and not function.fused
+    for plant in (fused, function):
+        plant.reset(np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1]))
+    rests = 0
+    for k in range(60):
+        tau = np.array([5.0, 2.0, 1.0]) * np.sin(0.2 * k) + robot.gravity_torque(fused.q)
+        q, dq = fused.advance(tau)
+        q2, dq2 = function.advance(tau)
+        np.testing.assert_allclose(q2, q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dq2, dq, rtol=0, atol=1e-10)
+        rests += int((dq == 0).sum())
+    assert rests > 0 and fused._kernel.events >= 2

@@ -15,8 +15,10 @@ import pytest
 
 import hmpc_pin
 from hmpc_pin.compensation.base import step_compensation
+from hmpc_pin.compensation.gate import FeedbackGate
 from hmpc_pin.controllers.wrappers import CollisionReaction, MeasuredController, TimedController
 from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.sim.compiled_loop import _parts
 from hmpc_pin.sim.disturbances import CoulombViscousFriction, GaussianPulse
 from hmpc_pin.sim.plants import PULSE_CHUNK, EulerPlant, RK4Plant
 
@@ -451,11 +453,16 @@ def _short(ctrl=None, plant=None, ref=None, loop="compiled", **kw):
 #: Controllers without a compiled step: called as a whole through the Controller port.
 PYTHON_CONTROLLERS = {
     "computed torque": lambda r: hmpc_pin.ComputedTorque(r),
-    "compensation in Python": lambda r: hmpc_pin.HierarchicalMPC(
-        r, compensation=hmpc_pin.MomentumObserver(r, 0.01, 50.0)
-    ),
     "collision watch": lambda r: CollisionReaction(hmpc_pin.HierarchicalMPC(r), 5.0, "stop"),
     "timed": lambda r: TimedController(hmpc_pin.HierarchicalMPC(r)),
+}
+
+#: Compensations written in Python: the compiled step calls them through its Compensation
+#: port (the loop steps the compiled step itself).
+PYTHON_COMPENSATIONS = {
+    "momentum": lambda r: hmpc_pin.MomentumObserver(r, 0.01, 50.0),
+    "ism-bl": lambda r: hmpc_pin.IntegralSlidingMode(r.nq, 0.01, 200.0, 2.0),
+    "gated NDO": lambda r: FeedbackGate(hmpc_pin.DisturbanceObserver(r.nq, 0.01, 100.0)),
 }
 
 
@@ -478,6 +485,30 @@ def test_a_python_controller_runs_in_the_compiled_loop_as_per_step(name):
         assert len(pa[1].samples_ns) == len(pb[1].samples_ns) == len(rb.t)
     if name == "collision watch":
         assert pa[1].detected_at == pb[1].detected_at
+
+
+@pytest.mark.parametrize("name", list(PYTHON_COMPENSATIONS))
+@pytest.mark.parametrize("latency", [0.0, 0.013])
+def test_a_python_compensation_runs_in_the_compiled_step_as_per_step(name, latency):
+    """The compiled loop steps the compiled step, which calls the compensation through its
+    port: the same arrays as the per-step loop (with and without a declared latency)."""
+
+    def make():
+        robot = hmpc_pin.load_robot(CONFIGS.parent / "robots" / "planar3.urdf")
+        ctrl = hmpc_pin.HierarchicalMPC(
+            robot,
+            hmpc_pin.MPCSettings(latency=latency),
+            compensation=PYTHON_COMPENSATIONS[name](robot),
+        )
+        assert _parts(ctrl) is not None  # stepped as the compiled step
+        friction = CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8])
+        plant = RK4Plant(robot.copy(), friction, ctrl.Ts)
+        return robot, ctrl, hmpc_pin.SineReference(3), plant
+
+    (ra, ea, _), (rb, eb, _) = _both(make, 1.0, q0=np.ones(3))
+    assert rb.loop == "compiled" and ea is None and eb is None
+    assert np.abs(ra.d_hat).max() > 0.1  # the compensation was at work
+    _same(ra, rb, name)
 
 
 def test_the_euler_plant_runs_in_the_compiled_loop_as_per_step():

@@ -70,14 +70,6 @@ void HMPCCore::non_finite(const CRefRow& S) const {
   throw NonFinite("q, dq or the reference horizon", {q, dq}, t_now);
 }
 
-void HMPCCore::predict_stack(Eigen::Ref<RowMat> Sm) {
-  if (!Sm.topRows(2).allFinite()) non_finite(Sm);
-  Vec q = Sm.row(0).transpose(), dq = Sm.row(1).transpose();
-  latency.predict(q, dq);
-  Sm.row(0) = q.transpose();
-  Sm.row(1) = dq.transpose();
-}
-
 // After a step with latency: the torque as the plant applies it and v enter the history.
 void HMPCCore::record() {
   if (!latency.on) return;

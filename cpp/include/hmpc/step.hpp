@@ -67,8 +67,6 @@ class HMPCCore {
   // Whether the compensation can be advanced over the interval between the last two
   // measurements.
   bool observer_ready() const { return latency.on ? latency.ready(steps) : started; }
-  // The state rows of S predicted over the latency (NonFinite if they are not: unchanged).
-  void predict_stack(Eigen::Ref<RowMat> S);
 
   // The joint damping B [N·m·s/rad] and Coulomb friction F [N·m] to compensate (zeros:
   // none); Ts > 0 also applies their zero-order-hold terms (JointDynamics::zoh(), in
@@ -114,8 +112,8 @@ class HMPCCore {
   MapRow v;        // (1, n) commanded acceleration
   MapRow tau;      // (1, n) commanded torque
   MapRow dhat;     // (1, n) disturbance estimate
-  MapRow M_out;    // (n, n) M(q) of the last prepare
-  MapRow nle_out;  // (1, n) C q̇ + G of the last prepare
+  MapRow M_out;    // (n, n) the caller's model's M(q) (without compiled dynamics)
+  MapRow nle_out;  // (1, n) its C q̇ + G (+ B q̇ + F sgn q̇ once evaluate() added them)
   Vec applied, qv, dqv;
   const Mat* M = nullptr;    // M(q) of the last prepare (the dynamics' own, or none)
   const Vec* nle = nullptr;  // C q̇ + G of the last prepare

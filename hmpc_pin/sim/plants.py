@@ -341,6 +341,12 @@ class RK4Plant:
         """The current time ``t0 + k·Ts`` [s]."""
         return self.port.t
 
+    @property
+    def events(self) -> int:
+        """The Coulomb events located since the plant was built (velocity sign changes,
+        sticking, breakaway; ``coulomb = "stick-slip"``)."""
+        return self.port.events
+
     def __getstate__(self) -> dict:
         """Picklable: the compiled plant is rebuilt from the robot on unpickling, at the
         state it had."""

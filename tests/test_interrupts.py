@@ -151,13 +151,22 @@ def test_ctrl_c_during_run_keeps_the_data(tmp_path):
     children = _descendants(proc.pid)
     code, elapsed, _, stderr = _interrupt(proc, err, group=True, children=children)
     assert code == EXIT_INTERRUPTED, stderr
-    assert elapsed < 5.0
+    # the run's data is written on the way out (documented): writing it again here, on the
+    # same machine now, is the time that belongs to it (a loaded machine takes seconds for
+    # the tens of thousands of samples a compiled loop computes by then)
+    load = os.getloadavg()[0] / (os.cpu_count() or 1)
+    writing = _time_to_write(tmp_path / "o")
+    assert elapsed <= max(1.0, load) + 0.5 + writing, (
+        f"exit {elapsed:.2f} s after SIGINT (load {load:.1f}; writing its data: {writing:.2f} s)"
+    )
     assert "Traceback" not in stderr and len(stderr.strip().splitlines()) == 1, stderr
     assert re.match(r"interrupted at t=[\d.]+ s of 3600 s \(\d+ of 360001 samples kept\) in "
                     r"paper_combined; wrote o/paper_combined.npz, o/paper_combined.csv$",
                     stderr.strip()), stderr  # fmt: skip
     r = hmpc_pin.Result.load(tmp_path / "o" / "paper_combined.npz")
     assert not r.complete and r.message.startswith("interrupted at t=")
+    for again in (tmp_path / "o").glob("again.*"):  # (written by _time_to_write)
+        again.unlink()
     kept = int(re.search(r"\((\d+) of", stderr).group(1))
     assert len(r.t) == kept > 100
     assert np.isfinite(r.q).all() and np.isfinite(r.d_hat).all()

@@ -90,6 +90,7 @@ __all__ = [
     "TOLERANCE",
     "CasadiQPs",
     "CrocoddylRow",
+    "OtherLayout",
     "PeerCase",
     "QPProblem",
     "QPScenario",
@@ -388,7 +389,26 @@ class PeerCase:
         return self.blocks_us[name] / self.blocks_us["hmpc_pin"]
 
 
-def check_peer(problem: QPProblem, peer: CasadiQPs, name: str) -> tuple[float, float, float]:
+class OtherLayout:
+    """The package's QPs of ``problem`` in the other layout (``"joint"`` for a ``"block"``
+    problem and vice versa), with :class:`CasadiQPs`'s ``solve``/``solution``."""
+
+    def __init__(self, problem: QPProblem):
+        layout = "joint" if problem.layout == "block" else "block"
+        names = tuple(f"joint {i}" for i in range(problem.n))
+        s = MPCSettings()  # the solver settings of record_problem's QPs
+        self.qps = JointQPs(problem.mpc, problem.v_min, problem.v_max, names,
+                            eps_abs=s.eps_abs, max_iter=s.max_iter, layout=layout)  # fmt: skip
+        self.solve = self.qps.solve
+
+    def solution(self) -> np.ndarray:
+        """The last solution, shape (Nc, n) [rad/s²]."""
+        return self.qps.solution.copy()
+
+
+def check_peer(
+    problem: QPProblem, peer: CasadiQPs | OtherLayout, name: str
+) -> tuple[float, float, float]:
     """Solve the whole sequence with the package and ``peer``; the largest solution
     difference [rad/s²], torque difference [N·m] and the peer's KKT residual; raises
     ``AssertionError`` beyond :data:`TOLERANCE`."""
@@ -466,6 +486,11 @@ def qp_peers(scenarios=SCENARIOS, blocks: int = 5, steps_scale: float = 1.0) -> 
                     continue
                 variants[name] = peer.solve
             variants["CasADi call (identity Function)"] = _call_floor(problem)
+            if problem.layout == "block":  # the package's per-joint layout on the same QPs
+                other = OtherLayout(problem)
+                name = "hmpc_pin, per-joint layout"
+                diff[name], torque[name], residual[name] = check_peer(problem, other, name)
+                variants[name] = other.solve
             blocks_us = _alternate(variants, problem.G, blocks, warmup=min(5, sc.steps // 4))
         case = PeerCase(problem, blocks_us, diff, torque, residual, failed)
         log("    " + ", ".join(f"{k} {case.median_us(k):.0f} µs" for k in blocks_us))
@@ -554,11 +579,19 @@ def crocoddyl_table(rows: list[CrocoddylRow]) -> str:
         track = f"{croc / base:.1f}" if croc and base else "n/a"
         track_off = f"{croc / off:.2f}" if croc and off else "n/a"
         lines.append(
-            f"| {r.scenario} | {r.iterations} | {np.median(r.blocks_us['crocoddyl']):.0f} | "
-            f"{np.median(r.blocks_us['hmpc_pin']):.1f} | **{np.median(ratio):.0f}** "
-            f"({ratio.min():.0f}–{ratio.max():.0f}) | {track} | {track_off} |"
+            f"| {r.scenario} | {r.iterations} | {_us(np.median(r.blocks_us['crocoddyl']))} | "
+            f"{_us(np.median(r.blocks_us['hmpc_pin']))} | **{_ratio(np.median(ratio))}** "
+            f"({_ratio(ratio.min())}–{_ratio(ratio.max())}) | {track} | {track_off} |"
         )
     return "\n".join(lines)
+
+
+def _us(x: float) -> str:
+    return f"{x:.1f}" if x < 100 else f"{x:.0f}"
+
+
+def _ratio(x: float) -> str:
+    return f"{x:.2f}" if x < 10 else f"{x:.0f}"
 
 
 def qp_table(cases: list[PeerCase]) -> str:
@@ -575,7 +608,7 @@ def qp_table(cases: list[PeerCase]) -> str:
         head = (f"| {p.scenario.arm} | {p.scenario.label} | {p.layout} | "
                 f"{p.active:.0%} of steps |")  # fmt: skip
         base = c.median_us("hmpc_pin")
-        lines.append(f"{head} hmpc_pin (JointQPs) | {base:.1f} | {base:.1f} | 1 | | | "
+        lines.append(f"{head} hmpc_pin (JointQPs) | {_us(base)} | {_us(base)} | 1 | | | "
                      f"{c.residual['hmpc_pin']:.0e} |")  # fmt: skip
         for name in c.blocks_us:
             if name == "hmpc_pin":
@@ -584,8 +617,8 @@ def qp_table(cases: list[PeerCase]) -> str:
             check = (f"{c.diff[name]:.0e} | {c.torque[name]:.0e} | {c.residual[name]:.0e}"
                      if name in c.diff else "| |")  # fmt: skip
             lines.append(
-                f"{head} {name} | {c.median_us(name):.0f} | {base:.1f} | "
-                f"**{np.median(r):.0f}** ({r.min():.0f}–{r.max():.0f}) | {check} |"
+                f"{head} {name} | {_us(c.median_us(name))} | {_us(base)} | "
+                f"**{_ratio(np.median(r))}** ({_ratio(r.min())}–{_ratio(r.max())}) | {check} |"
             )
         for name, why in c.failed.items():
             lines.append(f"{head} {name} | failed: {why} | | | | | |")

@@ -214,16 +214,21 @@ def compare_table(rows: list[CompareRow], effort: bool, unit: float) -> str:
 
 
 def layout_table(layouts: list[LayoutTiming], unit: float) -> str:
-    """Table of the joint-QP layout timings [µs] (floor units in brackets)."""
+    """Table of the joint-QP layout timings [µs] with the ratio to the block QP (alternated
+    blocks, one process) and floor units in brackets."""
     names = list(layouts[0].median_us) if layouts else []
-    headers = ["arm", "n", "Nc", *(f"{k} [µs] (floor units)" for k in names),
+    headers = ["arm", "n", "Nc", *(f"{k} [µs] (ratio to block; floor units)" for k in names),
                "largest |Δv| vs block"]  # fmt: skip
     rows = [
         [
             r.arm,
             str(r.n),
             str(r.Nc),
-            *(f"{fmt_us(r.median_us[k])} ({per_unit(r.median_us[k], unit)})" for k in names),
+            *(
+                f"{fmt_us(r.median_us[k])} ({r.ratio.get(k, float('nan')):.2f}; "
+                f"{per_unit(r.median_us[k], unit)})"
+                for k in names
+            ),
             f"{max(r.max_diff.values()):.1e}",
         ]
         for r in layouts
@@ -292,7 +297,9 @@ def peers_section(part: PeersPart, settings: Settings) -> list[str]:
         "1e-12 (block) or 1e-11 (per joint), the loosest that meet the check "
         "(`benchmarks/peers.py`, `PLUGINS`). The last row of each case is a CasADi "
         "`Function` that returns its inputs, called as the solvers are: the price of a call "
-        "through CasADi's Python interface.",
+        "through CasADi's Python interface. Where the package solves the joints as one block "
+        'QP, its per-joint layout (`controller.qp_layout = "joint"`, with its exact '
+        "shortcuts) is timed on the same QPs too.",
         "",
     ]
     if part.cases:
@@ -327,7 +334,9 @@ def peers_section(part: PeersPart, settings: Settings) -> list[str]:
 AB_SPEEDUPS: dict[str, float] = {}
 
 
-def bench_ab(old: Path, settings: Settings, sweep_samples: int, quick: bool) -> list[str]:
+def bench_ab(
+    old: Path, settings: Settings, sweep_samples: int, quick: bool, source: str = ""
+) -> list[str]:
     """Old vs new in one process, alternating (``benchmarks/ab.py``): the report lines."""
     from benchmarks import ab
 
@@ -350,7 +359,9 @@ def bench_ab(old: Path, settings: Settings, sweep_samples: int, quick: bool) -> 
     return [
         "## Against the previous version (old / new in one process)",
         "",
-        f"The old package (version {version}, from `--old {old}`: a `git archive` of the older "
+        f"The old package (version {version}, from `--old OLD_DIR`"
+        + (f", source `{source}`" if source else "")
+        + ": a `git archive` of the older "
         "commit with its `hmpc_pin` folder renamed `hmpc_pin_old`, see `benchmarks/ab.py`) "
         "and this one, alternating "
         "in one process (`benchmarks/ab.py`): the 10 s run 9 rounds each, the steps 10 "
@@ -585,7 +596,9 @@ def report(
         'joint (`"joint"`); `BatchQP`, `proxqp.dense.BatchQP` with one QP per joint '
         "(bounds as Nc inequality rows: `init_qp_in_place` has no box option), n `update` "
         "calls and one `solve_in_parallel` with 1 or 2 OpenMP threads. Same solver settings, "
-        "warm-started; median per step of the solver calls alone; the last column is the "
+        "warm-started; median per step of the solver calls alone, the ways alternating in "
+        f"{layouts[0].blocks if layouts else 0} blocks over the whole sequence (ratio to "
+        "`block`: median over blocks of the per-block ratio); the last column is the "
         "largest difference of the solutions from the block QP's over the last 50 steps "
         "(solver tolerance). With two OpenMP threads on two cores a solve is fast only while "
         "the worker thread's core is free: its median depends on what else holds the "
@@ -678,7 +691,10 @@ def report(
         "Same arm, reference, disturbance, horizon (N = 10, Ts = 10 ms) and plant (1 ms RK4, "
         "plant clips τ to the URDF effort limits); each controller in one closed-loop run "
         "through `hmpc_pin.sim.simulate`, its `step` timed in the loop (first 10 steps left "
-        "out). Ratios are to the hierarchical MPC with its observer (`hmpc`); the last "
+        "out). The runs are made one after the other in this process, not alternated: their "
+        "step ratios carry the machine's phases (the section \"Peers\" times Crocoddyl's step "
+        "against the package's in alternating blocks). "
+        "Ratios are to the hierarchical MPC with its observer (`hmpc`); the last "
         "RMS ratio is to `hmpc, no NDO`, since neither comparison controller has a "
         "disturbance observer.",
         "",
@@ -725,6 +741,15 @@ def report(
         "- Controllers are built once per case; nothing in `hmpc_pin` is changed or tuned "
         "by the benchmark.",
         f"- Observer kinds accepted by this `hmpc_pin`: {', '.join(observer_kinds())}.",
+        "- Ratios measured in one process with the variants alternating block by block: "
+        "step / floor, long horizons, references, the A/B section, the joint-QP layouts "
+        '(ratio to `block`) and the peers. Not alternated: the "floor units" columns '
+        "(a time over the floor unit measured earlier in the same process), the closed-loop "
+        "simulation's rows (one after the other) and the comparison's closed-loop runs "
+        '(one after the other); absolute by definition: the targets "Absolute, on this '
+        'machine" and the memory sizes. The sections measured by other programs state their '
+        "own method; the figures they quote from an earlier version were measured in "
+        "another process.",
         "",
         "## Measured by other programs",
         "",

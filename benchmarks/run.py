@@ -129,6 +129,11 @@ def main(argv: list[str] | None = None) -> int:
         help="with --old: also time the README's sweep (this many samples, in this process, "
         "3 rounds), old and new",
     )
+    parser.add_argument(
+        "--old-source",
+        default="",
+        help="with --old: where the old version came from (e.g. its commit), for the report",
+    )
     args = parser.parse_args(argv)
     settings = QUICK if args.quick else Settings()
     command = "python benchmarks/run.py" + (" --quick" if args.quick else "")
@@ -199,9 +204,11 @@ def main(argv: list[str] | None = None) -> int:
     ab_lines: list[str] = []
     if args.old is not None:
         log("old vs new (benchmarks/ab.py)")
-        ab_lines = bench_ab(args.old, settings, args.ab_sweep_samples, args.quick)
-        command += f" --old {args.old}" + (
-            f" --ab-sweep-samples {args.ab_sweep_samples}" if args.ab_sweep_samples else ""
+        ab_lines = bench_ab(args.old, settings, args.ab_sweep_samples, args.quick, args.old_source)
+        command += (
+            " --old OLD_DIR"
+            + (f" --old-source {args.old_source}" if args.old_source else "")
+            + (f" --ab-sweep-samples {args.ab_sweep_samples}" if args.ab_sweep_samples else "")
         )
     total = time.perf_counter() - start
     with contextlib.suppress(OSError):  # the machine's load while it ran, for the reader

@@ -35,6 +35,11 @@ figure is the median over blocks of (peer / package) beside the medians of the a
 block medians. A CasADi ``Function`` that only returns its inputs, called the same way, is
 timed too: the cost of a call through CasADi's Python interface.
 
+**The whole step.** The package's step without observer, joint dynamics and state limits
+against :class:`CasadiStep`, the same step written in Python around CasADi's QP, on the
+states of the same closed loops; every torque checked (:func:`step_peers`) before the
+alternating blocks.
+
 **Crocoddyl** (``benchmarks/crocoddyl_mpc.py``): the controller's ``step`` and
 :class:`~benchmarks.crocoddyl_mpc.CrocoddylMPC`'s on the states of the hierarchical MPC's
 closed-loop run of the comparison scenario (``benchmarks/comparisons.py``), alternating
@@ -55,6 +60,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pinocchio as pin
@@ -73,8 +79,9 @@ from benchmarks.comparisons import (  # noqa: E402
     panda_scenario,
     planar3_scenario,
 )
-from hmpc_pin.controllers.hierarchical import MPCSettings  # noqa: E402
-from hmpc_pin.mpc.condensed import CondensedMPC, JointQPs  # noqa: E402
+from hmpc_pin.compensation.base import NoCompensation  # noqa: E402
+from hmpc_pin.controllers.hierarchical import HierarchicalMPC, MPCSettings  # noqa: E402
+from hmpc_pin.mpc.condensed import CondensedMPC, JointQPs, resolve_layout  # noqa: E402
 from hmpc_pin.tasks import sample_horizon  # noqa: E402
 
 try:
@@ -89,11 +96,13 @@ __all__ = [
     "SCENARIOS",
     "TOLERANCE",
     "CasadiQPs",
+    "CasadiStep",
     "CrocoddylRow",
     "OtherLayout",
     "PeerCase",
     "QPProblem",
     "QPScenario",
+    "StepCase",
     "box_qp_residual",
     "check_peer",
     "crocoddyl_rows",
@@ -103,6 +112,8 @@ __all__ = [
     "qp_peers",
     "qp_table",
     "record_problem",
+    "step_peers",
+    "step_table",
 ]
 
 #: Whether ``casadi`` is importable.
@@ -194,7 +205,7 @@ class QPProblem:
 
     Attributes:
         scenario: Its setting. mpc: The condensed matrices. v_min, v_max: Bounds (n,).
-        G: Gradients, shape (steps, n, Nc). q: The closed loop's positions (steps, n).
+        G: Gradients, shape (steps, n, Nc). q, dq: The closed loop's states (steps, n).
         M: The arm's mass matrix at each q, shape (steps, n, n) [kg·m²].
         qps: The package's QPs (:class:`JointQPs`, layout ``"auto"``).
         layout: The resolved layout. active: Share of the steps with a bound active.
@@ -206,6 +217,7 @@ class QPProblem:
     v_max: np.ndarray
     G: np.ndarray
     q: np.ndarray
+    dq: np.ndarray
     M: np.ndarray
     qps: JointQPs
     layout: str
@@ -274,7 +286,7 @@ def record_problem(sc: QPScenario, arms: dict[str, Arm] | None = None) -> QPProb
     offsets = sc.Ts * np.arange(1, sc.N + 1)
     model = arm.robot.model
     data = model.createData()
-    G, Q, M = [], [], []
+    G, Q, DQ, M = [], [], [], []
     q, dq = ref.sample(0.0)
     active = 0
     for k in range(sc.steps):
@@ -291,20 +303,22 @@ def record_problem(sc: QPScenario, arms: dict[str, Arm] | None = None) -> QPProb
         active += bool(at_bound.any())
         G.append(g.copy())
         Q.append(q.copy())
+        DQ.append(dq.copy())
         M.append(pin.crba(model, data, q).copy())
         q, dq = q + sc.Ts * dq + 0.5 * sc.Ts**2 * v, dq + sc.Ts * v
-    return QPProblem(sc, mpc, v_min, v_max, np.array(G), np.array(Q), np.array(M), qps,
-                     qps.layout, active / sc.steps)  # fmt: skip
+    return QPProblem(sc, mpc, v_min, v_max, np.array(G), np.array(Q), np.array(DQ),
+                     np.array(M), qps, qps.layout, active / sc.steps)  # fmt: skip
 
 
 class CasadiQPs:
     """The joint QPs through ``casadi.conic`` with one plugin, in the package's layout.
 
     Args:
-        problem: The QPs (their H, bounds, layout). plugin: A key of :data:`PLUGINS`.
+        problem: The QPs (their ``n``, ``mpc``, ``v_min``, ``v_max``, ``layout``).
+        plugin: A key of :data:`PLUGINS`.
     """
 
-    def __init__(self, problem: QPProblem, plugin: str):
+    def __init__(self, problem: QPProblem | SimpleNamespace, plugin: str):
         n, Nc = problem.n, problem.mpc.Nc
         self.n, self.Nc, self.block = n, Nc, problem.layout == "block"
         H = casadi.DM(problem.mpc.H)
@@ -498,6 +512,122 @@ def qp_peers(scenarios=SCENARIOS, blocks: int = 5, steps_scale: float = 1.0) -> 
     return cases
 
 
+class CasadiStep:
+    """The hierarchical MPC's step without observer and joint dynamics, built around a CasADi
+    QP: the reference over the horizon (``sample_horizon``), the gradients
+    :math:`g = F[x_0; \bar r]` (:class:`CondensedMPC`), the joint QPs through
+    :class:`CasadiQPs`, Pinocchio's ``crba`` and ``nonLinearEffects`` and Eq (4),
+    :math:`\tau = M(q)v_0 + C(q,\\dot q)\\dot q + G(q)` [N·m], all called from Python.
+
+    Args:
+        robot: The arm. settings: Ts, N, Nc, weights, bounds, layout. plugin: A CasADi plugin.
+    """
+
+    def __init__(self, robot: hmpc_pin.Robot, settings: MPCSettings, plugin: str):
+        n, s = robot.nq, settings
+        self.mpc = CondensedMPC(s.Ts, s.N, s.Nc, s.Q, s.R, s.P)
+        v_min, v_max = s.bounds(n)
+        layout = resolve_layout(s.qp_layout, n, s.Nc)
+        qps = SimpleNamespace(n=n, mpc=self.mpc, v_min=v_min, v_max=v_max, layout=layout)
+        self.qp = CasadiQPs(qps, plugin)
+        self.model = robot.model
+        self.data = self.model.createData()
+        self.offsets = s.Ts * np.arange(1, s.N + 1)
+        self.stack = np.empty((2 * s.N, n))
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> np.ndarray:
+        """Torque [N·m], shape (n,), for the state (q, q̇) at time ``t`` [s]."""
+        q_ref, dq_ref = sample_horizon(reference, t + self.offsets)
+        self.stack[0::2], self.stack[1::2] = q_ref, dq_ref
+        self.qp.solve(self.mpc.gradient(np.vstack([q, dq]), self.stack))
+        v = self.qp.solution()[0]
+        M = pin.crba(self.model, self.data, q)
+        return M @ v + pin.nonLinearEffects(self.model, self.data, q, dq)
+
+
+@dataclass
+class StepCase:
+    """One arm's whole-step comparison.
+
+    Attributes:
+        scenario: Its setting (states: the scenario's kicked closed loop).
+        blocks_us: Variant → per-block median steps [µs] (``"hmpc_pin"`` the package's).
+        dtau: Peer → max |τ_peer − τ| [N·m]. bound: The largest allowed [N·m].
+    """
+
+    scenario: QPScenario
+    blocks_us: dict[str, np.ndarray]
+    dtau: dict[str, float]
+    bound: float
+
+
+def step_peers(
+    scenarios=SCENARIOS[:2], blocks: int = 5, steps_scale: float = 1.0
+) -> list[StepCase]:
+    """The package's step (no observer, no joint dynamics, no state limits) against
+    :class:`CasadiStep` with every plugin, on the states of each scenario's kicked closed
+    loop; the torques checked at every state (|Δτ| ≤ ``TOLERANCE``·‖M‖∞ + 1e-9 N·m, the QPs'
+    tolerance through the mass matrix) before the alternating blocks."""
+    if casadi is None:
+        raise ImportError(f"the CasADi comparison {EXTRA_MESSAGE}")
+    arms: dict[str, Arm] = {}
+    out = []
+    for sc in scenarios:
+        if steps_scale != 1.0:
+            sc = QPScenario(sc.arm, sc.label, sc.Ts, sc.N, sc.Nc,
+                            max(20, int(sc.steps * steps_scale)), sc.kick_every)  # fmt: skip
+        problem = record_problem(sc, arms)
+        arm = arms[sc.arm]
+        ref, n = arm.reference(), arm.n
+        settings = MPCSettings(Ts=sc.Ts, N=sc.N, Nc=sc.Nc, joint_dynamics=False)
+        hmpc = HierarchicalMPC(arm.robot, settings, NoCompensation(n), limits=None)
+        states = [(k * sc.Ts, problem.q[k], problem.dq[k]) for k in range(len(problem.q))]
+        hmpc.reset(states[0][1], states[0][2])
+        bound = TOLERANCE * float(np.abs(problem.M).sum(axis=2).max()) + 1e-9
+        variants: dict[str, Callable] = {"hmpc_pin": lambda s, c=hmpc, r=ref: c.step(*s, r)}
+        dtau = {}
+        log(f"  step, {sc.arm}, {sc.label}: hmpc_pin against CasADi-built steps")
+        with _quiet():
+            for plugin in PLUGINS:
+                peer = CasadiStep(arm.robot, settings, plugin)
+                dtau[plugin] = max(
+                    float(np.max(np.abs(peer.step(*st, ref) - hmpc.step(*st, ref))))
+                    for st in states
+                )
+                if not dtau[plugin] <= bound:
+                    raise AssertionError(
+                        f"{sc.arm}, {sc.label}: the step built on {plugin} gives torques up to "
+                        f"{dtau[plugin]:.2e} N·m from the package's, more than {bound:.1e}"
+                    )
+                variants[plugin] = lambda s, c=peer, r=ref: c.step(*s, r)
+            blocks_us = _alternate(variants, states, blocks, warmup=min(5, len(states) // 4))
+        log("    " + ", ".join(f"{k} {np.median(v):.0f} µs" for k, v in blocks_us.items()))
+        out.append(StepCase(sc, blocks_us, dtau, bound))
+    return out
+
+
+def step_table(cases: list[StepCase]) -> str:
+    """The whole-step table (Markdown)."""
+    lines = [
+        "| arm | setting | step | median [µs] | hmpc_pin step [µs] | **step / hmpc_pin** "
+        "(range) | max \\|Δτ\\| [N·m] (allowed) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for c in cases:
+        base = np.median(c.blocks_us["hmpc_pin"])
+        for name, b in c.blocks_us.items():
+            if name == "hmpc_pin":
+                continue
+            r = b / c.blocks_us["hmpc_pin"]
+            lines.append(
+                f"| {c.scenario.arm} | {c.scenario.label} | Python + Pinocchio + CasADi "
+                f"{name} | {_us(np.median(b))} | {_us(base)} | **{_ratio(np.median(r))}** "
+                f"({_ratio(r.min())}–{_ratio(r.max())}) | {c.dtau[name]:.0e} "
+                f"({c.bound:.0e}) |"
+            )
+    return "\n".join(lines)
+
+
 def crocoddyl_steps(scenario, iterations: int, blocks: int, duration: float):
     """The step of the hierarchical MPC and of Crocoddyl's NMPC on the states of the
     former's closed-loop run of ``scenario`` (``benchmarks.comparisons.Scenario``),
@@ -643,6 +773,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"benchmarks/peers.py: {exc}", file=sys.stderr)
         return 1
     print(qp_table(cases))
+    try:
+        steps = step_peers(blocks=blocks, steps_scale=0.25 if args.quick else 1.0)
+    except AssertionError as exc:
+        print(f"benchmarks/peers.py: {exc}", file=sys.stderr)
+        return 1
+    print()
+    print(step_table(steps))
     if not crocoddyl_mpc.AVAILABLE:
         print(f"\nThe Crocoddyl comparison {EXTRA_MESSAGE}", file=sys.stderr)
         return 0

@@ -25,8 +25,9 @@ Measured:
    (``benchmarks/crocoddyl_mpc.py``, skipped with a message if crocoddyl is missing):
    step time, tracking RMS after 1 s, torque limits, and ratios to the hierarchical MPC.
 6. Peers (``benchmarks/peers.py``): the joint QPs against CasADi's qpOASES, OSQP, ProxQP
-   and DAQP on the identical problem (solutions checked to 1e-7 rad/s²), and the step
-   against Crocoddyl's Box-FDDP NMPC, alternating in one process (CasADi and Crocoddyl:
+   and DAQP on the identical problem (solutions checked to 1e-7 rad/s²), the step against
+   the same step built on CasADi's QP (torques checked), and the step against Crocoddyl's
+   Box-FDDP NMPC, alternating in one process (CasADi and Crocoddyl:
    the ``bench`` extra; skipped with a message without them).
 
 Sections measured by other programs are copied from ``benchmarks/recorded.md``.
@@ -191,6 +192,9 @@ def main(argv: list[str] | None = None) -> int:
     if peers.AVAILABLE:
         try:
             part.cases = peers.qp_peers(
+                blocks=settings.peer_blocks, steps_scale=settings.peer_scale
+            )
+            part.steps = peers.step_peers(
                 blocks=settings.peer_blocks, steps_scale=settings.peer_scale
             )
         except AssertionError as exc:  # a peer solved another problem: no report

@@ -141,3 +141,16 @@ def test_casadi_peers_solve_the_package_qps():
             assert diff <= peers.TOLERANCE and residual < 1e-6, (sc, plugin, diff, residual)
             # |M Δv₀|∞ ≤ ‖M‖∞ |Δv₀|∞: the torque column is the solution difference through M
             assert torque <= diff * np.abs(problem.M).sum(axis=2).max() * (1 + 1e-9)
+
+
+def test_casadi_built_step_gives_the_package_step_torques():
+    """benchmarks/peers.py's CasadiStep (Python, Pinocchio and a CasADi QP) is the package's
+    step without observer: the same torques along a kicked closed loop, to the QPs'
+    tolerance through the mass matrix."""
+    peers = pytest.importorskip("benchmarks.peers")
+    if not peers.AVAILABLE:
+        pytest.skip("casadi is not installed (the bench extra)")
+    sc = peers.QPScenario("panda", "paper", 0.01, 10, 1, 20, 10)
+    (case,) = peers.step_peers(scenarios=(sc,), blocks=1)
+    assert set(case.dtau) == set(peers.PLUGINS)
+    assert 0 < case.bound < 1e-5 and all(d <= case.bound for d in case.dtau.values())

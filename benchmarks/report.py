@@ -338,7 +338,7 @@ def peers_section(part: PeersPart, settings: Settings) -> list[str]:
     if part.crocoddyl:
         lines += [peers.crocoddyl_table(part.crocoddyl), ""]
     else:
-        lines += ["Crocoddyl is not installed: skipped.", ""]
+        lines += [f"The Crocoddyl comparison {peers.EXTRA_MESSAGE}: skipped.", ""]
     return lines
 
 
@@ -732,7 +732,7 @@ def report(
         "",
     ]
     if not crocoddyl_mpc.AVAILABLE:
-        lines += ["Crocoddyl is not installed: its comparison was skipped.", ""]
+        lines += [f"The Crocoddyl comparison {peers.EXTRA_MESSAGE}: skipped.", ""]
     for scenario, duration, rows in compares:
         lines += [
             f"### {scenario.name} ({duration:g} s)",

@@ -186,6 +186,10 @@ class Settings:
         compare_duration: Simulated time of each comparison run on planar3 [s].
         compare_panda_duration: The same on Panda [s] (0 skips Panda).
         crocoddyl_iterations: Crocoddyl's (Box-)FDDP iteration budget per step.
+        peer_blocks: Alternating blocks of the peers' comparison (``benchmarks/peers.py``).
+        peer_scale: Its sequences' length, as a fraction of the full ones.
+        peer_duration: Simulated time of the closed loop whose states the Crocoddyl
+            step comparison replays [s].
     """
 
     warmup: int = 200
@@ -201,6 +205,9 @@ class Settings:
     ratio_blocks: int = 6
     ratio_steps: int = 600
     long_steps: int = 300
+    peer_blocks: int = 5
+    peer_scale: float = 1.0
+    peer_duration: float = 2.0
 
 
 QUICK = Settings(
@@ -216,4 +223,7 @@ QUICK = Settings(
     ratio_blocks=2,
     ratio_steps=100,
     long_steps=40,
+    peer_blocks=2,
+    peer_scale=0.25,
+    peer_duration=0.5,
 )

@@ -189,5 +189,8 @@ def bench_compare(scenario: Scenario, duration: float, settings: Settings) -> li
             )
         )
     else:
-        log("  crocoddyl is not installed (pip install crocoddyl): its comparison is skipped")
+        log(
+            '  crocoddyl is not installed (the extra "bench": pip install -e ".[bench]"): its '
+            "comparison is skipped"
+        )
     return rows

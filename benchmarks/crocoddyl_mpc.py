@@ -34,8 +34,8 @@ PyPI). The :math:`e_0` term is constant, as in :mod:`hmpc_pin.mpc.condensed`.
 - One thread (``ShootingProblem.nthreads = 1``), like the other controllers.
 
 There is no disturbance observer: :attr:`CrocoddylMPC.disturbance_estimate` stays zero.
-Crocoddyl is an optional dependency (``pip install crocoddyl``); :data:`AVAILABLE` says
-whether it could be imported.
+Crocoddyl is an optional dependency (the extra ``bench``: ``pip install -e ".[bench]"``);
+:data:`AVAILABLE` says whether it could be imported.
 """
 
 from __future__ import annotations
@@ -92,7 +92,9 @@ class CrocoddylMPC:
         box: bool = True,
     ):
         if crocoddyl is None:
-            raise ImportError("crocoddyl is not installed; pip install crocoddyl")
+            raise ImportError(
+                'crocoddyl is not installed; it is in the extra "bench": pip install -e ".[bench]"'
+            )
         if iterations < 1:
             raise ValueError(f"iterations={iterations}; expected >= 1")
         self.robot = robot

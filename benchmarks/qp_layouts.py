@@ -21,7 +21,7 @@ in a run.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from proxsuite import proxqp
@@ -49,8 +49,10 @@ _SETTINGS = (
 
 @dataclass
 class LayoutTiming:
-    """Median time per step [µs] of each way, and the largest difference of its
-    solutions from the block QP's over the sequence."""
+    """Median time per step [µs] of each way (median over blocks of the block medians),
+    its ratio to the block QP's (median over blocks of the per-block ratio; the ways
+    alternate block by block), and the largest difference of its solutions from the block
+    QP's over the sequence."""
 
     arm: str
     n: int
@@ -58,6 +60,8 @@ class LayoutTiming:
     steps: int
     median_us: dict[str, float]
     max_diff: dict[str, float]
+    ratio: dict[str, float] = field(default_factory=dict)
+    blocks: int = 1
 
 
 def record_gradients(ctrl: hmpc_pin.HierarchicalMPC, t, q, dq, reference) -> np.ndarray:
@@ -88,9 +92,10 @@ def _batch(mpc, v_min, v_max, eps_abs, max_iter):
 
 
 def time_layouts(
-    arm: str, ctrl: hmpc_pin.HierarchicalMPC, grads: np.ndarray, warmup: int
+    arm: str, ctrl: hmpc_pin.HierarchicalMPC, grads: np.ndarray, warmup: int, blocks: int = 3
 ) -> LayoutTiming:
-    """Time the three ways on ``grads`` (steps, n, Nc); the first ``warmup`` untimed."""
+    """Time the three ways on ``grads`` (steps, n, Nc), alternating ``blocks`` times over
+    the whole sequence; the first ``warmup`` calls of each block untimed."""
     cfg = ctrl.settings
     n, Nc = ctrl.n, ctrl.mpc.Nc
     v_min, v_max = cfg.bounds(n)
@@ -128,15 +133,19 @@ def time_layouts(
         "BatchQP, 1 thread": lambda G: _batch_step(batch, batch_qps, G, 1),
         "BatchQP, 2 threads": lambda G: _batch_step(batch, batch_qps, G, 2),
     }
-    median = {}
-    for name, fn in timed.items():
-        samples = []
-        for k, G in enumerate(grads):
-            start = time.perf_counter_ns()
-            fn(G)
-            if k >= warmup:
-                samples.append(time.perf_counter_ns() - start)
-        median[name] = float(np.median(samples)) / 1e3
+    per_block: dict[str, list[float]] = {name: [] for name in timed}
+    for _ in range(blocks):
+        for name, fn in timed.items():
+            samples = []
+            for k, G in enumerate(grads):
+                start = time.perf_counter_ns()
+                fn(G)
+                if k >= warmup:
+                    samples.append(time.perf_counter_ns() - start)
+            per_block[name].append(float(np.median(samples)) / 1e3)
+    base = np.array(per_block["block"])
+    median = {name: float(np.median(v)) for name, v in per_block.items()}
+    ratio = {name: float(np.median(np.array(v) / base)) for name, v in per_block.items()}
     diff = dict.fromkeys(ways, 0.0)
     for G in grads[-50:]:
         ref = ways["block"](G)
@@ -144,7 +153,7 @@ def time_layouts(
             if name != "block":
                 diff[name] = max(diff[name], float(np.abs(ways[name](G) - ref).max()))
     del diff["block"]
-    return LayoutTiming(arm, n, Nc, len(grads) - warmup, median, diff)
+    return LayoutTiming(arm, n, Nc, len(grads) - warmup, median, diff, ratio, blocks)
 
 
 def _batch_step(batch, qps, G, threads):

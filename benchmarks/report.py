@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks import crocoddyl_mpc  # noqa: E402
+from benchmarks import crocoddyl_mpc, peers  # noqa: E402
 from benchmarks._fixtures import (  # noqa: E402
     AMPLITUDE,
     FREQUENCY,
@@ -214,16 +214,21 @@ def compare_table(rows: list[CompareRow], effort: bool, unit: float) -> str:
 
 
 def layout_table(layouts: list[LayoutTiming], unit: float) -> str:
-    """Table of the joint-QP layout timings [µs] (floor units in brackets)."""
+    """Table of the joint-QP layout timings [µs] with the ratio to the block QP (alternated
+    blocks, one process) and floor units in brackets."""
     names = list(layouts[0].median_us) if layouts else []
-    headers = ["arm", "n", "Nc", *(f"{k} [µs] (floor units)" for k in names),
+    headers = ["arm", "n", "Nc", *(f"{k} [µs] (ratio to block; floor units)" for k in names),
                "largest |Δv| vs block"]  # fmt: skip
     rows = [
         [
             r.arm,
             str(r.n),
             str(r.Nc),
-            *(f"{fmt_us(r.median_us[k])} ({per_unit(r.median_us[k], unit)})" for k in names),
+            *(
+                f"{fmt_us(r.median_us[k])} ({r.ratio.get(k, float('nan')):.2f}; "
+                f"{per_unit(r.median_us[k], unit)})"
+                for k in names
+            ),
             f"{max(r.max_diff.values()):.1e}",
         ]
         for r in layouts
@@ -242,11 +247,108 @@ class Round2:
     ab: list[str] = field(default_factory=list)
 
 
+@dataclass
+class PeersPart:
+    """The peers' measurements (``benchmarks/peers.py``): the CasADi QP cases and the
+    Crocoddyl rows (empty when skipped), and why a part was skipped."""
+
+    cases: list = field(default_factory=list)
+    steps: list = field(default_factory=list)
+    crocoddyl: list = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+
+
+#: The sections measured by other programs, copied into the report (each names its command
+#: and source; ``benchmarks/run.py`` does not rerun them).
+RECORDED = Path(__file__).resolve().parent / "recorded.md"
+
+
+def peers_section(part: PeersPart, settings: Settings) -> list[str]:
+    """The "Peers" section: CasADi's QP solvers on the identical joint QPs and Crocoddyl's
+    Box-FDDP NMPC, each as a ratio measured in one process beside its absolute time."""
+    lines = [
+        "## Peers",
+        "",
+        "Ratios measured in one process, alternating blocks, median over blocks of the "
+        "per-block ratio of medians, beside the absolute medians. Rerun this section alone "
+        "with `python benchmarks/peers.py` (CasADi and Crocoddyl: the `bench` extra, "
+        '`pip install -e ".[bench]"`; a missing one is skipped with a message).',
+        "",
+        "### QP solvers through CasADi, on the identical joint QPs",
+        "",
+        "The per-joint box QP of Eq (26) built from the package's own condensed matrices "
+        "(`CondensedMPC`: the scaled H, each joint's gradient, |v| ≤ 100 rad/s²), solved by "
+        "the package (`JointQPs`, the compiled QPs of the step; no state limits) and by "
+        "`casadi.conic` with each plugin, in the package's layout (one block-diagonal QP up "
+        "to n·Nc = 140 variables, one QP per joint above), warm-started from the previous "
+        "solution where the plugin takes one (OSQP, ProxQP; CasADi re-initialises qpOASES at "
+        "every call, its DAQP plugin documents no warm start). Gradients along a closed loop "
+        "of the feedback-linearised arm (q̈ = v) tracking the benchmark's sine, kicked "
+        f"±{peers.KICK:g} rad off the reference every 20 steps (so that bounds are active; "
+        f"the share of steps is in the table); {settings.peer_blocks} alternating blocks over "
+        "the sequence (sequence lengths: `SCENARIOS` in `benchmarks/peers.py`"
+        + (f", scaled by {settings.peer_scale:g}" if settings.peer_scale != 1.0 else "")
+        + "). Before timing, every peer solution along the whole sequence is checked: "
+        f"max |U_peer − U| ≤ {peers.TOLERANCE:g} rad/s² or the program stops; the table "
+        "gives that distance, the torque it makes through the arm's M(q), and each "
+        "solution's box-QP optimality residual ‖u − Π(u − (Hu + g))‖∞ (0 exactly at the "
+        "minimiser; H is scaled to a unit mean diagonal). Tolerances: ProxSuite in the "
+        "package eps_abs = 1e-9; qpOASES and DAQP their defaults (active set); OSQP "
+        "eps = 1e-10, polished with 10 refinement steps; ProxQP through CasADi eps_abs = "
+        "1e-12 (block) or 1e-11 (per joint), the loosest that meet the check "
+        "(`benchmarks/peers.py`, `PLUGINS`). The last row of each case is a CasADi "
+        "`Function` that returns its inputs, called as the solvers are: the price of a call "
+        "through CasADi's Python interface. Where the package solves the joints as one block "
+        'QP, its per-joint layout (`controller.qp_layout = "joint"`, with its exact '
+        "shortcuts) is timed on the same QPs too.",
+        "",
+    ]
+    if part.cases:
+        lines += [peers.qp_table(part.cases), ""]
+    lines += [f"{why}" for why in part.skipped] + ([""] if part.skipped else [])
+    if part.steps:
+        lines += [
+            "### The whole step against the same step built on CasADi",
+            "",
+            "The package's `HierarchicalMPC.step` (no observer, no joint dynamics, no state "
+            "limits: `NoCompensation`, `joint_dynamics = False`, `limits = None`) against "
+            "the same step written in Python around CasADi's QP (`CasadiStep` in "
+            "`benchmarks/peers.py`: the reference over the horizon, the gradients from "
+            "`CondensedMPC`, the QPs above through `casadi.conic`, Pinocchio's `crba` and "
+            "`nonLinearEffects`, τ = M v₀ + C q̇ + G), on the states of the same kicked "
+            "closed loops; every torque checked before timing (|Δτ| at most the QP "
+            "tolerance through M, ‖M‖∞·1e-7 + 1e-9 N·m, the figure in brackets).",
+            "",
+            peers.step_table(part.steps),
+            "",
+        ]
+    lines += [
+        "### Crocoddyl's Box-FDDP NMPC",
+        "",
+        "The step of `HierarchicalMPC` (the comparison scenario's config, with its NDO) and "
+        "of `CrocoddylMPC` (`benchmarks/crocoddyl_mpc.py`, described in the comparison "
+        "section above) on the states of the hierarchical MPC's closed-loop run of the "
+        f"scenario ({settings.peer_duration:g} s), alternating blocks "
+        f"({settings.peer_blocks}), each controller reset and warmed up (10 steps) at the "
+        "start of its block. Tracking: the worst joint's RMS error after 1 s of the "
+        "comparison's closed-loop runs above (same process), Crocoddyl's over the "
+        "hierarchical MPC's with and without its observer.",
+        "",
+    ]
+    if part.crocoddyl:
+        lines += [peers.crocoddyl_table(part.crocoddyl), ""]
+    else:
+        lines += [f"The Crocoddyl comparison {peers.EXTRA_MESSAGE}: skipped.", ""]
+    return lines
+
+
 #: Speed-ups measured by :func:`bench_ab` (for the targets table): "run", "sweep".
 AB_SPEEDUPS: dict[str, float] = {}
 
 
-def bench_ab(old: Path, settings: Settings, sweep_samples: int, quick: bool) -> list[str]:
+def bench_ab(
+    old: Path, settings: Settings, sweep_samples: int, quick: bool, source: str = ""
+) -> list[str]:
     """Old vs new in one process, alternating (``benchmarks/ab.py``): the report lines."""
     from benchmarks import ab
 
@@ -269,7 +371,9 @@ def bench_ab(old: Path, settings: Settings, sweep_samples: int, quick: bool) -> 
     return [
         "## Against the previous version (old / new in one process)",
         "",
-        f"The old package (version {version}, from `--old {old}`: a `git archive` of the older "
+        f"The old package (version {version}, from `--old OLD_DIR`"
+        + (f", source `{source}`" if source else "")
+        + ": a `git archive` of the older "
         "commit with its `hmpc_pin` folder renamed `hmpc_pin_old`, see `benchmarks/ab.py`) "
         "and this one, alternating "
         "in one process (`benchmarks/ab.py`): the 10 s run 9 rounds each, the steps 10 "
@@ -329,8 +433,10 @@ def round2_targets(steps: list[StepResult], sim: SimResult, r2: Round2) -> str:
     long = r2.long.ratio("N = Nc = 100, auto")
     rows.append(["Panda, Ts = 1 ms, N = Nc = 100 (auto layout) / N = 100, Nc = 1", "≤ 6",
                  f"{long:.2f}", verdict(long <= 6.0)])  # fmt: skip
-    bench = r2.long.blocks_us["N = Nc = 100, auto"] / r2.long.blocks_us[
-        "benchmark step (Ts = 10 ms, N = 10, Nc = 1)"]
+    bench = (
+        r2.long.blocks_us["N = Nc = 100, auto"]
+        / r2.long.blocks_us["benchmark step (Ts = 10 ms, N = 10, Nc = 1)"]
+    )
     rows.append(["the same / the benchmark's Panda step (Ts = 10 ms, N = 10, Nc = 1)", "≤ 6",
                  f"{np.median(bench):.2f}", verdict(np.median(bench) <= 6.0)])  # fmt: skip
     for arm, a in r2.refs.items():
@@ -364,6 +470,7 @@ def report(
     spatial_kind: str,
     total: float,
     r2: Round2,
+    peers_part: PeersPart | None = None,
 ) -> str:
     """The Markdown report."""
     unit = r2.unit
@@ -380,7 +487,7 @@ def report(
         "Rerun, from the repository root in the project's environment:",
         "",
         "```bash",
-        "pip install crocoddyl        # optional: the Crocoddyl comparison is skipped without it",
+        'pip install -e ".[bench]"    # optional: CasADi and Crocoddyl, for the peers',
         command,
         "```",
         "",
@@ -446,7 +553,7 @@ def report(
         "",
         "## Long horizons (Panda, Ts = 1 ms, N = Nc = 100)",
         "",
-        "The QP layout is chosen by size (`controller.qp_layout = \"auto\"`, the default: "
+        'The QP layout is chosen by size (`controller.qp_layout = "auto"`, the default: '
         "one block-diagonal QP up to n·Nc = 140 variables, one QP per joint above; "
         "`hmpc_pin.mpc.condensed.resolve_layout`). Panda at Ts = 1 ms with N = Nc = 100 "
         f"({r2.long.note}), with the block QP forced, against N = 100 with Nc = 1 and against "
@@ -462,12 +569,12 @@ def report(
         "On these states every joint's unconstrained minimiser −H⁻¹g lies inside its box, so "
         "the per-joint layout takes it without a ProxSuite call (exact for a convex QP). "
         "With the bounds active ProxSuite solves each 100-variable QP, at milliseconds per "
-        "step: `python benchmarks/long_horizon_active.py` (section \"Long horizons with "
-        "active constraints\" below).",
+        'step: `python benchmarks/long_horizon_active.py` (section "Long horizons with '
+        'active constraints" below).',
         "",
         "A run whose median step exceeds Ts/2 says so: `simulate` attaches the step times to "
         "the result (`result.step_time`, not saved: a run's files stay bit-identical) and a "
-        "warning to `result.meta[\"warnings\"]`, which `hmpc-pin run` prints.",
+        'warning to `result.meta["warnings"]`, which `hmpc-pin run` prints.',
         "",
         "## References",
         "",
@@ -501,7 +608,9 @@ def report(
         'joint (`"joint"`); `BatchQP`, `proxqp.dense.BatchQP` with one QP per joint '
         "(bounds as Nc inequality rows: `init_qp_in_place` has no box option), n `update` "
         "calls and one `solve_in_parallel` with 1 or 2 OpenMP threads. Same solver settings, "
-        "warm-started; median per step of the solver calls alone; the last column is the "
+        "warm-started; median per step of the solver calls alone, the ways alternating in "
+        f"{layouts[0].blocks if layouts else 0} blocks over the whole sequence (ratio to "
+        "`block`: median over blocks of the per-block ratio); the last column is the "
         "largest difference of the solutions from the block QP's over the last 50 steps "
         "(solver tolerance). With two OpenMP threads on two cores a solve is fast only while "
         "the worker thread's core is free: its median depends on what else holds the "
@@ -594,7 +703,10 @@ def report(
         "Same arm, reference, disturbance, horizon (N = 10, Ts = 10 ms) and plant (1 ms RK4, "
         "plant clips τ to the URDF effort limits); each controller in one closed-loop run "
         "through `hmpc_pin.sim.simulate`, its `step` timed in the loop (first 10 steps left "
-        "out). Ratios are to the hierarchical MPC with its observer (`hmpc`); the last "
+        "out). The runs are made one after the other in this process, not alternated: their "
+        "step ratios carry the machine's phases (the section \"Peers\" times Crocoddyl's step "
+        "against the package's in alternating blocks). "
+        "Ratios are to the hierarchical MPC with its observer (`hmpc`); the last "
         "RMS ratio is to `hmpc, no NDO`, since neither comparison controller has a "
         "disturbance observer.",
         "",
@@ -620,7 +732,7 @@ def report(
         "",
     ]
     if not crocoddyl_mpc.AVAILABLE:
-        lines += ["Crocoddyl is not installed: its comparison was skipped.", ""]
+        lines += [f"The Crocoddyl comparison {peers.EXTRA_MESSAGE}: skipped.", ""]
     for scenario, duration, rows in compares:
         lines += [
             f"### {scenario.name} ({duration:g} s)",
@@ -630,6 +742,8 @@ def report(
             compare_table(rows, scenario.effort_limit is not None, unit),
             "",
         ]
+    if peers_part is not None:
+        lines += peers_section(peers_part, settings)
     lines += [
         "## Method",
         "",
@@ -639,6 +753,23 @@ def report(
         "- Controllers are built once per case; nothing in `hmpc_pin` is changed or tuned "
         "by the benchmark.",
         f"- Observer kinds accepted by this `hmpc_pin`: {', '.join(observer_kinds())}.",
+        "- Ratios measured in one process with the variants alternating block by block: "
+        "step / floor, long horizons, references, the A/B section, the joint-QP layouts "
+        '(ratio to `block`) and the peers. Not alternated: the "floor units" columns '
+        "(a time over the floor unit measured earlier in the same process), the closed-loop "
+        "simulation's rows (one after the other) and the comparison's closed-loop runs "
+        '(one after the other); absolute by definition: the targets "Absolute, on this '
+        'machine" and the memory sizes. The sections measured by other programs state their '
+        "own method; the figures they quote from an earlier version were measured in "
+        "another process.",
+        "",
+        "## Measured by other programs",
+        "",
+        "The sections below are not rerun by `benchmarks/run.py`: each names the program, "
+        "the command and the source it was measured with; the report copies them from "
+        "`benchmarks/recorded.md`.",
         "",
     ]
+    if RECORDED.is_file():
+        lines += [RECORDED.read_text(encoding="utf-8").rstrip("\n"), ""]
     return "\n".join(lines)

@@ -24,6 +24,13 @@ Measured:
    (``benchmarks/centralized.py``) and a Crocoddyl nonlinear MPC
    (``benchmarks/crocoddyl_mpc.py``, skipped with a message if crocoddyl is missing):
    step time, tracking RMS after 1 s, torque limits, and ratios to the hierarchical MPC.
+6. Peers (``benchmarks/peers.py``): the joint QPs against CasADi's qpOASES, OSQP, ProxQP
+   and DAQP on the identical problem (solutions checked to 1e-7 rad/s²), the step against
+   the same step built on CasADi's QP (torques checked), and the step against Crocoddyl's
+   Box-FDDP NMPC, alternating in one process (CasADi and Crocoddyl:
+   the ``bench`` extra; skipped with a message without them).
+
+Sections measured by other programs are copied from ``benchmarks/recorded.md``.
 
 ``--quick`` shortens every run (fewer steps, shorter simulations, a 30 s soak) to check
 that the suite works; its numbers are not meant to be quoted.
@@ -32,6 +39,8 @@ that the suite works; its numbers are not meant to be quoted.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import subprocess
 import sys
 import tempfile
@@ -44,7 +53,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks import crocoddyl_mpc  # noqa: E402
+from benchmarks import crocoddyl_mpc, peers  # noqa: E402
 from benchmarks._fixtures import (  # noqa: E402
     CHAIN_SIZES,
     HOMES,
@@ -63,10 +72,8 @@ from benchmarks.harness import (  # noqa: E402
     package_versions,
 )
 from benchmarks.ratios import long_horizon, references  # noqa: E402
-from benchmarks.report import Round2, bench_ab, find_step, report  # noqa: E402
+from benchmarks.report import PeersPart, Round2, bench_ab, find_step, report  # noqa: E402
 from benchmarks.steps import bench_qp_layouts, bench_steps  # noqa: E402
-
-__all__ = ["Settings", "main"]
 
 __all__ = ["Settings", "main"]
 
@@ -95,7 +102,8 @@ def git_state() -> str:
 
 # ----------------------------------------------------------------------------- main
 def main(argv: list[str] | None = None) -> int:
-    """Run the benchmarks and write the report; returns the exit code (0)."""
+    """Run the benchmarks and write the report; returns the exit code (0; 1 when a peer's
+    solutions differ from the package's, ``benchmarks/peers.py``)."""
     parser = argparse.ArgumentParser(
         prog="python benchmarks/run.py",
         description=__doc__,
@@ -122,6 +130,11 @@ def main(argv: list[str] | None = None) -> int:
         help="with --old: also time the README's sweep (this many samples, in this process, "
         "3 rounds), old and new",
     )
+    parser.add_argument(
+        "--old-source",
+        default="",
+        help="with --old: where the old version came from (e.g. its commit), for the report",
+    )
     args = parser.parse_args(argv)
     settings = QUICK if args.quick else Settings()
     command = "python benchmarks/run.py" + (" --quick" if args.quick else "")
@@ -130,9 +143,11 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     info = machine_info()
     info["hmpc_pin source (git)"] = git_state()
-    versions = package_versions(("pin", "proxsuite", "numpy", "crocoddyl", "hmpc_pin"))
+    versions = package_versions(("pin", "proxsuite", "numpy", "crocoddyl", "casadi", "hmpc_pin"))
     if not crocoddyl_mpc.AVAILABLE:
         versions["crocoddyl"] = "not importable: comparison skipped"
+    if not peers.AVAILABLE:
+        versions["casadi"] = "not importable: comparison skipped"
 
     spatial = spatial_observer_kind()
     log("loading arms")
@@ -172,13 +187,37 @@ def main(argv: list[str] | None = None) -> int:
     if settings.compare_panda_duration > 0:
         planned.append((panda_scenario(), settings.compare_panda_duration))
     compares = [(sc, d, bench_compare(sc, d, settings)) for sc, d in planned]
+    log("peers (benchmarks/peers.py)")
+    part = PeersPart()
+    if peers.AVAILABLE:
+        try:
+            part.cases = peers.qp_peers(
+                blocks=settings.peer_blocks, steps_scale=settings.peer_scale
+            )
+            part.steps = peers.step_peers(
+                blocks=settings.peer_blocks, steps_scale=settings.peer_scale
+            )
+        except AssertionError as exc:  # a peer solved another problem: no report
+            log(f"benchmarks/peers.py: {exc}")
+            return 1
+    else:
+        part.skipped.append(f"The CasADi comparison {peers.EXTRA_MESSAGE}.")
+        log(f"  {part.skipped[-1]}")
+    if crocoddyl_mpc.AVAILABLE:
+        part.crocoddyl = peers.crocoddyl_rows(compares, settings)
     ab_lines: list[str] = []
     if args.old is not None:
         log("old vs new (benchmarks/ab.py)")
-        ab_lines = bench_ab(args.old, settings, args.ab_sweep_samples, args.quick)
-        command += f" --old {args.old}" + (
-            f" --ab-sweep-samples {args.ab_sweep_samples}" if args.ab_sweep_samples else "")
+        ab_lines = bench_ab(args.old, settings, args.ab_sweep_samples, args.quick, args.old_source)
+        command += (
+            " --old OLD_DIR"
+            + (f" --old-source {args.old_source}" if args.old_source else "")
+            + (f" --ab-sweep-samples {args.ab_sweep_samples}" if args.ab_sweep_samples else "")
+        )
     total = time.perf_counter() - start
+    with contextlib.suppress(OSError):  # the machine's load while it ran, for the reader
+        load = os.getloadavg()
+        info["load average (1, 5, 15 min) at the end"] = ", ".join(f"{x:.2f}" for x in load)
     text = report(
         settings,
         args.quick,
@@ -194,6 +233,7 @@ def main(argv: list[str] | None = None) -> int:
         spatial,
         total,
         Round2(unit, long, long_diff, refs, ab_lines),
+        part,
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text, encoding="utf-8")

@@ -1,11 +1,12 @@
-// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step, the RK4
-// plant (its disturbance fused, or a Python callable through the Disturbance port) and a
-// Measurement port (compiled or a Python subclass), its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
-// before every step.
+// hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over the step, the plant
+// (the compiled RK4Plant, or a Python plant through the Plant port) and a Measurement port
+// (compiled or a Python subclass), its records in numpy arrays that
+// hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked before every step.
 #include "holders.hpp"
 #include "trampolines.hpp"
 
 #include "hmpc/loop.hpp"
+#include "hmpc/rk4_plant.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -23,10 +24,10 @@ struct PyClosedLoop {
   std::vector<Array> records;
   IntArray step_ns, sat_steps;
   Array sat_excess;
-  std::unique_ptr<PyCallableDisturbance> disturbance;
   std::unique_ptr<PyCallableReference> reference;
   std::unique_ptr<PyCallableController> controller;
-  std::unique_ptr<PyCallablePlant> plant;
+  std::unique_ptr<PyCallablePlant> python_plant;
+  py::object plant;  // the plant object, kept alive
   std::unique_ptr<ClosedLoop> loop;
 };
 
@@ -45,10 +46,10 @@ std::array<double*, 6> record_data(std::vector<Array>& rec, Eigen::Index rows, i
 
 void expose_loop(py::module_& m) {
   py::class_<PyClosedLoop>(m, "ClosedLoop", py::module_local())
-      .def(py::init([](PyHMPCCore* core, RK4* plant, int n, Array t, std::vector<Array> records,
-                       IntArray step_ns, IntArray sat_steps, Array sat_excess,
-                       const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
-                       const CRefVec& b, bool friction, double h, int substeps, double Ts) {
+      .def(py::init([](PyHMPCCore* core, py::object plant, int n, Array t,
+                       std::vector<Array> records, IntArray step_ns, IntArray sat_steps,
+                       Array sat_excess, const CRefVec& limit, bool has_limit, double bound,
+                       double Ts) {
              auto o = std::make_unique<PyClosedLoop>();
              const auto K = static_cast<Eigen::Index>(t.size()) - 1;
              if (step_ns.size() != K + 1 || sat_steps.size() != n || sat_excess.size() != n)
@@ -58,11 +59,21 @@ void expose_loop(py::module_& m) {
              o->step_ns = step_ns;
              o->sat_steps = sat_steps;
              o->sat_excess = sat_excess;
+             Plant* port = nullptr;  // the compiled plant as it is, any other through Python
+             if (py::isinstance<PyRK4Plant>(plant)) {
+               port = plant.cast<PyRK4Plant*>();
+               if (plant.cast<PyRK4Plant*>()->n != n)
+                 throw std::invalid_argument("ClosedLoop: shapes do not match");
+             } else {
+               o->python_plant = std::make_unique<PyCallablePlant>(plant, n);
+               port = o->python_plant.get();
+             }
+             o->plant = std::move(plant);
              o->loop = std::make_unique<ClosedLoop>(
-                 core ? &core->core : nullptr, plant, n, o->t.data(), static_cast<int>(K),
+                 core ? &core->core : nullptr, port, n, o->t.data(), static_cast<int>(K),
                  record_data(o->records, K + 1, n), o->step_ns.mutable_data(),
                  o->sat_steps.mutable_data(), o->sat_excess.mutable_data(), limit, has_limit,
-                 bound, a, b, friction, h, substeps, Ts);
+                 bound, Ts);
              o->loop->interrupted = [] {
                if (PyErr_CheckSignals() != 0) throw py::error_already_set();
              };
@@ -70,29 +81,11 @@ void expose_loop(py::module_& m) {
            }),
            py::arg("core"), py::arg("plant"), py::arg("n"), py::arg("t"), py::arg("records"),
            py::arg("step_ns"), py::arg("sat_steps"), py::arg("sat_excess"), py::arg("limit"),
-           py::arg("has_limit"), py::arg("bound"), py::arg("a"), py::arg("b"),
-           py::arg("friction"), py::arg("h"), py::arg("substeps"), py::arg("Ts"),
-           py::keep_alive<1, 2>(), py::keep_alive<1, 3>())
+           py::arg("has_limit"), py::arg("bound"), py::arg("Ts"), py::keep_alive<1, 2>())
       .def(
           "set_measurement",
           [](PyClosedLoop& o, Measurement* m) { o.loop->set_measurement(m); },
           py::arg("measurement"), py::keep_alive<1, 2>())
-      .def(
-          "set_disturbance",
-          [](PyClosedLoop& o, py::object d) {
-            auto port = std::make_unique<PyCallableDisturbance>(std::move(d));
-            o.loop->set_disturbance(port.get());
-            o.disturbance = std::move(port);
-          },
-          py::arg("disturbance"))
-      .def(
-          "set_plant",
-          [](PyClosedLoop& o, py::object plant) {
-            auto port = std::make_unique<PyCallablePlant>(std::move(plant), o.loop->n);
-            o.loop->set_plant(port.get());
-            o.plant = std::move(port);
-          },
-          py::arg("plant"))
       .def(
           "set_controller",
           [](PyClosedLoop& o, py::object controller, py::object reference) {
@@ -118,10 +111,10 @@ void expose_loop(py::module_& m) {
           py::arg("callback"))
       .def(
           "run",
-          [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1, const CRefRow& P) {
-            return o.loop->run(q, v, k0, k1, P);
+          [](PyClosedLoop& o, RefVec q, RefVec v, long k0, long k1) {
+            return o.loop->run(q, v, k0, k1);
           },
-          py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"), py::arg("P"))
+          py::arg("q"), py::arg("v"), py::arg("k0"), py::arg("k1"))
       .def_property_readonly("k", [](const PyClosedLoop& o) { return o.loop->k; })
       .def_property_readonly("last", [](const PyClosedLoop& o) { return o.loop->last; })
       .def_property_readonly("advances", [](const PyClosedLoop& o) { return o.loop->advances; })

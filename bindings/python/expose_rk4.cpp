@@ -1,21 +1,64 @@
 // hmpc_pin._core.RK4: the RK4 plant's period (rk4.hpp), ABA or the disturbance from Python
-// where given.
-#include "expose.hpp"
+// where given; hmpc_pin._core.RK4Plant: the RK4 plant as the loop's Plant port
+// (rk4_plant.hpp), its disturbance fused or a Python callable.
+#include "holders.hpp"
+#include "trampolines.hpp"
 
 #include "hmpc/rk4.hpp"
+#include "hmpc/rk4_plant.hpp"
 
 #include <memory>
 #include <stdexcept>
 
 namespace hmpc::python {
 
+namespace {
+
+void expose_rk4_plant(py::module_& m) {
+  py::class_<PyRK4Plant, std::shared_ptr<PyRK4Plant>>(m, "RK4Plant", py::module_local())
+      .def(py::init<std::shared_ptr<RK4>, double, int, const CRefVec&, const CRefVec&, bool>(),
+           py::arg("rk4"), py::arg("Ts"), py::arg("substeps"), py::arg("a"), py::arg("b"),
+           py::arg("friction"))
+      .def("reset", py::method_adaptor<PyRK4Plant>(&RK4Plant::reset), py::arg("q0"),
+           py::arg("dq0"), py::arg("t0") = 0.0)
+      .def("set_table", py::method_adaptor<PyRK4Plant>(&RK4Plant::set_table), py::arg("P"),
+           py::arg("k0"))
+      .def_property_readonly("table_end", py::method_adaptor<PyRK4Plant>(&RK4Plant::table_end))
+      .def(
+          "set_disturbance",
+          [](PyRK4Plant& p, py::object d) {
+            auto port = std::make_unique<PyCallableDisturbance>(std::move(d));
+            p.set_disturbance(port.get());
+            p.held = std::move(port);
+          },
+          py::arg("disturbance"))
+      .def(
+          "advance",
+          [](PyRK4Plant& p, const CRefVec& tau) {
+            Vec q, dq;
+            p.advance(Vec(tau), q, dq);
+            return py::make_tuple(q, dq);
+          },
+          py::arg("tau"))
+      .def("disturbance_now", py::method_adaptor<PyRK4Plant>(&RK4Plant::disturbance_now))
+      .def_property_readonly("q", [](const PyRK4Plant& p) { return Vec(p.q); })
+      .def_property_readonly("dq", [](const PyRK4Plant& p) { return Vec(p.v); })
+      .def_property(  // (set: a plant restored from a pickle)
+          "k", [](const PyRK4Plant& p) { return p.k; }, [](PyRK4Plant& p, long k) { p.k = k; })
+      .def_property_readonly("t", py::method_adaptor<PyRK4Plant>(&RK4Plant::t))
+      .def_property_readonly("t0", [](const PyRK4Plant& p) { return p.t0; })
+      .def_property_readonly("rk4", [](const PyRK4Plant& p) { return p.rk4; });
+}
+
+}  // namespace
+
 void expose_rk4(py::module_& m) {
-  py::class_<RK4>(m, "RK4", py::module_local())
+  py::class_<RK4, std::shared_ptr<RK4>>(m, "RK4", py::module_local())
       .def(py::init([](const py::object& model, int n, const py::object& aba) {
-             if (!model.is_none()) return std::make_unique<RK4>(model.cast<std::string>());
+             if (!model.is_none()) return std::make_shared<RK4>(model.cast<std::string>());
              if (aba.is_none())
                throw std::invalid_argument("RK4: give a serialized model or an aba callable");
-             return std::make_unique<RK4>(n, [aba](const Vec& q, const Vec& v, const Vec& tau) {
+             return std::make_shared<RK4>(n, [aba](const Vec& q, const Vec& v, const Vec& tau) {
                return aba(q, v, tau).cast<Vec>();
              });
            }),
@@ -56,6 +99,7 @@ void expose_rk4(py::module_& m) {
         if (!r.dyn) throw std::invalid_argument("RK4: no compiled dynamics");
         return Vec(r.dyn->nle(q, v));
       });
+  expose_rk4_plant(m);
 }
 
 }  // namespace hmpc::python

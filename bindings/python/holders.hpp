@@ -4,9 +4,11 @@
 #pragma once
 
 #include "expose.hpp"
+#include "trampolines.hpp"
 
 #include "hmpc/joint_qps.hpp"
 #include "hmpc/observer.hpp"
+#include "hmpc/rk4_plant.hpp"
 #include "hmpc/step.hpp"
 
 #include <memory>
@@ -27,6 +29,12 @@ struct PyNDO {
   PyNDO(const CRefMat& cY, double Ts, bool implicit, Array z, Array estimate)
       : z_array(checked(z, cY.rows())), estimate_array(checked(estimate, cY.rows())),
         ndo(cY, Ts, implicit, z_array.mutable_data(), estimate_array.mutable_data()) {}
+};
+
+// The compiled RK4 plant, holding the Python disturbance it calls (if any).
+struct PyRK4Plant : RK4Plant {
+  using RK4Plant::RK4Plant;
+  std::unique_ptr<PyCallableDisturbance> held;
 };
 
 struct PyJointQPs {

@@ -15,14 +15,13 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
 - the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
   any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
   per-step ``step`` does), called from the compiled loop through its Reference port;
-- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant` (its period compiled) with its
-  disturbance fused (time-only terms tabulated here per
-  :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, the same tables as the per-step loop's,
-  one Coulomb–viscous friction evaluated in C++), or any other disturbance (a callable
-  ``d(t, q, dq)``) called from the compiled loop through its Disturbance port at every
-  stage, as the per-step loop's plant calls it; any other plant (semi-implicit Euler,
-  MuJoCo, an RK4 plant whose methods are replaced) is called as a whole, ``advance(tau)``
-  and ``disturbance_now()``, through the Plant port;
+- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant`'s compiled plant (its ``port``, whose
+  state it is) is advanced by the loop itself, its disturbance fused (time-only terms
+  tabulated by the plant per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, a chunk of
+  the loop at a time; one Coulomb–viscous friction evaluated in C++) or a callable
+  ``d(t, q, dq)`` called at every stage; any other plant (semi-implicit Euler, MuJoCo, an
+  RK4 plant whose methods are replaced) is called as a whole, ``advance(tau)`` and
+  ``disturbance_now()``, through the Plant port;
 - an ``on_step`` callback, if any, is called from the compiled loop once a step is recorded
   (with the reference sampled at that instant, as the per-step loop does).
 
@@ -93,10 +92,11 @@ def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
 
 
 def _compiled_plant(plant) -> bool:
-    """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose period the loop
-    runs itself (its methods not replaced, e.g. by a spy: then it is called as a plant)."""
+    """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose compiled plant
+    (its ``port``) the loop advances itself (its methods not replaced, e.g. by a spy: then
+    it is called as a plant)."""
     return isinstance(plant, RK4Plant) and _own(
-        plant, RK4Plant, "advance", "disturbance_now", "reset", "_pulses_at"
+        plant, RK4Plant, "advance", "disturbance_now", "reset", "prepare"
     )
 
 
@@ -133,11 +133,9 @@ class CompiledLoop:
         n = records["q"].shape[1]
         self.n, self.K = n, len(t_arr) - 1
         self._rk4 = rk4 = _compiled_plant(plant)
-        zero = np.zeros(n)
-        a, b = plant._ab if rk4 else (zero, zero)
         self._loop = load_native().ClosedLoop(
             None if ctrl is None else ctrl._core,
-            plant._kernel if rk4 else None,
+            plant.port if rk4 else plant,  # the compiled plant, or the plant through Python
             n,
             t_arr,
             [records[name] for name in ("q", "dq", "tau", "d", "d_hat", "tau_applied")],
@@ -147,26 +145,16 @@ class CompiledLoop:
             np.full(n, np.inf) if limit is None else limit,
             limit is not None,
             min(state_bound, sys.float_info.max),
-            a,
-            b,
-            rk4 and plant._friction is not None,
-            plant.h if rk4 else 0.0,
-            plant.substeps if rk4 else 1,
             float(controller.Ts),
         )
-        if not rk4:  # the plant as a whole, from Python
-            self._loop.set_plant(plant)
         if ctrl is None:  # the controller as a whole, from Python
             self._loop.set_controller(controller, reference)
         if measured is not None:
             self._loop.set_measurement(measured.measurement)
-        if rk4 and not plant.fused:
-            self._loop.set_disturbance(plant.disturbance)
         if on_step is not None:
             self._loop.set_recorded(self._on_step(on_step))
         q0, dq0 = state if state is not None else (plant.q, plant.dq)
         self._x = np.concatenate([q0, dq0])
-        self._no_rows = np.empty((0, n))
         self.k, self.last = 0, -1
 
     def _on_step(self, on_step):
@@ -209,35 +197,25 @@ class CompiledLoop:
         k0 = 0
         while k0 <= K:
             self.k = k0
-            P = plant._pulses_at(k0) if self._rk4 and plant._pulses else None  # its table
-            if P is not None:
-                first = k0 - plant._chunk_k
-                k1 = min(K + 1, plant._chunk_k + plant._chunk.shape[0])
-                P = plant._chunk[first : first + (k1 - k0)].reshape(-1, self.n)
-            else:
-                k1 = min(K + 1, k0 + PULSE_CHUNK)
-                P = self._no_rows
-            k = self._chunk(k0, k1, P)
+            # A chunk: as far as the compiled plant's table of time-only terms goes.
+            k1 = min(K + 1, plant.prepare(k0) if self._rk4 else k0 + PULSE_CHUNK)
+            k = self._chunk(k0, k1)
             self.k = k
             if k == K:
                 return
             k0 = k1
 
-    def _chunk(self, k0: int, k1: int, P) -> int:
-        """Steps ``k0 .. k1 - 1``; the parts' Python state brought up to date afterwards
-        (also when a fault or Ctrl-C stops the chunk). Returns the step where it stopped."""
+    def _chunk(self, k0: int, k1: int) -> int:
+        """Steps ``k0 .. k1 - 1``; the controller's and the measurement's Python flags
+        brought up to date afterwards (also when a fault or Ctrl-C stops the chunk). Returns
+        the step where it stopped."""
         loop, n = self._loop, self.n
-        started, stepped, advances = loop.started, loop.stepped, loop.advances
+        started, stepped = loop.started, loop.stepped
         x = self._x
         try:
-            return loop.run(x[:n], x[n:], k0, k1, P)
+            return loop.run(x[:n], x[n:], k0, k1)
         finally:
             self.k, self.last = loop.k, loop.last
-            plant = self.plant
-            if loop.advances != advances and self._rk4:
-                plant.k += loop.advances - advances
-                plant.t = plant.t0 + plant.Ts * plant.k
-                plant.q, plant.dq = x[:n].copy(), x[n:].copy()
             if loop.stepped != stepped and self.ctrl is not None:
                 self.ctrl._started = True
             if self.measured is not None and loop.started != started:

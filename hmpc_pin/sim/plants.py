@@ -228,11 +228,13 @@ def split_disturbance(disturbance, n: int):
 class RK4Plant:
     """Classical RK4 integration of a Pinocchio model over one control period.
 
-    The period is the compiled core's (``cpp/src/rk4.cpp``, ``RK4``; module docstring): one
-    C++ call per period, with the disturbance's fused terms (time-only terms tabulated here,
-    one Coulomb–viscous friction evaluated per stage in C++), or any other disturbance
-    called as ``d(t, q, dq)`` at every stage from C++; Pinocchio's compiled ABA, or its
-    Python ABA for a model with mimic joints.
+    The plant is the compiled core's (``cpp/include/hmpc/rk4_plant.hpp``, ``RK4Plant``, the
+    closed loop's Plant port; its period ``cpp/src/rk4.cpp``; module docstring): its state
+    lives there, one C++ call per period, with the disturbance's fused terms (time-only
+    terms tabulated here per :data:`PULSE_CHUNK` periods, one Coulomb–viscous friction
+    evaluated per stage in C++), or any other disturbance called as ``d(t, q, dq)`` at every
+    stage from C++; Pinocchio's compiled ABA, or its Python ABA for a model with mimic
+    joints. The compiled loop advances :attr:`port` itself.
 
     Args:
         robot: The plant's :class:`~hmpc_pin.model.robot.Robot` (its own ``model``/``data``).
@@ -250,6 +252,8 @@ class RK4Plant:
     Attributes:
         native: ``True`` (kept for callers of 0.2).
         fused: Whether the disturbance's terms are evaluated fused (else called per stage).
+        port: The compiled plant (``hmpc_pin._core.RK4Plant``) that holds the state and
+            advances it.
     """
 
     name = "rk4"
@@ -281,24 +285,19 @@ class RK4Plant:
         self.disturbance = disturbance
         self.h = Ts / substeps
         self.substeps = substeps
-        self.t0, self.k, self.t = 0.0, 0, 0.0
-        self.q, self.dq = np.zeros(n), np.zeros(n)
-        self._x = np.zeros(2 * n)
         self._chunk_k, self._chunk = 0, np.empty((0, 3 * substeps, n))
         self._split = split_disturbance(disturbance, n)
         self.fused = self._split is not None
         self._pulses, self._friction = self._split if self._split is not None else ([], None)
         # a function's own friction terms, integrated by the stick-slip law as the fused one
         self._in_function = None if self.fused else friction_in(disturbance, n)
-        # Stage torques of a period (time-only terms added to the held torque), C-contiguous.
-        self._T = np.empty((3 * substeps, n))
         zero = np.zeros(n)
         a, b = self._friction if self._friction is not None else (zero, zero)
         self._ab = (np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float))
-        self._kernel = self._make_kernel()
+        self.port = self._make_port()
 
-    def _make_kernel(self):
-        """The compiled period, on the compiled dynamics or (mimic joints, which Pinocchio
+    def _make_port(self):
+        """The compiled plant, on the compiled dynamics or (mimic joints, which Pinocchio
         4.1 restores badly from a serialized model) on Pinocchio's Python ABA."""
         core = load_native()
         if self.robot.mimic_joints:
@@ -311,41 +310,88 @@ class RK4Plant:
         kernel.stick_slip = self.coulomb == "stick-slip"
         if self._in_function is not None:
             kernel.set_friction_in_disturbance(*self._in_function)
-        return kernel
+        a, b = self._ab
+        port = core.RK4Plant(kernel, self.Ts, self.substeps, a, b, self._friction is not None)
+        if not self.fused:
+            port.set_disturbance(self.disturbance)
+        return port
+
+    @property
+    def q(self) -> FloatArray:
+        """The joint angles [rad] at :attr:`t`."""
+        return self.port.q
+
+    @property
+    def dq(self) -> FloatArray:
+        """The joint velocities [rad/s] at :attr:`t`."""
+        return self.port.dq
+
+    @property
+    def k(self) -> int:
+        """The periods advanced since :meth:`reset`."""
+        return self.port.k
+
+    @property
+    def t0(self) -> float:
+        """The time of the last :meth:`reset` [s]."""
+        return self.port.t0
+
+    @property
+    def t(self) -> float:
+        """The current time ``t0 + k·Ts`` [s]."""
+        return self.port.t
 
     def __getstate__(self) -> dict:
-        """Picklable: the compiled period is rebuilt from the robot on unpickling."""
+        """Picklable: the compiled plant is rebuilt from the robot on unpickling, at the
+        state it had."""
         state = self.__dict__.copy()
-        state.pop("_kernel", None)
+        port = state.pop("port")
+        state["_state"] = (port.q, port.dq, port.t0, port.k) if self._was_reset else None
         return state
 
     def __setstate__(self, state: dict) -> None:
+        saved = state.pop("_state", None)
         self.__dict__.update(state)
-        self._kernel = self._make_kernel()
+        self.port = self._make_port()
+        if saved is not None:
+            q, dq, t0, k = saved
+            self.port.reset(q, dq, t0)
+            self.port.k = k
+            if self._chunk.shape[0]:
+                self.port.set_table(self._chunk.reshape(-1, self.n), self._chunk_k)
 
     def reset(self, q0: FloatArray, dq0: FloatArray, t0: float = 0.0) -> None:
         """Start at ``(q0, dq0)`` [rad, rad/s] at time ``t0`` [s]."""
-        _reset_state(self, q0, dq0, t0)
+        q, dq = np.array(q0, dtype=float), np.array(dq0, dtype=float)
+        if q.shape != (self.n,) or dq.shape != (self.n,):
+            raise DimensionError(
+                f"plant state of shapes {q.shape}, {dq.shape}; expected ({self.n},)"
+            )
+        self.port.reset(q, dq, float(t0))
+        self._was_reset = True
         self._chunk_k, self._chunk = 0, np.empty((0, 3 * self.substeps, self.n))
 
     def disturbance_now(self) -> FloatArray:
-        """:math:`d(t, q, \\dot q)` [N·m] at the current time and state."""
-        if not self.fused:
-            return self.disturbance(self.t, self.q, self.dq)
-        # The fused terms: the time-only ones from the table (stage 0 of the period is t
-        # itself), the friction here (the same terms as d(t, q, dq), summed in another order).
-        dq = self.dq
-        d = self._pulses_at(self.k)[0].copy() if self._pulses else np.zeros(self.n)
-        if self._friction is not None:
-            a, b = self._ab
-            d -= load_native().joint_torque(a, b, dq)
-        return d
+        """:math:`d(t, q, \\dot q)` [N·m] at the current time and state (fused: the
+        time-only terms from the table, stage 0 of the period being t itself, minus the
+        friction; else the disturbance called)."""
+        if self.fused:
+            self.prepare(self.k)
+        return self.port.disturbance_now()
+
+    def prepare(self, k: int) -> int:
+        """Make the compiled plant's table of time-only terms cover period ``k``; return the
+        first period after the table (``k + PULSE_CHUNK`` when there are no such terms)."""
+        if not self._pulses:
+            return k + PULSE_CHUNK
+        self._pulses_at(k)
+        return self._chunk_k + self._chunk.shape[0]
 
     def _pulses_at(self, k: int) -> np.ndarray:
         """The time-only terms at the stage times of period ``k`` (rows t_s, t_s + h/2,
         t_s + h for the steps s), tabulated :data:`PULSE_CHUNK` periods per call of each
         term, at the stage times the compiled period uses (``t = t0 + Ts·k``,
-        ``t_s = t + s·h``)."""
+        ``t_s = t + s·h``), and handed to the compiled plant."""
         j = k - self._chunk_k
         chunk = self._chunk
         if 0 <= j < chunk.shape[0]:
@@ -358,6 +404,7 @@ class RK4Plant:
         for term in self._pulses[1:]:
             total = total + term.sample_times(times)
         self._chunk_k, self._chunk = k, total.reshape(PULSE_CHUNK, 3 * self.substeps, self.n)
+        self.port.set_table(total.reshape(-1, self.n), k)
         return self._chunk[0]
 
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -368,26 +415,9 @@ class RK4Plant:
             DimensionError: ``tau`` is not of shape (n,).
         """
         tau = held_torque(self, tau)
-        n, x = self.n, self._x
-        x[:n] = self.q
-        x[n:] = self.dq
-        if self.fused:
-            T = self._T
-            if self._pulses:
-                np.add(tau, self._pulses_at(self.k), T)
-            else:
-                T[:] = tau
-            a, b = self._ab
-            self._kernel.period(x[:n], x[n:], T, a, b, self._friction is not None, self.h)
-        else:
-            tau = np.ascontiguousarray(tau, dtype=float)
-            self._kernel.period_with(
-                x[:n], x[n:], tau, self.t, self.h, self.substeps, self.disturbance
-            )
-        self.k += 1
-        self.t = self.t0 + self.Ts * self.k
-        self.q, self.dq = x[:n].copy(), x[n:].copy()
-        return self.q, self.dq
+        if self._pulses:
+            self.prepare(self.k)
+        return self.port.advance(tau)
 
 
 class EulerPlant:

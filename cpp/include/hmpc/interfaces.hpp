@@ -13,10 +13,10 @@
 // before the controller's step, and command on the controller's torque before recording it.
 //
 // Disturbance: the torque d(t, q, q̇) [N·m] acting on the plant (Eq 1: τ + d), evaluated at
-// every RK4 stage of a period and, for the record, at each t_k. The loop evaluates the
-// disturbances whose terms say what they are fused (time-only terms tabulated, one
-// Coulomb-viscous friction, loop.hpp); any other disturbance (a Python callable) plugs in
-// here.
+// every RK4 stage of a period and, for the record, at each t_k. The compiled RK4 plant
+// (rk4_plant.hpp) evaluates the disturbances whose terms say what they are fused (time-only
+// terms tabulated, one Coulomb-viscous friction); any other disturbance (a Python callable)
+// plugs into it here.
 //
 // Reference: the MPC's horizon for a step at t, r(t + j Ts) and ṙ(t + j Ts), j = 1..N, written
 // into rows 2..2N+1 of the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n). The
@@ -28,10 +28,10 @@
 // loop directly; a controller without one (computed torque, a compensation advanced in
 // Python, a wrapper) plugs in here as a whole.
 //
-// Plant: the arm, advanced over one control period with the torque τ [N·m] held, and the
-// disturbance d(t_k, q, q̇) [N·m] acting on it now (for the record). The RK4 plant's period
-// is compiled (rk4.hpp) and called by the loop directly; any other plant (semi-implicit
-// Euler, MuJoCo) plugs in here.
+// Plant: the arm, advanced over one control period with the torque τ [N·m] held (its new
+// state into q, q̇), and the disturbance d(t_k, q, q̇) [N·m] acting on it now (for the
+// record). The RK4 plant implements it compiled (rk4_plant.hpp); any other plant
+// (semi-implicit Euler, MuJoCo) plugs in here from Python.
 #pragma once
 
 #include "hmpc/types.hpp"

@@ -2,12 +2,11 @@
 // hmpc_pin.sim.simulate.simulate, many control periods per call, when every part has a
 // compiled form: the controller's fused step with its compiled reference (HMPCCore.step_t),
 // (or the step from a Reference port's horizon), optionally behind a Measurement port (interfaces.hpp: compiled, measurement.hpp, or a
-// Python subclass), and the RK4 plant's period with its fused disturbance (time-only terms
-// tabulated by the caller, one Coulomb-viscous friction here) or a Disturbance port called
-// at every stage (interfaces.hpp: a Python callable). Per step k, as the Python loop does:
+// Python subclass), and the plant through its Plant port (the compiled RK4 plant of
+// rk4_plant.hpp, or a Python plant). Per step k, as the per-step oracle loop does:
 //   (k >= 1: measure(t_k, q, q̇)) → τ = step(t_k, measured state) → command(τ) →
 //   record q, q̇, τ, d, d̂ → recorded(k) → (k = K: stop) → τ finite →
-//   clip to the effort limit (count, largest excess) → record τ applied → RK4 period →
+//   clip to the effort limit (count, largest excess) → record τ applied → plant period →
 //   state finite and within the bound.
 // run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
 // A fault throws (errors.hpp), with `k` the step during which it was detected: the
@@ -22,7 +21,6 @@
 
 #include "hmpc/errors.hpp"
 #include "hmpc/interfaces.hpp"
-#include "hmpc/rk4.hpp"
 #include "hmpc/step.hpp"
 #include "hmpc/types.hpp"
 
@@ -39,20 +37,15 @@ class ClosedLoop {
   // step_ns: K+1 step times [ns]; sat_steps, sat_excess: n each; Ts: the control period [s]
   // (for the time of a fault of the plant).
   // core: the controller's compiled step (nullptr: a Controller port, set_controller());
-  // plant: the compiled RK4 period (nullptr: a Plant port, set_plant()); n: the joints.
-  ClosedLoop(HMPCCore* core, RK4* plant, int n, const double* t, int K,
+  // plant: the plant (the caller keeps it alive); n: the joints.
+  ClosedLoop(HMPCCore* core, Plant* plant, int n, const double* t, int K,
              std::array<double*, 6> records,
              std::int64_t* step_ns, std::int64_t* sat_steps, double* sat_excess,
-             const CRefVec& limit, bool has_limit, double bound, const CRefVec& a,
-             const CRefVec& b, bool friction, double h, int substeps, double Ts);
+             const CRefVec& limit, bool has_limit, double bound, double Ts);
 
   // The controller is `c` as a whole (called with the plant's state; no compiled step, no
   // measurement or reference port then; the caller keeps it alive).
   void set_controller(Controller* c) { controller = c; }
-
-  // The plant is `p` (advanced, and asked its disturbance, from here; the caller keeps it
-  // alive; no table, no friction, no disturbance port then).
-  void set_plant(Plant* p) { plant_port = p; }
 
   // The controller sees the plant through `m` (reset by the caller with the controller; the
   // caller keeps it alive); nullptr: the plant's state as is.
@@ -62,33 +55,25 @@ class ClosedLoop {
   // step from the stack; the caller keeps it alive); nullptr: the compiled one (step_t).
   void set_reference(Reference* r) { reference = r; }
 
-  // The plant's disturbance is `d`, called at every stage and for the record (the caller
-  // keeps it alive; no table of time-only terms, no friction then); nullptr: the fused one.
-  void set_disturbance(Disturbance* d);
-
-  // Steps k0 .. k1-1 from the plant state (q, v) (updated in place). P: the time-only
-  // terms at the stage times of periods k0.. (rows of 3·substeps each; none: 0 rows).
-  long run(RefVec q, RefVec v, long k0, long k1, const CRefRow& P);
+  // Steps k0 .. k1-1 from the plant's state (q, v) (updated in place).
+  long run(RefVec q, RefVec v, long k0, long k1);
 
   std::function<void()> interrupted;  // called before every step (may throw)
   std::function<void(long)> recorded;  // called with k once step k is recorded (may throw)
   HMPCCore* core;
-  RK4* plant;
+  Plant* plant;
   int n, K;
   const double* t_arr;
   std::array<double*, 6> rec;
   std::int64_t *step_ns, *sat_steps;
   double* sat_excess;
-  Vec limit, fa, fb;
-  bool has_limit, friction;
-  double bound, h;
-  int substeps;
+  Vec limit;
+  bool has_limit;
+  double bound;
   double Ts;
   Measurement* measurement = nullptr;
-  Disturbance* disturbance = nullptr;
   Reference* reference = nullptr;
   Controller* controller = nullptr;
-  Plant* plant_port = nullptr;
   long k = 0;         // the step being run
   long last = -1;     // the last recorded step
   long advances = 0;  // plant periods integrated by run()
@@ -97,9 +82,8 @@ class ClosedLoop {
 
  private:
   void compiled_step(const RefVec& q, const RefVec& v);
-  bool record_and_advance(RefVec q, RefVec v, const CRefRow& P, long j);
+  bool record_and_advance(RefVec q, RefVec v);
   Vec qm, dqm, tau, d, dh, qn, vn;
-  RowMat T;
 };
 
 }  // namespace hmpc

@@ -240,3 +240,31 @@ def test_a_friction_term_follows_the_same_law_fused_or_in_a_function(tmp_path):
         np.testing.assert_allclose(dq2, dq, rtol=0, atol=1e-10)
         rests += int((dq == 0).sum())
     assert rests > 0 and fused.events >= 2
+
+
+
+def test_the_stick_slip_period_on_a_python_aba_equals_the_compiled_one(tmp_path):
+    """The kernel on ABA given from Python (models the compiled dynamics cannot load) takes
+    the same events and stuck joints as on the compiled dynamics, to rounding."""
+    import pinocchio as pin
+
+    from hmpc_pin.native import load, model_string
+
+    robot = _arm(tmp_path, 3.0)
+    core = load()
+    data = robot.model.createData()
+    compiled = core.RK4(model_string(robot))
+    python = core.RK4(None, 3, lambda q, v, u: pin.aba(robot.model, data, q, v, u))
+    q1, v1 = np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1])
+    q2, v2 = q1.copy(), v1.copy()
+    zero = np.zeros(3)
+    for kernel in (compiled, python):
+        kernel.set_joint_dynamics(robot.joint_damping, robot.joint_friction)
+    for k in range(40):
+        tau = np.array([3.0, 2.0, 1.0]) * np.sin(0.15 * k) + robot.gravity_torque(q1)
+        T = np.tile(tau, (12, 1))  # 4 steps: rows t_s, t_s + h/2, t_s + h
+        compiled.period(q1, v1, T, zero, zero, False, TS / 4)
+        python.period(q2, v2, T, zero, zero, False, TS / 4)
+        np.testing.assert_allclose(q2, q1, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(v2 == 0.0, v1 == 0.0)
+    assert compiled.events == python.events >= 2

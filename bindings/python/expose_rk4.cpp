@@ -47,7 +47,8 @@ void expose_rk4_plant(py::module_& m) {
           "k", [](const PyRK4Plant& p) { return p.k; }, [](PyRK4Plant& p, long k) { p.k = k; })
       .def_property_readonly("t", py::method_adaptor<PyRK4Plant>(&RK4Plant::t))
       .def_property_readonly("t0", [](const PyRK4Plant& p) { return p.t0; })
-      .def_property_readonly("events", [](const PyRK4Plant& p) { return p.rk4->events; });
+      .def_property_readonly("events", [](const PyRK4Plant& p) { return p.rk4->events; })
+      .def_property_readonly("rk4", [](const PyRK4Plant& p) { return p.rk4; });
 }
 
 }  // namespace

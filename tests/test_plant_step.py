@@ -242,7 +242,6 @@ def test_a_friction_term_follows_the_same_law_fused_or_in_a_function(tmp_path):
     assert rests > 0 and fused.events >= 2
 
 
-
 def test_the_stick_slip_period_on_a_python_aba_equals_the_compiled_one(tmp_path):
     """The kernel on ABA given from Python (models the compiled dynamics cannot load) takes
     the same events and stuck joints as on the compiled dynamics, to rounding."""

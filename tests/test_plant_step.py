@@ -201,8 +201,10 @@ def test_a_run_with_the_chosen_step_is_within_the_tolerance_of_a_fine_one():
     plant = chosen.make_plant()
     assert plant.h > pc.dt  # coarser than the fixed 1 ms
     fine = Experiment.from_config(replace(config, plant=replace(pc, dt=1e-4)))
-    err = np.abs(chosen.run().q - fine.run().q).max()
+    run = chosen.run()
+    err = np.abs(run.q - fine.run().q).max()
     assert err <= tol
+    assert run.meta["plant_step"] == plant.h and run.meta["coulomb"] == "stick-slip"
 
 
 @pytest.mark.parametrize("kw, match", [

@@ -430,9 +430,14 @@ class Experiment:
         return task_space(self.reference, self.robot, self._record_plant(plant, result))
 
     def _record_plant(self, plant: Plant, result: Result) -> Result:
-        """Add the engine, the MuJoCo contact force and the collision flag to ``result``."""
+        """Add the engine (a Pinocchio plant's step [s] and Coulomb law: ``plant_step``,
+        chosen by ``plant.tolerance`` where given, and ``coulomb``), the MuJoCo contact force
+        and the collision flag to ``result``."""
         pc = self.config.plant
         result.meta["engine"] = pc.engine
+        if not isinstance(plant, MuJoCoPlant):
+            result.meta["plant_step"] = float(plant.h)
+            result.meta["coulomb"] = getattr(plant, "coulomb", "sign")
         if isinstance(plant, MuJoCoPlant):
             result.meta["engine_version"] = plant.version
             ob = plant.settings.obstacle

@@ -216,6 +216,7 @@ void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVe
   lam_.setZero(2 * N);
   rU_.setZero(Nc);
   mu_.setZero(Nc);
+  gl_.setZero(Nc);
   gp_.setZero(Nc);
   bnd_lo_.setZero(2 * N);
   bnd_hi_.setZero(2 * N);
@@ -494,10 +495,10 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
 // the equality-constrained QP
 //     min ½ yᵀ Hs y + gᵀ y  s.t.  Γ_r U − st_r k ŝ = b_r (active rows), u_a = bound (active box)
 // in the banded coordinates U = T p (Hp = Tᵀ H T, E = Γ T banded; CondensedMPC.banded): its
-// KKT matrix [Hp, ·, Eᵀ; ·, 1, cᵀ; E, c, 0], each active row placed right after the last p
-// it involves and ŝ last, has an envelope of a few entries per row (ŝ's row excepted), so
-// its LDLᵀ without pivoting (quasi-definite: positive pivots for p and ŝ, negative for the
-// rows) costs O(N). Writes y_soft_ and the row multipliers lam_ (Hs y + g + Cᵀλ = 0,
+// KKT matrix [1, ·, cᵀ; ·, Hp, Eᵀ; c, E, 0], ŝ (when free) first, each active row placed
+// right after the last p it involves, has an envelope of a few entries per row (with ŝ
+// free, the rows' reach back to it), so its LDLᵀ without pivoting (quasi-definite: positive
+// pivots for ŝ and p, negative for the rows) costs O(N) (O(N · active rows) with ŝ free). Writes y_soft_ and the row multipliers lam_ (Hs y + g + Cᵀλ = 0,
 // physical rows). False if a pivot has the wrong sign or is negligible: dropped_ when that
 // pivot's bound or row, dependent on the rows before it, has been left out of the active set.
 bool JointQPs::soft_kkt(int i) {
@@ -505,7 +506,14 @@ bool JointQPs::soft_kkt(int i) {
   item_kind_.clear();
   item_ref_.clear();
   first_.clear();
-  int first_row_item = -1;
+  // A free ŝ first: rows tied through it (e.g. two rows at the largest violation) are
+  // dependent in p alone. Each active row's envelope then reaches back to it.
+  const bool slack_free = st_slack_ != 0;
+  if (slack_free) {
+    item_kind_.push_back(3);
+    item_ref_.push_back(Nc);
+    first_.push_back(0);
+  }
   for (int a = 0; a < Nc; ++a) {
     pidx_[a] = static_cast<int>(item_kind_.size());
     item_kind_.push_back(0);
@@ -518,18 +526,10 @@ bool JointQPs::soft_kkt(int i) {
     }
     for (int r : rows_by_last_[a]) {
       if (st_rows_[r] == 0) continue;
-      if (first_row_item < 0) first_row_item = static_cast<int>(item_kind_.size());
       item_kind_.push_back(2);
       item_ref_.push_back(r);
-      first_.push_back(pidx_[e_first_[r]]);
+      first_.push_back(slack_free ? 0 : pidx_[e_first_[r]]);
     }
-  }
-  const bool slack_free = st_slack_ != 0;
-  if (slack_free) {
-    const int self = static_cast<int>(item_kind_.size());
-    item_kind_.push_back(3);
-    item_ref_.push_back(Nc);
-    first_.push_back(first_row_item >= 0 ? first_row_item : self);
   }
   const int m = static_cast<int>(item_kind_.size());
   start_.resize(m + 1);
@@ -550,11 +550,10 @@ bool JointQPs::soft_kkt(int i) {
         break;
       case 2:
         for (int c = e_first_[ref]; c <= e_last_[ref]; ++c) at(k, pidx_[c]) = E_(ref, c);
+        if (slack_free) at(k, 0) = -k_slack_ * st_rows_[ref];
         x_[k] = st_rows_[ref] > 0 ? bnd_hi_[ref] : bnd_lo_[ref];
         break;
       default:
-        for (int j = first_[k]; j < k; ++j)
-          if (item_kind_[j] == 2) at(k, j) = -k_slack_ * st_rows_[item_ref_[j]];
         at(k, k) = Hs_(Nc, Nc);
         x_[k] = -g_soft_[Nc];
     }
@@ -669,15 +668,14 @@ void JointQPs::soft_solve() {
 }
 
 // Up to `exchanges` primal-dual exchanges from the active set st_*: solve (soft_kkt), then
-// test the soft QP's KKT conditions at its point to the solver's tolerance eps_abs, as
-// ProxSuite measures them: every row inside its limits (rows normalised as the solver's),
+// test the soft QP's KKT conditions at its point to the solver's tolerances (eps_abs +
+// eps_rel · the size of the terms), as ProxSuite measures them: every row inside its limits (rows normalised as the solver's),
 // every input inside its box, ŝ >= 0; zero gradient Hs y + g + Cᵀλ for the free inputs
 // (and ŝ when free); multipliers of the sign of their bound (rows: λ/row_scale, the solver's
 // z; inputs and ŝ: −gradient). Violated rows and bounds join the active set, wrong-signed
 // ones leave it. True when the point passes: then it is the soft QP's minimiser (a convex
 // QP's KKT point), in y_soft_.
 bool JointQPs::soft_exchange(int i, int exchanges) {
-  const double eps = soft_.eps_abs;
   const double lo = v_min_[i], hi = v_max_[i];
   for (int it = 0; it <= exchanges; ++it) {
     if (!soft_kkt(i)) {
@@ -688,20 +686,33 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     const auto u = y_soft_.head(Nc);
     const double sh = y_soft_[Nc];
     Xs_.noalias() = Gamma_ * u;
+    // ProxSuite's tolerances: eps_abs + eps_rel · the size of the terms (dual: Hy, g, Cᵀλ;
+    // primal: the rows' values), the relative part for slacks far outside the limits.
     rU_.noalias() = H_ * u;
+    double dual = std::max({rU_.cwiseAbs().maxCoeff(), std::abs(Hs_(Nc, Nc) * sh),
+                            g_soft_.cwiseAbs().maxCoeff()});
     rU_ += g_soft_.head(Nc);
-    rU_.noalias() += Gamma_.transpose() * lam_;
+    gl_.noalias() = Gamma_.transpose() * lam_;  // Γᵀλ
+    rU_ += gl_;
+    const double lam_sum = k_slack_ * lam_.cwiseAbs().sum();
+    dual = std::max({dual, gl_.cwiseAbs().maxCoeff(), lam_sum});
     double rs = Hs_(Nc, Nc) * sh + g_soft_[Nc];
     bool changed = false, bad = false;
     const double ks = k_slack_ * sh;
+    double primal = 0.0;
+    for (int r = 0; r < 2 * N; ++r)
+      primal = std::max(primal, (std::abs(Xs_[r]) + std::abs(ks)) *
+                                    row_scale_[(r % 2 == 0 ? 0 : 2 * N) + r / 2]);
+    const double eps = soft_.eps_abs + soft_.eps_rel * std::max(dual, primal);
+    const double eps_p = soft_.eps_abs + soft_.eps_rel * primal;
     for (int r = 0; r < 2 * N; ++r) {
       const double scale = row_scale_[(r % 2 == 0 ? 0 : 2 * N) + r / 2];
       const int s = st_rows_[r];
       if (s == 0) {
-        if ((Xs_[r] - ks - bnd_hi_[r]) * scale > eps) {
+        if ((Xs_[r] - ks - bnd_hi_[r]) * scale > eps_p) {
           st_rows_[r] = 1;
           changed = true;
-        } else if ((bnd_lo_[r] - Xs_[r] - ks) * scale > eps) {
+        } else if ((bnd_lo_[r] - Xs_[r] - ks) * scale > eps_p) {
           st_rows_[r] = -1;
           changed = true;
         }
@@ -716,10 +727,10 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     for (int a = 0; a < Nc; ++a) {
       const int s = st_box_[a];
       if (s == 0) {
-        if (u[a] < lo - eps) {
+        if (u[a] < lo - eps_p) {
           st_box_[a] = -1;
           changed = true;
-        } else if (u[a] > hi + eps) {
+        } else if (u[a] > hi + eps_p) {
           st_box_[a] = 1;
           changed = true;
         } else if (std::abs(rU_[a]) > eps) {
@@ -731,7 +742,7 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
       }
     }
     if (st_slack_ != 0) {
-      if (sh < -eps) {
+      if (sh < -eps_p) {
         st_slack_ = 0;
         changed = true;
       } else if (std::abs(rs) > eps) {

@@ -67,9 +67,12 @@ primal-dual exchanges. Each guess is an equality-constrained QP, solved in the b
 coordinates :math:`U = T p` of :meth:`CondensedMPC.banded`, where the Hessian
 :math:`T^T H T` and every constraint row (:math:`\\Gamma T`, :math:`T`) are banded: the
 KKT matrix's LDLᵀ costs O(N). A guess answers only when its point passes the soft
-QP's KKT conditions to the solver's tolerance ``eps_abs`` (rows and bounds satisfied,
-zero gradient of the Lagrangian in the free variables, multipliers of the right sign):
-then it is the QP's minimiser. Otherwise ProxSuite solves the QP from scratch.
+QP's KKT conditions to the solver's own tolerances (``eps_abs`` plus ``eps_rel`` times the
+size of the terms, as ProxSuite tests them: rows and bounds satisfied, zero gradient of
+the Lagrangian in the free variables, multipliers of the right sign): then it is the QP's
+minimiser. Otherwise ProxSuite solves the QP from scratch. Where the optimum is a
+degenerate vertex (more active rows than variables, which the shared slack makes common
+past the position limits), the exchanges may not settle and ProxSuite answers.
 """
 
 from __future__ import annotations

@@ -163,7 +163,7 @@ class JointQPs {
   bool dropped_ = false;
   std::vector<int> item_kind_, item_ref_, first_, start_, pidx_;
   std::vector<double> L_, D_, w_, x_;
-  Vec y_soft_, lam_, mu_, rU_, gp_, bnd_lo_, bnd_hi_, Xs_;
+  Vec y_soft_, lam_, mu_, gl_, rU_, gp_, bnd_lo_, bnd_hi_, Xs_;
 
 };
 

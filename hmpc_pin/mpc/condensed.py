@@ -185,7 +185,8 @@ class CondensedMPC:
         rounding of the exact zeros) are set to zero, so that the bands are exact.
 
         Returns:
-            ``(T, E, Hp)``: (Nc×Nc), (2N×Nc) in :attr:`Gamma`'s row order, (Nc×Nc).
+            ``(T, E, Hp)``: (Nc×Nc), (2N×Nc) in the row order of ``Gamma`` (x_1 .. x_N, q and q̇
+            interleaved), (Nc×Nc).
         """
         Nc = self.Nc
         T = np.eye(Nc)

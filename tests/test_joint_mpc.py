@@ -862,3 +862,129 @@ def test_long_horizon_with_active_bounds_equals_cold_solves_and_kkt(strategy, ca
         assert qps.active_set_solves > 0
     else:
         assert qps.active_set_solves == 0
+
+
+# ------------------------------------------- long horizons with active soft limits
+def own_soft_qp(x0, ref, N, Nc, Ts, lo, hi, vel):
+    """The soft-limit QP of one joint (module docstring of hmpc_pin.mpc.condensed) built
+    here from the simulated double integrator: variables z = (U, s) [rad/s², rad],
+
+        min  J(U) + ρ₂ s² + ρ₁ s,   J = Σ_{j<N} e_jᵀQe_j + R v_j² + e_NᵀPe_N (Eq 25)
+        s.t. lo − s <= q_j <= hi + s,  −vel − s <= q̇_j <= vel + s  (j = 1..N),
+             −V <= U <= V,  s >= 0.
+
+    Returns (Hz, gz, A, b): cost ½zᵀHz z + gzᵀz (+ const) and the rows A z <= b (the
+    state constraints, the input box and s >= 0, all as rows).
+    """
+    free = simulate(np.zeros(Nc), x0, N, Ts)[0][1:].reshape(-1)  # Φ x0: q_1, q̇_1, …
+    Gam = np.column_stack(
+        [simulate(np.eye(Nc)[c], np.zeros(2), N, Ts)[0][1:].reshape(-1) for c in range(Nc)]
+    )
+    Qbar = np.kron(np.eye(N), Q_PAPER)
+    Qbar[-2:, -2:] = P_PAPER
+    counts = np.ones(Nc)
+    counts[-1] = N - Nc + 1
+    H = 2.0 * (Gam.T @ Qbar @ Gam + R_PAPER * np.diag(counts))
+    g = 2.0 * Gam.T @ Qbar @ (free - ref)
+    Hz = np.zeros((Nc + 1, Nc + 1))
+    Hz[:Nc, :Nc] = H
+    Hz[Nc, Nc] = 2.0 * SOFT["rho2"]
+    gz = np.append(g, SOFT["rho1"])
+    Gq, Gv, fq, fv = Gam[0::2], Gam[1::2], free[0::2], free[1::2]
+    minus = -np.ones((N, 1))
+    A = np.vstack([
+        np.hstack([Gq, minus]), np.hstack([-Gq, minus]),
+        np.hstack([Gv, minus]), np.hstack([-Gv, minus]),
+        np.hstack([np.eye(Nc), np.zeros((Nc, 1))]), np.hstack([-np.eye(Nc), np.zeros((Nc, 1))]),
+        -np.eye(Nc + 1)[Nc:],
+    ])  # fmt: skip
+    b = np.concatenate([hi - fq, fq - lo, vel - fv, vel + fv,
+                        np.full(Nc, V_LIMIT), np.full(Nc, V_LIMIT), [0.0]])  # fmt: skip
+    return Hz, gz, A, b
+
+
+def soft_kkt_residual(Hz, gz, A, b, z, active_tol):
+    """The KKT conditions of min ½zᵀHz z + gzᵀz s.t. A z <= b at z: (largest row violation,
+    smallest stationarity residual ‖D (Hz z + gz + A_Wᵀλ)‖∞ over multipliers λ >= 0 of the
+    rows W within active_tol of their bound, by non-negative least squares). D states it in
+    the units of the solver's tolerance: the cost divided by the mean of the inputs' Hessian
+    diagonal (σ), the slack in units of k = 1/√(2ρ₂σ) (module docstring of
+    hmpc_pin.mpc.condensed: the QP as the solver sees it, each Hessian entry ~1)."""
+    from scipy.optimize import nnls
+
+    slack = A @ z - b
+    active = slack >= -active_tol
+    sigma = 1.0 / np.mean(np.diag(Hz)[:-1])
+    D = np.full(len(z), sigma)
+    D[-1] = sigma / np.sqrt(Hz[-1, -1] * sigma)  # σ k, with Hz[-1, -1] = 2ρ₂
+    grad = D * (Hz @ z + gz)
+    M = A[active].T * D[:, None]
+    lam, _ = nnls(M, -grad, maxiter=50 * M.shape[1])
+    return float(slack.max()), float(np.abs(M @ lam + grad).max())
+
+
+SOFT_LONG = {  # (Ts, N = Nc, start offset [rad] from the sine, limits (lo, hi, vel))
+    "1 ms, N = 100, velocity limits": (0.001, 100, 0.2, (-2.0, 2.0, 1.0)),
+    "10 ms, N = 50, velocity limits": (0.01, 50, 0.2, (-2.0, 2.0, 1.0)),
+    "1 ms, N = 100, started past the position limit": (0.001, 100, 0.3, (-0.45, 0.45, 4.0)),
+    "10 ms, N = 50, started past the position limit": (0.01, 50, 0.3, (-0.45, 0.45, 4.0)),
+}
+
+
+@pytest.mark.parametrize("case", list(SOFT_LONG))
+def test_long_horizon_soft_limits_satisfy_kkt_and_equal_cold_solves(case):
+    """Three joints in a closed loop of the double integrators (Eq 24) started off a sine
+    (amplitude 0.5 rad, 1 Hz) whose velocity (π rad/s) exceeds the velocity limit, or from
+    past the position limit (the hard constraints infeasible: slack > 0): at every step each
+    joint's solution (U, s) satisfies the KKT conditions of the soft-limit QP built here
+    (:func:`own_soft_qp`) and equals the soft QP solved from scratch by ProxSuite (the
+    shortcut off), to the solver's tolerance. With the velocity limits active the soft
+    active-set shortcut answered; past the position limit the optimum is a degenerate
+    vertex (more active rows than variables, the slack shared by all), where it may leave
+    the QP to ProxSuite."""
+    Ts, N, offset, (lo, hi, vel) = SOFT_LONG[case]
+    n = 3
+    mpc = CondensedMPC(Ts, N, N, Q_PAPER, R_PAPER, P_PAPER)
+    limits = StateLimits(np.full(n, lo), np.full(n, hi), np.full(n, vel), SOFT["rho2"],
+                         SOFT["rho1"])  # fmt: skip
+    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    cold = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    cold.soft_active_set_iter = -1  # every soft QP solved from scratch by ProxSuite
+    phase = np.array([0.0, 1.0, 2.0])
+    w = 2.0 * np.pi
+
+    def reference(t):  # r, ṙ of the sine, shape (2, n)
+        return np.vstack([0.5 * np.sin(w * t + phase), 0.5 * w * np.cos(w * t + phase)])
+
+    x = reference(0.0) + np.array([[offset], [0.0]])
+    if "position" in case:
+        x[0] = hi + 0.05  # past the upper limit, no input brings q_1 inside
+    # Tolerances from the solver's: eps_abs on the scaled QP's gradient, 100x for the
+    # multipliers' least squares. Solutions: the strong-convexity bound of the box QPs.
+    tol_kkt = 100.0 * EPS_ABS
+    tol = solution_tolerance(mpc.H)
+    A_dyn = np.array([[1.0, Ts], [0.0, 1.0]])
+    B_dyn = np.array([[Ts * Ts / 2.0], [Ts]])
+    soft_steps = positive_slack = 0
+    for k in range(25):
+        t = k * Ts
+        ref = np.vstack([reference(t + j * Ts) for j in range(1, N + 1)])  # (2N, n)
+        G = mpc.gradient(x, ref)
+        qps.solve(G, x)
+        cold.solve(G, x)
+        soft_steps += qps.constrained
+        for i in range(n):
+            z = np.append(qps.solution[:, i], qps.slack[i])
+            Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, lo, hi, vel)
+            violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
+            assert violation <= 1e-7, (k, i, violation)
+            assert residual <= tol_kkt, (k, i, residual)
+            np.testing.assert_allclose(z, np.append(cold.solution[:, i], cold.slack[i]),
+                                       rtol=0, atol=tol)  # fmt: skip
+            positive_slack += int(qps.slack[i] > 1e-6)
+        x = A_dyn @ x + B_dyn @ qps.solution[:1]
+    assert soft_steps >= 10 * n  # the soft limits were active
+    if "position" in case:
+        assert positive_slack > 0  # the hard constraints were infeasible somewhere
+    else:
+        assert qps.soft_active_set_solves >= soft_steps // 2  # the shortcut answered

@@ -43,9 +43,9 @@ void expose_joint_qps(py::module_& m) {
            [](PyJointQPs& o, const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
               const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
               const CRefVec& row_scale, double g_slack, double k_slack, const QPSettings& soft,
-              bool always) {
+              bool always, const CRefMat& T, const CRefMat& E, const CRefMat& Hp) {
              o.qps.set_limits(Phi, Gamma, lower, upper, vel, Hs, C, row_scale, g_slack, k_slack,
-                              soft, always);
+                              soft, always, T, E, Hp);
            })
       .def(
           "solve",
@@ -69,11 +69,22 @@ void expose_joint_qps(py::module_& m) {
       .def_property_readonly("active_set_solves",
                              [](const PyJointQPs& o) { return o.qps.active_set_solves; })
       .def_property(
+          "soft_active_set_iter", [](const PyJointQPs& o) { return o.qps.soft_active_set_iter; },
+          [](PyJointQPs& o, int k) { o.qps.soft_active_set_iter = k; })
+      .def_property_readonly("soft_active_set_solves",
+                             [](const PyJointQPs& o) { return o.qps.soft_active_set_solves; })
+      .def_property_readonly("soft_failures",
+                             [](const PyJointQPs& o) {
+                               const auto& q = o.qps;
+                               return py::make_tuple(q.soft_fail_pivot, q.soft_fail_exchanges,
+                                                     q.soft_fail_kkt);
+                             })
+      .def_property(
           "counters",
           [](const PyJointQPs& o) {
             const auto& q = o.qps;
             return py::make_tuple(q.cold_solves, q.unconstrained_solves, q.active_set_solves,
-                                  q.constrained, q.constrained_last);
+                                  q.constrained, q.constrained_last, q.soft_active_set_solves);
           },
           [](PyJointQPs& o, const py::tuple& c) {  // restored after a dry step (warm_up)
             auto& q = o.qps;
@@ -82,6 +93,7 @@ void expose_joint_qps(py::module_& m) {
             q.active_set_solves = c[2].cast<long>();
             q.constrained = c[3].cast<long>();
             q.constrained_last = c[4].cast<bool>();
+            if (c.size() > 5) q.soft_active_set_solves = c[5].cast<long>();
           })
       .def_property_readonly("cold_solves", [](const PyJointQPs& o) { return o.qps.cold_solves; })
       .def_property_readonly("unconstrained_solves",

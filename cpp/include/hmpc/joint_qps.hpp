@@ -14,7 +14,13 @@
 // A warm-started box QP that does not report solved is solved again by its cold twin
 // (made on first use), and the warm QP restarted from that solution. With soft state limits,
 // a joint whose box-only prediction X = Φ x0 + Γ U leaves them is solved again with the soft
-// constraints (hmpc_pin.mpc.condensed, module docstring).
+// constraints (hmpc_pin.mpc.condensed, module docstring): first by the soft active-set
+// shortcut (the last soft solution's active set, shifted one step along the horizon or as it
+// stands, or the box-only solution's with the rows it violates, refined by primal-dual
+// exchanges; each equality-constrained QP solved in the banded coordinates p of
+// hmpc_pin.mpc.condensed.CondensedMPC.banded, U = T p, by an envelope LDLᵀ of its KKT
+// matrix in O(N)), answering only when its point passes the soft QP's KKT test to the
+// solver's tolerance; failing that, ProxSuite, from scratch.
 #pragma once
 
 #include "hmpc/errors.hpp"
@@ -66,11 +72,14 @@ class JointQPs {
            const CRefVec& v_max, const Settings& warm, const Settings& cold, double* U,
            double* slack);
 
-  // Soft state limits (hmpc_pin.mpc.condensed.JointQPs builds every matrix).
+  // Soft state limits (hmpc_pin.mpc.condensed.JointQPs builds every matrix). T, E, Hp: the
+  // banded coordinates of the soft active-set shortcut (CondensedMPC.banded: U = T p,
+  // E = Γ T, Hp = Tᵀ H T, each exactly banded; empty T: no shortcut).
   void set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
                   const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
                   const CRefVec& row_scale, double g_slack, double k_slack,
-                  const Settings& soft, bool always_constrained);
+                  const Settings& soft, bool always_constrained, const CRefMat& T,
+                  const CRefMat& E, const CRefMat& Hp);
 
   // Solve every joint's QP for the gradients G (n×Nc, one row per joint) at the state
   // (q, q̇) (used by the soft limits only). Writes U and slack. Returns false when a QP did
@@ -91,6 +100,9 @@ class JointQPs {
   // last solution as it stands (measured faster in a closed loop, benchmarks/long_horizon_active.py).
   bool shift = false;
   int active_set_iter = 4;  // "joint" layout: active-set exchanges (< 0: no active-set shortcut)
+  // Soft QPs: primal-dual exchanges of the soft active-set shortcut per guess (< 0: ProxSuite
+  // for every soft QP).
+  int soft_active_set_iter = 8;
   bool limits = false;
   bool always_constrained = false;
   MapRow U;
@@ -98,6 +110,10 @@ class JointQPs {
   long cold_solves = 0;
   long unconstrained_solves = 0;
   long active_set_solves = 0;
+  long soft_active_set_solves = 0;  // soft QPs answered by the soft active-set shortcut
+  // Guesses of the soft shortcut that did not answer: a pivot of the wrong sign (dependent
+  // rows), the exchanges exhausted, the KKT test failed without an exchange to make.
+  long soft_fail_pivot = 0, soft_fail_exchanges = 0, soft_fail_kkt = 0;
   long constrained = 0;
   bool constrained_last = false;
   int fail_joint = -2;
@@ -113,6 +129,11 @@ class JointQPs {
   bool active_set(int i);
   bool exchange(int i, int exchanges);
   void remember(int k, int offset, const Vec& x, const Vec* z);
+  bool soft_active_set(int i);
+  bool soft_exchange(int i, int exchanges);
+  bool soft_kkt(int i);
+  void soft_solve();
+  void soft_guess_from(int i, const Vec& y, bool box_only);
 
   Mat H_, H_block_, neg_Hinv_;
   Vec v_min_, v_max_, g_block_, g_;
@@ -127,6 +148,23 @@ class JointQPs {
   Vec r_, rhs_, u0_;
   std::vector<int> free_, active_, state_;
   double g_slack_ = 0.0, k_slack_ = 0.0;
+  // The soft active-set shortcut: banded data (rows of E in Γ's order, x_1 .. x_N
+  // interleaved q, q̇), the active sets (−1 lower, +1 upper, 0 inactive; the slack: 1 free,
+  // 0 at its bound 0) remembered per joint, and the envelope LDLᵀ's workspace.
+  bool soft_shortcut_ = false;
+  Mat T_, E_, Hp_;
+  int wH_ = 0, wT_ = 0;
+  std::vector<int> t_first_, e_first_, e_last_;
+  std::vector<std::vector<int>> rows_by_last_;
+  std::vector<std::vector<signed char>> guess_rows_, guess_box_;
+  std::vector<signed char> guess_slack_, has_guess_;
+  std::vector<signed char> st_rows_, st_box_;
+  signed char st_slack_ = 0;
+  bool dropped_ = false;
+  std::vector<int> item_kind_, item_ref_, first_, start_, pidx_;
+  std::vector<double> L_, D_, w_, x_;
+  Vec y_soft_, lam_, mu_, gl_, rU_, gp_, bnd_lo_, bnd_hi_, Xs_;
+
 };
 
 std::string status_name(proxsuite::proxqp::QPSolverOutput status);

@@ -21,6 +21,7 @@ __all__ = [
     "GaussianPulse",
     "Periodic",
     "SumDisturbance",
+    "TimeOnly",
     "ZeroDisturbance",
     "as_disturbance",
 ]
@@ -68,6 +69,37 @@ class ZeroDisturbance(Disturbance):
         return as_disturbance(other)  # 0 + d = d: no zeros evaluated in the plant loop
 
 
+def _defined_by(cls, name: str) -> None:
+    """Refuse a subclass that defines ``__call__`` of a term whose value is defined by
+    ``name`` alone (a plant evaluates ``name`` fused into its integration, so a
+    ``__call__`` of its own would be a second definition the plant never sees)."""
+    if "__call__" in vars(cls):
+        raise TypeError(
+            f"{cls.__name__} defines __call__, but a {cls.__mro__[1].__name__} is defined by "
+            f"{name}() alone (the plant evaluates that, fused); define {name}() instead, or "
+            "subclass Disturbance for a term of your own"
+        )
+
+
+class TimeOnly(Disturbance):
+    """A disturbance of time alone, :math:`d(t)` [N·m], defined by :meth:`sample_times`
+    (``d(t, q, dq)`` is ``sample_times([t])[0]``): a plant tabulates it at every stage time
+    of a chunk of periods at once (:class:`~hmpc_pin.sim.plants.RK4Plant`, MuJoCo).
+    Subclasses define :meth:`sample_times`, not ``__call__``.
+    """
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        _defined_by(cls, "sample_times")
+
+    def __call__(self, t, q, dq):
+        return self.sample_times(np.array([float(t)]))[0]
+
+    def sample_times(self, times: np.ndarray) -> np.ndarray:
+        """The term at each of ``times`` (m,) [s]: (m, n) [N·m]."""
+        raise NotImplementedError
+
+
 class CoulombViscousFriction(Disturbance):
     """Friction opposing motion, Eq (32) with the physical sign (SPEC §3).
 
@@ -88,18 +120,23 @@ class CoulombViscousFriction(Disturbance):
         self.viscous = np.asarray(viscous, dtype=float)
         self.coulomb = np.asarray(coulomb, dtype=float)
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        _defined_by(cls, "friction_coefficients")
+
     def __call__(self, t, q, dq):
         dq = np.asarray(dq, dtype=float)  # the compiled law (joint_dynamics.hpp), per joint
-        a, b = (np.broadcast_to(c, dq.shape) for c in (self.viscous, self.coulomb))
+        a, b = (np.broadcast_to(c, dq.shape) for c in self.friction_coefficients())
         return -load_native().joint_torque(a, b, dq)
 
     def friction_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(a, b)`` with :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`: lets a plant
-        fuse the term into its integration (:class:`~hmpc_pin.sim.plants.RK4Plant`)."""
+        """``(a, b)`` with :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, the term's
+        one definition (``d(t, q, dq)`` is the law of these): a plant fuses the term into
+        its integration (:class:`~hmpc_pin.sim.plants.RK4Plant`)."""
         return self.viscous, self.coulomb
 
 
-class GaussianPulse(Disturbance):
+class GaussianPulse(TimeOnly):
     """Gaussian-shaped external torque, Eq (33).
 
     .. math::  d_i = a_i \\exp\\left(-\\frac{(t - b_i)^2}{2\\sigma_i^2}\\right)
@@ -115,9 +152,6 @@ class GaussianPulse(Disturbance):
         self.center = np.asarray(center, dtype=float)
         self.sigma = np.asarray(sigma, dtype=float)
         self._k = -0.5 / self.sigma**2
-
-    def __call__(self, t, q, dq):
-        return self._value(t - self.center)
 
     def sample_times(self, times: np.ndarray) -> np.ndarray:
         """The pulse at each of ``times`` (m,) [s]: (m, n) [N·m], vectorised (a time-only

@@ -51,14 +51,14 @@ step stays within a tolerance (``[plant] tolerance``).
 
 The period is one call into the compiled core (``cpp/src/rk4.cpp``, ``RK4``), the only
 implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
-Terms that say what they are are evaluated fused: time-only terms (a
-``sample_times(times)`` method, e.g. :class:`~hmpc_pin.sim.disturbances.GaussianPulse`)
-at all 3·substeps stage times of :data:`PULSE_CHUNK` periods in one call each, added to the
-held torque here; one Coulomb–viscous friction term (a ``friction_coefficients()`` method,
-e.g. :class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`),
-:math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, evaluated per stage in C++. Each fused term
-is checked once, at construction, against its own ``d(t, q, dq)`` at a few random points
-(a subclass that changed ``__call__`` only is not fused). Any other disturbance (a user
+Terms defined by a fused form alone are evaluated fused: time-only terms
+(:class:`~hmpc_pin.sim.disturbances.TimeOnly`, e.g.
+:class:`~hmpc_pin.sim.disturbances.GaussianPulse`: ``sample_times(times)``) at all
+3·substeps stage times of :data:`PULSE_CHUNK` periods in one call each, added to the held
+torque here; one Coulomb–viscous friction term
+(:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`: ``friction_coefficients()``),
+:math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, evaluated per stage in C++ (a subclass may
+not define ``__call__``: the two could not disagree). Any other disturbance (a user
 callable, two friction terms) is called from C++ as ``d(t, q, dq)`` at every stage.
 """
 
@@ -72,7 +72,7 @@ from ..model.robot import Robot
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
 from .base import Plant
-from .disturbances import ZeroDisturbance
+from .disturbances import CoulombViscousFriction, TimeOnly, ZeroDisturbance
 
 __all__ = [
     "COULOMB_LAWS",
@@ -152,36 +152,17 @@ def _joint_terms(robot: Robot, on: bool) -> tuple[FloatArray, FloatArray] | None
     return (b, f) if (b.any() or f.any()) else None
 
 
-def _agrees(term, fused, n: int) -> bool:
-    """Whether a term's fused form equals its own ``d(t, q, dq)`` at a few random points."""
-    rng = np.random.default_rng(0)
-    for _ in range(3):
-        t = float(rng.uniform(0.0, 10.0))
-        q, dq = rng.standard_normal(n), rng.standard_normal(n)
-        try:
-            direct = np.broadcast_to(np.asarray(term(t, q, dq), dtype=float), (n,))
-            other = np.broadcast_to(np.asarray(fused(t, q, dq), dtype=float), (n,))
-        except (ValueError, TypeError):
-            return False
-        if not np.allclose(direct, other, rtol=1e-12, atol=1e-12):
-            return False
-    return True
-
-
 def _friction_of(term, n: int) -> tuple[FloatArray, FloatArray] | None:
-    """``(a, b)`` (n,) of a Coulomb–viscous term (a ``friction_coefficients()`` method)
-    whose ``d(t, q, dq)`` is :math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, else ``None``."""
-    coef_fn = getattr(term, "friction_coefficients", None)
-    if not callable(coef_fn):
+    """``(a, b)`` (n,) of a Coulomb–viscous term
+    (:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`, whose value is
+    :math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)` by definition), else ``None`` (also
+    for coefficients of another shape: the term's own call then raises its error)."""
+    if not isinstance(term, CoulombViscousFriction):
         return None
-    a, b = (np.asarray(c, dtype=float) for c in coef_fn())
+    a, b = (np.asarray(c, dtype=float) for c in term.friction_coefficients())
     if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
         return None
-    law = load_native().joint_torque  # what the compiled period evaluates
-    a, b = np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float)
-    if not _agrees(term, lambda t, q, dq, a=a, b=b, law=law: -law(a, b, dq), n):
-        return None
-    return a, b
+    return np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float)
 
 
 def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
@@ -199,24 +180,22 @@ def split_disturbance(disturbance, n: int):
     """Split ``disturbance`` into fused parts, or return ``None`` if it has other terms.
 
     Returns:
-        ``(pulses, friction)``: the time-only terms (with ``sample_times``) and the
-        single Coulomb–viscous term (with ``friction_coefficients``, or ``None``);
+        ``(pulses, friction)``: the time-only terms
+        (:class:`~hmpc_pin.sim.disturbances.TimeOnly`) and the single Coulomb–viscous
+        term's ``(a, b)`` (:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`, or
+        ``None``); each is defined by its fused form alone, so no check that the two agree;
         ``None`` instead of the pair when the disturbance has any other term (a user
         callable, two friction terms), which is then evaluated term by term.
     """
     terms = getattr(disturbance, "terms", (disturbance,))
     pulses, friction = [], []
     for term in terms:
-        times_fn = getattr(term, "sample_times", None)
-        coef_fn = getattr(term, "friction_coefficients", None)
-        if callable(times_fn) and _agrees(
-            term, lambda t, q, dq, f=times_fn: f(np.array([t]))[0], n
-        ):
+        if isinstance(term, TimeOnly):
             pulses.append(term)
-        elif callable(coef_fn):
+        elif isinstance(term, CoulombViscousFriction):
             ab = _friction_of(term, n)
             if ab is None:
-                return None  # let the plain evaluation raise its own error, or call the term
+                return None  # let the plain evaluation raise its own error
             friction.append(ab)
         else:
             return None

@@ -220,9 +220,10 @@ def test_replay_refuses_a_urdf_of_another_arm(saved_run, tmp_path, capsys):
 
 @pytest.mark.parametrize("source", ["observer", "dynamics"])
 def test_nan_samples_are_left_out_with_a_count(source, saved_run, tmp_path, capsys):
-    """NaN in q̇ for 5 samples: the fit leaves them out (the observer's filter: everything
-    after them) and says how many (not counting those before --after); with every sample
-    NaN, one line and exit 2."""
+    """NaN in q̇ for 5 samples: the fit leaves them out (the observer's filter starts
+    again from rest after them: its start-up, --after = 0.5 s, is left out too, not the
+    rest of the run) and says how many (not counting those before --after); with every
+    sample NaN, one line and exit 2."""
     result = Result.load(saved_run)
     result.dq[300:305, 1] = np.nan
     if source == "dynamics":  # before --after (0.5 s): left out anyway, not counted
@@ -230,8 +231,10 @@ def test_nan_samples_are_left_out_with_a_count(source, saved_run, tmp_path, caps
     code, out, err, table = _identify(result.save(tmp_path / "nan.npz"), tmp_path, capsys,
                                       "--source", source)  # fmt: skip
     assert code == 0, err
-    # dynamics: the 6 periods touching the 5 samples; observer: everything from sample 300
-    excluded = 6 if source == "dynamics" else len(result.t) - 300
+    # dynamics: the 6 periods touching the 5 samples; observer: the 5 and 0.5 s after them
+    restart = np.count_nonzero((result.t >= result.t[305]) & (result.t < result.t[305] + 0.5))
+    excluded = 6 if source == "dynamics" else 5 + restart
+    assert restart < len(result.t) - 305 - 10  # (the rest of the run is fitted)
     assert f"{excluded} samples left out" in out, out
     np.testing.assert_allclose(table["controller"]["friction"]["viscous"], VISCOUS, rtol=0.05)
     result.d_hat[:] = np.nan

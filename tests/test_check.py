@@ -61,6 +61,29 @@ def test_a_fine_config_passes_with_its_figures(capsys, tmp_path):
     assert "no problem found" in out and "joint3" in out
 
 
+def test_the_table_shows_each_figure_in_its_unit():
+    """CheckReport.format, column by column, against figures written by hand: w [1/s],
+    w Ts [-], the margin w_max/w with an x (inf: no bound), the damping time constant [s]
+    ('-': none), the headroom in % ('-': no limit), and the engines' two differences in
+    the order M(q), forward dynamics."""
+    from hmpc_pin.apps.check import CheckReport
+
+    report = CheckReport(
+        ("a", "b"), 0.01, 0.002, np.array([100.0, 300.0]), np.array([0.2, np.inf]),
+        np.array([0.05, np.inf]), np.array([0.5, np.inf]), (1e-3, 2e-5),
+    )  # fmt: skip
+    lines = report.format().splitlines()
+    assert lines[0] == "Ts = 0.01 s, latency = 0.002 s"
+    assert lines[2].split() == ["a", "100", "1", "0.2x", "0.05", "50", "%"]
+    assert lines[3].split() == ["b", "300", "3", "inf", "-", "-"]
+    assert lines[4] == (
+        "MuJoCo: M(q) within 0.001, forward dynamics within 2e-05 (relative) of Pinocchio's"
+    )
+    bare = CheckReport(("a",), 0.01, 0.0, None, None, np.array([np.inf]), np.array([0.25]),
+                       "not compared (--no-engine)")  # fmt: skip
+    assert bare.format().splitlines()[2].split() == ["a", "-", "-", "-", "-", "25", "%"]
+
+
 def test_the_papers_fast_observer_is_a_warning_for_an_arm_naming_each_joint(capsys):
     """The paper's gain c = 100: every joint's bandwidth (27, 120, 578 1/s) is above the
     rule's 20 1/s for one undeclared period of latency (Ts = 10 ms, r = 1.25). ``run``
@@ -248,6 +271,34 @@ def test_engines_that_disagree_are_detected():
     ex.robot = ex.robot.with_scaled_inertias([1.0, 1.0, 1.5])
     err_M, err_a = _engines(ex)
     assert err_M > 0.01 and err_a > 0.01
+
+
+def test_the_engines_differences_are_relative(tmp_path):
+    """The same arm with every mass and inertia 1e12 times larger (its URDF rewritten, so
+    both engines read the heavy arm): M(q) and the accelerations under torques scaled
+    alike are the same relative to their size, so the figures stay within ENGINE_RTOL
+    (an absolute difference would grow 1e12 times)."""
+    import re
+
+    pytest.importorskip("mujoco")
+    from hmpc_pin.apps.check import _engines
+
+    scale = 1e12
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+
+    def heavier(match: re.Match) -> str:
+        return f'{match.group(1)}="{float(match.group(2)) * scale!r}"'
+
+    heavy = re.sub(r'\b(value|ixx|ixy|ixz|iyy|iyz|izz)="([^"]+)"', heavier, urdf)
+    (tmp_path / "heavy.urdf").write_text(heavy)
+    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
+                                     f'"{(tmp_path / "heavy.urdf").as_posix()}"')  # fmt: skip
+    (tmp_path / "heavy.toml").write_text(text)
+    config = load_config(tmp_path / "heavy.toml")
+    ex = Experiment.from_config(config)
+    assert ex.robot.mass_matrix(ex.q0)[0, 0] > 1e11  # the heavy arm
+    err_M, err_a = _engines(ex)
+    assert err_M < ENGINE_RTOL and err_a < ENGINE_RTOL
 
 
 @pytest.mark.parametrize("compensation, expected", [("momentum", 100.0), ("ism", None),

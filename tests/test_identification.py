@@ -366,3 +366,63 @@ def test_samples_slower_than_the_velocity_threshold_are_left_out():
         pytest.approx(2.0, rel=1e-9),
         pytest.approx(0.5, rel=1e-9),
     )
+
+
+def test_a_joints_figures_are_numpys(make_rng):
+    """Every figure of a joint's fit against numpy on the same samples: the residual RMS
+    sqrt(mean r²) of the least-squares residual, m, m_e = m(1 − ρ)/(1 + ρ) with ρ the
+    residual's lag-1 autocorrelation, the condition number of A with unit columns, and
+    the coverage as shares of all the samples (half of these are too slow to count);
+    the table shows m and m_e, the TOML the coefficients to 6 digits."""
+    import tomllib
+
+    from hmpc_pin.identification.friction import FrictionFit
+
+    rng = make_rng(7)
+    m = 1200
+    fast = 8.0 * np.sin(np.linspace(0, 40, m // 2))  # |q̇| up to 8 rad/s: unnormalised A
+    slow = 0.02 * np.sin(np.linspace(0, 40, m // 2))  # within the excitation velocity
+    dq = np.concatenate([fast, slow])
+    y = 1.2345678 * dq + 0.7123456 * np.sign(dq) + _ar1(rng, m, 0.6, 0.3)
+    fit = fit_joint(y, dq, name="elbow")
+    keep = np.abs(dq) > 0.01
+    A = np.column_stack([dq[keep], np.sign(dq[keep])])
+    theta, *_ = np.linalg.lstsq(A, y[keep], rcond=None)
+    r = y[keep] - A @ theta
+    rho = float(np.dot(r[1:], r[:-1]) / np.dot(r, r))
+    m_e = len(r) * (1 - rho) / (1 + rho)
+    assert fit.residual_rms == pytest.approx(np.sqrt(np.mean(r**2)), rel=1e-9)
+    assert fit.samples == len(r) and fit.effective_samples == pytest.approx(m_e, rel=1e-9)
+    assert m_e < 0.5 * len(r)  # (the correction matters here)
+    assert fit.condition == pytest.approx(np.linalg.cond(A / np.linalg.norm(A, axis=0)))
+    forward = np.count_nonzero(dq > 0.05) / m
+    backward = np.count_nonzero(dq < -0.05) / m
+    assert fit.coverage == (pytest.approx(forward), pytest.approx(backward))
+    assert 0.2 < forward < 0.3  # half the samples are slow: a quarter each way
+    whole = FrictionFit((fit,), "observer", 0.95)
+    row = next(line for line in whole.table().splitlines() if line.startswith("| elbow"))
+    assert f"| {len(r)} ({m_e:.0f}) |" in row, row
+    table = tomllib.loads(whole.toml())["controller"]["friction"]
+    np.testing.assert_allclose(table["viscous"], [fit.viscous], rtol=5e-6)  # 6 digits
+    np.testing.assert_allclose(table["coulomb"], [fit.coulomb], rtol=5e-6)
+
+
+def test_a_confidence_of_one_is_refused(friction_run):
+    """A 100 % interval is infinitely wide: the level must be in (0, 1)."""
+    _, result = friction_run
+    for level in (1.0, 0.0, 1.5):
+        with pytest.raises(ConfigError, match="--confidence"):
+            fit_friction(result, source="observer", confidence=level)
+
+
+def test_the_last_samples_applied_torque_is_not_read(friction_run):
+    """No period follows the last sample: its applied torque (NaN in a run stopped
+    there) is not read by the dynamics source, and nothing is counted as left out."""
+    exp, result = friction_run
+    tau = np.array(result.tau_applied, dtype=float)
+    tau[-1] = np.nan
+    fit = fit_friction(replace(result, tau_applied=tau), source="dynamics", robot=exp.robot)
+    assert fit.excluded == 0
+    tau[-2] = np.nan  # a sample inside the run: the two periods it ends and starts, counted
+    fit = fit_friction(replace(result, tau_applied=tau), source="dynamics", robot=exp.robot)
+    assert fit.excluded == 2

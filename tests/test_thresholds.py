@@ -163,3 +163,20 @@ def test_the_sample_at_after_is_kept():
     d_hat[k] = 5.0
     fit = learn_thresholds(_result(d_hat), after=float(t[k]), safety=1.0)
     assert fit.peak[0] == pytest.approx(5.0)
+
+
+def test_the_table_holds_the_thresholds_to_six_digits(make_rng):
+    """The [collision] table read back (tomllib) is the thresholds learned, to the 6
+    significant digits written."""
+    import tomllib
+
+    fit = learn_thresholds(_result(np.abs(_ar1(make_rng(11), 3000, 2)) * 1.2345678))
+    table = tomllib.loads(fit.toml())["collision"]["threshold"]
+    np.testing.assert_allclose(table, fit.threshold, rtol=5e-6)
+
+
+@pytest.mark.parametrize("horizon", [np.inf, np.nan, 0.0, -1.0])
+def test_a_horizon_that_is_not_a_finite_duration_is_refused(horizon, make_rng):
+    """An infinite horizon would make every per-block quantile 1 (an infinite threshold)."""
+    with pytest.raises(ConfigError, match="--horizon"):
+        learn_thresholds(_result(np.abs(_ar1(make_rng(12), 3000, 2))), horizon=horizon)

@@ -839,6 +839,25 @@ def test_a_loop_that_decays_slowly_is_no_problem_and_one_growing_along_the_refer
         assert shown == pytest.approx(radii.max(), abs=6e-3)  # shown to 3 digits
 
 
+def test_the_worst_mode_along_the_reference_is_found_with_its_time():
+    """_worst_along against a brute-force maximum: a radius growing with w is largest at
+    the fastest mode, 20.1 1/s at t = 1 s, although 20.0 1/s (t = 0) shares its 1 % band
+    and comes first; without modes, nothing."""
+    from hmpc_pin.apps.check import _worst_along
+
+    t = np.array([0.0, 1.0, 2.0])
+    modes = np.array([[10.0, 20.0], [20.1, 5.0], [np.nan, 0.0]])
+    calls = []
+
+    def radius(w):
+        calls.append(w)
+        return w / 100.0
+
+    assert _worst_along(radius, t, modes) == (pytest.approx(0.201), 20.1, 1.0)
+    assert len(calls) == 3  # 5, 10 and the band of 20.0/20.1, each evaluated once
+    assert _worst_along(radius, np.zeros(0), np.zeros((0, 2))) == (0.0, 0.0, 0.0)
+
+
 def test_the_observers_modes_are_the_generalized_eigenvalues_along_the_reference():
     """observer_modes against scipy's generalized eigenvalue problem cY v = w M(q) v at
     the reference's postures (Pinocchio's CRBA for M), for a gain-set NDO whose modes

@@ -61,6 +61,25 @@ def test_a_fine_config_passes_with_its_figures(capsys, tmp_path):
     assert "no problem found" in out and "joint3" in out
 
 
+def test_a_joint_without_an_effort_limit_has_no_headroom(tmp_path):
+    """A URDF effort of 0 means no limit (the plant does not clip that joint): its
+    headroom is inf, shown '-', while the limited joints keep theirs (1 - peak/limit,
+    below 1 since the reference needs torque there)."""
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+    lines = urdf.splitlines(keepends=True)
+    second = [i for i, line in enumerate(lines) if 'effort="10000"' in line][1]
+    lines[second] = lines[second].replace('effort="10000"', 'effort="0"')
+    (tmp_path / "free2.urdf").write_text("".join(lines))
+    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
+                                     f'"{(tmp_path / "free2.urdf").as_posix()}"')  # fmt: skip
+    (tmp_path / "free2.toml").write_text(text)
+    report = check_config(load_config(tmp_path / "free2.toml"), engines=False)
+    assert np.isinf(report.headroom[1])
+    assert np.all((report.headroom[[0, 2]] > 0) & (report.headroom[[0, 2]] < 1))
+    row = report.format().splitlines()[3].split()
+    assert row[0] == "joint2" and row[-1] == "-"
+
+
 def test_the_table_shows_each_figure_in_its_unit():
     """CheckReport.format, column by column, against figures written by hand: w [1/s],
     w Ts [-], the margin w_max/w with an x (inf: no bound), the damping time constant [s]

@@ -426,3 +426,28 @@ def test_the_last_samples_applied_torque_is_not_read(friction_run):
     tau[-2] = np.nan  # a sample inside the run: the two periods it ends and starts, counted
     fit = fit_friction(replace(result, tau_applied=tau), source="dynamics", robot=exp.robot)
     assert fit.excluded == 2
+
+
+def test_joints_fitted_together_are_weighted_by_their_residual_variance(make_rng):
+    """The observer source fits all joints in one least-squares problem (its filter
+    couples them): feasible GLS, each joint's rows weighted by 1/s_i², s_i² the mean
+    squared residual of the ordinary fit on that joint's rows (numpy: lstsq twice). A
+    joint 30 times noisier then barely moves the shared estimate, and the ordinary fit
+    differs from it."""
+    from hmpc_pin.identification.friction import _least_squares
+
+    rng = make_rng(9)
+    theta_true = np.array([2.0, -0.5, 1.0])
+    blocks = []
+    for sigma in (0.01, 0.3):
+        a = rng.standard_normal((400, 3)) * np.array([1.0, 10.0, 0.1])
+        blocks.append((a, a @ theta_true + sigma * rng.standard_normal(400)))
+    A = np.vstack([a for a, _ in blocks])
+    y = np.concatenate([v for _, v in blocks])
+    ols, *_ = np.linalg.lstsq(A, y, rcond=None)
+    w = np.concatenate([np.full(400, 1 / np.sqrt(np.mean((v - a @ ols) ** 2))) for a, v in blocks])
+    gls, *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
+    theta, _half, res, _m_eff = _least_squares(blocks, 0.95)
+    np.testing.assert_allclose(theta, gls, rtol=1e-9)
+    assert np.max(np.abs(gls - ols) / np.abs(theta_true)) > 1e-4  # the weights matter
+    np.testing.assert_allclose(np.concatenate(res), y - A @ gls, atol=1e-12)

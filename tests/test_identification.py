@@ -451,3 +451,30 @@ def test_joints_fitted_together_are_weighted_by_their_residual_variance(make_rng
     np.testing.assert_allclose(theta, gls, rtol=1e-9)
     assert np.max(np.abs(gls - ols) / np.abs(theta_true)) > 1e-4  # the weights matter
     np.testing.assert_allclose(np.concatenate(res), y - A @ gls, atol=1e-12)
+
+
+def test_identify_config_changes_the_friction_table_alone(tmp_path, friction_run, capsys):
+    """identify --config writes the config with [controller.friction] set to the fit and
+    every other controller setting as the source has it (the table, not [controller],
+    is replaced)."""
+    _, result = friction_run
+    run = result.save(tmp_path / "run.npz")
+    out = tmp_path / "ff.toml"
+    source = tmp_path / "own.toml"  # settings of its own, none the default
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    text = (text.replace('"../robots/planar3.urdf"', f'"{urdf}"').replace("N = 10 ", "N = 17 ")
+            .replace("R = 1e-6", "R = 2e-6").replace("gain = 100.0", "gain = 80.0"))  # fmt: skip
+    source.write_text(text)
+    assert load_config(source).controller.N == 17
+    assert main(["identify", str(run), "--config", str(source), "--out", str(out)]) == 0
+    capsys.readouterr()
+    before, after = load_config(source).controller, load_config(out).controller
+    for key in ("Ts", "N", "Nc", "R", "compensation", "latency"):
+        assert getattr(after, key) == getattr(before, key), key
+    np.testing.assert_array_equal(after.Q, before.Q)
+    np.testing.assert_array_equal(after.P, before.P)
+    for key in ("gain", "discretization", "model_at"):
+        assert getattr(after.observer, key) == getattr(before.observer, key), key
+    assert before.friction is None and after.friction is not None
+    np.testing.assert_allclose(after.friction.viscous, VISCOUS, rtol=0.05)

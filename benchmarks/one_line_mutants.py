@@ -406,6 +406,37 @@ MUTANTS = [
     ("i36f", "hmpc_pin/apps/cli.py", '        return EXIT_FAILED\n    print("no problem found")', '        return EXIT_OK\n    print("no problem found")', [CHK]),
     ("i36f", "hmpc_pin/exceptions.py", """return f'pip install "hmpc_pin[{extra}] @ {url}"'""", """return f'pip install "hmpc_pin[{extra}]"'""",
      ["tests/test_wheel.py", "-m", "not slow"]),
+    # ---- a fifth fresh group, after the i36f survivors' tests, over lines of the same
+    # area no group mutated, written down and committed before any of them ran
+    ("i36g", "hmpc_pin/apps/check.py", "base, lead = lead_radius(kp, kd, Ts, 0.0), lead_radius(kp, kd, Ts, over)",
+     "base, lead = lead_radius(kp, kd, Ts, 0.0), lead_radius(kp, kd, Ts, 2 * over)", [CHK]),
+    ("i36g", "hmpc_pin/apps/check.py", "decay, decay0 = -math.log(min(lead, 1.0)) / Ts, -math.log(base) / Ts",
+     "decay, decay0 = -math.log(min(lead, 1.0)) / Ts, -math.log(base)", [CHK]),
+    ("i36g", "hmpc_pin/apps/check.py", "    ratio = _run_ratio(ex)\n    bad = np.flatnonzero(explicit_loop_slow",
+     "    ratio = 1.0\n    bad = np.flatnonzero(explicit_loop_slow", [CHK]),
+    ("i36g", "hmpc_pin/apps/check.py", "k = int(min(samples, max(duration / Ts, 1.0)))", "k = int(samples)", [CHK]),
+    ("i36g", "hmpc_pin/apps/check.py", "t = np.linspace(0.0, duration, k + 1)", "t = np.linspace(0.0, duration / 2, k + 1)", [CHK]),
+    ("i36g", "hmpc_pin/apps/check.py", "plant_damped = bool(config.plant.joint_dynamics)", "plant_damped = True", [CHK]),
+    ("i36g", "hmpc_pin/identification/friction.py", 'return f"{value:.{digits}g} [{ci[0]:.{digits}g}, {ci[1]:.{digits}g}]"',
+     'return f"{value:.{digits}g} [{ci[1]:.{digits}g}, {ci[0]:.{digits}g}]"', [IDN, IDF]),
+    ("i36g", "hmpc_pin/identification/friction.py", "peak = float(np.max(np.abs(dq))) if len(dq) else 0.0",
+     "peak = float(np.max(dq)) if len(dq) else 0.0", [IDN, IDF]),
+    ("i36g", "hmpc_pin/identification/friction.py", "short = [j for j in self.joints if not j.has_interval]",
+     "short = [j for j in self.joints if j.has_interval]", [IDN, IDF]),
+    ("i36g", "hmpc_pin/identification/friction.py", 'if source in ("dynamics", "regressor") and robot is None:',
+     'if source == "dynamics" and robot is None:', [IDN, IDF]),
+    ("i36g", "hmpc_pin/identification/friction.py", "        t = 0.5 * (result.t[1:] + result.t[:-1])", "        t = result.t[:-1]", [IDN, IDF]),
+    ("i36g", "hmpc_pin/identification/thresholds.py", "per_block = round(block / Ts) if Ts > 0 else 0",
+     "per_block = int(block / Ts) if Ts > 0 else 0", ["tests/test_thresholds.py"]),
+    ("i36g", "hmpc_pin/identification/thresholds.py", "        peak=r.max(axis=0),", "        peak=np.abs(result.d_hat).max(axis=0),",
+     ["tests/test_thresholds.py"]),
+    ("i36g", "hmpc_pin/apps/identify.py", "t0, t1 = float(result.t[0]), float(result.t[-1])", "t0, t1 = 0.0, float(result.t[-1])", [IDF]),
+    ("i36g", "hmpc_pin/apps/runfile.py", 'missing = str(exc.args[0] if exc.args else exc).split(" is not a file")[0]',
+     "missing = str(exc)", [IDF]),
+    ("i36g", "hmpc_pin/apps/tune.py", 'space["N"] = ("int", 5, 30)', 'space["N"] = ("int", 5, 10)', [TUN]),
+    ("i36g", "hmpc_pin/apps/tune.py", '"R": ("log", 1e-8, 1e-3),', '"R": ("log", 1e-8, 1e-5),', [TUN]),
+    ("i36g", "hmpc_pin/apps/tune.py", 'Ts=float(params.get("Ts", cc.Ts)),', "Ts=float(cc.Ts),", [TUN]),
+    ("i36g", "hmpc_pin/apps/tune.py", "out[name] = v if v in spec[1] else spec[1][0]", "out[name] = spec[1][0]", [TUN]),
 ]
 
 
@@ -434,7 +465,7 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36, i36b, i36c, i36d, i36e or i36f")
+    parser.add_argument("--group", default="", help="run one group: new, earlier, fresh, i36, i36b, i36c, i36d, i36e, i36f or i36g")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:

@@ -613,6 +613,17 @@ def test_a_latency_declared_far_too_long_is_a_problem_through_the_mpc(gain):
         if problem:
             assert "predicted 0.1 s ahead" in latency[0]
             assert "observer pairs" not in latency[0]
+            # the loop quoted is the one predicting 10 periods ahead (lead_radius, tested
+            # against the simulated loop), its rate -ln|z|/Ts, against the PD loop's
+            from hmpc_pin.apps.check import lead_radius
+            from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+            from hmpc_pin.mpc.condensed import CondensedMPC
+
+            kp, kd = mpc_feedback_gain(CondensedMPC(cc.Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+            z, z0 = lead_radius(kp, kd, 0.01, periods), lead_radius(kp, kd, 0.01, 0.0)
+            assert f"|z| = {z:.3g}" in latency[0]
+            assert f"decays at {-math.log(min(z, 1.0)) / 0.01:.3g} 1/s" in latency[0]
+            assert f"its {-math.log(z0) / 0.01:.3g} 1/s" in latency[0]
 
 
 def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path, capsys):

@@ -509,6 +509,44 @@ def test_the_explicit_observers_loop_with_the_mpc_is_a_problem(gain, flagged):
         }
 
 
+def test_the_explicit_loop_is_judged_with_the_runs_inertia_ratio(monkeypatch):
+    """A plant whose inertia is 1/r of the model's (r = 0.8 here: 1.25 times heavier,
+    the ratio the run's plant gives): the explicit observer's loop with the MPC at c = 13
+    (joint 3 at w Ts = 0.75, which passes with r = 1) is judged with r: flagged exactly
+    when explicit_loop_slow says so at r, quoting loop_radius at r."""
+    import hmpc_pin.apps.check as check
+    from hmpc_pin.apps.check import explicit_loop_slow, loop_radius
+    from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+    from hmpc_pin.mpc.condensed import CondensedMPC
+
+    config = load_config(PAPER)
+    obs = replace(config.controller.observer, gain=13.0, discretization="explicit")
+    config = replace(config, controller=replace(config.controller, observer=obs))
+    monkeypatch.setattr(check, "_run_ratio", lambda ex: 0.8)
+    report = check_config(config, engines=False)
+    wTs = report.bandwidth * 0.01
+    cc = config.controller
+    kp, kd = mpc_feedback_gain(CondensedMPC(cc.Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    slow = explicit_loop_slow(kp, kd, 0.01, wTs, 0.8)
+    assert not explicit_loop_slow(kp, kd, 0.01, wTs, 1.0).any() and slow.any()
+    lines = [p for p in report.problems if "forward-Euler" in p]
+    assert len(lines) == 1
+    for j in np.flatnonzero(slow):
+        z = loop_radius(kp, kd, 0.01, wTs[j], 0.0, 0.8, True)
+        assert f"'joint{j + 1}' (w Ts = {wTs[j]:.3g}, |z| = {z:.3g})" in lines[0]
+
+
+def test_the_observers_modes_are_sampled_at_most_once_a_period():
+    """A run of 5 periods: 6 postures (its ends included), not the 200 a long run gets."""
+    from hmpc_pin.apps.check import observer_modes
+
+    config = _paper(20.0)
+    config = replace(config, simulation=replace(config.simulation, duration=0.05))
+    t, modes = observer_modes(Experiment.from_config(config))
+    np.testing.assert_allclose(t, np.linspace(0.0, 0.05, 6))
+    assert modes.shape == (6, 3)
+
+
 @pytest.mark.parametrize("wTs, ratio, over", [(1.5, 1.25, 0.0), (0.5, 1.0, 1.0),
                                                (1.0, 1.25, 2.4), (1.2, 1.0, 0.5)])  # fmt: skip
 def test_the_explicit_observer_loop_of_a_latency_declared_too_long(wTs, ratio, over):

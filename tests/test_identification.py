@@ -402,6 +402,8 @@ def test_a_joints_figures_are_numpys(make_rng):
     whole = FrictionFit((fit,), "observer", 0.95)
     row = next(line for line in whole.table().splitlines() if line.startswith("| elbow"))
     assert f"| {len(r)} ({m_e:.0f}) |" in row, row
+    lo, hi = fit.viscous_ci
+    assert lo < fit.viscous < hi and f"| {fit.viscous:.4g} [{lo:.4g}, {hi:.4g}] |" in row, row
     table = tomllib.loads(whole.toml())["controller"]["friction"]
     np.testing.assert_allclose(table["viscous"], [fit.viscous], rtol=5e-6)  # 6 digits
     np.testing.assert_allclose(table["coulomb"], [fit.coulomb], rtol=5e-6)

@@ -480,3 +480,34 @@ def test_identify_config_changes_the_friction_table_alone(tmp_path, friction_run
         assert getattr(after.observer, key) == getattr(before.observer, key), key
     assert before.friction is None and after.friction is not None
     np.testing.assert_allclose(after.friction.viscous, VISCOUS, rtol=0.05)
+
+
+def test_the_excitation_error_names_the_peak_speed_either_way():
+    """A joint that moves backward only: the message's peak |q̇| is the largest speed,
+    here 1 rad/s backward (numpy: max |q̇|), not the largest signed velocity."""
+    dq = -0.5 * (1.0 + np.sin(np.linspace(0, 20, 1000)))
+    with pytest.raises(ExcitationError) as info:
+        fit_joint(0.3 * dq, dq, name="wrist")
+    assert f"peak |q̇| {np.max(np.abs(dq)):.3g} rad/s" in str(info.value)
+
+
+def test_the_regressor_source_needs_the_arm_too(friction_run):
+    _, result = friction_run
+    with pytest.raises(ConfigError, match="'regressor' source needs the arm's model"):
+        fit_friction(result, source="regressor")
+
+
+def test_the_dynamics_source_starts_at_the_first_period_whose_middle_is_after(friction_run):
+    """A period's sample is at its middle, (t_k + t_k+1)/2: with --after a quarter period
+    past t_50, the period from t_50 (middle t_50 + Ts/2) is kept. The samples counted per
+    joint are numpy's: periods whose middle is >= after and whose mean speed is above
+    the velocity threshold."""
+    exp, result = friction_run
+    t = result.t
+    after = float(t[50] + 0.25 * (t[51] - t[50]))
+    fit = fit_friction(result, source="dynamics", robot=exp.robot, after=after)
+    mid = 0.5 * (t[1:] + t[:-1])
+    dq_mid = 0.5 * (result.dq[1:] + result.dq[:-1])
+    for j, joint in enumerate(fit.joints):
+        expected = np.count_nonzero((mid >= after) & (np.abs(dq_mid[:, j]) > 0.01))
+        assert joint.samples == expected

@@ -568,3 +568,14 @@ def test_the_arm_of_an_init_run_is_reduced_as_it_ran(tmp_path):
     assert result.meta.get("locked_joints")
     robot = run_robot(load_run(result.save(tmp_path / "panda.npz")), None)
     assert robot.nq == 7 and tuple(robot.joint_names) == tuple(result.joint_names)
+
+
+def test_after_past_the_end_names_the_span_of_a_run_that_starts_late(saved_run, tmp_path,
+                                                                      capsys):  # fmt: skip
+    """A run whose clock starts at 2 s (a real-time run stamps its own time): the error
+    names the span it has, 2 to 7 s (5 s), not 0 to 7 s."""
+    result = Result.load(saved_run)
+    late = replace(result, t=result.t + 2.0).save(tmp_path / "late.npz")
+    code, _out, err, _table = _identify(late, tmp_path, capsys, "--after", "8")
+    assert code == 2
+    assert "span t = 2 to 7 s, 5 s" in err, err

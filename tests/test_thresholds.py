@@ -183,10 +183,10 @@ def test_a_horizon_that_is_not_a_finite_duration_is_refused(horizon, make_rng):
 
 
 def test_a_block_is_a_whole_number_of_periods_nearest_the_one_asked(make_rng):
-    """--block 0.3 s at Ts = 0.01 s is 30 periods (0.3 / 0.01 is 29.999... in floating
-    point: rounded, not truncated)."""
-    fit = learn_thresholds(_result(np.abs(_ar1(make_rng(13), 3000, 2))), block=0.3)
-    assert fit.block == pytest.approx(0.3, rel=1e-12)
+    """--block 0.296 s at Ts = 0.01 s is 29.6 periods: the block is the nearest whole
+    number, 30 periods (0.3 s), not 29 (truncated)."""
+    fit = learn_thresholds(_result(np.abs(_ar1(make_rng(13), 3000, 2))), block=0.296)
+    assert fit.block == pytest.approx(0.3, rel=1e-9)
 
 
 def test_the_peak_is_the_runs_after_the_start_up_left_out(make_rng):

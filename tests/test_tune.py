@@ -439,3 +439,35 @@ def test_a_holdout_seed_alone_is_accepted(holdout, seed, expected, friction_conf
     out = check_options(friction_config, trials=1, samples=8, seed=5, jobs=1,
                         holdout=holdout, holdout_seed=seed)  # fmt: skip
     assert out == expected
+
+
+def test_the_search_space_is_the_guides(friction_config):
+    """The ranges the identification-and-tuning guide states, as the search space has
+    them (observer gain [c0/10, 5 c0])."""
+    from .conftest import ROOT
+
+    guide = (ROOT / "docs" / "guide" / "identification-and-tuning.md").read_text()
+    space = search_space(friction_config)
+    for text, key, spec in (
+        ("q_p ∈ [1, 10⁴]", "Q_position", ("log", 1.0, 1e4)),
+        ("q_v ∈ [10⁻⁴, 10²]", "Q_velocity", ("log", 1e-4, 1e2)),
+        ("R ∈ [10⁻⁸, 10⁻³]", "R", ("log", 1e-8, 1e-3)),
+        ("N ∈ [5, 30]", "N", ("int", 5, 30)),
+        ("[c₀/10, 5c₀]", "observer_gain", ("log", 10.0, 500.0)),  # c0 = 100
+    ):
+        assert text in guide, text
+        assert space[key][0] == spec[0] and space[key][1:] == pytest.approx(spec[1:]), key
+
+
+@pytest.mark.parametrize(
+    ("observers", "first"),
+    [(("momentum", "chen"), "chen"), (("momentum", "general"), "momentum")],
+)
+def test_trial_0_keeps_the_configs_observer_when_it_is_listed(observers, first, friction_config):
+    """--observers momentum,chen on a chen config: trial 0 is the config as given (chen);
+    when its observer is not listed, the first listed."""
+    from hmpc_pin.apps.tune import current_params
+
+    assert friction_config.controller.compensation == "chen"
+    space = search_space(friction_config, observers=observers)
+    assert current_params(friction_config, space)["compensation"] == first

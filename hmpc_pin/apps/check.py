@@ -580,7 +580,7 @@ def observer_modes(ex: Experiment, samples: int = 200) -> tuple[np.ndarray, np.n
     """
     from ..compensation.observers import DisturbanceObserver, MomentumObserver
 
-    comp = getattr(ex.controller, "compensation", None)
+    comp: Any = getattr(ex.controller, "compensation", None)
     while hasattr(comp, "inner"):  # a gate around the observer (collision reaction)
         comp = comp.inner
     n = ex.robot.nq

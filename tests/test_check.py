@@ -61,6 +61,48 @@ def test_a_fine_config_passes_with_its_figures(capsys, tmp_path):
     assert "no problem found" in out and "joint3" in out
 
 
+def test_a_joint_without_an_effort_limit_has_no_headroom(tmp_path):
+    """A URDF effort of 0 means no limit (the plant does not clip that joint): its
+    headroom is inf, shown '-', while the limited joints keep theirs (1 - peak/limit,
+    below 1 since the reference needs torque there)."""
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+    lines = urdf.splitlines(keepends=True)
+    second = [i for i, line in enumerate(lines) if 'effort="10000"' in line][1]
+    lines[second] = lines[second].replace('effort="10000"', 'effort="0"')
+    (tmp_path / "free2.urdf").write_text("".join(lines))
+    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
+                                     f'"{(tmp_path / "free2.urdf").as_posix()}"')  # fmt: skip
+    (tmp_path / "free2.toml").write_text(text)
+    report = check_config(load_config(tmp_path / "free2.toml"), engines=False)
+    assert np.isinf(report.headroom[1])
+    assert np.all((report.headroom[[0, 2]] > 0) & (report.headroom[[0, 2]] < 1))
+    row = report.format().splitlines()[3].split()
+    assert row[0] == "joint2" and row[-1] == "-"
+
+
+def test_the_table_shows_each_figure_in_its_unit():
+    """CheckReport.format, column by column, against figures written by hand: w [1/s],
+    w Ts [-], the margin w_max/w with an x (inf: no bound), the damping time constant [s]
+    ('-': none), the headroom in % ('-': no limit), and the engines' two differences in
+    the order M(q), forward dynamics."""
+    from hmpc_pin.apps.check import CheckReport
+
+    report = CheckReport(
+        ("a", "b"), 0.01, 0.002, np.array([100.0, 300.0]), np.array([0.2, np.inf]),
+        np.array([0.05, np.inf]), np.array([0.5, np.inf]), (1e-3, 2e-5),
+    )  # fmt: skip
+    lines = report.format().splitlines()
+    assert lines[0] == "Ts = 0.01 s, latency = 0.002 s"
+    assert lines[2].split() == ["a", "100", "1", "0.2x", "0.05", "50", "%"]
+    assert lines[3].split() == ["b", "300", "3", "inf", "-", "-"]
+    assert lines[4] == (
+        "MuJoCo: M(q) within 0.001, forward dynamics within 2e-05 (relative) of Pinocchio's"
+    )
+    bare = CheckReport(("a",), 0.01, 0.0, None, None, np.array([np.inf]), np.array([0.25]),
+                       "not compared (--no-engine)")  # fmt: skip
+    assert bare.format().splitlines()[2].split() == ["a", "-", "-", "-", "-", "25", "%"]
+
+
 def test_the_papers_fast_observer_is_a_warning_for_an_arm_naming_each_joint(capsys):
     """The paper's gain c = 100: every joint's bandwidth (27, 120, 578 1/s) is above the
     rule's 20 1/s for one undeclared period of latency (Ts = 10 ms, r = 1.25). ``run``
@@ -248,6 +290,34 @@ def test_engines_that_disagree_are_detected():
     ex.robot = ex.robot.with_scaled_inertias([1.0, 1.0, 1.5])
     err_M, err_a = _engines(ex)
     assert err_M > 0.01 and err_a > 0.01
+
+
+def test_the_engines_differences_are_relative(tmp_path):
+    """The same arm with every mass and inertia 1e12 times larger (its URDF rewritten, so
+    both engines read the heavy arm): M(q) and the accelerations under torques scaled
+    alike are the same relative to their size, so the figures stay within ENGINE_RTOL
+    (an absolute difference would grow 1e12 times)."""
+    import re
+
+    pytest.importorskip("mujoco")
+    from hmpc_pin.apps.check import _engines
+
+    scale = 1e12
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+
+    def heavier(match: re.Match) -> str:
+        return f'{match.group(1)}="{float(match.group(2)) * scale!r}"'
+
+    heavy = re.sub(r'\b(value|ixx|ixy|ixz|iyy|iyz|izz)="([^"]+)"', heavier, urdf)
+    (tmp_path / "heavy.urdf").write_text(heavy)
+    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
+                                     f'"{(tmp_path / "heavy.urdf").as_posix()}"')  # fmt: skip
+    (tmp_path / "heavy.toml").write_text(text)
+    config = load_config(tmp_path / "heavy.toml")
+    ex = Experiment.from_config(config)
+    assert ex.robot.mass_matrix(ex.q0)[0, 0] > 1e11  # the heavy arm
+    err_M, err_a = _engines(ex)
+    assert err_M < ENGINE_RTOL and err_a < ENGINE_RTOL
 
 
 @pytest.mark.parametrize("compensation, expected", [("momentum", 100.0), ("ism", None),
@@ -439,6 +509,44 @@ def test_the_explicit_observers_loop_with_the_mpc_is_a_problem(gain, flagged):
         }
 
 
+def test_the_explicit_loop_is_judged_with_the_runs_inertia_ratio(monkeypatch):
+    """A plant whose inertia is 1/r of the model's (r = 0.8 here: 1.25 times heavier,
+    the ratio the run's plant gives): the explicit observer's loop with the MPC at c = 13
+    (joint 3 at w Ts = 0.75, which passes with r = 1) is judged with r: flagged exactly
+    when explicit_loop_slow says so at r, quoting loop_radius at r."""
+    import hmpc_pin.apps.check as check
+    from hmpc_pin.apps.check import explicit_loop_slow, loop_radius
+    from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+    from hmpc_pin.mpc.condensed import CondensedMPC
+
+    config = load_config(PAPER)
+    obs = replace(config.controller.observer, gain=13.0, discretization="explicit")
+    config = replace(config, controller=replace(config.controller, observer=obs))
+    monkeypatch.setattr(check, "_run_ratio", lambda ex: 0.8)
+    report = check_config(config, engines=False)
+    wTs = report.bandwidth * 0.01
+    cc = config.controller
+    kp, kd = mpc_feedback_gain(CondensedMPC(cc.Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    slow = explicit_loop_slow(kp, kd, 0.01, wTs, 0.8)
+    assert not explicit_loop_slow(kp, kd, 0.01, wTs, 1.0).any() and slow.any()
+    lines = [p for p in report.problems if "forward-Euler" in p]
+    assert len(lines) == 1
+    for j in np.flatnonzero(slow):
+        z = loop_radius(kp, kd, 0.01, wTs[j], 0.0, 0.8, True)
+        assert f"'joint{j + 1}' (w Ts = {wTs[j]:.3g}, |z| = {z:.3g})" in lines[0]
+
+
+def test_the_observers_modes_are_sampled_at_most_once_a_period():
+    """A run of 5 periods: 6 postures (its ends included), not the 200 a long run gets."""
+    from hmpc_pin.apps.check import observer_modes
+
+    config = _paper(20.0)
+    config = replace(config, simulation=replace(config.simulation, duration=0.05))
+    t, modes = observer_modes(Experiment.from_config(config))
+    np.testing.assert_allclose(t, np.linspace(0.0, 0.05, 6))
+    assert modes.shape == (6, 3)
+
+
 @pytest.mark.parametrize("wTs, ratio, over", [(1.5, 1.25, 0.0), (0.5, 1.0, 1.0),
                                                (1.0, 1.25, 2.4), (1.2, 1.0, 0.5)])  # fmt: skip
 def test_the_explicit_observer_loop_of_a_latency_declared_too_long(wTs, ratio, over):
@@ -543,6 +651,17 @@ def test_a_latency_declared_far_too_long_is_a_problem_through_the_mpc(gain):
         if problem:
             assert "predicted 0.1 s ahead" in latency[0]
             assert "observer pairs" not in latency[0]
+            # the loop quoted is the one predicting 10 periods ahead (lead_radius, tested
+            # against the simulated loop), its rate -ln|z|/Ts, against the PD loop's
+            from hmpc_pin.apps.check import lead_radius
+            from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+            from hmpc_pin.mpc.condensed import CondensedMPC
+
+            kp, kd = mpc_feedback_gain(CondensedMPC(cc.Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+            z, z0 = lead_radius(kp, kd, 0.01, periods), lead_radius(kp, kd, 0.01, 0.0)
+            assert f"|z| = {z:.3g}" in latency[0]
+            assert f"decays at {-math.log(min(z, 1.0)) / 0.01:.3g} 1/s" in latency[0]
+            assert f"its {-math.log(z0) / 0.01:.3g} 1/s" in latency[0]
 
 
 def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path, capsys):
@@ -760,18 +879,78 @@ def test_the_whole_loop_radius_is_the_simulated_loops_growth(wTs, over):
         assert radius < 1.0 and math.log(radius) / math.log(base) < 0.5
 
 
-def test_a_loop_that_decays_at_less_than_half_its_rate_is_a_problem():
+def test_a_loop_that_decays_slowly_is_no_problem_and_one_growing_along_the_reference_warns():
     """The paper's arm with init's observer (a bandwidth of 10/Ts on every joint) and half
-    a period declared: the observer alone and the MPC alone pass, the whole loop decays
-    at 0.977 per period against 0.887 without the latency: a problem, fixed by
-    latency = 0 (`run` with 0.5 Ts on init's Panda leaves its tolerance)."""
+    a period declared: at q0 the whole loop decays at 0.977 per period against 0.887
+    without the latency (init's UR5: `run` tracks, 0.03 x its tolerance): no problem.
+    Along the paper's reference M(q) changes and the observer's modes with it: where a
+    mode's w Ts gives loop_radius >= 1 check warns, naming that posture's time; where
+    none does it is silent."""
+    from hmpc_pin.apps.check import loop_radius, observer_modes
+    from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+    from hmpc_pin.mpc.condensed import CondensedMPC
+
     config = load_config(PAPER)
     obs = replace(config.controller.observer, gain=None, bandwidth=np.full(3, 1000.0))
     cc = replace(config.controller, compensation="general", observer=obs, latency=0.005)
-    report = check_config(replace(config, controller=cc), engines=False)
-    latency = [p for p in report.problems if p.startswith("latency")]
-    assert len(latency) == 1 and "together" in latency[0] and "|z| = 0.977" in latency[0]
-    assert report.fixes[report.problems.index(latency[0])] == {"controller.latency": 0.0}
+    config = replace(config, controller=cc)
+    report = check_config(config, engines=False)
+    assert not [p for p in report.problems if p.startswith("latency")]
+    kp, kd = mpc_feedback_gain(CondensedMPC(cc.Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
+    assert loop_radius(kp, kd, 0.01, 10.0, 0.5) == pytest.approx(0.977, abs=5e-4)
+    _, modes = observer_modes(Experiment.from_config(config))
+    radii = np.array([[loop_radius(kp, kd, 0.01, w * 0.01, 0.5) for w in m] for m in modes])
+    warned = [w for w in report.warnings if w.startswith("latency")]
+    assert len(warned) == int(radii.max() >= 1.0)
+    if warned:  # the worst posture's |z| (each 1 % band of w evaluated once)
+        shown = float(warned[0].split("the loop |z| = ")[1].split(")")[0])
+        assert shown == pytest.approx(radii.max(), abs=6e-3)  # shown to 3 digits
+
+
+def test_the_worst_mode_along_the_reference_is_found_with_its_time():
+    """_worst_along against a brute-force maximum: a radius growing with w is largest at
+    the fastest mode, 20.1 1/s at t = 1 s, although 20.0 1/s (t = 0) shares its 1 % band
+    and comes first; without modes, nothing."""
+    from hmpc_pin.apps.check import _worst_along
+
+    t = np.array([0.0, 1.0, 2.0])
+    modes = np.array([[10.0, 20.0], [20.1, 5.0], [np.nan, 0.0]])
+    calls = []
+
+    def radius(w):
+        calls.append(w)
+        return w / 100.0
+
+    assert _worst_along(radius, t, modes) == (pytest.approx(0.201), 20.1, 1.0)
+    assert len(calls) == 3  # 5, 10 and the band of 20.0/20.1, each evaluated once
+    assert _worst_along(radius, np.zeros(0), np.zeros((0, 2))) == (0.0, 0.0, 0.0)
+
+
+def test_the_observers_modes_are_the_generalized_eigenvalues_along_the_reference():
+    """observer_modes against scipy's generalized eigenvalue problem cY v = w M(q) v at
+    the reference's postures (Pinocchio's CRBA for M), for a gain-set NDO whose modes
+    move with the posture; the momentum observer's are its gains at every posture."""
+    import scipy.linalg
+
+    from hmpc_pin.apps.check import observer_modes
+
+    ex = Experiment.from_config(_paper(20.0))
+    t, modes = observer_modes(ex, samples=20)
+    assert len(t) == 21 and t[0] == 0.0 and t[-1] == pytest.approx(10.0)
+    cY = ex.controller.compensation.cY
+    data = ex.robot.model.createData()
+    for tk, w in zip(t, modes, strict=True):
+        q = np.asarray(ex.reference.sample_many(np.array([tk]))[0])[0]
+        M = pin.crba(ex.robot.model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        expected = np.sort(scipy.linalg.eigvals(cY, M).real)
+        assert w == pytest.approx(expected, rel=1e-9)
+    assert np.ptp(modes[:, -1]) > 0.05 * modes[:, -1].max()  # they move
+    config = load_config(PAPER)
+    cm = replace(config.controller, compensation="momentum",
+                 observer=replace(config.controller.observer, gain=7.0))  # fmt: skip
+    t, modes = observer_modes(Experiment.from_config(replace(config, controller=cm)))
+    assert np.all(modes == 7.0)
 
 
 def _paper_tau(t: np.ndarray, A: np.ndarray, c: np.ndarray) -> np.ndarray:

@@ -366,3 +366,148 @@ def test_samples_slower_than_the_velocity_threshold_are_left_out():
         pytest.approx(2.0, rel=1e-9),
         pytest.approx(0.5, rel=1e-9),
     )
+
+
+def test_a_joints_figures_are_numpys(make_rng):
+    """Every figure of a joint's fit against numpy on the same samples: the residual RMS
+    sqrt(mean r²) of the least-squares residual, m, m_e = m(1 − ρ)/(1 + ρ) with ρ the
+    residual's lag-1 autocorrelation, the condition number of A with unit columns, and
+    the coverage as shares of all the samples (half of these are too slow to count);
+    the table shows m and m_e, the TOML the coefficients to 6 digits."""
+    import tomllib
+
+    from hmpc_pin.identification.friction import FrictionFit
+
+    rng = make_rng(7)
+    m = 1200
+    fast = 8.0 * np.sin(np.linspace(0, 40, m // 2))  # |q̇| up to 8 rad/s: unnormalised A
+    slow = 0.02 * np.sin(np.linspace(0, 40, m // 2))  # within the excitation velocity
+    dq = np.concatenate([fast, slow])
+    y = 1.2345678 * dq + 0.7123456 * np.sign(dq) + _ar1(rng, m, 0.6, 0.3)
+    fit = fit_joint(y, dq, name="elbow")
+    keep = np.abs(dq) > 0.01
+    A = np.column_stack([dq[keep], np.sign(dq[keep])])
+    theta, *_ = np.linalg.lstsq(A, y[keep], rcond=None)
+    r = y[keep] - A @ theta
+    rho = float(np.dot(r[1:], r[:-1]) / np.dot(r, r))
+    m_e = len(r) * (1 - rho) / (1 + rho)
+    assert fit.residual_rms == pytest.approx(np.sqrt(np.mean(r**2)), rel=1e-9)
+    assert fit.samples == len(r) and fit.effective_samples == pytest.approx(m_e, rel=1e-9)
+    assert m_e < 0.5 * len(r)  # (the correction matters here)
+    assert fit.condition == pytest.approx(np.linalg.cond(A / np.linalg.norm(A, axis=0)))
+    forward = np.count_nonzero(dq > 0.05) / m
+    backward = np.count_nonzero(dq < -0.05) / m
+    assert fit.coverage == (pytest.approx(forward), pytest.approx(backward))
+    assert 0.2 < forward < 0.3  # half the samples are slow: a quarter each way
+    whole = FrictionFit((fit,), "observer", 0.95)
+    row = next(line for line in whole.table().splitlines() if line.startswith("| elbow"))
+    assert f"| {len(r)} ({m_e:.0f}) |" in row, row
+    lo, hi = fit.viscous_ci
+    assert lo < fit.viscous < hi and f"| {fit.viscous:.4g} [{lo:.4g}, {hi:.4g}] |" in row, row
+    table = tomllib.loads(whole.toml())["controller"]["friction"]
+    np.testing.assert_allclose(table["viscous"], [fit.viscous], rtol=5e-6)  # 6 digits
+    np.testing.assert_allclose(table["coulomb"], [fit.coulomb], rtol=5e-6)
+
+
+def test_a_confidence_of_one_is_refused(friction_run):
+    """A 100 % interval is infinitely wide: the level must be in (0, 1)."""
+    _, result = friction_run
+    for level in (1.0, 0.0, 1.5):
+        with pytest.raises(ConfigError, match="--confidence"):
+            fit_friction(result, source="observer", confidence=level)
+
+
+def test_the_last_samples_applied_torque_is_not_read(friction_run):
+    """No period follows the last sample: its applied torque (NaN in a run stopped
+    there) is not read by the dynamics source, and nothing is counted as left out."""
+    exp, result = friction_run
+    tau = np.array(result.tau_applied, dtype=float)
+    tau[-1] = np.nan
+    fit = fit_friction(replace(result, tau_applied=tau), source="dynamics", robot=exp.robot)
+    assert fit.excluded == 0
+    tau[-2] = np.nan  # a sample inside the run: the two periods it ends and starts, counted
+    fit = fit_friction(replace(result, tau_applied=tau), source="dynamics", robot=exp.robot)
+    assert fit.excluded == 2
+
+
+def test_joints_fitted_together_are_weighted_by_their_residual_variance(make_rng):
+    """The observer source fits all joints in one least-squares problem (its filter
+    couples them): feasible GLS, each joint's rows weighted by 1/s_i², s_i² the mean
+    squared residual of the ordinary fit on that joint's rows (numpy: lstsq twice). A
+    joint 30 times noisier then barely moves the shared estimate, and the ordinary fit
+    differs from it."""
+    from hmpc_pin.identification.friction import _least_squares
+
+    rng = make_rng(9)
+    theta_true = np.array([2.0, -0.5, 1.0])
+    blocks = []
+    for sigma in (0.01, 0.3):
+        a = rng.standard_normal((400, 3)) * np.array([1.0, 10.0, 0.1])
+        blocks.append((a, a @ theta_true + sigma * rng.standard_normal(400)))
+    A = np.vstack([a for a, _ in blocks])
+    y = np.concatenate([v for _, v in blocks])
+    ols, *_ = np.linalg.lstsq(A, y, rcond=None)
+    w = np.concatenate([np.full(400, 1 / np.sqrt(np.mean((v - a @ ols) ** 2))) for a, v in blocks])
+    gls, *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
+    theta, _half, res, _m_eff = _least_squares(blocks, 0.95)
+    np.testing.assert_allclose(theta, gls, rtol=1e-9)
+    assert np.max(np.abs(gls - ols) / np.abs(theta_true)) > 1e-4  # the weights matter
+    np.testing.assert_allclose(np.concatenate(res), y - A @ gls, atol=1e-12)
+
+
+def test_identify_config_changes_the_friction_table_alone(tmp_path, friction_run, capsys):
+    """identify --config writes the config with [controller.friction] set to the fit and
+    every other controller setting as the source has it (the table, not [controller],
+    is replaced)."""
+    _, result = friction_run
+    run = result.save(tmp_path / "run.npz")
+    out = tmp_path / "ff.toml"
+    source = tmp_path / "own.toml"  # settings of its own, none the default
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    text = (text.replace('"../robots/planar3.urdf"', f'"{urdf}"').replace("N = 10 ", "N = 17 ")
+            .replace("R = 1e-6", "R = 2e-6").replace("gain = 100.0", "gain = 80.0"))  # fmt: skip
+    source.write_text(text)
+    assert load_config(source).controller.N == 17
+    assert main(["identify", str(run), "--config", str(source), "--out", str(out)]) == 0
+    capsys.readouterr()
+    before, after = load_config(source).controller, load_config(out).controller
+    for key in ("Ts", "N", "Nc", "R", "compensation", "latency"):
+        assert getattr(after, key) == getattr(before, key), key
+    np.testing.assert_array_equal(after.Q, before.Q)
+    np.testing.assert_array_equal(after.P, before.P)
+    for key in ("gain", "discretization", "model_at"):
+        assert getattr(after.observer, key) == getattr(before.observer, key), key
+    assert before.friction is None and after.friction is not None
+    np.testing.assert_allclose(after.friction.viscous, VISCOUS, rtol=0.05)
+
+
+def test_the_excitation_error_names_the_peak_speed_either_way():
+    """A joint that moves backward only: the message's peak |q̇| is the largest speed,
+    here 1 rad/s backward (numpy: max |q̇|), not the largest signed velocity."""
+    dq = -0.5 * (1.0 + np.sin(np.linspace(0, 20, 1000)))
+    with pytest.raises(ExcitationError) as info:
+        fit_joint(0.3 * dq, dq, name="wrist")
+    assert f"peak |q̇| {np.max(np.abs(dq)):.3g} rad/s" in str(info.value)
+
+
+def test_the_regressor_source_needs_the_arm_too(friction_run):
+    _, result = friction_run
+    with pytest.raises(ConfigError, match="'regressor' source needs the arm's model"):
+        fit_friction(result, source="regressor")
+
+
+def test_the_dynamics_source_starts_at_the_first_period_whose_middle_is_after(friction_run):
+    """A period's sample is at its middle, (t_k + t_k+1)/2: with --after a quarter period
+    past t_50, the period from t_50 (middle t_50 + Ts/2) is kept. The samples counted per
+    joint are numpy's: periods whose middle is >= after and whose mean speed is above
+    the velocity threshold."""
+    exp, result = friction_run
+    t = result.t
+    after = float(t[50] + 0.25 * (t[51] - t[50]))
+    fit = fit_friction(result, source="dynamics", robot=exp.robot, after=after)
+    mid = 0.5 * (t[1:] + t[:-1])
+    dq_mid = 0.5 * (result.dq[1:] + result.dq[:-1])
+    for j, joint in enumerate(fit.joints):
+        expected = np.count_nonzero((mid >= after) & (np.abs(dq_mid[:, j]) > 0.01))
+        assert joint.samples == expected

@@ -159,8 +159,29 @@ def _text_torque(path, saved):
     np.savez(path, **arrays)
 
 
+def _short_column(name):
+    def make(path, saved):
+        with np.load(saved) as f:
+            arrays = dict(f)
+        arrays[name] = arrays[name][:-3]
+        np.savez(path, **arrays)
+
+    return make
+
+
+def _meta_list(path, saved):
+    with np.load(saved) as f:
+        arrays = dict(f)
+    arrays["meta"] = np.array(json.dumps(["not", "a", "table"]))
+    np.savez(path, **arrays)
+
+
 BAD_FILES = {
     "a torque of text": (_text_torque, "'tau' is not numeric"),
+    "a torque of another length": (_short_column("tau"), "'tau' has shape"),
+    "an estimate of another length": (_short_column("d_hat"), "'d_hat' has shape"),
+    "an applied torque too short": (_short_column("tau_applied"), "'tau_applied' has shape"),
+    "metadata that is not a table": (_meta_list, "metadata is not a table"),
     "a time stamp repeated": (_repeated_time, "not finite and increasing"),
     "one sample": (_one_sample, "at least 2 samples"),
     "empty": (lambda p, s: p.write_bytes(b""), "empty"),
@@ -220,9 +241,10 @@ def test_replay_refuses_a_urdf_of_another_arm(saved_run, tmp_path, capsys):
 
 @pytest.mark.parametrize("source", ["observer", "dynamics"])
 def test_nan_samples_are_left_out_with_a_count(source, saved_run, tmp_path, capsys):
-    """NaN in q̇ for 5 samples: the fit leaves them out (the observer's filter: everything
-    after them) and says how many (not counting those before --after); with every sample
-    NaN, one line and exit 2."""
+    """NaN in q̇ for 5 samples: the fit leaves them out (the observer's filter starts
+    again from rest after them: its start-up, --after = 0.5 s, is left out too, not the
+    rest of the run) and says how many (not counting those before --after); with every
+    sample NaN, one line and exit 2."""
     result = Result.load(saved_run)
     result.dq[300:305, 1] = np.nan
     if source == "dynamics":  # before --after (0.5 s): left out anyway, not counted
@@ -230,8 +252,10 @@ def test_nan_samples_are_left_out_with_a_count(source, saved_run, tmp_path, caps
     code, out, err, table = _identify(result.save(tmp_path / "nan.npz"), tmp_path, capsys,
                                       "--source", source)  # fmt: skip
     assert code == 0, err
-    # dynamics: the 6 periods touching the 5 samples; observer: everything from sample 300
-    excluded = 6 if source == "dynamics" else len(result.t) - 300
+    # dynamics: the 6 periods touching the 5 samples; observer: the 5 and 0.5 s after them
+    restart = np.count_nonzero((result.t >= result.t[305]) & (result.t < result.t[305] + 0.5))
+    excluded = 6 if source == "dynamics" else 5 + restart
+    assert restart < len(result.t) - 305 - 10  # (the rest of the run is fitted)
     assert f"{excluded} samples left out" in out, out
     np.testing.assert_allclose(table["controller"]["friction"]["viscous"], VISCOUS, rtol=0.05)
     result.d_hat[:] = np.nan
@@ -487,3 +511,71 @@ def test_thresholds_without_out_are_written_beside_the_run(saved_run, tmp_path, 
     assert main(["identify", str(run), "--thresholds"]) == 0
     assert (tmp_path / "contact_free_collision.toml").is_file()
     assert not (tmp_path / "contact_free_friction.toml").exists()
+
+
+def test_out_in_a_missing_folder_is_refused_before_any_work(saved_run, tmp_path, capsys):
+    out = tmp_path / "no" / "such" / "friction.toml"
+    code = main(["identify", str(saved_run), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--out" in err and "no such directory" in err, err
+    assert not (tmp_path / "no").exists()
+
+
+def test_the_printed_thresholds_are_the_written_ones(saved_run, tmp_path, capsys):
+    """Each joint's line: the threshold the TOML holds (4 digits) and the run's peak
+    |d_hat| (numpy, over the whole run: --after 0)."""
+    out = tmp_path / "collision.toml"
+    assert main(["identify", str(saved_run), "--thresholds", "--out", str(out)]) == 0
+    lines = [x for x in capsys.readouterr().out.splitlines() if ": threshold " in x]
+    written = tomllib.loads(out.read_text())["collision"]["threshold"]
+    peak = np.abs(Result.load(saved_run).d_hat).max(axis=0)
+    assert len(lines) == 3
+    for line, thr, pk in zip(lines, written, peak, strict=True):
+        shown = line.split(": threshold ")[1]
+        assert shown.startswith(f"{thr:.4g} N·m"), line
+        assert shown.endswith(f"(peak |d_hat| in the run {pk:.4g})"), line
+        assert thr >= 1.25 * pk * (1 - 1e-6)  # floored at the peak, times the safety
+
+
+def test_a_velocity_threshold_of_zero_is_kept(saved_run, tmp_path, capsys):
+    """--velocity-threshold 0 keeps every moving sample: the fit counts the samples the
+    library counts with 0, more than with the default 0.01 rad/s."""
+    from hmpc_pin.apps.identify import observer_model
+    from hmpc_pin.apps.runfile import load_run, run_robot
+
+    result = load_run(saved_run)
+    model = observer_model(result, run_robot(result, None))
+    fits = {v: fit_friction(result, observer=model, velocity_threshold=v) for v in (0.0, 0.01)}
+    counts = {v: [j.samples for j in f.joints] for v, f in fits.items()}
+    assert counts[0.0] != counts[0.01]
+    code, out, err, _table = _identify(saved_run, tmp_path, capsys, "--velocity-threshold", "0")
+    assert code == 0, err
+    for j, name in enumerate(("joint1", "joint2", "joint3")):
+        row = next(x for x in out.splitlines() if x.startswith(f"| {name} "))
+        assert f"| {counts[0.0][j]} (" in row, row
+
+
+def test_the_arm_of_an_init_run_is_reduced_as_it_ran(tmp_path):
+    """init's Panda locks its finger joint: the run records it, and the arm identify builds
+    from the run has the 7 controlled joints of the run, named as it ran."""
+    from hmpc_pin.apps.runfile import load_run, run_robot
+
+    toml = tmp_path / "panda.toml"
+    assert main(["init", "panda", "--out", str(toml)]) == 0
+    config = load_config(toml)
+    config = replace(config, simulation=replace(config.simulation, duration=0.05))
+    result = Experiment.from_config(config).run()
+    assert result.meta.get("locked_joints")
+    robot = run_robot(load_run(result.save(tmp_path / "panda.npz")), None)
+    assert robot.nq == 7 and tuple(robot.joint_names) == tuple(result.joint_names)
+
+
+def test_after_past_the_end_names_the_span_of_a_run_that_starts_late(saved_run, tmp_path,
+                                                                      capsys):  # fmt: skip
+    """A run whose clock starts at 2 s (a real-time run stamps its own time): the error
+    names the span it has, 2 to 7 s (5 s), not 0 to 7 s."""
+    result = Result.load(saved_run)
+    late = replace(result, t=result.t + 2.0).save(tmp_path / "late.npz")
+    code, _out, err, _table = _identify(late, tmp_path, capsys, "--after", "8")
+    assert code == 2
+    assert "span t = 2 to 7 s, 5 s" in err, err

@@ -146,3 +146,59 @@ def test_plant_advance_before_reset_and_with_a_wrong_torque_is_refused(planar3):
             plant.advance(0.0)
         q, dq = plant.advance(np.zeros(3))
         assert q.shape == dq.shape == (3,) and plant.t == pytest.approx(0.01)
+
+
+# ------------------------------------------------------------------ the converters
+def test_a_latency_is_refused_just_past_its_bound_and_kept_at_it():
+    """:func:`~hmpc_pin.checks.as_latency`: [0, MAX_LATENCY] s, both ends kept; the next
+    float above the bound, 1.5 s and a negative age are refused naming the key."""
+    import math
+
+    from hmpc_pin.checks import MAX_LATENCY, as_latency
+
+    assert as_latency("controller.latency", 0) == 0.0
+    assert as_latency("controller.latency", MAX_LATENCY) == MAX_LATENCY
+    for bad in (math.nextafter(MAX_LATENCY, math.inf), 1.5 * MAX_LATENCY, -1e-3):
+        with pytest.raises(ConfigError) as info:
+            as_latency("controller.latency", bad)
+        assert info.value.key == "controller.latency"
+
+
+@pytest.mark.parametrize(
+    ("weight", "text"),
+    [
+        ([0.0, 0.0], "non-zero"),  # PSD, but weighs nothing
+        ([[0.0, 0.0], [0.0, 0.0]], "non-zero"),
+        ([[1.0, 2.0], [2.0, 1.0]], "positive semi-definite"),  # eigenvalues 3 and -1
+        ([[1.0, 0.5], [0.0, 1.0]], "symmetric"),  # eigenvalues 1, 1 but not symmetric
+        ([1.0, -1e-3], "positive semi-definite"),
+    ],
+)
+def test_a_weight_that_is_not_a_psd_nonzero_matrix_is_refused(weight, text):
+    """:func:`~hmpc_pin.checks.as_weight` against the definition: symmetric, eigenvalues
+    (numpy's, of the matrix given) >= 0 and not all 0."""
+    from hmpc_pin.checks import as_weight
+
+    with pytest.raises(ConfigError, match=text):
+        as_weight("controller.Q", weight)
+
+
+@pytest.mark.parametrize("weight", [[1.0, 0.0], [[2.0, 1.0], [1.0, 0.5]], [[1e-12, 0], [0, 0]]])
+def test_a_singular_psd_weight_is_kept(weight):
+    """Singular but PSD and non-zero (eigenvalues of [[2, 1], [1, 0.5]]: 2.5 and 0)."""
+    from hmpc_pin.checks import as_weight
+
+    arr = np.asarray(weight, dtype=float)
+    out = as_weight("controller.Q", weight)
+    np.testing.assert_array_equal(out, np.diag(arr) if arr.ndim == 1 else arr)
+
+
+def test_one_negative_entry_of_a_nonnegative_vector_is_refused():
+    """:func:`~hmpc_pin.checks.as_array` with ``nonneg``: any entry below 0, not only all."""
+    from hmpc_pin.checks import as_array
+
+    np.testing.assert_array_equal(as_array("b", [0.0, 2.0], nonneg=True), [0.0, 2.0])
+    with pytest.raises(ConfigError, match=">= 0"):
+        as_array("b", [1.0, -1.0], nonneg=True)
+    with pytest.raises(ConfigError, match="> 0"):
+        as_array("b", [1.0, 0.0], positive=True)

@@ -163,3 +163,38 @@ def test_the_sample_at_after_is_kept():
     d_hat[k] = 5.0
     fit = learn_thresholds(_result(d_hat), after=float(t[k]), safety=1.0)
     assert fit.peak[0] == pytest.approx(5.0)
+
+
+def test_the_table_holds_the_thresholds_to_six_digits(make_rng):
+    """The [collision] table read back (tomllib) is the thresholds learned, to the 6
+    significant digits written."""
+    import tomllib
+
+    fit = learn_thresholds(_result(np.abs(_ar1(make_rng(11), 3000, 2)) * 1.2345678))
+    table = tomllib.loads(fit.toml())["collision"]["threshold"]
+    np.testing.assert_allclose(table, fit.threshold, rtol=5e-6)
+
+
+@pytest.mark.parametrize("horizon", [np.inf, np.nan, 0.0, -1.0])
+def test_a_horizon_that_is_not_a_finite_duration_is_refused(horizon, make_rng):
+    """An infinite horizon would make every per-block quantile 1 (an infinite threshold)."""
+    with pytest.raises(ConfigError, match="--horizon"):
+        learn_thresholds(_result(np.abs(_ar1(make_rng(12), 3000, 2))), horizon=horizon)
+
+
+def test_a_block_is_a_whole_number_of_periods_nearest_the_one_asked(make_rng):
+    """--block 0.296 s at Ts = 0.01 s is 29.6 periods: the block is the nearest whole
+    number, 30 periods (0.3 s), not 29 (truncated)."""
+    fit = learn_thresholds(_result(np.abs(_ar1(make_rng(13), 3000, 2))), block=0.296)
+    assert fit.block == pytest.approx(0.3, rel=1e-9)
+
+
+def test_the_peak_is_the_runs_after_the_start_up_left_out(make_rng):
+    """With --after, the start-up is not part of what the watch must not flag: the peak
+    reported (and the floor of the thresholds) is max |d_hat| over t >= after, not the
+    start-up's spike."""
+    d_hat = np.abs(_ar1(make_rng(14), 3000, 2))
+    d_hat[10] = 100.0  # a start-up spike at t = 0.1 s
+    fit = learn_thresholds(_result(d_hat), after=0.5)
+    np.testing.assert_allclose(fit.peak, np.abs(d_hat[50:]).max(axis=0))
+    assert np.all(fit.threshold < 100.0)

@@ -243,6 +243,7 @@ def test_sigint_through_the_command_line(tmp_path):
         (["--duration", "0.5"], "--duration"),  # shorter than sweep.after = 1 s
         (["--duration", "1.0"], "--duration"),  # no time left after sweep.after
         (["--ts", "0.01,-1"], "--ts"),
+        (["--ts", "0.01,0"], "--ts"),  # a period of 0 s
         (["--observers", "ism"], "--observers"),
         (["--scheduler", "foo:1"], "--scheduler"),  # the default executor is local
         (["--executor", "local", "--scheduler", "foo:1"], "--scheduler"),
@@ -388,3 +389,85 @@ def test_trial_zero_starts_at_the_period_nearest_the_configs(friction_config):
     assert current_params(friction_config, space)["Ts"] == 0.01  # the config's Ts
     space = search_space(friction_config, ts=(0.001, 0.009, 0.05))
     assert current_params(friction_config, space)["Ts"] == 0.009
+
+
+def test_the_saturation_penalty_is_the_share_of_saturated_samples():
+    """J = p95 (1 + w_sat mean(saturation) + ...): one sample of four saturated for its
+    whole run counts 1/4, not as if every sample had saturated (closed form)."""
+    from hmpc_pin.apps.tune import SATURATION_WEIGHT
+
+    rows = [{"rms_max": 0.1, "bounded": True, "saturation": s, "torque_tv": 1.0}
+            for s in (0.0, 0.0, 0.0, 1.0)]  # fmt: skip
+    value, parts = objective_value(rows, 1.0, tv0=1.0)
+    assert parts["saturation"] == pytest.approx(0.25)
+    assert value == pytest.approx(0.1 * (1 + SATURATION_WEIGHT * 0.25))
+
+
+def test_a_resumed_study_does_not_repeat_the_first_ones_suggestions(tmp_path, friction_config):
+    """A study resumed with the same seed samples new points: its sampler is seeded past
+    the trials already in the file (the same seed again would replay the first study)."""
+    first = tune(friction_config, tmp_path, trials=3, seed=1, objective=_toy, holdout=0,
+                 progress=False)  # fmt: skip
+    before = [t.params for t in first.study.trials]
+    resumed = tune(friction_config, tmp_path, trials=2, seed=1, objective=_toy, holdout=0,
+                   progress=False)  # fmt: skip
+    after = [t.params for t in resumed.study.trials[3:]]
+    assert len(after) == 2 and all(p not in before for p in after)
+
+
+def test_the_record_says_when_the_configs_terminal_weight_is_not_2q(friction_config):
+    """Every trial runs P = 2Q with a diagonal Q: a config whose P is another multiple of
+    its (diagonal) Q is told that trial 0 differs from it there; P = 2Q is not."""
+    from hmpc_pin.apps.tune import _sampler_record
+
+    space = search_space(friction_config)
+    cc = friction_config.controller
+    Q = np.diag([cc.Q[0, 0], cc.Q[1, 1]])
+    for P, told in ((2 * Q, False), (3 * Q, True)):
+        config = replace(friction_config, controller=replace(cc, Q=Q, P=P))
+        lines = _sampler_record(config, space)
+        assert any(line.startswith("P = 2Q") for line in lines) == told, lines
+
+
+@pytest.mark.parametrize(("holdout", "seed", "expected"), [(None, 3, (8, 3)), (4, 3, (4, 3)),
+                                                           (None, None, (8, 6))])  # fmt: skip
+def test_a_holdout_seed_alone_is_accepted(holdout, seed, expected, friction_config):
+    """--holdout-seed without --holdout (default: --samples held out) applies; only with
+    --holdout 0, which draws nothing, is it refused. The default seed is --seed + 1."""
+    from hmpc_pin.apps.tune import check_options
+
+    out = check_options(friction_config, trials=1, samples=8, seed=5, jobs=1,
+                        holdout=holdout, holdout_seed=seed)  # fmt: skip
+    assert out == expected
+
+
+def test_the_search_space_is_the_guides(friction_config):
+    """The ranges the identification-and-tuning guide states, as the search space has
+    them (observer gain [c0/10, 5 c0])."""
+    from .conftest import ROOT
+
+    guide = (ROOT / "docs" / "guide" / "identification-and-tuning.md").read_text()
+    space = search_space(friction_config)
+    for text, key, spec in (
+        ("q_p ∈ [1, 10⁴]", "Q_position", ("log", 1.0, 1e4)),
+        ("q_v ∈ [10⁻⁴, 10²]", "Q_velocity", ("log", 1e-4, 1e2)),
+        ("R ∈ [10⁻⁸, 10⁻³]", "R", ("log", 1e-8, 1e-3)),
+        ("N ∈ [5, 30]", "N", ("int", 5, 30)),
+        ("[c₀/10, 5c₀]", "observer_gain", ("log", 10.0, 500.0)),  # c0 = 100
+    ):
+        assert text in guide, text
+        assert space[key][0] == spec[0] and space[key][1:] == pytest.approx(spec[1:]), key
+
+
+@pytest.mark.parametrize(
+    ("observers", "first"),
+    [(("momentum", "chen"), "chen"), (("momentum", "general"), "momentum")],
+)
+def test_trial_0_keeps_the_configs_observer_when_it_is_listed(observers, first, friction_config):
+    """--observers momentum,chen on a chen config: trial 0 is the config as given (chen);
+    when its observer is not listed, the first listed."""
+    from hmpc_pin.apps.tune import current_params
+
+    assert friction_config.controller.compensation == "chen"
+    space = search_space(friction_config, observers=observers)
+    assert current_params(friction_config, space)["compensation"] == first

@@ -123,7 +123,8 @@ class FrictionFit:
         confidence: Level of the intervals (e.g. 0.95).
         run: The run it was fitted from (file or config name), for the TOML comment.
         excluded: Samples left out because a recorded column used by the fit (q, q̇,
-            τ, :math:`\\hat d`) is NaN or infinite there.
+            τ, :math:`\\hat d`) is NaN or infinite there (the observer source: and the
+            observer's start-up, ``after``, once its filter starts again after each gap).
         unmodelled: The disturbances besides friction the run is known to have had (its
             config's ``[disturbance.pulse]``), in words, or ``""``: named as the cause
             of a missing interval.
@@ -156,7 +157,14 @@ class FrictionFit:
                 + (", or try --source dynamics" if self.source == "observer" else "")
             )
         if self.excluded:
-            out.append(f"{self.excluded} samples left out: NaN or inf in a recorded column")
+            out.append(
+                f"{self.excluded} samples left out: NaN or inf in a recorded column"
+                + (
+                    " (and, after each such gap, the observer's start-up, --after)"
+                    if self.source == "observer"
+                    else ""
+                )
+            )
         return out
 
     @property
@@ -603,6 +611,12 @@ def _valid_rows(result: Result, source: str, observer) -> tuple[np.ndarray, list
     return valid, bad
 
 
+def _runs(valid: np.ndarray) -> list[tuple[int, int]]:
+    """The ``(start, stop)`` index ranges of the consecutive ``True`` samples of ``valid``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(int), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
 def _zero_filled(result: Result, valid: np.ndarray) -> Result:
     """``result`` with the rows that are not ``valid`` set to zero (the fit leaves them
     out; zeros keep NaN out of Pinocchio and the observer's filter)."""
@@ -684,12 +698,19 @@ def fit_friction(
         y = _feedforward(clean, dq) - clean.d_hat
         g = _regressors(dq)
     else:  # the observer's response to each regressor and to the fed-forward friction
-        valid = np.cumprod(valid).astype(bool)  # the filter's state: nothing after a gap
         dq = np.vstack([clean.dq[:1], 0.5 * (clean.dq[1:] + clean.dq[:-1])])
         t = clean.t
         ff = np.vstack([np.zeros((1, n)), _feedforward(clean, clean.dq[:-1])])
         phi = np.concatenate([_regressors(dq), ff[:, :, None]], axis=2)
-        filtered = observer.filter(clean.q, phi)
+        # the filter's state cannot cross a gap: it starts again from rest after each,
+        # and the start-up it then needs (``after``) is left out as at the run's start
+        filtered = np.zeros_like(phi)
+        settled = np.ones(len(t), dtype=bool)
+        for s, e in _runs(valid):
+            filtered[s:e] = observer.filter(clean.q[s:e], phi[s:e])
+            if s > 0:
+                settled[s:e] = t[s:e] >= t[s] + after - 1e-12
+        valid = valid & settled
         g, y = filtered[:, :, :-1], filtered[:, :, -1] - clean.d_hat
     use = t >= after - 1e-12
     excluded = int(np.count_nonzero(use & ~valid))

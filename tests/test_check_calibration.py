@@ -64,12 +64,6 @@ MISSED = {
     "planar3_contact_mujoco": "a table stops the tool: the reference drives it 1 cm into "
     "the obstacle by design, and the error while in contact is the contact's; check has "
     "no collision geometry to put the arm against the obstacle along the reference",
-    "init panda, latency 0.5 Ts": "the whole loop decays at q0 (0.977 per period) and "
-    "grows at the postures past t = 0.46 s (|z| up to 1.045: an observer mode reaches "
-    "w Ts = 24.6 where M(q) is lighter); check warns of it, but does not call it a "
-    "problem: init's TIAGo Pro, whose loop grows the same way along its reference (|z| "
-    "up to 1.02 for half the run), tracks at 0.07 x the tolerance, and the frozen-posture "
-    "model cannot tell the two apart; the run's error is 1.3 x the tolerance from t = 3 s",
     "paper_friction_literal": "the paper's literal friction sign feeds energy in; the "
     "observer holds the error near 0.07 rad, above 0.05 rad. check warns that the sign "
     "injects energy and the error may exceed the threshold, but has no model of that "

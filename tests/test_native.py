@@ -599,3 +599,42 @@ def test_the_rk4_plant_is_a_compiled_plant_port_that_holds_its_state(planar3):
         port.disturbance_now()
     with pytest.raises(ValueError, match="disturbance port and a fused"):
         port.set_disturbance(lambda t, q, dq: np.zeros(3))
+
+
+def test_a_fused_term_is_defined_by_its_fused_form_alone(planar3):
+    """A time-only term is its sample_times (a subclass defining __call__ is refused: the
+    plant would never see it); a term of the same shape that is not one is called per
+    stage, and both give the plain RK4 of the same d(t) to rounding."""
+    from hmpc_pin.sim.disturbances import TimeOnly
+
+    from .reference.rk4 import rk4_period
+
+    with pytest.raises(hmpc_pin.InterfaceError, match=r"sample_times\(\) alone"):
+
+        class Shifted(hmpc_pin.GaussianPulse):
+            def __call__(self, t, q, dq):
+                return super().__call__(t + 1.0, q, dq)
+
+    class Ramp(TimeOnly):  # d(t) = t·c, defined once
+        def sample_times(self, times):
+            return np.asarray(times, dtype=float)[:, None] * np.array([1.0, -0.5, 0.25])
+
+    class DuckRamp:  # the same values, not a TimeOnly: called at every stage
+        def __call__(self, t, q, dq):
+            return t * np.array([1.0, -0.5, 0.25])
+
+        def sample_times(self, times):
+            raise AssertionError("not fused: never tabulated")
+
+    q0, dq0, tau = np.array([0.3, -0.4, 0.2]), np.zeros(3), np.array([1.0, 0.5, 0.2])
+    ends = []
+    for d in (Ramp(), DuckRamp()):
+        plant = RK4Plant(planar3.copy(), d, 0.01, 0.001)
+        assert plant.fused is isinstance(d, TimeOnly)
+        plant.reset(q0, dq0)
+        want = rk4_period(planar3.model, q0, dq0, tau, Ramp(), 0.0, 0.001, 10)
+        q, dq = plant.advance(tau)
+        np.testing.assert_allclose(q, want[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dq, want[1], rtol=0, atol=1e-11)
+        ends.append(q)
+    np.testing.assert_allclose(ends[1], ends[0], rtol=0, atol=1e-12)

@@ -170,7 +170,9 @@ def test_a_trajectory_mid_run_costs_no_cycle_and_an_out_of_limits_one_is_refused
     # is recorded so, and the reference never went where it led (q_ref stays on the
     # target below through the third's would-be window)
     assert "superseded_at" in events[2] and "superseded_at" not in events[3], events
-    assert events[2]["superseded_at"] < events[2]["t"] < result.t[-1] - 0.5
+    # (its stamp, 1 s ahead of when it was sent: a loaded machine may send it late, even
+    # past the run's end; the records after the first's end are checked below either way)
+    assert events[2]["superseded_at"] < events[2]["t"]
     assert "panda_joint4" in events[1]["reason"] and "outside its limits" in events[1]["reason"]
     # accepting it: no long run of misses (a first check of 90 ms in the control thread
     # left 45 states of 2 ms unanswered in a row; a loaded machine may delay a few)

@@ -103,9 +103,9 @@ class NoCompensation:
         return None
 
     def compiled_form(self) -> tuple[str]:
-        """Deprecated since 0.4: :meth:`compiled_port`; ``("zero",)``."""
+        """Deprecated since 0.3: :meth:`compiled_port`; ``("zero",)``."""
         warnings.warn(
-            "compiled_form() is deprecated since 0.4; call compiled_port()",
+            "compiled_form() is deprecated since 0.3; call compiled_port()",
             DeprecationWarning,
             stacklevel=2,
         )
@@ -150,7 +150,7 @@ def step_compensation(compensation: object) -> StepCompensation:
     legacy = getattr(compensation, "compiled_form", None)
     if callable(legacy):
         warnings.warn(
-            f"{type(compensation).__name__}.compiled_form() is deprecated since 0.4; define "
+            f"{type(compensation).__name__}.compiled_form() is deprecated since 0.3; define "
             "compiled_port() returning the compiled observer (or None: no estimate)",
             DeprecationWarning,
             stacklevel=2,

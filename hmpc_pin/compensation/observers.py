@@ -170,9 +170,9 @@ class DisturbanceObserver:
         return self._core
 
     def compiled_form(self) -> tuple:
-        """Deprecated since 0.4: :meth:`compiled_port`; ``("ndo", the compiled observer)``."""
+        """Deprecated since 0.3: :meth:`compiled_port`; ``("ndo", the compiled observer)``."""
         warnings.warn(
-            "compiled_form() is deprecated since 0.4; call compiled_port()",
+            "compiled_form() is deprecated since 0.3; call compiled_port()",
             DeprecationWarning,
             stacklevel=2,
         )

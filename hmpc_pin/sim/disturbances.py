@@ -74,10 +74,11 @@ def _defined_by(cls, name: str) -> None:
     ``name`` alone (a plant evaluates ``name`` fused into its integration, so a
     ``__call__`` of its own would be a second definition the plant never sees)."""
     if "__call__" in vars(cls):
-        raise TypeError(
-            f"{cls.__name__} defines __call__, but a {cls.__mro__[1].__name__} is defined by "
-            f"{name}() alone (the plant evaluates that, fused); define {name}() instead, or "
-            "subclass Disturbance for a term of your own"
+        raise InterfaceError(
+            cls,
+            f"a {cls.__mro__[1].__name__}: such a term is defined by {name}() alone (the "
+            "plant evaluates that, fused), but this class defines __call__",
+            f"define {name}() instead, or subclass Disturbance for a term of your own",
         )
 
 

@@ -163,7 +163,7 @@ def compiled_sampling(reference: object) -> SamplingForm | None:
     if not callable(legacy):
         return None
     warnings.warn(
-        f"{type(reference).__name__}.native_form() is deprecated since 0.4; define "
+        f"{type(reference).__name__}.native_form() is deprecated since 0.3; define "
         "compiled_sampling() returning a SineSampling or PolynomialSampling "
         "(hmpc_pin.tasks.base)",
         DeprecationWarning,
@@ -252,9 +252,9 @@ class CompiledSampling:
         return self._form()
 
     def native_form(self) -> tuple[Any, ...] | None:
-        """Deprecated since 0.4: :meth:`compiled_sampling` (typed) as the tuple of 0.3."""
+        """Deprecated since 0.3: :meth:`compiled_sampling` (typed) as the tuple of 0.3."""
         warnings.warn(
-            "native_form() is deprecated since 0.4; call compiled_sampling()",
+            "native_form() is deprecated since 0.3; call compiled_sampling()",
             DeprecationWarning,
             stacklevel=2,
         )

@@ -450,9 +450,9 @@ class PoseReference:
         return self.trajectory.compiled_sampling()
 
     def native_form(self) -> tuple | None:
-        """Deprecated since 0.4: :meth:`compiled_sampling` (typed) as the tuple of 0.3."""
+        """Deprecated since 0.3: :meth:`compiled_sampling` (typed) as the tuple of 0.3."""
         warnings.warn(
-            "native_form() is deprecated since 0.4; call compiled_sampling()",
+            "native_form() is deprecated since 0.3; call compiled_sampling()",
             DeprecationWarning,
             stacklevel=2,
         )

@@ -232,6 +232,7 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     backlog: list = []
     stall_end = -1.0
     acted = set()
+    deactivating = None  # the orchestrator's deactivate call (scenario "deactivate")
     t0 = time.time()
     while ctrl.poll() is None:
         k += 1
@@ -329,9 +330,12 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
             ctrl.send_signal(signal.SIGINT)
         if scenario == "deactivate" and "deactivate" not in acted and run_t >= 1.5:
             acted.add("deactivate")
-            threading.Thread(target=_deactivate, args=(node, report), daemon=True).start()
+            deactivating = threading.Thread(target=_deactivate, args=(node, report), daemon=True)
+            deactivating.start()
     c_out, c_err = ctrl.communicate()
     report["controller"] = {"exit": ctrl.returncode, "stdout": c_out, "stderr": c_err}
+    if deactivating is not None:  # its answer may be on its way still (a loaded machine)
+        deactivating.join(timeout=10.0)
     time.sleep(0.1)  # commands in flight
     with lock:
         if arm.pending is not None:

@@ -302,7 +302,9 @@ class RosNode:
         self._closed = True
         self._deactivate = None
         if self._executor is not None:
-            self._executor.shutdown(timeout_sec=1.0)
+            # (a transition's answer, e.g. deactivate's after the stop sequence it waited
+            # for, is sent once its callback returns: let it go out before the node goes)
+            self._executor.shutdown(timeout_sec=5.0)
         self.node.destroy_node()
         self.context.try_shutdown()
         if self._thread is not None:

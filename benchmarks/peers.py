@@ -474,6 +474,14 @@ def _alternate(variants: dict[str, Callable[[np.ndarray], object]], G: np.ndarra
     return {name: np.array(v) for name, v in out.items()}
 
 
+def _scaled(sc: QPScenario, steps_scale: float) -> QPScenario:
+    """``sc`` with its recorded steps scaled by ``steps_scale`` (at least 20; ``--quick``)."""
+    if steps_scale == 1.0:
+        return sc
+    steps = max(20, int(sc.steps * steps_scale))
+    return QPScenario(sc.arm, sc.label, sc.Ts, sc.N, sc.Nc, steps, sc.kick_every)
+
+
 def qp_peers(scenarios=SCENARIOS, blocks: int = 5, steps_scale: float = 1.0) -> list[PeerCase]:
     """Check and time every scenario (module docstring); requires CasADi."""
     if casadi is None:
@@ -481,9 +489,7 @@ def qp_peers(scenarios=SCENARIOS, blocks: int = 5, steps_scale: float = 1.0) -> 
     arms: dict[str, Arm] = {}
     cases = []
     for sc in scenarios:
-        if steps_scale != 1.0:
-            sc = QPScenario(sc.arm, sc.label, sc.Ts, sc.N, sc.Nc,
-                            max(20, int(sc.steps * steps_scale)), sc.kick_every)  # fmt: skip
+        sc = _scaled(sc, steps_scale)
         log(f"  {sc.arm}, {sc.label}: recording {sc.steps} steps")
         problem = record_problem(sc, arms)
         variants: dict[str, Callable[[np.ndarray], object]] = {"hmpc_pin": problem.qps.solve}
@@ -573,9 +579,7 @@ def step_peers(
     arms: dict[str, Arm] = {}
     out = []
     for sc in scenarios:
-        if steps_scale != 1.0:
-            sc = QPScenario(sc.arm, sc.label, sc.Ts, sc.N, sc.Nc,
-                            max(20, int(sc.steps * steps_scale)), sc.kick_every)  # fmt: skip
+        sc = _scaled(sc, steps_scale)
         problem = record_problem(sc, arms)
         arm = arms[sc.arm]
         ref, n = arm.reference(), arm.n

@@ -15,6 +15,7 @@ error (``[plant] tolerance``).
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import replace
 
@@ -269,3 +270,205 @@ def test_the_stick_slip_period_on_a_python_aba_equals_the_compiled_one(tmp_path)
         np.testing.assert_allclose(q2, q1, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(v2 == 0.0, v1 == 0.0)
     assert compiled.events == python.events >= 2
+
+
+# -- at rest: the holding torque's closed form, breakaway, and what a run records -------------
+
+PEND_M, PEND_L, PEND_G, PEND_I = 1.0, 0.5, 9.81, 0.01  # [kg, m, m/s², kg·m² about the CoM]
+
+
+def _pendulum(tmp_path, friction: float) -> str:
+    """A pendulum about y, its CoM at l below the joint: G(q) = m g l sin q, Coulomb friction
+    ``friction`` [N·m] as the joint's own."""
+    text = f"""<?xml version="1.0"?>
+<robot name="pendulum">
+  <link name="base"/>
+  <link name="bob">
+    <inertial><origin xyz="0 0 {-PEND_L}" rpy="0 0 0"/><mass value="{PEND_M}"/>
+      <inertia ixx="{PEND_I}" iyy="{PEND_I}" izz="{PEND_I}" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="swing" type="revolute">
+    <parent link="base"/><child link="bob"/><origin xyz="0 0 0" rpy="0 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-1000" upper="1000" effort="100" velocity="1000"/>
+    <dynamics damping="0" friction="{friction}"/>
+  </joint>
+</robot>
+"""
+    path = tmp_path / "pendulum.urdf"
+    path.write_text(text)
+    return str(path)
+
+
+def test_a_pendulum_held_by_friction_breaks_away_where_its_holding_torque_reaches_f(tmp_path):
+    """At rest at q0 the friction holds G(q0) − τ = m g l sin q0 − τ while that is within
+    ±F: with τ raised by δ per period the state stays exactly as it was (bit for bit) until
+    the first period with τ > m g l sin q0 + F (closed form), where it moves, in τ's
+    direction. The whole run, the breakaway and the swing after it, agrees with scipy's
+    DOP853 (the oracle, its own events) within the plant's own error estimate."""
+    F, q0, delta = 3.0, 0.4, 0.05
+    robot = load_robot(_pendulum(tmp_path, F), PEND_G)
+    G0 = PEND_M * PEND_G * PEND_L * math.sin(q0)
+    np.testing.assert_allclose(robot.gravity_torque(np.array([q0])), [G0], rtol=1e-12)
+    k_star = math.floor((G0 + F) / delta) + 1  # the first k with k·δ > G0 + F
+    assert min(k_star * delta - (G0 + F), (G0 + F) - (k_star - 1) * delta) > 1e-3
+    plants = {h: RK4Plant(robot, None, TS, h) for h in (TS / 2, TS / 4)}
+    for plant in plants.values():
+        plant.reset(np.array([q0]), np.zeros(1))
+    state = (np.array([q0]), np.zeros(1))
+    for k in range(k_star + 15):
+        tau = np.array([k * delta])
+        q, dq = plants[TS / 2].advance(tau)
+        qf, _ = plants[TS / 4].advance(tau)
+        state = stick_slip_period(robot.model, *state, tau, TS, robot.joint_friction)[:2]
+        if k < k_star:
+            assert q[0] == q0 and dq[0] == 0.0, k
+        elif k == k_star:
+            assert q[0] > q0 and dq[0] > 0.0
+        assert abs(q[0] - state[0][0]) <= 2 * abs(q[0] - qf[0]) + 1e-10, k
+
+
+def test_the_rest_shortcut_takes_the_steps_the_general_algebra_takes(tmp_path):
+    """planar3 with joint friction ×6, at rest, a torque ramping within each period (its
+    stage rows) from holding to past the friction of joint 0, then back until the arm
+    sticks again: the compiled
+    kernel (which holds an arm at rest by φ = G(q) − τ) and the kernel on ABA from Python
+    (the stuck joints' algebra (M⁻¹)_SS φ_S = −(M⁻¹u)_S at every stage) give the same
+    states, the same joints at rest and the same events, to rounding."""
+    import pinocchio as pin
+
+    from hmpc_pin.native import load, model_string
+
+    robot = _arm(tmp_path, 6.0)  # F = 4.2, 4.8, 5.4
+    core = load()
+    data = robot.model.createData()
+    compiled = core.RK4(model_string(robot))
+    python = core.RK4(None, 3, lambda q, v, u: pin.aba(robot.model, data, q, v, u))
+    for kernel in (compiled, python):
+        kernel.set_joint_dynamics(robot.joint_damping, robot.joint_friction)
+    q1, v1 = np.array([0.3, -0.4, 0.2]), np.zeros(3)
+    q2, v2 = q1.copy(), v1.copy()
+    zero, S, h = np.zeros(3), 4, TS / 4
+    hold = robot.gravity_torque(q1)
+    rests, moved = 0, False
+    for k in range(100):
+        t_s = k * TS + h * np.arange(S)
+        times = np.concatenate([t_s, t_s + h / 2, t_s + h])
+        push = 6.0 * np.sin(np.pi * times / 0.6)  # 0 → 6 N·m → 0 over 0.6 s, on joint 0
+        T = np.tile(hold, (3 * S, 1))
+        T[:, 0] += push
+        compiled.period(q1, v1, T, zero, zero, False, h)
+        python.period(q2, v2, T, zero, zero, False, h)
+        np.testing.assert_allclose(q2, q1, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(v2, v1, rtol=0, atol=1e-10)
+        np.testing.assert_array_equal(v2 == 0.0, v1 == 0.0)
+        rests += bool((v1 == 0.0).all())
+        moved = moved or (v1 != 0.0).any()
+    assert rests >= 10 and moved and compiled.events == python.events >= 2
+
+
+def _held_planar3(tmp_path, joint_friction: bool):
+    """planar3 (joint friction 0.7, 0.8, 0.9 when ``joint_friction``) with the fused
+    disturbance −(a q̇ + b sgn q̇), b = (10, 8, 5)."""
+    from hmpc_pin.sim.disturbances import CoulombViscousFriction
+
+    plain = CONFIGS.parent / "robots" / "planar3.urdf"
+    robot = load_robot(_planar3_with_dynamics(tmp_path) if joint_friction else str(plain), 9.81)
+    a, b = np.array([1.0, 0.8, 0.5]), np.array([10.0, 8.0, 5.0])
+    return robot, RK4Plant(robot, CoulombViscousFriction(a, b), TS, TS / 4), a, b
+
+
+@pytest.mark.parametrize("joint_friction", [False, True])
+def test_the_applied_disturbance_of_a_stuck_arm_is_its_holding_torque(tmp_path, joint_friction):
+    """Every joint at rest and held: the friction applied is what RNEA at q̇ = q̈ = 0 needs
+    beyond τ, φ = G(q) − τ (Pinocchio), the disturbance's share b/(F + b) of it when the
+    joints have their own friction F; disturbance_now() says 0 there (sgn 0 = 0)."""
+    import pinocchio as pin
+
+    robot, plant, _, b = _held_planar3(tmp_path, joint_friction)
+    q0 = np.array([0.3, -0.2, 0.4])
+    zero = np.zeros(3)
+    G = pin.rnea(robot.model, robot.model.createData(), q0, zero, zero)
+    tau = G + np.array([2.0, -3.0, 1.0])
+    F = robot.joint_friction if joint_friction else zero
+    plant.reset(q0, zero)
+    d_now = plant.disturbance_now()
+    q, _ = plant.advance(tau)
+    np.testing.assert_array_equal(q, q0)  # held
+    np.testing.assert_array_equal(d_now, zero)
+    np.testing.assert_allclose(plant.applied_disturbance(d_now), (G - tau) * b / (F + b),
+                               rtol=0, atol=1e-10)  # fmt: skip
+
+
+def test_the_applied_disturbance_with_a_joint_sliding_and_two_stuck(tmp_path):
+    """Joint 0 slides (q̇_0 = 0.5), joints 1, 2 at rest and held: the sliding joint's
+    disturbance is −a q̇ − b sgn q̇; the stuck joints' is their holding torque
+    φ_S = M_S0 q̈_0 + (C q̇ + G)_S − τ_S with q̈_0 from row 0, M_00 q̈_0 + (C q̇ + G)_0 =
+    τ_0 − a_0 q̇_0 − b_0 (q̈_S = 0; Pinocchio's CRBA and RNEA)."""
+    import pinocchio as pin
+
+    robot, plant, a, b = _held_planar3(tmp_path, False)
+    q0, dq0 = np.array([0.3, -0.2, 0.4]), np.array([0.5, 0.0, 0.0])
+    data = robot.model.createData()
+    M = pin.crba(robot.model, data, q0)
+    M = np.triu(M) + np.triu(M, 1).T
+    nle = pin.rnea(robot.model, data, q0, dq0, np.zeros(3))
+    tau = nle + np.array([5.0, 1.0, -0.5])
+    d0 = -a[0] * dq0[0] - b[0]
+    qdd0 = (tau[0] + d0 - nle[0]) / M[0, 0]
+    phi = M[1:, 0] * qdd0 + nle[1:] - tau[1:]
+    assert (np.abs(phi) < b[1:]).all()  # they stick
+    plant.reset(q0, dq0)
+    d_now = plant.disturbance_now()
+    _, dq = plant.advance(tau)
+    assert dq[0] != 0.0 and (dq[1:] == 0.0).all()
+    d = plant.applied_disturbance(d_now)
+    assert d[0] == d_now[0] == pytest.approx(d0, abs=1e-12)
+    np.testing.assert_allclose(d[1:], phi, rtol=0, atol=1e-9)
+
+
+class _Hold:
+    """A controller that holds the torque ``tau`` [N·m]."""
+
+    Ts = TS
+
+    def __init__(self, tau):
+        self.tau, self.disturbance_estimate = tau, np.zeros(len(tau))
+
+    def reset(self, q0, dq0):
+        pass
+
+    def step(self, t, q, dq, reference):
+        return self.tau.copy()
+
+
+@pytest.mark.parametrize("coulomb", ["stick-slip", "sign"])
+def test_a_run_records_the_holding_torque_of_an_arm_held_by_friction(tmp_path, coulomb):
+    """A run of planar3 held at rest by the fused friction: every sample that starts a
+    period records d = G(q0) − τ (stick-slip: what the plant applied), the compiled loop
+    and the per-step oracle alike; the last sample, which starts none, records 0
+    (sgn 0 = 0). The sign law, which applies sgn 0 = 0 at rest and so lets the arm creep,
+    records −(a q̇ + b sgn q̇) of each sample's state, as before."""
+    import hmpc_pin
+    from hmpc_pin.sim.disturbances import CoulombViscousFriction
+
+    from .reference.loop import per_step
+
+    robot, _, a, b = _held_planar3(tmp_path, False)
+    q0 = np.array([0.3, -0.2, 0.4])
+    tau = robot.gravity_torque(q0) + np.array([2.0, -3.0, 1.0])
+    want = robot.gravity_torque(q0) - tau
+    runs = []
+    for loop in (contextlib.nullcontext(), per_step()):
+        plant = RK4Plant(robot, CoulombViscousFriction(a, b), TS, TS / 4, coulomb=coulomb)
+        with loop:
+            runs.append(hmpc_pin.simulate(robot, _Hold(tau), hmpc_pin.SineReference(3),
+                                          duration=0.1, q0=q0, plant=plant))  # fmt: skip
+    for r in runs:
+        if coulomb == "sign":
+            assert np.abs(r.q - q0).max() > 1e-6  # the sign law lets it creep
+            np.testing.assert_array_equal(r.d, -(a * r.dq + b * np.sign(r.dq)))
+            continue
+        np.testing.assert_array_equal(r.q, np.tile(q0, (len(r.t), 1)))
+        np.testing.assert_allclose(r.d[:-1], np.tile(want, (len(r.t) - 1, 1)), atol=1e-10)
+        np.testing.assert_array_equal(r.d[-1], np.zeros(3))
+    np.testing.assert_array_equal(runs[0].d, runs[1].d)

@@ -41,6 +41,14 @@ void expose_rk4_plant(py::module_& m) {
           },
           py::arg("tau"))
       .def("disturbance_now", py::method_adaptor<PyRK4Plant>(&RK4Plant::disturbance_now))
+      .def(
+          "applied_disturbance",
+          [](PyRK4Plant& p, const CRefVec& d) {
+            Vec out = d;
+            p.applied_disturbance(out);
+            return out;
+          },
+          py::arg("d"))
       .def_property_readonly("q", [](const PyRK4Plant& p) { return Vec(p.q); })
       .def_property_readonly("dq", [](const PyRK4Plant& p) { return Vec(p.v); })
       .def_property(  // (set: a plant restored from a pickle)

@@ -179,10 +179,16 @@ class PyCompensationPort : public Compensation {
 };
 
 // A Python plant (the Plant protocol of hmpc_pin.sim.base: advance(tau) -> (q, dq),
-// disturbance_now()) as the loop's Plant port.
+// disturbance_now(); applied_disturbance(d) -> d where it has one) as the loop's Plant port.
 class PyCallablePlant : public Plant {
  public:
-  PyCallablePlant(py::object p, int n_) : plant(std::move(p)), n(n_) {}
+  PyCallablePlant(py::object p, int n_)
+      : plant(std::move(p)), n(n_), applied(py::hasattr(plant, "applied_disturbance")) {}
+  void applied_disturbance(RefVec d) override {
+    if (!applied) return;
+    py::gil_scoped_acquire gil;
+    d = broadcast_vector(plant.attr("applied_disturbance")(Vec(d)), n);
+  }
   void advance(const Vec& tau, Vec& q, Vec& dq) override {
     py::gil_scoped_acquire gil;
     py::object state = plant.attr("advance")(tau);
@@ -198,6 +204,7 @@ class PyCallablePlant : public Plant {
   }
   py::object plant;
   int n;
+  bool applied;  // the plant has applied_disturbance
 };
 
 // A Python controller (the Controller protocol of hmpc_pin.controllers.base) as the loop's

@@ -79,6 +79,8 @@ bool ClosedLoop::record_and_advance(RefVec q, RefVec v) {
   plant->advance(tau, qn, vn);
   if (qn.size() != n || vn.size() != n)
     throw std::invalid_argument("the plant's state is not of n values");
+  Eigen::Map<Vec> applied(rd, n);  // d as applied at the period's start
+  plant->applied_disturbance(applied);
   q = qn;
   v = vn;
   ++advances;

@@ -22,9 +22,11 @@ RK4::RK4(int n_, AbaFunction aba) : aba_fn(std::move(aba)), n(n_) {
 
 void RK4::allocate() {
   for (Vec* x : {&q2, &v2, &q3, &v3, &q4, &v4, &a1, &a2, &a3, &a4, &u, &joint.b, &joint.f, &fc_,
-                 &qa_, &va_, &qs_, &vs_, &ue_, &col_, &phi_, &vscale_, &fa_, &fb_, &wa_, &wb_})
+                 &qa_, &va_, &qs_, &vs_, &ue_, &col_, &phi_, &vscale_, &fa_, &fb_, &wa_, &wb_,
+                 &G_, &qG_, &start_coulomb})
     x->setZero(n);
   mode_.assign(n, 2);
+  start_rest.assign(n, 0);
   stuck_.reserve(n);
   W_.setZero(n, n);
 }
@@ -89,7 +91,8 @@ void RK4::accel(const Base& base, double th, const Vec& q, const Vec& v, Vec& ou
 template <class Base>
 void RK4::trial(const Base& base, double ta, double L, double h) {
   const double hh = 0.5 * L, h6 = L / 6.0, tm = ta + hh / h, t1 = ta + L / h;
-  accel(base, ta, qa_, va_, a1);
+  if (!a1_ready_) accel(base, ta, qa_, va_, a1);  // else as choose_modes or a trial left it
+  a1_ready_ = true;
   q2 = qa_ + hh * va_;
   v2 = va_ + hh * a1;
   accel(base, tm, q2, v2, a2);
@@ -125,6 +128,7 @@ double RK4::event_value(const Base& base, double th) {
 template <class Base>
 void RK4::choose_modes(const Base& base, double th) {
   bool rest = false;
+  a1_ready_ = false;
   for (int i = 0; i < n; ++i) {
     mode_[i] = fc_[i] > 0.0 ? (va_[i] > 0.0 ? 1 : (va_[i] < 0.0 ? -1 : 0)) : 2;
     rest = rest || mode_[i] == 0;
@@ -132,6 +136,7 @@ void RK4::choose_modes(const Base& base, double th) {
   if (!rest) return;
   for (int it = 0; it < 2 * n + 2; ++it) {
     accel(base, th, qa_, va_, a1);
+    a1_ready_ = true;  // q̈ at the start with these modes: the trials' first stage
     int worst = -1;
     double ratio = 1.0;
     for (int i : stuck_) {
@@ -143,6 +148,7 @@ void RK4::choose_modes(const Base& base, double th) {
     }
     if (worst >= 0) {
       mode_[worst] = phi_[worst] > 0.0 ? -1 : 1;
+      a1_ready_ = false;
       continue;
     }
     int back = -1;
@@ -150,6 +156,46 @@ void RK4::choose_modes(const Base& base, double th) {
       if ((mode_[i] == 1 || mode_[i] == -1) && va_[i] == 0.0 && mode_[i] * a1[i] < 0.0) back = i;
     if (back < 0 || it > n) break;
     mode_[back] = 0;
+    a1_ready_ = false;
+  }
+}
+
+// Whether every joint has a Coulomb level and is at rest at (q, v) (with the compiled
+// dynamics); then G_ = G(q) (one RNEA at q̇ = 0, kept while q stays).
+bool RK4::at_rest(const RefVec& q, const RefVec& v) {
+  if (!dyn) return false;
+  for (int i = 0; i < n; ++i)
+    if (!(fc_[i] > 0.0 && v[i] == 0.0)) return false;
+  if (!g_valid_ || (qG_.array() != q.array()).any()) {
+    G_ = dyn->nle(q, v);
+    qG_ = q;
+    g_valid_ = true;
+  }
+  return true;
+}
+
+// Every joint stuck at (qa_, va_ = 0), fraction th: the holding torques φ = G(q) − u (u the
+// torque there, its Coulomb-viscous terms 0 at rest) into phi_; whether each is within ±F_i.
+template <class Base>
+bool RK4::hold(const Base& base, double th) {
+  base(th, qa_, va_, u);
+  bool in = true;
+  for (int i = 0; i < n; ++i) {
+    phi_[i] = G_[i] - u[i];
+    in = in && !(std::abs(phi_[i]) > fc_[i]);
+  }
+  return in;
+}
+
+// The period's start (modes and φ at (qa_, va_)): start_rest, start_coulomb (rk4.hpp).
+void RK4::record_start() {
+  first_ = false;
+  for (int i = 0; i < n; ++i) {
+    start_rest[i] = fc_[i] > 0.0 && va_[i] == 0.0;
+    const double b = fused_ && start_rest[i] ? fb_[i] : 0.0;
+    if (b == 0.0) start_coulomb[i] = 0.0;
+    else if (mode_[i] == 0) start_coulomb[i] = b == fc_[i] ? phi_[i] : phi_[i] * (b / fc_[i]);
+    else start_coulomb[i] = -b * mode_[i];
   }
 }
 
@@ -158,8 +204,16 @@ template <class Base>
 void RK4::coulomb_step(RefVec q, RefVec v, double h, const Base& base) {
   qa_ = q;
   va_ = v;
+  if (at_rest(q, v) && hold(base, 0.0)) {  // the rest shortcut (rk4.hpp)
+    std::fill(mode_.begin(), mode_.end(), 0);
+    const bool first = first_;
+    if (first) record_start();
+    if (hold(base, 1.0)) return;  // stuck over the step: the state as it is
+    first_ = first;               // else the general path, from the step's start
+  }
   double ta = 0.0, rem = h;  // the fraction of the step done, the length left [s]
   choose_modes(base, ta);
+  if (first_) record_start();
   for (int budget = 4 * n + 8;; --budget) {
     trial(base, ta, rem, h);
     if (budget <= 0) break;
@@ -252,10 +306,13 @@ void RK4::period(RefVec q, RefVec v, const CRefRow& T, const CRefVec& a, const C
   const int S = static_cast<int>(T.rows() / 3);
   if (T.rows() != 3 * S || T.cols() != n || q.size() != n || v.size() != n)
     throw std::invalid_argument("RK4.period: shapes do not match the model");
+  std::fill(start_rest.begin(), start_rest.end(), 0);
+  start_coulomb.setZero();
   if (coulomb_in(b, friction)) {
     fused_ = friction;
     fa_ = a;
     fb_ = b;
+    first_ = true;
     for (int s = 0; s < S; ++s) {
       // the time-only terms at the fraction th of step s: its rows, the parabola between
       const auto base = [&T, s, S](double th, const Vec&, const Vec&, Vec& out) {
@@ -314,11 +371,14 @@ void RK4::period_with(RefVec q, RefVec v, const CRefVec& tau, double t, double h
                       const DisturbanceFunction& dist) {
   if (q.size() != n || v.size() != n || tau.size() != n)
     throw std::invalid_argument("RK4.period_with: shapes do not match the model");
+  std::fill(start_rest.begin(), start_rest.end(), 0);
+  start_coulomb.setZero();
   if (coulomb_in(wb_, wf_)) {
     // the function's own friction term added back; accel subtracts the stick-slip one
     fused_ = wf_;
     fa_ = wa_;
     fb_ = wb_;
+    first_ = true;
     for (int s = 0; s < S; ++s) {
       const double t0 = t + s * h;
       const auto base = [&](double th, const Vec& qs, const Vec& vs, Vec& out) {

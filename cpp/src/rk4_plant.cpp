@@ -96,4 +96,11 @@ Vec RK4Plant::disturbance_now() {
   return d;
 }
 
+void RK4Plant::applied_disturbance(RefVec d) {
+  if (d.size() != n)
+    throw std::invalid_argument("RK4Plant.applied_disturbance: d is not of n values");
+  for (int i = 0; i < n; ++i)
+    if (rk4->start_rest[i]) d[i] += rk4->start_coulomb[i];
+}
+
 }  // namespace hmpc

@@ -22,7 +22,9 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
   the loop at a time; one Coulomb–viscous friction evaluated in C++) or a callable
   ``d(t, q, dq)`` called at every stage; any other plant (semi-implicit Euler, MuJoCo, an
   RK4 plant whose methods are replaced) is called as a whole, ``advance(tau)`` and
-  ``disturbance_now()``, through the Plant port;
+  ``disturbance_now()`` (and, after ``advance``, ``applied_disturbance(d)`` where the plant
+  has it: the recorded ``d`` made the disturbance applied at the period's start), through
+  the Plant port;
 - an ``on_step`` callback, if any, is called from the compiled loop once a step is recorded
   (with the reference sampled at that instant, as the per-step loop does).
 
@@ -92,7 +94,7 @@ def _compiled_plant(plant) -> bool:
     """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose period the loop
     runs itself (its methods not replaced, e.g. by a spy: then it is called as a plant)."""
     return isinstance(plant, RK4Plant) and _own(
-        plant, RK4Plant, "advance", "disturbance_now", "reset", "prepare"
+        plant, RK4Plant, "advance", "disturbance_now", "applied_disturbance", "reset", "prepare"
     )
 
 

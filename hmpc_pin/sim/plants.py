@@ -35,9 +35,12 @@ step is split where a velocity changes sign (the crossing found by regula falsi 
 step's length, to :math:`10^{-13}` of the step), and a joint at rest sticks: its friction
 takes the value :math:`\\phi_i \\in [-F_i, F_i]` that keeps :math:`\\ddot q_i = 0` (with the
 other stuck joints, :math:`(M^{-1})_{SS}\\,\\phi_S = -(M^{-1}u)_S`) until that value would
-leave the interval, where it breaks away (another event) and slides against it. Between
-events the field is smooth and RK4 keeps its fourth order (``tests/test_plant_step.py``
-measures it against scipy's DOP853 with the same events). ``coulomb = "sign"``:
+leave the interval, where it breaks away (another event) and slides against it. An arm
+with every joint at rest is held by the closed form :math:`\\phi = G(q) - u` (one RNEA at
+:math:`\\dot q = 0` per position, checked at each step's start and end as the events are)
+instead of that algebra at every stage. Between events the field is smooth and RK4 keeps
+its fourth order (``tests/test_plant_step.py`` measures it against scipy's DOP853 with the
+same events). ``coulomb = "sign"``:
 :math:`\\mathrm{sgn}\\,\\dot q` with :math:`\\mathrm{sgn}\\,0 = 0` per stage, which chatters
 about :math:`\\dot q = 0` rather than sticking (versions before 0.3; :class:`EulerPlant`
 always). A disturbance evaluated as a function (a sum with a term of the user's) keeps its
@@ -363,6 +366,18 @@ class RK4Plant:
         if self.fused:
             self.prepare(self.k)
         return self.port.disturbance_now()
+
+    def applied_disturbance(self, d: FloatArray) -> FloatArray:
+        """The disturbance [N·m] applied at the start of the period :meth:`advance` just
+        integrated, from ``d`` = :meth:`disturbance_now` there: they differ only at a joint
+        that started the period at rest with a Coulomb term of the disturbance
+        (``coulomb = "stick-slip"``), where :math:`\\mathrm{sgn}\\,0 = 0` gives no friction
+        while the plant applied its share :math:`b_i/(F_i + b_i)` of the holding torque
+        :math:`\\phi_i` (the torque that keeps the stuck joints still under the period's
+        torque, :math:`|\\phi_i| \\le F_i + b_i`), or :math:`-b_i s_i` when it broke away
+        with sign :math:`s_i` (:math:`F_i` the joint's own Coulomb friction, :math:`b_i` the
+        disturbance's). The run records this value as its ``d``."""
+        return self.port.applied_disturbance(np.asarray(d, dtype=float))
 
     def prepare(self, k: int) -> int:
         """Make the compiled plant's table of time-only terms cover period ``k``; return the

@@ -35,7 +35,17 @@ class Result:
             [N·m] (equal to ``tau`` without limits; NaN where nothing was applied). Files
             written before 0.3 have no record of it: it is ``tau`` when no period
             saturated and NaN otherwise.
-        d: True disturbance :math:`d(t_k, q_k, \\dot q_k)` [N·m].
+        d: True disturbance [N·m] the plant applied at :math:`t_k`, the start of the
+            period :math:`[t_k, t_k + T_s)`: :math:`d(t_k, q_k, \\dot q_k)`, but for a
+            joint at rest with a Coulomb term of the disturbance (RK4 plant,
+            ``coulomb = "stick-slip"``), where it is that term's value under the period's
+            torque: the holding torque :math:`\\phi_i` that keeps the stuck joints'
+            :math:`\\ddot q_S = 0` (:math:`G(q) - \\tau` for an arm held at rest without
+            friction of its own), its share
+            :math:`b_i/(F_i + b_i)` with the joint's own friction :math:`F_i`, or
+            :math:`-b_i s_i` when the joint breaks away with sign :math:`s_i`. The last
+            sample, which starts no period, and other plants record
+            :math:`d(t_k, q_k, \\dot q_k)` (:math:`\\mathrm{sgn}\\,0 = 0`).
         d_hat: Observer estimate :math:`\\hat d_k` [N·m] (zeros without observer).
         q_ref, dq_ref: Reference at :math:`t_k` [rad, rad/s].
         joint_names: Names of the joints.

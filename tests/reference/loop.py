@@ -13,6 +13,9 @@ ports or fused disturbances. Per step k, at :math:`t_k = k T_s`:
    :math:`\\mathrm{clip}(\\tau_k, -\\tau_{\\max}, \\tau_{\\max})` (the saturation counts),
    recorded as applied;
 4. ``plant.advance(τ)``: the plant's period :math:`[t_k, t_k + T_s)` with the torque held;
+   then, where the plant has it, the recorded :math:`d_k` becomes
+   ``plant.applied_disturbance(d_k)``, the disturbance applied at the period's start (a
+   joint at rest held by a Coulomb term: its holding torque, not :math:`\\mathrm{sgn}\\,0 = 0`);
 5. every :math:`|q|, |\\dot q|` at :math:`t_{k+1}` finite and within the bound.
 
 :class:`PerStepLoop` has :class:`~hmpc_pin.sim.compiled_loop.CompiledLoop`'s constructor,
@@ -102,6 +105,9 @@ class PerStepLoop:
                     tau = np.clip(tau, -limit, limit)
             rec["tau_applied"][k] = tau
             q, dq = plant.advance(tau)
+            applied = getattr(plant, "applied_disturbance", None)
+            if applied is not None:
+                rec["d"][k] = applied(rec["d"][k].copy())
             if not (np.all(np.abs(q) <= cap) and np.all(np.abs(dq) <= cap)):
                 raise state_error(q, dq, t + ctrl.Ts, bound)
 

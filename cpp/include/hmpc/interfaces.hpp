@@ -45,9 +45,16 @@
 // controller (computed torque, a wrapper) plugs in here as a whole.
 //
 // Plant: the arm, advanced over one control period with the torque τ [N·m] held (its new
-// state into q, q̇), and the disturbance d(t_k, q, q̇) [N·m] acting on it now (for the
-// record). The RK4 plant implements it compiled (rk4_plant.hpp); any other plant
-// (semi-implicit Euler, MuJoCo) plugs in here from Python.
+// state into q, q̇), and the disturbance acting on it, for the record:
+//   disturbance_now()       d(t_k, q, q̇) [N·m] at the state now (sgn 0 = 0 in a Coulomb
+//                           term);
+//   applied_disturbance(d)  after advance: d, disturbance_now() of the period's start,
+//                           made the disturbance the plant applied at that start where the
+//                           two differ (a joint at rest held by a Coulomb term: its holding
+//                           torque with the period's torque, or its breakaway sign), in
+//                           place; unchanged by default.
+// The RK4 plant implements it compiled (rk4_plant.hpp); any other plant (semi-implicit
+// Euler, MuJoCo) plugs in here from Python.
 #pragma once
 
 #include "hmpc/types.hpp"
@@ -77,6 +84,7 @@ class Plant {
   virtual ~Plant() = default;
   virtual void advance(const Vec& tau, Vec& q, Vec& dq) = 0;
   virtual Vec disturbance_now() = 0;
+  virtual void applied_disturbance(RefVec d) { (void)d; }
 };
 
 class Controller {

@@ -7,7 +7,8 @@
 //   τ, d̂ = controller(t_k, q, q̇) (timed) →
 //   record q, q̇, τ, d, d̂ → recorded(k) → (k = K: stop) → τ finite →
 //   clip to the effort limit (count, largest excess) → record τ applied → plant period →
-//   state finite and within the bound.
+//   d recorded made the disturbance applied at the period's start (the Plant port's
+//   applied_disturbance) → state finite and within the bound.
 // run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
 // A fault throws (errors.hpp), with `k` the step during which it was detected: the
 // controller's step (its fault or its ports', nothing recorded at k), NonFinite (τ not finite, recorded at

@@ -28,6 +28,21 @@
 // per-stage sgn when no stage crosses zero; a disturbance given as a function (period_with)
 // keeps its own terms as they are, but for the friction set_friction_in_disturbance names.
 // stick_slip = false: sgn per stage (earlier versions).
+//
+// At rest (every joint has a Coulomb level and q̇ = 0 at a step's start) the stuck joints'
+// algebra has the closed form φ = G(q) − u (q̈ = M⁻¹(u + φ − G) = 0 for all of them; G(q)
+// one RNEA at q̇ = 0, kept while q does not change): when it is within ±F_i at the step's
+// start and end (where the event function above is checked) the step leaves the state as
+// it is, as the general path's trial does exactly (q̈ = 0 at every stage); otherwise the
+// general path runs the step. The first stage of a trial step, q̈ at its start with the
+// modes held, is the one choose_modes computed there (and the same for every trial of an
+// event's search): it is computed once.
+//
+// What a period applied (start_rest, start_coulomb): the Coulomb torque of the fused (or
+// named, set_friction_in_disturbance) friction at the period's start for a joint at rest,
+// which sgn 0 = 0 of the state does not tell: b_i/(F_i + b_i) of its holding torque φ_i
+// (F_i the joint's own friction, b_i the disturbance's: the holding torque shared in
+// proportion to the two levels) while it sticks, −b_i s_i when it breaks away with sign s_i.
 // Oracle: tests/reference/rk4.py.
 #pragma once
 
@@ -79,6 +94,11 @@ class RK4 {
 
   bool stick_slip = true;  // Coulomb friction by event location and sticking (see above)
   long events = 0;         // events located since construction (sign changes, stick, slip)
+  // After period() or period_with(): start_rest[i], whether joint i started the period at
+  // rest with a Coulomb level (stick_slip); start_coulomb[i], the disturbance's Coulomb
+  // torque applied to it then [N·m] (see above; 0 where start_rest[i] is false).
+  std::vector<char> start_rest;
+  Vec start_coulomb;
 
   std::unique_ptr<Dynamics> dyn;  // null: aba_fn
   AbaFunction aba_fn;
@@ -109,6 +129,10 @@ class RK4 {
   double event_value(const Base& base, double th);
   template <class Base>
   void choose_modes(const Base& base, double th);
+  template <class Base>
+  bool hold(const Base& base, double th);
+  bool at_rest(const RefVec& q, const RefVec& v);
+  void record_start();
   bool coulomb_in(const CRefVec& b, bool friction);
 
   Vec q2, v2, q3, v3, q4, v4, a1, a2, a3, a4, u;
@@ -119,6 +143,11 @@ class RK4 {
   Mat W_;
   bool fused_ = false;
   bool wf_ = false;  // set_friction_in_disturbance given
+  bool first_ = false;  // the next Coulomb-aware step starts a period (record_start)
+  // a1 is q̈ at (qa_, va_) with the modes held: the trials from there skip their first stage
+  bool a1_ready_ = false;
+  Vec G_, qG_;          // G(q) at q = qG_ (the rest shortcut)
+  bool g_valid_ = false;
 };
 
 }  // namespace hmpc

@@ -6,7 +6,10 @@
 //     periods at a time with set_table), plus one Coulomb–viscous friction −(a q̇ + b sgn q̇);
 //   or a Disturbance port (a Python callable) called at every stage.
 // disturbance_now() is d at (t_k, q, q̇): the table's first row of period k minus the
-// friction, or the port's value. hmpc_pin.sim.plants.RK4Plant owns one and steps it, and
+// friction, or the port's value; applied_disturbance(d), after a period, adds the Coulomb
+// torque the disturbance applied at its start to the joints that started it at rest (RK4's
+// start_coulomb: with the stick-slip law, the disturbance's share of a stuck joint's holding
+// torque, or its breakaway sign). hmpc_pin.sim.plants.RK4Plant owns one and steps it, and
 // the compiled loop (loop.hpp) calls it like any other plant.
 #pragma once
 
@@ -38,6 +41,7 @@ class RK4Plant : public Plant {
 
   void advance(const Vec& tau, Vec& q_out, Vec& dq_out) override;
   Vec disturbance_now() override;
+  void applied_disturbance(RefVec d) override;
 
   std::shared_ptr<RK4> rk4;
   const int n, substeps;

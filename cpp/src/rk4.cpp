@@ -1,6 +1,7 @@
 // The RK4 plant's period: see rk4.hpp.
 #include "hmpc/rk4.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -28,6 +29,7 @@ void RK4::allocate() {
   mode_.assign(n, 2);
   start_rest.assign(n, 0);
   stuck_.reserve(n);
+  free_.reserve(n);
   W_.setZero(n, n);
 }
 
@@ -59,11 +61,15 @@ void RK4::accel(const Base& base, double th, const Vec& q, const Vec& v, Vec& ou
     if (fused_) u[i] -= fa_[i] * v[i] + fb_[i] * s;
     if (joint.any) u[i] -= joint.b[i] * v[i] + joint.f[i] * s;
   }
-  aba(q, v, u, out);
   stuck_.clear();
   for (int i = 0; i < n; ++i)
     if (mode_[i] == 0) stuck_.push_back(i);
   const int m = static_cast<int>(stuck_.size());
+  if (dyn && m >= 2) {
+    constrained(q, v, out);
+    return;
+  }
+  aba(q, v, u, out);
   if (m == 0) return;
   const double scale = 1.0 + u.cwiseAbs().maxCoeff();
   for (int k = 0; k < m; ++k) {
@@ -83,6 +89,34 @@ void RK4::accel(const Base& base, double th, const Vec& q, const Vec& v, Vec& ou
   for (int k = 0; k < m; ++k) {
     out[stuck_[k]] = 0.0;
     phi_[stuck_[k]] = phi[k];
+  }
+}
+
+// accel's stuck joints' algebra, m >= 2 of them, from M(q) (CRBA) and h = C q̇ + G (RNEA)
+// in place of m more ABAs: the free joints F solve M_FF q̈_F = (u − h)_F, q̈_S = 0, and the
+// holding torques are φ_S = M_SF q̈_F + h_S − u_S (the same equations as accel's).
+void RK4::constrained(const Vec& q, const Vec& v, Vec& out) {
+  const Mat& M = dyn->mass_matrix(q);
+  const Vec& hv = dyn->nle(q, v);
+  free_.clear();
+  for (int i = 0; i < n; ++i)
+    if (mode_[i] != 0) free_.push_back(i);
+  const int f = static_cast<int>(free_.size());
+  out.setZero(n);
+  if (f > 0) {
+    Mat Mff(f, f);
+    Vec rf(f);
+    for (int r = 0; r < f; ++r) {
+      rf[r] = u[free_[r]] - hv[free_[r]];
+      for (int c = 0; c < f; ++c) Mff(r, c) = M(free_[r], free_[c]);
+    }
+    const Vec af = Mff.llt().solve(rf);
+    for (int r = 0; r < f; ++r) out[free_[r]] = af[r];
+  }
+  for (int i : stuck_) {
+    double s = hv[i] - u[i];
+    for (int r = 0; r < f; ++r) s += M(i, free_[r]) * out[free_[r]];
+    phi_[i] = s;
   }
 }
 

@@ -36,7 +36,10 @@
 // it is, as the general path's trial does exactly (q̈ = 0 at every stage); otherwise the
 // general path runs the step. The first stage of a trial step, q̈ at its start with the
 // modes held, is the one choose_modes computed there (and the same for every trial of an
-// event's search): it is computed once.
+// event's search): it is computed once. With two or more stuck joints (and the compiled
+// dynamics) a stage solves the same equations from M(q) and C q̇ + G, M_FF q̈_F = (u − C q̇
+// − G)_F and φ_S = M_SF q̈_F + (C q̇ + G − u)_S over the free joints F, in place of one ABA
+// per stuck joint.
 //
 // What a period applied (start_rest, start_coulomb): the Coulomb torque of the fused (or
 // named, set_friction_in_disturbance) friction at the period's start for a joint at rest,
@@ -132,6 +135,7 @@ class RK4 {
   template <class Base>
   bool hold(const Base& base, double th);
   bool at_rest(const RefVec& q, const RefVec& v);
+  void constrained(const Vec& q, const Vec& v, Vec& out);
   void record_start();
   bool coulomb_in(const CRefVec& b, bool friction);
 
@@ -139,7 +143,7 @@ class RK4 {
   // stick_slip: Coulomb levels, modes (±1 slipping, 0 stuck, 2 no Coulomb term), the fused
   // friction of this period, the step's start and trial states, stuck-joint algebra.
   Vec fc_, qa_, va_, qs_, vs_, ue_, col_, phi_, vscale_, fa_, fb_, wa_, wb_;
-  std::vector<int> mode_, stuck_;
+  std::vector<int> mode_, stuck_, free_;
   Mat W_;
   bool fused_ = false;
   bool wf_ = false;  // set_friction_in_disturbance given

@@ -366,25 +366,33 @@ def test_the_rest_shortcut_takes_the_steps_the_general_algebra_takes(tmp_path):
     assert rests >= 10 and moved and compiled.events == python.events >= 2
 
 
-def _held_planar3(tmp_path, joint_friction: bool):
-    """planar3 (joint friction 0.7, 0.8, 0.9 when ``joint_friction``) with the fused
-    disturbance −(a q̇ + b sgn q̇), b = (10, 8, 5)."""
+def _held_planar3(tmp_path, joint_friction: bool, function: bool = False):
+    """planar3 (joint friction 0.7, 0.8, 0.9 when ``joint_friction``) with the disturbance
+    −(a q̇ + b sgn q̇), b = (10, 8, 5): fused, or (``function``) summed with a function of
+    the user's that is zero (then called per stage)."""
     from hmpc_pin.sim.disturbances import CoulombViscousFriction
 
     plain = CONFIGS.parent / "robots" / "planar3.urdf"
     robot = load_robot(_planar3_with_dynamics(tmp_path) if joint_friction else str(plain), 9.81)
     a, b = np.array([1.0, 0.8, 0.5]), np.array([10.0, 8.0, 5.0])
-    return robot, RK4Plant(robot, CoulombViscousFriction(a, b), TS, TS / 4), a, b
+    friction = CoulombViscousFriction(a, b)
+    plant = RK4Plant(robot, friction + _zero if function else friction, TS, TS / 4)
+    assert plant.fused is not function
+    return robot, plant, a, b
 
 
-@pytest.mark.parametrize("joint_friction", [False, True])
-def test_the_applied_disturbance_of_a_stuck_arm_is_its_holding_torque(tmp_path, joint_friction):
+@pytest.mark.parametrize(("joint_friction", "function"), [(False, False), (True, False),
+                                                          (True, True)])  # fmt: skip
+def test_the_applied_disturbance_of_a_stuck_arm_is_its_holding_torque(
+    tmp_path, joint_friction, function
+):
     """Every joint at rest and held: the friction applied is what RNEA at q̇ = q̈ = 0 needs
     beyond τ, φ = G(q) − τ (Pinocchio), the disturbance's share b/(F + b) of it when the
-    joints have their own friction F; disturbance_now() says 0 there (sgn 0 = 0)."""
+    joints have their own friction F; disturbance_now() says 0 there (sgn 0 = 0). The
+    same with the friction in a disturbance called as a function."""
     import pinocchio as pin
 
-    robot, plant, _, b = _held_planar3(tmp_path, joint_friction)
+    robot, plant, _, b = _held_planar3(tmp_path, joint_friction, function)
     q0 = np.array([0.3, -0.2, 0.4])
     zero = np.zeros(3)
     G = pin.rnea(robot.model, robot.model.createData(), q0, zero, zero)

@@ -17,7 +17,8 @@ process, the laws alternating block by block so that a shared machine loads each
 - ``closed loop``: the config's experiment run as configured (``Experiment.run``).
 
 Printed per scenario: the median over blocks of (stick-slip / sign) beside the absolute
-medians of each law.
+medians of each law, and how far the stick-slip plant moved from its start (0: it stayed at
+rest; an arm whose friction does not hold it, or whose pulses push it, moves).
 
 Usage: python benchmarks/plant_at_rest.py [--config paper_combined] [--periods 1000]
        [--blocks 7]
@@ -67,15 +68,21 @@ def _hanging(robot) -> np.ndarray:
     return min(poses, key=lambda q: float(np.abs(robot.gravity_torque(q)).max()))
 
 
+#: max |q − q0| [rad] at the end of the last timed scenario of each law (0: it stayed put).
+MOVED: dict[str, float] = {}
+
+
 def _held(experiment, q0: np.ndarray, tau: np.ndarray, periods: int, t0: float) -> float:
     """Seconds for ``periods`` periods of a fresh plant from rest at ``q0`` at ``t0``, τ
-    held."""
+    held (how far it moved: :data:`MOVED`)."""
     plant = experiment.make_plant()
     plant.reset(q0, np.zeros_like(q0), t0)
-    t0 = time.perf_counter()
+    start = time.perf_counter()
     for _ in range(periods):
-        plant.advance(tau)
-    return time.perf_counter() - t0
+        q, _ = plant.advance(tau)
+    elapsed = time.perf_counter() - start
+    MOVED[plant.coulomb] = float(np.abs(q - q0).max())
+    return elapsed
 
 
 def _closed_loop(experiment) -> float:
@@ -84,7 +91,7 @@ def _closed_loop(experiment) -> float:
     return time.perf_counter() - t0
 
 
-def bench(name: str, periods: int, blocks: int) -> list[tuple[str, float, float, float]]:
+def bench(name: str, periods: int, blocks: int) -> list[tuple[str, float, float, float, float]]:
     experiments = _experiments(name)
     probe = experiments["stick-slip"].make_plant()
     n, robot = probe.n, probe.robot
@@ -99,6 +106,7 @@ def bench(name: str, periods: int, blocks: int) -> list[tuple[str, float, float,
     }
     rows = []
     for scenario, fn in scenarios.items():
+        MOVED.clear()
         for law in LAWS:  # warm-up (imports, first builds), untimed
             fn(experiments[law])
         times: dict[str, list[float]] = {law: [] for law in LAWS}
@@ -106,7 +114,9 @@ def bench(name: str, periods: int, blocks: int) -> list[tuple[str, float, float,
             for law in LAWS if b % 2 == 0 else LAWS[::-1]:
                 times[law].append(fn(experiments[law]))
         a, s = np.array(times["stick-slip"]), np.array(times["sign"])
-        rows.append((scenario, float(np.median(a / s)), float(np.median(a)), float(np.median(s))))
+        moved = MOVED.get("stick-slip", float("nan"))
+        rows.append((scenario, float(np.median(a / s)), float(np.median(a)), float(np.median(s)),
+                     moved))  # fmt: skip
     return rows
 
 
@@ -117,10 +127,13 @@ def main() -> int:
     parser.add_argument("--blocks", type=int, default=7)
     args = parser.parse_args()
     print(f"{args.config}: {args.periods} periods at rest, {args.blocks} alternating blocks")
-    print("| scenario | stick-slip / sign (median of ratios) | stick-slip | sign |")
-    print("|---|---:|---:|---:|")
-    for scenario, ratio, a, s in bench(args.config, args.periods, args.blocks):
-        print(f"| {scenario} | {ratio:.2f}x | {a * 1e3:.1f} ms | {s * 1e3:.1f} ms |", flush=True)
+    print("| scenario | stick-slip / sign (median of ratios) | stick-slip | sign "
+          "| stick-slip max abs(q - q0) |")  # fmt: skip
+    print("|---|---:|---:|---:|---:|")
+    for scenario, ratio, a, s, moved in bench(args.config, args.periods, args.blocks):
+        far = "-" if np.isnan(moved) else f"{moved:.2g} rad"
+        print(f"| {scenario} | {ratio:.2f}x | {a * 1e3:.1f} ms | {s * 1e3:.1f} ms | {far} |",
+              flush=True)  # fmt: skip
     return 0
 
 

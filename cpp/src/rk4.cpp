@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <utility>
@@ -36,6 +37,7 @@ void RK4::allocate() {
 void RK4::set_friction_in_disturbance(const CRefVec& a, const CRefVec& b) {
   if (a.size() != n || b.size() != n || !a.allFinite() || !b.allFinite())
     throw std::invalid_argument("RK4.set_friction_in_disturbance: expected (n,) finite values");
+  memo_valid_ = false;
   wa_ = a;
   wb_ = b;
   wf_ = (a.array() != 0.0).any() || (b.array() != 0.0).any();
@@ -65,12 +67,39 @@ void RK4::accel(const Base& base, double th, const Vec& q, const Vec& v, Vec& ou
   for (int i = 0; i < n; ++i)
     if (mode_[i] == 0) stuck_.push_back(i);
   const int m = static_cast<int>(stuck_.size());
-  if (dyn && m >= 2) {
-    constrained(q, v, out);
+  if (m == 0) {
+    aba(q, v, u, out);
     return;
   }
+  if (memo_hit(q, v)) {  // the last call's (the end of a step is the next one's start)
+    out = memo_out_;
+    for (int i : stuck_) phi_[i] = memo_phi_[i];
+    return;
+  }
+  if (dyn && m >= 2) constrained(q, v, out);
+  else columns(q, v, out);
+  memo_valid_ = true;
+  memo_u_ = u;
+  memo_q_ = q;
+  memo_v_ = v;
+  memo_mode_ = mode_;
+  memo_out_ = out;
+  memo_phi_ = phi_;
+}
+
+// Whether (u, q, v) and the modes are bit for bit those of the last stuck-joint solve.
+bool RK4::memo_hit(const Vec& q, const Vec& v) const {
+  const auto same = [this](const Vec& a, const Vec& b) {
+    return std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(n)) == 0;
+  };
+  return memo_valid_ && mode_ == memo_mode_ && same(u, memo_u_) && same(q, memo_q_) &&
+         same(v, memo_v_);
+}
+
+// accel's stuck joints' algebra by ABA's columns: q̈ = ABA(q, v, u), then φ_S.
+void RK4::columns(const Vec& q, const Vec& v, Vec& out) {
   aba(q, v, u, out);
-  if (m == 0) return;
+  const int m = static_cast<int>(stuck_.size());
   const double scale = 1.0 + u.cwiseAbs().maxCoeff();
   for (int k = 0; k < m; ++k) {
     ue_ = u;
@@ -299,6 +328,7 @@ void RK4::coulomb_step(RefVec q, RefVec v, double h, const Base& base) {
 }
 
 void RK4::set_joint_dynamics(const CRefVec& damping, const CRefVec& friction) {
+  memo_valid_ = false;
   joint.set(damping, friction, n, "RK4.set_joint_dynamics");
 }
 
@@ -337,6 +367,7 @@ void RK4::torque(const Row& T_row, const Vec& v, const CRefVec& a, const CRefVec
 
 void RK4::period(RefVec q, RefVec v, const CRefRow& T, const CRefVec& a, const CRefVec& b,
                  bool friction, double h) {
+  memo_valid_ = false;
   const int S = static_cast<int>(T.rows() / 3);
   if (T.rows() != 3 * S || T.cols() != n || q.size() != n || v.size() != n)
     throw std::invalid_argument("RK4.period: shapes do not match the model");
@@ -403,6 +434,7 @@ void RK4::torque_with(const DisturbanceFunction& dist, const CRefVec& tau, doubl
 
 void RK4::period_with(RefVec q, RefVec v, const CRefVec& tau, double t, double h, int S,
                       const DisturbanceFunction& dist) {
+  memo_valid_ = false;
   if (q.size() != n || v.size() != n || tau.size() != n)
     throw std::invalid_argument("RK4.period_with: shapes do not match the model");
   std::fill(start_rest.begin(), start_rest.end(), 0);

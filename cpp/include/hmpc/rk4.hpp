@@ -39,7 +39,8 @@
 // event's search): it is computed once. With two or more stuck joints (and the compiled
 // dynamics) a stage solves the same equations from M(q) and C q̇ + G, M_FF q̈_F = (u − C q̇
 // − G)_F and φ_S = M_SF q̈_F + (C q̇ + G − u)_S over the free joints F, in place of one ABA
-// per stuck joint.
+// per stuck joint; a solve at the torque, state and modes of the last one (the end of a
+// step is the next one's start when the torque rows there are equal) is not repeated.
 //
 // What a period applied (start_rest, start_coulomb): the Coulomb torque of the fused (or
 // named, set_friction_in_disturbance) friction at the period's start for a joint at rest,
@@ -136,6 +137,8 @@ class RK4 {
   bool hold(const Base& base, double th);
   bool at_rest(const RefVec& q, const RefVec& v);
   void constrained(const Vec& q, const Vec& v, Vec& out);
+  void columns(const Vec& q, const Vec& v, Vec& out);
+  bool memo_hit(const Vec& q, const Vec& v) const;
   void record_start();
   bool coulomb_in(const CRefVec& b, bool friction);
 
@@ -150,6 +153,10 @@ class RK4 {
   bool first_ = false;  // the next Coulomb-aware step starts a period (record_start)
   // a1 is q̈ at (qa_, va_) with the modes held: the trials from there skip their first stage
   bool a1_ready_ = false;
+  // the last stuck-joint solve of accel: its torque, state, modes, q̈ and φ
+  bool memo_valid_ = false;
+  Vec memo_u_, memo_q_, memo_v_, memo_out_, memo_phi_;
+  std::vector<int> memo_mode_;
   Vec G_, qG_;          // G(q) at q = qG_ (the rest shortcut)
   bool g_valid_ = false;
 };

@@ -511,3 +511,54 @@ def test_the_dynamics_source_starts_at_the_first_period_whose_middle_is_after(fr
     for j, joint in enumerate(fit.joints):
         expected = np.count_nonzero((mid >= after) & (np.abs(dq_mid[:, j]) > 0.01))
         assert joint.samples == expected
+
+
+@pytest.mark.parametrize("form", ["implicit", "explicit", "momentum"])
+def test_the_observers_time_constant_is_its_free_responses_decay(form, planar3):
+    """The time constant identify waits after a stuck joint is the observer's own: the
+    filter's response to one pulse, at rest, falls by e every tau (its late decay, over
+    100 periods where the slowest mode leaves the others 1e-10 behind); the momentum
+    observer's is Ts / ln(1 + Ts K_min) in closed form."""
+    n, Ts = planar3.nq, 0.01
+    q = np.tile([0.3, -0.5, 0.8], (201, 1))
+    M = planar3.mass_matrix(q[0])
+    if form == "momentum":
+        model = ObserverModel("momentum", np.array([20.0, 35.0, 50.0]), Ts, planar3)
+        assert model.time_constant(q) == pytest.approx(Ts / np.log(1 + Ts * 20.0), rel=1e-12)
+        assert not model.coupled()
+    else:
+        cY = np.diag([10.0, 40.0, 50.0]) @ M + 0.1 * np.ones((n, n))
+        model = ObserverModel("general", 1.0, Ts, planar3, form == "implicit", cY)
+        assert model.coupled()
+    phi = np.zeros((201, n, 1))
+    phi[1, :, 0] = [1.0, -2.0, 0.5]  # every mode excited
+    g = np.linalg.norm(model.filter(q, phi)[:, :, 0], axis=1)
+    measured = -100 * Ts / np.log(g[200] / g[100])
+    assert model.time_constant(q) == pytest.approx(measured, rel=1e-6)
+
+
+def test_a_stuck_joint_is_one_at_rest_for_a_period_within_its_noise(make_rng):
+    """A joint at rest for 30 samples under a velocity noise of 0.004 rad/s is found
+    stuck over those samples (the band 4 sigma: the estimate of sigma from the second
+    differences of its slow motion within 15 % of the noise drawn); one sweeping through
+    zero at speed is not, nor a noise-free joint whose velocity is exactly zero at one
+    sample."""
+    from hmpc_pin.identification.friction import stuck_samples, velocity_noise
+
+    rng = make_rng(5)
+    t = np.arange(400) * 0.01
+    sweep = np.sin(2 * np.pi * 2.0 * t)  # through zero at 12.6 rad/s²: in the band 3 ms
+    rest = np.where((t >= 1.0) & (t < 1.3), 0.0, np.cos(np.pi * t))
+    exact = np.round(np.sin(np.pi * (t - 0.005)), 12)
+    exact[200] = 0.0
+    noise = 0.004 * rng.standard_normal((400, 2))
+    dq = np.column_stack([sweep + noise[:, 0], rest + noise[:, 1], exact])
+    sigma = velocity_noise(dq)
+    assert sigma[1] == pytest.approx(0.004, rel=0.15)  # (the fast sweep's own curvature adds)
+    mask, ranges = stuck_samples(dq, 0.01)
+    assert ranges[0] == [] and ranges[2] == []
+    assert not mask[:, [0, 2]].any()
+    plateau = np.flatnonzero((t >= 1.0) & (t < 1.3))
+    assert mask[plateau, 1].mean() > 0.95  # a 4-sigma band holds 99.99 % of the noise
+    inside = np.concatenate([np.arange(s, e) for s, e in ranges[1]])
+    assert np.all(np.abs(dq[inside, 1]) <= 4 * sigma[1] + 1e-12)

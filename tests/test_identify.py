@@ -4,6 +4,7 @@ from the run's record, bad files refused in one line, NaN samples left out."""
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 import zipfile
 from dataclasses import replace
@@ -23,14 +24,14 @@ from .conftest import CONFIGS
 VISCOUS, COULOMB = np.array([10.0, 8.0, 5.0]), np.array([3.0, 2.4, 1.8])  # paper_friction
 
 
-def _friction_config(compensation: str, observer: ObserverConfig, duration: float = 5.0):
-    """paper_friction with this observer, its plant on the friction law identify fits
-    (sgn q̇ per stage: a stick-slip plant's stuck phases at the reversals hold a friction
-    the law leaves out, which the observer carries past them: up to 4 % on joint 3's
-    viscous coefficient at 15–20 rad/s)."""
+def _friction_config(
+    compensation: str, observer: ObserverConfig, duration: float = 5.0, coulomb: str = "stick-slip"
+):
+    """paper_friction with this observer, for ``duration`` [s], its plant's Coulomb law
+    ``coulomb`` (the default stick-slip: a joint at rest sticks at each reversal)."""
     config = load_config(CONFIGS / "paper_friction.toml")
     cc = replace(config.controller, compensation=compensation, observer=observer)
-    pc = replace(config.plant, coulomb="sign")
+    pc = replace(config.plant, coulomb=coulomb)
     sim = replace(config.simulation, duration=duration)
     return replace(config, controller=cc, plant=pc, simulation=sim)
 
@@ -54,12 +55,17 @@ FORMS = {
 }  # fmt: skip
 
 
+@pytest.mark.parametrize("law", ["stick-slip", "sign"])
 @pytest.mark.parametrize("form", sorted(FORMS))
-def test_every_observer_form_is_identified_from_its_record(form, tmp_path, capsys):
+def test_every_observer_form_is_identified_from_its_record(form, law, tmp_path, capsys):
     """The run records the observer that ran; with it the observer's estimate gives the
-    plant's friction (known: paper_friction) within 3 % (the Coulomb jump inside a
-    period and the mid-period velocity leave ~2 %)."""
-    exp = Experiment.from_config(_friction_config(*FORMS[form]))
+    plant's friction (known: paper_friction) within 3 %, on either Coulomb law of the
+    plant. Why 3 %: what is left is the sampling of a continuous disturbance by a
+    discrete observer, first order in Ts (1–2.5 % at Ts = 10 ms, half that at 5 ms);
+    a stuck joint's holding torque, which the law a q̇ + b sgn q̇ does not hold, is left
+    out with the observer's settling after it (kept in, it biased joint 3's viscous
+    coefficient by 4 % under a 15–20 rad/s observer)."""
+    exp = Experiment.from_config(_friction_config(*FORMS[form], coulomb=law))
     path = exp.run().save(tmp_path / "run.npz")
     record = Result.load(path).meta["observer_model"]
     comp = exp.controller.compensation
@@ -585,3 +591,38 @@ def test_after_past_the_end_names_the_span_of_a_run_that_starts_late(saved_run, 
     code, _out, err, _table = _identify(late, tmp_path, capsys, "--after", "8")
     assert code == 2
     assert "span t = 2 to 7 s, 5 s" in err, err
+
+
+def test_stuck_joints_and_the_observers_settling_are_left_out_and_said(tmp_path, capsys,
+                                                                        monkeypatch):  # fmt: skip
+    """On the stick-slip plant under init's bandwidth observer: the note names the joints
+    that stuck and the time left out after each, 5 time constants of the observer that
+    ran (its error map's spectral radius over every posture of the run, recomputed here
+    from the recorded matrix); without that settling the holding torque the observer
+    carries biases joint 3's viscous coefficient beyond 3 % (the fit's own error with it
+    is the sampling's, ~1 %)."""
+    import hmpc_pin.identification.friction as friction
+
+    exp = Experiment.from_config(_friction_config(*FORMS[
+        "general bandwidth, model at start (init's)"]))  # fmt: skip
+    path = exp.run().save(tmp_path / "run.npz")
+    code, out, err, table = _identify(path, tmp_path, capsys)
+    assert code == 0, err
+    note = next(line for line in out.splitlines() if "stuck" in line)
+    run = Result.load(path)
+    zero = [i for i in range(3) if np.any((run.dq[1:, i] == 0) & (run.dq[:-1, i] == 0))]
+    assert zero and all(f"joint{i + 1}" in note for i in zero)  # at rest over a period
+    cY, Ts = np.asarray(run.meta["observer_model"]["matrix"]), 0.01
+    rho = 0.0
+    for q in run.q:  # backward Euler's error map (I + Ts cY M^-1)^-1
+        step = np.linalg.inv(np.eye(3) + Ts * cY @ np.linalg.inv(exp.robot.mass_matrix(q)))
+        rho = max(rho, np.max(np.abs(np.linalg.eigvals(step))))
+    tau = -Ts / np.log(rho)
+    settle, shown = (float(x) for x in re.search(
+        r"for ([\d.e+-]+) s after each.*time constant ([\d.e+-]+) s", note).groups())  # fmt: skip
+    assert shown == pytest.approx(tau, rel=0.02) and settle == pytest.approx(5 * tau, rel=0.02)
+    viscous = np.asarray(table["controller"]["friction"]["viscous"])
+    np.testing.assert_allclose(viscous, VISCOUS, rtol=0.03)
+    monkeypatch.setattr(friction, "SETTLING_TIME_CONSTANTS", 0.0)
+    code, out, err, table = _identify(path, tmp_path, capsys)
+    assert abs(table["controller"]["friction"]["viscous"][2] / VISCOUS[2] - 1) > 0.03

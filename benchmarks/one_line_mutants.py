@@ -28,6 +28,7 @@ CHK = "tests/test_check.py"
 IDF = "tests/test_identify.py"
 IDN = "tests/test_identification.py"
 TUN = "tests/test_tune.py"
+THR = "tests/test_thresholds.py"
 
 #: (group, file, old line part, new line part, tests)
 MUTANTS = [
@@ -437,6 +438,47 @@ MUTANTS = [
     ("i36g", "hmpc_pin/apps/tune.py", 'Ts=float(params.get("Ts", cc.Ts)),', "Ts=float(cc.Ts),", [TUN]),
     ("i36g", "hmpc_pin/apps/tune.py", "out[name] = v if v in spec[1] else spec[1][0]", "out[name] = spec[1][0]", [TUN]),
     # ---- i36h: identify and identification, written before their new tests
+    ("i36h", "hmpc_pin/identification/friction.py", "        return compensation_spec(self.kind).Y is not None",
+     "        return compensation_spec(self.kind).Y is None", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", 'return float(-self.Ts / np.log(rho)) if rho < 1 else float("inf")',
+     'return float(-1.0 / np.log(rho)) if rho < 1 else float("inf")', [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "maps = [1.0 / (1.0 + self.Ts * np.broadcast_to(", "maps = [1.0 / (1.0 + np.broadcast_to(", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "return 1.4826 * np.median(np.abs(d2), axis=0) / np.sqrt(6.0)",
+     "return 1.4826 * np.median(np.abs(d2), axis=0) / np.sqrt(2.0)", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "for s, e in _runs(np.abs(dq[:, i]) <= band[i]) if e - s >= 2]",
+     "for s, e in _runs(np.abs(dq[:, i]) <= band[i]) if e - s >= 1]", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "band = np.maximum(velocity_threshold, STUCK_NOISE_DEVIATIONS * sigma)",
+     "band = np.minimum(velocity_threshold, STUCK_NOISE_DEVIATIONS * sigma)", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "end = t[min(e, len(t) - 1)] + settling", "end = t[min(e, len(t) - 1)]", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "out[:] = out.any(axis=1, keepdims=True)", "out[:] = out.any(axis=0, keepdims=True)", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "left_out = int(np.count_nonzero(use & stuck.any(axis=1)))",
+     "left_out = int(np.count_nonzero(stuck.any(axis=1)))", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", 'f"{j.condition:.3g} | {100 * j.coverage[0]:.0f} % / {100 * j.coverage[1]:.0f} % |"',
+     'f"{j.condition:.3g} | {100 * j.coverage[1]:.0f} % / {100 * j.coverage[0]:.0f} % |"', [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", 'f"| {j.name} | {_ci(j.viscous, j.viscous_ci, 4)} "',
+     'f"| {j.name} | {_ci(j.viscous, j.coulomb_ci, 4)} "', [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "rho = max(0.0, float(np.mean([_lag1(r) for r in res])))",
+     "rho = float(np.mean([_lag1(r) for r in res]))", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "theta = AtWA_inv @ (A.T @ (W * y))", "theta = AtWA_inv @ (A.T @ y)", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "settled[s:e] = t[s:e] >= t[s] + after - 1e-12",
+     "settled[s:e] = t[s:e] >= after - 1e-12", [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", 'f"moves forward in {100 * forward:.1f} % and backward in {100 * backward:.1f} % "',
+     'f"moves forward in {100 * backward:.1f} % and backward in {100 * forward:.1f} % "', [IDN, IDF]),
+    ("i36h", "hmpc_pin/identification/friction.py", "                    if self.settling > 0\n", "                    if self.settling >= 0\n", [IDN, IDF]),
+    ("i36h", "hmpc_pin/apps/identify.py", '    "velocity_threshold": 0.01,', '    "velocity_threshold": 0.02,', [IDF, IDN]),
+    ("i36h", "hmpc_pin/apps/identify.py", '    "safety": 1.25,', '    "safety": 1.0,', [IDF, THR]),
+    ("i36h", "hmpc_pin/apps/identify.py", "after=args.after if args.after is not None else 0.0,",
+     "after=args.after if args.after is not None else 0.5,", [IDF, THR]),
+    ("i36h", "hmpc_pin/apps/identify.py", 'f"{args.false_alarm:g} per {args.horizon:g} s, safety x{args.safety:g}"',
+     'f"{args.false_alarm:g} per {args.block:g} s, safety x{args.safety:g}"', [IDF, THR]),
+    ("i36h", "hmpc_pin/apps/identify.py", 'header = "\\n".join(line[2:] for line in text.splitlines() if line.startswith("# "))',
+     'header = "\\n".join(line[1:] for line in text.splitlines() if line.startswith("# "))', [IDF, IDN]),
+    ("i36h", "hmpc_pin/identification/thresholds.py", "    m = len(residual) // samples_per_block\n",
+     "    m = len(residual) // samples_per_block - 1\n", [THR, IDF]),
+    ("i36h", "hmpc_pin/identification/thresholds.py", "    block = per_block * Ts\n", "    block = float(block)\n", [THR, IDF]),
+    ("i36h", "hmpc_pin/identification/thresholds.py", "blocks_per_horizon=horizon / block,", "blocks_per_horizon=horizon / Ts,", [THR, IDF]),
+    ("i36h", "hmpc_pin/identification/thresholds.py", """lines.append(f"#   {name}: threshold {thr:.4g} N·m (run's peak |d_hat| {peak:.4g})")""",
+     """lines.append(f"#   {name}: threshold {peak:.4g} N·m (run's peak |d_hat| {thr:.4g})")""", [THR, IDF]),
     # (end of i36h)
     # ---- i36i: check, checks, thresholds, tune, runfile, written before their new tests
     # (end of i36i)

@@ -562,3 +562,40 @@ def test_a_stuck_joint_is_one_at_rest_for_a_period_within_its_noise(make_rng):
     assert mask[plateau, 1].mean() > 0.95  # a 4-sigma band holds 99.99 % of the noise
     inside = np.concatenate([np.arange(s, e) for s, e in ranges[1]])
     assert np.all(np.abs(dq[inside, 1]) <= 4 * sigma[1] + 1e-12)
+
+
+def test_the_refusal_states_each_ways_share_of_the_samples():
+    """A joint moving forward in 30 % of the samples and backward in 2 % (both faster
+    than 0.05 rad/s; the rest at rest): the message gives those shares, each its way."""
+    dq = np.concatenate([np.full(300, 1.0), np.full(20, -1.0), np.zeros(680)])
+    with pytest.raises(ExcitationError) as info:
+        fit_joint(2.0 * dq + np.sign(dq), dq, name="wrist")
+    assert "moves forward in 30.0 % and backward in 2.0 % of the samples" in str(info.value)
+
+
+def test_without_the_observers_model_only_the_stuck_samples_are_left_out(friction_run):
+    """fit_friction without observer= takes d_hat as the disturbance itself: the stuck
+    samples (at rest, |q̇| <= 0.01 rad/s, for two samples or more, and the first moving
+    one after) are left out, with no settling (the observer is not known) and no note
+    of one; the count is numpy's, over the samples after --after (0.5 s)."""
+    _, result = friction_run
+    fit = fit_friction(result)
+    t, dq = result.t, result.dq
+    stuck = np.zeros(len(t), dtype=bool)
+    for i in range(dq.shape[1]):
+        slow = np.abs(dq[:, i]) <= 0.01
+        k = 0
+        while k < len(t):
+            if slow[k]:
+                e = k
+                while e < len(t) and slow[e]:
+                    e += 1
+                if e - k >= 2:
+                    stuck[k : min(e, len(t) - 1) + 1] = True
+                k = e
+            else:
+                k += 1
+    expected = int(np.count_nonzero(stuck & (t >= 0.5)))
+    note = next(x for x in fit.notes() if "stuck" in x)
+    assert expected > 0 and note.startswith(f"{expected} samples left out where ")
+    assert fit.settling == 0 and "after each" not in note

@@ -626,3 +626,167 @@ def test_stuck_joints_and_the_observers_settling_are_left_out_and_said(tmp_path,
     monkeypatch.setattr(friction, "SETTLING_TIME_CONSTANTS", 0.0)
     code, out, err, table = _identify(path, tmp_path, capsys)
     assert abs(table["controller"]["friction"]["viscous"][2] / VISCOUS[2] - 1) > 0.03
+
+
+def _table_rows(out: str) -> dict[str, list[str]]:
+    """identify's printed table: per joint, its cells (viscous, Coulomb, residual RMS,
+    samples (effective), cond, moving +/-)."""
+    rows = [line for line in out.splitlines() if line.startswith("| ") and "---" not in line]
+    return {cells[0]: cells[1:] for cells in (
+        [c.strip() for c in line.strip("|").split("|")] for line in rows[1:])}  # fmt: skip
+
+
+def _runs_of(flags) -> list[tuple[int, int]]:
+    """(start, stop) of each run of True, by a plain scan."""
+    out, start = [], None
+    for k, f in enumerate([*flags, False]):
+        if f and start is None:
+            start = k
+        elif not f and start is not None:
+            out.append((start, k))
+            start = None
+    return out
+
+
+def _observer_fit_by_hand(result, robot, after=0.5, v0=0.01, confidence=0.95):
+    """The observer source's fit written out from its documented equations, in numpy:
+    the mid-period velocities' regressors through backward Euler of the recorded
+    matrix, the stuck intervals (|q̇| <= max(v0, 4 sigma_v) for 2+ samples; sigma_v from
+    second differences) with 5 observer time constants after each (every joint: the NDO
+    couples them), feasible GLS over the joints, AR(1) effective samples and Student t
+    intervals. Returns per joint (viscous, coulomb, half widths, rms, m, m_e, cond,
+    coverage) and the count of samples left out for stuck joints."""
+    from scipy.stats import t as student_t
+
+    t, q, dq, d_hat = result.t, result.q, result.dq, result.d_hat
+    rec = result.meta["observer_model"]
+    cY, Ts = np.asarray(rec["matrix"], float), float(rec["Ts"])
+    shift = int(rec.get("model_at", "end") == "start")
+    K, n = dq.shape
+    v = np.vstack([dq[:1], 0.5 * (dq[1:] + dq[:-1])])
+    phi = np.zeros((K, n, 2 * n))
+    for i in range(n):
+        phi[:, i, 2 * i], phi[:, i, 2 * i + 1] = v[:, i], np.sign(v[:, i])
+    g, state, rho = np.zeros_like(phi), np.zeros((n, 2 * n)), 0.0
+    for k in range(K):
+        L = Ts * cY @ np.linalg.inv(robot.mass_matrix(q[max(k - shift, 0)]))
+        if k:
+            state = np.linalg.solve(np.eye(n) + L, state + L @ phi[k])
+            g[k] = state
+        step = np.linalg.inv(np.eye(n) + Ts * cY @ np.linalg.inv(robot.mass_matrix(q[k])))
+        rho = max(rho, float(np.max(np.abs(np.linalg.eigvals(step)))))
+    tau = -Ts / np.log(rho)
+    sigma = 1.4826 * np.median(np.abs(np.diff(dq, 2, axis=0)), axis=0) / np.sqrt(6)
+    stuck = np.zeros(K, dtype=bool)
+    for i in range(n):
+        for s, e in _runs_of(np.abs(dq[:, i]) <= max(v0, 4 * sigma[i])):
+            if e - s >= 2:
+                stuck |= (t >= t[s]) & (t <= t[min(e, K - 1)] + 5 * tau + 1e-12)
+    use = (t >= after - 1e-12) & ~stuck
+    keeps = [use & (np.abs(v[:, i]) > v0) for i in range(n)]
+    A = [g[keep, i, :] for i, keep in enumerate(keeps)]
+    y = [-d_hat[keep, i] for i, keep in enumerate(keeps)]
+    theta0 = np.linalg.lstsq(np.vstack(A), np.concatenate(y), rcond=None)[0]
+    var = [np.mean((yi - Ai @ theta0) ** 2) for Ai, yi in zip(A, y, strict=True)]
+    w = np.concatenate([np.full(len(yi), 1 / s) for yi, s in zip(y, var, strict=True)])
+    As, ys = np.vstack(A), np.concatenate(y)
+    cov = np.linalg.inv(As.T @ (As * w[:, None]))
+    theta = cov @ (As.T @ (w * ys))
+    res = [yi - Ai @ theta for Ai, yi in zip(A, y, strict=True)]
+    lag1 = [float(r[1:] @ r[:-1] / (r @ r)) for r in res]
+    m, p = len(ys), 2 * n
+    m_e = m * (1 - max(0.0, np.mean(lag1))) / (1 + max(0.0, np.mean(lag1)))
+    scale = sum(r @ r / s for r, s in zip(res, var, strict=True)) / (m - p)
+    half = student_t.ppf(0.5 + confidence / 2, max(m_e - p, 1)) * np.sqrt(
+        scale * np.diag(cov) * m / m_e)  # fmt: skip
+    joints = []
+    for i, (keep, r) in enumerate(zip(keeps, res, strict=True)):
+        raw = np.column_stack([v[keep, i], np.sign(v[keep, i])])
+        m_ei = len(r) * (1 - max(0.0, lag1[i])) / (1 + max(0.0, lag1[i]))
+        moving = v[use, i]
+        joints.append(dict(
+            viscous=theta[2 * i], coulomb=theta[2 * i + 1], half=half[2 * i : 2 * i + 2],
+            rms=np.sqrt(np.mean(r**2)), m=len(r), m_e=m_ei,
+            cond=np.linalg.cond(raw / np.linalg.norm(raw, axis=0)),
+            coverage=(np.mean(moving > 0.05), np.mean(moving < -0.05))))  # fmt: skip
+    return joints, int(np.count_nonzero((t >= after - 1e-12) & stuck)), tau
+
+
+def test_every_figure_of_the_observer_table_is_recomputed_from_the_run(saved_run, tmp_path,
+                                                                         capsys):  # fmt: skip
+    """identify's table and note on a stick-slip run, each figure recomputed from the
+    run's arrays by the documented equations in numpy (the defaults: --after 0.5,
+    --velocity-threshold 0.01, 95 %): coefficients, intervals (where given), residual
+    RMS, m (m_e), condition, the moving shares, and the samples left out for the stuck
+    joints with the observer's time constant."""
+    from hmpc_pin.apps.runfile import run_robot
+
+    result = Result.load(saved_run)
+    joints, left_out, tau = _observer_fit_by_hand(result, run_robot(result, None))
+    code, out, err, table = _identify(saved_run, tmp_path, capsys)
+    assert code == 0, err
+    rows = _table_rows(out)
+    fr = table["controller"]["friction"]
+    np.testing.assert_allclose(fr["viscous"], [j["viscous"] for j in joints], rtol=5e-6)
+    np.testing.assert_allclose(fr["coulomb"], [j["coulomb"] for j in joints], rtol=5e-6)
+    assert left_out > 0 and f"{left_out} samples left out where " in out, out
+    assert f"time constant {tau:.3g} s" in out and f"for {5 * tau:.3g} s after each" in out
+    for name, j in zip(result.joint_names, joints, strict=True):
+        visc, coul, rms, samples, cond, moving = rows[name]
+        for cell, value, half in ((visc, j["viscous"], j["half"][0]),
+                                  (coul, j["coulomb"], j["half"][1])):  # fmt: skip
+            shown = f"{value:.4g} " + (
+                "[n/a]" if j["m_e"] - 2 < 10 else f"[{value - half:.4g}, {value + half:.4g}]"
+            )
+            assert cell == shown, (name, cell, shown)
+        assert float(rms) == pytest.approx(j["rms"], rel=5e-3)
+        assert samples == f"{j['m']} ({j['m_e']:.0f})"
+        assert float(cond) == pytest.approx(j["cond"], rel=5e-3)
+        fwd, bwd = j["coverage"]
+        assert moving == f"{100 * fwd:.0f} % / {100 * bwd:.0f} %", (moving, fwd, bwd)
+
+
+def test_every_figure_of_the_thresholds_report_is_recomputed(saved_run, tmp_path, capsys):
+    """identify --thresholds with a block that is no whole number of periods (0.333 s at
+    10 ms: 33 samples, 0.33 s), the other options at their documented defaults (--after 0,
+    false alarm 0.01 per 60 s, safety 1.25, Gumbel): each printed and written figure
+    recomputed in numpy from |d_hat| (15 whole blocks of the 501 samples, the Gumbel
+    quantile loc - scale ln(-ln p) at p = (1 - 0.01/3)^(0.33/60), floored at the peak)."""
+    from scipy.stats import gumbel_r
+
+    out = tmp_path / "collision.toml"
+    assert main(["identify", str(saved_run), "--thresholds", "--block", "0.333",
+                 "--out", str(out)]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    result = Result.load(saved_run)
+    r = np.abs(result.d_hat)
+    per_block = 33
+    blocks = len(r) // per_block
+    maxima = r[: blocks * per_block].reshape(blocks, per_block, 3).max(axis=1)
+    p = (1 - 0.01 / 3) ** (0.33 / 60.0)
+    expected = []
+    for i in range(3):
+        loc, scale = gumbel_r.fit(maxima[:, i])
+        expected.append(1.25 * max(loc - scale * np.log(-np.log(p)), r[:, i].max()))
+    written = out.read_text()
+    np.testing.assert_allclose(tomllib.loads(written)["collision"]["threshold"], expected,
+                               rtol=1e-5)  # fmt: skip
+    assert "false alarm <= 0.01 per 60 s, safety x1.25" in printed, printed
+    assert "(gumbel fit of 0.33 s block maxima of |d_hat|), safety factor 1.25" in written
+    for name, thr, peak in zip(result.joint_names, expected, r.max(axis=0), strict=True):
+        assert f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})" in printed
+        assert f"#   {name}: threshold {thr:.4g} N·m (run's peak |d_hat| {peak:.4g})" in written
+
+
+def test_a_config_written_with_the_table_carries_its_comments(saved_run, tmp_path, capsys):
+    """--config: the written config starts with the very comment lines of the table
+    written alone (where it came from, the intervals, the notes), then loads."""
+    code, _out, err, _table = _identify(saved_run, tmp_path, capsys)
+    assert code == 0, err
+    alone = [x for x in (tmp_path / "friction.toml").read_text().splitlines() if x.startswith("#")]
+    merged = tmp_path / "merged.toml"
+    assert main(["identify", str(saved_run), "--config", str(CONFIGS / "paper_friction.toml"),
+                 "--out", str(merged)]) == 0  # fmt: skip
+    lines = merged.read_text().splitlines()
+    assert lines[: len(alone)] == alone
+    assert load_config(merged).controller.friction is not None

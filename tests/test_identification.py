@@ -14,6 +14,7 @@ from hmpc_pin.exceptions import ConfigError, ExcitationError
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 from hmpc_pin.identification import ObserverModel, fit_friction, fit_joint
+from hmpc_pin.sim.result import Result
 
 from .conftest import CONFIGS
 
@@ -301,6 +302,8 @@ GOOD_RECORD = {"kind": "general", "Ts": 0.01, "matrix": np.eye(3).tolist(),
         ({"matrix": None, "gain": None}, "older version"),
         ({"matrix": None, "gain": [1.0, 2.0, 3.0]}, "per-joint gain"),
         ({"matrix": None, "gain": -5.0}, "gain"),
+        ({"matrix": None, "gain": 0.0}, "gain"),  # an observer that estimates nothing
+        ({"matrix": None, "kind": "momentum", "gain": [10.0, 0.0, 10.0]}, "gain"),
     ],
 )
 def test_an_unusable_observer_record_is_one_error_naming_it(change, match, planar3):
@@ -599,3 +602,43 @@ def test_without_the_observers_model_only_the_stuck_samples_are_left_out(frictio
     note = next(x for x in fit.notes() if "stuck" in x)
     assert expected > 0 and note.startswith(f"{expected} samples left out where ")
     assert fit.settling == 0 and "after each" not in note
+
+
+def _sweeping_run(joint_names=(), gap=None) -> Result:
+    """Two joints sweeping through zero at speed (q̇ = sin 3t, sin 4t: within
+    0.01 rad/s of zero for under one 10 ms period, so never stuck), 10 s; the estimate is
+    exactly the friction's torque, -(a q̇ + b sgn q̇) with a = (2, 1), b = (0.5, 0.3);
+    ``gap``: rows whose velocities are NaN (a dropped message)."""
+    t = 0.01 * np.arange(1000)
+    dq = np.column_stack([np.sin(3.0 * t), np.sin(4.0 * t)])
+    q = np.column_stack([(1 - np.cos(3.0 * t)) / 3.0, (1 - np.cos(4.0 * t)) / 4.0])
+    d_hat = -(np.array([2.0, 1.0]) * dq + np.array([0.5, 0.3]) * np.sign(dq))
+    if gap is not None:
+        dq[gap] = np.nan
+    zeros = np.zeros_like(dq)
+    return Result(t, q, dq, zeros, -d_hat, d_hat, q, dq, joint_names=joint_names)
+
+
+def test_a_gap_in_the_record_is_no_stuck_joint():
+    """Five samples of NaN velocity in the middle of a sweep (a dropped message): they
+    are left out and counted as such, and no joint is called stuck for them (no joint
+    of this run ever is: each crosses zero at speed); the fit is exact."""
+    fit = fit_friction(_sweeping_run(gap=slice(300, 305)))
+    assert fit.excluded == 5 and fit.stuck == 0 and fit.stuck_joints == ()
+    assert not any("stuck" in note for note in fit.notes()), fit.notes()
+    np.testing.assert_allclose(fit.viscous, [2.0, 1.0], rtol=1e-9)
+    np.testing.assert_allclose(fit.coulomb, [0.5, 0.3], rtol=1e-9)
+
+
+def test_joints_of_an_unnamed_run_are_numbered_from_one_as_in_its_thresholds():
+    """A run that names no joints: the friction table calls them joint1, joint2 (as the
+    thresholds do, and as a person counts them), and a refusal names the joint by it."""
+    from hmpc_pin.identification import learn_thresholds
+
+    run = _sweeping_run()
+    assert [j.name for j in fit_friction(run).joints] == ["joint1", "joint2"]
+    assert learn_thresholds(run).names == ("joint1", "joint2")
+    still = replace(run, dq=run.dq * np.array([1.0, 0.0]))
+    with pytest.raises(ExcitationError) as info:
+        fit_friction(still)
+    assert info.value.joint == "joint2"

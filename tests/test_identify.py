@@ -181,6 +181,26 @@ def _short_column(name):
     return make
 
 
+def _fewer_joints(name):
+    def make(path, saved):
+        with np.load(saved) as f:
+            arrays = dict(f)
+        arrays[name] = arrays[name][:, :-1]  # every sample, one joint short
+        np.savez(path, **arrays)
+
+    return make
+
+
+def _more_joints(name):
+    def make(path, saved):
+        with np.load(saved) as f:
+            arrays = dict(f)
+        arrays[name] = np.hstack([arrays[name], arrays[name][:, :1]])
+        np.savez(path, **arrays)
+
+    return make
+
+
 def _meta_list(path, saved):
     with np.load(saved) as f:
         arrays = dict(f)
@@ -197,6 +217,8 @@ BAD_FILES = {
     "a time stamp repeated": (_repeated_time, "not finite and increasing"),
     "one sample": (_one_sample, "at least 2 samples"),
     "empty": (lambda p, s: p.write_bytes(b""), "empty"),
+    "a torque of fewer joints": (_fewer_joints("tau"), "'tau' has shape"),
+    "an estimate of more joints": (_more_joints("d_hat"), "'d_hat' has shape"),
     "text": (lambda p, s: p.write_text("t,q\n0,1\n"), "not a .npz archive"),
     "text starting with PK": (lambda p, s: p.write_text("PK,q\n0,1\n"), "not a .npz archive"),
     "npy": (_npy, "not a .npz archive"),
@@ -490,14 +512,17 @@ def test_a_recorded_matrix_of_another_size_is_one_line(saved_run, tmp_path, caps
     assert len(err.strip().splitlines()) == 1 and "(3, 3)" in err, err
 
 
-@pytest.mark.parametrize("option", [["--thresholds", "--velocity-threshold", "0"],
-                                    ["--false-alarm", "0"]])  # fmt: skip
-def test_an_option_of_the_other_mode_given_as_zero_is_refused(option, saved_run, tmp_path,
-                                                              capsys):  # fmt: skip
-    """An option that does not apply is an error even when its value is 0."""
+@pytest.mark.parametrize(("option", "says"), [
+    (["--thresholds", "--velocity-threshold", "0"],
+     "--velocity-threshold: applies to friction identification only; drop it or --thresholds"),
+    (["--false-alarm", "0"], "--false-alarm: applies to --thresholds only; add --thresholds or"),
+])  # fmt: skip
+def test_an_option_of_the_other_mode_given_as_zero_is_refused(option, says, saved_run,
+                                                              tmp_path, capsys):  # fmt: skip
+    """An option that does not apply is an error even when its value is 0, and the line
+    says which mode it belongs to (friction's under --thresholds, and the other way)."""
     code, _out, err, table = _identify(saved_run, tmp_path, capsys, *option)
-    flag = option[-2]
-    assert code == 2 and table is None and flag in err, err
+    assert code == 2 and table is None and says in err, err
 
 
 def test_out_naming_a_folder_is_refused_before_any_work(saved_run, tmp_path, capsys):
@@ -790,3 +815,65 @@ def test_a_config_written_with_the_table_carries_its_comments(saved_run, tmp_pat
     lines = merged.read_text().splitlines()
     assert lines[: len(alone)] == alone
     assert load_config(merged).controller.friction is not None
+
+
+def test_a_file_without_a_record_reads_where_its_configs_observer_takes_its_model(
+    tmp_path, capsys
+):  # fmt: skip
+    """A run written before the observer was recorded, whose config evaluates the
+    observer's model at the period's start (``model_at = "start"``): identify rebuilds
+    that observer from the config file, so its fit is the one written out in numpy from
+    the record the run had (M at q_{k-1}), to rounding; the same with M at q_k differs."""
+    from hmpc_pin.apps.runfile import run_robot
+
+    from .conftest import PLANAR3
+
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    text = text.replace('"../robots/planar3.urdf"', json.dumps(str(PLANAR3)))
+    implicit = 'discretization = "implicit"'
+    text = text.replace(implicit, implicit + '\nmodel_at = "start"')
+    text = text.replace("duration = 10.0", "duration = 5.0")
+    path = tmp_path / "start.toml"
+    path.write_text(text)
+    result = Experiment.from_config(load_config(path)).run()
+    assert result.meta["observer_model"]["model_at"] == "start"
+    robot = run_robot(result, None)
+    joints, _, _ = _observer_fit_by_hand(result, robot)
+    at_end = replace(result, meta={**result.meta, "observer_model": {
+        **result.meta["observer_model"], "model_at": "end"}})  # fmt: skip
+    end_joints, _, _ = _observer_fit_by_hand(at_end, robot)
+    by_hand = np.array([[j["viscous"], j["coulomb"]] for j in joints])
+    at_end_by_hand = np.array([[j["viscous"], j["coulomb"]] for j in end_joints])
+    assert np.max(np.abs(at_end_by_hand / by_hand - 1)) > 1e-4  # where M is taken shows
+    del result.meta["observer_model"]
+    code, _out, err, table = _identify(result.save(tmp_path / "old.npz"), tmp_path, capsys)
+    assert code == 0, err
+    fr = table["controller"]["friction"]
+    np.testing.assert_allclose(np.column_stack([fr["viscous"], fr["coulomb"]]), by_hand,
+                               rtol=5e-6)  # fmt: skip
+
+
+def test_the_default_confidence_is_the_helps_95_percent(saved_run, tmp_path, capsys):
+    """Without --confidence the intervals are 95 % ones, as --help says: the table's
+    header and the written comment say 95 %, and the table is the one --confidence 0.95
+    prints (and not the 0.9 one)."""
+    code, out, err, _ = _identify(saved_run, tmp_path, capsys, "--source", "dynamics")
+    assert code == 0, err
+    assert "viscous [N·m·s/rad] (95 % CI)" in out and "Coulomb [N·m] (95 % CI)" in out, out
+    assert "# 95 % confidence intervals" in (tmp_path / "friction.toml").read_text()
+    tables = {}
+    for level in ("0.95", "0.9"):
+        code, printed, err, _ = _identify(saved_run, tmp_path, capsys, "--source", "dynamics",
+                                          "--confidence", level)  # fmt: skip
+        assert code == 0, err
+        tables[level] = [x for x in printed.splitlines() if x.startswith("| joint")]
+    ours = [x for x in out.splitlines() if x.startswith("| joint")]
+    assert ours == tables["0.95"] != tables["0.9"]
+
+
+def test_a_block_of_zero_is_refused_naming_it(saved_run, tmp_path, capsys):
+    """--block 0 is no duration: one line naming --block, not 'the run is too short'."""
+    code, _out, err, table = _identify(saved_run, tmp_path, capsys, "--thresholds",
+                                       "--block", "0")  # fmt: skip
+    assert code == 2 and table is None
+    assert len(err.strip().splitlines()) == 1 and "--block" in err and "too short" not in err

@@ -296,6 +296,8 @@ GOOD_RECORD = {"kind": "general", "Ts": 0.01, "matrix": np.eye(3).tolist(),
         ({"kind": "ism"}, "kind"),
         ({"Ts": -0.01}, "period"),
         ({"Ts": "fast"}, "period"),
+        ({"Ts": None}, "period"),
+        ({"Ts": [0.01]}, "period"),
         ({"model_at": "middle"}, "model_at"),
         ({"matrix": np.eye(2).tolist()}, "shape"),
         ({"matrix": [[1.0, np.nan, 0], [0, 1, 0], [0, 0, 1]]}, "finite"),
@@ -642,3 +644,18 @@ def test_joints_of_an_unnamed_run_are_numbered_from_one_as_in_its_thresholds():
     with pytest.raises(ExcitationError) as info:
         fit_friction(still)
     assert info.value.joint == "joint2"
+
+
+def test_an_ndo_model_without_the_arm_is_one_error_naming_it():
+    """The NDO's L = cY M(q)^-1 needs the arm's M(q): its model built without a robot
+    says so when it is used (not an AttributeError on None); the momentum observer's
+    L = diag(K_O) needs none (its time constant is -Ts / ln(1 / (1 + Ts K_O)) [s])."""
+    q = np.zeros((5, 3))
+    ndo = ObserverModel("general", 1.0, 0.01, None, True, 20.0 * np.eye(3))
+    with pytest.raises(ConfigError, match="needs the arm's model") as info:
+        ndo.time_constant(q)
+    assert info.value.key == "robot"
+    with pytest.raises(ConfigError, match="needs the arm's model"):
+        ndo.filter(q, np.ones((5, 3, 1)))
+    momentum = ObserverModel("momentum", np.array([10.0, 20.0, 40.0]), 0.01)
+    assert momentum.time_constant(q) == pytest.approx(-0.01 / np.log(1 / 1.1), rel=1e-12)

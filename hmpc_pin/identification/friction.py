@@ -56,6 +56,7 @@ column-normalised :math:`A` has a condition number <= ``max_condition``. Otherwi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -63,6 +64,9 @@ from ..compensation.registry import compensation_names, compensation_spec
 from ..controllers.hierarchical import MODEL_AT, MPCSettings
 from ..exceptions import ConfigError, ExcitationError
 from ..sim.result import Result
+
+if TYPE_CHECKING:
+    from ..model.robot import Robot
 
 __all__ = [
     "SOURCES",
@@ -410,7 +414,7 @@ class ObserverModel:
     kind: str
     gain: float | np.ndarray
     Ts: float
-    robot: object = None
+    robot: Robot | None = None
     implicit: bool = True
     matrix: np.ndarray | None = None
     model_at: str = MPCSettings.model_at
@@ -480,14 +484,16 @@ class ObserverModel:
 
         if not isinstance(record, dict):
             raise bad(f"is {type(record).__name__}, expected a table")
-        kind, Ts = record.get("kind"), record.get("Ts")
+        kind, period = record.get("kind"), record.get("Ts")
         kinds = compensation_names(table="observer")
         if kind not in kinds:
             raise bad(f"names the kind {kind!r}, expected one of {kinds}")
-        try:
-            Ts = float(Ts)
+        try:  # a JSON number (or its text); anything else is no period
+            if not isinstance(period, (int, float, str)):
+                raise TypeError
+            Ts = float(period)
         except (TypeError, ValueError):
-            raise bad(f"has the period Ts = {Ts!r}, expected a number [s]") from None
+            raise bad(f"has the period Ts = {period!r}, expected a number [s]") from None
         if not (np.isfinite(Ts) and Ts > 0):
             raise bad(f"has the period Ts = {Ts!r}, expected > 0 [s]")
         implicit = record.get("discretization", "implicit") == "implicit"
@@ -522,6 +528,16 @@ class ObserverModel:
             raise bad(f"has a per-joint gain for the {kind!r} observer, expected one value")
         return cls(kind, g if g.ndim else float(g), Ts, robot, implicit, None, model_at)
 
+    def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """:math:`M(q)` of the arm, which the NDO's :math:`L = cY M(q)^{-1}` needs."""
+        if self.robot is None:
+            raise ConfigError(
+                "robot",
+                f"the {self.kind!r} observer's L = cY M(q)^-1 needs the arm's model; "
+                "pass robot= (the Robot that ran)",
+            )
+        return self.robot.mass_matrix(q)
+
     def time_constant(self, q: np.ndarray, samples: int = 200) -> float:
         """The slowest time constant of the observer's error over the configurations
         ``q`` (K, n) it ran at [s]: :math:`\\tau = -T_s / \\ln \\rho`, with :math:`\\rho` the
@@ -538,7 +554,7 @@ class ObserverModel:
             cY = np.asarray(self.matrix if self.matrix is not None else self.gain * Y(n), float)
             maps = []
             for k in np.unique(np.linspace(0, len(q) - 1, min(samples, len(q))).astype(int)):
-                L = self.Ts * cY @ np.linalg.inv(self.robot.mass_matrix(q[k]))
+                L = self.Ts * cY @ np.linalg.inv(self._mass_matrix(q[k]))
                 step = np.linalg.inv(np.eye(n) + L) if self.implicit else np.eye(n) - L
                 maps.append(np.linalg.eigvals(step))
         rho = max(float(np.max(np.abs(m))) for m in maps)
@@ -570,7 +586,7 @@ class ObserverModel:
             if Y is None:
                 prev = (prev + a * phi[k]) / (1 + a)
             else:
-                M = self.robot.mass_matrix(q[k - shift])
+                M = self._mass_matrix(q[k - shift])
                 L = self.Ts * cY @ np.linalg.inv(M)
                 if self.implicit:
                     prev = np.linalg.solve(np.eye(n) + L, prev + L @ phi[k])

@@ -14,6 +14,7 @@ from hmpc_pin.exceptions import ConfigError, ExcitationError
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 from hmpc_pin.identification import ObserverModel, fit_friction, fit_joint
+from hmpc_pin.sim.result import Result
 
 from .conftest import CONFIGS
 
@@ -295,12 +296,16 @@ GOOD_RECORD = {"kind": "general", "Ts": 0.01, "matrix": np.eye(3).tolist(),
         ({"kind": "ism"}, "kind"),
         ({"Ts": -0.01}, "period"),
         ({"Ts": "fast"}, "period"),
+        ({"Ts": None}, "period"),
+        ({"Ts": [0.01]}, "period"),
         ({"model_at": "middle"}, "model_at"),
         ({"matrix": np.eye(2).tolist()}, "shape"),
         ({"matrix": [[1.0, np.nan, 0], [0, 1, 0], [0, 0, 1]]}, "finite"),
         ({"matrix": None, "gain": None}, "older version"),
         ({"matrix": None, "gain": [1.0, 2.0, 3.0]}, "per-joint gain"),
         ({"matrix": None, "gain": -5.0}, "gain"),
+        ({"matrix": None, "gain": 0.0}, "gain"),  # an observer that estimates nothing
+        ({"matrix": None, "kind": "momentum", "gain": [10.0, 0.0, 10.0]}, "gain"),
     ],
 )
 def test_an_unusable_observer_record_is_one_error_naming_it(change, match, planar3):
@@ -511,3 +516,146 @@ def test_the_dynamics_source_starts_at_the_first_period_whose_middle_is_after(fr
     for j, joint in enumerate(fit.joints):
         expected = np.count_nonzero((mid >= after) & (np.abs(dq_mid[:, j]) > 0.01))
         assert joint.samples == expected
+
+
+@pytest.mark.parametrize("form", ["implicit", "explicit", "momentum"])
+def test_the_observers_time_constant_is_its_free_responses_decay(form, planar3):
+    """The time constant identify waits after a stuck joint is the observer's own: the
+    filter's response to one pulse, at rest, falls by e every tau (its late decay, over
+    100 periods where the slowest mode leaves the others 1e-10 behind); the momentum
+    observer's is Ts / ln(1 + Ts K_min) in closed form."""
+    n, Ts = planar3.nq, 0.01
+    q = np.tile([0.3, -0.5, 0.8], (201, 1))
+    M = planar3.mass_matrix(q[0])
+    if form == "momentum":
+        model = ObserverModel("momentum", np.array([20.0, 35.0, 50.0]), Ts, planar3)
+        assert model.time_constant(q) == pytest.approx(Ts / np.log(1 + Ts * 20.0), rel=1e-12)
+        assert not model.coupled()
+    else:
+        cY = np.diag([10.0, 40.0, 50.0]) @ M + 0.1 * np.ones((n, n))
+        model = ObserverModel("general", 1.0, Ts, planar3, form == "implicit", cY)
+        assert model.coupled()
+    phi = np.zeros((201, n, 1))
+    phi[1, :, 0] = [1.0, -2.0, 0.5]  # every mode excited
+    g = np.linalg.norm(model.filter(q, phi)[:, :, 0], axis=1)
+    measured = -100 * Ts / np.log(g[200] / g[100])
+    assert model.time_constant(q) == pytest.approx(measured, rel=1e-6)
+
+
+def test_a_stuck_joint_is_one_at_rest_for_a_period_within_its_noise(make_rng):
+    """A joint at rest for 30 samples under a velocity noise of 0.004 rad/s is found
+    stuck over those samples (the band 4 sigma: the estimate of sigma from the second
+    differences of its slow motion within 15 % of the noise drawn); one sweeping through
+    zero at speed is not, nor a noise-free joint whose velocity is exactly zero at one
+    sample."""
+    from hmpc_pin.identification.friction import stuck_samples, velocity_noise
+
+    rng = make_rng(5)
+    t = np.arange(400) * 0.01
+    sweep = np.sin(2 * np.pi * 2.0 * t)  # through zero at 12.6 rad/s²: in the band 3 ms
+    rest = np.where((t >= 1.0) & (t < 1.3), 0.0, np.cos(np.pi * t))
+    exact = np.round(np.sin(np.pi * (t - 0.005)), 12)
+    exact[200] = 0.0
+    noise = 0.004 * rng.standard_normal((400, 2))
+    dq = np.column_stack([sweep + noise[:, 0], rest + noise[:, 1], exact])
+    sigma = velocity_noise(dq)
+    assert sigma[1] == pytest.approx(0.004, rel=0.15)  # (the fast sweep's own curvature adds)
+    mask, ranges = stuck_samples(dq, 0.01)
+    assert ranges[0] == [] and ranges[2] == []
+    assert not mask[:, [0, 2]].any()
+    plateau = np.flatnonzero((t >= 1.0) & (t < 1.3))
+    assert mask[plateau, 1].mean() > 0.95  # a 4-sigma band holds 99.99 % of the noise
+    inside = np.concatenate([np.arange(s, e) for s, e in ranges[1]])
+    assert np.all(np.abs(dq[inside, 1]) <= 4 * sigma[1] + 1e-12)
+
+
+def test_the_refusal_states_each_ways_share_of_the_samples():
+    """A joint moving forward in 30 % of the samples and backward in 2 % (both faster
+    than 0.05 rad/s; the rest at rest): the message gives those shares, each its way."""
+    dq = np.concatenate([np.full(300, 1.0), np.full(20, -1.0), np.zeros(680)])
+    with pytest.raises(ExcitationError) as info:
+        fit_joint(2.0 * dq + np.sign(dq), dq, name="wrist")
+    assert "moves forward in 30.0 % and backward in 2.0 % of the samples" in str(info.value)
+
+
+def test_without_the_observers_model_only_the_stuck_samples_are_left_out(friction_run):
+    """fit_friction without observer= takes d_hat as the disturbance itself: the stuck
+    samples (at rest, |q̇| <= 0.01 rad/s, for two samples or more, and the first moving
+    one after) are left out, with no settling (the observer is not known) and no note
+    of one; the count is numpy's, over the samples after --after (0.5 s)."""
+    _, result = friction_run
+    fit = fit_friction(result)
+    t, dq = result.t, result.dq
+    stuck = np.zeros(len(t), dtype=bool)
+    for i in range(dq.shape[1]):
+        slow = np.abs(dq[:, i]) <= 0.01
+        k = 0
+        while k < len(t):
+            if slow[k]:
+                e = k
+                while e < len(t) and slow[e]:
+                    e += 1
+                if e - k >= 2:
+                    stuck[k : min(e, len(t) - 1) + 1] = True
+                k = e
+            else:
+                k += 1
+    expected = int(np.count_nonzero(stuck & (t >= 0.5)))
+    note = next(x for x in fit.notes() if "stuck" in x)
+    assert expected > 0 and note.startswith(f"{expected} samples left out where ")
+    assert fit.settling == 0 and "after each" not in note
+
+
+def _sweeping_run(joint_names=(), gap=None) -> Result:
+    """Two joints sweeping through zero at speed (q̇ = sin 3t, sin 4t: within
+    0.01 rad/s of zero for under one 10 ms period, so never stuck), 10 s; the estimate is
+    exactly the friction's torque, -(a q̇ + b sgn q̇) with a = (2, 1), b = (0.5, 0.3);
+    ``gap``: rows whose velocities are NaN (a dropped message)."""
+    t = 0.01 * np.arange(1000)
+    dq = np.column_stack([np.sin(3.0 * t), np.sin(4.0 * t)])
+    q = np.column_stack([(1 - np.cos(3.0 * t)) / 3.0, (1 - np.cos(4.0 * t)) / 4.0])
+    d_hat = -(np.array([2.0, 1.0]) * dq + np.array([0.5, 0.3]) * np.sign(dq))
+    if gap is not None:
+        dq[gap] = np.nan
+    zeros = np.zeros_like(dq)
+    return Result(t, q, dq, zeros, -d_hat, d_hat, q, dq, joint_names=joint_names)
+
+
+def test_a_gap_in_the_record_is_no_stuck_joint():
+    """Five samples of NaN velocity in the middle of a sweep (a dropped message): they
+    are left out and counted as such, and no joint is called stuck for them (no joint
+    of this run ever is: each crosses zero at speed); the fit is exact."""
+    fit = fit_friction(_sweeping_run(gap=slice(300, 305)))
+    assert fit.excluded == 5 and fit.stuck == 0 and fit.stuck_joints == ()
+    assert not any("stuck" in note for note in fit.notes()), fit.notes()
+    np.testing.assert_allclose(fit.viscous, [2.0, 1.0], rtol=1e-9)
+    np.testing.assert_allclose(fit.coulomb, [0.5, 0.3], rtol=1e-9)
+
+
+def test_joints_of_an_unnamed_run_are_numbered_from_one_as_in_its_thresholds():
+    """A run that names no joints: the friction table calls them joint1, joint2 (as the
+    thresholds do, and as a person counts them), and a refusal names the joint by it."""
+    from hmpc_pin.identification import learn_thresholds
+
+    run = _sweeping_run()
+    assert [j.name for j in fit_friction(run).joints] == ["joint1", "joint2"]
+    assert learn_thresholds(run).names == ("joint1", "joint2")
+    still = replace(run, dq=run.dq * np.array([1.0, 0.0]))
+    with pytest.raises(ExcitationError) as info:
+        fit_friction(still)
+    assert info.value.joint == "joint2"
+
+
+def test_an_ndo_model_without_the_arm_is_one_error_naming_it():
+    """The NDO's L = cY M(q)^-1 needs the arm's M(q): its model built without a robot
+    says so when it is used (not an AttributeError on None); the momentum observer's
+    L = diag(K_O) needs none (its time constant is -Ts / ln(1 / (1 + Ts K_O)) [s])."""
+    q = np.zeros((5, 3))
+    ndo = ObserverModel("general", 1.0, 0.01, None, True, 20.0 * np.eye(3))
+    with pytest.raises(ConfigError, match="needs the arm's model") as info:
+        ndo.time_constant(q)
+    assert info.value.key == "robot"
+    with pytest.raises(ConfigError, match="needs the arm's model"):
+        ndo.filter(q, np.ones((5, 3, 1)))
+    momentum = ObserverModel("momentum", np.array([10.0, 20.0, 40.0]), 0.01)
+    assert momentum.time_constant(q) == pytest.approx(-0.01 / np.log(1 / 1.1), rel=1e-12)

@@ -87,6 +87,8 @@ def test_bad_options_and_short_runs_are_refused(make_rng):
         learn_thresholds(run, safety=0.5)
     with pytest.raises(ConfigError, match="--false-alarm"):
         learn_thresholds(run, false_alarm=1.5)
+    with pytest.raises(ConfigError, match="--block"):  # no duration, not 'too short'
+        learn_thresholds(run, block=0.0)
     with pytest.raises(ConfigError, match="too short"):
         learn_thresholds(_result(_ar1(make_rng(0), 50, 2)))
     with pytest.raises(ConfigError, match="observer"):
@@ -198,3 +200,21 @@ def test_the_peak_is_the_runs_after_the_start_up_left_out(make_rng):
     fit = learn_thresholds(_result(d_hat), after=0.5)
     np.testing.assert_allclose(fit.peak, np.abs(d_hat[50:]).max(axis=0))
     assert np.all(fit.threshold < 100.0)
+
+
+def test_the_fitted_location_and_scale_are_the_gumbel_fit_of_the_block_maxima(make_rng):
+    """mu and beta reported per joint are scipy's Gumbel fit of the 1 s block maxima of
+    |d_hat| (60 blocks of 100 samples, cut in numpy), and the threshold without the floor
+    is s [mu - beta ln(-ln p)] at p = (1 - alpha/n)^(B/H) (module docstring)."""
+    from scipy.stats import gumbel_r
+
+    d = _ar1(make_rng(7), 6000, 2)
+    fit = learn_thresholds(_result(d), floor_at_peak=False)  # alpha 0.01 per 60 s, s 1.25
+    maxima = np.abs(d).reshape(60, 100, 2).max(axis=1)
+    p = (1 - 0.01 / 2) ** (1.0 / 60.0)
+    for i in range(2):
+        loc, scale = gumbel_r.fit(maxima[:, i])
+        assert fit.loc[i] == pytest.approx(loc, rel=1e-9)
+        assert fit.scale[i] == pytest.approx(scale, rel=1e-9)
+        assert fit.threshold[i] == pytest.approx(1.25 * (loc - scale * np.log(-np.log(p))),
+                                                 rel=1e-9)  # fmt: skip

@@ -159,6 +159,7 @@ def cmd_identify(args) -> int:
             f"  {name}: threshold {thr:.4g} N·m (peak |d_hat| in the run {peak:.4g})"
             for name, thr, peak in rows
         ]
+        text = fit.toml()
     else:
         robot = run_robot(result, args.urdf)
         observer = observer_model(result, robot) if args.source == "observer" else None
@@ -168,7 +169,7 @@ def cmd_identify(args) -> int:
                 "the run does not say which observer ran (no "
                 "observer_model in its meta); use --source dynamics",
             )
-        fit = fit_friction(
+        friction = fit_friction(
             result,
             source=args.source,
             robot=robot,
@@ -178,18 +179,18 @@ def cmd_identify(args) -> int:
             confidence=args.confidence,
             run=args.run.name,
         )
-        fit = replace(fit, unmodelled=_unmodelled(result))
+        friction = replace(friction, unmodelled=_unmodelled(result))
         report = [
             f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} (source)",
-            fit.table(),
+            friction.table(),
         ]
-    text = fit.toml()
+        text = friction.toml()
     if config is None:
         out.write_text(text, encoding="utf-8")
     else:
         name, body = _table(text)
         header = "\n".join(line[2:] for line in text.splitlines() if line.startswith("# "))
-        write_config(config.source, {name: body}, out, header=header)
+        write_config(config.source or args.config, {name: body}, out, header=header)
         load_config(out)  # the written config loads (the table is valid for it)
     report.append(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config else ""))
     print("\n".join(report))
@@ -203,6 +204,9 @@ def identify_arguments(idf) -> None:
         "Fit each joint's viscous and Coulomb friction, d = -(a q̇ + b sgn q̇), "
         "from a run saved by `run` or `realtime` (least squares with confidence intervals) "
         "and write it as the [controller.friction] table, fed forward by the controller. "
+        "From the observer, the intervals where a joint is stuck (a holding torque, not "
+        "the friction law) and 5 of the observer's time constants after each are left "
+        "out; a note under the table says how many samples. "
         "With --thresholds, learn the [collision] thresholds on |d_hat| of a contact-free "
         "run at a stated false-alarm probability instead. Exit 2 with one line when the run "
         "does not excite a joint enough."

@@ -16,7 +16,14 @@ Two measurements of :math:`f` are offered (``source``):
 * ``"observer"``: the observer's estimate, :math:`f \\approx -\\hat d`, plus any friction
   the run already fed forward (:math:`\\hat d` then holds only what was left). The
   observer lags the true disturbance by its bandwidth; samples within ``velocity_threshold``
-  of a velocity reversal (where the Coulomb term jumps) are left out.
+  of a velocity reversal (where the Coulomb term jumps) are left out. A joint at rest
+  sticks: its friction is then a holding torque :math:`\\varphi \\in [-b, b]`, not
+  :math:`b\\,\\mathrm{sgn}\\,0 = 0`, and the observer carries it on after the joint
+  moves again. So the stuck intervals (the measured velocity within its noise band for a
+  period or more, :func:`stuck_samples`) are left out, and with them
+  :data:`SETTLING_TIME_CONSTANTS` time constants of the observer that ran after each
+  (:meth:`ObserverModel.time_constant`; every joint's samples for the NDO, whose
+  :math:`L = cYM^{-1}` couples the joints, that joint's alone for the momentum observer).
 * ``"dynamics"``: the rigid-body model's inverse dynamics over each control period,
   :math:`f_k = \\tau_k - [M(\\bar q)\\,\\ddot q_k + C(\\bar q, \\bar{\\dot q})\\bar{\\dot q} +
   G(\\bar q)]` with :math:`\\ddot q_k = (\\dot q_{k+1} - \\dot q_k)/T_s`, the mid-period state
@@ -49,6 +56,7 @@ column-normalised :math:`A` has a condition number <= ``max_condition``. Otherwi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -56,6 +64,9 @@ from ..compensation.registry import compensation_names, compensation_spec
 from ..controllers.hierarchical import MODEL_AT, MPCSettings
 from ..exceptions import ConfigError, ExcitationError
 from ..sim.result import Result
+
+if TYPE_CHECKING:
+    from ..model.robot import Robot
 
 __all__ = [
     "SOURCES",
@@ -73,6 +84,13 @@ SOURCES = ("observer", "dynamics", "regressor")
 #: correlated (:math:`m_e` so small) that the AR(1) correction, itself estimated from the
 #: residual, cannot be trusted, and no interval is given (NaN, printed "n/a").
 MIN_DEGREES_OF_FREEDOM = 10
+#: Observer time constants left out after a joint was stuck (the observer source): the
+#: holding torque the friction law does not hold leaves the observer's estimate as
+#: :math:`e^{-t/\tau}`, below :math:`e^{-5} < 1\,\%` of itself after five.
+SETTLING_TIME_CONSTANTS = 5.0
+#: A joint is stuck where its measured velocity stays within this many noise deviations
+#: :math:`\hat\sigma_v` (or within ``velocity_threshold``, the larger) for a period or more.
+STUCK_NOISE_DEVIATIONS = 4.0
 
 
 @dataclass(frozen=True)
@@ -128,6 +146,13 @@ class FrictionFit:
         unmodelled: The disturbances besides friction the run is known to have had (its
             config's ``[disturbance.pulse]``), in words, or ``""``: named as the cause
             of a missing interval.
+        stuck: Samples left out (of those the fit would use) because a joint was stuck
+            there, or the observer was still settling after it (the observer source).
+        stuck_joints: The joints found stuck (:func:`stuck_samples`).
+        settling: Time left out after each stuck interval [s]:
+            :data:`SETTLING_TIME_CONSTANTS` × ``time_constant``.
+        time_constant: The slowest time constant of the observer that ran [s]
+            (:meth:`ObserverModel.time_constant`), 0 when not known.
     """
 
     joints: tuple[JointFriction, ...]
@@ -136,6 +161,10 @@ class FrictionFit:
     run: str = ""
     excluded: int = 0
     unmodelled: str = ""
+    stuck: int = 0
+    stuck_joints: tuple[str, ...] = ()
+    settling: float = 0.0
+    time_constant: float = 0.0
 
     def notes(self) -> list[str]:
         """Why an interval is missing, and what was left out (one sentence each)."""
@@ -155,6 +184,20 @@ class FrictionFit:
                     "lag); record a longer run"
                 )
                 + (", or try --source dynamics" if self.source == "observer" else "")
+            )
+        if self.stuck:
+            out.append(
+                f"{self.stuck} samples left out where {', '.join(self.stuck_joints)} stuck "
+                "(the measured velocity within its noise band for a period or more: the "
+                "friction there is a holding torque within +/- the Coulomb level, which "
+                "the law a q̇ + b sgn q̇ does not hold)"
+                + (
+                    f" and for {self.settling:.3g} s after each, the observer's settling "
+                    f"({SETTLING_TIME_CONSTANTS:g} x its time constant "
+                    f"{self.time_constant:.3g} s)"
+                    if self.settling > 0
+                    else ""
+                )
             )
         if self.excluded:
             out.append(
@@ -371,7 +414,7 @@ class ObserverModel:
     kind: str
     gain: float | np.ndarray
     Ts: float
-    robot: object = None
+    robot: Robot | None = None
     implicit: bool = True
     matrix: np.ndarray | None = None
     model_at: str = MPCSettings.model_at
@@ -441,14 +484,16 @@ class ObserverModel:
 
         if not isinstance(record, dict):
             raise bad(f"is {type(record).__name__}, expected a table")
-        kind, Ts = record.get("kind"), record.get("Ts")
+        kind, period = record.get("kind"), record.get("Ts")
         kinds = compensation_names(table="observer")
         if kind not in kinds:
             raise bad(f"names the kind {kind!r}, expected one of {kinds}")
-        try:
-            Ts = float(Ts)
+        try:  # a JSON number (or its text); anything else is no period
+            if not isinstance(period, (int, float, str)):
+                raise TypeError
+            Ts = float(period)
         except (TypeError, ValueError):
-            raise bad(f"has the period Ts = {Ts!r}, expected a number [s]") from None
+            raise bad(f"has the period Ts = {period!r}, expected a number [s]") from None
         if not (np.isfinite(Ts) and Ts > 0):
             raise bad(f"has the period Ts = {Ts!r}, expected > 0 [s]")
         implicit = record.get("discretization", "implicit") == "implicit"
@@ -483,6 +528,43 @@ class ObserverModel:
             raise bad(f"has a per-joint gain for the {kind!r} observer, expected one value")
         return cls(kind, g if g.ndim else float(g), Ts, robot, implicit, None, model_at)
 
+    def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """:math:`M(q)` of the arm, which the NDO's :math:`L = cY M(q)^{-1}` needs."""
+        if self.robot is None:
+            raise ConfigError(
+                "robot",
+                f"the {self.kind!r} observer's L = cY M(q)^-1 needs the arm's model; "
+                "pass robot= (the Robot that ran)",
+            )
+        return self.robot.mass_matrix(q)
+
+    def time_constant(self, q: np.ndarray, samples: int = 200) -> float:
+        """The slowest time constant of the observer's error over the configurations
+        ``q`` (K, n) it ran at [s]: :math:`\\tau = -T_s / \\ln \\rho`, with :math:`\\rho` the
+        largest spectral radius of its one-period error map, :math:`(I + T_sL)^{-1}`
+        (backward Euler; the momentum observer) or :math:`I - T_sL` (forward Euler),
+        over up to ``samples`` configurations evenly spread along ``q``. ``inf`` when the
+        map does not contract.
+        """
+        n = q.shape[1]
+        Y = compensation_spec(self.kind).Y
+        if Y is None:  # L = diag(K_O), configuration-free
+            maps = [1.0 / (1.0 + self.Ts * np.broadcast_to(np.asarray(self.gain, float), (n,)))]
+        else:
+            cY = np.asarray(self.matrix if self.matrix is not None else self.gain * Y(n), float)
+            maps = []
+            for k in np.unique(np.linspace(0, len(q) - 1, min(samples, len(q))).astype(int)):
+                L = self.Ts * cY @ np.linalg.inv(self._mass_matrix(q[k]))
+                step = np.linalg.inv(np.eye(n) + L) if self.implicit else np.eye(n) - L
+                maps.append(np.linalg.eigvals(step))
+        rho = max(float(np.max(np.abs(m))) for m in maps)
+        return float(-self.Ts / np.log(rho)) if rho < 1 else float("inf")
+
+    def coupled(self) -> bool:
+        """Whether one joint's disturbance enters the other joints' estimates (the NDO's
+        :math:`L = cY M^{-1}`; the momentum observer's :math:`L` is diagonal)."""
+        return compensation_spec(self.kind).Y is not None
+
     def filter(self, q: np.ndarray, phi: np.ndarray) -> np.ndarray:
         """The observer's response :math:`g` to the disturbance signals ``phi``,
         (K, n, p) for K instants, n joints and p signals, started at rest.
@@ -504,7 +586,7 @@ class ObserverModel:
             if Y is None:
                 prev = (prev + a * phi[k]) / (1 + a)
             else:
-                M = self.robot.mass_matrix(q[k - shift])
+                M = self._mass_matrix(q[k - shift])
                 L = self.Ts * cY @ np.linalg.inv(M)
                 if self.implicit:
                     prev = np.linalg.solve(np.eye(n) + L, prev + L @ phi[k])
@@ -524,6 +606,76 @@ def _feedforward(result: Result, dq: np.ndarray) -> np.ndarray:
     s = float(ff.get("smoothing", 0.0))
     sgn = np.tanh(dq / s) if s > 0 else np.sign(dq)
     return a * dq + b * sgn
+
+
+def velocity_noise(dq: np.ndarray) -> np.ndarray:
+    """The measured velocity's noise deviation per joint [rad/s], from its second
+    differences: :math:`\\hat\\sigma_v = 1.4826\\,\\mathrm{median}|\\Delta^2\\dot q| /
+    \\sqrt 6` (a white noise of deviation :math:`\\sigma` gives second differences of
+    deviation :math:`\\sqrt 6\\,\\sigma`; the smooth motion's own are
+    :math:`T_s^2\\,\\dddot q`, and the median ignores the jumps at a stick or a
+    breakaway). Zero for fewer than three samples."""
+    dq = np.asarray(dq, float)
+    if len(dq) < 3:
+        return np.zeros(dq.shape[1])
+    d2 = np.diff(dq, n=2, axis=0)
+    return 1.4826 * np.median(np.abs(d2), axis=0) / np.sqrt(6.0)
+
+
+def stuck_samples(
+    dq: np.ndarray, velocity_threshold: float, noise: np.ndarray | None = None
+) -> tuple[np.ndarray, list[list[tuple[int, int]]]]:
+    """Where each joint was stuck: its measured velocity within the band
+    :math:`|\\dot q_i| \\le \\max(v_0,\\ 4\\hat\\sigma_{v,i})` for two samples or more in a
+    row (at rest over a whole period; :data:`STUCK_NOISE_DEVIATIONS`). A joint passing
+    through zero at speed is in the band for one sample at most and is not stuck.
+
+    Args:
+        dq: Measured velocities [rad/s], (K, n). velocity_threshold: :math:`v_0` [rad/s].
+        noise: :math:`\\hat\\sigma_v` per joint [rad/s]; ``None``: :func:`velocity_noise`.
+
+    Returns:
+        (mask (K, n) of the stuck samples, per joint the (start, stop) index ranges).
+    """
+    dq = np.asarray(dq, float)
+    sigma = velocity_noise(dq) if noise is None else np.asarray(noise, float)
+    band = np.maximum(velocity_threshold, STUCK_NOISE_DEVIATIONS * sigma)
+    mask = np.zeros(dq.shape, dtype=bool)
+    ranges = []
+    for i in range(dq.shape[1]):
+        runs = [(s, e) for s, e in _runs(np.abs(dq[:, i]) <= band[i]) if e - s >= 2]
+        for s, e in runs:
+            mask[s:e, i] = True
+        ranges.append(runs)
+    return mask, ranges
+
+
+def _stuck_and_settling(
+    t: np.ndarray, ranges: list[list[tuple[int, int]]], settling: float, coupled: bool
+) -> np.ndarray:
+    """(K, n): the samples of each stuck interval and those up to ``settling`` [s] after
+    its first moving sample; every joint's when the observer couples the joints."""
+    out = np.zeros((len(t), len(ranges)), dtype=bool)
+    for i, runs in enumerate(ranges):
+        for s, e in runs:
+            end = t[min(e, len(t) - 1)] + settling
+            out[s:, i] |= t[s:] <= end + 1e-12
+    if coupled:
+        out[:] = out.any(axis=1, keepdims=True)
+    return out
+
+
+def _observer_stuck(clean: Result, valid, t, observer, velocity_threshold: float):
+    """The observer source's stuck samples and settling (module docstring): (mask (K, n),
+    indices of the joints found stuck, the observer's time constant [s], 0 without it)."""
+    moving = np.where(valid[:, None], clean.dq, np.inf)  # a gap is no stuck joint
+    _, ranges = stuck_samples(moving, velocity_threshold, velocity_noise(clean.dq[valid]))
+    tau = 0.0
+    if observer is not None:
+        tau = observer.time_constant(clean.q[valid] if valid.any() else clean.q)
+    coupled = observer is not None and observer.coupled()
+    mask = _stuck_and_settling(t, ranges, SETTLING_TIME_CONSTANTS * tau, coupled)
+    return mask, tuple(i for i, r in enumerate(ranges) if r), tau
 
 
 def _regressors(dq: np.ndarray) -> np.ndarray:
@@ -712,6 +864,12 @@ def fit_friction(
                 settled[s:e] = t[s:e] >= t[s] + after - 1e-12
         valid = valid & settled
         g, y = filtered[:, :, :-1], filtered[:, :, -1] - clean.d_hat
+    stuck, tau_obs = np.zeros((len(t), n), dtype=bool), 0.0
+    stuck_names: tuple[str, ...] = ()
+    if source == "observer":  # a stuck joint's holding torque, and the observer after it
+        stuck, joints, tau_obs = _observer_stuck(clean, valid, t, observer, velocity_threshold)
+        stuck_names = tuple(names[i] for i in joints)
+    settling = SETTLING_TIME_CONSTANTS * tau_obs
     use = t >= after - 1e-12
     excluded = int(np.count_nonzero(use & ~valid))
     if excluded and not np.any(use & valid):
@@ -727,14 +885,26 @@ def fit_friction(
             ),
         )
     use &= valid
+    left_out = int(np.count_nonzero(use & stuck.any(axis=1)))
     blocks, covers, conds = [], [], []
     for i, name in enumerate(names):
-        covers.append(
-            check_excitation(
-                name, dq[use, i], max(excitation_velocity, velocity_threshold), min_coverage
+        ok = use & ~stuck[:, i]
+        try:
+            covers.append(
+                check_excitation(
+                    name, dq[ok, i], max(excitation_velocity, velocity_threshold), min_coverage
+                )
             )
-        )
-        keep = use & np.isfinite(y[:, i]) & (np.abs(dq[:, i]) > velocity_threshold)
+        except ExcitationError as exc:
+            if not np.any(use & stuck[:, i]):
+                raise
+            raise ExcitationError(
+                name,
+                f"{exc.reason}, after leaving out the {np.count_nonzero(use & stuck[:, i])} "
+                f"samples where {', '.join(stuck_names)} stuck and the observer's settling "
+                f"after each ({settling:.3g} s); fewer reversals, or a faster observer",
+            ) from None
+        keep = ok & np.isfinite(y[:, i]) & (np.abs(dq[:, i]) > velocity_threshold)
         raw = np.column_stack([dq[keep, i], np.sign(dq[keep, i])])
         conds.append(_condition(name, raw, max_condition))
         blocks.append((g[keep, i, :], y[keep, i]))
@@ -743,7 +913,10 @@ def fit_friction(
         for i, (A, v) in enumerate(blocks):
             theta, half, res, m_eff = _least_squares([(A[:, 2 * i : 2 * i + 2], v)], confidence)
             fits.append(_joint(names[i], theta, half, res[0], m_eff[0], conds[i], covers[i]))
-        return FrictionFit(tuple(fits), source, confidence, run, excluded)
+        return FrictionFit(
+            tuple(fits), source, confidence, run, excluded, "", left_out, stuck_names,
+            settling, tau_obs,
+        )  # fmt: skip
     theta, half, res, m_eff = _least_squares(blocks, confidence)
     joints = tuple(
         _joint(
@@ -757,4 +930,6 @@ def fit_friction(
         )
         for i, name in enumerate(names)
     )
-    return FrictionFit(joints, source, confidence, run, excluded)
+    return FrictionFit(
+        joints, source, confidence, run, excluded, "", left_out, stuck_names, settling, tau_obs
+    )

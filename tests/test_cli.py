@@ -172,6 +172,10 @@ BAD_INPUTS = {
         lambda tmp: ["run", str(CONFIGS / "paper_combined.toml"), "--duration", "-1"],
         "--duration",
     ),
+    "zero duration": (  # the boundary: no simulated time is no run
+        lambda tmp: ["run", str(CONFIGS / "paper_combined.toml"), "--duration", "0"],
+        "--duration: expected a number of seconds > 0, got 0.0",
+    ),
     "unreachable goal": (
         lambda tmp: ["run", str(_unreachable(tmp)), "--out", str(tmp / "o")],
         "cannot reach tool (4, 0)",
@@ -328,3 +332,52 @@ def test_run_and_replay_a_panda_with_locked_fingers(tmp_path, capsys):
     # the fingers are locked, not dropped: their meshes are in the scene
     assert any("panda_leftfinger" in p for p in objects), objects
     assert any("panda_link7" in p for p in objects)
+
+
+def test_a_warning_of_the_urdf_loaded_twice_is_printed_once(tmp_path, capsys):
+    """`init` loads the arm's URDF more than once (without the command line's
+    once-per-message rule its warning is printed twice): a link breaking the triangle
+    inequality (I1 + I2 = 0.100001 < I3 = 0.28) warns once, as one ``warning:`` line on
+    stderr, and the config is written (exit 0)."""
+    text = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+    bad = 'iyy="0.1" iyz="0" izz="0.28125"/>'
+    text = text.replace('iyy="0.28125" iyz="0" izz="0.28125"/>', bad, 1)
+    assert bad in text
+    urdf = _write(tmp_path / "arm.urdf", text)
+    out = tmp_path / "arm.toml"
+    assert main(["init", str(urdf), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "triangle inequality" in line]
+    assert len(lines) == 1 and lines[0].startswith("warning: ") and "'link1'" in lines[0], err
+    assert out.is_file()
+
+
+@pytest.mark.parametrize("command, rate", [("ros", 150.0), ("ros-arm", 150.0),
+                                           ("ros-arm", 300.0)])  # fmt: skip
+def test_a_ros_rate_that_does_not_fit_is_named_ros_rate_before_anything_runs(
+    tmp_path, command, rate
+):
+    """[ros] rate = 150 Hz is 1.5 control periods of 10 ms (the controller node, `ros`,
+    and the arm node, `ros-arm`); 300 Hz divides Ts but is no whole number of the arm's
+    plant.dt = 1 ms (`ros-arm`): exit 2, one ``error: ros.rate:`` line (not realtime.rate
+    nor plant.dt), nothing printed before it, no --out folder. In a private network
+    namespace: a node that started anyway would speak DDS."""
+    from .test_ros import _netns_reason
+
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    text = (CONFIGS / "panda_sine.toml").read_text() + f"\n[ros]\nrate = {rate}\n"
+    cfg = _write(tmp_path / "arm.toml", text)
+    out = tmp_path / "out"
+    args = [command, str(cfg), "--duration", "0.1"] + (
+        ["--out", str(out)] if command == "ros" else []
+    )
+    script = f"ip link set lo up && exec {sys.executable} -m hmpc_pin {' '.join(args)}"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    err = proc.stderr.strip()
+    assert err.startswith("error: ros.rate: ") and len(err.splitlines()) == 1, err
+    assert "realtime.rate" not in err and "plant.dt" not in err, err
+    assert proc.stdout == "" and not out.exists(), proc.stdout

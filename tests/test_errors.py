@@ -229,6 +229,23 @@ CASES = {
         ConfigError,
         ["sweep.mass", "low <= high"],
     ),
+    # an infinite number (TOML's inf) is no more a setting than nan: refused as not finite
+    "gain infinite": (
+        lambda tmp: _sub("gain = 100.0", "gain = inf"),
+        ConfigError,
+        ["controller.observer.gain", "finite", "inf"],
+    ),
+    "R minus infinite": (
+        lambda tmp: _sub("R = 1e-6", "R = -inf"),
+        ConfigError,
+        ["controller.R", "finite", "-inf"],
+    ),
+    # a bandwidth of exactly 0 on one joint: no observer there, not a positive bandwidth
+    "bandwidth zero on one joint": (
+        lambda tmp: _sub("gain = 100.0", "bandwidth = [20.0, 0.0, 20.0]"),
+        ConfigError,
+        ["controller.observer.bandwidth", "values > 0", "[20.0, 0.0, 20.0]"],
+    ),
 }
 
 

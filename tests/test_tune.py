@@ -206,7 +206,7 @@ def test_sigint_through_the_command_line(tmp_path):
     config = _short_config(tmp_path)
     out = tmp_path / "out"
     proc, err = _start(["tune", str(config), "--trials", "200", "--samples", "1", "--jobs",
-                        "1", "--duration", "1.5", "--holdout", "0", "--out", str(out),
+                        "1", "--duration", "1.5", "--holdout", "1", "--out", str(out),
                         "--quiet"], tmp_path)  # fmt: skip
     db = out / "paper_friction_tune.db"
 
@@ -227,6 +227,11 @@ def test_sigint_through_the_command_line(tmp_path):
     line = _last_line(stderr)
     assert line.startswith("interrupted at trial") and "paper_friction_tuned.toml" in line, line
     assert load_config(out / "paper_friction_tuned.toml").controller.Q.shape == (2, 2)
+    # the report of the trials done; Ctrl-C also stops what was to follow them (the
+    # held-out comparison of --holdout 1 is not run after it)
+    report = (out / "paper_friction_tune.md").read_text()
+    assert "Interrupted (Ctrl-C) at trial" in report and "Held-out comparison" not in report
+    assert "paper_friction_tune.md" in line
 
 
 @pytest.mark.parametrize(
@@ -378,6 +383,21 @@ def test_the_observer_gains_range_is_a_tenth_to_five_times_the_configs(friction_
     c0 = friction_config.controller.observer.gain
     kind, low, high = search_space(friction_config)["observer_gain"]
     assert kind == "log" and low == pytest.approx(c0 / 10) and high == pytest.approx(5 * c0)
+
+
+def test_a_bandwidths_range_is_a_tenth_to_five_times_the_configs_largest(tmp_path):
+    """An observer given by per-joint bandwidths [10, 15, 20] 1/s: the trials scale them
+    together by the largest, log-uniform on [20/10, 5 x 20] = [2, 100] 1/s, the gain's
+    range relative to the config's."""
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
+    text = text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"')
+    text = text.replace('kind = "chen"', 'kind = "general"')
+    text = text.replace("gain = 100.0", "bandwidth = [10.0, 15.0, 20.0]")
+    path = tmp_path / "bw.toml"
+    path.write_text(text)
+    kind, low, high = search_space(load_config(path))["observer_bandwidth"]
+    assert kind == "log" and low == pytest.approx(2.0) and high == pytest.approx(100.0)
 
 
 def test_trial_zero_starts_at_the_period_nearest_the_configs(friction_config):

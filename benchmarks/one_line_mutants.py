@@ -481,6 +481,53 @@ MUTANTS = [
      ["tests/test_cli.py", "tests/test_errors.py"]),
     ("i36i", "hmpc_pin/apps/cli.py", "config = _with_overrides(_config(args.config), False, args.duration)\n    check_args(",
      "config = _with_overrides(_config(args.config), False, None)\n    check_args(", [TUN]),
+    # ---- i36k: check, checks, tune, the command line, sweep and the ROS nodes' config: fresh
+    # one-line bugs over lines no earlier group mutated, written before any new test
+    ("i36k", "hmpc_pin/apps/check.py", "    b, f = ex.robot.joint_damping, ex.robot.joint_friction", "    b, f = ex.robot.joint_friction, ex.robot.joint_damping", [CHK]),
+    ("i36k", "hmpc_pin/apps/check.py", "_headroom(ex, _effort_limit(config, ex.plant), damped=plant_damped),",
+     "_headroom(ex, _effort_limit(config, ex.plant), damped=True),", [CHK]),
+    ("i36k", "hmpc_pin/apps/check.py", 'listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, w Ts = {bw[j] * Ts:.3g})" for j in over)',
+     'listed = ", ".join(f"{names[j]!r} ({bw[j]:.3g} 1/s, w Ts = {bw[j]:.3g})" for j in over)', [CHK]),
+    ("i36k", "hmpc_pin/apps/check.py", "    if latency <= 0:\n        return\n    cc = config.controller\n    over",
+     "    if latency < Ts:\n        return\n    cc = config.controller\n    over", [CHK]),
+    ("i36k", "hmpc_pin/apps/check.py", "            np.max(bw) * scale * Ts >= 2.0", "            np.max(bw) * Ts >= 2.0", [CHK]),
+    ("i36k", "hmpc_pin/apps/check.py", 'if config.plant.engine == "mujoco":  # `run` would be refused as well',
+     'if config.plant.engine != "mujoco":  # `run` would be refused as well', [CHK]),
+    ("i36k", "hmpc_pin/apps/check.py", "    beta = max(over - m, 0.0)\n    coeffs", "    beta = max(m - over, 0.0)\n    coeffs", [CHK]),
+    ("i36k", "hmpc_pin/checks.py", "    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):",
+     "    if not isinstance(value, (int, float, np.integer, np.floating)):", [LV, "tests/test_config.py"]),
+    ("i36k", "hmpc_pin/checks.py", "    if not np.all(np.isfinite(arr)):", "    if np.any(np.isnan(arr)):", [LV, "tests/test_config.py"]),
+    ("i36k", "hmpc_pin/checks.py", 'out["R"] = as_float(prefix + "R", R, positive=True)', 'out["R"] = as_float(prefix + "R", R, nonneg=True)',
+     [LV, "tests/test_config.py"]),
+    ("i36k", "hmpc_pin/apps/tune.py", "out[name] = min(spec[1], key=lambda c, v=v: abs(c - v))",
+     "out[name] = max(spec[1], key=lambda c, v=v: abs(c - v))", [TUN]),
+    ("i36k", "hmpc_pin/apps/tune.py", "np.array_equal(cc.P, 2 * Q)):", "np.array_equal(cc.P, Q)):", [TUN]),
+    ("i36k", "hmpc_pin/apps/tune.py", 'params.get("Q_velocity", cc.Q[1, 1])])', 'params.get("Q_velocity", cc.Q[0, 0])])', [TUN]),
+    ("i36k", "hmpc_pin/apps/tune.py", "return error_bound * (1.0 + min(max(lost, 0.0), 1.0)) + rms",
+     "return error_bound * (1.0 + min(max(lost, 0.0), 1.0))", [TUN]),
+    ("i36k", "hmpc_pin/apps/tune.py", "    if not duration > after:", "    if duration < after:", [TUN]),
+    ("i36k", "hmpc_pin/apps/tune.py", 'elif study.user_attrs.get("samples") != samples or study.user_attrs.get("seed") != seed:',
+     'elif study.user_attrs.get("samples") != samples:', [TUN]),
+    ("i36k", "hmpc_pin/apps/tune.py", 'obs["bandwidth"] = float(w[0]) if np.all(w == w[0]) else w.tolist()',
+     'obs["bandwidth"] = float(w[0])', [TUN]),
+    ("i36k", "hmpc_pin/apps/tune.py", 'ratio = comparison["shipped"]["p95_rms"] / comparison["tuned"]["p95_rms"]',
+     'ratio = comparison["tuned"]["p95_rms"] / comparison["shipped"]["p95_rms"]', [TUN]),
+    ("i36k", "hmpc_pin/apps/cli.py", "if priority is not None and not 0 <= priority <= 99:", "if priority is not None and not 1 <= priority <= 99:",
+     ["tests/test_cli.py", "tests/test_errors.py"]),
+    ("i36k", "hmpc_pin/apps/cli.py", "duration = 10.0 if _checked_duration(args.duration) is None else args.duration",
+     "duration = 10.0", ["tests/test_cli.py", "tests/test_errors.py"]),
+    ("i36k", "hmpc_pin/apps/cli.py", "if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):",
+     "if args.rate is not None and not (math.isfinite(args.rate) and args.rate >= 0):", ["tests/test_cli.py", "tests/test_errors.py"]),
+    ("i36k", "hmpc_pin/apps/cli.py", "jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)",
+     "jobs = args.jobs or (os.cpu_count() or 1)", ["tests/test_sweep.py", "tests/test_cli.py"]),
+    ("i36k", "hmpc_pin/apps/sweep.py", "    latency = si.latency + si.delay * cc.Ts", "    latency = si.latency + si.delay", ["tests/test_sweep.py"]),
+    ("i36k", "hmpc_pin/apps/sweep.py", "bounded = bool(result.complete and max_error <= sc.error_bound)", "bounded = bool(max_error <= sc.error_bound)",
+     ["tests/test_sweep.py"]),
+    ("i36k", "hmpc_pin/apps/sweep.py", "clipped = np.any(np.abs(tau - applied) > 1e-9 * (1 + np.abs(tau)), axis=1) & ok",
+     "clipped = np.all(np.abs(tau - applied) > 1e-9 * (1 + np.abs(tau)), axis=1) & ok", ["tests/test_sweep.py"]),
+    ("i36k", "hmpc_pin/apps/sweep.py", "        per = len(sc.variants) * len(sc.conditions)\n", "        per = len(sc.variants)\n", ["tests/test_sweep.py"]),
+    ("i36k", "hmpc_pin/apps/ros.py", 'if given is None or given == (who == "controller"):', 'if given is None or given == (who == "arm"):',
+     ["tests/test_ros.py", "-k", "gravity_is_one_choice"]),
     # (end of i36i)
 ]
 
@@ -510,7 +557,7 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--group", default="", help="run one group (new, earlier, fresh, i36 ... i36i)")
+    parser.add_argument("--group", default="", help="run one group (new, earlier, fresh, i36 ... i36k)")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:

@@ -111,8 +111,13 @@ def test_the_papers_fast_observer_is_a_warning_for_an_arm_naming_each_joint(caps
     out = capsys.readouterr().out
     lines = [x for x in out.splitlines() if x.startswith("warning:")]
     assert len(lines) == 1 and not any(x.startswith("problem:") for x in out.splitlines())
-    for name in ("joint1", "joint2", "joint3"):
-        assert f"'{name}'" in lines[0]
+    # each joint with its bandwidth (cY M^-1)_jj from CRBA and w Ts, dimensionless
+    ex = Experiment.from_config(load_config(PAPER))
+    M0 = pin.crba(ex.robot.model, ex.robot.model.createData(), ex.q0)
+    M0 = np.triu(M0) + np.triu(M0, 1).T
+    w = np.diag(100.0 * np.tril(np.ones((3, 3))) @ np.linalg.inv(M0))
+    for j, name in enumerate(("joint1", "joint2", "joint3")):
+        assert f"'{name}' ({w[j]:.3g} 1/s, w Ts = {w[j] * 0.01:.3g})" in lines[0], lines[0]
     assert "above 20 1/s" in lines[0] and "declare its latency" in lines[0]
     assert "the paper's setting, kept" in lines[0] and "no problem found" in out
 

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import csv
+import math
 import re
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -360,8 +362,10 @@ def test_a_ros_rate_that_does_not_fit_is_named_ros_rate_before_anything_runs(
     """[ros] rate = 150 Hz is 1.5 control periods of 10 ms (the controller node, `ros`,
     and the arm node, `ros-arm`); 300 Hz divides Ts but is no whole number of the arm's
     plant.dt = 1 ms (`ros-arm`): exit 2, one ``error: ros.rate:`` line (not realtime.rate
-    nor plant.dt), nothing printed before it, no --out folder. In a private network
-    namespace: a node that started anyway would speak DDS."""
+    nor plant.dt's own error) naming the rate, and for the arm node its period and the
+    nearest rates that are whole numbers of plant.dt, 1/(k dt); nothing printed before it,
+    no --out folder. In a private network namespace: a node that started anyway would
+    speak DDS."""
     from .test_ros import _netns_reason
 
     reason = _netns_reason()
@@ -379,5 +383,85 @@ def test_a_ros_rate_that_does_not_fit_is_named_ros_rate_before_anything_runs(
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     err = proc.stderr.strip()
     assert err.startswith("error: ros.rate: ") and len(err.splitlines()) == 1, err
-    assert "realtime.rate" not in err and "plant.dt" not in err, err
+    assert "realtime.rate" not in err and "plant.dt=" not in err, err
     assert proc.stdout == "" and not out.exists(), proc.stdout
+    if command == "ros-arm":  # one sentence: the rate, its period, what is expected
+        k = math.floor(1.0 / rate / 1e-3)  # plant.dt = 1 ms
+        near = " or ".join(f"{1.0 / (m * 1e-3):g} Hz" for m in (k, k + 1))
+        assert err == (
+            f"error: ros.rate: {rate:g} Hz gives the arm node a period 1/rate = {1 / rate:g} s "
+            "that is not a whole number of the plant's steps (plant.dt = 0.001 s); expected "
+            f"a rate 1/(k plant.dt) with k = 1, 2, ..., e.g. {near}"
+        ), err
+
+
+@pytest.mark.parametrize("command", ["ros-arm", "ros"])
+def test_a_ros_run_shorter_than_one_period_is_refused_before_any_node(tmp_path, command):
+    """[ros] rate = 0.5 Hz: a --duration of 0.1 s is no period of 2 s (it would run
+    round(0.1 * 0.5) = 0 steps and exit 0 as if it had run): exit 2, one line naming
+    --duration, the period 1/ros.rate and what is expected; 2 s (one period) is accepted by
+    the check (`ros-arm` then refuses nothing more and would start; not run here). In a
+    private network namespace: a node that started anyway would speak DDS."""
+    from .test_ros import _netns_reason
+
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    text = (CONFIGS / "panda_sine.toml").read_text() + "\n[ros]\nrate = 0.5\n"
+    cfg = _write(tmp_path / "arm.toml", text)
+    out = tmp_path / "out"
+    args = [command, str(cfg), "--duration", "0.1"] + (
+        ["--out", str(out)] if command == "ros" else []
+    )
+    script = f"ip link set lo up && exec {sys.executable} -m hmpc_pin {' '.join(args)}"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    err = proc.stderr.strip()
+    assert err == (
+        "error: --duration: expected at least one period of the node, 1/ros.rate = 2 s "
+        "([ros] rate = 0.5 Hz), got 0.1 s; lengthen it or raise [ros] rate"
+    ), err
+    assert proc.stdout == "" and not out.exists(), proc.stdout
+
+
+def test_a_ros_run_length_and_the_arm_nodes_rate_are_checked_against_the_period(tmp_path):
+    """The checks behind the two refusals, without a node: a run of at least one period
+    1/rate passes (the period itself too, to rounding), a shorter one is refused under the
+    key given; a rate 1/(k dt) of the plant's fixed step passes, another names ros.rate."""
+    from hmpc_pin.apps.ros import check_arm_rate, check_run_length
+    from hmpc_pin.exceptions import ConfigError
+
+    check_run_length(2.0, 0.5, "--duration")
+    check_run_length(0.1, 10.0, "--duration")  # 1/10 s, computed as 0.1 again
+    with pytest.raises(ConfigError, match=r"^simulation\.duration: .*1/ros\.rate = 0\.5 s"):
+        check_run_length(0.499, 2.0, "simulation.duration")
+    base = hmpc_pin.load_config(CONFIGS / "panda_sine.toml")
+    dt = base.plant.dt
+    for k in (1, 3, 7):
+        check_arm_rate(replace(base, ros=replace(base.ros, rate=1.0 / (k * dt))))
+    with pytest.raises(ConfigError, match=r"^ros\.rate: 300 Hz .*plant\.dt = 0\.001 s"):
+        check_arm_rate(replace(base, ros=replace(base.ros, rate=300.0)))
+
+
+def test_init_writes_the_duration_it_is_given(tmp_path, capsys):
+    """``init --duration 3`` writes simulation.duration = 3 s (10 s without it)."""
+    for argv, expected in (([], 10.0), (["--duration", "3"], 3.0)):
+        out = tmp_path / f"p{len(argv)}.toml"
+        assert main(["init", "planar3", "--out", str(out), *argv]) == 0
+        assert hmpc_pin.load_config(out).simulation.duration == expected
+
+
+@pytest.mark.parametrize("priority, ok", [(0, True), (1, True), (99, True), (-1, False),
+                                          (100, False)])  # fmt: skip
+def test_priority_zero_is_off_and_1_to_99_are_sched_fifo(priority, ok):
+    """--priority 0 turns SCHED_FIFO off (accepted), 1..99 are its priorities; anything
+    else is refused naming --priority."""
+    from hmpc_pin.apps.cli import _checked_priority
+    from hmpc_pin.exceptions import ConfigError
+
+    if ok:
+        assert _checked_priority(priority) == priority
+    else:
+        with pytest.raises(ConfigError, match=r"--priority.*0 \(off\) or 1\.\.99"):
+            _checked_priority(priority)

@@ -188,6 +188,16 @@ CASES = {
         ["controller.Q", "non-zero"],
     ),
     "R zero": (lambda tmp: _sub("R = 1e-6", "R = 0.0"), ConfigError, ["controller.R", "> 0"]),
+    "R a boolean": (  # TOML's true is no number (Python's bool would pass as 1)
+        lambda tmp: _sub("R = 1e-6", "R = true"),
+        ConfigError,
+        ["controller.R", "expected a number, got bool True"],
+    ),
+    "Q infinite": (
+        lambda tmp: _sub("Q = [50.0, 0.0]", "Q = [inf, 1.0]"),
+        ConfigError,
+        ["controller.Q", "expected finite numbers"],
+    ),
     "R negative": (lambda tmp: _sub("R = 1e-6", "R = -1e-6"), ConfigError, ["controller.R", "> 0"]),
     "initial state outside joint limits": (
         lambda tmp: _sub("q0 = [1.0, 1.0, 1.0]", "q0 = [1.0, 1.7, 1.0]"),

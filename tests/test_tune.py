@@ -101,6 +101,12 @@ def test_a_real_trial_runs_the_sweep(tmp_path, friction_config, capsys):
     assert code == 0
     out = capsys.readouterr().out
     assert "held-out samples: p95 worst-joint RMS" in out
+    # the report's ratio is the shipped config's p95 over the tuned one's, from its table
+    report = (tmp_path / "out" / "paper_friction_tune.md").read_text()
+    p95 = {row.split("|")[1].strip(): float(row.split("|")[2]) for row in report.splitlines()
+           if row.startswith(("| shipped |", "| tuned |"))}  # fmt: skip
+    ratio = float(report.split("Shipped / tuned p95: ")[1].split()[0].rstrip("."))
+    assert ratio == pytest.approx(p95["shipped"] / p95["tuned"], rel=2e-3), report
     tuned = load_config(tmp_path / "out" / "paper_friction_tuned.toml")
     assert (
         Experiment.from_config(replace(tuned, simulation=replace(tuned.simulation, duration=0.3)))
@@ -491,3 +497,33 @@ def test_trial_0_keeps_the_configs_observer_when_it_is_listed(observers, first, 
     assert friction_config.controller.compensation == "chen"
     space = search_space(friction_config, observers=observers)
     assert current_params(friction_config, space)["compensation"] == first
+
+
+def test_apply_params_keeps_the_configs_own_value_of_each_parameter_not_given(
+    friction_config,
+):
+    """A partial parameter set (library use: only R) keeps every other value of the
+    config: Q's diagonal as it is (each entry its own), P = 2Q."""
+    cc = friction_config.controller
+    Q = np.diag([400.0, 3.0])  # different entries: a mix-up of the two shows
+    config = replace(friction_config, controller=replace(cc, Q=Q, P=2 * Q))
+    new = apply_params(config, {"R": 1e-6}).controller
+    np.testing.assert_array_equal(new.Q, Q)
+    np.testing.assert_array_equal(new.P, 2 * Q)
+    assert new.R == 1e-6 and new.N == cc.N and new.Ts == cc.Ts
+    new = apply_params(config, {"Q_position": 50.0}).controller
+    np.testing.assert_array_equal(new.Q, np.diag([50.0, 3.0]))
+
+
+def test_a_study_resumed_with_another_seed_is_refused(tmp_path, friction_config):
+    """The study's samples are drawn from --seed: resuming it with another seed would mix
+    two sets of plants in one ranking; refused naming both options, the study untouched."""
+    from hmpc_pin.exceptions import ConfigError
+
+    tune(friction_config, tmp_path, trials=2, seed=1, objective=_toy, holdout=0, progress=False)
+    with pytest.raises(ConfigError, match=r"--samples/--seed.*--seed 1"):
+        tune(friction_config, tmp_path, trials=1, seed=2, objective=_toy, holdout=0,
+             progress=False)  # fmt: skip
+    resumed = tune(friction_config, tmp_path, trials=1, seed=1, objective=_toy, holdout=0,
+                   progress=False)  # fmt: skip
+    assert len(resumed.study.trials) == 3

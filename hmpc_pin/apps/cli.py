@@ -498,10 +498,12 @@ def cmd_ros(args) -> int:
     from ..experiment.build import Experiment
     from ..ros.node import import_ros
     from .realtime import format_tracking
-    from .ros import format_ros, ros_parts, run_ros
+    from .ros import check_run_length, format_ros, ros_parts, run_ros
 
     import_ros("hmpc-pin ros")  # the extra, before anything else
     config = _ros_config(args, _with_overrides(_config(args.config), False, args.duration))
+    key = "--duration" if args.duration is not None else "simulation.duration"
+    check_run_length(config.simulation.duration, config.ros.rate, key)
     # [ros] rate against Ts, the brake, [ros] gravity: bad input stops here, nothing written
     ros_parts(Experiment.from_config(config))
     out = _out_dir(args.out)

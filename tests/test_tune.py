@@ -527,3 +527,23 @@ def test_a_study_resumed_with_another_seed_is_refused(tmp_path, friction_config)
     resumed = tune(friction_config, tmp_path, trials=1, seed=1, objective=_toy, holdout=0,
                    progress=False)  # fmt: skip
     assert len(resumed.study.trials) == 3
+
+
+def test_the_held_out_table_and_ratio_of_the_report(tmp_path, friction_config):
+    """The report's held-out section: each config's p95 [rad], bounded share and saturation
+    in percent, and the ratio shipped / tuned (4 for 0.04 rad against 0.01 rad)."""
+    from hmpc_pin.apps.tune import _report
+
+    result = tune(friction_config, tmp_path, trials=2, seed=1, objective=_toy, holdout=0,
+                  progress=False)  # fmt: skip
+
+    def parts(p95, bounded, saturation):
+        return {"p95_rms": p95, "bounded": bounded, "saturation": saturation, "torque_tv": 1.0}
+
+    comparison = {"shipped": parts(0.04, 0.5, 0.25), "tuned": parts(0.01, 1.0, 0.0)}
+    _report(friction_config, result.study, result.best, tmp_path, comparison, 8, 1, 8, 2)
+    report = (tmp_path / "paper_friction_tune.md").read_text()
+    assert "## Held-out comparison: 8 other samples (seed 2)" in report
+    assert "| shipped | 0.04 | 50 % | 25.00 % | 1 |" in report
+    assert "| tuned | 0.01 | 100 % | 0.00 % | 1 |" in report
+    assert "Shipped / tuned p95: 4." in report

@@ -111,8 +111,13 @@ def test_the_papers_fast_observer_is_a_warning_for_an_arm_naming_each_joint(caps
     out = capsys.readouterr().out
     lines = [x for x in out.splitlines() if x.startswith("warning:")]
     assert len(lines) == 1 and not any(x.startswith("problem:") for x in out.splitlines())
-    for name in ("joint1", "joint2", "joint3"):
-        assert f"'{name}'" in lines[0]
+    # each joint with its bandwidth (cY M^-1)_jj from CRBA and w Ts, dimensionless
+    ex = Experiment.from_config(load_config(PAPER))
+    M0 = pin.crba(ex.robot.model, ex.robot.model.createData(), ex.q0)
+    M0 = np.triu(M0) + np.triu(M0, 1).T
+    w = np.diag(100.0 * np.tril(np.ones((3, 3))) @ np.linalg.inv(M0))
+    for j, name in enumerate(("joint1", "joint2", "joint3")):
+        assert f"'{name}' ({w[j]:.3g} 1/s, w Ts = {w[j] * 0.01:.3g})" in lines[0], lines[0]
     assert "above 20 1/s" in lines[0] and "declare its latency" in lines[0]
     assert "the paper's setting, kept" in lines[0] and "no problem found" in out
 
@@ -236,6 +241,9 @@ def test_a_damping_time_constant_below_two_periods_is_flagged_without_compensati
         assert len(report.problems) == int(flagged)
         if flagged:  # joint 3 alone is damped: the others are not named
             assert "'joint3'" in report.problems[0]
+            # the rule quoted with its bound 2 Ts [s] and joint 3's T_b = m3 / b [s]
+            assert f"below 2 Ts = {2 * Ts:g} s on joint(s) 'joint3' ({periods * Ts:.3g} s)" in (
+                report.problems[0])  # fmt: skip
             assert "'joint1'" not in report.problems[0] and "'joint2'" not in report.problems[0]
             assert report.fixes == [{"controller.joint_dynamics": True}]
         # a plant without the damping: nothing to compensate in `run`; a warning for an
@@ -659,6 +667,12 @@ def test_a_latency_declared_far_too_long_is_a_problem_through_the_mpc(gain):
 
             kp, kd = mpc_feedback_gain(CondensedMPC(cc.Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P))
             z, z0 = lead_radius(kp, kd, 0.01, periods), lead_radius(kp, kd, 0.01, 0.0)
+            # the gains quoted are the unconstrained MPC's, minimised here from Eq (25)
+            kp_, kd_ = _unconstrained_mpc_gain(cc.Ts, cc.N, cc.Nc, cc.Q, cc.R, cc.P)
+            assert f"kp = {kp_:.4g} 1/s², kd = {kd_:.4g} 1/s)" in latency[0]
+            # |z| of the loop predicting m periods ahead, built here as a matrix
+            zm = _predicting_loop_radius(kp_, kd_, 0.01, int(periods))
+            assert f"(|z| = {zm:.3g})" in latency[0]
             assert f"|z| = {z:.3g}" in latency[0]
             assert f"decays at {-math.log(min(z, 1.0)) / 0.01:.3g} 1/s" in latency[0]
             assert f"its {-math.log(z0) / 0.01:.3g} 1/s" in latency[0]
@@ -1046,6 +1060,12 @@ def test_the_runs_inertia_ratio_is_the_models_over_the_plants():
         plant = SimpleNamespace(nq=3, mass_matrix=lambda q, s=scale: s * ex.robot.mass_matrix(q))
         fake = SimpleNamespace(plant=plant, robot=ex.robot, q0=ex.q0)
         assert _run_ratio(fake) == pytest.approx(r, rel=1e-12)
+    # a plant whose inertia is not known here (none, or other joints than the model's):
+    # the rule's worst case, a link 20 % lighter (MASS_RATIO = 1.25), not the exact model
+    other = SimpleNamespace(nq=2, mass_matrix=lambda q: np.eye(2))
+    for plant in (None, other):
+        fake = SimpleNamespace(plant=plant, robot=ex.robot, q0=ex.q0)
+        assert _run_ratio(fake) == 1.25
 
 
 @pytest.mark.parametrize("Ts, kp, kd, wTs, over", [(0.05, 20.0, 6.0, 2.0, 1.5),
@@ -1125,3 +1145,165 @@ def test_pulses_without_compensation_warn_that_run_will():
     config = replace(config, disturbance=replace(config.disturbance, friction=None))
     report = check_config(config, engines=False)
     assert any("error is expected above" in w for w in report.warnings), report.warnings
+
+
+def _unconstrained_mpc_gain(Ts, N, Nc, Q, R, P) -> tuple[float, float]:
+    """(kp, kd) of the unconstrained MPC of Eq (25) on the double integrator held for a
+    period (Eq 24), minimised here by least squares: J = sum_{j<N} x_j'Q x_j + R v_j^2
+    + x_N'P x_N with v_j = U[min(j, Nc - 1)] and x_{j+1} = A x_j + B v_j, written as
+    |F_x x_0 + F_u U|^2 (x'Wx = |S'x|^2 with W = S S'); v_0 = -kp q_0 - kd q'_0."""
+    A = np.array([[1.0, Ts], [0.0, 1.0]])
+    B = np.array([[0.5 * Ts * Ts], [Ts]])
+
+    def root(W):
+        lam, V = np.linalg.eigh(np.asarray(W, dtype=float))
+        return V * np.sqrt(np.maximum(lam, 0.0))
+
+    Phi, Gamma = np.eye(2), np.zeros((2, Nc))  # x_j = Phi x_0 + Gamma U
+    blocks_x, blocks_u = [], []
+    for j in range(N + 1):
+        S = root(P if j == N else Q)
+        blocks_x.append(S.T @ Phi)
+        blocks_u.append(S.T @ Gamma)
+        if j == N:
+            break
+        sel = np.zeros((1, Nc))
+        sel[0, min(j, Nc - 1)] = 1.0
+        blocks_x.append(np.zeros((1, 2)))
+        blocks_u.append(math.sqrt(float(R)) * sel)
+        Phi, Gamma = A @ Phi, A @ Gamma + B @ sel
+    K = np.linalg.lstsq(np.vstack(blocks_u), np.vstack(blocks_x), rcond=None)[0][0]
+    return float(K[0]), float(K[1])
+
+
+def _predicting_loop_radius(kp, kd, Ts, m) -> float:
+    """Spectral radius of one joint under u_k = -kp x^_k - kd x^'_k with the state
+    predicted m whole periods ahead of fresh measurements through the inputs already
+    sent (x^ = A^m x_k + sum_i A^(i-1) B u_(k-i)); loop state [x, x', u_(k-1..k-m)]."""
+    A = np.array([[1.0, Ts], [0.0, 1.0]])
+    B = np.array([0.5 * Ts * Ts, Ts])
+    size = 2 + m
+    pred = np.zeros((2, size))
+    pred[:, :2] = np.linalg.matrix_power(A, m)
+    for i in range(1, m + 1):
+        pred[:, 1 + i] = np.linalg.matrix_power(A, i - 1) @ B
+    u = -(kp * pred[0] + kd * pred[1])
+    step = np.zeros((size, size))
+    step[:2, :2] = A
+    step[:2] += np.outer(B, u)
+    if m:
+        step[2] = u
+        for i in range(1, m):
+            step[2 + i, 1 + i] = 1.0
+    return float(np.abs(np.linalg.eigvals(step)).max())
+
+
+class _Skewed:
+    """The real arm, its Pinocchio model answering M(q) (1 + e_M) times and the forward
+    dynamics (1 + e_a) times the true ones: a model error of known relative size."""
+
+    def __init__(self, robot, e_M: float, e_a: float):
+        self._robot, self._e_M, self._e_a = robot, e_M, e_a
+
+    def __getattr__(self, name):
+        return getattr(self._robot, name)
+
+    def mass_matrix(self, q):
+        return (1.0 + self._e_M) * self._robot.mass_matrix(q)
+
+    def forward_dynamics(self, q, dq, tau):
+        return (1.0 + self._e_a) * self._robot.forward_dynamics(q, dq, tau)
+
+
+@pytest.mark.parametrize("e_M, e_a", [(0.0, 1e-3), (2e-4, 0.0), (1e-5, 3e-2)])
+def test_the_engines_figures_are_the_relative_model_errors(e_M, e_a):
+    """A Pinocchio model whose M(q) and q̈ are (1 + e) times MuJoCo's (the true arm): the
+    two figures are |e| / (1 + e) at every sampled state, whatever the size of q̈
+    (the paper's arm accelerates at tens of rad/s² there, not 1)."""
+    pytest.importorskip("mujoco")
+    from hmpc_pin.apps.check import _engines
+
+    ex = Experiment.from_config(_paper(20.0))
+    ex.robot = _Skewed(ex.robot, e_M, e_a)
+    err_M, err_a = _engines(ex)
+    assert err_M == pytest.approx(e_M / (1 + e_M), rel=1e-6, abs=1e-12)
+    assert err_a == pytest.approx(e_a / (1 + e_a), rel=1e-6, abs=1e-12)
+
+
+def _table(out: str, n: int) -> list[list[str]]:
+    """The n rows of `check`'s printed per-joint table, split into their cells."""
+    lines = out.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.split()[:2] == ["joint", "w"])
+    return [line.split() for line in lines[head + 1 : head + 1 + n]]
+
+
+def _shown(cell: str, value: float, digits: int) -> None:
+    """A figure printed with ``digits`` significant digits is ``value`` rounded."""
+    assert float(cell) == pytest.approx(value, rel=0.5 * 10 ** (1 - digits) + 1e-9), (cell, value)
+
+
+def test_the_printed_table_is_recomputed_from_the_config_with_pinocchio(capsys):
+    """panda_sine (7 joints; a sine about a posture away from 0; the NDO with Y = I and
+    c = 100; the URDF's joint damping applied by the plant; friction and pulses scaled by
+    M_jj(q0)): every cell of `check`'s table recomputed here from the config's numbers and
+    Pinocchio's CRBA and RNEA: w_j = c (M(q0)^-1)_jj, w Ts, the margin 20 / w_j
+    (0.5 / (1.25 (Ts + Ts)) 1/s with one period unknown), T_b = 1 / (b_j (M(q0)^-1)_jj)
+    and the headroom 1 - max_t |RNEA(r, r', r'') + b r' - d(t)| / effort_j along the
+    closed-form sine r = offset + 0.3 sin(0.2 pi t)."""
+    path = CONFIGS / "panda_sine.toml"
+    config = load_config(path)
+    assert main(["check", str(path), "--no-engine"]) == 0
+    out = capsys.readouterr().out
+    ex = Experiment.from_config(config)
+    model, data = ex.robot.model, ex.robot.model.createData()
+    n, Ts = model.nq, 0.01
+    assert out.splitlines()[0] == "Ts = 0.01 s, latency = 0 s"
+    offset = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+    w0 = 2 * math.pi * 0.1
+    M0 = pin.crba(model, data, offset)
+    M0 = np.triu(M0) + np.triu(M0, 1).T
+    Minv = np.linalg.inv(M0)
+    w = 100.0 * np.diag(Minv)
+    b = np.asarray(model.damping, dtype=float)
+    assert np.all(b > 0) and config.plant.joint_dynamics and config.plant.effort_limit is None
+    # the torque along the reference, every Ts/8, r'' in closed form
+    t = np.arange(0.0, 10.0 + 1e-9, Ts / 8)
+    k = np.diag(M0)  # scale = "inertia"
+    centres = np.arange(1.0, 8.0)
+    need = np.zeros(n)
+    for tk in t:
+        s, c = math.sin(w0 * tk), math.cos(w0 * tk)
+        q, dq, ddq = offset + 0.3 * s, np.full(n, 0.3 * w0 * c), np.full(n, -0.3 * w0 * w0 * s)
+        d = -k * (2.0 * dq + 0.5 * np.sign(dq)) + k * np.exp(-((tk - centres) ** 2) / 0.18)
+        need = np.maximum(need, np.abs(pin.rnea(model, data, q, dq, ddq) + b * dq - d))
+    headroom = 1.0 - need / np.asarray(model.effortLimit, dtype=float)
+    rows = _table(out, n)
+    for j, row in enumerate(rows):
+        assert row[0] == ex.robot.joint_names[j]
+        _shown(row[1], w[j], 3)
+        _shown(row[2], w[j] * Ts, 3)
+        assert row[3].endswith("x")
+        _shown(row[3][:-1], 20.0 / w[j], 2)
+        _shown(row[4], 1.0 / (b[j] * Minv[j, j]), 3)
+        assert row[6] == "%" and abs(float(row[5]) - 100 * headroom[j]) <= 0.5 + 1e-3, (
+            row, 100 * headroom[j])  # fmt: skip
+
+
+@pytest.mark.parametrize("periods", [0.25, 0.5])
+def test_an_observer_unstable_without_the_latency_is_not_blamed_on_the_latency(periods):
+    """The explicit observer at c = 50 (joint 3's w Ts = 2.9 >= 2: its own pole outside
+    the unit circle without any latency) with a fraction of a period declared: one
+    problem, the explicit form's, fixed by the implicit form; the whole loop growing with
+    the latency too is no finding of the latency's (setting it to 0 would not help)."""
+    config = _paper(50.0)
+    cc = config.controller
+    cc = replace(cc, latency=periods * 0.01,
+                 observer=replace(cc.observer, discretization="explicit"))  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)
+        report = check_config(replace(config, controller=cc), engines=False)
+    assert report.bandwidth[2] * 0.01 >= 2.0
+    assert report.fixes == [{"controller.observer.discretization": "implicit"}], report.problems
+    assert not any(p.startswith("latency") for p in report.problems)
+    fixed = check_config(apply_fix(replace(config, controller=cc), report.fixes[0]), engines=False)
+    assert fixed.problems == []

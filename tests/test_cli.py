@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import csv
+import math
 import re
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -172,6 +174,10 @@ BAD_INPUTS = {
         lambda tmp: ["run", str(CONFIGS / "paper_combined.toml"), "--duration", "-1"],
         "--duration",
     ),
+    "zero duration": (  # the boundary: no simulated time is no run
+        lambda tmp: ["run", str(CONFIGS / "paper_combined.toml"), "--duration", "0"],
+        "--duration: expected a number of seconds > 0, got 0.0",
+    ),
     "unreachable goal": (
         lambda tmp: ["run", str(_unreachable(tmp)), "--out", str(tmp / "o")],
         "cannot reach tool (4, 0)",
@@ -328,3 +334,134 @@ def test_run_and_replay_a_panda_with_locked_fingers(tmp_path, capsys):
     # the fingers are locked, not dropped: their meshes are in the scene
     assert any("panda_leftfinger" in p for p in objects), objects
     assert any("panda_link7" in p for p in objects)
+
+
+def test_a_warning_of_the_urdf_loaded_twice_is_printed_once(tmp_path, capsys):
+    """`init` loads the arm's URDF more than once (without the command line's
+    once-per-message rule its warning is printed twice): a link breaking the triangle
+    inequality (I1 + I2 = 0.100001 < I3 = 0.28) warns once, as one ``warning:`` line on
+    stderr, and the config is written (exit 0)."""
+    text = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
+    bad = 'iyy="0.1" iyz="0" izz="0.28125"/>'
+    text = text.replace('iyy="0.28125" iyz="0" izz="0.28125"/>', bad, 1)
+    assert bad in text
+    urdf = _write(tmp_path / "arm.urdf", text)
+    out = tmp_path / "arm.toml"
+    assert main(["init", str(urdf), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "triangle inequality" in line]
+    assert len(lines) == 1 and lines[0].startswith("warning: ") and "'link1'" in lines[0], err
+    assert out.is_file()
+
+
+@pytest.mark.parametrize("command, rate", [("ros", 150.0), ("ros-arm", 150.0),
+                                           ("ros-arm", 300.0)])  # fmt: skip
+def test_a_ros_rate_that_does_not_fit_is_named_ros_rate_before_anything_runs(
+    tmp_path, command, rate
+):
+    """[ros] rate = 150 Hz is 1.5 control periods of 10 ms (the controller node, `ros`,
+    and the arm node, `ros-arm`); 300 Hz divides Ts but is no whole number of the arm's
+    plant.dt = 1 ms (`ros-arm`): exit 2, one ``error: ros.rate:`` line (not realtime.rate
+    nor plant.dt's own error) naming the rate, and for the arm node its period and the
+    nearest rates that are whole numbers of plant.dt, 1/(k dt); nothing printed before it,
+    no --out folder. In a private network namespace: a node that started anyway would
+    speak DDS."""
+    from .test_ros import _netns_reason
+
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    text = (CONFIGS / "panda_sine.toml").read_text() + f"\n[ros]\nrate = {rate}\n"
+    cfg = _write(tmp_path / "arm.toml", text)
+    out = tmp_path / "out"
+    args = [command, str(cfg), "--duration", "0.1"] + (
+        ["--out", str(out)] if command == "ros" else []
+    )
+    script = f"ip link set lo up && exec {sys.executable} -m hmpc_pin {' '.join(args)}"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    err = proc.stderr.strip()
+    assert err.startswith("error: ros.rate: ") and len(err.splitlines()) == 1, err
+    assert "realtime.rate" not in err and "plant.dt=" not in err, err
+    assert proc.stdout == "" and not out.exists(), proc.stdout
+    if command == "ros-arm":  # one sentence: the rate, its period, what is expected
+        k = math.floor(1.0 / rate / 1e-3)  # plant.dt = 1 ms
+        near = " or ".join(f"{1.0 / (m * 1e-3):g} Hz" for m in (k, k + 1))
+        assert err == (
+            f"error: ros.rate: {rate:g} Hz gives the arm node a period 1/rate = {1 / rate:g} s "
+            "that is not a whole number of the plant's steps (plant.dt = 0.001 s); expected "
+            f"a rate 1/(k plant.dt) with k = 1, 2, ..., e.g. {near}"
+        ), err
+
+
+@pytest.mark.parametrize("command", ["ros-arm", "ros"])
+def test_a_ros_run_shorter_than_one_period_is_refused_before_any_node(tmp_path, command):
+    """[ros] rate = 0.5 Hz: a --duration of 0.1 s is no period of 2 s (it would run
+    round(0.1 * 0.5) = 0 steps and exit 0 as if it had run): exit 2, one line naming
+    --duration, the period 1/ros.rate and what is expected; 2 s (one period) is accepted by
+    the check (`ros-arm` then refuses nothing more and would start; not run here). In a
+    private network namespace: a node that started anyway would speak DDS."""
+    from .test_ros import _netns_reason
+
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    text = (CONFIGS / "panda_sine.toml").read_text() + "\n[ros]\nrate = 0.5\n"
+    cfg = _write(tmp_path / "arm.toml", text)
+    out = tmp_path / "out"
+    args = [command, str(cfg), "--duration", "0.1"] + (
+        ["--out", str(out)] if command == "ros" else []
+    )
+    script = f"ip link set lo up && exec {sys.executable} -m hmpc_pin {' '.join(args)}"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    err = proc.stderr.strip()
+    assert err == (
+        "error: --duration: expected at least one period of the node, 1/ros.rate = 2 s "
+        "([ros] rate = 0.5 Hz), got 0.1 s; lengthen it or raise [ros] rate"
+    ), err
+    assert proc.stdout == "" and not out.exists(), proc.stdout
+
+
+def test_a_ros_run_length_and_the_arm_nodes_rate_are_checked_against_the_period(tmp_path):
+    """The checks behind the two refusals, without a node: a run of at least one period
+    1/rate passes (the period itself too, to rounding), a shorter one is refused under the
+    key given; a rate 1/(k dt) of the plant's fixed step passes, another names ros.rate."""
+    from hmpc_pin.apps.ros import check_arm_rate, check_run_length
+    from hmpc_pin.exceptions import ConfigError
+
+    check_run_length(2.0, 0.5, "--duration")
+    check_run_length(0.1, 10.0, "--duration")  # 1/10 s, computed as 0.1 again
+    with pytest.raises(ConfigError, match=r"^simulation\.duration: .*1/ros\.rate = 0\.5 s"):
+        check_run_length(0.499, 2.0, "simulation.duration")
+    base = hmpc_pin.load_config(CONFIGS / "panda_sine.toml")
+    dt = base.plant.dt
+    for k in (1, 3, 7):
+        check_arm_rate(replace(base, ros=replace(base.ros, rate=1.0 / (k * dt))))
+    with pytest.raises(ConfigError, match=r"^ros\.rate: 300 Hz .*plant\.dt = 0\.001 s"):
+        check_arm_rate(replace(base, ros=replace(base.ros, rate=300.0)))
+
+
+def test_init_writes_the_duration_it_is_given(tmp_path, capsys):
+    """``init --duration 3`` writes simulation.duration = 3 s (10 s without it)."""
+    for argv, expected in (([], 10.0), (["--duration", "3"], 3.0)):
+        out = tmp_path / f"p{len(argv)}.toml"
+        assert main(["init", "planar3", "--out", str(out), *argv]) == 0
+        assert hmpc_pin.load_config(out).simulation.duration == expected
+
+
+@pytest.mark.parametrize("priority, ok", [(0, True), (1, True), (99, True), (-1, False),
+                                          (100, False)])  # fmt: skip
+def test_priority_zero_is_off_and_1_to_99_are_sched_fifo(priority, ok):
+    """--priority 0 turns SCHED_FIFO off (accepted), 1..99 are its priorities; anything
+    else is refused naming --priority."""
+    from hmpc_pin.apps.cli import _checked_priority
+    from hmpc_pin.exceptions import ConfigError
+
+    if ok:
+        assert _checked_priority(priority) == priority
+    else:
+        with pytest.raises(ConfigError, match=r"--priority.*0 \(off\) or 1\.\.99"):
+            _checked_priority(priority)

@@ -188,6 +188,16 @@ CASES = {
         ["controller.Q", "non-zero"],
     ),
     "R zero": (lambda tmp: _sub("R = 1e-6", "R = 0.0"), ConfigError, ["controller.R", "> 0"]),
+    "R a boolean": (  # TOML's true is no number (Python's bool would pass as 1)
+        lambda tmp: _sub("R = 1e-6", "R = true"),
+        ConfigError,
+        ["controller.R", "expected a number, got bool True"],
+    ),
+    "Q infinite": (
+        lambda tmp: _sub("Q = [50.0, 0.0]", "Q = [inf, 1.0]"),
+        ConfigError,
+        ["controller.Q", "expected finite numbers"],
+    ),
     "R negative": (lambda tmp: _sub("R = 1e-6", "R = -1e-6"), ConfigError, ["controller.R", "> 0"]),
     "initial state outside joint limits": (
         lambda tmp: _sub("q0 = [1.0, 1.0, 1.0]", "q0 = [1.0, 1.7, 1.0]"),
@@ -228,6 +238,23 @@ CASES = {
         lambda tmp: _sub("mass = [0.8, 1.2]", "mass = [1.2, 0.8]"),
         ConfigError,
         ["sweep.mass", "low <= high"],
+    ),
+    # an infinite number (TOML's inf) is no more a setting than nan: refused as not finite
+    "gain infinite": (
+        lambda tmp: _sub("gain = 100.0", "gain = inf"),
+        ConfigError,
+        ["controller.observer.gain", "finite", "inf"],
+    ),
+    "R minus infinite": (
+        lambda tmp: _sub("R = 1e-6", "R = -inf"),
+        ConfigError,
+        ["controller.R", "finite", "-inf"],
+    ),
+    # a bandwidth of exactly 0 on one joint: no observer there, not a positive bandwidth
+    "bandwidth zero on one joint": (
+        lambda tmp: _sub("gain = 100.0", "bandwidth = [20.0, 0.0, 20.0]"),
+        ConfigError,
+        ["controller.observer.bandwidth", "values > 0", "[20.0, 0.0, 20.0]"],
     ),
 }
 

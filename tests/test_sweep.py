@@ -316,3 +316,66 @@ def test_interface_rate_must_divide_the_period_before_any_run(short_config):
     cfg = replace(short_config, sweep=SweepConfig(sensing=SensingConfig(rate=250.0)))
     with pytest.raises(ConfigError, match="interface periods"):
         run_sweep(cfg, 1, progress=False)
+
+
+def test_hmpc_is_told_the_latency_plus_the_whole_period_delay_in_seconds(short_config):
+    """With ``known_latency`` the hmpc variants compensate the interface's latency plus its
+    ``delay`` whole control periods: L = latency + delay Ts [s], under the conditions
+    that model timing only."""
+    from hmpc_pin.apps.sweep import _told_latency
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+
+    Ts = short_config.controller.Ts
+    sensing = SensingConfig(latency=0.002, delay=3)
+    sweep = replace(short_config.sweep, sensing=sensing, q_noise=None, dq_noise=None, delay=None)
+    cfg = replace(short_config, sweep=sweep)
+    for condition, expected in (("all", 0.002 + 3 * Ts), ("latency", 0.002 + 3 * Ts),
+                                ("plant", short_config.controller.latency)):  # fmt: skip
+        told = _told_latency(cfg, condition).controller.latency
+        assert told == pytest.approx(expected, rel=1e-12) if expected else not told
+
+
+def test_a_run_that_stopped_early_is_not_bounded_however_small_its_error(short_config):
+    """Bounded means completed and max |e| <= error_bound: a run that diverged and stopped
+    (its explicit observer with the gain c = 3/Ts, far outside its stable range) is not
+    bounded even under an error bound it never reached."""
+    cc = short_config.controller
+    obs = replace(cc.observer, gain=3.0 / cc.Ts, discretization="explicit")
+    cfg = replace(short_config, controller=replace(cc, observer=obs),
+                  sweep=replace(short_config.sweep, error_bound=1e12, after=0.0))  # fmt: skip
+    row = run_sample(cfg, draw_samples(cfg, 1, 0)[0], "ndo", "plant")
+    assert not row["complete"] and row["t_end"] < 1.5
+    assert np.isfinite(row["max_error"]) and row["max_error"] < 1e12
+    assert row["bounded"] is False
+
+
+def test_saturation_is_the_share_of_periods_with_any_joint_clipped():
+    """A period counts when the plant clipped the torque of some joint (not all of them):
+    10 periods, joint 2 clipped in periods 2 and 5, every joint in period 7 -> 3/10; the
+    total variation per second from the commanded torques' differences."""
+    from types import SimpleNamespace
+
+    from hmpc_pin.apps.sweep import torque_effort
+
+    t = np.linspace(0.0, 0.9, 10)
+    tau = np.outer(np.arange(10.0), [1.0, -2.0, 0.5])
+    applied = tau.copy()
+    applied[[2, 5], 1] = 0.0
+    applied[7] = 0.0
+    effort = torque_effort(SimpleNamespace(t=t, tau=tau, tau_applied=applied))
+    assert effort["saturation"] == pytest.approx(0.3)
+    assert effort["torque_tv"] == pytest.approx(9 * (1.0 + 2.0 + 0.5) / 0.9)
+
+
+def test_a_sample_is_finished_when_every_variant_ran_under_every_condition(short_config):
+    """Two variants under two conditions: a sample is finished with its 4 runs, not with
+    3; the interrupted summary counts samples and runs so."""
+    from hmpc_pin.apps.sweep import SweepResult
+
+    sweep = replace(short_config.sweep, variants=("hmpc+chen", "hmpc+none"),
+                    conditions=("sensing", "all"))  # fmt: skip
+    cfg = replace(short_config, sweep=sweep)
+    rows = [{"sample": 0}] * 4 + [{"sample": 1}] * 3
+    result = SweepResult(cfg, 2, 0, rows, interrupted=True)
+    assert result.planned_runs == 8 and result.finished_samples == 1
+    assert "1 of 2 samples finished (7 of 8 runs)" in result._interrupted_lines()[0]

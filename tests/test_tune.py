@@ -101,6 +101,12 @@ def test_a_real_trial_runs_the_sweep(tmp_path, friction_config, capsys):
     assert code == 0
     out = capsys.readouterr().out
     assert "held-out samples: p95 worst-joint RMS" in out
+    # the report's ratio is the shipped config's p95 over the tuned one's, from its table
+    report = (tmp_path / "out" / "paper_friction_tune.md").read_text()
+    p95 = {row.split("|")[1].strip(): float(row.split("|")[2]) for row in report.splitlines()
+           if row.startswith(("| shipped |", "| tuned |"))}  # fmt: skip
+    ratio = float(report.split("Shipped / tuned p95: ")[1].split()[0].rstrip("."))
+    assert ratio == pytest.approx(p95["shipped"] / p95["tuned"], rel=2e-3), report
     tuned = load_config(tmp_path / "out" / "paper_friction_tuned.toml")
     assert (
         Experiment.from_config(replace(tuned, simulation=replace(tuned.simulation, duration=0.3)))
@@ -206,7 +212,7 @@ def test_sigint_through_the_command_line(tmp_path):
     config = _short_config(tmp_path)
     out = tmp_path / "out"
     proc, err = _start(["tune", str(config), "--trials", "200", "--samples", "1", "--jobs",
-                        "1", "--duration", "1.5", "--holdout", "0", "--out", str(out),
+                        "1", "--duration", "1.5", "--holdout", "1", "--out", str(out),
                         "--quiet"], tmp_path)  # fmt: skip
     db = out / "paper_friction_tune.db"
 
@@ -227,6 +233,11 @@ def test_sigint_through_the_command_line(tmp_path):
     line = _last_line(stderr)
     assert line.startswith("interrupted at trial") and "paper_friction_tuned.toml" in line, line
     assert load_config(out / "paper_friction_tuned.toml").controller.Q.shape == (2, 2)
+    # the report of the trials done; Ctrl-C also stops what was to follow them (the
+    # held-out comparison of --holdout 1 is not run after it)
+    report = (out / "paper_friction_tune.md").read_text()
+    assert "Interrupted (Ctrl-C) at trial" in report and "Held-out comparison" not in report
+    assert "paper_friction_tune.md" in line
 
 
 @pytest.mark.parametrize(
@@ -380,6 +391,21 @@ def test_the_observer_gains_range_is_a_tenth_to_five_times_the_configs(friction_
     assert kind == "log" and low == pytest.approx(c0 / 10) and high == pytest.approx(5 * c0)
 
 
+def test_a_bandwidths_range_is_a_tenth_to_five_times_the_configs_largest(tmp_path):
+    """An observer given by per-joint bandwidths [10, 15, 20] 1/s: the trials scale them
+    together by the largest, log-uniform on [20/10, 5 x 20] = [2, 100] 1/s, the gain's
+    range relative to the config's."""
+    text = (CONFIGS / "paper_friction.toml").read_text()
+    urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
+    text = text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"')
+    text = text.replace('kind = "chen"', 'kind = "general"')
+    text = text.replace("gain = 100.0", "bandwidth = [10.0, 15.0, 20.0]")
+    path = tmp_path / "bw.toml"
+    path.write_text(text)
+    kind, low, high = search_space(load_config(path))["observer_bandwidth"]
+    assert kind == "log" and low == pytest.approx(2.0) and high == pytest.approx(100.0)
+
+
 def test_trial_zero_starts_at_the_period_nearest_the_configs(friction_config):
     """--ts choices: trial 0 records the config's own Ts where it is listed, else the
     nearest listed period (not the first)."""
@@ -471,3 +497,53 @@ def test_trial_0_keeps_the_configs_observer_when_it_is_listed(observers, first, 
     assert friction_config.controller.compensation == "chen"
     space = search_space(friction_config, observers=observers)
     assert current_params(friction_config, space)["compensation"] == first
+
+
+def test_apply_params_keeps_the_configs_own_value_of_each_parameter_not_given(
+    friction_config,
+):
+    """A partial parameter set (library use: only R) keeps every other value of the
+    config: Q's diagonal as it is (each entry its own), P = 2Q."""
+    cc = friction_config.controller
+    Q = np.diag([400.0, 3.0])  # different entries: a mix-up of the two shows
+    config = replace(friction_config, controller=replace(cc, Q=Q, P=2 * Q))
+    new = apply_params(config, {"R": 1e-6}).controller
+    np.testing.assert_array_equal(new.Q, Q)
+    np.testing.assert_array_equal(new.P, 2 * Q)
+    assert new.R == 1e-6 and new.N == cc.N and new.Ts == cc.Ts
+    new = apply_params(config, {"Q_position": 50.0}).controller
+    np.testing.assert_array_equal(new.Q, np.diag([50.0, 3.0]))
+
+
+def test_a_study_resumed_with_another_seed_is_refused(tmp_path, friction_config):
+    """The study's samples are drawn from --seed: resuming it with another seed would mix
+    two sets of plants in one ranking; refused naming both options, the study untouched."""
+    from hmpc_pin.exceptions import ConfigError
+
+    tune(friction_config, tmp_path, trials=2, seed=1, objective=_toy, holdout=0, progress=False)
+    with pytest.raises(ConfigError, match=r"--samples/--seed.*--seed 1"):
+        tune(friction_config, tmp_path, trials=1, seed=2, objective=_toy, holdout=0,
+             progress=False)  # fmt: skip
+    resumed = tune(friction_config, tmp_path, trials=1, seed=1, objective=_toy, holdout=0,
+                   progress=False)  # fmt: skip
+    assert len(resumed.study.trials) == 3
+
+
+def test_the_held_out_table_and_ratio_of_the_report(tmp_path, friction_config):
+    """The report's held-out section: each config's p95 [rad], bounded share and saturation
+    in percent, and the ratio shipped / tuned (4 for 0.04 rad against 0.01 rad)."""
+    from hmpc_pin.apps.tune import _report
+
+    result = tune(friction_config, tmp_path, trials=2, seed=1, objective=_toy, holdout=0,
+                  progress=False)  # fmt: skip
+
+    def parts(p95, bounded, saturation):
+        return {"p95_rms": p95, "bounded": bounded, "saturation": saturation, "torque_tv": 1.0}
+
+    comparison = {"shipped": parts(0.04, 0.5, 0.25), "tuned": parts(0.01, 1.0, 0.0)}
+    _report(friction_config, result.study, result.best, tmp_path, comparison, 8, 1, 8, 2)
+    report = (tmp_path / "paper_friction_tune.md").read_text()
+    assert "## Held-out comparison: 8 other samples (seed 2)" in report
+    assert "| shipped | 0.04 | 50 % | 25.00 % | 1 |" in report
+    assert "| tuned | 0.01 | 100 % | 0.00 % | 1 |" in report
+    assert "Shipped / tuned p95: 4." in report

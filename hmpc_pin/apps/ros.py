@@ -12,6 +12,7 @@ cycle) and ``<stem>_ros.json`` (statistics and tracking metrics).
 from __future__ import annotations
 
 import contextlib
+import math
 import queue
 import signal
 import sys
@@ -416,6 +417,62 @@ def format_ros(run: RealtimeRun) -> str:
     return "\n".join(lines)
 
 
+def check_run_length(duration: float, rate: float, key: str) -> None:
+    """A ROS node's run of ``duration`` [s] spans at least one period :math:`1/r` of
+    ``[ros] rate`` :math:`r` [Hz] (it runs :math:`\\mathrm{round}(d\\,r)` periods: a
+    shorter run would step nothing and exit as if it had run).
+
+    Raises:
+        ConfigError: ``duration`` is shorter than one period (named ``key``).
+    """
+    period = 1.0 / rate
+    if not duration >= period * (1.0 - 1e-9):
+        raise ConfigError(
+            key,
+            f"expected at least one period of the node, 1/ros.rate = {period:g} s "
+            f"([ros] rate = {rate:g} Hz), got {duration:g} s; lengthen it or raise [ros] rate",
+        )
+
+
+def _fixed_plant_step(config: ExperimentConfig) -> tuple[str, float] | None:
+    """The key and value [s] of the plant's fixed step (``plant.dt``, MuJoCo's
+    ``plant.mujoco.timestep``), or ``None`` when ``plant.tolerance`` chooses it per
+    period (a whole fraction of that period, whatever it is)."""
+    pc = config.plant
+    if pc.engine == "mujoco":
+        return "plant.mujoco.timestep", float(pc.mujoco.timestep)
+    if pc.tolerance is None:
+        return "plant.dt", float(pc.dt)
+    return None
+
+
+def check_arm_rate(config: ExperimentConfig) -> None:
+    """``ros-arm`` advances its plant by one period :math:`P = 1/r` of ``[ros] rate`` per
+    joint state: :math:`P` must be a whole number :math:`k \\ge 1` of the plant's fixed
+    step :math:`h`, i.e. :math:`r = 1/(k h)`.
+
+    Raises:
+        ConfigError: ``ros.rate`` whose period is no whole number of steps, naming the
+            rate, the step and the nearest rates that are.
+    """
+    fixed = _fixed_plant_step(config)
+    if fixed is None:
+        return
+    key, h = fixed
+    rate, P = config.ros.rate, config.ros.period
+    k = round(P / h)
+    if k >= 1 and abs(k * h - P) <= 1e-9 * P:
+        return
+    near = sorted({max(1, math.floor(P / h)), max(1, math.ceil(P / h))})
+    rates = " or ".join(f"{1.0 / (m * h):g} Hz" for m in near)
+    raise ConfigError(
+        "ros.rate",
+        f"{rate:g} Hz gives the arm node a period 1/rate = {P:g} s that is not a whole "
+        f"number of the plant's steps ({key} = {h:g} s); expected a rate 1/(k {key}) "
+        f"with k = 1, 2, ..., e.g. {rates}",
+    )
+
+
 def run_ros_arm(
     config: ExperimentConfig, duration: float | None = None, ros_args: list[str] | None = None
 ) -> dict:
@@ -423,9 +480,17 @@ def run_ros_arm(
     until ``duration`` [s] (``None``: until SIGINT or SIGTERM); under ``SCHED_FIFO``
     with ``[realtime] priority`` > 0.
 
+    The node runs :math:`\\mathrm{round}(d\\,r)` periods of ``[ros] rate`` r for a
+    ``duration`` d.
+
     Returns:
         The node's counts (``steps``, ``late``, ``commands``, ``rejected``) and
         ``"interrupted"`` (stopped by SIGINT).
+
+    Raises:
+        ConfigError: Before rclpy starts: ``ros.rate`` whose period is no whole number of
+            the plant's steps (:func:`check_arm_rate`), a ``duration`` shorter than one
+            period (:func:`check_run_length`), ``realtime.gravity`` against ``ros.gravity``.
     """
     with fifo_priority(config.realtime.priority):
         return _run_ros_arm(config, duration, ros_args)
@@ -437,13 +502,11 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
 
     rc = config.ros
     check_gravity(config)
+    check_arm_rate(config)
+    if duration is not None:
+        check_run_length(duration, rc.rate, "--duration")
     experiment = Experiment.from_config(config)
-    try:
-        plant = experiment.make_plant(rc.period)  # checks that plant.dt divides the period
-    except ConfigError as exc:
-        raise ConfigError(
-            "ros.rate", f"the arm node's period 1/rate = {rc.period:g} s: {exc.message}"
-        ) from None
+    plant = experiment.make_plant(rc.period)
     ros = RosNode(
         rc.arm_node,
         rc.namespace,
@@ -514,7 +577,11 @@ def ros_arguments(ros) -> None:
         "`realtime`: exit 130 on Ctrl-C, 1 on a fault or a watchdog stop."
     )
     ros.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
-    ros.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
+    ros.add_argument(
+        "--duration",
+        type=float,
+        help="run length [s] (overrides the config); at least one period 1/[ros] rate",
+    )
     ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     _add_node_options(ros)
 
@@ -529,7 +596,12 @@ def ros_arm_arguments(arm) -> None:
         "(exit 130) or --duration."
     )
     arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
-    arm.add_argument("--duration", type=float, help="stop after this long [s] [until Ctrl-C]")
+    arm.add_argument(
+        "--duration",
+        type=float,
+        help="stop after this long [s], rounded to whole periods 1/[ros] rate; shorter "
+        "than one period is refused (exit 2) [until Ctrl-C]",
+    )
     _add_node_options(arm)
 
 

@@ -157,6 +157,7 @@ void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVe
   }
   limits = true;
   soft_shortcut_ = false;
+  soft_last_.assign(n, 0);
   if (T.size() == 0) return;
   if (T.rows() != Nc || T.cols() != Nc || E.rows() != 2 * N || E.cols() != Nc ||
       Hp.rows() != Nc || Hp.cols() != Nc)
@@ -455,13 +456,24 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
   for (int i = 0; i < n; ++i) {
     bool outside = always_constrained;
     if (!outside) {
-      X_.noalias() = Phi_.col(0) * q[i] + Phi_.col(1) * dq[i];
-      X_.noalias() += Gamma_ * U.col(i);
+      // X = Φ x0 + Γ U by the recursion x_{j+1} = A x_j + B u_min(j, Nc−1) (Eq 24; A, B
+      // the first rows of Φ and Γ): O(N) where Γ U costs N·Nc.
+      const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+      const double b0 = Gamma_(0, 0), b1 = Gamma_(1, 0);
       const double m = mid_[i];
-      for (int j = 0; j < N && !outside; ++j)
-        outside = std::abs(X_[2 * j] - m) > half_[i] || std::abs(X_[2 * j + 1]) > vel_[i];
+      double x = q[i], v = dq[i];
+      for (int j = 0; j < N && !outside; ++j) {
+        const double u = U(std::min(j, Nc - 1), i);
+        const double xn = a00 * x + a01 * v + b0 * u;
+        v = a10 * x + a11 * v + b1 * u;
+        x = xn;
+        outside = std::abs(x - m) > half_[i] || std::abs(v) > vel_[i];
+      }
     }
-    if (!outside) continue;
+    if (!outside) {
+      soft_last_[i] = 0;
+      continue;
+    }
     constrained_last = true;
     for (int j = 0; j < N; ++j) {
       q_free_[j] = Phi_(2 * j, 0) * q[i] + Phi_(2 * j, 1) * dq[i];
@@ -474,6 +486,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       U.col(i) = y_soft_.head(Nc);
       slack[i] = y_soft_[Nc] * k_slack_;
       ++soft_active_set_solves;
+      soft_last_[i] = 1;
       continue;
     }
     soft_bounds(i, q_free_, v_free_);
@@ -484,7 +497,9 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
     if (qp.results.info.status != pqp::QPSolverOutput::PROXQP_SOLVED) return fail(i, qp.results);
     U.col(i) = qp.results.x.head(Nc);
     slack[i] = std::max(qp.results.x[Nc], 0.0) * k_slack_;
-    if (soft_shortcut_ && soft_active_set_iter >= 0) soft_guess_from(i, qp.results.x, false);
+    if (soft_shortcut_ && soft_active_set_iter >= 0)
+      soft_guess_from(i, qp.results.x, false, false);
+    soft_last_[i] = 1;
   }
   return true;
 }

@@ -15,8 +15,9 @@
 // (made on first use), and the warm QP restarted from that solution. With soft state limits,
 // a joint whose box-only prediction X = Φ x0 + Γ U leaves them is solved again with the soft
 // constraints (hmpc_pin.mpc.condensed, module docstring): first by the soft active-set
-// shortcut (the last soft solution's active set, shifted one step along the horizon or as it
-// stands, or the box-only solution's with the rows it violates, refined by primal-dual
+// shortcut (the last step's soft solution's active set, shifted one step along the horizon
+// or as it stands; failing those or at a new activation, the box-only solution's with the
+// rows it violates and the inputs next to them freed, refined by primal-dual
 // exchanges; each equality-constrained QP solved in the banded coordinates p of
 // hmpc_pin.mpc.condensed.CondensedMPC.banded, U = T p, by an envelope LDLᵀ of its KKT
 // matrix in O(N)), answering only when its point passes the soft QP's KKT test to the
@@ -133,7 +134,7 @@ class JointQPs {
   bool soft_exchange(int i, int exchanges);
   bool soft_kkt(int i);
   void soft_solve();
-  void soft_guess_from(int i, const Vec& y, bool box_only);
+  void soft_guess_from(int i, const Vec& y, bool box_only, bool slack_free);
 
   Mat H_, H_block_, neg_Hinv_;
   Vec v_min_, v_max_, g_block_, g_;
@@ -158,6 +159,7 @@ class JointQPs {
   std::vector<std::vector<int>> rows_by_last_;
   std::vector<std::vector<signed char>> guess_rows_, guess_box_;
   std::vector<signed char> guess_slack_, has_guess_;
+  std::vector<signed char> soft_last_;  // per joint: its soft QP solved at the last step
   std::vector<signed char> st_rows_, st_box_;
   signed char st_slack_ = 0;
   bool dropped_ = false;

@@ -250,7 +250,8 @@ bool JointQPs::fail(int joint, const Results& res) {
 // Joint i's box QP answered without ProxSuite. Guesses of the active set: the last
 // solution's shifted one step along the horizon (right in a closed loop, where the plan
 // advances one step per period) with one active-set exchange, then the last solution's as it
-// stands (right when the error persists) with up to active_set_iter exchanges (free inputs
+// stands (right when the error persists) with up to active_set_iter exchanges, then the
+// bounds the unconstrained minimiser crosses with 4·active_set_iter (free inputs
 // outside the box fixed at the bound they cross, fixed inputs whose multiplier has the wrong
 // sign freed). Each guess fixes its active inputs at their bounds and solves
 // H_FF u_F = −(g_F + H_FA u_A) for the free ones (or, with fewer active than free inputs,
@@ -272,7 +273,10 @@ bool JointQPs::active_set(int i) {
     }
     if (exchange(i, shifted ? std::min(1, active_set_iter) : active_set_iter)) return true;
   }
-  return false;
+  // Failing those (a new error, the first step): the bounds that the unconstrained minimiser
+  // u0 crosses, with more exchanges (further off than a last solution's).
+  for (int j = 0; j < Nc; ++j) state_[j] = u0_[j] < lo ? -1 : (u0_[j] > hi ? 1 : 0);
+  return exchange(i, 4 * active_set_iter);
 }
 
 // The active set state_ (−1 lower, +1 upper, 0 free) and up to `exchanges` exchanges.

@@ -7,7 +7,8 @@
 // (one QP per joint; a joint whose unconstrained minimiser −H⁻¹g lies inside its box takes
 // it without a solver call, the exact solution of a convex QP with inactive constraints;
 // failing that, the active set guessed from the last solution shifted one step along the
-// horizon or as it stands, refined by a few primal-dual active-set exchanges, answers when
+// horizon or as it stands, or from the bounds −H⁻¹g crosses, refined by a few primal-dual
+// active-set exchanges, answers when
 // its point passes the KKT test of the box QP to the solver's tolerance). A box QP sent to
 // ProxSuite is warm-started from its last primal and dual solution (shifted one step along
 // the horizon when `shift` is on).

@@ -338,8 +338,8 @@ class JointQPs:
             solver call — the solution of a convex QP whose constraints are inactive; failing
             that, the active-set shortcut: the last solution's active set, shifted one step
             along the horizon or as it stands, refined by up to :attr:`active_set_iter`
-            exchanges, then the bounds :math:`-H^{-1}g` crosses with four times as many, whose point answers only when it passes the box QP's KKT test to
-            ``eps_abs`` — free inputs inside the box with zero gradient, multipliers of the
+            exchanges, then the bounds :math:`-H^{-1}g` crosses with four times as many,
+            whose point answers only when it passes the box QP's KKT test to ``eps_abs`` — free inputs inside the box with zero gradient, multipliers of the
             fixed ones of the right sign, so the QP's minimiser). All
             have the same minimiser (the blocks are independent). The block QP's cost grows with
             (n·Nc)³, the joint QPs' with n·Nc³, and the per-joint shortcuts skip the solver

@@ -341,7 +341,8 @@ class JointQPs:
             exchanges, then the bounds :math:`-H^{-1}g` crosses with four times as many,
             whose point answers only when it passes the box QP's KKT test to ``eps_abs`` —
             free inputs inside the box with zero gradient, multipliers of the fixed ones of
-            the right sign, so the QP's minimiser). All have the same minimiser (the blocks are independent). The block QP's cost grows with
+            the right sign, so the QP's minimiser). All have the same minimiser (the blocks
+            are independent). The block QP's cost grows with
             (n·Nc)³, the joint QPs' with n·Nc³, and the per-joint shortcuts skip the solver
             for most joints: the joint QPs take 0.01–0.4× the block QP's time without soft
             limits (:func:`resolve_layout`). ProxSuite's batch API (``proxqp.dense.BatchQP``, one

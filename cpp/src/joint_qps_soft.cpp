@@ -330,7 +330,7 @@ void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only, bool slack_fr
 
 // Joint i's soft QP answered by the soft active-set shortcut (soft_exchange) from the last
 // soft solution's active set (when the joint's soft QP was solved at the last step) shifted
-// one step along the horizon, then as it stands; failing those, from the box-only
+// one step along the horizon, then as it stands; at a new activation, from the box-only
 // solution's (the rows its prediction violates active, the inputs next to them freed).
 // On success y_soft_ holds the minimiser and the active set is remembered.
 bool JointQPs::soft_active_set(int i) {
@@ -357,12 +357,14 @@ bool JointQPs::soft_active_set(int i) {
       ok = soft_exchange(i, soft_active_set_iter);
     }
   }
-  // The box-only solution's active set, with the rows its prediction violates: ŝ = 0, then
-  // ŝ free (the limits cannot be met). Further off than a last solution's: more exchanges.
-  for (int slack_free = 0; slack_free <= 1 && !ok; ++slack_free) {
+  // At a new activation, the box-only solution's active set, with the rows its prediction
+  // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it
+  // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
+  // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
+  if (!ok && !(has_guess_[i] && soft_last_[i])) {
     y_soft_.head(Nc) = U.col(i);
     y_soft_[Nc] = 0.0;
-    soft_guess_from(i, y_soft_, true, slack_free != 0);
+    soft_guess_from(i, y_soft_, true, false);
     st_rows_ = guess_rows_[i];
     st_box_ = guess_box_[i];
     st_slack_ = guess_slack_[i];

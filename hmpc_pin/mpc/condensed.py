@@ -59,25 +59,24 @@ whose box-only prediction leaves the limits.
 
 Soft active-set shortcut, exact. The soft QP of a long horizon has :math:`N_c + 1`
 variables and :math:`4N` dense rows; ProxSuite needs 1.5–20 ms for one at
-:math:`N = N_c = 100` (cold or warm-started: each solve refactorises a KKT matrix of ~200 rows). Its
-solution's active set moves one step along the horizon per period, so it is guessed (the
-last step's soft solution's, shifted one step or as it stands; at a new activation or
-failing those, the box-only solution's with the rows its prediction violates active and
-the inputs next to them freed, first with the slack at 0, then free) and refined by
-primal-dual exchanges. An input next to a violated state is freed because the limits
-override the box-only solution's bound there: at a velocity limit the acceleration drops
-from its bound to 0, and keeping both the bound and the rows makes them dependent (each
-such pair cost an exchange, and the box-only guess exhausted them). Each guess is an
-equality-constrained QP, solved in the banded coordinates :math:`U = T p` of
-:meth:`CondensedMPC.banded`, where the Hessian :math:`T^T H T` and every constraint row
-(:math:`\\Gamma T`, :math:`T`) are banded: the KKT matrix's LDLᵀ costs O(N). A guess
-answers only when its point passes the soft QP's KKT conditions to the solver's own
-tolerances (``eps_abs`` plus ``eps_rel`` times the size of the terms, as ProxSuite tests
-them: rows and bounds satisfied, zero gradient of the Lagrangian in the free variables,
-multipliers of the right sign): then it is the QP's minimiser. Otherwise ProxSuite solves
-the QP from scratch. Where the optimum is a degenerate vertex (more active rows than
-variables, which the shared slack makes common past the position limits), the exchanges
-may not settle and ProxSuite answers.
+:math:`N = N_c = 100` (cold or warm-started: each solve refactorises a KKT matrix of ~200
+rows). Its solution's active set moves one step along the horizon per period, so it is
+guessed (the last step's soft solution's, shifted one step or as it stands; at a new
+activation, the box-only solution's with the rows its prediction violates active, the
+inputs next to them freed and the slack at 0) and refined by primal-dual exchanges. An
+input next to a violated state is freed because the limits override the box-only
+solution's bound there: at a velocity limit the acceleration drops from its bound to 0,
+and keeping both the bound and the rows makes them dependent (each such pair cost an
+exchange, and the box-only guess exhausted them). Each guess is an equality-constrained
+QP, solved in the banded coordinates :math:`U = T p` of :meth:`CondensedMPC.banded`, where
+the Hessian :math:`T^T H T` and every constraint row (:math:`\\Gamma T`, :math:`T`) are
+banded: the KKT matrix's LDLᵀ costs O(N). A guess answers only when its point passes the
+soft QP's KKT conditions to the solver's own tolerances (``eps_abs`` plus ``eps_rel``
+times the size of the terms, as ProxSuite tests them: rows and bounds satisfied, zero
+gradient of the Lagrangian in the free variables, multipliers of the right sign): then it
+is the QP's minimiser. Otherwise ProxSuite solves the QP from scratch. Where the optimum
+is a degenerate vertex (more active rows than variables, which the shared slack makes
+common past the position limits), the exchanges may not settle and ProxSuite answers.
 """
 
 from __future__ import annotations

@@ -17,8 +17,8 @@
 // a joint whose box-only prediction X = Φ x0 + Γ U leaves them is solved again with the soft
 // constraints (hmpc_pin.mpc.condensed, module docstring): first by the soft active-set
 // shortcut (the last step's soft solution's active set, shifted one step along the horizon
-// or as it stands; failing those or at a new activation, the box-only solution's with the
-// rows it violates and the inputs next to them freed, refined by primal-dual
+// or as it stands; at a new activation, the box-only solution's with the rows it violates
+// and the inputs next to them freed, refined by primal-dual
 // exchanges; each equality-constrained QP solved in the banded coordinates p of
 // hmpc_pin.mpc.condensed.CondensedMPC.banded, U = T p, by an envelope LDLᵀ of its KKT
 // matrix in O(N)), answering only when its point passes the soft QP's KKT test to the

@@ -502,7 +502,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
     U.col(i) = qp.results.x.head(Nc);
     slack[i] = std::max(qp.results.x[Nc], 0.0) * k_slack_;
     if (soft_shortcut_ && soft_active_set_iter >= 0)
-      soft_guess_from(i, qp.results.x, false, false);
+      soft_guess_from(i, qp.results.x, false);
     soft_last_[i] = 1;
   }
   return true;

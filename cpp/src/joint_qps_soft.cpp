@@ -291,9 +291,9 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
 }
 
 // The active set of a solution y = (U, ŝ) of joint i's soft QP (or, with
-// box_only, of its box-only solution: the rows its prediction violates, some inputs freed,
-// ŝ free with slack_free) remembered as the next guess.
-void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only, bool slack_free) {
+// box_only, of its box-only solution: the rows its prediction violates, the inputs next to
+// them freed, ŝ = 0) remembered as the next guess.
+void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only) {
   const double lo = v_min_[i], hi = v_max_[i];
   const double tol = 1e-6 * std::max(1.0, hi - lo);
   auto& box = guess_box_[i];
@@ -310,21 +310,17 @@ void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only, bool slack_fr
                   : ((bnd_lo_[r] - Xs_[r] - ks) * scale >= -row_tol ? -1 : 0);
   }
   if (box_only) {
-    // An input next to a violated state (u_a moves x_{a+1} first) is freed: the limits
-    // override the box-only solution's bound there (e.g. at a velocity limit the
-    // acceleration drops from its bound to 0). Zero slack: an input next to one (a violated
-    // row of x_a or of x_{a+1}); with the slack free, one between two (x_a and x_{a+1}
-    // both violated, u_a then fixed by their rows), the first input of a run keeping its
-    // bound (the slack is the violation that input at its bound leaves).
+    // An input next to a violated state (a violated row of x_a or of x_{a+1}; u_a moves
+    // x_{a+1} first) is freed: the limits override the box-only solution's bound there (e.g.
+    // at a velocity limit the acceleration drops from its bound to 0; rows of x_a and x_{a+1}
+    // fix u_a, so keeping its bound too makes them dependent).
     auto violated = [&](int step) {
       return step >= 1 && step <= N && (rows[2 * (step - 1)] != 0 || rows[2 * (step - 1) + 1] != 0);
     };
     for (int a = 0; a < Nc; ++a)
-      if (box[a] != 0 && (slack_free ? violated(a) && violated(a + 1)
-                                     : violated(a) || violated(a + 1)))
-        box[a] = 0;
+      if (box[a] != 0 && (violated(a) || violated(a + 1))) box[a] = 0;
   }
-  guess_slack_[i] = box_only ? (slack_free ? 1 : 0) : (sh > 1e-9 ? 1 : 0);
+  guess_slack_[i] = !box_only && sh > 1e-9 ? 1 : 0;
   has_guess_[i] = 1;
 }
 
@@ -364,7 +360,7 @@ bool JointQPs::soft_active_set(int i) {
   if (!ok && !(has_guess_[i] && soft_last_[i])) {
     y_soft_.head(Nc) = U.col(i);
     y_soft_[Nc] = 0.0;
-    soft_guess_from(i, y_soft_, true, false);
+    soft_guess_from(i, y_soft_, true);
     st_rows_ = guess_rows_[i];
     st_box_ = guess_box_[i];
     st_slack_ = guess_slack_[i];

@@ -135,7 +135,7 @@ class JointQPs {
   bool soft_exchange(int i, int exchanges);
   bool soft_kkt(int i);
   void soft_solve();
-  void soft_guess_from(int i, const Vec& y, bool box_only, bool slack_free);
+  void soft_guess_from(int i, const Vec& y, bool box_only);
 
   Mat H_, H_block_, neg_Hinv_;
   Vec v_min_, v_max_, g_block_, g_;

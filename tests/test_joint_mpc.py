@@ -627,9 +627,9 @@ def test_auto_layout_resolves_by_problem_size():
     from hmpc_pin.exceptions import ConfigError
     from hmpc_pin.mpc.condensed import AUTO_BLOCK_MAX, resolve_layout
 
-    assert resolve_layout("auto", 7, AUTO_BLOCK_MAX // 7) == "block"
-    assert resolve_layout("auto", 7, AUTO_BLOCK_MAX // 7 + 1) == "joint"
-    assert resolve_layout("auto", 3, 1) == "block"
+    assert AUTO_BLOCK_MAX == 0  # measured: the per-joint layout is faster everywhere
+    for n, Nc in ((1, 1), (3, 1), (7, 5), (7, 100)):
+        assert resolve_layout("auto", n, Nc) == "joint"
     assert resolve_layout("block", 7, 100) == "block"
     assert resolve_layout("joint", 3, 1) == "joint"
     with pytest.raises(ConfigError, match="qp_layout"):
@@ -664,7 +664,8 @@ def recorded_qp_inputs(planar3, N, Nc, steps):
 def test_layouts_give_the_block_solution_on_recorded_gradients(planar3, N, Nc):
     """Block, per-joint and auto layouts: the same inputs (solver tolerance) on the
     gradients and states of a closed-loop run that drives the joints into their soft
-    limits, for a short and a long control horizon (auto = joint at n·Nc = 150)."""
+    limits, for a short and a long control horizon; where no soft QP was solved (Nc <= 5),
+    each equals the box QP's minimiser found by enumerating its active sets."""
     from hmpc_pin.mpc.condensed import resolve_layout
 
     ctrl, inputs = recorded_qp_inputs(planar3, N, Nc, 150)
@@ -675,7 +676,7 @@ def test_layouts_give_the_block_solution_on_recorded_gradients(planar3, N, Nc):
     }
     assert layouts["auto"].layout == resolve_layout("auto", 3, Nc)
     tol = solution_tolerance(ctrl.mpc.H * ctrl.mpc.scale)
-    constrained = 0
+    constrained = box_checked = 0
     for G, x0 in inputs:
         sols = {}
         for name, qps in layouts.items():
@@ -684,7 +685,15 @@ def test_layouts_give_the_block_solution_on_recorded_gradients(planar3, N, Nc):
         constrained += layouts["joint"].constrained
         for name in ("joint", "auto"):
             np.testing.assert_allclose(sols[name], sols["block"], rtol=0, atol=tol)
+        if Nc <= 5 and layouts["joint"].constrained == 0:  # the box QPs' own minimisers
+            for i in range(3):
+                exact = brute_force_box_qp(ctrl.mpc.H, G[i], np.full(Nc, v_min[i]),
+                                           np.full(Nc, v_max[i]))  # fmt: skip
+                for name, U in sols.items():
+                    np.testing.assert_allclose(U[:, i], exact, rtol=0, atol=tol, err_msg=name)
+                box_checked += 1
     assert constrained > 0  # the soft state constraints were exercised
+    assert Nc > 5 or box_checked > 0
 
 
 def test_solve_without_states_is_refused_when_limits_are_set():
@@ -988,3 +997,56 @@ def test_long_horizon_soft_limits_satisfy_kkt_and_equal_cold_solves(case):
         assert positive_slack > 0  # the hard constraints were infeasible somewhere
     else:
         assert qps.soft_active_set_solves >= soft_steps // 2  # the shortcut answered
+
+
+@pytest.mark.parametrize("case", ["1 ms, N = 100, velocity limits"])
+def test_first_step_of_each_soft_activation_is_answered_by_the_shortcut(case):
+    """Each activation of the soft limits (a joint's first soft QP after a step without
+    one) is answered by the soft active-set shortcut at its first step, with a solution that
+    satisfies the soft QP's KKT conditions (:func:`own_soft_qp`) and equals the soft QP
+    solved from scratch by ProxSuite to the solver's tolerance. Activations: the states put
+    off a sine (amplitude 0.1 rad, 1 Hz, its velocity inside the limit): the way back at
+    the bound on v leaves the velocity limit, which the inputs can meet (zero slack, the
+    Panda's start 0.2 rad off); in between, a step at rest on a reference at rest (no soft
+    QP)."""
+    Ts, N, offset, (lo, hi, vel) = SOFT_LONG[case]
+    n = 3
+    mpc = CondensedMPC(Ts, N, N, Q_PAPER, R_PAPER, P_PAPER)
+    limits = StateLimits(np.full(n, lo), np.full(n, hi), np.full(n, vel), SOFT["rho2"],
+                         SOFT["rho1"])  # fmt: skip
+    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    cold = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    cold.soft_active_set_iter = -1  # every soft QP solved from scratch by ProxSuite
+    phase = np.array([0.0, 1.0, 2.0])
+    w = 2.0 * np.pi
+
+    def reference(t):  # r, ṙ of the sine, shape (2, n)
+        return np.vstack([0.1 * np.sin(w * t + phase), 0.1 * w * np.cos(w * t + phase)])
+
+    tol_kkt, tol = 100.0 * EPS_ABS, solution_tolerance(mpc.H)
+    activations = 0
+    for k, kick in enumerate((offset, None, -offset, None, 0.7 * offset, None, -offset)):
+        t = 0.07 * k
+        if kick is None:  # at rest on a reference at rest: U = 0, no soft QP
+            qps.solve(np.zeros((n, N)), np.zeros((2, n)))
+            assert qps.constrained == 0
+            continue
+        ref = np.vstack([reference(t + j * Ts) for j in range(1, N + 1)])  # (2N, n)
+        x = reference(t) + np.array([[kick], [0.0]])
+        G = mpc.gradient(x, ref)
+        before = qps.soft_active_set_solves
+        qps.solve(G, x)
+        cold.solve(G, x)
+        assert qps.constrained == n
+        activations += 1
+        assert qps.soft_active_set_solves - before == n, k  # every first step answered
+        assert np.all(qps.slack == 0.0)  # the limits met
+        for i in range(n):
+            z = np.append(qps.solution[:, i], qps.slack[i])
+            Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, lo, hi, vel)
+            violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
+            assert violation <= 1e-7, (k, i, violation)
+            assert residual <= tol_kkt, (k, i, residual)
+            np.testing.assert_allclose(z, np.append(cold.solution[:, i], cold.slack[i]),
+                                       rtol=0, atol=tol)  # fmt: skip
+    assert activations == 4

@@ -157,6 +157,7 @@ void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVe
   }
   limits = true;
   soft_shortcut_ = false;
+  soft_last_.assign(n, 0);
   if (T.size() == 0) return;
   if (T.rows() != Nc || T.cols() != Nc || E.rows() != 2 * N || E.cols() != Nc ||
       Hp.rows() != Nc || Hp.cols() != Nc)
@@ -249,7 +250,8 @@ bool JointQPs::fail(int joint, const Results& res) {
 // Joint i's box QP answered without ProxSuite. Guesses of the active set: the last
 // solution's shifted one step along the horizon (right in a closed loop, where the plan
 // advances one step per period) with one active-set exchange, then the last solution's as it
-// stands (right when the error persists) with up to active_set_iter exchanges (free inputs
+// stands (right when the error persists) with up to active_set_iter exchanges, then the
+// bounds the unconstrained minimiser crosses with 4·active_set_iter (free inputs
 // outside the box fixed at the bound they cross, fixed inputs whose multiplier has the wrong
 // sign freed). Each guess fixes its active inputs at their bounds and solves
 // H_FF u_F = −(g_F + H_FA u_A) for the free ones (or, with fewer active than free inputs,
@@ -271,7 +273,10 @@ bool JointQPs::active_set(int i) {
     }
     if (exchange(i, shifted ? std::min(1, active_set_iter) : active_set_iter)) return true;
   }
-  return false;
+  // Failing those (a new error, the first step): the bounds that the unconstrained minimiser
+  // u0 crosses, with more exchanges (further off than a last solution's).
+  for (int j = 0; j < Nc; ++j) state_[j] = u0_[j] < lo ? -1 : (u0_[j] > hi ? 1 : 0);
+  return exchange(i, 4 * active_set_iter);
 }
 
 // The active set state_ (−1 lower, +1 upper, 0 free) and up to `exchanges` exchanges.
@@ -455,13 +460,24 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
   for (int i = 0; i < n; ++i) {
     bool outside = always_constrained;
     if (!outside) {
-      X_.noalias() = Phi_.col(0) * q[i] + Phi_.col(1) * dq[i];
-      X_.noalias() += Gamma_ * U.col(i);
+      // X = Φ x0 + Γ U by the recursion x_{j+1} = A x_j + B u_min(j, Nc−1) (Eq 24; A, B
+      // the first rows of Φ and Γ): O(N) where Γ U costs N·Nc.
+      const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+      const double b0 = Gamma_(0, 0), b1 = Gamma_(1, 0);
       const double m = mid_[i];
-      for (int j = 0; j < N && !outside; ++j)
-        outside = std::abs(X_[2 * j] - m) > half_[i] || std::abs(X_[2 * j + 1]) > vel_[i];
+      double x = q[i], v = dq[i];
+      for (int j = 0; j < N && !outside; ++j) {
+        const double u = U(std::min(j, Nc - 1), i);
+        const double xn = a00 * x + a01 * v + b0 * u;
+        v = a10 * x + a11 * v + b1 * u;
+        x = xn;
+        outside = std::abs(x - m) > half_[i] || std::abs(v) > vel_[i];
+      }
     }
-    if (!outside) continue;
+    if (!outside) {
+      soft_last_[i] = 0;
+      continue;
+    }
     constrained_last = true;
     for (int j = 0; j < N; ++j) {
       q_free_[j] = Phi_(2 * j, 0) * q[i] + Phi_(2 * j, 1) * dq[i];
@@ -474,6 +490,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       U.col(i) = y_soft_.head(Nc);
       slack[i] = y_soft_[Nc] * k_slack_;
       ++soft_active_set_solves;
+      soft_last_[i] = 1;
       continue;
     }
     soft_bounds(i, q_free_, v_free_);
@@ -484,7 +501,9 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
     if (qp.results.info.status != pqp::QPSolverOutput::PROXQP_SOLVED) return fail(i, qp.results);
     U.col(i) = qp.results.x.head(Nc);
     slack[i] = std::max(qp.results.x[Nc], 0.0) * k_slack_;
-    if (soft_shortcut_ && soft_active_set_iter >= 0) soft_guess_from(i, qp.results.x, false);
+    if (soft_shortcut_ && soft_active_set_iter >= 0)
+      soft_guess_from(i, qp.results.x, false);
+    soft_last_[i] = 1;
   }
   return true;
 }

@@ -198,12 +198,15 @@ void JointQPs::soft_solve() {
 // QP's KKT point), in y_soft_.
 bool JointQPs::soft_exchange(int i, int exchanges) {
   const double lo = v_min_[i], hi = v_max_[i];
-  for (int it = 0; it <= exchanges; ++it) {
+  // A dependent bound or row dropped by soft_kkt costs no exchange (at most one drop per
+  // active item, so this ends).
+  for (int it = 0; it <= exchanges;) {
     if (!soft_kkt(i)) {
       if (dropped_) continue;
       ++soft_fail_pivot;
       return false;
     }
+    ++it;
     const auto u = y_soft_.head(Nc);
     const double sh = y_soft_[Nc];
     Xs_.noalias() = Gamma_ * u;
@@ -288,8 +291,8 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
 }
 
 // The active set of a solution y = (U, ŝ) of joint i's soft QP (or, with
-// box_only, of its box-only solution: the rows its prediction violates)
-// remembered as the next guess.
+// box_only, of its box-only solution: the rows its prediction violates, the inputs next to
+// them freed, ŝ = 0) remembered as the next guess.
 void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only) {
   const double lo = v_min_[i], hi = v_max_[i];
   const double tol = 1e-6 * std::max(1.0, hi - lo);
@@ -306,13 +309,25 @@ void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only) {
                   ? 1
                   : ((bnd_lo_[r] - Xs_[r] - ks) * scale >= -row_tol ? -1 : 0);
   }
+  if (box_only) {
+    // An input next to a violated state (a violated row of x_a or of x_{a+1}; u_a moves
+    // x_{a+1} first) is freed: the limits override the box-only solution's bound there (e.g.
+    // at a velocity limit the acceleration drops from its bound to 0; rows of x_a and x_{a+1}
+    // fix u_a, so keeping its bound too makes them dependent).
+    auto violated = [&](int step) {
+      return step >= 1 && step <= N && (rows[2 * (step - 1)] != 0 || rows[2 * (step - 1) + 1] != 0);
+    };
+    for (int a = 0; a < Nc; ++a)
+      if (box[a] != 0 && (violated(a) || violated(a + 1))) box[a] = 0;
+  }
   guess_slack_[i] = !box_only && sh > 1e-9 ? 1 : 0;
   has_guess_[i] = 1;
 }
 
 // Joint i's soft QP answered by the soft active-set shortcut (soft_exchange) from the last
-// soft solution's active set shifted one step along the horizon, then as it stands; or,
-// without one, from the box-only solution's (with the rows its prediction violates).
+// soft solution's active set (when the joint's soft QP was solved at the last step) shifted
+// one step along the horizon, then as it stands; at a new activation, from the box-only
+// solution's (the rows its prediction violates active, the inputs next to them freed).
 // On success y_soft_ holds the minimiser and the active set is remembered.
 bool JointQPs::soft_active_set(int i) {
   if (!soft_shortcut_ || soft_active_set_iter < 0) return false;
@@ -325,21 +340,31 @@ bool JointQPs::soft_active_set(int i) {
     bnd_hi_[2 * j + 1] = vel_[i] - v_free_[j];
     bnd_lo_[2 * j + 1] = -vel_[i] - v_free_[j];
   }
-  const bool first = !has_guess_[i];
-  if (first) {  // the box-only solution's active set, with the rows its prediction violates
+  // The last soft solution's active set only while it is the last step's (the joint's soft
+  // QP solved at the step before): after a step without, its activation is a new one.
+  bool ok = false;
+  if (has_guess_[i] && soft_last_[i]) {
+    for (int shifted = 1; shifted >= 0 && !ok; --shifted) {
+      const auto& rows = guess_rows_[i];
+      const auto& box = guess_box_[i];
+      for (int r = 0; r < 2 * N; ++r) st_rows_[r] = rows[shifted && r + 2 < 2 * N ? r + 2 : r];
+      for (int a = 0; a < Nc; ++a) st_box_[a] = box[shifted && a + 1 < Nc ? a + 1 : a];
+      st_slack_ = guess_slack_[i];
+      ok = soft_exchange(i, soft_active_set_iter);
+    }
+  }
+  // At a new activation, the box-only solution's active set, with the rows its prediction
+  // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it
+  // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
+  // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
+  if (!ok && !(has_guess_[i] && soft_last_[i])) {
     y_soft_.head(Nc) = U.col(i);
     y_soft_[Nc] = 0.0;
     soft_guess_from(i, y_soft_, true);
-  }
-  bool ok = false;
-  for (int shifted = first ? 0 : 1; shifted >= 0 && !ok; --shifted) {
-    const auto& rows = guess_rows_[i];
-    const auto& box = guess_box_[i];
-    for (int r = 0; r < 2 * N; ++r) st_rows_[r] = rows[shifted && r + 2 < 2 * N ? r + 2 : r];
-    for (int a = 0; a < Nc; ++a) st_box_[a] = box[shifted && a + 1 < Nc ? a + 1 : a];
+    st_rows_ = guess_rows_[i];
+    st_box_ = guess_box_[i];
     st_slack_ = guess_slack_[i];
-    // From the box-only solution the active set is further off: more exchanges.
-    ok = soft_exchange(i, first ? 4 * soft_active_set_iter : soft_active_set_iter);
+    ok = soft_exchange(i, 4 * soft_active_set_iter);
   }
   if (!ok) return false;
   guess_rows_[i] = st_rows_;

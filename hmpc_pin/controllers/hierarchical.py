@@ -109,7 +109,7 @@ class MPCSettings:
             (paper: ∓100).
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap per solve.
-        qp_layout: ``"auto"`` (``"block"`` up to n·Nc = 140 variables, ``"joint"`` above),
+        qp_layout: ``"auto"`` (``"joint"``: measured faster for every n and Nc),
             ``"block"`` (one block-diagonal QP) or ``"joint"`` (one QP per joint);
             :func:`~hmpc_pin.mpc.condensed.resolve_layout`.
         backend: Deprecated since 0.3 and without effect: the step is always compiled

@@ -59,20 +59,24 @@ whose box-only prediction leaves the limits.
 
 Soft active-set shortcut, exact. The soft QP of a long horizon has :math:`N_c + 1`
 variables and :math:`4N` dense rows; ProxSuite needs 1.5–20 ms for one at
-:math:`N = N_c = 100` (cold or warm-started: each solve refactorises a KKT matrix of
-~200 rows). Its solution's active set moves one step along the horizon per period, so
-it is guessed (the last soft solution's, shifted one step or as it stands; the first time,
-the box-only solution's with the rows its prediction violates) and refined by
-primal-dual exchanges. Each guess is an equality-constrained QP, solved in the banded
-coordinates :math:`U = T p` of :meth:`CondensedMPC.banded`, where the Hessian
-:math:`T^T H T` and every constraint row (:math:`\\Gamma T`, :math:`T`) are banded: the
-KKT matrix's LDLᵀ costs O(N). A guess answers only when its point passes the soft
-QP's KKT conditions to the solver's own tolerances (``eps_abs`` plus ``eps_rel`` times the
-size of the terms, as ProxSuite tests them: rows and bounds satisfied, zero gradient of
-the Lagrangian in the free variables, multipliers of the right sign): then it is the QP's
-minimiser. Otherwise ProxSuite solves the QP from scratch. Where the optimum is a
-degenerate vertex (more active rows than variables, which the shared slack makes common
-past the position limits), the exchanges may not settle and ProxSuite answers.
+:math:`N = N_c = 100` (cold or warm-started: each solve refactorises a KKT matrix of ~200
+rows). Its solution's active set moves one step along the horizon per period, so it is
+guessed (the last step's soft solution's, shifted one step or as it stands; at a new
+activation, the box-only solution's with the rows its prediction violates active, the
+inputs next to them freed and the slack at 0) and refined by primal-dual exchanges. An
+input next to a violated state is freed because the limits override the box-only
+solution's bound there: at a velocity limit the acceleration drops from its bound to 0,
+and keeping both the bound and the rows makes them dependent (each such pair cost an
+exchange, and the box-only guess exhausted them). Each guess is an equality-constrained
+QP, solved in the banded coordinates :math:`U = T p` of :meth:`CondensedMPC.banded`, where
+the Hessian :math:`T^T H T` and every constraint row (:math:`\\Gamma T`, :math:`T`) are
+banded: the KKT matrix's LDLᵀ costs O(N). A guess answers only when its point passes the
+soft QP's KKT conditions to the solver's own tolerances (``eps_abs`` plus ``eps_rel``
+times the size of the terms, as ProxSuite tests them: rows and bounds satisfied, zero
+gradient of the Lagrangian in the free variables, multipliers of the right sign): then it
+is the QP's minimiser. Otherwise ProxSuite solves the QP from scratch. Where the optimum
+is a degenerate vertex (more active rows than variables, which the shared slack makes
+common past the position limits), the exchanges may not settle and ProxSuite answers.
 """
 
 from __future__ import annotations
@@ -103,14 +107,38 @@ BIG = 1e10
 #: The QP layouts of :class:`JointQPs` (``controller.qp_layout``).
 LAYOUTS = ("auto", "block", "joint")
 #: ``"auto"`` solves the joints as one block QP up to this many variables (n·Nc) and as
-#: one QP per joint above: the crossover measured on Panda (``benchmarks/qp_layouts.py``,
-#: Nc = 10 .. 100, ``BENCHMARKS.md``) lies between n·Nc = 70 and 210.
-AUTO_BLOCK_MAX = 140
+#: one QP per joint above: 0, so ``"auto"`` is always ``"joint"`` (:func:`resolve_layout`).
+AUTO_BLOCK_MAX = 0
 
 
 def resolve_layout(layout: str, n: int, Nc: int) -> str:
     """The layout used for ``n`` joints of control horizon ``Nc``: ``layout`` itself, or
-    for ``"auto"`` ``"block"`` if n·Nc <= :data:`AUTO_BLOCK_MAX`, else ``"joint"``.
+    for ``"auto"`` ``"block"`` if n·Nc <= :data:`AUTO_BLOCK_MAX` (0: never), else ``"joint"``.
+
+    The choice is measured (``python benchmarks/qp_layouts.py``: n double integrators
+    tracking phase-shifted sines at Ts = 10 ms, N = max(10, Nc), the paper's weights,
+    |v| <= 100 rad/s²; "bounds active": kicked ±0.6 rad off every 20 steps; soft limits
+    ±0.7 rad, 2 rad/s; both layouts on the same gradient and state sequences, alternating
+    in 7 blocks of 400 steps; the ratio is the median over blocks of the per-block ratio of
+    the medians). The per-joint layout's time over the block layout's, range over n = 2..7:
+
+    ======  ================  ==============  ================  ==============
+    Nc      bounds inactive,  bounds active,  bounds inactive,  bounds active,
+            no soft limits    no soft limits  soft limits       soft limits
+    ======  ================  ==============  ================  ==============
+    1       0.32–0.37         0.16–0.23       0.38–0.40         0.57–0.67
+    5       0.09–0.18         0.03–0.08       0.12–0.19         0.87–0.94
+    20      0.02–0.08         0.01–0.03       0.04–0.10         0.09–0.20
+    ======  ================  ==============  ================  ==============
+
+    The per-joint layout is faster at every point: at Nc = 1 its joints whose minimiser
+    :math:`-H^{-1}g` lies in the box (and those answered by the active-set shortcut) need
+    no solver call, and a ProxSuite call on one joint's QP costs about what one on the
+    block QP does; with soft limits both layouts solve the same per-joint soft QPs, which
+    then take most of the step. The joints' QPs share no variable and no cost term (Eq 25
+    is a sum over joints), so no cost makes the block layout necessary; ``"block"``
+    remains a choice (one ProxSuite call per step, no shortcut). Both layouts return the
+    same minimiser to the solver's tolerance.
 
     Raises:
         ConfigError: ``layout`` is not one of :data:`LAYOUTS`.
@@ -301,21 +329,22 @@ class JointQPs:
         eps_abs: ProxSuite absolute tolerance.
         max_iter: ProxSuite iteration cap (the solver never runs unbounded).
         limits: Position and velocity limits as soft state constraints; ``None`` for none.
-        layout: ``"auto"`` (default): ``"block"`` up to :data:`AUTO_BLOCK_MAX` variables
-            (n·Nc), ``"joint"`` above (:func:`resolve_layout`); ``"block"``: the n joint
+        layout: ``"auto"`` (default): ``"joint"``, measured faster for every n and Nc
+            (:func:`resolve_layout`, :data:`AUTO_BLOCK_MAX`); ``"block"``: the n joint
             QPs as one block-diagonal ProxSuite QP of n·Nc variables, one ``update`` +
             ``solve`` per step; ``"joint"``: one QP per joint (n calls; a joint whose
             unconstrained minimiser :math:`-H^{-1}g` lies inside its box takes it without a
             solver call — the solution of a convex QP whose constraints are inactive; failing
             that, the active-set shortcut: the last solution's active set, shifted one step
             along the horizon or as it stands, refined by up to :attr:`active_set_iter`
-            exchanges, whose point answers only when it passes the box QP's KKT test to
-            ``eps_abs`` — free inputs inside the box with zero gradient, multipliers of the
-            fixed ones of the right sign, so the QP's minimiser). All
-            have the same minimiser (the blocks are independent). The block QP's cost grows with
-            (n·Nc)³, the joint QPs' with n·Nc³: the block QP wins for short horizons (one
-            solver call), the joint QPs for long ones (``BENCHMARKS.md``: Panda at Nc = 100,
-            block ≈ 3× the joint QPs). ProxSuite's batch API (``proxqp.dense.BatchQP``, one
+            exchanges, then the bounds :math:`-H^{-1}g` crosses with four times as many,
+            whose point answers only when it passes the box QP's KKT test to ``eps_abs`` —
+            free inputs inside the box with zero gradient, multipliers of the fixed ones of
+            the right sign, so the QP's minimiser). All have the same minimiser (the blocks
+            are independent). The block QP's cost grows with
+            (n·Nc)³, the joint QPs' with n·Nc³, and the per-joint shortcuts skip the solver
+            for most joints: the joint QPs take 0.01–0.4× the block QP's time without soft
+            limits (:func:`resolve_layout`). ProxSuite's batch API (``proxqp.dense.BatchQP``, one
             QP per joint, n ``update`` calls and one ``solve_in_parallel``) was measured too
             (``benchmarks/qp_layouts.py``) and is not offered: slower than the block QP for
             short horizons, e.g. Nc = 1, 3 joints 10.4 µs vs 5.7 µs; 7 joints 22.8 µs on 1

@@ -7,7 +7,8 @@
 // (one QP per joint; a joint whose unconstrained minimiser −H⁻¹g lies inside its box takes
 // it without a solver call, the exact solution of a convex QP with inactive constraints;
 // failing that, the active set guessed from the last solution shifted one step along the
-// horizon or as it stands, refined by a few primal-dual active-set exchanges, answers when
+// horizon or as it stands, or from the bounds −H⁻¹g crosses, refined by a few primal-dual
+// active-set exchanges, answers when
 // its point passes the KKT test of the box QP to the solver's tolerance). A box QP sent to
 // ProxSuite is warm-started from its last primal and dual solution (shifted one step along
 // the horizon when `shift` is on).
@@ -15,8 +16,9 @@
 // (made on first use), and the warm QP restarted from that solution. With soft state limits,
 // a joint whose box-only prediction X = Φ x0 + Γ U leaves them is solved again with the soft
 // constraints (hmpc_pin.mpc.condensed, module docstring): first by the soft active-set
-// shortcut (the last soft solution's active set, shifted one step along the horizon or as it
-// stands, or the box-only solution's with the rows it violates, refined by primal-dual
+// shortcut (the last step's soft solution's active set, shifted one step along the horizon
+// or as it stands; at a new activation, the box-only solution's with the rows it violates
+// and the inputs next to them freed, refined by primal-dual
 // exchanges; each equality-constrained QP solved in the banded coordinates p of
 // hmpc_pin.mpc.condensed.CondensedMPC.banded, U = T p, by an envelope LDLᵀ of its KKT
 // matrix in O(N)), answering only when its point passes the soft QP's KKT test to the
@@ -158,6 +160,7 @@ class JointQPs {
   std::vector<std::vector<int>> rows_by_last_;
   std::vector<std::vector<signed char>> guess_rows_, guess_box_;
   std::vector<signed char> guess_slack_, has_guess_;
+  std::vector<signed char> soft_last_;  // per joint: its soft QP solved at the last step
   std::vector<signed char> st_rows_, st_box_;
   signed char st_slack_ = 0;
   bool dropped_ = false;

@@ -266,10 +266,10 @@ class ControllerConfig:
         constraints: :class:`ConstraintConfig` (``hmpc``: joint limits as soft constraints).
         eps_abs: ProxSuite absolute tolerance (``hmpc``; unset: MPCSettings').
         max_iter: ProxSuite iteration cap per solve (``hmpc``; unset: MPCSettings').
-        qp_layout: ``"auto"`` (default: ``"block"`` up to n·Nc = 140 QP variables,
-            ``"joint"`` above), ``"block"`` (the n joint QPs as one block-diagonal ProxSuite
-            QP, one solve per step; fastest for short horizons) or ``"joint"`` (one QP per
-            joint; fastest for long ones) (``hmpc``; :func:`hmpc_pin.mpc.condensed.resolve_layout`).
+        qp_layout: ``"auto"`` (default: ``"joint"``, measured faster for every n and Nc),
+            ``"block"`` (the n joint QPs as one block-diagonal ProxSuite QP, one solve per
+            step) or ``"joint"`` (one QP per joint, with its exact shortcuts) (``hmpc``;
+            :func:`hmpc_pin.mpc.condensed.resolve_layout`).
         backend: Deprecated since 0.3, without effect (``hmpc``): the step is always the
             compiled one, :mod:`hmpc_pin.native`; ``"auto"`` and ``"native"`` load silently,
             ``"python"`` with a :class:`DeprecationWarning`, anything else is an error.

@@ -1,5 +1,6 @@
 """Every output path is checked before the run, naming its option; saturation and
-tracking-error warnings; the applied (clipped) torque beside the commanded one."""
+tracking-error warnings; the applied (clipped) torque beside the commanded one; the
+command line's figures, drawn by its figure process."""
 
 from __future__ import annotations
 
@@ -319,3 +320,41 @@ def test_figures_the_process_cannot_draw_are_drawn_by_the_command(tmp_path, monk
         here = tmp_path / f"{kind}.png"
         plots.draw(kind, result, here, config.description, "with NDO")
         assert np.array_equal(_pixels(here), _pixels(tmp_path / f"cfg_{kind}.png")), kind
+
+
+@pytest.mark.skipif(not hasattr(os, "killpg"), reason="process groups: POSIX")
+def test_ctrl_c_while_the_figure_process_draws(tmp_path):
+    """A Ctrl-C in the terminal (SIGINT to the command's process group) once the table is
+    printed, while the figure process draws: exit 130 with one line that names the data
+    files written, no half-written figure, and no process of the figures left."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hmpc_pin", "run", "panda_sine", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True,  # its own process group, as a shell job
+    )  # fmt: skip
+    for line in proc.stdout:  # the table's last row: the figures are drawn from now on
+        if line.startswith("panda_joint7"):
+            break
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail("no exit within 60 s of SIGINT")
+    assert proc.returncode == 130, err
+    assert err.strip().startswith("interrupted at drawing the figures of panda_sine"), err
+    assert "\n" not in err.strip() and "Traceback" not in err, err
+    assert "panda_sine.npz" in err and "panda_sine.csv" in err
+    assert hmpc_pin.Result.load(tmp_path / "panda_sine.npz").complete
+    assert not list(tmp_path.glob("*.part"))
+    for png in tmp_path.glob("*.png"):  # a figure finished before the Ctrl-C is listed
+        assert png.name in err, err
+    deadline = time.monotonic() + 3.0
+    while _figure_processes_of(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _figure_processes_of(proc.pid)

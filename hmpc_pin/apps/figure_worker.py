@@ -32,12 +32,13 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 __all__ = ["draw", "start", "stop"]
 
 #: The process started by :func:`start` and not yet given its job.
-_worker: subprocess.Popen | None = None
+_worker: subprocess.Popen[bytes] | None = None
 
 
 def start() -> bool:
@@ -70,10 +71,11 @@ def stop() -> None:
         return
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(worker.pid, signal.SIGKILL)
-    with contextlib.suppress(OSError):
-        worker.stdin.close()
+    for pipe in (worker.stdin, worker.stdout):
+        with contextlib.suppress(OSError):
+            if pipe is not None:
+                pipe.close()
     worker.wait()
-    worker.stdout.close()
 
 
 def draw(npz: Path, figures: list[tuple[str, Path, str, str]], done: list[Path]) -> bool:
@@ -91,8 +93,9 @@ def draw(npz: Path, figures: list[tuple[str, Path, str, str]], done: list[Path])
         caller draws it).
     """
     worker = _worker
-    if worker is None:
+    if worker is None or worker.stdin is None or worker.stdout is None:
         return False
+    started = time.time()
     try:  # :func:`stop` ends the process however this ends
         job = {"npz": str(npz), "figures": [[k, str(p), t, lab] for k, p, t, lab in figures]}
         try:
@@ -110,8 +113,14 @@ def draw(npz: Path, figures: list[tuple[str, Path, str, str]], done: list[Path])
         return True
     finally:
         stop()
-        for _, path, _, _ in figures:  # what a child ended by a Ctrl-C left half written
-            Path(str(path) + ".part").unlink(missing_ok=True)
+        for _, path, _, _ in figures:
+            Path(str(path) + ".part").unlink(missing_ok=True)  # half written by a child
+            # a figure renamed into place (complete) by now, its line not read yet; the
+            # file clock's tick is a few milliseconds behind ``time.time()``
+            path = Path(path)
+            with contextlib.suppress(OSError):
+                if path not in done and path.stat().st_mtime >= started - 0.05:
+                    done.append(path)
 
 
 # --- the figure process ---------------------------------------------------------------

@@ -4,7 +4,9 @@ they cannot avoid.
 For each config, every block measures, one after the other:
 
 * the wall time of ``hmpc-pin run <config> --out <tmp>`` (a fresh process: imports,
-  config, URDF, controller, run, files, figures), and with ``--no-figures``;
+  config, URDF, controller, run, files, figures), the same with its figures drawn in its
+  own process, one after the other (:data:`IN_PROCESS`: no figure process), and with
+  ``--no-figures``;
 * the wall time of a fresh ``python -c "import numpy, pinocchio, proxsuite, matplotlib"``
   (the imports no command can skip);
 * the in-process ``Experiment.run()`` of the same config in this process (built once).
@@ -47,6 +49,14 @@ from hmpc_pin.experiment.config import load_config  # noqa: E402
 
 PYTHON = sys.executable
 IMPORTS = "import numpy, pinocchio, proxsuite, matplotlib"
+
+#: ``hmpc-pin`` with its figures drawn in its own process, one after the other (no figure
+#: process): what the figure process saves, measured beside it.
+IN_PROCESS = (
+    "import sys; sys.argv[0] = 'hmpc-pin'; "
+    "from hmpc_pin.apps import figure_worker; figure_worker.start = lambda: False; "
+    "from hmpc_pin.apps.cli import main; sys.exit(main())"
+)
 
 
 def command() -> list[str]:
@@ -162,10 +172,18 @@ def main() -> None:
             experiment = Experiment.from_config(load_config(name))
             in_process(experiment)  # warm: the first run pays for lazy imports
             # per variant: (wall, CPU) of the command and of the reference, per block
-            variants: dict[str, tuple[list, list]] = {"": ([], []), " --no-figures": ([], [])}
+            variants: dict[str, tuple[list, list]] = {
+                "": ([], []),
+                " (figures drawn in the command's process)": ([], []),
+                " --no-figures": ([], []),
+            }
             for _ in range(args.repeats):
                 for flags, (runs, refs) in variants.items():
-                    runs.append(wall([*cli, "run", name, "--out", tmp, *flags.split()]))
+                    argv = ["run", name, "--out", tmp]
+                    if flags.startswith(" --"):
+                        argv.append(flags.strip())
+                    prog = [PYTHON, "-c", IN_PROCESS] if flags.startswith(" (") else cli
+                    runs.append(wall([*prog, *argv]))
                     refs.append(np.add(wall([PYTHON, "-c", IMPORTS]), in_process(experiment)))
             for flags, (runs, refs) in variants.items():
                 run_t, ref_t = np.array(runs), np.array(refs)

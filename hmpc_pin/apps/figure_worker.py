@@ -11,7 +11,7 @@ that file and draws each figure in a child of its own (``fork``: matplotlib stay
 imported), on every core at once, each PNG written to ``<name>.part`` and renamed. The
 figures are the same as drawn in the command's process (:func:`hmpc_pin.apps.plots.draw`).
 
-Only the command line does this (:func:`hmpc_pin._startup.is_command_line`); the library
+Only the command line does this (``hmpc-pin`` or ``python -m hmpc_pin``); the library
 and ``main()`` called from Python draw in their own process. Nothing outlives the command:
 the process and its children are in a process group of their own (a Ctrl-C in the
 terminal reaches the command only, which then ends them, with what they had half

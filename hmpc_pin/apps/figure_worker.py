@@ -10,14 +10,18 @@ and printed its table, it sends one job (:func:`draw`): the process reads the ar
 that file and draws each figure in a child of its own (``fork``: matplotlib stays
 imported), on every core at once, each PNG written to ``<name>.part`` and renamed. The
 figures are the same as drawn in the command's process (:func:`hmpc_pin.apps.plots.draw`).
+This shortens the command where a core is free; the CPU time stays that of matplotlib's
+import and drawing (plus the process's own start, about 0.15 s), so a machine busy with
+other work sees little change.
 
 Only the command line does this (``hmpc-pin`` or ``python -m hmpc_pin``); the library
 and ``main()`` called from Python draw in their own process. Nothing outlives the command:
 the process and its children are in a process group of their own (a Ctrl-C in the
 terminal reaches the command only, which then ends them, with what they had half
 written), they end with the command on Linux however it ends (the parent-death signal),
-and elsewhere when its pipe closes. A figure the process could not draw is drawn by the
-command itself, which then reports what went wrong as usual.
+and on other POSIX systems when its pipe closes (on Windows the command draws its figures
+itself). A figure the process could not draw is drawn by the command itself, which then
+reports what went wrong as usual.
 
 This module imports only the standard library at its top (the command imports it before
 the library).
@@ -47,8 +51,8 @@ def start() -> bool:
     global _worker
     from .. import _startup
 
-    if _worker is not None or not _startup.is_command_line():
-        return _worker is not None
+    if _worker is not None or os.name != "posix" or not _startup.is_command_line():
+        return _worker is not None  # elsewhere (Windows): no process groups, no fork
     try:
         _worker = subprocess.Popen(
             [sys.executable, "-m", __name__, str(os.getpid())],

@@ -126,7 +126,8 @@ print(" ".join(f"{b - a:.3f}" for a, b in zip(t, t[1:])))
 """
 PART_NAMES = ("numpy, pinocchio, proxsuite, matplotlib", "the command line (hmpc_pin.apps.cli)",
               "the library, config and build (URDF check)", "Experiment.run()",
-              "matplotlib's figure module (plots)", "the three figures")  # fmt: skip
+              "matplotlib's figure module (plots)",
+              "the three figures, one after the other")  # fmt: skip
 
 
 def parts(names: list[str], repeats: int) -> None:

@@ -4,13 +4,19 @@ they cannot avoid.
 For each config, every block measures, one after the other:
 
 * the wall time of ``hmpc-pin run <config> --out <tmp>`` (a fresh process: imports,
-  config, URDF, controller, run, files, figures), and with ``--no-figures``;
+  config, URDF, controller, run, files, figures), the same with its figures drawn in its
+  own process, one after the other (:data:`IN_PROCESS`: no figure process), and with
+  ``--no-figures``;
 * the wall time of a fresh ``python -c "import numpy, pinocchio, proxsuite, matplotlib"``
   (the imports no command can skip);
 * the in-process ``Experiment.run()`` of the same config in this process (built once).
 
 The ratio of a block is run wall / (imports + in-process run); the table gives the median of
-the ratios over the blocks beside the median absolute times. ``--help`` is measured the
+the ratios over the blocks beside the median absolute times, and the same ratio of CPU
+time (user + system, of the command and every process it waited for: ``hmpc-pin run``
+draws its figures in processes of its own, beside the run). On a machine busy with other
+work the wall ratio tends to the CPU ratio (every process gets its share of a core); on an
+idle one the figures' processes use the second core. ``--help`` is measured the
 same way against a bare ``python -c pass``: the difference [s] and the ratio. The modules a
 bare ``import hmpc_pin`` loads are counted (of the package's own, and whether numpy,
 pinocchio or matplotlib are among them). Blocks alternate the measurements, so a machine
@@ -24,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import subprocess
 import sys
 import tempfile
@@ -43,6 +50,14 @@ from hmpc_pin.experiment.config import load_config  # noqa: E402
 PYTHON = sys.executable
 IMPORTS = "import numpy, pinocchio, proxsuite, matplotlib"
 
+#: ``hmpc-pin`` with its figures drawn in its own process, one after the other (no figure
+#: process): what the figure process saves, measured beside it.
+IN_PROCESS = (
+    "import sys; sys.argv[0] = 'hmpc-pin'; "
+    "from hmpc_pin.apps import figure_worker; figure_worker.start = lambda: False; "
+    "from hmpc_pin.apps.cli import main; sys.exit(main())"
+)
+
 
 def command() -> list[str]:
     """The ``hmpc-pin`` script beside this interpreter, else ``python -m hmpc_pin``."""
@@ -50,18 +65,24 @@ def command() -> list[str]:
     return [str(script)] if script.exists() else [PYTHON, "-m", "hmpc_pin"]
 
 
-def wall(argv: list[str]) -> float:
-    """Wall time [s] of a fresh process running ``argv`` (output discarded; must succeed)."""
-    t0 = time.perf_counter()
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def wall(argv: list[str]) -> tuple[float, float]:
+    """Wall and CPU time [s] of a fresh process running ``argv`` (output discarded; must
+    succeed); the CPU time counts the processes it waited for."""
+    c0, t0 = _children_cpu(), time.perf_counter()
     subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, _children_cpu() - c0
 
 
-def in_process(experiment: Experiment) -> float:
-    """Wall time [s] of ``experiment.run()`` in this process."""
-    t0 = time.perf_counter()
+def in_process(experiment: Experiment) -> tuple[float, float]:
+    """Wall and CPU time [s] of ``experiment.run()`` in this process."""
+    c0, t0 = time.process_time(), time.perf_counter()
     experiment.run()
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def loaded_by_import() -> tuple[int, int, list[str]]:
@@ -105,7 +126,8 @@ print(" ".join(f"{b - a:.3f}" for a, b in zip(t, t[1:])))
 """
 PART_NAMES = ("numpy, pinocchio, proxsuite, matplotlib", "the command line (hmpc_pin.apps.cli)",
               "the library, config and build (URDF check)", "Experiment.run()",
-              "matplotlib's figure module (plots)", "the three figures")  # fmt: skip
+              "matplotlib's figure module (plots)",
+              "the three figures, one after the other")  # fmt: skip
 
 
 def parts(names: list[str], repeats: int) -> None:
@@ -143,31 +165,42 @@ def main() -> None:
     )
     print(
         "| command | median wall [s] | median reference [s] (imports + run) | "
-        "median ratio (min–max) |"
+        "median ratio (min–max) | median CPU [s] | median CPU ratio |"
     )
-    print("|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.configs:
             experiment = Experiment.from_config(load_config(name))
             in_process(experiment)  # warm: the first run pays for lazy imports
-            variants: dict[str, tuple[list[float], list[float]]] = {"": ([], [])}
-            variants[" --no-figures"] = ([], [])
+            # per variant: (wall, CPU) of the command and of the reference, per block
+            variants: dict[str, tuple[list, list]] = {
+                "": ([], []),
+                " (figures drawn in the command's process)": ([], []),
+                " --no-figures": ([], []),
+            }
             for _ in range(args.repeats):
-                for flags, (walls, refs) in variants.items():
-                    walls.append(wall([*cli, "run", name, "--out", tmp, *flags.split()]))
-                    refs.append(wall([PYTHON, "-c", IMPORTS]) + in_process(experiment))
-            for flags, (walls, refs) in variants.items():
-                ratio = np.array(walls) / np.array(refs)
+                for flags, (runs, refs) in variants.items():
+                    argv = ["run", name, "--out", tmp]
+                    if flags.startswith(" --"):
+                        argv.append(flags.strip())
+                    prog = [PYTHON, "-c", IN_PROCESS] if flags.startswith(" (") else cli
+                    runs.append(wall([*prog, *argv]))
+                    refs.append(np.add(wall([PYTHON, "-c", IMPORTS]), in_process(experiment)))
+            for flags, (runs, refs) in variants.items():
+                run_t, ref_t = np.array(runs), np.array(refs)
+                ratio = run_t[:, 0] / ref_t[:, 0]
+                cpu_ratio = run_t[:, 1] / ref_t[:, 1]
                 print(
-                    f"| `hmpc-pin run {name}{flags}` | {np.median(walls):.2f} | "
-                    f"{np.median(refs):.2f} | {np.median(ratio):.2f} "
-                    f"({ratio.min():.2f}–{ratio.max():.2f}) |",
+                    f"| `hmpc-pin run {name}{flags}` | {np.median(run_t[:, 0]):.2f} | "
+                    f"{np.median(ref_t[:, 0]):.2f} | {np.median(ratio):.2f} "
+                    f"({ratio.min():.2f}–{ratio.max():.2f}) | {np.median(run_t[:, 1]):.2f} | "
+                    f"{np.median(cpu_ratio):.2f} |",
                     flush=True,
                 )
     helps, bares = [], []
     for _ in range(args.repeats):
-        helps.append(wall([*cli, "--help"]))
-        bares.append(wall([PYTHON, "-c", "pass"]))
+        helps.append(wall([*cli, "--help"])[0])
+        bares.append(wall([PYTHON, "-c", "pass"])[0])
     diff = np.array(helps) - np.array(bares)
     ratio = np.array(helps) / np.array(bares)
     print(

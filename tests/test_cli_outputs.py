@@ -1,5 +1,6 @@
 """Every output path is checked before the run, naming its option; saturation and
-tracking-error warnings; the applied (clipped) torque beside the commanded one."""
+tracking-error warnings; the applied (clipped) torque beside the commanded one; the
+command line's figures, drawn by its figure process."""
 
 from __future__ import annotations
 
@@ -232,3 +233,128 @@ def test_the_csv_holds_the_runs_arrays_exactly(tmp_path):
     assert table.shape == expected.shape
     np.testing.assert_array_equal(table, expected)
     assert (tmp_path / "again.csv").read_bytes().count(b"\r\n") == len(rows)
+
+
+# ------------------------------------------------------------------ figures
+def _pixels(path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return np.asarray(image.convert("RGBA"))
+
+
+FIGURES = ("tracking", "disturbance", "error")
+
+
+def _figure_processes_of(pid: int) -> list[str]:
+    """The figure processes (:mod:`hmpc_pin.apps.figure_worker`) started by ``pid``."""
+    found = []
+    for entry in os.listdir("/proc"):
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                argv = f.read().decode(errors="replace").split("\0")
+        except OSError:  # not a process, or it ended
+            continue
+        if "hmpc_pin.apps.figure_worker" in argv and str(pid) in argv:
+            found.append(entry)
+    return found
+
+
+def test_the_command_lines_figure_process_draws_what_the_library_draws(tmp_path):
+    """``hmpc-pin run`` (a real command-line process) draws its figures in its figure
+    process: the command itself never imports matplotlib, the PNGs are pixel for pixel
+    those the library draws here from the saved run, no ``.part`` file is left, and no
+    process of the figures outlives the command."""
+    import subprocess
+    import sys
+
+    from hmpc_pin.apps import plots
+    from hmpc_pin.experiment.config import load_config
+
+    out = tmp_path / "out"
+    argv = [sys.executable, "-X", "importtime", "-m", "hmpc_pin", "run", PAPER,
+            "--duration", "1.2", "--out", str(out)]  # fmt: skip
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 0, stderr[-3000:]
+    if sys.platform.startswith("linux"):
+        assert not _figure_processes_of(proc.pid)
+    # -X importtime lists the command's imports on its stderr (the figure process's go
+    # nowhere): the command imported numpy, never matplotlib
+    imported = {line.split("|")[-1].strip() for line in stderr.splitlines() if "|" in line}
+    assert "numpy" in imported and "matplotlib" not in imported
+    wrote = [line.split()[-1] for line in stdout.splitlines() if line.startswith("wrote ")]
+    assert [os.path.basename(p) for p in wrote] == [
+        "paper_combined.npz", "paper_combined.csv",
+        *(f"paper_combined_{k}.png" for k in FIGURES),
+    ]  # fmt: skip
+    assert not list(out.glob("*.part"))
+    result = hmpc_pin.Result.load(out / "paper_combined.npz")
+    title = load_config(PAPER).description
+    for kind in FIGURES:
+        here = tmp_path / f"{kind}.png"
+        plots.draw(kind, result, here, title, "with NDO")
+        assert np.array_equal(_pixels(here), _pixels(out / f"paper_combined_{kind}.png")), kind
+
+
+def test_figures_the_process_cannot_draw_are_drawn_by_the_command(tmp_path, monkeypatch):
+    """The figure process cannot read the run (a damaged ``.npz``): the command draws
+    every figure itself, the same as the library, and the process is gone."""
+    from hmpc_pin import _startup
+    from hmpc_pin.apps import figure_worker, plots
+    from hmpc_pin.apps.run import draw_figures
+    from hmpc_pin.experiment.config import load_config
+
+    assert main(["run", PAPER, "--duration", "0.5", "--out", str(tmp_path), "--no-figures"]) == 0
+    result = hmpc_pin.Result.load(tmp_path / "paper_combined.npz")
+    config = load_config(PAPER)
+    damaged = tmp_path / "damaged.npz"
+    damaged.write_bytes(b"not a zip file")
+    monkeypatch.setattr(_startup, "is_command_line", lambda: True)
+    assert figure_worker.start()
+    worker = figure_worker._worker
+    files = draw_figures(config, result, tmp_path, "cfg", [damaged], error_label="with NDO")
+    assert figure_worker._worker is None and worker.poll() is not None
+    assert [p.name for p in files] == ["damaged.npz", *(f"cfg_{k}.png" for k in FIGURES)]
+    for kind in FIGURES:
+        here = tmp_path / f"{kind}.png"
+        plots.draw(kind, result, here, config.description, "with NDO")
+        assert np.array_equal(_pixels(here), _pixels(tmp_path / f"cfg_{kind}.png")), kind
+
+
+@pytest.mark.skipif(not hasattr(os, "killpg"), reason="process groups: POSIX")
+def test_ctrl_c_while_the_figure_process_draws(tmp_path):
+    """A Ctrl-C in the terminal (SIGINT to the command's process group) once the table is
+    printed, while the figure process draws: exit 130 with one line that names the data
+    files written, no half-written figure, and no process of the figures left."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hmpc_pin", "run", "panda_sine", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True,  # its own process group, as a shell job
+    )  # fmt: skip
+    for line in proc.stdout:  # the table's last row: the figures are drawn from now on
+        if line.startswith("panda_joint7"):
+            break
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail("no exit within 60 s of SIGINT")
+    assert proc.returncode == 130, err
+    assert err.strip().startswith("interrupted at drawing the figures of panda_sine"), err
+    assert "\n" not in err.strip() and "Traceback" not in err, err
+    assert "panda_sine.npz" in err and "panda_sine.csv" in err
+    assert hmpc_pin.Result.load(tmp_path / "panda_sine.npz").complete
+    assert not list(tmp_path.glob("*.part"))
+    for png in tmp_path.glob("*.png"):  # a figure finished before the Ctrl-C is listed
+        assert png.name in err, err
+    deadline = time.monotonic() + 3.0
+    while _figure_processes_of(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _figure_processes_of(proc.pid)

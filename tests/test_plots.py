@@ -1,4 +1,5 @@
-"""Figures: every title is inside the picture (none cut at the edges)."""
+"""Figures: every title is inside the picture (none cut at the edges); a long line is drawn
+through its min/max envelope, every spike kept."""
 
 from __future__ import annotations
 
@@ -58,3 +59,63 @@ def test_long_titles_fit_in_the_figure(run, tmp_path, monkeypatch, kind):
     for box in boxes:
         assert box.x0 >= fig_box.x0 - 0.5 and box.x1 <= fig_box.x1 + 0.5, (box, fig_box)
         assert box.y0 >= fig_box.y0 - 0.5 and box.y1 <= fig_box.y1 + 0.5, (box, fig_box)
+
+
+# ------------------------------------------------------------------ long lines
+def test_envelope_keeps_every_spike_and_each_buckets_extremes(make_rng):
+    """A long noisy line with one-sample spikes: at most MAX_POINTS samples kept, all of
+    them samples of the line in time order, the first and last kept, every spike kept,
+    and per bucket of the reduction (recomputed here with a loop) its min and max."""
+    rng = make_rng(3)
+    k = 200_003  # not a multiple of the bucket count
+    t = np.linspace(0.0, 200.0, k)
+    y = np.cumsum(rng.normal(size=k)) * 1e-3
+    spikes = rng.choice(k, size=5, replace=False)
+    y[spikes[:3]] += 50.0
+    y[spikes[3:]] -= 50.0
+    te, ye = plots.envelope(t, y)
+    assert len(te) <= plots.MAX_POINTS
+    idx = np.searchsorted(t, te)
+    assert np.all(np.diff(idx) > 0) and np.array_equal(y[idx], ye)
+    assert idx[0] == 0 and idx[-1] == k - 1
+    assert set(spikes) <= set(idx.tolist())
+    buckets = plots.MAX_POINTS // 2 - 1
+    m = -(-k // buckets)
+    kept = set(idx.tolist())
+    for b in range(buckets):
+        seg = y[b * m : (b + 1) * m]
+        if len(seg):
+            assert b * m + int(np.argmin(seg)) in kept and b * m + int(np.argmax(seg)) in kept
+
+
+def test_envelope_leaves_short_lines_and_keeps_gaps():
+    t = np.arange(10.0)
+    assert plots.envelope(t, t)[1] is t  # short: unchanged
+    t = np.linspace(0, 1, 50_000)
+    y = np.sin(t)
+    y[20_000:20_010] = np.nan  # a gap (samples missing) stays a gap
+    te, ye = plots.envelope(t, y)
+    assert np.isnan(ye).any() and len(te) <= plots.MAX_POINTS
+
+
+def test_a_spike_of_a_long_run_is_in_the_drawn_figure(tmp_path, monkeypatch):
+    """The tracking figure of a 100,000-sample run with a one-sample spike of the angle:
+    the line drawn holds the spike (and at most MAX_POINTS samples)."""
+    k, n = 100_000, 2
+    t = np.linspace(0.0, 100.0, k)
+    q = np.tile(np.sin(t)[:, None], (1, n))
+    q[61_234, 1] = 7.5
+    zeros = np.zeros_like(q)
+    result = hmpc_pin.Result(t, q, zeros, zeros, zeros, zeros, np.sin(t)[:, None] * [1, 1],
+                             zeros)  # fmt: skip
+    drawn = []
+    save = Figure.savefig
+
+    def savefig(fig, path, **kw):
+        drawn.extend(line.get_ydata() for ax in fig.axes for line in ax.get_lines())
+        save(fig, path, **kw)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    plots.plot_tracking(result, tmp_path / "t.png", "spike")
+    assert max(np.max(y) for y in drawn) == 7.5
+    assert all(len(y) <= plots.MAX_POINTS for y in drawn)

@@ -156,6 +156,10 @@ def _config(path: Path) -> ExperimentConfig:
 
 
 def cmd_run(args) -> int:
+    if args.figures:  # matplotlib is imported beside the run (the command line only)
+        from .figure_worker import start
+
+        start()
     from ..experiment.build import Experiment
 
     config = _with_overrides(
@@ -245,12 +249,8 @@ def _report(args, config, out, stem, warn, views, experiment, result, files, fai
             line += f"; expected once the arm touches something (contact at t = {touch:.3f} s)"
         print(f"warning: {line}", file=sys.stderr)
     if args.figures:  # after the table: it is what one reads
-        draw_figures(config, result, out, stem, files)
-    if args.figures and len(result.t) > 1:
-        from .plots import plot_error
-
         label = "with NDO" if observer else "without NDO"
-        files.append(plot_error({label: result}, out / f"{stem}_error.png", config.description))
+        draw_figures(config, result, out, stem, files, error_label=label)
     if args.replay is not None and len(result.t) > 1:
         files.append(_replay(experiment.robot, result, args.replay))
     for f in files:

@@ -144,22 +144,51 @@ def run_one(
 
 
 def draw_figures(
-    config: ExperimentConfig, result: Result, out: Path, stem: str, files: list[Path]
+    config: ExperimentConfig,
+    result: Result,
+    out: Path,
+    stem: str,
+    files: list[Path],
+    error_label: str | None = None,
 ) -> list[Path]:
     """Draw the run's figures to ``out`` and append each to ``files`` as it is written (a
     Ctrl-C keeps the list of what exists): ``<stem>_tracking.png``,
-    ``<stem>_disturbance.png`` and, for an end-effector task, ``<stem>_task_space.png``
-    (none for a run of one sample). Matplotlib is imported here, on first use."""
+    ``<stem>_disturbance.png``, for an end-effector task ``<stem>_task_space.png``, and
+    with ``error_label`` ``<stem>_error.png`` (the run's |q − r| so labelled); none for a
+    run of one sample.
+
+    When the command line started its figure process
+    (:mod:`~hmpc_pin.apps.figure_worker`) and ``files`` holds the run's ``.npz``, that
+    process draws them, all at once; otherwise they are drawn here, matplotlib imported on
+    first use. Either way the figures are the same."""
     sys.stdout.flush()  # what was printed (the command's table) shows while they are drawn
     if len(result.t) <= 1:
         return files
-    from . import plots
+    from . import figure_worker
 
     title = config.description or config.name
-    files.append(plots.plot_tracking(result, out / f"{stem}_tracking.png", title))
-    files.append(plots.plot_disturbance(result, out / f"{stem}_disturbance.png", title))
+    jobs = [
+        ("tracking", out / f"{stem}_tracking.png", title, ""),
+        ("disturbance", out / f"{stem}_disturbance.png", title, ""),
+    ]
     if result.ee_pos is not None:
-        files.append(plots.plot_task_space(result, out / f"{stem}_task_space.png", title))
+        jobs.append(("task_space", out / f"{stem}_task_space.png", title, ""))
+    if error_label is not None:
+        jobs.append(("error", out / f"{stem}_error.png", config.description, error_label))
+    npz = next((f for f in files if f.suffix == ".npz"), None)
+    done: list[Path] = []
+    if npz is not None:
+        try:
+            figure_worker.draw(npz, jobs, done)
+        except BaseException:  # a Ctrl-C: what was written is listed
+            files.extend(done)
+            raise
+    for kind, path, job_title, label in jobs:
+        if path not in done:  # no figure process, or it could not draw this one
+            from . import plots
+
+            plots.draw(kind, result, path, job_title, label)
+        files.append(path)
     return files
 
 

@@ -67,6 +67,20 @@ def raise_if_interrupted() -> None:
         raise KeyboardInterrupt
 
 
+def _unraisable(unraisable) -> None:
+    """``sys.unraisablehook`` of the command line after the start-up: a Ctrl-C whose
+    ``KeyboardInterrupt`` Python could not raise (it arrived while a finalizer or a weakref
+    callback ran, e.g. SQLAlchemy's under Optuna) is remembered in :data:`interrupted`,
+    which the next run raises (:func:`raise_if_interrupted`), and not printed as an
+    "Exception ignored" traceback; anything else goes to the hook it replaced."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt) and interrupted:
+        return
+    _previous_unraisable(unraisable)
+
+
+_previous_unraisable = sys.unraisablehook
+
+
 def _exit_now(signum, frame) -> None:  # pragma: no cover - runs in subprocess tests
     try:
         os.write(2, (LINE + "\n").encode())
@@ -112,7 +126,9 @@ def guard():
 def end() -> None:
     """End the start-up: import :data:`SWALLOWING_IMPORTS` while the guard holds, then let
     Ctrl-C raise :class:`KeyboardInterrupt`, remembered in :data:`interrupted` (nothing
-    changes when the guard is not set)."""
+    changes when the guard is not set); a Ctrl-C Python could not raise is remembered, not
+    printed (:func:`_unraisable`)."""
+    global _previous_unraisable
     if not active():
         return
     import importlib
@@ -121,6 +137,8 @@ def end() -> None:
         with contextlib.suppress(ImportError):  # a dependency of the package
             importlib.import_module(name)
     signal.signal(signal.SIGINT, _interrupt)
+    if sys.unraisablehook is not _unraisable:
+        _previous_unraisable, sys.unraisablehook = sys.unraisablehook, _unraisable
 
 
 def restore(previous) -> None:
@@ -128,6 +146,8 @@ def restore(previous) -> None:
     if previous is not None:
         with contextlib.suppress(ValueError):  # not the main thread
             signal.signal(signal.SIGINT, previous)
+    if sys.unraisablehook is _unraisable:
+        sys.unraisablehook = _previous_unraisable
 
 
 if is_command_line():  # first thing the package does when it is the command line

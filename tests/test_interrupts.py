@@ -440,3 +440,40 @@ def test_a_ctrl_c_a_library_swallowed_during_set_up_still_stops_the_run():
         _startup.interrupted = False
     # without a handler installed (a library user), nothing is remembered
     assert not _startup.interrupted
+
+
+def test_a_ctrl_c_arriving_in_a_finalizer_is_remembered_not_printed(capsys, monkeypatch):
+    """A Ctrl-C that lands while a finalizer or weakref callback runs (SQLAlchemy's, under
+    a tune study) cannot be raised: Python would print "Exception ignored ... Traceback"
+    and drop it. The command line remembers it (the next run raises it) and prints
+    nothing; any other exception of a finalizer still reaches the hook it replaced."""
+    from hmpc_pin import _startup
+
+    class Finalized:
+        def __init__(self, action):
+            self.action = action
+
+        def __del__(self):
+            self.action()
+
+    def ctrl_c():
+        signal.raise_signal(signal.SIGINT)  # the real handler raises inside __del__
+
+    def fail():
+        raise ValueError("a finalizer's own error")
+
+    previous = _startup.guard()
+    try:
+        _startup.end()
+        seen = []
+        monkeypatch.setattr(_startup, "_previous_unraisable", seen.append)
+        Finalized(ctrl_c)  # dropped at once: __del__ runs here
+        assert _startup.interrupted and seen == []
+        with pytest.raises(KeyboardInterrupt):
+            _startup.raise_if_interrupted()
+        Finalized(fail)
+        assert [type(u.exc_value) for u in seen] == [ValueError]
+    finally:
+        _startup.restore(previous)
+        _startup.interrupted = False
+    assert "Traceback" not in capsys.readouterr().err

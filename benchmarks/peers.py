@@ -13,9 +13,10 @@ joint, the bounds :math:`v_{\\min} \\le U_i \\le v_{\\max}`),
 
 is solved along one recorded gradient sequence by the package
 (:class:`hmpc_pin.mpc.condensed.JointQPs`, the compiled QPs of the controller's step) and
-by ``casadi.conic`` with ``qpoases``, ``osqp``, ``proxqp`` and ``daqp``, each in the same
-layout as the package (:func:`hmpc_pin.mpc.condensed.resolve_layout`: one block-diagonal
-QP of n·Nc variables up to 140 variables, one QP per joint above), warm-started where the
+by ``casadi.conic`` with ``qpoases``, ``osqp``, ``proxqp`` and ``daqp`` (the package: one QP
+per joint, :func:`hmpc_pin.mpc.condensed.resolve_layout`; the peers: one block-diagonal QP
+of n·Nc variables up to :data:`PEER_BLOCK_MAX`, one QP per joint above,
+:func:`peer_layout`), warm-started where the
 plugin allows (``x0``, ``lam_x0`` from the previous solution). The gradient sequence comes
 from a closed loop of the feedback-linearised arm (:math:`\\ddot q = v`, Eq 24 exactly)
 tracking the benchmark's sine around the arm's home pose, the state kicked
@@ -92,6 +93,7 @@ except ImportError:  # optional dependency (extra "bench"): the CasADi part is s
 __all__ = [
     "AVAILABLE",
     "KICK",
+    "PEER_BLOCK_MAX",
     "PLUGINS",
     "SCENARIOS",
     "TOLERANCE",
@@ -109,6 +111,7 @@ __all__ = [
     "crocoddyl_steps",
     "crocoddyl_table",
     "main",
+    "peer_layout",
     "qp_peers",
     "qp_table",
     "record_problem",
@@ -310,6 +313,19 @@ def record_problem(sc: QPScenario, arms: dict[str, Arm] | None = None) -> QPProb
                      np.array(M), qps, qps.layout, active / sc.steps)  # fmt: skip
 
 
+#: The largest block-diagonal QP (n·Nc variables) the peers solve in one call; above it one
+#: QP per joint. One call per step is how a CasADi user poses n small independent QPs (each
+#: call through CasADi costs ~70 µs, so n calls would time its interface n times), and
+#: CasADi's qpOASES plugin ignores the bounds of a one-variable QP (H = 1, g = -152,
+#: bounds +/-100 gives 152), which the per-joint layout at Nc = 1 would pose.
+PEER_BLOCK_MAX = 140
+
+
+def peer_layout(problem: QPProblem | SimpleNamespace) -> str:
+    """The layout the peers solve ``problem``'s QPs in (:data:`PEER_BLOCK_MAX`)."""
+    return "block" if problem.n * problem.mpc.Nc <= PEER_BLOCK_MAX else "joint"
+
+
 class CasadiQPs:
     """The joint QPs through ``casadi.conic`` with one plugin, in the package's layout.
 
@@ -320,7 +336,7 @@ class CasadiQPs:
 
     def __init__(self, problem: QPProblem | SimpleNamespace, plugin: str):
         n, Nc = problem.n, problem.mpc.Nc
-        self.n, self.Nc, self.block = n, Nc, problem.layout == "block"
+        self.n, self.Nc, self.block = n, Nc, peer_layout(problem) == "block"
         H = casadi.DM(problem.mpc.H)
         if self.block:
             H = casadi.diagcat(*([H] * n))  # block-diagonal sparsity: n dense Nc×Nc blocks
@@ -334,7 +350,7 @@ class CasadiQPs:
         self.solvers = [
             casadi.conic(f"{plugin}_{k}", plugin,
                          {"h": H.sparsity(), "a": casadi.Sparsity(0, nv)},
-                         plugin_options(plugin, problem.layout))
+                         plugin_options(plugin, peer_layout(problem)))
             for k in range(len(self.bounds))
         ]  # fmt: skip
         self.x = [np.zeros(nv) for _ in self.solvers]
@@ -358,15 +374,16 @@ class CasadiQPs:
 def _call_floor(problem: QPProblem) -> Callable[[np.ndarray], None]:
     """A CasADi ``Function`` of the conic's inputs that returns two of them, called as the
     peers are: the cost of a call through CasADi's Python interface."""
-    nv = problem.n * problem.mpc.Nc if problem.layout == "block" else problem.mpc.Nc
+    block = peer_layout(problem) == "block"
+    nv = problem.n * problem.mpc.Nc if block else problem.mpc.Nc
     H = casadi.DM(problem.mpc.H)
-    if problem.layout == "block":
+    if block:
         H = casadi.diagcat(*([H] * problem.n))
     sym = {k: casadi.SX.sym(k, nv) for k in ("g", "lbx", "ubx", "x0", "lam_x0")}
     h = casadi.SX.sym("h", H.sparsity())
     fn = casadi.Function("floor", [h, *sym.values()], [sym["x0"], sym["lam_x0"]],
                          ["h", *sym], ["x", "lam_x"])  # fmt: skip
-    calls = 1 if problem.layout == "block" else problem.n
+    calls = 1 if block else problem.n
     lo, hi, z = np.full(nv, -1.0), np.full(nv, 1.0), np.zeros(nv)
 
     def run(G: np.ndarray) -> None:
@@ -506,9 +523,9 @@ def qp_peers(scenarios=SCENARIOS, blocks: int = 5, steps_scale: float = 1.0) -> 
                     continue
                 variants[name] = peer.solve
             variants["CasADi call (identity Function)"] = _call_floor(problem)
-            if problem.layout == "block":  # the package's per-joint layout on the same QPs
+            if peer_layout(problem) != problem.layout:  # the package in the peers' layout
                 other = OtherLayout(problem)
-                name = "hmpc_pin, per-joint layout"
+                name = f"hmpc_pin, {other.qps.layout} layout"
                 diff[name], torque[name], residual[name] = check_peer(problem, other, name)
                 variants[name] = other.solve
             blocks_us = _alternate(variants, problem.G, blocks, warmup=min(5, sc.steps // 4))
@@ -732,14 +749,14 @@ def qp_table(cases: list[PeerCase]) -> str:
     """The CasADi table (Markdown): per scenario and solver, the median call, the package's,
     their ratio (median over blocks, range) and the solution checks."""
     lines = [
-        "| arm | setting | layout | bounds active | solver | median [µs] | hmpc_pin "
-        "[µs] | **solver / hmpc_pin** (range) | max \\|ΔU\\| [rad/s²] | max \\|M Δv₀\\| "
+        "| arm | setting | layout (package / peers) | bounds active | solver | median [µs] "
+        "| hmpc_pin [µs] | **solver / hmpc_pin** (range) | max \\|ΔU\\| [rad/s²] | max \\|M Δv₀\\| "
         "[N·m] | KKT residual |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for c in cases:
         p = c.problem
-        head = (f"| {p.scenario.arm} | {p.scenario.label} | {p.layout} | "
+        head = (f"| {p.scenario.arm} | {p.scenario.label} | {p.layout} / {peer_layout(p)} | "
                 f"{p.active:.0%} of steps |")  # fmt: skip
         base = c.median_us("hmpc_pin")
         lines.append(f"{head} hmpc_pin (JointQPs) | {_us(base)} | {_us(base)} | 1 | | | "

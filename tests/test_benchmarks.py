@@ -127,7 +127,8 @@ def test_casadi_peers_solve_the_package_qps():
     ]
     for sc in scenarios:
         problem = peers.record_problem(sc)
-        assert problem.layout == ("joint" if sc.Nc == 100 else "block")
+        assert problem.layout == "joint"  # the package: one QP per joint
+        assert peers.peer_layout(problem) == ("joint" if sc.Nc == 100 else "block")
         assert problem.active > 0, "no bound active: the check would not test the bounds"
         for G in problem.G:
             U = problem.package_solve(G)

@@ -257,7 +257,9 @@ def test_non_finite_state_is_a_fault_and_the_safe_torque_uses_the_last_finite_st
 
 def test_qp_not_solved_is_a_fault(robot):
     """A real ProxSuite failure: one iteration allowed."""
-    ctrl = hmpc_pin.HierarchicalMPC(robot, MPCSettings(max_iter=1))
+    # the block QP goes to ProxSuite at every step (the per-joint QPs of this start are
+    # answered without it: no bound active, or the active-set shortcut)
+    ctrl = hmpc_pin.HierarchicalMPC(robot, MPCSettings(max_iter=1, qp_layout="block"))
     loop, _arm, _, _ = _setup(robot, 1.0, controller=ctrl)
     run = loop.run()
     assert run.stop["cause"] == "fault" and "QP was not solved" in run.stop["reason"]

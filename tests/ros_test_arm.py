@@ -204,7 +204,16 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
 
     extra = None
     if scenario == "traffic":  # one more node in the graph: gripper states and chatter
+        from std_msgs.msg import String
+
+        heard = threading.Event()
+        node.create_subscription(String, "/chatter", lambda _msg: heard.set(), 10)
         extra = subprocess.Popen([sys.executable, __file__, "--extra-node"])
+        # the controller starts once the node is up: its start-up (imports, discovery) is
+        # a burst of CPU that, on two loaded cores, could hold the arm's loop past the
+        # watchdog; what is tested is the traffic, not that burst
+        if not heard.wait(60.0):
+            raise RuntimeError("the extra node published nothing within 60 s")
     exe = [sys.executable, "-m", "hmpc_pin"]
     ctrl_cmd = [*exe, "ros", config_path, "--duration", str(duration), "--out", out]
     if scenario == "remap":

@@ -83,7 +83,19 @@ def test_a_native_plant_survives_pickling(planar3):
     np.testing.assert_array_equal(twin.advance(np.ones(3))[0], plant.advance(np.ones(3))[0])
 
 
-@pytest.mark.parametrize("disturbance", ["none", "friction+pulse", "pulse", "callable"])
+class _Described:
+    """A user's disturbance object with an attribute of its own named ``terms`` (not the
+    package's sum: it must still be called, not taken for the zero disturbance)."""
+
+    terms = ()
+
+    def __call__(self, t, q, dq):
+        return -0.5 * dq + np.cos(2.0 * t) * np.array([1.0, -0.5, 0.2])
+
+
+@pytest.mark.parametrize(
+    "disturbance", ["none", "friction+pulse", "pulse", "callable", "object with terms"]
+)
 def test_rk4_period_equals_the_oracle(planar3, disturbance):
     """Every period of a 3 s run (through the pulses, across velocity sign changes of the
     friction) equals the plain RK4 loop of tests/reference/rk4.py started from the same
@@ -95,9 +107,10 @@ def test_rk4_period_equals_the_oracle(planar3, disturbance):
         "friction+pulse": _paper_disturbance(),
         "pulse": hmpc_pin.GaussianPulse([10, 8, 0.3], [0.05, 0.1, 0.15], 0.03),
         "callable": lambda t, q, dq: -0.5 * dq + np.sin(3.0 * t) * np.array([1.0, 0.5, 0.2]),
+        "object with terms": _Described(),
     }[disturbance]
     plant = RK4Plant(planar3.copy(), d, 0.01, 0.001, coulomb="sign")  # the oracle's law
-    assert plant.fused is (disturbance != "callable")
+    assert plant.fused is (disturbance not in ("callable", "object with terms"))
     q, dq = np.array([0.3, -0.4, 0.2]), np.array([0.5, -0.2, 0.1])
     plant.reset(q, dq)
     signs = set()

@@ -75,7 +75,7 @@ from ..model.robot import Robot
 from ..native import deprecated_backend, model_string
 from ..native import load as load_native
 from .base import Plant
-from .disturbances import CoulombViscousFriction, TimeOnly, ZeroDisturbance
+from .disturbances import CoulombViscousFriction, Disturbance, TimeOnly, ZeroDisturbance
 
 __all__ = [
     "COULOMB_LAWS",
@@ -172,11 +172,18 @@ def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
     """The summed ``(a, b)`` of the Coulomb–viscous terms of a disturbance evaluated as a
     function (a sum with other terms), which the stick-slip period then integrates as the
     fused one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
-    terms = getattr(disturbance, "terms", (disturbance,))
+    terms = _terms(disturbance)
     found = [ab for ab in (_friction_of(term, n) for term in terms) if ab is not None]
     if not found:
         return None
     return sum(a for a, _ in found), sum(b for _, b in found)
+
+
+def _terms(disturbance) -> tuple:
+    """The summed terms of a :class:`~hmpc_pin.sim.disturbances.Disturbance` (``()`` for
+    the zero one); any other callable is one term, whatever attributes it has (a user
+    object's own ``terms`` is not the package's sum)."""
+    return disturbance.terms if isinstance(disturbance, Disturbance) else (disturbance,)
 
 
 def split_disturbance(disturbance, n: int):
@@ -190,7 +197,7 @@ def split_disturbance(disturbance, n: int):
         ``None`` instead of the pair when the disturbance has any other term (a user
         callable, two friction terms), which is then evaluated term by term.
     """
-    terms = getattr(disturbance, "terms", (disturbance,))
+    terms = _terms(disturbance)
     pulses, friction = [], []
     for term in terms:
         if isinstance(term, TimeOnly):

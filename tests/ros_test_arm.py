@@ -242,6 +242,7 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     stall_end = -1.0
     acted = set()
     deactivating = None  # the orchestrator's deactivate call (scenario "deactivate")
+    clients = _orchestrator_clients(node) if scenario == "deactivate" else None
     t0 = time.time()
     while ctrl.poll() is None:
         k += 1
@@ -339,7 +340,8 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
             ctrl.send_signal(signal.SIGINT)
         if scenario == "deactivate" and "deactivate" not in acted and run_t >= 1.5:
             acted.add("deactivate")
-            deactivating = threading.Thread(target=_deactivate, args=(node, report), daemon=True)
+            deactivating = threading.Thread(target=_deactivate, args=(node, report, clients),
+                                            daemon=True)  # fmt: skip
             deactivating.start()
     c_out, c_err = ctrl.communicate()
     report["controller"] = {"exit": ctrl.returncode, "stdout": c_out, "stderr": c_err}
@@ -362,24 +364,38 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     os._exit(0)
 
 
-def _deactivate(node, report) -> None:
+def _orchestrator_clients(node):
+    """The clients of an orchestrator (a lifecycle manager holds them from its start: a
+    client made just before its call can lose the answer while DDS still matches the
+    service's response writer to it, the known service-discovery race of ROS 2)."""
+    from lifecycle_msgs.srv import ChangeState
+    from rcl_interfaces.srv import ListParameters
+
+    return (node.create_client(ListParameters, "/hmpc_pin_controller/list_parameters"),
+            node.create_client(ChangeState, "/hmpc_pin_controller/change_state"))  # fmt: skip
+
+
+def _deactivate(node, report, clients) -> None:
     """``ros2 lifecycle set /hmpc_pin_controller deactivate`` and ``ros2 param list``, as
     rclpy service calls."""
     from lifecycle_msgs.msg import Transition
     from lifecycle_msgs.srv import ChangeState
     from rcl_interfaces.srv import ListParameters
 
-    params = node.create_client(ListParameters, "/hmpc_pin_controller/list_parameters")
+    params, client = clients
     if params.wait_for_service(timeout_sec=10.0):
         res = params.call(ListParameters.Request(), timeout_sec=10.0)
         report["events"]["parameters"] = [] if res is None else list(res.result.names)
-    client = node.create_client(ChangeState, "/hmpc_pin_controller/change_state")
     if client.wait_for_service(timeout_sec=10.0):
         req = ChangeState.Request()
         req.transition.id = Transition.TRANSITION_DEACTIVATE
         report["events"]["deactivate_sent"] = time.time()
-        res = client.call(req, timeout_sec=10.0)
+        try:  # (rclpy raises TimeoutError where older versions returned None)
+            res = client.call(req, timeout_sec=10.0)
+        except TimeoutError:
+            res = None
         report["events"]["deactivated"] = None if res is None else bool(res.success)
+        report["events"]["deactivate_answered"] = time.time()
 
 
 def _activate(node, report, commands, lock, shutdown: bool = False) -> None:

@@ -201,7 +201,7 @@ def test_lifecycle_deactivate_is_the_stop_sequence_and_parameters_are_listed(tmp
     config, report, result = _run(tmp_path, "deactivate", 6.0)
     ctrl = report["controller"]
     assert ctrl["exit"] == 130, ctrl["stderr"]
-    assert report["events"].get("deactivated") is True
+    assert report["events"].get("deactivated") is True, (report["events"], ctrl["stderr"])
     params = report["events"]["parameters"]
     assert {"ros.rate", "ros.gravity", "realtime.watchdog", "use_sim_time"} <= set(params)
     _no_nan(report)

@@ -302,13 +302,15 @@ class RosNode:
         self._closed = True
         self._deactivate = None
         if self._executor is not None:
-            # (a transition's answer, e.g. deactivate's after the stop sequence it waited
-            # for, is sent once its callback returns: let it go out before the node goes)
             self._executor.shutdown(timeout_sec=5.0)
+        if self._thread is not None:
+            # the services' thread ends once the callback in flight has returned and its
+            # answer is sent (deactivate's, after the stop sequence it waited for): the node
+            # is destroyed only then (destroyed under it, the transition fails to complete
+            # and the orchestrator gets no answer)
+            self._thread.join(timeout=5.0)
         self.node.destroy_node()
         self.context.try_shutdown()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
 
 
 def _lifecycle_node(owner: RosNode, name: str, namespace: str):

@@ -354,6 +354,22 @@ def test_a_warning_of_the_urdf_loaded_twice_is_printed_once(tmp_path, capsys):
     assert out.is_file()
 
 
+def _ros_in_netns(tmp_path, command: str, rate: float):
+    """``hmpc-pin <command>`` (``ros`` or ``ros-arm``) on panda_sine with ``[ros] rate``
+    and ``--duration 0.1``, in a private network namespace; (the finished process, the
+    ``--out`` folder given to ``ros``)."""
+    text = (CONFIGS / "panda_sine.toml").read_text() + f"\n[ros]\nrate = {rate}\n"
+    cfg = _write(tmp_path / "arm.toml", text)
+    out = tmp_path / "out"
+    args = [command, str(cfg), "--duration", "0.1"] + (
+        ["--out", str(out)] if command == "ros" else []
+    )
+    script = f"ip link set lo up && exec {sys.executable} -m hmpc_pin {' '.join(args)}"
+    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    return proc, out
+
+
 @pytest.mark.parametrize("command, rate", [("ros", 150.0), ("ros-arm", 150.0),
                                            ("ros-arm", 300.0)])  # fmt: skip
 def test_a_ros_rate_that_does_not_fit_is_named_ros_rate_before_anything_runs(
@@ -371,15 +387,7 @@ def test_a_ros_rate_that_does_not_fit_is_named_ros_rate_before_anything_runs(
     reason = _netns_reason()
     if reason:
         pytest.skip(reason)
-    text = (CONFIGS / "panda_sine.toml").read_text() + f"\n[ros]\nrate = {rate}\n"
-    cfg = _write(tmp_path / "arm.toml", text)
-    out = tmp_path / "out"
-    args = [command, str(cfg), "--duration", "0.1"] + (
-        ["--out", str(out)] if command == "ros" else []
-    )
-    script = f"ip link set lo up && exec {sys.executable} -m hmpc_pin {' '.join(args)}"
-    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
-                          text=True, timeout=300)  # fmt: skip
+    proc, out = _ros_in_netns(tmp_path, command, rate)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     err = proc.stderr.strip()
     assert err.startswith("error: ros.rate: ") and len(err.splitlines()) == 1, err
@@ -407,15 +415,7 @@ def test_a_ros_run_shorter_than_one_period_is_refused_before_any_node(tmp_path, 
     reason = _netns_reason()
     if reason:
         pytest.skip(reason)
-    text = (CONFIGS / "panda_sine.toml").read_text() + "\n[ros]\nrate = 0.5\n"
-    cfg = _write(tmp_path / "arm.toml", text)
-    out = tmp_path / "out"
-    args = [command, str(cfg), "--duration", "0.1"] + (
-        ["--out", str(out)] if command == "ros" else []
-    )
-    script = f"ip link set lo up && exec {sys.executable} -m hmpc_pin {' '.join(args)}"
-    proc = subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
-                          text=True, timeout=300)  # fmt: skip
+    proc, out = _ros_in_netns(tmp_path, command, 0.5)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     err = proc.stderr.strip()
     assert err == (

@@ -940,6 +940,20 @@ SOFT_LONG = {  # (Ts, N = Nc, start offset [rad] from the sine, limits (lo, hi, 
 }
 
 
+def _soft_long_qps(case: str):
+    """Three joints' soft-limit QPs of ``SOFT_LONG[case]`` (paper weights, N = Nc): the
+    condensed MPC, the QPs with the soft active-set shortcut, and the same QPs solved
+    cold by ProxSuite."""
+    Ts, N, _, (lo, hi, vel) = SOFT_LONG[case]
+    mpc = CondensedMPC(Ts, N, N, Q_PAPER, R_PAPER, P_PAPER)
+    limits = StateLimits(np.full(3, lo), np.full(3, hi), np.full(3, vel), SOFT["rho2"],
+                         SOFT["rho1"])  # fmt: skip
+    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    cold = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    cold.soft_active_set_iter = -1  # every soft QP solved from scratch by ProxSuite
+    return mpc, qps, cold
+
+
 @pytest.mark.parametrize("case", list(SOFT_LONG))
 def test_long_horizon_soft_limits_satisfy_kkt_and_equal_cold_solves(case):
     """Three joints in a closed loop of the double integrators (Eq 24) started off a sine
@@ -953,12 +967,7 @@ def test_long_horizon_soft_limits_satisfy_kkt_and_equal_cold_solves(case):
     the QP to ProxSuite."""
     Ts, N, offset, (lo, hi, vel) = SOFT_LONG[case]
     n = 3
-    mpc = CondensedMPC(Ts, N, N, Q_PAPER, R_PAPER, P_PAPER)
-    limits = StateLimits(np.full(n, lo), np.full(n, hi), np.full(n, vel), SOFT["rho2"],
-                         SOFT["rho1"])  # fmt: skip
-    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
-    cold = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
-    cold.soft_active_set_iter = -1  # every soft QP solved from scratch by ProxSuite
+    mpc, qps, cold = _soft_long_qps(case)
     phase = np.array([0.0, 1.0, 2.0])
     w = 2.0 * np.pi
 
@@ -1011,12 +1020,7 @@ def test_first_step_of_each_soft_activation_is_answered_by_the_shortcut(case):
     QP)."""
     Ts, N, offset, (lo, hi, vel) = SOFT_LONG[case]
     n = 3
-    mpc = CondensedMPC(Ts, N, N, Q_PAPER, R_PAPER, P_PAPER)
-    limits = StateLimits(np.full(n, lo), np.full(n, hi), np.full(n, vel), SOFT["rho2"],
-                         SOFT["rho1"])  # fmt: skip
-    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
-    cold = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
-    cold.soft_active_set_iter = -1  # every soft QP solved from scratch by ProxSuite
+    mpc, qps, cold = _soft_long_qps(case)
     phase = np.array([0.0, 1.0, 2.0])
     w = 2.0 * np.pi
 

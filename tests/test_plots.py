@@ -119,3 +119,108 @@ def test_a_spike_of_a_long_run_is_in_the_drawn_figure(tmp_path, monkeypatch):
     plots.plot_tracking(result, tmp_path / "t.png", "spike")
     assert max(np.max(y) for y in drawn) == 7.5
     assert all(len(y) <= plots.MAX_POINTS for y in drawn)
+
+
+# ------------------------------------------------------------------ log axes in plain text
+@pytest.mark.parametrize(
+    ("x", "label"),
+    [(1e-7, "10⁻⁷"), (1e-3, "10⁻³"), (1.0, "10⁰"), (10.0, "10¹"), (1e12, "10¹²"),
+     (2e-3, "2×10⁻³"), (0.5, "5×10⁻¹"), (0.0, ""), (-1.0, ""), (float("nan"), "")],
+)  # fmt: skip
+def test_power_labels_are_the_decades_in_superscript_digits(x, label):
+    assert plots.power_label(x) == label
+
+
+def test_the_error_figure_labels_its_decades_without_mathtext(run, tmp_path, monkeypatch):
+    """Every y tick label of the error figure reads 10 to the power of the tick's decade
+    (computed here from the tick's value), written without matplotlib's mathtext."""
+    _, result = run
+    labels = []
+    save = Figure.savefig
+
+    def savefig(fig, path, **kw):
+        save(fig, path, **kw)  # drawn: the labels are final
+        for ax in fig.axes:
+            lo, hi = ax.get_ylim()
+            for tick in ax.yaxis.get_major_ticks():
+                if lo <= tick.get_loc() <= hi:
+                    labels.append((tick.get_loc(), tick.label1.get_text()))
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    plots.plot_error({"run": result}, tmp_path / "e.png", "error")
+    assert len(labels) >= 3 * 3  # three rows, 7+ decades each
+    for loc, text in labels:
+        exponent = round(np.log10(loc))
+        assert np.isclose(loc, 10.0**exponent)
+        digits = str(exponent).translate(str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹"))
+        assert text == "10" + digits and "$" not in text
+
+
+# ------------------------------------------------------------------ several figures of a run
+def _pixels(path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return np.asarray(image.convert("RGBA"))
+
+
+@pytest.mark.parametrize(
+    "order",
+    [("tracking", "disturbance", "error"), ("error", "tracking", "disturbance"),
+     ("disturbance", "error", "tracking")],
+)  # fmt: skip
+def test_figures_drawn_one_after_the_other_are_those_drawn_alone(run, tmp_path, order):
+    """draw_all draws the per-joint figures on one figure in turn: each PNG is, pixel for
+    pixel, the one draw makes on a new figure, whatever came before it (a log axis, a
+    title or none, another legend)."""
+    _, result = run
+    jobs = [(kind, tmp_path / f"all_{kind}.png", title, "with NDO")
+            for kind, title in zip(order, ("a title", "", LONG), strict=True)]  # fmt: skip
+    assert list(plots.draw_all(jobs, result)) == [(path, None) for _, path, _, _ in jobs]
+    for kind, path, title, label in jobs:
+        alone = plots.draw(kind, result, tmp_path / f"alone_{kind}.png", title, label)
+        assert np.array_equal(_pixels(path), _pixels(alone)), kind
+
+
+def test_figures_drawn_one_after_the_other_plot_the_runs_arrays(run, tmp_path, monkeypatch):
+    """Each figure of draw_all holds, per row, exactly its own lines with the run's arrays
+    (the reference and the angle; the true and estimated disturbance; |q − r| floored at
+    1e-9 and the 0.01 line): nothing of the figure before it."""
+    _, result = run
+    drawn = []
+    save = Figure.savefig
+
+    def savefig(fig, path, **kw):
+        drawn.append([[(line.get_label(), np.asarray(line.get_ydata(), float))
+                       for line in ax.get_lines()] for ax in fig.axes])  # fmt: skip
+        save(fig, path, **kw)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    kinds = ("error", "tracking", "disturbance")
+    jobs = [(kind, tmp_path / f"{kind}.png", "", "with NDO") for kind in kinds]
+    assert all(exc is None for _, exc in plots.draw_all(jobs, result))
+    error, tracking, disturbance = drawn
+    for i in range(3):
+        assert [label for label, _ in tracking[i]] == ["reference r", "angle q"]
+        assert np.array_equal(tracking[i][0][1], result.q_ref[:, i])
+        assert np.array_equal(tracking[i][1][1], result.q[:, i])
+        assert [label for label, _ in disturbance[i]] == ["true d", "NDO estimate d̂"]
+        assert np.array_equal(disturbance[i][0][1], result.d[:, i])
+        assert np.array_equal(disturbance[i][1][1], result.d_hat[:, i])
+        assert [label for label, _ in error[i]] == ["with NDO", "0.01 rad"]
+        e = np.maximum(np.abs(result.q[:, i] - result.q_ref[:, i]), 1e-9)
+        assert np.array_equal(error[i][0][1], e)
+        assert np.array_equal(error[i][1][1], [0.01, 0.01])
+
+
+def test_a_figure_that_cannot_be_drawn_is_reported_and_the_next_is_drawn(run, tmp_path):
+    _, result = run
+    jobs = [("tracking", tmp_path / "t.png", "", ""), ("nonsense", tmp_path / "x.png", "", ""),
+            ("disturbance", tmp_path / "d.png", "", "")]  # fmt: skip
+    out = list(plots.draw_all(jobs, result))
+    assert [p.name for p, _ in out] == ["t.png", "x.png", "d.png"]
+    assert out[0][1] is None and out[2][1] is None
+    assert isinstance(out[1][1], hmpc_pin.ConfigError) and "nonsense" in str(out[1][1])
+    assert not (tmp_path / "x.png").exists()
+    alone = plots.draw("disturbance", result, tmp_path / "alone.png")
+    assert np.array_equal(_pixels(tmp_path / "d.png"), _pixels(alone))

@@ -7,12 +7,14 @@ draw figures. While the command imports the library, builds the experiment and r
 the process imports matplotlib and draws a small figure (fonts and caches loaded,
 :func:`~hmpc_pin.apps.plots.warm_up`). Once the command has written the run's ``.npz``
 and printed its table, it sends one job (:func:`draw`): the process reads the arrays from
-that file and draws each figure in a child of its own (``fork``: matplotlib stays
-imported), on every core at once, each PNG written to ``<name>.part`` and renamed. The
-figures are the same as drawn in the command's process (:func:`hmpc_pin.apps.plots.draw`).
-This shortens the command where a core is free; the CPU time stays that of matplotlib's
-import and drawing (plus the process's own start, about 0.15 s), so a machine busy with
-other work sees little change.
+that file and deals the figures in turn to one process per core it may use (itself and
+children of its own: ``fork``, matplotlib stays imported); each draws its share one after
+the other on one figure (:func:`hmpc_pin.apps.plots.draw_all`: the Axes and ticks made
+once), each PNG written to ``<name>.part`` and renamed. The figures are the same, pixel for
+pixel, as drawn in the command's process (:func:`hmpc_pin.apps.plots.draw`). This shortens
+the command where a core is free; the CPU time stays that of matplotlib's import and
+drawing (plus the process's own start, about 0.15 s), so a machine busy with other work
+sees little change.
 
 Only the command line does this (``hmpc-pin`` or ``python -m hmpc_pin``); the library
 and ``main()`` called from Python draw in their own process. Nothing outlives the command:
@@ -166,16 +168,30 @@ def _reply(path: str, error: str | None) -> None:
     os.write(1, (json.dumps({"path": path, "error": error}) + "\n").encode())
 
 
-def _draw_one(run: _Run, kind: str, path: str, title: str, label: str) -> int:
+def _draw_some(run: _Run, figures: list) -> int:
+    """Draw ``figures`` one after the other (:func:`hmpc_pin.apps.plots.draw_all`), one
+    line to the command per figure; the number that failed (the command draws them)."""
     from . import plots
 
+    failed = 0
+    for path, exc in plots.draw_all(figures, run):
+        failed += exc is not None
+        _reply(str(path), None if exc is None else f"{type(exc).__name__}: {exc}"[:2000])
+    return failed
+
+
+def _cores() -> int:
+    """The cores this process may run on."""
     try:
-        plots.draw(kind, run, path, title, label)
-    except Exception as exc:  # the command draws it again and reports it
-        _reply(path, f"{type(exc).__name__}: {exc}"[:2000])
-        return 1
-    _reply(path, None)
-    return 0
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def _groups(figures: list, cores: int) -> list[list]:
+    """``figures`` dealt to at most ``cores`` groups in turn (one process each)."""
+    k = max(1, min(cores, len(figures)))
+    return [figures[i::k] for i in range(k)]
 
 
 def _serve(parent: int) -> None:
@@ -189,21 +205,20 @@ def _serve(parent: int) -> None:
         return
     job = json.loads(line)
     run = _Run(job["npz"])
+    groups = _groups(job["figures"], _cores())
     me = os.getpid()
     children = []
-    for kind, path, title, label in job["figures"]:
-        if not hasattr(os, "fork"):
-            _draw_one(run, kind, path, title, label)
-            continue
+    for group in groups[1:]:  # the first group is drawn here, beside the others
         pid = os.fork()
         if pid == 0:
             code = 1
             try:
                 _die_with(me)
-                code = _draw_one(run, kind, path, title, label)
+                code = _draw_some(run, group)
             finally:
                 os._exit(code)
         children.append(pid)
+    _draw_some(run, groups[0])
     for pid in children:
         os.waitpid(pid, 0)
     os._exit(0)  # the job is done: no clean-up of matplotlib's modules to wait for

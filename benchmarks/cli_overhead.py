@@ -22,8 +22,13 @@ bare ``import hmpc_pin`` loads are counted (of the package's own, and whether nu
 pinocchio or matplotlib are among them). Blocks alternate the measurements, so a machine
 shared with other work loads each alike.
 
+With ``--baseline PYTHON`` every block also runs the ``hmpc-pin`` beside that interpreter
+(another checkout's environment, e.g. the version before a change), figures drawn, so that
+the two versions are compared under the same load.
+
 Usage: python benchmarks/cli_overhead.py [--repeats 5] [--configs panda_sine paper_combined]
        [--parts]  (also: the parts of a run, timed one after the other in one process)
+       [--baseline PATH/TO/OTHER/python]
 """
 
 from __future__ import annotations
@@ -59,10 +64,10 @@ IN_PROCESS = (
 )
 
 
-def command() -> list[str]:
-    """The ``hmpc-pin`` script beside this interpreter, else ``python -m hmpc_pin``."""
-    script = Path(PYTHON).parent / "hmpc-pin"
-    return [str(script)] if script.exists() else [PYTHON, "-m", "hmpc_pin"]
+def command(python: str = PYTHON) -> list[str]:
+    """The ``hmpc-pin`` script beside ``python``, else ``python -m hmpc_pin``."""
+    script = Path(python).parent / "hmpc-pin"
+    return [str(script)] if script.exists() else [python, "-m", "hmpc_pin"]
 
 
 def _children_cpu() -> float:
@@ -118,23 +123,23 @@ t.append(T())
 from hmpc_pin.apps import plots
 t.append(T())
 out = Path(tempfile.mkdtemp())
-plots.plot_tracking(result, out / "t.png", "t")
-plots.plot_disturbance(result, out / "d.png", "d")
-plots.plot_error({"run": result}, out / "e.png", "e")
+jobs = [("tracking", out / "t.png", "t", ""), ("disturbance", out / "d.png", "d", ""),
+        ("error", out / "e.png", "e", "run")]
+assert all(exc is None for _, exc in plots.draw_all(jobs, result))
 t.append(T())
 print(" ".join(f"{b - a:.3f}" for a, b in zip(t, t[1:])))
 """
 PART_NAMES = ("numpy, pinocchio, proxsuite, matplotlib", "the command line (hmpc_pin.apps.cli)",
               "the library, config and build (URDF check)", "Experiment.run()",
               "matplotlib's figure module (plots)",
-              "the three figures, one after the other")  # fmt: skip
+              "the three figures, one after the other on one figure (draw_all)")  # fmt: skip
 
 
 def parts(names: list[str], repeats: int) -> None:
     """Print the median time [s] of each of :data:`PART_NAMES` per config."""
     print(f"\n| part [s] | {' | '.join(names)} |")
     print(f"|---|{'---|' * len(names)}")
-    times = {}
+    times: dict[str, list] = {}
     for _ in range(repeats):
         for name in names:
             out = subprocess.run([PYTHON, "-c", PARTS, name], capture_output=True, text=True,
@@ -153,6 +158,11 @@ def main() -> None:
         "--parts",
         action="store_true",
         help="also time a run's parts one after the other in one process",
+    )
+    parser.add_argument(
+        "--baseline",
+        metavar="PYTHON",
+        help="also run the hmpc-pin of this interpreter (another version) in every block",
     )
     args = parser.parse_args()
     cli = command()
@@ -178,12 +188,16 @@ def main() -> None:
                 " (figures drawn in the command's process)": ([], []),
                 " --no-figures": ([], []),
             }
+            if args.baseline:
+                variants[f" (baseline: {args.baseline})"] = ([], [])
             for _ in range(args.repeats):
                 for flags, (runs, refs) in variants.items():
                     argv = ["run", name, "--out", tmp]
                     if flags.startswith(" --"):
                         argv.append(flags.strip())
-                    prog = [PYTHON, "-c", IN_PROCESS] if flags.startswith(" (") else cli
+                    prog = [PYTHON, "-c", IN_PROCESS] if flags.startswith(" (f") else cli
+                    if flags.startswith(" (b"):
+                        prog = command(args.baseline)
                     runs.append(wall([*prog, *argv]))
                     refs.append(np.add(wall([PYTHON, "-c", IMPORTS]), in_process(experiment)))
             for flags, (runs, refs) in variants.items():

@@ -1,18 +1,20 @@
 """Ctrl-C during the command line's start-up: exit 130 at once, with one line.
 
 While ``hmpc-pin`` starts (imports, reading the config, loading the URDF, building the
-controller) nothing has been written and no process started, so a Ctrl-C needs no
-clean-up: :func:`guard` installs a SIGINT handler that prints one line and ends the
-process with exit status 130 at once. A handler that ends the process is the only
-reliable one here: a ``KeyboardInterrupt`` raised during an import is swallowed by a
-library's ``except BaseException`` (trimesh, which yourdfpy imports, does that) or aborts
-the process when it crosses compiled code.
+controller) nothing has been written, and the only process started is ``run``'s figure
+process (:mod:`hmpc_pin.apps.figure_worker`, importing matplotlib beside the start-up),
+which ends with the command by itself (the parent-death signal on Linux, its closed pipe
+elsewhere), so a Ctrl-C needs no clean-up: :func:`guard` installs a SIGINT handler that
+prints one line and ends the process with exit status 130 at once. A handler that ends the
+process is the only reliable one here: a ``KeyboardInterrupt`` raised during an import is
+swallowed by a library's ``except BaseException`` (trimesh, which yourdfpy imports, does
+that) or aborts the process when it crosses compiled code.
 
 The command ends the start-up (:func:`end`) just before its first side effect (an output
-folder, a process, a file): from then on Ctrl-C raises :class:`KeyboardInterrupt` again and
-the command stops the way it documents (what was computed is written, the arm gets its
-safe torque). :func:`end` first imports the modules whose import swallows Ctrl-C, so that
-no later import can.
+folder, a file, a process other than the figure process): from then on Ctrl-C raises
+:class:`KeyboardInterrupt` again and the command stops the way it documents (what was
+computed is written, the arm gets its safe torque). :func:`end` first imports the modules
+whose import swallows Ctrl-C, so that no later import can.
 
 The package's ``__init__`` calls :func:`guard` first of all when the process is the
 command line (``hmpc-pin`` or ``python -m hmpc_pin``), so that the guard covers the

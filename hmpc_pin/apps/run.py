@@ -159,8 +159,9 @@ def draw_figures(
 
     When the command line started its figure process
     (:mod:`~hmpc_pin.apps.figure_worker`) and ``files`` holds the run's ``.npz``, that
-    process draws them, all at once; otherwise they are drawn here, matplotlib imported on
-    first use. Either way the figures are the same."""
+    process draws them, all at once; otherwise they are drawn here, one after the other
+    (:func:`~hmpc_pin.apps.plots.draw_all`), matplotlib imported on first use. Either way
+    the figures are the same."""
     sys.stdout.flush()  # what was printed (the command's table) shows while they are drawn
     if len(result.t) <= 1:
         return files
@@ -183,11 +184,16 @@ def draw_figures(
         except BaseException:  # a Ctrl-C: what was written is listed
             files.extend(done)
             raise
-    for kind, path, job_title, label in jobs:
-        if path not in done:  # no figure process, or it could not draw this one
-            from . import plots
+    missing = [job for job in jobs if job[1] not in done]  # no figure process, or it failed
+    if missing:
+        from . import plots
 
-            plots.draw(kind, result, path, job_title, label)
+        drawn = plots.draw_all(missing, result)  # one after the other, each as plots.draw
+    for _, path, _, _ in jobs:
+        if path not in done:
+            _, exc = next(drawn)
+            if exc is not None:
+                raise exc
         files.append(path)
     return files
 

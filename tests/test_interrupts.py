@@ -358,13 +358,13 @@ def test_ctrl_c_while_the_figures_are_drawn_names_the_files_written(tmp_path, ca
     from hmpc_pin.apps import plots
     from hmpc_pin.apps.cli import main
 
-    draw = plots.plot_tracking
+    draw = plots._draw  # every figure of a run is drawn by it
 
     def interrupted(*args, **kwargs):
         signal.raise_signal(signal.SIGINT)  # handled as a Ctrl-C in the terminal would be
         return draw(*args, **kwargs)
 
-    monkeypatch.setattr(plots, "plot_tracking", interrupted)
+    monkeypatch.setattr(plots, "_draw", interrupted)
     cfg = str(CONFIGS / "paper_combined.toml")
     code = main(["run", cfg, "--duration", "0.3", "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip()

@@ -149,9 +149,9 @@ class _Panels:
     """The per-joint figures of one run drawn on one :class:`~matplotlib.figure.Figure`
     per shape, one after the other (:func:`draw_all`).
 
-    Making a row's Axes and, at its first drawing, its ticks is most of a per-joint
-    figure's time (about 60 %); a figure drawn on the Axes of the previous one pays for
-    its lines, texts and pixels only. Between two figures the Axes are cleared of what a
+    Making a row's Axes and, at its first drawing, its ticks is about half of a per-joint
+    figure's time; a figure drawn on the Axes of the previous one pays for its lines,
+    texts and pixels only. Between two figures the Axes are cleared of what a
     figure adds (lines, legend, limits, scale, title), so that each figure is the one a
     new Figure gives, pixel for pixel.
     """
@@ -501,8 +501,9 @@ def draw_all(figures, result) -> Iterator[tuple[Path, Exception | None]]:
     """Draw several figures of ``result``, one after the other, each as :func:`draw` does.
 
     The per-joint figures (tracking, disturbance, error) of one run have the same rows:
-    they are drawn on one figure in turn (:class:`_Panels`), which saves making their
-    Axes and ticks again (about 40 % of the second and third figure's time).
+    they are drawn on one figure in turn, which saves making their Axes and ticks again
+    (the Panda's disturbance figure: 0.17 s of CPU after the tracking figure, 0.27 s
+    alone).
 
     Args:
         figures: ``(kind, path, title, label)`` per figure (as :func:`draw` takes them).

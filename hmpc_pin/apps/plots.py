@@ -90,9 +90,9 @@ _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 def power_label(x: float, pos=None) -> str:
     """A log axis's tick label in plain text: ``10⁻³`` at a decade, ``2×10⁻³`` between.
 
-    Matplotlib's default writes ``$10^{-3}$``, which goes through its mathtext parser: a
-    third of the error figure's drawing time. Superscript digits of the figures' font give
-    the same label without it.
+    Matplotlib's default writes ``$10^{-3}$``, which goes through its mathtext parser
+    (about a seventh of the Panda's error figure in a profile). Superscript digits of the
+    figures' font give the same label without it.
     """
     if not x > 0 or not np.isfinite(x):
         return ""

@@ -9,6 +9,8 @@ what to do next.
 
 from __future__ import annotations
 
+import os
+
 
 class HmpcError(Exception):
     """Base class of every error raised by hmpc_pin."""
@@ -41,7 +43,7 @@ class URDFError(HmpcError, ValueError):
         path: The URDF file (or robot name) that was rejected.
     """
 
-    def __init__(self, path: str, message: str):
+    def __init__(self, path: str | os.PathLike[str], message: str):
         self.path = str(path)
         super().__init__(f"{path}: {message}")
 

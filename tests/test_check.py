@@ -344,6 +344,25 @@ def test_the_bandwidth_is_the_observers_own(compensation, expected):
     assert report.problems == []
 
 
+@pytest.mark.parametrize("reaction", ["ignore", "stop"])
+def test_the_bandwidth_of_an_observer_behind_the_collision_gate(reaction):
+    """With ``[collision]`` the observer is wrapped in the collision reaction's gate: the
+    table still shows its bandwidth diag(c L M(q0)^-1) (Pinocchio's CRBA) and its margin,
+    as without the gate."""
+    from hmpc_pin.experiment.config.collision import CollisionConfig
+
+    config = replace(load_config(PAPER), collision=CollisionConfig(2.0, reaction))
+    report = check_config(config, engines=False)
+    ex = Experiment.from_config(config)
+    M0 = pin.crba(ex.robot.model, ex.robot.model.createData(), ex.q0)
+    M0 = np.triu(M0) + np.triu(M0, 1).T
+    w = np.diag(100.0 * np.tril(np.ones((3, 3))) @ np.linalg.inv(M0))
+    np.testing.assert_allclose(report.bandwidth, w, rtol=1e-9)
+    bare = check_config(replace(config, collision=None), engines=False)
+    np.testing.assert_array_equal(report.margin, bare.margin)
+    assert np.all(np.isfinite(report.margin))
+
+
 def test_a_latency_declared_at_1khz_bounds_the_bandwidth_for_half_a_cycle_too_many():
     """Ts = 1 ms, latency 1 ms declared: the rule for it declared ΔL = 0.5 ms too long,
     ω (r Ts + 2ΔL − 2Ts) <= 1, allows 1/(0.25 ms) = 4000 1/s; the paper's joint 3
@@ -360,6 +379,8 @@ def test_a_latency_declared_at_1khz_bounds_the_bandwidth_for_half_a_cycle_too_ma
     assert over.tolist() == [2] and len(report.warnings) == 1
     assert "'joint3'" in report.warnings[0] and "'joint2'" not in report.warnings[0]
     assert "alternate in sign" in report.warnings[0]
+    # the numbers it names: the bound 1/(r Ts + 2 dL - 2 Ts) and dL = min(L, Ts)/2
+    assert "above 4000 1/s" in report.warnings[0] and "dL = 0.0005 s" in report.warnings[0]
     g = 0.001 * report.bandwidth[2] / (1 + 0.001 * report.bandwidth[2])
     assert max(abs(np.roots([1.0, -(1 - 2 * g), -g, 0.0]))) > 1.0
     assert len(report.problems) == 1 and "'joint3'" in report.problems[0]

@@ -21,6 +21,7 @@ from hmpc_pin.exceptions import (
     HmpcError,
     LimitError,
     OutputError,
+    SimulationError,
     URDFError,
 )
 from hmpc_pin.experiment.build import Experiment
@@ -409,3 +410,24 @@ def test_dask_executor_without_dask_is_a_clear_error(tmp_path, capsys, monkeypat
     assert main([*argv, "--executor", "dask", "--samples", "1", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "hmpc_pin[cluster]" in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "error, code",
+    [(SimulationError("the arm process failed to start"), 1), (ConfigError("k", "bad"), 2)],
+)
+def test_a_run_failure_reaching_the_command_line_exits_1_bad_input_2(
+    monkeypatch, capsys, error, code
+):
+    """The exit codes' contract at the command line's top: a run that failed (a
+    ``SimulationError`` that reaches it, e.g. an arm process that did not start) is 1, bad
+    input 2, each as one ``error:`` line (the command itself replaced here)."""
+    import hmpc_pin.apps.cli as cli
+
+    def fails(args):
+        raise error
+
+    monkeypatch.setattr(cli, "cmd_init", fails)
+    assert main(["init", "planar3"]) == code
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [f"error: {error}"]

@@ -3,6 +3,7 @@ from the run's record, bad files refused in one line, NaN samples left out."""
 
 from __future__ import annotations
 
+import io
 import json
 import re
 import tomllib
@@ -111,6 +112,41 @@ def test_records_of_older_versions_are_read(tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1 and "--source dynamics" in err, err
 
 
+@pytest.mark.parametrize("reaction", ["ignore", "stop"])
+def test_a_run_with_a_collision_reaction_records_its_observer(reaction, tmp_path, capsys):
+    """``[collision]`` wraps the controller and gates its observer: the run still records
+    the observer that ran (the same record as without the reaction), and ``identify``
+    fits its estimate (no collision flagged: the threshold is above any estimate)."""
+    from hmpc_pin.experiment.config.collision import CollisionConfig
+
+    config = _friction_config("chen", ObserverConfig(gain=100.0))
+    plain = Experiment.from_config(config).run()
+    watched = Experiment.from_config(replace(config, collision=CollisionConfig(1e6, reaction)))
+    result = watched.run()
+    assert result.meta["observer_model"] == plain.meta["observer_model"]
+    np.testing.assert_array_equal(result.d_hat, plain.d_hat)
+    code, _out, err, table = _identify(result.save(tmp_path / "watched.npz"), tmp_path, capsys)
+    assert code == 0 and table is not None, err
+
+
+def test_a_run_that_does_not_say_which_observer_ran(saved_run, tmp_path, capsys):
+    """Without the observer's record and without its config file the estimate cannot be
+    unfiltered: ``--source observer`` (the default) is one line pointing to ``--source
+    dynamics``, nothing written; with ``--source dynamics`` the same file is fitted."""
+    result = Result.load(saved_run)
+    result.meta.pop("observer_model", None)
+    result.meta["config"] = None
+    path = result.save(tmp_path / "anonymous.npz")
+    for extra in ((), ("--source", "observer")):
+        code, _out, err, table = _identify(path, tmp_path, capsys, *extra)
+        assert code == 2 and table is None
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: --source:"), err
+        assert "--source dynamics" in lines[0]
+    code, _out, err, table = _identify(path, tmp_path, capsys, "--source", "dynamics")
+    assert code == 0 and table is not None, err
+
+
 @pytest.fixture(scope="module")
 def saved_run(tmp_path_factory):
     exp = Experiment.from_config(_friction_config("chen", ObserverConfig(gain=100.0)))
@@ -128,6 +164,28 @@ def _object_npz(path):
 def _truncated(path, saved):
     data = saved.read_bytes()
     path.write_bytes(data[: len(data) // 2])
+
+
+def _data_past_the_end(path, saved):
+    """A zip whose last member's sizes (in the directory) and array header claim more
+    data than the file holds: reading it runs into the file's end (``EOFError``, not
+    ``BadZipFile``)."""
+    with zipfile.ZipFile(saved) as src, zipfile.ZipFile(path, "w") as dst:
+        names = [i.filename for i in src.infolist() if i.filename != "q.npy"] + ["q.npy"]
+        for name in names:
+            body = src.read(name)
+            if name == "q.npy":  # a header claiming far more samples than follow
+                q = np.load(io.BytesIO(body))
+                head = io.BytesIO()
+                header = {"descr": q.dtype.str, "fortran_order": False, "shape": (2**20, 3)}
+                np.lib.format.write_array_header_1_0(head, header)
+                body = head.getvalue() + q.tobytes()
+            dst.writestr(name, body)
+    data = bytearray(path.read_bytes())
+    entry = data.rindex(b"PK\x01\x02")  # q.npy's directory entry
+    for offset in (20, 24):  # compressed and uncompressed sizes: 2 GiB
+        data[entry + offset : entry + offset + 4] = (2**31).to_bytes(4, "little")
+    path.write_bytes(bytes(data))
 
 
 def _npy(path, saved):
@@ -223,6 +281,7 @@ BAD_FILES = {
     "text starting with PK": (lambda p, s: p.write_text("PK,q\n0,1\n"), "not a .npz archive"),
     "npy": (_npy, "not a .npz archive"),
     "truncated": (_truncated, "truncated or corrupt"),
+    "data past the end": (_data_past_the_end, "truncated or corrupt (the data end early)"),
     "foreign npz": (lambda p, s: _foreign_npz(p), "has no 'meta' array"),
     "object arrays": (lambda p, s: _object_npz(p), "not a hmpc_pin result"),
     "arrays of different lengths": (_bad_shapes, "'dq' has shape"),

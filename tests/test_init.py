@@ -65,8 +65,10 @@ def test_init_config_passes_check(written, name, capsys):
 
 @pytest.mark.parametrize("name", CI_MODELS)
 def test_init_reference_inside_position_and_velocity_limits(written, name):
-    """Offset ± amplitude inside the URDF limits (when they are used) and the peak speed
-    2π f a at most half of every URDF velocity limit; r(0), ṙ(0) as the start state."""
+    """Offset ± amplitude inside the URDF limits (when they are used) with 5 % of the range
+    kept from each limit, the amplitude at most 0.3 rad / 0.05 m and a quarter of the range,
+    and the peak speed 2π f a at most half of every URDF velocity limit; r(0), ṙ(0) as the
+    start state (the module's promises, checked on the URDF's own numbers)."""
     path, raw = written[name]
     exp = Experiment.from_config(load_config(path))
     robot = exp.robot
@@ -74,8 +76,16 @@ def test_init_reference_inside_position_and_velocity_limits(written, name):
     a = np.broadcast_to(np.asarray(ref["amplitude"], float), (robot.nq,))
     o = np.asarray(ref["offset"], float)
     f = float(ref["frequency"])
+    cap = np.array([0.3 if kind == "revolute" else 0.05 for kind in robot.joint_kinds])
+    assert np.all(a <= cap + 1e-12)
     if raw["controller"].get("constraints", {}).get("position", True):
-        assert np.all(o - a >= robot.lower) and np.all(o + a <= robot.upper)
+        span = robot.upper - robot.lower
+        finite = np.isfinite(span)
+        assert np.all(a[finite] <= 0.25 * span[finite] * (1 + 1e-9))
+        # the file writes the offset rounded to 4 decimals: up to 5e-5 off the plan's
+        keep = 0.05 * span[finite] * (1 - 1e-9) - 5e-5
+        assert np.all(o[finite] - a[finite] - robot.lower[finite] >= keep)
+        assert np.all(robot.upper[finite] - o[finite] - a[finite] >= keep)
     vmax = robot.velocity_limit
     assert np.all((2 * np.pi * f * a <= 0.5 * vmax + 1e-12) | (vmax <= 0))
     q0, dq0 = exp.reference.sample(0.0)
@@ -242,3 +252,24 @@ def test_bandwidth_survives_a_latency_declared_half_a_cycle_too_long():
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             check_bandwidth(np.full(6, plan.bandwidth), Ts, LATENCY, [f"j{i}" for i in range(6)])
+
+
+def test_init_amplitude_a_quarter_of_a_short_range(write_urdf):
+    """Joints with ranges under 1.2 rad (and 0.2 m) get a quarter of their range, the
+    others 0.3 rad / 0.05 m, all scaled alike when gravity asks for a smaller sine; the
+    offset keeps o ± a 5 % of the range from each limit."""
+    short = '<limit lower="-0.4" upper="0.4" effort="100" velocity="3"/>'
+    slide = '<limit lower="0" upper="0.1" effort="100" velocity="1"/>'
+    text = three_links(
+        kinds=("revolute", "revolute", "prismatic"), j2={"limit": short}, j3={"limit": slide}
+    )
+    p = plan(write_urdf(text))
+    lo, hi = p.robot.lower, p.robot.upper
+    nominal = np.minimum([0.3, 0.3, 0.05], 0.25 * (hi - lo))  # [0.3, 0.2, 0.025]
+    np.testing.assert_allclose(nominal, [0.3, 0.2, 0.025])
+    scale = p.amplitude / nominal
+    assert scale[0] in (1.0, 0.5, 0.25)
+    np.testing.assert_allclose(p.amplitude, scale[0] * nominal, rtol=1e-12)
+    keep = 0.05 * (hi - lo) * (1 - 1e-9)
+    assert np.all(p.offset - p.amplitude - lo >= keep)
+    assert np.all(hi - p.offset - p.amplitude >= keep)

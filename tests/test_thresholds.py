@@ -85,8 +85,16 @@ def test_bad_options_and_short_runs_are_refused(make_rng):
     run = _result(_ar1(make_rng(0), 6000, 2))
     with pytest.raises(ConfigError, match="--safety"):
         learn_thresholds(run, safety=0.5)
-    with pytest.raises(ConfigError, match="--false-alarm"):
-        learn_thresholds(run, false_alarm=1.5)
+    for alarm in (0.0, 1.0, 1.5, -0.1, float("nan")):  # a probability strictly in (0, 1)
+        with pytest.raises(ConfigError, match=r"--false-alarm.*a probability in \(0, 1\)"):
+            learn_thresholds(run, false_alarm=alarm)
+    for safety in (0.999, float("nan"), float("inf")):
+        with pytest.raises(ConfigError, match=r"--safety.*a factor >= 1"):
+            learn_thresholds(run, safety=safety)
+    for key in ("horizon", "block"):
+        for bad in (0.0, -1.0, float("nan"), float("inf")):
+            with pytest.raises(ConfigError, match=f"--{key}.*a duration"):
+                learn_thresholds(run, **{key: bad})
     with pytest.raises(ConfigError, match="--block"):  # no duration, not 'too short'
         learn_thresholds(run, block=0.0)
     with pytest.raises(ConfigError, match="too short"):

@@ -369,6 +369,20 @@ def test_live_view_flags_need_viz(tmp_path, capsys, flag):
     assert not list(tmp_path.glob("*.npz"))
 
 
+@pytest.mark.parametrize("speed", ["0", "-1", "nan"])
+def test_a_live_view_speed_must_be_positive(tmp_path, capsys, speed):
+    """``--speed`` (the live view's playback rate) outside (0, inf]: exit 2 with one line
+    naming it, before anything runs or is written."""
+    from hmpc_pin.apps.cli import main
+
+    cfg = str(PLANAR3.parent.parent / "configs" / "paper_combined.toml")
+    argv = ["run", cfg, "--out", str(tmp_path / "out"), "--duration", "0.2", "--viz"]
+    assert main([*argv, "--speed", speed]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: --speed: expected a number > 0")
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (apt-get install chromium)")
 def test_live_view_waits_for_a_browser_and_stays_open(tmp_path):
     """``run --viz --wait --keep-open`` in a real subprocess: nothing runs until headless

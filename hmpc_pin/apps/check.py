@@ -202,7 +202,7 @@ def _bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
     from ..compensation.bandwidth import implied_bandwidth
     from ..compensation.observers import DisturbanceObserver, MomentumObserver
 
-    comp = getattr(ex.controller, "compensation", None)
+    comp: Any = getattr(ex.controller, "compensation", None)
     while hasattr(comp, "inner"):  # a gate around the observer (collision reaction)
         comp = comp.inner
     if isinstance(comp, MomentumObserver):
@@ -829,6 +829,8 @@ def _observer_lag_findings(
             <= 0.5 * DEFAULT_ERROR_THRESHOLD
         ):
             obs = cc.observer
+            if obs is None:  # a compensation without the observer's table: no key to raise
+                break
             if obs.bandwidth is not None:
                 key, value = "bandwidth", np.asarray(obs.bandwidth, dtype=float) * scale
             else:

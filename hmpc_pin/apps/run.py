@@ -114,7 +114,7 @@ def run_one(
     if experiment is None:
         experiment = Experiment.from_config(config)
     own_view = open_view is None and viz is not None
-    if own_view:
+    if open_view is None and viz is not None:  # (own_view, spelled out for the type)
         view = live_view(experiment.robot, viz, experiment.obstacle)
     else:
         view = open_view(experiment) if open_view is not None else None

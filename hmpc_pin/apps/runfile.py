@@ -41,7 +41,8 @@ def load_run(path: Path, key: str = "RUN") -> Result:
     except (zipfile.BadZipFile, EOFError) as exc:
         raise ConfigError(
             key,
-            f"{str(path)!r} is truncated or corrupt ({exc}); write it again, or pass another run",
+            f"{str(path)!r} is truncated or corrupt ({str(exc) or 'the data end early'}); "
+            "write it again, or pass another run",
         ) from None
     except KeyError as exc:
         missing = str(exc.args[0] if exc.args else exc).split(" is not a file")[0]

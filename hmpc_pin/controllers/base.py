@@ -66,6 +66,19 @@ class ControllerWrapper:
         """The wrapped controller's disturbance estimate [N·m]."""
         return self.controller.disturbance_estimate
 
+    @property
+    def compensation(self) -> Any:
+        """The wrapped controller's compensation (behind a collision reaction, its gate);
+        ``AttributeError`` when it has none, so that ``getattr(c, "compensation", None)``
+        sees through every wrapper."""
+        inner: Any = self.controller  # any controller may have one; the protocol does not
+        return inner.compensation
+
+    @compensation.setter
+    def compensation(self, value: Any) -> None:
+        inner: Any = self.controller
+        inner.compensation = value
+
     def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
         """Reset the wrapped controller."""
         self.controller.reset(q0, dq0)

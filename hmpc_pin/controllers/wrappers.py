@@ -202,15 +202,6 @@ class FrictionFeedforward(ControllerWrapper):
         self.torque = self.model(np.asarray(dq, dtype=float))
         return tau + self.torque
 
-    @property
-    def compensation(self):
-        """The wrapped controller's compensation (a collision watch may replace it)."""
-        return self.controller.compensation
-
-    @compensation.setter
-    def compensation(self, value) -> None:
-        self.controller.compensation = value
-
     def __getattr__(self, name):  # v, tau, observer, ... of the wrapped controller
         if name == "controller":
             raise AttributeError(name)

@@ -45,6 +45,7 @@ The per-step loop in Python, this loop's oracle, lives in the tests
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 import numpy as np
 
@@ -172,7 +173,7 @@ class CompiledLoop:
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
         ctrl, K = self.ctrl, self.K
-        port = None if self.measured is None else self.measured.measurement
+        port: Any = None if self.measured is None else self.measured.measurement
         if ctrl is not None:  # its compiled step, with its reference and measurement ports
             self._loop.set_controller(ctrl.compiled_controller(self.reference, port))
         ahead = isinstance(port, load_native().SensingMeasurement)

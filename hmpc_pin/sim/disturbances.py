@@ -168,7 +168,7 @@ class SumDisturbance(Disturbance):
     """Sum of disturbances, e.g. Eq (34): :math:`d = F_r(\\dot q) + \\tau_d(t)`."""
 
     def __init__(self, *terms: DisturbanceFn):
-        flat = []
+        flat: list[DisturbanceFn] = []
         for term in terms:  # (a + b) + c is stored flat as (a, b, c)
             flat.extend(term.terms if isinstance(term, SumDisturbance) else (term,))
         self._terms = tuple(flat)

@@ -176,7 +176,10 @@ def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
     found = [ab for ab in (_friction_of(term, n) for term in terms) if ab is not None]
     if not found:
         return None
-    return sum(a for a, _ in found), sum(b for _, b in found)
+    return (
+        np.asarray(sum(a for a, _ in found), dtype=float),
+        np.asarray(sum(b for _, b in found), dtype=float),
+    )
 
 
 def _terms(disturbance) -> tuple:

@@ -80,7 +80,7 @@ class Encoder:
     @property
     def step(self) -> np.ndarray:
         """The quantisation step :math:`\\Delta = 2\\pi/N` [rad] (0: exact)."""
-        return 2.0 * np.pi / self.counts
+        return np.asarray(2.0 * np.pi / self.counts, dtype=float)
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """The reported angle [rad] of the true angle ``q`` [rad]."""

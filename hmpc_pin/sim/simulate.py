@@ -13,6 +13,7 @@ with the disturbance evaluated at every plant step (and every RK4 stage).
 from __future__ import annotations
 
 import warnings
+from typing import Any
 
 import numpy as np
 
@@ -232,7 +233,9 @@ def simulate(
     K = round(duration / Ts)
 
     t_arr = Ts * np.arange(K + 1)
-    rec = {name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"}
+    rec: dict[str, Any] = {
+        name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"
+    }
 
     limit = (
         None
@@ -261,6 +264,7 @@ def simulate(
     )
     last = k = -1
     message = ""
+    cause: BaseException | None
     try:
         raise_if_interrupted()  # a Ctrl-C swallowed while the run was set up
         try:

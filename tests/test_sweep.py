@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -379,3 +380,412 @@ def test_a_sample_is_finished_when_every_variant_ran_under_every_condition(short
     result = SweepResult(cfg, 2, 0, rows, interrupted=True)
     assert result.planned_runs == 8 and result.finished_samples == 1
     assert "1 of 2 samples finished (7 of 8 runs)" in result._interrupted_lines()[0]
+
+
+# ------------------------------------------------------- options refused by name
+@pytest.mark.parametrize(
+    ("flags", "named", "expected"),
+    [
+        (["--jobs", "0"], "--jobs", "an integer >= 1, got 0"),
+        (["--samples", "0"], "--samples", "an integer >= 1, got 0"),
+        (["--samples", "-3"], "--samples", "an integer >= 1, got -3"),
+        (["--seed", "-1"], "--seed", "an integer >= 0, got -1"),
+        (["--scheduler", "tcp://localhost:1"], "--scheduler", "--executor dask only"),
+    ],
+)
+def test_each_sweep_option_is_refused_by_its_own_name_before_out_exists(
+    flags, named, expected, tmp_path, capsys
+):
+    """Exit 2, one line naming the option and what was expected, and no --out folder."""
+    out = tmp_path / "never"
+    argv = ["sweep", str(COMBINED), "--samples", "1", "--jobs", "1", "--quiet", *flags]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith(f"error: {named}:"), err
+    assert expected in err, err
+    assert not out.exists()
+
+
+def test_dask_without_the_extra_is_refused_before_out_exists(tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)  # as if not installed
+    out = tmp_path / "never"
+    argv = ["sweep", str(COMBINED), "--samples", "1", "--executor", "dask", "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: --executor:") and "hmpc_pin[cluster]" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"samples": 0}, "--samples"),
+        ({"samples": 1.0}, "--samples"),
+        ({"samples": True}, "--samples"),
+        ({"seed": -1}, "--seed"),
+        ({"jobs": 0}, "--jobs"),
+        ({"executor": "ray"}, "--executor"),
+        ({"scheduler": "tcp://x:1"}, "--scheduler"),
+    ],
+)
+def test_run_sweep_refuses_bad_options_by_name(kwargs, named, short_config):
+    args = {"samples": 1, "seed": 0, "jobs": 1, **kwargs}
+    with pytest.raises(hmpc_pin.ConfigError) as info:
+        run_sweep(short_config, args.pop("samples"), args.pop("seed"), progress=False, **args)
+    assert info.value.key == named, str(info.value)
+
+
+def test_the_smallest_options_are_accepted(short_config):
+    """--samples 1, --seed 0, --jobs 1: the lower bounds themselves are valid."""
+    from hmpc_pin.apps.sweep import check_options
+
+    cfg = check_options(short_config, 1, 0, jobs=1)
+    assert cfg.sweep.variants == ("ndo", "no-ndo")
+
+
+# ------------------------------------------------------------------ the draws
+def _ranges(config, mass, friction, disturbance):
+    sweep = replace(config.sweep, mass=mass, friction=friction, disturbance=disturbance)
+    return replace(config, sweep=sweep)
+
+
+def test_draws_follow_the_documented_seed_sequence(short_config):
+    """Sample i: SeedSequence(seed).spawn(K)[i], n mass factors on U(mass), then n friction
+    factors on U(friction), n pulse factors on U(disturbance), then the noise seed; three
+    disjoint ranges so that a range read for another shows."""
+    cfg = _ranges(short_config, (0.7, 0.9), (1.5, 1.6), (2.0, 3.0))
+    params = draw_samples(cfg, 4, seed=11)
+    assert [p.index for p in params] == [0, 1, 2, 3]
+    for p, child in zip(params, np.random.SeedSequence(11).spawn(4), strict=True):
+        rng = np.random.default_rng(child)
+        np.testing.assert_allclose(p.mass, 0.7 + 0.2 * rng.random(3), rtol=1e-15)
+        np.testing.assert_allclose(p.friction, 1.5 + 0.1 * rng.random(3), rtol=1e-15)
+        np.testing.assert_allclose(p.disturbance, 2.0 + 1.0 * rng.random(3), rtol=1e-15)
+        assert p.noise_seed == int(rng.integers(0, 2**63 - 1))
+        assert all(0.7 <= m < 0.9 for m in p.mass) and all(1.5 <= f < 1.6 for f in p.friction)
+        assert all(2.0 <= d < 3.0 for d in p.disturbance)
+
+
+def test_a_range_of_one_value_draws_it_and_keeps_the_other_draws(short_config):
+    """[1, 1] draws exactly 1.0, and the noise seed does not move with the ranges."""
+    fixed = draw_samples(_ranges(short_config, (1.0, 1.0), (1.0, 1.0), (1.0, 1.0)), 3, 5)
+    drawn = draw_samples(_ranges(short_config, (0.5, 2.0), (0.5, 2.0), (0.5, 2.0)), 3, 5)
+    for f, d in zip(fixed, drawn, strict=True):
+        assert f.mass == f.friction == f.disturbance == (1.0, 1.0, 1.0)
+        assert f.noise_seed == d.noise_seed and d.mass != f.mass
+
+
+def test_perturbed_config_scales_friction_pulses_and_the_mujoco_joints():
+    """Per joint: viscous and Coulomb friction by the friction factor, the pulse amplitude
+    by the disturbance factor, MuJoCo's frictionloss and damping by the friction factor;
+    nothing else."""
+    from hmpc_pin.apps.sweep import SampleParams, perturbed_config
+
+    fr, dist = (0.5, 2.0, 3.0), (1.5, 0.25, 4.0)
+    p = SampleParams(0, (1.1, 1.2, 1.3), fr, dist, 7)
+    cfg = hmpc_pin.load_config(COMBINED)
+    new = perturbed_config(cfg, p)
+    assert new.controller == cfg.controller and new.plant == cfg.plant
+    old_f, new_f = cfg.disturbance.friction, new.disturbance.friction
+    np.testing.assert_allclose(new_f.viscous, np.multiply(fr, old_f.viscous), rtol=1e-15)
+    np.testing.assert_allclose(new_f.coulomb, np.multiply(fr, old_f.coulomb), rtol=1e-15)
+    old_p, new_p = cfg.disturbance.pulse, new.disturbance.pulse
+    np.testing.assert_allclose(new_p.amplitude, np.multiply(dist, old_p.amplitude), rtol=1e-15)
+    cfg = hmpc_pin.load_config(CONFIGS / "paper_combined_mujoco.toml")
+    new = perturbed_config(cfg, p)
+    old_m, new_m = cfg.plant.mujoco, new.plant.mujoco
+    assert old_m is not None
+    for key in ("frictionloss", "damping"):
+        expected = np.multiply(fr, np.broadcast_to(getattr(old_m, key), (3,)))
+        np.testing.assert_allclose(np.broadcast_to(getattr(new_m, key), (3,)), expected)
+    assert new.controller == cfg.controller and new.robot == cfg.robot
+
+
+# ------------------------------------------------------------ one sample's row
+def test_a_rows_numbers_are_those_of_its_run(short_config):
+    """Under "plant" with unit factors a row is the nominal run's: recomputed here from the
+    run with numpy (RMS per joint and max |e| over t >= after, the worst joint, t_end,
+    saturation and torque TV); after = 0.4 s, not the default, so that the window is the
+    config's. Bounded is max |e| <= error_bound, the bound itself included."""
+    from hmpc_pin.experiment.build import Experiment
+
+    cfg = replace(short_config, sweep=replace(short_config.sweep, after=0.4))
+    params = draw_samples(cfg, 1, seed=2)[0]
+    ones = replace(params, mass=(1.0,) * 3, friction=(1.0,) * 3, disturbance=(1.0,) * 3)
+    result = Experiment.from_config(cfg).run()
+    keep = result.t >= 0.4 - 1e-12
+    e = result.error[keep]
+    rms = np.sqrt((e**2).mean(axis=0))
+    row = run_sample(cfg, ones, "ndo", "plant")
+    np.testing.assert_array_equal([row[f"rms_joint{i}"] for i in (1, 2, 3)], rms)
+    assert row["rms_max"] == rms.max() and row["max_error"] == np.abs(e).max()
+    assert row["t_end"] == result.t[-1] == pytest.approx(1.5) and row["complete"] is True
+    assert row["message"] == "" and row["sample"] == 0 and row["variant"] == "ndo"
+    assert row["condition"] == "plant" and row["noise_seed"] == params.noise_seed
+    assert (row["mass_1"], row["friction_joint2"], row["disturbance_joint3"]) == (1.0,) * 3
+    clipped = np.any(result.tau != result.tau_applied, axis=1)
+    assert row["saturation"] == pytest.approx(clipped.mean(), abs=1e-15)
+    tv = np.abs(np.diff(result.tau, axis=0)).sum() / (result.t[-1] - result.t[0])
+    assert row["torque_tv"] == pytest.approx(tv, rel=1e-12)
+    # bounded: the bound itself is inside, the next float below it is not
+    bound = row["max_error"]
+    at = replace(cfg, sweep=replace(cfg.sweep, error_bound=bound))
+    below = replace(cfg, sweep=replace(cfg.sweep, error_bound=float(np.nextafter(bound, 0))))
+    assert run_sample(at, ones, "ndo", "plant")["bounded"] is True
+    assert run_sample(below, ones, "ndo", "plant")["bounded"] is False
+
+
+def test_the_draws_are_written_per_link_and_per_joint(short_config):
+    params = draw_samples(_ranges(short_config, (0.7, 0.9), (1.5, 1.6), (2.0, 3.0)), 2, 4)[1]
+    row = run_sample(short_config, params, "no-ndo", "sensing")
+    assert [row[f"mass_{i}"] for i in (1, 2, 3)] == list(params.mass)
+    assert [row[f"friction_joint{i}"] for i in (1, 2, 3)] == list(params.friction)
+    assert [row[f"disturbance_joint{i}"] for i in (1, 2, 3)] == list(params.disturbance)
+    assert row["sample"] == 1 and row["variant"] == "no-ndo"
+
+
+def test_an_unknown_condition_is_refused(short_config):
+    params = draw_samples(short_config, 1, 0)[0]
+    with pytest.raises(hmpc_pin.ConfigError, match="condition"):
+        run_sample(short_config, params, "ndo", "everything")
+
+
+def test_the_legacy_keys_apply_noise_under_sensing_and_the_delay_under_latency(short_config):
+    """With the 0.3 keys (noise σ and a delay in periods), "latency" is the delay alone
+    (the run with noise 0 and the delay under "all"), "sensing" the noise alone (the run
+    with delay 0 under "all", the same noise sequence), "plant" neither (the nominal run);
+    unit factors, so that "all" draws no plant."""
+
+    def with_keys(q, dq, delay):
+        return replace(short_config, sweep=replace(short_config.sweep, q_noise=q,
+                                                   dq_noise=dq, delay=delay))  # fmt: skip
+
+    cfg = with_keys(1e-3, 1e-2, 2)
+    params = draw_samples(cfg, 1, seed=9)[0]
+    ones = replace(params, mass=(1.0,) * 3, friction=(1.0,) * 3, disturbance=(1.0,) * 3)
+
+    def rms(config, condition):
+        row = run_sample(config, ones, "ndo", condition)
+        return [row[f"rms_joint{i}"] for i in (1, 2, 3)]
+
+    assert rms(cfg, "latency") == rms(with_keys(0.0, 0.0, 2), "all")
+    assert rms(cfg, "sensing") == rms(with_keys(1e-3, 1e-2, 0), "all")
+    assert rms(cfg, "plant") == rms(with_keys(0.0, 0.0, 0), "all")
+    assert len({tuple(rms(cfg, c)) for c in ("latency", "sensing", "plant", "all")}) == 4
+
+
+def test_the_0_3_keys_tell_hmpc_no_latency():
+    """Only the interface model tells hmpc its latency; with the 0.3 keys, or without
+    known_latency, or for another controller, the config is unchanged."""
+    from hmpc_pin.apps.sweep import _told_latency
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+
+    cfg = hmpc_pin.load_config(COMBINED)
+    assert cfg.sweep.legacy
+    assert _told_latency(cfg, "all") is cfg
+    modern = replace(cfg, sweep=replace(cfg.sweep, q_noise=None, dq_noise=None, delay=None,
+                                        sensing=SensingConfig(latency=0.003)))  # fmt: skip
+    told = _told_latency(modern, "all").controller.latency
+    assert told == pytest.approx(0.003, rel=1e-12)
+    assert _told_latency(modern, "sensing") is modern
+    unknown = replace(modern, sweep=replace(modern.sweep, known_latency=False))
+    assert _told_latency(unknown, "all") is unknown
+    ct = hmpc_pin.with_controller(modern, "computed-torque")
+    assert _told_latency(ct, "all") is ct
+
+
+# -------------------------------------------------------------- the summary
+def _row(sample, variant, condition, rms, bounded, max_error=None):
+    return {"sample": sample, "variant": variant, "condition": condition, "rms_max": rms,
+            "bounded": bounded, "max_error": 2 * rms if max_error is None else max_error,
+            "message": "" if bounded else f"stopped {sample}"}  # fmt: skip
+
+
+def _oracle(rows, target):
+    """Runs, bounded share, pass share, empirical median / p95 (the smallest value whose
+    empirical CDF reaches the level), worst RMS and its row, from the definitions."""
+    rms = [r["rms_max"] if r["bounded"] else math.inf for r in rows]
+    ordered = sorted(rms)
+    n = len(rms)
+    worst = max(range(n), key=lambda k: (rms[k], -k))  # the first of the largest
+    return {
+        "runs": n,
+        "bounded": sum(r["bounded"] for r in rows) / n,
+        "pass": sum(v <= target for v in rms) / n,
+        "median_rms": ordered[math.ceil(0.5 * n) - 1],
+        "p95_rms": ordered[math.ceil(0.95 * n) - 1],
+        "worst_rms": rms[worst],
+        "worst_sample": rows[worst]["sample"],
+        "worst_max_error": rows[worst]["max_error"],
+        "worst_message": rows[worst]["message"],
+    }
+
+
+def _summary_rows(short_config, make_rng):
+    """Seven samples × two variants × two conditions, one run of each variant not bounded
+    under "all", one RMS exactly at the target."""
+    rng = make_rng(4)
+    target = short_config.sweep.rms_target
+    rows = []
+    for s in range(7):
+        for v in ("ndo", "no-ndo"):
+            for c in ("sensing", "all"):
+                rms = float(rng.uniform(0.2, 3.0) * target)
+                bounded = not (c == "all" and s == (2 if v == "ndo" else 5))
+                rows.append(_row(s, v, c, target if (s, v, c) == (3, "ndo", "sensing")
+                                 else rms, bounded))  # fmt: skip
+    return rows
+
+
+def test_the_summary_is_the_definitions_applied_to_the_rows(short_config, make_rng):
+    from hmpc_pin.apps.sweep import SweepResult
+
+    sweep = replace(short_config.sweep, variants=("ndo", "no-ndo"), conditions=("sensing", "all"))
+    cfg = replace(short_config, sweep=sweep)
+    rows = _summary_rows(cfg, make_rng)
+    result = SweepResult(cfg, 7, 3, rows)
+    for condition in ("sensing", "all"):
+        got = result.summary(condition)
+        assert list(got) == ["ndo", "no-ndo"]
+        for v in got:
+            part = [r for r in rows if r["variant"] == v and r["condition"] == condition]
+            assert got[v] == _oracle(part, sweep.rms_target), (condition, v)
+    assert result.summary() == result.summary("all")  # the last configured condition
+    assert result.variant_rows("no-ndo") == [
+        r for r in rows if r["variant"] == "no-ndo" and r["condition"] == "all"
+    ]
+
+
+def _table(md: str) -> list[dict]:
+    lines = [line for line in md.splitlines() if line.startswith("| ")]
+    head = [c.strip() for c in lines[0].strip("|").split(" | ")]
+    return [dict(zip(head, [c.strip() for c in line.strip("|").split(" | ")], strict=True))
+            for line in lines[1:]]  # fmt: skip
+
+
+def test_every_cell_of_the_printed_summary_is_recomputed(short_config, make_rng):
+    """The Markdown table read back: each cell against the definitions on the rows (runs,
+    bounded and pass shares in percent, median / p95 / worst RMS and its sample, worst
+    max |e|), and the settings line against the config."""
+    from hmpc_pin.apps.sweep import SweepResult
+
+    sweep = replace(short_config.sweep, variants=("ndo", "no-ndo"), conditions=("sensing", "all"),
+                    mass=(0.85, 1.15), friction=(0.6, 1.7), disturbance=(0.3, 2.5),
+                    after=0.75, error_bound=0.8, rms_target=0.02)  # fmt: skip
+    cfg = replace(short_config, sweep=sweep)
+    rows = _summary_rows(cfg, make_rng)
+    md = SweepResult(cfg, 7, 3, rows, wall_time=12.34, jobs=2).summary_markdown()
+    table = _table(md)
+    assert [(r["condition"], r["variant"]) for r in table] == [
+        ("sensing", "ndo"), ("sensing", "no-ndo"), ("all", "ndo"), ("all", "no-ndo")]  # fmt: skip
+    for cells in table:
+        part = [
+            r
+            for r in rows
+            if (r["variant"], r["condition"]) == (cells["variant"], cells["condition"])
+        ]
+        o = _oracle(part, 0.02)
+        assert int(cells["runs"]) == o["runs"] == 7
+        assert float(cells["bounded"].rstrip(" %")) == pytest.approx(100 * o["bounded"], abs=0.05)
+        assert float(cells["bounded and RMS ≤ 0.02"].rstrip(" %")) == pytest.approx(
+            100 * o["pass"], abs=0.05)  # fmt: skip
+        for key, col in (("median_rms", "median RMS [rad]"), ("p95_rms", "p95 RMS [rad]")):
+            assert float(cells[col]) == pytest.approx(o[key], rel=1e-3), (cells, key)
+        worst, sample = cells["worst RMS [rad] (sample)"].split()
+        assert float(worst) == pytest.approx(o["worst_rms"], rel=1e-3)
+        assert int(sample.strip("()")) == o["worst_sample"]
+        assert float(cells["worst max \\|e\\| [rad]"]) == pytest.approx(
+            o["worst_max_error"], rel=1e-3)  # fmt: skip
+    assert md.startswith("# Sweep of paper_combined: 7 samples, seed 3\n")
+    for text in ("×U(0.85, 1.15)", "friction ×U(0.6, 1.7)", "amplitude ×U(0.3, 2.5)",
+                 "1.5 s per run", "over t ≥ 0.75 s", "max |e| ≤ 0.8 rad",
+                 "noise σ_q = 0.001 rad, σ_q̇ = 0.01 rad/s; delay 1 period(s)",
+                 "Wall time 12.3 s (local executor, 2 jobs)."):  # fmt: skip
+        assert text in md, text
+    assert "Interrupted" not in md
+
+
+def test_the_interface_model_is_described_with_its_values(short_config):
+    from hmpc_pin.apps.sweep import SweepResult
+    from hmpc_pin.experiment.config.sensing import SensingConfig
+
+    sensing = SensingConfig(rate=500.0, encoder_counts=4096.0, velocity_filter=80.0,
+                            latency=0.0025, delay=2, torque_filter=60.0, q_noise=2e-4,
+                            dq_noise=3e-3)  # fmt: skip
+    sweep = replace(short_config.sweep, q_noise=None, dq_noise=None, delay=None,
+                    sensing=sensing, known_latency=True)  # fmt: skip
+    md = SweepResult(
+        replace(short_config, sweep=sweep), 1, 0, [_row(0, "ndo", "all", 0.01, True)]
+    ).summary_markdown()
+    assert ("interface at 500 Hz: encoders of 4096 counts/rev, velocity finite-difference "
+            "low-passed at 80 Hz, latency 2.5 ms + 2 period(s), torque filter 60 Hz, noise "
+            "σ_q = 0.0002 rad, σ_q̇ = 0.003 rad/s; hmpc told the latency") in md  # fmt: skip
+    plain = replace(sweep, sensing=SensingConfig(latency=0.001, torque_filter=0.0),
+                    known_latency=False)  # fmt: skip
+    md = SweepResult(
+        replace(short_config, sweep=plain), 1, 0, [_row(0, "ndo", "all", 0.01, True)]
+    ).summary_markdown()
+    assert "velocity finite-difference, latency 1 ms;" in md
+    assert "period(s)" not in md and "torque filter" not in md and "told" not in md
+
+
+def test_a_sweep_written_to_disk_is_its_csv_and_summary(short_config, tmp_path):
+    from hmpc_pin.apps.sweep import SweepResult
+
+    rows = [dict(_row(s, "ndo", "all", 0.001 * (s + 1), True), rms_joint1=1 / 3) for s in range(2)]
+    result = SweepResult(short_config, 2, 0, rows)
+    csv_path, md_path = result.write(tmp_path)
+    assert (csv_path.name, md_path.name) == ("paper_combined_sweep.csv", "paper_combined_sweep.md")
+    assert md_path.read_text(encoding="utf-8") == result.summary_markdown()
+    back = list(csv.DictReader(io.StringIO(csv_path.read_text(encoding="utf-8"))))
+    assert [float(r["rms_joint1"]) for r in back] == [1 / 3, 1 / 3]  # repr: exact
+    assert [int(r["sample"]) for r in back] == [0, 1] and back[0]["bounded"] == "True"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [csv_path.name, md_path.name]
+
+
+def test_ctrl_c_keeps_the_runs_that_finished_in_order(short_config, monkeypatch):
+    """Ctrl-C during the 4th run of 2 samples × 2 variants: the result holds the three runs
+    that finished, in the order sample, variant, and says it was interrupted."""
+    from hmpc_pin.apps import sweep as sweep_module
+
+    calls = []
+
+    def fake(config, params, variant, condition="all"):
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        calls.append((params.index, variant))
+        return _row(params.index, variant, condition, 0.01, True)
+
+    monkeypatch.setattr(sweep_module, "run_sample", fake)
+    result = run_sweep(short_config, 2, seed=1, jobs=1, progress=False)
+    assert result.interrupted and [(r["sample"], r["variant"]) for r in result.rows] == [
+        (0, "ndo"), (0, "no-ndo"), (1, "ndo")]  # fmt: skip
+    assert result.finished_samples == 1 and result.planned_runs == 4
+    md = result.summary_markdown()
+    assert "**Interrupted** (Ctrl-C): 1 of 2 samples finished (3 of 4 runs)" in md
+
+
+def test_effort_leaves_out_non_finite_torques_and_short_runs():
+    """A period whose torque is not finite is neither clipped nor part of the total
+    variation; one sample: no variation, no span."""
+    from types import SimpleNamespace
+
+    from hmpc_pin.apps.sweep import torque_effort
+
+    t = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
+    tau = np.array([[0.0, 1.0], [2.0, 1.0], [np.nan, 0.0], [1.0, -1.0], [1.0, -1.0]])
+    applied = np.array([[0.0, 1.0], [1.5, 1.0], [0.0, 0.0], [1.0, -1.0], [1.0, -1.0]])
+    effort = torque_effort(SimpleNamespace(t=t, tau=tau, tau_applied=applied))
+    assert effort["saturation"] == pytest.approx(1 / 5)  # period 1 only
+    # finite rows 0, 1, 3, 4: |2-0| + |0| + |1-2| + |-1-1| + 0 = 5 over 2 s
+    assert effort["torque_tv"] == pytest.approx(5.0 / 2.0)
+    one = torque_effort(SimpleNamespace(t=t[:1], tau=tau[1:2], tau_applied=tau[1:2] * 0.5))
+    assert one == {"saturation": 1.0, "torque_tv": 0.0}
+    # a relative tolerance: 1e-12 of a large torque is not a clip, 1e-6 is
+    big = np.full((2, 1), 1e4)
+    effort = torque_effort(SimpleNamespace(t=t[:2], tau=big, tau_applied=big * (1 - 1e-12)))
+    assert effort["saturation"] == 0.0
+    effort = torque_effort(SimpleNamespace(t=t[:2], tau=big, tau_applied=big * (1 - 1e-6)))
+    assert effort["saturation"] == 1.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import replace
 
@@ -547,3 +548,406 @@ def test_the_held_out_table_and_ratio_of_the_report(tmp_path, friction_config):
     assert "| shipped | 0.04 | 50 % | 25.00 % | 1 |" in report
     assert "| tuned | 0.01 | 100 % | 0.00 % | 1 |" in report
     assert "Shipped / tuned p95: 4." in report
+
+
+# ------------------------------------------------------ option bounds, by value
+@pytest.mark.parametrize(
+    ("kwargs", "named", "words"),
+    [
+        ({"trials": 0}, "--trials", "expected an integer >= 1, got 0"),
+        ({"samples": 0}, "--samples", "expected an integer >= 1, got 0"),
+        ({"jobs": 0}, "--jobs", "expected an integer >= 1, got 0"),
+        ({"seed": -1}, "--seed", "expected an integer in [0, 4294967295], got -1"),
+        ({"seed": 2**32}, "--seed", "expected an integer in [0, 4294967295], got 4294967296"),
+        ({"seed": 1.0}, "--seed", "got 1.0"),
+        ({"trials": True}, "--trials", "got True"),
+        ({"holdout": -1}, "--holdout", "expected an integer >= 0, got -1"),
+        ({"holdout_seed": 2**32}, "--holdout-seed", "in [0, 4294967295], got 4294967296"),
+        ({"ts": ()}, "--ts", "expected control periods [s] > 0"),
+        ({"ts": (0.01, float("inf"))}, "--ts", "expected control periods [s] > 0"),
+        ({"ts": (0.01, float("nan"))}, "--ts", "expected control periods [s] > 0"),
+        ({"observers": ("chen", "ism")}, "--observers", "got ('chen', 'ism')"),
+        ({"scheduler": "tcp://x:1", "executor": "local"}, "--scheduler", "--executor local"),
+        ({"holdout": 0, "holdout_seed": 1}, "--holdout-seed", "--holdout 0"),
+    ],
+)
+def test_check_options_names_the_option_and_the_expected_value(kwargs, named, words,
+                                                               friction_config):  # fmt: skip
+    from hmpc_pin.apps.tune import check_options
+    from hmpc_pin.exceptions import ConfigError
+
+    args = {"trials": 1, "samples": 2, "seed": 0, "jobs": 1, **kwargs}
+    with pytest.raises(ConfigError) as info:
+        check_options(friction_config, **args)
+    assert info.value.key == named and words in str(info.value), str(info.value)
+
+
+def test_the_bounds_of_every_option_are_accepted(friction_config):
+    """The smallest trials, samples, jobs, seed 0, --holdout 0 and the largest seeds are
+    valid; the held-out seed defaults to seed + 1, wrapping past 2**32 - 1 to 0."""
+    from hmpc_pin.apps.tune import MAX_SEED, check_options
+
+    args = {"trials": 1, "samples": 1, "jobs": 1}
+    assert check_options(friction_config, seed=0, holdout=0, **args) == (0, 1)
+    assert check_options(friction_config, seed=MAX_SEED, **args) == (1, 0)
+    assert check_options(friction_config, seed=3, holdout_seed=MAX_SEED, **args) == (1, MAX_SEED)
+    assert check_options(friction_config, seed=np.int64(4), **args) == (1, 5)
+
+
+def test_a_config_not_from_a_file_and_a_duration_within_after_are_refused(friction_config):
+    from hmpc_pin.apps.tune import check_options
+    from hmpc_pin.exceptions import ConfigError
+
+    args = {"trials": 1, "samples": 1, "seed": 0, "jobs": 1}
+    with pytest.raises(ConfigError) as info:
+        check_options(replace(friction_config, source=None), **args)
+    assert info.value.key == "CONFIG"
+    short = replace(friction_config, simulation=replace(friction_config.simulation, duration=1.0))
+    with pytest.raises(ConfigError) as info:
+        check_options(short, **args)
+    assert info.value.key == "simulation.duration"
+    assert "sweep.after = 1 s" in str(info.value) and "got 1 s" in str(info.value)
+    longer = replace(short, simulation=replace(short.simulation, duration=1.01))
+    assert check_options(longer, **args) == (1, 1)
+
+
+# ----------------------------------------------------------------- the score
+def test_run_score_clips_the_lost_share_and_the_error():
+    """The share lost is in [0, 1] (a run past its duration lost nothing), no duration or
+    no t_end: nothing lost; the error counts at most 10 b, a non-finite one as 10 b; a
+    'bounded' run with a non-finite error is scored as not bounded."""
+    from hmpc_pin.apps.tune import run_score
+
+    b = 0.5
+    row = {"rms_max": 0.2, "bounded": False, "t_end": 12.0}
+    assert run_score(row, b, 10.0) == pytest.approx(b + 0.2)  # past the end: lost 0
+    assert run_score(dict(row, t_end=-1.0), b, 10.0) == pytest.approx(2 * b + 0.2)  # lost <= 1
+    assert run_score(row, b, None) == pytest.approx(b + 0.2)
+    no_t = {"rms_max": 0.2, "bounded": False}
+    assert run_score(no_t, b, 10.0) == pytest.approx(b + 0.2)
+    assert run_score(dict(row, rms_max=7.0, t_end=5.0), b, 10.0) == pytest.approx(1.5 * b + 5.0)
+    assert run_score(dict(row, rms_max=np.nan, t_end=5.0), b, 10.0) == pytest.approx(
+        1.5 * b + 5.0)  # fmt: skip
+    assert run_score({"rms_max": np.inf, "bounded": True, "t_end": 10.0}, b, 10.0) == (
+        pytest.approx(b + 10 * b))  # fmt: skip
+    assert run_score({"rms_max": 0.3, "bounded": True, "t_end": 2.0}, b, 10.0) == 0.3
+
+
+def test_the_objective_is_its_formula_on_mixed_rows(make_rng):
+    """J = p95 (1 + w_s mean s + w_tv max(0, mean TV / TV0 - 1)), p95 the empirical
+    quantile (the smallest score whose CDF reaches 0.95), the runs scored by run_score;
+    the parts: p95, mean saturation, mean TV and the bounded share. Without TV0 (or 0)
+    no TV penalty; the weights and the duration are the caller's."""
+    from hmpc_pin.apps.tune import run_score
+
+    rng = make_rng(12)
+    rows = [{"rms_max": float(v), "bounded": bool(k % 5), "saturation": float(s),
+             "torque_tv": float(tv), "t_end": float(te)}
+            for k, (v, s, tv, te) in enumerate(zip(rng.uniform(0.01, 0.3, 13),
+                                                   rng.uniform(0, 0.2, 13),
+                                                   rng.uniform(5, 15, 13),
+                                                   rng.uniform(1, 4, 13),
+                                                   strict=True))]  # fmt: skip
+    scores = sorted(run_score(r, 0.4, 4.0) for r in rows)
+    p95 = scores[math.ceil(0.95 * 13) - 1]
+    sat = np.mean([r["saturation"] for r in rows])
+    tv = np.mean([r["torque_tv"] for r in rows])
+    value, parts = objective_value(rows, 0.4, tv0=6.0, saturation_weight=2.0, tv_weight=0.5,
+                                   duration=4.0)  # fmt: skip
+    assert value == pytest.approx(p95 * (1 + 2.0 * sat + 0.5 * max(0.0, tv / 6.0 - 1)), rel=1e-12)
+    assert parts == pytest.approx({"p95_rms": p95, "saturation": sat, "torque_tv": tv,
+                                   "bounded": 10 / 13}, rel=1e-12)  # fmt: skip
+    for tv0 in (None, 0.0):
+        assert objective_value(rows, 0.4, tv0=tv0, duration=4.0)[0] == pytest.approx(
+            p95 * (1 + 1.0 * sat), rel=1e-12)  # fmt: skip
+
+
+# ----------------------------------------------------------- the search space
+def test_the_search_space_follows_the_controller(friction_config):
+    """N only for hmpc; no observer parameter without an observer; --observers refused on
+    a config without one; the periods as given."""
+    from hmpc_pin.experiment.build import with_controller
+
+    ct = with_controller(friction_config, "computed-torque-pid")
+    assert set(search_space(ct)) == {"Q_position", "Q_velocity", "R"}
+    none = with_controller(friction_config, "hmpc-none")
+    assert set(search_space(none, ts=(0.01,))) == {"Q_position", "Q_velocity", "R", "N", "Ts"}
+    assert search_space(none, ts=(0.01, 0.02))["Ts"] == ("choice", (0.01, 0.02))
+    with pytest.raises(Exception, match="--observers") as info:
+        search_space(none, observers=("chen",))
+    assert "hmpc+none" in str(info.value)
+    space = search_space(friction_config, observers=("momentum", "chen"))
+    assert space["compensation"] == ("choice", ("momentum", "chen"))
+
+
+def test_trial_0_is_recorded_at_the_nearest_point_of_each_range(friction_config):
+    """Values above a range are clipped to its top, below to its bottom, an integer stays
+    an integer."""
+    from hmpc_pin.apps.tune import current_params
+
+    cc = friction_config.controller
+    Q = np.diag([5e4, 0.0])
+    cfg = replace(friction_config, controller=replace(cc, Q=Q, P=2 * Q, R=1e-2, N=40))
+    near = current_params(cfg, search_space(cfg))
+    assert near["Q_position"] == 1e4 and near["Q_velocity"] == 1e-4 and near["R"] == 1e-3
+    assert near["N"] == 30 and isinstance(near["N"], int)
+    low = replace(cfg, controller=replace(cfg.controller, N=2, R=1e-12))
+    near = current_params(low, search_space(low))
+    assert near["N"] == 5 and near["R"] == 1e-8
+
+
+def test_apply_params_scales_every_bandwidth_by_the_proposed_largest(tmp_path):
+    from hmpc_pin.apps.tune import apply_params
+
+    text = _short_config(tmp_path).read_text()
+    text = text.replace('kind = "chen"', 'kind = "general"')
+    text = text.replace("gain = 100.0", "bandwidth = [10.0, 15.0, 20.0]")
+    path = tmp_path / "bw.toml"
+    path.write_text(text)
+    config = load_config(path)
+    new = apply_params(config, {"observer_bandwidth": 40.0}).controller
+    np.testing.assert_allclose(new.observer.bandwidth, [20.0, 30.0, 40.0], rtol=1e-15)
+    new = apply_params(config, {"compensation": "momentum", "R": 1e-6}).controller
+    assert new.compensation == "momentum" and new.R == 1e-6
+
+
+# ------------------------------------------------ the study, the report, Ctrl-C
+def _rows_of(config, samples, seed):
+    """Sweep rows of a trial, a smooth function of the config's settings (the toy bowl),
+    so that trials differ; `samples` rows, their saturation from the seed."""
+    value = 0.01 * (1 + _toy(config)[0])
+    return [{"rms_max": value * (1 + 0.1 * k), "bounded": True, "saturation": 0.01 * (seed % 3),
+             "torque_tv": 10.0 + k, "t_end": config.simulation.duration}
+            for k in range(samples)]  # fmt: skip
+
+
+class _FakeSweep:
+    """tune's `_evaluate` replaced: records (label, samples, seed) of every call and
+    returns `_rows_of`; Ctrl-C at call `stop` (0-based)."""
+
+    def __init__(self, stop=None):
+        self.calls, self.stop = [], stop
+
+    def __call__(self, config, samples, seed, jobs, executor, scheduler):
+        if self.stop is not None and len(self.calls) == self.stop:
+            raise KeyboardInterrupt
+        self.calls.append((config, samples, seed))
+        return _rows_of(config, samples, seed)
+
+
+def _report_table(report: str, heading: str) -> list[dict]:
+    lines = report.split(heading, 1)[1].splitlines()
+    start = next(k for k, line in enumerate(lines) if line.startswith("| "))
+    rows = []
+    for line in lines[start:]:  # the first table after the heading
+        if not line.startswith("|"):
+            break
+        rows.append(line)
+    head = [c.strip() for c in rows[0].strip("|").split("|")]
+    out = []
+    for line in rows[1:]:
+        if line.startswith("|---"):
+            continue
+        out.append(dict(zip(head, [c.strip() for c in line.strip("|").split("|")], strict=True)))
+    return out
+
+
+def test_the_study_and_the_held_out_comparison_through_the_command_line(tmp_path, capsys,
+                                                                        monkeypatch):  # fmt: skip
+    """Four trials on 3 samples (seed 5), held out on 2 samples (seed 9): each trial's
+    sweep is drawn with --samples/--seed, the comparison with --holdout/--holdout-seed;
+    the report's trials table holds each trial's J and p95 as the study recorded them
+    (J recomputed from the rows), the held-out table each config's parts, the printed
+    line their ratio."""
+    from hmpc_pin.apps import tune as tune_module
+
+    fake = _FakeSweep()
+    monkeypatch.setattr(tune_module, "_evaluate", fake)
+    out = tmp_path / "out"
+    code = main(["tune", str(_short_config(tmp_path)), "--trials", "4", "--samples", "3",
+                 "--seed", "5", "--holdout", "2", "--holdout-seed", "9", "--jobs", "1",
+                 "--out", str(out), "--quiet"])  # fmt: skip
+    assert code == 0
+    assert [c[1:] for c in fake.calls] == [(3, 5)] * 4 + [(2, 9)] * 2
+    import optuna
+
+    study = optuna.load_study(study_name="paper_friction",
+                              storage=f"sqlite:///{out / 'paper_friction_tune.db'}")  # fmt: skip
+    tv0 = np.mean([r["torque_tv"] for r in _rows_of(fake.calls[0][0], 3, 5)])
+    assert study.user_attrs["tv0"] == pytest.approx(tv0)
+    for trial, (cfg, samples, seed) in zip(study.trials, fake.calls, strict=False):
+        expected = objective_value(_rows_of(cfg, samples, seed), cfg.sweep.error_bound, tv0,
+                                   duration=cfg.simulation.duration)[0]  # fmt: skip
+        assert trial.value == pytest.approx(expected, rel=1e-12)
+    report = (out / "paper_friction_tune.md").read_text(encoding="utf-8")
+    assert report.startswith("# Tuning of paper_friction: 4 trials (4 finished)")
+    assert "3 sweep samples per trial (seed 5)" in report
+    trials = _report_table(report, "## Trials")
+    assert [int(r["trial"]) for r in trials] == [0, 1, 2, 3]
+    for row, trial in zip(trials, study.trials, strict=True):
+        assert float(row["J"]) == pytest.approx(trial.value, rel=1e-3)
+        assert float(row["p95 RMS [rad]"]) == pytest.approx(trial.user_attrs["p95_rms"], rel=1e-3)
+        if trial.number:
+            assert float(row["R"]) == pytest.approx(trial.params["R"], rel=1e-3)
+            assert int(row["N"]) == trial.params["N"]
+    best = study.best_trial
+    assert f"Best: trial {best.number}, J = {best.value:.4g}: " in report
+    # the held-out comparison: the config as given and the tuned one on 2 samples, seed 9
+    shipped, tuned = fake.calls[4][0], fake.calls[5][0]
+    given = load_config(_short_config(tmp_path)).controller
+    for key in ("Q", "P", "R", "N", "Ts"):
+        np.testing.assert_array_equal(getattr(shipped.controller, key), getattr(given, key))
+    assert shipped.controller.observer.gain == given.observer.gain
+    best_r = best.params["R"] if best.number else shipped.controller.R
+    assert pytest.approx(best_r) == tuned.controller.R
+    assert "## Held-out comparison: 2 other samples (seed 9)" in report
+    held = {r["config"]: r for r in _report_table(report, "## Held-out comparison")}
+    parts = {label: objective_value(_rows_of(cfg, 2, 9), cfg.sweep.error_bound, tv0,
+                                    duration=cfg.simulation.duration)[1]
+             for label, cfg in (("shipped", shipped), ("tuned", tuned))}  # fmt: skip
+    for label, p in parts.items():
+        assert float(held[label]["p95 worst RMS [rad]"]) == pytest.approx(p["p95_rms"], rel=1e-3)
+        assert held[label]["bounded"] == "100 %"
+        assert held[label]["saturation"] == f"{100 * p['saturation']:.2f} %" == "0.00 %"
+        assert float(held[label]["torque TV [N·m/s]"]) == pytest.approx(p["torque_tv"], rel=1e-3)
+    ratio = parts["shipped"]["p95_rms"] / parts["tuned"]["p95_rms"]
+    assert f"Shipped / tuned p95: {ratio:.3g}." in report
+    printed = capsys.readouterr().out
+    assert (
+        f"held-out samples: p95 worst-joint RMS {parts['shipped']['p95_rms']:.4g} rad as "
+        f"given, {parts['tuned']['p95_rms']:.4g} rad tuned (ratio {ratio:.3g})"
+    ) in printed
+    assert f"paper_friction: 4 trials; best trial {best.number}, J = {best.value:.4g}" in printed
+    for name in ("paper_friction_tuned.toml", "paper_friction_tune.db",
+                 "paper_friction_tune.md", "paper_friction_tune_history.png",
+                 "paper_friction_tune_importance.png"):  # fmt: skip
+        assert f"wrote {out / name}" in printed, name
+
+
+def test_ctrl_c_in_the_held_out_comparison_keeps_the_tuned_config(tmp_path, monkeypatch):
+    """Ctrl-C during the comparison (after every trial): the tuned config and the report of
+    the trials are written, without a held-out section; RunInterrupted says where and
+    names the files, the study's file second."""
+    from hmpc_pin.apps import tune as tune_module
+    from hmpc_pin.exceptions import RunInterrupted
+
+    config = load_config(_short_config(tmp_path))
+    monkeypatch.setattr(tune_module, "_evaluate", _FakeSweep(stop=3))  # trials 0-1, shipped
+    (tmp_path / "o").mkdir()
+    with pytest.raises(RunInterrupted) as info:
+        tune(config, tmp_path / "o", trials=2, samples=2, seed=1, holdout=2, progress=False)
+    assert info.value.where == "the held-out comparison, after 2 trials"
+    names = [p.name for p in info.value.files]
+    assert names[:3] == ["paper_friction_tuned.toml", "paper_friction_tune.db",
+                         "paper_friction_tune.md"]  # fmt: skip
+    report = (tmp_path / "o" / "paper_friction_tune.md").read_text(encoding="utf-8")
+    assert "Interrupted (Ctrl-C) at the held-out comparison, after 2 trials" in report
+    assert "Held-out comparison" not in report and "2 trials (2 finished)" in report
+    assert load_config(tmp_path / "o" / "paper_friction_tuned.toml").name == "paper_friction_tuned"
+
+
+def test_ctrl_c_with_no_trial_finished_names_the_study_file_only(tmp_path, monkeypatch):
+    from hmpc_pin.apps import tune as tune_module
+    from hmpc_pin.exceptions import RunInterrupted
+
+    config = load_config(_short_config(tmp_path))
+    monkeypatch.setattr(tune_module, "_evaluate", _FakeSweep(stop=0))
+    (tmp_path / "o").mkdir()
+    with pytest.raises(RunInterrupted) as info:
+        tune(config, tmp_path / "o", trials=2, samples=2, seed=1, holdout=2, progress=False)
+    assert info.value.where == (
+        "trial 0 of the study (0 finished; run again with the same --out to resume it): "
+        "no trial finished, no config written")  # fmt: skip
+    assert [p.name for p in info.value.files] == ["paper_friction_tune.db"]
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["paper_friction_tune.db"]
+
+
+def test_a_study_resumed_with_other_samples_is_refused(tmp_path, friction_config):
+    from hmpc_pin.exceptions import ConfigError
+
+    tune(friction_config, tmp_path, trials=1, samples=4, seed=1, objective=_toy, holdout=0,
+         progress=False)  # fmt: skip
+    with pytest.raises(ConfigError, match=r"--samples 4 --seed 1"):
+        tune(friction_config, tmp_path, trials=1, samples=5, seed=1, objective=_toy, holdout=0,
+             progress=False)  # fmt: skip
+
+
+def test_a_uniform_bandwidth_is_written_as_one_number_and_the_header_names_the_trial(tmp_path):
+    """The tuned config of an observer given by one bandwidth for every joint writes one
+    number (no gain key), and its header names the best trial, the count and J."""
+    import tomllib
+
+    text = _short_config(tmp_path).read_text()
+    text = text.replace('kind = "chen"', 'kind = "general"').replace(
+        "gain = 100.0", "bandwidth = 20.0"
+    )
+    path = tmp_path / "bw.toml"
+    path.write_text(text)
+    config = load_config(path)
+
+    def prefer_40(cfg):
+        w = float(np.max(cfg.controller.observer.bandwidth))
+        value = (np.log10(w) - np.log10(40.0)) ** 2
+        return float(value), {"p95_rms": float(value)}
+
+    (tmp_path / "o").mkdir()
+    result = tune(config, tmp_path / "o", trials=4, seed=2, objective=prefer_40, holdout=0,
+                  progress=False)  # fmt: skip
+    written = (tmp_path / "o" / f"{config.name}_tuned.toml").read_text(encoding="utf-8")
+    obs = tomllib.loads(written)["controller"]["observer"]
+    assert "gain" not in obs and isinstance(obs["bandwidth"], float)
+    assert obs["bandwidth"] == pytest.approx(result.best["observer_bandwidth"])
+    best = result.study.best_trial
+    assert f"(trial {best.number} of 4, objective {best.value:.4g})" in written
+
+
+def test_a_ctrl_c_during_a_database_write_waits_for_the_write(tmp_path, friction_config,
+                                                             monkeypatch):  # fmt: skip
+    """SIGINT while trial 2's results are written to the study (Optuna's SQLite storage):
+    the write completes (trial 2 finished) and the study stops at the next trial, which
+    is recorded as failed; raised inside the write, it left the database locked or
+    Optuna's state half-updated (a traceback, exit 1)."""
+    import os
+    import signal
+
+    import optuna
+
+    from hmpc_pin.exceptions import RunInterrupted
+
+    original = optuna.trial.Trial.set_user_attr
+
+    def interrupted_write(self, key, value):
+        if self.number == 2 and key == "p95_rms":
+            os.kill(os.getpid(), signal.SIGINT)  # delivered within this call
+        return original(self, key, value)
+
+    monkeypatch.setattr(optuna.trial.Trial, "set_user_attr", interrupted_write)
+    with pytest.raises(RunInterrupted) as info:
+        tune(friction_config, tmp_path, trials=10, seed=5, objective=_toy, holdout=0,
+             progress=False)  # fmt: skip
+    assert info.value.where.startswith("trial 3 of the study (3 finished"), info.value.where
+    storage = f"sqlite:///{tmp_path / 'paper_friction_tune.db'}"
+    study = optuna.load_study(study_name="paper_friction", storage=storage)
+    states = [t.state.name for t in study.trials]
+    assert states == ["COMPLETE"] * 3 + ["FAIL"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_a_ctrl_c_kept_back_is_raised_at_the_next_evaluation_or_check():
+    import os
+    import signal
+
+    from hmpc_pin.apps.tune import _DeferredInterrupt
+
+    with _DeferredInterrupt() as sigint:
+        os.kill(os.getpid(), signal.SIGINT)
+        assert sigint.pending  # kept back, not raised
+        with pytest.raises(KeyboardInterrupt):
+            sigint.evaluating(lambda: pytest.fail("ran after a kept-back Ctrl-C"))
+    with _DeferredInterrupt() as sigint:
+        with pytest.raises(KeyboardInterrupt):
+            sigint.evaluating(os.kill, os.getpid(), signal.SIGINT)  # at once, inside
+        assert not sigint.pending
+        assert sigint.evaluating(lambda x: 2 * x, 4) == 8
+        sigint.check()  # nothing kept back: no raise
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

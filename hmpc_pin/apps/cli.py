@@ -335,7 +335,7 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    from .sweep import run_sweep
+    from .sweep import check_options, run_sweep
 
     config = _with_overrides(_config(args.config), False, args.duration, reference=args.reference)
     if args.controllers is not None:
@@ -343,8 +343,10 @@ def cmd_sweep(args) -> int:
 
         kinds = parse_controllers(args.controllers, config)
         config = replace(config, sweep=replace(config.sweep, variants=kinds))
-    out = _out_dir(args.out)
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+    options = {"jobs": jobs, "executor": args.executor, "scheduler": args.scheduler}
+    config = check_options(config, args.samples, args.seed, **options)  # before --out exists
+    out = _out_dir(args.out)
     result = run_sweep(
         config,
         args.samples,

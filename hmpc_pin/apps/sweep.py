@@ -46,6 +46,7 @@ from .metrics import task_metrics
 __all__ = [
     "SampleParams",
     "SweepResult",
+    "check_options",
     "draw_samples",
     "resolve_variants",
     "run_sample",
@@ -457,19 +458,67 @@ class SweepResult:
         return paths[0], paths[1]
 
 
-def _dask_client(jobs: int, scheduler: str | None):
+def _dask_modules():
+    """``dask.distributed``, or the one-line error naming the extra ``cluster``."""
     try:
-        from dask.distributed import Client, LocalCluster
+        import dask.distributed
     except ImportError as exc:
         raise ConfigError(
             "--executor",
             "dask needs the optional dependency dask.distributed (extra hmpc_pin[cluster]); "
             f"install it with `{install_command('cluster')}` or use --executor local",
         ) from exc
+    return dask.distributed
+
+
+def _dask_client(jobs: int, scheduler: str | None):
+    dd = _dask_modules()
+    Client, LocalCluster = dd.Client, dd.LocalCluster
     if scheduler:
         return Client(scheduler), None
     cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
     return Client(cluster), cluster
+
+
+def check_options(
+    config: ExperimentConfig,
+    samples: int,
+    seed: int = 0,
+    *,
+    jobs: int = 1,
+    executor: str = "local",
+    scheduler: str | None = None,
+) -> ExperimentConfig:
+    """Check every option of :func:`run_sweep` against ``config``, each error naming its
+    own option, before anything runs or is created (the command line calls it before it
+    creates ``--out``).
+
+    Returns:
+        ``config`` with its variants resolved (:func:`resolve_variants`).
+
+    Raises:
+        ConfigError: ``samples`` < 1, ``seed`` < 0, ``jobs`` < 1 (or not integers), an
+            unknown ``executor``, a ``scheduler`` without the dask executor (an option
+            that does not apply), bad variants, or a config that does not build.
+    """
+    for key, value, low in (("--samples", samples, 1), ("--seed", seed, 0), ("--jobs", jobs, 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ConfigError(key, f"expected an integer >= {low}, got {value!r}")
+    if executor not in EXECUTORS:
+        raise ConfigError("--executor", f"expected one of {EXECUTORS}, got {executor!r}")
+    if scheduler is not None and executor != "dask":
+        raise ConfigError(
+            "--scheduler",
+            f"applies to --executor dask only (got --executor {executor}); add "
+            "--executor dask or drop it",
+        )
+    if executor == "dask":
+        _dask_modules()  # the extra is named before anything is created
+    config = replace(config, sweep=replace(config.sweep, variants=resolve_variants(config)))
+    nominal = Experiment.from_config(config)  # bad input fails here, once, not in every worker
+    if not config.sweep.legacy:  # the interface model fits the arm and the control period
+        config.sweep.interface.model(nominal.robot.nq).ticks(config.controller.Ts)
+    return config
 
 
 def run_sweep(
@@ -499,18 +548,10 @@ def run_sweep(
         ``interrupted=True`` (the workers are terminated first; nothing is left running).
 
     Raises:
-        ConfigError: Bad ``samples``/``seed``/``jobs``/``executor``, an unknown variant, or
-            ``"dask"`` without dask installed.
+        ConfigError: Bad ``samples``/``seed``/``jobs``/``executor``/``scheduler``, an
+            unknown variant (:func:`check_options`), or ``"dask"`` without dask installed.
     """
-    for key, value, low in (("--samples", samples, 1), ("--seed", seed, 0), ("--jobs", jobs, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ConfigError(key, f"expected an integer >= {low}, got {value!r}")
-    if executor not in EXECUTORS:
-        raise ConfigError("--executor", f"expected one of {EXECUTORS}, got {executor!r}")
-    config = replace(config, sweep=replace(config.sweep, variants=resolve_variants(config)))
-    nominal = Experiment.from_config(config)  # bad input fails here, once, not in every worker
-    if not config.sweep.legacy:  # the interface model fits the arm and the control period
-        config.sweep.interface.model(nominal.robot.nq).ticks(config.controller.Ts)
+    config = check_options(config, samples, seed, jobs=jobs, executor=executor, scheduler=scheduler)
     params = draw_samples(config, samples, seed)
     tasks = [
         (p, v, c) for p in params for v in config.sweep.variants for c in config.sweep.conditions

@@ -32,6 +32,8 @@ shipped and tuned configs are compared on ``holdout`` other samples (another see
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -283,7 +285,7 @@ def check_options(
             "draws none; drop it or set --holdout N >= 1",
         )
     holdout = samples if holdout is None else holdout
-    if holdout_seed is None and isinstance(seed, int) and not isinstance(seed, bool):
+    if holdout_seed is None and isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
         holdout_seed = (seed + 1) % (MAX_SEED + 1)
     for key, value, low, high in (
         ("--trials", trials, 1, None),
@@ -343,6 +345,57 @@ def _evaluate(config, samples, seed, jobs, executor, scheduler) -> list[dict]:
     if result.interrupted:
         raise KeyboardInterrupt
     return result.rows
+
+
+class _DeferredInterrupt:
+    """Ctrl-C kept away from the study's database writes.
+
+    A ``KeyboardInterrupt`` raised inside an SQLite write of Optuna's storage leaves its
+    transaction open: the next write (the trial marked failed, the report's reads) finds
+    "database is locked" and the command ends with a traceback. While installed (main
+    thread only), SIGINT raises at once inside :meth:`evaluating` (a trial's sweep, which
+    writes nothing), and elsewhere is remembered and raised at the next :meth:`evaluating`
+    or :meth:`check`, between writes.
+    """
+
+    def __init__(self):
+        self.pending = False
+        self._evaluating = False
+        self._previous = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _raise(self, signum=signal.SIGINT, frame=None) -> None:
+        previous = self._previous
+        if callable(previous) and previous is not signal.default_int_handler:
+            previous(signum, frame)  # the command line's handler: it records, then raises
+        raise KeyboardInterrupt
+
+    def _handler(self, signum, frame) -> None:
+        if self._evaluating:
+            self._raise(signum, frame)
+        self.pending = True
+
+    def check(self) -> None:
+        """Raise :class:`KeyboardInterrupt` when a Ctrl-C was kept back."""
+        if self.pending:
+            self._raise()
+
+    def evaluating(self, fn, *args):
+        """``fn(*args)`` with Ctrl-C raised at once (after one kept back: before it)."""
+        self.check()
+        self._evaluating = True
+        try:
+            return fn(*args)
+        finally:
+            self._evaluating = False
 
 
 @dataclass
@@ -417,6 +470,19 @@ def tune(
         executor=executor,
         scheduler=scheduler,
     )
+    with _DeferredInterrupt() as sigint:
+        return _tune(
+            optuna, config, out, sigint, trials, samples, seed, jobs, executor, scheduler,
+            ts, observers, holdout, holdout_seed, progress, objective,
+        )  # fmt: skip
+
+
+def _tune(
+    optuna, config, out, sigint, trials, samples, seed, jobs, executor, scheduler, ts,
+    observers, holdout, holdout_seed, progress, objective,
+) -> TuneResult:  # fmt: skip
+    """:func:`tune` once its options are checked, under ``sigint``
+    (:class:`_DeferredInterrupt`)."""
     space = search_space(config, ts, observers)
     name = config.name
     storage = f"sqlite:///{(out / f'{name}_tune.db').resolve()}"
@@ -444,8 +510,8 @@ def tune(
 
     def evaluate(cfg: ExperimentConfig):
         if objective is not None:
-            return objective(cfg)
-        rows = _evaluate(cfg, samples, seed, jobs, executor, scheduler)
+            return sigint.evaluating(objective, cfg)
+        rows = sigint.evaluating(_evaluate, cfg, samples, seed, jobs, executor, scheduler)
         return objective_value(
             rows,
             cfg.sweep.error_bound,
@@ -474,7 +540,9 @@ def tune(
     comparison = None
     try:
         try:
+            sigint.check()
             study.optimize(run_trial, n_trials=trials, show_progress_bar=progress)
+            sigint.check()  # a Ctrl-C kept back while the last trial was recorded
         except KeyboardInterrupt:
             finished = sum(t.state.name == "COMPLETE" for t in study.trials)
             stopped = (
@@ -490,7 +558,9 @@ def tune(
             try:
                 comparison = {}
                 for label, cfg in (("shipped", config), ("tuned", tuned)):
-                    rows = _evaluate(cfg, holdout, holdout_seed, jobs, executor, scheduler)
+                    rows = sigint.evaluating(
+                        _evaluate, cfg, holdout, holdout_seed, jobs, executor, scheduler
+                    )
                     comparison[label] = objective_value(
                         rows,
                         cfg.sweep.error_bound,

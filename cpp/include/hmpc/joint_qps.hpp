@@ -165,7 +165,7 @@ class JointQPs {
   signed char st_slack_ = 0;
   bool dropped_ = false;
   std::vector<int> item_kind_, item_ref_, first_, start_, pidx_;
-  std::vector<double> L_, D_, w_, x_;
+  std::vector<double> L_, D_, w_, x_, z_;
   Vec y_soft_, lam_, mu_, gl_, rU_, gp_, bnd_lo_, bnd_hi_, Xs_;
 
 };

@@ -1007,7 +1007,9 @@ def test_long_horizon_soft_limits_satisfy_kkt_and_equal_cold_solves(case):
     assert qps.soft_active_set_solves >= soft_steps // 2  # the shortcut answered
 
 
-@pytest.mark.parametrize("case", ["1 ms, N = 100, velocity limits", "10 ms, N = 50, velocity limits"])
+@pytest.mark.parametrize(
+    "case", ["1 ms, N = 100, velocity limits", "10 ms, N = 50, velocity limits"]
+)
 def test_first_step_of_each_soft_activation_is_answered_by_the_shortcut(case):
     """Each activation of the soft limits (a joint's first soft QP after a step without
     one) is answered by the soft active-set shortcut at its first step, with a solution that
@@ -1015,8 +1017,9 @@ def test_first_step_of_each_soft_activation_is_answered_by_the_shortcut(case):
     solved from scratch by ProxSuite to the solver's tolerance. Activations: the states put
     off a sine (amplitude 0.1 rad, 1 Hz, its velocity inside the limit): the way back at
     the bound on v leaves the velocity limit, which the inputs can meet (zero slack, the
-    Panda's start 0.2 rad off); in between, a step at rest on a reference at rest (no soft
-    QP)."""
+    Panda's start 0.2 rad off; at Ts = 10 ms a row of the guess depends on an input at its
+    bound, which the exchanges must free); in between, a step at rest on a reference at
+    rest (no soft QP)."""
     Ts, N, offset, (lo, hi, vel) = SOFT_LONG[case]
     n = 3
     mpc, qps, cold = _soft_long_qps(case)
@@ -1064,9 +1067,10 @@ def test_positive_slack_activations_are_answered_by_the_shortcut(case):
     """Activations whose limits cannot be met within the horizon (a joint past its position
     limit, most moving further out: the slack is positive at the optimum) are answered by
     the soft active-set shortcut at most steps after their first (from the last step's
-    active set; measured: all at Ts = 1 ms, 15 of 18 at Ts = 10 ms), with a solution that satisfies the soft QP's KKT conditions
-    (:func:`own_soft_qp`, multipliers by non-negative least squares) and equals the soft
-    QP solved from scratch by ProxSuite to the solver's tolerance. The first step of such
+    active set; measured: all at Ts = 1 ms, 15 of 18 at Ts = 10 ms), with a solution that
+    satisfies the soft QP's KKT conditions (:func:`own_soft_qp`, multipliers by
+    non-negative least squares) and equals the soft QP solved from scratch by ProxSuite to
+    the solver's tolerance. The first step of such
     an activation may be left to ProxSuite (its optimum is a vertex far from the box-only
     solution's active set); its answer is held to the same conditions. In between, a step
     at rest on a reference at rest (no soft QP), so that each is a new activation."""

@@ -235,6 +235,8 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     const auto u = y_soft_.head(Nc);
     const double sh = y_soft_[Nc];
     Xs_.noalias() = Gamma_ * u;
+    rows_was_ = st_rows_;
+    box_was_ = st_box_;
     // ProxSuite's tolerances: eps_abs + eps_rel · the size of the terms (dual: Hy, g, Cᵀλ;
     // primal: the rows' values), the relative part for slacks far outside the limits.
     rU_.noalias() = H_ * u;
@@ -290,6 +292,7 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
         changed = true;
       }
     }
+    const signed char slack_was = st_slack_;
     if (st_slack_ != 0) {
       if (sh < -eps_p) {
         st_slack_ = 0;
@@ -300,6 +303,13 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     } else if (rs < -eps) {
       st_slack_ = 1;
       changed = true;
+    }
+    if (st_slack_ != slack_was) {
+      // ŝ enters every row: with its status changing, the rows' and bounds' tests at this
+      // point say little about the next one (following them too overshot, measured where
+      // the limits become attainable or not): ŝ changes alone.
+      st_rows_ = rows_was_;
+      st_box_ = box_was_;
     }
     if (!changed) {
       if (bad) {

@@ -78,7 +78,8 @@ is the QP's minimiser. Otherwise ProxSuite solves the QP from scratch. An active
 that depends on those before it in the factorisation's order (its dependency read from
 the factor's row) frees the last input at a bound in that dependency (two velocity rows
 in a row fix the input between them to 0, so its bound cannot stay), or, with none, is
-left out itself; the next exchange tests what left. Where the limits cannot be met (slack
+left out itself; the next exchange tests what left. An exchange that changes the
+slack's status (ŝ enters every row) changes it alone. Where the limits cannot be met (slack
 > 0, e.g. past a position limit), the first step of an activation (a vertex far from the
 box-only solution's active set, where the exchanges overshoot) is usually ProxSuite's.
 """

@@ -100,10 +100,35 @@ bool JointQPs::soft_kkt(int i) {
     const double sign = item_kind_[k] == 0 || item_kind_[k] == 3 ? 1.0 : -1.0;
     if (!(sign * d > 1e-13 * size)) {  // NaN too
       // A bound or row dependent on those before it (e.g. an input at its bound between two
-      // active velocity rows): left out of the active set, the next exchange tests it.
-      if (item_kind_[k] == 1) st_box_[item_ref_[k]] = 0;
-      else if (item_kind_[k] == 2) st_rows_[item_ref_[k]] = 0;
-      else return false;
+      // active velocity rows, which fix it to 0): one item of the dependency leaves the
+      // active set, the next exchange tests it. A row whose dependency holds an input at its
+      // bound frees the last such input (the rows are the limits, and with both kept the
+      // exchanges re-add the dropped row at every step: a cycle); otherwise the item itself.
+      if (item_kind_[k] == 0 || item_kind_[k] == 3) return false;
+      int drop = k;
+      if (item_kind_[k] == 2 && std::isfinite(d)) {
+        // The dependency a_k = Σ_j ρ_j a_j: K_{<k} [0; ρ] = [a_k; 0], so ρ is the constraint
+        // part of K_{<k}⁻¹ b_k = L⁻ᵀ (row k of L), b_k the column of item k.
+        z_.resize(D_.size());
+        for (int j = 0; j < k; ++j) z_[j] = j >= fk ? Lk[j] : 0.0;
+        for (int j = k - 1; j > 0; --j) {
+          const int fj = first_[j];
+          const double* Lj = L_.data() + start_[j] - fj;
+          const double zj = z_[j];
+          if (zj != 0.0)
+            for (int c = fj; c < j; ++c) z_[c] -= Lj[c] * zj;
+        }
+        double big = 0.0;
+        for (int j = 0; j < k; ++j)
+          if (item_kind_[j] == 1 || item_kind_[j] == 2) big = std::max(big, std::abs(z_[j]));
+        for (int j = k - 1; j >= 0; --j)
+          if (item_kind_[j] == 1 && std::abs(z_[j]) > 1e-9 * big) {
+            drop = j;
+            break;
+          }
+      }
+      if (item_kind_[drop] == 1) st_box_[item_ref_[drop]] = 0;
+      else st_rows_[item_ref_[drop]] = 0;
       dropped_ = true;
       return false;
     }
@@ -210,6 +235,8 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     const auto u = y_soft_.head(Nc);
     const double sh = y_soft_[Nc];
     Xs_.noalias() = Gamma_ * u;
+    rows_was_ = st_rows_;
+    box_was_ = st_box_;
     // ProxSuite's tolerances: eps_abs + eps_rel · the size of the terms (dual: Hy, g, Cᵀλ;
     // primal: the rows' values), the relative part for slacks far outside the limits.
     rU_.noalias() = H_ * u;
@@ -265,6 +292,7 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
         changed = true;
       }
     }
+    const signed char slack_was = st_slack_;
     if (st_slack_ != 0) {
       if (sh < -eps_p) {
         st_slack_ = 0;
@@ -275,6 +303,13 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     } else if (rs < -eps) {
       st_slack_ = 1;
       changed = true;
+    }
+    if (st_slack_ != slack_was) {
+      // ŝ enters every row: with its status changing, the rows' and bounds' tests at this
+      // point say little about the next one (following them too overshot, measured where
+      // the limits become attainable or not): ŝ changes alone.
+      st_rows_ = rows_was_;
+      st_box_ = box_was_;
     }
     if (!changed) {
       if (bad) {

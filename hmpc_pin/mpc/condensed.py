@@ -74,9 +74,14 @@ banded: the KKT matrix's LDLᵀ costs O(N). A guess answers only when its point 
 soft QP's KKT conditions to the solver's own tolerances (``eps_abs`` plus ``eps_rel``
 times the size of the terms, as ProxSuite tests them: rows and bounds satisfied, zero
 gradient of the Lagrangian in the free variables, multipliers of the right sign): then it
-is the QP's minimiser. Otherwise ProxSuite solves the QP from scratch. Where the optimum
-is a degenerate vertex (more active rows than variables, which the shared slack makes
-common past the position limits), the exchanges may not settle and ProxSuite answers.
+is the QP's minimiser. Otherwise ProxSuite solves the QP from scratch. An active row
+that depends on those before it in the factorisation's order (its dependency read from
+the factor's row) frees the last input at a bound in that dependency (two velocity rows
+in a row fix the input between them to 0, so its bound cannot stay), or, with none, is
+left out itself; the next exchange tests what left. An exchange that changes the
+slack's status (ŝ enters every row) changes it alone. Where the limits cannot be met (slack
+> 0, e.g. past a position limit), the first step of an activation (a vertex far from the
+box-only solution's active set, where the exchanges overshoot) is usually ProxSuite's.
 """
 
 from __future__ import annotations

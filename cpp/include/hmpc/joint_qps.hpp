@@ -161,11 +161,11 @@ class JointQPs {
   std::vector<std::vector<signed char>> guess_rows_, guess_box_;
   std::vector<signed char> guess_slack_, has_guess_;
   std::vector<signed char> soft_last_;  // per joint: its soft QP solved at the last step
-  std::vector<signed char> st_rows_, st_box_;
+  std::vector<signed char> st_rows_, st_box_, rows_was_, box_was_;
   signed char st_slack_ = 0;
   bool dropped_ = false;
   std::vector<int> item_kind_, item_ref_, first_, start_, pidx_;
-  std::vector<double> L_, D_, w_, x_;
+  std::vector<double> L_, D_, w_, x_, z_;
   Vec y_soft_, lam_, mu_, gl_, rU_, gp_, bnd_lo_, bnd_hi_, Xs_;
 
 };

@@ -709,7 +709,7 @@ MUTANTS = [
      "            return tau", [RT]),
     ("i36m", "hmpc_pin/realtime/safety.py", "and np.isfinite(value) and value >= 0):", "and np.isfinite(value) and value > 0):", [RT]),
     ("i36m", "hmpc_pin/realtime/safety.py", "return np.asarray(tau, dtype=float) - self.robot.gravity_torque(q)",
-     "return np.asarray(tau, dtype=float) + self.robot.gravity_torque(q)", [ROSB]),
+     "return np.asarray(tau, dtype=float) + self.robot.gravity_torque(q)", [ROS]),
     ("i36m", "hmpc_pin/realtime/loop.py", "            if done > deadline + P:", "            if done > deadline:", [RT]),
     ("i36m", "hmpc_pin/realtime/loop.py", "            else:\n                tally.consecutive = 0\n",
      "            else:\n                pass\n", [RT]),

@@ -29,6 +29,14 @@ IDF = "tests/test_identify.py"
 IDN = "tests/test_identification.py"
 TUN = "tests/test_tune.py"
 THR = "tests/test_thresholds.py"
+SWP = "tests/test_sweep.py"
+CMP = "tests/test_compare.py"
+MET = "tests/test_metrics.py"
+REP = ["tests/test_cli.py", "-k", "reproduce"]
+ROS = "tests/test_ros.py"
+ROSB = "tests/test_ros_boundary.py"
+RT = "tests/test_realtime.py"
+RDL = "tests/test_realtime_declared_latency.py"
 
 #: (group, file, old line part, new line part, tests)
 MUTANTS = [
@@ -762,6 +770,113 @@ MUTANTS = [
     ("i36o", "hmpc_pin/realtime/interface.py", "        if self._start is None:\n            self._start = self._clock()",
      "        if self.writes == 1:\n            self._start = self._clock()", ["tests/test_realtime.py", "tests/test_protocols.py"]),
     # (end of i36o)
+    # ---- i36l: sweep, tune's report and validation, reproduce's report, compare, metrics:
+    # fresh one-line bugs written from the source alone, committed before any of them ran
+    ("i36l", "hmpc_pin/apps/sweep.py", "max_error = float(np.abs(e).max())", "max_error = float(e.max())", [SWP]),
+    ("i36l", "hmpc_pin/apps/sweep.py", "row.update(rms_max=float(np.max(rms)), max_error=max_error, message=result.message)",
+     "row.update(rms_max=float(np.mean(rms)), max_error=max_error, message=result.message)", [SWP]),
+    ("i36l", "hmpc_pin/apps/sweep.py", 'rms = np.array([r["rms_max"] if r["bounded"] else math.inf for r in rows])',
+     'rms = np.array([r["rms_max"] if r["complete"] else math.inf for r in rows])', [SWP]),
+    ("i36l", "hmpc_pin/apps/sweep.py", "worst = int(np.argmax(rms))", "worst = int(np.argmin(rms))", [SWP]),
+    ("i36l", "hmpc_pin/apps/sweep.py", 'f"{vel}, latency {si.latency * 1e3:g} ms"', 'f"{vel}, latency {si.latency:g} ms"', [SWP]),
+    ("i36l", "hmpc_pin/apps/sweep.py", "pulse = replace(pulse, amplitude=np.array(params.disturbance) * pulse.amplitude)",
+     "pulse = replace(pulse, amplitude=np.array(params.friction) * pulse.amplitude)", [SWP]),
+    ("i36l", "hmpc_pin/apps/sweep.py", "mc = replace(mc, frictionloss=k * mc.frictionloss, damping=k * mc.damping)",
+     "mc = replace(mc, frictionloss=k * mc.frictionloss, damping=mc.damping)", [SWP]),
+    ("i36l", "hmpc_pin/apps/sweep.py", 'if sc.legacy or not sc.known_latency or cc.kind != "hmpc":',
+     'if sc.legacy or cc.kind != "hmpc":', [SWP]),
+    ("i36l", "hmpc_pin/apps/tune.py", '("--seed", seed, 0, MAX_SEED),', '("--seed", seed, 0, None),', [TUN]),
+    ("i36l", "hmpc_pin/apps/tune.py", 'duration_key="--duration" if args.duration is not None else "simulation.duration",',
+     'duration_key="simulation.duration",', [TUN]),
+    ("i36l", "hmpc_pin/apps/tune.py", "        shown = _shown_params(t, study)", "        shown = dict(t.params)", [TUN]),
+    ("i36l", "hmpc_pin/apps/tune.py", 'f"## Held-out comparison: {holdout} other samples (seed {holdout_seed})",',
+     'f"## Held-out comparison: {holdout} other samples (seed {seed})",', [TUN]),
+    ("i36l", "hmpc_pin/apps/tune.py", 'if "tv0" not in study.user_attrs and "torque_tv" in parts:',
+     'if "torque_tv" in parts:', [TUN]),
+    ("i36l", "hmpc_pin/apps/tune.py", 'f"# Tuning of {name}: {len(study.trials)} trials ({len(finished)} finished)",',
+     'f"# Tuning of {name}: {len(study.trials)} trials ({len(study.trials)} finished)",', [TUN]),
+    ("i36l", "hmpc_pin/apps/tune.py", 'if scheduler is not None and executor != "dask":  # an option that does not apply',
+     "if False:  # an option that does not apply", [TUN]),
+    ("i36l", "hmpc_pin/apps/report.py", "    return not set(failures) - EXPECTED_FAILURES", "    return not failures", REP),
+    ("i36l", "hmpc_pin/apps/report.py", '"ang_err": float(abs(np.angle(np.exp(1j * (phi - np.deg2rad(cc.goal_angle)))))),',
+     '"ang_err": float(abs(np.angle(np.exp(1j * (phi - cc.goal_angle))))),', REP),
+    ("i36l", "hmpc_pin/apps/report.py", 'bool(cart["pos_err"] < 1e-3 and cart["ang_err"] < 1e-3),',
+     'bool(cart["pos_err"] < 1e-3 or cart["ang_err"] < 1e-3),', REP),
+    ("i36l", "hmpc_pin/apps/report.py", 'np.all(ratio("hmpc-ism", "hmpc", "tau_tv") >= 10),',
+     'np.all(ratio("hmpc", "hmpc-ism", "tau_tv") >= 10),', REP),
+    ("i36l", "hmpc_pin/apps/report.py", 'metrics[name + "_band"] = settling_time(result.t, result.error, 0.02)',
+     'metrics[name + "_band"] = settling_time(result.t, result.error, 0.01)', REP),
+    ("i36l", "hmpc_pin/apps/compare.py", 'step_us = float(np.median(timed.samples_ns)) / 1e3 if timed.samples_ns else float("nan")',
+     'step_us = float(np.median(timed.samples_ns)) / 1e6 if timed.samples_ns else float("nan")', [CMP]),
+    ("i36l", "hmpc_pin/apps/compare.py", '[kind, joint, *values, f"{run.step_us:.3f}", run.observer, run.failure is None]',
+     '[kind, joint, *values, f"{run.step_us:.3f}", run.observer, run.failure is not None]', [CMP]),
+    ("i36l", "hmpc_pin/apps/compare.py", "if comp.interrupted and not comp.runs:", "if comp.interrupted:", [CMP]),
+    ("i36l", "hmpc_pin/apps/compare.py", "ism = replace(base.controller.ism, boundary_layer=f * base.controller.ism.gain * cc.Ts)",
+     "ism = replace(base.controller.ism, boundary_layer=f * cc.Ts)", [CMP]),
+    ("i36l", "hmpc_pin/apps/compare.py", 'tuple(k.strip() for k in text.split(",") if k.strip())',
+     'tuple(k.strip() for k in text.split(","))', [CMP]),
+    ("i36l", "hmpc_pin/apps/compare.py", "            if text is None:\n                continue\n", "", [CMP]),
+    ("i36l", "hmpc_pin/apps/metrics.py", "            out[i] = t[idx[-1] + 1]", "            out[i] = t[idx[-1]]", [MET]),
+    ("i36l", "hmpc_pin/apps/metrics.py", "tv = np.abs(np.diff(tau, axis=0)).sum(axis=0) / span",
+     "tv = np.abs(np.diff(tau, axis=0).sum(axis=0)) / span", [MET]),
+    ("i36l", "hmpc_pin/apps/metrics.py", "freq = np.fft.rfftfreq(K, span / (K - 1))", "freq = np.fft.rfftfreq(K, span / K)", [MET]),
+    ("i36l", "hmpc_pin/apps/metrics.py", "power[1 : (K + 1) // 2] *= 2.0", "power[1:] *= 2.0", [MET]),
+    ("i36l", "hmpc_pin/apps/metrics.py", "dot = np.abs(np.sum(q_ref * q, axis=1)) / (", "dot = np.sum(q_ref * q, axis=1) / (",
+     [MET, "tests/test_tasks.py"]),
+    ("i36l", "hmpc_pin/apps/metrics.py", "e = np.abs(result.error[mask]).max(axis=0)", "e = result.error[mask].max(axis=0)",
+     [MET, "tests/test_cli_outputs.py"]),
+    ("i36l", "hmpc_pin/apps/metrics.py", "viol = np.maximum(np.maximum(lo - result.q, result.q - hi), 0.0).max(axis=0)",
+     "viol = np.maximum(lo - result.q, result.q - hi).max(axis=0)", [MET]),
+    # (end of i36l)
+    # ---- i36m: the ROS nodes (joint states merged by name, trajectory messages and their
+    # stamps, the arm node, the gravity choice), the real-time loop, its safety and the
+    # in-process arm: fresh one-line bugs from the source alone, committed before any ran
+    ("i36m", "hmpc_pin/ros/interface.py", "self._src = np.array([a for a, _ in pairs], dtype=int)",
+     "self._src = np.array([b for _, b in pairs], dtype=int)", [ROS]),
+    ("i36m", "hmpc_pin/ros/interface.py", "        if names != self._key:", "        if self._key is None:", [ROSB]),
+    ("i36m", "hmpc_pin/ros/interface.py", "        if not self._fresh.all():", "        if not self._fresh.any():", [ROS]),
+    ("i36m", "hmpc_pin/ros/interface.py", "self._arrival = stamp == 0.0 or abs(stamp - now) > 1.0",
+     "self._arrival = stamp == 0.0 or stamp - now > 1.0", [ROS]),
+    ("i36m", "hmpc_pin/ros/interface.py", "std.Float64MultiArray, commands, ros.qos(depth, reliable=True)",
+     "std.Float64MultiArray, commands, ros.qos(depth, reliable=False)", [ROSB]),
+    ("i36m", "hmpc_pin/ros/trajectory.py", "idx = np.array([where[x] for x in robot.joint_names])", "idx = np.arange(robot.nq)", [ROS]),
+    ("i36m", "hmpc_pin/ros/trajectory.py", "t_s = now if stamp == 0.0 else stamp - origin", "t_s = now if stamp == 0.0 else stamp", [ROS]),
+    ("i36m", "hmpc_pin/ros/trajectory.py", "    if t_s < now - 1e-3:", "    if t_s > now + 1e-3:", [ROS]),
+    ("i36m", "hmpc_pin/ros/trajectory.py", "    now = t_s = max(t_s, now)", "    t_s = max(t_s, now)", [ROS]),
+    ("i36m", "hmpc_pin/ros/trajectory.py", "    return d.sec + 1e-9 * d.nanosec", "    return d.sec + 1e-6 * d.nanosec", [ROS]),
+    ("i36m", "hmpc_pin/apps/ros.py", "        start = float(traj.times[0])", "        start = now", [ROS]),
+    ("i36m", "hmpc_pin/apps/ros.py", "            gravity=False,\n            effort_limit=safe.effort_limit,",
+     "            gravity=True,\n            effort_limit=safe.effort_limit,", [ROS]),
+    ("i36m", "hmpc_pin/apps/ros.py", "ns = round(iface.stamp_time() * 1e9)", "ns = round(t * 1e9)", [ROS]),
+    ("i36m", "hmpc_pin/apps/ros.py", "if k >= 1 and abs(k * h - P) <= 1e-9 * P:", "if k >= 1 and k * h - P <= 1e-9 * P:",
+     ["tests/test_cli.py", "-k", "not reproduce"]),
+    ("i36m", "hmpc_pin/ros/arm.py", "                self._publish(t0 + self.steps * P)", "                self._publish(t0 + k * P)", [ROS]),
+    ("i36m", "hmpc_pin/realtime/safety.py", "            tau = -self.damping * dq", "            tau = self.damping * dq", [RT]),
+    ("i36m", "hmpc_pin/realtime/safety.py", "return np.clip(tau + g, -lim, lim) - g", "return np.clip(tau, -lim, lim)", [RT]),
+    ("i36m", "hmpc_pin/realtime/safety.py", "            return np.clip(tau, -self.effort_limit, self.effort_limit, out=tau)",
+     "            return tau", [RT]),
+    ("i36m", "hmpc_pin/realtime/safety.py", "and np.isfinite(value) and value >= 0):", "and np.isfinite(value) and value > 0):", [RT]),
+    ("i36m", "hmpc_pin/realtime/safety.py", "return np.asarray(tau, dtype=float) - self.robot.gravity_torque(q)",
+     "return np.asarray(tau, dtype=float) + self.robot.gravity_torque(q)", [ROS]),
+    ("i36m", "hmpc_pin/realtime/loop.py", "            if done > deadline + P:", "            if done > deadline:", [RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", "            else:\n                tally.consecutive = 0\n",
+     "            else:\n                pass\n", [RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", "if pending is not None and t >= pending[1] - 1e-9:", "if pending is not None:", [RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", 'unsent = stop is not None and stop[0] in ("interrupted", "deactivated") and not wrote',
+     'unsent = stop is not None and stop[0] in ("interrupted", "deactivated")', [RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", "        if abs(median - declared) <= tol:", "        if median - declared <= tol:", [RDL, RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", "if float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:",
+     "if float(np.max(dq_keep, initial=0.0)) < sf.brake_speed:", [RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", "(q <= upper).all() and (np.abs(dq) <= vmax).all()):",
+     "(q <= upper).all() and (dq <= vmax).all()):", [RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", "            self._fresh = (stamp, wake)\n            return None",
+     "            self._fresh = (stamp, fresh_at)\n            return None", [RT]),
+    ("i36m", "hmpc_pin/realtime/loop.py", '        fresh = stop is None or stop[0] != "watchdog"', "        fresh = stop is None", [RT]),
+    ("i36m", "hmpc_pin/realtime/interface.py", "due = int((self._clock() - self._start) / self.period + 1e-9)",
+     "due = int((self._clock() - self._start) / self.period)", [RT]),
+    ("i36m", "hmpc_pin/apps/realtime.py", "changes = {k: v for k, v in pairs if v is not None}", "changes = {k: v for k, v in pairs if v}",
+     ["tests/test_cli_realtime.py"]),
+    # (end of i36m)
 ]
 
 
@@ -790,7 +905,7 @@ def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--group", default="", help="run one group (new, earlier, fresh, i36 ... i36k)")
+    parser.add_argument("--group", default="", help="run one group (new, earlier, fresh, i36 ... i36m)")
     args = parser.parse_args()
     tally: dict[str, list[int]] = {}
     for mutant in MUTANTS:

@@ -15,8 +15,8 @@ from hmpc_pin.model.robot import load_robot
 from hmpc_pin.realtime.safety import (
     STOP_CAUSES,
     GravityByArm,
-    SafetySettings,
     SafeTorque,
+    SafetySettings,
     brake_time_constant,
 )
 

@@ -93,6 +93,9 @@ def test_the_arm_nodes_rate_names_the_nearest_whole_rates(panda_sine):
     with pytest.raises(ConfigError, match=r"e\.g\. 1000 Hz$"):
         check_arm_rate(_with(panda_sine, ros={"rate": 1500.0}))
     check_arm_rate(_with(panda_sine, ros={"rate": 1000.0}))
+    # 10 ppm off a whole rate is no whole number of steps (a drift of 1 step per 100 s)
+    with pytest.raises(ConfigError, match=r"e\.g\. 1000 Hz$"):
+        check_arm_rate(_with(panda_sine, ros={"rate": 1000.0 * (1 + 1e-5)}))
     check_arm_rate(_with(panda_sine, ros={"rate": 125.0}))  # k = 8
 
 
@@ -194,6 +197,8 @@ def test_namespace_option(panda_sine):
     assert with_namespace(panda_sine, None) is panda_sine
     assert with_namespace(panda_sine, "arm1/").ros.namespace == "/arm1"
     assert with_namespace(panda_sine, "/").ros.namespace == ""
+    named = with_namespace(panda_sine, "/arm1")
+    assert with_namespace(named, "").ros.namespace == ""  # "" is the root, not "unchanged"
     with pytest.raises(ConfigError) as info:
         with_namespace(panda_sine, "/arm-1")
     assert info.value.key == "--namespace" and "'/arm-1'" in str(info.value)

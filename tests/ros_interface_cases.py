@@ -19,11 +19,11 @@ import pytest
 if os.environ.get("HMPC_PIN_IN_NETNS") != "1":  # pragma: no cover - a guard
     pytest.skip("runs only inside a private network namespace", allow_module_level=True)
 
-from sensor_msgs.msg import JointState  # noqa: E402
+from sensor_msgs.msg import JointState
 
-from hmpc_pin.exceptions import ArmError  # noqa: E402
-from hmpc_pin.ros.interface import RosArmInterface  # noqa: E402
-from hmpc_pin.ros.node import RosNode  # noqa: E402
+from hmpc_pin.exceptions import ArmError
+from hmpc_pin.ros.interface import RosArmInterface
+from hmpc_pin.ros.node import RosNode
 
 P = 0.002  # the interface period [s]
 NAMES = ["a", "b"]

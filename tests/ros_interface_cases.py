@@ -218,3 +218,136 @@ def test_write_publishes_the_torque_in_the_joint_order(iface):
     iface.write([0.0, 3.0])
     assert iface.published == 2
     assert list(iface._cmd.data) == [0.0, 3.0]
+
+
+# ------------------------------------------------------------ the arm node
+@pytest.fixture(scope="module")
+def panda():
+    from dataclasses import replace
+
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.config import load_config
+
+    config = load_config("panda_sine")
+    return Experiment.from_config(replace(config, ros=replace(config.ros, rate=1000.0)))
+
+
+def _arm(ros, experiment, gravity=None, limit=None):
+    from hmpc_pin.ros.arm import RosArmNode
+
+    k = next(_count)
+    return RosArmNode(
+        ros,
+        experiment.make_plant(1e-3),
+        experiment.robot.joint_names,
+        experiment.q0,
+        experiment.dq0,
+        1e-3,
+        f"arm_states_{k}",
+        f"arm_cmd_{k}",
+        limit,
+        gravity=gravity,
+    )
+
+
+def _command(values):
+    from std_msgs.msg import Float64MultiArray
+
+    msg = Float64MultiArray()
+    msg.data = [float(x) for x in values]
+    return msg
+
+
+def _replay(experiment, taus):
+    """The plant stepped by hand with the torques ``taus`` (the oracle of the node)."""
+    plant = experiment.make_plant(1e-3)
+    q, dq = np.array(experiment.q0, dtype=float), np.array(experiment.dq0, dtype=float)
+    plant.reset(q, dq, 0.0)
+    for tau in taus:
+        q, dq = plant.advance(tau(q))
+    return q, dq
+
+
+def test_the_arm_holds_still_until_its_first_command_and_publishes_each_period(ros, panda):
+    arm = _arm(ros, panda)
+    before = time.time()
+    arm.run(0.005)
+    assert arm.steps == 5 and arm.commands == 0 and arm.rejected == 0
+    np.testing.assert_array_equal(arm.q, panda.q0)  # on its brakes: not stepped
+    msg = arm._msg
+    stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+    assert before + 5e-3 - 1e-6 <= stamp <= time.time() + 1e-6  # t0 + 5 P
+    assert list(msg.name) == list(panda.robot.joint_names)
+    np.testing.assert_array_equal(msg.position, panda.q0)
+    np.testing.assert_array_equal(msg.effort, np.zeros(7))
+
+
+def test_the_arm_applies_the_held_command_clipped_and_ignores_malformed_ones(ros, panda):
+    limit = np.full(7, 5.0)
+    arm = _arm(ros, panda, limit=limit)
+    cmd = np.array([9.0, -9.0, 1.0, -1.0, 0.5, 7.0, -0.25])
+    arm._on_command(_command(cmd))
+    for bad in (cmd[:6], [*cmd[:6], np.nan], [*cmd, 0.0]):
+        arm._on_command(_command(bad))  # the last valid command stands
+    assert arm.rejected == 3
+    arm.run(0.004)
+    assert arm.commands == 1 and arm.steps == 4
+    applied = np.clip(cmd, -limit, limit)
+    np.testing.assert_array_equal(arm.tau, applied)
+    np.testing.assert_array_equal(arm._msg.effort, applied)
+    q, dq = _replay(panda, [lambda q: applied] * 4)  # held for every period
+    np.testing.assert_allclose(arm.q, q, atol=1e-12)
+    np.testing.assert_allclose(arm.dq, dq, atol=1e-12)
+    np.testing.assert_array_equal(arm._msg.position, arm.q)
+    np.testing.assert_array_equal(arm._msg.velocity, arm.dq)
+
+
+def test_an_arm_that_adds_gravity_applies_command_plus_g_clipped(ros, panda):
+    import pinocchio as pin
+
+    model = panda.plant.model
+    zero = np.zeros(7)
+
+    def g(q):
+        return np.array(pin.rnea(model, model.createData(), q, zero, zero))
+
+    limit = np.full(7, 30.0)
+    arm = _arm(ros, panda, gravity=panda.plant.gravity_torque, limit=limit)
+    cmd = np.array([0.5, -0.5, 0.0, 40.0, 0.0, -40.0, 0.1])
+    arm._on_command(_command(cmd))
+    arm.run(0.003)
+    q, dq = _replay(panda, [lambda q: np.clip(cmd + g(q), -limit, limit)] * 3)
+    np.testing.assert_allclose(arm.q, q, atol=1e-9)
+    np.testing.assert_allclose(arm.dq, dq, atol=1e-9)
+    # the effort published: the total of the last period, at its start's position
+    q2, _ = _replay(panda, [lambda q: np.clip(cmd + g(q), -limit, limit)] * 2)
+    np.testing.assert_allclose(arm.tau, np.clip(cmd + g(q2), -limit, limit), atol=1e-9)
+    # a zero command holds it: the gravity of the arm's own model
+    arm = _arm(ros, panda, gravity=panda.plant.gravity_torque)
+    arm._on_command(_command(np.zeros(7)))
+    arm.run(0.002)
+    q, dq = _replay(panda, [g] * 2)
+    np.testing.assert_allclose(arm.q, q, atol=1e-9)
+
+
+def test_stop_returns_at_the_next_period(ros, panda):
+    arm = _arm(ros, panda)
+    arm.stop()
+    arm.run(None)  # no duration: until stopped
+    assert arm.steps == 0
+
+
+def test_a_late_wake_steps_the_missed_periods_but_never_past_the_duration(ros, panda, monkeypatch):
+    """A node descheduled for 20 periods (its sleep returns late): it steps and publishes
+    every period it missed, counted late, and still runs round(duration / P) periods."""
+    import hmpc_pin.ros.arm as arm_module
+
+    real = arm_module.sleep_until
+    monkeypatch.setattr(arm_module, "sleep_until", lambda t, clock: real(t + 20e-3, clock))
+    arm = _arm(ros, panda)
+    arm._on_command(_command(np.zeros(7)))
+    arm.run(0.005)
+    assert arm.steps == 5
+    assert arm.late >= 1 and arm.late <= 4
+    q, _ = _replay(panda, [lambda q: np.zeros(7)] * 5)
+    np.testing.assert_allclose(arm.q, q, atol=1e-12)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -322,6 +323,7 @@ def test_an_arm_that_adds_gravity_applies_command_plus_g_clipped(ros, panda):
     # the effort published: the total of the last period, at its start's position
     q2, _ = _replay(panda, [lambda q: np.clip(cmd + g(q), -limit, limit)] * 2)
     np.testing.assert_allclose(arm.tau, np.clip(cmd + g(q2), -limit, limit), atol=1e-9)
+    np.testing.assert_array_equal(arm._msg.effort, arm.tau)  # the total, not the command
     # a zero command holds it: the gravity of the arm's own model
     arm = _arm(ros, panda, gravity=panda.plant.gravity_torque)
     arm._on_command(_command(np.zeros(7)))
@@ -345,9 +347,18 @@ def test_a_late_wake_steps_the_missed_periods_but_never_past_the_duration(ros, p
     real = arm_module.sleep_until
     monkeypatch.setattr(arm_module, "sleep_until", lambda t, clock: real(t + 20e-3, clock))
     arm = _arm(ros, panda)
+    sent = []  # every state published: its stamp (recorded at the publisher)
+    publish = arm._pub.publish
+    arm._pub = SimpleNamespace(
+        publish=lambda m: (sent.append(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec),
+                           publish(m))
+    )  # fmt: skip
     arm._on_command(_command(np.zeros(7)))
     arm.run(0.005)
     assert arm.steps == 5
+    # one state per period, each stamped with its own period's instant t0 + k P
+    assert len(sent) == 6
+    np.testing.assert_allclose(np.diff(sent), 1e-3, atol=1e-6)
     assert arm.late >= 1 and arm.late <= 4
     q, _ = _replay(panda, [lambda q: np.zeros(7)] * 5)
     np.testing.assert_allclose(arm.q, q, atol=1e-12)

@@ -79,6 +79,9 @@ def test_the_tally_counts_runs_of_misses_and_skips():
     tally = _Tally()
     assert [tally.miss(3) for _ in range(3)] == [False, False, True]
     assert (tally.misses, tally.consecutive, tally.worst_run) == (3, 3, 3)
+    assert not tally.skip(1, 0, 3)  # periods skipped in time add no miss to the run
+    assert (tally.misses, tally.skipped) == (3, 1)
+    tally.skipped = 0
     tally.consecutive = 0  # (the loop's on-time cycle)
     assert not tally.skip(4, 0, 3)  # skipped in time: no miss
     assert (tally.misses, tally.skipped, tally.consecutive) == (3, 4, 0)
@@ -98,12 +101,15 @@ def test_the_declared_latency_is_found_through_wrappers():
     assert _declared_latency(SimpleNamespace(controller=SimpleNamespace(latency=2))) == 2.0
     assert _declared_latency(SimpleNamespace()) is None
     assert _declared_latency(SimpleNamespace(latency=None)) is None
+    # the outermost object with the setting is the one that runs it
+    outer = SimpleNamespace(latency=0.002, controller=SimpleNamespace(latency=0.009))
+    assert _declared_latency(outer) == 0.002
 
 
 # ------------------------------------------------------------------ PlantArm
 class Clock:
     def __init__(self):
-        self.t = 100.0
+        self.t = 0.0
 
     def __call__(self):
         return self.t
@@ -136,13 +142,15 @@ def test_the_plant_arm_holds_still_until_written_then_steps_whole_periods(robot)
     tau1 = np.array([9.0, -1.0, 0.5])
     arm.write(tau1)
     np.testing.assert_array_equal(arm.tau, [4.0, -1.0, 0.5])  # clipped
-    clock.t += 2.5 * P  # two whole periods and a half
+    start = clock.t
+    clock.t += 2.6 * P  # two whole periods and more than half of the third
     t, q, _ = arm.read()
     assert t == pytest.approx(2 * P)
     np.testing.assert_allclose(q, _by_hand(robot, q0, [arm.tau] * 2, P)[0], atol=1e-12)
     tau2 = np.array([0.0, 2.0, -5.0])
     arm.write(tau2)
-    clock.t += 0.5 * P + 1e-12  # the third period ends (to rounding)
+    clock.t = start + 3 * P - 1e-15  # the third period ends (to rounding)
+    assert int((clock.t - start) / P) == 2  # (what a plain division would make of it)
     t, q, dq = arm.read()
     assert t == pytest.approx(3 * P)
     expected = _by_hand(robot, q0, [np.clip(tau1, -4, 4)] * 2 + [np.clip(tau2, -4, 4)], P)

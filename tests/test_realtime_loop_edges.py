@@ -6,6 +6,7 @@ reference switch's boundaries, and a stop asked while the arm is silent."""
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import hmpc_pin
@@ -148,3 +149,141 @@ def test_a_stop_asked_while_the_arm_is_silent_is_that_stop_not_the_watchdog(robo
     run = loop.run()
     assert not run.complete and run.stop["cause"] == "interrupted"
     assert run.stop["t"] == pytest.approx(0.1, abs=1.5 * P)
+
+
+# ------------------------------------------------------------ the stop sequence
+class Recorder:
+    """The arm, with every command written recorded (after ``mark`` is set: the stop)."""
+
+    def __init__(self, arm, t_stop=np.inf):
+        self.arm, self.t_stop = arm, t_stop
+        self.nq, self.period = arm.nq, arm.period
+        self.writes: list[np.ndarray] = []
+        self._last = None
+
+    def read(self):
+        stamp, q, dq = self.arm.read()
+        if stamp >= self.t_stop and self._last is not None:  # frozen from t_stop on
+            return self._last
+        self._last = (stamp, q.copy(), dq.copy())
+        return stamp, q, dq
+
+    def write(self, tau):
+        self.writes.append(np.array(tau, dtype=float))
+        self.arm.write(tau)
+
+    def close(self):
+        self.arm.close()
+
+
+class PacedRecorder(Paced):
+    """:class:`Paced` with every command written recorded."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.writes: list[np.ndarray] = []
+
+    def write(self, tau):
+        self.writes.append(np.array(tau, dtype=float))
+        super().write(tau)
+
+
+def _g(robot, q):
+    model = robot.model
+    zero = np.zeros(model.nv)
+    return np.array(pin.rnea(model, model.createData(), np.asarray(q), zero, zero))
+
+
+def test_a_complete_run_ends_with_the_safe_torque_then_the_held_one(robot):
+    """hold = 0: after the last cycle the arm gets G(q) - D dq at the last state (the
+    brake's first command), then G(q) at that position with no velocity term, and
+    nothing after it."""
+    from .test_realtime import _setup
+
+    safety = SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=0.0)
+    loop, _, _, _ = _setup(robot, 0.2, safety=safety, wrap=Recorder)
+    run = loop.run()
+    assert run.complete
+    writes = loop.interface.writes
+    assert len(writes) == 201 + 2
+    q, dq = run.stats["brake"]["q"], np.asarray(loop.interface._last[2])
+    np.testing.assert_allclose(writes[-2], _g(robot, q) - 3.0 * dq, atol=1e-9)
+    np.testing.assert_allclose(writes[-1], _g(robot, q), atol=1e-9)
+    np.testing.assert_allclose(run.stats["brake"]["held_tau"], writes[-1], atol=0)
+
+
+def test_a_frozen_stamp_during_the_brake_ends_it_after_the_watchdog_not_the_hold(robot):
+    """Ctrl-C at 0.3 s on a polled arm whose stamp freezes then: the brake waits one
+    watchdog for a fresh state, not the whole hold, and leaves G(q) at the last position."""
+    from .test_realtime import _setup
+
+    safety = SafetySettings.unlimited(3, max_misses=5, watchdog=0.005, hold=1.0)
+    holder = {}
+
+    def hook(t):
+        if t >= 0.3 - 1e-9:
+            holder["loop"].request_stop()
+
+    loop, _, _, _ = _setup(robot, 0.6, safety=safety, hook=hook,
+                           wrap=lambda a: Recorder(a, t_stop=0.3))  # fmt: skip
+    holder["loop"] = loop
+    run = loop.run()
+    brake = run.stop["brake"]
+    assert run.stop["cause"] == "interrupted"
+    assert brake["ended"] == "no fresh state"
+    assert brake["duration"] <= 0.005 + 2 * P
+    np.testing.assert_allclose(loop.interface.writes[-1], _g(robot, brake["q"]), atol=1e-9)
+
+
+def test_after_a_watchdog_stop_the_held_torque_is_written_once(robot):
+    """No fresh state to brake on: G(q) at the last position, written once (no damping
+    on a velocity no longer measured), and it is the stop's safe torque."""
+    loop, _ = _loop(robot, 1.0, lambda a, c: PacedRecorder(a, c, silent_after=0.3))
+    run = loop.run()
+    assert run.stop["cause"] == "watchdog"
+    writes = loop.interface.writes
+    cycles = int(np.count_nonzero(np.isfinite(run.timing["latency"])))
+    assert len(writes) == cycles + 1
+    np.testing.assert_allclose(writes[-1], _g(robot, run.stop["q"]), atol=1e-9)
+    np.testing.assert_allclose(run.stop["safe_tau"], writes[-1], atol=0)
+
+
+class _NaNBrake:
+    """A safe torque whose brake is not finite (a model gone wrong), its held one finite
+    or not."""
+
+    def __init__(self, robot, held_finite=True):
+        self.robot, self.held_finite = robot, held_finite
+
+    def __call__(self, q, dq):
+        return np.full(3, np.nan)
+
+    def held(self, q):
+        return _g(self.robot, q) if self.held_finite else np.full(3, np.nan)
+
+
+def test_a_non_finite_safe_torque_is_never_written(robot):
+    """The brake NaN: the held torque G(q) is written instead; that NaN too: zero."""
+    loop, _ = _loop(robot, 0.1, lambda a, c: Recorder(a))
+    q, dq = np.array([0.1, 0.2, 0.3]), np.array([1.0, -1.0, 0.5])
+    loop.safe_torque = _NaNBrake(robot)
+    np.testing.assert_allclose(loop._safe_write(q, dq), _g(robot, q), atol=1e-9)
+    np.testing.assert_allclose(loop.interface.writes[-1], _g(robot, q), atol=1e-9)
+    loop.safe_torque = _NaNBrake(robot, held_finite=False)
+    np.testing.assert_array_equal(loop._safe_write(q, dq), np.zeros(3))
+    np.testing.assert_array_equal(loop.interface.writes[-1], np.zeros(3))
+    assert all(np.isfinite(w).all() for w in loop.interface.writes)
+
+
+def test_a_miss_stop_at_the_last_cycle_is_recorded_at_that_cycle(robot):
+    """The last MPC step (t = 0.2 s, cycle 200 of 0..200) takes 1.5 periods with
+    max_misses = 1: the stop is at cycle 200, t = 0.2 s, not past the run."""
+    from .test_realtime import _setup
+
+    safety = SafetySettings.unlimited(3, max_misses=1, watchdog=0.005, hold=0.01)
+    loop, _, _, _ = _setup(robot, 0.2, safety=safety,
+                           cost=lambda t: 1.5 * P if t >= 0.2 - 1e-9 else 0.0)  # fmt: skip
+    run = loop.run()
+    assert run.stop["cause"] == "misses"
+    assert run.stop["cycle"] == 200 and run.stop["t"] == pytest.approx(0.2)
+    assert "cycle 200)" in run.stop["reason"]

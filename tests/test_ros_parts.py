@@ -231,3 +231,88 @@ def test_a_message_with_a_wrong_number_of_values_gives_nan_not_shifted_values():
     assert merge.add(["b"], [4.0], [0.4])
     np.testing.assert_array_equal(merge.q, [3.5, 4.0])
     assert merge.seen.all() and merge.missing == []
+
+
+# ------------------------------------------------------- trajectory messages' worker
+class _Log:
+    def __init__(self):
+        self.lines: list[tuple[str, str]] = []
+
+    def info(self, line):
+        self.lines.append(("info", line))
+
+    def error(self, line):
+        self.lines.append(("error", line))
+
+
+def _worker(panda_experiment):
+    """The check of ``~/joint_trajectory`` (the worker thread's function), on a real loop
+    (not run: its time set by hand) and the real message type."""
+    from hmpc_pin.apps.ros import _limits_of, _Trajectories
+    from hmpc_pin.realtime import LoopSettings, PlantArm, RealtimeLoop, SafeTorque
+    from hmpc_pin.realtime import SafetySettings as Safety
+
+    ex = panda_experiment
+    log = _Log()
+    t = _Trajectories.__new__(_Trajectories)
+    t.ros = SimpleNamespace(node=SimpleNamespace(get_logger=lambda: log))
+    t.experiment, t.iface = ex, SimpleNamespace(_origin=0.0)
+    t.lower, t.upper = _limits_of(ex)
+    t.loop, t.events, t._pending, t.topic = None, [], None, "/hmpc/joint_trajectory"
+    arm = PlantArm(ex.make_plant(1e-3), ex.q0)
+    loop = RealtimeLoop(arm, ex.controller, ex.reference, SafeTorque(ex.robot),
+                        LoopSettings(1000.0, 1.0), Safety.unlimited(7))  # fmt: skip
+    return t, loop, log
+
+
+def _trajectory(names, q, t_from_start):
+    msgs = pytest.importorskip("trajectory_msgs.msg")
+    msg = msgs.JointTrajectory()
+    msg.joint_names = list(names)
+    p = msgs.JointTrajectoryPoint()
+    p.positions = [float(x) for x in q]
+    p.time_from_start.sec = int(t_from_start)
+    p.time_from_start.nanosec = round((t_from_start % 1) * 1e9)
+    msg.points.append(p)
+    return msg
+
+
+def test_the_trajectory_worker_accepts_refuses_and_marks_superseded(panda_sine):
+    from hmpc_pin.experiment.build import Experiment
+
+    ex = Experiment.from_config(panda_sine)
+    t, loop, log = _worker(ex)
+    names = list(ex.robot.joint_names)
+    target = ex.reference.sample(2.0)[0] + 0.05
+    msg = _trajectory(names, target, 1.0)
+    t._check(msg)  # before the loop runs: refused, nothing recorded
+    assert log.lines[-1][0] == "error" and "not running yet" in log.lines[-1][1]
+    assert t.events == []
+    t.loop = loop
+    loop.time = 1.0
+    Ts = ex.controller.Ts
+    t._check(msg)
+    first = t.events[-1]
+    assert first["accepted"] and first["points"] == 1
+    assert first["t"] == pytest.approx(1.0 + Ts)  # the step that takes it over
+    assert first["t_end"] == pytest.approx(1.0 + Ts + 1.0)
+    pending = loop.pending_reference
+    assert pending is not None
+    np.testing.assert_allclose(pending.sample(2.0 + Ts)[0], target, atol=1e-9)
+    assert log.lines[-1][0] == "info"
+    assert "accepted a joint_trajectory message of 1 points" in log.lines[-1][1]
+    # a second one before the first started: the first is marked superseded
+    loop.time = 1.002
+    t._check(_trajectory(names, target, 0.5))
+    assert first["superseded_at"] == pytest.approx(1.002 + Ts)
+    assert t.events[-1]["accepted"] and loop.superseded is pending
+    # one beyond the limits: refused, the pending one kept
+    kept = loop.pending_reference
+    beyond = target.copy()
+    beyond[3] = t.upper[3] + 0.3
+    t._check(_trajectory(names, beyond, 1.0))
+    refused = t.events[-1]
+    assert not refused["accepted"] and refused["t"] == pytest.approx(1.002 + Ts)
+    assert refused["reason"].startswith("refused the joint_trajectory message: ")
+    assert "panda_joint4" in refused["reason"]
+    assert loop.pending_reference is kept

@@ -316,3 +316,48 @@ def test_the_trajectory_worker_accepts_refuses_and_marks_superseded(panda_sine):
     assert refused["reason"].startswith("refused the joint_trajectory message: ")
     assert "panda_joint4" in refused["reason"]
     assert loop.pending_reference is kept
+
+
+def test_messages_are_checked_against_the_mpcs_limits_else_the_urdfs(panda_sine):
+    """[controller.constraints] upper narrower than the URDF's: the trajectory messages
+    are checked against it; a controller without constraints: against the URDF's."""
+    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.experiment.build import Experiment
+
+    cc = panda_sine.controller
+    urdf = Experiment.from_config(panda_sine).robot
+    upper = urdf.upper - 0.01  # 10 mrad inside the URDF's, the start posture inside it
+    narrow = replace(panda_sine, controller=replace(
+        cc, constraints=replace(cc.constraints, upper=upper)))  # fmt: skip
+    lo, hi = _limits_of(Experiment.from_config(narrow))
+    np.testing.assert_array_equal(hi, upper)
+    np.testing.assert_array_equal(lo, urdf.lower)
+    off = replace(panda_sine, controller=replace(
+        cc, constraints=replace(cc.constraints, enabled=False)))  # fmt: skip
+    lo, hi = _limits_of(Experiment.from_config(off))
+    np.testing.assert_array_equal(hi, urdf.upper)
+
+
+def test_a_stamped_trajectory_waits_for_its_stamp_and_a_swapped_one_is_not_superseded(
+    panda_sine,
+):
+    from hmpc_pin.experiment.build import Experiment
+
+    ex = Experiment.from_config(panda_sine)
+    t, loop, _ = _worker(ex)
+    t.loop, loop.time = loop, 1.0
+    names = list(ex.robot.joint_names)
+    target = ex.reference.sample(3.0)[0] + 0.05
+    stamped = _trajectory(names, target, 1.0)
+    stamped.header.stamp.sec = 3  # the loop's clock has its origin at 0 here
+    t._check(stamped)
+    assert t.events[-1]["accepted"] and t.events[-1]["t"] == pytest.approx(3.0)
+    old = loop.reference
+    assert loop._swap_reference(2.5, old) is old  # not before its stamp
+    new = loop._swap_reference(3.0, old)  # swapped in at its time
+    assert new is not old and loop.pending_reference is None
+    first = t.events[-1]
+    loop.time = 3.5
+    t._check(_trajectory(names, ex.reference.sample(4.0)[0], 1.0))
+    assert t.events[-1]["accepted"]
+    assert "superseded_at" not in first  # it ran: not superseded

@@ -202,7 +202,7 @@ def build_ros(config: ExperimentConfig):
     raises here, before a node starts or a file is written.
 
     Raises:
-        ConfigError: As :meth:`Experiment.from_config` and :func:`ros_parts`.
+        ConfigError: As ``Experiment.from_config`` and :func:`ros_parts`.
     """
     experiment = Experiment.from_config(config)
     return experiment, ros_parts(experiment)

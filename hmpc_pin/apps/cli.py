@@ -497,17 +497,16 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
 
 def cmd_ros(args) -> int:
     """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
-    from ..experiment.build import Experiment
     from ..ros.node import import_ros
     from .realtime import format_tracking
-    from .ros import check_run_length, format_ros, ros_parts, run_ros
+    from .ros import build_ros, check_run_length, format_ros, run_ros
 
     import_ros("hmpc-pin ros")  # the extra, before anything else
     config = _ros_config(args, _with_overrides(_config(args.config), False, args.duration))
     key = "--duration" if args.duration is not None else "simulation.duration"
     check_run_length(config.simulation.duration, config.ros.rate, key)
     # [ros] rate against Ts, the brake, [ros] gravity: bad input stops here, nothing written
-    ros_parts(Experiment.from_config(config))
+    built = build_ros(config)  # built once, run below
     out = _out_dir(args.out)
     print(
         f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
@@ -516,7 +515,7 @@ def cmd_ros(args) -> int:
         flush=True,
     )
     return _report_realtime(
-        lambda: run_ros(config, out, ros_args=args.ros_args),
+        lambda: run_ros(config, out, ros_args=args.ros_args, built=built),
         config,
         "published",
         format_ros,

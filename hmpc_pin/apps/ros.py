@@ -196,6 +196,18 @@ def ros_parts(experiment: Experiment):
     return loop_settings, safety, safe, ctrl
 
 
+def build_ros(config: ExperimentConfig):
+    """The experiment of ``hmpc-pin ros`` and its parts, built once: ``(experiment,
+    ros_parts(experiment))``; bad input (``[ros] rate``, the brake, ``[ros] gravity``)
+    raises here, before a node starts or a file is written.
+
+    Raises:
+        ConfigError: As ``Experiment.from_config`` and :func:`ros_parts`.
+    """
+    experiment = Experiment.from_config(config)
+    return experiment, ros_parts(experiment)
+
+
 def check_gravity(config: ExperimentConfig) -> None:
     """Who compensates gravity is one choice, ``[ros] gravity``, for both ROS nodes;
     ``[realtime] gravity``, if given, must agree with it.
@@ -223,7 +235,11 @@ def check_gravity(config: ExperimentConfig) -> None:
 
 
 def run_ros(
-    config: ExperimentConfig, out: Path, stem: str | None = None, ros_args: list[str] | None = None
+    config: ExperimentConfig,
+    out: Path,
+    stem: str | None = None,
+    ros_args: list[str] | None = None,
+    built: tuple | None = None,
 ):
     """Run ``config``'s controller as a ROS 2 node until its duration or a safe stop.
 
@@ -236,6 +252,8 @@ def run_ros(
         stem: The files' stem (default: the config's name).
         ros_args: ROS arguments (those after ``--ros-args``: remaps, ``__ns``,
             ``use_sim_time`` ...), given to rclpy.
+        built: ``build_ros(config)``, by a caller that checked the parts before writing
+            anything (default: built here); the experiment is built once.
 
     Returns:
         ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
@@ -245,17 +263,22 @@ def run_ros(
             the robot's joints (nothing written).
     """
     with fifo_priority(config.realtime.priority):
-        return _run_ros(config, out, stem, ros_args)
+        return _run_ros(config, out, stem, ros_args, built)
 
 
-def _run_ros(config: ExperimentConfig, out: Path, stem: str | None, ros_args=None):
+def _run_ros(
+    config: ExperimentConfig,
+    out: Path,
+    stem: str | None,
+    ros_args=None,
+    built: tuple | None = None,
+):
     from ..ros.interface import RosArmInterface
     from ..ros.node import RosNode, discovery_range
 
     rc = config.ros
     stem = (stem or config.name) + "_ros"
-    experiment = Experiment.from_config(config)
-    loop_settings, safety, safe, ctrl = ros_parts(experiment)
+    experiment, (loop_settings, safety, safe, ctrl) = built or build_ros(config)
     ros = RosNode(
         rc.node,
         rc.namespace,

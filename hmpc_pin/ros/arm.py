@@ -115,7 +115,8 @@ class RosArmNode:
         self._stop = True
 
     def run(self, duration: float | None = None) -> None:
-        """Publish and step until ``duration`` [s] (``None``: until :meth:`stop`)."""
+        """Publish and step until ``duration`` [s] (``None``: until :meth:`stop`):
+        :math:`\\mathrm{round}(d/T_a)` periods, however late the node wakes."""
         P = self.period
         clock = time.time
         t0 = clock()
@@ -137,6 +138,8 @@ class RosArmNode:
                 else:  # (with gravity added by the arm, the total is clipped at each step)
                     self._command[:] = cmd
             due = int((clock() - t0) / P)
+            if end is not None:  # (a late wake near the end steps no period past it)
+                due = min(due, end)
             if due > k:
                 self.late += due - k
                 k = due

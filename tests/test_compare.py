@@ -122,6 +122,9 @@ def test_unknown_controller_is_bad_input(tmp_path, capsys):
     assert "mpc-foo" in err and "hmpc-ism" in err and err.count("\n") == 1
     with pytest.raises(ConfigError):
         parse_controllers(" , ")
+    # blanks around names and an empty item (a trailing comma) are no controller
+    assert parse_controllers(" hmpc , computed-torque,") == ("hmpc", "computed-torque")
+    assert parse_controllers("hmpc,,computed-torque") == ("hmpc", "computed-torque")
 
 
 def test_controller_names_are_pairs_and_duplicates_are_refused():
@@ -397,7 +400,10 @@ def test_run_one_controller_has_metrics_from_one_second_on():
         short = replace(cfg, simulation=replace(cfg.simulation, duration=duration))
         run = run_one_controller(short, "hmpc")
         assert (run.metrics is not None) is has and run.observer is True
-        assert run.step_us > 0 and run.failure is None and run.kind == "hmpc"
+        assert run.failure is None and run.kind == "hmpc"
+        # a unit check (ns -> µs), not a speed assertion: a step of a 3-joint controller
+        # (CRBA, RNEA, 3 QPs, the observer) takes far more than 0.1 µs on any machine
+        assert run.step_us > 0.1
     run = run_one_controller(short, "computed-torque")
     assert run.observer is False
 

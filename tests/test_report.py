@@ -3,12 +3,18 @@ the metrics table against its runs (hand-built runs and metrics: no simulation).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+import hmpc_pin
 from hmpc_pin.apps import report
+from hmpc_pin.experiment.config import load_config
+from hmpc_pin.model.planar import tool_pose
+
+from .conftest import CONFIGS, PLANAR3
 
 
 def _m(**fields):
@@ -215,3 +221,30 @@ def test_the_relative_observer_error_is_taken_after_1_s():
     rel = report._relative_observer_error(runs, metrics, "x", [1, 0])
     scale = np.sqrt([12.5, 12.5])
     np.testing.assert_allclose(rel, [2.0 / scale[1], 1.0 / scale[0]])
+
+
+# ------------------------------------------------------------ Section 5.4's final errors
+def test_the_final_tool_errors_are_those_of_the_goal_pose(tmp_path):
+    """The Cartesian run's final tool errors against its config's goal (position [m],
+    angle given in degrees): an arm that ends at the goal has both 0, one whose link 3 is
+    turned 0.3 rad further has the angle error 0.3 rad (φ ≡ q1 + q2 + q3 on planar3,
+    independently of the package's pose) and the same position error as its tool moved."""
+    robot = hmpc_pin.load_robot(PLANAR3)
+    config = load_config(CONFIGS / "paper_cartesian.toml")
+    q_end = np.array([0.4, 0.5, -1.9])  # link 3 at -1.0 rad (-57.3°)
+    x, z, _ = tool_pose(robot, q_end)
+    goal = replace(config.reference.cartesian, goal_position=np.array([x, z]),
+                   goal_angle=float(np.rad2deg(q_end.sum())))  # fmt: skip
+    config = replace(config, reference=replace(config.reference, cartesian=goal))
+    for turn in (0.0, 0.3):
+        q = np.array([q_end, q_end + np.array([0.0, 0.0, turn])])
+        t = np.array([0.0, 5.0])
+        run = hmpc_pin.Result(t=t, q=q, dq=np.zeros_like(q), tau=np.zeros_like(q),
+                              d=np.zeros_like(q), d_hat=np.zeros_like(q), q_ref=q,
+                              dq_ref=np.zeros_like(q))  # fmt: skip
+        cart = report._cartesian(robot, {"paper_cartesian": config},
+                                 {"paper_cartesian": run}, tmp_path, [])  # fmt: skip
+        assert cart is not None and cart["t"] == 5.0
+        assert cart["ang_err"] == pytest.approx(turn, abs=1e-12)
+        xt, zt, _ = tool_pose(robot, q[-1])
+        assert cart["pos_err"] == pytest.approx(np.hypot(xt - x, zt - z), abs=1e-12)

@@ -37,16 +37,18 @@ class Overdue(Paced):
         return count
 
 
-def _loop(robot, duration, iface_factory, *, max_misses=5, velocity=np.inf, hook=None):
+def _loop(robot, duration, iface_factory, *, max_misses=5, velocity=np.inf, hook=None,
+          reference=None):
+    reference = _sine() if reference is None else reference
     clock = FakeClock()
-    q0 = _sine().sample(0.0)[0]
+    q0 = reference.sample(0.0)[0]
     arm = PlantArm(RK4Plant(robot.copy(), None, P, P), q0, clock=clock)
     iface = iface_factory(arm, clock)
     ctrl = Spend(hmpc_pin.make_controller(robot), clock, lambda t: 0.0, hook)
     inf = np.full(3, np.inf)
     safety = SafetySettings(-inf, inf, np.full(3, velocity), max_misses=max_misses,
                             watchdog=0.05, hold=0.01)  # fmt: skip
-    loop = RealtimeLoop(iface, ctrl, _sine(), SafeTorque(robot, damping=3.0),
+    loop = RealtimeLoop(iface, ctrl, reference, SafeTorque(robot, damping=3.0),
                         LoopSettings(1.0 / P, duration), safety,
                         joint_names=tuple(robot.joint_names))  # fmt: skip
     return loop, arm
@@ -105,6 +107,19 @@ def test_a_joint_faster_than_its_bound_is_a_fault_naming_it(robot):
     run = loop.run()
     assert not run.complete and run.stop["cause"] == "fault"
     assert "|dq|=" in run.stop["reason"] and "beyond its bound 0.05" in run.stop["reason"]
+    speed = float(run.stop["reason"].split("|dq|=")[1].split()[0])
+    assert speed > 0.05
+
+
+def test_a_joint_faster_than_its_bound_backwards_is_a_fault_too(robot):
+    """The bound is on |dq|: the sine run backwards (every joint's velocity negative at
+    first, joint1 down to -1.6 rad/s) stops on the same fault, naming a speed above it."""
+    backwards = SineReference(3, amplitude=[-0.5, -0.3, -0.2], frequency=[0.5, 0.4, 0.3],
+                              offset=[0.3, -0.4, 0.2])  # fmt: skip
+    assert np.all(backwards.sample(0.0)[1] < 0)
+    loop, _ = _loop(robot, 0.5, lambda a, c: Paced(a, c), velocity=0.05, reference=backwards)
+    run = loop.run()
+    assert not run.complete and run.stop["cause"] == "fault"
     speed = float(run.stop["reason"].split("|dq|=")[1].split()[0])
     assert speed > 0.05
 

@@ -37,8 +37,9 @@ class Overdue(Paced):
         return count
 
 
-def _loop(robot, duration, iface_factory, *, max_misses=5, velocity=np.inf, hook=None,
-          reference=None):
+def _loop(
+    robot, duration, iface_factory, *, max_misses=5, velocity=np.inf, hook=None, reference=None
+):
     reference = _sine() if reference is None else reference
     clock = FakeClock()
     q0 = reference.sample(0.0)[0]

@@ -145,6 +145,17 @@ def test_saturation_and_error_warnings_through_the_cli(tmp_path, capsys, write_c
         assert ("tracking error exceeds" in err) is warned, err
 
 
+@pytest.mark.parametrize("value", ["0", "-0.1", "nan", "inf"])
+def test_a_warn_error_threshold_must_be_a_positive_number(tmp_path, capsys, value):
+    """``--warn-error`` is a tracking error [rad] > 0 and finite: exit 2, one line naming
+    it, before anything is written."""
+    out = tmp_path / "o"
+    assert main(["run", PAPER, "--duration", "0.1", "--out", str(out), "--warn-error", value]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: --warn-error: expected a tracking")
+    assert not out.exists()
+
+
 def test_clean_run_has_no_warning(tmp_path, capsys):
     assert main(["run", PAPER, "--duration", "1.5", "--out", str(tmp_path)]) == 0
     assert "warning" not in capsys.readouterr().err

@@ -234,6 +234,27 @@ def test_init_picks_a_period_that_suits_the_urdf_damping():
     assert planar.periods() == init_mod.PERIODS
 
 
+def test_init_picks_the_longest_plant_step_within_half_rk4s_damping_limit(write_urdf):
+    """A damped joint (λ = b (M⁻¹)_jj from Pinocchio's CRBA at the offset): the plant's step
+    is the longest offered with dt λ <= 1.39/2 (RK4's real-axis limit, halved for the
+    postures along the sine); a damping that no offered step fits is left out of the
+    simulation."""
+    from hmpc_pin.experiment import init as init_mod
+
+    for b, fits in ((13.5, True), (1e6, False)):  # λ ≈ 1000 1/s: 1 ms only within 1.39
+        text = three_links(j3={"extra": f'<dynamics damping="{b}"/>'})
+        plan = init_mod.InitPlan(write_urdf(text, f"damped_{b:g}.urdf"))
+        model = plan.robot.model
+        M = pin.crba(model, model.createData(), plan.offset)
+        M = np.triu(M) + np.triu(M, 1).T
+        lam = b * np.linalg.inv(M)[2, 2]
+        assert plan.damping_rate == pytest.approx(lam, rel=1e-9)
+        allowed = [dt for dt in init_mod.PLANT_STEPS if dt * lam <= 0.5 * 1.39]
+        assert bool(allowed) is fits and plan.joint_dynamics is fits
+        if fits:
+            assert plan.plant_dt == max(allowed) < init_mod.PLANT_STEPS[0]
+
+
 def test_bandwidth_survives_a_latency_declared_half_a_cycle_too_long():
     """The general observer's bandwidth: 10/Ts where a latency declared half a 1 kHz cycle
     too long sets no bound (Ts >= 1.33 ms); below, the largest the bandwidth rule allows

@@ -170,7 +170,11 @@ def cmd_run(args) -> int:
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     if args.replay is not None:  # Meshcat and the meshes, before the run and any file
         _check_meshes(config, "--replay")
-    out = _out_dir(args.out)
+    warn = _warn_thresholds(args)
+    for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):
+        if value and not args.viz:
+            raise ConfigError(flag, "applies to the live view only; add --viz or drop " + flag)
+    out = _out_dir(args.out)  # every option checked: the first thing written
     stem = config.name
     if args.compensation is not None:
         stem += f"_{args.compensation}"
@@ -178,10 +182,6 @@ def cmd_run(args) -> int:
         stem += "_no_ndo"
     if args.replay is not None:
         _out_file(args.replay, "--replay")
-    warn = _warn_thresholds(args)
-    for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):
-        if value and not args.viz:
-            raise ConfigError(flag, "applies to the live view only; add --viz or drop " + flag)
     views: list = []  # the live view, opened by run_one once the experiment is built
     try:
         return _run_and_report(args, config, out, stem, warn, views, experiment)

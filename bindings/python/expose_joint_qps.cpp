@@ -57,6 +57,7 @@ void expose_joint_qps(py::module_& m) {
           "joint_names", [](const PyJointQPs& o) { return o.qps.joint_names; },
           [](PyJointQPs& o, std::vector<std::string> names) { o.qps.joint_names = names; })
       .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
+      .def("restart", [](PyJointQPs& o) { o.qps.restart(); })
       .def_property(
           "shortcut", [](const PyJointQPs& o) { return o.qps.shortcut; },
           [](PyJointQPs& o, bool on) { o.qps.shortcut = on; })

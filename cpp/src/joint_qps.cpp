@@ -96,18 +96,68 @@ JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const
     }
     box_lo_.push_back(lo);
     box_hi_.push_back(hi);
-    g_block_.setZero(n * Nc);
-    qps_.emplace_back(new_box_qp(H_block_, g_block_, lo, hi, warm_));
   } else {
     const Mat Hinv = H_.inverse();
     neg_Hinv_ = -0.5 * (Hinv + Hinv.transpose());
     for (int i = 0; i < n; ++i) {
       box_lo_.push_back(Vec::Constant(Nc, v_min_[i]));
       box_hi_.push_back(Vec::Constant(Nc, v_max_[i]));
-      qps_.emplace_back(new_box_qp(H_, Vec::Zero(Nc), box_lo_[i], box_hi_[i], warm_));
     }
   }
+  make_box_qps();
+}
+
+// The box QPs as new (each initialised and solved once at g = 0, new_box_qp), their cold
+// twins to be made on first use.
+void JointQPs::make_box_qps() {
+  qps_.clear();
+  if (block) {
+    g_block_.setZero(n * Nc);
+    qps_.emplace_back(new_box_qp(H_block_, g_block_, box_lo_[0], box_hi_[0], warm_));
+  } else {
+    for (int i = 0; i < n; ++i)
+      qps_.emplace_back(new_box_qp(H_, Vec::Zero(Nc), box_lo_[i], box_hi_[i], warm_));
+  }
+  cold_qps_.clear();
   cold_qps_.resize(qps_.size());
+}
+
+// Joint i's soft QP, made at its first use: initialised with its rows at x0 = 0 and solved
+// once at g = 0 (ŝ's gradient g_slack). Made lazily, so that a restart costs nothing for the
+// soft QPs (their init factorises a KKT matrix of Nc + 1 + 4N rows: ~20 ms each at N = 100)
+// and most runs, answered by the shortcut, never make one. This step's g_soft_ is kept;
+// l_soft_, u_soft_ are to be set after.
+JointQPs::DenseQP& JointQPs::soft_qp(int i) {
+  auto& qp = soft_qps_[i];
+  if (qp) return *qp;
+  const Vec g = g_soft_;
+  qp = std::make_unique<DenseQP>(Nc + 1, 0, 4 * N, true);
+  soft_.apply(qp->settings);
+  g_soft_.head(Nc).setZero();
+  g_soft_[Nc] = g_slack_;
+  soft_bounds(i, Vec::Zero(N), Vec::Zero(N));
+  Vec lo(Nc + 1), hi(Nc + 1);
+  lo.head(Nc).setConstant(v_min_[i]);
+  hi.head(Nc).setConstant(v_max_[i]);
+  lo[Nc] = 0.0;
+  hi[Nc] = BIG;
+  qp->init(Hs_, g_soft_, std::nullopt, std::nullopt, C_, l_soft_, u_soft_, lo, hi);
+  qp->solve();
+  g_soft_ = g;
+  return *qp;
+}
+
+// A new run: the QPs as new, no remembered active set or warm start (a run does not depend
+// on the runs before it: the same states give the same answers, bit for bit, as a new
+// JointQPs), no slack.
+void JointQPs::restart() {
+  make_box_qps();
+  for (auto& qp : soft_qps_) qp.reset();  // made again at their first use
+  std::fill(has_guess_.begin(), has_guess_.end(), 0);
+  std::fill(soft_last_.begin(), soft_last_.end(), 0);
+  slack.setZero();
+  constrained_last = false;
+  constrained = 0;
 }
 
 void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
@@ -140,21 +190,7 @@ void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVe
   q_free_.setZero(N);
   v_free_.setZero(N);
   soft_qps_.clear();
-  for (int i = 0; i < n; ++i) {
-    auto qp = std::make_unique<DenseQP>(Nc + 1, 0, 4 * N, true);
-    soft_.apply(qp->settings);
-    g_soft_.head(Nc).setZero();
-    g_soft_[Nc] = g_slack_;
-    soft_bounds(i, Vec::Zero(N), Vec::Zero(N));
-    Vec lo(Nc + 1), hi(Nc + 1);
-    lo.head(Nc).setConstant(v_min_[i]);
-    hi.head(Nc).setConstant(v_max_[i]);
-    lo[Nc] = 0.0;
-    hi[Nc] = BIG;
-    qp->init(Hs_, g_soft_, std::nullopt, std::nullopt, C_, l_soft_, u_soft_, lo, hi);
-    qp->solve();
-    soft_qps_.push_back(std::move(qp));
-  }
+  soft_qps_.resize(n);  // made at their first use (soft_qp)
   limits = true;
   soft_shortcut_ = false;
   soft_last_.assign(n, 0);
@@ -493,8 +529,8 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       soft_last_[i] = 1;
       continue;
     }
+    DenseQP& qp = soft_qp(i);
     soft_bounds(i, q_free_, v_free_);
-    DenseQP& qp = *soft_qps_[i];
     qp.update(std::nullopt, g_soft_, std::nullopt, std::nullopt, std::nullopt, l_soft_, u_soft_,
               std::nullopt, std::nullopt);
     qp.solve();

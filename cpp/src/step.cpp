@@ -97,9 +97,7 @@ void HMPCCore::reset(const CRefVec& dhat0) {
   dhat.row(0) = dhat0.transpose();
   v.setZero();
   tau.setZero();
-  qp->slack.setZero();
-  qp->constrained_last = false;
-  qp->constrained = 0;
+  qp->restart();  // no warm start or active set of the last run
   started = false;
   has_prev = false;
   steps = 0;

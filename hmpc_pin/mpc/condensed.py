@@ -509,6 +509,12 @@ class JointQPs:
         """Whether any joint's soft QP was solved at the last step."""
         return bool(self._core.constrained_last)
 
+    def restart(self) -> None:
+        """Start a new run: every QP as new (no warm start from the last solutions, no
+        remembered active set of the shortcuts), the slack 0. The next solves give, bit for
+        bit, the answers of a new :class:`JointQPs` (its counters go on)."""
+        self._core.restart()
+
     @property
     def max_iter(self) -> int:
         """ProxSuite's iteration cap per solve; setting it applies to every QP."""

@@ -95,6 +95,10 @@ class JointQPs {
   // The iteration cap of every QP (the warm ones, their twins, the soft ones).
   void set_max_iter(long max_iter);
 
+  // Start a new run: every QP as new (no warm start, no remembered active set), slack 0, so
+  // that a run gives, bit for bit, the answers of a new JointQPs (the counters go on).
+  void restart();
+
   int n, N, Nc;
   bool block;
   bool shortcut = true;  // "joint" layout: the exact shortcuts (off for tests)
@@ -124,6 +128,8 @@ class JointQPs {
   std::vector<std::string> joint_names;  // for failure() (empty: "joint i")
 
  private:
+  void make_box_qps();
+  DenseQP& soft_qp(int i);
   const Results* solve_box(int k, const Vec& g, int joint);
   bool enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
   void soft_bounds(int i, const Vec& q_free, const Vec& v_free);

@@ -122,14 +122,10 @@ void JointQPs::make_box_qps() {
   cold_qps_.resize(qps_.size());
 }
 
-// Joint i's soft QP, made at its first use: initialised with its rows at x0 = 0 and solved
-// once at g = 0 (ŝ's gradient g_slack). Made lazily, so that a restart costs nothing for the
-// soft QPs (their init factorises a KKT matrix of Nc + 1 + 4N rows: ~20 ms each at N = 100)
-// and most runs, answered by the shortcut, never make one. This step's g_soft_ is kept;
-// l_soft_, u_soft_ are to be set after.
-JointQPs::DenseQP& JointQPs::soft_qp(int i) {
+// Joint i's soft QP as new: initialised with its rows at x0 = 0 and solved once at g = 0
+// (ŝ's gradient g_slack); g_soft_ kept, l_soft_ and u_soft_ overwritten.
+void JointQPs::make_soft_qp(int i) {
   auto& qp = soft_qps_[i];
-  if (qp) return *qp;
   const Vec g = g_soft_;
   qp = std::make_unique<DenseQP>(Nc + 1, 0, 4 * N, true);
   soft_.apply(qp->settings);
@@ -144,7 +140,7 @@ JointQPs::DenseQP& JointQPs::soft_qp(int i) {
   qp->init(Hs_, g_soft_, std::nullopt, std::nullopt, C_, l_soft_, u_soft_, lo, hi);
   qp->solve();
   g_soft_ = g;
-  return *qp;
+  soft_used_[i] = 0;
 }
 
 // A new run: the QPs as new, no remembered active set or warm start (a run does not depend
@@ -152,7 +148,10 @@ JointQPs::DenseQP& JointQPs::soft_qp(int i) {
 // JointQPs), no slack.
 void JointQPs::restart() {
   make_box_qps();
-  for (auto& qp : soft_qps_) qp.reset();  // made again at their first use
+  // The soft QPs ProxSuite solved in the last run made again (their init factorises a KKT
+  // matrix of Nc + 1 + 4N rows, about 18 ms at N = 100: here, never in a step).
+  for (int i = 0; i < static_cast<int>(soft_qps_.size()); ++i)
+    if (soft_used_[i]) make_soft_qp(i);
   std::fill(has_guess_.begin(), has_guess_.end(), 0);
   std::fill(soft_last_.begin(), soft_last_.end(), 0);
   slack.setZero();
@@ -190,7 +189,9 @@ void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVe
   q_free_.setZero(N);
   v_free_.setZero(N);
   soft_qps_.clear();
-  soft_qps_.resize(n);  // made at their first use (soft_qp)
+  soft_qps_.resize(n);
+  soft_used_.assign(n, 0);
+  for (int i = 0; i < n; ++i) make_soft_qp(i);
   limits = true;
   soft_shortcut_ = false;
   soft_last_.assign(n, 0);
@@ -529,8 +530,9 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       soft_last_[i] = 1;
       continue;
     }
-    DenseQP& qp = soft_qp(i);
     soft_bounds(i, q_free_, v_free_);
+    DenseQP& qp = *soft_qps_[i];
+    soft_used_[i] = 1;
     qp.update(std::nullopt, g_soft_, std::nullopt, std::nullopt, std::nullopt, l_soft_, u_soft_,
               std::nullopt, std::nullopt);
     qp.solve();

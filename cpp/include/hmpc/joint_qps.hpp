@@ -129,7 +129,7 @@ class JointQPs {
 
  private:
   void make_box_qps();
-  DenseQP& soft_qp(int i);
+  void make_soft_qp(int i);
   const Results* solve_box(int k, const Vec& g, int joint);
   bool enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
   void soft_bounds(int i, const Vec& q_free, const Vec& v_free);
@@ -167,6 +167,7 @@ class JointQPs {
   std::vector<std::vector<signed char>> guess_rows_, guess_box_;
   std::vector<signed char> guess_slack_, has_guess_;
   std::vector<signed char> soft_last_;  // per joint: its soft QP solved at the last step
+  std::vector<signed char> soft_used_;  // per joint: its soft QP solved by ProxSuite since made
   std::vector<signed char> st_rows_, st_box_, rows_was_, box_was_;
   signed char st_slack_ = 0;
   bool dropped_ = false;

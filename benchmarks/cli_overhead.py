@@ -8,10 +8,13 @@ For each config, every block measures, one after the other:
   own process, one after the other (:data:`IN_PROCESS`: no figure process), and with
   ``--no-figures``;
 * the wall time of a fresh ``python -c "import numpy, pinocchio, proxsuite, matplotlib"``
-  (the imports no command can skip);
+  (the imports no command can skip), and of the same with matplotlib's figure machinery
+  (``matplotlib.figure`` and the Agg canvas: what drawing any figure imports; the second
+  reading of "importing matplotlib");
 * the in-process ``Experiment.run()`` of the same config in this process (built once).
 
-The ratio of a block is run wall / (imports + in-process run); the table gives the median of
+The ratio of a block is run wall / (imports + in-process run), with either reading of the
+imports; the table gives the median of
 the ratios over the blocks beside the median absolute times, and the same ratio of CPU
 time (user + system, of the command and every process it waited for: ``hmpc-pin run``
 draws its figures in processes of its own, beside the run). On a machine busy with other
@@ -21,6 +24,12 @@ same way against a bare ``python -c pass``: the difference [s] and the ratio. Th
 bare ``import hmpc_pin`` loads are counted (of the package's own, and whether numpy,
 pinocchio or matplotlib are among them). Blocks alternate the measurements, so a machine
 shared with other work loads each alike.
+
+The commands run as an installed package runs: the package's modules compiled to bytecode
+once before the blocks (``compileall``, as ``pip install`` does) and the environment's
+``PYTHONDONTWRITEBYTECODE`` dropped for them (with it set and no bytecode, every command
+compiles the package's modules it imports from source: about 0.13 s more per command,
+measured here).
 
 With ``--baseline PYTHON`` every block also runs the ``hmpc-pin`` beside that interpreter
 (another checkout's environment, e.g. the version before a change), figures drawn, so that
@@ -35,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -54,6 +64,18 @@ from hmpc_pin.experiment.config import load_config  # noqa: E402
 
 PYTHON = sys.executable
 IMPORTS = "import numpy, pinocchio, proxsuite, matplotlib"
+#: The second reading: with what drawing a figure imports.
+IMPORTS_DRAW = IMPORTS + ", matplotlib.figure, matplotlib.backends.backend_agg"
+
+#: The commands' environment: bytecode read and written as an installed package's.
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
+def compile_package(python: str) -> None:
+    """Compile the ``hmpc_pin`` that ``python`` imports to bytecode (as an install does)."""
+    code = ("import compileall, os, hmpc_pin; "
+            "compileall.compile_dir(os.path.dirname(hmpc_pin.__file__), quiet=1)")  # fmt: skip
+    subprocess.run([python, "-c", code], env=ENV, check=True)
 
 #: ``hmpc-pin`` with its figures drawn in its own process, one after the other (no figure
 #: process): what the figure process saves, measured beside it.
@@ -79,7 +101,7 @@ def wall(argv: list[str]) -> tuple[float, float]:
     """Wall and CPU time [s] of a fresh process running ``argv`` (output discarded; must
     succeed); the CPU time counts the processes it waited for."""
     c0, t0 = _children_cpu(), time.perf_counter()
-    subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+    subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True, env=ENV)
     return time.perf_counter() - t0, _children_cpu() - c0
 
 
@@ -143,7 +165,7 @@ def parts(names: list[str], repeats: int) -> None:
     for _ in range(repeats):
         for name in names:
             out = subprocess.run([PYTHON, "-c", PARTS, name], capture_output=True, text=True,
-                                 check=True)  # fmt: skip
+                                 check=True, env=ENV)  # fmt: skip
             times.setdefault(name, []).append([float(x) for x in out.stdout.split()])
     med = {name: np.median(np.array(v), axis=0) for name, v in times.items()}
     for i, part in enumerate(PART_NAMES):
@@ -166,6 +188,8 @@ def main() -> None:
     )
     args = parser.parse_args()
     cli = command()
+    for python in [PYTHON] + ([args.baseline] if args.baseline else []):
+        compile_package(python)
     for key, value in machine_info().items():
         print(f"- {key}: {value}")
     ours, total, heavy = loaded_by_import()
@@ -175,23 +199,24 @@ def main() -> None:
     )
     print(
         "| command | median wall [s] | median reference [s] (imports + run) | "
-        "median ratio (min–max) | median CPU [s] | median CPU ratio |"
+        "median ratio (min–max) | median CPU [s] | median CPU ratio | "
+        "median ratio, imports with matplotlib's figure machinery |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.configs:
             experiment = Experiment.from_config(load_config(name))
             in_process(experiment)  # warm: the first run pays for lazy imports
             # per variant: (wall, CPU) of the command and of the reference, per block
-            variants: dict[str, tuple[list, list]] = {
-                "": ([], []),
-                " (figures drawn in the command's process)": ([], []),
-                " --no-figures": ([], []),
+            variants: dict[str, tuple[list, list, list]] = {
+                "": ([], [], []),
+                " (figures drawn in the command's process)": ([], [], []),
+                " --no-figures": ([], [], []),
             }
             if args.baseline:
-                variants[f" (baseline: {args.baseline})"] = ([], [])
+                variants[f" (baseline: {args.baseline})"] = ([], [], [])
             for _ in range(args.repeats):
-                for flags, (runs, refs) in variants.items():
+                for flags, (runs, refs, refs_draw) in variants.items():
                     argv = ["run", name, "--out", tmp]
                     if flags.startswith(" --"):
                         argv.append(flags.strip())
@@ -199,16 +224,20 @@ def main() -> None:
                     if flags.startswith(" (b"):
                         prog = command(args.baseline)
                     runs.append(wall([*prog, *argv]))
-                    refs.append(np.add(wall([PYTHON, "-c", IMPORTS]), in_process(experiment)))
-            for flags, (runs, refs) in variants.items():
+                    run_t = in_process(experiment)
+                    refs.append(np.add(wall([PYTHON, "-c", IMPORTS]), run_t))
+                    refs_draw.append(np.add(wall([PYTHON, "-c", IMPORTS_DRAW]), run_t))
+            for flags, (runs, refs, refs_draw) in variants.items():
                 run_t, ref_t = np.array(runs), np.array(refs)
                 ratio = run_t[:, 0] / ref_t[:, 0]
                 cpu_ratio = run_t[:, 1] / ref_t[:, 1]
+                ratio_draw = run_t[:, 0] / np.array(refs_draw)[:, 0]
                 print(
                     f"| `hmpc-pin run {name}{flags}` | {np.median(run_t[:, 0]):.2f} | "
                     f"{np.median(ref_t[:, 0]):.2f} | {np.median(ratio):.2f} "
                     f"({ratio.min():.2f}–{ratio.max():.2f}) | {np.median(run_t[:, 1]):.2f} | "
-                    f"{np.median(cpu_ratio):.2f} |",
+                    f"{np.median(cpu_ratio):.2f} | {np.median(ratio_draw):.2f} "
+                    f"({ratio_draw.min():.2f}–{ratio_draw.max():.2f}) |",
                     flush=True,
                 )
     helps, bares = [], []

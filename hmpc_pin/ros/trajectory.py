@@ -19,7 +19,8 @@ through the positions (the message's velocities, if any, checked against its pos
 
 Joints are matched by name (any order, every controlled joint present). Checked, in
 this order, before anything changes: names, at least one point, strictly increasing
-times, finite values, velocities for all points or none, a start not in the past, and
+times, finite values, velocities for all points or none, a start not in the past, a
+single point at ``time_from_start = 0`` (held) without a non-zero velocity, and
 position and velocity limits at the samples and 10 points per segment
 (:func:`~hmpc_pin.experiment.references.check_trajectory_limits`). A message that fails
 is refused with one line naming what was wrong and the current reference is kept.
@@ -140,6 +141,15 @@ def trajectory_from_message(
         q = np.vstack([q_now, q])
         dq = None
     if times.size == 1:  # one point at the switch: hold it
+        if dq is not None and np.any(dq[0] != 0.0):
+            moving = {
+                n: float(v) for n, v in zip(robot.joint_names, dq[0], strict=True) if v != 0.0
+            }
+            raise TrajectoryError(
+                _SOURCE,
+                f"one point at time_from_start 0 with velocities {moving} [rad/s]",
+                "zero velocities (or none) in a single point: the arm holds it",
+            )
         times = np.array([now, now + 1.0])
         q = np.vstack([q, q])
         dq = None if dq is None else np.vstack([dq, np.zeros_like(dq)])

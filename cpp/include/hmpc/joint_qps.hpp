@@ -22,7 +22,10 @@
 // exchanges; each equality-constrained QP solved in the banded coordinates p of
 // hmpc_pin.mpc.condensed.CondensedMPC.banded, U = T p, by an envelope LDLᵀ of its KKT
 // matrix in O(N)), answering only when its point passes the soft QP's KKT test to the
-// solver's tolerance; failing that, ProxSuite, from scratch.
+// solver's tolerance; failing that, ProxSuite, from scratch. Along an activation that
+// continues (answered from the last step's active set with the limits binding), the next
+// step skips the joint's box QP and goes straight to the soft shortcut (the box QP and the
+// test above only if it does not answer).
 #pragma once
 
 #include "hmpc/errors.hpp"

@@ -240,6 +240,17 @@ bool JointQPs::soft_kkt(int i) {
         default: x_[k] = -rs;
       }
     }
+    // Refined only while the residual (the gradient's in U, the rows' as the solver scales
+    // them, the bounds', ŝ's when free) exceeds 1e-3 of the solver's absolute tolerance.
+    double res = rU_.cwiseAbs().maxCoeff();
+    for (int k = 0; k < m; ++k) {
+      const int ref = item_ref_[k];
+      if (item_kind_[k] == 1) res = std::max(res, std::abs(x_[k]));
+      else if (item_kind_[k] == 2)
+        res = std::max(res, std::abs(x_[k]) * row_scale_[(ref % 2 == 0 ? 0 : 2 * N) + ref / 2]);
+      else if (item_kind_[k] == 3) res = std::max(res, std::abs(rs));
+    }
+    if (!(res > 1e-3 * soft_.eps_abs)) break;
     soft_solve();
     for (int k = 0; k < m; ++k) {
       const int ref = item_ref_[k];

@@ -154,6 +154,8 @@ void JointQPs::restart() {
     if (soft_used_[i]) make_soft_qp(i);
   std::fill(has_guess_.begin(), has_guess_.end(), 0);
   std::fill(soft_last_.begin(), soft_last_.end(), 0);
+  std::fill(soft_active_.begin(), soft_active_.end(), 0);  // no box QP skipped at the start
+  std::fill(soft_next_.begin(), soft_next_.end(), 0);
   slack.setZero();
   constrained_last = false;
   constrained = 0;
@@ -195,6 +197,8 @@ void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVe
   limits = true;
   soft_shortcut_ = false;
   soft_last_.assign(n, 0);
+  soft_next_.assign(n, 0);
+  soft_active_.assign(n, 0);
   if (T.size() == 0) return;
   if (T.rows() != Nc || T.cols() != Nc || E.rows() != 2 * N || E.cols() != Nc ||
       Hp.rows() != Nc || Hp.cols() != Nc)
@@ -259,6 +263,7 @@ void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVe
   bnd_lo_.setZero(2 * N);
   bnd_hi_.setZero(2 * N);
   Xs_.setZero(2 * N);
+  gamma_is_recursion();
   soft_shortcut_ = true;
 }
 
@@ -438,6 +443,29 @@ const JointQPs::Results* JointQPs::solve_box(int k, const Vec& g, int joint) {
   return &res;
 }
 
+// Joint i's box QP for the gradient g_ ("joint" layout): the exact shortcuts, then
+// ProxSuite; its solution in U.col(i). False when ProxSuite did not report solved.
+bool JointQPs::box_joint(int i) {
+  if (shortcut) {
+    u_.noalias() = neg_Hinv_ * g_;
+    if ((u_.array() >= v_min_[i]).all() && (u_.array() <= v_max_[i]).all()) {
+      U.col(i) = u_;
+      remember(i, 0, u_, nullptr);
+      ++unconstrained_solves;
+      return true;
+    }
+    if (active_set(i)) {
+      U.col(i) = u_;
+      ++active_set_solves;
+      return true;
+    }
+  }
+  const auto* res = solve_box(i, g_, i);
+  if (!res) return false;
+  U.col(i) = res->x;
+  return true;
+}
+
 bool JointQPs::solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
   if (G.rows() != n || G.cols() != Nc || q.size() != n || dq.size() != n)
     throw std::invalid_argument("JointQPs.solve: G must be (n, Nc) and q, dq (n,)");
@@ -449,23 +477,15 @@ bool JointQPs::solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
   } else {
     for (int i = 0; i < n; ++i) {
       g_ = G.row(i).transpose();
-      if (shortcut) {
-        u_.noalias() = neg_Hinv_ * g_;
-        if ((u_.array() >= v_min_[i]).all() && (u_.array() <= v_max_[i]).all()) {
-          U.col(i) = u_;
-          remember(i, 0, u_, nullptr);
-          ++unconstrained_solves;
-          continue;
-        }
-        if (active_set(i)) {
-          U.col(i) = u_;
-          ++active_set_solves;
-          continue;
-        }
+      // A joint whose soft QP was answered at the last step with a state limit or the
+      // slack active goes straight to its soft QP (enforce_limits): its box QP's answer
+      // would only be tested against the limits and, most likely leaving them, discarded.
+      if (limits) {
+        soft_next_[i] = soft_shortcut_ && soft_active_set_iter >= 0 && soft_last_[i] &&
+                        soft_active_[i];
+        if (soft_next_[i]) continue;
       }
-      const auto* res = solve_box(i, g_, i);
-      if (!res) return false;
-      U.col(i) = res->x;
+      if (!box_joint(i)) return false;
     }
   }
   constrained = 0;
@@ -487,6 +507,16 @@ void JointQPs::soft_bounds(int i, const Vec& q_free, const Vec& v_free) {
   }
 }
 
+// Joint i's soft QP's gradient and the free responses of its state (x_1 .. x_N).
+void JointQPs::soft_prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
+  for (int j = 0; j < N; ++j) {
+    q_free_[j] = Phi_(2 * j, 0) * q[i] + Phi_(2 * j, 1) * dq[i];
+    v_free_[j] = Phi_(2 * j + 1, 0) * q[i] + Phi_(2 * j + 1, 1) * dq[i];
+  }
+  g_soft_.head(Nc) = G.row(i).transpose();
+  g_soft_[Nc] = g_slack_;
+}
+
 // Re-solve with the soft state constraints the joints whose box-only prediction leaves the
 // limits (every joint when always_constrained).
 bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
@@ -495,6 +525,30 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
     constrained_last = false;
   }
   for (int i = 0; i < n; ++i) {
+    if (soft_next_[i]) {
+      // Box QP skipped (solve): the soft shortcut from the last step's active set; answered
+      // with the limits binding, the joint is constrained (its box solution, differing from
+      // this one, leaves the limits); answered without, this is the box QP's solution, the
+      // joint unconstrained. Not answered: the box QP now, and on as without the skip.
+      soft_prepare(i, G, q, dq);
+      if (soft_active_set(i)) {
+        U.col(i) = y_soft_.head(Nc);
+        slack[i] = y_soft_[Nc] * k_slack_;
+        soft_settled(i, soft_binding_, soft_continued_);
+        remember(i, 0, U.col(i), nullptr);  // the box QP's next warm start
+        if (soft_binding_) {
+          constrained_last = true;
+          ++constrained;
+          ++soft_active_set_solves;
+        } else {
+          soft_last_[i] = 0;
+        }
+        continue;
+      }
+      soft_last_[i] = 0;  // its active set failed here: a new activation's guess, if any
+      g_ = G.row(i).transpose();
+      if (!box_joint(i)) return false;
+    }
     bool outside = always_constrained;
     if (!outside) {
       // X = Φ x0 + Γ U by the recursion x_{j+1} = A x_j + B u_min(j, Nc−1) (Eq 24; A, B
@@ -516,18 +570,14 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       continue;
     }
     constrained_last = true;
-    for (int j = 0; j < N; ++j) {
-      q_free_[j] = Phi_(2 * j, 0) * q[i] + Phi_(2 * j, 1) * dq[i];
-      v_free_[j] = Phi_(2 * j + 1, 0) * q[i] + Phi_(2 * j + 1, 1) * dq[i];
-    }
-    g_soft_.head(Nc) = G.row(i).transpose();
-    g_soft_[Nc] = g_slack_;
+    soft_prepare(i, G, q, dq);
     ++constrained;
     if (soft_active_set(i)) {
       U.col(i) = y_soft_.head(Nc);
       slack[i] = y_soft_[Nc] * k_slack_;
       ++soft_active_set_solves;
       soft_last_[i] = 1;
+      soft_settled(i, soft_binding_, soft_continued_);
       continue;
     }
     soft_bounds(i, q_free_, v_free_);
@@ -539,9 +589,11 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
     if (qp.results.info.status != pqp::QPSolverOutput::PROXQP_SOLVED) return fail(i, qp.results);
     U.col(i) = qp.results.x.head(Nc);
     slack[i] = std::max(qp.results.x[Nc], 0.0) * k_slack_;
-    if (soft_shortcut_ && soft_active_set_iter >= 0)
-      soft_guess_from(i, qp.results.x, false);
     soft_last_[i] = 1;
+    if (soft_shortcut_ && soft_active_set_iter >= 0) {
+      soft_guess_from(i, qp.results.x, false);
+      soft_settled(i, false, false);
+    }
   }
   return true;
 }

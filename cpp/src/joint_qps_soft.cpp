@@ -10,6 +10,67 @@ namespace hmpc {
 
 namespace pqp = proxsuite::proxqp;
 
+// X = Γ u (2N): by the recursion x_{j+1} = A x_j + B u_min(j, Nc−1), x_0 = 0 (Eq 24), in
+// O(N), when set_limits found Γ to be that recursion (gamma_rec_); else the dense product.
+void JointQPs::gamma_u(const Eigen::Ref<const Vec>& u, Vec& X) const {
+  if (!gamma_rec_) {
+    X.noalias() = Gamma_ * u;
+    return;
+  }
+  double x = 0.0, v = 0.0;
+  for (int j = 0; j < N; ++j) {
+    const double uj = u[std::min(j, Nc - 1)];
+    const double xn = ga_[0] * x + ga_[1] * v + gb_[0] * uj;
+    v = ga_[2] * x + ga_[3] * v + gb_[1] * uj;
+    x = xn;
+    X[2 * j] = x;
+    X[2 * j + 1] = v;
+  }
+}
+
+// out = Γᵀ λ (Nc) by the adjoint recursion μ_j = λ_j + Aᵀ μ_{j+1} (μ_{N+1} = 0), the input
+// u_min(j−1, Nc−1) collecting Bᵀ μ_j (j = N .. 1), in O(N); else the dense product.
+void JointQPs::gamma_t(const Vec& lam, Vec& out) const {
+  if (!gamma_rec_) {
+    out.noalias() = Gamma_.transpose() * lam;
+    return;
+  }
+  out.setZero();
+  double m0 = 0.0, m1 = 0.0;
+  for (int j = N; j >= 1; --j) {
+    const double n0 = lam[2 * (j - 1)] + ga_[0] * m0 + ga_[2] * m1;
+    m1 = lam[2 * (j - 1) + 1] + ga_[1] * m0 + ga_[3] * m1;
+    m0 = n0;
+    out[std::min(j - 1, Nc - 1)] += gb_[0] * m0 + gb_[1] * m1;
+  }
+}
+
+// Whether Γ is the recursion of gamma_u with A = the first two rows of Φ and B = the first
+// column's first two entries: every entry of the recursion's columns within 1e-12 of its
+// row's largest |Γ| (the rows are the constraints, normalised per row); else the dense
+// products are kept.
+bool JointQPs::gamma_is_recursion() {
+  ga_[0] = Phi_(0, 0);
+  ga_[1] = Phi_(0, 1);
+  ga_[2] = Phi_(1, 0);
+  ga_[3] = Phi_(1, 1);
+  gb_[0] = Gamma_(0, 0);
+  gb_[1] = Gamma_(1, 0);
+  const Vec row_max = Gamma_.cwiseAbs().rowwise().maxCoeff();
+  gamma_rec_ = true;
+  Vec e = Vec::Zero(Nc), col(2 * N);
+  bool same = true;
+  for (int c = 0; c < Nc && same; ++c) {
+    e.setZero();
+    e[c] = 1.0;
+    gamma_u(e, col);
+    for (int r = 0; r < 2 * N && same; ++r)
+      same = std::abs(col[r] - Gamma_(r, c)) <= 1e-12 * row_max[r];
+  }
+  gamma_rec_ = same;
+  return same;
+}
+
 // The soft QP's variables y = (U, ŝ), s = k ŝ, with the active set st_rows_ (each row r of
 // X = Φ x0 + Γ U, interleaved q_1, q̇_1, …: −1 at its lower limit, +1 at its upper, 0 free),
 // st_box_ (each input at v_min, v_max or free) and st_slack_ (1: ŝ free, 0: ŝ = 0). Solves
@@ -155,9 +216,10 @@ bool JointQPs::soft_kkt(int i) {
     const auto u = y_soft_.head(Nc);
     rU_.noalias() = H_ * u;
     rU_ += g_soft_.head(Nc);
-    rU_.noalias() += Gamma_.transpose() * lam_;
+    gamma_t(lam_, gl_);
+    rU_ += gl_;
     rU_ += mu_;
-    Xs_.noalias() = Gamma_ * u;
+    gamma_u(u, Xs_);
     double rs = Hs_(Nc, Nc) * y_soft_[Nc] + g_soft_[Nc];
     for (int r = 0; r < 2 * N; ++r) rs -= k_slack_ * st_rows_[r] * lam_[r];
     for (int k = 0; k < m; ++k) {
@@ -178,6 +240,17 @@ bool JointQPs::soft_kkt(int i) {
         default: x_[k] = -rs;
       }
     }
+    // Refined only while the residual (the gradient's in U, the rows' as the solver scales
+    // them, the bounds', ŝ's when free) exceeds 1e-3 of the solver's absolute tolerance.
+    double res = rU_.cwiseAbs().maxCoeff();
+    for (int k = 0; k < m; ++k) {
+      const int ref = item_ref_[k];
+      if (item_kind_[k] == 1) res = std::max(res, std::abs(x_[k]));
+      else if (item_kind_[k] == 2)
+        res = std::max(res, std::abs(x_[k]) * row_scale_[(ref % 2 == 0 ? 0 : 2 * N) + ref / 2]);
+      else if (item_kind_[k] == 3) res = std::max(res, std::abs(rs));
+    }
+    if (!(res > 1e-3 * soft_.eps_abs)) break;
     soft_solve();
     for (int k = 0; k < m; ++k) {
       const int ref = item_ref_[k];
@@ -234,7 +307,7 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     ++it;
     const auto u = y_soft_.head(Nc);
     const double sh = y_soft_[Nc];
-    Xs_.noalias() = Gamma_ * u;
+    gamma_u(u, Xs_);
     rows_was_ = st_rows_;
     box_was_ = st_box_;
     // ProxSuite's tolerances: eps_abs + eps_rel · the size of the terms (dual: Hy, g, Cᵀλ;
@@ -243,7 +316,7 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
     double dual = std::max({rU_.cwiseAbs().maxCoeff(), std::abs(Hs_(Nc, Nc) * sh),
                             g_soft_.cwiseAbs().maxCoeff()});
     rU_ += g_soft_.head(Nc);
-    gl_.noalias() = Gamma_.transpose() * lam_;  // Γᵀλ
+    gamma_t(lam_, gl_);  // Γᵀλ
     rU_ += gl_;
     const double lam_sum = k_slack_ * lam_.cwiseAbs().sum();
     dual = std::max({dual, gl_.cwiseAbs().maxCoeff(), lam_sum});
@@ -316,6 +389,10 @@ bool JointQPs::soft_exchange(int i, int exchanges) {
         ++soft_fail_kkt;
         return false;
       }
+      soft_binding_ = st_slack_ != 0 && sh > eps_p;
+      for (int r = 0; r < 2 * N && !soft_binding_; ++r)
+        soft_binding_ = st_rows_[r] != 0 &&
+                        std::abs(lam_[r]) / row_scale_[(r % 2 == 0 ? 0 : 2 * N) + r / 2] > eps;
       y_soft_.head(Nc) = y_soft_.head(Nc).cwiseMax(lo).cwiseMin(hi);
       y_soft_[Nc] = std::max(y_soft_[Nc], 0.0);
       return true;
@@ -333,7 +410,7 @@ void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only) {
   const double tol = 1e-6 * std::max(1.0, hi - lo);
   auto& box = guess_box_[i];
   for (int a = 0; a < Nc; ++a) box[a] = y[a] <= lo + tol ? -1 : (y[a] >= hi - tol ? 1 : 0);
-  Xs_.noalias() = Gamma_ * y.head(Nc);
+  gamma_u(y.head(Nc), Xs_);
   const double sh = box_only ? 0.0 : y[Nc];
   const double ks = k_slack_ * sh;
   auto& rows = guess_rows_[i];
@@ -359,6 +436,17 @@ void JointQPs::soft_guess_from(int i, const Vec& y, bool box_only) {
   has_guess_[i] = 1;
 }
 
+// After joint i's soft QP was answered (binding: ŝ > 0 or a row's multiplier nonzero, to
+// the solver's tolerance; continued: by the shortcut from the last step's active set):
+// whether the next step goes straight to the soft QP, without the box QP (solve,
+// enforce_limits). Only when the activation continues (a closed loop, where the next
+// step's problem is this one a period on) and the limits bind: the box QP's answer would
+// then most likely leave them and be discarded. The choice is for speed only: either way
+// the answer is the soft QP's, exact.
+void JointQPs::soft_settled(int i, bool binding, bool continued) {
+  soft_active_[i] = binding && continued ? 1 : 0;
+}
+
 // Joint i's soft QP answered by the soft active-set shortcut (soft_exchange) from the last
 // soft solution's active set (when the joint's soft QP was solved at the last step) shifted
 // one step along the horizon, then as it stands; at a new activation, from the box-only
@@ -378,6 +466,7 @@ bool JointQPs::soft_active_set(int i) {
   // The last soft solution's active set only while it is the last step's (the joint's soft
   // QP solved at the step before): after a step without, its activation is a new one.
   bool ok = false;
+  soft_continued_ = false;
   if (has_guess_[i] && soft_last_[i]) {
     for (int shifted = 1; shifted >= 0 && !ok; --shifted) {
       const auto& rows = guess_rows_[i];
@@ -387,6 +476,7 @@ bool JointQPs::soft_active_set(int i) {
       st_slack_ = guess_slack_[i];
       ok = soft_exchange(i, soft_active_set_iter);
     }
+    soft_continued_ = ok;
   }
   // At a new activation, the box-only solution's active set, with the rows its prediction
   // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it

@@ -55,7 +55,12 @@ multipliers, the soft QP returns the hard-constrained solution whenever one exis
 Fast path, exact: if the box-only solution :math:`U^\\star` already satisfies every
 state constraint, :math:`(U^\\star, 0)` is optimal for the soft QP too (its cost is a
 lower bound of the soft QP's), so the constrained QP is solved only for the joints
-whose box-only prediction leaves the limits.
+whose box-only prediction leaves the limits. Along an activation that continues (the soft
+QP answered by the shortcut below from the last step's active set, with the slack or a
+row's multiplier nonzero), the next step skips the box QP and goes straight to the soft
+shortcut: answered with the limits binding, the box-only solution (a different point)
+leaves them; answered without, its solution is the box QP's (the joint counts as
+unconstrained); not answered, the box QP is solved and the test above decides.
 
 Soft active-set shortcut, exact. The soft QP of a long horizon has :math:`N_c + 1`
 variables and :math:`4N` dense rows; ProxSuite needs 1.5–20 ms for one at

@@ -22,7 +22,10 @@
 // exchanges; each equality-constrained QP solved in the banded coordinates p of
 // hmpc_pin.mpc.condensed.CondensedMPC.banded, U = T p, by an envelope LDLᵀ of its KKT
 // matrix in O(N)), answering only when its point passes the soft QP's KKT test to the
-// solver's tolerance; failing that, ProxSuite, from scratch.
+// solver's tolerance; failing that, ProxSuite, from scratch. Along an activation that
+// continues (answered from the last step's active set with the limits binding), the next
+// step skips the joint's box QP and goes straight to the soft shortcut (the box QP and the
+// test above only if it does not answer).
 #pragma once
 
 #include "hmpc/errors.hpp"
@@ -142,6 +145,12 @@ class JointQPs {
   bool soft_kkt(int i);
   void soft_solve();
   void soft_guess_from(int i, const Vec& y, bool box_only);
+  void soft_settled(int i, bool binding, bool continued);
+  void soft_prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq);
+  bool box_joint(int i);
+  void gamma_u(const Eigen::Ref<const Vec>& u, Vec& X) const;
+  void gamma_t(const Vec& lam, Vec& out) const;
+  bool gamma_is_recursion();
 
   Mat H_, H_block_, neg_Hinv_;
   Vec v_min_, v_max_, g_block_, g_;
@@ -168,8 +177,16 @@ class JointQPs {
   std::vector<signed char> guess_slack_, has_guess_;
   std::vector<signed char> soft_last_;  // per joint: its soft QP solved at the last step
   std::vector<signed char> soft_used_;  // per joint: its soft QP solved by ProxSuite since made
+  // Per joint: its last soft solution with a state limit or the slack active (else it is
+  // the box QP's solution); its soft QP solved without the box QP at this step.
+  std::vector<signed char> soft_active_, soft_next_;
+  bool soft_continued_ = false;  // the last soft_active_set answered from the last step's set
+  bool soft_binding_ = false;    // its answer with ŝ > 0 or a row's multiplier nonzero
   std::vector<signed char> st_rows_, st_box_, rows_was_, box_was_;
   signed char st_slack_ = 0;
+  // Γ as the recursion x_{j+1} = A x_j + B u_min(j, Nc−1) (gamma_u, gamma_t): A (row-major), B.
+  bool gamma_rec_ = false;
+  double ga_[4] = {0.0, 0.0, 0.0, 0.0}, gb_[2] = {0.0, 0.0};
   bool dropped_ = false;
   std::vector<int> item_kind_, item_ref_, first_, start_, pidx_;
   std::vector<double> L_, D_, w_, x_, z_;

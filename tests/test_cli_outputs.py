@@ -369,28 +369,3 @@ def test_ctrl_c_while_the_figure_process_draws(tmp_path):
     while _figure_processes_of(proc.pid) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not _figure_processes_of(proc.pid)
-
-
-@pytest.mark.parametrize(
-    ("affinity", "load", "expected"),
-    [(2, 0.3, 2), (2, 1.0, 1), (2, 3.7, 1), (8, 2.6, 5), (1, 0.0, 1), (4, None, 4)],
-)
-def test_the_figures_are_dealt_to_the_free_cores(monkeypatch, affinity, load, expected):
-    """One drawing process per core free of other work (the cores this process may use
-    less the 1-minute load average, rounded, at least one; without a load average, every
-    core), and the figures dealt to them in turn, each exactly once."""
-    from hmpc_pin.apps import figure_worker
-
-    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(affinity)), raising=False)
-
-    def loadavg():
-        if load is None:
-            raise OSError("no load average")
-        return (load, load, load)
-
-    monkeypatch.setattr(os, "getloadavg", loadavg)
-    assert figure_worker._cores() == expected
-    figures = [(k, f"{k}.png", "", "") for k in ("tracking", "disturbance", "error")]
-    groups = figure_worker._groups(figures, figure_worker._cores())
-    assert len(groups) == min(expected, 3)
-    assert sorted(f for g in groups for f in g) == sorted(figures)

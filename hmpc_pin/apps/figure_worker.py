@@ -7,9 +7,9 @@ draw figures. While the command imports the library, builds the experiment and r
 the process imports matplotlib and draws a small figure (fonts and caches loaded,
 :func:`~hmpc_pin.apps.plots.warm_up`). Once the command has written the run's ``.npz``
 and printed its table, it sends one job (:func:`draw`): the process reads the arrays from
-that file and deals the figures in turn to one process per core free of other work
-(itself and children of its own: ``fork``, matplotlib stays imported); each draws its share
-one after the other on one figure (:func:`hmpc_pin.apps.plots.draw_all`: the Axes and ticks made
+that file and deals the figures in turn to one process per core it may use (itself and
+children of its own: ``fork``, matplotlib stays imported); each draws its share one after
+the other on one figure (:func:`hmpc_pin.apps.plots.draw_all`: the Axes and ticks made
 once), each PNG written to ``<name>.part`` and renamed. The figures are the same, pixel for
 pixel, as drawn in the command's process (:func:`hmpc_pin.apps.plots.draw`). This shortens
 the command where a core is free; the CPU time stays that of matplotlib's import and
@@ -181,17 +181,11 @@ def _draw_some(run: _Run, figures: list) -> int:
 
 
 def _cores() -> int:
-    """The cores free for the figures: those this process may run on, less the 1-minute
-    load average (other work's runnable processes), rounded; at least one. A drawing
-    process beyond the free cores only waits for one, and pays again for the Axes and ticks
-    of its first figure (about 0.14 s of CPU for the Panda's)."""
+    """The cores this process may run on."""
     try:
-        cores = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
-        cores = os.cpu_count() or 1
-    with contextlib.suppress(OSError, AttributeError):  # no load average on this system
-        cores = min(cores, round(cores - os.getloadavg()[0]))
-    return max(1, cores)
+        return os.cpu_count() or 1
 
 
 def _groups(figures: list, cores: int) -> list[list]:

@@ -16,6 +16,7 @@ so that no test is marked by hand:
 from __future__ import annotations
 
 import inspect
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +56,16 @@ def _tier(item: pytest.Item) -> str:
     except (OSError, TypeError):
         source = ""
     return "e2e" if any(sign in source for sign in E2E_SIGNS) else "unit"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Ctrl-C as a terminal delivers it: a suite started in the background by a shell
+    without job control (``cmd &`` in a script, ``nohup``) inherits SIGINT ignored, and the
+    tests of what a Ctrl-C does (here, and in the processes they start, which inherit an
+    ignored signal) would fail for want of one. Python's own handler is installed where the
+    signal was ignored."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

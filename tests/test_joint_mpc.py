@@ -932,6 +932,22 @@ def soft_kkt_residual(Hz, gz, A, b, z, active_tol):
     return float(slack.max()), float(np.abs(M @ lam + grad).max())
 
 
+def _assert_soft_answers(qps, cold, x, ref, Nc, Ts, limits, tol_kkt, tol, where) -> None:
+    """Each joint's (U, s) of ``qps`` at the state ``x`` (2, n) and reference ``ref`` (2N, n)
+    satisfies the KKT conditions of the soft-limit QP built here (:func:`own_soft_qp`,
+    ``limits`` = (lo, hi, vel)) and equals ``cold``'s (ProxSuite from scratch) to ``tol``."""
+    lo, hi, vel = limits
+    N = ref.shape[0] // 2
+    for i in range(qps.solution.shape[1]):
+        z = np.append(qps.solution[:, i], qps.slack[i])
+        Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, Nc, Ts, lo, hi, vel)
+        violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
+        assert violation <= 1e-7, (where, i, violation)
+        assert residual <= tol_kkt, (where, i, residual)
+        np.testing.assert_allclose(z, np.append(cold.solution[:, i], cold.slack[i]),
+                                   rtol=0, atol=tol)  # fmt: skip
+
+
 SOFT_LONG = {  # (Ts, N = Nc, start offset [rad] from the sine, limits (lo, hi, vel))
     "1 ms, N = 100, velocity limits": (0.001, 100, 0.2, (-2.0, 2.0, 1.0)),
     "10 ms, N = 50, velocity limits": (0.01, 50, 0.2, (-2.0, 2.0, 1.0)),
@@ -991,15 +1007,8 @@ def test_long_horizon_soft_limits_satisfy_kkt_and_equal_cold_solves(case):
         qps.solve(G, x)
         cold.solve(G, x)
         soft_steps += qps.constrained
-        for i in range(n):
-            z = np.append(qps.solution[:, i], qps.slack[i])
-            Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, lo, hi, vel)
-            violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
-            assert violation <= 1e-7, (k, i, violation)
-            assert residual <= tol_kkt, (k, i, residual)
-            np.testing.assert_allclose(z, np.append(cold.solution[:, i], cold.slack[i]),
-                                       rtol=0, atol=tol)  # fmt: skip
-            positive_slack += int(qps.slack[i] > 1e-6)
+        _assert_soft_answers(qps, cold, x, ref, N, Ts, (lo, hi, vel), tol_kkt, tol, k)
+        positive_slack += int((qps.slack > 1e-6).sum())
         x = A_dyn @ x + B_dyn @ qps.solution[:1]
     assert soft_steps >= 10 * n  # the soft limits were active
     if "position" in case:
@@ -1047,14 +1056,7 @@ def test_first_step_of_each_soft_activation_is_answered_by_the_shortcut(case):
         activations += 1
         assert qps.soft_active_set_solves - before == n, k  # every first step answered
         assert np.all(qps.slack == 0.0)  # the limits met
-        for i in range(n):
-            z = np.append(qps.solution[:, i], qps.slack[i])
-            Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, lo, hi, vel)
-            violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
-            assert violation <= 1e-7, (k, i, violation)
-            assert residual <= tol_kkt, (k, i, residual)
-            np.testing.assert_allclose(z, np.append(cold.solution[:, i], cold.slack[i]),
-                                       rtol=0, atol=tol)  # fmt: skip
+        _assert_soft_answers(qps, cold, x, ref, N, Ts, (lo, hi, vel), tol_kkt, tol, k)
     assert activations == 4
 
 
@@ -1099,15 +1101,8 @@ def test_positive_slack_activations_are_answered_by_the_shortcut(case):
             assert qps.constrained == n
             if step > 0:
                 answered += qps.soft_active_set_solves - before
-            for i in range(n):
-                z = np.append(qps.solution[:, i], qps.slack[i])
-                Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, lo, hi, vel)
-                violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
-                assert violation <= 1e-7, (i, violation)
-                assert residual <= tol_kkt, (i, residual)
-                np.testing.assert_allclose(z, np.append(cold.solution[:, i], cold.slack[i]),
-                                           rtol=0, atol=tol)  # fmt: skip
-                positive += int(qps.slack[i] > 1e-6)
+            _assert_soft_answers(qps, cold, x, ref, N, Ts, (lo, hi, vel), tol_kkt, tol, None)
+            positive += int((qps.slack > 1e-6).sum())
             x = A_dyn @ x + B_dyn @ qps.solution[:1]
     assert positive >= n * len(starts)  # the limits could not be met at the first steps
     assert answered >= 2 * n * len(starts), answered  # two thirds of those after the first
@@ -1148,14 +1143,7 @@ def test_soft_limits_with_held_last_input_satisfy_kkt_and_equal_cold_solves(Ts, 
         cold.solve(G, x)
         soft_steps += qps.constrained
         assert qps.constrained == cold.constrained, k  # the same joints leave the limits
-        for i in range(n):
-            z = np.append(qps.solution[:, i], qps.slack[i])
-            Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, Nc, Ts, lo, hi, vel)
-            violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
-            assert violation <= 1e-7, (k, i, violation)
-            assert residual <= tol_kkt, (k, i, residual)
-            np.testing.assert_allclose(z, np.append(cold.solution[:, i], cold.slack[i]),
-                                       rtol=0, atol=tol)  # fmt: skip
+        _assert_soft_answers(qps, cold, x, ref, Nc, Ts, (lo, hi, vel), tol_kkt, tol, k)
         x = A_dyn @ x + B_dyn @ qps.solution[:1]
     assert soft_steps >= 5 * n  # the soft limits were active over several steps
     assert qps.soft_active_set_solves > 0  # the shortcut answered

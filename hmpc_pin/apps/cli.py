@@ -835,6 +835,57 @@ def _realtime_arguments(rt) -> None:
     rt.set_defaults(func=cmd_realtime)
 
 
+def cmd_franka(args) -> int:
+    """``hmpc-pin franka``: the controller on a Franka arm (:mod:`hmpc_pin.apps.franka`)."""
+    from ..experiment.build import Experiment
+    from .franka import FrankaOptions, format_driver, load_thresholds, run_franka
+    from .realtime import format_tracking
+
+    config = _with_overrides(_config(args.config), False, args.duration)
+    if not (math.isfinite(args.max_move) and args.max_move > 0):
+        raise ConfigError("--max-move", f"expected a distance [rad] > 0, got {args.max_move!r}")
+    if not (math.isfinite(args.model_tolerance) and args.model_tolerance > 0):
+        raise ConfigError(
+            "--model-tolerance", f"expected a fraction > 0, got {args.model_tolerance!r}"
+        )
+    thresholds = None if args.thresholds is None else load_thresholds(args.thresholds)
+    options = FrankaOptions(
+        args.robot_ip,
+        realtime=args.realtime,
+        recover=args.recover,
+        max_move=args.max_move,
+        model_tolerance=args.model_tolerance,
+        thresholds=thresholds,
+    )
+    experiment = Experiment.from_config(config)  # bad input stops here: nothing written
+    out = _out_dir(args.out)
+    print(
+        f"{config.name}: {config.controller.label} on the Franka arm at {args.robot_ip} for "
+        f"{config.simulation.duration:g} s (1 kHz torque control)",
+        flush=True,
+    )
+
+    def ready() -> None:  # the readiness line (scripts and tests wait for it)
+        print("torque control running (Ctrl-C: safe stop, partial run saved)", flush=True)
+
+    summary: dict = {}
+
+    def start():
+        run, files, found = run_franka(config, options, out, experiment=experiment, ready=ready)
+        summary.update(found)
+        return run, files
+
+    return _report_realtime(start, config, "commanded", format_tracking, lambda run: format_driver(summary))
+
+
+def _franka_arguments(parser) -> None:
+    """``hmpc-pin franka`` (:mod:`hmpc_pin.apps.franka`)."""
+    from .franka import franka_arguments
+
+    franka_arguments(parser)
+    parser.set_defaults(func=cmd_franka)
+
+
 def _ros_arguments(ros) -> None:
     """``hmpc-pin ros`` (:mod:`hmpc_pin.apps.ros`)."""
     from .ros import ros_arguments
@@ -898,6 +949,10 @@ COMMANDS = {
     "realtime": (
         "run the controller in real time against an arm in a separate process",
         _realtime_arguments,
+    ),
+    "franka": (
+        "run the controller on a Franka FR3 or Panda over libfranka at 1 kHz (extra: franka)",
+        _franka_arguments,
     ),
     "ros": (
         "run the controller as a ROS 2 node against /joint_states (extra: ros)",

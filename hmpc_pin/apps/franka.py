@@ -1,0 +1,401 @@
+"""``hmpc-pin franka``: the experiment's controller on a Franka FR3 or Panda over
+``pylibfranka`` (FCI), in torque control at 1 kHz (:mod:`hmpc_pin.realtime.franka`).
+
+The same real-time loop as ``hmpc-pin realtime`` and ``hmpc-pin ros``
+(:class:`~hmpc_pin.realtime.loop.RealtimeLoop`: its safety, watchdog, records and
+summary), paced by the robot's ``readOnce``. In order:
+
+1. connect; check the robot (mode Idle, the config's arm is a 7-joint Franka, q inside
+   the limits, the config arm's M(q) against the robot's own model); with ``--recover``
+   a robot in Reflex is recovered first;
+2. send the collision thresholds (``--thresholds``, from ``identify --thresholds``);
+3. move from where the arm stands to the reference's start (a quintic within velocity and
+   acceleration bounds, in the robot's joint position control), or refuse beyond
+   ``--max-move``;
+4. the torque motion: the controller's torque without G(q) (the robot adds it) through
+   the command filter (ramp-in, rate limit against ``tau_J_d``, torque limits);
+5. the end (normal, Ctrl-C, a fault, lost cycles): the loop's inertia brake (without
+   gravity), the command ramped to zero within the rate limit, one zero command with
+   ``motion_finished``: the robot holds the arm (Idle). A reflex or a lost connection
+   ends the motion on the robot's side: its record is kept, exit 1.
+
+Writes ``<stem>_franka.npz`` (the run, as ``run``/``realtime`` write it, with
+``tau_J_d``, ``tau_ext_hat_filtered`` and the command sent at the controller steps in
+its extra arrays), ``<stem>_franka_timing.npz`` (the loop's cycles),
+``<stem>_franka_cycles.npz`` (the driver's own record, every robot cycle) and
+``<stem>_franka.json`` (statistics, stop, the driver's summary, tracking).
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..experiment.build import Experiment, realtime_parts
+from ..experiment.config import ExperimentConfig
+from ..realtime.franka import (
+    FRANKA_TORQUE_LIMIT,
+    FrankaArm,
+    check_joint_names,
+    check_mass,
+    check_mode,
+    check_move,
+    check_position,
+    quintic_duration,
+)
+from ..realtime.loop import RealtimeLoop, RealtimeRun
+from ..realtime.safety import GravityByArm, SafeTorque, SafetySettings
+from .realtime import save_run
+
+__all__ = ["FrankaOptions", "franka_parts", "run_franka"]
+
+#: Inside the URDF's position limits by this much [rad], the driver's own watch stops
+#: before the robot's position reflex would.
+POSITION_MARGIN = 0.02
+#: The driver's own velocity watch at this fraction of the URDF's velocity limits.
+VELOCITY_FRACTION = 0.9
+#: The move to the start: at most this joint speed [rad/s] and acceleration [rad/s²].
+MOVE_VELOCITY = 0.5
+MOVE_ACCELERATION = 1.0
+
+
+class FrankaOptions:
+    """The command line's choices for a Franka run.
+
+    Attributes:
+        address: The robot's FCI address.
+        realtime: ``"enforce"`` or ``"ignore"`` (libfranka's ``RealtimeConfig``).
+        recover: Recover a robot in Reflex before the motion, and after a reflex.
+        max_move: Largest joint distance [rad] moved to the reference's start.
+        model_tolerance: Relative tolerance of the mass-matrix check.
+        thresholds: ``(lower, upper)`` joint torque collision thresholds [N·m] or ``None``.
+        ramp: Cycles of the command's ramp-in.
+    """
+
+    def __init__(
+        self,
+        address: str,
+        realtime: str = "enforce",
+        recover: bool = False,
+        max_move: float = 1.0,
+        model_tolerance: float = 0.10,
+        thresholds=None,
+        ramp: int = 100,
+    ):
+        self.address, self.realtime, self.recover = address, realtime, recover
+        self.max_move, self.model_tolerance = float(max_move), float(model_tolerance)
+        self.thresholds, self.ramp = thresholds, int(ramp)
+
+
+def franka_parts(experiment: Experiment):
+    """The loop settings (1 kHz), the driver's own limits (inside the URDF's), the safe
+    torque (the inertia brake without gravity) and the controller without G(q).
+
+    Raises:
+        ConfigError: 1 kHz does not divide the controller period, or the brake settings.
+    """
+    loop_settings, safety, safe = realtime_parts(experiment, 1000.0, plant=False)
+    robot = experiment.robot
+    lower = np.asarray(robot.model.lowerPositionLimit, dtype=float) + POSITION_MARGIN
+    upper = np.asarray(robot.model.upperPositionLimit, dtype=float) - POSITION_MARGIN
+    velocity = np.where(robot.velocity_limit > 0, VELOCITY_FRACTION * robot.velocity_limit, np.inf)
+    safety = SafetySettings(
+        lower,
+        upper,
+        velocity,
+        max_misses=min(safety.max_misses, 19),
+        watchdog=max(safety.watchdog, 0.01),
+        hold=safety.hold,
+        brake_speed=safety.brake_speed,
+    )
+    loop_settings = replace(loop_settings, warm_up=0.0, spin=0.0)
+    safe = SafeTorque(
+        robot,
+        safe.damping,
+        gravity=False,
+        effort_limit=FRANKA_TORQUE_LIMIT,
+        brake_time=safe.brake_time,
+    )
+    return loop_settings, safety, safe, GravityByArm(experiment.controller, robot)
+
+
+def _check_robot(arm: FrankaArm, experiment: Experiment, options: FrankaOptions) -> dict:
+    """The checks before the motion (:mod:`hmpc_pin.realtime.franka.checks`)."""
+    state = arm.read_state()
+    mode = state.robot_mode.name
+    recovered = False
+    if mode == "Reflex" and options.recover:
+        arm.recover()
+        recovered = True
+        state = arm.read_state()
+        mode = state.robot_mode.name
+    check_mode(mode)
+    robot = experiment.robot
+    names = tuple(robot.joint_names)
+    check_joint_names(names)
+    q = np.asarray(state.q, dtype=float)
+    check_position(q, robot.model.lowerPositionLimit, robot.model.upperPositionLimit, names)
+    err = check_mass(
+        robot.mass_matrix(q), arm.model_mass(state), names, tolerance=options.model_tolerance
+    )
+    return {
+        "mode": mode,
+        "recovered": recovered,
+        "q": q.tolist(),
+        "mass_error": err.tolist(),
+        "mass_tolerance": options.model_tolerance,
+        "end_effector_mass": float(state.m_ee),
+    }
+
+
+def run_franka(
+    config: ExperimentConfig,
+    options: FrankaOptions,
+    out: Path,
+    stem: str | None = None,
+    experiment: Experiment | None = None,
+    ready=None,
+    controller_wrapper=None,
+):
+    """Run ``config`` on a Franka arm (module doc); write the files to ``out``.
+
+    Args:
+        config: The experiment.
+        options: Address and choices (:class:`FrankaOptions`).
+        out: Output directory (exists, writable).
+        stem: File stem (default: the config's name).
+        experiment: ``config`` already built (default: built here).
+        ready: ``None`` or ``ready()``, called just before the torque motion starts.
+        controller_wrapper: ``None`` or ``f(controller) -> controller`` applied to the
+            controller without G(q) (tests inject faults with it).
+
+    Returns:
+        ``(run, files, arm_summary)``.
+    """
+    stem = (stem or config.name) + "_franka"
+    experiment = Experiment.from_config(config) if experiment is None else experiment
+    loop_settings, safety, safe, ctrl = franka_parts(experiment)
+    if controller_wrapper is not None:
+        ctrl = controller_wrapper(ctrl)
+    K = round(loop_settings.duration * loop_settings.rate)
+    capacity = K + round(2.0 * safety.hold * 1000) + 3000
+    arm = FrankaArm(options.address, FRANKA_TORQUE_LIMIT, ramp=options.ramp,
+                    realtime=options.realtime, capacity=capacity)
+    names = tuple(experiment.robot.joint_names)
+    summary: dict = {"address": options.address, "realtime": options.realtime}
+    summary["checks"] = _check_robot(arm, experiment, options)
+    if options.thresholds is not None:
+        lower, upper = options.thresholds
+        arm.set_collision_behavior(lower, upper)
+        summary["collision_thresholds"] = {"lower": list(lower), "upper": list(upper)}
+    # the move to the reference's start
+    q_now = np.asarray(summary["checks"]["q"])
+    q_start = np.asarray(experiment.reference.sample(0.0)[0], dtype=float)
+    check_move(q_now, q_start, options.max_move, names)
+    T = quintic_duration(
+        q_start - q_now, np.full(7, MOVE_VELOCITY), np.full(7, MOVE_ACCELERATION)
+    )
+    interrupted = {"flag": False}
+
+    def on_sigint(signum, frame):
+        interrupted["flag"] = True
+
+    old = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        summary["move"] = arm.move_to(q_start, T, lambda: interrupted["flag"])
+    finally:
+        signal.signal(signal.SIGINT, old)
+    if interrupted["flag"]:
+        raise KeyboardInterrupt(
+            "interrupted during the move to the reference's start; the arm holds where "
+            "the move stopped (Idle); nothing else was run or written"
+        )
+    loop = RealtimeLoop(
+        arm,
+        ctrl,
+        experiment.reference,
+        safe,
+        loop_settings,
+        safety,
+        joint_names=names,
+        meta=experiment.meta(),
+    )
+    switch = sys.getswitchinterval()
+    try:
+        arm.start()
+        if ready is not None:
+            ready()
+        sys.setswitchinterval(1e-4)  # readOnce holds the GIL while it waits
+        run = loop.run()
+    finally:
+        sys.setswitchinterval(switch)
+        end = arm.finish() if arm.fault is None else {}
+    if arm.fault is not None and options.recover:
+        arm.recover()
+        arm.fault["recovered"] = True
+    summary.update(_driver_summary(arm, end))
+    _record_fault(run, arm)
+    _add_extras(run, arm)
+    run.result.meta["franka"] = summary
+    files = save_run(run, out, stem, "franka")
+    files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
+    return run, files, summary
+
+
+def _driver_summary(arm: FrankaArm, end: dict) -> dict:
+    c = arm.cycles
+    sent = c["sent"]
+    compute = c["compute"][np.isfinite(c["compute"])] * 1e6
+    rate = c["success_rate"][np.isfinite(c["success_rate"])]
+    out = {
+        "cycles": int(len(sent)),
+        "commands_sent": int(sent.sum()),
+        "lost_cycles": int(arm.lost),
+        "success_rate_min": float(rate.min()) if rate.size else None,
+        "success_rate_mean": float(rate.mean()) if rate.size else None,
+        "compute_p50_us": float(np.percentile(compute, 50)) if compute.size else None,
+        "compute_p99_us": float(np.percentile(compute, 99)) if compute.size else None,
+        "nonfinite_requests": arm.nonfinite,
+        "end": end,
+        "fault": arm.fault,
+        "tau": "the controller's torque without G(q) (the robot adds gravity)",
+    }
+    return out
+
+
+def _record_fault(run: RealtimeRun, arm: FrankaArm) -> None:
+    """A reflex or a lost connection as the run's stop (the loop saw only the states
+    stop coming)."""
+    fault = arm.fault
+    if fault is None or run.stop is None:
+        return
+    if fault["cause"] == "reflex":
+        errors = ", ".join(fault.get("last_motion_errors") or []) or fault["message"]
+        reason = f"reflex: the robot aborted the motion ({errors}); nothing could be sent after it"
+    else:
+        reason = f"network: the connection to the robot was lost ({fault['message']})"
+    run.stop["cause"] = fault["cause"]
+    run.stop["reason"] = f"stopped at t={run.stop['t']:.4f} s: {reason}"
+    run.stop["franka"] = fault
+    run.result.message = run.stop["reason"]
+
+
+def _add_extras(run: RealtimeRun, arm: FrankaArm) -> None:
+    """``tau_J_d``, ``tau_ext_hat_filtered``, ``command`` at the controller steps."""
+    c = arm.cycles
+    t = run.result.t
+    rows = np.rint(t / arm.period).astype(int)
+    for name in ("tau_J_d", "tau_ext_hat_filtered", "command"):
+        arr = np.full((len(t), arm.nq), np.nan)
+        ok = rows < len(c[name])
+        arr[ok] = c[name][rows[ok]]
+        run.result.extra[name] = arr
+
+
+def format_driver(summary: dict) -> str:
+    """The driver's line: cycles, lost, success rate, compute, the end."""
+    end = summary.get("end") or {}
+    p50, p99 = summary.get("compute_p50_us"), summary.get("compute_p99_us")
+    rate = summary.get("success_rate_min")
+    line = (
+        f"franka: {summary['cycles']} robot cycles, {summary['commands_sent']} commands sent, "
+        f"{summary['lost_cycles']} lost, success rate min "
+        + ("n/a" if rate is None else f"{rate:.3f}")
+        + ", compute readOnce->writeOnce [us] "
+        + ("n/a" if p50 is None else f"p50 {p50:.0f}, p99 {p99:.0f}")
+    )
+    if end:
+        line += f"; ended in mode {end['mode']}, max |dq| {end['speed']:.2g} rad/s"
+    return line
+
+
+def franka_arguments(parser) -> None:
+    """The arguments of ``hmpc-pin franka``."""
+    parser.description = (
+        "Run the experiment's controller on a Franka FR3 or Panda over pylibfranka (FCI) "
+        "in torque control at 1 kHz, paced by the robot (extra: franka). Checks the robot "
+        "first (mode Idle, 7 joints, q inside the limits, the config arm's M(q) against the "
+        "robot's own model), moves it to the reference's start, then runs the real-time "
+        "loop of `hmpc-pin realtime` with every command filtered (first command 0, ramp-in, "
+        "|dtau| <= 0.999 N·m per cycle against tau_J_d, torque limits; gravity left to the "
+        "robot). Ends (normal, Ctrl-C, a fault, lost cycles) with the brake, the command "
+        "ramped to zero and motion_finished: the robot holds the arm. Exit 0, 130 "
+        "(Ctrl-C), 1 (a stop: fault, reflex, network; data kept), 2 (bad input, a check "
+        "refused). Dry run: franky-sim -s mujoco, then --robot-ip 127.0.0.1 --realtime ignore."
+    )
+    parser.add_argument("config", type=Path, help="experiment TOML file (e.g. fr3_sine)")
+    parser.add_argument("--robot-ip", required=True, metavar="HOST", help="the robot's FCI address")
+    parser.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
+    parser.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    parser.add_argument(
+        "--recover",
+        action="store_true",
+        help="call automatic_error_recovery() on a robot in Reflex before the motion and "
+        "after a reflex during it",
+    )
+    parser.add_argument(
+        "--realtime",
+        choices=("enforce", "ignore"),
+        default="enforce",
+        help="libfranka's real-time requirement: enforce (a PREEMPT_RT kernel, the robot) "
+        "or ignore (a simulator) [enforce]",
+    )
+    parser.add_argument(
+        "--max-move",
+        type=float,
+        default=1.0,
+        metavar="RAD",
+        help="refuse when a joint stands farther than RAD from the reference's start [1.0]",
+    )
+    parser.add_argument(
+        "--model-tolerance",
+        type=float,
+        default=0.10,
+        metavar="F",
+        help="refuse when a row of the config arm's M(q) differs from the robot's own model "
+        "by more than F times its diagonal entry [0.10]",
+    )
+    parser.add_argument(
+        "--thresholds",
+        type=Path,
+        metavar="JSON",
+        help="collision thresholds to send with set_collision_behavior: the JSON written "
+        "by `hmpc-pin identify --thresholds` (its robot_estimate, else its thresholds)",
+    )
+
+
+def load_thresholds(path: Path) -> tuple[list[float], list[float]]:
+    """``(lower, upper)`` joint torque collision thresholds [N·m] from the JSON of
+    ``hmpc-pin identify --thresholds``: its ``robot_estimate`` (fitted on the robot's own
+    ``tau_ext_hat_filtered``) if present, else its thresholds; ``upper`` is twice ``lower``
+    unless given.
+
+    Raises:
+        ConfigError: The file is missing, not JSON, or has no 7 positive thresholds.
+    """
+    import json
+
+    from ..exceptions import ConfigError
+
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError("--thresholds", f"cannot read {path}: {exc}") from None
+    block = data.get("robot_estimate") or data
+    lower = block.get("lower", block.get("thresholds")) if isinstance(block, dict) else None
+    try:
+        low = [float(x) for x in lower]
+    except (TypeError, ValueError):
+        raise ConfigError(
+            "--thresholds", f"{path}: expected 'thresholds' (7 values [N·m]), got {lower!r}"
+        ) from None
+    up = [float(x) for x in block.get("upper", [2.0 * x for x in low])]
+    if len(low) != 7 or len(up) != 7 or min(low) <= 0 or any(u < l for u, l in zip(up, low)):
+        raise ConfigError(
+            "--thresholds", f"{path}: expected 7 thresholds > 0 with upper >= lower, got {low}"
+        )
+    return low, up

@@ -32,6 +32,7 @@ E2E_FILES = frozenset(
         "test_cli.py",
         "test_cli_outputs.py",
         "test_cli_realtime.py",
+        "test_franka.py",
         "test_imports.py",
         "test_interrupts.py",
         "test_realtime.py",

@@ -875,7 +875,10 @@ def cmd_franka(args) -> int:
         summary.update(found)
         return run, files
 
-    return _report_realtime(start, config, "commanded", format_tracking, lambda run: format_driver(summary))
+    def driver(run) -> str:
+        return format_driver(summary)
+
+    return _report_realtime(start, config, "commanded", format_tracking, driver)
 
 
 def _franka_arguments(parser) -> None:

@@ -183,8 +183,13 @@ def run_franka(
         ctrl = controller_wrapper(ctrl)
     K = round(loop_settings.duration * loop_settings.rate)
     capacity = K + round(2.0 * safety.hold * 1000) + 3000
-    arm = FrankaArm(options.address, FRANKA_TORQUE_LIMIT, ramp=options.ramp,
-                    realtime=options.realtime, capacity=capacity)
+    arm = FrankaArm(
+        options.address,
+        FRANKA_TORQUE_LIMIT,
+        ramp=options.ramp,
+        realtime=options.realtime,
+        capacity=capacity,
+    )
     names = tuple(experiment.robot.joint_names)
     summary: dict = {"address": options.address, "realtime": options.realtime}
     summary["checks"] = _check_robot(arm, experiment, options)
@@ -196,9 +201,7 @@ def run_franka(
     q_now = np.asarray(summary["checks"]["q"])
     q_start = np.asarray(experiment.reference.sample(0.0)[0], dtype=float)
     check_move(q_now, q_start, options.max_move, names)
-    T = quintic_duration(
-        q_start - q_now, np.full(7, MOVE_VELOCITY), np.full(7, MOVE_ACCELERATION)
-    )
+    T = quintic_duration(q_start - q_now, np.full(7, MOVE_VELOCITY), np.full(7, MOVE_ACCELERATION))
     interrupted = {"flag": False}
 
     def on_sigint(signum, frame):
@@ -252,7 +255,7 @@ def _driver_summary(arm: FrankaArm, end: dict) -> dict:
     compute = c["compute"][np.isfinite(c["compute"])] * 1e6
     rate = c["success_rate"][np.isfinite(c["success_rate"])]
     out = {
-        "cycles": int(len(sent)),
+        "cycles": len(sent),
         "commands_sent": int(sent.sum()),
         "lost_cycles": int(arm.lost),
         "success_rate_min": float(rate.min()) if rate.size else None,
@@ -288,11 +291,16 @@ def _add_extras(run: RealtimeRun, arm: FrankaArm) -> None:
     """``tau_J_d``, ``tau_ext_hat_filtered``, ``command`` at the controller steps."""
     c = arm.cycles
     t = run.result.t
-    rows = np.rint(t / arm.period).astype(int)
+    # each controller step's state, found by its stamp (when readOnce returned)
+    k = np.rint(t / arm.period).astype(int)
+    stamps = run.timing["stamp"][np.minimum(k, len(run.timing["stamp"]) - 1)]
+    # (rows of lost cycles hold the previous arrival: sorted, each found at its first row)
+    arrival = np.maximum.accumulate(np.where(np.isfinite(c["arrival"]), c["arrival"], -np.inf))
+    rows = np.searchsorted(arrival, stamps)
+    found = (rows < len(arrival)) & (arrival[np.minimum(rows, len(arrival) - 1)] == stamps)
     for name in ("tau_J_d", "tau_ext_hat_filtered", "command"):
         arr = np.full((len(t), arm.nq), np.nan)
-        ok = rows < len(c[name])
-        arr[ok] = c[name][rows[ok]]
+        arr[found] = c[name][rows[found]]
         run.result.extra[name] = arr
 
 
@@ -394,7 +402,12 @@ def load_thresholds(path: Path) -> tuple[list[float], list[float]]:
             "--thresholds", f"{path}: expected 'thresholds' (7 values [N·m]), got {lower!r}"
         ) from None
     up = [float(x) for x in block.get("upper", [2.0 * x for x in low])]
-    if len(low) != 7 or len(up) != 7 or min(low) <= 0 or any(u < l for u, l in zip(up, low)):
+    if (
+        len(low) != 7
+        or len(up) != 7
+        or min(low) <= 0
+        or any(u < lo for u, lo in zip(up, low, strict=False))
+    ):
         raise ConfigError(
             "--thresholds", f"{path}: expected 7 thresholds > 0 with upper >= lower, got {low}"
         )

@@ -77,6 +77,7 @@ class _Cycles:
         self.duration = np.full(capacity, np.nan)
         self.success_rate = np.full(capacity, np.nan)
         self.compute = np.full(capacity, np.nan)
+        self.arrival = np.full(capacity, np.nan)
         self.sent = np.zeros(capacity, dtype=bool)
         self.finished = np.zeros(capacity, dtype=bool)
         self.rows = 0
@@ -89,6 +90,7 @@ class _Cycles:
             duration=self.duration[:r].copy(),
             success_rate=self.success_rate[:r].copy(),
             compute=self.compute[:r].copy(),
+            arrival=self.arrival[:r].copy(),
             sent=self.sent[:r].copy(),
             motion_finished=self.finished[:r].copy(),
         )
@@ -129,9 +131,8 @@ class FrankaArm:
         self._franka = franka
         if realtime not in ("enforce", "ignore"):
             raise ArmError(f"realtime={realtime!r}; expected 'enforce' or 'ignore'")
-        config = (
-            franka.RealtimeConfig.kEnforce if realtime == "enforce" else franka.RealtimeConfig.kIgnore
-        )
+        modes = franka.RealtimeConfig
+        config = modes.kEnforce if realtime == "enforce" else modes.kIgnore
         try:
             self.robot = franka.Robot(address, config)
         except franka.RealtimeException as exc:
@@ -226,7 +227,9 @@ class FrankaArm:
                 if done:
                     break
         except (franka.ControlException, franka.NetworkException) as exc:
-            raise ArmError(f"the move to the reference's start was aborted by the robot: {exc}") from None
+            raise ArmError(
+                f"the move to the reference's start was aborted by the robot: {exc}"
+            ) from None
         finally:
             del control
         state = self.robot.read_once()
@@ -284,6 +287,7 @@ class FrankaArm:
             c.robot_time[row] = state.time.to_sec()
             c.duration[row] = duration.to_sec()
             c.success_rate[row] = state.control_command_success_rate
+            c.arrival[row] = now
             c.rows = max(c.rows, row + 1)
         return periods
 
@@ -418,7 +422,7 @@ class FrankaArm:
                     dq=list(state.dq),
                     tau_J=list(state.tau_J),
                 )
-            except Exception as inner:  # noqa: BLE001 - the record says what could not be read
+            except Exception as inner:  # the record says what could not be read
                 record["state_error"] = str(inner)
         self.fault = record
 
@@ -429,7 +433,8 @@ class FrankaArm:
         ``q``, ``dq``, ``tau_J``, ``tau_J_d`` (what the robot received before this state),
         ``tau_ext_hat_filtered``, ``requested`` and ``command`` (sent, filtered) [N·m],
         ``robot_time`` and ``duration`` [s], ``success_rate``, ``compute`` [s]
-        (``readOnce`` returned → ``writeOnce``), ``sent`` and ``motion_finished``."""
+        (``readOnce`` returned → ``writeOnce``), ``arrival`` [s] (when ``readOnce``
+        returned: the loop's stamp of that state), ``sent`` and ``motion_finished``."""
         return self._cycles.as_dict()
 
     def save_cycles(self, path: Path) -> Path:

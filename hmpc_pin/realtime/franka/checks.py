@@ -49,7 +49,7 @@ def check_joint_names(names) -> None:
     if len(names) != 7:
         raise ArmError(
             f"the config's arm has {len(names)} joints ({', '.join(names)}); a Franka arm "
-            "has 7: use robot.model = \"fr3\" or \"panda\" (with its fingers locked)"
+            'has 7: use robot.model = "fr3" or "panda" (with its fingers locked)'
         )
     for i, name in enumerate(names):
         if not name.endswith(f"joint{i + 1}"):

@@ -11,7 +11,9 @@ the three on every command, in this order:
    (:math:`k = 0`: zero);
 2. **rate limit**: :math:`\\tau_J^d - \\Delta \\le \\tau \\le \\tau_J^d + \\Delta` with
    :math:`\\Delta` = ``max_step`` (0.999 N·m) and :math:`\\tau_J^d` the torque the robot
-   reports it received;
+   reports it received, and within :math:`\\Delta` of the previous command sent as well
+   (a command the robot has not yet received when it sends a state leaves
+   :math:`\\tau_J^d` one command behind); where the two boxes do not meet, the first;
 3. **torque limit**: :math:`|\\tau_i| \\le L_i` (``limit``, inside the robot's).
 
 A command that is not finite is not filtered: :meth:`CommandFilter.__call__` raises
@@ -59,12 +61,13 @@ class CommandFilter:
         if not (np.isfinite(max_step) and max_step > 0):
             raise ConfigError("franka.max_step", f"expected a step > 0 [N·m], got {max_step!r}")
         if int(ramp) != ramp or ramp < 1:
-            raise ConfigError("franka.ramp", f"expected a whole number of cycles >= 1, got {ramp!r}")
+            raise ConfigError("franka.ramp", f"expected whole cycles >= 1, got {ramp!r}")
         self.limit = lim
         self.max_step = float(max_step)
         self.ramp = int(ramp)
         self.cycles = 0
         self._out = np.zeros(lim.size)
+        self._prev = np.zeros(lim.size)
 
     def reset(self) -> None:
         """Start a new motion: the next command is the first (zero)."""
@@ -85,15 +88,25 @@ class CommandFilter:
         last = np.asarray(tau_J_d, dtype=float)
         n = self.limit.size
         if tau.shape != (n,) or last.shape != (n,):
-            raise DimensionError(f"torque of shape {tau.shape}, tau_J_d {last.shape}; expected ({n},)")
+            raise DimensionError(
+                f"torque of shape {tau.shape}, tau_J_d {last.shape}; expected ({n},)"
+            )
         if not np.isfinite(tau).all():
             raise NonFiniteError("command", tau)
         if not np.isfinite(last).all():
             raise NonFiniteError("tau_J_d", last)
         out = self._out
         np.multiply(tau, min(1.0, self.cycles / self.ramp), out=out)
-        np.clip(out, last - self.max_step, last + self.max_step, out=out)
+        step = self.max_step
+        lo, hi = last - step, last + step
+        if self.cycles > 0:  # and near the previous command, where the boxes meet
+            prev = self._prev
+            lo2, hi2 = np.maximum(lo, prev - step), np.minimum(hi, prev + step)
+            meet = lo2 <= hi2
+            lo, hi = np.where(meet, lo2, lo), np.where(meet, hi2, hi)
+        np.clip(out, lo, hi, out=out)
         np.clip(out, -self.limit, self.limit, out=out)
+        self._prev[:] = out
         self.cycles += 1
         return out
 
@@ -104,4 +117,5 @@ class CommandFilter:
         out = self._out
         np.clip(0.0, last - self.max_step, last + self.max_step, out=out)
         np.clip(out, -self.limit, self.limit, out=out)
+        self._prev[:] = out
         return out

@@ -1,0 +1,269 @@
+"""``hmpc-pin franka`` against the FCI simulator franky-sim (MuJoCo), over the vendor's
+pylibfranka exactly as against a robot.
+
+One simulator at a time: a session fixture starts ``franky-sim -s mujoco`` in its own
+process, waits for its port (127.0.0.1:1337), and stops it by its process id. franky-sim
+models no reflex and no deadline (it slows down instead of losing cycles): what the FCI
+demands (first command zero, |Δτ| <= 0.999 N·m per cycle against ``tau_J_d``, |τ| inside
+the limits) is asserted on the driver's own record of every command it sent.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pylibfranka", reason="pylibfranka (extra franka) is not installed")
+pytest.importorskip(
+    "franky_sim", reason="franky-sim (the FCI simulator, extra dev) is not installed"
+)
+
+from hmpc_pin.apps.franka import FrankaOptions, run_franka
+from hmpc_pin.controllers.base import ControllerWrapper
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.config import load_config
+from hmpc_pin.realtime.franka import (
+    FRANKA_TORQUE_LIMIT,
+    MAX_STEP,
+    FrankaArm,
+    check_mass,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+FR3_SINE = ROOT / "configs" / "fr3_sine.toml"
+HOST, PORT = "127.0.0.1", 1337
+HMPC = [sys.executable, "-m", "hmpc_pin"]
+
+
+def _port_open() -> bool:
+    with socket.socket() as s:
+        s.settimeout(0.2)
+        return s.connect_ex((HOST, PORT)) == 0
+
+
+def _raise_priority() -> None:
+    """The simulator before other work (when allowed): it is the robot's clock."""
+    with contextlib.suppress(OSError):
+        os.nice(-10)
+
+
+@pytest.fixture(scope="session")
+def simulator():
+    """franky-sim on 127.0.0.1:1337, started here and stopped by its pid."""
+    deadline = time.monotonic() + 120.0
+    while _port_open():  # another simulator (another test session): wait for it to end
+        if time.monotonic() > deadline:
+            pytest.fail("127.0.0.1:1337 stayed busy for 120 s (another FCI simulator runs)")
+        time.sleep(1.0)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from franky_sim.run_server import main; main()", "-s", "mujoco"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+        preexec_fn=_raise_priority,
+    )
+    try:
+        deadline = time.monotonic() + 60.0
+        while not _port_open():
+            if proc.poll() is not None:
+                pytest.fail(f"franky-sim exited: {proc.stderr.read().decode()[-2000:]}")
+            if time.monotonic() > deadline:
+                pytest.fail("franky-sim did not listen on 127.0.0.1:1337 within 60 s")
+            time.sleep(0.2)
+        yield proc
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(10.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10.0)
+
+
+def _config(tmp_path: Path, duration: float, observer: bool = True):
+    text = FR3_SINE.read_text().replace("duration = 10.0", f"duration = {duration}")
+    # the FCI's own bound (20 lost cycles make a reflex): the simulator, a Python process on
+    # a shared machine, stalls now and then
+    text += "\n[realtime]\nmax_misses = 19\n"
+    if not observer:
+        text = text.replace('kind = "general"', "enabled = false").replace("gain = 100.0\n", "")
+    path = tmp_path / ("fr3_sine.toml" if observer else "fr3_sine_no_ndo.toml")
+    path.write_text(text)
+    return load_config(path)
+
+
+def _run(tmp_path, duration=2.5, observer=True, wrapper=None):
+    config = _config(tmp_path, duration, observer)
+    out = tmp_path / ("out" if observer else "out_no_ndo")
+    out.mkdir(exist_ok=True)
+    options = FrankaOptions(HOST, realtime="ignore")
+    return run_franka(config, options, out, controller_wrapper=wrapper)
+
+
+def _assert_fci_rules(cycles: dict) -> None:
+    """From the driver's own record: the FCI's rules on every command sent."""
+    sent = cycles["sent"]
+    cmd, last = cycles["command"][sent], cycles["tau_J_d"][sent]
+    assert np.isfinite(cmd).all()
+    assert np.all(cmd[0] == 0.0)  # the first command is zero
+    assert np.abs(cmd - last).max() <= MAX_STEP + 1e-9  # against what the robot received
+    rows = np.flatnonzero(sent)
+    consecutive = np.diff(rows) == 1
+    jumps = np.abs(np.diff(cmd, axis=0))[consecutive]
+    # (tau_J_d comes back in single precision: 1e-6 N·m of the 1 mN·m margin to the 1 N·m rule)
+    assert jumps.max() <= MAX_STEP + 1e-6
+    assert np.all(np.abs(cmd) <= FRANKA_TORQUE_LIMIT)
+    assert cycles["motion_finished"][sent][-1]  # the last command ends the motion
+    assert np.all(cmd[-1] == 0.0)
+
+
+def _worst_rms(result, after=1.0, joints=slice(None)):
+    keep = result.t >= after
+    e = result.q[keep] - result.q_ref[keep]
+    return np.sqrt(np.mean(e**2, axis=0))[joints]
+
+
+def test_connect_and_model_check(simulator):
+    arm = FrankaArm(HOST, FRANKA_TORQUE_LIMIT, realtime="ignore")
+    state = arm.read_state()
+    assert state.robot_mode.name == "Idle"
+    q = np.asarray(state.q)
+    M_robot = arm.model_mass(state)
+    fr3 = Experiment.from_config(load_config(FR3_SINE)).robot
+    names = fr3.joint_names
+    err = check_mass(fr3.mass_matrix(q), M_robot, names)
+    assert err.max() < 1e-6  # the packaged FR3 (with the hand) is the robot's model
+    # the Panda of example-robot-data is another arm: refused, naming a joint
+    panda = Experiment.from_config(load_config(ROOT / "configs" / "panda_sine.toml")).robot
+    from hmpc_pin.exceptions import ArmError
+
+    with pytest.raises(ArmError, match="panda_joint"):
+        check_mass(panda.mass_matrix(q), M_robot, panda.joint_names)
+
+
+def test_normal_run_tracks_and_keeps_the_fci_rules(simulator, tmp_path):
+    run, files, summary = _run(tmp_path)
+    assert run.complete
+    assert summary["end"]["mode"] == "Idle" and summary["end"]["speed"] < 0.01
+    # lost cycles are the robot's Durations beyond one period (how many depends on the
+    # machine's load: counted, not bounded here)
+    c = summary_cycles(files)
+    d = c["duration"][1:]
+    periods = np.rint(d[np.isfinite(d)] / 1e-3).astype(int)
+    assert summary["lost_cycles"] == int(np.sum(np.maximum(periods - 1, 0)))
+    _assert_fci_rules(c)
+    # the heavy joints track within 5e-3 rad RMS after 1 s
+    assert _worst_rms(run.result, joints=slice(0, 4)).max() <= 5e-3
+    # the run file reads as `run` writes it, the robot's estimate beside the observer's
+    from hmpc_pin.sim.result import Result
+
+    loaded = Result.load(files[0])
+    assert loaded.extra["tau_ext_hat_filtered"].shape == loaded.d_hat.shape
+    assert np.isfinite(loaded.extra["tau_J_d"]).all()
+
+
+def summary_cycles(files) -> dict:
+    path = next(f for f in files if str(f).endswith("_cycles.npz"))
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="joint 7: franky-sim's rotor inertia (armature 0.074 kg m^2) is ~20x the URDF's "
+    "M_77, which the controller's model does not carry",
+)
+def test_every_joint_tracks_within_5e_3(simulator, tmp_path):
+    run, _, _ = _run(tmp_path)
+    assert _worst_rms(run.result).max() <= 5e-3
+
+
+class _NaNAfter(ControllerWrapper):
+    """The controller, returning NaN from t >= ``at`` on."""
+
+    def __init__(self, controller, at):
+        super().__init__(controller)
+        self.at = at
+
+    def step(self, t, q, dq, reference):
+        tau = self.controller.step(t, q, dq, reference)
+        return tau * np.nan if t >= self.at else tau
+
+    def __getattr__(self, name):
+        if name == "controller":
+            raise AttributeError(name)
+        return getattr(self.controller, name)
+
+
+def test_nan_from_the_controller_never_reaches_the_arm(simulator, tmp_path):
+    run, files, summary = _run(tmp_path, duration=1.5, wrapper=lambda c: _NaNAfter(c, 0.5))
+    assert run.stop is not None and run.stop["cause"] == "fault"
+    assert "non-finite" in run.stop["reason"]
+    assert 0.5 <= run.stop["t"] < 0.52
+    _assert_fci_rules(summary_cycles(files))  # every command sent finite, ramped to zero
+    assert summary["end"]["mode"] == "Idle" and summary["end"]["speed"] < 0.01
+
+
+def test_observer_on_tracks_better_than_off(simulator, tmp_path):
+    on, _, _ = _run(tmp_path, duration=2.5)
+    off, _, _ = _run(tmp_path, duration=2.5, observer=False)
+    heavy = slice(0, 4)
+    rms_on = _worst_rms(on.result, joints=heavy)
+    rms_off = _worst_rms(off.result, joints=heavy)
+    assert rms_on.max() < 0.5 * rms_off.max(), (rms_on, rms_off)
+
+
+def test_ctrl_c_mid_run(simulator, tmp_path):
+    config = tmp_path / "fr3_sine.toml"
+    config.write_text(FR3_SINE.read_text() + "\n[realtime]\nmax_misses = 19\n")
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(
+        [
+            *HMPC,
+            "franka",
+            str(config),
+            "--robot-ip",
+            HOST,
+            "--realtime",
+            "ignore",
+            "--duration",
+            "20",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        for line in proc.stdout:
+            if "torque control running" in line:
+                break
+        time.sleep(1.5)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    assert "interrupted" in err
+    import json
+
+    data = json.loads((tmp_path / "out" / "fr3_sine_franka.json").read_text())
+    assert data["stop"]["cause"] == "interrupted"
+    end = data["franka"]["end"]
+    assert end["mode"] == "Idle" and end["speed"] < 0.01
+    cycles = dict(np.load(tmp_path / "out" / "fr3_sine_franka_cycles.npz"))
+    _assert_fci_rules(cycles)
+    assert 100 < cycles["sent"].sum() < 19000  # stopped mid-run, its data kept

@@ -111,7 +111,7 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
     """The robot of ``[robot]`` (optionally with another gravity [m/s²])."""
     g = rc.gravity if gravity is None else gravity
     if not _REUSE[0]:
-        return load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
+        return _with_armature(load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints), rc)
     path = Path(rc.source)
     stamp = (path.stat().st_size, path.stat().st_mtime_ns) if path.is_file() else None
     locked = tuple(sorted((rc.locked_joints or {}).items()))
@@ -121,7 +121,26 @@ def load_robot_config(rc: RobotConfig, gravity: float | None = None) -> Robot:
         if len(_ROBOTS) >= 16:
             _ROBOTS.clear()
         robot = _ROBOTS[key] = load_robot(rc.source, gravity=g, locked_joints=rc.locked_joints)
-    return robot.copy()
+    return _with_armature(robot.copy(), rc)
+
+
+def _with_armature(robot: Robot, rc: RobotConfig) -> Robot:
+    """``robot`` with ``[robot] armature`` [kg·m²] on its joints' diagonal (Pinocchio's
+    ``model.armature``, which ``crba`` adds to M(q)).
+
+    Raises:
+        ConfigError: Neither one value nor one per joint.
+    """
+    if rc.armature is None:
+        return robot
+    arm = np.asarray(rc.armature, dtype=float)
+    n = robot.nq
+    if arm.ndim == 1 and arm.size != n:
+        raise ConfigError(
+            "robot.armature", f"expected one value or {n} (one per joint), got {arm.size}"
+        )
+    robot.model.armature[:] = np.broadcast_to(arm, (robot.model.nv,))
+    return robot
 
 
 def make_controller(

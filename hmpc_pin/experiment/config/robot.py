@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ...checks import as_array
 from ...exceptions import ConfigError
 from ._fields import _float, _set
 
@@ -21,12 +22,17 @@ class RobotConfig:
         gravity: Gravity magnitude [m/s²] along −z (paper: 9.8).
         locked_joints: Joints not controlled, by URDF name → locked position [rad or m]
             (e.g. Panda's fingers); removed with ``pin.buildReducedModel``.
+        armature: Rotor inertia [kg·m²] added to each joint's diagonal of :math:`M(q)`
+            (Pinocchio's ``model.armature``), one value or one per joint; not given: the
+            URDF's (none). A URDF cannot carry it; a geared arm's motors add it (e.g. the
+            FR3 that franky-sim simulates: 0.195 on joints 1–4, 0.074 on 5–7).
     """
 
     urdf: Path | None = None
     model: str | None = None
     gravity: float = 9.8
     locked_joints: dict = field(default_factory=dict)
+    armature: object = None
 
     def __post_init__(self):
         if self.urdf is not None and self.model is not None:
@@ -47,6 +53,8 @@ class RobotConfig:
             "locked_joints",
             {str(k): _float(f"locked_joints.{k}", v) for k, v in self.locked_joints.items()},
         )
+        if self.armature is not None:
+            _set(self, "armature", as_array("armature", self.armature, nonneg=True))
 
     @property
     def source(self) -> Path | str:

@@ -389,6 +389,7 @@ def cmd_init(args) -> int:
         from ..model.robot import example_robot_names
 
         print("planar3  (the paper's arm, shipped with hmpc_pin)")
+        print("fr3  (Franka Research 3, franka_description, shipped with hmpc_pin)")
         for name in example_robot_names():
             print(f"{name}  (example-robot-data)")
         print("or the path of any fixed-base arm's .urdf file")

@@ -58,8 +58,9 @@ FloatArray = NDArray[np.float64]
 
 #: Why a loop stops early: Ctrl-C, a fault (non-finite value, QP not solved, state beyond
 #: limits, any controller error), k consecutive missed deadlines, no new state (watchdog),
-#: a stop asked by the program (a ROS lifecycle node deactivated).
-STOP_CAUSES = ("interrupted", "fault", "misses", "watchdog", "deactivated")
+#: a stop asked by the program (a ROS lifecycle node deactivated); on a Franka arm, a reflex
+#: of the robot or the connection lost (:mod:`hmpc_pin.realtime.franka`).
+STOP_CAUSES = ("interrupted", "fault", "misses", "watchdog", "deactivated", "reflex", "network")
 
 
 class SafeTorque:

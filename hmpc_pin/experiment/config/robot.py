@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from ...checks import as_array
 from ...exceptions import ConfigError
 from ._fields import _float, _set
@@ -32,7 +34,7 @@ class RobotConfig:
     model: str | None = None
     gravity: float = 9.8
     locked_joints: dict = field(default_factory=dict)
-    armature: object = None
+    armature: np.ndarray | None = None
 
     def __post_init__(self):
         if self.urdf is not None and self.model is not None:

@@ -16,7 +16,7 @@ the three on every command, in this order:
    :math:`\\tau_J^d` one command behind); where the two boxes do not meet, the first;
 3. **torque limit**: :math:`|\\tau_i| \\le L_i` (``limit``, inside the robot's).
 
-A command that is not finite is not filtered: :meth:`CommandFilter.__call__` raises
+A command that is not finite is not filtered: calling the filter raises
 :class:`~hmpc_pin.exceptions.NonFiniteError` (the driver then runs its stop sequence;
 nothing non-finite reaches the arm). The command excludes gravity: the robot adds
 :math:`G(q)` itself.

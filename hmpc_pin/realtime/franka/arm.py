@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -148,8 +149,8 @@ class FrankaArm:
             ) from None
         self.address = address
         self.filter = CommandFilter(limit, ramp=ramp)
-        self._control = None
-        self._state = None
+        self._control: Any = None  # pylibfranka's ActiveControlBase during a motion
+        self._state: Any = None
         self._answered = True
         self._q = np.zeros(self.nq)
         self._dq = np.zeros(self.nq)
@@ -257,7 +258,7 @@ class FrankaArm:
         """``readOnce``; the number of periods since the last state (0: none, a fault)."""
         franka = self._franka
         try:
-            state, duration = self._control.readOnce()  # type: ignore[union-attr]
+            state, duration = self._control.readOnce()
         except franka.ControlException as exc:
             self._fail("reflex", exc)
             return 0
@@ -337,7 +338,7 @@ class FrankaArm:
             c.sent[row] = True
             c.finished[row] = finished
         try:
-            self._control.writeOnce(torques)  # type: ignore[union-attr]
+            self._control.writeOnce(torques)
         except franka.ControlException as exc:
             self._fail("reflex", exc)
         except franka.NetworkException as exc:
@@ -393,7 +394,7 @@ class FrankaArm:
             c.sent[row] = True
             c.finished[row] = finished
         try:
-            self._control.writeOnce(torques)  # type: ignore[union-attr]
+            self._control.writeOnce(torques)
         except franka.ControlException as exc:
             self._fail("reflex", exc)
         except franka.NetworkException as exc:
@@ -439,7 +440,7 @@ class FrankaArm:
 
     def save_cycles(self, path: Path) -> Path:
         """Write :attr:`cycles` to ``path`` (``.npz``)."""
-        np.savez(path, **self.cycles)
+        np.savez(path, **self.cycles)  # type: ignore[arg-type]
         return path
 
     def close(self) -> None:

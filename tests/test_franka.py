@@ -268,3 +268,71 @@ def test_ctrl_c_mid_run(simulator, tmp_path):
     cycles = dict(np.load(tmp_path / "out" / "fr3_sine_franka_cycles.npz"))
     _assert_fci_rules(cycles)
     assert 100 < cycles["sent"].sum() < 19000  # stopped mid-run, its data kept
+
+
+def test_thresholds_from_the_robots_estimate_are_sent(simulator, tmp_path):
+    """`identify --thresholds` on a franka run fits the robot's own tau_ext_hat_filtered
+    too; `franka --thresholds` sends those with set_collision_behavior."""
+    import json
+
+    from hmpc_pin.apps.franka import load_thresholds
+    from hmpc_pin.identification import learn_thresholds
+    from hmpc_pin.sim.result import Result
+
+    _, files, _ = _run(tmp_path, duration=1.5)
+    out = tmp_path / "collision.toml"
+    subprocess.run(
+        [*HMPC, "identify", str(files[0]), "--thresholds", "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    data = json.loads((tmp_path / "collision_franka.json").read_text())["robot_estimate"]
+    # the same fit on the robot's estimate, done here from the run file
+    result = Result.load(files[0])
+    own = learn_thresholds(
+        Result(
+            t=result.t,
+            q=result.q,
+            dq=result.dq,
+            tau=result.tau,
+            d=result.d,
+            d_hat=result.extra["tau_ext_hat_filtered"],
+            q_ref=result.q_ref,
+            dq_ref=result.dq_ref,
+            joint_names=result.joint_names,
+        )
+    )
+    np.testing.assert_allclose(data["upper"], own.threshold, rtol=1e-12)
+    np.testing.assert_allclose(data["lower"], 0.5 * own.threshold, rtol=1e-12)
+    lower, upper = load_thresholds(tmp_path / "collision_franka.json")
+    config = _config(tmp_path, 0.5)
+    options = FrankaOptions(HOST, realtime="ignore", thresholds=(lower, upper))
+    (tmp_path / "sent").mkdir()
+    run, _, summary = run_franka(config, options, tmp_path / "sent")
+    assert run.complete
+    assert summary["collision_thresholds"] == {"lower": lower, "upper": upper}
+    assert summary["end"]["mode"] == "Idle"
+
+
+def test_without_pylibfranka_or_a_robot_one_line_exit_2(tmp_path):
+    code = (
+        "import sys; sys.modules['pylibfranka'] = None\n"
+        "from hmpc_pin.apps.cli import main\n"
+        "sys.exit(main(['franka', 'fr3_sine', '--robot-ip', '127.0.0.1', '--out', 'o']))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "extra 'franka'" in done.stderr
+    # nobody answers at this address (franky-sim binds 127.0.0.1 only)
+    done = subprocess.run(
+        [*HMPC, "franka", "fr3_sine", "--robot-ip", "127.0.0.2", "--realtime", "ignore"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    assert "no Franka arm answers at '127.0.0.2'" in done.stderr

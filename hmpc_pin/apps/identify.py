@@ -160,6 +160,9 @@ def cmd_identify(args) -> int:
             for name, thr, peak in rows
         ]
         text = fit.toml()
+        robot_estimate = result.extra.get("tau_ext_hat_filtered")
+        if robot_estimate is not None:  # a Franka run: the robot's own estimate too
+            report += _franka_thresholds(args, result, robot_estimate, out)
     else:
         robot = run_robot(result, args.urdf)
         observer = observer_model(result, robot) if args.source == "observer" else None
@@ -195,6 +198,62 @@ def cmd_identify(args) -> int:
     report.append(f"wrote {out}" + (f" ({args.config} with [{_table(text)[0]}])" if config else ""))
     print("\n".join(report))
     return 0
+
+
+def _franka_thresholds(args, result, robot_estimate, out: Path) -> list[str]:
+    """Fit the same thresholds on the robot's own external torque estimate
+    (``tau_ext_hat_filtered`` of a ``hmpc-pin franka`` run) and write them as the JSON
+    ``hmpc-pin franka --thresholds`` sends with ``set_collision_behavior``: ``upper`` (the
+    robot's collision reflex) the learned threshold, ``lower`` (its contact flag) half of it.
+
+    Returns:
+        The report's lines.
+    """
+    import json
+
+    keep = np.all(np.isfinite(robot_estimate), axis=1)
+    own = replace(
+        result,
+        **{name: getattr(result, name)[keep] for name in ("t", "q", "dq", "tau", "d", "q_ref")},
+        d_hat=robot_estimate[keep],
+        dq_ref=result.dq_ref[keep],
+        tau_applied=None,
+        ee_pos=None,
+        extra={},
+    )
+    fit = learn_thresholds(
+        own,
+        false_alarm=args.false_alarm,
+        horizon=args.horizon,
+        block=args.block,
+        safety=args.safety,
+        after=args.after if args.after is not None else 0.0,
+        method=args.method,
+        run=args.run.name,
+    )
+    upper = [float(x) for x in fit.threshold]
+    data = {
+        "robot_estimate": {
+            "source": "tau_ext_hat_filtered",
+            "lower": [0.5 * x for x in upper],
+            "upper": upper,
+            "peak": [float(x) for x in fit.peak],
+            "false_alarm": fit.false_alarm,
+            "horizon": fit.horizon,
+            "safety": fit.safety,
+            "run": args.run.name,
+        }
+    }
+    path = out.with_name(out.stem + "_franka.json")
+    path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    lines = [f"{args.run.name}: the robot's own estimate tau_ext_hat_filtered, the same fit:"]
+    lines += [
+        f"  {name}: collision (upper) {thr:.4g} N·m, contact (lower) {0.5 * thr:.4g} "
+        f"(peak {peak:.4g})"
+        for name, thr, peak in zip(fit.names, upper, fit.peak, strict=True)
+    ]
+    lines.append(f"wrote {path} (hmpc-pin franka --thresholds {path.name})")
+    return lines
 
 
 def identify_arguments(idf) -> None:

@@ -24,7 +24,9 @@ def test_init_list_prints_every_accepted_name(capsys):
     assert main(["init", "--list"]) == 0
     out = capsys.readouterr().out
     listed = {line.split()[0] for line in out.splitlines() if line and not line.startswith("or")}
-    assert listed == {"planar3", *example_robot_names()}
+    from hmpc_pin.data import robot_names
+
+    assert listed == {*robot_names(), *example_robot_names()}  # planar3, fr3 and the rest
     assert "ur5" in listed and "iris" not in listed  # a drone is no arm
 
 

@@ -185,7 +185,15 @@ def test_safety_settings_defaults_zero_and_unlimited():
     np.testing.assert_array_equal(s.velocity, np.full(3, np.inf))
     d = SafetySettings.unlimited(2)
     assert (d.max_misses, d.watchdog, d.hold, d.brake_speed) == (10, 0.01, 0.1, 0.005)
-    assert STOP_CAUSES == ("interrupted", "fault", "misses", "watchdog", "deactivated")
+    assert STOP_CAUSES == (
+        "interrupted",
+        "fault",
+        "misses",
+        "watchdog",
+        "deactivated",
+        "reflex",
+        "network",
+    )
 
 
 class _Constant:

@@ -388,8 +388,11 @@ def cmd_init(args) -> int:
     if args.list:
         from ..model.robot import example_robot_names
 
-        print("planar3  (the paper's arm, shipped with hmpc_pin)")
-        print("fr3  (Franka Research 3, franka_description, shipped with hmpc_pin)")
+        from ..data import robot_names
+
+        about = {"planar3": "the paper's arm", "fr3": "Franka Research 3, franka_description"}
+        for name in sorted(robot_names(), key=lambda x: x != "planar3"):
+            print(f"{name}  ({about.get(name, 'a packaged arm')}, shipped with hmpc_pin)")
         for name in example_robot_names():
             print(f"{name}  (example-robot-data)")
         print("or the path of any fixed-base arm's .urdf file")

@@ -89,8 +89,9 @@ def simulator():
             proc.wait(10.0)
 
 
-def _config(tmp_path: Path, duration: float, observer: bool = True):
+def _config(tmp_path: Path, duration: float, observer: bool = True, Ts: float = 0.01):
     text = FR3_SINE.read_text().replace("duration = 10.0", f"duration = {duration}")
+    text = text.replace("Ts = 0.01", f"Ts = {Ts}")
     # the FCI's own bound (20 lost cycles make a reflex): the simulator, a Python process on
     # a shared machine, stalls now and then
     text += "\n[realtime]\nmax_misses = 19\n"
@@ -101,11 +102,11 @@ def _config(tmp_path: Path, duration: float, observer: bool = True):
     return load_config(path)
 
 
-def _run(tmp_path, duration=2.5, observer=True, wrapper=None):
-    config = _config(tmp_path, duration, observer)
-    out = tmp_path / ("out" if observer else "out_no_ndo")
+def _run(tmp_path, duration=2.5, observer=True, wrapper=None, Ts=0.01, inner_law="every-cycle"):
+    config = _config(tmp_path, duration, observer, Ts)
+    out = tmp_path / f"out_{observer}_{Ts}_{inner_law}"
     out.mkdir(exist_ok=True)
-    options = FrankaOptions(HOST, realtime="ignore")
+    options = FrankaOptions(HOST, realtime="ignore", inner_law=inner_law)
     return run_franka(config, options, out, controller_wrapper=wrapper)
 
 
@@ -221,6 +222,22 @@ def test_observer_on_tracks_better_than_off(simulator, tmp_path):
     rms_on = _worst_rms(on.result)
     rms_off = _worst_rms(off.result)
     assert rms_on.max() < 0.5 * rms_off.max(), (rms_on, rms_off)
+
+
+def test_inner_law_every_cycle_tracks_as_the_whole_step_at_1khz(simulator, tmp_path):
+    """Ts = 10 ms: the MPC every 10 cycles, Eq (4) and the observer every cycle; against
+    the whole step every cycle (Ts = 1 ms) and the torque held for 10 ms."""
+    every, _, s_every = _run(tmp_path)
+    whole, _, s_whole = _run(tmp_path, Ts=0.001)
+    held, _, s_held = _run(tmp_path, inner_law="held")
+    assert s_every["inner_law"] == "every cycle"
+    assert s_whole["inner_law"] == "whole step every cycle"
+    assert s_held["inner_law"] == "held between steps"
+    e, w, h = (_worst_rms(r.result).max() for r in (every, whole, held))
+    assert e <= 2.0 * w, (e, w)
+    assert e < h, (e, h)
+    # the record is at every cycle (the loop runs the wrapper at 1 ms)
+    assert np.allclose(np.diff(every.result.t), 1e-3)
 
 
 def test_ctrl_c_mid_run(simulator, tmp_path):

@@ -386,9 +386,8 @@ def cmd_init(args) -> int:
     from ..experiment.init import write_config
 
     if args.list:
-        from ..model.robot import example_robot_names
-
         from ..data import robot_names
+        from ..model.robot import example_robot_names
 
         about = {"planar3": "the paper's arm", "fr3": "Franka Research 3, franka_description"}
         for name in sorted(robot_names(), key=lambda x: x != "planar3"):
@@ -860,6 +859,7 @@ def cmd_franka(args) -> int:
         max_move=args.max_move,
         model_tolerance=args.model_tolerance,
         thresholds=thresholds,
+        inner_law=args.inner_law,
     )
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     out = _out_dir(args.out)

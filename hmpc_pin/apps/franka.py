@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..exceptions import ConfigError
 from ..experiment.build import Experiment, realtime_parts
 from ..experiment.config import ExperimentConfig
 from ..realtime.franka import (
@@ -74,6 +75,8 @@ class FrankaOptions:
         model_tolerance: Relative tolerance of the mass-matrix check.
         thresholds: ``(lower, upper)`` joint torque collision thresholds [N·m] or ``None``.
         ramp: Cycles of the command's ramp-in.
+        inner_law: ``"every-cycle"`` (Eq 4 and the observer every cycle, the MPC every
+            ``Ts``) or ``"held"`` (the whole step every ``Ts``, its torque held).
     """
 
     def __init__(
@@ -85,15 +88,23 @@ class FrankaOptions:
         model_tolerance: float = 0.10,
         thresholds=None,
         ramp: int = 100,
+        inner_law: str = "every-cycle",
     ):
         self.address, self.realtime, self.recover = address, realtime, recover
         self.max_move, self.model_tolerance = float(max_move), float(model_tolerance)
         self.thresholds, self.ramp = thresholds, int(ramp)
+        if inner_law not in ("every-cycle", "held"):
+            raise ConfigError("--inner-law", f"expected every-cycle or held, got {inner_law!r}")
+        self.inner_law = inner_law
 
 
-def franka_parts(experiment: Experiment):
+def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
     """The loop settings (1 kHz), the driver's own limits (inside the URDF's), the safe
-    torque (the inertia brake without gravity) and the controller without G(q).
+    torque (the inertia brake without gravity) and the controller without G(q): with
+    ``inner_law = "every-cycle"`` and ``Ts`` > 1 ms, a
+    :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle` (the MPC every ``Ts``, Eq 4
+    and the observer every cycle) where it applies (the hierarchical MPC with an observer
+    and no declared latency), else the torque held between the MPC's steps.
 
     Raises:
         ConfigError: 1 kHz does not divide the controller period, or the brake settings.
@@ -120,7 +131,28 @@ def franka_parts(experiment: Experiment):
         effort_limit=FRANKA_TORQUE_LIMIT,
         brake_time=safe.brake_time,
     )
-    return loop_settings, safety, safe, GravityByArm(experiment.controller, robot)
+    ctrl = experiment.controller
+    cc = experiment.config.controller
+    if inner_law == "every-cycle" and _inner_law_applies(ctrl, loop_settings.period):
+        from ..experiment.controllers import make_compensation
+        from ..realtime.franka.rates import InnerLawEveryCycle
+
+        fast = make_compensation(robot, replace(cc, Ts=loop_settings.period), experiment.q0)
+        ctrl = InnerLawEveryCycle(ctrl, fast, loop_settings.period, FRANKA_TORQUE_LIMIT)
+    return loop_settings, safety, safe, GravityByArm(ctrl, robot)
+
+
+def _inner_law_applies(ctrl, period: float) -> bool:
+    """The hierarchical MPC, ``Ts`` above the arm's period, an observer, no latency."""
+    from ..compensation.base import NoCompensation
+    from ..controllers.hierarchical import HierarchicalMPC
+
+    return (
+        isinstance(ctrl, HierarchicalMPC)
+        and ctrl.Ts > period * 1.5
+        and not isinstance(ctrl.compensation, NoCompensation)
+        and not (ctrl.latency or 0.0) > 0
+    )
 
 
 def _check_robot(arm: FrankaArm, experiment: Experiment, options: FrankaOptions) -> dict:
@@ -178,7 +210,14 @@ def run_franka(
     """
     stem = (stem or config.name) + "_franka"
     experiment = Experiment.from_config(config) if experiment is None else experiment
-    loop_settings, safety, safe, ctrl = franka_parts(experiment)
+    loop_settings, safety, safe, ctrl = franka_parts(experiment, options.inner_law)
+    inner_law = (
+        "every cycle"
+        if type(ctrl.controller).__name__ == "InnerLawEveryCycle"
+        else (
+            "whole step every cycle" if experiment.controller.Ts < 1.5e-3 else "held between steps"
+        )
+    )
     if controller_wrapper is not None:
         ctrl = controller_wrapper(ctrl)
     K = round(loop_settings.duration * loop_settings.rate)
@@ -191,7 +230,11 @@ def run_franka(
         capacity=capacity,
     )
     names = tuple(experiment.robot.joint_names)
-    summary: dict = {"address": options.address, "realtime": options.realtime}
+    summary: dict = {
+        "address": options.address,
+        "realtime": options.realtime,
+        "inner_law": inner_law,
+    }
     summary["checks"] = _check_robot(arm, experiment, options)
     if options.thresholds is not None:
         lower, upper = options.thresholds
@@ -368,6 +411,14 @@ def franka_arguments(parser) -> None:
         "by more than F times its diagonal entry [0.10]",
     )
     parser.add_argument(
+        "--inner-law",
+        choices=("every-cycle", "held"),
+        default="every-cycle",
+        help="with Ts > 1 ms: inverse dynamics and observer every 1 ms cycle from the MPC's "
+        "latest output (every-cycle), or the whole step's torque held for Ts (held) "
+        "[every-cycle]",
+    )
+    parser.add_argument(
         "--thresholds",
         type=Path,
         metavar="JSON",
@@ -386,8 +437,6 @@ def load_thresholds(path: Path) -> tuple[list[float], list[float]]:
         ConfigError: The file is missing, not JSON, or has no 7 positive thresholds.
     """
     import json
-
-    from ..exceptions import ConfigError
 
     try:
         data = json.loads(Path(path).read_text())

@@ -48,8 +48,8 @@ def _unmodelled(result: Result) -> str:
     from ..exceptions import HmpcError
 
     source = result.meta.get("config")
-    if not source or not Path(source).is_file():
-        return ""
+    if not source or not Path(source).is_file() or "franka" in result.meta:
+        return ""  # (on a Franka arm the config's simulated disturbances are not applied)
     try:
         pulse = load_config(source).disturbance.pulse
     except HmpcError:

@@ -76,6 +76,7 @@ def main() -> int:
     parser.add_argument("--robot-ip", default=None)
     parser.add_argument("--realtime", default="ignore", choices=("enforce", "ignore"))
     parser.add_argument("--ts", type=float, default=None, help="controller period [s]")
+    parser.add_argument("--inner-law", default="every-cycle", choices=("every-cycle", "held"))
     args = parser.parse_args()
 
     from hmpc_pin.apps.franka import FrankaOptions, run_franka
@@ -90,7 +91,9 @@ def main() -> int:
     proc = _start_simulator() if args.robot_ip is None else None
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            options = FrankaOptions(args.robot_ip or "127.0.0.1", realtime=args.realtime)
+            options = FrankaOptions(
+                args.robot_ip or "127.0.0.1", realtime=args.realtime, inner_law=args.inner_law
+            )
             run, _, summary = run_franka(config, options, Path(tmp))
             cycles = dict(np.load(Path(tmp) / f"{config.name}_franka_cycles.npz"))
     finally:
@@ -103,7 +106,9 @@ def main() -> int:
     compute = cycles["compute"]
     m = round(config.controller.Ts / 1e-3)
     mpc = np.zeros(compute.size, dtype=bool)
-    rows = np.rint((run.result.t + 1e-3) / 1e-3).astype(int)  # the loop's cycle k is row k+1
+    k = np.rint(run.result.t / 1e-3).astype(int)
+    k = k[k % m == 0]  # the MPC's cycles (the record may hold every cycle)
+    rows = k + 1  # the loop's cycle k answered the robot state of row k + 1
     mpc[rows[rows < compute.size]] = True
     keep = run.result.t >= 1.0
     rms = np.sqrt(np.mean((run.result.q[keep] - run.result.q_ref[keep]) ** 2, axis=0))
@@ -112,6 +117,7 @@ def main() -> int:
         f"config {config.name}, Ts = {config.controller.Ts:g} s (MPC every {m} cycles), "
         f"{args.duration:g} s, against {args.robot_ip or 'franky-sim (started here)'}"
     )
+    print(f"  inner law: {summary['inner_law']}")
     print(f"  stop: {'complete' if run.complete else run.stop['cause']}")
     print(f"  compute readOnce->writeOnce [us], all cycles: {_stats(compute)}")
     print(f"  MPC cycles: {_stats(compute[mpc])}")

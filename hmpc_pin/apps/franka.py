@@ -359,6 +359,7 @@ def format_driver(summary: dict) -> str:
         + ", compute readOnce->writeOnce [us] "
         + ("n/a" if p50 is None else f"p50 {p50:.0f}, p99 {p99:.0f}")
     )
+    line += f"; inner law {summary.get('inner_law', 'n/a')}"
     if end:
         line += f"; ended in mode {end['mode']}, max |dq| {end['speed']:.2g} rad/s"
     return line

@@ -56,22 +56,31 @@ def _raise_priority() -> None:
         os.nice(-10)
 
 
-@pytest.fixture(scope="session")
-def simulator():
-    """franky-sim on 127.0.0.1:1337, started here and stopped by its pid."""
-    deadline = time.monotonic() + 120.0
-    while _port_open():  # another simulator (another test session): wait for it to end
-        if time.monotonic() > deadline:
-            pytest.fail("127.0.0.1:1337 stayed busy for 120 s (another FCI simulator runs)")
-        time.sleep(1.0)
-    proc = subprocess.Popen(
-        [sys.executable, "-c", "from franky_sim.run_server import main; main()", "-s", "mujoco"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        start_new_session=True,
-        preexec_fn=_raise_priority,
-    )
-    try:
+class _Simulator:
+    """franky-sim in its own process, started and stopped by its pid."""
+
+    def __init__(self):
+        self.proc: subprocess.Popen | None = None
+
+    def start(self) -> None:
+        deadline = time.monotonic() + 120.0
+        while _port_open():  # another simulator (another test session): wait for it to end
+            if time.monotonic() > deadline:
+                pytest.fail("127.0.0.1:1337 stayed busy for 120 s (another FCI simulator runs)")
+            time.sleep(1.0)
+        self.proc = proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                "from franky_sim.run_server import main; main()",
+                "-s",
+                "mujoco",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            start_new_session=True,
+            preexec_fn=_raise_priority,
+        )
         deadline = time.monotonic() + 60.0
         while not _port_open():
             if proc.poll() is not None:
@@ -79,14 +88,28 @@ def simulator():
             if time.monotonic() > deadline:
                 pytest.fail("franky-sim did not listen on 127.0.0.1:1337 within 60 s")
             time.sleep(0.2)
-        yield proc
-    finally:
-        proc.send_signal(signal.SIGINT)
+
+    def stop(self, sig=signal.SIGINT) -> None:
+        proc, self.proc = self.proc, None
+        if proc is None or proc.poll() is not None:
+            return
+        proc.send_signal(sig)
         try:
             proc.wait(10.0)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(10.0)
+
+
+@pytest.fixture(scope="session")
+def simulator():
+    """franky-sim on 127.0.0.1:1337, started here and stopped by its pid."""
+    sim = _Simulator()
+    sim.start()
+    try:
+        yield sim
+    finally:
+        sim.stop()
 
 
 def _config(tmp_path: Path, duration: float, observer: bool = True, Ts: float = 0.01):
@@ -353,3 +376,37 @@ def test_without_pylibfranka_or_a_robot_one_line_exit_2(tmp_path):
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr
     assert "no Franka arm answers at '127.0.0.2'" in done.stderr
+
+
+def test_connection_lost_mid_run_keeps_the_data(simulator, tmp_path):
+    """The simulator killed mid-run (by its pid) as a cable pulled: NetworkException, the
+    stop's cause "network", the data up to it kept, nothing sent after it."""
+    import threading
+
+    def pull_the_cable() -> None:
+        time.sleep(1.0)
+        simulator.stop(signal.SIGKILL)
+
+    config = _config(tmp_path, 20.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    try:
+        run, files, summary = run_franka(
+            config,
+            FrankaOptions(HOST, realtime="ignore"),
+            out,
+            ready=lambda: threading.Thread(target=pull_the_cable, daemon=True).start(),
+        )
+    finally:
+        simulator.stop()
+        simulator.start()  # for the tests after this one
+    assert run.stop["cause"] == "network"
+    assert "network" in run.stop["reason"] and summary["fault"]["cause"] == "network"
+    assert 0.1 < run.stop["t"] < 15.0
+    assert summary["end"] == {}  # nothing could be sent after it
+    cycles = summary_cycles(files)
+    sent = cycles["sent"]
+    assert sent.sum() > 50
+    last = np.flatnonzero(sent)[-1]
+    assert last <= summary["fault"]["cycle"]  # no command after the fault
+    assert np.isfinite(run.result.q).all() and len(run.result.t) > 50

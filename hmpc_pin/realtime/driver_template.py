@@ -1,5 +1,9 @@
 """A template for a real arm's driver (pylibfranka style). NOT RUN ON HARDWARE.
 
+Superseded by :class:`~hmpc_pin.realtime.franka.FrankaArm` (``hmpc-pin franka``: the
+command filter, the checks before the motion, the stop sequence, run against the FCI
+simulator); kept for the UR notes below and for code that imports it.
+
 This file has never been connected to a robot: it was written from pylibfranka's
 documented API (``Robot(ip)``, ``start_torque_control()``, ``ActiveControl.readOnce()``
 returning ``(RobotState, Duration)``, ``writeOnce(Torques)``, ``Robot.stop()``) and is

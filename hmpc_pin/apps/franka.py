@@ -28,6 +28,7 @@ its extra arrays), ``<stem>_franka_timing.npz`` (the loop's cycles),
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 from dataclasses import replace
@@ -279,7 +280,13 @@ def run_franka(
         run = loop.run()
     finally:
         sys.setswitchinterval(switch)
-        end = arm.finish() if arm.fault is None else {}
+        with _SigintDeferred() as deferred:  # the ramp to zero is not cut short
+            end = arm.finish() if arm.fault is None else {}
+    if deferred["count"] and run.stop is None:
+        run.stop = {"cause": "interrupted", "reason": "interrupted (Ctrl-C) at the end", "t": 0.0}
+        run.stop["t"] = float(run.result.t[-1]) if len(run.result.t) else 0.0
+        run.stop["safe_tau"] = None
+        run.result.meta["stop"] = run.stop
     if arm.fault is not None and options.recover:
         arm.recover()
         arm.fault["recovered"] = True
@@ -290,6 +297,25 @@ def run_franka(
     files = save_run(run, out, stem, "franka")
     files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
     return run, files, summary
+
+
+class _SigintDeferred:
+    """Within the block a Ctrl-C is counted, not raised (``deferred["count"]``); outside
+    the main thread nothing changes."""
+
+    def __enter__(self) -> dict:
+        self.state = {"count": 0}
+        self._old = None
+        with contextlib.suppress(ValueError):  # not the main thread
+            self._old = signal.signal(signal.SIGINT, self._count)
+        return self.state
+
+    def _count(self, signum, frame) -> None:
+        self.state["count"] += 1
+
+    def __exit__(self, *exc) -> None:
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
 
 
 def _driver_summary(arm: FrankaArm, end: dict) -> dict:
@@ -317,8 +343,13 @@ def _record_fault(run: RealtimeRun, arm: FrankaArm) -> None:
     """A reflex or a lost connection as the run's stop (the loop saw only the states
     stop coming)."""
     fault = arm.fault
-    if fault is None or run.stop is None:
+    if fault is None:
         return
+    if run.stop is None:  # during the ramp to zero, after the loop's last cycle
+        t = float(run.result.t[-1]) if len(run.result.t) else 0.0
+        run.stop = {"cause": fault["cause"], "t": t, "safe_tau": None}
+        run.result.meta["stop"] = run.stop
+        run.result.complete = False
     if fault["cause"] == "reflex":
         errors = ", ".join(fault.get("last_motion_errors") or []) or fault["message"]
         reason = f"reflex: the robot aborted the motion ({errors}); nothing could be sent after it"

@@ -168,18 +168,40 @@ class FrankaArm:
         self._closed = False
 
     # ------------------------------------------------------------------ before the motion
+    def _errors(self) -> tuple:
+        """pylibfranka's exception classes."""
+        f = self._franka
+        return (
+            f.ControlException,
+            f.NetworkException,
+            f.CommandException,
+            f.InvalidOperationException,
+            f.RealtimeException,
+            f.FrankaException,
+        )
+
+    def _call(self, what: str, fn, *args):
+        """``fn(*args)``, a pylibfranka error as :class:`ArmError` naming ``what``."""
+        try:
+            return fn(*args)
+        except self._errors() as exc:
+            raise ArmError(f"{what} failed on the robot at {self.address!r}: {exc}") from None
+
     def read_state(self):
         """The robot's state, outside a motion (``Robot.read_once``)."""
-        return self.robot.read_once()
+        return self._call("reading the state", self.robot.read_once)
 
     def model_mass(self, state) -> FloatArray:
         """:math:`M(q)` [kg·m²], (7, 7), of the robot's own model (``load_model().mass``)."""
-        return np.array(self.robot.load_model().mass(state), dtype=float).reshape(7, 7, order="F")
+        model = self._call("loading the robot's model", self.robot.load_model)
+        return np.array(model.mass(state), dtype=float).reshape(7, 7, order="F")
 
     def set_collision_behavior(self, lower, upper) -> None:
         """Send joint torque collision thresholds [N·m] (each (7,)); the Cartesian force
         thresholds are set to the robot's defaults' scale, 20 and 40 N (N·m)."""
-        self.robot.set_collision_behavior(
+        self._call(
+            "set_collision_behavior",
+            self.robot.set_collision_behavior,
             [float(x) for x in lower],
             [float(x) for x in upper],
             [20.0] * 6,
@@ -188,7 +210,7 @@ class FrankaArm:
 
     def recover(self) -> None:
         """``automatic_error_recovery()``: leave Reflex for Idle."""
-        self.robot.automatic_error_recovery()
+        self._call("automatic_error_recovery", self.robot.automatic_error_recovery)
 
     def move_to(self, q1, duration: float, on_interrupt=None) -> dict:
         """Move by the quintic of :mod:`.move` from where the arm stands to ``q1`` [rad]
@@ -204,7 +226,11 @@ class FrankaArm:
         from .move import quintic
 
         franka = self._franka
-        control = self.robot.start_joint_position_control(franka.ControllerMode.JointImpedance)
+        control = self._call(
+            "starting joint position control",
+            self.robot.start_joint_position_control,
+            franka.ControllerMode.JointImpedance,
+        )
         t = 0.0
         q0 = None
         cycles = 0
@@ -227,13 +253,13 @@ class FrankaArm:
                 cycles += 1
                 if done:
                     break
-        except (franka.ControlException, franka.NetworkException) as exc:
+        except self._errors() as exc:
             raise ArmError(
                 f"the move to the reference's start was aborted by the robot: {exc}"
             ) from None
         finally:
             del control
-        state = self.robot.read_once()
+        state = self.read_state()
         return {
             "duration": t,
             "cycles": cycles,
@@ -244,7 +270,7 @@ class FrankaArm:
     # ------------------------------------------------------------------ the motion
     def start(self) -> None:
         """Start torque control and take the first state (answered by a zero command)."""
-        self._control = self.robot.start_torque_control()
+        self._control = self._call("starting torque control", self.robot.start_torque_control)
         self.filter.reset()
         self._cycle = -1
         self._request[:] = 0.0
@@ -373,7 +399,10 @@ class FrankaArm:
         if self.fault is not None:
             return {}
         time.sleep(0.05)  # the robot leaves Move for Idle after the motion's end
-        state = self.robot.read_once()
+        try:
+            state = self.robot.read_once()
+        except self._errors() as exc:  # the run is kept: say what could not be read
+            return {"cycles": cycles, "mode": "unknown", "speed": float("nan"), "error": str(exc)}
         return {
             "cycles": cycles,
             "mode": state.robot_mode.name,

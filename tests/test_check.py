@@ -55,7 +55,7 @@ def test_a_fine_config_passes_with_its_figures(capsys, tmp_path):
     path = tmp_path / "fine.toml"
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").resolve().as_posix()
     path.write_text(PAPER.read_text().replace("gain = 100.0", "gain = 3.0")
-                    .replace('"../robots/planar3.urdf"', f'"{urdf}"'))  # fmt: skip
+                    .replace('model = "planar3"', f'urdf = "{urdf}"'))  # fmt: skip
     assert main(["check", str(path)]) == 0
     out = capsys.readouterr().out
     assert "no problem found" in out and "joint3" in out
@@ -70,8 +70,8 @@ def test_a_joint_without_an_effort_limit_has_no_headroom(tmp_path):
     second = [i for i, line in enumerate(lines) if 'effort="10000"' in line][1]
     lines[second] = lines[second].replace('effort="10000"', 'effort="0"')
     (tmp_path / "free2.urdf").write_text("".join(lines))
-    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
-                                     f'"{(tmp_path / "free2.urdf").as_posix()}"')  # fmt: skip
+    text = PAPER.read_text().replace('model = "planar3"',
+                                     f'urdf = "{(tmp_path / "free2.urdf").as_posix()}"')  # fmt: skip
     (tmp_path / "free2.toml").write_text(text)
     report = check_config(load_config(tmp_path / "free2.toml"), engines=False)
     assert np.isinf(report.headroom[1])
@@ -318,8 +318,8 @@ def test_the_engines_differences_are_relative(tmp_path):
 
     heavy = re.sub(r'\b(value|ixx|ixy|ixz|iyy|iyz|izz)="([^"]+)"', heavier, urdf)
     (tmp_path / "heavy.urdf").write_text(heavy)
-    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
-                                     f'"{(tmp_path / "heavy.urdf").as_posix()}"')  # fmt: skip
+    text = PAPER.read_text().replace('model = "planar3"',
+                                     f'urdf = "{(tmp_path / "heavy.urdf").as_posix()}"')  # fmt: skip
     (tmp_path / "heavy.toml").write_text(text)
     config = load_config(tmp_path / "heavy.toml")
     ex = Experiment.from_config(config)
@@ -711,7 +711,7 @@ def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path,
     assert bad in text
     urdf = tmp_path / "arm.urdf"
     urdf.write_text(text)
-    config = PAPER.read_text().replace('"../robots/planar3.urdf"', f'"{urdf.as_posix()}"')
+    config = PAPER.read_text().replace('model = "planar3"', f'urdf = "{urdf.as_posix()}"')
     path = tmp_path / "arm.toml"
     path.write_text(config.replace("gain = 100.0", "gain = 3.0"))
     assert main(["check", str(path)]) == 0  # the Pinocchio plant: a warning

@@ -70,7 +70,7 @@ def test_replay_out_that_is_a_directory(tmp_path, capsys):
 # ------------------------------------------------------------------ applied torque
 def _saturating_config(write_config, limit: str) -> str:
     text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
-    text = text.replace('urdf = "../robots/planar3.urdf"', 'urdf = "@URDF@"')
+    text = text.replace('model = "planar3"', 'urdf = "@URDF@"')
     text = text.replace('integrator = "rk4"', f'integrator = "rk4"\neffort_limit = {limit}')
     return str(write_config(text))
 

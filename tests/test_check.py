@@ -70,8 +70,8 @@ def test_a_joint_without_an_effort_limit_has_no_headroom(tmp_path):
     second = [i for i, line in enumerate(lines) if 'effort="10000"' in line][1]
     lines[second] = lines[second].replace('effort="10000"', 'effort="0"')
     (tmp_path / "free2.urdf").write_text("".join(lines))
-    text = PAPER.read_text().replace('model = "planar3"',
-                                     f'urdf = "{(tmp_path / "free2.urdf").as_posix()}"')  # fmt: skip
+    urdf = (tmp_path / "free2.urdf").as_posix()
+    text = PAPER.read_text().replace('model = "planar3"', f'urdf = "{urdf}"')
     (tmp_path / "free2.toml").write_text(text)
     report = check_config(load_config(tmp_path / "free2.toml"), engines=False)
     assert np.isinf(report.headroom[1])
@@ -318,8 +318,8 @@ def test_the_engines_differences_are_relative(tmp_path):
 
     heavy = re.sub(r'\b(value|ixx|ixy|ixz|iyy|iyz|izz)="([^"]+)"', heavier, urdf)
     (tmp_path / "heavy.urdf").write_text(heavy)
-    text = PAPER.read_text().replace('model = "planar3"',
-                                     f'urdf = "{(tmp_path / "heavy.urdf").as_posix()}"')  # fmt: skip
+    urdf = (tmp_path / "heavy.urdf").as_posix()
+    text = PAPER.read_text().replace('model = "planar3"', f'urdf = "{urdf}"')
     (tmp_path / "heavy.toml").write_text(text)
     config = load_config(tmp_path / "heavy.toml")
     ex = Experiment.from_config(config)

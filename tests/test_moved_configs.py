@@ -15,8 +15,8 @@ import hmpc_pin
 from hmpc_pin import load_config
 from hmpc_pin.apps.cli import main
 from hmpc_pin.data import config_path
-from hmpc_pin.experiment.config.write import write_config
 from hmpc_pin.exceptions import ConfigError
+from hmpc_pin.experiment.config.write import write_config
 
 from .conftest import CONFIGS
 

@@ -1,5 +1,6 @@
 """Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
-check | realtime | identify | tune | ros | ros-arm`` (also ``python -m hmpc_pin``).
+check | realtime | identify | tune | ros | ros-arm | configs | examples | native`` (also
+``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback, checked before any run: no output file), 1 when a run fails (e.g.
@@ -27,6 +28,7 @@ from ..exceptions import (
     SimulationError,
     VizError,
 )
+from .packaged import CONFIG_HELP
 
 if TYPE_CHECKING:
     from ..experiment.config import ExperimentConfig
@@ -600,7 +602,7 @@ def _run_arguments(run) -> None:
         "Run one experiment: print the metrics table; write .npz, .csv and PNG "
         "figures (tracking, disturbance estimate, log tracking error)."
     )
-    run.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    run.add_argument("config", type=Path, help=CONFIG_HELP)
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     run.add_argument(
         "--no-ndo",
@@ -669,7 +671,7 @@ def _compare_arguments(cmp_) -> None:
         "(tracking error, settling, observer error, effort, chattering, constraint "
         "violations, step time) and figures."
     )
-    cmp_.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    cmp_.add_argument("config", type=Path, help=CONFIG_HELP)
     cmp_.add_argument(
         "--controllers",
         help="comma-separated controllers, each controller+compensation (e.g. hmpc+momentum) "
@@ -695,7 +697,7 @@ def _reproduce_arguments(rep) -> None:
         "--configs",
         type=Path,
         default=None,
-        help="directory holding the paper_*.toml configs [the repository's configs/]",
+        help="directory holding the paper_*.toml configs [the packaged ones]",
     )
     rep.add_argument("--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=cmd_reproduce)
@@ -714,7 +716,7 @@ def _sweep_arguments(swp) -> None:
         "DIR/<name>_sweep.csv (one row per sample, variant and condition) and "
         "DIR/<name>_sweep.md (summary), and print the summary."
     )
-    swp.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    swp.add_argument("config", type=Path, help=CONFIG_HELP)
     swp.add_argument("--samples", type=int, default=100, help="number of samples K [100]")
     swp.add_argument("--seed", type=int, default=0, help="root seed [0]")
     swp.add_argument("--jobs", type=int, default=None, help="worker processes [all cores]")
@@ -787,7 +789,7 @@ def _check_arguments(chk) -> None:
         "change that fixes it), a warning what matters on a real arm. Exit 0 when no "
         "problem is found, 1 with one line per problem, 2 on bad input."
     )
-    chk.add_argument("config", type=Path, help="experiment TOML file")
+    chk.add_argument("config", type=Path, help=CONFIG_HELP)
     chk.add_argument(
         "--no-engine", action="store_true", help="do not compare the model against MuJoCo"
     )
@@ -804,7 +806,7 @@ def _realtime_arguments(rt) -> None:
         "compensation + damping) on Ctrl-C (exit 130), a fault, k consecutive missed "
         "deadlines or a watchdog timeout (exit 1), the run saved with complete = false."
     )
-    rt.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    rt.add_argument("config", type=Path, help=CONFIG_HELP)
     rt.add_argument("--rate", type=float, help="interface rate [Hz] (overrides realtime.rate)")
     rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     rt.add_argument(
@@ -849,6 +851,20 @@ def _ros_arm_arguments(arm) -> None:
 
     ros_arm_arguments(arm)
     arm.set_defaults(func=cmd_ros_arm)
+
+
+def _configs_arguments(cfg) -> None:
+    """``hmpc-pin configs`` (:mod:`hmpc_pin.apps.packaged`)."""
+    from .packaged import configs_arguments
+
+    configs_arguments(cfg)
+
+
+def _examples_arguments(exa) -> None:
+    """``hmpc-pin examples`` (:mod:`hmpc_pin.apps.packaged`)."""
+    from .packaged import examples_arguments
+
+    examples_arguments(exa)
 
 
 def _native_arguments(nat) -> None:
@@ -906,6 +922,14 @@ COMMANDS = {
     "ros-arm": (
         "run the config's plant as a ROS 2 node (joint states out, efforts in; extra: ros)",
         _ros_arm_arguments,
+    ),
+    "configs": (
+        "list the packaged configs, or write an editable copy of one",
+        _configs_arguments,
+    ),
+    "examples": (
+        "list the packaged example scripts, or write a copy of one",
+        _examples_arguments,
     ),
     "native": (
         "report the compiled core (built when the package was installed)",

@@ -84,3 +84,25 @@ def test_no_help_points_at_a_clones_folder():
         text = sub.choices[name].format_help()
         assert "configs/" not in text and "examples/" not in text, name
     assert "packaged config" in sub.choices["run"].format_help()
+
+
+def test_the_readme_links_absolutely_to_pages_that_exist():
+    """The README is the wheel's long description (shown away from the repository): every
+    link is absolute; a link into the documentation site names a page of docs/, a link
+    into the repository a file of it; both sites are the pyproject's Project-URLs."""
+    import re
+
+    urls = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]["urls"]
+    docs, source = urls["Documentation"], urls["Source"]
+    assert docs.startswith("https://") and source.startswith("https://github.com/")
+    links = re.findall(r"\]\(([^)\s]+)\)", (ROOT / "README.md").read_text(encoding="utf-8"))
+    assert len(links) > 15
+    relative = [u for u in links if not u.startswith("https://")]
+    assert not relative, relative
+    for url in links:
+        if url.startswith(docs):
+            page = url[len(docs) :].removesuffix(".html")
+            assert (ROOT / "docs" / f"{page}.md").is_file(), url
+        elif url.startswith(source):
+            path = re.sub(r"^/(blob|raw)/main/", "", url[len(source) :])
+            assert (ROOT / path).is_file(), url

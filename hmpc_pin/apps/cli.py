@@ -973,6 +973,19 @@ def _print_warning(message, category, filename, lineno, file=None, line=None) ->
     print(f"warning: {message}", file=sys.stderr)
 
 
+#: Config keys a command-line option overrides: a value refused once built (e.g. a
+#: duration too long for the memory) is named by the option the user typed.
+OPTION_KEYS = {"simulation.duration": "--duration"}
+
+
+def _as_option(exc: HmpcError, argv: list[str]) -> HmpcError:
+    """``exc``, naming the option instead of the config key when the value came from it."""
+    option = OPTION_KEYS.get(getattr(exc, "key", ""))
+    if option is None or not any(a == option or a.startswith(option + "=") for a in argv):
+        return exc
+    return ConfigError(option, exc.message)  # type: ignore[attr-defined]
+
+
 def main(argv=None) -> int:
     """Entry point of ``hmpc-pin``; returns the exit code."""
     import warnings
@@ -1005,7 +1018,7 @@ def main(argv=None) -> int:
         if isinstance(exc, SimulationError):  # a run failure, not bad input
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_FAILED
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {_as_option(exc, argv)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     finally:
         _startup.restore(previous)

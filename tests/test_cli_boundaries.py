@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import re
 
-import numpy as np
 import pytest
 
 import hmpc_pin
@@ -46,3 +45,65 @@ def test_the_library_refuses_the_same_duration_before_allocating():
     ex = hmpc_pin.Experiment.from_config(hmpc_pin.load_config("paper_combined"))
     with pytest.raises(ConfigError, match=r"^duration: "):
         ex.run(duration=1e9)
+
+
+# ------------------------------------------------------------- Ctrl-C of a sweep's pool
+class _CtrlCOnFirstRow:
+    """A progress bar whose first update is a Ctrl-C (as one arriving in the loop)."""
+
+    def update(self):
+        raise KeyboardInterrupt
+
+
+def test_a_stopped_pool_leaves_no_manager_thread_for_the_exit_hook():
+    """After a Ctrl-C the pool's manager thread is joined before the interrupt goes on:
+    left running, it closed its wake-up pipe while concurrent.futures' exit hook wrote to
+    it (no lock in CPython 3.11): ``OSError: Bad file descriptor`` at exit, 1 time in 8."""
+    import concurrent.futures.process as cfp
+
+    from hmpc_pin.apps.sweep import _run_pool, draw_samples
+
+    config = hmpc_pin.load_config("paper_combined")
+    from dataclasses import replace
+
+    config = replace(config, simulation=replace(config.simulation, duration=0.2))
+    params = draw_samples(config, 2, 0)
+    tasks = [(p, "ndo", "all") for p in params]
+    with pytest.raises(KeyboardInterrupt):
+        _run_pool(config, tasks, 2, {}, _CtrlCOnFirstRow())
+    alive = [t for t in list(cfp._threads_wakeups) if t.is_alive()]
+    assert not alive, alive
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("after", [1, 3, 5, 6])
+def test_ctrl_c_of_a_two_job_sweep_at_any_stage_prints_no_traceback(tmp_path, after):
+    """A real SIGINT to the process group of ``hmpc-pin sweep --jobs 2`` once ``after``
+    of its 6 runs are done (6: while it shuts its pool down and writes)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    err = open(tmp_path / "err.txt", "w+", encoding="utf-8")  # noqa: SIM115
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hmpc_pin", "sweep", "paper_combined", "--samples", "3",
+         "--jobs", "2", "--duration", "0.5", "--out", "o"],
+        stdout=subprocess.PIPE, stderr=err, text=True, start_new_session=True, cwd=tmp_path,
+    )  # fmt: skip
+    end = time.monotonic() + 300
+    while time.monotonic() < end and proc.poll() is None:
+        err.seek(0)
+        done = re.findall(r"\| *(\d+)/6 ", err.read())
+        if done and int(done[-1]) >= after:
+            break
+        time.sleep(0.02)
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+    proc.communicate(timeout=60)
+    err.seek(0)
+    text = err.read()
+    err.close()
+    assert "Traceback" not in text and "Bad file descriptor" not in text, text[-3000:]
+    assert proc.returncode in (0, 130, -signal.SIGINT), (proc.returncode, text[-2000:])

@@ -107,3 +107,40 @@ def test_ctrl_c_of_a_two_job_sweep_at_any_stage_prints_no_traceback(tmp_path, af
     err.close()
     assert "Traceback" not in text and "Bad file descriptor" not in text, text[-3000:]
     assert proc.returncode in (0, 130, -signal.SIGINT), (proc.returncode, text[-2000:])
+
+
+# ------------------------------------------------- a recorded run as a trajectory reference
+def test_a_saved_run_is_a_trajectory_reference_through_its_measured_samples(tmp_path):
+    """A run's .npz (t, q, dq, joint_names as the trajectory tutorial asks, plus the run's
+    other arrays) was refused ("unknown array 'complete'"); the reference passes through
+    its measured samples (an interpolant through its knots), a stopped run's NaN tail cut."""
+    import numpy as np
+
+    from hmpc_pin.tasks.trajectory import load_trajectory
+
+    result = hmpc_pin.Experiment.from_config(hmpc_pin.load_config("paper_combined")).run(0.5)
+    path = result.save(tmp_path / "rec.npz")
+    names = list(result.joint_names)
+    traj = load_trajectory(path, names[::-1])  # matched by name, any order
+    for k in (0, 7, len(result.t) // 2, len(result.t) - 2):  # (the last point: held)
+        q, dq = traj.sample(float(result.t[k]))
+        np.testing.assert_allclose(q, result.q[k][::-1], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dq, result.dq[k][::-1], rtol=0, atol=1e-9)
+    # a run stopped after 20 samples: NaN afterwards, as a partial run keeps them
+    with np.load(path) as f:
+        arrays = {k: f[k] for k in f.files}
+    for key in ("q", "dq"):
+        arrays[key] = arrays[key].copy()
+        arrays[key][20:] = np.nan
+    arrays["complete"] = np.array(False)
+    np.savez(tmp_path / "stopped.npz", **arrays)
+    stopped = load_trajectory(tmp_path / "stopped.npz", names)
+    np.testing.assert_allclose(stopped.sample(float(result.t[30]))[0], result.q[19], atol=1e-12)
+
+
+def test_run_takes_a_saved_run_as_reference(tmp_path, capsys):
+    run = ["run", "paper_combined", "--duration", "0.3", "--no-figures", "--out"]
+    assert main([*run, str(tmp_path / "a")]) == 0
+    recorded = str(tmp_path / "a" / "paper_combined.npz")
+    code = main([*run, str(tmp_path / "b"), "--reference", recorded])
+    assert code == 0, capsys.readouterr().err

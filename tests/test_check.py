@@ -108,9 +108,10 @@ def test_the_papers_fast_observer_is_a_warning_for_an_arm_naming_each_joint(caps
     rule's 20 1/s for one undeclared period of latency (Ts = 10 ms, r = 1.25). ``run``
     simulates no latency (the paper's setting): one warning for an arm, exit 0."""
     assert main(["check", str(PAPER), "--no-engine"]) == 0
-    out = capsys.readouterr().out
-    lines = [x for x in out.splitlines() if x.startswith("warning:")]
+    out, err = capsys.readouterr()
+    lines = [x for x in err.splitlines() if x.startswith("warning:")]  # on stderr, as run's
     assert len(lines) == 1 and not any(x.startswith("problem:") for x in out.splitlines())
+    assert "warning:" not in out
     # each joint with its bandwidth (cY M^-1)_jj from CRBA and w Ts, dimensionless
     ex = Experiment.from_config(load_config(PAPER))
     M0 = pin.crba(ex.robot.model, ex.robot.model.createData(), ex.q0)
@@ -715,8 +716,8 @@ def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path,
     path = tmp_path / "arm.toml"
     path.write_text(config.replace("gain = 100.0", "gain = 3.0"))
     assert main(["check", str(path)]) == 0  # the Pinocchio plant: a warning
-    out = capsys.readouterr().out.splitlines()
-    (line,) = [x for x in out if "MuJoCo cannot load" in x]
+    err = capsys.readouterr().err.splitlines()
+    (line,) = [x for x in err if "MuJoCo cannot load" in x]
     assert line.startswith("warning:")
     path.write_text(config.replace("gain = 100.0", "gain = 3.0")
                     .replace("dt = 0.001 ", 'engine = "mujoco"\n# dt = 0.001 ', 1)

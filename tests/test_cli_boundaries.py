@@ -144,3 +144,53 @@ def test_run_takes_a_saved_run_as_reference(tmp_path, capsys):
     recorded = str(tmp_path / "a" / "paper_combined.npz")
     code = main([*run, str(tmp_path / "b"), "--reference", recorded])
     assert code == 0, capsys.readouterr().err
+
+
+# ------------------------------------------------------ init: the plant step and --list
+def test_init_xarm7_says_how_to_trade_its_short_plant_step_and_the_trade_runs(tmp_path, capsys):
+    """xarm7's stiff joint damping makes init choose dt = 2e-5 s; init says so on stderr
+    with [plant] tolerance, and that tolerance works: its step is one the damping allows
+    (h b_j (M^-1)_jj <= 1.39 for RK4, from CRBA here), where before it chose a step the
+    damping check then refused."""
+    import numpy as np
+    import pinocchio as pin
+
+    out = tmp_path / "xarm7.toml"
+    assert main(["init", "xarm7", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    (note,) = [ln for ln in err.splitlines() if ln.startswith("note: the plant steps at dt")]
+    assert "2e-05" in note and "tolerance = 1e-4" in note and "joint_dynamics = false" in note
+    text = out.read_text(encoding="utf-8")
+    assert re.search(r"^dt = 2e-05$", text, re.M)
+    out.write_text(re.sub(r"^dt = 2e-05$", "tolerance = 1e-4", text, flags=re.M))
+    config = hmpc_pin.load_config(out)
+    ex = hmpc_pin.Experiment.from_config(config)
+    plant = ex.make_plant()
+    h = config.controller.Ts / plant.substeps
+    model = ex.robot.model
+    M = pin.crba(model, model.createData(), ex.q0)
+    M = np.triu(M) + np.triu(M, 1).T
+    lam = np.asarray(ex.robot.joint_damping) * np.diag(np.linalg.inv(M))
+    assert h * lam.max() <= 1.39 and h > 2e-5  # allowed, and longer than init's dt
+    assert ex.run(0.2).complete
+
+
+def test_init_list_names_the_floating_base_arms_too(capsys):
+    """so100 and so101 (arms example-robot-data mounts on a floating base) were left out."""
+    assert main(["init", "--list"]) == 0
+    names = [ln.split()[0] for ln in capsys.readouterr().out.splitlines()]
+    assert {"planar3", "ur5", "panda", "so100", "so101"} <= set(names)
+
+
+# ------------------------------------------------------------------- check's messages
+def test_check_of_a_saved_run_says_it_is_not_a_config(tmp_path, capsys):
+    result = hmpc_pin.Experiment.from_config(hmpc_pin.load_config("paper_combined")).run(0.05)
+    path = result.save(tmp_path / "run.npz")
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "utf-8" not in err[0] and "codec" not in err[0]
+    assert "is an .npz archive (a saved run or trajectory), not an experiment config" in err[0]
+    (tmp_path / "blob.toml").write_bytes(bytes(range(128, 256)))
+    assert main(["check", str(tmp_path / "blob.toml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is not a text file (not UTF-8)" in err[0]

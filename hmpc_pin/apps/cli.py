@@ -385,22 +385,41 @@ def cmd_tune(args) -> int:
 
 def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
-    from ..experiment.init import write_config
+    from ..experiment.init import plant_step_hint, write_config
 
     if args.list:
-        from ..model.robot import example_robot_names
-
-        print("planar3  (the paper's arm, shipped with hmpc_pin)")
-        for name in example_robot_names():
-            print(f"{name}  (example-robot-data)")
-        print("or the path of any fixed-base arm's .urdf file")
+        _print_init_names()
         return EXIT_OK
     if args.robot is None:
         raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
     duration = 10.0 if _checked_duration(args.duration) is None else args.duration
     path = write_config(args.robot, args.out, duration, overwrite=args.force)
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
+    hint = plant_step_hint(path.read_text(encoding="utf-8"))
+    if hint is not None:
+        print(hint, file=sys.stderr)
     return EXIT_OK
+
+
+def _print_init_names() -> None:
+    """``init --list``: every name ``init`` accepts — the shipped arm, example-robot-data's
+    fixed-base models, then the models it mounts on a floating base (legged, flying,
+    mobile robots, and arms such as so100/so101), which ``init`` controls with the base
+    fixed to the world (it says so when it writes their config)."""
+    from example_robot_data import robots_loader
+
+    from ..model.robot import example_robot_names
+
+    print("planar3  (the paper's arm, shipped with hmpc_pin)")
+    fixed = example_robot_names()
+    for name in fixed:
+        print(f"{name}  (example-robot-data)")
+    floating = sorted(
+        n for n, ld in robots_loader.ROBOTS.items() if ld.urdf_filename and n not in fixed
+    )
+    for name in floating:
+        print(f"{name}  (example-robot-data, mounted on a floating base there: init fixes it)")
+    print("or the path of any fixed-base arm's .urdf file")
 
 
 def cmd_check(args) -> int:
@@ -410,7 +429,7 @@ def cmd_check(args) -> int:
     report = check_config(_config(args.config), engines=not args.no_engine)
     print(report.format())
     for line in report.warnings:
-        print(f"warning: {line}")
+        print(f"warning: {line}", file=sys.stderr)
     for line in report.problems:
         print(f"problem: {line}")
     if report.problems:

@@ -13,6 +13,8 @@ import hmpc_pin
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import ConfigError
 
+from .conftest import CONFIGS
+
 
 def _mem_available() -> float:
     """MemAvailable [bytes], read here independently of the package."""
@@ -194,3 +196,79 @@ def test_check_of_a_saved_run_says_it_is_not_a_config(tmp_path, capsys):
     assert main(["check", str(tmp_path / "blob.toml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "is not a text file (not UTF-8)" in err[0]
+
+
+# ------------------------------------------------------------ an earlier run's files
+def test_run_keeps_an_earlier_runs_files_without_force(tmp_path, capsys):
+    """As ``init`` keeps an existing config: a second run of the same name into the same
+    folder is refused before it runs (its data untouched), and replaces them with --force."""
+    args = ["run", "paper_combined", "--duration", "0.2", "--no-figures", "--out", str(tmp_path)]
+    assert main(args) == 0
+    npz = tmp_path / "paper_combined.npz"
+    before = npz.read_bytes()
+    capsys.readouterr()
+    assert main([*args[:3], "0.3", *args[4:]]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--force" in err[0] and str(npz) in err[0], err
+    assert npz.read_bytes() == before
+    assert main([*args[:3], "0.3", *args[4:], "--force"]) == 0
+    import numpy as np
+
+    with np.load(npz) as data:
+        assert data["t"][-1] == pytest.approx(0.3)
+
+
+# ----------------------------------------------------------- hmpc-pin ros --ros-args
+def test_ros_args_are_read_as_rcl_reads_them():
+    """No ROS needed: the parameters and the node's name and namespace remaps."""
+    from hmpc_pin.apps.ros_args import check_parameters, parse_ros_args
+
+    args = ["-p", "use_sim_time:=true", "-r", "__node:=ctrl", "--log-level", "debug",
+            "-r", "/joint_states:=/arm/joint_states", "-p", "other:ros.rate:=1.0",
+            "-p", "hmpc_pin:realtime.spin:=0.0", "-r", "__ns:=/arm7"]  # fmt: skip
+    got = parse_ros_args(args, "hmpc_pin")
+    assert got.parameters == {"use_sim_time": "true", "realtime.spin": "0.0"}
+    assert (got.node, got.namespace) == ("ctrl", "/arm7")
+    check_parameters(got.parameters, ["realtime.spin"])
+    with pytest.raises(ConfigError, match=r"-p nosuch\.param: the node has no such parameter; "
+                       r"its parameters are .*realtime\.spin.*use_sim_time"):  # fmt: skip
+        check_parameters({"nosuch.param": "1"}, ["realtime.spin"])
+    with pytest.raises(ConfigError, match="expected name:=value"):
+        parse_ros_args(["-p", "use_sim_time"], "hmpc_pin")
+
+
+def _ros_in_netns(tmp_path, ros_args: str):
+    """``hmpc-pin ros`` in a private network namespace (DDS never leaves it), with no
+    arm: it names its node, then exits 2 on no joint state within 1 s."""
+    import subprocess
+    import sys
+
+    from .test_ros import _netns_reason
+
+    reason = _netns_reason()
+    if reason:
+        pytest.skip(reason)
+    text = (CONFIGS / "panda_sine.toml").read_text(encoding="utf-8")
+    config = tmp_path / "c.toml"
+    config.write_text(text + "\n[ros]\nstart_timeout = 1.0\njoint_states = '/nobody'\n")
+    script = (f"ip link set lo up && exec {sys.executable} -m hmpc_pin ros {config} "
+              f"--out {tmp_path / 'out'} --duration 1 --ros-args {ros_args}")  # fmt: skip
+    return subprocess.run(["unshare", "-n", "bash", "-c", script], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+
+
+def test_ros_refuses_a_parameter_the_node_does_not_have(tmp_path):
+    """``-p nosuch.param:=1`` was taken silently; now exit 2 before rclpy starts, listing
+    the node's parameters."""
+    proc = _ros_in_netns(tmp_path, "-p nosuch.param:=1")
+    assert proc.returncode == 2, proc.stderr
+    (line,) = [x for x in proc.stderr.splitlines() if x.startswith("error:")]
+    assert "-p nosuch.param: the node has no such parameter" in line
+    assert "ros.rate" in line and "use_sim_time" in line and "Traceback" not in proc.stderr
+    assert proc.stdout == ""  # refused before the node's header
+
+
+def test_ros_header_names_the_remapped_node(tmp_path):
+    proc = _ros_in_netns(tmp_path, "-r __node:=my_ctrl -r __ns:=/arm7")
+    assert proc.returncode == 2, proc.stderr
+    assert "as ROS 2 node /arm7/my_ctrl for" in proc.stdout, proc.stdout

@@ -176,12 +176,13 @@ def cmd_run(args) -> int:
     for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):
         if value and not args.viz:
             raise ConfigError(flag, "applies to the live view only; add --viz or drop " + flag)
-    out = _out_dir(args.out)  # every option checked: the first thing written
     stem = config.name
     if args.compensation is not None:
         stem += f"_{args.compensation}"
     if args.no_ndo and not config.name.endswith("_no_ndo"):
         stem += "_no_ndo"
+    _refuse_earlier_run(args.out, stem, args.force)
+    out = _out_dir(args.out)  # every option checked: the first thing written
     if args.replay is not None:
         _out_file(args.replay, "--replay")
     views: list = []  # the live view, opened by run_one once the experiment is built
@@ -190,6 +191,19 @@ def cmd_run(args) -> int:
     finally:
         for view in views:
             view.close()
+
+
+def _refuse_earlier_run(out: Path, stem: str, force: bool) -> None:
+    """Refuse, before the run, to replace an earlier run's files ``<stem>.npz`` /
+    ``.csv`` in ``out`` without ``--force`` (as ``init`` keeps an existing config): a
+    run's data may be what a later command reads (``--reference``, ``identify``)."""
+    earlier = [out / f"{stem}{ext}" for ext in (".npz", ".csv") if (out / f"{stem}{ext}").exists()]
+    if earlier and not force:
+        raise ConfigError(
+            "--out",
+            f"{earlier[0]} exists (an earlier run's); pass --force to replace its files, or "
+            "another --out",
+        )
 
 
 def _open_view(experiment, args, views: list):
@@ -526,12 +540,13 @@ def cmd_ros(args) -> int:
     config = _ros_config(args, _with_overrides(_config(args.config), False, args.duration))
     key = "--duration" if args.duration is not None else "simulation.duration"
     check_run_length(config.simulation.duration, config.ros.rate, key)
+    namespace, node = _ros_node_name(config, args.ros_args)  # (checks its -p, before rclpy)
     # [ros] rate against Ts, the brake, [ros] gravity: bad input stops here, nothing written
     built = build_ros(config)  # built once, run below
     out = _out_dir(args.out)
     print(
         f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
-        f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
+        f"{namespace}/{node} for {config.simulation.duration:g} s, "
         f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz",
         flush=True,
     )
@@ -542,6 +557,19 @@ def cmd_ros(args) -> int:
         format_ros,
         format_tracking,
     )
+
+
+def _ros_node_name(config: ExperimentConfig, ros_args: list[str] | None) -> tuple[str, str]:
+    """The controller node's namespace and name as rclpy will set them (``-r __ns:=``,
+    ``-r __node:=`` of ``--ros-args`` over ``[ros]``), once every ``-p`` of ``ros_args``
+    is checked to name one of the node's parameters (:mod:`hmpc_pin.apps.ros_args`)."""
+    from .ros import config_parameters
+    from .ros_args import check_parameters, parse_ros_args
+
+    given = parse_ros_args(ros_args, config.ros.node)
+    check_parameters(given.parameters, config_parameters(config))
+    namespace = config.ros.namespace if given.namespace is None else given.namespace
+    return namespace.rstrip("/"), given.node or config.ros.node
 
 
 def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
@@ -656,6 +684,11 @@ def _run_arguments(run) -> None:
         "--keep-open",
         action="store_true",
         help="live view: keep serving it after the run (files written) until Ctrl-C",
+    )
+    run.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an earlier run's files of the same name in --out (else exit 2)",
     )
     run.add_argument(
         "--no-figures",

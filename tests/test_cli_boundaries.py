@@ -272,3 +272,38 @@ def test_ros_header_names_the_remapped_node(tmp_path):
     proc = _ros_in_netns(tmp_path, "-r __node:=my_ctrl -r __ns:=/arm7")
     assert proc.returncode == 2, proc.stderr
     assert "as ROS 2 node /arm7/my_ctrl for" in proc.stdout, proc.stdout
+
+
+# ----------------------------------------------------- compare on an arm's effort limits
+def test_compare_says_why_ism_fails_on_xarm7_and_its_advice_runs(tmp_path, capsys):
+    """``compare`` on ``init xarm7`` exited 1 naming hmpc-ism only. The ISM's switching
+    gain K = 200 rad/s² (the paper arm's) asks M_jj K beyond xarm7's effort limits: the
+    plant clips it and the QP fails. The reason is printed, with the largest K that fits
+    (min_j effort_j / M_jj(q0), from CRBA here), and ISM with that gain runs."""
+    import numpy as np
+    import pinocchio as pin
+
+    cfg = tmp_path / "xarm7.toml"
+    assert main(["init", "xarm7", "--out", str(cfg)]) == 0
+    capsys.readouterr()
+    code = main(["compare", str(cfg), "--controllers", "hmpc-ism", "--duration", "0.3",
+                 "--quiet", "--out", str(tmp_path / "cmp")])  # fmt: skip
+    assert code == 1
+    err = capsys.readouterr().err
+    assert re.search(r"^error: hmpc-ism: .*QP", err, re.M), err
+    (note,) = [ln for ln in err.splitlines() if ln.startswith("note: hmpc-ism: the switching")]
+    fit = float(re.search(r"K <= ([\d.e+-]+) rad/s²", note).group(1))
+    ex = hmpc_pin.Experiment.from_config(hmpc_pin.load_config(cfg))
+    model = ex.robot.model
+    M = pin.crba(model, model.createData(), ex.q0)
+    M = np.triu(M) + np.triu(M, 1).T
+    expected = np.min(model.effortLimit / np.diag(M))
+    assert fit == pytest.approx(expected, rel=2e-3)
+    # the advice: a config of compensation = "ism" with that gain runs the same 0.3 s
+    text = cfg.read_text(encoding="utf-8")
+    text = re.sub(r'^compensation = "general".*$', 'compensation = "ism"', text, flags=re.M)
+    text = re.sub(r"^\[controller\.observer\]\n(?:.*\n)*?\n", "", text, flags=re.M)
+    (tmp_path / "ism.toml").write_text(text + f"\n[controller.ism]\ngain = {fit:g}\n")
+    code = main(["run", str(tmp_path / "ism.toml"), "--duration", "0.3", "--no-figures",
+                 "--out", str(tmp_path / "ism")])  # fmt: skip
+    assert code == 0, capsys.readouterr().err

@@ -319,7 +319,7 @@ def cmd_replay(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare import compare, markdown_table, parse_controllers
+    from .compare import compare, ism_gain_hint, markdown_table, parse_controllers
     from .metrics import run_warnings
 
     config = _with_overrides(_config(args.config), False, args.duration, reference=args.reference)
@@ -336,6 +336,11 @@ def cmd_compare(args) -> int:
     for f in files:
         print(f"wrote {f}")
     failed = [k for k, r in comp.runs.items() if r.failure]
+    for kind in failed:  # each failure with its reason (and what to change, where known)
+        print(f"error: {kind}: {comp.runs[kind].failure}", file=sys.stderr)
+        hint = ism_gain_hint(config, comp.runs[kind])
+        if hint is not None:
+            print(f"note: {hint}", file=sys.stderr)
     if failed:
         print(f"error: runs failed: {', '.join(failed)} (partial results kept)", file=sys.stderr)
         return EXIT_FAILED

@@ -140,7 +140,7 @@ def test_saturation_and_error_warnings_through_the_cli(tmp_path, capsys, write_c
     # warns, above it it does not.
     e = np.abs(r.error[r.t >= 1.0 - 1e-12]).max()
     for threshold, warned in ((0.5 * e, True), (2.0 * e, False)):
-        assert main([*argv, "--warn-error", repr(float(threshold))]) == 0
+        assert main([*argv, "--warn-error", repr(float(threshold)), "--force"]) == 0
         err = capsys.readouterr().err
         assert ("tracking error exceeds" in err) is warned, err
 

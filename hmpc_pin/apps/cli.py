@@ -421,23 +421,13 @@ def cmd_init(args) -> int:
 
 
 def _print_init_names() -> None:
-    """``init --list``: every name ``init`` accepts — the shipped arm, example-robot-data's
-    fixed-base models, then the models it mounts on a floating base (legged, flying,
-    mobile robots, and arms such as so100/so101), which ``init`` controls with the base
-    fixed to the world (it says so when it writes their config)."""
-    from example_robot_data import robots_loader
-
+    """``init --list``: the shipped arm and example-robot-data's arms (with so100/so101,
+    which it mounts on a floating base: :data:`~hmpc_pin.model.robot.MOUNTED_ARMS`)."""
     from ..model.robot import example_robot_names
 
     print("planar3  (the paper's arm, shipped with hmpc_pin)")
-    fixed = example_robot_names()
-    for name in fixed:
+    for name in example_robot_names():
         print(f"{name}  (example-robot-data)")
-    floating = sorted(
-        n for n, ld in robots_loader.ROBOTS.items() if ld.urdf_filename and n not in fixed
-    )
-    for name in floating:
-        print(f"{name}  (example-robot-data, mounted on a floating base there: init fixes it)")
     print("or the path of any fixed-base arm's .urdf file")
 
 

@@ -233,7 +233,6 @@ def simulate(
         robot.check_vector(f"reference.sample(0) {name}", value)
     run_memory("duration", duration, Ts, n)  # before the arrays: a clear message, no MemoryError
     K = round(duration / Ts)
-
     t_arr = Ts * np.arange(K + 1)
     rec: dict[str, Any] = {
         name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"

@@ -24,13 +24,65 @@ __all__ = [
     "as_int",
     "as_latency",
     "as_weight",
+    "available_memory",
     "mpc_fields",
+    "run_memory",
 ]
 
 #: The longest measurement latency a controller accepts [s]. Arms' interfaces deliver
 #: their state within milliseconds (one 1 kHz cycle for libfranka, 2 ms for UR's RTDE);
 #: a second is a unit error, and the controller keeps one torque per period of it.
 MAX_LATENCY = 1.0
+
+#: A run's arrays may take at most this share of the memory available when it starts (the
+#: rest: the saved copies of the arrays, the figures, the other processes).
+MEMORY_SHARE = 0.5
+
+
+def available_memory() -> float:
+    """The memory available to a new allocation [bytes]: ``MemAvailable`` of
+    ``/proc/meminfo`` (Linux), else the physical memory; ``inf`` when neither is known."""
+    import os
+
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return math.inf
+
+
+def run_memory(key: str, duration: float, Ts: float, n: int, arrays: int = 9) -> float:
+    """Check, before anything is allocated, that a run of ``duration`` [s] sampled every
+    ``Ts`` [s] on ``n`` joints fits in memory: its ``arrays`` per-joint arrays (a
+    :class:`~hmpc_pin.sim.result.Result` holds nine) and the time and step-time columns,
+    8 bytes a number, within :data:`MEMORY_SHARE` of :func:`available_memory`.
+
+    Returns:
+        The bytes the arrays take.
+
+    Raises:
+        ConfigError: Naming ``key``, the memory needed and available, and the longest
+            duration that fits.
+    """
+    per_sample = 8.0 * (arrays * n + 2)
+    samples = duration / Ts + 1.0
+    need, free = samples * per_sample, MEMORY_SHARE * available_memory()
+    if need > free:
+        longest = (free / per_sample - 1.0) * Ts
+        raise ConfigError(
+            key,
+            f"{duration:g} s at Ts = {Ts:g} s is {samples:.3g} samples of {n} joints, whose "
+            f"arrays would take {need / 1e9:.3g} GB: more than half of the "
+            f"{2 * free / 1e9:.3g} GB of memory available here; expected at most "
+            f"{longest:.3g} s (or shorter runs one after another)",
+        )
+    return need
 
 
 def as_float(key: str, value, *, positive: bool = False, nonneg: bool = False) -> float:

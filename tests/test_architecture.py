@@ -37,6 +37,8 @@ RANK = {
 def _modules() -> dict[str, Path]:
     out = {}
     for path in PKG.rglob("*.py"):
+        if path.parent == PKG / "examples":  # scripts shipped to be copied, not modules
+            continue
         rel = path.relative_to(PKG.parent).with_suffix("")
         parts = list(rel.parts)
         if parts[-1] == "__init__":

@@ -55,7 +55,7 @@ def test_a_fine_config_passes_with_its_figures(capsys, tmp_path):
     path = tmp_path / "fine.toml"
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").resolve().as_posix()
     path.write_text(PAPER.read_text().replace("gain = 100.0", "gain = 3.0")
-                    .replace('"../robots/planar3.urdf"', f'"{urdf}"'))  # fmt: skip
+                    .replace('model = "planar3"', f'urdf = "{urdf}"'))  # fmt: skip
     assert main(["check", str(path)]) == 0
     out = capsys.readouterr().out
     assert "no problem found" in out and "joint3" in out
@@ -70,8 +70,8 @@ def test_a_joint_without_an_effort_limit_has_no_headroom(tmp_path):
     second = [i for i, line in enumerate(lines) if 'effort="10000"' in line][1]
     lines[second] = lines[second].replace('effort="10000"', 'effort="0"')
     (tmp_path / "free2.urdf").write_text("".join(lines))
-    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
-                                     f'"{(tmp_path / "free2.urdf").as_posix()}"')  # fmt: skip
+    urdf = (tmp_path / "free2.urdf").as_posix()
+    text = PAPER.read_text().replace('model = "planar3"', f'urdf = "{urdf}"')
     (tmp_path / "free2.toml").write_text(text)
     report = check_config(load_config(tmp_path / "free2.toml"), engines=False)
     assert np.isinf(report.headroom[1])
@@ -108,9 +108,10 @@ def test_the_papers_fast_observer_is_a_warning_for_an_arm_naming_each_joint(caps
     rule's 20 1/s for one undeclared period of latency (Ts = 10 ms, r = 1.25). ``run``
     simulates no latency (the paper's setting): one warning for an arm, exit 0."""
     assert main(["check", str(PAPER), "--no-engine"]) == 0
-    out = capsys.readouterr().out
-    lines = [x for x in out.splitlines() if x.startswith("warning:")]
+    out, err = capsys.readouterr()
+    lines = [x for x in err.splitlines() if x.startswith("warning:")]  # on stderr, as run's
     assert len(lines) == 1 and not any(x.startswith("problem:") for x in out.splitlines())
+    assert "warning:" not in out
     # each joint with its bandwidth (cY M^-1)_jj from CRBA and w Ts, dimensionless
     ex = Experiment.from_config(load_config(PAPER))
     M0 = pin.crba(ex.robot.model, ex.robot.model.createData(), ex.q0)
@@ -318,8 +319,8 @@ def test_the_engines_differences_are_relative(tmp_path):
 
     heavy = re.sub(r'\b(value|ixx|ixy|ixz|iyy|iyz|izz)="([^"]+)"', heavier, urdf)
     (tmp_path / "heavy.urdf").write_text(heavy)
-    text = PAPER.read_text().replace('"../robots/planar3.urdf"',
-                                     f'"{(tmp_path / "heavy.urdf").as_posix()}"')  # fmt: skip
+    urdf = (tmp_path / "heavy.urdf").as_posix()
+    text = PAPER.read_text().replace('model = "planar3"', f'urdf = "{urdf}"')
     (tmp_path / "heavy.toml").write_text(text)
     config = load_config(tmp_path / "heavy.toml")
     ex = Experiment.from_config(config)
@@ -711,12 +712,12 @@ def test_an_engine_that_refuses_the_urdf_is_one_problem_with_the_table(tmp_path,
     assert bad in text
     urdf = tmp_path / "arm.urdf"
     urdf.write_text(text)
-    config = PAPER.read_text().replace('"../robots/planar3.urdf"', f'"{urdf.as_posix()}"')
+    config = PAPER.read_text().replace('model = "planar3"', f'urdf = "{urdf.as_posix()}"')
     path = tmp_path / "arm.toml"
     path.write_text(config.replace("gain = 100.0", "gain = 3.0"))
     assert main(["check", str(path)]) == 0  # the Pinocchio plant: a warning
-    out = capsys.readouterr().out.splitlines()
-    (line,) = [x for x in out if "MuJoCo cannot load" in x]
+    err = capsys.readouterr().err.splitlines()
+    (line,) = [x for x in err if "MuJoCo cannot load" in x]
     assert line.startswith("warning:")
     path.write_text(config.replace("gain = 100.0", "gain = 3.0")
                     .replace("dt = 0.001 ", 'engine = "mujoco"\n# dt = 0.001 ', 1)

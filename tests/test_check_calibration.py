@@ -180,7 +180,7 @@ def _corpus(tmp_path) -> list[tuple[str, object]]:
     good, bad = 'iyy="0.28125" iyz="0" izz="0.28125"/>', 'iyy="0.1" iyz="0" izz="0.28125"/>'
     urdf.write_text(robot.read_text().replace(good, bad, 1))
     path = tmp_path / "unphysical_mujoco.toml"
-    path.write_text(text.replace('"../robots/planar3.urdf"', f'"{urdf.as_posix()}"'))
+    path.write_text(text.replace('model = "planar3"', f'urdf = "{urdf.as_posix()}"'))
     cases.append(("paper_combined_mujoco, URDF MuJoCo refuses", _short(load_config(path))))
     tiago = by_name["init tiago_no_hand"]
     cases.append((

@@ -161,7 +161,9 @@ def _write(path, text):
 def _unreachable(tmp_path):
     text = (CONFIGS / "paper_cartesian.toml").read_text()
     text = text.replace("goal_position = [2.423, 2.234]", "goal_position = [4.0, 0.0]")
-    text = text.replace('urdf = "../robots/', f'urdf = "{CONFIGS.parent.as_posix()}/robots/')
+    text = text.replace(
+        'model = "planar3"', f'urdf = "{CONFIGS.parent.as_posix()}/robots/planar3.urdf"'
+    )
     path = tmp_path / "far.toml"
     path.write_text(text)
     return path
@@ -212,7 +214,9 @@ def test_failed_run_exits_1_and_keeps_partial_results(tmp_path, capsys):
     text = (CONFIGS / "paper_combined.toml").read_text()
     text = text.replace('discretization = "implicit"', 'discretization = "explicit"')
     text = re.sub(r"^gain = .*$", "gain = 200.0", text, flags=re.M)
-    text = text.replace('urdf = "../robots/', f'urdf = "{CONFIGS.parent.as_posix()}/robots/')
+    text = text.replace(
+        'model = "planar3"', f'urdf = "{CONFIGS.parent.as_posix()}/robots/planar3.urdf"'
+    )
     cfg = tmp_path / "bad.toml"
     cfg.write_text(text)
     assert main(["run", str(cfg), "--out", str(tmp_path)]) == 1

@@ -70,7 +70,7 @@ def test_replay_out_that_is_a_directory(tmp_path, capsys):
 # ------------------------------------------------------------------ applied torque
 def _saturating_config(write_config, limit: str) -> str:
     text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
-    text = text.replace('urdf = "../robots/planar3.urdf"', 'urdf = "@URDF@"')
+    text = text.replace('model = "planar3"', 'urdf = "@URDF@"')
     text = text.replace('integrator = "rk4"', f'integrator = "rk4"\neffort_limit = {limit}')
     return str(write_config(text))
 
@@ -140,7 +140,7 @@ def test_saturation_and_error_warnings_through_the_cli(tmp_path, capsys, write_c
     # warns, above it it does not.
     e = np.abs(r.error[r.t >= 1.0 - 1e-12]).max()
     for threshold, warned in ((0.5 * e, True), (2.0 * e, False)):
-        assert main([*argv, "--warn-error", repr(float(threshold))]) == 0
+        assert main([*argv, "--warn-error", repr(float(threshold)), "--force"]) == 0
         err = capsys.readouterr().err
         assert ("tracking error exceeds" in err) is warned, err
 

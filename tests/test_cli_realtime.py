@@ -25,7 +25,6 @@ def _config(tmp_path, extra=TOLERANT, name="rt"):
     text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
     path = tmp_path / f"{name}.toml"
     text = text.replace('name = "paper_combined"', f'name = "{name}"')
-    text = text.replace('urdf = "../robots/planar3.urdf"', 'model = "planar3"')
     path.write_text(text + extra)
     return path
 

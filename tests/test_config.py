@@ -43,7 +43,7 @@ def test_paper_configs_load_with_every_number_of_the_paper(name):
     np.testing.assert_array_equal(c.P, np.diag([100.0, 0.0]))
     np.testing.assert_array_equal(cfg.simulation.q0, [1.0, 1.0, 1.0])
     assert cfg.simulation.duration == 10.0
-    assert cfg.robot.gravity == 9.8 and cfg.robot.urdf.is_file()
+    assert cfg.robot.gravity == 9.8 and cfg.robot.source == "planar3"
     np.testing.assert_array_equal(cfg.reference.amplitude, 1.0)
     np.testing.assert_allclose(2 * np.pi * cfg.reference.frequency, 0.2 * np.pi)
     d = cfg.disturbance
@@ -346,7 +346,7 @@ def test_packaged_config_loads_by_name():
     by_path = hmpc_pin.load_config(CONFIGS / "paper_combined.toml")
     assert by_name.name == by_path.name == "paper_combined"
     assert by_name.source.samefile(by_path.source)
-    assert by_name.robot.urdf.samefile(by_path.robot.urdf)
+    assert by_name.robot.source == by_path.robot.source == "planar3"
     assert by_name.controller.label == by_path.controller.label == "hmpc+chen"
 
 

@@ -35,7 +35,7 @@ def test_a_huge_latency_in_a_file_exits_2_with_one_line(tmp_path, capsys):
     text = text.replace("Ts = 0.01 ", "latency = 1e300\nTs = 0.01 ", 1)
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").resolve().as_posix()
     path = tmp_path / "huge.toml"
-    path.write_text(text.replace('"../robots/planar3.urdf"', f'"{urdf}"'))
+    path.write_text(text.replace('model = "planar3"', f'urdf = "{urdf}"'))
     assert main(["run", str(path), "--duration", "0.05", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "controller.latency" in err[0] and "1e+300" in err[0]

@@ -195,10 +195,16 @@ def test_readme_is_a_front_page():
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     assert len(text.splitlines()) <= 250
     assert "make demo" in text and "make test" in text
+    # the links are absolute (the README is the wheel's long description): an image is a
+    # file of the repository (test_packaged maps every link back to a page or file)
+    source = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"][
+        "urls"
+    ]["Source"]
     for image in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text):
-        assert (ROOT / image).is_file(), image
+        assert image.startswith(f"{source}/raw/main/"), image
+        assert (ROOT / image.removeprefix(f"{source}/raw/main/")).is_file(), image
     for link in re.findall(r"\]\(([^)#]+\.md)\)", text):
-        assert (ROOT / link).is_file(), link
+        assert (ROOT / link.removeprefix(f"{source}/blob/main/")).is_file(), link
 
 
 def test_no_page_points_outside_the_repository():

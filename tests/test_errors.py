@@ -30,7 +30,9 @@ from hmpc_pin.model.planar import KinematicsError
 from .conftest import CONFIGS, PLANAR3
 
 URDF = PLANAR3.as_posix()
-BASE = (CONFIGS / "paper_combined.toml").read_text().replace("../robots/planar3.urdf", URDF)
+BASE = (
+    (CONFIGS / "paper_combined.toml").read_text().replace('model = "planar3"', f'urdf = "{URDF}"')
+)
 
 
 def _sub(old: str, new: str, text: str = BASE) -> str:
@@ -219,7 +221,7 @@ CASES = {
         lambda tmp: (
             (CONFIGS / "paper_cartesian.toml")
             .read_text()
-            .replace("../robots/planar3.urdf", URDF)
+            .replace('model = "planar3"', f'urdf = "{URDF}"')
             .replace("goal_position = [2.423, 2.234]", "goal_position = [4.0, 0.0]")
         ),
         KinematicsError,

@@ -149,7 +149,7 @@ def test_divergence_beyond_the_configured_bound(planar3, clean, tmp_path):
 
 def test_cli_divergence_from_config_state_bound_exits_1(tmp_path, capsys):
     text = (CONFIGS / "paper_combined.toml").read_text()
-    text = text.replace("../robots/planar3.urdf", PLANAR3.as_posix())
+    text = text.replace('model = "planar3"', f'urdf = "{PLANAR3.as_posix()}"')
     text = text.replace("state_bound = 1000.0", "state_bound = 3.0")
     cfg = tmp_path / "paper_combined.toml"
     cfg.write_text(text)

@@ -473,7 +473,7 @@ def test_identify_config_changes_the_friction_table_alone(tmp_path, friction_run
     source = tmp_path / "own.toml"  # settings of its own, none the default
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
     text = (CONFIGS / "paper_friction.toml").read_text()
-    text = (text.replace('"../robots/planar3.urdf"', f'"{urdf}"').replace("N = 10 ", "N = 17 ")
+    text = (text.replace('model = "planar3"', f'urdf = "{urdf}"').replace("N = 10 ", "N = 17 ")
             .replace("R = 1e-6", "R = 2e-6").replace("gain = 100.0", "gain = 80.0"))  # fmt: skip
     source.write_text(text)
     assert load_config(source).controller.N == 17

@@ -888,7 +888,7 @@ def test_a_file_without_a_record_reads_where_its_configs_observer_takes_its_mode
     from .conftest import PLANAR3
 
     text = (CONFIGS / "paper_friction.toml").read_text()
-    text = text.replace('"../robots/planar3.urdf"', json.dumps(str(PLANAR3)))
+    text = text.replace('model = "planar3"', "urdf = " + json.dumps(str(PLANAR3)))
     implicit = 'discretization = "implicit"'
     text = text.replace(implicit, implicit + '\nmodel_at = "start"')
     text = text.replace("duration = 10.0", "duration = 5.0")

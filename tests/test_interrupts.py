@@ -256,7 +256,6 @@ def _in_interpreter_start(stderr: str) -> bool:
 
 def _realtime_config(tmp_path) -> Path:
     text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
-    text = text.replace('urdf = "../robots/planar3.urdf"', 'model = "planar3"')
     path = tmp_path / "rt.toml"
     path.write_text(text + "\n[realtime]\nmax_misses = 1000000\nwatchdog = 1.0\nhold = 0.05\n")
     return path

@@ -59,7 +59,6 @@ def test_indices_in_messages_say_they_are_0_based(tmp_path):
 def test_a_config_without_description_prints_no_empty_part(tmp_path, capsys):
     text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
     text = re.sub(r"(?m)^description = .*\n", "", text)
-    text = text.replace('urdf = "../robots/planar3.urdf"', 'model = "planar3"')
     cfg = tmp_path / "bare.toml"
     cfg.write_text(text, encoding="utf-8")
     assert main(["run", str(cfg), "--duration", "0.2", "--out", str(tmp_path)]) == 0
@@ -126,7 +125,7 @@ def test_a_trajectory_in_degrees_is_called_so_and_a_position_error_does_not_say_
     t = np.linspace(0.0, 2.0, 201)
     cfg = tmp_path / "c.toml"
     text = (CONFIGS / "paper_combined.toml").read_text(encoding="utf-8")
-    cfg.write_text(text.replace('urdf = "../robots/planar3.urdf"', 'model = "planar3"'))
+    cfg.write_text(text)
     robot = load_robot("planar3")
     lo, hi = robot.lower[0], robot.upper[0]
     assert (lo, hi) == pytest.approx((-np.pi / 2, np.pi / 2))

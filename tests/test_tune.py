@@ -94,7 +94,7 @@ def test_a_real_trial_runs_the_sweep(tmp_path, friction_config, capsys):
     path = tmp_path / "short.toml"
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
     text = (CONFIGS / "paper_friction.toml").read_text()
-    text = text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"')
+    text = text.replace('model = "planar3"', f'urdf = "{urdf}"')
     path.write_text(text)
     code = main(["tune", str(path), "--trials", "2", "--samples", "2", "--jobs", "1",
                  "--duration", "1.5", "--holdout", "2", "--out", str(tmp_path / "out"),
@@ -150,7 +150,7 @@ def _short_config(tmp_path):
     path = tmp_path / "short.toml"
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
     text = (CONFIGS / "paper_friction.toml").read_text()
-    path.write_text(text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"'))
+    path.write_text(text.replace('model = "planar3"', f'urdf = "{urdf}"'))
     return path
 
 
@@ -328,7 +328,7 @@ def test_an_observer_given_by_its_bandwidth_is_tuned_by_its_bandwidth(tmp_path):
     tuned config keeps the per-joint shape."""
     text = (CONFIGS / "paper_friction.toml").read_text()
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
-    text = text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"')
+    text = text.replace('model = "planar3"', f'urdf = "{urdf}"')
     text = text.replace('kind = "chen"', 'kind = "general"')
     text = text.replace("gain = 100.0", "bandwidth = [10.0, 15.0, 20.0]")
     path = tmp_path / "bw.toml"
@@ -398,7 +398,7 @@ def test_a_bandwidths_range_is_a_tenth_to_five_times_the_configs_largest(tmp_pat
     range relative to the config's."""
     text = (CONFIGS / "paper_friction.toml").read_text()
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").as_posix()
-    text = text.replace('urdf = "../robots/planar3.urdf"', f'urdf = "{urdf}"')
+    text = text.replace('model = "planar3"', f'urdf = "{urdf}"')
     text = text.replace('kind = "chen"', 'kind = "general"')
     text = text.replace("gain = 100.0", "bandwidth = [10.0, 15.0, 20.0]")
     path = tmp_path / "bw.toml"

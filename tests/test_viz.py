@@ -305,7 +305,7 @@ def mesh_missing_config(tmp_path):
     )
     (tmp_path / "arm.urdf").write_text(urdf, encoding="utf-8")
     cfg = (PLANAR3.parent.parent / "configs" / "paper_combined.toml").read_text(encoding="utf-8")
-    cfg = cfg.replace('urdf = "../robots/planar3.urdf"', 'urdf = "arm.urdf"')
+    cfg = cfg.replace('model = "planar3"', 'urdf = "arm.urdf"')
     path = tmp_path / "cfg.toml"
     path.write_text(cfg, encoding="utf-8")
     return path

@@ -8,7 +8,8 @@ dependencies from the package index (so the exact Pinocchio and ProxSuite pins r
 that no C or C++ compiler can be found from there. The runs are the paper's combined
 experiment with ``backend = "native"`` on both the controller and the plant (an error, not a
 fallback, if the compiled module did not load), ``hmpc-pin run paper_combined`` as a user
-types it, and ``hmpc-pin reproduce``.
+types it, ``hmpc-pin reproduce``, the packaged configs listed and one copied and run, an
+example script copied and run, and the README's quick commands.
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ def test_the_wheel_runs_from_an_empty_folder_with_no_compiler(tmp_path):
     assert "-none-any" not in wheel.name  # a platform wheel
     names = zipfile.ZipFile(wheel).namelist()
     for name in ("hmpc_pin/data/robots/planar3.urdf", "hmpc_pin/data/configs/paper_combined.toml",
+                 "hmpc_pin/data/configs/panda_trajectory.csv", "hmpc_pin/examples/track_sine.py",
                  "hmpc_pin/py.typed"):  # fmt: skip
         assert name in names
     assert any(n.startswith("hmpc_pin/_core") and n.endswith((".so", ".pyd"))
@@ -88,14 +90,32 @@ def test_the_wheel_runs_from_an_empty_folder_with_no_compiler(tmp_path):
     assert lines["core"].startswith(str(env_dir)), lines
 
     # The commands a user types, from the empty folder.
-    out = _run([str(bindir / "hmpc-pin"), "run", "paper_combined", "--out", "out"], cwd=empty,
-               env=clean, timeout=600)  # fmt: skip
+    out = _run([str(bindir / "hmpc-pin"), "run", "paper_combined", "--out", "first"],
+               cwd=empty, env=clean, timeout=600)  # fmt: skip
     assert "slower Python path" not in out.stderr
-    with np.load(empty / "out" / "paper_combined.npz") as data:
+    with np.load(empty / "first" / "paper_combined.npz") as data:
         assert bool(data["complete"])
     _run([str(bindir / "hmpc-pin"), "reproduce", "--out", "rep", "--quiet"], cwd=empty,
          env=clean, timeout=900)  # fmt: skip
     assert "paper_combined" in (empty / "rep" / "report.md").read_text(encoding="utf-8")
+
+    # What the wheel ships, with no clone: the packaged configs listed, one copied with its
+    # trajectory file and run from the copy, an example copied and run with python.
+    hmpc = str(bindir / "hmpc-pin")
+    out = _run([hmpc, "configs"], cwd=empty, env=clean, timeout=300)
+    assert "panda_trajectory" in out.stdout and "Paper Section 5.3" in out.stdout
+    _run([hmpc, "configs", "copy", "panda_trajectory", "--out", "mine/traj.toml"], cwd=empty,
+         env=clean, timeout=300)  # fmt: skip
+    assert (empty / "mine" / "panda_trajectory.csv").is_file()
+    _run([hmpc, "run", "mine/traj.toml", "--duration", "0.2", "--no-figures", "--out", "cp"],
+         cwd=empty, env=clean, timeout=600)  # fmt: skip
+    with np.load(empty / "cp" / "panda_trajectory.npz") as data:
+        assert bool(data["complete"])
+    _run([hmpc, "examples", "copy", "track_sine", "--out", "track_sine.py"], cwd=empty,
+         env=clean, timeout=300)  # fmt: skip
+    _run([str(bindir / "python"), "track_sine.py", "--out", "ex"], cwd=empty, env=clean,
+         timeout=600)  # fmt: skip
+    assert (empty / "ex" / "track_sine.npz").is_file()
 
     # The README's command line, as a wheel user types it (the long ones left out: a 200
     # sample sweep, a 60 s real-time run, a 30 trial study, a ROS node).
@@ -104,6 +124,10 @@ def test_the_wheel_runs_from_an_empty_folder_with_no_compiler(tmp_path):
                              capture_output=True, text=True, timeout=900)  # fmt: skip
         # every one exits 0: the README's check is of a shipped config, which passes
         assert out.returncode == 0 and "Traceback" not in out.stderr, (cmd, out.stderr[-2000:])
+
+    # The wheel's metadata: Project-URLs for the index page (the README's links are absolute).
+    meta = zipfile.ZipFile(wheel).read(next(n for n in names if n.endswith(".dist-info/METADATA")))
+    assert b"Project-URL: Documentation, https://" in meta
 
     # A missing extra's hint installs it for this wheel (resolved, not installed: --dry-run).
     out = _run([str(bindir / "python"), "-c",

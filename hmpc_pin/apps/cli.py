@@ -1,5 +1,6 @@
 """Command-line interface: ``hmpc-pin run | compare | sweep | reproduce | replay | init |
-check | realtime | identify | tune | ros | ros-arm`` (also ``python -m hmpc_pin``).
+check | realtime | identify | tune | ros | ros-arm | configs | examples | native`` (also
+``python -m hmpc_pin``).
 
 Exit codes: 0 on success, 2 on bad input (one-line message on stderr, no
 traceback, checked before any run: no output file), 1 when a run fails (e.g.
@@ -27,6 +28,7 @@ from ..exceptions import (
     SimulationError,
     VizError,
 )
+from .packaged import CONFIG_HELP
 
 if TYPE_CHECKING:
     from ..experiment.config import ExperimentConfig
@@ -174,12 +176,13 @@ def cmd_run(args) -> int:
     for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):
         if value and not args.viz:
             raise ConfigError(flag, "applies to the live view only; add --viz or drop " + flag)
-    out = _out_dir(args.out)  # every option checked: the first thing written
     stem = config.name
     if args.compensation is not None:
         stem += f"_{args.compensation}"
     if args.no_ndo and not config.name.endswith("_no_ndo"):
         stem += "_no_ndo"
+    _refuse_earlier_run(args.out, stem, args.force)
+    out = _out_dir(args.out)  # every option checked: the first thing written
     if args.replay is not None:
         _out_file(args.replay, "--replay")
     views: list = []  # the live view, opened by run_one once the experiment is built
@@ -188,6 +191,19 @@ def cmd_run(args) -> int:
     finally:
         for view in views:
             view.close()
+
+
+def _refuse_earlier_run(out: Path, stem: str, force: bool) -> None:
+    """Refuse, before the run, to replace an earlier run's files ``<stem>.npz`` /
+    ``.csv`` in ``out`` without ``--force`` (as ``init`` keeps an existing config): a
+    run's data may be what a later command reads (``--reference``, ``identify``)."""
+    earlier = [out / f"{stem}{ext}" for ext in (".npz", ".csv") if (out / f"{stem}{ext}").exists()]
+    if earlier and not force:
+        raise ConfigError(
+            "--out",
+            f"{earlier[0]} exists (an earlier run's); pass --force to replace its files, or "
+            "another --out",
+        )
 
 
 def _open_view(experiment, args, views: list):
@@ -303,7 +319,7 @@ def cmd_replay(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare import compare, markdown_table, parse_controllers
+    from .compare import compare, ism_gain_hint, markdown_table, parse_controllers
     from .metrics import run_warnings
 
     config = _with_overrides(_config(args.config), False, args.duration, reference=args.reference)
@@ -320,6 +336,11 @@ def cmd_compare(args) -> int:
     for f in files:
         print(f"wrote {f}")
     failed = [k for k, r in comp.runs.items() if r.failure]
+    for kind in failed:  # each failure with its reason (and what to change, where known)
+        print(f"error: {kind}: {comp.runs[kind].failure}", file=sys.stderr)
+        hint = ism_gain_hint(config, comp.runs[kind])
+        if hint is not None:
+            print(f"note: {hint}", file=sys.stderr)
     if failed:
         print(f"error: runs failed: {', '.join(failed)} (partial results kept)", file=sys.stderr)
         return EXIT_FAILED
@@ -383,25 +404,34 @@ def cmd_tune(args) -> int:
 
 def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
-    from ..experiment.init import write_config
+    from ..experiment.init import plant_step_hint, write_config
 
     if args.list:
-        from ..data import robot_names
-        from ..model.robot import example_robot_names
-
-        about = {"planar3": "the paper's arm", "fr3": "Franka Research 3, franka_description"}
-        for name in sorted(robot_names(), key=lambda x: x != "planar3"):
-            print(f"{name}  ({about.get(name, 'a packaged arm')}, shipped with hmpc_pin)")
-        for name in example_robot_names():
-            print(f"{name}  (example-robot-data)")
-        print("or the path of any fixed-base arm's .urdf file")
+        _print_init_names()
         return EXIT_OK
     if args.robot is None:
         raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
     duration = 10.0 if _checked_duration(args.duration) is None else args.duration
     path = write_config(args.robot, args.out, duration, overwrite=args.force)
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
+    hint = plant_step_hint(path.read_text(encoding="utf-8"))
+    if hint is not None:
+        print(hint, file=sys.stderr)
     return EXIT_OK
+
+
+def _print_init_names() -> None:
+    """``init --list``: the shipped arms and example-robot-data's arms (with so100/so101,
+    which it mounts on a floating base: :data:`~hmpc_pin.model.robot.MOUNTED_ARMS`)."""
+    from ..data import robot_names
+    from ..model.robot import example_robot_names
+
+    about = {"planar3": "the paper's arm", "fr3": "Franka Research 3, franka_description"}
+    for name in sorted(robot_names(), key=lambda x: x != "planar3"):
+        print(f"{name}  ({about.get(name, 'a packaged arm')}, shipped with hmpc_pin)")
+    for name in example_robot_names():
+        print(f"{name}  (example-robot-data)")
+    print("or the path of any fixed-base arm's .urdf file")
 
 
 def cmd_check(args) -> int:
@@ -411,7 +441,7 @@ def cmd_check(args) -> int:
     report = check_config(_config(args.config), engines=not args.no_engine)
     print(report.format())
     for line in report.warnings:
-        print(f"warning: {line}")
+        print(f"warning: {line}", file=sys.stderr)
     for line in report.problems:
         print(f"problem: {line}")
     if report.problems:
@@ -508,12 +538,13 @@ def cmd_ros(args) -> int:
     config = _ros_config(args, _with_overrides(_config(args.config), False, args.duration))
     key = "--duration" if args.duration is not None else "simulation.duration"
     check_run_length(config.simulation.duration, config.ros.rate, key)
+    namespace, node = _ros_node_name(config, args.ros_args)  # (checks its -p, before rclpy)
     # [ros] rate against Ts, the brake, [ros] gravity: bad input stops here, nothing written
     built = build_ros(config)  # built once, run below
     out = _out_dir(args.out)
     print(
         f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
-        f"{config.ros.namespace}/{config.ros.node} for {config.simulation.duration:g} s, "
+        f"{namespace}/{node} for {config.simulation.duration:g} s, "
         f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz",
         flush=True,
     )
@@ -524,6 +555,19 @@ def cmd_ros(args) -> int:
         format_ros,
         format_tracking,
     )
+
+
+def _ros_node_name(config: ExperimentConfig, ros_args: list[str] | None) -> tuple[str, str]:
+    """The controller node's namespace and name as rclpy will set them (``-r __ns:=``,
+    ``-r __node:=`` of ``--ros-args`` over ``[ros]``), once every ``-p`` of ``ros_args``
+    is checked to name one of the node's parameters (:mod:`hmpc_pin.apps.ros_args`)."""
+    from .ros import config_parameters
+    from .ros_args import check_parameters, parse_ros_args
+
+    given = parse_ros_args(ros_args, config.ros.node)
+    check_parameters(given.parameters, config_parameters(config))
+    namespace = config.ros.namespace if given.namespace is None else given.namespace
+    return namespace.rstrip("/"), given.node or config.ros.node
 
 
 def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
@@ -603,7 +647,7 @@ def _run_arguments(run) -> None:
         "Run one experiment: print the metrics table; write .npz, .csv and PNG "
         "figures (tracking, disturbance estimate, log tracking error)."
     )
-    run.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    run.add_argument("config", type=Path, help=CONFIG_HELP)
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     run.add_argument(
         "--no-ndo",
@@ -640,6 +684,11 @@ def _run_arguments(run) -> None:
         help="live view: keep serving it after the run (files written) until Ctrl-C",
     )
     run.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an earlier run's files of the same name in --out (else exit 2)",
+    )
+    run.add_argument(
         "--no-figures",
         dest="figures",
         action="store_false",
@@ -672,7 +721,7 @@ def _compare_arguments(cmp_) -> None:
         "(tracking error, settling, observer error, effort, chattering, constraint "
         "violations, step time) and figures."
     )
-    cmp_.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    cmp_.add_argument("config", type=Path, help=CONFIG_HELP)
     cmp_.add_argument(
         "--controllers",
         help="comma-separated controllers, each controller+compensation (e.g. hmpc+momentum) "
@@ -698,7 +747,7 @@ def _reproduce_arguments(rep) -> None:
         "--configs",
         type=Path,
         default=None,
-        help="directory holding the paper_*.toml configs [the repository's configs/]",
+        help="directory holding the paper_*.toml configs [the packaged ones]",
     )
     rep.add_argument("--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=cmd_reproduce)
@@ -717,7 +766,7 @@ def _sweep_arguments(swp) -> None:
         "DIR/<name>_sweep.csv (one row per sample, variant and condition) and "
         "DIR/<name>_sweep.md (summary), and print the summary."
     )
-    swp.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    swp.add_argument("config", type=Path, help=CONFIG_HELP)
     swp.add_argument("--samples", type=int, default=100, help="number of samples K [100]")
     swp.add_argument("--seed", type=int, default=0, help="root seed [0]")
     swp.add_argument("--jobs", type=int, default=None, help="worker processes [all cores]")
@@ -790,7 +839,7 @@ def _check_arguments(chk) -> None:
         "change that fixes it), a warning what matters on a real arm. Exit 0 when no "
         "problem is found, 1 with one line per problem, 2 on bad input."
     )
-    chk.add_argument("config", type=Path, help="experiment TOML file")
+    chk.add_argument("config", type=Path, help=CONFIG_HELP)
     chk.add_argument(
         "--no-engine", action="store_true", help="do not compare the model against MuJoCo"
     )
@@ -807,7 +856,7 @@ def _realtime_arguments(rt) -> None:
         "compensation + damping) on Ctrl-C (exit 130), a fault, k consecutive missed "
         "deadlines or a watchdog timeout (exit 1), the run saved with complete = false."
     )
-    rt.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    rt.add_argument("config", type=Path, help=CONFIG_HELP)
     rt.add_argument("--rate", type=float, help="interface rate [Hz] (overrides realtime.rate)")
     rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     rt.add_argument(
@@ -909,6 +958,20 @@ def _ros_arm_arguments(arm) -> None:
     arm.set_defaults(func=cmd_ros_arm)
 
 
+def _configs_arguments(cfg) -> None:
+    """``hmpc-pin configs`` (:mod:`hmpc_pin.apps.packaged`)."""
+    from .packaged import configs_arguments
+
+    configs_arguments(cfg)
+
+
+def _examples_arguments(exa) -> None:
+    """``hmpc-pin examples`` (:mod:`hmpc_pin.apps.packaged`)."""
+    from .packaged import examples_arguments
+
+    examples_arguments(exa)
+
+
 def _native_arguments(nat) -> None:
     """``hmpc-pin native``."""
     nat.description = (
@@ -969,6 +1032,14 @@ COMMANDS = {
         "run the config's plant as a ROS 2 node (joint states out, efforts in; extra: ros)",
         _ros_arm_arguments,
     ),
+    "configs": (
+        "list the packaged configs, or write an editable copy of one",
+        _configs_arguments,
+    ),
+    "examples": (
+        "list the packaged example scripts, or write a copy of one",
+        _examples_arguments,
+    ),
     "native": (
         "report the compiled core (built when the package was installed)",
         _native_arguments,
@@ -1011,6 +1082,19 @@ def _print_warning(message, category, filename, lineno, file=None, line=None) ->
     print(f"warning: {message}", file=sys.stderr)
 
 
+#: Config keys a command-line option overrides: a value refused once built (e.g. a
+#: duration too long for the memory) is named by the option the user typed.
+OPTION_KEYS = {"simulation.duration": "--duration"}
+
+
+def _as_option(exc: HmpcError, argv: list[str]) -> HmpcError:
+    """``exc``, naming the option instead of the config key when the value came from it."""
+    option = OPTION_KEYS.get(getattr(exc, "key", ""))
+    if option is None or not any(a == option or a.startswith(option + "=") for a in argv):
+        return exc
+    return ConfigError(option, exc.message)  # type: ignore[attr-defined]
+
+
 def main(argv=None) -> int:
     """Entry point of ``hmpc-pin``; returns the exit code."""
     import warnings
@@ -1043,7 +1127,7 @@ def main(argv=None) -> int:
         if isinstance(exc, SimulationError):  # a run failure, not bad input
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_FAILED
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {_as_option(exc, argv)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     finally:
         _startup.restore(previous)

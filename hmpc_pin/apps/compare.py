@@ -118,6 +118,42 @@ def run_one_controller(config: ExperimentConfig, kind: str) -> ControllerRun:
     return ControllerRun(kind, result, metrics, step_us, uses_observer(config.controller), failure)
 
 
+def ism_gain_hint(config: ExperimentConfig, run: ControllerRun) -> str | None:
+    """Why an integral-sliding-mode run failed when its switching gain is more than the
+    arm's effort limits can pay (``None`` otherwise): :math:`M_{jj}(q_0) K` per joint
+    against the effort limit, and the largest gain that fits,
+    :math:`\\min_j \\tau_{\\max,j} / M_{jj}(q_0)`. The default K = 200 rad/s² is the paper
+    arm's (its limits are 10,000 N·m); on a real arm's limits the plant clips the
+    switching torque, tracking is lost and the MPC's QP fails after it."""
+    from ..experiment.build import load_robot_config
+
+    if run.failure is None or "ism" not in run.kind:
+        return None
+    tau, applied = run.result.tau, run.result.tau_applied
+    with np.errstate(invalid="ignore"):
+        clipped = np.nan_to_num(np.abs(tau - applied)) > 1e-9
+    if not clipped.any():
+        return None
+    robot = load_robot_config(config.robot)
+    limit = np.asarray(robot.effort_limit, dtype=float)
+    gain = float(with_controller(config, run.kind).controller.ism.gain)
+    asked = np.diag(robot.mass_matrix(run.result.q[0])) * gain
+    over = np.flatnonzero((limit > 0) & (asked > limit))
+    if over.size == 0:
+        return None
+    j = int(over[np.argmax(asked[over] / limit[over])])
+    fit = float(np.min(limit[limit > 0] / np.diag(robot.mass_matrix(run.result.q[0]))[limit > 0]))
+    return (
+        f"{run.kind}: the switching gain K = {gain:g} rad/s² ([controller.ism] gain; the "
+        f"paper arm's) asks M(q) K beyond this arm's effort limits (M_jj(q0) K = "
+        f"{asked[j]:.3g} N·m on {robot.joint_names[j]!r}, limit {limit[j]:.3g} N·m): the "
+        "plant clipped the torque and tracking was lost before the QP failed; compare ISM "
+        f"with K <= {fit:.3g} rad/s² (min over joints of effort / M_jj(q0)) from a config "
+        'with compensation = "ism" and [controller.ism] gain, or leave it out '
+        "(--controllers)"
+    )
+
+
 def run_comparison(
     config: ExperimentConfig, controllers=None, progress: bool = False
 ) -> Comparison:

@@ -27,6 +27,7 @@ from ..experiment.build import Experiment, brake_settings, realtime_parts
 from ..experiment.config import ExperimentConfig
 from ..experiment.controllers import _limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
+from .packaged import CONFIG_HELP
 from .realtime import save_run
 
 __all__ = [
@@ -599,7 +600,7 @@ def ros_arguments(ros) -> None:
         "~/external_torque. Same safe stops, latency statistics and saved run as "
         "`realtime`: exit 130 on Ctrl-C, 1 on a fault or a watchdog stop."
     )
-    ros.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    ros.add_argument("config", type=Path, help=CONFIG_HELP)
     ros.add_argument(
         "--duration",
         type=float,
@@ -618,7 +619,7 @@ def ros_arm_arguments(arm) -> None:
         "joint_state_broadcaster and JointGroupEffortController do. Runs until Ctrl-C "
         "(exit 130) or --duration."
     )
-    arm.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    arm.add_argument("config", type=Path, help=CONFIG_HELP)
     arm.add_argument(
         "--duration",
         type=float,

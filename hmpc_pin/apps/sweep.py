@@ -632,17 +632,21 @@ def _run_pool(config, tasks, jobs: int, rows: dict, bar) -> None:
         for future in as_completed(futures):
             rows[futures[future]] = future.result()
             bar.update()
+        pool.shutdown(wait=True)  # (a Ctrl-C here, every row in: stopped as below)
     except BaseException:
         if pool is not None:
             _stop_pool(pool)
         raise
-    pool.shutdown(wait=True)
 
 
 def _stop_pool(pool) -> None:
-    """Cancel the pending runs of ``pool`` and terminate and join its workers now
-    (``shutdown`` alone would wait for the runs in progress)."""
+    """Cancel the pending runs of ``pool``, terminate and join its workers now
+    (``shutdown`` alone would wait for the runs in progress), and join the pool's manager
+    thread before returning: left running, it closes its wake-up pipe while the
+    interpreter's exit hook of :mod:`concurrent.futures` writes to that pipe without a
+    lock (CPython 3.11), which printed ``OSError: Bad file descriptor`` after a Ctrl-C."""
     workers = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in workers:
         proc.terminate()
@@ -651,3 +655,5 @@ def _stop_pool(pool) -> None:
         if proc.is_alive():
             proc.kill()
             proc.join()
+    if manager is not None:
+        manager.join(timeout=10.0)  # it sees the workers gone and ends at once

@@ -44,6 +44,7 @@ from ..compensation.registry import compensation_names, compensation_spec
 from ..exceptions import ConfigError, ExtraError, RunInterrupted, install_command
 from ..experiment.config import ExperimentConfig, load_config
 from ..experiment.config.write import write_config
+from .packaged import CONFIG_HELP
 from .sweep import run_sweep
 
 __all__ = [
@@ -852,7 +853,7 @@ def tune_arguments(tun):
         "Writes DIR/<name>_tuned.toml and a report with the history and importance plots, "
         "and compares both configs on held-out samples. Needs the extra hmpc_pin[tune]."
     )
-    tun.add_argument("config", type=Path, help="experiment TOML file (see configs/)")
+    tun.add_argument("config", type=Path, help=CONFIG_HELP)
     tun.add_argument(
         "--trials", type=int, required=True, help="trials to run (added to a resumed study)"
     )

@@ -1,17 +1,30 @@
-"""Data shipped in the wheel: the paper's arm (``robots/planar3.urdf``) and the configs.
+"""Data shipped in the wheel: the paper's arm (``robots/planar3.urdf``), the configs and
+the example scripts (``hmpc_pin/examples``, scripts to copy and run, not modules).
 
-The repository's top-level ``robots/`` and ``configs/`` are links to these folders: one
-copy, found by users where they look, and installed with the package.
+The repository's top-level ``robots/``, ``configs/`` and ``examples/`` are links to these
+folders: one copy, found by users where they look, and installed with the package
+(``hmpc-pin configs`` and ``hmpc-pin examples`` list them and write editable copies).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["DATA", "config_names", "config_path", "robot_names", "robot_path"]
+__all__ = [
+    "DATA",
+    "EXAMPLES",
+    "config_names",
+    "config_path",
+    "example_names",
+    "example_path",
+    "robot_names",
+    "robot_path",
+]
 
 #: The folder of the packaged data.
 DATA = Path(__file__).resolve().parent
+#: The folder of the example scripts shipped with the package.
+EXAMPLES = DATA.parent / "examples"
 
 
 def robot_names() -> tuple[str, ...]:
@@ -34,4 +47,16 @@ def config_path(name: str) -> Path | None:
     """Path of the packaged config ``name`` (with or without ``.toml``), or ``None``."""
     stem = name[:-5] if name.endswith(".toml") else name
     path = DATA / "configs" / f"{stem}.toml"
+    return path if path.is_file() and "/" not in name else None
+
+
+def example_names() -> tuple[str, ...]:
+    """Names of the packaged example scripts (e.g. ``"track_sine"``)."""
+    return tuple(sorted(p.stem for p in EXAMPLES.glob("*.py")))
+
+
+def example_path(name: str) -> Path | None:
+    """Path of the packaged example ``name`` (with or without ``.py``), or ``None``."""
+    stem = name[:-3] if name.endswith(".py") else name
+    path = EXAMPLES / f"{stem}.py"
     return path if path.is_file() and "/" not in name else None

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import run_memory
 from ..compensation.base import warn_chen_validity
 from ..compensation.registry import compensation_spec
 from ..controllers.base import Controller
@@ -346,6 +347,7 @@ class Experiment:
         robot = load_robot_config(rc)
         n = robot.nq
         config.check_dimensions(n)
+        run_memory("simulation.duration", config.simulation.duration, config.controller.Ts, n)
         if config.plant.effort_limit is not None:
             config.vector("plant.effort_limit", n)
         pc = config.plant

@@ -630,6 +630,27 @@ def write_config(
     return path
 
 
+def plant_step_hint(text: str) -> str | None:
+    """The note ``init`` prints when the config ``text`` it wrote steps the plant shorter
+    than the default 1 ms (a stiff URDF damping): the steps per control period and per
+    run it costs, and the ``[plant]`` keys that trade it (``None`` at the default step)."""
+    import tomllib
+
+    raw = tomllib.loads(text)
+    dt = raw.get("plant", {}).get("dt")
+    if dt is None or dt >= PLANT_STEPS[0]:
+        return None
+    Ts = float(raw.get("controller", {}).get("Ts", 0.01))
+    duration = float(raw.get("simulation", {}).get("duration", 10.0))
+    return (
+        f"note: the plant steps at dt = {dt:g} s ({Ts / dt:.0f} steps a control period, "
+        f"{duration / dt:.3g} for the {duration:g} s run) for the URDF's stiff joint damping; "
+        "to let the plant choose its step by its error, replace dt in [plant] by "
+        "tolerance = 1e-4 [rad] (guide: Joint dynamics, the plant step chosen by its "
+        "error), or leave the URDF's damping out of the plant with joint_dynamics = false"
+    )
+
+
 def plan(source: str | Path) -> InitPlan:
     """The decisions :func:`init_config` writes, as an object."""
     return InitPlan(source)

@@ -3,6 +3,7 @@ Pinocchio RK4 or Euler plant, or MuJoCo) with its disturbance and effort limits.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -205,6 +206,16 @@ def _pilot_error(pilot, h: float) -> float:
     return err if np.isfinite(err) else np.inf
 
 
+def _damping_divisions(pc: PlantConfig, robot: Robot, q: np.ndarray, Ts: float) -> int:
+    """The fewest steps per period :func:`check_plant_damping` accepts at ``q`` (1 without
+    URDF damping): the tolerance's search starts there, not at a step it would refuse."""
+    limit = DAMPING_STEP_LIMIT.get(pc.integrator)
+    lam = damping_rates(robot, q).max(initial=0.0) if pc.joint_dynamics else 0.0
+    if limit is None or lam <= 0.0:
+        return 1
+    return max(1, math.ceil(Ts * lam / limit * (1.0 + 1e-12)))
+
+
 def plant_step(
     pc: PlantConfig,
     robot: Robot,
@@ -249,6 +260,7 @@ def plant_step(
         pc.tolerance,
         periods=max(1, round(duration / Ts)),
         pilot=None if pilot is None else lambda h: _pilot_error(run_of, h),
+        min_divisions=_damping_divisions(pc, robot, samples[0][1], Ts),
     )
     check_plant_damping(replace(pc, dt=h, tolerance=None), robot, samples[0][1])
     return h

@@ -59,16 +59,22 @@ __all__ = [
 SUPPORTED_JOINT_TYPES = ("revolute", "prismatic", "continuous")
 
 
+#: Arms example-robot-data mounts on a floating base although their URDF is a fixed-base
+#: arm (the loader's ``free_flyer`` says how it mounts a model, not what the URDF is).
+MOUNTED_ARMS = ("so100", "so101")
+
+
 def example_robot_names() -> tuple[str, ...]:
     """Names accepted by :func:`load_robot` from ``example-robot-data`` (fixed-base URDF arms
-    and all other fixed-base URDF models the loader package lists)."""
+    and all other fixed-base URDF models the loader package lists, and the arms of
+    :data:`MOUNTED_ARMS`)."""
     from example_robot_data import robots_loader
 
     return tuple(
         sorted(
             name
             for name, loader in robots_loader.ROBOTS.items()
-            if loader.urdf_filename and not loader.free_flyer
+            if loader.urdf_filename and (not loader.free_flyer or name in MOUNTED_ARMS)
         )
     )
 

@@ -508,6 +508,7 @@ def choose_step(
     periods: int = 1,
     max_divisions: int = 64,
     pilot=None,
+    min_divisions: int = 1,
 ) -> tuple[float, float]:
     """The largest step :math:`h = T_s/m` (m = 1, 2, ...) whose error over a run of
     ``periods`` periods stays within ``tolerance`` [rad] (``[plant] tolerance``).
@@ -539,6 +540,8 @@ def choose_step(
         periods: The run's periods :math:`K`.
         max_divisions: The finest step tried is ``Ts / max_divisions``.
         pilot: ``pilot(h)``, a further error [rad] of the step ``h``, or ``None``.
+        min_divisions: The longest step tried is ``Ts / min_divisions`` (a bound the
+            caller knows, e.g. the URDF damping's stability limit).
 
     Returns:
         ``(h, E(h))`` (``E`` the larger of the two errors with ``pilot``).
@@ -549,7 +552,7 @@ def choose_step(
     """
     samples = list(samples)
     err = np.inf
-    for m in range(1, max_divisions + 1):
+    for m in range(max(1, min_divisions), max_divisions + 1):
         coarse, fine = make_plant(Ts / m), make_plant(Ts / (2 * m))
         worst = 0.0
         for t, q, dq, tau in samples:

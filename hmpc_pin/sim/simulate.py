@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._startup import raise_if_interrupted
+from ..checks import run_memory
 from ..exceptions import (
     ConfigError,
     DimensionError,
@@ -230,8 +231,8 @@ def simulate(
     # at t = 0 is bad input, not a failure of the run.
     for name, value in zip(("q_ref", "dq_ref"), reference.sample(0.0), strict=True):
         robot.check_vector(f"reference.sample(0) {name}", value)
+    run_memory("duration", duration, Ts, n)  # before the arrays: a clear message, no MemoryError
     K = round(duration / Ts)
-
     t_arr = Ts * np.arange(K + 1)
     rec: dict[str, Any] = {
         name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"

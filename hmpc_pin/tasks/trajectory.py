@@ -19,7 +19,9 @@ whole horizon (the :class:`~hmpc_pin.tasks.base.Reference` protocol, vectorised 
 Files (:func:`load_trajectory`): a CSV with the header ``t`` then one column per
 controlled joint (its URDF name, or ``q_<name>``), and optionally ``dq_<name>`` velocity
 columns for every joint; or an ``.npz`` with arrays ``t`` (K,), ``q`` (K, n), optionally
-``dq`` (K, n) and ``joint_names`` (n,). Checked on load: time strictly increasing, every
+``dq`` (K, n) and ``joint_names`` (n,) — a run saved by the package (``run``, ``realtime``,
+``ros``: its measured ``t``, ``q``, ``dq`` up to its last finite sample, the other arrays
+left aside) is such a file. Checked on load: time strictly increasing, every
 joint present, no unknown column, finite values (:class:`~hmpc_pin.exceptions.TrajectoryError`
 naming the file, the row or column, and what was expected).
 """
@@ -272,6 +274,36 @@ def _read_csv(path: Path) -> tuple[list[str], FloatArray]:
     return header, data
 
 
+#: The arrays that mark an ``.npz`` as a run saved by the package
+#: (:meth:`~hmpc_pin.sim.result.Result.save`: ``run``, ``realtime``, ``ros``).
+RUN_MARKERS = ("complete", "meta")
+
+
+def _is_run(arrays: dict) -> bool:
+    return all(k in arrays for k in RUN_MARKERS)
+
+
+def _run_samples(arrays: dict, where: str) -> dict:
+    """The trajectory of a saved run: its measured ``t``, ``q``, ``dq`` and
+    ``joint_names``, up to its last finite sample (a stopped run's tail is NaN)."""
+    t, q = np.asarray(arrays["t"], float), np.atleast_2d(np.asarray(arrays["q"], float))
+    dq = arrays.get("dq")
+    finite = np.isfinite(t) & np.all(np.isfinite(q), axis=-1)
+    if dq is not None:
+        finite &= np.all(np.isfinite(np.atleast_2d(np.asarray(dq, float))), axis=-1)
+    last = int(np.argmin(finite)) if not finite.all() else len(t)
+    if last < 2:
+        raise TrajectoryError(
+            where, f"a saved run with {last} finite sample(s)", "a run of two samples or more"
+        )
+    out = {"t": t[:last], "q": q[:last]}
+    if dq is not None:
+        out["dq"] = np.atleast_2d(np.asarray(dq, float))[:last]
+    if "joint_names" in arrays:
+        out["joint_names"] = arrays["joint_names"]
+    return out
+
+
 def load_trajectory(path: str | Path, joint_names: Sequence[str]) -> JointTrajectory:
     """Read a trajectory file (module docstring) for the joints ``joint_names``.
 
@@ -298,6 +330,8 @@ def load_trajectory(path: str | Path, joint_names: Sequence[str]) -> JointTrajec
                 raise TrajectoryError(
                     where, f"no array {key!r} (has {sorted(arrays)})", "arrays t, q [, dq]"
                 )
+        if _is_run(arrays):  # a recorded run: its measured t, q, dq, the rest left aside
+            arrays = _run_samples(arrays, where)
         unknown = sorted(set(arrays) - {"t", "q", "dq", "joint_names"})
         if unknown:
             raise TrajectoryError(

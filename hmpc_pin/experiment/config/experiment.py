@@ -176,6 +176,25 @@ def _shipped_robot(name: str) -> bool:
         return False
 
 
+def _not_text(path: Path) -> str:
+    """What a config path that is not UTF-8 text is instead (a saved run, another binary)."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(4)
+    except OSError:
+        head = b""
+    if head == b"PK\x03\x04" or path.suffix.lower() == ".npz":
+        return (
+            "is an .npz archive (a saved run or trajectory), not an experiment config; pass "
+            "the .toml file the run was made from, or a packaged config's name "
+            "(`hmpc-pin configs`)"
+        )
+    return (
+        "is not a text file (not UTF-8); expected an experiment config in TOML "
+        "(`hmpc-pin init ROBOT` writes one, `hmpc-pin configs` lists the packaged ones)"
+    )
+
+
 def load_config(path: str | Path) -> ExperimentConfig:
     """Load and validate an experiment TOML file.
 
@@ -200,8 +219,12 @@ def load_config(path: str | Path) -> ExperimentConfig:
         )
     try:
         text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError:
+        raise ConfigError("", _not_text(path), source=src) from None
+    except OSError as exc:
         raise ConfigError("", f"cannot be read ({exc})", source=src) from exc
+    if text.startswith("PK\x03\x04"):  # a zip (.npz) that happens to decode
+        raise ConfigError("", _not_text(path), source=src)
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -1,22 +1,36 @@
 """Writing a config back: a TOML file with some tables replaced (``identify``, ``tune``).
 
 The source file is parsed with ``tomllib``, the tables are replaced, and the result is
-written as TOML with the relative file paths (``robot.urdf``, ``plant.urdf``,
-``reference.trajectory.file``) rewritten relative to the new file's folder, so that the
-written config loads from wherever it is written. Comments of the source are not kept; a
-header comment says where the file came from.
+written as TOML. Comments of the source are not kept; a header comment says where the file
+came from.
+
+A written config runs wherever it is copied (:func:`portable_paths`, the rule of every
+config the package writes): the file paths (``robot.urdf``, ``plant.urdf``,
+``reference.trajectory.file``) are written so that they do not depend on where the written
+file is, nor on where the package is installed:
+
+- a robot shipped with the package (``robots/planar3.urdf``) is named by
+  ``model = "planar3"``, never by its path inside the installed package;
+- any other file shipped with the package (the trajectory of ``panda_trajectory``, a
+  packaged URDF given as ``plant.urdf``) is copied beside the written config and named by
+  its file name;
+- a user's file is named by its absolute path: the written config can be copied anywhere,
+  the user's files stay where they are.
 """
 
 from __future__ import annotations
 
+import filecmp
 import math
 import os
+import shutil
 import tomllib
 from pathlib import Path
 
+from ...data import DATA
 from ...exceptions import ConfigError, OutputError
 
-__all__ = ["PATH_KEYS", "dump_toml", "write_config"]
+__all__ = ["PATH_KEYS", "dump_toml", "portable_paths", "write_config"]
 
 #: Keys holding file paths relative to the config file.
 PATH_KEYS = (("robot", "urdf"), ("plant", "urdf"), ("reference", "trajectory", "file"))
@@ -69,6 +83,62 @@ def dump_toml(data: dict, _prefix: str = "") -> str:
     return out
 
 
+def _packaged(path: Path) -> bool:
+    """Whether ``path`` is a file shipped inside the installed package's data."""
+    try:
+        path.resolve().relative_to(DATA)
+    except ValueError:
+        return False
+    return True
+
+
+def _beside(path: Path, dest: Path) -> str:
+    """Copy the packaged file ``path`` into ``dest`` (unless the same file is there) and
+    return its name; a different file of that name there is an :class:`OutputError`."""
+    target = dest / path.name
+    if target.exists() and not filecmp.cmp(path, target, shallow=False):
+        raise OutputError(
+            target,
+            f"exists and differs from the packaged {path.name} the written config needs "
+            "beside it; write the config to another folder, or move that file",
+        )
+    if not target.exists():
+        try:
+            dest.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(path, target)
+        except OSError as exc:
+            raise OutputError(dest, f"is not writable ({exc.strerror or exc})") from exc
+    return path.name
+
+
+def portable_paths(raw: dict, base: Path, dest: Path) -> dict:
+    """Rewrite the file paths of the parsed config ``raw`` (read from the folder ``base``)
+    for a config written into the folder ``dest``, so that it runs wherever it is copied
+    (the module's rule: a packaged robot by ``model``, another packaged file copied beside,
+    a user's file by its absolute path). ``raw`` is changed in place and returned.
+
+    Raises:
+        OutputError: A packaged side file cannot be copied into ``dest``.
+    """
+    for keys in PATH_KEYS:
+        table = raw
+        for k in keys[:-1]:
+            table = table.get(k, {}) if isinstance(table, dict) else {}
+        value = table.get(keys[-1]) if isinstance(table, dict) else None
+        if not isinstance(value, str):
+            continue
+        path = (Path(value) if Path(value).is_absolute() else base / value).resolve()
+        shipped_robot = path.parent == DATA / "robots" and path.suffix == ".urdf"
+        if keys == ("robot", "urdf") and shipped_robot and "model" not in table:
+            del table["urdf"]
+            table["model"] = path.stem
+        elif _packaged(path) and path.is_file():
+            table[keys[-1]] = _beside(path, dest)
+        else:
+            table[keys[-1]] = str(path)
+    return raw
+
+
 def write_config(
     source: Path, tables: dict, out: Path, header: str = "", name: str | None = None
 ) -> Path:
@@ -89,14 +159,7 @@ def write_config(
         raw = tomllib.loads(Path(source).read_text(encoding="utf-8"))
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise ConfigError("", f"cannot be read ({exc})", source=str(source)) from exc
-    base, dest = Path(source).resolve().parent, Path(out).resolve().parent
-    for keys in PATH_KEYS:
-        table = raw
-        for k in keys[:-1]:
-            table = table.get(k, {}) if isinstance(table, dict) else {}
-        value = table.get(keys[-1]) if isinstance(table, dict) else None
-        if isinstance(value, str) and not Path(value).is_absolute():
-            table[keys[-1]] = os.path.relpath((base / value).resolve(), dest)
+    portable_paths(raw, Path(source).resolve().parent, Path(out).resolve().parent)
     for table_name, body in tables.items():
         *parents, last = table_name.split(".")
         table = raw

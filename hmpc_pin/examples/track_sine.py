@@ -1,6 +1,6 @@
 """Track the paper's sine reference (Eq 31) on the 3-link arm under friction + disturbances.
 
-Runs the combined scenario of Section 5.3 from ``configs/paper_combined.toml`` with
+Runs the combined scenario of Section 5.3 from the packaged config ``paper_combined`` with
 the hierarchical multiloop MPC and the NDO, prints a per-joint table (RMS and max
 tracking error after t = 1 s, time to stay within 0.01 rad, RMS observer error),
 and writes ``track_sine.png`` (reference vs angle and true vs estimated
@@ -18,8 +18,6 @@ import hmpc_pin
 from hmpc_pin.apps.cli import live_view
 from hmpc_pin.apps.plots import plot_overview
 
-ROOT = Path(__file__).resolve().parent.parent
-
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
@@ -28,7 +26,7 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--config",
         type=Path,
-        default=ROOT / "configs" / "paper_combined.toml",
+        default=Path("paper_combined"),
         help="experiment TOML (default: %(default)s)",
     )
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory")

@@ -1,6 +1,6 @@
 """Show the effect of the observer gain c (not given by the paper) on the combined scenario.
 
-Runs ``configs/paper_combined.toml`` for each gain and design (``chen``: the
+Runs the packaged config ``paper_combined`` for each gain and design (``chen``: the
 paper's Y, ``general``: Y = I) and prints RMS / max tracking error after 1 s
 and the time to stay within 0.01 rad, worst joint, plus the explicit-Euler
 observer at the same gains (which diverges once Ts·c·λmax(YM⁻¹) > 2).
@@ -15,15 +15,14 @@ from pathlib import Path
 import numpy as np
 
 import hmpc_pin
-
-ROOT = Path(__file__).resolve().parent.parent
+from hmpc_pin.experiment.build import with_controller
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--config", type=Path, default=ROOT / "configs" / "paper_combined.toml")
+    parser.add_argument("--config", type=Path, default=Path("paper_combined"))
     parser.add_argument("--gains", type=float, nargs="+", default=[5, 10, 20, 50, 100, 200])
     args = parser.parse_args(argv)
     config = hmpc_pin.load_config(args.config)
@@ -31,8 +30,9 @@ def main(argv=None) -> int:
     print(f"{header[0]:<20} {header[1]:>6} {header[2]:>16} {header[3]:>14} {header[4]:>10}")
     for kind, disc in (("chen", "implicit"), ("general", "implicit"), ("chen", "explicit")):
         for c in args.gains:
-            obs = replace(config.controller.observer, kind=kind, gain=c, discretization=disc)
-            cfg = replace(config, controller=replace(config.controller, observer=obs))
+            cfg = with_controller(config, compensation=kind)
+            obs = replace(cfg.controller.observer, gain=c, discretization=disc)
+            cfg = replace(cfg, controller=replace(cfg.controller, observer=obs))
             try:
                 m = hmpc_pin.compute_metrics(hmpc_pin.run_experiment(cfg))
                 row = (

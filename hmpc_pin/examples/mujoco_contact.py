@@ -1,6 +1,6 @@
-"""The disturbance observer as a contact-force estimator, on MuJoCo (issue 17).
+"""The disturbance observer as a contact-force estimator, on MuJoCo.
 
-Runs ``configs/planar3_contact_mujoco.toml`` (planar3 simulated by MuJoCo, the tool driven
+Runs the packaged config ``planar3_contact_mujoco`` (planar3 simulated by MuJoCo, the tool driven
 down onto a padded table) with both collision reactions, ``ignore`` (the paper's scheme:
 the observer cancels the contact and the arm keeps pushing) and ``stop`` (hold the
 position reached, the estimate no longer fed back). Prints, per reaction, the first
@@ -21,8 +21,6 @@ import numpy as np
 
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def run(config, reaction: str):
@@ -48,7 +46,7 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--config",
         type=Path,
-        default=ROOT / "configs" / "planar3_contact_mujoco.toml",
+        default=Path("planar3_contact_mujoco"),
         help="experiment TOML with [plant.mujoco.obstacle] and [collision] (default: %(default)s)",
     )
     parser.add_argument("--out", type=Path, default=Path("out"), help="output directory")

@@ -1,6 +1,8 @@
 // One box QP with its cold twin: see box_qp.hpp.
 #include "hmpc/box_qp.hpp"
 
+#include <proxsuite/proxqp/dense/dense.hpp>
+
 #include <optional>
 
 namespace hmpc {
@@ -12,6 +14,12 @@ BoxQP::BoxQP(const Mat& H, const Vec& lo, const Vec& hi, const QPSettings& warm,
     : H_(H), lo_(lo), hi_(hi), warm_(warm), cold_(cold) {
   restart();
 }
+
+BoxQP::~BoxQP() = default;
+
+const BoxQP::Results& BoxQP::failed() const { return cold_qp_->results; }
+
+const BoxQP::Vec& BoxQP::x() const { return qp_->results.x; }
 
 void BoxQP::restart() {
   auto qp = std::make_unique<DenseQP>(H_.rows(), 0, 0, true);

@@ -2,6 +2,8 @@
 // shortcut: soft_active_set.cpp).
 #include "hmpc/soft_limits.hpp"
 
+#include <proxsuite/proxqp/dense/dense.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -57,6 +59,8 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
   gamma_.set(Phi_, Gamma_);
   shortcut_ = true;
 }
+
+SoftLimits::~SoftLimits() = default;
 
 // Joint i's soft QP as new: initialised with its rows at x0 = 0 and solved once at g = 0
 // (ŝ's gradient g_slack); the gradient p_.g kept, l_soft_ and u_soft_ overwritten.

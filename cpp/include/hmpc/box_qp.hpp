@@ -10,9 +10,14 @@
 #include "hmpc/qp_settings.hpp"
 
 #include <Eigen/Core>
-#include <proxsuite/proxqp/dense/dense.hpp>
+#include <proxsuite/proxqp/results.hpp>
 
 #include <memory>
+
+namespace proxsuite::proxqp::dense {
+template <typename T>
+struct QP;  // proxsuite/proxqp/dense/dense.hpp, included by the sources only
+}  // namespace proxsuite::proxqp::dense
 
 namespace hmpc {
 
@@ -26,6 +31,7 @@ class BoxQP {
   // H (m×m), lo, hi (m): the QP's data; warm, cold: the warm QP's and the twin's settings.
   BoxQP(const Mat& H, const Vec& lo, const Vec& hi, const QPSettings& warm,
         const QPSettings& cold);
+  ~BoxQP();
 
   // The QP as new: initialised and solved once at g = 0 (update() before any solve()
   // crashes ProxSuite 0.8.0 with warm starts, measured here); the twin to be made again.
@@ -36,12 +42,12 @@ class BoxQP {
   // warm one did not report solved; cold set then), or null when the twin did not report
   // solved either (failed() holds its results).
   const Results* solve(const Vec& g, int shift_block, bool& cold);
-  const Results& failed() const { return cold_qp_->results; }
+  const Results& failed() const;
 
   // The last solution set to x (multipliers z, or 0) at the variables offset..offset+x.size(),
   // so that the next warm start begins there (a solution found without ProxSuite).
   void remember(int offset, const Vec& x, const Vec* z);
-  const Vec& x() const { return qp_->results.x; }
+  const Vec& x() const;
 
   // The iteration cap, of this QP, its twin and the QPs restart() makes.
   void set_max_iter(long max_iter);

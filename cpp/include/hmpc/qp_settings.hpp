@@ -3,7 +3,8 @@
 // soft_limits.hpp).
 #pragma once
 
-#include <proxsuite/proxqp/dense/dense.hpp>
+#include <proxsuite/proxqp/settings.hpp>
+#include <proxsuite/proxqp/status.hpp>
 
 #include <string>
 

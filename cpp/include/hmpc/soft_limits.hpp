@@ -15,10 +15,15 @@
 #include "hmpc/qp_settings.hpp"
 
 #include <Eigen/Core>
-#include <proxsuite/proxqp/dense/dense.hpp>
+#include <proxsuite/proxqp/results.hpp>
 
 #include <memory>
 #include <vector>
+
+namespace proxsuite::proxqp::dense {
+template <typename T>
+struct QP;  // proxsuite/proxqp/dense/dense.hpp, included by the sources only
+}  // namespace proxsuite::proxqp::dense
 
 namespace hmpc {
 
@@ -43,6 +48,7 @@ class SoftLimits {
              const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
              const CRefVec& row_scale, double g_slack, double k_slack, const QPSettings& soft,
              const CRefMat& T, const CRefMat& E, const CRefMat& Hp, JointQPsStats* stats);
+  ~SoftLimits();
 
   // A new run: the soft QPs ProxSuite solved remade, nothing remembered.
   void restart();

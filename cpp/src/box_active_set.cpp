@@ -24,11 +24,6 @@ BoxActiveSet::BoxActiveSet(const Mat& H) : Nc_(static_cast<int>(H.rows())), H_(H
   state_.assign(Nc_, 0);
 }
 
-const BoxActiveSet::Vec& BoxActiveSet::unconstrained(const Vec& g) {
-  u_.noalias() = neg_Hinv_ * g;
-  return u_;
-}
-
 // Guesses of the active set: the last solution's shifted one step along the horizon (right
 // in a closed loop, where the plan advances one step per period) with one exchange, then the
 // last solution's as it stands (right when the error persists) with up to iter exchanges,

@@ -19,8 +19,6 @@ BoxQP::~BoxQP() = default;
 
 const BoxQP::Results& BoxQP::failed() const { return cold_qp_->results; }
 
-const BoxQP::Vec& BoxQP::x() const { return qp_->results.x; }
-
 void BoxQP::restart() {
   auto qp = std::make_unique<DenseQP>(H_.rows(), 0, 0, true);
   warm_.apply(qp->settings);
@@ -28,15 +26,8 @@ void BoxQP::restart() {
   qp->init(H_, g, std::nullopt, std::nullopt, std::nullopt, std::nullopt, std::nullopt, lo_, hi_);
   qp->solve();
   qp_ = std::move(qp);
+  res_ = &qp_->results;
   cold_qp_.reset();
-}
-
-void BoxQP::remember(int offset, const Vec& x, const Vec* z) {
-  auto& res = qp_->results;
-  const auto m = x.size();
-  res.x.segment(offset, m) = x;
-  if (z) res.z.segment(offset, m) = *z;
-  else res.z.segment(offset, m).setZero();
 }
 
 const BoxQP::Results* BoxQP::solve(const Vec& g, int shift_block, bool& cold) {

@@ -125,24 +125,6 @@ void SoftLimits::prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVe
   p_.g[Nc_] = g_slack_;
 }
 
-// X = Φ x0 + Γ U by the recursion x_{j+1} = A x_j + B u_min(j, Nc−1) (Eq 24; A, B the first
-// rows of Φ and Γ): O(N) where Γ U costs N·Nc.
-bool SoftLimits::leaves(int i, double q, double dq, const ColRef& U) const {
-  const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
-  const double b0 = Gamma_(0, 0), b1 = Gamma_(1, 0);
-  const double m = mid_[i];
-  double x = q, v = dq;
-  bool outside = false;
-  for (int j = 0; j < N_ && !outside; ++j) {
-    const double u = U[std::min(j, Nc_ - 1)];
-    const double xn = a00 * x + a01 * v + b0 * u;
-    v = a10 * x + a11 * v + b1 * u;
-    x = xn;
-    outside = std::abs(x - m) > half_[i] || std::abs(v) > vel_[i];
-  }
-  return outside;
-}
-
 const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
   bounds(i, q_free_, v_free_);
   DenseQP& qp = *qps_[i];

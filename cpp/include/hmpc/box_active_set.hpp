@@ -21,7 +21,10 @@ class BoxActiveSet {
   explicit BoxActiveSet(const Mat& H);
 
   // u0 = −H⁻¹ g into u() (the symmetrised inverse), returned.
-  const Vec& unconstrained(const Vec& g);
+  const Vec& unconstrained(const Vec& g) {
+    u_.noalias() = neg_Hinv_ * g;
+    return u_;
+  }
 
   // The box QP for g (unconstrained(g) called before) from the guesses: the last solution
   // `last`'s active set shifted one step along the horizon (one exchange), then as it stands

@@ -46,8 +46,14 @@ class BoxQP {
 
   // The last solution set to x (multipliers z, or 0) at the variables offset..offset+x.size(),
   // so that the next warm start begins there (a solution found without ProxSuite).
-  void remember(int offset, const Vec& x, const Vec* z);
-  const Vec& x() const;
+  // (Inline, as x(): on the step's path, through the warm QP's results.)
+  void remember(int offset, const Vec& x, const Vec* z) {
+    const auto m = x.size();
+    res_->x.segment(offset, m) = x;
+    if (z) res_->z.segment(offset, m) = *z;
+    else res_->z.segment(offset, m).setZero();
+  }
+  const Vec& x() const { return res_->x; }
 
   // The iteration cap, of this QP, its twin and the QPs restart() makes.
   void set_max_iter(long max_iter);
@@ -57,6 +63,7 @@ class BoxQP {
   Vec lo_, hi_;
   QPSettings warm_, cold_;
   std::unique_ptr<DenseQP> qp_, cold_qp_;
+  Results* res_ = nullptr;  // qp_->results
 };
 
 }  // namespace hmpc

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 #include <proxsuite/proxqp/results.hpp>
 
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -57,8 +58,23 @@ class SoftLimits {
   bool shortcut() const { return shortcut_; }
 
   // Whether joint i's box-only prediction X = Φ x0 + Γ U (x0 = (q_i, q̇_i), U its column u)
-  // leaves the limits.
-  bool leaves(int i, double q, double dq, const ColRef& u) const;
+  // leaves the limits: X by the recursion x_{j+1} = A x_j + B u_min(j, Nc−1) (Eq 24; A, B the
+  // first rows of Φ and Γ), O(N) where Γ U costs N·Nc (inline: on the step's path).
+  bool leaves(int i, double q, double dq, const ColRef& U) const {
+    const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+    const double b0 = Gamma_(0, 0), b1 = Gamma_(1, 0);
+    const double m = mid_[i];
+    double x = q, v = dq;
+    bool outside = false;
+    for (int j = 0; j < N_ && !outside; ++j) {
+      const double u = U[j < Nc_ - 1 ? j : Nc_ - 1];
+      const double xn = a00 * x + a01 * v + b0 * u;
+      v = a10 * x + a11 * v + b1 * u;
+      x = xn;
+      outside = std::abs(x - m) > half_[i] || std::abs(v) > vel_[i];
+    }
+    return outside;
+  }
   // Joint i's soft QP's gradient (G's row i, ŝ's) and the free responses of its state.
   void prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq);
   // The soft active-set shortcut for joint i (after prepare; box_u: its box-only solution,

@@ -168,3 +168,37 @@ def test_the_parts_reject_arrays_of_the_wrong_size():
     part, _ = _kkt(mpc)
     with pytest.raises(ValueError, match="expected rows"):
         part.solve([0], [0] * mpc.Nc, 0, np.zeros(mpc.Nc + 1), -1.0, 1.0, np.zeros(1), np.zeros(1))
+
+
+def test_joint_qps_knobs_and_counters_are_typed_fields():
+    """JointQPs' Options and Stats cross to Python field by field (ProxSuite's Settings and
+    Info): the wrapper's properties read and write them, a copy is independent, and the
+    counters count what the solves did."""
+    import copy
+
+    from hmpc_pin.mpc.condensed import JointQPs
+
+    mpc = _mpc()
+    qps = JointQPs(mpc, -np.ones(2), np.ones(2), ("a", "b"), layout="joint")
+    core_qps = qps._core
+    assert isinstance(core_qps.options, core.JointQPsOptions)
+    qps.shift, qps.active_set_iter = True, 7
+    assert core_qps.options.shift and core_qps.options.active_set_iter == 7
+    core_qps.options.shortcut = False  # live
+    assert not qps.shortcut
+    options = core.JointQPsOptions()
+    options.soft_active_set_iter = 3
+    core_qps.options = options
+    assert qps.soft_active_set_iter == 3 and not qps.shift  # all fields replaced
+    qps.shortcut = True
+    before = copy.copy(core_qps.stats)
+    inside = np.zeros((2, mpc.Nc))  # u0 = 0: inside the box, the unconstrained answer
+    outside = np.vstack([_gradients(mpc, 1, seed=8)[0] * 5.0] * 2)
+    qps.solve(inside)
+    qps.solve(outside)
+    stats = core_qps.stats
+    assert stats.unconstrained_solves == before.unconstrained_solves + 2 == qps.unconstrained_solves
+    assert stats != before
+    assert before == core.JointQPsStats()  # the copy kept its values
+    core_qps.stats = before  # restored (as warm_up does)
+    assert qps.unconstrained_solves == 0

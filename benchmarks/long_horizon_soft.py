@@ -47,6 +47,12 @@ SCENARIOS = ((0.001, 100, 100), (0.01, 50, 30))
 OFFSET = 0.2  # [rad]
 
 
+def _soft_failures(qps) -> tuple[int, int, int]:
+    """The soft shortcut's guesses that did not answer: (pivot, exchanges, KKT) so far."""
+    stats = qps._core.stats
+    return stats.soft_fail_pivot, stats.soft_fail_exchanges, stats.soft_fail_kkt
+
+
 def controller(robot, Ts: float, N: int) -> HierarchicalMPC:
     """Panda's controller with the default soft joint limits (the URDF's)."""
     settings = MPCSettings(Ts=Ts, N=N, Nc=N)
@@ -120,7 +126,7 @@ def scenario(arm, Ts: float, N: int, steps: int, blocks: int, proxsuite: bool) -
         variants["soft limits active, ProxSuite only"] = (plain, ref)
         by_name["soft limits active, ProxSuite only"] = states
     qps = active.qps
-    before = (qps.soft_active_set_solves, qps._core.soft_failures)
+    before = (qps.soft_active_set_solves, _soft_failures(qps))
     times = alternate(variants, by_name, blocks)
     base = np.median(times["on the reference"], axis=1)  # per block
     mask = soft > 0
@@ -140,7 +146,7 @@ def scenario(arm, Ts: float, N: int, steps: int, blocks: int, proxsuite: bool) -
             print(f"| {name} | {label} | {np.median(med):.0f} | {np.median(med / base):.1f} "
                   f"| {worst:.0f} |")  # fmt: skip
     solved = qps.soft_active_set_solves - before[0]
-    fails = np.subtract(qps._core.soft_failures, before[1])
+    fails = np.subtract(_soft_failures(qps), before[1])
     print(f"\nsoft QPs answered by the soft active-set shortcut: {solved} of "
           f"{blocks * soft.sum()} (guesses that did not answer: pivot {fails[0]}, "
           f"exchanges {fails[1]}, KKT {fails[2]})")  # fmt: skip

@@ -6,6 +6,7 @@ faults and partial results, the same state of the parts afterwards, for every ki
 from __future__ import annotations
 
 import contextlib
+import copy
 import signal
 import threading
 import warnings
@@ -67,7 +68,7 @@ def _controller_state(ctrl) -> list:
         core[0],
         core[6],
         ctrl._started,
-        ctrl.qps._core.counters,
+        copy.copy(ctrl.qps._core.stats),
         ctrl.v.copy(),
         ctrl.tau.copy(),
         ctrl.disturbance_estimate.copy(),

@@ -20,6 +20,7 @@ void expose_sampler(py::module_& m);
 void expose_rk4(py::module_& m);
 void expose_observer(py::module_& m);
 void expose_joint_qps(py::module_& m);
+void expose_qp_parts(py::module_& m);
 void expose_step(py::module_& m);
 void expose_measurement(py::module_& m);
 void expose_loop(py::module_& m);

@@ -31,8 +31,53 @@ static void expose_qp_settings(py::module_& m) {
       .def_readwrite("check_duality_gap", &QPSettings::check_duality_gap);
 }
 
+// JointQPs' knobs and counters, field by field (ProxSuite's Settings and Info).
+static void expose_options_stats(py::module_& m) {
+  using O = JointQPsOptions;
+  py::class_<O>(m, "JointQPsOptions", py::module_local())
+      .def(py::init<>())
+      .def_readwrite("shortcut", &O::shortcut)
+      .def_readwrite("shift", &O::shift)
+      .def_readwrite("active_set_iter", &O::active_set_iter)
+      .def_readwrite("soft_active_set_iter", &O::soft_active_set_iter)
+      .def_readonly("always_constrained", &O::always_constrained);
+  using S = JointQPsStats;
+  auto fields = [](const S& s) {
+    return py::make_tuple(s.cold_solves, s.unconstrained_solves, s.active_set_solves,
+                          s.soft_active_set_solves, s.soft_fail_pivot, s.soft_fail_exchanges,
+                          s.soft_fail_kkt, s.constrained, s.constrained_last);
+  };
+  py::class_<S>(m, "JointQPsStats", py::module_local())
+      .def(py::init<>())
+      .def(py::init<const S&>())
+      .def("__copy__", [](const S& s) { return S(s); })
+      .def("__eq__", [fields](const S& a, const S& b) { return fields(a).equal(fields(b)); })
+      .def("__repr__",
+           [](const S& s) {
+             return "JointQPsStats(cold_solves=" + std::to_string(s.cold_solves) +
+                    ", unconstrained_solves=" + std::to_string(s.unconstrained_solves) +
+                    ", active_set_solves=" + std::to_string(s.active_set_solves) +
+                    ", soft_active_set_solves=" + std::to_string(s.soft_active_set_solves) +
+                    ", soft_fail_pivot=" + std::to_string(s.soft_fail_pivot) +
+                    ", soft_fail_exchanges=" + std::to_string(s.soft_fail_exchanges) +
+                    ", soft_fail_kkt=" + std::to_string(s.soft_fail_kkt) +
+                    ", constrained=" + std::to_string(s.constrained) +
+                    ", constrained_last=" + (s.constrained_last ? "True" : "False") + ")";
+           })
+      .def_readwrite("cold_solves", &S::cold_solves)
+      .def_readwrite("unconstrained_solves", &S::unconstrained_solves)
+      .def_readwrite("active_set_solves", &S::active_set_solves)
+      .def_readwrite("soft_active_set_solves", &S::soft_active_set_solves)
+      .def_readwrite("soft_fail_pivot", &S::soft_fail_pivot)
+      .def_readwrite("soft_fail_exchanges", &S::soft_fail_exchanges)
+      .def_readwrite("soft_fail_kkt", &S::soft_fail_kkt)
+      .def_readwrite("constrained", &S::constrained)
+      .def_readwrite("constrained_last", &S::constrained_last);
+}
+
 void expose_joint_qps(py::module_& m) {
   expose_qp_settings(m);
+  expose_options_stats(m);
   py::class_<PyJointQPs, std::shared_ptr<PyJointQPs>>(m, "JointQPs", py::module_local())
       .def(py::init<int, int, int, bool, const CRefMat&, const CRefVec&, const CRefVec&,
                     const QPSettings&, const QPSettings&, Array, Array>(),
@@ -58,50 +103,21 @@ void expose_joint_qps(py::module_& m) {
           [](PyJointQPs& o, std::vector<std::string> names) { o.qps.joint_names = names; })
       .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
       .def("restart", [](PyJointQPs& o) { o.qps.restart(); })
+      // The knobs and the counters, live (qps.options.shift = True; a copy: copy.copy).
       .def_property(
-          "shortcut", [](const PyJointQPs& o) { return o.qps.shortcut; },
-          [](PyJointQPs& o, bool on) { o.qps.shortcut = on; })
-      .def_property(
-          "shift", [](const PyJointQPs& o) { return o.qps.shift; },
-          [](PyJointQPs& o, bool on) { o.qps.shift = on; })
-      .def_property(
-          "active_set_iter", [](const PyJointQPs& o) { return o.qps.active_set_iter; },
-          [](PyJointQPs& o, int k) { o.qps.active_set_iter = k; })
-      .def_property_readonly("active_set_solves",
-                             [](const PyJointQPs& o) { return o.qps.active_set_solves; })
-      .def_property(
-          "soft_active_set_iter", [](const PyJointQPs& o) { return o.qps.soft_active_set_iter; },
-          [](PyJointQPs& o, int k) { o.qps.soft_active_set_iter = k; })
-      .def_property_readonly("soft_active_set_solves",
-                             [](const PyJointQPs& o) { return o.qps.soft_active_set_solves; })
-      .def_property_readonly("soft_failures",
-                             [](const PyJointQPs& o) {
-                               const auto& q = o.qps;
-                               return py::make_tuple(q.soft_fail_pivot, q.soft_fail_exchanges,
-                                                     q.soft_fail_kkt);
-                             })
-      .def_property(
-          "counters",
-          [](const PyJointQPs& o) {
-            const auto& q = o.qps;
-            return py::make_tuple(q.cold_solves, q.unconstrained_solves, q.active_set_solves,
-                                  q.constrained, q.constrained_last, q.soft_active_set_solves);
-          },
-          [](PyJointQPs& o, const py::tuple& c) {  // restored after a dry step (warm_up)
-            auto& q = o.qps;
-            q.cold_solves = c[0].cast<long>();
-            q.unconstrained_solves = c[1].cast<long>();
-            q.active_set_solves = c[2].cast<long>();
-            q.constrained = c[3].cast<long>();
-            q.constrained_last = c[4].cast<bool>();
-            if (c.size() > 5) q.soft_active_set_solves = c[5].cast<long>();
+          "options",
+          py::cpp_function([](PyJointQPs& o) -> JointQPsOptions& { return o.qps.options; },
+                           py::return_value_policy::reference_internal),
+          [](PyJointQPs& o, const JointQPsOptions& v) {
+            const bool always = o.qps.options.always_constrained;  // set_limits' own
+            o.qps.options = v;
+            o.qps.options.always_constrained = always;
           })
-      .def_property_readonly("cold_solves", [](const PyJointQPs& o) { return o.qps.cold_solves; })
-      .def_property_readonly("unconstrained_solves",
-                             [](const PyJointQPs& o) { return o.qps.unconstrained_solves; })
-      .def_property_readonly("constrained", [](const PyJointQPs& o) { return o.qps.constrained; })
-      .def_property_readonly("constrained_last",
-                             [](const PyJointQPs& o) { return o.qps.constrained_last; })
+      .def_property(  // set: restored after a dry step (warm_up)
+          "stats",
+          py::cpp_function([](PyJointQPs& o) -> JointQPsStats& { return o.qps.stats; },
+                           py::return_value_policy::reference_internal),
+          [](PyJointQPs& o, const JointQPsStats& s) { o.qps.stats = s; })
       .def_property_readonly("fail_joint", [](const PyJointQPs& o) { return o.qps.fail_joint; })
       .def_property_readonly("fail_status", [](const PyJointQPs& o) { return o.qps.fail_status; })
       .def_property_readonly("fail_iter", [](const PyJointQPs& o) { return o.qps.fail_iter; });

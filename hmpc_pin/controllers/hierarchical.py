@@ -21,6 +21,7 @@ zero-order-hold discretisation of :math:`m_j\\dot w = -b_jw + u`).
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 import warnings
@@ -627,7 +628,7 @@ class HierarchicalMPC(AppliedTorque):
         buffers = [self._buf[name].copy() for name in ("v", "tau", "d_hat", "nle")]
         M, stack, slack = self._M.copy(), self.qps.stack.copy(), self.qps.slack.copy()
         core = self.qps._core
-        counters = core.counters
+        counters = copy.copy(core.stats)  # the QPs' counters (JointQPsStats)
         ndo_state = ndo.state if ndo is not None else None
         step_core = self._core
         # copies, independent of the compiled step's own vectors
@@ -649,7 +650,7 @@ class HierarchicalMPC(AppliedTorque):
             self._M[:] = M
             self.qps.stack[:] = stack
             self.qps.slack[:] = slack
-            core.counters = counters
+            core.stats = counters
             step_core.state = carried
             if ndo is not None:
                 ndo.state = ndo_state

@@ -491,28 +491,28 @@ class JointQPs:
     @property
     def cold_solves(self) -> int:
         """Box QPs solved again from scratch after a warm solve that did not converge."""
-        return int(self._core.cold_solves)
+        return int(self._core.stats.cold_solves)
 
     @property
     def unconstrained_solves(self) -> int:
         """``"joint"`` layout: joint QPs answered by the unconstrained minimiser."""
-        return int(self._core.unconstrained_solves)
+        return int(self._core.stats.unconstrained_solves)
 
     @property
     def active_set_solves(self) -> int:
         """``"joint"`` layout: joint QPs answered by the active-set shortcut (a guessed active
         set whose point passed the box QP's KKT test), since construction."""
-        return int(self._core.active_set_solves)
+        return int(self._core.stats.active_set_solves)
 
     @property
     def constrained(self) -> int:
         """Joints whose soft-constrained QP was solved at the last step."""
-        return int(self._core.constrained)
+        return int(self._core.stats.constrained)
 
     @property
     def constrained_last(self) -> bool:
         """Whether any joint's soft QP was solved at the last step."""
-        return bool(self._core.constrained_last)
+        return bool(self._core.stats.constrained_last)
 
     def restart(self) -> None:
         """Start a new run: every QP as new (no warm start from the last solutions, no
@@ -533,48 +533,48 @@ class JointQPs:
     @property
     def shortcut(self) -> bool:
         """``"joint"`` layout: the exact unconstrained shortcut (on by default)."""
-        return bool(self._core.shortcut)
+        return bool(self._core.options.shortcut)
 
     @shortcut.setter
     def shortcut(self, on: bool) -> None:
-        self._core.shortcut = bool(on)
+        self._core.options.shortcut = bool(on)
 
     @property
     def active_set_iter(self) -> int:
         """``"joint"`` layout: active-set exchanges the active-set shortcut may make after its
         guess (default 4; negative: no active-set shortcut, ProxSuite for every active box)."""
-        return int(self._core.active_set_iter)
+        return int(self._core.options.active_set_iter)
 
     @active_set_iter.setter
     def active_set_iter(self, k: int) -> None:
-        self._core.active_set_iter = int(k)
+        self._core.options.active_set_iter = int(k)
 
     @property
     def soft_active_set_iter(self) -> int:
         """Soft QPs: primal-dual exchanges the soft active-set shortcut may make per guess
         (module docstring; default 8; negative: ProxSuite solves every soft QP)."""
-        return int(self._core.soft_active_set_iter)
+        return int(self._core.options.soft_active_set_iter)
 
     @soft_active_set_iter.setter
     def soft_active_set_iter(self, k: int) -> None:
-        self._core.soft_active_set_iter = int(k)
+        self._core.options.soft_active_set_iter = int(k)
 
     @property
     def soft_active_set_solves(self) -> int:
         """Soft QPs answered by the soft active-set shortcut (a guessed active set whose
         point passed the soft QP's KKT test), since construction."""
-        return int(self._core.soft_active_set_solves)
+        return int(self._core.stats.soft_active_set_solves)
 
     @property
     def shift(self) -> bool:
         """Whether ProxSuite's warm start is the last primal and dual solution shifted one
         step along the horizon (default off: the last solution as it stands, measured faster
         in a closed loop; ``benchmarks/long_horizon_active.py``)."""
-        return bool(self._core.shift)
+        return bool(self._core.options.shift)
 
     @shift.setter
     def shift(self, on: bool) -> None:
-        self._core.shift = bool(on)
+        self._core.options.shift = bool(on)
 
     def predict(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
         """Predicted states ``X = Φ x0 + Γ U`` of all joints, shape (2N, n): rows q_1, q̇_1, …

@@ -1,4 +1,5 @@
-"""Oracle of the RK4 plant's period (compiled: ``cpp/src/rk4.cpp``, ``RK4``).
+"""Oracle of the RK4 plant's period (compiled: ``cpp/src/rk4.cpp``, ``RK4``; its Coulomb
+law by stick-slip events: ``cpp/src/stick_slip.cpp``, ``StickSlip``).
 
 Classical Runge–Kutta steps of :math:`h` over one control period with the torque
 :math:`\\tau` held, Eq (1) :math:`M\\ddot q + C\\dot q + G = \\tau + d(t, q, \\dot q)`:

@@ -1,0 +1,34 @@
+// The joint QPs' knobs (JointQPsOptions) and counters (JointQPsStats), as ProxSuite's
+// Settings and Info: plain structs, bound to Python field by field
+// (hmpc_pin._core.JointQPsOptions, JointQPsStats).
+#pragma once
+
+namespace hmpc {
+
+struct JointQPsOptions {
+  bool shortcut = true;  // "joint" layout: the exact shortcuts (off for tests)
+  // ProxSuite's warm start shifted one step along the horizon (primal and dual); off: the
+  // last solution as it stands (measured faster in a closed loop,
+  // benchmarks/long_horizon_active.py).
+  bool shift = false;
+  int active_set_iter = 4;  // "joint" layout: active-set exchanges (< 0: no active-set shortcut)
+  // Soft QPs: primal-dual exchanges of the soft active-set shortcut per guess (< 0: ProxSuite
+  // for every soft QP).
+  int soft_active_set_iter = 8;
+  // Soft QPs for every joint at every step (set by JointQPs::set_limits).
+  bool always_constrained = false;
+};
+
+struct JointQPsStats {
+  long cold_solves = 0;             // box QPs solved again by their cold twin
+  long unconstrained_solves = 0;    // box QPs answered by −H⁻¹g inside the box
+  long active_set_solves = 0;       // box QPs answered by the active-set shortcut
+  long soft_active_set_solves = 0;  // soft QPs answered by the soft active-set shortcut
+  // Guesses of the soft shortcut that did not answer: a pivot of the wrong sign (dependent
+  // rows), the exchanges exhausted, the KKT test failed without an exchange to make.
+  long soft_fail_pivot = 0, soft_fail_exchanges = 0, soft_fail_kkt = 0;
+  long constrained = 0;           // joints whose soft QP was solved at the last step
+  bool constrained_last = false;  // whether any was
+};
+
+}  // namespace hmpc

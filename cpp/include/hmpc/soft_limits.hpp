@@ -1,0 +1,130 @@
+// The per-joint MPC's soft state limits (hmpc_pin.mpc.condensed, module docstring): per
+// joint, the QP over y = (U, ŝ) with the limits on X = Φ x0 + Γ U as soft rows (slack
+// s = k ŝ), solved by ProxSuite from scratch (made once; Nc + 1 variables, 4N rows) or,
+// first, by the soft active-set shortcut: the last step's soft solution's active set,
+// shifted one step along the horizon or as it stands; at a new activation, the box-only
+// solution's with the rows it violates and the inputs next to them freed; refined by
+// primal-dual exchanges, each subproblem solved by BandedKKT (banded_kkt.hpp), answering
+// only when its point passes the soft QP's KKT test to the solver's tolerance. JointQPs
+// (joint_qps.hpp) decides which joints need it (leaves) and composes the answers.
+#pragma once
+
+#include "hmpc/banded_kkt.hpp"
+#include "hmpc/gamma_recursion.hpp"
+#include "hmpc/joint_qps_options.hpp"
+#include "hmpc/qp_settings.hpp"
+
+#include <Eigen/Core>
+#include <proxsuite/proxqp/results.hpp>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+namespace proxsuite::proxqp::dense {
+template <typename T>
+struct QP;  // proxsuite/proxqp/dense/dense.hpp, included by the sources only
+}  // namespace proxsuite::proxqp::dense
+
+namespace hmpc {
+
+class SoftLimits {
+ public:
+  using Vec = Eigen::VectorXd;
+  using Mat = Eigen::MatrixXd;
+  using RowMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using CRefVec = Eigen::Ref<const Vec>;
+  using CRefMat = Eigen::Ref<const Mat>;
+  using CRefRow = Eigen::Ref<const RowMat>;
+  using ColRef = Eigen::Ref<const Vec, 0, Eigen::InnerStride<>>;
+  using DenseQP = proxsuite::proxqp::dense::QP<double>;
+  using Results = proxsuite::proxqp::Results<double>;
+
+  static constexpr double BIG = 1e10;  // as hmpc_pin.mpc.condensed.BIG
+
+  // The shapes as JointQPs::set_limits; H (Nc×Nc), v_min, v_max (n): the box QPs'; stats:
+  // where the shortcut's failures are counted (alive as long as this). Empty T: no shortcut.
+  SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, const Vec& v_max,
+             const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
+             const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
+             const CRefVec& row_scale, double g_slack, double k_slack, const QPSettings& soft,
+             const CRefMat& T, const CRefMat& E, const CRefMat& Hp, JointQPsStats* stats);
+  ~SoftLimits();
+
+  // A new run: the soft QPs ProxSuite solved remade, nothing remembered.
+  void restart();
+  void set_max_iter(long max_iter);
+  // Whether the soft active-set shortcut is on (banded data given).
+  bool shortcut() const { return shortcut_; }
+
+  // Whether joint i's box-only prediction X = Φ x0 + Γ U (x0 = (q_i, q̇_i), U its column u)
+  // leaves the limits: X by the recursion x_{j+1} = A x_j + B u_min(j, Nc−1) (Eq 24; A, B the
+  // first rows of Φ and Γ), O(N) where Γ U costs N·Nc (inline: on the step's path).
+  bool leaves(int i, double q, double dq, const ColRef& U) const {
+    const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+    const double b0 = Gamma_(0, 0), b1 = Gamma_(1, 0);
+    const double m = mid_[i];
+    double x = q, v = dq;
+    bool outside = false;
+    for (int j = 0; j < N_ && !outside; ++j) {
+      const double u = U[j < Nc_ - 1 ? j : Nc_ - 1];
+      const double xn = a00 * x + a01 * v + b0 * u;
+      v = a10 * x + a11 * v + b1 * u;
+      x = xn;
+      outside = std::abs(x - m) > half_[i] || std::abs(v) > vel_[i];
+    }
+    return outside;
+  }
+  // Joint i's soft QP's gradient (G's row i, ŝ's) and the free responses of its state.
+  void prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq);
+  // The soft active-set shortcut for joint i (after prepare; box_u: its box-only solution,
+  // the guess at a new activation) with `iter` exchanges per guess. True: y() the minimiser
+  // (binding(), continued() as soft_settled takes them), its active set remembered.
+  bool active_set(int i, const ColRef& box_u, int iter);
+  // ProxSuite's answer for joint i (after prepare); then, when the shortcut is on
+  // (iter >= 0), its active set remembered as the next guess.
+  const Results& proxsuite(int i, int iter);
+  // After joint i's soft QP was answered: whether the next step goes straight to it.
+  void settled(int i, bool binding, bool continued) { active[i] = binding && continued ? 1 : 0; }
+
+  const Vec& y() const { return kkt_->y(); }
+  bool binding() const { return binding_; }
+  bool continued() const { return continued_; }
+  double k_slack() const { return k_slack_; }
+
+  // Per joint: its soft QP solved at the last step (last); its last soft solution with a
+  // state limit or the slack active (active; else it is the box QP's solution); its soft
+  // QP solved without the box QP at this step (next, set by JointQPs::solve).
+  std::vector<signed char> last, active, next;
+
+ private:
+  void make_qp(int i);
+  void bounds(int i, const Vec& q_free, const Vec& v_free);
+  bool exchange(int i, int exchanges);
+  int test_point(int i);
+  void guess_from(int i, const Vec& y, bool box_only);
+
+  int n_, N_, Nc_;
+  Mat H_, Phi_, Gamma_, Hs_, C_;
+  Vec v_min_, v_max_, lower_, upper_, vel_, row_scale_, mid_, half_;
+  double g_slack_, k_slack_;
+  QPSettings soft_;
+  JointQPsStats* stats_;
+  std::vector<std::unique_ptr<DenseQP>> qps_;
+  std::vector<signed char> used_;  // per joint: its soft QP solved by ProxSuite since made
+  Vec l_soft_, u_soft_, q_free_, v_free_;
+  SoftProblem p_;  // p_.g: the soft QP's gradient
+  // The shortcut: Γ's products, the KKT solver, the active sets remembered per joint.
+  bool shortcut_ = false;
+  GammaRecursion gamma_;
+  std::unique_ptr<BandedKKT> kkt_;
+  std::vector<std::vector<signed char>> guess_rows_, guess_box_;
+  std::vector<signed char> guess_slack_, has_guess_;
+  SoftActiveSet st_;
+  std::vector<signed char> rows_was_, box_was_;
+  bool continued_ = false;  // the last active_set answered from the last step's set
+  bool binding_ = false;    // its answer with ŝ > 0 or a row's multiplier nonzero
+  Vec box_y_, rU_, gl_, Xs_;
+};
+
+}  // namespace hmpc

@@ -1,0 +1,221 @@
+// The soft limits' active-set shortcut: its guesses and primal-dual exchanges (see
+// soft_limits.hpp; each exchange's subproblem: banded_kkt.hpp).
+#include "hmpc/soft_limits.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hmpc {
+
+// Joint i's soft QP answered by the soft active-set shortcut (exchange) from the last soft
+// solution's active set (when the joint's soft QP was solved at the last step) shifted one
+// step along the horizon, then as it stands; at a new activation, from the box-only
+// solution's (the rows its prediction violates active, the inputs next to them freed).
+// On success y() holds the minimiser and the active set is remembered.
+bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
+  if (!shortcut_ || iter < 0) return false;
+  const int N = N_, Nc = Nc_;
+  p_.lo = v_min_[i];
+  p_.hi = v_max_[i];
+  kkt_->project(p_.g, p_.gp);
+  for (int j = 0; j < N; ++j) {
+    p_.bnd_hi[2 * j] = upper_[i] - q_free_[j];
+    p_.bnd_lo[2 * j] = lower_[i] - q_free_[j];
+    p_.bnd_hi[2 * j + 1] = vel_[i] - v_free_[j];
+    p_.bnd_lo[2 * j + 1] = -vel_[i] - v_free_[j];
+  }
+  // The last soft solution's active set only while it is the last step's (the joint's soft
+  // QP solved at the step before): after a step without, its activation is a new one.
+  bool ok = false;
+  continued_ = false;
+  if (has_guess_[i] && last[i]) {
+    for (int shifted = 1; shifted >= 0 && !ok; --shifted) {
+      const auto& rows = guess_rows_[i];
+      const auto& box = guess_box_[i];
+      for (int r = 0; r < 2 * N; ++r) st_.rows[r] = rows[shifted && r + 2 < 2 * N ? r + 2 : r];
+      for (int a = 0; a < Nc; ++a) st_.box[a] = box[shifted && a + 1 < Nc ? a + 1 : a];
+      st_.slack = guess_slack_[i];
+      ok = exchange(i, iter);
+    }
+    continued_ = ok;
+  }
+  // At a new activation, the box-only solution's active set, with the rows its prediction
+  // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it
+  // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
+  // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
+  if (!ok && !(has_guess_[i] && last[i])) {
+    box_y_.head(Nc) = box_u;
+    box_y_[Nc] = 0.0;
+    guess_from(i, box_y_, true);
+    st_.rows = guess_rows_[i];
+    st_.box = guess_box_[i];
+    st_.slack = guess_slack_[i];
+    ok = exchange(i, 4 * iter);
+  }
+  if (!ok) return false;
+  guess_rows_[i] = st_.rows;
+  guess_box_[i] = st_.box;
+  guess_slack_[i] = st_.slack;
+  return true;
+}
+
+// Up to `exchanges` primal-dual exchanges from the active set st_: solve (BandedKKT), then
+// test the soft QP's KKT conditions at its point (test_point). True when the point passes:
+// then it is the soft QP's minimiser (a convex QP's KKT point), in y().
+bool SoftLimits::exchange(int i, int exchanges) {
+  // A dependent bound or row dropped by the KKT solve costs no exchange (at most one drop
+  // per active item, so this ends).
+  for (int it = 0; it <= exchanges;) {
+    if (!kkt_->solve(st_, p_)) {
+      if (kkt_->dropped()) continue;
+      ++stats_->soft_fail_pivot;
+      return false;
+    }
+    ++it;
+    const int verdict = test_point(i);
+    if (verdict == 0) return true;
+    if (verdict < 0) {
+      ++stats_->soft_fail_kkt;
+      return false;
+    }
+  }
+  ++stats_->soft_fail_exchanges;
+  return false;
+}
+
+// The KKT test of joint i's soft QP at the subproblem's point, to the solver's tolerances
+// (eps_abs + eps_rel · the size of the terms), as ProxSuite measures them: every row inside
+// its limits (rows normalised as the solver's), every input inside its box, ŝ >= 0; zero
+// gradient Hs y + g + Cᵀλ for the free inputs (and ŝ when free); multipliers of the sign
+// of their bound (rows: λ/row_scale, the solver's z; inputs and ŝ: −gradient). Violated
+// rows and bounds join st_, wrong-signed ones leave it: returns 1. Nothing to exchange:
+// 0 when the point passes (y() clamped to the box, binding_ set), −1 when it fails.
+int SoftLimits::test_point(int i) {
+  const int N = N_, Nc = Nc_;
+  const double lo = v_min_[i], hi = v_max_[i];
+  Vec& y = kkt_->y();
+  const Vec& lam = kkt_->lam();
+  const auto u = y.head(Nc);
+  const double sh = y[Nc];
+  gamma_.apply(u, Xs_);
+  rows_was_ = st_.rows;
+  box_was_ = st_.box;
+  // ProxSuite's tolerances: eps_abs + eps_rel · the size of the terms (dual: Hy, g, Cᵀλ;
+  // primal: the rows' values), the relative part for slacks far outside the limits.
+  rU_.noalias() = H_ * u;
+  double dual = std::max({rU_.cwiseAbs().maxCoeff(), std::abs(Hs_(Nc, Nc) * sh),
+                          p_.g.cwiseAbs().maxCoeff()});
+  rU_ += p_.g.head(Nc);
+  gamma_.apply_transpose(lam, gl_);  // Γᵀλ
+  rU_ += gl_;
+  const double lam_sum = k_slack_ * lam.cwiseAbs().sum();
+  dual = std::max({dual, gl_.cwiseAbs().maxCoeff(), lam_sum});
+  double rs = Hs_(Nc, Nc) * sh + p_.g[Nc];
+  bool changed = false, bad = false;
+  const double ks = k_slack_ * sh;
+  double primal = 0.0;
+  for (int r = 0; r < 2 * N; ++r)
+    primal = std::max(primal, (std::abs(Xs_[r]) + std::abs(ks)) * kkt_->scale(r));
+  const double eps = soft_.eps_abs + soft_.eps_rel * std::max(dual, primal);
+  const double eps_p = soft_.eps_abs + soft_.eps_rel * primal;
+  for (int r = 0; r < 2 * N; ++r) {
+    const double scale = kkt_->scale(r);
+    const int s = st_.rows[r];
+    if (s == 0) {
+      if ((Xs_[r] - ks - p_.bnd_hi[r]) * scale > eps_p) {
+        st_.rows[r] = 1;
+        changed = true;
+      } else if ((p_.bnd_lo[r] - Xs_[r] - ks) * scale > eps_p) {
+        st_.rows[r] = -1;
+        changed = true;
+      }
+    } else {
+      rs -= k_slack_ * s * lam[r];
+      if (s * lam[r] / scale < -eps) {
+        st_.rows[r] = 0;
+        changed = true;
+      }
+    }
+  }
+  for (int a = 0; a < Nc; ++a) {
+    const int s = st_.box[a];
+    if (s == 0) {
+      if (u[a] < lo - eps_p) {
+        st_.box[a] = -1;
+        changed = true;
+      } else if (u[a] > hi + eps_p) {
+        st_.box[a] = 1;
+        changed = true;
+      } else if (std::abs(rU_[a]) > eps) {
+        bad = true;
+      }
+    } else if (s * rU_[a] > eps) {  // lower bound: gradient >= 0; upper: <= 0
+      st_.box[a] = 0;
+      changed = true;
+    }
+  }
+  const signed char slack_was = st_.slack;
+  if (st_.slack != 0) {
+    if (sh < -eps_p) {
+      st_.slack = 0;
+      changed = true;
+    } else if (std::abs(rs) > eps) {
+      bad = true;
+    }
+  } else if (rs < -eps) {
+    st_.slack = 1;
+    changed = true;
+  }
+  if (st_.slack != slack_was) {
+    // ŝ enters every row: with its status changing, the rows' and bounds' tests at this
+    // point say little about the next one (following them too overshot, measured where
+    // the limits become attainable or not): ŝ changes alone.
+    st_.rows = rows_was_;
+    st_.box = box_was_;
+  }
+  if (changed) return 1;
+  if (bad) return -1;
+  binding_ = st_.slack != 0 && sh > eps_p;
+  for (int r = 0; r < 2 * N && !binding_; ++r)
+    binding_ = st_.rows[r] != 0 && std::abs(lam[r]) / kkt_->scale(r) > eps;
+  y.head(Nc) = y.head(Nc).cwiseMax(lo).cwiseMin(hi);
+  y[Nc] = std::max(y[Nc], 0.0);
+  return 0;
+}
+
+// The active set of a solution y = (U, ŝ) of joint i's soft QP (or, with box_only, of its
+// box-only solution: the rows its prediction violates, the inputs next to them freed,
+// ŝ = 0) remembered as the next guess.
+void SoftLimits::guess_from(int i, const Vec& y, bool box_only) {
+  const int N = N_, Nc = Nc_;
+  const double lo = v_min_[i], hi = v_max_[i];
+  const double tol = 1e-6 * std::max(1.0, hi - lo);
+  auto& box = guess_box_[i];
+  for (int a = 0; a < Nc; ++a) box[a] = y[a] <= lo + tol ? -1 : (y[a] >= hi - tol ? 1 : 0);
+  gamma_.apply(y.head(Nc), Xs_);
+  const double sh = box_only ? 0.0 : y[Nc];
+  const double ks = k_slack_ * sh;
+  auto& rows = guess_rows_[i];
+  for (int r = 0; r < 2 * N; ++r) {
+    const double scale = kkt_->scale(r);
+    const double row_tol = box_only ? 0.0 : 1e-6;
+    rows[r] = (Xs_[r] - ks - p_.bnd_hi[r]) * scale >= -row_tol
+                  ? 1
+                  : ((p_.bnd_lo[r] - Xs_[r] - ks) * scale >= -row_tol ? -1 : 0);
+  }
+  if (box_only) {
+    // An input next to a violated state (a violated row of x_a or of x_{a+1}; u_a moves
+    // x_{a+1} first) is freed: the limits override the box-only solution's bound there (e.g.
+    // at a velocity limit the acceleration drops from its bound to 0; rows of x_a and x_{a+1}
+    // fix u_a, so keeping its bound too makes them dependent).
+    auto violated = [&](int step) {
+      return step >= 1 && step <= N && (rows[2 * (step - 1)] != 0 || rows[2 * (step - 1) + 1] != 0);
+    };
+    for (int a = 0; a < Nc; ++a)
+      if (box[a] != 0 && (violated(a) || violated(a + 1))) box[a] = 0;
+  }
+  guess_slack_[i] = !box_only && sh > 1e-9 ? 1 : 0;
+  has_guess_[i] = 1;
+}
+
+}  // namespace hmpc

@@ -1,0 +1,144 @@
+// The soft state limits' QPs by ProxSuite and the limit test: see soft_limits.hpp (the
+// shortcut: soft_active_set.cpp).
+#include "hmpc/soft_limits.hpp"
+
+#include <proxsuite/proxqp/dense/dense.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <stdexcept>
+
+namespace hmpc {
+
+SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, const Vec& v_max,
+                       const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
+                       const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs,
+                       const CRefMat& C, const CRefVec& row_scale, double g_slack,
+                       double k_slack, const QPSettings& soft, const CRefMat& T,
+                       const CRefMat& E, const CRefMat& Hp, JointQPsStats* stats)
+    : n_(n), N_(N), Nc_(Nc), H_(H), Phi_(Phi), Gamma_(Gamma), Hs_(Hs), C_(C), v_min_(v_min),
+      v_max_(v_max), lower_(lower), upper_(upper), vel_(vel), row_scale_(row_scale),
+      g_slack_(g_slack), k_slack_(k_slack), soft_(soft), stats_(stats) {
+  if (Phi.rows() != 2 * N || Phi.cols() != 2 || Gamma.rows() != 2 * N || Gamma.cols() != Nc ||
+      lower.size() != n || upper.size() != n || vel.size() != n || Hs.rows() != Nc + 1 ||
+      Hs.cols() != Nc + 1 || C.rows() != 4 * N || C.cols() != Nc + 1 || row_scale.size() != 4 * N)
+    throw std::invalid_argument("JointQPs.set_limits: shapes do not match the horizon");
+  mid_ = 0.5 * (lower_ + upper_);
+  half_ = 0.5 * (upper_ - lower_);
+  p_.g.setZero(Nc + 1);
+  l_soft_.setZero(4 * N);
+  u_soft_.setZero(4 * N);
+  q_free_.setZero(N);
+  v_free_.setZero(N);
+  qps_.resize(n);
+  used_.assign(n, 0);
+  for (int i = 0; i < n; ++i) make_qp(i);
+  last.assign(n, 0);
+  next.assign(n, 0);
+  active.assign(n, 0);
+  if (T.size() == 0) return;
+  if (T.rows() != Nc || T.cols() != Nc || E.rows() != 2 * N || E.cols() != Nc ||
+      Hp.rows() != Nc || Hp.cols() != Nc)
+    throw std::invalid_argument("JointQPs.set_limits: T, Hp must be (Nc, Nc) and E (2N, Nc)");
+  kkt_ = std::make_unique<BandedKKT>(T, E, Hp, H_, gamma_, row_scale_, k_slack_, Hs_(Nc, Nc),
+                                     soft_.eps_abs);
+  guess_rows_.assign(n, std::vector<signed char>(2 * N, 0));
+  guess_box_.assign(n, std::vector<signed char>(Nc, 0));
+  guess_slack_.assign(n, 0);
+  has_guess_.assign(n, 0);
+  st_.rows.assign(2 * N, 0);
+  st_.box.assign(Nc, 0);
+  p_.gp.setZero(Nc);
+  p_.bnd_lo.setZero(2 * N);
+  p_.bnd_hi.setZero(2 * N);
+  box_y_.setZero(Nc + 1);
+  rU_.setZero(Nc);
+  gl_.setZero(Nc);
+  Xs_.setZero(2 * N);
+  gamma_.set(Phi_, Gamma_);
+  shortcut_ = true;
+}
+
+SoftLimits::~SoftLimits() = default;
+
+// Joint i's soft QP as new: initialised with its rows at x0 = 0 and solved once at g = 0
+// (ŝ's gradient g_slack); the gradient p_.g kept, l_soft_ and u_soft_ overwritten.
+void SoftLimits::make_qp(int i) {
+  const int Nc = Nc_, N = N_;
+  auto& qp = qps_[i];
+  const Vec g = p_.g;
+  qp = std::make_unique<DenseQP>(Nc + 1, 0, 4 * N, true);
+  soft_.apply(qp->settings);
+  p_.g.head(Nc).setZero();
+  p_.g[Nc] = g_slack_;
+  bounds(i, Vec::Zero(N), Vec::Zero(N));
+  Vec lo(Nc + 1), hi(Nc + 1);
+  lo.head(Nc).setConstant(v_min_[i]);
+  hi.head(Nc).setConstant(v_max_[i]);
+  lo[Nc] = 0.0;
+  hi[Nc] = BIG;
+  qp->init(Hs_, p_.g, std::nullopt, std::nullopt, C_, l_soft_, u_soft_, lo, hi);
+  qp->solve();
+  p_.g = g;
+  used_[i] = 0;
+}
+
+void SoftLimits::restart() {
+  // The soft QPs ProxSuite solved in the last run made again (their init factorises a KKT
+  // matrix of Nc + 1 + 4N rows, about 18 ms at N = 100: here, never in a step).
+  for (int i = 0; i < n_; ++i)
+    if (used_[i]) make_qp(i);
+  std::fill(has_guess_.begin(), has_guess_.end(), 0);
+  std::fill(last.begin(), last.end(), 0);
+  std::fill(active.begin(), active.end(), 0);  // no box QP skipped at the start
+  std::fill(next.begin(), next.end(), 0);
+}
+
+void SoftLimits::set_max_iter(long max_iter) {
+  soft_.max_iter = max_iter;
+  for (auto& qp : qps_)
+    if (qp) qp->settings.max_iter = max_iter;
+}
+
+// Row bounds of joint i's soft QP for the free responses of q and q̇.
+void SoftLimits::bounds(int i, const Vec& q_free, const Vec& v_free) {
+  const int N = N_;
+  for (int j = 0; j < N; ++j) {
+    l_soft_[j] = -BIG;
+    u_soft_[j] = (upper_[i] - q_free[j]) * row_scale_[j];
+    l_soft_[N + j] = (lower_[i] - q_free[j]) * row_scale_[N + j];
+    u_soft_[N + j] = BIG;
+    l_soft_[2 * N + j] = -BIG;
+    u_soft_[2 * N + j] = (vel_[i] - v_free[j]) * row_scale_[2 * N + j];
+    l_soft_[3 * N + j] = (-vel_[i] - v_free[j]) * row_scale_[3 * N + j];
+    u_soft_[3 * N + j] = BIG;
+  }
+}
+
+void SoftLimits::prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
+  for (int j = 0; j < N_; ++j) {
+    q_free_[j] = Phi_(2 * j, 0) * q[i] + Phi_(2 * j, 1) * dq[i];
+    v_free_[j] = Phi_(2 * j + 1, 0) * q[i] + Phi_(2 * j + 1, 1) * dq[i];
+  }
+  p_.g.head(Nc_) = G.row(i).transpose();
+  p_.g[Nc_] = g_slack_;
+}
+
+const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
+  bounds(i, q_free_, v_free_);
+  DenseQP& qp = *qps_[i];
+  used_[i] = 1;
+  qp.update(std::nullopt, p_.g, std::nullopt, std::nullopt, std::nullopt, l_soft_, u_soft_,
+            std::nullopt, std::nullopt);
+  qp.solve();
+  if (qp.results.info.status != proxsuite::proxqp::QPSolverOutput::PROXQP_SOLVED)
+    return qp.results;
+  if (shortcut_ && iter >= 0) {
+    guess_from(i, qp.results.x, false);
+    settled(i, false, false);
+  }
+  return qp.results;
+}
+
+}  // namespace hmpc

@@ -1,0 +1,87 @@
+"""Simulated time end to end: ``hmpc-pin ros-arm --real-time-factor F`` publishes ``/clock``
+and stamps its states on it; ``hmpc-pin ros`` with ``use_sim_time`` runs on it (its
+periods, its duration and its stamps simulated time) at factors 0.5 and 2; the arm stops
+its joints at the URDF's limits. Both nodes and the probe (tests/ros_sim_time.py) run
+inside a private network namespace.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from hmpc_pin.experiment.build import Experiment, load_robot_config
+
+from .test_ros import run_in_netns
+
+PROBE = Path(__file__).with_name("ros_sim_time.py")
+
+#: Both stops out of reach on a loaded machine: what is tested is the clock, not the
+#: scheduler (a 500 Hz arm at factor 2 publishes every 1 ms of wall time).
+SETTINGS = """
+[ros]
+rate = 500
+
+[realtime]
+max_misses = 100000
+watchdog = 1.0
+"""
+
+
+@pytest.mark.parametrize("factor", [0.5, 2.0])
+def test_the_controller_runs_on_the_simulators_clock(tmp_path, factor):
+    config, report, result = run_in_netns(tmp_path, PROBE, "track", factor, SETTINGS, "sim.json")
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    assert result is not None and result.complete, result and result.message
+    meta = result.meta
+    assert meta["ros"]["stamps"] == "simulated"
+    P = config.ros.period
+    # the arm's clock: one /clock message per period, k·P from 0 (simulated time; the
+    # probe, a Python node on a loaded machine, may lose some)
+    clock = np.array(report["clock"])
+    assert clock.size > 100 and (np.diff(clock) > 0).all()
+    np.testing.assert_allclose(clock / P, np.round(clock / P), atol=1e-6)
+    # the loop's stamps are the states' header stamps on that clock (less the origin, 0
+    # here): whole periods, whatever the wall-clock arrival. Timed by arrival at a factor
+    # of 0.5, they would be spread over the wall's 2 ms per period.
+    timing = np.load(tmp_path / "out" / "panda_sine_ros_timing.npz")
+    stamps = timing["stamp"][np.isfinite(timing["stamp"])] + meta["ros"]["stamp_origin"]
+    np.testing.assert_allclose(stamps / P, np.round(stamps / P), atol=1e-6)
+    # --duration is simulated time: 2 s of the arm's periods, each cycle the period whose
+    # stamp it answered (cycle k ~ stamp k·P from the first one), the last one at 2 s
+    stats = meta["realtime"]
+    assert stats["cycles"] == round(2.0 / P) + 1
+    answered = np.flatnonzero(np.isfinite(timing["stamp"]))
+    first = timing["stamp"][answered[0]]
+    np.testing.assert_allclose(timing["stamp"][answered] - first, answered * P, atol=1e-6)
+    assert result.t[-1] == pytest.approx(2.0, abs=0.05)
+    assert np.abs(result.q - result.q_ref)[result.t > 1.0].max() < 0.05
+    assert "/clock published" in report["arm"]["stdout"]
+
+
+def test_the_simulated_arm_stops_its_joints_at_the_urdf_limits(tmp_path):
+    """A zero effort command held: the Panda falls under gravity for 3 simulated seconds.
+    Every published position stays within the URDF's limits (read by Pinocchio here), at
+    least one joint reaches its stop, and a joint on its stop never moves further into it
+    (its velocity into the limit zeroed: an inelastic stop)."""
+    config, report, _ = run_in_netns(tmp_path, PROBE, "stops", 1.0, SETTINGS, "sim.json")
+    assert report["arm"]["exit"] == 0, report["arm"]["stderr"]
+    robot = load_robot_config(Experiment.from_config(config).config.robot)
+    lower, upper = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
+    assert isinstance(robot.model, pin.Model)
+    names = list(robot.joint_names)
+    idx = [robot.model.joints[robot.model.getJointId(n)].idx_q for n in names]
+    lo, hi = lower[idx], upper[idx]
+    q = np.array([s[1] for s in report["states"]])
+    dq = np.array([s[2] for s in report["states"]])
+    assert q.shape[0] > 500
+    assert (q >= lo - 1e-12).all() and (q <= hi + 1e-12).all()
+    at_lo, at_hi = q <= lo + 1e-12, q >= hi - 1e-12
+    assert (at_lo | at_hi).any(), "no joint reached a stop in 3 s of free fall"
+    assert (dq[at_lo] >= 0).all() and (dq[at_hi] <= 0).all()
+    stops = int(report["arm"]["stderr"].split(" on a joint stop")[0].split()[-1])
+    assert stops > 0

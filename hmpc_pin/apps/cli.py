@@ -558,6 +558,29 @@ def cmd_ros_arm(args) -> int:
     return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
 
 
+def cmd_ros_trajectory(args) -> int:
+    """``hmpc-pin ros-trajectory`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from ..ros.node import import_ros
+    from .ros_client import run_trajectory
+
+    import_ros("hmpc-pin ros-trajectory")
+    return run_trajectory(args, _config(args.config))
+
+
+def cmd_ros_lifecycle(args) -> int:
+    """``hmpc-pin ros-lifecycle`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from .ros_client import run_lifecycle
+
+    return run_lifecycle(args)
+
+
+def cmd_ros_params(args) -> int:
+    """``hmpc-pin ros-params`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from .ros_client import run_params
+
+    return run_params(args)
+
+
 def cmd_native(args) -> int:
     """``hmpc-pin native``: where the compiled core is and what it was built against."""
     from .. import native
@@ -868,6 +891,18 @@ def _ros_arm_arguments(arm) -> None:
     arm.set_defaults(func=cmd_ros_arm)
 
 
+def _ros_client_arguments(kind: str):
+    """The arguments of ``ros-trajectory``, ``ros-lifecycle`` or ``ros-params``."""
+
+    def arguments(parser) -> None:
+        from . import ros_client
+
+        getattr(ros_client, f"{kind}_arguments")(parser)
+        parser.set_defaults(func=globals()[f"cmd_ros_{kind}"])
+
+    return arguments
+
+
 def _native_arguments(nat) -> None:
     """``hmpc-pin native``."""
     nat.description = (
@@ -923,6 +958,18 @@ COMMANDS = {
     "ros-arm": (
         "run the config's plant as a ROS 2 node (joint states out, efforts in; extra: ros)",
         _ros_arm_arguments,
+    ),
+    "ros-trajectory": (
+        "send a new reference to the `ros` node's ~/joint_trajectory (extra: ros)",
+        _ros_client_arguments("trajectory"),
+    ),
+    "ros-lifecycle": (
+        "change or get the lifecycle state of the `ros` node (extra: ros)",
+        _ros_client_arguments("lifecycle"),
+    ),
+    "ros-params": (
+        "print the parameters of the `ros` node (extra: ros)",
+        _ros_client_arguments("params"),
     ),
     "native": (
         "report the compiled core (built when the package was installed)",

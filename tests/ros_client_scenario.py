@@ -35,8 +35,9 @@ def main(scenario: str, config: str, out: str, duration: str) -> None:
     def run(name, *args):
         t = time.monotonic()
         p = subprocess.run([*exe, *args], capture_output=True, text=True, timeout=120)
+        seconds = time.monotonic() - t
         report["commands"][name] = {"exit": p.returncode, "stdout": p.stdout,
-                                    "stderr": p.stderr, "seconds": time.monotonic() - t}  # fmt: skip
+                                    "stderr": p.stderr, "seconds": seconds}  # fmt: skip
         return p
 
     # the controller runs once its node answers `get` with "active"

@@ -32,7 +32,7 @@ TARGET = [0.1, -0.685, 0.1, -2.256, 0.1, 1.671, 0.885]
 
 
 def test_pip_only_commands_drive_a_running_controller(tmp_path):
-    config, report, result = run_in_netns(tmp_path, SCENARIO, "client", 600.0, SETTINGS,
+    _, report, result = run_in_netns(tmp_path, SCENARIO, "client", 600.0, SETTINGS,
                                           "client.json")  # fmt: skip
     cmds = report["commands"]
     ctrl = report["controller"]
@@ -47,7 +47,8 @@ def test_pip_only_commands_drive_a_running_controller(tmp_path):
         "realtime.watchdog = 1.0",
     ]
     assert cmds["param_unknown"]["exit"] == 2
-    assert "ros.nosuch: /hmpc_pin_controller has no such parameter" in cmds["param_unknown"]["stderr"]
+    unknown = cmds["param_unknown"]["stderr"]
+    assert "ros.nosuch: /hmpc_pin_controller has no such parameter" in unknown
     assert cmds["get"]["stdout"].strip() == "active"
     # the trajectory reached the node and became the reference: q_ref is the target
     # after its 1 s (the reference held at the last point)

@@ -41,7 +41,7 @@ def test_the_launch_file_declares_the_same_joints_and_parses():
         if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "JOINTS":
             # the expression as written (the file imports `launch`, absent here)
             code = compile(ast.Expression(node.value), "JOINTS", "eval")
-            joints = eval(code, {"range": range})  # noqa: S307 (the repository's own file)
+            joints = eval(code, {"range": range})  # (the repository's own file)
     assert joints == _panda_joints()
     source = (DIR / "panda_hardware.launch.py").read_text()
     assert "mock_components/GenericSystem" in source

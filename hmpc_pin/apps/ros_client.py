@@ -79,7 +79,9 @@ def trajectory_arguments(p) -> None:
         metavar="S",
         help="with --to: reach the point S seconds after the message arrives [2]",
     )
-    p.add_argument("--namespace", metavar="NS", help="the nodes' namespace (overrides ros.namespace)")
+    p.add_argument(
+        "--namespace", metavar="NS", help="the nodes' namespace (overrides ros.namespace)"
+    )
     p.add_argument(
         "--timeout", type=float, default=10.0, metavar="S", help="wait for the node [s] [10]"
     )
@@ -154,7 +156,8 @@ def run_trajectory(args, config) -> int:
         positions, velocities = traj.q_samples, traj.dq_samples
     rc = config.ros
     topic = _topic(rc.namespace, rc.node, rc.joint_trajectory)
-    with RosClient(f"{rc.namespace.rstrip('/')}/{rc.node}", timeout, "hmpc-pin ros-trajectory") as c:
+    node = f"{rc.namespace.rstrip('/')}/{rc.node}"
+    with RosClient(node, timeout, "hmpc-pin ros-trajectory") as c:
         c.send_trajectory(names, times, positions, velocities, topic=topic)
     print(
         f"sent a trajectory of {len(times)} points ({float(times[-1]):g} s) to {topic}; the "

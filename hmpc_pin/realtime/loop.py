@@ -96,8 +96,7 @@ RELAX_MISSES = (
     "(--max-misses K)"
 )
 RELAX_WATCHDOG = (
-    "; if the machine was loaded rather than the arm gone, relax realtime.watchdog "
-    "(--watchdog S)"
+    "; if the machine was loaded rather than the arm gone, relax realtime.watchdog (--watchdog S)"
 )
 
 #: The latency advice (``[controller] latency``) needs at least this many measured

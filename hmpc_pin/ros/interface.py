@@ -26,15 +26,16 @@ state's arrival is its stamp (the simulator publishes the period's ``/clock`` an
 state together), and a state not answered before ``/clock`` has moved a period past it is
 overdue. The periods counted, the run's duration and its latencies are then simulated
 time, whatever the real-time factor (latencies quantised to ``/clock``'s period); the
-watchdog stays wall-clock time (a simulator that stops publishing is gone). Each state also has its **arrival**
-time (the middleware's reception time stamp, else the time it was taken), on the same
-clock: the loop's deadline for a state is its arrival plus a period, so a constant
-transport delay is no miss; the stamp-to-command latency is measured apart
-(``stats["measured_latency"]``). :meth:`RosArmInterface.wait` returns the periods
-elapsed by the stamps (the loop's time follows the arm's) and sets
-``overdue``, the states among them the loop failed to answer in time
-(taken more than a period after they arrived); a burst after a stall of the arm is not
-the loop's miss.
+watchdog stays wall-clock time (a simulator that stops publishing is gone).
+
+Each state also has its **arrival** time (the middleware's reception time stamp, else
+the time it was taken), on the same clock: the loop's deadline for a state is its
+arrival plus a period, so a constant transport delay is no miss; the stamp-to-command
+latency is measured apart (``stats["measured_latency"]``).
+:meth:`RosArmInterface.wait` returns the periods elapsed by the stamps (the loop's time
+follows the arm's) and sets ``overdue``, the states among them the loop failed to
+answer in time (taken more than a period after they arrived); a burst after a stall of
+the arm is not the loop's miss.
 """
 
 from __future__ import annotations

@@ -126,8 +126,10 @@ class RosArmInterface:
         stamps: ``"header"``, ``"arrival"`` or ``"simulated"`` (module doc), set by
             :meth:`start`.
         sim_time: Whether the node runs on ``/clock`` (its ``use_sim_time``).
-        gaps: Periods the stamps advanced by with no state for them (a state lost, an
-            arm slower than ``period``, a clock not the arm's).
+        gaps: Periods the stamps advanced by with no state for them (a state lost on
+            the way, an arm slower than ``period``, a clock not the arm's). Periods
+            whose states the subscription's full queue dropped (the loop too slow to
+            take them) are not gaps: they count as ``overdue``.
         received: Complete joint states received (periods).
         published: Commands published.
         arrival: When the state taken by the last :meth:`wait` arrived [s], on
@@ -184,6 +186,9 @@ class RosArmInterface:
         self.received = 0
         self.published = 0
         self.gaps = 0
+        self._depth = depth
+        self._overflowed = False
+        self._dropped = 0  # periods whose state the full queue dropped (overdue)
         self.overdue = 0
         self.arrival = 0.0
         self._stamp = 0.0
@@ -222,7 +227,11 @@ class RosArmInterface:
         then the other topics."""
         if self._clock_sub is not None:
             self._take_clock()
-        for msg, received in self.ros.take_with_time(self._sub):
+        msgs = self.ros.take_with_time(self._sub)
+        # a full queue: older messages were dropped to make room, the periods before the
+        # first state taken are the loop's own misses, not the arm's gaps
+        self._overflowed = len(msgs) >= self._depth
+        for msg, received in msgs:
             self._on_state(msg, received)
         take = self.ros.take
         for sub, callback in self._others:
@@ -256,10 +265,14 @@ class RosArmInterface:
             stamp = arrival if self._arrival or stamp == 0.0 else stamp - self._origin
         if self._latest is not None:  # periods since the previous state (>= 1)
             periods = max(1, round((stamp - self._latest[0]) / self.period))
-            self.gaps += periods - 1
+            if self._overflowed:
+                self._dropped += periods - 1
+            else:
+                self.gaps += periods - 1
             self._periods += periods
         else:
             self._periods += 1
+        self._overflowed = False
         self._latest = (stamp, self._merge.q.copy(), self._merge.dq.copy(), arrival)
         self._latest_header = self._header_stamp or arrival + self._origin
         self._arrivals.append(arrival)
@@ -343,7 +356,8 @@ class RosArmInterface:
             return 0
         count, self._periods = self._periods, 0
         late = woke - self.period
-        self.overdue = sum(1 for a in self._arrivals[:-1] if a < late)
+        self.overdue = sum(1 for a in self._arrivals[:-1] if a < late) + self._dropped
+        self._dropped = 0
         self._arrivals.clear()
         self._stamp, q, dq, self.arrival = self._latest  # type: ignore[misc]
         self._taken_header = self._latest_header

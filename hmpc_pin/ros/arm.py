@@ -102,7 +102,7 @@ class RosArmNode:
         inf = np.full(n, np.inf)
         self.lower = -inf if lower is None else np.asarray(lower, dtype=float)
         self.upper = inf if upper is None else np.asarray(upper, dtype=float)
-        self._stopped = bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
+        self._has_stops = bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
         self.real_time_factor = None if real_time_factor is None else float(real_time_factor)
         self._clock_pub = None
         if self.real_time_factor is not None:
@@ -218,7 +218,7 @@ class RosArmNode:
                 if self.limit is not None:  # the total joint torque is limited
                     np.clip(self.tau, -self.limit, self.limit, out=self.tau)
             self.q, self.dq = self.plant.advance(self.tau)
-            if self._stopped:
+            if self._has_stops:
                 self._joint_stops()
         self.steps += 1
 

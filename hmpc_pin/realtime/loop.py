@@ -48,10 +48,12 @@ controller error such as a QP not solved, a measured state beyond the bounds),
 seconds, the loop writes the safe torque at the last finite state in the same cycle,
 runs the stop sequence of :mod:`.safety` (brake on the fresh states, at most ``hold``
 seconds, then the held-safe torque :math:`g\\,G(q)`; after a watchdog stop the held-safe
-torque at once), and returns the run up to that point with ``complete = False`` and one
-line saying why (``stop["brake"]``: how the brake ended). A complete run ends with the
-same sequence. No path writes a non-finite torque: the controller's is checked before it
-is written, the safe torques are computed from copies of the last finite state.
+torque at once, then the brake if the states resume within ``hold``), and returns the run
+up to that point with ``complete = False`` and one line saying why, naming the setting
+to relax after a watchdog or misses stop (``stop["brake"]``: how the brake ended). A
+complete run ends with the same sequence. No path writes a non-finite torque: the
+controller's is checked before it is written, the safe torques are computed from copies
+of the last finite state.
 """
 
 from __future__ import annotations

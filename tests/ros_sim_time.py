@@ -6,8 +6,8 @@ private network namespace (``unshare -n``; never outside one: DDS discovery mult
 ``track``: ``hmpc-pin ros-arm CONFIG --real-time-factor FACTOR`` and ``hmpc-pin ros CONFIG
 --duration 2 --ros-args -p use_sim_time:=true``; this node records ``/clock`` and the
 states' stamps. ``stops``: ``ros-arm`` alone, fed a zero effort command by this node (the
-arm falls under gravity onto its joint stops) for 3 simulated seconds; every state
-recorded. Writes ``OUT/sim.json``.
+arm falls under gravity onto its joint stops) until 3 simulated seconds of states have
+been received, then stopped by SIGINT; every state recorded. Writes ``OUT/sim.json``.
 """
 
 from __future__ import annotations
@@ -57,15 +57,23 @@ def main(scenario: str, config: str, out: str, factor: str) -> None:
     threading.Thread(target=executor.spin, daemon=True).start()
     report: dict = {"scenario": scenario, "factor": float(factor)}
     if scenario == "stops":
-        arm = subprocess.Popen([*exe, "ros-arm", config, "--real-time-factor", factor,
-                                "--duration", "3"], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)  # fmt: skip
+        arm = subprocess.Popen([*exe, "ros-arm", config, "--real-time-factor", factor],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)  # fmt: skip
         zero = Float64MultiArray()
         zero.data = [0.0] * 7
-        while arm.poll() is None:  # the arm's period is the command's: a zero torque held
+        end = time.monotonic() + 180.0
+        # a zero torque held, until 3 simulated seconds of states have been received (the
+        # discovery on a loaded machine may take seconds: the arm runs until then)
+        while arm.poll() is None and time.monotonic() < end:
             pub.publish(zero)
+            with lock:
+                span = states[-1][0] - states[0][0] if states else 0.0
+            if span >= 3.0:
+                break
             time.sleep(0.01)
-        a_out, a_err = arm.communicate()
+        arm.send_signal(signal.SIGINT)
+        a_out, a_err = arm.communicate(timeout=60)
         report["arm"] = {"exit": arm.returncode, "stdout": a_out, "stderr": a_err}
     else:
         arm = subprocess.Popen([*exe, "ros-arm", config, "--real-time-factor", factor],

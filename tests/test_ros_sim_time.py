@@ -66,13 +66,14 @@ def test_the_controller_runs_on_the_simulators_clock(tmp_path, factor):
 
 
 def test_the_simulated_arm_stops_its_joints_at_the_urdf_limits(tmp_path):
-    """A zero effort command held: the Panda falls under gravity for 3 simulated seconds.
+    """A zero effort command held: the Panda falls under gravity (3 simulated seconds
+    recorded).
     Every published position stays within the URDF's limits (read by Pinocchio here), at
     least one joint reaches its stop, and a joint on its stop never moves further into it
     (its velocity into the limit zeroed: an inelastic stop)."""
     settings = SETTINGS.replace("rate = 100", "rate = 500")  # (a state every 2 ms)
     config, report, _ = run_in_netns(tmp_path, PROBE, "stops", 1.0, settings, "sim.json")
-    assert report["arm"]["exit"] == 0, report["arm"]["stderr"]
+    assert report["arm"]["exit"] == 130, report["arm"]["stderr"]  # (stopped by SIGINT)
     robot = load_robot_config(Experiment.from_config(config).config.robot)
     lower, upper = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
     assert isinstance(robot.model, pin.Model)
@@ -81,8 +82,9 @@ def test_the_simulated_arm_stops_its_joints_at_the_urdf_limits(tmp_path):
     lo, hi = lower[idx], upper[idx]
     q = np.array([s[1] for s in report["states"]])
     dq = np.array([s[2] for s in report["states"]])
-    assert q.shape[0] > 200  # (of 1500: the probe's subscription matches late on a loaded
-    # machine)
+    stamps = np.array([s[0] for s in report["states"]])
+    assert stamps[-1] - stamps[0] >= 3.0 and q.shape[0] > 200  # (of 1500: a loaded
+    # machine's Python probe may lose some)
     assert (q >= lo - 1e-12).all() and (q <= hi + 1e-12).all()
     at_lo, at_hi = q <= lo + 1e-12, q >= hi - 1e-12
     assert (at_lo | at_hi).any(), "no joint reached a stop in 3 s of free fall"

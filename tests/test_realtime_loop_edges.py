@@ -303,3 +303,33 @@ def test_a_miss_stop_at_the_last_cycle_is_recorded_at_that_cycle(robot):
     assert run.stop["cause"] == "misses"
     assert run.stop["cycle"] == 200 and run.stop["t"] == pytest.approx(0.2)
     assert "cycle 200)" in run.stop["reason"]
+
+
+class Gapped(Overdue):
+    """:class:`Overdue` whose skipped periods had no state at all (``gaps``: the stamps
+    jumped, as a driver on another clock's or a lost message's)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._jumps = dict(self.extra)  # (Paced pops its extra as it goes)
+
+    @property
+    def gaps(self) -> int:
+        return sum(n for k, n in self._jumps.items() if k <= self.k)
+
+
+@pytest.mark.parametrize(
+    ("extra", "complete"), [({101: 2, 201: 3}, True), ({101: 3, 201: 3}, False)]
+)
+def test_a_run_whose_stamps_skip_periods_is_not_complete(robot, extra, complete):
+    """Periods the arm's stamps passed with no state for them: up to max_misses (5) the run
+    is complete, beyond it not (it reached its end; no stop), with one line naming the
+    count and the setting."""
+    loop, _ = _loop(robot, 0.5, lambda a, c: Gapped(a, c, extra=extra))
+    run = loop.run()
+    assert run.stop is None
+    assert run.stats["arm_gaps"] == sum(extra.values())
+    assert run.complete is complete and run.result.complete is complete
+    if not complete:
+        assert "passed 6 periods" in run.result.message
+        assert "realtime.max_misses = 5" in run.result.message

@@ -465,9 +465,11 @@ def cmd_realtime(args) -> int:
             gc=False if args.no_gc else None,
             priority=priority,
             spin=args.spin,
+            watchdog=args.watchdog,
+            max_misses=args.max_misses,
         )
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
-        raise ConfigError(f"--{exc.key}", exc.message) from None
+        raise ConfigError(f"--{exc.key.replace('_', '-')}", exc.message) from None
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     brake_settings(config, 1.0 / config.realtime.rate)  # (the safe torque's brake too)
     out = _out_dir(args.out)
@@ -514,6 +516,9 @@ def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> in
     for f in files:
         print(f"wrote {f}")
     if run.stop is None:
+        if not run.complete:  # to the end, but periods without a state from the arm
+            print(f"error: {run.result.message}; run saved (complete = false)", file=sys.stderr)
+            return EXIT_FAILED
         return EXIT_OK
     if run.stop["cause"] in ("interrupted", "deactivated"):  # stopped from outside
         sent = "nothing sent to the arm" if run.stop["safe_tau"] is None else f"safe torque {safe}"
@@ -576,7 +581,16 @@ def _ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
     from .ros import with_namespace
 
     priority = _checked_priority(args.priority)
-    return with_namespace(with_realtime(config, priority=priority), args.namespace)
+    try:
+        config = with_realtime(
+            config,
+            priority=priority,
+            watchdog=getattr(args, "watchdog", None),
+            max_misses=getattr(args, "max_misses", None),
+        )
+    except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
+        raise ConfigError(f"--{exc.key.replace('_', '-')}", exc.message) from None
+    return with_namespace(config, args.namespace)
 
 
 def cmd_ros_arm(args) -> int:
@@ -587,8 +601,31 @@ def cmd_ros_arm(args) -> int:
     import_ros("hmpc-pin ros-arm")
     _checked_duration(args.duration)
     config = _ros_config(args, _config(args.config))
-    counts = run_ros_arm(config, args.duration, args.ros_args)
+    counts = run_ros_arm(config, args.duration, args.ros_args, args.real_time_factor)
     return EXIT_INTERRUPTED if counts["interrupted"] else EXIT_OK
+
+
+def cmd_ros_trajectory(args) -> int:
+    """``hmpc-pin ros-trajectory`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from ..ros.node import import_ros
+    from .ros_client import run_trajectory
+
+    import_ros("hmpc-pin ros-trajectory")
+    return run_trajectory(args, _config(args.config))
+
+
+def cmd_ros_lifecycle(args) -> int:
+    """``hmpc-pin ros-lifecycle`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from .ros_client import run_lifecycle
+
+    return run_lifecycle(args)
+
+
+def cmd_ros_params(args) -> int:
+    """``hmpc-pin ros-params`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from .ros_client import run_params
+
+    return run_params(args)
 
 
 def cmd_native(args) -> int:
@@ -848,6 +885,8 @@ def _check_arguments(chk) -> None:
 
 def _realtime_arguments(rt) -> None:
     """``hmpc-pin realtime``."""
+    from .realtime import add_stop_options
+
     rt.description = (
         "Run the experiment's controller at a fixed rate (absolute deadlines, "
         "garbage collection in the slack) against its plant stepping in wall-clock time in "
@@ -878,6 +917,7 @@ def _realtime_arguments(rt) -> None:
         help="SCHED_FIFO priority 1-99 of the loop and the arm process "
         "(needs root or an rtprio limit; overrides realtime.priority)",
     )
+    add_stop_options(rt)
     rt.add_argument(
         "--viz",
         action="store_true",
@@ -970,6 +1010,16 @@ def _examples_arguments(exa) -> None:
     from .packaged import examples_arguments
 
     examples_arguments(exa)
+def _ros_client_arguments(kind: str):
+    """The arguments of ``ros-trajectory``, ``ros-lifecycle`` or ``ros-params``."""
+
+    def arguments(parser) -> None:
+        from . import ros_client
+
+        getattr(ros_client, f"{kind}_arguments")(parser)
+        parser.set_defaults(func=globals()[f"cmd_ros_{kind}"])
+
+    return arguments
 
 
 def _native_arguments(nat) -> None:
@@ -1039,6 +1089,18 @@ COMMANDS = {
     "examples": (
         "list the packaged example scripts, or write a copy of one",
         _examples_arguments,
+    ),
+    "ros-trajectory": (
+        "send a new reference to the `ros` node's ~/joint_trajectory (extra: ros)",
+        _ros_client_arguments("trajectory"),
+    ),
+    "ros-lifecycle": (
+        "change or get the lifecycle state of the `ros` node (extra: ros)",
+        _ros_client_arguments("lifecycle"),
+    ),
+    "ros-params": (
+        "print the parameters of the `ros` node (extra: ros)",
+        _ros_client_arguments("params"),
     ),
     "native": (
         "report the compiled core (built when the package was installed)",

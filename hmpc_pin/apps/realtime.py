@@ -21,18 +21,129 @@ from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..realtime.process_arm import ProcessArm, start_child
 from .metrics import compute_metrics
 
-__all__ = ["ArmView", "run_realtime", "with_realtime"]
+__all__ = ["ArmView", "StatusLine", "run_realtime", "with_realtime"]
+
+#: Seconds between two status lines of a running loop.
+STATUS_EVERY = 5.0
 
 
 def with_realtime(
-    config: ExperimentConfig, rate=None, gc=None, priority=None, spin=None
+    config: ExperimentConfig,
+    rate=None,
+    gc=None,
+    priority=None,
+    spin=None,
+    watchdog=None,
+    max_misses=None,
 ) -> ExperimentConfig:
-    """``config`` with ``[realtime]`` ``rate``, ``gc``, ``priority``, ``spin`` replaced
-    (flags)."""
+    """``config`` with ``[realtime]`` ``rate``, ``gc``, ``priority``, ``spin``,
+    ``watchdog``, ``max_misses`` replaced (flags; ``None``: kept). The values are checked
+    as the config file's are (:class:`~hmpc_pin.experiment.config.RealtimeConfig`).
+
+    Raises:
+        ConfigError: A value ``[realtime]`` refuses, named by its key.
+    """
     rc = config.realtime
-    pairs = (("rate", rate), ("gc", gc), ("priority", priority), ("spin", spin))
+    pairs = (
+        ("rate", rate),
+        ("gc", gc),
+        ("priority", priority),
+        ("spin", spin),
+        ("watchdog", watchdog),
+        ("max_misses", max_misses),
+    )
     changes = {k: v for k, v in pairs if v is not None}
     return replace(config, realtime=replace(rc, **changes)) if changes else config
+
+
+def _positive_seconds(text: str) -> float:
+    """``--watchdog``'s value: a finite time [s] > 0 (argparse exits 2 otherwise)."""
+    import argparse
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a time [s] > 0, got {text!r}")
+    return value
+
+
+def _positive_count(text: str) -> int:
+    """``--max-misses``' value: a whole number >= 1 (argparse exits 2 otherwise)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+def add_stop_options(parser) -> None:
+    """``--watchdog`` and ``--max-misses``: the two safe stops a loaded machine trips,
+    set for one run without editing the config (a packaged config has no copy to edit)."""
+    parser.add_argument(
+        "--watchdog",
+        type=_positive_seconds,
+        metavar="S",
+        help="stop when no new state arrives for S seconds (overrides realtime.watchdog)",
+    )
+    parser.add_argument(
+        "--max-misses",
+        type=_positive_count,
+        metavar="K",
+        help="stop after K consecutive missed deadlines (overrides realtime.max_misses)",
+    )
+
+
+def format_status(p: dict, duration: float) -> str:
+    """One status line from :meth:`~hmpc_pin.realtime.loop.RealtimeLoop.progress`."""
+    worst = "-" if math.isnan(p["worst_us"]) else f"{p['worst_us']:.0f} us"
+    error = "-" if math.isnan(p["error"]) else f"{p['error']:.2e} rad"
+    return (
+        f"t={p['t']:.1f} s of {duration:g} s: {p['cycles']} cycles, {p['misses']} missed "
+        f"(longest run {p['longest']}), worst latency {worst} since the last line, "
+        f"max |q - q_ref| {error}"
+    )
+
+
+class StatusLine:
+    """A status line every ``every`` seconds while a loop runs, printed by a thread of
+    its own from the loop's records (:meth:`~hmpc_pin.realtime.loop.RealtimeLoop.progress`):
+    nothing is printed in a cycle.
+
+    Args:
+        loop: The :class:`~hmpc_pin.realtime.loop.RealtimeLoop`, started after this.
+        duration: The run's length [s] (in the line).
+        every: Seconds between lines.
+        file: Where to print (default: stderr).
+    """
+
+    def __init__(self, loop: RealtimeLoop, duration: float, every: float = STATUS_EVERY, file=None):
+        import sys
+        import threading
+
+        self.loop, self.duration, self.every = loop, duration, every
+        self.file = sys.stderr if file is None else file
+        self.lines = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._work, name="status_line", daemon=True)
+        self._thread.start()
+
+    def _work(self) -> None:
+        while not self._stop.wait(self.every):
+            p = self.loop.progress()
+            if p is not None:
+                print(format_status(p, self.duration), file=self.file, flush=True)
+                self.lines += 1
+
+    def close(self) -> None:
+        """Stop printing (idempotent)."""
+        self._stop.set()
+        self._thread.join(timeout=1.0)
 
 
 def _finite(x):
@@ -106,8 +217,12 @@ def run_realtime(
         )
         if ready is not None:
             ready()
-        with fifo_priority(priority):
-            run = loop.run(experiment.q0, experiment.dq0)
+        status = StatusLine(loop, loop_settings.duration)
+        try:
+            with fifo_priority(priority):
+                run = loop.run(experiment.q0, experiment.dq0)
+        finally:
+            status.close()
         run.result.meta["arm"] = arm.counters
         run.result.meta["engine"] = config.plant.engine
     finally:

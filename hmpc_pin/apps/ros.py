@@ -28,7 +28,8 @@ from ..experiment.config import ExperimentConfig
 from ..experiment.controllers import _limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from .packaged import CONFIG_HELP
-from .realtime import save_run
+
+from .realtime import StatusLine, add_stop_options, save_run
 
 __all__ = [
     "format_ros",
@@ -359,7 +360,11 @@ def _run_ros(
         # a Python thread (the trajectory check) holds the GIL at most this long when the
         # control thread wants it back
         sys.setswitchinterval(min(switch, 1e-4))
-        run = loop.run()
+        status = StatusLine(loop, loop_settings.duration)
+        try:
+            run = loop.run()
+        finally:
+            status.close()
         sys.setswitchinterval(switch)
         trajectories.close()
         run.result.meta["ros"] = {
@@ -498,18 +503,23 @@ def check_arm_rate(config: ExperimentConfig) -> None:
 
 
 def run_ros_arm(
-    config: ExperimentConfig, duration: float | None = None, ros_args: list[str] | None = None
+    config: ExperimentConfig,
+    duration: float | None = None,
+    ros_args: list[str] | None = None,
+    real_time_factor: float | None = None,
 ) -> dict:
     """Run ``config``'s plant as a ROS 2 node (:class:`~hmpc_pin.ros.arm.RosArmNode`)
     until ``duration`` [s] (``None``: until SIGINT or SIGTERM); under ``SCHED_FIFO``
     with ``[realtime] priority`` > 0.
 
     The node runs :math:`\\mathrm{round}(d\\,r)` periods of ``[ros] rate`` r for a
-    ``duration`` d.
+    ``duration`` d (simulated seconds with ``real_time_factor``: then it publishes
+    ``/clock`` and stamps its states on it, :class:`~hmpc_pin.ros.arm.RosArmNode`). Its
+    joints stop at the URDF's position limits.
 
     Returns:
-        The node's counts (``steps``, ``late``, ``commands``, ``rejected``) and
-        ``"interrupted"`` (stopped by SIGINT).
+        The node's counts (``steps``, ``late``, ``commands``, ``rejected``, ``stops``)
+        and ``"interrupted"`` (stopped by SIGINT).
 
     Raises:
         ConfigError: Before rclpy starts: ``ros.rate`` whose period is no whole number of
@@ -517,10 +527,12 @@ def run_ros_arm(
             period (:func:`check_run_length`), ``realtime.gravity`` against ``ros.gravity``.
     """
     with fifo_priority(config.realtime.priority):
-        return _run_ros_arm(config, duration, ros_args)
+        return _run_ros_arm(config, duration, ros_args, real_time_factor)
 
 
-def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None) -> dict:
+def _run_ros_arm(
+    config: ExperimentConfig, duration: float | None, ros_args=None, real_time_factor=None
+) -> dict:
     from ..ros.arm import RosArmNode
     from ..ros.node import RosNode, discovery_range
 
@@ -541,6 +553,7 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
     stopped_by: list[int] = []
     try:
         gravity = experiment.plant.gravity_torque if rc.gravity == "arm" else None
+        limits = experiment._recorded_limits()  # the joint stops (±inf: none)
         arm = RosArmNode(
             ros,
             plant,
@@ -552,6 +565,9 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
             rc.commands,
             experiment.effort_limit,
             gravity=gravity,
+            lower=limits["lower"],
+            upper=limits["upper"],
+            real_time_factor=real_time_factor,
         )
 
         def on_signal(signum, frame) -> None:
@@ -559,10 +575,16 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
             arm.stop()
 
         old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        simulated = (
+            ""
+            if real_time_factor is None
+            else f" of simulated time at a real-time factor of {real_time_factor:g}, /clock "
+            "published"
+        )
         print(
             f"{config.name}: the arm's plant ({config.plant.engine}) as node "
             f"{ros.node.get_fully_qualified_name()}: {arm.joint_states_topic} at "
-            f"{rc.rate:g} Hz, efforts from {arm.commands_topic}",
+            f"{rc.rate:g} Hz{simulated}, efforts from {arm.commands_topic}",
             flush=True,
         )
         try:
@@ -575,13 +597,15 @@ def _run_ros_arm(config: ExperimentConfig, duration: float | None, ros_args=None
             "late": arm.late,
             "commands": arm.commands,
             "rejected": arm.rejected,
+            "stops": arm.stops,
         }
     finally:
         ros.close()
     counts["interrupted"] = signal.SIGINT in stopped_by
     print(
         f"arm stopped after {counts['steps']} steps: {counts['commands']} commands applied, "
-        f"{counts['rejected']} ignored, {counts['late']} periods late",
+        f"{counts['rejected']} ignored, {counts['late']} periods late, "
+        f"{counts['stops']} on a joint stop",
         file=sys.stderr,
     )
     return counts
@@ -607,6 +631,7 @@ def ros_arguments(ros) -> None:
         help="run length [s] (overrides the config); at least one period 1/[ros] rate",
     )
     ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    add_stop_options(ros)
     _add_node_options(ros)
 
 
@@ -626,7 +651,28 @@ def ros_arm_arguments(arm) -> None:
         help="stop after this long [s], rounded to whole periods 1/[ros] rate; shorter "
         "than one period is refused (exit 2) [until Ctrl-C]",
     )
+    arm.add_argument(
+        "--real-time-factor",
+        type=_positive_factor,
+        metavar="F",
+        help="run on simulated time, F simulated seconds per wall second: publish /clock "
+        "and stamp the states on it (run the controller with --ros-args -p "
+        "use_sim_time:=true); --duration is then simulated time [system clock]",
+    )
     _add_node_options(arm)
+
+
+def _positive_factor(text: str) -> float:
+    """``--real-time-factor``'s value: a finite number > 0 (argparse exits 2 otherwise)."""
+    import argparse
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and 0 < value <= 100):
+        raise argparse.ArgumentTypeError(f"expected a factor > 0 and <= 100, got {text!r}")
+    return value
 
 
 def _add_node_options(parser) -> None:

@@ -48,10 +48,12 @@ controller error such as a QP not solved, a measured state beyond the bounds),
 seconds, the loop writes the safe torque at the last finite state in the same cycle,
 runs the stop sequence of :mod:`.safety` (brake on the fresh states, at most ``hold``
 seconds, then the held-safe torque :math:`g\\,G(q)`; after a watchdog stop the held-safe
-torque at once), and returns the run up to that point with ``complete = False`` and one
-line saying why (``stop["brake"]``: how the brake ended). A complete run ends with the
-same sequence. No path writes a non-finite torque: the controller's is checked before it
-is written, the safe torques are computed from copies of the last finite state.
+torque at once, then the brake if the states resume within ``hold``), and returns the run
+up to that point with ``complete = False`` and one line saying why, naming the setting
+to relax after a watchdog or misses stop (``stop["brake"]``: how the brake ended). A
+complete run ends with the same sequence. No path writes a non-finite torque: the
+controller's is checked before it is written, the safe torques are computed from copies
+of the last finite state.
 """
 
 from __future__ import annotations
@@ -88,6 +90,16 @@ __all__ = [
     "sleep_until",
 ]
 
+
+#: Appended to a stop's reason: the setting to relax when the machine, not the arm, was
+#: late (the config key and the command line's override).
+RELAX_MISSES = (
+    "; if the machine was loaded rather than the arm faulty, relax realtime.max_misses "
+    "(--max-misses K)"
+)
+RELAX_WATCHDOG = (
+    "; if the machine was loaded rather than the arm gone, relax realtime.watchdog (--watchdog S)"
+)
 
 #: The latency advice (``[controller] latency``) needs at least this many measured
 #: controller steps (a failed start's single sample says nothing).
@@ -290,8 +302,9 @@ class RealtimeRun:
 
     @property
     def complete(self) -> bool:
-        """Whether the run went to the end."""
-        return self.stop is None
+        """Whether the run went to the end (with a state for every period of an arm
+        that paces it, up to ``max_misses`` lost: ``result.message`` says otherwise)."""
+        return self.stop is None and bool(self.result.complete)
 
     def summary(self) -> str:
         """The latency statistics in a few lines."""
@@ -308,6 +321,8 @@ class RealtimeRun:
             f"  missed deadlines: {s['misses']} ({100 * s['miss_fraction']:.3f} %; "
             f"{s['skipped']} skipped), longest run of misses {s['max_consecutive_misses']}",
         ]
+        if s.get("arm_gaps"):
+            lines.append(f"  periods with no state from the arm: {s['arm_gaps']}")
         age, declared = s.get("measured_latency"), s.get("declared_latency")
         if age is not None:
             lines.append(
@@ -520,6 +535,9 @@ class RealtimeLoop:
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
         self._held_tau = np.zeros(interface.nq)
         self._fresh = (0.0, 0.0)  # the last stamp and when it came (the watchdog's)
+        self._rec: _Records | None = None
+        self._tally: _Tally | None = None
+        self._seen = 0  # the cycles progress() has reported
 
     def set_reference(self, reference, at: float = 0.0, base=None) -> bool:
         """Replace the reference from the first controller step at or after loop time
@@ -549,6 +567,48 @@ class RealtimeLoop:
         """The reference set but not yet swapped in (``None``: none)."""
         pending = self._pending_reference
         return None if pending is None else pending[0]
+
+    def progress(self) -> dict | None:
+        """Where the run is, for a status line printed by another thread while it runs
+        (read from the run's records: the cycle does no work for it). ``None`` before the
+        first cycle.
+
+        Returns:
+            ``t`` (loop time of the last controller step [s]), ``cycles`` (run so far),
+            ``of`` (the run's cycles), ``misses``, ``longest`` (longest run of misses),
+            ``worst_us`` (the worst latency [µs] since the previous call),
+            ``error`` (max |q − q_ref| [rad] over the joints at the last step).
+        """
+        rec, tally = self._rec, self._tally
+        if rec is None or tally is None:
+            return None
+        done = rec.done
+        ran = np.flatnonzero(np.isfinite(done))
+        if ran.size == 0:
+            return None
+        last = int(ran[-1]) + 1
+        window = done[self._seen : last]
+        window = window[np.isfinite(window)]
+        self._seen = last
+        steps = np.flatnonzero(np.isfinite(rec.t))
+        error = math.nan
+        for j in steps[-2:][::-1]:  # (the newest row may be half written)
+            e = rec.traj["q"][j] - rec.traj["q_ref"][j]
+            if np.isfinite(e).all():
+                error = float(np.abs(e).max())
+                t = float(rec.t[j])
+                break
+        else:
+            t = last * self.settings.period
+        return {
+            "t": t,
+            "cycles": int(ran.size),
+            "of": int(done.size),
+            "misses": tally.misses,
+            "longest": tally.worst_run,
+            "worst_us": float(1e6 * window.max()) if window.size else math.nan,
+            "error": error,
+        }
 
     # ------------------------------------------------------------------ stopping
     def request_stop(self) -> None:
@@ -618,6 +678,7 @@ class RealtimeLoop:
         ctrl.reset(q_last if q0 is None else q0, dq_last if dq0 is None else dq0)
         rec = _Records(K // self.decimation + 2, K + 1, iface.nq)
         tally = _Tally()
+        self._rec, self._tally, self._seen = rec, tally, 0  # (read by progress())
         if st.gc_handling:
             gc.collect()
             gc.freeze()
@@ -683,7 +744,7 @@ class RealtimeLoop:
                     stop = (
                         "misses",
                         f"{tally.consecutive} consecutive missed deadlines "
-                        f"(limit {max_misses}), {skip} {skipped_why}",
+                        f"(limit {max_misses}), {skip} {skipped_why}{RELAX_MISSES}",
                     )
                     break
                 if k > K:
@@ -753,7 +814,7 @@ class RealtimeLoop:
                         "misses",
                         f"{tally.consecutive} consecutive missed deadlines "
                         f"(limit {max_misses}); last latency {1e6 * (done - deadline):.0f} us "
-                        f"for a {1e6 * P:.0f} us period",
+                        f"for a {1e6 * P:.0f} us period{RELAX_MISSES}",
                     )
                     k += 1
                     break
@@ -780,7 +841,7 @@ class RealtimeLoop:
                 "watchdog",
                 f"{streamed}no new state from the arm for "
                 f"{1e3 * watchdog:g} ms (watchdog), last stamp "
-                f"{self._fresh[0]:.6g} s",
+                f"{self._fresh[0]:.6g} s{RELAX_WATCHDOG}",
             )
         return arrived, wake, stop
 
@@ -804,7 +865,7 @@ class RealtimeLoop:
         return (
             "watchdog",
             f"no new state from the arm for {1e3 * (wake - fresh_at):.1f} ms "
-            f"(watchdog {1e3 * watchdog:g} ms), last stamp {stamp:.6g} s",
+            f"(watchdog {1e3 * watchdog:g} ms), last stamp {stamp:.6g} s{RELAX_WATCHDOG}",
         )
 
     def _swap_reference(self, t: float, ref):
@@ -836,6 +897,8 @@ class RealtimeLoop:
         st, ctrl, clock = self.settings, self.controller, self.clock
         P, m = st.period, self.decimation
         stop_record = None
+        # periods the arm's stamps passed with no state for them (before the brake's)
+        gaps = int(getattr(self.interface, "gaps", 0)) if self.paced else 0
         fresh = stop is None or stop[0] != "watchdog"
         # stopped by its operator (Ctrl-C, a lifecycle deactivate) before its first command:
         # the arm never had one from this loop, so none is sent now either
@@ -884,7 +947,7 @@ class RealtimeLoop:
             }
         else:
             last = self._fresh[0] if not self.paced else stamp
-            brake = self._brake(P, q_last, dq_last, last, fresh)
+            brake = self._brake(P, q_last, dq_last, last, fresh, resume=not fresh)
         if stop_record is not None:
             stop_record["brake"] = brake
         done_a, wake_a = rec.done, rec.wake
@@ -916,16 +979,27 @@ class RealtimeLoop:
             "gc_all_max_s": watch.longest,
             "period_us": 1e6 * P,
             "brake": brake,
+            "arm_gaps": gaps,
         }
         self._check_latency(stats)
         meta = {**self.meta, "realtime": stats, "stop": stop_record}
         j = rec.j
+        message = "" if stop_record is None else stop_record["reason"]
+        gapped = stop is None and gaps > self.safety.max_misses
+        if gapped:
+            message = (
+                f"the arm's stamps passed {gaps} periods of {1e3 * P:g} ms with no state for "
+                f"them (more than realtime.max_misses = {self.safety.max_misses}): the run "
+                "is not complete. An arm publishing slower than the rate, or states on "
+                "another clock than the controller's (a simulator's: run it with "
+                "use_sim_time)"
+            )
         result = Result(
             t=rec.t[:j].copy(),
             **{name: arr[:j].copy() for name, arr in rec.traj.items()},
             joint_names=self.joint_names,
-            complete=stop is None,
-            message="" if stop_record is None else stop_record["reason"],
+            complete=stop is None and not gapped,
+            message=message,
             meta=meta,
         )
         timing = {
@@ -1021,11 +1095,18 @@ class RealtimeLoop:
             + " at the last position left on the arm"
         )
 
-    def _brake(self, P: float, q_last, dq_last, stamp: float, fresh: bool) -> dict:
+    def _brake(
+        self, P: float, q_last, dq_last, stamp: float, fresh: bool, resume: bool = False
+    ) -> dict:
         """The stop sequence (:mod:`.safety`): while fresh finite states arrive, the safe
         torque at each, until every joint is slower than ``safety.brake_speed`` or
         ``safety.hold`` has passed; then the held-safe torque at the last finite position,
         the last command written. Works on copies: the interface may reuse its arrays.
+
+        With ``resume`` (after a watchdog stop: the held-safe torque is on the arm
+        already, its speed unknown) it waits up to ``hold`` for the states to resume and
+        brakes on them if they do (a loaded machine's stall, not an arm gone): the arm is
+        then left still, not coasting under G(q).
 
         Returns:
             ``ended`` (``"still"``, ``"time bound"``, ``"no fresh state"``), ``duration``
@@ -1037,31 +1118,36 @@ class RealtimeLoop:
         self._last_state = (q_keep, dq_keep)  # an error inside the brake holds G at q_keep
         start = clock()
         end = start + sf.hold
+        # (a bound on the wall too: the clock of a paced arm, a simulator's, may stop)
+        wall_end = time.monotonic() + max(2.0 * sf.hold, sf.hold + 1.0)
         fresh_at = start
         states = 0
         ended = "no fresh state"
         wait = getattr(iface, "wait", None) if self.paced else None
-        while fresh:
+        awaiting = resume  # no fresh state yet since the watchdog: the speed is unknown
+        patience = sf.hold if resume else sf.watchdog  # how long a fresh state is awaited
+        while fresh or resume:
             now = clock()
-            if float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:
+            if not awaiting and float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:
                 ended = "still"
                 break
-            if now >= end:
-                ended = "time bound"
+            if now >= end or time.monotonic() >= wall_end:
+                ended = "no fresh state" if awaiting else "time bound"
                 break
             if wait is not None:
                 if not wait(min(sf.watchdog, end - now)):
-                    if clock() >= end:
+                    if awaiting or clock() >= end:
                         continue
                     break
             else:
                 self.sleep(min(now + P, end))
             new_stamp, q, dq = iface.read()
             if new_stamp == stamp:
-                if clock() - fresh_at > sf.watchdog:
+                if clock() - fresh_at > patience:
                     break
                 continue
             stamp, fresh_at = new_stamp, clock()
+            awaiting, patience = False, sf.watchdog
             if not (np.isfinite(q).all() and np.isfinite(dq).all()):
                 # not a state to brake on: the damping on the last finite velocity would be
                 # a stale torque, so the held-safe one replaces it until a finite state comes
@@ -1072,8 +1158,8 @@ class RealtimeLoop:
             states += 1
             if float(np.max(np.abs(dq_keep), initial=0.0)) >= sf.brake_speed:
                 self._safe_write(q_keep, dq_keep)
-        # (after a watchdog stop it is on the arm already: written once)
-        held = self._held_write(q_keep) if fresh else self._held_tau
+        # (after a watchdog stop with no state since, it is on the arm already: written once)
+        held = self._held_write(q_keep) if fresh or states else self._held_tau
         self._last_state = (q_keep, np.zeros_like(dq_keep))
         return {
             "ended": ended,

@@ -29,6 +29,13 @@ loop is therefore:
    measured is a constant torque that accelerates the arm): zero when the arm
    compensates gravity itself (:math:`g = 0`).
 
+After a watchdog stop (no fresh state: the velocity is unknown) step 3 comes first, at
+once, since it is the only command safe to hold without a measurement; the loop then
+waits up to ``hold`` for the states to resume and, if they do (a loaded machine's stall
+rather than an arm gone), runs step 2 on them and ends on step 3 where the arm came to
+rest. The inertia brake is what leaves the arm still: its torque needs the velocity, so
+it can only act on fresh states.
+
 Every safe torque is clipped to the joints' effort limits (``effort_limit``, the
 plant's): a brake command beyond what the drive takes is clipped by the drive anyway. The
 limit is on the total joint torque: with :math:`g = 0` (the arm adds its own

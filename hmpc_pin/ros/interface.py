@@ -13,21 +13,34 @@
   (effort_controllers' JointGroupEffortController), in the robot's joint order.
 
 Time: stamps are the messages' ``header.stamp`` on the system clock, shifted to start
-near 0; a driver that leaves the stamp at zero, or stamps on another clock (simulated
-time, more than 1 s from the wall when the first state arrives), is timed from each
-state's arrival instead (``stamps`` says which). Each state also has its **arrival**
-time (the middleware's reception time stamp, else the time it was taken), on the same
-clock: the loop's deadline for a state is its arrival plus a period, so a constant
-transport delay is no miss; the stamp-to-command latency is measured apart
-(``stats["measured_latency"]``). :meth:`RosArmInterface.wait` returns the periods
-elapsed by the stamps (the loop's time follows the arm's) and sets
-``overdue``, the states among them the loop failed to answer in time
-(taken more than a period after they arrived); a burst after a stall of the arm is not
-the loop's miss.
+near 0; a driver that leaves the stamp at zero, or stamps on another clock (more than 1 s
+from the wall when the first state arrives), is timed from each state's arrival instead
+(``stamps`` says which: ``"header"``, ``"arrival"``).
+
+**Simulated time** (the node's ``use_sim_time`` parameter, ``--ros-args -p
+use_sim_time:=true``): the loop runs on the simulator's clock. The interface takes
+``/clock`` (``rosgraph_msgs/Clock``) itself, with the states, and :meth:`~RosArmInterface.clock`
+is the newest ``/clock`` time; the states are timed by their ``header.stamp`` on that
+clock (``stamps = "simulated"``; a zero stamp: the ``/clock`` time it arrived at), each
+state's arrival is its stamp (the simulator publishes the period's ``/clock`` and its
+state together), and a state not answered before ``/clock`` has moved a period past it is
+overdue. The periods counted, the run's duration and its latencies are then simulated
+time, whatever the real-time factor (latencies quantised to ``/clock``'s period); the
+watchdog stays wall-clock time (a simulator that stops publishing is gone).
+
+Each state also has its **arrival** time (the middleware's reception time stamp, else
+the time it was taken), on the same clock: the loop's deadline for a state is its
+arrival plus a period, so a constant transport delay is no miss; the stamp-to-command
+latency is measured apart (``stats["measured_latency"]``).
+:meth:`RosArmInterface.wait` returns the periods elapsed by the stamps (the loop's time
+follows the arm's) and sets ``overdue``, the states among them the loop failed to
+answer in time (taken more than a period after they arrived); a burst after a stall of
+the arm is not the loop's miss.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 
@@ -110,7 +123,13 @@ class RosArmInterface:
             controller. The joint states are subscribed best effort.
 
     Attributes:
-        stamps: ``"header"`` or ``"arrival"`` (module doc), set by :meth:`start`.
+        stamps: ``"header"``, ``"arrival"`` or ``"simulated"`` (module doc), set by
+            :meth:`start`.
+        sim_time: Whether the node runs on ``/clock`` (its ``use_sim_time``).
+        gaps: Periods the stamps advanced by with no state for them (a state lost on
+            the way, an arm slower than ``period``, a clock not the arm's). Periods
+            whose states the subscription's full queue dropped (the loop too slow to
+            take them) are not gaps: they count as ``overdue``.
         received: Complete joint states received (periods).
         published: Commands published.
         arrival: When the state taken by the last :meth:`wait` arrived [s], on
@@ -148,7 +167,14 @@ class RosArmInterface:
         state_qos = ros.qos(depth, reliable=False)
         self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states, state_qos)
         self._others: list[tuple[object, object]] = []
-        self._wait = ros.waiter([self._sub])
+        self.sim_time = _uses_sim_time(ros.node)
+        self._sim_now = math.nan  # the newest /clock time [s] (simulated time)
+        self._clock_sub = None
+        if self.sim_time:
+            from rosgraph_msgs.msg import Clock
+
+            self._clock_sub = ros.subscribe(Clock, "/clock", ros.qos(depth, reliable=False))
+        self._wait = ros.waiter(self._subs())
         self._merge = JointStateMerger(self.names)
         self._arrivals: list[float] = []
         self._periods = 0
@@ -159,6 +185,10 @@ class RosArmInterface:
         self.stamps = "header"
         self.received = 0
         self.published = 0
+        self.gaps = 0
+        self._depth = depth
+        self._overflowed = False
+        self._dropped = 0  # periods whose state the full queue dropped (overdue)
         self.overdue = 0
         self.arrival = 0.0
         self._stamp = 0.0
@@ -175,12 +205,33 @@ class RosArmInterface:
         loop's thread (between states); returns the resolved topic name."""
         sub = self.ros.subscribe(msg_type, topic, qos)
         self._others.append((sub, callback))
-        self._wait = self.ros.waiter([self._sub] + [s for s, _ in self._others])
+        self._wait = self.ros.waiter(self._subs())
         return self.ros.topic(topic)
 
+    def _subs(self) -> list:
+        """The subscriptions :meth:`wait` waits on."""
+        clock = [] if self._clock_sub is None else [self._clock_sub]
+        return [self._sub, *clock, *(s for s, _ in self._others)]
+
+    def _take_clock(self) -> None:
+        """Take the ``/clock`` messages waiting (simulated time): the newest is now."""
+        for msg in self.ros.take(self._clock_sub):
+            c = msg.clock
+            self._sim_now = max(c.sec + 1e-9 * c.nanosec, self._sim_now_or(-math.inf))
+
+    def _sim_now_or(self, default: float) -> float:
+        return default if math.isnan(self._sim_now) else self._sim_now
+
     def _poll(self) -> None:
-        """Take what has arrived: the states (oldest first), then the other topics."""
-        for msg, received in self.ros.take_with_time(self._sub):
+        """Take what has arrived: ``/clock`` (simulated time), the states (oldest first),
+        then the other topics."""
+        if self._clock_sub is not None:
+            self._take_clock()
+        msgs = self.ros.take_with_time(self._sub)
+        # a full queue: older messages were dropped to make room, the periods before the
+        # first state taken are the loop's own misses, not the arm's gaps
+        self._overflowed = len(msgs) >= self._depth
+        for msg, received in msgs:
             self._on_state(msg, received)
         take = self.ros.take
         for sub, callback in self._others:
@@ -190,24 +241,38 @@ class RosArmInterface:
     def _on_state(self, msg, received: float) -> None:
         """Merge one message; ``received`` [s] is its reception on the system clock (0:
         unknown, now)."""
-        now = time.time()
         if not self._merge.add(msg.name, msg.position, msg.velocity):
             return
         st = msg.header.stamp
         stamp = st.sec + 1e-9 * st.nanosec
         self._header_stamp = stamp
-        if not self._based:
-            # the first complete state decides the time base (module doc)
-            self._based = True
-            self._arrival = stamp == 0.0 or abs(stamp - now) > 1.0
-            self.stamps = "arrival" if self._arrival else "header"
-            self._origin = float(int(now))
-        arrival = (received if 0.0 < received <= now + 1e-3 else now) - self._origin
-        stamp = arrival if self._arrival or stamp == 0.0 else stamp - self._origin
+        if self.sim_time:  # simulated time: the stamp (zero: the /clock it came at)
+            now = self._sim_now_or(stamp) if stamp == 0.0 else stamp
+            if not self._based:
+                self._based = True
+                self.stamps = "simulated"
+                self._origin = float(int(now))
+            arrival = stamp = now - self._origin
+        else:
+            now = time.time()
+            if not self._based:
+                # the first complete state decides the time base (module doc)
+                self._based = True
+                self._arrival = stamp == 0.0 or abs(stamp - now) > 1.0
+                self.stamps = "arrival" if self._arrival else "header"
+                self._origin = float(int(now))
+            arrival = (received if 0.0 < received <= now + 1e-3 else now) - self._origin
+            stamp = arrival if self._arrival or stamp == 0.0 else stamp - self._origin
         if self._latest is not None:  # periods since the previous state (>= 1)
-            self._periods += max(1, round((stamp - self._latest[0]) / self.period))
+            periods = max(1, round((stamp - self._latest[0]) / self.period))
+            if self._overflowed:
+                self._dropped += periods - 1
+            else:
+                self.gaps += periods - 1
+            self._periods += periods
         else:
             self._periods += 1
+        self._overflowed = False
         self._latest = (stamp, self._merge.q.copy(), self._merge.dq.copy(), arrival)
         self._latest_header = self._header_stamp or arrival + self._origin
         self._arrivals.append(arrival)
@@ -265,7 +330,11 @@ class RosArmInterface:
         return self._taken_header
 
     def clock(self) -> float:
-        """Now [s] on the stamps' clock (the system clock shifted as the stamps are)."""
+        """Now [s] on the stamps' clock (the system clock shifted as the stamps are;
+        under ``use_sim_time`` the newest ``/clock`` time, shifted alike)."""
+        if self.sim_time:
+            self._take_clock()
+            return self._sim_now_or(self._stamp + self._origin) - self._origin
         return time.time() - self._origin
 
     def wait(self, timeout: float) -> int:
@@ -287,7 +356,8 @@ class RosArmInterface:
             return 0
         count, self._periods = self._periods, 0
         late = woke - self.period
-        self.overdue = sum(1 for a in self._arrivals[:-1] if a < late)
+        self.overdue = sum(1 for a in self._arrivals[:-1] if a < late) + self._dropped
+        self._dropped = 0
         self._arrivals.clear()
         self._stamp, q, dq, self.arrival = self._latest  # type: ignore[misc]
         self._taken_header = self._latest_header
@@ -308,3 +378,11 @@ class RosArmInterface:
     def close(self) -> None:
         """Stop the node (idempotent)."""
         self.ros.close()
+
+
+def _uses_sim_time(node) -> bool:
+    """The node's ``use_sim_time`` parameter (rclpy declares it on every node)."""
+    try:
+        return bool(node.get_parameter("use_sim_time").value)
+    except Exception:  # an rclpy without it: the system clock
+        return False

@@ -31,8 +31,11 @@ class RealtimeConfig:
         gravity: Gravity compensation in the safe torque (not given: on). Under
             ``hmpc-pin ros`` the choice is ``[ros] gravity``; this key, if given, must
             agree with it (``true`` with ``"controller"``, ``false`` with ``"arm"``).
-        max_misses: Consecutive missed deadlines that stop the loop (k).
+        max_misses: Consecutive missed deadlines that stop the loop (k). Default 100
+            (0.1 s at 1 kHz: runs of up to 91 misses were measured on a loaded 2-core
+            machine, the tutorial "The real-time loop").
         watchdog: A state stamp that does not advance for this long [s] stops the loop.
+            Default 0.1 (stalls of up to 46 ms measured on the same machine).
         hold: Bound in time [s] of the brake after a stop (and at the end of a run): the
             safe torque at each fresh state until every joint is slower than
             ``brake_speed``, at most this long; then the held-safe torque ``G(q)`` (no
@@ -61,8 +64,8 @@ class RealtimeConfig:
     damping: np.ndarray | None = None
     brake_time: float | None = None
     gravity: bool | None = None
-    max_misses: int = 10
-    watchdog: float = 0.02
+    max_misses: int = 100
+    watchdog: float = 0.1
     hold: float = 2.0
     brake_speed: float = 0.005
     limits: bool = True

@@ -66,7 +66,11 @@ from ..model.robot import (
     load_robot,
     urdf_mimics,
 )
+from ..model.workspace import Workspace, find_srdf
+from .config.workspace import WorkspaceConfig
 from .plants import DAMPING_STEP_LIMIT, damping_rates
+from .posture import path as sine_path
+from .posture import SLACK, place
 
 __all__ = [
     "BANDWIDTH_PERIODS",
@@ -219,7 +223,7 @@ class InitPlan:
         bandwidth: The general observer's bandwidth [1/s] (``None`` for ``chen``).
     """
 
-    def __init__(self, source: str | Path):
+    def __init__(self, source: str | Path, workspace: WorkspaceConfig | None = None):
         path, self.source, name = _resolve(source)
         root = check_urdf(path)
         mimics = urdf_mimics(root)
@@ -268,18 +272,17 @@ class InitPlan:
         amp0 = np.array([AMPLITUDE[k] for k in robot.joint_kinds])
         amp0 = np.where(np.isfinite(span), np.minimum(amp0, 0.25 * span), amp0)
         margin = np.where(np.isfinite(span), 0.05 * span, 0.0)
-        for scale in AMPLITUDE_SCALES:  # a smaller sine when gravity needs too much torque
-            amp = scale * amp0
-            start = np.clip(center, lo + amp + margin, hi - amp - margin)
-            try:
-                self.offset = _hold_gravity(robot, start, amp, lo + amp + margin, hi - amp - margin)
-                break
-            except URDFError:
-                if scale == AMPLITUDE_SCALES[-1]:
-                    raise
-        if not np.allclose(self.offset, start):
+        self.workspace_settings = workspace if workspace is not None else WorkspaceConfig()
+        self.workspace = _workspace(robot, path, name, self.workspace_settings)
+        self.offset, amp, moved = self._place(robot, center, amp0, lo, hi, margin)
+        if moved == "gravity":
             self.posture_source += (
                 f", lowered toward hanging until gravity needs <= {HOLD:.0%} of the effort limits"
+            )
+        elif moved == "workspace":
+            self.posture_source += (
+                ", moved until the whole sine keeps every link above the mounting plane "
+                "and clear of the others"
             )
         self.amplitude = amp
         vmax = robot.velocity_limit
@@ -321,6 +324,67 @@ class InitPlan:
                 self.plant_dt = fits[0]
             else:
                 self.joint_dynamics = False
+
+    def _place(self, robot, center, amp0, lo, hi, margin):
+        """The offset and amplitude of the sine, and what moved the offset from
+        ``center`` (``""``, ``"gravity"`` or ``"workspace"``): per amplitude of
+        :data:`AMPLITUDE_SCALES`, the posture gravity allows (:func:`_hold_gravity`),
+        moved inside the workspace when it is not (:func:`~.posture.place`).
+
+        Raises:
+            URDFError: Gravity needs more than the effort limits everywhere, or no posture
+                keeps the sine inside the workspace (the message names the link).
+        """
+        effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
+
+        def excess(q):
+            return max(0.0, float(np.max(_gravity_along(robot, q, amp) / (HOLD * effort))) - 1)
+
+        gravity: URDFError | None = None
+        outside = None
+        for scale in AMPLITUDE_SCALES:  # a smaller sine when no posture suits the larger
+            amp = scale * amp0
+            lo_o, hi_o = lo + amp + margin, hi - amp - margin
+            start = np.clip(center, lo_o, hi_o)
+            try:
+                held = _hold_gravity(robot, start, amp, lo_o, hi_o)
+            except URDFError as exc:
+                gravity, held = exc, None
+                if self.workspace is None:
+                    continue
+            moved = "" if held is not None and np.allclose(held, start) else "gravity"
+            if self.workspace is None:
+                return held, amp, moved
+            first = held if held is not None else start
+            offset, inside = place(self.workspace, first, amp, lo_o, hi_o, excess)
+            if inside:
+                return offset, amp, (moved if np.allclose(offset, first) else "workspace")
+            if held is not None:
+                outside = (offset, amp)
+        if outside is None:
+            assert gravity is not None
+            raise gravity
+        raise self._outside(*outside)
+
+    def _outside(self, offset, amp) -> URDFError:
+        """No posture keeps the sine inside the workspace: the message names the links."""
+        ws = self.workspace
+        assert ws is not None
+        scan = ws.scan(sine_path(offset, amp, 41), np.linspace(-1.0, 1.0, 41))
+        what = "; ".join(
+            [f"{v.link!r} at {v.lowest:+.3g} m" for v in scan.below]
+            + [f"{c.links[0]!r} against {c.links[1]!r}" for c in scan.collisions]
+        ) or f"a link within {1e3 * SLACK:g} mm of the margin"
+        s = self.workspace_settings
+        return URDFError(
+            self.robot.source,
+            "no posture found whose sine (amplitude down to "
+            f"{AMPLITUDE_SCALES[-1]:g} x) keeps every link {s.margin:g} m above the mounting "
+            f"plane (height {s.height:g} m, normal {_vec(s.normal)}) and clear of the others "
+            f"within the effort limits; the best found leaves {what}; if the arm is mounted "
+            "higher than its root link (a humanoid's or a mobile base's arm), pass "
+            "--plane-height (the plane's height in the URDF's root frame, negative below it)",
+        )
 
     @property
     def bandwidth(self) -> float | None:
@@ -372,6 +436,29 @@ class InitPlan:
     def text(self, duration: float) -> str:
         """The TOML text (:func:`init_config`)."""
         return _render(self, duration)
+
+
+def _workspace(robot: Robot, path: Path, name: str | None, settings: WorkspaceConfig):
+    """The arm's :class:`~hmpc_pin.model.workspace.Workspace` (``None``: the URDF has no
+    collision geometry, or Pinocchio cannot load it: warned)."""
+    try:
+        ws = Workspace(
+            robot,
+            height=settings.height,
+            normal=settings.normal,
+            margin=settings.margin,
+            srdf=find_srdf(path, name),
+            self_collision=settings.self_collision,
+        )
+    except URDFError as exc:
+        warnings.warn(
+            f"{exc}; the reference is not checked against the mounting plane and for "
+            "self-collision",
+            ValidityWarning,
+            stacklevel=4,
+        )
+        return None
+    return ws if ws.geometry.ngeoms else None
 
 
 def _plant_lines(p: InitPlan) -> list[str]:

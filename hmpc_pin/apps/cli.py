@@ -383,6 +383,7 @@ def cmd_tune(args) -> int:
 
 def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
+    from ..experiment.config import WorkspaceConfig
     from ..experiment.init import write_config
 
     if args.list:
@@ -396,7 +397,17 @@ def cmd_init(args) -> int:
     if args.robot is None:
         raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
     duration = 10.0 if _checked_duration(args.duration) is None else args.duration
-    path = write_config(args.robot, args.out, duration, overwrite=args.force)
+    try:
+        workspace = WorkspaceConfig(
+            height=0.0 if args.plane_height is None else args.plane_height,
+            margin=0.02 if args.margin is None else args.margin,
+        )
+    except ConfigError as exc:
+        flag = {"height": "--plane-height", "margin": "--margin"}[exc.key]
+        raise ConfigError(flag, exc.message) from None
+    path = write_config(
+        args.robot, args.out, duration, overwrite=args.force, workspace=workspace
+    )
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
     return EXIT_OK
 
@@ -746,7 +757,8 @@ def _init_arguments(ini) -> None:
     ini.description = (
         "Write a TOML experiment that runs as written: a sine per joint around "
         "the reference posture (SRDF, else mid-range) inside the position and velocity "
-        "limits, inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
+        "limits, moved where the whole sine keeps every link above the mounting plane and "
+        "clear of the others (the URDF's collision geometry), inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
         "joints locked. Exit 2 with one line when the URDF cannot be controlled."
     )
     ini.add_argument(
@@ -758,6 +770,21 @@ def _init_arguments(ini) -> None:
     ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
     ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
     ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
+    ini.add_argument(
+        "--plane-height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="height of the mounting plane (the table) in the URDF's root frame, which no "
+        "moving link's collision geometry may cross [m] [0]",
+    )
+    ini.add_argument(
+        "--margin",
+        type=float,
+        default=None,
+        metavar="M",
+        help="clearance every moving link keeps above the plane [m] [0.02]",
+    )
     ini.set_defaults(func=cmd_init)
 
 

@@ -66,11 +66,11 @@ from ..model.robot import (
     load_robot,
     urdf_mimics,
 )
-from ..model.workspace import Workspace, find_srdf
 from .config.workspace import WorkspaceConfig
 from .plants import DAMPING_STEP_LIMIT, damping_rates
 from .posture import path as sine_path
-from .posture import SLACK, place
+from .posture import PATH_SAMPLES, SLACK, place
+from .workspace import make_workspace
 
 __all__ = [
     "BANDWIDTH_PERIODS",
@@ -273,7 +273,7 @@ class InitPlan:
         amp0 = np.where(np.isfinite(span), np.minimum(amp0, 0.25 * span), amp0)
         margin = np.where(np.isfinite(span), 0.05 * span, 0.0)
         self.workspace_settings = workspace if workspace is not None else WorkspaceConfig()
-        self.workspace = _workspace(robot, path, name, self.workspace_settings)
+        self.workspace = make_workspace(robot, self.workspace_settings, name)
         self.offset, amp, moved = self._place(robot, center, amp0, lo, hi, margin)
         if moved == "gravity":
             self.posture_source += (
@@ -438,27 +438,33 @@ class InitPlan:
         return _render(self, duration)
 
 
-def _workspace(robot: Robot, path: Path, name: str | None, settings: WorkspaceConfig):
-    """The arm's :class:`~hmpc_pin.model.workspace.Workspace` (``None``: the URDF has no
-    collision geometry, or Pinocchio cannot load it: warned)."""
-    try:
-        ws = Workspace(
-            robot,
-            height=settings.height,
-            normal=settings.normal,
-            margin=settings.margin,
-            srdf=find_srdf(path, name),
-            self_collision=settings.self_collision,
-        )
-    except URDFError as exc:
-        warnings.warn(
-            f"{exc}; the reference is not checked against the mounting plane and for "
-            "self-collision",
-            ValidityWarning,
-            stacklevel=4,
-        )
-        return None
-    return ws if ws.geometry.ngeoms else None
+def _workspace_lines(p: InitPlan) -> list[str]:
+    """The ``[workspace]`` table init placed the sine in (nothing without collision
+    geometry)."""
+    ws = p.workspace
+    if ws is None:
+        return []
+    scan = ws.scan(sine_path(p.offset, p.amplitude, 4 * PATH_SAMPLES - 3))
+    low = min(scan.clearance.items(), key=lambda kv: kv[1], default=None)
+    s = p.workspace_settings
+    lines = [
+        "[workspace]",
+        "# The plane the arm is mounted on (its table), in the URDF's root frame: along the",
+        "# whole sine every moving link's collision geometry keeps `margin` above it and",
+        "# clear of the other links"
+        + (" (pairs the SRDF disables excepted)" if ws.srdf is not None else "")
+        + "; `hmpc-pin check` flags a reference that does not.",
+    ]
+    if low is not None:
+        lines.append(f"# Lowest along the sine: {low[0]} at {low[1]:.3g} m above the plane.")
+    return [
+        *lines,
+        f"height = {s.height:g}                       # [m]",
+        f"normal = {_vec(s.normal)}",
+        f"margin = {s.margin:g}                    # [m]",
+        *([] if s.self_collision else ["self_collision = false"]),
+        "",
+    ]
 
 
 def _plant_lines(p: InitPlan) -> list[str]:
@@ -487,14 +493,16 @@ def _vec(values, digits: int = 4) -> str:
     return "[" + ", ".join(f"{round(float(v), digits):g}" for v in values) + "]"
 
 
-def init_config(source: str | Path, duration: float = 10.0) -> str:
+def init_config(
+    source: str | Path, duration: float = 10.0, workspace: WorkspaceConfig | None = None
+) -> str:
     """The text of a commented TOML experiment for ``source`` (URDF path or robot name)
     that runs as written (module docstring: what is decided and why).
 
     Raises:
         URDFError: The URDF cannot be controlled (the message names the joint or link).
     """
-    p = InitPlan(source)
+    p = InitPlan(source, workspace)
     p.trial()
     return p.text(duration)
 
@@ -659,6 +667,7 @@ def _render(p: InitPlan, duration: float) -> str:
     lines += [
         "",
         *_plant_lines(p),
+        *_workspace_lines(p),
         "[reference]",
         'kind = "sine"',
         f"amplitude = {_vec(p.amplitude)}     # [{unit}]",
@@ -693,6 +702,7 @@ def write_config(
     duration: float = 10.0,
     *,
     overwrite: bool = False,
+    workspace: WorkspaceConfig | None = None,
 ) -> Path:
     """Write :func:`init_config` of ``source`` to ``out`` (default ``<name>.toml`` in the
     current directory) and return the path.
@@ -701,7 +711,7 @@ def write_config(
         ConfigError: ``out`` exists and ``overwrite`` is false (nothing is written).
         OutputError: ``out`` cannot be written.
     """
-    text = init_config(source, duration)
+    text = init_config(source, duration, workspace)
     name = re.search(r'^name = "(.*)_init"$', text, re.MULTILINE)
     path = Path(out) if out is not None else Path(f"{name.group(1) if name else 'robot'}.toml")
     if path.exists() and not overwrite:
@@ -717,6 +727,6 @@ def write_config(
     return path
 
 
-def plan(source: str | Path) -> InitPlan:
+def plan(source: str | Path, workspace: WorkspaceConfig | None = None) -> InitPlan:
     """The decisions :func:`init_config` writes, as an object."""
-    return InitPlan(source)
+    return InitPlan(source, workspace)

@@ -24,9 +24,11 @@ from hmpc_pin.experiment.config import WorkspaceConfig, load_config
 from hmpc_pin.experiment.init import init_config, plan
 from hmpc_pin.model.robot import example_robot_srdf, example_robot_urdf
 
-
 #: Arms whose init reference is checked (no SRDF: ur10; SRDF postures: panda, xarm7, z1).
 ARMS = ("ur5", "ur10", "panda", "xarm7", "z1")
+#: The UR arms' joints, in order.
+UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+             "wrist_2_joint", "wrist_3_joint")  # fmt: skip
 #: Samples of one period of the sine.
 SAMPLES = 400
 
@@ -169,8 +171,7 @@ def test_check_names_the_link_and_time_a_reference_goes_through_the_table(tmp_pa
     within the margin of the plane."""
     path = _ur5_config(
         tmp_path,
-        "amplitude = [0, 0.5, 0, 0, 0, 0]\nfrequency = 0.1\n"
-        "offset = [0, -0.1, 0, 0, 0, 0]",
+        "amplitude = [0, 0.5, 0, 0, 0, 0]\nfrequency = 0.1\noffset = [0, -0.1, 0, 0, 0, 0]",
     )
     assert main(["check", path, "--no-engine"]) == 1
     out = capsys.readouterr().out
@@ -181,11 +182,8 @@ def test_check_names_the_link_and_time_a_reference_goes_through_the_table(tmp_pa
     first = None
     for tk in t:
         q = [0.0, -0.1 + 0.5 * math.sin(0.2 * math.pi * tk), 0.0, 0.0, 0.0, 0.0]
-        oracle.pose(dict(zip(("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
-                              "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"), q)))  # fmt: skip
-        low = {
-            link: z for link, z in oracle.lowest().items() if oracle.body[link] != oracle.base
-        }
+        oracle.pose(dict(zip(UR_JOINTS, q, strict=True)))
+        low = {link: z for link, z in oracle.lowest().items() if oracle.body[link] != oracle.base}
         # (the shoulder turns about the vertical only: its height is where it is mounted)
         below = [link for link, z in low.items() if z < 0.02 and link != "shoulder_link"]
         if below:
@@ -222,12 +220,10 @@ def test_check_names_two_links_that_collide_and_when(tmp_path, capsys):
     lines = [line for line in out.splitlines() if "collide" in line and "problem:" in line]
     assert lines, out
     oracle = Oracle("ur5")
-    names = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
-             "wrist_2_joint", "wrist_3_joint")  # fmt: skip
     first: dict[frozenset, float] = {}
     for tk in np.arange(0.0, 5.0 + 1e-9, 0.01):
         q = [0.0, -1.5708, 2.7 + 0.4 * math.sin(0.2 * math.pi * tk), -1.5708, 0.0, 0.0]
-        oracle.pose(dict(zip(names, q, strict=True)))
+        oracle.pose(dict(zip(UR_JOINTS, q, strict=True)))
         for pair in oracle.collisions():
             first.setdefault(frozenset(pair), float(tk))
     assert first

@@ -405,9 +405,7 @@ def cmd_init(args) -> int:
     except ConfigError as exc:
         flag = {"height": "--plane-height", "margin": "--margin"}[exc.key]
         raise ConfigError(flag, exc.message) from None
-    path = write_config(
-        args.robot, args.out, duration, overwrite=args.force, workspace=workspace
-    )
+    path = write_config(args.robot, args.out, duration, overwrite=args.force, workspace=workspace)
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
     return EXIT_OK
 
@@ -758,7 +756,8 @@ def _init_arguments(ini) -> None:
         "Write a TOML experiment that runs as written: a sine per joint around "
         "the reference posture (SRDF, else mid-range) inside the position and velocity "
         "limits, moved where the whole sine keeps every link above the mounting plane and "
-        "clear of the others (the URDF's collision geometry), inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
+        "clear of the others (the URDF's collision geometry), inertia-scaled disturbances, "
+        "an observer valid for the arm, gripper/finger "
         "joints locked. Exit 2 with one line when the URDF cannot be controlled."
     )
     ini.add_argument(

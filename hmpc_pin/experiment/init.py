@@ -68,8 +68,8 @@ from ..model.robot import (
 )
 from .config.workspace import WorkspaceConfig
 from .plants import DAMPING_STEP_LIMIT, damping_rates
-from .posture import path as sine_path
 from .posture import PATH_SAMPLES, SLACK, place
+from .posture import path as sine_path
 from .workspace import make_workspace
 
 __all__ = [
@@ -371,10 +371,13 @@ class InitPlan:
         ws = self.workspace
         assert ws is not None
         scan = ws.scan(sine_path(offset, amp, 41), np.linspace(-1.0, 1.0, 41))
-        what = "; ".join(
-            [f"{v.link!r} at {v.lowest:+.3g} m" for v in scan.below]
-            + [f"{c.links[0]!r} against {c.links[1]!r}" for c in scan.collisions]
-        ) or f"a link within {1e3 * SLACK:g} mm of the margin"
+        what = (
+            "; ".join(
+                [f"{v.link!r} at {v.lowest:+.3g} m" for v in scan.below]
+                + [f"{c.links[0]!r} against {c.links[1]!r}" for c in scan.collisions]
+            )
+            or f"a link within {1e3 * SLACK:g} mm of the margin"
+        )
         s = self.workspace_settings
         return URDFError(
             self.robot.source,

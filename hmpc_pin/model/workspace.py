@@ -15,8 +15,8 @@ their positions, mimic followers at :math:`m\\,q_l + o`.
   and rim. The geometry fixed to the base (the root link and what is welded to it) stands
   on the plane and is not checked, nor is a geometry whose clearance no joint changes
   (a link turning about the plane's normal only, such as a first link above a vertical
-  axis: where it is mounted is not a motion; :data:`INVARIANT_TOL`). Every other geometry must keep a clearance
-  of at least ``margin``.
+  axis: where it is mounted is not a motion; :data:`INVARIANT_TOL`). Every other geometry
+  must keep a clearance of at least ``margin``.
 * **Self-collision** is Pinocchio's ``computeCollisions`` (coal's exact test on the
   meshes) over every pair of geometries on different links, less the pairs that may
   touch: adjacent links (a link and its parent in the kinematic tree, which meet at their
@@ -330,9 +330,7 @@ class Workspace:
             if a == b or adjacent:
                 gm.removeCollisionPair(pair)
         self.gdata = pin.GeometryData(gm)
-        self.pairs = tuple(
-            (self.links[p.first], self.links[p.second]) for p in gm.collisionPairs
-        )
+        self.pairs = tuple((self.links[p.first], self.links[p.second]) for p in gm.collisionPairs)
 
     def _moving(self, robot) -> np.ndarray:
         """Whether each geometry's clearance changes with the joints (12 seeded postures)."""
@@ -403,7 +401,9 @@ class Workspace:
             low = np.flatnonzero(values < self.margin)
             if low.size:
                 k = int(np.argmin(values))
-                out.below.append(PlaneViolation(link, float(t[low[0]]), float(values[k]), float(t[k])))
+                out.below.append(
+                    PlaneViolation(link, float(t[low[0]]), float(values[k]), float(t[k]))
+                )
         times: dict[tuple[str, str], list[float]] = {}
         for k in range(len(q)):
             for pair in self.colliding(q[k]):

@@ -19,7 +19,7 @@ import pytest
 import yourdfpy
 
 from hmpc_pin.apps.cli import main
-from hmpc_pin.exceptions import ConfigError, URDFError
+from hmpc_pin.exceptions import ConfigError, URDFError, ValidityWarning
 from hmpc_pin.experiment.config import WorkspaceConfig, load_config
 from hmpc_pin.experiment.init import init_config, plan
 from hmpc_pin.model.robot import example_robot_srdf, example_robot_urdf
@@ -263,15 +263,25 @@ def test_init_refuses_an_arm_with_no_posture_inside_the_workspace(write_urdf, tm
         + "\n</robot>\n"
     )
     urdf = write_urdf(text)
+    table = WorkspaceConfig(height=0.0)
     with pytest.raises(URDFError, match="no posture found"):
-        init_config(urdf)
-    assert main(["init", str(urdf), "--out", str(tmp_path / "x.toml")]) == 2
+        init_config(urdf, workspace=table)
+    out = str(tmp_path / "x.toml")
+    assert main(["init", str(urdf), "--out", out, "--plane-height", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'arm'" in err[0] and "--plane-height" in err[0]
     assert not (tmp_path / "x.toml").exists()
-    assert main(["init", str(urdf), "--out", str(tmp_path / "x.toml"), "--plane-height",
-                 "-0.9", "--duration", "1"]) == 0  # fmt: skip
-    assert load_config(tmp_path / "x.toml").workspace.height == -0.9
+    assert main(["init", str(urdf), "--out", out, "--plane-height", "-0.9", "--duration", "1"]) == 0
+    assert load_config(out).workspace.height == -0.9
+    # no plane given: no posture keeps the arm above its root, which therefore is no
+    # table; the plane is put under the whole sine (said in a warning)
+    with pytest.warns(ValidityWarning, match="does not stand on a table"):
+        p = plan(urdf)
+    height = p.workspace_settings.height
+    assert height < -0.4
+    _, Q = _sine(p)
+    low = p.workspace.clearance(Q)[:, p.workspace.checked].min() + height  # z of the lowest
+    assert height <= low - 0.02 < height + 0.001
 
 
 def test_init_writes_the_workspace_table_and_check_passes_it(tmp_path, capsys):

@@ -396,7 +396,7 @@ def cmd_init(args) -> int:
         return EXIT_OK
     if args.robot is None:
         raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
-    duration = 10.0 if _checked_duration(args.duration) is None else args.duration
+    duration = _checked_duration(args.duration)  # None: long enough to identify friction
     try:
         workspace = WorkspaceConfig(
             height=0.0 if args.plane_height is None else args.plane_height,
@@ -407,6 +407,15 @@ def cmd_init(args) -> int:
         raise ConfigError(flag, exc.message) from None
     path = write_config(args.robot, args.out, duration, overwrite=args.force, workspace=workspace)
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
+    lines = path.read_text(encoding="utf-8").splitlines()
+    start = next((k for k, ln in enumerate(lines) if ln.startswith("# Friction identif")), None)
+    if start is not None:  # what a run needs for `identify` (the file's comment)
+        block = []
+        for ln in lines[start:]:
+            if not ln.startswith("#"):
+                break
+            block.append(ln[2:].strip())
+        print(" ".join(block).replace("FILE", str(path)))
     return EXIT_OK
 
 
@@ -767,7 +776,11 @@ def _init_arguments(ini) -> None:
         "--list", action="store_true", help="list the robot names init accepts and exit"
     )
     ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
-    ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
+    ini.add_argument(
+        "--duration",
+        type=float,
+        help="simulated time [s] [long enough for `identify`: the pulses, then a period]",
+    )
     ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
     ini.add_argument(
         "--plane-height",

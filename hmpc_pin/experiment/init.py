@@ -48,6 +48,7 @@ import math
 import re
 import textwrap
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
@@ -57,6 +58,7 @@ import pinocchio as pin
 from ..compensation.observers import general_gain_bound
 from ..data import robot_path
 from ..exceptions import ConfigError, OutputError, SimulationError, URDFError, ValidityWarning
+from ..identification.friction import PULSE_SIGMAS
 from ..model.robot import (
     Robot,
     check_urdf,
@@ -105,6 +107,9 @@ LOCK_PATTERN = re.compile(
 #: Reference postures looked for in an SRDF, in order, after the loader's own.
 POSTURES = ("default", "half_sitting", "ready", "home", "standing", "arm_up", "neutral")
 AMPLITUDE = {"revolute": 0.3, "prismatic": 0.05}  # [rad], [m]
+#: The first torque pulse's centre [s] (joint j's at PULSE_CENTER + j mod 9) and the
+#: pulses' standard deviation [s].
+PULSE_CENTER, PULSE_SIGMA = 1.0, 0.3
 FREQUENCY = 0.1  # [Hz]
 #: Gravity may need at most this share of a joint's effort limit at the offset posture.
 HOLD = 0.8
@@ -272,6 +277,8 @@ class InitPlan:
         amp0 = np.array([AMPLITUDE[k] for k in robot.joint_kinds])
         amp0 = np.where(np.isfinite(span), np.minimum(amp0, 0.25 * span), amp0)
         margin = np.where(np.isfinite(span), 0.05 * span, 0.0)
+        self.plane_given = workspace is not None
+        self.plane_note = ""
         self.workspace_settings = workspace if workspace is not None else WorkspaceConfig()
         self.workspace = make_workspace(robot, self.workspace_settings, name)
         self.offset, amp, moved = self._place(robot, center, amp0, lo, hi, margin)
@@ -341,7 +348,7 @@ class InitPlan:
             return max(0.0, float(np.max(_gravity_along(robot, q, amp) / (HOLD * effort))) - 1)
 
         gravity: URDFError | None = None
-        outside = None
+        outside = fallback = None
         for scale in AMPLITUDE_SCALES:  # a smaller sine when no posture suits the larger
             amp = scale * amp0
             lo_o, hi_o = lo + amp + margin, hi - amp - margin
@@ -356,6 +363,8 @@ class InitPlan:
             if self.workspace is None:
                 return held, amp, moved
             first = held if held is not None else start
+            if held is not None and fallback is None:
+                fallback = (held, amp, moved)
             offset, inside = place(self.workspace, first, amp, lo_o, hi_o, excess)
             if inside:
                 return offset, amp, (moved if np.allclose(offset, first) else "workspace")
@@ -364,7 +373,29 @@ class InitPlan:
         if outside is None:
             assert gravity is not None
             raise gravity
+        if fallback is not None and not self.plane_given:
+            self._plane_under(*fallback[:2])
+            return fallback
         raise self._outside(*outside)
+
+    def _plane_under(self, posture: np.ndarray, amp: np.ndarray) -> None:
+        """No posture keeps the sine above the default plane (the root link's height, none
+        given): the root does not stand on a table (a hand, a pendulum, an arm on a body).
+        The plane is put under the whole sine of ``posture`` (kept), less the margin; said
+        in :attr:`plane_note` and in a warning."""
+        ws = self.workspace
+        assert ws is not None
+        scan = ws.clearance(sine_path(posture, amp, 4 * PATH_SAMPLES - 3))[:, ws.checked]
+        height = math.floor(1e3 * (float(scan.min()) - ws.margin)) / 1e3
+        ws.height = height
+        self.workspace_settings = replace(self.workspace_settings, height=height)
+        self.plane_note = (
+            "no posture keeps the sine above the root link's height: the root does not "
+            "stand on a table (a hand, a pendulum, an arm on a body), so the plane is put "
+            f"under the whole sine, {-height:.3g} m below the root; state the real table "
+            "with --plane-height (init refuses when no posture clears it)"
+        )
+        warnings.warn(f"{self.robot.source}: {self.plane_note}", ValidityWarning, stacklevel=5)
 
     def _outside(self, offset, amp) -> URDFError:
         """No posture keeps the sine inside the workspace: the message names the links."""
@@ -436,9 +467,40 @@ class InitPlan:
             if np.sqrt(np.mean(result.error[after] ** 2, axis=0)).max() <= TRIAL_RMS:
                 return
 
-    def text(self, duration: float) -> str:
-        """The TOML text (:func:`init_config`)."""
-        return _render(self, duration)
+    def text(self, duration: float | None = None) -> str:
+        """The TOML text (:func:`init_config`; ``duration`` [s] default
+        :attr:`identify_duration`)."""
+        return _render(self, self.identify_duration if duration is None else duration)
+
+    @property
+    def identify_after(self) -> float:
+        """The time [s] past the torque pulses (the last centre plus
+        :data:`~hmpc_pin.identification.friction.PULSE_SIGMAS` deviations): friction is
+        identified from the samples after it (``hmpc-pin identify --after``)."""
+        last = max(PULSE_CENTER + (j % 9) for j in range(self.robot.nq))
+        return last + PULSE_SIGMAS * PULSE_SIGMA
+
+    @property
+    def identify_duration(self) -> float:
+        """The shortest run [s] from which ``hmpc-pin identify`` fits the friction: the
+        pulses over (:attr:`identify_after`), then a whole period of the sine, in which
+        every joint moves both ways at its peak speed (whole seconds, rounded up)."""
+        return float(math.ceil(self.identify_after + 1.0 / self.frequency - 1e-9))
+
+
+def _identify_lines(p: InitPlan, duration: float) -> list[str]:
+    """What a run needs for ``hmpc-pin identify`` to fit the friction, as comments."""
+    need, after = p.identify_duration, p.identify_after
+    stem = re.sub(r"[^A-Za-z0-9_]+", "_", p.name)
+    longer = f" --duration {need:g}" if duration < need else ""
+    return [
+        f"# Friction identification (hmpc-pin identify) needs {need:g} s"
+        + (f", longer than this run's {duration:g} s" if longer else "")
+        + ": the pulses",
+        f"# are over at {after:.3g} s, then a period of the sine moves every joint both ways:",
+        f"#   hmpc-pin run FILE{longer} --out out; hmpc-pin identify out/{stem}_init.npz "
+        f"--after {after:.3g}",
+    ]
 
 
 def _workspace_lines(p: InitPlan) -> list[str]:
@@ -458,6 +520,9 @@ def _workspace_lines(p: InitPlan) -> list[str]:
         + (" (pairs the SRDF disables excepted)" if ws.srdf is not None else "")
         + "; `hmpc-pin check` flags a reference that does not.",
     ]
+    if p.plane_note:
+        note = p.plane_note[0].upper() + p.plane_note[1:] + "."
+        lines += textwrap.wrap(note, 86, initial_indent="# ", subsequent_indent="# ")
     if low is not None:
         lines.append(f"# Lowest along the sine: {low[0]} at {low[1]:.3g} m above the plane.")
     return [
@@ -497,10 +562,12 @@ def _vec(values, digits: int = 4) -> str:
 
 
 def init_config(
-    source: str | Path, duration: float = 10.0, workspace: WorkspaceConfig | None = None
+    source: str | Path, duration: float | None = None, workspace: WorkspaceConfig | None = None
 ) -> str:
     """The text of a commented TOML experiment for ``source`` (URDF path or robot name)
-    that runs as written (module docstring: what is decided and why).
+    that runs as written (module docstring: what is decided and why), ``duration`` [s]
+    long (default: long enough for friction identification,
+    :attr:`InitPlan.identify_duration`).
 
     Raises:
         URDFError: The URDF cannot be controlled (the message names the joint or link).
@@ -687,10 +754,11 @@ def _render(p: InitPlan, duration: float) -> str:
         "",
         "[disturbance.pulse]",
         "amplitude = 1.0",
-        f"center = {_vec([1.0 + (j % 9) for j in range(n)])}",
-        "sigma = 0.3",
+        f"center = {_vec([PULSE_CENTER + (j % 9) for j in range(n)])}",
+        f"sigma = {PULSE_SIGMA:g}",
         "",
         "[simulation]",
+        *_identify_lines(p, duration),
         f"duration = {duration:g}",
         "# Start on the reference: position r(0) (the default) and velocity dr/dt(0).",
         f"dq0 = {_vec(2 * np.pi * p.frequency * p.amplitude, 6)}",
@@ -702,7 +770,7 @@ def _render(p: InitPlan, duration: float) -> str:
 def write_config(
     source: str | Path,
     out: str | Path | None = None,
-    duration: float = 10.0,
+    duration: float | None = None,
     *,
     overwrite: bool = False,
     workspace: WorkspaceConfig | None = None,

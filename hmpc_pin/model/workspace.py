@@ -257,7 +257,7 @@ class Workspace:
         srdf: str | Path | None = None,
         self_collision: bool = True,
     ):
-        from .robot import _without_continuous, check_urdf
+        from .robot import _without_continuous
 
         path = Path(robot.source)
         n = np.asarray(normal, dtype=float)
@@ -266,8 +266,13 @@ class Workspace:
         self.normal = n / np.linalg.norm(n)
         self.height, self.margin = float(height), float(margin)
         self.srdf = Path(srdf) if srdf is not None else None
-        root = check_urdf(path, tuple(robot.locked_joints))
-        xml, _ = _without_continuous(ET.fromstring(ET.tostring(root)))
+        try:  # the robot was loaded from it: checked already
+            root = ET.parse(path).getroot()
+        except (OSError, ET.ParseError) as exc:
+            raise URDFError(
+                path, f"cannot be read again for its collision geometry: {exc}"
+            ) from exc
+        xml, _ = _without_continuous(root)
         self.model = pin.buildModelFromXML(xml)
         try:
             self.geometry = pin.buildGeomFromUrdf(

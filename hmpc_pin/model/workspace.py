@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..exceptions import URDFError
+from ..exceptions import ConfigError, URDFError
 
 __all__ = [
     "INVARIANT_TOL",
@@ -245,6 +245,7 @@ class Workspace:
 
     Raises:
         URDFError: Pinocchio cannot load the collision geometry (a mesh missing).
+        ConfigError: ``normal`` is not 3 finite numbers, or all 0.
     """
 
     def __init__(
@@ -262,7 +263,7 @@ class Workspace:
         path = Path(robot.source)
         n = np.asarray(normal, dtype=float)
         if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
-            raise ValueError(f"normal: expected 3 finite numbers, not all 0, got {normal!r}")
+            raise ConfigError("normal", f"expected 3 finite numbers, not all 0, got {normal!r}")
         self.normal = n / np.linalg.norm(n)
         self.height, self.margin = float(height), float(margin)
         self.srdf = Path(srdf) if srdf is not None else None

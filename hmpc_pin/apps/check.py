@@ -22,6 +22,10 @@ Per joint, from the config's models alone (the arm is not simulated; the loops' 
   every :math:`T_s/4` over the run, :math:`\\ddot r` by central differences) against the
   plant's effort limits;
 
+the **workspace**: the reference against the mounting plane of ``[workspace]`` (the root
+link's height without the table) and for self-collision, on the URDF's collision geometry
+(:func:`~hmpc_pin.experiment.workspace.scan_reference`);
+
 and, with MuJoCo installed, **the model against a second engine**: :math:`M(q)` and the
 forward dynamics :math:`\\ddot q(q, \\dot q, \\tau)` of Pinocchio and MuJoCo (the bare arm)
 at :data:`ENGINE_SAMPLES` seeded states within the limits, within :data:`ENGINE_RTOL`.
@@ -60,6 +64,9 @@ measurements of a plant equal to the model (r = 1 unless the plant differs); so:
 * friction with the literal sign (it feeds energy in) and no compensation: a problem (a
   warning for the paper's baseline, which is expected to lose the reference); with an
   observer a warning (nothing here bounds the error it leaves);
+* a link leaving the workspace (closer to the plane than the margin) or two links
+  colliding, named with the time: a problem when the config declares its ``[workspace]``
+  (``run`` simulates neither, the arm would hit them), else a warning;
 * MuJoCo refusing the URDF, or the engines differing: a problem with a MuJoCo plant,
   else a warning (the table is printed either way).
 """

@@ -15,6 +15,17 @@ and writes a commented TOML experiment that runs as written:
   moved inside so that :math:`o \\pm a` keeps 5 % of the range from each limit; the
   frequency 0.1 Hz, lowered until the peak speed :math:`2\\pi f a` is at most half of every
   URDF velocity limit.
+* **Workspace.** The whole sine keeps every moving link's collision geometry ``margin``
+  above the mounting plane and clear of the other links
+  (:class:`~hmpc_pin.model.workspace.Workspace`; ``[workspace]``, written to the file):
+  a posture that does not is moved by :func:`~hmpc_pin.experiment.posture.place`, the
+  amplitude scaled down when no posture fits; with the plane given and nothing fitting,
+  :class:`~hmpc_pin.exceptions.URDFError` names the links. With the default plane (the
+  root link's height) and nothing fitting, the root stands on no table (a hand, an arm on
+  a body): the posture is kept and the plane put under its whole sine, with a warning.
+* **Run length.** Long enough for ``hmpc-pin identify``: the pulses over
+  (:attr:`InitPlan.identify_after`), then a whole period of the sine
+  (:attr:`InitPlan.identify_duration`); the file says how to identify.
 * **Limits.** A zero or inverted URDF range (``double_pendulum``: 0/0) means the URDF gives
   none: ``[controller.constraints] position = false``, and the joint is unbounded.
 * **Observer.** Chen's NDO (the paper's, Eq 28–30, gain 100) on a planar serial chain;
@@ -70,7 +81,7 @@ from ..model.robot import (
 )
 from .config.workspace import WorkspaceConfig
 from .plants import DAMPING_STEP_LIMIT, damping_rates
-from .posture import PATH_SAMPLES, SLACK, place
+from .posture import HOLD, PATH_SAMPLES, SLACK, _gravity_along, _hold_gravity, place
 from .posture import path as sine_path
 from .workspace import make_workspace
 
@@ -111,11 +122,8 @@ AMPLITUDE = {"revolute": 0.3, "prismatic": 0.05}  # [rad], [m]
 #: pulses' standard deviation [s].
 PULSE_CENTER, PULSE_SIGMA = 1.0, 0.3
 FREQUENCY = 0.1  # [Hz]
-#: Gravity may need at most this share of a joint's effort limit at the offset posture.
-HOLD = 0.8
 #: Amplitude scales tried, in order, until gravity along the sine fits the effort limits.
 AMPLITUDE_SCALES = (1.0, 0.5, 0.25)
-HOLD_STEPS = 400
 #: Control periods tried, in order [s].
 PERIODS = (0.01, 0.005, 0.002)
 #: The largest zero-order-hold gain g = x/(1 − e^−x), x = Ts/T_j, a damped joint may need
@@ -335,8 +343,8 @@ class InitPlan:
     def _place(self, robot, center, amp0, lo, hi, margin):
         """The offset and amplitude of the sine, and what moved the offset from
         ``center`` (``""``, ``"gravity"`` or ``"workspace"``): per amplitude of
-        :data:`AMPLITUDE_SCALES`, the posture gravity allows (:func:`_hold_gravity`),
-        moved inside the workspace when it is not (:func:`~.posture.place`).
+        :data:`AMPLITUDE_SCALES`, the posture gravity allows (``_hold_gravity``),
+        moved inside the workspace when it is not (:func:`~hmpc_pin.experiment.posture.place`).
 
         Raises:
             URDFError: Gravity needs more than the effort limits everywhere, or no posture
@@ -352,7 +360,7 @@ class InitPlan:
         for scale in AMPLITUDE_SCALES:  # a smaller sine when no posture suits the larger
             amp = scale * amp0
             lo_o, hi_o = lo + amp + margin, hi - amp - margin
-            start = np.clip(center, lo_o, hi_o)
+            start = np.clip(center, lo + amp + margin, hi - amp - margin)
             try:
                 held = _hold_gravity(robot, start, amp, lo_o, hi_o)
             except URDFError as exc:
@@ -575,47 +583,6 @@ def init_config(
     p = InitPlan(source, workspace)
     p.trial()
     return p.text(duration)
-
-
-def _gravity_along(robot: Robot, q: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
-    """Per joint, the largest |G| [N·m or N] along the sine's path
-    :math:`q + s\\,a`, :math:`s \\in [-1, 1]` (every joint shares one phase, so the path
-    is a segment; 9 points)."""
-    return np.max(
-        [np.abs(robot.gravity_torque(q + s * amplitude)) for s in np.linspace(-1, 1, 9)], axis=0
-    )
-
-
-def _hold_gravity(
-    robot: Robot, q: np.ndarray, amplitude: np.ndarray, lo: np.ndarray, hi: np.ndarray
-) -> np.ndarray:
-    """``q`` moved toward the hanging posture (steps of at most 0.02 rad or m against the
-    gravity torque G, inside [lo, hi]) until gravity needs at most :data:`HOLD` × the
-    effort limit on every joint with one, along the whole sine (:func:`_gravity_along`).
-
-    Raises:
-        URDFError: No such posture within :data:`HOLD_STEPS` steps (naming the joint and
-            the torques): the URDF leaves out what holds the real arm.
-    """
-    effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
-    q = q.copy()
-    for _ in range(HOLD_STEPS):
-        if not np.any(_gravity_along(robot, q, amplitude) > HOLD * effort):
-            return q
-        G = robot.gravity_torque(q)
-        q_new = np.clip(q - 0.02 * G / max(np.abs(G).max(), 1e-12), lo, hi)
-        if np.allclose(q_new, q):
-            break
-        q = q_new
-    need = _gravity_along(robot, q, amplitude)
-    i = int(np.argmax(need / effort))
-    raise URDFError(
-        robot.source,
-        f"out of scope: joint {robot.joint_names[i]!r} needs {need[i]:.3g} N·m to hold "
-        f"the arm against gravity at best, above {HOLD:.0%} of its URDF effort limit "
-        f"{effort[i]:.3g} N·m (the URDF leaves out what holds the real arm, e.g. springs or "
-        "buoyancy); write a config by hand with [plant] saturate = false or a lower gravity",
-    )
 
 
 def _render(p: InitPlan, duration: float) -> str:

@@ -1,4 +1,8 @@
-"""A sine reference's posture inside the workspace (``hmpc-pin init``).
+"""A sine reference's posture within the effort limits and inside the workspace
+(``hmpc-pin init``).
+
+``_hold_gravity`` moves a posture toward hanging until gravity needs at most
+:data:`HOLD` of every effort limit along the sine.
 
 ``init``'s sine moves every joint with one phase, :math:`r(t) = o + a\\sin(2\\pi f t)`, so
 its path in joint space is the segment :math:`o + s\\,a`, :math:`s \\in [-1, 1]`.
@@ -16,7 +20,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PATH_SAMPLES", "SLACK", "path", "place"]
+from ..exceptions import URDFError
+from ..model.robot import Robot
+
+__all__ = ["HOLD", "HOLD_STEPS", "PATH_SAMPLES", "SLACK", "path", "place"]
+
+#: Gravity may need at most this share of a joint's effort limit along the sine.
+HOLD = 0.8
+#: Steps of at most 0.02 rad (or m) ``_hold_gravity`` takes toward hanging.
+HOLD_STEPS = 400
 
 #: Samples of the segment per evaluation of the search (0.0625 a apart).
 PATH_SAMPLES = 33
@@ -94,3 +106,44 @@ def place(
         else:
             break
     return best, rank >= goal
+
+
+def _gravity_along(robot: Robot, q: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
+    """Per joint, the largest |G| [N·m or N] along the sine's path
+    :math:`q + s\\,a`, :math:`s \\in [-1, 1]` (every joint shares one phase, so the path
+    is a segment; 9 points)."""
+    return np.max(
+        [np.abs(robot.gravity_torque(q + s * amplitude)) for s in np.linspace(-1, 1, 9)], axis=0
+    )
+
+
+def _hold_gravity(
+    robot: Robot, q: np.ndarray, amplitude: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> np.ndarray:
+    """``q`` moved toward the hanging posture (steps of at most 0.02 rad or m against the
+    gravity torque G, inside [lo, hi]) until gravity needs at most :data:`HOLD` × the
+    effort limit on every joint with one, along the whole sine (``_gravity_along``).
+
+    Raises:
+        URDFError: No such posture within :data:`HOLD_STEPS` steps (naming the joint and
+            the torques): the URDF leaves out what holds the real arm.
+    """
+    effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
+    q = q.copy()
+    for _ in range(HOLD_STEPS):
+        if not np.any(_gravity_along(robot, q, amplitude) > HOLD * effort):
+            return q
+        G = robot.gravity_torque(q)
+        q_new = np.clip(q - 0.02 * G / max(np.abs(G).max(), 1e-12), lo, hi)
+        if np.allclose(q_new, q):
+            break
+        q = q_new
+    need = _gravity_along(robot, q, amplitude)
+    i = int(np.argmax(need / effort))
+    raise URDFError(
+        robot.source,
+        f"out of scope: joint {robot.joint_names[i]!r} needs {need[i]:.3g} N·m to hold "
+        f"the arm against gravity at best, above {HOLD:.0%} of its URDF effort limit "
+        f"{effort[i]:.3g} N·m (the URDF leaves out what holds the real arm, e.g. springs or "
+        "buoyancy); write a config by hand with [plant] saturate = false or a lower gravity",
+    )

@@ -405,7 +405,14 @@ def cmd_init(args) -> int:
     except ConfigError as exc:
         flag = {"height": "--plane-height", "margin": "--margin"}[exc.key]
         raise ConfigError(flag, exc.message) from None
-    path = write_config(args.robot, args.out, duration, overwrite=args.force, workspace=workspace)
+    path = write_config(
+        args.robot,
+        args.out,
+        duration,
+        overwrite=args.force,
+        workspace=workspace,
+        plane_given=args.plane_height is not None,
+    )
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
     lines = path.read_text(encoding="utf-8").splitlines()
     start = next((k for k, ln in enumerate(lines) if ln.startswith("# Friction identif")), None)

@@ -55,6 +55,7 @@ and writes a commented TOML experiment that runs as written:
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import textwrap
@@ -236,7 +237,12 @@ class InitPlan:
         bandwidth: The general observer's bandwidth [1/s] (``None`` for ``chen``).
     """
 
-    def __init__(self, source: str | Path, workspace: WorkspaceConfig | None = None):
+    def __init__(
+        self,
+        source: str | Path,
+        workspace: WorkspaceConfig | None = None,
+        plane_given: bool | None = None,
+    ):
         path, self.source, name = _resolve(source)
         root = check_urdf(path)
         mimics = urdf_mimics(root)
@@ -285,10 +291,18 @@ class InitPlan:
         amp0 = np.array([AMPLITUDE[k] for k in robot.joint_kinds])
         amp0 = np.where(np.isfinite(span), np.minimum(amp0, 0.25 * span), amp0)
         margin = np.where(np.isfinite(span), 0.05 * span, 0.0)
-        self.plane_given = workspace is not None
+        self.plane_given = workspace is not None if plane_given is None else plane_given
         self.plane_note = ""
         self.workspace_settings = workspace if workspace is not None else WorkspaceConfig()
         self.workspace = make_workspace(robot, self.workspace_settings, name)
+        self.touching: list[list[str]] = []
+        if self.workspace is not None:  # links touching at the reference posture: by design
+            ref = np.clip(center, lo, hi)
+            self.touching = sorted({tuple(sorted(p)) for p in self.workspace.colliding(ref)})
+            if self.touching:
+                pairs = [*self.workspace_settings.allowed_pairs, *map(list, self.touching)]
+                self.workspace_settings = replace(self.workspace_settings, allowed_pairs=pairs)
+                self.workspace = make_workspace(robot, self.workspace_settings, name)
         self.offset, amp, moved = self._place(robot, center, amp0, lo, hi, margin)
         if moved == "gravity":
             self.posture_source += (
@@ -533,12 +547,21 @@ def _workspace_lines(p: InitPlan) -> list[str]:
         lines += textwrap.wrap(note, 86, initial_indent="# ", subsequent_indent="# ")
     if low is not None:
         lines.append(f"# Lowest along the sine: {low[0]} at {low[1]:.3g} m above the plane.")
+    pairs = []
+    if s.allowed_pairs:
+        listed = ", ".join(f"[{json.dumps(a)}, {json.dumps(b)}]" for a, b in s.allowed_pairs)
+        pairs = [
+            "# Links touching at the reference posture: taken as touching by design (as",
+            "# MoveIt's setup assistant disables them), not checked.",
+            f"allowed_pairs = [{listed}]",
+        ]
     return [
         *lines,
         f"height = {s.height:g}                       # [m]",
         f"normal = {_vec(s.normal)}",
         f"margin = {s.margin:g}                    # [m]",
         *([] if s.self_collision else ["self_collision = false"]),
+        *pairs,
         "",
     ]
 
@@ -570,17 +593,29 @@ def _vec(values, digits: int = 4) -> str:
 
 
 def init_config(
-    source: str | Path, duration: float | None = None, workspace: WorkspaceConfig | None = None
+    source: str | Path,
+    duration: float | None = None,
+    workspace: WorkspaceConfig | None = None,
+    *,
+    plane_given: bool | None = None,
 ) -> str:
     """The text of a commented TOML experiment for ``source`` (URDF path or robot name)
     that runs as written (module docstring: what is decided and why), ``duration`` [s]
     long (default: long enough for friction identification,
     :attr:`InitPlan.identify_duration`).
 
+    Args:
+        workspace: The mounting plane and margin (default: the plane through the root
+            link, 2 cm), written to the ``[workspace]`` table.
+        plane_given: Whether the plane is the user's (default: ``workspace`` given). When
+            it is not and no posture keeps the sine above it, the plane is put under the
+            robot's own posture (module docstring) instead of refusing.
+
     Raises:
-        URDFError: The URDF cannot be controlled (the message names the joint or link).
+        URDFError: The URDF cannot be controlled (the message names the joint or link),
+            or no posture keeps the sine inside a plane given.
     """
-    p = InitPlan(source, workspace)
+    p = InitPlan(source, workspace, plane_given)
     p.trial()
     return p.text(duration)
 
@@ -741,15 +776,17 @@ def write_config(
     *,
     overwrite: bool = False,
     workspace: WorkspaceConfig | None = None,
+    plane_given: bool | None = None,
 ) -> Path:
     """Write :func:`init_config` of ``source`` to ``out`` (default ``<name>.toml`` in the
-    current directory) and return the path.
+    current directory) and return the path (``workspace``, ``plane_given``: as
+    :func:`init_config`).
 
     Raises:
         ConfigError: ``out`` exists and ``overwrite`` is false (nothing is written).
         OutputError: ``out`` cannot be written.
     """
-    text = init_config(source, duration, workspace)
+    text = init_config(source, duration, workspace, plane_given=plane_given)
     name = re.search(r'^name = "(.*)_init"$', text, re.MULTILINE)
     path = Path(out) if out is not None else Path(f"{name.group(1) if name else 'robot'}.toml")
     if path.exists() and not overwrite:

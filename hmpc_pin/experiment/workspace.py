@@ -38,6 +38,7 @@ def make_workspace(
             margin=s.margin,
             srdf=find_srdf(Path(robot.source), name),
             self_collision=s.self_collision,
+            allowed=s.allowed_pairs,
         )
     except URDFError as exc:
         warnings.warn(

@@ -20,9 +20,9 @@ their positions, mimic followers at :math:`m\\,q_l + o`.
 * **Self-collision** is Pinocchio's ``computeCollisions`` (coal's exact test on the
   meshes) over every pair of geometries on different links, less the pairs that may
   touch: adjacent links (a link and its parent in the kinematic tree, which meet at their
-  joint) and, with an SRDF, its ``<disable_collisions>`` pairs
-  (``pin.removeCollisionPairs``). Geometries welded to one another (the same joint) are
-  never a pair.
+  joint), with an SRDF its ``<disable_collisions>`` pairs (``pin.removeCollisionPairs``),
+  and the pairs the caller allows. Geometries welded to one another (by a fixed or a
+  locked joint) are one rigid body, never a pair.
 """
 
 from __future__ import annotations
@@ -237,6 +237,8 @@ class Workspace:
         srdf: The arm's SRDF, whose ``<disable_collisions>`` pairs are not checked
             (adjacent links never are).
         self_collision: Check the pairs of links (``False``: the plane only).
+        allowed: Pairs of links not checked either, by URDF name (links that touch by
+            design).
 
     Attributes:
         links: Per geometry, its URDF link.
@@ -257,6 +259,7 @@ class Workspace:
         margin: float = MARGIN,
         srdf: str | Path | None = None,
         self_collision: bool = True,
+        allowed: Sequence[Sequence[str]] = (),
     ):
         from .robot import _without_continuous
 
@@ -290,7 +293,7 @@ class Workspace:
         self.links = tuple(self.model.frames[g.parentFrame].name for g in objects)
         self._supports = [_Support(g.geometry) for g in objects]
         self._map = self._coordinates(robot)
-        self._pairs(self_collision)
+        self._pairs(self_collision, allowed)
         self.checked = self._moving(robot)
 
     # -- the whole tree's configuration -------------------------------------------------
@@ -322,18 +325,30 @@ class Workspace:
 
     # -- pairs and moving links -----------------------------------------------------------
 
-    def _pairs(self, self_collision: bool) -> None:
+    def _pairs(self, self_collision: bool, allowed) -> None:
         gm, model = self.geometry, self.model
         if self_collision:
             gm.addAllCollisionPairs()
         if self.srdf is not None and self_collision:
             pin.removeCollisionPairs(model, gm, str(self.srdf), False)
+        # a locked joint does not move: what it carries is one rigid body with its parent
+        moves = [False] + [i is not None for i, _, _ in self._map]
+        body = list(range(model.njoints))
+        for j in range(1, model.njoints):  # parents come first in Pinocchio's order
+            body[j] = j if moves[j] else body[model.parents[j]]
+
+        def parent_body(j: int) -> int:
+            return body[model.parents[j]] if j else -1
+
+        allowed = {frozenset(p) for p in allowed}
         objects = list(gm.geometryObjects)
         for k in reversed(range(len(gm.collisionPairs))):
             pair = gm.collisionPairs[k]
-            a, b = objects[pair.first].parentJoint, objects[pair.second].parentJoint
-            adjacent = model.parents[a] == b or model.parents[b] == a
-            if a == b or adjacent:
+            a = body[objects[pair.first].parentJoint]
+            b = body[objects[pair.second].parentJoint]
+            adjacent = parent_body(a) == b or parent_body(b) == a
+            names = frozenset((self.links[pair.first], self.links[pair.second]))
+            if a == b or adjacent or names in allowed:
                 gm.removeCollisionPair(pair)
         self.gdata = pin.GeometryData(gm)
         self.pairs = tuple((self.links[p.first], self.links[p.second]) for p in gm.collisionPairs)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,12 +26,16 @@ class WorkspaceConfig:
         margin: Clearance [m] every moving link's collision geometry keeps above the plane.
         self_collision: Whether two links' collision geometries must not meet (pairs of
             adjacent links, and those the SRDF disables, are not checked).
+        allowed_pairs: Pairs of links, by URDF name (``[["a", "b"], ...]``), that touch by
+            design and are not checked either (``init`` lists those touching at the
+            reference posture).
     """
 
     height: float = 0.0
     normal: np.ndarray = (0.0, 0.0, 1.0)  # type: ignore[assignment]
     margin: float = 0.02
     self_collision: bool = True
+    allowed_pairs: list = field(default_factory=list)
 
     def __post_init__(self):
         _set(self, "height", _float("height", self.height))
@@ -44,3 +48,13 @@ class WorkspaceConfig:
         _set(self, "normal", normal / np.linalg.norm(normal))
         _set(self, "margin", _float("margin", self.margin, nonneg=True))
         _set(self, "self_collision", _bool("self_collision", self.self_collision))
+        pairs = self.allowed_pairs
+        if not isinstance(pairs, (list, tuple)) or not all(
+            isinstance(p, (list, tuple)) and len(p) == 2 and all(isinstance(x, str) for x in p)
+            for p in pairs
+        ):
+            raise ConfigError(
+                "allowed_pairs",
+                f'expected a list of pairs of link names, [["a", "b"], ...], got {pairs!r}',
+            )
+        _set(self, "allowed_pairs", [list(p) for p in pairs])

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from functools import partial
+from pathlib import Path
 
 import coal
 import numpy as np
@@ -36,7 +37,7 @@ SAMPLES = 400
 class Oracle:
     """yourdfpy + trimesh + coal on an arm's URDF, nothing of hmpc_pin's geometry."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, locked=(), allowed=()):
         path = example_robot_urdf(name)
         self.urdf = yourdfpy.URDF.load(
             str(path),
@@ -63,13 +64,15 @@ class Oracle:
         if srdf is not None:
             for d in ET.parse(srdf).getroot().iter("disable_collisions"):
                 self.disabled.add(frozenset((d.get("link1"), d.get("link2"))))
+        self.disabled |= {frozenset(p) for p in allowed}
         # the rigid body of each link: the nearest link up the tree (itself included)
-        # whose parent joint moves; adjacent bodies meet at their joint
-        parent = {j.child: (j.parent, j.type) for j in self.urdf.robot.joints}
+        # whose parent joint moves (not fixed, not locked); adjacent bodies meet at their
+        # joint
+        parent = {j.child: (j.parent, j.type, j.name) for j in self.urdf.robot.joints}
         self.body = {}
         for link in self.urdf.link_map:
             body = link
-            while body in parent and parent[body][1] == "fixed":
+            while body in parent and (parent[body][1] == "fixed" or parent[body][2] in locked):
                 body = parent[body][0]
             self.body[link] = body
         self.parent_body = {
@@ -133,7 +136,7 @@ def test_init_reference_keeps_every_link_above_the_plane_and_clear(name):
     1 mm for the sampling), and no pair the SRDF or adjacency does not exempt collides
     (coal on yourdfpy's meshes and kinematics)."""
     p = plan(name)
-    oracle = Oracle(name)
+    oracle = Oracle(name, p.locked, p.workspace_settings.allowed_pairs)
     _, Q = _sine(p)
     lows: dict[str, list[float]] = {}
     hits = set()
@@ -308,6 +311,7 @@ def test_init_writes_the_workspace_table_and_check_passes_it(tmp_path, capsys):
         ("margin = -0.1", "workspace.margin", ">= 0"),
         ("height = 'low'", "workspace.height", "expected a number"),
         ("plane = 1", "workspace.plane", "unknown key"),
+        ("allowed_pairs = [['a']]", "workspace.allowed_pairs", "pairs of link names"),
     ],
 )
 def test_workspace_table_is_validated(tmp_path, table, key, expected):
@@ -316,6 +320,30 @@ def test_workspace_table_is_validated(tmp_path, table, key, expected):
     with pytest.raises(ConfigError, match=expected) as info:
         load_config(path)
     assert info.value.key == key
+
+
+def test_allowed_pairs_are_not_checked(tmp_path, capsys):
+    """The UR5 folding its elbow (the collision test above) with the colliding pairs the
+    oracle finds allowed in [workspace]: check names no collision."""
+    reference = (
+        "amplitude = [0, 0, 0.4, 0, 0, 0]\nfrequency = 0.1\n"
+        "offset = [0, -1.5708, 2.7, -1.5708, 0, 0]"
+    )
+    oracle = Oracle("ur5")
+    pairs = set()
+    for tk in np.arange(0.0, 5.0 + 1e-9, 0.01):
+        q = [0.0, -1.5708, 2.7 + 0.4 * math.sin(0.2 * math.pi * tk), -1.5708, 0.0, 0.0]
+        oracle.pose(dict(zip(UR_JOINTS, q, strict=True)))
+        pairs |= oracle.collisions()
+    assert pairs
+    path = _ur5_config(tmp_path, reference)
+    listed = ", ".join(f'["{a}", "{b}"]' for a, b in sorted(pairs))
+    text = Path(path).read_text(encoding="utf-8") + f"allowed_pairs = [{listed}]\n"
+    Path(path).write_text(text, encoding="utf-8")
+    main(["check", path, "--no-engine"])
+    out = capsys.readouterr().out
+    assert "collide" not in out.replace("no two links collide", ""), out
+    assert "no two links collide" in out
 
 
 def test_init_bad_plane_flags_exit_2(tmp_path, capsys):

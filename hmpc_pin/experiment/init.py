@@ -370,7 +370,8 @@ class InitPlan:
             return max(0.0, float(np.max(_gravity_along(robot, q, amp) / (HOLD * effort))) - 1)
 
         gravity: URDFError | None = None
-        outside = fallback = None
+        outside = None
+        fallbacks = []
         for scale in AMPLITUDE_SCALES:  # a smaller sine when no posture suits the larger
             amp = scale * amp0
             lo_o, hi_o = lo + amp + margin, hi - amp - margin
@@ -385,8 +386,8 @@ class InitPlan:
             if self.workspace is None:
                 return held, amp, moved
             first = held if held is not None else start
-            if held is not None and fallback is None:
-                fallback = (held, amp, moved)
+            if held is not None:
+                fallbacks.append((held, amp, lo_o, hi_o, moved))
             offset, inside = place(self.workspace, first, amp, lo_o, hi_o, excess)
             if inside:
                 return offset, amp, (moved if np.allclose(offset, first) else "workspace")
@@ -395,16 +396,22 @@ class InitPlan:
         if outside is None:
             assert gravity is not None
             raise gravity
-        if fallback is not None and not self.plane_given:
-            self._plane_under(*fallback[:2])
-            return fallback
+        ws = self.workspace
+        for held, amp, lo_o, hi_o, moved in [] if self.plane_given else fallbacks:
+            height, ws.height = ws.height, -math.inf  # no plane: clear of the other links
+            offset, inside = place(ws, held, amp, lo_o, hi_o, excess)
+            ws.height = height
+            if inside:
+                self._plane_under(offset, amp)
+                return offset, amp, (moved if np.allclose(offset, held) else "workspace")
         raise self._outside(*outside)
 
     def _plane_under(self, posture: np.ndarray, amp: np.ndarray) -> None:
         """No posture keeps the sine above the default plane (the root link's height, none
         given): the root does not stand on a table (a hand, a pendulum, an arm on a body).
-        The plane is put under the whole sine of ``posture`` (kept), less the margin; said
-        in :attr:`plane_note` and in a warning."""
+        The plane is put under the whole sine of ``posture`` (the nearest posture whose
+        sine keeps the links clear of one another), less the margin; said in
+        :attr:`plane_note` and in a warning."""
         ws = self.workspace
         assert ws is not None
         scan = ws.clearance(sine_path(posture, amp, 4 * PATH_SAMPLES - 3))[:, ws.checked]

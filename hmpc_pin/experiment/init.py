@@ -404,7 +404,8 @@ class InitPlan:
             if inside:
                 self._plane_under(offset, amp)
                 return offset, amp, (moved if np.allclose(offset, held) else "workspace")
-        raise self._outside(*outside)
+            outside = (offset, amp)
+        raise self._outside(*outside, plane=self.plane_given)
 
     def _plane_under(self, posture: np.ndarray, amp: np.ndarray) -> None:
         """No posture keeps the sine above the default plane (the root link's height, none
@@ -426,25 +427,40 @@ class InitPlan:
         )
         warnings.warn(f"{self.robot.source}: {self.plane_note}", ValidityWarning, stacklevel=5)
 
-    def _outside(self, offset, amp) -> URDFError:
-        """No posture keeps the sine inside the workspace: the message names the links."""
+    def _outside(self, offset, amp, plane: bool = True) -> URDFError:
+        """No posture keeps the sine inside the workspace (``plane``: above the plane and
+        clear of the other links; else clear of them alone): the message names the links."""
         ws = self.workspace
         assert ws is not None
+        height = ws.height
+        if not plane:
+            ws.height = -math.inf
         scan = ws.scan(sine_path(offset, amp, 41), np.linspace(-1.0, 1.0, 41))
+        ws.height = height
         what = (
             "; ".join(
-                [f"{v.link!r} at {v.lowest:+.3g} m" for v in scan.below]
+                [f"{v.link!r} {abs(v.lowest):.3g} m {'below' if v.lowest < 0 else 'above'} it"
+                 for v in scan.below]
                 + [f"{c.links[0]!r} against {c.links[1]!r}" for c in scan.collisions]
             )
             or f"a link within {1e3 * SLACK:g} mm of the margin"
-        )
+        )  # fmt: skip
         s = self.workspace_settings
+        if not plane:
+            return URDFError(
+                self.robot.source,
+                "no posture found whose sine (amplitude down to "
+                f"{AMPLITUDE_SCALES[-1]:g} x) keeps every link clear of the others within "
+                f"the effort limits (nor above the mounting plane); the best found puts {what}"
+                "; the URDF's collision geometry may overlap where the real links do not "
+                "(list such pairs in [workspace] allowed_pairs of a config written by hand)",
+            )
         return URDFError(
             self.robot.source,
             "no posture found whose sine (amplitude down to "
             f"{AMPLITUDE_SCALES[-1]:g} x) keeps every link {s.margin:g} m above the mounting "
             f"plane (height {s.height:g} m, normal {_vec(s.normal)}) and clear of the others "
-            f"within the effort limits; the best found leaves {what}; if the arm is mounted "
+            f"within the effort limits; the best found puts {what}; if the arm is mounted "
             "higher than its root link (a humanoid's or a mobile base's arm), pass "
             "--plane-height (the plane's height in the URDF's root frame, negative below it)",
         )

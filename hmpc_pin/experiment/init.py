@@ -235,6 +235,12 @@ class InitPlan:
         compensation, gain, gain_bound: The observer and its gain (bound for ``general``,
             reported; the config gets :attr:`bandwidth` instead).
         bandwidth: The general observer's bandwidth [1/s] (``None`` for ``chen``).
+        workspace: The arm's :class:`~hmpc_pin.model.workspace.Workspace` the sine was
+            placed in (``None``: the URDF has no collision geometry).
+        workspace_settings: The ``[workspace]`` table written (the plane as placed).
+        plane_given: Whether the plane is the caller's (else the root link's height, put
+            under the robot when no posture clears it: :attr:`plane_note` says so).
+        touching: Pairs of links touching at the reference posture (allowed, written).
     """
 
     def __init__(
@@ -313,6 +319,8 @@ class InitPlan:
                 ", moved until the whole sine keeps every link above the mounting plane "
                 "and clear of the others"
             )
+        elif moved == "clear":
+            self.posture_source += ", moved until the whole sine keeps the links apart"
         self.amplitude = amp
         vmax = robot.velocity_limit
         speed_cap = np.where(vmax > 0, 0.5 * vmax / (2 * np.pi * amp), np.inf)
@@ -356,7 +364,8 @@ class InitPlan:
 
     def _place(self, robot, center, amp0, lo, hi, margin):
         """The offset and amplitude of the sine, and what moved the offset from
-        ``center`` (``""``, ``"gravity"`` or ``"workspace"``): per amplitude of
+        ``center`` (``""``, ``"gravity"``, ``"workspace"`` or, the plane put under the
+        robot, ``"clear"``): per amplitude of
         :data:`AMPLITUDE_SCALES`, the posture gravity allows (``_hold_gravity``),
         moved inside the workspace when it is not (:func:`~hmpc_pin.experiment.posture.place`).
 
@@ -403,7 +412,7 @@ class InitPlan:
             ws.height = height
             if inside:
                 self._plane_under(offset, amp)
-                return offset, amp, (moved if np.allclose(offset, held) else "workspace")
+                return offset, amp, (moved if np.allclose(offset, held) else "clear")
             outside = (offset, amp)
         raise self._outside(*outside, plane=self.plane_given)
 

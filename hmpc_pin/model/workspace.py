@@ -299,7 +299,8 @@ class Workspace:
     # -- the whole tree's configuration -------------------------------------------------
 
     def _coordinates(self, robot):
-        """Per coordinate of the whole model: (source, index or value, multiplier, offset)."""
+        """Per coordinate of the whole model: (index of the controlled coordinate it follows
+        or ``None``, multiplier, offset): q_full = offset + multiplier q[index]."""
         names = list(robot.joint_names)
         out = []
         for j in range(1, self.model.njoints):

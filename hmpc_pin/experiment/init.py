@@ -241,6 +241,7 @@ class InitPlan:
         plane_given: Whether the plane is the caller's (else the root link's height, put
             under the robot when no posture clears it: :attr:`plane_note` says so).
         touching: Pairs of links touching at the reference posture (allowed, written).
+        plane_note: Why the plane was put under the robot (``""`` when it was not).
     """
 
     def __init__(

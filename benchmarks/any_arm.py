@@ -66,7 +66,7 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     row: dict = {"model": name}
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        code = main(["init", name, "--out", str(path), "--force"])
+        code = main(["init", name, "--out", str(path), "--force", "--duration", "10"])
     if code != 0:
         lines = [x for x in err.getvalue().splitlines() if not x.startswith("warning: ")]
         text = lines[-1] if lines else ""  # the error line (warnings, e.g. of inertias, before)

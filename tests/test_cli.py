@@ -449,11 +449,17 @@ def test_a_ros_run_length_and_the_arm_nodes_rate_are_checked_against_the_period(
 
 
 def test_init_writes_the_duration_it_is_given(tmp_path, capsys):
-    """``init --duration 3`` writes simulation.duration = 3 s (10 s without it)."""
-    for argv, expected in (([], 10.0), (["--duration", "3"], 3.0)):
+    """``init --duration 3`` writes simulation.duration = 3 s; without it, the run friction
+    identification needs: the last pulse (3 s for 3 joints) plus 4 sigma (1.2 s), then a
+    whole period of the sine (10 s at 0.1 Hz), in whole seconds: 15 s."""
+    for argv, expected in (([], 15.0), (["--duration", "3"], 3.0)):
         out = tmp_path / f"p{len(argv)}.toml"
         assert main(["init", "planar3", "--out", str(out), *argv]) == 0
-        assert hmpc_pin.load_config(out).simulation.duration == expected
+        config = hmpc_pin.load_config(out)
+        assert config.simulation.duration == expected
+        pulse = config.disturbance.pulse
+        need = max(pulse.center) + 4 * float(pulse.sigma) + 1 / config.reference.frequency
+        assert expected == (math.ceil(need) if not argv else 3.0)
 
 
 @pytest.mark.parametrize("priority, ok", [(0, True), (1, True), (99, True), (-1, False),

@@ -22,6 +22,10 @@ Per joint, from the config's models alone (the arm is not simulated; the loops' 
   every :math:`T_s/4` over the run, :math:`\\ddot r` by central differences) against the
   plant's effort limits;
 
+the **workspace**: the reference against the mounting plane of ``[workspace]`` (the root
+link's height without the table) and for self-collision, on the URDF's collision geometry
+(:func:`~hmpc_pin.experiment.workspace.scan_reference`);
+
 and, with MuJoCo installed, **the model against a second engine**: :math:`M(q)` and the
 forward dynamics :math:`\\ddot q(q, \\dot q, \\tau)` of Pinocchio and MuJoCo (the bare arm)
 at :data:`ENGINE_SAMPLES` seeded states within the limits, within :data:`ENGINE_RTOL`.
@@ -60,6 +64,9 @@ measurements of a plant equal to the model (r = 1 unless the plant differs); so:
 * friction with the literal sign (it feeds energy in) and no compensation: a problem (a
   warning for the paper's baseline, which is expected to lose the reference); with an
   observer a warning (nothing here bounds the error it leaves);
+* a link leaving the workspace (closer to the plane than the margin) or two links
+  colliding, named with the time: a problem when the config declares its ``[workspace]``
+  (``run`` simulates neither, the arm would hit them), else a warning;
 * MuJoCo refusing the URDF, or the engines differing: a problem with a MuJoCo plant,
   else a warning (the table is printed either way).
 """
@@ -81,8 +88,9 @@ from ..compensation.bandwidth import (
 )
 from ..exceptions import HmpcError, URDFError
 from ..experiment.build import Experiment
-from ..experiment.config import ExperimentConfig
+from ..experiment.config import ExperimentConfig, WorkspaceConfig
 from ..experiment.plants import _effort_limit
+from ..experiment.workspace import scan_reference
 from ..model.robot import damping_time_constants
 from .metrics import DEFAULT_ERROR_THRESHOLD, RUN_WARN_AFTER
 
@@ -147,6 +155,8 @@ class CheckReport:
         warnings: One line per finding that does not affect ``run`` but matters on an arm
             (an interface's latency, lighter links, the real arm's damping, a second
             engine).
+        workspace: The reference against the mounting plane and for self-collision, one
+            line (``""``: not scanned).
     """
 
     joints: tuple[str, ...]
@@ -160,6 +170,7 @@ class CheckReport:
     problems: list[str] = field(default_factory=list)
     fixes: list[dict[str, Any] | None] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    workspace: str = ""
 
     def add_problem(self, text: str, fix: dict[str, Any] | None) -> None:
         """One problem and the change of the config that removes it in ``run``
@@ -187,6 +198,8 @@ class CheckReport:
             tau = "-" if not np.isfinite(self.damping_tau[j]) else f"{self.damping_tau[j]:.3g}"
             hr = "-" if not np.isfinite(self.headroom[j]) else f"{100 * self.headroom[j]:.0f} %"
             lines.append(f"{name:<24} {bw:>9} {wts:>7} {mg:>8} {tau:>9} {hr:>9}")
+        if self.workspace:
+            lines.append(f"workspace: {self.workspace}")
         if isinstance(self.engine, str):
             lines.append(f"MuJoCo: {self.engine}")
         else:
@@ -920,6 +933,36 @@ def _damping_findings(report: CheckReport, config: ExperimentConfig) -> None:
         )
 
 
+def _workspace_findings(report: CheckReport, config: ExperimentConfig, ex: Experiment) -> None:
+    """The reference against the mounting plane and for self-collision
+    (:func:`~hmpc_pin.experiment.workspace.scan_reference`): each link that leaves the
+    workspace and each colliding pair, with the times. A problem when the config declares
+    its ``[workspace]`` (the real arm would hit its table or itself; ``run`` simulates
+    neither), a warning measured against the default plane otherwise."""
+    scan = scan_reference(ex)
+    if scan is None:
+        report.workspace = "not checked (the URDF has no collision geometry)"
+        return
+    low = min(scan.clearance.items(), key=lambda kv: kv[1], default=None)
+    pairs = "no two links collide" if not scan.collisions else "links collide"
+    plane = config.workspace or WorkspaceConfig()
+    report.workspace = (
+        f"plane height {plane.height:g} m, margin {plane.margin:g} m"
+        + (f"; lowest link {low[0]!r} at {low[1]:.3g} m" if low else "")
+        + f"; {pairs}"
+    )
+    for line in scan.lines():
+        if config.workspace is not None:
+            report.add_problem(
+                f"{line}: the reference leaves the [workspace]; move or shrink it", None
+            )
+        else:
+            report.warnings.append(
+                f"{line} (against a table at the root link's height, {plane.margin:g} m "
+                "margin; declare the real mounting plane in a [workspace] table)"
+            )
+
+
 def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     """The figures, problems and warnings of ``config`` (module docstring), nothing run.
 
@@ -971,6 +1014,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         _observer_lag_findings(report, config, ex, bw)
     _damping_findings(report, config)
     _friction_findings(report, config)
+    _workspace_findings(report, config, ex)
 
     headroom = report.headroom
     for j in np.flatnonzero(headroom < MIN_HEADROOM):

@@ -404,6 +404,7 @@ def cmd_tune(args) -> int:
 
 def cmd_init(args) -> int:
     """``hmpc-pin init ROBOT``: write a commented config that runs as written."""
+    from ..experiment.config import WorkspaceConfig
     from ..experiment.init import plant_step_hint, write_config
 
     if args.list:
@@ -411,10 +412,34 @@ def cmd_init(args) -> int:
         return EXIT_OK
     if args.robot is None:
         raise ConfigError("ROBOT", "give a URDF path or a robot name (--list lists the names)")
-    duration = 10.0 if _checked_duration(args.duration) is None else args.duration
-    path = write_config(args.robot, args.out, duration, overwrite=args.force)
+    duration = _checked_duration(args.duration)  # None: long enough to identify friction
+    try:
+        workspace = WorkspaceConfig(
+            height=0.0 if args.plane_height is None else args.plane_height,
+            margin=0.02 if args.margin is None else args.margin,
+        )
+    except ConfigError as exc:
+        flag = {"height": "--plane-height", "margin": "--margin"}[exc.key]
+        raise ConfigError(flag, exc.message) from None
+    path = write_config(
+        args.robot,
+        args.out,
+        duration,
+        overwrite=args.force,
+        workspace=workspace,
+        plane_given=args.plane_height is not None,
+    )
     print(f"wrote {path}; run it with: hmpc-pin run {path}")
-    hint = plant_step_hint(path.read_text(encoding="utf-8"))
+    lines = path.read_text(encoding="utf-8").splitlines()
+    start = next((k for k, ln in enumerate(lines) if ln.startswith("# Friction identif")), None)
+    if start is not None:  # what a run needs for `identify` (the file's comment)
+        block = []
+        for ln in lines[start:]:
+            if not ln.startswith("#"):
+                break
+            block.append(ln[2:].strip())
+        print(" ".join(block).replace("FILE", str(path)))
+    hint = plant_step_hint("\n".join(lines))
     if hint is not None:
         print(hint, file=sys.stderr)
     return EXIT_OK
@@ -835,7 +860,9 @@ def _init_arguments(ini) -> None:
     ini.description = (
         "Write a TOML experiment that runs as written: a sine per joint around "
         "the reference posture (SRDF, else mid-range) inside the position and velocity "
-        "limits, inertia-scaled disturbances, an observer valid for the arm, gripper/finger "
+        "limits, moved where the whole sine keeps every link above the mounting plane and "
+        "clear of the others (the URDF's collision geometry), inertia-scaled disturbances, "
+        "an observer valid for the arm, gripper/finger "
         "joints locked. Exit 2 with one line when the URDF cannot be controlled."
     )
     ini.add_argument(
@@ -845,8 +872,27 @@ def _init_arguments(ini) -> None:
         "--list", action="store_true", help="list the robot names init accepts and exit"
     )
     ini.add_argument("--out", type=Path, default=None, help="TOML file to write [<name>.toml]")
-    ini.add_argument("--duration", type=float, help="simulated time [s] [10]")
+    ini.add_argument(
+        "--duration",
+        type=float,
+        help="simulated time [s] [long enough for `identify`: the pulses, then a period]",
+    )
     ini.add_argument("--force", action="store_true", help="overwrite an existing --out file")
+    ini.add_argument(
+        "--plane-height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="height of the mounting plane (the table) in the URDF's root frame, which no "
+        "moving link's collision geometry may cross [m] [0]",
+    )
+    ini.add_argument(
+        "--margin",
+        type=float,
+        default=None,
+        metavar="M",
+        help="clearance every moving link keeps above the plane [m] [0.02]",
+    )
     ini.set_defaults(func=cmd_init)
 
 

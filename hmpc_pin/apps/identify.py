@@ -12,6 +12,7 @@ from ..exceptions import ConfigError
 from ..experiment.config import load_config
 from ..experiment.config.write import write_config
 from ..identification import fit_friction, learn_thresholds
+from ..identification.friction import PULSE_SIGMAS
 from ..sim.result import Result
 from .runfile import load_run, run_robot
 
@@ -42,22 +43,32 @@ def observer_model(result: Result, robot):
     return None
 
 
-def _unmodelled(result: Result) -> str:
+def _unmodelled(result: Result, after: float) -> tuple[str, float]:
     """The disturbances besides friction that the run's config (``meta["config"]``, when
-    the file is still there) adds, in words (``[disturbance.pulse]``), or ``""``."""
+    the file is still there) adds within the samples fitted (from ``after`` [s] on), in
+    words (``[disturbance.pulse]``), or ``""``; and the time [s] after which they are
+    negligible (:data:`PULSE_SIGMAS` deviations past the last centre; 0 when none)."""
     from ..exceptions import HmpcError
 
     source = result.meta.get("config")
     if not source or not Path(source).is_file() or "franka" in result.meta:
-        return ""  # (on a Franka arm the config's simulated disturbances are not applied)
+        return "", 0.0  # (on a Franka arm the config's simulated disturbances are not applied)
     try:
         pulse = load_config(source).disturbance.pulse
     except HmpcError:
-        return ""
-    if pulse is None or not np.any(np.asarray(pulse.amplitude) != 0):
-        return ""
-    at = ", ".join(f"{c:g}" for c in np.unique(np.atleast_1d(pulse.center)))
-    return f"disturbance pulses ([disturbance.pulse] of {source}, at t = {at} s)"
+        return "", 0.0
+    if pulse is None:
+        return "", 0.0
+    n = result.q.shape[1]
+    amplitude = np.broadcast_to(np.asarray(pulse.amplitude, dtype=float), (n,))
+    center = np.broadcast_to(np.asarray(pulse.center, dtype=float), (n,))
+    sigma = np.broadcast_to(np.asarray(pulse.sigma, dtype=float), (n,))
+    live = (amplitude != 0) & (center + PULSE_SIGMAS * sigma > after)
+    if not np.any(live):
+        return "", 0.0
+    at = ", ".join(f"{c:g}" for c in np.unique(center[live]))
+    until = float(np.max(center[live] + PULSE_SIGMAS * sigma[live]))
+    return f"disturbance pulses ([disturbance.pulse] of {source}, at t = {at} s)", until
 
 
 def _table(toml_text: str) -> tuple[str, dict]:
@@ -182,7 +193,8 @@ def cmd_identify(args) -> int:
             confidence=args.confidence,
             run=args.run.name,
         )
-        friction = replace(friction, unmodelled=_unmodelled(result))
+        unmodelled, until = _unmodelled(result, args.after if args.after is not None else 0.5)
+        friction = replace(friction, unmodelled=unmodelled, unmodelled_until=until)
         report = [
             f"{args.run.name}: friction d = -(a q̇ + b sgn q̇) from the {args.source} (source)",
             friction.table(),
@@ -265,7 +277,9 @@ def identify_arguments(idf) -> None:
         "and write it as the [controller.friction] table, fed forward by the controller. "
         "From the observer, the intervals where a joint is stuck (a holding torque, not "
         "the friction law) and 5 of the observer's time constants after each are left "
-        "out; a note under the table says how many samples. "
+        "out; a note under the table says how many samples. A negative coefficient (friction "
+        "feeding energy in) is written as 0, with a note naming it; torque pulses of the "
+        "run's config within the samples are named with the --after past them. "
         "With --thresholds, learn the [collision] thresholds on |d_hat| of a contact-free "
         "run at a stated false-alarm probability instead. Exit 2 with one line when the run "
         "does not excite a joint enough."

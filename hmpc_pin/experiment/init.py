@@ -15,6 +15,17 @@ and writes a commented TOML experiment that runs as written:
   moved inside so that :math:`o \\pm a` keeps 5 % of the range from each limit; the
   frequency 0.1 Hz, lowered until the peak speed :math:`2\\pi f a` is at most half of every
   URDF velocity limit.
+* **Workspace.** The whole sine keeps every moving link's collision geometry ``margin``
+  above the mounting plane and clear of the other links
+  (:class:`~hmpc_pin.model.workspace.Workspace`; ``[workspace]``, written to the file):
+  a posture that does not is moved by :func:`~hmpc_pin.experiment.posture.place`, the
+  amplitude scaled down when no posture fits; with the plane given and nothing fitting,
+  :class:`~hmpc_pin.exceptions.URDFError` names the links. With the default plane (the
+  root link's height) and nothing fitting, the root stands on no table (a hand, an arm on
+  a body): the posture is kept and the plane put under its whole sine, with a warning.
+* **Run length.** Long enough for ``hmpc-pin identify``: the pulses over
+  (:attr:`InitPlan.identify_after`), then a whole period of the sine
+  (:attr:`InitPlan.identify_duration`); the file says how to identify.
 * **Limits.** A zero or inverted URDF range (``double_pendulum``: 0/0) means the URDF gives
   none: ``[controller.constraints] position = false``, and the joint is unbounded.
 * **Observer.** Chen's NDO (the paper's, Eq 28–30, gain 100) on a planar serial chain;
@@ -44,10 +55,12 @@ and writes a commented TOML experiment that runs as written:
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import textwrap
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
@@ -57,6 +70,7 @@ import pinocchio as pin
 from ..compensation.observers import general_gain_bound
 from ..data import robot_path
 from ..exceptions import ConfigError, OutputError, SimulationError, URDFError, ValidityWarning
+from ..identification.friction import PULSE_SIGMAS
 from ..model.robot import (
     Robot,
     check_urdf,
@@ -66,7 +80,11 @@ from ..model.robot import (
     load_robot,
     urdf_mimics,
 )
+from .config.workspace import WorkspaceConfig
 from .plants import DAMPING_STEP_LIMIT, damping_rates
+from .posture import HOLD, PATH_SAMPLES, SLACK, _gravity_along, _hold_gravity, place
+from .posture import path as sine_path
+from .workspace import make_workspace
 
 __all__ = [
     "BANDWIDTH_PERIODS",
@@ -101,12 +119,12 @@ LOCK_PATTERN = re.compile(
 #: Reference postures looked for in an SRDF, in order, after the loader's own.
 POSTURES = ("default", "half_sitting", "ready", "home", "standing", "arm_up", "neutral")
 AMPLITUDE = {"revolute": 0.3, "prismatic": 0.05}  # [rad], [m]
+#: The first torque pulse's centre [s] (joint j's at PULSE_CENTER + j mod 9) and the
+#: pulses' standard deviation [s].
+PULSE_CENTER, PULSE_SIGMA = 1.0, 0.3
 FREQUENCY = 0.1  # [Hz]
-#: Gravity may need at most this share of a joint's effort limit at the offset posture.
-HOLD = 0.8
 #: Amplitude scales tried, in order, until gravity along the sine fits the effort limits.
 AMPLITUDE_SCALES = (1.0, 0.5, 0.25)
-HOLD_STEPS = 400
 #: Control periods tried, in order [s].
 PERIODS = (0.01, 0.005, 0.002)
 #: The largest zero-order-hold gain g = x/(1 − e^−x), x = Ts/T_j, a damped joint may need
@@ -217,9 +235,21 @@ class InitPlan:
         compensation, gain, gain_bound: The observer and its gain (bound for ``general``,
             reported; the config gets :attr:`bandwidth` instead).
         bandwidth: The general observer's bandwidth [1/s] (``None`` for ``chen``).
+        workspace: The arm's :class:`~hmpc_pin.model.workspace.Workspace` the sine was
+            placed in (``None``: the URDF has no collision geometry).
+        workspace_settings: The ``[workspace]`` table written (the plane as placed).
+        plane_given: Whether the plane is the caller's (else the root link's height, put
+            under the robot when no posture clears it: :attr:`plane_note` says so).
+        touching: Pairs of links touching at the reference posture (allowed, written).
+        plane_note: Why the plane was put under the robot (``""`` when it was not).
     """
 
-    def __init__(self, source: str | Path):
+    def __init__(
+        self,
+        source: str | Path,
+        workspace: WorkspaceConfig | None = None,
+        plane_given: bool | None = None,
+    ):
         path, self.source, name = _resolve(source)
         root = check_urdf(path)
         mimics = urdf_mimics(root)
@@ -268,19 +298,30 @@ class InitPlan:
         amp0 = np.array([AMPLITUDE[k] for k in robot.joint_kinds])
         amp0 = np.where(np.isfinite(span), np.minimum(amp0, 0.25 * span), amp0)
         margin = np.where(np.isfinite(span), 0.05 * span, 0.0)
-        for scale in AMPLITUDE_SCALES:  # a smaller sine when gravity needs too much torque
-            amp = scale * amp0
-            start = np.clip(center, lo + amp + margin, hi - amp - margin)
-            try:
-                self.offset = _hold_gravity(robot, start, amp, lo + amp + margin, hi - amp - margin)
-                break
-            except URDFError:
-                if scale == AMPLITUDE_SCALES[-1]:
-                    raise
-        if not np.allclose(self.offset, start):
+        self.plane_given = workspace is not None if plane_given is None else plane_given
+        self.plane_note = ""
+        self.workspace_settings = workspace if workspace is not None else WorkspaceConfig()
+        self.workspace = make_workspace(robot, self.workspace_settings, name)
+        self.touching: list[list[str]] = []
+        if self.workspace is not None:  # links touching at the reference posture: by design
+            ref = np.clip(center, lo, hi)
+            self.touching = sorted({tuple(sorted(p)) for p in self.workspace.colliding(ref)})
+            if self.touching:
+                pairs = [*self.workspace_settings.allowed_pairs, *map(list, self.touching)]
+                self.workspace_settings = replace(self.workspace_settings, allowed_pairs=pairs)
+                self.workspace = make_workspace(robot, self.workspace_settings, name)
+        self.offset, amp, moved = self._place(robot, center, amp0, lo, hi, margin)
+        if moved == "gravity":
             self.posture_source += (
                 f", lowered toward hanging until gravity needs <= {HOLD:.0%} of the effort limits"
             )
+        elif moved == "workspace":
+            self.posture_source += (
+                ", moved until the whole sine keeps every link above the mounting plane "
+                "and clear of the others"
+            )
+        elif moved == "clear":
+            self.posture_source += ", moved until the whole sine keeps the links apart"
         self.amplitude = amp
         vmax = robot.velocity_limit
         speed_cap = np.where(vmax > 0, 0.5 * vmax / (2 * np.pi * amp), np.inf)
@@ -321,6 +362,118 @@ class InitPlan:
                 self.plant_dt = fits[0]
             else:
                 self.joint_dynamics = False
+
+    def _place(self, robot, center, amp0, lo, hi, margin):
+        """The offset and amplitude of the sine, and what moved the offset from
+        ``center`` (``""``, ``"gravity"``, ``"workspace"`` or, the plane put under the
+        robot, ``"clear"``): per amplitude of
+        :data:`AMPLITUDE_SCALES`, the posture gravity allows (``_hold_gravity``),
+        moved inside the workspace when it is not (:func:`~hmpc_pin.experiment.posture.place`).
+
+        Raises:
+            URDFError: Gravity needs more than the effort limits everywhere, or no posture
+                keeps the sine inside the workspace (the message names the link).
+        """
+        effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
+
+        def excess(q):
+            return max(0.0, float(np.max(_gravity_along(robot, q, amp) / (HOLD * effort))) - 1)
+
+        gravity: URDFError | None = None
+        outside = None
+        fallbacks = []
+        for scale in AMPLITUDE_SCALES:  # a smaller sine when no posture suits the larger
+            amp = scale * amp0
+            lo_o, hi_o = lo + amp + margin, hi - amp - margin
+            start = np.clip(center, lo + amp + margin, hi - amp - margin)
+            try:
+                held = _hold_gravity(robot, start, amp, lo_o, hi_o)
+            except URDFError as exc:
+                gravity, held = exc, None
+                if self.workspace is None:
+                    continue
+            moved = "" if held is not None and np.allclose(held, start) else "gravity"
+            if self.workspace is None:
+                return held, amp, moved
+            first = held if held is not None else start
+            if held is not None:
+                fallbacks.append((held, amp, lo_o, hi_o, moved))
+            offset, inside = place(self.workspace, first, amp, lo_o, hi_o, excess)
+            if inside:
+                return offset, amp, (moved if np.allclose(offset, first) else "workspace")
+            if held is not None:
+                outside = (offset, amp)
+        if outside is None:
+            assert gravity is not None
+            raise gravity
+        ws = self.workspace
+        for held, amp, lo_o, hi_o, moved in [] if self.plane_given else fallbacks:
+            height, ws.height = ws.height, -math.inf  # no plane: clear of the other links
+            offset, inside = place(ws, held, amp, lo_o, hi_o, excess)
+            ws.height = height
+            if inside:
+                self._plane_under(offset, amp)
+                return offset, amp, (moved if np.allclose(offset, held) else "clear")
+            outside = (offset, amp)
+        raise self._outside(*outside, plane=self.plane_given)
+
+    def _plane_under(self, posture: np.ndarray, amp: np.ndarray) -> None:
+        """No posture keeps the sine above the default plane (the root link's height, none
+        given): the root does not stand on a table (a hand, a pendulum, an arm on a body).
+        The plane is put under the whole sine of ``posture`` (the nearest posture whose
+        sine keeps the links clear of one another), less the margin; said in
+        :attr:`plane_note` and in a warning."""
+        ws = self.workspace
+        assert ws is not None
+        scan = ws.clearance(sine_path(posture, amp, 4 * PATH_SAMPLES - 3))[:, ws.checked]
+        height = math.floor(1e3 * (float(scan.min()) - ws.margin)) / 1e3
+        ws.height = height
+        self.workspace_settings = replace(self.workspace_settings, height=height)
+        self.plane_note = (
+            "no posture keeps the sine above the root link's height: the root does not "
+            "stand on a table (a hand, a pendulum, an arm on a body), so the plane is put "
+            f"under the whole sine, {-height:.3g} m below the root; state the real table "
+            "with --plane-height (init refuses when no posture clears it)"
+        )
+        warnings.warn(f"{self.robot.source}: {self.plane_note}", ValidityWarning, stacklevel=5)
+
+    def _outside(self, offset, amp, plane: bool = True) -> URDFError:
+        """No posture keeps the sine inside the workspace (``plane``: above the plane and
+        clear of the other links; else clear of them alone): the message names the links."""
+        ws = self.workspace
+        assert ws is not None
+        height = ws.height
+        if not plane:
+            ws.height = -math.inf
+        scan = ws.scan(sine_path(offset, amp, 41), np.linspace(-1.0, 1.0, 41))
+        ws.height = height
+        what = (
+            "; ".join(
+                [f"{v.link!r} {abs(v.lowest):.3g} m {'below' if v.lowest < 0 else 'above'} it"
+                 for v in scan.below]
+                + [f"{c.links[0]!r} against {c.links[1]!r}" for c in scan.collisions]
+            )
+            or f"a link within {1e3 * SLACK:g} mm of the margin"
+        )  # fmt: skip
+        s = self.workspace_settings
+        if not plane:
+            return URDFError(
+                self.robot.source,
+                "no posture found whose sine (amplitude down to "
+                f"{AMPLITUDE_SCALES[-1]:g} x) keeps every link clear of the others within "
+                f"the effort limits (nor above the mounting plane); the best found puts {what}"
+                "; the URDF's collision geometry may overlap where the real links do not "
+                "(list such pairs in [workspace] allowed_pairs of a config written by hand)",
+            )
+        return URDFError(
+            self.robot.source,
+            "no posture found whose sine (amplitude down to "
+            f"{AMPLITUDE_SCALES[-1]:g} x) keeps every link {s.margin:g} m above the mounting "
+            f"plane (height {s.height:g} m, normal {_vec(s.normal)}) and clear of the others "
+            f"within the effort limits; the best found puts {what}; if the arm is mounted "
+            "higher than its root link (a humanoid's or a mobile base's arm), pass "
+            "--plane-height (the plane's height in the URDF's root frame, negative below it)",
+        )
 
     @property
     def bandwidth(self) -> float | None:
@@ -369,9 +522,81 @@ class InitPlan:
             if np.sqrt(np.mean(result.error[after] ** 2, axis=0)).max() <= TRIAL_RMS:
                 return
 
-    def text(self, duration: float) -> str:
-        """The TOML text (:func:`init_config`)."""
-        return _render(self, duration)
+    def text(self, duration: float | None = None) -> str:
+        """The TOML text (:func:`init_config`; ``duration`` [s] default
+        :attr:`identify_duration`)."""
+        return _render(self, self.identify_duration if duration is None else duration)
+
+    @property
+    def identify_after(self) -> float:
+        """The time [s] past the torque pulses (the last centre plus
+        :data:`~hmpc_pin.identification.friction.PULSE_SIGMAS` deviations): friction is
+        identified from the samples after it (``hmpc-pin identify --after``)."""
+        last = max(PULSE_CENTER + (j % 9) for j in range(self.robot.nq))
+        return last + PULSE_SIGMAS * PULSE_SIGMA
+
+    @property
+    def identify_duration(self) -> float:
+        """The shortest run [s] from which ``hmpc-pin identify`` fits the friction: the
+        pulses over (:attr:`identify_after`), then a whole period of the sine, in which
+        every joint moves both ways at its peak speed (whole seconds, rounded up)."""
+        return float(math.ceil(self.identify_after + 1.0 / self.frequency - 1e-9))
+
+
+def _identify_lines(p: InitPlan, duration: float) -> list[str]:
+    """What a run needs for ``hmpc-pin identify`` to fit the friction, as comments."""
+    need, after = p.identify_duration, p.identify_after
+    stem = re.sub(r"[^A-Za-z0-9_]+", "_", p.name)
+    longer = f" --duration {need:g}" if duration < need else ""
+    return [
+        f"# Friction identification (hmpc-pin identify) needs {need:g} s"
+        + (f", longer than this run's {duration:g} s" if longer else "")
+        + ": the pulses",
+        f"# are over at {after:.3g} s, then a period of the sine moves every joint both ways:",
+        f"#   hmpc-pin run FILE{longer} --out out; hmpc-pin identify out/{stem}_init.npz "
+        f"--after {after:.3g}",
+    ]
+
+
+def _workspace_lines(p: InitPlan) -> list[str]:
+    """The ``[workspace]`` table init placed the sine in (nothing without collision
+    geometry)."""
+    ws = p.workspace
+    if ws is None:
+        return []
+    scan = ws.scan(sine_path(p.offset, p.amplitude, 4 * PATH_SAMPLES - 3))
+    low = min(scan.clearance.items(), key=lambda kv: kv[1], default=None)
+    s = p.workspace_settings
+    lines = [
+        "[workspace]",
+        "# The plane the arm is mounted on (its table), in the URDF's root frame: along the",
+        "# whole sine every moving link's collision geometry keeps `margin` above it and",
+        "# clear of the other links"
+        + (" (pairs the SRDF disables excepted)" if ws.srdf is not None else "")
+        + "; `hmpc-pin check` flags a reference that does not.",
+    ]
+    if p.plane_note:
+        note = p.plane_note[0].upper() + p.plane_note[1:] + "."
+        lines += textwrap.wrap(note, 86, initial_indent="# ", subsequent_indent="# ")
+    if low is not None:
+        lines.append(f"# Lowest along the sine: {low[0]} at {low[1]:.3g} m above the plane.")
+    pairs = []
+    if s.allowed_pairs:
+        listed = ", ".join(f"[{json.dumps(a)}, {json.dumps(b)}]" for a, b in s.allowed_pairs)
+        pairs = [
+            "# Links touching at the reference posture: taken as touching by design (as",
+            "# MoveIt's setup assistant disables them), not checked.",
+            f"allowed_pairs = [{listed}]",
+        ]
+    return [
+        *lines,
+        f"height = {s.height:g}                       # [m]",
+        f"normal = {_vec(s.normal)}",
+        f"margin = {s.margin:g}                    # [m]",
+        *([] if s.self_collision else ["self_collision = false"]),
+        *pairs,
+        "",
+    ]
 
 
 def _plant_lines(p: InitPlan) -> list[str]:
@@ -400,57 +625,32 @@ def _vec(values, digits: int = 4) -> str:
     return "[" + ", ".join(f"{round(float(v), digits):g}" for v in values) + "]"
 
 
-def init_config(source: str | Path, duration: float = 10.0) -> str:
+def init_config(
+    source: str | Path,
+    duration: float | None = None,
+    workspace: WorkspaceConfig | None = None,
+    *,
+    plane_given: bool | None = None,
+) -> str:
     """The text of a commented TOML experiment for ``source`` (URDF path or robot name)
-    that runs as written (module docstring: what is decided and why).
+    that runs as written (module docstring: what is decided and why), ``duration`` [s]
+    long (default: long enough for friction identification,
+    :attr:`InitPlan.identify_duration`).
+
+    Args:
+        workspace: The mounting plane and margin (default: the plane through the root
+            link, 2 cm), written to the ``[workspace]`` table.
+        plane_given: Whether the plane is the user's (default: ``workspace`` given). When
+            it is not and no posture keeps the sine above it, the plane is put under the
+            robot's own posture (module docstring) instead of refusing.
 
     Raises:
-        URDFError: The URDF cannot be controlled (the message names the joint or link).
+        URDFError: The URDF cannot be controlled (the message names the joint or link),
+            or no posture keeps the sine inside a plane given.
     """
-    p = InitPlan(source)
+    p = InitPlan(source, workspace, plane_given)
     p.trial()
     return p.text(duration)
-
-
-def _gravity_along(robot: Robot, q: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
-    """Per joint, the largest |G| [N·m or N] along the sine's path
-    :math:`q + s\\,a`, :math:`s \\in [-1, 1]` (every joint shares one phase, so the path
-    is a segment; 9 points)."""
-    return np.max(
-        [np.abs(robot.gravity_torque(q + s * amplitude)) for s in np.linspace(-1, 1, 9)], axis=0
-    )
-
-
-def _hold_gravity(
-    robot: Robot, q: np.ndarray, amplitude: np.ndarray, lo: np.ndarray, hi: np.ndarray
-) -> np.ndarray:
-    """``q`` moved toward the hanging posture (steps of at most 0.02 rad or m against the
-    gravity torque G, inside [lo, hi]) until gravity needs at most :data:`HOLD` × the
-    effort limit on every joint with one, along the whole sine (:func:`_gravity_along`).
-
-    Raises:
-        URDFError: No such posture within :data:`HOLD_STEPS` steps (naming the joint and
-            the torques): the URDF leaves out what holds the real arm.
-    """
-    effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
-    q = q.copy()
-    for _ in range(HOLD_STEPS):
-        if not np.any(_gravity_along(robot, q, amplitude) > HOLD * effort):
-            return q
-        G = robot.gravity_torque(q)
-        q_new = np.clip(q - 0.02 * G / max(np.abs(G).max(), 1e-12), lo, hi)
-        if np.allclose(q_new, q):
-            break
-        q = q_new
-    need = _gravity_along(robot, q, amplitude)
-    i = int(np.argmax(need / effort))
-    raise URDFError(
-        robot.source,
-        f"out of scope: joint {robot.joint_names[i]!r} needs {need[i]:.3g} N·m to hold "
-        f"the arm against gravity at best, above {HOLD:.0%} of its URDF effort limit "
-        f"{effort[i]:.3g} N·m (the URDF leaves out what holds the real arm, e.g. springs or "
-        "buoyancy); write a config by hand with [plant] saturate = false or a lower gravity",
-    )
 
 
 def _render(p: InitPlan, duration: float) -> str:
@@ -572,6 +772,7 @@ def _render(p: InitPlan, duration: float) -> str:
     lines += [
         "",
         *_plant_lines(p),
+        *_workspace_lines(p),
         "[reference]",
         'kind = "sine"',
         f"amplitude = {_vec(p.amplitude)}     # [{unit}]",
@@ -588,10 +789,11 @@ def _render(p: InitPlan, duration: float) -> str:
         "",
         "[disturbance.pulse]",
         "amplitude = 1.0",
-        f"center = {_vec([1.0 + (j % 9) for j in range(n)])}",
-        "sigma = 0.3",
+        f"center = {_vec([PULSE_CENTER + (j % 9) for j in range(n)])}",
+        f"sigma = {PULSE_SIGMA:g}",
         "",
         "[simulation]",
+        *_identify_lines(p, duration),
         f"duration = {duration:g}",
         "# Start on the reference: position r(0) (the default) and velocity dr/dt(0).",
         f"dq0 = {_vec(2 * np.pi * p.frequency * p.amplitude, 6)}",
@@ -603,18 +805,21 @@ def _render(p: InitPlan, duration: float) -> str:
 def write_config(
     source: str | Path,
     out: str | Path | None = None,
-    duration: float = 10.0,
+    duration: float | None = None,
     *,
     overwrite: bool = False,
+    workspace: WorkspaceConfig | None = None,
+    plane_given: bool | None = None,
 ) -> Path:
     """Write :func:`init_config` of ``source`` to ``out`` (default ``<name>.toml`` in the
-    current directory) and return the path.
+    current directory) and return the path (``workspace``, ``plane_given``: as
+    :func:`init_config`).
 
     Raises:
         ConfigError: ``out`` exists and ``overwrite`` is false (nothing is written).
         OutputError: ``out`` cannot be written.
     """
-    text = init_config(source, duration)
+    text = init_config(source, duration, workspace, plane_given=plane_given)
     name = re.search(r'^name = "(.*)_init"$', text, re.MULTILINE)
     path = Path(out) if out is not None else Path(f"{name.group(1) if name else 'robot'}.toml")
     if path.exists() and not overwrite:
@@ -651,6 +856,6 @@ def plant_step_hint(text: str) -> str | None:
     )
 
 
-def plan(source: str | Path) -> InitPlan:
+def plan(source: str | Path, workspace: WorkspaceConfig | None = None) -> InitPlan:
     """The decisions :func:`init_config` writes, as an object."""
-    return InitPlan(source)
+    return InitPlan(source, workspace)

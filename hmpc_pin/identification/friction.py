@@ -69,6 +69,7 @@ if TYPE_CHECKING:
     from ..model.robot import Robot
 
 __all__ = [
+    "PULSE_SIGMAS",
     "SOURCES",
     "FrictionFit",
     "JointFriction",
@@ -78,6 +79,10 @@ __all__ = [
     "fit_joint",
 ]
 
+#: A Gaussian disturbance pulse is negligible this many standard deviations from its
+#: centre (exp(-4²/2) = 3e-4 of its amplitude): ``identify`` names the time past a run's
+#: pulses, and ``init`` the run that reaches it, with it.
+PULSE_SIGMAS = 4.0
 #: Measurements of the friction torque a fit can use.
 SOURCES = ("observer", "dynamics", "regressor")
 #: Fewest degrees of freedom :math:`m_e - p` of an interval: below it the residual is so
@@ -143,9 +148,11 @@ class FrictionFit:
         excluded: Samples left out because a recorded column used by the fit (q, q̇,
             τ, :math:`\\hat d`) is NaN or infinite there (the observer source: and the
             observer's start-up, ``after``, once its filter starts again after each gap).
-        unmodelled: The disturbances besides friction the run is known to have had (its
-            config's ``[disturbance.pulse]``), in words, or ``""``: named as the cause
-            of a missing interval.
+        unmodelled: The disturbances besides friction the run is known to have had within
+            the samples fitted (its config's ``[disturbance.pulse]``), in words, or ``""``:
+            named as the cause of a missing interval.
+        unmodelled_until: The time after which those disturbances are negligible [s]
+            (the ``--after`` that leaves them out; 0 when not known).
         stuck: Samples left out (of those the fit would use) because a joint was stuck
             there, or the observer was still settling after it (the observer source).
         stuck_joints: The joints found stuck (:func:`stuck_samples`).
@@ -165,6 +172,18 @@ class FrictionFit:
     stuck_joints: tuple[str, ...] = ()
     settling: float = 0.0
     time_constant: float = 0.0
+    unmodelled_until: float = 0.0
+
+    def impossible(self) -> list[tuple[str, str, float]]:
+        """The coefficients no friction can have, (joint, ``"viscous"`` or ``"Coulomb"``,
+        fitted value): a negative :math:`\\hat a` or :math:`\\hat b` would feed energy in
+        where friction takes it out. :meth:`toml` leaves them out (0: nothing fed forward)."""
+        return [
+            (j.name, term, value)
+            for j in self.joints
+            for term, value in (("viscous", j.viscous), ("Coulomb", j.coulomb))
+            if value < 0
+        ]
 
     def notes(self) -> list[str]:
         """Why an interval is missing, and what was left out (one sentence each)."""
@@ -178,7 +197,12 @@ class FrictionFit:
                 f"leave fewer than {MIN_DEGREES_OF_FREEDOM} degrees of freedom "
                 + (
                     f"(the run had {self.unmodelled}, which the friction model does not "
-                    "hold); fit a run without them, or pass --after past them"
+                    "hold); fit a run without them, or pass "
+                    + (
+                        f"--after {self.unmodelled_until:.3g} (past them)"
+                        if self.unmodelled_until > 0
+                        else "--after past them"
+                    )
                     if self.unmodelled
                     else "(a disturbance the friction model does not hold, or the observer's "
                     "lag); record a longer run"
@@ -206,6 +230,20 @@ class FrictionFit:
                     " (and, after each such gap, the observer's start-up, --after)"
                     if self.source == "observer"
                     else ""
+                )
+            )
+        bad = self.impossible()
+        if bad:
+            listed = ", ".join(f"{name}'s {term} {value:.4g}" for name, term, value in bad)
+            out.append(
+                f"left out (0 written, nothing fed forward): {listed}; a negative friction "
+                "coefficient would feed energy in, which no friction does: the fit holds "
+                "something else"
+                + (
+                    f" ({self.unmodelled}: pass --after {self.unmodelled_until:.3g})"
+                    if self.unmodelled and self.unmodelled_until > 0
+                    else " (a disturbance the friction model does not hold, too little "
+                    "motion, or a wrong model); check the run"
                 )
             )
         return out
@@ -240,7 +278,8 @@ class FrictionFit:
     def toml(self) -> str:
         """The ``[controller.friction]`` table (feed-forward friction compensation) with
         the intervals as comments; paste it into a config (or merge it with
-        ``hmpc-pin identify --config``)."""
+        ``hmpc-pin identify --config``). A negative coefficient (:meth:`impossible`) is
+        written as 0, and a note says why."""
         pct = f"{100 * self.confidence:g} %"
         names = ", ".join(j.name for j in self.joints)
         lines = [
@@ -254,10 +293,11 @@ class FrictionFit:
                 f"{_ci(j.coulomb, j.coulomb_ci, 6)} N·m, residual RMS {j.residual_rms:.3g} N·m"
             )
         lines += [f"# note: {n}" for n in self.notes()]
+        viscous, coulomb = np.maximum(self.viscous, 0.0), np.maximum(self.coulomb, 0.0)
         lines += [
             "[controller.friction]",
-            f"viscous = [{', '.join(f'{v:.6g}' for v in self.viscous)}]   # [N·m·s/rad]",
-            f"coulomb = [{', '.join(f'{v:.6g}' for v in self.coulomb)}]   # [N·m]",
+            f"viscous = [{', '.join(f'{v:.6g}' for v in viscous)}]   # [N·m·s/rad]",
+            f"coulomb = [{', '.join(f'{v:.6g}' for v in coulomb)}]   # [N·m]",
         ]
         return "\n".join(lines) + "\n"
 

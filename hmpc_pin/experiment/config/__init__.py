@@ -6,7 +6,8 @@ component), assembled by :func:`~hmpc_pin.experiment.config.experiment.load_conf
 ``[plant]`` :mod:`.plant` · ``[reference]`` :mod:`.reference` · ``[disturbance]``
 :mod:`.disturbance` · ``[simulation]`` :mod:`.simulation` · ``[sweep]`` :mod:`.sweep` ·
 ``[sweep.sensing]`` :mod:`.sensing` · ``[collision]`` :mod:`.collision` ·
-``[realtime]`` :mod:`.realtime` · ``[ros]`` :mod:`.ros` · the whole file
+``[realtime]`` :mod:`.realtime` · ``[ros]`` :mod:`.ros` · ``[workspace]``
+:mod:`.workspace` · the whole file
 :mod:`.experiment`; the value converters shared by all of them ``_fields``; the
 spellings of earlier versions :mod:`.legacy`. Which ``[controller]`` keys apply to which
 controller × compensation is :mod:`hmpc_pin.experiment.combos`.
@@ -75,6 +76,7 @@ from .sweep import (
     CONDITIONS,
     SweepConfig,
 )
+from .workspace import WorkspaceConfig
 
 __all__ = [
     "COMPENSATIONS",
@@ -117,6 +119,7 @@ __all__ = [
     "SweepConfig",
     "TrajectoryConfig",
     "WaypointsConfig",
+    "WorkspaceConfig",
     "load_config",
     "parse_combination",
 ]

@@ -23,6 +23,7 @@ from .robot import RobotConfig
 from .ros import RosConfig
 from .simulation import SimulationConfig
 from .sweep import SweepConfig
+from .workspace import WorkspaceConfig
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +49,7 @@ class ExperimentConfig:
     source: Path | None = None
     collision: CollisionConfig | None = None
     ros: RosConfig = field(default_factory=RosConfig)
+    workspace: WorkspaceConfig | None = None
 
     def __post_init__(self):
         for name in ("name", "description"):
@@ -249,6 +251,7 @@ def load_config(path: str | Path) -> ExperimentConfig:
         "collision": CollisionConfig,
         "realtime": RealtimeConfig,
         "ros": RosConfig,
+        "workspace": WorkspaceConfig,
     }
     top_allowed = set(sections) | {"name", "description"}
     unknown = sorted(set(raw) - top_allowed)

@@ -28,7 +28,6 @@ from ..experiment.config import ExperimentConfig
 from ..experiment.controllers import _limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from .packaged import CONFIG_HELP
-
 from .realtime import StatusLine, add_stop_options, save_run
 
 __all__ = [

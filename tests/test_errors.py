@@ -106,7 +106,7 @@ CASES = {
     # --- config file
     "config missing": (lambda tmp: None, ConfigError, ["cfg.toml", "not found"]),
     "config not TOML": (lambda tmp: "[controller\nN = 3\n", ConfigError, ["not valid TOML"]),
-    "config not UTF-8": (lambda tmp: b"name = '\xff'\n", ConfigError, ["cannot be read"]),
+    "config not UTF-8": (lambda tmp: b"name = '\xff'\n", ConfigError, ["not a text file"]),
     "unknown top-level key": (
         lambda tmp: BASE + "\n[simulaton]\nduration = 1.0\n",
         ConfigError,

@@ -154,7 +154,11 @@ def _config(path: Path) -> ExperimentConfig:
     """The experiment config of ``path`` (:func:`~hmpc_pin.experiment.config.load_config`)."""
     from ..experiment.config import load_config
 
-    return load_config(path)
+    try:
+        return load_config(path)
+    except ConfigError as exc:
+        exc.loading = True  # the file's own value (not an option's): see _as_option
+        raise
 
 
 def cmd_run(args) -> int:
@@ -1200,6 +1204,8 @@ def _as_option(exc: HmpcError, argv: list[str]) -> HmpcError:
     option = OPTION_KEYS.get(getattr(exc, "key", ""))
     if option is None or not any(a == option or a.startswith(option + "=") for a in argv):
         return exc
+    if getattr(exc, "loading", False):
+        return exc  # refused while the file was read, before the option applied
     return ConfigError(option, exc.message)  # type: ignore[attr-defined]
 
 

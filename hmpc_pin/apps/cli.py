@@ -768,6 +768,13 @@ def _identify_arguments(idf) -> None:
     identify_arguments(idf)
 
 
+def _plot_arguments(plt) -> None:
+    """``hmpc-pin plot`` (:mod:`hmpc_pin.apps.plot`)."""
+    from .plot import plot_arguments
+
+    plot_arguments(plt)
+
+
 def _tune_arguments(tun) -> None:
     """``hmpc-pin tune`` (:mod:`hmpc_pin.apps.tune`)."""
     from .tune import tune_arguments
@@ -873,6 +880,10 @@ def _native_arguments(nat) -> None:
 COMMANDS = {
     "run": ("run one experiment from a TOML config", _run_arguments),
     "replay": ("write a self-contained Meshcat HTML replay of a saved run", _replay_arguments),
+    "plot": (
+        "draw the figures of a saved run, timing, sweep table or identification",
+        _plot_arguments,
+    ),
     "compare": ("run several controllers on one experiment and compare them", _compare_arguments),
     "reproduce": ("run every paper experiment and write DIR/report.md", _reproduce_arguments),
     "sweep": (

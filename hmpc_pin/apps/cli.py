@@ -210,7 +210,13 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
 
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
     experiment, result, files, failure = run_one(
-        config, out, stem, open_view=open_view, experiment=experiment, figures=False
+        config,
+        out,
+        stem,
+        open_view=open_view,
+        experiment=experiment,
+        figures=False,
+        progress=args.progress,
     )
     with after_the_run(config.name, files):
         return _report(args, config, out, stem, warn, views, experiment, result, files, failure)
@@ -642,6 +648,12 @@ def _run_arguments(run) -> None:
         action="store_false",
         help="write the data files only (.npz, .csv; no PNG figures, which take most of a "
         "short run's time; the .npz holds every array they draw)",
+    )
+    run.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="a progress bar on stderr [on a terminal, once the run takes over 2 s]",
     )
     _add_warn_option(run)
     run.set_defaults(func=cmd_run)

@@ -168,6 +168,7 @@ def simulate(
     meta: dict | None = None,
     on_step=None,
     loop: str | None = None,
+    progress=None,
 ) -> Result:
     """Run the closed loop and return the sampled trajectories.
 
@@ -198,6 +199,9 @@ def simulate(
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
+        progress: Optional callable ``progress(k, K)`` called after each chunk of control
+            periods (at most :data:`~hmpc_pin.sim.plants.PULSE_CHUNK`): ``k`` periods of
+            ``K`` done (a progress bar; it changes nothing in the run).
         loop: Deprecated, no effect (a ``DeprecationWarning``): every run goes through the
             compiled loop (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python
             called through its ports). Earlier versions chose here between it and a
@@ -262,6 +266,7 @@ def simulate(
         on_step,
         (q, dq),
     )
+    runner.progress = progress
     last = k = -1
     message = ""
     cause: BaseException | None

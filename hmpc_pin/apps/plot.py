@@ -192,10 +192,10 @@ def _latency(timing: dict, title: str):
         us = us[np.isfinite(us)] * 1e6
         if len(us):
             p99 = np.percentile(us, 99)
-            ax.hist(
-                us,
-                bins=60,
-                histtype="step",
+            counts, edges = np.histogram(us, bins=60)
+            ax.stairs(
+                counts,
+                edges,
                 color=f"C{k}",
                 lw=1.2,
                 label=f"{label}: median {np.median(us):.0f}, p99 {p99:.0f}, max {us.max():.0f}",

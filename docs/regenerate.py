@@ -1,0 +1,524 @@
+"""Regenerate the numbers printed in the README and the guides from the code.
+
+Every printed block and table of measured numbers sits in its Markdown file between two
+comments::
+
+    <!-- generated: NAME (python docs/regenerate.py) -->
+    ...
+    <!-- end generated: NAME -->
+
+and :data:`BLOCKS` names the function that writes it, from runs of the package done
+here. Usage (from the repository's root)::
+
+    python docs/regenerate.py                 # rewrite every passage
+    python docs/regenerate.py --check         # compare only; exit 1 naming what differs
+    python docs/regenerate.py --only NAME ... # some of them
+    python docs/regenerate.py --fast          # leave out the slow ones (minutes of tuning)
+
+A passage agrees with its regeneration (:func:`agrees`) when the text around the numbers
+is the same and each number is within one unit of its last printed digit (the same code
+on another machine may round the last digit the other way). Timings are machine-dependent:
+a block's ``volatile`` patterns (e.g. ``in 0.09 s``) are left out of the comparison, and
+the prose calls them "about". Every run is deterministic: the same code prints the same
+numbers. ``tests/test_docs_numbers.py`` runs the check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import io
+import re
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+TUNING = "docs/guide/identification-and-tuning.md"
+
+START = "<!-- generated: {name} (python docs/regenerate.py) -->"
+END = "<!-- end generated: {name} -->"
+
+
+@dataclass(frozen=True)
+class Block:
+    """A generated passage: its name, file (from the root), writer, and whether it is slow
+    (minutes); ``volatile``: regular expressions of machine-dependent spans (timings)."""
+
+    name: str
+    file: str
+    write: Callable[[], str]
+    slow: bool = False
+    volatile: tuple[str, ...] = ()
+
+
+# --- helpers ------------------------------------------------------------------------------
+
+
+def _minus(text: str) -> str:
+    """A printed number's hyphen as the typographic minus of the docs' prose and tables."""
+    return text.replace("-", "−")
+
+
+def _pct(x: float) -> str:
+    """A relative deviation in per cent with its sign: ``+0.3 %``, ``−1.7 %``."""
+    return _minus(f"{100 * x:+.1f} %")
+
+
+def _para(text: str) -> str:
+    """A paragraph of prose wrapped as the docs' source is."""
+    import textwrap
+
+    glued = re.sub(r"(\d) (%|N·m|rad\b|s\b)", "\\1\x00\\2", " ".join(text.split()))
+    return textwrap.fill(glued, 90, break_on_hyphens=False).replace("\x00", " ")
+
+
+def _e(x: float) -> str:
+    """Two significant digits in the docs' short exponent form: ``3.4e-4``."""
+    mantissa, exponent = f"{x:.1e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
+def _joints(indices) -> str:
+    """``joint 3``, ``joints 1 and 2``, ``joints 1, 2 and 3`` (1-based)."""
+    names = [str(i + 1) for i in indices]
+    if len(names) == 1:
+        return f"joint {names[0]}"
+    return "joints " + ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def _reversal_share(result, joint: int, window: float = 0.5, after: float = 1.0):
+    """The share of ``joint``'s squared observer error after ``after`` that lies within
+    ``window`` [s] of the reference's reversals (sign changes of q̇_ref), that share of
+    the time, and the reversals' times."""
+    from hmpc_pin.sim.result import Result
+
+    r = Result.load(result)
+    w = r.observer_error[:, joint]
+    late = r.t >= after - 1e-12
+    sign = np.sign(r.dq_ref[:, joint])
+    reversals = r.t[np.flatnonzero(np.diff(sign) != 0)]
+    near = np.zeros(len(r.t), dtype=bool)
+    for tr in reversals:
+        near |= np.abs(r.t - tr) <= window
+    share = float(np.sum(w[late & near] ** 2) / np.sum(w[late] ** 2))
+    return share, float(np.mean(near[late])), reversals
+
+
+def _list(values, fmt: str) -> str:
+    return ", ".join(format(float(v), fmt) for v in values)
+
+
+def _cli(*args: str) -> str:
+    """``hmpc-pin ARGS`` in this process; its standard output (exit 0 asserted)."""
+    from hmpc_pin.apps.cli import main
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main([str(a) for a in args])
+    if code != 0:
+        raise RuntimeError(f"hmpc-pin {' '.join(args)} exited {code}")
+    return buf.getvalue()
+
+
+@functools.cache
+def _workdir() -> Path:
+    return Path(tempfile.mkdtemp(prefix="hmpc_docs_"))
+
+
+@functools.cache
+def _run(config: str, duration: float | None = None, stem: str = "") -> Path:
+    """``hmpc-pin run CONFIG [--duration D] --no-figures`` into a folder of its own; the
+    ``.npz`` written."""
+    out = _workdir() / (stem or config.replace("/", "_").replace(".", "_"))
+    args = ["run", config, "--out", out, "--no-figures"]
+    if duration is not None:
+        args += ["--duration", str(duration)]
+    _cli(*args)
+    (npz,) = out.glob("*.npz")  # named after the config's name
+    return npz
+
+
+def _metrics(npz: Path):
+    from hmpc_pin.apps.metrics import compute_metrics
+    from hmpc_pin.sim.result import Result
+
+    return compute_metrics(Result.load(npz))
+
+
+def _fits(npz: Path, after: float = 0.5):
+    """The friction fits of ``identify`` (observer and dynamics sources, its defaults)."""
+    from hmpc_pin.apps.identify import observer_model
+    from hmpc_pin.apps.runfile import load_run, run_robot
+    from hmpc_pin.identification import fit_friction
+
+    result = load_run(npz)
+    robot = run_robot(result, None)
+    observer = fit_friction(
+        result, source="observer", robot=robot, observer=observer_model(result, robot), after=after
+    )
+    dynamics = fit_friction(result, source="dynamics", robot=robot, after=after)
+    return result, observer, dynamics
+
+
+def _friction_truth(config: str) -> tuple[np.ndarray, np.ndarray]:
+    from hmpc_pin.experiment.config import load_config
+
+    cfg = load_config(config)
+    n = 3
+    return (
+        cfg.vector("disturbance.friction.viscous", n),
+        cfg.vector("disturbance.friction.coulomb", n),
+    )
+
+
+def _fit_table(observer, dynamics, viscous, coulomb) -> list[str]:
+    lines = [
+        "| joint | observer: a | observer: b | dynamics: a | dynamics: b |",
+        "|---|---|---|---|---|",
+    ]
+    for i in range(len(viscous)):
+        oa, ob = observer.viscous[i], observer.coulomb[i]
+        lines.append(
+            f"| {i + 1} | {oa:#.4g} ({_pct(oa / viscous[i] - 1)}) | "
+            f"{ob:#.4g} ({_pct(ob / coulomb[i] - 1)}) | "
+            f"{dynamics.viscous[i]:#.4g} | {dynamics.coulomb[i]:#.4g} |"
+        )
+    return lines
+
+
+# --- the passages -------------------------------------------------------------------------
+
+
+def readme_demo() -> str:
+    """``make demo``'s output: ``examples/track_sine.py --out out``, as printed."""
+    with tempfile.TemporaryDirectory() as cwd:
+        proc = subprocess.run(
+            [sys.executable, str(ROOT / "examples" / "track_sine.py"), "--out", "out"],
+            capture_output=True,
+            text=True,
+            cwd=cwd,
+            check=True,
+        )
+    return "```text\n" + proc.stdout + "```\n"
+
+
+def friction_measured() -> str:
+    """paper_friction, 10 s: the observer and dynamics fits against the plant's friction."""
+    npz = _run("paper_friction")
+    _, observer, dynamics = _fits(npz)
+    viscous, coulomb = _friction_truth("paper_friction")
+    m_e = max(j.effective_samples for f in (observer, dynamics) for j in f.joints)
+    lines = _fit_table(observer, dynamics, viscous, coulomb)
+    lines += [
+        "",
+        _para(
+            f"The observer's fit leaves out {observer.stuck} samples where the joints stuck at "
+            f"the reversals, and {observer.settling:.3g} s after each (5 × the `chen` observer's "
+            f"slowest time constant, {observer.time_constant:.3g} s, along this run). Over 10 s "
+            "the residual of either source is too correlated for an interval (the effective "
+            f"samples m_e are at most {m_e:.1f}; the note under the table says so); a longer "
+            "run gives them."
+        ),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+@functools.cache
+def _heavier() -> tuple[str, str]:
+    """The plant's links 2 and 3 30 % heavier: dynamics against regressor; and the plain
+    fit of d̂ without the observer's dynamics."""
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.config import load_config
+    from hmpc_pin.identification import fit_friction
+
+    viscous, coulomb = _friction_truth("paper_friction")
+    exp = Experiment.from_config(load_config("paper_friction"))
+    exp.plant = exp.plant.with_scaled_inertias([1.0, 1.3, 1.3])
+    run = exp.run()
+    dyn = fit_friction(run, source="dynamics", robot=exp.robot)
+    reg = fit_friction(run, source="regressor", robot=exp.robot)
+    worst = max(
+        float(np.max(np.abs(reg.viscous / viscous - 1))),
+        float(np.max(np.abs(reg.coulomb / coulomb - 1))),
+    )
+    ci = dyn.joints[0].viscous_ci
+    interval = (
+        f"with a 95 % interval of [{_minus(f'{ci[0]:.0f}')}, {_minus(f'{ci[1]:.0f}')}] "
+        "that shows the fit is wrong"
+        if np.all(np.isfinite(ci))
+        else "and no interval (`n/a`: its residual, the missing inertia's torque, is far "
+        "too correlated), which says the fit is not to be trusted"
+    )
+    plain = fit_friction(Experiment.from_config(load_config("paper_friction")).run())
+    miss = plain.coulomb[0] / coulomb[0] - 1
+    first = _para(
+        "Now make the plant's links 2 and 3 30 % heavier than the model, as the sweep does. "
+        "The `dynamics` source then blames the friction for the missing inertia: "
+        f"a = {dyn.viscous[0]:.3g} instead of {viscous[0]:g} on joint 1, {interval}. "
+        f"The `regressor` source recovers every coefficient within {100 * worst:.2f} %:"
+    )
+    return first + "\n", _para(
+        "A plain fit of d̂ against q̇ and sgn q̇, without the observer's dynamics "
+        "(`fit_friction(result)` without `observer=`), misses joint 1's Coulomb term by "
+        f"{100 * abs(miss):.0f} % ({plain.coulomb[0]:.3g} N·m)."
+    ) + "\n"
+
+
+def friction_heavier() -> str:
+    """The plant heavier than the model: the dynamics and regressor sources."""
+    return _heavier()[0]
+
+
+def friction_plain() -> str:
+    """A fit of d̂ without the observer's dynamics."""
+    return _heavier()[1]
+
+
+def _feedforward(config: str, after: float | None, duration: float | None, stem: str):
+    """The run, ``identify --config`` of it, and the run of the config written."""
+    npz = _run(config, duration)
+    ff = npz.parent / "ff.toml"
+    extra = [] if after is None else ["--after", str(after)]
+    _cli("identify", npz, *extra, "--config", config, "--out", ff)
+    return npz, _run(str(ff), duration, stem)
+
+
+def feedforward_table() -> str:
+    """paper_friction with the identified friction fed forward: observer and tracking error."""
+    before, after = _feedforward("paper_friction", None, None, "paper_friction_ff")
+    m0, m1 = _metrics(before), _metrics(after)
+    lines = [
+        "| joint | RMS d − d̂ [N·m], without → with | tracking RMS after 1 s [rad], "
+        "without → with |",
+        "|---|---|---|",
+    ]
+    n = len(m0.rms_error)
+    for i in range(n):
+        lines.append(
+            f"| {i + 1} | {m0.observer_rms[i]:.2g} → {m1.observer_rms[i]:.2g} | "
+            f"{_e(m0.rms_error[i])} → {_e(m1.rms_error[i])} |"
+        )
+    fall = [i for i in range(n) if m1.observer_rms[i] < m0.observer_rms[i]]
+    rise = [i for i in range(n) if i not in fall]
+    tracking = [i for i in range(n) if m1.rms_error[i] < m0.rms_error[i]]
+    text = (
+        "Here the observer error is measured against what the observer has to estimate, "
+        f"d + τ_f. It falls on {_joints(fall)}"
+        + (
+            f" and rises on {_joints(rise)} ("
+            + "; ".join(f"{m0.observer_rms[i]:.2g} → {m1.observer_rms[i]:.2g} N·m" for i in rise)
+            + ")"
+            if rise
+            else ""
+        )
+        + "."
+    )
+    if rise:
+        j = rise[-1]
+        share1, time, reversals = _reversal_share(after, j)
+        share0, _, _ = _reversal_share(before, j)
+        text += (
+            f" With the feed-forward, {100 * share1:.0f} % of joint {j + 1}'s squared "
+            "observer error after 1 s lies within 0.5 s of the reference's reversals "
+            f"(t = {' and '.join(f'{x:g}' for x in reversals)} s; windows that cover "
+            f"{100 * time:.0f} % of the time; without the feed-forward {100 * share0:.0f} %): "
+            "there the Coulomb term fed forward "
+            "at the measured velocity switches sign, while the plant's friction at the "
+            "standstill is a holding torque anywhere within ±b. What the model misses there "
+            "is left to the observer, a jump it follows with its lag; elsewhere the "
+            "feed-forward leaves it little."
+        )
+    text += " The tracking error falls on " + (
+        "every joint." if len(tracking) == n else f"{_joints(tracking)}."
+    )
+    return "\n".join(lines) + "\n\n" + _para(text) + "\n"
+
+
+def mujoco_friction() -> str:
+    """paper_combined_mujoco, 20 s, fitted after the pulses (4.5 s), and fed forward."""
+    after = 4.5
+    npz = _run("paper_combined_mujoco", 20.0)
+    result, observer, dynamics = _fits(npz, after)
+    from hmpc_pin.experiment.config import load_config
+
+    mj = load_config("paper_combined_mujoco").plant.mujoco
+    viscous = np.broadcast_to(np.asarray(mj.damping, float), (3,))
+    coulomb = np.broadcast_to(np.asarray(mj.frictionloss, float), (3,))
+    _, ff = _feedforward("paper_combined_mujoco", after, 20.0, "paper_combined_mujoco_ff")
+    from hmpc_pin.sim.result import Result
+
+    fed = Result.load(ff)
+    late = result.t >= after - 1e-12
+    carry0 = np.sqrt(np.mean(result.d_hat[late] ** 2, axis=0))
+    carry1 = np.sqrt(np.mean(fed.d_hat[fed.t >= after - 1e-12] ** 2, axis=0))
+    e0, e1 = _metrics(npz).rms_error, _metrics(ff).rms_error
+    lines = _fit_table(observer, dynamics, viscous, coulomb)
+    lines += [
+        "",
+        _para(
+            "With the identified friction fed forward (the last two commands), the estimate "
+            "the observer has to carry after the pulses falls from an RMS of "
+            f"{_list(carry0, '.3g')} N·m to {_list(carry1, '.2g')} N·m. This is the RMS of "
+            f"`d_hat` over t ≥ {after:g} s in the two saved runs. The tracking error after "
+            f"1 s goes from {', '.join(map(_e, e0))} rad to {', '.join(map(_e, e1))} rad "
+            "(RMS per joint)."
+        ),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _tune(out: Path, trials: int, observers: tuple[str, ...] | None):
+    from hmpc_pin.apps.tune import tune
+    from hmpc_pin.experiment.config import load_config
+
+    return tune(
+        load_config("panda_sine"),
+        out,
+        trials=trials,
+        samples=4,
+        seed=0,
+        jobs=1,
+        observers=observers,
+        holdout=8,
+        progress=False,
+    )
+
+
+def tuning_table() -> str:
+    """``tune panda_sine``: 30 trials with the observer searched, 40 with it kept; the
+    held-out comparison on 8 other samples (seed 1)."""
+    searched = _tune(_workdir() / "tune", 30, ("general", "momentum"))
+    kept = _tune(_workdir() / "tune_general", 40, None)
+    best = searched.study.best_trial
+    p = best.params
+
+    def row(label: str, parts: dict) -> str:
+        return (
+            f"| {label} | {parts['p95_rms']:.3g} | {100 * parts['bounded']:.0f} % | "
+            f"{100 * parts['saturation']:.1f} % | {parts['torque_tv']:.0f} |"
+        )
+
+    shipped = searched.holdout["shipped"]
+    lines = [
+        f"Its best trial ({best.number} of 30) is the {p.get('compensation', 'general')} "
+        f"observer with gain {p['observer_gain']:.3g}, Q = diag({p['Q_position']:.3g}, "
+        f"{p['Q_velocity']:.3g}), R = {p['R']:.2g} and N = {p['N']}. On 8 held-out samples "
+        "(seed 1):",
+        "",
+        "| config | p95 score [rad] | bounded | saturated periods | torque TV [N·m/s] |",
+        "|---|---|---|---|---|",
+        row("panda_sine as shipped", shipped),
+        row("tuned, observer searched", searched.holdout["tuned"]),
+        row("tuned, `general` kept (40 trials)", kept.holdout["tuned"]),
+        "",
+        f"Shipped / tuned (observer searched) p95: "
+        f"{shipped['p95_rms'] / searched.holdout['tuned']['p95_rms']:.3g}; with `general` "
+        f"kept: {shipped['p95_rms'] / kept.holdout['tuned']['p95_rms']:.3g}.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+#: Every generated passage, in file order.
+BLOCKS: tuple[Block, ...] = (
+    Block("demo", "README.md", readme_demo, volatile=(r"in \d+(?:\.\d+)? s;",)),
+    Block("friction-measured", TUNING, friction_measured),
+    Block("friction-heavier", TUNING, friction_heavier),
+    Block("friction-plain", TUNING, friction_plain),
+    Block("feedforward", TUNING, feedforward_table),
+    Block("mujoco-friction", TUNING, mujoco_friction),
+    Block("tuning", TUNING, tuning_table, slow=True),
+)
+
+
+# --- reading, comparing, writing -----------------------------------------------------------
+
+_NUMBER = re.compile(r"(?<![\w.])[-−+]?\d+(?:\.\d*)?(?:[eE][-−+]?\d+)?(?![\w])")
+
+
+def passage(text: str, name: str) -> tuple[int, int]:
+    """The span of passage ``name`` in ``text`` (between its comments' lines)."""
+    start, end = START.format(name=name), END.format(name=name)
+    if text.count(start) != 1 or text.count(end) != 1:
+        raise ValueError(f"passage {name!r}: expected one {start!r} and one {end!r}")
+    i = text.index(start) + len(start) + 1
+    j = text.index(end)
+    if j < i:
+        raise ValueError(f"passage {name!r}: its end comes before its start")
+    return i, j
+
+
+def _ulp(token: str) -> float:
+    """One unit of the last printed digit of a number as printed."""
+    mantissa, _, exponent = token.replace("−", "-").lower().partition("e")
+    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+    return 10.0 ** (int(exponent or 0) - decimals)
+
+
+def agrees(printed: str, regenerated: str, volatile: tuple[str, ...] = ()) -> str | None:
+    """``None`` when ``printed`` is ``regenerated`` within the printed precision (module
+    docstring), else the first difference in one line."""
+    for pattern in volatile:
+        printed = re.sub(pattern, "<volatile>", printed)
+        regenerated = re.sub(pattern, "<volatile>", regenerated)
+    a, b = _NUMBER.split(printed), _NUMBER.split(regenerated)
+    na, nb = _NUMBER.findall(printed), _NUMBER.findall(regenerated)
+    if a != b or len(na) != len(nb):
+        for la, lb in zip(printed.splitlines(), regenerated.splitlines(), strict=False):
+            if _NUMBER.split(la) != _NUMBER.split(lb):
+                return f"text differs: {la.strip()!r} now {lb.strip()!r}"
+        return "the passage has another number of lines or numbers"
+    for x, y in zip(na, nb, strict=True):
+        fx, fy = (float(s.replace("−", "-")) for s in (x, y))
+        if abs(fx - fy) > _ulp(x) * 1.0000001:
+            return f"{x} is now {y}"
+    return None
+
+
+def regenerate(blocks, check: bool) -> list[str]:
+    """Run ``blocks``; write them into their files (``check``: compare only). Returns the
+    differences found, one line each."""
+    problems = []
+    for block in blocks:
+        path = ROOT / block.file
+        text = path.read_text(encoding="utf-8")
+        i, j = passage(text, block.name)
+        new = block.write()
+        diff = agrees(text[i:j], new, block.volatile)
+        if diff is not None:
+            problems.append(f"{block.file} [{block.name}]: {diff}")
+            if not check:
+                path.write_text(text[:i] + new + text[j:], encoding="utf-8")
+        print(f"{block.name}: {'differs' if diff else 'agrees'}", file=sys.stderr)
+    return problems
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help="compare only; exit 1 on a change")
+    parser.add_argument("--only", nargs="+", metavar="NAME", help="these passages only")
+    parser.add_argument("--fast", action="store_true", help="leave out the slow passages")
+    args = parser.parse_args(argv)
+    names = {b.name for b in BLOCKS}
+    unknown = set(args.only or ()) - names
+    if unknown:
+        parser.error(f"unknown passage(s) {sorted(unknown)}; expected some of {sorted(names)}")
+    blocks = [
+        b
+        for b in BLOCKS
+        if (args.only is None or b.name in args.only) and not (args.fast and b.slow)
+    ]
+    problems = regenerate(blocks, args.check)
+    for line in problems:
+        print(line)
+    return 1 if problems and args.check else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -489,8 +489,8 @@ def regenerate(blocks, check: bool) -> list[str]:
         path = ROOT / block.file
         text = path.read_text(encoding="utf-8")
         i, j = passage(text, block.name)
-        new = block.write()
-        diff = agrees(text[i:j], new, block.volatile)
+        new = block.write().strip("\n") + "\n"
+        diff = agrees(text[i:j].strip("\n"), new.strip("\n"), block.volatile)
         if diff is not None:
             problems.append(f"{block.file} [{block.name}]: {diff}")
             if not check:

@@ -96,6 +96,12 @@ def _plain(x: float) -> str:
     return f"{x:.0f}" if abs(x) >= 100 else f"{x:.2g}"
 
 
+def _e4(x: float) -> str:
+    """Four significant digits in the short exponent form: ``4.312e-4``."""
+    mantissa, exponent = f"{x:.3e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
 def _joints(indices) -> str:
     """``joint 3``, ``joints 1 and 2``, ``joints 1, 2 and 3`` (1-based)."""
     names = [str(i + 1) for i in indices]
@@ -477,6 +483,117 @@ def task_space_table() -> str:
     return "\n".join(lines) + "\n"
 
 
+def model_at() -> str:
+    """paper_combined with the observer's model at the end (default) and at the start."""
+    from dataclasses import replace
+
+    from hmpc_pin.apps.metrics import compute_metrics
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.config import load_config
+
+    base = load_config("paper_combined")
+    rms = {}
+    for at in ("end", "start"):
+        cc = replace(base.controller, observer=replace(base.controller.observer, model_at=at))
+        rms[at] = compute_metrics(Experiment.from_config(replace(base, controller=cc)).run())
+    end = ", ".join(_e4(x) for x in rms["end"].rms_error)
+    start = ", ".join(_e4(x) for x in rms["start"].rms_error)
+    return _para(
+        '`hmpc-pin init` writes `"start"`. The default stays `"end"`, so configs of '
+        "earlier versions run as before (the paper's scenario `hmpc-pin run paper_combined`: "
+        f'{end} rad with `"end"`; {start} with `"start"`).'
+    )
+
+
+def _z1_value(rms: float, joint: int) -> str:
+    value = _e(rms) if rms < 0.1 else f"{rms:.2g}"
+    return f"{value} (joint {joint})"
+
+
+@functools.cache
+def _z1() -> tuple[list, list]:
+    """The rows of ``python -m benchmarks.damped_arm``: (first table, second table), each
+    row ``(plant, plant joint dynamics, controller compensates, observer, rms, joint)``."""
+    from dataclasses import replace
+
+    sys.path.insert(0, str(ROOT))
+    from benchmarks import damped_arm
+    from hmpc_pin.experiment.init import InitPlan
+
+    base = damped_arm.config(_workdir() / "z1_damped.toml")
+    first = []
+    plants = [
+        ("Pinocchio RK4, 0.1 ms", replace(base.plant, dt=1e-4)),
+        ("MuJoCo implicitfast, 1 ms", replace(base.plant, engine="mujoco", dt=0.001)),
+    ]
+    mj = plants[1][1]
+    plants.append(
+        (
+            "MuJoCo, `friction_timeconst = 0.002`",
+            replace(mj, mujoco=replace(mj.mujoco, friction_timeconst=0.002)),
+        )
+    )
+    cases = [
+        (False, False, True, "end"),
+        (False, False, True, "start"),
+        (True, False, True, "start"),
+        (True, True, True, "end"),
+        (True, True, True, "start"),
+        (True, True, False, "-"),
+    ]
+    for label, pc in plants:
+        for plant_jd, ctrl_jd, obs, at in cases:
+            cc = base.controller
+            if obs:
+                cc = replace(cc, observer=replace(cc.observer, model_at=at))
+            cfg = replace(
+                base,
+                plant=replace(pc, joint_dynamics=plant_jd),
+                controller=replace(cc, joint_dynamics=ctrl_jd),
+            )
+            rms, joint = damped_arm.worst_rms(cfg, obs)
+            what = f"general ({at})" if obs else "none"
+            first.append((label, plant_jd, ctrl_jd, what, rms, joint))
+    Ts = InitPlan("z1").periods()[0]
+    obs10 = replace(base.controller.observer, bandwidth=10.0 / Ts)
+    cc = replace(base.controller, Ts=Ts, observer=obs10)
+    second = []
+    for label, pc in (plants[0], plants[2]):
+        for obs in (True, False):
+            rms, joint = damped_arm.worst_rms(replace(base, plant=pc, controller=cc), obs)
+            second.append((label, "general (start)" if obs else "none", rms, joint))
+    cc50 = replace(cc, N=round(0.1 / Ts))
+    rms, joint = damped_arm.worst_rms(replace(base, plant=plants[0][1], controller=cc50))
+    second.append((f"{plants[0][0]}, N = {cc50.N}", "general (start)", rms, joint))
+    return first, second
+
+
+def z1_damped() -> str:
+    """The damped Z1 at Ts = 10 ms on three plants (``python -m benchmarks.damped_arm``)."""
+    first, _ = _z1()
+    yes = {True: "yes", False: "no"}
+    lines = [
+        "| plant | plant has joint dynamics | controller compensates | observer (model at) | "
+        "worst RMS [rad] |",
+        "|---|---|---|---|---|",
+    ]
+    for label, plant_jd, ctrl_jd, what, rms, joint in first:
+        value = _z1_value(rms, joint)
+        if plant_jd and ctrl_jd and what == "general (start)" and "implicitfast" not in label:
+            value = value.replace(value.split(" ")[0], f"**{value.split(' ')[0]}**", 1)
+        lines.append(f"| {label} | {yes[plant_jd]} | {yes[ctrl_jd]} | {what} | {value} |")
+    return "\n".join(lines) + "\n"
+
+
+def z1_init_period() -> str:
+    """The damped Z1 at the period ``hmpc-pin init z1`` picks."""
+    _, second = _z1()
+    lines = ["| plant | observer (model at) | worst RMS [rad] |", "|---|---|---|"]
+    for label, what, rms, joint in second:
+        lines.append(f"| {label} | {what} | {_z1_value(rms, joint)} |")
+    return "\n".join(lines) + "\n"
+
+
 def _tune(out: Path, trials: int, observers: tuple[str, ...] | None):
     from hmpc_pin.apps.tune import tune
     from hmpc_pin.experiment.config import load_config
@@ -597,6 +714,9 @@ BLOCKS: tuple[Block, ...] = (
     Block("feedforward", TUNING, feedforward_table),
     Block("mujoco-friction", TUNING, mujoco_friction),
     Block("tuning", TUNING, tuning_table, slow=True),
+    Block("model-at", "docs/guide/joint-dynamics-and-check.md", model_at),
+    Block("z1-damped", "docs/guide/joint-dynamics-and-check.md", z1_damped, slow=True),
+    Block("z1-init-period", "docs/guide/joint-dynamics-and-check.md", z1_init_period, slow=True),
     Block("mujoco-own-friction", "docs/tutorials/mujoco-contacts.md", mujoco_own_friction),
     Block("contact-estimate", "docs/tutorials/mujoco-contacts.md", contact_estimate),
     Block("task-space", "docs/tutorials/end-effector-path.md", task_space_table),

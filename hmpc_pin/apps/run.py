@@ -7,6 +7,7 @@ import contextlib
 import csv
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,7 @@ class Progress:
         self.name = name
         self.show = sys.stderr.isatty() if show is None else bool(show)
         self.delay = PROGRESS_DELAY if show is None else 0.0
-        self._bar = None
+        self._bar: Any = None
 
     def __call__(self, k: int, total: int) -> None:
         if not self.show:

@@ -280,3 +280,14 @@ def test_progress_is_off_away_from_a_terminal_and_shown_when_forced(tmp_path):
     assert loud.returncode == 0, loud.stderr
     assert "paper_combined:" in loud.stderr and "/2000 [" in loud.stderr
     assert quiet.stdout == loud.stdout  # the same table
+
+
+def test_an_out_that_is_a_file_is_one_line_and_exit_2(sim_run, tmp_path):
+    (tmp_path / "taken").write_text("")
+    proc = _cli("plot", sim_run, "--out", tmp_path / "taken")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"error: --out: output directory '{tmp_path / 'taken'}' is a file; pass --out with "
+        "a directory you can write to"
+    ]
+    assert not list(tmp_path.glob("*.png"))

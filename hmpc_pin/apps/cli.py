@@ -780,11 +780,24 @@ def _identify_arguments(idf) -> None:
     identify_arguments(idf)
 
 
+def cmd_plot(args) -> int:
+    from .plot import figures, save
+
+    _, figs = figures(args.file, args.run)  # bad input stops here: nothing written
+    out = _out_dir(args.out if args.out is not None else args.file.parent)
+    for path in save(args.file, figs, out):
+        print(f"wrote {path}")
+    if not figs:
+        print(f"{args.file}: nothing to draw (no finite arrays)")
+    return EXIT_OK
+
+
 def _plot_arguments(plt) -> None:
     """``hmpc-pin plot`` (:mod:`hmpc_pin.apps.plot`)."""
     from .plot import plot_arguments
 
     plot_arguments(plt)
+    plt.set_defaults(func=cmd_plot)
 
 
 def _tune_arguments(tun) -> None:

@@ -37,7 +37,7 @@ import numpy as np
 from ..exceptions import ConfigError
 from .runfile import load_run
 
-__all__ = ["TIMING_ARRAYS", "cmd_plot", "figures", "plot_arguments", "plot_file"]
+__all__ = ["FRANKA_ARRAYS", "TIMING_ARRAYS", "figures", "plot_arguments", "plot_file", "save"]
 
 #: The arrays that make an ``.npz`` a timing file (:meth:`RealtimeRun.save_timing
 #: <hmpc_pin.realtime.loop.RealtimeRun.save_timing>`).
@@ -421,32 +421,21 @@ def figures(path: Path, run: Path | None = None) -> tuple[str, dict]:
     return kind, out
 
 
-def plot_file(path: Path, out: Path | None = None, run: Path | None = None) -> list[Path]:
-    """Write the figures of ``path`` (:func:`figures`) as ``out/<stem>_<name>.png``
-    (``out``: the file's folder by default) and return their paths."""
+def save(path: Path, figs: dict, folder: Path) -> list[Path]:
+    """Write ``figs`` (:func:`figures` of ``path``) as ``folder/<stem>_<name>.png``."""
     from . import plots
 
     path = Path(path)
-    _, figs = figures(path, run)
-    folder = path.parent if out is None else Path(out)
     stem = path.stem if path.suffix in (".npz", ".csv", ".toml") else path.name
-    return [plots._save(fig, folder / f"{stem}_{name}.png") for name, fig in figs.items()]
+    return [plots._save(fig, Path(folder) / f"{stem}_{name}.png") for name, fig in figs.items()]
 
 
-def cmd_plot(args) -> int:
-    """``hmpc-pin plot``: the figures written, one ``wrote`` line each."""
-    from .. import exceptions
-
-    if args.out is not None:
-        if args.out.exists() and not args.out.is_dir():
-            raise exceptions.OutputError(args.out, "is not a directory", "--out")
-        args.out.mkdir(parents=True, exist_ok=True)
-    written = plot_file(args.file, args.out, args.run)
-    if not written:
-        print(f"{args.file}: nothing to draw (no finite arrays)")
-    for p in written:
-        print(f"wrote {p}")
-    return 0
+def plot_file(path: Path, out: Path | None = None, run: Path | None = None) -> list[Path]:
+    """Write the figures of ``path`` (:func:`figures`) as ``out/<stem>_<name>.png``
+    (``out``: the file's folder by default) and return their paths."""
+    path = Path(path)
+    _, figs = figures(path, run)
+    return save(path, figs, path.parent if out is None else Path(out))
 
 
 def plot_arguments(plt) -> None:
@@ -466,4 +455,3 @@ def plot_arguments(plt) -> None:
         default=None,
         help="for an identify .toml: the run it was fitted from [the one it names]",
     )
-    plt.set_defaults(func=cmd_plot)

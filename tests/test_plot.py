@@ -291,3 +291,22 @@ def test_an_out_that_is_a_file_is_one_line_and_exit_2(sim_run, tmp_path):
         "a directory you can write to"
     ]
     assert not list(tmp_path.glob("*.png"))
+
+
+def test_progress_by_default_on_a_terminal_only_and_after_its_delay(monkeypatch):
+    import io
+
+    from hmpc_pin.apps.run import PROGRESS_DELAY, Progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    assert not Progress("x").show  # a pipe or a file: no bar
+    monkeypatch.setattr(sys, "stderr", Terminal())
+    bar = Progress("x")
+    assert bar.show and bar.delay == PROGRESS_DELAY == 2.0
+    forced = Progress("x", True)
+    assert forced.show and forced.delay == 0.0
+    assert not Progress("x", False).show

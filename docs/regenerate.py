@@ -146,7 +146,13 @@ def _cli(*args: str) -> str:
 
 @functools.cache
 def _workdir() -> Path:
-    return Path(tempfile.mkdtemp(prefix="hmpc_docs_"))
+    """A temporary folder for the runs, removed when the interpreter exits."""
+    import atexit
+    import shutil
+
+    path = Path(tempfile.mkdtemp(prefix="hmpc_docs_"))
+    atexit.register(shutil.rmtree, path, ignore_errors=True)
+    return path
 
 
 @functools.cache

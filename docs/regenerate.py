@@ -646,15 +646,15 @@ def tuning_table() -> str:
     shipped = searched.holdout["shipped"]
     tuned = {"searched": searched.holdout["tuned"], "kept": kept.holdout["tuned"]}
     oc = config.controller.observer
+    kind = config.controller.compensation
 
     def best(result, trials: int) -> str:
         trial = result.study.best_trial
         p = trial.params
-        kind = p.get("compensation", oc.kind)
         return (
-            f"trial {trial.number} of {trials}: the `{kind}` observer with gain "
-            f"{p['observer_gain']:.4g}, Q = diag({p['Q_position']:.4g}, {p['Q_velocity']:.3g}), "
-            f"R = {p['R']:.2g} and N = {p['N']}"
+            f"trial {trial.number} of {trials}: the `{p.get('compensation', kind)}` observer "
+            f"with gain {p['observer_gain']:.4g}, Q = diag({p['Q_position']:.4g}, "
+            f"{p['Q_velocity']:.3g}), R = {_e(p['R'])} and N = {p['N']}"
         )
 
     if shipped["bounded"] == 1.0:
@@ -669,15 +669,15 @@ def tuning_table() -> str:
             f"saturates in {100 * shipped['saturation']:.1f} % of the periods"
         )
     head = _para(
-        f"`panda_sine` as shipped (the `{oc.kind}` observer, c = {oc.gain:g}) {verdict}. The "
+        f"`panda_sine` as shipped (the `{kind}` observer, c = {oc.gain:g}) {verdict}. The "
         "sweep runs each drawn plant through its interface model (`[sweep]`; here the default: "
         f"{_sensing(config)}). The first search, over the observer as well as the gains, "
-        f"picks {best(searched, 30)}; the second, the `{oc.kind}` observer kept, picks "
+        f"picks {best(searched, 30)}; the second, the `{kind}` observer kept, picks "
         f"{best(kept, 40)}. On the 8 held-out samples:"
     )
 
     def row(label: str, parts: dict) -> str:
-        score = f"{parts['p95_rms']:.3g}"
+        score = _e3(parts["p95_rms"])
         return (
             f"| {label} | {score} | {100 * parts['bounded']:.0f} % | "
             f"{100 * parts['saturation']:.1f} % | {parts['torque_tv']:.0f} |"
@@ -689,7 +689,7 @@ def tuning_table() -> str:
         "|---|---|---|---|---|",
         row("panda_sine as shipped", shipped),
         row("tuned, observer searched (30 trials)", tuned["searched"]),
-        row(f"tuned, `{oc.kind}` kept (40 trials)", tuned["kept"]),
+        row(f"tuned, `{kind}` kept (40 trials)", tuned["kept"]),
     ]
 
     def change(label: str, parts: dict) -> str:
@@ -704,7 +704,7 @@ def tuning_table() -> str:
         ("Every run is bounded, so each score is a true p95 RMS error. " if every else "")
         + "Against the shipped config, the search with the observer searched "
         + change("", tuned["searched"]).strip()
-        + f", and the search with `{oc.kind}` kept "
+        + f", and the search with `{kind}` kept "
         + change("", tuned["kept"]).strip()
         + "."
     )

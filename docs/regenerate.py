@@ -692,20 +692,20 @@ def tuning_table() -> str:
         row(f"tuned, `{kind}` kept (40 trials)", tuned["kept"]),
     ]
 
-    def change(label: str, parts: dict) -> str:
+    def change(parts: dict) -> str:
         ratio = shipped["p95_rms"] / parts["p95_rms"]
         tv = parts["torque_tv"] / shipped["torque_tv"]
         return (
-            f"{label} {'lowers' if ratio > 1 else 'raises'} it {max(ratio, 1 / ratio):.3g}× "
-            f"at {tv:.2g}× the torque's total variation"
+            f"{max(ratio, 1 / ratio):.3g}× {'lower' if ratio > 1 else 'higher'} at "
+            f"{tv:.2g}× the torque's total variation"
         )
 
     tail = _para(
         ("Every run is bounded, so each score is a true p95 RMS error. " if every else "")
-        + "Against the shipped config, the search with the observer searched "
-        + change("", tuned["searched"]).strip()
-        + f", and the search with `{kind}` kept "
-        + change("", tuned["kept"]).strip()
+        + "Against the shipped config's, the first search's score is "
+        + change(tuned["searched"])
+        + f", the second's (`{kind}` kept) "
+        + change(tuned["kept"])
         + "."
     )
     return head + "\n\n" + "\n".join(table) + "\n\n" + tail + "\n"

@@ -600,6 +600,35 @@ def z1_init_period() -> str:
     return "\n".join(lines) + "\n"
 
 
+def _tv(x: float) -> str:
+    """A total variation [N·m/s]: ``22.6``, or ``5.8e5`` from 10⁴ up."""
+    return _e(x) if x >= 1e4 else f"{x:.1f}"
+
+
+def compare_table() -> str:
+    """``hmpc-pin compare paper_combined``: the seven controllers (the step's median time is
+    machine-dependent: left out of the check)."""
+    from hmpc_pin.apps.compare import parse_controllers, run_comparison
+    from hmpc_pin.experiment.config import load_config
+
+    config = load_config("paper_combined")
+    comp = run_comparison(config, parse_controllers(None, config))
+    lines = [
+        "| kind | RMS e [rad] (joints 1, 2, 3) | within 0.01 rad from [s] | TV(τ) [N·m/s] | "
+        "τ energy > 10 Hz | step [µs] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for kind, run in comp.runs.items():
+        m = run.metrics
+        settle = ", ".join("never" if t != t else f"{t:.2f}" for t in m.settling_time)
+        lines.append(
+            f"| `{kind}` | {', '.join(map(_e, m.rms_error))} | {settle} | "
+            f"{', '.join(map(_tv, m.tau_tv))} | {max(m.tau_hf_share):.2f} | "
+            f"{run.step_us:.0f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def _tune(out: Path, trials: int, observers: tuple[str, ...] | None):
     from hmpc_pin.apps.tune import tune
     from hmpc_pin.experiment.config import load_config
@@ -723,6 +752,12 @@ BLOCKS: tuple[Block, ...] = (
     Block("model-at", "docs/guide/joint-dynamics-and-check.md", model_at),
     Block("z1-damped", "docs/guide/joint-dynamics-and-check.md", z1_damped, slow=True),
     Block("z1-init-period", "docs/guide/joint-dynamics-and-check.md", z1_init_period, slow=True),
+    Block(
+        "compare",
+        "docs/concepts/controllers.md",
+        compare_table,
+        volatile=(r"\| \d+ \|$", r"\| \d+ \|(?= \| `)"),
+    ),
     Block("mujoco-own-friction", "docs/tutorials/mujoco-contacts.md", mujoco_own_friction),
     Block("contact-estimate", "docs/tutorials/mujoco-contacts.md", contact_estimate),
     Block("task-space", "docs/tutorials/end-effector-path.md", task_space_table),

@@ -680,10 +680,11 @@ def tuning_table() -> str:
     def best(result, trials: int) -> str:
         trial = result.study.best_trial
         p = trial.params
+        which = f"the `{p['compensation']}` observer with " if "compensation" in p else ""
         return (
-            f"trial {trial.number} of {trials}: the `{p.get('compensation', kind)}` observer "
-            f"with gain {p['observer_gain']:.4g}, Q = diag({p['Q_position']:.4g}, "
-            f"{p['Q_velocity']:.3g}), R = {_e(p['R'])} and N = {p['N']}"
+            f"trial {trial.number} of {trials}: {which}gain {p['observer_gain']:.4g}, "
+            f"Q = diag({p['Q_position']:.4g}, {p['Q_velocity']:.3g}), R = {_e(p['R'])} "
+            f"and N = {p['N']}"
         )
 
     if shipped["bounded"] == 1.0:
@@ -699,8 +700,8 @@ def tuning_table() -> str:
         )
     head = _para(
         f"`panda_sine` as shipped (the `{kind}` observer, c = {oc.gain:g}) {verdict}. The "
-        "sweep runs each drawn plant through its interface model (`[sweep]`; here the default: "
-        f"{_sensing(config)}). The first search, over the observer as well as the gains, "
+        "sweep runs each drawn plant through its interface model (`[sweep.sensing]`, here its "
+        f"defaults: {_sensing(config)}). The first search, over the observer as well as the gains, "
         f"picks {best(searched, 30)}; the second, the `{kind}` observer kept, picks "
         f"{best(kept, 40)}. On the 8 held-out samples:"
     )

@@ -230,7 +230,13 @@ def _run_and_report(args, config, out, stem, warn, views: list, experiment=None)
 
     open_view = (lambda exp: _open_view(exp, args, views)) if args.viz else None
     experiment, result, files, failure = run_one(
-        config, out, stem, open_view=open_view, experiment=experiment, figures=False
+        config,
+        out,
+        stem,
+        open_view=open_view,
+        experiment=experiment,
+        figures=False,
+        progress=args.progress,
     )
     with after_the_run(config.name, files):
         return _report(args, config, out, stem, warn, views, experiment, result, files, failure)
@@ -761,6 +767,12 @@ def _run_arguments(run) -> None:
         help="write the data files only (.npz, .csv; no PNG figures, which take most of a "
         "short run's time; the .npz holds every array they draw)",
     )
+    run.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="a progress bar on stderr [on a terminal, once the run takes over 2 s]",
+    )
     _add_warn_option(run)
     run.set_defaults(func=cmd_run)
 
@@ -905,6 +917,26 @@ def _identify_arguments(idf) -> None:
     from .identify import identify_arguments
 
     identify_arguments(idf)
+
+
+def cmd_plot(args) -> int:
+    from .plot import figures, save
+
+    _, figs = figures(args.file, args.run)  # bad input stops here: nothing written
+    out = _out_dir(args.out if args.out is not None else args.file.parent)
+    for path in save(args.file, figs, out):
+        print(f"wrote {path}")
+    if not figs:
+        print(f"{args.file}: nothing to draw (no finite arrays)")
+    return EXIT_OK
+
+
+def _plot_arguments(plt) -> None:
+    """``hmpc-pin plot`` (:mod:`hmpc_pin.apps.plot`)."""
+    from .plot import plot_arguments
+
+    plot_arguments(plt)
+    plt.set_defaults(func=cmd_plot)
 
 
 def _tune_arguments(tun) -> None:
@@ -1094,6 +1126,10 @@ def _native_arguments(nat) -> None:
 COMMANDS = {
     "run": ("run one experiment from a TOML config", _run_arguments),
     "replay": ("write a self-contained Meshcat HTML replay of a saved run", _replay_arguments),
+    "plot": (
+        "draw the figures of a saved run, timing, sweep table or identification",
+        _plot_arguments,
+    ),
     "compare": ("run several controllers on one experiment and compare them", _compare_arguments),
     "reproduce": ("run every paper experiment and write DIR/report.md", _reproduce_arguments),
     "sweep": (

@@ -219,6 +219,9 @@ def _fixed_layout(fig, rows: int, cols: int, title_lines: int) -> None:
 
 
 def _finish(fig, axes, path, title):
+    """Label the time axis, title and lay out ``fig``; write it to ``path`` and return the
+    path, or return the figure itself when ``path`` is ``None`` (:mod:`~hmpc_pin.apps.plot`
+    saves it)."""
     for ax in axes[-1]:
         ax.set_xlabel("time t [s]")
     lines = 0
@@ -227,7 +230,7 @@ def _finish(fig, axes, path, title):
         lines = wrapped.count("\n") + 1
         fig.suptitle(wrapped, y=1 - 0.1 / fig.get_figheight(), va="top")
     _fixed_layout(fig, len(axes), len(axes[0]), lines)
-    return _save(fig, path)
+    return fig if path is None else _save(fig, path)
 
 
 def _tracking(ax, result, i):
@@ -239,7 +242,9 @@ def _tracking(ax, result, i):
 
 def _disturbance(ax, result, i):
     ff = result.extra.get("friction_feedforward")
-    if ff is None:
+    if not np.any(np.isfinite(result.d[:, i])):
+        pass  # an arm does not report its disturbance (``realtime``, ``ros``): d̂ alone
+    elif ff is None:
         _line(ax, result.t, result.d[:, i], "k", lw=1.2, label="true d")
     else:  # the observer estimates what the friction model fed forward leaves
         _line(ax, result.t, result.d[:, i] + ff[:, i], "k", lw=1.2, label="true d + τ_f")
@@ -468,7 +473,7 @@ def plot_task_space(result, path, title: str = "", after: float = 1.0) -> Path:
     frame = result.meta.get("task", {}).get("frame", "tool")
     fig.suptitle(f"{title} — frame {frame}" if title else f"frame {frame}")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig if path is None else _save(fig, path)
 
 
 #: The figures of a run by name (:func:`draw`): tracking, disturbance and the error

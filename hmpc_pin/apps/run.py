@@ -7,6 +7,7 @@ import contextlib
 import csv
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -15,7 +16,49 @@ from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
 from ..sim.result import RESULT_ARRAYS, TASK_ARRAYS, Result
 
-__all__ = ["draw_figures", "live_view", "run_one", "write_csv"]
+__all__ = ["PROGRESS_DELAY", "Progress", "draw_figures", "live_view", "run_one", "write_csv"]
+
+#: A run's progress bar shows once the run has taken this long [s] (``progress=None``).
+PROGRESS_DELAY = 2.0
+
+
+class Progress:
+    """A run's progress bar on stderr (tqdm), in control periods: ``progress(k, K)`` of
+    :meth:`~hmpc_pin.experiment.build.Experiment.run` after each chunk of periods.
+
+    Args:
+        name: The bar's label.
+        show: ``None``: on a terminal only, once the run has taken :data:`PROGRESS_DELAY`
+            (a short run shows none); ``True``: from the start, wherever stderr goes;
+            ``False``: never.
+
+    The bar reads the count of periods only: the run is the same, bit for bit, with or
+    without it.
+    """
+
+    def __init__(self, name: str, show: bool | None = None):
+        self.name = name
+        self.show = sys.stderr.isatty() if show is None else bool(show)
+        self.delay = PROGRESS_DELAY if show is None else 0.0
+        self._bar: Any = None
+
+    def __call__(self, k: int, total: int) -> None:
+        if not self.show:
+            return
+        if self._bar is None:
+            from tqdm import tqdm
+
+            self._bar = tqdm(
+                total=total, desc=self.name, unit="step", delay=self.delay, file=sys.stderr,
+                leave=False, dynamic_ncols=True,
+            )  # fmt: skip
+        self._bar.update(k - self._bar.n)
+
+    def close(self) -> None:
+        """Remove the bar (the table printed next starts on a clean line)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
 
 
 def write_csv(result: Result, path: Path) -> Path:
@@ -91,6 +134,7 @@ def run_one(
     open_view=None,
     experiment: Experiment | None = None,
     figures: bool = True,
+    progress: bool | None = False,
 ):
     """Run ``config``; write ``<stem>.npz``, ``<stem>.csv`` and figures to ``out``.
 
@@ -102,6 +146,9 @@ def run_one(
             found before the output directory is created).
         figures: Draw the figures (:func:`draw_figures`); ``False``: the caller draws
             them later (the command line prints its table first).
+        progress: A progress bar on stderr (:class:`Progress`: ``None`` on a terminal
+            once the run takes more than :data:`PROGRESS_DELAY`, ``True`` always,
+            ``False`` never).
 
     Returns:
         (experiment, result, files, failure message or None).
@@ -123,8 +170,9 @@ def run_one(
         times = np.linspace(0.0, config.simulation.duration, 3001)
         view.draw_path("target_path", target.poses(times)[0])
     failure = None
+    bar = Progress(config.name, progress)
     try:
-        result = experiment.run(on_step=view)
+        result = experiment.run(on_step=view, progress=bar if bar.show else None)
     except SimulationError as exc:
         if exc.result is None:
             raise
@@ -134,6 +182,7 @@ def run_one(
         exc.files = _save_data(exc.result, out, stem)
         raise
     finally:
+        bar.close()
         if own_view and view is not None:
             view.close()
     files = _save_data(result, out, stem)

@@ -428,13 +428,16 @@ class Experiment:
         URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
         return _effort_limit(self.config, self.plant)
 
-    def run(self, duration: float | None = None, on_step=None, loop: str | None = None) -> Result:
+    def run(
+        self, duration: float | None = None, on_step=None, loop: str | None = None, progress=None
+    ) -> Result:
         """Simulate the closed loop for ``duration`` [s] (default: the config's).
 
         ``loop`` is deprecated and has no effect (:func:`~hmpc_pin.sim.simulate.simulate`:
         every run goes through the compiled loop).
 
-        ``on_step(t, q, q_ref)`` is called at every control instant (live view). The
+        ``on_step(t, q, q_ref)`` is called at every control instant (live view),
+        ``progress(k, K)`` after each chunk of control periods (a progress bar). The
         result's ``meta`` records the plant's engine and version (and, with a collision
         watch, the flag); on MuJoCo with an obstacle ``extra["contact_force"]`` holds the
         generalized contact force [N·m] at each instant (of the last MuJoCo step before
@@ -442,7 +445,7 @@ class Experiment:
         """
         plant = self.make_plant()
         try:
-            result = self._simulate(plant, duration, on_step, loop)
+            result = self._simulate(plant, duration, on_step, loop, progress)
         except SimulationError as exc:
             if exc.result is not None:
                 self._record_plant(plant, exc.result)
@@ -493,7 +496,7 @@ class Experiment:
         return result
 
     def _simulate(
-        self, plant: Plant, duration: float | None, on_step, loop: str | None = None
+        self, plant: Plant, duration: float | None, on_step, loop: str | None = None, progress=None
     ) -> Result:
         cfg = self.config
         return simulate(
@@ -509,6 +512,7 @@ class Experiment:
             on_step=on_step,
             meta=self.meta(),
             loop=loop,
+            progress=progress,
         )
 
     def meta(self) -> dict:

@@ -152,6 +152,9 @@ class CompiledLoop:
         q0, dq0 = state if state is not None else (plant.q, plant.dq)
         self._x = np.concatenate([q0, dq0])
         self.k, self.last = 0, -1
+        #: ``progress(k, K)`` after each chunk of periods (``None``: none); it sees the
+        #: step count only, so the run is the same with or without it.
+        self.progress = None
 
     def _on_step(self, on_step):
         """The callback after step k is recorded: the reference sampled at t_k into the
@@ -195,6 +198,8 @@ class CompiledLoop:
             k1 = min(K + 1, plant.prepare(k0) if self._rk4 else k0 + PULSE_CHUNK)
             k = self._chunk(k0, k1)
             self.k = k
+            if self.progress is not None:
+                self.progress(k, K)
             if k == K:
                 return
             k0 = k1

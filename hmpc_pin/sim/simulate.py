@@ -169,6 +169,7 @@ def simulate(
     meta: dict | None = None,
     on_step=None,
     loop: str | None = None,
+    progress=None,
 ) -> Result:
     """Run the closed loop and return the sampled trajectories.
 
@@ -199,6 +200,8 @@ def simulate(
         meta: Metadata stored in the result.
         on_step: Optional callable ``on_step(t, q, q_ref)`` called at every control
             instant (e.g. :class:`~hmpc_pin.apps.viz.LiveView`).
+        progress: Optional ``progress(k, K)`` after each chunk of control periods: ``k``
+            of ``K`` done (a progress bar; the run is the same without it).
         loop: Deprecated, no effect (a ``DeprecationWarning``): every run goes through the
             compiled loop (:mod:`~hmpc_pin.sim.compiled_loop`: the parts written in Python
             called through its ports). Earlier versions chose here between it and a
@@ -263,6 +266,7 @@ def simulate(
         on_step,
         (q, dq),
     )
+    runner.progress = progress
     last = k = -1
     message = ""
     cause: BaseException | None
@@ -294,14 +298,20 @@ def simulate(
     )
     _step_time(result, step_ns[:m], Ts)
     result.loop = runner.name  # type: ignore[attr-defined]
+    _record_saturation(result, limit, sat_steps, sat_excess)
+    _raise_if_stopped(result, cause, k, t_arr, duration)
+    return result
+
+
+def _record_saturation(result: Result, limit, steps: np.ndarray, excess: np.ndarray) -> None:
+    """``meta["saturation"]``: the effort limits, per joint the periods saturated and the
+    largest excess (nothing without limits)."""
     if limit is not None:
         result.meta["saturation"] = {
             "effort_limit": [float(x) for x in limit],
-            "steps": sat_steps.tolist(),
-            "max_excess": sat_excess.tolist(),
+            "steps": steps.tolist(),
+            "max_excess": excess.tolist(),
         }
-    _raise_if_stopped(result, cause, k, t_arr, duration)
-    return result
 
 
 #: Samples over which :func:`observer_hint` looks for an estimate alternating in sign.

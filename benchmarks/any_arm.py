@@ -36,10 +36,11 @@ EXTRA = ("so100", "so101")
 
 
 def models() -> tuple[str, ...]:
-    """The 31 fixed-base example-robot-data models and so100, so101."""
+    """The 31 fixed-base example-robot-data models and so100, so101 (which
+    :func:`~hmpc_pin.model.robot.example_robot_names` lists too: each once)."""
     from hmpc_pin.model.robot import example_robot_names
 
-    return (*example_robot_names(), *EXTRA)
+    return tuple(dict.fromkeys((*example_robot_names(), *EXTRA)))
 
 
 def _floor_us(robot, q, dq, repeats: int = 300) -> float:

@@ -276,7 +276,7 @@ def test_progress_is_off_away_from_a_terminal_and_shown_when_forced(tmp_path):
     args = ("run", "paper_combined", "--duration", "20", "--no-figures", "--out", tmp_path)
     quiet = _cli(*args)
     assert quiet.returncode == 0 and "step" not in quiet.stderr
-    loud = _cli(*args, "--progress")
+    loud = _cli(*args, "--progress", "--force")  # the same files again
     assert loud.returncode == 0, loud.stderr
     assert "paper_combined:" in loud.stderr and "/2000 [" in loud.stderr
     assert quiet.stdout == loud.stdout  # the same table

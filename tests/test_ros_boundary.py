@@ -311,7 +311,7 @@ def test_ros_args_that_contradict_the_config_or_rclpy_are_one_line(tmp_path):
         # the brake the node runs (the inertia brake, hold/6 = 0.5 s) is declared: another
         # value is refused; a key of a declared table the node does not have is refused
         (["-p", "realtime.brake_time:=0.01"], "realtime.brake_time: --ros-args sets 0.01"),
-        (["-p", "realtime.damping:=50.0"], "realtime.damping: --ros-args sets it, but"),
+        (["-p", "realtime.damping:=50.0"], "-p realtime.damping: the node has no such parameter"),
     )
     for args, expected in cases:
         script = f"ip link set lo up && exec {exe} {' '.join(args)}"

@@ -205,8 +205,8 @@ def test_check_names_the_link_and_time_a_reference_goes_through_the_table(tmp_pa
         workspace=False,
     )
     assert main(["check", path, "--no-engine"]) == 0
-    out = capsys.readouterr().out
-    assert f"warning: link {named!r} leaves the workspace at t = " in out
+    err = capsys.readouterr().err  # warnings on stderr, as run's
+    assert f"warning: link {named!r} leaves the workspace at t = " in err
 
 
 def test_check_names_two_links_that_collide_and_when(tmp_path, capsys):

@@ -89,7 +89,7 @@ from ..compensation.bandwidth import (
 from ..exceptions import HmpcError, URDFError
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig, WorkspaceConfig
-from ..experiment.plants import _effort_limit
+from ..experiment.plants import plant_effort_limit
 from ..experiment.workspace import scan_reference
 from ..model.robot import damping_time_constants
 from .metrics import DEFAULT_ERROR_THRESHOLD, RUN_WARN_AFTER
@@ -992,7 +992,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         None,
         None,
         damping_time_constants(robot, ex.q0),
-        _headroom(ex, _effort_limit(config, ex.plant), damped=plant_damped),
+        _headroom(ex, plant_effort_limit(config, ex.plant), damped=plant_damped),
         "not compared (--no-engine)",
     )
 

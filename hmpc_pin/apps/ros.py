@@ -25,7 +25,7 @@ import numpy as np
 from ..exceptions import ConfigError, HmpcError, NodeShutDown
 from ..experiment.build import Experiment, brake_settings, realtime_parts
 from ..experiment.config import ExperimentConfig
-from ..experiment.controllers import _limits
+from ..experiment.controllers import controller_limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from .packaged import CONFIG_HELP
 from .realtime import StatusLine, add_stop_options, save_run
@@ -54,7 +54,7 @@ def _limits_of(experiment: Experiment) -> tuple[np.ndarray, np.ndarray]:
     """The position limits a trajectory message is checked against: the MPC's state
     limits, else the URDF's (a joint without a range: none)."""
     cc = experiment.config.controller
-    lim = _limits(cc, experiment.robot) if cc.kind == "hmpc" else None
+    lim = controller_limits(cc, experiment.robot)
     if lim is not None:
         return np.asarray(lim.lower, dtype=float), np.asarray(lim.upper, dtype=float)
     rec = experiment._recorded_limits()

@@ -28,6 +28,7 @@ __all__ = [
     "damping_rates",
     "mujoco_settings",
     "pinocchio_plant",
+    "plant_effort_limit",
     "plant_step",
 ]
 
@@ -37,7 +38,7 @@ CALIBRATION_PERIODS = 64
 PILOT_DURATION = 1.0
 
 
-def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
+def plant_effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
     """The plant's effort limits [N·m]: ``plant.effort_limit``, else the plant URDF's (a
     value <= 0 means none); ``None`` when ``plant.saturate`` is false."""
     pc = config.plant
@@ -264,3 +265,7 @@ def plant_step(
     )
     check_plant_damping(replace(pc, dt=h, tolerance=None), robot, samples[0][1])
     return h
+
+
+#: The name of :func:`plant_effort_limit` before version 0.3.
+_effort_limit = plant_effort_limit

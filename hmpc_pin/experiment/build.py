@@ -41,6 +41,7 @@ from ..model.robot import Robot, load_robot
 from ..realtime.loop import LoopSettings
 from ..realtime.safety import SafeTorque, SafetySettings, brake_time_constant
 from ..sim.disturbances import Disturbance
+from ..sim.engines import engine_spec
 from ..sim.mujoco import MuJoCoPlant
 from ..sim.plants import Plant
 from ..sim.result import Result
@@ -362,7 +363,7 @@ class Experiment:
                 "plant.urdf",
                 f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
             )
-        if pc.engine == "mujoco":  # compiles the URDF (and checks timestep | Ts) before a run
+        if not engine_spec(pc.engine).integrated:  # MuJoCo compiles the URDF (checks timestep | Ts)
             MuJoCoPlant(
                 plant, None, config.controller.Ts, pc.mujoco.timestep, mujoco_settings(pc, n)
             )
@@ -578,7 +579,7 @@ class Experiment:
         (:func:`~hmpc_pin.experiment.plants.plant_step`), then kept for the experiment."""
         pc = self.config.plant
         Ts = self.controller.Ts if Ts is None else Ts
-        if pc.engine == "mujoco":
+        if not engine_spec(pc.engine).integrated:
             return MuJoCoPlant(
                 self.plant,
                 self.disturbance,

@@ -13,6 +13,7 @@ from ..exceptions import (
 )
 from ..model.robot import Robot, damping_time_constants
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
+from ..sim.engines import engine_spec
 from ..sim.mujoco import MuJoCoSettings, Obstacle
 from ..sim.plants import PLANTS, Plant, RK4Plant, choose_step
 from .config import (
@@ -127,7 +128,7 @@ def check_plant_damping(pc: PlantConfig, robot: Robot, q: np.ndarray) -> None:
             :data:`DAMPING_STEP_LIMIT`, naming the joint, its time constant 1/λ_j and the
             step that would do.
     """
-    if pc.engine != "pinocchio" or not pc.joint_dynamics or pc.dt is None:
+    if not engine_spec(pc.engine).integrated or not pc.joint_dynamics or pc.dt is None:
         return
     limit = DAMPING_STEP_LIMIT.get(pc.integrator)
     lam = damping_rates(robot, q)

@@ -613,7 +613,7 @@ def _report_lines(
     import pinocchio as pin
     import proxsuite
 
-    from .. import __version__
+    from .._version import __version__
     from .compare import markdown_table
 
     joint_names = runs["paper_combined"].joint_names

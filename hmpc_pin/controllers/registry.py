@@ -125,8 +125,8 @@ REGISTRY: dict[str, ControllerSpec] = {
     )
 }
 
-#: The names version 0.1 gave a controller × compensation: ``{alias: (controller,
-#: compensation)}`` (from the registry's :attr:`ControllerSpec.aliases`).
+#: The names version 0.1 gave a controller × compensation, each mapped to the pair
+#: ``(controller, compensation)`` (from the registry's :attr:`ControllerSpec.aliases`).
 KIND_ALIASES = {
     alias: (spec.name, comp) for spec in REGISTRY.values() for alias, comp in spec.aliases.items()
 }

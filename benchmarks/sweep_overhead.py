@@ -16,7 +16,7 @@ Ratios per block: ``jobs 1`` wall / (imports + the in-process runs), and ``jobs 
 ``jobs 2`` (the speed-up of two workers); the table gives the medians of the ratios beside
 the median absolute times. Blocks alternate the measurements so that a shared machine
 loads each alike. The share of the runs that went through the compiled loop is counted
-(every run does since the ports: ``why_not_compiled`` is ``None``).
+(every run does since the ports).
 
 Usage: python benchmarks/sweep_overhead.py [--config panda_sine] [--samples 8] [--repeats 3]
        [--dask]

@@ -223,7 +223,7 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
 
 
-__version__ = "0.3.0.dev0"  # the same as pyproject.toml (tested)
+from ._version import __version__  # noqa: E402  (the ground floor: imports nothing)
 
 __all__ = [
     "COMPENSATIONS",

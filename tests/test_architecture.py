@@ -15,6 +15,8 @@ PKG = Path(__file__).resolve().parent.parent / "hmpc_pin"
 RANK = {
     "data": 0,
     "exceptions": 0,
+    "_version": 0,
+    "_deprecated": 0,
     "_startup": 0,
     "checks": 0.5,  # imports exceptions only
     "model": 1,
@@ -94,7 +96,7 @@ def test_module_imports_only_its_layer_and_below(module):
     for target in GRAPH[module]:
         other = _layer(target)
         if other == own or target == "hmpc_pin":
-            # the package root only through its own __init__ (e.g. __version__ in apps)
+            # the package root only through its own __init__ (e.g. _startup in apps)
             if target == "hmpc_pin":
                 assert RANK[own] >= RANK["apps"], f"{module} imports the package root"
             continue
@@ -386,3 +388,45 @@ def test_no_cpp_function_is_longer_than_a_maintainer_can_hold():
 def test_ruff_format_owns_the_formatting_of_the_package():
     skips = sum(p.read_text(encoding="utf-8").count("# fmt: skip") for p in PKG.rglob("*.py"))
     assert skips <= MAX_FMT_SKIPS, f"{skips} '# fmt: skip' in the package"
+
+
+#: The names each registry owns: a literal listing two or more of them elsewhere in the
+#: package is a second home for the decision the registry states once.
+REGISTRIES = {
+    "hmpc_pin/controllers/registry.py": ("hmpc", "computed-torque", "computed-torque-pid"),
+    "hmpc_pin/sim/engines.py": ("pinocchio", "mujoco"),
+}
+
+
+def _literal_names(node: ast.AST) -> set[str]:
+    """The string constants of a tuple, list or set literal, or of a dict literal's keys."""
+    items = node.keys if isinstance(node, ast.Dict) else getattr(node, "elts", [])
+    return {n.value for n in items if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+
+
+@pytest.mark.parametrize("home", sorted(REGISTRIES))
+def test_each_registry_is_the_only_place_listing_its_names(home):
+    """The controller kinds and the plant engines are listed in their registry only; every
+    other module reads them there (``controller_spec``, ``engine_spec``)."""
+    names = set(REGISTRIES[home])
+    found = []
+    for path in sorted(PKG.rglob("*.py")):
+        rel = path.relative_to(PKG.parent).as_posix()
+        if rel == home:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.Tuple, ast.List, ast.Set, ast.Dict)):
+                listed = _literal_names(node) & names
+                if len(listed) >= 2:
+                    found.append(f"{rel}:{node.lineno} lists {sorted(listed)}")
+    assert not found, "a second list of the registry's names:\n" + "\n".join(found)
+
+
+def test_the_registry_check_finds_a_second_list():
+    """The check above fails on a module that lists two kinds (it can fail)."""
+    tree = ast.parse('KINDS = ("hmpc", "computed-torque")\nD = {"mujoco": 1, "pinocchio": 2}')
+    literals = [n for n in ast.walk(tree) if isinstance(n, (ast.Tuple, ast.Dict))]
+    assert [
+        len(_literal_names(n) & {"hmpc", "computed-torque", "mujoco", "pinocchio"})
+        for n in literals
+    ] == [2, 2]

@@ -22,7 +22,9 @@ def _loaded(code: str) -> set[str]:
 def test_import_loads_no_application_and_no_heavy_dependency():
     loaded = _loaded("import hmpc_pin")
     ours = {m for m in loaded if m.startswith("hmpc_pin")}
-    assert ours == {"hmpc_pin", "hmpc_pin._startup", "hmpc_pin.exceptions"}, ours
+    assert ours == {"hmpc_pin", "hmpc_pin._startup", "hmpc_pin.exceptions", "hmpc_pin._version"}, (
+        ours
+    )
     for heavy in ("numpy", "pinocchio", "proxsuite", "matplotlib", "scipy", "yourdfpy"):
         assert heavy not in loaded, f"import hmpc_pin loaded {heavy}"
 
@@ -104,3 +106,31 @@ def test_the_parser_of_one_command_is_the_full_parsers_command():
         assert alone.format_help() == both.format_help(), name
         assert [a.dest for a in alone._actions] == [a.dest for a in both._actions], name
         assert alone.get_default("func") is both.get_default("func") is not None, name
+
+
+def test_the_version_loads_nothing_heavy():
+    """``__version__`` is on the ground floor: reading it loads no NumPy, no Pinocchio."""
+    loaded = _loaded("from hmpc_pin._version import __version__")
+    assert not {"numpy", "pinocchio", "hmpc_pin.apps"} & loaded
+    assert hmpc_pin.__version__ == __import__("hmpc_pin._version").__version__
+
+
+def test_the_dead_names_of_earlier_versions_still_import_with_a_warning():
+    """``why_not_compiled`` and ``LOOPS`` of ``hmpc_pin.sim.compiled_loop`` (nothing reads
+    them since every part runs behind a port) import for a user's file, each warning."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        from hmpc_pin.sim.compiled_loop import LOOPS, why_not_compiled
+
+    assert why_not_compiled(None, None, None) is None and "python" in LOOPS
+    assert [w.category for w in caught] == [DeprecationWarning] * 2
+    import hmpc_pin.sim.compiled_loop as loop
+
+    try:
+        loop.no_such_name
+    except AttributeError as exc:
+        assert "no_such_name" in str(exc)
+    else:
+        raise AssertionError("an unknown name must be an AttributeError")

@@ -140,3 +140,23 @@ def test_every_shipped_config_loads_and_builds():
 
     for name in config_names():
         Experiment.from_config(load_config(name))
+
+
+def test_the_controller_registry_states_what_is_built_and_its_names():
+    """Each registry entry builds its class; its 0.1 names and default compensation are
+    this file's (written out independently above); an unknown name is one error listing
+    every controller."""
+    from hmpc_pin.controllers.registry import REGISTRY, controller_kinds, controller_spec
+
+    robot = hmpc_pin.load_robot("planar3")
+    for name, spec in REGISTRY.items():
+        ctrl = hmpc_pin.make_controller(robot, ControllerConfig(kind=name))
+        assert type(ctrl) is spec.cls
+        assert ALIASES[name] == (name, spec.default_compensation)
+        assert {a: (name, c) for a, c in spec.aliases.items()} == {
+            a: pair for a, pair in ALIASES.items() if a != pair[0] and pair[0] == name
+        }
+    assert set(controller_kinds()) == set(ALIASES)
+    with pytest.raises(ConfigError) as err:
+        controller_spec("mpc")
+    assert all(name in str(err.value) for name in REGISTRY)

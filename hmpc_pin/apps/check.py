@@ -89,9 +89,10 @@ from ..compensation.bandwidth import (
 from ..exceptions import HmpcError, URDFError
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig, WorkspaceConfig
-from ..experiment.plants import _effort_limit
+from ..experiment.plants import plant_effort_limit
 from ..experiment.workspace import scan_reference
 from ..model.robot import damping_time_constants
+from ..sim.engines import DEFAULT_ENGINE, engine_spec
 from .metrics import DEFAULT_ERROR_THRESHOLD, RUN_WARN_AFTER
 
 __all__ = [
@@ -974,10 +975,10 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
     try:
         ex = Experiment.from_config(config)
     except URDFError as exc:  # a MuJoCo plant refusing the URDF: the figures without it
-        if config.plant.engine != "mujoco":
+        if engine_spec(config.plant.engine).integrated:
             raise
         refused = exc
-        bare = replace(config.plant, engine="pinocchio", mujoco=None)
+        bare = replace(config.plant, engine=DEFAULT_ENGINE, mujoco=None)
         ex = Experiment.from_config(replace(config, plant=bare))
     robot = ex.robot
     names = robot.joint_names
@@ -992,7 +993,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         None,
         None,
         damping_time_constants(robot, ex.q0),
-        _headroom(ex, _effort_limit(config, ex.plant), damped=plant_damped),
+        _headroom(ex, plant_effort_limit(config, ex.plant), damped=plant_damped),
         "not compared (--no-engine)",
     )
 
@@ -1045,7 +1046,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
                 f"MuJoCo cannot load the arm's URDF ({why}); the engines cannot be "
                 "compared (pass --no-engine to skip the comparison)"
             )
-            if config.plant.engine == "mujoco":  # `run` would be refused as well
+            if not engine_spec(config.plant.engine).integrated:  # `run` refused as well
                 report.add_problem(text, None)
             else:  # `run` simulates it with Pinocchio: a MuJoCo plant would refuse it
                 report.warnings.append(f"{text}; a MuJoCo plant would refuse it too")
@@ -1057,7 +1058,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
                         f"(relative, expected <= {ENGINE_RTOL:g}); the engines read the "
                         "URDF differently (check its <inertial> frames)"
                     )
-                    if config.plant.engine == "mujoco":  # the simulated arm is not the model
+                    if not engine_spec(config.plant.engine).integrated:  # not the model
                         report.add_problem(text, None)
                     else:
                         report.warnings.append(text)

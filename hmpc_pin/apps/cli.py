@@ -1092,6 +1092,8 @@ def _examples_arguments(exa) -> None:
     from .packaged import examples_arguments
 
     examples_arguments(exa)
+
+
 def _ros_client_arguments(kind: str):
     """The arguments of ``ros-trajectory``, ``ros-lifecycle`` or ``ros-params``."""
 

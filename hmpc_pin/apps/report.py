@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..controllers.registry import REGISTRY as CONTROLLERS
 from ..data import DATA
 from ..experiment.build import load_robot_config
 from ..experiment.config import load_config
@@ -360,7 +361,7 @@ def comparison_claims(comp) -> list[Claim]:
             f"[{_fmt(ratio('hmpc-none', 'hmpc', 'rms_error'), '.1f')}]",
         ),
     )
-    for kind in ("computed-torque", "computed-torque-pid"):
+    for kind in (name for name, spec in CONTROLLERS.items() if not spec.mpc):  # the classical
         add(
             "1",
             f"(Classical reference.) The scheme beats {kind} tuned to the same bandwidth.",
@@ -612,7 +613,7 @@ def _report_lines(
     import pinocchio as pin
     import proxsuite
 
-    from .. import __version__
+    from .._version import __version__
     from .compare import markdown_table
 
     joint_names = runs["paper_combined"].joint_names

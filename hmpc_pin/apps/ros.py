@@ -25,8 +25,9 @@ import numpy as np
 from ..exceptions import ConfigError, HmpcError, NodeShutDown
 from ..experiment.build import Experiment, brake_settings, realtime_parts
 from ..experiment.config import ExperimentConfig
-from ..experiment.controllers import _limits
+from ..experiment.controllers import controller_limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
+from ..sim.engines import engine_spec
 from .packaged import CONFIG_HELP
 from .realtime import StatusLine, add_stop_options, save_run
 
@@ -54,7 +55,7 @@ def _limits_of(experiment: Experiment) -> tuple[np.ndarray, np.ndarray]:
     """The position limits a trajectory message is checked against: the MPC's state
     limits, else the URDF's (a joint without a range: none)."""
     cc = experiment.config.controller
-    lim = _limits(cc, experiment.robot) if cc.kind == "hmpc" else None
+    lim = controller_limits(cc, experiment.robot)
     if lim is not None:
         return np.asarray(lim.lower, dtype=float), np.asarray(lim.upper, dtype=float)
     rec = experiment._recorded_limits()
@@ -467,8 +468,10 @@ def _fixed_plant_step(config: ExperimentConfig) -> tuple[str, float] | None:
     ``plant.mujoco.timestep``), or ``None`` when ``plant.tolerance`` chooses it per
     period (a whole fraction of that period, whatever it is)."""
     pc = config.plant
-    if pc.engine == "mujoco":
-        return "plant.mujoco.timestep", float(pc.mujoco.timestep)
+    engine = engine_spec(pc.engine)
+    if "dt" in engine.replaces:  # the step is a key of the engine's table (MuJoCo's timestep)
+        key = engine.replaces["dt"]
+        return f"plant.{engine.table}.{key}", float(getattr(getattr(pc, engine.table), key))
     if pc.tolerance is None:
         return "plant.dt", float(pc.dt)
     return None

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..controllers.registry import controller_spec
 from ..controllers.wrappers import MeasuredController
 from ..exceptions import ConfigError, SimulationError, install_command
 from ..experiment.build import Experiment, load_robot_config, reuse_robots, with_controller
@@ -183,7 +184,7 @@ def _told_latency(config: ExperimentConfig, condition: str) -> ExperimentConfig:
     whole-period delay) when ``known_latency`` and the controller is ``hmpc`` (the 0.3
     keys: unchanged)."""
     sc, cc = config.sweep, config.controller
-    if sc.legacy or not sc.known_latency or cc.kind != "hmpc":
+    if sc.legacy or not sc.known_latency or not controller_spec(cc.kind).mpc:
         return config
     if "latency" not in CONDITION_PARTS[condition]:
         return config

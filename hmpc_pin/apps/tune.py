@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ..compensation.registry import compensation_names, compensation_spec
+from ..controllers.registry import controller_spec
 from ..exceptions import ConfigError, ExtraError, RunInterrupted, install_command
 from ..experiment.config import ExperimentConfig, load_config
 from ..experiment.config.write import write_config
@@ -96,7 +97,7 @@ def search_space(
         "Q_velocity": ("log", 1e-4, 1e2),
         "R": ("log", 1e-8, 1e-3),
     }
-    if cc.kind == "hmpc":
+    if controller_spec(cc.kind).mpc:
         space["N"] = ("int", 5, 30)
     if cc.compensation in names and cc.observer.bandwidth is not None:
         w0 = _bandwidth_scale(cc)  # the largest joint's; the others keep their ratio to it

@@ -1,5 +1,6 @@
-"""Compensation: the disturbance estimate :math:`\\hat d` cancelled in Eq 4 (one protocol),
-and the registry of the compensations by name (:mod:`.registry`)."""
+"""Compensation: the disturbance estimate :math:`\\hat d` cancelled in Eq 4 (one protocol).
+
+The compensations by name: :mod:`hmpc_pin.compensation.registry`."""
 
 from .base import Compensation, NoCompensation
 from .gate import FeedbackGate

@@ -61,9 +61,13 @@ from ..exceptions import ConfigError
 from ..native import load as load_native
 
 __all__ = [
+    "DEFAULT_DESIGN",
+    "DEFAULT_DISCRETIZATION",
+    "DEFAULT_GAIN",
     "OBSERVER_KINDS",
     "DisturbanceObserver",
     "MomentumObserver",
+    "default_observer",
     "general_gain_bound",
     "observer_matrix",
 ]
@@ -73,6 +77,13 @@ __all__ = [
 #: ``compensation_names(table="observer")`` the names (a test checks that they agree).
 OBSERVER_KINDS = ("chen", "general", "momentum")
 DISCRETIZATIONS = ("implicit", "explicit")
+
+#: The default observer, stated once: Chen's NDO (the design of Eq 28-30) ...
+DEFAULT_DESIGN = "chen"
+#: ... with the gain c = 100 (the paper does not give it; this project's choice) ...
+DEFAULT_GAIN = 100.0
+#: ... discretised by backward Euler (stable for any gain).
+DEFAULT_DISCRETIZATION = "implicit"
 
 
 def observer_matrix(kind: str, n: int) -> np.ndarray:
@@ -87,6 +98,12 @@ def observer_matrix(kind: str, n: int) -> np.ndarray:
     if kind == "general":
         return np.eye(n)
     raise ConfigError("observer.kind", f"got {kind!r}; expected 'chen' or 'general'")
+
+
+def default_observer(n: int, Ts: float) -> DisturbanceObserver:
+    """The default observer (:data:`DEFAULT_DESIGN`, :data:`DEFAULT_GAIN`,
+    :data:`DEFAULT_DISCRETIZATION`) of ``n`` joints at the control period ``Ts`` [s]."""
+    return DisturbanceObserver(n, Ts, DEFAULT_GAIN, DEFAULT_DESIGN, DEFAULT_DISCRETIZATION)
 
 
 class DisturbanceObserver:

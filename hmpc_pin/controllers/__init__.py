@@ -1,5 +1,7 @@
 """Controllers: inverse dynamics × an outer loop × a compensation (one protocol,
-:mod:`~hmpc_pin.controllers.base`)."""
+:mod:`~hmpc_pin.controllers.base`).
+
+The controllers by name: :mod:`hmpc_pin.controllers.registry`."""
 
 from .base import Controller, ControllerWrapper
 from .computed_torque import ComputedTorque, CTSettings

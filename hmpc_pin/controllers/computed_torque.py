@@ -36,8 +36,8 @@ from ..exceptions import ConfigError, NonFiniteError
 from ..model.robot import Robot
 from ..mpc.condensed import CondensedMPC
 from ..tasks.base import as_reference, check_reference_size
-from .base import AppliedTorque, not_reset
-from .hierarchical import MPCSettings, _from_legacy
+from .base import AppliedTorque, config_parts, not_reset
+from .hierarchical import MPCSettings
 
 __all__ = [
     "CTSettings",
@@ -160,7 +160,7 @@ class ComputedTorque(AppliedTorque):
         compensation: Compensation | None = None,
     ):
         if settings is not None and not isinstance(settings, CTSettings):
-            settings, compensation = _from_legacy(settings, robot, "ComputedTorque", "CTSettings")
+            settings, compensation = config_parts(settings, robot, "ComputedTorque", "CTSettings")
         settings = settings if settings is not None else CTSettings.matching(MPCSettings())
         self.robot, self.settings, self.n = robot, settings, robot.nq
         n = robot.nq

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from ..checks import as_bool, as_choice, as_float, as_int, as_latency, mpc_fields
 from ..compensation.base import Compensation, check_compensation, step_compensation
-from ..compensation.observers import DisturbanceObserver
+from ..compensation.observers import default_observer
 from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot, damping_time_constants
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
@@ -244,14 +244,6 @@ MPCSettings.__init__ = _with_observer_model(MPCSettings.__init__)  # type: ignor
 MPCSettings.observer_model = property(_observer_model)  # type: ignore[attr-defined]
 
 
-def _from_legacy(config: object, robot: Robot, who: str, expected: str = "MPCSettings") -> tuple:
-    """Version 0.1 call ``Controller(robot, ControllerConfig)``: the parts the experiment
-    builder makes of the config (:func:`~hmpc_pin.controllers.base.config_parts`: the
-    builder registers itself, so that this layer imports nothing above it), with a
-    :class:`DeprecationWarning`."""
-    return config_parts(config, robot, who, expected)
-
-
 def state_limits(
     robot: Robot,
     *,
@@ -260,8 +252,8 @@ def state_limits(
     velocity: FloatArray | None = None,
     position_on: bool = True,
     velocity_on: bool = True,
-    slack_weight: float = 1e5,
-    slack_linear_weight: float = 1e4,
+    slack_weight: float = StateLimits.slack_weight,
+    slack_linear_weight: float = StateLimits.slack_linear_weight,
 ) -> StateLimits:
     """The joint limits imposed on each MPC's prediction as soft state constraints.
 
@@ -354,15 +346,15 @@ class HierarchicalMPC(AppliedTorque):
     ):
         self.robot = robot
         if settings is not None and not isinstance(settings, MPCSettings):
-            settings, compensation, limits = _from_legacy(settings, robot, "HierarchicalMPC")
+            settings, compensation, limits = config_parts(
+                settings, robot, "HierarchicalMPC", "MPCSettings"
+            )
         self.settings = settings = settings if settings is not None else MPCSettings()
         deprecated_backend(settings.backend, "controller.backend")
         n = robot.nq
         self.n = n
         self.compensation = (
-            compensation
-            if compensation is not None
-            else DisturbanceObserver(n, settings.Ts, 100.0, "chen", "implicit")
+            compensation if compensation is not None else default_observer(n, settings.Ts)
         )
         check_compensation(self.compensation, robot, settings.Ts, "HierarchicalMPC")
         v_min, v_max = settings.bounds(n)

@@ -23,10 +23,11 @@ import numpy as np
 
 from ..checks import run_memory
 from ..compensation.base import warn_chen_validity
+from ..compensation.observers import DEFAULT_DESIGN
 from ..compensation.registry import compensation_spec
 from ..controllers.base import Controller
-from ..controllers.computed_torque import ComputedTorque
-from ..controllers.hierarchical import HierarchicalMPC, warn_fast_damping
+from ..controllers.hierarchical import warn_fast_damping
+from ..controllers.registry import controller_spec
 from ..controllers.wrappers import CollisionReaction, FrictionFeedforward
 from ..exceptions import (
     ConfigError,
@@ -40,6 +41,7 @@ from ..model.robot import Robot, load_robot
 from ..realtime.loop import LoopSettings
 from ..realtime.safety import SafeTorque, SafetySettings, brake_time_constant
 from ..sim.disturbances import Disturbance
+from ..sim.engines import engine_spec
 from ..sim.mujoco import MuJoCoPlant
 from ..sim.plants import Plant
 from ..sim.result import Result
@@ -47,20 +49,19 @@ from ..sim.simulate import simulate
 from ..tasks.base import Reference, check_limits
 from .combos import HMPC_ONLY, OBSERVERS, TABLES, applies
 from .config import (
-    DEFAULT_COMPENSATION,
     ControllerConfig,
     ExperimentConfig,
     RobotConfig,
     parse_combination,
 )
-from .controllers import _limits, controller_parts, make_compensation, mpc_settings
+from .controllers import controller_limits, controller_parts, make_compensation, mpc_settings
 from .plants import (
     PILOT_DURATION,
-    _effort_limit,
     build_disturbance,
     check_plant_damping,
     mujoco_settings,
     pinocchio_plant,
+    plant_effort_limit,
     plant_step,
 )
 from .references import build_reference, build_task_reference, check_trajectory_limits, task_space
@@ -174,11 +175,7 @@ def make_controller(
             "load a TOML file with load_config(path) and pass the result (or its .controller)",
         )
     cc = config if config is not None else ControllerConfig()
-    if cc.kind == "hmpc":
-        settings, compensation, limits = controller_parts(robot, cc, posture)
-        return HierarchicalMPC(robot, settings, compensation, limits=limits)
-    gains, compensation = controller_parts(robot, cc, posture)
-    return ComputedTorque(robot, gains, compensation)
+    return controller_spec(cc.kind).cls(robot, *controller_parts(robot, cc, posture))
 
 
 def warn_validity(robot: Robot, cc: ControllerConfig, posture: np.ndarray | None = None) -> None:
@@ -201,7 +198,7 @@ def check_friction_sources(robot: Robot, cc: ControllerConfig) -> None:
     Raises:
         ConfigError: Both apply; names the joints whose URDF declares joint dynamics.
     """
-    if cc.friction is None or cc.kind != "hmpc" or not cc.joint_dynamics:
+    if cc.friction is None or not controller_spec(cc.kind).mpc or not cc.joint_dynamics:
         return
     declared = np.flatnonzero((robot.joint_damping != 0) | (robot.joint_friction != 0))
     if declared.size:
@@ -260,19 +257,23 @@ def with_controller(
     cc = config.controller
     controller, comp = (cc.kind, None) if kind is None else parse_combination(kind)
     if comp is None:
-        comp = cc.compensation if controller == cc.kind else DEFAULT_COMPENSATION[controller]
+        comp = (
+            cc.compensation
+            if controller == cc.kind
+            else controller_spec(controller).default_compensation
+        )
     if compensation is not None:
         comp = compensation
     if observer is False:
         comp = "none"
     elif observer is True and comp not in OBSERVERS:
-        comp = cc.compensation if cc.compensation in OBSERVERS else "chen"
+        comp = cc.compensation if cc.compensation in OBSERVERS else DEFAULT_DESIGN
     keep = {
         name: (getattr(cc, name) if applies(name, controller, comp) else None) for name in TABLES
     }
     if keep["ism"] is not None and not compensation_spec(comp).boundary_layer:
         keep["ism"] = replace(keep["ism"], boundary_layer=None)
-    if keep["computed_torque"] is not None and controller == "computed-torque":
+    if keep["computed_torque"] is not None and not controller_spec(controller).pid:
         keep["computed_torque"] = replace(keep["computed_torque"], ki=None)
     hmpc_only = {
         name: (getattr(cc, name) if applies(name, controller, comp) else None) for name in HMPC_ONLY
@@ -362,7 +363,7 @@ class Experiment:
                 "plant.urdf",
                 f"the plant has {plant.nq} joints but the robot has {n}; use the same arm",
             )
-        if pc.engine == "mujoco":  # compiles the URDF (and checks timestep | Ts) before a run
+        if not engine_spec(pc.engine).integrated:  # MuJoCo compiles the URDF (checks timestep | Ts)
             MuJoCoPlant(
                 plant, None, config.controller.Ts, pc.mujoco.timestep, mujoco_settings(pc, n)
             )
@@ -377,13 +378,14 @@ class Experiment:
         robot.check_mass_matrix(q0)
         check_plant_damping(pc, plant, q0)  # the plant's step against the URDF damping
         cc = config.controller
-        if cc.kind == "hmpc" and not cc.joint_dynamics and config.plant.joint_dynamics:
+        mpc = controller_spec(cc.kind).mpc
+        if mpc and not cc.joint_dynamics and config.plant.joint_dynamics:
             warn_fast_damping(plant, cc.Ts)  # the simulated arm has them, uncompensated
         check_friction_sources(robot, cc)
         controller = make_controller(robot, cc, posture=q0)  # warns as warn_validity
         warn_bandwidth(robot, cc, q0)
         # The compensation is fed the torque the plant applies (clipped), not the commanded one.
-        controller.effort_limit = _effort_limit(config, plant)
+        controller.effort_limit = plant_effort_limit(config, plant)
         fm = config.controller.friction
         if fm is not None:  # the friction model, fed forward around the controller
             controller = FrictionFeedforward(
@@ -396,7 +398,7 @@ class Experiment:
             controller = CollisionReaction(
                 controller, config.vector("collision.threshold", n), config.collision.reaction
             )
-        limits = _limits(config.controller, robot) if config.controller.kind == "hmpc" else None
+        limits = controller_limits(config.controller, robot)
         if limits is not None:
             lower, upper = limits.lower, limits.upper
             for i in np.flatnonzero((q0 < lower - 1e-9) | (q0 > upper + 1e-9)):
@@ -426,7 +428,7 @@ class Experiment:
     def effort_limit(self) -> np.ndarray | None:
         """The plant's effort limits [N·m] (config override, else the plant URDF's; a
         URDF value <= 0 means none), or ``None`` when ``plant.saturate`` is false."""
-        return _effort_limit(self.config, self.plant)
+        return plant_effort_limit(self.config, self.plant)
 
     def run(
         self, duration: float | None = None, on_step=None, loop: str | None = None, progress=None
@@ -581,7 +583,7 @@ class Experiment:
         (:func:`~hmpc_pin.experiment.plants.plant_step`), then kept for the experiment."""
         pc = self.config.plant
         Ts = self.controller.Ts if Ts is None else Ts
-        if pc.engine == "mujoco":
+        if not engine_spec(pc.engine).integrated:
             return MuJoCoPlant(
                 self.plant,
                 self.disturbance,

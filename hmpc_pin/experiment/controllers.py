@@ -17,13 +17,15 @@ from ..compensation.registry import build_compensation, compensation_spec
 from ..controllers.base import register_config_builder
 from ..controllers.computed_torque import CTSettings
 from ..controllers.hierarchical import MPCSettings, state_limits
+from ..controllers.registry import MPC_KEYS, controller_spec
 from ..exceptions import ConfigError, URDFError
 from ..model.robot import Robot
 from ..mpc.condensed import StateLimits
-from .config.controller import MPC_KEYS, ControllerConfig
+from .config.controller import ControllerConfig
 
 __all__ = [
     "bandwidth_posture",
+    "controller_limits",
     "controller_parts",
     "make_compensation",
     "mpc_settings",
@@ -52,8 +54,12 @@ def mpc_settings(cc, n: int) -> MPCSettings:
     )
 
 
-def _limits(cc, robot: Robot) -> StateLimits | None:
-    """The soft state limits of ``[controller.constraints]`` for ``robot`` (``None`` if off)."""
+def controller_limits(cc, robot: Robot) -> StateLimits | None:
+    """The soft state limits of ``[controller.constraints]`` for ``robot``: ``None`` if
+    off or if the controller takes none
+    (:attr:`~hmpc_pin.controllers.registry.ControllerSpec.limits`)."""
+    if not controller_spec(cc.kind).limits:
+        return None
     con = cc.constraints
     if con is None or not con.enabled:
         return None
@@ -122,13 +128,15 @@ def controller_parts(robot: Robot, cc, posture: np.ndarray | None = None) -> tup
     ``(CTSettings, compensation)``."""
     compensation = make_compensation(robot, cc, posture)
     settings = mpc_settings(cc, robot.nq)
-    if cc.kind == "hmpc":
-        return settings, compensation, _limits(cc, robot)
+    spec = controller_spec(cc.kind)
+    if spec.mpc:
+        return settings, compensation, controller_limits(cc, robot)
     ct = cc.computed_torque
-    gains = CTSettings.matching(
-        settings, pid=cc.kind == "computed-torque-pid", kp=ct.kp, kd=ct.kd, ki=ct.ki
-    )
+    gains = CTSettings.matching(settings, pid=spec.pid, kp=ct.kp, kd=ct.kd, ki=ct.ki)
     return gains, compensation
 
 
 register_config_builder(ControllerConfig, controller_parts)
+
+#: The name of :func:`controller_limits` before version 0.3 (imported by callers).
+_limits = controller_limits

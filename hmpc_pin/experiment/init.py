@@ -67,7 +67,7 @@ from tempfile import TemporaryDirectory
 import numpy as np
 import pinocchio as pin
 
-from ..compensation.observers import general_gain_bound
+from ..compensation.observers import DEFAULT_DESIGN, DEFAULT_GAIN, general_gain_bound
 from ..data import robot_path
 from ..exceptions import ConfigError, OutputError, SimulationError, URDFError, ValidityWarning
 from ..identification.friction import PULSE_SIGMAS
@@ -334,7 +334,7 @@ class InitPlan:
         budget = (0.9 * effort - G) / np.abs(M).sum(axis=1)
         self.v_max = np.clip(np.where(np.isfinite(budget), budget, 100.0), 5.0, 100.0)
         if robot.is_planar_chain():
-            self.compensation, self.gain, self.gain_bound = "chen", 100.0, None
+            self.compensation, self.gain, self.gain_bound = DEFAULT_DESIGN, DEFAULT_GAIN, None
         else:
             bound = general_gain_bound(robot, samples=50)
             self.compensation, self.gain_bound = "general", bound
@@ -745,7 +745,7 @@ def _render(p: InitPlan, duration: float) -> str:
             'compensation = "chen"              # planar serial chain: the paper\'s NDO',
             "",
             "[controller.observer]",
-            "gain = 100.0",
+            f"gain = {DEFAULT_GAIN}",
             *MODEL_AT_LINES,
         ]
     else:

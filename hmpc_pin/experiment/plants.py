@@ -13,6 +13,7 @@ from ..exceptions import (
 )
 from ..model.robot import Robot, damping_time_constants
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
+from ..sim.engines import engine_spec
 from ..sim.mujoco import MuJoCoSettings, Obstacle
 from ..sim.plants import PLANTS, Plant, RK4Plant, choose_step
 from .config import (
@@ -28,6 +29,7 @@ __all__ = [
     "damping_rates",
     "mujoco_settings",
     "pinocchio_plant",
+    "plant_effort_limit",
     "plant_step",
 ]
 
@@ -37,7 +39,7 @@ CALIBRATION_PERIODS = 64
 PILOT_DURATION = 1.0
 
 
-def _effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
+def plant_effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | None:
     """The plant's effort limits [N·m]: ``plant.effort_limit``, else the plant URDF's (a
     value <= 0 means none); ``None`` when ``plant.saturate`` is false."""
     pc = config.plant
@@ -126,7 +128,7 @@ def check_plant_damping(pc: PlantConfig, robot: Robot, q: np.ndarray) -> None:
             :data:`DAMPING_STEP_LIMIT`, naming the joint, its time constant 1/λ_j and the
             step that would do.
     """
-    if pc.engine != "pinocchio" or not pc.joint_dynamics or pc.dt is None:
+    if not engine_spec(pc.engine).integrated or not pc.joint_dynamics or pc.dt is None:
         return
     limit = DAMPING_STEP_LIMIT.get(pc.integrator)
     lam = damping_rates(robot, q)
@@ -264,3 +266,7 @@ def plant_step(
     )
     check_plant_damping(replace(pc, dt=h, tolerance=None), robot, samples[0][1])
     return h
+
+
+#: The name of :func:`plant_effort_limit` before version 0.3.
+_effort_limit = plant_effort_limit

@@ -58,17 +58,14 @@ of the last finite state.
 
 from __future__ import annotations
 
-import contextlib
 import gc
 import math
-import os
 import signal
 import threading
 import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -79,7 +76,12 @@ from ..exceptions import ArmError, ConfigError, HmpcError, ValidityWarning
 from ..sim.result import Result
 from ..tasks.base import as_reference
 from .interface import PacedInterface, RobotInterface
+from .pacing import GCWatch, Tally, fifo_priority, sleep_until
+from .records import RealtimeRun, Records, latency_stats
 from .safety import SafetySettings
+
+#: The names of the parts before they had modules of their own (kept for callers).
+_GCWatch, _Tally, _Records = GCWatch, Tally, Records
 
 __all__ = [
     "LoopSettings",
@@ -104,54 +106,6 @@ RELAX_WATCHDOG = (
 #: The latency advice (``[controller] latency``) needs at least this many measured
 #: controller steps (a failed start's single sample says nothing).
 MIN_LATENCY_SAMPLES = 50
-
-
-def sleep_until(
-    deadline: float, clock: Callable[[], float] = time.perf_counter, spin: float = 0.0
-) -> None:
-    """Sleep until ``clock()`` reaches ``deadline`` [s] (returns at once if it has).
-
-    With ``spin`` > 0 [s], sleep until ``deadline - spin`` and busy-wait the rest: the
-    thread is awake and on its core at the deadline, so the kernel's wake-up latency
-    (hundreds of µs at p99.9 on a shared machine) and a core waking from idle are off
-    the cycle's latency, at the cost of ``spin · rate`` of a core.
-    """
-    delay = deadline - clock() - spin
-    if delay > 0:
-        time.sleep(delay)
-    if spin > 0:
-        while clock() < deadline:
-            pass
-
-
-@contextlib.contextmanager
-def fifo_priority(priority: int):
-    """Run the block under the real-time policy ``SCHED_FIFO`` at ``priority`` (1–99),
-    then restore the process's policy; ``0`` changes nothing.
-
-    A FIFO thread preempts every normal one as soon as it is runnable, so the loop wakes
-    on time even on a loaded machine (what libfranka asks for with ``kEnforce``). The
-    loop sleeps most of each period, so it does not starve the rest of the machine.
-
-    Raises:
-        ConfigError: The policy cannot be set here (no ``CAP_SYS_NICE``/rtprio limit).
-    """
-    if priority == 0:
-        yield
-        return
-    try:
-        old_policy, old_param = os.sched_getscheduler(0), os.sched_getparam(0)
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (OSError, AttributeError) as exc:
-        raise ConfigError(
-            "realtime.priority",
-            f"cannot run at SCHED_FIFO priority {priority} ({exc}); run as root or grant "
-            "an rtprio limit (/etc/security/limits.conf), or set priority = 0",
-        ) from exc
-    try:
-        yield
-    finally:
-        os.sched_setscheduler(0, old_policy, old_param)
 
 
 @dataclass(frozen=True)
@@ -234,213 +188,6 @@ def _declared_latency(controller) -> float | None:
     """The latency [s] the controller compensates (``None``: it has no such setting)."""
     latency = getattr(_inner(controller), "latency", None)
     return None if latency is None else float(latency)
-
-
-def latency_stats(latency: np.ndarray) -> dict:
-    """Median, p99, p99.9, max [µs] and count of the finite entries of ``latency`` [s]."""
-    x = latency[np.isfinite(latency)] * 1e6
-    if x.size == 0:
-        return {
-            "median_us": math.nan,
-            "p99_us": math.nan,
-            "p999_us": math.nan,
-            "max_us": math.nan,
-            "count": 0,
-        }
-    p50, p99, p999 = np.percentile(x, [50.0, 99.0, 99.9])
-    return {
-        "median_us": float(p50),
-        "p99_us": float(p99),
-        "p999_us": float(p999),
-        "max_us": float(x.max()),
-        "count": int(x.size),
-    }
-
-
-class _GCWatch:
-    """A :data:`gc.callbacks` entry: counts the collections that run and their longest
-    duration [s] (the loop's own and, without GC handling, the automatic ones)."""
-
-    def __init__(self, clock: Callable[[], float]):
-        self.clock, self.count, self.longest, self._start = clock, 0, 0.0, 0.0
-
-    def __call__(self, phase: str, info: dict) -> None:
-        if phase == "start":
-            self._start = self.clock()
-        else:
-            self.count += 1
-            self.longest = max(self.longest, self.clock() - self._start)
-
-
-@dataclass
-class RealtimeRun:
-    """A real-time run: the trajectories and every cycle's timing.
-
-    Attributes:
-        result: Trajectories at the controller steps (``t`` is the loop time
-            :math:`kP`; ``d`` is NaN: an arm does not report its disturbance), with
-            ``meta["realtime"]`` holding :attr:`stats` and ``meta["stop"]`` the stop.
-        timing: Per interface cycle (K+1 entries, NaN where skipped): ``wake`` and
-            ``latency`` [s] after the deadline, ``compute`` [s] from wake to write,
-            ``stamp`` [s] of the state read, ``missed`` (bool), ``mpc`` (bool), ``gc``
-            [s] spent collecting.
-        stats: The summary (:meth:`summary` prints it).
-        stop: ``None`` for a complete run, else the stop record: ``cause`` (one of
-            :data:`~hmpc_pin.realtime.safety.STOP_CAUSES`), ``reason`` (one line),
-            ``cycle``, ``t`` [s], ``safe_tau`` [N·m], ``q``, ``dq`` used, and
-            ``safe_after_deadline`` and ``safe_after_detection`` [s], the time from
-            the detecting cycle's deadline, and from the detection, to the safe torque
-            written. Stopped by Ctrl-C or a deactivate before the first command:
-            ``safe_tau`` is ``None`` and nothing was sent (``brake["ended"]`` is
-            ``"nothing sent"``).
-    """
-
-    result: Result
-    timing: dict[str, np.ndarray]
-    stats: dict
-    stop: dict | None = None
-
-    @property
-    def complete(self) -> bool:
-        """Whether the run went to the end (with a state for every period of an arm
-        that paces it, up to ``max_misses`` lost: ``result.message`` says otherwise)."""
-        return self.stop is None and bool(self.result.complete)
-
-    def summary(self) -> str:
-        """The latency statistics in a few lines."""
-        s = self.stats
-        lat, wake = s["latency"], s["wake"]
-        lines = [
-            f"real-time loop: {s['rate']:g} Hz interface, controller every {s['decimation']} "
-            f"cycles ({1.0 / s['controller_Ts']:g} Hz), {s['cycles_run']} of "
-            f"{s['cycles']} cycles run, GC handling {'on' if s['gc_handling'] else 'off'}",
-            f"  latency deadline->torque [us]: median {lat['median_us']:.0f}, p99 "
-            f"{lat['p99_us']:.0f}, p99.9 {lat['p999_us']:.0f}, max {lat['max_us']:.0f}",
-            f"  wake-up jitter [us]:           median {wake['median_us']:.0f}, p99 "
-            f"{wake['p99_us']:.0f}, p99.9 {wake['p999_us']:.0f}, max {wake['max_us']:.0f}",
-            f"  missed deadlines: {s['misses']} ({100 * s['miss_fraction']:.3f} %; "
-            f"{s['skipped']} skipped), longest run of misses {s['max_consecutive_misses']}",
-        ]
-        if s.get("arm_gaps"):
-            lines.append(f"  periods with no state from the arm: {s['arm_gaps']}")
-        age, declared = s.get("measured_latency"), s.get("declared_latency")
-        if age is not None:
-            lines.append(
-                f"  measurement->torque [us]:      median {age['median_us']:.0f}, p99 "
-                f"{age['p99_us']:.0f}, max {age['max_us']:.0f}"
-                + ("" if declared is None else f" (declared latency {1e6 * declared:.0f})")
-            )
-        if s["gc_handling"]:
-            lines.append(
-                f"  GC in the slack: {s['gc_collections']} collections (max "
-                f"{1e6 * s['gc_max_s']:.0f} us), {s['gc_deferred']} deferred"
-            )
-        else:
-            lines.append(
-                f"  automatic GC during the run: {s['gc_all_collections']} collections "
-                f"(max {1e6 * s['gc_all_max_s']:.0f} us)"
-            )
-        return "\n".join(lines)
-
-    def save_timing(self, path: str | Path) -> Path:
-        """Write :attr:`timing` to ``path`` (``.npz``)."""
-        path = Path(path)
-        np.savez(path, **self.timing)
-        return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
-
-
-class _Records:
-    """The run's preallocated records: trajectories at the controller steps (``J``
-    rows), timing per interface cycle (``C`` entries, NaN where skipped)."""
-
-    __slots__ = ("age", "done", "gc", "j", "missed", "mpc", "stamp", "t", "traj", "wake")
-
-    def __init__(self, J: int, C: int, n: int):
-        self.traj = {
-            name: np.full((J, n), np.nan)
-            for name in ("q", "dq", "tau", "d", "d_hat", "q_ref", "dq_ref")
-        }
-        self.t = np.full(J, np.nan)
-        self.wake, self.done, self.stamp, self.gc, self.age = (np.full(C, np.nan) for _ in range(5))
-        self.missed = np.zeros(C, dtype=bool)
-        self.mpc = np.zeros(C, dtype=bool)
-        self.j = 0  # controller steps recorded
-
-    def cycle(self, k: int, wake: float, done: float, stamp: float, is_mpc: bool) -> None:
-        """Cycle ``k``'s wake and write times after its deadline [s], stamp, kind."""
-        self.wake[k] = wake
-        self.done[k] = done
-        self.stamp[k] = stamp
-        self.mpc[k] = is_mpc
-
-    def step(self, j: int, t: float, q, dq, tau, d_hat, reference) -> None:
-        """Controller step ``j`` at loop time ``t`` [s]."""
-        traj = self.traj
-        self.t[j] = t
-        traj["q"][j] = q
-        traj["dq"][j] = dq
-        traj["tau"][j] = tau
-        traj["d_hat"][j] = d_hat
-        q_ref, dq_ref = reference.sample(t)
-        traj["q_ref"][j] = q_ref
-        traj["dq_ref"][j] = dq_ref
-
-
-class _Tally:
-    """Missed deadlines and garbage collections of a run."""
-
-    __slots__ = (
-        "consecutive",
-        "gc_deferred",
-        "gc_max",
-        "gc_runs",
-        "misses",
-        "skipped",
-        "th",
-        "worst_run",
-    )
-
-    def __init__(self):
-        self.misses = self.consecutive = self.worst_run = self.skipped = 0
-        self.gc_runs = self.gc_deferred = 0
-        self.gc_max = 0.0
-        self.th = gc.get_threshold()
-
-    def miss(self, max_misses: int) -> bool:
-        """One missed deadline; whether the run of misses reached ``max_misses``."""
-        self.misses += 1
-        self.consecutive += 1
-        self.worst_run = max(self.worst_run, self.consecutive)
-        return self.consecutive >= max_misses
-
-    def skip(self, skip: int, late: int, max_misses: int) -> bool:
-        """``skip`` periods skipped, ``late`` of them missed; whether the run of misses
-        reached ``max_misses``."""
-        self.misses += late
-        self.skipped += skip
-        if not late:
-            return False
-        self.consecutive += late
-        self.worst_run = max(self.worst_run, self.consecutive)
-        return self.consecutive >= max_misses
-
-    def collect(self, k: int, next_deadline: float, clock, slack: float, record) -> None:
-        """Collect the generation automatic collection would, if at least ``slack`` [s]
-        remains before ``next_deadline``; else defer it."""
-        c0, c1, c2 = gc.get_count()
-        th0, th1, th2 = self.th
-        if c0 < th0:
-            return
-        gen = 2 if (c2 + 1 >= th2 and c1 + 1 >= th1) else (1 if c1 + 1 >= th1 else 0)
-        if next_deadline - clock() < slack:
-            self.gc_deferred += 1
-            return
-        g0 = clock()
-        gc.collect(gen)
-        spent = clock() - g0
-        record[k] = spent
-        self.gc_runs += 1
-        self.gc_max = max(self.gc_max, spent)
 
 
 class RealtimeLoop:
@@ -535,8 +282,8 @@ class RealtimeLoop:
         self._last_state: tuple[np.ndarray, np.ndarray] | None = None
         self._held_tau = np.zeros(interface.nq)
         self._fresh = (0.0, 0.0)  # the last stamp and when it came (the watchdog's)
-        self._rec: _Records | None = None
-        self._tally: _Tally | None = None
+        self._rec: Records | None = None
+        self._tally: Tally | None = None
         self._seen = 0  # the cycles progress() has reported
 
     def set_reference(self, reference, at: float = 0.0, base=None) -> bool:
@@ -640,7 +387,7 @@ class RealtimeLoop:
         if was_interrupted():  # a Ctrl-C swallowed while the run was set up: stop safely
             self._on_sigint(signal.SIGINT, None)
         gc_was_enabled = gc.isenabled()
-        self._gc_watch = _GCWatch(self.clock)
+        self._gc_watch = GCWatch(self.clock)
         gc.callbacks.append(self._gc_watch)
         self._started = True
         try:
@@ -676,8 +423,8 @@ class RealtimeLoop:
             )
         self._last_state = (q_last, dq_last)
         ctrl.reset(q_last if q0 is None else q0, dq_last if dq0 is None else dq0)
-        rec = _Records(K // self.decimation + 2, K + 1, iface.nq)
-        tally = _Tally()
+        rec = Records(K // self.decimation + 2, K + 1, iface.nq)
+        tally = Tally()
         self._rec, self._tally, self._seen = rec, tally, 0  # (read by progress())
         if st.gc_handling:
             gc.collect()
@@ -688,7 +435,7 @@ class RealtimeLoop:
         stop, k, stamp, deadline, wrote = self._cycles(K, rec, tally, q_last, dq_last, stamp)
         return self._finish(stop, k, K, rec, tally, q_last, dq_last, stamp, deadline, wrote)
 
-    def _cycles(self, K: int, rec: _Records, tally: _Tally, q_last, dq_last, stamp: float):
+    def _cycles(self, K: int, rec: Records, tally: Tally, q_last, dq_last, stamp: float):
         """The cycles 0..K: wait, read, step every ``decimation`` cycles, write, record.
 
         Returns:
@@ -883,8 +630,8 @@ class RealtimeLoop:
         stop,
         k: int,
         K: int,
-        rec: _Records,
-        tally: _Tally,
+        rec: Records,
+        tally: Tally,
         q_last,
         dq_last,
         stamp: float,

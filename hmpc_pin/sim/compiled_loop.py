@@ -49,17 +49,19 @@ from typing import Any
 
 import numpy as np
 
+from .._deprecated import deprecated
 from ..controllers.hierarchical import HierarchicalMPC
 from ..controllers.wrappers import MeasuredController
 from ..native import load as load_native
 from .plants import PULSE_CHUNK, RK4Plant
 
-__all__ = ["LOOPS", "CompiledLoop", "why_not_compiled"]
+__all__ = ["CompiledLoop"]
 
-#: The values of :func:`~hmpc_pin.sim.simulate.simulate`'s ``loop``: ``"auto"`` (compiled
-#: when every part has a compiled form), ``"compiled"`` (an error otherwise), ``"python"``
-#: (the per-step loop always).
-LOOPS = ("auto", "compiled", "python")
+
+def __getattr__(name: str):
+    """``LOOPS`` and ``why_not_compiled`` of earlier versions (:mod:`hmpc_pin._deprecated`),
+    with a :class:`DeprecationWarning`."""
+    return deprecated(__name__, name)
 
 
 def _own(obj, cls, *names: str) -> bool:
@@ -81,13 +83,6 @@ def _parts(controller):
         measured, controller = controller, controller.controller
     if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
         return controller, measured
-    return None
-
-
-def why_not_compiled(controller, plant, reference, on_step=None) -> str | None:
-    """The part that keeps the loop from running compiled, in words, or ``None``: since every
-    part is called through a port of the compiled loop (module docstring), ``None`` for every
-    setup (kept for callers of earlier versions)."""
     return None
 
 

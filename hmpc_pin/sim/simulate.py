@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .._deprecated import LOOPS
 from .._startup import raise_if_interrupted
 from ..checks import run_memory
 from ..exceptions import (
@@ -28,7 +29,7 @@ from ..exceptions import (
 )
 from ..model.robot import Robot
 from ..tasks.base import as_reference
-from .compiled_loop import LOOPS, CompiledLoop
+from .compiled_loop import CompiledLoop
 from .disturbances import ZeroDisturbance
 from .plants import PLANTS, Plant
 from .result import RESULT_ARRAYS, Result
@@ -63,7 +64,7 @@ def _deprecated_loop(loop: str | None) -> None:
     loop, whose oracle lives in the tests); refuse a value that never meant anything.
 
     Raises:
-        ConfigError: ``loop`` is none of :data:`~hmpc_pin.sim.compiled_loop.LOOPS`.
+        ConfigError: ``loop`` is none of :data:`~hmpc_pin._deprecated.LOOPS`.
     """
     if loop is None:
         return

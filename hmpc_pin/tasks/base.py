@@ -183,6 +183,16 @@ def compiled_sampling(reference: object) -> SamplingForm | None:
     )
 
 
+def samples_otherwise(cls: type, base: type) -> bool:
+    """Whether the class ``cls`` (a subclass of ``base`` or ``base`` itself) overrides the
+    sampling of ``base`` (its ``sample`` or ``sample_many`` method): then its samples are not
+    the form ``base`` hands to the compiled step, which must call it instead."""
+    return any(
+        getattr(cls, name, None) is not getattr(base, name, None)
+        for name in ("sample", "sample_many")
+    )
+
+
 class CompiledSampling:
     """Base of the references that the compiled sampler evaluates (``cpp/src/sampler.cpp``):
     ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` -- a
@@ -243,11 +253,7 @@ class CompiledSampling:
     def compiled_sampling(self) -> SamplingForm | None:
         """``_form()`` for the compiled step; ``None`` for a subclass that samples otherwise
         (it overrides ``sample_many`` or ``sample``)."""
-        cls = type(self)
-        if (
-            cls.sample_many is not CompiledSampling.sample_many
-            or cls.sample is not CompiledSampling.sample
-        ):
+        if samples_otherwise(type(self), CompiledSampling):
             return None
         return self._form()
 

@@ -45,7 +45,7 @@ import pinocchio as pin
 
 from ..exceptions import ExtraError, KinematicsError, LimitError
 from ..model.robot import Robot
-from .base import FloatArray, Pair, SamplingForm
+from .base import FloatArray, Pair, SamplingForm, samples_otherwise
 from .trajectory import JointTrajectory
 
 __all__ = [
@@ -444,8 +444,12 @@ class PoseReference:
         return self.trajectory.sample(t)
 
     def compiled_sampling(self) -> SamplingForm | None:
-        """The joint trajectory's form for the compiled step (:mod:`hmpc_pin.tasks.base`)."""
-        if type(self) is not PoseReference:
+        """The joint trajectory's form for the compiled step (:mod:`hmpc_pin.tasks.base`);
+        ``None`` for a subclass that samples otherwise (it overrides ``sample`` or
+        ``sample_many``, :func:`~hmpc_pin.tasks.base.samples_otherwise`)."""
+        if samples_otherwise(type(self), PoseReference) or self.sample_many != (
+            self.trajectory.sample_many
+        ):
             return None
         return self.trajectory.compiled_sampling()
 

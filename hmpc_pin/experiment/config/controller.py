@@ -9,16 +9,21 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...checks import mpc_fields
+from ...compensation.observers import DEFAULT_DISCRETIZATION, DEFAULT_GAIN
 from ...compensation.registry import REGISTRY, compensation_names, compensation_spec
 from ...controllers.hierarchical import MPCSettings, check_settings
+from ...controllers.registry import MPC_KEYS, controller_names, controller_spec
+from ...controllers.registry import REGISTRY as CONTROLLER_REGISTRY
 from ...exceptions import ConfigError
+from ...mpc.condensed import StateLimits
 from ..combos import HMPC_ONLY, applies
 from ._fields import _array, _bool, _choice, _float, _section, _set
 from .friction import FrictionModelConfig
 from .legacy import KIND_ALIASES, resolve_compensation
 
-#: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics.
-CONTROLLERS = ("hmpc", "computed-torque", "computed-torque-pid")
+#: Controllers (``[controller] kind``): the outer loop on top of inverse dynamics; the
+#: names of the registry (:data:`~hmpc_pin.controllers.registry.REGISTRY`).
+CONTROLLERS = controller_names()
 #: Compensations (``[controller] compensation``): the disturbance estimate cancelled; the
 #: names of the registry (:data:`~hmpc_pin.compensation.registry.REGISTRY`).
 COMPENSATIONS = compensation_names()
@@ -27,16 +32,12 @@ COMPENSATIONS = compensation_names()
 NATIVE_COMPENSATIONS = tuple(name for name, spec in REGISTRY.items() if spec.compiled)
 
 
-#: The keys of ``[controller]`` that are settings of the MPC only (``kind = "hmpc"``):
-#: unset (``None``) until resolved, then MPCSettings' default where not given.
-MPC_KEYS = ("eps_abs", "max_iter", "qp_layout", "backend", "latency", "joint_dynamics")
-
-
 def parse_combination(name: str, key: str = "controller") -> tuple[str, str | None]:
     """``"controller+compensation"``, a 0.1 alias or a bare controller → the pair.
 
     A bare controller gives ``(controller, None)``: its compensation is decided by the
-    caller (the config's, or :data:`~hmpc_pin.experiment.config.legacy.DEFAULT_COMPENSATION`).
+    caller (the config's, or the controller's registered
+    :attr:`~hmpc_pin.controllers.registry.ControllerSpec.default_compensation`).
 
     Raises:
         ConfigError: Unknown controller or compensation, naming ``key``.
@@ -91,7 +92,7 @@ class ObserverConfig:
     """
 
     gain: float | None = None
-    discretization: str = "implicit"
+    discretization: str = DEFAULT_DISCRETIZATION
     enabled: bool | None = None
     kind: str | None = None
     bandwidth: np.ndarray | None = None
@@ -110,7 +111,7 @@ class ObserverConfig:
                 )
             _set(self, "bandwidth", _array("bandwidth", self.bandwidth, positive=True))
         else:
-            gain = 100.0 if self.gain is None else self.gain
+            gain = DEFAULT_GAIN if self.gain is None else self.gain
             _set(self, "gain", _float("gain", gain, positive=True))
         _set(
             self,
@@ -143,8 +144,8 @@ class ConstraintConfig:
     lower: np.ndarray | None = None
     upper: np.ndarray | None = None
     velocity_limit: np.ndarray | None = None
-    slack_weight: float = 1e5
-    slack_linear_weight: float = 1e4
+    slack_weight: float = StateLimits.slack_weight
+    slack_linear_weight: float = StateLimits.slack_linear_weight
 
     def __post_init__(self):
         for name in ("enabled", "position", "velocity"):
@@ -380,10 +381,9 @@ class ControllerConfig:
         ct = self.computed_torque
         if applies("computed_torque", controller, comp):
             ct = ct if ct is not None else ComputedTorqueConfig()
-            if controller == "computed-torque" and ct.ki is not None:
-                raise ConfigError(
-                    "computed_torque.ki", "applies only to kind = 'computed-torque-pid'"
-                )
+            if not controller_spec(controller).pid and ct.ki is not None:
+                pid = " or ".join(repr(n) for n, c in CONTROLLER_REGISTRY.items() if c.pid)
+                raise ConfigError("computed_torque.ki", f"applies only to kind = {pid}")
             for name in HMPC_ONLY:
                 if getattr(self, name) is not None and not applies(name, controller, comp):
                     self._not_applicable(name, controller, comp)

@@ -11,6 +11,7 @@ import numpy as np
 
 from ...data import config_names, config_path
 from ...exceptions import ConfigError
+from ...sim.engines import engine_spec
 from ..combos import OBSERVERS
 from ._fields import _section
 from .collision import CollisionConfig
@@ -270,12 +271,13 @@ def load_config(path: str | Path) -> ExperimentConfig:
             robot = replace(robot, urdf=_urdf_path("robot.urdf", robot.urdf, base))
         kwargs["robot"] = robot
         plant = kwargs.get("plant", PlantConfig())
-        given = [k for k in ("dt", "integrator") if k in raw.get("plant", {})]
-        if plant.engine == "mujoco" and given:
+        engine = engine_spec(plant.engine)
+        given = [k for k in engine.replaces if k in raw.get("plant", {})]
+        if given:
             raise ConfigError(
                 f"plant.{given[0]}",
-                "does not apply to engine = 'mujoco'; set "
-                f"plant.mujoco.{'timestep' if given[0] == 'dt' else 'integrator'} instead",
+                f"does not apply to engine = {engine.name!r}; set "
+                f"plant.{engine.table}.{engine.replaces[given[0]]} instead",
             )
         if plant.urdf is not None:
             plant = replace(plant, urdf=_urdf_path("plant.urdf", plant.urdf, base))

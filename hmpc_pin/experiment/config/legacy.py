@@ -8,29 +8,22 @@ Version 0.1 named a controller × compensation in one ``kind`` (:data:`KIND_ALIA
 
 from __future__ import annotations
 
+from ...compensation.observers import DEFAULT_DESIGN
+from ...controllers.registry import KIND_ALIASES as _KIND_ALIASES
+from ...controllers.registry import REGISTRY, controller_kinds, controller_spec
 from ...exceptions import ConfigError
 
 __all__ = ["CONTROLLER_KINDS", "KIND_ALIASES", "resolve_compensation"]
 
-#: Controller names of version 0.1, each one controller × one compensation.
-KIND_ALIASES = {
-    "hmpc-none": ("hmpc", "none"),
-    "hmpc-momentum": ("hmpc", "momentum"),
-    "hmpc-ism": ("hmpc", "ism"),
-    "hmpc-ism-bl": ("hmpc", "ism-bl"),
-}
-#: Every name accepted by ``[controller] kind`` in version 0.1 (still accepted).
-CONTROLLER_KINDS = (
-    "hmpc",
-    "hmpc-none",
-    "hmpc-momentum",
-    "hmpc-ism",
-    "hmpc-ism-bl",
-    "computed-torque",
-    "computed-torque-pid",
-)
-#: The compensation a controller has when ``compensation`` is not given.
-DEFAULT_COMPENSATION = {"hmpc": "chen", "computed-torque": "none", "computed-torque-pid": "none"}
+#: Controller names of version 0.1, each one controller × one compensation (the
+#: controller registry's :attr:`~hmpc_pin.controllers.registry.ControllerSpec.aliases`).
+KIND_ALIASES = _KIND_ALIASES
+#: Every name accepted by ``[controller] kind``, with those of version 0.1 (the registry's).
+CONTROLLER_KINDS = controller_kinds()
+#: The compensation a controller has when ``compensation`` is not given (the registry's
+#: :attr:`~hmpc_pin.controllers.registry.ControllerSpec.default_compensation`; kept for
+#: callers of version 0.2).
+DEFAULT_COMPENSATION = {name: spec.default_compensation for name, spec in REGISTRY.items()}
 
 
 def resolve_compensation(
@@ -42,8 +35,10 @@ def resolve_compensation(
     ``kind`` may be a 0.1 alias (:data:`KIND_ALIASES`: the compensation is in the name,
     ``alias_comp``); without ``compensation``, ``kind = "hmpc"`` takes it from the 0.1 keys
     ``[controller.observer] enabled`` and ``kind`` (default Chen's NDO); every other
-    controller its :data:`DEFAULT_COMPENSATION`. A 0.1 key beside the 0.2 spelling that
-    supersedes it, or a contradiction between the two, is one :class:`ConfigError`.
+    controller its registered
+    :attr:`~hmpc_pin.controllers.registry.ControllerSpec.default_compensation`. A 0.1 key
+    beside the 0.2 spelling that supersedes it, or a contradiction between the two, is one
+    :class:`ConfigError`.
 
     Returns:
         ``(compensation, observer table or None)``.
@@ -82,13 +77,13 @@ def resolve_compensation(
                 f"{compensation!r} already chooses)",
             )
         comp = compensation
-    elif controller == "hmpc":  # 0.1 spelling: the observer table decides
+    elif controller_spec(controller).observer_v01:  # 0.1 spelling: the observer table decides
         enabled = True if obs is None or obs.enabled is None else obs.enabled
-        comp = ((obs.kind if obs is not None else None) or "chen") if enabled else "none"
+        comp = ((obs.kind if obs is not None else None) or DEFAULT_DESIGN) if enabled else "none"
         if not enabled:
             obs = None  # a table switched off by its own enabled = false
     else:
-        comp = DEFAULT_COMPENSATION[controller]
+        comp = controller_spec(controller).default_compensation
         if legacy_keys:
             raise ConfigError(
                 f"observer.{legacy_keys[0]}",

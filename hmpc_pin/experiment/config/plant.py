@@ -10,16 +10,21 @@ import numpy as np
 
 from ...exceptions import ConfigError
 from ...native import BACKENDS
+from ...sim.engines import DEFAULT_ENGINE, engine_spec
+from ...sim.engines import ENGINES as ENGINE_REGISTRY
 from ...sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
 from ...sim.plants import COULOMB_LAWS, PLANTS
 from ._fields import _array, _bool, _choice, _float, _section, _set
 
-#: Physics engines of the plant (``[plant] engine``).
-ENGINES = ("pinocchio", "mujoco")
+#: Physics engines of the plant (``[plant] engine``): the names of the engine registry
+#: (:data:`~hmpc_pin.sim.engines.ENGINES`).
+ENGINES = tuple(ENGINE_REGISTRY)
 #: Integrators of the Pinocchio plant (``[plant] integrator``): the plants of
 #: :data:`~hmpc_pin.sim.plants.PLANTS` that integrate Pinocchio's ABA.
 PINOCCHIO_INTEGRATORS = tuple(
-    name for name, cls in PLANTS.items() if getattr(cls, "engine", "pinocchio") == "pinocchio"
+    name
+    for name, cls in PLANTS.items()
+    if engine_spec(getattr(cls, "engine", DEFAULT_ENGINE)).integrated
 )
 
 
@@ -169,7 +174,7 @@ class PlantConfig:
     integrator: str = "rk4"
     saturate: bool = True
     effort_limit: np.ndarray | None = None
-    engine: str = "pinocchio"
+    engine: str = DEFAULT_ENGINE
     mujoco: MuJoCoConfig | None = None
     backend: str = "auto"
     joint_dynamics: bool = True
@@ -220,42 +225,40 @@ class PlantConfig:
                 stacklevel=2,
             )
             _set(self, "joint_dynamics", old)
-        if self.backend != "auto" and (self.engine != "pinocchio" or self.integrator != "rk4"):
+        engine = engine_spec(self.engine)
+        if self.backend != "auto" and (not engine.integrated or self.integrator != "rk4"):
             raise ConfigError(
                 "backend",
                 f"does not apply to engine = {self.engine!r}, integrator = "
                 f"{self.integrator!r} (only the Pinocchio RK4 plant has a native path); "
                 "remove it",
             )
-        if self.engine == "pinocchio" and self.mujoco is not None:
+        if engine.table != "mujoco" and self.mujoco is not None:
             raise ConfigError(
                 "mujoco",
                 "applies only to engine = 'mujoco'; remove the table "
                 "or set plant.engine = 'mujoco'",
             )
-        if self.tolerance is not None and self.engine != "pinocchio":
+        if self.tolerance is not None and not engine.integrated:
             raise ConfigError(
                 "tolerance",
                 f"does not apply to engine = {self.engine!r} (its step is fixed: "
                 "plant.mujoco.timestep); expected engine = 'pinocchio', or remove it",
             )
-        if self.coulomb != "stick-slip" and (
-            self.engine != "pinocchio" or self.integrator != "rk4"
-        ):
+        if self.coulomb != "stick-slip" and (not engine.integrated or self.integrator != "rk4"):
             raise ConfigError(
                 "coulomb",
                 f"does not apply to engine = {self.engine!r}, integrator = "
                 f"{self.integrator!r} (only the Pinocchio RK4 plant has the choice); remove it",
             )
-        if self.engine == "mujoco":
+        if engine.table == "mujoco":
             if self.mujoco is None:
                 _set(self, "mujoco", MuJoCoConfig())
-            for key, default, instead in (
-                ("dt", 0.001, "timestep"),
-                ("integrator", "rk4", "integrator"),
-            ):
-                if getattr(self, key) != default:
+            defaults = {"dt": 0.001, "integrator": "rk4"}
+            for key, instead in engine.replaces.items():
+                if getattr(self, key) != defaults[key]:
                     raise ConfigError(
                         key,
-                        f"does not apply to engine = 'mujoco'; set plant.mujoco.{instead} instead",
+                        f"does not apply to engine = {engine.name!r}; set "
+                        f"plant.{engine.table}.{instead} instead",
                     )

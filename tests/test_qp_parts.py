@@ -56,24 +56,6 @@ def test_box_active_set_without_exchanges_answers_nothing():
     assert core.BoxActiveSet(mpc.H).solve(g, -1.0, 1.0, np.zeros(mpc.Nc), -1, EPS) is None
 
 
-def test_box_active_set_answers_at_once_from_the_solutions_own_active_set():
-    """iter = 0: one solve per guess and no exchange. From the last solution's active set,
-    as it stands (the error persisting), the first solve is the minimiser: the shortcut must
-    answer it, with the oracle's point, without an exchange."""
-    mpc = _mpc()
-    H = mpc.H
-    part = core.BoxActiveSet(H)
-    bound = 0
-    for g in _gradients(mpc, 40, seed=9):
-        u, z = qp_parts.box_qp(H, g, -1.0, 1.0)
-        bound += int(np.any(z != 0.0))
-        got = part.solve(g, -1.0, 1.0, u, 0, EPS)
-        assert got is not None, "the exact active set was not answered without an exchange"
-        np.testing.assert_allclose(got[0], u, atol=1e-8)
-        np.testing.assert_allclose(got[1], z, atol=1e-8 * (1.0 + np.abs(g).max()))
-    assert bound >= 30  # most gradients put some input at a bound
-
-
 def test_box_qp_warm_and_cold_twin_solve_the_oracle_qp():
     mpc = _mpc()
     H, Nc = mpc.H, mpc.Nc

@@ -534,6 +534,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="", help="run the mutants whose file contains this")
     parser.add_argument("--index", default="", help="comma-separated indices into MUTANTS")
+    parser.add_argument(
+        "--tests",
+        nargs="*",
+        default=None,
+        help="run these tests for every mutant picked (in place of its own)",
+    )
     args = parser.parse_args()
     picked = [int(x) for x in args.index.split(",") if x] or range(len(MUTANTS))
     done = killed = 0
@@ -541,6 +547,8 @@ def main() -> int:
         mutant = MUTANTS[i]
         if args.only not in mutant[1]:
             continue
+        if args.tests:
+            mutant = (*mutant[:4], args.tests)
         verdict, seconds = run(mutant)
         done += 1
         killed += verdict.startswith("killed")

@@ -5,6 +5,8 @@ each against a closed form.
   inside a step at t* = F / c, in either direction s, then I ω̇ = s (c t − F): ω = s c (t − t*)²
   / (2 I), q = s c (t − t*)³ / (6 I), exact for RK4 (q a cubic in t) once the breakaway is
   located inside the step.
+- A reset at rest elsewhere: the plant as new (the rest test's gravity not a stale one).
+- RK4's period over a torque table linear in time: exact (each stage its row).
 """
 
 from __future__ import annotations
@@ -70,3 +72,24 @@ def test_a_pendulum_reset_at_rest_elsewhere_falls_as_a_new_plant_does(tmp_path):
         np.testing.assert_array_equal(dq, dqn)
         if k == 0:
             assert dq[0] == pytest.approx(acc * TS, rel=1e-2)
+
+
+def test_rk4_period_of_a_torque_linear_in_time_is_exact():
+    """A unit mass, q̈ = τ(t) = c t, its torque table's rows at each substep's start, midpoint
+    and end: RK4 integrates it exactly (q a cubic in t), v = c t² / 2, q = c t³ / 6."""
+    from hmpc_pin.native import load as load_native
+
+    core = load_native()
+    rk4 = core.RK4(None, n=1, aba=lambda q, v, tau: np.array(tau, dtype=float))
+    c, h, S = 3.0, 0.004, 5
+    q, v = np.zeros(1), np.zeros(1)
+    t0 = 0.0
+    for _ in range(3):
+        ts = t0 + h * np.arange(S)
+        T = np.ascontiguousarray(
+            np.concatenate([c * ts, c * (ts + 0.5 * h), c * (ts + h)])[:, None]
+        )
+        rk4.period(q, v, T, np.zeros(1), np.zeros(1), False, h)
+        t0 += S * h
+        assert v[0] == pytest.approx(c * t0**2 / 2, rel=1e-12)
+        assert q[0] == pytest.approx(c * t0**3 / 6, rel=1e-12)

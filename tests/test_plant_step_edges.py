@@ -93,3 +93,33 @@ def test_rk4_period_of_a_torque_linear_in_time_is_exact():
         t0 += S * h
         assert v[0] == pytest.approx(c * t0**2 / 2, rel=1e-12)
         assert q[0] == pytest.approx(c * t0**3 / 6, rel=1e-12)
+
+
+def test_rk4_period_with_a_disturbance_linear_in_time_is_exact():
+    """The same unit mass driven by a disturbance function d(t) = c t (per stage, at its time):
+    exact, v = c t² / 2, q = c t³ / 6."""
+    from hmpc_pin.native import load as load_native
+
+    core = load_native()
+    rk4 = core.RK4(None, n=1, aba=lambda q, v, tau: np.array(tau, dtype=float))
+    c, h, S = 3.0, 0.004, 5
+    q, v = np.zeros(1), np.zeros(1)
+    rk4.period_with(q, v, np.zeros(1), 0.0, h, S, lambda t, qs, vs: np.array([c * t]))
+    t = S * h
+    assert v[0] == pytest.approx(c * t**2 / 2, rel=1e-12)
+    assert q[0] == pytest.approx(c * t**3 / 6, rel=1e-12)
+
+
+def test_rk4_period_with_fused_damping_decays_as_the_closed_form():
+    """A unit mass with the fused damping a = β (friction on, b = 0): v̇ = −β v, v = e^{−β t}
+    (RK4's error O(h⁴): 1e-9 here)."""
+    from hmpc_pin.native import load as load_native
+
+    core = load_native()
+    rk4 = core.RK4(None, n=1, aba=lambda q, v, tau: np.array(tau, dtype=float))
+    beta, h, S = 2.0, 0.001, 10
+    q, v = np.zeros(1), np.ones(1)
+    rk4.period(q, v, np.zeros((3 * S, 1)), np.array([beta]), np.zeros(1), True, h)
+    t = S * h
+    assert v[0] == pytest.approx(np.exp(-beta * t), abs=1e-9)
+    assert q[0] == pytest.approx((1 - np.exp(-beta * t)) / beta, abs=1e-9)

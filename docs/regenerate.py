@@ -136,11 +136,12 @@ def _cli(*args: str) -> str:
     """``hmpc-pin ARGS`` in this process; its standard output (exit 0 asserted)."""
     from hmpc_pin.apps.cli import main
 
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
-        code = main([str(a) for a in args])
+    argv = [str(a) for a in args]
+    buf, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
+        code = main(argv)
     if code != 0:
-        raise RuntimeError(f"hmpc-pin {' '.join(args)} exited {code}")
+        raise RuntimeError(f"hmpc-pin {' '.join(argv)} exited {code}: {err.getvalue().strip()}")
     return buf.getvalue()
 
 
@@ -159,8 +160,11 @@ def _workdir() -> Path:
 def _run(config: str, duration: float | None = None, stem: str = "") -> Path:
     """``hmpc-pin run CONFIG [--duration D] --no-figures`` into a folder of its own; the
     ``.npz`` written."""
-    out = _workdir() / (stem or config.replace("/", "_").replace(".", "_"))
-    args = ["run", config, "--out", out, "--no-figures"]
+    name = stem or config.replace("/", "_").replace(".", "_")
+    if duration is not None:  # a folder per run: a run never replaces another's files
+        name += f"_{duration:g}s".replace(".", "_")
+    out = _workdir() / name
+    args = ["run", config, "--out", out, "--no-figures", "--force"]  # the same run again
     if duration is not None:
         args += ["--duration", str(duration)]
     _cli(*args)

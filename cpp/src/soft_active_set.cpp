@@ -29,13 +29,19 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   bool ok = false;
   continued_ = false;
   if (has_guess_[i] && last[i]) {
-    for (int shifted = 1; shifted >= 0 && !ok; --shifted) {
+    // The two guesses in the order of the one that answered last (a held arm: as it stands;
+    // a moving one: shifted), so that a stalled arm's step does not spend its exchanges on
+    // the shifted set first.
+    const int first = shifted_first_[i];
+    for (int k = 0; k < 2 && !ok; ++k) {
+      const int shifted = k == 0 ? first : 1 - first;
       const auto& rows = guess_rows_[i];
       const auto& box = guess_box_[i];
       for (int r = 0; r < 2 * N; ++r) st_.rows[r] = rows[shifted && r + 2 < 2 * N ? r + 2 : r];
       for (int a = 0; a < Nc; ++a) st_.box[a] = box[shifted && a + 1 < Nc ? a + 1 : a];
       st_.slack = guess_slack_[i];
       ok = exchange(i, iter);
+      if (ok) shifted_first_[i] = static_cast<signed char>(shifted);
     }
     continued_ = ok;
   }

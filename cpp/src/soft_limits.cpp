@@ -47,6 +47,7 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
   guess_box_.assign(n, std::vector<signed char>(Nc, 0));
   guess_slack_.assign(n, 0);
   has_guess_.assign(n, 0);
+  shifted_first_.assign(n, 1);
   st_.rows.assign(2 * N, 0);
   st_.box.assign(Nc, 0);
   p_.gp.setZero(Nc);
@@ -90,6 +91,7 @@ void SoftLimits::restart() {
   for (int i = 0; i < n_; ++i)
     if (used_[i]) make_qp(i);
   std::fill(has_guess_.begin(), has_guess_.end(), 0);
+  std::fill(shifted_first_.begin(), shifted_first_.end(), 1);
   std::fill(last.begin(), last.end(), 0);
   std::fill(active.begin(), active.end(), 0);  // no box QP skipped at the start
   std::fill(next.begin(), next.end(), 0);

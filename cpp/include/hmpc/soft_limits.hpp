@@ -120,6 +120,7 @@ class SoftLimits {
   std::unique_ptr<BandedKKT> kkt_;
   std::vector<std::vector<signed char>> guess_rows_, guess_box_;
   std::vector<signed char> guess_slack_, has_guess_;
+  std::vector<signed char> shifted_first_;  // per joint: its shifted guess answered last (1)
   SoftActiveSet st_;
   std::vector<signed char> rows_was_, box_was_;
   bool continued_ = false;  // the last active_set answered from the last step's set

@@ -1191,8 +1191,9 @@ def test_stalled_arm_soft_qps_satisfy_kkt_and_are_answered_from_the_held_active_
     joint's (U, s) satisfies the KKT conditions of the soft-limit QP built here
     (:func:`own_soft_qp`) and equals the soft QP solved from scratch by ProxSuite, to the
     solver's tolerance; every soft QP after the first step is answered by the soft
-    active-set shortcut, and its guess shifted along the horizon (a moving arm's) fails at most once per joint: after
-    the unshifted one answered, a continued activation tries that one first."""
+    active-set shortcut, and its guess shifted along the horizon (a moving arm's) fails at
+    most once per joint: after the unshifted one answered, a continued activation tries
+    that one first."""
     Ts, N, _, (lo, hi, vel) = SOFT_LONG[case]
     n = 3
     mpc, qps, cold = _soft_long_qps(case)

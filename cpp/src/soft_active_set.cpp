@@ -29,10 +29,19 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   bool ok = false;
   continued_ = false;
   if (has_guess_[i] && last[i]) {
-    // The two guesses in the order of the one that answered last (a held arm: as it stands;
-    // a moving one: shifted), so that a stalled arm's step does not spend its exchanges on
-    // the shifted set first.
-    const int first = shifted_first_[i];
+    // The two guesses in the order of the one that answered at the last step; at an
+    // activation's first continued step, the shifted one first when the state is nearer the
+    // last answer's prediction of it (x1 = A x0 + B u0: the plan followed) than the last
+    // state (an arm held still, stalled or unable to follow its plan: the problem as it
+    // stood, that guess first), so that a stalled arm's step does not spend its exchanges
+    // on the shifted set.
+    const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+    const double lq = last_q_[i], lv = last_v_[i], u0 = last_u0_[i];
+    const double pq = a00 * lq + a01 * lv + Gamma_(0, 0) * u0;
+    const double pv = a10 * lq + a11 * lv + Gamma_(1, 0) * u0;
+    const double moved = std::abs(q_ - pq) + a01 * std::abs(dq_ - pv);
+    const double held = std::abs(q_ - lq) + a01 * std::abs(dq_ - lv);
+    const int first = shifted_first_[i] >= 0 ? shifted_first_[i] : (moved <= held ? 1 : 0);
     for (int k = 0; k < 2 && !ok; ++k) {
       const int shifted = k == 0 ? first : 1 - first;
       const auto& rows = guess_rows_[i];
@@ -53,12 +62,14 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
     box_y_.head(Nc) = box_u;
     box_y_[Nc] = 0.0;
     guess_from(i, box_y_, true);
+    shifted_first_[i] = -1;  // a new activation: no guess answered at the last step
     st_.rows = guess_rows_[i];
     st_.box = guess_box_[i];
     st_.slack = guess_slack_[i];
     ok = exchange(i, 4 * iter);
   }
   if (!ok) return false;
+  remember_state(i, kkt_->y()[0]);
   guess_rows_[i] = st_.rows;
   guess_box_[i] = st_.box;
   guess_slack_[i] = st_.slack;

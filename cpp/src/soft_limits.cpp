@@ -47,7 +47,10 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
   guess_box_.assign(n, std::vector<signed char>(Nc, 0));
   guess_slack_.assign(n, 0);
   has_guess_.assign(n, 0);
-  shifted_first_.assign(n, 1);
+  last_q_.setZero(n);
+  last_v_.setZero(n);
+  last_u0_.setZero(n);
+  shifted_first_.assign(n, -1);
   st_.rows.assign(2 * N, 0);
   st_.box.assign(Nc, 0);
   p_.gp.setZero(Nc);
@@ -91,7 +94,7 @@ void SoftLimits::restart() {
   for (int i = 0; i < n_; ++i)
     if (used_[i]) make_qp(i);
   std::fill(has_guess_.begin(), has_guess_.end(), 0);
-  std::fill(shifted_first_.begin(), shifted_first_.end(), 1);
+  std::fill(shifted_first_.begin(), shifted_first_.end(), -1);
   std::fill(last.begin(), last.end(), 0);
   std::fill(active.begin(), active.end(), 0);  // no box QP skipped at the start
   std::fill(next.begin(), next.end(), 0);
@@ -125,6 +128,8 @@ void SoftLimits::prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVe
   }
   p_.g.head(Nc_) = G.row(i).transpose();
   p_.g[Nc_] = g_slack_;
+  q_ = q[i];
+  dq_ = dq[i];
 }
 
 const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
@@ -138,6 +143,8 @@ const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
     return qp.results;
   if (shortcut_ && iter >= 0) {
     guess_from(i, qp.results.x, false);
+    remember_state(i, qp.results.x[0]);
+    shifted_first_[i] = -1;
     settled(i, false, false);
   }
   return qp.results;

@@ -120,7 +120,17 @@ class SoftLimits {
   std::unique_ptr<BandedKKT> kkt_;
   std::vector<std::vector<signed char>> guess_rows_, guess_box_;
   std::vector<signed char> guess_slack_, has_guess_;
-  std::vector<signed char> shifted_first_;  // per joint: its shifted guess answered last (1)
+  // Per joint: the state (q, q̇) and first input of its last remembered soft answer (which
+  // guess active_set tries first); q_, dq_: the state of the joint prepared.
+  Vec last_q_, last_v_, last_u0_;
+  std::vector<signed char> shifted_first_;  // the guess that answered at the last step (1:
+                                            // shifted, 0: as it stood, −1: none)
+  double q_ = 0.0, dq_ = 0.0;
+  void remember_state(int i, double u0) {
+    last_q_[i] = q_;
+    last_v_[i] = dq_;
+    last_u0_[i] = u0;
+  }
   SoftActiveSet st_;
   std::vector<signed char> rows_was_, box_was_;
   bool continued_ = false;  // the last active_set answered from the last step's set

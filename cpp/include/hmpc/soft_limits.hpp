@@ -2,7 +2,9 @@
 // joint, the QP over y = (U, ŝ) with the limits on X = Φ x0 + Γ U as soft rows (slack
 // s = k ŝ), solved by ProxSuite from scratch (made once; Nc + 1 variables, 4N rows) or,
 // first, by the soft active-set shortcut: the last step's soft solution's active set,
-// shifted one step along the horizon or as it stands; at a new activation, the box-only
+// shifted one step along the horizon or as it stands (first the one that answered at the
+// last step, else the shifted one unless the arm is nearer its last state than the plan's
+// prediction of it: held still); at a new activation, the box-only
 // solution's with the rows it violates and the inputs next to them freed; refined by
 // primal-dual exchanges, each subproblem solved by BandedKKT (banded_kkt.hpp), answering
 // only when its point passes the soft QP's KKT test to the solver's tolerance. JointQPs

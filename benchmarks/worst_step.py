@@ -22,7 +22,12 @@ reference``'s median step (the costliest step's: to the median of those medians)
 printed: how the soft QPs were answered (the soft active-set shortcut, whose answers pass
 the soft QP's KKT test, or ProxSuite) and the shortcut's guesses that did not answer.
 
-Run: ``python benchmarks/worst_step.py [--blocks 7] [--steps 100]``.
+With ``--soft-step-exchanges K``: the soft exchanges bounded to K per step
+(``JointQPs.soft_step_exchanges``; a joint reached with none left answers the fallback,
+counted, and resumes at the next step); printed beside the counters: the fallbacks, the
+exchanges and the most in a step.
+
+Run: ``python benchmarks/worst_step.py [--blocks 7] [--steps 100] [--soft-step-exchanges 16]``.
 """
 
 from __future__ import annotations
@@ -40,16 +45,18 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks._fixtures import HOMES, PANDA_LOCKED, load_arm  # noqa: E402
-from benchmarks.long_horizon_soft import OFFSET, closed_loop, controller  # noqa: E402
+from benchmarks.long_horizon_soft import OFFSET, closed_loop  # noqa: E402
+from benchmarks.long_horizon_soft import controller as _controller  # noqa: E402
 
 TS, N = 0.001, 100  # [s], horizon
 
 
 def _stats(ctrl) -> np.ndarray:
-    """(soft QPs solved, answered by the shortcut, failed guesses: pivot, exchanges, KKT)."""
+    """(soft QPs solved, answered by the shortcut, failed guesses: pivot, exchanges, KKT;
+    fallbacks, exchanges, the most exchanges in a step)."""
     s = ctrl.qps._core.stats
     return np.array([0, s.soft_active_set_solves, s.soft_fail_pivot, s.soft_fail_exchanges,
-                     s.soft_fail_kkt])  # fmt: skip
+                     s.soft_fail_kkt, s.soft_fallbacks, s.soft_exchanges, 0])  # fmt: skip
 
 
 def alternate(variants: dict, blocks: int) -> dict[str, dict[str, np.ndarray]]:
@@ -64,15 +71,18 @@ def alternate(variants: dict, blocks: int) -> dict[str, dict[str, np.ndarray]]:
             step = ctrl.step
             w, c = np.empty(len(calls)), np.empty(len(calls))
             before = _stats(ctrl)
-            solved = 0
+            solved = most = 0
+            core = ctrl.qps._core
             for j, (ti, qi, dqi) in enumerate(calls):
+                e0 = core.stats.soft_exchanges
                 c0, w0 = cpu(), wall()
                 step(ti, qi, dqi, ref)
                 w1, c1 = wall(), cpu()
                 w[j], c[j] = (w1 - w0) / 1e3, (c1 - c0) / 1e3
                 solved += ctrl.qps.constrained
+                most = max(most, core.stats.soft_exchanges - e0)
             stats = _stats(ctrl) - before
-            stats[0] = solved
+            stats[0], stats[7] = solved, most
             out[name]["wall"].append(w)
             out[name]["cpu"].append(c)
             out[name]["stats"].append(stats)
@@ -83,12 +93,26 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--blocks", type=int, default=7)
     parser.add_argument("--steps", type=int, default=100)
+    parser.add_argument(
+        "--soft-step-exchanges",
+        type=int,
+        default=None,
+        help="JointQPsOptions.soft_step_exchanges (default: the package's)",
+    )
     args = parser.parse_args()
     print("command: python benchmarks/worst_step.py " + " ".join(sys.argv[1:]))
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
     arm = load_arm("panda", "panda", HOMES["panda"], "general", PANDA_LOCKED)
     robot, ref = arm.robot, arm.reference()
+
+    def controller(robot, Ts, N):
+        ctrl = _controller(robot, Ts, N)
+        if args.soft_step_exchanges is not None:
+            ctrl.qps._core.options.soft_step_exchanges = args.soft_step_exchanges
+        return ctrl
+
     loop_ctrl = controller(robot, TS, N)
+    budget = loop_ctrl.qps._core.options.soft_step_exchanges
     states, _, _ = closed_loop(loop_ctrl, ref, TS, args.steps)
     t = states[0]
     q_ref, dq_ref = ref.sample_many(t)
@@ -101,7 +125,8 @@ def main() -> int:
     res = alternate(variants, args.blocks)
     base = np.median(res["on the reference"]["wall"], axis=1)
     print(f"Panda, Ts = {TS * 1e3:g} ms, N = Nc = {N}, default soft limits, {OFFSET} rad off: "
-          f"{args.steps} steps per block, {args.blocks} blocks\n")  # fmt: skip
+          f"{args.steps} steps per block, {args.blocks} blocks, soft exchanges per step "
+          f"{'unbounded' if budget < 0 else f'at most {budget}'}\n")  # fmt: skip
     print("| variant | median step [µs] | / on the reference | worst step, wall [µs] | "
           "worst step, thread CPU [µs] | costliest step, wall [µs] | costliest / on the reference "
           "|")  # fmt: skip
@@ -119,8 +144,9 @@ def main() -> int:
         s = r["stats"].sum(axis=0)
         if s[0]:
             print(f"{name}: soft QPs solved {s[0]}, by the shortcut {s[1]}, by ProxSuite "
-                  f"{s[0] - s[1]}; guesses that did not answer: pivot {s[2]}, exchanges "
-                  f"{s[3]}, KKT {s[4]}")  # fmt: skip
+                  f"{s[0] - s[1] - s[5]}; guesses that did not answer: pivot {s[2]}, exchanges "
+                  f"{s[3]}, KKT {s[4]}; fallbacks {s[5]}; exchanges {s[6]}, at most "
+                  f"{r['stats'][:, 7].max()} in a step")  # fmt: skip
     print(f"\nload average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

@@ -28,7 +28,16 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   // QP solved at the step before): after a step without, its activation is a new one.
   bool ok = false;
   continued_ = false;
-  if (has_guess_[i] && last[i]) {
+  stopped_ = false;
+  if (resume_[i] && has_guess_[i]) {
+    // The exchanges stopped at the last step (the step's ran out): resumed where they were.
+    resume_[i] = 0;
+    st_.rows = guess_rows_[i];
+    st_.box = guess_box_[i];
+    st_.slack = guess_slack_[i];
+    ok = exchange(i, 4 * iter);
+    if (!ok && !stopped_) return false;
+  } else if (has_guess_[i] && last[i]) {
     // The two guesses in the order of the one that answered at the last step; at an
     // activation's first continued step, the shifted one first when the state is nearer the
     // last answer's prediction of it (x1 = A x0 + B u0: the plan followed) than the last
@@ -51,6 +60,7 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
       st_.slack = guess_slack_[i];
       ok = exchange(i, iter);
       if (ok) shifted_first_[i] = static_cast<signed char>(shifted);
+      if (stopped_) break;
     }
     continued_ = ok;
   }
@@ -58,7 +68,7 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it
   // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
   // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
-  if (!ok && !(has_guess_[i] && last[i])) {
+  if (!ok && !stopped_ && !(has_guess_[i] && last[i])) {
     box_y_.head(Nc) = box_u;
     box_y_[Nc] = 0.0;
     guess_from(i, box_y_, true);
@@ -67,6 +77,15 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
     st_.box = guess_box_[i];
     st_.slack = guess_slack_[i];
     ok = exchange(i, 4 * iter);
+  }
+  if (stopped_) {
+    // Out of this step's exchanges: the active set reached kept for the next step's.
+    guess_rows_[i] = st_.rows;
+    guess_box_[i] = st_.box;
+    guess_slack_[i] = st_.slack;
+    has_guess_[i] = 1;
+    resume_[i] = 1;
+    return false;
   }
   if (!ok) return false;
   remember_state(i, kkt_->y()[0]);
@@ -82,13 +101,21 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
 bool SoftLimits::exchange(int i, int exchanges) {
   // A dependent bound or row dropped by the KKT solve costs no exchange (at most one drop
   // per active item, so this ends).
+  // This step's exchanges (budget_) are counted as `exchanges` are: by the solves that
+  // were not a drop.
   for (int it = 0; it <= exchanges;) {
+    if (budget_ == 0) {
+      stopped_ = true;
+      return false;
+    }
     if (!kkt_->solve(st_, p_)) {
       if (kkt_->dropped()) continue;
       ++stats_->soft_fail_pivot;
       return false;
     }
     ++it;
+    if (budget_ > 0) --budget_;
+    ++stats_->soft_exchanges;
     const int verdict = test_point(i);
     if (verdict == 0) return true;
     if (verdict < 0) {

@@ -86,6 +86,15 @@ class SoftLimits {
   // ProxSuite's answer for joint i (after prepare); then, when the shortcut is on
   // (iter >= 0), its active set remembered as the next guess.
   const Results& proxsuite(int i, int iter);
+  // This step's exchanges over all joints (< 0: no bound), set before the joints'; stopped():
+  // the last active_set ran out of them (its active set kept: the next step resumes it).
+  void set_budget(long exchanges) { budget_ = exchanges; }
+  bool stopped() const { return stopped_; }
+  // The fallback answer for joint i (after prepare) when the exchanges ran out: its first input u0 (its
+  // box-only answer) with u0 clipped to the accelerations that keep the next state
+  // x1 = A x0 + B u0 inside the position and velocity limits (the velocity's alone when
+  // both cannot hold) and the box.
+  void fallback(int i, double& u0) const;
   // After joint i's soft QP was answered: whether the next step goes straight to it.
   void settled(int i, bool binding, bool continued) { active[i] = binding && continued ? 1 : 0; }
 
@@ -128,6 +137,9 @@ class SoftLimits {
   std::vector<signed char> shifted_first_;  // the guess that answered at the last step (1:
                                             // shifted, 0: as it stood, −1: none)
   double q_ = 0.0, dq_ = 0.0;
+  long budget_ = -1;
+  bool stopped_ = false;
+  std::vector<signed char> resume_;  // per joint: its exchanges stopped at the last step
   void remember_state(int i, double u0) {
     last_q_[i] = q_;
     last_v_[i] = dq_;

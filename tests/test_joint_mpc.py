@@ -1180,3 +1180,98 @@ def test_restart_answers_as_new_qps_bit_for_bit():
     start = reference(0.0) + np.array([[offset], [0.0]])
     used.restart()
     np.testing.assert_array_equal(run(used, start), run(new, start))
+
+
+@pytest.mark.parametrize(
+    "case", ["1 ms, N = 100, velocity limits", "10 ms, N = 50, velocity limits"]
+)
+def test_stalled_arm_soft_qps_satisfy_kkt_and_are_answered_from_the_held_active_set(case):
+    """An arm held still off a moving reference (stalled against something: the same state
+    at every step, the sine's velocity beyond the velocity limit): at every step each
+    joint's (U, s) satisfies the KKT conditions of the soft-limit QP built here
+    (:func:`own_soft_qp`) and equals the soft QP solved from scratch by ProxSuite, to the
+    solver's tolerance; every soft QP after the first step is answered by the soft
+    active-set shortcut, and its guess shifted along the horizon (a moving arm's) fails at
+    most once per joint: after the unshifted one answered, a continued activation tries
+    that one first."""
+    Ts, N, _, (lo, hi, vel) = SOFT_LONG[case]
+    n = 3
+    mpc, qps, cold = _soft_long_qps(case)
+    phase, w = np.array([0.0, 1.0, 2.0]), 2.0 * np.pi
+
+    def reference(t):  # r, ṙ of the sine, shape (2, n)
+        return np.vstack([0.5 * np.sin(w * t + phase), 0.5 * w * np.cos(w * t + phase)])
+
+    x = np.vstack([reference(0.0)[0] + 0.2, np.zeros(n)])  # held here, at rest
+    tol_kkt, tol = 100.0 * EPS_ABS, solution_tolerance(mpc.H)
+    steps = 12
+    for k in range(steps):
+        ref = np.vstack([reference((k + j) * Ts) for j in range(1, N + 1)])  # (2N, n)
+        G = mpc.gradient(x, ref)
+        qps.solve(G, x)
+        cold.solve(G, x)
+        assert qps.constrained == n, k
+        _assert_soft_answers(qps, cold, x, ref, N, Ts, (lo, hi, vel), tol_kkt, tol, k)
+    # every soft QP after the first step (measured: all at 1 ms, 35 of 36 at 10 ms)
+    assert qps.soft_active_set_solves >= (steps - 1) * n, qps.soft_active_set_solves
+    assert qps._core.stats.soft_fail_exchanges <= n, qps._core.stats.soft_fail_exchanges
+
+
+@pytest.mark.parametrize("budget", [40, 60])
+def test_bounded_soft_exchanges_answer_kkt_points_or_the_counted_fallback(budget):
+    """A bound on the soft shortcut's exchanges per step (``soft_step_exchanges``): three
+    joints in the 1 ms, N = 100 closed loop of the double integrators started 0.2 rad off
+    the sine (an activation of every joint's soft QP at the first step). At every step each
+    joint's (U, s) either satisfies the KKT conditions of the soft-limit QP built here
+    (:func:`own_soft_qp`) or is the fallback: as many joints fail them as the step counted
+    in ``soft_fallbacks``, each one's first input inside the box and its next state's
+    velocity inside the limit when an input in the box can keep it there. The exchanges
+    resume at the next step: within 5 steps every answer is the KKT point (ProxSuite's from
+    scratch to the solver's tolerance) and no fallback is left (measured: the last fallback
+    at step 4 with 40, 1 with 60; with 20 or 30 every one of 20 steps ends in fallbacks, the
+    bound below what the three joints' exchanges need per step)."""
+    case = "1 ms, N = 100, velocity limits"
+    Ts, N, offset, (lo, hi, vel) = SOFT_LONG[case]
+    n = 3
+    mpc, qps, cold = _soft_long_qps(case)
+    core = qps._core
+    assert core.options.soft_step_exchanges < 0  # no bound by default
+    qps.soft_step_exchanges = budget
+    phase, w = np.array([0.0, 1.0, 2.0]), 2.0 * np.pi
+
+    def reference(t):  # r, ṙ of the sine, shape (2, n)
+        return np.vstack([0.5 * np.sin(w * t + phase), 0.5 * w * np.cos(w * t + phase)])
+
+    x = reference(0.0) + np.array([[offset], [0.0]])
+    tol_kkt, tol = 100.0 * EPS_ABS, solution_tolerance(mpc.H)
+    A_dyn = np.array([[1.0, Ts], [0.0, 1.0]])
+    B_dyn = np.array([[Ts * Ts / 2.0], [Ts]])
+    last_fallback = -1
+    for k in range(20):
+        ref = np.vstack([reference((k + j) * Ts) for j in range(1, N + 1)])  # (2N, n)
+        G = mpc.gradient(x, ref)
+        before, spent = core.stats.soft_fallbacks, core.stats.soft_exchanges
+        qps.solve(G, x)
+        assert core.stats.soft_exchanges - spent <= budget, k
+        fallbacks = core.stats.soft_fallbacks - before
+        failed = 0
+        for i in range(n):
+            z = np.append(qps.solution[:, i], qps.slack[i])
+            Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, lo, hi, vel)
+            violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
+            if violation > 1e-7 or residual > tol_kkt:
+                failed += 1
+                u0 = qps.solution[0, i]
+                assert -V_LIMIT - 1e-12 <= u0 <= V_LIMIT + 1e-12
+                v1, reach = x[1, i] + Ts * u0, x[1, i] + Ts * np.array([-V_LIMIT, V_LIMIT])
+                if reach[0] <= vel and reach[1] >= -vel:  # an input keeps |q̇_1| <= vel
+                    assert abs(v1) <= vel + 1e-9, (k, i, v1)
+        assert failed == fallbacks, (k, failed, fallbacks)
+        if fallbacks:
+            last_fallback = k
+        else:
+            cold.solve(G, x)
+            _assert_soft_answers(qps, cold, x, ref, N, Ts, (lo, hi, vel), tol_kkt, tol, k)
+        x = A_dyn @ x + B_dyn @ qps.solution[:1]
+    assert last_fallback < 5, last_fallback  # the exact answers reached within 5 steps
+    assert qps.soft_fallbacks > 0  # the bound bound at the activation

@@ -40,12 +40,14 @@ static void expose_options_stats(py::module_& m) {
       .def_readwrite("shift", &O::shift)
       .def_readwrite("active_set_iter", &O::active_set_iter)
       .def_readwrite("soft_active_set_iter", &O::soft_active_set_iter)
+      .def_readwrite("soft_step_exchanges", &O::soft_step_exchanges)
       .def_readonly("always_constrained", &O::always_constrained);
   using S = JointQPsStats;
   auto fields = [](const S& s) {
     return py::make_tuple(s.cold_solves, s.unconstrained_solves, s.active_set_solves,
                           s.soft_active_set_solves, s.soft_fail_pivot, s.soft_fail_exchanges,
-                          s.soft_fail_kkt, s.constrained, s.constrained_last);
+                          s.soft_fail_kkt, s.soft_exchanges, s.soft_fallbacks, s.constrained,
+                          s.constrained_last);
   };
   py::class_<S>(m, "JointQPsStats", py::module_local())
       .def(py::init<>())
@@ -61,6 +63,8 @@ static void expose_options_stats(py::module_& m) {
                     ", soft_fail_pivot=" + std::to_string(s.soft_fail_pivot) +
                     ", soft_fail_exchanges=" + std::to_string(s.soft_fail_exchanges) +
                     ", soft_fail_kkt=" + std::to_string(s.soft_fail_kkt) +
+                    ", soft_exchanges=" + std::to_string(s.soft_exchanges) +
+                    ", soft_fallbacks=" + std::to_string(s.soft_fallbacks) +
                     ", constrained=" + std::to_string(s.constrained) +
                     ", constrained_last=" + (s.constrained_last ? "True" : "False") + ")";
            })
@@ -71,6 +75,8 @@ static void expose_options_stats(py::module_& m) {
       .def_readwrite("soft_fail_pivot", &S::soft_fail_pivot)
       .def_readwrite("soft_fail_exchanges", &S::soft_fail_exchanges)
       .def_readwrite("soft_fail_kkt", &S::soft_fail_kkt)
+      .def_readwrite("soft_exchanges", &S::soft_exchanges)
+      .def_readwrite("soft_fallbacks", &S::soft_fallbacks)
       .def_readwrite("constrained", &S::constrained)
       .def_readwrite("constrained_last", &S::constrained_last);
 }

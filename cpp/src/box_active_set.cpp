@@ -34,7 +34,13 @@ bool BoxActiveSet::solve(const Vec& g, double lo, double hi, const Vec& last, in
   if (iter < 0) return false;
   u0_ = u_;  // the unconstrained minimiser −H⁻¹g
   const double guess_tol = 1e-6 * std::max(1.0, hi - lo);
-  for (int shifted = Nc_ > 1 ? 1 : 0; shifted >= 0; --shifted) {
+  // A last solution inside the box (the arm tracking, or a new run) gives no active input to
+  // guess: from it, the first exchange reaches the bounds u0 crosses, the third guess below,
+  // which has more exchanges than either: straight to it (an activation's first step).
+  bool any_active = false;
+  for (int j = 0; j < Nc_ && !any_active; ++j)
+    any_active = last[j] <= lo + guess_tol || last[j] >= hi - guess_tol;
+  for (int shifted = Nc_ > 1 ? 1 : 0; any_active && shifted >= 0; --shifted) {
     for (int j = 0; j < Nc_; ++j) {
       const double c = last[shifted && j + 1 < Nc_ ? j + 1 : j];
       state_[j] = c <= lo + guess_tol ? -1 : (c >= hi - guess_tol ? 1 : 0);

@@ -135,6 +135,7 @@ bool JointQPs::solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
     }
   }
   stats.constrained = 0;
+  if (soft_) soft_->set_budget(options.soft_step_exchanges);
   if (soft_ && !enforce_limits(G, q, dq)) return false;
   return true;
 }
@@ -152,6 +153,15 @@ bool JointQPs::soft_joint(int i, const CRefRow& G, const CRefVec& q, const CRefV
     ++stats.soft_active_set_solves;
     soft.last[i] = 1;
     soft.settled(i, soft.binding(), soft.continued());
+    return true;
+  }
+  if (soft.stopped()) {
+    // Out of this step's exchanges: the safe fallback; the next step resumes them.
+    soft.fallback(i, U(0, i));
+    slack[i] = 0.0;
+    ++stats.soft_fallbacks;
+    soft.last[i] = 1;
+    soft.settled(i, false, false);
     return true;
   }
   const Results& res = soft.proxsuite(i, options.soft_active_set_iter);

@@ -28,14 +28,39 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   // QP solved at the step before): after a step without, its activation is a new one.
   bool ok = false;
   continued_ = false;
-  if (has_guess_[i] && last[i]) {
-    for (int shifted = 1; shifted >= 0 && !ok; --shifted) {
+  stopped_ = false;
+  if (resume_[i] && has_guess_[i]) {
+    // The exchanges stopped at the last step (the step's ran out): resumed where they were.
+    resume_[i] = 0;
+    st_.rows = guess_rows_[i];
+    st_.box = guess_box_[i];
+    st_.slack = guess_slack_[i];
+    ok = exchange(i, 4 * iter);
+    if (!ok && !stopped_) return false;
+  } else if (has_guess_[i] && last[i]) {
+    // The two guesses in the order of the one that answered at the last step; at an
+    // activation's first continued step, the shifted one first when the state is nearer the
+    // last answer's prediction of it (x1 = A x0 + B u0: the plan followed) than the last
+    // state (an arm held still, stalled or unable to follow its plan: the problem as it
+    // stood, that guess first), so that a stalled arm's step does not spend its exchanges
+    // on the shifted set.
+    const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+    const double lq = last_q_[i], lv = last_v_[i], u0 = last_u0_[i];
+    const double pq = a00 * lq + a01 * lv + Gamma_(0, 0) * u0;
+    const double pv = a10 * lq + a11 * lv + Gamma_(1, 0) * u0;
+    const double moved = std::abs(q_ - pq) + a01 * std::abs(dq_ - pv);
+    const double held = std::abs(q_ - lq) + a01 * std::abs(dq_ - lv);
+    const int first = shifted_first_[i] >= 0 ? shifted_first_[i] : (moved <= held ? 1 : 0);
+    for (int k = 0; k < 2 && !ok; ++k) {
+      const int shifted = k == 0 ? first : 1 - first;
       const auto& rows = guess_rows_[i];
       const auto& box = guess_box_[i];
       for (int r = 0; r < 2 * N; ++r) st_.rows[r] = rows[shifted && r + 2 < 2 * N ? r + 2 : r];
       for (int a = 0; a < Nc; ++a) st_.box[a] = box[shifted && a + 1 < Nc ? a + 1 : a];
       st_.slack = guess_slack_[i];
       ok = exchange(i, iter);
+      if (ok) shifted_first_[i] = static_cast<signed char>(shifted);
+      if (stopped_) break;
     }
     continued_ = ok;
   }
@@ -43,16 +68,27 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it
   // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
   // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
-  if (!ok && !(has_guess_[i] && last[i])) {
+  if (!ok && !stopped_ && !(has_guess_[i] && last[i])) {
     box_y_.head(Nc) = box_u;
     box_y_[Nc] = 0.0;
     guess_from(i, box_y_, true);
+    shifted_first_[i] = -1;  // a new activation: no guess answered at the last step
     st_.rows = guess_rows_[i];
     st_.box = guess_box_[i];
     st_.slack = guess_slack_[i];
     ok = exchange(i, 4 * iter);
   }
+  if (stopped_) {
+    // Out of this step's exchanges: the active set reached kept for the next step's.
+    guess_rows_[i] = st_.rows;
+    guess_box_[i] = st_.box;
+    guess_slack_[i] = st_.slack;
+    has_guess_[i] = 1;
+    resume_[i] = 1;
+    return false;
+  }
   if (!ok) return false;
+  remember_state(i, kkt_->y()[0]);
   guess_rows_[i] = st_.rows;
   guess_box_[i] = st_.box;
   guess_slack_[i] = st_.slack;
@@ -65,13 +101,21 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
 bool SoftLimits::exchange(int i, int exchanges) {
   // A dependent bound or row dropped by the KKT solve costs no exchange (at most one drop
   // per active item, so this ends).
+  // This step's exchanges (budget_) are counted as `exchanges` are: by the solves that
+  // were not a drop.
   for (int it = 0; it <= exchanges;) {
+    if (budget_ == 0) {
+      stopped_ = true;
+      return false;
+    }
     if (!kkt_->solve(st_, p_)) {
       if (kkt_->dropped()) continue;
       ++stats_->soft_fail_pivot;
       return false;
     }
     ++it;
+    if (budget_ > 0) --budget_;
+    ++stats_->soft_exchanges;
     const int verdict = test_point(i);
     if (verdict == 0) return true;
     if (verdict < 0) {

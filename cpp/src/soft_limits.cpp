@@ -47,6 +47,11 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
   guess_box_.assign(n, std::vector<signed char>(Nc, 0));
   guess_slack_.assign(n, 0);
   has_guess_.assign(n, 0);
+  last_q_.setZero(n);
+  last_v_.setZero(n);
+  last_u0_.setZero(n);
+  shifted_first_.assign(n, -1);
+  resume_.assign(n, 0);
   st_.rows.assign(2 * N, 0);
   st_.box.assign(Nc, 0);
   p_.gp.setZero(Nc);
@@ -90,6 +95,8 @@ void SoftLimits::restart() {
   for (int i = 0; i < n_; ++i)
     if (used_[i]) make_qp(i);
   std::fill(has_guess_.begin(), has_guess_.end(), 0);
+  std::fill(shifted_first_.begin(), shifted_first_.end(), -1);
+  std::fill(resume_.begin(), resume_.end(), 0);
   std::fill(last.begin(), last.end(), 0);
   std::fill(active.begin(), active.end(), 0);  // no box QP skipped at the start
   std::fill(next.begin(), next.end(), 0);
@@ -123,6 +130,21 @@ void SoftLimits::prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVe
   }
   p_.g.head(Nc_) = G.row(i).transpose();
   p_.g[Nc_] = g_slack_;
+  q_ = q[i];
+  dq_ = dq[i];
+}
+
+void SoftLimits::fallback(int i, double& u0) const {
+  const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+  const double b0 = Gamma_(0, 0), b1 = Gamma_(1, 0);  // both > 0
+  const double q1 = a00 * q_ + a01 * dq_, v1 = a10 * q_ + a11 * dq_;  // x1 at u0 = 0
+  const double vlo = (-vel_[i] - v1) / b1, vhi = (vel_[i] - v1) / b1;
+  double lo = std::max(vlo, (lower_[i] - q1) / b0), hi = std::min(vhi, (upper_[i] - q1) / b0);
+  if (lo > hi) lo = vlo, hi = vhi;  // the velocity limit's alone
+  lo = std::max(lo, v_min_[i]);
+  hi = std::min(hi, v_max_[i]);
+  if (lo > hi) lo = v_min_[i], hi = v_max_[i];  // the box's alone
+  u0 = std::min(std::max(u0, lo), hi);
 }
 
 const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
@@ -136,6 +158,8 @@ const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
     return qp.results;
   if (shortcut_ && iter >= 0) {
     guess_from(i, qp.results.x, false);
+    remember_state(i, qp.results.x[0]);
+    shifted_first_[i] = -1;
     settled(i, false, false);
   }
   return qp.results;

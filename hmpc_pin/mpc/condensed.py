@@ -560,6 +560,26 @@ class JointQPs:
         self._core.options.soft_active_set_iter = int(k)
 
     @property
+    def soft_step_exchanges(self) -> int:
+        """Soft QPs: the exchanges the soft active-set shortcut may make per step over all
+        joints (default −1: no bound). A joint reached with none left answers the fallback,
+        its box-only answer with its first input clipped to the accelerations that keep the
+        next state inside the limits (the velocity limit's alone when both cannot hold, then
+        the box), counted in ``soft_fallbacks``; its exchanges resume where they stopped at
+        the next step, so that the soft QP's own answer follows within a few steps."""
+        return int(self._core.options.soft_step_exchanges)
+
+    @soft_step_exchanges.setter
+    def soft_step_exchanges(self, k: int) -> None:
+        self._core.options.soft_step_exchanges = int(k)
+
+    @property
+    def soft_fallbacks(self) -> int:
+        """Soft QPs answered by the fallback (``soft_step_exchanges`` spent), since
+        construction."""
+        return int(self._core.stats.soft_fallbacks)
+
+    @property
     def soft_active_set_solves(self) -> int:
         """Soft QPs answered by the soft active-set shortcut (a guessed active set whose
         point passed the soft QP's KKT test), since construction."""

@@ -15,6 +15,12 @@ struct JointQPsOptions {
   // Soft QPs: primal-dual exchanges of the soft active-set shortcut per guess (< 0: ProxSuite
   // for every soft QP).
   int soft_active_set_iter = 8;
+  // Soft QPs: the shortcut's exchanges per step over all joints (< 0: no bound). A joint
+  // reached with none left answers the safe fallback (SoftLimits::fallback: the box-only
+  // answer, its first input clipped to the accelerations that keep the next state inside
+  // the limits), counted in soft_fallbacks, and resumes its exchanges where they stopped at
+  // the next step.
+  int soft_step_exchanges = -1;
   // Soft QPs for every joint at every step (set by JointQPs::set_limits).
   bool always_constrained = false;
 };
@@ -27,6 +33,8 @@ struct JointQPsStats {
   // Guesses of the soft shortcut that did not answer: a pivot of the wrong sign (dependent
   // rows), the exchanges exhausted, the KKT test failed without an exchange to make.
   long soft_fail_pivot = 0, soft_fail_exchanges = 0, soft_fail_kkt = 0;
+  long soft_exchanges = 0;  // the soft shortcut's exchanges (KKT solves), over all steps
+  long soft_fallbacks = 0;  // soft QPs answered by the fallback (soft_step_exchanges spent)
   long constrained = 0;           // joints whose soft QP was solved at the last step
   bool constrained_last = false;  // whether any was
 };

@@ -2,7 +2,9 @@
 // joint, the QP over y = (U, ŝ) with the limits on X = Φ x0 + Γ U as soft rows (slack
 // s = k ŝ), solved by ProxSuite from scratch (made once; Nc + 1 variables, 4N rows) or,
 // first, by the soft active-set shortcut: the last step's soft solution's active set,
-// shifted one step along the horizon or as it stands; at a new activation, the box-only
+// shifted one step along the horizon or as it stands (first the one that answered at the
+// last step, else the shifted one unless the arm is nearer its last state than the plan's
+// prediction of it: held still); at a new activation, the box-only
 // solution's with the rows it violates and the inputs next to them freed; refined by
 // primal-dual exchanges, each subproblem solved by BandedKKT (banded_kkt.hpp), answering
 // only when its point passes the soft QP's KKT test to the solver's tolerance. JointQPs
@@ -84,6 +86,15 @@ class SoftLimits {
   // ProxSuite's answer for joint i (after prepare); then, when the shortcut is on
   // (iter >= 0), its active set remembered as the next guess.
   const Results& proxsuite(int i, int iter);
+  // This step's exchanges over all joints (< 0: no bound), set before the joints'; stopped():
+  // the last active_set ran out of them (its active set kept: the next step resumes it).
+  void set_budget(long exchanges) { budget_ = exchanges; }
+  bool stopped() const { return stopped_; }
+  // The fallback answer for joint i (after prepare) when the exchanges ran out: its first input u0 (its
+  // box-only answer) with u0 clipped to the accelerations that keep the next state
+  // x1 = A x0 + B u0 inside the position and velocity limits (the velocity's alone when
+  // both cannot hold) and the box.
+  void fallback(int i, double& u0) const;
   // After joint i's soft QP was answered: whether the next step goes straight to it.
   void settled(int i, bool binding, bool continued) { active[i] = binding && continued ? 1 : 0; }
 
@@ -120,6 +131,20 @@ class SoftLimits {
   std::unique_ptr<BandedKKT> kkt_;
   std::vector<std::vector<signed char>> guess_rows_, guess_box_;
   std::vector<signed char> guess_slack_, has_guess_;
+  // Per joint: the state (q, q̇) and first input of its last remembered soft answer (which
+  // guess active_set tries first); q_, dq_: the state of the joint prepared.
+  Vec last_q_, last_v_, last_u0_;
+  std::vector<signed char> shifted_first_;  // the guess that answered at the last step (1:
+                                            // shifted, 0: as it stood, −1: none)
+  double q_ = 0.0, dq_ = 0.0;
+  long budget_ = -1;
+  bool stopped_ = false;
+  std::vector<signed char> resume_;  // per joint: its exchanges stopped at the last step
+  void remember_state(int i, double u0) {
+    last_q_[i] = q_;
+    last_v_[i] = dq_;
+    last_u0_[i] = u0;
+  }
   SoftActiveSet st_;
   std::vector<signed char> rows_was_, box_was_;
   bool continued_ = false;  // the last active_set answered from the last step's set

@@ -239,6 +239,20 @@ def test_nan_from_the_controller_never_reaches_the_arm(simulator, tmp_path):
     assert summary["end"]["mode"] == "Idle" and summary["end"]["speed"] < 0.01
 
 
+def test_a_large_process_heap_costs_the_arm_no_cycle(simulator, tmp_path):
+    """A process holding millions of objects (a long test session, a user's notebook): a
+    full garbage collection walks them for hundreds of ms. It must happen before torque
+    control starts (the robot waits), never after: there it would be hundreds of lost
+    cycles, a reflex on a real arm."""
+    heap = [[i, str(i), {"k": i}] for i in range(2_000_000)]
+    run, files, _ = _run(tmp_path, duration=0.5)
+    assert len(heap) == 2_000_000
+    assert run.stop is None, run.stop
+    duration = summary_cycles(files)["duration"]
+    lost = np.round(duration[np.isfinite(duration)] / 1e-3) - 1
+    assert lost.max() < 19, lost.max()  # never near the robot's 20 consecutive lost cycles
+
+
 def test_observer_on_tracks_better_than_off(simulator, tmp_path):
     on, _, _ = _run(tmp_path, duration=2.5)
     off, _, _ = _run(tmp_path, duration=2.5, observer=False)

@@ -29,6 +29,7 @@ its extra arrays), ``<stem>_franka_timing.npz`` (the loop's cycles),
 from __future__ import annotations
 
 import contextlib
+import gc
 import signal
 import sys
 from dataclasses import replace
@@ -272,6 +273,12 @@ def run_franka(
         meta=experiment.meta(),
     )
     switch = sys.getswitchinterval()
+    # The whole heap is collected and frozen while the robot still waits: once torque
+    # control starts its clock runs, and a full collection in the loop's set-up (tens of
+    # ms in a large process) would be lost cycles; the loop's own collection then finds
+    # nothing to walk.
+    gc.collect()
+    gc.freeze()
     try:
         arm.start()
         if ready is not None:
@@ -280,6 +287,7 @@ def run_franka(
         run = loop.run()
     finally:
         sys.setswitchinterval(switch)
+        gc.unfreeze()
         with _SigintDeferred() as deferred:  # the ramp to zero is not cut short
             end = arm.finish() if arm.fault is None else {}
     if deferred["count"] and run.stop is None:

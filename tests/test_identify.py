@@ -449,6 +449,42 @@ def test_init_ur5_without_pulses_gives_the_configured_friction(tmp_path, capsys)
                                viscous * v + coulomb, rtol=0.03)  # fmt: skip
 
 
+@pytest.mark.parametrize("flag", ["gravity_by_arm", "franka", "ros"])
+def test_a_torque_without_gravity_is_fitted_with_gravity_added(flag, tmp_path, capsys):
+    """A run whose arm added G(q) itself (Franka's FCI, a ROS arm with [ros] gravity =
+    "arm") records the torque without it: the torque-based sources add G(q) back and find
+    the configured friction as on the same run recorded with it (without, joint 2's and
+    3's gravity would be read as friction)."""
+    path, _ref, (viscous, coulomb) = _init_ur5_run(tmp_path, pulses=False)
+    full = Result.load(path)
+    exp = Experiment.from_config(load_config(tmp_path / "ur5.toml"))
+    g = np.array([exp.robot.gravity_torque(q) for q in full.q])
+    assert np.abs(g).max() > 10.0  # gravity is no small part of the torque here
+    meta = dict(full.meta)
+    if flag == "gravity_by_arm":  # as `hmpc-pin franka` writes it
+        meta["gravity_by_arm"] = True
+    elif flag == "franka":  # a Franka run of an earlier version
+        meta["franka"] = {}
+    else:  # `hmpc-pin ros` with [ros] gravity = "arm"
+        meta["ros"] = {"gravity": "arm"}
+    sent = replace(full, tau=full.tau - g, tau_applied=full.tau_applied - g, meta=meta)
+    assert sent.gravity_by_arm and not full.gravity_by_arm
+    sent.save(tmp_path / "sent.npz")
+    capsys.readouterr()
+    for source in ("dynamics", "regressor"):
+        fits = []
+        for run in (path, tmp_path / "sent.npz"):
+            code, _out, err, table = _identify(run, tmp_path, capsys, "--after", "0.3",
+                                               "--source", source)  # fmt: skip
+            assert code == 0, err
+            fits.append(table["controller"]["friction"])
+        for key in ("viscous", "coulomb"):
+            np.testing.assert_allclose(fits[1][key], fits[0][key], rtol=1e-6, atol=1e-9)
+        if source == "dynamics":  # (the model exact here: the configured friction)
+            np.testing.assert_allclose(fits[1]["viscous"], viscous, rtol=0.02)
+            np.testing.assert_allclose(fits[1]["coulomb"], coulomb, rtol=0.02)
+
+
 @pytest.mark.parametrize("source", ["observer", "dynamics"])
 def test_with_the_pulses_the_advice_names_them(source, tmp_path, capsys):
     """init's disturbance pulses are not friction: where they leave too few effective

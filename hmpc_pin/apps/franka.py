@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ConfigError
+from ..exceptions import ArmError, ConfigError
 from ..experiment.build import Experiment, realtime_parts
 from ..experiment.config import ExperimentConfig
 from ..realtime.franka import (
@@ -194,6 +194,7 @@ def run_franka(
     experiment: Experiment | None = None,
     ready=None,
     controller_wrapper=None,
+    started=None,
 ):
     """Run ``config`` on a Franka arm (module doc); write the files to ``out``.
 
@@ -206,6 +207,11 @@ def run_franka(
         ready: ``None`` or ``ready()``, called just before the torque motion starts.
         controller_wrapper: ``None`` or ``f(controller) -> controller`` applied to the
             controller without G(q) (tests inject faults with it).
+        started: ``None`` or ``started(arm)``, called with the
+            :class:`~hmpc_pin.realtime.franka.FrankaArm` once torque control runs (after
+            ``ready``): a supervisor may end the motion from another thread with
+            libfranka's ``arm.robot.stop()`` (the robot preempts it: a
+            ``ControlException``, recorded as a reflex is).
 
     Returns:
         ``(run, files, arm_summary)``.
@@ -283,6 +289,8 @@ def run_franka(
         arm.start()
         if ready is not None:
             ready()
+        if started is not None:
+            started(arm)
         sys.setswitchinterval(1e-4)  # readOnce holds the GIL while it waits
         run = loop.run()
     finally:
@@ -296,12 +304,18 @@ def run_franka(
         run.stop["safe_tau"] = None
         run.result.meta["stop"] = run.stop
     if arm.fault is not None and options.recover:
-        arm.recover()
-        arm.fault["recovered"] = True
+        try:
+            arm.recover()
+            arm.fault["recovered"] = True
+        except ArmError as exc:  # the run is kept: the record says why not
+            arm.fault["recovered"] = False
+            arm.fault["recovery_error"] = str(exc)
     summary.update(_driver_summary(arm, end))
     _record_fault(run, arm)
     _add_extras(run, arm)
     run.result.meta["franka"] = summary
+    # tau and tau_applied are the torque sent: the robot adds G(q) (Result.gravity_by_arm)
+    run.result.meta["gravity_by_arm"] = True
     files = save_run(run, out, stem, "franka")
     files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
     return run, files, summary
@@ -359,14 +373,24 @@ def _record_fault(run: RealtimeRun, arm: FrankaArm) -> None:
         run.result.meta["stop"] = run.stop
         run.result.complete = False
     if fault["cause"] == "reflex":
-        errors = ", ".join(fault.get("last_motion_errors") or []) or fault["message"]
-        reason = f"reflex: the robot aborted the motion ({errors}); nothing could be sent after it"
+        reason = f"reflex: {describe_reflex(fault)}; nothing could be sent after it"
     else:
         reason = f"network: the connection to the robot was lost ({fault['message']})"
     run.stop["cause"] = fault["cause"]
     run.stop["reason"] = f"stopped at t={run.stop['t']:.4f} s: {reason}"
     run.stop["franka"] = fault
     run.result.message = run.stop["reason"]
+
+
+def describe_reflex(fault: dict) -> str:
+    """A reflex's record in words: libfranka's message, the robot's mode after it and the
+    errors of the aborted motion by name (``last_motion_errors``), else the errors now."""
+    errors = fault.get("last_motion_errors") or fault.get("current_errors") or []
+    mode = fault.get("robot_mode", "unknown")
+    return (
+        f"the robot aborted the motion ({fault['message']}; robot mode {mode}, motion "
+        f"errors: {', '.join(errors) or 'none reported'})"
+    )
 
 
 def _add_extras(run: RealtimeRun, arm: FrankaArm) -> None:

@@ -74,6 +74,7 @@ __all__ = [
     "FrictionFit",
     "JointFriction",
     "ObserverModel",
+    "applied_torque",
     "dynamics_friction",
     "fit_friction",
     "fit_joint",
@@ -728,6 +729,21 @@ def _regressors(dq: np.ndarray) -> np.ndarray:
     return phi
 
 
+def applied_torque(result: Result, robot) -> np.ndarray:
+    """The torque on the joints at each sample [N·m], (K+1, n): ``tau_applied`` (else
+    ``tau``), plus :math:`G(q_k)` of ``robot`` when the arm added gravity to the torque
+    recorded (:attr:`Result.gravity_by_arm <hmpc_pin.sim.result.Result.gravity_by_arm>`:
+    a Franka arm, a ROS arm with ``[ros] gravity = "arm"``)."""
+    tau = result.tau_applied if result.tau_applied is not None else result.tau
+    if not result.gravity_by_arm:
+        return tau
+    finite = np.all(np.isfinite(result.q), axis=1)
+    gravity = np.zeros_like(tau)
+    for k in np.flatnonzero(finite):
+        gravity[k] = robot.gravity_torque(result.q[k])
+    return tau + gravity
+
+
 def dynamics_friction(result: Result, robot) -> tuple[np.ndarray, np.ndarray]:
     """``(f, dq)`` over each period from the rigid-body model (module docstring):
     :math:`f_k = \\tau_k - Y(\\bar q, \\bar{\\dot q}, \\ddot q_k)\\,\\pi`, with Pinocchio's
@@ -742,7 +758,7 @@ def dynamics_friction(result: Result, robot) -> tuple[np.ndarray, np.ndarray]:
     data = model.createData()
     pi = np.concatenate([model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)])
     t, q, dq = result.t, result.q, result.dq
-    tau = result.tau_applied if result.tau_applied is not None else result.tau
+    tau = applied_torque(result, robot)
     dt = np.diff(t)
     f = np.full((len(t) - 1, q.shape[1]), np.nan)
     dq_mid = 0.5 * (dq[1:] + dq[:-1])
@@ -762,7 +778,7 @@ def _regressor_rows(result: Result, robot):
     model = robot.model
     data = model.createData()
     t, q, dq = result.t, result.q, result.dq
-    tau = result.tau_applied if result.tau_applied is not None else result.tau
+    tau = applied_torque(result, robot)
     dq_mid = 0.5 * (dq[1:] + dq[:-1])
     Y = np.empty((len(t) - 1, q.shape[1], 10 * (model.njoints - 1)))
     for k in range(len(t) - 1):

@@ -29,7 +29,8 @@ class Result:
     Attributes:
         t: Time [s], shape (K+1,).
         q, dq: Joint positions [rad] and velocities [rad/s], shape (K+1, n).
-        tau: Torque commanded by the controller at each instant [N·m].
+        tau: Torque commanded by the controller at each instant [N·m] (without
+            :math:`G(q)` when the arm adds it: :attr:`gravity_by_arm`).
         tau_applied: Torque the plant applied over the next period: ``tau`` clipped to
             the effort limit, :math:`\\mathrm{clip}(\\tau, -\\tau_{\\max}, \\tau_{\\max})`
             [N·m] (equal to ``tau`` without limits; NaN where nothing was applied). Files
@@ -81,6 +82,19 @@ class Result:
     def __post_init__(self):
         if self.tau_applied is None:
             self.tau_applied = np.array(self.tau, dtype=float, copy=True)
+
+    @property
+    def gravity_by_arm(self) -> bool:
+        """Whether ``tau`` and ``tau_applied`` exclude gravity because the arm adds
+        :math:`G(q)` itself: a run of ``hmpc-pin franka`` (the FCI's torque command,
+        ``meta["gravity_by_arm"]``; files of earlier versions: ``meta["franka"]``) or of
+        ``hmpc-pin ros`` with ``[ros] gravity = "arm"``. The torque on the joints was then
+        :math:`\\tau + G(q)`."""
+        meta = self.meta if isinstance(self.meta, dict) else {}
+        if "gravity_by_arm" in meta:
+            return bool(meta["gravity_by_arm"])
+        ros = meta.get("ros")
+        return "franka" in meta or (isinstance(ros, dict) and ros.get("gravity") == "arm")
 
     @property
     def error(self) -> np.ndarray:

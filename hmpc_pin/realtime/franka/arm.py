@@ -282,15 +282,10 @@ class FrankaArm:
 
     def _read(self) -> int:
         """``readOnce``; the number of periods since the last state (0: none, a fault)."""
-        franka = self._franka
-        try:
-            state, duration = self._control.readOnce()
-        except franka.ControlException as exc:
-            self._fail("reflex", exc)
+        got = self._guarded(self._control.readOnce)
+        if got is None:
             return 0
-        except franka.NetworkException as exc:
-            self._fail("network", exc)
-            return 0
+        state, duration = got
         now = time.perf_counter()
         periods = max(1, round(duration.to_sec() / PERIOD)) if self._cycle >= 0 else 1
         self._cycle += periods
@@ -348,30 +343,13 @@ class FrankaArm:
         self._send(self._request)
 
     def _send(self, tau: FloatArray, finished: bool = False) -> None:
-        franka = self._franka
+        """Answer the state taken with ``tau`` [N·m] through the filter (a non-finite
+        ``tau``: toward zero within the rate limit)."""
         try:
             cmd = self.filter(tau, self._tau_J_d)
         except NonFiniteError:
             cmd = self.filter.toward_zero(self._tau_J_d)
-        torques = franka.Torques(cmd.tolist())
-        if finished:
-            torques.motion_finished = True
-        row = self._row
-        c = self._cycles
-        if row >= 0:
-            c.arrays["requested"][row] = tau
-            c.arrays["command"][row] = cmd
-            c.sent[row] = True
-            c.finished[row] = finished
-        try:
-            self._control.writeOnce(torques)
-        except franka.ControlException as exc:
-            self._fail("reflex", exc)
-        except franka.NetworkException as exc:
-            self._fail("network", exc)
-        if row >= 0:
-            c.compute[row] = time.perf_counter() - self.arrival
-        self._answered = True
+        self._write(tau, cmd, finished, timed=True)
 
     def finish(self, max_cycles: int = 2000) -> dict:
         """End the motion (module doc): ramp the command to zero within the rate limit,
@@ -411,24 +389,38 @@ class FrankaArm:
 
     def _send_raw(self, cmd: FloatArray, finished: bool = False) -> None:
         """Send ``cmd`` as it is (already within the rate and torque limits)."""
-        franka = self._franka
-        torques = franka.Torques(cmd.tolist())
+        self._write(cmd, cmd, finished, timed=False)
+
+    def _write(self, requested: FloatArray, cmd: FloatArray, finished: bool, timed: bool) -> None:
+        """``writeOnce(cmd)`` for the state taken, recorded in the driver's own record
+        (``requested`` beside it; ``timed``: its compute time too, the loop's cycles)."""
+        torques = self._franka.Torques(cmd.tolist())
         if finished:
             torques.motion_finished = True
         row = self._row
         c = self._cycles
         if row >= 0:
-            c.arrays["requested"][row] = cmd
+            c.arrays["requested"][row] = requested
             c.arrays["command"][row] = cmd
             c.sent[row] = True
             c.finished[row] = finished
+        self._guarded(self._control.writeOnce, torques)
+        if timed and row >= 0:
+            c.compute[row] = time.perf_counter() - self.arrival
+        self._answered = True
+
+    def _guarded(self, fn, *args):
+        """``fn(*args)`` (``readOnce`` or ``writeOnce``); a reflex (``ControlException``)
+        or a lost connection (``NetworkException``) is recorded (:meth:`_fail`) instead
+        of raised, and gives ``None``."""
+        franka = self._franka
         try:
-            self._control.writeOnce(torques)
+            return fn(*args)
         except franka.ControlException as exc:
             self._fail("reflex", exc)
         except franka.NetworkException as exc:
             self._fail("network", exc)
-        self._answered = True
+        return None
 
     def _fail(self, cause: str, exc: BaseException) -> None:
         """Record a reflex or a lost connection (module doc); nothing is sent after it."""

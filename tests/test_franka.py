@@ -424,3 +424,158 @@ def test_connection_lost_mid_run_keeps_the_data(simulator, tmp_path):
     last = np.flatnonzero(sent)[-1]
     assert last <= summary["fault"]["cycle"]  # no command after the fault
     assert np.isfinite(run.result.q).all() and len(run.result.t) > 50
+
+
+def test_a_control_exception_is_recorded_and_recovered(simulator, tmp_path, capsys):
+    """The reflex path through the real client: franky-sim models no reflex, but libfranka's
+    ``Robot.stop()`` from another thread makes the robot preempt the motion, and the
+    vendor's client raises ``ControlException`` in ``readOnce`` as it does on a reflex.
+    The stop's cause is "reflex", its record holds the robot's mode, the motion errors by
+    name and the last state, nothing is sent after it, ``--recover`` calls
+    ``automatic_error_recovery()``, the command line exits 1 naming it, and the robot
+    runs a new torque motion."""
+    import threading
+
+    from hmpc_pin.apps.cli import EXIT_FAILED, _report_realtime
+
+    def stop_from_another_thread(arm) -> None:
+        def stop() -> None:
+            time.sleep(1.0)
+            arm.robot.stop()
+
+        threading.Thread(target=stop, daemon=True).start()
+
+    config = _config(tmp_path, 20.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    options = FrankaOptions(HOST, realtime="ignore", recover=True)
+    run, files, summary = run_franka(config, options, out, started=stop_from_another_thread)
+    fault = summary["fault"]
+    assert run.stop["cause"] == fault["cause"] == "reflex"
+    assert "preempted" in fault["message"]  # libfranka's own words
+    assert fault["robot_mode"] == "Idle"  # franky-sim's mode after a preemption
+    assert fault["last_motion_errors"] == [] and fault["current_errors"] == []
+    assert fault["recovered"] is True  # --recover: automatic_error_recovery() answered
+    assert summary["end"] == {}  # nothing could be sent after it
+    assert 0.5 < run.stop["t"] < 15.0 and not run.complete
+    cycles = summary_cycles(files)
+    sent = np.flatnonzero(cycles["sent"])
+    assert sent[-1] <= fault["cycle"]  # no command after the fault
+    # the last state recorded is the last state the robot sent
+    last = np.flatnonzero(np.isfinite(cycles["q"][:, 0]))[-1]
+    assert last == fault["cycle"]
+    np.testing.assert_array_equal(fault["last_q"], cycles["q"][last])
+    np.testing.assert_array_equal(fault["last_tau_J_d"], cycles["tau_J_d"][last])
+    assert len(fault["q"]) == len(fault["dq"]) == len(fault["tau_J"]) == 7
+    _assert_fci_rules_before_a_fault(cycles)
+    # the data are kept, and the command line's report: exit 1, one line naming the reflex
+    from hmpc_pin.sim.result import Result
+
+    saved = Result.load(files[0])
+    assert saved.meta["stop"]["cause"] == "reflex" and not saved.complete
+    assert np.isfinite(saved.q).all() and len(saved.t) > 500
+    capsys.readouterr()
+    assert _report_realtime(lambda: (run, files), config, "commanded") == EXIT_FAILED
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: stopped at t="), err
+    assert "reflex" in err[0] and "preempted" in err[0] and "robot mode Idle" in err[0]
+    # after the recovery the robot is Idle and runs a new torque motion
+    again, _, s_again = _run(tmp_path, duration=0.5)
+    assert again.complete and s_again["checks"]["mode"] == "Idle"
+    assert s_again["end"]["mode"] == "Idle"
+
+
+def _assert_fci_rules_before_a_fault(cycles: dict) -> None:
+    """The FCI's rules on every command sent up to a fault (the motion did not end with
+    ``motion_finished``: the robot ended it)."""
+    sent = cycles["sent"]
+    cmd, last = cycles["command"][sent], cycles["tau_J_d"][sent]
+    assert np.isfinite(cmd).all() and np.all(cmd[0] == 0.0)
+    assert np.abs(cmd - last).max() <= MAX_STEP + 1e-6
+    assert np.all(np.abs(cmd) <= FRANKA_TORQUE_LIMIT)
+    assert not cycles["motion_finished"].any()
+
+
+@pytest.fixture(scope="module")
+def franka_files(simulator, tmp_path_factory):
+    """A short fr3_sine run on the simulator: ``(run, files, summary, folder)``."""
+    folder = tmp_path_factory.mktemp("franka_run")
+    run, files, summary = _run(folder, duration=2.0)
+    assert run.complete
+    return run, files, summary, folder
+
+
+def test_the_run_files_torque_excludes_gravity_as_the_robot_says(franka_files):
+    """The record says the torque excludes G(q) (the robot adds it), and the robot's own
+    state agrees: franky-sim's applied joint torque ``tau_J`` minus the command it received
+    (``tau_J_d``) is Pinocchio's G(q) of the config's arm; identify adds G(q) back."""
+    from hmpc_pin.apps.runfile import run_robot
+    from hmpc_pin.identification import applied_torque
+    from hmpc_pin.sim.result import Result
+
+    _, files, summary, _ = franka_files
+    result = Result.load(files[0])
+    assert result.meta["gravity_by_arm"] is True and result.gravity_by_arm
+    assert "without G(q)" in summary["tau"]
+    robot = run_robot(result, None)
+    cycles = summary_cycles(files)
+    rows = np.flatnonzero(np.isfinite(cycles["tau_J"][:, 0]))[1:]
+    g = np.array([robot.gravity_torque(q) for q in cycles["q"][rows]])
+    added = cycles["tau_J"][rows] - cycles["tau_J_d"][rows]
+    assert np.abs(g).max() > 20.0
+    # (G at the state before the simulator's step against the one after it: 1 ms of motion)
+    np.testing.assert_allclose(added, g, atol=0.02)
+    # the torque on the joints that identify reads: the recorded one plus G(q)
+    g_run = np.array([robot.gravity_torque(q) for q in result.q])
+    np.testing.assert_allclose(applied_torque(result, robot), result.tau_applied + g_run)
+
+
+def test_replay_plot_and_compare_read_a_franka_run(franka_files, tmp_path, capsys):
+    """The run file as `run` writes it: `replay` loads its arm, `plot` draws it with the
+    robot's records (and the driver's per-cycle record), `compare --reference` tracks
+    its measured trajectory."""
+    from hmpc_pin.apps.cli import _with_reference, main
+    from hmpc_pin.apps.compare import compare
+    from hmpc_pin.apps.plot import figures
+    from hmpc_pin.apps.runfile import load_run, run_robot
+
+    _, files, _, _ = franka_files
+    npz = files[0]
+    result = load_run(npz)
+    robot = run_robot(result, None)
+    assert robot.nq == 7 and tuple(robot.joint_names) == tuple(result.joint_names)
+    html = tmp_path / "replay.html"
+    assert main(["replay", str(npz), "--out", str(html)]) == 0
+    assert html.stat().st_size > 10_000
+    # plot: the torque figure draws the command (without G(q)) and the robot's tau_J_d
+    kind, figs = figures(npz)
+    assert kind == "run"
+    assert {"tracking", "error", "torque", "disturbance", "latency"} <= set(figs)
+    for i in range(7):
+        lines = {ln.get_label(): ln.get_ydata() for ln in figs["torque"].axes[i].get_lines()}
+        np.testing.assert_array_equal(lines["commanded τ (without G(q))"], result.tau[:, i])
+        np.testing.assert_array_equal(lines["τ_J_d (arm)"], result.extra["tau_J_d"][:, i])
+    cycles_file = next(f for f in files if str(f).endswith("_cycles.npz"))
+    kind, figs = figures(cycles_file)
+    assert kind == "cycles" and set(figs) == {"cycles"}
+    cycles = summary_cycles(files)
+    patch = figs["cycles"].axes[0].patches[0]
+    counts, edges, _ = patch.get_data()
+    us = cycles["compute"][np.isfinite(cycles["compute"])] * 1e6
+    np.testing.assert_array_equal(counts, np.histogram(us, bins=edges)[0])
+    assert counts.sum() == len(us)
+    assert main(["plot", str(cycles_file), "--out", str(tmp_path)]) == 0
+    assert (tmp_path / (cycles_file.stem + "_cycles.png")).is_file()
+    # compare tracks the run's measured q (interpolated between its 1 kHz samples)
+    config = _with_reference(_config(tmp_path, 1.0), npz)
+    comp, _ = compare(config, tmp_path / "cmp", ("hmpc",), progress=False)
+    ran = comp.runs["hmpc"].result
+    for j in range(7):
+        np.testing.assert_allclose(
+            ran.q_ref[:, j], np.interp(ran.t, result.t, result.q[:, j]), atol=1e-6
+        )
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "fr3_sine.toml"), "--reference", str(npz),
+                 "--controllers", "hmpc", "--duration", "1.0", "--quiet",
+                 "--out", str(tmp_path / "cli")]) == 0  # fmt: skip
+    assert (tmp_path / "cli" / "fr3_sine_compare.md").is_file()

@@ -13,6 +13,9 @@ What a file is is read from its contents, not its name:
 - a timing file (``<stem>_timing.npz`` of ``realtime`` or ``ros``): the latency histogram
   (deadline to torque written, wake-up to torque written, and measurement to torque where
   the stamps allow);
+- a Franka arm's per-cycle record (``<stem>_cycles.npz`` of ``franka``): the compute
+  time from ``readOnce``'s return to ``writeOnce`` (histogram), the robot's ``Duration``
+  of every cycle (lost cycles above one period) and its command success rate;
 - a sweep table (``<name>_sweep.csv``): the worst joint's RMS error of every run, per
   condition and variant, the runs that were not bounded marked;
 - an identification (the ``.toml`` that ``identify`` wrote, alone or in a config): the
@@ -37,11 +40,23 @@ import numpy as np
 from ..exceptions import ConfigError
 from .runfile import load_run
 
-__all__ = ["FRANKA_ARRAYS", "TIMING_ARRAYS", "figures", "plot_arguments", "plot_file", "save"]
+__all__ = [
+    "CYCLES_ARRAYS",
+    "FRANKA_ARRAYS",
+    "TIMING_ARRAYS",
+    "figures",
+    "plot_arguments",
+    "plot_file",
+    "save",
+]
 
 #: The arrays that make an ``.npz`` a timing file (:meth:`RealtimeRun.save_timing
 #: <hmpc_pin.realtime.loop.RealtimeRun.save_timing>`).
 TIMING_ARRAYS = ("wake", "latency", "compute", "missed")
+
+#: The arrays that make an ``.npz`` a Franka arm's per-cycle record
+#: (:attr:`FrankaArm.cycles <hmpc_pin.realtime.franka.FrankaArm.cycles>`).
+CYCLES_ARRAYS = ("compute", "duration", "success_rate", "sent", "robot_time")
 
 #: A Franka arm's own torque records, drawn beside the package's (top-level arrays or
 #: ``extra_`` ones): the desired joint torque and the filtered external torque [N·m].
@@ -51,8 +66,9 @@ FRANKA_ARRAYS = ("tau_J_d", "tau_ext_hat_filtered")
 FIT_AFTER = 0.5
 
 _EXPECTED = (
-    "expected a run (.npz of `hmpc-pin run`, `realtime`, `ros`), its _timing.npz, a "
-    "_sweep.csv of `hmpc-pin sweep`, or a .toml written by `hmpc-pin identify`"
+    "expected a run (.npz of `hmpc-pin run`, `realtime`, `ros`, `franka`), its "
+    "_timing.npz, a Franka run's _cycles.npz, a _sweep.csv of `hmpc-pin sweep`, or a "
+    ".toml written by `hmpc-pin identify`"
 )
 
 
@@ -64,7 +80,8 @@ def _bad(path: Path, what: str) -> ConfigError:
 
 
 def _kind(path: Path) -> str:
-    """``"run"``, ``"timing"``, ``"sweep"`` or ``"fit"`` (a :class:`ConfigError` otherwise)."""
+    """``"run"``, ``"timing"``, ``"cycles"``, ``"sweep"`` or ``"fit"`` (a
+    :class:`ConfigError` otherwise)."""
     if not path.is_file():
         raise _bad(path, "not found" if not path.exists() else "is not a file")
     try:
@@ -80,6 +97,8 @@ def _kind(path: Path) -> str:
             return "run"
         if all(a in names for a in TIMING_ARRAYS):
             return "timing"
+        if all(a in names for a in CYCLES_ARRAYS):
+            return "cycles"
         raise _bad(path, f"is a .npz of neither a run nor its timing (arrays {sorted(names)})")
     try:
         text = head.decode("utf-8")
@@ -113,13 +132,13 @@ def _franka(path: Path, result) -> dict[str, np.ndarray]:
     return {k: v for k, v in found.items() if np.shape(v) == np.shape(result.q)}
 
 
-def _timing(path: Path) -> dict[str, np.ndarray]:
+def _timing(path: Path, keys=("latency", "compute")) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as f:
             out = {k: np.asarray(f[k]) for k in f.files}
     except (OSError, ValueError) as exc:
         raise _bad(path, f"cannot be read as a timing file ({exc})") from None
-    for key in ("latency", "compute"):
+    for key in keys:
         if out[key].ndim != 1 or not np.issubdtype(out[key].dtype, np.number):
             raise _bad(path, f"has a {key!r} array of shape {out[key].shape}, expected (C,)")
     return out
@@ -146,8 +165,11 @@ def _torque(result, franka: dict, title: str):
     units = plots.joint_units(result)
     clipped = np.any(np.abs(result.tau - result.tau_applied) > 1e-9 * (1 + np.abs(result.tau)))
 
+    # a Franka arm (or a ROS arm with [ros] gravity = "arm") adds G(q) to the command
+    label = "commanded τ (without G(q))" if result.gravity_by_arm else "commanded τ"
+
     def draw(ax, r, i):
-        plots._line(ax, r.t, r.tau[:, i], "C0", lw=1.0, label="commanded τ")
+        plots._line(ax, r.t, r.tau[:, i], "C0", lw=1.0, label=label)
         if clipped and _finite(r.tau_applied[:, i]):
             plots._line(ax, r.t, r.tau_applied[:, i], "C1--", lw=1.0, label="applied")
         if "tau_J_d" in franka:
@@ -209,6 +231,52 @@ def _latency(timing: dict, title: str):
     ran = int(np.isfinite(np.asarray(timing["latency"], dtype=float)).sum())
     head = f"{title} — " if title else ""
     ax.set_title(plots._wrap(f"{head}{ran} cycles run, {int(missed.sum())} missed deadlines", fig))
+    fig.tight_layout()
+    return fig
+
+
+def _cycles(record: dict, title: str):
+    """A Franka arm's per-cycle record: the compute time [µs] from ``readOnce``'s return to
+    ``writeOnce`` (histogram of the loop's cycles), the robot's ``Duration`` [ms] of every
+    cycle against its time (a lost cycle: above one period) and its command success
+    rate."""
+    from . import plots
+
+    us = np.asarray(record["compute"], dtype=float)
+    us = us[np.isfinite(us)] * 1e6
+    duration = np.asarray(record["duration"], dtype=float) * 1e3
+    rate = np.asarray(record["success_rate"], dtype=float)
+    t = np.asarray(record.get("robot_time", np.arange(len(duration)) * 1e-3), dtype=float)
+    t = t - (t[np.isfinite(t)][0] if np.isfinite(t).any() else 0.0)
+    fig = plots._new_figure((7, 7))
+    ax_c, ax_d, ax_r = fig.subplots(3, 1)
+    if len(us):
+        counts, edges = np.histogram(us, bins=60)
+        ax_c.stairs(
+            counts,
+            edges,
+            color="C0",
+            lw=1.2,
+            label=f"readOnce → writeOnce: median {np.median(us):.0f}, "
+            f"p99 {np.percentile(us, 99):.0f}, max {us.max():.0f}",
+        )
+        ax_c.legend(fontsize=8)
+    ax_c.set_yscale("log")
+    ax_c.set_xlabel("compute [µs]")
+    ax_c.set_ylabel("cycles")
+    ax_d.plot(t, duration, "C1.", ms=2, label="Duration since the last state")
+    ax_d.set_ylabel("Duration [ms]")
+    ax_r.plot(t, rate, "C2", lw=1.0, label="control_command_success_rate")
+    ax_r.set_ylabel("success rate")
+    ax_r.set_xlabel("robot time [s]")
+    for ax in (ax_c, ax_d, ax_r):
+        ax.grid(alpha=0.3)
+    periods = np.rint(duration[1:][np.isfinite(duration[1:])]).astype(int)
+    lost = int(np.sum(np.maximum(periods - 1, 0)))
+    sent = int(np.asarray(record.get("sent", ()), dtype=bool).sum())
+    ax_c.set_title(
+        plots._wrap(f"{title} — {len(duration)} robot cycles, {sent} commands, {lost} lost", fig)
+    )
     fig.tight_layout()
     return fig
 
@@ -394,6 +462,8 @@ def figures(path: Path, run: Path | None = None) -> tuple[str, dict]:
     out: dict = {}
     if kind == "timing":
         out["latency"] = _latency(_timing(path), path.stem.removesuffix("_timing"))
+    elif kind == "cycles":
+        out["cycles"] = _cycles(_timing(path, CYCLES_ARRAYS[:3]), path.stem)
     elif kind == "sweep":
         out["rms"] = _sweep(_sweep_rows(path), f"sweep {path.stem.removesuffix('_sweep')}")
     elif kind == "fit":
@@ -441,9 +511,10 @@ def plot_file(path: Path, out: Path | None = None, run: Path | None = None) -> l
 def plot_arguments(plt) -> None:
     """The ``plot`` subcommand's description and arguments."""
     plt.description = (
-        "Draw the figures of a file a command wrote: a run of `run`, `realtime`, `ros` "
-        "(tracking, tracking error, torque, disturbance estimate; the latency histogram "
-        "from its _timing.npz beside it), a _timing.npz, a _sweep.csv (every run's RMS "
+        "Draw the figures of a file a command wrote: a run of `run`, `realtime`, `ros`, "
+        "`franka` (tracking, tracking error, torque, disturbance estimate; the latency "
+        "histogram from its _timing.npz beside it), a _timing.npz, the _cycles.npz of "
+        "`franka` (compute per cycle, Duration, success rate), a _sweep.csv (every run's RMS "
         "error per variant), or the .toml of `identify` (the fit over its run). Each "
         "figure only when the file holds its arrays. Exit 2 with one line for any other file."
     )

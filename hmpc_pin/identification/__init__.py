@@ -8,7 +8,15 @@ contact-free run at a stated false-alarm probability. ``hmpc-pin identify`` is t
 command line.
 """
 
-from .friction import SOURCES, FrictionFit, JointFriction, ObserverModel, fit_friction, fit_joint
+from .friction import (
+    SOURCES,
+    FrictionFit,
+    JointFriction,
+    ObserverModel,
+    applied_torque,
+    fit_friction,
+    fit_joint,
+)
 from .thresholds import CollisionThresholds, learn_thresholds
 
 __all__ = [
@@ -17,6 +25,7 @@ __all__ = [
     "FrictionFit",
     "JointFriction",
     "ObserverModel",
+    "applied_torque",
     "fit_friction",
     "fit_joint",
     "learn_thresholds",

@@ -440,7 +440,8 @@ def test_a_control_exception_is_recorded_and_recovered(simulator, tmp_path, caps
 
     def stop_from_another_thread(arm) -> None:
         def stop() -> None:
-            time.sleep(1.0)
+            while arm.cycle < 1000 and arm.fault is None:  # 1 s of the robot's time
+                time.sleep(0.01)
             arm.robot.stop()
 
         threading.Thread(target=stop, daemon=True).start()
@@ -457,7 +458,7 @@ def test_a_control_exception_is_recorded_and_recovered(simulator, tmp_path, caps
     assert fault["last_motion_errors"] == [] and fault["current_errors"] == []
     assert fault["recovered"] is True  # --recover: automatic_error_recovery() answered
     assert summary["end"] == {}  # nothing could be sent after it
-    assert 0.5 < run.stop["t"] < 15.0 and not run.complete
+    assert 0.9 < run.stop["t"] < 15.0 and not run.complete
     cycles = summary_cycles(files)
     sent = np.flatnonzero(cycles["sent"])
     assert sent[-1] <= fault["cycle"]  # no command after the fault
@@ -551,23 +552,27 @@ def test_replay_plot_and_compare_read_a_franka_run(franka_files, tmp_path, capsy
     kind, figs = figures(npz)
     assert kind == "run"
     assert {"tracking", "error", "torque", "disturbance", "latency"} <= set(figs)
+    from hmpc_pin.apps.plots import envelope  # (a long line is drawn as its envelope)
+
     for i in range(7):
         lines = {ln.get_label(): ln.get_ydata() for ln in figs["torque"].axes[i].get_lines()}
-        np.testing.assert_array_equal(lines["commanded τ (without G(q))"], result.tau[:, i])
-        np.testing.assert_array_equal(lines["τ_J_d (arm)"], result.extra["tau_J_d"][:, i])
+        drawn = {"commanded τ (without G(q))": result.tau, "τ_J_d (arm)": result.extra["tau_J_d"]}
+        for label, arr in drawn.items():
+            np.testing.assert_array_equal(lines[label], envelope(result.t, arr[:, i])[1])
     cycles_file = next(f for f in files if str(f).endswith("_cycles.npz"))
     kind, figs = figures(cycles_file)
-    assert kind == "cycles" and set(figs) == {"cycles"}
+    assert kind == "cycles" and set(figs) == {"fci"}
     cycles = summary_cycles(files)
-    patch = figs["cycles"].axes[0].patches[0]
+    patch = figs["fci"].axes[0].patches[0]
     counts, edges, _ = patch.get_data()
     us = cycles["compute"][np.isfinite(cycles["compute"])] * 1e6
     np.testing.assert_array_equal(counts, np.histogram(us, bins=edges)[0])
     assert counts.sum() == len(us)
     assert main(["plot", str(cycles_file), "--out", str(tmp_path)]) == 0
-    assert (tmp_path / (cycles_file.stem + "_cycles.png")).is_file()
+    assert (tmp_path / (cycles_file.stem + "_fci.png")).is_file()
     # compare tracks the run's measured q (interpolated between its 1 kHz samples)
     config = _with_reference(_config(tmp_path, 1.0), npz)
+    (tmp_path / "cmp").mkdir()
     comp, _ = compare(config, tmp_path / "cmp", ("hmpc",), progress=False)
     ran = comp.runs["hmpc"].result
     for j in range(7):

@@ -463,7 +463,7 @@ def figures(path: Path, run: Path | None = None) -> tuple[str, dict]:
     if kind == "timing":
         out["latency"] = _latency(_timing(path), path.stem.removesuffix("_timing"))
     elif kind == "cycles":
-        out["cycles"] = _cycles(_timing(path, CYCLES_ARRAYS[:3]), path.stem)
+        out["fci"] = _cycles(_timing(path, CYCLES_ARRAYS[:3]), path.stem)
     elif kind == "sweep":
         out["rms"] = _sweep(_sweep_rows(path), f"sweep {path.stem.removesuffix('_sweep')}")
     elif kind == "fit":

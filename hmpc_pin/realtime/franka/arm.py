@@ -276,6 +276,12 @@ class FrankaArm:
         self._request[:] = 0.0
         self._read()
 
+    @property
+    def cycle(self) -> int:
+        """The robot cycle of the state taken, counted from :meth:`start` (0: the first;
+        lost cycles counted)."""
+        return self._cycle
+
     def clock(self) -> float:
         """Now [s] (``time.perf_counter``): the clock of the stamps."""
         return time.perf_counter()

@@ -294,6 +294,7 @@ def test_ctrl_c_mid_run(simulator, tmp_path):
             "20",
             "--out",
             str(tmp_path / "out"),
+            "--recover",  # on a robot found Idle: nothing to recover
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -317,6 +318,7 @@ def test_ctrl_c_mid_run(simulator, tmp_path):
 
     data = json.loads((tmp_path / "out" / "fr3_sine_franka.json").read_text())
     assert data["stop"]["cause"] == "interrupted"
+    assert data["franka"]["checks"]["recovered"] is False and data["franka"]["fault"] is None
     end = data["franka"]["end"]
     assert end["mode"] == "Idle" and end["speed"] < 0.01
     cycles = dict(np.load(tmp_path / "out" / "fr3_sine_franka_cycles.npz"))

@@ -273,8 +273,11 @@ def test_inner_law_every_cycle_tracks_as_the_whole_step_at_1khz(simulator, tmp_p
     e, w, h = (_worst_rms(r.result).max() for r in (every, whole, held))
     assert e <= 2.0 * w, (e, w)
     assert e < h, (e, h)
-    # the record is at every cycle (the loop runs the wrapper at 1 ms)
-    assert np.allclose(np.diff(every.result.t), 1e-3)
+    # the record is on the robot's 1 ms clock (the loop runs the wrapper every cycle; a
+    # cycle the robot counted as lost under load leaves a gap of whole periods)
+    periods = np.diff(every.result.t) / 1e-3
+    assert np.allclose(periods, np.round(periods), atol=1e-6) and (np.round(periods) >= 1).all()
+    assert np.median(periods) == pytest.approx(1.0)
 
 
 def test_ctrl_c_mid_run(simulator, tmp_path):

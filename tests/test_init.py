@@ -18,7 +18,7 @@ from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.init import init_config, plan, write_config
 from hmpc_pin.model.robot import example_robot_srdf, example_robot_urdf
 
-from .test_urdf_joints import joint, rod, three_links
+from .test_urdf_joints import chain, joint, rod, three_links
 
 #: A few arms for CI: planar (Chen), spatial with locked fingers and a mimic pair,
 #: continuous joints, limits 0/0, a hand-written URDF is below.
@@ -155,6 +155,29 @@ def test_init_from_a_urdf_path_with_mimic_and_continuous(write_urdf, tmp_path):
     assert "Mimic joints" in body and "j3 = -0.5*j2 + 0.1" in body
     assert "Continuous joints" in body
     assert main(["run", str(config), "--out", str(tmp_path / "out")]) == 0
+
+
+def test_init_check_and_run_a_single_joint_arm(write_urdf, tmp_path, capsys):
+    """A 1-joint arm (Pinocchio hands its 6×1 Jacobian back as a vector: init raised an
+    IndexError in the planar-chain test): one revolute joint is a planar chain, and init's
+    file passes check and runs, tracking within 5e-3 rad after 1 s."""
+    from hmpc_pin.model.robot import load_robot
+    from hmpc_pin.sim.result import Result
+
+    urdf = write_urdf(chain(rod("l1"), joint("j1", "revolute", "base", "l1", x=0.0)), "one.urdf")
+    robot = load_robot(urdf)
+    assert robot.nq == 1 and robot.is_planar_chain()
+    config = tmp_path / "one.toml"
+    assert main(["init", str(urdf), "--out", str(config), "--duration", "1.5"]) == 0
+    assert main(["check", str(config)]) == 0
+    out = tmp_path / "out"
+    assert main(["run", str(config), "--out", str(out), "--no-figures"]) == 0
+    (npz,) = out.glob("*.npz")
+    result = Result.load(npz)
+    assert result.complete and result.q.shape[1] == 1
+    after = result.t >= 1.0
+    assert np.sqrt(np.mean(result.error[after] ** 2)) <= 5e-3
+    capsys.readouterr()
 
 
 def test_init_refuses_an_arm_gravity_overwhelms(write_urdf, tmp_path, capsys):

@@ -619,7 +619,7 @@ def compare_table() -> str:
     comp = run_comparison(config, parse_controllers(None, config))
     lines = [
         "| kind | RMS e [rad] (joints 1, 2, 3) | within 0.01 rad from [s] | TV(τ) [N·m/s] | "
-        "τ energy > 10 Hz | step [µs] |",
+        "τ energy > 10 Hz | step median [µs] |",
         "|---|---|---|---|---|---|",
     ]
     for kind, run in comp.runs.items():

@@ -997,9 +997,7 @@ def ros_stays() -> str:
             braked = "none (one command: G(q))"
         else:
             ended = brake.get("ended", "n/a")
-            braked = (
-                f"{ended} after {brake['duration']:.2f} s" if "duration" in brake else ended
-            )
+            braked = f"{ended} after {brake['duration']:.2f} s" if "duration" in brake else ended
             if stop is not None and stop["cause"] == "watchdog":
                 braked = f"G(q) at once, then {braked} on the resumed states"
         drift = report["drift"]
@@ -1058,8 +1056,10 @@ def cluster_sweep() -> str:
     )
     words = []
     for variant, s in summary.items():
-        bounded = "every run stays bounded" if s["bounded"] == 1.0 else (
-            f"{100 * s['bounded']:.1f} % of the runs stay bounded"
+        bounded = (
+            "every run stays bounded"
+            if s["bounded"] == 1.0
+            else (f"{100 * s['bounded']:.1f} % of the runs stay bounded")
         )
         meets = (
             "every one meets"
@@ -1069,9 +1069,7 @@ def cluster_sweep() -> str:
             else f"{100 * s['pass']:.1f} % meet"
         )
         words.append(f"with `{variant}` {bounded} and {meets} {target:g} rad")
-    tail = _para(
-        "; ".join(words)[0].upper() + "; ".join(words)[1:] + "."
-    )
+    tail = _para("; ".join(words)[0].upper() + "; ".join(words)[1:] + ".")
     return head + "\n\n" + _sweep_table(result) + "\n\n" + tail + "\n"
 
 

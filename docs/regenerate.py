@@ -892,6 +892,29 @@ def tuning_table() -> str:
     return head + "\n\n" + "\n".join(table) + "\n\n" + tail + "\n"
 
 
+def own_arm_sines() -> str:
+    """The hand-tuned packaged arms (``hmpc-pin run <arm>_sine``, 10 s): the worst joint's
+    RMS error after 1 s, limits crossed and torque saturated."""
+    from hmpc_pin.apps.metrics import compute_metrics
+    from hmpc_pin.experiment.build import Experiment
+    from hmpc_pin.experiment.config import load_config
+
+    parts, crossed, saturated = [], False, False
+    for config, label in (("ur5_sine", "UR5"), ("panda_sine", "Panda"), ("z1_sine", "Z1")):
+        m = compute_metrics(Experiment.from_config(load_config(config)).run())
+        parts.append(f"{label} {_e(float(m.rms_error.max()))} rad")
+        crossed |= m.limit_violation is not None and bool(np.nanmax(m.limit_violation) > 0)
+        saturated |= m.saturated_steps is not None and bool(np.max(m.saturated_steps) > 0)
+    return _para(
+        "Measured over 10 s (`hmpc-pin run <arm>_sine`), worst joint's RMS error after 1 s: "
+        + ", ".join(parts)
+        + "; "
+        + ("a limit crossed" if crossed else "no limit crossed")
+        + ", "
+        + ("the torque saturated." if saturated else "no torque saturated.")
+    )
+
+
 def any_arm_table() -> str:
     """``python -m benchmarks.any_arm --duration 3``: init and a 3 s run of every
     example-robot-data arm (the step columns are timings: example values)."""
@@ -1131,6 +1154,7 @@ BLOCKS: tuple[Block, ...] = (
     Block("contact-estimate", "docs/tutorials/mujoco-contacts.md", contact_estimate),
     Block("task-space", "docs/tutorials/end-effector-path.md", task_space_table),
     Block("cluster-sweep", "docs/tutorials/cluster-sweep.md", cluster_sweep, slow=True),
+    Block("own-arm-sines", "docs/tutorials/own-arm.md", own_arm_sines),
     Block(
         "any-arm",
         "docs/tutorials/own-arm.md",

@@ -44,6 +44,10 @@ def test_printed_numbers_are_what_the_code_prints(block):
     i, j = regen.passage(text, block.name)
     printed = text[i:j].strip("\n")
     diff = regen.agrees(printed, block.write().strip("\n"), block.volatile)
+    if diff is not None and block.needs_ros:
+        # three processes on a loaded machine: a run that a scheduling stall stopped
+        # otherwise (a fault, a watchdog) is run once more; a real change differs twice
+        diff = regen.agrees(printed, block.write().strip("\n"), block.volatile)
     assert diff is None, (
         f"{block.file} [{block.name}] is stale: {diff}; run `python docs/regenerate.py "
         f"--only {block.name}` and read the prose around it"

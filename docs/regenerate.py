@@ -1012,7 +1012,7 @@ def ros_stays() -> str:
         else:
             cause = stop["cause"]
             streaming = re.search(r"stopped streaming after \d+ states", ctrl["stderr"])
-            if streaming:
+            if scenario == "silent" and streaming:  # (elsewhere a count of the timing's)
                 cause += f', "{streaming.group(0)}"'
             if scenario == "stall" and stop["cause"] == "watchdog":
                 cause += " (at the 150 ms stall)" if stop["t"] > 2.3 else " (before it)"

@@ -19,8 +19,10 @@ A passage agrees with its regeneration (:func:`agrees`) when the text around the
 is the same (line breaks aside) and each number is within one unit of its last printed
 digit (the same code on another machine may round the last digit the other way). Timings
 are machine-dependent: a block's ``volatile`` patterns (e.g. ``in 0.09 s``) are left out
-of the comparison, and the prose calls them "about". Every run is deterministic: the
-same code prints the same numbers. ``tests/test_docs_numbers.py`` runs the check.
+of the comparison, and the prose calls them "about" or example values. Every run is
+deterministic: the same code prints the same numbers. The ROS guide's passage runs ROS 2
+nodes, only ever in a private network namespace (``unshare -n``), and is left out where
+that or rclpy is not available. ``tests/test_docs_numbers.py`` runs the check.
 """
 
 from __future__ import annotations

@@ -20,10 +20,14 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
+import functools
 import io
 import re
+import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -119,6 +123,16 @@ def run_model(name: str, out: Path, duration: float | None = None) -> dict:
     ok = row["worst_rms"] <= RMS_TARGET and row["limit_violation"] <= LIMIT_TOL
     row["status"] = "tracks" if ok else "misses"
     return row
+
+
+@functools.cache
+def rows(duration: float | None = None) -> tuple[dict, ...]:
+    """Every model's row (:func:`run_model`, files in a temporary folder), computed once per
+    process for each ``duration``: the docs' check (docs/regenerate.py) and the slow test
+    of ``init`` share the 3 s runs."""
+    out = Path(tempfile.mkdtemp(prefix="hmpc_any_arm_"))
+    atexit.register(shutil.rmtree, out, ignore_errors=True)
+    return tuple(run_model(name, out, duration) for name in models())
 
 
 def observer_cell(cc) -> str:

@@ -218,6 +218,53 @@ def test_run_keeps_an_earlier_runs_files_without_force(tmp_path, capsys):
         assert data["t"][-1] == pytest.approx(0.3)
 
 
+@pytest.mark.parametrize(
+    ("argv", "name"),
+    [
+        (["compare", "paper_combined", "--controllers", "hmpc"], "paper_combined_compare.csv"),
+        (["compare", "paper_combined", "--controllers", "hmpc"], "paper_combined_compare.md"),
+        (["sweep", "paper_combined", "--samples", "1", "--jobs", "1"], "paper_combined_sweep.csv"),
+        (["realtime", "panda_sine", "--duration", "0.5"], "panda_sine_realtime_timing.npz"),
+        (["realtime", "panda_sine", "--duration", "0.5"], "panda_sine_realtime.json"),
+        (["ros", "panda_sine", "--duration", "0.5"], "panda_sine_ros.npz"),
+        (["franka", "fr3_sine", "--robot-ip", "127.0.0.1"], "fr3_sine_franka_cycles.npz"),
+    ],
+    ids=lambda x: x if isinstance(x, str) else x[0],
+)
+def test_every_run_writer_keeps_an_earlier_runs_files(tmp_path, capsys, argv, name):
+    """``compare``, ``sweep``, ``realtime``, ``ros`` and ``franka`` refuse, as ``run``
+    does, before anything runs (no arm process, node or robot connection), to replace a
+    file they would write: exit 2, one line naming the file and --force, the file kept."""
+    if argv[0] == "ros":
+        pytest.importorskip("rclpy")
+    earlier = tmp_path / name
+    earlier.write_bytes(b"an earlier run")
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(earlier) in err[0] and "pass --force" in err[0], err
+    assert earlier.read_bytes() == b"an earlier run"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]  # nothing else written
+
+
+@pytest.mark.parametrize(
+    ("argv", "name"),
+    [
+        (["compare", "paper_combined", "--controllers", "hmpc"], "paper_combined_compare.csv"),
+        (["sweep", "paper_combined", "--samples", "1", "--jobs", "1"], "paper_combined_sweep.csv"),
+    ],
+    ids=("compare", "sweep"),
+)
+def test_force_replaces_an_earlier_runs_files(tmp_path, capsys, argv, name):
+    """With --force the same command replaces them (here a 0.2 s run)."""
+    earlier = tmp_path / name
+    earlier.write_bytes(b"an earlier run")
+    args = [*argv, "--duration", "0.2", "--quiet", "--out", str(tmp_path), "--force"]
+    assert main(args) == 0
+    capsys.readouterr()
+    assert earlier.read_bytes() != b"an earlier run"
+    assert earlier.read_text(encoding="utf-8").startswith(("controller,", "sample,"))  # its table
+
+
 # ----------------------------------------------------------- hmpc-pin ros --ros-args
 def test_ros_args_are_read_as_rcl_reads_them():
     """No ROS needed: the parameters and the node's name and namespace remaps."""

@@ -1,7 +1,10 @@
 """The numbers printed in the README and the guides are what the code prints now: every
 generated passage (``docs/regenerate.py``) regenerated from runs and compared with the
 text, each number within one unit of its last printed digit; timings left out. The
-tuning passage (two Optuna studies, minutes) is marked ``slow``.
+tuning passage (two Optuna studies, minutes) is marked ``slow``; the ROS guide's
+(nodes in a private network namespace) is left out where rclpy or the namespace is not
+available. The table of every example-robot-data arm shares its runs with the slow test of
+``init`` (``benchmarks.any_arm.rows``).
 
 The comparison itself is checked to fail on a number off by more than its printed
 precision, on changed text, and on a missing marker."""
@@ -35,10 +38,16 @@ regen = _module()
     [pytest.param(b, id=b.name, marks=[pytest.mark.slow] if b.slow else []) for b in regen.BLOCKS],
 )
 def test_printed_numbers_are_what_the_code_prints(block):
+    if block.needs_ros and (reason := regen.ros_reason()) is not None:
+        pytest.skip(reason)
     text = (ROOT / block.file).read_text(encoding="utf-8")
     i, j = regen.passage(text, block.name)
     printed = text[i:j].strip("\n")
     diff = regen.agrees(printed, block.write().strip("\n"), block.volatile)
+    if diff is not None and block.needs_ros:
+        # three processes on a loaded machine: a run that a scheduling stall stopped
+        # otherwise (a fault, a watchdog) is run once more; a real change differs twice
+        diff = regen.agrees(printed, block.write().strip("\n"), block.volatile)
     assert diff is None, (
         f"{block.file} [{block.name}] is stale: {diff}; run `python docs/regenerate.py "
         f"--only {block.name}` and read the prose around it"

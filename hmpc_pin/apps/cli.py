@@ -185,7 +185,7 @@ def cmd_run(args) -> int:
         stem += f"_{args.compensation}"
     if args.no_ndo and not config.name.endswith("_no_ndo"):
         stem += "_no_ndo"
-    _refuse_earlier_run(args.out, stem, args.force)
+    _refuse_earlier_files(args.out, (f"{stem}.npz", f"{stem}.csv"), args.force)
     out = _out_dir(args.out)  # every option checked: the first thing written
     if args.replay is not None:
         _out_file(args.replay, "--replay")
@@ -197,11 +197,17 @@ def cmd_run(args) -> int:
             view.close()
 
 
-def _refuse_earlier_run(out: Path, stem: str, force: bool) -> None:
-    """Refuse, before the run, to replace an earlier run's files ``<stem>.npz`` /
-    ``.csv`` in ``out`` without ``--force`` (as ``init`` keeps an existing config): a
-    run's data may be what a later command reads (``--reference``, ``identify``)."""
-    earlier = [out / f"{stem}{ext}" for ext in (".npz", ".csv") if (out / f"{stem}{ext}").exists()]
+def _refuse_earlier_files(out: Path, names, force: bool) -> None:
+    """Refuse, before the run, to replace an earlier run's files (``names`` in ``out``)
+    without ``--force``, as ``init`` keeps an existing config: a run's data may be what a
+    later command reads (``--reference``, ``identify``, ``plot``). Every command that
+    writes run files (``run``, ``compare``, ``sweep``, ``realtime``, ``ros``,
+    ``franka``) calls it with the data files it writes.
+
+    Raises:
+        ConfigError: (``--out``) naming the first such file and ``--force``.
+    """
+    earlier = [out / name for name in names if (out / name).exists()]
     if earlier and not force:
         raise ConfigError(
             "--out",
@@ -334,8 +340,10 @@ def cmd_compare(args) -> int:
 
     config = _with_overrides(_config(args.config), False, args.duration, reference=args.reference)
     controllers = parse_controllers(args.controllers, config)
-    out = _out_dir(args.out)
     warn = _warn_thresholds(args)
+    stem = f"{config.name}_compare"
+    _refuse_earlier_files(args.out, (f"{stem}.md", f"{stem}.csv"), args.force)
+    out = _out_dir(args.out)
     comp, files = compare(config, out, controllers, progress=not args.quiet, **warn)
 
     print(f"{config.name}: {config.description}")
@@ -377,6 +385,8 @@ def cmd_sweep(args) -> int:
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
     options = {"jobs": jobs, "executor": args.executor, "scheduler": args.scheduler}
     config = check_options(config, args.samples, args.seed, **options)  # before --out exists
+    names = (f"{config.name}_sweep.csv", f"{config.name}_sweep.md")
+    _refuse_earlier_files(args.out, names, args.force)
     out = _out_dir(args.out)
     result = run_sweep(
         config,
@@ -507,6 +517,7 @@ def cmd_realtime(args) -> int:
         raise ConfigError(f"--{exc.key.replace('_', '-')}", exc.message) from None
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     brake_settings(config, 1.0 / config.realtime.rate)  # (the safe torque's brake too)
+    _refuse_earlier_files(args.out, _realtime_files(f"{config.name}_realtime"), args.force)
     out = _out_dir(args.out)
     about = f"{config.description} " if config.description else ""
     print(
@@ -525,6 +536,11 @@ def cmd_realtime(args) -> int:
         )
 
     return _report_realtime(start, config, "commanded", format_tracking)
+
+
+def _realtime_files(stem: str) -> tuple[str, ...]:
+    """The files :func:`~hmpc_pin.apps.realtime.save_run` writes for ``stem``."""
+    return (f"{stem}.npz", f"{stem}_timing.npz", f"{stem}.json")
 
 
 def _report_realtime(start, config: ExperimentConfig, safe: str, *formats) -> int:
@@ -581,6 +597,7 @@ def cmd_ros(args) -> int:
     namespace, node = _ros_node_name(config, args.ros_args)  # (checks its -p, before rclpy)
     # [ros] rate against Ts, the brake, [ros] gravity: bad input stops here, nothing written
     built = build_ros(config)  # built once, run below
+    _refuse_earlier_files(args.out, _realtime_files(f"{config.name}_ros"), args.force)
     out = _out_dir(args.out)
     print(
         f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
@@ -698,6 +715,15 @@ def _add_reference_option(parser) -> None:
     )
 
 
+def _add_force_option(parser) -> None:
+    """``--force``: replace an earlier run's files in ``--out`` (:func:`_refuse_earlier_files`)."""
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an earlier run's files of the same name in --out (else exit 2)",
+    )
+
+
 def _add_warn_option(parser) -> None:
     from .metrics import DEFAULT_ERROR_THRESHOLD
 
@@ -755,11 +781,7 @@ def _run_arguments(run) -> None:
         action="store_true",
         help="live view: keep serving it after the run (files written) until Ctrl-C",
     )
-    run.add_argument(
-        "--force",
-        action="store_true",
-        help="replace an earlier run's files of the same name in --out (else exit 2)",
-    )
+    _add_force_option(run)
     run.add_argument(
         "--no-figures",
         dest="figures",
@@ -806,6 +828,7 @@ def _compare_arguments(cmp_) -> None:
         "or a 0.1 name [all: " + ",".join(CONTROLLER_KINDS) + "]",
     )
     cmp_.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    _add_force_option(cmp_)
     cmp_.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     _add_reference_option(cmp_)
     cmp_.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -867,6 +890,7 @@ def _sweep_arguments(swp) -> None:
     swp.add_argument("--duration", type=float, help="simulated time [s] (overrides the config)")
     _add_reference_option(swp)
     swp.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    _add_force_option(swp)
     swp.add_argument("--quiet", action="store_true", help="no progress bar")
     swp.set_defaults(func=cmd_sweep)
 
@@ -1006,6 +1030,7 @@ def _realtime_arguments(rt) -> None:
         help="live Meshcat view of the arm, drawn by a separate process",
     )
     rt.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
+    _add_force_option(rt)
     rt.set_defaults(func=cmd_realtime)
 
 
@@ -1033,6 +1058,9 @@ def cmd_franka(args) -> int:
         inner_law=args.inner_law,
     )
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
+    stem = f"{config.name}_franka"
+    names = (*_realtime_files(stem), f"{stem}_cycles.npz")
+    _refuse_earlier_files(args.out, names, args.force)
     out = _out_dir(args.out)
     print(
         f"{config.name}: {config.controller.label} on the Franka arm at {args.robot_ip} for "
@@ -1061,6 +1089,7 @@ def _franka_arguments(parser) -> None:
     from .franka import franka_arguments
 
     franka_arguments(parser)
+    _add_force_option(parser)
     parser.set_defaults(func=cmd_franka)
 
 
@@ -1069,6 +1098,7 @@ def _ros_arguments(ros) -> None:
     from .ros import ros_arguments
 
     ros_arguments(ros)
+    _add_force_option(ros)
     ros.set_defaults(func=cmd_ros)
 
 

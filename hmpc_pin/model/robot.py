@@ -747,6 +747,7 @@ class Robot:
             return False
         pin.computeJointJacobians(model, data, pin.neutral(model))
         J = pin.getJointJacobian(model, data, model.njoints - 1, pin.ReferenceFrame.WORLD)
+        J = np.asarray(J).reshape(6, model.nv)  # a 6×1 Jacobian comes back as a vector
         axes = [
             (kind, J[3:, j] if kind == "revolute" else J[:3, j])
             for j, kind in enumerate(self.joint_kinds)

@@ -2,7 +2,8 @@
 the observer allocate their memory, and Python reads named views of it
 (``hmpc_pin._core.StepData``, ``JointQPs.solution``/``slack``, ``DisturbanceObserver.z``/
 ``estimate``). Each view is checked against an independent computation of its quantity after
-real steps: the reference sampled by the reference itself, the inputs as the box QP's
+real steps: the reference sampled by the reference itself, the gradients from
+``CondensedMPC.gradient`` on the interleaved horizon, the inputs as the box QP's
 unconstrained minimiser −H⁻¹g from numpy, Eq (4) from Pinocchio's own M and C q̇ + G, and the
 observer's d̂ = z + cY q̇ (Eq 13 with z = d̂ − p)."""
 
@@ -48,7 +49,7 @@ def test_the_views_are_the_step_data_and_read_only(planar3):
         assert not view.flags.writeable
         with pytest.raises(ValueError, match="read-only"):
             view[0] = 1.0
-    data = ctrl._data
+    data = ctrl.data
     for view in (data.M, data.nle):
         assert not view.flags.writeable
     # the stack's rows are Python's to write (a reference sampled in Python fills them)
@@ -66,7 +67,7 @@ def test_the_views_are_the_step_data_and_read_only(planar3):
 def test_the_views_track_the_step(planar3):
     """After each step the views equal independent computations of their quantities."""
     ctrl, ref, _ = _stepped(planar3, steps=1)
-    mpc, data, robot = ctrl.mpc, ctrl._data, planar3
+    mpc, data, robot = ctrl.mpc, ctrl.data, planar3
     pdata = robot.model.createData()
     for k in range(6):
         t = 0.2 + k * ctrl.Ts
@@ -84,6 +85,8 @@ def test_the_views_track_the_step(planar3):
         horizon = np.empty((2 * mpc.N, 3))
         horizon[0::2], horizon[1::2] = q_ref, dq_ref
         G = mpc.gradient(np.vstack([q, dq]), horizon)
+        scale_g = np.abs(G).max()
+        np.testing.assert_allclose(ctrl._core.gradients, G, rtol=0, atol=1e-12 * scale_g)
         U = -np.linalg.solve(mpc.H, G.T)  # (Nc, n), every joint inside its box
         assert np.all(np.abs(U) < 0.5 * ctrl.settings.bounds(3)[1])
         np.testing.assert_allclose(ctrl.qps.solution, U, rtol=1e-9, atol=1e-12)
@@ -105,7 +108,7 @@ def test_warm_up_restores_the_data(planar3):
     """A dry step leaves the step's data, the QPs' solution and slack as they were."""
     ctrl, ref, states = _stepped(planar3)
     t, q, dq = states[-1]
-    data = ctrl._data
+    data = ctrl.data
     views = (data.stack, data.v, data.tau, data.d_hat, ctrl.qps.solution, ctrl.qps.slack)
     before = [v.copy() for v in views]
     ctrl.warm_up(t + ctrl.Ts, q + 0.01, dq - 0.02, ref)
@@ -143,5 +146,5 @@ def test_a_python_model_fills_the_data():
     dq = np.full(robot.nq, 0.1)
     ctrl.reset(q, dq)
     ctrl.step(0.0, q, dq, hmpc_pin.SineReference(robot.nq, amplitude=0.1, offset=q))
-    np.testing.assert_allclose(ctrl._data.M, robot.mass_matrix(q), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(ctrl._data.nle, robot.nonlinear_effects(q, dq), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ctrl.data.M, robot.mass_matrix(q), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ctrl.data.nle, robot.nonlinear_effects(q, dq), rtol=0, atol=1e-12)

@@ -169,6 +169,12 @@ void expose_step(py::module_& m) {
       .def("set_offsets", [](H& h, const CRefVec& offsets) { h.set_offsets(offsets); })
       .def_property_readonly(  // the step's memory (StepData)
           "data", [](const H& h) { return h.data; })
+      .def_property_readonly(  // the last step's gradients G (n×Nc, one row per joint), a view
+          "gradients",
+          [](py::object self) {
+            H& h = self.cast<H&>();
+            return view(h.Gt.data(), h.n, h.Nc, self);
+          })
       .def("set_sine",
            [](H& h, const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
               const CRefVec& offset, const CRefVec& amp_omega) {

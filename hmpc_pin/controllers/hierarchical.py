@@ -327,6 +327,8 @@ class HierarchicalMPC(AppliedTorque):
             zeros without compensation).
         v: The last commanded accelerations [rad/s²], shape (n,).
         tau: The last torque [N·m], shape (n,).
+            These three are read-only views of the compiled step's memory (:attr:`data`),
+            updated in place by every step; copy one to keep it.
         limits: The joint limits imposed on each MPC's prediction as soft state
             constraints (:class:`~hmpc_pin.mpc.condensed.StateLimits`), ``None`` if disabled.
 
@@ -490,6 +492,18 @@ class HierarchicalMPC(AppliedTorque):
         AppliedTorque.effort_limit.fset(self, limit)  # type: ignore[attr-defined]
         if self._core is not None:
             self._core.set_effort(np.full(self.n, np.inf) if limit is None else self._effort[1])
+
+    @property
+    def data(self) -> Any:
+        """The compiled step's memory (``hmpc_pin._core.StepData``; the step computes, this
+        object holds what it reads and writes), the same object for the controller's life.
+        Numpy views of it: ``q``, ``dq`` (n,), the state the last step started from (the
+        measurement, or with a latency its prediction) [rad, rad/s]; ``q_ref``, ``dq_ref``
+        (N, n), its reference horizon :math:`r(t + jT_s)`, :math:`\\dot r(t + jT_s)`,
+        j = 1..N; read-only: ``v`` [rad/s²], ``tau`` [N·m] (Eq 4), ``d_hat`` [N·m], and
+        ``M``, ``nle`` (the model's M and :math:`C\\dot q + G`, kept only when Pinocchio's
+        Python API computes them). The QPs' inputs are :attr:`qps` ``.solution``."""
+        return self._data
 
     @property
     def Ts(self) -> float:

@@ -46,17 +46,25 @@ std::unique_ptr<HMPCCore> make_step(const py::object& model, const CRefRow& F, i
                                     std::move(data));
 }
 
-// Without compiled dynamics: f(q, dq) returns (M, C q̇ + G), kept in the step's data.
+// Without compiled dynamics: f(q, dq) returns (M, C q̇ + G), copied into the step's data
+// (read in place, whatever the arrays' strides).
 void set_model(HMPCCore& h, py::function f) {
   h.model = [f, &h](const Vec& q, const Vec& dq) {
+    using Float = py::array_t<double, py::array::forcecast>;
     py::gil_scoped_acquire gil;
     const py::tuple r = f(q, dq);
-    const RowMat M = r[0].cast<RowMat>();
-    const Vec nle = r[1].cast<Vec>();
-    if (M.rows() != h.n || M.cols() != h.n || nle.size() != h.n)
+    const Float M = Float::ensure(r[0]), nle = Float::ensure(r[1]);
+    if (!M || !nle || M.ndim() != 2 || M.shape(0) != h.n || M.shape(1) != h.n ||
+        nle.ndim() != 1 || nle.shape(0) != h.n)
       throw std::invalid_argument("HMPCCore: the model returned M, nle of wrong shape");
-    h.M_out = M;
-    h.nle_out.row(0) = nle.transpose();
+    const auto at = [](const Float& a, int d) {
+      return static_cast<Eigen::Index>(a.strides(d) / py::ssize_t(sizeof(double)));
+    };
+    using Strided = Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>;
+    h.M_out = Eigen::Map<const RowMat, 0, Strided>(M.data(), h.n, h.n,
+                                                   Strided(at(M, 0), at(M, 1)));
+    h.nle_out = Eigen::Map<const RowMat, 0, Strided>(nle.data(), 1, h.n,
+                                                     Strided(h.n * at(nle, 0), at(nle, 0)));
   };
 }
 

@@ -502,7 +502,8 @@ class HierarchicalMPC(AppliedTorque):
         (N, n), its reference horizon :math:`r(t + jT_s)`, :math:`\\dot r(t + jT_s)`,
         j = 1..N; read-only: ``v`` [rad/s²], ``tau`` [N·m] (Eq 4), ``d_hat`` [N·m], and
         ``M``, ``nle`` (the model's M and :math:`C\\dot q + G`, kept only when Pinocchio's
-        Python API computes them). The QPs' inputs are :attr:`qps` ``.solution``."""
+        Python API computes them). The QPs' inputs are ``qps.solution``
+        (:class:`~hmpc_pin.mpc.condensed.JointQPs`)."""
         return self._data
 
     @property

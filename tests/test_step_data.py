@@ -148,3 +148,18 @@ def test_a_python_model_fills_the_data():
     ctrl.step(0.0, q, dq, hmpc_pin.SineReference(robot.nq, amplitude=0.1, offset=q))
     np.testing.assert_allclose(ctrl.data.M, robot.mass_matrix(q), rtol=0, atol=1e-12)
     np.testing.assert_allclose(ctrl.data.nle, robot.nonlinear_effects(q, dq), rtol=0, atol=1e-12)
+
+
+def test_the_step_refuses_data_of_another_shape(planar3):
+    """A step built on data for another horizon or arm, or data assigned from another shape,
+    is refused with a message naming the mismatch (nothing is written out of bounds)."""
+    from hmpc_pin.native import load
+
+    native = load()
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    N = ctrl.settings.N
+    for n, horizon in ((3, N + 1), (4, N)):
+        with pytest.raises(ValueError, match="shapes do not match"):
+            native.HMPCCore(None, ctrl.mpc.FT, N, ctrl.qps._core, None, native.StepData(n, horizon))
+    with pytest.raises(ValueError, match="another shape"):
+        ctrl.data.assign(native.StepData(3, N + 1))

@@ -589,8 +589,8 @@ class HierarchicalMPC(AppliedTorque):
         if q.shape != self._shape or dq.shape != self._shape:
             self.robot.check_vector("q", q)  # raises the precise error
             self.robot.check_vector("dq", dq)
-        self._q[:] = q
-        self._dq[:] = dq
+        self._q[...] = q
+        self._dq[...] = dq
         self._sample_horizon(t)
         core.step(self._stack, t)
         return self.tau.copy()

@@ -66,12 +66,12 @@ class LayoutTiming:
 
 def record_gradients(ctrl: hmpc_pin.HierarchicalMPC, t, q, dq, reference) -> np.ndarray:
     """The QP gradients (steps, n, Nc) that ``ctrl.step`` computes along the states: after
-    each step, the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] times its gradient map."""
+    each step, the compiled step's own (its ``gradients`` view)."""
     grads = []
     ctrl.reset(q[0], dq[0])
     for i in range(len(t)):
         ctrl.step(float(t[i]), q[i], dq[i], reference)
-        grads.append(np.ascontiguousarray(ctrl._stack.T @ ctrl._FT))
+        grads.append(ctrl._core.gradients.copy())
     return np.array(grads)
 
 

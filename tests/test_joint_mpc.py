@@ -649,9 +649,12 @@ def recorded_qp_inputs(planar3, N, Nc, steps):
 
     def spy(t, q, dq, reference):
         tau = step(t, q, dq, reference)
-        # the step's stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] and the gradient map give G = (FT^T S)^T
-        S = ctrl._stack
-        inputs.append((np.ascontiguousarray((S.T @ ctrl._FT)), S[:2].copy()))
+        # the step's state and horizon (its data's views) give G (CondensedMPC.gradient)
+        d = ctrl._data
+        horizon = np.empty((2 * N, 3))
+        horizon[0::2], horizon[1::2] = d.q_ref, d.dq_ref  # rows r_1, ṙ_1, ..., r_N, ṙ_N
+        x0 = np.vstack([d.q, d.dq])
+        inputs.append((ctrl.mpc.gradient(x0, horizon), x0))
         return tau
 
     ctrl.step = spy

@@ -242,8 +242,8 @@ def test_compiled_sampling_equals_the_oracle(planar3, name):
         ctrl.step(t, q0, q0, ref)
         assert ctrl._native_ref
         q_ref, dq_ref = _oracle_sampling(ref, t + ctrl._offsets)
-        np.testing.assert_allclose(ctrl._stack_q_ref, q_ref, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(ctrl._stack_dq_ref, dq_ref, rtol=0, atol=1e-11)
+        np.testing.assert_allclose(ctrl._data.q_ref, q_ref, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ctrl._data.dq_ref, dq_ref, rtol=0, atol=1e-11)
 
 
 def test_a_reference_subclass_that_samples_otherwise_is_sampled_in_python(planar3):
@@ -260,7 +260,7 @@ def test_a_reference_subclass_that_samples_otherwise_is_sampled_in_python(planar
     ctrl.reset(np.zeros(3), np.zeros(3))
     ctrl.step(0.0, np.zeros(3), np.zeros(3), ref)
     assert not ctrl._native_ref
-    np.testing.assert_allclose(ctrl._stack_q_ref, plain.sample_many(0.25 + ctrl._offsets)[0])
+    np.testing.assert_allclose(ctrl._data.q_ref, plain.sample_many(0.25 + ctrl._offsets)[0])
 
 
 @pytest.mark.parametrize("layout, Nc", [("block", 1), ("joint", 3)])

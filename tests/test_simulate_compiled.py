@@ -72,7 +72,8 @@ def _controller_state(ctrl) -> list:
         ctrl.v.copy(),
         ctrl.tau.copy(),
         ctrl.disturbance_estimate.copy(),
-        ctrl.qps.stack.copy(),
+        ctrl._data.stack.copy(),
+        ctrl.qps.solution.copy(),
         ctrl.qps.slack.copy(),
     ]
     decoded = step_compensation(ctrl.compensation)

@@ -1,6 +1,5 @@
 // The Python module hmpc_pin._core: one expose_*() per component of the library (module.cpp
-// calls them), and the holders that keep the Python-owned arrays a component writes in place
-// alive as long as the component.
+// calls them). A component owns its data; Python reads numpy views of it (view()).
 #pragma once
 
 #include <pybind11/eigen.h>
@@ -26,6 +25,20 @@ void expose_measurement(py::module_& m);
 void expose_loop(py::module_& m);
 void expose_errors(py::module_& m);
 void expose_joint_dynamics(py::module_& m);
+
+// A numpy view of `rows`×`cols` doubles (row-major) that the C++ object `owner` holds: it
+// keeps `owner` alive; read-only unless `writable` (Python only reads what the step writes).
+inline Array view(double* data, Eigen::Index rows, Eigen::Index cols, py::handle owner,
+                  bool writable = false) {
+  Array a({static_cast<py::ssize_t>(rows), static_cast<py::ssize_t>(cols)}, data, owner);
+  if (!writable) a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+inline Array view(double* data, Eigen::Index size, py::handle owner, bool writable = false) {
+  Array a({static_cast<py::ssize_t>(size)}, data, owner);
+  if (!writable) a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
 
 // The data of a float64 C-contiguous numpy array of `size` values that may be written.
 inline double* writable(Array& a, Eigen::Index size) {

@@ -1,7 +1,14 @@
-// hmpc_pin._core.JointQPs: the per-joint MPC's box QPs (joint_qps.hpp), the solution and
-// slack in numpy arrays that the Python object owns (hmpc_pin.mpc.condensed.JointQPs); their
-// ProxSuite settings, QPSettings, bound field by field.
-#include "holders.hpp"
+// hmpc_pin._core.JointQPs: the per-joint MPC's box QPs (joint_qps.hpp), their solution and
+// slack read by Python as read-only views (hmpc_pin.mpc.condensed.JointQPs); their ProxSuite
+// settings, QPSettings, bound field by field.
+#include "expose.hpp"
+
+#include "hmpc/joint_qps.hpp"
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace hmpc::python {
 
@@ -84,49 +91,70 @@ static void expose_options_stats(py::module_& m) {
 void expose_joint_qps(py::module_& m) {
   expose_qp_settings(m);
   expose_options_stats(m);
-  py::class_<PyJointQPs, std::shared_ptr<PyJointQPs>>(m, "JointQPs", py::module_local())
+  using Q = JointQPs;
+  py::class_<Q, std::shared_ptr<Q>>(m, "JointQPs", py::module_local())
       .def(py::init<int, int, int, bool, const CRefMat&, const CRefVec&, const CRefVec&,
-                    const QPSettings&, const QPSettings&, Array, Array>(),
+                    const QPSettings&, const QPSettings&>(),
            py::arg("n"), py::arg("N"), py::arg("Nc"), py::arg("block"), py::arg("H"),
-           py::arg("v_min"), py::arg("v_max"), py::arg("warm"), py::arg("cold"), py::arg("U"),
-           py::arg("slack"))
+           py::arg("v_min"), py::arg("v_max"), py::arg("warm"), py::arg("cold"))
       .def("set_limits",
-           [](PyJointQPs& o, const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
+           [](Q& o, const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
               const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs, const CRefMat& C,
               const CRefVec& row_scale, double g_slack, double k_slack, const QPSettings& soft,
               bool always, const CRefMat& T, const CRefMat& E, const CRefMat& Hp) {
-             o.qps.set_limits(Phi, Gamma, lower, upper, vel, Hs, C, row_scale, g_slack, k_slack,
-                              soft, always, T, E, Hp);
+             o.set_limits(Phi, Gamma, lower, upper, vel, Hs, C, row_scale, g_slack, k_slack,
+                          soft, always, T, E, Hp);
            })
       .def(
           "solve",
-          [](PyJointQPs& o, const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
-            if (!o.qps.solve(G, q, dq)) throw o.qps.failure();
+          [](Q& o, const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
+            if (!o.solve(G, q, dq)) throw o.failure();
           },
           py::arg("G"), py::arg("q"), py::arg("dq"))
       .def_property(  // for the faults' messages
-          "joint_names", [](const PyJointQPs& o) { return o.qps.joint_names; },
-          [](PyJointQPs& o, std::vector<std::string> names) { o.qps.joint_names = names; })
-      .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
-      .def("restart", [](PyJointQPs& o) { o.qps.restart(); })
+          "joint_names", [](const Q& o) { return o.joint_names; },
+          [](Q& o, std::vector<std::string> names) { o.joint_names = names; })
+      .def("set_max_iter", [](Q& o, long k) { o.set_max_iter(k); })
+      .def("restart", [](Q& o) { o.restart(); })
       // The knobs and the counters, live (qps.options.shift = True; a copy: copy.copy).
       .def_property(
           "options",
-          py::cpp_function([](PyJointQPs& o) -> JointQPsOptions& { return o.qps.options; },
+          py::cpp_function([](Q& o) -> JointQPsOptions& { return o.options; },
                            py::return_value_policy::reference_internal),
-          [](PyJointQPs& o, const JointQPsOptions& v) {
-            const bool always = o.qps.options.always_constrained;  // set_limits' own
-            o.qps.options = v;
-            o.qps.options.always_constrained = always;
+          [](Q& o, const JointQPsOptions& v) {
+            const bool always = o.options.always_constrained;  // set_limits' own
+            o.options = v;
+            o.options.always_constrained = always;
           })
       .def_property(  // set: restored after a dry step (warm_up)
           "stats",
-          py::cpp_function([](PyJointQPs& o) -> JointQPsStats& { return o.qps.stats; },
+          py::cpp_function([](Q& o) -> JointQPsStats& { return o.stats; },
                            py::return_value_policy::reference_internal),
-          [](PyJointQPs& o, const JointQPsStats& s) { o.qps.stats = s; })
-      .def_property_readonly("fail_joint", [](const PyJointQPs& o) { return o.qps.fail_joint; })
-      .def_property_readonly("fail_status", [](const PyJointQPs& o) { return o.qps.fail_status; })
-      .def_property_readonly("fail_iter", [](const PyJointQPs& o) { return o.qps.fail_iter; });
+          [](Q& o, const JointQPsStats& s) { o.stats = s; })
+      .def_property_readonly("fail_joint", [](const Q& o) { return o.fail_joint; })
+      .def_property_readonly("fail_status", [](const Q& o) { return o.fail_status; })
+      .def_property_readonly("fail_iter", [](const Q& o) { return o.fail_iter; })
+      // The solution U (Nc×n) and the slack (n): read-only views, written by solve()
+      .def_property_readonly("solution",
+                             [](py::object self) {
+                               Q& o = self.cast<Q&>();
+                               return view(o.U.data(), o.Nc, o.n, self);
+                             })
+      .def_property_readonly("slack",
+                             [](py::object self) {
+                               Q& o = self.cast<Q&>();
+                               return view(o.slack.data(), o.n, self);
+                             })
+      .def_property(  // (U, slack), copies; restored after a dry step (warm_up)
+          "state", [](const Q& o) { return py::make_tuple(RowMat(o.U), Vec(o.slack)); },
+          [](Q& o, const py::tuple& s) {
+            const RowMat U = s[0].cast<RowMat>();
+            const Vec slack = s[1].cast<Vec>();
+            if (U.rows() != o.Nc || U.cols() != o.n || slack.size() != o.n)
+              throw std::invalid_argument("JointQPs.state: (U of (Nc, n), slack of n)");
+            o.U = U;
+            o.slack = slack;
+          });
 }
 
 }  // namespace hmpc::python

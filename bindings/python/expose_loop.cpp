@@ -3,11 +3,11 @@
 // Measurement and Reference ports, or a Python controller as a whole), the plant (the compiled
 // RK4Plant, or a Python plant through the Plant port); its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
 // before every step.
-#include "holders.hpp"
 #include "trampolines.hpp"
 
 #include "hmpc/loop.hpp"
 #include "hmpc/rk4_plant.hpp"
+#include "hmpc/step.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -26,7 +26,7 @@ struct PyStepController {
   std::unique_ptr<PyCallableReference> reference;
   StepController controller;
   explicit PyStepController(py::object core)
-      : core_object(std::move(core)), controller(&core_object.cast<PyHMPCCore&>().core) {}
+      : core_object(std::move(core)), controller(&core_object.cast<HMPCCore&>()) {}
 };
 
 struct PyClosedLoop {

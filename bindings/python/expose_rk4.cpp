@@ -1,7 +1,6 @@
 // hmpc_pin._core.RK4: the RK4 plant's period (rk4.hpp), ABA or the disturbance from Python
 // where given; hmpc_pin._core.RK4Plant: the RK4 plant as the loop's Plant port
 // (rk4_plant.hpp), its disturbance fused or a Python callable.
-#include "holders.hpp"
 #include "trampolines.hpp"
 
 #include "hmpc/rk4.hpp"

@@ -8,7 +8,9 @@
 
 #include "hmpc/errors.hpp"
 #include "hmpc/interfaces.hpp"
+#include "hmpc/rk4_plant.hpp"
 
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -221,6 +223,12 @@ class PyCallableController : public Controller {
   }
   py::object ctrl, ref;
   int n;
+};
+
+// The compiled RK4 plant, holding the Python disturbance it calls (if any).
+struct PyRK4Plant : RK4Plant {
+  using RK4Plant::RK4Plant;
+  std::unique_ptr<PyCallableDisturbance> held;
 };
 
 }  // namespace hmpc::python

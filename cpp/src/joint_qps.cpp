@@ -10,10 +10,9 @@ namespace hmpc {
 namespace pqp = proxsuite::proxqp;
 
 JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const CRefVec& v_min,
-                   const CRefVec& v_max, const Settings& warm, const Settings& cold, double* U_,
-                   double* slack_)
-    : n(n_), N(N_), Nc(Nc_), block(block_), U(U_, Nc_, n_), slack(slack_, n_), H_(H),
-      v_min_(v_min), v_max_(v_max), warm_(warm), cold_(cold) {
+                   const CRefVec& v_max, const Settings& warm, const Settings& cold)
+    : n(n_), N(N_), Nc(Nc_), block(block_), U(RowMat::Zero(Nc_, n_)), slack(Vec::Zero(n_)),
+      H_(H), v_min_(v_min), v_max_(v_max), warm_(warm), cold_(cold) {
   if (H.rows() != Nc || H.cols() != Nc || v_min.size() != n || v_max.size() != n)
     throw std::invalid_argument("JointQPs: H must be (Nc, Nc) and v_min, v_max (n,)");
   if ((v_min.array() > v_max.array()).any())

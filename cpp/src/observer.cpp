@@ -5,9 +5,9 @@
 
 namespace hmpc {
 
-NDO::NDO(const CRefMat& cY_, double Ts, bool implicit_, double* z_, double* estimate_)
+NDO::NDO(const CRefMat& cY_, double Ts, bool implicit_)
     : n(static_cast<int>(cY_.rows())), implicit(implicit_), cY(cY_), TcY(Ts * cY_),
-      z(z_, cY_.rows()), d_hat(estimate_, cY_.rows()), lu_(cY_.rows()) {
+      z(Vec::Zero(cY_.rows())), d_hat(Vec::Zero(cY_.rows())), lu_(cY_.rows()) {
   if (cY.rows() != cY.cols()) throw std::invalid_argument("NDO: cY must be square");
   p_.setZero(n);
   rhs_.setZero(n);

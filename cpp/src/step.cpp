@@ -9,17 +9,27 @@
 
 namespace hmpc {
 
-HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& FT_, int N_,
-                   JointQPs* qps, Compensation* comp_, double* v_, double* tau_,
-                   double* dhat_, double* M_, double* nle_)
-    : n(qps->n), N(N_), Nc(qps->Nc), FT(FT_), qp(qps), comp(comp_), v(v_, 1, n), tau(tau_, 1, n),
-      dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n), sampler(n) {
+HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& F, int N_,
+                   std::shared_ptr<JointQPs> qps_, std::shared_ptr<Compensation> comp_,
+                   std::shared_ptr<StepData> data_)
+    : n(qps_->n), N(N_), Nc(qps_->Nc), qps(std::move(qps_)), comp_held(std::move(comp_)),
+      data(std::move(data_)), qp(qps.get()), comp(comp_held.get()), stack(data->stack),
+      v(data->v), tau(data->tau), dhat(data->dhat), M_out(data->M), nle_out(data->nle),
+      sampler(n) {
   if (model) {
     dyn = std::make_unique<Dynamics>(*model);
     if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
   }
-  if (FT.rows() != 2 + 2 * N || FT.cols() != Nc || qp->N != N || (comp && comp->estimate().size() != n))
+  if (F.rows() != 2 + 2 * N || F.cols() != Nc || qp->N != N || data->n != n || data->N != N ||
+      (comp && comp->estimate().size() != n))
     throw std::invalid_argument("HMPCCore: shapes do not match the model and horizon");
+  // The map's rows in the stack's order: r_j, ṙ_j are rows 2 + 2(j-1), 3 + 2(j-1) of F.
+  FT.resize(2 + 2 * N, Nc);
+  FT.topRows(2) = F.topRows(2);
+  for (int j = 0; j < N; ++j) {
+    FT.row(2 + j) = F.row(2 + 2 * j);
+    FT.row(2 + N + j) = F.row(3 + 2 * j);
+  }
   // Without a velocity weight the ṙ rows of the map are zero: skip them.
   grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
   applied.setZero(n);
@@ -27,14 +37,13 @@ HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& FT_, 
   effort = Vec::Constant(n, std::numeric_limits<double>::infinity());
 }
 
-void HMPCCore::set_stack(double* S, const CRefVec& offsets_) {
-  stack.emplace(S, 2 + 2 * N, n);
+void HMPCCore::set_offsets(const CRefVec& offsets_) {
   if (offsets_.size() != N) throw std::invalid_argument("offsets of wrong size");
   offsets = offsets_;
 }
 
 void HMPCCore::sample_horizon(double t) {
-  auto& S = *stack;
+  auto& S = stack;
   for (int j = 0; j < N; ++j) sampler.sample(t + offsets[j], &S(2 + j, 0), &S(2 + N + j, 0));
 }
 
@@ -45,8 +54,10 @@ void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
     if (!q.allFinite()) throw NonFinite("q", {Vec(q)});
     throw DimensionMismatch("dq", dq.size(), n, robot);
   }
+  if (offsets.size() != N)
+    throw std::invalid_argument("HMPCCore: no horizon offsets (set_offsets)");
   t_now = t;
-  auto& S = *stack;
+  auto& S = stack;
   S.row(0) = q.transpose();
   S.row(1) = dq.transpose();
   sample_horizon(t);
@@ -54,7 +65,7 @@ void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
 
 void HMPCCore::step_t(double t, const CRefVec& q, const CRefVec& dq) {
   fill(t, q, dq);
-  step(*stack, t);
+  step(stack, t);
 }
 
 void HMPCCore::non_finite(const CRefRow& S) const {
@@ -198,7 +209,7 @@ void HMPCCore::step_latency(const CRefRow& S_in) {
   if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
     throw std::invalid_argument("HMPCCore: stack of wrong shape");
   if (!S_in.allFinite()) non_finite(S_in);
-  auto& S = *stack;
+  auto& S = stack;
   if (S.data() != S_in.data()) S = S_in;
   Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
   if (comp) {
@@ -227,8 +238,8 @@ void HMPCCore::step_latency(const CRefRow& S_in) {
 }
 
 StepController::StepController(HMPCCore* c) : core(c) {
-  if (!core || !core->stack)
-    throw std::invalid_argument("StepController: a step with its stack (set_stack) is needed");
+  if (!core || core->offsets.size() != core->N)
+    throw std::invalid_argument("StepController: a step with its offsets (set_offsets) is needed");
 }
 
 void StepController::step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) {
@@ -242,7 +253,7 @@ void StepController::step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& 
   }
   measured = true;
   if (reference) {  // as HierarchicalMPC.step with a reference sampled in Python
-    auto& S = *c.stack;
+    auto& S = c.stack;
     S.row(0) = qc->transpose();
     S.row(1) = dqc->transpose();
     reference->horizon(t, S);

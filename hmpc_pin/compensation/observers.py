@@ -152,11 +152,14 @@ class DisturbanceObserver:
             self.cY = cY
         else:
             self.cY = self.gain * observer_matrix(kind, n)
-        self._z = np.zeros(n)
-        self._estimate = np.zeros(n)
-        self._core = load_native().NDO(
-            self.cY, self.Ts, discretization == "implicit", self._z, self._estimate
-        )
+        self._compile()
+
+    def _compile(self) -> None:
+        """The compiled observer (``hmpc_pin._core.NDO``), which owns z and d̂: :attr:`z` and
+        :attr:`estimate` are read-only views of its vectors."""
+        self._core = load_native().NDO(self.cY, self.Ts, self.discretization == "implicit")
+        self._z = self._core.z
+        self._estimate = self._core.estimate
 
     @property
     def z(self) -> np.ndarray:
@@ -177,9 +180,9 @@ class DisturbanceObserver:
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
-        self._core = load_native().NDO(
-            self.cY, self.Ts, self.discretization == "implicit", self._z, self._estimate
-        )
+        z, estimate = state["_z"], state["_estimate"]  # copies of the pickled views
+        self._compile()
+        self._core.state = (z, estimate)
 
     def compiled_port(self) -> Any:
         """The compiled observer (``hmpc_pin._core.NDO``): the control step advances this very

@@ -327,6 +327,8 @@ class HierarchicalMPC(AppliedTorque):
             zeros without compensation).
         v: The last commanded accelerations [rad/s²], shape (n,).
         tau: The last torque [N·m], shape (n,).
+            These three are read-only views of the compiled step's memory (:attr:`data`),
+            updated in place by every step; copy one to keep it.
         limits: The joint limits imposed on each MPC's prediction as soft state
             constraints (:class:`~hmpc_pin.mpc.condensed.StateLimits`), ``None`` if disabled.
 
@@ -371,34 +373,27 @@ class HierarchicalMPC(AppliedTorque):
             max_iter=settings.max_iter,
             limits=self.limits,
             layout=settings.qp_layout,
-            stack_rows=2 * settings.N,
         )
         N = settings.N
         self._offsets = settings.Ts * np.arange(1, N + 1)
         self._times = np.empty(N)
-        # The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] (rows), each block contiguous, and the
-        # gradient map with its rows in that order (CondensedMPC.F interleaves r_j, ṙ_j).
-        # It lives in the QPs' buffer right after [U; −c; h_q; v̄] (JointQPs.stack).
-        self._stack = self.qps.stack[self.mpc.Nc + 3 :]
-        self._stack_q_ref = self._stack[2 : N + 2]
-        self._stack_dq_ref = self._stack[N + 2 :]
-        self._ref_out = (self._stack_q_ref, self._stack_dq_ref)
-        order = np.concatenate([[0, 1], np.arange(2, 2 * N + 2, 2), np.arange(3, 2 * N + 2, 2)])
-        self._FT = np.ascontiguousarray(self.mpc.FT[order])
+        # The step's memory (hmpc_pin._core.StepData, cpp/include/hmpc/step_data.hpp), kept
+        # across the compiled steps built for it: the state and the reference horizon the
+        # step starts from (written here when the reference is sampled in Python), v, τ, d̂,
+        # M and C q̇ + G (read-only views, updated in place by the compiled step).
+        self._data = data = load_native().StepData(n, N)
+        self._stack, self._q, self._dq = data.stack, data.q, data.dq
+        self._ref_out = (data.q_ref, data.dq_ref)
         self._ref_shape = (N, n)
         self._shape = (n,)
         self._reference: object = None
         self._ref: Reference | None = None
         self._native_ref = False
-        # The step's buffers, updated in place by the compiled step: v, τ and d̂, and
-        # M, C q̇ + G at the measured state (what a Python compensation's update receives).
-        self._buf = {name: np.zeros(n) for name in ("v", "tau", "d_hat", "nle")}
-        self._M = np.zeros((n, n))
         # Models the compiled dynamics cannot load (mimic joints): M and C q̇ + G in Python.
         self._python_dynamics = bool(robot.mimic_joints)
-        self.disturbance_estimate = self._buf["d_hat"]
-        self.v = self._buf["v"]
-        self.tau = self._buf["tau"]
+        self.disturbance_estimate = data.d_hat
+        self.v = data.v
+        self.tau = data.tau
         self._was_reset = False
         self._core = None
         self._make_core()
@@ -462,22 +457,12 @@ class HierarchicalMPC(AppliedTorque):
         self._fused = decoded.compiled and not self._python_dynamics
         self._port = port
         model = None if self._python_dynamics else model_string(self.robot)
-        buf = self._buf
         core = load_native().HMPCCore(
-            model,
-            self._FT,
-            self.settings.N,
-            self.qps._core,
-            port,
-            buf["v"],
-            buf["tau"],
-            buf["d_hat"],
-            self._M,
-            buf["nle"],
+            model, self.mpc.FT, self.settings.N, self.qps._core, port, self._data
         )
         if self._python_dynamics:
             core.set_model(self._python_dynamics_at)
-        core.set_stack(self._stack, self._offsets)
+        core.set_offsets(self._offsets)
         robot = self.robot  # how the compiled step's faults name it
         core.robot = f"the robot {robot.name!r} has {self.n} joints {robot.joint_names}"
         core.set_latency(self.settings.latency, self.settings.Ts)
@@ -509,6 +494,19 @@ class HierarchicalMPC(AppliedTorque):
             self._core.set_effort(np.full(self.n, np.inf) if limit is None else self._effort[1])
 
     @property
+    def data(self) -> Any:
+        """The compiled step's memory (``hmpc_pin._core.StepData``; the step computes, this
+        object holds what it reads and writes), the same object for the controller's life.
+        Numpy views of it: ``q``, ``dq`` (n,), the state the last step started from (the
+        measurement, or with a latency its prediction) [rad, rad/s]; ``q_ref``, ``dq_ref``
+        (N, n), its reference horizon :math:`r(t + jT_s)`, :math:`\\dot r(t + jT_s)`,
+        j = 1..N; read-only: ``v`` [rad/s²], ``tau`` [N·m] (Eq 4), ``d_hat`` [N·m], and
+        ``M``, ``nle`` (the model's M and :math:`C\\dot q + G`, kept only when Pinocchio's
+        Python API computes them). The QPs' inputs are ``qps.solution``
+        (:class:`~hmpc_pin.mpc.condensed.JointQPs`)."""
+        return self._data
+
+    @property
     def Ts(self) -> float:
         """Control period [s]."""
         return self.settings.Ts
@@ -517,7 +515,7 @@ class HierarchicalMPC(AppliedTorque):
     def state(self) -> tuple[FloatArray, FloatArray]:
         """``(q, q̇)`` [rad, rad/s] the MPC and Eq (4) started from at the last step: the
         measurement, or with a latency its prediction (copies)."""
-        return self._stack[0].copy(), self._stack[1].copy()
+        return self._q.copy(), self._dq.copy()
 
     @property
     def latency(self) -> float:
@@ -591,11 +589,10 @@ class HierarchicalMPC(AppliedTorque):
         if q.shape != self._shape or dq.shape != self._shape:
             self.robot.check_vector("q", q)  # raises the precise error
             self.robot.check_vector("dq", dq)
-        S = self._stack
-        S[0] = q
-        S[1] = dq
+        self._q[...] = q
+        self._dq[...] = dq
         self._sample_horizon(t)
-        core.step(S, t)
+        core.step(self._stack, t)
         return self.tau.copy()
 
     def warm_up(self, t: float, q: np.ndarray, dq: np.ndarray, reference) -> None:
@@ -617,9 +614,9 @@ class HierarchicalMPC(AppliedTorque):
         if not (self._started and self._fused):
             return
         ndo = self._port
-        buffers = [self._buf[name].copy() for name in ("v", "tau", "d_hat", "nle")]
-        M, stack, slack = self._M.copy(), self.qps.stack.copy(), self.qps.slack.copy()
+        data = copy.copy(self._data)  # the step's memory (a copy of the StepData)
         core = self.qps._core
+        solution = core.state  # the QPs' solution and slacks (copies)
         counters = copy.copy(core.stats)  # the QPs' counters (JointQPsStats)
         ndo_state = ndo.state if ndo is not None else None
         step_core = self._core
@@ -637,21 +634,18 @@ class HierarchicalMPC(AppliedTorque):
         except HmpcError:
             pass
         finally:
-            for name, saved in zip(("v", "tau", "d_hat", "nle"), buffers, strict=True):
-                self._buf[name][:] = saved
-            self._M[:] = M
-            self.qps.stack[:] = stack
-            self.qps.slack[:] = slack
+            self._data.assign(data)
+            core.state = solution
             core.stats = counters
             step_core.state = carried
             if ndo is not None:
                 ndo.state = ndo_state
 
-    def _python_dynamics_at(self, q: FloatArray, dq: FloatArray) -> None:
-        """M and C q̇ + G at ``(q, dq)`` from Pinocchio's Python API into the step's buffers
-        (models the compiled dynamics cannot load; called by the compiled step)."""
-        self._M[:] = self.robot.mass_matrix(q)
-        self._buf["nle"][:] = pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
+    def _python_dynamics_at(self, q: FloatArray, dq: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(M, C q̇ + G)`` at ``(q, dq)`` from Pinocchio's Python API (models the compiled
+        dynamics cannot load; called by the compiled step, which keeps them in its data)."""
+        M = self.robot.mass_matrix(q)
+        return M, pin.nonLinearEffects(self.robot.model, self.robot.data, q, dq)
 
     def _sample_horizon(self, t: float) -> None:
         """The horizon rows of the step's stack, :math:`r(t + jT_s)`, :math:`\\dot r(t +
@@ -662,8 +656,9 @@ class HierarchicalMPC(AppliedTorque):
             DimensionError: ``sample_many`` returned arrays of another shape.
         """
         times = np.add(self._offsets, t, self._times)
-        q_ref, dq_ref = self._ref.sample_many(times, self._ref_out)  # type: ignore[union-attr]
-        if q_ref is not self._stack_q_ref:
+        out = self._ref_out
+        q_ref, dq_ref = self._ref.sample_many(times, out)  # type: ignore[union-attr]
+        if q_ref is not out[0]:
             if q_ref.shape != self._ref_shape or dq_ref.shape != self._ref_shape:
                 raise DimensionError(
                     f"reference.sample_many returned q_ref of shape {q_ref.shape} and "
@@ -671,8 +666,8 @@ class HierarchicalMPC(AppliedTorque):
                     f"{self._ref_shape} ({self.n} joints); return two arrays of shape "
                     f"(len(times), {self.n})"
                 )
-            self._stack_q_ref[:] = q_ref
-            self._stack_dq_ref[:] = dq_ref
+            out[0][:] = q_ref
+            out[1][:] = dq_ref
 
     def _set_reference(self, reference) -> None:
         """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its

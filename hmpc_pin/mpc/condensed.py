@@ -360,17 +360,17 @@ class JointQPs:
             short horizons, e.g. Nc = 1, 3 joints 10.4 µs vs 5.7 µs; 7 joints 22.8 µs on 1
             thread, 16.9 µs on 2, vs 6.9 µs, and ≈ 8 ms whenever its second OpenMP thread
             waits for a busy core.
-        stack_rows: Extra rows of the caller's after ``x0`` in :attr:`stack` (the
-            controller keeps its reference horizon there, so that one buffer feeds both
-            its gradient product and the limit test).
+        stack_rows: Ignored (the controller's step keeps its own memory); accepted so that
+            callers passing it keep working.
         always_constrained: Solve the soft QP for every joint at every step instead of
             only where the box-only prediction leaves the limits (the reference path
             that the fast path is tested against).
 
     Attributes:
-        solution: The optimal input sequences of the last :meth:`solve` (Nc×n) [rad/s²].
+        solution: The optimal input sequences of the last :meth:`solve` (Nc×n) [rad/s²]: a
+            read-only view of the compiled QPs' own memory, updated in place.
         slack: The slack of each joint at the last solve (n,) [rad]; 0 where the
-            state constraints were inactive.
+            state constraints were inactive (a read-only view, like :attr:`solution`).
         constrained: Number of joints whose constrained QP was solved at the last step.
         cold_solves: Number of box QPs solved again from scratch because the warm-started
             solve did not converge (the cold twin, ``cpp/src/joint_qps.cpp``), since construction.
@@ -379,12 +379,8 @@ class JointQPs:
             box QP's solution, exactly), since construction.
         active_set_solves: ``"joint"`` layout: joint QPs answered by the active-set shortcut.
         layout: The layout in use (``"block"`` or ``"joint"``; ``"auto"`` resolved).
-        stack: One buffer, rows ``[U (Nc); 3 unused; q; q̇; caller's stack_rows]`` (each
-            row one value per joint): the free inputs (:attr:`solution` is this view),
-            three rows kept from the layout of version 0.2, the current state (:attr:`x0`)
-            and the caller's rows.
-        x0: The view of :attr:`stack` that holds the state (2, n); :meth:`solve` copies
-            its ``x0`` argument there unless it is this very object.
+        x0: The state (2, n) (rows q, q̇) the last :meth:`solve` was given; :meth:`solve`
+            copies its ``x0`` argument there unless it is this very object.
     """
 
     def __init__(
@@ -400,6 +396,7 @@ class JointQPs:
         layout: str = "auto",
         stack_rows: int = 0,
     ):
+        del stack_rows  # accepted, unused (see Args)
         self.mpc = mpc
         self.layout = layout = resolve_layout(layout, len(joint_names), mpc.Nc)
         self.always_constrained = always_constrained
@@ -419,13 +416,8 @@ class JointQPs:
             )
         self._eps_abs, self._max_iter = eps_abs, max_iter
         self.v_min, self.v_max = v_min, v_max
-        # [U (Nc); 3 unused rows; q; q̇; caller's rows] (the layout of 0.2, whose limit test
-        # used the three rows; the compiled QPs keep the limits themselves).
-        self.stack = np.zeros((Nc + 5 + stack_rows, n))
-        self.solution = self.stack[:Nc]  # solved into place by the compiled QPs
-        self.x0 = self.stack[Nc + 3 : Nc + 5]
-        self.slack = np.zeros(n)
-        # The compiled QPs (cpp/src/joint_qps.cpp), writing solution and slack in place.
+        self.x0 = np.zeros((2, n))
+        # The compiled QPs (cpp/src/joint_qps.cpp), which own their solution and slack.
         self._core = load_native().JointQPs(
             n,
             N,
@@ -436,9 +428,9 @@ class JointQPs:
             v_max,
             solver_settings(eps_abs, max_iter),
             cold_twin_settings(eps_abs, max_iter),
-            self.solution,
-            self.slack,
         )
+        self.solution = self._core.solution  # read-only views, solved into place
+        self.slack = self._core.slack
         self._core.joint_names = list(joint_names)  # its faults name the joint
         self.soft_qps = False
         if limits is None:

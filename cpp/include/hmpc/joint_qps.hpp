@@ -55,11 +55,10 @@ class JointQPs {
   static constexpr double BIG = SoftLimits::BIG;  // as hmpc_pin.mpc.condensed.BIG
 
   // H: one joint's scaled Hessian (Nc×Nc); v_min, v_max (n,) [rad/s²]; warm, cold: the box
-  // QPs' and their cold twins' settings; U (Nc×n, row-major) and slack (n): the caller's
-  // buffers, written in place.
+  // QPs' and their cold twins' settings. The solution U and the slack are this object's
+  // (Python reads views of them).
   JointQPs(int n, int N, int Nc, bool block, const CRefMat& H, const CRefVec& v_min,
-           const CRefVec& v_max, const Settings& warm, const Settings& cold, double* U,
-           double* slack);
+           const CRefVec& v_max, const Settings& warm, const Settings& cold);
 
   // Soft state limits (hmpc_pin.mpc.condensed.JointQPs builds every matrix). T, E, Hp: the
   // banded coordinates of the soft active-set shortcut (CondensedMPC.banded: U = T p,
@@ -90,8 +89,8 @@ class JointQPs {
   bool block;
   Options options;
   Stats stats;
-  MapRow U;
-  Eigen::Map<Vec> slack;
+  RowMat U;   // (Nc, n) the input sequences of the last solve() [rad/s²]
+  Vec slack;  // (n) the slack of each joint at the last solve() [rad]
   int fail_joint = -2;  // the last failure's joint (−1: the block)
   std::string fail_status;
   long fail_iter = 0;

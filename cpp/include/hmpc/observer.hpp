@@ -25,9 +25,9 @@ class NDO : public Compensation {
   using CRefMat = Eigen::Ref<const Mat>;
   using MapVec = Eigen::Map<Vec>;
 
-  // cY: c·Y (n×n) [1/s·kg·m² per rad/s]; Ts [s]; z, estimate: n doubles each, owned by the
-  // caller (the Python object's arrays), updated in place.
-  NDO(const CRefMat& cY, double Ts, bool implicit, double* z, double* estimate);
+  // cY: c·Y (n×n) [1/s·kg·m² per rad/s]; Ts [s]. The state z and the estimate are this
+  // object's (Python reads views of them).
+  NDO(const CRefMat& cY, double Ts, bool implicit);
 
   // z = −cY q̇₀ (so that d̂ = 0 at the start), d̂ = 0.
   void reset(const CRefVec& dq0);
@@ -51,7 +51,7 @@ class NDO : public Compensation {
   int n;
   bool implicit;
   Mat cY, TcY;
-  MapVec z, d_hat;  // z and the estimate d̂ (the caller's memory)
+  Vec z, d_hat;  // z and the estimate d̂ [N·m]
 
  private:
   Eigen::PartialPivLU<Mat> lu_;

@@ -7,9 +7,9 @@
 // the observer's model at the period's end or start, the torque beyond the joint dynamics,
 // with a latency the measured interval -- are here only, for every compensation.
 //
-// The outputs and inputs v, τ, d̂, M, C q̇ + G and the stack live in the caller's memory
-// (the Python object's arrays), updated in place; the caller keeps them, the joint QPs and
-// the observer alive as long as the step.
+// Crocoddyl's model/data split: the step's memory (the stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N],
+// v, τ, d̂, M, C q̇ + G) is a StepData (step_data.hpp) the step shares with its caller; the
+// step holds it, the joint QPs and the compensation as long as it lives.
 #pragma once
 
 #include "hmpc/dynamics.hpp"
@@ -19,6 +19,7 @@
 #include "hmpc/latency.hpp"
 #include "hmpc/observer.hpp"
 #include "hmpc/sampler.hpp"
+#include "hmpc/step_data.hpp"
 #include "hmpc/types.hpp"
 
 #include <Eigen/Cholesky>
@@ -34,17 +35,17 @@ class JointQPs;
 
 class HMPCCore {
  public:
-  // model: a serialized Pinocchio model (none: M and nle come from the caller's `model`
-  // function); FT: the gradient map ((2 + 2N)×Nc); qps: the joint QPs; comp: the
-  // compensation this step advances (none: d̂ stays what reset() set); v, tau, dhat,
-  // nle_out: n doubles each; M_out: n×n.
-  HMPCCore(const std::optional<std::string>& model, const CRefRow& FT, int N, JointQPs* qps,
-           Compensation* comp, double* v, double* tau, double* dhat, double* M_out,
-           double* nle_out);
+  // model: a serialized Pinocchio model (none: M and nle come from the `model` function);
+  // F: the condensed MPC's gradient map ((2 + 2N)×Nc, rows [q; q̇; r_1; ṙ_1; ..; r_N; ṙ_N],
+  // CondensedMPC.FT), kept in the stack's order; qps: the joint QPs; comp: the compensation
+  // this step advances (none: d̂ stays what reset() set); data: the step's memory (n joints,
+  // horizon N).
+  HMPCCore(const std::optional<std::string>& model, const CRefRow& F, int N,
+           std::shared_ptr<JointQPs> qps, std::shared_ptr<Compensation> comp,
+           std::shared_ptr<StepData> data);
 
-  // The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n, the caller's) that fill() writes, and
-  // the horizon offsets j·Ts, j = 1..N [s].
-  void set_stack(double* S, const CRefVec& offsets);
+  // The horizon offsets j·Ts, j = 1..N [s] at which fill() samples the compiled reference.
+  void set_offsets(const CRefVec& offsets);
 
   void set_sine(const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
                 const CRefVec& offset, const CRefVec& amp_omega) {
@@ -96,31 +97,32 @@ class HMPCCore {
   // The torque held over the period that just ended, as the plant applied it.
   const Vec& applied_torque();
 
-  std::unique_ptr<Dynamics> dyn;  // null: M and nle come from the caller's `model`
+  std::unique_ptr<Dynamics> dyn;  // null: M and nle come from `model`
   // Without compiled dynamics: writes M(q) and C(q, q̇) q̇ + G(q) at (q, q̇) into M_out,
-  // nle_out (the caller's model, e.g. Pinocchio's Python API for mimic joints).
+  // nle_out (e.g. Pinocchio's Python API for mimic joints).
   std::function<void(const Vec& q, const Vec& dq)> model;
   int n, N, Nc;
   // Gradient map, rows in stack order [q; q̇; r_1..r_N; ṙ_1..ṙ_N]; rows used.
-  RowMat FT;
+  RowMat FT;  // (2 + 2N)×Nc
   Eigen::Index grad_rows;
   Mat Gt;  // Nc×n: one column per joint (the memory of G, n×Nc row-major)
+  std::shared_ptr<JointQPs> qps;
+  std::shared_ptr<Compensation> comp_held;
+  std::shared_ptr<StepData> data;
   JointQPs* qp;
   Compensation* comp;  // advanced by step(); null: none
   Vec effort;
   bool started = false;
-  MapRow v;        // (1, n) commanded acceleration
-  MapRow tau;      // (1, n) commanded torque
-  MapRow dhat;     // (1, n) disturbance estimate
-  MapRow M_out;    // (n, n) the caller's model's M(q) (without compiled dynamics)
-  MapRow nle_out;  // (1, n) its C q̇ + G (+ B q̇ + F sgn q̇ once evaluate() added them)
+  // The step's memory (data's): the stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N], v, τ, d̂, and the
+  // model's M, C q̇ + G (+ B q̇ + F sgn q̇ once evaluate() added them) without compiled
+  // dynamics.
+  RowMat &stack, &v, &tau, &dhat, &M_out, &nle_out;
   Vec applied, qv, dqv;
   const Mat* M = nullptr;    // M(q) of the last prepare (the dynamics' own, or none)
   const Vec* nle = nullptr;  // C q̇ + G of the last prepare
   bool external = false;     // the last prepare took M, nle from the caller (M_out, nle_out)
   Mat Mx;                    // the caller's M, C q̇ + G of the last evaluate()
   Vec nx, vprev;
-  std::optional<MapRow> stack;
   HorizonSampler sampler;
   Vec offsets;  // horizon offsets j·Ts, j = 1..N [s]
   // The measurement latency (off: the step is exactly the latency-free one).

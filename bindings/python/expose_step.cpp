@@ -70,16 +70,22 @@ void expose_step(py::module_& m) {
              h.stack = S;
              h.core.set_stack(data, offsets);
            })
-      .def("set_sine",
-           [](H& h, const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
-              const CRefVec& offset, const CRefVec& amp_omega) {
-             h.core.set_sine(omega, phase, amp, offset, amp_omega);
-           })
-      .def("set_ppoly",
-           [](H& h, const CRefVec& times, const CRefVec& knots, const CRefRow& coef, int deg) {
-             h.core.set_ppoly(times, knots, coef, deg);
-           })
-      .def("clear_reference", [](H& h) { h.core.clear_reference(); })
+      .def(
+          "set_reference",  // a compiled Reference, or a Python callable horizon(t)
+          [](H& h, py::object reference) {
+            std::unique_ptr<Reference> adapter;
+            Reference* port = nullptr;
+            if (py::isinstance<Reference>(reference)) {
+              port = reference.cast<Reference*>();
+            } else if (!reference.is_none()) {
+              adapter = std::make_unique<PyCallableReference>(reference);
+              port = adapter.get();
+            }
+            h.core.set_reference(port);
+            h.reference_adapter = std::move(adapter);
+            h.reference = std::move(reference);
+          },
+          py::arg("reference"))
       .def_property(  // what a step carries to the next (restored after a dry step, warm_up)
           "state",
           [](const H& h) {  // copies

@@ -31,10 +31,11 @@ struct PyNDO {
         ndo(cY, Ts, implicit, z_array.mutable_data(), estimate_array.mutable_data()) {}
 };
 
-// The compiled RK4 plant, holding the Python disturbance it calls (if any).
+// The compiled RK4 plant, holding its disturbance (and the adapter of a Python callable).
 struct PyRK4Plant : RK4Plant {
   using RK4Plant::RK4Plant;
-  std::unique_ptr<PyCallableDisturbance> held;
+  py::object disturbance;
+  std::unique_ptr<Disturbance> adapter;
 };
 
 struct PyJointQPs {
@@ -67,6 +68,8 @@ struct PyHMPCCore {
   Array v, tau, dhat, M, nle;
   std::optional<Array> stack;
   py::object model_fn;  // the caller's model, without compiled dynamics
+  py::object reference;  // the reference's port (or the Python callable adapted)
+  std::unique_ptr<Reference> reference_adapter;
   HMPCCore core;
   PyHMPCCore(const py::object& model, const CRefRow& FT, int N, std::shared_ptr<PyJointQPs> qp_,
              py::object comp, Array v_, Array tau_, Array dhat_, Array M_, Array nle_)

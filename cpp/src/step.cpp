@@ -13,7 +13,7 @@ HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& FT_, 
                    JointQPs* qps, Compensation* comp_, double* v_, double* tau_,
                    double* dhat_, double* M_, double* nle_)
     : n(qps->n), N(N_), Nc(qps->Nc), FT(FT_), qp(qps), comp(comp_), v(v_, 1, n), tau(tau_, 1, n),
-      dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n), sampler(n) {
+      dhat(dhat_, 1, n), M_out(M_, n, n), nle_out(nle_, 1, n) {
   if (model) {
     dyn = std::make_unique<Dynamics>(*model);
     if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
@@ -34,8 +34,8 @@ void HMPCCore::set_stack(double* S, const CRefVec& offsets_) {
 }
 
 void HMPCCore::sample_horizon(double t) {
-  auto& S = *stack;
-  for (int j = 0; j < N; ++j) sampler.sample(t + offsets[j], &S(2 + j, 0), &S(2 + N + j, 0));
+  if (!reference) throw std::logic_error("HMPCCore: no reference set");
+  reference->horizon(t, offsets, *stack);
 }
 
 void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
@@ -236,20 +236,11 @@ void StepController::step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& 
   const Vec* qc = &q;  // the state the controller is given
   const Vec* dqc = &dq;
   if (measurement) {
-    if (measured) measurement->measure(t, q, dq);  // the first step's was taken at reset
+    measurement->hand_over(t, q, dq);  // the first step's was taken at reset
     qc = &measurement->qm;
     dqc = &measurement->dqm;
   }
-  measured = true;
-  if (reference) {  // as HierarchicalMPC.step with a reference sampled in Python
-    auto& S = *c.stack;
-    S.row(0) = qc->transpose();
-    S.row(1) = dqc->transpose();
-    reference->horizon(t, S);
-    c.step(S, t);
-  } else {
-    c.step_t(t, *qc, *dqc);
-  }
+  c.step_t(t, *qc, *dqc);
   tau = c.tau.row(0).transpose();
   dhat = c.dhat.row(0).transpose();
   if (measurement) measurement->command(tau);

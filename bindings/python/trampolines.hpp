@@ -15,6 +15,15 @@
 
 namespace hmpc::python {
 
+// n floats of a Python value: a float vector of n, or what numpy broadcasts to (n,) (as the
+// per-step loop's records do; numpy's error otherwise).
+inline Vec broadcast_vector(const py::object& value, int n) {
+  auto a = py::array_t<double, py::array::forcecast>::ensure(value);
+  if (a && a.ndim() == 1 && a.shape(0) == n) return a.cast<Vec>();
+  py::object np = py::module_::import("numpy");
+  return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
+}
+
 // hmpc_pin._core.Measurement subclassed in Python: reset(q0, dq0) and measure(t, q, dq)
 // return the measurement handed over, a pair (q, dq) of n floats each; command(tau), when
 // defined, returns the torque the plant receives (n floats).

@@ -6,7 +6,7 @@
 //                           sgn 0 = 0 (friction; joint_dynamics.hpp's law);
 //   DisturbanceSum          Eq 34: the sum of its terms (any ports, compiled or Python), in
 //                           their order; none: d = 0.
-// Oracle: the closed forms (tests/test_disturbance_ports.py).
+// Oracle: tests/reference/disturbances.py (tests/test_compiled_ports.py).
 #pragma once
 
 #include "hmpc/interfaces.hpp"

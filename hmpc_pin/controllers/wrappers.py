@@ -10,7 +10,6 @@ unchanged: it sees an ordinary controller. :class:`TimedController` times each s
 from __future__ import annotations
 
 import time
-
 from typing import Any
 
 import numpy as np

@@ -44,6 +44,7 @@ __all__ = [
     "resolve_backend",
 ]
 
+
 def replaced(obj: object, cls: type, *names: str) -> bool:
     """Whether any of ``obj``'s methods ``names`` is not ``cls``'s own: overridden by a
     subclass, or set on the instance (e.g. a test's spy). A part's compiled port would not

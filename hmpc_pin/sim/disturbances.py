@@ -185,16 +185,23 @@ class GaussianPulse(TimeOnly):
         self.amplitude = np.asarray(amplitude, dtype=float)
         self.center = np.asarray(center, dtype=float)
         self.sigma = np.asarray(sigma, dtype=float)
-        self._k = -0.5 / self.sigma**2
+
+    def _law(self, n: int) -> Any:
+        """The compiled law (``cpp/src/disturbances.cpp``, the one implementation of Eq 33)
+        of these parameters, broadcast to ``n`` joints."""
+        a, b, s = (
+            np.broadcast_to(x, (n,)).astype(float)
+            for x in (self.amplitude, self.center, self.sigma)
+        )
+        return load_native().GaussianPulses(a, b, s)
 
     def sample_times(self, times: np.ndarray) -> np.ndarray:
-        """The pulse at each of ``times`` (m,) [s]: (m, n) [N·m], vectorised (a time-only
-        term: a plant evaluates it for all stage times of a period at once)."""
-        return self._value(np.asarray(times, dtype=float)[:, None] - self.center)
-
-    def _value(self, x):
-        """:math:`a\\exp(k x^2)`, :math:`k = -1/(2\\sigma^2)`, :math:`x = t - b` (Eq 33)."""
-        return self.amplitude * np.exp(self._k * x * x)
+        """The pulse at each of ``times`` (m,) [s]: (m, n) [N·m] (n: the parameters'
+        broadcast length), by the compiled law."""
+        params = (self.amplitude, self.center, self.sigma)
+        shape = np.broadcast_shapes(*(np.shape(x) for x in params))
+        n = shape[0] if shape else 1
+        return self._law(n).at_times(np.asarray(times, dtype=float).reshape(-1), n)
 
     def loop_port(self, n: int) -> Any:
         """The compiled pulses for ``n`` joints; a subclass or an instance that samples
@@ -203,11 +210,7 @@ class GaussianPulse(TimeOnly):
         shapes = {np.shape(x) for x in (self.amplitude, self.center, self.sigma)}
         if replaced(self, GaussianPulse, "sample_times") or not shapes <= {(), (n,)}:
             return super().loop_port(n)
-        a, b, s = (
-            np.broadcast_to(x, (n,)).astype(float)
-            for x in (self.amplitude, self.center, self.sigma)
-        )
-        return load_native().GaussianPulses(a, b, s)
+        return self._law(n)
 
 
 class SumDisturbance(Disturbance):

@@ -70,13 +70,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .._deprecated import deprecated
 from ..exceptions import ConfigError, DimensionError, SimulationError
 from ..model.robot import Robot
-from ..native import deprecated_backend, model_string
+from ..native import deprecated_backend, model_string, replaced
 from ..native import load as load_native
 from .base import Plant
-from .._deprecated import deprecated
-from ..native import replaced
 from .disturbances import (
     CoulombViscousFriction,
     Disturbance,

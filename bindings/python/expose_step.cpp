@@ -2,10 +2,32 @@
 // numpy arrays that the Python controller owns.
 #include "holders.hpp"
 
+#include <memory>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 namespace hmpc::python {
+
+namespace {
+
+// The step's reference: a compiled Reference as it is, a Python callable horizon(t) adapted
+// (none: no reference).
+void set_reference(PyHMPCCore& h, py::object reference) {
+  std::unique_ptr<Reference> adapter;
+  Reference* port = nullptr;
+  if (py::isinstance<Reference>(reference)) {
+    port = reference.cast<Reference*>();
+  } else if (!reference.is_none()) {
+    adapter = std::make_unique<PyCallableReference>(reference);
+    port = adapter.get();
+  }
+  h.core.set_reference(port);
+  h.reference_adapter = std::move(adapter);
+  h.reference = std::move(reference);
+}
+
+}  // namespace
 
 void expose_step(py::module_& m) {
   using H = PyHMPCCore;
@@ -70,22 +92,7 @@ void expose_step(py::module_& m) {
              h.stack = S;
              h.core.set_stack(data, offsets);
            })
-      .def(
-          "set_reference",  // a compiled Reference, or a Python callable horizon(t)
-          [](H& h, py::object reference) {
-            std::unique_ptr<Reference> adapter;
-            Reference* port = nullptr;
-            if (py::isinstance<Reference>(reference)) {
-              port = reference.cast<Reference*>();
-            } else if (!reference.is_none()) {
-              adapter = std::make_unique<PyCallableReference>(reference);
-              port = adapter.get();
-            }
-            h.core.set_reference(port);
-            h.reference_adapter = std::move(adapter);
-            h.reference = std::move(reference);
-          },
-          py::arg("reference"))
+      .def("set_reference", &set_reference, py::arg("reference"))
       .def_property(  // what a step carries to the next (restored after a dry step, warm_up)
           "state",
           [](const H& h) {  // copies

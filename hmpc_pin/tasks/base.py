@@ -94,7 +94,7 @@ def _write(values: Pair, out: Pair | None) -> Pair:
 
 @dataclass(frozen=True)
 class SineSampling:
-    """A sine per joint for the compiled sampler (``cpp/src/sampler.cpp``):
+    """A sine per joint for the compiled reference (``cpp/src/references.cpp``):
     :math:`q = o + a\\sin(\\omega t + \\phi)`, :math:`\\dot q = (a\\omega)\\cos(\\omega t + \\phi)`.
 
     Attributes:
@@ -126,7 +126,7 @@ class SineSampling:
 
 @dataclass(frozen=True)
 class PolynomialSampling:
-    """A piecewise polynomial for the compiled sampler (``cpp/src/sampler.cpp``): segment
+    """A piecewise polynomial for the compiled reference (``cpp/src/references.cpp``): segment
     :math:`i` = the number of breakpoints <= t, :math:`[q\\ \\dot q] = \\sum_k c_{i,k}\\,s^k`
     with :math:`s = t - \\mathrm{origin}_i`.
 
@@ -213,7 +213,7 @@ def samples_otherwise(cls: type, base: type) -> bool:
 
 
 class CompiledSampling:
-    """Base of the references that the compiled sampler evaluates (``cpp/src/sampler.cpp``):
+    """Base of the references that a compiled reference evaluates (``cpp/src/references.cpp``):
     ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` -- a
     :class:`SineSampling` or :class:`PolynomialSampling`, the same form the compiled step
     samples (``compiled_sampling``).

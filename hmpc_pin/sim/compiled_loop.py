@@ -1,6 +1,6 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
-loop, :data:`LOOP_CHUNK` control periods per call into the compiled core
-(``cpp/src/loop.cpp``, ``ClosedLoop``), for every setup. The loop calls each part through
+loop, :data:`~hmpc_pin.sim.compiled_loop.LOOP_CHUNK` control periods per call into the
+compiled core (``cpp/src/loop.cpp``, ``ClosedLoop``), for every setup. The loop calls each part through
 its port (``cpp/include/hmpc/interfaces.hpp``), and each part hands its port over itself,
 with ``loop_port`` (``None``: the part has no compiled port, and the loop calls the Python
 object through the port's trampoline):
@@ -49,8 +49,8 @@ from ..native import load as load_native
 
 __all__ = ["LOOP_CHUNK", "CompiledLoop"]
 
-#: Control periods per call into the compiled loop: between two calls :attr:`CompiledLoop.progress`
-#: is told, and a measurement draws a chunk's noise at once.
+#: Control periods per call into the compiled loop: between two calls
+#: :attr:`CompiledLoop.progress` is told, and a measurement draws a chunk's noise at once.
 LOOP_CHUNK = 64
 
 

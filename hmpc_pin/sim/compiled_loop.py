@@ -1,9 +1,9 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
 loop, :data:`~hmpc_pin.sim.compiled_loop.LOOP_CHUNK` control periods per call into the
-compiled core (``cpp/src/loop.cpp``, ``ClosedLoop``), for every setup. The loop calls each part through
-its port (``cpp/include/hmpc/interfaces.hpp``), and each part hands its port over itself,
-with ``loop_port`` (``None``: the part has no compiled port, and the loop calls the Python
-object through the port's trampoline):
+compiled core (``cpp/src/loop.cpp``, ``ClosedLoop``), for every setup. The loop calls each
+part through its port (``cpp/include/hmpc/interfaces.hpp``), and each part hands its port
+over itself, with ``loop_port`` (``None``: the part has no compiled port, and the loop calls
+the Python object through the port's trampoline):
 
 - the controller (``controller.loop_port(reference)``): the compiled step of
   :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` (its compensation and its

@@ -493,7 +493,7 @@ class HierarchicalMPC(AppliedTorque):
         if b.any() or f.any():
             core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
-        self._reference = None  # the reference's native form is set on the next step
+        self._reference = None  # the reference's port is set on the next step
         self.effort_limit = self.effort_limit
 
     @property
@@ -662,7 +662,7 @@ class HierarchicalMPC(AppliedTorque):
 
     def _sample_horizon(self, t: float) -> None:
         """The horizon rows of the step's stack, :math:`r(t + jT_s)`, :math:`\\dot r(t +
-        jT_s)`, j = 1..N, from a reference without a native form (sampled here, in one
+        jT_s)`, j = 1..N, from a reference without a compiled port (sampled here, in one
         ``sample_many`` call; the compiled loop calls this through its Reference port).
 
         Raises:

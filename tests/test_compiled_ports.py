@@ -189,3 +189,11 @@ def test_a_measured_controller_hands_over_its_port_unless_its_step_is_replaced(p
     assert ctrl.loop_port(hmpc_pin.SineReference(3)) is None
     timed = hmpc_pin.controllers.wrappers.TimedController(hmpc_pin.HierarchicalMPC(planar3))
     assert timed.loop_port(hmpc_pin.SineReference(3)) is None  # a wrapper: called as a whole
+
+
+def test_the_chunk_of_earlier_versions_still_imports_with_a_warning():
+    from hmpc_pin.sim import plants
+    from hmpc_pin.sim.compiled_loop import LOOP_CHUNK
+
+    with pytest.warns(DeprecationWarning, match="LOOP_CHUNK"):
+        assert plants.PULSE_CHUNK == LOOP_CHUNK

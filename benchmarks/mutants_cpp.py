@@ -400,14 +400,6 @@ MUTANTS = [
         PLANT,
     ),
     # ---- rk4_plant
-    # the table's row of the period without its first period's offset
-    (
-        "cpp",
-        "cpp/src/rk4_plant.cpp",
-        "if (P) d = P->row((k - table_k0) * 3L * substeps).transpose();",
-        "if (P) d = P->row(k * 3L * substeps).transpose();",
-        PLANT,
-    ),
     # the reported disturbance with the fused friction's sign flipped
     (
         "cpp",

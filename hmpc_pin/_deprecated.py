@@ -7,6 +7,7 @@ once, what replaced it. This module imports nothing of the package.
 
 from __future__ import annotations
 
+import importlib
 import warnings
 from typing import Any
 
@@ -23,6 +24,17 @@ def why_not_compiled(controller: Any, plant: Any, reference: Any, on_step: Any =
     return None
 
 
+class _Moved:
+    """The value of a name that moved: ``module.name``, looked up when asked for (so that
+    the value has one home and this module imports nothing of the package)."""
+
+    def __init__(self, module: str, name: str):
+        self.module, self.name = module, name
+
+    def resolve(self) -> Any:
+        return getattr(importlib.import_module(self.module), self.name)
+
+
 #: ``{(module, name): (value, what to do instead)}`` of the names kept for earlier versions.
 NAMES: dict[tuple[str, str], tuple[Any, str]] = {
     ("hmpc_pin.sim.compiled_loop", "LOOPS"): (
@@ -32,6 +44,11 @@ NAMES: dict[tuple[str, str], tuple[Any, str]] = {
     ("hmpc_pin.sim.compiled_loop", "why_not_compiled"): (
         why_not_compiled,
         "every setup runs compiled; remove the call (it always returned None)",
+    ),
+    ("hmpc_pin.sim.plants", "PULSE_CHUNK"): (
+        _Moved("hmpc_pin.sim.compiled_loop", "LOOP_CHUNK"),
+        "the compiled loop's chunk is hmpc_pin.sim.compiled_loop.LOOP_CHUNK (the plant "
+        "tabulates nothing)",
     ),
 }
 
@@ -48,9 +65,12 @@ def deprecated(module: str, name: str) -> Any:
         value, instead = NAMES[(module, name)]
     except KeyError:
         raise AttributeError(f"module {module!r} has no attribute {name!r}") from None
+    moved = isinstance(value, _Moved)
     warnings.warn(
-        f"{module}.{name} is deprecated since 0.3 and does nothing; {instead}",
+        f"{module}.{name} is deprecated since 0.3"
+        + ("; " if moved else " and does nothing; ")
+        + instead,
         DeprecationWarning,
         stacklevel=3,
     )
-    return value
+    return value.resolve() if moved else value

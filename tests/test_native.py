@@ -593,8 +593,8 @@ def test_the_qp_settings_are_typed_fields_that_default_to_proxsuites_own():
 
 def test_the_rk4_plant_is_a_compiled_plant_port_that_holds_its_state(planar3):
     """RK4Plant's state lives in its compiled plant (the loop's Plant port): what Python
-    reads is what the port advanced; the table of time-only terms must cover the period
-    the port is asked about, and a table with another shape is refused."""
+    reads is what the port advanced; its disturbance is the pulse's compiled port, fused,
+    or a callable called as it is."""
     pulse = hmpc_pin.GaussianPulse([10, 8, 0.3], [0.05, 0.1, 0.15], 0.03)
     plant = RK4Plant(planar3.copy(), pulse, 0.01, 0.001)
     plant.reset(np.array([0.3, -0.4, 0.2]), np.zeros(3), t0=0.5)
@@ -604,14 +604,15 @@ def test_the_rk4_plant_is_a_compiled_plant_port_that_holds_its_state(planar3):
     assert port.k == plant.k == 3 and plant.t == port.t == pytest.approx(0.53, abs=1e-15)
     np.testing.assert_array_equal(port.q, q)
     np.testing.assert_array_equal(plant.dq, dq)
-    assert port.table_end == plant.prepare(3) == 64  # a chunk of PULSE_CHUNK periods
-    with pytest.raises(ValueError, match="3·substeps"):
-        port.set_table(np.zeros((29, 3)), 0)
-    port.set_table(np.zeros((30, 3)), 0)  # period 0 only: period 3 is not covered
-    with pytest.raises(IndexError, match="does not cover period 3"):
-        port.disturbance_now()
-    with pytest.raises(ValueError, match="disturbance port and a fused"):
-        port.set_disturbance(lambda t, q, dq: np.zeros(3))
+    assert plant.fused and plant.loop_port() is port
+    a, b, s = np.array([10, 8, 0.3]), np.array([0.05, 0.1, 0.15]), 0.03
+    t = 0.5 + 3 * 0.01  # the pulse at period 3, closed form (Eq 33)
+    np.testing.assert_allclose(
+        port.disturbance_now(), a * np.exp(-((t - b) ** 2) / (2 * s**2)), rtol=1e-14
+    )
+    port.set_disturbance(lambda t, q, dq: np.full(3, t))  # a callable: called per stage
+    assert not port.fused
+    np.testing.assert_array_equal(port.disturbance_now(), np.full(3, port.t))
 
 
 def test_a_fused_term_is_defined_by_its_fused_form_alone(planar3):

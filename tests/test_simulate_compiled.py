@@ -19,9 +19,10 @@ from hmpc_pin.compensation.base import step_compensation
 from hmpc_pin.compensation.gate import FeedbackGate
 from hmpc_pin.controllers.wrappers import CollisionReaction, MeasuredController, TimedController
 from hmpc_pin.experiment.build import Experiment
-from hmpc_pin.sim.compiled_loop import _parts
+from hmpc_pin.native import replaced
+from hmpc_pin.sim.compiled_loop import LOOP_CHUNK
 from hmpc_pin.sim.disturbances import CoulombViscousFriction, GaussianPulse
-from hmpc_pin.sim.plants import PULSE_CHUNK, EulerPlant, RK4Plant
+from hmpc_pin.sim.plants import EulerPlant, RK4Plant
 
 from .conftest import CONFIGS
 from .reference.loop import per_step
@@ -211,7 +212,7 @@ def test_a_fault_behind_a_measured_controller_leaves_its_generator_where_per_ste
     pulse = ([3e3, 0.0, 0.0], [0.5] * 3, [0.05] * 3)
     pair = _both(_paper(pulse=pulse, delay=1), 1.0, q0=np.ones(3), state_bound=20.0)
     _same_fault(pair)
-    assert pair[0][0].meta["failed_step"] % PULSE_CHUNK != 0
+    assert pair[0][0].meta["failed_step"] % LOOP_CHUNK != 0
     wa, wb = pair[0][2][1], pair[1][2][1]
     assert wa.rng.bit_generator.state == wb.rng.bit_generator.state
 
@@ -329,9 +330,10 @@ def test_a_qp_failure_stops_both_loops_at_the_same_step():
 
 
 class _InterruptingPulse(GaussianPulse):
-    """A pulse whose table of periods from ``at`` on is made with a Ctrl-C (SIGINT)
-    delivered to the process: the same instant of both loops (before step ``at``'s
-    disturbance is recorded)."""
+    """A pulse whose values of the periods from ``at`` on (the plant asks for a period's
+    stage times at once, through the pulse's Python port: its sample_times is its own) are
+    made with a Ctrl-C (SIGINT) delivered to the process: the same instant of both loops
+    (before step ``at``'s disturbance is recorded)."""
 
     def __init__(self, at_time):
         super().__init__([1.0] * 3, [0.5] * 3, [0.1] * 3)
@@ -344,7 +346,7 @@ class _InterruptingPulse(GaussianPulse):
 
 
 def test_a_ctrl_c_between_chunks_keeps_the_same_partial_result():
-    at = 2 * PULSE_CHUNK
+    at = 2 * LOOP_CHUNK
 
     def make():
         robot, ctrl, ref, _ = _paper()()
@@ -502,7 +504,7 @@ def test_a_python_compensation_runs_in_the_compiled_step_as_per_step(name, laten
             hmpc_pin.MPCSettings(latency=latency),
             compensation=PYTHON_COMPENSATIONS[name](robot),
         )
-        assert _parts(ctrl) is not None  # stepped as the compiled step
+        assert not replaced(ctrl, hmpc_pin.HierarchicalMPC, "step")  # its port: the compiled step
         friction = CoulombViscousFriction([10.0, 8.0, 5.0], [3.0, 2.4, 1.8])
         plant = RK4Plant(robot.copy(), friction, ctrl.Ts)
         return robot, ctrl, hmpc_pin.SineReference(3), plant

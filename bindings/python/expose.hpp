@@ -15,7 +15,8 @@ namespace py = pybind11;
 using Array = py::array_t<double, py::array::c_style>;
 
 void expose_dynamics(py::module_& m);
-void expose_sampler(py::module_& m);
+void expose_references(py::module_& m);
+void expose_disturbances(py::module_& m);
 void expose_rk4(py::module_& m);
 void expose_observer(py::module_& m);
 void expose_joint_qps(py::module_& m);

@@ -1,6 +1,6 @@
 // hmpc_pin._core.ClosedLoop: the compiled closed loop (loop.hpp) over its ports: the
 // controller (hmpc_pin._core.StepController, the hierarchical MPC's compiled step with its
-// Measurement and Reference ports, or a Python controller as a whole), the plant (the compiled
+// Measurement port and its core's Reference port, or a Python controller as a whole), the plant (the compiled
 // RK4Plant, or a Python plant through the Plant port); its records in numpy arrays that hmpc_pin.sim.compiled_loop owns; Ctrl-C is checked
 // before every step.
 #include "trampolines.hpp"
@@ -23,10 +23,9 @@ using IntArray = py::array_t<std::int64_t, py::array::c_style>;
 // The step as the Controller port, with the Python objects it uses kept alive.
 struct PyStepController {
   py::object core_object, measurement_object;
-  std::unique_ptr<PyCallableReference> reference;
   StepController controller;
   explicit PyStepController(py::object core)
-      : core_object(std::move(core)), controller(&core_object.cast<HMPCCore&>()) {}
+      : core_object(std::move(core)), controller(&core_object.cast<PyStep&>()) {}
 };
 
 struct PyClosedLoop {
@@ -63,20 +62,7 @@ void expose_loop(py::module_& m) {
             o.controller.measurement = m.is_none() ? nullptr : m.cast<Measurement*>();
             o.measurement_object = std::move(m);
           },
-          py::arg("measurement"))
-      .def(
-          "set_reference",
-          [](PyStepController& o, py::object horizon) {
-            if (horizon.is_none()) {
-              o.controller.reference = nullptr;
-              o.reference.reset();
-              return;
-            }
-            auto port = std::make_unique<PyCallableReference>(std::move(horizon));
-            o.controller.reference = port.get();
-            o.reference = std::move(port);
-          },
-          py::arg("horizon"));
+          py::arg("measurement"));
   py::class_<PyClosedLoop>(m, "ClosedLoop", py::module_local())
       .def(py::init([](py::object plant, int n, Array t, std::vector<Array> records,
                        IntArray step_ns, IntArray sat_steps, Array sat_excess,

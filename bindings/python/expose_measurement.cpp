@@ -44,6 +44,15 @@ struct Normals {
 
 struct PySensingMeasurement : SensingMeasurement {
   std::shared_ptr<Normals> normals;
+  // The chunk hooks: a chunk's rows of draws taken at once, the unused ones given back.
+  void reserve(long steps) override {
+    if (normals) normals->ahead = steps > 1 ? steps : 1;
+  }
+  void give_back() override {
+    if (!normals) return;
+    normals->give_back();
+    normals->ahead = 1;
+  }
   PySensingMeasurement(const SensingSettings& s, std::shared_ptr<Normals> source)
       : SensingMeasurement(s, source ? NormalSource([source](double* out, Eigen::Index c) {
                                  source->draw(out, c);
@@ -84,7 +93,7 @@ void expose_measurement(py::module_& m) {
       .def(
           "reset",
           [](Measurement& s, const CRefVec& q0, const CRefVec& dq0) {
-            s.reset(q0, dq0);
+            s.restart(q0, dq0);
             return current(s);
           },
           py::arg("q0"), py::arg("dq0"))
@@ -105,7 +114,7 @@ void expose_measurement(py::module_& m) {
       .def(
           "call_reset",
           [](Measurement& s, const CRefVec& q0, const CRefVec& dq0) {
-            s.reset(q0, dq0);
+            s.restart(q0, dq0);
             return current(s);
           },
           py::arg("q0"), py::arg("dq0"))
@@ -123,6 +132,17 @@ void expose_measurement(py::module_& m) {
             return tau;
           },
           py::arg("tau"))
+      .def(
+          "hand_over",  // the measurement of a step: reset's at the first, then measure's
+          [](Measurement& s, double t, const CRefVec& q, const CRefVec& dq) {
+            s.hand_over(t, q, dq);
+            return current(s);
+          },
+          py::arg("t"), py::arg("q"), py::arg("dq"))
+      .def(
+          "reserve", [](Measurement& s, long steps) { s.reserve(steps); }, py::arg("steps"))
+      .def("give_back", [](Measurement& s) { s.give_back(); })
+      .def_readonly("started", &Measurement::started)
       .def_property_readonly("current", &current);
 
   py::class_<PySensingMeasurement, Measurement>(m, "SensingMeasurement", py::module_local())
@@ -133,17 +153,7 @@ void expose_measurement(py::module_& m) {
            }),
            py::arg("settings"), py::arg("rng"))
       .def_property_readonly("settings",
-                             [](const PySensingMeasurement& s) { return SensingSettings(s.s); })
-      .def_property(
-          "ahead",
-          [](const PySensingMeasurement& s) { return s.normals ? s.normals->ahead : 1L; },
-          [](PySensingMeasurement& s, long rows) {
-            if (rows < 1) throw std::invalid_argument("SensingMeasurement.ahead: rows >= 1");
-            if (s.normals) s.normals->ahead = rows;
-          })
-      .def("give_back", [](PySensingMeasurement& s) {
-        if (s.normals) s.normals->give_back();
-      });
+                             [](const PySensingMeasurement& s) { return SensingSettings(s.s); });
 }
 
 }  // namespace hmpc::python

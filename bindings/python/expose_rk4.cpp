@@ -1,6 +1,7 @@
 // hmpc_pin._core.RK4: the RK4 plant's period (rk4.hpp), ABA or the disturbance from Python
 // where given; hmpc_pin._core.RK4Plant: the RK4 plant as the loop's Plant port
-// (rk4_plant.hpp), its disturbance fused or a Python callable.
+// (rk4_plant.hpp), its disturbance a Disturbance port (expose_disturbances.cpp) or a Python
+// callable.
 #include "trampolines.hpp"
 
 #include "hmpc/rk4.hpp"
@@ -15,22 +16,27 @@ namespace {
 
 void expose_rk4_plant(py::module_& m) {
   py::class_<PyRK4Plant, std::shared_ptr<PyRK4Plant>>(m, "RK4Plant", py::module_local())
-      .def(py::init<std::shared_ptr<RK4>, double, int, const CRefVec&, const CRefVec&, bool>(),
-           py::arg("rk4"), py::arg("Ts"), py::arg("substeps"), py::arg("a"), py::arg("b"),
-           py::arg("friction"))
+      .def(py::init<std::shared_ptr<RK4>, double, int>(), py::arg("rk4"), py::arg("Ts"),
+           py::arg("substeps"))
       .def("reset", py::method_adaptor<PyRK4Plant>(&RK4Plant::reset), py::arg("q0"),
            py::arg("dq0"), py::arg("t0") = 0.0)
-      .def("set_table", py::method_adaptor<PyRK4Plant>(&RK4Plant::set_table), py::arg("P"),
-           py::arg("k0"))
-      .def_property_readonly("table_end", py::method_adaptor<PyRK4Plant>(&RK4Plant::table_end))
       .def(
-          "set_disturbance",
+          "set_disturbance",  // a compiled Disturbance, a Python callable, or None
           [](PyRK4Plant& p, py::object d) {
-            auto port = std::make_unique<PyCallableDisturbance>(std::move(d));
-            p.set_disturbance(port.get());
-            p.held = std::move(port);
+            std::unique_ptr<Disturbance> adapter;
+            Disturbance* port = nullptr;
+            if (py::isinstance<Disturbance>(d)) {
+              port = d.cast<Disturbance*>();
+            } else if (!d.is_none()) {
+              adapter = std::make_unique<PyCallableDisturbance>(d, p.n);
+              port = adapter.get();
+            }
+            p.set_disturbance(port);
+            p.adapter = std::move(adapter);
+            p.disturbance = std::move(d);
           },
           py::arg("disturbance"))
+      .def_property_readonly("fused", py::method_adaptor<PyRK4Plant>(&RK4Plant::fused))
       .def(
           "advance",
           [](PyRK4Plant& p, const CRefVec& tau) {

@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace hmpc::python {
@@ -33,22 +34,36 @@ std::shared_ptr<Compensation> compensation_port(const py::object& c, int n) {
   return std::make_shared<PyCallableCompensation>(c, n);
 }
 
+void set_reference(PyStep& h, py::object reference) {
+  std::unique_ptr<Reference> adapter;
+  Reference* port = nullptr;
+  if (py::isinstance<Reference>(reference)) {
+    port = reference.cast<Reference*>();
+  } else if (!reference.is_none()) {
+    adapter = std::make_unique<PyCallableReference>(reference);
+    port = adapter.get();
+  }
+  h.set_reference(port);
+  h.reference_adapter = std::move(adapter);
+  h.reference = std::move(reference);
+}
+
 // The step for the controller's model (a serialized Pinocchio model, or None), map F, horizon
 // N, QPs, compensation and data.
-std::unique_ptr<HMPCCore> make_step(const py::object& model, const CRefRow& F, int N,
+std::unique_ptr<PyStep> make_step(const py::object& model, const CRefRow& F, int N,
                                     std::shared_ptr<JointQPs> qps, const py::object& comp,
                                     std::shared_ptr<StepData> data) {
   if (!qps || !data) throw std::invalid_argument("HMPCCore: qps and data are needed");
   std::optional<std::string> serialized;
   if (!model.is_none()) serialized = model.cast<std::string>();
   auto port = compensation_port(comp, qps->n);
-  return std::make_unique<HMPCCore>(serialized, F, N, std::move(qps), std::move(port),
+  return std::make_unique<PyStep>(serialized, F, N, std::move(qps), std::move(port),
                                     std::move(data));
 }
 
 // Without compiled dynamics: f(q, dq) returns (M, C q̇ + G), copied into the step's data
 // (read in place, whatever the arrays' strides).
-void set_model(HMPCCore& h, py::function f) {
+void set_model(PyStep& h, py::function f) {
   h.model = [f, &h](const Vec& q, const Vec& dq) {
     using Float = py::array_t<double, py::array::forcecast>;
     py::gil_scoped_acquire gil;
@@ -130,7 +145,7 @@ void expose_step_data(py::module_& m) {
 
 void expose_step(py::module_& m) {
   expose_step_data(m);
-  using H = HMPCCore;
+  using H = PyStep;
   py::class_<H>(m, "HMPCCore", py::module_local())
       .def(py::init(&make_step), py::arg("model"), py::arg("F"), py::arg("N"), py::arg("qps"),
            py::arg("compensation"), py::arg("data"))
@@ -183,16 +198,7 @@ void expose_step(py::module_& m) {
             H& h = self.cast<H&>();
             return view(h.Gt.data(), h.n, h.Nc, self);
           })
-      .def("set_sine",
-           [](H& h, const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
-              const CRefVec& offset, const CRefVec& amp_omega) {
-             h.set_sine(omega, phase, amp, offset, amp_omega);
-           })
-      .def("set_ppoly",
-           [](H& h, const CRefVec& times, const CRefVec& knots, const CRefRow& coef, int deg) {
-             h.set_ppoly(times, knots, coef, deg);
-           })
-      .def("clear_reference", [](H& h) { h.clear_reference(); })
+      .def("set_reference", &set_reference, py::arg("reference"))
       .def_property(  // what a step carries to the next (restored after a dry step, warm_up)
           "state",
           [](const H& h) {  // copies

@@ -15,7 +15,8 @@ PYBIND11_MODULE(_core, m) {
   info["build_type"] = HMPC_BUILD_TYPE;
   m.attr("build_info") = info;
   hp::expose_dynamics(m);
-  hp::expose_sampler(m);
+  hp::expose_references(m);
+  hp::expose_disturbances(m);
   hp::expose_rk4(m);
   hp::expose_observer(m);
   hp::expose_joint_qps(m);

@@ -9,6 +9,7 @@
 #include "hmpc/errors.hpp"
 #include "hmpc/interfaces.hpp"
 #include "hmpc/rk4_plant.hpp"
+#include "hmpc/step.hpp"
 
 #include <memory>
 #include <stdexcept>
@@ -16,6 +17,15 @@
 #include <utility>
 
 namespace hmpc::python {
+
+// n floats of a Python value: a float vector of n, or what numpy broadcasts to (n,) (as the
+// per-step loop's records do; numpy's error otherwise).
+inline Vec broadcast_vector(const py::object& value, int n) {
+  auto a = py::array_t<double, py::array::forcecast>::ensure(value);
+  if (a && a.ndim() == 1 && a.shape(0) == n) return a.cast<Vec>();
+  py::object np = py::module_::import("numpy");
+  return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
+}
 
 // hmpc_pin._core.Measurement subclassed in Python: reset(q0, dq0) and measure(t, q, dq)
 // return the measurement handed over, a pair (q, dq) of n floats each; command(tau), when
@@ -43,6 +53,18 @@ class PyMeasurementPort : public Measurement {
       throw DimensionMismatch("the torque Measurement.command returned", out.size(), tau.size(),
                               "the controller commands " + std::to_string(tau.size()));
     tau = out;
+  }
+
+  void reserve(long steps) override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Measurement*>(this), "reserve");
+    if (f) f(steps);
+  }
+
+  void give_back() override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Measurement*>(this), "give_back");
+    if (f) f();
   }
 
  private:
@@ -83,37 +105,55 @@ class PyMeasurementPort : public Measurement {
 };
 
 // A Python callable d(t, q, dq) -> (n,) [N·m] as the loop's Disturbance port (the
-// disturbance protocol of hmpc_pin.sim.disturbances is any such callable).
+// disturbance protocol of hmpc_pin.sim.disturbances is any such callable), called at every
+// stage.
 class PyCallableDisturbance : public Disturbance {
  public:
-  explicit PyCallableDisturbance(py::object f) : fn(std::move(f)) {}
+  PyCallableDisturbance(py::object f, int n_) : fn(std::move(f)), n(n_) {}
   Vec at(double t, const Vec& q, const Vec& dq) override {
     py::gil_scoped_acquire gil;
-    return fn(t, q, dq).cast<Vec>();
+    return broadcast_vector(fn(t, q, dq), n);
   }
   py::object fn;
+  int n;
 };
 
-// A Python callable horizon(t) as the loop's Reference port: it writes the horizon into the
+// A Python term of time alone (hmpc_pin.sim.disturbances.TimeOnly: sample_times(times) ->
+// (m, n) [N·m]) as a time-only Disturbance port: the plant calls it once per period with the
+// period's stage times.
+class PyTimeOnlyDisturbance : public Disturbance {
+ public:
+  PyTimeOnlyDisturbance(py::object f, int n_) : fn(std::move(f)), n(n_) {}
+  Vec at(double t, const Vec&, const Vec&) override {
+    RowMat one(1, n);
+    at_times(Vec::Constant(1, t), one);
+    return one.row(0).transpose();
+  }
+  Kind kind() const override { return Kind::time_only; }
+  void at_times(const CRefVec& ts, Eigen::Ref<RowMat> out) override {
+    py::gil_scoped_acquire gil;
+    auto values = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
+        fn(Vec(ts)));
+    if (!values || values.ndim() != 2 || values.shape(0) != ts.size() || values.shape(1) != n)
+      throw DimensionMismatch("the values sample_times returned", values ? values.size() : 0,
+                              ts.size() * n, "(len(times), n) for n = " + std::to_string(n));
+    out = Eigen::Map<const RowMat>(values.data(), ts.size(), n);
+  }
+  py::object fn;
+  int n;
+};
+
+// A Python callable horizon(t) as the step's Reference port: it writes the horizon into the
 // step's stack through the numpy array the stack maps (HierarchicalMPC._sample_horizon).
 class PyCallableReference : public Reference {
  public:
   explicit PyCallableReference(py::object f) : fn(std::move(f)) {}
-  void horizon(double t, Eigen::Ref<RowMat>) override {
+  void horizon(double t, const CRefVec&, Eigen::Ref<RowMat>) override {
     py::gil_scoped_acquire gil;
     fn(t);
   }
   py::object fn;
 };
-
-// n floats of a Python value: a float vector of n, or what numpy broadcasts to (n,) (as the
-// per-step loop's records do; numpy's error otherwise).
-inline Vec broadcast_vector(const py::object& value, int n) {
-  auto a = py::array_t<double, py::array::forcecast>::ensure(value);
-  if (a && a.ndim() == 1 && a.shape(0) == n) return a.cast<Vec>();
-  py::object np = py::module_::import("numpy");
-  return np.attr("broadcast_to")(np.attr("asarray")(value, "float"), n).cast<Vec>();
-}
 
 // A Python compensation (the Compensation protocol of hmpc_pin.compensation.base: reset(q0,
 // dq0), update(M, nle, q, dq, tau, v) -> d̂, estimate; the momentum observer, ISM, a gate, a
@@ -225,10 +265,19 @@ class PyCallableController : public Controller {
   int n;
 };
 
-// The compiled RK4 plant, holding the Python disturbance it calls (if any).
+// The compiled RK4 plant, holding its disturbance (and the adapter of a Python callable).
 struct PyRK4Plant : RK4Plant {
   using RK4Plant::RK4Plant;
-  std::unique_ptr<PyCallableDisturbance> held;
+  py::object disturbance;
+  std::unique_ptr<Disturbance> adapter;
+};
+
+// The step, holding its reference's port: a compiled Reference as it is, or the adapter of a
+// Python callable horizon(t) (none: no reference).
+struct PyStep : HMPCCore {
+  using HMPCCore::HMPCCore;
+  py::object reference;
+  std::unique_ptr<Reference> reference_adapter;
 };
 
 }  // namespace hmpc::python

@@ -26,6 +26,18 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1) {
     throw std::invalid_argument("ClosedLoop.run: bad state or steps");
   if (!controller) throw std::invalid_argument("ClosedLoop.run: no controller");
   if (!plant) throw std::invalid_argument("ClosedLoop.run: no plant");
+  controller->reserve(k1 - k0);  // the chunk's measurements, drawn at once where they may be
+  try {
+    steps(q, v, k0, k1);
+  } catch (...) {
+    controller->give_back();
+    throw;
+  }
+  controller->give_back();
+  return k == k1 ? k1 : k;
+}
+
+void ClosedLoop::steps(RefVec q, RefVec v, long k0, long k1) {
   for (k = k0; k < k1; ++k) {
     if (interrupted) interrupted();
     ++started;
@@ -37,9 +49,8 @@ long ClosedLoop::run(RefVec q, RefVec v, long k0, long k1) {
     if (tau.size() != n || dh.size() != n)
       throw std::invalid_argument("the controller's torque or estimate is not of n values");
     ++stepped;
-    if (!record_and_advance(q, v)) return k;
+    if (!record_and_advance(q, v)) return;
   }
-  return k1;
 }
 
 // Step k's records, then (k < K) the torque's check and clip and the plant's period; false

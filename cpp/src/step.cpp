@@ -14,8 +14,7 @@ HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& F, in
                    std::shared_ptr<StepData> data_)
     : n(qps_->n), N(N_), Nc(qps_->Nc), qps(std::move(qps_)), comp_held(std::move(comp_)),
       data(std::move(data_)), qp(qps.get()), comp(comp_held.get()), stack(data->stack),
-      v(data->v), tau(data->tau), dhat(data->dhat), M_out(data->M), nle_out(data->nle),
-      sampler(n) {
+      v(data->v), tau(data->tau), dhat(data->dhat), M_out(data->M), nle_out(data->nle) {
   if (model) {
     dyn = std::make_unique<Dynamics>(*model);
     if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
@@ -43,8 +42,8 @@ void HMPCCore::set_offsets(const CRefVec& offsets_) {
 }
 
 void HMPCCore::sample_horizon(double t) {
-  auto& S = stack;
-  for (int j = 0; j < N; ++j) sampler.sample(t + offsets[j], &S(2 + j, 0), &S(2 + N + j, 0));
+  if (!reference) throw std::logic_error("HMPCCore: no reference set");
+  reference->horizon(t, offsets, stack);
 }
 
 void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
@@ -247,20 +246,11 @@ void StepController::step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& 
   const Vec* qc = &q;  // the state the controller is given
   const Vec* dqc = &dq;
   if (measurement) {
-    if (measured) measurement->measure(t, q, dq);  // the first step's was taken at reset
+    measurement->hand_over(t, q, dq);  // the first step's was taken at reset
     qc = &measurement->qm;
     dqc = &measurement->dqm;
   }
-  measured = true;
-  if (reference) {  // as HierarchicalMPC.step with a reference sampled in Python
-    auto& S = c.stack;
-    S.row(0) = qc->transpose();
-    S.row(1) = dqc->transpose();
-    reference->horizon(t, S);
-    c.step(S, t);
-  } else {
-    c.step_t(t, *qc, *dqc);
-  }
+  c.step_t(t, *qc, *dqc);
   tau = c.tau.row(0).transpose();
   dhat = c.dhat.row(0).transpose();
   if (measurement) measurement->command(tau);

@@ -56,6 +56,12 @@ class ControllerWrapper:
     def __init__(self, controller: Controller):
         self.controller = controller
 
+    def loop_port(self, reference: object) -> Any:
+        """``None``: the compiled loop calls the wrapper as a whole (its ``step``), not the
+        wrapped controller's port (a wrapper that hands its controller's port over, with
+        its own part attached, overrides this)."""
+        return None
+
     @property
     def Ts(self) -> float:
         """Control period [s] of the wrapped controller."""

@@ -39,9 +39,9 @@ from ..compensation.observers import default_observer
 from ..exceptions import ConfigError, DimensionError, HmpcError, NonFiniteError, ValidityWarning
 from ..model.robot import Robot, damping_time_constants
 from ..mpc.condensed import CondensedMPC, JointQPs, StateLimits
-from ..native import BACKENDS, deprecated_backend, model_string
+from ..native import BACKENDS, deprecated_backend, model_string, replaced
 from ..native import load as load_native
-from ..tasks.base import Reference, as_reference, check_reference_size, compiled_sampling
+from ..tasks.base import Reference, as_reference, check_reference_size, reference_port
 from .base import AppliedTorque, config_parts, not_reset
 
 __all__ = [
@@ -418,10 +418,10 @@ class HierarchicalMPC(AppliedTorque):
     def compiled_controller(self, reference, measurement=None) -> Any:
         """This controller's compiled step as the compiled loop's Controller port
         (``hmpc_pin._core.StepController``, ``cpp/include/hmpc/step.hpp``) for
-        ``reference``: sampled in C++ if it has a compiled form, else through the step's
-        Reference port (its ``_sample_horizon``); behind the Measurement port
-        ``measurement`` if given (reset with this controller by its wrapper). Built after
-        :meth:`reset`; the loop steps it as :meth:`step` would.
+        ``reference``, sampled through the step's Reference port (compiled, or its
+        ``_sample_horizon``); behind the Measurement port ``measurement`` if given (reset
+        with this controller by its wrapper). Built after :meth:`reset`; the loop steps it
+        as :meth:`step` would.
 
         Raises:
             SimulationError: Called before :meth:`reset`.
@@ -431,9 +431,16 @@ class HierarchicalMPC(AppliedTorque):
         port = load_native().StepController(self._core)
         if measurement is not None:
             port.set_measurement(measurement)
-        if not self._native_ref:  # the horizon sampled in Python
-            port.set_reference(self._sample_horizon)
         return port
+
+    def loop_port(self, reference) -> Any:
+        """The compiled loop's Controller port for ``reference``
+        (:meth:`compiled_controller`), or ``None`` when :meth:`step` was replaced (a
+        subclass's or an instance's, e.g. a spy: the loop then calls this object's
+        ``step``)."""
+        if replaced(self, HierarchicalMPC, "step"):
+            return None
+        return self.compiled_controller(reference)
 
     @property
     def native(self) -> bool:
@@ -471,7 +478,7 @@ class HierarchicalMPC(AppliedTorque):
         if b.any() or f.any():
             core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
-        self._reference = None  # the reference's native form is set on the next step
+        self._reference = None  # the reference's port is set on the next step
         self.effort_limit = self.effort_limit
 
     @property
@@ -649,7 +656,7 @@ class HierarchicalMPC(AppliedTorque):
 
     def _sample_horizon(self, t: float) -> None:
         """The horizon rows of the step's stack, :math:`r(t + jT_s)`, :math:`\\dot r(t +
-        jT_s)`, j = 1..N, from a reference without a native form (sampled here, in one
+        jT_s)`, j = 1..N, from a reference without a compiled port (sampled here, in one
         ``sample_many`` call; the compiled loop calls this through its Reference port).
 
         Raises:
@@ -670,9 +677,9 @@ class HierarchicalMPC(AppliedTorque):
             out[1][:] = dq_ref
 
     def _set_reference(self, reference) -> None:
-        """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give its
-        compiled form (:func:`~hmpc_pin.tasks.base.compiled_sampling`), if it has one, to
-        the compiled step.
+        """Adapt ``reference`` (:func:`~hmpc_pin.tasks.base.as_reference`) and give the
+        compiled step its Reference port: its compiled one
+        (:func:`~hmpc_pin.tasks.base.reference_port`), else :meth:`_sample_horizon`.
 
         Raises:
             SimulationError: Called before :meth:`reset`.
@@ -682,13 +689,9 @@ class HierarchicalMPC(AppliedTorque):
         check_reference_size(reference, self.n, "HierarchicalMPC.step")
         self._ref = as_reference(reference)
         self._reference = reference
-        self._native_ref = False
-        form = compiled_sampling(self._ref)
-        if form is None:
-            self._core.clear_reference()
-        else:
-            form.load(self._core)
-            self._native_ref = True
+        port = reference_port(self._ref)
+        self._native_ref = port is not None
+        self._core.set_reference(self._sample_horizon if port is None else port)
 
     def _not_vectors(self, q, dq, exc: TypeError) -> None:
         """Raise the error of ``q`` or ``dq`` that is not a vector of n floats, or ``exc``

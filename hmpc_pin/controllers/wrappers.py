@@ -10,12 +10,14 @@ unchanged: it sees an ordinary controller. :class:`TimedController` times each s
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
 from ..compensation.gate import FeedbackGate
 from ..exceptions import ConfigError
 from ..native import load as load_native
+from ..native import replaced
 from .base import ControllerWrapper
 
 __all__ = ["CollisionReaction", "FrictionFeedforward", "MeasuredController", "TimedController"]
@@ -125,11 +127,14 @@ class MeasuredController(ControllerWrapper):
             plain.q_noise, plain.dq_noise, plain.delay = self.q_noise, self.dq_noise, self.delay
             measurement = core.SensingMeasurement(plain, self.rng)
         self.measurement = measurement
-        self._started = False
+
+    @property
+    def _started(self) -> bool:
+        """Whether a step was handed a measurement since :meth:`reset` (the port's)."""
+        return bool(self.measurement.started)
 
     def reset(self, q0: np.ndarray, dq0: np.ndarray) -> None:
         """Start a run: the controller starts from the port's measurement of ``(q0, dq0)``."""
-        self._started = False
         q_m, dq_m = self.measurement.call_reset(np.asarray(q0, float), np.asarray(dq0, float))
         self.controller.reset(q_m, dq_m)
 
@@ -138,13 +143,21 @@ class MeasuredController(ControllerWrapper):
         reset), call the controller with what the port hands over, pass its torque through
         the port's ``command``."""
         port = self.measurement
-        if self._started:
-            q_m, dq_m = port.call_measure(t, q, dq)
-        else:
-            q_m, dq_m = port.current
-        self._started = True
+        q_m, dq_m = port.hand_over(t, q, dq)
         tau = self.controller.step(t, q_m, dq_m, reference)
         return port.call_command(np.asarray(tau, dtype=float))
+
+    def loop_port(self, reference: object) -> Any:
+        """The wrapped controller's compiled port (its ``loop_port``) behind this wrapper's
+        measurement port, or ``None`` (no such port, or :meth:`step` or :meth:`reset`
+        replaced: the loop then calls this object's ``step``)."""
+        if replaced(self, MeasuredController, "step", "reset"):
+            return None
+        inner = getattr(self.controller, "loop_port", None)
+        port = inner(reference) if callable(inner) else None
+        if port is not None:
+            port.set_measurement(self.measurement)
+        return port
 
     def __getattr__(self, name):  # v, tau, observer, ... of the wrapped controller
         if name == "controller":

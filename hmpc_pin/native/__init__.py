@@ -12,8 +12,14 @@ changed by hand fails with one message instead of a crash.
 
 Every component is compiled and has no Python twin in the package (their numpy oracles are in
 ``tests/reference/``): the dynamics (``Dynamics``), the disturbance observer of Eq 13
-(``NDO``), the joint QPs (``JointQPs``), the references' sampler (``Sampler``), the RK4
-period (``RK4``) and the hierarchical MPC's step composed of them (``HMPCCore``).
+(``NDO``), the joint QPs (``JointQPs``), the references with a closed form
+(``SineReference``, ``PolynomialReference``), the disturbances of the paper
+(``GaussianPulses``, ``CoulombViscousFriction``, ``DisturbanceSum``), the RK4 period
+(``RK4``) and the hierarchical MPC's step composed of them (``HMPCCore``).
+
+A part of the package that has a compiled form hands it over with ``loop_port()`` (``None``
+when it has none, e.g. when :func:`replaced` says a method of it was replaced: the loops then
+call the Python object through its port's trampoline).
 ``backend`` in ``[controller]`` and ``[plant]`` is deprecated since 0.3 and has no effect.
 """
 
@@ -34,8 +40,20 @@ __all__ = [
     "deprecated_backend",
     "load",
     "model_string",
+    "replaced",
     "resolve_backend",
 ]
+
+
+def replaced(obj: object, cls: type, *names: str) -> bool:
+    """Whether any of ``obj``'s methods ``names`` is not ``cls``'s own: overridden by a
+    subclass, or set on the instance (e.g. a test's spy). A part's compiled port would not
+    call it, so the part then hands over no port (``loop_port()`` returns ``None``)."""
+    return any(
+        getattr(getattr(obj, name, None), "__func__", None) is not getattr(cls, name)
+        for name in names
+    )
+
 
 #: The values of ``backend`` (``[controller]``, ``[plant]``).
 BACKENDS = ("auto", "native", "python")

@@ -1,42 +1,38 @@
 """The closed loop in compiled chunks: :func:`~hmpc_pin.sim.simulate.simulate`'s per-step
-loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``,
-``ClosedLoop``), for every setup: the loop calls each part through a port
-(``cpp/include/hmpc/interfaces.hpp``):
+loop, :data:`~hmpc_pin.sim.compiled_loop.LOOP_CHUNK` control periods per call into the
+compiled core (``cpp/src/loop.cpp``, ``ClosedLoop``), for every setup. The loop calls each
+part through its port (``cpp/include/hmpc/interfaces.hpp``), and each part hands its port
+over itself, with ``loop_port`` (``None``: the part has no compiled port, and the loop calls
+the Python object through the port's trampoline):
 
-- the controller: :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` is stepped
-  in C++ (its compensation behind the step's Compensation port: the compiled NDO of Eq 13,
-  or a Python compensation called from the step; its model the compiled dynamics, or
-  Pinocchio's Python API called from the step for mimic joints), alone or behind a
+- the controller (``controller.loop_port(reference)``): the compiled step of
+  :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` (its compensation and its
+  reference behind the step's own ports), alone or behind the measurement port of a
   :class:`~hmpc_pin.controllers.wrappers.MeasuredController` (or
-  :class:`~hmpc_pin.sim.sensing.SensedController`), whose measurement port (compiled: the
-  plain noise and delay, the interface model of :mod:`~hmpc_pin.sim.sensing`; or a Python
-  subclass) is called by the loop; any other controller (computed torque, any other
-  wrapper) is called as a whole,
-  ``step(t, q, dq, reference)`` and ``disturbance_estimate``, through the Controller port;
-- the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
-  any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
-  per-step ``step`` does), called from the compiled loop through its Reference port;
-- the plant: :class:`~hmpc_pin.sim.plants.RK4Plant`'s compiled plant (its ``port``, whose
-  state it is) is advanced by the loop itself, its disturbance fused (time-only terms
-  tabulated by the plant per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, a chunk of
-  the loop at a time; one Coulomb–viscous friction evaluated in C++) or a callable
-  ``d(t, q, dq)`` called at every stage; any other plant (semi-implicit Euler, MuJoCo, an
-  RK4 plant whose methods are replaced) is called as a whole, ``advance(tau)`` and
-  ``disturbance_now()`` (and, after ``advance``, ``applied_disturbance(d)`` where the plant
-  has it: the recorded ``d`` made the disturbance applied at the period's start), through
-  the Plant port;
+  :class:`~hmpc_pin.sim.sensing.SensedController`); any other controller (computed torque,
+  any other wrapper, a controller whose ``step`` is replaced) is called as a whole,
+  ``step(t, q, dq, reference)`` and ``disturbance_estimate``;
+- the reference: the step's Reference port, compiled for a sine or a piecewise polynomial
+  (:func:`~hmpc_pin.tasks.base.reference_port`), else sampled in Python;
+- the plant (``plant.loop_port()``): :class:`~hmpc_pin.sim.plants.RK4Plant`'s compiled plant,
+  its disturbance behind the Disturbance port (compiled pulses and friction fused into its
+  period); any other plant (semi-implicit Euler, MuJoCo, an RK4 plant whose methods are
+  replaced) is called as a whole, ``advance(tau)`` and ``disturbance_now()`` (and, after
+  ``advance``, ``applied_disturbance(d)`` where the plant has it: the recorded ``d`` made
+  the disturbance applied at the period's start);
 - an ``on_step`` callback, if any, is called from the compiled loop once a step is recorded
   (with the reference sampled at that instant, as the per-step loop does).
 
-Each chunk is :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods: per step it does what the
-per-step loop does, in the same order and with the same floating-point operations (the
-controller's step, the records, the torque check, the effort clip and its counts, the
-plant's compiled period, the state check), so both loops give the same arrays. A fault
-stops the chunk at its step, and the same exception as the per-step loop's is raised from
-here; Ctrl-C is checked before every step (the run keeps the steps recorded so far).
-Afterwards the controller, the measurement (its state lives in the port; its generator is
-where a draw per measurement leaves it) and the plant are in the state the per-step loop
-leaves them in.
+Per step a chunk does what the per-step loop does, in the same order and with the same
+floating-point operations (the controller's step, the records, the torque check, the effort
+clip and its counts, the plant's period, the state check), so both loops give the same
+arrays. Around a chunk the compiled loop calls the controller's chunk hooks (a measurement
+that draws noise draws the chunk's at once and gives the unused draws back, also when a
+fault stops the chunk). A fault stops the chunk at its step, and the same exception as the
+per-step loop's is raised from here; Ctrl-C is checked before every step (the run keeps the
+steps recorded so far). Afterwards the controller, the measurement (its state lives in the
+port; its generator is where a draw per measurement leaves it) and the plant are in the
+state the per-step loop leaves them in.
 
 The per-step loop in Python, this loop's oracle, lives in the tests
 (``tests/reference/loop.py``).
@@ -45,17 +41,17 @@ The per-step loop in Python, this loop's oracle, lives in the tests
 from __future__ import annotations
 
 import sys
-from typing import Any
 
 import numpy as np
 
 from .._deprecated import deprecated
-from ..controllers.hierarchical import HierarchicalMPC
-from ..controllers.wrappers import MeasuredController
 from ..native import load as load_native
-from .plants import PULSE_CHUNK, RK4Plant
 
-__all__ = ["CompiledLoop"]
+__all__ = ["LOOP_CHUNK", "CompiledLoop"]
+
+#: Control periods per call into the compiled loop: between two calls
+#: :attr:`CompiledLoop.progress` is told, and a measurement draws a chunk's noise at once.
+LOOP_CHUNK = 64
 
 
 def __getattr__(name: str):
@@ -64,34 +60,10 @@ def __getattr__(name: str):
     return deprecated(__name__, name)
 
 
-def _own(obj, cls, *names: str) -> bool:
-    """Whether ``obj``'s methods ``names`` are ``cls``'s own (not overridden by a subclass
-    or replaced on the instance, e.g. by a spy: then the loop must call them)."""
-    return all(
-        getattr(getattr(obj, name, None), "__func__", None) is getattr(cls, name) for name in names
-    )
-
-
-def _parts(controller):
-    """``(HierarchicalMPC, MeasuredController or None)`` of ``controller`` when its step is
-    the compiled one (then the loop calls the compiled step and the ports around it), or
-    ``None`` (then the loop calls the controller as a whole through its Controller port)."""
-    measured = None
-    if isinstance(controller, MeasuredController) and _own(
-        controller, MeasuredController, "step", "reset"
-    ):
-        measured, controller = controller, controller.controller
-    if isinstance(controller, HierarchicalMPC) and _own(controller, HierarchicalMPC, "step"):
-        return controller, measured
-    return None
-
-
-def _compiled_plant(plant) -> bool:
-    """Whether ``plant`` is an :class:`~hmpc_pin.sim.plants.RK4Plant` whose period the loop
-    runs itself (its methods not replaced, e.g. by a spy: then it is called as a plant)."""
-    return isinstance(plant, RK4Plant) and _own(
-        plant, RK4Plant, "advance", "disturbance_now", "applied_disturbance", "reset", "prepare"
-    )
+def _port(part, *args):
+    """``part.loop_port(*args)``, or ``None`` for a part without one."""
+    own = getattr(part, "loop_port", None)
+    return own(*args) if callable(own) else None
 
 
 class CompiledLoop:
@@ -121,14 +93,13 @@ class CompiledLoop:
         on_step=None,
         state=None,
     ):
-        ctrl, measured = _parts(controller) or (None, None)
-        self.ctrl, self.measured, self.plant, self.reference = ctrl, measured, plant, reference
+        self.controller, self.plant, self.reference = controller, plant, reference
         self.t_arr, self.records = t_arr, records
         n = records["q"].shape[1]
         self.n, self.K = n, len(t_arr) - 1
-        self._rk4 = rk4 = _compiled_plant(plant)
+        plant_port = _port(plant)
         self._loop = load_native().ClosedLoop(
-            plant.port if rk4 else plant,  # the compiled plant, or the plant through Python
+            plant if plant_port is None else plant_port,  # compiled, or through Python
             n,
             t_arr,
             [records[name] for name in ("q", "dq", "tau", "d", "d_hat", "tau_applied")],
@@ -140,8 +111,6 @@ class CompiledLoop:
             min(state_bound, sys.float_info.max),
             float(controller.Ts),
         )
-        if ctrl is None:  # the controller as a whole, from Python
-            self._loop.set_controller(controller, reference)
         if on_step is not None:
             self._loop.set_recorded(self._on_step(on_step))
         q0, dq0 = state if state is not None else (plant.q, plant.dq)
@@ -170,45 +139,23 @@ class CompiledLoop:
         """Run every step, chunk by chunk; a fault raises the compiled core's exception
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
-        ctrl, K = self.ctrl, self.K
-        port: Any = None if self.measured is None else self.measured.measurement
-        if ctrl is not None:  # its compiled step, with its reference and measurement ports
-            self._loop.set_controller(ctrl.compiled_controller(self.reference, port))
-        ahead = isinstance(port, load_native().SensingMeasurement)
-        if ahead:  # the noise of a chunk drawn at once, the unused draws given back
-            port.ahead = PULSE_CHUNK
-        try:
-            self._chunks(K)
-        finally:
-            if ahead:
-                port.give_back()
-                port.ahead = 1
-
-    def _chunks(self, K: int) -> None:
-        plant = self.plant
+        controller, reference = self.controller, self.reference
+        port = _port(controller, reference)  # built after reset, for this run's reference
+        if port is None:  # the controller as a whole, from Python
+            self._loop.set_controller(controller, reference)
+        else:
+            self._loop.set_controller(port)
+        loop, n, K, x = self._loop, self.n, self.K, self._x
         k0 = 0
-        while k0 <= K:
+        while True:
             self.k = k0
-            # A chunk: as far as the compiled plant's table of time-only terms goes.
-            k1 = min(K + 1, plant.prepare(k0) if self._rk4 else k0 + PULSE_CHUNK)
-            k = self._chunk(k0, k1)
+            try:
+                k = loop.run(x[:n], x[n:], k0, min(K + 1, k0 + LOOP_CHUNK))
+            finally:
+                self.k, self.last = loop.k, loop.last
             self.k = k
             if self.progress is not None:
                 self.progress(k, K)
             if k == K:
                 return
-            k0 = k1
-
-    def _chunk(self, k0: int, k1: int) -> int:
-        """Steps ``k0 .. k1 - 1``; the measurement's Python flag brought up to date
-        afterwards (also when a fault or Ctrl-C stops the chunk). Returns the step where it
-        stopped."""
-        loop, n = self._loop, self.n
-        started = loop.started
-        x = self._x
-        try:
-            return loop.run(x[:n], x[n:], k0, k1)
-        finally:
-            self.k, self.last = loop.k, loop.last
-            if self.measured is not None and loop.started != started:
-                self.measured._started = True
+            k0 = k

@@ -4,16 +4,25 @@ A disturbance is any callable ``d(t, q, dq) -> (n,)`` [N·m] added to the input
 torque in Eq (1): :math:`M\\ddot q + C\\dot q + G = \\tau + d`. The classes here
 support ``+`` to build sums, e.g. the paper's combined case (Eq 34)
 ``CoulombViscousFriction(a, b) + GaussianPulse(a_d, b_d, sigma)``.
+
+Each hands the plant its Disturbance port (``cpp/include/hmpc/interfaces.hpp``) with
+``loop_port(n)``: the friction and the pulses their compiled law
+(``cpp/include/hmpc/disturbances.hpp``, the one implementation of each), a sum the compiled
+sum of its terms' ports, a time-only term of the user's a port that calls its
+``sample_times``; ``None`` (a callable of the user's, a term whose method was replaced) lets
+the plant call it as ``d(t, q, dq)``. :func:`disturbance_port` is what a plant asks.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from ..exceptions import ConfigError, InterfaceError
 from ..native import load as load_native
+from ..native import replaced
 
 __all__ = [
     "CoulombViscousFriction",
@@ -24,6 +33,7 @@ __all__ = [
     "TimeOnly",
     "ZeroDisturbance",
     "as_disturbance",
+    "disturbance_port",
 ]
 
 DisturbanceFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
@@ -50,6 +60,11 @@ class Disturbance:
             return self
         return SumDisturbance(self, other)
 
+    def loop_port(self, n: int) -> Any:
+        """The compiled Disturbance port of this term for ``n`` joints, or ``None``: the
+        plant calls it as ``d(t, q, dq)`` (the default)."""
+        return None
+
 
 class ZeroDisturbance(Disturbance):
     """No disturbance: :math:`d = 0`."""
@@ -67,6 +82,10 @@ class ZeroDisturbance(Disturbance):
 
     def __add__(self, other) -> Disturbance:
         return as_disturbance(other)  # 0 + d = d: no zeros evaluated in the plant loop
+
+    def loop_port(self, n: int) -> Any:
+        """The empty compiled sum: nothing evaluated."""
+        return load_native().DisturbanceSum([], n)
 
 
 def _defined_by(cls, name: str) -> None:
@@ -99,6 +118,11 @@ class TimeOnly(Disturbance):
     def sample_times(self, times: np.ndarray) -> np.ndarray:
         """The term at each of ``times`` (m,) [s]: (m, n) [N·m]."""
         raise NotImplementedError
+
+    def loop_port(self, n: int) -> Any:
+        """A time-only port that calls :meth:`sample_times` once per period, with the
+        period's stage times."""
+        return load_native().TimeOnlyTerm(self.sample_times, n)
 
 
 class CoulombViscousFriction(Disturbance):
@@ -136,6 +160,15 @@ class CoulombViscousFriction(Disturbance):
         its integration (:class:`~hmpc_pin.sim.plants.RK4Plant`)."""
         return self.viscous, self.coulomb
 
+    def loop_port(self, n: int) -> Any:
+        """The compiled friction of these coefficients for ``n`` joints; ``None`` for
+        coefficients of another shape (its own call then raises its error)."""
+        a, b = (np.asarray(c, dtype=float) for c in self.friction_coefficients())
+        if a.shape not in ((), (n,)) or b.shape not in ((), (n,)):
+            return None
+        a, b = (np.broadcast_to(c, (n,)).astype(float) for c in (a, b))
+        return load_native().CoulombViscousFriction(a, b)
+
 
 class GaussianPulse(TimeOnly):
     """Gaussian-shaped external torque, Eq (33).
@@ -152,16 +185,32 @@ class GaussianPulse(TimeOnly):
         self.amplitude = np.asarray(amplitude, dtype=float)
         self.center = np.asarray(center, dtype=float)
         self.sigma = np.asarray(sigma, dtype=float)
-        self._k = -0.5 / self.sigma**2
+
+    def _law(self, n: int) -> Any:
+        """The compiled law (``cpp/src/disturbances.cpp``, the one implementation of Eq 33)
+        of these parameters, broadcast to ``n`` joints."""
+        a, b, s = (
+            np.broadcast_to(x, (n,)).astype(float)
+            for x in (self.amplitude, self.center, self.sigma)
+        )
+        return load_native().GaussianPulses(a, b, s)
 
     def sample_times(self, times: np.ndarray) -> np.ndarray:
-        """The pulse at each of ``times`` (m,) [s]: (m, n) [N·m], vectorised (a time-only
-        term: a plant evaluates it for all stage times of a period at once)."""
-        return self._value(np.asarray(times, dtype=float)[:, None] - self.center)
+        """The pulse at each of ``times`` (m,) [s]: (m, n) [N·m] (n: the parameters'
+        broadcast length), by the compiled law."""
+        params = (self.amplitude, self.center, self.sigma)
+        shape = np.broadcast_shapes(*(np.shape(x) for x in params))
+        n = shape[0] if shape else 1
+        return self._law(n).at_times(np.asarray(times, dtype=float).reshape(-1), n)
 
-    def _value(self, x):
-        """:math:`a\\exp(k x^2)`, :math:`k = -1/(2\\sigma^2)`, :math:`x = t - b` (Eq 33)."""
-        return self.amplitude * np.exp(self._k * x * x)
+    def loop_port(self, n: int) -> Any:
+        """The compiled pulses for ``n`` joints; a subclass or an instance that samples
+        otherwise (:meth:`sample_times` replaced), or parameters of another shape, get the
+        time-only port that calls :meth:`sample_times`."""
+        shapes = {np.shape(x) for x in (self.amplitude, self.center, self.sigma)}
+        if replaced(self, GaussianPulse, "sample_times") or not shapes <= {(), (n,)}:
+            return super().loop_port(n)
+        return self._law(n)
 
 
 class SumDisturbance(Disturbance):
@@ -184,6 +233,10 @@ class SumDisturbance(Disturbance):
         for term in terms[1:]:
             total += term(t, q, dq)
         return total
+
+    def loop_port(self, n: int) -> Any:
+        """The compiled sum of the terms' ports (:func:`disturbance_port`), in their order."""
+        return load_native().DisturbanceSum([disturbance_port(t, n) for t in self.terms], n)
 
 
 class Periodic(Disturbance):
@@ -210,6 +263,14 @@ class _Callable(Disturbance):
 
     def __call__(self, t, q, dq):
         return np.asarray(self.fn(t, q, dq), dtype=float)
+
+
+def disturbance_port(d, n: int) -> Any:
+    """What a plant of ``n`` joints evaluates for the disturbance ``d``: its compiled port
+    (``d.loop_port(n)``), or ``d`` itself when it has none (called as ``d(t, q, dq)``)."""
+    own = getattr(d, "loop_port", None)
+    port = own(n) if callable(own) else None
+    return d if port is None else port
 
 
 def as_disturbance(d) -> Disturbance:

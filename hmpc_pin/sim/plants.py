@@ -53,16 +53,16 @@ law as when fused. MuJoCo's
 step stays within a tolerance (``[plant] tolerance``).
 
 The period is one call into the compiled core (``cpp/src/rk4.cpp``, ``RK4``), the only
-implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
-Terms defined by a fused form alone are evaluated fused: time-only terms
-(:class:`~hmpc_pin.sim.disturbances.TimeOnly`, e.g.
-:class:`~hmpc_pin.sim.disturbances.GaussianPulse`: ``sample_times(times)``) at all
-3·substeps stage times of :data:`PULSE_CHUNK` periods in one call each, added to the held
-torque here; one Coulomb–viscous friction term
-(:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`: ``friction_coefficients()``),
-:math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, evaluated per stage in C++ (a subclass may
-not define ``__call__``: the two could not disagree). Any other disturbance (a user
-callable, two friction terms) is called from C++ as ``d(t, q, dq)`` at every stage.
+implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``). The
+disturbance is handed to the compiled plant as its Disturbance port
+(:func:`~hmpc_pin.sim.disturbances.disturbance_port`), whose terms say what they are: when
+each is of time alone (:class:`~hmpc_pin.sim.disturbances.TimeOnly`, e.g.
+:class:`~hmpc_pin.sim.disturbances.GaussianPulse`, compiled) or one Coulomb–viscous friction
+(:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`, compiled:
+:math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`), the disturbance is fused into the
+period: the time-only terms evaluated at the 3·substeps stage times of a period at once and
+added to the held torque, the friction evaluated per stage. Any other disturbance (a user
+callable, two friction terms) is called at every stage as ``d(t, q, dq)``.
 """
 
 from __future__ import annotations
@@ -70,12 +70,19 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .._deprecated import deprecated
 from ..exceptions import ConfigError, DimensionError, SimulationError
 from ..model.robot import Robot
-from ..native import deprecated_backend, model_string
+from ..native import deprecated_backend, model_string, replaced
 from ..native import load as load_native
 from .base import Plant
-from .disturbances import CoulombViscousFriction, Disturbance, TimeOnly, ZeroDisturbance
+from .disturbances import (
+    CoulombViscousFriction,
+    Disturbance,
+    TimeOnly,
+    ZeroDisturbance,
+    disturbance_port,
+)
 
 __all__ = [
     "COULOMB_LAWS",
@@ -94,8 +101,11 @@ FloatArray = NDArray[np.float64]
 #: docstring): located sign changes and sticking, or the sign per stage.
 COULOMB_LAWS = ("stick-slip", "sign")
 
-#: Periods whose time-only terms :class:`RK4Plant` tabulates in one call per term.
-PULSE_CHUNK = 64
+
+def __getattr__(name: str):
+    """``PULSE_CHUNK`` of earlier versions (:mod:`hmpc_pin._deprecated`), with a
+    :class:`DeprecationWarning`."""
+    return deprecated(__name__, name)
 
 
 def _substeps(Ts: float, dt: float) -> int:
@@ -222,11 +232,10 @@ class RK4Plant:
 
     The plant is the compiled core's (``cpp/include/hmpc/rk4_plant.hpp``, ``RK4Plant``, the
     closed loop's Plant port; its period ``cpp/src/rk4.cpp``; module docstring): its state
-    lives there, one C++ call per period, with the disturbance's fused terms (time-only
-    terms tabulated here per :data:`PULSE_CHUNK` periods, one Coulomb–viscous friction
-    evaluated per stage in C++), or any other disturbance called as ``d(t, q, dq)`` at every
-    stage from C++; Pinocchio's compiled ABA, or its Python ABA for a model with mimic
-    joints. The compiled loop advances :attr:`port` itself.
+    lives there, one C++ call per period, with the disturbance's port (fused, or called as
+    ``d(t, q, dq)`` at every stage from C++); Pinocchio's compiled ABA, or its Python ABA
+    for a model with mimic joints. The compiled loop advances :attr:`port` itself
+    (:meth:`loop_port`).
 
     Args:
         robot: The plant's :class:`~hmpc_pin.model.robot.Robot` (its own ``model``/``data``).
@@ -243,7 +252,6 @@ class RK4Plant:
 
     Attributes:
         native: ``True`` (kept for callers of 0.2).
-        fused: Whether the disturbance's terms are evaluated fused (else called per stage).
         port: The compiled plant (``hmpc_pin._core.RK4Plant``) that holds the state and
             advances it.
     """
@@ -277,15 +285,6 @@ class RK4Plant:
         self.disturbance = disturbance
         self.h = Ts / substeps
         self.substeps = substeps
-        self._chunk_k, self._chunk = 0, np.empty((0, 3 * substeps, n))
-        self._split = split_disturbance(disturbance, n)
-        self.fused = self._split is not None
-        self._pulses, self._friction = self._split if self._split is not None else ([], None)
-        # a function's own friction terms, integrated by the stick-slip law as the fused one
-        self._in_function = None if self.fused else friction_in(disturbance, n)
-        zero = np.zeros(n)
-        a, b = self._friction if self._friction is not None else (zero, zero)
-        self._ab = (np.broadcast_to(a, (n,)).astype(float), np.broadcast_to(b, (n,)).astype(float))
         self.port = self._make_port()
 
     def _make_port(self):
@@ -300,13 +299,21 @@ class RK4Plant:
         if self.joint_dynamics is not None:
             kernel.set_joint_dynamics(*self.joint_dynamics)
         kernel.stick_slip = self.coulomb == "stick-slip"
-        if self._in_function is not None:
-            kernel.set_friction_in_disturbance(*self._in_function)
-        a, b = self._ab
-        port = core.RK4Plant(kernel, self.Ts, self.substeps, a, b, self._friction is not None)
-        if not self.fused:
-            port.set_disturbance(self.disturbance)
+        port = core.RK4Plant(kernel, self.Ts, self.substeps)
+        port.set_disturbance(disturbance_port(self.disturbance, self.n))
         return port
+
+    @property
+    def fused(self) -> bool:
+        """Whether the disturbance's terms are evaluated fused (else called per stage)."""
+        return bool(self.port.fused)
+
+    def loop_port(self) -> object:
+        """The compiled plant the closed loop advances itself (:attr:`port`), or ``None``
+        when a method of this plant was replaced (e.g. by a spy: the loop then calls this
+        object as a plant)."""
+        methods = ("advance", "disturbance_now", "applied_disturbance", "reset")
+        return None if replaced(self, RK4Plant, *methods) else self.port
 
     @property
     def q(self) -> FloatArray:
@@ -355,8 +362,6 @@ class RK4Plant:
             q, dq, t0, k = saved
             self.port.reset(q, dq, t0)
             self.port.k = k
-            if self._chunk.shape[0]:
-                self.port.set_table(self._chunk.reshape(-1, self.n), self._chunk_k)
 
     def reset(self, q0: FloatArray, dq0: FloatArray, t0: float = 0.0) -> None:
         """Start at ``(q0, dq0)`` [rad, rad/s] at time ``t0`` [s]."""
@@ -367,14 +372,11 @@ class RK4Plant:
             )
         self.port.reset(q, dq, float(t0))
         self._was_reset = True
-        self._chunk_k, self._chunk = 0, np.empty((0, 3 * self.substeps, self.n))
 
     def disturbance_now(self) -> FloatArray:
         """:math:`d(t, q, \\dot q)` [N·m] at the current time and state (fused: the
-        time-only terms from the table, stage 0 of the period being t itself, minus the
-        friction; else the disturbance called)."""
-        if self.fused:
-            self.prepare(self.k)
+        time-only terms at stage 0 of the period, t itself, minus the friction; else the
+        disturbance called)."""
         return self.port.disturbance_now()
 
     def applied_disturbance(self, d: FloatArray) -> FloatArray:
@@ -389,34 +391,6 @@ class RK4Plant:
         disturbance's). The run records this value as its ``d``."""
         return self.port.applied_disturbance(np.asarray(d, dtype=float))
 
-    def prepare(self, k: int) -> int:
-        """Make the compiled plant's table of time-only terms cover period ``k``; return the
-        first period after the table (``k + PULSE_CHUNK`` when there are no such terms)."""
-        if not self._pulses:
-            return k + PULSE_CHUNK
-        self._pulses_at(k)
-        return self._chunk_k + self._chunk.shape[0]
-
-    def _pulses_at(self, k: int) -> np.ndarray:
-        """The time-only terms at the stage times of period ``k`` (rows t_s, t_s + h/2,
-        t_s + h for the steps s), tabulated :data:`PULSE_CHUNK` periods per call of each
-        term, at the stage times the compiled period uses (``t = t0 + Ts·k``,
-        ``t_s = t + s·h``), and handed to the compiled plant."""
-        j = k - self._chunk_k
-        chunk = self._chunk
-        if 0 <= j < chunk.shape[0]:
-            return chunk[j]
-        h = self.h
-        t = self.t0 + self.Ts * np.arange(k, k + PULSE_CHUNK)
-        t_s = np.add.outer(t, np.arange(self.substeps) * h)
-        times = np.concatenate([t_s, t_s + 0.5 * h, t_s + h], axis=1).ravel()
-        total = self._pulses[0].sample_times(times)
-        for term in self._pulses[1:]:
-            total = total + term.sample_times(times)
-        self._chunk_k, self._chunk = k, total.reshape(PULSE_CHUNK, 3 * self.substeps, self.n)
-        self.port.set_table(total.reshape(-1, self.n), k)
-        return self._chunk[0]
-
     def advance(self, tau: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Integrate over one period with ``tau`` held; return new ``(q, dq)`` at ``t + Ts``.
 
@@ -425,8 +399,6 @@ class RK4Plant:
             DimensionError: ``tau`` is not of shape (n,).
         """
         tau = held_torque(self, tau)
-        if self._pulses:
-            self.prepare(self.k)
         return self.port.advance(tau)
 
 

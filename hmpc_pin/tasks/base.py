@@ -14,7 +14,8 @@ vectorised over time:
 ``sample(t) -> (q_ref, dq_ref)``
     one instant, two arrays of shape (n,).
 
-Optional: ``compiled_sampling() -> SineSampling | PolynomialSampling | None``, the
+Optional: ``loop_port()``, the compiled Reference port the step samples (``None``: sampled
+in Python), or ``compiled_sampling() -> SineSampling | PolynomialSampling | None``, the
 reference in a form the compiled step (:mod:`hmpc_pin.native`) samples in C++: a
 :class:`SineSampling` (:math:`q = \\mathrm{offset} + \\mathrm{amplitude}\\,\\sin(\\omega t +
 \\phi)`) or a :class:`PolynomialSampling` (segment :math:`i` = the number of breakpoints <=
@@ -22,7 +23,8 @@ t, :math:`[q\\ \\dot q] = \\sum_k c_{i,k}\\,s^k` with :math:`s = t - \\mathrm{or
 must give what ``sample_many`` gives (up to rounding; tested for the package's references);
 ``None`` (e.g. a subclass that samples otherwise) keeps the Python sampling.
 :func:`compiled_sampling` decodes it, once, for the step (and the tuples of
-``native_form()`` of 0.3, with a :class:`DeprecationWarning`).
+``native_form()`` of 0.3, with a :class:`DeprecationWarning`); :func:`reference_port` is
+what the step asks.
 
 Every reference of the package implements both, vectorised. Anything else a user has
 is adapted once, at the boundary, by :func:`as_reference`: an object with only
@@ -53,6 +55,7 @@ __all__ = [
     "check_limits",
     "check_reference_size",
     "compiled_sampling",
+    "reference_port",
     "sample_horizon",
 ]
 
@@ -91,7 +94,7 @@ def _write(values: Pair, out: Pair | None) -> Pair:
 
 @dataclass(frozen=True)
 class SineSampling:
-    """A sine per joint for the compiled sampler (``cpp/src/sampler.cpp``):
+    """A sine per joint for the compiled reference (``cpp/src/references.cpp``):
     :math:`q = o + a\\sin(\\omega t + \\phi)`, :math:`\\dot q = (a\\omega)\\cos(\\omega t + \\phi)`.
 
     Attributes:
@@ -109,9 +112,12 @@ class SineSampling:
     offset: FloatArray
     amplitude_omega: FloatArray
 
-    def load(self, target: Any) -> None:
-        """Give it to a compiled sampler or step (``target.set_sine``)."""
-        target.set_sine(self.omega, self.phase, self.amplitude, self.offset, self.amplitude_omega)
+    def port(self) -> Any:
+        """The compiled reference (``hmpc_pin._core.SineReference``, the step's Reference
+        port)."""
+        return load_native().SineReference(
+            self.omega, self.phase, self.amplitude, self.offset, self.amplitude_omega
+        )
 
     def as_tuple(self) -> tuple[Any, ...]:
         """The tuple of ``native_form()`` (0.3): ``("sine", ω, φ, a, o, aω)``."""
@@ -120,7 +126,7 @@ class SineSampling:
 
 @dataclass(frozen=True)
 class PolynomialSampling:
-    """A piecewise polynomial for the compiled sampler (``cpp/src/sampler.cpp``): segment
+    """A piecewise polynomial for the compiled reference (``cpp/src/references.cpp``): segment
     :math:`i` = the number of breakpoints <= t, :math:`[q\\ \\dot q] = \\sum_k c_{i,k}\\,s^k`
     with :math:`s = t - \\mathrm{origin}_i`.
 
@@ -137,9 +143,12 @@ class PolynomialSampling:
     coefficients: FloatArray
     degree: int
 
-    def load(self, target: Any) -> None:
-        """Give it to a compiled sampler or step (``target.set_ppoly``)."""
-        target.set_ppoly(self.breakpoints, self.origins, self.coefficients, self.degree)
+    def port(self) -> Any:
+        """The compiled reference (``hmpc_pin._core.PolynomialReference``, the step's
+        Reference port)."""
+        return load_native().PolynomialReference(
+            self.breakpoints, self.origins, self.coefficients, self.degree
+        )
 
     def as_tuple(self) -> tuple[Any, ...]:
         """The tuple of ``native_form()`` (0.3): ``("ppoly", t_k, origins, c, d)``."""
@@ -183,6 +192,16 @@ def compiled_sampling(reference: object) -> SamplingForm | None:
     )
 
 
+def reference_port(reference: object) -> Any:
+    """The compiled Reference port of ``reference`` (its ``loop_port()``, or the port of its
+    :func:`compiled_sampling` form), or ``None``: the step then samples it in Python."""
+    own = getattr(reference, "loop_port", None)
+    if callable(own):
+        return own()
+    form = compiled_sampling(reference)
+    return None if form is None else form.port()
+
+
 def samples_otherwise(cls: type, base: type) -> bool:
     """Whether the class ``cls`` (a subclass of ``base`` or ``base`` itself) overrides the
     sampling of ``base`` (its ``sample`` or ``sample_many`` method): then its samples are not
@@ -194,7 +213,7 @@ def samples_otherwise(cls: type, base: type) -> bool:
 
 
 class CompiledSampling:
-    """Base of the references that the compiled sampler evaluates (``cpp/src/sampler.cpp``):
+    """Base of the references that a compiled reference evaluates (``cpp/src/references.cpp``):
     ``sample_many`` and ``sample`` are that one implementation, from ``_form()`` -- a
     :class:`SineSampling` or :class:`PolynomialSampling`, the same form the compiled step
     samples (``compiled_sampling``).
@@ -209,8 +228,7 @@ class CompiledSampling:
     def _sampler(self) -> Any:
         sampler = self._compiled
         if sampler is None:
-            sampler = load_native().Sampler(self.n)
-            self._form().load(sampler)
+            sampler = self._form().port()
             self._compiled = sampler
         return sampler
 
@@ -256,6 +274,11 @@ class CompiledSampling:
         if samples_otherwise(type(self), CompiledSampling):
             return None
         return self._form()
+
+    def loop_port(self) -> Any:
+        """The compiled reference the step samples its horizon from (the one that samples
+        :meth:`sample_many` too); ``None`` for a subclass that samples otherwise."""
+        return None if self.compiled_sampling() is None else self._sampler()
 
     def native_form(self) -> tuple[Any, ...] | None:
         """Deprecated since 0.3: :meth:`compiled_sampling` (typed) as the tuple of 0.3."""

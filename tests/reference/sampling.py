@@ -1,4 +1,4 @@
-"""Oracles of the compiled reference sampler (``cpp/src/sampler.cpp``), from the closed forms.
+"""Oracles of the compiled references (``cpp/src/references.cpp``), from the closed forms.
 
 * The sine of Eq (31): :math:`q = o + a\\sin(\\omega t + \\phi)`,
   :math:`\\dot q = a\\omega\\cos(\\omega t + \\phi)`.

@@ -10,6 +10,8 @@
 //   d recorded made the disturbance applied at the period's start (the Plant port's
 //   applied_disturbance) → state finite and within the bound.
 // run() returns the step where it stopped: k1 (the chunk ran) or the last step K (recorded).
+// Around the chunk's steps the controller's chunk hooks are called (interfaces.hpp:
+// reserve(k1 − k0) before, give_back() after, also when a fault stops the chunk).
 // A fault throws (errors.hpp), with `k` the step during which it was detected: the
 // controller's step (its fault or its ports', nothing recorded at k), NonFinite (τ not finite, recorded at
 // k) or StateOutOfBound (the plant's state over the period from t_k, recorded at k).
@@ -69,6 +71,7 @@ class ClosedLoop {
   long stepped = 0;   // controller steps that succeeded
 
  private:
+  void steps(RefVec q, RefVec v, long k0, long k1);
   bool record_and_advance(RefVec q, RefVec v);
   Vec tau, d, dh, qn, vn;
 };

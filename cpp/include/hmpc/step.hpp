@@ -1,5 +1,6 @@
 // The hierarchical MPC's step (hmpc_pin.controllers.hierarchical.HierarchicalMPC.step),
-// composed of the components: the reference sampler (sampler.hpp), the gradient map, the
+// composed of the components: the reference behind its port (interfaces.hpp: a compiled
+// one of references.hpp, or a Python reference through its trampoline), the gradient map, the
 // dynamics (dynamics.hpp, or the caller's model for models it cannot load), the
 // compensation behind its port (interfaces.hpp: the NDO of observer.hpp, or a Python
 // compensation through its trampoline), the joint QPs (joint_qps.hpp), and the inverse
@@ -18,7 +19,6 @@
 #include "hmpc/joint_dynamics.hpp"
 #include "hmpc/latency.hpp"
 #include "hmpc/observer.hpp"
-#include "hmpc/sampler.hpp"
 #include "hmpc/step_data.hpp"
 #include "hmpc/types.hpp"
 
@@ -47,20 +47,15 @@ class HMPCCore {
   // The horizon offsets j·Ts, j = 1..N [s] at which fill() samples the compiled reference.
   void set_offsets(const CRefVec& offsets);
 
-  void set_sine(const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
-                const CRefVec& offset, const CRefVec& amp_omega) {
-    sampler.set_sine(omega, phase, amp, offset, amp_omega);
-  }
-  void set_ppoly(const CRefVec& times, const CRefVec& knots, const CRefRow& coef, int deg) {
-    sampler.set_ppoly(times, knots, coef, deg);
-  }
-  void clear_reference() { sampler.clear(); }
+  // The reference whose horizon fill() samples (the caller keeps it alive; none: fill()
+  // refuses).
+  void set_reference(Reference* r) { reference = r; }
 
-  // The stack's state and horizon rows for time t (the compiled reference).
+  // The stack's state and horizon rows for time t (through the Reference port).
   // Throws NonFinite (t, or q before a wrong-sized q̇) or DimensionMismatch (q or q̇ of a
   // size other than n); nothing changed then.
   void fill(double t, const CRefVec& q, const CRefVec& dq);
-  // A whole step at time t with the compiled reference: fill(), then step().
+  // A whole step at time t: fill(), then step().
   void step_t(double t, const CRefVec& q, const CRefVec& dq);
 
   // The measurement latency L [s] at the control period Ts [s] (L = 0: off).
@@ -123,7 +118,7 @@ class HMPCCore {
   bool external = false;     // the last prepare took M, nle from the caller (M_out, nle_out)
   Mat Mx;                    // the caller's M, C q̇ + G of the last evaluate()
   Vec nx, vprev;
-  HorizonSampler sampler;
+  Reference* reference = nullptr;  // the horizon's (set_reference)
   Vec offsets;  // horizon offsets j·Ts, j = 1..N [s]
   // The measurement latency (off: the step is exactly the latency-free one).
   Latency latency;
@@ -171,18 +166,23 @@ class HMPCCore {
 
 // The step as the loop's Controller port (interfaces.hpp): the controller sees the plant
 // through the Measurement port `measurement` (none: the plant's state as is; its
-// measurement of the first step was taken at its reset), samples its horizon through the
-// Reference port `reference` (none: the compiled reference, step_t), and the measurement's
-// command() filters the torque. The caller keeps the core and the ports alive.
+// hand_over: the measurement of the first step was taken at its reset), samples its horizon
+// through the core's Reference port (step_t), and the measurement's command() filters the
+// torque; the chunk hooks go to the measurement. The caller keeps the core and the ports
+// alive.
 class StepController : public Controller {
  public:
   explicit StepController(HMPCCore* core);
   void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) override;
+  void reserve(long steps) override {
+    if (measurement) measurement->reserve(steps);
+  }
+  void give_back() override {
+    if (measurement) measurement->give_back();
+  }
 
   HMPCCore* core;
   Measurement* measurement = nullptr;
-  Reference* reference = nullptr;
-  bool measured = false;  // a step was run: the next one measures
 };
 
 }  // namespace hmpc

@@ -87,8 +87,14 @@ def observer_modes(ex: Experiment, samples: int = 200) -> tuple[np.ndarray, np.n
 
 
 def lag_inputs(ex: Experiment) -> tuple:
-    """:func:`observer_lag_error`'s samples along the reference, every control period:
-    ``(Ts, t, q_k, d_k, M(q_k)^-1)``."""
+    """:func:`observer_lag_error`'s samples along the reference, every control period
+    (computed once for several calls).
+
+    Returns:
+        ``(Ts, t, q, d, Minv)``: the period [s], the times [s] (K,), the reference's
+        positions (K, n), the config's disturbance there [N·m] (K, n) and
+        :math:`M(q_k)^{-1}` (K, n, n).
+    """
     cfg = ex.config
     Ts = cfg.controller.Ts
     t = np.arange(0.0, cfg.simulation.duration + Ts / 2, Ts)
@@ -158,8 +164,16 @@ def observer_lag_error(
 
 def worst_along(radius, t: np.ndarray, modes: np.ndarray) -> tuple[float, float, float]:
     """The largest ``radius(w)`` over the modal bandwidths ``modes`` [1/s] (k, n) at the
-    times ``t`` [s]: ``(radius, w, t)`` (``(0, 0, 0)`` without modes). The bandwidths are
-    evaluated once per 1 % band (each band at its largest member)."""
+    times ``t`` [s] (:func:`observer_modes`). The bandwidths are evaluated once per 1 %
+    band (each band at its largest member).
+
+    Args:
+        radius: ``radius(w) -> float``, e.g. a loop's spectral radius at the bandwidth
+            ``w`` [1/s] (:func:`~hmpc_pin.compensation.loop_analysis.loop_radius`).
+
+    Returns:
+        ``(radius, w, t)`` at the worst mode; ``(0, 0, 0)`` without modes.
+    """
     w = modes.ravel()
     keep = np.isfinite(w) & (w > 0)
     if not keep.any():

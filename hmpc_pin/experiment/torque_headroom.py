@@ -15,7 +15,19 @@ def torque_headroom(ex: Experiment, limit: np.ndarray | None, damped: bool = Tru
     """1 − max |τ_j| / τ_max along the reference (inf without limits): the torque that
     makes the plant, :math:`M\\ddot q + C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q
     = \\tau + d(t, q, \\dot q)`, follow it, with the config's disturbance d and the URDF's
-    joint damping and friction when the plant applies them (``damped``)."""
+    joint damping and friction when the plant applies them (``damped``).
+
+    The reference is sampled every :math:`T_s/4` over the run, :math:`\\ddot r` by central
+    differences, the torque by RNEA.
+
+    Args:
+        ex: The built experiment (its reference, model and disturbance).
+        limit: The plant's effort limit per joint [N·m or N] (``None``: no limits).
+        damped: The plant applies the URDF's joint damping and friction.
+
+    Returns:
+        The headroom per joint [-] (inf where a joint has no limit).
+    """
     n = ex.robot.nq
     if limit is None:
         return np.full(n, np.inf)

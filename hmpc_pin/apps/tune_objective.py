@@ -17,10 +17,9 @@ import numpy as np
 __all__ = ["SATURATION_WEIGHT", "TV_WEIGHT", "objective_value", "run_score"]
 
 
-#: Weights of the penalties (module docstring): saturation, total variation.
+#: Weight :math:`w_s` of the saturated fraction of the periods [-] (module docstring).
 SATURATION_WEIGHT = 1.0
-
-
+#: Weight :math:`w_{tv}` of the torque's total variation above the config's own [-].
 TV_WEIGHT = 0.1
 
 

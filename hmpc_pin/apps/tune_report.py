@@ -21,8 +21,9 @@ __all__ = ["shown_params", "write_report", "write_tuned"]
 
 def shown_params(trial, study) -> dict:
     """A trial's parameters as they ran: the config's own for trial 0 (the config as
-    given, recorded by the sampler at the nearest point of its space: :func:`current_params`),
-    else the sampled ones. A study of an earlier version kept trial 0's in the study."""
+    given, recorded by the sampler at the nearest point of its space:
+    :func:`~hmpc_pin.apps.tune_space.current_params`), else the sampled ones. A study of
+    an earlier version kept trial 0's in the study."""
     if "ran" in trial.user_attrs:
         return dict(trial.user_attrs["ran"])
     if trial.user_attrs.get("as_given") and "as_given" in study.user_attrs:

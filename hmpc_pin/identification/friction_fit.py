@@ -16,8 +16,6 @@ __all__ = ["MIN_DEGREES_OF_FREEDOM", "SETTLING_TIME_CONSTANTS", "FrictionFit", "
 #: correlated (:math:`m_e` so small) that the AR(1) correction, itself estimated from the
 #: residual, cannot be trusted, and no interval is given (NaN, printed "n/a").
 MIN_DEGREES_OF_FREEDOM = 10
-
-
 #: Observer time constants left out after a joint was stuck (the observer source): the
 #: holding torque the friction law does not hold leaves the observer's estimate as
 #: :math:`e^{-t/\tau}`, below :math:`e^{-5} < 1\,\%` of itself after five.

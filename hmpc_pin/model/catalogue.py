@@ -18,9 +18,9 @@ MOUNTED_ARMS = ("so100", "so101")
 
 
 def example_robot_names() -> tuple[str, ...]:
-    """Names accepted by :func:`load_robot` from ``example-robot-data`` (fixed-base URDF arms
-    and all other fixed-base URDF models the loader package lists, and the arms of
-    :data:`MOUNTED_ARMS`)."""
+    """Names accepted by :func:`~hmpc_pin.model.robot.load_robot` from
+    ``example-robot-data`` (fixed-base URDF arms and all other fixed-base URDF models the
+    loader package lists, and the arms of :data:`MOUNTED_ARMS`)."""
     from example_robot_data import robots_loader
 
     return tuple(

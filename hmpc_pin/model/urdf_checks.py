@@ -2,7 +2,7 @@
 structure and completeness the URDF specification requires (names, joint types, parent
 and child links, limits, numbers, geometry), the joint types the controller supports and
 physically valid link inertias, so that a bad file gets one message naming the file and
-the problem instead of urdfdom's terse output (:func:`check_urdf`)."""
+the problem instead of urdfdom's terse output (:func:`~hmpc_pin.model.urdf_checks.check_urdf`)."""
 
 from __future__ import annotations
 
@@ -20,8 +20,6 @@ __all__ = ["SUPPORTED_JOINT_TYPES", "URDF_JOINT_TYPES", "check_inertias", "check
 #: The classes of yourdfpy's ``URDF.validate`` errors, which name each problem (the
 #: messages of earlier versions, which checked the file with yourdfpy, are kept word for word).
 _INCOMPLETE, _BAD_VALUE = "URDFIncompleteError", "URDFAttributeValueError"
-
-
 #: How many numbers an attribute holds: one, any number (a vector read as given), a
 #: position (three, or one for all three) or three angles (the first three are read).
 _ONE, _ANY, _XYZ, _RPY = "a number", "numbers", "3 numbers", "3 angles"
@@ -48,8 +46,6 @@ _NUMBERS: dict[str, dict[str, dict[str, str]]] = {
     },
     "material": {"color": {"rgba": _ANY}},
 }
-
-
 #: URDF joint types the controller supports (one coordinate each, nq == nv; a continuous
 #: joint becomes a revolute joint without position limits).
 SUPPORTED_JOINT_TYPES = ("revolute", "prismatic", "continuous")
@@ -309,9 +305,10 @@ def check_inertias(root: ET.Element, path: Path, locked: tuple[str, ...] = ()) -
     moments satisfying the triangle inequalities :math:`I_1 + I_2 \ge I_3` (for each
     order). Zero moments (a point mass, a thin rod) are valid; a singular :math:`M(q)`
     they may cause is refused later, naming the joint
-    (:meth:`Robot.check_mass_matrix`). Links fixed to the world are not checked (their
-    inertia acts on nothing). Tolerances: :math:`10^{-9}` of the largest moment for the
-    sign, :math:`10^{-6}` of the trace for the triangle (values rounded in the file).
+    (:meth:`~hmpc_pin.model.robot.Robot.check_mass_matrix`). Links fixed to the world are
+    not checked (their inertia acts on nothing). Tolerances: :math:`10^{-9}` of the
+    largest moment for the sign, :math:`10^{-6}` of the trace for the triangle (values
+    rounded in the file).
 
     A negative mass or a moment below zero makes :math:`M(q)` indefinite: refused. A
     violated triangle inequality leaves :math:`M(q)` positive definite and is common in

@@ -49,18 +49,12 @@ __all__ = [
 #: Collision bits: arm geoms collide with the obstacle only, never with each other.
 ARM_CONTYPE, ARM_CONAFFINITY = 1, 0
 OBSTACLE_CONTYPE, OBSTACLE_CONAFFINITY = 0, 1
-
-
 #: Mesh formats MuJoCo reads.
 MESH_SUFFIXES = (".stl", ".obj", ".msh")
-
-
 #: MuJoCo's ``solref``/``solimp`` of a mimic equality: the stiffest MuJoCo's soft
 #: constraints allow (time constant 2 ms, impedance 0.9999: the constrained acceleration
 #: is met to a relative 1e-4), closest to Pinocchio's exact mimic joint.
 MIMIC_TIMECONST = 0.002
-
-
 MIMIC_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 
 

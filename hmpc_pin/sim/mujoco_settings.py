@@ -21,8 +21,6 @@ MUJOCO_INTEGRATORS = {
     "implicit": "mjINT_IMPLICIT",
     "implicitfast": "mjINT_IMPLICITFAST",
 }
-
-
 #: ``[plant.mujoco] geometry``: which URDF geometry becomes MuJoCo's collision geometry.
 GEOMETRY_SOURCES = ("collision", "visual", "none")
 

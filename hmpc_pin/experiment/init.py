@@ -73,7 +73,7 @@ from ..model.catalogue import example_robot_srdf, example_robot_urdf
 from ..model.robot import Robot, damping_time_constants, load_robot, urdf_mimics
 from ..model.urdf_checks import check_urdf
 from .config.workspace import WorkspaceConfig
-from .init_choices import (
+from .init_choices import (  # noqa: F401  (every name importable from here, as before)
     AMPLITUDE,
     AMPLITUDE_SCALES,
     BANDWIDTH_PERIODS,
@@ -97,25 +97,10 @@ from .posture import HOLD, PATH_SAMPLES, SLACK, _gravity_along, _hold_gravity, p
 from .posture import path as sine_path
 from .workspace import make_workspace
 
-# what init chooses from (.init_choices) and the text it writes (.init_text) are
-# re-exported here
 __all__ = [
-    "AMPLITUDE",
-    "AMPLITUDE_SCALES",
     "BANDWIDTH_PERIODS",
-    "FREQUENCY",
     "LATENCY",
     "LOCK_PATTERN",
-    "MODEL_AT_LINES",
-    "PERIODS",
-    "PLANT_STEPS",
-    "POSTURES",
-    "PULSE_CENTER",
-    "PULSE_SIGMA",
-    "TRIAL",
-    "TRIAL_RMS",
-    "ZOH_GAIN_MAX",
-    "ZOH_X_MAX",
     "InitPlan",
     "init_config",
     "plan",

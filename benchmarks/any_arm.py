@@ -41,8 +41,8 @@ EXTRA = ("so100", "so101")
 
 def models() -> tuple[str, ...]:
     """The 31 fixed-base example-robot-data models and so100, so101 (which
-    :func:`~hmpc_pin.model.robot.example_robot_names` lists too: each once)."""
-    from hmpc_pin.model.robot import example_robot_names
+    :func:`~hmpc_pin.model.catalogue.example_robot_names` lists too: each once)."""
+    from hmpc_pin.model.catalogue import example_robot_names
 
     return tuple(dict.fromkeys((*example_robot_names(), *EXTRA)))
 

@@ -269,20 +269,62 @@ def test_every_end_to_end_file_of_the_tiers_exists():
     assert E2E_FILES and all((tests / name).is_file() for name in E2E_FILES)
 
 
-#: The sizes a maintainer can hold: a Python function, a C++ file, a C++ function; ``ruff
-#: format`` owns the formatting (``# fmt: skip`` only where a table is clearer).
-MAX_FUNCTION_LINES, MAX_CPP_LINES, MAX_CPP_FUNCTION_LINES, MAX_FMT_SKIPS = 150, 500, 100, 50
+#: The sizes a maintainer can hold: a Python file and function, a C++ file, a C++ function;
+#: ``ruff format`` owns the formatting (``# fmt: skip`` only where a table is clearer).
+MAX_FILE_LINES, MAX_FUNCTION_LINES = 700, 120
+MAX_CPP_LINES, MAX_CPP_FUNCTION_LINES, MAX_FMT_SKIPS = 500, 100, 50
+
+#: Files being split in parallel on other branches, and what of them is over the limits
+#: today: ``None`` for the file's length, else a function's name. A temporary allowance,
+#: removed (the test tightened) when those branches merge; a file or function not listed
+#: here is held to the limits.
+_PENDING = {
+    "apps/cli.py": {None},
+    "apps/ros.py": {"_run_ros"},
+    "experiment/build.py": {None},
+    "controllers/hierarchical.py": {None},
+    "realtime/loop.py": {None, "_cycles", "_finish"},
+    "ros/trajectory.py": {"trajectory_from_message"},
+    "sim/simulate.py": {"simulate"},
+}
+
+
+def _python_files() -> list[tuple[str, Path]]:
+    return sorted((path.relative_to(PKG).as_posix(), path) for path in PKG.rglob("*.py"))
+
+
+def test_no_python_file_is_longer_than_a_maintainer_can_hold():
+    long = [(rel, n) for rel, path in _python_files()
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_FILE_LINES
+            and None not in _PENDING.get(rel, ())]  # fmt: skip
+    assert not long, f"Python files over {MAX_FILE_LINES} lines: {long}"
 
 
 def test_no_python_function_is_longer_than_a_maintainer_can_hold():
     long = []
-    for path in PKG.rglob("*.py"):
+    for rel, path in _python_files():
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 lines = node.end_lineno - node.lineno + 1
-                if lines > MAX_FUNCTION_LINES:
-                    long.append((str(path.relative_to(PKG)), node.name, lines))
+                if lines > MAX_FUNCTION_LINES and node.name not in _PENDING.get(rel, ()):
+                    long.append((rel, node.name, lines))
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
+
+
+def test_the_pending_allowance_names_only_what_is_over_the_limits():
+    """Each allowance is needed today: a file listed is over the limit, a function listed
+    is over its limit (so the allowance shrinks as the parallel splits land)."""
+    for rel, allowed in _PENDING.items():
+        path = PKG / rel
+        assert path.is_file(), rel
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        sizes = {node.name: node.end_lineno - node.lineno + 1 for node in ast.walk(tree)
+                 if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)}  # fmt: skip
+        for name in allowed:
+            if name is None:
+                assert len(path.read_text(encoding="utf-8").splitlines()) > MAX_FILE_LINES, rel
+            else:
+                assert sizes.get(name, 0) > MAX_FUNCTION_LINES, f"{rel}: {name}"
 
 
 def _cpp_files() -> list[Path]:
@@ -430,3 +472,18 @@ def test_the_registry_check_finds_a_second_list():
         len(_literal_names(n) & {"hmpc", "computed-torque", "mujoco", "pinocchio"})
         for n in literals
     ] == [2, 2]
+
+
+def test_one_dask_cluster_factory_and_one_ctrl_c_deferral():
+    """A local Dask cluster is made in one place (``apps/cluster.py``, used by the sweep and
+    the tuner), and Ctrl-C is kept back in one class (``_startup.DeferredInterrupt``)."""
+    makers, deferrals = [], []
+    for rel, path in _python_files():
+        text = path.read_text(encoding="utf-8")
+        if "LocalCluster(" in text:
+            makers.append(rel)
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ClassDef) and node.name.endswith("Interrupt"):
+                deferrals.append(f"{rel}:{node.name}")
+    assert makers == ["apps/cluster.py"]
+    assert deferrals == ["_startup.py:DeferredInterrupt"]

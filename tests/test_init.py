@@ -16,7 +16,7 @@ from hmpc_pin.exceptions import URDFError
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.init import init_config, plan, write_config
-from hmpc_pin.model.robot import example_robot_srdf, example_robot_urdf
+from hmpc_pin.model.catalogue import example_robot_srdf, example_robot_urdf
 
 from .test_urdf_joints import chain, joint, rod, three_links
 

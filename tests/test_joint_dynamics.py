@@ -28,7 +28,8 @@ import hmpc_pin
 from hmpc_pin.compensation.base import NoCompensation
 from hmpc_pin.exceptions import ConfigError
 from hmpc_pin.experiment.config import ControllerConfig, PlantConfig, load_config
-from hmpc_pin.model.robot import example_robot_urdf, load_robot
+from hmpc_pin.model.catalogue import example_robot_urdf
+from hmpc_pin.model.robot import load_robot
 from hmpc_pin.sim.plants import EulerPlant, RK4Plant
 
 from .conftest import CONFIGS

@@ -12,7 +12,7 @@ from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ...sim.engines import DEFAULT_ENGINE, engine_spec
 from ...sim.engines import ENGINES as ENGINE_REGISTRY
-from ...sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
+from ...sim.mujoco_settings import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
 from ...sim.plants import COULOMB_LAWS, PLANTS
 from ._fields import _array, _bool, _choice, _float, _section, _set
 

@@ -466,13 +466,13 @@ def _ndo_loop_growth(wTs: float, ratio: float, over: float, kp: float = 0.0, kd:
                                  np.array([xd]), np.array([paired]))[0])  # fmt: skip
         u.append(M_hat * (-kp * x - kd * xd) - d_hat)
         if not (kp or kd):  # the velocity alone is an integrator outside the loop: move
-            obs._z += (wTs * M_hat / Ts) * xd  # it into z (d̂ = z + c ẋ unchanged)
+            # it into z (d̂ = z + c ẋ unchanged): the observer's state set through its port
+            obs._core.state = (obs.z + (wTs * M_hat / Ts) * xd, obs.estimate.copy())
             x, xd = 0.0, 0.0
         u = u[-(m + 3) :]
         scale = max(abs(w) for w in u) + (abs(x) + abs(xd) if kp or kd else 0.0)
         u, x, xd = [w / scale for w in u], x / scale, xd / scale
-        obs._z /= scale  # the observer's state is part of the loop's
-        obs._estimate /= scale
+        obs._core.state = (obs.z / scale, obs.estimate / scale)  # part of the loop's state
         norms.append(scale)
     return float(np.exp(np.mean(np.log(norms[steps // 2 :]))))
 

@@ -1,0 +1,19 @@
+"""``hmpc-pin identify``: the command's arguments and its entry point."""
+
+from __future__ import annotations
+
+__all__ = ["add_arguments", "main"]
+
+
+def add_arguments(idf) -> None:
+    """``hmpc-pin identify`` (:mod:`hmpc_pin.apps.identify`)."""
+    from ..identify import identify_arguments
+
+    identify_arguments(idf)
+
+
+def main(args) -> int:
+    """``hmpc-pin identify RESULT`` (:func:`hmpc_pin.apps.identify.cmd_identify`)."""
+    from ..identify import cmd_identify
+
+    return cmd_identify(args)

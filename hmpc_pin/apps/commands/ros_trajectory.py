@@ -1,0 +1,23 @@
+"""``hmpc-pin ros-trajectory``: the command's arguments and its entry point."""
+
+from __future__ import annotations
+
+from ..common import read_config
+
+__all__ = ["add_arguments", "main"]
+
+
+def add_arguments(parser) -> None:
+    """``hmpc-pin ros-trajectory`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from ..ros_client import trajectory_arguments
+
+    trajectory_arguments(parser)
+
+
+def main(args) -> int:
+    """``hmpc-pin ros-trajectory`` (:mod:`hmpc_pin.apps.ros_client`)."""
+    from ...ros.node import import_ros
+    from ..ros_client import run_trajectory
+
+    import_ros("hmpc-pin ros-trajectory")
+    return run_trajectory(args, read_config(args.config))

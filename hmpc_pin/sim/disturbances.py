@@ -189,7 +189,7 @@ class SumDisturbance(Disturbance):
 class Periodic(Disturbance):
     """A disturbance repeated every ``period`` seconds: :math:`d(t \\bmod T, q, \\dot q)`.
 
-    Used by long runs (``benchmarks/long_run.py``) so that the paper's pulses, which
+    Used by long runs (``benchmarks/studies/long_run.py``) so that the paper's pulses, which
     happen once in the first seconds, come back every minute. State-dependent terms
     (friction) are unchanged by the wrapping.
     """

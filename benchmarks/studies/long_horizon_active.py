@@ -19,7 +19,7 @@ Per round and case: the median step; the figures are the medians over rounds of 
 per-round medians and of the per-round ratios (``previous / default``, and ``default`` over
 the same round's inactive step, offset 0).
 
-Run: ``python benchmarks/long_horizon_active.py [--rounds 5] [--steps 100]``.
+Run: ``python benchmarks/studies/long_horizon_active.py [--rounds 5] [--steps 100]``.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
@@ -78,8 +78,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--steps", type=int, default=100)
-    parser.add_argument("--limits-steps", type=int, default=10,
-                        help="steps of the soft-limit cases (each ≈ 0.1 s with the limits active)")
+    parser.add_argument(
+        "--limits-steps",
+        type=int,
+        default=10,
+        help="steps of the soft-limit cases (each ≈ 0.1 s with the limits active)",
+    )
     args = parser.parse_args()
     arm = load_arm("panda", "panda", HOMES["panda"], "general", PANDA_LOCKED)
     print(f"Panda, Ts = 1 ms, N = Nc = 100; {args.rounds} rounds, strategies alternated\n")
@@ -106,9 +110,11 @@ def main() -> int:
                 inactive = np.median(times / np.array(med[("0.0", strategy)]))
                 c = counts[(case, strategy)]
                 label = case if case == "closed loop" else f"held {case} rad off"
-                print(f"| {label} | {strategy} | {np.median(times):.0f} | {speedup:.1f} | "
-                      f"{inactive:.1f} | {c['shortcut']:.0%} | {c['active set']:.0%} | "
-                      f"{c['soft']:.1f} |")
+                print(
+                    f"| {label} | {strategy} | {np.median(times):.0f} | {speedup:.1f} | "
+                    f"{inactive:.1f} | {c['shortcut']:.0%} | {c['active set']:.0%} | "
+                    f"{c['soft']:.1f} |"
+                )
         print()
     return 0
 

@@ -4,13 +4,13 @@ A restructuring of the engine (files moved, errors translated, settings typed) m
 a single result beyond the last bit of a reordered sum. Record on the code as it was, change
 the code, then compare:
 
-    python benchmarks/arrays_check.py record /tmp/before      # on the old code
-    python benchmarks/arrays_check.py compare /tmp/before     # on the new code
+    python benchmarks/tools/arrays_check.py record /tmp/before      # on the old code
+    python benchmarks/tools/arrays_check.py compare /tmp/before     # on the new code
 
 ``record`` runs every shipped config (``hmpc_pin/data/configs/*.toml`` and any
 ``configs/*.toml`` that differs from it) for its shipped duration (``--duration`` shortens
 every run alike), once as configured and once on the per-step oracle loop
-(``tests/reference/loop.py``), and
+(``tests/reference/loop.py``, loaded from its file: ``--oracle``), and
 a few runs with the interface models of ``hmpc_pin.sim.sensing`` (the 0.3 white noise and
 whole-period delay, and the realistic encoder, finite difference, latency and torque filter),
 seeded. Each run's arrays (:data:`~hmpc_pin.sim.result.RESULT_ARRAYS`, the task-space arrays,
@@ -30,10 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from benchmarks.harness import LOOP_ORACLE, per_step_oracle  # noqa: E402
 from hmpc_pin.controllers.wrappers import MeasuredController  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
@@ -41,7 +42,9 @@ from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.experiment.config.sensing import SensingConfig  # noqa: E402
 from hmpc_pin.sim.result import RESULT_ARRAYS, TASK_ARRAYS  # noqa: E402
 from hmpc_pin.sim.sensing import SensedController  # noqa: E402
-from tests.reference.loop import per_step  # noqa: E402
+
+#: The per-step oracle's ``per_step()`` (:func:`main` loads it from ``--oracle``).
+per_step = None
 
 
 def shipped_configs() -> list[Path]:
@@ -167,7 +170,16 @@ def main(argv: list[str] | None = None) -> int:
         "--duration", type=float, default=None, help="simulated time of every run [s]"
     )
     parser.add_argument("--tol", type=float, default=1e-12)
+    parser.add_argument(
+        "--oracle",
+        type=Path,
+        default=LOOP_ORACLE,
+        metavar="PATH",
+        help="the per-step loop oracle's file [tests/reference/loop.py of this clone]",
+    )
     args = parser.parse_args(argv)
+    global per_step
+    per_step = per_step_oracle(args.oracle)
     if args.action == "record":
         return record(args.folder, args.duration)
     return compare(args.folder, args.duration, args.tol)

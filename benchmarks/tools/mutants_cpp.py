@@ -2,12 +2,12 @@
 tests of its area, revert.
 
 The list was written from cpp/ and bindings/ alone (no test read), committed before any ran.
-Same format as benchmarks/one_line_mutants.py: (group, file, old line part, new line part,
+Same format as benchmarks/tools/one_line_mutants.py: (group, file, old line part, new line part,
 tests). The extension is rebuilt by CMake in BUILD (configured once, see --configure) and
 the module copied beside the package (the worktree's hmpc_pin/_core*.so). Run from the
 repository root:
 
-    .venv/bin/python benchmarks/mutants_cpp.py [--only SUBSTRING] [--index I,J,...]
+    .venv/bin/python benchmarks/tools/mutants_cpp.py [--only SUBSTRING] [--index I,J,...]
 """
 
 # ruff: noqa: E501  (the mutants are one source line each)
@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 BUILD = Path(os.environ.get("HMPC_MUT_BUILD", ROOT / "build" / "direct"))
 
 # The tests of each area (chosen after the list was committed; the fastest file first: -x)

@@ -1,6 +1,6 @@
 """Real-time loop benchmark: Panda at 1 kHz against an arm in a separate process.
 
-``python benchmarks/realtime.py [--duration 600] [--config panda_sine] [--rate 1000]
+``python benchmarks/studies/realtime.py [--duration 600] [--config panda_sine] [--rate 1000]
 [--out FILE]`` (from the repository root) runs, one after the other in this process:
 
 1. a *floor*: the same loop, arm process and rate with a controller that only returns
@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
@@ -104,8 +104,7 @@ def simulate_rms(config, duration: float) -> tuple[np.ndarray, float]:
     return compute_metrics(res).rms_error, time.perf_counter() - t0
 
 
-def step_warm_vs_cold(config, blocks: int = 3, seconds: float = 5.0,
-                      lead: float = 2e-4) -> dict:
+def step_warm_vs_cold(config, blocks: int = 3, seconds: float = 5.0, lead: float = 2e-4) -> dict:
     """``controller.step`` over the states of a ``simulate`` run, called back to back
     (warm caches), with a sleep of ``Ts`` before each call (as in the loop, where other
     processes run meanwhile), and with the same sleep but ``warm_up`` on the previous state
@@ -163,7 +162,8 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
     lines = [
         "## Real-time loop (issue 19)",
         "",
-        f"`python benchmarks/realtime.py --duration {args.duration:g} --config {args.config} "
+        "`python benchmarks/studies/realtime.py "
+        f"--duration {args.duration:g} --config {args.config} "
         f"--rate {args.rate:g} --priority {args.priority} --spin {args.spin:g}`; source "
         f"{commit}; scheduling "
         + ("normal" if not args.priority else f"SCHED_FIFO {args.priority} (loop and arm)")
@@ -247,8 +247,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spin", type=float, default=0.0,
                         help="busy-wait before each deadline [s] (0: sleep) [0]")  # fmt: skip
     parser.add_argument("--out", type=Path, help="also write the Markdown here")
-    parser.add_argument("--lead", type=float, default=2e-4,
-                        help="warm_up this long before the step [s] [2e-4]")
+    parser.add_argument(
+        "--lead", type=float, default=2e-4, help="warm_up this long before the step [s] [2e-4]"
+    )
     parser.add_argument("--steps-only", action="store_true",
                         help="only the controller step alone (back to back, after a sleep, "
                         "warmed up); no real-time runs")  # fmt: skip
@@ -259,17 +260,23 @@ def main(argv: list[str] | None = None) -> int:
                                               priority=args.priority, spin=args.spin))  # fmt: skip
     if args.steps_only:
         steps = step_warm_vs_cold(config, blocks=5, lead=args.lead)
-        print(f"`python benchmarks/realtime.py --config {args.config} --steps-only --lead "
-              f"{args.lead:g}`: step alone over {steps['steps']} states, {steps['blocks']} "
-              f"alternating blocks: back to back {steps['warm']:.0f} µs, after a sleep of Ts "
-              f"{steps['cold']:.0f} µs (ratio {steps['ratio']:.2f}), after the sleep with "
-              f"warm_up {1e6 * steps['lead']:.0f} µs before {steps['warmed']:.0f} µs "
-              f"(ratio {steps['warmed_ratio']:.2f})")
+        print(
+            f"`python benchmarks/studies/realtime.py --config {args.config} --steps-only --lead "
+            f"{args.lead:g}`: step alone over {steps['steps']} states, {steps['blocks']} "
+            f"alternating blocks: back to back {steps['warm']:.0f} µs, after a sleep of Ts "
+            f"{steps['cold']:.0f} µs (ratio {steps['ratio']:.2f}), after the sleep with "
+            f"warm_up {1e6 * steps['lead']:.0f} µs before {steps['warmed']:.0f} µs "
+            f"(ratio {steps['warmed_ratio']:.2f})"
+        )
         return 0
     machine = {**machine_info(), **package_versions(("pin", "proxsuite", "numpy"))}
     try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                                capture_output=True, text=True, check=True).stdout.strip()
+        commit = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         commit = "unknown"
     print(f"floor {args.floor:g} s, then 2 x {args.duration:g} s in real time, then simulate",

@@ -20,7 +20,7 @@ Printed per scenario: the median over blocks of (stick-slip / sign) beside the a
 medians of each law, and how far the stick-slip plant moved from its start (0: it stayed at
 rest; an arm whose friction does not hold it, or whose pulses push it, moves).
 
-Usage: python benchmarks/plant_at_rest.py [--config paper_combined] [--periods 1000]
+Usage: python benchmarks/studies/plant_at_rest.py [--config paper_combined] [--periods 1000]
        [--blocks 7]
 """
 
@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

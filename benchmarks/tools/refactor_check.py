@@ -3,8 +3,8 @@
 A speed-up must not change results beyond floating-point rounding or the QP solver's
 tolerance. Record the outputs of the code as it was, change the code, then compare:
 
-    python benchmarks/refactor_check.py record /tmp/before      # on the old code
-    python benchmarks/refactor_check.py compare /tmp/before     # on the new code
+    python benchmarks/tools/refactor_check.py record /tmp/before      # on the old code
+    python benchmarks/tools/refactor_check.py compare /tmp/before     # on the new code
 
 ``record`` runs every ``hmpc_pin/data/configs/*.toml``
 (``Experiment.from_config(...).run()``) and a short sweep (4 samples of
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
@@ -127,8 +127,9 @@ def compare(folder: Path, tol: float) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("action", choices=("record", "compare"))
     parser.add_argument("folder", type=Path)
     parser.add_argument("--tol", type=float, default=1e-9)

@@ -13,8 +13,8 @@ not have, ΔL = β Ts too long (β = 0.25 … 1; the observer fed the torque of 
 10 ms, beside the stability bound ω (r Ts + 2ΔL − 2Ts) < 2 and the package's rule (half of
 it, :func:`~hmpc_pin.compensation.bandwidth.overdeclared_limit`).
 
-    python benchmarks/observer_rule.py
-    python benchmarks/observer_rule.py --over
+    python benchmarks/studies/observer_rule.py
+    python benchmarks/studies/observer_rule.py --over
 """
 
 from __future__ import annotations

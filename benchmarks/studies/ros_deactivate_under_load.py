@@ -1,7 +1,7 @@
 """Is a lifecycle ``deactivate`` answered on a loaded machine with a fourth participant on
 the graph? Run inside a private network namespace (DDS discovery multicasts):
 
-    unshare -n bash -c 'ip link set lo up; python benchmarks/ros_deactivate_under_load.py \
+    unshare -n bash -c 'ip link set lo up; python benchmarks/studies/ros_deactivate_under_load.py \
         [--config panda_sine] [--tries 2] [--wait 12]'
 
 Each try starts ``hmpc-pin ros-arm CONFIG``, a gripper driver publishing joint states and
@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def one_try(config: str, wait: float, options: tuple[str, ...] = ()) -> str:

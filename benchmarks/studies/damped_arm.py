@@ -8,7 +8,7 @@ start of the period, a declared 1 ms latency), with a 0.5 Hz, 0.5 rad sine on ev
 disturbance: the URDF's joint dynamics are the only friction. Each row is one 10 s run;
 the worst joint's RMS tracking error [rad].
 
-Run: ``python -m benchmarks.damped_arm [--duration S]`` (about a minute).
+Run: ``python -m benchmarks.studies.damped_arm [--duration S]`` (about a minute).
 
 ``--latency-error``: instead, Ts = 1 ms (N = 10) with ``[controller] latency = 0.001``
 declared, the measurements 1, 0.5 and 0 ms old
@@ -18,7 +18,7 @@ declared, the measurements 1, 0.5 and 0 ms old
 1/Ts and 0.5/Ts: the worst joint's RMS, or when the run stopped; the sweep's whole
 interface model with the latency declared right; then the stopped 10/Ts run again with a
 higher QP iteration cap.
-``python -m benchmarks.damped_arm --latency-error --duration 2`` (seconds).
+``python -m benchmarks.studies.damped_arm --latency-error --duration 2`` (seconds).
 """
 
 from __future__ import annotations
@@ -124,17 +124,21 @@ def latency_error(base: ExperimentConfig) -> int:
     d = failed.d_hat[:, j]
     grow = (np.abs(d[1:]) > 0.1) & (np.abs(d[1:]) < 0.5 * np.abs(d).max())  # before saturating
     factor = np.median(d[1:][grow] / d[:-1][grow])
-    print(f"\nage 0, 10/Ts: joint {j + 1}'s estimate multiplied by {factor:.3f} per period "
-          "before it saturated (the rule's root at r = 1, g = 10/11: -1.446)")
+    print(
+        f"\nage 0, 10/Ts: joint {j + 1}'s estimate multiplied by {factor:.3f} per period "
+        "before it saturated (the rule's root at r = 1, g = 10/11: -1.446)"
+    )
     ex, r = run(0.0, 10.0, max_iter=10000)
     upto = r.t <= failed.t[-1] + 1e-12
     ratio = np.abs(r.dq[upto]).max(axis=0) / ex.robot.model.velocityLimit
-    print(f"age 0, 10/Ts with controller.max_iter = 10000: passes t = {failed.t[-1]:.3f} s "
-          f"(the default cap's stop): {bool(r.t[-1] > failed.t[-1])}; there the largest "
-          f"|dq|/velocity limit is {ratio.max():.2f} (joint {int(ratio.argmax()) + 1}); over "
-          f"the run (to t = {r.t[-1]:.3f} s, complete {r.complete}) "
-          f"{(np.abs(r.dq).max(axis=0) / ex.robot.model.velocityLimit).max():.2f}, max |d̂| "
-          f"{np.abs(r.d_hat).max():.3g} N·m")
+    print(
+        f"age 0, 10/Ts with controller.max_iter = 10000: passes t = {failed.t[-1]:.3f} s "
+        f"(the default cap's stop): {bool(r.t[-1] > failed.t[-1])}; there the largest "
+        f"|dq|/velocity limit is {ratio.max():.2f} (joint {int(ratio.argmax()) + 1}); over "
+        f"the run (to t = {r.t[-1]:.3f} s, complete {r.complete}) "
+        f"{(np.abs(r.dq).max(axis=0) / ex.robot.model.velocityLimit).max():.2f}, max |d̂| "
+        f"{np.abs(r.d_hat).max():.3g} N·m"
+    )
     return 0
 
 

@@ -15,7 +15,7 @@ its ``advance`` calls inside that run). The settings run in alternating blocks i
 process; each block gives a ratio to the ``rk4`` run of the same block, and the table
 reports the median of those ratios beside the absolute medians.
 
-Run from the repository root: ``python benchmarks/mujoco_plant.py [--blocks 7]``.
+Run from the repository root: ``python benchmarks/studies/mujoco_plant.py [--blocks 7]``.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import PlantConfig, load_config
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 class _TimedPlant:

@@ -4,9 +4,9 @@ The older version is a copy of its ``hmpc_pin`` folder renamed ``hmpc_pin_old`` 
 package imports itself relatively, so both load side by side):
 
     git archive 596fa7b hmpc_pin | tar -x -C /tmp/old && mv /tmp/old/hmpc_pin /tmp/old/hmpc_pin_old
-    python benchmarks/ab.py --old /tmp/old run      # the paper's 10 s run, 7 rounds
-    python benchmarks/ab.py --old /tmp/old step     # planar3 and Panda steps, Nc = 1
-    python benchmarks/ab.py --old /tmp/old sweep    # the README's sweep: 200 samples, 2 jobs
+    python benchmarks/tools/ab.py --old /tmp/old run      # the paper's 10 s run, 7 rounds
+    python benchmarks/tools/ab.py --old /tmp/old step     # planar3 and Panda steps, Nc = 1
+    python benchmarks/tools/ab.py --old /tmp/old sweep    # the README's sweep: 200 samples, 2 jobs
 
 Old and new alternate (old, new, old, new, ...), so that the slow and fast phases of a
 shared machine hit both alike; the figure is the median over rounds of old / new (the
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
@@ -101,8 +101,11 @@ def ab_step(old_pkg, new_pkg, rounds: int) -> dict:
         tr = record_trajectory(arm, 1200)
         ctrls = []
         for pkg in (old_pkg, new_pkg):
-            robot = pkg.load_robot(arm.robot.source, gravity=9.8,
-                                   locked_joints=PANDA_LOCKED if arm.name == "panda" else None)
+            robot = pkg.load_robot(
+                arm.robot.source,
+                gravity=9.8,
+                locked_joints=PANDA_LOCKED if arm.name == "panda" else None,
+            )
             cfg = pkg.ControllerConfig(Nc=1, observer=pkg.ObserverConfig(kind=arm.observer))
             ctrls.append(pkg.make_controller(robot, cfg))
         ref = arm.reference()
@@ -123,11 +126,13 @@ def ab_step(old_pkg, new_pkg, rounds: int) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("what", choices=("run", "step", "sweep"))
-    parser.add_argument("--old", type=Path, required=True,
-                        help="folder holding the old package as hmpc_pin_old")
+    parser.add_argument(
+        "--old", type=Path, required=True, help="folder holding the old package as hmpc_pin_old"
+    )
     parser.add_argument("--rounds", type=int, default=None)
     parser.add_argument("--samples", type=int, default=200)
     parser.add_argument("--jobs", type=int, default=2)

@@ -8,7 +8,7 @@ the latency compensated (``known``) and not (``unknown``), and the opposite mist
 (``over``: the controller told of a one-cycle latency the interface does not have). Prints
 the worst joint's RMS error.
 
-    python benchmarks/latency_1khz.py panda_sine ur5_circle z1_sine --duration 3 --light 0.8
+    python benchmarks/studies/latency_1khz.py panda_sine ur5_circle z1_sine --duration 3 --light 0.8
 """
 
 from __future__ import annotations

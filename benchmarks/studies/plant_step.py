@@ -11,7 +11,7 @@ Accuracy: each run against
 a fine one (step Ts/100, the same law): the largest state error max|q − q_fine| [rad] and
 the relative change of the tracking RMS (after 1 s, over the joints).
 
-Usage: python benchmarks/plant_step.py [--configs paper_friction paper_external
+Usage: python benchmarks/studies/plant_step.py [--configs paper_friction paper_external
        paper_combined paper_cartesian panda_sine] [--tolerance 1e-4] [--blocks 5]
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

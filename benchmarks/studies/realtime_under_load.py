@@ -12,7 +12,7 @@ run's timing file:
 * the longest run of consecutive missed cycles (what ``max_misses`` counts);
 * the 1-minute load average at the end.
 
-    python benchmarks/realtime_under_load.py [--config panda_sine] [--rate 1000]
+    python benchmarks/studies/realtime_under_load.py [--config panda_sine] [--rate 1000]
         [--duration 60] [--load 4] [--priority 0]
 """
 

@@ -27,7 +27,8 @@ With ``--soft-step-exchanges K``: the soft exchanges bounded to K per step
 counted, and resumes at the next step); printed beside the counters: the fallbacks, the
 exchanges and the most in a step.
 
-Run: ``python benchmarks/worst_step.py [--blocks 7] [--steps 100] [--soft-step-exchanges 16]``.
+Run: ``python benchmarks/studies/worst_step.py [--blocks 7] [--steps 100]
+[--soft-step-exchanges 16]``.
 """
 
 from __future__ import annotations
@@ -40,13 +41,13 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks._fixtures import HOMES, PANDA_LOCKED, load_arm  # noqa: E402
-from benchmarks.long_horizon_soft import OFFSET, closed_loop  # noqa: E402
-from benchmarks.long_horizon_soft import controller as _controller  # noqa: E402
+from benchmarks.studies.long_horizon_soft import OFFSET, closed_loop  # noqa: E402
+from benchmarks.studies.long_horizon_soft import controller as _controller  # noqa: E402
 
 TS, N = 0.001, 100  # [s], horizon
 
@@ -100,7 +101,7 @@ def main() -> int:
         help="JointQPsOptions.soft_step_exchanges (default: the package's)",
     )
     args = parser.parse_args()
-    print("command: python benchmarks/worst_step.py " + " ".join(sys.argv[1:]))
+    print("command: python benchmarks/studies/worst_step.py " + " ".join(sys.argv[1:]))
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
     arm = load_arm("panda", "panda", HOMES["panda"], "general", PANDA_LOCKED)
     robot, ref = arm.robot, arm.reference()

@@ -35,7 +35,7 @@ With ``--baseline PYTHON`` every block also runs the ``hmpc-pin`` beside that in
 (another checkout's environment, e.g. the version before a change), figures drawn, so that
 the two versions are compared under the same load.
 
-Usage: python benchmarks/cli_overhead.py [--repeats 5] [--configs panda_sine paper_combined]
+Usage: python benchmarks/studies/cli_overhead.py [--repeats 5] [--configs panda_sine paper_combined]
        [--parts]  (also: the parts of a run, timed one after the other in one process)
        [--baseline PATH/TO/OTHER/python]
 """
@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
@@ -76,6 +76,7 @@ def compile_package(python: str) -> None:
     code = ("import compileall, os, hmpc_pin; "
             "compileall.compile_dir(os.path.dirname(hmpc_pin.__file__), quiet=1)")  # fmt: skip
     subprocess.run([python, "-c", code], env=ENV, check=True)
+
 
 #: ``hmpc-pin`` with its figures drawn in its own process, one after the other (no figure
 #: process): what the figure process saves, measured beside it.

@@ -1,6 +1,6 @@
 """One simulated hour of the paper's combined scenario: is the loop stationary?
 
-``python benchmarks/long_run.py [--minutes 60] [--repeat 60] [--config FILE]`` (from the
+``python benchmarks/studies/long_run.py [--minutes 60] [--repeat 60] [--config FILE]`` (from the
 repository root) runs ``configs/paper_combined.toml`` (Section 5.3: friction plus
 Gaussian pulses, sine reference, NDO on) for ``--minutes`` simulated minutes in one
 closed-loop run and prints, per minute, the RMS tracking error of each joint, its ratio
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

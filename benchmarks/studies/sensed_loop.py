@@ -12,7 +12,7 @@ checks that the two runs' arrays are identical.
 ``python-controller``: the same scenario with computed torque and the momentum observer (a
 controller without a compiled step: the compiled loop calls it through its Controller port).
 
-    python benchmarks/sensed_loop.py [--case sensed|python-controller] [--rounds 5]
+    python benchmarks/studies/sensed_loop.py [--case sensed|python-controller] [--rounds 5]
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

@@ -8,7 +8,7 @@ paper's Q = diag(50, 0), P = 2Q, R = 1e-6. Both QPs are warm-started and fed the
 sequence of references and initial states (a sine sampled every 1 ms); the figure is the
 median of ``update`` + ``solve`` over 300 steps.
 
-Run: ``python benchmarks/long_horizon_sparse.py``.
+Run: ``python benchmarks/studies/long_horizon_sparse.py``.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ import numpy as np
 import scipy.sparse as sp
 from proxsuite import proxqp
 
-if str(Path(__file__).resolve().parent.parent) not in sys.path:  # run as a script
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+if str(Path(__file__).resolve().parents[2]) not in sys.path:  # run as a script
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from benchmarks._fixtures import new_qp
 from hmpc_pin.mpc.condensed import CondensedMPC

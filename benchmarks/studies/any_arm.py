@@ -13,8 +13,8 @@ needs anyway), so ``step / floor`` is the MPC and observer overhead.
 
 Usage::
 
-    python -m benchmarks.any_arm --out out/any_arm            # full table (10 s runs)
-    python -m benchmarks.any_arm --duration 2 --models ur5,kinova
+    python -m benchmarks.studies.any_arm --out out/any_arm            # full table (10 s runs)
+    python -m benchmarks.studies.any_arm --duration 2 --models ur5,kinova
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ the median absolute times. Blocks alternate the measurements so that a shared ma
 loads each alike. The share of the runs that went through the compiled loop is counted
 (every run does since the ports).
 
-Usage: python benchmarks/sweep_overhead.py [--config panda_sine] [--samples 8] [--repeats 3]
+Usage: python benchmarks/studies/sweep_overhead.py [--config panda_sine] [--samples 8] [--repeats 3]
        [--dask]
 """
 
@@ -34,11 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from benchmarks.cli_overhead import IMPORTS, PYTHON, command, wall  # noqa: E402
+from benchmarks.studies.cli_overhead import IMPORTS, PYTHON, command, wall  # noqa: E402
 from hmpc_pin.apps.sweep import draw_samples, resolve_variants, run_sample  # noqa: E402
 from hmpc_pin.experiment.config import load_config  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Franka driver benchmark: per-cycle compute and the robot's success rate, at 1 kHz.
 
-``python benchmarks/franka_cycle.py [--config fr3_sine] [--duration 60] [--robot-ip HOST]
+``python benchmarks/studies/franka_cycle.py [--config fr3_sine] [--duration 60] [--robot-ip HOST]
 [--ts 0.001]`` (from the repository root) runs ``hmpc-pin franka``'s driver in this
 process (:func:`hmpc_pin.apps.franka.run_franka`) against ``--robot-ip`` or, without it,
 against the FCI simulator franky-sim started here (``franky-sim -s mujoco`` on
@@ -35,7 +35,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy (the driver's
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _port_open(host: str, port: int) -> bool:

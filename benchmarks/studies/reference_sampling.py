@@ -9,7 +9,7 @@ the floor, and the ratio of their medians is taken per block; the report gives t
 of those ratios beside the absolute medians. Also timed: what happens once, before a run
 (loading and checking the CSV, TOPP-RA retiming, pink's IK of the 10 s circle).
 
-Usage: python benchmarks/reference_sampling.py [--blocks 30] [--calls 2000]
+Usage: python benchmarks/studies/reference_sampling.py [--blocks 30] [--calls 2000]
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 import hmpc_pin
 from hmpc_pin.experiment.build import Experiment
 
-CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
 
 def _block(ref, times_list, out) -> float:

@@ -21,7 +21,7 @@ medians of the blocks' absolute medians. Also printed: the largest difference of
 accelerations v between the shortcut and ProxSuite along the states, and how the soft QPs
 were answered.
 
-Run: ``python benchmarks/long_horizon_soft.py [--blocks 7] [--proxsuite]``.
+Run: ``python benchmarks/studies/long_horizon_soft.py [--blocks 7] [--proxsuite]``.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
@@ -166,7 +166,7 @@ def main() -> int:
         help="also time the soft QPs solved by ProxSuite alone (slow)",
     )
     args = parser.parse_args()
-    print("command: python benchmarks/long_horizon_soft.py " + " ".join(sys.argv[1:]))
+    print("command: python benchmarks/studies/long_horizon_soft.py " + " ".join(sys.argv[1:]))
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
     arm = load_arm("panda", "panda", HOMES["panda"], "general", PANDA_LOCKED)
     for Ts, N, steps in SCENARIOS:

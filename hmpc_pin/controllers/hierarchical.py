@@ -447,11 +447,11 @@ class HierarchicalMPC(AppliedTorque):
 
     @property
     def fused(self) -> bool:
-        """Whether the whole step runs without calling Python: the compensation is compiled
-        (the NDO of Eq 13, or none) and so is the model's dynamics. Any other compensation
+        """Whether the whole step runs compiled, without calling Python: the compensation is
+        compiled (the NDO of Eq 13, or none) and so is the model's dynamics. Any other compensation
         (momentum, ISM, a user class) is advanced inside the compiled step too, called
         through its Compensation port (``cpp/include/hmpc/interfaces.hpp``)."""
-        return self._fused
+        return self._all_compiled
 
     def _make_core(self) -> None:
         """The compiled step (``cpp/src/step.cpp``), composed of the compiled components: the
@@ -459,7 +459,7 @@ class HierarchicalMPC(AppliedTorque):
         (the compiled observer itself, or the Python object through its trampoline)."""
         decoded = step_compensation(self.compensation)
         port = decoded.port
-        self._fused = decoded.compiled and not self._python_dynamics
+        self._all_compiled = decoded.compiled and not self._python_dynamics
         self._port = port
         model = None if self._python_dynamics else model_string(self.robot)
         buf = self._buf
@@ -486,7 +486,7 @@ class HierarchicalMPC(AppliedTorque):
         if b.any() or f.any():
             core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
-        self._reference = None  # the reference's native form is set on the next step
+        self._reference = None  # the reference's compiled form is set on the next step
         self.effort_limit = self.effort_limit
 
     @property
@@ -614,7 +614,7 @@ class HierarchicalMPC(AppliedTorque):
         :meth:`step` after :meth:`reset`, or with a compensation advanced from Python (its
         state is its own). Errors of the dry step are dropped: the real step reports them.
         """
-        if not (self._started and self._fused):
+        if not (self._started and self._all_compiled):
             return
         ndo = self._port
         buffers = [self._buf[name].copy() for name in ("v", "tau", "d_hat", "nle")]
@@ -655,7 +655,7 @@ class HierarchicalMPC(AppliedTorque):
 
     def _sample_horizon(self, t: float) -> None:
         """The horizon rows of the step's stack, :math:`r(t + jT_s)`, :math:`\\dot r(t +
-        jT_s)`, j = 1..N, from a reference without a native form (sampled here, in one
+        jT_s)`, j = 1..N, from a reference without a compiled form (sampled here, in one
         ``sample_many`` call; the compiled loop calls this through its Reference port).
 
         Raises:

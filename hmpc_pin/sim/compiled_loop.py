@@ -13,11 +13,11 @@ loop, many control periods per call into the compiled core (``cpp/src/loop.cpp``
   subclass) is called by the loop; any other controller (computed torque, any other
   wrapper) is called as a whole,
   ``step(t, q, dq, reference)`` and ``disturbance_estimate``, through the Controller port;
-- the reference: one with a native form (sine, piecewise polynomial) is sampled in C++;
+- the reference: one with a compiled form (sine, piecewise polynomial) is sampled in C++;
   any other is sampled in Python (the controller's ``sample_many`` of the horizon, as its
   per-step ``step`` does), called from the compiled loop through its Reference port;
 - the plant: :class:`~hmpc_pin.sim.plants.RK4Plant`'s compiled plant (its ``port``, whose
-  state it is) is advanced by the loop itself, its disturbance fused (time-only terms
+  state it is) is advanced by the loop itself, its disturbance compiled (time-only terms
   tabulated by the plant per :data:`~hmpc_pin.sim.plants.PULSE_CHUNK` periods, a chunk of
   the loop at a time; one Coulomb–viscous friction evaluated in C++) or a callable
   ``d(t, q, dq)`` called at every stage; any other plant (semi-implicit Euler, MuJoCo, an

@@ -29,7 +29,7 @@ plants here unless ``joint_dynamics=False``.
 The Coulomb term is discontinuous at :math:`\\dot q_i = 0`, where RK4 with
 :math:`\\mathrm{sgn}` per stage converges at first order only. :class:`RK4Plant` (``coulomb =
 "stick-slip"``, the default) integrates it as a stick-slip law with event location: the sign
-of each joint's Coulomb term (the URDF's :math:`F` and the fused ``[disturbance.friction]``
+of each joint's Coulomb term (the URDF's :math:`F` and the compiled ``[disturbance.friction]``
 term's :math:`b`) is held over a step at :math:`\\mathrm{sgn}\\,\\dot q_i` of its start, the
 step is split where a velocity changes sign (the crossing found by regula falsi on the RK4
 step's length, to :math:`10^{-13}` of the step), and a joint at rest sticks: its friction
@@ -45,7 +45,7 @@ same events). ``coulomb = "sign"``:
 about :math:`\\dot q = 0` rather than sticking (versions before 0.3; :class:`EulerPlant`
 always). A disturbance evaluated as a function (a sum with a term of the user's) keeps its
 own terms, but for its Coulomb–viscous terms (:func:`friction_in`), which follow the same
-law as when fused. MuJoCo's
+law as when compiled. MuJoCo's
 ``frictionloss`` is a soft constraint that holds a joint at rest while the torque is below
 :math:`f`.
 
@@ -54,7 +54,7 @@ step stays within a tolerance (``[plant] tolerance``).
 
 The period is one call into the compiled core (``cpp/src/rk4.cpp``, ``RK4``), the only
 implementation of it (its numpy oracle, the plain loop, is ``tests/reference/rk4.py``).
-Terms defined by a fused form alone are evaluated fused: time-only terms
+Terms defined by their compiled form alone are evaluated compiled: time-only terms
 (:class:`~hmpc_pin.sim.disturbances.TimeOnly`, e.g.
 :class:`~hmpc_pin.sim.disturbances.GaussianPulse`: ``sample_times(times)``) at all
 3·substeps stage times of :data:`PULSE_CHUNK` periods in one call each, added to the held
@@ -171,7 +171,7 @@ def _friction_of(term, n: int) -> tuple[FloatArray, FloatArray] | None:
 def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
     """The summed ``(a, b)`` of the Coulomb–viscous terms of a disturbance evaluated as a
     function (a sum with other terms), which the stick-slip period then integrates as the
-    fused one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
+    compiled one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
     terms = _terms(disturbance)
     found = [ab for ab in (_friction_of(term, n) for term in terms) if ab is not None]
     if not found:
@@ -190,13 +190,13 @@ def _terms(disturbance) -> tuple:
 
 
 def split_disturbance(disturbance, n: int):
-    """Split ``disturbance`` into fused parts, or return ``None`` if it has other terms.
+    """Split ``disturbance`` into its compiled parts, or return ``None`` if it has other terms.
 
     Returns:
         ``(pulses, friction)``: the time-only terms
         (:class:`~hmpc_pin.sim.disturbances.TimeOnly`) and the single Coulomb–viscous
         term's ``(a, b)`` (:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`, or
-        ``None``); each is defined by its fused form alone, so no check that the two agree;
+        ``None``); each is defined by its compiled form alone, so no check that the two agree;
         ``None`` instead of the pair when the disturbance has any other term (a user
         callable, two friction terms), which is then evaluated term by term.
     """
@@ -222,7 +222,7 @@ class RK4Plant:
 
     The plant is the compiled core's (``cpp/include/hmpc/rk4_plant.hpp``, ``RK4Plant``, the
     closed loop's Plant port; its period ``cpp/src/rk4.cpp``; module docstring): its state
-    lives there, one C++ call per period, with the disturbance's fused terms (time-only
+    lives there, one C++ call per period, with the disturbance's compiled terms (time-only
     terms tabulated here per :data:`PULSE_CHUNK` periods, one Coulomb–viscous friction
     evaluated per stage in C++), or any other disturbance called as ``d(t, q, dq)`` at every
     stage from C++; Pinocchio's compiled ABA, or its Python ABA for a model with mimic
@@ -243,7 +243,8 @@ class RK4Plant:
 
     Attributes:
         native: ``True`` (kept for callers of 0.2).
-        fused: Whether the disturbance's terms are evaluated fused (else called per stage).
+        fused: Whether every term of the disturbance is evaluated compiled (else the
+            disturbance is called per stage).
         port: The compiled plant (``hmpc_pin._core.RK4Plant``) that holds the state and
             advances it.
     """
@@ -281,7 +282,7 @@ class RK4Plant:
         self._split = split_disturbance(disturbance, n)
         self.fused = self._split is not None
         self._pulses, self._friction = self._split if self._split is not None else ([], None)
-        # a function's own friction terms, integrated by the stick-slip law as the fused one
+        # a function's own friction terms, integrated by the stick-slip law as the compiled one
         self._in_function = None if self.fused else friction_in(disturbance, n)
         zero = np.zeros(n)
         a, b = self._friction if self._friction is not None else (zero, zero)
@@ -370,7 +371,7 @@ class RK4Plant:
         self._chunk_k, self._chunk = 0, np.empty((0, 3 * self.substeps, self.n))
 
     def disturbance_now(self) -> FloatArray:
-        """:math:`d(t, q, \\dot q)` [N·m] at the current time and state (fused: the
+        """:math:`d(t, q, \\dot q)` [N·m] at the current time and state (compiled: the
         time-only terms from the table, stage 0 of the period being t itself, minus the
         friction; else the disturbance called)."""
         if self.fused:

@@ -514,8 +514,8 @@ def model_at() -> str:
     end = ", ".join(_e4(x) for x in rms["end"].rms_error)
     start = ", ".join(_e4(x) for x in rms["start"].rms_error)
     return _para(
-        '`hmpc-pin init` writes `"start"`. The default stays `"end"`, so configs of '
-        "earlier versions run as before (the paper's scenario `hmpc-pin run paper_combined`: "
+        '`hmpc-pin init` writes `"start"`. The default is `"end"`, the paper\'s '
+        "discretisation (the paper's scenario `hmpc-pin run paper_combined`: "
         f'{end} rad with `"end"`; {start} with `"start"`).'
     )
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin check``: the command's arguments and its entry point."""
+"""``hmpc-pin check``: check a config's arm before running it (observer, damping, torque,
+engines). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin compare``: the command's arguments and its entry point."""
+"""``hmpc-pin compare``: run several controllers on one experiment and compare them. Its
+arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin configs``: the command's arguments and its entry point."""
+"""``hmpc-pin configs``: list the packaged configs, or write an editable copy of one. Its
+arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

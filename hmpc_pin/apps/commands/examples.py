@@ -1,4 +1,6 @@
-"""``hmpc-pin examples``: the command's arguments and its entry point."""
+"""``hmpc-pin examples``: list the packaged example scripts, or write a copy of one. Its
+arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

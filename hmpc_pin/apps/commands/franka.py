@@ -1,4 +1,6 @@
-"""``hmpc-pin franka``: the command's arguments and its entry point."""
+"""``hmpc-pin franka``: run the controller on a Franka FR3 or Panda over libfranka at 1 kHz
+(extra: franka). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin identify``: the command's arguments and its entry point."""
+"""``hmpc-pin identify``: identify joint friction (or collision thresholds) from a saved run.
+Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

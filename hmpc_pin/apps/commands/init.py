@@ -1,4 +1,6 @@
-"""``hmpc-pin init``: the command's arguments and its entry point."""
+"""``hmpc-pin init``: write a commented config for any arm (URDF path or example-robot-data
+name). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin native``: the command's arguments and its entry point."""
+"""``hmpc-pin native``: report the compiled core (built when the package was installed). Its
+arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin plot``: the command's arguments and its entry point."""
+"""``hmpc-pin plot``: draw the figures of a saved run, timing, sweep table or identification.
+Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin realtime``: the command's arguments and its entry point."""
+"""``hmpc-pin realtime``: run the controller in real time against an arm in a separate process.
+Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin replay``: the command's arguments and its entry point."""
+"""``hmpc-pin replay``: write a self-contained Meshcat HTML replay of a saved run. Its
+arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

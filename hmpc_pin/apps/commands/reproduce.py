@@ -1,4 +1,6 @@
-"""``hmpc-pin reproduce``: the command's arguments and its entry point."""
+"""``hmpc-pin reproduce``: run every paper experiment and write DIR/report.md. Its arguments
+(:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

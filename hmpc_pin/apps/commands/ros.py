@@ -1,4 +1,6 @@
-"""``hmpc-pin ros``: the command's arguments and its entry point."""
+"""``hmpc-pin ros``: run the controller as a ROS 2 node against /joint_states (extra: ros). Its
+arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

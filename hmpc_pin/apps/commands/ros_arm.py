@@ -1,4 +1,6 @@
-"""``hmpc-pin ros-arm``: the command's arguments and its entry point."""
+"""``hmpc-pin ros-arm``: run the config's plant as a ROS 2 node (joint states out, efforts in;
+extra: ros). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin ros-params``: the command's arguments and its entry point."""
+"""``hmpc-pin ros-params``: print the parameters of the `ros` node (extra: ros). Its arguments
+(:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin ros-trajectory``: the command's arguments and its entry point."""
+"""``hmpc-pin ros-trajectory``: send a new reference to the `ros` node's ~/joint_trajectory
+(extra: ros). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

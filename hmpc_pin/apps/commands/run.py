@@ -1,4 +1,6 @@
-"""``hmpc-pin run``: the command's arguments and its entry point."""
+"""``hmpc-pin run``: run one experiment from a TOML config. Its arguments
+(:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

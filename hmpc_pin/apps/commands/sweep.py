@@ -1,4 +1,6 @@
-"""``hmpc-pin sweep``: the command's arguments and its entry point."""
+"""``hmpc-pin sweep``: Monte Carlo robustness sweep of an experiment (with and without NDO).
+Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""``hmpc-pin tune``: the command's arguments and its entry point."""
+"""``hmpc-pin tune``: tune observer gain, Q, R, N (and Ts) on the sweep's perturbed plants
+(Optuna). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+"""
 
 from __future__ import annotations
 

@@ -51,7 +51,7 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 def out_dir(path: Path, option: str = "--out") -> Path:
     """Create ``path`` and check it is a writable directory, or raise :class:`OutputError`
     naming ``option``. The first side effect of a command: it ends the start-up (Ctrl-C
-    raises :class:`KeyboardInterrupt` from here on, :mod:`hmpc_pin._startup`)."""
+    raises :class:`KeyboardInterrupt` from here on, ``hmpc_pin._startup``)."""
     _startup.end()
     if path.exists() and not path.is_dir():
         raise OutputError(path, "is a file", option)

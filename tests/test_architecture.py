@@ -181,6 +181,24 @@ def test_nothing_in_the_repository_imports_the_schema_shim():
         assert f"from {SHIM} import" not in text and f"import {SHIM}" not in text, page
 
 
+def test_every_command_is_one_module_with_the_same_two_entry_points():
+    """``hmpc-pin``'s table registers one module of ``hmpc_pin.apps.commands`` per command,
+    each exporting ``add_arguments(parser)`` and ``main(args)``, and no other module."""
+    import importlib
+    import inspect
+
+    from hmpc_pin.apps.cli import COMMANDS
+
+    folder = PKG / "apps" / "commands"
+    modules = {p.stem for p in folder.glob("*.py")} - {"__init__"}
+    assert sorted(m for _, m in COMMANDS.values()) == sorted(modules)
+    for name in modules:
+        module = importlib.import_module(f"hmpc_pin.apps.commands.{name}")
+        assert module.__all__ == ["add_arguments", "main"], name
+        for entry in (module.add_arguments, module.main):
+            assert list(inspect.signature(entry).parameters)[1:] == [], (name, entry)
+
+
 def test_report_does_not_import_the_command_line():
     assert "hmpc_pin.apps.cli" not in GRAPH["hmpc_pin.apps.report"]
 

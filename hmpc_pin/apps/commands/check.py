@@ -1,5 +1,5 @@
 """``hmpc-pin check``: check a config's arm before running it (observer, damping, torque,
-engines). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+engines). Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

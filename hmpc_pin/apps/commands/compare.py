@@ -1,5 +1,5 @@
 """``hmpc-pin compare``: run several controllers on one experiment and compare them. Its
-arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

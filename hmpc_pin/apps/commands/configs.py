@@ -1,5 +1,5 @@
 """``hmpc-pin configs``: list the packaged configs, or write an editable copy of one. Its
-arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

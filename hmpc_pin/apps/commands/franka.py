@@ -1,5 +1,5 @@
 """``hmpc-pin franka``: run the controller on a Franka FR3 or Panda over libfranka at 1 kHz
-(extra: franka). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+(extra: franka). Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``hmpc-pin identify``: identify joint friction (or collision thresholds) from a saved run.
-Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

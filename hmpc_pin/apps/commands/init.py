@@ -1,5 +1,5 @@
 """``hmpc-pin init``: write a commented config for any arm (URDF path or example-robot-data
-name). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+name). Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``hmpc-pin native``: report the compiled core (built when the package was installed). Its
-arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

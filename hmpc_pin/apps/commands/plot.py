@@ -1,5 +1,5 @@
 """``hmpc-pin plot``: draw the figures of a saved run, timing, sweep table or identification.
-Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``hmpc-pin realtime``: run the controller in real time against an arm in a separate process.
-Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``hmpc-pin replay``: write a self-contained Meshcat HTML replay of a saved run. Its
-arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

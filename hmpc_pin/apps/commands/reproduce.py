@@ -1,5 +1,5 @@
 """``hmpc-pin reproduce``: run every paper experiment and write DIR/report.md. Its arguments
-(:func:`add_arguments`) and its entry point (:func:`main`).
+(``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

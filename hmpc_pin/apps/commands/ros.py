@@ -1,5 +1,5 @@
 """``hmpc-pin ros``: run the controller as a ROS 2 node against /joint_states (extra: ros). Its
-arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

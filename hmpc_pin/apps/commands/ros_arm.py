@@ -1,5 +1,5 @@
 """``hmpc-pin ros-arm``: run the config's plant as a ROS 2 node (joint states out, efforts in;
-extra: ros). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+extra: ros). Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

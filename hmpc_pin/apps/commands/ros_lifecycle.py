@@ -1,5 +1,5 @@
 """``hmpc-pin ros-lifecycle``: change or get the lifecycle state of the `ros` node (extra:
-ros). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+ros). Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

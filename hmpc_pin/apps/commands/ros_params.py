@@ -1,5 +1,5 @@
 """``hmpc-pin ros-params``: print the parameters of the `ros` node (extra: ros). Its arguments
-(:func:`add_arguments`) and its entry point (:func:`main`).
+(``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``hmpc-pin ros-trajectory``: send a new reference to the `ros` node's ~/joint_trajectory
-(extra: ros). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+(extra: ros). Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``hmpc-pin run``: run one experiment from a TOML config. Its arguments
-(:func:`add_arguments`) and its entry point (:func:`main`).
+(``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``hmpc-pin sweep``: Monte Carlo robustness sweep of an experiment (with and without NDO).
-Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

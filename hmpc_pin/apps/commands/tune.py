@@ -1,5 +1,5 @@
 """``hmpc-pin tune``: tune observer gain, Q, R, N (and Ts) on the sweep's perturbed plants
-(Optuna). Its arguments (:func:`add_arguments`) and its entry point (:func:`main`).
+(Optuna). Its arguments (``add_arguments``) and its entry point (``main``).
 """
 
 from __future__ import annotations

@@ -181,6 +181,24 @@ def test_nothing_in_the_repository_imports_the_schema_shim():
         assert f"from {SHIM} import" not in text and f"import {SHIM}" not in text, page
 
 
+def test_every_command_is_one_module_with_the_same_two_entry_points():
+    """``hmpc-pin``'s table registers one module of ``hmpc_pin.apps.commands`` per command,
+    each exporting ``add_arguments(parser)`` and ``main(args)``, and no other module."""
+    import importlib
+    import inspect
+
+    from hmpc_pin.apps.cli import COMMANDS
+
+    folder = PKG / "apps" / "commands"
+    modules = {p.stem for p in folder.glob("*.py")} - {"__init__"}
+    assert sorted(m for _, m in COMMANDS.values()) == sorted(modules)
+    for name in modules:
+        module = importlib.import_module(f"hmpc_pin.apps.commands.{name}")
+        assert module.__all__ == ["add_arguments", "main"], name
+        for entry in (module.add_arguments, module.main):
+            assert list(inspect.signature(entry).parameters)[1:] == [], (name, entry)
+
+
 def test_report_does_not_import_the_command_line():
     assert "hmpc_pin.apps.cli" not in GRAPH["hmpc_pin.apps.report"]
 
@@ -205,47 +223,65 @@ def test_every_exception_is_defined_in_exceptions_py():
 BENCH = PKG.parent / "benchmarks"
 
 
-def _bench_imports(path: Path) -> tuple[set[str], list[str]]:
-    """The ``benchmarks`` modules ``path`` imports and the private names it takes from
-    ``hmpc_pin`` (function-level imports included)."""
+def _bench_imports(path: Path) -> tuple[set[str], list[str], list[str]]:
+    """The ``benchmarks`` modules ``path`` imports (dotted below ``benchmarks``, e.g.
+    ``studies.long_run``), the private names it takes from ``hmpc_pin``, and the modules of
+    ``tests`` it imports (function-level imports included)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
-    mods, private = set(), []
+    mods, private, tests = set(), [], []
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom) and node.module:
-            if node.module.startswith("benchmarks"):
-                parts = node.module.split(".")
-                if len(parts) > 1:
-                    mods.add(parts[1])
-                else:
-                    mods.update(alias.name for alias in node.names)
+            if node.module == "benchmarks" or node.module.startswith("benchmarks."):
+                below = node.module.removeprefix("benchmarks").lstrip(".")
+                for alias in node.names:  # a module, or a name of the module `below`
+                    name = f"{below}.{alias.name}".lstrip(".")
+                    mods.add(name if (BENCH / f"{name.replace('.', '/')}.py").exists() else below)
             elif node.module.startswith("hmpc_pin"):
                 private += [f"{node.module}.{a.name}" for a in node.names
                             if a.name.startswith("_")]  # fmt: skip
                 private += [node.module] if any(p.startswith("_") for p in
                                                 node.module.split(".")) else []  # fmt: skip
+            elif node.module == "tests" or node.module.startswith("tests."):
+                tests.append(node.module)
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.startswith("benchmarks."):
-                    mods.add(alias.name.split(".")[1])
+                    mods.add(alias.name.removeprefix("benchmarks."))
                 if alias.name.startswith("hmpc_pin") and any(
                     p.startswith("_") for p in alias.name.split(".")
                 ):
                     private.append(alias.name)
-    return mods, private
+                if alias.name == "tests" or alias.name.startswith("tests."):
+                    tests.append(alias.name)
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", None) == "import_module":
+            tests += [c.value for c in node.args if isinstance(c, ast.Constant)
+                      and str(c.value).startswith("tests")]  # fmt: skip
+    return mods - {""}, private, tests
+
+
+def _bench_modules() -> dict[str, Path]:
+    """Every program of ``benchmarks/`` by its dotted name below it: the suite
+    (``run``, ``steps``, ...), ``studies.*`` and ``tools.*``."""
+    return {
+        p.relative_to(BENCH).with_suffix("").as_posix().replace("/", "."): p
+        for p in BENCH.rglob("*.py")
+        if p.stem != "__init__"
+    }
 
 
 def test_benchmarks_form_no_import_cycle_and_use_only_public_names():
-    graph, private = {}, {}
-    for path in BENCH.glob("*.py"):
-        if path.stem == "__init__":
-            continue
-        graph[path.stem], found = _bench_imports(path)
+    graph, private, tests = {}, {}, {}
+    for name, path in _bench_modules().items():
+        graph[name], found, from_tests = _bench_imports(path)
         if found:
-            private[path.stem] = found
+            private[name] = found
+        if from_tests:
+            tests[name] = from_tests
     assert not private, f"benchmarks importing private hmpc_pin names: {private}"
+    assert not tests, f"benchmarks importing tests/ (load an oracle by its path): {tests}"
     assert "_fixtures" in graph and not graph["_fixtures"], "the fixtures import no benchmark"
-    for name in graph:
-        graph[name] = {m for m in graph[name] if m in graph}
+    unknown = {n: sorted(d - set(graph)) for n, d in graph.items() if d - set(graph)}
+    assert not unknown, f"benchmarks importing no benchmark module: {unknown}"
     state: dict[str, int] = {}
 
     def visit(name: str, stack: list[str]) -> None:
@@ -259,6 +295,29 @@ def test_benchmarks_form_no_import_cycle_and_use_only_public_names():
     for name in graph:
         if name not in state:
             visit(name, [])
+
+
+def test_benchmarks_are_the_suite_the_studies_and_the_tools():
+    """``benchmarks/``: the suite ``run.py`` drives and its harness (no study in its imports),
+    ``studies/`` the programs the pages cite (each cited by one at least), ``tools/`` the
+    developer tools (no page's figure comes from one)."""
+    graph = {n: _bench_imports(p)[0] for n, p in _bench_modules().items()}
+    suite, stack = set(), ["run"]
+    while stack:
+        name = stack.pop()
+        if name not in suite:
+            suite.add(name)
+            stack += graph[name]
+    top = {n for n in graph if "." not in n}
+    assert not [n for n in suite if n.startswith("studies.")], suite
+    assert top - suite <= {"memory"}, f"not run by the suite: {sorted(top - suite - {'memory'})}"
+    root = PKG.parent
+    pages = [*(root / "docs").rglob("*.md"), root / "README.md", root / "BENCHMARKS.md"]
+    cited = "\n".join(p.read_text(encoding="utf-8") for p in pages)
+    studies = [n.split(".", 1)[1] for n in graph if n.startswith("studies.")]
+    uncited = [s for s in studies if f"benchmarks/studies/{s}.py" not in cited
+               and f"benchmarks.studies.{s}" not in cited]  # fmt: skip
+    assert studies and not uncited, f"studies no page cites: {uncited}"
 
 
 # ------------------------------------------------------------------ test tiers

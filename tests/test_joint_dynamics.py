@@ -342,7 +342,7 @@ def test_a_plant_step_too_long_for_the_urdf_damping_is_refused_naming_the_joint(
     refused before anything runs, and a short enough step or no joint dynamics is accepted."""
     from dataclasses import replace
 
-    from benchmarks.damped_arm import config
+    from benchmarks.studies.damped_arm import config
     from hmpc_pin.exceptions import ConfigError
     from hmpc_pin.experiment.build import Experiment
     from hmpc_pin.experiment.plants import DAMPING_STEP_LIMIT

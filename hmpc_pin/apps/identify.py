@@ -352,4 +352,3 @@ def identify_arguments(idf) -> None:
         help="extreme-value fit: gumbel (conservative: at most the stated rate) "
         "or gev (calibrated on long runs of hundreds of blocks) [gumbel]",
     )
-    idf.set_defaults(func=cmd_identify)

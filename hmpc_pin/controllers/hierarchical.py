@@ -449,11 +449,11 @@ class HierarchicalMPC(AppliedTorque):
 
     @property
     def fused(self) -> bool:
-        """Whether the whole step runs without calling Python: the compensation is compiled
-        (the NDO of Eq 13, or none) and so is the model's dynamics. Any other compensation
+        """Whether the whole step runs compiled, without calling Python: the compensation is
+        compiled (the NDO of Eq 13, or none) and so is the model's dynamics. Any other compensation
         (momentum, ISM, a user class) is advanced inside the compiled step too, called
         through its Compensation port (``cpp/include/hmpc/interfaces.hpp``)."""
-        return self._fused
+        return self._all_compiled
 
     def _make_core(self) -> None:
         """The compiled step (``cpp/src/step.cpp``), composed of the compiled components: the
@@ -461,7 +461,7 @@ class HierarchicalMPC(AppliedTorque):
         (the compiled observer itself, or the Python object through its trampoline)."""
         decoded = step_compensation(self.compensation)
         port = decoded.port
-        self._fused = decoded.compiled and not self._python_dynamics
+        self._all_compiled = decoded.compiled and not self._python_dynamics
         self._port = port
         model = None if self._python_dynamics else model_string(self.robot)
         core = load_native().HMPCCore(
@@ -618,7 +618,7 @@ class HierarchicalMPC(AppliedTorque):
         :meth:`step` after :meth:`reset`, or with a compensation advanced from Python (its
         state is its own). Errors of the dry step are dropped: the real step reports them.
         """
-        if not (self._started and self._fused):
+        if not (self._started and self._all_compiled):
             return
         ndo = self._port
         data = copy.copy(self._data)  # the step's memory (a copy of the StepData)

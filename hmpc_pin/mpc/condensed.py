@@ -581,7 +581,7 @@ class JointQPs:
     def shift(self) -> bool:
         """Whether ProxSuite's warm start is the last primal and dual solution shifted one
         step along the horizon (default off: the last solution as it stands, measured faster
-        in a closed loop; ``benchmarks/long_horizon_active.py``)."""
+        in a closed loop; ``benchmarks/studies/long_horizon_active.py``)."""
         return bool(self._core.options.shift)
 
     @shift.setter

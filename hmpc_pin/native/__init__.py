@@ -165,7 +165,7 @@ def model_string(robot) -> str:
         names = ", ".join(robot.mimic_joints)
         raise ConfigError(
             "backend",
-            f'the native kernels do not support mimic joints ({names}); use backend = "python"',
+            f'the compiled core does not support mimic joints ({names}); use backend = "python"',
         )
     return robot.model.saveToString()
 
@@ -186,11 +186,11 @@ def resolve_backend(backend: str, key: str, unsupported: str | None = None) -> b
     Args:
         backend: ``"auto"``, ``"native"`` or ``"python"``.
         key: The option's dotted name, for messages (``"controller.backend"``).
-        unsupported: Why this configuration has no native path (``None``: it has one).
+        unsupported: Why this configuration has no compiled path (``None``: it has one).
 
     Raises:
         ConfigError: ``backend`` is not one of :data:`BACKENDS`, or ``"native"`` where the
-            configuration has no native path.
+            configuration has no compiled path.
         NativeError: ``"native"`` and the module cannot be loaded.
     """
     global _warned

@@ -15,7 +15,7 @@ the Python object through the port's trampoline):
 - the reference: the step's Reference port, compiled for a sine or a piecewise polynomial
   (:func:`~hmpc_pin.tasks.base.reference_port`), else sampled in Python;
 - the plant (``plant.loop_port()``): :class:`~hmpc_pin.sim.plants.RK4Plant`'s compiled plant,
-  its disturbance behind the Disturbance port (compiled pulses and friction fused into its
+  its disturbance behind the Disturbance port (compiled pulses and friction evaluated in its
   period); any other plant (semi-implicit Euler, MuJoCo, an RK4 plant whose methods are
   replaced) is called as a whole, ``advance(tau)`` and ``disturbance_now()`` (and, after
   ``advance``, ``applied_disturbance(d)`` where the plant has it: the recorded ``d`` made

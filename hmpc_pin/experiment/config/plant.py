@@ -230,7 +230,7 @@ class PlantConfig:
             raise ConfigError(
                 "backend",
                 f"does not apply to engine = {self.engine!r}, integrator = "
-                f"{self.integrator!r} (only the Pinocchio RK4 plant has a native path); "
+                f"{self.integrator!r} (only the Pinocchio RK4 plant has a compiled path); "
                 "remove it",
             )
         if engine.table != "mujoco" and self.mujoco is not None:

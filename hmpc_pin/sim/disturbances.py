@@ -22,7 +22,7 @@ import numpy as np
 
 from ..exceptions import ConfigError, InterfaceError
 from ..native import load as load_native
-from ..native import replaced
+from ..native import loop_port, replaced
 
 __all__ = [
     "CoulombViscousFriction",
@@ -268,8 +268,7 @@ class _Callable(Disturbance):
 def disturbance_port(d, n: int) -> Any:
     """What a plant of ``n`` joints evaluates for the disturbance ``d``: its compiled port
     (``d.loop_port(n)``), or ``d`` itself when it has none (called as ``d(t, q, dq)``)."""
-    own = getattr(d, "loop_port", None)
-    port = own(n) if callable(own) else None
+    port = loop_port(d, n)
     return d if port is None else port
 
 

@@ -224,10 +224,17 @@ def test_a_delegating_wrapper_hands_on_no_port_so_the_loop_never_goes_around_it(
     runs = []
     for wrap in (False, True):
         ctrl = hmpc_pin.HierarchicalMPC(planar3)
-        plant = RK4Plant(planar3.copy(), GaussianPulse(np.ones(3), np.full(3, 0.5), 0.1 * np.ones(3)), Ts=ctrl.Ts, dt=0.001)  # fmt: skip
+        plant = RK4Plant(
+            planar3.copy(),
+            GaussianPulse(np.ones(3), np.full(3, 0.5), 0.1 * np.ones(3)),
+            Ts=ctrl.Ts,
+            dt=0.001,
+        )
         if wrap:
             ctrl, plant = _Delegating(ctrl, "step"), _Delegating(plant, "advance")
-        result = hmpc_pin.simulate(planar3, ctrl, reference, duration=0.3, q0=np.zeros(3), plant=plant)  # fmt: skip
+        result = hmpc_pin.simulate(
+            planar3, ctrl, reference, duration=0.3, q0=np.zeros(3), plant=plant
+        )
         runs.append((result, ctrl, plant))
     (plain, _, _), (wrapped, ctrl, plant) = runs
     steps = len(plain.t)

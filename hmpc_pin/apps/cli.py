@@ -967,7 +967,7 @@ def _check_arguments(chk) -> None:
 
 def _realtime_arguments(rt) -> None:
     """``hmpc-pin realtime``."""
-    from .realtime import add_stop_options
+    from .realtime import add_stop_options, spin_value
 
     rt.description = (
         "Run the experiment's controller at a fixed rate (absolute deadlines, "
@@ -982,10 +982,10 @@ def _realtime_arguments(rt) -> None:
     rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     rt.add_argument(
         "--spin",
-        type=float,
+        type=spin_value,
         metavar="S",
-        help="busy-wait S seconds before each deadline instead of sleeping, "
-        "e.g. 2e-4 (overrides realtime.spin)",
+        help="busy-wait S seconds before each deadline instead of sleeping, e.g. 2e-4; "
+        "auto: the stretch from the measured wake-ups; 0: sleep (overrides realtime.spin)",
     )
     rt.add_argument(
         "--no-gc",

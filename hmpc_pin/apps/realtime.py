@@ -69,6 +69,19 @@ def _positive_seconds(text: str) -> float:
     return value
 
 
+def spin_value(text: str) -> float | str:
+    """``--spin``'s value: ``auto`` or a time [s] (argparse exits 2 otherwise; the config
+    checks its range)."""
+    import argparse
+
+    if text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected auto or a time [s], got {text!r}") from None
+
+
 def _positive_count(text: str) -> int:
     """``--max-misses``' value: a whole number >= 1 (argparse exits 2 otherwise)."""
     import argparse

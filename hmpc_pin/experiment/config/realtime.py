@@ -49,9 +49,11 @@ class RealtimeConfig:
         velocity_scale: Factor on the URDF velocity limits (with ``limits``).
         priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process; 0
             (default) keeps normal scheduling.
-        spin: Busy-wait this long [s] before each deadline instead of sleeping (the loop
-            is awake at the deadline: no wake-up latency), below ``1/rate``; 0 (default)
-            sleeps.
+        spin: How the loop waits for a deadline: ``"auto"`` (default) sleeps, then
+            busy-waits the last stretch, chosen from the wake-ups measured during the run
+            (their 99th percentile, at most half a period: the loop is awake at the
+            deadline); a time [s] below ``1/rate`` busy-waits that long before each
+            deadline; 0 sleeps the whole wait.
         warm_up: Wake this long [s] before each MPC cycle's deadline and run the
             controller's step on the last measured state, undone (its memory then warm in
             the caches for the cycle's step), then busy-wait to the deadline; below
@@ -72,17 +74,18 @@ class RealtimeConfig:
     position_margin: float | None = None
     velocity_scale: float | None = None
     priority: int = 0
-    spin: float = 0.0
+    spin: float | str = "auto"
     warm_up: float = 2e-4
 
     def __post_init__(self):
         _set(self, "rate", _float("rate", self.rate, positive=True))
-        _set(self, "spin", _float("spin", self.spin, nonneg=True))
-        if self.spin >= 1.0 / self.rate:
+        if self.spin != "auto":
+            _set(self, "spin", _float("spin", self.spin, nonneg=True))
+        if self.spin != "auto" and self.spin >= 1.0 / self.rate:  # type: ignore[operator]
             raise ConfigError(
                 "spin",
                 f"expected a time [s] below the period 1/rate = {1.0 / self.rate:g} s, "
-                f"got {self.spin:g}",
+                f'got {self.spin:g}; or "auto"',
             )
         _set(self, "warm_up", _float("warm_up", self.warm_up, nonneg=True))
         if self.warm_up >= 1.0 / self.rate:

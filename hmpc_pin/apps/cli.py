@@ -113,10 +113,11 @@ def _checked_duration(duration: float | None) -> float | None:
     return duration
 
 
-def _checked_priority(priority: int | None) -> int | None:
-    """``--priority`` checked: ``None``, 0 (off) or a ``SCHED_FIFO`` priority 1..99."""
-    if priority is not None and not 0 <= priority <= 99:
-        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {priority}")
+def _checked_priority(priority: int | str | None) -> int | str | None:
+    """``--priority`` checked: ``None``, 0 (off), a ``SCHED_FIFO`` priority 1..99 or
+    ``"auto"``."""
+    if priority is not None and priority != "auto" and not 0 <= priority <= 99:  # type: ignore[operator]
+        raise ConfigError("--priority", f"expected 0 (off), 1..99 or auto, got {priority}")
     return priority
 
 
@@ -967,7 +968,7 @@ def _check_arguments(chk) -> None:
 
 def _realtime_arguments(rt) -> None:
     """``hmpc-pin realtime``."""
-    from .realtime import add_stop_options, spin_value
+    from .realtime import add_stop_options, priority_value, spin_value
 
     rt.description = (
         "Run the experiment's controller at a fixed rate (absolute deadlines, "
@@ -994,10 +995,10 @@ def _realtime_arguments(rt) -> None:
     )
     rt.add_argument(
         "--priority",
-        type=int,
+        type=priority_value,
         metavar="N",
-        help="SCHED_FIFO priority 1-99 of the loop and the arm process "
-        "(needs root or an rtprio limit; overrides realtime.priority)",
+        help="SCHED_FIFO priority 1-99 of the loop and the arm process (needs root or an "
+        "rtprio limit); auto: 80 where permitted, else normal (overrides realtime.priority)",
     )
     add_stop_options(rt)
     rt.add_argument(

@@ -342,7 +342,6 @@ def _run_ros(
                     f"{ros.node.get_fully_qualified_name()} was shut down before it was "
                     "activated: nothing was run, sent or written"
                 )
-        iface.start()
         loop = RealtimeLoop(
             iface,
             ctrl,
@@ -362,7 +361,9 @@ def _run_ros(
         sys.setswitchinterval(min(switch, 1e-4))
         status = StatusLine(loop, loop_settings.duration)
         try:
-            run = loop.run()
+            # the heap collected and frozen before the first state is taken (the arm
+            # publishes from its start: a collection after it would delay the first answer)
+            run = loop.run(start=True)
         finally:
             status.close()
         sys.setswitchinterval(switch)

@@ -78,7 +78,15 @@ from ..sim.result import Result
 from ..tasks.base import as_reference
 from .cycles import RELAX_MISSES, RELAX_WATCHDOG, Cycles
 from .interface import PacedInterface, RobotInterface
-from .pacing import GCWatch, Tally, Waker, fifo_priority, sleep_until, timer_slack
+from .pacing import (
+    GCWatch,
+    Tally,
+    Waker,
+    fifo_priority,
+    realtime_policy,
+    sleep_until,
+    timer_slack,
+)
 from .records import RealtimeRun, Records, latency_stats
 from .safety import SafetySettings
 from .stop import StopSequence
@@ -116,8 +124,11 @@ class LoopSettings:
         gc_slack: A collection runs only if at least this much [s] remains before the
             next deadline.
         spin: How the loop waits for a deadline (:class:`~.pacing.Waker`): ``"auto"``
-            sleeps, then busy-waits the last stretch, chosen from the wake-ups measured in
-            the run (their 99th percentile, at most half a period); a number [s] busy-waits
+            sleeps, then, when the loop's thread runs under a real-time policy
+            (``SCHED_FIFO``: ``[realtime] priority``), busy-waits the last stretch, chosen
+            from the wake-ups measured in the run (their 99th percentile, at most half a
+            period); under normal scheduling it sleeps the whole wait (a thread that spins
+            there is preempted more, not less: measured in the guide); a number [s] busy-waits
             that long before each deadline (below the period); 0 sleeps the whole wait.
             Applies to the loop's own sleep only (not with ``sleep=`` or an arm that paces
             the loop).
@@ -416,8 +427,10 @@ class RealtimeLoop(Cycles, StopSequence):
         self._started = True
         try:
             with contextlib.ExitStack() as stack:
-                if not self.paced and self.sleep_is_default:
+                if self._waker is not None:
                     stack.enter_context(timer_slack(1))
+                    if self.settings.spin == "auto":  # spinning pays under a real-time policy
+                        self._waker.adapt(realtime_policy())
                 return self._run(q0, dq0, start)
         except BaseException:
             # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the held-safe
@@ -592,6 +605,7 @@ class RealtimeLoop(Cycles, StopSequence):
             return None
         return {
             "spin": self.settings.spin,
+            "adaptive": w.adaptive,
             "lead_us": 1e6 * w.lead,
             "spun_s": w.spun,
             "warm_late": w.late_work,

@@ -25,12 +25,15 @@ from collections.abc import Callable
 from ..exceptions import ConfigError
 
 __all__ = [
+    "AUTO_PRIORITY",
     "GCWatch",
     "QuantileTracker",
     "Tally",
     "Waker",
     "cpu_affinity",
     "fifo_priority",
+    "realtime_policy",
+    "resolve_priority",
     "sleep_until",
     "timer_slack",
 ]
@@ -115,6 +118,11 @@ class Waker:
         self.late_work = self.skipped_work = 0
         self.spun = 0.0
 
+    def adapt(self, on: bool) -> None:
+        """Choose the stretch from the wake-ups (``on``), or sleep the whole wait (lead 0)."""
+        self.adaptive = on
+        self.lead = self._wake.value if on else 0.0
+
     def until(self, deadline: float, before: Callable[[], None] | None = None) -> None:
         """Return when the clock has reached ``deadline`` [s] (never before it); with
         ``before``, call it first, woken early enough for it to end by the deadline
@@ -190,20 +198,53 @@ def cpu_affinity(cpus):
         os.sched_setaffinity(0, old)
 
 
+#: The ``SCHED_FIFO`` priority ``priority = "auto"`` asks for: above a PREEMPT_RT kernel's
+#: interrupt threads (50), below libfranka's own 99.
+AUTO_PRIORITY = 80
+
+
+def resolve_priority(priority: int | str) -> int:
+    """The ``SCHED_FIFO`` priority ``priority`` stands for: itself (0: none), or for
+    ``"auto"`` :data:`AUTO_PRIORITY` if this process may take it, else 0 (tried on the
+    calling thread and undone)."""
+    if priority != "auto":
+        return int(priority)
+    try:
+        old_policy, old_param = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(AUTO_PRIORITY))
+    except (OSError, AttributeError):
+        return 0
+    os.sched_setscheduler(0, old_policy, old_param)
+    return AUTO_PRIORITY
+
+
+def realtime_policy() -> bool:
+    """Whether the calling thread runs under a real-time policy (``SCHED_FIFO``/``RR``)."""
+    try:
+        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
+    except (OSError, AttributeError):
+        return False
+
+
 @contextlib.contextmanager
-def fifo_priority(priority: int):
+def fifo_priority(priority: int | str):
     """Run the block under the real-time policy ``SCHED_FIFO`` at ``priority`` (1–99),
-    then restore the process's policy; ``0`` changes nothing.
+    then restore the process's policy; ``0`` changes nothing; ``"auto"`` takes
+    :data:`AUTO_PRIORITY` where this process may (root, ``CAP_SYS_NICE`` or an rtprio
+    limit) and changes nothing elsewhere. Yields the priority taken (0: none).
 
     A FIFO thread preempts every normal one as soon as it is runnable, so the loop wakes
     on time even on a loaded machine (what libfranka asks for with ``kEnforce``). The
-    loop sleeps most of each period, so it does not starve the rest of the machine.
+    loop sleeps most of each period, so it does not starve the rest of the machine (and
+    the kernel keeps 5 % of each second for normal threads: ``sched_rt_runtime_us``).
 
     Raises:
-        ConfigError: The policy cannot be set here (no ``CAP_SYS_NICE``/rtprio limit).
+        ConfigError: A priority 1–99 that cannot be set here (no ``CAP_SYS_NICE``/rtprio
+            limit).
     """
+    priority = resolve_priority(priority)
     if priority == 0:
-        yield
+        yield 0
         return
     try:
         old_policy, old_param = os.sched_getscheduler(0), os.sched_getparam(0)
@@ -212,10 +253,11 @@ def fifo_priority(priority: int):
         raise ConfigError(
             "realtime.priority",
             f"cannot run at SCHED_FIFO priority {priority} ({exc}); run as root or grant "
-            "an rtprio limit (/etc/security/limits.conf), or set priority = 0",
+            'an rtprio limit (/etc/security/limits.conf), or set priority = 0 (or "auto": '
+            "a real-time priority where permitted)",
         ) from exc
     try:
-        yield
+        yield priority
     finally:
         os.sched_setscheduler(0, old_policy, old_param)
 

@@ -117,7 +117,7 @@ def _checked_priority(priority: int | str | None) -> int | str | None:
     """``--priority`` checked: ``None``, 0 (off), a ``SCHED_FIFO`` priority 1..99 or
     ``"auto"``."""
     if priority is not None and priority != "auto" and not 0 <= priority <= 99:  # type: ignore[operator]
-        raise ConfigError("--priority", f"expected 0 (off), 1..99 or auto, got {priority}")
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, or auto, got {priority}")
     return priority
 
 

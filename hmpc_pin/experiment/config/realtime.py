@@ -105,7 +105,9 @@ class RealtimeConfig:
         if self.priority != "auto":
             _set(self, "priority", _int("priority", self.priority, minimum=0))
         if self.priority != "auto" and self.priority > 99:  # type: ignore[operator]
-            raise ConfigError("priority", f'expected 0 (off), 1..99 or "auto", got {self.priority}')
+            raise ConfigError(
+                "priority", f'expected 0 (off) or 1..99, or "auto", got {self.priority}'
+            )
         cpus = self.cpus
         if not isinstance(cpus, (list, tuple)):
             raise ConfigError("cpus", f"expected a list of CPU indices, got {cpus!r}")

@@ -94,6 +94,11 @@ class Waker:
         warm: The time [s] first reserved for the work done before a deadline
             (:meth:`until`'s ``before``), then the measured 99th percentile of that work.
 
+    The wake-ups' lateness is measured at every sleep, whatever ``spin``: the work before
+    a deadline is started early enough for that lateness and the work's own duration
+    (their 99th percentiles, at most half a period together), and skipped (counted) when
+    the thread woke too late for it to end by the deadline.
+
     Attributes:
         lead: The current stretch [s] (the wake-up lateness estimate, or ``spin``).
         late_work: Deadlines at which the work before them ended late.
@@ -110,9 +115,8 @@ class Waker:
     ):
         self.clock, self.period = clock, period
         self.adaptive = spin is None
-        high = 0.5 * period
-        start = min(1e-4, high) if spin is None else spin
-        self._wake = QuantileTracker(start, 0.99, 1e-5, 1e-5, high)
+        self.high = high = 0.5 * period
+        self._wake = QuantileTracker(min(1e-4, high), 0.99, 1e-5, 1e-5, high)
         self.lead = self._wake.value if spin is None else float(spin)
         self._work = QuantileTracker(warm, 0.99, 1e-5, 0.0, high)
         self.late_work = self.skipped_work = 0
@@ -128,15 +132,19 @@ class Waker:
         ``before``, call it first, woken early enough for it to end by the deadline
         (skipped if the thread woke too late for it)."""
         clock = self.clock
-        lead = self.lead
-        work = self._work.value if before is not None else 0.0
-        target = deadline - lead - work
+        work = self._work.value
+        if before is None:
+            early = self.lead
+        else:
+            early = min(work + max(self.lead, self._wake.value), self.high)
+        target = deadline - early
         delay = target - clock()
         if delay > 0:
             time.sleep(delay)
             woke = clock()
+            late = self._wake.add(woke - target)
             if self.adaptive:
-                self.lead = self._wake.add(woke - target)
+                self.lead = late
         else:
             woke = clock()
         if before is not None:

@@ -248,7 +248,8 @@ def test_priority_auto_takes_a_real_time_policy_only_where_permitted():
 def test_the_config_takes_auto_and_cpus():
     rc = RealtimeConfig(priority="auto", spin="auto", cpus=[0])
     assert rc.priority == "auto" and rc.spin == "auto" and rc.cpus == (0,)
-    assert RealtimeConfig().spin == "auto" and RealtimeConfig().priority == 0
+    assert RealtimeConfig().spin == "auto" and RealtimeConfig().priority == "auto"
+    assert RealtimeConfig(priority=0).priority == 0
     assert RealtimeConfig(spin=2e-4).spin == 2e-4
     with pytest.raises(ConfigError, match="spin"):
         RealtimeConfig(spin="fast")

@@ -47,10 +47,11 @@ class RealtimeConfig:
             ``position_margin`` and ``velocity_scale``.
         position_margin: Margin [rad] outside the URDF position limits (with ``limits``).
         velocity_scale: Factor on the URDF velocity limits (with ``limits``).
-        priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process; 0
-            (default) keeps normal scheduling; ``"auto"`` takes priority 80 where this
-            process may (root, ``CAP_SYS_NICE`` or an rtprio limit) and keeps normal
-            scheduling elsewhere (the run's statistics say which).
+        priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process (of the
+            node, under ``hmpc-pin ros``); ``"auto"`` (default) takes 80 where this process
+            may (root, ``CAP_SYS_NICE`` or an rtprio limit) and keeps normal scheduling
+            elsewhere (the run's statistics say which: ``priority``); 0 keeps normal
+            scheduling.
         cpus: Run the loop's thread on these CPUs only (indices, e.g. ``[1]``); empty
             (default): wherever the kernel puts it. On a machine whose other work is
             kept off those CPUs (``isolcpus``, a cpuset) the loop's caches stay its own;
@@ -80,7 +81,7 @@ class RealtimeConfig:
     limits: bool = True
     position_margin: float | None = None
     velocity_scale: float | None = None
-    priority: int | str = 0
+    priority: int | str = "auto"
     cpus: tuple[int, ...] = ()
     spin: float | str = "auto"
     warm_up: float = 2e-4

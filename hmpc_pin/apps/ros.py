@@ -361,9 +361,7 @@ def _run_ros(
         sys.setswitchinterval(min(switch, 1e-4))
         status = StatusLine(loop, loop_settings.duration)
         try:
-            # the heap collected and frozen before the first state is taken (the arm
-            # publishes from its start: a collection after it would delay the first answer)
-            run = loop.run(start=True)
+            run = loop.run(start=True)  # set-up (heap frozen) before the first state
         finally:
             status.close()
         sys.setswitchinterval(switch)

@@ -529,8 +529,8 @@ class RealtimeLoop(Cycles, StopSequence):
         stop_record, brake = self._stop_sequence(
             stop, k, K, q_last, dq_last, stamp, deadline, wrote
         )
-        done_a, wake_a = rec.done, rec.wake
-        cycles_run = int(np.count_nonzero(np.isfinite(done_a)))
+        timing = rec.timing_stats()
+        cycles_run = timing.pop("cycles_run")
         watch = self._gc_watch
         stats = {
             "rate": st.rate,
@@ -542,10 +542,7 @@ class RealtimeLoop(Cycles, StopSequence):
             "skipped": tally.skipped,
             "miss_fraction": tally.misses / max(1, cycles_run + tally.skipped),
             "max_consecutive_misses": tally.worst_run,
-            "latency": latency_stats(done_a),
-            "wake": latency_stats(wake_a),
-            "compute": latency_stats(done_a - wake_a),
-            "latency_mpc": latency_stats(np.where(rec.mpc, done_a, np.nan)),
+            **timing,
             # measurement -> torque written, at the controller's steps (None: the stamps
             # are on the arm's own clock) against the declared [controller] latency
             "measured_latency": latency_stats(rec.age) if self._stamp_clocked() else None,
@@ -583,17 +580,7 @@ class RealtimeLoop(Cycles, StopSequence):
             message=message,
             meta=meta,
         )
-        timing = {
-            "wake": wake_a,
-            "latency": done_a,
-            "compute": done_a - wake_a,
-            "stamp": rec.stamp,
-            "missed": rec.missed,
-            "mpc": rec.mpc,
-            "gc": rec.gc,
-            "age": rec.age,
-        }
-        return RealtimeRun(result, timing, stats, stop_record)
+        return RealtimeRun(result, rec.timing(), stats, stop_record)
 
     def _wait_stats(self) -> dict | None:
         """How the loop waited (``None``: paced by the arm, or a sleep function given):

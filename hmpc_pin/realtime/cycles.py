@@ -1,10 +1,10 @@
 """The real-time loop's cycles: wait for the cycle's deadline (the loop's clock, or the
 arm's next state), read, step the controller every ``decimation`` cycles, write, record.
 
-The two ways of pacing differ only in how a cycle begins (:meth:`Cycles._pace_clock`:
-the loop's absolute deadlines, a warm-up and a busy-wait before them; :meth:`Cycles._pace_arm`:
+The two ways of pacing differ only in how a cycle begins (``Cycles._pace_clock``: the
+loop's absolute deadlines, a warm-up and a busy-wait before them; ``Cycles._pace_arm``:
 the arm's next state, its arrival the deadline); what follows the state is the same
-(:meth:`Cycles._cycles`). Between the wake-up and the torque written the cycle does
+(``Cycles._cycles``). Between the wake-up and the torque written the cycle does
 nothing but the state's check, the controller's step and the write: the records, the
 callback, the miss tally and the garbage collection come after the write, in the slack.
 The timing rules and the stops are the loop's (:mod:`hmpc_pin.realtime.loop`).

@@ -600,7 +600,7 @@ class RealtimeLoop(Cycles, StopSequence):
         }
 
     def _stamp_clocked(self) -> bool:
-        """Whether the measurement's age can be measured (module doc of :meth:`_cycles`)."""
+        """Whether the measurement's age can be measured (the module doc, "Measured latency")."""
         return self.paced or getattr(self.interface, "stamp_clock", None) is not None
 
     def _check_latency(self, stats: dict) -> None:

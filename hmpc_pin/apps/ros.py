@@ -29,7 +29,7 @@ from ..experiment.controllers import controller_limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..sim.engines import engine_spec
 from .packaged import CONFIG_HELP
-from .realtime import StatusLine, add_stop_options, save_run
+from .realtime import StatusLine, add_stop_options, priority_value, save_run
 
 __all__ = [
     "format_ros",
@@ -692,7 +692,8 @@ def _add_node_options(parser) -> None:
     parser.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
     parser.add_argument(
         "--priority",
-        type=int,
+        type=priority_value,
         metavar="N",
-        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+        help="SCHED_FIFO priority 1-99 of the node; auto: 80 where permitted, else normal "
+        "(overrides realtime.priority)",
     )

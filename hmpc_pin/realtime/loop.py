@@ -35,6 +35,20 @@ during the run: the latency changes the observer's torque alignment and the pred
 which take effect at a reset, and a per-step value would carry the loop's jitter into the
 model. Set the measured median in the config instead.
 
+**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: the whole heap collected
+and frozen (``gc_handling``), the controller reset and, if it has ``warm_up``, its first
+step run once on the reset state and undone by a second reset (the first step's one-time
+costs, not its torque); the records allocated; what the set-up made collected; then, for
+an arm whose clock starts with its ``start()`` (``run(start=True)``: Franka's torque
+control, a ROS arm's first state), the start. None of it costs the arm a cycle.
+
+**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the thread's timer slack is
+1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
+stretch before the deadline, measured from its wake-ups, and busy-waits the rest. The
+watchdog of a polled arm does not charge the loop's own late wake-up (more than a period)
+to the arm (``stats["loop_stalls"]``). The cycles: :mod:`.cycles`; the stop sequence:
+:mod:`.stop`.
+
 Garbage collection (``gc_handling``): after start-up everything alive is moved out of
 the collector's reach (:func:`gc.freeze`) and automatic collection is switched off; the
 generation CPython would collect next (its counts against its thresholds) is collected
@@ -223,7 +237,8 @@ class RealtimeLoop(Cycles, StopSequence):
         safety: Bounds, k, watchdog, hold.
         clock: Monotonic seconds (default :func:`time.perf_counter`).
         sleep: ``sleep(deadline)``: return when ``clock()`` has reached ``deadline``
-            (default: :func:`sleep_until` on ``clock``).
+            (default: the loop's :class:`~.pacing.Waker` on ``clock``, as ``settings.spin``
+            says).
         joint_names: Stored in the result.
         meta: Stored in the result's ``meta``.
         on_step: ``on_step(t)``, called after the torque of each controller step is

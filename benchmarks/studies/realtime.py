@@ -43,6 +43,7 @@ if str(ROOT) not in sys.path:
 
 from benchmarks.harness import machine_info, package_versions  # noqa: E402
 from hmpc_pin.apps.metrics import compute_metrics  # noqa: E402
+from hmpc_pin.apps.realtime import priority_value, spin_value  # noqa: E402
 from hmpc_pin.experiment.build import (  # noqa: E402
     Experiment,
     make_arm_plant,
@@ -50,6 +51,7 @@ from hmpc_pin.experiment.build import (  # noqa: E402
 )
 from hmpc_pin.experiment.config import load_config  # noqa: E402
 from hmpc_pin.realtime import ProcessArm, RealtimeLoop, fifo_priority  # noqa: E402
+from hmpc_pin.realtime.pacing import resolve_priority  # noqa: E402
 
 P999_TARGET_US = 300.0
 MISS_TARGET = 0.001
@@ -164,9 +166,13 @@ def report(args, floor, with_gc, without_gc, sim_rms, sim_wall, names, machine, 
         "",
         "`python benchmarks/studies/realtime.py "
         f"--duration {args.duration:g} --config {args.config} "
-        f"--rate {args.rate:g} --priority {args.priority} --spin {args.spin:g}`; source "
+        f"--rate {args.rate:g} --priority {args.priority} --spin {args.spin}`; source "
         f"{commit}; scheduling "
-        + ("normal" if not args.priority else f"SCHED_FIFO {args.priority} (loop and arm)")
+        + (
+            "normal"
+            if not resolve_priority(args.priority)
+            else f"SCHED_FIFO {resolve_priority(args.priority)} (loop and arm)"
+        )
         + f". The config's controller at "
         f"{args.rate:g} Hz against its plant in a separate process (RK4, one step per "
         "period, in wall-clock time; state and torque through shared memory), the MPC every "
@@ -242,10 +248,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=600.0, help="seconds per run [600]")
     parser.add_argument("--config", default="panda_sine", help="config [panda_sine]")
     parser.add_argument("--rate", type=float, default=1000.0, help="interface rate [Hz] [1000]")
-    parser.add_argument("--priority", type=int, default=0,
-                        help="SCHED_FIFO priority of loop and arm (0: normal) [0]")  # fmt: skip
-    parser.add_argument("--spin", type=float, default=0.0,
-                        help="busy-wait before each deadline [s] (0: sleep) [0]")  # fmt: skip
+    parser.add_argument("--priority", type=priority_value, default="auto",
+                        help="SCHED_FIFO priority of loop and arm (0: normal; auto: 80 where "
+                        "permitted) [auto]")  # fmt: skip
+    parser.add_argument("--spin", type=spin_value, default="auto",
+                        help="busy-wait before each deadline [s] (0: sleep; auto: the "
+                        "stretch from the measured wake-ups) [auto]")  # fmt: skip
     parser.add_argument("--out", type=Path, help="also write the Markdown here")
     parser.add_argument(
         "--lead", type=float, default=2e-4, help="warm_up this long before the step [s] [2e-4]"

@@ -108,10 +108,11 @@ def checked_duration(duration: float | None) -> float | None:
     return duration
 
 
-def checked_priority(priority: int | None) -> int | None:
-    """``--priority`` checked: ``None``, 0 (off) or a ``SCHED_FIFO`` priority 1..99."""
-    if priority is not None and not 0 <= priority <= 99:
-        raise ConfigError("--priority", f"expected 0 (off) or 1..99, got {priority}")
+def checked_priority(priority: int | str | None) -> int | str | None:
+    """``--priority`` checked: ``None``, 0 (off), a ``SCHED_FIFO`` priority 1..99 or
+    ``"auto"``."""
+    if priority is not None and priority != "auto" and not 0 <= priority <= 99:  # type: ignore[operator]
+        raise ConfigError("--priority", f"expected 0 (off) or 1..99, or auto, got {priority}")
     return priority
 
 

@@ -29,7 +29,6 @@ its extra arrays), ``<stem>_franka_timing.npz`` (the loop's cycles),
 from __future__ import annotations
 
 import contextlib
-import gc
 import signal
 import sys
 from dataclasses import replace
@@ -279,23 +278,18 @@ def run_franka(
         meta=experiment.meta(),
     )
     switch = sys.getswitchinterval()
-    # The whole heap is collected and frozen while the robot still waits: once torque
-    # control starts its clock runs, and a full collection in the loop's set-up (tens of
-    # ms in a large process) would be lost cycles; the loop's own collection then finds
-    # nothing to walk.
-    gc.collect()
-    gc.freeze()
+    state = arm.read_state()  # where the move left the arm: the controller's reset state
     try:
-        arm.start()
         if ready is not None:
             ready()
         if started is not None:
             started(arm)
         sys.setswitchinterval(1e-4)  # readOnce holds the GIL while it waits
-        run = loop.run()
+        # the loop collects and freezes the heap and resets the controller, then starts
+        # torque control (the robot's clock): none of its set-up costs the arm a cycle
+        run = loop.run(np.array(state.q, dtype=float), np.array(state.dq, dtype=float), start=True)
     finally:
         sys.setswitchinterval(switch)
-        gc.unfreeze()
         with _SigintDeferred() as deferred:  # the ramp to zero is not cut short
             end = arm.finish() if arm.fault is None else {}
     if deferred["count"] and run.stop is None:

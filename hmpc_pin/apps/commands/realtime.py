@@ -25,7 +25,7 @@ __all__ = ["add_arguments", "main"]
 
 def add_arguments(rt) -> None:
     """``hmpc-pin realtime``."""
-    from ..realtime import add_stop_options
+    from ..realtime import add_stop_options, priority_value, spin_value
 
     rt.description = (
         "Run the experiment's controller at a fixed rate (absolute deadlines, "
@@ -40,10 +40,10 @@ def add_arguments(rt) -> None:
     rt.add_argument("--duration", type=float, help="run length [s] (overrides the config)")
     rt.add_argument(
         "--spin",
-        type=float,
+        type=spin_value,
         metavar="S",
-        help="busy-wait S seconds before each deadline instead of sleeping, "
-        "e.g. 2e-4 (overrides realtime.spin)",
+        help="busy-wait S seconds before each deadline instead of sleeping, e.g. 2e-4; "
+        "auto: the stretch from the measured wake-ups; 0: sleep (overrides realtime.spin)",
     )
     rt.add_argument(
         "--no-gc",
@@ -52,10 +52,10 @@ def add_arguments(rt) -> None:
     )
     rt.add_argument(
         "--priority",
-        type=int,
+        type=priority_value,
         metavar="N",
-        help="SCHED_FIFO priority 1-99 of the loop and the arm process "
-        "(needs root or an rtprio limit; overrides realtime.priority)",
+        help="SCHED_FIFO priority 1-99 of the loop and the arm process (needs root or an "
+        "rtprio limit); auto: 80 where permitted, else normal (overrides realtime.priority)",
     )
     add_stop_options(rt)
     rt.add_argument(

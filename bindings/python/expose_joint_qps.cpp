@@ -41,6 +41,7 @@ static void expose_options_stats(py::module_& m) {
       .def_readwrite("active_set_iter", &O::active_set_iter)
       .def_readwrite("soft_active_set_iter", &O::soft_active_set_iter)
       .def_readwrite("soft_step_exchanges", &O::soft_step_exchanges)
+      .def_readwrite("soft_step_work", &O::soft_step_work)
       .def_readonly("always_constrained", &O::always_constrained);
   using S = JointQPsStats;
   auto fields = [](const S& s) {
@@ -84,6 +85,8 @@ static void expose_options_stats(py::module_& m) {
 void expose_joint_qps(py::module_& m) {
   expose_qp_settings(m);
   expose_options_stats(m);
+  py::class_<JointQPs::Memory, std::shared_ptr<JointQPs::Memory>>(m, "JointQPsMemory",
+                                                                   py::module_local());
   py::class_<PyJointQPs, std::shared_ptr<PyJointQPs>>(m, "JointQPs", py::module_local())
       .def(py::init<int, int, int, bool, const CRefMat&, const CRefVec&, const CRefVec&,
                     const QPSettings&, const QPSettings&, Array, Array>(),
@@ -109,6 +112,16 @@ void expose_joint_qps(py::module_& m) {
           [](PyJointQPs& o, std::vector<std::string> names) { o.qps.joint_names = names; })
       .def("set_max_iter", [](PyJointQPs& o, long k) { o.qps.set_max_iter(k); })
       .def("restart", [](PyJointQPs& o) { o.qps.restart(); })
+      // The QPs' memory between steps (warm starts, remembered active sets): an opaque
+      // copy, put back by restore_memory (a dry step: HierarchicalMPC.warm_up).
+      .def("save_memory",
+           [](const PyJointQPs& o) {
+             auto m = std::make_shared<JointQPs::Memory>();
+             o.qps.save(*m);
+             return m;
+           })
+      .def("restore_memory",
+           [](PyJointQPs& o, const JointQPs::Memory& m) { o.qps.restore(m); })
       // The knobs and the counters, live (qps.options.shift = True; a copy: copy.copy).
       .def_property(
           "options",

@@ -29,14 +29,16 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   bool ok = false;
   continued_ = false;
   stopped_ = false;
-  if (resume_[i] && has_guess_[i]) {
-    // The exchanges stopped at the last step (the step's ran out): resumed where they were.
+  exhausted_ = false;
+  const bool bounded = budget_ >= 0;
+  if (resume_[i] && has_guess_[i] && last[i]) {
+    // The exchanges stopped at the last step (out of the step's): resumed where they were.
     resume_[i] = 0;
     st_.rows = guess_rows_[i];
     st_.box = guess_box_[i];
     st_.slack = guess_slack_[i];
     ok = exchange(i, 4 * iter);
-    if (!ok && !stopped_) return false;
+    if (!ok && !stopped_ && !(bounded && exhausted_)) return false;
   } else if (has_guess_[i] && last[i]) {
     // The two guesses in the order of the one that answered at the last step; at an
     // activation's first continued step, the shifted one first when the state is nearer the
@@ -69,15 +71,30 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
   // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
   if (!ok && !stopped_ && !(has_guess_[i] && last[i])) {
-    box_y_.head(Nc) = box_u;
-    box_y_[Nc] = 0.0;
-    guess_from(i, box_y_, true);
+    resume_[i] = 0;
     shifted_first_[i] = -1;  // a new activation: no guess answered at the last step
-    st_.rows = guess_rows_[i];
-    st_.box = guess_box_[i];
-    st_.slack = guess_slack_[i];
-    ok = exchange(i, 4 * iter);
+    // Limits that no input in the box can meet (the slack positive at the optimum): first
+    // the guess of infeasible_guess (the box-only guess's exchanges measured cycling there).
+    if (infeasible_guess(i, box_u)) {
+      st_.rows = guess_rows_[i];
+      st_.box = guess_box_[i];
+      st_.slack = guess_slack_[i];
+      ok = exchange(i, 4 * iter);
+      if (!ok && bounded && exhausted_) stopped_ = true;
+    }
+    if (!ok && !stopped_) {
+      box_y_.head(Nc) = box_u;
+      box_y_[Nc] = 0.0;
+      guess_from(i, box_y_, true);
+      st_.rows = guess_rows_[i];
+      st_.box = guess_box_[i];
+      st_.slack = guess_slack_[i];
+      ok = exchange(i, 4 * iter);
+    }
   }
+  // Under a bound on the step's exchanges, a guess that ran out of its own stops as well:
+  // resumed at the next step, never ProxSuite's (whose solve from scratch takes milliseconds).
+  if (!ok && !stopped_ && bounded && exhausted_) stopped_ = true;
   if (stopped_) {
     // Out of this step's exchanges: the active set reached kept for the next step's.
     guess_rows_[i] = st_.rows;
@@ -103,6 +120,7 @@ bool SoftLimits::exchange(int i, int exchanges) {
   // per active item, so this ends).
   // This step's exchanges (budget_) are counted as `exchanges` are: by the solves that
   // were not a drop.
+  exhausted_ = false;
   for (int it = 0; it <= exchanges;) {
     if (budget_ == 0) {
       stopped_ = true;
@@ -124,7 +142,37 @@ bool SoftLimits::exchange(int i, int exchanges) {
     }
   }
   ++stats_->soft_fail_exchanges;
+  exhausted_ = true;
   return false;
+}
+
+// At a new activation: when some row's limit cannot be met by any input in the box (Γ >= 0:
+// the row Γ_r U is least at U = lo, largest at U = hi), the slack the worst such row needs,
+// k ŝ = its least violation, is a lower bound on the optimum's. The guess: ŝ there and free,
+// the inputs that move the worst row (those before its step) at the bound that reduces its
+// violation, the others the box-only answer's; its rows at or beyond their limits (the
+// worst one among them) active. False (nothing set) when every row can be met.
+bool SoftLimits::infeasible_guess(int i, const ColRef& box_u) {
+  if (!gamma_nonneg_) return false;
+  const int N = N_, Nc = Nc_;
+  const double lo = v_min_[i], hi = v_max_[i];
+  double worst = 1e-9 * std::max(1.0, vel_[i]);
+  int r_star = -1, side = 0;
+  for (int pass = 0; pass < 2; ++pass) {  // upper limits at U = lo, lower at U = hi
+    box_y_.head(Nc).setConstant(pass == 0 ? lo : hi);
+    gamma_.apply(box_y_.head(Nc), Xs_);
+    for (int r = 0; r < 2 * N; ++r) {
+      const double v = pass == 0 ? Xs_[r] - p_.bnd_hi[r] : p_.bnd_lo[r] - Xs_[r];
+      if (v > worst) worst = v, r_star = r, side = pass == 0 ? 1 : -1;
+    }
+  }
+  if (r_star < 0) return false;
+  const int moved = std::min(r_star / 2 + 1, Nc);  // x_j depends on u_0 .. u_{j-1}
+  box_y_.head(Nc) = box_u;
+  for (int a = 0; a < moved; ++a) box_y_[a] = side > 0 ? lo : hi;
+  box_y_[Nc] = worst / k_slack_;
+  guess_from(i, box_y_, false);
+  return true;
 }
 
 // The KKT test of joint i's soft QP at the subproblem's point, to the solver's tolerances

@@ -15,12 +15,20 @@ struct JointQPsOptions {
   // Soft QPs: primal-dual exchanges of the soft active-set shortcut per guess (< 0: ProxSuite
   // for every soft QP).
   int soft_active_set_iter = 8;
-  // Soft QPs: the shortcut's exchanges per step over all joints (< 0: no bound). A joint
-  // reached with none left answers the safe fallback (SoftLimits::fallback: the box-only
-  // answer, its first input clipped to the accelerations that keep the next state inside
-  // the limits), counted in soft_fallbacks, and resumes its exchanges where they stopped at
-  // the next step.
+  // Soft QPs: the shortcut's exchanges per step over all joints (< 0: soft_step_work's). A
+  // joint reached with none left answers the safe fallback (SoftLimits::fallback: the
+  // box-only answer, its first input clipped to the accelerations that keep the next state
+  // inside the limits, else the box's end nearest them), counted in soft_fallbacks, and
+  // resumes its exchanges where they stopped at the next step. The step's exchanges are
+  // spread over the joints whose soft QP it solves: each gets the exchanges left divided by
+  // the joints left (rounded up), so that one joint's long activation cannot starve the
+  // others; under a bound, a guess whose own exchanges run out stops too (the next step
+  // resumes it) instead of going to ProxSuite.
   int soft_step_exchanges = -1;
+  // Soft QPs: the step's work when soft_step_exchanges < 0, in exchanges × horizon steps (an
+  // exchange costs O(N)): at most max(1, soft_step_work / N) exchanges per step (< 0: no
+  // bound).
+  long soft_step_work = -1;
   // Soft QPs for every joint at every step (set by JointQPs::set_limits).
   bool always_constrained = false;
 };

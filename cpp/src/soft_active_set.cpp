@@ -24,6 +24,7 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
     p_.bnd_hi[2 * j + 1] = vel_[i] - v_free_[j];
     p_.bnd_lo[2 * j + 1] = -vel_[i] - v_free_[j];
   }
+  if (budget_ >= 0) return bounded(i, box_u, iter);
   // The last soft solution's active set only while it is the last step's (the joint's soft
   // QP solved at the step before): after a step without, its activation is a new one.
   bool ok = false;
@@ -106,10 +107,102 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   }
   if (!ok) return false;
   remember_state(i, kkt_->y()[0]);
-  guess_rows_[i] = st_.rows;
-  guess_box_[i] = st_.box;
-  guess_slack_[i] = st_.slack;
+  guess_rows_[i] = ans_rows_[i] = st_.rows;
+  guess_box_[i] = ans_box_[i] = st_.box;
+  guess_slack_[i] = ans_slack_[i] = st_.slack;
   return true;
+}
+
+// Under a bound on the step's exchanges (budget_ >= 0): the same guesses as without, as
+// stages with their own exchanges (0: the last answer's active set shifted, 1: as it stood,
+// iter each, in the order active_set tries them; 2: infeasible_guess's, 3: the box-only
+// answer's, 4·iter each), tried in turn, their exchanges spread over steps: a joint out of
+// the step's exchanges keeps its stage, the active set reached and the exchanges the stage
+// has made, and resumes there at the next step; a stage out of its own exchanges (or failing)
+// hands over to the next one, the last to the first. So the sequence of guesses is the
+// unbounded one's, spread over as many steps as the bound needs, and never ProxSuite's.
+bool SoftLimits::bounded(int i, const ColRef& box_u, int iter) {
+  const int N = N_, Nc = Nc_;
+  continued_ = false;
+  stopped_ = false;
+  const bool answered = has_guess_[i] && last[i];
+  int order[4], stages = 0;
+  if (answered) {
+    int first = shifted_first_[i];
+    if (first < 0) {
+      const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+      const double lq = last_q_[i], lv = last_v_[i], u0 = last_u0_[i];
+      const double pq = a00 * lq + a01 * lv + Gamma_(0, 0) * u0;
+      const double pv = a10 * lq + a11 * lv + Gamma_(1, 0) * u0;
+      const double moved = std::abs(q_ - pq) + a01 * std::abs(dq_ - pv);
+      const double held = std::abs(q_ - lq) + a01 * std::abs(dq_ - lv);
+      first = moved <= held ? 0 : 1;  // stage 0: shifted
+    } else {
+      first = first ? 0 : 1;  // shifted_first_ 1 (shifted): stage 0
+    }
+    order[stages++] = first;
+    order[stages++] = 1 - first;
+  }
+  order[stages++] = 2;
+  order[stages++] = 3;
+  int pos = 0;
+  bool fresh = true;
+  if (resume_[i] && last[i]) {
+    for (int k = 0; k < stages; ++k)
+      if (order[k] == resume_[i] - 1) pos = k, fresh = false;
+  }
+  if (fresh) spent_[i] = 0;
+  resume_[i] = 0;
+  for (int tries = 0; tries <= stages; ++tries, pos = (pos + 1) % stages) {
+    const int stage = order[pos];
+    if (fresh) {
+      spent_[i] = 0;
+      if (stage <= 1) {
+        const bool shifted = stage == 0;
+        for (int r = 0; r < 2 * N; ++r)
+          st_.rows[r] = ans_rows_[i][shifted && r + 2 < 2 * N ? r + 2 : r];
+        for (int a = 0; a < Nc; ++a) st_.box[a] = ans_box_[i][shifted && a + 1 < Nc ? a + 1 : a];
+        st_.slack = ans_slack_[i];
+      } else {
+        if (stage == 2 && !infeasible_guess(i, box_u)) continue;
+        if (stage == 3) {
+          box_y_.head(Nc) = box_u;
+          box_y_[Nc] = 0.0;
+          guess_from(i, box_y_, true);
+        }
+        st_.rows = guess_rows_[i];
+        st_.box = guess_box_[i];
+        st_.slack = guess_slack_[i];
+      }
+    } else {
+      st_.rows = res_rows_[i];
+      st_.box = res_box_[i];
+      st_.slack = res_slack_[i];
+    }
+    fresh = true;
+    const int cap = stage <= 1 ? iter : 4 * iter;
+    const bool ok = exchange(i, std::max(cap - spent_[i], 0));
+    spent_[i] += made_;
+    if (ok) {
+      continued_ = stage <= 1;
+      shifted_first_[i] = stage <= 1 ? static_cast<signed char>(stage == 0) : -1;
+      remember_state(i, kkt_->y()[0]);
+      guess_rows_[i] = ans_rows_[i] = st_.rows;
+      guess_box_[i] = ans_box_[i] = st_.box;
+      guess_slack_[i] = ans_slack_[i] = st_.slack;
+      has_guess_[i] = 1;
+      return true;
+    }
+    if (stopped_) {  // out of the step's exchanges: this stage resumed at the next step
+      res_rows_[i] = st_.rows;
+      res_box_[i] = st_.box;
+      res_slack_[i] = st_.slack;
+      resume_[i] = static_cast<signed char>(stage + 1);
+      return false;
+    }
+  }
+  stopped_ = true;  // every stage tried at this step: the fallback, the first stage next
+  return false;
 }
 
 // Up to `exchanges` primal-dual exchanges from the active set st_: solve (BandedKKT), then
@@ -121,6 +214,7 @@ bool SoftLimits::exchange(int i, int exchanges) {
   // This step's exchanges (budget_) are counted as `exchanges` are: by the solves that
   // were not a drop.
   exhausted_ = false;
+  made_ = 0;
   for (int it = 0; it <= exchanges;) {
     if (budget_ == 0) {
       stopped_ = true;
@@ -132,6 +226,7 @@ bool SoftLimits::exchange(int i, int exchanges) {
       return false;
     }
     ++it;
+    ++made_;
     if (budget_ > 0) --budget_;
     ++stats_->soft_exchanges;
     const int verdict = test_point(i);

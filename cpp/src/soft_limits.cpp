@@ -52,6 +52,13 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
   last_u0_.setZero(n);
   shifted_first_.assign(n, -1);
   resume_.assign(n, 0);
+  spent_.assign(n, 0);
+  res_rows_.assign(n, std::vector<signed char>(2 * N, 0));
+  ans_rows_.assign(n, std::vector<signed char>(2 * N, 0));
+  res_box_.assign(n, std::vector<signed char>(Nc, 0));
+  ans_box_.assign(n, std::vector<signed char>(Nc, 0));
+  res_slack_.assign(n, 0);
+  ans_slack_.assign(n, 0);
   st_.rows.assign(2 * N, 0);
   st_.box.assign(Nc, 0);
   p_.gp.setZero(Nc);
@@ -114,6 +121,13 @@ void SoftLimits::save(Memory& m) const {
   m.used = used_;
   m.guess_rows = guess_rows_;
   m.guess_box = guess_box_;
+  m.res_rows = res_rows_;
+  m.res_box = res_box_;
+  m.ans_rows = ans_rows_;
+  m.ans_box = ans_box_;
+  m.res_slack = res_slack_;
+  m.ans_slack = ans_slack_;
+  m.spent = spent_;
   m.last_q = last_q_;
   m.last_v = last_v_;
   m.last_u0 = last_u0_;
@@ -132,6 +146,13 @@ void SoftLimits::restore(const Memory& m) {
   used_ = m.used;
   guess_rows_ = m.guess_rows;
   guess_box_ = m.guess_box;
+  res_rows_ = m.res_rows;
+  res_box_ = m.res_box;
+  ans_rows_ = m.ans_rows;
+  ans_box_ = m.ans_box;
+  res_slack_ = m.res_slack;
+  ans_slack_ = m.ans_slack;
+  spent_ = m.spent;
   last_q_ = m.last_q;
   last_v_ = m.last_v;
   last_u0_ = m.last_u0;
@@ -194,6 +215,9 @@ const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
     return qp.results;
   if (shortcut_ && iter >= 0) {
     guess_from(i, qp.results.x, false);
+    ans_rows_[i] = guess_rows_[i];
+    ans_box_[i] = guess_box_[i];
+    ans_slack_[i] = guess_slack_[i];
     remember_state(i, qp.results.x[0]);
     shifted_first_[i] = -1;
     settled(i, false, false);

@@ -112,7 +112,10 @@ class SoftLimits {
   struct Memory {
     std::vector<signed char> last, next, active, guess_slack, has_guess, shifted_first, resume,
         used;
-    std::vector<std::vector<signed char>> guess_rows, guess_box;
+    std::vector<std::vector<signed char>> guess_rows, guess_box, res_rows, res_box, ans_rows,
+        ans_box;
+    std::vector<signed char> res_slack, ans_slack;
+    std::vector<int> spent;
     Vec last_q, last_v, last_u0;
     std::vector<Results> qps;
   };
@@ -131,6 +134,7 @@ class SoftLimits {
   int test_point(int i);
   void guess_from(int i, const Vec& y, bool box_only);
   bool infeasible_guess(int i, const ColRef& box_u);
+  bool bounded(int i, const ColRef& box_u, int iter);
 
   int n_, N_, Nc_;
   Mat H_, Phi_, Gamma_, Hs_, C_;
@@ -158,7 +162,13 @@ class SoftLimits {
   bool stopped_ = false;
   bool exhausted_ = false;     // the last exchange() ran out of its guess's exchanges
   bool gamma_nonneg_ = false;  // every entry of Γ >= 0 (infeasible_guess)
-  std::vector<signed char> resume_;  // per joint: its exchanges stopped at the last step
+  // Per joint, under a bound (bounded()): the stage stopped at the last step + 1 (0: none),
+  // the exchanges it made, the active set it reached; the last answer's active set.
+  std::vector<signed char> resume_;
+  std::vector<int> spent_;
+  std::vector<std::vector<signed char>> res_rows_, res_box_, ans_rows_, ans_box_;
+  std::vector<signed char> res_slack_, ans_slack_;
+  int made_ = 0;  // the last exchange()'s exchanges
   void remember_state(int i, double u0) {
     last_q_[i] = q_;
     last_v_[i] = dq_;

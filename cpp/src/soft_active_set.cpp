@@ -24,23 +24,13 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
     p_.bnd_hi[2 * j + 1] = vel_[i] - v_free_[j];
     p_.bnd_lo[2 * j + 1] = -vel_[i] - v_free_[j];
   }
-  if (budget_ >= 0) return bounded(i, box_u, iter);
+  if (budget_ >= 0) return bounded(i, box_u, iter);  // under a bound: its stages
   // The last soft solution's active set only while it is the last step's (the joint's soft
   // QP solved at the step before): after a step without, its activation is a new one.
   bool ok = false;
   continued_ = false;
   stopped_ = false;
-  exhausted_ = false;
-  const bool bounded = budget_ >= 0;
-  if (resume_[i] && has_guess_[i] && last[i]) {
-    // The exchanges stopped at the last step (out of the step's): resumed where they were.
-    resume_[i] = 0;
-    st_.rows = guess_rows_[i];
-    st_.box = guess_box_[i];
-    st_.slack = guess_slack_[i];
-    ok = exchange(i, 4 * iter);
-    if (!ok && !stopped_ && !(bounded && exhausted_)) return false;
-  } else if (has_guess_[i] && last[i]) {
+  if (has_guess_[i] && last[i]) {
     // The two guesses in the order of the one that answered at the last step; at an
     // activation's first continued step, the shifted one first when the state is nearer the
     // last answer's prediction of it (x1 = A x0 + B u0: the plan followed) than the last
@@ -63,7 +53,6 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
       st_.slack = guess_slack_[i];
       ok = exchange(i, iter);
       if (ok) shifted_first_[i] = static_cast<signed char>(shifted);
-      if (stopped_) break;
     }
     continued_ = ok;
   }
@@ -71,39 +60,15 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it
   // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
   // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
-  if (!ok && !stopped_ && !(has_guess_[i] && last[i])) {
-    resume_[i] = 0;
+  if (!ok && !(has_guess_[i] && last[i])) {
+    box_y_.head(Nc) = box_u;
+    box_y_[Nc] = 0.0;
+    guess_from(i, box_y_, true);
     shifted_first_[i] = -1;  // a new activation: no guess answered at the last step
-    // Limits that no input in the box can meet (the slack positive at the optimum): first
-    // the guess of infeasible_guess (the box-only guess's exchanges measured cycling there).
-    if (infeasible_guess(i, box_u)) {
-      st_.rows = guess_rows_[i];
-      st_.box = guess_box_[i];
-      st_.slack = guess_slack_[i];
-      ok = exchange(i, 4 * iter);
-      if (!ok && bounded && exhausted_) stopped_ = true;
-    }
-    if (!ok && !stopped_) {
-      box_y_.head(Nc) = box_u;
-      box_y_[Nc] = 0.0;
-      guess_from(i, box_y_, true);
-      st_.rows = guess_rows_[i];
-      st_.box = guess_box_[i];
-      st_.slack = guess_slack_[i];
-      ok = exchange(i, 4 * iter);
-    }
-  }
-  // Under a bound on the step's exchanges, a guess that ran out of its own stops as well:
-  // resumed at the next step, never ProxSuite's (whose solve from scratch takes milliseconds).
-  if (!ok && !stopped_ && bounded && exhausted_) stopped_ = true;
-  if (stopped_) {
-    // Out of this step's exchanges: the active set reached kept for the next step's.
-    guess_rows_[i] = st_.rows;
-    guess_box_[i] = st_.box;
-    guess_slack_[i] = st_.slack;
-    has_guess_[i] = 1;
-    resume_[i] = 1;
-    return false;
+    st_.rows = guess_rows_[i];
+    st_.box = guess_box_[i];
+    st_.slack = guess_slack_[i];
+    ok = exchange(i, 4 * iter);
   }
   if (!ok) return false;
   remember_state(i, kkt_->y()[0]);
@@ -113,14 +78,15 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   return true;
 }
 
-// Under a bound on the step's exchanges (budget_ >= 0): the same guesses as without, as
-// stages with their own exchanges (0: the last answer's active set shifted, 1: as it stood,
-// iter each, in the order active_set tries them; 2: infeasible_guess's, 3: the box-only
-// answer's, 4·iter each), tried in turn, their exchanges spread over steps: a joint out of
-// the step's exchanges keeps its stage, the active set reached and the exchanges the stage
-// has made, and resumes there at the next step; a stage out of its own exchanges (or failing)
-// hands over to the next one, the last to the first. So the sequence of guesses is the
-// unbounded one's, spread over as many steps as the bound needs, and never ProxSuite's.
+// Under a bound on the step's exchanges (budget_ >= 0): the guesses as stages with their
+// own exchanges (0: the last answer's active set shifted, 1: as it stood, iter each, in the
+// order active_set tries them; 2: infeasible_guess's, 3: the box-only answer's, 4·iter
+// each), tried in turn, their exchanges spread over steps: a joint out of the step's
+// exchanges keeps its stage, the active set reached and the exchanges the stage has made,
+// and resumes there at the next step (measured: resuming a guess's exchanges without a
+// stage's own count cycled on a guess that never answers); a stage out of its own
+// exchanges (or failing) hands over to the next one, the last to the first. Never
+// ProxSuite's (a solve from scratch of milliseconds).
 bool SoftLimits::bounded(int i, const ColRef& box_u, int iter) {
   const int N = N_, Nc = Nc_;
   continued_ = false;

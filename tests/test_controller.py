@@ -341,8 +341,8 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, laten
                                                 joint_dynamics, at):  # fmt: skip
     """``warm_up`` (a step undone, run by the real-time loop before an MPC cycle) between
     the steps of a closed loop from 1 rad off, against the same loop without it: the same
-    torques and estimates to ProxSuite's tolerance (its warm start, and the active-set
-    shortcut's guess, is the dry step's solution).
+    torques and estimates, bit for bit in the "joint" layout (the QPs' warm starts and
+    remembered active sets restored), to ProxSuite's tolerance in the "block" layout.
     Also with a measurement latency and with compensated URDF joint dynamics (the compiled
     step's torque histories and joint torque restored), and with the observer's model at
     the start of the period (the previous measurement's M, C q̇ + G restored)."""
@@ -374,10 +374,14 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, laten
             q, dq = _rk4_hold(planar3, q, dq, tau, d, Ts, steps=10)
         out.append((np.array(taus), np.array(dhats), copy.copy(ctrl.qps._core.stats)))
     (tau_a, d_a, c_a), (tau_b, d_b, c_b) = out
-    # the same solutions, bit for bit: the QPs' memory (warm starts, remembered active sets)
-    # restored after the dry step
-    np.testing.assert_array_equal(tau_b, tau_a)
-    np.testing.assert_array_equal(d_b, d_a)
+    # the QPs' memory (warm starts, remembered active sets) restored after the dry step:
+    # the "joint" layout's answers bit for bit; the block QP's ProxSuite solves to its
+    # tolerance (its workspace, not restored, differs in the last bits)
+    if layout == "joint":
+        np.testing.assert_array_equal(tau_b, tau_a)
+        np.testing.assert_array_equal(d_b, d_a)
+    np.testing.assert_allclose(tau_b, tau_a, rtol=1e-7, atol=1e-4)
+    np.testing.assert_allclose(d_b, d_a, rtol=1e-7, atol=1e-4)
     if layout == "joint":  # the exact shortcuts answered (the block QP has none)
         assert all(c.unconstrained_solves + c.active_set_solves > 0 for c in (c_a, c_b))
     assert np.abs(tau_a).max() > 0  # a real run

@@ -193,7 +193,8 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
   }
   // The step's soft exchanges (options.soft_step_exchanges, else soft_step_work / N; < 0:
   // no bound), spread over the joints whose soft QP this step solves: each joint's share
-  // the exchanges left divided by the joints left (rounded up), what it leaves to the next.
+  // the exchanges left divided by the joints left (rounded up; at least `least` below),
+  // what it leaves to the next.
   long left = options.soft_step_exchanges >= 0 ? options.soft_step_exchanges
               : options.soft_step_work >= 0   ? std::max(1L, options.soft_step_work / N)
                                               : -1L;
@@ -204,10 +205,13 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       joints_left += soft.next[i] || options.always_constrained ||
                      soft.leaves(i, q[i], dq[i], U.col(i));
   bool counted = false;  // joint i counted out of joints_left
+  // At least a guess's own exchanges (soft_active_set_iter) while the step has them: fewer
+  // rarely answer at an activation, and all the joints then fell back (measured, Panda).
+  const long least = std::max(options.soft_active_set_iter, 1);
   auto share = [&]() {
     if (left < 0) return;
     if (!counted) counted = true, joints_left = std::max(joints_left - 1, 0);
-    soft.set_budget((left + joints_left) / (joints_left + 1));
+    soft.set_budget(std::max((left + joints_left) / (joints_left + 1), std::min(left, least)));
   };
   auto spent = [&](long given) {
     if (left >= 0) left -= given - soft.budget();

@@ -27,7 +27,8 @@ struct JointQPsOptions {
   int soft_step_exchanges = -1;
   // Soft QPs: the step's work when soft_step_exchanges < 0, in exchanges × horizon steps (an
   // exchange costs O(N)): at most max(1, soft_step_work / N) exchanges per step (< 0: no
-  // bound).
+  // bound; opt-in: 1600, 16 exchanges at N = 100, leaves Panda's worst step at 1 kHz near
+  // its period, BENCHMARKS.md "1 kHz").
   long soft_step_work = -1;
   // Soft QPs for every joint at every step (set by JointQPs::set_limits).
   bool always_constrained = false;

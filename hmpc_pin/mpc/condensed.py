@@ -571,7 +571,9 @@ class JointQPs:
         cannot hold), then to the box (the box's end nearest them when none in it keeps
         them), counted in ``soft_fallbacks``; its exchanges resume where they stopped at the
         next step, so that the soft QP's own answer follows within a few steps. Under a
-        bound no soft QP goes to ProxSuite for running out of exchanges."""
+        bound the shortcut's guesses are stages, each with its own exchanges, spread over
+        steps; ProxSuite answers only a joint whose every guess failed within the step's
+        exchanges."""
         return int(self._core.options.soft_step_exchanges)
 
     @soft_step_exchanges.setter

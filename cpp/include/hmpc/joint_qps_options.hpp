@@ -22,8 +22,9 @@ struct JointQPsOptions {
   // resumes its exchanges where they stopped at the next step. The step's exchanges are
   // spread over the joints whose soft QP it solves: each gets the exchanges left divided by
   // the joints left (rounded up), so that one joint's long activation cannot starve the
-  // others; under a bound, a guess whose own exchanges run out stops too (the next step
-  // resumes it) instead of going to ProxSuite.
+  // others. Under a bound the guesses are stages spread over steps (SoftLimits::bounded): a
+  // stage out of its own exchanges hands over to the next; ProxSuite only for a joint whose
+  // stages all failed within the step's exchanges.
   int soft_step_exchanges = -1;
   // Soft QPs: the step's work when soft_step_exchanges < 0, in exchanges × horizon steps (an
   // exchange costs O(N)): at most max(1, soft_step_work / N) exchanges per step (< 0: no

@@ -23,12 +23,13 @@ printed: how the soft QPs were answered (the soft active-set shortcut, whose ans
 the soft QP's KKT test, or ProxSuite) and the shortcut's guesses that did not answer.
 
 With ``--soft-step-exchanges K``: the soft exchanges bounded to K per step
-(``JointQPs.soft_step_exchanges``; a joint reached with none left answers the fallback,
-counted, and resumes at the next step); printed beside the counters: the fallbacks, the
-exchanges and the most in a step.
+(``JointQPs.soft_step_exchanges``; spread over the joints, a joint reached with none left
+answers the fallback, counted, and resumes at the next step); ``--soft-step-work W``: the
+bound W // N (``JointQPs.soft_step_work``); printed beside the counters: the fallbacks,
+the exchanges and the most in a step.
 
 Run: ``python benchmarks/studies/worst_step.py [--blocks 7] [--steps 100]
-[--soft-step-exchanges 16]``.
+[--soft-step-exchanges 16] [--soft-step-work 1600]``.
 """
 
 from __future__ import annotations
@@ -95,6 +96,12 @@ def main() -> int:
     parser.add_argument("--blocks", type=int, default=7)
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument(
+        "--soft-step-work",
+        type=int,
+        default=None,
+        help="JointQPsOptions.soft_step_work (exchanges × N per step; default: the package's)",
+    )
+    parser.add_argument(
         "--soft-step-exchanges",
         type=int,
         default=None,
@@ -110,10 +117,15 @@ def main() -> int:
         ctrl = _controller(robot, Ts, N)
         if args.soft_step_exchanges is not None:
             ctrl.qps._core.options.soft_step_exchanges = args.soft_step_exchanges
+        if args.soft_step_work is not None:
+            ctrl.qps._core.options.soft_step_work = args.soft_step_work
         return ctrl
 
     loop_ctrl = controller(robot, TS, N)
-    budget = loop_ctrl.qps._core.options.soft_step_exchanges
+    opts = loop_ctrl.qps._core.options
+    budget = opts.soft_step_exchanges
+    if budget < 0 and opts.soft_step_work >= 0:
+        budget = max(1, opts.soft_step_work // N)
     states, _, _ = closed_loop(loop_ctrl, ref, TS, args.steps)
     t = states[0]
     q_ref, dq_ref = ref.sample_many(t)

@@ -611,10 +611,10 @@ class HierarchicalMPC(AppliedTorque):
         state (:class:`~hmpc_pin.realtime.loop.LoopSettings` ``warm_up``): a step after a
         sleep otherwise starts on caches other processes have used. Restored afterwards:
         v, τ, d̂, M, C q̇ + G, the horizon stack and solution, the slacks, the QPs' counters
-        and the compiled observer's state. ProxSuite's own warm start keeps this step's
-        solution (a solution of a neighbouring problem; each solve still converges to the
-        solver's tolerance). The compiled step's own carry-over (the joint-dynamics torque,
-        the latency's torque histories) is restored too. Does nothing before the first
+        and the compiled observer's state, the QPs' memory (ProxSuite's warm starts, the
+        active sets the shortcuts remembered), so that the next step's answers are, bit for
+        bit, those without this call. The compiled step's own carry-over (the joint-dynamics
+        torque, the latency's torque histories) is restored too. Does nothing before the first
         :meth:`step` after :meth:`reset`, or with a compensation advanced from Python (its
         state is its own). Errors of the dry step are dropped: the real step reports them.
         """
@@ -625,6 +625,7 @@ class HierarchicalMPC(AppliedTorque):
         core = self.qps._core
         solution = core.state  # the QPs' solution and slacks (copies)
         counters = copy.copy(core.stats)  # the QPs' counters (JointQPsStats)
+        memory = core.save_memory()  # warm starts, remembered active sets
         ndo_state = ndo.state if ndo is not None else None
         step_core = self._core
         # copies, independent of the compiled step's own vectors
@@ -644,6 +645,7 @@ class HierarchicalMPC(AppliedTorque):
             self._data.assign(data)
             core.state = solution
             core.stats = counters
+            core.restore_memory(memory)
             step_core.state = carried
             if ndo is not None:
                 ndo.state = ndo_state

@@ -396,7 +396,7 @@ def test_warm_up_leaves_the_soft_limits_next_step_bit_for_bit(bound):
     (the paths that answered) bit for bit those of the same loop without it. Measured
     before the QPs' memory was restored: the same torques, 13 soft exchanges more."""
     from benchmarks._fixtures import HOMES, PANDA_LOCKED, load_arm
-    from benchmarks.long_horizon_soft import controller
+    from benchmarks.studies.long_horizon_soft import controller
 
     arm = load_arm("panda", "panda", HOMES["panda"], "general", PANDA_LOCKED)
     robot, ref, Ts = arm.robot, arm.reference(), 0.001

@@ -135,7 +135,7 @@ def panda():
 
 @needs_msgs
 def test_trajectory_message_becomes_the_reference(panda):
-    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.apps.ros_trajectories import trajectory_limits
     from hmpc_pin.ros.trajectory import trajectory_from_message
 
     robot, ref = panda.robot, panda.reference
@@ -145,7 +145,7 @@ def test_trajectory_message_becomes_the_reference(panda):
     target = q_now + 0.1
     # reversed order and an extra joint the robot does not control: matched by name
     msg = _message(["gripper", *names[::-1]], [(1.5, [0.0, *target[::-1]])])
-    lower, upper = _limits_of(panda)
+    lower, upper = trajectory_limits(panda)
     traj = trajectory_from_message(msg, robot, ref, now, lower, upper)
     q, _dq = traj.sample(now)
     np.testing.assert_allclose(q, q_now, atol=1e-12)  # starts where the reference was
@@ -156,12 +156,12 @@ def test_trajectory_message_becomes_the_reference(panda):
 
 @needs_msgs
 def test_trajectory_messages_refused(panda):
-    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.apps.ros_trajectories import trajectory_limits
     from hmpc_pin.ros.trajectory import trajectory_from_message
 
     robot, ref = panda.robot, panda.reference
     names = list(robot.joint_names)
-    lower, upper = _limits_of(panda)
+    lower, upper = trajectory_limits(panda)
     q_now = ref.sample(0.0)[0]
     beyond = q_now.copy()
     beyond[3] = upper[3] + 0.2
@@ -512,12 +512,12 @@ def test_gravity_by_the_arm_takes_g_out_of_every_command(panda):
 
 @needs_msgs
 def test_a_trajectory_stamped_in_the_future_starts_at_its_stamp(panda):
-    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.apps.ros_trajectories import trajectory_limits
     from hmpc_pin.ros.trajectory import trajectory_from_message
 
     robot, ref = panda.robot, panda.reference
     names = list(robot.joint_names)
-    lower, upper = _limits_of(panda)
+    lower, upper = trajectory_limits(panda)
     now, start = 2.0, 3.0  # the stamp 1 s ahead of the loop (origin 0)
     target = ref.sample(start)[0] + 0.1
     traj = trajectory_from_message(_message(names, [(1.0, target)], stamp=start), robot, ref,

@@ -248,16 +248,16 @@ class _Log:
 def _worker(panda_experiment):
     """The check of ``~/joint_trajectory`` (the worker thread's function), on a real loop
     (not run: its time set by hand) and the real message type."""
-    from hmpc_pin.apps.ros import _limits_of, _Trajectories
+    from hmpc_pin.apps.ros_trajectories import TrajectorySubscription, trajectory_limits
     from hmpc_pin.realtime import LoopSettings, PlantArm, RealtimeLoop, SafeTorque
     from hmpc_pin.realtime import SafetySettings as Safety
 
     ex = panda_experiment
     log = _Log()
-    t = _Trajectories.__new__(_Trajectories)
+    t = TrajectorySubscription.__new__(TrajectorySubscription)
     t.ros = SimpleNamespace(node=SimpleNamespace(get_logger=lambda: log))
     t.experiment, t.iface = ex, SimpleNamespace(_origin=0.0)
-    t.lower, t.upper = _limits_of(ex)
+    t.lower, t.upper = trajectory_limits(ex)
     t.loop, t.events, t._pending, t.topic = None, [], None, "/hmpc/joint_trajectory"
     arm = PlantArm(ex.make_plant(1e-3), ex.q0)
     loop = RealtimeLoop(arm, ex.controller, ex.reference, SafeTorque(ex.robot),
@@ -321,7 +321,7 @@ def test_the_trajectory_worker_accepts_refuses_and_marks_superseded(panda_sine):
 def test_messages_are_checked_against_the_mpcs_limits_else_the_urdfs(panda_sine):
     """[controller.constraints] upper narrower than the URDF's: the trajectory messages
     are checked against it; a controller without constraints: against the URDF's."""
-    from hmpc_pin.apps.ros import _limits_of
+    from hmpc_pin.apps.ros_trajectories import trajectory_limits
     from hmpc_pin.experiment.build import Experiment
 
     cc = panda_sine.controller
@@ -329,12 +329,12 @@ def test_messages_are_checked_against_the_mpcs_limits_else_the_urdfs(panda_sine)
     upper = urdf.upper - 0.01  # 10 mrad inside the URDF's, the start posture inside it
     narrow = replace(panda_sine, controller=replace(
         cc, constraints=replace(cc.constraints, upper=upper)))  # fmt: skip
-    lo, hi = _limits_of(Experiment.from_config(narrow))
+    lo, hi = trajectory_limits(Experiment.from_config(narrow))
     np.testing.assert_array_equal(hi, upper)
     np.testing.assert_array_equal(lo, urdf.lower)
     off = replace(panda_sine, controller=replace(
         cc, constraints=replace(cc.constraints, enabled=False)))  # fmt: skip
-    lo, hi = _limits_of(Experiment.from_config(off))
+    lo, hi = trajectory_limits(Experiment.from_config(off))
     np.testing.assert_array_equal(hi, urdf.upper)
 
 

@@ -38,8 +38,9 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import ArmError, ConfigError
-from ..experiment.build import Experiment, realtime_parts
+from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
+from ..experiment.realtime import realtime_parts
 from ..realtime.franka import (
     FRANKA_TORQUE_LIMIT,
     FrankaArm,

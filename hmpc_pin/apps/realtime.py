@@ -15,8 +15,9 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
-from ..experiment.build import Experiment, make_arm_plant, realtime_parts
+from ..experiment.build import Experiment, make_arm_plant
 from ..experiment.config import ExperimentConfig
+from ..experiment.realtime import realtime_parts
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..realtime.pacing import cpu_affinity
 from ..realtime.process_arm import ProcessArm, start_child

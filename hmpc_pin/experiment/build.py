@@ -3,7 +3,9 @@ plant (names in a config → objects in this layer only), split by what is built
 :mod:`~hmpc_pin.experiment.controllers` (the controller's settings, compensation and limits),
 :mod:`~hmpc_pin.experiment.references` (the reference),
 :mod:`~hmpc_pin.experiment.plants` (the plant and its disturbance), and here the
-:class:`Experiment` that holds them and runs them.
+:class:`Experiment` that holds them and runs them; its run record is
+:mod:`~hmpc_pin.experiment.record`, its real-time assembly (loop, safety, safe torque)
+:mod:`~hmpc_pin.experiment.realtime`.
 
 The algorithms below (controllers, compensations, plants, references) take their own
 small settings or plain arguments and never see the TOML schema; every check that needs
@@ -14,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -34,12 +35,8 @@ from ..exceptions import (
     InterfaceError,
     LimitError,
     SimulationError,
-    ValidityWarning,
 )
-from ..identification.observer_model import ObserverModel
 from ..model.robot import Robot, load_robot
-from ..realtime.loop import LoopSettings
-from ..realtime.safety import SafeTorque, SafetySettings, brake_time_constant
 from ..sim.disturbances import Disturbance
 from ..sim.engines import engine_spec
 from ..sim.mujoco import MuJoCoPlant
@@ -54,7 +51,13 @@ from .config import (
     RobotConfig,
     parse_combination,
 )
-from .controllers import controller_limits, controller_parts, make_compensation, mpc_settings
+from .controllers import (
+    controller_limits,
+    controller_parts,
+    make_compensation,
+    mpc_settings,
+    uses_observer,
+)
 from .plants import (
     PILOT_DURATION,
     build_disturbance,
@@ -64,10 +67,13 @@ from .plants import (
     plant_effort_limit,
     plant_step,
 )
+from .realtime import brake_settings, minimum_brake_time, realtime_parts
+from .record import record_plant, recorded_limits, run_meta
 from .references import build_reference, build_task_reference, check_trajectory_limits, task_space
 
 __all__ = [
     "Experiment",
+    "brake_settings",
     "build_disturbance",
     "build_reference",
     "build_task_reference",
@@ -77,6 +83,7 @@ __all__ = [
     "make_arm_plant",
     "make_compensation",
     "make_controller",
+    "minimum_brake_time",
     "mpc_settings",
     "mujoco_settings",
     "realtime_parts",
@@ -228,11 +235,6 @@ def warn_bandwidth(robot: Robot, cc: ControllerConfig, posture: np.ndarray | Non
             robot.joint_names,
             explicit=obs.discretization == "explicit",
         )
-
-
-def uses_observer(cc: ControllerConfig) -> bool:
-    """Whether the compensation of ``cc`` is an observer (chen, general, momentum)."""
-    return cc.compensation in OBSERVERS
 
 
 def with_controller(
@@ -456,46 +458,8 @@ class Experiment:
         return task_space(self.reference, self.robot, self._record_plant(plant, result))
 
     def _record_plant(self, plant: Plant, result: Result) -> Result:
-        """Add the engine (a Pinocchio plant's step [s] and Coulomb law: ``plant_step``,
-        chosen by ``plant.tolerance`` where given, and ``coulomb``), the MuJoCo contact force
-        and the collision flag to ``result``."""
-        pc = self.config.plant
-        result.meta["engine"] = pc.engine
-        if not isinstance(plant, MuJoCoPlant):
-            result.meta["plant_step"] = float(plant.h)
-            result.meta["coulomb"] = getattr(plant, "coulomb", "sign")
-        if isinstance(plant, MuJoCoPlant):
-            result.meta["engine_version"] = plant.version
-            ob = plant.settings.obstacle
-            if ob is not None:  # (without an obstacle MuJoCo's contacts are off)
-                result.meta["obstacle"] = {"position": list(ob.position), "size": list(ob.size)}
-                contact = np.array(plant.history[: len(result.t)])
-                result.extra["contact_force"] = contact
-                touching = np.flatnonzero(np.abs(contact).max(axis=1) > 0)
-                result.meta["first_contact"] = (
-                    float(result.t[touching[0]]) if touching.size else None
-                )
-        else:
-            import pinocchio
-
-            result.meta["engine_version"] = pinocchio.__version__
-        fm = self.config.controller.friction
-        if fm is not None:
-            n = self.robot.nq
-            a = self.config.vector("controller.friction.viscous", n)
-            b = self.config.vector("controller.friction.coulomb", n)
-            # the model's torque at the recorded velocity (the observer's target is d + it)
-            sign = np.tanh(result.dq / fm.smoothing) if fm.smoothing > 0 else np.sign(result.dq)
-            result.extra["friction_feedforward"] = a * result.dq + b * sign
-        if isinstance(self.controller, CollisionReaction):
-            c = self.controller
-            result.meta["collision"] = {
-                "detected_at": c.detected_at,
-                "joint": None if c.joint is None else self.robot.joint_names[c.joint],
-                "reaction": c.reaction,
-                "threshold": c.threshold.tolist(),
-            }
-        return result
+        """Add the plant's engine and measurements to ``result`` (:func:`record_plant`)."""
+        return record_plant(self.config, self.robot, self.controller, plant, result)
 
     def _simulate(
         self, plant: Plant, duration: float | None, on_step, loop: str | None = None, progress=None
@@ -518,54 +482,13 @@ class Experiment:
         )
 
     def meta(self) -> dict:
-        """The metadata stored with a run of this experiment (replay needs the URDF)."""
-        cfg = self.config
-        return {
-            "experiment": cfg.name,
-            "config": str(cfg.source) if cfg.source else None,
-            "urdf": str(self.robot.source),
-            "locked_joints": self.robot.locked_joints,
-            "joint_kinds": list(self.robot.joint_kinds),
-            "limits": self._recorded_limits(),
-            "gravity": cfg.robot.gravity,
-            "controller": cfg.controller.label,
-            "observer": uses_observer(cfg.controller),
-            "Ts": cfg.controller.Ts,
-            "N": cfg.controller.N,
-            "Nc": cfg.controller.Nc,
-            "state_bound": cfg.simulation.state_bound,
-            **self._identification_meta(),
-        }
-
-    def _identification_meta(self) -> dict:
-        """What ``hmpc-pin identify`` needs of the controller: the observer (its
-        regressors are passed through its dynamics) and the friction fed forward (added
-        back to its estimate)."""
-        cc, n = self.config.controller, self.robot.nq
-        out: dict = {}
-        model = ObserverModel.of(
-            getattr(self.controller, "compensation", None),
-            model_at=mpc_settings(cc, n).model_at,
-        )
-        if model is not None:  # the observer that runs: its matrix (cY or K_O), Ts, Euler
-            out["observer_model"] = model.record()
-        if cc.friction is not None:
-            out["friction_feedforward"] = {
-                "viscous": self.config.vector("controller.friction.viscous", n).tolist(),
-                "coulomb": self.config.vector("controller.friction.coulomb", n).tolist(),
-                "smoothing": cc.friction.smoothing,
-            }
-        return out
+        """The metadata stored with a run of this experiment (replay needs the URDF;
+        :func:`~hmpc_pin.experiment.record.run_meta`)."""
+        return run_meta(self.config, self.robot, self.controller)
 
     def _recorded_limits(self) -> dict[str, list[float]]:
-        """The URDF position limits the metrics measure excursions against; a zero or
-        inverted range (double_pendulum's 0/0: no range given) is recorded as ±inf."""
-        lo, hi = self.robot.lower, self.robot.upper
-        ok = lo < hi
-        return {
-            "lower": np.where(ok, lo, -np.inf).tolist(),
-            "upper": np.where(ok, hi, np.inf).tolist(),
-        }
+        """The URDF position limits (:func:`~hmpc_pin.experiment.record.recorded_limits`)."""
+        return recorded_limits(self.robot)
 
     @property
     def obstacle(self) -> dict | None:
@@ -620,141 +543,6 @@ def make_arm_plant(config: ExperimentConfig) -> Plant:
     the arm of ``hmpc-pin realtime``, built in the arm's own process (so a module-level
     function of the config alone, picklable)."""
     return Experiment.from_config(config).make_plant(1.0 / config.realtime.rate)
-
-
-def realtime_parts(
-    experiment: Experiment, rate: float | None = None, *, plant: bool = True
-) -> tuple[LoopSettings, SafetySettings, SafeTorque]:
-    """The loop settings, safety settings and safe torque of ``[realtime]``.
-
-    Args:
-        experiment: The experiment.
-        rate: The interface rate [Hz] (default ``realtime.rate``; the ROS commands pass
-            ``ros.rate``).
-        plant: Check that ``plant.dt`` divides the interface period (``False`` where
-            the arm is not this experiment's plant: a ROS driver).
-
-    Raises:
-        ConfigError: The rate does not divide the controller period, ``plant.dt`` does
-            not divide the interface period, or ``brake_time`` is below
-            :func:`minimum_brake_time` at that period.
-    """
-    cfg = experiment.config
-    rc, robot = cfg.realtime, experiment.robot
-    n = robot.nq
-    loop = LoopSettings(
-        rate=rc.rate if rate is None else rate,
-        duration=cfg.simulation.duration,
-        gc_handling=rc.gc,
-        gc_slack=rc.gc_slack,
-        spin=rc.spin,
-        warm_up=rc.warm_up,
-    )
-    loop.decimation(cfg.controller.Ts)
-    if plant:
-        experiment.make_plant(loop.period)  # checks that the plant's step divides the period
-    if rc.limits:
-        vel = np.where(robot.velocity_limit > 0, robot.velocity_limit * rc.scale, np.inf)
-        lim = experiment._recorded_limits()  # a URDF without a range: no position bound
-        lower, upper = np.asarray(lim["lower"]), np.asarray(lim["upper"])
-        safety = SafetySettings(
-            lower - rc.margin,
-            upper + rc.margin,
-            vel,
-            max_misses=rc.max_misses,
-            watchdog=rc.watchdog,
-            hold=rc.hold,
-            brake_speed=rc.brake_speed,
-        )
-    else:
-        safety = SafetySettings.unlimited(
-            n,
-            max_misses=rc.max_misses,
-            watchdog=rc.watchdog,
-            hold=rc.hold,
-            brake_speed=rc.brake_speed,
-        )
-    damping, brake = brake_settings(cfg, loop.period)
-    if damping is not None:
-        damping = cfg.vector("realtime.damping", n)
-        _warn_weak_damping(
-            robot.mass_matrix(experiment.q0), damping, rc.hold, minimum_brake_time(cfg, loop.period)
-        )
-    safe = SafeTorque(
-        robot,
-        damping if damping is not None else 0.0,
-        rc.gravity is not False,
-        effort_limit=experiment.effort_limit,
-        brake_time=brake,
-    )
-    return loop, safety, safe
-
-
-def minimum_brake_time(config: ExperimentConfig, period: float) -> float:
-    """The shortest inertia brake time [s] that slows the arm without overshoot at the
-    interface ``period`` [s] P.
-
-    A command acts ``d`` periods after the state it was computed from (one for the arm to
-    take it, plus the declared ``[controller] latency`` L rounded up to periods), so the
-    brake's speed follows :math:`v_{k+1} = v_k - (P/T_b)\\,v_{k-d}`; it decays without
-    oscillating when :math:`P/T_b \\le d^d/(d+1)^{d+1}`, which :math:`T_b \\ge e\\,(d+1)P`
-    guarantees: :math:`d = 1 + \\lceil L/P \\rceil`.
-    """
-    latency = config.controller.latency or 0.0
-    d = 1 + math.ceil(latency / period - 1e-9)
-    return math.e * (d + 1) * period
-
-
-def brake_settings(
-    config: ExperimentConfig, period: float
-) -> tuple[np.ndarray | None, float | None]:
-    """``(damping, brake_time)`` of the safe torque at the interface ``period`` [s]: the
-    diagonal ``[realtime] damping`` [N·m·s/rad] if given, else the inertia brake's time [s]
-    (``[realtime] brake_time``, default ``hold``/6, at least :func:`minimum_brake_time`).
-
-    Raises:
-        ConfigError: ``brake_time`` below :func:`minimum_brake_time` at this period.
-    """
-    rc = config.realtime
-    if rc.damping is not None:
-        return np.asarray(rc.damping, dtype=float), None
-    shortest = minimum_brake_time(config, period)
-    if rc.brake_time is None:
-        return None, max(rc.hold / 6.0, shortest)
-    if rc.brake_time < shortest:
-        raise ConfigError(
-            "realtime.brake_time",
-            f"is {rc.brake_time:g} s, below {shortest:.3g} s = e·(d+1)·P for the interface "
-            f"period P = {period:g} s and a command acting d = "
-            f"{round(shortest / (math.e * period)) - 1} periods after its state (one, plus "
-            "[controller] latency): a shorter brake overshoots and oscillates. Give at least "
-            f"{shortest:.3g} s, or a higher interface rate (its period sets the minimum)",
-        )
-    return None, float(rc.brake_time)
-
-
-def _warn_weak_damping(M: np.ndarray, damping: np.ndarray, hold: float, shortest: float) -> None:
-    """Warn when the diagonal damping cannot slow the arm within ``hold`` [s]."""
-    if hold <= 0:
-        return  # no brake after the first safe torque: nothing to slow
-    d = np.broadcast_to(damping, (M.shape[0],))
-    slowest = brake_time_constant(M, d)
-    if slowest <= hold / 3.0:
-        return
-    advice = (
-        f"Set realtime.brake_time = {max(hold / 6, shortest):.3g} (brakes with "
-        "M(q)/brake_time: every joint alike)"
-    )
-    if np.isfinite(slowest):
-        what = (
-            f"slows this arm's slowest motion with a time constant of {slowest:.3g} s (its "
-            f"inertia at the start posture): after hold = {hold:g} s it still moves at "
-            f"{100 * np.exp(-hold / slowest):.0f} % of its speed at the stop"
-        )
-        advice += f", or damping above {3.0 * slowest / hold * float(d.max()):.3g} N·m·s/rad"
-    else:
-        what = "leaves a joint with damping 0 unbraked: it keeps its speed at the stop"
-    warnings.warn(f"realtime.damping: the brake {what}. {advice}", ValidityWarning, stacklevel=3)
 
 
 def run_experiment(

@@ -21,6 +21,7 @@ from ..controllers.registry import MPC_KEYS, controller_spec
 from ..exceptions import ConfigError, URDFError
 from ..model.robot import Robot
 from ..mpc.condensed import StateLimits
+from .combos import OBSERVERS
 from .config.controller import ControllerConfig
 
 __all__ = [
@@ -30,6 +31,7 @@ __all__ = [
     "make_compensation",
     "mpc_settings",
     "observer_bandwidth",
+    "uses_observer",
 ]
 
 
@@ -140,3 +142,8 @@ register_config_builder(ControllerConfig, controller_parts)
 
 #: The name of :func:`controller_limits` before version 0.3 (imported by callers).
 _limits = controller_limits
+
+
+def uses_observer(cc: ControllerConfig) -> bool:
+    """Whether the compensation of ``cc`` is an observer (chen, general, momentum)."""
+    return cc.compensation in OBSERVERS

@@ -68,7 +68,8 @@ def add_arguments(rt) -> None:
 
 
 def main(args) -> int:
-    from ...experiment.build import Experiment, brake_settings
+    from ...experiment.build import Experiment
+    from ...experiment.realtime import brake_settings
     from ..realtime import ArmView, format_tracking, run_realtime, with_realtime
 
     config = with_overrides(read_config(args.config), False, args.duration)

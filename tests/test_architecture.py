@@ -341,7 +341,6 @@ _PENDING = {
     "apps/ros.py": {"_run_ros"},
     "controllers/hierarchical.py": {None},
     "ros/trajectory.py": {"trajectory_from_message"},
-    "sim/simulate.py": {"simulate"},
 }
 
 

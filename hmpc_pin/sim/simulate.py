@@ -28,7 +28,7 @@ from ..exceptions import (
     SimulationError,
 )
 from ..model.robot import Robot
-from ..tasks.base import as_reference
+from ..tasks.base import Reference, as_reference
 from .compiled_loop import CompiledLoop
 from .disturbances import ZeroDisturbance
 from .plants import PLANTS, Plant
@@ -220,6 +220,70 @@ def simulate(
             at t=… s"). It is a ``KeyboardInterrupt``, so a loop of runs still stops.
     """
     _deprecated_loop(loop)
+    q, dq, sim_plant, reference, limit = _checked_inputs(
+        robot,
+        controller,
+        reference,
+        disturbance,
+        duration,
+        q0,
+        dq0,
+        plant,
+        dt,
+        integrator,
+        effort_limit,
+    )
+    loop_run = _LoopRun(robot.nq, float(controller.Ts), duration, limit)
+    sim_plant.reset(q, dq, 0.0)
+    controller.reset(q, dq)
+    runner = CompiledLoop(
+        controller,
+        sim_plant,
+        reference,
+        loop_run.t,
+        loop_run.rec,
+        loop_run.step_ns,
+        limit,
+        state_bound,
+        loop_run.sat_steps,
+        loop_run.sat_excess,
+        on_step,
+        (q, dq),
+    )
+    runner.progress = progress
+    k, last, message, cause = _run(runner, loop_run.t, duration)
+    result = loop_run.result(
+        robot, reference, last + 1, cause, message, meta, sampled=on_step is not None
+    )
+    result.loop = runner.name  # type: ignore[attr-defined]
+    _raise_if_stopped(result, cause, k, loop_run.t, duration)
+    return result
+
+
+def _checked_inputs(
+    robot: Robot,
+    controller,
+    reference,
+    disturbance,
+    duration: float,
+    q0,
+    dq0,
+    plant,
+    dt: float,
+    integrator: str,
+    effort_limit,
+) -> tuple[np.ndarray, np.ndarray, Plant, Reference, np.ndarray | None]:
+    """The boundary checks of :func:`simulate`, before anything runs.
+
+    Returns:
+        ``(q0, dq0, plant, reference, effort_limit)``: the initial state (copies), the
+        plant built or taken, the reference adapted and the effort limits [N·m] (``None``:
+        none).
+
+    Raises:
+        DimensionError: A vector of the wrong length, or a plant of another arm.
+        ConfigError: The run's arrays would not fit in memory (``duration``).
+    """
     n = robot.nq
     q = robot.check_vector("q0", q0).copy()
     dq = robot.check_vector("dq0", np.zeros(n) if dq0 is None else dq0).copy()
@@ -236,38 +300,66 @@ def simulate(
     for name, value in zip(("q_ref", "dq_ref"), reference.sample(0.0), strict=True):
         robot.check_vector(f"reference.sample(0) {name}", value)
     run_memory("duration", duration, Ts, n)  # before the arrays: a clear message, no MemoryError
-    K = round(duration / Ts)
-    t_arr = Ts * np.arange(K + 1)
-    rec: dict[str, Any] = {
-        name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"
-    }
-
     limit = (
         None
         if effort_limit is None
         else robot.check_vector("effort_limit", effort_limit, finite=False)
     )
-    sat_steps = np.zeros(n, dtype=int)
-    sat_excess = np.zeros(n)
+    return q, dq, sim_plant, reference, limit
 
-    step_ns = np.zeros(K + 1, dtype=np.int64)
-    sim_plant.reset(q, dq, 0.0)
-    controller.reset(q, dq)
-    runner = CompiledLoop(
-        controller,
-        sim_plant,
-        reference,
-        t_arr,
-        rec,
-        step_ns,
-        limit,
-        state_bound,
-        sat_steps,
-        sat_excess,
-        on_step,
-        (q, dq),
-    )
-    runner.progress = progress
+
+class _LoopRun:
+    """The arrays one run fills (the instants, the records, the step times and the
+    saturation counts) and the :class:`Result` made of their filled part."""
+
+    def __init__(self, n: int, Ts: float, duration: float, limit: np.ndarray | None):
+        K = round(duration / Ts)
+        self.Ts, self.limit = Ts, limit
+        self.t = Ts * np.arange(K + 1)
+        self.rec: dict[str, Any] = {
+            name: np.full((K + 1, n), np.nan) for name in RESULT_ARRAYS if name != "t"
+        }
+        self.sat_steps = np.zeros(n, dtype=int)
+        self.sat_excess = np.zeros(n)
+        self.step_ns = np.zeros(K + 1, dtype=np.int64)
+
+    def result(
+        self,
+        robot: Robot,
+        reference: Reference,
+        m: int,
+        cause: BaseException | None,
+        message: str,
+        meta: dict | None,
+        sampled: bool,
+    ) -> Result:
+        """The first ``m`` samples as a :class:`Result` (complete when ``cause`` is
+        ``None``), with the step times and the saturation counts in its ``meta``."""
+        if m:
+            _complete(self.rec, reference, self.t[:m], self.limit, sampled=sampled)
+        result = Result(
+            t=self.t[:m],
+            **{name: arr[:m] for name, arr in self.rec.items()},
+            joint_names=tuple(robot.joint_names),
+            complete=cause is None,
+            message=message,
+            meta=dict(meta or {}),
+        )
+        _step_time(result, self.step_ns[:m], self.Ts)
+        _record_saturation(result, self.limit, self.sat_steps, self.sat_excess)
+        return result
+
+
+def _run(
+    runner: CompiledLoop, t_arr: np.ndarray, duration: float
+) -> tuple[int, int, str, BaseException | None]:
+    """Run the loop to its end or its stop.
+
+    Returns:
+        ``(k, last, message, cause)``: the step reached, the last whole step, and for a
+        stopped run its message and cause (an error of the package or Ctrl-C; ``None``:
+        the run completed).
+    """
     last = k = -1
     message = ""
     cause: BaseException | None
@@ -285,23 +377,7 @@ def simulate(
         cause = exc
     else:
         cause = None
-
-    m = last + 1
-    if m:
-        _complete(rec, reference, t_arr[:m], limit, sampled=on_step is not None)
-    result = Result(
-        t=t_arr[:m],
-        **{name: arr[:m] for name, arr in rec.items()},
-        joint_names=tuple(robot.joint_names),
-        complete=cause is None,
-        message=message,
-        meta=dict(meta or {}),
-    )
-    _step_time(result, step_ns[:m], Ts)
-    result.loop = runner.name  # type: ignore[attr-defined]
-    _record_saturation(result, limit, sat_steps, sat_excess)
-    _raise_if_stopped(result, cause, k, t_arr, duration)
-    return result
+    return k, last, message, cause
 
 
 def _record_saturation(result: Result, limit, steps: np.ndarray, excess: np.ndarray) -> None:

@@ -187,46 +187,11 @@ def _run_ros(
             rc.start_timeout,
             qos=qos,
         )
-        std, sensor = ros.msgs["std_msgs"], ros.msgs["sensor_msgs"]
-        inner = experiment.controller
-        names = list(experiment.robot.joint_names)
-        if rc.external_torque_type == "joint_state":
-            d_pub = ros.node.create_publisher(sensor.JointState, rc.external_torque, qos)
-            d_msg = sensor.JointState()
-            d_msg.name = names
-        else:  # deprecated: no stamp, no names
-            d_pub = ros.node.create_publisher(std.Float64MultiArray, rc.external_torque, qos)
-            d_msg = std.Float64MultiArray()
-        stamped = rc.external_torque_type == "joint_state"
-        collision = config.collision is not None and hasattr(inner, "detected_at")
-        c_pub = ros.node.create_publisher(std.Bool, rc.collision, qos) if collision else None
-        c_msg = std.Bool()
+        collision = config.collision is not None and hasattr(experiment.controller, "detected_at")
+        on_step = _estimate_publisher(ros, rc, experiment, iface, qos, collision)
         trajectories = TrajectorySubscription(ros, experiment, iface, rc.joint_trajectory, qos)
-
-        def on_step(t: float) -> None:
-            if stamped:
-                ns = round(iface.stamp_time() * 1e9)
-                d_msg.header.stamp.sec, d_msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
-                d_msg.effort = inner.disturbance_estimate.tolist()
-            else:
-                d_msg.data = inner.disturbance_estimate.tolist()
-            d_pub.publish(d_msg)
-            if c_pub is not None:
-                c_msg.data = inner.detected_at is not None
-                c_pub.publish(c_msg)
-
         trajectories.warm()
-        ros.serve(activate=rc.autostart)  # parameters and lifecycle, in their own thread
-        if not rc.autostart:
-            ros.node.get_logger().info(
-                f"waiting for an orchestrator to configure and activate "
-                f"{ros.node.get_fully_qualified_name()} ([ros] autostart = false)"
-            )
-            if not ros.wait_active():
-                raise NodeShutDown(
-                    f"{ros.node.get_fully_qualified_name()} was shut down before it was "
-                    "activated: nothing was run, sent or written"
-                )
+        _serve(ros, rc.autostart)
         loop = RealtimeLoop(
             iface,
             ctrl,
@@ -251,30 +216,99 @@ def _run_ros(
             status.close()
         sys.setswitchinterval(switch)
         trajectories.close()
-        run.result.meta["ros"] = {
-            "node": ros.node.get_fully_qualified_name(),
-            "joint_states": iface.joint_states_topic,
-            "commands": iface.commands_topic,
-            "joint_trajectory": trajectories.topic,
-            "external_torque": ros.topic(rc.external_torque),
-            "collision": ros.topic(rc.collision) if collision else None,
-            "stamps": iface.stamps,
-            "stamp_origin": iface._origin,
-            "states_received": iface.received,
-            "states_ignored": iface.ignored,
-            "commands_published": iface.published,
-            "gravity": rc.gravity,
-            "trajectories": list(trajectories.events),
-        }
+        run.result.meta["ros"] = _ros_meta(ros, rc, iface, trajectories, collision)
         if collision:
-            c = inner.detected_at
-            run.result.meta["collision"] = {"detected_at": c}
+            run.result.meta["collision"] = {"detected_at": experiment.controller.detected_at}
     finally:
         sys.setswitchinterval(switch)
         if trajectories is not None:
             trajectories.close()
         ros.close()
     return run, save_run(run, out, stem, "ros")
+
+
+def _estimate_publisher(ros, rc, experiment: Experiment, iface, qos, collision: bool):
+    """The publishers of the disturbance estimate (``[ros] external_torque``) and, with a
+    collision watch, its flag (``[ros] collision``).
+
+    Args:
+        ros: The node (:class:`~hmpc_pin.ros.node.RosNode`).
+        rc: The ``[ros]`` table.
+        experiment: The experiment (its controller's estimate is published).
+        iface: The arm interface (its stamps).
+        qos: The topics' quality of service.
+        collision: Whether the controller watches for a collision (publish its flag).
+
+    Returns:
+        ``on_step(t)``, called by the loop after each controller step: publishes both.
+    """
+    std, sensor = ros.msgs["std_msgs"], ros.msgs["sensor_msgs"]
+    inner = experiment.controller
+    names = list(experiment.robot.joint_names)
+    if rc.external_torque_type == "joint_state":
+        d_pub = ros.node.create_publisher(sensor.JointState, rc.external_torque, qos)
+        d_msg = sensor.JointState()
+        d_msg.name = names
+    else:  # deprecated: no stamp, no names
+        d_pub = ros.node.create_publisher(std.Float64MultiArray, rc.external_torque, qos)
+        d_msg = std.Float64MultiArray()
+    stamped = rc.external_torque_type == "joint_state"
+    c_pub = ros.node.create_publisher(std.Bool, rc.collision, qos) if collision else None
+    c_msg = std.Bool()
+
+    def on_step(t: float) -> None:
+        if stamped:
+            ns = round(iface.stamp_time() * 1e9)
+            d_msg.header.stamp.sec, d_msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+            d_msg.effort = inner.disturbance_estimate.tolist()
+        else:
+            d_msg.data = inner.disturbance_estimate.tolist()
+        d_pub.publish(d_msg)
+        if c_pub is not None:
+            c_msg.data = inner.detected_at is not None
+            c_pub.publish(c_msg)
+
+    return on_step
+
+
+def _serve(ros, autostart: bool) -> None:
+    """Serve the node's parameters and lifecycle (in their own thread) and, without
+    ``[ros] autostart``, wait for an orchestrator to activate it.
+
+    Raises:
+        NodeShutDown: The node was shut down before it was activated.
+    """
+    ros.serve(activate=autostart)  # parameters and lifecycle, in their own thread
+    if not autostart:
+        ros.node.get_logger().info(
+            f"waiting for an orchestrator to configure and activate "
+            f"{ros.node.get_fully_qualified_name()} ([ros] autostart = false)"
+        )
+        if not ros.wait_active():
+            raise NodeShutDown(
+                f"{ros.node.get_fully_qualified_name()} was shut down before it was "
+                "activated: nothing was run, sent or written"
+            )
+
+
+def _ros_meta(ros, rc, iface, trajectories: TrajectorySubscription, collision: bool) -> dict:
+    """The run record's ``meta["ros"]``: the node, its topics, the stamps and counts of
+    the states and commands, and the trajectories accepted or refused."""
+    return {
+        "node": ros.node.get_fully_qualified_name(),
+        "joint_states": iface.joint_states_topic,
+        "commands": iface.commands_topic,
+        "joint_trajectory": trajectories.topic,
+        "external_torque": ros.topic(rc.external_torque),
+        "collision": ros.topic(rc.collision) if collision else None,
+        "stamps": iface.stamps,
+        "stamp_origin": iface._origin,
+        "states_received": iface.received,
+        "states_ignored": iface.ignored,
+        "commands_published": iface.published,
+        "gravity": rc.gravity,
+        "trajectories": list(trajectories.events),
+    }
 
 
 def config_parameters(config: ExperimentConfig) -> dict:

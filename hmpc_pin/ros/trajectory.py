@@ -72,6 +72,34 @@ def trajectory_from_message(
     """
     from ..experiment.references import check_trajectory_limits
 
+    idx = _joint_order(msg, robot)
+    times, q, dq = _points(msg, robot, idx)
+    # a start in the future: the current reference runs until then (the caller swaps the
+    # new one in at its first time, ``traj.times[0]``)
+    now = _start(msg, now, origin)
+    q_now = np.asarray(current.sample(now)[0], dtype=float)
+    times, q, dq = _from_now(robot, now + times, q, dq, now, q_now)
+    try:
+        traj = JointTrajectory(times, q, dq, robot.joint_names, source=_SOURCE)
+    except DimensionError as exc:
+        raise TrajectoryError(_SOURCE, str(exc), "consistent shapes") from None
+    check_trajectory_limits(
+        traj,
+        robot,
+        lower,
+        upper,
+        what=_SOURCE,
+        hint="the message was refused; the current reference is kept",
+    )
+    return traj
+
+
+def _joint_order(msg, robot: Robot) -> np.ndarray:
+    """The index in ``msg.joint_names`` of each of the robot's joints.
+
+    Raises:
+        TrajectoryError: A controlled joint is missing, or a name repeats.
+    """
     names: Sequence[str] = list(msg.joint_names)
     where = {name: i for i, name in enumerate(names)}
     missing = [x for x in robot.joint_names if x not in where]
@@ -85,11 +113,24 @@ def trajectory_from_message(
         raise TrajectoryError(
             _SOURCE, f"joint_names {list(names)} repeat a name", "each joint once"
         )
-    idx = np.array([where[x] for x in robot.joint_names])
+    return np.array([where[x] for x in robot.joint_names])
+
+
+def _points(msg, robot: Robot, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The message's points in the robot's joint order.
+
+    Returns:
+        ``(times, q, dq)``: the times from the start [s], (P,); the positions [rad],
+        (P, n); the velocities [rad/s], (P, n), or ``None`` when the points give none.
+
+    Raises:
+        TrajectoryError: No points, velocities in some points only, a point of another
+            length than ``joint_names``, a non-finite value, or times not increasing.
+    """
     points = list(msg.points)
     if not points:
         raise TrajectoryError(_SOURCE, "no points", "at least one point")
-    m = len(names)
+    m = len(msg.joint_names)
     times = np.array([_duration(p.time_from_start) for p in points])
     q = np.full((len(points), robot.nq), np.nan)
     with_dq = [len(p.velocities) > 0 for p in points]
@@ -120,6 +161,16 @@ def trajectory_from_message(
         raise TrajectoryError(
             _SOURCE, f"time_from_start {times.tolist()}", "times >= 0, strictly increasing"
         )
+    return times, q, dq
+
+
+def _start(msg, now: float, origin: float) -> float:
+    """The loop time [s] the trajectory starts at: its stamp on the loop clock, or ``now``
+    for a zero stamp (or a stamp within 1 ms before ``now``).
+
+    Raises:
+        TrajectoryError: A stamp further in the past.
+    """
     st = msg.header.stamp
     stamp = st.sec + 1e-9 * st.nanosec
     t_s = now if stamp == 0.0 else stamp - origin
@@ -129,11 +180,24 @@ def trajectory_from_message(
             f"header.stamp {t_s - now:.3f} s in the past",
             "a start not in the past (or a zero stamp: now)",
         )
-    # a start in the future: the current reference runs until then (the caller swaps the
-    # new one in at its first time, ``traj.times[0]``)
-    now = t_s = max(t_s, now)
-    q_now = np.asarray(current.sample(now)[0], dtype=float)
-    times = t_s + times
+    return max(t_s, now)
+
+
+def _from_now(
+    robot: Robot,
+    times: np.ndarray,
+    q: np.ndarray,
+    dq: np.ndarray | None,
+    now: float,
+    q_now: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The points on the loop clock from ``now``: a first point later than ``now`` is
+    reached from the current reference's position ``q_now`` (velocities then
+    interpolated), a single point at ``now`` held.
+
+    Raises:
+        TrajectoryError: A single point with velocities that are not zero.
+    """
     if times[0] > now + 1e-9:  # move from the current reference to the first point
         if dq is not None and times.size > 1:  # the message's own velocities checked
             JointTrajectory(times, q, dq, robot.joint_names, source=_SOURCE)
@@ -153,19 +217,7 @@ def trajectory_from_message(
         times = np.array([now, now + 1.0])
         q = np.vstack([q, q])
         dq = None if dq is None else np.vstack([dq, np.zeros_like(dq)])
-    try:
-        traj = JointTrajectory(times, q, dq, robot.joint_names, source=_SOURCE)
-    except DimensionError as exc:
-        raise TrajectoryError(_SOURCE, str(exc), "consistent shapes") from None
-    check_trajectory_limits(
-        traj,
-        robot,
-        lower,
-        upper,
-        what=_SOURCE,
-        hint="the message was refused; the current reference is kept",
-    )
-    return traj
+    return times, q, dq
 
 
 def refusal(exc: HmpcError) -> str:

@@ -64,6 +64,7 @@ __all__ = [
     "apply_params",
     "current_params",
     "objective_value",
+    "require_optuna",
     "run_score",
     "search_space",
     "tune",
@@ -71,12 +72,21 @@ __all__ = [
 ]
 
 
-def _optuna():
+def require_optuna():
+    """The ``optuna`` module.
+
+    Raises:
+        ExtraError: Optuna is not installed (naming the extra ``hmpc_pin[tune]``).
+    """
     try:
         import optuna
     except ImportError as exc:
         raise ExtraError("tune", "hmpc-pin tune (Optuna)") from exc
     return optuna
+
+
+#: The name of :func:`require_optuna` in earlier versions.
+_optuna = require_optuna
 
 
 #: Largest seed: Optuna's sampler seeds a NumPy ``RandomState`` (32 bits).
@@ -244,7 +254,7 @@ def tune(
             finished were written first (:attr:`~hmpc_pin.exceptions.RunInterrupted.files`;
             none if no trial finished); the study resumes from its file.
     """
-    optuna = _optuna()
+    optuna = require_optuna()
     holdout, holdout_seed = check_options(
         config,
         trials=trials,

@@ -19,10 +19,10 @@ def add_arguments(tun) -> None:
 def main(args) -> int:
     """``hmpc-pin tune CONFIG`` (:mod:`hmpc_pin.apps.tune`): exit 2 naming the extra
     ``tune`` without Optuna, before anything runs."""
-    from ..tune import _optuna, check_args
+    from ..tune import check_args, require_optuna
     from ..tune import cmd_tune as run_tune
 
-    _optuna()
+    require_optuna()
     config = with_overrides(read_config(args.config), False, args.duration)
     check_args(args, config)  # every option, before --out is created
     return run_tune(args, config, out_dir(args.out))

@@ -1,6 +1,7 @@
-"""The ``~/joint_trajectory`` subscription of ``hmpc-pin ros``: each message checked off
-the control thread (names, times, limits) and handed to the loop as its new reference
-(:class:`TrajectorySubscription`), against the limits of :func:`trajectory_limits`.
+"""The ``~/joint_trajectory`` subscription of ``hmpc-pin ros``: each message checked off the
+control thread (names, times, limits) and handed to the loop as its new reference
+(:class:`~hmpc_pin.apps.ros_trajectories.TrajectorySubscription`), against the limits of
+:func:`~hmpc_pin.apps.ros_trajectories.trajectory_limits`.
 """
 
 from __future__ import annotations

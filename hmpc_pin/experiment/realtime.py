@@ -1,7 +1,8 @@
-"""The real-time assembly of an experiment: the loop settings, the safety settings and
-the safe torque of ``[realtime]`` (:func:`realtime_parts`, what ``hmpc-pin realtime``,
-``hmpc-pin ros`` and ``hmpc-pin franka`` build), and the brake that stops the arm
-(:func:`brake_settings`, :func:`minimum_brake_time`).
+"""The real-time assembly of an experiment: the loop settings, the safety settings and the safe
+torque of ``[realtime]`` (:func:`~hmpc_pin.experiment.realtime.realtime_parts`, what
+``hmpc-pin realtime``, ``hmpc-pin ros`` and ``hmpc-pin franka`` build), and the brake that
+stops the arm (:func:`~hmpc_pin.experiment.realtime.brake_settings`,
+:func:`~hmpc_pin.experiment.realtime.minimum_brake_time`).
 """
 
 from __future__ import annotations

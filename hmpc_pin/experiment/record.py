@@ -1,7 +1,8 @@
-"""The run record of an experiment: the metadata stored with a run (:func:`run_meta`,
-what replay and ``hmpc-pin identify`` need), the plant's engine and its measurements
-added to a result (:func:`record_plant`), and the position limits the metrics measure
-excursions against (:func:`recorded_limits`).
+"""The run record of an experiment: the metadata stored with a run
+(:func:`~hmpc_pin.experiment.record.run_meta`, what replay and ``hmpc-pin identify`` need),
+the plant's engine and its measurements added to a result
+(:func:`~hmpc_pin.experiment.record.record_plant`), and the position limits the metrics
+measure excursions against (:func:`~hmpc_pin.experiment.record.recorded_limits`).
 """
 
 from __future__ import annotations

@@ -76,7 +76,7 @@ def main() -> int:
     parser.add_argument("--robot-ip", default=None)
     parser.add_argument("--realtime", default="ignore", choices=("enforce", "ignore"))
     parser.add_argument("--ts", type=float, default=None, help="controller period [s]")
-    parser.add_argument("--inner-law", default="every-cycle", choices=("every-cycle", "held"))
+    parser.add_argument("--inner-law", default="every-cycle", choices=("every-cycle", "threaded", "held"))
     args = parser.parse_args()
 
     from hmpc_pin.apps.franka import FrankaOptions, run_franka

@@ -330,6 +330,16 @@ def run_franka(
             arm.fault["recovered"] = False
             arm.fault["recovery_error"] = str(exc)
     summary.update(_driver_summary(arm, end))
+    planner = getattr(law, "planner", None)
+    if planner is not None:  # the MPC's planner thread (InnerLawThreaded)
+        summary["planner"] = {
+            "requests": int(planner.requests),
+            "published": int(planner.published),
+            "dropped": int(planner.dropped),
+            "refused": int(planner.stale),
+            "fallbacks": int(law.fallbacks),
+            "max_age": float(planner.max_age),
+        }
     _record_fault(run, arm)
     _add_extras(run, arm)
     run.result.meta["franka"] = summary

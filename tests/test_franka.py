@@ -283,7 +283,7 @@ def test_inner_law_every_cycle_tracks_as_the_whole_step_at_1khz(simulator, tmp_p
 def test_inner_law_threaded_tracks_as_the_synchronous_one(simulator, tmp_path):
     """Ts = 10 ms: the MPC in its compiled thread, its latest plan used within 2 Ts;
     against the MPC every 10 cycles in the cycle that needs it."""
-    every, _, s_every = _run(tmp_path)
+    every, _, _ = _run(tmp_path)
     threaded, files, s = _run(tmp_path, inner_law="threaded")
     assert s["inner_law"] == "every cycle, the MPC threaded"
     plans = s["planner"]

@@ -6,7 +6,6 @@ hand and the hand-over is waited for."""
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 import textwrap
@@ -19,8 +18,8 @@ import pytest
 import hmpc_pin
 from hmpc_pin.compensation.observers import default_observer
 from hmpc_pin.controllers.hierarchical import HierarchicalMPC
-from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.config import load_config
 from hmpc_pin.native import load as load_native
 from hmpc_pin.realtime.franka.rates import InnerLawEveryCycle
 from hmpc_pin.realtime.franka.threaded import InnerLawThreaded
@@ -61,7 +60,11 @@ def _closed_loop(law, robot, q0, reference, cycles, plant_Ts=PERIOD):
 
 @pytest.mark.parametrize(
     "config, Ts, N, Nc",
-    [("paper_combined", 0.005, 20, 1), ("paper_combined", 0.004, 15, 4), ("panda_sine", 0.005, 20, 2)],
+    [
+        ("paper_combined", 0.005, 20, 1),
+        ("paper_combined", 0.004, 15, 4),
+        ("panda_sine", 0.005, 20, 2),
+    ],
 )
 def test_waited_plan_equals_the_synchronous_step_bit_for_bit(config, Ts, N, Nc):
     robot, settings, q0, reference = _arm(config)
@@ -70,7 +73,7 @@ def test_waited_plan_equals_the_synchronous_step_bit_for_bit(config, Ts, N, Nc):
     sync = _law(InnerLawEveryCycle, robot, settings)
     tau_s, v_s, q_s = _closed_loop(sync, robot, q0, reference, cycles)
     with _law(InnerLawThreaded, robot, settings, wait=True) as threaded:
-        tau_t, v_t, q_t = _closed_loop(threaded, robot, q0, reference, cycles)
+        tau_t, v_t, _ = _closed_loop(threaded, robot, q0, reference, cycles)
         assert threaded.fallbacks == 0
         assert threaded.planner.published == cycles // threaded.mpc_every
         assert threaded.planner.stale == 0
@@ -121,7 +124,7 @@ def _planner(n_req=1, max_age=0.025):
 
 def test_a_plan_older_than_the_bound_is_never_used():
     law, q0, reference = _planner(max_age=0.025)
-    p, n, Ts = law.planner, law.robot.nq, 0.01
+    p, n = law.planner, law.robot.nq
     v = np.full(n, 7.0)
     assert not p.input(0.0, v)  # no plan yet: refused, v untouched
     np.testing.assert_array_equal(v, 7.0)
@@ -187,10 +190,9 @@ def test_the_thread_stops_and_joins_on_every_stop_path():
     gc.collect()
     assert PlanThread.live() == before
     # an exception inside `with`
-    with pytest.raises(RuntimeError):
-        with _planner()[0] as law:
-            assert PlanThread.live() == before + 1
-            raise RuntimeError("boom")
+    with pytest.raises(RuntimeError), _planner()[0] as law:
+        assert PlanThread.live() == before + 1
+        raise RuntimeError("boom")
     assert PlanThread.live() == before and not law.planner.running
     # a request after stop is refused
     with pytest.raises(Exception, match="stopped"):
@@ -225,8 +227,6 @@ def test_ctrl_c_while_waiting_for_a_plan_stops_the_thread():
             print("interrupted", load_native().PlanThread.live(), law.planner.running)
         """
     )
-    r = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=600
-    )
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["interrupted", "0", "False"]

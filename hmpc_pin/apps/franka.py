@@ -143,9 +143,7 @@ def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
     )
     ctrl = experiment.controller
     cc = experiment.config.controller
-    if inner_law in ("every-cycle", "threaded") and _inner_law_applies(
-        ctrl, loop_settings.period
-    ):
+    if inner_law in ("every-cycle", "threaded") and _inner_law_applies(ctrl, loop_settings.period):
         from ..experiment.controllers import make_compensation
         from ..realtime.franka.rates import InnerLawEveryCycle
         from ..realtime.franka.threaded import InnerLawThreaded

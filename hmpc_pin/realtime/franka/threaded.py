@@ -37,7 +37,7 @@ import numpy as np
 from ...exceptions import ConfigError
 from ...mpc.condensed import JointQPs
 from ...native import load as load_native
-from ...tasks.base import as_reference, reference_port
+from ...tasks.base import Reference, as_reference, reference_port
 from .rates import FloatArray, InnerLawEveryCycle
 
 __all__ = ["InnerLawThreaded"]
@@ -116,7 +116,7 @@ class InnerLawThreaded(InnerLawEveryCycle):
         self._stack = np.zeros((2 + 2 * N, self.robot.nq))
         self._times = np.empty(N)
         self._reference: object = None
-        self._ref = None
+        self._ref: Reference | None = None
         self._compiled = False
         self.fallbacks = 0
 
@@ -140,8 +140,12 @@ class InnerLawThreaded(InnerLawEveryCycle):
                 self.planner.wait()
         if not self.planner.input(t, self._v):
             self.fallbacks += 1
-            np.clip(-np.asarray(dq, dtype=float) / self.controller.Ts, self._vmin, self._vmax,
-                    out=self._v)
+            np.clip(
+                -np.asarray(dq, dtype=float) / self.controller.Ts,
+                self._vmin,
+                self._vmax,
+                out=self._v,
+            )
         return self._torque(M, nle, dq)
 
     def _request(self, t: float, q: FloatArray, dq: FloatArray, reference) -> None:

@@ -92,7 +92,7 @@ void expose_plan_thread(py::module_& m) {
       .def_readwrite("max_age", &P::max_age)
       .def_property_readonly("requests", [](const P& p) { return p.requests; })
       .def_property_readonly("dropped", [](const P& p) { return p.dropped; })
-      .def_property_readonly("published", [](const P& p) { return p.published; })
+      .def_property_readonly("published", &P::published)
       .def_property_readonly("stale", [](const P& p) { return p.stale; })
       .def_property_readonly("plan_time", &P::plan_time)
       .def_property_readonly("plan", &P::plan);

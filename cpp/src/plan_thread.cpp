@@ -4,13 +4,13 @@
 #include "hmpc/errors.hpp"
 #include "hmpc/joint_qps.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <utility>
 #include <vector>
-#include <algorithm>
 
 namespace hmpc {
 
@@ -36,10 +36,9 @@ PlanThread::PlanThread(const CRefRow& F, int N_, std::shared_ptr<JointQPs> qps,
   grad_rows_ = FT_.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
   Gt_.setZero(Nc, n);
   offsets_ = offsets;
-  req_stack_.setZero(2 + 2 * N, n);
-  work_stack_.setZero(2 + 2 * N, n);
+  for (auto& r : req_) r.stack.setZero(2 + 2 * N, n);
   for (auto& b : buf_) b.setZero(Nc, n);
-  t_buf_[0] = t_buf_[1] = std::numeric_limits<double>::quiet_NaN();
+  std::fill(t_buf_, t_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
   thread_ = std::thread(&PlanThread::run, this);
   ++live_;
 }
@@ -59,77 +58,80 @@ void PlanThread::stop() {
   }
 }
 
-void PlanThread::set_reference(Reference* r) {
-  std::lock_guard<std::mutex> lock(m_);
-  reference_ = r;
+void PlanThread::set_reference(Reference* r) { reference_ = r; }
+
+// After a request: wake the planner. Under the lock when it is free (no notice lost); else
+// the planner holds it, awake, and sees the request before it sleeps, or within 2 ms.
+void PlanThread::notify() {
+  std::unique_lock<std::mutex> lock(m_, std::try_to_lock);
+  cv_.notify_one();
 }
 
 void PlanThread::request(double t, const CRefVec& q, const CRefVec& dq) {
   if (!std::isfinite(t)) throw NonFinite("t", t);
   if (q.size() != n || dq.size() != n)
     throw std::invalid_argument("PlanThread.request: q and dq of n values each");
-  {
-    std::lock_guard<std::mutex> lock(m_);
-    if (stop_) throw std::logic_error("PlanThread: stopped");
-    if (!reference_)
-      throw std::logic_error("PlanThread.request: no compiled reference (request_stack)");
-    req_stack_.row(0) = q.transpose();
-    req_stack_.row(1) = dq.transpose();
-    req_t_ = t;
-    req_sampled_ = false;
-    if (pending_) ++dropped;
-    pending_ = true;
-    ++requests;
-    ++asked_;
-  }
-  cv_.notify_one();
+  if (!reference_)
+    throw std::logic_error("PlanThread.request: no compiled reference (request_stack)");
+  if (!running()) throw std::logic_error("PlanThread: stopped");
+  Request& r = req_[req_back_];
+  r.stack.row(0) = q.transpose();
+  r.stack.row(1) = dq.transpose();
+  r.t = t;
+  r.sampled = false;
+  r.reference = reference_;
+  r.serial = ++asked_;
+  const int old = req_mid_.exchange(req_back_ | FRESH);
+  if (old & FRESH) ++dropped;
+  req_back_ = old & 3;
+  ++requests;
+  notify();
 }
 
 void PlanThread::request_stack(double t, const CRefRow& S) {
   if (!std::isfinite(t)) throw NonFinite("t", t);
   if (S.rows() != 2 + 2 * N || S.cols() != n)
     throw std::invalid_argument("PlanThread.request_stack: a stack of (2 + 2N)×n");
-  {
-    std::lock_guard<std::mutex> lock(m_);
-    if (stop_) throw std::logic_error("PlanThread: stopped");
-    req_stack_ = S;
-    req_t_ = t;
-    req_sampled_ = true;
-    if (pending_) ++dropped;
-    pending_ = true;
-    ++requests;
-    ++asked_;
-  }
-  cv_.notify_one();
-}
-
-std::exception_ptr PlanThread::take_error() {
-  std::exception_ptr e;
-  std::swap(e, error_);
-  return e;
+  if (!running()) throw std::logic_error("PlanThread: stopped");
+  Request& r = req_[req_back_];
+  r.stack = S;
+  r.t = t;
+  r.sampled = true;
+  r.reference = nullptr;
+  r.serial = ++asked_;
+  const int old = req_mid_.exchange(req_back_ | FRESH);
+  if (old & FRESH) ++dropped;
+  req_back_ = old & 3;
+  ++requests;
+  notify();
 }
 
 bool PlanThread::wait(double timeout) {
   std::unique_lock<std::mutex> lock(m_);
-  const auto ready = [this] { return answered_ >= asked_ || error_ || stop_; };
-  bool ok;
-  if (timeout < 0.0) {
-    done_cv_.wait(lock, ready);
-    ok = true;
-  } else {
-    ok = done_cv_.wait_for(lock, std::chrono::duration<double>(timeout), ready);
+  const long target = asked_.load();
+  const auto ready = [&] { return answered_ >= target || error_ || stop_; };
+  bool ok = true;
+  if (timeout < 0.0) done_cv_.wait(lock, ready);
+  else ok = done_cv_.wait_for(lock, std::chrono::duration<double>(timeout), ready);
+  if (error_) {
+    std::exception_ptr e;
+    std::swap(e, error_);
+    failed_ = false;
+    std::rethrow_exception(e);
   }
-  if (error_) std::rethrow_exception(take_error());
-  return ok && answered_ >= asked_;
+  return ok && answered_ >= target;
 }
 
 bool PlanThread::input(double t, RefVec v) {
   if (v.size() != n) throw std::invalid_argument("PlanThread.input: v of n values");
-  std::lock_guard<std::mutex> lock(m_);
-  if (error_) std::rethrow_exception(take_error());
+  if (failed_.load()) wait(0.0);  // rethrows the planner's failure
+  if (mid_.load() & FRESH) {  // the newest plan
+    front_ = mid_.exchange(front_) & 3;
+    has_front_ = true;
+  }
   const double age = t - t_buf_[front_];
   // a plan from the future, or older than the bound (NaN: none) is refused
-  if (!has_plan_ || !(age >= 0.0) || !(age <= max_age)) {
+  if (!has_front_ || !(age >= 0.0) || !(age <= max_age)) {
     ++stale;
     return false;
   }
@@ -142,71 +144,76 @@ bool PlanThread::input(double t, RefVec v) {
 
 void PlanThread::reset() {
   std::unique_lock<std::mutex> lock(m_);
-  pending_ = false;
-  answered_ = asked_;
+  req_mid_.fetch_and(3);  // a request not taken is dropped
   done_cv_.wait(lock, [this] { return !busy_ || stop_; });
-  has_plan_ = false;
-  t_buf_[0] = t_buf_[1] = std::numeric_limits<double>::quiet_NaN();
+  answered_ = asked_.load();
+  mid_.fetch_and(3);  // and a plan not taken
+  has_front_ = false;
+  std::fill(t_buf_, t_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
   error_ = nullptr;
+  failed_ = false;
   qps_->restart();  // the planner is idle: its QPs are this thread's to touch
 }
 
-double PlanThread::plan_time() const {
-  std::lock_guard<std::mutex> lock(m_);
-  return has_plan_ ? t_buf_[front_] : std::numeric_limits<double>::quiet_NaN();
+double PlanThread::plan_time() {
+  Vec v(n);
+  input(std::numeric_limits<double>::quiet_NaN(), v);  // the newest plan taken (refused)
+  --stale;
+  return has_front_ ? t_buf_[front_] : std::numeric_limits<double>::quiet_NaN();
 }
 
-RowMat PlanThread::plan() const {
-  std::lock_guard<std::mutex> lock(m_);
+RowMat PlanThread::plan() {
+  plan_time();
   return buf_[front_];
 }
 
 void PlanThread::run() {
-  std::unique_lock<std::mutex> lock(m_);
   while (true) {
-    cv_.wait(lock, [this] { return pending_ || stop_; });
-    if (stop_) return;
-    pending_ = false;
-    busy_ = true;
-    const long serial = asked_;
-    const double t = req_t_;
-    const bool sampled = req_sampled_;
-    work_stack_ = req_stack_;
-    Reference* ref = reference_;
-    lock.unlock();
+    {
+      std::unique_lock<std::mutex> lock(m_);
+      cv_.wait_for(lock, std::chrono::milliseconds(2),
+                   [this] { return stop_ || (req_mid_.load() & FRESH); });
+      if (stop_) return;
+      if (!(req_mid_.load() & FRESH)) continue;
+      req_front_ = req_mid_.exchange(req_front_) & 3;  // the newest request
+      busy_ = true;
+    }
+    const Request& r = req_[req_front_];
     std::exception_ptr err;
     try {
-      if (!sampled) ref->horizon(t, offsets_, work_stack_);
-      plan_once(t);
+      plan_once(r);
     } catch (...) {
       err = std::current_exception();
     }
-    lock.lock();
+    if (!err) {
+      back_ = mid_.exchange(back_ | FRESH) & 3;  // publish
+      ++published_;
+    }
+    std::lock_guard<std::mutex> lock(m_);
     busy_ = false;
     if (err) {
       error_ = err;
-    } else {
-      front_ = 1 - front_;  // the back buffer, written by plan_once, becomes the plan
-      has_plan_ = true;
-      ++published;
+      failed_ = true;
     }
-    answered_ = std::max(answered_, serial);
+    answered_ = std::max(answered_, r.serial);
     done_cv_.notify_all();
   }
 }
 
 // The MPC part of HMPCCore::prepare() and finish(): G = Fᵀ S, the joint QPs; U into the
 // back buffer.
-void PlanThread::plan_once(double t) {
-  const auto& S = work_stack_;
+void PlanThread::plan_once(const Request& r) {
+  // the request's buffer is the planner's until it takes the next one
+  RowMat& S = const_cast<RowMat&>(r.stack);
+  if (!r.sampled) r.reference->horizon(r.t, offsets_, S);
   const Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
-  if (!S.allFinite()) throw NonFinite("q, dq or the reference horizon", std::vector<Vec>{q, dq}, t);
+  if (!S.allFinite())
+    throw NonFinite("q, dq or the reference horizon", std::vector<Vec>{q, dq}, r.t);
   Gt_.noalias() = FT_.topRows(grad_rows_).transpose() * S.topRows(grad_rows_);
   const Eigen::Map<const RowMat> G(Gt_.data(), n, Nc);
   if (!qps_->solve(G, q, dq)) throw qps_->failure();
-  const int back = 1 - front_;  // front_ changes only on this thread
-  buf_[back] = qps_->U;
-  t_buf_[back] = t;
+  buf_[back_] = qps_->U;
+  t_buf_[back_] = r.t;
 }
 
 }  // namespace hmpc

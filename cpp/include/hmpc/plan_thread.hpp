@@ -2,9 +2,12 @@
 // the step (the outer loop: the gradients G = Fᵀ S of the stack S = [q; q̇; r_1..r_N;
 // ṙ_1..ṙ_N] and the joint QPs, Eq 25–26, over the horizon), runs it whenever the torque
 // loop hands it a new state (a request: t_k, q_k, q̇_k), and publishes the plan -- its time
-// stamp t_plan and the accelerations U (Nc×n) over the control horizon -- through a
-// mutex-protected double buffer: the planner writes the back buffer without a lock and
-// swaps it in under the lock; the reader copies one row under the same lock (n doubles).
+// stamp t_plan and the accelerations U (Nc×n) over the control horizon. Both hand-overs are
+// lock-free triple buffers (one writer, one reader, an atomic exchange of the middle
+// buffer's index with a "fresh" bit): the torque loop never waits for the planner (a mutex
+// held by a planner preempted on a loaded machine blocked a cycle for milliseconds). The
+// planner sleeps on a condition variable, notified after each request (if the notice is
+// lost in the instant the planner goes to sleep, it looks again within 2 ms).
 //
 // The torque loop (at its own period, e.g. the arm's 1 ms) reads the input of the latest
 // plan for its time t: row j = min(⌊(t − t_plan)/Ts⌋, Nc − 1) of U (past the control
@@ -59,13 +62,14 @@ class PlanThread {
   // The same with the whole stack S ((2 + 2N)×n) given by the caller.
   void request_stack(double t, const CRefRow& S);
   // Wait until the plan of the last request is published, at most `timeout` seconds
-  // (< 0: no limit). Returns whether it is. Rethrows the planner's exception.
+  // (< 0: no limit). Returns whether it is. Rethrows the planner's exception. (The only
+  // call of the torque loop that blocks: the deterministic mode's.)
   bool wait(double timeout = -1.0);
   // The torque loop's input at time t [s] into v (n): false (v untouched) when there is no
   // plan, or it is stale (module doc). Rethrows the planner's exception.
   bool input(double t, RefVec v);
-  // Start a run: wait for the planner to be idle, drop the plan and any request, restart
-  // the joint QPs (as HMPCCore::reset).
+  // Start a run: drop any request not taken, wait for the planner to be idle, drop the
+  // plan, restart the joint QPs (as HMPCCore::reset). Not during a run's cycles.
   void reset();
   // Stop the thread and join it (idempotent).
   void stop();
@@ -77,38 +81,52 @@ class PlanThread {
   int n, N, Nc;
   double Ts, max_age;
   // Counters since construction: requests made, requests replaced before the planner took
-  // them, plans published, inputs refused (no plan or stale).
-  long requests = 0, dropped = 0, published = 0, stale = 0;
-  double plan_time() const;  // t_plan of the plan the reader sees [s] (NaN: none)
-  RowMat plan() const;       // a copy of its U (Nc×n)
+  // them, inputs refused (no plan or stale) -- the torque loop's -- and plans published.
+  long requests = 0, dropped = 0, stale = 0;
+  long published() const { return published_.load(); }
+  // The torque loop's view: t_plan of the plan it reads [s] (NaN: none) and its U (Nc×n)
+  // (the freshest plan taken first).
+  double plan_time();
+  RowMat plan();
 
  private:
+  static constexpr int FRESH = 4;  // the middle buffer holds what its reader has not taken
+  struct Request {
+    RowMat stack;  // (2 + 2N)×n
+    double t = 0.0;
+    bool sampled = false;  // the stack holds the horizon too
+    Reference* reference = nullptr;
+    long serial = 0;
+  };
   void run();
-  void plan_once(double t);
-  std::exception_ptr take_error();
+  void plan_once(const Request& r);
+  void notify();
 
   std::shared_ptr<JointQPs> qps_;
   RowMat FT_;  // the map in the stack's order (as HMPCCore::FT)
   Eigen::Index grad_rows_;
   Mat Gt_;
   Vec offsets_;
-  Reference* reference_ = nullptr;
-  // The request: guarded by m_. `pending_` is set by request*() and taken by the planner.
+  Reference* reference_ = nullptr;  // the torque loop's (copied into each request)
+  // Requests: the torque loop writes req_[req_back_], the planner reads req_[req_front_].
+  Request req_[3];
+  int req_back_ = 0, req_front_ = 2;
+  std::atomic<int> req_mid_{1};
+  // Plans: the planner writes buf_[back_], the torque loop reads buf_[front_].
+  RowMat buf_[3];
+  double t_buf_[3];
+  int back_ = 0, front_ = 2;
+  std::atomic<int> mid_{1};
+  bool has_front_ = false;  // buf_[front_] holds a plan (the torque loop's)
+  // The planner's sleep and the caller's wait: guarded by m_.
   mutable std::mutex m_;
   std::condition_variable cv_;       // a request, or stop
   std::condition_variable done_cv_;  // a plan published (or an error)
-  RowMat req_stack_, work_stack_;
-  double req_t_ = 0.0;
-  bool req_sampled_ = false;  // req_stack_ holds the horizon too
-  bool pending_ = false, busy_ = false, stop_ = false;
-  long asked_ = 0, answered_ = 0;  // request serials
+  bool busy_ = false, stop_ = false;
+  long answered_ = 0;  // the serial of the last request answered
+  std::atomic<long> asked_{0}, published_{0};
+  std::atomic<bool> failed_{false};
   std::exception_ptr error_;
-  // The double buffer: buf_[front_] is the published plan (guarded by m_); the planner
-  // writes buf_[1 - front_] without the lock (only it writes there).
-  RowMat buf_[2];
-  double t_buf_[2];
-  int front_ = 0;
-  bool has_plan_ = false;
   std::thread thread_;
   static std::atomic<long> live_;
 };

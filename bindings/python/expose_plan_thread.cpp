@@ -60,11 +60,11 @@ void expose_plan_thread(py::module_& m) {
   using release = py::call_guard<py::gil_scoped_release>;
   py::class_<P>(m, "PlanThread", py::module_local())
       .def(py::init([](const CRefRow& F, int N, std::shared_ptr<JointQPs> qps,
-                       const CRefVec& offsets, double Ts, double max_age) {
-             return std::make_unique<P>(F, N, std::move(qps), offsets, Ts, max_age);
+                       const CRefVec& offsets, double Ts, double max_age, int nice) {
+             return std::make_unique<P>(F, N, std::move(qps), offsets, Ts, max_age, nice);
            }),
            py::arg("F"), py::arg("N"), py::arg("qps"), py::arg("offsets"), py::arg("Ts"),
-           py::arg("max_age"))
+           py::arg("max_age"), py::arg("nice") = 10)
       .def("set_reference", &plan_set_reference, py::arg("reference"))
       .def(
           "request",
@@ -88,6 +88,7 @@ void expose_plan_thread(py::module_& m) {
       .def_readonly("n", &P::n)
       .def_readonly("N", &P::N)
       .def_readonly("Nc", &P::Nc)
+      .def_readonly("nice", &P::nice)
       .def_readonly("Ts", &P::Ts)
       .def_readwrite("max_age", &P::max_age)
       .def_property_readonly("requests", [](const P& p) { return p.requests; })

@@ -12,13 +12,19 @@
 #include <utility>
 #include <vector>
 
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
 namespace hmpc {
 
 std::atomic<long> PlanThread::live_{0};
 
 PlanThread::PlanThread(const CRefRow& F, int N_, std::shared_ptr<JointQPs> qps,
-                       const CRefVec& offsets, double Ts_, double max_age_)
-    : n(qps ? qps->n : 0), N(N_), Nc(qps ? qps->Nc : 0), Ts(Ts_), max_age(max_age_),
+                       const CRefVec& offsets, double Ts_, double max_age_, int nice_)
+    : n(qps ? qps->n : 0), N(N_), Nc(qps ? qps->Nc : 0), nice(nice_), Ts(Ts_), max_age(max_age_),
       qps_(std::move(qps)) {
   if (!qps_) throw std::invalid_argument("PlanThread: the planner's joint QPs are needed");
   if (F.rows() != 2 + 2 * N || F.cols() != Nc || qps_->N != N || offsets.size() != N)
@@ -71,9 +77,9 @@ void PlanThread::request(double t, const CRefVec& q, const CRefVec& dq) {
   if (!std::isfinite(t)) throw NonFinite("t", t);
   if (q.size() != n || dq.size() != n)
     throw std::invalid_argument("PlanThread.request: q and dq of n values each");
+  if (!running()) throw std::logic_error("PlanThread: stopped");
   if (!reference_)
     throw std::logic_error("PlanThread.request: no compiled reference (request_stack)");
-  if (!running()) throw std::logic_error("PlanThread: stopped");
   Request& r = req_[req_back_];
   r.stack.row(0) = q.transpose();
   r.stack.row(1) = dq.transpose();
@@ -168,6 +174,11 @@ RowMat PlanThread::plan() {
 }
 
 void PlanThread::run() {
+#ifdef __linux__
+  // below the torque loop: on a loaded machine a woken planner does not take the core
+  // from the cycle that woke it (the niceness of this thread only; refused: as is)
+  if (nice > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
+#endif
   while (true) {
     {
       std::unique_lock<std::mutex> lock(m_);

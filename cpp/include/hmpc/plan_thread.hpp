@@ -45,9 +45,11 @@ class PlanThread {
   // F: the condensed MPC's gradient map ((2 + 2N)×Nc, CondensedMPC.FT, as HMPCCore's);
   // qps: the planner's own joint QPs (not shared with a step that runs); offsets: the
   // horizon offsets j·Ts, j = 1..N [s]; Ts: the MPC's period [s]; max_age: the staleness
-  // bound [s] (> 0). Starts the thread.
+  // bound [s] (> 0); nice: the planner thread's niceness (Linux; 0: the caller's), above
+  // the torque loop's so that a woken planner does not take the core from the cycle that
+  // woke it. Starts the thread.
   PlanThread(const CRefRow& F, int N, std::shared_ptr<JointQPs> qps, const CRefVec& offsets,
-             double Ts, double max_age);
+             double Ts, double max_age, int nice = 10);
   ~PlanThread();  // stop()
   PlanThread(const PlanThread&) = delete;
   PlanThread& operator=(const PlanThread&) = delete;
@@ -78,7 +80,7 @@ class PlanThread {
   // The number of planner threads alive in the process (started and not yet joined).
   static long live() { return live_.load(); }
 
-  int n, N, Nc;
+  int n, N, Nc, nice;
   double Ts, max_age;
   // Counters since construction: requests made, requests replaced before the planner took
   // them, inputs refused (no plan or stale) -- the torque loop's -- and plans published.

@@ -1,4 +1,4 @@
-"""The MPC in a compiled thread, the inner law every cycle: :class:`InnerLawThreaded`.
+"""The MPC in a compiled thread, the inner law every cycle (``InnerLawThreaded``).
 
 As :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle` (the observer, Eq 13, and
 the inverse dynamics, Eq 4, every cycle of the arm's period :math:`P`), but the MPC -- the
@@ -8,14 +8,14 @@ copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 
 1. the observer over the period that just ended (as the synchronous law);
 2. at :math:`k = 0, m, 2m, \\dots` the state :math:`(t_k, q_k, \\dot q_k)` is handed to the
-   planner (a request; it does not wait, except for the first after :meth:`reset`, or
+   planner (a request; it does not wait, except for the first after :meth:`InnerLawThreaded.reset`, or
    every time with ``wait=True``);
 3. the acceleration of the latest plan for the cycle's time :math:`t`: the plan's row
    :math:`\\lfloor (t - t_\\text{plan}) / T_s \\rfloor` (past the control horizon its last
    row), if the plan is not older than ``max_age``; else the **brake** fallback
    :math:`v = \\operatorname{clip}(-\\dot q / T_s, v_\\min, v_\\max)` (the joints' velocity
    brought to zero over one MPC period within the acceleration bounds), counted in
-   :attr:`fallbacks`;
+   :attr:`InnerLawThreaded.fallbacks`;
 4. Eq (4) with it at the fresh state (as the synchronous law).
 
 With ``wait=True`` (deterministic: each request waits for its plan) the torques are, bit
@@ -24,7 +24,7 @@ controller. Without it the request's own cycle uses the previous plan (its row 1
 last with :math:`N_c = 1`): the default ``max_age = 2 T_s`` lets the new plan be one MPC
 period late.
 
-The thread is stopped and joined by :meth:`close` (also ``with`` and the object's end).
+The thread is stopped and joined by :meth:`InnerLawThreaded.close` (also ``with`` and the object's end).
 A failure of the planner (a QP not solved, a non-finite state) is raised by the next cycle.
 """
 

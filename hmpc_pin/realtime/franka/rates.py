@@ -18,7 +18,8 @@ The wrapped controller's own observer still runs inside its step at :math:`T_s` 
 estimate is not used). This is the inner law in Python (a compiled split of the step
 into an MPC part and an inner part would do the same at less cost); not for a
 controller with a declared latency (its prediction and torque alignment are the
-compiled step's).
+compiled step's). :class:`~hmpc_pin.realtime.franka.threaded.InnerLawThreaded` is this law
+with the MPC in a compiled thread, off the cycle.
 """
 
 from __future__ import annotations

@@ -23,11 +23,11 @@ from benchmarks._fixtures import (  # noqa: E402
     Settings,
     log,
 )
+from benchmarks.harness import LOOP_ORACLE, per_step_oracle  # noqa: E402
 from benchmarks.ratios import aba_floor  # noqa: E402
 from benchmarks.steps import GravityCompensation  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
 from hmpc_pin.experiment.config import load_config  # noqa: E402
-from tests.reference.loop import per_step  # noqa: E402
 
 
 @dataclass
@@ -153,15 +153,16 @@ def bench_memory(settings: Settings) -> MemoryResult:
     return out
 
 
-def ab_loops(rounds: int, config: Path = PAPER_CONFIG) -> dict:
+def ab_loops(rounds: int, config: Path = PAPER_CONFIG, oracle: Path = LOOP_ORACLE) -> dict:
     """The paper's 10 s run per step in Python and in compiled chunks
-    (the oracle of ``tests/reference/loop.py``, and ``Experiment.run``), alternating in this
-    process, beside
+    (the oracle of ``tests/reference/loop.py``, loaded from the file ``oracle``, and
+    ``Experiment.run``), alternating in this process, beside
     the plant's period alone over the same 1000 periods (the compiled loop's floor).
 
     Returns:
         Medians [s] of each and the median over rounds of python / compiled.
     """
+    per_step = per_step_oracle(oracle)
     exp = Experiment.from_config(load_config(config))
     periods = round(exp.config.simulation.duration / exp.controller.Ts)
     exp.run()  # warm
@@ -198,6 +199,13 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=ab_loops.__doc__)
     parser.add_argument("--rounds", type=int, default=15)
     parser.add_argument("--config", type=Path, default=PAPER_CONFIG)
+    parser.add_argument(
+        "--oracle",
+        type=Path,
+        default=LOOP_ORACLE,
+        metavar="PATH",
+        help="the per-step loop oracle's file [tests/reference/loop.py of this clone]",
+    )
     args = parser.parse_args()
-    json.dump(ab_loops(args.rounds, args.config), sys.stdout)
+    json.dump(ab_loops(args.rounds, args.config, args.oracle), sys.stdout)
     print()

@@ -148,8 +148,10 @@ def main() -> int:
         traj = record_trajectory(arm, 1200)
         ctrl = hmpc_pin.make_controller(arm.robot, arm.config(1))
         r = step_floor_ratio(ctrl, arm.reference(), traj.t, traj.q, traj.dq)
-        print(f"{arm.name:<8} step {r.step_median_us:6.1f} µs  floor {r.floor_median_us:6.1f} µs"
-              f"  step/floor {r.ratio:.2f} (blocks {np.round(r.ratios, 2)})")
+        print(
+            f"{arm.name:<8} step {r.step_median_us:6.1f} µs  floor {r.floor_median_us:6.1f} µs"
+            f"  step/floor {r.ratio:.2f} (blocks {np.round(r.ratios, 2)})"
+        )
     return 0
 
 

@@ -6,6 +6,7 @@ an arm pays for it too, and it shows up in the 99th percentile, not in the media
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import platform
 import resource
@@ -14,22 +15,51 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 
 import hmpc_pin.apps.compare
 
 __all__ = [
+    "LOOP_ORACLE",
     "TimedController",
     "Timing",
     "machine_info",
     "package_versions",
     "peak_rss_bytes",
+    "per_step_oracle",
     "rss_bytes",
     "time_calls",
 ]
 
 _PAGE = os.sysconf("SC_PAGE_SIZE")
+
+#: The closed loop's per-step oracle: a file of the tests, kept beside the tests that check
+#: the compiled loop against it. The package has no per-step loop (every run goes through
+#: the compiled loop), so a program that times or compares against it loads this file by
+#: its path (its ``--oracle`` option), without importing the ``tests`` package.
+LOOP_ORACLE = Path(__file__).resolve().parent.parent / "tests" / "reference" / "loop.py"
+
+
+def per_step_oracle(path: Path = LOOP_ORACLE):
+    """The ``per_step()`` context manager of the closed-loop oracle file ``path``: within
+    it, :func:`hmpc_pin.simulate` (and ``Experiment.run``) run the oracle's per-step loop.
+
+    Raises:
+        SystemExit: ``path`` is not a file (naming ``--oracle``).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise SystemExit(
+            f"--oracle: {path} not found; pass the per-step loop oracle "
+            "(tests/reference/loop.py of a clone of the repository)"
+        )
+    spec = importlib.util.spec_from_file_location("benchmarks_loop_oracle", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.per_step
 
 
 @dataclass(frozen=True)

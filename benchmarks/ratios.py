@@ -94,7 +94,9 @@ def long_horizon(arm, steps: int, blocks: int, warmup: int = 50) -> tuple[Altern
         "N = Nc = 100, auto": (_panda(Ts, 100, 100, "auto", robot), ref),
         "N = Nc = 100, block": (_panda(Ts, 100, 100, "block", robot), ref),
         "benchmark step (Ts = 10 ms, N = 10, Nc = 1)": (
-            hmpc_pin.make_controller(robot, arm.config(1)), ref),
+            hmpc_pin.make_controller(robot, arm.config(1)),
+            ref,
+        ),
     }
     blocks_us = alternate_steps(variants, (t, q, dq), warmup, blocks)
     auto, block = variants["N = Nc = 100, auto"][0], variants["N = Nc = 100, block"][0]

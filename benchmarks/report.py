@@ -349,8 +349,8 @@ AB_SPEEDUPS: dict[str, float] = {}
 def bench_ab(
     old: Path, settings: Settings, sweep_samples: int, quick: bool, source: str = ""
 ) -> list[str]:
-    """Old vs new in one process, alternating (``benchmarks/ab.py``): the report lines."""
-    from benchmarks import ab
+    """Old vs new in one process, alternating (``benchmarks/tools/ab.py``): the report lines."""
+    from benchmarks.tools import ab
 
     old_pkg, new_pkg = ab._packages(old)
     version = getattr(old_pkg, "__version__", "?")
@@ -374,9 +374,9 @@ def bench_ab(
         f"The old package (version {version}, from `--old OLD_DIR`"
         + (f", source `{source}`" if source else "")
         + ": a `git archive` of the older "
-        "commit with its `hmpc_pin` folder renamed `hmpc_pin_old`, see `benchmarks/ab.py`) "
+        "commit with its `hmpc_pin` folder renamed `hmpc_pin_old`, see `benchmarks/tools/ab.py`) "
         "and this one, alternating "
-        "in one process (`benchmarks/ab.py`): the 10 s run 9 rounds each, the steps 10 "
+        "in one process (`benchmarks/tools/ab.py`): the 10 s run 9 rounds each, the steps 10 "
         "blocks each along the step benchmark's states, the sweep (`run_sweep`, jobs = 1, "
         "so that both run in this process) 3 rounds each. "
         "Speed-up = median over rounds of old / new.",
@@ -569,7 +569,7 @@ def report(
         "On these states every joint's unconstrained minimiser −H⁻¹g lies inside its box, so "
         "the per-joint layout takes it without a ProxSuite call (exact for a convex QP). "
         "With the bounds active ProxSuite solves each 100-variable QP, at milliseconds per "
-        'step: `python benchmarks/long_horizon_active.py` (section "Long horizons with '
+        'step: `python benchmarks/studies/long_horizon_active.py` (section "Long horizons with '
         'active constraints" below).',
         "",
         "A run whose median step exceeds Ts/2 says so: `simulate` attaches the step times to "

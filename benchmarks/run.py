@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         type=Path,
         default=None,
         help="folder holding an older version of the package as hmpc_pin_old: adds old vs "
-        "new timings in one process (benchmarks/ab.py)",
+        "new timings in one process (benchmarks/tools/ab.py)",
     )
     parser.add_argument(
         "--ab-sweep-samples",
@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
         part.crocoddyl = peers.crocoddyl_rows(compares, settings)
     ab_lines: list[str] = []
     if args.old is not None:
-        log("old vs new (benchmarks/ab.py)")
+        log("old vs new (benchmarks/tools/ab.py)")
         ab_lines = bench_ab(args.old, settings, args.ab_sweep_samples, args.quick, args.old_source)
         command += (
             " --old OLD_DIR"

@@ -514,8 +514,8 @@ def model_at() -> str:
     end = ", ".join(_e4(x) for x in rms["end"].rms_error)
     start = ", ".join(_e4(x) for x in rms["start"].rms_error)
     return _para(
-        '`hmpc-pin init` writes `"start"`. The default stays `"end"`, so configs of '
-        "earlier versions run as before (the paper's scenario `hmpc-pin run paper_combined`: "
+        '`hmpc-pin init` writes `"start"`. The default is `"end"`, the paper\'s '
+        "discretisation (the paper's scenario `hmpc-pin run paper_combined`: "
         f'{end} rad with `"end"`; {start} with `"start"`).'
     )
 
@@ -527,12 +527,12 @@ def _z1_value(rms: float, joint: int) -> str:
 
 @functools.cache
 def _z1() -> tuple[list, list]:
-    """The rows of ``python -m benchmarks.damped_arm``: (first table, second table), each
+    """The rows of ``python -m benchmarks.studies.damped_arm``: (first table, second table), each
     row ``(plant, plant joint dynamics, controller compensates, observer, rms, joint)``."""
     from dataclasses import replace
 
     sys.path.insert(0, str(ROOT))
-    from benchmarks import damped_arm
+    from benchmarks.studies import damped_arm
     from hmpc_pin.experiment.init import InitPlan
 
     base = damped_arm.config(_workdir() / "z1_damped.toml")
@@ -584,7 +584,7 @@ def _z1() -> tuple[list, list]:
 
 
 def z1_damped() -> str:
-    """The damped Z1 at Ts = 10 ms on three plants (``python -m benchmarks.damped_arm``)."""
+    """The damped Z1 at Ts = 10 ms on three plants (``python -m benchmarks.studies.damped_arm``)."""
     first, _ = _z1()
     yes = {True: "yes", False: "no"}
     lines = [
@@ -698,11 +698,11 @@ def collision_thresholds() -> str:
 
 @functools.cache
 def _latency_error() -> str:
-    """The output of ``python -m benchmarks.damped_arm --latency-error --duration 2``."""
+    """The output of ``python -m benchmarks.studies.damped_arm --latency-error --duration 2``."""
     import warnings
 
     sys.path.insert(0, str(ROOT))
-    from benchmarks import damped_arm
+    from benchmarks.studies import damped_arm
 
     buf = io.StringIO()
     with warnings.catch_warnings(), contextlib.redirect_stdout(buf):
@@ -918,10 +918,10 @@ def own_arm_sines() -> str:
 
 
 def any_arm_table() -> str:
-    """``python -m benchmarks.any_arm --duration 3``: init and a 3 s run of every
+    """``python -m benchmarks.studies.any_arm --duration 3``: init and a 3 s run of every
     example-robot-data arm (the step columns are timings: example values)."""
     sys.path.insert(0, str(ROOT))
-    from benchmarks import any_arm
+    from benchmarks.studies import any_arm
 
     return any_arm.markdown(list(any_arm.rows(3.0))) + "\n"
 

@@ -30,7 +30,7 @@ The package is layered; each layer imports only the layers below it (tested)::
       │
     model/         Robot (URDF → Pinocchio: M, C·q̇ + G, ABA), planar 3R IK
     native/        loads the compiled core _core (cpp/ + bindings/, built): dynamics,
-      │            NDO, RK4 period, the fused MPC step
+      │            NDO, RK4 period, the compiled MPC step
     data/, exceptions.py
 
 Data flows one way: a reference and the measured state enter a controller, which holds

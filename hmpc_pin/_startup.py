@@ -20,6 +20,9 @@ The package's ``__init__`` calls :func:`guard` first of all when the process is 
 command line (``hmpc-pin`` or ``python -m hmpc_pin``), so that the guard covers the
 package's own imports; library users never get a handler installed.
 
+After the start-up, a command that must not be interrupted in the middle of a write
+keeps Ctrl-C back with :class:`DeferredInterrupt` and raises it between the writes.
+
 This module imports nothing from the package (it runs before the package is imported).
 """
 
@@ -29,6 +32,7 @@ import contextlib
 import os
 import signal
 import sys
+import threading
 
 #: Exit status of a Ctrl-C (128 + SIGINT, the shell's convention).
 EXIT_INTERRUPTED = 130
@@ -150,6 +154,60 @@ def restore(previous) -> None:
             signal.signal(signal.SIGINT, previous)
     if sys.unraisablehook is _unraisable:
         sys.unraisablehook = _previous_unraisable
+
+
+class DeferredInterrupt:
+    """Ctrl-C kept back while a command writes, raised between the writes (the package's
+    one deferral of Ctrl-C; ``hmpc-pin tune`` keeps it away from its study's database).
+
+    A ``KeyboardInterrupt`` raised inside an SQLite write of Optuna's storage leaves its
+    transaction open: the next write (the trial marked failed, the report's reads) finds
+    "database is locked" and the command ends with a traceback. While installed (a
+    context manager; main thread only), SIGINT raises at once inside :meth:`evaluating`
+    (work that writes nothing, e.g. a trial's sweep), and elsewhere is remembered and
+    raised at the next :meth:`evaluating` or :meth:`check`, between writes. The raise
+    goes through the handler it replaced when that is the command line's (which records
+    the Ctrl-C in :data:`interrupted`, then raises).
+    """
+
+    def __init__(self):
+        self.pending = False
+        self._evaluating = False
+        self._previous = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _raise(self, signum=signal.SIGINT, frame=None) -> None:
+        previous = self._previous
+        if callable(previous) and previous is not signal.default_int_handler:
+            previous(signum, frame)  # the command line's handler: it records, then raises
+        raise KeyboardInterrupt
+
+    def _handler(self, signum, frame) -> None:
+        if self._evaluating:
+            self._raise(signum, frame)
+        self.pending = True
+
+    def check(self) -> None:
+        """Raise :class:`KeyboardInterrupt` when a Ctrl-C was kept back."""
+        if self.pending:
+            self._raise()
+
+    def evaluating(self, fn, *args):
+        """``fn(*args)`` with Ctrl-C raised at once (after one kept back: before it)."""
+        self.check()
+        self._evaluating = True
+        try:
+            return fn(*args)
+        finally:
+            self._evaluating = False
 
 
 #: Commands that run a 1 kHz loop against a robot: numpy's BLAS on one thread (its default

@@ -325,7 +325,7 @@ class NativeError(HmpcError, RuntimeError):
 
 
 class PerformanceWarning(UserWarning):
-    """A run takes a slower path than it could (e.g. the native kernels are unavailable)."""
+    """A run takes a slower path than it could (e.g. the compiled core is unavailable)."""
 
 
 class ExcitationError(HmpcError, ValueError):

@@ -181,6 +181,24 @@ def test_nothing_in_the_repository_imports_the_schema_shim():
         assert f"from {SHIM} import" not in text and f"import {SHIM}" not in text, page
 
 
+def test_every_command_is_one_module_with_the_same_two_entry_points():
+    """``hmpc-pin``'s table registers one module of ``hmpc_pin.apps.commands`` per command,
+    each exporting ``add_arguments(parser)`` and ``main(args)``, and no other module."""
+    import importlib
+    import inspect
+
+    from hmpc_pin.apps.cli import COMMANDS
+
+    folder = PKG / "apps" / "commands"
+    modules = {p.stem for p in folder.glob("*.py")} - {"__init__"}
+    assert sorted(m for _, m in COMMANDS.values()) == sorted(modules)
+    for name in modules:
+        module = importlib.import_module(f"hmpc_pin.apps.commands.{name}")
+        assert module.__all__ == ["add_arguments", "main"], name
+        for entry in (module.add_arguments, module.main):
+            assert list(inspect.signature(entry).parameters)[1:] == [], (name, entry)
+
+
 def test_report_does_not_import_the_command_line():
     assert "hmpc_pin.apps.cli" not in GRAPH["hmpc_pin.apps.report"]
 
@@ -205,47 +223,65 @@ def test_every_exception_is_defined_in_exceptions_py():
 BENCH = PKG.parent / "benchmarks"
 
 
-def _bench_imports(path: Path) -> tuple[set[str], list[str]]:
-    """The ``benchmarks`` modules ``path`` imports and the private names it takes from
-    ``hmpc_pin`` (function-level imports included)."""
+def _bench_imports(path: Path) -> tuple[set[str], list[str], list[str]]:
+    """The ``benchmarks`` modules ``path`` imports (dotted below ``benchmarks``, e.g.
+    ``studies.long_run``), the private names it takes from ``hmpc_pin``, and the modules of
+    ``tests`` it imports (function-level imports included)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
-    mods, private = set(), []
+    mods, private, tests = set(), [], []
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom) and node.module:
-            if node.module.startswith("benchmarks"):
-                parts = node.module.split(".")
-                if len(parts) > 1:
-                    mods.add(parts[1])
-                else:
-                    mods.update(alias.name for alias in node.names)
+            if node.module == "benchmarks" or node.module.startswith("benchmarks."):
+                below = node.module.removeprefix("benchmarks").lstrip(".")
+                for alias in node.names:  # a module, or a name of the module `below`
+                    name = f"{below}.{alias.name}".lstrip(".")
+                    mods.add(name if (BENCH / f"{name.replace('.', '/')}.py").exists() else below)
             elif node.module.startswith("hmpc_pin"):
                 private += [f"{node.module}.{a.name}" for a in node.names
                             if a.name.startswith("_")]  # fmt: skip
                 private += [node.module] if any(p.startswith("_") for p in
                                                 node.module.split(".")) else []  # fmt: skip
+            elif node.module == "tests" or node.module.startswith("tests."):
+                tests.append(node.module)
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.startswith("benchmarks."):
-                    mods.add(alias.name.split(".")[1])
+                    mods.add(alias.name.removeprefix("benchmarks."))
                 if alias.name.startswith("hmpc_pin") and any(
                     p.startswith("_") for p in alias.name.split(".")
                 ):
                     private.append(alias.name)
-    return mods, private
+                if alias.name == "tests" or alias.name.startswith("tests."):
+                    tests.append(alias.name)
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", None) == "import_module":
+            tests += [c.value for c in node.args if isinstance(c, ast.Constant)
+                      and str(c.value).startswith("tests")]  # fmt: skip
+    return mods - {""}, private, tests
+
+
+def _bench_modules() -> dict[str, Path]:
+    """Every program of ``benchmarks/`` by its dotted name below it: the suite
+    (``run``, ``steps``, ...), ``studies.*`` and ``tools.*``."""
+    return {
+        p.relative_to(BENCH).with_suffix("").as_posix().replace("/", "."): p
+        for p in BENCH.rglob("*.py")
+        if p.stem != "__init__"
+    }
 
 
 def test_benchmarks_form_no_import_cycle_and_use_only_public_names():
-    graph, private = {}, {}
-    for path in BENCH.glob("*.py"):
-        if path.stem == "__init__":
-            continue
-        graph[path.stem], found = _bench_imports(path)
+    graph, private, tests = {}, {}, {}
+    for name, path in _bench_modules().items():
+        graph[name], found, from_tests = _bench_imports(path)
         if found:
-            private[path.stem] = found
+            private[name] = found
+        if from_tests:
+            tests[name] = from_tests
     assert not private, f"benchmarks importing private hmpc_pin names: {private}"
+    assert not tests, f"benchmarks importing tests/ (load an oracle by its path): {tests}"
     assert "_fixtures" in graph and not graph["_fixtures"], "the fixtures import no benchmark"
-    for name in graph:
-        graph[name] = {m for m in graph[name] if m in graph}
+    unknown = {n: sorted(d - set(graph)) for n, d in graph.items() if d - set(graph)}
+    assert not unknown, f"benchmarks importing no benchmark module: {unknown}"
     state: dict[str, int] = {}
 
     def visit(name: str, stack: list[str]) -> None:
@@ -261,6 +297,29 @@ def test_benchmarks_form_no_import_cycle_and_use_only_public_names():
             visit(name, [])
 
 
+def test_benchmarks_are_the_suite_the_studies_and_the_tools():
+    """``benchmarks/``: the suite ``run.py`` drives and its harness (no study in its imports),
+    ``studies/`` the programs the pages cite (each cited by one at least), ``tools/`` the
+    developer tools (no page's figure comes from one)."""
+    graph = {n: _bench_imports(p)[0] for n, p in _bench_modules().items()}
+    suite, stack = set(), ["run"]
+    while stack:
+        name = stack.pop()
+        if name not in suite:
+            suite.add(name)
+            stack += graph[name]
+    top = {n for n in graph if "." not in n}
+    assert not [n for n in suite if n.startswith("studies.")], suite
+    assert top - suite <= {"memory"}, f"not run by the suite: {sorted(top - suite - {'memory'})}"
+    root = PKG.parent
+    pages = [*(root / "docs").rglob("*.md"), root / "README.md", root / "BENCHMARKS.md"]
+    cited = "\n".join(p.read_text(encoding="utf-8") for p in pages)
+    studies = [n.split(".", 1)[1] for n in graph if n.startswith("studies.")]
+    uncited = [s for s in studies if f"benchmarks/studies/{s}.py" not in cited
+               and f"benchmarks.studies.{s}" not in cited]  # fmt: skip
+    assert studies and not uncited, f"studies no page cites: {uncited}"
+
+
 # ------------------------------------------------------------------ test tiers
 def test_every_end_to_end_file_of_the_tiers_exists():
     from tests.conftest import E2E_FILES
@@ -269,20 +328,60 @@ def test_every_end_to_end_file_of_the_tiers_exists():
     assert E2E_FILES and all((tests / name).is_file() for name in E2E_FILES)
 
 
-#: The sizes a maintainer can hold: a Python function, a C++ file, a C++ function; ``ruff
-#: format`` owns the formatting (``# fmt: skip`` only where a table is clearer).
-MAX_FUNCTION_LINES, MAX_CPP_LINES, MAX_CPP_FUNCTION_LINES, MAX_FMT_SKIPS = 150, 500, 100, 50
+#: The sizes a maintainer can hold: a Python file and function, a C++ file, a C++ function;
+#: ``ruff format`` owns the formatting (``# fmt: skip`` only where a table is clearer).
+MAX_FILE_LINES, MAX_FUNCTION_LINES = 700, 120
+MAX_CPP_LINES, MAX_CPP_FUNCTION_LINES, MAX_FMT_SKIPS = 500, 100, 50
+
+#: Files being split in parallel on other branches, and what of them is over the limits
+#: today: ``None`` for the file's length, else a function's name. A temporary allowance,
+#: removed (the test tightened) when those branches merge; a file or function not listed
+#: here is held to the limits.
+_PENDING = {
+    "apps/ros.py": {"_run_ros"},
+    "experiment/build.py": {None},
+    "controllers/hierarchical.py": {None},
+    "ros/trajectory.py": {"trajectory_from_message"},
+    "sim/simulate.py": {"simulate"},
+}
+
+
+def _python_files() -> list[tuple[str, Path]]:
+    return sorted((path.relative_to(PKG).as_posix(), path) for path in PKG.rglob("*.py"))
+
+
+def test_no_python_file_is_longer_than_a_maintainer_can_hold():
+    long = [(rel, n) for rel, path in _python_files()
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_FILE_LINES
+            and None not in _PENDING.get(rel, ())]  # fmt: skip
+    assert not long, f"Python files over {MAX_FILE_LINES} lines: {long}"
 
 
 def test_no_python_function_is_longer_than_a_maintainer_can_hold():
     long = []
-    for path in PKG.rglob("*.py"):
+    for rel, path in _python_files():
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 lines = node.end_lineno - node.lineno + 1
-                if lines > MAX_FUNCTION_LINES:
-                    long.append((str(path.relative_to(PKG)), node.name, lines))
+                if lines > MAX_FUNCTION_LINES and node.name not in _PENDING.get(rel, ()):
+                    long.append((rel, node.name, lines))
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
+
+
+def test_the_pending_allowance_names_only_what_is_over_the_limits():
+    """Each allowance is needed today: a file listed is over the limit, a function listed
+    is over its limit (so the allowance shrinks as the parallel splits land)."""
+    for rel, allowed in _PENDING.items():
+        path = PKG / rel
+        assert path.is_file(), rel
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        sizes = {node.name: node.end_lineno - node.lineno + 1 for node in ast.walk(tree)
+                 if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)}  # fmt: skip
+        for name in allowed:
+            if name is None:
+                assert len(path.read_text(encoding="utf-8").splitlines()) > MAX_FILE_LINES, rel
+            else:
+                assert sizes.get(name, 0) > MAX_FUNCTION_LINES, f"{rel}: {name}"
 
 
 def _cpp_files() -> list[Path]:
@@ -430,3 +529,18 @@ def test_the_registry_check_finds_a_second_list():
         len(_literal_names(n) & {"hmpc", "computed-torque", "mujoco", "pinocchio"})
         for n in literals
     ] == [2, 2]
+
+
+def test_one_dask_cluster_factory_and_one_ctrl_c_deferral():
+    """A local Dask cluster is made in one place (``apps/cluster.py``, used by the sweep and
+    the tuner), and Ctrl-C is kept back in one class (``_startup.DeferredInterrupt``)."""
+    makers, deferrals = [], []
+    for rel, path in _python_files():
+        text = path.read_text(encoding="utf-8")
+        if "LocalCluster(" in text:
+            makers.append(rel)
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ClassDef) and node.name.endswith("Interrupt"):
+                deferrals.append(f"{rel}:{node.name}")
+    assert makers == ["apps/cluster.py"]
+    assert deferrals == ["_startup.py:DeferredInterrupt"]

@@ -49,8 +49,8 @@ def test_bandwidth_is_the_error_decay_rate(planar3):
 @pytest.mark.parametrize("D", [1, 2, 3])
 def test_rule_keeps_a_joint_with_unknown_latency_stable(D):
     """At the rule's bound (ω r (Ts + D Ts) = 1/2, r = 1.25) the simulated joint of
-    benchmarks/observer_rule.py converges, at 8× the bound it does not (D = 1: 16×)."""
-    from benchmarks.observer_rule import final_error
+    benchmarks/studies/observer_rule.py converges, at 8× the bound it does not (D = 1: 16×)."""
+    from benchmarks.studies.observer_rule import final_error
 
     Ts, r = 0.01, 1.25
     limit = bandwidth_limit(Ts, D * Ts, r)
@@ -116,10 +116,10 @@ def test_experiment_makes_the_bandwidth_exact_at_the_start(write_config):
 @pytest.mark.parametrize("beta", [0.5, 1.0])
 def test_rule_keeps_a_joint_with_an_overdeclared_latency_stable(beta):
     """A latency declared β Ts too long at Ts = 1 ms (the simulated joint of
-    benchmarks/observer_rule.py --over, r = 1.25): at the rule's bound
+    benchmarks/studies/observer_rule.py --over, r = 1.25): at the rule's bound
     ω (r Ts + 2ΔL − 2Ts) = 1 it converges; at 1.25× the stability bound (2.5× the rule)
     its estimate alternates in sign and grows."""
-    from benchmarks.observer_rule import final_error_over
+    from benchmarks.studies.observer_rule import final_error_over
 
     Ts, r = 0.001, 1.25
     limit = overdeclared_limit(Ts, beta * Ts, r)

@@ -35,11 +35,11 @@ def test_quick_benchmark_writes_its_report(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_long_run_is_stationary_over_three_minutes():
-    """The shortened long run (benchmarks/long_run.py): each minute's RMS error within
+    """The shortened long run (benchmarks/studies/long_run.py): each minute's RMS error within
     10 % of the first minute's (issue 7), disturbance repeated every minute."""
     import numpy as np
 
-    from benchmarks.long_run import deviation, format_table, long_run
+    from benchmarks.studies.long_run import deviation, format_table, long_run
 
     run = long_run(minutes=3)
     assert run["complete"], run["message"]
@@ -50,10 +50,11 @@ def test_long_run_is_stationary_over_three_minutes():
 
 @pytest.mark.slow
 def test_mujoco_plant_benchmark_runs_and_both_engines_track():
-    """benchmarks/mujoco_plant.py: one block; the three settings reach the paper's accuracy."""
+    """benchmarks/studies/mujoco_plant.py: one block; the three settings reach the paper's
+    accuracy."""
     import numpy as np
 
-    from benchmarks.mujoco_plant import measure, table
+    from benchmarks.studies.mujoco_plant import measure, table
 
     rows = measure(1)
     assert set(rows) == {"rk4", "mujoco", "mujoco-formula"}

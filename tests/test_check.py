@@ -291,13 +291,13 @@ def test_engines_that_disagree_are_detected():
     """MuJoCo compiles the URDF; a controller's model whose last link is 1.5 times heavier
     than the URDF's (Robot.with_scaled_inertias) must differ from it."""
     pytest.importorskip("mujoco")
-    from hmpc_pin.apps.check import _engines
+    from hmpc_pin.sim.engine_agreement import engine_agreement
 
     ex = Experiment.from_config(_paper(20.0))
-    same = _engines(ex)
+    same = engine_agreement(ex.robot)
     assert max(same) < ENGINE_RTOL
     ex.robot = ex.robot.with_scaled_inertias([1.0, 1.0, 1.5])
-    err_M, err_a = _engines(ex)
+    err_M, err_a = engine_agreement(ex.robot)
     assert err_M > 0.01 and err_a > 0.01
 
 
@@ -309,7 +309,7 @@ def test_the_engines_differences_are_relative(tmp_path):
     import re
 
     pytest.importorskip("mujoco")
-    from hmpc_pin.apps.check import _engines
+    from hmpc_pin.sim.engine_agreement import engine_agreement
 
     scale = 1e12
     urdf = (CONFIGS.parent / "robots" / "planar3.urdf").read_text()
@@ -325,7 +325,7 @@ def test_the_engines_differences_are_relative(tmp_path):
     config = load_config(tmp_path / "heavy.toml")
     ex = Experiment.from_config(config)
     assert ex.robot.mass_matrix(ex.q0)[0, 0] > 1e11  # the heavy arm
-    err_M, err_a = _engines(ex)
+    err_M, err_a = engine_agreement(ex.robot)
     assert err_M < ENGINE_RTOL and err_a < ENGINE_RTOL
 
 
@@ -422,7 +422,7 @@ def _recurrence_growth(coeffs: list[float], steps: int = 20000) -> float:
 def test_the_observer_loop_of_a_latency_declared_too_long(wTs, ratio, over):
     """overdeclared_radius against the recurrence it describes, iterated:
     d_k = (1 − g − g r) d_{k−1} + g (1 − β) d_{k−1−m} + g β d_{k−2−m}."""
-    from hmpc_pin.apps.check import overdeclared_radius
+    from hmpc_pin.compensation.loop_analysis import overdeclared_radius
 
     g = wTs / (1 + wTs)
     m = math.floor(over)
@@ -466,13 +466,13 @@ def _ndo_loop_growth(wTs: float, ratio: float, over: float, kp: float = 0.0, kd:
                                  np.array([xd]), np.array([paired]))[0])  # fmt: skip
         u.append(M_hat * (-kp * x - kd * xd) - d_hat)
         if not (kp or kd):  # the velocity alone is an integrator outside the loop: move
-            obs._z += (wTs * M_hat / Ts) * xd  # it into z (d̂ = z + c ẋ unchanged)
+            # it into z (d̂ = z + c ẋ unchanged): the observer's state set through its port
+            obs._core.state = (obs.z + (wTs * M_hat / Ts) * xd, obs.estimate.copy())
             x, xd = 0.0, 0.0
         u = u[-(m + 3) :]
         scale = max(abs(w) for w in u) + (abs(x) + abs(xd) if kp or kd else 0.0)
         u, x, xd = [w / scale for w in u], x / scale, xd / scale
-        obs._z /= scale  # the observer's state is part of the loop's
-        obs._estimate /= scale
+        obs._core.state = (obs.z / scale, obs.estimate / scale)  # part of the loop's state
         norms.append(scale)
     return float(np.exp(np.mean(np.log(norms[steps // 2 :]))))
 
@@ -491,7 +491,7 @@ def test_the_whole_loop_without_latency_is_the_simulated_ndos(wTs, ratio, explic
     change with the estimate of the period before, its estimate keeps −(ω Ts)² times the
     acceleration and couples to the MPC (paper_combined's joint 3 at c = 15, ω Ts = 0.867:
     0.98, where the implicit form has the MPC's 0.88); backward Euler cancels it."""
-    from hmpc_pin.apps.check import lead_radius, loop_radius
+    from hmpc_pin.compensation.loop_analysis import lead_radius, loop_radius
 
     if explicit and wTs >= 2.0:
         pytest.skip("the explicit observer's own pole is outside the unit circle")
@@ -511,7 +511,7 @@ def test_the_explicit_observers_loop_with_the_mpc_is_a_problem(gain, flagged):
     explicit pole's ω Ts = 2: a problem naming joint 3 only, fixed by the implicit form
     (the calibration runs both); c = 10 tracks and passes; at c = 50 joint 3 (ω Ts = 2.9)
     is the explicit pole's problem, not named twice."""
-    from hmpc_pin.apps.check import explicit_loop_slow, loop_radius
+    from hmpc_pin.compensation.loop_analysis import explicit_loop_slow, loop_radius
 
     config = load_config(PAPER)
     obs = replace(config.controller.observer, gain=gain, discretization="explicit")
@@ -545,7 +545,7 @@ def test_the_explicit_loop_is_judged_with_the_runs_inertia_ratio(monkeypatch):
     (joint 3 at w Ts = 0.75, which passes with r = 1) is judged with r: flagged exactly
     when explicit_loop_slow says so at r, quoting loop_radius at r."""
     import hmpc_pin.apps.check as check
-    from hmpc_pin.apps.check import explicit_loop_slow, loop_radius
+    from hmpc_pin.compensation.loop_analysis import explicit_loop_slow, loop_radius
     from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
     from hmpc_pin.mpc.condensed import CondensedMPC
 
@@ -568,7 +568,7 @@ def test_the_explicit_loop_is_judged_with_the_runs_inertia_ratio(monkeypatch):
 
 def test_the_observers_modes_are_sampled_at_most_once_a_period():
     """A run of 5 periods: 6 postures (its ends included), not the 200 a long run gets."""
-    from hmpc_pin.apps.check import observer_modes
+    from hmpc_pin.experiment.observer_analysis import observer_modes
 
     config = _paper(20.0)
     config = replace(config, simulation=replace(config.simulation, duration=0.05))
@@ -584,7 +584,7 @@ def test_the_explicit_observer_loop_of_a_latency_declared_too_long(wTs, ratio, o
     not T_s ω/(1 + T_s ω), and the velocity change paired with the estimate of the period
     before: 1 − g − g(1 − g) r), against the package's NDO iterated period by period; check
     uses that form for an explicit observer."""
-    from hmpc_pin.apps.check import overdeclared_radius
+    from hmpc_pin.compensation.loop_analysis import overdeclared_radius
 
     simulated = _explicit_observer_growth(wTs, ratio, over)
     radius = overdeclared_radius(wTs, ratio, over, explicit=True)
@@ -600,7 +600,7 @@ def test_the_outer_loop_predicting_ahead_of_fresh_measurements(over):
     x̂ the state integrated over L = over × Ts with the inputs of the last periods (the
     oldest over the fraction of a period that is left); without a prediction the poles
     are those of the PD loop (computed_torque.closed_loop_poles)."""
-    from hmpc_pin.apps.check import lead_radius
+    from hmpc_pin.compensation.loop_analysis import lead_radius
     from hmpc_pin.controllers.computed_torque import closed_loop_poles
 
     Ts, kp, kd = 0.01, 273.9, 22.73
@@ -683,7 +683,7 @@ def test_a_latency_declared_far_too_long_is_a_problem_through_the_mpc(gain):
             assert "observer pairs" not in latency[0]
             # the loop quoted is the one predicting 10 periods ahead (lead_radius, tested
             # against the simulated loop), its rate -ln|z|/Ts, against the PD loop's
-            from hmpc_pin.apps.check import lead_radius
+            from hmpc_pin.compensation.loop_analysis import lead_radius
             from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
             from hmpc_pin.mpc.condensed import CondensedMPC
 
@@ -807,7 +807,7 @@ def test_the_whole_loop_without_latency_is_its_two_loops(wTs):
     is the disturbance alone: the whole loop (loop_radius) separates into the MPC's
     loop (lead_radius) and the observer's pole 1 − g, g = ω Ts/(1 + ω Ts); with the
     observer's gain at zero and a latency, it is the MPC's loop with the prediction."""
-    from hmpc_pin.apps.check import lead_radius, loop_radius
+    from hmpc_pin.compensation.loop_analysis import lead_radius, loop_radius
 
     kp, kd, Ts = 274.0, 22.7, 0.01
     g = wTs / (1 + wTs)
@@ -823,8 +823,8 @@ def test_the_observers_lag_predicts_the_runs_error(gain):
     """observer_lag_error against the simulated run of the same config (5 s): the worst
     joint's error after 1 s within a factor 2 either way, for the paper's observer and
     one 100 x slower (which leaves run's 0.05 rad: a problem whose fix raises the gain)."""
-    from hmpc_pin.apps.check import observer_lag_error
     from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+    from hmpc_pin.experiment.observer_analysis import observer_lag_error
     from hmpc_pin.mpc.condensed import CondensedMPC
 
     config = _paper(gain)
@@ -903,7 +903,7 @@ def test_the_whole_loop_radius_is_the_simulated_loops_growth(wTs, over):
     periods: the dominant mode's growth per period), within 0.5 %; paper_combined's
     joint 3 at 0.6 Ts grows, init's Panda at 0.5 Ts decays (0.977) but at less than half
     the rate it has without the latency (0.887)."""
-    from hmpc_pin.apps.check import loop_radius
+    from hmpc_pin.compensation.loop_analysis import loop_radius
 
     kp, kd, Ts = 274.0, 22.7, 0.01
     radius = loop_radius(kp, kd, Ts, wTs, over)
@@ -922,8 +922,9 @@ def test_a_loop_that_decays_slowly_is_no_problem_and_one_growing_along_the_refer
     Along the paper's reference M(q) changes and the observer's modes with it: where a
     mode's w Ts gives loop_radius >= 1 check warns, naming that posture's time; where
     none does it is silent."""
-    from hmpc_pin.apps.check import loop_radius, observer_modes
+    from hmpc_pin.compensation.loop_analysis import loop_radius
     from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+    from hmpc_pin.experiment.observer_analysis import observer_modes
     from hmpc_pin.mpc.condensed import CondensedMPC
 
     config = load_config(PAPER)
@@ -944,10 +945,10 @@ def test_a_loop_that_decays_slowly_is_no_problem_and_one_growing_along_the_refer
 
 
 def test_the_worst_mode_along_the_reference_is_found_with_its_time():
-    """_worst_along against a brute-force maximum: a radius growing with w is largest at
+    """worst_along against a brute-force maximum: a radius growing with w is largest at
     the fastest mode, 20.1 1/s at t = 1 s, although 20.0 1/s (t = 0) shares its 1 % band
     and comes first; without modes, nothing."""
-    from hmpc_pin.apps.check import _worst_along
+    from hmpc_pin.experiment.observer_analysis import worst_along
 
     t = np.array([0.0, 1.0, 2.0])
     modes = np.array([[10.0, 20.0], [20.1, 5.0], [np.nan, 0.0]])
@@ -957,9 +958,9 @@ def test_the_worst_mode_along_the_reference_is_found_with_its_time():
         calls.append(w)
         return w / 100.0
 
-    assert _worst_along(radius, t, modes) == (pytest.approx(0.201), 20.1, 1.0)
+    assert worst_along(radius, t, modes) == (pytest.approx(0.201), 20.1, 1.0)
     assert len(calls) == 3  # 5, 10 and the band of 20.0/20.1, each evaluated once
-    assert _worst_along(radius, np.zeros(0), np.zeros((0, 2))) == (0.0, 0.0, 0.0)
+    assert worst_along(radius, np.zeros(0), np.zeros((0, 2))) == (0.0, 0.0, 0.0)
 
 
 def test_the_observers_modes_are_the_generalized_eigenvalues_along_the_reference():
@@ -968,7 +969,7 @@ def test_the_observers_modes_are_the_generalized_eigenvalues_along_the_reference
     move with the posture; the momentum observer's are its gains at every posture."""
     import scipy.linalg
 
-    from hmpc_pin.apps.check import observer_modes
+    from hmpc_pin.experiment.observer_analysis import observer_modes
 
     ex = Experiment.from_config(_paper(20.0))
     t, modes = observer_modes(ex, samples=20)
@@ -1033,7 +1034,7 @@ def test_the_lag_error_without_an_observer_is_the_held_loops_response():
 
     from scipy import signal
 
-    from hmpc_pin.apps.check import observer_lag_error
+    from hmpc_pin.experiment.observer_analysis import observer_lag_error
 
     kp, kd, Ts = 320.9, 24.04, 0.01
     t = np.arange(0.0, 3.0 + Ts / 2, Ts)
@@ -1095,7 +1096,7 @@ def test_the_runs_inertia_ratio_is_the_models_over_the_plants():
 def test_the_whole_loop_at_a_slow_period_is_the_simulated_loops_growth(Ts, kp, kd, wTs, over):
     """loop_radius against the loop simulated period by period where the prediction's
     position term ½h²v matters (kp Ts²/2 = 0.05 at Ts = 50 ms, against 0.014 at 10 ms)."""
-    from hmpc_pin.apps.check import loop_radius
+    from hmpc_pin.compensation.loop_analysis import loop_radius
 
     radius = loop_radius(kp, kd, Ts, wTs, over)
     assert radius == pytest.approx(_simulated_growth(kp, kd, Ts, wTs, over), rel=2e-3)
@@ -1106,8 +1107,8 @@ def test_the_lag_error_at_a_scaled_gain_is_the_lag_of_that_gain(compensation):
     """observer_lag_error(scale = s) of an observer is observer_lag_error of the config
     whose gain is s times as large, for the momentum observer (its gain K) and the NDO
     (its matrix cY)."""
-    from hmpc_pin.apps.check import observer_lag_error
     from hmpc_pin.controllers.computed_torque import mpc_feedback_gain
+    from hmpc_pin.experiment.observer_analysis import observer_lag_error
     from hmpc_pin.mpc.condensed import CondensedMPC
 
     config = _paper(2.0)
@@ -1148,7 +1149,7 @@ def test_engines_differing_beyond_the_tolerance_is_a_problem_only_for_a_mujoco_p
     arm (the simulated arm is not the model), a warning otherwise; 0.5e-6 is nothing."""
     import hmpc_pin.apps.check as check
 
-    monkeypatch.setattr(check, "_engines", lambda ex: (err, 0.0))
+    monkeypatch.setattr(check, "engine_agreement", lambda robot, samples: (err, 0.0))
     config = load_config(CONFIGS / "paper_combined_mujoco.toml")
     if engine == "pinocchio":
         config = replace(config, plant=replace(config.plant, engine="pinocchio", mujoco=None))
@@ -1243,11 +1244,11 @@ def test_the_engines_figures_are_the_relative_model_errors(e_M, e_a):
     two figures are |e| / (1 + e) at every sampled state, whatever the size of q̈
     (the paper's arm accelerates at tens of rad/s² there, not 1)."""
     pytest.importorskip("mujoco")
-    from hmpc_pin.apps.check import _engines
+    from hmpc_pin.sim.engine_agreement import engine_agreement
 
     ex = Experiment.from_config(_paper(20.0))
     ex.robot = _Skewed(ex.robot, e_M, e_a)
-    err_M, err_a = _engines(ex)
+    err_M, err_a = engine_agreement(ex.robot)
     assert err_M == pytest.approx(e_M / (1 + e_M), rel=1e-6, abs=1e-12)
     assert err_a == pytest.approx(e_a / (1 + e_a), rel=1e-6, abs=1e-12)
 
@@ -1329,3 +1330,17 @@ def test_an_observer_unstable_without_the_latency_is_not_blamed_on_the_latency(p
     assert not any(p.startswith("latency") for p in report.problems)
     fixed = check_config(apply_fix(replace(config, controller=cc), report.fixes[0]), engines=False)
     assert fixed.problems == []
+
+
+def test_the_loop_analysis_is_still_importable_from_the_check():
+    """The linear-systems analysis lives in its library modules; ``hmpc_pin.apps.check``
+    re-exports the same objects for scripts written against it."""
+    import hmpc_pin.apps.check as check
+    from hmpc_pin.compensation import loop_analysis
+    from hmpc_pin.experiment import observer_analysis
+
+    for module in (loop_analysis, observer_analysis):
+        for name in set(module.__all__) & set(check.__all__):
+            assert getattr(check, name) is getattr(module, name), name
+    assert {"MIN_DECAY", "loop_radius", "observer_lag_error"} <= set(check.__all__)
+    assert all(hasattr(check, name) for name in check.__all__)

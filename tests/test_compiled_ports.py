@@ -197,3 +197,47 @@ def test_the_chunk_of_earlier_versions_still_imports_with_a_warning():
 
     with pytest.warns(DeprecationWarning, match="LOOP_CHUNK"):
         assert plants.PULSE_CHUNK == LOOP_CHUNK
+
+
+class _Delegating:
+    """A user's wrapper that hands every other attribute on to the part it wraps
+    (``__getattr__``) and counts the calls of the one method it wraps."""
+
+    def __init__(self, part, method: str):
+        self.part, self.calls = part, 0
+        inner = getattr(part, method)
+
+        def counted(*args):
+            self.calls += 1
+            return inner(*args)
+
+        setattr(self, method, counted)
+
+    def __getattr__(self, name):
+        return getattr(self.part, name)
+
+
+def test_a_delegating_wrapper_hands_on_no_port_so_the_loop_never_goes_around_it(planar3):
+    """The port is looked up on the part's class: a wrapper that delegates its other
+    attributes (a timer, a logger) is called itself, and the run is the one without it."""
+    reference = hmpc_pin.SineReference(3)
+    runs = []
+    for wrap in (False, True):
+        ctrl = hmpc_pin.HierarchicalMPC(planar3)
+        plant = RK4Plant(
+            planar3.copy(),
+            GaussianPulse(np.ones(3), np.full(3, 0.5), 0.1 * np.ones(3)),
+            Ts=ctrl.Ts,
+            dt=0.001,
+        )
+        if wrap:
+            ctrl, plant = _Delegating(ctrl, "step"), _Delegating(plant, "advance")
+        result = hmpc_pin.simulate(
+            planar3, ctrl, reference, duration=0.3, q0=np.zeros(3), plant=plant
+        )
+        runs.append((result, ctrl, plant))
+    (plain, _, _), (wrapped, ctrl, plant) = runs
+    steps = len(plain.t)
+    assert ctrl.calls == steps and plant.calls >= steps - 1  # every period through the wrappers
+    np.testing.assert_allclose(wrapped.q, plain.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(wrapped.tau, plain.tau, rtol=0, atol=1e-9)

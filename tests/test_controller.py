@@ -341,8 +341,8 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, laten
                                                 joint_dynamics, at):  # fmt: skip
     """``warm_up`` (a step undone, run by the real-time loop before an MPC cycle) between
     the steps of a closed loop from 1 rad off, against the same loop without it: the same
-    torques and estimates to ProxSuite's tolerance (its warm start, and the active-set
-    shortcut's guess, is the dry step's solution).
+    torques and estimates, bit for bit in the "joint" layout (the QPs' warm starts and
+    remembered active sets restored), to ProxSuite's tolerance in the "block" layout.
     Also with a measurement latency and with compensated URDF joint dynamics (the compiled
     step's torque histories and joint torque restored), and with the observer's model at
     the start of the period (the previous measurement's M, C q̇ + G restored)."""
@@ -374,13 +374,56 @@ def test_warm_up_leaves_the_next_step_unchanged(planar3, tmp_path, layout, laten
             q, dq = _rk4_hold(planar3, q, dq, tau, d, Ts, steps=10)
         out.append((np.array(taus), np.array(dhats), copy.copy(ctrl.qps._core.stats)))
     (tau_a, d_a, c_a), (tau_b, d_b, c_b) = out
-    # the same solutions, to ProxSuite's tolerance: the dry step's solution is the next warm
-    # start (ProxSuite, active-set guesses), so a QP may be answered by another exact path
+    # the QPs' memory (warm starts, remembered active sets) restored after the dry step:
+    # the "joint" layout's answers bit for bit; the block QP's ProxSuite solves to its
+    # tolerance (its workspace, not restored, differs in the last bits)
+    if layout == "joint":
+        np.testing.assert_array_equal(tau_b, tau_a)
+        np.testing.assert_array_equal(d_b, d_a)
     np.testing.assert_allclose(tau_b, tau_a, rtol=1e-7, atol=1e-4)
     np.testing.assert_allclose(d_b, d_a, rtol=1e-7, atol=1e-4)
     if layout == "joint":  # the exact shortcuts answered (the block QP has none)
         assert all(c.unconstrained_solves + c.active_set_solves > 0 for c in (c_a, c_b))
     assert np.abs(tau_a).max() > 0  # a real run
+
+
+@pytest.mark.parametrize("bound", [None, 16])
+def test_warm_up_leaves_the_soft_limits_next_step_bit_for_bit(bound):
+    """Panda at Ts = 1 ms, N = Nc = 100 with the default soft joint limits, a closed loop
+    from 0.2 rad off (every joint's soft QP active, answered by the soft active-set
+    shortcut from the active sets it remembers; with ``soft_step_exchanges`` = 16 also by
+    the fallback): ``warm_up`` before each step leaves the torques and the QPs' counters
+    (the paths that answered) bit for bit those of the same loop without it. Measured
+    before the QPs' memory was restored: the same torques, 13 soft exchanges more."""
+    from benchmarks._fixtures import HOMES, PANDA_LOCKED, load_arm
+    from benchmarks.studies.long_horizon_soft import controller
+
+    arm = load_arm("panda", "panda", HOMES["panda"], "general", PANDA_LOCKED)
+    robot, ref, Ts = arm.robot, arm.reference(), 0.001
+    t = Ts * np.arange(30)
+    q_ref, dq_ref = ref.sample_many(t)
+    out = []
+    for warm in (False, True):
+        ctrl = controller(robot, Ts, 100)
+        if bound is not None:
+            ctrl.qps.soft_step_exchanges = bound
+        ctrl.reset(q_ref[0], dq_ref[0])
+        q, dq = q_ref[0] + 0.2, dq_ref[0].copy()
+        q_prev, dq_prev, taus = q.copy(), dq.copy(), []
+        for k in range(len(t)):
+            if warm:
+                ctrl.warm_up(t[k], q_prev, dq_prev, ref)
+            taus.append(ctrl.step(t[k], q, dq, ref))
+            v = ctrl.v.copy()
+            q_prev, dq_prev = q, dq
+            q, dq = q + Ts * dq + 0.5 * Ts * Ts * v, dq + Ts * v
+        out.append((np.array(taus), copy.copy(ctrl.qps._core.stats)))
+    (tau_a, c_a), (tau_b, c_b) = out
+    np.testing.assert_array_equal(tau_b, tau_a)
+    assert c_a == c_b, (c_a, c_b)
+    assert c_a.soft_active_set_solves > 0
+    if bound is not None:
+        assert c_a.soft_fallbacks > 0
 
 
 def test_warm_up_before_the_first_step_changes_nothing(planar3):

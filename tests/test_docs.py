@@ -379,7 +379,7 @@ def test_the_own_arm_table_is_what_init_writes_today(model, tmp_path):
 
 
 def test_the_own_arm_table_lists_every_model_init_offers():
-    from hmpc_pin.model.robot import example_robot_names
+    from hmpc_pin.model.catalogue import example_robot_names
 
     rows = _own_arm_rows()
     text = (DOCS / "tutorials" / "own-arm.md").read_text(encoding="utf-8")

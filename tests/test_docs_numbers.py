@@ -4,7 +4,7 @@ text, each number within one unit of its last printed digit; timings left out. T
 tuning passage (two Optuna studies, minutes) is marked ``slow``; the ROS guide's
 (nodes in a private network namespace) is left out where rclpy or the namespace is not
 available. The table of every example-robot-data arm shares its runs with the slow test of
-``init`` (``benchmarks.any_arm.rows``).
+``init`` (``benchmarks.studies.any_arm.rows``).
 
 The comparison itself is checked to fail on a number off by more than its printed
 precision, on changed text, and on a missing marker."""

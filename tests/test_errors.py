@@ -424,12 +424,12 @@ def test_a_run_failure_reaching_the_command_line_exits_1_bad_input_2(
     """The exit codes' contract at the command line's top: a run that failed (a
     ``SimulationError`` that reaches it, e.g. an arm process that did not start) is 1, bad
     input 2, each as one ``error:`` line (the command itself replaced here)."""
-    import hmpc_pin.apps.cli as cli
+    import hmpc_pin.apps.commands.init as init
 
     def fails(args):
         raise error
 
-    monkeypatch.setattr(cli, "cmd_init", fails)
+    monkeypatch.setattr(init, "main", fails)
     assert main(["init", "planar3"]) == code
     err = capsys.readouterr().err
     assert err.strip().splitlines() == [f"error: {error}"]

@@ -130,7 +130,11 @@ def _run(tmp_path, duration=2.5, observer=True, wrapper=None, Ts=0.01, inner_law
     out = tmp_path / f"out_{observer}_{Ts}_{inner_law}"
     out.mkdir(exist_ok=True)
     options = FrankaOptions(HOST, realtime="ignore", inner_law=inner_law)
-    return run_franka(config, options, out, controller_wrapper=wrapper)
+    before = os.sched_getscheduler(0), os.sched_getparam(0)
+    done = run_franka(config, options, out, controller_wrapper=wrapper)
+    # libfranka's Robot() switches its thread to SCHED_FIFO 99 where it may: put back after
+    assert (os.sched_getscheduler(0), os.sched_getparam(0)) == before
+    return done
 
 
 def _assert_fci_rules(cycles: dict) -> None:

@@ -265,7 +265,7 @@ def test_intervals_widen_with_correlated_residuals_and_keep_their_level(make_rng
 def test_no_interval_below_the_effective_samples_needed(make_rng):
     """The interval is given exactly when m_e - 2 >= MIN_DEGREES_OF_FREEDOM: residuals
     from white to nearly a random walk (ρ up to 0.995) on 400 samples."""
-    from hmpc_pin.identification.friction import MIN_DEGREES_OF_FREEDOM
+    from hmpc_pin.identification.friction_fit import MIN_DEGREES_OF_FREEDOM
 
     rng = make_rng(11)
     dq = np.sin(np.linspace(0, 12, 400))
@@ -384,7 +384,7 @@ def test_a_joints_figures_are_numpys(make_rng):
     the table shows m and m_e, the TOML the coefficients to 6 digits."""
     import tomllib
 
-    from hmpc_pin.identification.friction import FrictionFit
+    from hmpc_pin.identification.friction_fit import FrictionFit
 
     rng = make_rng(7)
     m = 1200

@@ -14,7 +14,7 @@ import pytest
 from hmpc_pin import load_robot
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import URDFError, ValidityWarning
-from hmpc_pin.model.robot import check_inertias
+from hmpc_pin.model.urdf_checks import check_inertias
 
 from .test_urdf_joints import CONFIG, chain, joint, rod
 

@@ -1,7 +1,7 @@
 """``hmpc-pin init`` (:mod:`hmpc_pin.experiment.init`): the written config loads, stays
 inside the limits it claims to respect (checked here against the robot's own limits and
 the SRDF, independently of the module's arithmetic) and runs; the full table over every
-example-robot-data arm is ``benchmarks/any_arm.py`` (slow test below)."""
+example-robot-data arm is ``benchmarks/studies/any_arm.py`` (slow test below)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from hmpc_pin.exceptions import URDFError
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 from hmpc_pin.experiment.init import init_config, plan, write_config
-from hmpc_pin.model.robot import example_robot_srdf, example_robot_urdf
+from hmpc_pin.model.catalogue import example_robot_srdf, example_robot_urdf
 
 from .test_urdf_joints import chain, joint, rod, three_links
 
@@ -220,8 +220,8 @@ def test_init_never_overwrites_without_force(tmp_path, capsys):
 @pytest.mark.slow
 def test_every_example_robot_arm_tracks_or_is_refused():
     """Issue 15's acceptance, short runs (3 s): at least 30 of the 33 models track, the
-    others are refused with one line (benchmarks/any_arm.py writes the 10 s table)."""
-    from benchmarks.any_arm import rows as any_arm_rows
+    others are refused with one line (benchmarks/studies/any_arm.py writes the 10 s table)."""
+    from benchmarks.studies.any_arm import rows as any_arm_rows
 
     rows = any_arm_rows(3.0)  # (the docs' table checks the same runs: made once)
     assert len(rows) == 33

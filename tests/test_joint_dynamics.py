@@ -28,7 +28,8 @@ import hmpc_pin
 from hmpc_pin.compensation.base import NoCompensation
 from hmpc_pin.exceptions import ConfigError
 from hmpc_pin.experiment.config import ControllerConfig, PlantConfig, load_config
-from hmpc_pin.model.robot import example_robot_urdf, load_robot
+from hmpc_pin.model.catalogue import example_robot_urdf
+from hmpc_pin.model.robot import load_robot
 from hmpc_pin.sim.plants import EulerPlant, RK4Plant
 
 from .conftest import CONFIGS
@@ -341,7 +342,7 @@ def test_a_plant_step_too_long_for_the_urdf_damping_is_refused_naming_the_joint(
     refused before anything runs, and a short enough step or no joint dynamics is accepted."""
     from dataclasses import replace
 
-    from benchmarks.damped_arm import config
+    from benchmarks.studies.damped_arm import config
     from hmpc_pin.exceptions import ConfigError
     from hmpc_pin.experiment.build import Experiment
     from hmpc_pin.experiment.plants import DAMPING_STEP_LIMIT

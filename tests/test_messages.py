@@ -13,7 +13,8 @@ import pytest
 import hmpc_pin
 from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import TrajectoryError, URDFError
-from hmpc_pin.model.robot import example_robot_names, load_robot
+from hmpc_pin.model.catalogue import example_robot_names
+from hmpc_pin.model.robot import load_robot
 
 from .conftest import CONFIGS
 

@@ -32,15 +32,11 @@ from hmpc_pin.apps.cli import main  # noqa: E402
 from hmpc_pin.exceptions import ConfigError, ExtraError, URDFError, install_command  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
 from hmpc_pin.experiment.config import PlantConfig, load_config  # noqa: E402
-from hmpc_pin.model.robot import example_robot_urdf, load_robot  # noqa: E402
-from hmpc_pin.sim.mujoco import (  # noqa: E402
-    MuJoCoPlant,
-    MuJoCoSettings,
-    Obstacle,
-    mujoco_model,
-    resolve_mesh_path,
-    urdf_for_mujoco,
-)
+from hmpc_pin.model.catalogue import example_robot_urdf  # noqa: E402
+from hmpc_pin.model.robot import load_robot  # noqa: E402
+from hmpc_pin.sim.mjcf import mujoco_model, resolve_mesh_path, urdf_for_mujoco  # noqa: E402
+from hmpc_pin.sim.mujoco import MuJoCoPlant  # noqa: E402
+from hmpc_pin.sim.mujoco_settings import MuJoCoSettings, Obstacle  # noqa: E402
 from hmpc_pin.sim.simulate import simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent

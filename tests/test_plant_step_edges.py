@@ -1,5 +1,5 @@
-"""The stick-slip plant step at the edges its one-line bugs hid in (benchmarks/mutants_cpp.py),
-each against a closed form.
+"""The stick-slip plant step at the edges its one-line bugs hid in
+(benchmarks/tools/mutants_cpp.py), each against a closed form.
 
 - A disc at rest held by Coulomb friction F under a torque ramp d(t) = s c t breaks away
   inside a step at t* = F / c, in either direction s, then I ω̇ = s (c t − F): ω = s c (t − t*)²

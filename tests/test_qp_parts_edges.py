@@ -1,4 +1,4 @@
-"""The joint QPs' parts at the edges their one-line bugs hid in (benchmarks/mutants_cpp.py):
+"""The joint QPs' parts at the edges their one-line bugs hid in (benchmarks/tools/mutants_cpp.py):
 each against its numpy oracle (tests/reference/qp_parts.py) or the documented rule.
 
 The parts' main tests are in test_qp_parts.py (this file reuses its problem and the KKT

@@ -571,7 +571,7 @@ def test_arm_coriolis_matrix_gives_mass_matrix_derivative(arm, make_rng):
 
 
 def test_example_robot_names_resolve_to_urdf_files():
-    from hmpc_pin.model.robot import example_robot_names, example_robot_urdf
+    from hmpc_pin.model.catalogue import example_robot_names, example_robot_urdf
 
     names = example_robot_names()
     assert {"ur5", "ur10", "panda", "z1"} <= set(names)

@@ -330,7 +330,7 @@ def test_overdeclared_latency_at_1khz_stops_with_the_observer_named(tmp_path):
     import warnings
     from dataclasses import replace
 
-    from benchmarks.damped_arm import config
+    from benchmarks.studies.damped_arm import config
 
     base = config(tmp_path / "z1.toml")
     obs = replace(base.controller.observer, bandwidth=10000.0)

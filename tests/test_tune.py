@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from hmpc_pin.apps.cli import main
-from hmpc_pin.apps.tune import apply_params, objective_value, search_space, tune
+from hmpc_pin.apps.tune import tune
+from hmpc_pin.apps.tune_objective import objective_value
+from hmpc_pin.apps.tune_space import apply_params, search_space
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 
@@ -310,7 +312,7 @@ def test_the_score_ranks_a_later_failure_before_an_earlier_one():
     """Two runs that did not stay bounded, one lost at 8 s and one at 2 s of 10 s: the
     later failure scores lower (better), any bounded run lower than both, and among
     runs lost at the same time the smaller error lower."""
-    from hmpc_pin.apps.tune import run_score
+    from hmpc_pin.apps.tune_objective import run_score
 
     late = {"rms_max": 0.5, "bounded": False, "t_end": 8.0}
     early = {"rms_max": 0.5, "bounded": False, "t_end": 2.0}
@@ -410,7 +412,7 @@ def test_a_bandwidths_range_is_a_tenth_to_five_times_the_configs_largest(tmp_pat
 def test_trial_zero_starts_at_the_period_nearest_the_configs(friction_config):
     """--ts choices: trial 0 records the config's own Ts where it is listed, else the
     nearest listed period (not the first)."""
-    from hmpc_pin.apps.tune import current_params
+    from hmpc_pin.apps.tune_space import current_params
 
     space = search_space(friction_config, ts=(0.002, 0.01, 0.02))
     assert current_params(friction_config, space)["Ts"] == 0.01  # the config's Ts
@@ -421,7 +423,7 @@ def test_trial_zero_starts_at_the_period_nearest_the_configs(friction_config):
 def test_the_saturation_penalty_is_the_share_of_saturated_samples():
     """J = p95 (1 + w_sat mean(saturation) + ...): one sample of four saturated for its
     whole run counts 1/4, not as if every sample had saturated (closed form)."""
-    from hmpc_pin.apps.tune import SATURATION_WEIGHT
+    from hmpc_pin.apps.tune_objective import SATURATION_WEIGHT
 
     rows = [{"rms_max": 0.1, "bounded": True, "saturation": s, "torque_tv": 1.0}
             for s in (0.0, 0.0, 0.0, 1.0)]  # fmt: skip
@@ -445,14 +447,14 @@ def test_a_resumed_study_does_not_repeat_the_first_ones_suggestions(tmp_path, fr
 def test_the_record_says_when_the_configs_terminal_weight_is_not_2q(friction_config):
     """Every trial runs P = 2Q with a diagonal Q: a config whose P is another multiple of
     its (diagonal) Q is told that trial 0 differs from it there; P = 2Q is not."""
-    from hmpc_pin.apps.tune import _sampler_record
+    from hmpc_pin.apps.tune_space import sampler_record
 
     space = search_space(friction_config)
     cc = friction_config.controller
     Q = np.diag([cc.Q[0, 0], cc.Q[1, 1]])
     for P, told in ((2 * Q, False), (3 * Q, True)):
         config = replace(friction_config, controller=replace(cc, Q=Q, P=P))
-        lines = _sampler_record(config, space)
+        lines = sampler_record(config, space)
         assert any(line.startswith("P = 2Q") for line in lines) == told, lines
 
 
@@ -493,7 +495,7 @@ def test_the_search_space_is_the_guides(friction_config):
 def test_trial_0_keeps_the_configs_observer_when_it_is_listed(observers, first, friction_config):
     """--observers momentum,chen on a chen config: trial 0 is the config as given (chen);
     when its observer is not listed, the first listed."""
-    from hmpc_pin.apps.tune import current_params
+    from hmpc_pin.apps.tune_space import current_params
 
     assert friction_config.controller.compensation == "chen"
     space = search_space(friction_config, observers=observers)
@@ -533,7 +535,7 @@ def test_a_study_resumed_with_another_seed_is_refused(tmp_path, friction_config)
 def test_the_held_out_table_and_ratio_of_the_report(tmp_path, friction_config):
     """The report's held-out section: each config's p95 [rad], bounded share and saturation
     in percent, and the ratio shipped / tuned (4 for 0.04 rad against 0.01 rad)."""
-    from hmpc_pin.apps.tune import _report
+    from hmpc_pin.apps.tune_report import write_report
 
     result = tune(friction_config, tmp_path, trials=2, seed=1, objective=_toy, holdout=0,
                   progress=False)  # fmt: skip
@@ -542,7 +544,7 @@ def test_the_held_out_table_and_ratio_of_the_report(tmp_path, friction_config):
         return {"p95_rms": p95, "bounded": bounded, "saturation": saturation, "torque_tv": 1.0}
 
     comparison = {"shipped": parts(0.04, 0.5, 0.25), "tuned": parts(0.01, 1.0, 0.0)}
-    _report(friction_config, result.study, result.best, tmp_path, comparison, 8, 1, 8, 2)
+    write_report(friction_config, result.study, result.best, tmp_path, comparison, 8, 1, 8, 2)
     report = (tmp_path / "paper_friction_tune.md").read_text()
     assert "## Held-out comparison: 8 other samples (seed 2)" in report
     assert "| shipped | 0.04 | 50 % | 25.00 % | 1 |" in report
@@ -616,7 +618,7 @@ def test_run_score_clips_the_lost_share_and_the_error():
     """The share lost is in [0, 1] (a run past its duration lost nothing), no duration or
     no t_end: nothing lost; the error counts at most 10 b, a non-finite one as 10 b; a
     'bounded' run with a non-finite error is scored as not bounded."""
-    from hmpc_pin.apps.tune import run_score
+    from hmpc_pin.apps.tune_objective import run_score
 
     b = 0.5
     row = {"rms_max": 0.2, "bounded": False, "t_end": 12.0}
@@ -638,7 +640,7 @@ def test_the_objective_is_its_formula_on_mixed_rows(make_rng):
     quantile (the smallest score whose CDF reaches 0.95), the runs scored by run_score;
     the parts: p95, mean saturation, mean TV and the bounded share. Without TV0 (or 0)
     no TV penalty; the weights and the duration are the caller's."""
-    from hmpc_pin.apps.tune import run_score
+    from hmpc_pin.apps.tune_objective import run_score
 
     rng = make_rng(12)
     rows = [{"rms_max": float(v), "bounded": bool(k % 5), "saturation": float(s),
@@ -683,7 +685,7 @@ def test_the_search_space_follows_the_controller(friction_config):
 def test_trial_0_is_recorded_at_the_nearest_point_of_each_range(friction_config):
     """Values above a range are clipped to its top, below to its bottom, an integer stays
     an integer."""
-    from hmpc_pin.apps.tune import current_params
+    from hmpc_pin.apps.tune_space import current_params
 
     cc = friction_config.controller
     Q = np.diag([5e4, 0.0])
@@ -697,7 +699,7 @@ def test_trial_0_is_recorded_at_the_nearest_point_of_each_range(friction_config)
 
 
 def test_apply_params_scales_every_bandwidth_by_the_proposed_largest(tmp_path):
-    from hmpc_pin.apps.tune import apply_params
+    from hmpc_pin.apps.tune_space import apply_params
 
     text = _short_config(tmp_path).read_text()
     text = text.replace('kind = "chen"', 'kind = "general"')
@@ -937,14 +939,14 @@ def test_a_ctrl_c_kept_back_is_raised_at_the_next_evaluation_or_check():
     import os
     import signal
 
-    from hmpc_pin.apps.tune import _DeferredInterrupt
+    from hmpc_pin._startup import DeferredInterrupt
 
-    with _DeferredInterrupt() as sigint:
+    with DeferredInterrupt() as sigint:
         os.kill(os.getpid(), signal.SIGINT)
         assert sigint.pending  # kept back, not raised
         with pytest.raises(KeyboardInterrupt):
             sigint.evaluating(lambda: pytest.fail("ran after a kept-back Ctrl-C"))
-    with _DeferredInterrupt() as sigint:
+    with DeferredInterrupt() as sigint:
         with pytest.raises(KeyboardInterrupt):
             sigint.evaluating(os.kill, os.getpid(), signal.SIGINT)  # at once, inside
         assert not sigint.pending

@@ -23,7 +23,7 @@ from hmpc_pin.apps.cli import main
 from hmpc_pin.exceptions import ConfigError, URDFError, ValidityWarning
 from hmpc_pin.experiment.config import WorkspaceConfig, load_config
 from hmpc_pin.experiment.init import init_config, plan
-from hmpc_pin.model.robot import example_robot_srdf, example_robot_urdf
+from hmpc_pin.model.catalogue import example_robot_srdf, example_robot_urdf
 
 #: Arms whose init reference is checked (no SRDF: ur10; SRDF postures: panda, xarm7, z1).
 ARMS = ("ur5", "ur10", "panda", "xarm7", "z1")

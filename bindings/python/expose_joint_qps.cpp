@@ -48,6 +48,7 @@ static void expose_options_stats(py::module_& m) {
       .def_readwrite("active_set_iter", &O::active_set_iter)
       .def_readwrite("soft_active_set_iter", &O::soft_active_set_iter)
       .def_readwrite("soft_step_exchanges", &O::soft_step_exchanges)
+      .def_readwrite("soft_step_work", &O::soft_step_work)
       .def_readonly("always_constrained", &O::always_constrained);
   using S = JointQPsStats;
   auto fields = [](const S& s) {
@@ -91,6 +92,8 @@ static void expose_options_stats(py::module_& m) {
 void expose_joint_qps(py::module_& m) {
   expose_qp_settings(m);
   expose_options_stats(m);
+  py::class_<JointQPs::Memory, std::shared_ptr<JointQPs::Memory>>(m, "JointQPsMemory",
+                                                                   py::module_local());
   using Q = JointQPs;
   py::class_<Q, std::shared_ptr<Q>>(m, "JointQPs", py::module_local())
       .def(py::init<int, int, int, bool, const CRefMat&, const CRefVec&, const CRefVec&,
@@ -116,6 +119,15 @@ void expose_joint_qps(py::module_& m) {
           [](Q& o, std::vector<std::string> names) { o.joint_names = names; })
       .def("set_max_iter", [](Q& o, long k) { o.set_max_iter(k); })
       .def("restart", [](Q& o) { o.restart(); })
+      // The QPs' memory between steps (warm starts, remembered active sets): an opaque
+      // copy, put back by restore_memory (a dry step: HierarchicalMPC.warm_up).
+      .def("save_memory",
+           [](const Q& o) {
+             auto m = std::make_shared<JointQPs::Memory>();
+             o.save(*m);
+             return m;
+           })
+      .def("restore_memory", [](Q& o, const JointQPs::Memory& m) { o.restore(m); })
       // The knobs and the counters, live (qps.options.shift = True; a copy: copy.copy).
       .def_property(
           "options",

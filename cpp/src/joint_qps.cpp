@@ -47,6 +47,18 @@ void JointQPs::restart() {
   stats.constrained = 0;
 }
 
+void JointQPs::save(Memory& m) const {
+  m.boxes.clear();
+  for (const auto& box : boxes_) m.boxes.push_back(box->results());
+  if (soft_) soft_->save(m.soft);
+}
+
+void JointQPs::restore(const Memory& m) {
+  for (std::size_t i = 0; i < boxes_.size() && i < m.boxes.size(); ++i)
+    boxes_[i]->set_results(m.boxes[i]);
+  if (soft_ && !m.soft.last.empty()) soft_->restore(m.soft);
+}
+
 void JointQPs::set_limits(const CRefMat& Phi, const CRefMat& Gamma, const CRefVec& lower,
                           const CRefVec& upper, const CRefVec& vel, const CRefMat& Hs,
                           const CRefMat& C, const CRefVec& row_scale, double g_slack,
@@ -134,7 +146,6 @@ bool JointQPs::solve(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
     }
   }
   stats.constrained = 0;
-  if (soft_) soft_->set_budget(options.soft_step_exchanges);
   if (soft_ && !enforce_limits(G, q, dq)) return false;
   return true;
 }
@@ -179,14 +190,44 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
     slack.setZero();
     stats.constrained_last = false;
   }
+  // The step's soft exchanges (options.soft_step_exchanges, else soft_step_work / N; < 0:
+  // no bound), spread over the joints whose soft QP this step solves: each joint's share
+  // the exchanges left divided by the joints left (rounded up; at least `least` below),
+  // what it leaves to the next.
+  long left = options.soft_step_exchanges >= 0 ? options.soft_step_exchanges
+              : options.soft_step_work >= 0   ? std::max(1L, options.soft_step_work / N)
+                                              : -1L;
+  int joints_left = 0;
+  soft.set_budget(-1);
+  if (left >= 0)
+    for (int i = 0; i < n; ++i)
+      joints_left += soft.next[i] || options.always_constrained ||
+                     soft.leaves(i, q[i], dq[i], U.col(i));
+  bool counted = false;  // joint i counted out of joints_left
+  // At least a guess's own exchanges (soft_active_set_iter) while the step has them: fewer
+  // rarely answer at an activation, and all the joints then fell back (measured, Panda).
+  const long least = std::max(options.soft_active_set_iter, 1);
+  auto share = [&]() {
+    if (left < 0) return;
+    if (!counted) counted = true, joints_left = std::max(joints_left - 1, 0);
+    soft.set_budget(std::max((left + joints_left) / (joints_left + 1), std::min(left, least)));
+  };
+  auto spent = [&](long given) {
+    if (left >= 0) left -= given - soft.budget();
+  };
   for (int i = 0; i < n; ++i) {
+    counted = false;
     if (soft.next[i]) {
+      share();
+      const long given = soft.budget();
       // Box QP skipped (solve): the soft shortcut from the last step's active set; answered
       // with the limits binding, the joint is constrained (its box solution, differing from
       // this one, leaves the limits); answered without, this is the box QP's solution, the
       // joint unconstrained. Not answered: the box QP now, and on as without the skip.
       soft.prepare(i, G, q, dq);
-      if (soft.active_set(i, U.col(i), options.soft_active_set_iter)) {
+      const bool answered = soft.active_set(i, U.col(i), options.soft_active_set_iter);
+      spent(given);
+      if (answered) {
         U.col(i) = soft.y().head(Nc);
         slack[i] = soft.y()[Nc] * soft.k_slack();
         soft.settled(i, soft.binding(), soft.continued());
@@ -200,6 +241,23 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
         }
         continue;
       }
+      if (soft.stopped()) {
+        // Out of this step's exchanges: the box QP's answer, exact when it keeps inside the
+        // limits, else made safe (the fallback; the next step resumes the exchanges).
+        g_ = G.row(i).transpose();
+        if (!box_joint(i)) return false;
+        if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {
+          soft.last[i] = 0;
+          continue;
+        }
+        soft.fallback(i, U(0, i));
+        slack[i] = 0.0;
+        ++stats.soft_fallbacks;
+        ++stats.constrained;
+        stats.constrained_last = true;
+        soft.settled(i, false, false);
+        continue;
+      }
       soft.last[i] = 0;  // its active set failed here: a new activation's guess, if any
       g_ = G.row(i).transpose();
       if (!box_joint(i)) return false;
@@ -208,7 +266,11 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       soft.last[i] = 0;
       continue;
     }
-    if (!soft_joint(i, G, q, dq)) return false;
+    share();
+    const long given = soft.budget();
+    const bool ok = soft_joint(i, G, q, dq);
+    spent(given);
+    if (!ok) return false;
   }
   return true;
 }

@@ -24,20 +24,13 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
     p_.bnd_hi[2 * j + 1] = vel_[i] - v_free_[j];
     p_.bnd_lo[2 * j + 1] = -vel_[i] - v_free_[j];
   }
+  if (budget_ >= 0) return bounded(i, box_u, iter);  // under a bound: its stages
   // The last soft solution's active set only while it is the last step's (the joint's soft
   // QP solved at the step before): after a step without, its activation is a new one.
   bool ok = false;
   continued_ = false;
   stopped_ = false;
-  if (resume_[i] && has_guess_[i]) {
-    // The exchanges stopped at the last step (the step's ran out): resumed where they were.
-    resume_[i] = 0;
-    st_.rows = guess_rows_[i];
-    st_.box = guess_box_[i];
-    st_.slack = guess_slack_[i];
-    ok = exchange(i, 4 * iter);
-    if (!ok && !stopped_) return false;
-  } else if (has_guess_[i] && last[i]) {
+  if (has_guess_[i] && last[i]) {
     // The two guesses in the order of the one that answered at the last step; at an
     // activation's first continued step, the shifted one first when the state is nearer the
     // last answer's prediction of it (x1 = A x0 + B u0: the plan followed) than the last
@@ -60,7 +53,6 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
       st_.slack = guess_slack_[i];
       ok = exchange(i, iter);
       if (ok) shifted_first_[i] = static_cast<signed char>(shifted);
-      if (stopped_) break;
     }
     continued_ = ok;
   }
@@ -68,7 +60,7 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
   // violates and ŝ = 0; further off than a last solution's: more exchanges. (Also trying it
   // after the last solution's failed, or with ŝ free, measured slower where the optimum is a
   // degenerate vertex with ŝ > 0: the exchanges rarely settle there and ProxSuite answers.)
-  if (!ok && !stopped_ && !(has_guess_[i] && last[i])) {
+  if (!ok && !(has_guess_[i] && last[i])) {
     box_y_.head(Nc) = box_u;
     box_y_[Nc] = 0.0;
     guess_from(i, box_y_, true);
@@ -78,21 +70,107 @@ bool SoftLimits::active_set(int i, const ColRef& box_u, int iter) {
     st_.slack = guess_slack_[i];
     ok = exchange(i, 4 * iter);
   }
-  if (stopped_) {
-    // Out of this step's exchanges: the active set reached kept for the next step's.
-    guess_rows_[i] = st_.rows;
-    guess_box_[i] = st_.box;
-    guess_slack_[i] = st_.slack;
-    has_guess_[i] = 1;
-    resume_[i] = 1;
-    return false;
-  }
   if (!ok) return false;
   remember_state(i, kkt_->y()[0]);
-  guess_rows_[i] = st_.rows;
-  guess_box_[i] = st_.box;
-  guess_slack_[i] = st_.slack;
+  guess_rows_[i] = ans_rows_[i] = st_.rows;
+  guess_box_[i] = ans_box_[i] = st_.box;
+  guess_slack_[i] = ans_slack_[i] = st_.slack;
   return true;
+}
+
+// Under a bound on the step's exchanges (budget_ >= 0): the guesses as stages with their
+// own exchanges (0: the last answer's active set shifted, 1: as it stood, iter each, in the
+// order active_set tries them; 2: infeasible_guess's, 3: the box-only answer's, 4·iter
+// each), tried in turn, their exchanges spread over steps: a joint out of the step's
+// exchanges keeps its stage, the active set reached and the exchanges the stage has made,
+// and resumes there at the next step (measured: resuming a guess's exchanges without a
+// stage's own count cycled on a guess that never answers); a stage out of its own
+// exchanges (or failing) hands over to the next one, the last to the first. A joint whose
+// stages all failed within the step's exchanges returns false (not stopped): ProxSuite.
+bool SoftLimits::bounded(int i, const ColRef& box_u, int iter) {
+  const int N = N_, Nc = Nc_;
+  continued_ = false;
+  stopped_ = false;
+  const bool answered = has_guess_[i] && last[i];
+  int order[4], stages = 0;
+  if (answered) {
+    int first = shifted_first_[i];
+    if (first < 0) {
+      const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+      const double lq = last_q_[i], lv = last_v_[i], u0 = last_u0_[i];
+      const double pq = a00 * lq + a01 * lv + Gamma_(0, 0) * u0;
+      const double pv = a10 * lq + a11 * lv + Gamma_(1, 0) * u0;
+      const double moved = std::abs(q_ - pq) + a01 * std::abs(dq_ - pv);
+      const double held = std::abs(q_ - lq) + a01 * std::abs(dq_ - lv);
+      first = moved <= held ? 0 : 1;  // stage 0: shifted
+    } else {
+      first = first ? 0 : 1;  // shifted_first_ 1 (shifted): stage 0
+    }
+    order[stages++] = first;
+    order[stages++] = 1 - first;
+  }
+  order[stages++] = 2;
+  order[stages++] = 3;
+  int pos = 0;
+  bool fresh = true;
+  if (resume_[i] && last[i]) {
+    for (int k = 0; k < stages; ++k)
+      if (order[k] == resume_[i] - 1) pos = k, fresh = false;
+  }
+  if (fresh) spent_[i] = 0;
+  resume_[i] = 0;
+  for (int tries = 0; tries < stages; ++tries, pos = (pos + 1) % stages) {
+    const int stage = order[pos];
+    if (fresh) {
+      spent_[i] = 0;
+      if (stage <= 1) {
+        const bool shifted = stage == 0;
+        for (int r = 0; r < 2 * N; ++r)
+          st_.rows[r] = ans_rows_[i][shifted && r + 2 < 2 * N ? r + 2 : r];
+        for (int a = 0; a < Nc; ++a) st_.box[a] = ans_box_[i][shifted && a + 1 < Nc ? a + 1 : a];
+        st_.slack = ans_slack_[i];
+      } else {
+        if (stage == 2 && !infeasible_guess(i, box_u)) continue;
+        if (stage == 3) {
+          box_y_.head(Nc) = box_u;
+          box_y_[Nc] = 0.0;
+          guess_from(i, box_y_, true);
+        }
+        st_.rows = guess_rows_[i];
+        st_.box = guess_box_[i];
+        st_.slack = guess_slack_[i];
+      }
+    } else {
+      st_.rows = res_rows_[i];
+      st_.box = res_box_[i];
+      st_.slack = res_slack_[i];
+    }
+    fresh = true;
+    const int cap = stage <= 1 ? iter : 4 * iter;
+    const bool ok = exchange(i, std::max(cap - spent_[i], 0));
+    spent_[i] += made_;
+    if (ok) {
+      continued_ = stage <= 1;
+      shifted_first_[i] = stage <= 1 ? static_cast<signed char>(stage == 0) : -1;
+      remember_state(i, kkt_->y()[0]);
+      guess_rows_[i] = ans_rows_[i] = st_.rows;
+      guess_box_[i] = ans_box_[i] = st_.box;
+      guess_slack_[i] = ans_slack_[i] = st_.slack;
+      has_guess_[i] = 1;
+      return true;
+    }
+    if (stopped_) {  // out of the step's exchanges: this stage resumed at the next step
+      res_rows_[i] = st_.rows;
+      res_box_[i] = st_.box;
+      res_slack_[i] = st_.slack;
+      resume_[i] = static_cast<signed char>(stage + 1);
+      return false;
+    }
+  }
+  // Every stage tried at this step, the step's exchanges not spent: a soft QP the shortcut
+  // cannot answer (dependent rows, rounding), left to ProxSuite as without a bound (measured
+  // none in the Panda's 1 kHz runs; at N = 10 the fallback instead changed the runs).
+  return false;
 }
 
 // Up to `exchanges` primal-dual exchanges from the active set st_: solve (BandedKKT), then
@@ -103,6 +181,8 @@ bool SoftLimits::exchange(int i, int exchanges) {
   // per active item, so this ends).
   // This step's exchanges (budget_) are counted as `exchanges` are: by the solves that
   // were not a drop.
+  exhausted_ = false;
+  made_ = 0;
   for (int it = 0; it <= exchanges;) {
     if (budget_ == 0) {
       stopped_ = true;
@@ -114,6 +194,7 @@ bool SoftLimits::exchange(int i, int exchanges) {
       return false;
     }
     ++it;
+    ++made_;
     if (budget_ > 0) --budget_;
     ++stats_->soft_exchanges;
     const int verdict = test_point(i);
@@ -124,7 +205,37 @@ bool SoftLimits::exchange(int i, int exchanges) {
     }
   }
   ++stats_->soft_fail_exchanges;
+  exhausted_ = true;
   return false;
+}
+
+// At a new activation: when some row's limit cannot be met by any input in the box (Γ >= 0:
+// the row Γ_r U is least at U = lo, largest at U = hi), the slack the worst such row needs,
+// k ŝ = its least violation, is a lower bound on the optimum's. The guess: ŝ there and free,
+// the inputs that move the worst row (those before its step) at the bound that reduces its
+// violation, the others the box-only answer's; its rows at or beyond their limits (the
+// worst one among them) active. False (nothing set) when every row can be met.
+bool SoftLimits::infeasible_guess(int i, const ColRef& box_u) {
+  if (!gamma_nonneg_) return false;
+  const int N = N_, Nc = Nc_;
+  const double lo = v_min_[i], hi = v_max_[i];
+  double worst = 1e-9 * std::max(1.0, vel_[i]);
+  int r_star = -1, side = 0;
+  for (int pass = 0; pass < 2; ++pass) {  // upper limits at U = lo, lower at U = hi
+    box_y_.head(Nc).setConstant(pass == 0 ? lo : hi);
+    gamma_.apply(box_y_.head(Nc), Xs_);
+    for (int r = 0; r < 2 * N; ++r) {
+      const double v = pass == 0 ? Xs_[r] - p_.bnd_hi[r] : p_.bnd_lo[r] - Xs_[r];
+      if (v > worst) worst = v, r_star = r, side = pass == 0 ? 1 : -1;
+    }
+  }
+  if (r_star < 0) return false;
+  const int moved = std::min(r_star / 2 + 1, Nc);  // x_j depends on u_0 .. u_{j-1}
+  box_y_.head(Nc) = box_u;
+  for (int a = 0; a < moved; ++a) box_y_[a] = side > 0 ? lo : hi;
+  box_y_[Nc] = worst / k_slack_;
+  guess_from(i, box_y_, false);
+  return true;
 }
 
 // The KKT test of joint i's soft QP at the subproblem's point, to the solver's tolerances

@@ -52,6 +52,13 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
   last_u0_.setZero(n);
   shifted_first_.assign(n, -1);
   resume_.assign(n, 0);
+  spent_.assign(n, 0);
+  res_rows_.assign(n, std::vector<signed char>(2 * N, 0));
+  ans_rows_.assign(n, std::vector<signed char>(2 * N, 0));
+  res_box_.assign(n, std::vector<signed char>(Nc, 0));
+  ans_box_.assign(n, std::vector<signed char>(Nc, 0));
+  res_slack_.assign(n, 0);
+  ans_slack_.assign(n, 0);
   st_.rows.assign(2 * N, 0);
   st_.box.assign(Nc, 0);
   p_.gp.setZero(Nc);
@@ -62,6 +69,7 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
   gl_.setZero(Nc);
   Xs_.setZero(2 * N);
   gamma_.set(Phi_, Gamma_);
+  gamma_nonneg_ = (Gamma_.array() >= 0.0).all();
   shortcut_ = true;
 }
 
@@ -100,6 +108,55 @@ void SoftLimits::restart() {
   std::fill(last.begin(), last.end(), 0);
   std::fill(active.begin(), active.end(), 0);  // no box QP skipped at the start
   std::fill(next.begin(), next.end(), 0);
+}
+
+void SoftLimits::save(Memory& m) const {
+  m.last = last;
+  m.next = next;
+  m.active = active;
+  m.guess_slack = guess_slack_;
+  m.has_guess = has_guess_;
+  m.shifted_first = shifted_first_;
+  m.resume = resume_;
+  m.used = used_;
+  m.guess_rows = guess_rows_;
+  m.guess_box = guess_box_;
+  m.res_rows = res_rows_;
+  m.res_box = res_box_;
+  m.ans_rows = ans_rows_;
+  m.ans_box = ans_box_;
+  m.res_slack = res_slack_;
+  m.ans_slack = ans_slack_;
+  m.spent = spent_;
+  m.last_q = last_q_;
+  m.last_v = last_v_;
+  m.last_u0 = last_u0_;
+  m.qps.clear();
+  for (const auto& qp : qps_) m.qps.push_back(qp->results);
+}
+
+void SoftLimits::restore(const Memory& m) {
+  last = m.last;
+  next = m.next;
+  active = m.active;
+  guess_slack_ = m.guess_slack;
+  has_guess_ = m.has_guess;
+  shifted_first_ = m.shifted_first;
+  resume_ = m.resume;
+  used_ = m.used;
+  guess_rows_ = m.guess_rows;
+  guess_box_ = m.guess_box;
+  res_rows_ = m.res_rows;
+  res_box_ = m.res_box;
+  ans_rows_ = m.ans_rows;
+  ans_box_ = m.ans_box;
+  res_slack_ = m.res_slack;
+  ans_slack_ = m.ans_slack;
+  spent_ = m.spent;
+  last_q_ = m.last_q;
+  last_v_ = m.last_v;
+  last_u0_ = m.last_u0;
+  for (std::size_t i = 0; i < qps_.size() && i < m.qps.size(); ++i) qps_[i]->results = m.qps[i];
 }
 
 void SoftLimits::set_max_iter(long max_iter) {
@@ -141,10 +198,10 @@ void SoftLimits::fallback(int i, double& u0) const {
   const double vlo = (-vel_[i] - v1) / b1, vhi = (vel_[i] - v1) / b1;
   double lo = std::max(vlo, (lower_[i] - q1) / b0), hi = std::min(vhi, (upper_[i] - q1) / b0);
   if (lo > hi) lo = vlo, hi = vhi;  // the velocity limit's alone
-  lo = std::max(lo, v_min_[i]);
-  hi = std::min(hi, v_max_[i]);
-  if (lo > hi) lo = v_min_[i], hi = v_max_[i];  // the box's alone
+  // Into the limits' interval, then the box: where they meet, into both; else the box's
+  // end nearest the interval (not the box-only answer, which may drive further out).
   u0 = std::min(std::max(u0, lo), hi);
+  u0 = std::min(std::max(u0, v_min_[i]), v_max_[i]);
 }
 
 const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
@@ -158,6 +215,9 @@ const SoftLimits::Results& SoftLimits::proxsuite(int i, int iter) {
     return qp.results;
   if (shortcut_ && iter >= 0) {
     guess_from(i, qp.results.x, false);
+    ans_rows_[i] = guess_rows_[i];
+    ans_box_[i] = guess_box_[i];
+    ans_slack_[i] = guess_slack_[i];
     remember_state(i, qp.results.x[0]);
     shifted_first_[i] = -1;
     settled(i, false, false);

@@ -28,7 +28,11 @@ link's height without the table) and for self-collision, on the URDF's collision
 
 and, with MuJoCo installed, **the model against a second engine**: :math:`M(q)` and the
 forward dynamics :math:`\\ddot q(q, \\dot q, \\tau)` of Pinocchio and MuJoCo (the bare arm)
-at :data:`ENGINE_SAMPLES` seeded states within the limits, within :data:`ENGINE_RTOL`.
+at :data:`.ENGINE_SAMPLES` seeded states within the limits, within :data:`ENGINE_RTOL`.
+
+The loops' linear models are a library: :mod:`hmpc_pin.compensation.loop_analysis` (one
+joint's loop at a posture) and :mod:`hmpc_pin.experiment.observer_analysis` (the observer
+along the reference); this module turns their figures into problems and warnings.
 
 **Problems and warnings.** A *problem* is what ``hmpc-pin run`` would show: the run
 leaves its tolerance, and the change the problem names (:attr:`CheckReport.fixes`,
@@ -40,23 +44,23 @@ measurements of a plant equal to the model (r = 1 unless the plant differs); so:
 * the margin below 1 is a warning (the paper's configs keep their settings, and say so);
 * a declared latency L is L too long in ``run``: a problem when the observer's loop then
   has a pole at :math:`|z| \\ge 1`, or at :math:`|z| \\ge` :data:`MAX_RADIUS` decaying
-  slower than :data:`MIN_DECAY` times the observer's own (:func:`overdeclared_radius`),
+  slower than :data:`.MIN_DECAY` times the observer's own (:func:`.overdeclared_radius`),
   or when the MPC, acting on the state predicted L ahead, decays slower than
-  :data:`MIN_DECAY` times its rate without the prediction (:func:`lead_radius`), or when
-  the two together (:func:`loop_radius`) grow at :math:`q_0` (a fraction of a period
+  :data:`.MIN_DECAY` times its rate without the prediction (:func:`.lead_radius`), or when
+  the two together (:func:`.loop_radius`) grow at :math:`q_0` (a fraction of a period
   over-declared can pass each alone); the two growing only at a posture along the
-  reference where the observer's modes (:func:`observer_modes`) are faster: a warning
+  reference where the observer's modes (:func:`.observer_modes`) are faster: a warning
   (measured over the package's corpus, ``run`` leaves its tolerance in half such cases);
   a whole loop that decays, however slowly, is neither (in ``run`` it tracks, init's UR5
   at half a period: 0.977 per period against 0.887 without the latency);
 * an observer too slow for the disturbance: the error its lag along the reference leaves
-  through the MPC's loop (:func:`observer_lag_error`) above ``run``'s tracking threshold
+  through the MPC's loop (:func:`.observer_lag_error`) above ``run``'s tracking threshold
   after its start-up: a problem whose fix raises the observer's gain (a warning when no
   gain within the explicit form's limit does);
 * the explicit observer with :math:`T_s\\omega_j \\ge 2`: a problem; below, its loop with
   the MPC (its estimate keeps :math:`-(T_s\\omega)^2` times the acceleration) decaying
-  slower than :data:`MIN_DECAY` times the implicit form's, or growing
-  (:func:`explicit_loop_slow`): a problem whose fix is the implicit form;
+  slower than :data:`.MIN_DECAY` times the implicit form's, or growing
+  (:func:`.explicit_loop_slow`): a problem whose fix is the implicit form;
 * a damping time constant below :math:`2T_s` that plant and controller treat differently
   (one applies it, the other not): a problem; left out of both: a warning (the real arm
   applies it);
@@ -78,7 +82,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from ..compensation.bandwidth import (
     MASS_RATIO,
@@ -86,12 +89,28 @@ from ..compensation.bandwidth import (
     overdeclared_excess,
     overdeclared_limit,
 )
+from ..compensation.loop_analysis import (
+    MIN_DECAY,
+    explicit_loop_slow,
+    lead_radius,
+    loop_radius,
+    overdeclared_radius,
+)
 from ..exceptions import HmpcError, URDFError
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig, WorkspaceConfig
+from ..experiment.observer_analysis import (
+    lag_inputs,
+    observer_bandwidth,
+    observer_lag_error,
+    observer_modes,
+    worst_along,
+)
 from ..experiment.plants import plant_effort_limit
+from ..experiment.torque_headroom import torque_headroom
 from ..experiment.workspace import scan_reference
 from ..model.robot import damping_time_constants
+from ..sim.engine_agreement import ENGINE_SAMPLES, engine_agreement
 from ..sim.engines import DEFAULT_ENGINE, engine_spec
 from .metrics import DEFAULT_ERROR_THRESHOLD, RUN_WARN_AFTER
 
@@ -117,17 +136,10 @@ __all__ = [
 #: disturbance need leave their tolerance (the start and the observer need the rest).
 MIN_HEADROOM = 0.1
 #: Largest pole modulus [-] of the observer loop with the declared latency too long
-#: (:func:`overdeclared_radius`) that is not a problem: measured on the Panda (init's
+#: (:func:`.overdeclared_radius`) that is not a problem: measured on the Panda (init's
 #: Ts w = 10 and the shipped config's Ts w up to 153), runs track at |z| <= 0.96 and
 #: oscillate from |z| = 0.99 (a pole that close to -1 rings with the outer loop).
 MAX_RADIUS = 0.95
-#: Smallest share [-] of the outer loop's decay rate :math:`-\ln|z|/T_s` without a
-#: prediction that it may keep with a latency declared too long (:func:`lead_radius`):
-#: the paper's MPC (kp = 274, kd = 22.7 at Ts = 10 ms, 12 1/s) tracks with 5 periods
-#: declared too many (6.7 1/s) and leaves its tolerance with 10 (3.1 1/s).
-MIN_DECAY = 0.5
-#: States at which Pinocchio and MuJoCo are compared.
-ENGINE_SAMPLES = 5
 #: Largest relative difference of M(q) and q̈ between Pinocchio and MuJoCo [-] (both are
 #: exact rigid-body algorithms on the same inertias: only rounding separates them).
 ENGINE_RTOL = 1e-6
@@ -211,131 +223,6 @@ class CheckReport:
         return "\n".join(lines)
 
 
-def _bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
-    """The observer's bandwidth per joint [1/s], or ``None`` without an observer."""
-    from ..compensation.bandwidth import implied_bandwidth
-    from ..compensation.observers import DisturbanceObserver, MomentumObserver
-
-    comp: Any = getattr(ex.controller, "compensation", None)
-    while hasattr(comp, "inner"):  # a gate around the observer (collision reaction)
-        comp = comp.inner
-    if isinstance(comp, MomentumObserver):
-        return np.broadcast_to(np.asarray(comp.K, dtype=float), (M0.shape[0],)).copy()
-    if isinstance(comp, DisturbanceObserver):
-        return implied_bandwidth(comp.cY, M0)
-    return None  # no observer (none, ISM)
-
-
-def _headroom(ex: Experiment, limit: np.ndarray | None, damped: bool = True) -> np.ndarray:
-    """1 − max |τ_j| / τ_max along the reference (inf without limits): the torque that
-    makes the plant, :math:`M\\ddot q + C\\dot q + G + B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q
-    = \\tau + d(t, q, \\dot q)`, follow it, with the config's disturbance d and the URDF's
-    joint damping and friction when the plant applies them (``damped``)."""
-    n = ex.robot.nq
-    if limit is None:
-        return np.full(n, np.inf)
-    Ts = ex.config.controller.Ts
-    dt = Ts / 4.0
-    t = np.arange(0.0, ex.config.simulation.duration + dt / 2, dt)
-    q, dq = ex.reference.sample_many(t)
-    q, dq = np.array(q, dtype=float), np.array(dq, dtype=float)
-    ddq = np.gradient(dq, dt, axis=0)
-    model, data = ex.robot.model, ex.robot.model.createData()
-    b, f = ex.robot.joint_damping, ex.robot.joint_friction
-    if not damped:
-        b, f = np.zeros(n), np.zeros(n)
-    need = np.zeros(n)
-    disturbance = ex.disturbance
-    for k in range(len(t)):
-        tau = pin.rnea(model, data, q[k], dq[k], ddq[k]) + b * dq[k] + f * np.sign(dq[k])
-        tau = tau - np.asarray(disturbance(float(t[k]), q[k], dq[k]), dtype=float)
-        need = np.maximum(need, np.abs(tau))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(np.isfinite(limit), 1.0 - need / limit, np.inf)
-
-
-def _engines(ex: Experiment) -> tuple[float, float] | str:
-    """Pinocchio's M(q) and forward dynamics against MuJoCo's at seeded states."""
-    try:
-        import mujoco
-    except ImportError:
-        return "not compared (install the 'mujoco' extra)"
-    from ..sim.mujoco import MuJoCoSettings, mujoco_model
-
-    robot = ex.robot
-    if robot.mimic_joints:
-        return "not compared (mimic joints: MuJoCo holds them by a soft constraint)"
-    model = mujoco_model(robot, MuJoCoSettings(geometry="none", import_urdf_dynamics=False))
-    data = mujoco.MjData(model)
-    qadr = np.array([model.joint(j).qposadr[0] for j in robot.joint_names])
-    vadr = np.array([model.joint(j).dofadr[0] for j in robot.joint_names])
-    if model.nq != robot.nq or model.nv != robot.nq:
-        return f"not compared (MuJoCo's model has {model.nv} dofs, the controller's {robot.nq})"
-    rng = np.random.default_rng(0)
-    lo = np.where(np.isfinite(robot.lower), robot.lower, -math.pi)
-    hi = np.where(np.isfinite(robot.upper), robot.upper, math.pi)
-    full = np.zeros((model.nv, model.nv))
-    err_M = err_a = 0.0
-    for _ in range(ENGINE_SAMPLES):
-        q = rng.uniform(lo, hi)
-        dq = rng.standard_normal(robot.nq)
-        tau = rng.standard_normal(robot.nq) * np.maximum(np.diag(robot.mass_matrix(q)), 1e-3)
-        mujoco.mj_resetData(model, data)
-        data.qpos[qadr], data.qvel[vadr] = q, dq
-        data.qfrc_applied[vadr] = tau
-        mujoco.mj_forward(model, data)
-        try:  # MuJoCo >= 3.3: mj_fullM(m, d, dst); before: mj_fullM(m, dst, d.qM)
-            mujoco.mj_fullM(model, data, full)
-        except TypeError:
-            mujoco.mj_fullM(model, full, data.qM)
-        M_mj = full[np.ix_(vadr, vadr)]
-        M_pin = robot.mass_matrix(q)
-        err_M = max(err_M, float(np.abs(M_mj - M_pin).max() / np.abs(M_pin).max()))
-        a_pin = robot.forward_dynamics(q, dq, tau)
-        a_mj = data.qacc[vadr]
-        err_a = max(err_a, float(np.abs(a_mj - a_pin).max() / max(np.abs(a_pin).max(), 1e-9)))
-    return err_M, err_a
-
-
-def overdeclared_radius(wTs: float, ratio: float, over: float, explicit: bool = False) -> float:
-    """Spectral radius [-] of the observer loop with a latency declared ``over`` control
-    periods longer than the measurements' age (case 4 of
-    :mod:`hmpc_pin.compensation.bandwidth`, extended to several periods).
-
-    With the fraction of the way the observer moves per period, Eq (13) discretised:
-    :math:`g = T_s\\omega/(1 + T_s\\omega)` for backward (implicit) Euler,
-    :math:`(M + T_s cY) w = \\dots`, and :math:`g = T_s\\omega` for forward (explicit)
-    Euler, :math:`M w = \\dots`
-    (:meth:`~hmpc_pin.compensation.observers.DisturbanceObserver.update`), the over-declaration
-    :math:`m + \\beta` periods (m whole, :math:`0 \\le \\beta < 1`) and a plant whose
-    inertia is :math:`1/r` of the model's, the observer pairs the velocity change caused
-    by :math:`u_{k-1}` with :math:`(1-\\beta) u_{k-1-m} + \\beta u_{k-2-m}`, and with
-    :math:`u = v - \\hat d` its estimate obeys
-
-    .. math:: \\hat d_k = (1 - g - g r)\\hat d_{k-1} + g(1-\\beta)\\hat d_{k-1-m}
-              + g\\beta\\,\\hat d_{k-2-m} + \\dots
-
-    whose characteristic polynomial's largest root modulus is returned (m = 0 gives the
-    docstring's :math:`z^2 - (1 - g(r + \\beta))z - g\\beta`).
-
-    Args:
-        wTs: :math:`T_s\\omega` [-].
-        ratio: r, model-to-plant inertia ratio [-].
-        over: The over-declaration in control periods [-] (>= 0).
-        explicit: The observer is the forward-Euler form (``discretization =
-            "explicit"``).
-    """
-    g = wTs if explicit else wTs / (1.0 + wTs)
-    m = math.floor(over + 1e-9)
-    beta = max(over - m, 0.0)
-    coeffs = np.zeros(m + 3)
-    coeffs[0] = 1.0
-    coeffs[1] -= 1.0 - g - g * ratio * ((1.0 - g) if explicit else 1.0)
-    coeffs[1 + m] -= g * (1.0 - beta)
-    coeffs[2 + m] -= g * beta
-    return float(np.max(np.abs(np.roots(np.trim_zeros(coeffs, "b"))), initial=0.0))
-
-
 def _explicit(config: ExperimentConfig) -> bool:
     """The observer is the NDO in its forward-Euler form (the momentum observer has one
     form, semi-implicit: :math:`g = T_sK_O/(1 + T_sK_O)`)."""
@@ -397,157 +284,11 @@ def _observer_findings(
     return margin
 
 
-def lead_radius(kp: float, kd: float, Ts: float, over: float) -> float:
-    """Spectral radius [-] of one joint's outer loop when the controller predicts its
-    state ``over`` control periods ahead of measurements that are fresh (a latency
-    declared that much too long).
-
-    The joint is the double integrator the inverse dynamics leaves, held for a period
-    (:math:`x^+ = x + T_s\\dot x + \\tfrac12 T_s^2 u`, :math:`\\dot x^+ = \\dot x + T_s u`),
-    under the MPC's equivalent feedback :math:`u_k = -k_p\\hat x_k - k_d\\hat{\\dot x}_k`
-    (:func:`~hmpc_pin.controllers.computed_torque.mpc_feedback_gain`), where
-    :math:`\\hat x_k` is the measured state integrated over :math:`L = D T_s` with the
-    inputs of the last :math:`\\lceil D\\rceil` periods, as the controller does for a
-    latency L (the oldest over the fraction :math:`D - \\lceil D\\rceil + 1` of a period).
-    The loop's state is :math:`[x, \\dot x, u_{k-1}, \\dots, u_{k-\\lceil D\\rceil}]`.
-
-    Args:
-        kp: [1/s²], kd: [1/s]: the feedback gains.
-        Ts: Control period [s].
-        over: D, the over-declaration in control periods [-] (>= 0).
-    """
-    m = math.ceil(over - 1e-9) if over > 0 else 0
-    size = 2 + m
-
-    def hold(h: float) -> tuple[np.ndarray, np.ndarray]:
-        return np.array([[1.0, h], [0.0, 1.0]]), np.array([0.5 * h * h, h])
-
-    predict = np.eye(2, size)  # (x̂, v̂) as a map of the loop's state
-    for i in range(m, 0, -1):  # u_{k-i}, the oldest first
-        A, B = hold((over - (m - 1) if i == m else 1.0) * Ts)
-        predict = A @ predict
-        predict[:, 1 + i] += B
-    gain = -np.array([kp, kd]) @ predict  # u_k
-    A, B = hold(Ts)
-    step = np.zeros((size, size))
-    step[:2] = A @ np.eye(2, size) + np.outer(B, gain)
-    if m:
-        step[2] = gain
-        for i in range(1, m):
-            step[2 + i, 1 + i] = 1.0
-    return float(np.max(np.abs(np.linalg.eigvals(step))))
-
-
-def loop_radius(
-    kp: float,
-    kd: float,
-    Ts: float,
-    wTs: float,
-    over: float,
-    ratio: float = 1.0,
-    explicit: bool = False,
-) -> float:
-    """Spectral radius [-] of one joint's whole loop, the MPC and the observer together,
-    with a latency declared ``over`` control periods too long (measurements fresh).
-
-    :func:`overdeclared_radius` takes the MPC's input as given and :func:`lead_radius`
-    the disturbance as cancelled; each may pass a fractional over-declaration that the
-    two loops together do not. Per period k, in acceleration units (the inverse dynamics
-    leaves a double integrator; a plant of inertia :math:`1/r` of the model's), with the
-    commanded :math:`u_k = v_k - \\hat e_k`:
-
-    * the observer, with :math:`g` as in :func:`overdeclared_radius` and the
-      over-declaration :math:`m + \\beta`:
-      :math:`\\hat e_k = (1-g)\\hat e_{k-1} + g\\,(r u_{k-1} - (1-\\beta)u_{k-1-m}
-      - \\beta u_{k-2-m})` (the velocity change of period k-1 paired with the torques
-      the declared latency names);
-    * the MPC, :math:`v_k = -k_p\\hat x_k - k_d\\hat{\\dot x}_k` on the state predicted
-      over :math:`L = DT_s` with the past :math:`v` (as in :func:`lead_radius`);
-    * the joint, held for a period: :math:`x^+ = x + T_s\\dot x + \\tfrac12T_s^2 r u_k`,
-      :math:`\\dot x^+ = \\dot x + T_s r u_k`.
-
-    The loop's state is :math:`[x, \\dot x, \\hat e_{k-1}, u_{k-1}, \\dots, u_{k-2-m},
-    v_{k-1}, \\dots, v_{k-\\lceil D\\rceil}]`; its transition matrix's largest eigenvalue
-    modulus is returned.
-
-    Args:
-        kp: [1/s²], kd: [1/s]: the MPC's equivalent feedback gains.
-        Ts: Control period [s].
-        wTs: The observer's :math:`T_s\\omega` [-].
-        over: D, the over-declaration in control periods [-] (>= 0).
-        ratio: r, model-to-plant inertia ratio [-].
-        explicit: The observer is the forward-Euler form.
-    """
-    g = wTs if explicit else wTs / (1.0 + wTs)
-    m = math.floor(over + 1e-9)
-    beta = max(over - m, 0.0)
-    lead = math.ceil(over - 1e-9) if over > 0 else 0  # the v's the prediction integrates
-    nu = m + 2  # u_{k-1} .. u_{k-2-m}
-    size = 3 + nu + lead
-
-    def iu(j: int) -> int:  # u_{k-j}
-        return 2 + j
-
-    def iv(j: int) -> int:  # v_{k-j}
-        return 2 + nu + j
-
-    estimate = np.zeros(size)  # ê_k
-    estimate[2] = 1.0 - g
-    estimate[iu(1)] += g * ratio * ((1.0 - g) if explicit else 1.0)
-    estimate[iu(1 + m)] -= g * (1.0 - beta)
-    estimate[iu(2 + m)] -= g * beta
-    predict = np.eye(2, size)  # (x̂, v̂)
-    for i in range(lead, 0, -1):  # v_{k-i}, the oldest first
-        h = ((over - (lead - 1)) if i == lead else 1.0) * Ts
-        predict = np.array([[1.0, h], [0.0, 1.0]]) @ predict
-        predict[:, iv(i)] += np.array([0.5 * h * h, h])
-    v = -kp * predict[0] - kd * predict[1]
-    u = v - estimate
-    step = np.zeros((size, size))
-    step[:2] = np.array([[1.0, Ts], [0.0, 1.0]]) @ np.eye(2, size) + np.outer(
-        np.array([0.5 * Ts * Ts, Ts]), ratio * u
-    )
-    step[2] = estimate
-    step[iu(1)] = u
-    for j in range(2, nu + 1):
-        step[iu(j), iu(j - 1)] = 1.0
-    if lead:
-        step[iv(1)] = v
-        for j in range(2, lead + 1):
-            step[iv(j), iv(j - 1)] = 1.0
-    return float(np.max(np.abs(np.linalg.eigvals(step))))
-
-
-def explicit_loop_slow(
-    kp: float, kd: float, Ts: float, wTs: np.ndarray, ratio: float = 1.0
-) -> np.ndarray:
-    """Per joint, whether the explicit observer's loop with the MPC, without latency,
-    grows or decays slowly: :func:`loop_radius` (``explicit``, no latency) :math:`|z|`
-    against the implicit form's at the same :math:`T_s\\omega_j`, :math:`|z_i|`:
-    :math:`\\ln\\min(|z|, 1) > ` :data:`MIN_DECAY` :math:`\\ln|z_i|`.
-
-    Forward Euler pairs the velocity change of the period that ended with the estimate of
-    the period before, so its estimate keeps :math:`-(T_s\\omega)^2` times the arm's
-    acceleration and feeds the MPC's own input back (backward Euler cancels it).
-
-    Args:
-        kp: [1/s²], kd: [1/s]: the MPC's equivalent feedback gains.
-        Ts: Control period [s].
-        wTs: :math:`T_s\\omega_j` per joint [-].
-        ratio: r, model-to-plant inertia ratio [-].
-    """
-    wTs = np.atleast_1d(np.asarray(wTs, dtype=float))
-    radius = np.array([loop_radius(kp, kd, Ts, w, 0.0, ratio, True) for w in wTs])
-    implicit = np.array([loop_radius(kp, kd, Ts, w, 0.0, ratio) for w in wTs])
-    with np.errstate(divide="ignore"):
-        return np.log(np.minimum(radius, 1.0)) > MIN_DECAY * np.log(implicit)
-
-
 def _explicit_loop_findings(
     report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray
 ) -> None:
     """The explicit observer inside the MPC's loop without latency
-    (:func:`explicit_loop_slow`) on a joint whose own pole :math:`|1 - T_s\\omega_j|` is
+    (:func:`.explicit_loop_slow`) on a joint whose own pole :math:`|1 - T_s\\omega_j|` is
     inside the unit circle (outside: the rule of :func:`check_config`): a problem whose
     fix is the implicit form."""
     from ..controllers.computed_torque import mpc_feedback_gain
@@ -575,77 +316,18 @@ def _explicit_loop_findings(
         )
 
 
-def observer_modes(ex: Experiment, samples: int = 200) -> tuple[np.ndarray, np.ndarray]:
-    """The observer's modal bandwidths [1/s] at postures along the reference.
-
-    The NDO's estimation error obeys :math:`\\dot e = -cY M(q)^{-1} e` (Eq 13 with
-    :math:`L = cY M^{-1}`, ``cY`` constant): its modes decay at the eigenvalues of
-    :math:`cY M(q)^{-1}` (those of :math:`M(q)^{-1} cY`, the generalized eigenvalues of
-    the pair :math:`(cY, M(q))`), which move with the posture although the bandwidth is
-    set at :math:`q_0`; the momentum observer's are its gains :math:`K_O` everywhere.
-
-    Args:
-        ex: The built experiment (its reference, model and observer).
-        samples: Postures sampled, evenly over the run (and at most one per period).
-
-    Returns:
-        ``(t, w)``: the times [s], (k,), and per time the n modal bandwidths [1/s],
-        (k, n) (real parts); both empty without an observer.
-    """
-    from ..compensation.observers import DisturbanceObserver, MomentumObserver
-
-    comp: Any = getattr(ex.controller, "compensation", None)
-    while hasattr(comp, "inner"):  # a gate around the observer (collision reaction)
-        comp = comp.inner
-    n = ex.robot.nq
-    cfg = ex.config
-    if not isinstance(comp, (DisturbanceObserver, MomentumObserver)):
-        return np.zeros(0), np.zeros((0, n))
-    Ts, duration = cfg.controller.Ts, cfg.simulation.duration
-    k = int(min(samples, max(duration / Ts, 1.0)))
-    t = np.linspace(0.0, duration, k + 1)
-    if isinstance(comp, MomentumObserver):
-        K = np.broadcast_to(np.asarray(comp.K, dtype=float), (n,))
-        return t, np.tile(K, (len(t), 1))
-    q, _ = ex.reference.sample_many(t)
-    cY = np.asarray(comp.cY, dtype=float)
-    w = [np.linalg.eigvals(np.linalg.solve(ex.robot.mass_matrix(qk), cY)).real for qk in q]
-    return t, np.sort(np.array(w), axis=1)
-
-
-def _worst_along(radius, t: np.ndarray, modes: np.ndarray) -> tuple[float, float, float]:
-    """The largest ``radius(w)`` over the modal bandwidths ``modes`` [1/s] (k, n) at the
-    times ``t`` [s]: ``(radius, w, t)`` (``(0, 0, 0)`` without modes). The bandwidths are
-    evaluated once per 1 % band (each band at its largest member)."""
-    w = modes.ravel()
-    keep = np.isfinite(w) & (w > 0)
-    if not keep.any():
-        return 0.0, 0.0, 0.0
-    times = np.repeat(t, modes.shape[1])[keep]
-    w = w[keep]
-    band = np.floor(np.log(w) / math.log(1.01))
-    best = (0.0, 0.0, 0.0)
-    for b in np.unique(band):
-        i = np.flatnonzero(band == b)
-        j = i[np.argmax(w[i])]
-        r = radius(float(w[j]))
-        if r > best[0]:
-            best = (r, float(w[j]), float(times[j]))
-    return best
-
-
 def _run_latency_findings(
     report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray | None
 ) -> None:
     """``run`` simulates measurements without latency: a declared latency L is L too
-    long there. A problem when the observer's loop (:func:`overdeclared_radius`) has a
+    long there. A problem when the observer's loop (:func:`.overdeclared_radius`) has a
     pole of modulus >= 1, or >= :data:`MAX_RADIUS` and decaying slower than
-    :data:`MIN_DECAY` times the observer's own pole :math:`|1 - gr|` (a slow observer's
+    :data:`.MIN_DECAY` times the observer's own pole :math:`|1 - gr|` (a slow observer's
     lies near 1 by design), or the
-    outer loop (:func:`lead_radius`) then decays slower than :data:`MIN_DECAY` times
-    its rate without the prediction, or the two together (:func:`loop_radius`) grow at
+    outer loop (:func:`.lead_radius`) then decays slower than :data:`.MIN_DECAY` times
+    its rate without the prediction, or the two together (:func:`.loop_radius`) grow at
     :math:`q_0`. A warning when they grow only at the observer's modal bandwidths at
-    other postures along the reference (:func:`observer_modes`)."""
+    other postures along the reference (:func:`.observer_modes`)."""
     from ..controllers.computed_torque import mpc_feedback_gain
     from ..mpc.condensed import CondensedMPC
 
@@ -666,7 +348,7 @@ def _run_latency_findings(
         whole_bad = np.flatnonzero((whole >= 1.0) & (whole0 < 1.0))
         if not whole_bad.size and np.all(whole0 < 1.0):  # the observer's modes elsewhere
             t_modes, modes = observer_modes(ex)
-            along, w_along, t_along = _worst_along(
+            along, w_along, t_along = worst_along(
                 lambda w: loop_radius(kp, kd, Ts, w * Ts, over, ratio, explicit),
                 t_modes,
                 modes,
@@ -726,82 +408,10 @@ def _run_latency_findings(
         )
 
 
-def _lag_inputs(ex: Experiment) -> tuple:
-    """:func:`observer_lag_error`'s samples along the reference, every control period:
-    ``(Ts, t, q_k, d_k, M(q_k)^-1)``."""
-    cfg = ex.config
-    Ts = cfg.controller.Ts
-    t = np.arange(0.0, cfg.simulation.duration + Ts / 2, Ts)
-    q, dq = ex.reference.sample_many(t)
-    q, dq = np.array(q, dtype=float), np.array(dq, dtype=float)
-    d = np.array(
-        [np.asarray(ex.disturbance(float(t[k]), q[k], dq[k]), dtype=float) for k in range(len(t))]
-    )
-    minv = np.array([np.linalg.inv(ex.robot.mass_matrix(q[k])) for k in range(len(t))])
-    return Ts, t, q, d, minv
-
-
-def observer_lag_error(
-    ex: Experiment,
-    kp: float,
-    kd: float,
-    after: float,
-    scale: float = 1.0,
-    inputs: tuple | None = None,
-) -> np.ndarray:
-    r"""Per joint, the largest tracking error [rad] after ``after`` [s] that the
-    disturbance the observer has not yet caught leaves, along the reference.
-
-    The config's disturbance :math:`d_k = d(t_k, r_k, \dot r_k)` sampled every
-    :math:`T_s` along the reference :math:`r_k`; the observer that runs (its matrix
-    :math:`cY` or :math:`K_O` times ``scale``, its discretization;
-    ``ObserverModel.filter`` of :mod:`hmpc_pin.identification`) estimating, at
-    :math:`t_k`, the disturbance of the period that ended,
-    :math:`\hat d_k = F(d_{k-1}, \hat d_{k-1})` (implicit Euler:
-    :math:`(I + T_sL_k)\hat d_k = \hat d_{k-1} + T_sL_kd_{k-1}`,
-    :math:`L = cY M(r_k)^{-1}`); what it leaves,
-    :math:`a_k = M(r_k)^{-1}(d_k - \hat d_k)`, drives each joint's error through the
-    MPC's loop (its equivalent feedback, :func:`lead_radius` without latency):
-    :math:`x^+ = x + T_s\dot x + \tfrac12T_s^2(a_k - k_px - k_d\dot x)`,
-    :math:`\dot x^+ = \dot x + T_s(a_k - k_px - k_d\dot x)`, from rest. Without an
-    observer :math:`\hat d = 0`.
-
-    Args:
-        ex: The built experiment (its reference, disturbance, model and observer).
-        kp: [1/s²], kd: [1/s]: the MPC's equivalent feedback gains.
-        after: The start-up left out [s].
-        scale: Factor on the observer's gain [-].
-        inputs: ``_lag_inputs(ex)``, when already computed.
-    """
-    from ..identification.friction import ObserverModel
-
-    Ts, t, q, d, minv = _lag_inputs(ex) if inputs is None else inputs
-    n = d.shape[1]
-    model = ObserverModel.of(getattr(ex.controller, "compensation", None), ex.robot)
-    if model is None:
-        dhat = np.zeros_like(d)
-    else:
-        if model.matrix is not None:
-            model = replace(model, matrix=np.asarray(model.matrix) * scale)
-        else:
-            model = replace(model, gain=np.asarray(model.gain, dtype=float) * scale)
-        before = np.vstack([np.zeros((1, n)), d[:-1]])  # d over the period that ended
-        with np.errstate(over="ignore", invalid="ignore"):  # an unstable observer: inf
-            dhat = model.filter(q, before[:, :, None])[:, :, 0]
-    x, xd, worst = np.zeros(n), np.zeros(n), np.zeros(n)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for k in range(len(t)):
-            if t[k] >= after - 1e-12:
-                worst = np.maximum(worst, np.abs(x))
-            acc = minv[k] @ (d[k] - dhat[k]) - kp * x - kd * xd
-            x, xd = x + Ts * xd + 0.5 * Ts * Ts * acc, xd + Ts * acc
-    return np.where(np.isfinite(worst), worst, np.inf)
-
-
 def _observer_lag_findings(
     report: CheckReport, config: ExperimentConfig, ex: Experiment, bw: np.ndarray
 ) -> None:
-    r"""An observer too slow for the disturbance (:func:`observer_lag_error` above
+    r"""An observer too slow for the disturbance (:func:`.observer_lag_error` above
     `run`'s tracking tolerance): a problem whose fix raises the bandwidth by the
     smallest power of 2 that brings the predicted error within half the tolerance
     (below the explicit form's :math:`T_s\omega < 2`); a warning when none does."""
@@ -819,7 +429,7 @@ def _observer_lag_findings(
         )
     ):
         return  # no observer, or an unstable one, or its loop with the MPC (their problems)
-    inputs = _lag_inputs(ex)
+    inputs = lag_inputs(ex)
     err = observer_lag_error(ex, kp, kd, RUN_WARN_AFTER, inputs=inputs)
     bad = np.flatnonzero(err > DEFAULT_ERROR_THRESHOLD)
     if not bad.size or not np.all(np.isfinite(err)):
@@ -993,11 +603,11 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         None,
         None,
         damping_time_constants(robot, ex.q0),
-        _headroom(ex, plant_effort_limit(config, ex.plant), damped=plant_damped),
+        torque_headroom(ex, plant_effort_limit(config, ex.plant), damped=plant_damped),
         "not compared (--no-engine)",
     )
 
-    bw = _bandwidth(ex, M0)
+    bw = observer_bandwidth(ex, M0)
     if bw is not None:
         report.bandwidth = bw
         report.margin = _observer_findings(report, config, ex, bw)
@@ -1038,7 +648,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         )
     elif engines:
         try:
-            report.engine = _engines(ex)
+            report.engine = engine_agreement(ex.robot, ENGINE_SAMPLES)
         except HmpcError as exc:  # MuJoCo refuses the URDF: one line, the table stays
             report.engine = "refused the URDF"
             why = " ".join(str(exc).split())  # MuJoCo's message spans lines

@@ -29,7 +29,7 @@ its extra arrays), ``<stem>_franka_timing.npz`` (the loop's cycles),
 from __future__ import annotations
 
 import contextlib
-import gc
+import os
 import signal
 import sys
 from dataclasses import replace
@@ -226,9 +226,41 @@ def run_franka(
     Returns:
         ``(run, files, arm_summary)``.
     """
+    policy = _thread_policy()  # libfranka's Robot() may switch this thread to SCHED_FIFO 99
+    try:
+        return _drive(config, options, out, stem, experiment, ready, controller_wrapper, started)
+    finally:
+        _restore_policy(policy)
+
+
+def _drive(config, options, out, stem, experiment, ready, controller_wrapper, started):
+    """:func:`run_franka`'s work (its arguments, its return), the thread's scheduling
+    policy put back by the caller on every way out."""
     stem = (stem or config.name) + "_franka"
     experiment = Experiment.from_config(config) if experiment is None else experiment
     loop_settings, safety, safe, ctrl = franka_parts(experiment, options.inner_law)
+    law = ctrl.controller
+    try:
+        return _drive_law(
+            config,
+            options,
+            out,
+            stem,
+            experiment,
+            ready,
+            controller_wrapper,
+            started,
+            (loop_settings, safety, safe, ctrl),
+        )
+    finally:
+        if callable(getattr(law, "close", None)):  # the MPC's planner thread, joined
+            law.close()
+
+
+def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper, started, parts):
+    """:func:`_drive`'s work once the controller is built (``parts``: :func:`franka_parts`'
+    answer); the caller closes the law (the threaded law's planner) on every way out."""
+    loop_settings, safety, safe, ctrl = parts
     law = ctrl.controller
     inner_law = (
         "every cycle"
@@ -261,7 +293,71 @@ def run_franka(
         lower, upper = options.thresholds
         arm.set_collision_behavior(lower, upper)
         summary["collision_thresholds"] = {"lower": list(lower), "upper": list(upper)}
-    # the move to the reference's start
+    _move_to_start(arm, experiment, options, summary, names)
+    loop = RealtimeLoop(
+        arm,
+        ctrl,
+        experiment.reference,
+        safe,
+        loop_settings,
+        safety,
+        joint_names=names,
+        meta=experiment.meta(),
+    )
+    switch = sys.getswitchinterval()
+    state = arm.read_state()  # where the move left the arm: the controller's reset state
+    try:
+        if ready is not None:
+            ready()
+        if started is not None:
+            started(arm)
+        sys.setswitchinterval(1e-4)  # readOnce holds the GIL while it waits
+        # the loop collects and freezes the heap and resets the controller, then starts
+        # torque control (the robot's clock): none of its set-up costs the arm a cycle
+        run = loop.run(np.array(state.q, dtype=float), np.array(state.dq, dtype=float), start=True)
+    finally:
+        sys.setswitchinterval(switch)
+        with _SigintDeferred() as deferred:  # the ramp to zero is not cut short
+            end = arm.finish() if arm.fault is None else {}
+    _close_record(run, arm, options, summary, end, deferred["count"])
+    planner = getattr(law, "planner", None)
+    if planner is not None:  # the MPC's planner thread (InnerLawThreaded)
+        summary["planner"] = {
+            "requests": int(planner.requests),
+            "published": int(planner.published),
+            "dropped": int(planner.dropped),
+            "refused": int(planner.stale),
+            "fallbacks": int(law.fallbacks),
+            "max_age": float(planner.max_age),
+        }
+    files = save_run(run, out, stem, "franka")
+    files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
+    return run, files, summary
+
+
+def _thread_policy() -> tuple[int, int] | None:
+    """The calling thread's scheduling policy and priority (``None``: not readable)."""
+    try:
+        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    except (AttributeError, OSError):
+        return None
+
+
+def _restore_policy(policy: tuple[int, int] | None) -> None:
+    """Put the calling thread back to ``policy`` (:func:`_thread_policy`): libfranka's
+    ``Robot()`` leaves it at ``SCHED_FIFO`` 99 where it may, which would make everything
+    the process runs after the motion real-time."""
+    if policy is None:
+        return
+    with contextlib.suppress(OSError):
+        os.sched_setscheduler(0, policy[0], os.sched_param(policy[1]))
+
+
+def _move_to_start(arm, experiment: Experiment, options: FrankaOptions, summary, names) -> None:
+    """Move the arm from where it stands to the reference's start (a quintic within
+    :data:`MOVE_VELOCITY` and :data:`MOVE_ACCELERATION`, refused beyond
+    ``options.max_move``); ``summary["move"]`` records it. Ctrl-C stops the move where it
+    is (the arm Idle) and raises :class:`KeyboardInterrupt`."""
     q_now = np.asarray(summary["checks"]["q"])
     q_start = np.asarray(experiment.reference.sample(0.0)[0], dtype=float)
     check_move(q_now, q_start, options.max_move, names)
@@ -277,45 +373,17 @@ def run_franka(
     finally:
         signal.signal(signal.SIGINT, old)
     if interrupted["flag"]:
-        if callable(getattr(law, "close", None)):
-            law.close()
         raise KeyboardInterrupt(
             "interrupted during the move to the reference's start; the arm holds where "
             "the move stopped (Idle); nothing else was run or written"
         )
-    loop = RealtimeLoop(
-        arm,
-        ctrl,
-        experiment.reference,
-        safe,
-        loop_settings,
-        safety,
-        joint_names=names,
-        meta=experiment.meta(),
-    )
-    switch = sys.getswitchinterval()
-    # The whole heap is collected and frozen while the robot still waits: once torque
-    # control starts its clock runs, and a full collection in the loop's set-up (tens of
-    # ms in a large process) would be lost cycles; the loop's own collection then finds
-    # nothing to walk.
-    gc.collect()
-    gc.freeze()
-    try:
-        arm.start()
-        if ready is not None:
-            ready()
-        if started is not None:
-            started(arm)
-        sys.setswitchinterval(1e-4)  # readOnce holds the GIL while it waits
-        run = loop.run()
-    finally:
-        sys.setswitchinterval(switch)
-        gc.unfreeze()
-        if callable(getattr(law, "close", None)):  # the MPC's planner thread, joined
-            law.close()
-        with _SigintDeferred() as deferred:  # the ramp to zero is not cut short
-            end = arm.finish() if arm.fault is None else {}
-    if deferred["count"] and run.stop is None:
+
+
+def _close_record(run, arm, options: FrankaOptions, summary, end, interrupts: int) -> None:
+    """After the motion: a Ctrl-C during the final ramp recorded as the stop, the recovery
+    (``--recover``) tried after a fault, the driver's summary, the fault and the robot's
+    own signals added to ``run``'s record."""
+    if interrupts and run.stop is None:
         run.stop = {"cause": "interrupted", "reason": "interrupted (Ctrl-C) at the end", "t": 0.0}
         run.stop["t"] = float(run.result.t[-1]) if len(run.result.t) else 0.0
         run.stop["safe_tau"] = None
@@ -328,24 +396,11 @@ def run_franka(
             arm.fault["recovered"] = False
             arm.fault["recovery_error"] = str(exc)
     summary.update(_driver_summary(arm, end))
-    planner = getattr(law, "planner", None)
-    if planner is not None:  # the MPC's planner thread (InnerLawThreaded)
-        summary["planner"] = {
-            "requests": int(planner.requests),
-            "published": int(planner.published),
-            "dropped": int(planner.dropped),
-            "refused": int(planner.stale),
-            "fallbacks": int(law.fallbacks),
-            "max_age": float(planner.max_age),
-        }
     _record_fault(run, arm)
     _add_extras(run, arm)
     run.result.meta["franka"] = summary
     # tau and tau_applied are the torque sent: the robot adds G(q) (Result.gravity_by_arm)
     run.result.meta["gravity_by_arm"] = True
-    files = save_run(run, out, stem, "franka")
-    files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
-    return run, files, summary
 
 
 class _SigintDeferred:

@@ -20,7 +20,7 @@ __all__ = ["cmd_identify", "identify_arguments", "load_run"]
 
 
 def observer_model(result: Result, robot):
-    """The :class:`~hmpc_pin.identification.friction.ObserverModel` of the observer that
+    """The :class:`~hmpc_pin.identification.observer_model.ObserverModel` of the observer that
     ran (recorded in the run's ``meta``: its matrix, period and discretization; files of
     older versions record kind and gain, or are read from the config they name), or
     ``None`` when the run had no observer or does not say which.
@@ -352,4 +352,3 @@ def identify_arguments(idf) -> None:
         help="extreme-value fit: gumbel (conservative: at most the stated rate) "
         "or gev (calibrated on long runs of hundreds of blocks) [gumbel]",
     )
-    idf.set_defaults(func=cmd_identify)

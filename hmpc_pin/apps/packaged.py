@@ -170,7 +170,6 @@ def configs_arguments(parser) -> None:
         "which runs where it is written."
     )
     _copy_arguments(parser, "config", ".toml")
-    parser.set_defaults(func=cmd_configs)
 
 
 def examples_arguments(parser) -> None:
@@ -180,4 +179,3 @@ def examples_arguments(parser) -> None:
         "(`copy NAME --out FILE`) to read, edit and run with `python FILE`."
     )
     _copy_arguments(parser, "example", ".py")
-    parser.set_defaults(func=cmd_examples)

@@ -18,6 +18,7 @@ from pathlib import Path
 from ..experiment.build import Experiment, make_arm_plant, realtime_parts
 from ..experiment.config import ExperimentConfig
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
+from ..realtime.pacing import cpu_affinity
 from ..realtime.process_arm import ProcessArm, start_child
 from .metrics import compute_metrics
 
@@ -67,6 +68,34 @@ def _positive_seconds(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a time [s] > 0, got {text!r}")
     return value
+
+
+def spin_value(text: str) -> float | str:
+    """``--spin``'s value: ``auto`` or a time [s] (argparse exits 2 otherwise; the config
+    checks its range)."""
+    import argparse
+
+    if text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected auto or a time [s], got {text!r}") from None
+
+
+def priority_value(text: str) -> int | str:
+    """``--priority``'s value: ``auto`` or a whole number (argparse exits 2 otherwise; the
+    range is checked with the config's)."""
+    import argparse
+
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected auto or a whole number 0-99, got {text!r}"
+        ) from None
 
 
 def _positive_count(text: str) -> int:
@@ -191,8 +220,7 @@ def run_realtime(
     stem = (stem or config.name) + "_realtime"
     experiment = Experiment.from_config(config) if experiment is None else experiment
     loop_settings, safety, safe = realtime_parts(experiment)
-    priority = config.realtime.priority
-    with fifo_priority(priority):  # checked here, before the arm starts
+    with fifo_priority(config.realtime.priority) as priority:  # checked before the arm starts
         pass
     arm = ProcessArm(
         functools.partial(make_arm_plant, experiment.config),
@@ -219,11 +247,12 @@ def run_realtime(
             ready()
         status = StatusLine(loop, loop_settings.duration)
         try:
-            with fifo_priority(priority):
+            with fifo_priority(priority), cpu_affinity(config.realtime.cpus):
                 run = loop.run(experiment.q0, experiment.dq0)
         finally:
             status.close()
         run.result.meta["arm"] = arm.counters
+        run.stats["priority"] = priority
         run.result.meta["engine"] = config.plant.engine
     finally:
         if view is not None:

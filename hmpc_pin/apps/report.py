@@ -388,8 +388,7 @@ def _metrics_table(metrics: dict[str, Metrics], runs: dict, joint_names) -> str:
     for name, m in metrics.items():
         if not isinstance(m, Metrics) or name.endswith("_t0"):
             continue
-        m0 = metrics[name + "_t0"]
-        w = np.abs(runs[name].observer_error)
+        m0, w = metrics[name + "_t0"], np.abs(runs[name].observer_error)
         for i, j in enumerate(joint_names):
             st = m.settling_time[i]
             t_peak = runs[name].t[int(np.argmax(w[:, i]))]

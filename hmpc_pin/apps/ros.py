@@ -29,7 +29,7 @@ from ..experiment.controllers import controller_limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..sim.engines import engine_spec
 from .packaged import CONFIG_HELP
-from .realtime import StatusLine, add_stop_options, save_run
+from .realtime import StatusLine, add_stop_options, priority_value, save_run
 
 __all__ = [
     "format_ros",
@@ -342,7 +342,6 @@ def _run_ros(
                     f"{ros.node.get_fully_qualified_name()} was shut down before it was "
                     "activated: nothing was run, sent or written"
                 )
-        iface.start()
         loop = RealtimeLoop(
             iface,
             ctrl,
@@ -362,7 +361,7 @@ def _run_ros(
         sys.setswitchinterval(min(switch, 1e-4))
         status = StatusLine(loop, loop_settings.duration)
         try:
-            run = loop.run()
+            run = loop.run(start=True)  # set-up (heap frozen) before the first state
         finally:
             status.close()
         sys.setswitchinterval(switch)
@@ -693,7 +692,8 @@ def _add_node_options(parser) -> None:
     parser.add_argument("--namespace", metavar="NS", help="ROS namespace (overrides ros.namespace)")
     parser.add_argument(
         "--priority",
-        type=int,
+        type=priority_value,
         metavar="N",
-        help="SCHED_FIFO priority 1-99 of the node (overrides realtime.priority)",
+        help="SCHED_FIFO priority 1-99 of the node; auto: 80 where permitted, else normal "
+        "(overrides realtime.priority)",
     )

@@ -36,12 +36,13 @@ import numpy as np
 
 from ..controllers.registry import controller_spec
 from ..controllers.wrappers import MeasuredController
-from ..exceptions import ConfigError, SimulationError, install_command
+from ..exceptions import ConfigError, SimulationError
 from ..experiment.build import Experiment, load_robot_config, reuse_robots, with_controller
 from ..experiment.combos import OBSERVERS
 from ..experiment.config import ExperimentConfig
 from ..experiment.config.sweep import CONDITION_PARTS
 from ..sim.sensing import SensedController
+from .cluster import dask_client, dask_modules
 from .metrics import task_metrics
 
 __all__ = [
@@ -459,28 +460,6 @@ class SweepResult:
         return paths[0], paths[1]
 
 
-def _dask_modules():
-    """``dask.distributed``, or the one-line error naming the extra ``cluster``."""
-    try:
-        import dask.distributed
-    except ImportError as exc:
-        raise ConfigError(
-            "--executor",
-            "dask needs the optional dependency dask.distributed (extra hmpc_pin[cluster]); "
-            f"install it with `{install_command('cluster')}` or use --executor local",
-        ) from exc
-    return dask.distributed
-
-
-def _dask_client(jobs: int, scheduler: str | None):
-    dd = _dask_modules()
-    Client, LocalCluster = dd.Client, dd.LocalCluster
-    if scheduler:
-        return Client(scheduler), None
-    cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
-    return Client(cluster), cluster
-
-
 def check_options(
     config: ExperimentConfig,
     samples: int,
@@ -514,7 +493,7 @@ def check_options(
             "--executor dask or drop it",
         )
     if executor == "dask":
-        _dask_modules()  # the extra is named before anything is created
+        dask_modules()  # the extra is named before anything is created
     config = replace(config, sweep=replace(config.sweep, variants=resolve_variants(config)))
     nominal = Experiment.from_config(config)  # bad input fails here, once, not in every worker
     if not config.sweep.legacy:  # the interface model fits the arm and the control period
@@ -572,7 +551,7 @@ def run_sweep(
         elif executor == "local":
             _run_pool(config, tasks, jobs, rows, bar)
         else:
-            client, cluster = _dask_client(jobs, scheduler)
+            client, cluster = dask_client(jobs, scheduler)
             try:
                 from dask.distributed import as_completed
 

@@ -18,7 +18,7 @@ delay; the same draws for every trial) and scores
 
 the 95th percentile over the samples of the worst joint's RMS error after
 ``sweep.after`` (a run that is not bounded scores more than any bounded one:
-:func:`run_score`), :math:`\\bar s`
+:func:`.run_score`), :math:`\\bar s`
 the mean fraction of periods with a saturated torque, :math:`\\overline{TV}` the mean
 torque total variation per second (:func:`~hmpc_pin.apps.sweep.torque_effort`) and
 :math:`\\overline{TV}_0` that of the config as given, which is always the first trial.
@@ -31,36 +31,44 @@ shipped and tuned configs are compared on ``holdout`` other samples (another see
 
 from __future__ import annotations
 
-import math
-import signal
-import threading
 import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..compensation.registry import compensation_names, compensation_spec
-from ..controllers.registry import controller_spec
-from ..exceptions import ConfigError, ExtraError, RunInterrupted, install_command
-from ..experiment.config import ExperimentConfig, load_config
-from ..experiment.config.write import write_config
+from .._startup import DeferredInterrupt
+from ..compensation.registry import compensation_names
+from ..exceptions import ConfigError, ExtraError, RunInterrupted
+from ..experiment.config import ExperimentConfig
+from .cluster import local_cluster
 from .packaged import CONFIG_HELP
 from .sweep import run_sweep
+from .tune_objective import SATURATION_WEIGHT, TV_WEIGHT, objective_value, run_score
+from .tune_report import shown_params, write_report, write_tuned
+from .tune_space import (
+    apply_params,
+    current_params,
+    format_param,
+    own_params,
+    search_space,
+    suggest,
+)
 
+# the search space (.tune_space), the objective (.tune_objective) and what tune writes
+# (.tune_report) are re-exported here
 __all__ = [
+    "SATURATION_WEIGHT",
+    "TV_WEIGHT",
     "TuneResult",
     "apply_params",
+    "current_params",
     "objective_value",
     "run_score",
     "search_space",
     "tune",
     "tune_arguments",
 ]
-
-#: Weights of the penalties (module docstring): saturation, total variation.
-SATURATION_WEIGHT = 1.0
-TV_WEIGHT = 0.1
 
 
 def _optuna():
@@ -69,177 +77,6 @@ def _optuna():
     except ImportError as exc:
         raise ExtraError("tune", "hmpc-pin tune (Optuna)") from exc
     return optuna
-
-
-def search_space(
-    config: ExperimentConfig,
-    ts: tuple[float, ...] | None = None,
-    observers: tuple[str, ...] | None = None,
-) -> dict:
-    """The parameters a trial proposes: name → ``("log", low, high)``, ``("int", low,
-    high)`` or ``("choice", values)``.
-
-    Raises:
-        ConfigError: ``observers`` names no observer, or the config has none.
-    """
-    cc = config.controller
-    names = compensation_names(table="observer")
-    if observers:
-        bad = [o for o in observers if o not in names]
-        if bad or cc.compensation not in names:
-            raise ConfigError(
-                "--observers",
-                f"expected observers of {names} for a config "
-                f"with an observer; got {observers!r} for {cc.label}",
-            )
-    space: dict = {
-        "Q_position": ("log", 1.0, 1e4),
-        "Q_velocity": ("log", 1e-4, 1e2),
-        "R": ("log", 1e-8, 1e-3),
-    }
-    if controller_spec(cc.kind).mpc:
-        space["N"] = ("int", 5, 30)
-    if cc.compensation in names and cc.observer.bandwidth is not None:
-        w0 = _bandwidth_scale(cc)  # the largest joint's; the others keep their ratio to it
-        space["observer_bandwidth"] = ("log", w0 / 10, w0 * 5)
-    elif cc.compensation in names:
-        c0 = cc.observer.gain
-        space["observer_gain"] = ("log", c0 / 10, c0 * 5)
-    if ts:
-        space["Ts"] = ("choice", tuple(float(v) for v in ts))
-    if observers:
-        space["compensation"] = ("choice", tuple(observers))
-    return space
-
-
-def _bandwidth_scale(cc) -> float:
-    """The largest joint bandwidth [1/s] of an observer given by its bandwidth: the
-    parameter ``observer_bandwidth`` a trial proposes (every joint scaled with it)."""
-    return float(np.max(cc.observer.bandwidth))
-
-
-def _own_params(config: ExperimentConfig, space: dict) -> dict:
-    """The config's own values of the parameters of ``space``, not clipped: what trial 0
-    (the config as given) runs, through :func:`apply_params` like every trial."""
-    cc = config.controller
-    own = {
-        "Q_position": float(cc.Q[0, 0]),
-        "Q_velocity": float(cc.Q[1, 1]),
-        "R": float(cc.R),
-        "N": int(cc.N),
-        "Ts": float(cc.Ts),
-        "compensation": cc.compensation,
-        "observer_gain": None if cc.observer is None else cc.observer.gain,
-        "observer_bandwidth": None
-        if cc.observer is None or cc.observer.bandwidth is None
-        else _bandwidth_scale(cc),
-    }
-    return {k: own[k] for k in space}
-
-
-def current_params(config: ExperimentConfig, space: dict) -> dict:
-    """The point of ``space`` nearest the config's own values (``_own_params``): each
-    clipped into its range, the nearest period of ``Ts``, the first observer of
-    ``compensation`` when the config's is not listed. The sampler records trial 0 there
-    (Optuna refuses a value outside the space); the report says where it differs from
-    what ran."""
-    out = {}
-    for name, v in _own_params(config, space).items():
-        spec = space[name]
-        if name == "compensation":
-            out[name] = v if v in spec[1] else spec[1][0]
-        elif spec[0] == "choice":
-            out[name] = min(spec[1], key=lambda c, v=v: abs(c - v))
-        else:
-            out[name] = type(v)(min(max(v, spec[1]), spec[2]))
-    return out
-
-
-def _sampler_record(config: ExperimentConfig, space: dict) -> list[str]:
-    """Where the sampler's record of trial 0 (:func:`current_params`) differs from what it
-    ran (:func:`_own_params`), and ``P = 2Q`` when the config's ``P`` is not: in words."""
-    own, near = _own_params(config, space), current_params(config, space)
-    lines = [f"{k} = {_cell(near[k])} (ran {_cell(own[k])})" for k in space if near[k] != own[k]]
-    cc = config.controller
-    Q = np.diag([cc.Q[0, 0], cc.Q[1, 1]])
-    if not (np.array_equal(cc.Q, Q) and np.array_equal(cc.P, 2 * Q)):
-        lines.append("P = 2Q, diagonal Q like every trial (the config's P or Q differ)")
-    return lines
-
-
-def apply_params(config: ExperimentConfig, params: dict) -> ExperimentConfig:
-    """``config`` with a trial's parameters set (``P = 2Q``; another observer with
-    ``compensation``)."""
-    if "compensation" in params:
-        from ..experiment.build import with_controller
-
-        config = with_controller(config, compensation=params["compensation"])
-    cc = config.controller
-    Q = np.diag([params.get("Q_position", cc.Q[0, 0]), params.get("Q_velocity", cc.Q[1, 1])])
-    new = replace(
-        cc,
-        Q=Q,
-        P=2 * Q,
-        R=float(params.get("R", cc.R)),
-        N=int(params.get("N", cc.N)),
-        Ts=float(params.get("Ts", cc.Ts)),
-    )
-    if "observer_gain" in params:
-        new = replace(new, observer=replace(cc.observer, gain=float(params["observer_gain"])))
-    if "observer_bandwidth" in params:  # every joint scaled: the per-joint shape is kept
-        w = cc.observer.bandwidth * (float(params["observer_bandwidth"]) / _bandwidth_scale(cc))
-        new = replace(new, observer=replace(cc.observer, bandwidth=w))
-    return replace(config, controller=new)
-
-
-def _suggest(trial, space: dict) -> dict:
-    out = {}
-    for name, spec in space.items():
-        if spec[0] == "log":
-            out[name] = trial.suggest_float(name, spec[1], spec[2], log=True)
-        elif spec[0] == "int":
-            out[name] = trial.suggest_int(name, spec[1], spec[2])
-        else:
-            out[name] = trial.suggest_categorical(name, list(spec[1]))
-    return out
-
-
-def run_score(row: dict, error_bound: float, duration: float | None) -> float:
-    """One run's score [rad]: its worst joint's RMS error :math:`e` when bounded;
-    otherwise :math:`\\bar e\\,(1 + \\ell) + \\min(e, 10\\bar e)` with :math:`\\bar e` the
-    error bound and :math:`\\ell` the fraction of the run it did not finish, so that any
-    bounded run ranks before any unbounded one, a later failure before an earlier one,
-    and a smaller error before a larger one."""
-    rms = float(row["rms_max"])
-    if row["bounded"] and np.isfinite(rms):
-        return rms
-    lost = 1.0 - row["t_end"] / duration if duration and "t_end" in row else 0.0
-    rms = min(rms, 10 * error_bound) if np.isfinite(rms) else 10 * error_bound
-    return error_bound * (1.0 + min(max(lost, 0.0), 1.0)) + rms
-
-
-def objective_value(
-    rows: list[dict],
-    error_bound: float,
-    tv0: float | None,
-    saturation_weight: float = SATURATION_WEIGHT,
-    tv_weight: float = TV_WEIGHT,
-    duration: float | None = None,
-) -> tuple[float, dict]:
-    """:math:`J` of a trial's sweep rows (module docstring, each run scored by
-    :func:`run_score`) and its parts."""
-    rms = np.array([run_score(r, error_bound, duration) for r in rows])
-    p95 = float(np.quantile(rms, 0.95, method="inverted_cdf"))
-    sat = float(np.mean([r["saturation"] for r in rows]))
-    tv = float(np.mean([r["torque_tv"] for r in rows]))
-    excess = max(0.0, tv / tv0 - 1.0) if tv0 else 0.0
-    value = p95 * (1.0 + saturation_weight * sat + tv_weight * excess)
-    return value, {
-        "p95_rms": p95,
-        "saturation": sat,
-        "torque_tv": tv,
-        "bounded": float(np.mean([r["bounded"] for r in rows])),
-    }
 
 
 #: Largest seed: Optuna's sampler seeds a NumPy ``RandomState`` (32 bits).
@@ -349,57 +186,6 @@ def _evaluate(config, samples, seed, jobs, executor, scheduler) -> list[dict]:
     return result.rows
 
 
-class _DeferredInterrupt:
-    """Ctrl-C kept away from the study's database writes.
-
-    A ``KeyboardInterrupt`` raised inside an SQLite write of Optuna's storage leaves its
-    transaction open: the next write (the trial marked failed, the report's reads) finds
-    "database is locked" and the command ends with a traceback. While installed (main
-    thread only), SIGINT raises at once inside :meth:`evaluating` (a trial's sweep, which
-    writes nothing), and elsewhere is remembered and raised at the next :meth:`evaluating`
-    or :meth:`check`, between writes.
-    """
-
-    def __init__(self):
-        self.pending = False
-        self._evaluating = False
-        self._previous = None
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-
-    def _raise(self, signum=signal.SIGINT, frame=None) -> None:
-        previous = self._previous
-        if callable(previous) and previous is not signal.default_int_handler:
-            previous(signum, frame)  # the command line's handler: it records, then raises
-        raise KeyboardInterrupt
-
-    def _handler(self, signum, frame) -> None:
-        if self._evaluating:
-            self._raise(signum, frame)
-        self.pending = True
-
-    def check(self) -> None:
-        """Raise :class:`KeyboardInterrupt` when a Ctrl-C was kept back."""
-        if self.pending:
-            self._raise()
-
-    def evaluating(self, fn, *args):
-        """``fn(*args)`` with Ctrl-C raised at once (after one kept back: before it)."""
-        self.check()
-        self._evaluating = True
-        try:
-            return fn(*args)
-        finally:
-            self._evaluating = False
-
-
 @dataclass
 class TuneResult:
     """What ``tune`` wrote and measured.
@@ -472,7 +258,7 @@ def tune(
         executor=executor,
         scheduler=scheduler,
     )
-    with _DeferredInterrupt() as sigint:
+    with DeferredInterrupt() as sigint:
         return _tune(
             optuna, config, out, sigint, trials, samples, seed, jobs, executor, scheduler,
             ts, observers, holdout, holdout_seed, progress, objective,
@@ -484,7 +270,7 @@ def _tune(
     observers, holdout, holdout_seed, progress, objective,
 ) -> TuneResult:  # fmt: skip
     """:func:`tune` once its options are checked, under ``sigint``
-    (:class:`_DeferredInterrupt`)."""
+    (:class:`DeferredInterrupt`)."""
     space = search_space(config, ts, observers)
     name = config.name
     storage = f"sqlite:///{(out / f'{name}_tune.db').resolve()}"
@@ -522,9 +308,9 @@ def _tune(
         )
 
     def run_trial(trial):
-        params = _suggest(trial, space)
+        params = suggest(trial, space)
         if trial.number == 0:  # the config as given, its own values (a Q_velocity of 0 too)
-            params = _own_params(config, space)
+            params = own_params(config, space)
             trial.set_user_attr("ran", params)  # the sampler's record is the nearest point
         value, parts = evaluate(apply_params(config, params))
         if "tv0" not in study.user_attrs and "torque_tv" in parts:  # trial 0: as given
@@ -535,7 +321,7 @@ def _tune(
 
     cluster = None
     if executor == "dask" and scheduler is None and objective is None:
-        cluster = _local_cluster(jobs)  # one cluster for every trial, not one per trial
+        cluster = local_cluster(jobs)  # one cluster for every trial, not one per trial
         scheduler = cluster.scheduler_address
     db = out / f"{name}_tune.db"
     stopped = None  # where Ctrl-C stopped the call, in words
@@ -553,9 +339,9 @@ def _tune(
             )
         if not any(t.state.name == "COMPLETE" for t in study.trials):
             raise RunInterrupted(f"{stopped}: no trial finished, no config written", files=[db])
-        best = _shown_params(study.best_trial, study)
+        best = shown_params(study.best_trial, study)
         tuned = apply_params(config, best)  # what the best trial ran
-        files = [_write_tuned(config, tuned, best, study, out)]
+        files = [write_tuned(config, tuned, best, study, out)]
         if holdout and objective is None and stopped is None:
             try:
                 comparison = {}
@@ -575,39 +361,13 @@ def _tune(
     finally:
         if cluster is not None:
             cluster.close()
-    files += _report(
+    files += write_report(
         config, study, best, out, comparison, samples, seed, holdout, holdout_seed, stopped, space
     )
     files.insert(1, db)
     if stopped is not None:
         raise RunInterrupted(stopped, files=files)
     return TuneResult(study, best, tuned, files, comparison)
-
-
-def _shown_params(trial, study) -> dict:
-    """A trial's parameters as they ran: the config's own for trial 0 (the config as
-    given, recorded by the sampler at the nearest point of its space: :func:`current_params`),
-    else the sampled ones. A study of an earlier version kept trial 0's in the study."""
-    if "ran" in trial.user_attrs:
-        return dict(trial.user_attrs["ran"])
-    if trial.user_attrs.get("as_given") and "as_given" in study.user_attrs:
-        return dict(study.user_attrs["as_given"])
-    return dict(trial.params)
-
-
-def _local_cluster(jobs: int):
-    """A local Dask cluster of ``jobs`` single-threaded worker processes (extra
-    ``cluster``), or the sweep's one-line error naming the extra."""
-    try:
-        from dask.distributed import LocalCluster
-    except ImportError as exc:
-        raise ConfigError(
-            "--executor",
-            "dask needs the optional dependency dask.distributed (extra "
-            f"hmpc_pin[cluster]); install it with `{install_command('cluster')}` or use "
-            "--executor local",
-        ) from exc
-    return LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True)
 
 
 def len_trials(optuna, storage: str, name: str) -> int:
@@ -617,161 +377,6 @@ def len_trials(optuna, storage: str, name: str) -> int:
         return len(optuna.load_study(study_name=name, storage=storage).trials)
     except KeyError:
         return 0
-
-
-def _write_tuned(config, tuned, best, study, out: Path) -> Path:
-    cc = tuned.controller
-
-    def weight(W: np.ndarray) -> list:
-        W = np.asarray(W, dtype=float)
-        return np.diag(W).tolist() if W[0, 1] == 0 and W[1, 0] == 0 else W.tolist()
-
-    table: dict = {
-        "Q": weight(cc.Q),
-        "P": weight(cc.P),
-        "R": float(cc.R),
-        "N": int(cc.N),
-        "Ts": float(cc.Ts),
-    }
-    import tomllib
-
-    raw = tomllib.loads(Path(config.source).read_text(encoding="utf-8"))
-    ctrl = dict(raw.get("controller", {}))
-    ctrl.update(table)
-    if "observer_gain" in best or "observer_bandwidth" in best:
-        obs = dict(ctrl.get("observer", {}))
-        if cc.observer.bandwidth is not None:
-            w = np.atleast_1d(cc.observer.bandwidth)
-            obs["bandwidth"] = float(w[0]) if np.all(w == w[0]) else w.tolist()
-            obs.pop("gain", None)
-        else:
-            obs["gain"] = float(cc.observer.gain)
-        if "compensation" in best:  # the 0.1 keys would contradict it
-            obs.pop("kind", None)
-            obs.pop("enabled", None)
-            ctrl["compensation"] = cc.compensation
-            if len(compensation_spec(cc.compensation).discretizations) == 1:
-                obs.pop("discretization", None)  # its one form (the momentum observer's)
-        ctrl["observer"] = obs
-    path = out / f"{config.name}_tuned.toml"
-    header = (
-        f"{config.name} tuned by `hmpc-pin tune` (trial {study.best_trial.number} of "
-        f"{len(study.trials)}, objective {study.best_value:.4g})\n"
-        f"from {config.source}"
-    )
-    write_config(
-        Path(config.source), {"controller": ctrl}, path, header=header, name=f"{config.name}_tuned"
-    )
-    load_config(path)  # the written config loads
-    return path
-
-
-def _cell(v) -> str:
-    return v if isinstance(v, str) else f"{v:.4g}"
-
-
-def _report(
-    config,
-    study,
-    best,
-    out: Path,
-    comparison,
-    samples,
-    seed,
-    holdout,
-    holdout_seed,
-    stopped: str | None = None,
-    space: dict | None = None,
-):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from optuna.visualization.matplotlib import plot_optimization_history, plot_param_importances
-
-    files = []
-    name = config.name
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # optuna marks its matplotlib backend experimental
-        ax = plot_optimization_history(study)
-        path = out / f"{name}_tune_history.png"
-        ax.figure.savefig(path, dpi=100, bbox_inches="tight")
-        plt.close(ax.figure)
-        files.append(path)
-        done = [t for t in study.trials if t.value is not None]
-        if len(done) >= 2 and len(best) >= 2:
-            try:
-                ax = plot_param_importances(study)
-                path = out / f"{name}_tune_importance.png"
-                ax.figure.savefig(path, dpi=100, bbox_inches="tight")
-                plt.close(ax.figure)
-                files.append(path)
-            except (RuntimeError, ValueError):  # e.g. every trial scored the same
-                pass
-    finished = [t for t in study.trials if t.value is not None]
-    moved = _sampler_record(config, space or {})
-    lines = [
-        f"# Tuning of {name}: {len(study.trials)} trials ({len(finished)} finished)",
-        "",
-        *(
-            [f"Interrupted (Ctrl-C) at {stopped}: the best of the trials that finished.", ""]
-            if stopped
-            else []
-        ),
-        f"Config `{config.source}`; {samples} sweep samples per trial (seed {seed}); "
-        f"objective J = p95 worst-joint RMS × (1 + {SATURATION_WEIGHT:g}·saturation + "
-        f"{TV_WEIGHT:g}·max(0, TV/TV₀ − 1)); trial 0 is the config as given.",
-        "",
-        *(
-            [
-                "Trial 0 ran the config's own values; outside the search space, the sampler "
-                "records it at: " + "; ".join(moved) + ".",
-                "",
-            ]
-            if moved
-            else []
-        ),
-        f"Best: trial {study.best_trial.number}, J = {study.best_value:.4g}: "
-        + ", ".join(f"{k} = {_cell(v)}" for k, v in best.items()),
-        "",
-    ]
-    if comparison:
-        lines += [
-            f"## Held-out comparison: {holdout} other samples (seed {holdout_seed})",
-            "",
-            "p95 over the samples of the worst joint's RMS error [rad]; a run that is not "
-            "bounded scores the error bound b times one plus the fraction it did not "
-            "finish, plus its RMS error (at most 10 b): above any bounded run.",
-            "",
-            "| config | p95 worst RMS [rad] | bounded | saturation | torque TV [N·m/s] |",
-            "|---|---|---|---|---|",
-        ]
-        for label, p in comparison.items():
-            lines.append(
-                f"| {label} | {p['p95_rms']:.4g} | {100 * p['bounded']:.0f} % | "
-                f"{100 * p['saturation']:.2f} % | {p['torque_tv']:.4g} |"
-            )
-        ratio = comparison["shipped"]["p95_rms"] / comparison["tuned"]["p95_rms"]
-        lines += ["", f"Shipped / tuned p95: {ratio:.3g}.", ""]
-    lines += [
-        "## Trials",
-        "",
-        "| trial | J | p95 RMS [rad] | " + " | ".join(best) + " |",
-        "|---|---|---|" + "---|" * len(best),
-    ]
-    for t in study.trials:
-        if t.value is None:
-            continue
-        shown = _shown_params(t, study)
-        vals = " | ".join(_cell(shown.get(k, math.nan)) for k in best)
-        lines.append(
-            f"| {t.number} | {t.value:.4g} | {t.user_attrs.get('p95_rms', math.nan):.4g} | {vals} |"
-        )
-    lines += ["", *(f"![{p.stem}]({p.name})" for p in files), ""]
-    path = out / f"{name}_tune.md"
-    path.write_text("\n".join(lines), encoding="utf-8")
-    return [path, *files]
 
 
 def _periods(text: str) -> tuple[float, ...]:
@@ -829,7 +434,7 @@ def cmd_tune(args, config: ExperimentConfig, out: Path) -> int:
     print(
         f"{config.name}: {len(study.trials)} trials; best trial {study.best_trial.number}, "
         f"J = {study.best_value:.4g}: "
-        + ", ".join(f"{k} = {_cell(v)}" for k, v in result.best.items())
+        + ", ".join(f"{k} = {format_param(v)}" for k, v in result.best.items())
     )
     if result.holdout:
         s, t = result.holdout["shipped"]["p95_rms"], result.holdout["tuned"]["p95_rms"]

@@ -35,7 +35,7 @@ fraction :math:`g_j = T_s\\omega_j/(1 + T_s\\omega_j)` of the way to the residua
 
    with :math:`L_u` the latency not compensated and r the worst plant-to-model inertia
    ratio (1.25: a link 20 % lighter). Measured on a joint with the package's observer
-   (``benchmarks/observer_rule.py``), the largest stable :math:`T_s\\omega` with a PD outer
+   (``benchmarks/studies/observer_rule.py``), the largest stable :math:`T_s\\omega` with a PD outer
    loop (kp = 100, kd = 20) / the paper MPC's equivalent gains (274, 22.7) is 1.26 / 1.0 at
    D = 1 and 0.25 / 0.2 at D = 2 (r = 1.25), where the rule allows 0.2 and 0.13; at D = 3
    with the MPC's gains the rule is no longer conservative (0.032 stable, 0.1 allowed):
@@ -57,7 +57,7 @@ fraction :math:`g_j = T_s\\omega_j/(1 + T_s\\omega_j)` of the way to the residua
    too many (:math:`\\beta = 1`) allows :math:`T_s\\omega < 2/r` (1.6 at r = 1.25); half a
    period (:math:`\\beta = \\tfrac12`) :math:`T_s\\omega < 2/(r - 1)` (8). The package keeps
    half of it, :math:`\\omega (r T_s + 2\\Delta L - 2T_s) \\le 1`
-   (:func:`overdeclared_limit`). Measured with ``python benchmarks/observer_rule.py
+   (:func:`overdeclared_limit`). Measured with ``python benchmarks/studies/observer_rule.py
    --over`` at Ts = 1 ms, the largest stable :math:`T_s\\omega` (r = 1.25, a PD outer
    loop and the paper MPC's equivalent gains alike) is 7.1 at β = ½ and 1.4 at β = 1,
    where the rule allows 4 and 0.8; at Ts = 10 ms the outer loop lowers it to 4.0 / 3.5

@@ -46,7 +46,7 @@ torque held over the last period. Explicit (forward) Euler is available for
 comparison only: it diverges once :math:`T_s c\\,\\lambda_{\\max}(Y M^{-1}) > 2`.
 
 The NDO's update is the compiled core's (``cpp/src/observer.cpp``, :mod:`hmpc_pin.native`), the
-same object the fused control step advances; its numpy version is the test oracle
+same object the compiled control step advances; its numpy version is the test oracle
 (``tests/reference/observers.py``).
 """
 
@@ -170,7 +170,7 @@ class DisturbanceObserver:
     @property
     def estimate(self) -> np.ndarray:
         """The current estimate :math:`\\hat d` [N·m], shape (n,) (read-only view, updated
-        in place by :meth:`update` and by the fused control step)."""
+        in place by :meth:`update` and by the compiled control step)."""
         return self._estimate
 
     def __getstate__(self) -> dict:

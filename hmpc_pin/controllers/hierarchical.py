@@ -449,11 +449,11 @@ class HierarchicalMPC(AppliedTorque):
 
     @property
     def fused(self) -> bool:
-        """Whether the whole step runs without calling Python: the compensation is compiled
-        (the NDO of Eq 13, or none) and so is the model's dynamics. Any other compensation
+        """Whether the whole step runs compiled, without calling Python: the compensation is
+        compiled (the NDO of Eq 13, or none) and so is the model's dynamics. Any other compensation
         (momentum, ISM, a user class) is advanced inside the compiled step too, called
         through its Compensation port (``cpp/include/hmpc/interfaces.hpp``)."""
-        return self._fused
+        return self._all_compiled
 
     def _make_core(self) -> None:
         """The compiled step (``cpp/src/step.cpp``), composed of the compiled components: the
@@ -461,7 +461,7 @@ class HierarchicalMPC(AppliedTorque):
         (the compiled observer itself, or the Python object through its trampoline)."""
         decoded = step_compensation(self.compensation)
         port = decoded.port
-        self._fused = decoded.compiled and not self._python_dynamics
+        self._all_compiled = decoded.compiled and not self._python_dynamics
         self._port = port
         model = None if self._python_dynamics else model_string(self.robot)
         core = load_native().HMPCCore(
@@ -611,20 +611,21 @@ class HierarchicalMPC(AppliedTorque):
         state (:class:`~hmpc_pin.realtime.loop.LoopSettings` ``warm_up``): a step after a
         sleep otherwise starts on caches other processes have used. Restored afterwards:
         v, τ, d̂, M, C q̇ + G, the horizon stack and solution, the slacks, the QPs' counters
-        and the compiled observer's state. ProxSuite's own warm start keeps this step's
-        solution (a solution of a neighbouring problem; each solve still converges to the
-        solver's tolerance). The compiled step's own carry-over (the joint-dynamics torque,
-        the latency's torque histories) is restored too. Does nothing before the first
+        and the compiled observer's state, the QPs' memory (ProxSuite's warm starts, the
+        active sets the shortcuts remembered), so that the next step's answers are, bit for
+        bit, those without this call. The compiled step's own carry-over (the joint-dynamics
+        torque, the latency's torque histories) is restored too. Does nothing before the first
         :meth:`step` after :meth:`reset`, or with a compensation advanced from Python (its
         state is its own). Errors of the dry step are dropped: the real step reports them.
         """
-        if not (self._started and self._fused):
+        if not (self._started and self._all_compiled):
             return
         ndo = self._port
         data = copy.copy(self._data)  # the step's memory (a copy of the StepData)
         core = self.qps._core
         solution = core.state  # the QPs' solution and slacks (copies)
         counters = copy.copy(core.stats)  # the QPs' counters (JointQPsStats)
+        memory = core.save_memory()  # warm starts, remembered active sets
         ndo_state = ndo.state if ndo is not None else None
         step_core = self._core
         # copies, independent of the compiled step's own vectors
@@ -644,6 +645,7 @@ class HierarchicalMPC(AppliedTorque):
             self._data.assign(data)
             core.state = solution
             core.stats = counters
+            core.restore_memory(memory)
             step_core.state = carried
             if ndo is not None:
                 ndo.state = ndo_state

@@ -17,7 +17,7 @@ import numpy as np
 from ..compensation.gate import FeedbackGate
 from ..exceptions import ConfigError
 from ..native import load as load_native
-from ..native import replaced
+from ..native import loop_port, replaced
 from .base import ControllerWrapper
 
 __all__ = ["CollisionReaction", "FrictionFeedforward", "MeasuredController", "TimedController"]
@@ -153,8 +153,7 @@ class MeasuredController(ControllerWrapper):
         replaced: the loop then calls this object's ``step``)."""
         if replaced(self, MeasuredController, "step", "reset"):
             return None
-        inner = getattr(self.controller, "loop_port", None)
-        port = inner(reference) if callable(inner) else None
+        port = loop_port(self.controller, reference)
         if port is not None:
             port.set_measurement(self.measurement)
         return port

@@ -36,7 +36,7 @@ from ..exceptions import (
     SimulationError,
     ValidityWarning,
 )
-from ..identification.friction import ObserverModel
+from ..identification.observer_model import ObserverModel
 from ..model.robot import Robot, load_robot
 from ..realtime.loop import LoopSettings
 from ..realtime.safety import SafeTorque, SafetySettings, brake_time_constant

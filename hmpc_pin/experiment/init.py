@@ -55,10 +55,8 @@ and writes a commented TOML experiment that runs as written:
 
 from __future__ import annotations
 
-import json
 import math
 import re
-import textwrap
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -71,16 +69,29 @@ from ..compensation.observers import DEFAULT_DESIGN, DEFAULT_GAIN, general_gain_
 from ..data import robot_path
 from ..exceptions import ConfigError, OutputError, SimulationError, URDFError, ValidityWarning
 from ..identification.friction import PULSE_SIGMAS
-from ..model.robot import (
-    Robot,
-    check_urdf,
-    damping_time_constants,
-    example_robot_srdf,
-    example_robot_urdf,
-    load_robot,
-    urdf_mimics,
-)
+from ..model.catalogue import example_robot_srdf, example_robot_urdf
+from ..model.robot import Robot, damping_time_constants, load_robot, urdf_mimics
+from ..model.urdf_checks import check_urdf
 from .config.workspace import WorkspaceConfig
+from .init_choices import (  # noqa: F401  (every name importable from here, as before)
+    AMPLITUDE,
+    AMPLITUDE_SCALES,
+    BANDWIDTH_PERIODS,
+    FREQUENCY,
+    LATENCY,
+    LOCK_PATTERN,
+    MODEL_AT_LINES,
+    PERIODS,
+    PLANT_STEPS,
+    POSTURES,
+    PULSE_CENTER,
+    PULSE_SIGMA,
+    TRIAL,
+    TRIAL_RMS,
+    ZOH_GAIN_MAX,
+    ZOH_X_MAX,
+)
+from .init_text import render, vec
 from .plants import DAMPING_STEP_LIMIT, damping_rates
 from .posture import HOLD, PATH_SAMPLES, SLACK, _gravity_along, _hold_gravity, place
 from .posture import path as sine_path
@@ -95,48 +106,6 @@ __all__ = [
     "plan",
     "write_config",
 ]
-
-#: The RK4 plant steps ``init`` chooses from [s] (the first that suits the URDF damping).
-PLANT_STEPS = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5)
-#: The general observer's bandwidth ``init`` writes, times Ts (Ts·ω = 10).
-BANDWIDTH_PERIODS = 10.0
-#: The observer's model at the start of the period (the state the held torque was computed
-#: from): its estimate is then the correction Eq (4) needs for the next period.
-MODEL_AT_LINES = [
-    'model_at = "start"                 # M, C dq + G where the held torque was computed',
-    "                                   # (guide: Joint dynamics, the observer's model)",
-]
-
-#: The measurement latency ``init`` declares [s]: one cycle of a 1 kHz interface.
-LATENCY = 0.001
-
-#: Joints locked by ``init`` (case-insensitive search in the joint name).
-LOCK_PATTERN = re.compile(
-    r"finger|gripper|hand|thumb|index|middle|ring|little|pinky|palm|jaw|claw|knuckle|wheel|caster"
-    r"|suspension",
-    re.IGNORECASE,
-)
-#: Reference postures looked for in an SRDF, in order, after the loader's own.
-POSTURES = ("default", "half_sitting", "ready", "home", "standing", "arm_up", "neutral")
-AMPLITUDE = {"revolute": 0.3, "prismatic": 0.05}  # [rad], [m]
-#: The first torque pulse's centre [s] (joint j's at PULSE_CENTER + j mod 9) and the
-#: pulses' standard deviation [s].
-PULSE_CENTER, PULSE_SIGMA = 1.0, 0.3
-FREQUENCY = 0.1  # [Hz]
-#: Amplitude scales tried, in order, until gravity along the sine fits the effort limits.
-AMPLITUDE_SCALES = (1.0, 0.5, 0.25)
-#: Control periods tried, in order [s].
-PERIODS = (0.01, 0.005, 0.002)
-#: The largest zero-order-hold gain g = x/(1 − e^−x), x = Ts/T_j, a damped joint may need
-#: at the chosen Ts (g = 2 at x = 1.594): the period's torque correction for the damping
-#: is then at most the inertial torque itself (module docstring, "Control period").
-ZOH_GAIN_MAX = 2.0
-#: x at which g(x) = :data:`ZOH_GAIN_MAX` (by bisection; a test checks it).
-ZOH_X_MAX = 1.5936242600400397
-#: The trial run's pass mark, RMS error over its second half [rad or m].
-TRIAL_RMS = 2.5e-3
-#: The trial run's length [s].
-TRIAL = 2.0
 
 
 def _resolve(source: str | Path) -> tuple[Path, tuple[str, str], str | None]:
@@ -469,7 +438,7 @@ class InitPlan:
             self.robot.source,
             "no posture found whose sine (amplitude down to "
             f"{AMPLITUDE_SCALES[-1]:g} x) keeps every link {s.margin:g} m above the mounting "
-            f"plane (height {s.height:g} m, normal {_vec(s.normal)}) and clear of the others "
+            f"plane (height {s.height:g} m, normal {vec(s.normal)}) and clear of the others "
             f"within the effort limits; the best found puts {what}; if the arm is mounted "
             "higher than its root link (a humanoid's or a mobile base's arm), pass "
             "--plane-height (the plane's height in the URDF's root frame, negative below it)",
@@ -525,7 +494,7 @@ class InitPlan:
     def text(self, duration: float | None = None) -> str:
         """The TOML text (:func:`init_config`; ``duration`` [s] default
         :attr:`identify_duration`)."""
-        return _render(self, self.identify_duration if duration is None else duration)
+        return render(self, self.identify_duration if duration is None else duration)
 
     @property
     def identify_after(self) -> float:
@@ -541,88 +510,6 @@ class InitPlan:
         pulses over (:attr:`identify_after`), then a whole period of the sine, in which
         every joint moves both ways at its peak speed (whole seconds, rounded up)."""
         return float(math.ceil(self.identify_after + 1.0 / self.frequency - 1e-9))
-
-
-def _identify_lines(p: InitPlan, duration: float) -> list[str]:
-    """What a run needs for ``hmpc-pin identify`` to fit the friction, as comments."""
-    need, after = p.identify_duration, p.identify_after
-    stem = re.sub(r"[^A-Za-z0-9_]+", "_", p.name)
-    longer = f" --duration {need:g}" if duration < need else ""
-    return [
-        f"# Friction identification (hmpc-pin identify) needs {need:g} s"
-        + (f", longer than this run's {duration:g} s" if longer else "")
-        + ": the pulses",
-        f"# are over at {after:.3g} s, then a period of the sine moves every joint both ways:",
-        f"#   hmpc-pin run FILE{longer} --out out; hmpc-pin identify out/{stem}_init.npz "
-        f"--after {after:.3g}",
-    ]
-
-
-def _workspace_lines(p: InitPlan) -> list[str]:
-    """The ``[workspace]`` table init placed the sine in (nothing without collision
-    geometry)."""
-    ws = p.workspace
-    if ws is None:
-        return []
-    scan = ws.scan(sine_path(p.offset, p.amplitude, 4 * PATH_SAMPLES - 3))
-    low = min(scan.clearance.items(), key=lambda kv: kv[1], default=None)
-    s = p.workspace_settings
-    lines = [
-        "[workspace]",
-        "# The plane the arm is mounted on (its table), in the URDF's root frame: along the",
-        "# whole sine every moving link's collision geometry keeps `margin` above it and",
-        "# clear of the other links"
-        + (" (pairs the SRDF disables excepted)" if ws.srdf is not None else "")
-        + "; `hmpc-pin check` flags a reference that does not.",
-    ]
-    if p.plane_note:
-        note = p.plane_note[0].upper() + p.plane_note[1:] + "."
-        lines += textwrap.wrap(note, 86, initial_indent="# ", subsequent_indent="# ")
-    if low is not None:
-        lines.append(f"# Lowest along the sine: {low[0]} at {low[1]:.3g} m above the plane.")
-    pairs = []
-    if s.allowed_pairs:
-        listed = ", ".join(f"[{json.dumps(a)}, {json.dumps(b)}]" for a, b in s.allowed_pairs)
-        pairs = [
-            "# Links touching at the reference posture: taken as touching by design (as",
-            "# MoveIt's setup assistant disables them), not checked.",
-            f"allowed_pairs = [{listed}]",
-        ]
-    return [
-        *lines,
-        f"height = {s.height:g}                       # [m]",
-        f"normal = {_vec(s.normal)}",
-        f"margin = {s.margin:g}                    # [m]",
-        *([] if s.self_collision else ["self_collision = false"]),
-        *pairs,
-        "",
-    ]
-
-
-def _plant_lines(p: InitPlan) -> list[str]:
-    """The ``[plant]`` table when the URDF's joint damping needs it (else nothing)."""
-    if p.joint_dynamics and p.plant_dt == PLANT_STEPS[0]:
-        return []
-    tau = 1.0 / p.damping_rate
-    if p.joint_dynamics:
-        return [
-            "[plant]",
-            f"# The URDF's joint damping (time constant down to {tau:.3g} s) needs a short",
-            "# step of the RK4 plant.",
-            f"dt = {p.plant_dt:g}",
-            "",
-        ]
-    return [
-        "[plant]",
-        f"# The URDF's joint damping (time constant down to {tau:.3g} s) is too stiff for",
-        f"# the RK4 plant even at dt = {PLANT_STEPS[-1]:g} s: the simulated arm leaves it out.",
-        "joint_dynamics = false",
-        "",
-    ]
-
-
-def _vec(values, digits: int = 4) -> str:
-    return "[" + ", ".join(f"{round(float(v), digits):g}" for v in values) + "]"
 
 
 def init_config(
@@ -651,155 +538,6 @@ def init_config(
     p = InitPlan(source, workspace, plane_given)
     p.trial()
     return p.text(duration)
-
-
-def _render(p: InitPlan, duration: float) -> str:
-    robot = p.robot
-    n = robot.nq
-    key, value = p.source
-    stem = re.sub(r"[^A-Za-z0-9_]+", "_", p.name)
-    kinds = sorted(set(robot.joint_kinds))
-    unit = " / ".join({"revolute": "rad", "prismatic": "m"}[k] for k in kinds)
-    lines = [
-        f"# {p.name}: written by `hmpc-pin init` (hmpc_pin.experiment.init). Every joint",
-        f"# tracks a sine around the reference posture ({p.posture_source})",
-        "# under inertia-scaled friction and torque pulses; the URDF limits are soft state",
-        "# constraints of every joint's MPC, the URDF effort limits saturate the plant.",
-    ]
-    lines += textwrap.wrap(
-        f"Controlled ({n}): {', '.join(robot.joint_names)}",
-        88,
-        initial_indent="# ",
-        subsequent_indent="#   ",
-    )
-    if robot.continuous_joints:
-        lines += textwrap.wrap(
-            "Continuous joints (revolute, no position limit, the angle does not wrap): "
-            + ", ".join(robot.continuous_joints),
-            88,
-            initial_indent="# ",
-            subsequent_indent="#   ",
-        )
-    if robot.mimic_joints:
-        lines += textwrap.wrap(
-            "Mimic joints (follow their leader, not controlled on their own): "
-            + ", ".join(f"{f} = {m:g}*{j} + {o:g}" for f, (j, m, o) in robot.mimic_joints.items()),
-            88,
-            initial_indent="# ",
-            subsequent_indent="#   ",
-        )
-    lines += [
-        f'name = "{stem}_init"',
-        f'description = "{p.name}, {n} joints: sine around the reference posture (hmpc-pin init)"',
-        "",
-        "[robot]",
-        f'{key} = "{value}"',
-        "gravity = 9.81",
-    ]
-    if p.locked:
-        lines += [
-            "",
-            "# Gripper, finger, hand and wheel joints are locked at the reference posture",
-            "# (not controlled; their mass still loads the arm). Delete a line to control",
-            "# that joint (a mimic follower goes with its leader).",
-            "[robot.locked_joints]",
-            *(f'"{j}" = {round(v, 6):g}' for j, v in p.locked.items()),
-        ]
-    lines += ["", "[controller]"]
-    damped = p.periods() != PERIODS
-    if damped:
-        x = p.Ts / p.damping_tau
-        lines += [
-            f"# The URDF damping of {p.damped_joint!r} (time constant {1e3 * p.damping_tau:.3g} "
-            "ms): periods up to",
-            f"# {1e3 * ZOH_X_MAX * p.damping_tau:.3g} ms keep its zero-order-hold gain "
-            f"x/(1 - e^-x), x = Ts/T, within {ZOH_GAIN_MAX:g}",
-            f"# (here x = {x:.3g}); "
-            + (
-                "the shortest period offered."
-                if p.Ts == PERIODS[-1] and x > ZOH_X_MAX
-                else "the longest such period that tracks."
-            ),
-        ]
-    elif p.Ts != 0.01:
-        lines += [
-            "# 10 ms (the paper's) tracks worse than 2.5e-3 rad on this arm in a 2 s trial:",
-            "# the torque is held over a period while M(q) changes (error ~ Ts^3).",
-        ]
-    lines += [f"Ts = {p.Ts:g}", "N = 10", "Nc = 1"]
-    if not p.joint_dynamics:
-        lines += [
-            "# The URDF's joint damping is too stiff to simulate (see [plant]); on the real",
-            "# arm, which applies it, set this to true (the default) to compensate it.",
-            "joint_dynamics = false",
-        ]
-    if np.any(p.v_max < 100.0):
-        lines += [
-            "# Acceleration bounds [rad/s² or m/s²] the URDF effort limits can pay for at the",
-            "# offset posture (sum_k |M_jk| v_k + |G_j| <= 0.9 effort_j; at most the paper's 100)",
-            f"v_min = {_vec(-p.v_max, 2)}",
-            f"v_max = {_vec(p.v_max, 2)}",
-        ]
-    if p.compensation == "chen":
-        lines += [
-            'compensation = "chen"              # planar serial chain: the paper\'s NDO',
-            "",
-            "[controller.observer]",
-            f"gain = {DEFAULT_GAIN}",
-            *MODEL_AT_LINES,
-        ]
-    else:
-        lines += [
-            'compensation = "general"           # valid on any arm (Chen\'s Y only on planar',
-            "                                   # chains)",
-            f"latency = {LATENCY:g}                    # [s] age of the measurements: one 1 kHz "
-            "cycle;",
-            "                                   # set your driver's (guide: Sensing and latency)",
-            "",
-            "[controller.observer]",
-            f"bandwidth = {p.bandwidth:g}                 # [1/s] per joint: Ts x bandwidth = "
-            f"{p.Ts * p.bandwidth:.3g}",
-            *MODEL_AT_LINES,
-        ]
-    if not p.position_limits:
-        lines += [
-            "",
-            "[controller.constraints]",
-            f"# The URDF gives {', '.join(p.bad_ranges)} a zero or inverted position range,",
-            "# i.e. no usable limits: none are imposed.",
-            "position = false",
-        ]
-    lines += [
-        "",
-        *_plant_lines(p),
-        *_workspace_lines(p),
-        "[reference]",
-        'kind = "sine"',
-        f"amplitude = {_vec(p.amplitude)}     # [{unit}]",
-        f"frequency = {p.frequency:.4g}                  # [Hz], peak speed <= half the URDF "
-        "velocity limits",
-        f"offset = {_vec(p.offset)}",
-        "",
-        "[disturbance]",
-        'scale = "inertia"                  # coefficients x M_ii(q0)',
-        "",
-        "[disturbance.friction]",
-        "viscous = 2.0",
-        "coulomb = 0.5",
-        "",
-        "[disturbance.pulse]",
-        "amplitude = 1.0",
-        f"center = {_vec([PULSE_CENTER + (j % 9) for j in range(n)])}",
-        f"sigma = {PULSE_SIGMA:g}",
-        "",
-        "[simulation]",
-        *_identify_lines(p, duration),
-        f"duration = {duration:g}",
-        "# Start on the reference: position r(0) (the default) and velocity dr/dt(0).",
-        f"dq0 = {_vec(2 * np.pi * p.frequency * p.amplitude, 6)}",
-        "",
-    ]
-    return "\n".join(lines)
 
 
 def write_config(

@@ -14,7 +14,7 @@ from ..exceptions import (
 from ..model.robot import Robot, damping_time_constants
 from ..sim.disturbances import CoulombViscousFriction, Disturbance, GaussianPulse, ZeroDisturbance
 from ..sim.engines import engine_spec
-from ..sim.mujoco import MuJoCoSettings, Obstacle
+from ..sim.mujoco_settings import MuJoCoSettings, Obstacle
 from ..sim.plants import PLANTS, Plant, RK4Plant, choose_step
 from .config import (
     ExperimentConfig,
@@ -52,7 +52,7 @@ def plant_effort_limit(config: ExperimentConfig, plant: Robot) -> np.ndarray | N
 
 
 def mujoco_settings(pc: PlantConfig, n: int) -> MuJoCoSettings:
-    """:class:`~hmpc_pin.sim.mujoco.MuJoCoSettings` of ``[plant.mujoco]`` for ``n`` joints."""
+    """:class:`.MuJoCoSettings` of ``[plant.mujoco]`` for ``n`` joints."""
     mc = pc.mujoco
     if mc is None:
         raise ConfigError("plant.mujoco", "only with plant.engine = 'mujoco'")

@@ -21,8 +21,8 @@ Two measurements of :math:`f` are offered (``source``):
   :math:`b\\,\\mathrm{sgn}\\,0 = 0`, and the observer carries it on after the joint
   moves again. So the stuck intervals (the measured velocity within its noise band for a
   period or more, :func:`stuck_samples`) are left out, and with them
-  :data:`SETTLING_TIME_CONSTANTS` time constants of the observer that ran after each
-  (:meth:`ObserverModel.time_constant`; every joint's samples for the NDO, whose
+  :data:`.SETTLING_TIME_CONSTANTS` time constants of the observer that ran after each
+  (:meth:`.ObserverModel.time_constant`; every joint's samples for the NDO, whose
   :math:`L = cYM^{-1}` couples the joints, that joint's alone for the momentum observer).
 * ``"dynamics"``: the rigid-body model's inverse dynamics over each control period,
   :math:`f_k = \\tau_k - [M(\\bar q)\\,\\ddot q_k + C(\\bar q, \\bar{\\dot q})\\bar{\\dot q} +
@@ -55,18 +55,17 @@ column-normalised :math:`A` has a condition number <= ``max_condition``. Otherwi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from ..compensation.registry import compensation_names, compensation_spec
-from ..controllers.hierarchical import MODEL_AT, MPCSettings
 from ..exceptions import ConfigError, ExcitationError
 from ..sim.result import Result
-
-if TYPE_CHECKING:
-    from ..model.robot import Robot
+from .friction_fit import (
+    MIN_DEGREES_OF_FREEDOM,
+    SETTLING_TIME_CONSTANTS,
+    FrictionFit,
+    JointFriction,
+)
+from .observer_model import ObserverModel
 
 __all__ = [
     "PULSE_SIGMAS",
@@ -86,221 +85,9 @@ __all__ = [
 PULSE_SIGMAS = 4.0
 #: Measurements of the friction torque a fit can use.
 SOURCES = ("observer", "dynamics", "regressor")
-#: Fewest degrees of freedom :math:`m_e - p` of an interval: below it the residual is so
-#: correlated (:math:`m_e` so small) that the AR(1) correction, itself estimated from the
-#: residual, cannot be trusted, and no interval is given (NaN, printed "n/a").
-MIN_DEGREES_OF_FREEDOM = 10
-#: Observer time constants left out after a joint was stuck (the observer source): the
-#: holding torque the friction law does not hold leaves the observer's estimate as
-#: :math:`e^{-t/\tau}`, below :math:`e^{-5} < 1\,\%` of itself after five.
-SETTLING_TIME_CONSTANTS = 5.0
 #: A joint is stuck where its measured velocity stays within this many noise deviations
 #: :math:`\hat\sigma_v` (or within ``velocity_threshold``, the larger) for a period or more.
 STUCK_NOISE_DEVIATIONS = 4.0
-
-
-@dataclass(frozen=True)
-class JointFriction:
-    """The friction fit of one joint.
-
-    Attributes:
-        name: The joint.
-        viscous: :math:`\\hat a` [N·m·s/rad]. coulomb: :math:`\\hat b` [N·m].
-        viscous_ci, coulomb_ci: Their confidence intervals (low, high); NaN when the
-            residual leaves too few effective samples (:data:`MIN_DEGREES_OF_FREEDOM`).
-        residual_rms: RMS of the fit's residual [N·m].
-        samples: Samples used, :math:`m`. effective_samples: :math:`m_e` (AR(1)).
-        condition: Condition number of the column-normalised regressor.
-        coverage: Fractions of the samples moving forward and backward (> v_0, < -v_0).
-    """
-
-    name: str
-    viscous: float
-    coulomb: float
-    viscous_ci: tuple[float, float]
-    coulomb_ci: tuple[float, float]
-    residual_rms: float
-    samples: int
-    effective_samples: float
-    condition: float
-    coverage: tuple[float, float]
-
-    @property
-    def has_interval(self) -> bool:
-        """Whether the intervals are given (enough effective samples)."""
-        return bool(np.all(np.isfinite(self.viscous_ci + self.coulomb_ci)))
-
-
-def _ci(value: float, ci: tuple[float, float], digits: int) -> str:
-    if not np.all(np.isfinite(ci)):
-        return f"{value:.{digits}g} [n/a]"
-    return f"{value:.{digits}g} [{ci[0]:.{digits}g}, {ci[1]:.{digits}g}]"
-
-
-@dataclass(frozen=True)
-class FrictionFit:
-    """Friction fitted for every joint of a run.
-
-    Attributes:
-        joints: One :class:`JointFriction` per joint.
-        source: ``"observer"`` or ``"dynamics"``.
-        confidence: Level of the intervals (e.g. 0.95).
-        run: The run it was fitted from (file or config name), for the TOML comment.
-        excluded: Samples left out because a recorded column used by the fit (q, q̇,
-            τ, :math:`\\hat d`) is NaN or infinite there (the observer source: and the
-            observer's start-up, ``after``, once its filter starts again after each gap).
-        unmodelled: The disturbances besides friction the run is known to have had within
-            the samples fitted (its config's ``[disturbance.pulse]``), in words, or ``""``:
-            named as the cause of a missing interval.
-        unmodelled_until: The time after which those disturbances are negligible [s]
-            (the ``--after`` that leaves them out; 0 when not known).
-        stuck: Samples left out (of those the fit would use) because a joint was stuck
-            there, or the observer was still settling after it (the observer source).
-        stuck_joints: The joints found stuck (:func:`stuck_samples`).
-        settling: Time left out after each stuck interval [s]:
-            :data:`SETTLING_TIME_CONSTANTS` × ``time_constant``.
-        time_constant: The slowest time constant of the observer that ran [s]
-            (:meth:`ObserverModel.time_constant`), 0 when not known.
-    """
-
-    joints: tuple[JointFriction, ...]
-    source: str
-    confidence: float
-    run: str = ""
-    excluded: int = 0
-    unmodelled: str = ""
-    stuck: int = 0
-    stuck_joints: tuple[str, ...] = ()
-    settling: float = 0.0
-    time_constant: float = 0.0
-    unmodelled_until: float = 0.0
-
-    def impossible(self) -> list[tuple[str, str, float]]:
-        """The coefficients no friction can have, (joint, ``"viscous"`` or ``"Coulomb"``,
-        fitted value): a negative :math:`\\hat a` or :math:`\\hat b` would feed energy in
-        where friction takes it out. :meth:`toml` leaves them out (0: nothing fed forward)."""
-        return [
-            (j.name, term, value)
-            for j in self.joints
-            for term, value in (("viscous", j.viscous), ("Coulomb", j.coulomb))
-            if value < 0
-        ]
-
-    def notes(self) -> list[str]:
-        """Why an interval is missing, and what was left out (one sentence each)."""
-        out = []
-        short = [j for j in self.joints if not j.has_interval]
-        if short:
-            names = ", ".join(f"{j.name} (m_e = {j.effective_samples:.1f})" for j in short)
-            out.append(
-                f"no confidence interval for {names}: the residual is so correlated that "
-                "its effective samples m_e = m(1-rho)/(1+rho) (rho: lag-1 autocorrelation) "
-                f"leave fewer than {MIN_DEGREES_OF_FREEDOM} degrees of freedom "
-                + (
-                    f"(the run had {self.unmodelled}, which the friction model does not "
-                    "hold); fit a run without them, or pass "
-                    + (
-                        f"--after {self.unmodelled_until:.3g} (past them)"
-                        if self.unmodelled_until > 0
-                        else "--after past them"
-                    )
-                    if self.unmodelled
-                    else "(a disturbance the friction model does not hold, or the observer's "
-                    "lag); record a longer run"
-                )
-                + (", or try --source dynamics" if self.source == "observer" else "")
-            )
-        if self.stuck:
-            out.append(
-                f"{self.stuck} samples left out where {', '.join(self.stuck_joints)} stuck "
-                "(the measured velocity within its noise band for a period or more: the "
-                "friction there is a holding torque within +/- the Coulomb level, which "
-                "the law a q̇ + b sgn q̇ does not hold)"
-                + (
-                    f" and for {self.settling:.3g} s after each, the observer's settling "
-                    f"({SETTLING_TIME_CONSTANTS:g} x its time constant "
-                    f"{self.time_constant:.3g} s)"
-                    if self.settling > 0
-                    else ""
-                )
-            )
-        if self.excluded:
-            out.append(
-                f"{self.excluded} samples left out: NaN or inf in a recorded column"
-                + (
-                    " (and, after each such gap, the observer's start-up, --after)"
-                    if self.source == "observer"
-                    else ""
-                )
-            )
-        bad = self.impossible()
-        if bad:
-            listed = ", ".join(f"{name}'s {term} {value:.4g}" for name, term, value in bad)
-            out.append(
-                f"left out (0 written, nothing fed forward): {listed}; a negative friction "
-                "coefficient would feed energy in, which no friction does: the fit holds "
-                "something else"
-                + (
-                    f" ({self.unmodelled}: pass --after {self.unmodelled_until:.3g})"
-                    if self.unmodelled and self.unmodelled_until > 0
-                    else " (a disturbance the friction model does not hold, too little "
-                    "motion, or a wrong model); check the run"
-                )
-            )
-        return out
-
-    @property
-    def viscous(self) -> np.ndarray:
-        """:math:`\\hat a` per joint [N·m·s/rad]."""
-        return np.array([j.viscous for j in self.joints])
-
-    @property
-    def coulomb(self) -> np.ndarray:
-        """:math:`\\hat b` per joint [N·m]."""
-        return np.array([j.coulomb for j in self.joints])
-
-    def table(self) -> str:
-        """A Markdown table: coefficient, interval, residual, samples, condition, coverage."""
-        pct = f"{100 * self.confidence:g} %"
-        lines = [
-            f"| joint | viscous [N·m·s/rad] ({pct} CI) | Coulomb [N·m] ({pct} CI) | "
-            "residual RMS [N·m] | samples (effective) | cond | moving +/- |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        for j in self.joints:
-            lines.append(
-                f"| {j.name} | {_ci(j.viscous, j.viscous_ci, 4)} "
-                f"| {_ci(j.coulomb, j.coulomb_ci, 4)} | {j.residual_rms:.3g} | "
-                f"{j.samples} ({j.effective_samples:.0f}) | "
-                f"{j.condition:.3g} | {100 * j.coverage[0]:.0f} % / {100 * j.coverage[1]:.0f} % |"
-            )
-        return "\n".join(lines + [f"note: {n}" for n in self.notes()])
-
-    def toml(self) -> str:
-        """The ``[controller.friction]`` table (feed-forward friction compensation) with
-        the intervals as comments; paste it into a config (or merge it with
-        ``hmpc-pin identify --config``). A negative coefficient (:meth:`impossible`) is
-        written as 0, and a note says why."""
-        pct = f"{100 * self.confidence:g} %"
-        names = ", ".join(j.name for j in self.joints)
-        lines = [
-            f"# Friction identified by `hmpc-pin identify` from {self.run or 'a run'} "
-            f"(source: {self.source}); joints: {names}",
-            f"# {pct} confidence intervals and fit residual per joint:",
-        ]
-        for j in self.joints:
-            lines.append(
-                f"#   {j.name}: viscous {_ci(j.viscous, j.viscous_ci, 6)} N·m·s/rad, Coulomb "
-                f"{_ci(j.coulomb, j.coulomb_ci, 6)} N·m, residual RMS {j.residual_rms:.3g} N·m"
-            )
-        lines += [f"# note: {n}" for n in self.notes()]
-        viscous, coulomb = np.maximum(self.viscous, 0.0), np.maximum(self.coulomb, 0.0)
-        lines += [
-            "[controller.friction]",
-            f"viscous = [{', '.join(f'{v:.6g}' for v in viscous)}]   # [N·m·s/rad]",
-            f"coulomb = [{', '.join(f'{v:.6g}' for v in coulomb)}]   # [N·m]",
-        ]
-        return "\n".join(lines) + "\n"
 
 
 def coverage(dq: np.ndarray, velocity_threshold: float) -> tuple[float, float]:
@@ -428,213 +215,6 @@ def _joint(name, theta, half, r, m_eff, cond, cover) -> JointFriction:
         condition=cond,
         coverage=cover,
     )
-
-
-@dataclass(frozen=True)
-class ObserverModel:
-    """The observer whose estimate is fitted: its error dynamics
-    :math:`\\dot{\\hat d} = L(q)\\,(d - \\hat d)` (exact for any :math:`d`,
-    :mod:`hmpc_pin.compensation.observers`), with :math:`L = cY\\,M(q)^{-1}` (the NDO of
-    Eq 13/30: ``"chen"``, ``"general"``, or any matrix :math:`cY`, e.g. of a bandwidth)
-    or :math:`L = \\mathrm{diag}(K_O)` (``"momentum"``), discretised as the observer is.
-
-    Attributes:
-        kind: ``"chen"``, ``"general"`` or ``"momentum"``.
-        gain: :math:`c` [1/s·(kg·m²)] (``matrix`` unset) or :math:`K_O` [1/s], one value or
-            one per joint (momentum).
-        Ts: The control period [s].
-        robot: The arm's :class:`~hmpc_pin.model.robot.Robot` (for :math:`M(q)`).
-        implicit: Backward (``True``) or forward Euler (the NDO; the momentum observer is
-            always semi-implicit).
-        matrix: The NDO's :math:`cY` itself, (n, n) (overrides ``gain`` × the kind's
-            :math:`Y`): what a bandwidth observer runs with.
-        model_at: ``"end"``: :math:`M` at the period's end state :math:`q_k`;
-            ``"start"``: at :math:`q_{k-1}` (``[controller.observer] model_at``).
-    """
-
-    kind: str
-    gain: float | np.ndarray
-    Ts: float
-    robot: Robot | None = None
-    implicit: bool = True
-    matrix: np.ndarray | None = None
-    model_at: str = MPCSettings.model_at
-
-    @classmethod
-    def of(
-        cls, compensation, robot=None, model_at: str = MPCSettings.model_at
-    ) -> ObserverModel | None:
-        """The model of a built observer (the object that runs, not its config), or
-        ``None`` when ``compensation`` is no observer. A feedback gate
-        (:class:`~hmpc_pin.compensation.gate.FeedbackGate`) is looked through."""
-        from ..compensation.observers import DisturbanceObserver, MomentumObserver
-
-        while hasattr(compensation, "inner"):
-            compensation = compensation.inner
-        if isinstance(compensation, DisturbanceObserver):
-            return cls(
-                "general",
-                1.0,
-                compensation.Ts,
-                robot,
-                compensation.discretization == "implicit",
-                np.array(compensation.cY, dtype=float),
-                model_at,
-            )
-        if isinstance(compensation, MomentumObserver):
-            return cls(
-                "momentum",
-                np.array(compensation.K, dtype=float),
-                compensation.Ts,
-                robot,
-                True,
-                None,
-                model_at,
-            )
-        return None
-
-    def record(self) -> dict:
-        """The JSON record a run keeps in ``meta["observer_model"]`` (:meth:`from_record`
-        reads it back)."""
-        out: dict = {
-            "kind": self.kind,
-            "Ts": float(self.Ts),
-            "model_at": self.model_at,
-            "discretization": "implicit" if self.implicit else "explicit",
-        }
-        if self.matrix is not None:
-            out["matrix"] = np.asarray(self.matrix, dtype=float).tolist()
-        else:
-            out["gain"] = np.asarray(self.gain, dtype=float).tolist()
-        return out
-
-    @classmethod
-    def from_record(cls, record, robot=None, n: int | None = None) -> ObserverModel:
-        """The model of a run's ``meta["observer_model"]``: this version's record (the
-        matrix :math:`cY` or :math:`K_O` that ran) or an older one (kind and gain).
-
-        Raises:
-            ConfigError: (key ``"observer_model"``) the record is not one of these; the
-                message says what is missing.
-        """
-
-        def bad(what: str) -> ConfigError:
-            return ConfigError(
-                "observer_model", f"the run's observer record {what}; use --source dynamics"
-            )
-
-        if not isinstance(record, dict):
-            raise bad(f"is {type(record).__name__}, expected a table")
-        kind, period = record.get("kind"), record.get("Ts")
-        kinds = compensation_names(table="observer")
-        if kind not in kinds:
-            raise bad(f"names the kind {kind!r}, expected one of {kinds}")
-        try:  # a JSON number (or its text); anything else is no period
-            if not isinstance(period, (int, float, str)):
-                raise TypeError
-            Ts = float(period)
-        except (TypeError, ValueError):
-            raise bad(f"has the period Ts = {period!r}, expected a number [s]") from None
-        if not (np.isfinite(Ts) and Ts > 0):
-            raise bad(f"has the period Ts = {Ts!r}, expected > 0 [s]")
-        implicit = record.get("discretization", "implicit") == "implicit"
-        model_at = record.get("model_at", "end")  # records without it ran at the end
-        if model_at not in MODEL_AT:
-            raise bad(f"has model_at = {model_at!r}, expected one of {MODEL_AT}")
-        if record.get("matrix") is not None:
-            M = np.asarray(record["matrix"], dtype=float)
-            if (
-                M.ndim != 2
-                or M.shape[0] != M.shape[1]
-                or (n is not None and M.shape[0] != n)
-                or not np.all(np.isfinite(M))
-            ):
-                raise bad(
-                    f"has an observer matrix of shape {M.shape}, expected a finite "
-                    f"({n or 'n'}, {n or 'n'}) matrix"
-                )
-            return cls(kind, 1.0, Ts, robot, implicit, M, model_at)
-        gain = record.get("gain")
-        try:
-            g = np.asarray(gain, dtype=float)
-        except (TypeError, ValueError):
-            g = np.array(np.nan)
-        if gain is None or g.ndim > 1 or not np.all(np.isfinite(g)) or not np.all(g > 0):
-            raise bad(
-                f"has no observer matrix and the gain {gain!r} (a bandwidth observer "
-                "recorded by an older version); run it again to record the observer "
-                "that ran"
-            )
-        if g.ndim == 1 and compensation_spec(kind).Y is not None:
-            raise bad(f"has a per-joint gain for the {kind!r} observer, expected one value")
-        return cls(kind, g if g.ndim else float(g), Ts, robot, implicit, None, model_at)
-
-    def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
-        """:math:`M(q)` of the arm, which the NDO's :math:`L = cY M(q)^{-1}` needs."""
-        if self.robot is None:
-            raise ConfigError(
-                "robot",
-                f"the {self.kind!r} observer's L = cY M(q)^-1 needs the arm's model; "
-                "pass robot= (the Robot that ran)",
-            )
-        return self.robot.mass_matrix(q)
-
-    def time_constant(self, q: np.ndarray, samples: int = 200) -> float:
-        """The slowest time constant of the observer's error over the configurations
-        ``q`` (K, n) it ran at [s]: :math:`\\tau = -T_s / \\ln \\rho`, with :math:`\\rho` the
-        largest spectral radius of its one-period error map, :math:`(I + T_sL)^{-1}`
-        (backward Euler; the momentum observer) or :math:`I - T_sL` (forward Euler),
-        over up to ``samples`` configurations evenly spread along ``q``. ``inf`` when the
-        map does not contract.
-        """
-        n = q.shape[1]
-        Y = compensation_spec(self.kind).Y
-        if Y is None:  # L = diag(K_O), configuration-free
-            maps = [1.0 / (1.0 + self.Ts * np.broadcast_to(np.asarray(self.gain, float), (n,)))]
-        else:
-            cY = np.asarray(self.matrix if self.matrix is not None else self.gain * Y(n), float)
-            maps = []
-            for k in np.unique(np.linspace(0, len(q) - 1, min(samples, len(q))).astype(int)):
-                L = self.Ts * cY @ np.linalg.inv(self._mass_matrix(q[k]))
-                step = np.linalg.inv(np.eye(n) + L) if self.implicit else np.eye(n) - L
-                maps.append(np.linalg.eigvals(step))
-        rho = max(float(np.max(np.abs(m))) for m in maps)
-        return float(-self.Ts / np.log(rho)) if rho < 1 else float("inf")
-
-    def coupled(self) -> bool:
-        """Whether one joint's disturbance enters the other joints' estimates (the NDO's
-        :math:`L = cY M^{-1}`; the momentum observer's :math:`L` is diagonal)."""
-        return compensation_spec(self.kind).Y is not None
-
-    def filter(self, q: np.ndarray, phi: np.ndarray) -> np.ndarray:
-        """The observer's response :math:`g` to the disturbance signals ``phi``,
-        (K, n, p) for K instants, n joints and p signals, started at rest.
-
-        Backward Euler: :math:`(I + T_sL_k)\\,g_k = g_{k-1} + T_sL_k\\,\\varphi_k`.
-        """
-        K, n, p = phi.shape
-        g = np.zeros_like(phi)
-        Y = compensation_spec(self.kind).Y  # None: L = diag(K_O) (the momentum observer)
-        if Y is None:
-            a = self.Ts * np.broadcast_to(np.asarray(self.gain, dtype=float), (n,))[:, None]
-        elif self.matrix is not None:
-            cY = np.asarray(self.matrix, dtype=float)
-        else:
-            cY = self.gain * Y(n)
-        shift = 1 if self.model_at == "start" else 0
-        prev = np.zeros((n, p))
-        for k in range(1, K):
-            if Y is None:
-                prev = (prev + a * phi[k]) / (1 + a)
-            else:
-                M = self._mass_matrix(q[k - shift])
-                L = self.Ts * cY @ np.linalg.inv(M)
-                if self.implicit:
-                    prev = np.linalg.solve(np.eye(n) + L, prev + L @ phi[k])
-                else:
-                    prev = prev + L @ (phi[k] - prev)
-            g[k] = prev
-        return g
 
 
 def _feedforward(result: Result, dq: np.ndarray) -> np.ndarray:
@@ -840,6 +420,171 @@ def _zero_filled(result: Result, valid: np.ndarray) -> Result:
     return replace(result, **{k: fill(getattr(result, k)) for k in names})
 
 
+def _check_options(source: str, confidence: float, velocity_threshold: float, robot) -> None:
+    """``fit_friction``'s options, checked before anything is computed.
+
+    Raises:
+        ConfigError: An unknown source, a confidence level outside (0, 1), a velocity
+            threshold below 0 or not finite, or a model source without the arm's model.
+    """
+    if source not in SOURCES:
+        raise ConfigError("--source", f"expected one of {SOURCES}, got {source!r}")
+    if not 0 < confidence < 1:
+        raise ConfigError("--confidence", f"expected a level in (0, 1), got {confidence!r}")
+    if not (np.isfinite(velocity_threshold) and velocity_threshold >= 0):
+        raise ConfigError(
+            "--velocity-threshold", f"expected a number >= 0, got {velocity_threshold!r}"
+        )
+    if source in ("dynamics", "regressor") and robot is None:
+        raise ConfigError("robot", f"the {source!r} source needs the arm's model")
+
+
+def _measurements(
+    result: Result, clean: Result, valid: np.ndarray, source: str, robot, observer, after: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The regression's rows for ``source`` (module docstring): the regressors ``g``
+    (K, n, p), the measured friction ``y`` (K, n), the velocities ``dq`` (K, n) and the
+    times ``t`` (K,) they belong to, and which rows are ``valid`` (K,).
+
+    ``clean`` is ``result`` with its invalid rows zeroed (:func:`_zero_filled`); ``valid``
+    marks them per sample. The model sources use one row per control period (both ends
+    recorded); the observer's filter starts again from rest after each gap and its
+    start-up (``after`` [s]) is then left out as at the run's start.
+    """
+    n = result.dq.shape[1]
+    if source in ("regressor", "dynamics"):
+        valid = valid[:-1] & valid[1:]  # per period: both ends recorded
+    if source == "regressor":
+        Yr, tau, dq, t = _regressor_rows(clean, robot)
+        use = (t >= after - 1e-12) & valid
+        base = _base_columns(Yr[use].reshape(-1, Yr.shape[2]))
+        phi = _regressors(dq)
+        g = np.concatenate([phi, Yr[:, :, base]], axis=2)  # friction first, then pi_base
+        return g, tau, dq, t, valid
+    if source == "dynamics":
+        y, dq = dynamics_friction(clean, robot)
+        t = 0.5 * (result.t[1:] + result.t[:-1])
+        return _regressors(dq), y, dq, t, valid
+    if observer is None:
+        dq, t = clean.dq, clean.t
+        return _regressors(dq), _feedforward(clean, dq) - clean.d_hat, dq, t, valid
+    # the observer's response to each regressor and to the fed-forward friction
+    dq = np.vstack([clean.dq[:1], 0.5 * (clean.dq[1:] + clean.dq[:-1])])
+    t = clean.t
+    ff = np.vstack([np.zeros((1, n)), _feedforward(clean, clean.dq[:-1])])
+    phi = np.concatenate([_regressors(dq), ff[:, :, None]], axis=2)
+    # the filter's state cannot cross a gap: it starts again from rest after each,
+    # and the start-up it then needs (``after``) is left out as at the run's start
+    filtered = np.zeros_like(phi)
+    settled = np.ones(len(t), dtype=bool)
+    for s, e in _runs(valid):
+        filtered[s:e] = observer.filter(clean.q[s:e], phi[s:e])
+        if s > 0:
+            settled[s:e] = t[s:e] >= t[s] + after - 1e-12
+    return filtered[:, :, :-1], filtered[:, :, -1] - clean.d_hat, dq, t, valid & settled
+
+
+def _check_left(use: np.ndarray, valid: np.ndarray, after: float, bad_columns: list[str]) -> int:
+    """The samples after ``after`` [s] left out for NaN or inf in a recorded column.
+
+    Raises:
+        ConfigError: Every sample after ``after`` is left out: nothing to fit.
+    """
+    excluded = int(np.count_nonzero(use & ~valid))
+    if excluded and not np.any(use & valid):
+        raise ConfigError(
+            "RUN",
+            f"every sample after {after:g} s has NaN or inf in "
+            f"{' or '.join(bad_columns)}: nothing to fit"
+            + (
+                " (a file written before 0.3 of a saturated run does not know the "
+                "applied torque; use --source observer)"
+                if bad_columns == ["tau_applied"]
+                else ""
+            ),
+        )
+    return excluded
+
+
+def _joint_blocks(
+    names: tuple[str, ...],
+    use: np.ndarray,
+    stuck: np.ndarray,
+    g: np.ndarray,
+    y: np.ndarray,
+    dq: np.ndarray,
+    options: tuple[float, float, float, float],
+    stuck_names: tuple[str, ...],
+    settling: float,
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[float, float]], list[float]]:
+    """Per joint, its least-squares block ``(A, y)`` of the samples it moved in, its
+    coverage and its regressor's condition number, after checking its excitation.
+
+    Args:
+        options: ``(velocity_threshold, excitation_velocity, min_coverage,
+            max_condition)`` of :func:`fit_friction`.
+
+    Raises:
+        ExcitationError: A joint is not excited enough (the first such joint), naming the
+            stuck joints when leaving them out took the excitation away.
+    """
+    velocity_threshold, excitation_velocity, min_coverage, max_condition = options
+    blocks, covers, conds = [], [], []
+    for i, name in enumerate(names):
+        ok = use & ~stuck[:, i]
+        try:
+            covers.append(
+                check_excitation(
+                    name, dq[ok, i], max(excitation_velocity, velocity_threshold), min_coverage
+                )
+            )
+        except ExcitationError as exc:
+            if not np.any(use & stuck[:, i]):
+                raise
+            raise ExcitationError(
+                name,
+                f"{exc.reason}, after leaving out the {np.count_nonzero(use & stuck[:, i])} "
+                f"samples where {', '.join(stuck_names)} stuck and the observer's settling "
+                f"after each ({settling:.3g} s); fewer reversals, or a faster observer",
+            ) from None
+        keep = ok & np.isfinite(y[:, i]) & (np.abs(dq[:, i]) > velocity_threshold)
+        raw = np.column_stack([dq[keep, i], np.sign(dq[keep, i])])
+        conds.append(_condition(name, raw, max_condition))
+        blocks.append((g[keep, i, :], y[keep, i]))
+    return blocks, covers, conds
+
+
+def _solve(
+    names: tuple[str, ...],
+    blocks: list[tuple[np.ndarray, np.ndarray]],
+    covers: list[tuple[float, float]],
+    conds: list[float],
+    confidence: float,
+    separate: bool,
+) -> tuple[JointFriction, ...]:
+    """The least-squares fit of the blocks: one per joint on its own two columns
+    (``separate``: the joints do not share a regressor), or all joints together."""
+    if separate:
+        fits = []
+        for i, (A, v) in enumerate(blocks):
+            theta, half, res, m_eff = _least_squares([(A[:, 2 * i : 2 * i + 2], v)], confidence)
+            fits.append(_joint(names[i], theta, half, res[0], m_eff[0], conds[i], covers[i]))
+        return tuple(fits)
+    theta, half, res, m_eff = _least_squares(blocks, confidence)
+    return tuple(
+        _joint(
+            name,
+            theta[2 * i : 2 * i + 2],
+            half[2 * i : 2 * i + 2],
+            res[i],
+            m_eff[i],
+            conds[i],
+            covers[i],
+        )
+        for i, name in enumerate(names)
+    )
+
+
 def fit_friction(
     result: Result,
     *,
@@ -874,52 +619,12 @@ def fit_friction(
         ExcitationError: A joint is not excited enough (the first such joint).
         ConfigError: A bad option.
     """
-    if source not in SOURCES:
-        raise ConfigError("--source", f"expected one of {SOURCES}, got {source!r}")
-    if not 0 < confidence < 1:
-        raise ConfigError("--confidence", f"expected a level in (0, 1), got {confidence!r}")
-    if not (np.isfinite(velocity_threshold) and velocity_threshold >= 0):
-        raise ConfigError(
-            "--velocity-threshold", f"expected a number >= 0, got {velocity_threshold!r}"
-        )
+    _check_options(source, confidence, velocity_threshold, robot)
     n = result.dq.shape[1]
     names = result.joint_names or tuple(f"joint{i + 1}" for i in range(n))
-    if source in ("dynamics", "regressor") and robot is None:
-        raise ConfigError("robot", f"the {source!r} source needs the arm's model")
     valid, bad_columns = _valid_rows(result, source, observer)
     clean = _zero_filled(result, valid)
-    if source in ("regressor", "dynamics"):
-        valid = valid[:-1] & valid[1:]  # per period: both ends recorded
-    if source == "regressor":
-        Yr, tau, dq, t = _regressor_rows(clean, robot)
-        use = (t >= after - 1e-12) & valid
-        base = _base_columns(Yr[use].reshape(-1, Yr.shape[2]))
-        phi = _regressors(dq)
-        g = np.concatenate([phi, Yr[:, :, base]], axis=2)  # friction first, then pi_base
-        y = tau
-    elif source == "dynamics":
-        y, dq = dynamics_friction(clean, robot)
-        t = 0.5 * (result.t[1:] + result.t[:-1])
-        g = _regressors(dq)
-    elif observer is None:
-        dq, t = clean.dq, clean.t
-        y = _feedforward(clean, dq) - clean.d_hat
-        g = _regressors(dq)
-    else:  # the observer's response to each regressor and to the fed-forward friction
-        dq = np.vstack([clean.dq[:1], 0.5 * (clean.dq[1:] + clean.dq[:-1])])
-        t = clean.t
-        ff = np.vstack([np.zeros((1, n)), _feedforward(clean, clean.dq[:-1])])
-        phi = np.concatenate([_regressors(dq), ff[:, :, None]], axis=2)
-        # the filter's state cannot cross a gap: it starts again from rest after each,
-        # and the start-up it then needs (``after``) is left out as at the run's start
-        filtered = np.zeros_like(phi)
-        settled = np.ones(len(t), dtype=bool)
-        for s, e in _runs(valid):
-            filtered[s:e] = observer.filter(clean.q[s:e], phi[s:e])
-            if s > 0:
-                settled[s:e] = t[s:e] >= t[s] + after - 1e-12
-        valid = valid & settled
-        g, y = filtered[:, :, :-1], filtered[:, :, -1] - clean.d_hat
+    g, y, dq, t, valid = _measurements(result, clean, valid, source, robot, observer, after)
     stuck, tau_obs = np.zeros((len(t), n), dtype=bool), 0.0
     stuck_names: tuple[str, ...] = ()
     if source == "observer":  # a stuck joint's holding torque, and the observer after it
@@ -927,65 +632,15 @@ def fit_friction(
         stuck_names = tuple(names[i] for i in joints)
     settling = SETTLING_TIME_CONSTANTS * tau_obs
     use = t >= after - 1e-12
-    excluded = int(np.count_nonzero(use & ~valid))
-    if excluded and not np.any(use & valid):
-        raise ConfigError(
-            "RUN",
-            f"every sample after {after:g} s has NaN or inf in "
-            f"{' or '.join(bad_columns)}: nothing to fit"
-            + (
-                " (a file written before 0.3 of a saturated run does not know the "
-                "applied torque; use --source observer)"
-                if bad_columns == ["tau_applied"]
-                else ""
-            ),
-        )
+    excluded = _check_left(use, valid, after, bad_columns)
     use &= valid
     left_out = int(np.count_nonzero(use & stuck.any(axis=1)))
-    blocks, covers, conds = [], [], []
-    for i, name in enumerate(names):
-        ok = use & ~stuck[:, i]
-        try:
-            covers.append(
-                check_excitation(
-                    name, dq[ok, i], max(excitation_velocity, velocity_threshold), min_coverage
-                )
-            )
-        except ExcitationError as exc:
-            if not np.any(use & stuck[:, i]):
-                raise
-            raise ExcitationError(
-                name,
-                f"{exc.reason}, after leaving out the {np.count_nonzero(use & stuck[:, i])} "
-                f"samples where {', '.join(stuck_names)} stuck and the observer's settling "
-                f"after each ({settling:.3g} s); fewer reversals, or a faster observer",
-            ) from None
-        keep = ok & np.isfinite(y[:, i]) & (np.abs(dq[:, i]) > velocity_threshold)
-        raw = np.column_stack([dq[keep, i], np.sign(dq[keep, i])])
-        conds.append(_condition(name, raw, max_condition))
-        blocks.append((g[keep, i, :], y[keep, i]))
-    if source == "dynamics" or (source == "observer" and observer is None):  # one per joint
-        fits = []
-        for i, (A, v) in enumerate(blocks):
-            theta, half, res, m_eff = _least_squares([(A[:, 2 * i : 2 * i + 2], v)], confidence)
-            fits.append(_joint(names[i], theta, half, res[0], m_eff[0], conds[i], covers[i]))
-        return FrictionFit(
-            tuple(fits), source, confidence, run, excluded, "", left_out, stuck_names,
-            settling, tau_obs,
-        )  # fmt: skip
-    theta, half, res, m_eff = _least_squares(blocks, confidence)
-    joints = tuple(
-        _joint(
-            name,
-            theta[2 * i : 2 * i + 2],
-            half[2 * i : 2 * i + 2],
-            res[i],
-            m_eff[i],
-            conds[i],
-            covers[i],
-        )
-        for i, name in enumerate(names)
+    options = (velocity_threshold, excitation_velocity, min_coverage, max_condition)
+    blocks, covers, conds = _joint_blocks(
+        names, use, stuck, g, y, dq, options, stuck_names, settling
     )
+    separate = source == "dynamics" or (source == "observer" and observer is None)
+    fits = _solve(names, blocks, covers, conds, confidence, separate)
     return FrictionFit(
-        joints, source, confidence, run, excluded, "", left_out, stuck_names, settling, tau_obs
+        fits, source, confidence, run, excluded, "", left_out, stuck_names, settling, tau_obs
     )

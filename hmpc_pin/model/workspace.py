@@ -63,7 +63,7 @@ def find_srdf(path: str | Path, name: str | None = None) -> Path | None:
     """The SRDF of the arm: example-robot-data's for the model ``name``, else where a ROS
     description package keeps it beside the URDF ``path`` (``arm.srdf`` next to it, or
     ``../srdf/arm.srdf``); ``None`` when there is none."""
-    from .robot import example_robot_srdf
+    from .catalogue import example_robot_srdf
 
     if name:
         srdf, _ = example_robot_srdf(name)
@@ -261,7 +261,7 @@ class Workspace:
         self_collision: bool = True,
         allowed: Sequence[Sequence[str]] = (),
     ):
-        from .robot import _without_continuous
+        from .robot import without_continuous
 
         path = Path(robot.source)
         n = np.asarray(normal, dtype=float)
@@ -276,7 +276,7 @@ class Workspace:
             raise URDFError(
                 path, f"cannot be read again for its collision geometry: {exc}"
             ) from exc
-        xml, _ = _without_continuous(root)
+        xml, _ = without_continuous(root)
         self.model = pin.buildModelFromXML(xml)
         try:
             self.geometry = pin.buildGeomFromUrdf(

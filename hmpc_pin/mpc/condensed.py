@@ -554,16 +554,34 @@ class JointQPs:
     @property
     def soft_step_exchanges(self) -> int:
         """Soft QPs: the exchanges the soft active-set shortcut may make per step over all
-        joints (default −1: no bound). A joint reached with none left answers the fallback,
-        its box-only answer with its first input clipped to the accelerations that keep the
-        next state inside the limits (the velocity limit's alone when both cannot hold, then
-        the box), counted in ``soft_fallbacks``; its exchanges resume where they stopped at
-        the next step, so that the soft QP's own answer follows within a few steps."""
+        joints (default −1: ``soft_step_work``'s). They are spread over the joints whose
+        soft QP the step solves: each gets the exchanges left divided by the joints left
+        (rounded up), so that one joint's long activation cannot starve the others. A joint
+        reached with none left (or whose guess ran out of its own exchanges) answers the
+        fallback, its box-only answer with its first input clipped to the accelerations
+        that keep the next state inside the limits (the velocity limit's alone when both
+        cannot hold), then to the box (the box's end nearest them when none in it keeps
+        them), counted in ``soft_fallbacks``; its exchanges resume where they stopped at the
+        next step, so that the soft QP's own answer follows within a few steps. Under a
+        bound the shortcut's guesses are stages, each with its own exchanges, spread over
+        steps; ProxSuite answers only a joint whose every guess failed within the step's
+        exchanges."""
         return int(self._core.options.soft_step_exchanges)
 
     @soft_step_exchanges.setter
     def soft_step_exchanges(self, k: int) -> None:
         self._core.options.soft_step_exchanges = int(k)
+
+    @property
+    def soft_step_work(self) -> int:
+        """Soft QPs: the step's work when ``soft_step_exchanges`` is negative, in exchanges
+        × horizon steps (an exchange costs O(N)): at most max(1, soft_step_work // N)
+        exchanges per step (negative: no bound)."""
+        return int(self._core.options.soft_step_work)
+
+    @soft_step_work.setter
+    def soft_step_work(self, w: int) -> None:
+        self._core.options.soft_step_work = int(w)
 
     @property
     def soft_fallbacks(self) -> int:
@@ -581,7 +599,7 @@ class JointQPs:
     def shift(self) -> bool:
         """Whether ProxSuite's warm start is the last primal and dual solution shifted one
         step along the horizon (default off: the last solution as it stands, measured faster
-        in a closed loop; ``benchmarks/long_horizon_active.py``)."""
+        in a closed loop; ``benchmarks/studies/long_horizon_active.py``)."""
         return bool(self._core.options.shift)
 
     @shift.setter

@@ -29,6 +29,7 @@ import importlib
 import warnings
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 from ..exceptions import ConfigError, NativeError, PerformanceWarning
 
@@ -39,6 +40,7 @@ __all__ = [
     "build_info",
     "deprecated_backend",
     "load",
+    "loop_port",
     "model_string",
     "replaced",
     "resolve_backend",
@@ -53,6 +55,18 @@ def replaced(obj: object, cls: type, *names: str) -> bool:
         getattr(getattr(obj, name, None), "__func__", None) is not getattr(cls, name)
         for name in names
     )
+
+
+def loop_port(part: object, *args: object) -> Any:
+    """``part``'s compiled port for the compiled loop: its class's ``loop_port(*args)``, or
+    ``None`` (no such method: the loop calls the part through Python).
+
+    Looked up on the class, never through the instance: a wrapper that hands its other
+    attributes on to a wrapped part (``__getattr__``) hands on no port, so the loop calls
+    the wrapper itself and never goes around it.
+    """
+    own = getattr(type(part), "loop_port", None)
+    return own(part, *args) if callable(own) else None
 
 
 #: The values of ``backend`` (``[controller]``, ``[plant]``).
@@ -165,7 +179,7 @@ def model_string(robot) -> str:
         names = ", ".join(robot.mimic_joints)
         raise ConfigError(
             "backend",
-            f'the native kernels do not support mimic joints ({names}); use backend = "python"',
+            f'the compiled core does not support mimic joints ({names}); use backend = "python"',
         )
     return robot.model.saveToString()
 
@@ -186,11 +200,11 @@ def resolve_backend(backend: str, key: str, unsupported: str | None = None) -> b
     Args:
         backend: ``"auto"``, ``"native"`` or ``"python"``.
         key: The option's dotted name, for messages (``"controller.backend"``).
-        unsupported: Why this configuration has no native path (``None``: it has one).
+        unsupported: Why this configuration has no compiled path (``None``: it has one).
 
     Raises:
         ConfigError: ``backend`` is not one of :data:`BACKENDS`, or ``"native"`` where the
-            configuration has no native path.
+            configuration has no compiled path.
         NativeError: ``"native"`` and the module cannot be loaded.
     """
     global _warned

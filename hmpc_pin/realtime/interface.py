@@ -47,7 +47,12 @@ class RobotInterface(Protocol):
 
     Optional: a method ``stamp_clock() -> float``, now [s] on the clock of the stamps,
     lets the loop measure the latency from measurement to torque written (an arm that
-    paces the loop has it as :meth:`PacedInterface.clock`).
+    paces the loop has it as :meth:`PacedInterface.clock`). A method ``start()`` for an
+    arm whose clock starts with it (Franka's torque control; a ROS arm's first state
+    taken): :meth:`~hmpc_pin.realtime.loop.RealtimeLoop.run` with ``start=True`` calls
+    it after its own set-up (the heap collected and frozen, the controller reset and
+    warmed), so that none of the set-up costs the arm a cycle; :meth:`read` then returns
+    the first state.
     """
 
     nq: int

@@ -35,6 +35,20 @@ during the run: the latency changes the observer's torque alignment and the pred
 which take effect at a reset, and a per-step value would carry the loop's jitter into the
 model. Set the measured median in the config instead.
 
+**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: the whole heap collected
+and frozen (``gc_handling``), the controller reset and, if it has ``warm_up``, its first
+step run once on the reset state and undone by a second reset (the first step's one-time
+costs, not its torque); the records allocated; what the set-up made collected; then, for
+an arm whose clock starts with its ``start()`` (``run(start=True)``: Franka's torque
+control, a ROS arm's first state), the start. None of it costs the arm a cycle.
+
+**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the thread's timer slack is
+1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
+stretch before the deadline, measured from its wake-ups, and busy-waits the rest. The
+watchdog of a polled arm does not charge the loop's own late wake-up (more than a period)
+to the arm (``stats["loop_stalls"]``). The cycles: :mod:`.cycles`; the stop sequence:
+:mod:`.stop`.
+
 Garbage collection (``gc_handling``): after start-up everything alive is moved out of
 the collector's reach (:func:`gc.freeze`) and automatic collection is switched off; the
 generation CPython would collect next (its counts against its thresholds) is collected
@@ -58,6 +72,7 @@ of the last finite state.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import math
 import signal
@@ -75,15 +90,27 @@ from ..controllers.base import Controller
 from ..exceptions import ArmError, ConfigError, HmpcError, ValidityWarning
 from ..sim.result import Result
 from ..tasks.base import as_reference
+from .cycles import RELAX_MISSES, RELAX_WATCHDOG, Cycles
 from .interface import PacedInterface, RobotInterface
-from .pacing import GCWatch, Tally, fifo_priority, sleep_until
+from .pacing import (
+    GCWatch,
+    Tally,
+    Waker,
+    fifo_priority,
+    realtime_policy,
+    sleep_until,
+    timer_slack,
+)
 from .records import RealtimeRun, Records, latency_stats
 from .safety import SafetySettings
+from .stop import StopSequence
 
 #: The names of the parts before they had modules of their own (kept for callers).
 _GCWatch, _Tally, _Records = GCWatch, Tally, Records
 
 __all__ = [
+    "RELAX_MISSES",
+    "RELAX_WATCHDOG",
     "LoopSettings",
     "RealtimeLoop",
     "RealtimeRun",
@@ -92,16 +119,6 @@ __all__ = [
     "sleep_until",
 ]
 
-
-#: Appended to a stop's reason: the setting to relax when the machine, not the arm, was
-#: late (the config key and the command line's override).
-RELAX_MISSES = (
-    "; if the machine was loaded rather than the arm faulty, relax realtime.max_misses "
-    "(--max-misses K)"
-)
-RELAX_WATCHDOG = (
-    "; if the machine was loaded rather than the arm gone, relax realtime.watchdog (--watchdog S)"
-)
 
 #: The latency advice (``[controller] latency``) needs at least this many measured
 #: controller steps (a failed start's single sample says nothing).
@@ -120,15 +137,25 @@ class LoopSettings:
             (module doc); ``False`` leaves Python's collector as it is.
         gc_slack: A collection runs only if at least this much [s] remains before the
             next deadline.
-        spin: Busy-wait this long [s] before each deadline instead of sleeping
-            (:func:`sleep_until`); 0 sleeps the whole wait. Less than the period.
-        warm_up: Wake this long [s] before each MPC cycle's deadline and call the
-            controller's ``warm_up(t, q, dq, reference)`` (if it has one, e.g.
+        spin: How the loop waits for a deadline (:class:`~.pacing.Waker`): ``"auto"``
+            sleeps, then, when the loop's thread runs under a real-time policy
+            (``SCHED_FIFO``: ``[realtime] priority``), busy-waits the last stretch, chosen
+            from the wake-ups measured in the run (their 99th percentile, at most half a
+            period); under normal scheduling it sleeps the whole wait (a thread that spins
+            there is preempted more, not less: measured in the guide); a number [s] busy-waits
+            that long before each deadline (below the period); 0 sleeps the whole wait.
+            Applies to the loop's own sleep only (not with ``sleep=`` or an arm that paces
+            the loop).
+        warm_up: Wake early before each MPC cycle's deadline and call the controller's
+            ``warm_up(t, q, dq, reference)`` (if it has one, e.g.
             :meth:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC.warm_up`: a step on the
             last measured state, undone) so that the cycle's step finds its memory in the
-            caches, then busy-wait to the deadline (with the default sleep); 0 disables it. Not
+            caches, then busy-wait to the deadline; 0 disables it. With the loop's own
+            sleep, this [s] is the time first reserved for it, then the warm-up's measured
+            99th percentile (a warm-up that would end after the deadline is skipped and
+            counted); with ``sleep=``, the loop wakes this long before the deadline. Not
             with an arm that paces the loop (it waits for the state, not a deadline).
-            Less than the period. Measured (``benchmarks/realtime.py --steps-only``): the
+            Less than the period. Measured (``benchmarks/studies/realtime.py --steps-only``): the
             step after a 10 ms sleep 1.5× the step back to back with 2e-4, 10–15× without.
     """
 
@@ -136,7 +163,7 @@ class LoopSettings:
     duration: float = 10.0
     gc_handling: bool = True
     gc_slack: float = 3e-4
-    spin: float = 0.0
+    spin: float | str = "auto"
     warm_up: float = 2e-4
 
     def __post_init__(self):
@@ -145,11 +172,15 @@ class LoopSettings:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"realtime.{name}", f"expected a number > 0, got {value!r}")
         spin = self.spin
-        if not (isinstance(spin, (int, float)) and 0 <= spin < 1.0 / self.rate):
+        if spin != "auto" and not (
+            isinstance(spin, (int, float))
+            and not isinstance(spin, bool)
+            and 0 <= spin < 1.0 / self.rate
+        ):
             raise ConfigError(
                 "realtime.spin",
-                f"expected a time [s] >= 0 and below the period 1/rate = {1.0 / self.rate:g} s,"
-                f" got {spin!r}",
+                f'expected "auto" or a time [s] >= 0 and below the period 1/rate = '
+                f"{1.0 / self.rate:g} s, got {spin!r}",
             )
         warm = self.warm_up
         if not (isinstance(warm, (int, float)) and 0 <= warm < 1.0 / self.rate):
@@ -190,7 +221,7 @@ def _declared_latency(controller) -> float | None:
     return None if latency is None else float(latency)
 
 
-class RealtimeLoop:
+class RealtimeLoop(Cycles, StopSequence):
     """Run a controller against a :class:`~hmpc_pin.realtime.interface.RobotInterface`
     at a fixed rate (module doc).
 
@@ -206,7 +237,8 @@ class RealtimeLoop:
         safety: Bounds, k, watchdog, hold.
         clock: Monotonic seconds (default :func:`time.perf_counter`).
         sleep: ``sleep(deadline)``: return when ``clock()`` has reached ``deadline``
-            (default: :func:`sleep_until` on ``clock``).
+            (default: the loop's :class:`~.pacing.Waker` on ``clock``, as ``settings.spin``
+            says).
         joint_names: Stored in the result.
         meta: Stored in the result's ``meta``.
         on_step: ``on_step(t)``, called after the torque of each controller step is
@@ -236,9 +268,10 @@ class RealtimeLoop:
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
         self.paced = isinstance(interface, PacedInterface)
+        fixed_spin = settings.spin != "auto" and settings.spin > 0
         if self.paced:
             for name, given in (
-                ("spin", settings.spin > 0),
+                ("spin", fixed_spin),
                 ("sleep=", sleep is not None),
                 ("clock=", clock is not time.perf_counter),
             ):
@@ -256,22 +289,34 @@ class RealtimeLoop:
         self.superseded = None  # the pending reference the last set_reference replaced
         self._reference_lock = threading.Lock()  # the swap against set_reference
         self.time = 0.0
+        #: Whether the loop waits with its own :class:`~.pacing.Waker` (not paced by the
+        #: arm, no sleep function given).
+        self.sleep_is_default = sleep is None and not self.paced
+        self._waker: Waker | None = None
         if self.paced:
             wait = interface.wait  # type: ignore[union-attr]
             self.sleep = lambda d: wait(max(0.0, d - clock()))
-        elif sleep is not None and settings.spin > 0:
-            raise ConfigError(
-                "realtime.spin",
-                f"spin={settings.spin:g} s does not apply with a sleep function given to the "
-                "loop (it spins in the default sleep only); set spin = 0 or drop sleep=",
-            )
+        elif sleep is not None:
+            if fixed_spin:
+                raise ConfigError(
+                    "realtime.spin",
+                    f"spin={settings.spin:g} s does not apply with a sleep function given to "
+                    "the loop (it spins in the default sleep only); set spin = 0 or drop sleep=",
+                )
+            self.sleep = sleep
         else:
-            self.sleep = (
-                sleep if sleep is not None else (lambda d: sleep_until(d, clock, settings.spin))
-            )
-        # After warm_up the default sleep busy-waits to the deadline (the core stays awake and
-        # the caches stay this process's); a given sleep function is called instead.
-        self._spin_after_warm_up = sleep is None and not self.paced
+            spin = None if settings.spin == "auto" else float(settings.spin)
+            self._waker = Waker(clock, settings.period, spin, warm=settings.warm_up)
+            self.sleep = self._waker.until
+        self._warm_up = (
+            getattr(controller, "warm_up", None)
+            if settings.warm_up > 0 and not self.paced
+            else None
+        )
+        self._has_overdue = self.paced and hasattr(interface, "overdue")
+        self._has_arrival = self.paced and hasattr(interface, "arrival")
+        self._t0 = 0.0  # the first cycle's deadline (set when the cycles begin)
+        self._stalls = 0  # the loop's own late wake-ups not charged to the arm (watchdog)
         self.joint_names = tuple(joint_names)
         self.meta = dict(meta or {})
         self.decimation = settings.decimation(controller.Ts)
@@ -376,11 +421,16 @@ class RealtimeLoop:
             raise KeyboardInterrupt
 
     # ---------------------------------------------------------------------- run
-    def run(self, q0=None, dq0=None) -> RealtimeRun:
+    def run(self, q0=None, dq0=None, *, start: bool = False) -> RealtimeRun:
         """Run until the end or a safe stop.
 
         Args:
             q0, dq0: The state to reset the controller to (default: the first reading).
+            start: Call the interface's ``start()`` (its clock starts with it: Franka's
+                torque control; a ROS arm's first state) after the set-up (module doc,
+                "Set-up"), so that none of it costs the arm a cycle. Give ``q0`` (and
+                ``dq0``) with it: the controller is then reset before the start, else
+                after it, at the first state.
         """
         main = threading.current_thread() is threading.main_thread()
         old_handler = signal.signal(signal.SIGINT, self._on_sigint) if main else None
@@ -391,7 +441,12 @@ class RealtimeLoop:
         gc.callbacks.append(self._gc_watch)
         self._started = True
         try:
-            return self._run(q0, dq0)
+            with contextlib.ExitStack() as stack:
+                if self._waker is not None:
+                    stack.enter_context(timer_slack(1))
+                    if self.settings.spin == "auto":  # spinning pays under a real-time policy
+                        self._waker.adapt(realtime_policy())
+                return self._run(q0, dq0, start)
         except BaseException:
             # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the held-safe
             # torque at the last finite position before the error propagates (nothing
@@ -409,9 +464,10 @@ class RealtimeLoop:
             if main:
                 signal.signal(signal.SIGINT, old_handler)
 
-    def _run(self, q0, dq0) -> RealtimeRun:
-        st, iface, ctrl = self.settings, self.interface, self.controller
-        K = round(st.duration * st.rate)
+    def _first_state(self):
+        """The arm's first state, copied; refused (nothing sent) if the loop cannot start
+        from it."""
+        iface = self.interface
         stamp, q, dq = iface.read()
         q_last, dq_last = np.array(q, dtype=float), np.array(dq, dtype=float)
         refused = self._start_fault(q_last, dq_last)
@@ -421,209 +477,51 @@ class RealtimeLoop:
                 "nothing was sent to the arm. Check its driver (or the limits in "
                 "[realtime]) and start again"
             )
-        self._last_state = (q_last, dq_last)
-        ctrl.reset(q_last if q0 is None else q0, dq_last if dq0 is None else dq0)
+        return stamp, q_last, dq_last
+
+    def _prepare(self, q0, dq0) -> None:
+        """Reset the controller at ``(q0, dq0)``; if it can warm up (it has ``warm_up``), run
+        its first step on that state and reset it again: the first step's one-time costs
+        (memory, the solver's first factorisation, the Python path; ~150 µs for the Panda's
+        MPC in a fresh process) are paid here, not in the first cycle."""
+        ctrl = self.controller
+        q0, dq0 = np.array(q0, dtype=float), np.array(dq0, dtype=float)
+        ctrl.reset(q0, dq0)
+        if getattr(ctrl, "warm_up", None) is None:
+            return
+        with contextlib.suppress(HmpcError):  # the real step reports it
+            _inner(ctrl).step(0.0, q0.copy(), dq0.copy(), self.reference)
+        ctrl.reset(q0, dq0)
+
+    def _run(self, q0, dq0, start: bool) -> RealtimeRun:
+        st, iface = self.settings, self.interface
+        K = round(st.duration * st.rate)
+        if st.gc_handling:  # the whole heap, before the arm's clock runs
+            gc.collect()
+            gc.freeze()
+        first = None if start else self._first_state()
+        if first is not None or q0 is not None:  # the controller ready before the start
+            if dq0 is None:
+                dq0 = np.zeros(iface.nq) if first is None else first[2]
+            self._prepare(first[1] if q0 is None else q0, dq0)  # type: ignore[index]
         rec = Records(K // self.decimation + 2, K + 1, iface.nq)
         tally = Tally()
         self._rec, self._tally, self._seen = rec, tally, 0  # (read by progress())
-        if st.gc_handling:
+        if st.gc_handling:  # what the set-up made (the heap is frozen: little to walk)
             gc.collect()
             gc.freeze()
             gc.disable()
+        if start:
+            iface.start()  # type: ignore[attr-defined]
+            first = self._first_state()
+            if q0 is None:  # no state known before the start: reset at the first one
+                self._prepare(first[1], first[2] if dq0 is None else dq0)
+        stamp, q_last, dq_last = first  # type: ignore[misc]
+        self._last_state = (q_last, dq_last)
         watch = self._gc_watch
         watch.count, watch.longest = 0, 0.0  # from the first cycle on
         stop, k, stamp, deadline, wrote = self._cycles(K, rec, tally, q_last, dq_last, stamp)
         return self._finish(stop, k, K, rec, tally, q_last, dq_last, stamp, deadline, wrote)
-
-    def _cycles(self, K: int, rec: Records, tally: Tally, q_last, dq_last, stamp: float):
-        """The cycles 0..K: wait, read, step every ``decimation`` cycles, write, record.
-
-        Returns:
-            ``(stop, k, stamp, deadline, wrote)``: the stop (``(cause, reason)`` or
-            ``None``), the cycle it came at, the last stamp, that cycle's deadline and
-            whether any command was written.
-        """
-        st, sf = self.settings, self.safety
-        iface, ctrl, ref = self.interface, self.controller, self.reference
-        clock, sleep = self.clock, self.sleep
-        P, m = st.period, self.decimation
-        # The measurement's age when its torque is written, on the stamps' clock: the
-        # loop's own against an arm that paces it, else the interface's stamp_clock() if
-        # it offers one (stamps on another clock cannot be compared).
-        stamp_clock = clock if self.paced else getattr(iface, "stamp_clock", None)
-        lower, upper, vmax = sf.lower, sf.upper, sf.velocity
-        watchdog, max_misses = sf.watchdog, sf.max_misses
-        tau = np.zeros(iface.nq)
-        wrote = False
-        j = 0
-        handle_gc = st.gc_handling
-        stop: tuple[str, str] | None = None
-        next_mpc = 0
-        paced, on_step = self.paced, self.on_step
-        has_overdue = paced and hasattr(iface, "overdue")
-        has_arrival = paced and hasattr(iface, "arrival")
-        warm_lead = st.warm_up
-        warm_up = getattr(ctrl, "warm_up", None) if warm_lead > 0 and not paced else None
-        t0 = clock() + P
-        self._fresh = (stamp, t0)  # the last stamp and when it was fresh (the watchdog)
-        k = 0
-        deadline = t0
-        while k <= K:
-            if paced:
-                arrived, wake, stop = self._await_state(watchdog)
-                if stop is not None:
-                    break
-                behind = arrived - 1  # states not answered: periods skipped
-                # of which missed: those the arm reports overdue (a burst after its own
-                # stall is not the loop's miss), else all
-                late = min(behind, iface.overdue) if has_overdue else behind  # type: ignore[attr-defined]
-                skipped_why = "states not answered"
-            else:
-                # Deadlines already passed are skipped (the arm holds the torque through them).
-                behind = late = int((clock() - t0) / P) - k
-                skipped_why = "periods skipped behind the clock"
-            if behind > 0 and k > 0:
-                skip = min(behind, K + 1 - k)
-                late = min(late, skip)
-                rec.missed[k : k + late] = True
-                k += skip
-                if tally.skip(skip, late, max_misses):
-                    stop = (
-                        "misses",
-                        f"{tally.consecutive} consecutive missed deadlines "
-                        f"(limit {max_misses}), {skip} {skipped_why}{RELAX_MISSES}",
-                    )
-                    break
-                if k > K:
-                    break
-            if paced:
-                stamp, q, dq = iface.read()
-                self._fresh = (stamp, wake)
-                # the deadline follows the arrival (a constant transport delay is no miss)
-                deadline = iface.arrival if has_arrival else stamp  # type: ignore[attr-defined]
-            else:
-                deadline = t0 + k * P
-                if warm_up is not None and k >= next_mpc and k > 0:
-                    # in the slack before an MPC cycle: the step on the last state, undone
-                    sleep(deadline - warm_lead)
-                    warm_up(k * P, q_last, dq_last, ref)
-                    if self._spin_after_warm_up:
-                        while clock() < deadline:
-                            pass
-                sleep(deadline)
-                wake = clock()
-                stop = self._requested_stop()
-                if stop is not None:
-                    break
-                stamp, q, dq = iface.read()
-                stop = self._watch(stamp, wake, watchdog)
-                if stop is not None:
-                    break
-            # One comparison each in the common case; NaN fails every one of them.
-            if not ((q >= lower).all() and (q <= upper).all() and (np.abs(dq) <= vmax).all()):
-                stop = ("fault", self._state_fault(q, dq))
-                break
-            q_last[:] = q
-            dq_last[:] = dq
-            is_mpc = k >= next_mpc
-            if is_mpc:
-                if self._pending_reference is not None:
-                    ref = self._swap_reference(k * P, ref)
-                try:
-                    # copies: the interface may reuse its arrays, a controller may keep them
-                    tau = ctrl.step(k * P, q.copy(), dq.copy(), ref)
-                except HmpcError as exc:
-                    stop = ("fault", f"controller: {exc}")
-                    break
-                if not np.isfinite(tau).all():
-                    stop = ("fault", f"non-finite torque from the controller: {tau.tolist()}")
-                    break
-                next_mpc += m
-                while next_mpc <= k:
-                    next_mpc += m
-            iface.write(tau)
-            done = clock()
-            wrote = True
-            if is_mpc and stamp_clock is not None:
-                rec.age[k] = (done if self.paced else stamp_clock()) - stamp
-            # ---- bookkeeping, in the slack
-            rec.cycle(k, wake - deadline, done - deadline, stamp, is_mpc)
-            if is_mpc:
-                rec.step(j, k * P, q, dq, tau, ctrl.disturbance_estimate, ref)
-                j += 1
-                self.time = k * P
-                if on_step is not None:
-                    on_step(k * P)
-            if done > deadline + P:
-                rec.missed[k] = True
-                if tally.miss(max_misses):
-                    stop = (
-                        "misses",
-                        f"{tally.consecutive} consecutive missed deadlines "
-                        f"(limit {max_misses}); last latency {1e6 * (done - deadline):.0f} us "
-                        f"for a {1e6 * P:.0f} us period{RELAX_MISSES}",
-                    )
-                    k += 1
-                    break
-            else:
-                tally.consecutive = 0
-            if handle_gc:
-                tally.collect(k, deadline + P, clock, st.gc_slack, rec.gc)
-            k += 1
-        rec.j = j
-        return stop, k, stamp, deadline, wrote
-
-    def _await_state(self, watchdog: float) -> tuple[int, float, tuple[str, str] | None]:
-        """Against an arm that paces the loop: wait for its next state (at most the
-        watchdog). Returns ``(states arrived, wake time, stop or None)``."""
-        arrived = self.interface.wait(watchdog)  # type: ignore[attr-defined]
-        wake = self.clock()
-        stop = self._requested_stop()
-        if stop is None and not arrived:
-            received = getattr(self.interface, "received", None)
-            streamed = (
-                "" if received is None else f"the arm stopped streaming after {received} states: "
-            )
-            stop = (
-                "watchdog",
-                f"{streamed}no new state from the arm for "
-                f"{1e3 * watchdog:g} ms (watchdog), last stamp "
-                f"{self._fresh[0]:.6g} s{RELAX_WATCHDOG}",
-            )
-        return arrived, wake, stop
-
-    def _requested_stop(self) -> tuple[str, str] | None:
-        """Ctrl-C or a stop asked by the program (a lifecycle deactivate), else ``None``."""
-        if self._interrupt:
-            return ("interrupted", "interrupted (Ctrl-C)")
-        if self._requested is not None:
-            return (self._requested, f"stop requested ({self._requested})")
-        return None
-
-    def _watch(self, stamp: float, wake: float, watchdog: float) -> tuple[str, str] | None:
-        """The watchdog of a polled arm: a stamp that has not advanced for longer than
-        ``watchdog`` [s] is a stop."""
-        last, fresh_at = self._fresh
-        if stamp != last:
-            self._fresh = (stamp, wake)
-            return None
-        if wake - fresh_at <= watchdog:
-            return None
-        return (
-            "watchdog",
-            f"no new state from the arm for {1e3 * (wake - fresh_at):.1f} ms "
-            f"(watchdog {1e3 * watchdog:g} ms), last stamp {stamp:.6g} s{RELAX_WATCHDOG}",
-        )
-
-    def _swap_reference(self, t: float, ref):
-        """The pending reference if its time ``at`` has come (under the lock that
-        :meth:`set_reference` takes), else ``ref``."""
-        with self._reference_lock:
-            pending = self._pending_reference
-            if pending is not None and t >= pending[1] - 1e-9:
-                ref, self._pending_reference = pending[0], None
-                self.reference = ref
-        return ref
 
     def _finish(
         self,
@@ -638,67 +536,16 @@ class RealtimeLoop:
         deadline: float,
         wrote: bool,
     ) -> RealtimeRun:
-        """The stop sequence (module doc, "Safe stop"; with no fresh state to brake on, the
-        held-safe torque; before the first command, nothing), then the statistics and
-        the run."""
-        st, ctrl, clock = self.settings, self.controller, self.clock
+        """The stop sequence (:mod:`.stop`), then the statistics and the run."""
+        st, ctrl = self.settings, self.controller
         P, m = st.period, self.decimation
-        stop_record = None
         # periods the arm's stamps passed with no state for them (before the brake's)
         gaps = int(getattr(self.interface, "gaps", 0)) if self.paced else 0
-        fresh = stop is None or stop[0] != "watchdog"
-        # stopped by its operator (Ctrl-C, a lifecycle deactivate) before its first command:
-        # the arm never had one from this loop, so none is sent now either
-        unsent = stop is not None and stop[0] in ("interrupted", "deactivated") and not wrote
-        if unsent:
-            cause, reason = stop  # type: ignore[misc]
-            cycle = min(k, K)
-            stop_record = {
-                "cause": cause,
-                "reason": f"stopped at t={cycle * P:.4f} s (cycle {cycle}) before the first "
-                f"command: {reason}; nothing was sent to the arm",
-                "cycle": int(cycle),
-                "t": cycle * P,
-                "safe_tau": None,
-                "q": q_last.tolist(),
-                "dq": dq_last.tolist(),
-            }
-        elif stop is not None:
-            cause, reason = stop
-            detected = clock()
-            tau_safe = self._safe_write(q_last, dq_last) if fresh else self._held_write(q_last)
-            written = clock()
-            cycle = min(k, K)
-            stop_record = {
-                "cause": cause,
-                "reason": f"safe stop at t={cycle * P:.4f} s (cycle {cycle}): {reason}; "
-                + self._safe_words(),
-                "cycle": int(cycle),
-                "t": cycle * P,
-                "safe_tau": tau_safe.tolist(),
-                "q": q_last.tolist(),
-                "dq": dq_last.tolist(),
-                "safe_after_deadline": written - deadline,
-                "safe_after_detection": written - detected,
-            }
-        elif fresh:
-            self._safe_write(q_last, dq_last)
-        if unsent:
-            brake = {
-                "ended": "nothing sent",
-                "duration": 0.0,
-                "states": 0,
-                "speed": float(np.max(np.abs(dq_last), initial=0.0)),
-                "q": q_last.tolist(),
-                "held_tau": None,
-            }
-        else:
-            last = self._fresh[0] if not self.paced else stamp
-            brake = self._brake(P, q_last, dq_last, last, fresh, resume=not fresh)
-        if stop_record is not None:
-            stop_record["brake"] = brake
-        done_a, wake_a = rec.done, rec.wake
-        cycles_run = int(np.count_nonzero(np.isfinite(done_a)))
+        stop_record, brake = self._stop_sequence(
+            stop, k, K, q_last, dq_last, stamp, deadline, wrote
+        )
+        timing = rec.timing_stats()
+        cycles_run = timing.pop("cycles_run")
         watch = self._gc_watch
         stats = {
             "rate": st.rate,
@@ -710,10 +557,7 @@ class RealtimeLoop:
             "skipped": tally.skipped,
             "miss_fraction": tally.misses / max(1, cycles_run + tally.skipped),
             "max_consecutive_misses": tally.worst_run,
-            "latency": latency_stats(done_a),
-            "wake": latency_stats(wake_a),
-            "compute": latency_stats(done_a - wake_a),
-            "latency_mpc": latency_stats(np.where(rec.mpc, done_a, np.nan)),
+            **timing,
             # measurement -> torque written, at the controller's steps (None: the stamps
             # are on the arm's own clock) against the declared [controller] latency
             "measured_latency": latency_stats(rec.age) if self._stamp_clocked() else None,
@@ -725,6 +569,8 @@ class RealtimeLoop:
             "gc_all_collections": watch.count,
             "gc_all_max_s": watch.longest,
             "period_us": 1e6 * P,
+            "wait": self._wait_stats(),
+            "loop_stalls": self._stalls,
             "brake": brake,
             "arm_gaps": gaps,
         }
@@ -749,20 +595,27 @@ class RealtimeLoop:
             message=message,
             meta=meta,
         )
-        timing = {
-            "wake": wake_a,
-            "latency": done_a,
-            "compute": done_a - wake_a,
-            "stamp": rec.stamp,
-            "missed": rec.missed,
-            "mpc": rec.mpc,
-            "gc": rec.gc,
-            "age": rec.age,
+        return RealtimeRun(result, rec.timing(), stats, stop_record)
+
+    def _wait_stats(self) -> dict | None:
+        """How the loop waited (``None``: paced by the arm, or a sleep function given):
+        ``spin`` (the setting), ``lead_us`` (the busy-wait stretch at the end [µs]),
+        ``spun_s`` (time spent busy-waiting [s]), ``warm_late`` and ``warm_skipped``
+        (warm-ups that ended after their deadline, and skipped for want of time)."""
+        w = self._waker
+        if w is None:
+            return None
+        return {
+            "spin": self.settings.spin,
+            "adaptive": w.adaptive,
+            "lead_us": 1e6 * w.lead,
+            "spun_s": w.spun,
+            "warm_late": w.late_work,
+            "warm_skipped": w.skipped_work,
         }
-        return RealtimeRun(result, timing, stats, stop_record)
 
     def _stamp_clocked(self) -> bool:
-        """Whether the measurement's age can be measured (module doc of :meth:`_cycles`)."""
+        """Whether the measurement's age can be measured (the module doc, "Measured latency")."""
         return self.paced or getattr(self.interface, "stamp_clock", None) is not None
 
     def _check_latency(self, stats: dict) -> None:
@@ -803,119 +656,6 @@ class RealtimeLoop:
             ValidityWarning,
             stacklevel=3,
         )
-
-    def _safe_write(self, q, dq) -> np.ndarray:
-        """Write the safe torque at ``(q, dq)``; a non-finite one (a model or a state gone
-        wrong) is replaced by the held-safe torque at the last finite position, then by
-        zero: a non-finite command is never written."""
-        tau = np.asarray(self.safe_torque(q, dq), dtype=float)
-        if not np.isfinite(tau).all():
-            return self._held_write(q)
-        self.interface.write(tau)
-        return tau
-
-    def _held(self, q) -> np.ndarray:
-        """The held-safe torque at ``q`` (:meth:`~.safety.SafeTorque.held`; for another
-        safe-torque function, itself at zero velocity)."""
-        held = getattr(self.safe_torque, "held", None)
-        if callable(held):
-            return np.asarray(held(q), dtype=float)
-        return np.asarray(self.safe_torque(q, np.zeros_like(q)), dtype=float)
-
-    def _held_write(self, q) -> np.ndarray:
-        """Write the held-safe torque at ``q`` (zero if it is not finite)."""
-        tau = self._held(q) if np.isfinite(q).all() else np.full(len(q), np.nan)
-        if not np.isfinite(tau).all():
-            tau = np.zeros(len(q))
-        self.interface.write(tau)
-        self._held_tau = tau
-        return tau
-
-    def _safe_words(self) -> str:
-        describe = getattr(self.safe_torque, "describe", None)
-        held = getattr(self.safe_torque, "describe_held", None)
-        return (
-            "safe torque "
-            + (describe() if callable(describe) else "commanded")
-            + " commanded, then the brake; "
-            + (held() if callable(held) else "the safe torque at rest")
-            + " at the last position left on the arm"
-        )
-
-    def _brake(
-        self, P: float, q_last, dq_last, stamp: float, fresh: bool, resume: bool = False
-    ) -> dict:
-        """The stop sequence (:mod:`.safety`): while fresh finite states arrive, the safe
-        torque at each, until every joint is slower than ``safety.brake_speed`` or
-        ``safety.hold`` has passed; then the held-safe torque at the last finite position,
-        the last command written. Works on copies: the interface may reuse its arrays.
-
-        With ``resume`` (after a watchdog stop: the held-safe torque is on the arm
-        already, its speed unknown) it waits up to ``hold`` for the states to resume and
-        brakes on them if they do (a loaded machine's stall, not an arm gone): the arm is
-        then left still, not coasting under G(q).
-
-        Returns:
-            ``ended`` (``"still"``, ``"time bound"``, ``"no fresh state"``), ``duration``
-            [s], ``states`` (fresh states braked on), ``speed`` (max |q̇| [rad/s] at the
-            last finite state), ``held_tau`` [N·m] (the last command).
-        """
-        sf, iface, clock = self.safety, self.interface, self.clock
-        q_keep, dq_keep = np.array(q_last, dtype=float), np.array(dq_last, dtype=float)
-        self._last_state = (q_keep, dq_keep)  # an error inside the brake holds G at q_keep
-        start = clock()
-        end = start + sf.hold
-        # (a bound on the wall too: the clock of a paced arm, a simulator's, may stop)
-        wall_end = time.monotonic() + max(2.0 * sf.hold, sf.hold + 1.0)
-        fresh_at = start
-        states = 0
-        ended = "no fresh state"
-        wait = getattr(iface, "wait", None) if self.paced else None
-        awaiting = resume  # no fresh state yet since the watchdog: the speed is unknown
-        patience = sf.hold if resume else sf.watchdog  # how long a fresh state is awaited
-        while fresh or resume:
-            now = clock()
-            if not awaiting and float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:
-                ended = "still"
-                break
-            if now >= end or time.monotonic() >= wall_end:
-                ended = "no fresh state" if awaiting else "time bound"
-                break
-            if wait is not None:
-                if not wait(min(sf.watchdog, end - now)):
-                    if awaiting or clock() >= end:
-                        continue
-                    break
-            else:
-                self.sleep(min(now + P, end))
-            new_stamp, q, dq = iface.read()
-            if new_stamp == stamp:
-                if clock() - fresh_at > patience:
-                    break
-                continue
-            stamp, fresh_at = new_stamp, clock()
-            awaiting, patience = False, sf.watchdog
-            if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-                # not a state to brake on: the damping on the last finite velocity would be
-                # a stale torque, so the held-safe one replaces it until a finite state comes
-                self._held_write(q_keep)
-                continue
-            q_keep[:] = q
-            dq_keep[:] = dq
-            states += 1
-            if float(np.max(np.abs(dq_keep), initial=0.0)) >= sf.brake_speed:
-                self._safe_write(q_keep, dq_keep)
-        # (after a watchdog stop with no state since, it is on the arm already: written once)
-        held = self._held_write(q_keep) if fresh or states else self._held_tau
-        self._last_state = (q_keep, np.zeros_like(dq_keep))
-        return {
-            "ended": ended,
-            "duration": clock() - start,
-            "states": states,
-            "speed": float(np.max(np.abs(dq_keep), initial=0.0)),
-            "q": q_keep.tolist(),
-            "held_tau": held.tolist(),
-        }
 
     def _start_fault(self, q, dq) -> str | None:
         """Why the first state cannot start the loop (non-finite, beyond the bounds), or

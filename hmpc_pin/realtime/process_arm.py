@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import DimensionError, SimulationError
+from .pacing import resolve_priority
 
 __all__ = ["ProcessArm", "StateReader"]
 
@@ -199,7 +200,8 @@ class ProcessArm:
         q0, dq0: Initial state [rad, rad/s].
         effort_limit: Per-joint torque limit [N·m] the arm applies (``None``: none).
         start_timeout: Seconds to wait for the child to build its plant.
-        priority: ``SCHED_FIFO`` priority of the arm process (0: normal scheduling), as
+        priority: ``SCHED_FIFO`` priority of the arm process (0: normal scheduling;
+            ``"auto"``: 80 where permitted, else normal), as
             a robot's own controller runs (see :func:`~hmpc_pin.realtime.loop.fifo_priority`).
 
     Attributes:
@@ -217,7 +219,7 @@ class ProcessArm:
         *,
         effort_limit=None,
         start_timeout: float = 120.0,
-        priority: int = 0,
+        priority: int | str = 0,
     ):
         q0 = np.array(q0, dtype=float)
         n = q0.size
@@ -227,6 +229,7 @@ class ProcessArm:
                 f"initial state of shapes {q0.shape}, {dq0.shape}; expected ({n},) each"
             )
         self.nq = n
+        priority = resolve_priority(priority)  # "auto": 80 where permitted, else 0
         self._shm = SharedMemory(create=True, size=_size(n))
         self._ctl, self._period, self._state, self._tau = _views(self._shm.buf, n)
         self._ctl[:] = 0

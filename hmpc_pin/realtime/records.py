@@ -147,3 +147,29 @@ class Records:
         q_ref, dq_ref = reference.sample(t)
         traj["q_ref"][j] = q_ref
         traj["dq_ref"][j] = dq_ref
+
+    def timing_stats(self) -> dict:
+        """The cycles run and the latency statistics (:func:`latency_stats`) of the
+        deadline → torque latency, the wake-up, the compute time (wake → torque) and the
+        latency of the cycles that ran the controller."""
+        done, wake = self.done, self.wake
+        return {
+            "cycles_run": int(np.count_nonzero(np.isfinite(done))),
+            "latency": latency_stats(done),
+            "wake": latency_stats(wake),
+            "compute": latency_stats(done - wake),
+            "latency_mpc": latency_stats(np.where(self.mpc, done, np.nan)),
+        }
+
+    def timing(self) -> dict[str, np.ndarray]:
+        """Every cycle's timing (:attr:`RealtimeRun.timing`)."""
+        return {
+            "wake": self.wake,
+            "latency": self.done,
+            "compute": self.done - self.wake,
+            "stamp": self.stamp,
+            "missed": self.missed,
+            "mpc": self.mpc,
+            "gc": self.gc,
+            "age": self.age,
+        }

@@ -10,7 +10,8 @@ from .disturbances import (
     ZeroDisturbance,
     as_disturbance,
 )
-from .mujoco import MuJoCoPlant, MuJoCoSettings, Obstacle
+from .mujoco import MuJoCoPlant
+from .mujoco_settings import MuJoCoSettings, Obstacle
 from .plants import PLANTS, EulerPlant, Plant, RK4Plant
 from .result import RESULT_ARRAYS, Result
 from .sensing import SensedController, Sensing

@@ -15,7 +15,7 @@ the Python object through the port's trampoline):
 - the reference: the step's Reference port, compiled for a sine or a piecewise polynomial
   (:func:`~hmpc_pin.tasks.base.reference_port`), else sampled in Python;
 - the plant (``plant.loop_port()``): :class:`~hmpc_pin.sim.plants.RK4Plant`'s compiled plant,
-  its disturbance behind the Disturbance port (compiled pulses and friction fused into its
+  its disturbance behind the Disturbance port (compiled pulses and friction evaluated in its
   period); any other plant (semi-implicit Euler, MuJoCo, an RK4 plant whose methods are
   replaced) is called as a whole, ``advance(tau)`` and ``disturbance_now()`` (and, after
   ``advance``, ``applied_disturbance(d)`` where the plant has it: the recorded ``d`` made
@@ -46,6 +46,7 @@ import numpy as np
 
 from .._deprecated import deprecated
 from ..native import load as load_native
+from ..native import loop_port
 
 __all__ = ["LOOP_CHUNK", "CompiledLoop"]
 
@@ -58,12 +59,6 @@ def __getattr__(name: str):
     """``LOOPS`` and ``why_not_compiled`` of earlier versions (:mod:`hmpc_pin._deprecated`),
     with a :class:`DeprecationWarning`."""
     return deprecated(__name__, name)
-
-
-def _port(part, *args):
-    """``part.loop_port(*args)``, or ``None`` for a part without one."""
-    own = getattr(part, "loop_port", None)
-    return own(*args) if callable(own) else None
 
 
 class CompiledLoop:
@@ -97,7 +92,7 @@ class CompiledLoop:
         self.t_arr, self.records = t_arr, records
         n = records["q"].shape[1]
         self.n, self.K = n, len(t_arr) - 1
-        plant_port = _port(plant)
+        plant_port = loop_port(plant)
         self._loop = load_native().ClosedLoop(
             plant if plant_port is None else plant_port,  # compiled, or through Python
             n,
@@ -140,7 +135,7 @@ class CompiledLoop:
         (the per-step loop's, translated from C++ in one place) with :attr:`k`,
         :attr:`last` kept up to date for the caller's partial result."""
         controller, reference = self.controller, self.reference
-        port = _port(controller, reference)  # built after reset, for this run's reference
+        port = loop_port(controller, reference)  # built after reset, for this run's reference
         if port is None:  # the controller as a whole, from Python
             self._loop.set_controller(controller, reference)
         else:

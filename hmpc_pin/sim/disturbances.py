@@ -22,7 +22,7 @@ import numpy as np
 
 from ..exceptions import ConfigError, InterfaceError
 from ..native import load as load_native
-from ..native import replaced
+from ..native import loop_port, replaced
 
 __all__ = [
     "CoulombViscousFriction",
@@ -90,13 +90,13 @@ class ZeroDisturbance(Disturbance):
 
 def _defined_by(cls, name: str) -> None:
     """Refuse a subclass that defines ``__call__`` of a term whose value is defined by
-    ``name`` alone (a plant evaluates ``name`` fused into its integration, so a
+    ``name`` alone (a plant evaluates ``name`` compiled, inside its integration, so a
     ``__call__`` of its own would be a second definition the plant never sees)."""
     if "__call__" in vars(cls):
         raise InterfaceError(
             cls,
             f"a {cls.__mro__[1].__name__}: such a term is defined by {name}() alone (the "
-            "plant evaluates that, fused), but this class defines __call__",
+            "plant evaluates that, compiled), but this class defines __call__",
             f"define {name}() instead, or subclass Disturbance for a term of your own",
         )
 
@@ -156,8 +156,8 @@ class CoulombViscousFriction(Disturbance):
 
     def friction_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
         """``(a, b)`` with :math:`d = -(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`, the term's
-        one definition (``d(t, q, dq)`` is the law of these): a plant fuses the term into
-        its integration (:class:`~hmpc_pin.sim.plants.RK4Plant`)."""
+        one definition (``d(t, q, dq)`` is the law of these): a plant evaluates the term
+        compiled, inside its integration (:class:`~hmpc_pin.sim.plants.RK4Plant`)."""
         return self.viscous, self.coulomb
 
     def loop_port(self, n: int) -> Any:
@@ -242,7 +242,7 @@ class SumDisturbance(Disturbance):
 class Periodic(Disturbance):
     """A disturbance repeated every ``period`` seconds: :math:`d(t \\bmod T, q, \\dot q)`.
 
-    Used by long runs (``benchmarks/long_run.py``) so that the paper's pulses, which
+    Used by long runs (``benchmarks/studies/long_run.py``) so that the paper's pulses, which
     happen once in the first seconds, come back every minute. State-dependent terms
     (friction) are unchanged by the wrapping.
     """
@@ -268,8 +268,7 @@ class _Callable(Disturbance):
 def disturbance_port(d, n: int) -> Any:
     """What a plant of ``n`` joints evaluates for the disturbance ``d``: its compiled port
     (``d.loop_port(n)``), or ``d`` itself when it has none (called as ``d(t, q, dq)``)."""
-    own = getattr(d, "loop_port", None)
-    port = own(n) if callable(own) else None
+    port = loop_port(d, n)
     return d if port is None else port
 
 

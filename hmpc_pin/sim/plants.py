@@ -29,7 +29,7 @@ plants here unless ``joint_dynamics=False``.
 The Coulomb term is discontinuous at :math:`\\dot q_i = 0`, where RK4 with
 :math:`\\mathrm{sgn}` per stage converges at first order only. :class:`RK4Plant` (``coulomb =
 "stick-slip"``, the default) integrates it as a stick-slip law with event location: the sign
-of each joint's Coulomb term (the URDF's :math:`F` and the fused ``[disturbance.friction]``
+of each joint's Coulomb term (the URDF's :math:`F` and the compiled ``[disturbance.friction]``
 term's :math:`b`) is held over a step at :math:`\\mathrm{sgn}\\,\\dot q_i` of its start, the
 step is split where a velocity changes sign (the crossing found by regula falsi on the RK4
 step's length, to :math:`10^{-13}` of the step), and a joint at rest sticks: its friction
@@ -45,7 +45,7 @@ same events). ``coulomb = "sign"``:
 about :math:`\\dot q = 0` rather than sticking (versions before 0.3; :class:`EulerPlant`
 always). A disturbance evaluated as a function (a sum with a term of the user's) keeps its
 own terms, but for its Coulomb–viscous terms (:func:`friction_in`), which follow the same
-law as when fused. MuJoCo's
+law as when compiled. MuJoCo's
 ``frictionloss`` is a soft constraint that holds a joint at rest while the torque is below
 :math:`f`.
 
@@ -59,7 +59,7 @@ disturbance is handed to the compiled plant as its Disturbance port
 each is of time alone (:class:`~hmpc_pin.sim.disturbances.TimeOnly`, e.g.
 :class:`~hmpc_pin.sim.disturbances.GaussianPulse`, compiled) or one Coulomb–viscous friction
 (:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`, compiled:
-:math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`), the disturbance is fused into the
+:math:`-(a\\dot q + b\\,\\mathrm{sgn}\\,\\dot q)`), the disturbance is compiled into the
 period: the time-only terms evaluated at the 3·substeps stage times of a period at once and
 added to the held torque, the friction evaluated per stage. Any other disturbance (a user
 callable, two friction terms) is called at every stage as ``d(t, q, dq)``.
@@ -181,7 +181,7 @@ def _friction_of(term, n: int) -> tuple[FloatArray, FloatArray] | None:
 def friction_in(disturbance, n: int) -> tuple[FloatArray, FloatArray] | None:
     """The summed ``(a, b)`` of the Coulomb–viscous terms of a disturbance evaluated as a
     function (a sum with other terms), which the stick-slip period then integrates as the
-    fused one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
+    compiled one (``RK4.set_friction_in_disturbance``); ``None`` without any."""
     terms = _terms(disturbance)
     found = [ab for ab in (_friction_of(term, n) for term in terms) if ab is not None]
     if not found:
@@ -200,13 +200,13 @@ def _terms(disturbance) -> tuple:
 
 
 def split_disturbance(disturbance, n: int):
-    """Split ``disturbance`` into fused parts, or return ``None`` if it has other terms.
+    """Split ``disturbance`` into its compiled parts, or return ``None`` if it has other terms.
 
     Returns:
         ``(pulses, friction)``: the time-only terms
         (:class:`~hmpc_pin.sim.disturbances.TimeOnly`) and the single Coulomb–viscous
         term's ``(a, b)`` (:class:`~hmpc_pin.sim.disturbances.CoulombViscousFriction`, or
-        ``None``); each is defined by its fused form alone, so no check that the two agree;
+        ``None``); each is defined by its compiled form alone, so no check that the two agree;
         ``None`` instead of the pair when the disturbance has any other term (a user
         callable, two friction terms), which is then evaluated term by term.
     """
@@ -232,7 +232,7 @@ class RK4Plant:
 
     The plant is the compiled core's (``cpp/include/hmpc/rk4_plant.hpp``, ``RK4Plant``, the
     closed loop's Plant port; its period ``cpp/src/rk4.cpp``; module docstring): its state
-    lives there, one C++ call per period, with the disturbance's port (fused, or called as
+    lives there, one C++ call per period, with the disturbance's port (compiled, or called as
     ``d(t, q, dq)`` at every stage from C++); Pinocchio's compiled ABA, or its Python ABA
     for a model with mimic joints. The compiled loop advances :attr:`port` itself
     (:meth:`loop_port`).
@@ -374,7 +374,7 @@ class RK4Plant:
         self._was_reset = True
 
     def disturbance_now(self) -> FloatArray:
-        """:math:`d(t, q, \\dot q)` [N·m] at the current time and state (fused: the
+        """:math:`d(t, q, \\dot q)` [N·m] at the current time and state (compiled: the
         time-only terms at stage 0 of the period, t itself, minus the friction; else the
         disturbance called)."""
         return self.port.disturbance_now()

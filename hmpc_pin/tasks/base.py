@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 
 from ..exceptions import DimensionError, InterfaceError, LimitError
 from ..native import load as load_native
+from ..native import loop_port
 
 __all__ = [
     "PolynomialSampling",
@@ -195,9 +196,8 @@ def compiled_sampling(reference: object) -> SamplingForm | None:
 def reference_port(reference: object) -> Any:
     """The compiled Reference port of ``reference`` (its ``loop_port()``, or the port of its
     :func:`compiled_sampling` form), or ``None``: the step then samples it in Python."""
-    own = getattr(reference, "loop_port", None)
-    if callable(own):
-        return own()
+    if callable(getattr(type(reference), "loop_port", None)):  # its class's own port
+        return loop_port(reference)
     form = compiled_sampling(reference)
     return None if form is None else form.port()
 

@@ -54,6 +54,9 @@ class BoxQP {
     else res_->z.segment(offset, m).setZero();
   }
   const Vec& x() const { return res_->x; }
+  // The warm start (the warm QP's results), saved and put back (JointQPs::save, restore).
+  const Results& results() const { return *res_; }
+  void set_results(const Results& r) { *res_ = r; }
 
   // The iteration cap, of this QP, its twin and the QPs restart() makes.
   void set_max_iter(long max_iter);

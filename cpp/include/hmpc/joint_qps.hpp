@@ -85,6 +85,16 @@ class JointQPs {
   // that a run gives, bit for bit, the answers of a new JointQPs (the counters go on).
   void restart();
 
+  // The QPs' memory between steps (warm starts, remembered active sets), saved and put back:
+  // a dry step (HierarchicalMPC.warm_up) followed by restore() leaves the next step's
+  // answers bit for bit those without it.
+  struct Memory {
+    std::vector<Results> boxes;
+    SoftLimits::Memory soft;
+  };
+  void save(Memory& m) const;
+  void restore(const Memory& m);
+
   int n, N, Nc;
   bool block;
   Options options;

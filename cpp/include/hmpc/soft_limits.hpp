@@ -86,14 +86,18 @@ class SoftLimits {
   // ProxSuite's answer for joint i (after prepare); then, when the shortcut is on
   // (iter >= 0), its active set remembered as the next guess.
   const Results& proxsuite(int i, int iter);
-  // This step's exchanges over all joints (< 0: no bound), set before the joints'; stopped():
-  // the last active_set ran out of them (its active set kept: the next step resumes it).
+  // The exchanges the next active_set may make (< 0: no bound; JointQPs gives each joint
+  // its share of the step's); budget() what is left of them; stopped(): the last
+  // active_set ran out of them, or, under a bound, out of its guess's own exchanges (its
+  // active set kept: the next step resumes it).
   void set_budget(long exchanges) { budget_ = exchanges; }
+  long budget() const { return budget_; }
   bool stopped() const { return stopped_; }
-  // The fallback answer for joint i (after prepare) when the exchanges ran out: its first input u0 (its
-  // box-only answer) with u0 clipped to the accelerations that keep the next state
+  // The fallback answer for joint i (after prepare) when the exchanges ran out: its first
+  // input u0 (its box-only answer) clipped to the accelerations that keep the next state
   // x1 = A x0 + B u0 inside the position and velocity limits (the velocity's alone when
-  // both cannot hold) and the box.
+  // both cannot hold), then to the box (with no input in the box keeping them: the box's
+  // end nearest them, braking at the most the box allows).
   void fallback(int i, double& u0) const;
   // After joint i's soft QP was answered: whether the next step goes straight to it.
   void settled(int i, bool binding, bool continued) { active[i] = binding && continued ? 1 : 0; }
@@ -102,6 +106,21 @@ class SoftLimits {
   bool binding() const { return binding_; }
   bool continued() const { return continued_; }
   double k_slack() const { return k_slack_; }
+
+  // What the next step starts from (the active sets and states remembered, the flags
+  // below, ProxSuite's warm starts), saved and put back (a dry step: JointQPs::save).
+  struct Memory {
+    std::vector<signed char> last, next, active, guess_slack, has_guess, shifted_first, resume,
+        used;
+    std::vector<std::vector<signed char>> guess_rows, guess_box, res_rows, res_box, ans_rows,
+        ans_box;
+    std::vector<signed char> res_slack, ans_slack;
+    std::vector<int> spent;
+    Vec last_q, last_v, last_u0;
+    std::vector<Results> qps;
+  };
+  void save(Memory& m) const;
+  void restore(const Memory& m);
 
   // Per joint: its soft QP solved at the last step (last); its last soft solution with a
   // state limit or the slack active (active; else it is the box QP's solution); its soft
@@ -114,6 +133,8 @@ class SoftLimits {
   bool exchange(int i, int exchanges);
   int test_point(int i);
   void guess_from(int i, const Vec& y, bool box_only);
+  bool infeasible_guess(int i, const ColRef& box_u);
+  bool bounded(int i, const ColRef& box_u, int iter);
 
   int n_, N_, Nc_;
   Mat H_, Phi_, Gamma_, Hs_, C_;
@@ -139,7 +160,15 @@ class SoftLimits {
   double q_ = 0.0, dq_ = 0.0;
   long budget_ = -1;
   bool stopped_ = false;
-  std::vector<signed char> resume_;  // per joint: its exchanges stopped at the last step
+  bool exhausted_ = false;     // the last exchange() ran out of its guess's exchanges
+  bool gamma_nonneg_ = false;  // every entry of Γ >= 0 (infeasible_guess)
+  // Per joint, under a bound (bounded()): the stage stopped at the last step + 1 (0: none),
+  // the exchanges it made, the active set it reached; the last answer's active set.
+  std::vector<signed char> resume_;
+  std::vector<int> spent_;
+  std::vector<std::vector<signed char>> res_rows_, res_box_, ans_rows_, ans_box_;
+  std::vector<signed char> res_slack_, ans_slack_;
+  int made_ = 0;  // the last exchange()'s exchanges
   void remember_state(int i, double u0) {
     last_q_[i] = q_;
     last_v_[i] = dq_;

@@ -12,7 +12,7 @@ from ...exceptions import ConfigError
 from ...native import BACKENDS
 from ...sim.engines import DEFAULT_ENGINE, engine_spec
 from ...sim.engines import ENGINES as ENGINE_REGISTRY
-from ...sim.mujoco import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
+from ...sim.mujoco_settings import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS
 from ...sim.plants import COULOMB_LAWS, PLANTS
 from ._fields import _array, _bool, _choice, _float, _section, _set
 
@@ -230,7 +230,7 @@ class PlantConfig:
             raise ConfigError(
                 "backend",
                 f"does not apply to engine = {self.engine!r}, integrator = "
-                f"{self.integrator!r} (only the Pinocchio RK4 plant has a native path); "
+                f"{self.integrator!r} (only the Pinocchio RK4 plant has a compiled path); "
                 "remove it",
             )
         if engine.table != "mujoco" and self.mujoco is not None:

@@ -47,11 +47,21 @@ class RealtimeConfig:
             ``position_margin`` and ``velocity_scale``.
         position_margin: Margin [rad] outside the URDF position limits (with ``limits``).
         velocity_scale: Factor on the URDF velocity limits (with ``limits``).
-        priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process; 0
-            (default) keeps normal scheduling.
-        spin: Busy-wait this long [s] before each deadline instead of sleeping (the loop
-            is awake at the deadline: no wake-up latency), below ``1/rate``; 0 (default)
-            sleeps.
+        priority: ``SCHED_FIFO`` priority (1–99) of the loop and the arm process (of the
+            node, under ``hmpc-pin ros``); ``"auto"`` (default) takes 80 where this process
+            may (root, ``CAP_SYS_NICE`` or an rtprio limit) and keeps normal scheduling
+            elsewhere (the run's statistics say which: ``priority``); 0 keeps normal
+            scheduling.
+        cpus: Run the loop's thread on these CPUs only (indices, e.g. ``[1]``); empty
+            (default): wherever the kernel puts it. On a machine whose other work is
+            kept off those CPUs (``isolcpus``, a cpuset) the loop's caches stay its own;
+            on a shared machine pinning can keep it waiting behind another thread on its
+            CPU while another CPU idles.
+        spin: How the loop waits for a deadline: ``"auto"`` (default) sleeps, then
+            busy-waits the last stretch, chosen from the wake-ups measured during the run
+            (their 99th percentile, at most half a period: the loop is awake at the
+            deadline); a time [s] below ``1/rate`` busy-waits that long before each
+            deadline; 0 sleeps the whole wait.
         warm_up: Wake this long [s] before each MPC cycle's deadline and run the
             controller's step on the last measured state, undone (its memory then warm in
             the caches for the cycle's step), then busy-wait to the deadline; below
@@ -71,18 +81,20 @@ class RealtimeConfig:
     limits: bool = True
     position_margin: float | None = None
     velocity_scale: float | None = None
-    priority: int = 0
-    spin: float = 0.0
+    priority: int | str = "auto"
+    cpus: tuple[int, ...] = ()
+    spin: float | str = "auto"
     warm_up: float = 2e-4
 
     def __post_init__(self):
         _set(self, "rate", _float("rate", self.rate, positive=True))
-        _set(self, "spin", _float("spin", self.spin, nonneg=True))
-        if self.spin >= 1.0 / self.rate:
+        if self.spin != "auto":
+            _set(self, "spin", _float("spin", self.spin, nonneg=True))
+        if self.spin != "auto" and self.spin >= 1.0 / self.rate:  # type: ignore[operator]
             raise ConfigError(
                 "spin",
                 f"expected a time [s] below the period 1/rate = {1.0 / self.rate:g} s, "
-                f"got {self.spin:g}",
+                f'got {self.spin:g}; or "auto"',
             )
         _set(self, "warm_up", _float("warm_up", self.warm_up, nonneg=True))
         if self.warm_up >= 1.0 / self.rate:
@@ -91,9 +103,16 @@ class RealtimeConfig:
                 f"expected a time [s] below the period 1/rate = "
                 f"{1.0 / self.rate:g} s, got {self.warm_up:g}",
             )
-        _set(self, "priority", _int("priority", self.priority, minimum=0))
-        if self.priority > 99:
-            raise ConfigError("priority", f"expected 0 (off) or 1..99, got {self.priority}")
+        if self.priority != "auto":
+            _set(self, "priority", _int("priority", self.priority, minimum=0))
+        if self.priority != "auto" and self.priority > 99:  # type: ignore[operator]
+            raise ConfigError(
+                "priority", f'expected 0 (off) or 1..99, or "auto", got {self.priority}'
+            )
+        cpus = self.cpus
+        if not isinstance(cpus, (list, tuple)):
+            raise ConfigError("cpus", f"expected a list of CPU indices, got {cpus!r}")
+        _set(self, "cpus", tuple(_int("cpus", c, minimum=0) for c in cpus))
         _set(self, "gc", _bool("gc", self.gc))
         _set(self, "gc_slack", _float("gc_slack", self.gc_slack, positive=True))
         if self.brake_time is not None:

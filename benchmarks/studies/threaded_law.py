@@ -19,7 +19,7 @@ RMS error over the last half of each run (the median over blocks) [rad]; the thr
 law's brake fallbacks. Load average printed. Wall clock on a shared machine: a
 measurement, not a test.
 
-Run: ``python benchmarks/threaded_law.py [--blocks 4] [--cycles 2000]``.
+Run: ``python benchmarks/studies/threaded_law.py [--blocks 4] [--cycles 2000]``.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _run(kind, robot, settings, q0, reference, cycles):

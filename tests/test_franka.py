@@ -284,6 +284,25 @@ def test_inner_law_every_cycle_tracks_as_the_whole_step_at_1khz(simulator, tmp_p
     assert np.median(periods) == pytest.approx(1.0)
 
 
+def test_inner_law_threaded_tracks_as_the_synchronous_one(simulator, tmp_path):
+    """Ts = 10 ms: the MPC in its compiled thread, its latest plan used within 2 Ts;
+    against the MPC every 10 cycles in the cycle that needs it."""
+    every, _, _ = _run(tmp_path)
+    threaded, files, s = _run(tmp_path, inner_law="threaded")
+    assert s["inner_law"] == "every cycle, the MPC threaded"
+    plans = s["planner"]
+    # a plan per 10 cycles of the run (the planner answers a request replaced before it
+    # was taken once, for the newer one)
+    cycles = len(threaded.result.t)
+    assert plans["requests"] >= cycles // 10
+    answered = plans["requests"] - plans["dropped"]  # the last may be in flight at the end
+    assert answered - 1 <= plans["published"] <= answered
+    assert plans["fallbacks"] == plans["refused"] <= cycles // 100
+    t, e = (_worst_rms(r.result).max() for r in (threaded, every))
+    assert t <= 1.5 * e, (t, e)
+    _assert_fci_rules(summary_cycles(files))
+
+
 def test_ctrl_c_mid_run(simulator, tmp_path):
     config = tmp_path / "fr3_sine.toml"
     config.write_text(FR3_SINE.read_text() + "\n[realtime]\nmax_misses = 19\n")

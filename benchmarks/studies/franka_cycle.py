@@ -12,7 +12,8 @@ prints, from the driver's own record of every robot cycle:
 * ``control_command_success_rate`` (min, mean) and the lost cycles;
 * the tracking (worst joint's RMS error after 1 s).
 
-``--ts`` overrides the controller period (0.001: the whole step every cycle). The
+``--ts`` overrides the controller period (0.001: the whole step every cycle), ``--horizon``
+and ``--nc`` its N and Nc; ``--inner-law threaded`` runs the MPC in its compiled thread. The
 simulator is itself a Python process on the same cores: it models no deadline (it slows
 down instead of losing cycles), so its success rate says what the client sent, not what a
 robot would have accepted. Exit code 0.
@@ -76,7 +77,11 @@ def main() -> int:
     parser.add_argument("--robot-ip", default=None)
     parser.add_argument("--realtime", default="ignore", choices=("enforce", "ignore"))
     parser.add_argument("--ts", type=float, default=None, help="controller period [s]")
-    parser.add_argument("--inner-law", default="every-cycle", choices=("every-cycle", "held"))
+    parser.add_argument(
+        "--inner-law", default="every-cycle", choices=("every-cycle", "threaded", "held")
+    )
+    parser.add_argument("--horizon", type=int, default=None, help="controller N (and Nc: --nc)")
+    parser.add_argument("--nc", type=int, default=None, help="controller Nc")
     args = parser.parse_args()
 
     from hmpc_pin.apps.franka import FrankaOptions, run_franka
@@ -88,6 +93,10 @@ def main() -> int:
     config = replace(config, simulation=replace(config.simulation, duration=args.duration))
     if args.ts is not None:
         config = replace(config, controller=replace(config.controller, Ts=args.ts))
+    if args.horizon is not None:
+        config = replace(config, controller=replace(config.controller, N=args.horizon))
+    if args.nc is not None:
+        config = replace(config, controller=replace(config.controller, Nc=args.nc))
     proc = _start_simulator() if args.robot_ip is None else None
     try:
         with tempfile.TemporaryDirectory() as tmp:
@@ -117,8 +126,12 @@ def main() -> int:
         f"config {config.name}, Ts = {config.controller.Ts:g} s (MPC every {m} cycles), "
         f"{args.duration:g} s, against {args.robot_ip or 'franky-sim (started here)'}"
     )
-    print(f"  inner law: {summary['inner_law']}")
-    print(f"  stop: {'complete' if run.complete else run.stop['cause']}")
+    cc = config.controller
+    print(f"  inner law: {summary['inner_law']}; N = {cc.N}, Nc = {cc.Nc}")
+    if "planner" in summary:
+        print(f"  planner: {summary['planner']}")
+    stop = "complete" if run.complete else f"{run.stop['cause']}: {run.stop.get('reason')}"
+    print(f"  stop: {stop}")
     print(f"  compute readOnce->writeOnce [us], all cycles: {_stats(compute)}")
     print(f"  MPC cycles: {_stats(compute[mpc])}")
     print(f"  other cycles: {_stats(compute[~mpc])}")

@@ -26,6 +26,7 @@ void expose_measurement(py::module_& m);
 void expose_loop(py::module_& m);
 void expose_errors(py::module_& m);
 void expose_joint_dynamics(py::module_& m);
+void expose_plan_thread(py::module_& m);
 
 // A numpy view of `rows`×`cols` doubles (row-major) that the C++ object `owner` holds: it
 // keeps `owner` alive; read-only unless `writable` (Python only reads what the step writes).

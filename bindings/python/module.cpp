@@ -26,4 +26,5 @@ PYBIND11_MODULE(_core, m) {
   hp::expose_loop(m);
   hp::expose_errors(m);
   hp::expose_joint_dynamics(m);
+  hp::expose_plan_thread(m);
 }

@@ -62,6 +62,8 @@ __all__ = ["FrankaOptions", "franka_parts", "run_franka"]
 POSITION_MARGIN = 0.02
 #: The driver's own velocity watch at this fraction of the URDF's velocity limits.
 VELOCITY_FRACTION = 0.9
+#: The two-rate laws of --inner-law (FrankaOptions.inner_law).
+INNER_LAWS = ("every-cycle", "threaded", "held")
 #: The move to the start: at most this joint speed [rad/s] and acceleration [rad/s²].
 MOVE_VELOCITY = 0.5
 MOVE_ACCELERATION = 1.0
@@ -79,7 +81,9 @@ class FrankaOptions:
         thresholds: ``(lower, upper)`` joint torque collision thresholds [N·m] or ``None``.
         ramp: Cycles of the command's ramp-in.
         inner_law: ``"every-cycle"`` (Eq 4 and the observer every cycle, the MPC every
-            ``Ts``) or ``"held"`` (the whole step every ``Ts``, its torque held).
+            ``Ts``), ``"threaded"`` (the same with the MPC in a compiled thread, its latest
+            plan used within a staleness bound) or ``"held"`` (the whole step every ``Ts``,
+            its torque held).
     """
 
     def __init__(
@@ -96,8 +100,10 @@ class FrankaOptions:
         self.address, self.realtime, self.recover = address, realtime, recover
         self.max_move, self.model_tolerance = float(max_move), float(model_tolerance)
         self.thresholds, self.ramp = thresholds, int(ramp)
-        if inner_law not in ("every-cycle", "held"):
-            raise ConfigError("--inner-law", f"expected every-cycle or held, got {inner_law!r}")
+        if inner_law not in INNER_LAWS:
+            raise ConfigError(
+                "--inner-law", f"expected one of {', '.join(INNER_LAWS)}, got {inner_law!r}"
+            )
         self.inner_law = inner_law
 
 
@@ -107,7 +113,9 @@ def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
     ``inner_law = "every-cycle"`` and ``Ts`` > 1 ms, a
     :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle` (the MPC every ``Ts``, Eq 4
     and the observer every cycle) where it applies (the hierarchical MPC with an observer
-    and no declared latency), else the torque held between the MPC's steps.
+    and no declared latency), with ``"threaded"`` a
+    :class:`~hmpc_pin.realtime.franka.threaded.InnerLawThreaded` (the same, the MPC in a
+    compiled thread), else the torque held between the MPC's steps.
 
     Raises:
         ConfigError: 1 kHz does not divide the controller period, or the brake settings.
@@ -136,12 +144,14 @@ def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
     )
     ctrl = experiment.controller
     cc = experiment.config.controller
-    if inner_law == "every-cycle" and _inner_law_applies(ctrl, loop_settings.period):
+    if inner_law in ("every-cycle", "threaded") and _inner_law_applies(ctrl, loop_settings.period):
         from ..experiment.controllers import make_compensation
         from ..realtime.franka.rates import InnerLawEveryCycle
+        from ..realtime.franka.threaded import InnerLawThreaded
 
         fast = make_compensation(robot, replace(cc, Ts=loop_settings.period), experiment.q0)
-        ctrl = InnerLawEveryCycle(ctrl, fast, loop_settings.period, FRANKA_TORQUE_LIMIT)
+        law = InnerLawThreaded if inner_law == "threaded" else InnerLawEveryCycle
+        ctrl = law(ctrl, fast, loop_settings.period, FRANKA_TORQUE_LIMIT)
     return loop_settings, safety, safe, GravityByArm(ctrl, robot)
 
 
@@ -230,9 +240,34 @@ def _drive(config, options, out, stem, experiment, ready, controller_wrapper, st
     stem = (stem or config.name) + "_franka"
     experiment = Experiment.from_config(config) if experiment is None else experiment
     loop_settings, safety, safe, ctrl = franka_parts(experiment, options.inner_law)
+    law = ctrl.controller
+    try:
+        return _drive_law(
+            config,
+            options,
+            out,
+            stem,
+            experiment,
+            ready,
+            controller_wrapper,
+            started,
+            (loop_settings, safety, safe, ctrl),
+        )
+    finally:
+        if callable(getattr(law, "close", None)):  # the MPC's planner thread, joined
+            law.close()
+
+
+def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper, started, parts):
+    """:func:`_drive`'s work once the controller is built (``parts``: :func:`franka_parts`'
+    answer); the caller closes the law (the threaded law's planner) on every way out."""
+    loop_settings, safety, safe, ctrl = parts
+    law = ctrl.controller
     inner_law = (
         "every cycle"
-        if type(ctrl.controller).__name__ == "InnerLawEveryCycle"
+        if type(law).__name__ == "InnerLawEveryCycle"
+        else "every cycle, the MPC threaded"
+        if type(law).__name__ == "InnerLawThreaded"
         else (
             "whole step every cycle" if experiment.controller.Ts < 1.5e-3 else "held between steps"
         )
@@ -286,6 +321,16 @@ def _drive(config, options, out, stem, experiment, ready, controller_wrapper, st
         with _SigintDeferred() as deferred:  # the ramp to zero is not cut short
             end = arm.finish() if arm.fault is None else {}
     _close_record(run, arm, options, summary, end, deferred["count"])
+    planner = getattr(law, "planner", None)
+    if planner is not None:  # the MPC's planner thread (InnerLawThreaded)
+        summary["planner"] = {
+            "requests": int(planner.requests),
+            "published": int(planner.published),
+            "dropped": int(planner.dropped),
+            "refused": int(planner.stale),
+            "fallbacks": int(law.fallbacks),
+            "max_age": float(planner.max_age),
+        }
     files = save_run(run, out, stem, "franka")
     files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
     return run, files, summary
@@ -514,11 +559,12 @@ def franka_arguments(parser) -> None:
     )
     parser.add_argument(
         "--inner-law",
-        choices=("every-cycle", "held"),
+        choices=INNER_LAWS,
         default="every-cycle",
         help="with Ts > 1 ms: inverse dynamics and observer every 1 ms cycle from the MPC's "
-        "latest output (every-cycle), or the whole step's torque held for Ts (held) "
-        "[every-cycle]",
+        "latest output (every-cycle), the same with the MPC in a compiled thread whose "
+        "latest plan is used within 2 Ts (threaded), or the whole step's torque held for Ts "
+        "(held) [every-cycle]",
     )
     parser.add_argument(
         "--thresholds",

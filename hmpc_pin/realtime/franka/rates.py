@@ -18,7 +18,8 @@ The wrapped controller's own observer still runs inside its step at :math:`T_s` 
 estimate is not used). This is the inner law in Python (a compiled split of the step
 into an MPC part and an inner part would do the same at less cost); not for a
 controller with a declared latency (its prediction and torque alignment are the
-compiled step's).
+compiled step's). :class:`~hmpc_pin.realtime.franka.threaded.InnerLawThreaded` is this law
+with the MPC in a compiled thread, off the cycle.
 """
 
 from __future__ import annotations
@@ -96,14 +97,24 @@ class InnerLawEveryCycle:
 
     def step(self, t: float, q: FloatArray, dq: FloatArray, reference) -> FloatArray:
         """The torque [N·m] of cycle ``k`` (module doc)."""
+        M, nle = self._observe(q, dq)
+        if self._k % self.mpc_every == 0:
+            self.controller.step(t, q, dq, reference)
+            self._v[:] = np.ravel(self.controller.v)
+        return self._torque(M, nle, dq)
+
+    def _observe(self, q: FloatArray, dq: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(M(q), C q̇ + G)`` at the cycle's state, the observer advanced over the period
+        that just ended (step 1 of the module doc)."""
         robot = self.robot
         M = robot.mass_matrix(q)
         nle = robot.nonlinear_effects(q, dq)
         if self._k > 0:
             self.compensation.update(M, nle, q, dq, self._fed, self._v)
-        if self._k % self.mpc_every == 0:
-            self.controller.step(t, q, dq, reference)
-            self._v[:] = np.ravel(self.controller.v)
+        return M, nle
+
+    def _torque(self, M: FloatArray, nle: FloatArray, dq: FloatArray) -> FloatArray:
+        """Eq (4) with the held acceleration (step 3 of the module doc)."""
         J = self._B * dq + self._F * np.sign(dq)
         tau = M @ self._v + nle + J - self.compensation.estimate
         np.clip(tau, -self._effort, self._effort, out=self._fed)

@@ -1,0 +1,232 @@
+"""The MPC in a compiled planner thread (hmpc_pin._core.PlanThread,
+hmpc_pin.realtime.franka.threaded.InnerLawThreaded): its plan equals the synchronous step's
+bit for bit when it waits for it, a plan older than the staleness bound is never used, and
+the thread stops and joins on every stop path. No wall clock: the plan's clock is driven by
+hand and the hand-over is waited for."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hmpc_pin
+from hmpc_pin.compensation.observers import default_observer
+from hmpc_pin.controllers.hierarchical import HierarchicalMPC
+from hmpc_pin.experiment.build import Experiment
+from hmpc_pin.experiment.config import load_config
+from hmpc_pin.native import load as load_native
+from hmpc_pin.realtime.franka.rates import InnerLawEveryCycle
+from hmpc_pin.realtime.franka.threaded import InnerLawThreaded
+from hmpc_pin.sim import RK4Plant
+
+ROOT = Path(__file__).resolve().parents[1]
+PERIOD = 0.001
+# the configs' observer on the Panda (a validity warning, not this file's subject)
+pytestmark = pytest.mark.filterwarnings("ignore::hmpc_pin.exceptions.ValidityWarning")
+
+
+def _arm(config: str):
+    exp = Experiment.from_config(load_config(ROOT / "configs" / f"{config}.toml"))
+    return exp.robot, exp.controller.settings, exp.q0, exp.reference
+
+
+def _law(kind, robot, settings, **kw):
+    ctrl = HierarchicalMPC(robot, settings)
+    obs = default_observer(robot.nq, PERIOD)
+    return kind(ctrl, obs, PERIOD, None, **kw)
+
+
+def _closed_loop(law, robot, q0, reference, cycles, plant_Ts=PERIOD):
+    """The law against the RK4 plant from 0.1 rad off q0: torques, accelerations held."""
+    plant = RK4Plant(robot, Ts=plant_Ts, dt=plant_Ts)
+    q = np.asarray(q0, dtype=float) + 0.1
+    dq = np.zeros(robot.nq)
+    plant.reset(q, dq)
+    law.reset(q, dq)
+    taus, vs = [], []
+    for k in range(cycles):
+        tau = law.step(k * PERIOD, q, dq, reference)
+        taus.append(tau.copy())
+        vs.append(law._v.copy())
+        q, dq = plant.advance(tau)
+    return np.array(taus), np.array(vs), q
+
+
+@pytest.mark.parametrize(
+    "config, Ts, N, Nc",
+    [
+        ("paper_combined", 0.005, 20, 1),
+        ("paper_combined", 0.004, 15, 4),
+        ("panda_sine", 0.005, 20, 2),
+    ],
+)
+def test_waited_plan_equals_the_synchronous_step_bit_for_bit(config, Ts, N, Nc):
+    robot, settings, q0, reference = _arm(config)
+    settings = replace(settings, Ts=Ts, N=N, Nc=Nc)
+    cycles = 300
+    sync = _law(InnerLawEveryCycle, robot, settings)
+    tau_s, v_s, q_s = _closed_loop(sync, robot, q0, reference, cycles)
+    with _law(InnerLawThreaded, robot, settings, wait=True) as threaded:
+        tau_t, v_t, _ = _closed_loop(threaded, robot, q0, reference, cycles)
+        assert threaded.fallbacks == 0
+        assert threaded.planner.published == cycles // threaded.mpc_every
+        assert threaded.planner.stale == 0
+    # the MPC's plan, used for the cycles it covers, and the torques: identical
+    np.testing.assert_array_equal(v_t, v_s)
+    np.testing.assert_array_equal(tau_t, tau_s)
+    # and the loop did something: it left the start and the plan changed
+    assert np.ptp(v_s, axis=0).max() > 1e-3
+    assert np.abs(q_s - (np.asarray(q0) + 0.1)).max() > 1e-3
+
+
+def test_the_plan_equals_the_joint_qps_of_the_synchronous_step():
+    """PlanThread alone against HierarchicalMPC.step: the same U row 0 (v) on every step
+    of a closed loop, and the whole sequence U equal to the step's QP solution."""
+    robot, settings, q0, reference = _arm("panda_sine")
+    settings = replace(settings, Ts=0.002, N=30, Nc=3)
+    ctrl = HierarchicalMPC(robot, settings)
+    twin = InnerLawThreaded(ctrl, default_observer(robot.nq, PERIOD), PERIOD, None, wait=True)
+    planner = twin.planner
+    plant = RK4Plant(robot, Ts=settings.Ts, dt=0.001)
+    q = np.asarray(q0, dtype=float) - 0.05
+    dq = np.zeros(robot.nq)
+    plant.reset(q, dq)
+    ctrl.reset(q, dq)
+    planner.reset()
+    port = hmpc_pin.tasks.base.reference_port(hmpc_pin.tasks.base.as_reference(reference))
+    assert port is not None  # the planner samples the compiled reference itself
+    planner.set_reference(port)
+    for k in range(150):
+        t = k * settings.Ts
+        tau = ctrl.step(t, q, dq, reference)
+        planner.request(t, q, dq)
+        assert planner.wait()
+        np.testing.assert_array_equal(planner.plan, ctrl.qps.solution)
+        assert planner.plan_time == t
+        q, dq = plant.advance(tau)
+    twin.close()
+    assert not planner.running
+
+
+def _planner(n_req=1, max_age=0.025):
+    robot, settings, q0, reference = _arm("paper_combined")
+    settings = replace(settings, Ts=0.01, N=10, Nc=3)
+    law = _law(InnerLawThreaded, robot, settings, max_age=max_age)
+    law.reset(np.asarray(q0, float), np.zeros(robot.nq))
+    return law, np.asarray(q0, float), reference
+
+
+def test_a_plan_older_than_the_bound_is_never_used():
+    law, q0, reference = _planner(max_age=0.025)
+    p, n = law.planner, law.robot.nq
+    v = np.full(n, 7.0)
+    assert not p.input(0.0, v)  # no plan yet: refused, v untouched
+    np.testing.assert_array_equal(v, 7.0)
+    law._request(1.0, q0 + 0.2, np.zeros(n), reference)
+    assert p.wait()
+    U = p.plan
+    assert U.shape == (3, n) and np.abs(U).max() > 0
+    # the clock driven by hand: row ⌊(t − t_plan)/Ts⌋, the last row held past Nc
+    for t, row in [(1.0, 0), (1.0049, 0), (1.01, 1), (1.0199, 1), (1.02, 2), (1.025, 2)]:
+        assert p.input(t, v), t
+        np.testing.assert_array_equal(v, U[row])
+    refused = p.stale
+    for t in (1.0251, 1.03, 5.0, 0.999):  # older than the bound, or from the future
+        v[:] = 7.0
+        assert not p.input(t, v), t
+        np.testing.assert_array_equal(v, 7.0)
+    assert p.stale == refused + 4
+    law.close()
+
+
+def test_the_law_brakes_on_a_stale_plan_and_counts_it():
+    law, q0, reference = _planner(max_age=0.015)
+    n = law.robot.nq
+    dq = np.linspace(-1.0, 1.0, n)
+    law.step(0.0, q0, dq, reference)  # the first cycle waits for its plan
+    assert law.fallbacks == 0
+    # a cycle 20 ms later without a new request (not a multiple of m = 10: no request)
+    law._k = 1
+    law.step(0.021, q0, dq, reference)
+    assert law.fallbacks == 1
+    vmin, vmax = law.controller.settings.bounds(n)
+    np.testing.assert_array_equal(law._v, np.clip(-dq / 0.01, vmin, vmax))
+    law.close()
+
+
+def test_the_planner_raises_its_failure_on_the_caller_thread():
+    law, q0, reference = _planner()
+    bad = q0.copy()
+    bad[0] = np.nan
+    law._request(0.0, bad, np.zeros(law.robot.nq), reference)
+    with pytest.raises(hmpc_pin.exceptions.NonFiniteError):
+        law.planner.wait()
+    # the planner goes on: a good request is answered
+    law._request(0.0, q0, np.zeros(law.robot.nq), reference)
+    assert law.planner.wait()
+    law.close()
+
+
+def test_the_thread_stops_and_joins_on_every_stop_path():
+    PlanThread = load_native().PlanThread
+    before = PlanThread.live()
+    law, q0, reference = _planner()
+    assert law.planner.running and PlanThread.live() == before + 1
+    law.close()
+    assert not law.planner.running and PlanThread.live() == before
+    law.close()  # idempotent
+    # the object's end (the destructor joins)
+    law, q0, reference = _planner()
+    assert PlanThread.live() == before + 1
+    del law
+    import gc
+
+    gc.collect()
+    assert PlanThread.live() == before
+    # an exception inside `with`
+    with pytest.raises(RuntimeError), _planner()[0] as law:
+        assert PlanThread.live() == before + 1
+        raise RuntimeError("boom")
+    assert PlanThread.live() == before and not law.planner.running
+    # a request after stop is refused
+    with pytest.raises(Exception, match="stopped"):
+        law._request(0.0, q0, np.zeros(law.robot.nq), reference)
+
+
+def test_ctrl_c_while_waiting_for_a_plan_stops_the_thread():
+    """SIGINT while the 1 kHz side waits for a plan (a long horizon): KeyboardInterrupt,
+    and the `with` block joins the thread; the process exits normally."""
+    script = textwrap.dedent(
+        f"""
+        import os, signal, threading, sys
+        from dataclasses import replace
+        import numpy as np
+        sys.path.insert(0, {str(ROOT / "tests")!r})
+        from test_plan_thread import _arm, _law
+        from hmpc_pin.native import load as load_native
+        from hmpc_pin.realtime.franka.threaded import InnerLawThreaded
+        robot, settings, q0, reference = _arm("panda_sine")
+        settings = replace(settings, Ts=0.005, N=200, Nc=10, max_iter=100000)
+        law = _law(InnerLawThreaded, robot, settings, wait=True)
+        q = np.asarray(q0, float) + 0.2
+        law.reset(q, np.zeros(7))
+        timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+        timer.daemon = True
+        timer.start()
+        try:
+            with law:
+                for k in range(10**6):
+                    law.step(k * 0.001, q, np.zeros(7), reference)
+        except KeyboardInterrupt:
+            print("interrupted", load_native().PlanThread.live(), law.planner.running)
+        """
+    )
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["interrupted", "0", "False"]

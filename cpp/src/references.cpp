@@ -30,6 +30,39 @@ void SineReference::sample(double t, double* q, double* dq) const {
   }
 }
 
+void SineReference::horizon(double t, const CRefVec& offsets, Eigen::Ref<RowMat> S) {
+  const Eigen::Index N = offsets.size();
+  if (S.rows() != 2 + 2 * N || S.cols() != n)
+    throw std::invalid_argument("Reference.horizon: the stack is not (2 + 2N)×n");
+  if (offsets_.size() != N || offsets_ != offsets) {  // the turns of these offsets
+    offsets_ = offsets;
+    cos_.resize(N, n);
+    sin_.resize(N, n);
+    for (Eigen::Index j = 0; j < N; ++j)
+      for (int i = 0; i < n; ++i) {
+        cos_(j, i) = std::cos(omega_[i] * offsets[j]);
+        sin_(j, i) = std::sin(omega_[i] * offsets[j]);
+      }
+    s0_.resize(n);
+    c0_.resize(n);
+  }
+  for (int i = 0; i < n; ++i) {
+    const double arg = t * omega_[i] + phase_[i];
+    s0_[i] = std::sin(arg);
+    c0_[i] = std::cos(arg);
+  }
+  // sin(a + b) = sin a cos b + cos a sin b, cos(a + b) = cos a cos b − sin a sin b
+  for (Eigen::Index j = 0; j < N; ++j) {
+    double* q = &S(2 + j, 0);
+    double* dq = &S(2 + N + j, 0);
+    for (int i = 0; i < n; ++i) {
+      const double cb = cos_(j, i), sb = sin_(j, i);
+      q[i] = (s0_[i] * cb + c0_[i] * sb) * amp_[i] + offset_[i];
+      dq[i] = (c0_[i] * cb - s0_[i] * sb) * amp_omega_[i];
+    }
+  }
+}
+
 PolynomialReference::PolynomialReference(const CRefVec& times, const CRefVec& knots,
                                          const CRefRow& coef, int deg)
     : SampledReference(static_cast<int>(coef.cols() / 2)), times_(times), knots_(knots),

@@ -29,9 +29,15 @@ class SineReference : public SampledReference {
   SineReference(const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
                 const CRefVec& offset, const CRefVec& amp_omega);
   void sample(double t, double* q, double* dq) const override;
+  // The horizon by angle addition: sin/cos(ω t + φ) once per joint, turned by the angles
+  // ω o_j, whose sin/cos are computed once per offsets (kept while the offsets stay).
+  void horizon(double t, const CRefVec& offsets, Eigen::Ref<RowMat> stack) override;
 
  private:
   Vec omega_, phase_, amp_, offset_, amp_omega_;
+  Vec offsets_;          // the offsets the turns below are of
+  RowMat cos_, sin_;     // cos/sin(ω_i o_j), N×n
+  Vec s0_, c0_;          // sin/cos(ω_i t + φ_i) of the current call
 };
 
 class PolynomialReference : public SampledReference {

@@ -34,31 +34,28 @@ void SineReference::horizon(double t, const CRefVec& offsets, Eigen::Ref<RowMat>
   const Eigen::Index N = offsets.size();
   if (S.rows() != 2 + 2 * N || S.cols() != n)
     throw std::invalid_argument("Reference.horizon: the stack is not (2 + 2N)×n");
+  // One reference may serve steps in several threads: its turns are shared, behind a lock.
+  const std::lock_guard<std::mutex> lock(turns_mutex_);
   if (offsets_.size() != N || offsets_ != offsets) {  // the turns of these offsets
     offsets_ = offsets;
-    cos_.resize(N, n);
-    sin_.resize(N, n);
-    for (Eigen::Index j = 0; j < N; ++j)
-      for (int i = 0; i < n; ++i) {
-        cos_(j, i) = std::cos(omega_[i] * offsets[j]);
-        sin_(j, i) = std::sin(omega_[i] * offsets[j]);
+    cos_.resize(n, N);
+    sin_.resize(n, N);
+    for (int i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j < N; ++j) {
+        cos_(i, j) = std::cos(omega_[i] * offsets[j]);
+        sin_(i, j) = std::sin(omega_[i] * offsets[j]);
       }
-    s0_.resize(n);
-    c0_.resize(n);
-  }
-  for (int i = 0; i < n; ++i) {
-    const double arg = t * omega_[i] + phase_[i];
-    s0_[i] = std::sin(arg);
-    c0_[i] = std::cos(arg);
   }
   // sin(a + b) = sin a cos b + cos a sin b, cos(a + b) = cos a cos b − sin a sin b
-  for (Eigen::Index j = 0; j < N; ++j) {
-    double* q = &S(2 + j, 0);
-    double* dq = &S(2 + N + j, 0);
-    for (int i = 0; i < n; ++i) {
-      const double cb = cos_(j, i), sb = sin_(j, i);
-      q[i] = (s0_[i] * cb + c0_[i] * sb) * amp_[i] + offset_[i];
-      dq[i] = (c0_[i] * cb - s0_[i] * sb) * amp_omega_[i];
+  for (int i = 0; i < n; ++i) {
+    const double arg = t * omega_[i] + phase_[i];
+    const double s = std::sin(arg), c = std::cos(arg);
+    const double a = amp_[i], o = offset_[i], aw = amp_omega_[i];
+    const double* cb = &cos_(i, 0);
+    const double* sb = &sin_(i, 0);
+    for (Eigen::Index j = 0; j < N; ++j) {
+      S(2 + j, i) = (s * cb[j] + c * sb[j]) * a + o;
+      S(2 + N + j, i) = (c * cb[j] - s * sb[j]) * aw;
     }
   }
 }

@@ -11,6 +11,8 @@
 
 #include "hmpc/interfaces.hpp"
 
+#include <mutex>
+
 namespace hmpc {
 
 // A reference sampled point by point: its horizon is its samples at t + o_j.
@@ -35,9 +37,9 @@ class SineReference : public SampledReference {
 
  private:
   Vec omega_, phase_, amp_, offset_, amp_omega_;
-  Vec offsets_;          // the offsets the turns below are of
-  RowMat cos_, sin_;     // cos/sin(ω_i o_j), N×n
-  Vec s0_, c0_;          // sin/cos(ω_i t + φ_i) of the current call
+  Vec offsets_;             // the offsets the turns below are of
+  RowMat cos_, sin_;        // cos/sin(ω_i o_j), n×N
+  std::mutex turns_mutex_;  // guards the three above
 };
 
 class PolynomialReference : public SampledReference {

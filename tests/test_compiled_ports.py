@@ -64,8 +64,8 @@ def test_the_steps_sine_horizon_is_the_closed_form_at_each_offset(planar3):
     for t in np.r_[0.0, RNG.uniform(-5.0, 50.0, 40)]:
         ctrl.step(float(t), np.zeros(3), np.zeros(3), ref)
         q_o, dq_o = sampling.sine(ref, t + offsets)
-        np.testing.assert_allclose(ctrl._core.q_ref, q_o, rtol=0, atol=1e-13)
-        np.testing.assert_allclose(ctrl._core.dq_ref, dq_o, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ctrl._data.q_ref, q_o, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(ctrl._data.dq_ref, dq_o, rtol=0, atol=1e-12)
 
 
 def test_the_compiled_piecewise_polynomial_is_the_polynomial_evaluated():

@@ -49,6 +49,25 @@ def test_the_compiled_sine_is_the_closed_form():
         load_native().SineReference(np.ones(N), np.ones(N - 1), *(np.ones(N),) * 3)
 
 
+def test_the_steps_sine_horizon_is_the_closed_form_at_each_offset(planar3):
+    # The step samples the sine's horizon by angle addition (sin/cos at t turned by the
+    # offsets' angles, computed once): against the closed form at t + o_j, over many steps
+    # with the same offsets and long times (|ω t| up to ~600 rad: the closed form's own
+    # argument is rounded to ~1e-13 there, the tolerance below).
+    ctrl = hmpc_pin.HierarchicalMPC(planar3)
+    ref = hmpc_pin.SineReference(
+        3, RNG.uniform(-1, 1, 3), RNG.uniform(0.1, 2.0, 3), RNG.uniform(-1, 1, 3),
+        RNG.uniform(-3, 3, 3),
+    )  # fmt: skip
+    ctrl.reset(np.zeros(3), np.zeros(3))
+    offsets = ctrl.settings.Ts * np.arange(1, ctrl.settings.N + 1)
+    for t in np.r_[0.0, RNG.uniform(-5.0, 50.0, 40)]:
+        ctrl.step(float(t), np.zeros(3), np.zeros(3), ref)
+        q_o, dq_o = sampling.sine(ref, t + offsets)
+        np.testing.assert_allclose(ctrl._data.q_ref, q_o, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(ctrl._data.dq_ref, dq_o, rtol=0, atol=1e-12)
+
+
 def test_the_compiled_piecewise_polynomial_is_the_polynomial_evaluated():
     K, degree = 5, 5
     breakpoints = np.sort(RNG.uniform(0.0, 4.0, K))

@@ -34,6 +34,34 @@ std::shared_ptr<Compensation> compensation_port(const py::object& c, int n) {
   return std::make_shared<PyCallableCompensation>(c, n);
 }
 
+// q or dq of the step: a float64 vector array read in place, anything else through
+// pybind11's Eigen conversion (the cost of the conversion only where one is needed);
+// TypeError ("incompatible function arguments", as pybind11's) when not a float vector.
+class VectorArg {
+ public:
+  explicit VectorArg(py::handle o) {
+    if (py::isinstance<py::array_t<double, py::array::c_style>>(o)) {
+      const auto a = py::reinterpret_borrow<py::array>(o);
+      if (a.ndim() == 1) {
+        data_ = static_cast<const double*>(a.data());
+        size_ = a.shape(0);
+        return;
+      }
+    }
+    if (!caster_.load(o, true))
+      throw py::type_error("step_t(): incompatible function arguments: q and dq float vectors");
+    const CRefVec& r = py::detail::cast_op<const CRefVec&>(caster_);
+    data_ = r.data();
+    size_ = r.size();
+  }
+  Eigen::Map<const Vec> map() const { return {data_, size_}; }
+
+ private:
+  py::detail::make_caster<CRefVec> caster_;
+  const double* data_ = nullptr;
+  Eigen::Index size_ = 0;
+};
+
 void set_reference(PyStep& h, py::object reference) {
   std::unique_ptr<Reference> adapter;
   Reference* port = nullptr;
@@ -183,7 +211,10 @@ void expose_step(py::module_& m) {
           "step", [](H& h, const CRefRow& S, double t) { h.step(S, t); }, py::arg("S"),
           py::arg("t"))
       .def("step_t",
-           [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.step_t(t, q, dq); })
+           [](H& h, double t, py::handle q, py::handle dq) {
+             const VectorArg qa(q), dqa(dq);
+             h.step_t(t, qa.map(), dqa.map());
+           })
       .def("fill",
            [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.fill(t, q, dq); })
       .def_property(  // how faults name the robot: "the robot 'x' has n joints (...)"

@@ -23,12 +23,17 @@ void JointDynamics::zoh(const Mat& Mq, const Vec& dq, const double* v, double Ts
   extra.setZero(n);
   llt_.compute(Mq);
   if (llt_.info() != Eigen::Success) return;
-  e_.setZero(n);
+  e_.resize(n);
   for (Eigen::Index j = 0; j < n; ++j) {
     if (b[j] == 0.0 && f[j] == 0.0) continue;
-    e_.setZero();
-    e_[j] = 1.0;
-    const double minv = llt_.solve(e_)[j];
+    // (M⁻¹)_jj, solved in place (no temporary); without damping x = 0 needs none
+    double minv = 0.0;
+    if (b[j] != 0.0) {
+      e_.setZero();
+      e_[j] = 1.0;
+      llt_.solveInPlace(e_);
+      minv = e_[j];
+    }
     const double x = b[j] * minv * Ts;
     const double vj = v[j];
     if (b[j] != 0.0) {

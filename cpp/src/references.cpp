@@ -30,6 +30,36 @@ void SineReference::sample(double t, double* q, double* dq) const {
   }
 }
 
+void SineReference::horizon(double t, const CRefVec& offsets, Eigen::Ref<RowMat> S) {
+  const Eigen::Index N = offsets.size();
+  if (S.rows() != 2 + 2 * N || S.cols() != n)
+    throw std::invalid_argument("Reference.horizon: the stack is not (2 + 2N)×n");
+  // One reference may serve steps in several threads: its turns are shared, behind a lock.
+  const std::lock_guard<std::mutex> lock(turns_mutex_);
+  if (offsets_.size() != N || offsets_ != offsets) {  // the turns of these offsets
+    offsets_ = offsets;
+    cos_.resize(n, N);
+    sin_.resize(n, N);
+    for (int i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j < N; ++j) {
+        cos_(i, j) = std::cos(omega_[i] * offsets[j]);
+        sin_(i, j) = std::sin(omega_[i] * offsets[j]);
+      }
+  }
+  // sin(a + b) = sin a cos b + cos a sin b, cos(a + b) = cos a cos b − sin a sin b
+  for (int i = 0; i < n; ++i) {
+    const double arg = t * omega_[i] + phase_[i];
+    const double s = std::sin(arg), c = std::cos(arg);
+    const double a = amp_[i], o = offset_[i], aw = amp_omega_[i];
+    const double* cb = &cos_(i, 0);
+    const double* sb = &sin_(i, 0);
+    for (Eigen::Index j = 0; j < N; ++j) {
+      S(2 + j, i) = (s * cb[j] + c * sb[j]) * a + o;
+      S(2 + N + j, i) = (c * cb[j] - s * sb[j]) * aw;
+    }
+  }
+}
+
 PolynomialReference::PolynomialReference(const CRefVec& times, const CRefVec& knots,
                                          const CRefRow& coef, int deg)
     : SampledReference(static_cast<int>(coef.cols() / 2)), times_(times), knots_(knots),

@@ -389,6 +389,7 @@ class HierarchicalMPC(AppliedTorque):
         self._reference: object = None
         self._ref: Reference | None = None
         self._native_ref = False
+        self._native_step: Callable[[float, Any, Any], None] | None = None
         # Models the compiled dynamics cannot load (mimic joints): M and C q̇ + G in Python.
         self._python_dynamics = bool(robot.mimic_joints)
         self.disturbance_estimate = data.d_hat
@@ -582,13 +583,14 @@ class HierarchicalMPC(AppliedTorque):
         """
         if reference is not self._reference:  # adapted once per reference object
             self._set_reference(reference)
-        core = self._core
-        if self._native_ref:  # the whole step in one call
+        native_step = self._native_step
+        if native_step is not None:  # the whole step in one call
             try:
-                core.step_t(t, q, dq)
+                native_step(t, q, dq)
             except TypeError as exc:  # not convertible to a float vector, or the compensation's
                 self._not_vectors(q, dq, exc)
             return self.tau.copy()
+        core = self._core
         if not math.isfinite(t):
             raise NonFiniteError("t", t)
         q = np.asarray(q, dtype=float)
@@ -693,6 +695,8 @@ class HierarchicalMPC(AppliedTorque):
         self._reference = reference
         port = reference_port(self._ref)
         self._native_ref = port is not None
+        # the compiled step's bound method, looked up here once (the step's Python frame)
+        self._native_step = self._core.step_t if port is not None else None
         self._core.set_reference(self._sample_horizon if port is None else port)
 
     def _not_vectors(self, q, dq, exc: TypeError) -> None:

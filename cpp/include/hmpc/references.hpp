@@ -11,6 +11,8 @@
 
 #include "hmpc/interfaces.hpp"
 
+#include <mutex>
+
 namespace hmpc {
 
 // A reference sampled point by point: its horizon is its samples at t + o_j.
@@ -29,9 +31,15 @@ class SineReference : public SampledReference {
   SineReference(const CRefVec& omega, const CRefVec& phase, const CRefVec& amp,
                 const CRefVec& offset, const CRefVec& amp_omega);
   void sample(double t, double* q, double* dq) const override;
+  // The horizon by angle addition: sin/cos(ω t + φ) once per joint, turned by the angles
+  // ω o_j, whose sin/cos are computed once per offsets (kept while the offsets stay).
+  void horizon(double t, const CRefVec& offsets, Eigen::Ref<RowMat> stack) override;
 
  private:
   Vec omega_, phase_, amp_, offset_, amp_omega_;
+  Vec offsets_;             // the offsets the turns below are of
+  RowMat cos_, sin_;        // cos/sin(ω_i o_j), n×N
+  std::mutex turns_mutex_;  // guards the three above
 };
 
 class PolynomialReference : public SampledReference {

@@ -1,5 +1,6 @@
 """The latency-aware step: the observer's torque alignment, the prediction over the
-latency, and the latency-free step untouched (``HMPCCore.set_latency``, cpp/src/step.cpp)."""
+latency, and the latency-free step untouched (``HierarchicalStep.set_latency``,
+cpp/src/step.cpp)."""
 
 from __future__ import annotations
 

@@ -160,6 +160,7 @@ def test_the_step_refuses_data_of_another_shape(planar3):
     N = ctrl.settings.N
     for n, horizon in ((3, N + 1), (4, N)):
         with pytest.raises(ValueError, match="shapes do not match"):
-            native.HMPCCore(None, ctrl.mpc.FT, N, ctrl.qps._core, None, native.StepData(n, horizon))
+            data = native.StepData(n, horizon)
+            native.HierarchicalStep(None, ctrl.mpc.FT, N, ctrl.qps._core, None, data)
     with pytest.raises(ValueError, match="another shape"):
         ctrl.data.assign(native.StepData(3, N + 1))

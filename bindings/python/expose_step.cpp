@@ -1,4 +1,4 @@
-// hmpc_pin._core.HMPCCore: the hierarchical MPC's step (step.hpp), and
+// hmpc_pin._core.HierarchicalStep: the hierarchical MPC's step (step.hpp), and
 // hmpc_pin._core.StepData: its memory (step_data.hpp), which Python reads through named views.
 #include "trampolines.hpp"
 
@@ -81,7 +81,7 @@ void set_reference(PyStep& h, py::object reference) {
 std::unique_ptr<PyStep> make_step(const py::object& model, const CRefRow& F, int N,
                                     std::shared_ptr<JointQPs> qps, const py::object& comp,
                                     std::shared_ptr<StepData> data) {
-  if (!qps || !data) throw std::invalid_argument("HMPCCore: qps and data are needed");
+  if (!qps || !data) throw std::invalid_argument("HierarchicalStep: qps and data are needed");
   std::optional<std::string> serialized;
   if (!model.is_none()) serialized = model.cast<std::string>();
   auto port = compensation_port(comp, qps->n);
@@ -99,7 +99,7 @@ void set_model(PyStep& h, py::function f) {
     const Float M = Float::ensure(r[0]), nle = Float::ensure(r[1]);
     if (!M || !nle || M.ndim() != 2 || M.shape(0) != h.n || M.shape(1) != h.n ||
         nle.ndim() != 1 || nle.shape(0) != h.n)
-      throw std::invalid_argument("HMPCCore: the model returned M, nle of wrong shape");
+      throw std::invalid_argument("HierarchicalStep: the model returned M, nle of wrong shape");
     const auto at = [](const Float& a, int d) {
       return static_cast<Eigen::Index>(a.strides(d) / py::ssize_t(sizeof(double)));
     };
@@ -174,7 +174,7 @@ void expose_step_data(py::module_& m) {
 void expose_step(py::module_& m) {
   expose_step_data(m);
   using H = PyStep;
-  py::class_<H>(m, "HMPCCore", py::module_local())
+  py::class_<H>(m, "HierarchicalStep", py::module_local())
       .def(py::init(&make_step), py::arg("model"), py::arg("F"), py::arg("N"), py::arg("qps"),
            py::arg("compensation"), py::arg("data"))
       .def("set_model", &set_model, py::arg("model"))
@@ -198,7 +198,7 @@ void expose_step(py::module_& m) {
           [](H& h, const CRefVec& q0, const CRefVec& dq0) {
             const int n = h.n;
             if (q0.size() != n || dq0.size() != n)
-              throw std::invalid_argument("HMPCCore.reset: q0 and dq0 of n values each");
+              throw std::invalid_argument("HierarchicalStep.reset: q0 and dq0 of n values each");
             if (h.comp) {
               h.comp->reset(q0, dq0);
               h.reset(h.comp->estimate());
@@ -233,14 +233,14 @@ void expose_step(py::module_& m) {
       .def_property(  // what a step carries to the next (restored after a dry step, warm_up)
           "state",
           [](const H& h) {  // copies
-            const HMPCCore& c = h;
+            const HierarchicalStep& c = h;
             std::vector<Vec> th = c.latency.tau_hist, vh = c.latency.v_hist;
             return py::make_tuple(c.started, Vec(c.jtau), std::move(th), std::move(vh),
                                   Vec(c.latency.tau_obs), Vec(c.latency.v_obs), c.steps,
                                   Mat(c.prev_M), Vec(c.prev_nle), c.has_prev);
           },
           [](H& h, const py::tuple& s) {
-            HMPCCore& c = h;
+            HierarchicalStep& c = h;
             c.steps = s[6].cast<decltype(c.steps)>();
             c.started = s[0].cast<bool>();
             c.jtau = s[1].cast<Vec>();
@@ -255,6 +255,7 @@ void expose_step(py::module_& m) {
       .def_property_readonly("has_dynamics", [](const H& h) { return bool(h.dyn); })
       .def_property_readonly(  // a step succeeded since the last reset
           "started", [](const H& h) { return h.started; });
+  m.attr("HMPCCore") = m.attr("HierarchicalStep");  // its name before 0.3 (same class)
 }
 
 }  // namespace hmpc::python

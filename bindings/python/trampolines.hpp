@@ -274,8 +274,8 @@ struct PyRK4Plant : RK4Plant {
 
 // The step, holding its reference's port: a compiled Reference as it is, or the adapter of a
 // Python callable horizon(t) (none: no reference).
-struct PyStep : HMPCCore {
-  using HMPCCore::HMPCCore;
+struct PyStep : HierarchicalStep {
+  using HierarchicalStep::HierarchicalStep;
   py::object reference;
   std::unique_ptr<Reference> reference_adapter;
 };

@@ -32,7 +32,7 @@ PlanThread::PlanThread(const CRefRow& F, int N_, std::shared_ptr<JointQPs> qps,
   if (!(Ts > 0.0) || !std::isfinite(Ts))
     throw std::invalid_argument("PlanThread: expected a period Ts > 0");
   if (!(max_age > 0.0)) throw std::invalid_argument("PlanThread: expected max_age > 0");
-  // The map's rows in the stack's order, as HMPCCore's (the same G, bit for bit).
+  // The map's rows in the stack's order, as HierarchicalStep's (the same G, bit for bit).
   FT_.resize(2 + 2 * N, Nc);
   FT_.topRows(2) = F.topRows(2);
   for (int j = 0; j < N; ++j) {
@@ -211,7 +211,7 @@ void PlanThread::run() {
   }
 }
 
-// The MPC part of HMPCCore::prepare() and finish(): G = Fᵀ S, the joint QPs; U into the
+// The MPC part of HierarchicalStep::prepare() and finish(): G = Fᵀ S, the joint QPs; U into the
 // back buffer.
 void PlanThread::plan_once(const Request& r) {
   // the request's buffer is the planner's until it takes the next one

@@ -9,7 +9,7 @@
 
 namespace hmpc {
 
-HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& F, int N_,
+HierarchicalStep::HierarchicalStep(const std::optional<std::string>& model, const CRefRow& F, int N_,
                    std::shared_ptr<JointQPs> qps_, std::shared_ptr<Compensation> comp_,
                    std::shared_ptr<StepData> data_)
     : n(qps_->n), N(N_), Nc(qps_->Nc), qps(std::move(qps_)), comp_held(std::move(comp_)),
@@ -17,11 +17,11 @@ HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& F, in
       v(data->v), tau(data->tau), dhat(data->dhat), M_out(data->M), nle_out(data->nle) {
   if (model) {
     dyn = std::make_unique<Dynamics>(*model);
-    if (dyn->n != n) throw std::invalid_argument("HMPCCore: the model has another size");
+    if (dyn->n != n) throw std::invalid_argument("HierarchicalStep: the model has another size");
   }
   if (F.rows() != 2 + 2 * N || F.cols() != Nc || qp->N != N || data->n != n || data->N != N ||
       (comp && comp->estimate().size() != n))
-    throw std::invalid_argument("HMPCCore: shapes do not match the model and horizon");
+    throw std::invalid_argument("HierarchicalStep: shapes do not match the model and horizon");
   // The map's rows in the stack's order: r_j, ṙ_j are rows 2 + 2(j-1), 3 + 2(j-1) of F.
   FT.resize(2 + 2 * N, Nc);
   FT.topRows(2) = F.topRows(2);
@@ -36,17 +36,17 @@ HMPCCore::HMPCCore(const std::optional<std::string>& model, const CRefRow& F, in
   effort = Vec::Constant(n, std::numeric_limits<double>::infinity());
 }
 
-void HMPCCore::set_offsets(const CRefVec& offsets_) {
+void HierarchicalStep::set_offsets(const CRefVec& offsets_) {
   if (offsets_.size() != N) throw std::invalid_argument("offsets of wrong size");
   offsets = offsets_;
 }
 
-void HMPCCore::sample_horizon(double t) {
-  if (!reference) throw std::logic_error("HMPCCore: no reference set");
+void HierarchicalStep::sample_horizon(double t) {
+  if (!reference) throw std::logic_error("HierarchicalStep: no reference set");
   reference->horizon(t, offsets, stack);
 }
 
-void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
+void HierarchicalStep::fill(double t, const CRefVec& q, const CRefVec& dq) {
   if (!std::isfinite(t)) throw NonFinite("t", t);
   if (q.size() != n) throw DimensionMismatch("q", q.size(), n, robot);
   if (dq.size() != n) {
@@ -54,7 +54,7 @@ void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
     throw DimensionMismatch("dq", dq.size(), n, robot);
   }
   if (offsets.size() != N)
-    throw std::invalid_argument("HMPCCore: no horizon offsets (set_offsets)");
+    throw std::invalid_argument("HierarchicalStep: no horizon offsets (set_offsets)");
   t_now = t;
   auto& S = stack;
   S.row(0) = q.transpose();
@@ -62,12 +62,12 @@ void HMPCCore::fill(double t, const CRefVec& q, const CRefVec& dq) {
   sample_horizon(t);
 }
 
-void HMPCCore::step_t(double t, const CRefVec& q, const CRefVec& dq) {
+void HierarchicalStep::step_t(double t, const CRefVec& q, const CRefVec& dq) {
   fill(t, q, dq);
   step(stack, t);
 }
 
-void HMPCCore::non_finite(const CRefRow& S) const {
+void HierarchicalStep::non_finite(const CRefRow& S) const {
   const Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
   if (!q.allFinite()) throw NonFinite("q", {q});
   if (!dq.allFinite()) throw NonFinite("dq", {dq});
@@ -81,7 +81,7 @@ void HMPCCore::non_finite(const CRefRow& S) const {
 }
 
 // After a step with latency: the torque as the plant applies it and v enter the history.
-void HMPCCore::record() {
+void HierarchicalStep::record() {
   if (!latency.on) return;
   // what the observer is fed: the applied torque beyond the joint dynamics' J (jtau)
   Vec fed = tau.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
@@ -89,21 +89,21 @@ void HMPCCore::record() {
   latency.record(fed, v.row(0).transpose());
 }
 
-void HMPCCore::set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts) {
-  if (!(Ts >= 0.0)) throw std::invalid_argument("HMPCCore.set_joint_dynamics: expected Ts >= 0");
-  joint.set(damping, friction, n, "HMPCCore.set_joint_dynamics");
+void HierarchicalStep::set_joint_dynamics(const CRefVec& damping, const CRefVec& friction, double Ts) {
+  if (!(Ts >= 0.0)) throw std::invalid_argument("HierarchicalStep.set_joint_dynamics: expected Ts >= 0");
+  joint.set(damping, friction, n, "HierarchicalStep.set_joint_dynamics");
   zoh_Ts = joint.any ? Ts : 0.0;
   nle_j.setZero(n);
   extra.setZero(n);
   jtau.setZero(n);
 }
 
-void HMPCCore::set_effort(const CRefVec& limit) {
+void HierarchicalStep::set_effort(const CRefVec& limit) {
   if (limit.size() != n) throw std::invalid_argument("effort limit of wrong size");
   effort = limit;
 }
 
-void HMPCCore::reset(const CRefVec& dhat0) {
+void HierarchicalStep::reset(const CRefVec& dhat0) {
   dhat.row(0) = dhat0.transpose();
   v.setZero();
   tau.setZero();
@@ -115,9 +115,9 @@ void HMPCCore::reset(const CRefVec& dhat0) {
   if (joint.any) jtau.setZero();
 }
 
-void HMPCCore::prepare(const CRefRow& S, double t) {
+void HierarchicalStep::prepare(const CRefRow& S, double t) {
   if (S.rows() != 2 + 2 * N || S.cols() != n)
-    throw std::invalid_argument("HMPCCore: stack of wrong shape");
+    throw std::invalid_argument("HierarchicalStep: stack of wrong shape");
   t_now = t;
   if (!S.allFinite()) non_finite(S);
   qv = S.row(0).transpose();
@@ -127,13 +127,13 @@ void HMPCCore::prepare(const CRefRow& S, double t) {
   evaluate(qv, dqv);
 }
 
-void HMPCCore::evaluate(const Vec& q, const Vec& dq) {
+void HierarchicalStep::evaluate(const Vec& q, const Vec& dq) {
   if (dyn) {
     M = &dyn->mass_matrix(q);
     nle = nle0 = &dyn->nle(q, dq);
     external = false;
   } else {
-    if (!model) throw std::invalid_argument("HMPCCore: no compiled dynamics and no model here");
+    if (!model) throw std::invalid_argument("HierarchicalStep: no compiled dynamics and no model here");
     model(q, dq);  // M_out, nle_out
     Mx = M_out;
     nx = nle_out.row(0).transpose();
@@ -148,12 +148,12 @@ void HMPCCore::evaluate(const Vec& q, const Vec& dq) {
   }
 }
 
-const Vec& HMPCCore::applied_torque() {
+const Vec& HierarchicalStep::applied_torque() {
   applied = tau.row(0).transpose().cwiseMax(-effort).cwiseMin(effort);
   return applied;
 }
 
-void HMPCCore::finish() {
+void HierarchicalStep::finish() {
   const Eigen::Map<const RowMat> G(Gt.data(), n, Nc);
   if (!qp->solve(G, qv, dqv)) throw qp->failure();
   v = qp->U.row(0);
@@ -178,7 +178,7 @@ void HMPCCore::finish() {
   record();
 }
 
-void HMPCCore::step(const CRefRow& S, double t) {
+void HierarchicalStep::step(const CRefRow& S, double t) {
   t_now = t;
   if (latency.on) return step_latency(S);
   if (obs_start && started && comp) {  // the model the held torque was computed from
@@ -204,9 +204,9 @@ void HMPCCore::step(const CRefRow& S, double t) {
 // measured state, the aligned torque and acceleration), then the MPC and Eq (4) at the
 // predicted state. Before the measured interval lies after the start, the compensation
 // restarts at each measurement. S's state rows are overwritten with the prediction.
-void HMPCCore::step_latency(const CRefRow& S_in) {
+void HierarchicalStep::step_latency(const CRefRow& S_in) {
   if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
-    throw std::invalid_argument("HMPCCore: stack of wrong shape");
+    throw std::invalid_argument("HierarchicalStep: stack of wrong shape");
   if (!S_in.allFinite()) non_finite(S_in);
   auto& S = stack;
   if (S.data() != S_in.data()) S = S_in;
@@ -236,13 +236,13 @@ void HMPCCore::step_latency(const CRefRow& S_in) {
   finish();
 }
 
-StepController::StepController(HMPCCore* c) : core(c) {
+StepController::StepController(HierarchicalStep* c) : core(c) {
   if (!core || core->offsets.size() != core->N)
     throw std::invalid_argument("StepController: a step with its offsets (set_offsets) is needed");
 }
 
 void StepController::step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) {
-  HMPCCore& c = *core;
+  HierarchicalStep& c = *core;
   const Vec* qc = &q;  // the state the controller is given
   const Vec* dqc = &dq;
   if (measurement) {

@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 #: The keys of ``[controller]`` that are settings of the MPC only: unset (``None``) until
-#: resolved, then :class:`~hmpc_pin.controllers.hierarchical.MPCSettings`' default.
+#: resolved, then :class:`~hmpc_pin.controllers.mpc_settings.MPCSettings`' default.
 MPC_KEYS = ("eps_abs", "max_iter", "qp_layout", "backend", "latency", "joint_dynamics")
 #: The keys and tables of ``[controller]`` of the hierarchical MPC only.
 HMPC_ONLY = ("constraints", *MPC_KEYS)

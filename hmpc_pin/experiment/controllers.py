@@ -36,7 +36,7 @@ __all__ = [
 
 
 def mpc_settings(cc, n: int) -> MPCSettings:
-    """:class:`~hmpc_pin.controllers.hierarchical.MPCSettings` of ``[controller]``: the
+    """:class:`~hmpc_pin.controllers.mpc_settings.MPCSettings` of ``[controller]``: the
     table's values, MPCSettings' own defaults for those that do not apply (the settings
     of ``hmpc`` for ``computed-torque*``, ``model_at`` without an observer)."""
     v_min, v_max = cc.bounds(n)

@@ -15,7 +15,7 @@ Every component is compiled and has no Python twin in the package (their numpy o
 (``NDO``), the joint QPs (``JointQPs``), the references with a closed form
 (``SineReference``, ``PolynomialReference``), the disturbances of the paper
 (``GaussianPulses``, ``CoulombViscousFriction``, ``DisturbanceSum``), the RK4 period
-(``RK4``) and the hierarchical MPC's step composed of them (``HMPCCore``).
+(``RK4``) and the hierarchical MPC's step composed of them (``HierarchicalStep``).
 
 A part of the package that has a compiled form hands it over with ``loop_port()`` (``None``
 when it has none, e.g. when :func:`replaced` says a method of it was replaced: the loops then

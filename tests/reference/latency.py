@@ -1,5 +1,5 @@
 """Numpy oracle of the latency-aware step's two parts (compiled: ``cpp/src/latency.cpp``,
-``HMPCCore.set_latency``), written from their definitions.
+``HierarchicalStep.set_latency``), written from their definitions.
 
 With the measurement at :math:`t_k` describing the arm at :math:`t_k - L`,
 :math:`L = (m + \\alpha) T_s`, :math:`0 \\le \\alpha < 1`:

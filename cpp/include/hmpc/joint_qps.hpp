@@ -1,5 +1,5 @@
 // The per-joint MPC's quadratic programs (Eq 25–26): the one implementation, used on its
-// own (hmpc_pin.mpc.condensed.JointQPs) and inside the fused step (step.cpp, HMPCCore),
+// own (hmpc_pin.mpc.condensed.JointQPs) and inside the fused step (step.cpp, HierarchicalStep),
 // composed of named parts:
 //   BoxQP (box_qp.hpp)                 a box QP solved by ProxSuite, warm, with its cold twin;
 //   BoxActiveSet (box_active_set.hpp)  the box QP answered without ProxSuite when it can be;

@@ -1,6 +1,6 @@
 // The nonlinear disturbance observer of Eq (13), discretised at the control period: the one
 // implementation, used on its own (hmpc_pin.compensation.observers.DisturbanceObserver) and
-// inside the fused step (step.cpp, HMPCCore). The numpy oracle it is tested against is
+// inside the fused step (step.cpp, HierarchicalStep). The numpy oracle it is tested against is
 // tests/reference/observers.py.
 //
 // With p = cY q̇, L = cY M⁻¹ and b = n_k − τ_{k−1} − p_k, each update is one linear solve:

@@ -17,7 +17,7 @@
 // fallback (the Python law brakes: see hmpc_pin.realtime.franka.rates).
 //
 // Deterministic mode: request() then wait() hands the plan over synchronously; the plan is
-// then, bit for bit, the one the synchronous step (HMPCCore) computes from the same state
+// then, bit for bit, the one the synchronous step (HierarchicalStep) computes from the same state
 // (the same expression for G, the same JointQPs history).
 //
 // The thread never calls Python: the reference is a compiled one (set_reference), or the
@@ -42,7 +42,7 @@ class JointQPs;
 
 class PlanThread {
  public:
-  // F: the condensed MPC's gradient map ((2 + 2N)×Nc, CondensedMPC.FT, as HMPCCore's);
+  // F: the condensed MPC's gradient map ((2 + 2N)×Nc, CondensedMPC.FT, as HierarchicalStep's);
   // qps: the planner's own joint QPs (not shared with a step that runs); offsets: the
   // horizon offsets j·Ts, j = 1..N [s]; Ts: the MPC's period [s]; max_age: the staleness
   // bound [s] (> 0); nice: the planner thread's niceness (Linux; 0: the caller's), above
@@ -71,7 +71,7 @@ class PlanThread {
   // plan, or it is stale (module doc). Rethrows the planner's exception.
   bool input(double t, RefVec v);
   // Start a run: drop any request not taken, wait for the planner to be idle, drop the
-  // plan, restart the joint QPs (as HMPCCore::reset). Not during a run's cycles.
+  // plan, restart the joint QPs (as HierarchicalStep::reset). Not during a run's cycles.
   void reset();
   // Stop the thread and join it (idempotent).
   void stop();
@@ -105,7 +105,7 @@ class PlanThread {
   void notify();
 
   std::shared_ptr<JointQPs> qps_;
-  RowMat FT_;  // the map in the stack's order (as HMPCCore::FT)
+  RowMat FT_;  // the map in the stack's order (as HierarchicalStep::FT)
   Eigen::Index grad_rows_;
   Mat Gt_;
   Vec offsets_;

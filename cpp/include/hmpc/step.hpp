@@ -33,14 +33,14 @@ namespace hmpc {
 
 class JointQPs;
 
-class HMPCCore {
+class HierarchicalStep {
  public:
   // model: a serialized Pinocchio model (none: M and nle come from the `model` function);
   // F: the condensed MPC's gradient map ((2 + 2N)×Nc, rows [q; q̇; r_1; ṙ_1; ..; r_N; ṙ_N],
   // CondensedMPC.FT), kept in the stack's order; qps: the joint QPs; comp: the compensation
   // this step advances (none: d̂ stays what reset() set); data: the step's memory (n joints,
   // horizon N).
-  HMPCCore(const std::optional<std::string>& model, const CRefRow& F, int N,
+  HierarchicalStep(const std::optional<std::string>& model, const CRefRow& F, int N,
            std::shared_ptr<JointQPs> qps, std::shared_ptr<Compensation> comp,
            std::shared_ptr<StepData> data);
 
@@ -172,7 +172,7 @@ class HMPCCore {
 // alive.
 class StepController : public Controller {
  public:
-  explicit StepController(HMPCCore* core);
+  explicit StepController(HierarchicalStep* core);
   void step(double t, const Vec& q, const Vec& dq, Vec& tau, Vec& dhat) override;
   void reserve(long steps) override {
     if (measurement) measurement->reserve(steps);
@@ -181,7 +181,7 @@ class StepController : public Controller {
     if (measurement) measurement->give_back();
   }
 
-  HMPCCore* core;
+  HierarchicalStep* core;
   Measurement* measurement = nullptr;
 };
 

@@ -1,5 +1,5 @@
 // The step's data (Crocoddyl's model/data split): the memory one control step of the
-// hierarchical MPC (step.hpp, HMPCCore) reads and writes, allocated here once per controller
+// hierarchical MPC (step.hpp, HierarchicalStep) reads and writes, allocated here once per controller
 // and kept across the steps it builds (a new compensation rebuilds the step, not its data).
 // Python reads it through views of this memory (hmpc_pin._core.StepData: q, dq, q_ref,
 // dq_ref, v, tau, d_hat, M, nle), never through offsets of its own.

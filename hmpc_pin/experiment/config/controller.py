@@ -81,7 +81,7 @@ class ObserverConfig:
             it) or ``"start"`` (the state the torque held over the period was computed
             from; what ``hmpc-pin init`` writes). ``"start"`` makes the estimate the
             correction Eq (4) needs for the next period. The controller's setting
-            :attr:`~hmpc_pin.controllers.hierarchical.MPCSettings.model_at`: its default
+            :attr:`~hmpc_pin.controllers.mpc_settings.MPCSettings.model_at`: its default
             and its check are that class's.
         enabled: Version 0.1 key, with ``kind = "hmpc"`` only: ``false`` means
             compensation ``"none"`` (the whole table is then switched off). Superseded
@@ -245,7 +245,7 @@ class ControllerConfig:
     or ``constraints`` with the other controller) is a :class:`ConfigError` naming it.
     After validation ``kind`` and ``compensation`` hold the resolved pair and exactly
     the applicable tables are set (the others are ``None``). The MPC's settings are the
-    controller's own, :class:`~hmpc_pin.controllers.hierarchical.MPCSettings`: each default
+    controller's own, :class:`~hmpc_pin.controllers.mpc_settings.MPCSettings`: each default
     and each check is stated there, once, and read here.
 
     Attributes:

@@ -1,7 +1,8 @@
 """The settings of the per-joint MPC (Section 4) and of the step around it:
-:class:`MPCSettings` (every default the paper's value, each checked by one function shared
-with the ``[controller]`` table, :func:`check_settings`) and the soft joint limits of each
-MPC's prediction (:func:`state_limits`)."""
+:class:`~hmpc_pin.controllers.mpc_settings.MPCSettings` (every default the paper's value,
+each checked by one function shared with the ``[controller]`` table,
+:func:`~hmpc_pin.controllers.mpc_settings.check_settings`) and the soft joint limits of
+each MPC's prediction (:func:`~hmpc_pin.controllers.mpc_settings.state_limits`)."""
 
 from __future__ import annotations
 
@@ -90,7 +91,8 @@ class MPCSettings:
         backend: Deprecated since 0.3 and without effect: the step is always compiled
             (:mod:`hmpc_pin.native`). ``"auto"`` and ``"native"`` are accepted silently,
             ``"python"`` with a :class:`DeprecationWarning`.
-        latency: The age L [s] of the measurement handed to :meth:`HierarchicalMPC.step`
+        latency: The age L [s] of the measurement handed to
+            :meth:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC.step`
             (0: none; a fraction of Ts allowed). With L > 0 the compensation is fed the
             torque applied over the interval its two measurements span, and the MPC and the
             inverse dynamics start from the state predicted over L (the guide

@@ -93,7 +93,7 @@ from .init_choices import (  # noqa: F401  (every name importable from here, as 
 )
 from .init_text import render, vec
 from .plants import DAMPING_STEP_LIMIT, damping_rates
-from .posture import HOLD, PATH_SAMPLES, SLACK, _gravity_along, _hold_gravity, place
+from .posture import HOLD, PATH_SAMPLES, SLACK, gravity_along, hold_gravity, place
 from .posture import path as sine_path
 from .workspace import make_workspace
 
@@ -298,7 +298,7 @@ class InitPlan:
         # Acceleration bounds the effort limits can pay for at the offset posture:
         # |tau_j| <= sum_k |M_jk| b_k + |G_j| <= 0.9 effort_j with b_j <= 100 (the paper's).
         M = robot.mass_matrix(self.offset)
-        G = _gravity_along(robot, self.offset, amp)
+        G = gravity_along(robot, self.offset, amp)
         effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
         budget = (0.9 * effort - G) / np.abs(M).sum(axis=1)
         self.v_max = np.clip(np.where(np.isfinite(budget), budget, 100.0), 5.0, 100.0)
@@ -336,7 +336,7 @@ class InitPlan:
         """The offset and amplitude of the sine, and what moved the offset from
         ``center`` (``""``, ``"gravity"``, ``"workspace"`` or, the plane put under the
         robot, ``"clear"``): per amplitude of
-        :data:`AMPLITUDE_SCALES`, the posture gravity allows (``_hold_gravity``),
+        :data:`AMPLITUDE_SCALES`, the posture gravity allows (``hold_gravity``),
         moved inside the workspace when it is not (:func:`~hmpc_pin.experiment.posture.place`).
 
         Raises:
@@ -346,7 +346,7 @@ class InitPlan:
         effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
 
         def excess(q):
-            return max(0.0, float(np.max(_gravity_along(robot, q, amp) / (HOLD * effort))) - 1)
+            return max(0.0, float(np.max(gravity_along(robot, q, amp) / (HOLD * effort))) - 1)
 
         gravity: URDFError | None = None
         outside = None
@@ -356,7 +356,7 @@ class InitPlan:
             lo_o, hi_o = lo + amp + margin, hi - amp - margin
             start = np.clip(center, lo + amp + margin, hi - amp - margin)
             try:
-                held = _hold_gravity(robot, start, amp, lo_o, hi_o)
+                held = hold_gravity(robot, start, amp, lo_o, hi_o)
             except URDFError as exc:
                 gravity, held = exc, None
                 if self.workspace is None:

@@ -1,7 +1,7 @@
 """A sine reference's posture within the effort limits and inside the workspace
 (``hmpc-pin init``).
 
-``_hold_gravity`` moves a posture toward hanging until gravity needs at most
+``hold_gravity`` moves a posture toward hanging until gravity needs at most
 :data:`HOLD` of every effort limit along the sine.
 
 ``init``'s sine moves every joint with one phase, :math:`r(t) = o + a\\sin(2\\pi f t)`, so
@@ -23,11 +23,20 @@ import numpy as np
 from ..exceptions import URDFError
 from ..model.robot import Robot
 
-__all__ = ["HOLD", "HOLD_STEPS", "PATH_SAMPLES", "SLACK", "path", "place"]
+__all__ = [
+    "HOLD",
+    "HOLD_STEPS",
+    "PATH_SAMPLES",
+    "SLACK",
+    "gravity_along",
+    "hold_gravity",
+    "path",
+    "place",
+]
 
 #: Gravity may need at most this share of a joint's effort limit along the sine.
 HOLD = 0.8
-#: Steps of at most 0.02 rad (or m) ``_hold_gravity`` takes toward hanging.
+#: Steps of at most 0.02 rad (or m) ``hold_gravity`` takes toward hanging.
 HOLD_STEPS = 400
 
 #: Samples of the segment per evaluation of the search (0.0625 a apart).
@@ -108,7 +117,7 @@ def place(
     return best, rank >= goal
 
 
-def _gravity_along(robot: Robot, q: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
+def gravity_along(robot: Robot, q: np.ndarray, amplitude: np.ndarray) -> np.ndarray:
     """Per joint, the largest |G| [N·m or N] along the sine's path
     :math:`q + s\\,a`, :math:`s \\in [-1, 1]` (every joint shares one phase, so the path
     is a segment; 9 points)."""
@@ -117,12 +126,12 @@ def _gravity_along(robot: Robot, q: np.ndarray, amplitude: np.ndarray) -> np.nda
     )
 
 
-def _hold_gravity(
+def hold_gravity(
     robot: Robot, q: np.ndarray, amplitude: np.ndarray, lo: np.ndarray, hi: np.ndarray
 ) -> np.ndarray:
     """``q`` moved toward the hanging posture (steps of at most 0.02 rad or m against the
     gravity torque G, inside [lo, hi]) until gravity needs at most :data:`HOLD` × the
-    effort limit on every joint with one, along the whole sine (``_gravity_along``).
+    effort limit on every joint with one, along the whole sine (``gravity_along``).
 
     Raises:
         URDFError: No such posture within :data:`HOLD_STEPS` steps (naming the joint and
@@ -131,14 +140,14 @@ def _hold_gravity(
     effort = np.where(robot.effort_limit > 0, robot.effort_limit, np.inf)
     q = q.copy()
     for _ in range(HOLD_STEPS):
-        if not np.any(_gravity_along(robot, q, amplitude) > HOLD * effort):
+        if not np.any(gravity_along(robot, q, amplitude) > HOLD * effort):
             return q
         G = robot.gravity_torque(q)
         q_new = np.clip(q - 0.02 * G / max(np.abs(G).max(), 1e-12), lo, hi)
         if np.allclose(q_new, q):
             break
         q = q_new
-    need = _gravity_along(robot, q, amplitude)
+    need = gravity_along(robot, q, amplitude)
     i = int(np.argmax(need / effort))
     raise URDFError(
         robot.source,

@@ -64,7 +64,7 @@ from .mjcf import (
     urdf_for_mujoco,
 )
 from .mujoco_settings import GEOMETRY_SOURCES, MUJOCO_INTEGRATORS, MuJoCoSettings, Obstacle
-from .plants import PLANTS, _substeps, held_torque, split_disturbance
+from .plants import PLANTS, held_torque, split_disturbance, substeps_per_period
 
 # the settings (.mujoco_settings) and the URDF translation (.mjcf) are re-exported here
 __all__ = [
@@ -182,7 +182,7 @@ class MuJoCoPlant:
         self.nq = self.n = n
         self.robot = robot
         self.Ts = float(Ts)
-        self.substeps = _substeps(Ts, dt)
+        self.substeps = substeps_per_period(Ts, dt)
         self.h = self.Ts / self.substeps
         self.model = model = mujoco_model(robot, self.settings)
         model.opt.timestep = self.h

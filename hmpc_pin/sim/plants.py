@@ -108,7 +108,7 @@ def __getattr__(name: str):
     return deprecated(__name__, name)
 
 
-def _substeps(Ts: float, dt: float) -> int:
+def substeps_per_period(Ts: float, dt: float) -> int:
     substeps = round(Ts / dt)
     if substeps < 1 or abs(substeps * dt - Ts) > 1e-9 * Ts:
         raise ConfigError(
@@ -275,7 +275,7 @@ class RK4Plant:
         self.coulomb = coulomb
         n = robot.nq
         self.joint_dynamics = _joint_terms(robot, joint_dynamics)
-        substeps = _substeps(Ts, dt)
+        substeps = substeps_per_period(Ts, dt)
         deprecated_backend(backend, "plant.backend")
         self.nq = self.n = n
         self.robot = robot
@@ -434,7 +434,7 @@ class EulerPlant:
         self.joint_dynamics = _joint_terms(robot, joint_dynamics)
         self.robot = robot
         self.Ts = float(Ts)
-        self.substeps = _substeps(Ts, dt)
+        self.substeps = substeps_per_period(Ts, dt)
         self.h = self.Ts / self.substeps
         self.model, self.data = robot.model, robot.data
         self.disturbance = disturbance if disturbance is not None else ZeroDisturbance(self.n)

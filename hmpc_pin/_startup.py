@@ -16,9 +16,11 @@ folder, a file, a process other than the figure process): from then on Ctrl-C ra
 computed is written, the arm gets its safe torque). :func:`end` first imports the modules
 whose import swallows Ctrl-C, so that no later import can.
 
-The package's ``__init__`` calls :func:`guard` first of all when the process is the
-command line (``hmpc-pin`` or ``python -m hmpc_pin``), so that the guard covers the
-package's own imports; library users never get a handler installed.
+The package's ``__init__`` imports this module first of all; when the process is the
+command line (``hmpc-pin`` or ``python -m hmpc_pin``), the module's first statements install
+the guard's handler before any import that runs code (:func:`_guard_first`), so that the
+guard covers the package's own imports and this module's; library users never get a handler
+installed.
 
 After the start-up, a command that must not be interrupted in the middle of a write
 keeps Ctrl-C back with :class:`DeferredInterrupt` and raises it between the writes.
@@ -28,17 +30,65 @@ This module imports nothing from the package (it runs before the package is impo
 
 from __future__ import annotations
 
-import contextlib
+# os, sys and the builtin _signal are loaded by the interpreter's own start: importing them
+# runs no code, so nothing before the guard's handler (:func:`_guard_first`) can be where a
+# Ctrl-C lands, but the few statements of this module that install it
+import _signal
 import os
-import signal
 import sys
-import threading
 
 #: Exit status of a Ctrl-C (128 + SIGINT, the shell's convention).
 EXIT_INTERRUPTED = 130
 
 #: The line printed by a Ctrl-C during start-up.
 LINE = "interrupted at start-up, before any run (nothing written)"
+
+
+def _exit_now(signum, frame) -> None:  # pragma: no cover - runs in subprocess tests
+    try:
+        os.write(2, (LINE + "\n").encode())
+    finally:
+        os._exit(EXIT_INTERRUPTED)
+
+
+def is_command_line() -> bool:
+    """Whether this process is the ``hmpc-pin`` command (script or ``python -m hmpc_pin``)."""
+    argv0 = os.path.basename(sys.argv[0]) if sys.argv else ""
+    if argv0 in ("hmpc-pin", "hmpc-pin.exe"):
+        return True
+    names = ("hmpc_pin", "hmpc_pin.__main__")
+    args = iter(list(getattr(sys, "orig_argv", ()))[1:])
+    for arg in args:
+        if arg == "-m":
+            return next(args, None) in names
+        if arg.startswith("-m"):
+            return arg[2:] in names
+        if arg in ("-X", "-W"):  # options taking a value
+            next(args, None)
+        elif arg == "-c" or not arg.startswith("-"):
+            return False
+    return False
+
+
+def _guard_first() -> None:
+    """The guard's handler, for the command line, before this module imports anything that
+    runs code (its own imports of ``signal``, ``threading`` ... are interruptible); a Ctrl-C
+    that lands before the handler is in place, while the process is tested for being the
+    command line, ends it the same way (exit 130, one line, no traceback)."""
+    try:
+        if is_command_line():
+            _signal.signal(_signal.SIGINT, _exit_now)
+    except KeyboardInterrupt:
+        if is_command_line():
+            _exit_now(_signal.SIGINT, None)
+        raise
+
+
+_guard_first()
+
+import contextlib  # noqa: E402  (after the guard: these imports run code)
+import signal  # noqa: E402
+import threading  # noqa: E402
 
 #: Modules on a command's path whose import swallows a KeyboardInterrupt (``except
 #: BaseException``), imported by :func:`end` while the guard holds. None today: the URDF
@@ -85,32 +135,6 @@ def _unraisable(unraisable) -> None:
 
 
 _previous_unraisable = sys.unraisablehook
-
-
-def _exit_now(signum, frame) -> None:  # pragma: no cover - runs in subprocess tests
-    try:
-        os.write(2, (LINE + "\n").encode())
-    finally:
-        os._exit(EXIT_INTERRUPTED)
-
-
-def is_command_line() -> bool:
-    """Whether this process is the ``hmpc-pin`` command (script or ``python -m hmpc_pin``)."""
-    argv0 = os.path.basename(sys.argv[0]) if sys.argv else ""
-    if argv0 in ("hmpc-pin", "hmpc-pin.exe"):
-        return True
-    names = ("hmpc_pin", "hmpc_pin.__main__")
-    args = iter(list(getattr(sys, "orig_argv", ()))[1:])
-    for arg in args:
-        if arg == "-m":
-            return next(args, None) in names
-        if arg.startswith("-m"):
-            return arg[2:] in names
-        if arg in ("-X", "-W"):  # options taking a value
-            next(args, None)
-        elif arg == "-c" or not arg.startswith("-"):
-            return False
-    return False
 
 
 def active() -> bool:

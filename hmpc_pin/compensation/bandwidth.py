@@ -221,15 +221,37 @@ def check_bandwidth(
 
 
 def compensation_bandwidth(compensation, M0: np.ndarray) -> np.ndarray | None:
-    """Per joint the bandwidth [1/s] of ``compensation`` at the mass matrix ``M0``:
-    :func:`implied_bandwidth` of an NDO (its ``cY``), the momentum observer's ``K``;
-    ``None`` for a compensation that is not an observer."""
+    """Per joint the bandwidth [1/s] of the observer ``compensation`` runs, at the mass
+    matrix ``M0``: the rate :math:`\\omega_j` at which its estimation error decays at the
+    posture of ``M0`` (module docstring).
+
+    :func:`implied_bandwidth` of an NDO (its ``cY``), the momentum observer's gains
+    :math:`K_O`; a wrapper with an ``inner`` compensation (the collision reaction's
+    :class:`~hmpc_pin.compensation.gate.FeedbackGate`) is looked through; ``None`` for a
+    compensation that is not an observer (none, ISM). The one computation of a running
+    observer's bandwidth: :func:`hmpc_pin.experiment.observer_analysis.running_observer`
+    finds a built experiment's observer, :func:`hmpc_pin.experiment.controllers.observer_bandwidth`
+    reads the bandwidth a config asks for (before anything is built) and
+    :func:`hmpc_pin.experiment.observer_analysis.observer_modes` gives the error's modal
+    decay rates along a reference (the eigenvalues of :math:`cY M(q)^{-1}`, of which this is
+    the diagonal at one posture).
+
+    Args:
+        compensation: A compensation object (an observer, or a gate around one).
+        M0: The mass matrix :math:`M(q_0)` [kg·m²], (n, n).
+
+    Returns:
+        The bandwidths [1/s], (n,), or ``None``.
+    """
+    while hasattr(compensation, "inner"):  # a gate around the observer (collision reaction)
+        compensation = compensation.inner
+    n = np.shape(M0)[0]
     cY = getattr(compensation, "cY", None)
     if cY is not None:
         return implied_bandwidth(cY, M0)
     K = getattr(compensation, "K", None)
     if K is not None:
-        return np.asarray(K, dtype=float).copy()
+        return np.broadcast_to(np.asarray(K, dtype=float), (n,)).copy()
     return None
 
 

@@ -99,9 +99,10 @@ def controller_limits(cc, robot: Robot) -> StateLimits | None:
 
 
 def observer_bandwidth(robot: Robot, cc, posture: np.ndarray | None = None) -> np.ndarray | None:
-    """Per joint, the bandwidth [1/s] of the observer of ``cc`` (configured, or implied
-    by its gain at ``posture``, default :func:`bandwidth_posture`); ``None`` without an
-    observer."""
+    """Per joint, the bandwidth [1/s] the config ``cc`` asks of its observer (configured,
+    or implied by its gain at ``posture``, default :func:`bandwidth_posture`); ``None``
+    without an observer. Read from the config, before anything is built; the bandwidth of
+    a built observer is :func:`~hmpc_pin.compensation.bandwidth.compensation_bandwidth`."""
     obs = cc.observer
     if obs is None:
         return None

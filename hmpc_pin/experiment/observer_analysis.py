@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..compensation.bandwidth import implied_bandwidth
+from ..compensation.bandwidth import compensation_bandwidth
 from ..compensation.observers import DisturbanceObserver, MomentumObserver
 from ..identification.observer_model import ObserverModel
 from .build import Experiment
@@ -41,15 +41,17 @@ def running_observer(ex: Experiment) -> DisturbanceObserver | MomentumObserver |
 
 
 def observer_bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
-    """The observer's bandwidth per joint [1/s] at the mass matrix ``M0``: the NDO's
-    :func:`~hmpc_pin.compensation.bandwidth.implied_bandwidth`, the momentum observer's
-    gains :math:`K_O`; ``None`` without an observer."""
-    comp = running_observer(ex)
-    if isinstance(comp, MomentumObserver):
-        return np.broadcast_to(np.asarray(comp.K, dtype=float), (M0.shape[0],)).copy()
-    if isinstance(comp, DisturbanceObserver):
-        return implied_bandwidth(comp.cY, M0)
-    return None
+    """The bandwidth per joint [1/s] of the observer ``ex`` runs, at the mass matrix ``M0``
+    (``None`` without an observer).
+
+    .. deprecated:: 0.3
+        The same as ``compensation_bandwidth(running_observer(ex), M0)``
+        (:func:`~hmpc_pin.compensation.bandwidth.compensation_bandwidth`, the one
+        computation, and :func:`running_observer`); use those. Not to be confused with
+        :func:`hmpc_pin.experiment.controllers.observer_bandwidth`, the bandwidth a config
+        asks for.
+    """
+    return compensation_bandwidth(running_observer(ex), M0)
 
 
 def observer_modes(ex: Experiment, samples: int = 200) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,6 @@ Saved outputs are used only here: tests compare against independent computations
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import sys
 from collections.abc import Callable
@@ -35,6 +34,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from benchmarks.harness import LOOP_ORACLE, per_step_oracle  # noqa: E402
+from benchmarks.tools import saved_outputs  # noqa: E402
 from hmpc_pin.controllers.wrappers import MeasuredController  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
@@ -119,57 +119,11 @@ def runs(duration: float | None) -> dict[str, Callable[[], dict[str, np.ndarray]
     return out
 
 
-def record(folder: Path, duration: float | None) -> int:
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, thunk in runs(duration).items():
-        arrays = thunk()
-        np.savez(folder / f"{name}.npz", **arrays)
-        print(f"recorded {name} (complete {bool(arrays['complete'])})", flush=True)
-    return 0
-
-
-def _difference(a: np.ndarray, b: np.ndarray) -> float:
-    if a.shape != b.shape or a.dtype.kind != b.dtype.kind:
-        return np.inf
-    if a.dtype.kind not in "fc":
-        return 0.0 if np.array_equal(a, b) else np.inf
-    if not np.array_equal(np.isnan(a), np.isnan(b)):
-        return np.inf
-    ok = ~np.isnan(a)
-    scale = max(1.0, float(np.max(np.abs(a[ok]), initial=0.0)))
-    return float(np.max(np.abs(a[ok] - b[ok]), initial=0.0)) / scale
-
-
-def compare(folder: Path, duration: float | None, tol: float) -> int:
-    failed, worst_all = False, 0.0
-    for name, thunk in runs(duration).items():
-        old = dict(np.load(folder / f"{name}.npz"))
-        new = thunk()
-        if set(old) != set(new):
-            print(f"FAIL {name}: arrays {sorted(set(old) ^ set(new))} appear on one side only")
-            failed = True
-            continue
-        diffs = {k: _difference(old[k], new[k]) for k in old}
-        worst = max(diffs.values())
-        worst_all = max(worst_all, worst)
-        bad = worst > tol
-        failed |= bad
-        detail = ", ".join(f"{k} {v:.1e}" for k, v in diffs.items() if v > 0)
-        print(f"{'FAIL' if bad else 'ok  '} {name:<40} {worst:.1e} {detail}", flush=True)
-    print(f"largest difference {worst_all:.2e} (tolerance {tol:g})")
-    return 1 if failed else 0
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("action", choices=("record", "compare"))
-    parser.add_argument("folder", type=Path)
+    parser = saved_outputs.parser(__doc__, 1e-12)
     parser.add_argument(
         "--duration", type=float, default=None, help="simulated time of every run [s]"
     )
-    parser.add_argument("--tol", type=float, default=1e-12)
     parser.add_argument(
         "--oracle",
         type=Path,
@@ -181,8 +135,11 @@ def main(argv: list[str] | None = None) -> int:
     global per_step
     per_step = per_step_oracle(args.oracle)
     if args.action == "record":
-        return record(args.folder, args.duration)
-    return compare(args.folder, args.duration, args.tol)
+        saved_outputs.record(args.folder, runs(args.duration))
+        return 0
+    failed, worst = saved_outputs.compare(args.folder, runs(args.duration), args.tol)
+    print(f"largest difference {worst:.2e} (tolerance {args.tol:g})")
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -23,7 +23,6 @@ must stay bit-identical to code from before the native kernels, the native one w
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -34,6 +33,7 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from benchmarks.tools import saved_outputs  # noqa: E402
 from hmpc_pin.apps.sweep import run_sweep  # noqa: E402
 from hmpc_pin.exceptions import SimulationError  # noqa: E402
 from hmpc_pin.experiment.build import Experiment  # noqa: E402
@@ -79,60 +79,36 @@ def run_sweep_rows() -> list[dict]:
     return run_sweep(config, SWEEP_SAMPLES, 0, jobs=1, progress=False).rows
 
 
+def runs() -> saved_outputs.Runs:
+    """Every config's run by its name, each a thunk returning its arrays."""
+    return {path.stem: lambda p=path: run_config(p) for path in CONFIGS}
+
+
 def record(folder: Path) -> int:
-    folder.mkdir(parents=True, exist_ok=True)
-    for path in CONFIGS:
-        np.savez(folder / f"{path.stem}.npz", **run_config(path))
-        print(f"recorded {path.stem}")
+    saved_outputs.record(folder, runs())
     (folder / "sweep.json").write_text(json.dumps(run_sweep_rows(), indent=1))
     print("recorded sweep")
     return 0
 
 
 def compare(folder: Path, tol: float) -> int:
-    worst_all, failed = 0.0, False
-    for path in CONFIGS:
-        old = np.load(folder / f"{path.stem}.npz")
-        new = run_config(path)
-        diffs = {}
-        for name in RESULT_ARRAYS:
-            a, b = old[name], new[name]
-            if a.shape != b.shape:
-                diffs[name] = np.inf
-            else:
-                # relative to the array's magnitude (torques reach 100 N·m)
-                scale = max(1.0, float(np.max(np.abs(a), initial=0.0)))
-                diffs[name] = float(np.max(np.abs(a - b), initial=0.0)) / scale
-        worst = max(diffs.values())
-        same_end = bool(old["complete"]) == bool(new["complete"])
-        bad = worst > tol or not same_end
-        failed |= bad
-        worst_all = max(worst_all, worst)
-        detail = ", ".join(f"{k} {v:.1e}" for k, v in diffs.items() if k != "t")
-        print(f"{'FAIL' if bad else 'ok  '} {path.stem:<24} max |Δ|/scale {worst:.2e} ({detail})")
+    failed, worst_all = saved_outputs.compare(folder, runs(), tol)
     old_rows = json.loads((folder / "sweep.json").read_text())
     new_rows = json.loads(json.dumps(run_sweep_rows()))
-    worst = 0.0
-    for a, b in zip(old_rows, new_rows, strict=True):
+    worst = 0.0 if len(old_rows) == len(new_rows) else np.inf
+    for a, b in zip(old_rows, new_rows, strict=False):
         for key, value in a.items():
             if isinstance(value, float):
-                worst = max(worst, abs(value - b[key]))
-            elif value != b[key]:
+                worst = max(worst, saved_outputs.difference(np.array(value), np.array(b[key])))
+            elif value != b.get(key):
                 worst = np.inf
-    bad = worst > tol
-    failed |= bad
-    print(f"{'FAIL' if bad else 'ok  '} sweep ({SWEEP_SAMPLES} samples × 2) max |Δ| {worst:.2e}")
+    failed |= saved_outputs.row(f"sweep ({SWEEP_SAMPLES} samples × 2)", worst, tol)
     print(f"largest difference over all configs {worst_all:.2e} (tolerance {tol:g})")
     return 1 if failed else 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("action", choices=("record", "compare"))
-    parser.add_argument("folder", type=Path)
-    parser.add_argument("--tol", type=float, default=1e-9)
+    parser = saved_outputs.parser(__doc__, 1e-9)
     parser.add_argument("--backend", choices=("python", "native", "auto"))
     args = parser.parse_args(argv)
     global BACKEND

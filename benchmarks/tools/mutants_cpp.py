@@ -8,21 +8,27 @@ the module copied beside the package (the worktree's hmpc_pin/_core*.so). Run fr
 repository root:
 
     .venv/bin/python benchmarks/tools/mutants_cpp.py [--only SUBSTRING] [--index I,J,...]
+
+``--check`` checks that every mutant's text is in its file, once, without building (the
+runner, shared with one_line_mutants.py, is benchmarks/tools/mutation.py).
 """
 
-# ruff: noqa: E501  (the mutants are one source line each)
 from __future__ import annotations
 
-import argparse
 import glob
 import os
 import shutil
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks.tools import mutation  # noqa: E402
+from benchmarks.tools.mutation import Mutant, run_tests  # noqa: E402
+
 BUILD = Path(os.environ.get("HMPC_MUT_BUILD", ROOT / "build" / "direct"))
 
 # The tests of each area (chosen after the list was committed; the fastest file first: -x)
@@ -41,7 +47,7 @@ CTRL = [
 ]
 
 #: (group, file, old line part, new line part, tests); rationale in the comment above each
-MUTANTS = [
+MUTANTS: list[Mutant] = [
     # ---- box_qp
     # the cold twin kept across runs: a run depends on the runs before it (missed reset)
     ("cpp", "cpp/src/box_qp.cpp", "  cold_qp_.reset();\n}", "}", QP),
@@ -494,64 +500,29 @@ def build() -> bool:
     return True
 
 
-def run(mutant, timeout: float = 900.0) -> tuple[str, float]:
-    _group, file, old, new, tests = mutant
-    path = ROOT / file
-    text = path.read_text(encoding="utf-8")
-    count = text.count(old)
-    if count != 1:
-        raise SystemExit(f"{file}: {old!r} occurs {count} times; expected once")
-    path.write_text(text.replace(old, new), encoding="utf-8")
-    start = time.perf_counter()
-    try:
-        if not build():
-            return "nobuild", time.perf_counter() - start
-        try:
-            proc = subprocess.run(
-                ["nice", sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests],
-                cwd=ROOT, capture_output=True, text=True, timeout=timeout,
-            )  # fmt: skip
-            verdict = "killed" if proc.returncode != 0 else "SURVIVED"
-            lines = proc.stdout.strip().splitlines() or [""]
-            failed = [x for x in lines if x.startswith(("FAILED", "ERROR"))]
-            tail = (failed[0][:160] + " | " if failed else "") + lines[-1]
-        except subprocess.TimeoutExpired:
-            verdict, tail = "killed", "timeout"
-        return f"{verdict} [{tail}]", time.perf_counter() - start
-    finally:
-        path.write_text(text, encoding="utf-8")
+def run(mutant: Mutant, tests: list[str] | None = None) -> tuple[str, str]:
+    """Rebuild with ``mutant`` applied, then run its tests (or ``tests``)."""
+    if not build():
+        return "nobuild", ""
+    killed, tail = run_tests([tests or mutant[4]], timeout=900.0, nice=True)
+    return ("killed" if killed else "SURVIVED"), tail
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", default="", help="run the mutants whose file contains this")
-    parser.add_argument("--index", default="", help="comma-separated indices into MUTANTS")
+def main(argv: list[str] | None = None) -> int:
+    parser = mutation.parser(__doc__)
     parser.add_argument(
         "--tests",
         nargs="*",
         default=None,
         help="run these tests for every mutant picked (in place of its own)",
     )
-    args = parser.parse_args()
-    picked = [int(x) for x in args.index.split(",") if x] or range(len(MUTANTS))
-    done = killed = 0
-    for i in picked:
-        mutant = MUTANTS[i]
-        if args.only not in mutant[1]:
-            continue
-        if args.tests:
-            mutant = (*mutant[:4], args.tests)
-        verdict, seconds = run(mutant)
-        done += 1
-        killed += verdict.startswith("killed")
-        print(
-            f"#{i:02d} {verdict} {seconds:6.1f} s  {mutant[1]}: {mutant[2]!r} -> {mutant[3]!r}",
-            flush=True,
-        )
-    build()  # the clean module back
-    if done:
-        print(f"{killed} of {done} killed ({100 * killed / done:.0f} %)")
-    return 0
+    args = parser.parse_args(argv)
+    indices = mutation.picked(MUTANTS, args)
+    try:
+        return mutation.campaign(MUTANTS, indices, lambda m: run(m, args.tests), args.check)
+    finally:
+        if not args.check:
+            build()  # the clean module back
 
 
 if __name__ == "__main__":

@@ -6,21 +6,25 @@ and the code whose one-line bugs an earlier suite missed (retiming, trajectory f
 pose IK, quaternions, MuJoCo mapping, collision watch, measurement model, init's speed
 cap, the applied-torque clip). Run from the repository root:
 
-    .venv/bin/python benchmarks/tools/one_line_mutants.py [--only SUBSTRING]
+    .venv/bin/python benchmarks/tools/one_line_mutants.py [--only SUBSTRING] [--group G]
 
-Prints one line per mutant and the kill rate per group.
+Prints one line per mutant and the kill rate per group; a mutant whose text is not in its
+file (once) is an error (``--check`` checks them all without running: the runner, shared
+with mutants_cpp.py, is benchmarks/tools/mutation.py).
 """
 
 # ruff: noqa: E501  (the mutants are one source line each)
 from __future__ import annotations
 
-import argparse
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks.tools import mutation  # noqa: E402
+from benchmarks.tools.mutation import Mutant, run_tests  # noqa: E402
 
 IC = "tests/test_independent_checks.py"
 LV = "tests/test_library_validation.py"
@@ -39,7 +43,7 @@ RT = "tests/test_realtime.py"
 RDL = "tests/test_realtime_declared_latency.py"
 
 #: (group, file, old line part, new line part, tests)
-MUTANTS = [
+MUTANTS: list[Mutant] = [
     # ---- code of this round (reliability)
     ("new", "hmpc_pin/checks.py", 'if out["Nc"] > out["N"]:', 'if out["Nc"] >= out["N"]:', [LV]),
     ("new", "hmpc_pin/checks.py", "if np.any(lo >= hi):", "if np.any(lo > hi):", [LV]),
@@ -3477,37 +3481,18 @@ LATER_TESTS = {
 AS_WRITTEN = False
 
 
-def run(mutant, timeout: float = 600.0) -> tuple[bool, float]:
-    _group, file, old, new, tests = mutant
-    later = [] if AS_WRITTEN or _group not in LATER_GROUPS else LATER_TESTS.get(file, [])
+def run(mutant: Mutant) -> tuple[str, str]:
+    """Run ``mutant``'s tests, then (its group written before them) :data:`LATER_TESTS`."""
+    group, file, _old, _new, tests = mutant
+    later = [] if AS_WRITTEN or group not in LATER_GROUPS else LATER_TESTS.get(file, [])
     later = [t for t in later if t not in tests]
-    path = ROOT / file
-    text = path.read_text(encoding="utf-8")
-    count = text.count(old)
-    if count != 1:
-        raise SystemExit(f"{file}: {old!r} occurs {count} times; expected once")
-    path.write_text(text.replace(old, new), encoding="utf-8")
-    start = time.perf_counter()
-    try:
-        killed = False
-        for selection in (tests, later):  # the later files in a run of their own (no -k)
-            if not selection or killed:
-                continue
-            proc = subprocess.run(
-                [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *selection],
-                cwd=ROOT, capture_output=True, text=True, timeout=timeout,
-            )  # fmt: skip
-            killed = proc.returncode != 0
-    except subprocess.TimeoutExpired:
-        killed = True
-    finally:
-        path.write_text(text, encoding="utf-8")
-    return killed, time.perf_counter() - start
+    # the later files in a run of their own (no -k)
+    killed, tail = run_tests([tests, later], timeout=600.0)
+    return ("killed" if killed else "SURVIVED"), tail
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", default="", help="run the mutants whose file contains this")
+def main(argv: list[str] | None = None) -> int:
+    parser = mutation.parser(__doc__)
     parser.add_argument(
         "--group", default="", help="run one group (new, earlier, fresh, i36 ... i36o)"
     )
@@ -3516,22 +3501,11 @@ def main() -> int:
         action="store_true",
         help="each mutant's tests as its writer listed them (no LATER_TESTS)",
     )
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     global AS_WRITTEN
     AS_WRITTEN = args.as_written
-    tally: dict[str, list[int]] = {}
-    for mutant in MUTANTS:
-        if args.only not in mutant[1] or (args.group and mutant[0] != args.group):
-            continue
-        killed, seconds = run(mutant)
-        tally.setdefault(mutant[0], [0, 0])
-        tally[mutant[0]][0] += killed
-        tally[mutant[0]][1] += 1
-        print(f"{'killed ' if killed else 'SURVIVED'} {seconds:5.1f} s  {mutant[1]}: "
-              f"{mutant[2]!r} -> {mutant[3]!r}", flush=True)  # fmt: skip
-    for group, (k, n) in tally.items():
-        print(f"{group}: {k} of {n} killed ({100 * k / n:.0f} %)")
-    return 0
+    indices = mutation.picked(MUTANTS, args, lambda m: not args.group or m[0] == args.group)
+    return mutation.campaign(MUTANTS, indices, run, args.check)
 
 
 if __name__ == "__main__":

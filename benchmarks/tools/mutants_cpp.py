@@ -321,8 +321,9 @@ MUTANTS: list[Mutant] = [
     (
         "cpp",
         "cpp/src/joint_qps.cpp",
-        "if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {",
-        "if (!(options.always_constrained && soft.leaves(i, q[i], dq[i], U.col(i)))) {",
+        # (the joint's own test after its box QP: the out-of-exchanges branch repeats it)
+        "    }\n    if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {",
+        "    }\n    if (!(options.always_constrained && soft.leaves(i, q[i], dq[i], U.col(i)))) {",
         QP,
     ),
     # ---- stick_slip

@@ -290,7 +290,7 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "fresh",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/run.py",
         'if touch is not None and line.startswith("tracking error"):',
         'if touch is None and line.startswith("tracking error"):',
         ["tests/test_cli_outputs.py"],
@@ -475,7 +475,7 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36",
-        "hmpc_pin/experiment/build.py",
+        "hmpc_pin/experiment/record.py",
         "model_at=mpc_settings(cc, n).model_at,",
         'model_at="end",',
         [IDF],
@@ -562,7 +562,7 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36b",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/replay.py",
         'robot = run_robot(result, str(args.urdf) if args.urdf else None, "RESULT")',
         'robot = run_robot(result, None, "RESULT")',
         [IDF, "tests/test_cli.py", "-k", "replay"],
@@ -962,8 +962,8 @@ MUTANTS: list[Mutant] = [
     (
         "i36d",
         "hmpc_pin/apps/check.py",
-        'if config.plant.engine == "mujoco":  # the simulated arm is not the model',
-        "if False:",
+        "if not engine_spec(config.plant.engine).integrated:  # not the model",
+        "if False:  # not the model",
         [CHK],
     ),
     (
@@ -1082,11 +1082,12 @@ MUTANTS: list[Mutant] = [
         'cc.compensation == "momentum" and getattr(cc.observer, "discretization"',
         [CHK],
     ),
+    # retargeted: the momentum observer's bandwidth, computed once in compensation_bandwidth now
     (
         "i36e",
-        "hmpc_pin/experiment/observer_analysis.py",
-        "np.broadcast_to(np.asarray(comp.K, dtype=float), (M0.shape[0],))",
-        "np.broadcast_to(np.asarray(comp.K, dtype=float) * M0[0, 0], (M0.shape[0],))",
+        "hmpc_pin/compensation/bandwidth.py",
+        "np.broadcast_to(np.asarray(K, dtype=float), (n,))",
+        "np.broadcast_to(np.asarray(K, dtype=float) * M0[0, 0], (n,))",
         [CHK],
     ),
     (
@@ -1147,9 +1148,9 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36e",
-        "hmpc_pin/identification/friction.py",
-        "for v in self.viscous)}]   # [N·m·s/rad]",
-        "for v in self.coulomb)}]   # [N·m·s/rad]",
+        "hmpc_pin/identification/friction_fit.py",
+        "for v in viscous)}]   # [N·m·s/rad]",
+        "for v in coulomb)}]   # [N·m·s/rad]",
         [IDN, IDF],
     ),
     (
@@ -1187,11 +1188,12 @@ MUTANTS: list[Mutant] = [
         "use = t > after",
         ["tests/test_thresholds.py"],
     ),
+    # retargeted: the zero-amplitude test is per joint now (no pulse: nothing live)
     (
         "i36e",
         "hmpc_pin/apps/identify.py",
-        "if pulse is None or not np.any(np.asarray(pulse.amplitude) != 0):",
-        "if pulse is None:",
+        "live = (amplitude != 0) & (center + PULSE_SIGMAS * sigma > after)",
+        "live = center + PULSE_SIGMAS * sigma > after",
         [IDF],
     ),
     (
@@ -1452,9 +1454,9 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36f",
-        "hmpc_pin/identification/friction.py",
-        "f\"coulomb = [{', '.join(f'{v:.6g}' for v in self.coulomb)}]   # [N·m]\",",
-        "f\"coulomb = [{', '.join(f'{v:.3g}' for v in self.coulomb)}]   # [N·m]\",",
+        "hmpc_pin/identification/friction_fit.py",
+        "f\"coulomb = [{', '.join(f'{v:.6g}' for v in coulomb)}]   # [N·m]\",",
+        "f\"coulomb = [{', '.join(f'{v:.3g}' for v in coulomb)}]   # [N·m]\",",
         [IDN, IDF],
     ),
     (
@@ -1572,7 +1574,7 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36f",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/check.py",
         '        return EXIT_FAILED\n    print("no problem found")',
         '        return EXIT_OK\n    print("no problem found")',
         [CHK],
@@ -1840,11 +1842,12 @@ MUTANTS: list[Mutant] = [
         [IDF, IDN],
     ),
     ("i36h", "hmpc_pin/apps/identify.py", '    "safety": 1.25,', '    "safety": 1.0,', [IDF, THR]),
+    # retargeted: the --thresholds fit of the run (indented 12: the franka robot's fit repeats the line)
     (
         "i36h",
         "hmpc_pin/apps/identify.py",
-        "after=args.after if args.after is not None else 0.0,",
-        "after=args.after if args.after is not None else 0.5,",
+        "            after=args.after if args.after is not None else 0.0,",
+        "            after=args.after if args.after is not None else 0.5,",
         [IDF, THR],
     ),
     (
@@ -2231,16 +2234,16 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36i",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/common.py",
         "not (math.isfinite(duration) and duration > 0):",
         "not (math.isfinite(duration) and duration >= 0):",
         ["tests/test_cli.py", "tests/test_errors.py"],
     ),
     (
         "i36i",
-        "hmpc_pin/apps/cli.py",
-        "config = _with_overrides(_config(args.config), False, args.duration)\n    check_args(",
-        "config = _with_overrides(_config(args.config), False, None)\n    check_args(",
+        "hmpc_pin/apps/commands/tune.py",
+        "config = with_overrides(read_config(args.config), False, args.duration)\n    check_args(",
+        "config = with_overrides(read_config(args.config), False, None)\n    check_args(",
         [TUN],
     ),
     # ---- i36k: check, checks, tune, the command line, sweep and the ROS nodes' config: fresh
@@ -2255,8 +2258,8 @@ MUTANTS: list[Mutant] = [
     (
         "i36k",
         "hmpc_pin/apps/check.py",
-        "_headroom(ex, _effort_limit(config, ex.plant), damped=plant_damped),",
-        "_headroom(ex, _effort_limit(config, ex.plant), damped=True),",
+        "torque_headroom(ex, plant_effort_limit(config, ex.plant), damped=plant_damped),",
+        "torque_headroom(ex, plant_effort_limit(config, ex.plant), damped=True),",
         [CHK],
     ),
     (
@@ -2283,8 +2286,8 @@ MUTANTS: list[Mutant] = [
     (
         "i36k",
         "hmpc_pin/apps/check.py",
-        'if config.plant.engine == "mujoco":  # `run` would be refused as well',
-        'if config.plant.engine != "mujoco":  # `run` would be refused as well',
+        "if not engine_spec(config.plant.engine).integrated:  # `run` refused as well",
+        "if engine_spec(config.plant.engine).integrated:  # `run` refused as well",
         [CHK],
     ),
     (
@@ -2373,28 +2376,29 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36k",
-        "hmpc_pin/apps/cli.py",
-        "if priority is not None and not 0 <= priority <= 99:",
-        "if priority is not None and not 1 <= priority <= 99:",
+        "hmpc_pin/apps/common.py",
+        "and not 0 <= priority <= 99:",
+        "and not 1 <= priority <= 99:",
+        ["tests/test_cli.py", "tests/test_errors.py"],
+    ),
+    # retargeted: init's --duration ignored (its default is now the run long enough to identify, not 10 s)
+    (
+        "i36k",
+        "hmpc_pin/apps/commands/init.py",
+        "duration = checked_duration(args.duration)  # None:",
+        "duration = checked_duration(args.duration) and None  # None:",
         ["tests/test_cli.py", "tests/test_errors.py"],
     ),
     (
         "i36k",
-        "hmpc_pin/apps/cli.py",
-        "duration = 10.0 if _checked_duration(args.duration) is None else args.duration",
-        "duration = 10.0",
-        ["tests/test_cli.py", "tests/test_errors.py"],
-    ),
-    (
-        "i36k",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/realtime.py",
         "if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):",
         "if args.rate is not None and not (math.isfinite(args.rate) and args.rate >= 0):",
         ["tests/test_cli.py", "tests/test_errors.py"],
     ),
     (
         "i36k",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/sweep.py",
         "jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)",
         "jobs = args.jobs or (os.cpu_count() or 1)",
         ["tests/test_sweep.py", "tests/test_cli.py", "tests/test_errors.py"],
@@ -2575,8 +2579,8 @@ MUTANTS: list[Mutant] = [
     (
         "i36n",
         "hmpc_pin/apps/identify.py",
-        "friction = replace(friction, unmodelled=_unmodelled(result))",
-        'friction = replace(friction, unmodelled="")',
+        "friction = replace(friction, unmodelled=unmodelled, unmodelled_until=until)",
+        'friction = replace(friction, unmodelled="", unmodelled_until=until)',
         [IDF, IDN],
     ),
     (
@@ -2609,7 +2613,7 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36n",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/run.py",
         "    if not args.speed > 0:",
         "    if args.speed < 0:",
         [
@@ -2621,30 +2625,30 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36n",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/common.py",
         '        if config.controller.compensation == "none":\n            raise ConfigError(\n                "--no-ndo",',
         '        if False:\n            raise ConfigError(\n                "--no-ndo",',
         ["tests/test_cli.py", "tests/test_errors.py"],
     ),
     (
         "i36n",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/run.py",
         'for flag, value in (("--wait", args.wait), ("--keep-open", args.keep_open)):',
         'for flag, value in (("--wait", args.wait),):',
         ["tests/test_cli_outputs.py", "tests/test_cli.py", "tests/test_viz.py"],
     ),
     (
         "i36n",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/check.py",
         "engines=not args.no_engine)",
         "engines=args.no_engine)",
         [CHK, "tests/test_cli.py"],
     ),
     (
         "i36n",
-        "hmpc_pin/apps/cli.py",
-        "overwrite=args.force)",
-        "overwrite=True)",
+        "hmpc_pin/apps/commands/init.py",
+        "overwrite=args.force,",
+        "overwrite=True,",
         ["tests/test_init.py", "tests/test_cli.py", "-m", "not slow"],
     ),
     (
@@ -2761,22 +2765,22 @@ MUTANTS: list[Mutant] = [
     (
         "i36o",
         "hmpc_pin/apps/check.py",
-        '        if config.plant.engine != "mujoco":\n            raise',
-        '        if config.plant.engine == "mujoco":\n            raise',
+        "        if engine_spec(config.plant.engine).integrated:\n            raise",
+        "        if not engine_spec(config.plant.engine).integrated:\n            raise",
         [CHK],
     ),
     (
         "i36o",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/run.py",
         "        if value and not args.viz:",
         "        if value and args.viz:",
         ["tests/test_viz.py", "tests/test_errors.py", "tests/test_cli_outputs.py"],
     ),
     (
         "i36o",
-        "hmpc_pin/apps/cli.py",
-        "    if not (math.isfinite(value) and value > 0):",
-        "    if not (math.isfinite(value) and value >= 0):",
+        "hmpc_pin/apps/common.py",
+        "value = args.warn_error\n    if not (math.isfinite(value) and value > 0):",
+        "value = args.warn_error\n    if not (math.isfinite(value) and value >= 0):",
         [
             "tests/test_cli_outputs.py",
             "tests/test_errors.py",
@@ -2787,14 +2791,14 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36o",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/common.py",
         'if run.stop["cause"] in ("interrupted", "deactivated"):',
         'if run.stop["cause"] == "interrupted":',
         ["tests/test_cli_realtime.py", "tests/test_interrupts.py", "tests/test_ros_boundary.py"],
     ),
     (
         "i36o",
-        "hmpc_pin/apps/cli.py",
+        "hmpc_pin/apps/commands/ros.py",
         'key = "--duration" if args.duration is not None else "simulation.duration"',
         'key = "simulation.duration"',
         ["tests/test_cli.py", "tests/test_ros.py", "-k", "not reproduce"],
@@ -2954,14 +2958,14 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36o",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/cycles.py",
         "and (q <= upper).all() and (np.abs(dq) <= vmax).all()):",
         "and (q <= upper).all() and (dq <= vmax).all()):",
         ["tests/test_realtime.py", "tests/test_realtime_declared_latency.py"],
     ),
     (
         "i36o",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/cycles.py",
         "if pending is not None and t >= pending[1] - 1e-9:",
         "if pending is not None:",
         ["tests/test_realtime.py", "tests/test_ros.py"],
@@ -3056,8 +3060,8 @@ MUTANTS: list[Mutant] = [
     (
         "i36l",
         "hmpc_pin/apps/sweep.py",
-        'if sc.legacy or not sc.known_latency or cc.kind != "hmpc":',
-        'if sc.legacy or cc.kind != "hmpc":',
+        "if sc.legacy or not sc.known_latency or not controller_spec(cc.kind).mpc:",
+        "if sc.legacy or not controller_spec(cc.kind).mpc:",
         [SWP],
     ),
     (
@@ -3277,8 +3281,8 @@ MUTANTS: list[Mutant] = [
     (
         "i36m",
         "hmpc_pin/ros/trajectory.py",
-        "idx = np.array([where[x] for x in robot.joint_names])",
-        "idx = np.arange(robot.nq)",
+        "return np.array([where[x] for x in robot.joint_names])",
+        "return np.arange(robot.nq)",
         [ROS],
     ),
     (
@@ -3295,11 +3299,12 @@ MUTANTS: list[Mutant] = [
         "    if t_s > now + 1e-3:",
         [ROS],
     ),
+    # retargeted: the start is returned now, not assigned: a stamp up to 1 ms past kept past
     (
         "i36m",
         "hmpc_pin/ros/trajectory.py",
-        "    now = t_s = max(t_s, now)",
-        "    t_s = max(t_s, now)",
+        "    return max(t_s, now)",
+        "    return t_s",
         [ROS],
     ),
     (
@@ -3311,7 +3316,7 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36m",
-        "hmpc_pin/apps/ros.py",
+        "hmpc_pin/apps/ros_trajectories.py",
         "        start = float(traj.times[0])",
         "        start = now",
         [ROS],
@@ -3381,28 +3386,28 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/cycles.py",
         "            if done > deadline + P:",
         "            if done > deadline:",
         [RT],
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/cycles.py",
         "            else:\n                tally.consecutive = 0\n",
         "            else:\n                pass\n",
         [RT],
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/cycles.py",
         "if pending is not None and t >= pending[1] - 1e-9:",
         "if pending is not None:",
         [RT],
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/stop.py",
         'unsent = stop is not None and stop[0] in ("interrupted", "deactivated") and not wrote',
         'unsent = stop is not None and stop[0] in ("interrupted", "deactivated")',
         [RT],
@@ -3416,28 +3421,28 @@ MUTANTS: list[Mutant] = [
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
-        "if float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:",
-        "if float(np.max(dq_keep, initial=0.0)) < sf.brake_speed:",
+        "hmpc_pin/realtime/stop.py",
+        "float(np.max(np.abs(dq_keep), initial=0.0)) < sf.brake_speed:",
+        "float(np.max(dq_keep, initial=0.0)) < sf.brake_speed:",
         [RT],
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/cycles.py",
         "(q <= upper).all() and (np.abs(dq) <= vmax).all()):",
         "(q <= upper).all() and (dq <= vmax).all()):",
         [RT],
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/cycles.py",
         "            self._fresh = (stamp, wake)\n            return None",
         "            self._fresh = (stamp, fresh_at)\n            return None",
         [RT],
     ),
     (
         "i36m",
-        "hmpc_pin/realtime/loop.py",
+        "hmpc_pin/realtime/stop.py",
         '        fresh = stop is None or stop[0] != "watchdog"',
         "        fresh = stop is None",
         [RT],
@@ -3474,6 +3479,16 @@ LATER_TESTS = {
         "tests/test_realtime_loop_edges.py",
         "tests/test_realtime_parts.py",
     ],
+    # the loop's cycles and stop sequence moved to their own files (the same tests)
+    "hmpc_pin/realtime/cycles.py": [
+        "tests/test_realtime_loop_edges.py",
+        "tests/test_realtime_parts.py",
+    ],
+    "hmpc_pin/realtime/stop.py": [
+        "tests/test_realtime_loop_edges.py",
+        "tests/test_realtime_parts.py",
+    ],
+    "hmpc_pin/apps/ros_trajectories.py": ["tests/test_ros_parts.py"],
     "hmpc_pin/realtime/interface.py": ["tests/test_realtime_parts.py"],
     "hmpc_pin/apps/realtime.py": ["tests/test_realtime_parts.py"],
     "hmpc_pin/apps/report.py": ["tests/test_report.py"],

@@ -18,8 +18,15 @@ The wrapped controller's own observer still runs inside its step at :math:`T_s` 
 estimate is not used). This is the inner law in Python (a compiled split of the step
 into an MPC part and an inner part would do the same at less cost); not for a
 controller with a declared latency (its prediction and torque alignment are the
-compiled step's). :class:`~hmpc_pin.realtime.franka.threaded.InnerLawThreaded` is this law
+compiled step's). :class:`~hmpc_pin.realtime.threaded_law.InnerLawThreaded` is this law
 with the MPC in a compiled thread, off the cycle.
+
+The real-time loop runs a law as it runs any controller (its ``Ts`` is the arm's period:
+one call per cycle); ``hmpc-pin realtime``, ``ros`` and ``franka`` choose it with
+``--inner-law`` or ``[realtime] inner_law``
+(:func:`~hmpc_pin.experiment.inner_law.inner_law_controller`). Each law says its own
+name (:attr:`InnerLawEveryCycle.name`, as the option spells it) and what it ran
+(:meth:`InnerLawEveryCycle.summary`, the run's record).
 """
 
 from __future__ import annotations
@@ -29,7 +36,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ...exceptions import ConfigError
+from ..exceptions import ConfigError
 
 __all__ = ["InnerLawEveryCycle"]
 
@@ -51,7 +58,12 @@ class InnerLawEveryCycle:
     Attributes:
         Ts: The wrapper's period, ``period`` (the loop runs it every cycle).
         mpc_every: :math:`m`.
+        name: The law as ``--inner-law`` names it (a class attribute).
+        label: The law in words (the run summaries).
     """
+
+    name = "every-cycle"
+    label = "every cycle"
 
     def __init__(self, controller, compensation, period: float, effort_limit=None):
         m = round(controller.Ts / period)
@@ -102,6 +114,33 @@ class InnerLawEveryCycle:
             self.controller.step(t, q, dq, reference)
             self._v[:] = np.ravel(self.controller.v)
         return self._torque(M, nle, dq)
+
+    def warm_up(self, t: float, q: FloatArray, dq: FloatArray, reference) -> None:
+        """Before a cycle that runs the MPC, the wrapped controller's ``warm_up`` (its step
+        run and undone: :meth:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC.warm_up`);
+        nothing before the other cycles (the real-time loop calls it before every cycle:
+        this law's ``Ts`` is the arm's period)."""
+        if self._k % self.mpc_every == 0:
+            self.controller.warm_up(t, q, dq, reference)
+
+    def summary(self) -> dict:
+        """What the law ran, for the run's record: ``name``, ``label``, ``mpc_every``
+        (cycles per MPC step) and ``period`` [s]."""
+        return {
+            "name": self.name,
+            "label": self.label,
+            "mpc_every": int(self.mpc_every),
+            "period": float(self.Ts),
+        }
+
+    def close(self) -> None:
+        """Nothing to release (the threaded law joins its planner here)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     def _observe(self, q: FloatArray, dq: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(M(q), C q̇ + G)`` at the cycle's state, the observer advanced over the period

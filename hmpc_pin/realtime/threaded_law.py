@@ -1,6 +1,6 @@
 """The MPC in a compiled thread, the inner law every cycle (``InnerLawThreaded``).
 
-As :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle` (the observer, Eq 13, and
+As :class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle` (the observer, Eq 13, and
 the inverse dynamics, Eq 4, every cycle of the arm's period :math:`P`), but the MPC -- the
 gradients and the joint QPs over the horizon (Eq 25–26) -- runs in a compiled planner
 thread (``hmpc_pin._core.PlanThread``, ``cpp/include/hmpc/plan_thread.hpp``) with its own
@@ -19,7 +19,7 @@ copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 4. Eq (4) with it at the fresh state (as the synchronous law).
 
 With ``wait=True`` (deterministic: each request waits for its plan) the torques are, bit
-for bit, those of :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle` on the same
+for bit, those of :class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle` on the same
 controller. Without it the request's own cycle uses the previous plan (its row 1, or its
 last with :math:`N_c = 1`): the default ``max_age = 2 T_s`` lets the new plan be one MPC
 period late.
@@ -35,11 +35,11 @@ import math
 
 import numpy as np
 
-from ...exceptions import ConfigError
-from ...mpc.condensed import JointQPs
-from ...native import load as load_native
-from ...tasks.base import Reference, as_reference, reference_port
-from .rates import FloatArray, InnerLawEveryCycle
+from ..exceptions import ConfigError
+from ..mpc.condensed import JointQPs
+from ..native import load as load_native
+from ..tasks.base import Reference, as_reference, reference_port
+from .inner_law import FloatArray, InnerLawEveryCycle
 
 __all__ = ["InnerLawThreaded"]
 
@@ -90,7 +90,15 @@ class InnerLawThreaded(InnerLawEveryCycle):
     Attributes:
         planner: The ``hmpc_pin._core.PlanThread``.
         fallbacks: Cycles that braked (no plan within ``max_age``) since :meth:`reset`.
+        name: ``"threaded"`` (as ``--inner-law`` names it).
+        label: The law in words (the run summaries).
+        warm_up: ``None``: the MPC's memory is the planner thread's own, nothing to warm
+            in the cycle (the real-time loop then runs no warm-up).
     """
+
+    name = "threaded"
+    label = "every cycle, the MPC threaded"
+    warm_up = None  # type: ignore[assignment]
 
     def __init__(
         self,
@@ -173,12 +181,22 @@ class InnerLawThreaded(InnerLawEveryCycle):
             out[1][:] = dq_ref
         self.planner.request_stack(t, S)
 
+    def summary(self) -> dict:
+        """As the synchronous law's, with the planner's counts: ``requests``,
+        ``published``, ``dropped``, ``refused`` (plans past ``max_age``), ``fallbacks``
+        (cycles that braked), ``max_age`` [s] and ``wait``."""
+        p = self.planner
+        return {
+            **super().summary(),
+            "requests": int(p.requests),
+            "published": int(p.published),
+            "dropped": int(p.dropped),
+            "refused": int(p.stale),
+            "fallbacks": int(self.fallbacks),
+            "max_age": float(p.max_age),
+            "wait": self.wait,
+        }
+
     def close(self) -> None:
         """Stop the planner thread and join it (idempotent)."""
         self.planner.stop()
-
-    def __enter__(self) -> InnerLawThreaded:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()

@@ -42,7 +42,8 @@ def with_realtime(
 ) -> ExperimentConfig:
     """``config`` with ``[realtime]`` ``rate``, ``gc``, ``priority``, ``spin``,
     ``watchdog``, ``max_misses``, ``inner_law`` replaced (flags; ``None``: kept). The
-    values are checked as the config file's are (:class:`~hmpc_pin.experiment.config.RealtimeConfig`).
+    values are checked as the config file's are
+    (:class:`~hmpc_pin.experiment.config.RealtimeConfig`).
 
     Raises:
         ConfigError: A value ``[realtime]`` refuses, named by its key.

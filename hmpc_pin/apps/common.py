@@ -303,17 +303,20 @@ def write_replay(robot, result, path: Path, option: str = "--replay") -> Path:
 
 
 def ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
-    """``--namespace`` and ``--priority`` of the ROS commands applied to ``config``."""
+    """``--namespace``, ``--priority`` (and ``hmpc-pin ros``'s ``--inner-law``) of the ROS
+    commands applied to ``config``."""
     from .realtime import with_realtime
     from .ros import with_namespace
 
     priority = checked_priority(args.priority)
+    law = getattr(args, "inner_law", None)
     try:
         config = with_realtime(
             config,
             priority=priority,
             watchdog=getattr(args, "watchdog", None),
             max_misses=getattr(args, "max_misses", None),
+            inner_law=None if law is None else inner_law_value(law),
         )
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key.replace('_', '-')}", exc.message) from None

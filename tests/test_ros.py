@@ -202,6 +202,7 @@ def run_in_netns(
     settings: str,
     report: str,
     timeout: float = 400,
+    args: tuple[str, ...] = (),
 ):
     """Run the node script ``script`` (its own arm or scenario node, and the controller it
     starts) for ``scenario`` in a private network namespace; return the config, the script's
@@ -214,7 +215,7 @@ def run_in_netns(
     out.mkdir()
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
     command = (f"ip link set lo up && exec {sys.executable} {script} {scenario} {config} "
-               f"{out} {duration}")  # fmt: skip
+               f"{out} {duration} {' '.join(args)}")  # fmt: skip
     proc = subprocess.run(["unshare", "-n", "bash", "-c", command], env=env, cwd=ROOT,
                           capture_output=True, text=True, timeout=timeout)  # fmt: skip
     assert proc.returncode == 0, proc.stderr

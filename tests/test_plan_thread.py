@@ -151,8 +151,8 @@ def test_the_law_brakes_on_a_stale_plan_and_counts_it():
     dq = np.linspace(-1.0, 1.0, n)
     law.step(0.0, q0, dq, reference)  # the first cycle waits for its plan
     assert law.fallbacks == 0
-    # a cycle 20 ms later without a new request (not a multiple of m = 10: no request)
-    law._k = 1
+    # a cycle 21 ms later without a new request (the next MPC instant put off)
+    law._next = 1.0
     law.step(0.021, q0, dq, reference)
     assert law.fallbacks == 1
     vmin, vmax = law.controller.settings.bounds(n)

@@ -27,7 +27,6 @@ from ..experiment.realtime import brake_settings, realtime_parts
 from ..experiment.record import recorded_limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..sim.engines import engine_spec
-from .common import add_inner_law_option
 from .packaged import CONFIG_HELP
 from .realtime import StatusLine, add_stop_options, priority_value, save_run
 from .ros_trajectories import TrajectorySubscription
@@ -571,7 +570,6 @@ def ros_arguments(ros) -> None:
     )
     ros.add_argument("--out", type=Path, default=Path("out"), help="output directory [out]")
     add_stop_options(ros)
-    add_inner_law_option(ros, "whole-step")
     _add_node_options(ros)
 
 

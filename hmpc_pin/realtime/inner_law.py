@@ -10,7 +10,9 @@ whose period :math:`T_s` is a multiple of the arm's period :math:`P`. Every cycl
    dynamics' own part :math:`J = B\\dot q + F\\,\\mathrm{sgn}\\,\\dot q`, as the compiled step
    feeds its observer);
 2. at :math:`k = 0, m, 2m, \\dots` the MPC: the wrapped controller's whole step, of which
-   the outer loop's acceleration :math:`v` is kept until the next;
+   the outer loop's acceleration :math:`v` is kept until the next (by the cycle's time:
+   the first cycle at or after each instant :math:`t_0 + j\\,T_s` runs it, so that a
+   cycle the loop skipped shifts nothing);
 3. Eq (4) at the fresh state: :math:`\\tau_k = M(q_k)\\,v + C\\dot q_k + G(q_k) + J(\\dot q_k)
    - \\hat d_k`.
 
@@ -106,13 +108,30 @@ class InnerLawEveryCycle:
         self._v[:] = 0.0
         self._fed[:] = 0.0
         self._k = 0
+        self._t0 = math.nan  # the first MPC instant (the run's first cycle)
+        self._next = -math.inf  # the next MPC instant [s]
+
+    def _due(self, t: float) -> bool:
+        """Whether cycle time ``t`` [s] reaches the next MPC instant ``t0 + j Ts`` (within
+        half an arm period): by time, not by calls, so that a cycle the loop skipped (a
+        missed deadline, a lost robot cycle) does not shift the MPC's instants."""
+        return t >= self._next - 0.5 * self.Ts
+
+    def _ran_mpc(self, t: float) -> None:
+        """The MPC ran at ``t``: the next instant is the one after the instant ``t`` serves."""
+        if self._k == 0:
+            self._t0 = t
+        Tc = self.controller.Ts
+        j = math.floor((t - self._t0) / Tc + 0.5 * self.Ts / Tc)
+        self._next = self._t0 + (j + 1) * Tc
 
     def step(self, t: float, q: FloatArray, dq: FloatArray, reference) -> FloatArray:
         """The torque [N·m] of cycle ``k`` (module doc)."""
         M, nle = self._observe(q, dq)
-        if self._k % self.mpc_every == 0:
+        if self._due(t):
             self.controller.step(t, q, dq, reference)
             self._v[:] = np.ravel(self.controller.v)
+            self._ran_mpc(t)
         return self._torque(M, nle, dq)
 
     def warm_up(self, t: float, q: FloatArray, dq: FloatArray, reference) -> None:
@@ -120,7 +139,7 @@ class InnerLawEveryCycle:
         run and undone: :meth:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC.warm_up`);
         nothing before the other cycles (the real-time loop calls it before every cycle:
         this law's ``Ts`` is the arm's period)."""
-        if self._k % self.mpc_every == 0:
+        if self._due(t):
             self.controller.warm_up(t, q, dq, reference)
 
     def summary(self) -> dict:

@@ -7,8 +7,8 @@ thread (``hmpc_pin._core.PlanThread``, ``cpp/include/hmpc/plan_thread.hpp``) wit
 copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 
 1. the observer over the period that just ended (as the synchronous law);
-2. at :math:`k = 0, m, 2m, \\dots` the state :math:`(t_k, q_k, \\dot q_k)` is handed to the
-   planner (a request; it does not wait, except for the first after
+2. at :math:`k = 0, m, 2m, \\dots` (by time, as the synchronous law) the state
+   :math:`(t_k, q_k, \\dot q_k)` is handed to the planner (a request; it does not wait, except for the first after
    :meth:`InnerLawThreaded.reset`, or every time with ``wait=True``);
 3. the acceleration of the latest plan for the cycle's time :math:`t`: the plan's row
    :math:`\\lfloor (t - t_\\text{plan}) / T_s \\rfloor` (past the control horizon its last
@@ -143,10 +143,11 @@ class InnerLawThreaded(InnerLawEveryCycle):
     def step(self, t: float, q: FloatArray, dq: FloatArray, reference) -> FloatArray:
         """The torque [N·m] of cycle ``k`` (module doc)."""
         M, nle = self._observe(q, dq)
-        if self._k % self.mpc_every == 0:
+        if self._due(t):
             self._request(t, q, dq, reference)
             if self.wait or self._k == 0:
                 self.planner.wait()
+            self._ran_mpc(t)
         if not self.planner.input(t, self._v):
             self.fallbacks += 1
             np.clip(

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from ..common import (
     add_force_option,
+    add_inner_law_option,
     out_dir,
     read_config,
     realtime_files,
@@ -28,6 +29,7 @@ def add_arguments(ros) -> None:
     from ..ros import ros_arguments
 
     ros_arguments(ros)
+    add_inner_law_option(ros, "whole-step")
     add_force_option(ros)
 
 

@@ -8,8 +8,9 @@ copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 
 1. the observer over the period that just ended (as the synchronous law);
 2. at :math:`k = 0, m, 2m, \\dots` (by time, as the synchronous law) the state
-   :math:`(t_k, q_k, \\dot q_k)` is handed to the planner (a request; it does not wait, except for the first after
-   :meth:`InnerLawThreaded.reset`, or every time with ``wait=True``);
+   :math:`(t_k, q_k, \\dot q_k)` is handed to the planner (a request; it does not wait,
+   except for the first after :meth:`InnerLawThreaded.reset`, or every time with
+   ``wait=True``);
 3. the acceleration of the latest plan for the cycle's time :math:`t`: the plan's row
    :math:`\\lfloor (t - t_\\text{plan}) / T_s \\rfloor` (past the control horizon its last
    row), if the plan is not older than ``max_age``; else the **brake** fallback

@@ -93,13 +93,14 @@ class InnerLawThreaded(InnerLawEveryCycle):
         fallbacks: Cycles that braked (no plan within ``max_age``) since :meth:`reset`.
         name: ``"threaded"`` (as ``--inner-law`` names it).
         label: The law in words (the run summaries).
-        warm_up: ``None``: the MPC's memory is the planner thread's own, nothing to warm
-            in the cycle (the real-time loop then runs no warm-up).
+
+    Its ``warm_up`` is ``None``: the MPC's memory is the planner thread's own, nothing to
+    warm in the cycle (the real-time loop then runs no warm-up).
     """
 
     name = "threaded"
     label = "every cycle, the MPC threaded"
-    warm_up = None  # type: ignore[assignment]
+    warm_up = None  # type: ignore[assignment]  #: (no warm-up: class doc)
 
     def __init__(
         self,

@@ -264,6 +264,30 @@ def test_ros_tracks_like_the_simulation(tmp_path, gravity):
     assert result.meta["ros"]["stamps"] == "header"
 
 
+def test_ros_with_the_threaded_inner_law_runs_and_records_its_plans(tmp_path):
+    """``hmpc-pin ros --inner-law threaded`` (no [collision] watch: the hierarchical MPC
+    itself): the MPC in its compiled thread, the inverse dynamics and the observer at
+    every state; the run completes, says which law ran with its plans and fallbacks, and
+    the published estimate is the inner law's (the run's d̂)."""
+    settings = "[ros]\nrate = 500\n\n[realtime]\nmax_misses = 1000\nwatchdog = 2.0\n"
+    threaded = ("--inner-law", "threaded")
+    _, report, result = run_in_netns(tmp_path, SCENARIO, "track", 3.0, settings, "scenario.json",
+                                     args=threaded)  # fmt: skip
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    assert result.complete
+    law = result.meta["realtime"]["inner_law"]
+    assert law["name"] == "threaded" and law["mpc_every"] == 5  # Ts = 10 ms at 500 Hz
+    assert law["requests"] >= 1 and law["fallbacks"] == law["refused"]
+    # a record at every state answered (the law runs every period, not every Ts)
+    assert np.median(np.diff(result.t)) == pytest.approx(2e-3)
+    received = np.array(report["external_torque"])
+    assert received.shape[0] > 10 and np.abs(received).max() > 0.1
+    for row in received[-10:]:
+        assert np.any(np.all(result.d_hat == row, axis=1))
+    assert np.abs(result.error[result.t > 1.0]).max() < 0.05  # and the arm tracked
+
+
 def test_ros_trajectory_replaces_the_reference_and_bad_one_is_refused(tmp_path):
     # (12 s: on a loaded machine DDS discovery between this scenario's node and the
     # controller's, with its parameter and lifecycle services, took up to 5.5 s)

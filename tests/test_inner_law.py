@@ -231,3 +231,37 @@ def test_the_old_names_still_import_with_a_warning():
     assert Old is InnerLawEveryCycle and OldThreaded is InnerLawThreaded
     assert any("hmpc_pin.realtime.inner_law" in str(w.message) for w in caught)
     assert InnerLawEveryCycle.name == "every-cycle" and InnerLawThreaded.name == "threaded"
+
+
+#: (command line after the config, [realtime] keys, extra tables, the one line's pattern)
+OTHER_COMMANDS = [
+    (["franka", "--robot-ip", "127.0.0.1", "--inner-law", "fast"], "", "", r"--inner-law: exp"),
+    (
+        ["franka", "--robot-ip", "127.0.0.1", "--inner-law", "threaded"],
+        "",
+        "",
+        r"--inner-law: threaded does not apply: the controller is a",
+    ),
+    (["ros", "--inner-law", "every-cycle"], "", "", r"--inner-law: every-cycle does not apply"),
+    (["ros"], "inner_law = 'slow'\n", "", r"realtime\.inner_law: expected one of"),
+]
+
+
+@pytest.mark.parametrize(("argv", "realtime", "tables", "match"), OTHER_COMMANDS)
+def test_franka_and_ros_refuse_a_bad_inner_law_before_anything(
+    tmp_path, capsys, argv, realtime, tables, match
+):
+    """The same option and key under ``franka`` (before connecting) and ``ros`` (before
+    rclpy starts): a [collision] watch wraps the controller, so the two-rate laws do not
+    apply to it."""
+    import re
+
+    if argv[0] == "ros":
+        pytest.importorskip("rclpy")
+    cfg = _config(tmp_path, realtime)
+    cfg.write_text(cfg.read_text() + "\n[collision]\nthreshold = 1000.0\n" + tables)
+    out = tmp_path / "out"
+    assert main([argv[0], str(cfg), *argv[1:], "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and re.search(match, err), err
+    assert not out.exists()

@@ -5,7 +5,8 @@ arm process, each law in turn (``whole-step``: the whole step every 10 cycles, i
 held; ``every-cycle``: the MPC every 10 cycles, Eq 4 and the observer every cycle;
 ``threaded``: the same with the MPC in its compiled thread), in alternating blocks (A, B,
 C, A, B, C, ...), each block a new run of ``--duration`` seconds. Per law, the medians
-over blocks of: the worst joint's RMS tracking error after 1 s [rad]; the loop's latency
+over blocks of: the worst joint's RMS tracking error after 1 s [rad] (over the runs
+that reached 1 s); the loop's latency
 (deadline to torque written, every cycle) median, p99 and p99.9 [µs]; the compute per
 cycle (median [µs]); the misses; the threaded law's plan fallbacks (summed). The 1-minute
 load average before and after. Wall clock on a shared machine: a measurement, not a test.
@@ -42,6 +43,7 @@ def _one(config, law: str, out: Path) -> dict:
         "compute": s["compute"]["median_us"],
         "misses": s["misses"],
         "complete": run.result.complete,
+        "stop": None if run.stop is None else run.stop["cause"],
         "fallbacks": s["inner_law"].get("fallbacks", 0),
     }
 
@@ -76,13 +78,14 @@ def main() -> int:
     for law, rs in rows.items():
 
         def med(k, rs=rs):
-            return float(np.median([r[k] for r in rs]))
+            return float(np.nanmedian([r[k] for r in rs]))  # (a stopped run: no RMS)
 
+        stopped = sum(not r["complete"] for r in rs)
         print(
             f"{law:12s} {med('rms'):18.2e} {med('median'):12.0f} {med('p99'):8.0f} "
             f"{med('p999'):11.0f} {med('compute'):12.0f} {sum(r['misses'] for r in rs):7d} "
             f"{sum(r['fallbacks'] for r in rs):9d}"
-            + ("" if all(r["complete"] for r in rs) else "  (a run stopped)")
+            + (f"  ({stopped} stopped: {[r['stop'] for r in rs if r['stop']]})" if stopped else "")
         )
     print(f"load average (1 min) {load0:.2f} before, {load1:.2f} after")
     return 0

@@ -50,6 +50,18 @@ NAMES: dict[tuple[str, str], tuple[Any, str]] = {
         "the compiled loop's chunk is hmpc_pin.sim.compiled_loop.LOOP_CHUNK (the plant "
         "tabulates nothing)",
     ),
+    ("hmpc_pin.realtime.franka.rates", "InnerLawEveryCycle"): (
+        _Moved("hmpc_pin.realtime.inner_law", "InnerLawEveryCycle"),
+        "import it from hmpc_pin.realtime.inner_law (every real-time command runs it)",
+    ),
+    ("hmpc_pin.realtime.franka.threaded", "InnerLawThreaded"): (
+        _Moved("hmpc_pin.realtime.threaded_law", "InnerLawThreaded"),
+        "import it from hmpc_pin.realtime.threaded_law (every real-time command runs it)",
+    ),
+    ("hmpc_pin.realtime.franka.threaded", "planner_qps"): (
+        _Moved("hmpc_pin.realtime.threaded_law", "planner_qps"),
+        "import it from hmpc_pin.realtime.threaded_law",
+    ),
 }
 
 

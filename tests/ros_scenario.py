@@ -91,7 +91,7 @@ def probe_interface(config: str, out: Path) -> None:
     os._exit(0)
 
 
-def main(scenario: str, config: str, out: str, duration: float) -> None:
+def main(scenario: str, config: str, out: str, duration: float, extra=()) -> None:
     if scenario == "interface":
         probe_interface(config, Path(out))
     import rclpy
@@ -106,7 +106,8 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     exe = [sys.executable, "-m", "hmpc_pin"]
     arm = subprocess.Popen([*exe, "ros-arm", config], stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)  # fmt: skip
-    ctrl = subprocess.Popen([*exe, "ros", config, "--duration", str(duration), "--out", out],
+    ctrl = subprocess.Popen([*exe, "ros", config, "--duration", str(duration), "--out", out,
+                             *extra],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("scenario")
@@ -203,4 +204,4 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4]))
+    main(sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4]), sys.argv[5:])

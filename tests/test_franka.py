@@ -125,7 +125,7 @@ def _config(tmp_path: Path, duration: float, observer: bool = True, Ts: float = 
     return load_config(path)
 
 
-def _run(tmp_path, duration=2.5, observer=True, wrapper=None, Ts=0.01, inner_law="every-cycle"):
+def _run(tmp_path, duration=2.5, observer=True, wrapper=None, Ts=0.01, inner_law="auto"):
     config = _config(tmp_path, duration, observer, Ts)
     out = tmp_path / f"out_{observer}_{Ts}_{inner_law}"
     out.mkdir(exist_ok=True)

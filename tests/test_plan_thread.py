@@ -1,5 +1,5 @@
 """The MPC in a compiled planner thread (hmpc_pin._core.PlanThread,
-hmpc_pin.realtime.franka.threaded.InnerLawThreaded): its plan equals the synchronous step's
+hmpc_pin.realtime.threaded_law.InnerLawThreaded): its plan equals the synchronous step's
 bit for bit when it waits for it, a plan older than the staleness bound is never used, and
 the thread stops and joins on every stop path. No wall clock: the plan's clock is driven by
 hand and the hand-over is waited for."""
@@ -21,8 +21,8 @@ from hmpc_pin.controllers.hierarchical import HierarchicalMPC
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 from hmpc_pin.native import load as load_native
-from hmpc_pin.realtime.franka.rates import InnerLawEveryCycle
-from hmpc_pin.realtime.franka.threaded import InnerLawThreaded
+from hmpc_pin.realtime.inner_law import InnerLawEveryCycle
+from hmpc_pin.realtime.threaded_law import InnerLawThreaded
 from hmpc_pin.sim import RK4Plant
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -151,8 +151,8 @@ def test_the_law_brakes_on_a_stale_plan_and_counts_it():
     dq = np.linspace(-1.0, 1.0, n)
     law.step(0.0, q0, dq, reference)  # the first cycle waits for its plan
     assert law.fallbacks == 0
-    # a cycle 20 ms later without a new request (not a multiple of m = 10: no request)
-    law._k = 1
+    # a cycle 21 ms later without a new request (the next MPC instant put off)
+    law._next = 1.0
     law.step(0.021, q0, dq, reference)
     assert law.fallbacks == 1
     vmin, vmax = law.controller.settings.bounds(n)
@@ -210,7 +210,7 @@ def test_ctrl_c_while_waiting_for_a_plan_stops_the_thread():
         sys.path.insert(0, {str(ROOT / "tests")!r})
         from test_plan_thread import _arm, _law
         from hmpc_pin.native import load as load_native
-        from hmpc_pin.realtime.franka.threaded import InnerLawThreaded
+        from hmpc_pin.realtime.threaded_law import InnerLawThreaded
         robot, settings, q0, reference = _arm("panda_sine")
         settings = replace(settings, Ts=0.005, N=200, Nc=10, max_iter=100000)
         law = _law(InnerLawThreaded, robot, settings, wait=True)

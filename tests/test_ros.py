@@ -202,6 +202,7 @@ def run_in_netns(
     settings: str,
     report: str,
     timeout: float = 400,
+    args: tuple[str, ...] = (),
 ):
     """Run the node script ``script`` (its own arm or scenario node, and the controller it
     starts) for ``scenario`` in a private network namespace; return the config, the script's
@@ -214,7 +215,7 @@ def run_in_netns(
     out.mkdir()
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONPATH": str(ROOT)}
     command = (f"ip link set lo up && exec {sys.executable} {script} {scenario} {config} "
-               f"{out} {duration}")  # fmt: skip
+               f"{out} {duration} {' '.join(args)}")  # fmt: skip
     proc = subprocess.run(["unshare", "-n", "bash", "-c", command], env=env, cwd=ROOT,
                           capture_output=True, text=True, timeout=timeout)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
@@ -261,6 +262,30 @@ def test_ros_tracks_like_the_simulation(tmp_path, gravity):
     # stays of the simulation's order
     assert np.all(rms_ros < 3.0 * rms_sim), (rms_ros, rms_sim)
     assert result.meta["ros"]["stamps"] == "header"
+
+
+def test_ros_with_the_threaded_inner_law_runs_and_records_its_plans(tmp_path):
+    """``hmpc-pin ros --inner-law threaded`` (no [collision] watch: the hierarchical MPC
+    itself): the MPC in its compiled thread, the inverse dynamics and the observer at
+    every state; the run completes, says which law ran with its plans and fallbacks, and
+    the published estimate is the inner law's (the run's d̂)."""
+    settings = "[ros]\nrate = 500\n\n[realtime]\nmax_misses = 1000\nwatchdog = 2.0\n"
+    threaded = ("--inner-law", "threaded")
+    _, report, result = run_in_netns(tmp_path, SCENARIO, "track", 3.0, settings, "scenario.json",
+                                     args=threaded)  # fmt: skip
+    ctrl = report["controller"]
+    assert ctrl["exit"] == 0, ctrl["stderr"]
+    assert result.complete
+    law = result.meta["realtime"]["inner_law"]
+    assert law["name"] == "threaded" and law["mpc_every"] == 5  # Ts = 10 ms at 500 Hz
+    assert law["requests"] >= 1 and law["fallbacks"] == law["refused"]
+    # a record at every state answered (the law runs every period, not every Ts)
+    assert np.median(np.diff(result.t)) == pytest.approx(2e-3)
+    received = np.array(report["external_torque"])
+    assert received.shape[0] > 10 and np.abs(received).max() > 0.1
+    for row in received[-10:]:
+        assert np.any(np.all(result.d_hat == row, axis=1))
+    assert np.abs(result.error[result.t > 1.0]).max() < 0.05  # and the arm tracked
 
 
 def test_ros_trajectory_replaces_the_reference_and_bad_one_is_refused(tmp_path):

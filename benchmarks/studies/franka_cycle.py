@@ -78,7 +78,10 @@ def main() -> int:
     parser.add_argument("--realtime", default="ignore", choices=("enforce", "ignore"))
     parser.add_argument("--ts", type=float, default=None, help="controller period [s]")
     parser.add_argument(
-        "--inner-law", default="every-cycle", choices=("every-cycle", "threaded", "held")
+        "--inner-law",
+        default="auto",
+        choices=("auto", "whole-step", "every-cycle", "threaded", "held"),
+        help="the command's --inner-law [auto: every-cycle where it applies]",
     )
     parser.add_argument("--horizon", type=int, default=None, help="controller N (and Nc: --nc)")
     parser.add_argument("--nc", type=int, default=None, help="controller Nc")

@@ -6,9 +6,9 @@ soft joint limits, a closed loop against the package's RK4 plant from 0.2 rad of
 joint. Two laws, timed in alternating blocks (A, B, A, B, ...), each block a new run of
 ``--cycles`` cycles:
 
-- ``synchronous``: :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle`, the MPC's
+- ``synchronous``: :class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle`, the MPC's
   whole step inside the cycle that needs it (every 10th);
-- ``threaded``: :class:`~hmpc_pin.realtime.franka.threaded.InnerLawThreaded`, the MPC in
+- ``threaded``: :class:`~hmpc_pin.realtime.threaded_law.InnerLawThreaded`, the MPC in
   its compiled planner thread, the cycle taking the latest plan within 2 Ts.
 
 The cycles are paced at 1 kHz (a sleep, then a spin of the last 200 µs), as the arm's
@@ -81,8 +81,8 @@ def main() -> int:
 
     from hmpc_pin.experiment.build import Experiment
     from hmpc_pin.experiment.config import load_config
-    from hmpc_pin.realtime.franka.rates import InnerLawEveryCycle
-    from hmpc_pin.realtime.franka.threaded import InnerLawThreaded
+    from hmpc_pin.realtime.inner_law import InnerLawEveryCycle
+    from hmpc_pin.realtime.threaded_law import InnerLawThreaded
 
     exp = Experiment.from_config(load_config(ROOT / "configs" / "panda_sine.toml"))
     settings = replace(exp.controller.settings, Ts=0.01, N=args.horizon, Nc=args.nc)

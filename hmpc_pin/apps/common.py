@@ -26,10 +26,12 @@ __all__ = [
     "EXIT_INTERRUPTED",
     "EXIT_OK",
     "add_force_option",
+    "add_inner_law_option",
     "add_reference_option",
     "add_warn_option",
     "checked_duration",
     "checked_priority",
+    "inner_law_value",
     "interrupted",
     "out_dir",
     "out_file",
@@ -195,6 +197,37 @@ def add_force_option(parser) -> None:
     )
 
 
+def add_inner_law_option(parser, default: str) -> None:
+    """``--inner-law``, the one option of ``realtime``, ``ros`` and ``franka`` that chooses
+    how the controller runs under the faster arm (over ``[realtime] inner_law``;
+    :mod:`hmpc_pin.experiment.inner_law`); checked by :func:`inner_law_value` in the
+    command (exit 2, one line). ``default`` says in words what ``auto`` is there."""
+    parser.add_argument(
+        "--inner-law",
+        metavar="LAW",
+        help="how the controller runs when Ts is a multiple of the arm's period: whole-step "
+        "(the whole step every Ts, its torque held in between), every-cycle (the MPC every "
+        "Ts, inverse dynamics and the disturbance observer every cycle), threaded (the same "
+        "with the MPC in a compiled thread, its latest plan used within 2 Ts) or auto "
+        f"({default}) (overrides realtime.inner_law)",
+    )
+
+
+def inner_law_value(text: str) -> str:
+    """``--inner-law``'s value, checked (``"held"``, the name of earlier versions, is
+    ``"whole-step"``).
+
+    Raises:
+        ConfigError: Not one of the laws, named ``--inner-law``.
+    """
+    from ..experiment.config.realtime import INNER_LAWS
+
+    value = "whole-step" if text == "held" else text
+    if value not in INNER_LAWS:
+        raise ConfigError("--inner-law", f"expected one of {', '.join(INNER_LAWS)}, got {text!r}")
+    return value
+
+
 def add_warn_option(parser) -> None:
     from .metrics import DEFAULT_ERROR_THRESHOLD
 
@@ -270,17 +303,20 @@ def write_replay(robot, result, path: Path, option: str = "--replay") -> Path:
 
 
 def ros_config(args, config: ExperimentConfig) -> ExperimentConfig:
-    """``--namespace`` and ``--priority`` of the ROS commands applied to ``config``."""
+    """``--namespace``, ``--priority`` (and ``hmpc-pin ros``'s ``--inner-law``) of the ROS
+    commands applied to ``config``."""
     from .realtime import with_realtime
     from .ros import with_namespace
 
     priority = checked_priority(args.priority)
+    law = getattr(args, "inner_law", None)
     try:
         config = with_realtime(
             config,
             priority=priority,
             watchdog=getattr(args, "watchdog", None),
             max_misses=getattr(args, "max_misses", None),
+            inner_law=None if law is None else inner_law_value(law),
         )
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key.replace('_', '-')}", exc.message) from None

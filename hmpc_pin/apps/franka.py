@@ -32,7 +32,8 @@ import contextlib
 import os
 import signal
 import sys
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,7 @@ import numpy as np
 from ..exceptions import ArmError, ConfigError
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
+from ..experiment.inner_law import close_law, inner_law_controller, inner_law_summary
 from ..experiment.realtime import realtime_parts
 from ..realtime.franka import (
     FRANKA_TORQUE_LIMIT,
@@ -53,6 +55,7 @@ from ..realtime.franka import (
 )
 from ..realtime.loop import RealtimeLoop, RealtimeRun
 from ..realtime.safety import GravityByArm, SafeTorque, SafetySettings
+from .common import add_inner_law_option, inner_law_value
 from .realtime import save_run
 
 __all__ = ["FrankaOptions", "franka_parts", "run_franka"]
@@ -62,8 +65,9 @@ __all__ = ["FrankaOptions", "franka_parts", "run_franka"]
 POSITION_MARGIN = 0.02
 #: The driver's own velocity watch at this fraction of the URDF's velocity limits.
 VELOCITY_FRACTION = 0.9
-#: The two-rate laws of --inner-law (FrankaOptions.inner_law).
-INNER_LAWS = ("every-cycle", "threaded", "held")
+#: The values of --inner-law (FrankaOptions.inner_law; "held", the name of earlier
+#: versions, is "whole-step").
+INNER_LAWS = ("auto", "whole-step", "every-cycle", "threaded", "held")
 #: The move to the start: at most this joint speed [rad/s] and acceleration [rad/s²].
 MOVE_VELOCITY = 0.5
 MOVE_ACCELERATION = 1.0
@@ -80,10 +84,12 @@ class FrankaOptions:
         model_tolerance: Relative tolerance of the mass-matrix check.
         thresholds: ``(lower, upper)`` joint torque collision thresholds [N·m] or ``None``.
         ramp: Cycles of the command's ramp-in.
-        inner_law: ``"every-cycle"`` (Eq 4 and the observer every cycle, the MPC every
-            ``Ts``), ``"threaded"`` (the same with the MPC in a compiled thread, its latest
-            plan used within a staleness bound) or ``"held"`` (the whole step every ``Ts``,
-            its torque held).
+        inner_law: ``None`` (``[realtime] inner_law``, by default ``"auto"``: every
+            cycle where it applies), ``"every-cycle"`` (Eq 4 and the observer every cycle,
+            the MPC every ``Ts``), ``"threaded"`` (the same with the MPC in a compiled
+            thread, its latest plan used within a staleness bound) or ``"whole-step"``
+            (the whole step every ``Ts``, its torque held; ``"held"`` is its earlier
+            name) (:mod:`hmpc_pin.experiment.inner_law`).
     """
 
     def __init__(
@@ -95,30 +101,26 @@ class FrankaOptions:
         model_tolerance: float = 0.10,
         thresholds=None,
         ramp: int = 100,
-        inner_law: str = "every-cycle",
+        inner_law: str | None = None,
     ):
         self.address, self.realtime, self.recover = address, realtime, recover
         self.max_move, self.model_tolerance = float(max_move), float(model_tolerance)
         self.thresholds, self.ramp = thresholds, int(ramp)
-        if inner_law not in INNER_LAWS:
-            raise ConfigError(
-                "--inner-law", f"expected one of {', '.join(INNER_LAWS)}, got {inner_law!r}"
-            )
-        self.inner_law = inner_law
+        self.inner_law = None if inner_law is None else inner_law_value(inner_law)
 
 
-def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
+def franka_parts(experiment: Experiment, inner_law: str | None = None):
     """The loop settings (1 kHz), the driver's own limits (inside the URDF's), the safe
-    torque (the inertia brake without gravity) and the controller without G(q): with
-    ``inner_law = "every-cycle"`` and ``Ts`` > 1 ms, a
-    :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle` (the MPC every ``Ts``, Eq 4
-    and the observer every cycle) where it applies (the hierarchical MPC with an observer
-    and no declared latency), with ``"threaded"`` a
-    :class:`~hmpc_pin.realtime.franka.threaded.InnerLawThreaded` (the same, the MPC in a
-    compiled thread), else the torque held between the MPC's steps.
+    torque (the inertia brake without gravity) and the controller without G(q), run by the
+    inner law of ``[realtime] inner_law`` (``inner_law``, ``--inner-law``, over it):
+    by default (``"auto"``) the MPC every ``Ts`` with Eq 4 and the observer every cycle
+    (:class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle`) where it applies (the
+    hierarchical MPC with an observer, no declared latency, ``Ts`` > 1 ms), else the whole
+    step (:mod:`hmpc_pin.experiment.inner_law`).
 
     Raises:
-        ConfigError: 1 kHz does not divide the controller period, or the brake settings.
+        ConfigError: 1 kHz does not divide the controller period, the brake settings, an
+            inner law that does not apply.
     """
     loop_settings, safety, safe = realtime_parts(experiment, 1000.0, plant=False)
     robot = experiment.robot
@@ -142,30 +144,10 @@ def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
         effort_limit=FRANKA_TORQUE_LIMIT,
         brake_time=safe.brake_time,
     )
-    ctrl = experiment.controller
-    cc = experiment.config.controller
-    if inner_law in ("every-cycle", "threaded") and _inner_law_applies(ctrl, loop_settings.period):
-        from ..experiment.controllers import make_compensation
-        from ..realtime.franka.rates import InnerLawEveryCycle
-        from ..realtime.franka.threaded import InnerLawThreaded
-
-        fast = make_compensation(robot, replace(cc, Ts=loop_settings.period), experiment.q0)
-        law = InnerLawThreaded if inner_law == "threaded" else InnerLawEveryCycle
-        ctrl = law(ctrl, fast, loop_settings.period, FRANKA_TORQUE_LIMIT)
-    return loop_settings, safety, safe, GravityByArm(ctrl, robot)
-
-
-def _inner_law_applies(ctrl, period: float) -> bool:
-    """The hierarchical MPC, ``Ts`` above the arm's period, an observer, no latency."""
-    from ..compensation.base import NoCompensation
-    from ..controllers.hierarchical import HierarchicalMPC
-
-    return (
-        isinstance(ctrl, HierarchicalMPC)
-        and ctrl.Ts > period * 1.5
-        and not isinstance(ctrl.compensation, NoCompensation)
-        and not (ctrl.latency or 0.0) > 0
+    ctrl = inner_law_controller(
+        experiment, loop_settings.period, "franka", FRANKA_TORQUE_LIMIT, choice=inner_law
     )
+    return loop_settings, safety, safe, GravityByArm(ctrl, robot)
 
 
 def _check_robot(arm: FrankaArm, experiment: Experiment, options: FrankaOptions) -> dict:
@@ -228,52 +210,51 @@ def run_franka(
         ``(run, files, arm_summary)``.
     """
     policy = _thread_policy()  # libfranka's Robot() may switch this thread to SCHED_FIFO 99
+    d = _Drive(config, options, out, stem, experiment, ready, controller_wrapper, started)
     try:
-        return _drive(config, options, out, stem, experiment, ready, controller_wrapper, started)
+        return _drive(d)
     finally:
         _restore_policy(policy)
 
 
-def _drive(config, options, out, stem, experiment, ready, controller_wrapper, started):
-    """:func:`run_franka`'s work (its arguments, its return), the thread's scheduling
-    policy put back by the caller on every way out."""
-    stem = (stem or config.name) + "_franka"
-    experiment = Experiment.from_config(config) if experiment is None else experiment
-    loop_settings, safety, safe, ctrl = franka_parts(experiment, options.inner_law)
-    law = ctrl.controller
+@dataclass
+class _Drive:
+    """A Franka run: :func:`run_franka`'s arguments, then the experiment built and
+    :func:`franka_parts`' answer (``parts``)."""
+
+    config: ExperimentConfig
+    options: FrankaOptions
+    out: Path
+    stem: str | None
+    experiment: Experiment | None
+    ready: Callable[[], None] | None
+    controller_wrapper: Callable | None
+    started: Callable | None
+    parts: tuple = ()
+
+
+def _drive(d: _Drive):
+    """:func:`run_franka`'s work (its return), the thread's scheduling policy put back by
+    the caller on every way out; the inner law closed (the threaded law's planner thread
+    joined) on every way out."""
+    d.stem = (d.stem or d.config.name) + "_franka"
+    if d.experiment is None:
+        d.experiment = Experiment.from_config(d.config)
+    d.parts = franka_parts(d.experiment, d.options.inner_law)
     try:
-        return _drive_law(
-            config,
-            options,
-            out,
-            stem,
-            experiment,
-            ready,
-            controller_wrapper,
-            started,
-            (loop_settings, safety, safe, ctrl),
-        )
+        return _drive_law(d)
     finally:
-        if callable(getattr(law, "close", None)):  # the MPC's planner thread, joined
-            law.close()
+        close_law(d.parts[3])
 
 
-def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper, started, parts):
-    """:func:`_drive`'s work once the controller is built (``parts``: :func:`franka_parts`'
-    answer); the caller closes the law (the threaded law's planner) on every way out."""
-    loop_settings, safety, safe, ctrl = parts
-    law = ctrl.controller
-    inner_law = (
-        "every cycle"
-        if type(law).__name__ == "InnerLawEveryCycle"
-        else "every cycle, the MPC threaded"
-        if type(law).__name__ == "InnerLawThreaded"
-        else (
-            "whole step every cycle" if experiment.controller.Ts < 1.5e-3 else "held between steps"
-        )
-    )
-    if controller_wrapper is not None:
-        ctrl = controller_wrapper(ctrl)
+def _drive_law(d: _Drive):
+    """:func:`_drive`'s work once the controller is built; the caller closes the law."""
+    options, out, stem, experiment = d.options, d.out, str(d.stem), d.experiment
+    assert experiment is not None
+    loop_settings, safety, safe, ctrl = d.parts
+    law = inner_law_summary(ctrl, loop_settings.period)
+    if d.controller_wrapper is not None:
+        ctrl = d.controller_wrapper(ctrl)
     K = round(loop_settings.duration * loop_settings.rate)
     capacity = K + round(2.0 * safety.hold * 1000) + 3000
     arm = FrankaArm(
@@ -287,7 +268,7 @@ def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper
     summary: dict = {
         "address": options.address,
         "realtime": options.realtime,
-        "inner_law": inner_law,
+        "inner_law": law["label"],
     }
     summary["checks"] = _check_robot(arm, experiment, options)
     if options.thresholds is not None:
@@ -308,10 +289,10 @@ def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper
     switch = sys.getswitchinterval()
     state = arm.read_state()  # where the move left the arm: the controller's reset state
     try:
-        if ready is not None:
-            ready()
-        if started is not None:
-            started(arm)
+        if d.ready is not None:
+            d.ready()
+        if d.started is not None:
+            d.started(arm)
         sys.setswitchinterval(1e-4)  # readOnce holds the GIL while it waits
         # the loop collects and freezes the heap and resets the controller, then starts
         # torque control (the robot's clock): none of its set-up costs the arm a cycle
@@ -321,16 +302,13 @@ def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper
         with _SigintDeferred() as deferred:  # the ramp to zero is not cut short
             end = arm.finish() if arm.fault is None else {}
     _close_record(run, arm, options, summary, end, deferred["count"])
-    planner = getattr(law, "planner", None)
-    if planner is not None:  # the MPC's planner thread (InnerLawThreaded)
+    law = inner_law_summary(d.parts[3], loop_settings.period)  # the counts at the end
+    run.stats["inner_law"] = law
+    if "requests" in law:  # the MPC's planner thread (the threaded law)
         summary["planner"] = {
-            "requests": int(planner.requests),
-            "published": int(planner.published),
-            "dropped": int(planner.dropped),
-            "refused": int(planner.stale),
-            "fallbacks": int(law.fallbacks),
-            "max_age": float(planner.max_age),
+            k: law[k] for k in ("requests", "published", "dropped", "refused", "fallbacks")
         }
+        summary["planner"]["max_age"] = law["max_age"]
     files = save_run(run, out, stem, "franka")
     files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
     return run, files, summary
@@ -557,15 +535,7 @@ def franka_arguments(parser) -> None:
         help="refuse when a row of the config arm's M(q) differs from the robot's own model "
         "by more than F times its diagonal entry [0.10]",
     )
-    parser.add_argument(
-        "--inner-law",
-        choices=INNER_LAWS,
-        default="every-cycle",
-        help="with Ts > 1 ms: inverse dynamics and observer every 1 ms cycle from the MPC's "
-        "latest output (every-cycle), the same with the MPC in a compiled thread whose "
-        "latest plan is used within 2 Ts (threaded), or the whole step's torque held for Ts "
-        "(held) [every-cycle]",
-    )
+    add_inner_law_option(parser, "every-cycle where it applies, else whole-step")
     parser.add_argument(
         "--thresholds",
         type=Path,

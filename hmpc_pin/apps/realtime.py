@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..experiment.build import Experiment, make_arm_plant
 from ..experiment.config import ExperimentConfig
+from ..experiment.inner_law import close_law, inner_law_controller, inner_law_summary
 from ..experiment.realtime import realtime_parts
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
 from ..realtime.pacing import cpu_affinity
@@ -37,10 +38,12 @@ def with_realtime(
     spin=None,
     watchdog=None,
     max_misses=None,
+    inner_law=None,
 ) -> ExperimentConfig:
     """``config`` with ``[realtime]`` ``rate``, ``gc``, ``priority``, ``spin``,
-    ``watchdog``, ``max_misses`` replaced (flags; ``None``: kept). The values are checked
-    as the config file's are (:class:`~hmpc_pin.experiment.config.RealtimeConfig`).
+    ``watchdog``, ``max_misses``, ``inner_law`` replaced (flags; ``None``: kept). The
+    values are checked as the config file's are
+    (:class:`~hmpc_pin.experiment.config.RealtimeConfig`).
 
     Raises:
         ConfigError: A value ``[realtime]`` refuses, named by its key.
@@ -53,6 +56,7 @@ def with_realtime(
         ("spin", spin),
         ("watchdog", watchdog),
         ("max_misses", max_misses),
+        ("inner_law", inner_law),
     )
     changes = {k: v for k, v in pairs if v is not None}
     return replace(config, realtime=replace(rc, **changes)) if changes else config
@@ -223,6 +227,21 @@ def run_realtime(
     loop_settings, safety, safe = realtime_parts(experiment)
     with fifo_priority(config.realtime.priority) as priority:  # checked before the arm starts
         pass
+    # the inner law of [realtime] inner_law (a threaded law's planner runs from here)
+    ctrl = inner_law_controller(
+        experiment, loop_settings.period, "realtime", experiment.effort_limit
+    )
+    try:
+        parts = (loop_settings, safety, safe)
+        run = _run_arm(config, experiment, ctrl, parts, priority, viz, ready)
+    finally:
+        close_law(ctrl)  # the planner thread joined on every way out
+    return run, save_run(run, out, stem, "arm")
+
+
+def _run_arm(config, experiment, ctrl, parts, priority, viz, ready) -> RealtimeRun:
+    """:func:`run_realtime`'s run against the arm process (the caller closes the law)."""
+    loop_settings, safety, safe = parts
     arm = ProcessArm(
         functools.partial(make_arm_plant, experiment.config),
         experiment.q0,
@@ -236,7 +255,7 @@ def run_realtime(
             view = viz(arm, experiment)
         loop = RealtimeLoop(
             arm,
-            experiment.controller,
+            ctrl,
             experiment.reference,
             safe,
             loop_settings,
@@ -254,12 +273,13 @@ def run_realtime(
             status.close()
         run.result.meta["arm"] = arm.counters
         run.stats["priority"] = priority
+        run.stats["inner_law"] = inner_law_summary(ctrl, loop_settings.period)
         run.result.meta["engine"] = config.plant.engine
     finally:
         if view is not None:
             view.close()
         arm.close()
-    return run, save_run(run, out, stem, "arm")
+    return run
 
 
 def save_run(run: RealtimeRun, out: Path, stem: str, meta_key: str) -> list[Path]:

@@ -22,6 +22,7 @@ import numpy as np
 from ..exceptions import ConfigError, NodeShutDown
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
+from ..experiment.inner_law import close_law, inner_law_controller, inner_law_summary
 from ..experiment.realtime import brake_settings, realtime_parts
 from ..experiment.record import recorded_limits
 from ..realtime.loop import RealtimeLoop, RealtimeRun, fifo_priority
@@ -50,14 +51,18 @@ def with_namespace(config: ExperimentConfig, namespace: str | None) -> Experimen
     return replace(config, ros=replace(config.ros, namespace=ns))
 
 
-def ros_parts(experiment: Experiment):
+def ros_parts(experiment: Experiment, inner_law: str | None = None):
     """The loop settings, safety settings, safe torque and controller of ``hmpc-pin ros``:
     ``[realtime]``'s at ``[ros] rate`` (its errors named ``ros.rate``), the brake of
-    ``[realtime] hold`` and ``brake_speed``, and ``[ros] gravity`` (``"arm"``: the
-    controller's torque without G(q), no G(q) in the safe torques).
+    ``[realtime] hold`` and ``brake_speed``, the controller run by the inner law of
+    ``[realtime] inner_law`` (``inner_law``, ``--inner-law``, over it;
+    :mod:`hmpc_pin.experiment.inner_law`; a threaded law's planner runs from here: close
+    it with :func:`~hmpc_pin.experiment.inner_law.close_law`), and ``[ros] gravity``
+    (``"arm"``: the controller's torque without G(q), no G(q) in the safe torques).
 
     Raises:
-        ConfigError: ``[ros] rate`` does not divide the controller period.
+        ConfigError: ``[ros] rate`` does not divide the controller period; an inner law
+            that does not apply.
     """
     from ..realtime.safety import GravityByArm, SafeTorque
 
@@ -70,7 +75,9 @@ def ros_parts(experiment: Experiment):
             raise
         raise ConfigError("ros.rate", exc.message.replace("rate=", "ros.rate=")) from None
     check_gravity(cfg)
-    ctrl = experiment.controller
+    ctrl = inner_law_controller(
+        experiment, loop_settings.period, "ros", safe.effort_limit, choice=inner_law
+    )
     if rc.gravity == "arm":
         safe = SafeTorque(
             experiment.robot,
@@ -83,16 +90,18 @@ def ros_parts(experiment: Experiment):
     return loop_settings, safety, safe, ctrl
 
 
-def build_ros(config: ExperimentConfig):
+def build_ros(config: ExperimentConfig, inner_law: str | None = None):
     """The experiment of ``hmpc-pin ros`` and its parts, built once: ``(experiment,
-    ros_parts(experiment))``; bad input (``[ros] rate``, the brake, ``[ros] gravity``)
-    raises here, before a node starts or a file is written.
+    ros_parts(experiment, inner_law))``; bad input (``[ros] rate``, the brake, ``[ros]
+    gravity``, the inner law) raises here, before a node starts or a file is written. The
+    caller closes the law (:func:`~hmpc_pin.experiment.inner_law.close_law` on the
+    controller, ``parts[3]``; :func:`run_ros` does).
 
     Raises:
         ConfigError: As ``Experiment.from_config`` and :func:`ros_parts`.
     """
     experiment = Experiment.from_config(config)
-    return experiment, ros_parts(experiment)
+    return experiment, ros_parts(experiment, inner_law)
 
 
 def check_gravity(config: ExperimentConfig) -> None:
@@ -140,7 +149,8 @@ def run_ros(
         ros_args: ROS arguments (those after ``--ros-args``: remaps, ``__ns``,
             ``use_sim_time`` ...), given to rclpy.
         built: ``build_ros(config)``, by a caller that checked the parts before writing
-            anything (default: built here); the experiment is built once.
+            anything (default: built here); the experiment is built once. Its inner law
+            is closed here on every way out (a threaded law's planner thread joined).
 
     Returns:
         ``(run, files)``: the :class:`~hmpc_pin.realtime.loop.RealtimeRun` and the files.
@@ -149,23 +159,27 @@ def run_ros(
         ArmError: No joint state within ``ros.start_timeout`` or one that lacks
             the robot's joints (nothing written).
     """
-    with fifo_priority(config.realtime.priority):
-        return _run_ros(config, out, stem, ros_args, built)
+    built = built or build_ros(config)
+    try:
+        with fifo_priority(config.realtime.priority):
+            return _run_ros(config, out, stem, ros_args, built)
+    finally:
+        close_law(built[1][3])  # the threaded law's planner joined on every way out
 
 
 def _run_ros(
     config: ExperimentConfig,
     out: Path,
     stem: str | None,
-    ros_args=None,
-    built: tuple | None = None,
+    ros_args,
+    built: tuple,
 ):
     from ..ros.interface import RosArmInterface
     from ..ros.node import RosNode, discovery_range
 
     rc = config.ros
     stem = (stem or config.name) + "_ros"
-    experiment, (loop_settings, safety, safe, ctrl) = built or build_ros(config)
+    experiment, (loop_settings, safety, safe, ctrl) = built
     ros = RosNode(
         rc.node,
         rc.namespace,
@@ -188,7 +202,7 @@ def _run_ros(
             qos=qos,
         )
         collision = config.collision is not None and hasattr(experiment.controller, "detected_at")
-        on_step = _estimate_publisher(ros, rc, experiment, iface, qos, collision)
+        on_step = _estimate_publisher(ros, rc, experiment, iface, qos, collision, ctrl)
         trajectories = TrajectorySubscription(ros, experiment, iface, rc.joint_trajectory, qos)
         trajectories.warm()
         _serve(ros, rc.autostart)
@@ -217,6 +231,7 @@ def _run_ros(
         sys.setswitchinterval(switch)
         trajectories.close()
         run.result.meta["ros"] = _ros_meta(ros, rc, iface, trajectories, collision)
+        run.stats["inner_law"] = inner_law_summary(ctrl, loop_settings.period)
         if collision:
             run.result.meta["collision"] = {"detected_at": experiment.controller.detected_at}
     finally:
@@ -227,7 +242,7 @@ def _run_ros(
     return run, save_run(run, out, stem, "ros")
 
 
-def _estimate_publisher(ros, rc, experiment: Experiment, iface, qos, collision: bool):
+def _estimate_publisher(ros, rc, experiment: Experiment, iface, qos, collision: bool, ctrl):
     """The publishers of the disturbance estimate (``[ros] external_torque``) and, with a
     collision watch, its flag (``[ros] collision``).
 
@@ -238,12 +253,15 @@ def _estimate_publisher(ros, rc, experiment: Experiment, iface, qos, collision: 
         iface: The arm interface (its stamps).
         qos: The topics' quality of service.
         collision: Whether the controller watches for a collision (publish its flag).
+        ctrl: The controller the loop runs (an inner law's estimate is its own observer's,
+            every cycle).
 
     Returns:
         ``on_step(t)``, called by the loop after each controller step: publishes both.
     """
     std, sensor = ros.msgs["std_msgs"], ros.msgs["sensor_msgs"]
     inner = experiment.controller
+    estimate = ctrl  # (the inner law's, else through the wrappers the controller's)
     names = list(experiment.robot.joint_names)
     if rc.external_torque_type == "joint_state":
         d_pub = ros.node.create_publisher(sensor.JointState, rc.external_torque, qos)
@@ -260,9 +278,9 @@ def _estimate_publisher(ros, rc, experiment: Experiment, iface, qos, collision: 
         if stamped:
             ns = round(iface.stamp_time() * 1e9)
             d_msg.header.stamp.sec, d_msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
-            d_msg.effort = inner.disturbance_estimate.tolist()
+            d_msg.effort = estimate.disturbance_estimate.tolist()
         else:
-            d_msg.data = inner.disturbance_estimate.tolist()
+            d_msg.data = estimate.disturbance_estimate.tolist()
         d_pub.publish(d_msg)
         if c_pub is not None:
             c_msg.data = inner.detected_at is not None

@@ -31,6 +31,7 @@ def add_arguments(parser) -> None:
 def main(args) -> int:
     """``hmpc-pin franka``: the controller on a Franka arm (:mod:`hmpc_pin.apps.franka`)."""
     from ...experiment.build import Experiment
+    from ...experiment.inner_law import chosen_inner_law
     from ..franka import FrankaOptions, format_driver, load_thresholds, run_franka
     from ..realtime import format_tracking
 
@@ -52,6 +53,7 @@ def main(args) -> int:
         inner_law=args.inner_law,
     )
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
+    chosen_inner_law(experiment, 1e-3, "franka", options.inner_law)
     stem = f"{config.name}_franka"
     names = (*realtime_files(stem), f"{stem}_cycles.npz")
     refuse_earlier_files(args.out, names, args.force)

@@ -10,7 +10,9 @@ from pathlib import Path
 from ...exceptions import ConfigError
 from ..common import (
     add_force_option,
+    add_inner_law_option,
     checked_priority,
+    inner_law_value,
     out_dir,
     read_config,
     realtime_files,
@@ -58,6 +60,7 @@ def add_arguments(rt) -> None:
         "rtprio limit); auto: 80 where permitted, else normal (overrides realtime.priority)",
     )
     add_stop_options(rt)
+    add_inner_law_option(rt, "whole-step")
     rt.add_argument(
         "--viz",
         action="store_true",
@@ -69,6 +72,7 @@ def add_arguments(rt) -> None:
 
 def main(args) -> int:
     from ...experiment.build import Experiment
+    from ...experiment.inner_law import chosen_inner_law
     from ...experiment.realtime import brake_settings
     from ..realtime import ArmView, format_tracking, run_realtime, with_realtime
 
@@ -76,6 +80,7 @@ def main(args) -> int:
     if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):
         raise ConfigError("--rate", f"expected a rate [Hz] > 0, got {args.rate!r}")
     priority = checked_priority(args.priority)
+    law = None if args.inner_law is None else inner_law_value(args.inner_law)
     try:
         config = with_realtime(
             config,
@@ -85,11 +90,13 @@ def main(args) -> int:
             spin=args.spin,
             watchdog=args.watchdog,
             max_misses=args.max_misses,
+            inner_law=law,
         )
     except ConfigError as exc:  # a flag's value checked by [realtime]: name the flag
         raise ConfigError(f"--{exc.key.replace('_', '-')}", exc.message) from None
     experiment = Experiment.from_config(config)  # bad input stops here: nothing written
     brake_settings(config, 1.0 / config.realtime.rate)  # (the safe torque's brake too)
+    chosen_inner_law(experiment, 1.0 / config.realtime.rate, "realtime", law)
     refuse_earlier_files(args.out, realtime_files(f"{config.name}_realtime"), args.force)
     out = out_dir(args.out)
     about = f"{config.description} " if config.description else ""

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from ..common import (
     add_force_option,
+    add_inner_law_option,
     out_dir,
     read_config,
     realtime_files,
@@ -28,11 +29,13 @@ def add_arguments(ros) -> None:
     from ..ros import ros_arguments
 
     ros_arguments(ros)
+    add_inner_law_option(ros, "whole-step")
     add_force_option(ros)
 
 
 def main(args) -> int:
     """``hmpc-pin ros``: the controller as a ROS 2 node (:mod:`hmpc_pin.apps.ros`)."""
+    from ...experiment.inner_law import close_law
     from ...ros.node import import_ros
     from ..realtime import format_tracking
     from ..ros import build_ros, check_run_length, format_ros, run_ros
@@ -43,22 +46,26 @@ def main(args) -> int:
     check_run_length(config.simulation.duration, config.ros.rate, key)
     namespace, node = _ros_node_name(config, args.ros_args)  # (checks its -p, before rclpy)
     # [ros] rate against Ts, the brake, [ros] gravity: bad input stops here, nothing written
-    built = build_ros(config)  # built once, run below
-    refuse_earlier_files(args.out, realtime_files(f"{config.name}_ros"), args.force)
-    out = out_dir(args.out)
-    print(
-        f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
-        f"{namespace}/{node} for {config.simulation.duration:g} s, "
-        f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz",
-        flush=True,
-    )
-    return report_realtime(
-        lambda: run_ros(config, out, ros_args=args.ros_args, built=built),
-        config,
-        "published",
-        format_ros,
-        format_tracking,
-    )
+    law = None if args.inner_law is None else config.realtime.inner_law  # (named the option)
+    built = build_ros(config, law)  # built once, run below
+    try:
+        refuse_earlier_files(args.out, realtime_files(f"{config.name}_ros"), args.force)
+        out = out_dir(args.out)
+        print(
+            f"{config.name}: {config.description} ({config.controller.label}) as ROS 2 node "
+            f"{namespace}/{node} for {config.simulation.duration:g} s, "
+            f"paced by {config.ros.joint_states} at {config.ros.rate:g} Hz",
+            flush=True,
+        )
+        return report_realtime(
+            lambda: run_ros(config, out, ros_args=args.ros_args, built=built),
+            config,
+            "published",
+            format_ros,
+            format_tracking,
+        )
+    finally:
+        close_law(built[1][3])  # the threaded law's planner joined on every way out
 
 
 def _ros_node_name(config: ExperimentConfig, ros_args: list[str] | None) -> tuple[str, str]:

@@ -9,6 +9,13 @@ import numpy as np
 from ...exceptions import ConfigError
 from ._fields import _array, _bool, _float, _int, _set
 
+#: The values of ``[realtime] inner_law`` (and ``--inner-law``): ``"auto"`` the command's
+#: own choice, ``"whole-step"`` the controller's whole step every ``Ts``, its torque held
+#: in between, ``"every-cycle"`` the MPC every ``Ts`` with the inverse dynamics and the
+#: observer every cycle, ``"threaded"`` the same with the MPC in a compiled thread
+#: (:mod:`hmpc_pin.experiment.inner_law`).
+INNER_LAWS = ("auto", "whole-step", "every-cycle", "threaded")
+
 
 @dataclass(frozen=True, eq=False)
 class RealtimeConfig:
@@ -62,6 +69,15 @@ class RealtimeConfig:
             (their 99th percentile, at most half a period: the loop is awake at the
             deadline); a time [s] below ``1/rate`` busy-waits that long before each
             deadline; 0 sleeps the whole wait.
+        inner_law: How the controller runs under a faster arm (``Ts`` a multiple of the
+            interface period), one of :data:`INNER_LAWS`: ``"whole-step"`` the whole
+            step every ``Ts``, its torque held in between; ``"every-cycle"`` the MPC every
+            ``Ts``, the inverse dynamics (Eq 4) and the disturbance observer every cycle;
+            ``"threaded"`` the same with the MPC in a compiled thread (its latest plan
+            used within ``2 Ts``); ``"auto"`` (default): ``hmpc-pin franka``
+            ``"every-cycle"`` where it applies, else ``"whole-step"``; ``hmpc-pin
+            realtime`` and ``hmpc-pin ros`` ``"whole-step"``
+            (:mod:`hmpc_pin.experiment.inner_law`).
         warm_up: Wake this long [s] before each MPC cycle's deadline and run the
             controller's step on the last measured state, undone (its memory then warm in
             the caches for the cycle's step), then busy-wait to the deadline; below
@@ -85,9 +101,14 @@ class RealtimeConfig:
     cpus: tuple[int, ...] = ()
     spin: float | str = "auto"
     warm_up: float = 2e-4
+    inner_law: str = "auto"
 
     def __post_init__(self):
         _set(self, "rate", _float("rate", self.rate, positive=True))
+        if self.inner_law not in INNER_LAWS:
+            raise ConfigError(
+                "inner_law", f"expected one of {', '.join(INNER_LAWS)}, got {self.inner_law!r}"
+            )
         if self.spin != "auto":
             _set(self, "spin", _float("spin", self.spin, nonneg=True))
         if self.spin != "auto" and self.spin >= 1.0 / self.rate:  # type: ignore[operator]

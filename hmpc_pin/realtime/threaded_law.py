@@ -1,0 +1,205 @@
+"""The MPC in a compiled thread, the inner law every cycle (``InnerLawThreaded``).
+
+As :class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle` (the observer, Eq 13, and
+the inverse dynamics, Eq 4, every cycle of the arm's period :math:`P`), but the MPC -- the
+gradients and the joint QPs over the horizon (Eq 25–26) -- runs in a compiled planner
+thread (``hmpc_pin._core.PlanThread``, ``cpp/include/hmpc/plan_thread.hpp``) with its own
+copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
+
+1. the observer over the period that just ended (as the synchronous law);
+2. at :math:`k = 0, m, 2m, \\dots` (by time, as the synchronous law) the state
+   :math:`(t_k, q_k, \\dot q_k)` is handed to the planner (a request; it does not wait,
+   except for the first after :meth:`InnerLawThreaded.reset`, or every time with
+   ``wait=True``);
+3. the acceleration of the latest plan for the cycle's time :math:`t`: the plan's row
+   :math:`\\lfloor (t - t_\\text{plan}) / T_s \\rfloor` (past the control horizon its last
+   row), if the plan is not older than ``max_age``; else the **brake** fallback
+   :math:`v = \\operatorname{clip}(-\\dot q / T_s, v_\\min, v_\\max)` (the joints' velocity
+   brought to zero over one MPC period within the acceleration bounds), counted in
+   :attr:`InnerLawThreaded.fallbacks`;
+4. Eq (4) with it at the fresh state (as the synchronous law).
+
+With ``wait=True`` (deterministic: each request waits for its plan) the torques are, bit
+for bit, those of :class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle` on the same
+controller. Without it the request's own cycle uses the previous plan (its row 1, or its
+last with :math:`N_c = 1`): the default ``max_age = 2 T_s`` lets the new plan be one MPC
+period late.
+
+The thread is stopped and joined by :meth:`InnerLawThreaded.close` (also ``with`` and the
+object's end).
+A failure of the planner (a QP not solved, a non-finite state) is raised by the next cycle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..exceptions import ConfigError
+from ..mpc.condensed import JointQPs
+from ..native import load as load_native
+from ..tasks.base import Reference, as_reference, reference_port
+from .inner_law import FloatArray, InnerLawEveryCycle
+
+__all__ = ["InnerLawThreaded"]
+
+_KNOBS = (
+    "max_iter",
+    "shortcut",
+    "active_set_iter",
+    "soft_active_set_iter",
+    "soft_step_exchanges",
+    "shift",
+)
+
+
+def planner_qps(controller) -> JointQPs:
+    """A copy of ``controller.qps`` (the same problem and knobs, its own solvers)."""
+    s = controller.settings
+    v_min, v_max = s.bounds(controller.n)
+    qps = JointQPs(
+        controller.mpc,
+        v_min,
+        v_max,
+        controller.robot.joint_names,
+        eps_abs=s.eps_abs,
+        max_iter=s.max_iter,
+        limits=controller.limits,
+        layout=s.qp_layout,
+    )
+    for knob in _KNOBS:
+        setattr(qps, knob, getattr(controller.qps, knob))
+    return qps
+
+
+class InnerLawThreaded(InnerLawEveryCycle):
+    """The MPC in a compiled thread, Eq (4) and the observer every cycle (module doc).
+
+    Args:
+        controller: A :class:`~hmpc_pin.controllers.hierarchical.HierarchicalMPC` (its
+            problem, settings and limits are copied into the planner; its own step is not
+            run).
+        compensation: The observer at the arm's period.
+        period: The arm's period :math:`P` [s]; ``controller.Ts`` a multiple of it.
+        effort_limit: Per-joint limit [N·m] or ``None`` (as the synchronous law).
+        max_age: The staleness bound [s]: a plan older than this is never used (default
+            ``2 * controller.Ts``).
+        wait: Each request waits for its plan (deterministic; the MPC's cost is then in the
+            cycle, as the synchronous law's).
+
+    Attributes:
+        planner: The ``hmpc_pin._core.PlanThread``.
+        fallbacks: Cycles that braked (no plan within ``max_age``) since :meth:`reset`.
+        name: ``"threaded"`` (as ``--inner-law`` names it).
+        label: The law in words (the run summaries).
+
+    Its ``warm_up`` is ``None``: the MPC's memory is the planner thread's own, nothing to
+    warm in the cycle (the real-time loop then runs no warm-up).
+    """
+
+    name = "threaded"
+    label = "every cycle, the MPC threaded"
+    warm_up = None  # type: ignore[assignment]  #: (no warm-up: class doc)
+
+    def __init__(
+        self,
+        controller,
+        compensation,
+        period: float,
+        effort_limit=None,
+        max_age: float | None = None,
+        wait: bool = False,
+    ):
+        super().__init__(controller, compensation, period, effort_limit)
+        Ts = controller.Ts
+        age = 2.0 * Ts if max_age is None else float(max_age)
+        if not (math.isfinite(age) and age > 0):
+            raise ConfigError("max_age", f"expected a staleness bound [s] > 0, got {max_age!r}")
+        self.wait = bool(wait)
+        self._qps = planner_qps(controller)
+        N = controller.settings.N
+        self._offsets = Ts * np.arange(1, N + 1)
+        self.planner = load_native().PlanThread(
+            controller.mpc.FT, N, self._qps._core, self._offsets, Ts, age
+        )
+        self._vmin, self._vmax = controller.settings.bounds(self.robot.nq)
+        self._stack = np.zeros((2 + 2 * N, self.robot.nq))
+        self._times = np.empty(N)
+        self._reference: object = None
+        self._ref: Reference | None = None
+        self._compiled = False
+        self.fallbacks = 0
+
+    @property
+    def max_age(self) -> float:
+        """The staleness bound [s]."""
+        return float(self.planner.max_age)
+
+    def reset(self, q0: FloatArray, dq0: FloatArray) -> None:
+        """Start a run (as the synchronous law); the planner's plan and QPs restart."""
+        super().reset(q0, dq0)
+        self.planner.reset()
+        self.fallbacks = 0
+
+    def step(self, t: float, q: FloatArray, dq: FloatArray, reference) -> FloatArray:
+        """The torque [N·m] of cycle ``k`` (module doc)."""
+        M, nle = self._observe(q, dq)
+        if self._due(t):
+            self._request(t, q, dq, reference)
+            if self.wait or self._k == 0:
+                self.planner.wait()
+            self._ran_mpc(t)
+        if not self.planner.input(t, self._v):
+            self.fallbacks += 1
+            np.clip(
+                -np.asarray(dq, dtype=float) / self.controller.Ts,
+                self._vmin,
+                self._vmax,
+                out=self._v,
+            )
+        return self._torque(M, nle, dq)
+
+    def _request(self, t: float, q: FloatArray, dq: FloatArray, reference) -> None:
+        """Hand ``(t, q, q̇)`` to the planner: it samples a compiled reference itself; any
+        other is sampled here into the stack handed over."""
+        if reference is not self._reference:
+            self._reference = reference
+            self._ref = as_reference(reference)
+            port = reference_port(self._ref)
+            self._compiled = port is not None
+            self.planner.set_reference(port)
+        if self._compiled:
+            self.planner.request(t, q, dq)
+            return
+        N = len(self._offsets)
+        S = self._stack
+        S[0] = q
+        S[1] = dq
+        out = (S[2 : 2 + N], S[2 + N :])
+        times = np.add(self._offsets, t, self._times)
+        q_ref, dq_ref = self._ref.sample_many(times, out)  # type: ignore[union-attr]
+        if q_ref is not out[0]:
+            out[0][:] = q_ref
+            out[1][:] = dq_ref
+        self.planner.request_stack(t, S)
+
+    def summary(self) -> dict:
+        """As the synchronous law's, with the planner's counts: ``requests``,
+        ``published``, ``dropped``, ``refused`` (plans past ``max_age``), ``fallbacks``
+        (cycles that braked), ``max_age`` [s] and ``wait``."""
+        p = self.planner
+        return {
+            **super().summary(),
+            "requests": int(p.requests),
+            "published": int(p.published),
+            "dropped": int(p.dropped),
+            "refused": int(p.stale),
+            "fallbacks": int(self.fallbacks),
+            "max_age": float(p.max_age),
+            "wait": self.wait,
+        }
+
+    def close(self) -> None:
+        """Stop the planner thread and join it (idempotent)."""
+        self.planner.stop()

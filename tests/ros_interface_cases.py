@@ -62,7 +62,7 @@ def test_header_stamps_are_the_time_and_periods_are_counted_from_them(iface):
     t0 = time.time()
     iface._on_state(_state(t0, [1.0, 2.0], [0.1, 0.2]), t0)
     assert iface.stamps == "header"
-    origin = iface._origin
+    origin = iface.origin
     assert origin == float(int(t0)) or origin == float(int(t0) + 1)
     assert iface.wait(0.0) == 1
     stamp, q, dq = iface.read()
@@ -98,7 +98,7 @@ def test_a_zero_stamp_or_another_clock_is_timed_by_arrival(ros):
         iface._on_state(_state(stamp, [0, 0], [0, 0]), received)
         assert iface.stamps == "arrival", stamp
         assert iface.wait(0.0) == 1
-        origin = iface._origin
+        origin = iface.origin
         assert iface.read()[0] == pytest.approx(received - origin, abs=1e-9)
         assert iface.arrival == pytest.approx(received - origin, abs=1e-9)
         # the stamp the node reports is the arrival on the system clock when it is zero,
@@ -111,12 +111,12 @@ def test_a_zero_stamp_or_another_clock_is_timed_by_arrival(ros):
     iface._on_state(_state(near, [0, 0], [0, 0]), time.time())
     assert iface.stamps == "header"
     iface.wait(0.0)
-    assert iface.read()[0] == pytest.approx(near - iface._origin, abs=1e-6)
+    assert iface.read()[0] == pytest.approx(near - iface.origin, abs=1e-6)
     # a zero stamp later in a stamped stream: that state is timed by its arrival
     received = time.time()
     iface._on_state(_state(0.0, [0, 0], [0, 0]), received)
     iface.wait(0.0)
-    assert iface.read()[0] == pytest.approx(received - iface._origin, abs=1e-9)
+    assert iface.read()[0] == pytest.approx(received - iface.origin, abs=1e-9)
     assert iface.stamp_time() == pytest.approx(received, abs=1e-6)
 
 
@@ -124,13 +124,13 @@ def test_the_arrival_is_the_reception_time_unless_it_is_unknown_or_ahead(iface):
     now = time.time()
     iface._on_state(_state(now, [0, 0], [0, 0]), now - 0.25)
     iface.wait(0.0)
-    assert iface.arrival == pytest.approx(now - 0.25 - iface._origin, abs=1e-9)
+    assert iface.arrival == pytest.approx(now - 0.25 - iface.origin, abs=1e-9)
     for received in (0.0, time.time() + 1.0):  # unknown; a reception in the future
         before = time.time()
         iface._on_state(_state(time.time(), [0, 0], [0, 0]), received)
         after = time.time()
         iface.wait(0.0)
-        assert before - iface._origin <= iface.arrival <= after - iface._origin
+        assert before - iface.origin <= iface.arrival <= after - iface.origin
 
 
 def test_states_that_arrived_more_than_a_period_ago_are_overdue_except_the_newest(iface):
@@ -209,7 +209,7 @@ def test_states_through_dds_are_taken_with_their_reception_time(ros, iface):
         assert iface.stamps == "header"
         np.testing.assert_array_equal(iface.read()[1], [0.25, 0.5])
         np.testing.assert_array_equal(iface.read()[2], [1.0, 2.0])
-        assert sent - 1e-3 <= iface.arrival + iface._origin <= time.time()
+        assert sent - 1e-3 <= iface.arrival + iface.origin <= time.time()
     finally:
         ros.node.destroy_publisher(pub)
 

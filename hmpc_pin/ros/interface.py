@@ -196,6 +196,13 @@ class RosArmInterface:
         self._q, self._dq = np.zeros(n), np.zeros(n)
 
     @property
+    def origin(self) -> float:
+        """The loop clock's origin [s] on the stamps' clock (the system clock, or
+        ``/clock`` under ``use_sim_time``): a whole second, set by the first complete
+        state (0 before it). Stamps, arrivals and :meth:`clock` are relative to it."""
+        return self._origin
+
+    @property
     def ignored(self) -> int:
         """Messages that named none of the controlled joints (not periods)."""
         return self._merge.ignored

@@ -51,6 +51,13 @@ VARIANTS: dict[str, dict[str, str | None]] = {
     "sync": {"RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS"},
     "udp": {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"},
     "shm": {"FASTDDS_BUILTIN_TRANSPORTS": "SHM"},
+    # the arm node busy-waits the last 200 µs before each period (study-only switch)
+    "arm-spin": {"ROS_LATENCY_ARM_SPIN": "0.0002"},
+    # the controller polls its wait set from 300 µs before the next state is due
+    "ctrl-spin": {"ROS_LATENCY_CTRL_SPIN": "0.0003"},
+    # the joint states taken as Python messages (rclpy's conversion), as before the raw take
+    "messages": {"ROS_LATENCY_MESSAGES": "1"},
+    "both-spin": {"ROS_LATENCY_ARM_SPIN": "0.0002", "ROS_LATENCY_CTRL_SPIN": "0.0003"},
 }
 
 
@@ -68,6 +75,15 @@ def _arm_role(argv: list[str], out: Path) -> int:
     from hmpc_pin.apps.cli import main
     from hmpc_pin.ros import arm as arm_module
 
+    spin = float(os.environ.get("ROS_LATENCY_ARM_SPIN", "0"))
+    if spin > 0:
+        sleep = arm_module.sleep_until
+
+        def spinning(deadline, clock=time.perf_counter):
+            sleep(deadline, clock, spin)
+
+        arm_module.sleep_until = spinning  # type: ignore[assignment]
+    wakes: list[float] = []
     pubs: list[tuple[float, float, float]] = []
     cmds: list[tuple[float, float, float]] = []
     cls = arm_module.RosArmNode
@@ -79,6 +95,7 @@ def _arm_role(argv: list[str], out: Path) -> int:
         pubs.append((stamp, t1, time.time()))
 
     def timed_take(self) -> None:
+        wakes.append(time.time())
         sub = self._sub
         with sub.handle:
             while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
@@ -106,7 +123,12 @@ def _arm_role(argv: list[str], out: Path) -> int:
     try:
         return main(argv)
     finally:
-        np.savez(out, pubs=np.array(pubs).reshape(-1, 3), cmds=np.array(cmds).reshape(-1, 3))
+        np.savez(
+            out,
+            pubs=np.array(pubs).reshape(-1, 3),
+            cmds=np.array(cmds).reshape(-1, 3),
+            wakes=np.array(wakes),
+        )
 
 
 def _controller_role(argv: list[str], out: Path) -> int:
@@ -127,6 +149,35 @@ def _controller_role(argv: list[str], out: Path) -> int:
             origin.append(self.origin)
 
     cls._on_state = timed_on_state  # type: ignore[method-assign]
+    if os.environ.get("ROS_LATENCY_MESSAGES"):
+        from hmpc_pin.ros.node import RosNode
+
+        subscribe = RosNode.subscribe
+
+        def converted(self, msg_type, topic, qos, raw=False):
+            return subscribe(self, msg_type, topic, qos)
+
+        RosNode.subscribe = converted  # type: ignore[method-assign]
+        interface.JointStateReader = lambda: (lambda msg: msg)  # type: ignore[assignment]
+    spin = float(os.environ.get("ROS_LATENCY_CTRL_SPIN", "0"))
+    if spin > 0:
+        wait = cls.wait
+
+        def spinning_wait(self, timeout: float) -> int:
+            # block until spin before the next state is due, then poll the wait set
+            if self._latest is not None and not self._arrivals:
+                due = self._latest[3] + self.period - spin  # arrival [s] on clock()
+                block = due - self.clock()
+                if block > 0:
+                    self._wait(min(block, timeout))
+                    self._poll()
+                end = time.monotonic() + 2 * spin
+                while not self._arrivals and time.monotonic() < end:
+                    self._wait(0.0)
+                    self._poll()
+            return wait(self, timeout)
+
+        cls.wait = spinning_wait  # type: ignore[method-assign]
     try:
         return main(argv)
     finally:
@@ -179,6 +230,10 @@ def segments(work: Path, config: str) -> dict[str, np.ndarray]:
         return np.where(np.abs(keys[j] - at) <= tol, table[j], np.nan)
 
     t_pub = lookup(pubs[:, 0], pubs[:, 1], stamp, 2e-6)
+    # the arm's wake before publishing each state: the last wake before its publish call
+    wakes = np.sort(a["wakes"])
+    w = np.searchsorted(wakes, t_pub, side="right") - 1
+    t_wake = np.where(w >= 0, wakes[np.maximum(w, 0)], np.nan)
     t_pub_end = lookup(pubs[:, 0], pubs[:, 2], stamp, 2e-6)
     received = lookup(states[:, 0], states[:, 1], stamp, 2e-6)
     published = received + latency  # the controller's torque published [s]
@@ -192,7 +247,8 @@ def segments(work: Path, config: str) -> dict[str, np.ndarray]:
     cmd_rx = np.where(valid, arm_rx[np.maximum(k, 0)], np.nan)
     cmd_src = np.where(valid, src[np.maximum(k, 0)], np.nan)
     return {
-        "arm: stamp → publish call": t_pub - stamp,
+        "arm: stamp → wake": t_wake - stamp,
+        "arm: wake → publish call (command, plant step)": t_pub - t_wake,
         "arm: publish call": t_pub_end - t_pub,
         "DDS: publish → reception (arrival)": received - t_pub,
         "controller: arrival → wake": wake,

@@ -47,6 +47,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..exceptions import ArmError
+from .cdr import JointStateReader
 from .node import RosNode
 
 __all__ = ["JointStateMerger", "RosArmInterface"]
@@ -165,7 +166,10 @@ class RosArmInterface:
         # reliable publisher too): the arm's driver never waits for, or resends to, the
         # controller
         state_qos = ros.qos(depth, reliable=False)
-        self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states, state_qos)
+        # taken serialized and read by JointStateReader (no Python message built per state)
+        self._state_type = ros.msgs["sensor_msgs"].JointState
+        self._sub = ros.subscribe(self._state_type, joint_states, state_qos, raw=True)
+        self._read_state = JointStateReader()
         self._others: list[tuple[object, object]] = []
         self.sim_time = _uses_sim_time(ros.node)
         self._sim_now = math.nan  # the newest /clock time [s] (simulated time)
@@ -238,7 +242,11 @@ class RosArmInterface:
         # a full queue: older messages were dropped to make room, the periods before the
         # first state taken are the loop's own misses, not the arm's gaps
         self._overflowed = len(msgs) >= self._depth
-        for msg, received in msgs:
+        read = self._read_state
+        for data, received in msgs:
+            msg = read(data)
+            if msg is None:  # not little-endian CDR: rclpy's deserialisation
+                msg = _deserialize(data, self._state_type)
             self._on_state(msg, received)
         take = self.ros.take
         for sub, callback in self._others:
@@ -385,6 +393,13 @@ class RosArmInterface:
     def close(self) -> None:
         """Stop the node (idempotent)."""
         self.ros.close()
+
+
+def _deserialize(data: bytes, msg_type):
+    """``data`` as a ``msg_type`` message (rclpy's deserialisation, any encoding)."""
+    from rclpy.serialization import deserialize_message
+
+    return deserialize_message(data, msg_type)
 
 
 def _uses_sim_time(node) -> bool:

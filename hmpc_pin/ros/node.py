@@ -251,11 +251,12 @@ class RosNode:
             ns = self.node.get_namespace().rstrip("/")
             return f"{ns}/{name}"
 
-    def subscribe(self, msg_type, topic: str, qos):
+    def subscribe(self, msg_type, topic: str, qos, raw: bool = False):
         """A subscription whose messages are taken with :meth:`take` (no callback; no
-        executor takes them)."""
+        executor takes them); ``raw``: taken as their serialized bytes (CDR, no
+        conversion to a Python message)."""
         return self.node.create_subscription(
-            msg_type, topic, _never, qos, callback_group=self._manual
+            msg_type, topic, _never, qos, callback_group=self._manual, raw=raw
         )
 
     @staticmethod

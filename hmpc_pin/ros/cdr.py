@@ -1,0 +1,143 @@
+"""``sensor_msgs/JointState`` read from its serialized form (CDR), without rclpy's
+message conversion.
+
+A subscription created with ``raw=True`` hands over each message as the bytes the
+middleware received: the encapsulation header (2 bytes naming the encoding, 2 of
+options) and the message in the OMG's Common Data Representation (XCDR version 1,
+plain CDR: every primitive aligned to its size from the end of the header; a string
+is a ``uint32`` length counting its terminating NUL, then its bytes; a sequence a
+``uint32`` count, then its elements). Converting a ``JointState`` into a Python message
+builds a string per joint name and an array per field (tens of µs per state, taken on
+the controller's cycle); here the names are decoded only when their bytes change, and
+the positions and velocities are read as float64 views of the buffer (a few µs).
+
+Only little-endian plain CDR (encapsulation ``CDR_LE``, what ROS 2's middlewares send
+on every little-endian machine) is read here; :func:`decode_joint_state` returns
+``None`` for any other encoding, and the caller falls back to rclpy's deserialisation.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+
+__all__ = ["CDR_LE", "JointStateReader", "RawJointState"]
+
+#: The encapsulation header of little-endian plain CDR (``CDR_LE``).
+CDR_LE = b"\x00\x01"
+
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+
+
+class RawJointState:
+    """The parts of a ``JointState`` the controller reads, as ``msg.name``,
+    ``msg.position``, ``msg.velocity`` and ``msg.header.stamp`` are read from a message.
+
+    Attributes:
+        name: The joint names (a list shared by the messages that carry the same names:
+            do not modify).
+        position, velocity: [rad, rad/s] read-only float64 views of the message's bytes.
+        header: ``header.stamp.sec`` and ``header.stamp.nanosec``.
+    """
+
+    __slots__ = ("header", "name", "position", "velocity")
+
+    def __init__(self, name: list[str], position: np.ndarray, velocity: np.ndarray, sec, nsec):
+        self.name = name
+        self.position = position
+        self.velocity = velocity
+        self.header = _Header(sec, nsec)
+
+
+class _Stamp:
+    __slots__ = ("nanosec", "sec")
+
+    def __init__(self, sec: int, nanosec: int):
+        self.sec, self.nanosec = sec, nanosec
+
+
+class _Header:
+    __slots__ = ("stamp",)
+
+    def __init__(self, sec: int, nanosec: int):
+        self.stamp = _Stamp(sec, nanosec)
+
+
+class JointStateReader:
+    """Decodes serialized ``JointState`` messages (module doc); remembers the last names.
+
+    Attributes:
+        decoded_names: How many times the names were decoded (their bytes changed).
+    """
+
+    def __init__(self) -> None:
+        self._names_bytes = b""
+        self._names: list[str] = []
+        self.decoded_names = 0
+
+    def __call__(self, data: bytes) -> RawJointState | None:
+        """The message in ``data`` (encapsulation header included), or ``None`` if it is
+        not little-endian plain CDR (the caller deserialises it with rclpy).
+
+        Raises:
+            ValueError: The bytes end before the message does (not a ``JointState``).
+        """
+        if data[:2] != CDR_LE:
+            return None
+        view = memoryview(data)[4:]  # alignment counts from after the header
+        sec, nsec = _STAMP.unpack_from(view, 0)
+        pos = _skip_string(view, 8)  # header.frame_id
+        start = _align(pos, 4)
+        known = self._names_bytes  # (a sequence's bytes delimit it: equal bytes, equal names)
+        if known and view[start : start + len(known)] == known:
+            pos = start + len(known)
+        else:
+            (count,) = _U32.unpack_from(view, start)
+            pos = start + 4
+            for _ in range(count):
+                pos = _skip_string(view, _align(pos, 4))
+            self._names = _read_strings(view, start)
+            self._names_bytes = bytes(view[start:pos])
+            self.decoded_names += 1
+        position, pos = _read_doubles(view, pos)
+        velocity, _ = _read_doubles(view, pos)
+        return RawJointState(self._names, position, velocity, sec, nsec)
+
+
+def _align(pos: int, size: int) -> int:
+    return (pos + size - 1) // size * size
+
+
+def _skip_string(view: memoryview, pos: int) -> int:
+    """The position after the string at ``pos`` (aligned)."""
+    (length,) = _U32.unpack_from(view, pos)
+    end = pos + 4 + length
+    if end > len(view):
+        raise ValueError(f"a string of {length} bytes runs past the message's {len(view)}")
+    return end
+
+
+def _read_strings(view: memoryview, pos: int) -> list[str]:
+    """The ``sequence<string>`` at ``pos`` (aligned)."""
+    (count,) = _U32.unpack_from(view, pos)
+    pos += 4
+    out = []
+    for _ in range(count):
+        pos = _align(pos, 4)
+        (length,) = _U32.unpack_from(view, pos)
+        out.append(bytes(view[pos + 4 : pos + 3 + length]).decode())
+        pos += 4 + length
+    return out
+
+
+def _read_doubles(view: memoryview, pos: int) -> tuple[np.ndarray, int]:
+    """The ``sequence<float64>`` at ``pos`` and the position after it."""
+    pos = _align(pos, 4)
+    (count,) = _U32.unpack_from(view, pos)
+    pos = _align(pos + 4, 8) if count else pos + 4
+    end = pos + 8 * count
+    if end > len(view):
+        raise ValueError(f"{count} float64 values run past the message's {len(view)} bytes")
+    return np.frombuffer(view, dtype="<f8", count=count, offset=pos), end

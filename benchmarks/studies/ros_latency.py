@@ -51,13 +51,12 @@ VARIANTS: dict[str, dict[str, str | None]] = {
     "sync": {"RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS"},
     "udp": {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"},
     "shm": {"FASTDDS_BUILTIN_TRANSPORTS": "SHM"},
-    # the arm node busy-waits the last 200 µs before each period (study-only switch)
-    "arm-spin": {"ROS_LATENCY_ARM_SPIN": "0.0002"},
+    # the arm node sleeps until each period (no busy-wait of the last stretch)
+    "arm-sleep": {"ROS_LATENCY_ARM_SLEEP": "1"},
     # the controller polls its wait set from 300 µs before the next state is due
     "ctrl-spin": {"ROS_LATENCY_CTRL_SPIN": "0.0003"},
     # the joint states taken as Python messages (rclpy's conversion), as before the raw take
     "messages": {"ROS_LATENCY_MESSAGES": "1"},
-    "both-spin": {"ROS_LATENCY_ARM_SPIN": "0.0002", "ROS_LATENCY_CTRL_SPIN": "0.0003"},
 }
 
 
@@ -75,14 +74,8 @@ def _arm_role(argv: list[str], out: Path) -> int:
     from hmpc_pin.apps.cli import main
     from hmpc_pin.ros import arm as arm_module
 
-    spin = float(os.environ.get("ROS_LATENCY_ARM_SPIN", "0"))
-    if spin > 0:
-        sleep = arm_module.sleep_until
-
-        def spinning(deadline, clock=time.perf_counter):
-            sleep(deadline, clock, spin)
-
-        arm_module.sleep_until = spinning  # type: ignore[assignment]
+    if os.environ.get("ROS_LATENCY_ARM_SLEEP"):  # the arm sleeps the whole wait
+        arm_module.realtime_policy = lambda: False  # type: ignore[assignment]
     wakes: list[float] = []
     pubs: list[tuple[float, float, float]] = []
     cmds: list[tuple[float, float, float]] = []
@@ -158,7 +151,7 @@ def _controller_role(argv: list[str], out: Path) -> int:
             return subscribe(self, msg_type, topic, qos)
 
         RosNode.subscribe = converted  # type: ignore[method-assign]
-        interface.JointStateReader = lambda: (lambda msg: msg)  # type: ignore[assignment]
+        interface.JointStateReader = lambda: lambda msg: msg  # type: ignore[assignment]
     spin = float(os.environ.get("ROS_LATENCY_CTRL_SPIN", "0"))
     if spin > 0:
         wait = cls.wait
@@ -266,9 +259,7 @@ def table(name: str, runs: list[dict]) -> str:
     for key in runs[0]:
         x = np.concatenate([r[key] for r in runs])
         x = x[np.isfinite(x)]
-        lines.append(
-            f"| {key} | {1e6 * np.median(x):.0f} | {1e6 * np.percentile(x, 99):.0f} |"
-        )
+        lines.append(f"| {key} | {1e6 * np.median(x):.0f} | {1e6 * np.percentile(x, 99):.0f} |")
     return "\n".join(lines)
 
 

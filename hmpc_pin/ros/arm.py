@@ -2,7 +2,9 @@
 
 Every interface period :math:`T_a` (absolute deadlines on the system clock; a late wake
 steps through every period it missed and publishes each state, so the arm's time follows
-the wall and a state is published per period) the node
+the wall and a state is published per period; under a real-time policy it busy-waits the
+last stretch before each period, as the real-time loop does:
+:class:`~hmpc_pin.realtime.pacing.Waker`) the node
 advances its :class:`~hmpc_pin.sim.base.Plant` by one period with the latest effort
 command held, then publishes ``sensor_msgs/JointState`` (name, position, velocity, the
 applied effort; ``header.stamp`` the period's instant :math:`t_0 + kT_a` on the system
@@ -39,7 +41,7 @@ import time
 import numpy as np
 
 from ..realtime.loop import sleep_until
-from ..realtime.pacing import timer_slack
+from ..realtime.pacing import Waker, realtime_policy, timer_slack
 from ..sim.base import Plant
 from .node import RosNode
 
@@ -180,6 +182,9 @@ class RosArmNode:
         """:meth:`run` on the wall clock."""
         P = self.period
         clock = time.time
+        # under a real-time policy, awake at each period's instant: sleep, then busy-wait
+        # the stretch of the wake-ups' measured lateness (the real-time loop's Waker)
+        waker = Waker(clock, P, spin=None if realtime_policy() else 0.0)
         t0 = clock()
         k = 0
         end = None if duration is None else round(duration / P)
@@ -187,7 +192,7 @@ class RosArmNode:
         self._publish(t0)
         while not self._stop and (end is None or k < end):
             k += 1
-            sleep_until(t0 + k * P, clock)
+            waker.until(t0 + k * P)
             self._take_command()  # the newest valid command counts
             due = int((clock() - t0) / P)
             if end is not None:  # (a late wake near the end steps no period past it)

@@ -79,13 +79,16 @@ class JointStateReader:
 
     def __call__(self, data: bytes) -> RawJointState | None:
         """The message in ``data`` (encapsulation header included), or ``None`` if it is
-        not little-endian plain CDR (the caller deserialises it with rclpy).
-
-        Raises:
-            ValueError: The bytes end before the message does (not a ``JointState``).
-        """
+        not little-endian plain CDR or ends before the message does (the caller
+        deserialises it with rclpy, which reports what is wrong)."""
         if data[:2] != CDR_LE:
             return None
+        try:
+            return self._read(data)
+        except (struct.error, UnicodeDecodeError):  # a length past the end, not UTF-8
+            return None
+
+    def _read(self, data: bytes) -> RawJointState | None:
         view = memoryview(data)[4:]  # alignment counts from after the header
         sec, nsec = _STAMP.unpack_from(view, 0)
         pos = _skip_string(view, 8)  # header.frame_id
@@ -98,11 +101,15 @@ class JointStateReader:
             pos = start + 4
             for _ in range(count):
                 pos = _skip_string(view, _align(pos, 4))
+            if pos > len(view):
+                return None
             self._names = _read_strings(view, start)
             self._names_bytes = bytes(view[start:pos])
             self.decoded_names += 1
         position, pos = _read_doubles(view, pos)
         velocity, _ = _read_doubles(view, pos)
+        if position is None or velocity is None:
+            return None
         return RawJointState(self._names, position, velocity, sec, nsec)
 
 
@@ -113,10 +120,7 @@ def _align(pos: int, size: int) -> int:
 def _skip_string(view: memoryview, pos: int) -> int:
     """The position after the string at ``pos`` (aligned)."""
     (length,) = _U32.unpack_from(view, pos)
-    end = pos + 4 + length
-    if end > len(view):
-        raise ValueError(f"a string of {length} bytes runs past the message's {len(view)}")
-    return end
+    return pos + 4 + length
 
 
 def _read_strings(view: memoryview, pos: int) -> list[str]:
@@ -132,12 +136,13 @@ def _read_strings(view: memoryview, pos: int) -> list[str]:
     return out
 
 
-def _read_doubles(view: memoryview, pos: int) -> tuple[np.ndarray, int]:
-    """The ``sequence<float64>`` at ``pos`` and the position after it."""
+def _read_doubles(view: memoryview, pos: int) -> tuple[np.ndarray | None, int]:
+    """The ``sequence<float64>`` at ``pos`` (``None``: past the end) and the position
+    after it."""
     pos = _align(pos, 4)
     (count,) = _U32.unpack_from(view, pos)
     pos = _align(pos + 4, 8) if count else pos + 4
     end = pos + 8 * count
     if end > len(view):
-        raise ValueError(f"{count} float64 values run past the message's {len(view)} bytes")
+        return None, end
     return np.frombuffer(view, dtype="<f8", count=count, offset=pos), end

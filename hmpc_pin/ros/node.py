@@ -1,4 +1,5 @@
-"""rclpy brought up for one node: the extra checked, discovery limited, no signal handler,
+"""rclpy brought up for one node: the extra checked, discovery limited, the middleware's
+settings applied where the user has not set them (:mod:`.middleware`), no signal handler,
 messages taken in the caller's thread.
 
 rclpy installs its own SIGINT handler (which shuts the context down); the nodes here
@@ -19,6 +20,7 @@ from collections.abc import Callable
 from types import ModuleType
 
 from ..exceptions import ConfigError, ExtraError
+from .middleware import apply_middleware_defaults
 
 __all__ = ["RosNode", "discovery_range", "import_ros"]
 
@@ -93,6 +95,8 @@ class RosNode:
         self.msgs = import_ros(needed_for)
         rclpy = self.msgs["rclpy"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery
+        #: The middleware settings applied before rclpy started (the user's kept).
+        self.middleware = apply_middleware_defaults(os.environ)
         self.context = rclpy.context.Context()
         args = ["hmpc-pin", "--ros-args", *ros_args] if ros_args else None
         try:

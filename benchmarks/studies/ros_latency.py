@@ -55,7 +55,7 @@ VARIANTS: dict[str, dict[str, str | None]] = {
     "arm-sleep": {"ROS_LATENCY_ARM_SLEEP": "1"},
     # the controller polls its wait set from 300 µs before the next state is due
     "ctrl-spin": {"ROS_LATENCY_CTRL_SPIN": "0.0003"},
-    # the joint states taken as Python messages (rclpy's conversion), as before the raw take
+    # the joint states and commands taken as Python messages (rclpy's conversion)
     "messages": {"ROS_LATENCY_MESSAGES": "1"},
 }
 
@@ -68,15 +68,32 @@ def _private_namespace() -> bool:
 
 
 # ------------------------------------------------------------------ the two processes
+def _take_messages() -> None:
+    """Subscriptions taken as Python messages (rclpy's conversion), as before the nodes
+    took them serialized (the variant ``messages``)."""
+    from hmpc_pin.ros.node import RosNode
+
+    subscribe = RosNode.subscribe
+
+    def converted(self, msg_type, topic, qos, raw=False):
+        return subscribe(self, msg_type, topic, qos)
+
+    RosNode.subscribe = converted  # type: ignore[method-assign]
+
+
 def _arm_role(argv: list[str], out: Path) -> int:
     """``hmpc-pin ros-arm`` recording each state's publish call and each command's
     middleware times."""
     from hmpc_pin.apps.cli import main
     from hmpc_pin.ros import arm as arm_module
 
+    if os.environ.get("ROS_LATENCY_MESSAGES"):  # commands taken as Python messages
+        _take_messages()
+        arm_module.read_float64_array = lambda msg: msg.data  # type: ignore[assignment]
     if os.environ.get("ROS_LATENCY_ARM_SLEEP"):  # the arm sleeps the whole wait
         arm_module.realtime_policy = lambda: False  # type: ignore[assignment]
     wakes: list[float] = []
+    took: list[float] = []
     pubs: list[tuple[float, float, float]] = []
     cmds: list[tuple[float, float, float]] = []
     cls = arm_module.RosArmNode
@@ -87,12 +104,14 @@ def _arm_role(argv: list[str], out: Path) -> int:
         publish(self, stamp)
         pubs.append((stamp, t1, time.time()))
 
-    def timed_take(self) -> None:
-        wakes.append(time.time())
-        sub = self._sub
+    from hmpc_pin.ros.node import RosNode
+
+    def recorded_take(sub) -> list:
+        # RosNode.take, recording each command's middleware times
+        out = []
         with sub.handle:
-            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                msg, info = taken
+            while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                msg, info = got
                 cmds.append(
                     (
                         1e-9 * info["received_timestamp"],
@@ -100,19 +119,19 @@ def _arm_role(argv: list[str], out: Path) -> int:
                         time.time(),
                     )
                 )
-                self._on_command(msg)
-        cmd, self._cmd = self._cmd, None
-        if cmd is None:
-            return
-        self._started = True
-        self.commands += 1
-        if self.limit is not None and self.gravity is None:
-            np.clip(cmd, -self.limit, self.limit, out=self._command)
-        else:
-            self._command[:] = cmd
+                out.append(msg)
+        return out
+
+    take_command = cls._take_command
+
+    def timed_take(self) -> None:
+        wakes.append(time.time())
+        take_command(self)
+        took.append(time.time())
 
     cls._publish = timed_publish  # type: ignore[method-assign]
     cls._take_command = timed_take  # type: ignore[method-assign]
+    RosNode.take = staticmethod(recorded_take)  # type: ignore[method-assign]
     try:
         return main(argv)
     finally:
@@ -121,6 +140,7 @@ def _arm_role(argv: list[str], out: Path) -> int:
             pubs=np.array(pubs).reshape(-1, 3),
             cmds=np.array(cmds).reshape(-1, 3),
             wakes=np.array(wakes),
+            took=np.array(took),
         )
 
 
@@ -143,14 +163,7 @@ def _controller_role(argv: list[str], out: Path) -> int:
 
     cls._on_state = timed_on_state  # type: ignore[method-assign]
     if os.environ.get("ROS_LATENCY_MESSAGES"):
-        from hmpc_pin.ros.node import RosNode
-
-        subscribe = RosNode.subscribe
-
-        def converted(self, msg_type, topic, qos, raw=False):
-            return subscribe(self, msg_type, topic, qos)
-
-        RosNode.subscribe = converted  # type: ignore[method-assign]
+        _take_messages()
         interface.JointStateReader = lambda: lambda msg: msg  # type: ignore[assignment]
     spin = float(os.environ.get("ROS_LATENCY_CTRL_SPIN", "0"))
     if spin > 0:
@@ -198,9 +211,12 @@ def one_run(config: str, duration: float, env: dict[str, str | None], work: Path
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=environ, text=True,
         check=False)  # fmt: skip
     arm.send_signal(2)
-    arm.wait(timeout=30)
+    _, arm_err = arm.communicate(timeout=30)
     if ctrl.returncode != 0:
-        raise RuntimeError(f"hmpc-pin ros failed ({ctrl.returncode}): {ctrl.stderr[-2000:]}")
+        raise RuntimeError(
+            f"hmpc-pin ros failed ({ctrl.returncode}): {ctrl.stderr[-2000:]}\n"
+            f"the arm node: {arm_err.decode()[-2000:]}"
+        )
     return segments(work, config)
 
 
@@ -227,6 +243,7 @@ def segments(work: Path, config: str) -> dict[str, np.ndarray]:
     wakes = np.sort(a["wakes"])
     w = np.searchsorted(wakes, t_pub, side="right") - 1
     t_wake = np.where(w >= 0, wakes[np.maximum(w, 0)], np.nan)
+    t_taken = np.where(w >= 0, a["took"][np.argsort(a["wakes"])][np.maximum(w, 0)], np.nan)
     t_pub_end = lookup(pubs[:, 0], pubs[:, 2], stamp, 2e-6)
     received = lookup(states[:, 0], states[:, 1], stamp, 2e-6)
     published = received + latency  # the controller's torque published [s]
@@ -241,7 +258,8 @@ def segments(work: Path, config: str) -> dict[str, np.ndarray]:
     cmd_src = np.where(valid, src[np.maximum(k, 0)], np.nan)
     return {
         "arm: stamp → wake": t_wake - stamp,
-        "arm: wake → publish call (command, plant step)": t_pub - t_wake,
+        "arm: wake → command taken": t_taken - t_wake,
+        "arm: command taken → publish call (plant step)": t_pub - t_taken,
         "arm: publish call": t_pub_end - t_pub,
         "DDS: publish → reception (arrival)": received - t_pub,
         "controller: arrival → wake": wake,

@@ -43,6 +43,7 @@ import numpy as np
 from ..realtime.loop import sleep_until
 from ..realtime.pacing import Waker, realtime_policy, timer_slack
 from ..sim.base import Plant
+from .cdr import read_float64_array
 from .node import RosNode
 
 __all__ = ["RosArmNode"]
@@ -117,14 +118,21 @@ class RosArmNode:
         self._msg = sensor.JointState()
         self._msg.name = self.names
         self._pub = ros.node.create_publisher(sensor.JointState, joint_states, ros.qos(10))
-        self._sub = ros.subscribe(ros.msgs["std_msgs"].Float64MultiArray, commands, ros.qos(10))
+        # taken serialized, their values read from the bytes (hmpc_pin.ros.cdr)
+        self._command_type = ros.msgs["std_msgs"].Float64MultiArray
+        self._sub = ros.subscribe(self._command_type, commands, ros.qos(10), raw=True)
         self.commands_topic = ros.topic(commands)
         self.joint_states_topic = ros.topic(joint_states)
         self._stop = False
         self._started = False  # a command has come (before it: on the brakes)
 
     def _on_command(self, msg) -> None:
-        tau = np.asarray(msg.data, dtype=float)
+        """A ``Float64MultiArray`` command (its ``data``)."""
+        self._on_values(msg.data)
+
+    def _on_values(self, values) -> None:
+        """A command's values [N·m]: kept if valid (module doc), else logged."""
+        tau = np.asarray(values, dtype=float)
         if tau.shape != (self.n,) or not np.isfinite(tau).all():
             self.rejected += 1
             self.ros.node.get_logger().error(
@@ -208,8 +216,13 @@ class RosArmNode:
 
     def _take_command(self) -> None:
         """The newest valid command since the last period, if any, held from now on."""
-        for msg in self.ros.take(self._sub):
-            self._on_command(msg)
+        for data in self.ros.take(self._sub):
+            values = read_float64_array(data)
+            if values is None:  # not little-endian CDR: rclpy's deserialisation
+                from rclpy.serialization import deserialize_message
+
+                values = deserialize_message(data, self._command_type).data
+            self._on_values(values)
         cmd, self._cmd = self._cmd, None
         if cmd is None:
             return

@@ -1,5 +1,5 @@
-"""``sensor_msgs/JointState`` read from its serialized form (CDR), without rclpy's
-message conversion.
+"""``sensor_msgs/JointState`` and ``std_msgs/Float64MultiArray`` read from their
+serialized form (CDR), without rclpy's message conversion.
 
 A subscription created with ``raw=True`` hands over each message as the bytes the
 middleware received: the encapsulation header (2 bytes naming the encoding, 2 of
@@ -9,7 +9,8 @@ is a ``uint32`` length counting its terminating NUL, then its bytes; a sequence 
 ``uint32`` count, then its elements). Converting a ``JointState`` into a Python message
 builds a string per joint name and an array per field (tens of µs per state, taken on
 the controller's cycle); here the names are decoded only when their bytes change, and
-the positions and velocities are read as float64 views of the buffer (a few µs).
+the positions and velocities are read as float64 views of the buffer (a few µs); a
+``Float64MultiArray`` (the effort command) is its ``data`` viewed alike.
 
 Only little-endian plain CDR (encapsulation ``CDR_LE``, what ROS 2's middlewares send
 on every little-endian machine) is read here; :func:`decode_joint_state` returns
@@ -22,7 +23,7 @@ import struct
 
 import numpy as np
 
-__all__ = ["CDR_LE", "JointStateReader", "RawJointState"]
+__all__ = ["CDR_LE", "JointStateReader", "RawJointState", "read_float64_array"]
 
 #: The encapsulation header of little-endian plain CDR (``CDR_LE``).
 CDR_LE = b"\x00\x01"
@@ -111,6 +112,25 @@ class JointStateReader:
         if position is None or velocity is None:
             return None
         return RawJointState(self._names, position, velocity, sec, nsec)
+
+
+def read_float64_array(data: bytes) -> np.ndarray | None:
+    """The ``data`` field of the ``Float64MultiArray`` serialized in ``data``
+    (encapsulation header included; its layout skipped) as a read-only float64 view, or
+    ``None`` if it is not little-endian plain CDR or ends before the message does."""
+    if data[:2] != CDR_LE:
+        return None
+    view = memoryview(data)[4:]
+    try:
+        (dims,) = _U32.unpack_from(view, 0)
+        pos = 4
+        for _ in range(dims):  # MultiArrayDimension: label, size, stride
+            pos = _skip_string(view, _align(pos, 4))
+            pos = _align(pos, 4) + 8
+        pos = _align(pos, 4) + 4  # layout.data_offset
+        return _read_doubles(view, pos)[0]
+    except struct.error:
+        return None
 
 
 def _align(pos: int, size: int) -> int:

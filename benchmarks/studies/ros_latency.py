@@ -207,7 +207,7 @@ def one_run(config: str, duration: float, env: dict[str, str | None], work: Path
     ctrl = subprocess.run(
         [*me, "--role", "controller", "--record", str(work / "ctrl.npz"), "--",
          "ros", config, "--duration", str(duration), "--out", str(work), "--force",
-         "--priority", "50"],
+         "--priority", "50", "--max-misses", "1000000"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=environ, text=True,
         check=False)  # fmt: skip
     arm.send_signal(2)

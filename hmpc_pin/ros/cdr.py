@@ -74,7 +74,10 @@ class JointStateReader:
     """
 
     def __init__(self) -> None:
-        self._names_bytes = b""
+        # the names' sequence last decoded: its count and strings (offset from its start,
+        # bytes; the padding between them is not compared: it may hold anything) and size
+        self._pieces: list[tuple[int, bytes]] = []
+        self._names_end = 0
         self._names: list[str] = []
         self.decoded_names = 0
 
@@ -89,23 +92,30 @@ class JointStateReader:
         except (struct.error, UnicodeDecodeError):  # a length past the end, not UTF-8
             return None
 
+    def _same_names(self, view: memoryview, start: int) -> bool:
+        """Whether the names at ``start`` are those last decoded (the same count and
+        strings: a sequence's bytes delimit it)."""
+        return all(view[start + at : start + at + len(p)] == p for at, p in self._pieces)
+
     def _read(self, data: bytes) -> RawJointState | None:
         view = memoryview(data)[4:]  # alignment counts from after the header
         sec, nsec = _STAMP.unpack_from(view, 0)
         pos = _skip_string(view, 8)  # header.frame_id
         start = _align(pos, 4)
-        known = self._names_bytes  # (a sequence's bytes delimit it: equal bytes, equal names)
-        if known and view[start : start + len(known)] == known:
-            pos = start + len(known)
+        if self._names_end and self._same_names(view, start):
+            pos = start + self._names_end
         else:
             (count,) = _U32.unpack_from(view, start)
             pos = start + 4
+            pieces = [(0, bytes(view[start:pos]))]
             for _ in range(count):
-                pos = _skip_string(view, _align(pos, 4))
+                at = _align(pos, 4)
+                pos = _skip_string(view, at)
+                pieces.append((at - start, bytes(view[at:pos])))
             if pos > len(view):
                 return None
             self._names = _read_strings(view, start)
-            self._names_bytes = bytes(view[start:pos])
+            self._pieces, self._names_end = pieces, pos - start
             self.decoded_names += 1
         position, pos = _read_doubles(view, pos)
         velocity, _ = _read_doubles(view, pos)

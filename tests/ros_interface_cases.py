@@ -20,11 +20,14 @@ import pytest
 if os.environ.get("HMPC_PIN_IN_NETNS") != "1":  # pragma: no cover - a guard
     pytest.skip("runs only inside a private network namespace", allow_module_level=True)
 
-from sensor_msgs.msg import JointState
+# the user's publication mode, read before any node of this process sets a default
+_USER_MODE = os.environ.get("RMW_FASTRTPS_PUBLICATION_MODE") or None
 
-from hmpc_pin.exceptions import ArmError
-from hmpc_pin.ros.interface import RosArmInterface
-from hmpc_pin.ros.node import RosNode
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from hmpc_pin.exceptions import ArmError  # noqa: E402
+from hmpc_pin.ros.interface import RosArmInterface  # noqa: E402
+from hmpc_pin.ros.node import RosNode  # noqa: E402
 
 P = 0.002  # the interface period [s]
 NAMES = ["a", "b"]
@@ -210,8 +213,45 @@ def test_states_through_dds_are_taken_with_their_reception_time(ros, iface):
         np.testing.assert_array_equal(iface.read()[1], [0.25, 0.5])
         np.testing.assert_array_equal(iface.read()[2], [1.0, 2.0])
         assert sent - 1e-3 <= iface.arrival + iface.origin <= time.time()
+        assert iface._read_state.decoded_names == 1  # read from its bytes
     finally:
         ros.node.destroy_publisher(pub)
+
+
+def _wait_for(find, timeout: float = 10.0):
+    """``find()`` once it is truthy (the graph's cache fills asynchronously)."""
+    deadline = time.monotonic() + timeout
+    while not (got := find()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return got
+
+
+def test_the_topics_qos_as_the_middleware_reports_it(ros, iface):
+    """States subscribed best effort and taken serialized; commands published reliable
+    (what ros2_control's effort controller subscribes with), read back from the graph."""
+    from rclpy.qos import ReliabilityPolicy
+
+    subs = _wait_for(lambda: ros.node.get_subscriptions_info_by_topic(iface.joint_states_topic))
+    pubs = _wait_for(lambda: ros.node.get_publishers_info_by_topic(iface.commands_topic))
+    assert [s.qos_profile.reliability for s in subs] == [ReliabilityPolicy.BEST_EFFORT]
+    assert [p.qos_profile.reliability for p in pubs] == [ReliabilityPolicy.RELIABLE]
+    assert iface._sub.raw
+
+
+def test_the_middleware_default_is_set_before_rclpy_unless_the_user_set_it(ros):
+    key = "RMW_FASTRTPS_PUBLICATION_MODE"
+    assert os.environ[key] == (_USER_MODE or "SYNCHRONOUS")
+    assert ros.middleware == ({} if _USER_MODE else {key: "SYNCHRONOUS"})
+    before = os.environ[key]
+    os.environ[key] = "ASYNCHRONOUS"  # a user's value: kept by the next node
+    try:
+        other = RosNode("mode_cases", "", "LOCALHOST", "test")
+        try:
+            assert other.middleware == {} and os.environ[key] == "ASYNCHRONOUS"
+        finally:
+            other.close()
+    finally:
+        os.environ[key] = before
 
 
 def test_write_publishes_the_torque_in_the_joint_order(iface):
@@ -303,6 +343,29 @@ def test_the_arm_applies_the_held_command_clipped_and_ignores_malformed_ones(ros
     np.testing.assert_array_equal(arm._msg.velocity, arm.dq)
 
 
+def test_a_command_through_dds_is_read_from_its_bytes_by_the_arm(ros, panda):
+    """A real publisher on the arm's command topic: the arm takes it serialized and holds
+    its values; one of the wrong length is refused."""
+    from std_msgs.msg import Float64MultiArray
+
+    arm = _arm(ros, panda)
+    assert arm._sub.raw
+    pub = ros.node.create_publisher(Float64MultiArray, arm.commands_topic, ros.qos(10))
+    try:
+        assert _wait_for(pub.get_subscription_count)
+        cmd = np.array([0.5, -1.0, 1.5, -2.0, 2.5, -3.0, 3.25])
+        pub.publish(_command(cmd))
+        _wait_for(lambda: (arm._take_command(), arm.commands)[1])
+        assert arm.commands == 1 and arm.rejected == 0
+        np.testing.assert_array_equal(arm._command, cmd)
+        pub.publish(_command(cmd[:5]))
+        _wait_for(lambda: (arm._take_command(), arm.rejected)[1])
+        assert arm.rejected == 1 and arm.commands == 1
+        np.testing.assert_array_equal(arm._command, cmd)
+    finally:
+        ros.node.destroy_publisher(pub)
+
+
 def test_an_arm_that_adds_gravity_applies_command_plus_g_clipped(ros, panda):
     import pinocchio as pin
 
@@ -345,7 +408,15 @@ def test_a_late_wake_steps_the_missed_periods_but_never_past_the_duration(ros, p
     import hmpc_pin.ros.arm as arm_module
 
     real = arm_module.sleep_until
-    monkeypatch.setattr(arm_module, "sleep_until", lambda t, clock: real(t + 20e-3, clock))
+
+    class LateWaker:  # the arm's wake at each period, 20 periods late
+        def __init__(self, clock, period, spin=None):
+            self.clock = clock
+
+        def until(self, deadline):
+            real(deadline + 20e-3, self.clock)
+
+    monkeypatch.setattr(arm_module, "Waker", LateWaker)
     arm = _arm(ros, panda)
     sent = []  # every state published: its stamp (recorded at the publisher)
     publish = arm._pub.publish

@@ -13,7 +13,7 @@ the positions and velocities are read as float64 views of the buffer (a few µs)
 ``Float64MultiArray`` (the effort command) is its ``data`` viewed alike.
 
 Only little-endian plain CDR (encapsulation ``CDR_LE``, what ROS 2's middlewares send
-on every little-endian machine) is read here; :func:`decode_joint_state` returns
+on every little-endian machine) is read here; :class:`JointStateReader` returns
 ``None`` for any other encoding, and the caller falls back to rclpy's deserialisation.
 """
 

@@ -12,6 +12,9 @@
 * torque: ``std_msgs/Float64MultiArray`` on ``/effort_controller/commands``
   (effort_controllers' JointGroupEffortController), in the robot's joint order.
 
+The states are taken serialized and read from their CDR bytes (:mod:`.cdr`; rclpy's
+deserialisation for any other encoding): no Python message is built per state.
+
 Time: stamps are the messages' ``header.stamp`` on the system clock, shifted to start
 near 0; a driver that leaves the stamp at zero, or stamps on another clock (more than 1 s
 from the wall when the first state arrives), is timed from each state's arrival instead

@@ -433,3 +433,26 @@ def test_a_late_wake_steps_the_missed_periods_but_never_past_the_duration(ros, p
     assert arm.late >= 1 and arm.late <= 4
     q, _ = _replay(panda, [lambda q: np.zeros(7)] * 5)
     np.testing.assert_allclose(arm.q, q, atol=1e-12)
+
+
+@pytest.mark.parametrize("realtime", [True, False])
+def test_the_arm_spins_before_its_periods_only_under_a_realtime_policy(
+    ros, panda, monkeypatch, realtime
+):
+    """Under SCHED_FIFO/RR the arm's Waker chooses its busy-wait from the measured
+    wake-ups; otherwise it sleeps the whole wait (no spinning on a shared machine)."""
+    import hmpc_pin.ros.arm as arm_module
+
+    made = []
+
+    class Recorded(arm_module.Waker):
+        def __init__(self, clock, period, spin=None):
+            made.append((period, spin))
+            super().__init__(clock, period, spin)
+
+    monkeypatch.setattr(arm_module, "Waker", Recorded)
+    monkeypatch.setattr(arm_module, "realtime_policy", lambda: realtime)
+    arm = _arm(ros, panda)
+    arm.run(0.003)
+    assert arm.steps == 3
+    assert made == [(1e-3, None if realtime else 0.0)]

@@ -5,25 +5,29 @@ Run inside a private network namespace only (DDS discovery multicasts; the study
 to run where another interface than ``lo`` is up):
 
     unshare -n bash -c 'ip link set lo up; python benchmarks/studies/ros_latency.py \
-        [--config panda_sine] [--duration 5] [--runs 3] [--variants default,async]'
+        [--config panda_sine] [--duration 5] [--runs 3] [--variants default,messages,arm-sleep]'
 
 Each run starts the arm node and the controller node as ``hmpc-pin ros-arm`` and
 ``hmpc-pin ros --duration D`` would (``--priority 50`` both; the same code, run through
 this file so that each process also records its messages' times), one variant after the
-other in alternating order. A variant is a set of environment variables given to both
-processes (``VARIANTS``). Per state, with the arm's stamp s (the period's instant):
+other in alternating order (the controller with ``--max-misses 1000000``: a loaded
+machine's run goes to its end). A variant is a set of environment variables given to both
+processes (``VARIANTS``: the middleware's own, or this study's switches of the nodes'
+code paths, ``ROS_LATENCY_*``). Per state, with the arm's stamp s (the period's instant):
 
-* **arm: stamp → publish**: the arm node's wake-up after s and its plant step, to the
-  ``publish()`` call; **publish call**: that call;
+* **arm: stamp → wake**, **wake → command taken**, **command taken → publish call** (its
+  plant step and the message filled) and **the publish call** itself;
 * **DDS: publish → reception**: from the call to the controller's middleware reception
   time stamp (the state's *arrival*);
-* **reception → wake**: from the arrival to the controller's thread taking it (the wait
-  set's wake-up); **wake → torque published**: the take, the step and the publish;
-* **(a) reception → torque published**: the controller node's own share (the loop's
+* **arrival → wake**: from the arrival to the controller's loop holding the state (the
+  wait set's wake-up, the take and the merge); **wake → torque published**: the step and
+  the publish call;
+* **(a) arrival → torque published**: the controller node's own share (the loop's
   ``latency``, its deadline being the arrival);
 * **stamp → torque published**: what ``stats["measured_latency"]`` reports;
 * **DDS: torque publish → arm reception** and **(b) stamp → torque received by the arm**
-  (the arm's middleware reception time of the command answering state s).
+  (the arm's middleware reception time of the command answering state s, matched by the
+  command's source time stamp).
 
 Prints one Markdown table per variant (median and p99 [µs] over every cycle of its runs),
 and the per-run medians of (a) and (b).

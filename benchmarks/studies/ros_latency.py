@@ -290,7 +290,7 @@ def main() -> int:
     parser.add_argument("--config", default="panda_sine")
     parser.add_argument("--duration", type=float, default=5.0)
     parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--variants", default="default,async")
+    parser.add_argument("--variants", default="default,messages,arm-sleep")
     parser.add_argument("--json", type=Path, help="write the medians here too")
     parser.add_argument("--role", choices=("arm", "controller"), help=argparse.SUPPRESS)
     parser.add_argument("--record", type=Path, help=argparse.SUPPRESS)

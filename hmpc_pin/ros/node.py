@@ -81,6 +81,9 @@ class RosNode:
     Attributes:
         node: The ``rclpy`` node.
         msgs: The modules of :func:`import_ros`.
+        middleware: The environment variables set before rclpy started
+            (:func:`~hmpc_pin.ros.middleware.apply_middleware_defaults`; those the user
+            had set are not in it).
     """
 
     def __init__(
@@ -95,7 +98,6 @@ class RosNode:
         self.msgs = import_ros(needed_for)
         rclpy = self.msgs["rclpy"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery
-        #: The middleware settings applied before rclpy started (the user's kept).
         self.middleware = apply_middleware_defaults(os.environ)
         self.context = rclpy.context.Context()
         args = ["hmpc-pin", "--ros-args", *ros_args] if ros_args else None

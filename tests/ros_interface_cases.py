@@ -20,11 +20,14 @@ import pytest
 if os.environ.get("HMPC_PIN_IN_NETNS") != "1":  # pragma: no cover - a guard
     pytest.skip("runs only inside a private network namespace", allow_module_level=True)
 
-from sensor_msgs.msg import JointState
+# the user's publication mode, read before any node of this process sets a default
+_USER_MODE = os.environ.get("RMW_FASTRTPS_PUBLICATION_MODE") or None
 
-from hmpc_pin.exceptions import ArmError
-from hmpc_pin.ros.interface import RosArmInterface
-from hmpc_pin.ros.node import RosNode
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from hmpc_pin.exceptions import ArmError  # noqa: E402
+from hmpc_pin.ros.interface import RosArmInterface  # noqa: E402
+from hmpc_pin.ros.node import RosNode  # noqa: E402
 
 P = 0.002  # the interface period [s]
 NAMES = ["a", "b"]
@@ -62,7 +65,7 @@ def test_header_stamps_are_the_time_and_periods_are_counted_from_them(iface):
     t0 = time.time()
     iface._on_state(_state(t0, [1.0, 2.0], [0.1, 0.2]), t0)
     assert iface.stamps == "header"
-    origin = iface._origin
+    origin = iface.origin
     assert origin == float(int(t0)) or origin == float(int(t0) + 1)
     assert iface.wait(0.0) == 1
     stamp, q, dq = iface.read()
@@ -98,7 +101,7 @@ def test_a_zero_stamp_or_another_clock_is_timed_by_arrival(ros):
         iface._on_state(_state(stamp, [0, 0], [0, 0]), received)
         assert iface.stamps == "arrival", stamp
         assert iface.wait(0.0) == 1
-        origin = iface._origin
+        origin = iface.origin
         assert iface.read()[0] == pytest.approx(received - origin, abs=1e-9)
         assert iface.arrival == pytest.approx(received - origin, abs=1e-9)
         # the stamp the node reports is the arrival on the system clock when it is zero,
@@ -111,12 +114,12 @@ def test_a_zero_stamp_or_another_clock_is_timed_by_arrival(ros):
     iface._on_state(_state(near, [0, 0], [0, 0]), time.time())
     assert iface.stamps == "header"
     iface.wait(0.0)
-    assert iface.read()[0] == pytest.approx(near - iface._origin, abs=1e-6)
+    assert iface.read()[0] == pytest.approx(near - iface.origin, abs=1e-6)
     # a zero stamp later in a stamped stream: that state is timed by its arrival
     received = time.time()
     iface._on_state(_state(0.0, [0, 0], [0, 0]), received)
     iface.wait(0.0)
-    assert iface.read()[0] == pytest.approx(received - iface._origin, abs=1e-9)
+    assert iface.read()[0] == pytest.approx(received - iface.origin, abs=1e-9)
     assert iface.stamp_time() == pytest.approx(received, abs=1e-6)
 
 
@@ -124,13 +127,13 @@ def test_the_arrival_is_the_reception_time_unless_it_is_unknown_or_ahead(iface):
     now = time.time()
     iface._on_state(_state(now, [0, 0], [0, 0]), now - 0.25)
     iface.wait(0.0)
-    assert iface.arrival == pytest.approx(now - 0.25 - iface._origin, abs=1e-9)
+    assert iface.arrival == pytest.approx(now - 0.25 - iface.origin, abs=1e-9)
     for received in (0.0, time.time() + 1.0):  # unknown; a reception in the future
         before = time.time()
         iface._on_state(_state(time.time(), [0, 0], [0, 0]), received)
         after = time.time()
         iface.wait(0.0)
-        assert before - iface._origin <= iface.arrival <= after - iface._origin
+        assert before - iface.origin <= iface.arrival <= after - iface.origin
 
 
 def test_states_that_arrived_more_than_a_period_ago_are_overdue_except_the_newest(iface):
@@ -209,9 +212,46 @@ def test_states_through_dds_are_taken_with_their_reception_time(ros, iface):
         assert iface.stamps == "header"
         np.testing.assert_array_equal(iface.read()[1], [0.25, 0.5])
         np.testing.assert_array_equal(iface.read()[2], [1.0, 2.0])
-        assert sent - 1e-3 <= iface.arrival + iface._origin <= time.time()
+        assert sent - 1e-3 <= iface.arrival + iface.origin <= time.time()
+        assert iface._read_state.decoded_names == 1  # read from its bytes
     finally:
         ros.node.destroy_publisher(pub)
+
+
+def _wait_for(find, timeout: float = 10.0):
+    """``find()`` once it is truthy (the graph's cache fills asynchronously)."""
+    deadline = time.monotonic() + timeout
+    while not (got := find()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return got
+
+
+def test_the_topics_qos_as_the_middleware_reports_it(ros, iface):
+    """States subscribed best effort and taken serialized; commands published reliable
+    (what ros2_control's effort controller subscribes with), read back from the graph."""
+    from rclpy.qos import ReliabilityPolicy
+
+    subs = _wait_for(lambda: ros.node.get_subscriptions_info_by_topic(iface.joint_states_topic))
+    pubs = _wait_for(lambda: ros.node.get_publishers_info_by_topic(iface.commands_topic))
+    assert [s.qos_profile.reliability for s in subs] == [ReliabilityPolicy.BEST_EFFORT]
+    assert [p.qos_profile.reliability for p in pubs] == [ReliabilityPolicy.RELIABLE]
+    assert iface._sub.raw
+
+
+def test_the_middleware_default_is_set_before_rclpy_unless_the_user_set_it(ros):
+    key = "RMW_FASTRTPS_PUBLICATION_MODE"
+    assert os.environ[key] == (_USER_MODE or "SYNCHRONOUS")
+    assert ros.middleware == ({} if _USER_MODE else {key: "SYNCHRONOUS"})
+    before = os.environ[key]
+    os.environ[key] = "ASYNCHRONOUS"  # a user's value: kept by the next node
+    try:
+        other = RosNode("mode_cases", "", "LOCALHOST", "test")
+        try:
+            assert other.middleware == {} and os.environ[key] == "ASYNCHRONOUS"
+        finally:
+            other.close()
+    finally:
+        os.environ[key] = before
 
 
 def test_write_publishes_the_torque_in_the_joint_order(iface):
@@ -303,6 +343,29 @@ def test_the_arm_applies_the_held_command_clipped_and_ignores_malformed_ones(ros
     np.testing.assert_array_equal(arm._msg.velocity, arm.dq)
 
 
+def test_a_command_through_dds_is_read_from_its_bytes_by_the_arm(ros, panda):
+    """A real publisher on the arm's command topic: the arm takes it serialized and holds
+    its values; one of the wrong length is refused."""
+    from std_msgs.msg import Float64MultiArray
+
+    arm = _arm(ros, panda)
+    assert arm._sub.raw
+    pub = ros.node.create_publisher(Float64MultiArray, arm.commands_topic, ros.qos(10))
+    try:
+        assert _wait_for(pub.get_subscription_count)
+        cmd = np.array([0.5, -1.0, 1.5, -2.0, 2.5, -3.0, 3.25])
+        pub.publish(_command(cmd))
+        _wait_for(lambda: (arm._take_command(), arm.commands)[1])
+        assert arm.commands == 1 and arm.rejected == 0
+        np.testing.assert_array_equal(arm._command, cmd)
+        pub.publish(_command(cmd[:5]))
+        _wait_for(lambda: (arm._take_command(), arm.rejected)[1])
+        assert arm.rejected == 1 and arm.commands == 1
+        np.testing.assert_array_equal(arm._command, cmd)
+    finally:
+        ros.node.destroy_publisher(pub)
+
+
 def test_an_arm_that_adds_gravity_applies_command_plus_g_clipped(ros, panda):
     import pinocchio as pin
 
@@ -345,7 +408,15 @@ def test_a_late_wake_steps_the_missed_periods_but_never_past_the_duration(ros, p
     import hmpc_pin.ros.arm as arm_module
 
     real = arm_module.sleep_until
-    monkeypatch.setattr(arm_module, "sleep_until", lambda t, clock: real(t + 20e-3, clock))
+
+    class LateWaker:  # the arm's wake at each period, 20 periods late
+        def __init__(self, clock, period, spin=None):
+            self.clock = clock
+
+        def until(self, deadline):
+            real(deadline + 20e-3, self.clock)
+
+    monkeypatch.setattr(arm_module, "Waker", LateWaker)
     arm = _arm(ros, panda)
     sent = []  # every state published: its stamp (recorded at the publisher)
     publish = arm._pub.publish
@@ -362,3 +433,26 @@ def test_a_late_wake_steps_the_missed_periods_but_never_past_the_duration(ros, p
     assert arm.late >= 1 and arm.late <= 4
     q, _ = _replay(panda, [lambda q: np.zeros(7)] * 5)
     np.testing.assert_allclose(arm.q, q, atol=1e-12)
+
+
+@pytest.mark.parametrize("realtime", [True, False])
+def test_the_arm_spins_before_its_periods_only_under_a_realtime_policy(
+    ros, panda, monkeypatch, realtime
+):
+    """Under SCHED_FIFO/RR the arm's Waker chooses its busy-wait from the measured
+    wake-ups; otherwise it sleeps the whole wait (no spinning on a shared machine)."""
+    import hmpc_pin.ros.arm as arm_module
+
+    made = []
+
+    class Recorded(arm_module.Waker):
+        def __init__(self, clock, period, spin=None):
+            made.append((period, spin))
+            super().__init__(clock, period, spin)
+
+    monkeypatch.setattr(arm_module, "Waker", Recorded)
+    monkeypatch.setattr(arm_module, "realtime_policy", lambda: realtime)
+    arm = _arm(ros, panda)
+    arm.run(0.003)
+    assert arm.steps == 3
+    assert made == [(1e-3, None if realtime else 0.0)]

@@ -256,7 +256,7 @@ def _worker(panda_experiment):
     log = _Log()
     t = TrajectorySubscription.__new__(TrajectorySubscription)
     t.ros = SimpleNamespace(node=SimpleNamespace(get_logger=lambda: log))
-    t.experiment, t.iface = ex, SimpleNamespace(_origin=0.0)
+    t.experiment, t.iface = ex, SimpleNamespace(origin=0.0)
     t.lower, t.upper = trajectory_limits(ex)
     t.loop, t.events, t._pending, t.topic = None, [], None, "/hmpc/joint_trajectory"
     arm = PlantArm(ex.make_plant(1e-3), ex.q0)

@@ -320,7 +320,7 @@ def _ros_meta(ros, rc, iface, trajectories: TrajectorySubscription, collision: b
         "external_torque": ros.topic(rc.external_torque),
         "collision": ros.topic(rc.collision) if collision else None,
         "stamps": iface.stamps,
-        "stamp_origin": iface._origin,
+        "stamp_origin": iface.origin,
         "states_received": iface.received,
         "states_ignored": iface.ignored,
         "commands_published": iface.published,

@@ -98,7 +98,7 @@ class TrajectorySubscription:
                 now,
                 self.lower,
                 self.upper,
-                origin=self.iface._origin,
+                origin=self.iface.origin,
             )
         except HmpcError as exc:
             line = refusal(exc)

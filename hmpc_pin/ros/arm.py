@@ -2,7 +2,9 @@
 
 Every interface period :math:`T_a` (absolute deadlines on the system clock; a late wake
 steps through every period it missed and publishes each state, so the arm's time follows
-the wall and a state is published per period) the node
+the wall and a state is published per period; under a real-time policy it busy-waits the
+last stretch before each period, as the real-time loop does:
+:class:`~hmpc_pin.realtime.pacing.Waker`) the node
 advances its :class:`~hmpc_pin.sim.base.Plant` by one period with the latest effort
 command held, then publishes ``sensor_msgs/JointState`` (name, position, velocity, the
 applied effort; ``header.stamp`` the period's instant :math:`t_0 + kT_a` on the system
@@ -39,8 +41,9 @@ import time
 import numpy as np
 
 from ..realtime.loop import sleep_until
-from ..realtime.pacing import timer_slack
+from ..realtime.pacing import Waker, realtime_policy, timer_slack
 from ..sim.base import Plant
+from .cdr import read_float64_array
 from .node import RosNode
 
 __all__ = ["RosArmNode"]
@@ -115,14 +118,21 @@ class RosArmNode:
         self._msg = sensor.JointState()
         self._msg.name = self.names
         self._pub = ros.node.create_publisher(sensor.JointState, joint_states, ros.qos(10))
-        self._sub = ros.subscribe(ros.msgs["std_msgs"].Float64MultiArray, commands, ros.qos(10))
+        # taken serialized, their values read from the bytes (hmpc_pin.ros.cdr)
+        self._command_type = ros.msgs["std_msgs"].Float64MultiArray
+        self._sub = ros.subscribe(self._command_type, commands, ros.qos(10), raw=True)
         self.commands_topic = ros.topic(commands)
         self.joint_states_topic = ros.topic(joint_states)
         self._stop = False
         self._started = False  # a command has come (before it: on the brakes)
 
     def _on_command(self, msg) -> None:
-        tau = np.asarray(msg.data, dtype=float)
+        """A ``Float64MultiArray`` command (its ``data``)."""
+        self._on_values(msg.data)
+
+    def _on_values(self, values) -> None:
+        """A command's values [N·m]: kept if valid (module doc), else logged."""
+        tau = np.asarray(values, dtype=float)
         if tau.shape != (self.n,) or not np.isfinite(tau).all():
             self.rejected += 1
             self.ros.node.get_logger().error(
@@ -180,6 +190,9 @@ class RosArmNode:
         """:meth:`run` on the wall clock."""
         P = self.period
         clock = time.time
+        # under a real-time policy, awake at each period's instant: sleep, then busy-wait
+        # the stretch of the wake-ups' measured lateness (the real-time loop's Waker)
+        waker = Waker(clock, P, spin=None if realtime_policy() else 0.0)
         t0 = clock()
         k = 0
         end = None if duration is None else round(duration / P)
@@ -187,7 +200,7 @@ class RosArmNode:
         self._publish(t0)
         while not self._stop and (end is None or k < end):
             k += 1
-            sleep_until(t0 + k * P, clock)
+            waker.until(t0 + k * P)
             self._take_command()  # the newest valid command counts
             due = int((clock() - t0) / P)
             if end is not None:  # (a late wake near the end steps no period past it)
@@ -203,8 +216,13 @@ class RosArmNode:
 
     def _take_command(self) -> None:
         """The newest valid command since the last period, if any, held from now on."""
-        for msg in self.ros.take(self._sub):
-            self._on_command(msg)
+        for data in self.ros.take(self._sub):
+            values = read_float64_array(data)
+            if values is None:  # not little-endian CDR: rclpy's deserialisation
+                from rclpy.serialization import deserialize_message
+
+                values = deserialize_message(data, self._command_type).data
+            self._on_values(values)
         cmd, self._cmd = self._cmd, None
         if cmd is None:
             return

@@ -12,6 +12,9 @@
 * torque: ``std_msgs/Float64MultiArray`` on ``/effort_controller/commands``
   (effort_controllers' JointGroupEffortController), in the robot's joint order.
 
+The states are taken serialized and read from their CDR bytes (:mod:`.cdr`; rclpy's
+deserialisation for any other encoding): no Python message is built per state.
+
 Time: stamps are the messages' ``header.stamp`` on the system clock, shifted to start
 near 0; a driver that leaves the stamp at zero, or stamps on another clock (more than 1 s
 from the wall when the first state arrives), is timed from each state's arrival instead
@@ -47,6 +50,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..exceptions import ArmError
+from .cdr import JointStateReader
 from .node import RosNode
 
 __all__ = ["JointStateMerger", "RosArmInterface"]
@@ -165,7 +169,10 @@ class RosArmInterface:
         # reliable publisher too): the arm's driver never waits for, or resends to, the
         # controller
         state_qos = ros.qos(depth, reliable=False)
-        self._sub = ros.subscribe(ros.msgs["sensor_msgs"].JointState, joint_states, state_qos)
+        # taken serialized and read by JointStateReader (no Python message built per state)
+        self._state_type = ros.msgs["sensor_msgs"].JointState
+        self._sub = ros.subscribe(self._state_type, joint_states, state_qos, raw=True)
+        self._read_state = JointStateReader()
         self._others: list[tuple[object, object]] = []
         self.sim_time = _uses_sim_time(ros.node)
         self._sim_now = math.nan  # the newest /clock time [s] (simulated time)
@@ -194,6 +201,13 @@ class RosArmInterface:
         self._stamp = 0.0
         self._header_stamp = self._latest_header = self._taken_header = 0.0
         self._q, self._dq = np.zeros(n), np.zeros(n)
+
+    @property
+    def origin(self) -> float:
+        """The loop clock's origin [s] on the stamps' clock (the system clock, or
+        ``/clock`` under ``use_sim_time``): a whole second, set by the first complete
+        state (0 before it). Stamps, arrivals and :meth:`clock` are relative to it."""
+        return self._origin
 
     @property
     def ignored(self) -> int:
@@ -231,7 +245,11 @@ class RosArmInterface:
         # a full queue: older messages were dropped to make room, the periods before the
         # first state taken are the loop's own misses, not the arm's gaps
         self._overflowed = len(msgs) >= self._depth
-        for msg, received in msgs:
+        read = self._read_state
+        for data, received in msgs:
+            msg = read(data)
+            if msg is None:  # not little-endian CDR: rclpy's deserialisation
+                msg = _deserialize(data, self._state_type)
             self._on_state(msg, received)
         take = self.ros.take
         for sub, callback in self._others:
@@ -378,6 +396,13 @@ class RosArmInterface:
     def close(self) -> None:
         """Stop the node (idempotent)."""
         self.ros.close()
+
+
+def _deserialize(data: bytes, msg_type):
+    """``data`` as a ``msg_type`` message (rclpy's deserialisation, any encoding)."""
+    from rclpy.serialization import deserialize_message
+
+    return deserialize_message(data, msg_type)
 
 
 def _uses_sim_time(node) -> bool:

@@ -1,4 +1,5 @@
-"""rclpy brought up for one node: the extra checked, discovery limited, no signal handler,
+"""rclpy brought up for one node: the extra checked, discovery limited, the middleware's
+settings applied where the user has not set them (:mod:`.middleware`), no signal handler,
 messages taken in the caller's thread.
 
 rclpy installs its own SIGINT handler (which shuts the context down); the nodes here
@@ -19,6 +20,7 @@ from collections.abc import Callable
 from types import ModuleType
 
 from ..exceptions import ConfigError, ExtraError
+from .middleware import apply_middleware_defaults
 
 __all__ = ["RosNode", "discovery_range", "import_ros"]
 
@@ -79,6 +81,9 @@ class RosNode:
     Attributes:
         node: The ``rclpy`` node.
         msgs: The modules of :func:`import_ros`.
+        middleware: The environment variables set before rclpy started
+            (:func:`~hmpc_pin.ros.middleware.apply_middleware_defaults`; those the user
+            had set are not in it).
     """
 
     def __init__(
@@ -93,6 +98,7 @@ class RosNode:
         self.msgs = import_ros(needed_for)
         rclpy = self.msgs["rclpy"]
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery
+        self.middleware = apply_middleware_defaults(os.environ)
         self.context = rclpy.context.Context()
         args = ["hmpc-pin", "--ros-args", *ros_args] if ros_args else None
         try:
@@ -251,11 +257,12 @@ class RosNode:
             ns = self.node.get_namespace().rstrip("/")
             return f"{ns}/{name}"
 
-    def subscribe(self, msg_type, topic: str, qos):
+    def subscribe(self, msg_type, topic: str, qos, raw: bool = False):
         """A subscription whose messages are taken with :meth:`take` (no callback; no
-        executor takes them)."""
+        executor takes them); ``raw``: taken as their serialized bytes (CDR, no
+        conversion to a Python message)."""
         return self.node.create_subscription(
-            msg_type, topic, _never, qos, callback_group=self._manual
+            msg_type, topic, _never, qos, callback_group=self._manual, raw=raw
         )
 
     @staticmethod

@@ -35,12 +35,16 @@ during the run: the latency changes the observer's torque alignment and the pred
 which take effect at a reset, and a per-step value would carry the loop's jitter into the
 model. Set the measured median in the config instead.
 
-**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: the whole heap collected
-and frozen (``gc_handling``), the controller reset and, if it has ``warm_up``, its first
-step run once on the reset state and undone by a second reset (the first step's one-time
-costs, not its torque); the records allocated; what the set-up made collected; then, for
-an arm whose clock starts with its ``start()`` (``run(start=True)``: Franka's torque
-control, a ROS arm's first state), the start. None of it costs the arm a cycle.
+**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: the process's memory locked
+in RAM (``mlockall(MCL_CURRENT | MCL_FUTURE)`` where permitted, unlocked after the run:
+:func:`~.pacing.memory_locked`; ``stats["memory_lock"]`` records the outcome), so that no
+page of the interpreter, the libraries or the records is faulted in or paged out during
+the cycles; the whole heap collected and frozen (``gc_handling``); the controller reset
+and, if it has ``warm_up``, its first step run once on the reset state and undone by a
+second reset (the first step's one-time costs, not its torque); the records allocated;
+what the set-up made collected; then, for an arm whose clock starts with its ``start()``
+(``run(start=True)``: Franka's torque control, a ROS arm's first state), the start. None
+of it costs the arm a cycle.
 
 **Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the thread's timer slack is
 1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
@@ -97,6 +101,7 @@ from .pacing import (
     Tally,
     Waker,
     fifo_priority,
+    memory_locked,
     realtime_policy,
     sleep_until,
     timer_slack,
@@ -243,6 +248,8 @@ class RealtimeLoop(Cycles, StopSequence):
         meta: Stored in the result's ``meta``.
         on_step: ``on_step(t)``, called after the torque of each controller step is
             written (in the cycle's slack), with the loop time t [s]: publish estimates.
+        lock_memory: Lock the process's memory in RAM for the run (module doc,
+            "Set-up"; ``stats["memory_lock"]`` says how it went).
 
     Against a :class:`~hmpc_pin.realtime.interface.PacedInterface` the loop is paced by
     the arm's states and keeps time on the interface's clock (``clock``, ``sleep`` and
@@ -263,8 +270,11 @@ class RealtimeLoop(Cycles, StopSequence):
         joint_names: tuple[str, ...] = (),
         meta: dict | None = None,
         on_step: Callable[[float], None] | None = None,
+        lock_memory: bool = True,
     ):
         self.interface, self.controller = interface, controller
+        self.lock_memory = lock_memory
+        self._memory_lock = "off"  # the outcome of the last run's lock
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
         self.paced = isinstance(interface, PacedInterface)
@@ -442,6 +452,7 @@ class RealtimeLoop(Cycles, StopSequence):
         self._started = True
         try:
             with contextlib.ExitStack() as stack:
+                self._memory_lock = stack.enter_context(memory_locked(self.lock_memory))
                 if self._waker is not None:
                     stack.enter_context(timer_slack(1))
                     if self.settings.spin == "auto":  # spinning pays under a real-time policy
@@ -571,6 +582,7 @@ class RealtimeLoop(Cycles, StopSequence):
             "period_us": 1e6 * P,
             "wait": self._wait_stats(),
             "loop_stalls": self._stalls,
+            "memory_lock": self._memory_lock,
             "brake": brake,
             "arm_gaps": gaps,
         }

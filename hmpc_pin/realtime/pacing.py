@@ -32,6 +32,7 @@ __all__ = [
     "Waker",
     "cpu_affinity",
     "fifo_priority",
+    "memory_locked",
     "realtime_policy",
     "resolve_priority",
     "sleep_until",
@@ -178,6 +179,46 @@ def timer_slack(nanoseconds: int = 1):
         yield
     finally:
         prctl(29, ctypes.c_ulong(0), 0, 0, 0)  # 0: back to the thread's default
+
+
+#: ``mlockall`` flags (Linux): the pages mapped now, and those mapped later.
+MCL_CURRENT, MCL_FUTURE = 1, 2
+
+
+@contextlib.contextmanager
+def memory_locked(lock: bool = True):
+    """Run the block with the process's memory locked in RAM (``mlockall(MCL_CURRENT |
+    MCL_FUTURE)``, as ``cyclictest -m`` does), then unlock it (``munlockall``).
+
+    A locked page is faulted in when it is mapped, not at its first touch: the records
+    allocated in the block, the interpreter's and the libraries' pages are resident before
+    the first cycle, and none is paged out during the run. Where it is not permitted
+    (no ``CAP_IPC_LOCK`` and an ``RLIMIT_MEMLOCK`` below the process's size) or not
+    available (not Linux), the block runs unlocked.
+
+    Yields:
+        The outcome, one line: ``"locked"``, ``"off"`` (``lock`` false), or
+        ``"refused: <why>"``/``"unavailable: <why>"``.
+    """
+    if not lock:
+        yield "off"
+        return
+    libc = None
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.mlockall, libc.munlockall  # noqa: B018 (both present)
+    if libc is None:
+        yield f"unavailable: no mlockall on {sys.platform}"
+        return
+    if libc.mlockall(MCL_CURRENT | MCL_FUTURE) != 0:
+        err = ctypes.get_errno()
+        yield f"refused: {os.strerror(err)} (errno {err}; CAP_IPC_LOCK or a memlock limit)"
+        return
+    try:
+        yield "locked"
+    finally:
+        libc.munlockall()
 
 
 @contextlib.contextmanager

@@ -46,7 +46,9 @@ what the set-up made collected; then, for an arm whose clock starts with its ``s
 (``run(start=True)``: Franka's torque control, a ROS arm's first state), the start. None
 of it costs the arm a cycle.
 
-**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the thread's timer slack is
+**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the CPUs' idle-exit latency
+is limited to ``cpu_latency`` (0 µs: an idle core polls rather than halts;
+:func:`~.pacing.cpu_latency_limit`, where permitted) and the thread's timer slack is
 1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
 stretch before the deadline, measured from its wake-ups, and busy-waits the rest. The
 watchdog of a polled arm does not charge the loop's own late wake-up (more than a period)
@@ -100,6 +102,7 @@ from .pacing import (
     GCWatch,
     Tally,
     Waker,
+    cpu_latency_limit,
     fifo_priority,
     memory_locked,
     realtime_policy,
@@ -250,6 +253,8 @@ class RealtimeLoop(Cycles, StopSequence):
             written (in the cycle's slack), with the loop time t [s]: publish estimates.
         lock_memory: Lock the process's memory in RAM for the run (module doc,
             "Set-up"; ``stats["memory_lock"]`` says how it went).
+        cpu_latency: The CPUs' idle-exit latency limit [µs] held during the run (module
+            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None``: none.
 
     Against a :class:`~hmpc_pin.realtime.interface.PacedInterface` the loop is paced by
     the arm's states and keeps time on the interface's clock (``clock``, ``sleep`` and
@@ -271,10 +276,12 @@ class RealtimeLoop(Cycles, StopSequence):
         meta: dict | None = None,
         on_step: Callable[[float], None] | None = None,
         lock_memory: bool = True,
+        cpu_latency: int | None = 0,
     ):
         self.interface, self.controller = interface, controller
         self.lock_memory = lock_memory
-        self._memory_lock = "off"  # the outcome of the last run's lock
+        self.cpu_latency = cpu_latency
+        self._memory_lock = self._cpu_latency = "off"  # the last run's outcomes
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
         self.paced = isinstance(interface, PacedInterface)
@@ -453,6 +460,7 @@ class RealtimeLoop(Cycles, StopSequence):
         try:
             with contextlib.ExitStack() as stack:
                 self._memory_lock = stack.enter_context(memory_locked(self.lock_memory))
+                self._cpu_latency = stack.enter_context(cpu_latency_limit(self.cpu_latency))
                 if self._waker is not None:
                     stack.enter_context(timer_slack(1))
                     if self.settings.spin == "auto":  # spinning pays under a real-time policy
@@ -583,6 +591,7 @@ class RealtimeLoop(Cycles, StopSequence):
             "wait": self._wait_stats(),
             "loop_stalls": self._stalls,
             "memory_lock": self._memory_lock,
+            "cpu_latency": self._cpu_latency,
             "brake": brake,
             "arm_gaps": gaps,
         }

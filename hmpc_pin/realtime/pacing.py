@@ -31,6 +31,7 @@ __all__ = [
     "Tally",
     "Waker",
     "cpu_affinity",
+    "cpu_latency_limit",
     "fifo_priority",
     "memory_locked",
     "realtime_policy",
@@ -219,6 +220,43 @@ def memory_locked(lock: bool = True):
         yield "locked"
     finally:
         libc.munlockall()
+
+
+#: The kernel's CPU wake-up latency request (Linux PM QoS): while a process holds it open
+#: with a value written, idle states slower to leave than that are not entered.
+CPU_DMA_LATENCY = "/dev/cpu_dma_latency"
+
+
+@contextlib.contextmanager
+def cpu_latency_limit(microseconds: int | None = 0, path: str = CPU_DMA_LATENCY):
+    """Run the block with the CPUs' idle-exit latency limited to ``microseconds`` (written
+    to ``/dev/cpu_dma_latency`` and held open, as ``cyclictest`` does; the kernel drops the
+    request when the file is closed). With 0 an idle CPU polls instead of halting: a
+    sleeping thread's wake-up does not wait for the core (or, in a virtual machine, the
+    virtual CPU) to come out of a halt. ``None`` changes nothing; where the file cannot be
+    opened (not root, not Linux) the block runs without the limit.
+
+    Yields:
+        The outcome, one line: ``"<n> us"``, ``"off"`` (``None``) or ``"refused: <why>"``.
+    """
+    if microseconds is None:
+        yield "off"
+        return
+    try:
+        fd = os.open(path, os.O_WRONLY)
+    except OSError as exc:
+        yield f"refused: {exc.strerror} ({path})"
+        return
+    try:
+        os.write(fd, int(microseconds).to_bytes(4, sys.byteorder, signed=True))
+    except OSError as exc:
+        os.close(fd)
+        yield f"refused: {exc.strerror} ({path})"
+        return
+    try:
+        yield f"{int(microseconds)} us"
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager

@@ -113,9 +113,10 @@ def machine_block(rate: float, duration: float, priority: int, stall: float, tmp
     return {"wake": s, "latency": s}
 
 
-def loop_block(args, variant: str, tmp: Path):
-    """One ``hmpc-pin realtime`` block in ``variant``: wake-up and latency summaries."""
-    out = tmp / variant
+def loop_block(args, variant: str, tmp: Path, pair: int = 0):
+    """One ``hmpc-pin realtime`` block in ``variant``: wake-up and latency summaries
+    (the run's files in ``--keep``/``<pair>_<variant>`` if given)."""
+    out = (Path(args.keep) if args.keep else tmp) / f"{pair}_{variant}"
     prelude = _PRELUDE.format(patch=VARIANTS[variant])
     cmd = [
         sys.executable,
@@ -172,6 +173,7 @@ def main(argv=None) -> int:
     parser.add_argument("--ours", nargs="+", default=["new"], choices=sorted(VARIANTS))
     parser.add_argument("--ab", nargs=2, metavar=("A", "B"), help="print the ratio B / A")
     parser.add_argument("--no-floor", action="store_true", help="skip the cyclictest blocks")
+    parser.add_argument("--keep", help="keep the runs' files in this directory")
     parser.add_argument("extra", nargs="*", help="more hmpc-pin realtime arguments (after --)")
     args = parser.parse_args(argv)
     if not args.no_floor and shutil.which("cyclictest") is None:
@@ -192,7 +194,7 @@ def main(argv=None) -> int:
                 if name == "machine":
                     r = machine_block(args.rate, args.duration, args.priority, args.stall, tmp)
                 else:
-                    r = loop_block(args, name, tmp)
+                    r = loop_block(args, name, tmp, pair + 1)
                 r["load"] = os.getloadavg()[0]
                 rows[name].append(r)
                 tag = "" if name == "machine" else f", missed {r['missed']}"

@@ -347,6 +347,8 @@ class RealtimeLoop(Cycles, StopSequence):
         self._rec: Records | None = None
         self._tally: Tally | None = None
         self._seen = 0  # the cycles progress() has reported
+        self._ran = 0  # of which run (not skipped)
+        self._cycles_done = self._steps_done = 0  # cycles and steps recorded (progress())
 
     def set_reference(self, reference, at: float = 0.0, base=None) -> bool:
         """Replace the reference from the first controller step at or after loop time
@@ -391,17 +393,18 @@ class RealtimeLoop(Cycles, StopSequence):
         rec, tally = self._rec, self._tally
         if rec is None or tally is None:
             return None
-        done = rec.done
-        ran = np.flatnonzero(np.isfinite(done))
-        if ran.size == 0:
-            return None
-        last = int(ran[-1]) + 1
+        # only the cycles since the previous call are read (the caller holds the GIL the
+        # loop's thread needs after each sleep: briefly)
+        done, last = rec.done, self._cycles_done
         window = done[self._seen : last]
         window = window[np.isfinite(window)]
+        self._ran += window.size
+        if self._ran == 0:
+            return None
         self._seen = last
-        steps = np.flatnonzero(np.isfinite(rec.t))
         error = math.nan
-        for j in steps[-2:][::-1]:  # (the newest row may be half written)
+        j0 = self._steps_done
+        for j in range(j0 - 1, max(j0 - 3, -1), -1):  # (the newest row may be half written)
             e = rec.traj["q"][j] - rec.traj["q_ref"][j]
             if np.isfinite(e).all():
                 error = float(np.abs(e).max())
@@ -411,7 +414,7 @@ class RealtimeLoop(Cycles, StopSequence):
             t = last * self.settings.period
         return {
             "t": t,
-            "cycles": int(ran.size),
+            "cycles": self._ran,
             "of": int(done.size),
             "misses": tally.misses,
             "longest": tally.worst_run,
@@ -526,6 +529,7 @@ class RealtimeLoop(Cycles, StopSequence):
         rec = Records(K // self.decimation + 2, K + 1, iface.nq)
         tally = Tally()
         self._rec, self._tally, self._seen = rec, tally, 0  # (read by progress())
+        self._ran = self._cycles_done = self._steps_done = 0
         if st.gc_handling:  # what the set-up made (the heap is frozen: little to walk)
             gc.collect()
             gc.freeze()

@@ -22,7 +22,9 @@ from hmpc_pin.realtime.pacing import (
     AUTO_PRIORITY,
     CPU_DMA_LATENCY,
     cpu_latency_limit,
+    fifo_priority,
     memory_locked,
+    realtime_policy,
 )
 from hmpc_pin.sim import RK4Plant
 
@@ -70,20 +72,29 @@ def test_memory_is_locked_in_the_block_and_unlocked_after():
 
 @linux
 def test_a_run_locks_memory_records_the_outcome_and_unlocks(robot):
+    """Asked for (``lock_memory=True``), and by default under a real-time policy only."""
     seen = []
-    loop, _, _, _ = _setup(robot, 0.05, hook=lambda t: seen.append(_locked_kb()))
-    run = loop.run()
-    assert run.complete
-    outcome = run.stats["memory_lock"]
-    if outcome == "locked":
-        assert min(seen) > 0  # every controller step ran with the memory locked
-    else:
-        assert outcome.startswith("refused") and max(seen) == 0
-    assert _locked_kb() == 0
-    loop, _, _, _ = _setup(robot, 0.02, hook=lambda t: seen.append(_locked_kb()))
-    loop.lock_memory = False
-    seen.clear()
-    assert loop.run().stats["memory_lock"] == "off" and max(seen) == 0
+    for lock, fifo in ((True, False), ("auto", True)):
+        if fifo and not _fifo_permitted():
+            continue
+        loop, _, _, _ = _setup(robot, 0.05, hook=lambda t: seen.append(_locked_kb()))
+        loop.lock_memory = lock
+        seen.clear()
+        with fifo_priority(AUTO_PRIORITY if fifo else 0):
+            run = loop.run()
+        assert run.complete
+        outcome = run.stats["memory_lock"]
+        if outcome == "locked":
+            assert min(seen) > 0  # every controller step ran with the memory locked
+        else:
+            assert outcome.startswith("refused") and max(seen) == 0
+        assert _locked_kb() == 0
+    for lock in (False, "auto"):  # (this thread under normal scheduling)
+        assert not realtime_policy()
+        loop, _, _, _ = _setup(robot, 0.02, hook=lambda t: seen.append(_locked_kb()))
+        loop.lock_memory = lock
+        seen.clear()
+        assert loop.run().stats["memory_lock"] == "off" and max(seen) == 0
 
 
 def _holds(path: str) -> bool:
@@ -117,13 +128,21 @@ def test_the_cpu_latency_request_is_held_in_the_block_and_dropped_after(tmp_path
 
 
 @linux
-def test_a_run_records_the_cpu_latency_outcome(robot):
+@pytest.mark.parametrize(("limit", "fifo"), [(0, False), ("auto", True), ("auto", False)])
+def test_a_run_records_the_cpu_latency_outcome(robot, limit, fifo):
+    if fifo and not _fifo_permitted():
+        pytest.skip("SCHED_FIFO not permitted here")
     seen = []
     loop, _, _, _ = _setup(robot, 0.02, hook=lambda t: seen.append(_holds(CPU_DMA_LATENCY)))
-    run = loop.run()
+    loop.cpu_latency = limit
+    with fifo_priority(AUTO_PRIORITY if fifo else 0):
+        run = loop.run()
     outcome = run.stats["cpu_latency"]
-    assert seen and all(seen) == (outcome == "0 us")
-    assert outcome == "0 us" or (outcome.startswith("refused") and not any(seen))
+    if limit == "auto" and not fifo:
+        assert outcome == "off" and not any(seen)
+    else:
+        assert seen and all(seen) == (outcome == "0 us")
+        assert outcome == "0 us" or (outcome.startswith("refused") and not any(seen))
     assert not _holds(CPU_DMA_LATENCY)
 
 

@@ -35,8 +35,9 @@ during the run: the latency changes the observer's torque alignment and the pred
 which take effect at a reset, and a per-step value would carry the loop's jitter into the
 model. Set the measured median in the config instead.
 
-**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: the process's memory locked
-in RAM (``mlockall(MCL_CURRENT | MCL_FUTURE)`` where permitted, unlocked after the run:
+**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: under a real-time policy
+(``lock_memory="auto"``) the process's memory locked in RAM (``mlockall(MCL_CURRENT |
+MCL_FUTURE)`` where permitted, unlocked after the run:
 :func:`~.pacing.memory_locked`; ``stats["memory_lock"]`` records the outcome), so that no
 page of the interpreter, the libraries or the records is faulted in or paged out during
 the cycles; the whole heap collected and frozen (``gc_handling``); the controller reset
@@ -46,8 +47,8 @@ what the set-up made collected; then, for an arm whose clock starts with its ``s
 (``run(start=True)``: Franka's torque control, a ROS arm's first state), the start. None
 of it costs the arm a cycle.
 
-**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the CPUs' idle-exit latency
-is limited to ``cpu_latency`` (0 µs: an idle core polls rather than halts;
+**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): under a real-time policy the
+CPUs' idle-exit latency is limited to ``cpu_latency`` (0 µs: an idle core polls rather than halts;
 :func:`~.pacing.cpu_latency_limit`, where permitted) and the thread's timer slack is
 1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
 stretch before the deadline, measured from its wake-ups, and busy-waits the rest. The
@@ -252,9 +253,11 @@ class RealtimeLoop(Cycles, StopSequence):
         on_step: ``on_step(t)``, called after the torque of each controller step is
             written (in the cycle's slack), with the loop time t [s]: publish estimates.
         lock_memory: Lock the process's memory in RAM for the run (module doc,
-            "Set-up"; ``stats["memory_lock"]`` says how it went).
+            "Set-up"; ``stats["memory_lock"]`` says how it went); ``"auto"``: when the
+            loop's thread runs under a real-time policy (where its latency is the point).
         cpu_latency: The CPUs' idle-exit latency limit [µs] held during the run (module
-            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None``: none.
+            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None``: none;
+            ``"auto"``: 0 under a real-time policy, else none.
 
     Against a :class:`~hmpc_pin.realtime.interface.PacedInterface` the loop is paced by
     the arm's states and keeps time on the interface's clock (``clock``, ``sleep`` and
@@ -275,8 +278,8 @@ class RealtimeLoop(Cycles, StopSequence):
         joint_names: tuple[str, ...] = (),
         meta: dict | None = None,
         on_step: Callable[[float], None] | None = None,
-        lock_memory: bool = True,
-        cpu_latency: int | None = 0,
+        lock_memory: bool | str = "auto",
+        cpu_latency: int | str | None = "auto",
     ):
         self.interface, self.controller = interface, controller
         self.lock_memory = lock_memory
@@ -462,12 +465,18 @@ class RealtimeLoop(Cycles, StopSequence):
         self._started = True
         try:
             with contextlib.ExitStack() as stack:
-                self._memory_lock = stack.enter_context(memory_locked(self.lock_memory))
-                self._cpu_latency = stack.enter_context(cpu_latency_limit(self.cpu_latency))
+                realtime = realtime_policy()
+                lock, limit = self.lock_memory, self.cpu_latency
+                if lock == "auto":
+                    lock = realtime
+                if limit == "auto":
+                    limit = 0 if realtime else None
+                self._memory_lock = stack.enter_context(memory_locked(bool(lock)))
+                self._cpu_latency = stack.enter_context(cpu_latency_limit(limit))  # type: ignore[arg-type]
                 if self._waker is not None:
                     stack.enter_context(timer_slack(1))
                     if self.settings.spin == "auto":  # spinning pays under a real-time policy
-                        self._waker.adapt(realtime_policy())
+                        self._waker.adapt(realtime)
                 return self._run(q0, dq0, start)
         except BaseException:
             # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the held-safe

@@ -10,6 +10,7 @@ import functools
 import gc
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -80,7 +81,7 @@ def test_a_run_locks_memory_records_the_outcome_and_unlocks(robot):
         loop, _, _, _ = _setup(robot, 0.05, hook=lambda t: seen.append(_locked_kb()))
         loop.lock_memory = lock
         seen.clear()
-        with fifo_priority(AUTO_PRIORITY if fifo else 0):
+        with fifo_priority(1 if fifo else 0):
             run = loop.run()
         assert run.complete
         outcome = run.stats["memory_lock"]
@@ -135,7 +136,7 @@ def test_a_run_records_the_cpu_latency_outcome(robot, limit, fifo):
     seen = []
     loop, _, _, _ = _setup(robot, 0.02, hook=lambda t: seen.append(_holds(CPU_DMA_LATENCY)))
     loop.cpu_latency = limit
-    with fifo_priority(AUTO_PRIORITY if fifo else 0):
+    with fifo_priority(1 if fifo else 0):
         run = loop.run()
     outcome = run.stats["cpu_latency"]
     if limit == "auto" and not fifo:
@@ -219,16 +220,14 @@ def test_the_arm_collects_only_in_its_slack_and_restores_its_collector(tmp_path,
 def test_the_arm_runs_below_the_loops_priority(below):
     if not _fifo_permitted():
         pytest.skip("SCHED_FIFO not permitted here")
-    arm = ProcessArm(
-        functools.partial(_planar, P), np.zeros(3), priority=AUTO_PRIORITY, below=below
-    )
+    arm = ProcessArm(functools.partial(_planar, P), np.zeros(3), priority=10, below=below)
     try:
         policy = os.sched_getscheduler(arm.pid)
         priority = os.sched_getparam(arm.pid).sched_priority
     finally:
         arm.close()
     assert policy == os.SCHED_FIFO
-    assert priority == max(1, AUTO_PRIORITY - below) == arm.counters["priority"]
+    assert priority == max(1, 10 - below) == arm.counters["priority"]
 
 
 def test_the_arm_at_normal_scheduling_stays_there():
@@ -247,3 +246,54 @@ def _planar(period):
 @pytest.fixture(scope="module")
 def robot():
     return hmpc_pin.load_robot("planar3")
+
+
+# ------------------------------------------------------------ reading the arm's state
+def _block(n: int):
+    from hmpc_pin.realtime.process_arm import _size, _views
+
+    buf = bytearray(_size(n))
+    return buf, _views(memoryview(buf), n)
+
+
+def test_a_reader_waits_for_a_writer_caught_mid_write_and_takes_its_copy():
+    """The writer's counter odd (mid-write) while the reader starts: the reader must
+    neither return the torn copy nor give up while the writer finishes (here in another
+    thread, which runs only while the reader sleeps: it holds the GIL otherwise)."""
+    from hmpc_pin.realtime.process_arm import _STATE_SEQ, _read_state
+
+    n = 3
+    _, (ctl, _, state, _) = _block(n)
+    state[:] = 1.0
+    ctl[_STATE_SEQ] = 2  # a whole copy of ones
+    out, scratch = np.full(1 + 2 * n, np.nan), np.empty(1 + 2 * n)
+    assert _read_state(ctl, state, out, scratch) and (out == 1.0).all()
+    ctl[_STATE_SEQ] = 3  # the writer begins ...
+    state[: n + 1] = 2.0  # ... half of the new state written
+
+    def finish():
+        state[n + 1 :] = 2.0
+        ctl[_STATE_SEQ] = 4
+
+    timer = threading.Timer(0.0005, finish)
+    timer.start()
+    try:
+        assert _read_state(ctl, state, out, scratch)
+    finally:
+        timer.join()
+    assert (out == 2.0).all()  # the writer's whole new copy, not the torn one
+
+
+def test_a_reader_gives_up_on_a_writer_gone_mid_write_keeping_the_last_whole_copy():
+    from hmpc_pin.realtime.process_arm import _STATE_SEQ, _read_state
+
+    n = 2
+    _, (ctl, _, state, _) = _block(n)
+    state[:] = 1.0
+    ctl[_STATE_SEQ] = 2
+    out, scratch = np.full(1 + 2 * n, np.nan), np.empty(1 + 2 * n)
+    assert _read_state(ctl, state, out, scratch)
+    ctl[_STATE_SEQ] = 5  # a writer that never finishes
+    state[:2] = 7.0
+    assert not _read_state(ctl, state, out, scratch)
+    assert (out == 1.0).all()  # the last whole copy, never the torn one

@@ -30,6 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
+_SPIN_READ = (
+    "import hmpc_pin.realtime.process_arm as A; A.READ_SPINS = 100_000; A.READ_GIVE_UP = 0.0"
+)
+
 #: The loop's variants: Python run in the loop's process before the command line (each
 #: undoes one measure of the loop; ``new`` is the loop as it is).
 VARIANTS = {
@@ -46,9 +50,11 @@ VARIANTS = {
     "nospin": 'sys.argv += ["--spin", "0"]',
     # no status line thread
     "nostatus": "R.StatusLine = _Quiet",
+    # the arm's state read by spinning only (up to 100 000 tries, no sleep)
+    "spinread": _SPIN_READ,
     # everything the loop did before these measures
     "old": "R.RealtimeLoop = partial(R.RealtimeLoop, lock_memory=False, cpu_latency=None); "
-    "R.ProcessArm = partial(R.ProcessArm, below=0, gc_frozen=False)",
+    "R.ProcessArm = partial(R.ProcessArm, below=0, gc_frozen=False); " + _SPIN_READ,
 }
 
 _PRELUDE = """

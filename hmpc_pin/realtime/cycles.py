@@ -104,9 +104,11 @@ class Cycles:
             if is_mpc and stamp_clock is not None:
                 rec.age[k] = (done if paced else stamp_clock()) - stamp
             rec.cycle(k, wake - deadline, done - deadline, stamp, is_mpc)
+            self._cycles_done = k + 1
             if is_mpc:
                 rec.step(j, k * P, q, dq, tau, ctrl.disturbance_estimate, ref)
                 j += 1
+                self._steps_done = j
                 self.time = k * P
                 if on_step is not None:
                     on_step(k * P)

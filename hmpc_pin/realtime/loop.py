@@ -35,14 +35,21 @@ during the run: the latency changes the observer's torque alignment and the pred
 which take effect at a reset, and a per-step value would carry the loop's jitter into the
 model. Set the measured median in the config instead.
 
-**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: the whole heap collected
-and frozen (``gc_handling``), the controller reset and, if it has ``warm_up``, its first
-step run once on the reset state and undone by a second reset (the first step's one-time
-costs, not its torque); the records allocated; what the set-up made collected; then, for
-an arm whose clock starts with its ``start()`` (``run(start=True)``: Franka's torque
-control, a ROS arm's first state), the start. None of it costs the arm a cycle.
+**Set-up** (:meth:`RealtimeLoop.run`), before the arm's clock: under a real-time policy
+(``lock_memory="auto"``) the process's memory locked in RAM (``mlockall(MCL_CURRENT |
+MCL_FUTURE)`` where permitted, unlocked after the run:
+:func:`~.pacing.memory_locked`; ``stats["memory_lock"]`` records the outcome), so that no
+page of the interpreter, the libraries or the records is faulted in or paged out during
+the cycles; the whole heap collected and frozen (``gc_handling``); the controller reset
+and, if it has ``warm_up``, its first step run once on the reset state and undone by a
+second reset (the first step's one-time costs, not its torque); the records allocated;
+what the set-up made collected; then, for an arm whose clock starts with its ``start()``
+(``run(start=True)``: Franka's torque control, a ROS arm's first state), the start. None
+of it costs the arm a cycle.
 
-**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the thread's timer slack is
+**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): under a real-time policy the
+CPUs' idle-exit latency is limited to ``cpu_latency`` (0 µs: an idle core polls rather than halts;
+:func:`~.pacing.cpu_latency_limit`, where permitted) and the thread's timer slack is
 1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
 stretch before the deadline, measured from its wake-ups, and busy-waits the rest. The
 watchdog of a polled arm does not charge the loop's own late wake-up (more than a period)
@@ -96,7 +103,9 @@ from .pacing import (
     GCWatch,
     Tally,
     Waker,
+    cpu_latency_limit,
     fifo_priority,
+    memory_locked,
     realtime_policy,
     sleep_until,
     timer_slack,
@@ -243,6 +252,12 @@ class RealtimeLoop(Cycles, StopSequence):
         meta: Stored in the result's ``meta``.
         on_step: ``on_step(t)``, called after the torque of each controller step is
             written (in the cycle's slack), with the loop time t [s]: publish estimates.
+        lock_memory: Lock the process's memory in RAM for the run (module doc,
+            "Set-up"; ``stats["memory_lock"]`` says how it went); ``"auto"``: when the
+            loop's thread runs under a real-time policy (where its latency is the point).
+        cpu_latency: The CPUs' idle-exit latency limit [µs] held during the run (module
+            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None``: none;
+            ``"auto"``: 0 under a real-time policy, else none.
 
     Against a :class:`~hmpc_pin.realtime.interface.PacedInterface` the loop is paced by
     the arm's states and keeps time on the interface's clock (``clock``, ``sleep`` and
@@ -263,8 +278,13 @@ class RealtimeLoop(Cycles, StopSequence):
         joint_names: tuple[str, ...] = (),
         meta: dict | None = None,
         on_step: Callable[[float], None] | None = None,
+        lock_memory: bool | str = "auto",
+        cpu_latency: int | str | None = "auto",
     ):
         self.interface, self.controller = interface, controller
+        self.lock_memory = lock_memory
+        self.cpu_latency = cpu_latency
+        self._memory_lock = self._cpu_latency = "off"  # the last run's outcomes
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
         self.paced = isinstance(interface, PacedInterface)
@@ -330,6 +350,8 @@ class RealtimeLoop(Cycles, StopSequence):
         self._rec: Records | None = None
         self._tally: Tally | None = None
         self._seen = 0  # the cycles progress() has reported
+        self._ran = 0  # of which run (not skipped)
+        self._cycles_done = self._steps_done = 0  # cycles and steps recorded (progress())
 
     def set_reference(self, reference, at: float = 0.0, base=None) -> bool:
         """Replace the reference from the first controller step at or after loop time
@@ -374,17 +396,18 @@ class RealtimeLoop(Cycles, StopSequence):
         rec, tally = self._rec, self._tally
         if rec is None or tally is None:
             return None
-        done = rec.done
-        ran = np.flatnonzero(np.isfinite(done))
-        if ran.size == 0:
-            return None
-        last = int(ran[-1]) + 1
+        # only the cycles since the previous call are read (the caller holds the GIL the
+        # loop's thread needs after each sleep: briefly)
+        done, last = rec.done, self._cycles_done
         window = done[self._seen : last]
         window = window[np.isfinite(window)]
+        self._ran += window.size
+        if self._ran == 0:
+            return None
         self._seen = last
-        steps = np.flatnonzero(np.isfinite(rec.t))
         error = math.nan
-        for j in steps[-2:][::-1]:  # (the newest row may be half written)
+        j0 = self._steps_done
+        for j in range(j0 - 1, max(j0 - 3, -1), -1):  # (the newest row may be half written)
             e = rec.traj["q"][j] - rec.traj["q_ref"][j]
             if np.isfinite(e).all():
                 error = float(np.abs(e).max())
@@ -394,7 +417,7 @@ class RealtimeLoop(Cycles, StopSequence):
             t = last * self.settings.period
         return {
             "t": t,
-            "cycles": int(ran.size),
+            "cycles": self._ran,
             "of": int(done.size),
             "misses": tally.misses,
             "longest": tally.worst_run,
@@ -442,10 +465,18 @@ class RealtimeLoop(Cycles, StopSequence):
         self._started = True
         try:
             with contextlib.ExitStack() as stack:
+                realtime = realtime_policy()
+                lock, limit = self.lock_memory, self.cpu_latency
+                if lock == "auto":
+                    lock = realtime
+                if limit == "auto":
+                    limit = 0 if realtime else None
+                self._memory_lock = stack.enter_context(memory_locked(bool(lock)))
+                self._cpu_latency = stack.enter_context(cpu_latency_limit(limit))  # type: ignore[arg-type]
                 if self._waker is not None:
                     stack.enter_context(timer_slack(1))
                     if self.settings.spin == "auto":  # spinning pays under a real-time policy
-                        self._waker.adapt(realtime_policy())
+                        self._waker.adapt(realtime)
                 return self._run(q0, dq0, start)
         except BaseException:
             # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the held-safe
@@ -507,6 +538,7 @@ class RealtimeLoop(Cycles, StopSequence):
         rec = Records(K // self.decimation + 2, K + 1, iface.nq)
         tally = Tally()
         self._rec, self._tally, self._seen = rec, tally, 0  # (read by progress())
+        self._ran = self._cycles_done = self._steps_done = 0
         if st.gc_handling:  # what the set-up made (the heap is frozen: little to walk)
             gc.collect()
             gc.freeze()
@@ -571,6 +603,8 @@ class RealtimeLoop(Cycles, StopSequence):
             "period_us": 1e6 * P,
             "wait": self._wait_stats(),
             "loop_stalls": self._stalls,
+            "memory_lock": self._memory_lock,
+            "cpu_latency": self._cpu_latency,
             "brake": brake,
             "arm_gaps": gaps,
         }

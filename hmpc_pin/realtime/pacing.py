@@ -31,7 +31,9 @@ __all__ = [
     "Tally",
     "Waker",
     "cpu_affinity",
+    "cpu_latency_limit",
     "fifo_priority",
+    "memory_locked",
     "realtime_policy",
     "resolve_priority",
     "sleep_until",
@@ -178,6 +180,83 @@ def timer_slack(nanoseconds: int = 1):
         yield
     finally:
         prctl(29, ctypes.c_ulong(0), 0, 0, 0)  # 0: back to the thread's default
+
+
+#: ``mlockall`` flags (Linux): the pages mapped now, and those mapped later.
+MCL_CURRENT, MCL_FUTURE = 1, 2
+
+
+@contextlib.contextmanager
+def memory_locked(lock: bool = True):
+    """Run the block with the process's memory locked in RAM (``mlockall(MCL_CURRENT |
+    MCL_FUTURE)``, as ``cyclictest -m`` does), then unlock it (``munlockall``).
+
+    A locked page is faulted in when it is mapped, not at its first touch: the records
+    allocated in the block, the interpreter's and the libraries' pages are resident before
+    the first cycle, and none is paged out during the run. Where it is not permitted
+    (no ``CAP_IPC_LOCK`` and an ``RLIMIT_MEMLOCK`` below the process's size) or not
+    available (not Linux), the block runs unlocked.
+
+    Yields:
+        The outcome, one line: ``"locked"``, ``"off"`` (``lock`` false), or
+        ``"refused: <why>"``/``"unavailable: <why>"``.
+    """
+    if not lock:
+        yield "off"
+        return
+    libc = None
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.mlockall, libc.munlockall  # noqa: B018 (both present)
+    if libc is None:
+        yield f"unavailable: no mlockall on {sys.platform}"
+        return
+    if libc.mlockall(MCL_CURRENT | MCL_FUTURE) != 0:
+        err = ctypes.get_errno()
+        yield f"refused: {os.strerror(err)} (errno {err}; CAP_IPC_LOCK or a memlock limit)"
+        return
+    try:
+        yield "locked"
+    finally:
+        libc.munlockall()
+
+
+#: The kernel's CPU wake-up latency request (Linux PM QoS): while a process holds it open
+#: with a value written, idle states slower to leave than that are not entered.
+CPU_DMA_LATENCY = "/dev/cpu_dma_latency"
+
+
+@contextlib.contextmanager
+def cpu_latency_limit(microseconds: int | None = 0, path: str = CPU_DMA_LATENCY):
+    """Run the block with the CPUs' idle-exit latency limited to ``microseconds`` (written
+    to ``/dev/cpu_dma_latency`` and held open, as ``cyclictest`` does; the kernel drops the
+    request when the file is closed). With 0 an idle CPU polls instead of halting: a
+    sleeping thread's wake-up does not wait for the core (or, in a virtual machine, the
+    virtual CPU) to come out of a halt. ``None`` changes nothing; where the file cannot be
+    opened (not root, not Linux) the block runs without the limit.
+
+    Yields:
+        The outcome, one line: ``"<n> us"``, ``"off"`` (``None``) or ``"refused: <why>"``.
+    """
+    if microseconds is None:
+        yield "off"
+        return
+    try:
+        fd = os.open(path, os.O_WRONLY)
+    except OSError as exc:
+        yield f"refused: {exc.strerror} ({path})"
+        return
+    try:
+        os.write(fd, int(microseconds).to_bytes(4, sys.byteorder, signed=True))
+    except OSError as exc:
+        os.close(fd)
+        yield f"refused: {exc.strerror} ({path})"
+        return
+    try:
+        yield f"{int(microseconds)} us"
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager

@@ -16,11 +16,22 @@ a port to a weaker memory model would need explicit fences.
 
 Ctrl-C in the terminal reaches the whole process group: the arm ignores SIGINT, so that
 the controller's safe stop still has an arm to command.
+
+Scheduling beside the loop: under ``SCHED_FIFO`` the arm process runs one level below the
+priority it is given (the loop's: ``priority - 1``, at least 1), so that where the arm's
+step and the loop's wake-up meet on one core the loop preempts the arm (two FIFO tasks at
+one priority do not preempt each other: the later waits for the earlier's step); the arm
+catches up on its wall-clock deadlines after. Its garbage collector is frozen and
+disabled once its plant is built (the step allocates every period: automatic collections
+would land in its steps), and the generation due is collected after a step when at least
+:data:`ARM_GC_SLACK` of the period remains (:class:`~hmpc_pin.realtime.pacing.Tally`);
+the collector is restored when the loop ends (``counters["gc"]``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import gc
 import multiprocessing as mp
 import os
 import signal
@@ -33,15 +44,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..exceptions import DimensionError, SimulationError
-from .pacing import resolve_priority
+from .pacing import Tally, resolve_priority
 
-__all__ = ["ProcessArm", "StateReader"]
+__all__ = ["ARM_GC_SLACK", "READ_GIVE_UP", "READ_NAP", "READ_SPINS", "ProcessArm", "StateReader"]
 
 FloatArray = NDArray[np.float64]
 
 # int64 control slots
-_STATE_SEQ, _CMD_SEQ, _STOP, _READY, _STALL, _MISSED_CMDS, _STEPS, _LATE = range(8)
-_NCTL = 8
+_STATE_SEQ, _CMD_SEQ, _STOP, _READY, _STALL, _MISSED_CMDS, _STEPS, _LATE, _GC, _GC_RUNS = range(10)
+_NCTL = 10
+
+#: The arm's collector state (``counters["gc"]``), from the ``_GC`` slot.
+_GC_STATES = ("automatic", "frozen", "restored")
+
+#: The fraction of the arm's period that must remain after a step for a collection there.
+ARM_GC_SLACK = 0.5
 
 
 def _views(buf, n: int):
@@ -67,7 +84,7 @@ def start_child(proc) -> None:
 
 
 def _arm_main(
-    name, n, make_plant, q0, dq0, effort_limit, conn, priority=0
+    name, n, make_plant, q0, dq0, effort_limit, conn, priority=0, gc_frozen=True
 ) -> None:  # pragma: no cover
     """The child process: attach the shared block, run :func:`_arm_loop`, report a failure.
 
@@ -81,7 +98,7 @@ def _arm_main(
     try:
         if priority:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        _arm_loop(shm.buf, n, make_plant, q0, dq0, effort_limit, conn)
+        _arm_loop(shm.buf, n, make_plant, q0, dq0, effort_limit, conn, gc_frozen)
     except BaseException:
         with contextlib.suppress(OSError):
             conn.send(traceback.format_exc())
@@ -89,8 +106,27 @@ def _arm_main(
         shm.close()
 
 
-def _arm_loop(buf, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragma: no cover
-    """Build the plant, then step it in wall-clock time until the stop flag is set."""
+def _arm_loop(
+    buf, n, make_plant, q0, dq0, effort_limit, conn, gc_frozen=True
+) -> None:  # pragma: no cover
+    """Build the plant, then step it in wall-clock time until the stop flag is set (the
+    collector frozen and disabled meanwhile with ``gc_frozen``, restored after)."""
+    ctl = _views(buf, n)[0]
+    was_enabled = gc.isenabled()
+    try:
+        _arm_steps(buf, n, make_plant, q0, dq0, effort_limit, conn, gc_frozen)
+    finally:
+        if ctl[_GC] == 1:
+            gc.unfreeze()
+            if was_enabled:
+                gc.enable()
+            ctl[_GC] = 2
+
+
+def _arm_steps(
+    buf, n, make_plant, q0, dq0, effort_limit, conn, gc_frozen
+) -> None:  # pragma: no cover
+    """:func:`_arm_loop`'s steps."""
     ctl, period_buf, state, tau_buf = _views(buf, n)
     plant = make_plant()
     if plant.nq != n:
@@ -110,6 +146,13 @@ def _arm_loop(buf, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragm
         ctl[_STATE_SEQ] += 1
 
     publish(0.0, q, dq)
+    tally, spent = Tally(), np.zeros(1)
+    if gc_frozen:  # what the set-up made, collected; the rest out of the collector's reach
+        gc.collect()
+        gc.freeze()
+        gc.disable()
+        ctl[_GC] = 1
+    slack = ARM_GC_SLACK * P
     ctl[_READY] = 1
     conn.send(None)
     clock, sleep = time.perf_counter, time.sleep
@@ -149,18 +192,47 @@ def _arm_loop(buf, n, make_plant, q0, dq0, effort_limit, conn) -> None:  # pragm
             ctl[_STEPS] = steps
             if not ctl[_STALL]:
                 publish(steps * P, q, dq)
+        if gc_frozen:  # the generation due, in the step's slack
+            tally.collect(0, t0 + (k + 1) * P, clock, slack, spent)
+            ctl[_GC_RUNS] = tally.gc_runs
 
 
-def _read_state(ctl, state, buf) -> None:
-    """Copy the published ``[stamp, q, dq]`` into ``buf`` under the seqlock."""
-    for _ in range(100_000):
+#: How a reader waits for the arm caught in the middle of publishing: this many tries at
+#: once, then a sleep of :data:`READ_NAP` [s] between tries, for at most :data:`READ_GIVE_UP`
+#: [s] in all.
+READ_SPINS = 64
+READ_NAP = 2e-5
+READ_GIVE_UP = 2e-3
+
+
+def _read_state(ctl, state, buf, scratch) -> bool:
+    """Copy the published ``[stamp, q, dq]`` into ``buf`` under the seqlock (through
+    ``scratch``: ``buf`` only ever holds a whole copy); whether a new copy was taken.
+
+    A writer caught mid-write (its counter odd, or changed during the copy) is waited for:
+    :data:`READ_SPINS` tries at once, then a sleep of :data:`READ_NAP` between tries. The
+    sleep is what lets it finish where the reader's thread preempted it on their core (the
+    arm runs a priority level below the loop): a reader that only spins there keeps it from
+    running (a 100 000-try spin cost the loop 9–12 ms each time). After
+    :data:`READ_GIVE_UP` ``buf`` keeps the last whole copy: its stamp, not advancing, is
+    the watchdog's.
+    """
+    tries, end = 0, 0.0
+    while True:
         s1 = ctl[_STATE_SEQ]
-        if s1 & 1:
-            continue
-        buf[:] = state
-        if ctl[_STATE_SEQ] == s1:
-            return
-    # (after 1e5 torn reads the writer is gone: the stale stamp trips the watchdog)
+        if not s1 & 1:
+            scratch[:] = state
+            if ctl[_STATE_SEQ] == s1:
+                buf[:] = scratch
+                return True
+        tries += 1
+        if tries > READ_SPINS:
+            now = time.perf_counter()
+            if not end:
+                end = now + READ_GIVE_UP
+            elif now > end:
+                return False
+            time.sleep(READ_NAP)
 
 
 class StateReader:
@@ -175,11 +247,11 @@ class StateReader:
     def __init__(self, name: str, n: int):
         self._shm = SharedMemory(name=name)
         self._ctl, _, self._state, _ = _views(self._shm.buf, n)
-        self._buf = np.empty(1 + 2 * n)
+        self._buf, self._scratch = np.full(1 + 2 * n, np.nan), np.empty(1 + 2 * n)
 
     def read(self) -> tuple[float, FloatArray, FloatArray]:
         """``(stamp, q, dq)``, copies."""
-        _read_state(self._ctl, self._state, self._buf)
+        _read_state(self._ctl, self._state, self._buf, self._scratch)
         n = (self._buf.size - 1) // 2
         return float(self._buf[0]), self._buf[1 : 1 + n].copy(), self._buf[1 + n :].copy()
 
@@ -200,9 +272,14 @@ class ProcessArm:
         q0, dq0: Initial state [rad, rad/s].
         effort_limit: Per-joint torque limit [N·m] the arm applies (``None``: none).
         start_timeout: Seconds to wait for the child to build its plant.
-        priority: ``SCHED_FIFO`` priority of the arm process (0: normal scheduling;
-            ``"auto"``: 80 where permitted, else normal), as
-            a robot's own controller runs (see :func:`~hmpc_pin.realtime.loop.fifo_priority`).
+        priority: ``SCHED_FIFO`` priority of the loop the arm serves (0: normal
+            scheduling; ``"auto"``: 80 where permitted, else normal; see
+            :func:`~hmpc_pin.realtime.loop.fifo_priority`): the arm process runs
+            ``below`` levels under it (at least 1), as a robot's own controller runs
+            beside the loop (module doc).
+        below: Levels under ``priority`` the arm process runs (0: the loop's own).
+        gc_frozen: Freeze and disable the arm process's garbage collector while it runs,
+            collecting in its steps' slack (module doc); ``False`` leaves it automatic.
 
     Attributes:
         period: The arm's period [s] (its plant's ``Ts``).
@@ -220,6 +297,8 @@ class ProcessArm:
         effort_limit=None,
         start_timeout: float = 120.0,
         priority: int | str = 0,
+        below: int = 1,
+        gc_frozen: bool = True,
     ):
         q0 = np.array(q0, dtype=float)
         n = q0.size
@@ -230,15 +309,30 @@ class ProcessArm:
             )
         self.nq = n
         priority = resolve_priority(priority)  # "auto": 80 where permitted, else 0
+        if priority:
+            priority = max(1, priority - int(below))
+        #: The arm process's ``SCHED_FIFO`` priority (0: normal scheduling).
+        self.priority = priority
         self._shm = SharedMemory(create=True, size=_size(n))
         self._ctl, self._period, self._state, self._tau = _views(self._shm.buf, n)
         self._ctl[:] = 0
         self._closed = False
+        self._final: dict = {}
         ctx = mp.get_context("spawn")
         self._conn, child = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(
             target=_arm_main,
-            args=(self._shm.name, n, make_plant, q0, dq0, effort_limit, child, priority),
+            args=(
+                self._shm.name,
+                n,
+                make_plant,
+                q0,
+                dq0,
+                effort_limit,
+                child,
+                priority,
+                gc_frozen,
+            ),
             name="hmpc-pin-arm",
             daemon=True,
         )
@@ -250,7 +344,7 @@ class ProcessArm:
             self.close(wait=0.0)
             raise
         self.period = float(self._period[0])
-        self._buf = np.empty(1 + 2 * n)
+        self._buf, self._scratch = np.full(1 + 2 * n, np.nan), np.empty(1 + 2 * n)
         self._q, self._dq = self._buf[1 : 1 + n], self._buf[1 + n :]
 
     def _wait_ready(self, start_timeout: float) -> None:
@@ -273,7 +367,7 @@ class ProcessArm:
 
     def read(self) -> tuple[float, FloatArray, FloatArray]:
         """The newest published ``(stamp, q, dq)`` (arrays reused by the next call)."""
-        _read_state(self._ctl, self._state, self._buf)
+        _read_state(self._ctl, self._state, self._buf, self._scratch)
         return float(self._buf[0]), self._q, self._dq
 
     def write(self, tau: FloatArray) -> None:
@@ -290,13 +384,26 @@ class ProcessArm:
     @property
     def counters(self) -> dict:
         """Arm-side counts: ``steps`` integrated, ``missed_commands`` (periods without a
-        new torque once started), ``late`` (periods the arm's own loop woke too late for)."""
+        new torque once started), ``late`` (periods the arm's own loop woke too late for),
+        ``gc`` (its collector: ``"automatic"``, ``"frozen"`` while it runs with
+        ``gc_frozen``, ``"restored"`` after), ``gc_collections`` (run in its slack),
+        ``priority`` (its ``SCHED_FIFO`` priority, 0: normal)."""
+        if self._closed:  # (as the arm process left them)
+            return dict(self._final)
         c = self._ctl
         return {
             "steps": int(c[_STEPS]),
             "missed_commands": int(c[_MISSED_CMDS]),
             "late": int(c[_LATE]),
+            "gc": _GC_STATES[int(c[_GC])],
+            "gc_collections": int(c[_GC_RUNS]),
+            "priority": self.priority,
         }
+
+    @property
+    def pid(self) -> int | None:
+        """The arm process's id (``None`` before it started)."""
+        return self._proc.pid
 
     @property
     def alive(self) -> bool:
@@ -319,6 +426,9 @@ class ProcessArm:
             self._proc.terminate()
             self._proc.join(timeout=5.0)
         self._conn.close()
+        self._closed = False
+        self._final = self.counters
+        self._closed = True
         del self._ctl, self._period, self._state, self._tau
         self._shm.close()
         self._shm.unlink()

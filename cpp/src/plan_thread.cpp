@@ -3,6 +3,7 @@
 
 #include "hmpc/errors.hpp"
 #include "hmpc/joint_qps.hpp"
+#include "hmpc/stack_map.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -33,13 +34,8 @@ PlanThread::PlanThread(const CRefRow& F, int N_, std::shared_ptr<JointQPs> qps,
     throw std::invalid_argument("PlanThread: expected a period Ts > 0");
   if (!(max_age > 0.0)) throw std::invalid_argument("PlanThread: expected max_age > 0");
   // The map's rows in the stack's order, as HierarchicalStep's (the same G, bit for bit).
-  FT_.resize(2 + 2 * N, Nc);
-  FT_.topRows(2) = F.topRows(2);
-  for (int j = 0; j < N; ++j) {
-    FT_.row(2 + j) = F.row(2 + 2 * j);
-    FT_.row(2 + N + j) = F.row(3 + 2 * j);
-  }
-  grad_rows_ = FT_.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
+  FT_ = map_in_stack_order(F, N);
+  grad_rows_ = gradient_rows(FT_, N);
   Gt_.setZero(Nc, n);
   offsets_ = offsets;
   for (auto& r : req_) r.stack.setZero(2 + 2 * N, n);
@@ -83,15 +79,7 @@ void PlanThread::request(double t, const CRefVec& q, const CRefVec& dq) {
   Request& r = req_[req_back_];
   r.stack.row(0) = q.transpose();
   r.stack.row(1) = dq.transpose();
-  r.t = t;
-  r.sampled = false;
-  r.reference = reference_;
-  r.serial = ++asked_;
-  const int old = req_mid_.exchange(req_back_ | FRESH);
-  if (old & FRESH) ++dropped;
-  req_back_ = old & 3;
-  ++requests;
-  notify();
+  publish(r, t, reference_);
 }
 
 void PlanThread::request_stack(double t, const CRefRow& S) {
@@ -101,9 +89,16 @@ void PlanThread::request_stack(double t, const CRefRow& S) {
   if (!running()) throw std::logic_error("PlanThread: stopped");
   Request& r = req_[req_back_];
   r.stack = S;
+  publish(r, t, nullptr);
+}
+
+// The request in the back buffer handed over: it becomes the middle one (fresh), a fresh
+// one not taken is dropped (counted), and the planner is woken. `reference`: the compiled
+// reference the planner samples the horizon from (none: the stack holds it).
+void PlanThread::publish(Request& r, double t, Reference* reference) {
   r.t = t;
-  r.sampled = true;
-  r.reference = nullptr;
+  r.sampled = reference == nullptr;
+  r.reference = reference;
   r.serial = ++asked_;
   const int old = req_mid_.exchange(req_back_ | FRESH);
   if (old & FRESH) ++dropped;

@@ -102,6 +102,7 @@ class PlanThread {
   };
   void run();
   void plan_once(const Request& r);
+  void publish(Request& r, double t, Reference* reference);
   void notify();
 
   std::shared_ptr<JointQPs> qps_;

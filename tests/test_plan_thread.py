@@ -230,3 +230,111 @@ def test_ctrl_c_while_waiting_for_a_plan_stops_the_thread():
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["interrupted", "0", "False"]
+
+
+# --- plans at 1 kHz with a long horizon and soft limits ---------------------------------
+
+
+def _soft_planner(max_age: float, Ts: float = 0.001, N: int = 100, vel: float = 1.0):
+    """Three double-integrator joints (Eq 24) with soft velocity limits, N = Nc: the
+    condensed MPC, the planner's joint QPs and its PlanThread."""
+    from hmpc_pin.mpc.condensed import CondensedMPC, JointQPs, StateLimits
+
+    from .test_joint_mpc import EPS_ABS, P_PAPER, Q_PAPER, R_PAPER, SOFT, V_LIMIT
+
+    mpc = CondensedMPC(Ts, N, N, Q_PAPER, R_PAPER, P_PAPER)
+    limits = StateLimits(np.full(3, -2.0), np.full(3, 2.0), np.full(3, vel), SOFT["rho2"],
+                         SOFT["rho1"])  # fmt: skip
+    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    planner = load_native().PlanThread(mpc.FT, N, qps._core, Ts * np.arange(1, N + 1), Ts, max_age)
+    return mpc, qps, planner
+
+
+def _sine(t):
+    """r, ṙ of three sines (0.5 rad, 1 Hz, phases 0, 1, 2: their velocity π rad/s beyond
+    the 1 rad/s limit), shape (2, 3)."""
+    phase, w = np.array([0.0, 1.0, 2.0]), 2.0 * np.pi
+    return np.vstack([0.5 * np.sin(w * t + phase), 0.5 * w * np.cos(w * t + phase)])
+
+
+def _stack(x, t, Ts, N):
+    """The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n) and the interleaved reference
+    (2N, n) of own_soft_qp."""
+    ref = np.vstack([_sine(t + j * Ts) for j in range(1, N + 1)])
+    return np.vstack([x, ref[0::2], ref[1::2]]), ref
+
+
+def test_plans_at_1khz_with_soft_limits_satisfy_the_soft_qp_kkt_conditions():
+    """The planner's plans along a closed loop at Ts = 1 ms, N = Nc = 100, started 0.2 rad
+    off sines faster than the velocity limit (the soft limits active from the first plan):
+    each joint's (U, s) satisfies the KKT conditions of the soft-limit QP built here in
+    numpy (tests/test_joint_mpc.py: own_soft_qp, soft_kkt_residual), to the solver's
+    tolerance; the plan row used by the loop is U's first."""
+    from .test_joint_mpc import EPS_ABS, own_soft_qp, soft_kkt_residual
+
+    Ts, N = 0.001, 100
+    mpc, qps, planner = _soft_planner(max_age=2 * Ts)
+    x = _sine(0.0) + np.array([[0.2], [0.0]])
+    A_dyn = np.array([[1.0, Ts], [0.0, 1.0]])
+    B_dyn = np.array([[Ts * Ts / 2.0], [Ts]])
+    soft = 0
+    try:
+        for k in range(12):
+            t = k * Ts
+            S, ref = _stack(x, t, Ts, N)
+            planner.request_stack(t, S)
+            assert planner.wait()
+            U = planner.plan
+            assert planner.plan_time == t
+            soft += qps.constrained
+            for i in range(3):
+                z = np.append(U[:, i], qps.slack[i])
+                Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, -2.0, 2.0, 1.0)
+                violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
+                assert violation <= 1e-7, (k, i, violation)
+                assert residual <= 100.0 * EPS_ABS, (k, i, residual)
+            v = np.empty(3)
+            assert planner.input(t, v)
+            np.testing.assert_array_equal(v, U[0])
+            x = A_dyn @ x + B_dyn @ U[:1]
+    finally:
+        planner.stop()
+    assert soft >= 10 * 3  # the soft limits were active
+
+
+def test_a_late_cycle_uses_the_last_plan_shifted_and_a_stale_one_brakes():
+    """A hand-driven clock over a planner that is late: every cycle whose plan has not come
+    uses the previous plan's row for its time (row ⌊(t − t_plan)/Ts⌋), while the plan is
+    within the staleness bound (the default: its control horizon, Nc·Ts); past it the law
+    brakes, counted in ``fallbacks``."""
+    robot, settings, q0, reference = _arm("paper_combined")
+    Ts = 0.002
+    settings = replace(settings, Ts=Ts, N=20, Nc=5)
+    # the arm's period P = Ts/2: a request every second cycle
+    law = InnerLawThreaded(HierarchicalMPC(robot, settings), default_observer(robot.nq, Ts / 2),
+                           Ts / 2, None)  # fmt: skip
+    assert law.max_age == pytest.approx(5 * Ts)  # the default: the control horizon
+    n = robot.nq
+    q = np.asarray(q0, float) + 0.1
+    dq = np.zeros(n)
+    with law:
+        law.reset(q, dq)
+        law.step(0.0, q, dq, reference)  # the first cycle waits for its plan (t_plan = 0)
+        U = law.planner.plan
+        assert law.planner.plan_time == 0.0 and law.fallbacks == 0
+        # the planner is stopped from answering: a request is never taken (planner idle,
+        # the request replaced): here by cycles that are not request cycles (k odd)
+        for k, t in enumerate(np.arange(1, 10) * Ts / 2 + 1e-12):
+            law._k = 2 * k + 1  # never a multiple of mpc_every = 2: no request
+            law.step(float(t), q, dq, reference)
+            row = min(int(np.floor(t / Ts + 1e-9)), 4)
+            np.testing.assert_array_equal(law._v, U[row], err_msg=f"t = {t}")
+            assert law.planner.last_age == pytest.approx(t)
+        assert law.fallbacks == 0
+        # past the bound (10 ms = 5 Ts): braked, counted
+        law._k = 21
+        dq = np.linspace(-1.0, 1.0, n)
+        law.step(0.0101, q, dq, reference)
+        assert law.fallbacks == 1
+        vmin, vmax = settings.bounds(n)
+        np.testing.assert_array_equal(law._v, np.clip(-dq / Ts, vmin, vmax))

@@ -41,6 +41,7 @@ PlanThread::PlanThread(const CRefRow& F, int N_, std::shared_ptr<JointQPs> qps,
   for (auto& r : req_) r.stack.setZero(2 + 2 * N, n);
   for (auto& b : buf_) b.setZero(Nc, n);
   std::fill(t_buf_, t_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
+  std::fill(s_buf_, s_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
   thread_ = std::thread(&PlanThread::run, this);
   ++live_;
 }
@@ -131,6 +132,8 @@ bool PlanThread::input(double t, RefVec v) {
     has_front_ = true;
   }
   const double age = t - t_buf_[front_];
+  last_age = has_front_ ? age : std::numeric_limits<double>::quiet_NaN();
+  last_solve = has_front_ ? s_buf_[front_] : std::numeric_limits<double>::quiet_NaN();
   // a plan from the future, or older than the bound (NaN: none) is refused
   if (!has_front_ || !(age >= 0.0) || !(age <= max_age)) {
     ++stale;
@@ -151,6 +154,9 @@ void PlanThread::reset() {
   mid_.fetch_and(3);  // and a plan not taken
   has_front_ = false;
   std::fill(t_buf_, t_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
+  std::fill(s_buf_, s_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
+  last_age = last_solve = std::numeric_limits<double>::quiet_NaN();
+  max_solve_ = 0.0;
   error_ = nullptr;
   failed_ = false;
   qps_->restart();  // the planner is idle: its QPs are this thread's to touch
@@ -158,8 +164,11 @@ void PlanThread::reset() {
 
 double PlanThread::plan_time() {
   Vec v(n);
+  const double age = last_age, solve = last_solve;  // the torque loop's, kept
   input(std::numeric_limits<double>::quiet_NaN(), v);  // the newest plan taken (refused)
   --stale;
+  last_age = age;
+  last_solve = solve;
   return has_front_ ? t_buf_[front_] : std::numeric_limits<double>::quiet_NaN();
 }
 
@@ -186,12 +195,17 @@ void PlanThread::run() {
     }
     const Request& r = req_[req_front_];
     std::exception_ptr err;
+    const auto start = std::chrono::steady_clock::now();
     try {
       plan_once(r);
     } catch (...) {
       err = std::current_exception();
     }
     if (!err) {
+      const double took =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      s_buf_[back_] = took;
+      if (took > max_solve_.load()) max_solve_ = took;  // the planner alone writes it
       back_ = mid_.exchange(back_ | FRESH) & 3;  // publish
       ++published_;
     }

@@ -338,3 +338,23 @@ def test_a_late_cycle_uses_the_last_plan_shifted_and_a_stale_one_brakes():
         assert law.fallbacks == 1
         vmin, vmax = settings.bounds(n)
         np.testing.assert_array_equal(law._v, np.clip(-dq / Ts, vmin, vmax))
+
+
+def test_the_franka_app_runs_the_threaded_law_at_1_ms_and_recommends_it():
+    """At Ts = the arm's period the threaded law applies (the MPC off the cycle), the
+    synchronous inner law does not (the whole step every cycle); a synchronous run whose
+    cycle took longer than the period gets the advice to thread the MPC, a threaded one or
+    one within its period none."""
+    from hmpc_pin.apps.franka import _inner_law_applies, threaded_advice
+
+    robot, settings, _, _ = _arm("panda_sine")
+    ctrl = HierarchicalMPC(robot, replace(settings, Ts=PERIOD), default_observer(robot.nq, PERIOD))
+    assert _inner_law_applies(ctrl, PERIOD, threaded=True)
+    assert not _inner_law_applies(ctrl, PERIOD)
+    sync = _law(InnerLawEveryCycle, robot, replace(settings, Ts=0.002))
+    advice = threaded_advice({"compute_max_us": 1500.0}, sync, PERIOD)
+    assert advice is not None and "--inner-law threaded" in advice and "1500 us" in advice
+    assert threaded_advice({"compute_max_us": 900.0}, sync, PERIOD) is None
+    assert threaded_advice({"compute_max_us": None}, sync, PERIOD) is None
+    with _law(InnerLawThreaded, robot, replace(settings, Ts=0.002)) as threaded:
+        assert threaded_advice({"compute_max_us": 1500.0}, threaded, PERIOD) is None

@@ -98,6 +98,7 @@ void expose_plan_thread(py::module_& m) {
       .def_readonly("last_age", &P::last_age)
       .def_readonly("last_solve", &P::last_solve)
       .def_property_readonly("max_solve", &P::max_solve)
+      .def_property_readonly("max_solve_cpu", &P::max_solve_cpu)
       .def_property_readonly("plan_time", &P::plan_time)
       .def_property_readonly("plan", &P::plan);
 }

@@ -16,10 +16,22 @@
 #ifdef __linux__
 #include <sys/resource.h>
 #include <sys/syscall.h>
+#include <time.h>
 #include <unistd.h>
 #endif
 
 namespace hmpc {
+
+namespace {
+// The calling thread's CPU time [s] (NaN where it cannot be read).
+double thread_cpu() {
+#ifdef __linux__
+  timespec ts;
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) == 0) return ts.tv_sec + 1e-9 * ts.tv_nsec;
+#endif
+  return std::numeric_limits<double>::quiet_NaN();
+}
+}  // namespace
 
 std::atomic<long> PlanThread::live_{0};
 
@@ -157,6 +169,7 @@ void PlanThread::reset() {
   std::fill(s_buf_, s_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
   last_age = last_solve = std::numeric_limits<double>::quiet_NaN();
   max_solve_ = 0.0;
+  max_solve_cpu_ = 0.0;
   error_ = nullptr;
   failed_ = false;
   qps_->restart();  // the planner is idle: its QPs are this thread's to touch
@@ -196,6 +209,7 @@ void PlanThread::run() {
     const Request& r = req_[req_front_];
     std::exception_ptr err;
     const auto start = std::chrono::steady_clock::now();
+    const double cpu0 = thread_cpu();
     try {
       plan_once(r);
     } catch (...) {
@@ -205,7 +219,9 @@ void PlanThread::run() {
       const double took =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       s_buf_[back_] = took;
-      if (took > max_solve_.load()) max_solve_ = took;  // the planner alone writes it
+      const double cpu = thread_cpu() - cpu0;
+      if (took > max_solve_.load()) max_solve_ = took;  // the planner alone writes them
+      if (cpu > max_solve_cpu_.load()) max_solve_cpu_ = cpu;
       back_ = mid_.exchange(back_ | FRESH) & 3;  // publish
       ++published_;
     }

@@ -32,12 +32,13 @@ import contextlib
 import os
 import signal
 import sys
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ArmError, ConfigError
+from ..exceptions import ArmError, ConfigError, ValidityWarning
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
 from ..experiment.realtime import realtime_parts
@@ -115,7 +116,8 @@ def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
     and the observer every cycle) where it applies (the hierarchical MPC with an observer
     and no declared latency), with ``"threaded"`` a
     :class:`~hmpc_pin.realtime.franka.threaded.InnerLawThreaded` (the same, the MPC in a
-    compiled thread), else the torque held between the MPC's steps.
+    compiled thread; also at ``Ts`` = 1 ms, a long horizon's MPC off the cycle), else the
+    torque held between the MPC's steps (``Ts`` = 1 ms: the whole step every cycle).
 
     Raises:
         ConfigError: 1 kHz does not divide the controller period, or the brake settings.
@@ -144,25 +146,29 @@ def franka_parts(experiment: Experiment, inner_law: str = "every-cycle"):
     )
     ctrl = experiment.controller
     cc = experiment.config.controller
-    if inner_law in ("every-cycle", "threaded") and _inner_law_applies(ctrl, loop_settings.period):
+    threaded = inner_law == "threaded"
+    if inner_law in ("every-cycle", "threaded") and _inner_law_applies(
+        ctrl, loop_settings.period, threaded
+    ):
         from ..experiment.controllers import make_compensation
         from ..realtime.franka.rates import InnerLawEveryCycle
         from ..realtime.franka.threaded import InnerLawThreaded
 
         fast = make_compensation(robot, replace(cc, Ts=loop_settings.period), experiment.q0)
-        law = InnerLawThreaded if inner_law == "threaded" else InnerLawEveryCycle
+        law = InnerLawThreaded if threaded else InnerLawEveryCycle
         ctrl = law(ctrl, fast, loop_settings.period, FRANKA_TORQUE_LIMIT)
     return loop_settings, safety, safe, GravityByArm(ctrl, robot)
 
 
-def _inner_law_applies(ctrl, period: float) -> bool:
-    """The hierarchical MPC, ``Ts`` above the arm's period, an observer, no latency."""
+def _inner_law_applies(ctrl, period: float, threaded: bool = False) -> bool:
+    """The hierarchical MPC, ``Ts`` above the arm's period (or equal to it, ``threaded``:
+    the MPC off the cycle), an observer, no latency."""
     from ..compensation.base import NoCompensation
     from ..controllers.hierarchical import HierarchicalMPC
 
     return (
         isinstance(ctrl, HierarchicalMPC)
-        and ctrl.Ts > period * 1.5
+        and ctrl.Ts > period * (0.5 if threaded else 1.5)
         and not isinstance(ctrl.compensation, NoCompensation)
         and not (ctrl.latency or 0.0) > 0
     )
@@ -331,9 +337,27 @@ def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper
             "fallbacks": int(law.fallbacks),
             "max_age": float(planner.max_age),
         }
+    advice = threaded_advice(summary, law, loop_settings.period)
+    if advice is not None:
+        summary["advice"] = advice
+        warnings.warn(advice, ValidityWarning, stacklevel=2)
     files = save_run(run, out, stem, "franka")
     files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
     return run, files, summary
+
+
+def threaded_advice(summary: dict, law, period: float) -> str | None:
+    """The threaded law recommended when, with the MPC in the cycle, a cycle's compute
+    (``summary["compute_max_us"]``) took longer than the arm's ``period`` [s] (a long
+    horizon's activation, or every step of a stalled arm); ``None`` otherwise."""
+    worst = summary.get("compute_max_us")
+    if worst is None or type(law).__name__ == "InnerLawThreaded" or worst <= 1e6 * period:
+        return None
+    return (
+        f"a cycle's compute took up to {worst:.0f} us, beyond the arm's period of "
+        f"{1e3 * period:g} ms, with the MPC in the cycle: run the MPC in its compiled thread "
+        "(--inner-law threaded), whose cycles use the last plan shifted instead of waiting"
+    )
 
 
 def _thread_policy() -> tuple[int, int] | None:
@@ -436,6 +460,7 @@ def _driver_summary(arm: FrankaArm, end: dict) -> dict:
         "success_rate_mean": float(rate.mean()) if rate.size else None,
         "compute_p50_us": float(np.percentile(compute, 50)) if compute.size else None,
         "compute_p99_us": float(np.percentile(compute, 99)) if compute.size else None,
+        "compute_max_us": float(compute.max()) if compute.size else None,
         "nonfinite_requests": arm.nonfinite,
         "end": end,
         "fault": arm.fault,
@@ -563,8 +588,9 @@ def franka_arguments(parser) -> None:
         default="every-cycle",
         help="with Ts > 1 ms: inverse dynamics and observer every 1 ms cycle from the MPC's "
         "latest output (every-cycle), the same with the MPC in a compiled thread whose "
-        "latest plan is used within 2 Ts (threaded), or the whole step's torque held for Ts "
-        "(held) [every-cycle]",
+        "latest plan is used shifted within its control horizon, max(Nc, 2) Ts (threaded; "
+        "also at Ts = 1 ms: a long horizon off the cycle), or the whole step's torque held "
+        "for Ts (held) [every-cycle]",
     )
     parser.add_argument(
         "--thresholds",

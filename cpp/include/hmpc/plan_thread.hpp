@@ -92,8 +92,10 @@ class PlanThread {
   // clock around its MPC: the gradients and the joint QPs).
   double last_age = std::numeric_limits<double>::quiet_NaN();
   double last_solve = std::numeric_limits<double>::quiet_NaN();
-  // The longest solve of a published plan [s] since construction or reset().
+  // The longest solve of a published plan [s] since construction or reset(), by the
+  // planner's clock and by its thread's CPU time (Linux; elsewhere NaN).
   double max_solve() const { return max_solve_.load(); }
+  double max_solve_cpu() const { return max_solve_cpu_.load(); }
   // The torque loop's view: t_plan of the plan it reads [s] (NaN: none) and its U (Nc×n)
   // (the freshest plan taken first).
   double plan_time();
@@ -137,7 +139,7 @@ class PlanThread {
   bool busy_ = false, stop_ = false;
   long answered_ = 0;  // the serial of the last request answered
   std::atomic<long> asked_{0}, published_{0};
-  std::atomic<double> max_solve_{0.0};
+  std::atomic<double> max_solve_{0.0}, max_solve_cpu_{0.0};
   std::atomic<bool> failed_{false};
   std::exception_ptr error_;
   std::thread thread_;

@@ -21,8 +21,11 @@ copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 With ``wait=True`` (deterministic: each request waits for its plan) the torques are, bit
 for bit, those of :class:`~hmpc_pin.realtime.franka.rates.InnerLawEveryCycle` on the same
 controller. Without it the request's own cycle uses the previous plan (its row 1, or its
-last with :math:`N_c = 1`): the default ``max_age = 2 T_s`` lets the new plan be one MPC
-period late.
+last with :math:`N_c = 1`). The default staleness bound is the plan's control horizon,
+``max_age = max(N_c, 2) T_s``: a plan late by any number of periods is used shifted (each
+row is the input the MPC chose for that time, along a prediction that kept the limits)
+while the cycle's time lies within its control horizon, and the cycle brakes only beyond
+it (with :math:`N_c = 1`, one MPC period late).
 
 The thread is stopped and joined by :meth:`InnerLawThreaded.close` (also ``with`` and the
 object's end).
@@ -49,6 +52,7 @@ _KNOBS = (
     "active_set_iter",
     "soft_active_set_iter",
     "soft_step_exchanges",
+    "soft_step_work",
     "shift",
 )
 
@@ -83,7 +87,7 @@ class InnerLawThreaded(InnerLawEveryCycle):
         period: The arm's period :math:`P` [s]; ``controller.Ts`` a multiple of it.
         effort_limit: Per-joint limit [N·m] or ``None`` (as the synchronous law).
         max_age: The staleness bound [s]: a plan older than this is never used (default
-            ``2 * controller.Ts``).
+            its control horizon, ``max(Nc, 2) * controller.Ts``).
         wait: Each request waits for its plan (deterministic; the MPC's cost is then in the
             cycle, as the synchronous law's).
 
@@ -103,7 +107,8 @@ class InnerLawThreaded(InnerLawEveryCycle):
     ):
         super().__init__(controller, compensation, period, effort_limit)
         Ts = controller.Ts
-        age = 2.0 * Ts if max_age is None else float(max_age)
+        Nc = controller.settings.Nc
+        age = max(Nc, 2) * Ts if max_age is None else float(max_age)
         if not (math.isfinite(age) and age > 0):
             raise ConfigError("max_age", f"expected a staleness bound [s] > 0, got {max_age!r}")
         self.wait = bool(wait)

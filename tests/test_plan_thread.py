@@ -149,7 +149,11 @@ def test_the_law_brakes_on_a_stale_plan_and_counts_it():
     law, q0, reference = _planner(max_age=0.015)
     n = law.robot.nq
     dq = np.linspace(-1.0, 1.0, n)
-    law.step(0.0, q0, dq, reference)  # the first cycle waits for its plan
+    law._request(0.0, q0, dq, reference)
+    assert law.planner.wait()
+    law._k = 10  # a request cycle: the planner is idle, the plan of t = 0 used
+    law._request = lambda *a: None
+    law.step(0.0, q0, dq, reference)
     assert law.fallbacks == 0
     # a cycle 20 ms later without a new request (not a multiple of m = 10: no request)
     law._k = 1
@@ -273,7 +277,7 @@ def test_plans_at_1khz_with_soft_limits_satisfy_the_soft_qp_kkt_conditions():
     from .test_joint_mpc import EPS_ABS, own_soft_qp, soft_kkt_residual
 
     Ts, N = 0.001, 100
-    mpc, qps, planner = _soft_planner(max_age=2 * Ts)
+    _, qps, planner = _soft_planner(max_age=2 * Ts)
     x = _sine(0.0) + np.array([[0.2], [0.0]])
     A_dyn = np.array([[1.0, Ts], [0.0, 1.0]])
     B_dyn = np.array([[Ts * Ts / 2.0], [Ts]])
@@ -305,8 +309,9 @@ def test_plans_at_1khz_with_soft_limits_satisfy_the_soft_qp_kkt_conditions():
 def test_a_late_cycle_uses_the_last_plan_shifted_and_a_stale_one_brakes():
     """A hand-driven clock over a planner that is late: every cycle whose plan has not come
     uses the previous plan's row for its time (row ⌊(t − t_plan)/Ts⌋), while the plan is
-    within the staleness bound (the default: its control horizon, Nc·Ts); past it the law
-    brakes, counted in ``fallbacks``."""
+    within the staleness bound (the default: its control horizon, Nc·Ts); past it, and
+    before the first plan (the first cycle does not wait for it), the law brakes, counted
+    in ``fallbacks``."""
     robot, settings, q0, reference = _arm("paper_combined")
     Ts = 0.002
     settings = replace(settings, Ts=Ts, N=20, Nc=5)
@@ -319,9 +324,17 @@ def test_a_late_cycle_uses_the_last_plan_shifted_and_a_stale_one_brakes():
     dq = np.zeros(n)
     with law:
         law.reset(q, dq)
-        law.step(0.0, q, dq, reference)  # the first cycle waits for its plan (t_plan = 0)
+        request, law._request = law._request, lambda *a: None  # requests withheld
+        # the first cycle does not wait for a plan: none yet, it brakes (at rest: v = 0)
+        law.step(0.0, q, dq, reference)
+        assert law.fallbacks == 1
+        np.testing.assert_array_equal(law._v, np.zeros(n))
+        request(0.0, q, dq, reference)  # the plan of t = 0, waited for
+        assert law.planner.wait()
+        law._k = 2  # a request cycle, the request withheld: the plan of t = 0 used
+        law.step(0.0, q, dq, reference)
         U = law.planner.plan
-        assert law.planner.plan_time == 0.0 and law.fallbacks == 0
+        assert law.planner.plan_time == 0.0 and law.fallbacks == 1
         # the planner is stopped from answering: a request is never taken (planner idle,
         # the request replaced): here by cycles that are not request cycles (k odd)
         for k, t in enumerate(np.arange(1, 10) * Ts / 2 + 1e-12):
@@ -330,12 +343,12 @@ def test_a_late_cycle_uses_the_last_plan_shifted_and_a_stale_one_brakes():
             row = min(int(np.floor(t / Ts + 1e-9)), 4)
             np.testing.assert_array_equal(law._v, U[row], err_msg=f"t = {t}")
             assert law.planner.last_age == pytest.approx(t)
-        assert law.fallbacks == 0
+        assert law.fallbacks == 1
         # past the bound (10 ms = 5 Ts): braked, counted
         law._k = 21
         dq = np.linspace(-1.0, 1.0, n)
         law.step(0.0101, q, dq, reference)
-        assert law.fallbacks == 1
+        assert law.fallbacks == 2
         vmin, vmax = settings.bounds(n)
         np.testing.assert_array_equal(law._v, np.clip(-dq / Ts, vmin, vmax))
 

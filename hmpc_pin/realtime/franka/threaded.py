@@ -8,8 +8,9 @@ copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 
 1. the observer over the period that just ended (as the synchronous law);
 2. at :math:`k = 0, m, 2m, \\dots` the state :math:`(t_k, q_k, \\dot q_k)` is handed to the
-   planner (a request; it does not wait, except for the first after
-   :meth:`InnerLawThreaded.reset`, or every time with ``wait=True``);
+   planner (a request; it does not wait, the first after :meth:`InnerLawThreaded.reset`
+   neither -- the cycles before the first plan brake, which holds an arm at rest --
+   except every time with ``wait=True``);
 3. the acceleration of the latest plan for the cycle's time :math:`t`: the plan's row
    :math:`\\lfloor (t - t_\\text{plan}) / T_s \\rfloor` (past the control horizon its last
    row), if the plan is not older than ``max_age``; else the **brake** fallback
@@ -142,7 +143,7 @@ class InnerLawThreaded(InnerLawEveryCycle):
         M, nle = self._observe(q, dq)
         if self._k % self.mpc_every == 0:
             self._request(t, q, dq, reference)
-            if self.wait or self._k == 0:
+            if self.wait:
                 self.planner.wait()
         if not self.planner.input(t, self._v):
             self.fallbacks += 1

@@ -297,10 +297,11 @@ def compare(res: dict, threaded: dict, variants: dict, ref, budget: int, args) -
             r = res[name]
             worst = np.median(r["wall"].max(axis=1))
             fb = r["stats"][:, 5].sum()
+            track = "1" if tag == "(a)" else "–"
             print(f"| {scenario} | {tag} synchronous{', bounded' if tag == '(b)' else ''} | "
                   f"{worst:.0f} | {np.median(r['cpu'].max(axis=1)):.0f} | "
                   f"{np.percentile(r['wall'], 99.9):.0f} | {worst / a_worst:.2f} | – | – | – | – "
-                  f"| 1 | {fb} of {r['stats'][:, 0].sum()} |")  # fmt: skip
+                  f"| {track} | {fb} of {r['stats'][:, 0].sum()} |")  # fmt: skip
         for name in (k for k in threaded if k.startswith(scenario)):
             law = threaded[name][0]
             blocks = res[name]
@@ -326,7 +327,8 @@ def compare(res: dict, threaded: dict, variants: dict, ref, budget: int, args) -
                   f"{law._qps.soft_fallbacks} |")  # fmt: skip
     print(
         "\ntracking / (a)'s: closed loop, the worst joint's RMS error over the run against "
-        "(a)'s; stalled arm, RMS(v − v(a)) / RMS(v(a)). worst: the median over blocks of "
+        "(a)'s; stalled arm, RMS(v − v(a)) / RMS(v(a)); (b) replays (a)'s states (no loop of "
+        "its own). worst: the median over blocks of "
         "each block's worst; p99.9 over all cycles."
     )
 

@@ -268,6 +268,11 @@ def main() -> int:
     return 0
 
 
+def _pct(x: np.ndarray, p: float, fmt: str) -> str:
+    """The p-th percentile of x formatted, or "none" (no sample: no plan used)."""
+    return format(np.percentile(x, p), fmt) if x.size else "none"
+
+
 def _rms_tracking(q: np.ndarray, t: np.ndarray, ref) -> float:
     """The worst joint's RMS error [rad] of the states q (steps, n) at the times t."""
     q_ref = ref.sample_many(t)[0]
@@ -321,8 +326,8 @@ def compare(res: dict, threaded: dict, variants: dict, ref, budget: int, args) -
                   f"{np.median([b['cpu'].max() for b in blocks]):.0f} | "
                   f"{np.percentile(w, 99.9):.0f} | {worst / a_worst:.2f} | "
                   f"{max(b['max_solve'] for b in blocks):.0f} / "
-                  f"{max(b['max_solve_cpu'] for b in blocks):.0f}, {np.percentile(solves, 99):.0f} "
-                  f"| {used.max():.0f} / {np.percentile(used, 99.9):.1f} | {braked} of "
+                  f"{max(b['max_solve_cpu'] for b in blocks):.0f}, {_pct(solves, 99, '.0f')} "
+                  f"| {_pct(used, 100, '.0f')} / {_pct(used, 99.9, '.1f')} | {braked} of "
                   f"{len(ages)} | {published} | {track:.3g} | "
                   f"{law._qps.soft_fallbacks} |")  # fmt: skip
     print(

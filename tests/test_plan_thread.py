@@ -371,3 +371,17 @@ def test_the_franka_app_runs_the_threaded_law_at_1_ms_and_recommends_it():
     assert threaded_advice({"compute_max_us": None}, sync, PERIOD) is None
     with _law(InnerLawThreaded, robot, replace(settings, Ts=0.002)) as threaded:
         assert threaded_advice({"compute_max_us": 1500.0}, threaded, PERIOD) is None
+
+
+def test_the_planner_gets_the_controllers_knobs_and_the_default_bound():
+    """The planner's QPs carry the controller's soft exchange bounds; the default staleness
+    bound is the control horizon, and two MPC periods with Nc = 1."""
+    robot, settings, _, _ = _arm("panda_sine")
+    ctrl = HierarchicalMPC(robot, replace(settings, Ts=0.002, N=20, Nc=1))
+    ctrl.qps.soft_step_work = 1600
+    ctrl.qps.soft_step_exchanges = 5
+    with InnerLawThreaded(ctrl, default_observer(robot.nq, PERIOD), PERIOD, None) as law:
+        assert law._qps.soft_step_work == 1600 and law._qps.soft_step_exchanges == 5
+        assert law.max_age == pytest.approx(2 * 0.002)
+    with _law(InnerLawThreaded, robot, replace(settings, Ts=0.002, N=20, Nc=8)) as law:
+        assert law.max_age == pytest.approx(8 * 0.002)

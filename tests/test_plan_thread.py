@@ -385,3 +385,20 @@ def test_the_planner_gets_the_controllers_knobs_and_the_default_bound():
         assert law.max_age == pytest.approx(2 * 0.002)
     with _law(InnerLawThreaded, robot, replace(settings, Ts=0.002, N=20, Nc=8)) as law:
         assert law.max_age == pytest.approx(8 * 0.002)
+
+
+def test_a_reset_starts_the_counters_of_a_run():
+    """The planner's counters are a run's, as the law's fallbacks: a step and a reset before
+    the run (the real-time loop's warm-up) leave nothing counted."""
+    law, q0, reference = _planner()
+    p, n = law.planner, law.robot.nq
+    law._request(0.0, q0, np.zeros(n), reference)
+    assert p.wait()
+    law._request = lambda *a: None  # requests withheld
+    law.step(5.0, q0, np.zeros(n), reference)  # the plan of t = 0 far too old: braked
+    assert law.fallbacks == p.stale == 1 and p.requests == p.published == 1
+    law.reset(q0, np.zeros(n))
+    assert law.fallbacks == p.stale == p.requests == p.published == p.dropped == 0
+    law.step(0.0, q0, np.zeros(n), reference)  # no plan since the reset: braked
+    assert law.fallbacks == p.stale == 1
+    law.close()

@@ -170,6 +170,8 @@ void PlanThread::reset() {
   last_age = last_solve = std::numeric_limits<double>::quiet_NaN();
   max_solve_ = 0.0;
   max_solve_cpu_ = 0.0;
+  requests = dropped = stale = 0;  // the planner is idle: it has counted what it published
+  published_ = 0;
   error_ = nullptr;
   failed_ = false;
   qps_->restart();  // the planner is idle: its QPs are this thread's to touch

@@ -72,7 +72,8 @@ class PlanThread {
   // plan, or it is stale (module doc). Rethrows the planner's exception.
   bool input(double t, RefVec v);
   // Start a run: drop any request not taken, wait for the planner to be idle, drop the
-  // plan, restart the joint QPs (as HierarchicalStep::reset). Not during a run's cycles.
+  // plan, restart the joint QPs (as HierarchicalStep::reset), zero the counters. Not during
+  // a run's cycles.
   void reset();
   // Stop the thread and join it (idempotent).
   void stop();
@@ -83,8 +84,9 @@ class PlanThread {
 
   int n, N, Nc, nice;
   double Ts, max_age;
-  // Counters since construction: requests made, requests replaced before the planner took
-  // them, inputs refused (no plan or stale) -- the torque loop's -- and plans published.
+  // Counters since construction or the last reset() (a run's): requests made, requests
+  // replaced before the planner took them, inputs refused (no plan or stale) -- the torque
+  // loop's -- and plans published.
   long requests = 0, dropped = 0, stale = 0;
   long published() const { return published_.load(); }
   // The torque loop's last input(): the age t − t_plan [s] of the newest plan it saw (NaN:

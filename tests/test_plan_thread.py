@@ -355,22 +355,28 @@ def test_a_late_cycle_uses_the_last_plan_shifted_and_a_stale_one_brakes():
 
 def test_the_franka_app_runs_the_threaded_law_at_1_ms_and_recommends_it():
     """At Ts = the arm's period the threaded law applies (the MPC off the cycle), the
-    synchronous inner law does not (the whole step every cycle); a synchronous run whose
-    cycle took longer than the period gets the advice to thread the MPC, a threaded one or
-    one within its period none."""
-    from hmpc_pin.apps.franka import _inner_law_applies, threaded_advice
+    synchronous inner law does not (the whole step every cycle); the advice to thread the
+    MPC comes when the activation step's CPU time exceeds the period, and its measurement
+    leaves the controller as reset (its next steps those of a new controller, bit for
+    bit)."""
+    from hmpc_pin.apps.franka import _inner_law_applies, activation_step_cpu, threaded_advice
 
-    robot, settings, _, _ = _arm("panda_sine")
-    ctrl = HierarchicalMPC(robot, replace(settings, Ts=PERIOD), default_observer(robot.nq, PERIOD))
+    robot, settings, q0, reference = _arm("panda_sine")
+    settings = replace(settings, Ts=PERIOD)
+    ctrl = HierarchicalMPC(robot, settings, default_observer(robot.nq, PERIOD))
     assert _inner_law_applies(ctrl, PERIOD, threaded=True)
     assert not _inner_law_applies(ctrl, PERIOD)
-    sync = _law(InnerLawEveryCycle, robot, replace(settings, Ts=0.002))
-    advice = threaded_advice({"compute_max_us": 1500.0}, sync, PERIOD)
+    advice = threaded_advice(1.5e-3, PERIOD)
     assert advice is not None and "--inner-law threaded" in advice and "1500 us" in advice
-    assert threaded_advice({"compute_max_us": 900.0}, sync, PERIOD) is None
-    assert threaded_advice({"compute_max_us": None}, sync, PERIOD) is None
-    with _law(InnerLawThreaded, robot, replace(settings, Ts=0.002)) as threaded:
-        assert threaded_advice({"compute_max_us": 1500.0}, threaded, PERIOD) is None
+    assert threaded_advice(0.9e-3, PERIOD) is None
+    cpu = activation_step_cpu(ctrl, reference, q0)
+    assert cpu > 0.0
+    fresh = HierarchicalMPC(robot, settings, default_observer(robot.nq, PERIOD))
+    fresh.reset(np.asarray(q0, float), np.zeros(robot.nq))
+    q = np.asarray(q0, float) + 0.05
+    for k in range(3):
+        tau = ctrl.step(k * PERIOD, q, np.zeros(robot.nq), reference)
+        np.testing.assert_array_equal(tau, fresh.step(k * PERIOD, q, np.zeros(robot.nq), reference))
 
 
 def test_the_planner_gets_the_controllers_knobs_and_the_default_bound():

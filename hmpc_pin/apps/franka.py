@@ -32,13 +32,14 @@ import contextlib
 import os
 import signal
 import sys
+import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ArmError, ConfigError, ValidityWarning
+from ..exceptions import ArmError, ConfigError, HmpcError, ValidityWarning
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
 from ..experiment.realtime import realtime_parts
@@ -296,6 +297,13 @@ def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper
         "inner_law": inner_law,
     }
     summary["checks"] = _check_robot(arm, experiment, options)
+    if type(law).__name__ != "InnerLawThreaded" and hasattr(experiment.controller, "qps"):
+        cpu = activation_step_cpu(experiment.controller, experiment.reference, experiment.q0)
+        summary["activation_step_cpu_us"] = 1e6 * cpu
+        advice = threaded_advice(cpu, loop_settings.period)
+        if advice is not None:
+            summary["advice"] = advice
+            warnings.warn(advice, ValidityWarning, stacklevel=2)
     if options.thresholds is not None:
         lower, upper = options.thresholds
         arm.set_collision_behavior(lower, upper)
@@ -337,26 +345,46 @@ def _drive_law(config, options, out, stem, experiment, ready, controller_wrapper
             "fallbacks": int(law.fallbacks),
             "max_age": float(planner.max_age),
         }
-    advice = threaded_advice(summary, law, loop_settings.period)
-    if advice is not None:
-        summary["advice"] = advice
-        warnings.warn(advice, ValidityWarning, stacklevel=2)
     files = save_run(run, out, stem, "franka")
     files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
     return run, files, summary
 
 
-def threaded_advice(summary: dict, law, period: float) -> str | None:
-    """The threaded law recommended when, with the MPC in the cycle, a cycle's compute
-    (``summary["compute_max_us"]``) took longer than the arm's ``period`` [s] (a long
-    horizon's activation, or every step of a stalled arm); ``None`` otherwise."""
-    worst = summary.get("compute_max_us")
-    if worst is None or type(law).__name__ == "InnerLawThreaded" or worst <= 1e6 * period:
+def activation_step_cpu(controller, reference, q0, offset: float = 0.2, steps: int = 3) -> float:
+    """The MPC's step at an activation, by the thread's CPU time [s] (preemption mostly
+    left out): the costliest of ``steps`` steps of ``controller`` (a hierarchical MPC) on
+    the arm held at rest ``offset`` [rad] off ``reference``'s start on every joint (the
+    bounds and soft limits of every joint active at once: the worst step of a closed loop
+    that starts there, and every step of a stalled arm). The controller is reset before and
+    after."""
+    q_ref, _ = reference.sample(0.0)
+    q = np.asarray(q_ref, dtype=float) + offset
+    dq = np.zeros_like(q)
+    controller.reset(q, dq)
+    worst = 0.0
+    try:
+        for k in range(steps):
+            start = time.thread_time()
+            controller.step(k * controller.Ts, q, dq, reference)
+            worst = max(worst, time.thread_time() - start)
+    except HmpcError:  # the run reports it
+        pass
+    controller.reset(np.asarray(q0, dtype=float), np.zeros_like(q))
+    return worst
+
+
+def threaded_advice(step_cpu: float, period: float) -> str | None:
+    """The threaded law recommended when the MPC's step at an activation
+    (:func:`activation_step_cpu`, ``step_cpu`` [s]) does not fit the arm's ``period``
+    [s] with the MPC in the cycle; ``None`` otherwise."""
+    if not step_cpu > period:
         return None
     return (
-        f"a cycle's compute took up to {worst:.0f} us, beyond the arm's period of "
-        f"{1e3 * period:g} ms, with the MPC in the cycle: run the MPC in its compiled thread "
-        "(--inner-law threaded), whose cycles use the last plan shifted instead of waiting"
+        f"the MPC's step takes {1e6 * step_cpu:.0f} us of CPU where its limits activate "
+        f"(measured 0.2 rad off the reference's start), beyond the arm's period of "
+        f"{1e3 * period:g} ms: with the MPC in the cycle such cycles are late; run it in its "
+        "compiled thread (--inner-law threaded), whose cycles use the last plan shifted "
+        "instead of waiting"
     )
 
 

@@ -149,7 +149,11 @@ def test_the_law_brakes_on_a_stale_plan_and_counts_it():
     law, q0, reference = _planner(max_age=0.015)
     n = law.robot.nq
     dq = np.linspace(-1.0, 1.0, n)
-    law.step(0.0, q0, dq, reference)  # the first cycle waits for its plan
+    law._request(0.0, q0, dq, reference)
+    assert law.planner.wait()
+    law._k = 10  # a request cycle: the planner is idle, the plan of t = 0 used
+    law._request = lambda *a: None
+    law.step(0.0, q0, dq, reference)
     assert law.fallbacks == 0
     # a cycle 21 ms later without a new request (the next MPC instant put off)
     law._next = 1.0
@@ -230,3 +234,177 @@ def test_ctrl_c_while_waiting_for_a_plan_stops_the_thread():
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["interrupted", "0", "False"]
+
+
+# --- plans at 1 kHz with a long horizon and soft limits ---------------------------------
+
+
+def _soft_planner(max_age: float, Ts: float = 0.001, N: int = 100, vel: float = 1.0):
+    """Three double-integrator joints (Eq 24) with soft velocity limits, N = Nc: the
+    condensed MPC, the planner's joint QPs and its PlanThread."""
+    from hmpc_pin.mpc.condensed import CondensedMPC, JointQPs, StateLimits
+
+    from .test_joint_mpc import EPS_ABS, P_PAPER, Q_PAPER, R_PAPER, SOFT, V_LIMIT
+
+    mpc = CondensedMPC(Ts, N, N, Q_PAPER, R_PAPER, P_PAPER)
+    limits = StateLimits(np.full(3, -2.0), np.full(3, 2.0), np.full(3, vel), SOFT["rho2"],
+                         SOFT["rho1"])  # fmt: skip
+    qps = JointQPs(mpc, -V_LIMIT, V_LIMIT, ("a", "b", "c"), eps_abs=EPS_ABS, limits=limits)
+    planner = load_native().PlanThread(mpc.FT, N, qps._core, Ts * np.arange(1, N + 1), Ts, max_age)
+    return mpc, qps, planner
+
+
+def _sine(t):
+    """r, ṙ of three sines (0.5 rad, 1 Hz, phases 0, 1, 2: their velocity π rad/s beyond
+    the 1 rad/s limit), shape (2, 3)."""
+    phase, w = np.array([0.0, 1.0, 2.0]), 2.0 * np.pi
+    return np.vstack([0.5 * np.sin(w * t + phase), 0.5 * w * np.cos(w * t + phase)])
+
+
+def _stack(x, t, Ts, N):
+    """The stack [q; q̇; r_1..r_N; ṙ_1..ṙ_N] ((2 + 2N)×n) and the interleaved reference
+    (2N, n) of own_soft_qp."""
+    ref = np.vstack([_sine(t + j * Ts) for j in range(1, N + 1)])
+    return np.vstack([x, ref[0::2], ref[1::2]]), ref
+
+
+def test_plans_at_1khz_with_soft_limits_satisfy_the_soft_qp_kkt_conditions():
+    """The planner's plans along a closed loop at Ts = 1 ms, N = Nc = 100, started 0.2 rad
+    off sines faster than the velocity limit (the soft limits active from the first plan):
+    each joint's (U, s) satisfies the KKT conditions of the soft-limit QP built here in
+    numpy (tests/test_joint_mpc.py: own_soft_qp, soft_kkt_residual), to the solver's
+    tolerance; the plan row used by the loop is U's first."""
+    from .test_joint_mpc import EPS_ABS, own_soft_qp, soft_kkt_residual
+
+    Ts, N = 0.001, 100
+    _, qps, planner = _soft_planner(max_age=2 * Ts)
+    x = _sine(0.0) + np.array([[0.2], [0.0]])
+    A_dyn = np.array([[1.0, Ts], [0.0, 1.0]])
+    B_dyn = np.array([[Ts * Ts / 2.0], [Ts]])
+    soft = 0
+    try:
+        for k in range(12):
+            t = k * Ts
+            S, ref = _stack(x, t, Ts, N)
+            planner.request_stack(t, S)
+            assert planner.wait()
+            U = planner.plan
+            assert planner.plan_time == t
+            soft += qps.constrained
+            for i in range(3):
+                z = np.append(U[:, i], qps.slack[i])
+                Hz, gz, A, b = own_soft_qp(x[:, i], ref[:, i], N, N, Ts, -2.0, 2.0, 1.0)
+                violation, residual = soft_kkt_residual(Hz, gz, A, b, z, active_tol=1e-7)
+                assert violation <= 1e-7, (k, i, violation)
+                assert residual <= 100.0 * EPS_ABS, (k, i, residual)
+            v = np.empty(3)
+            assert planner.input(t, v)
+            np.testing.assert_array_equal(v, U[0])
+            x = A_dyn @ x + B_dyn @ U[:1]
+    finally:
+        planner.stop()
+    assert soft >= 10 * 3  # the soft limits were active
+
+
+def test_a_late_cycle_uses_the_last_plan_shifted_and_a_stale_one_brakes():
+    """A hand-driven clock over a planner that is late: every cycle whose plan has not come
+    uses the previous plan's row for its time (row ⌊(t − t_plan)/Ts⌋), while the plan is
+    within the staleness bound (the default: its control horizon, Nc·Ts); past it, and
+    before the first plan (the first cycle does not wait for it), the law brakes, counted
+    in ``fallbacks``."""
+    robot, settings, q0, reference = _arm("paper_combined")
+    Ts = 0.002
+    settings = replace(settings, Ts=Ts, N=20, Nc=5)
+    # the arm's period P = Ts/2: a request every second cycle
+    law = InnerLawThreaded(HierarchicalMPC(robot, settings), default_observer(robot.nq, Ts / 2),
+                           Ts / 2, None)  # fmt: skip
+    assert law.max_age == pytest.approx(5 * Ts)  # the default: the control horizon
+    n = robot.nq
+    q = np.asarray(q0, float) + 0.1
+    dq = np.zeros(n)
+    with law:
+        law.reset(q, dq)
+        request, law._request = law._request, lambda *a: None  # requests withheld
+        # the first cycle does not wait for a plan: none yet, it brakes (at rest: v = 0)
+        law.step(0.0, q, dq, reference)
+        assert law.fallbacks == 1
+        np.testing.assert_array_equal(law._v, np.zeros(n))
+        request(0.0, q, dq, reference)  # the plan of t = 0, waited for
+        assert law.planner.wait()
+        law._k = 2  # a request cycle, the request withheld: the plan of t = 0 used
+        law.step(0.0, q, dq, reference)
+        U = law.planner.plan
+        assert law.planner.plan_time == 0.0 and law.fallbacks == 1
+        # the planner is stopped from answering: a request is never taken (planner idle,
+        # the request replaced): here by cycles that are not request cycles (k odd)
+        for k, t in enumerate(np.arange(1, 10) * Ts / 2 + 1e-12):
+            law._k = 2 * k + 1  # never a multiple of mpc_every = 2: no request
+            law.step(float(t), q, dq, reference)
+            row = min(int(np.floor(t / Ts + 1e-9)), 4)
+            np.testing.assert_array_equal(law._v, U[row], err_msg=f"t = {t}")
+            assert law.planner.last_age == pytest.approx(t)
+        assert law.fallbacks == 1
+        # past the bound (10 ms = 5 Ts): braked, counted
+        law._k = 21
+        dq = np.linspace(-1.0, 1.0, n)
+        law.step(0.0101, q, dq, reference)
+        assert law.fallbacks == 2
+        vmin, vmax = settings.bounds(n)
+        np.testing.assert_array_equal(law._v, np.clip(-dq / Ts, vmin, vmax))
+
+
+def test_the_franka_app_runs_the_threaded_law_at_1_ms_and_recommends_it():
+    """At Ts = the arm's period the threaded law applies (the MPC off the cycle), the
+    synchronous inner law does not (the whole step every cycle); the advice to thread the
+    MPC comes when the activation step's CPU time exceeds the period, and its measurement
+    leaves the controller as reset (its next steps those of a new controller, bit for
+    bit)."""
+    from hmpc_pin.apps.franka import _inner_law_applies, activation_step_cpu, threaded_advice
+
+    robot, settings, q0, reference = _arm("panda_sine")
+    settings = replace(settings, Ts=PERIOD)
+    ctrl = HierarchicalMPC(robot, settings, default_observer(robot.nq, PERIOD))
+    assert _inner_law_applies(ctrl, PERIOD, threaded=True)
+    assert not _inner_law_applies(ctrl, PERIOD)
+    advice = threaded_advice(1.5e-3, PERIOD)
+    assert advice is not None and "--inner-law threaded" in advice and "1500 us" in advice
+    assert threaded_advice(0.9e-3, PERIOD) is None
+    cpu = activation_step_cpu(ctrl, reference, q0)
+    assert cpu > 0.0
+    fresh = HierarchicalMPC(robot, settings, default_observer(robot.nq, PERIOD))
+    fresh.reset(np.asarray(q0, float), np.zeros(robot.nq))
+    q = np.asarray(q0, float) + 0.05
+    for k in range(3):
+        tau = ctrl.step(k * PERIOD, q, np.zeros(robot.nq), reference)
+        np.testing.assert_array_equal(tau, fresh.step(k * PERIOD, q, np.zeros(robot.nq), reference))
+
+
+def test_the_planner_gets_the_controllers_knobs_and_the_default_bound():
+    """The planner's QPs carry the controller's soft exchange bounds; the default staleness
+    bound is the control horizon, and two MPC periods with Nc = 1."""
+    robot, settings, _, _ = _arm("panda_sine")
+    ctrl = HierarchicalMPC(robot, replace(settings, Ts=0.002, N=20, Nc=1))
+    ctrl.qps.soft_step_work = 1600
+    ctrl.qps.soft_step_exchanges = 5
+    with InnerLawThreaded(ctrl, default_observer(robot.nq, PERIOD), PERIOD, None) as law:
+        assert law._qps.soft_step_work == 1600 and law._qps.soft_step_exchanges == 5
+        assert law.max_age == pytest.approx(2 * 0.002)
+    with _law(InnerLawThreaded, robot, replace(settings, Ts=0.002, N=20, Nc=8)) as law:
+        assert law.max_age == pytest.approx(8 * 0.002)
+
+
+def test_a_reset_starts_the_counters_of_a_run():
+    """The planner's counters are a run's, as the law's fallbacks: a step and a reset before
+    the run (the real-time loop's warm-up) leave nothing counted."""
+    law, q0, reference = _planner()
+    p, n = law.planner, law.robot.nq
+    law._request(0.0, q0, np.zeros(n), reference)
+    assert p.wait()
+    law._request = lambda *a: None  # requests withheld
+    law.step(5.0, q0, np.zeros(n), reference)  # the plan of t = 0 far too old: braked
+    assert law.fallbacks == p.stale == 1 and p.requests == p.published == 1
+    law.reset(q0, np.zeros(n))
+    assert law.fallbacks == p.stale == p.requests == p.published == p.dropped == 0
+    law.step(0.0, q0, np.zeros(n), reference)  # no plan since the reset: braked
+    assert law.fallbacks == p.stale == 1
+    law.close()

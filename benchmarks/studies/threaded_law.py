@@ -14,7 +14,7 @@ joint. Two laws, timed in alternating blocks (A, B, A, B, ...), each block a new
 The cycles are paced at 1 kHz (a sleep, then a spin of the last 200 µs), as the arm's
 clock would. Per law: the compute of ``law.step`` per cycle (the plant excluded) over every
 cycle but the first of every block: p50, p99, max [µs], for all cycles and for the MPC's
-cycles (the first cycle apart: the threaded law's waits for its first plan); the worst joint's
+cycles (the first cycle apart: the run's set-up); the worst joint's
 RMS error over the last half of each run (the median over blocks) [rad]; the threaded
 law's brake fallbacks. Load average printed. Wall clock on a shared machine: a
 measurement, not a test.
@@ -105,7 +105,7 @@ def main() -> int:
         dt = np.concatenate(times[name])
         mpc = np.concatenate([np.arange(args.cycles) % m == 0] * args.blocks)
         first = np.concatenate([np.arange(args.cycles) == 0] * args.blocks)
-        start = dt[first].max()  # the first cycle (the threaded law waits for its plan)
+        start = dt[first].max()  # the first cycle (the run's set-up)
         dt, mpc = dt[~first], mpc[~first]
         p = np.percentile(dt, [50, 99])
         q = np.percentile(dt[mpc], [50, 99])

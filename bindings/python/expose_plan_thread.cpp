@@ -95,6 +95,10 @@ void expose_plan_thread(py::module_& m) {
       .def_property_readonly("dropped", [](const P& p) { return p.dropped; })
       .def_property_readonly("published", &P::published)
       .def_property_readonly("stale", [](const P& p) { return p.stale; })
+      .def_readonly("last_age", &P::last_age)
+      .def_readonly("last_solve", &P::last_solve)
+      .def_property_readonly("max_solve", &P::max_solve)
+      .def_property_readonly("max_solve_cpu", &P::max_solve_cpu)
       .def_property_readonly("plan_time", &P::plan_time)
       .def_property_readonly("plan", &P::plan);
 }

@@ -3,6 +3,7 @@
 
 #include "hmpc/errors.hpp"
 #include "hmpc/joint_qps.hpp"
+#include "hmpc/stack_map.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -15,10 +16,22 @@
 #ifdef __linux__
 #include <sys/resource.h>
 #include <sys/syscall.h>
+#include <time.h>
 #include <unistd.h>
 #endif
 
 namespace hmpc {
+
+namespace {
+// The calling thread's CPU time [s] (NaN where it cannot be read).
+double thread_cpu() {
+#ifdef __linux__
+  timespec ts;
+  if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) == 0) return ts.tv_sec + 1e-9 * ts.tv_nsec;
+#endif
+  return std::numeric_limits<double>::quiet_NaN();
+}
+}  // namespace
 
 std::atomic<long> PlanThread::live_{0};
 
@@ -33,18 +46,14 @@ PlanThread::PlanThread(const CRefRow& F, int N_, std::shared_ptr<JointQPs> qps,
     throw std::invalid_argument("PlanThread: expected a period Ts > 0");
   if (!(max_age > 0.0)) throw std::invalid_argument("PlanThread: expected max_age > 0");
   // The map's rows in the stack's order, as HierarchicalStep's (the same G, bit for bit).
-  FT_.resize(2 + 2 * N, Nc);
-  FT_.topRows(2) = F.topRows(2);
-  for (int j = 0; j < N; ++j) {
-    FT_.row(2 + j) = F.row(2 + 2 * j);
-    FT_.row(2 + N + j) = F.row(3 + 2 * j);
-  }
-  grad_rows_ = FT_.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
+  FT_ = map_in_stack_order(F, N);
+  grad_rows_ = gradient_rows(FT_, N);
   Gt_.setZero(Nc, n);
   offsets_ = offsets;
   for (auto& r : req_) r.stack.setZero(2 + 2 * N, n);
   for (auto& b : buf_) b.setZero(Nc, n);
   std::fill(t_buf_, t_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
+  std::fill(s_buf_, s_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
   thread_ = std::thread(&PlanThread::run, this);
   ++live_;
 }
@@ -83,15 +92,7 @@ void PlanThread::request(double t, const CRefVec& q, const CRefVec& dq) {
   Request& r = req_[req_back_];
   r.stack.row(0) = q.transpose();
   r.stack.row(1) = dq.transpose();
-  r.t = t;
-  r.sampled = false;
-  r.reference = reference_;
-  r.serial = ++asked_;
-  const int old = req_mid_.exchange(req_back_ | FRESH);
-  if (old & FRESH) ++dropped;
-  req_back_ = old & 3;
-  ++requests;
-  notify();
+  publish(r, t, reference_);
 }
 
 void PlanThread::request_stack(double t, const CRefRow& S) {
@@ -101,9 +102,16 @@ void PlanThread::request_stack(double t, const CRefRow& S) {
   if (!running()) throw std::logic_error("PlanThread: stopped");
   Request& r = req_[req_back_];
   r.stack = S;
+  publish(r, t, nullptr);
+}
+
+// The request in the back buffer handed over: it becomes the middle one (fresh), a fresh
+// one not taken is dropped (counted), and the planner is woken. `reference`: the compiled
+// reference the planner samples the horizon from (none: the stack holds it).
+void PlanThread::publish(Request& r, double t, Reference* reference) {
   r.t = t;
-  r.sampled = true;
-  r.reference = nullptr;
+  r.sampled = reference == nullptr;
+  r.reference = reference;
   r.serial = ++asked_;
   const int old = req_mid_.exchange(req_back_ | FRESH);
   if (old & FRESH) ++dropped;
@@ -136,6 +144,8 @@ bool PlanThread::input(double t, RefVec v) {
     has_front_ = true;
   }
   const double age = t - t_buf_[front_];
+  last_age = has_front_ ? age : std::numeric_limits<double>::quiet_NaN();
+  last_solve = has_front_ ? s_buf_[front_] : std::numeric_limits<double>::quiet_NaN();
   // a plan from the future, or older than the bound (NaN: none) is refused
   if (!has_front_ || !(age >= 0.0) || !(age <= max_age)) {
     ++stale;
@@ -156,6 +166,12 @@ void PlanThread::reset() {
   mid_.fetch_and(3);  // and a plan not taken
   has_front_ = false;
   std::fill(t_buf_, t_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
+  std::fill(s_buf_, s_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
+  last_age = last_solve = std::numeric_limits<double>::quiet_NaN();
+  max_solve_ = 0.0;
+  max_solve_cpu_ = 0.0;
+  requests = dropped = stale = 0;  // the planner is idle: it has counted what it published
+  published_ = 0;
   error_ = nullptr;
   failed_ = false;
   qps_->restart();  // the planner is idle: its QPs are this thread's to touch
@@ -163,8 +179,11 @@ void PlanThread::reset() {
 
 double PlanThread::plan_time() {
   Vec v(n);
+  const double age = last_age, solve = last_solve;  // the torque loop's, kept
   input(std::numeric_limits<double>::quiet_NaN(), v);  // the newest plan taken (refused)
   --stale;
+  last_age = age;
+  last_solve = solve;
   return has_front_ ? t_buf_[front_] : std::numeric_limits<double>::quiet_NaN();
 }
 
@@ -191,12 +210,20 @@ void PlanThread::run() {
     }
     const Request& r = req_[req_front_];
     std::exception_ptr err;
+    const auto start = std::chrono::steady_clock::now();
+    const double cpu0 = thread_cpu();
     try {
       plan_once(r);
     } catch (...) {
       err = std::current_exception();
     }
     if (!err) {
+      const double took =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      s_buf_[back_] = took;
+      const double cpu = thread_cpu() - cpu0;
+      if (took > max_solve_.load()) max_solve_ = took;  // the planner alone writes them
+      if (cpu > max_solve_cpu_.load()) max_solve_cpu_ = cpu;
       back_ = mid_.exchange(back_ | FRESH) & 3;  // publish
       ++published_;
     }

@@ -2,6 +2,7 @@
 #include "hmpc/step.hpp"
 
 #include "hmpc/joint_qps.hpp"
+#include "hmpc/stack_map.hpp"
 
 #include <cmath>
 #include <limits>
@@ -22,15 +23,9 @@ HierarchicalStep::HierarchicalStep(const std::optional<std::string>& model, cons
   if (F.rows() != 2 + 2 * N || F.cols() != Nc || qp->N != N || data->n != n || data->N != N ||
       (comp && comp->estimate().size() != n))
     throw std::invalid_argument("HierarchicalStep: shapes do not match the model and horizon");
-  // The map's rows in the stack's order: r_j, ṙ_j are rows 2 + 2(j-1), 3 + 2(j-1) of F.
-  FT.resize(2 + 2 * N, Nc);
-  FT.topRows(2) = F.topRows(2);
-  for (int j = 0; j < N; ++j) {
-    FT.row(2 + j) = F.row(2 + 2 * j);
-    FT.row(2 + N + j) = F.row(3 + 2 * j);
-  }
-  // Without a velocity weight the ṙ rows of the map are zero: skip them.
-  grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;
+  // The map's rows in the stack's order; without a velocity weight its ṙ rows are skipped.
+  FT = map_in_stack_order(F, N);
+  grad_rows = gradient_rows(FT, N);
   applied.setZero(n);
   Gt.setZero(Nc, n);
   effort = Vec::Constant(n, std::numeric_limits<double>::infinity());

@@ -32,13 +32,15 @@ import contextlib
 import os
 import signal
 import sys
+import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import ArmError, ConfigError
+from ..exceptions import ArmError, ConfigError, HmpcError, ValidityWarning
 from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig
 from ..experiment.inner_law import close_law, inner_law_controller, inner_law_summary
@@ -271,6 +273,13 @@ def _drive_law(d: _Drive):
         "inner_law": law["label"],
     }
     summary["checks"] = _check_robot(arm, experiment, options)
+    if law["name"] != "threaded" and hasattr(experiment.controller, "qps"):
+        cpu = activation_step_cpu(experiment.controller, experiment.reference, experiment.q0)
+        summary["activation_step_cpu_us"] = 1e6 * cpu
+        advice = threaded_advice(cpu, loop_settings.period)
+        if advice is not None:
+            summary["advice"] = advice
+            warnings.warn(advice, ValidityWarning, stacklevel=2)
     if options.thresholds is not None:
         lower, upper = options.thresholds
         arm.set_collision_behavior(lower, upper)
@@ -312,6 +321,44 @@ def _drive_law(d: _Drive):
     files = save_run(run, out, stem, "franka")
     files.append(arm.save_cycles(out / f"{stem}_cycles.npz"))
     return run, files, summary
+
+
+def activation_step_cpu(controller, reference, q0, offset: float = 0.2, steps: int = 3) -> float:
+    """The MPC's step at an activation, by the thread's CPU time [s] (preemption mostly
+    left out): the costliest of ``steps`` steps of ``controller`` (a hierarchical MPC) on
+    the arm held at rest ``offset`` [rad] off ``reference``'s start on every joint (the
+    bounds and soft limits of every joint active at once: the worst step of a closed loop
+    that starts there, and every step of a stalled arm). The controller is reset before and
+    after."""
+    q_ref, _ = reference.sample(0.0)
+    q = np.asarray(q_ref, dtype=float) + offset
+    dq = np.zeros_like(q)
+    controller.reset(q, dq)
+    worst = 0.0
+    try:
+        for k in range(steps):
+            start = time.thread_time()
+            controller.step(k * controller.Ts, q, dq, reference)
+            worst = max(worst, time.thread_time() - start)
+    except HmpcError:  # the run reports it
+        pass
+    controller.reset(np.asarray(q0, dtype=float), np.zeros_like(q))
+    return worst
+
+
+def threaded_advice(step_cpu: float, period: float) -> str | None:
+    """The threaded law recommended when the MPC's step at an activation
+    (:func:`activation_step_cpu`, ``step_cpu`` [s]) does not fit the arm's ``period``
+    [s] with the MPC in the cycle; ``None`` otherwise."""
+    if not step_cpu > period:
+        return None
+    return (
+        f"the MPC's step takes {1e6 * step_cpu:.0f} us of CPU where its limits activate "
+        f"(measured 0.2 rad off the reference's start), beyond the arm's period of "
+        f"{1e3 * period:g} ms: with the MPC in the cycle such cycles are late; run it in its "
+        "compiled thread (--inner-law threaded), whose cycles use the last plan shifted "
+        "instead of waiting"
+    )
 
 
 def _thread_policy() -> tuple[int, int] | None:
@@ -414,6 +461,7 @@ def _driver_summary(arm: FrankaArm, end: dict) -> dict:
         "success_rate_mean": float(rate.mean()) if rate.size else None,
         "compute_p50_us": float(np.percentile(compute, 50)) if compute.size else None,
         "compute_p99_us": float(np.percentile(compute, 99)) if compute.size else None,
+        "compute_max_us": float(compute.max()) if compute.size else None,
         "nonfinite_requests": arm.nonfinite,
         "end": end,
         "fault": arm.fault,

@@ -9,12 +9,13 @@ run the controller one of three ways, ``[realtime] inner_law`` (``--inner-law`` 
 - ``"every-cycle"``: the MPC every ``Ts``, the inverse dynamics (Eq 4) and the
   disturbance observer (Eq 13) every cycle at the fresh state
   (:class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle`);
-- ``"threaded"``: the same with the MPC in a compiled thread, its latest plan used within
-  a staleness bound of ``2 Ts`` and the brake when none is
-  (:class:`~hmpc_pin.realtime.threaded_law.InnerLawThreaded`).
+- ``"threaded"``: the same with the MPC in a compiled thread, its latest plan used shifted
+  within a staleness bound of its control horizon, ``max(Nc, 2) Ts``, and the brake when
+  none is (:class:`~hmpc_pin.realtime.threaded_law.InnerLawThreaded`); also at ``Ts``
+  equal to the interface period (a long horizon's MPC off the torque cycle).
 
 The last two apply to the hierarchical MPC with a disturbance observer, no declared
-latency and ``Ts`` above the interface period; asked for elsewhere they are an error that
+latency and (``"every-cycle"``) ``Ts`` above the interface period; asked for elsewhere they are an error that
 says what was wrong and what to do (:func:`check_inner_law`). ``"auto"`` (the default) is
 the command's own choice (:data:`AUTO`): ``franka`` runs ``"every-cycle"`` where it
 applies and ``"whole-step"`` elsewhere; ``realtime`` and ``ros`` run ``"whole-step"``
@@ -51,9 +52,11 @@ AUTO = {
 }
 
 
-def why_not_inner_law(controller: Any, period: float) -> str | None:
-    """Why the two-rate laws do not apply to ``controller`` at the interface ``period``
-    [s], with what to do instead (``None``: they apply)."""
+def why_not_inner_law(controller: Any, period: float, law: str = "every-cycle") -> str | None:
+    """Why the two-rate ``law`` (``"every-cycle"`` or ``"threaded"``) does not apply to
+    ``controller`` at the interface ``period`` [s], with what to do instead (``None``: it
+    applies). ``"threaded"`` also applies at ``Ts`` equal to the period (the MPC off the
+    torque cycle)."""
     from ..compensation.base import NoCompensation
     from ..controllers.hierarchical import HierarchicalMPC
 
@@ -63,7 +66,7 @@ def why_not_inner_law(controller: Any, period: float) -> str | None:
             "(with a collision watch or another wrapper the whole step runs): use "
             "whole-step"
         )
-    if not controller.Ts > 1.5 * period:
+    if not controller.Ts > (0.5 if law == "threaded" else 1.5) * period:
         return (
             f"controller.Ts = {controller.Ts:g} s equals the interface period {period:g} s: "
             "the whole step already runs every cycle; use whole-step, or a Ts that is a "
@@ -103,7 +106,8 @@ def inner_law_of(choice: str, command: str, controller: Any, period: float, key:
     if choice == "auto":
         auto = AUTO[command]
         if auto == "every-cycle-where-it-applies":
-            return "every-cycle" if why_not_inner_law(controller, period) is None else "whole-step"
+            reason = why_not_inner_law(controller, period, "every-cycle")
+            return "every-cycle" if reason is None else "whole-step"
         return auto
     return choice
 
@@ -119,7 +123,7 @@ def check_inner_law(choice: str, controller: Any, period: float, key: str) -> No
         raise ConfigError(key, f"expected one of {', '.join(INNER_LAWS)}, got {choice!r}")
     if choice in ("auto", "whole-step"):
         return
-    reason = why_not_inner_law(controller, period)
+    reason = why_not_inner_law(controller, period, choice)
     if reason is not None:
         raise ConfigError(key, f"{choice} does not apply: {reason}")
 

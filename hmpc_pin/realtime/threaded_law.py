@@ -9,8 +9,8 @@ copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 1. the observer over the period that just ended (as the synchronous law);
 2. at :math:`k = 0, m, 2m, \\dots` (by time, as the synchronous law) the state
    :math:`(t_k, q_k, \\dot q_k)` is handed to the planner (a request; it does not wait,
-   except for the first after :meth:`InnerLawThreaded.reset`, or every time with
-   ``wait=True``);
+   the first after :meth:`InnerLawThreaded.reset` neither -- the cycles before the first
+   plan brake, which holds an arm at rest -- except every time with ``wait=True``);
 3. the acceleration of the latest plan for the cycle's time :math:`t`: the plan's row
    :math:`\\lfloor (t - t_\\text{plan}) / T_s \\rfloor` (past the control horizon its last
    row), if the plan is not older than ``max_age``; else the **brake** fallback
@@ -22,8 +22,11 @@ copy of the joint QPs; it never takes the GIL. Every cycle :math:`k`:
 With ``wait=True`` (deterministic: each request waits for its plan) the torques are, bit
 for bit, those of :class:`~hmpc_pin.realtime.inner_law.InnerLawEveryCycle` on the same
 controller. Without it the request's own cycle uses the previous plan (its row 1, or its
-last with :math:`N_c = 1`): the default ``max_age = 2 T_s`` lets the new plan be one MPC
-period late.
+last with :math:`N_c = 1`). The default staleness bound is the plan's control horizon,
+``max_age = max(N_c, 2) T_s``: a plan late by any number of periods is used shifted (each
+row is the input the MPC chose for that time, along a prediction that kept the limits)
+while the cycle's time lies within its control horizon, and the cycle brakes only beyond
+it (with :math:`N_c = 1`, one MPC period late).
 
 The thread is stopped and joined by :meth:`InnerLawThreaded.close` (also ``with`` and the
 object's end).
@@ -50,6 +53,7 @@ _KNOBS = (
     "active_set_iter",
     "soft_active_set_iter",
     "soft_step_exchanges",
+    "soft_step_work",
     "shift",
 )
 
@@ -84,7 +88,7 @@ class InnerLawThreaded(InnerLawEveryCycle):
         period: The arm's period :math:`P` [s]; ``controller.Ts`` a multiple of it.
         effort_limit: Per-joint limit [N·m] or ``None`` (as the synchronous law).
         max_age: The staleness bound [s]: a plan older than this is never used (default
-            ``2 * controller.Ts``).
+            its control horizon, ``max(Nc, 2) * controller.Ts``).
         wait: Each request waits for its plan (deterministic; the MPC's cost is then in the
             cycle, as the synchronous law's).
 
@@ -113,7 +117,8 @@ class InnerLawThreaded(InnerLawEveryCycle):
     ):
         super().__init__(controller, compensation, period, effort_limit)
         Ts = controller.Ts
-        age = 2.0 * Ts if max_age is None else float(max_age)
+        Nc = controller.settings.Nc
+        age = max(Nc, 2) * Ts if max_age is None else float(max_age)
         if not (math.isfinite(age) and age > 0):
             raise ConfigError("max_age", f"expected a staleness bound [s] > 0, got {max_age!r}")
         self.wait = bool(wait)
@@ -147,7 +152,7 @@ class InnerLawThreaded(InnerLawEveryCycle):
         M, nle = self._observe(q, dq)
         if self._due(t):
             self._request(t, q, dq, reference)
-            if self.wait or self._k == 0:
+            if self.wait:
                 self.planner.wait()
             self._ran_mpc(t)
         if not self.planner.input(t, self._v):

@@ -32,6 +32,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <exception>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -71,7 +72,8 @@ class PlanThread {
   // plan, or it is stale (module doc). Rethrows the planner's exception.
   bool input(double t, RefVec v);
   // Start a run: drop any request not taken, wait for the planner to be idle, drop the
-  // plan, restart the joint QPs (as HierarchicalStep::reset). Not during a run's cycles.
+  // plan, restart the joint QPs (as HierarchicalStep::reset), zero the counters. Not during
+  // a run's cycles.
   void reset();
   // Stop the thread and join it (idempotent).
   void stop();
@@ -82,10 +84,20 @@ class PlanThread {
 
   int n, N, Nc, nice;
   double Ts, max_age;
-  // Counters since construction: requests made, requests replaced before the planner took
-  // them, inputs refused (no plan or stale) -- the torque loop's -- and plans published.
+  // Counters since construction or the last reset() (a run's): requests made, requests
+  // replaced before the planner took them, inputs refused (no plan or stale) -- the torque
+  // loop's -- and plans published.
   long requests = 0, dropped = 0, stale = 0;
   long published() const { return published_.load(); }
+  // The torque loop's last input(): the age t − t_plan [s] of the newest plan it saw (NaN:
+  // none; used when input() answered true), and that plan's solve time [s] (the planner's
+  // clock around its MPC: the gradients and the joint QPs).
+  double last_age = std::numeric_limits<double>::quiet_NaN();
+  double last_solve = std::numeric_limits<double>::quiet_NaN();
+  // The longest solve of a published plan [s] since construction or reset(), by the
+  // planner's clock and by its thread's CPU time (Linux; elsewhere NaN).
+  double max_solve() const { return max_solve_.load(); }
+  double max_solve_cpu() const { return max_solve_cpu_.load(); }
   // The torque loop's view: t_plan of the plan it reads [s] (NaN: none) and its U (Nc×n)
   // (the freshest plan taken first).
   double plan_time();
@@ -102,6 +114,7 @@ class PlanThread {
   };
   void run();
   void plan_once(const Request& r);
+  void publish(Request& r, double t, Reference* reference);
   void notify();
 
   std::shared_ptr<JointQPs> qps_;
@@ -117,6 +130,7 @@ class PlanThread {
   // Plans: the planner writes buf_[back_], the torque loop reads buf_[front_].
   RowMat buf_[3];
   double t_buf_[3];
+  double s_buf_[3];  // the plans' solve times [s]
   int back_ = 0, front_ = 2;
   std::atomic<int> mid_{1};
   bool has_front_ = false;  // buf_[front_] holds a plan (the torque loop's)
@@ -127,6 +141,7 @@ class PlanThread {
   bool busy_ = false, stop_ = false;
   long answered_ = 0;  // the serial of the last request answered
   std::atomic<long> asked_{0}, published_{0};
+  std::atomic<double> max_solve_{0.0}, max_solve_cpu_{0.0};
   std::atomic<bool> failed_{false};
   std::exception_ptr error_;
   std::thread thread_;

@@ -181,7 +181,7 @@ def test_the_planner_is_joined_after_a_safe_stop_and_an_exception(tmp_path, monk
 BAD = [
     (["--inner-law", "fast"], "", "", r"--inner-law: expected one of auto, whole-step"),
     ([], "inner_law = 'fast'\n", "", r"realtime\.inner_law: expected one of"),
-    (["--inner-law", "threaded"], "", "Ts = 0.001\n", r"--inner-law: threaded does not"),
+    (["--inner-law", "every-cycle"], "", "Ts = 0.001\n", r"--inner-law: every-cycle does not"),
     ([], "inner_law = 'every-cycle'\n", "latency = 0.002\n", r"realtime\.inner_law:.*latency"),
 ]
 
@@ -211,6 +211,8 @@ def test_an_inner_law_that_does_not_apply_names_what_to_do(tmp_path):
     exp = Experiment.from_config(config)
     with pytest.raises(ConfigError, match=r"use whole-step, or a Ts"):
         chosen_inner_law(exp, 1e-2, "realtime", "every-cycle")
+    # the threaded law applies at Ts equal to the period (a long horizon off the cycle)
+    assert chosen_inner_law(exp, 1e-2, "realtime", "threaded") == "threaded"
     assert chosen_inner_law(exp, 1e-3, "realtime", "every-cycle") == "every-cycle"
     assert chosen_inner_law(exp, 1e-3, "realtime") == "whole-step"  # auto, realtime's
     assert chosen_inner_law(exp, 1e-3, "franka") == "every-cycle"  # auto, Franka's

@@ -86,6 +86,7 @@ import numpy as np
 from ..compensation.bandwidth import (
     MASS_RATIO,
     bandwidth_limit,
+    compensation_bandwidth,
     overdeclared_excess,
     overdeclared_limit,
 )
@@ -101,9 +102,9 @@ from ..experiment.build import Experiment
 from ..experiment.config import ExperimentConfig, WorkspaceConfig
 from ..experiment.observer_analysis import (
     lag_inputs,
-    observer_bandwidth,
     observer_lag_error,
     observer_modes,
+    running_observer,
     worst_along,
 )
 from ..experiment.plants import plant_effort_limit
@@ -607,7 +608,7 @@ def check_config(config: ExperimentConfig, engines: bool = True) -> CheckReport:
         "not compared (--no-engine)",
     )
 
-    bw = observer_bandwidth(ex, M0)
+    bw = compensation_bandwidth(running_observer(ex), M0)
     if bw is not None:
         report.bandwidth = bw
         report.margin = _observer_findings(report, config, ex, bw)

@@ -16,6 +16,7 @@ __all__ = [
     "compute_metrics",
     "contact_lines",
     "joint_units",
+    "quat_angle",
     "run_warnings",
     "settling_time",
     "task_metrics",
@@ -121,7 +122,7 @@ class TaskMetrics:
     frame: str
 
 
-def _quat_angle(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
+def quat_angle(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Angle [rad] between unit quaternions (rows, any order of components as long as
     both use the same): :math:`2\\arccos|\\langle q^*, q\\rangle|`."""
     dot = np.abs(np.sum(q_ref * q, axis=1)) / (
@@ -137,7 +138,7 @@ def task_metrics(result, after: float = 1.0) -> TaskMetrics | None:
         return None
     mask = result.t >= after - 1e-12
     e = np.linalg.norm(result.ee_pos[mask] - result.ee_pos_ref[mask], axis=1)
-    a = _quat_angle(result.ee_quat_ref[mask], result.ee_quat[mask])
+    a = quat_angle(result.ee_quat_ref[mask], result.ee_quat[mask])
     if e.size == 0:
         return None
     return TaskMetrics(

@@ -438,7 +438,7 @@ def plot_task_space(result, path, title: str = "", after: float = 1.0) -> Path:
     """Task-space figure of an end-effector task: the tool path and its target in 3-D,
     the position error :math:`\\|p - p^*\\|` [mm] and the orientation error
     :math:`2\\arccos|\\langle q^*, q\\rangle|` [mrad] over time (``after`` marked)."""
-    from .metrics import _quat_angle
+    from .metrics import quat_angle
 
     fig = _new_figure((11, 4.6))
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
@@ -459,7 +459,7 @@ def plot_task_space(result, path, title: str = "", after: float = 1.0) -> Path:
     ax_p = fig.add_subplot(2, 2, 2)
     ax_r = fig.add_subplot(2, 2, 4, sharex=ax_p)
     e = np.linalg.norm(pos - ref, axis=1)
-    a = _quat_angle(result.ee_quat_ref, result.ee_quat)
+    a = quat_angle(result.ee_quat_ref, result.ee_quat)
     _log_y(ax_p)
     _line(ax_p, result.t, np.maximum(e * 1e3, 1e-6), "C0", lw=1.0)
     ax_p.set_ylabel("position error [mm]")

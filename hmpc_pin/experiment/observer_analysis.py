@@ -51,6 +51,14 @@ def observer_bandwidth(ex: Experiment, M0: np.ndarray) -> np.ndarray | None:
         :func:`hmpc_pin.experiment.controllers.observer_bandwidth`, the bandwidth a config
         asks for.
     """
+    import warnings
+
+    warnings.warn(
+        "observer_bandwidth(ex, M0) is deprecated: use "
+        "hmpc_pin.compensation.bandwidth.compensation_bandwidth(running_observer(ex), M0)",
+        DeprecationWarning,
+        stacklevel=2,
+    )
     return compensation_bandwidth(running_observer(ex), M0)
 
 

@@ -119,7 +119,7 @@ class InnerLawEveryCycle:
 
     def _ran_mpc(self, t: float) -> None:
         """The MPC ran at ``t``: the next instant is the one after the instant ``t`` serves."""
-        if self._k == 0:
+        if math.isnan(self._t0):  # the run's first MPC instant
             self._t0 = t
         Tc = self.controller.Ts
         j = math.floor((t - self._t0) / Tc + 0.5 * self.Ts / Tc)

@@ -359,13 +359,14 @@ def test_the_franka_app_runs_the_threaded_law_at_1_ms_and_recommends_it():
     MPC comes when the activation step's CPU time exceeds the period, and its measurement
     leaves the controller as reset (its next steps those of a new controller, bit for
     bit)."""
-    from hmpc_pin.apps.franka import _inner_law_applies, activation_step_cpu, threaded_advice
+    from hmpc_pin.apps.franka import activation_step_cpu, threaded_advice
+    from hmpc_pin.experiment.inner_law import why_not_inner_law
 
     robot, settings, q0, reference = _arm("panda_sine")
     settings = replace(settings, Ts=PERIOD)
     ctrl = HierarchicalMPC(robot, settings, default_observer(robot.nq, PERIOD))
-    assert _inner_law_applies(ctrl, PERIOD, threaded=True)
-    assert not _inner_law_applies(ctrl, PERIOD)
+    assert why_not_inner_law(ctrl, PERIOD, "threaded") is None
+    assert "equals the interface period" in why_not_inner_law(ctrl, PERIOD, "every-cycle")
     advice = threaded_advice(1.5e-3, PERIOD)
     assert advice is not None and "--inner-law threaded" in advice and "1500 us" in advice
     assert threaded_advice(0.9e-3, PERIOD) is None

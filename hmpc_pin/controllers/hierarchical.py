@@ -348,6 +348,13 @@ class HierarchicalMPC(AppliedTorque):
         of Eq 13 without Python, any other (momentum, ISM, a user class) by a call of its
         ``update`` from the compiled step.
 
+        For a reference with a compiled port (the package's references), the first call
+        binds the compiled step to this controller as ``ctrl.step``
+        (``hmpc_pin._core.CompiledStep``, its ``__func__`` this method): later calls with
+        that reference, a float ``t`` and float64 vectors run it without a Python frame;
+        any other call (another reference, keywords, other types or shapes) comes here. A
+        subclass's ``step``, or one set on the instance, is never replaced.
+
         Args:
             t: Time [s].
             q: Measured joint positions [rad], shape (n,).

@@ -28,7 +28,7 @@ void JointDynamics::zoh(const Mat& Mq, const Vec& dq, const double* v, double Ts
   if (!cholesky(Mq, L_)) return;
   for (Eigen::Index j = 0; j < n; ++j) {
     if (b[j] == 0.0 && f[j] == 0.0) continue;
-    // (M⁻¹)_jj = ‖L⁻¹ e_j‖²; without damping x = 0 needs none
+    // (M⁻¹)_jj = ‖L⁻¹ e_j‖² (M = L Lᵀ); without damping x = 0 needs none
     const double minv = b[j] != 0.0 ? inverse_diagonal(L_, j, e_) : 0.0;
     const double x = b[j] * minv * Ts;
     const double vj = v[j];

@@ -13,6 +13,7 @@ NDO::NDO(const CRefMat& cY_, double Ts, bool implicit_)
       z(Vec::Zero(cY_.rows())), d_hat(Vec::Zero(cY_.rows())) {
   if (cY.rows() != cY.cols()) throw std::invalid_argument("NDO: cY must be square");
   symmetric_ = !implicit || (cY - cY.transpose()).isZero(0.0);
+  diagonal_ = Mat(cY.diagonal().asDiagonal()) == cY;
   p_.setZero(n);
   rhs_.setZero(n);
   w_.setZero(n);
@@ -29,7 +30,8 @@ void NDO::reset(const CRefVec& dq0) {
 
 void NDO::update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq,
                  const CRefVec& tau_prev) {
-  p_.noalias() = cY * dq;
+  if (diagonal_) p_ = cY.diagonal().cwiseProduct(dq);
+  else p_.noalias() = cY * dq;
   rhs_ = nle - tau_prev;
   rhs_ -= p_;
   rhs_ -= z;
@@ -43,7 +45,8 @@ void NDO::update(const CRefMat& M, const CRefVec& nle, const CRefVec& dq,
     if (!lu_factor(F_, perm_)) F_.setConstant(std::numeric_limits<double>::quiet_NaN());
     lu_solve(F_, perm_, w_);
   }
-  z.noalias() += TcY * w_;
+  if (diagonal_) z += TcY.diagonal().cwiseProduct(w_);
+  else z.noalias() += TcY * w_;
   d_hat = z + p_;
 }
 

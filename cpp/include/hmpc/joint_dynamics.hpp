@@ -47,7 +47,7 @@ class JointDynamics {
   bool any = false;  // whether any of them is non-zero
 
  private:
-  Mat L_;  // the Cholesky factor of M (small_dense.hpp)
+  Mat L_;  // Lᵀ of M = L Lᵀ (small_dense.hpp)
   Vec e_;
 };
 

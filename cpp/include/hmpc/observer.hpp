@@ -57,6 +57,7 @@ class NDO : public Compensation {
 
  private:
   bool symmetric_;  // the matrix solved is symmetric: M, or M + Ts cY with cY = cYᵀ
+  bool diagonal_;   // cY is diagonal (Y = I): its products are per joint
   Mat A_, F_;       // the matrix solved, its factors
   Eigen::VectorXi perm_;
   Vec p_, rhs_, w_;

@@ -12,51 +12,62 @@
 
 namespace hmpc {
 
-// L with A = L Lᵀ (Cholesky), L lower triangular into L's lower triangle (its strict upper
-// triangle is not read), from A's lower triangle. False where A is not positive definite
-// (a pivot <= 0 or not finite). L must be n×n.
-inline bool cholesky(const Eigen::Ref<const Mat>& A, Mat& L) {
+// U = Lᵀ with A = L Lᵀ (Cholesky), U upper triangular into U's upper triangle (its strict
+// lower triangle is not read), from A's lower triangle: the columns of U are the rows of L,
+// contiguous in memory. False where A is not positive definite (a pivot <= 0 or not
+// finite). U must be n×n.
+inline bool cholesky(const Eigen::Ref<const Mat>& A, Mat& U) {
   const Eigen::Index n = A.rows();
+  double* u = U.data();
   for (Eigen::Index j = 0; j < n; ++j) {
+    const double* uj = u + j * n;  // column j of U: row j of L
     double d = A(j, j);
-    for (Eigen::Index k = 0; k < j; ++k) d -= L(j, k) * L(j, k);
+    for (Eigen::Index k = 0; k < j; ++k) d -= uj[k] * uj[k];
     if (!(d > 0.0) || !std::isfinite(d)) return false;
-    const double ljj = std::sqrt(d);
-    L(j, j) = ljj;
+    const double ujj = std::sqrt(d);
+    u[j + j * n] = ujj;
     for (Eigen::Index i = j + 1; i < n; ++i) {
+      const double* ui = u + i * n;
       double s = A(i, j);
-      for (Eigen::Index k = 0; k < j; ++k) s -= L(i, k) * L(j, k);
-      L(i, j) = s / ljj;
+      for (Eigen::Index k = 0; k < j; ++k) s -= ui[k] * uj[k];
+      u[j + i * n] = s / ujj;  // L(i, j)
     }
   }
   return true;
 }
 
-// x = (L Lᵀ)⁻¹ x in place, L from cholesky().
-inline void cholesky_solve(const Mat& L, Vec& x) {
-  const Eigen::Index n = L.rows();
-  for (Eigen::Index i = 0; i < n; ++i) {  // L y = x
-    double s = x[i];
-    for (Eigen::Index k = 0; k < i; ++k) s -= L(i, k) * x[k];
-    x[i] = s / L(i, i);
+// x = (Uᵀ U)⁻¹ x in place, U from cholesky().
+inline void cholesky_solve(const Mat& U, Vec& x) {
+  const Eigen::Index n = U.rows();
+  const double* u = U.data();
+  double* y = x.data();
+  for (Eigen::Index i = 0; i < n; ++i) {  // Uᵀ y = x: row i of Uᵀ is column i of U
+    const double* ui = u + i * n;
+    double s = y[i];
+    for (Eigen::Index k = 0; k < i; ++k) s -= ui[k] * y[k];
+    y[i] = s / ui[i];
   }
-  for (Eigen::Index i = n - 1; i >= 0; --i) {  // Lᵀ x = y
-    double s = x[i];
-    for (Eigen::Index k = i + 1; k < n; ++k) s -= L(k, i) * x[k];
-    x[i] = s / L(i, i);
+  for (Eigen::Index i = n - 1; i >= 0; --i) {  // U x = y, by columns
+    const double* ui = u + i * n;
+    y[i] /= ui[i];
+    const double yi = y[i];
+    for (Eigen::Index k = 0; k < i; ++k) y[k] -= ui[k] * yi;
   }
 }
 
-// (A⁻¹)_jj = ‖L⁻¹ e_j‖² for A = L Lᵀ (L from cholesky()); y: a work vector of n.
-inline double inverse_diagonal(const Mat& L, Eigen::Index j, Vec& y) {
-  const Eigen::Index n = L.rows();
-  y[j] = 1.0 / L(j, j);
-  double sum = y[j] * y[j];
-  for (Eigen::Index i = j + 1; i < n; ++i) {  // L y = e_j, from row j on (y_i = 0 above)
+// (A⁻¹)_jj = ‖U⁻ᵀ e_j‖² for A = Uᵀ U (U from cholesky()); y: a work vector of n.
+inline double inverse_diagonal(const Mat& U, Eigen::Index j, Vec& y) {
+  const Eigen::Index n = U.rows();
+  const double* u = U.data();
+  double* w = y.data();
+  w[j] = 1.0 / u[j + j * n];
+  double sum = w[j] * w[j];
+  for (Eigen::Index i = j + 1; i < n; ++i) {  // Uᵀ w = e_j, from row j on (w_i = 0 above)
+    const double* ui = u + i * n;
     double s = 0.0;
-    for (Eigen::Index k = j; k < i; ++k) s -= L(i, k) * y[k];
-    y[i] = s / L(i, i);
-    sum += y[i] * y[i];
+    for (Eigen::Index k = j; k < i; ++k) s -= ui[k] * w[k];
+    w[i] = s / ui[i];
+    sum += w[i] * w[i];
   }
   return sum;
 }

@@ -36,6 +36,7 @@ def test_the_step_is_compiled_and_is_eq4(planar3):
     assert ctrl.step.__func__ is hmpc_pin.HierarchicalMPC.step and ctrl.step.__self__ is ctrl
     assert not replaced(ctrl, hmpc_pin.HierarchicalMPC, "step")
     assert ctrl.loop_port(ref) is not None
+    compiled = ctrl.step
     rng = np.random.default_rng(5)
     model, data = planar3.model, planar3.model.createData()
     previous = None
@@ -51,6 +52,9 @@ def test_the_step_is_compiled_and_is_eq4(planar3):
         if previous is not None:
             assert not np.shares_memory(tau, previous)
         previous = tau
+    assert compiled.handed_over == 0  # every step above ran without the Python method
+    ctrl.step(0.1, q, dq, reference=ref)
+    assert compiled.handed_over == 1
 
 
 def test_the_calls_it_does_not_take_get_the_python_methods_answers(planar3):

@@ -28,6 +28,7 @@ struct CompiledStep {
   PyObject* func;       // the Python method's function (HierarchicalMPC.step)
   PyObject* owner;      // a weak reference to the controller
   PyObject* f64;        // numpy's float64 descriptor
+  Py_ssize_t handed_over;  // calls handed to the Python method
 };
 
 PyTypeObject* compiled_step_type = nullptr;
@@ -46,6 +47,7 @@ const double* vector_data(PyObject* o, Eigen::Index n, PyObject* f64) {
 
 // The call the compiled path does not take: the Python method with the controller first.
 PyObject* hand_over(CompiledStep* self, PyObject* const* args, size_t nargsf, PyObject* kwnames) {
+  ++self->handed_over;
   PyObject* owner = PyWeakref_GetObject(self->owner);  // borrowed
   if (owner == nullptr) return nullptr;
   if (owner == Py_None) {
@@ -151,6 +153,8 @@ PyObject* repr(PyObject* o) {
 
 PyMemberDef members[] = {
     {"__vectorcalloffset__", T_PYSSIZET, offsetof(CompiledStep, vectorcall), READONLY, nullptr},
+    {"handed_over", T_PYSSIZET, offsetof(CompiledStep, handed_over), READONLY,
+     "how many calls were handed to the Python method"},
     {nullptr, 0, 0, 0, nullptr}};
 
 char doc_name[] = "__doc__", name_name[] = "__name__", qualname_name[] = "__qualname__";
@@ -187,6 +191,7 @@ py::object compiled_step(py::object core, py::object reference, py::object func,
   auto* self = PyObject_GC_New(CompiledStep, compiled_step_type);
   if (self == nullptr) throw py::error_already_set();
   self->vectorcall = call;
+  self->handed_over = 0;
   self->step = &core.cast<PyStep&>();
   self->core = core.release().ptr();
   self->reference = reference.release().ptr();

@@ -27,6 +27,10 @@ void expose_loop(py::module_& m);
 void expose_errors(py::module_& m);
 void expose_joint_dynamics(py::module_& m);
 void expose_plan_thread(py::module_& m);
+void expose_compiled_step(py::module_& m);
+// HierarchicalMPC.step of the controller `owner` for `reference`, compiled (expose_compiled_step.cpp):
+// the step `core` (a HierarchicalStep), `func` the Python method's function for other calls.
+py::object compiled_step(py::object core, py::object reference, py::object func, py::object owner);
 
 // A numpy view of `rows`×`cols` doubles (row-major) that the C++ object `owner` holds: it
 // keeps `owner` alive; read-only unless `writable` (Python only reads what the step writes).

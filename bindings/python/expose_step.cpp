@@ -215,6 +215,8 @@ void expose_step(py::module_& m) {
              const VectorArg qa(q), dqa(dq);
              h.step_t(t, qa.map(), dqa.map());
            })
+      .def("compiled_step", &compiled_step, py::arg("reference"), py::arg("func"),
+           py::arg("owner"))
       .def("fill",
            [](H& h, double t, const CRefVec& q, const CRefVec& dq) { h.fill(t, q, dq); })
       .def_property(  // how faults name the robot: "the robot 'x' has n joints (...)"

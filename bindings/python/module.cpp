@@ -22,6 +22,7 @@ PYBIND11_MODULE(_core, m) {
   hp::expose_joint_qps(m);
   hp::expose_qp_parts(m);
   hp::expose_step(m);
+  hp::expose_compiled_step(m);
   hp::expose_measurement(m);
   hp::expose_loop(m);
   hp::expose_errors(m);

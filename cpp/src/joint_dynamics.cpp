@@ -1,6 +1,8 @@
 // The arm's own joint dynamics: see joint_dynamics.hpp.
 #include "hmpc/joint_dynamics.hpp"
 
+#include "hmpc/small_dense.hpp"
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -21,19 +23,13 @@ void JointDynamics::set(const CRefVec& damping, const CRefVec& friction, int n, 
 void JointDynamics::zoh(const Mat& Mq, const Vec& dq, const double* v, double Ts, Vec& extra) {
   const auto n = b.size();
   extra.setZero(n);
-  llt_.compute(Mq);
-  if (llt_.info() != Eigen::Success) return;
+  L_.resize(n, n);
   e_.resize(n);
+  if (!cholesky(Mq, L_)) return;
   for (Eigen::Index j = 0; j < n; ++j) {
     if (b[j] == 0.0 && f[j] == 0.0) continue;
-    // (M⁻¹)_jj, solved in place (no temporary); without damping x = 0 needs none
-    double minv = 0.0;
-    if (b[j] != 0.0) {
-      e_.setZero();
-      e_[j] = 1.0;
-      llt_.solveInPlace(e_);
-      minv = e_[j];
-    }
+    // (M⁻¹)_jj = ‖L⁻¹ e_j‖² (M = L Lᵀ); without damping x = 0 needs none
+    const double minv = b[j] != 0.0 ? inverse_diagonal(L_, j, e_) : 0.0;
     const double x = b[j] * minv * Ts;
     const double vj = v[j];
     if (b[j] != 0.0) {

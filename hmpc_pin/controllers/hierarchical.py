@@ -262,6 +262,7 @@ class HierarchicalMPC(AppliedTorque):
             core.set_joint_dynamics(b, f, self.settings.Ts)
         self._core = core
         self._reference = None  # the reference's port is set on the next step
+        self._compile_step(None)  # the compiled step of the former core is gone
         self.effort_limit = self.effort_limit
 
     @property
@@ -346,6 +347,13 @@ class HierarchicalMPC(AppliedTorque):
         compensation is advanced inside it, through its Compensation port: the compiled NDO
         of Eq 13 without Python, any other (momentum, ISM, a user class) by a call of its
         ``update`` from the compiled step.
+
+        For a reference with a compiled port (the package's references), the first call
+        binds the compiled step to this controller as ``ctrl.step``
+        (``hmpc_pin._core.CompiledStep``, its ``__func__`` this method): later calls with
+        that reference, a float ``t`` and float64 vectors run it without a Python frame;
+        any other call (another reference, keywords, other types or shapes) comes here. A
+        subclass's ``step``, or one set on the instance, is never replaced.
 
         Args:
             t: Time [s].
@@ -480,6 +488,22 @@ class HierarchicalMPC(AppliedTorque):
         # the compiled step's bound method, looked up here once (the step's Python frame)
         self._native_step = self._core.step_t if port is not None else None
         self._core.set_reference(self._sample_horizon if port is None else port)
+        self._compile_step(reference if port is not None else None)
+
+    def _compile_step(self, reference) -> None:
+        """Make ``self.step`` the compiled step for ``reference`` (``hmpc_pin._core.CompiledStep``:
+        :meth:`step` without its Python frame, for a reference with a compiled port; any other
+        call goes through :meth:`step`), or drop it (``reference`` None). Nothing is done where
+        :meth:`step` was replaced: a subclass's override or one set on the instance is kept."""
+        own = self.__dict__.get("step")
+        if type(self).step is not HierarchicalMPC.step or not (
+            own is None or isinstance(own, load_native().CompiledStep)
+        ):
+            return
+        if reference is None:
+            self.__dict__.pop("step", None)
+        else:
+            self.__dict__["step"] = self._core.compiled_step(reference, HierarchicalMPC.step, self)
 
     def _not_vectors(self, q, dq, exc: TypeError) -> None:
         """Raise the error of ``q`` or ``dq`` that is not a vector of n floats, or ``exc``

@@ -10,7 +10,7 @@
 
 #include "hmpc/types.hpp"
 
-#include <Eigen/Cholesky>
+#include <Eigen/Core>
 
 namespace hmpc {
 
@@ -47,7 +47,7 @@ class JointDynamics {
   bool any = false;  // whether any of them is non-zero
 
  private:
-  Eigen::LLT<Mat> llt_;
+  Mat L_;  // Lᵀ of M = L Lᵀ (small_dense.hpp)
   Vec e_;
 };
 

@@ -6,14 +6,16 @@
 // With p = cY q̇, L = cY M⁻¹ and b = n_k − τ_{k−1} − p_k, each update is one linear solve:
 //   implicit (backward Euler): (M + Ts cY) w = b − z,  z⁺ = z + Ts cY w
 //   explicit (forward Euler):   M w = b − z,           z⁺ = z + Ts cY w
-// and d̂ = z⁺ + p_k (Eq 13 with z = d̂ − p). It is the compiled Compensation port
+// and d̂ = z⁺ + p_k (Eq 13 with z = d̂ − p). The solve (small_dense.hpp) is a Cholesky
+// factorisation where the matrix is symmetric (M, and M + Ts cY with a symmetric cY: Y = I,
+// the general design), an LU with partial pivoting otherwise (Chen's Y of planar arms) or
+// where the Cholesky fails. It is the compiled Compensation port
 // (interfaces.hpp): q and v are not used.
 #pragma once
 
 #include "hmpc/interfaces.hpp"
 
 #include <Eigen/Core>
-#include <Eigen/LU>
 
 namespace hmpc {
 
@@ -54,7 +56,10 @@ class NDO : public Compensation {
   Vec z, d_hat;  // z and the estimate d̂ [N·m]
 
  private:
-  Eigen::PartialPivLU<Mat> lu_;
+  bool symmetric_;  // the matrix solved is symmetric: M, or M + Ts cY with cY = cYᵀ
+  bool diagonal_;   // cY is diagonal (Y = I): its products are per joint
+  Mat A_, F_;       // the matrix solved, its factors
+  Eigen::VectorXi perm_;
   Vec p_, rhs_, w_;
 };
 

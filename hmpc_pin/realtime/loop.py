@@ -47,10 +47,11 @@ what the set-up made collected; then, for an arm whose clock starts with its ``s
 (``run(start=True)``: Franka's torque control, a ROS arm's first state), the start. None
 of it costs the arm a cycle.
 
-**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): under a real-time policy the
-CPUs' idle-exit latency is limited to ``cpu_latency`` (0 µs: an idle core polls rather than halts;
-:func:`~.pacing.cpu_latency_limit`, where permitted) and the thread's timer slack is
-1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
+**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the thread's timer slack is
+1 ns during the run (and, if asked, ``cpu_latency``, the CPUs' idle-exit latency limited:
+:func:`~.pacing.cpu_latency_limit`; not by default: on the virtual machine measured,
+idle cores polling instead of halting brought stalls of about 100 ms to every real-time
+thread); with ``spin = "auto"`` under a real-time policy it sleeps until a
 stretch before the deadline, measured from its wake-ups, and busy-waits the rest. The
 watchdog of a polled arm does not charge the loop's own late wake-up (more than a period)
 to the arm (``stats["loop_stalls"]``). The cycles: :mod:`.cycles`; the stop sequence:
@@ -255,9 +256,9 @@ class RealtimeLoop(Cycles, StopSequence):
         lock_memory: Lock the process's memory in RAM for the run (module doc,
             "Set-up"; ``stats["memory_lock"]`` says how it went); ``"auto"``: when the
             loop's thread runs under a real-time policy (where its latency is the point).
-        cpu_latency: The CPUs' idle-exit latency limit [µs] held during the run (module
-            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None``: none;
-            ``"auto"``: 0 under a real-time policy, else none.
+        cpu_latency: The CPUs' idle-exit latency limit [µs] to hold during the run (module
+            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None`` (default):
+            none; ``"auto"``: 0 under a real-time policy, else none.
 
     Against a :class:`~hmpc_pin.realtime.interface.PacedInterface` the loop is paced by
     the arm's states and keeps time on the interface's clock (``clock``, ``sleep`` and
@@ -279,7 +280,7 @@ class RealtimeLoop(Cycles, StopSequence):
         meta: dict | None = None,
         on_step: Callable[[float], None] | None = None,
         lock_memory: bool | str = "auto",
-        cpu_latency: int | str | None = "auto",
+        cpu_latency: int | str | None = None,
     ):
         self.interface, self.controller = interface, controller
         self.lock_memory = lock_memory

@@ -283,8 +283,7 @@ class RealtimeLoop(Cycles, StopSequence):
         cpu_latency: int | str | None = None,
     ):
         self.interface, self.controller = interface, controller
-        self.lock_memory = lock_memory
-        self.cpu_latency = cpu_latency
+        self.lock_memory, self.cpu_latency = lock_memory, cpu_latency
         self._memory_lock = self._cpu_latency = "off"  # the last run's outcomes
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
@@ -397,8 +396,7 @@ class RealtimeLoop(Cycles, StopSequence):
         rec, tally = self._rec, self._tally
         if rec is None or tally is None:
             return None
-        # only the cycles since the previous call are read (the caller holds the GIL the
-        # loop's thread needs after each sleep: briefly)
+        # only the cycles since the last call: the caller holds the GIL the loop needs
         done, last = rec.done, self._cycles_done
         window = done[self._seen : last]
         window = window[np.isfinite(window)]
@@ -466,13 +464,11 @@ class RealtimeLoop(Cycles, StopSequence):
         self._started = True
         try:
             with contextlib.ExitStack() as stack:
-                realtime = realtime_policy()
-                lock, limit = self.lock_memory, self.cpu_latency
-                if lock == "auto":
-                    lock = realtime
-                if limit == "auto":
-                    limit = 0 if realtime else None
-                self._memory_lock = stack.enter_context(memory_locked(bool(lock)))
+                realtime = realtime_policy()  # (what the "auto" settings follow)
+                lock = realtime if self.lock_memory == "auto" else bool(self.lock_memory)
+                limit = self.cpu_latency
+                limit = (0 if realtime else None) if limit == "auto" else limit
+                self._memory_lock = stack.enter_context(memory_locked(lock))
                 self._cpu_latency = stack.enter_context(cpu_latency_limit(limit))  # type: ignore[arg-type]
                 if self._waker is not None:
                     stack.enter_context(timer_slack(1))
@@ -701,19 +697,4 @@ class RealtimeLoop(Cycles, StopSequence):
         return self._state_fault(q, dq)
 
     def _state_fault(self, q, dq) -> str:
-        sf = self.safety
-        names = self.joint_names or tuple(f"joint{i + 1}" for i in range(len(q)))
-        if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-            return f"non-finite state from the arm: q={q.tolist()}, dq={dq.tolist()}"
-        for i in range(len(q)):
-            if not sf.lower[i] <= q[i] <= sf.upper[i]:
-                return (
-                    f"joint {names[i]!r} at q={q[i]:.4g} rad, beyond its bounds "
-                    f"[{sf.lower[i]:.4g}, {sf.upper[i]:.4g}]"
-                )
-            if abs(dq[i]) > sf.velocity[i]:
-                return (
-                    f"joint {names[i]!r} at |dq|={abs(dq[i]):.4g} rad/s, beyond its bound "
-                    f"{sf.velocity[i]:.4g}"
-                )
-        return "state beyond limits"
+        return self.safety.state_fault(q, dq, self.joint_names)

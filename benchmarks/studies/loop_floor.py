@@ -40,8 +40,8 @@ VARIANTS = {
     "new": "",
     # the process's memory not locked (no mlockall)
     "nolock": "R.RealtimeLoop = partial(R.RealtimeLoop, lock_memory=False)",
-    # no idle-exit latency limit (/dev/cpu_dma_latency untouched)
-    "nodma": "R.RealtimeLoop = partial(R.RealtimeLoop, cpu_latency=None)",
+    # the CPUs' idle-exit latency held at 0 us (/dev/cpu_dma_latency, as cyclictest does)
+    "dma": "R.RealtimeLoop = partial(R.RealtimeLoop, cpu_latency=0)",
     # the arm process at the loop's own FIFO priority
     "armsame": "R.ProcessArm = partial(R.ProcessArm, below=0)",
     # the arm process's collector automatic

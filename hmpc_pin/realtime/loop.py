@@ -47,10 +47,11 @@ what the set-up made collected; then, for an arm whose clock starts with its ``s
 (``run(start=True)``: Franka's torque control, a ROS arm's first state), the start. None
 of it costs the arm a cycle.
 
-**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): under a real-time policy the
-CPUs' idle-exit latency is limited to ``cpu_latency`` (0 µs: an idle core polls rather than halts;
-:func:`~.pacing.cpu_latency_limit`, where permitted) and the thread's timer slack is
-1 ns during the run; with ``spin = "auto"`` under a real-time policy it sleeps until a
+**Waiting** (:class:`~.pacing.Waker`, the loop's own sleep): the thread's timer slack is
+1 ns during the run (and, if asked, ``cpu_latency``, the CPUs' idle-exit latency limited:
+:func:`~.pacing.cpu_latency_limit`; not by default: on the virtual machine measured,
+idle cores polling instead of halting brought stalls of about 100 ms to every real-time
+thread); with ``spin = "auto"`` under a real-time policy it sleeps until a
 stretch before the deadline, measured from its wake-ups, and busy-waits the rest. The
 watchdog of a polled arm does not charge the loop's own late wake-up (more than a period)
 to the arm (``stats["loop_stalls"]``). The cycles: :mod:`.cycles`; the stop sequence:
@@ -255,9 +256,9 @@ class RealtimeLoop(Cycles, StopSequence):
         lock_memory: Lock the process's memory in RAM for the run (module doc,
             "Set-up"; ``stats["memory_lock"]`` says how it went); ``"auto"``: when the
             loop's thread runs under a real-time policy (where its latency is the point).
-        cpu_latency: The CPUs' idle-exit latency limit [µs] held during the run (module
-            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None``: none;
-            ``"auto"``: 0 under a real-time policy, else none.
+        cpu_latency: The CPUs' idle-exit latency limit [µs] to hold during the run (module
+            doc, "Waiting"; ``stats["cpu_latency"]`` says how it went); ``None`` (default):
+            none; ``"auto"``: 0 under a real-time policy, else none.
 
     Against a :class:`~hmpc_pin.realtime.interface.PacedInterface` the loop is paced by
     the arm's states and keeps time on the interface's clock (``clock``, ``sleep`` and
@@ -279,11 +280,10 @@ class RealtimeLoop(Cycles, StopSequence):
         meta: dict | None = None,
         on_step: Callable[[float], None] | None = None,
         lock_memory: bool | str = "auto",
-        cpu_latency: int | str | None = "auto",
+        cpu_latency: int | str | None = None,
     ):
         self.interface, self.controller = interface, controller
-        self.lock_memory = lock_memory
-        self.cpu_latency = cpu_latency
+        self.lock_memory, self.cpu_latency = lock_memory, cpu_latency
         self._memory_lock = self._cpu_latency = "off"  # the last run's outcomes
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
@@ -396,8 +396,7 @@ class RealtimeLoop(Cycles, StopSequence):
         rec, tally = self._rec, self._tally
         if rec is None or tally is None:
             return None
-        # only the cycles since the previous call are read (the caller holds the GIL the
-        # loop's thread needs after each sleep: briefly)
+        # only the cycles since the last call: the caller holds the GIL the loop needs
         done, last = rec.done, self._cycles_done
         window = done[self._seen : last]
         window = window[np.isfinite(window)]
@@ -465,13 +464,11 @@ class RealtimeLoop(Cycles, StopSequence):
         self._started = True
         try:
             with contextlib.ExitStack() as stack:
-                realtime = realtime_policy()
-                lock, limit = self.lock_memory, self.cpu_latency
-                if lock == "auto":
-                    lock = realtime
-                if limit == "auto":
-                    limit = 0 if realtime else None
-                self._memory_lock = stack.enter_context(memory_locked(bool(lock)))
+                realtime = realtime_policy()  # (what the "auto" settings follow)
+                lock = realtime if self.lock_memory == "auto" else bool(self.lock_memory)
+                limit = self.cpu_latency
+                limit = (0 if realtime else None) if limit == "auto" else limit
+                self._memory_lock = stack.enter_context(memory_locked(lock))
                 self._cpu_latency = stack.enter_context(cpu_latency_limit(limit))  # type: ignore[arg-type]
                 if self._waker is not None:
                     stack.enter_context(timer_slack(1))
@@ -700,19 +697,4 @@ class RealtimeLoop(Cycles, StopSequence):
         return self._state_fault(q, dq)
 
     def _state_fault(self, q, dq) -> str:
-        sf = self.safety
-        names = self.joint_names or tuple(f"joint{i + 1}" for i in range(len(q)))
-        if not (np.isfinite(q).all() and np.isfinite(dq).all()):
-            return f"non-finite state from the arm: q={q.tolist()}, dq={dq.tolist()}"
-        for i in range(len(q)):
-            if not sf.lower[i] <= q[i] <= sf.upper[i]:
-                return (
-                    f"joint {names[i]!r} at q={q[i]:.4g} rad, beyond its bounds "
-                    f"[{sf.lower[i]:.4g}, {sf.upper[i]:.4g}]"
-                )
-            if abs(dq[i]) > sf.velocity[i]:
-                return (
-                    f"joint {names[i]!r} at |dq|={abs(dq[i]):.4g} rad/s, beyond its bound "
-                    f"{sf.velocity[i]:.4g}"
-                )
-        return "state beyond limits"
+        return self.safety.state_fault(q, dq, self.joint_names)

@@ -198,10 +198,11 @@ def _arm_steps(
 
 
 #: How a reader waits for the arm caught in the middle of publishing: this many tries at
-#: once, then a sleep of :data:`READ_NAP` [s] between tries, for at most :data:`READ_GIVE_UP`
-#: [s] in all.
+#: once, then a sleep of ``READ_NAP`` between tries, for at most ``READ_GIVE_UP`` in all.
 READ_SPINS = 64
+#: The sleep [s] between a reader's tries after ``READ_SPINS``.
 READ_NAP = 2e-5
+#: How long [s] a reader waits for a whole copy before keeping the last one.
 READ_GIVE_UP = 2e-3
 
 

@@ -194,6 +194,25 @@ class SafetySettings:
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
                 raise ConfigError(f"realtime.{name}", f"expected a number >= 0, got {value!r}")
 
+    def state_fault(self, q, dq, joint_names=()) -> str:
+        """Why the measured ``(q, dq)`` is a fault (non-finite, or the first joint beyond
+        its bounds), one line naming the joint (``joint_names``, else ``joint1``...)."""
+        names = joint_names or tuple(f"joint{i + 1}" for i in range(len(q)))
+        if not (np.isfinite(q).all() and np.isfinite(dq).all()):
+            return f"non-finite state from the arm: q={q.tolist()}, dq={dq.tolist()}"
+        for i in range(len(q)):
+            if not self.lower[i] <= q[i] <= self.upper[i]:
+                return (
+                    f"joint {names[i]!r} at q={q[i]:.4g} rad, beyond its bounds "
+                    f"[{self.lower[i]:.4g}, {self.upper[i]:.4g}]"
+                )
+            if abs(dq[i]) > self.velocity[i]:
+                return (
+                    f"joint {names[i]!r} at |dq|={abs(dq[i]):.4g} rad/s, beyond its bound "
+                    f"{self.velocity[i]:.4g}"
+                )
+        return "state beyond limits"
+
     @classmethod
     def unlimited(cls, n: int, **kwargs) -> SafetySettings:
         """No position or velocity bound (tests, simulated arms without limits)."""

@@ -315,10 +315,34 @@ class ProcessArm:
         #: The arm process's ``SCHED_FIFO`` priority (0: normal scheduling).
         self.priority = priority
         self._shm = SharedMemory(create=True, size=_size(n))
-        self._ctl, self._period, self._state, self._tau = _views(self._shm.buf, n)
-        self._ctl[:] = 0
-        self._closed = False
-        self._final: dict = {}
+        try:  # a Ctrl-C before the process exists: the block freed, nothing left
+            self._ctl, self._period, self._state, self._tau = _views(self._shm.buf, n)
+            self._ctl[:] = 0
+            self._closed = False
+            self._final: dict = {}
+            child = self._prepare(n, make_plant, q0, dq0, effort_limit, priority, gc_frozen)
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self.__dict__.pop("_ctl", None)
+                self.__dict__.pop("_period", None)
+                self.__dict__.pop("_state", None)
+                self.__dict__.pop("_tau", None)
+                self._shm.close()
+            self._shm.unlink()
+            raise
+        try:
+            start_child(self._proc)
+            child.close()
+            self._wait_ready(start_timeout)
+        except BaseException:  # Ctrl-C or a failure while starting: no process, no block left
+            self.close(wait=0.0)
+            raise
+        self.period = float(self._period[0])
+        self._buf, self._scratch = np.full(1 + 2 * n, np.nan), np.empty(1 + 2 * n)
+        self._q, self._dq = self._buf[1 : 1 + n], self._buf[1 + n :]
+
+    def _prepare(self, n, make_plant, q0, dq0, effort_limit, priority, gc_frozen):
+        """The pipe and the (not yet started) arm process; the child's end of the pipe."""
         ctx = mp.get_context("spawn")
         self._conn, child = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(
@@ -337,16 +361,7 @@ class ProcessArm:
             name="hmpc-pin-arm",
             daemon=True,
         )
-        try:
-            start_child(self._proc)
-            child.close()
-            self._wait_ready(start_timeout)
-        except BaseException:  # Ctrl-C or a failure while starting: no process, no block left
-            self.close(wait=0.0)
-            raise
-        self.period = float(self._period[0])
-        self._buf, self._scratch = np.full(1 + 2 * n, np.nan), np.empty(1 + 2 * n)
-        self._q, self._dq = self._buf[1 : 1 + n], self._buf[1 + n :]
+        return child
 
     def _wait_ready(self, start_timeout: float) -> None:
         end = time.monotonic() + start_timeout
@@ -420,19 +435,23 @@ class ProcessArm:
         if self._closed:
             return
         self._closed = True
-        self._ctl[_STOP] = 1
-        if self._proc.pid is not None:
-            self._proc.join(timeout=wait)
-        if self._proc.is_alive():
-            self._proc.terminate()
-            self._proc.join(timeout=5.0)
-        self._conn.close()
-        self._closed = False
-        self._final = self.counters
-        self._closed = True
-        del self._ctl, self._period, self._state, self._tau
-        self._shm.close()
-        self._shm.unlink()
+        try:  # (a Ctrl-C while the arm stops still frees the block)
+            self._ctl[_STOP] = 1
+            if self._proc.pid is not None:
+                self._proc.join(timeout=wait)
+            if self._proc.is_alive():
+                self._proc.terminate()
+                self._proc.join(timeout=5.0)
+            self._conn.close()
+            self._closed = False
+            self._final = self.counters
+            self._closed = True
+        finally:
+            self._closed = True
+            with contextlib.suppress(Exception):
+                del self._ctl, self._period, self._state, self._tau
+                self._shm.close()
+            self._shm.unlink()
 
     def __enter__(self) -> ProcessArm:
         return self

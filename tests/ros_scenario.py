@@ -21,6 +21,9 @@ import time
 from pathlib import Path
 
 SCENARIOS = ("track", "trajectory", "watchdog", "interrupt", "interface")
+#: The history depth of this node's subscriptions: more than a run's messages (500 Hz ×
+#: 12 s), so that none is dropped while a loaded machine keeps this node from taking them.
+DEPTH = 10000
 
 
 def trajectory_message(names, target, seconds: float = 1.0):
@@ -118,17 +121,22 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
         with lock:
             commands.append((time.monotonic(), list(msg.data)))
 
-    node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command, 100)
+    # (a reader history holding every message of a run: with 100, a loaded machine that
+    # kept this node's Python thread from taking them for 0.2 s lost the oldest, once the
+    # very safe torque the Ctrl-C test looks for: 356 of some 900 commands arrived)
+    node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command,
+                             DEPTH)  # fmt: skip
     names_seen: list[list[str]] = []
 
     def on_torque(m):  # sensor_msgs/JointState: names, stamp, d̂ in effort
         torques.append(list(m.effort))
         names_seen.append([*m.name, m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec])
 
-    node.create_subscription(JointState, "/hmpc_pin_controller/external_torque", on_torque, 100)
+    node.create_subscription(JointState, "/hmpc_pin_controller/external_torque", on_torque,
+                             DEPTH)  # fmt: skip
     flags: list[bool] = []
     node.create_subscription(Bool, "/hmpc_pin_controller/collision",
-                             lambda m: flags.append(bool(m.data)), 100)  # fmt: skip
+                             lambda m: flags.append(bool(m.data)), DEPTH)  # fmt: skip
     pub = node.create_publisher(JointTrajectory, "/hmpc_pin_controller/joint_trajectory", 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)

@@ -95,6 +95,8 @@ def probe_interface(config: str, out: Path) -> None:
 
 
 def main(scenario: str, config: str, out: str, duration: float) -> None:
+    from ros_test_arm import _quiet  # run as a script: tests/ is on sys.path
+
     if scenario == "interface":
         probe_interface(config, Path(out))
     import rclpy
@@ -186,7 +188,7 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
     finally:
         if ctrl.poll() is None:
             ctrl.kill()
-    time.sleep(0.3)  # the last commands in flight
+    _quiet(commands, lock)  # the last commands in flight, on a loaded machine too
     arm.send_signal(signal.SIGINT)
     try:
         a_out, a_err = arm.communicate(timeout=30)

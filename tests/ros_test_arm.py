@@ -354,7 +354,7 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     report["controller"] = {"exit": ctrl.returncode, "stdout": c_out, "stderr": c_err}
     if deactivating is not None:  # its answer may be on its way still (a loaded machine)
         deactivating.join(timeout=10.0)
-    time.sleep(0.1)  # commands in flight
+    _quiet(commands, lock)  # the commands in flight, on a loaded machine too
     with lock:
         if arm.pending is not None:
             arm.apply(arm.pending)
@@ -369,6 +369,23 @@ def main(scenario: str, config_path: str, out: str, duration: float) -> None:
     (Path(out) / "arm.json").write_text(json.dumps(report))
     sys.stdout.flush()
     os._exit(0)
+
+
+def _quiet(commands: list, lock, still: float = 0.5, at_most: float = 10.0) -> None:
+    """Wait until no command has arrived for ``still`` [s] (at most ``at_most`` [s]): the
+    last ones sent before the controller exited are taken, however long a loaded machine
+    keeps this process's spinning thread from running (a fixed 0.1 s once left the arm on
+    a brake command instead of the G(q) sent after it)."""
+    end = time.monotonic() + at_most
+    with lock:
+        seen, since = len(commands), time.monotonic()
+    while time.monotonic() < end:
+        time.sleep(0.05)
+        with lock:
+            if len(commands) != seen:
+                seen, since = len(commands), time.monotonic()
+            elif time.monotonic() - since >= still:
+                return
 
 
 def _orchestrator_clients(node):

@@ -168,6 +168,11 @@ def main(scenario: str, config: str, out: str, duration: float) -> None:
         # (matched by name)
         target = [float(p) + 0.1 for p in experiment.reference.sample(0.0)[0]]
         events["target"] = dict(zip(names, target, strict=True))
+        # (once the controller's subscription is matched: a message sent before is lost,
+        # and on a loaded machine discovery of this one topic can come seconds later)
+        end = time.monotonic() + 60.0
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.01)
         pub.publish(trajectory_message(names[::-1], target[::-1], 1.0))
         events["accepted_sent"] = time.monotonic()
         time.sleep(0.5)

@@ -56,11 +56,17 @@ def _no_nan(report) -> None:
     assert commands.size and np.isfinite(commands).all()
 
 
-def _held_is_gravity(config, report, q) -> None:
-    """The last command is G(q) at the controller's last finite position: RNEA at rest."""
+def _held_is_gravity(config, report, q, stale=None) -> None:
+    """The last command is G(q) at the controller's last finite position: RNEA at rest.
+    (``stale``: an earlier position, named in the failure if the arm holds G there.)"""
     robot = Experiment.from_config(config).robot
-    G = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), np.asarray(q))
-    np.testing.assert_allclose(report["held"], G, atol=1e-9)
+    data = robot.model.createData()
+    G = pin.computeGeneralizedGravity(robot.model, data, np.asarray(q))
+    why = f"{len(report['commands'])} commands received"
+    if stale is not None:
+        G_stale = pin.computeGeneralizedGravity(robot.model, data, np.asarray(stale)).copy()
+        why += f"; |held - G(stale q)| = {np.abs(np.asarray(report['held']) - G_stale).max():.3g}"
+    np.testing.assert_allclose(report["held"], G, atol=1e-9, err_msg=why)
 
 
 def test_gripper_messages_split_states_and_an_extra_node(tmp_path):
@@ -149,7 +155,7 @@ def test_stalls_below_the_watchdog_are_no_stop_and_one_above_is(tmp_path):
     # the arm coasting at its speed)
     brake = stop["brake"]
     assert brake["ended"] == "still" and brake["states"] > 0, brake
-    _held_is_gravity(config, report, brake["q"])
+    _held_is_gravity(config, report, brake["q"], stale=stop["q"])
     assert report["drift"] <= FRESH, report["drift"]
 
 

@@ -142,17 +142,27 @@ def test_states_that_arrived_more_than_a_period_ago_are_overdue_except_the_newes
         iface._on_state(_state(now - age, [k, k], [0, 0]), now - age)
     assert iface.wait(0.0) >= 3
     assert iface.overdue == 2  # the newest is the one answered now
-    # fresh states are not overdue
+    # fresh states are not overdue, and a state half a period old is in time, three
+    # periods old is not: judged at the instant the states were written for (the
+    # interface's clock held there), not whenever a loaded machine lets this case reach
+    # wait() — 2 ms later at a load of 10 would make every "fresh" state late
     now = time.time()
+    iface._on_state(_state(now - 0.9 * P, [0, 0], [0, 0]), now - 0.9 * P)
     iface._on_state(_state(now, [0, 0], [0, 0]), now)
-    iface._on_state(_state(now + 0.1 * P, [0, 0], [0, 0]), now + 0.1 * P)
+    iface.clock = lambda: now - iface.origin
     iface.wait(0.0)
-    assert iface.overdue == 0
-    # a state half a period old answered now is in time, three periods old is not
+    assert iface.overdue == 0  # 0.9 periods old
     now = time.time()
     iface._on_state(_state(now - 3 * P, [0, 0], [0, 0]), now - 3 * P)
     iface._on_state(_state(now - 0.5 * P, [0, 0], [0, 0]), now - 0.5 * P)
     iface._on_state(_state(now, [0, 0], [0, 0]), now)
+    iface.wait(0.0)
+    assert iface.overdue == 1
+    # (a state judged 1.1 periods after its arrival is late: with 0.9 above, the rule's
+    # one period bracketed)
+    iface._on_state(_state(now, [0, 0], [0, 0]), now)
+    iface._on_state(_state(now + 0.5 * P, [0, 0], [0, 0]), now)
+    iface.clock = lambda: now + 1.1 * P - iface.origin
     iface.wait(0.0)
     assert iface.overdue == 1
 

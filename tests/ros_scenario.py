@@ -21,6 +21,9 @@ import time
 from pathlib import Path
 
 SCENARIOS = ("track", "trajectory", "watchdog", "interrupt", "interface")
+#: The history depth of this node's subscriptions: more than a run's messages (500 Hz ×
+#: 12 s), so that none is dropped while a loaded machine keeps this node from taking them.
+DEPTH = 10000
 
 
 def trajectory_message(names, target, seconds: float = 1.0):
@@ -92,6 +95,8 @@ def probe_interface(config: str, out: Path) -> None:
 
 
 def main(scenario: str, config: str, out: str, duration: float, extra=()) -> None:
+    from ros_test_arm import _quiet  # run as a script: tests/ is on sys.path
+
     if scenario == "interface":
         probe_interface(config, Path(out))
     import rclpy
@@ -119,17 +124,22 @@ def main(scenario: str, config: str, out: str, duration: float, extra=()) -> Non
         with lock:
             commands.append((time.monotonic(), list(msg.data)))
 
-    node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command, 100)
+    # (a reader history holding every message of a run: with 100, a loaded machine that
+    # kept this node's Python thread from taking them for 0.2 s lost the oldest, once the
+    # very safe torque the Ctrl-C test looks for: 356 of some 900 commands arrived)
+    node.create_subscription(Float64MultiArray, "/effort_controller/commands", on_command,
+                             DEPTH)  # fmt: skip
     names_seen: list[list[str]] = []
 
     def on_torque(m):  # sensor_msgs/JointState: names, stamp, d̂ in effort
         torques.append(list(m.effort))
         names_seen.append([*m.name, m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec])
 
-    node.create_subscription(JointState, "/hmpc_pin_controller/external_torque", on_torque, 100)
+    node.create_subscription(JointState, "/hmpc_pin_controller/external_torque", on_torque,
+                             DEPTH)  # fmt: skip
     flags: list[bool] = []
     node.create_subscription(Bool, "/hmpc_pin_controller/collision",
-                             lambda m: flags.append(bool(m.data)), 100)  # fmt: skip
+                             lambda m: flags.append(bool(m.data)), DEPTH)  # fmt: skip
     pub = node.create_publisher(JointTrajectory, "/hmpc_pin_controller/joint_trajectory", 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -159,6 +169,11 @@ def main(scenario: str, config: str, out: str, duration: float, extra=()) -> Non
         # (matched by name)
         target = [float(p) + 0.1 for p in experiment.reference.sample(0.0)[0]]
         events["target"] = dict(zip(names, target, strict=True))
+        # (once the controller's subscription is matched: a message sent before is lost,
+        # and on a loaded machine discovery of this one topic can come seconds later)
+        end = time.monotonic() + 60.0
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.01)
         pub.publish(trajectory_message(names[::-1], target[::-1], 1.0))
         events["accepted_sent"] = time.monotonic()
         time.sleep(0.5)
@@ -179,7 +194,7 @@ def main(scenario: str, config: str, out: str, duration: float, extra=()) -> Non
     finally:
         if ctrl.poll() is None:
             ctrl.kill()
-    time.sleep(0.3)  # the last commands in flight
+    _quiet(commands, lock)  # the last commands in flight, on a loaded machine too
     arm.send_signal(signal.SIGINT)
     try:
         a_out, a_err = arm.communicate(timeout=30)

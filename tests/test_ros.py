@@ -314,7 +314,7 @@ def test_ros_trajectory_replaces_the_reference_and_bad_one_is_refused(tmp_path):
 def test_ros_watchdog_stops_on_stale_joint_states(tmp_path):
     # (and a collision threshold the friction estimate crosses: the flag turns true)
     low = SETTINGS.replace("threshold = 1000.0", "threshold = 0.05")
-    _, report, result = _scenario(tmp_path, "watchdog", 5.0, low)
+    config, report, result = _scenario(tmp_path, "watchdog", 5.0, low)
     ctrl = report["controller"]
     assert ctrl["exit"] == 1, ctrl["stderr"]
     assert "no new state from the arm" in ctrl["stderr"] and "Traceback" not in ctrl["stderr"]
@@ -325,7 +325,12 @@ def test_ros_watchdog_stops_on_stale_joint_states(tmp_path):
     assert 0.5 < stop["t"] < 5.0
     detected = result.meta["collision"]["detected_at"]
     assert detected is not None and report["collision"][-1] is True
-    assert not report["collision"][0] or detected < 0.05  # false until it was flagged
+    # false until it was flagged, true from then on: the flags heard are a run of false
+    # then a run of true, and no more false than the periods before the detection (this
+    # node may discover the topic after it, on a loaded machine: then all it hears is true)
+    flags = report["collision"]
+    assert flags == sorted(flags), flags
+    assert flags.count(False) <= detected / config.ros.period + 1, (flags.count(False), detected)
 
 
 def test_ros_ctrl_c_publishes_the_safe_torque_and_saves(tmp_path):

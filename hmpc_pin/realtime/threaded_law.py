@@ -248,7 +248,9 @@ class InnerLawThreaded(InnerLawEveryCycle):
         """As the synchronous law's, with the planner's counts: ``requests``,
         ``published``, ``dropped``, ``refused`` (plans past ``max_age``), ``fallbacks``
         (cycles that braked), ``max_age`` [s], ``wait``, and the planner thread's
-        ``planner_nice`` and ``planner_policy`` (``"normal"`` or ``"SCHED_FIFO <prio>"``)."""
+        ``planner_nice`` and ``planner_policy`` (``"normal"`` or ``"SCHED_FIFO <prio>"``), and
+        its longest solve ``max_solve`` [s] by its clock and ``max_solve_cpu`` [s] by its CPU
+        time (their ratio: how long the planner waited for a core)."""
         p = self.planner
         return {
             **super().summary(),
@@ -259,6 +261,8 @@ class InnerLawThreaded(InnerLawEveryCycle):
             "fallbacks": int(self.fallbacks),
             "max_age": float(p.max_age),
             "wait": self.wait,
+            "max_solve": float(p.max_solve),
+            "max_solve_cpu": float(p.max_solve_cpu),
             "planner_nice": int(p.nice),
             "planner_policy": self._planner_policy,
         }

@@ -222,10 +222,15 @@ void PlanThread::run() {
   // from the cycle that woke it (the niceness of this thread only; refused: as is)
   const long self = static_cast<long>(syscall(SYS_gettid));
   if (nice > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(self), nice);
+  errno = 0;
+  const int actual = getpriority(PRIO_PROCESS, static_cast<id_t>(self));
   tid_ = self;
 #endif
   {
     std::lock_guard<std::mutex> lock(m_);
+#ifdef __linux__
+    if (errno == 0) nice = actual;  // what the thread runs at (0 asked: the caller's)
+#endif
     started_ = true;
   }
   done_cv_.notify_all();

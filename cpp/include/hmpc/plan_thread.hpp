@@ -49,7 +49,7 @@ class PlanThread {
   // bound [s] (> 0); nice: the planner thread's niceness (Linux; 0: the caller's), above
   // the torque loop's so that a woken planner does not take the core from the cycle that
   // woke it (a loop under a normal policy); set_nice() changes it. Starts the thread (its
-  // tid is known when the constructor returns).
+  // tid is known when the constructor returns; `nice` then holds the niceness it runs at).
   PlanThread(const CRefRow& F, int N, std::shared_ptr<JointQPs> qps, const CRefVec& offsets,
              double Ts, double max_age, int nice = 10);
   ~PlanThread();  // stop()

@@ -183,10 +183,12 @@ class InnerLawThreaded(InnerLawEveryCycle):
                 "planner_scheduling", f'expected "auto", "fifo" or a niceness -20..19, got {mode!r}'
             )
         tid = int(self.planner.tid)
+        if not tid:  # not Linux, or stopped: nothing to schedule
+            return
         rt = realtime_policy()
         try:
             base = os.getpriority(os.PRIO_PROCESS, 0)  # this thread's niceness (Linux)
-            if tid and os.sched_getscheduler(tid) != os.SCHED_OTHER:
+            if os.sched_getscheduler(tid) != os.SCHED_OTHER:
                 os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
             if mode == "fifo" and rt:
                 prio = max(1, os.sched_getparam(0).sched_priority - 1)

@@ -6,9 +6,12 @@ hand and the hand-over is waited for."""
 
 from __future__ import annotations
 
+import contextlib
+import os
 import subprocess
 import sys
 import textwrap
+import threading
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,6 +21,7 @@ import pytest
 import hmpc_pin
 from hmpc_pin.compensation.observers import default_observer
 from hmpc_pin.controllers.hierarchical import HierarchicalMPC
+from hmpc_pin.exceptions import ConfigError
 from hmpc_pin.experiment.build import Experiment
 from hmpc_pin.experiment.config import load_config
 from hmpc_pin.native import load as load_native
@@ -409,3 +413,87 @@ def test_a_reset_starts_the_counters_of_a_run():
     law.step(0.0, q0, np.zeros(n), reference)  # no plan since the reset: braked
     assert law.fallbacks == p.stale == 1
     law.close()
+
+
+def _niceness(tid: int) -> int:
+    return os.getpriority(os.PRIO_PROCESS, tid)
+
+
+@contextlib.contextmanager
+def _fifo(priority: int = 2):
+    """The calling thread under SCHED_FIFO (skipped where it may not)."""
+    old = os.sched_getscheduler(0), os.sched_getparam(0)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except PermissionError:
+        pytest.skip("SCHED_FIFO is not permitted here")
+    try:
+        yield
+    finally:
+        os.sched_setscheduler(0, *old)
+
+
+def test_the_planner_is_niced_under_a_normal_loop_and_not_under_a_realtime_one():
+    """The rule (threaded_law's module doc), read back from the kernel by the planner's tid."""
+    base = _niceness(0)  # this thread's
+    law, q0, reference = _planner()
+    with law:
+        tid = law.planner.tid
+        assert tid > 0 and tid != threading.get_native_id()
+        assert _niceness(tid) == base  # started at the caller's niceness
+        law.step(0.0, q0, np.zeros(law.robot.nq), reference)  # a normal loop's first cycle
+        assert _niceness(tid) == min(base + 10, 19) == law.planner.nice
+        s = law.summary()
+        assert (s["planner_nice"], s["planner_policy"]) == (min(base + 10, 19), "normal")
+        law.step(0.001, q0, np.zeros(law.robot.nq), reference)  # applied once per run
+        assert _niceness(tid) == min(base + 10, 19)
+        with _fifo():
+            law.reset(q0, np.zeros(law.robot.nq))
+            law.step(0.0, q0, np.zeros(law.robot.nq), reference)  # a real-time loop's
+            if law.planner.nice != base:  # lowering refused here (no CAP_SYS_NICE)
+                assert _niceness(tid) == min(base + 10, 19)
+            else:
+                assert _niceness(tid) == base
+            assert os.sched_getscheduler(tid) == os.SCHED_OTHER
+    assert law.planner.tid == 0  # stopped
+
+
+def test_a_planner_started_by_a_realtime_loop_leaves_its_policy():
+    """Created by a SCHED_FIFO thread the planner inherits its policy: the rule puts it
+    under the normal one (it must never compete with the loop at the loop's priority), or
+    one priority below the loop with planner_scheduling = "fifo"."""
+    with _fifo(3):
+        law, q0, reference = _planner()
+        with law:
+            tid = law.planner.tid
+            assert os.sched_getscheduler(tid) == os.SCHED_FIFO  # inherited
+            law.step(0.0, q0, np.zeros(law.robot.nq), reference)
+            assert os.sched_getscheduler(tid) == os.SCHED_OTHER
+            law.planner_scheduling = "fifo"
+            law.reset(q0, np.zeros(law.robot.nq))
+            law.step(0.0, q0, np.zeros(law.robot.nq), reference)
+            assert os.sched_getscheduler(tid) == os.SCHED_FIFO
+            assert os.sched_getparam(tid).sched_priority == 2
+            assert law.summary()["planner_policy"] == "SCHED_FIFO 2"
+    law, q0, reference = _planner()
+    with law:  # "fifo" under a normal loop: the rule's niceness
+        law.planner_scheduling = "fifo"
+        law.step(0.0, q0, np.zeros(law.robot.nq), reference)
+        assert os.sched_getscheduler(law.planner.tid) == os.SCHED_OTHER
+        assert _niceness(law.planner.tid) == min(_niceness(0) + 10, 19)
+
+
+def test_set_nice_is_validated_and_a_bad_scheduling_is_refused():
+    law, q0, reference = _planner()
+    with law:
+        for bad in (20, -21, 100):
+            with pytest.raises(ValueError, match=r"niceness in -20\.\.19, got " + str(bad)):
+                law.planner.set_nice(bad)
+        assert _niceness(law.planner.tid) == law.planner.nice == _niceness(0)  # unchanged
+        law.planner.set_nice(15)
+        assert _niceness(law.planner.tid) == law.planner.nice == 15
+        with pytest.raises(TypeError):
+            law.planner.set_nice("high")
+        law.planner_scheduling = "fast"
+        with pytest.raises(ConfigError, match=r"planner_scheduling.*'fast'"):
+            law.step(0.0, q0, np.zeros(law.robot.nq), reference)

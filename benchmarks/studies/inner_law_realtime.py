@@ -11,7 +11,14 @@ that reached 1 s); the loop's latency
 cycle (median [µs]); the misses; the threaded law's plan fallbacks (summed). The 1-minute
 load average before and after. Wall clock on a shared machine: a measurement, not a test.
 
-Run: ``python benchmarks/studies/inner_law_realtime.py [--blocks 3] [--duration 10]``.
+With ``--planner auto,0,10,fifo`` the threaded law runs once per planner scheduling
+(``InnerLawThreaded.planner_scheduling``: the rule, a niceness, ``SCHED_FIFO`` one below
+the loop) beside the whole step, and ``--priority 0`` runs the loop under the normal
+policy (default ``auto``: ``SCHED_FIFO`` where permitted); the planner's longest solve by
+its clock and by its CPU time (the ratio: how long it waited for a core) is printed too.
+
+Run: ``python benchmarks/studies/inner_law_realtime.py [--blocks 3] [--duration 10]
+[--planner auto,0,10,fifo] [--priority 0]``.
 """
 
 from __future__ import annotations
@@ -28,12 +35,16 @@ import numpy as np
 LAWS = ("whole-step", "every-cycle", "threaded")
 
 
-def _one(config, law: str, out: Path) -> dict:
+def _one(config, law: str, out: Path, planner=None) -> dict:
     from hmpc_pin.apps.realtime import run_realtime, tracking_summary
+    from hmpc_pin.realtime.threaded_law import InnerLawThreaded
 
+    if planner is not None:
+        InnerLawThreaded.planner_scheduling = planner
     cfg = replace(config, realtime=replace(config.realtime, inner_law=law))
     run, _ = run_realtime(cfg, out, stem=law.replace("-", "_"))
     s = run.stats
+    law_s = s["inner_law"]
     tr = tracking_summary(run.result)
     return {
         "rms": max(tr["rms_error"]) if tr else float("nan"),
@@ -44,7 +55,11 @@ def _one(config, law: str, out: Path) -> dict:
         "misses": s["misses"],
         "complete": run.result.complete,
         "stop": None if run.stop is None else run.stop["cause"],
-        "fallbacks": s["inner_law"].get("fallbacks", 0),
+        "fallbacks": law_s.get("fallbacks", 0),
+        "nice": law_s.get("planner_nice"),
+        "policy": law_s.get("planner_policy"),
+        "solve": law_s.get("max_solve", float("nan")) * 1e3,
+        "cpu": law_s.get("max_solve_cpu", float("nan")) * 1e3,
     }
 
 
@@ -53,27 +68,41 @@ def main() -> int:
     parser.add_argument("--blocks", type=int, default=3)
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--config", default="panda_sine")
+    parser.add_argument("--planner", default=None, help="e.g. auto,0,10,fifo")
+    parser.add_argument("--priority", default="auto", help="the loop's: auto or 0")
     args = parser.parse_args()
+    if args.planner:
+        variants = [("whole-step", None)] + [
+            ("threaded", p if p in ("auto", "fifo") else int(p)) for p in args.planner.split(",")
+        ]
+    else:
+        variants = [(law, None) for law in LAWS]
     warnings.simplefilter("ignore")
 
     from hmpc_pin.apps.common import read_config, with_overrides
 
     config = with_overrides(read_config(Path(args.config)), False, args.duration)
-    config = replace(config, realtime=replace(config.realtime, max_misses=10_000, watchdog=1.0))
-    rows: dict[str, list[dict]] = {law: [] for law in LAWS}
+    priority = args.priority if args.priority == "auto" else int(args.priority)
+    config = replace(
+        config,
+        realtime=replace(config.realtime, max_misses=10_000, watchdog=1.0, priority=priority),
+    )
+    names = [law if p is None else f"{law}[{p}]" for law, p in variants]
+    rows: dict[str, list[dict]] = {name: [] for name in names}
     load0 = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(args.blocks):
-            for law in LAWS:
-                rows[law].append(_one(config, law, Path(tmp)))
+            for name, (law, p) in zip(names, variants, strict=True):
+                rows[name].append(_one(config, law, Path(tmp), p))
     load1 = os.getloadavg()[0]
     print(
         f"{args.config}, 1 kHz, Ts = {config.controller.Ts:g} s, {args.blocks} blocks of "
-        f"{args.duration:g} s per law (medians over blocks)"
+        f"{args.duration:g} s per law (medians over blocks), loop priority {args.priority}"
     )
     print(
-        f"{'law':12s} {'worst RMS e [rad]':>18s} {'latency p50':>12s} {'p99':>8s} "
-        f"{'p99.9 [us]':>11s} {'compute p50':>12s} {'misses':>7s} {'fallbacks':>9s}"
+        f"{'law':16s} {'worst RMS e [rad]':>18s} {'latency p50':>12s} {'p99':>8s} "
+        f"{'p99.9 [us]':>11s} {'compute p50':>12s} {'misses':>7s} {'fallbacks':>9s} "
+        f"{'solve max/cpu [ms]':>19s}  planner"
     )
     for law, rs in rows.items():
 
@@ -82,9 +111,11 @@ def main() -> int:
 
         stopped = sum(not r["complete"] for r in rs)
         print(
-            f"{law:12s} {med('rms'):18.2e} {med('median'):12.0f} {med('p99'):8.0f} "
+            f"{law:16s} {med('rms'):18.2e} {med('median'):12.0f} {med('p99'):8.0f} "
             f"{med('p999'):11.0f} {med('compute'):12.0f} {sum(r['misses'] for r in rs):7d} "
-            f"{sum(r['fallbacks'] for r in rs):9d}"
+            f"{sum(r['fallbacks'] for r in rs):9d} "
+            f"{med('solve'):9.1f}/{med('cpu'):<9.1f}  {rs[0]['policy'] or ''} "
+            f"{'' if rs[0]['nice'] is None else 'nice ' + str(rs[0]['nice'])}"
             + (f"  ({stopped} stopped: {[r['stop'] for r in rs if r['stop']]})" if stopped else "")
         )
     print(f"load average (1 min) {load0:.2f} before, {load1:.2f} after")

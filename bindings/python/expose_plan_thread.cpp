@@ -89,6 +89,8 @@ void expose_plan_thread(py::module_& m) {
       .def_readonly("N", &P::N)
       .def_readonly("Nc", &P::Nc)
       .def_readonly("nice", &P::nice)
+      .def("set_nice", &P::set_nice, py::arg("nice"))
+      .def_property_readonly("tid", &P::tid)
       .def_readonly("Ts", &P::Ts)
       .def_readwrite("max_age", &P::max_age)
       .def_property_readonly("requests", [](const P& p) { return p.requests; })

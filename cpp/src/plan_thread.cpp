@@ -6,10 +6,13 @@
 #include "hmpc/stack_map.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -56,6 +59,26 @@ PlanThread::PlanThread(const CRefRow& F, int N_, std::shared_ptr<JointQPs> qps,
   std::fill(s_buf_, s_buf_ + 3, std::numeric_limits<double>::quiet_NaN());
   thread_ = std::thread(&PlanThread::run, this);
   ++live_;
+  std::unique_lock<std::mutex> lock(m_);
+  done_cv_.wait(lock, [this] { return started_; });  // its tid and niceness set
+}
+
+void PlanThread::set_nice(int value) {
+  if (value < -20 || value > 19)
+    throw std::invalid_argument("PlanThread.set_nice: expected a niceness in -20..19, got " +
+                                std::to_string(value));
+#ifdef __linux__
+  const long t = tid_.load();
+  if (t != 0 && setpriority(PRIO_PROCESS, static_cast<id_t>(t), value) != 0) {
+    const int e = errno;
+    throw std::runtime_error("PlanThread.set_nice(" + std::to_string(value) +
+                             "): the system refused it (" + std::strerror(e) +
+                             (e == EACCES || e == EPERM
+                                  ? "; lowering a niceness needs CAP_SYS_NICE or RLIMIT_NICE)"
+                                  : ")"));
+  }
+#endif
+  nice = value;
 }
 
 PlanThread::~PlanThread() { stop(); }
@@ -71,6 +94,7 @@ void PlanThread::stop() {
     thread_.join();
     --live_;
   }
+  tid_ = 0;
 }
 
 void PlanThread::set_reference(Reference* r) { reference_ = r; }
@@ -196,8 +220,20 @@ void PlanThread::run() {
 #ifdef __linux__
   // below the torque loop: on a loaded machine a woken planner does not take the core
   // from the cycle that woke it (the niceness of this thread only; refused: as is)
-  if (nice > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
+  const long self = static_cast<long>(syscall(SYS_gettid));
+  if (nice > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(self), nice);
+  errno = 0;
+  const int actual = getpriority(PRIO_PROCESS, static_cast<id_t>(self));
+  tid_ = self;
 #endif
+  {
+    std::lock_guard<std::mutex> lock(m_);
+#ifdef __linux__
+    if (errno == 0) nice = actual;  // what the thread runs at (0 asked: the caller's)
+#endif
+    started_ = true;
+  }
+  done_cv_.notify_all();
   while (true) {
     {
       std::unique_lock<std::mutex> lock(m_);

@@ -28,6 +28,15 @@ row is the input the MPC chose for that time, along a prediction that kept the l
 while the cycle's time lies within its control horizon, and the cycle brakes only beyond
 it (with :math:`N_c = 1`, one MPC period late).
 
+**The planner's scheduling** (applied at each run's first cycle, from the policy of the
+thread that runs the cycles, :attr:`InnerLawThreaded.planner_scheduling` ``"auto"``): when
+the torque loop runs under a real-time policy (``SCHED_FIFO``/``RR``: no normal thread can
+preempt it) the planner keeps the loop's niceness -- it then competes only with the
+machine's other normal work, and a lower share made plans late and cycles brake; when the
+loop runs under the normal policy the planner is niced 10 above it, so that a woken
+planner does not take the core from the cycle that woke it. ``summary()`` records what
+was applied (``planner_nice``, ``planner_policy``).
+
 The thread is stopped and joined by :meth:`InnerLawThreaded.close` (also ``with`` and the
 object's end).
 A failure of the planner (a QP not solved, a non-finite state) is raised by the next cycle.
@@ -35,7 +44,9 @@ A failure of the planner (a QP not solved, a non-finite state) is raised by the 
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 
 import numpy as np
 
@@ -44,8 +55,12 @@ from ..mpc.condensed import JointQPs
 from ..native import load as load_native
 from ..tasks.base import Reference, as_reference, reference_port
 from .inner_law import FloatArray, InnerLawEveryCycle
+from .pacing import realtime_policy
 
-__all__ = ["InnerLawThreaded"]
+__all__ = ["PLANNER_NICE", "InnerLawThreaded"]
+
+#: The planner's niceness above the torque loop's when the loop runs under the normal policy.
+PLANNER_NICE = 10
 
 _KNOBS = (
     "max_iter",
@@ -93,7 +108,11 @@ class InnerLawThreaded(InnerLawEveryCycle):
             cycle, as the synchronous law's).
 
     Attributes:
-        planner: The ``hmpc_pin._core.PlanThread``.
+        planner: The ``hmpc_pin._core.PlanThread`` (its thread's id: ``planner.tid``).
+        planner_scheduling: The planner's scheduling, applied at each run's first cycle:
+            ``"auto"`` (the module doc's rule), a niceness (−20..19), or ``"fifo"``
+            (``SCHED_FIFO`` one priority below a real-time loop's; under a normal loop as
+            ``"auto"``). A class attribute; an instance may set its own.
         fallbacks: Cycles that braked (no plan within ``max_age``) since :meth:`reset`.
         name: ``"threaded"`` (as ``--inner-law`` names it).
         label: The law in words (the run summaries).
@@ -104,6 +123,7 @@ class InnerLawThreaded(InnerLawEveryCycle):
 
     name = "threaded"
     label = "every cycle, the MPC threaded"
+    planner_scheduling: int | str = "auto"
     warm_up = None  # type: ignore[assignment]  #: (no warm-up: class doc)
 
     def __init__(
@@ -125,9 +145,13 @@ class InnerLawThreaded(InnerLawEveryCycle):
         self._qps = planner_qps(controller)
         N = controller.settings.N
         self._offsets = Ts * np.arange(1, N + 1)
+        # started at the caller's niceness: the rule is applied at the first cycle (raising a
+        # niceness needs no right, lowering it one)
         self.planner = load_native().PlanThread(
-            controller.mpc.FT, N, self._qps._core, self._offsets, Ts, age
+            controller.mpc.FT, N, self._qps._core, self._offsets, Ts, age, nice=0
         )
+        self._scheduled = False
+        self._planner_policy = "normal"
         self._vmin, self._vmax = controller.settings.bounds(self.robot.nq)
         self._stack = np.zeros((2 + 2 * N, self.robot.nq))
         self._times = np.empty(N)
@@ -146,10 +170,43 @@ class InnerLawThreaded(InnerLawEveryCycle):
         super().reset(q0, dq0)
         self.planner.reset()
         self.fallbacks = 0
+        self._scheduled = False
+
+    def schedule_planner(self) -> None:
+        """Apply :attr:`planner_scheduling` from the calling thread's policy (module doc);
+        done by the run's first cycle. A change the system refuses (a niceness lowered
+        without the right) leaves the planner as it was (``summary()`` tells)."""
+        self._scheduled = True
+        mode = self.planner_scheduling
+        if not (mode in ("auto", "fifo") or (isinstance(mode, int) and -20 <= mode <= 19)):
+            raise ConfigError(
+                "planner_scheduling", f'expected "auto", "fifo" or a niceness -20..19, got {mode!r}'
+            )
+        tid = int(self.planner.tid)
+        if not tid:  # not Linux, or stopped: nothing to schedule
+            return
+        rt = realtime_policy()
+        try:
+            base = os.getpriority(os.PRIO_PROCESS, 0)  # this thread's niceness (Linux)
+            if os.sched_getscheduler(tid) != os.SCHED_OTHER:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+            if mode == "fifo" and rt:
+                prio = max(1, os.sched_getparam(0).sched_priority - 1)
+                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(prio))
+                self._planner_policy = f"SCHED_FIFO {prio}"
+                return
+        except (OSError, AttributeError):
+            return
+        nice = mode if isinstance(mode, int) else (base if rt else min(base + PLANNER_NICE, 19))
+        with contextlib.suppress(RuntimeError):
+            self.planner.set_nice(nice)
+        self._planner_policy = "normal"
 
     def step(self, t: float, q: FloatArray, dq: FloatArray, reference) -> FloatArray:
         """The torque [N·m] of cycle ``k`` (module doc)."""
         M, nle = self._observe(q, dq)
+        if not self._scheduled:
+            self.schedule_planner()
         if self._due(t):
             self._request(t, q, dq, reference)
             if self.wait:
@@ -192,7 +249,10 @@ class InnerLawThreaded(InnerLawEveryCycle):
     def summary(self) -> dict:
         """As the synchronous law's, with the planner's counts: ``requests``,
         ``published``, ``dropped``, ``refused`` (plans past ``max_age``), ``fallbacks``
-        (cycles that braked), ``max_age`` [s] and ``wait``."""
+        (cycles that braked), ``max_age`` [s], ``wait``, and the planner thread's
+        ``planner_nice`` and ``planner_policy`` (``"normal"`` or ``"SCHED_FIFO <prio>"``), and
+        its longest solve ``max_solve`` [s] by its clock and ``max_solve_cpu`` [s] by its CPU
+        time (their ratio: how long the planner waited for a core)."""
         p = self.planner
         return {
             **super().summary(),
@@ -203,6 +263,10 @@ class InnerLawThreaded(InnerLawEveryCycle):
             "fallbacks": int(self.fallbacks),
             "max_age": float(p.max_age),
             "wait": self.wait,
+            "max_solve": float(p.max_solve),
+            "max_solve_cpu": float(p.max_solve_cpu),
+            "planner_nice": int(p.nice),
+            "planner_policy": self._planner_policy,
         }
 
     def close(self) -> None:

@@ -48,7 +48,8 @@ class PlanThread {
   // horizon offsets j·Ts, j = 1..N [s]; Ts: the MPC's period [s]; max_age: the staleness
   // bound [s] (> 0); nice: the planner thread's niceness (Linux; 0: the caller's), above
   // the torque loop's so that a woken planner does not take the core from the cycle that
-  // woke it. Starts the thread.
+  // woke it (a loop under a normal policy); set_nice() changes it. Starts the thread (its
+  // tid is known when the constructor returns; `nice` then holds the niceness it runs at).
   PlanThread(const CRefRow& F, int N, std::shared_ptr<JointQPs> qps, const CRefVec& offsets,
              double Ts, double max_age, int nice = 10);
   ~PlanThread();  // stop()
@@ -77,6 +78,12 @@ class PlanThread {
   void reset();
   // Stop the thread and join it (idempotent).
   void stop();
+  // The planner thread's niceness, now (Linux: setpriority on its tid; elsewhere stored
+  // only): −20..19, else std::invalid_argument; refused by the system (e.g. lowered
+  // without the right): std::runtime_error naming the reason, `nice` unchanged.
+  void set_nice(int value);
+  // The planner thread's kernel thread id (Linux; 0 elsewhere, or once stopped).
+  long tid() const { return tid_.load(); }
 
   bool running() const { return thread_.joinable(); }
   // The number of planner threads alive in the process (started and not yet joined).
@@ -143,6 +150,8 @@ class PlanThread {
   std::atomic<long> asked_{0}, published_{0};
   std::atomic<double> max_solve_{0.0}, max_solve_cpu_{0.0};
   std::atomic<bool> failed_{false};
+  std::atomic<long> tid_{0};
+  bool started_ = false;  // the thread has read its tid (guarded by m_)
   std::exception_ptr error_;
   std::thread thread_;
   static std::atomic<long> live_;

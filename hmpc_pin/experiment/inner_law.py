@@ -18,8 +18,9 @@ The last two apply to the hierarchical MPC with a disturbance observer, no decla
 latency and (``"every-cycle"``) ``Ts`` above the interface period; asked for elsewhere
 they are an error that says what was wrong and what to do (:func:`check_inner_law`).
 ``"auto"`` (the default) is the command's own choice (:data:`AUTO`): ``franka`` runs
-``"every-cycle"`` where it applies and ``"whole-step"`` elsewhere; ``realtime`` and ``ros`` run ``"whole-step"``
-(measured against the others on ``panda_sine`` at 1 kHz: the guide "The inner law").
+``"every-cycle"`` where it applies and ``"whole-step"`` elsewhere; ``realtime`` and
+``ros`` run ``"whole-step"`` (measured against the others on ``panda_sine`` at 1 kHz: the
+guide "The inner law").
 """
 
 from __future__ import annotations

@@ -43,6 +43,7 @@ the arm is not the loop's miss.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Sequence
@@ -393,8 +394,20 @@ class RosArmInterface:
         self._pub.publish(self._cmd)
         self.published += 1
 
+    #: How long [s] :meth:`close` waits for the arm's acknowledgement of the last command.
+    ACK_TIMEOUT = 0.5
+
     def close(self) -> None:
-        """Stop the node (idempotent)."""
+        """Stop the node (idempotent), once the last command (the one the arm holds from
+        now on: the stop sequence's G(q) or brake) is acknowledged by every reliable
+        subscriber, or after :data:`ACK_TIMEOUT` -- destroyed at once, a command still in
+        the middleware's send queue is lost and the arm holds the one before it."""
+        pub = getattr(self, "_pub", None)
+        if pub is not None:
+            from rclpy.duration import Duration
+
+            with contextlib.suppress(Exception):  # (a publisher already gone: nothing to wait)
+                pub.wait_for_all_acked(Duration(nanoseconds=int(self.ACK_TIMEOUT * 1e9)))
         self.ros.close()
 
 

@@ -327,8 +327,10 @@ def test_inner_law_every_cycle_tracks_as_the_whole_step_at_1khz(simulator, tmp_p
 
 
 def test_inner_law_threaded_tracks_as_the_synchronous_one(simulator, tmp_path):
-    """Ts = 10 ms: the MPC in its compiled thread, its latest plan used within 2 Ts;
-    against the MPC every 10 cycles in the cycle that needs it."""
+    """Ts = 10 ms: the MPC in its compiled thread, its latest plan used within its control
+    horizon (2 Ts with Nc = 1); the run judged by its own states against the bound the
+    physics gives (the torque held for 10 ms, its offline twin), not by a ratio of two
+    wall-clock runs on a loaded machine."""
     every, _, _ = _run(tmp_path)
     threaded, files, s = _run(tmp_path, inner_law="threaded")
     assert s["inner_law"] == "every cycle, the MPC threaded"
@@ -341,7 +343,8 @@ def test_inner_law_threaded_tracks_as_the_synchronous_one(simulator, tmp_path):
     assert answered - 1 <= plans["published"] <= answered
     assert plans["fallbacks"] == plans["refused"] <= cycles // 100
     t, e = (_worst_rms(r.result).max() for r in (threaded, every))
-    assert t <= 1.5 * e, (t, e)
+    h_twin = _twin_rms(tmp_path, every.result.q[0], cycles, "held", 0.01)
+    assert t < h_twin and e < h_twin, (t, e, h_twin)
     _assert_fci_rules(summary_cycles(files))
 
 

@@ -182,6 +182,16 @@ bool JointQPs::soft_joint(int i, const CRefRow& G, const CRefVec& q, const CRefV
   return true;
 }
 
+// Whether joint i's box-only prediction (U.col(i)) leaves the limits: the O(1) reach
+// bound first (options.soft_reach_test), the O(N) test where it cannot tell.
+bool JointQPs::leaves(int i, double q, double dq) {
+  if (options.soft_reach_test && soft_->inside(i, q, dq, U.col(i))) {
+    ++stats.soft_reach_inside;
+    return false;
+  }
+  return soft_->leaves(i, q, dq, U.col(i));
+}
+
 // Re-solve with the soft state constraints the joints whose box-only prediction leaves the
 // limits (every joint when always_constrained).
 bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
@@ -202,7 +212,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
   if (left >= 0)
     for (int i = 0; i < n; ++i)
       joints_left += soft.next[i] || options.always_constrained ||
-                     soft.leaves(i, q[i], dq[i], U.col(i));
+                     leaves(i, q[i], dq[i]);
   bool counted = false;  // joint i counted out of joints_left
   // At least a guess's own exchanges (soft_active_set_iter) while the step has them: fewer
   // rarely answer at an activation, and all the joints then fell back (measured, Panda).
@@ -246,7 +256,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
         // limits, else made safe (the fallback; the next step resumes the exchanges).
         g_ = G.row(i).transpose();
         if (!box_joint(i)) return false;
-        if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {
+        if (!(options.always_constrained || leaves(i, q[i], dq[i]))) {
           soft.last[i] = 0;
           continue;
         }
@@ -262,7 +272,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       g_ = G.row(i).transpose();
       if (!box_joint(i)) return false;
     }
-    if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {
+    if (!(options.always_constrained || leaves(i, q[i], dq[i]))) {
       soft.last[i] = 0;
       continue;
     }

@@ -110,6 +110,7 @@ class JointQPs {
   void make_box_qps();
   bool box_joint(int i);
   bool enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
+  bool leaves(int i, double q, double dq);
   bool soft_joint(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq);
   bool fail(int joint, const Results& res);
 

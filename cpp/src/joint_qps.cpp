@@ -30,6 +30,8 @@ JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const
     boxes_.emplace_back(std::make_unique<BoxQP>(H_block_, lo, hi, warm_, cold_));
   } else {
     active_set_ = std::make_unique<BoxActiveSet>(H_);
+    if (Nc == 1) neg_hinv1_ = active_set_->unconstrained(Vec::Ones(1))[0];  // 0 + 1·(h·1)
+    u1_.setZero(1);
     for (int i = 0; i < n; ++i)
       boxes_.emplace_back(std::make_unique<BoxQP>(H_, Vec::Constant(Nc, v_min_[i]),
                                                   Vec::Constant(Nc, v_max_[i]), warm_, cold_));
@@ -97,6 +99,18 @@ bool JointQPs::fail(int joint, const Results& res) {
 // solved.
 bool JointQPs::box_joint(int i) {
   BoxQP& box = *boxes_[i];
+  if (options.shortcut && Nc == 1) {
+    // Nc = 1: the unconstrained minimiser −H⁻¹g as BoxActiveSet::unconstrained forms it
+    // (0 + 1·(h g), h its −H⁻¹), without its product's dispatch; outside the box, on below.
+    const double u = 0.0 + neg_hinv1_ * g_[0];
+    if (u >= v_min_[i] && u <= v_max_[i]) {
+      U(0, i) = u;
+      u1_[0] = u;
+      box.remember(0, u1_, nullptr);
+      ++stats.unconstrained_solves;
+      return true;
+    }
+  }
   if (options.shortcut) {
     const Vec& u = active_set_->unconstrained(g_);
     if ((u.array() >= v_min_[i]).all() && (u.array() <= v_max_[i]).all()) {

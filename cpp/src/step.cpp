@@ -139,7 +139,19 @@ void HierarchicalStep::prepare(const CRefRow& S, double t) {
   qv = S.row(0).transpose();
   dqv = S.row(1).transpose();
   // Gradients, one column per joint: G^T = FT^T S (Nc×n).
-  Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+  if (Nc == 1) {
+    // A row times the stack, summed over its rows in order, row by row of the stack
+    // (contiguous over the joints): the sums Eigen's product forms, without its dispatch.
+    double* gt = Gt.data();
+    for (int i = 0; i < n; ++i) gt[i] = 0.0;
+    for (Eigen::Index r = 0; r < grad_rows; ++r) {
+      const double f = FT(r, 0);
+      const double* s = &S(r, 0);
+      for (int i = 0; i < n; ++i) gt[i] += s[i] * f;
+    }
+  } else {
+    Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+  }
   evaluate(qv, dqv);
 }
 

@@ -146,7 +146,7 @@ void HierarchicalStep::prepare(const CRefRow& S, double t) {
     for (int i = 0; i < n; ++i) gt[i] = 0.0;
     for (Eigen::Index r = 0; r < grad_rows; ++r) {
       const double f = FT(r, 0);
-      const double* s = &S(r, 0);
+      const double* s = S.data() + r * S.outerStride();
       for (int i = 0; i < n; ++i) gt[i] += s[i] * f;
     }
   } else {

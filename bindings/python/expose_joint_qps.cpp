@@ -49,13 +49,14 @@ static void expose_options_stats(py::module_& m) {
       .def_readwrite("soft_active_set_iter", &O::soft_active_set_iter)
       .def_readwrite("soft_step_exchanges", &O::soft_step_exchanges)
       .def_readwrite("soft_step_work", &O::soft_step_work)
+      .def_readwrite("soft_reach_test", &O::soft_reach_test)
       .def_readonly("always_constrained", &O::always_constrained);
   using S = JointQPsStats;
   auto fields = [](const S& s) {
     return py::make_tuple(s.cold_solves, s.unconstrained_solves, s.active_set_solves,
                           s.soft_active_set_solves, s.soft_fail_pivot, s.soft_fail_exchanges,
                           s.soft_fail_kkt, s.soft_exchanges, s.soft_fallbacks, s.constrained,
-                          s.constrained_last);
+                          s.constrained_last, s.soft_reach_inside);
   };
   py::class_<S>(m, "JointQPsStats", py::module_local())
       .def(py::init<>())
@@ -73,6 +74,7 @@ static void expose_options_stats(py::module_& m) {
                     ", soft_fail_kkt=" + std::to_string(s.soft_fail_kkt) +
                     ", soft_exchanges=" + std::to_string(s.soft_exchanges) +
                     ", soft_fallbacks=" + std::to_string(s.soft_fallbacks) +
+                    ", soft_reach_inside=" + std::to_string(s.soft_reach_inside) +
                     ", constrained=" + std::to_string(s.constrained) +
                     ", constrained_last=" + (s.constrained_last ? "True" : "False") + ")";
            })
@@ -85,6 +87,7 @@ static void expose_options_stats(py::module_& m) {
       .def_readwrite("soft_fail_kkt", &S::soft_fail_kkt)
       .def_readwrite("soft_exchanges", &S::soft_exchanges)
       .def_readwrite("soft_fallbacks", &S::soft_fallbacks)
+      .def_readwrite("soft_reach_inside", &S::soft_reach_inside)
       .def_readwrite("constrained", &S::constrained)
       .def_readwrite("constrained_last", &S::constrained_last);
 }

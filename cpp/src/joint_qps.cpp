@@ -30,6 +30,8 @@ JointQPs::JointQPs(int n_, int N_, int Nc_, bool block_, const CRefMat& H, const
     boxes_.emplace_back(std::make_unique<BoxQP>(H_block_, lo, hi, warm_, cold_));
   } else {
     active_set_ = std::make_unique<BoxActiveSet>(H_);
+    if (Nc == 1) neg_hinv1_ = active_set_->unconstrained(Vec::Ones(1))[0];  // 0 + 1·(h·1)
+    u1_.setZero(1);
     for (int i = 0; i < n; ++i)
       boxes_.emplace_back(std::make_unique<BoxQP>(H_, Vec::Constant(Nc, v_min_[i]),
                                                   Vec::Constant(Nc, v_max_[i]), warm_, cold_));
@@ -97,6 +99,18 @@ bool JointQPs::fail(int joint, const Results& res) {
 // solved.
 bool JointQPs::box_joint(int i) {
   BoxQP& box = *boxes_[i];
+  if (options.shortcut && Nc == 1) {
+    // Nc = 1: the unconstrained minimiser −H⁻¹g as BoxActiveSet::unconstrained forms it
+    // (0 + 1·(h g), h its −H⁻¹), without its product's dispatch; outside the box, on below.
+    const double u = 0.0 + neg_hinv1_ * g_[0];
+    if (u >= v_min_[i] && u <= v_max_[i]) {
+      U(0, i) = u;
+      u1_[0] = u;
+      box.remember(0, u1_, nullptr);
+      ++stats.unconstrained_solves;
+      return true;
+    }
+  }
   if (options.shortcut) {
     const Vec& u = active_set_->unconstrained(g_);
     if ((u.array() >= v_min_[i]).all() && (u.array() <= v_max_[i]).all()) {
@@ -182,6 +196,16 @@ bool JointQPs::soft_joint(int i, const CRefRow& G, const CRefVec& q, const CRefV
   return true;
 }
 
+// Whether joint i's box-only prediction (U.col(i)) leaves the limits: the O(1) reach
+// bound first (options.soft_reach_test), the O(N) test where it cannot tell.
+bool JointQPs::leaves(int i, double q, double dq) {
+  if (options.soft_reach_test && soft_->inside(i, q, dq, U.col(i))) {
+    ++stats.soft_reach_inside;
+    return false;
+  }
+  return soft_->leaves(i, q, dq, U.col(i));
+}
+
 // Re-solve with the soft state constraints the joints whose box-only prediction leaves the
 // limits (every joint when always_constrained).
 bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq) {
@@ -202,7 +226,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
   if (left >= 0)
     for (int i = 0; i < n; ++i)
       joints_left += soft.next[i] || options.always_constrained ||
-                     soft.leaves(i, q[i], dq[i], U.col(i));
+                     leaves(i, q[i], dq[i]);
   bool counted = false;  // joint i counted out of joints_left
   // At least a guess's own exchanges (soft_active_set_iter) while the step has them: fewer
   // rarely answer at an activation, and all the joints then fell back (measured, Panda).
@@ -246,7 +270,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
         // limits, else made safe (the fallback; the next step resumes the exchanges).
         g_ = G.row(i).transpose();
         if (!box_joint(i)) return false;
-        if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {
+        if (!(options.always_constrained || leaves(i, q[i], dq[i]))) {
           soft.last[i] = 0;
           continue;
         }
@@ -262,7 +286,7 @@ bool JointQPs::enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec&
       g_ = G.row(i).transpose();
       if (!box_joint(i)) return false;
     }
-    if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {
+    if (!(options.always_constrained || leaves(i, q[i], dq[i]))) {
       soft.last[i] = 0;
       continue;
     }

@@ -38,24 +38,33 @@ void SineReference::horizon(double t, const CRefVec& offsets, Eigen::Ref<RowMat>
   const std::lock_guard<std::mutex> lock(turns_mutex_);
   if (offsets_.size() != N || offsets_ != offsets) {  // the turns of these offsets
     offsets_ = offsets;
-    cos_.resize(n, N);
-    sin_.resize(n, N);
+    cos_.resize(N, n);
+    sin_.resize(N, n);
     for (int i = 0; i < n; ++i)
       for (Eigen::Index j = 0; j < N; ++j) {
-        cos_(i, j) = std::cos(omega_[i] * offsets[j]);
-        sin_(i, j) = std::sin(omega_[i] * offsets[j]);
+        cos_(j, i) = std::cos(omega_[i] * offsets[j]);
+        sin_(j, i) = std::sin(omega_[i] * offsets[j]);
       }
+    s_.resize(n);
+    c_.resize(n);
   }
-  // sin(a + b) = sin a cos b + cos a sin b, cos(a + b) = cos a cos b − sin a sin b
   for (int i = 0; i < n; ++i) {
     const double arg = t * omega_[i] + phase_[i];
-    const double s = std::sin(arg), c = std::cos(arg);
-    const double a = amp_[i], o = offset_[i], aw = amp_omega_[i];
-    const double* cb = &cos_(i, 0);
-    const double* sb = &sin_(i, 0);
-    for (Eigen::Index j = 0; j < N; ++j) {
-      S(2 + j, i) = (s * cb[j] + c * sb[j]) * a + o;
-      S(2 + N + j, i) = (c * cb[j] - s * sb[j]) * aw;
+    s_[i] = std::sin(arg);
+    c_[i] = std::cos(arg);
+  }
+  // sin(a + b) = sin a cos b + cos a sin b, cos(a + b) = cos a cos b − sin a sin b; row by
+  // row of the stack (contiguous over the joints)
+  const double *s = s_.data(), *c = c_.data(), *a = amp_.data(), *o = offset_.data(),
+               *aw = amp_omega_.data();
+  for (Eigen::Index j = 0; j < N; ++j) {
+    const double* cb = &cos_(j, 0);
+    const double* sb = &sin_(j, 0);
+    double* q = &S(2 + j, 0);
+    double* dq = &S(2 + N + j, 0);
+    for (int i = 0; i < n; ++i) {
+      q[i] = (s[i] * cb[i] + c[i] * sb[i]) * a[i] + o[i];
+      dq[i] = (c[i] * cb[i] - s[i] * sb[i]) * aw[i];
     }
   }
 }

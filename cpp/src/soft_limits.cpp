@@ -26,6 +26,26 @@ SoftLimits::SoftLimits(int n, int N, int Nc, const Mat& H, const Vec& v_min, con
     throw std::invalid_argument("JointQPs.set_limits: shapes do not match the horizon");
   mid_ = 0.5 * (lower_ + upper_);
   half_ = 0.5 * (upper_ - lower_);
+  {  // inside()'s constants: A^j and the sums of |A^k B| along the horizon
+    const double a00 = Phi_(0, 0), a01 = Phi_(0, 1), a10 = Phi_(1, 0), a11 = Phi_(1, 1);
+    double p00 = 1.0, p01 = 0.0, p10 = 0.0, p11 = 1.0;  // A^j
+    double s0 = 0.0, s1 = 0.0;                          // Σ_{k<j} |(A^k B)|
+    for (int j = 1; j <= N; ++j) {
+      // (A^(j−1) B) adds to the sums of x_j
+      s0 += std::abs(p00 * Gamma_(0, 0) + p01 * Gamma_(1, 0));
+      s1 += std::abs(p10 * Gamma_(0, 0) + p11 * Gamma_(1, 0));
+      const double n00 = a00 * p00 + a01 * p10, n01 = a00 * p01 + a01 * p11;
+      const double n10 = a10 * p00 + a11 * p10, n11 = a10 * p01 + a11 * p11;
+      p00 = n00, p01 = n01, p10 = n10, p11 = n11;
+      reach_[0] = std::max(reach_[0], std::abs(p00));
+      reach_[1] = std::max(reach_[1], std::abs(p00 - 1.0));
+      reach_[2] = std::max(reach_[2], std::abs(p01));
+      reach_[3] = std::max(reach_[3], s0);
+      reach_[4] = std::max(reach_[4], std::abs(p10));
+      reach_[5] = std::max(reach_[5], std::abs(p11));
+      reach_[7] = std::max(reach_[7], s1);
+    }
+  }
   p_.g.setZero(Nc + 1);
   l_soft_.setZero(4 * N);
   u_soft_.setZero(4 * N);

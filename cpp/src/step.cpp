@@ -62,6 +62,27 @@ void HierarchicalStep::step_t(double t, const CRefVec& q, const CRefVec& dq) {
   step(stack, t);
 }
 
+// Whether every entry of S is finite: x·0 is ±0 for a finite x and NaN otherwise, summed in
+// four independent sums (no early exit: the step's stacks are finite), rows as they lie.
+static bool all_finite(const CRefRow& S) {
+  double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
+  const Eigen::Index cols = S.cols();
+  const bool flat = S.outerStride() == cols;
+  const Eigen::Index rows = flat ? 1 : S.rows(), len = flat ? S.size() : cols;
+  for (Eigen::Index r = 0; r < rows; ++r) {
+    const double* p = S.data() + r * S.outerStride();
+    Eigen::Index k = 0;
+    for (; k + 4 <= len; k += 4) {
+      a0 += p[k] * 0.0;
+      a1 += p[k + 1] * 0.0;
+      a2 += p[k + 2] * 0.0;
+      a3 += p[k + 3] * 0.0;
+    }
+    for (; k < len; ++k) a0 += p[k] * 0.0;
+  }
+  return (a0 + a1) + (a2 + a3) == 0.0;
+}
+
 void HierarchicalStep::non_finite(const CRefRow& S) const {
   const Vec q = S.row(0).transpose(), dq = S.row(1).transpose();
   if (!q.allFinite()) throw NonFinite("q", {q});
@@ -114,11 +135,23 @@ void HierarchicalStep::prepare(const CRefRow& S, double t) {
   if (S.rows() != 2 + 2 * N || S.cols() != n)
     throw std::invalid_argument("HierarchicalStep: stack of wrong shape");
   t_now = t;
-  if (!S.allFinite()) non_finite(S);
+  if (!all_finite(S)) non_finite(S);
   qv = S.row(0).transpose();
   dqv = S.row(1).transpose();
   // Gradients, one column per joint: G^T = FT^T S (Nc×n).
-  Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+  if (Nc == 1) {
+    // A row times the stack, summed over its rows in order, row by row of the stack
+    // (contiguous over the joints): the sums Eigen's product forms, without its dispatch.
+    double* gt = Gt.data();
+    for (int i = 0; i < n; ++i) gt[i] = 0.0;
+    for (Eigen::Index r = 0; r < grad_rows; ++r) {
+      const double f = FT(r, 0);
+      const double* s = S.data() + r * S.outerStride();
+      for (int i = 0; i < n; ++i) gt[i] += s[i] * f;
+    }
+  } else {
+    Gt.noalias() = FT.topRows(grad_rows).transpose() * S.topRows(grad_rows);
+  }
   evaluate(qv, dqv);
 }
 
@@ -202,7 +235,7 @@ void HierarchicalStep::step(const CRefRow& S, double t) {
 void HierarchicalStep::step_latency(const CRefRow& S_in) {
   if (S_in.rows() != 2 + 2 * N || S_in.cols() != n)
     throw std::invalid_argument("HierarchicalStep: stack of wrong shape");
-  if (!S_in.allFinite()) non_finite(S_in);
+  if (!all_finite(S_in)) non_finite(S_in);
   auto& S = stack;
   if (S.data() != S_in.data()) S = S_in;
   Vec q = S.row(0).transpose(), dq = S.row(1).transpose();

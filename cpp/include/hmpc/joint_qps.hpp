@@ -110,6 +110,7 @@ class JointQPs {
   void make_box_qps();
   bool box_joint(int i);
   bool enforce_limits(const CRefRow& G, const CRefVec& q, const CRefVec& dq);
+  bool leaves(int i, double q, double dq);
   bool soft_joint(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq);
   bool fail(int joint, const Results& res);
 
@@ -118,6 +119,8 @@ class JointQPs {
   Settings warm_, cold_;
   std::vector<std::unique_ptr<BoxQP>> boxes_;
   std::unique_ptr<BoxActiveSet> active_set_;  // "joint" layout
+  double neg_hinv1_ = 0.0;  // "joint" layout, Nc = 1: BoxActiveSet's −H⁻¹ (1×1)
+  Vec u1_;                  // its unconstrained minimiser, remembered as the warm start
   std::unique_ptr<SoftLimits> soft_;          // with set_limits
 };
 

@@ -33,6 +33,11 @@ struct JointQPsOptions {
   long soft_step_work = -1;
   // Soft QPs for every joint at every step (set by JointQPs::set_limits).
   bool always_constrained = false;
+  // Soft limits: before the O(N) test of a joint's box-only prediction, the O(1) bound of
+  // its reach (SoftLimits::inside); where the bound keeps every predicted state inside the
+  // limits the test's answer (inside) is known without it (off: the test at every joint,
+  // for tests; the answers are the same either way).
+  bool soft_reach_test = true;
 };
 
 struct JointQPsStats {
@@ -45,6 +50,7 @@ struct JointQPsStats {
   long soft_fail_pivot = 0, soft_fail_exchanges = 0, soft_fail_kkt = 0;
   long soft_exchanges = 0;  // the soft shortcut's exchanges (KKT solves), over all steps
   long soft_fallbacks = 0;  // soft QPs answered by the fallback (soft_step_exchanges spent)
+  long soft_reach_inside = 0;  // limit tests answered by the reach bound alone (inside)
   long constrained = 0;           // joints whose soft QP was solved at the last step
   bool constrained_last = false;  // whether any was
 };

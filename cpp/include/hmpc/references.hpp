@@ -38,7 +38,8 @@ class SineReference : public SampledReference {
  private:
   Vec omega_, phase_, amp_, offset_, amp_omega_;
   Vec offsets_;             // the offsets the turns below are of
-  RowMat cos_, sin_;        // cos/sin(ω_i o_j), n×N
+  RowMat cos_, sin_;        // cos/sin(ω_i o_j), N×n (row j: offset j's, by joint)
+  Vec s_, c_;               // sin/cos(ω_i t + φ_i) of the horizon being sampled
   std::mutex turns_mutex_;  // guards the three above
 };
 

@@ -19,6 +19,7 @@
 #include <Eigen/Core>
 #include <proxsuite/proxqp/results.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <vector>
@@ -76,6 +77,22 @@ class SoftLimits {
       outside = std::abs(x - m) > half_[i] || std::abs(v) > vel_[i];
     }
     return outside;
+  }
+  // Whether joint i's box-only prediction provably keeps inside the limits, in O(Nc): the
+  // reach of the recursion of leaves() bounded from constants computed once (reach_),
+  // |x_j − m| <= c0 |q − m| + c1 |m| + c2 |q̇| + c3 max|U| and |v_j| <= d0 |q| + d1 |q̇| +
+  // d3 max|U| over every j, each below its limit by a relative margin of 1e-9 (far above
+  // the rounding of leaves()' recursion). True: leaves() answers false; false: unknown.
+  bool inside(int i, double q, double dq, const ColRef& U) const {
+    double umax = 0.0;
+    for (int k = 0; k < Nc_; ++k) umax = std::max(umax, std::abs(U[k]));
+    const double m = mid_[i], aq = std::abs(q - m), am = std::abs(m), adq = std::abs(dq);
+    const double p = reach_[0] * aq + reach_[1] * am + reach_[2] * adq + reach_[3] * umax;
+    const double pscale = reach_[0] * (aq + am) + reach_[2] * adq + reach_[3] * umax + am;
+    const double v = reach_[4] * std::abs(q) + reach_[5] * adq + reach_[7] * umax;
+    const double vscale = reach_[4] * std::abs(q) + v;
+    // written so that a NaN anywhere answers false (unknown)
+    return p + 1e-9 * (pscale + half_[i]) < half_[i] && v + 1e-9 * (vscale + vel_[i]) < vel_[i];
   }
   // Joint i's soft QP's gradient (G's row i, ŝ's) and the free responses of its state.
   void prepare(int i, const CRefRow& G, const CRefVec& q, const CRefVec& dq);
@@ -139,6 +156,10 @@ class SoftLimits {
   int n_, N_, Nc_;
   Mat H_, Phi_, Gamma_, Hs_, C_;
   Vec v_min_, v_max_, lower_, upper_, vel_, row_scale_, mid_, half_;
+  // inside()'s constants over j = 1..N of x_j = A^j x0 + Σ_{k<j} A^(j−1−k) B u_k: c0..c3 =
+  // max |A^j_00|, max |A^j_00 − 1|, max |A^j_01|, Σ_{k<N} |(A^k B)_0|; d0, d1, (unused), d3
+  // likewise for the velocity row (A^j_10, A^j_11, (A^k B)_1).
+  double reach_[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   double g_slack_, k_slack_;
   QPSettings soft_;
   JointQPsStats* stats_;

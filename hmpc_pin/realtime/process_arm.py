@@ -211,11 +211,11 @@ def _read_state(ctl, state, buf, scratch) -> bool:
     ``scratch``: ``buf`` only ever holds a whole copy); whether a new copy was taken.
 
     A writer caught mid-write (its counter odd, or changed during the copy) is waited for:
-    :data:`READ_SPINS` tries at once, then a sleep of :data:`READ_NAP` between tries. The
+    :data:`READ_SPINS` tries at once, then a sleep of ``READ_NAP`` between tries. The
     sleep is what lets it finish where the reader's thread preempted it on their core (the
     arm runs a priority level below the loop): a reader that only spins there keeps it from
     running (a 100 000-try spin cost the loop 9–12 ms each time). After
-    :data:`READ_GIVE_UP` ``buf`` keeps the last whole copy: its stamp, not advancing, is
+    ``READ_GIVE_UP`` ``buf`` keeps the last whole copy: its stamp, not advancing, is
     the watchdog's.
     """
     tries, end = 0, 0.0

@@ -322,8 +322,8 @@ MUTANTS: list[Mutant] = [
         "cpp",
         "cpp/src/joint_qps.cpp",
         # (the joint's own test after its box QP: the out-of-exchanges branch repeats it)
-        "    }\n    if (!(options.always_constrained || soft.leaves(i, q[i], dq[i], U.col(i)))) {",
-        "    }\n    if (!(options.always_constrained && soft.leaves(i, q[i], dq[i], U.col(i)))) {",
+        "    }\n    if (!(options.always_constrained || leaves(i, q[i], dq[i]))) {",
+        "    }\n    if (!(options.always_constrained && leaves(i, q[i], dq[i]))) {",
         QP,
     ),
     # ---- stick_slip
@@ -420,8 +420,8 @@ MUTANTS: list[Mutant] = [
     (
         "cpp",
         "cpp/src/observer.cpp",
-        "if (implicit) lu_.compute(M + TcY);",
-        "if (implicit) lu_.compute(M - TcY);",
+        "if (implicit) A_ = M + TcY;",
+        "if (implicit) A_ = M - TcY;",
         OBS,
     ),
     # reset with z = + cY q̇0 (d̂ starts at 2 cY q̇0, not 0)
@@ -432,9 +432,9 @@ MUTANTS: list[Mutant] = [
     # the gradient's rows one short of the reference horizon
     (
         "cpp",
-        "cpp/src/step.cpp",
-        "grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;",
-        "grad_rows = FT.bottomRows(N).isZero(0.0) ? N + 1 : 2 + 2 * N;",
+        "cpp/include/hmpc/stack_map.hpp",
+        "return FT.bottomRows(N).isZero(0.0) ? N + 2 : 2 + 2 * N;",
+        "return FT.bottomRows(N).isZero(0.0) ? N + 1 : 2 + 2 * N;",
         CTRL,
     ),
     # the estimate added to the torque instead of subtracted

@@ -115,3 +115,23 @@ def write_urdf(tmp_path):
         return path
 
     return _write
+
+
+@pytest.fixture(autouse=True)
+def _scheduling_left_as_found():
+    """Every test leaves the process's scheduling policy as it found it: a thread left at
+    SCHED_FIFO (libfranka's Robot() sets 99) would make the later tests real-time. A change
+    is put back and reported as a warning naming the policy."""
+    import os
+    import warnings
+
+    try:
+        before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
+    except (AttributeError, OSError):
+        yield
+        return
+    yield
+    after = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
+    if after != before:
+        os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
+        warnings.warn(f"the test left the scheduling policy at {after}, was {before}", stacklevel=1)

@@ -163,8 +163,11 @@ def _worst_rms(result, after=1.0, joints=slice(None)):
 
 
 def test_connect_and_model_check(simulator):
+    policy = os.sched_getscheduler(0)
     arm = FrankaArm(HOST, FRANKA_TORQUE_LIMIT, realtime="ignore")
     state = arm.read_state()
+    # libfranka's Robot() sets the calling thread to SCHED_FIFO 99: the arm puts it back
+    assert os.sched_getscheduler(0) == policy
     assert state.robot_mode.name == "Idle"
     q = np.asarray(state.q)
     M_robot = arm.model_mass(state)

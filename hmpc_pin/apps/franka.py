@@ -29,7 +29,6 @@ its extra arrays), ``<stem>_franka_timing.npz`` (the loop's cycles),
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
 import sys
 import time
@@ -55,6 +54,7 @@ from ..realtime.franka import (
     check_position,
     quintic_duration,
 )
+from ..realtime.franka.arm import restore_thread_policy, thread_policy
 from ..realtime.loop import RealtimeLoop, RealtimeRun
 from ..realtime.safety import GravityByArm, SafeTorque, SafetySettings
 from .common import add_inner_law_option, inner_law_value
@@ -211,12 +211,12 @@ def run_franka(
     Returns:
         ``(run, files, arm_summary)``.
     """
-    policy = _thread_policy()  # libfranka's Robot() may switch this thread to SCHED_FIFO 99
+    policy = thread_policy()  # libfranka's Robot() may switch this thread to SCHED_FIFO 99
     d = _Drive(config, options, out, stem, experiment, ready, controller_wrapper, started)
     try:
         return _drive(d)
     finally:
-        _restore_policy(policy)
+        restore_thread_policy(policy)
 
 
 @dataclass
@@ -359,24 +359,6 @@ def threaded_advice(step_cpu: float, period: float) -> str | None:
         "compiled thread (--inner-law threaded), whose cycles use the last plan shifted "
         "instead of waiting"
     )
-
-
-def _thread_policy() -> tuple[int, int] | None:
-    """The calling thread's scheduling policy and priority (``None``: not readable)."""
-    try:
-        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
-    except (AttributeError, OSError):
-        return None
-
-
-def _restore_policy(policy: tuple[int, int] | None) -> None:
-    """Put the calling thread back to ``policy`` (:func:`_thread_policy`): libfranka's
-    ``Robot()`` leaves it at ``SCHED_FIFO`` 99 where it may, which would make everything
-    the process runs after the motion real-time."""
-    if policy is None:
-        return
-    with contextlib.suppress(OSError):
-        os.sched_setscheduler(0, policy[0], os.sched_param(policy[1]))
 
 
 def _move_to_start(arm, experiment: Experiment, options: FrankaOptions, summary, names) -> None:

@@ -26,6 +26,8 @@ state (the loop stops, its records kept) and :attr:`FrankaArm.fault` holds the c
 
 from __future__ import annotations
 
+import contextlib
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -36,9 +38,33 @@ from numpy.typing import NDArray
 from ...exceptions import ArmError, ExtraError, NonFiniteError
 from .filter import CommandFilter
 
-__all__ = ["FrankaArm", "error_names", "import_franka"]
+__all__ = [
+    "FrankaArm",
+    "error_names",
+    "import_franka",
+    "restore_thread_policy",
+    "thread_policy",
+]
 
 FloatArray = NDArray[np.float64]
+
+
+def thread_policy() -> tuple[int, int] | None:
+    """The calling thread's scheduling policy and priority (``None``: not readable)."""
+    try:
+        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    except (AttributeError, OSError):
+        return None
+
+
+def restore_thread_policy(policy: tuple[int, int] | None) -> None:
+    """Put the calling thread back to ``policy`` (:func:`thread_policy`): libfranka's
+    ``Robot()`` and its motions leave it at ``SCHED_FIFO`` 99 where they may, which would
+    make everything the process runs afterwards real-time."""
+    if policy is None:
+        return
+    with contextlib.suppress(OSError):
+        os.sched_setscheduler(0, policy[0], os.sched_param(policy[1]))
 
 #: The FCI's period [s].
 PERIOD = 0.001
@@ -134,6 +160,7 @@ class FrankaArm:
             raise ArmError(f"realtime={realtime!r}; expected 'enforce' or 'ignore'")
         modes = franka.RealtimeConfig
         config = modes.kEnforce if realtime == "enforce" else modes.kIgnore
+        policy = thread_policy()  # libfranka's Robot() switches this thread to SCHED_FIFO 99
         try:
             self.robot = franka.Robot(address, config)
         except franka.RealtimeException as exc:
@@ -147,6 +174,8 @@ class FrankaArm:
                 "FCI is enabled in Desk, and the network (or start the simulator: "
                 "franky-sim -s mujoco)"
             ) from None
+        finally:
+            restore_thread_policy(policy)
         self.address = address
         self.filter = CommandFilter(limit, ramp=ramp)
         self._control: Any = None  # pylibfranka's ActiveControlBase during a motion

@@ -66,6 +66,7 @@ def restore_thread_policy(policy: tuple[int, int] | None) -> None:
     with contextlib.suppress(OSError):
         os.sched_setscheduler(0, policy[0], os.sched_param(policy[1]))
 
+
 #: The FCI's period [s].
 PERIOD = 0.001
 

@@ -328,6 +328,12 @@ class PerformanceWarning(UserWarning):
     """A run takes a slower path than it could (e.g. the compiled core is unavailable)."""
 
 
+class RealtimeWarning(UserWarning):
+    """Something outside the run will delay a real-time loop (another process's
+    real-time threads, :mod:`hmpc_pin.realtime.machine`); the run goes on. The message
+    names it and what to do."""
+
+
 class ExcitationError(HmpcError, ValueError):
     """A run does not excite a joint enough to identify it (``hmpc-pin identify``).
 

@@ -4,7 +4,9 @@ Alternating blocks, several pairs: ``cyclictest`` (the machine's floor: one thre
 same rate and ``SCHED_FIFO`` priority, memory locked, ``-m``) and ``hmpc-pin realtime
 CONFIG --rate RATE`` (its ``*_timing.npz``: every cycle's wake-up and deadline -> torque
 latency, the missed ones). Per block: median, p99, p99.9, max [µs] and the stalls (cycles
-later than ``--stall`` µs; a period the loop skipped counts as one), and the load; per
+later than ``--stall`` µs; a period the loop skipped counts as one), the load, and the
+*steal* [ms]: the time the hypervisor did not run the machine's vCPUs while they had work,
+summed over the CPUs (``/proc/stat``; 0 on bare metal), the stalls no loop can avoid; per
 pair, the ratio ours / machine of p99.9, max and stalls; then the median of each ratio
 over the pairs. On a virtual machine, whose vCPUs the host preempts, a loop is judged
 against that floor, not against absolute figures.
@@ -85,6 +87,17 @@ def summary(x_us: np.ndarray, stall_us: float = 300.0, skipped: int = 0) -> dict
     }
 
 
+def steal_ms() -> float:
+    """The machine's steal time so far [ms], summed over its CPUs (``/proc/stat``'s eighth
+    ``cpu`` field, in clock ticks; 0 where not reported)."""
+    try:
+        fields = Path("/proc/stat").read_text().splitlines()[0].split()
+    except OSError:
+        return 0.0
+    ticks = int(fields[8]) if len(fields) > 8 else 0
+    return 1e3 * ticks / os.sysconf("SC_CLK_TCK")
+
+
 def machine_block(rate: float, duration: float, priority: int, stall: float, tmp: Path):
     """One cyclictest block: the wake-up latency of a FIFO thread at ``rate`` [Hz]."""
     hist = tmp / "hist.txt"
@@ -161,10 +174,14 @@ def loop_block(args, variant: str, tmp: Path, pair: int = 0):
     }
 
 
-def _line(name: str, s: dict, load: float) -> str:
+def _cells(r: dict) -> tuple[dict, float, float]:
+    return r["latency"], r["load"], r["steal"]
+
+
+def _line(name: str, s: dict, load: float, steal: float) -> str:
     return (
         f"| {name} | {s['median']:.0f} | {s['p99']:.0f} | {s['p999']:.0f} | {s['max']:.0f} "
-        f"| {s['stalls']} | {load:.1f} |"
+        f"| {s['stalls']} | {load:.1f} | {steal:.0f} |"
     )
 
 
@@ -190,24 +207,26 @@ def main(argv=None) -> int:
         f"{args.config} at {args.rate:g} Hz, {args.duration:g} s blocks, FIFO {args.priority}, "
         f"stall > {args.stall:g} us; {os.cpu_count()} CPUs"
     )
-    print("| block | median | p99 | p99.9 | max | stalls | load |")
-    print("|---|---|---|---|---|---|---|")
+    print("| block | median | p99 | p99.9 | max | stalls | load | steal [ms] |")
+    print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         for pair in range(args.pairs):
             order = names[pair % len(names) :] + names[: pair % len(names)]
             for name in order:
+                stolen = steal_ms()
                 if name == "machine":
                     r = machine_block(args.rate, args.duration, args.priority, args.stall, tmp)
                 else:
                     r = loop_block(args, name, tmp, pair + 1)
                 r["load"] = os.getloadavg()[0]
+                r["steal"] = steal_ms() - stolen
                 rows[name].append(r)
                 tag = "" if name == "machine" else f", missed {r['missed']}"
                 stop = " SAFE STOP" if r.get("safe_stop") else ""
-                print(_line(f"{pair + 1} {name} latency{tag}{stop}", r["latency"], r["load"]))
+                print(_line(f"{pair + 1} {name} latency{tag}{stop}", *_cells(r)))
                 if name != "machine":
-                    print(_line(f"{pair + 1} {name} wake", r["wake"], r["load"]))
+                    print(_line(f"{pair + 1} {name} wake", r["wake"], *_cells(r)[1:]))
                 sys.stdout.flush()
     print()
     for name in names:

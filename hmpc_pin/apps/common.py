@@ -40,6 +40,7 @@ __all__ = [
     "refuse_earlier_files",
     "report_realtime",
     "ros_config",
+    "warn_rivals",
     "warn_thresholds",
     "with_overrides",
     "with_reference",
@@ -65,6 +66,19 @@ def out_dir(path: Path, option: str = "--out") -> Path:
     except OSError as exc:
         raise OutputError(path, f"is not writable ({exc.strerror or exc})", option) from exc
     return path
+
+
+def warn_rivals() -> None:
+    """Warn (:class:`~hmpc_pin.exceptions.RealtimeWarning`, one line each) of the other
+    processes running real-time threads on this machine, before a real-time run starts
+    (:mod:`hmpc_pin.realtime.machine`); the run goes on."""
+    import warnings
+
+    from ..exceptions import RealtimeWarning
+    from ..realtime.machine import rival_warnings
+
+    for line in rival_warnings():
+        warnings.warn(line, RealtimeWarning, stacklevel=2)
 
 
 def out_file(path: Path, option: str) -> Path:

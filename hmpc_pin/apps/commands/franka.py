@@ -14,6 +14,7 @@ from ..common import (
     realtime_files,
     refuse_earlier_files,
     report_realtime,
+    warn_rivals,
     with_overrides,
 )
 
@@ -58,6 +59,7 @@ def main(args) -> int:
     names = (*realtime_files(stem), f"{stem}_cycles.npz")
     refuse_earlier_files(args.out, names, args.force)
     out = out_dir(args.out)
+    warn_rivals()  # another real-time process stalls this run: said before it starts
     print(
         f"{config.name}: {config.controller.label} on the Franka arm at {args.robot_ip} for "
         f"{config.simulation.duration:g} s (1 kHz torque control)",

@@ -18,6 +18,7 @@ from ..common import (
     realtime_files,
     refuse_earlier_files,
     report_realtime,
+    warn_rivals,
     with_overrides,
 )
 from ..packaged import CONFIG_HELP
@@ -99,6 +100,7 @@ def main(args) -> int:
     chosen_inner_law(experiment, 1.0 / config.realtime.rate, "realtime", law)
     refuse_earlier_files(args.out, realtime_files(f"{config.name}_realtime"), args.force)
     out = out_dir(args.out)
+    warn_rivals()  # another real-time process stalls this run: said before it starts
     about = f"{config.description} " if config.description else ""
     print(
         f"{config.name}: {about}({config.controller.label}) in real time at "

@@ -1,0 +1,130 @@
+"""``hmpc_pin.realtime.machine``: other processes' real-time threads, found in ``/proc``
+and checked against the scheduler's own answer (``os.sched_getscheduler``)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hmpc_pin.apps.cli import main
+from hmpc_pin.realtime.machine import PF_KTHREAD, realtime_rivals, rival_warnings
+
+from .test_cli_realtime import _config
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux /proc")
+
+# A child that takes SCHED_FIFO at the priority given (or says it may not), then sleeps.
+_CHILD = """
+import os, sys, time
+prio = int(sys.argv[1])
+try:
+    if prio:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(prio))
+    print("ok", flush=True)
+except OSError:
+    print("refused", flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.fixture
+def child():
+    """Start sleeping children (``child(priority)``: 0 = normal policy); killed after."""
+    procs: list[subprocess.Popen] = []
+
+    def start(priority: int) -> subprocess.Popen:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", _CHILD, str(priority)], stdout=subprocess.PIPE, text=True
+        )
+        procs.append(proc)
+        assert proc.stdout is not None
+        if proc.stdout.readline().strip() != "ok":
+            pytest.skip("this process may not set SCHED_FIFO (no CAP_SYS_NICE/rtprio limit)")
+        return proc
+
+    yield start
+    for proc in procs:
+        proc.kill()
+        proc.wait()
+
+
+def test_a_fifo_process_is_found_with_its_policy_and_priority(child):
+    proc = child(7)
+    mine = [r for r in realtime_rivals() if r.pid == proc.pid]
+    assert mine, "the SCHED_FIFO child was not found"
+    # the scheduler's own answer for the same process
+    assert os.sched_getscheduler(proc.pid) == os.SCHED_FIFO
+    assert {(r.policy, r.priority) for r in mine} == {
+        ("SCHED_FIFO", os.sched_getparam(proc.pid).sched_priority)
+    }
+    assert mine[0].name == Path(f"/proc/{proc.pid}/comm").read_text().strip()
+
+
+def test_a_normal_process_and_the_excluded_ones_are_not(child):
+    normal, fifo = child(0), child(5)
+    pids = {r.pid for r in realtime_rivals()}
+    assert normal.pid not in pids and fifo.pid in pids
+    assert fifo.pid not in {r.pid for r in realtime_rivals(exclude=[fifo.pid])}
+    assert os.getpid() not in pids
+
+
+def test_every_real_time_user_thread_is_found_and_no_kernel_thread():
+    """Against the scheduler: every thread the kernel reports under FIFO/RR that is not a
+    kernel thread (its ``flags``' PF_KTHREAD bit, read independently from ``status``'s
+    empty ``VmSize``) is listed, and nothing else."""
+    expected, kernel = set(), set()
+    for task in Path("/proc").glob("[0-9]*/task/[0-9]*"):
+        try:
+            policy = os.sched_getscheduler(int(task.name))
+            status = (task / "status").read_text()
+        except OSError:
+            continue
+        if policy not in (os.SCHED_FIFO, os.SCHED_RR):
+            continue
+        pid = int(task.parent.parent.name)
+        if "VmSize:" not in status:  # a kernel thread has no memory map
+            kernel.add(int(task.name))
+        elif pid != os.getpid():
+            expected.add(int(task.name))
+    found = {r.tid for r in realtime_rivals()}
+    assert not (found & kernel)
+    # (threads come and go between the two scans: a difference must have ended since)
+    assert not {tid for tid in expected ^ found if Path(f"/proc/{tid}").exists()}
+
+
+def test_a_stat_line_with_parentheses_in_its_name_is_read(tmp_path):
+    """``comm`` may hold spaces and ')' (proc(5)): fields are counted from its last ')'."""
+    fields = ["S"] + ["0"] * 50
+    fields[9 - 3] = str(0x400000)  # flags (field 9): a user thread
+    fields[40 - 3], fields[41 - 3] = "42", "2"  # rt_priority, policy SCHED_RR
+    task = tmp_path / "4242" / "task" / "4243"
+    task.mkdir(parents=True)
+    (task / "stat").write_text(f"4243 (my (odd) name) {' '.join(fields)}\n")
+    kthread = tmp_path / "7" / "task" / "7"
+    kthread.mkdir(parents=True)
+    kfields = list(fields)
+    kfields[9 - 3] = str(PF_KTHREAD)
+    (kthread / "stat").write_text(f"7 (migration/0) {' '.join(kfields)}\n")
+    (rival,) = realtime_rivals(proc=tmp_path)
+    assert (rival.pid, rival.tid, rival.name, rival.policy, rival.priority) == (
+        4242,
+        4243,
+        "my (odd) name",
+        "SCHED_RR",
+        42,
+    )
+    (line,) = rival_warnings(proc=tmp_path)
+    assert line.startswith("process 4242 (my (odd) name) runs under SCHED_RR 42:")
+
+
+def test_realtime_warns_of_a_real_time_process_before_its_run(tmp_path, capsys, child):
+    proc = child(3)
+    cfg = _config(tmp_path)
+    assert main(["realtime", str(cfg), "--duration", "0.3", "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    lines = [x for x in err.splitlines() if x.startswith(f"warning: process {proc.pid} ")]
+    assert len(lines) == 1 and "SCHED_FIFO 3" in lines[0] and "separate CPUs" in lines[0]

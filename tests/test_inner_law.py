@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -183,6 +184,17 @@ BAD = [
     ([], "inner_law = 'fast'\n", "", r"realtime\.inner_law: expected one of"),
     (["--inner-law", "every-cycle"], "", "Ts = 0.001\n", r"--inner-law: every-cycle does not"),
     ([], "inner_law = 'every-cycle'\n", "latency = 0.002\n", r"realtime\.inner_law:.*latency"),
+    # the planner's scheduling: only with the threaded law, and a valid one
+    ([], "planner = 'fifo'\n", "", r"realtime\.planner: does not apply: the inner law is whole"),
+    (["--inner-law", "every-cycle"], "planner = 5\n", "", r"realtime\.planner: does not apply"),
+    (
+        ["--inner-law", "threaded"],
+        "planner = 'fast'\n",
+        "",
+        r"realtime\.planner: expected \"auto\"",
+    ),
+    (["--inner-law", "threaded"], "planner = 20\n", "", r"niceness -20\.\.19, got 20"),
+    (["--inner-law", "threaded"], "planner = true\n", "", r"realtime\.planner: expected"),
 ]
 
 
@@ -223,6 +235,24 @@ def test_an_inner_law_that_does_not_apply_names_what_to_do(tmp_path):
     with pytest.raises(ConfigError, match=r"not the hierarchical MPC.*whole-step"):
         chosen_inner_law(wrapped, 1e-3, "ros", "threaded")
     assert inner_law_controller(wrapped, 1e-3, "ros") is wrapped.controller
+
+
+def test_the_planner_key_schedules_the_threaded_laws_thread(tmp_path):
+    """``[realtime] planner = 7``: the law built for the run carries it, and its planner
+    thread runs at niceness 7 once the first cycle applied it (read back from the OS)."""
+    config = load_config(_config(tmp_path, "inner_law = 'threaded'\nplanner = 7\n"))
+    exp = Experiment.from_config(config)
+    assert chosen_inner_law(exp, P, "realtime") == "threaded"
+    law = inner_law_controller(exp, P, "realtime")
+    with law:
+        assert isinstance(law, InnerLawThreaded) and law.planner_scheduling == 7
+        q0 = np.asarray(exp.q0, dtype=float)
+        law.reset(q0, np.zeros_like(q0))
+        law.step(0.0, q0, np.zeros_like(q0), exp.reference)
+        tid = law.planner.tid
+        stat = Path(f"/proc/{os.getpid()}/task/{tid}/stat").read_text()
+        niceness = int(stat[stat.rfind(")") + 2 :].split()[16])  # stat's field 19
+        assert niceness == law.summary()["planner_nice"] == 7
 
 
 def test_the_old_names_still_import_with_a_warning():

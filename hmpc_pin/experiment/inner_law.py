@@ -12,7 +12,8 @@ run the controller one of three ways, ``[realtime] inner_law`` (``--inner-law`` 
 - ``"threaded"``: the same with the MPC in a compiled thread, its latest plan used shifted
   within a staleness bound of its control horizon, ``max(Nc, 2) Ts``, and the brake when
   none is (:class:`~hmpc_pin.realtime.threaded_law.InnerLawThreaded`); also at ``Ts``
-  equal to the interface period (a long horizon's MPC off the torque cycle).
+  equal to the interface period (a long horizon's MPC off the torque cycle); its planner
+  thread scheduled by ``[realtime] planner`` (only with this law).
 
 The last two apply to the hierarchical MPC with a disturbance observer, no declared
 latency and (``"every-cycle"``) ``Ts`` above the interface period; asked for elsewhere
@@ -140,7 +141,19 @@ def chosen_inner_law(experiment, period: float, command: str, choice: str | None
     """
     key = "realtime.inner_law" if choice is None else "--inner-law"
     given = experiment.config.realtime.inner_law if choice is None else choice
-    return inner_law_of(given, command, experiment.controller, period, key)
+    law = inner_law_of(given, command, experiment.controller, period, key)
+    planner = experiment.config.realtime.planner
+    if planner is not None:
+        from ..realtime.threaded_law import checked_planner_scheduling
+
+        checked_planner_scheduling(planner, "realtime.planner")
+        if law != "threaded":
+            raise ConfigError(
+                "realtime.planner",
+                f"does not apply: the inner law is {law} (the planner is the threaded "
+                "law's MPC thread); drop it, or run the threaded law (--inner-law threaded)",
+            )
+    return law
 
 
 def inner_law_controller(
@@ -176,8 +189,13 @@ def inner_law_controller(
 
     cc = experiment.config.controller
     fast = make_compensation(experiment.robot, replace(cc, Ts=period), experiment.q0)
-    kind = InnerLawThreaded if law == "threaded" else InnerLawEveryCycle
-    return kind(ctrl, fast, period, effort_limit)
+    if law == "threaded":
+        threaded = InnerLawThreaded(ctrl, fast, period, effort_limit)
+        planner = experiment.config.realtime.planner
+        if planner is not None:  # (checked by chosen_inner_law)
+            threaded.planner_scheduling = planner
+        return threaded
+    return InnerLawEveryCycle(ctrl, fast, period, effort_limit)
 
 
 def _law(controller: Any) -> Any:

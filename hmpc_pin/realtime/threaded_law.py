@@ -57,10 +57,25 @@ from ..tasks.base import Reference, as_reference, reference_port
 from .inner_law import FloatArray, InnerLawEveryCycle
 from .pacing import realtime_policy
 
-__all__ = ["PLANNER_NICE", "InnerLawThreaded"]
+__all__ = ["PLANNER_NICE", "InnerLawThreaded", "checked_planner_scheduling"]
 
 #: The planner's niceness above the torque loop's when the loop runs under the normal policy.
 PLANNER_NICE = 10
+
+
+def checked_planner_scheduling(value, key: str = "planner_scheduling") -> int | str:
+    """``value`` as a planner scheduling: ``"auto"``, ``"fifo"`` or a niceness −20..19
+    (a whole number; the module doc's rule).
+
+    Raises:
+        ConfigError: Anything else, named ``key``.
+    """
+    if value in ("auto", "fifo"):
+        return value
+    if isinstance(value, int) and not isinstance(value, bool) and -20 <= value <= 19:
+        return int(value)
+    raise ConfigError(key, f'expected "auto", "fifo" or a niceness -20..19, got {value!r}')
+
 
 _KNOBS = (
     "max_iter",
@@ -177,11 +192,7 @@ class InnerLawThreaded(InnerLawEveryCycle):
         done by the run's first cycle. A change the system refuses (a niceness lowered
         without the right) leaves the planner as it was (``summary()`` tells)."""
         self._scheduled = True
-        mode = self.planner_scheduling
-        if not (mode in ("auto", "fifo") or (isinstance(mode, int) and -20 <= mode <= 19)):
-            raise ConfigError(
-                "planner_scheduling", f'expected "auto", "fifo" or a niceness -20..19, got {mode!r}'
-            )
+        mode = checked_planner_scheduling(self.planner_scheduling)
         tid = int(self.planner.tid)
         if not tid:  # not Linux, or stopped: nothing to schedule
             return

@@ -78,6 +78,13 @@ class RealtimeConfig:
             ``"every-cycle"`` where it applies, else ``"whole-step"``; ``hmpc-pin
             realtime`` and ``hmpc-pin ros`` ``"whole-step"``
             (:mod:`hmpc_pin.experiment.inner_law`).
+        planner: The threaded inner law's planner thread (``inner_law = "threaded"`` only;
+            with another law an error): ``"auto"`` (default) keeps the loop's niceness
+            under a real-time loop and sits 10 above it under a normal one; ``"fifo"``
+            runs it under ``SCHED_FIFO`` one priority below a real-time loop (under a
+            normal loop as ``"auto"``); a whole number −20..19 is its niceness
+            (:mod:`hmpc_pin.realtime.threaded_law`, checked with the law, before anything
+            runs).
         warm_up: Wake this long [s] before each MPC cycle's deadline and run the
             controller's step on the last measured state, undone (its memory then warm in
             the caches for the cycle's step), then busy-wait to the deadline; below
@@ -102,6 +109,7 @@ class RealtimeConfig:
     spin: float | str = "auto"
     warm_up: float = 2e-4
     inner_law: str = "auto"
+    planner: int | str | None = None
 
     def __post_init__(self):
         _set(self, "rate", _float("rate", self.rate, positive=True))

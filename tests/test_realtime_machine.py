@@ -3,6 +3,7 @@ and checked against the scheduler's own answer (``os.sched_getscheduler``)."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -11,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from hmpc_pin.apps.cli import main
-from hmpc_pin.realtime.machine import PF_KTHREAD, realtime_rivals, rival_warnings
+from hmpc_pin.realtime.machine import PF_KTHREAD, realtime_rivals, rival_warnings, steal_time
 
 from .test_cli_realtime import _config
 
@@ -122,9 +123,29 @@ def test_a_stat_line_with_parentheses_in_its_name_is_read(tmp_path):
 
 
 def test_realtime_warns_of_a_real_time_process_before_its_run(tmp_path, capsys, child):
+    """The warning before the run; and the run's record of the host's steal time lies
+    within the steal counted around the whole command."""
     proc = child(3)
     cfg = _config(tmp_path)
+    before = steal_time()
     assert main(["realtime", str(cfg), "--duration", "0.3", "--out", str(tmp_path)]) == 0
+    after = steal_time()
     err = capsys.readouterr().err
     lines = [x for x in err.splitlines() if x.startswith(f"warning: process {proc.pid} ")]
     assert len(lines) == 1 and "SCHED_FIFO 3" in lines[0] and "separate CPUs" in lines[0]
+    stats = json.loads((tmp_path / "rt_realtime.json").read_text())["realtime"]
+    assert 0.0 <= stats["host_steal_s"] <= after - before
+
+
+def test_steal_time_is_the_eighth_cpu_field_in_seconds(tmp_path):
+    tick = os.sysconf("SC_CLK_TCK")
+    stat = tmp_path / "stat"
+    stat.write_text("cpu  10 20 30 40 50 60 70 250 0 0\ncpu0 5 10 15 20 25 30 35 125 0 0\n")
+    assert steal_time(stat) == 250 / tick
+    stat.write_text("cpu  10 20 30 40\n")  # an old kernel: no steal column
+    assert steal_time(stat) == 0.0
+    assert steal_time(tmp_path / "absent") == 0.0
+    # the machine's own: its first line's eighth number, never decreasing
+    first = Path("/proc/stat").read_text().splitlines()[0].split()
+    now = steal_time()
+    assert now >= int(first[8]) / tick and steal_time() >= now

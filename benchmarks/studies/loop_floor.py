@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hmpc_pin.realtime.machine import steal_time
+
 _SPIN_READ = (
     "import hmpc_pin.realtime.process_arm as A; A.READ_SPINS = 100_000; A.READ_GIVE_UP = 0.0"
 )
@@ -88,14 +90,8 @@ def summary(x_us: np.ndarray, stall_us: float = 300.0, skipped: int = 0) -> dict
 
 
 def steal_ms() -> float:
-    """The machine's steal time so far [ms], summed over its CPUs (``/proc/stat``'s eighth
-    ``cpu`` field, in clock ticks; 0 where not reported)."""
-    try:
-        fields = Path("/proc/stat").read_text().splitlines()[0].split()
-    except OSError:
-        return 0.0
-    ticks = int(fields[8]) if len(fields) > 8 else 0
-    return 1e3 * ticks / os.sysconf("SC_CLK_TCK")
+    """The machine's steal time so far [ms] (:func:`hmpc_pin.realtime.machine.steal_time`)."""
+    return 1e3 * steal_time()
 
 
 def machine_block(rate: float, duration: float, priority: int, stall: float, tmp: Path):

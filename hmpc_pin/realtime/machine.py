@@ -1,4 +1,5 @@
-"""Other processes' real-time threads, looked at once before a real-time run starts.
+"""What else on the machine delays a real-time loop: other processes' real-time threads
+(looked at once before a run starts) and the host's steal time (counted over a run).
 
 A thread of another process under ``SCHED_FIFO``/``SCHED_RR`` takes a core whenever it
 runs: one at or above the loop's priority is never preempted by it, and one below it
@@ -10,7 +11,12 @@ section of ``BENCHMARKS.md``).
 :func:`rival_warnings` words each process found as one line naming it and what to do;
 ``hmpc-pin realtime``, ``ros``, ``ros-arm`` and ``franka`` issue them as
 :class:`~hmpc_pin.exceptions.RealtimeWarning` before the motion and go on. Nothing on the
-machine is changed. Linux only (elsewhere nothing is found).
+machine is changed.
+
+:func:`steal_time` is the time the hypervisor did not run this (virtual) machine's CPUs
+while they had work: the real-time loop records it over each run (``stats["host_steal_s"]``,
+printed when not zero), so that late cycles the host caused can be told from the loop's
+own. Linux only (elsewhere nothing is found, and the steal time is 0).
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["RealtimeRival", "realtime_rivals", "rival_warnings"]
+__all__ = ["RealtimeRival", "realtime_rivals", "rival_warnings", "steal_time"]
 
 #: ``/proc/<pid>/stat``'s ``flags``: a kernel thread (``PF_KTHREAD``).
 PF_KTHREAD = 0x00200000
@@ -114,3 +120,17 @@ def rival_warnings(exclude: Iterable[int] = (), proc: Path = Path("/proc")) -> l
             "run on separate CPUs (taskset, cpusets)"
         )
     return lines
+
+
+def steal_time(stat: Path = Path("/proc/stat")) -> float:
+    """The machine's steal time so far [s], summed over its CPUs: ``/proc/stat``'s eighth
+    ``cpu`` field (clock ticks; counted by a virtual machine's kernel from the
+    hypervisor's steal clock, 0 on bare metal). 0 where it is not reported."""
+    try:
+        with stat.open() as f:
+            fields = f.readline().split()
+    except OSError:
+        return 0.0
+    if len(fields) < 9 or fields[0] != "cpu":
+        return 0.0
+    return int(fields[8]) / os.sysconf("SC_CLK_TCK")

@@ -84,6 +84,11 @@ class RealtimeRun:
             f"  missed deadlines: {s['misses']} ({100 * s['miss_fraction']:.3f} %; "
             f"{s['skipped']} skipped), longest run of misses {s['max_consecutive_misses']}",
         ]
+        if s.get("host_steal_s", 0.0) > 0:
+            lines.append(
+                f"  host steal during the run: {1e3 * s['host_steal_s']:.0f} ms (the "
+                "hypervisor did not run this machine's CPUs while they had work)"
+            )
         if s.get("arm_gaps"):
             lines.append(f"  periods with no state from the arm: {s['arm_gaps']}")
         age, declared = s.get("measured_latency"), s.get("declared_latency")

@@ -5,11 +5,11 @@ A thread of another process under ``SCHED_FIFO``/``SCHED_RR`` takes a core whene
 runs: one at or above the loop's priority is never preempted by it, and one below it
 still preempts the loop's arm process (one level below the loop) and every normal thread
 the run needs (the middleware's). Two real-time loops on a 2-core machine stalled each
-other by about 0.1 s and stopped the later one on its consecutive misses (the "1 kHz"
-section of ``BENCHMARKS.md``).
+other by about 0.1 s, enough to stop one on its consecutive misses (the real-time
+tutorial, "Scheduling").
 
 :func:`rival_warnings` words each process found as one line naming it and what to do;
-``hmpc-pin realtime``, ``ros``, ``ros-arm`` and ``franka`` issue them as
+``hmpc-pin realtime`` and ``hmpc-pin franka`` issue them as
 :class:`~hmpc_pin.exceptions.RealtimeWarning` before the motion and go on. Nothing on the
 machine is changed.
 

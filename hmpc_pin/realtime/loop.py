@@ -226,6 +226,12 @@ def _inner(controller):
     return c
 
 
+def _declared_latency(controller) -> float | None:
+    """The latency [s] the controller compensates (``None``: it has no such setting)."""
+    latency = getattr(_inner(controller), "latency", None)
+    return None if latency is None else float(latency)
+
+
 class RealtimeLoop(Cycles, StopSequence):
     """Run a controller against a :class:`~hmpc_pin.realtime.interface.RobotInterface`
     at a fixed rate (module doc).
@@ -573,7 +579,6 @@ class RealtimeLoop(Cycles, StopSequence):
         timing = rec.timing_stats()
         cycles_run = timing.pop("cycles_run")
         watch = self._gc_watch
-        declared = getattr(_inner(ctrl), "latency", None)  # (None: no such setting)
         stats = {
             "rate": st.rate,
             "controller_Ts": float(ctrl.Ts),
@@ -588,7 +593,7 @@ class RealtimeLoop(Cycles, StopSequence):
             # measurement -> torque written, at the controller's steps (None: the stamps
             # are on the arm's own clock) against the declared [controller] latency
             "measured_latency": latency_stats(rec.age) if self._stamp_clocked() else None,
-            "declared_latency": None if declared is None else float(declared),
+            "declared_latency": _declared_latency(ctrl),
             "gc_handling": st.gc_handling,
             "gc_collections": tally.gc_runs,
             "gc_deferred": tally.gc_deferred,

@@ -100,7 +100,6 @@ from ..sim.result import Result
 from ..tasks.base import as_reference
 from .cycles import RELAX_MISSES, RELAX_WATCHDOG, Cycles
 from .interface import PacedInterface, RobotInterface
-from .machine import steal_time
 from .pacing import (
     GCWatch,
     Tally,
@@ -286,7 +285,6 @@ class RealtimeLoop(Cycles, StopSequence):
         self.interface, self.controller = interface, controller
         self.lock_memory, self.cpu_latency = lock_memory, cpu_latency
         self._memory_lock = self._cpu_latency = "off"  # the last run's outcomes
-        self._steal0 = 0.0
         self.reference = as_reference(reference)
         self.safe_torque, self.settings, self.safety = safe_torque, settings, safety
         self.paced = isinstance(interface, PacedInterface)
@@ -476,7 +474,6 @@ class RealtimeLoop(Cycles, StopSequence):
                     stack.enter_context(timer_slack(1))
                     if self.settings.spin == "auto":  # spinning pays under a real-time policy
                         self._waker.adapt(realtime)
-                self._steal0 = steal_time()  # the host's, counted over the run
                 return self._run(q0, dq0, start)
         except BaseException:
             # Whatever went wrong (a bug, a second Ctrl-C): the arm gets the held-safe
@@ -605,7 +602,6 @@ class RealtimeLoop(Cycles, StopSequence):
             "loop_stalls": self._stalls,
             "memory_lock": self._memory_lock,
             "cpu_latency": self._cpu_latency,
-            "host_steal_s": steal_time() - self._steal0,
             "brake": brake,
             "arm_gaps": gaps,
         }

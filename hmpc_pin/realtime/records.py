@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..sim.result import Result
+from .machine import steal_time
 
 __all__ = ["RealtimeRun", "Records", "latency_stats"]
 
@@ -121,7 +122,7 @@ class Records:
     """The run's preallocated records: trajectories at the controller steps (``J``
     rows), timing per interface cycle (``C`` entries, NaN where skipped)."""
 
-    __slots__ = ("age", "done", "gc", "j", "missed", "mpc", "stamp", "t", "traj", "wake")
+    __slots__ = ("age", "done", "gc", "j", "missed", "mpc", "stamp", "steal0", "t", "traj", "wake")
 
     def __init__(self, J: int, C: int, n: int):
         self.traj = {
@@ -133,6 +134,7 @@ class Records:
         self.missed = np.zeros(C, dtype=bool)
         self.mpc = np.zeros(C, dtype=bool)
         self.j = 0  # controller steps recorded
+        self.steal0 = steal_time()  # the host's steal time, counted from the set-up on
 
     def cycle(self, k: int, wake: float, done: float, stamp: float, is_mpc: bool) -> None:
         """Cycle ``k``'s wake and write times after its deadline [s], stamp, kind."""
@@ -156,9 +158,11 @@ class Records:
     def timing_stats(self) -> dict:
         """The cycles run and the latency statistics (:func:`latency_stats`) of the
         deadline → torque latency, the wake-up, the compute time (wake → torque) and the
-        latency of the cycles that ran the controller."""
+        latency of the cycles that ran the controller; and ``host_steal_s``, the host's
+        steal time [s] since the records were made (:func:`.machine.steal_time`)."""
         done, wake = self.done, self.wake
         return {
+            "host_steal_s": steal_time() - self.steal0,
             "cycles_run": int(np.count_nonzero(np.isfinite(done))),
             "latency": latency_stats(done),
             "wake": latency_stats(wake),

@@ -79,10 +79,10 @@ class RealtimeConfig:
             realtime`` and ``hmpc-pin ros`` ``"whole-step"``
             (:mod:`hmpc_pin.experiment.inner_law`).
         planner: The threaded inner law's planner thread (``inner_law = "threaded"`` only;
-            with another law an error): ``"auto"`` (default) keeps the loop's niceness
-            under a real-time loop and sits 10 above it under a normal one; ``"fifo"``
-            runs it under ``SCHED_FIFO`` one priority below a real-time loop (under a
-            normal loop as ``"auto"``); a whole number −20..19 is its niceness
+            with another law an error): ``"auto"`` (also when not given) keeps the loop's
+            niceness under a real-time loop and sits 10 above it under a normal one;
+            ``"fifo"`` runs it under ``SCHED_FIFO`` one priority below a real-time loop
+            (under a normal loop as ``"auto"``); a whole number −20..19 is its niceness
             (:mod:`hmpc_pin.realtime.threaded_law`, checked with the law, before anything
             runs).
         warm_up: Wake this long [s] before each MPC cycle's deadline and run the

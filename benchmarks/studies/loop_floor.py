@@ -89,11 +89,6 @@ def summary(x_us: np.ndarray, stall_us: float = 300.0, skipped: int = 0) -> dict
     }
 
 
-def steal_ms() -> float:
-    """The machine's steal time so far [ms] (:func:`hmpc_pin.realtime.machine.steal_time`)."""
-    return 1e3 * steal_time()
-
-
 def machine_block(rate: float, duration: float, priority: int, stall: float, tmp: Path):
     """One cyclictest block: the wake-up latency of a FIFO thread at ``rate`` [Hz]."""
     hist = tmp / "hist.txt"
@@ -170,14 +165,11 @@ def loop_block(args, variant: str, tmp: Path, pair: int = 0):
     }
 
 
-def _cells(r: dict) -> tuple[dict, float, float]:
-    return r["latency"], r["load"], r["steal"]
-
-
-def _line(name: str, s: dict, load: float, steal: float) -> str:
+def _line(name: str, s: dict, r: dict) -> str:
+    """A table row: the summary ``s`` with block ``r``'s load and steal time [ms]."""
     return (
         f"| {name} | {s['median']:.0f} | {s['p99']:.0f} | {s['p999']:.0f} | {s['max']:.0f} "
-        f"| {s['stalls']} | {load:.1f} | {steal:.0f} |"
+        f"| {s['stalls']} | {r['load']:.1f} | {1e3 * r['steal']:.0f} |"
     )
 
 
@@ -210,19 +202,19 @@ def main(argv=None) -> int:
         for pair in range(args.pairs):
             order = names[pair % len(names) :] + names[: pair % len(names)]
             for name in order:
-                stolen = steal_ms()
+                stolen = steal_time()
                 if name == "machine":
                     r = machine_block(args.rate, args.duration, args.priority, args.stall, tmp)
                 else:
                     r = loop_block(args, name, tmp, pair + 1)
                 r["load"] = os.getloadavg()[0]
-                r["steal"] = steal_ms() - stolen
+                r["steal"] = steal_time() - stolen  # [s]
                 rows[name].append(r)
                 tag = "" if name == "machine" else f", missed {r['missed']}"
                 stop = " SAFE STOP" if r.get("safe_stop") else ""
-                print(_line(f"{pair + 1} {name} latency{tag}{stop}", *_cells(r)))
+                print(_line(f"{pair + 1} {name} latency{tag}{stop}", r["latency"], r))
                 if name != "machine":
-                    print(_line(f"{pair + 1} {name} wake", r["wake"], *_cells(r)[1:]))
+                    print(_line(f"{pair + 1} {name} wake", r["wake"], r))
                 sys.stdout.flush()
     print()
     for name in names:
